@@ -1,0 +1,98 @@
+"""Parameter references as a user types them, and the families' code <-> index rules.
+
+A reference is either a vendor code (``C00088``, ``C88``, ``88``, ``C00118/3``, ``C00118.3``, ``P2040``,
+``r2054.3``) or a CANopen index (``0x5FA7``, ``0x5FA7.0``, ``0x5FA7sub0``, ``5FA7sub0``, ``0x1017``).
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+from drivebench.device.profile import (
+    Addressing,
+    CanopenOnlyAddressing,
+    LenzeCodeAddressing,
+    SiemensParameterAddressing,
+)
+from drivebench.errors import UnknownParameter
+
+_INDEX_RE = re.compile(r"^(?:0x)?([0-9a-f]{4})(?:(?:\.|sub|:|/)(?:0x)?([0-9a-f]{1,2}))?$", re.IGNORECASE)
+_CODE_RE = re.compile(r"^([CPR])?\s*0*(\d{1,5})(?:[./](\d{1,3}))?$", re.IGNORECASE)
+
+
+@dataclass(frozen=True)
+class IndexRef:
+    index: int
+    subindex: int | None  # None: "the object", i.e. subindex 0 for a VAR
+
+
+@dataclass(frozen=True)
+class CodeRef:
+    prefix: str  # "C", "P", "r" or "" when the user typed just a number
+    number: int
+    subcode: int | None
+
+
+Ref = IndexRef | CodeRef
+
+
+def parse_ref(text: str) -> Ref:
+    """Parse what a user typed into a reference. Raises UnknownParameter with the accepted forms."""
+    cleaned = text.strip()
+    is_hex_index = cleaned.lower().startswith("0x") or "sub" in cleaned.lower() or (
+        len(cleaned.split(".")[0]) == 4 and any(c in "abcdefABCDEF" for c in cleaned)
+    )
+    if is_hex_index:
+        match = _INDEX_RE.match(cleaned)
+        if match:
+            sub = int(match.group(2), 16) if match.group(2) else None
+            return IndexRef(int(match.group(1), 16), sub)
+    match = _CODE_RE.match(cleaned)
+    if match:
+        prefix = (match.group(1) or "")
+        prefix = "r" if prefix == "r" else prefix.upper()
+        sub = int(match.group(3)) if match.group(3) is not None else None
+        return CodeRef(prefix, int(match.group(2)), sub)
+    raise UnknownParameter(
+        f"'{text}' is not a parameter reference. Use a vendor code (C00088, C00118/3, P2040, r2054.3) "
+        "or a CANopen index (0x5FA7, 0x5FA7.0, 0x1018sub1)."
+    )
+
+
+def code_to_index(addressing: Addressing, number: int, subcode: int = 0) -> tuple[int, int]:
+    """Vendor code number (including a Lenze parameter-set offset, C2011 = C0011 in set 2) -> (index, sub)."""
+    if isinstance(addressing, LenzeCodeAddressing):
+        index = addressing.base - number
+        if not 0x2000 <= index <= addressing.base:
+            raise UnknownParameter(f"Code C{number} is outside the Lenze code range (index 0x{index:04X})")
+        return index, subcode
+    if isinstance(addressing, SiemensParameterAddressing):
+        return addressing.base + number, subcode
+    raise UnknownParameter("This device has no vendor parameter codes; use a CANopen index such as 0x1017")
+
+
+def index_to_code(addressing: Addressing, index: int, subindex: int) -> tuple[int, int] | None:
+    """(index, sub) -> (code number, subcode), or None where the index is not a vendor parameter."""
+    if isinstance(addressing, LenzeCodeAddressing):
+        number = addressing.base - index
+        return (number, subindex) if 0 <= number <= addressing.base - 0x2000 and index < 0x6000 else None
+    if isinstance(addressing, SiemensParameterAddressing):
+        if 0x2000 <= index <= 0x5FFF:
+            return index - addressing.base, subindex
+        return None
+    if isinstance(addressing, CanopenOnlyAddressing):
+        return None
+    return None
+
+
+def lenze_parameter_set(addressing: Addressing, number: int) -> tuple[int, int]:
+    """C2011 -> (11, 2): the base code number and the parameter set (1..4) it addresses."""
+    if isinstance(addressing, LenzeCodeAddressing) and addressing.set_offset:
+        return number % addressing.set_offset, number // addressing.set_offset + 1
+    return number, 1
+
+
+def format_code(addressing: Addressing, prefix: str, number: int) -> str:
+    digits = addressing.code_digits if isinstance(addressing, LenzeCodeAddressing) else 4
+    return f"{prefix}{number:0{digits}d}"

@@ -1,0 +1,152 @@
+"""One profile, flattened into addressable items: what a node's parameter table shows and what a ref resolves to."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+from drivebench.device.addressing import (
+    CodeRef,
+    IndexRef,
+    code_to_index,
+    format_code,
+    index_to_code,
+    lenze_parameter_set,
+    parse_ref,
+)
+from drivebench.device.profile import Entry, ObjectEntry, Parameter, Profile
+from drivebench.errors import UnknownParameter
+
+
+@dataclass(frozen=True)
+class Item:
+    """One value on the device: where it lives on the bus and what the profile says about it."""
+
+    ref: str
+    """Canonical name: ``C00088``, ``C00118/3``, ``P2040``, ``r2054.3`` or ``0x1017`` / ``0x1018.1``."""
+    index: int
+    subindex: int
+    entry: Entry
+    parameter_set: int = 1
+
+    @property
+    def name(self) -> str:
+        entry = self.entry
+        if isinstance(entry, Parameter) and entry.subcode_name:
+            return f"{entry.name}: {entry.subcode_name}"
+        if isinstance(entry, ObjectEntry) and entry.object_name and entry.object_type != "VAR":
+            return f"{entry.object_name}: {entry.name}"
+        return entry.name
+
+    @property
+    def address(self) -> str:
+        return f"0x{self.index:04X}sub{self.subindex}"
+
+    @property
+    def group(self) -> str:
+        if self.entry.group:
+            return self.entry.group
+        return "Communication objects" if self.index < 0x2000 else "Device profile objects"
+
+
+def index_ref(index: int, subindex: int) -> str:
+    return f"0x{index:04X}" if subindex == 0 else f"0x{index:04X}.{subindex}"
+
+
+class Catalog:
+    """Lookup of a profile's items by vendor code, by index, or by search text."""
+
+    def __init__(self, profile: Profile) -> None:
+        self.profile = profile
+        self._by_address: dict[tuple[int, int], Item] = {}
+        self._by_code: dict[tuple[str, int], Item] = {}
+        for par in profile.parameters:
+            number = int("".join(ch for ch in par.code if ch.isdigit()))
+            if par.index is not None:
+                index, sub = par.index, par.subindex if par.subindex is not None else par.subcode
+            else:
+                index, sub = code_to_index(profile.addressing, number, par.subcode)
+            item = Item(par.ref, index, sub, par)
+            self._by_address.setdefault((index, sub), item)
+            self._by_code[(par.code.upper(), par.subcode)] = item
+        for obj in profile.objects:
+            item = Item(index_ref(obj.index, obj.subindex), obj.index, obj.subindex, obj)
+            self._by_address.setdefault((obj.index, obj.subindex), item)
+
+    @cached_property
+    def items(self) -> list[Item]:
+        """Every item: vendor parameters first (the manual's order), then CANopen objects by index."""
+        params = [i for i in self._by_code.values()]
+        objects = sorted((i for i in self._by_address.values() if not isinstance(i.entry, Parameter)),
+                         key=lambda i: (i.index, i.subindex))
+        return params + objects
+
+    def by_address(self, index: int, subindex: int) -> Item | None:
+        return self._by_address.get((index, subindex))
+
+    def resolve(self, text: str) -> Item:
+        """Resolve what a user typed. Raises UnknownParameter naming the device."""
+        ref = parse_ref(text)
+        if isinstance(ref, IndexRef):
+            sub = ref.subindex if ref.subindex is not None else 0
+            item = self._by_address.get((ref.index, sub))
+            if item is None:
+                raise UnknownParameter(
+                    f"0x{ref.index:04X}sub{sub} is not in the profile '{self.profile.identity.product_name}'")
+            return item
+        return self._resolve_code(ref, text)
+
+    def _resolve_code(self, ref: CodeRef, text: str) -> Item:
+        prefixes = ["C"] if ref.prefix in ("", "C") else [ref.prefix.upper(), "P", "R"]
+        subcode = ref.subcode or 0
+        addressing = self.profile.addressing
+        for prefix in prefixes:
+            for digits in (5, 4, 0):
+                code = f"{prefix}{ref.number:0{digits}d}" if digits else f"{prefix}{ref.number}"
+                item = self._by_code.get((code.upper(), subcode))
+                if item is not None:
+                    return item
+        # Lenze parameter sets: C2011 is C0011 in parameter set 2.
+        base_number, pset = lenze_parameter_set(addressing, ref.number)
+        if pset > 1:
+            base = self._resolve_code(CodeRef(ref.prefix, base_number, ref.subcode), text)
+            if isinstance(base.entry, Parameter) and base.entry.parameter_sets >= pset:
+                index, sub = code_to_index(addressing, ref.number, subcode)
+                name = format_code(addressing, "C", ref.number)
+                return Item(name if subcode == 0 else f"{name}/{subcode}", index, sub, base.entry, pset)
+        raise UnknownParameter(f"'{text}' is not a parameter of '{self.profile.identity.product_name}'")
+
+    def search(self, text: str) -> list[Item]:
+        """Items whose code, index or name matches ``text`` (``88``, ``C00088``, ``rated motor current``,
+        ``0x5FA7``, ``5FA7sub0``)."""
+        query = text.strip().lower()
+        if not query:
+            return self.items
+        exact: list[Item] = []
+        try:
+            exact = [self.resolve(text)]
+        except UnknownParameter:
+            pass
+        words = query.split()
+        hits = [
+            item for item in self.items
+            if item not in exact and (
+                all(w in item.name.lower() for w in words)
+                or query in item.ref.lower()
+                or query.replace("0x", "") in item.address.lower()
+            )
+        ]
+        return exact + hits
+
+    def vendor_ref(self, index: int, subindex: int) -> str:
+        """The name to show for an address, even one the profile does not list."""
+        item = self._by_address.get((index, subindex))
+        if item is not None:
+            return item.ref
+        found = index_to_code(self.profile.addressing, index, subindex)
+        if found is None:
+            return index_ref(index, subindex)
+        number, sub = found
+        prefix = "P" if self.profile.addressing.kind == "siemens_mm4" else "C"
+        code = format_code(self.profile.addressing, prefix, number)
+        return code if sub == 0 else f"{code}/{sub}"

@@ -1,0 +1,240 @@
+"""The device profile model: what the tool knows about one drive type.
+
+A profile has three parts:
+
+* identity (vendor id, product code, names, the manual it was built from),
+* ``objects``: CANopen object dictionary entries addressed by index/subindex (0x1000 ..., CiA 402 0x6040 ...),
+* ``parameters``: the vendor parameter layer (Lenze codes ``C00088``, Siemens ``P2040``/``r2054``), addressed by
+  code and subcode; the family's ``addressing`` rule maps them onto CANopen indices.
+
+All limits and defaults are in **engineering units** (what the manual prints, e.g. 10.20 A); ``factor`` converts:
+``raw = round(value * factor)`` (Lenze: factor 100 = two decimals; EMF2178IB FIX32: factor 10000).
+JSON files in ``device_profiles/`` are this model serialised; ``/api/profiles/schema`` publishes its JSON schema.
+"""
+
+from __future__ import annotations
+
+from enum import StrEnum
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, PlainSerializer, model_validator
+
+from drivebench.protocol.datatypes import DataType
+
+
+def _parse_int(value: Any) -> Any:
+    """Accept ints and strings like ``"0x5FA7"``, ``"24487"``, ``"0o17"`` in profile files."""
+    if isinstance(value, str):
+        return int(value.strip(), 0)
+    return value
+
+
+HexInt = Annotated[int, BeforeValidator(_parse_int), PlainSerializer(lambda v: f"0x{v:04X}", return_type=str)]
+Number = int | float
+Value = int | float | str
+
+
+class Access(StrEnum):
+    """CiA 306 access types."""
+
+    RO = "ro"
+    WO = "wo"
+    RW = "rw"
+    RWR = "rwr"
+    RWW = "rww"
+    CONST = "const"
+
+    @property
+    def readable(self) -> bool:
+        return self is not Access.WO
+
+    @property
+    def writable(self) -> bool:
+        return self in (Access.WO, Access.RW, Access.RWR, Access.RWW)
+
+
+class Entry(BaseModel):
+    """Fields shared by CANopen objects and vendor parameters: one readable/writable value."""
+
+    model_config = ConfigDict(extra="forbid", use_enum_values=False)
+
+    name: str
+    data_type: DataType
+    access: Access = Access.RW
+    unit: str | None = None
+    factor: Number = 1
+    """raw = round(value * factor); 1 for plain integers, 100 for two decimals, 10000 for Lenze FIX32."""
+    min: Number | None = None
+    max: Number | None = None
+    default: Value | None = None
+    selection: dict[int, str] = Field(default_factory=dict)
+    """Selection list: raw value -> meaning (C00351: 0 -> '500 kbit/s')."""
+    bits: dict[int, str] = Field(default_factory=dict)
+    """Bit-coded words: bit number -> meaning."""
+    pdo_mappable: bool = False
+    reset_required: bool = False
+    """Takes effect only after reset node (C00350, C00351 ...)."""
+    group: str | None = None
+    description: str | None = None
+
+    @model_validator(mode="after")
+    def _check_limits(self) -> Entry:
+        if self.min is not None and self.max is not None and self.min > self.max:
+            raise ValueError(f"{self.name}: min {self.min} is greater than max {self.max}")
+        if self.factor == 0:
+            raise ValueError(f"{self.name}: factor must not be 0")
+        return self
+
+    @property
+    def decimals(self) -> int:
+        """Digits after the decimal point implied by the factor (100 -> 2)."""
+        f, n = float(self.factor), 0
+        while f >= 10 and n < 6:
+            f /= 10
+            n += 1
+        return n
+
+
+class ObjectEntry(Entry):
+    """One CANopen object dictionary entry (index, subindex)."""
+
+    index: HexInt
+    subindex: int = Field(0, ge=0, le=255)
+    object_name: str | None = None
+    """Name of the record/array this sub-entry belongs to (``Identity object`` for 0x1018sub1)."""
+    object_type: Literal["VAR", "ARRAY", "RECORD"] = "VAR"
+    code: str | None = None
+    """Vendor code that shows the same data (``C00381`` for 0x1017), for cross reference only."""
+
+
+class Parameter(Entry):
+    """One vendor parameter: a Lenze code/subcode or a Siemens P/r parameter (and index after the point)."""
+
+    code: str
+    """Vendor name without subcode: ``C00088``, ``C0011``, ``P2040``, ``r2054``."""
+    subcode: int = Field(0, ge=0, le=255)
+    subcode_name: str | None = None
+    index: HexInt | None = None
+    """Explicit CANopen index where the family's addressing rule does not apply."""
+    subindex: int | None = None
+    parameter_sets: int = Field(1, ge=1, le=4)
+    """How many Lenze parameter sets this code exists in (8200 vector: up to 4)."""
+
+    @property
+    def ref(self) -> str:
+        """The name a user types: ``C00088``, ``C00118/3``, ``r2054.3``."""
+        if self.subcode == 0:
+            return self.code
+        sep = "." if self.code[:1] in ("P", "r") else "/"
+        return f"{self.code}{sep}{self.subcode}"
+
+
+class LenzeCodeAddressing(BaseModel):
+    """Lenze: index = 0x5FFF - (code + set_offset * (parameter set - 1)), subindex = subcode."""
+
+    kind: Literal["lenze_code"] = "lenze_code"
+    base: HexInt = 0x5FFF
+    set_offset: int = 2000
+    code_digits: int = 5
+    """How the manual prints codes: 5 for ``C00088`` (8400), 4 for ``C0088`` (8200 vector/93XX)."""
+
+
+class SiemensParameterAddressing(BaseModel):
+    """MICROMASTER: index = 0x2000 + parameter number, subindex = the index after the point."""
+
+    kind: Literal["siemens_mm4"] = "siemens_mm4"
+    base: HexInt = 0x2000
+
+
+class CanopenOnlyAddressing(BaseModel):
+    kind: Literal["canopen"] = "canopen"
+
+
+Addressing = Annotated[
+    LenzeCodeAddressing | SiemensParameterAddressing | CanopenOnlyAddressing, Field(discriminator="kind")
+]
+
+
+class Identity(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    vendor_name: str
+    vendor_id: HexInt | None = None
+    product_name: str
+    product_code: HexInt | None = None
+    revision: HexInt | None = None
+    order_codes: list[str] = Field(default_factory=list)
+    device_type: HexInt | None = None
+    """Value of object 0x1000."""
+
+
+class Features(BaseModel):
+    """Communication capabilities the manual states."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    sdo_channels: int = 1
+    segmented_sdo: bool = True
+    block_sdo: bool = False
+    rpdo_count: int = 0
+    tpdo_count: int = 0
+    max_mapping_entries: int = 8
+    heartbeat_producer: bool = True
+    heartbeat_consumers: int = 0
+    node_guarding: bool = False
+    node_id_range: tuple[int, int] = (1, 127)
+    baud_rates_kbit: list[int] = Field(default_factory=lambda: [10, 20, 50, 125, 250, 500, 800, 1000])
+    transport: Literal["canopen", "ethercat_coe"] = "canopen"
+    sdo_processing_time_ms: Number | None = None
+    """Typical parameter data processing time the manual gives (simulator default latency)."""
+
+
+class EmcyCode(BaseModel):
+    """A vendor meaning for an emergency code (and/or manufacturer-specific error number)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    code: HexInt
+    text: str
+    vendor_error: str | None = None
+    """The device's own error number or name (8400: Lenze error number; MICROMASTER: F0070 ...)."""
+    remedy: str | None = None
+
+
+class Profile(BaseModel):
+    """A complete device profile (one JSON file in ``device_profiles/``)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    id: str = Field(pattern=r"^[a-z0-9][a-z0-9_.-]*$")
+    version: str = "1"
+    family: str
+    """Profile family: ``lenze-8400``, ``lenze-emf2178ib``, ``siemens-mm4`` ..."""
+    identity: Identity
+    source: str | None = None
+    """The manual this profile was built from (title, edition, chapter)."""
+    addressing: Addressing = Field(default_factory=CanopenOnlyAddressing)
+    features: Features = Field(default_factory=Features)
+    groups: list[str] = Field(default_factory=list)
+    """Parameter groups in the manual's order."""
+    objects: list[ObjectEntry] = Field(default_factory=list)
+    parameters: list[Parameter] = Field(default_factory=list)
+    emcy_codes: list[EmcyCode] = Field(default_factory=list)
+    notes: list[str] = Field(default_factory=list)
+    """Manual errata and ambiguities, with the reading this profile follows."""
+
+    @model_validator(mode="after")
+    def _check_unique(self) -> Profile:
+        seen: set[tuple[int, int]] = set()
+        for obj in self.objects:
+            key = (obj.index, obj.subindex)
+            if key in seen:
+                raise ValueError(f"duplicate object 0x{obj.index:04X}sub{obj.subindex}")
+            seen.add(key)
+        refs: set[tuple[str, int]] = set()
+        for par in self.parameters:
+            pkey = (par.code.upper(), par.subcode)
+            if pkey in refs:
+                raise ValueError(f"duplicate parameter {par.ref}")
+            refs.add(pkey)
+        return self
