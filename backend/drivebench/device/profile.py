@@ -105,6 +105,14 @@ class ObjectEntry(Entry):
     object_type: Literal["VAR", "ARRAY", "RECORD"] = "VAR"
     code: str | None = None
     """Vendor code that shows the same data (``C00381`` for 0x1017), for cross reference only."""
+    default_expr: str | None = None
+    """CiA 306 ``$NODEID`` formula for the default (``$NODEID+0x180``); ``default`` is then None."""
+    parameter_value: Value | None = None
+    """DCF ``ParameterValue`` (raw); a ``$NODEID`` formula stays a string."""
+    denotation: str | None = None
+    """DCF ``Denotation``: the name a system integrator gave this object."""
+    obj_flags: int | None = None
+    """CiA 306 ``ObjFlags`` (bit 0: do not read in configuration, bit 1: do not write)."""
 
 
 class Parameter(Entry):
@@ -222,6 +230,8 @@ class Profile(BaseModel):
     emcy_codes: list[EmcyCode] = Field(default_factory=list)
     notes: list[str] = Field(default_factory=list)
     """Manual errata and ambiguities, with the reading this profile follows."""
+    extra_sections: dict[str, dict[str, str]] = Field(default_factory=dict)
+    """EDS sections (and FileInfo/DeviceInfo keys) the model has no field for, kept for round trips."""
 
     @model_validator(mode="after")
     def _check_unique(self) -> Profile:
