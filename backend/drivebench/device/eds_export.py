@@ -1,0 +1,276 @@
+"""CiA 306 EDS/DCF export: a :class:`Profile` -> EDS or DCF text that :func:`import_eds` reads back unchanged.
+
+canopen's ``export_od`` is not used: it drops ObjFlags, Denotation, comments and unknown sections (libs.md §3).
+Vendor parameters (Lenze codes, Siemens P/r parameters) become manufacturer objects at the index the family's
+addressing rule gives, named ``C00088: Rated motor current``. Values are written raw (``raw = value * factor``);
+``Factor``/``Unit``/``Description`` are written as canopen's extension keys so the import restores engineering units.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+
+from drivebench.device.addressing import code_to_index, format_code
+from drivebench.device.catalog import Catalog
+from drivebench.device.eds import (
+    BAUD_RATES_KBIT,
+    DEVICE_INFO_DEFAULTS,
+    OBJECT_TYPE_CODES,
+    OWN_SECTION,
+    file_info_defaults,
+    node_expr,
+    resolve_node_expr,
+)
+from drivebench.device.profile import Access, LenzeCodeAddressing, ObjectEntry, Parameter, Profile, Value
+from drivebench.errors import ProfileError, UnknownParameter
+from drivebench.protocol.datatypes import DataType
+
+MANDATORY = (0x1000, 0x1001, 0x1018)
+Address = tuple[int, int]
+
+
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split("\n")).replace("\r", " ")
+
+
+def _format(data_type: DataType, raw: Value) -> str:
+    """A raw value as EDS text: unsigned 24..64-bit in hex, other integers decimal, floats exact."""
+    if isinstance(raw, str):
+        return _one_line(raw)
+    if data_type.is_float:
+        return repr(float(raw))
+    if data_type.is_integer:
+        number = round(raw)
+        size = data_type.size or 0
+        if not data_type.is_signed and size >= 3 and number >= 0:
+            return f"0x{number:0{size * 2}X}"
+        return str(number)
+    return _one_line(str(raw))
+
+
+def _raw(entry: ObjectEntry, value: Value) -> Value:
+    """Engineering units -> raw, as the device holds it."""
+    if isinstance(value, str) or entry.factor == 1:
+        return value
+    if entry.data_type.is_integer:
+        return round(value * entry.factor)
+    return value * entry.factor
+
+
+def _parameter_objects(profile: Profile, taken: set[int]) -> list[ObjectEntry]:
+    """Vendor parameters as manufacturer objects at their CANopen index (parameter sets 2..4 included)."""
+    if not profile.parameters:
+        return []
+    try:
+        catalog = Catalog(profile)
+    except UnknownParameter as exc:
+        raise ProfileError(f"{profile.id}: {exc.detail}", source=profile.id) from exc
+    by_index: dict[int, dict[int, tuple[Parameter, str, str]]] = {}
+    for item in catalog.items:
+        par = item.entry
+        if not isinstance(par, Parameter):
+            continue
+        places = [(item.index, item.subindex, par.code, "")]
+        addressing = profile.addressing
+        if isinstance(addressing, LenzeCodeAddressing) and par.index is None:
+            number = int("".join(ch for ch in par.code if ch.isdigit()))
+            for pset in range(2, par.parameter_sets + 1):
+                set_number = number + addressing.set_offset * (pset - 1)
+                try:
+                    index, sub = code_to_index(addressing, set_number, par.subcode)
+                except UnknownParameter:
+                    continue
+                places.append((index, sub, format_code(addressing, "C", set_number), f" (parameter set {pset})"))
+        for index, sub, code, suffix in places:
+            if index not in taken and 0x2000 <= index <= 0x5FFF:
+                by_index.setdefault(index, {}).setdefault(sub, (par, code, suffix))
+    entries: list[ObjectEntry] = []
+    for index, members in sorted(by_index.items()):
+        subs = sorted(members)
+        record = len(subs) > 1 or subs[0] != 0
+        first_par, first_code, first_suffix = members[subs[0]]
+        object_name = f"{first_code}: {first_par.name}{first_suffix}"
+        if record and subs[0] != 0:
+            entries.append(ObjectEntry(index=index, subindex=0, name="Highest sub-index supported",
+                                       object_name=object_name, object_type="RECORD",
+                                       data_type=DataType.UNSIGNED8, access=Access.RO, default=subs[-1]))
+        for sub in subs:
+            par, code, suffix = members[sub]
+            sep = "." if code[:1] in ("P", "r") else "/"
+            ref = f"{code}{sep}{sub}" if record else code
+            fields = par.model_dump(include={"data_type", "access", "unit", "factor", "min", "max", "default",
+                                             "pdo_mappable", "description", "reset_required", "group",
+                                             "selection", "bits"})
+            entries.append(ObjectEntry(index=index, subindex=sub, name=f"{ref}: {par.subcode_name or par.name}"
+                                       f"{suffix}", object_name=object_name if record else None,
+                                       object_type="RECORD" if record else "VAR", code=par.code, **fields))
+    return entries
+
+
+def _mandatory_objects(profile: Profile, present: set[int]) -> list[ObjectEntry]:
+    """0x1000, 0x1001 and 0x1018 from the identity where the profile does not list them (CiA 301 mandatory)."""
+    ident = profile.identity
+    added: list[ObjectEntry] = []
+    if 0x1000 not in present:
+        added.append(ObjectEntry(index=0x1000, name="Device type", data_type=DataType.UNSIGNED32,
+                                 access=Access.RO, default=ident.device_type or 0))
+    if 0x1001 not in present:
+        added.append(ObjectEntry(index=0x1001, name="Error register", data_type=DataType.UNSIGNED8,
+                                 access=Access.RO, default=0))
+    if 0x1018 not in present:
+        subs = [("Vendor-ID", ident.vendor_id), ("Product code", ident.product_code),
+                ("Revision number", ident.revision), ("Serial number", None)]
+        added.append(ObjectEntry(index=0x1018, subindex=0, name="Highest sub-index supported",
+                                 object_name="Identity object", object_type="RECORD",
+                                 data_type=DataType.UNSIGNED8, access=Access.RO, default=len(subs)))
+        for sub, (name, value) in enumerate(subs, start=1):
+            added.append(ObjectEntry(index=0x1018, subindex=sub, name=name, object_name="Identity object",
+                                     object_type="RECORD", data_type=DataType.UNSIGNED32, access=Access.RO,
+                                     default=value if value is not None else 0))
+    return added
+
+
+class _Writer:
+    def __init__(self) -> None:
+        self.lines: list[str] = []
+
+    def section(self, name: str, keys: Iterable[tuple[str, object]]) -> None:
+        if self.lines:
+            self.lines.append("")
+        self.lines.append(f"[{name}]")
+        self.lines.extend(f"{key}={_one_line(str(value))}" for key, value in keys)
+
+    def text(self) -> str:
+        return "\n".join(self.lines) + "\n"
+
+
+def _extra(profile: Profile, name: str) -> dict[str, str]:
+    for section, keys in profile.extra_sections.items():
+        if section.lower() == name.lower():
+            return keys
+    return {}
+
+
+def _entry_keys(entry: ObjectEntry, *, with_flags: bool, value: Value | None) -> list[tuple[str, object]]:
+    keys: list[tuple[str, object]] = [("ParameterName", entry.name)]
+    if entry.object_type == "VAR":
+        keys.append(("ObjectType", "0x7"))
+    keys += [("DataType", f"0x{entry.data_type.code:04X}"), ("AccessType", entry.access.value)]
+    if entry.default_expr is not None:
+        keys.append(("DefaultValue", entry.default_expr))
+    elif entry.default is not None:
+        keys.append(("DefaultValue", _format(entry.data_type, _raw(entry, entry.default))))
+    keys.append(("PDOMapping", int(entry.pdo_mappable)))
+    if entry.min is not None and not entry.data_type.is_string:
+        keys.append(("LowLimit", _format(entry.data_type, _raw(entry, entry.min))))
+    if entry.max is not None and not entry.data_type.is_string:
+        keys.append(("HighLimit", _format(entry.data_type, _raw(entry, entry.max))))
+    if with_flags and entry.obj_flags is not None:
+        keys.append(("ObjFlags", f"0x{entry.obj_flags:X}"))
+    if value is not None:
+        keys.append(("ParameterValue", _format(entry.data_type, value)))
+    if entry.denotation is not None:
+        keys.append(("Denotation", entry.denotation))
+    if entry.factor != 1:
+        keys.append(("Factor", entry.factor))
+    if entry.unit is not None:
+        keys.append(("Unit", entry.unit))
+    if entry.description is not None:
+        keys.append(("Description", entry.description))
+    return keys
+
+
+def _object_list(index: int) -> str:
+    if index in MANDATORY:
+        return "MandatoryObjects"
+    return "ManufacturerObjects" if 0x2000 <= index <= 0x5FFF else "OptionalObjects"
+
+
+def export_eds(profile: Profile, *, node_id: int | None = None, values: Mapping[Address, Value] | None = None,
+               dcf: bool = False, baud_kbit: int | None = None) -> str:
+    """Write ``profile`` as an EDS, or with ``dcf=True`` a DCF for ``node_id``.
+
+    ``values`` are raw values (as read from the device or stored in a parameter set) by (index, subindex); they
+    become ``ParameterValue``. In a DCF for a node id, ``$NODEID`` formulas get their value for that node.
+    """
+    if node_id is not None and not 1 <= node_id <= 127:
+        raise ProfileError(f"node id {node_id} is outside 1..127", source=profile.id)
+    objects = list(profile.objects)
+    present = {o.index for o in objects}
+    objects += _mandatory_objects(profile, present) + _parameter_objects(profile, present)
+    by_index: dict[int, list[ObjectEntry]] = {}
+    for entry in sorted(objects, key=lambda o: (o.index, o.subindex)):
+        by_index.setdefault(entry.index, []).append(entry)
+    addresses = {(o.index, o.subindex) for o in objects}
+    for address in (values or {}):
+        if address not in addresses:
+            raise UnknownParameter(f"0x{address[0]:04X}sub{address[1]} is not an object of '{profile.id}'")
+
+    def parameter_value(entry: ObjectEntry) -> Value | None:
+        value = (values or {}).get((entry.index, entry.subindex), entry.parameter_value)
+        if dcf and node_id is not None:
+            if value is None and entry.default_expr is not None:
+                return resolve_node_expr(entry.default_expr, node_id)
+            if isinstance(value, str) and entry.data_type.is_integer and node_expr(value) is not None:
+                return resolve_node_expr(value, node_id)
+        return value
+
+    out = _Writer()
+    ident, features = profile.identity, profile.features
+    out.section("FileInfo", {**file_info_defaults(profile), **_extra(profile, "FileInfo")}.items())
+    device_info: dict[str, object] = {"VendorName": ident.vendor_name}
+    if ident.vendor_id is not None:
+        device_info["VendorNumber"] = f"0x{ident.vendor_id:08X}"
+    device_info["ProductName"] = ident.product_name
+    if ident.product_code is not None:
+        device_info["ProductNumber"] = f"0x{ident.product_code:08X}"
+    if ident.revision is not None:
+        device_info["RevisionNumber"] = f"0x{ident.revision:08X}"
+    if ident.order_codes:
+        device_info["OrderCode"] = ", ".join(ident.order_codes)
+    for rate in BAUD_RATES_KBIT:
+        device_info[f"BaudRate_{rate}"] = int(rate in features.baud_rates_kbit)
+    device_info |= {"NrOfRXPDO": features.rpdo_count, "NrOfTXPDO": features.tpdo_count}
+    device_info |= {**DEVICE_INFO_DEFAULTS, **_extra(profile, "DeviceInfo")}
+    out.section("DeviceInfo", device_info.items())
+    if profile.notes:
+        out.section("Comments", [("Lines", len(profile.notes)),
+                                 *((f"Line{n}", note) for n, note in enumerate(profile.notes, start=1))])
+    own: list[tuple[str, object]] = [("ProfileId", profile.id), ("Family", profile.family),
+                                     ("Version", profile.version)]
+    if profile.source is not None:
+        own.append(("Source", profile.source))
+    out.section(OWN_SECTION, own)
+    commissioning = dict(_extra(profile, "DeviceComissioning"))
+    if node_id is not None:
+        commissioning["NodeID"] = str(node_id)
+    if baud_kbit is not None:
+        commissioning["Baudrate"] = str(baud_kbit)
+    if dcf or commissioning:
+        out.section("DeviceComissioning", commissioning.items())
+    for list_name in ("MandatoryObjects", "OptionalObjects", "ManufacturerObjects"):
+        listed = [i for i in by_index if _object_list(i) == list_name]
+        out.section(list_name, [("SupportedObjects", len(listed)),
+                                *((str(n), f"0x{i:04X}") for n, i in enumerate(listed, start=1))])
+    for index, entries in by_index.items():
+        first = entries[0]
+        if len(entries) == 1 and first.subindex == 0 and first.object_type == "VAR":
+            out.section(f"{index:04X}", _entry_keys(first, with_flags=True, value=parameter_value(first)))
+            continue
+        flags = {e.obj_flags for e in entries}
+        shared_flags = flags.pop() if len(flags) == 1 else None
+        kind = first.object_type if first.object_type != "VAR" else "RECORD"
+        head: list[tuple[str, object]] = [("ParameterName", first.object_name or first.name),
+                                          ("ObjectType", f"0x{OBJECT_TYPE_CODES[kind]:X}"),
+                                          ("SubNumber", len(entries))]
+        if shared_flags is not None:
+            head.append(("ObjFlags", f"0x{shared_flags:X}"))
+        out.section(f"{index:04X}", head)
+        for entry in entries:
+            out.section(f"{index:04X}sub{entry.subindex:X}",
+                        _entry_keys(entry, with_flags=shared_flags is None, value=parameter_value(entry)))
+    handled = {"fileinfo", "deviceinfo", "devicecomissioning", "comments", OWN_SECTION.lower()}
+    for name, keys in profile.extra_sections.items():
+        if name.lower() not in handled:
+            out.section(name, keys.items())
+    return out.text()
