@@ -1,0 +1,119 @@
+"""``drivebench serve | simulate | hub``."""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import ipaddress
+import signal
+import sys
+import threading
+from pathlib import Path
+
+from drivebench.config import settings
+from drivebench.errors import DriveBenchError
+
+
+def _is_loopback(host: str) -> bool:
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+def serve(args: argparse.Namespace) -> int:
+    import uvicorn
+
+    from drivebench.web.app import create_app
+
+    if not _is_loopback(args.host) and not args.allow_remote:
+        print(
+            f"Refusing to listen on {args.host}: DriveBench can move motors, and authentication is not configured.\n"
+            "Listen on 127.0.0.1 (the default) and reach it through an SSH tunnel, or, on a closed machine network\n"
+            "where everyone may operate the drives, start with --allow-remote.", file=sys.stderr)
+        return 2
+    plant = Path(args.plant) if args.plant else None
+    app = create_app(demo=args.demo, plant_file=plant, buses=args.bus or [], latency=args.latency)
+    print(f"DriveBench on http://{args.host}:{args.port}"
+          + (" with the simulated demo plant" if args.demo else ""), flush=True)
+    uvicorn.run(app, host=args.host, port=args.port, log_level=args.log_level, ws_ping_interval=20)
+    return 0
+
+
+def simulate(args: argparse.Namespace) -> int:
+    """Put the simulated drives of a plant file on a bus of their own (a hub, a gateway, any adapter)."""
+    from drivebench.device.loader import ProfileRegistry
+    from drivebench.simulator.plant import Plant, PlantFile
+
+    plant_file = PlantFile.load(Path(args.plant) if args.plant else settings.plants_dir / "demo.json")
+    registry = ProfileRegistry()
+    plant = Plant(plant_file, registry.get, bus=args.bus, latency=args.latency).start()
+    print(f"Simulating {len(plant.nodes)} node(s) of '{plant_file.name}' on {plant.spec}: "
+          + ", ".join(f"{n.node_id} {n.name}" for n in plant.nodes.values()), flush=True)
+    stop = threading.Event()
+    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    try:
+        stop.wait()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        plant.stop()
+    return 0
+
+
+def hub(args: argparse.Namespace) -> int:
+    from drivebench.transport.hub import serve_hub
+
+    print(f"socketcand hub on {args.host}:{args.port} (python-can: interface='socketcand', "
+          f"host='{args.host}', port={args.port}, channel='can0')", flush=True)
+    try:
+        asyncio.run(serve_hub(args.host, args.port))
+    except KeyboardInterrupt:
+        pass
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="drivebench", description=__doc__)
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    p_serve = sub.add_parser("serve", help="run the web server")
+    p_serve.add_argument("--host", default=settings.host)
+    p_serve.add_argument("--port", type=int, default=settings.port)
+    p_serve.add_argument("--bus", action="append", metavar="SPEC",
+                         help="open a session at start-up: socketcan:can0@500000, socketcand:HOST:PORT/can0 ...")
+    p_serve.add_argument("--demo", action="store_true", help="start the built-in simulated plant")
+    p_serve.add_argument("--plant", help="start a simulated plant from this plant file")
+    p_serve.add_argument("--latency", help="SDO processing time of simulated drives, e.g. 30ms±20ms")
+    p_serve.add_argument("--allow-remote", action="store_true",
+                         help="allow listening on a non-loopback address without authentication")
+    p_serve.add_argument("--log-level", default="warning")
+    p_serve.set_defaults(func=serve)
+
+    p_sim = sub.add_parser("simulate", help="run simulated drives on a bus")
+    p_sim.add_argument("--bus", help="bus for the drives (default: the plant file's), e.g. "
+                                     "socketcand:127.0.0.1:29536/can0")
+    p_sim.add_argument("--plant", help="plant file (default: the demo plant)")
+    p_sim.add_argument("--latency", help="SDO processing time, e.g. 30ms±20ms")
+    p_sim.set_defaults(func=simulate)
+
+    p_hub = sub.add_parser("hub", help="run a socketcand-protocol hub so processes share one bus")
+    p_hub.add_argument("--host", default="127.0.0.1")
+    p_hub.add_argument("--port", type=int, default=29536)
+    p_hub.set_defaults(func=hub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.func(args))
+    except DriveBenchError as exc:
+        print(f"drivebench: {exc.detail}" + (f"\n  {exc.hint}" if exc.hint else ""), file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,217 @@
+"""Master side of one CAN bus: a canopen Network on an opened bus, with per-node SDO access.
+
+canopen's SDO client blocks and is not thread-safe per node, so every node has one lock per SDO channel;
+callers in the event loop use the ``a*`` coroutines, which run the blocking call in a worker thread.
+All canopen and python-can exceptions are converted here, once, into the protocol error tree.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import threading
+import time
+from collections.abc import Callable
+from typing import TypeVar
+
+import can
+import canopen
+from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError
+
+from drivebench.errors import NodeOffline, ProtocolError, SdoAbortError, SdoTimeoutError, TransportError
+from drivebench.protocol.abort_codes import abort_text
+from drivebench.protocol.emcy import EmcyMonitor
+from drivebench.protocol.heartbeat import HeartbeatMonitor
+from drivebench.protocol.nmt import NmtCommand, nmt_frame
+from drivebench.transport.bus import ObservedBus
+
+T = TypeVar("T")
+
+
+class SdoChannel:
+    """One SDO client (CiA 301 server channel on the device) with its lock."""
+
+    def __init__(self, client: canopen.sdo.SdoClient, number: int) -> None:
+        self.client = client
+        self.number = number
+        self.lock = threading.Lock()
+
+
+class NodeClient:
+    """SDO access to one node over one or more SDO channels (8400 motec and EMF2178IB have two)."""
+
+    def __init__(self, network: CanopenNetwork, node_id: int, vendor: str | None = None) -> None:
+        self.network = network
+        self.node_id = node_id
+        self.vendor = vendor
+        self.remote = canopen.RemoteNode(node_id, canopen.ObjectDictionary())
+        network.canopen.add_node(self.remote)
+        self.channels = [SdoChannel(self.remote.sdo, 1)]
+        self.configure(network.sdo_timeout_s, network.sdo_retries)
+
+    def configure(self, timeout_s: float, retries: int) -> None:
+        for channel in self.channels:
+            channel.client.RESPONSE_TIMEOUT = timeout_s
+            channel.client.MAX_RETRIES = retries + 1  # canopen counts attempts, not retries
+
+    def add_channel(self, rx_cobid: int, tx_cobid: int) -> SdoChannel:
+        """A second SDO channel (client->server ``rx_cobid``, server->client ``tx_cobid``)."""
+        client = self.remote.add_sdo(rx_cobid, tx_cobid)
+        channel = SdoChannel(client, len(self.channels) + 1)
+        self.channels.append(channel)
+        self.configure(self.channels[0].client.RESPONSE_TIMEOUT, self.channels[0].client.MAX_RETRIES - 1)
+        return channel
+
+    def _with_channel(self, index: int, sub: int, work: Callable[[canopen.sdo.SdoClient], T],
+                      channel: int | None = None) -> T:
+        chosen = self._pick_channel(channel)
+        with chosen.lock:
+            try:
+                return work(chosen.client)
+            except SdoAbortedError as exc:
+                raise SdoAbortError(exc.code, abort_text(exc.code, self.vendor), node=self.node_id,
+                                    index=index, subindex=sub) from exc
+            except SdoCommunicationError as exc:
+                text = str(exc)
+                if "No SDO response" in text or "timeout" in text.lower():
+                    raise SdoTimeoutError(f"Node {self.node_id} did not answer the SDO request for "
+                                          f"0x{index:04X}sub{sub} ({text})", node=self.node_id, index=index,
+                                          subindex=sub) from exc
+                raise ProtocolError(f"Node {self.node_id}, 0x{index:04X}sub{sub}: {text}") from exc
+            except can.CanError as exc:
+                raise TransportError(f"CAN adapter error while talking to node {self.node_id}: {exc}",
+                                     hint="Check the adapter connection; the session reconnects when it is back."
+                                     ) from exc
+
+    def _pick_channel(self, channel: int | None) -> SdoChannel:
+        if channel is not None:
+            if not 1 <= channel <= len(self.channels):
+                raise ProtocolError(f"Node {self.node_id} has no SDO channel {channel} configured")
+            return self.channels[channel - 1]
+        for candidate in self.channels:
+            if not candidate.lock.locked():
+                return candidate
+        return self.channels[0]
+
+    # --- blocking calls (worker threads) ---------------------------------------------------------------
+    def upload(self, index: int, sub: int, *, block: bool = False, channel: int | None = None) -> bytes:
+        def work(client: canopen.sdo.SdoClient) -> bytes:
+            if block:
+                with client.open(index, sub, "rb", block_transfer=True) as stream:
+                    return bytes(stream.read())
+            return bytes(client.upload(index, sub))
+
+        return self._with_channel(index, sub, work, channel)
+
+    def download(self, index: int, sub: int, data: bytes, *, block: bool = False,
+                 channel: int | None = None) -> None:
+        def work(client: canopen.sdo.SdoClient) -> None:
+            if block:
+                with client.open(index, sub, "wb", size=len(data), block_transfer=True) as stream:
+                    stream.write(data)
+                return
+            client.download(index, sub, data)
+
+        self._with_channel(index, sub, work, channel)
+
+    # --- event-loop side ----------------------------------------------------------------------------------
+    async def aupload(self, index: int, sub: int, **kwargs: object) -> bytes:
+        return await asyncio.to_thread(self.upload, index, sub, **kwargs)  # type: ignore[arg-type]
+
+    async def adownload(self, index: int, sub: int, data: bytes, **kwargs: object) -> None:
+        await asyncio.to_thread(self.download, index, sub, data, **kwargs)  # type: ignore[arg-type]
+
+
+class CanopenNetwork:
+    """canopen Network + heartbeat and EMCY consumers on one opened bus."""
+
+    def __init__(self, bus: ObservedBus, *, sdo_timeout_s: float = 0.5, sdo_retries: int = 1) -> None:
+        self.bus = bus
+        self.sdo_timeout_s = sdo_timeout_s
+        self.sdo_retries = sdo_retries
+        self.canopen = canopen.Network(bus)
+        self.heartbeat = HeartbeatMonitor()
+        self.emcy = EmcyMonitor()
+        self.canopen.listeners.extend([self.heartbeat, self.emcy])
+        self.canopen.connect()
+        self.nodes: dict[int, NodeClient] = {}
+        self._error: BaseException | None = None
+        self.canopen.listeners.append(_ErrorCatcher(self))
+
+    def add_listener(self, listener: can.Listener) -> None:
+        """Receive every frame read from the bus (notifier thread)."""
+        if self.canopen.notifier is not None:
+            self.canopen.notifier.add_listener(listener)
+
+    def remove_listener(self, listener: can.Listener) -> None:
+        if self.canopen.notifier is not None:
+            self.canopen.notifier.remove_listener(listener)
+
+    def node(self, node_id: int, vendor: str | None = None) -> NodeClient:
+        if not 1 <= node_id <= 127:
+            raise NodeOffline(f"Node id {node_id} is outside 1..127")
+        client = self.nodes.get(node_id)
+        if client is None:
+            client = self.nodes[node_id] = NodeClient(self, node_id, vendor)
+        return client
+
+    def send_nmt(self, command: NmtCommand, node_id: int = 0) -> None:
+        self.send(0x000, nmt_frame(command, node_id))
+
+    def send(self, cob_id: int, data: bytes) -> None:
+        try:
+            self.canopen.send_message(cob_id, data)
+        except can.CanError as exc:
+            raise TransportError(f"Cannot send on {self.bus.spec}: {exc}", hint=self.bus.spec.hint()) from exc
+
+    def scan(self, timeout_s: float = 0.5, node_ids: range = range(1, 128)) -> list[int]:
+        """Ask every node id for 0x1000 (SDO) and collect who answers or sends heartbeats (blocking)."""
+        found: set[int] = set()
+
+        def on_frame(can_id: int, data: bytearray, timestamp: float) -> None:
+            found.add(can_id - 0x580)
+
+        locks = [ch.lock for client in self.nodes.values() for ch in client.channels]
+        for lock in locks:  # no scan request may land in the middle of a transfer
+            lock.acquire()
+        for node_id in node_ids:
+            self.canopen.subscribe(0x580 + node_id, on_frame)
+        try:
+            for node_id in node_ids:
+                self.send(0x600 + node_id, bytes([0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0]))
+            time.sleep(timeout_s)
+        finally:
+            for node_id in node_ids:
+                self.canopen.unsubscribe(0x580 + node_id, on_frame)
+            for lock in locks:
+                lock.release()
+        now = time.time()
+        for status in self.heartbeat.all():
+            if status.age_s(now) is not None and (status.age_s(now) or 0) < max(timeout_s * 4, 2.0):
+                found.add(status.node_id)
+        return sorted(n for n in found if 1 <= n <= 127)
+
+    @property
+    def bus_state(self) -> str:
+        try:
+            return self.bus.state.name.lower()
+        except (NotImplementedError, AttributeError):
+            return "active"
+
+    def close(self) -> None:
+        try:
+            self.canopen.disconnect()
+        finally:
+            self.bus.shutdown()
+
+
+class _ErrorCatcher(can.Listener):
+    """Keeps the notifier's last reader error (e.g. the adapter was unplugged) instead of losing it."""
+
+    def __init__(self, network: CanopenNetwork) -> None:
+        self.network = network
+
+    def on_message_received(self, msg: can.Message) -> None:
+        pass
+
+    def on_error(self, exc: Exception) -> None:
+        self.network._error = exc

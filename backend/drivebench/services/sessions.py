@@ -1,0 +1,230 @@
+"""CAN sessions: one per bus, each with its own canopen network, nodes and their profiles.
+
+Everything that touches the bus runs in worker threads (``asyncio.to_thread``); the event loop only awaits.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import itertools
+import re
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import can
+
+from drivebench.device.catalog import Catalog
+from drivebench.device.profile import Profile
+from drivebench.errors import Conflict, NotFound, SdoAbortError, SdoTimeoutError
+from drivebench.protocol.emcy import EmcyEvent
+from drivebench.protocol.heartbeat import HeartbeatStatus
+from drivebench.protocol.network import CanopenNetwork, NodeClient
+from drivebench.protocol.nmt import STATE_AFTER, NmtCommand, NmtState
+from drivebench.transport.bus import BusSpec, open_bus
+
+
+class ProfileSource(Protocol):
+    def get(self, profile_id: str) -> Profile: ...
+
+    def find_by_identity(self, vendor_id: int | None, product_code: int | None) -> Profile | None: ...
+
+
+@dataclass
+class SessionNode:
+    """A node the session knows: its id, the profile it is handled with, and what the tool last commanded."""
+
+    node_id: int
+    profile: Profile | None
+    name: str | None = None
+    commanded_state: NmtState | None = None
+    identity: dict[str, int] = field(default_factory=dict)
+    pending_reset: set[str] = field(default_factory=set)
+    """Refs written since the last reset node that take effect only after one (C00350, C00351 ...)."""
+
+    @property
+    def catalog(self) -> Catalog | None:
+        if self.profile is None:
+            return None
+        cached = getattr(self, "_catalog", None)
+        if cached is None or cached.profile is not self.profile:
+            cached = Catalog(self.profile)
+            object.__setattr__(self, "_catalog", cached)
+        return cached
+
+    @property
+    def device_name(self) -> str:
+        if self.name:
+            return self.name
+        return self.profile.identity.product_name if self.profile else "Unknown device"
+
+
+def _slug(text: str) -> str:
+    return re.sub(r"[^a-z0-9]+", "-", text.lower()).strip("-") or "bus"
+
+
+class Session:
+    def __init__(self, session_id: str, name: str, spec: BusSpec, network: CanopenNetwork,
+                 profiles: ProfileSource, *, simulated: bool = False) -> None:
+        self.id = session_id
+        self.name = name
+        self.spec = spec
+        self.network = network
+        self.profiles = profiles
+        self.simulated = simulated
+        self.opened_at = time.time()
+        self.nodes: dict[int, SessionNode] = {}
+        self._lock = threading.Lock()
+        self._listeners: list[Callable[[str, dict[str, object]], None]] = []
+
+    # --- nodes ------------------------------------------------------------------------------------------
+    def add_node(self, node_id: int, profile_id: str | None, name: str | None = None) -> SessionNode:
+        profile = self.profiles.get(profile_id) if profile_id else None
+        with self._lock:
+            node = SessionNode(node_id, profile, name)
+            self.nodes[node_id] = node
+        self.client(node_id)
+        return node
+
+    def node(self, node_id: int) -> SessionNode:
+        node = self.nodes.get(node_id)
+        if node is None:
+            raise NotFound(f"Node {node_id} is not part of session '{self.name}'. Scan the bus or add it.")
+        return node
+
+    def client(self, node_id: int) -> NodeClient:
+        node = self.nodes.get(node_id)
+        vendor = node.profile.family if node and node.profile else None
+        return self.network.node(node_id, vendor)
+
+    def remove_node(self, node_id: int) -> None:
+        with self._lock:
+            self.nodes.pop(node_id, None)
+
+    # --- NMT --------------------------------------------------------------------------------------------
+    async def nmt(self, command: NmtCommand, node_id: int = 0) -> None:
+        if node_id and node_id not in self.nodes:
+            self.node(node_id)
+        await asyncio.to_thread(self.network.send_nmt, command, node_id)
+        targets = list(self.nodes.values()) if node_id == 0 else [self.nodes[node_id]]
+        for node in targets:
+            node.commanded_state = STATE_AFTER[command]
+            if command in (NmtCommand.RESET_NODE, NmtCommand.RESET_COMMUNICATION):
+                node.pending_reset.clear()
+        self.emit("nmt", {"command": command.label, "node": node_id})
+
+    # --- scan -------------------------------------------------------------------------------------------
+    async def scan(self, timeout_s: float = 0.5) -> list[SessionNode]:
+        """Find nodes (SDO 0x1000 to every id + heartbeats), read their identity, pick a profile."""
+        found = await asyncio.to_thread(self.network.scan, timeout_s)
+        results = await asyncio.gather(*(self._identify(node_id) for node_id in found))
+        return list(results)
+
+    async def _identify(self, node_id: int) -> SessionNode:
+        client = self.network.node(node_id)
+        identity: dict[str, int] = {}
+        for key, (index, sub) in {"device_type": (0x1000, 0), "vendor_id": (0x1018, 1),
+                                   "product_code": (0x1018, 2), "revision": (0x1018, 3),
+                                   "serial": (0x1018, 4)}.items():
+            try:
+                data = await client.aupload(index, sub)
+                identity[key] = int.from_bytes(data[:4], "little")
+            except (SdoAbortError, SdoTimeoutError):
+                continue
+        existing = self.nodes.get(node_id)
+        profile = existing.profile if existing else None
+        if profile is None:
+            profile = self.profiles.find_by_identity(identity.get("vendor_id"), identity.get("product_code"))
+        node = existing or SessionNode(node_id, profile)
+        node.profile = profile
+        node.identity = identity
+        with self._lock:
+            self.nodes[node_id] = node
+        return node
+
+    # --- state ------------------------------------------------------------------------------------------
+    def heartbeat(self, node_id: int) -> HeartbeatStatus:
+        return self.network.heartbeat.status(node_id)
+
+    def nmt_state(self, node_id: int) -> tuple[str, bool]:
+        """The node's NMT state in words, and whether it comes from a live heartbeat."""
+        status = self.heartbeat(node_id)
+        if status.state is not None and not status.is_lost():
+            return status.state.label, True
+        if status.state is not None and status.is_lost():
+            return "Heartbeat lost", True
+        node = self.nodes.get(node_id)
+        if node and node.commanded_state is not None:
+            return f"{node.commanded_state.label} (commanded)", False
+        return "Unknown", False
+
+    def last_emcy(self, node_id: int) -> EmcyEvent | None:
+        return self.network.emcy.last(node_id)
+
+    def add_frame_listener(self, listener: can.Listener) -> None:
+        """Frames read from the bus and frames the tool sends (e.g. the monitor)."""
+        self.network.add_listener(listener)
+        self.network.bus.add_observer(listener.on_message_received)
+
+    def remove_frame_listener(self, listener: can.Listener) -> None:
+        self.network.remove_listener(listener)
+        self.network.bus.remove_observer(listener.on_message_received)
+
+    def on_event(self, callback: Callable[[str, dict[str, object]], None]) -> None:
+        self._listeners.append(callback)
+
+    def emit(self, kind: str, data: dict[str, object]) -> None:
+        for callback in self._listeners:
+            callback(kind, data)
+
+    def close(self) -> None:
+        self.network.close()
+
+
+class SessionManager:
+    """The open sessions of this server."""
+
+    def __init__(self, profiles: ProfileSource, *, sdo_timeout_s: float = 0.5, sdo_retries: int = 1) -> None:
+        self.profiles = profiles
+        self.sdo_timeout_s = sdo_timeout_s
+        self.sdo_retries = sdo_retries
+        self._sessions: dict[str, Session] = {}
+        self._ids = itertools.count(1)
+        self._lock = asyncio.Lock()
+
+    async def open(self, spec: BusSpec | str, name: str | None = None, *, simulated: bool = False) -> Session:
+        bus_spec = BusSpec.parse(spec) if isinstance(spec, str) else spec
+        async with self._lock:
+            for session in self._sessions.values():
+                if str(session.spec) == str(bus_spec):
+                    raise Conflict(f"{bus_spec} is already open as session '{session.name}'")
+            bus = await asyncio.to_thread(open_bus, bus_spec)
+            network = CanopenNetwork(bus, sdo_timeout_s=self.sdo_timeout_s, sdo_retries=self.sdo_retries)
+            label = name or f"{bus_spec.interface} {bus_spec.channel}".strip()
+            session_id = _slug(name or f"{bus_spec.interface}-{bus_spec.channel}")
+            if session_id in self._sessions:
+                session_id = f"{session_id}-{next(self._ids)}"
+            session = Session(session_id, label, bus_spec, network, self.profiles, simulated=simulated)
+            self._sessions[session_id] = session
+            return session
+
+    def get(self, session_id: str) -> Session:
+        session = self._sessions.get(session_id)
+        if session is None:
+            raise NotFound(f"No open session '{session_id}'")
+        return session
+
+    def list(self) -> list[Session]:
+        return list(self._sessions.values())
+
+    async def close(self, session_id: str) -> None:
+        session = self.get(session_id)
+        async with self._lock:
+            self._sessions.pop(session_id, None)
+        await asyncio.to_thread(session.close)
+
+    async def close_all(self) -> None:
+        for session_id in list(self._sessions):
+            await self.close(session_id)

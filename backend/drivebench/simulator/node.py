@@ -1,0 +1,280 @@
+"""A simulated drive: a real CANopen slave on the bus, built from a device profile.
+
+It answers SDO on its SDO channels (the protocol's SdoServer over this node's ObjectStore), follows NMT
+(reset node / reset communication reload values, send boot-up and return to pre-operational), produces
+heartbeats per 0x1017, sends EMCY telegrams, and transmits/receives PDOs per its mapping (see ``pdo.py``).
+Frames reach it from the plant's dispatcher; it sends through the plant's ``send``.
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import random
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from drivebench.device.profile import Profile
+from drivebench.protocol.nmt import NmtCommand, NmtState
+from drivebench.protocol.sdo_server import SdoServer
+from drivebench.simulator.pdo import PdoEngine
+from drivebench.simulator.store import ObjectStore, RawValue
+
+log = logging.getLogger(__name__)
+Send = Callable[[int, bytes], None]
+
+SAVE_SIGNATURE = int.from_bytes(b"save", "little")
+LOAD_SIGNATURE = int.from_bytes(b"load", "little")
+
+
+@dataclass(frozen=True)
+class Latency:
+    """SDO processing time: ``mean_s`` ± ``jitter_s`` (uniform)."""
+
+    mean_s: float = 0.0
+    jitter_s: float = 0.0
+
+    @classmethod
+    def parse(cls, text: str | float | None) -> Latency:
+        """``"30ms±20ms"``, ``"30ms+-20ms"``, ``"0.03"``, ``30`` (ms) or None."""
+        if text is None or text == "":
+            return cls()
+        if isinstance(text, (int, float)):
+            return cls(float(text) / 1000)
+        cleaned = text.replace(" ", "").replace("+-", "±").lower()
+        mean, _, jitter = cleaned.partition("±")
+        return cls(_seconds(mean), _seconds(jitter) if jitter else 0.0)
+
+    def sample(self) -> float:
+        if self.jitter_s:
+            return max(0.0, self.mean_s + random.uniform(-self.jitter_s, self.jitter_s))
+        return self.mean_s
+
+    def __str__(self) -> str:
+        if not self.mean_s and not self.jitter_s:
+            return "0 ms"
+        jitter = f" ± {self.jitter_s * 1000:g} ms" if self.jitter_s else ""
+        return f"{self.mean_s * 1000:g} ms{jitter}"
+
+
+def _seconds(text: str) -> float:
+    if text.endswith("ms"):
+        return float(text[:-2]) / 1000
+    if text.endswith("us") or text.endswith("µs"):
+        return float(text[:-2]) / 1e6
+    if text.endswith("s"):
+        return float(text[:-1])
+    return float(text) / 1000  # a bare number is milliseconds
+
+
+class SimulatedNode:
+    def __init__(self, profile: Profile, node_id: int, send: Send, *, name: str | None = None,
+                 latency: Latency | None = None, values: dict[str, object] | None = None,
+                 heartbeat_ms: int | None = None) -> None:
+        self.profile = profile
+        self.node_id = node_id
+        self.name = name or profile.identity.product_name
+        self.latency = latency or Latency()
+        self._send = send
+        self.store = ObjectStore(profile, node_id, values)
+        if heartbeat_ms is not None and self.store.has(0x1017, 0):
+            self.store.set(0x1017, 0, heartbeat_ms, notify=False)
+            self.store.saved[(0x1017, 0)] = heartbeat_ms
+        self.state = NmtState.BOOTUP
+        self.powered = False
+        self.sdo_servers: dict[int, SdoServer] = {}
+        self.pdo = PdoEngine(self)
+        self._requests: queue.Queue[tuple[int, bytes] | None] = queue.Queue()
+        self._worker: threading.Thread | None = None
+        self._next_heartbeat = 0.0
+        self.emcy_active: list[tuple[int, int, bytes]] = []
+        self.store.add_write_hook(self._on_write)
+        self._build_sdo_servers()
+
+    # --- life cycle -------------------------------------------------------------------------------------
+    def power_on(self) -> None:
+        self.powered = True
+        if self._worker is None:
+            self._worker = threading.Thread(target=self._work, name=f"sim-node-{self.node_id}", daemon=True)
+            self._worker.start()
+        self._boot()
+
+    def power_off(self) -> None:
+        self.powered = False
+        self.pdo.stop()
+        self._requests.put(None)
+        if self._worker is not None:
+            self._worker.join(timeout=2)
+            self._worker = None
+
+    def _boot(self) -> None:
+        self.state = NmtState.BOOTUP
+        self._build_sdo_servers()
+        self.send(0x700 + self.node_id, bytes([NmtState.BOOTUP]))
+        self.state = NmtState.PRE_OPERATIONAL
+        self._next_heartbeat = time.monotonic() + self.heartbeat_period_s() if self.heartbeat_period_s() else 0.0
+        self.pdo.reconfigure()
+
+    def send(self, cob_id: int, data: bytes) -> None:
+        if self.powered:
+            self._send(cob_id, data)
+
+    # --- frames from the bus (dispatcher thread) --------------------------------------------------------
+    def on_frame(self, cob_id: int, data: bytes, timestamp: float) -> None:
+        if not self.powered:
+            return
+        if cob_id == 0x000:
+            self._on_nmt(data)
+        elif cob_id in self.sdo_servers:
+            if self.state is not NmtState.STOPPED:
+                self._requests.put((cob_id, data))
+        elif cob_id == 0x080 and self.state is NmtState.OPERATIONAL:
+            self.pdo.on_sync()
+        elif self.state is NmtState.OPERATIONAL:
+            self.pdo.on_frame(cob_id, data)
+
+    def _on_nmt(self, data: bytes) -> None:
+        if len(data) < 2 or data[1] not in (0, self.node_id):
+            return
+        try:
+            command = NmtCommand(data[0])
+        except ValueError:
+            return
+        if command is NmtCommand.START:
+            self.state = NmtState.OPERATIONAL
+            self.pdo.on_operational()
+        elif command is NmtCommand.STOP:
+            self.state = NmtState.STOPPED
+        elif command is NmtCommand.ENTER_PRE_OPERATIONAL:
+            self.state = NmtState.PRE_OPERATIONAL
+        elif command is NmtCommand.RESET_NODE:
+            self.store.restore(self.store.saved)
+            self._boot()
+        elif command is NmtCommand.RESET_COMMUNICATION:
+            self.store.restore(self.store.saved, communication_only=True)
+            self._boot()
+
+    # --- SDO --------------------------------------------------------------------------------------------
+    def _build_sdo_servers(self) -> None:
+        servers: dict[int, SdoServer] = {}
+        channels = [(0x600 + self.node_id, 0x580 + self.node_id)]
+        second = self._second_sdo_channel()
+        if second:
+            channels.append(second)
+        features = self.profile.features
+        for rx_cob, tx_cob in channels:
+            servers[rx_cob] = SdoServer(self.node_id, self.send, self.store, rx_cob=rx_cob, tx_cob=tx_cob,
+                                        segmented=features.segmented_sdo, block=features.block_sdo)
+        self.sdo_servers = servers
+
+    def _second_sdo_channel(self) -> tuple[int, int] | None:
+        if not (self.store.has(0x1201, 1) and self.store.has(0x1201, 2)):
+            return None
+        rx, tx = self.store.get(0x1201, 1), self.store.get(0x1201, 2)
+        if not isinstance(rx, int) or not isinstance(tx, int) or (rx | tx) & 0x80000000:
+            return None
+        return rx & 0x7FF, tx & 0x7FF
+
+    def _work(self) -> None:
+        while True:
+            item = self._requests.get()
+            if item is None:
+                return
+            cob_id, data = item
+            server = self.sdo_servers.get(cob_id)
+            if server is None:
+                continue
+            if self.latency.mean_s and not server.busy:
+                time.sleep(self.latency.sample())  # the device's parameter data processing time
+            try:
+                server.on_request(data)
+            except Exception:  # a simulator bug must not kill the node
+                log.exception("node %d: SDO request %s failed", self.node_id, data.hex())
+
+    # --- behaviour of written objects -------------------------------------------------------------------
+    def _on_write(self, index: int, sub: int, raw: RawValue) -> None:
+        if (index, sub) == (0x1017, 0):
+            period = self.heartbeat_period_s()
+            self._next_heartbeat = time.monotonic() + period if period else 0.0
+        elif index == 0x1010 and raw == SAVE_SIGNATURE:
+            self.store.saved = self.store.snapshot()
+        elif index == 0x1011 and raw == LOAD_SIGNATURE:
+            self.store.saved = ObjectStore(self.profile, self.node_id).snapshot()
+        elif index == 0x1201:
+            self._build_sdo_servers()
+        elif 0x1400 <= index <= 0x1BFF:
+            self.pdo.reconfigure()
+        self._lenze_device_command(index, sub, raw)
+
+    def _lenze_device_command(self, index: int, sub: int, raw: RawValue) -> None:
+        """Lenze C00002 device commands (8400: index 0x5FFD): /11 save, /26 CAN reset node."""
+        if self.profile.addressing.kind != "lenze_code" or index != 0x5FFF - 2 or raw != 1:
+            return
+        if sub == 11:
+            self.store.saved = self.store.snapshot()
+        elif sub == 26:
+            threading.Timer(0.01, self._on_nmt, args=(bytes([NmtCommand.RESET_NODE, self.node_id]),)).start()
+
+    # --- periodic work (plant timer thread) -------------------------------------------------------------
+    def heartbeat_period_s(self) -> float:
+        if not self.store.has(0x1017, 0):
+            return 0.0
+        raw = self.store.get(0x1017, 0)
+        return float(raw) / 1000 if isinstance(raw, (int, float)) else 0.0
+
+    def tick(self, now: float) -> None:
+        if not self.powered:
+            return
+        if self._next_heartbeat and now >= self._next_heartbeat:
+            self.send(0x700 + self.node_id, bytes([self.state]))
+            period = self.heartbeat_period_s()
+            self._next_heartbeat = (self._next_heartbeat + period) if period else 0.0
+            if self._next_heartbeat and self._next_heartbeat < now:
+                self._next_heartbeat = now + period
+        if self.state is NmtState.OPERATIONAL:
+            self.pdo.tick(now)
+
+    # --- EMCY -------------------------------------------------------------------------------------------
+    def emcy_cob_id(self) -> int | None:
+        if self.store.has(0x1014, 0):
+            raw = self.store.get(0x1014, 0)
+            if isinstance(raw, int):
+                return None if raw & 0x80000000 else raw & 0x7FF
+        return 0x80 + self.node_id
+
+    def raise_emcy(self, code: int, register: int = 0x01, vendor: bytes = b"") -> None:
+        """Send an emergency telegram and enter it in the error history 0x1003 and register 0x1001."""
+        data = code.to_bytes(2, "little") + bytes([register]) + (vendor + bytes(5))[:5]
+        self.emcy_active.append((code, register, vendor))
+        if self.store.has(0x1001, 0):
+            self.store.set(0x1001, 0, register, notify=False)
+        self._push_error_history(code, vendor)
+        cob = self.emcy_cob_id()
+        if cob is not None and self.state is not NmtState.STOPPED:
+            self.send(cob, data)
+
+    def clear_emcy(self) -> None:
+        """All errors gone: the error-free EMCY (code 0x0000, register 0x00)."""
+        self.emcy_active.clear()
+        if self.store.has(0x1001, 0):
+            self.store.set(0x1001, 0, 0, notify=False)
+        cob = self.emcy_cob_id()
+        if cob is not None and self.state is not NmtState.STOPPED:
+            self.send(cob, bytes(8))
+
+    def _push_error_history(self, code: int, vendor: bytes) -> None:
+        if not self.store.has(0x1003, 0):
+            return
+        entries = [sub for sub in range(1, 255) if self.store.has(0x1003, sub)]
+        if not entries:
+            return
+        values = [self.store.get(0x1003, sub) for sub in entries]
+        info = int.from_bytes((vendor + bytes(2))[:2], "little")
+        values = [(info << 16) | code, *values[:-1]]
+        for sub, value in zip(entries, values, strict=True):
+            self.store.set(0x1003, sub, value, notify=False)
+        count = self.store.get(0x1003, 0)
+        self.store.set(0x1003, 0, min(int(count) + 1 if isinstance(count, int) else 1, len(entries)),
+                       notify=False)

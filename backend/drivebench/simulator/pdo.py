@@ -1,0 +1,164 @@
+"""PDOs of a simulated node, driven by its own communication and mapping objects (CiA 301).
+
+RPDO n: 0x1400+n-1 (COB-ID, transmission type) and 0x1600+n-1 (mapping); TPDO n: 0x1800+n-1 (COB-ID,
+type, inhibit time in 100 µs, event timer in ms) and 0x1A00+n-1. A mapping entry is index<<16 | sub<<8 | bits.
+Transmission types: 0 acyclic synchronous, 1..240 every n-th SYNC, 254/255 event-driven (on change, and
+every event-timer period when it is set).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+from drivebench.protocol.datatypes import decode, encode
+from drivebench.simulator.store import Abort
+
+if TYPE_CHECKING:
+    from drivebench.simulator.node import SimulatedNode
+
+COB_INVALID = 0x80000000
+
+
+@dataclass
+class PdoConfig:
+    number: int
+    cob_id: int
+    valid: bool
+    trans_type: int
+    inhibit_s: float
+    event_s: float
+    mapping: list[tuple[int, int, int]]
+    sync_count: int = 0
+    last_data: bytes | None = None
+    last_sent: float = 0.0
+    next_event: float = 0.0
+    pending: bool = field(default=False)
+
+
+def _int(value: object, default: int = 0) -> int:
+    return value if isinstance(value, int) else default
+
+
+class PdoEngine:
+    def __init__(self, node: SimulatedNode) -> None:
+        self.node = node
+        self.rpdos: dict[int, PdoConfig] = {}
+        self.tpdos: list[PdoConfig] = []
+        self._lock = threading.Lock()
+
+    def _read_config(self, comm_index: int, map_index: int, number: int) -> PdoConfig | None:
+        store = self.node.store
+        if not store.has(comm_index, 1):
+            return None
+        cob = _int(store.get(comm_index, 1))
+        trans_type = _int(store.get(comm_index, 2), 255) if store.has(comm_index, 2) else 255
+        inhibit = _int(store.get(comm_index, 3)) / 10000 if store.has(comm_index, 3) else 0.0
+        event = _int(store.get(comm_index, 5)) / 1000 if store.has(comm_index, 5) else 0.0
+        mapping: list[tuple[int, int, int]] = []
+        count = _int(store.get(map_index, 0)) if store.has(map_index, 0) else 0
+        for sub in range(1, count + 1):
+            if not store.has(map_index, sub):
+                break
+            entry = _int(store.get(map_index, sub))
+            mapping.append((entry >> 16, (entry >> 8) & 0xFF, entry & 0xFF))
+        return PdoConfig(number, cob & 0x7FF, not cob & COB_INVALID, trans_type, inhibit, event, mapping)
+
+    def reconfigure(self) -> None:
+        rpdos: dict[int, PdoConfig] = {}
+        tpdos: list[PdoConfig] = []
+        for n in range(512):
+            rx = self._read_config(0x1400 + n, 0x1600 + n, n + 1)
+            if rx is not None and rx.valid:
+                rpdos[rx.cob_id] = rx
+            tx = self._read_config(0x1800 + n, 0x1A00 + n, n + 1)
+            if tx is not None and tx.valid:
+                tpdos.append(tx)
+        with self._lock:
+            self.rpdos, self.tpdos = rpdos, tpdos
+
+    def stop(self) -> None:
+        with self._lock:
+            self.tpdos = []
+
+    # --- receive ----------------------------------------------------------------------------------------
+    def on_frame(self, cob_id: int, data: bytes) -> None:
+        config = self.rpdos.get(cob_id)
+        if config is None:
+            return
+        bits_total = sum(bits for _, _, bits in config.mapping)
+        if len(data) * 8 < bits_total:
+            self.node.raise_emcy(0x8210, 0x10)  # PDO not processed due to length error
+            return
+        value = int.from_bytes(data, "little")
+        offset = 0
+        for index, sub, bits in config.mapping:
+            field_value = (value >> offset) & ((1 << bits) - 1)
+            offset += bits
+            if index < 0x1000:  # dummy mapping
+                continue
+            try:
+                slot = self.node.store.slot(index, sub)
+                size = slot.data_type.size or (bits + 7) // 8
+                raw = decode(slot.data_type, field_value.to_bytes(size, "little"))
+                self.node.store.set(index, sub, raw)
+            except Abort:
+                continue
+
+    # --- transmit ---------------------------------------------------------------------------------------
+    def _pack(self, config: PdoConfig) -> bytes:
+        value, offset = 0, 0
+        for index, sub, bits in config.mapping:
+            field_value = 0
+            if index >= 0x1000:
+                try:
+                    slot = self.node.store.slot(index, sub)
+                    field_value = int.from_bytes(encode(slot.data_type, slot.value), "little")
+                except (Abort, ValueError):
+                    field_value = 0
+            value |= (field_value & ((1 << bits) - 1)) << offset
+            offset += bits
+        return value.to_bytes((offset + 7) // 8, "little")
+
+    def _transmit(self, config: PdoConfig, now: float, data: bytes | None = None) -> None:
+        data = self._pack(config) if data is None else data
+        self.node.send(config.cob_id, data)
+        config.last_data = data
+        config.last_sent = now
+        if config.event_s:
+            config.next_event = now + config.event_s
+
+    def on_operational(self) -> None:
+        now = time.monotonic()
+        with self._lock:
+            for config in self.tpdos:
+                if config.trans_type >= 254:
+                    self._transmit(config, now)
+
+    def on_sync(self) -> None:
+        now = time.monotonic()
+        with self._lock:
+            for config in self.tpdos:
+                if 1 <= config.trans_type <= 240:
+                    config.sync_count += 1
+                    if config.sync_count >= config.trans_type:
+                        config.sync_count = 0
+                        self._transmit(config, now)
+                elif config.trans_type == 0:
+                    data = self._pack(config)
+                    if data != config.last_data:
+                        self._transmit(config, now, data)
+
+    def tick(self, now: float) -> None:
+        with self._lock:
+            for config in self.tpdos:
+                if config.trans_type < 254:
+                    continue
+                if now - config.last_sent < config.inhibit_s:
+                    continue
+                due = config.event_s and now >= config.next_event
+                data = self._pack(config)
+                if due or data != config.last_data:
+                    self._transmit(config, now, data)

@@ -1,0 +1,150 @@
+"""A simulated plant: simulated drives on one CAN bus, described by a small JSON file.
+
+Example (``plants/demo.json`` is the one ``make run`` starts)::
+
+    {"name": "Demo plant", "bus": "virtual:drivebench-demo@500000",
+     "nodes": [{"node_id": 5, "profile": "lenze-8400-motec-canopen", "latency": "30ms±20ms",
+                "heartbeat_ms": 500, "values": {"C00061": 43}}]}
+
+The plant speaks only CAN: it opens its own python-can bus (``virtual`` in-process, or ``socketcand`` to a
+hub or gateway), so the tool's protocol layer cannot tell it from real drives.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import can
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+
+from drivebench.device.profile import Profile
+from drivebench.errors import DriveBenchError, ProfileError
+from drivebench.simulator.node import Latency, SimulatedNode
+from drivebench.transport.bus import BusSpec, open_bus
+
+TICK_S = 0.002
+
+
+class PlantNode(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    node_id: int = Field(ge=1, le=127)
+    profile: str
+    name: str | None = None
+    latency: str = "0ms"
+    heartbeat_ms: int | None = Field(None, ge=0, le=65535)
+    values: dict[str, int | float | str] = Field(default_factory=dict)
+    """Initial values by parameter reference (``C00061``, ``0x1017``), in engineering units."""
+
+    @field_validator("latency")
+    @classmethod
+    def _check_latency(cls, value: str) -> str:
+        Latency.parse(value)
+        return value
+
+
+class PlantFile(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    name: str
+    bus: str = "virtual:drivebench-plant@500000"
+    nodes: list[PlantNode]
+
+    @field_validator("nodes")
+    @classmethod
+    def _unique_ids(cls, nodes: list[PlantNode]) -> list[PlantNode]:
+        seen: set[int] = set()
+        for node in nodes:
+            if node.node_id in seen:
+                raise ValueError(f"node id {node.node_id} appears twice")
+            seen.add(node.node_id)
+        return nodes
+
+    @classmethod
+    def load(cls, path: Path) -> PlantFile:
+        try:
+            return cls.model_validate_json(path.read_text(encoding="utf-8"))
+        except (OSError, ValidationError, ValueError) as exc:
+            raise ProfileError(f"invalid plant file: {exc}", source=path.name) from exc
+
+
+ProfileLookup = Callable[[str], Profile]
+
+
+class Plant:
+    """Runs the simulated nodes of a plant file on a bus until :meth:`stop`."""
+
+    def __init__(self, plant: PlantFile, profiles: ProfileLookup, *, bus: str | None = None,
+                 latency: str | None = None) -> None:
+        self.plant = plant
+        self.spec = BusSpec.parse(bus or plant.bus)
+        self.nodes: dict[int, SimulatedNode] = {}
+        self._bus: can.BusABC | None = None
+        self._notifier: can.Notifier | None = None
+        self._stop = threading.Event()
+        self._ticker: threading.Thread | None = None
+        self._send_lock = threading.Lock()
+        for spec in plant.nodes:
+            profile = profiles(spec.profile)
+            self.nodes[spec.node_id] = SimulatedNode(
+                profile, spec.node_id, self._send, name=spec.name,
+                latency=Latency.parse(latency if latency is not None else spec.latency),
+                values=spec.values, heartbeat_ms=spec.heartbeat_ms)
+
+    def start(self) -> Plant:
+        self._bus = open_bus(self.spec)
+        self._notifier = can.Notifier(self._bus, [self._on_message], timeout=0.5)
+        for node in self.nodes.values():
+            node.power_on()
+        self._ticker = threading.Thread(target=self._tick, name="sim-plant-ticker", daemon=True)
+        self._ticker.start()
+        return self
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._ticker is not None:
+            self._ticker.join(timeout=2)
+        for node in self.nodes.values():
+            node.power_off()
+        if self._notifier is not None:
+            self._notifier.stop()
+        if self._bus is not None:
+            self._bus.shutdown()
+
+    def add_node(self, profile: Profile, node_id: int, **kwargs: object) -> SimulatedNode:
+        if node_id in self.nodes:
+            raise DriveBenchError(f"Node id {node_id} is already on the simulated bus")
+        node = SimulatedNode(profile, node_id, self._send, **kwargs)  # type: ignore[arg-type]
+        self.nodes[node_id] = node
+        if self._bus is not None:
+            node.power_on()
+        return node
+
+    def _send(self, cob_id: int, data: bytes) -> None:
+        msg = can.Message(arbitration_id=cob_id, data=data, is_extended_id=False)
+        with self._send_lock:
+            if self._bus is None:
+                return
+            self._bus.send(msg)
+        # Nodes on a real bus hear each other; a python-can bus does not echo its own frames.
+        self._dispatch(cob_id, data, time.time(), skip_sender=True)
+
+    def _on_message(self, msg: can.Message) -> None:
+        if msg.is_extended_id or msg.is_error_frame or msg.is_remote_frame:
+            return
+        self._dispatch(msg.arbitration_id, bytes(msg.data), msg.timestamp, skip_sender=False)
+
+    def _dispatch(self, cob_id: int, data: bytes, timestamp: float, *, skip_sender: bool) -> None:
+        for node in list(self.nodes.values()):
+            if skip_sender and cob_id & 0x7F == node.node_id:
+                continue
+            node.on_frame(cob_id, data, timestamp)
+
+    def _tick(self) -> None:
+        while not self._stop.wait(TICK_S):
+            now = time.monotonic()
+            for node in list(self.nodes.values()):
+                node.tick(now)

@@ -1,0 +1,181 @@
+"""A simulated drive's object dictionary: raw values for every entry its profile lists.
+
+Reads and writes check what a real device checks and answer the CiA 301 abort codes:
+unknown object 0x06020000, unknown subindex 0x06090011, write to read-only 0x06010002, read of write-only
+0x06010001, wrong length 0x06070010/12/13, out of range 0x06090030/31/32.
+"""
+
+from __future__ import annotations
+
+import re
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from drivebench.device.catalog import Catalog
+from drivebench.device.profile import Access, Entry, Profile
+from drivebench.protocol.datatypes import DataType, decode, encode
+from drivebench.protocol.sdo_server import SdoAbort as Abort
+
+RawValue = int | float | str | bytes
+
+
+@dataclass
+class Slot:
+    entry: Entry
+    value: RawValue
+
+    @property
+    def data_type(self) -> DataType:
+        return self.entry.data_type
+
+
+WriteHook = Callable[[int, int, RawValue], None]
+_NODEID_RE = re.compile(r"\$NODEID", re.IGNORECASE)
+
+# CiA 301 communication objects whose default depends on the node id (when a profile gives no formula).
+_NODE_ID_DEFAULTS = {
+    (0x1014, 0): 0x80, (0x1200, 1): 0x600, (0x1200, 2): 0x580,
+    (0x1400, 1): 0x200, (0x1401, 1): 0x300, (0x1402, 1): 0x400, (0x1403, 1): 0x500,
+    (0x1800, 1): 0x180, (0x1801, 1): 0x280, (0x1802, 1): 0x380, (0x1803, 1): 0x480,
+}
+
+
+def default_raw(entry: Entry, node_id: int, index: int = 0, sub: int = 0) -> RawValue:
+    """The raw value a freshly powered device holds: the profile default, scaled, with $NODEID resolved."""
+    value = entry.default
+    dt = entry.data_type
+    if dt.is_string:
+        if dt is DataType.VISIBLE_STRING or dt is DataType.UNICODE_STRING:
+            return "" if value is None else str(value)
+        if isinstance(value, str):
+            try:
+                return bytes.fromhex(value.replace(" ", ""))
+            except ValueError:
+                return value.encode("latin-1")
+        return b""
+    if isinstance(value, str):
+        expr = _NODEID_RE.sub(str(node_id), value)
+        try:
+            value = eval(expr, {"__builtins__": {}}, {})  # noqa: S307 - digits, + and hex literals only
+        except Exception:
+            value = 0
+    if value is None:
+        offset = _NODE_ID_DEFAULTS.get((index, sub))
+        if offset is not None:
+            return offset + node_id
+        value = entry.min if entry.min is not None and entry.min > 0 else 0
+    if dt.is_float:
+        return float(value) * float(entry.factor)
+    raw = round(float(value) * float(entry.factor)) if entry.factor != 1 else int(value)
+    limits = dt.raw_limits()
+    if limits:
+        raw = min(max(raw, limits[0]), limits[1])
+    return raw
+
+
+class ObjectStore:
+    def __init__(self, profile: Profile, node_id: int, overrides: dict[str, object] | None = None) -> None:
+        self.profile = profile
+        self.node_id = node_id
+        self.catalog = Catalog(profile)
+        self._lock = threading.RLock()
+        self._slots: dict[tuple[int, int], Slot] = {}
+        self._indices: set[int] = set()
+        self._hooks: list[WriteHook] = []
+        self._overrides = overrides or {}
+        self.reset_all()
+        self.saved: dict[tuple[int, int], RawValue] = self.snapshot()
+
+    def reset_all(self) -> None:
+        with self._lock:
+            for item in self.catalog.items:
+                key = (item.index, item.subindex)
+                self._slots[key] = Slot(item.entry, default_raw(item.entry, self.node_id, *key))
+                self._indices.add(item.index)
+            for ref, value in self._overrides.items():
+                item = self.catalog.resolve(ref)
+                slot = self._slots[(item.index, item.subindex)]
+                slot.value = default_raw(item.entry.model_copy(update={"default": value}), self.node_id)
+
+    def snapshot(self) -> dict[tuple[int, int], RawValue]:
+        with self._lock:
+            return {key: slot.value for key, slot in self._slots.items()}
+
+    def restore(self, values: dict[tuple[int, int], RawValue], *, communication_only: bool = False) -> None:
+        with self._lock:
+            for key, value in values.items():
+                if communication_only and not 0x1000 <= key[0] <= 0x1FFF:
+                    continue
+                if key in self._slots:
+                    self._slots[key].value = value
+
+    def add_write_hook(self, hook: WriteHook) -> None:
+        """``hook(index, sub, raw)`` after every accepted write (SDO or RPDO)."""
+        self._hooks.append(hook)
+
+    def has(self, index: int, sub: int) -> bool:
+        return (index, sub) in self._slots
+
+    def slot(self, index: int, sub: int) -> Slot:
+        slot = self._slots.get((index, sub))
+        if slot is None:
+            raise Abort(0x06090011 if index in self._indices else 0x06020000)
+        return slot
+
+    def get(self, index: int, sub: int) -> RawValue:
+        with self._lock:
+            return self.slot(index, sub).value
+
+    def set(self, index: int, sub: int, value: RawValue, *, notify: bool = True) -> None:
+        """Set a value from inside the device (behaviours, RPDOs): no access check."""
+        with self._lock:
+            self.slot(index, sub).value = value
+        if notify:
+            for hook in self._hooks:
+                hook(index, sub, value)
+
+    def get_ref(self, ref: str) -> RawValue:
+        item = self.catalog.resolve(ref)
+        return self.get(item.index, item.subindex)
+
+    def set_ref(self, ref: str, value: RawValue) -> None:
+        item = self.catalog.resolve(ref)
+        self.set(item.index, item.subindex, value)
+
+    # --- SDO server side --------------------------------------------------------------------------------
+    def read(self, index: int, sub: int) -> bytes:
+        with self._lock:
+            slot = self.slot(index, sub)
+            if slot.entry.access is Access.WO:
+                raise Abort(0x06010001)
+            try:
+                return encode(slot.data_type, slot.value)
+            except ValueError as exc:
+                raise Abort(0x08000000) from exc
+
+    def write(self, index: int, sub: int, data: bytes) -> None:
+        with self._lock:
+            slot = self.slot(index, sub)
+            if not slot.entry.access.writable:
+                raise Abort(0x06010002)
+            size = slot.data_type.size
+            if size is not None and len(data) != size:
+                raise Abort(0x06070012 if len(data) > size else 0x06070013)
+            raw = decode(slot.data_type, data)
+            self._check_range(slot.entry, raw)
+            slot.value = raw
+        for hook in self._hooks:
+            hook(index, sub, raw)
+
+    @staticmethod
+    def _check_range(entry: Entry, raw: RawValue) -> None:
+        if isinstance(raw, (str, bytes)):
+            return
+        value = raw / entry.factor if entry.factor != 1 else raw
+        if entry.max is not None and value > entry.max + 1e-9:
+            raise Abort(0x06090030)
+        if entry.min is not None and value < entry.min - 1e-9:
+            raise Abort(0x06090030)
+        if entry.selection and isinstance(raw, int) and raw not in entry.selection:
+            raise Abort(0x06090030)

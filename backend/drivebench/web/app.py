@@ -1,0 +1,71 @@
+"""The FastAPI application: JSON API under /api, HTML pages, websockets under /ws."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+from collections.abc import AsyncIterator
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+from fastapi import FastAPI
+from fastapi.staticfiles import StaticFiles
+
+from drivebench import __version__
+from drivebench.config import settings
+from drivebench.device.loader import ProfileRegistry
+from drivebench.services.sessions import SessionManager
+from drivebench.simulator.plant import Plant, PlantFile
+from drivebench.web import problems
+from drivebench.web.api import health, profiles, sessions
+from drivebench.web.pages import plant as plant_page
+from drivebench.web.state import AppState
+from drivebench.web.ws import nodes as nodes_ws
+
+log = logging.getLogger(__name__)
+
+# One line per router: screens grow without touching anything else here.
+API_ROUTERS = [health.router, sessions.router, profiles.router]
+PAGE_ROUTERS = [plant_page.router]
+WS_ROUTERS = [nodes_ws.router]
+
+
+async def start_plant(state: AppState, plant_path: Path, *, bus: str | None = None,
+                      latency: str | None = None) -> None:
+    """Start a simulated plant and open a session on its bus with its nodes."""
+    plant_file = PlantFile.load(plant_path)
+    plant = await asyncio.to_thread(lambda: Plant(plant_file, state.registry.get, bus=bus, latency=latency).start())
+    session = await state.manager.open(plant.spec, name=plant_file.name, simulated=True)
+    state.plants[session.id] = plant
+    for node in plant_file.nodes:
+        session.add_node(node.node_id, node.profile, node.name)
+
+
+def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: list[str] | None = None,
+               latency: str | None = None) -> FastAPI:
+    @contextlib.asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        asyncio.get_running_loop().set_default_executor(ThreadPoolExecutor(64, thread_name_prefix="bus-work"))
+        registry = await asyncio.to_thread(ProfileRegistry)
+        manager = SessionManager(registry, sdo_timeout_s=settings.sdo_timeout_s, sdo_retries=settings.sdo_retries)
+        state = AppState(registry, manager)
+        app.state.drivebench = state
+        if demo or plant_file:
+            await start_plant(state, plant_file or settings.plants_dir / "demo.json", latency=latency)
+        for bus in buses or []:
+            await manager.open(bus)
+        try:
+            yield
+        finally:
+            await manager.close_all()
+            for plant in state.plants.values():
+                await asyncio.to_thread(plant.stop)
+
+    app = FastAPI(title="DriveBench", version=__version__, lifespan=lifespan,
+                  description="Commissioning of CANopen drives: parameters, PDOs, NMT, diagnostics.")
+    problems.install(app)
+    for router in API_ROUTERS + PAGE_ROUTERS + WS_ROUTERS:
+        app.include_router(router)
+    app.mount("/static", StaticFiles(directory=settings.frontend_dir / "static"), name="static")
+    return app

@@ -1,0 +1,89 @@
+"""The Plant screen: sessions, their nodes with live NMT state, NMT buttons, scan, add node."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Form, Request
+from fastapi.responses import HTMLResponse
+
+from drivebench.errors import DriveBenchError
+from drivebench.protocol.nmt import COMMAND_BY_NAME
+from drivebench.services.sessions import Session
+from drivebench.services.views import nodes_public, session_public
+from drivebench.transport.bus import BusSpec, known_interfaces
+from drivebench.web.deps import ManagerDep, SessionDep, StateDep
+from drivebench.web.problems import error_fragment, problem_body
+from drivebench.web.templating import templates
+
+router = APIRouter(include_in_schema=False)
+
+
+def _context(state: Any, **extra: Any) -> dict[str, Any]:
+    sessions = [{"session": session_public(s), "nodes": nodes_public(s)} for s in state.manager.list()]
+    return {"active": "plant", "sessions": sessions, "interfaces": known_interfaces(),
+            "profiles": state.registry.all(),
+            "form": {"interface": "socketcand", "channel": "", "bitrate": 500000, "name": ""}, **extra}
+
+
+def nodes_table(request: Request, session: Session) -> HTMLResponse:
+    return templates.TemplateResponse(request, "plant.html", {"session_id": session.id,
+                                                              "nodes": nodes_public(session)},
+                                      block_name="nodes_table")
+
+
+@router.get("/", response_class=HTMLResponse)
+async def plant_page(request: Request, state: StateDep) -> HTMLResponse:
+    return templates.TemplateResponse(request, "plant.html", _context(state))
+
+
+@router.post("/ui/sessions", response_class=HTMLResponse)
+async def open_session(request: Request, state: StateDep, manager: ManagerDep,
+                       interface: Annotated[str, Form()], channel: Annotated[str, Form()] = "",
+                       bitrate: Annotated[int, Form()] = 500000, name: Annotated[str, Form()] = ""
+                       ) -> HTMLResponse:
+    form = {"interface": interface, "channel": channel, "bitrate": bitrate, "name": name}
+    try:
+        if interface == "socketcand":
+            spec = BusSpec.parse(f"socketcand:{channel}@{bitrate}")
+        else:
+            spec = BusSpec(interface=interface, channel=channel, bitrate=bitrate)
+        session = await manager.open(spec, name or None)
+    except DriveBenchError as exc:
+        body = problem_body(exc, str(request.url.path))
+        return templates.TemplateResponse(request, "plant.html", _context(state, form=form,
+                                          form_error=error_fragment(body)),
+                                          block_name="open_form", status_code=int(body["status"]))  # type: ignore[call-overload]
+    response = templates.TemplateResponse(request, "plant.html",
+                                          _context(state, form=form, form_ok=f"Opened {session.spec}"),
+                                          block_name="open_form")
+    response.headers["HX-Refresh"] = "true"
+    return response
+
+
+@router.post("/ui/sessions/{session_id}/close", response_class=HTMLResponse)
+async def close_session(session: SessionDep, manager: ManagerDep) -> HTMLResponse:
+    await manager.close(session.id)
+    return HTMLResponse("")
+
+
+@router.post("/ui/sessions/{session_id}/nmt", response_class=HTMLResponse)
+async def nmt(request: Request, session: SessionDep, command: Annotated[str, Form()],
+              node_id: Annotated[int, Form(ge=0, le=127)] = 0) -> HTMLResponse:
+    if command not in COMMAND_BY_NAME:
+        raise DriveBenchError(f"Unknown NMT command '{command}'")
+    await session.nmt(COMMAND_BY_NAME[command], node_id)
+    return nodes_table(request, session)
+
+
+@router.post("/ui/sessions/{session_id}/scan", response_class=HTMLResponse)
+async def scan(request: Request, session: SessionDep) -> HTMLResponse:
+    await session.scan()
+    return nodes_table(request, session)
+
+
+@router.post("/ui/sessions/{session_id}/nodes", response_class=HTMLResponse)
+async def add_node(request: Request, session: SessionDep, node_id: Annotated[int, Form(ge=1, le=127)],
+                   profile_id: Annotated[str, Form()] = "") -> HTMLResponse:
+    session.add_node(node_id, profile_id or None)
+    return nodes_table(request, session)

@@ -1,0 +1,94 @@
+"""Errors as RFC 9457 problem details: one table from error class to HTTP status, one handler.
+
+JSON clients get ``application/problem+json``; htmx requests get an error partial with the same status, so
+the page shows the error next to the action that caused it.
+"""
+
+from __future__ import annotations
+
+from fastapi import FastAPI, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import HTMLResponse, JSONResponse, Response
+from markupsafe import escape
+
+from drivebench import errors
+
+# Most specific class first.
+STATUS: list[tuple[type[errors.DriveBenchError], int]] = [
+    (errors.UnknownParameter, 404),
+    (errors.UnknownProfile, 404),
+    (errors.NotFound, 404),
+    (errors.OutOfRange, 422),
+    (errors.InvalidValue, 422),
+    (errors.ReadOnly, 422),
+    (errors.ProfileError, 422),
+    (errors.BusSpecError, 422),
+    (errors.ParameterError, 422),
+    (errors.Conflict, 409),
+    (errors.SdoTimeoutError, 504),
+    (errors.NodeOffline, 504),
+    (errors.AdapterUnavailable, 503),
+    (errors.TransportError, 503),
+    (errors.ProtocolError, 502),
+    (errors.DriveBenchError, 400),
+]
+
+
+def status_for(exc: errors.DriveBenchError) -> int:
+    if isinstance(exc, errors.SdoAbortError) and exc.abort_code in (0x06020000, 0x06090011):
+        return 404
+    if isinstance(exc, errors.SdoAbortError) and exc.abort_code in (0x06090030, 0x06090031, 0x06090032,
+                                                                    0x06010002, 0x06040043):
+        return 422
+    for cls, status in STATUS:
+        if isinstance(exc, cls):
+            return status
+    return 500
+
+
+def problem_body(exc: errors.DriveBenchError, instance: str) -> dict[str, object]:
+    type_name = type(exc).__name__
+    kebab = "".join("-" + c.lower() if c.isupper() else c for c in type_name).lstrip("-")
+    body: dict[str, object] = {
+        "type": f"/problems/{kebab}",
+        "title": exc.title,
+        "status": status_for(exc),
+        "detail": exc.detail,
+        "instance": instance,
+    }
+    body.update({k: v for k, v in exc.extra().items() if v is not None})
+    return body
+
+
+def error_fragment(body: dict[str, object]) -> str:
+    parts = [f'<strong>{escape(body["title"])}</strong> {escape(body["detail"])}']
+    if "abort_code" in body:
+        parts.append(f'<code class="abort">{escape(body["abort_code"])} {escape(body.get("abort_text", ""))}</code>')
+    if body.get("hint"):
+        parts.append(f'<div class="hint">{escape(body["hint"])}</div>')
+    return f'<div class="error" role="alert">{" ".join(parts)}</div>'
+
+
+def install(app: FastAPI) -> None:
+    @app.exception_handler(errors.DriveBenchError)
+    async def _drivebench_error(request: Request, exc: errors.DriveBenchError) -> Response:
+        body = problem_body(exc, str(request.url.path))
+        status = int(body["status"])  # type: ignore[call-overload]
+        if request.headers.get("HX-Request") == "true":
+            return HTMLResponse(error_fragment(body), status_code=status)
+        return JSONResponse(body, status_code=status, media_type="application/problem+json")
+
+    @app.exception_handler(RequestValidationError)
+    async def _validation_error(request: Request, exc: RequestValidationError) -> Response:
+        problems = [f"{'.'.join(str(p) for p in e['loc'] if p != 'body')}: {e['msg']}" for e in exc.errors()]
+        body = {"type": "/problems/validation", "title": "Invalid request", "status": 422,
+                "detail": "; ".join(problems), "instance": str(request.url.path), "errors": exc.errors()}
+        if request.headers.get("HX-Request") == "true":
+            return HTMLResponse(error_fragment(body), status_code=422)
+        return JSONResponse(jsonable(body), status_code=422, media_type="application/problem+json")
+
+
+def jsonable(body: dict[str, object]) -> dict[str, object]:
+    from fastapi.encoders import jsonable_encoder
+
+    return jsonable_encoder(body, custom_encoder={ValueError: str, Exception: str})

@@ -1,0 +1,17 @@
+"""What the web app holds while it runs."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from drivebench.device.loader import ProfileRegistry
+from drivebench.services.sessions import SessionManager
+from drivebench.simulator.plant import Plant
+
+
+@dataclass
+class AppState:
+    registry: ProfileRegistry
+    manager: SessionManager
+    plants: dict[str, Plant] = field(default_factory=dict)
+    """Simulated plants by the id of the session that watches them."""

@@ -1,0 +1,39 @@
+"""Live node states: the node table of a session, pushed as an htmx out-of-band swap.
+
+Message: the HTML of ``<table id="nodes-{session}">`` with ``hx-swap-oob="true"``, about twice a second.
+"""
+
+from __future__ import annotations
+
+import asyncio
+
+from fastapi import APIRouter, WebSocket, WebSocketDisconnect
+
+from drivebench.errors import NotFound
+from drivebench.services.views import nodes_public
+from drivebench.web.templating import templates
+
+router = APIRouter()
+PERIOD_S = 0.5
+
+
+@router.websocket("/ws/sessions/{session_id}/nodes")
+async def node_states(websocket: WebSocket, session_id: str) -> None:
+    await websocket.accept()
+    manager = websocket.app.state.drivebench.manager
+    block = templates.env.get_template("plant.html").blocks["nodes_table"]
+    try:
+        while True:
+            try:
+                session = manager.get(session_id)
+            except NotFound:
+                await websocket.close(code=4404, reason=f"No open session '{session_id}'")
+                return
+            context = templates.env.get_template("plant.html").new_context(
+                {"session_id": session.id, "nodes": nodes_public(session)})
+            html = "".join(block(context)).replace(f'id="nodes-{session.id}"',
+                                                   f'id="nodes-{session.id}" hx-swap-oob="true"', 1)
+            await websocket.send_text(html)
+            await asyncio.sleep(PERIOD_S)
+    except (WebSocketDisconnect, RuntimeError):
+        return

@@ -1,0 +1,53 @@
+// Small page helpers; htmx does the rest.
+//
+// Errors (problem fragments with a 4xx/5xx status) are shown next to the action that caused them: in the
+// element named by the nearest data-error-target, else the nearest .action-result, else the toast slot.
+// They never replace the content the request aimed at.
+function errorSlot(elt) {
+  const holder = elt.closest("[data-error-target]");
+  if (holder) return document.querySelector(holder.dataset.errorTarget);
+  const card = elt.closest(".card, form, tr");
+  const local = card && (card.querySelector(".action-result") || card.closest(".card")?.querySelector(".action-result"));
+  return local || document.getElementById("toast");
+}
+
+document.body.addEventListener("htmx:beforeSwap", (event) => {
+  const xhr = event.detail.xhr;
+  if (xhr.status < 400) return;
+  const replacing = event.detail.requestConfig.elt.closest("[data-error-swap]");
+  if (replacing) {  // the error response is a re-rendered form with the error inside it
+    event.detail.shouldSwap = true;
+    event.detail.isError = false;
+    event.detail.swapOverride = replacing.dataset.errorSwap;
+    return;
+  }
+  const slot = errorSlot(event.detail.requestConfig.elt);
+  const isHtml = (xhr.getResponseHeader("Content-Type") || "").startsWith("text/html");
+  let html = xhr.responseText;
+  if (!isHtml) {
+    try {
+      const problem = JSON.parse(xhr.responseText);
+      html = `<div class="error" role="alert"><strong>${problem.title}</strong> ${problem.detail}</div>`;
+    } catch (e) {
+      html = `<div class="error" role="alert">Request failed (HTTP ${xhr.status})</div>`;
+    }
+  }
+  event.detail.shouldSwap = true;
+  event.detail.isError = false;
+  event.detail.target = slot;
+  event.detail.swapOverride = "innerHTML";
+  event.detail.serverResponse = html;
+});
+
+document.body.addEventListener("htmx:sendError", (event) => {
+  errorSlot(event.detail.requestConfig.elt).innerHTML =
+    '<div class="error" role="alert"><strong>No answer from the DriveBench server.</strong> Is it still running?</div>';
+});
+
+// A successful action clears an old error beside it.
+document.body.addEventListener("htmx:afterRequest", (event) => {
+  if (event.detail.successful) {
+    const slot = errorSlot(event.detail.elt);
+    if (slot && slot.id !== "toast" && slot.querySelector(".error")) slot.innerHTML = "";
+  }
+});
