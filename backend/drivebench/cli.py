@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import contextlib
 import ipaddress
 import signal
 import sys
@@ -68,10 +69,8 @@ def hub(args: argparse.Namespace) -> int:
 
     print(f"socketcand hub on {args.host}:{args.port} (python-can: interface='socketcand', "
           f"host='{args.host}', port={args.port}, channel='can0')", flush=True)
-    try:
+    with contextlib.suppress(KeyboardInterrupt):
         asyncio.run(serve_hub(args.host, args.port))
-    except KeyboardInterrupt:
-        pass
     return 0
 
 

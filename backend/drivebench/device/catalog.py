@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -123,10 +124,8 @@ class Catalog:
         if not query:
             return self.items
         exact: list[Item] = []
-        try:
+        with contextlib.suppress(UnknownParameter):
             exact = [self.resolve(text)]
-        except UnknownParameter:
-            pass
         words = query.split()
         hits = [
             item for item in self.items

@@ -87,7 +87,8 @@ def parse_ini(text: str, source: str) -> dict[str, Section]:
         raise ProfileError(f"file has {len(text)} characters, more than {MAX_EDS_BYTES}", source=source)
     sections: dict[str, Section] = {}
     current: Section | None = None
-    for number, raw in enumerate(text.splitlines(), start=1):
+    # CiA 306 lines end in CR LF; str.splitlines() would also split on NEL, FF, LS... inside values.
+    for number, raw in enumerate(re.split(r"\r\n|\r|\n", text), start=1):
         line = raw.strip()
         if _JUNK.search(raw):
             raise ProfileError("binary junk (control characters) instead of EDS text", source=source, line=number)

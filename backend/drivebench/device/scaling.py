@@ -79,7 +79,7 @@ def to_raw(entry: Entry, value: object, *, ref: str = "") -> RawValue:
         raise InvalidValue(f"{label} expects hex bytes")
     if isinstance(value, str):
         value = _parse_number_or_selection(entry, value, label)
-    if not isinstance(value, (int, float)) or isinstance(value, bool) and not dt is DataType.BOOLEAN:
+    if not isinstance(value, (int, float)) or (isinstance(value, bool) and dt is not DataType.BOOLEAN):
         raise InvalidValue(f"{label} expects a number, got {value!r}")
     if isinstance(value, float) and not math.isfinite(value):
         raise InvalidValue(f"{label} expects a finite number")

@@ -103,7 +103,7 @@ def encode(data_type: DataType, raw: int | float | str | bytes) -> bytes:
     try:
         return struct.pack(fmt, raw if data_type.is_float else int(raw))
     except struct.error as exc:
-        raise ValueError(f"{raw} does not fit {data_type.value}") from exc
+        raise ValueError(f"{raw!r} does not fit {data_type.value}") from exc
 
 
 def decode(data_type: DataType, data: bytes) -> int | float | str | bytes:

@@ -89,7 +89,8 @@ class HeartbeatMonitor(can.Listener):
                 if status.last_seen is not None and status.state not in (None, NmtState.BOOTUP):
                     interval = now - status.last_seen
                     if interval > 0:
-                        status.period_s = interval if status.period_s is None else 0.8 * status.period_s + 0.2 * interval
+                        previous = status.period_s
+                        status.period_s = interval if previous is None else 0.8 * previous + 0.2 * interval
                 if state != status.state:
                     event = "state"
                     status.history.append((now, state.label))

@@ -11,7 +11,7 @@ import asyncio
 import threading
 import time
 from collections.abc import Callable
-from typing import TypeVar
+from typing import TypeVar, cast
 
 import can
 import canopen
@@ -131,11 +131,12 @@ class CanopenNetwork:
         self.canopen = canopen.Network(bus)
         self.heartbeat = HeartbeatMonitor()
         self.emcy = EmcyMonitor()
-        self.canopen.listeners.extend([self.heartbeat, self.emcy])
+        listeners = cast("list[can.Listener]", self.canopen.listeners)
+        listeners.extend([self.heartbeat, self.emcy])
         self.canopen.connect()
         self.nodes: dict[int, NodeClient] = {}
         self._error: BaseException | None = None
-        self.canopen.listeners.append(_ErrorCatcher(self))
+        listeners.append(_ErrorCatcher(self))
 
     def add_listener(self, listener: can.Listener) -> None:
         """Receive every frame read from the bus (notifier thread)."""

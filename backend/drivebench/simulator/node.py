@@ -13,7 +13,7 @@ import queue
 import random
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 from drivebench.device.profile import Profile
@@ -71,7 +71,7 @@ def _seconds(text: str) -> float:
 
 class SimulatedNode:
     def __init__(self, profile: Profile, node_id: int, send: Send, *, name: str | None = None,
-                 latency: Latency | None = None, values: dict[str, object] | None = None,
+                 latency: Latency | None = None, values: Mapping[str, object] | None = None,
                  heartbeat_ms: int | None = None) -> None:
         self.profile = profile
         self.node_id = node_id

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import re
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 from drivebench.device.catalog import Catalog
@@ -57,7 +57,7 @@ def default_raw(entry: Entry, node_id: int, index: int = 0, sub: int = 0) -> Raw
     if isinstance(value, str):
         expr = _NODEID_RE.sub(str(node_id), value)
         try:
-            value = eval(expr, {"__builtins__": {}}, {})  # noqa: S307 - digits, + and hex literals only
+            value = eval(expr, {"__builtins__": {}}, {})
         except Exception:
             value = 0
     if value is None:
@@ -75,7 +75,7 @@ def default_raw(entry: Entry, node_id: int, index: int = 0, sub: int = 0) -> Raw
 
 
 class ObjectStore:
-    def __init__(self, profile: Profile, node_id: int, overrides: dict[str, object] | None = None) -> None:
+    def __init__(self, profile: Profile, node_id: int, overrides: Mapping[str, object] | None = None) -> None:
         self.profile = profile
         self.node_id = node_id
         self.catalog = Catalog(profile)

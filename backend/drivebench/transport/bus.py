@@ -95,7 +95,7 @@ class ObservedBus(can.BusABC):
         self.channel_info = f"{spec}"
         self._observers: list[FrameObserver] = []
         self._lock = threading.Lock()
-        super().__init__(channel=spec.channel or None)
+        super().__init__(channel=spec.channel or "")
 
     def add_observer(self, observer: FrameObserver) -> None:
         with self._lock:
@@ -118,6 +118,10 @@ class ObservedBus(can.BusABC):
     @property
     def state(self) -> can.BusState:
         return self.inner.state
+
+    @state.setter
+    def state(self, new_state: can.BusState) -> None:
+        self.inner.state = new_state
 
     def shutdown(self) -> None:
         if self._is_shutdown:

@@ -43,7 +43,7 @@ async def start_plant(state: AppState, plant_path: Path, *, bus: str | None = No
 
 
 def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: list[str] | None = None,
-               latency: str | None = None) -> FastAPI:
+               latency: str | None = None, plant_bus: str | None = None) -> FastAPI:
     @contextlib.asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         asyncio.get_running_loop().set_default_executor(ThreadPoolExecutor(64, thread_name_prefix="bus-work"))
@@ -52,7 +52,8 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
         state = AppState(registry, manager)
         app.state.drivebench = state
         if demo or plant_file:
-            await start_plant(state, plant_file or settings.plants_dir / "demo.json", latency=latency)
+            await start_plant(state, plant_file or settings.plants_dir / "demo.json", bus=plant_bus,
+                              latency=latency)
         for bus in buses or []:
             await manager.open(bus)
         try:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Query
@@ -17,8 +18,8 @@ from drivebench.device.cable import (
     plan_cable,
 )
 from drivebench.device.cobids import NOTES, CobId, PdoIds, cob_ids
-from drivebench.device.dip import FAMILIES, DipResult, FamilySpec, decode, encode, family_spec
-from drivebench.errors import InvalidValue
+from drivebench.device.dip import FAMILIES, LENZE_8400_MOTEC, DipResult, FamilySpec, decode, encode, family_spec
+from drivebench.errors import DriveBenchError, InvalidValue
 from drivebench.services.planner import NetworkPlan, PlanReport, ScanComparison, check_plan, compare_with_scan
 from drivebench.web.deps import ManagerDep
 
@@ -48,8 +49,10 @@ def parse_switches(on: str) -> dict[str, bool]:
 
 def dip_answer(result: DipResult, pdo_ids: PdoIds = "canopen") -> DipAnswer:
     spec = family_spec(result.family)
-    ids = cob_ids(spec.key, result.node_id, pdo_ids=pdo_ids) if result.node_id is not None and not any(
-        "outside" in p for p in result.problems) else []
+    ids: list[CobId] = []
+    if result.node_id is not None:
+        with contextlib.suppress(DriveBenchError):  # a parameter value outside the range: no COB-IDs to show
+            ids = cob_ids(spec.key, result.node_id, pdo_ids=pdo_ids if spec.key == LENZE_8400_MOTEC else "canopen")
     return DipAnswer(family=spec, result=result, cob_ids=ids, cob_id_notes=NOTES[spec.key])
 
 

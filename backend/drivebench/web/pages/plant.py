@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Form, Request
-from fastapi.responses import HTMLResponse
+from fastapi.responses import HTMLResponse, Response
 
 from drivebench.errors import DriveBenchError
 from drivebench.protocol.nmt import COMMAND_BY_NAME
@@ -26,14 +26,14 @@ def _context(state: Any, **extra: Any) -> dict[str, Any]:
             "form": {"interface": "socketcand", "channel": "", "bitrate": 500000, "name": ""}, **extra}
 
 
-def nodes_table(request: Request, session: Session) -> HTMLResponse:
+def nodes_table(request: Request, session: Session) -> Response:
     return templates.TemplateResponse(request, "plant.html", {"session_id": session.id,
                                                               "nodes": nodes_public(session)},
                                       block_name="nodes_table")
 
 
 @router.get("/", response_class=HTMLResponse)
-async def plant_page(request: Request, state: StateDep) -> HTMLResponse:
+async def plant_page(request: Request, state: StateDep) -> Response:
     return templates.TemplateResponse(request, "plant.html", _context(state))
 
 
@@ -41,7 +41,7 @@ async def plant_page(request: Request, state: StateDep) -> HTMLResponse:
 async def open_session(request: Request, state: StateDep, manager: ManagerDep,
                        interface: Annotated[str, Form()], channel: Annotated[str, Form()] = "",
                        bitrate: Annotated[int, Form()] = 500000, name: Annotated[str, Form()] = ""
-                       ) -> HTMLResponse:
+                       ) -> Response:
     form = {"interface": interface, "channel": channel, "bitrate": bitrate, "name": name}
     try:
         if interface == "socketcand":
@@ -62,14 +62,14 @@ async def open_session(request: Request, state: StateDep, manager: ManagerDep,
 
 
 @router.post("/ui/sessions/{session_id}/close", response_class=HTMLResponse)
-async def close_session(session: SessionDep, manager: ManagerDep) -> HTMLResponse:
+async def close_session(session: SessionDep, manager: ManagerDep) -> Response:
     await manager.close(session.id)
     return HTMLResponse("")
 
 
 @router.post("/ui/sessions/{session_id}/nmt", response_class=HTMLResponse)
 async def nmt(request: Request, session: SessionDep, command: Annotated[str, Form()],
-              node_id: Annotated[int, Form(ge=0, le=127)] = 0) -> HTMLResponse:
+              node_id: Annotated[int, Form(ge=0, le=127)] = 0) -> Response:
     if command not in COMMAND_BY_NAME:
         raise DriveBenchError(f"Unknown NMT command '{command}'")
     await session.nmt(COMMAND_BY_NAME[command], node_id)
@@ -77,13 +77,13 @@ async def nmt(request: Request, session: SessionDep, command: Annotated[str, For
 
 
 @router.post("/ui/sessions/{session_id}/scan", response_class=HTMLResponse)
-async def scan(request: Request, session: SessionDep) -> HTMLResponse:
+async def scan(request: Request, session: SessionDep) -> Response:
     await session.scan()
     return nodes_table(request, session)
 
 
 @router.post("/ui/sessions/{session_id}/nodes", response_class=HTMLResponse)
 async def add_node(request: Request, session: SessionDep, node_id: Annotated[int, Form(ge=1, le=127)],
-                   profile_id: Annotated[str, Form()] = "") -> HTMLResponse:
+                   profile_id: Annotated[str, Form()] = "") -> Response:
     session.add_node(node_id, profile_id or None)
     return nodes_table(request, session)

@@ -1,0 +1,161 @@
+"""The profile registry: every device profile the tool knows, from the built-in directory and user uploads.
+
+Built-in profiles are ``settings.profiles_dir/*.json``, plus ``*.eds``/``*.dcf`` files whose profile id has no JSON
+twin (the JSON is the richer source: vendor codes, scaling, selection lists). Uploads live in
+``settings.user_profiles_dir`` under a name made from the profile id, never the uploaded file name.
+A file that does not load is kept in ``errors`` as (file name, message); the others still load.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import Any
+
+from pydantic import ValidationError
+
+from drivebench.config import settings
+from drivebench.device.eds import import_eds
+from drivebench.device.profile import Profile
+from drivebench.errors import ProfileError, UnknownProfile
+
+PROFILE_SUFFIXES = (".json", ".eds", ".dcf")
+
+
+def load_profile_file(content: bytes, name: str) -> Profile:
+    """One profile file's bytes -> Profile, by suffix. Raises ProfileError naming ``name`` (and line)."""
+    suffix = Path(name).suffix.lower()
+    if suffix in (".eds", ".dcf"):
+        return import_eds(content, source=name)
+    if suffix != ".json":
+        raise ProfileError(f"unknown profile file type {suffix or '(none)'}; use .json, .eds or .dcf", source=name)
+    try:
+        return Profile.model_validate_json(content)
+    except ValidationError as exc:
+        first = exc.errors()[0]
+        if first["type"] == "json_invalid":
+            line = _json_error_line(content)
+            raise ProfileError(f"not valid JSON: {first['msg']}", source=name, line=line) from exc
+        where = ".".join(str(part) for part in first["loc"])
+        raise ProfileError(f"{where}: {first['msg']} ({exc.error_count()} errors)", source=name) from exc
+
+
+def _json_error_line(content: bytes) -> int | None:
+    try:
+        json.loads(content)
+    except json.JSONDecodeError as exc:
+        return exc.lineno
+    except UnicodeDecodeError:
+        return 1
+    return None
+
+
+class ProfileRegistry:
+    """Profiles by id. Loads on construction; ``reload()`` reads the directories again."""
+
+    def __init__(self, profiles_dir: Path | None = None, user_profiles_dir: Path | None = None,
+                 max_upload_bytes: int | None = None) -> None:
+        self.profiles_dir = profiles_dir or settings.profiles_dir
+        self.user_profiles_dir = user_profiles_dir or settings.user_profiles_dir
+        self.max_upload_bytes = max_upload_bytes or settings.max_upload_bytes
+        self._profiles: dict[str, Profile] = {}
+        self._builtin: set[str] = set()
+        self.errors: list[tuple[str, str]] = []
+        self.reload()
+
+    def reload(self) -> None:
+        profiles: dict[str, Profile] = {}
+        errors: list[tuple[str, str]] = []
+        builtin = self._load_dir(self.profiles_dir, profiles, errors, taken=set())
+        self._load_dir(self.user_profiles_dir, profiles, errors, taken=set(builtin))
+        self._profiles, self._builtin, self.errors = profiles, builtin, errors
+
+    @staticmethod
+    def _load_dir(directory: Path, profiles: dict[str, Profile], errors: list[tuple[str, str]],
+                  taken: set[str]) -> set[str]:
+        """Load one directory into ``profiles``: JSON first, then EDS/DCF without a JSON twin."""
+        if not directory.is_dir():
+            return set()
+        loaded: set[str] = set()
+        files = sorted(p for p in directory.iterdir() if p.suffix.lower() in PROFILE_SUFFIXES and p.is_file())
+        files.sort(key=lambda p: p.suffix.lower() != ".json")
+        json_ids: set[str] = set()
+        for path in files:
+            try:
+                profile = load_profile_file(path.read_bytes(), path.name)
+            except ProfileError as exc:
+                errors.append((path.name, exc.detail))
+                continue
+            except OSError as exc:
+                errors.append((path.name, f"cannot read: {exc.strerror}"))
+                continue
+            is_json = path.suffix.lower() == ".json"
+            if not is_json and profile.id in json_ids:
+                continue  # the JSON twin wins
+            if profile.id in taken or profile.id in loaded:
+                errors.append((path.name, f"profile id '{profile.id}' is already used by another file"))
+                continue
+            if is_json:
+                json_ids.add(profile.id)
+            profiles[profile.id] = profile
+            loaded.add(profile.id)
+        return loaded
+
+    def get(self, profile_id: str) -> Profile:
+        try:
+            return self._profiles[profile_id]
+        except KeyError:
+            raise UnknownProfile(f"No device profile '{profile_id}'") from None
+
+    def all(self) -> list[Profile]:
+        return sorted(self._profiles.values(), key=lambda p: p.id)
+
+    def is_builtin(self, profile_id: str) -> bool:
+        return profile_id in self._builtin
+
+    def find_by_identity(self, vendor_id: int | None, product_code: int | None) -> Profile | None:
+        """The profile for a scanned node's 0x1018 identity (built-in profiles first)."""
+        matches = [p for p in self._profiles.values()
+                   if p.identity.vendor_id == vendor_id and p.identity.product_code == product_code]
+        matches.sort(key=lambda p: (p.id not in self._builtin, p.id))
+        return matches[0] if matches else None
+
+    def add_upload(self, filename: str, content: bytes) -> Profile:
+        """Check and store an uploaded profile; the registry changes only if all of that succeeds."""
+        name = Path(filename.replace("\\", "/")).name or "upload"
+        if len(content) > self.max_upload_bytes:
+            raise ProfileError(f"upload is {len(content)} bytes, more than the limit of {self.max_upload_bytes}",
+                               source=name)
+        profile = load_profile_file(content, name)
+        if profile.id in self._builtin:
+            raise ProfileError(f"profile id '{profile.id}' belongs to a built-in profile; give the upload "
+                               "another id", source=name)
+        suffix = Path(name).suffix.lower()
+        target = self._stored_path(profile.id, suffix)
+        self.user_profiles_dir.mkdir(parents=True, exist_ok=True)
+        handle, temp = tempfile.mkstemp(dir=self.user_profiles_dir, prefix=".upload-")
+        try:
+            with os.fdopen(handle, "wb") as out:
+                out.write(content)
+            os.replace(temp, target)
+        except OSError as exc:
+            Path(temp).unlink(missing_ok=True)
+            raise ProfileError(f"cannot store the upload: {exc.strerror}", source=name) from exc
+        for other in PROFILE_SUFFIXES:
+            if other != suffix:
+                self._stored_path(profile.id, other).unlink(missing_ok=True)
+        self._profiles[profile.id] = profile
+        return profile
+
+    def _stored_path(self, profile_id: str, suffix: str) -> Path:
+        root = self.user_profiles_dir.resolve()
+        target = (root / f"{profile_id}{suffix}").resolve()
+        if target.parent != root:  # the id pattern forbids '/', this is a second fence
+            raise ProfileError(f"profile id '{profile_id}' is not a safe file name")
+        return target
+
+    @staticmethod
+    def json_schema() -> dict[str, Any]:
+        return Profile.model_json_schema()

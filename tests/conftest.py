@@ -1,0 +1,123 @@
+"""Shared fixtures: a simulated plant on a fresh virtual bus, the real app on it, a live server, a browser."""
+
+from __future__ import annotations
+
+import itertools
+import os
+import shutil
+import socket
+import threading
+import time
+import uuid
+from collections.abc import Iterator
+from pathlib import Path
+
+import can
+import pytest
+import uvicorn
+from fastapi.testclient import TestClient
+
+from drivebench.config import REPO_ROOT
+from drivebench.device.loader import ProfileRegistry
+from drivebench.simulator.plant import Plant, PlantFile
+from drivebench.web.app import create_app
+
+DEMO_PLANT = REPO_ROOT / "plants" / "demo.json"
+ARTIFACTS = REPO_ROOT / "test-artifacts"
+CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
+CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+                 "--disable-component-update", "--disable-sync", "--no-first-run", "--disable-quic"]
+_channels = itertools.count(1)
+
+
+def fresh_channel() -> str:
+    """A virtual CAN channel no other test uses (python-can virtual channels are process-wide)."""
+    return f"test-{os.getpid()}-{next(_channels)}-{uuid.uuid4().hex[:6]}"
+
+
+@pytest.fixture(scope="session")
+def registry() -> ProfileRegistry:
+    return ProfileRegistry()
+
+
+@pytest.fixture
+def channel() -> str:
+    return fresh_channel()
+
+
+@pytest.fixture
+def demo_plant_file() -> PlantFile:
+    return PlantFile.load(DEMO_PLANT)
+
+
+@pytest.fixture
+def plant(registry: ProfileRegistry, channel: str, demo_plant_file: PlantFile) -> Iterator[Plant]:
+    """The demo plant's drives on a fresh virtual bus, without latency."""
+    running = Plant(demo_plant_file, registry.get, bus=f"virtual:{channel}@500000", latency="0ms").start()
+    yield running
+    running.stop()
+
+
+@pytest.fixture
+def wire(channel: str) -> Iterator[can.BusABC]:
+    """A python-can bus on the test channel that records every frame on the wire."""
+    bus = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
+    yield bus
+    bus.shutdown()
+
+
+@pytest.fixture
+def client(channel: str) -> Iterator[TestClient]:
+    """The real app with the demo plant on a fresh virtual bus (session id 'demo-plant')."""
+    app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{channel}@500000", latency="0ms")
+    with TestClient(app) as test_client:
+        yield test_client
+
+
+def _free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+@pytest.fixture(scope="session")
+def live_server() -> Iterator[str]:
+    """uvicorn on a free loopback port with the demo plant, as `make run` starts it."""
+    port = _free_port()
+    app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000")
+    server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning"))
+    thread = threading.Thread(target=server.run, daemon=True)
+    thread.start()
+    deadline = time.time() + 20
+    while not server.started and time.time() < deadline:
+        time.sleep(0.05)
+    assert server.started, "the live server did not start"
+    yield f"http://127.0.0.1:{port}"
+    server.should_exit = True
+    thread.join(timeout=10)
+
+
+@pytest.fixture(scope="session")
+def browser() -> Iterator[object]:
+    playwright_api = pytest.importorskip("playwright.sync_api")
+    if not Path(CHROMIUM).exists():
+        pytest.fail("Debian chromium is missing: `make test` installs it (apt-get install chromium)")
+    with playwright_api.sync_playwright() as pw:
+        instance = pw.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        yield instance
+        instance.close()
+
+
+@pytest.fixture
+def page(browser: object) -> Iterator[object]:
+    context = browser.new_context(viewport={"width": 1440, "height": 900})  # type: ignore[attr-defined]
+    page = context.new_page()
+    yield page
+    context.close()
+
+
+def screenshot(page: object, name: str) -> Path:
+    ARTIFACTS.mkdir(exist_ok=True)
+    path = ARTIFACTS / f"{name}.png"
+    page.screenshot(path=str(path), full_page=True)  # type: ignore[attr-defined]
+    return path

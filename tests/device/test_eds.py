@@ -1,0 +1,399 @@
+"""EDS/DCF import and export: real-world style files, bad files with file and line, and property round trips."""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import canopen
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from drivebench.device.eds import BAUD_RATES_KBIT, MAX_EDS_BYTES, import_eds, resolve_node_expr
+from drivebench.device.eds_export import export_eds
+from drivebench.device.profile import (
+    Access,
+    Identity,
+    LenzeCodeAddressing,
+    ObjectEntry,
+    Parameter,
+    Profile,
+    SiemensParameterAddressing,
+)
+from drivebench.errors import ProfileError, UnknownParameter
+from drivebench.protocol.datatypes import DataType
+
+DATA = Path(__file__).resolve().parents[1] / "data" / "eds"
+REAL_FILES = sorted(p.name for p in DATA.iterdir() if p.suffix.lower() in (".eds", ".dcf"))
+
+
+def load(name: str) -> Profile:
+    return import_eds(DATA / name, source=name)
+
+
+def obj(profile: Profile, index: int, sub: int = 0) -> ObjectEntry:
+    return next(o for o in profile.objects if (o.index, o.subindex) == (index, sub))
+
+
+# --- real-world style files ---------------------------------------------------------------------------
+def test_cia402_servo_identity_features_and_kept_sections() -> None:
+    servo = load("cia402_servo.eds")
+    assert servo.id == "cia402_servo"
+    assert servo.identity == Identity(vendor_name="Example Motion GmbH", vendor_id=0x1AB, product_name="EM-Servo 400",
+                                      product_code=0x4002, revision=0x10003,
+                                      order_codes=["EMS-400-CAN", "EMS-400-CAN-S"], device_type=0x20192)
+    assert servo.features.baud_rates_kbit == [125, 250, 500, 1000]
+    assert (servo.features.rpdo_count, servo.features.tpdo_count) == (2, 2)
+    assert servo.features.heartbeat_consumers == 2
+    assert servo.notes[1] == "Limits of 0x607A are given as two's complement hex."
+    assert servo.extra_sections["Tools"] == {"Items": "1", "Tool1": "Example Motion Configurator"}
+    assert servo.extra_sections["DeviceInfo"] == {"LSS_Supported": "1"}
+    assert servo.extra_sections["FileInfo"]["CreationDate"] == "03-14-2024"
+    assert servo.extra_sections["DummyUsage"]["Dummy0002"] == "1"
+
+
+def test_cia402_servo_objects() -> None:
+    servo = load("cia402_servo.eds")
+    assert obj(servo, 0x1014).default_expr == "$NODEID+0x80" and obj(servo, 0x1014).default is None
+    assert obj(servo, 0x1200, 2).default_expr == "0x580+$NODEID"
+    assert obj(servo, 0x1017).parameter_value == 100  # "0144" is octal
+    compact = [o for o in servo.objects if o.index == 0x1016]
+    assert [(o.subindex, o.name) for o in compact] == [
+        (0, "NrOfObjects"), (1, "Consumer heartbeat time (master)"), (2, "Consumer heartbeat time (PLC)")]
+    assert compact[0].default == 2 and compact[2].data_type is DataType.UNSIGNED32
+    assert {o.obj_flags for o in servo.objects if o.index == 0x1010} == {1}
+    assert obj(servo, 0x607A).min == -0x80000000 and obj(servo, 0x607A).max == 0x7FFFFFFF
+    assert obj(servo, 0x6060).data_type is DataType.INTEGER8 and obj(servo, 0x6060).min == -10
+    rated = obj(servo, 0x2000, 2)
+    assert (rated.default, rated.max, rated.unit, rated.factor) == (10.2, 50.0, "A", 100)
+    assert obj(servo, 0x2000, 3).default == 1.25
+    domain = obj(servo, 0x2001)
+    assert (domain.data_type, domain.object_type, domain.access, domain.default) == (
+        DataType.DOMAIN, "VAR", Access.WO, None)
+    assert obj(servo, 0x2002).default == "Generic PMSM motor 400W"
+
+
+def test_latin1_dcf_with_compact_values_and_denotations() -> None:
+    dcf = load("io_module_node12.dcf")
+    assert dcf.identity.product_name == "IO-16 Temperaturmodul"
+    assert dcf.extra_sections["DeviceComissioning"]["NodeID"] == "12"
+    assert obj(dcf, 0x2100).denotation == "Kalibrierung Fühler 1"
+    assert obj(dcf, 0x2100).parameter_value == -1.5
+    assert obj(dcf, 0x6400, 1).denotation == "Ofentemperatur oben (°C)"
+    assert [obj(dcf, 0x6400, s).parameter_value for s in (1, 2, 3, 4)] == [-3, None, None, 127]
+    assert obj(dcf, 0x1800, 1).parameter_value == "$NODEID+0x180"
+    assert obj(dcf, 0x2101).default == "00 11 22 AA"
+    assert {o.obj_flags for o in dcf.objects if o.index == 0x6401} == {2}
+
+
+def test_lenze_file_with_crlf_decimal_types_and_spaced_formula() -> None:
+    lenze = load("lenze_8400_motec.eds")
+    assert lenze.identity.vendor_id == 0x3B
+    assert lenze.features.baud_rates_kbit == [20, 50, 125, 250, 500, 800, 1000]
+    assert obj(lenze, 0x5FA7).name == "C00088: Rated motor current"
+    assert obj(lenze, 0x5FA7).default == 10.2  # 1020 raw, Factor=100
+    assert obj(lenze, 0x1014).default_expr == "$NODEID + 0x80"
+    assert resolve_node_expr("$NODEID + 0x80", 2) == 0x82
+
+
+@pytest.mark.parametrize("name", REAL_FILES)
+def test_real_files_round_trip(name: str) -> None:
+    profile = load(name)
+    assert import_eds(export_eds(profile), source=name) == profile
+
+
+@pytest.mark.parametrize("name", REAL_FILES)
+def test_canopen_reads_our_dcf_like_the_original(name: str) -> None:
+    """canopen (an independent reader) sees the same defaults and resolved values in our DCF as in the file."""
+    original = _canopen_od((DATA / name).read_bytes().decode("latin-1"), name)
+    ours = _canopen_od(export_eds(load(name), node_id=5, dcf=True, baud_kbit=500), "ours.dcf")
+    for index in original:
+        if index < 0x1000:
+            continue
+        theirs = original[index]
+        members = [theirs] if isinstance(theirs, canopen.objectdictionary.ODVariable) else list(theirs.values())
+        for var in members:
+            mine = ours[index][var.subindex] if var.subindex or not isinstance(
+                theirs, canopen.objectdictionary.ODVariable) else ours[index]
+            assert (mine.data_type, mine.min, mine.max) == (var.data_type, var.min, var.max), (hex(index), var.subindex)
+            if var.default is not None:  # canopen leaves a CompactSubObj sub 0 without default; we give N
+                assert mine.default == var.default, (hex(index), var.subindex)
+            if var.value is not None:
+                assert mine.value == var.value, (hex(index), var.subindex)
+
+
+def _canopen_od(text: str, name: str) -> canopen.ObjectDictionary:
+    stream = io.StringIO(text)
+    stream.name = name
+    return canopen.import_od(stream, node_id=5)
+
+
+# --- DCF export -----------------------------------------------------------------------------------------
+def test_dcf_for_a_node_resolves_formulas_and_writes_values() -> None:
+    servo = load("cia402_servo.eds")
+    text = export_eds(servo, node_id=5, dcf=True, baud_kbit=250, values={(0x1017, 0): 250, (0x2000, 1): 7})
+    assert "[DeviceComissioning]\nNodeID=5\nBaudrate=250\n" in text
+    again = import_eds(text, source="servo_node5.dcf")
+    assert obj(again, 0x1014).parameter_value == 0x85
+    assert obj(again, 0x1014).default_expr == "$NODEID+0x80"  # the DCF still works for another node id
+    assert obj(again, 0x1801, 1).parameter_value == 0x40000285
+    assert obj(again, 0x1017).parameter_value == 250
+    assert obj(again, 0x2000, 1).parameter_value == 7
+    assert again.extra_sections["DeviceComissioning"] == {"NodeID": "5", "Baudrate": "250"}
+
+
+def test_dcf_values_for_unknown_objects_are_refused() -> None:
+    with pytest.raises(UnknownParameter, match="0x2FFFsub0"):
+        export_eds(load("cia402_servo.eds"), dcf=True, values={(0x2FFF, 0): 1})
+
+
+def _vendor_profile(addressing: LenzeCodeAddressing | SiemensParameterAddressing) -> Profile:
+    lenze = isinstance(addressing, LenzeCodeAddressing)
+    code = "C00088" if lenze else "P0305"
+    return Profile(
+        id="vendor-test", family="test", addressing=addressing,
+        identity=Identity(vendor_name="Lenze", vendor_id=0x3B, product_name="8400", product_code=0x84D0),
+        parameters=[
+            Parameter(code=code, name="Rated motor current", data_type=DataType.UNSIGNED16, factor=100, unit="A",
+                      min=0, max=500, default=10.2, parameter_sets=2),
+            Parameter(code="C00322" if lenze else "r0027", subcode=1, name="Transmission mode",
+                      subcode_name="CAN1 OUT", data_type=DataType.UNSIGNED8, default=254),
+            Parameter(code="C00322" if lenze else "r0027", subcode=2, name="Transmission mode",
+                      subcode_name="CAN2 OUT", data_type=DataType.UNSIGNED8, default=254),
+        ],
+    )
+
+
+def test_lenze_codes_become_manufacturer_objects_at_their_index() -> None:
+    exported = import_eds(export_eds(_vendor_profile(LenzeCodeAddressing())), source="x.eds")
+    assert obj(exported, 0x5FA7).name == "C00088: Rated motor current"
+    assert (obj(exported, 0x5FA7).default, obj(exported, 0x5FA7).factor) == (10.2, 100)
+    assert obj(exported, 0x5FFF - 2088).name == "C02088: Rated motor current (parameter set 2)"
+    record = [o for o in exported.objects if o.index == 0x5FFF - 322]
+    assert [(o.subindex, o.name) for o in record] == [
+        (0, "Highest sub-index supported"), (1, "C00322/1: CAN1 OUT"), (2, "C00322/2: CAN2 OUT")]
+    assert record[0].object_name == "C00322: Transmission mode" and record[0].default == 2
+    assert {0x1000, 0x1001, 0x1018} <= {o.index for o in exported.objects}
+    assert obj(exported, 0x1018, 1).default == 0x3B
+
+
+def test_siemens_parameters_use_their_index() -> None:
+    exported = import_eds(export_eds(_vendor_profile(SiemensParameterAddressing())), source="x.eds")
+    assert obj(exported, 0x2000 + 305).name == "P0305: Rated motor current"
+    assert obj(exported, 0x2000 + 27, 2).name == "r0027.2: CAN2 OUT"
+
+
+# --- bad files ------------------------------------------------------------------------------------------
+GOOD = """[FileInfo]
+FileName=bad.eds
+[DeviceInfo]
+VendorName=V
+ProductName=P
+[MandatoryObjects]
+SupportedObjects=2
+1=0x1000
+2=0x1018
+[1000]
+ParameterName=Device type
+ObjectType=0x7
+DataType=0x0007
+AccessType=ro
+DefaultValue=0
+[1018]
+ParameterName=Identity object
+ObjectType=0x9
+SubNumber=2
+[1018sub0]
+ParameterName=Highest sub-index supported
+DataType=0x0005
+AccessType=ro
+DefaultValue=1
+[1018sub1]
+ParameterName=Vendor-ID
+DataType=0x0007
+AccessType=ro
+DefaultValue=0x1AB
+LowLimit=0
+HighLimit=0xFFFF
+"""
+
+
+def line_of(text: str, needle: str, nth: int = 1) -> int:
+    hits = [n for n, line in enumerate(text.splitlines(), start=1) if line.startswith(needle)]
+    return hits[nth - 1]
+
+
+def test_the_good_file_loads() -> None:
+    assert obj(import_eds(GOOD, source="bad.eds"), 0x1018, 1).default == 0x1AB
+
+
+BAD = [
+    # (what, old, new, line finder, message)
+    ("truncated", "DataType=0x0007\nAccessType=ro\nDefaultValue=0x1AB\nLowLimit=0\nHighLimit=0xFFFF\n", "DataTy",
+     lambda t: line_of(t, "DataTy", 3), "expected 'key=value'"),
+    ("truncated object", "[1018sub1]\nParameterName=Vendor-ID\nDataType=0x0007\nAccessType=ro\n"
+     "DefaultValue=0x1AB\nLowLimit=0\nHighLimit=0xFFFF\n", "", lambda t: line_of(t, "SubNumber"),
+     "SubNumber=2 but object 0x1018 has 1"),
+    ("unknown data type", "DataType=0x0005", "DataType=0x0099", lambda t: line_of(t, "DataType=0x0099"),
+     "DataType=0x0099"),
+    ("text for a number", "DefaultValue=1\n", "DefaultValue=one\n", lambda t: line_of(t, "DefaultValue=one"),
+     "not a number"),
+    ("value too big", "DefaultValue=1\n", "DefaultValue=300\n", lambda t: line_of(t, "DefaultValue=300"),
+     "does not fit UNSIGNED8"),
+    ("duplicate section", "[1018sub1]", "[1018sub0]", lambda t: line_of(t, "[1018sub0]", 2),
+     "duplicate section [1018sub0]"),
+    ("duplicate key", "AccessType=ro\nDefaultValue=0\n", "AccessType=ro\naccesstype=rw\nDefaultValue=0\n",
+     lambda t: line_of(t, "accesstype"), "duplicate key"),
+    ("low above high", "LowLimit=0\n", "LowLimit=0x10000\n", lambda t: line_of(t, "HighLimit"),
+     "LowLimit 0x10000 is greater than HighLimit 0xFFFF"),
+    ("binary junk", "[1000]\n", "[1000]\n\x00\x89PNG\x1a\n", lambda t: line_of(t, "\x00"), "binary junk"),
+    ("missing ParameterName", "ParameterName=Device type\n", "", lambda t: line_of(t, "[1000]"),
+     "[1000] has no ParameterName="),
+    ("missing AccessType", "AccessType=ro\nDefaultValue=0\n", "DefaultValue=0\n", lambda t: line_of(t, "[1000]"),
+     "[1000] has no AccessType="),
+    ("listed object without section", "2=0x1018\n", "2=0x1018\n3=0x1001\n", lambda t: line_of(t, "SupportedObj"),
+     "SupportedObjects=2 but [MandatoryObjects] lists 3"),
+    ("object without section", "SupportedObjects=2\n", "SupportedObjects=3\n3=0x1001\n",
+     lambda t: line_of(t, "3=0x1001"), "no [1001] section"),
+    ("bad formula", "DefaultValue=0x1AB", "DefaultValue=$NODEID*2", lambda t: line_of(t, "DefaultValue=$NODEID"),
+     "$NODEID+<number>"),
+    ("bad access", "AccessType=ro\nDefaultValue=0\n", "AccessType=rx\nDefaultValue=0\n",
+     lambda t: line_of(t, "AccessType=rx"), "AccessType='rx'"),
+    ("bad object type", "ObjectType=0x7", "ObjectType=0x5", lambda t: line_of(t, "ObjectType=0x5"),
+     "ObjectType=0x5 is not supported"),
+    ("unterminated header", "[1000]", "[1000", lambda t: line_of(t, "[1000"), "bad section header"),
+    ("no DeviceInfo", "[DeviceInfo]\nVendorName=V\nProductName=P\n", "", lambda t: 1, "no [DeviceInfo]"),
+    ("sub without object", "[1000]\n", "[2000sub1]\nParameterName=x\n[1000]\n",
+     lambda t: line_of(t, "[2000sub1]"), "belongs to no object"),
+    ("key before section", "[FileInfo]\n", "Junk=1\n[FileInfo]\n", lambda t: 1, "outside of any section"),
+]
+
+
+@pytest.mark.parametrize(("what", "old", "new", "find_line", "message"), BAD, ids=[b[0] for b in BAD])
+def test_bad_files_name_file_and_line(what: str, old: str, new: str, find_line, message: str) -> None:
+    assert old in GOOD, what
+    text = GOOD.replace(old, new, 1)
+    with pytest.raises(ProfileError) as caught:
+        import_eds(text, source="bad.eds")
+    line = find_line(text)
+    assert caught.value.source == "bad.eds" and caught.value.line == line
+    assert str(caught.value).startswith(f"bad.eds:{line}: ")
+    assert message in str(caught.value)
+
+
+def test_oversized_file_is_refused_before_parsing(tmp_path: Path) -> None:
+    big = tmp_path / "huge.eds"
+    big.write_bytes(GOOD.encode() + b";" * MAX_EDS_BYTES)
+    with pytest.raises(ProfileError, match=r"^huge\.eds: file is \d+ bytes"):
+        import_eds(big, source="huge.eds")
+    with pytest.raises(ProfileError, match="more than"):
+        import_eds(GOOD.encode() + b";" * MAX_EDS_BYTES, source="huge.eds")
+
+
+def test_latin1_bytes_are_read_and_utf8_bom_is_skipped() -> None:
+    latin = GOOD.replace("VendorName=V", "VendorName=Müller °C").encode("latin-1")
+    assert import_eds(latin, source="l.eds").identity.vendor_name == "Müller °C"
+    assert import_eds(b"\xef\xbb\xbf" + GOOD.encode(), source="b.eds").identity.vendor_name == "V"
+
+
+# --- property: import(export(x)) == x ---------------------------------------------------------------------
+_TEXT = st.text(st.characters(min_codepoint=32, max_codepoint=0x17F, blacklist_characters="\x7f"),
+                min_size=1, max_size=20).map(str.strip).filter(bool)
+_TYPES = [t for t in DataType]
+_SECTION_NAME = st.from_regex(r"\A[A-Z][A-Za-z_]{2,12}\Z").filter(
+    lambda n: n.upper() not in {"FILEINFO", "DEVICEINFO", "COMMENTS", "DRIVEBENCH", "DEVICECOMISSIONING",
+                                "MANDATORYOBJECTS", "OPTIONALOBJECTS", "MANUFACTUREROBJECTS"}
+    and not all(c in "0123456789ABCDEF" for c in n.upper()[:4]))
+
+
+@st.composite
+def _value(draw: st.DrawFn, data_type: DataType, factor: int) -> int | float | str:
+    if data_type in (DataType.VISIBLE_STRING, DataType.UNICODE_STRING):
+        return draw(st.one_of(st.just(""), _TEXT))
+    if data_type in (DataType.OCTET_STRING, DataType.DOMAIN):
+        return draw(st.binary(max_size=8)).hex().upper()
+    if data_type.is_float:
+        return draw(st.floats(allow_nan=False, allow_infinity=False, width=32 if data_type is DataType.REAL32
+                              else 64))
+    low, high = data_type.raw_limits()  # type: ignore[misc]
+    raw = draw(st.integers(low, high))
+    return raw if factor == 1 else raw / factor
+
+
+@st.composite
+def _entry(draw: st.DrawFn, index: int, sub: int, kind: str, object_name: str | None) -> ObjectEntry:
+    data_type = draw(st.sampled_from(_TYPES))
+    factor = draw(st.sampled_from([1, 1, 10, 100])) if data_type.is_integer else 1
+    fields: dict = {"index": index, "subindex": sub, "object_type": kind, "object_name": object_name,
+                    "name": draw(_TEXT), "data_type": data_type, "factor": factor,
+                    "access": draw(st.sampled_from(list(Access))), "pdo_mappable": draw(st.booleans()),
+                    "obj_flags": draw(st.none() | st.integers(0, 3)), "denotation": draw(st.none() | _TEXT),
+                    "unit": draw(st.none() | _TEXT), "description": draw(st.none() | _TEXT)}
+    if not data_type.is_string and draw(st.booleans()):
+        low, high = sorted([draw(_value(data_type, factor)), draw(_value(data_type, factor))])
+        fields |= {"min": low, "max": high}
+    formula = data_type in (DataType.UNSIGNED32, DataType.UNSIGNED16) and factor == 1 and draw(st.booleans())
+    if formula:
+        fields["default_expr"] = f"$NODEID+0x{draw(st.integers(0, 0x7FF)):X}"
+        fields["parameter_value"] = draw(st.none() | st.just("$NODEID+0x180"))
+    else:
+        fields["default"] = draw(st.none() | _value(data_type, factor))
+        raw_value = draw(st.none() | _value(data_type, 1))
+        fields["parameter_value"] = raw_value
+    return ObjectEntry(**fields)
+
+
+@st.composite
+def _profiles(draw: st.DrawFn) -> Profile:
+    device_type = draw(st.integers(0, 0xFFFFFFFF))
+    objects = [
+        ObjectEntry(index=0x1000, name="Device type", data_type=DataType.UNSIGNED32, access=Access.RO,
+                    default=device_type),
+        ObjectEntry(index=0x1001, name="Error register", data_type=DataType.UNSIGNED8, access=Access.RO),
+        ObjectEntry(index=0x1018, name="Highest sub-index supported", object_name="Identity object",
+                    object_type="RECORD", data_type=DataType.UNSIGNED8, access=Access.RO, default=1),
+        ObjectEntry(index=0x1018, subindex=1, name="Vendor-ID", object_name="Identity object",
+                    object_type="RECORD", data_type=DataType.UNSIGNED32, access=Access.RO, default=1),
+    ]
+    indices = draw(st.lists(st.integers(0x1002, 0x9FFF).filter(lambda i: i != 0x1018), max_size=6, unique=True))
+    for index in indices:
+        kind = draw(st.sampled_from(["VAR", "ARRAY", "RECORD"]))
+        if kind == "VAR":
+            objects.append(draw(_entry(index, 0, "VAR", None)))
+            continue
+        name = draw(_TEXT)
+        subs = draw(st.lists(st.integers(0, 255), min_size=1, max_size=4, unique=True))
+        objects.extend(draw(_entry(index, sub, kind, name)) for sub in sorted(subs))
+    extra = draw(st.dictionaries(_SECTION_NAME, st.dictionaries(
+        st.from_regex(r"\A[A-Za-z][A-Za-z0-9_]{0,8}\Z"), _TEXT, max_size=3), max_size=2))
+    extra = {name: {k: v for k, v in {key.lower(): (key, v) for key, v in keys.items()}.values()}
+             for name, keys in {n.upper(): (n, k) for n, k in extra.items()}.values()}
+    return Profile(
+        id=draw(st.from_regex(r"\A[a-z0-9][a-z0-9_.-]{0,20}\Z")),
+        family=draw(st.from_regex(r"\A[a-z][a-z0-9-]{0,10}\Z")),
+        version=draw(st.from_regex(r"\A[0-9]{1,3}\Z")),
+        source=draw(st.none() | _TEXT),
+        identity=Identity(vendor_name=draw(_TEXT), vendor_id=draw(st.none() | st.integers(0, 0xFFFFFFFF)),
+                          product_name=draw(_TEXT), product_code=draw(st.none() | st.integers(0, 0xFFFFFFFF)),
+                          revision=draw(st.none() | st.integers(0, 0xFFFFFFFF)),
+                          order_codes=draw(st.lists(_TEXT.filter(lambda t: "," not in t), max_size=2)),
+                          device_type=device_type),
+        objects=objects,
+        notes=draw(st.lists(_TEXT, max_size=3)),
+        extra_sections=extra,
+    ).model_copy(update={"features": Profile.model_fields["features"].default_factory().model_copy(  # type: ignore[misc]
+        update={"baud_rates_kbit": sorted(draw(st.sets(st.sampled_from(BAUD_RATES_KBIT)))),
+                "rpdo_count": draw(st.integers(0, 512)), "tpdo_count": draw(st.integers(0, 512))})})
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(_profiles())
+def test_import_of_export_is_identity(profile: Profile) -> None:
+    again = import_eds(export_eds(profile), source="whatever.eds")
+    assert sorted(again.objects, key=lambda o: (o.index, o.subindex)) == sorted(
+        profile.objects, key=lambda o: (o.index, o.subindex))
+    assert again.model_dump(exclude={"objects", "features"}) == profile.model_dump(exclude={"objects", "features"})
+    assert again.features.baud_rates_kbit == profile.features.baud_rates_kbit
+    assert (again.features.rpdo_count, again.features.tpdo_count) == (
+        profile.features.rpdo_count, profile.features.tpdo_count)

@@ -1,0 +1,68 @@
+"""Bus specifications and opening adapters: any python-can interface, clear errors, observed transmits."""
+
+from __future__ import annotations
+
+import socket
+
+import can
+import pytest
+
+from drivebench.errors import AdapterUnavailable, BusSpecError
+from drivebench.transport.bus import BusSpec, open_bus
+
+
+@pytest.mark.parametrize(("text", "interface", "channel", "bitrate", "options"), [
+    ("socketcan:can0@500000", "socketcan", "can0", 500_000, {}),
+    ("pcan:PCAN_USBBUS1@250000", "pcan", "PCAN_USBBUS1", 250_000, {}),
+    ("kvaser:0@125000", "kvaser", "0", 125_000, {}),
+    ("slcan:/dev/ttyACM0@1000000", "slcan", "/dev/ttyACM0", 1_000_000, {}),
+    ("virtual:plant", "virtual", "plant", 500_000, {}),
+    ("socketcand:10.1.2.3:29536/can0", "socketcand", "can0", 500_000, {"host": "10.1.2.3", "port": 29536}),
+    ("socketcand:gw.line1:29536/can1@250000", "socketcand", "can1", 250_000, {"host": "gw.line1", "port": 29536}),
+])
+def test_parse(text: str, interface: str, channel: str, bitrate: int, options: dict[str, object]) -> None:
+    spec = BusSpec.parse(text)
+    assert (spec.interface, spec.channel, spec.bitrate, spec.options) == (interface, channel, bitrate, options)
+    assert BusSpec.parse(str(spec)) == spec
+
+
+@pytest.mark.parametrize("text", ["", "can0", "socketcan", "socketcan:can0@fast", "Socket CAN:can0"])
+def test_parse_rejects_with_the_accepted_forms(text: str) -> None:
+    with pytest.raises(BusSpecError, match="INTERFACE:CHANNEL@BITRATE"):
+        BusSpec.parse(text)
+
+
+def test_unknown_interface_lists_the_known_ones() -> None:
+    with pytest.raises(AdapterUnavailable, match="Unknown CAN interface 'canfox'") as info:
+        open_bus(BusSpec.parse("canfox:0@500000"))
+    assert "socketcan" in (info.value.hint or "") and "pcan" in (info.value.hint or "")
+
+
+def test_missing_socketcan_names_interface_and_what_to_check() -> None:
+    with pytest.raises(AdapterUnavailable, match=r"Cannot open socketcan:vcan9@500000") as info:
+        open_bus(BusSpec.parse("socketcan:vcan9@500000"))
+    assert "ip link set vcan9 up" in (info.value.hint or "")
+
+
+def test_unreachable_gateway_fails_fast_with_a_hint() -> None:
+    with socket.socket() as sock:  # a port nobody listens on
+        sock.bind(("127.0.0.1", 0))
+        port = sock.getsockname()[1]
+    with pytest.raises(AdapterUnavailable, match=f"Cannot reach the socketcand gateway at 127.0.0.1:{port}") as info:
+        open_bus(BusSpec.parse(f"socketcand:127.0.0.1:{port}/can0"))
+    assert "drivebench hub" in (info.value.hint or "")
+
+
+def test_observed_bus_reports_transmitted_frames(channel: str, wire: can.BusABC) -> None:
+    bus = open_bus(BusSpec.parse(f"virtual:{channel}"))
+    seen: list[can.Message] = []
+    bus.add_observer(seen.append)
+    try:
+        bus.send(can.Message(arbitration_id=0x605, data=bytes([0x40, 0xC2, 0x5F, 0, 0, 0, 0, 0]),
+                             is_extended_id=False))
+        received = wire.recv(1)
+        assert received is not None and received.arbitration_id == 0x605
+        assert [m.arbitration_id for m in seen] == [0x605] and seen[0].timestamp > 0
+        bus.remove_observer(seen.append)
+    finally:
+        bus.shutdown()

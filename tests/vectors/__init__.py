@@ -1,0 +1,1 @@
+"""Byte-level examples from the device manuals, shared by tests at every layer."""
