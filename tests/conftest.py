@@ -16,6 +16,7 @@ import can
 import pytest
 import uvicorn
 from fastapi.testclient import TestClient
+from hypothesis import settings
 
 from drivebench.config import REPO_ROOT
 from drivebench.device.loader import ProfileRegistry
@@ -28,6 +29,11 @@ CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
                  "--disable-component-update", "--disable-sync", "--no-first-run", "--disable-quic"]
 _channels = itertools.count(1)
+
+# CI runs the same examples every time (a failure is reproducible); `HYPOTHESIS_PROFILE=dev` explores anew.
+settings.register_profile("ci", derandomize=True, deadline=None, print_blob=True)
+settings.register_profile("dev", deadline=None)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 
 def fresh_channel() -> str:
