@@ -17,7 +17,7 @@ from __future__ import annotations
 from enum import StrEnum
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, PlainSerializer, model_validator
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, PlainSerializer, WithJsonSchema, model_validator
 
 from drivebench.protocol.datatypes import DataType
 
@@ -29,7 +29,11 @@ def _parse_int(value: Any) -> Any:
     return value
 
 
-HexInt = Annotated[int, BeforeValidator(_parse_int), PlainSerializer(lambda v: f"0x{v:04X}", return_type=str)]
+# The published schema accepts what the files hold: an integer or a string like "0x5FA7".
+HEX_INT_PATTERN = r"^\s*[-+]?(0[xX][0-9a-fA-F_]+|0[oO][0-7_]+|[0-9_]+)\s*$"
+HEX_INT_SCHEMA: dict[str, Any] = {"anyOf": [{"type": "integer"}, {"type": "string", "pattern": HEX_INT_PATTERN}]}
+HexInt = Annotated[int, BeforeValidator(_parse_int), PlainSerializer(lambda v: f"0x{v:04X}", return_type=str),
+                   WithJsonSchema(HEX_INT_SCHEMA)]
 Number = int | float
 Value = int | float | str
 
