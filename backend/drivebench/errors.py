@@ -134,3 +134,11 @@ class NotFound(ServiceError):
 
 class Conflict(ServiceError):
     title = "Conflict"
+
+
+class NotAuthenticated(ServiceError):
+    title = "Not signed in"
+
+
+class AccessDenied(ServiceError):
+    title = "Not allowed"

@@ -16,19 +16,23 @@ from drivebench import __version__
 from drivebench.config import settings
 from drivebench.device.loader import ProfileRegistry
 from drivebench.services.sessions import SessionManager
+from drivebench.services.sharing import ShareLinks
 from drivebench.simulator.plant import Plant, PlantFile
 from drivebench.web import problems
-from drivebench.web.api import health, profiles, sessions
+from drivebench.web.api import diagnostics, health, profiles, sessions
 from drivebench.web.pages import plant as plant_page
+from drivebench.web.pages import remote as remote_page
 from drivebench.web.state import AppState
+from drivebench.web.viewer import ViewerScope
 from drivebench.web.ws import nodes as nodes_ws
+from drivebench.web.ws import remote as remote_ws
 
 log = logging.getLogger(__name__)
 
 # One line per router: screens grow without touching anything else here.
-API_ROUTERS = [health.router, sessions.router, profiles.router]
-PAGE_ROUTERS = [plant_page.router]
-WS_ROUTERS = [nodes_ws.router]
+API_ROUTERS = [health.router, sessions.router, profiles.router, diagnostics.router]
+PAGE_ROUTERS = [plant_page.router, remote_page.router]
+WS_ROUTERS = [nodes_ws.router, remote_ws.router]
 
 
 async def start_plant(state: AppState, plant_path: Path, *, bus: str | None = None,
@@ -44,12 +48,14 @@ async def start_plant(state: AppState, plant_path: Path, *, bus: str | None = No
 
 def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: list[str] | None = None,
                latency: str | None = None, plant_bus: str | None = None) -> FastAPI:
+    share_links = ShareLinks()
+
     @contextlib.asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         asyncio.get_running_loop().set_default_executor(ThreadPoolExecutor(64, thread_name_prefix="bus-work"))
         registry = await asyncio.to_thread(ProfileRegistry)
         manager = SessionManager(registry, sdo_timeout_s=settings.sdo_timeout_s, sdo_retries=settings.sdo_retries)
-        state = AppState(registry, manager)
+        state = AppState(registry, manager, share_links=share_links)
         app.state.drivebench = state
         if demo or plant_file:
             await start_plant(state, plant_file or settings.plants_dir / "demo.json", bus=plant_bus,
@@ -66,6 +72,7 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
     app = FastAPI(title="DriveBench", version=__version__, lifespan=lifespan,
                   description="Commissioning of CANopen drives: parameters, PDOs, NMT, diagnostics.")
     problems.install(app)
+    app.add_middleware(ViewerScope, links=share_links)
     for router in API_ROUTERS + PAGE_ROUTERS + WS_ROUTERS:
         app.include_router(router)
     app.mount("/static", StaticFiles(directory=settings.frontend_dir / "static"), name="static")

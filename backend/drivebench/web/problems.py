@@ -25,6 +25,8 @@ STATUS: list[tuple[type[errors.DriveBenchError], int]] = [
     (errors.BusSpecError, 422),
     (errors.ParameterError, 422),
     (errors.Conflict, 409),
+    (errors.NotAuthenticated, 401),
+    (errors.AccessDenied, 403),
     (errors.SdoTimeoutError, 504),
     (errors.NodeOffline, 504),
     (errors.AdapterUnavailable, 503),

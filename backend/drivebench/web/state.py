@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 
 from drivebench.device.loader import ProfileRegistry
 from drivebench.services.sessions import SessionManager
+from drivebench.services.sharing import ShareLinks
 from drivebench.simulator.plant import Plant
 
 
@@ -13,5 +14,6 @@ from drivebench.simulator.plant import Plant
 class AppState:
     registry: ProfileRegistry
     manager: SessionManager
+    share_links: ShareLinks = field(default_factory=ShareLinks)
     plants: dict[str, Plant] = field(default_factory=dict)
     """Simulated plants by the id of the session that watches them."""

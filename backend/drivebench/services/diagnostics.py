@@ -1,0 +1,162 @@
+"""Node health: EMCY history decoded with the manual's texts, heartbeat producer/consumers, boot-ups.
+
+Everything shown to viewers comes from what the heartbeat and EMCY consumers already hold; only the heartbeat
+set-up reads and writes the device (through the node's SDO lock), so any number of viewers cost the bus nothing.
+"""
+
+from __future__ import annotations
+
+import time
+
+from pydantic import BaseModel
+
+from drivebench.device.profile import EmcyCode, Profile
+from drivebench.errors import InvalidValue
+from drivebench.protocol.emcy import EmcyEvent
+from drivebench.services.sessions import Session, SessionNode
+
+HEARTBEAT_PRODUCER = 0x1017
+HEARTBEAT_CONSUMERS = 0x1016
+
+
+class EmcyRecord(BaseModel):
+    node_id: int
+    time: float
+    code: str
+    error_register: str
+    register_bits: list[str]
+    class_text: str
+    vendor_error: str | None
+    vendor_text: str | None
+    remedy: str | None
+    data: str
+    is_reset: bool
+
+    @property
+    def text(self) -> str:
+        if self.is_reset:
+            return "Error reset / no error"
+        return self.vendor_text or self.class_text
+
+
+class HeartbeatConsumer(BaseModel):
+    slot: int
+    producer_id: int
+    time_ms: int
+
+    @property
+    def active(self) -> bool:
+        return self.producer_id != 0 and self.time_ms != 0
+
+
+class HeartbeatSetup(BaseModel):
+    node_id: int
+    producer_time_ms: int
+    consumers: list[HeartbeatConsumer]
+
+
+class NodeHealth(BaseModel):
+    node_id: int
+    device: str
+    nmt_state: str
+    heartbeat_age_s: float | None
+    heartbeat_period_ms: float | None
+    heartbeat_lost: bool
+    bootups: int
+    last_bootup: float | None
+    active_emcy: EmcyRecord | None
+    emcy_count: int
+
+
+def vendor_emcy(profile: Profile | None, code: int) -> EmcyCode | None:
+    if profile is None:
+        return None
+    return next((entry for entry in profile.emcy_codes if entry.code == code), None)
+
+
+def emcy_record(event: EmcyEvent, profile: Profile | None) -> EmcyRecord:
+    vendor = vendor_emcy(profile, event.code)
+    return EmcyRecord(
+        node_id=event.node_id, time=event.timestamp, code=f"0x{event.code:04X}",
+        error_register=f"0x{event.register:02X}", register_bits=event.register_bits, class_text=event.class_text,
+        vendor_error=vendor.vendor_error if vendor else None, vendor_text=vendor.text if vendor else None,
+        remedy=vendor.remedy if vendor else None, data=event.data.hex(" ").upper(), is_reset=event.is_reset)
+
+
+def emcy_history(session: Session, node_id: int) -> list[EmcyRecord]:
+    """The node's emergencies, newest first."""
+    profile = session.nodes[node_id].profile if node_id in session.nodes else None
+    return [emcy_record(event, profile) for event in reversed(session.network.emcy.history(node_id))]
+
+
+def node_health(session: Session, node: SessionNode, now: float | None = None) -> NodeHealth:
+    now = now or time.time()
+    status = session.heartbeat(node.node_id)
+    period = status.expected_period_s()
+    active = session.network.emcy.active(node.node_id)
+    return NodeHealth(
+        node_id=node.node_id, device=node.device_name, nmt_state=session.nmt_state(node.node_id)[0],
+        heartbeat_age_s=status.age_s(now), heartbeat_period_ms=round(period * 1000, 1) if period else None,
+        heartbeat_lost=status.is_lost(now), bootups=status.bootups, last_bootup=status.last_bootup,
+        active_emcy=emcy_record(active, node.profile) if active else None,
+        emcy_count=len(session.network.emcy.history(node.node_id)))
+
+
+def network_health(session: Session) -> list[NodeHealth]:
+    now = time.time()
+    return [node_health(session, node, now) for node in sorted(session.nodes.values(), key=lambda n: n.node_id)]
+
+
+# --- heartbeat set-up (8400 motec manual's commissioning example: consumer = producer id + time) ----------------
+def _u(data: bytes) -> int:
+    return int.from_bytes(data, "little")
+
+
+async def read_heartbeat_setup(session: Session, node_id: int) -> HeartbeatSetup:
+    client = session.client(node_id)
+    producer = _u(await client.aupload(HEARTBEAT_PRODUCER, 0))
+    consumers: list[HeartbeatConsumer] = []
+    count = _u(await client.aupload(HEARTBEAT_CONSUMERS, 0))
+    for slot in range(1, count + 1):
+        entry = _u(await client.aupload(HEARTBEAT_CONSUMERS, slot))
+        consumers.append(HeartbeatConsumer(slot=slot, producer_id=(entry >> 16) & 0x7F, time_ms=entry & 0xFFFF))
+    return HeartbeatSetup(node_id=node_id, producer_time_ms=producer, consumers=consumers)
+
+
+async def write_heartbeat_producer(session: Session, node_id: int, time_ms: int) -> HeartbeatSetup:
+    if not 0 <= time_ms <= 0xFFFF:
+        raise InvalidValue(f"Heartbeat producer time {time_ms} ms is outside 0 … 65535 ms (0 = off).")
+    await session.client(node_id).adownload(HEARTBEAT_PRODUCER, 0, time_ms.to_bytes(2, "little"))
+    session.network.heartbeat.set_configured_period(node_id, time_ms)
+    setup = await read_heartbeat_setup(session, node_id)
+    if setup.producer_time_ms != time_ms:
+        raise InvalidValue(f"Node {node_id} reads back a heartbeat producer time of {setup.producer_time_ms} ms "
+                           f"after {time_ms} ms was written.")
+    return setup
+
+
+async def write_heartbeat_consumer(session: Session, node_id: int, slot: int, producer_id: int,
+                                   time_ms: int) -> HeartbeatSetup:
+    """CiA 301 0x1016: bits 16..22 producer node id, bits 0..15 consumer time in ms (0 = slot unused)."""
+    if not 0 <= producer_id <= 127:
+        raise InvalidValue(f"Producer node id {producer_id} is not a CANopen node id (1 … 127, 0 = unused).")
+    if not 0 <= time_ms <= 0xFFFF:
+        raise InvalidValue(f"Consumer time {time_ms} ms is outside 0 … 65535 ms.")
+    if producer_id == node_id and time_ms:
+        raise InvalidValue(f"Node {node_id} cannot consume its own heartbeat.")
+    setup = await read_heartbeat_setup(session, node_id)
+    if not 1 <= slot <= len(setup.consumers):
+        raise InvalidValue(f"Node {node_id} has {len(setup.consumers)} heartbeat consumer entries; "
+                           f"entry {slot} does not exist.")
+    producer = session.network.heartbeat.status(producer_id).expected_period_s() if producer_id else None
+    if producer and time_ms and time_ms <= producer * 1000:
+        raise InvalidValue(f"Consumer time {time_ms} ms must be longer than node {producer_id}'s heartbeat "
+                           f"producer time ({producer * 1000:.0f} ms), or every heartbeat would be late.")
+    entry = (producer_id << 16) | time_ms
+    await session.client(node_id).adownload(HEARTBEAT_CONSUMERS, slot, entry.to_bytes(4, "little"))
+    setup = await read_heartbeat_setup(session, node_id)
+    written = setup.consumers[slot - 1]
+    if (written.producer_id, written.time_ms) != (producer_id, time_ms):
+        raise InvalidValue(f"Node {node_id} reads back consumer entry {slot} as node {written.producer_id}, "
+                           f"{written.time_ms} ms after node {producer_id}, {time_ms} ms was written.")
+    return setup

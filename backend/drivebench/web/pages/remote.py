@@ -1,0 +1,67 @@
+"""The Remote screen: share links for the engineer on site, and the read-only view a link opens."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from fastapi import APIRouter, Form, Request
+from fastapi.responses import HTMLResponse, RedirectResponse, Response
+
+from drivebench.services import diagnostics
+from drivebench.web.api.diagnostics import share_link_public
+from drivebench.web.deps import StateDep
+from drivebench.web.templating import templates
+from drivebench.web.viewer import COOKIE, require_engineer, viewer_of
+
+router = APIRouter(include_in_schema=False)
+PAGE = "remote.html"
+
+
+def health_context(state: Any) -> dict[str, Any]:
+    """Only what the heartbeat and EMCY consumers already hold: viewers never cause bus traffic."""
+    sessions = []
+    for session in state.manager.list():
+        nodes = diagnostics.network_health(session)
+        history = {n.node_id: diagnostics.emcy_history(session, n.node_id)[:10] for n in nodes}
+        sessions.append({"session": session, "nodes": nodes, "history": history})
+    return {"sessions": sessions}
+
+
+def _links_context(request: Request, state: Any, **extra: Any) -> dict[str, Any]:
+    links = [share_link_public(link, str(request.base_url)) for link in state.share_links.active()]
+    return {"active": "remote", "links": links, **health_context(state), **extra}
+
+
+@router.get("/remote", response_class=HTMLResponse)
+async def remote_page(request: Request, state: StateDep) -> Response:
+    link = viewer_of(request)
+    if link is not None:
+        return RedirectResponse(f"/remote/{link.token}", status_code=303)
+    return templates.TemplateResponse(request, PAGE, _links_context(request, state))
+
+
+@router.get("/remote/{token}", response_class=HTMLResponse)
+async def remote_view(request: Request, state: StateDep, token: str) -> Response:
+    link = state.share_links.check(token)
+    context = {"active": "remote", "viewer": link, "token": token, **health_context(state)}
+    response = templates.TemplateResponse(request, "remote_view.html", context)
+    remaining = max(int(link.expires - link.created), 60)
+    response.set_cookie(COOKIE, token, max_age=remaining, httponly=True, samesite="strict")
+    return response
+
+
+@router.post("/ui/share-links", response_class=HTMLResponse)
+async def create_link(request: Request, state: StateDep, ttl_minutes: int = Form(60),
+                      label: str = Form("")) -> Response:
+    require_engineer(request)
+    link = state.share_links.create(min(max(ttl_minutes, 1), 7 * 24 * 60) * 60, label)
+    created = share_link_public(link, str(request.base_url))
+    return templates.TemplateResponse(request, PAGE, _links_context(request, state, created=created),
+                                      block_name="links")
+
+
+@router.post("/ui/share-links/{token}/revoke", response_class=HTMLResponse)
+async def revoke_link(request: Request, state: StateDep, token: str) -> Response:
+    require_engineer(request)
+    state.share_links.revoke(token)
+    return templates.TemplateResponse(request, PAGE, _links_context(request, state), block_name="links")
