@@ -1,0 +1,1 @@
+"""Alembic migrations of the DriveBench database (run by ``services.database.upgrade_to_head``)."""

@@ -1,0 +1,97 @@
+"""One database for planned networks, parameter sets, audit log and users: SQLAlchemy 2 + Alembic.
+
+The URL comes from ``settings.database_url`` (``DRIVEBENCH_DATABASE_URL``): a SQLite file by default, PostgreSQL
+when several servers share one store. The schema is owned by the Alembic migrations in ``drivebench/migrations``;
+``upgrade_to_head`` runs them (at app start-up and in tests), nothing calls ``create_all``.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+from alembic import command
+from alembic.config import Config
+from sqlalchemy import Engine, create_engine, event
+from sqlalchemy.engine import make_url
+from sqlalchemy.orm import DeclarativeBase, Session, sessionmaker
+
+from drivebench.config import settings
+
+MIGRATIONS_DIR = Path(__file__).resolve().parents[1] / "migrations"
+
+
+class Base(DeclarativeBase):
+    """Declarative base of every table (``services/models.py``)."""
+
+
+_engines: dict[str, Engine] = {}
+_engines_lock = threading.Lock()
+
+
+def _sqlite_foreign_keys(dbapi_connection: object, _record: object) -> None:
+    cursor = dbapi_connection.cursor()  # type: ignore[attr-defined]
+    cursor.execute("PRAGMA foreign_keys=ON")
+    cursor.close()
+
+
+def engine(url: str | None = None) -> Engine:
+    """The engine for ``url`` (default: ``settings.database_url``), created once per URL."""
+    url = url or settings.database_url
+    with _engines_lock:
+        existing = _engines.get(url)
+        if existing is not None:
+            return existing
+        parsed = make_url(url)
+        connect_args: dict[str, object] = {}
+        if parsed.get_backend_name() == "sqlite":
+            connect_args["check_same_thread"] = False  # sessions are used from worker threads, one at a time
+            if parsed.database and parsed.database != ":memory:":
+                Path(parsed.database).parent.mkdir(parents=True, exist_ok=True)
+        created = create_engine(url, connect_args=connect_args, pool_pre_ping=True)
+        if parsed.get_backend_name() == "sqlite":
+            event.listen(created, "connect", _sqlite_foreign_keys)
+        _engines[url] = created
+        return created
+
+
+def dispose(url: str | None = None) -> None:
+    """Close the pooled connections of ``url``'s engine (tests call it before deleting a SQLite file)."""
+    with _engines_lock:
+        existing = _engines.pop(url or settings.database_url, None)
+    if existing is not None:
+        existing.dispose()
+
+
+@contextmanager
+def transaction(url: str | None = None) -> Iterator[Session]:
+    """A session whose work is committed when the block ends and rolled back when it raises."""
+    factory = sessionmaker(engine(url), expire_on_commit=False)
+    with factory() as session, session.begin():
+        yield session
+
+
+def alembic_config(url: str | None = None) -> Config:
+    """Programmatic Alembic configuration (no alembic.ini needed): the package's migrations, this URL."""
+    config = Config()
+    config.set_main_option("script_location", str(MIGRATIONS_DIR))
+    config.set_main_option("sqlalchemy.url", (url or settings.database_url).replace("%", "%%"))
+    return config
+
+
+def upgrade_to_head(url: str | None = None) -> None:
+    """Bring the database at ``url`` to the newest migration (creates a SQLite file if it is missing)."""
+    target = engine(url)
+    config = alembic_config(url)
+    with target.begin() as connection:
+        config.attributes["connection"] = connection
+        command.upgrade(config, "head")
+
+
+def current_revision(url: str | None = None) -> str | None:
+    from alembic.runtime.migration import MigrationContext
+
+    with engine(url).connect() as connection:
+        return MigrationContext.configure(connection).get_current_revision()
