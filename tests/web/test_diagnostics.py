@@ -161,3 +161,29 @@ def test_remote_websocket_streams_health_and_refuses_bad_tokens(app_client: Test
     assert "8400" in html
     with pytest.raises(Exception), app_client.websocket_connect("/ws/remote/dbv_wrong") as ws:  # noqa: B017
         ws.receive_text()
+
+
+def test_node_guarding_answers_toggle_and_detects_loss(app_client: TestClient) -> None:
+    """EMF2178IB supports node guarding (I-100C guard time, I-100D life time factor)."""
+    base = f"/api/sessions/{SESSION}/nodes/12/guarding"
+    started = app_client.put(base, json={"guard_time_ms": 50, "life_time_factor": 3})
+    assert started.status_code == 200, started.text
+    drive = plant_of(app_client).nodes[12]
+    assert drive.store.read(0x100C, 0) == (50).to_bytes(2, "little")
+    assert drive.store.read(0x100D, 0) == bytes([3])
+    guard = wait_for(lambda: (g := node_health(app_client, 12)["guarding"]) and g["answers"] >= 4 and g)
+    assert isinstance(guard, dict)
+    assert guard["toggle_errors"] == 0 and guard["lost"] is False
+    assert guard["state"] == "Pre-operational"
+
+    drive.power_off()
+    wait_for(lambda: node_health(app_client, 12)["guarding"]["lost"])  # type: ignore[index]
+    assert node_health(app_client, 12)["nmt_state"] == "Node guarding lost"
+    drive.power_on()
+    wait_for(lambda: not node_health(app_client, 12)["guarding"]["lost"])  # type: ignore[index]
+
+    refused = app_client.put(f"/api/sessions/{SESSION}/nodes/5/guarding", json={"guard_time_ms": 50})
+    assert refused.status_code == 422 and "does not support node guarding" in refused.json()["detail"]
+    stopped = app_client.put(base, json={"guard_time_ms": 0, "life_time_factor": 3})
+    assert stopped.json()["guard_time_ms"] == 0
+    assert node_health(app_client, 12)["guarding"] is None

@@ -20,6 +20,7 @@ from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError
 from drivebench.errors import NodeOffline, ProtocolError, SdoAbortError, SdoTimeoutError, TransportError
 from drivebench.protocol.abort_codes import abort_text
 from drivebench.protocol.emcy import EmcyMonitor
+from drivebench.protocol.guarding import NodeGuarding
 from drivebench.protocol.heartbeat import HeartbeatMonitor
 from drivebench.protocol.nmt import NmtCommand, nmt_frame
 from drivebench.transport.bus import ObservedBus
@@ -132,7 +133,8 @@ class CanopenNetwork:
         self.heartbeat = HeartbeatMonitor()
         self.emcy = EmcyMonitor()
         listeners = cast("list[can.Listener]", self.canopen.listeners)
-        listeners.extend([self.heartbeat, self.emcy])
+        self.guarding = NodeGuarding(self.bus.send)
+        listeners.extend([self.heartbeat, self.emcy, self.guarding])
         self.canopen.connect()
         self.nodes: dict[int, NodeClient] = {}
         self._error: BaseException | None = None
@@ -199,6 +201,7 @@ class CanopenNetwork:
             return "active"
 
     def close(self) -> None:
+        self.guarding.close()
         try:
             self.canopen.disconnect()
         finally:

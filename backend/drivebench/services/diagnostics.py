@@ -13,10 +13,13 @@ from pydantic import BaseModel
 from drivebench.device.profile import EmcyCode, Profile
 from drivebench.errors import InvalidValue
 from drivebench.protocol.emcy import EmcyEvent
+from drivebench.protocol.guarding import GuardStatus
 from drivebench.services.sessions import Session, SessionNode
 
 HEARTBEAT_PRODUCER = 0x1017
 HEARTBEAT_CONSUMERS = 0x1016
+GUARD_TIME = 0x100C
+LIFE_TIME_FACTOR = 0x100D
 
 
 class EmcyRecord(BaseModel):
@@ -55,6 +58,17 @@ class HeartbeatSetup(BaseModel):
     consumers: list[HeartbeatConsumer]
 
 
+class GuardingPublic(BaseModel):
+    guard_time_ms: int
+    life_time_factor: int
+    lost: bool
+    state: str | None
+    requests: int
+    answers: int
+    toggle_errors: int
+    last_answer: float | None
+
+
 class NodeHealth(BaseModel):
     node_id: int
     device: str
@@ -66,6 +80,7 @@ class NodeHealth(BaseModel):
     last_bootup: float | None
     active_emcy: EmcyRecord | None
     emcy_count: int
+    guarding: GuardingPublic | None = None
 
 
 def vendor_emcy(profile: Profile | None, code: int) -> EmcyCode | None:
@@ -94,12 +109,21 @@ def node_health(session: Session, node: SessionNode, now: float | None = None) -
     status = session.heartbeat(node.node_id)
     period = status.expected_period_s()
     active = session.network.emcy.active(node.node_id)
+    guard = session.network.guarding.status(node.node_id)
     return NodeHealth(
         node_id=node.node_id, device=node.device_name, nmt_state=session.nmt_state(node.node_id)[0],
         heartbeat_age_s=status.age_s(now), heartbeat_period_ms=round(period * 1000, 1) if period else None,
-        heartbeat_lost=status.is_lost(now), bootups=status.bootups, last_bootup=status.last_bootup,
+        heartbeat_lost=guard is None and status.is_lost(now), bootups=status.bootups, last_bootup=status.last_bootup,
         active_emcy=emcy_record(active, node.profile) if active else None,
-        emcy_count=len(session.network.emcy.history(node.node_id)))
+        emcy_count=len(session.network.emcy.history(node.node_id)),
+        guarding=guarding_public(guard, now) if guard else None)
+
+
+def guarding_public(guard: GuardStatus, now: float | None = None) -> GuardingPublic:
+    return GuardingPublic(guard_time_ms=round(guard.guard_time_s * 1000), life_time_factor=guard.life_time_factor,
+                          lost=guard.is_lost(now), state=guard.state.label if guard.state else None,
+                          requests=guard.requests, answers=guard.answers, toggle_errors=guard.toggle_errors,
+                          last_answer=guard.last_answer)
 
 
 def network_health(session: Session) -> list[NodeHealth]:
@@ -160,3 +184,25 @@ async def write_heartbeat_consumer(session: Session, node_id: int, slot: int, pr
         raise InvalidValue(f"Node {node_id} reads back consumer entry {slot} as node {written.producer_id}, "
                            f"{written.time_ms} ms after node {producer_id}, {time_ms} ms was written.")
     return setup
+
+
+# --- node guarding (devices that use it instead of heartbeat: EMF2178IB, MICROMASTER) ---------------------------
+async def start_guarding(session: Session, node_id: int, guard_time_ms: int, life_time_factor: int) -> GuardingPublic:
+    """Write guard time (0x100C) and life time factor (0x100D) to the node, then guard it; 0 ms stops guarding."""
+    node = session.node(node_id)
+    if node.profile is not None and not node.profile.features.node_guarding:
+        raise InvalidValue(f"{node.device_name} (node {node_id}) does not support node guarding per its profile; "
+                           "use the heartbeat instead.")
+    if not 0 <= guard_time_ms <= 0xFFFF or not 0 <= life_time_factor <= 0xFF:
+        raise InvalidValue("Guard time must be 0 … 65535 ms and life time factor 0 … 255.")
+    client = session.client(node_id)
+    if guard_time_ms and life_time_factor:  # CiA 301: a node with a heartbeat producer time does not guard
+        await client.adownload(HEARTBEAT_PRODUCER, 0, (0).to_bytes(2, "little"))
+        session.network.heartbeat.set_configured_period(node_id, 0)
+    await client.adownload(GUARD_TIME, 0, guard_time_ms.to_bytes(2, "little"))
+    await client.adownload(LIFE_TIME_FACTOR, 0, life_time_factor.to_bytes(1, "little"))
+    if guard_time_ms == 0 or life_time_factor == 0:
+        session.network.guarding.release(node_id)
+        return GuardingPublic(guard_time_ms=0, life_time_factor=life_time_factor, lost=False, state=None,
+                              requests=0, answers=0, toggle_errors=0, last_answer=None)
+    return guarding_public(session.network.guarding.start(node_id, guard_time_ms, life_time_factor))

@@ -150,6 +150,12 @@ class Session:
 
     def nmt_state(self, node_id: int) -> tuple[str, bool]:
         """The node's NMT state in words, and whether it comes from a live heartbeat."""
+        guard = self.network.guarding.status(node_id)
+        if guard is not None:
+            if guard.is_lost():
+                return "Node guarding lost", True
+            if guard.state is not None:
+                return guard.state.label, True
         status = self.heartbeat(node_id)
         if status.state is not None and not status.is_lost():
             return status.state.label, True

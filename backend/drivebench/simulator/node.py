@@ -90,6 +90,7 @@ class SimulatedNode:
         self._worker: threading.Thread | None = None
         self._next_heartbeat = 0.0
         self.emcy_active: list[tuple[int, int, bytes]] = []
+        self._guard_toggle = 0
         self.store.add_write_hook(self._on_write)
         self._build_sdo_servers()
 
@@ -111,6 +112,7 @@ class SimulatedNode:
 
     def _boot(self) -> None:
         self.state = NmtState.BOOTUP
+        self._guard_toggle = 0
         self._build_sdo_servers()
         self.send(0x700 + self.node_id, bytes([NmtState.BOOTUP]))
         self.state = NmtState.PRE_OPERATIONAL
@@ -216,6 +218,15 @@ class SimulatedNode:
             self.store.saved = self.store.snapshot()
         elif sub == 26:
             threading.Timer(0.01, self._on_nmt, args=(bytes([NmtCommand.RESET_NODE, self.node_id]),)).start()
+
+    def on_remote_request(self, cob_id: int) -> None:
+        """Node guarding (CiA 301): answer the master's remote frame with the state and an alternating toggle bit."""
+        if not self.powered or cob_id != 0x700 + self.node_id or not self.profile.features.node_guarding:
+            return
+        if self.heartbeat_period_s():  # CiA 301: with a heartbeat producer time set, heartbeat is used instead
+            return
+        self.send(0x700 + self.node_id, bytes([(self._guard_toggle << 7) | self.state]))
+        self._guard_toggle ^= 1
 
     # --- periodic work (plant timer thread) -------------------------------------------------------------
     def heartbeat_period_s(self) -> float:

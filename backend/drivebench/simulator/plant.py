@@ -133,7 +133,11 @@ class Plant:
         self._dispatch(cob_id, data, time.time(), skip_sender=True)
 
     def _on_message(self, msg: can.Message) -> None:
-        if msg.is_extended_id or msg.is_error_frame or msg.is_remote_frame:
+        if msg.is_extended_id or msg.is_error_frame:
+            return
+        if msg.is_remote_frame:
+            for node in list(self.nodes.values()):
+                node.on_remote_request(msg.arbitration_id)
             return
         self._dispatch(msg.arbitration_id, bytes(msg.data), msg.timestamp, skip_sender=False)
 

@@ -10,7 +10,7 @@ from fastapi.responses import HTMLResponse, Response
 from pydantic import BaseModel, Field
 
 from drivebench.services import diagnostics
-from drivebench.services.diagnostics import EmcyRecord, HeartbeatSetup, NodeHealth
+from drivebench.services.diagnostics import EmcyRecord, GuardingPublic, HeartbeatSetup, NodeHealth
 from drivebench.services.sharing import ShareLink
 from drivebench.web.deps import NodeDep, SessionDep, StateDep
 from drivebench.web.templating import templates
@@ -34,6 +34,11 @@ class ProducerTime(BaseModel):
 class ConsumerEntry(BaseModel):
     producer_id: int = Field(ge=0, le=127, description="0 = entry unused")
     time_ms: int = Field(ge=0, le=65535)
+
+
+class GuardingRequest(BaseModel):
+    guard_time_ms: int = Field(ge=0, le=65535, description="0 stops node guarding")
+    life_time_factor: int = Field(3, ge=0, le=255)
 
 
 class ShareLinkCreate(BaseModel):
@@ -81,6 +86,12 @@ async def set_producer(session: SessionDep, node: NodeDep, body: ProducerTime) -
 @router.put("/sessions/{session_id}/nodes/{node_id}/heartbeat/consumers/{slot}", response_model=HeartbeatSetup)
 async def set_consumer(session: SessionDep, node: NodeDep, slot: int, body: ConsumerEntry) -> HeartbeatSetup:
     return await diagnostics.write_heartbeat_consumer(session, node.node_id, slot, body.producer_id, body.time_ms)
+
+
+@router.put("/sessions/{session_id}/nodes/{node_id}/guarding", response_model=GuardingPublic)
+async def set_guarding(session: SessionDep, node: NodeDep, body: GuardingRequest) -> GuardingPublic:
+    """Node guarding for devices that use it instead of heartbeat: writes 0x100C/0x100D, then guards the node."""
+    return await diagnostics.start_guarding(session, node.node_id, body.guard_time_ms, body.life_time_factor)
 
 
 @router.get("/sessions/{session_id}/diagnostics/report", response_class=HTMLResponse)
