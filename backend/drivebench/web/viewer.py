@@ -10,7 +10,7 @@ from __future__ import annotations
 from http.cookies import SimpleCookie
 
 from fastapi import Request
-from starlette.responses import JSONResponse
+from starlette.responses import JSONResponse, RedirectResponse
 from starlette.types import ASGIApp, Receive, Scope, Send
 
 from drivebench.errors import AccessDenied, DriveBenchError
@@ -20,6 +20,7 @@ from drivebench.web.problems import problem_body
 COOKIE = "drivebench_viewer"
 SAFE_METHODS = {"GET", "HEAD", "OPTIONS"}
 VIEWER_WEBSOCKETS = ("/ws/remote",)
+VIEWER_PATHS = ("/remote", "/api/", "/static/", "/openapi.json", "/docs")
 
 
 def token_of(scope: Scope) -> str | None:
@@ -58,6 +59,11 @@ class ViewerScope:
             await response(scope, receive, send)
             return
         scope.setdefault("state", {})["viewer"] = link
+        path = scope.get("path", "")
+        if scope["type"] == "http" and not path.startswith(VIEWER_PATHS):
+            # The engineer's screens are not for link holders: they land on the remote view.
+            await RedirectResponse(f"/remote/{link.token}", status_code=303)(scope, receive, send)
+            return
         await self.app(scope, receive, send)
 
     @staticmethod

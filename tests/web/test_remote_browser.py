@@ -1,0 +1,73 @@
+"""The Remote tab in a real browser: create a share link, open it as the service engineer, watch an emergency
+appear live, and find every writing control absent and refused."""
+
+from __future__ import annotations
+
+import json
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+import uvicorn
+
+from drivebench.simulator.plant import Plant
+from drivebench.web.app import create_app
+from tests.conftest import _free_port, fresh_channel, screenshot
+
+
+@pytest.fixture
+def lenze_server(tmp_path: Path) -> Iterator[tuple[str, Plant]]:
+    plant_file = tmp_path / "plant.json"
+    plant_file.write_text(json.dumps({"name": "Line 2", "bus": "virtual:x@500000", "nodes": [
+        {"node_id": 5, "profile": "lenze-8400-motec-canopen", "name": "Conveyor", "heartbeat_ms": 200},
+        {"node_id": 12, "profile": "lenze-8200-vector-emf2178ib", "name": "Fan", "heartbeat_ms": 200}]}))
+    app = create_app(plant_file=plant_file, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
+    port = _free_port()
+    server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning"))
+    thread = threading.Thread(target=server.run, daemon=True)
+    thread.start()
+    deadline = time.time() + 20
+    while not server.started and time.time() < deadline:
+        time.sleep(0.05)
+    assert server.started
+    plants: dict[str, Plant] = app.state.drivebench.plants
+    yield f"http://127.0.0.1:{port}", next(iter(plants.values()))
+    server.should_exit = True
+    thread.join(timeout=10)
+
+
+def test_share_link_view_is_live_and_read_only(lenze_server: tuple[str, Plant], browser: Any) -> None:
+    base, plant = lenze_server
+    engineer = browser.new_context(viewport={"width": 1440, "height": 900})
+    page = engineer.new_page()
+    page.goto(f"{base}/remote")
+    page.fill("input[name=label]", "Lenze service, ticket 4711")
+    page.click("text=Create share link")
+    url = page.locator("input.share-url").input_value()
+    assert "/remote/dbv_" in url
+    assert page.locator("#share-links tbody tr", has_text="ticket 4711").count() == 1
+    screenshot(page, "remote-engineer")
+
+    remote = browser.new_context(viewport={"width": 1440, "height": 900})
+    viewer = remote.new_page()
+    viewer.goto(url)
+    viewer.wait_for_selector("text=read-only view")
+    viewer.wait_for_selector("tr[data-node='5'] >> text=Pre-operational")
+    assert viewer.locator("button").count() == 0, "the remote view offers no action"
+    plant.nodes[5].raise_emcy(0x3100, register=0x05)
+    viewer.wait_for_selector("tr[data-node='5'] >> text=Supply voltage of standard device", timeout=10_000)
+    assert viewer.locator("table.emcy", has_text="0x3100").count() == 1
+    screenshot(viewer, "remote-viewer")
+
+    viewer.goto(f"{base}/")
+    assert "/remote/dbv_" in viewer.url, "a link holder lands on the remote view, not the engineer's screens"
+    assert viewer.locator("header nav").count() == 0
+    refused = viewer.request.post(f"{base}/api/sessions/line-2/nmt", data={"command": "start"})
+    assert refused.status == 403
+    assert "read-only" in refused.json()["detail"]
+    plant.nodes[5].clear_emcy()
+    engineer.close()
+    remote.close()
