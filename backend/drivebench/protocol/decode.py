@@ -333,6 +333,19 @@ def _lss(cob_id: int, data: bytes) -> str:
     return f"{direction}: {command}{detail}"
 
 
+# SocketCAN error classes (linux/can/error.h), the convention python-can adapters follow for error frames.
+_ERROR_CLASSES = {
+    0x001: "TX timeout", 0x002: "lost arbitration", 0x004: "controller problem", 0x008: "protocol violation",
+    0x010: "transceiver status", 0x020: "no ACK on transmission", 0x040: "bus off", 0x080: "bus error",
+    0x100: "controller restarted",
+}
+
+
+def _error_frame(error_class: int, data: bytes) -> str:
+    words = [text for bit, text in _ERROR_CLASSES.items() if error_class & bit] or ["unspecified"]
+    return f"{', '.join(words)} (class 0x{error_class:03X}) {_hex(data)}".rstrip()
+
+
 def decode_frame(msg: can.Message, *, names: NameLookup | None = None, vendor: VendorLookup | None = None,
                  emcy_texts: EmcyLookup | None = None, sdo_context: SdoContext | None = None) -> DecodedFrame:
     """Decode ``msg``; ``names``/``vendor``/``emcy_texts`` add the profile's words where a caller has them."""
@@ -343,7 +356,7 @@ def decode_frame(msg: can.Message, *, names: NameLookup | None = None, vendor: V
                             msg.is_error_frame, msg.dlc, data, service, node, summary)
 
     if msg.is_error_frame:
-        return make(Service.ERROR_FRAME, None, f"error frame 0x{msg.arbitration_id:08X} {_hex(data)}".rstrip())
+        return make(Service.ERROR_FRAME, None, _error_frame(msg.arbitration_id, data))
     service, node = classify(msg.arbitration_id, msg.is_extended_id)
     remote = f"remote request, dlc {msg.dlc}"
     if service is Service.NMT:

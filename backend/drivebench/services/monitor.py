@@ -1,0 +1,385 @@
+"""Live telegram monitor of one session: counters per COB-ID, service and node, bus load with history, a trace.
+
+The listener thread (python-can notifier, and every thread that sends through the session's ObservedBus) only
+counts: one lock, one dict entry per COB-ID (frames, bits), the current one-second load bucket, and a reference to
+the frame in the trace ring. Service and node of a COB-ID, rates, shares and decoded trace text are worked out
+when someone looks (``snapshot``, ``trace_rows``), from those raw figures.
+
+Bounds: COB-ID table at most 2048 + the 29-bit ids seen; load history ``HISTORY_S`` one-second points; trace ring
+``TRACE_CAPACITY`` frames; rate samples covering ``RATE_WINDOW_S``.
+
+Pause freezes the view (the trace takes no new telegrams, snapshots repeat the one taken at pause); counting goes
+on underneath, so totals stay exact and resume shows them.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+import weakref
+from collections import deque
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from typing import Any
+
+import can
+
+from drivebench.protocol.decode import (
+    DecodedFrame,
+    SdoContext,
+    SdoTracker,
+    Service,
+    classify,
+    decode_frame,
+)
+from drivebench.services.sessions import Session
+from drivebench.transport.busload import message_bits
+
+TRACE_CAPACITY = 10_000
+"""Frames kept in the trace ring (the newest)."""
+HISTORY_S = 600
+"""Seconds of bus-load history (one point per second)."""
+RATE_WINDOW_S = 2.0
+"""Rates are frames over the last this many seconds: a silent COB-ID is at 0/s this long after its last frame."""
+EXTENDED = 1 << 29
+"""Key flag for 29-bit identifiers in the COB-ID table."""
+
+SERVICE_GROUPS = ("NMT", "SYNC", "EMCY", "TIME", "PDO", "SDO", "Heartbeat", "LSS", "Unknown", "Error frame")
+"""What the service filter offers; PDO and SDO stand for all their kinds."""
+SERVICE_ORDER = [Service.NMT, Service.SYNC, Service.EMCY, Service.TIME,
+                 Service.TPDO1, Service.TPDO2, Service.TPDO3, Service.TPDO4,
+                 Service.RPDO1, Service.RPDO2, Service.RPDO3, Service.RPDO4,
+                 Service.SDO_RX, Service.SDO_TX, Service.HEARTBEAT, Service.LSS, Service.UNKNOWN]
+SERVICE_LABELS = {Service.SDO_RX: "SDO request (rx)", Service.SDO_TX: "SDO response (tx)",
+                  Service.HEARTBEAT: "Heartbeat / boot-up"}
+
+
+def service_group(service: Service) -> str:
+    if service.is_pdo:
+        return "PDO"
+    if service in (Service.SDO_RX, Service.SDO_TX):
+        return "SDO"
+    return service.value
+
+
+@dataclass
+class MonitorFilter:
+    """What the views show (counting is never filtered). Empty sets mean all."""
+
+    nodes: set[int] = field(default_factory=set)
+    services: set[str] = field(default_factory=set)
+    cob_min: int = 0
+    cob_max: int = 0x1FFFFFFF
+
+    def accepts(self, service: Service, node: int | None, cob_id: int) -> bool:
+        if self.nodes and node not in self.nodes:
+            return False
+        if self.services and service_group(service) not in self.services:
+            return False
+        return self.cob_min <= cob_id <= self.cob_max
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"nodes": sorted(self.nodes), "services": sorted(self.services),
+                "cob_min": self.cob_min, "cob_max": self.cob_max}
+
+
+@dataclass
+class _Sample:
+    at: float
+    frames: dict[int, int]
+    errors: int
+
+
+def _key_text(key: int) -> str:
+    return f"0x{key & 0x1FFFFFFF:08X}" if key & EXTENDED else f"0x{key:03X}"
+
+
+class Monitor(can.Listener):
+    def __init__(self, session: Session, *, trace_capacity: int = TRACE_CAPACITY,
+                 history_s: int = HISTORY_S) -> None:
+        self._session = weakref.ref(session)
+        self.session_id = session.id
+        self.bitrate = session.spec.bitrate
+        self.trace_capacity = trace_capacity
+        self.history_s = history_s
+        self.filter = MonitorFilter()
+        self._lock = threading.Lock()
+        self._wall_offset = time.time() - time.monotonic()
+        self._trace: deque[tuple[int, can.Message, SdoContext | None]] = deque(maxlen=trace_capacity)
+        self._history: deque[tuple[int, int]] = deque(maxlen=history_s)
+        self._tracker = SdoTracker()
+        self._frozen: dict[str, Any] | None = None
+        self.paused = False
+        self._reset_locked(time.monotonic())
+
+    # --- hot path (listener threads) ---------------------------------------------------------------------
+    def on_message_received(self, msg: can.Message) -> None:
+        now = time.monotonic()
+        if msg.is_error_frame:
+            with self._lock:
+                self._errors += 1
+                self._last_error = now
+                if not self.paused:
+                    self._seq += 1
+                    self._trace.append((self._seq, msg, None))
+            return
+        key = msg.arbitration_id | EXTENDED if msg.is_extended_id else msg.arbitration_id
+        bits = message_bits(msg)
+        second = int(now)
+        with self._lock:
+            entry = self._cobs.get(key)
+            if entry is None:
+                entry = self._cobs[key] = [0, 0, now]
+            entry[0] += 1
+            entry[1] += bits
+            entry[2] = now
+            if second != self._second:
+                self._roll(second)
+            self._second_bits += bits
+            self._frames += 1
+            if not self.paused:
+                self._seq += 1
+                context = self._tracker.observe(msg) if 0x580 < key < 0x680 else None
+                self._trace.append((self._seq, msg, context))
+
+    def on_error(self, exc: Exception) -> None:
+        """The notifier reports reader errors here; the session's own error catcher handles them."""
+
+    # --- bookkeeping (under the lock) ------------------------------------------------------------------------
+    def _reset_locked(self, now: float) -> None:
+        self._cobs: dict[int, list[Any]] = {}
+        self._frames = 0
+        self._errors = 0
+        self._last_error: float | None = None
+        self._seq = 0
+        self._trace.clear()
+        self._history.clear()
+        self._tracker.reset()
+        self._second = int(now)
+        self._second_bits = 0
+        self._peak: tuple[float, float] = (0.0, 0.0)
+        self._samples: deque[_Sample] = deque()
+        self._started = now
+        self._frozen = None
+
+    def _roll(self, second: int) -> None:
+        """Close the current one-second bucket (and any silent seconds since) into the history."""
+        gap = second - self._second
+        if gap <= 0:
+            return
+        self._push_second(self._second, self._second_bits)
+        for empty in range(max(self._second + 1, second - self.history_s), second):
+            self._push_second(empty, 0)
+        self._second = second
+        self._second_bits = 0
+
+    def _push_second(self, second: int, bits: int) -> None:
+        self._history.append((second, bits))
+        load = 100.0 * bits / self.bitrate
+        if load > self._peak[0]:
+            self._peak = (load, second + self._wall_offset)
+
+    # --- control -----------------------------------------------------------------------------------------
+    def reset(self) -> None:
+        with self._lock:
+            self._reset_locked(time.monotonic())
+
+    def pause(self) -> None:
+        with self._lock:
+            if self.paused:
+                return
+        frozen = self._snapshot()
+        with self._lock:
+            self._frozen = frozen
+            self.paused = True
+
+    def resume(self) -> None:
+        with self._lock:
+            self.paused = False
+            self._frozen = None
+
+    def set_filter(self, new_filter: MonitorFilter) -> None:
+        self.filter = new_filter
+
+    # --- views ---------------------------------------------------------------------------------------------
+    def snapshot(self) -> dict[str, Any]:
+        """Counters, rates, load and its peak; a paused monitor repeats the snapshot taken at pause."""
+        frozen = self._frozen
+        if frozen is not None:
+            return frozen
+        return self._snapshot()
+
+    def _snapshot(self) -> dict[str, Any]:
+        now = time.monotonic()
+        with self._lock:
+            self._roll(int(now))
+            cobs = {key: (entry[0], entry[1], entry[2]) for key, entry in self._cobs.items()}
+            errors, last_error, frames = self._errors, self._last_error, self._frames
+            last_second = self._history[-1] if self._history else None
+            peak, started = self._peak, self._started
+            current = _Sample(now, {key: value[0] for key, value in cobs.items()}, errors)
+            reference = self._rate_reference(current)
+        elapsed = max(now - reference.at, 1e-3)
+        view = self.filter
+        total_bits = sum(entry[1] for entry in cobs.values())
+        services: dict[Service, list[float]] = {service: [0, 0.0, 0] for service in SERVICE_ORDER}
+        nodes: dict[int, list[float]] = {}
+        cob_rows = []
+        total_rate = 0.0
+        for key in sorted(cobs):
+            count, bits, last_seen = cobs[key]
+            rate = (count - reference.frames.get(key, 0)) / elapsed
+            total_rate += rate
+            service, node = classify(key & 0x1FFFFFFF, bool(key & EXTENDED))
+            service_row = services[service]
+            service_row[0] += count
+            service_row[1] += rate
+            service_row[2] += bits
+            if node is not None:
+                node_row = nodes.setdefault(node, [0, 0.0, 0])
+                node_row[0] += count
+                node_row[1] += rate
+                node_row[2] += bits
+            if view.accepts(service, node, key & 0x1FFFFFFF):
+                cob_rows.append({"cob_id": key & 0x1FFFFFFF, "extended": bool(key & EXTENDED),
+                                 "text": _key_text(key), "service": service.value, "node": node,
+                                 "total": count, "rate": round(rate, 2),
+                                 "share_percent": round(100.0 * bits / total_bits, 2) if total_bits else 0.0,
+                                 "last_age_s": round(now - last_seen, 2)})
+        names = self._node_names()
+        load_now = 100.0 * last_second[1] / self.bitrate if last_second else 0.0
+        return {
+            "session": self.session_id,
+            "time": now + self._wall_offset,
+            "since": started + self._wall_offset,
+            "paused": self.paused,
+            "bitrate": self.bitrate,
+            "totals": {"frames": frames, "bits": total_bits, "rate": round(total_rate, 2), "errors": errors,
+                       "error_rate": round((errors - reference.errors) / elapsed, 2),
+                       "last_error_age_s": round(now - last_error, 2) if last_error is not None else None},
+            "load": {"percent": round(load_now, 2), "peak_percent": round(peak[0], 2),
+                     "peak_time": peak[1] or None,
+                     "average_percent": round(100.0 * total_bits / self.bitrate / max(now - started, 1e-3), 2)},
+            "services": [{"service": service.value, "label": SERVICE_LABELS.get(service, service.value),
+                          "group": service_group(service), "total": int(row[0]), "rate": round(row[1], 2)}
+                         for service, row in services.items()],
+            "nodes": [{"node": node, "name": names.get(node), "total": int(row[0]), "rate": round(row[1], 2),
+                       "share_percent": round(100.0 * row[2] / total_bits, 2) if total_bits else 0.0}
+                      for node, row in sorted(nodes.items()) if not view.nodes or node in view.nodes],
+            "cob_ids": cob_rows,
+            "filter": view.as_dict(),
+        }
+
+    def _rate_reference(self, current: _Sample) -> _Sample:
+        """The newest sample at least RATE_WINDOW_S old (else the oldest, else the reset); keeps the window."""
+        samples = self._samples
+        while len(samples) >= 2 and samples[1].at <= current.at - RATE_WINDOW_S:
+            samples.popleft()
+        if not samples or current.at - samples[-1].at >= 0.05:
+            samples.append(current)
+        if samples[0] is current:
+            return _Sample(self._started, {}, 0)
+        return samples[0]
+
+    def history(self, since_second: float | None = None) -> list[tuple[float, float]]:
+        """(wall time of the second, load %) for the completed seconds after ``since_second``."""
+        with self._lock:
+            self._roll(int(time.monotonic()))
+            points = list(self._history)
+        return [(second + self._wall_offset, round(100.0 * bits / self.bitrate, 3)) for second, bits in points
+                if since_second is None or second + self._wall_offset > since_second]
+
+    @property
+    def last_seq(self) -> int:
+        return self._seq
+
+    def trace_rows(self, *, after: int = 0, limit: int = 200) -> list[dict[str, Any]]:
+        """The newest ``limit`` telegrams after sequence number ``after`` that pass the filter, oldest first."""
+        with self._lock:
+            entries = list(self._trace) if after == 0 else self._entries_after(after)
+        view = self.filter
+        lookups = _Lookups(self._session())
+        rows: list[dict[str, Any]] = []
+        for seq, msg, context in reversed(entries):
+            if seq <= after:
+                break
+            decoded = decode_frame(msg, names=lookups.name, vendor=lookups.vendor, emcy_texts=lookups.emcy,
+                                   sdo_context=context)
+            if not view.accepts(decoded.service, decoded.node, msg.arbitration_id):
+                continue
+            rows.append(_row(seq, decoded))
+            if len(rows) >= limit:
+                break
+        rows.reverse()
+        return rows
+
+    def _entries_after(self, after: int) -> list[tuple[int, can.Message, SdoContext | None]]:
+        trace = self._trace
+        if not trace or trace[-1][0] <= after:
+            return []
+        newer = trace[-1][0] - after
+        if newer >= len(trace):
+            return list(trace)
+        return [trace[i] for i in range(len(trace) - newer, len(trace))]
+
+    def counts_for(self, cob_ids: Iterable[int]) -> int:
+        with self._lock:
+            return sum(self._cobs[c][0] for c in cob_ids if c in self._cobs)
+
+    def _node_names(self) -> dict[int, str]:
+        session = self._session()
+        if session is None:
+            return {}
+        return {node_id: node.device_name for node_id, node in list(session.nodes.items())}
+
+    def buffer_sizes(self) -> dict[str, int]:
+        """Current fill of each bounded buffer (for the memory benchmark)."""
+        with self._lock:
+            return {"trace": len(self._trace), "history": len(self._history), "cob_ids": len(self._cobs),
+                    "rate_samples": len(self._samples)}
+
+
+def _row(seq: int, decoded: DecodedFrame) -> dict[str, Any]:
+    return {"seq": seq, "time": decoded.timestamp, "cob_id": decoded.cob_id_text, "service": decoded.service.value,
+            "group": service_group(decoded.service), "node": decoded.node, "dlc": decoded.dlc,
+            "hex": decoded.data_hex, "summary": decoded.summary, "text": decoded.text}
+
+
+class _Lookups:
+    """The profile's words for a session's nodes: object names, vendor family (abort texts), EMCY texts."""
+
+    def __init__(self, session: Session | None) -> None:
+        self.session = session
+
+    def name(self, node_id: int, index: int, subindex: int) -> str | None:
+        node = self.session.nodes.get(node_id) if self.session else None
+        catalog = node.catalog if node else None
+        item = catalog.by_address(index, subindex) if catalog else None
+        return f"{item.ref} {item.name}" if item else None
+
+    def vendor(self, node_id: int) -> str | None:
+        node = self.session.nodes.get(node_id) if self.session else None
+        return node.profile.family if node and node.profile else None
+
+    def emcy(self, node_id: int, code: int) -> str | None:
+        node = self.session.nodes.get(node_id) if self.session else None
+        if node is None or node.profile is None:
+            return None
+        for entry in node.profile.emcy_codes:
+            if entry.code == code:
+                return f"{entry.vendor_error}: {entry.text}" if entry.vendor_error else entry.text
+        return None
+
+
+_monitors: weakref.WeakKeyDictionary[Session, Monitor] = weakref.WeakKeyDictionary()
+_monitors_lock = threading.Lock()
+
+
+def monitor_for(session: Session) -> Monitor:
+    """The session's monitor, attached to its frames on first use."""
+    with _monitors_lock:
+        monitor = _monitors.get(session)
+        if monitor is None:
+            monitor = _monitors[session] = Monitor(session)
+            session.add_frame_listener(monitor)
+        return monitor

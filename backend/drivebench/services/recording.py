@@ -1,0 +1,162 @@
+"""Recording a session's frames to a file other tools open: candump ``.log``, Vector ``.asc``, ``.blf`` (python-can's
+writers) and ``.pcapng`` with the SocketCAN link type (our writer, for Wireshark's CANopen dissector).
+
+The recorder's listener only queues the frame; a writer thread formats and writes, so a slow disk or the ASC
+formatter never holds up the bus threads.
+"""
+
+from __future__ import annotations
+
+import queue
+import re
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import can
+
+from drivebench.config import settings
+from drivebench.errors import Conflict, InvalidValue, NotFound
+from drivebench.services.sessions import Session
+from drivebench.transport.pcapng import PcapngWriter
+
+FORMATS = {"log": "candump log (.log)", "asc": "Vector ASCII (.asc)", "blf": "Vector BLF (.blf)",
+           "pcapng": "pcapng, SocketCAN link type (.pcapng, Wireshark)"}
+MEDIA_TYPES = {"log": "text/plain", "asc": "text/plain", "blf": "application/octet-stream",
+               "pcapng": "application/vnd.tcpdump.pcap"}
+_SAFE_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*\.(log|asc|blf|pcapng)$")
+
+
+def recordings_dir() -> Path:
+    return settings.user_profiles_dir.parent / "recordings"
+
+
+def open_writer(path: Path) -> can.Listener:
+    if path.suffix == ".pcapng":
+        return PcapngWriter(path)
+    if path.suffix == ".log":
+        return can.CanutilsLogWriter(path, channel="can0")
+    if path.suffix == ".asc":
+        return can.ASCWriter(path)
+    if path.suffix == ".blf":
+        return can.BLFWriter(path)
+    raise InvalidValue(f"Unknown recording format '{path.suffix}'; use one of {', '.join(FORMATS)}")
+
+
+class Recorder(can.Listener):
+    """Writes every frame of a session to one file until stopped."""
+
+    def __init__(self, session: Session, path: Path) -> None:
+        self.session = session
+        self.path = path
+        self.format = path.suffix.lstrip(".")
+        self.started = time.time()
+        self.frames = 0
+        self._queue: queue.SimpleQueue[can.Message | None] = queue.SimpleQueue()
+        self._writer = open_writer(path)
+        self._thread = threading.Thread(target=self._drain, name=f"recorder-{path.name}", daemon=True)
+        self._thread.start()
+        session.add_frame_listener(self)
+
+    def on_message_received(self, msg: can.Message) -> None:
+        self._queue.put(msg)
+
+    def _drain(self) -> None:
+        while True:
+            msg = self._queue.get()
+            if msg is None:
+                break
+            self._writer.on_message_received(msg)
+            self.frames += 1
+        self._writer.stop()
+
+    def stop(self) -> None:
+        self.session.remove_frame_listener(self)
+        self._queue.put(None)
+        self._thread.join(timeout=30)
+
+
+@dataclass
+class RecordingInfo:
+    name: str
+    format: str
+    size: int
+    modified: float
+    active: bool
+    frames: int | None
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"name": self.name, "format": self.format, "size": self.size, "modified": self.modified,
+                "active": self.active, "frames": self.frames}
+
+
+class Recordings:
+    """The recording files of one session, and the one recording that may be running."""
+
+    def __init__(self, session: Session, directory: Path | None = None) -> None:
+        self.session = session
+        self.directory = directory or recordings_dir()
+        self.active: Recorder | None = None
+        self._lock = threading.Lock()
+
+    def start(self, fmt: str) -> Recorder:
+        if fmt not in FORMATS:
+            raise InvalidValue(f"Unknown recording format '{fmt}'; use one of {', '.join(FORMATS)}")
+        with self._lock:
+            if self.active is not None:
+                raise Conflict(f"Already recording to {self.active.path.name}; stop it first")
+            self.directory.mkdir(parents=True, exist_ok=True)
+            stamp = time.strftime("%Y%m%d-%H%M%S")
+            path = self.directory / f"{self.session.id}-{stamp}.{fmt}"
+            counter = 1
+            while path.exists():
+                counter += 1
+                path = self.directory / f"{self.session.id}-{stamp}-{counter}.{fmt}"
+            self.active = Recorder(self.session, path)
+            return self.active
+
+    def stop(self) -> Recorder:
+        with self._lock:
+            recorder = self.active
+            if recorder is None:
+                raise Conflict("No recording is running")
+            self.active = None
+        recorder.stop()
+        return recorder
+
+    def list(self) -> list[RecordingInfo]:
+        if not self.directory.exists():
+            return []
+        active = self.active
+        infos = []
+        for path in self.directory.glob(f"{self.session.id}-*"):
+            if not _SAFE_NAME.match(path.name):
+                continue
+            stat = path.stat()
+            is_active = active is not None and active.path == path
+            infos.append(RecordingInfo(path.name, path.suffix.lstrip("."), stat.st_size, stat.st_mtime, is_active,
+                                       active.frames if is_active and active else None))
+        return sorted(infos, key=lambda info: info.modified, reverse=True)
+
+    def path(self, name: str) -> Path:
+        if not _SAFE_NAME.match(name) or not name.startswith(f"{self.session.id}-"):
+            raise NotFound(f"No recording '{name}' in session '{self.session.id}'")
+        path = self.directory / name
+        if not path.is_file():
+            raise NotFound(f"No recording '{name}' in session '{self.session.id}'")
+        return path
+
+
+_registry: dict[int, Recordings] = {}
+_registry_lock = threading.Lock()
+
+
+def recordings_for(session: Session, directory: Path | None = None) -> Recordings:
+    """The session's recordings (one object per session, made on first use)."""
+    with _registry_lock:
+        found = _registry.get(id(session))
+        if found is None or found.session is not session:
+            found = _registry[id(session)] = Recordings(session, directory)
+        return found
