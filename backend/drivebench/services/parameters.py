@@ -1,0 +1,495 @@
+"""Read and write a node's parameters the way a drive engineer works.
+
+* Values come back scaled, with unit, selection text or named bits (``C00088`` raw 1020 -> 10.20 A).
+* A write is validated against the profile before anything is sent (type width, range, selection list,
+  read-only), then read back and compared (verify).
+* Values that take effect only after reset node are flagged on the node until it boots again.
+* Device commands: save, restore defaults, reset node, the way the device's profile offers them.
+* Read-all spreads one node's reads over its SDO channels (SDO2 where the device has one) and runs different
+  nodes in parallel; a silent node gives up after a few timeouts and never holds the others up.
+
+Bus work runs in this module's own thread pool, so a slow node never waits for a free worker thread.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import math
+import time
+import weakref
+from collections import deque
+from collections.abc import Callable, Iterable
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from enum import StrEnum
+from functools import partial
+from typing import TypeVar
+
+from drivebench.device.addressing import IndexRef, parse_ref
+from drivebench.device.catalog import Catalog, Item
+from drivebench.device.profile import Access, ObjectEntry
+from drivebench.device.scaling import RawValue, ScaledValue, from_raw, to_raw
+from drivebench.errors import (
+    Conflict,
+    InvalidValue,
+    OutOfRange,
+    ProtocolError,
+    SdoAbortError,
+    SdoTimeoutError,
+    UnknownParameter,
+)
+from drivebench.protocol.datatypes import DataType, decode, encode
+from drivebench.protocol.heartbeat import HeartbeatStatus
+from drivebench.protocol.network import NodeClient, SdoChannel
+from drivebench.protocol.nmt import NmtCommand
+from drivebench.services.jobs import Job, JobIssue, JobManager
+from drivebench.services.sessions import Session, SessionNode
+
+T = TypeVar("T")
+
+_BUS_WORK = ThreadPoolExecutor(max_workers=128, thread_name_prefix="sdo")
+SILENT_AFTER_TIMEOUTS = 2
+"""Consecutive timeouts after which a read-all stops asking a node (it is absent or silent)."""
+
+SAVE_SIGNATURE = int.from_bytes(b"save", "little")  # CiA 301 0x1010
+LOAD_SIGNATURE = int.from_bytes(b"load", "little")  # CiA 301 0x1011
+
+
+@dataclass
+class SdoSettings:
+    """Per-session SDO behaviour (the REST API and the node page can change it)."""
+
+    timeout_s: float = 0.5
+    retries: int = 1
+    use_sdo2: bool = True
+    """Activate and use a device's second SDO channel for read-all (8400 motec, EMF2178IB)."""
+
+
+@dataclass(frozen=True)
+class ParameterValue:
+    ref: str
+    name: str
+    index: int
+    subindex: int
+    raw: RawValue
+    value: int | float | str | None
+    unit: str | None
+    text: str | None
+    display: str
+    read_at: float
+
+
+@dataclass(frozen=True)
+class WriteResult:
+    ref: str
+    written: ScaledValue
+    read_back: ParameterValue | None
+    verified: bool | None
+    """True: the device reports what was written; False: it differs (see ``mismatch``); None: not read back."""
+    mismatch: str | None
+    reset_required: bool
+
+
+class DeviceCommand(StrEnum):
+    SAVE = "save"
+    RESTORE_DEFAULTS = "restore-defaults"
+    RESET_NODE = "reset-node"
+
+
+@dataclass(frozen=True)
+class CommandResult:
+    command: DeviceCommand
+    via: str
+    """What was sent: ``C00002/11 = 1``, ``0x1010.1 = 'save'``, ``NMT reset node``."""
+    detail: str
+
+
+@dataclass
+class _NodeChannels:
+    sdo2: SdoChannel | None = None
+    active: bool = False
+    note: str | None = None
+
+
+@dataclass
+class SessionParameters:
+    """What the parameter service keeps per session: settings, last values read, SDO2 state."""
+
+    session_ref: weakref.ref[Session]
+    settings: SdoSettings
+    values: dict[int, dict[str, ParameterValue]] = field(default_factory=dict)
+    channels: dict[int, _NodeChannels] = field(default_factory=dict)
+
+    @property
+    def session(self) -> Session:
+        session = self.session_ref()
+        if session is None:
+            raise Conflict("The session has been closed")
+        return session
+
+    def remember(self, node_id: int, value: ParameterValue) -> None:
+        self.values.setdefault(node_id, {})[value.ref] = value
+
+    def on_heartbeat(self, status: HeartbeatStatus, event: str) -> None:
+        """Boot-up: a reset node happened (by us or anyone), so pending resets are done and SDO2 is gone."""
+        if event != "bootup":
+            return
+        session = self.session_ref()
+        if session is None:
+            return
+        node = session.nodes.get(status.node_id)
+        if node is not None:
+            node.pending_reset.clear()
+        state = self.channels.get(status.node_id)
+        if state is not None and state.active:
+            state.active = False
+            client = session.network.nodes.get(status.node_id)
+            if client is not None and state.sdo2 in client.channels:
+                client.channels.remove(state.sdo2)
+
+
+_SERVICES: weakref.WeakKeyDictionary[Session, SessionParameters] = weakref.WeakKeyDictionary()
+
+
+def service(session: Session) -> SessionParameters:
+    """The parameter state of a session (created on first use)."""
+    state = _SERVICES.get(session)
+    if state is None:
+        network = session.network
+        state = SessionParameters(weakref.ref(session), SdoSettings(network.sdo_timeout_s, network.sdo_retries))
+        network.heartbeat.add_callback(state.on_heartbeat)
+        _SERVICES[session] = state
+    return state
+
+
+def configure(session: Session, settings: SdoSettings) -> SdoSettings:
+    if not 0.01 <= settings.timeout_s <= 30 or not 0 <= settings.retries <= 10:
+        raise OutOfRange("SDO timeout must be 0.01 ... 30 s and retries 0 ... 10")
+    state = service(session)
+    state.settings = settings
+    session.network.sdo_timeout_s = settings.timeout_s
+    session.network.sdo_retries = settings.retries
+    for client in session.network.nodes.values():
+        client.configure(settings.timeout_s, settings.retries)
+    return settings
+
+
+async def _on_bus(work: Callable[[], T]) -> T:
+    return await asyncio.get_running_loop().run_in_executor(_BUS_WORK, work)
+
+
+# --- lookup ----------------------------------------------------------------------------------------------
+def _catalog(node: SessionNode) -> Catalog | None:
+    return node.catalog
+
+
+def resolve(node: SessionNode, ref: str) -> Item:
+    """A profile item, or for an index the profile does not list a raw item (read as bytes)."""
+    catalog = _catalog(node)
+    if catalog is not None:
+        try:
+            return catalog.resolve(ref)
+        except UnknownParameter:
+            if not isinstance(parse_ref(ref), IndexRef):
+                raise
+    parsed = parse_ref(ref)
+    if not isinstance(parsed, IndexRef):
+        raise UnknownParameter(f"Node {node.node_id} has no profile: address '{ref}' by its CANopen index "
+                               "(0x1018.1) or assign a profile")
+    sub = parsed.subindex or 0
+    entry = ObjectEntry(name="(not in the profile)", data_type=DataType.DOMAIN, access=Access.RW,
+                        index=parsed.index, subindex=sub)
+    name = f"0x{parsed.index:04X}" if sub == 0 else f"0x{parsed.index:04X}.{sub}"
+    return Item(name, parsed.index, sub, entry)
+
+
+def items(node: SessionNode, query: str = "", group: str | None = None) -> list[Item]:
+    catalog = _catalog(node)
+    if catalog is None:
+        return []
+    found = catalog.search(query) if query.strip() else catalog.items
+    return [item for item in found if group is None or item.group == group]
+
+
+def groups(node: SessionNode) -> list[str]:
+    """Groups in the manual's order, then any others the profile's items use."""
+    catalog = _catalog(node)
+    if catalog is None:
+        return []
+    ordered = list(catalog.profile.groups)
+    for item in catalog.items:
+        if item.group not in ordered:
+            ordered.append(item.group)
+    return ordered
+
+
+# --- read ------------------------------------------------------------------------------------------------
+def _value(item: Item, raw: RawValue) -> ParameterValue:
+    scaled = from_raw(item.entry, raw)
+    return ParameterValue(item.ref, item.name, item.index, item.subindex, scaled.raw, scaled.value, scaled.unit,
+                          scaled.text, display(item, scaled), time.time())
+
+
+def display(item: Item, scaled: ScaledValue) -> str:
+    """What the table shows: ``10.20 A``, ``0 = 500 kbit/s``, ``0x00000644``, ``01.00.00.00``."""
+    entry = item.entry
+    if isinstance(scaled.value, (int, float)) and not isinstance(scaled.value, bool):
+        if scaled.text is not None and entry.selection:
+            return f"{scaled.raw!s} = {scaled.text}"
+        if entry.bits and isinstance(scaled.raw, int):
+            width = (entry.data_type.size or 4) * 2
+            return f"0x{scaled.raw:0{width}X}"
+        number = f"{scaled.value:.{entry.decimals}f}" if entry.decimals else f"{scaled.value}"
+        if entry.decimals > 2 and "." in number:  # FIX32 (factor 10000) is a format, not a resolution
+            number = number.rstrip("0").rstrip(".")
+        return f"{number} {entry.unit}" if entry.unit else number
+    if isinstance(scaled.value, str) and entry.data_type is not DataType.VISIBLE_STRING:
+        return scaled.value  # hex bytes
+    return str(scaled.value) if scaled.value is not None else ""
+
+
+def _decode(item: Item, data: bytes, node_id: int) -> RawValue:
+    try:
+        return decode(item.entry.data_type, data)
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise ProtocolError(f"Node {node_id}: {item.ref} answered {data.hex(' ')}, which is not a "
+                            f"{item.entry.data_type.value}") from exc
+
+
+def _read_blocking(client: NodeClient, item: Item, *, block: bool = False, channel: int | None = None) -> bytes:
+    if not item.entry.access.readable:
+        raise InvalidValue(f"{item.ref} ({item.entry.name}) is write-only")
+    return client.upload(item.index, item.subindex, block=block, channel=channel)
+
+
+def _use_block(node: SessionNode, item: Item, transfer: str) -> bool:
+    if transfer == "block":
+        if node.profile is not None and not node.profile.features.block_sdo:
+            raise InvalidValue(f"{node.device_name} does not support SDO block transfer")
+        return True
+    return False
+
+
+async def read(session: Session, node_id: int, ref: str, *, transfer: str = "auto") -> ParameterValue:
+    """Read one parameter from the device. ``transfer``: ``auto`` (expedited/segmented as the size needs) or
+    ``block`` (CiA 301 block upload)."""
+    node = session.node(node_id)
+    item = resolve(node, ref)
+    client = session.client(node_id)
+    block = _use_block(node, item, transfer)
+    data = await _on_bus(lambda: _read_blocking(client, item, block=block))
+    value = _value(item, _decode(item, data, node_id))
+    service(session).remember(node_id, value)
+    return value
+
+
+# --- write -----------------------------------------------------------------------------------------------
+def _unchecked_raw(item: Item, value: object) -> RawValue:
+    """The raw value without the profile's range/selection/read-only checks (the device decides); it must
+    still fit the data type: nothing is ever truncated."""
+    relaxed = item.entry.model_copy(update={"access": Access.RW, "min": None, "max": None, "selection": {}})
+    return to_raw(relaxed, value, ref=item.ref)
+
+
+def _same(item: Item, written: RawValue, read_back: RawValue) -> bool:
+    if isinstance(written, float) and isinstance(read_back, (int, float)):
+        return math.isclose(written, read_back, rel_tol=1e-6, abs_tol=1e-9)
+    if isinstance(written, str) and isinstance(read_back, str):
+        return written.rstrip("\x00") == read_back.rstrip("\x00")
+    return written == read_back
+
+
+async def write(session: Session, node_id: int, ref: str, value: object, *, check: bool = True,
+                verify: bool = True) -> WriteResult:
+    """Validate, send, read back. ``value`` is what a user typed (``"10.2"``, ``"10.20 A"``, ``"500 kbit/s"``)
+    or a number in engineering units. ``check=False`` leaves range, selection and read-only to the device."""
+    node = session.node(node_id)
+    item = resolve(node, ref)
+    raw = to_raw(item.entry, value, ref=item.ref) if check else _unchecked_raw(item, value)
+    try:
+        data = encode(item.entry.data_type, raw)
+    except ValueError as exc:
+        raise OutOfRange(f"{item.ref} ({item.entry.name}): {value!r} does not fit "
+                         f"{item.entry.data_type.value}") from exc
+    client = session.client(node_id)
+    await _on_bus(lambda: client.download(item.index, item.subindex, data))
+    if item.entry.reset_required:
+        node.pending_reset.add(item.ref)
+    written = from_raw(item.entry, raw)
+    read_back: ParameterValue | None = None
+    verified: bool | None = None
+    mismatch = None
+    if verify and item.entry.access.readable:
+        read_back = await read(session, node_id, item.ref)
+        verified = _same(item, raw, read_back.raw)
+        if not verified:
+            mismatch = (f"Wrote {display(item, written)}, the device reports {read_back.display}"
+                        + (" (takes effect after reset node)" if item.entry.reset_required else ""))
+    return WriteResult(item.ref, written, read_back, verified, mismatch, item.entry.reset_required)
+
+
+# --- device commands -------------------------------------------------------------------------------------
+def _find(catalog: Catalog | None, *refs: str) -> Item | None:
+    if catalog is None:
+        return None
+    for ref in refs:
+        try:
+            item = catalog.resolve(ref)
+        except UnknownParameter:
+            continue
+        if item.entry.access.writable:
+            return item
+    return None
+
+
+def _lenze_command(catalog: Catalog | None, subcode: int) -> Item | None:
+    """Lenze C00002/x device commands (8400: C00002/11 save all parameter sets, /1 load Lenze setting)."""
+    if catalog is None or catalog.profile.addressing.kind != "lenze_code":
+        return None
+    return _find(catalog, f"C2/{subcode}")
+
+
+async def command(session: Session, node_id: int, which: DeviceCommand) -> CommandResult:
+    node = session.node(node_id)
+    catalog = _catalog(node)
+    client = session.client(node_id)
+    if which is DeviceCommand.RESET_NODE:
+        await session.nmt(NmtCommand.RESET_NODE, node_id)
+        return CommandResult(which, "NMT reset node", f"Node {node_id} resets; unsaved changes are lost.")
+    if which is DeviceCommand.SAVE:
+        cia = _find(catalog, "0x1010.1") if catalog is not None else None
+        if cia is not None or catalog is None:
+            await _on_bus(lambda: client.download(0x1010, 1, SAVE_SIGNATURE.to_bytes(4, "little")))
+            return CommandResult(which, "0x1010.1 = 'save'", f"Node {node_id} saved its parameters.")
+        lenze = _lenze_command(catalog, 11)
+        if lenze is not None:
+            await _on_bus(partial(client.download, lenze.index, lenze.subindex, encode(lenze.entry.data_type, 1)))
+            return CommandResult(which, f"{lenze.ref} = 1", f"Node {node_id} saved all parameter sets.")
+        raise Conflict(f"{node.device_name} offers no save command in its profile (no 0x1010, no C00002/11)")
+    cia = _find(catalog, "0x1011.1") if catalog is not None else None
+    if cia is not None or catalog is None:
+        await _on_bus(lambda: client.download(0x1011, 1, LOAD_SIGNATURE.to_bytes(4, "little")))
+        node.pending_reset.add("restore defaults")
+        return CommandResult(which, "0x1011.1 = 'load'",
+                             f"Node {node_id} restores its defaults at the next reset node.")
+    lenze = _lenze_command(catalog, 1)
+    if lenze is not None:
+        await _on_bus(partial(client.download, lenze.index, lenze.subindex, encode(lenze.entry.data_type, 1)))
+        return CommandResult(which, f"{lenze.ref} = 1", f"Node {node_id} loaded the Lenze setting.")
+    raise Conflict(f"{node.device_name} offers no restore-defaults command in its profile")
+
+
+# --- second SDO channel ----------------------------------------------------------------------------------
+def _sdo2_cob_ids(node_id: int) -> tuple[int, int]:
+    """Lenze's SDO2 identifiers (8400 motec ch. 9.1, EMF2178IB §3.3): rx 0x640 + node, tx 0x5C0 + node."""
+    return 0x640 + node_id, 0x5C0 + node_id
+
+
+def _activate_sdo2_blocking(session: Session, node: SessionNode) -> _NodeChannels:
+    state = service(session)
+    channels = state.channels.setdefault(node.node_id, _NodeChannels())
+    if channels.active:
+        return channels
+    catalog = _catalog(node)
+    profile = node.profile
+    if (not state.settings.use_sdo2 or catalog is None or profile is None or profile.features.sdo_channels < 2
+            or profile.features.transport != "canopen"):
+        return channels
+    rx_item, tx_item = catalog.by_address(0x1201, 1), catalog.by_address(0x1201, 2)
+    if rx_item is None or tx_item is None or not rx_item.entry.access.writable:
+        return channels
+    if node.node_id > 63 or node.node_id + 64 in session.nodes:
+        channels.note = (f"SDO2 not used on node {node.node_id}: its identifiers would be node "
+                         f"{node.node_id + 64}'s SDO1")
+        return channels
+    client = session.client(node.node_id)
+    rx, tx = (int.from_bytes(client.upload(0x1201, sub, channel=1)[:4], "little") for sub in (1, 2))
+    if rx & 0x80000000 or tx & 0x80000000 or not rx or not tx:
+        rx, tx = _sdo2_cob_ids(node.node_id)
+        # The manual's order (8400 motec I-1201 example): client->server first, then server->client.
+        client.download(0x1201, 1, rx.to_bytes(4, "little"), channel=1)
+        client.download(0x1201, 2, tx.to_bytes(4, "little"), channel=1)
+        channels.note = f"SDO2 activated on node {node.node_id} (0x{rx:03X}/0x{tx:03X}, not saved)"
+    if channels.sdo2 is None:
+        channels.sdo2 = client.add_channel(rx & 0x7FF, tx & 0x7FF)
+    elif channels.sdo2 not in client.channels:
+        client.channels.append(channels.sdo2)
+    channels.active = True
+    return channels
+
+
+async def sdo_channels(session: Session, node: SessionNode) -> list[int]:
+    """The channel numbers to spread reads over (SDO2 activated first where possible)."""
+    try:
+        channels = await _on_bus(lambda: _activate_sdo2_blocking(session, node))
+    except (SdoAbortError, SdoTimeoutError, ProtocolError):
+        return [1]
+    return [1, 2] if channels.active else [1]
+
+
+# --- read-all ---------------------------------------------------------------------------------------------
+def readable_items(node: SessionNode, group: str | None = None) -> list[Item]:
+    return [item for item in items(node, group=group) if item.entry.access.readable]
+
+
+def _issue(node_id: int, item: Item, exc: Exception) -> JobIssue:
+    detail = getattr(exc, "detail", str(exc))
+    if isinstance(exc, SdoAbortError):
+        return JobIssue(item.ref, detail, node_id, f"0x{exc.abort_code:08X}", exc.abort_text)
+    return JobIssue(item.ref, detail, node_id)
+
+
+async def _read_node(session: Session, node: SessionNode, work: list[Item], job: Job) -> None:
+    state = service(session)
+    client = session.client(node.node_id)
+    queue = deque(work)
+    values: dict[str, object] = job.result.setdefault("values", {}).setdefault(str(node.node_id), {})
+    silent = {"timeouts": 0}
+    channel_numbers = await sdo_channels(session, node)
+    note = state.channels.get(node.node_id)
+    if note is not None and note.note and note.note not in job.notes:
+        job.notes.append(note.note)
+
+    async def drain(channel: int) -> None:
+        while queue:
+            if silent["timeouts"] >= SILENT_AFTER_TIMEOUTS:
+                skipped = len(queue)
+                queue.clear()
+                job.notes.append(f"Node {node.node_id} did not answer; {skipped} parameters not read")
+                job.advance(skipped)
+                return
+            item = queue.popleft()
+            try:
+                data = await _on_bus(partial(_read_blocking, client, item, channel=channel))
+                value = _value(item, _decode(item, data, node.node_id))
+            except SdoTimeoutError as exc:
+                silent["timeouts"] += 1
+                job.advance(issue=_issue(node.node_id, item, exc))
+                continue
+            except (ProtocolError, InvalidValue) as exc:
+                job.advance(issue=_issue(node.node_id, item, exc))
+                continue
+            silent["timeouts"] = 0
+            state.remember(node.node_id, value)
+            values[item.ref] = value
+            job.advance()
+
+    await asyncio.gather(*(drain(channel) for channel in channel_numbers))
+
+
+def start_read(session: Session, node_ids: Iterable[int], jobs: JobManager, *, group: str | None = None) -> Job:
+    """A job reading every readable parameter (or one group) of the nodes; different nodes in parallel."""
+    nodes = [session.node(node_id) for node_id in node_ids]
+    work = {node.node_id: readable_items(node, group) for node in nodes}
+    if group is not None and not any(work.values()):
+        raise UnknownParameter(f"No readable parameters in group '{group}'")
+    total = sum(len(found) for found in work.values())
+    scope = f"group '{group}'" if group else "all parameters"
+    where = f"node {nodes[0].node_id}" if len(nodes) == 1 else f"{len(nodes)} nodes"
+    title = f"Read {scope} of {where}"
+
+    async def run(job: Job) -> None:
+        job.result["values"] = {}
+        await asyncio.gather(*(_read_node(session, node, work[node.node_id], job) for node in nodes))
+
+    return jobs.start("read", title, total, run)
