@@ -57,6 +57,7 @@ class NodeClient:
     def add_channel(self, rx_cobid: int, tx_cobid: int) -> SdoChannel:
         """A second SDO channel (client->server ``rx_cobid``, server->client ``tx_cobid``)."""
         client = self.remote.add_sdo(rx_cobid, tx_cobid)
+        client.network = self.remote.network  # canopen 2.4.1 add_sdo subscribes but leaves it unset
         channel = SdoChannel(client, len(self.channels) + 1)
         self.channels.append(channel)
         self.configure(self.channels[0].client.RESPONSE_TIMEOUT, self.channels[0].client.MAX_RETRIES - 1)
