@@ -186,7 +186,7 @@ def test_pcapng_decodes_as_canopen_in_tshark(session: Session, wire: can.BusABC,
     recordings.stop()
     path = recordings.path(recordings.list()[0].name)
     result = subprocess.run([tshark, "-r", str(path), "-d", "can.subdissector,canopen", "-T", "fields",
-                             "-e", "can.id", "-e", "canopen.sdo.main_idx", "-e", "_ws.col.info"],
+                             "-e", "can.id", "-e", "canopen.sdo.main_idx", "-e", "_ws.col.Info"],
                             capture_output=True, text=True, timeout=60, check=True)
     lines = [line.split("\t") for line in result.stdout.rstrip("\n").split("\n")]
     assert len(lines) == len(WIRE_FRAMES)
