@@ -48,6 +48,56 @@ class PdoEngine:
         self.rpdos: dict[int, PdoConfig] = {}
         self.tpdos: list[PdoConfig] = []
         self._lock = threading.Lock()
+        node.store.add_write_check(self.check_write)
+
+    # --- CiA 301 rules for changing a mapping (7.5.2.36/38): the device refuses what would break a PDO ----------
+    def check_write(self, index: int, sub: int, raw: object) -> None:
+        if not (0x1600 <= index <= 0x17FF or 0x1A00 <= index <= 0x1BFF):
+            return
+        store = self.node.store
+        comm_index = index - 0x200
+        cob = _int(store.get(comm_index, 1)) if store.has(comm_index, 1) else COB_INVALID
+        if not cob & COB_INVALID:
+            # Mapping of an existing (valid) PDO: CiA 301 leaves the abort code to the device; the Lenze
+            # manuals list 0x06040043 "General parameter incompatibility".
+            raise Abort(0x06040043)
+        if sub == 0:
+            count = _int(raw)
+            if count > _int(store.get(index, 0)) and count > self._max_entries(index):
+                raise Abort(0x06090030)
+            bits = 0
+            for entry_sub in range(1, count + 1):
+                if not store.has(index, entry_sub):
+                    raise Abort(0x06090030)
+                entry = _int(store.get(index, entry_sub))
+                self._check_mappable(entry, receive=index < 0x1A00)
+                bits += entry & 0xFF
+            if bits > 64:
+                raise Abort(0x06040042)
+        elif _int(store.get(index, 0)) != 0:
+            raise Abort(0x06040043)  # entries change only while sub 0 is 0 (mapping disabled)
+        else:
+            self._check_mappable(_int(raw), receive=index < 0x1A00)
+
+    def _max_entries(self, map_index: int) -> int:
+        store = self.node.store
+        return max((sub for (idx, sub) in store.snapshot() if idx == map_index), default=0)
+
+    def _check_mappable(self, entry: int, *, receive: bool) -> None:
+        if entry == 0:
+            return
+        index, sub, bits = entry >> 16, (entry >> 8) & 0xFF, entry & 0xFF
+        if 0x0001 <= index <= 0x0007 and sub == 0:
+            return  # dummy entries (data type indices) fill gaps in an RPDO
+        store = self.node.store
+        if not store.has(index, sub):
+            raise Abort(0x06020000)
+        slot = store.slot(index, sub)
+        if not slot.entry.pdo_mappable or (receive and not slot.entry.access.writable):
+            raise Abort(0x06040041)
+        size = slot.data_type.size
+        if size is not None and bits != size * 8:
+            raise Abort(0x06040043)
 
     def _read_config(self, comm_index: int, map_index: int, number: int) -> PdoConfig | None:
         store = self.node.store

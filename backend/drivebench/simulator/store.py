@@ -36,6 +36,7 @@ _NODEID_RE = re.compile(r"\$NODEID", re.IGNORECASE)
 # CiA 301 communication objects whose default depends on the node id (when a profile gives no formula).
 _NODE_ID_DEFAULTS = {
     (0x1014, 0): 0x80, (0x1200, 1): 0x600, (0x1200, 2): 0x580,
+    (0x1201, 1): 0x80000640, (0x1201, 2): 0x800005C0,  # Lenze SDO2: 0x640/0x5C0 + id, invalid (bit 31) until enabled
     (0x1400, 1): 0x200, (0x1401, 1): 0x300, (0x1402, 1): 0x400, (0x1403, 1): 0x500,
     (0x1800, 1): 0x180, (0x1801, 1): 0x280, (0x1802, 1): 0x380, (0x1803, 1): 0x480,
 }
@@ -44,6 +45,8 @@ _NODE_ID_DEFAULTS = {
 def default_raw(entry: Entry, node_id: int, index: int = 0, sub: int = 0) -> RawValue:
     """The raw value a freshly powered device holds: the profile default, scaled, with $NODEID resolved."""
     value = entry.default
+    if value is None:
+        value = getattr(entry, "default_expr", None)  # CiA 306 formula such as $NODEID+0x300
     dt = entry.data_type
     if dt.is_string:
         if dt is DataType.VISIBLE_STRING or dt is DataType.UNICODE_STRING:
@@ -83,6 +86,7 @@ class ObjectStore:
         self._slots: dict[tuple[int, int], Slot] = {}
         self._indices: set[int] = set()
         self._hooks: list[WriteHook] = []
+        self._checks: list[WriteHook] = []
         self._overrides = overrides or {}
         self.reset_all()
         self.saved: dict[tuple[int, int], RawValue] = self.snapshot()
@@ -109,6 +113,10 @@ class ObjectStore:
                     continue
                 if key in self._slots:
                     self._slots[key].value = value
+
+    def add_write_check(self, check: WriteHook) -> None:
+        """``check(index, sub, raw)`` before an SDO write is accepted; it raises Abort to refuse it."""
+        self._checks.append(check)
 
     def add_write_hook(self, hook: WriteHook) -> None:
         """``hook(index, sub, raw)`` after every accepted write (SDO or RPDO)."""
@@ -164,6 +172,8 @@ class ObjectStore:
                 raise Abort(0x06070012 if len(data) > size else 0x06070013)
             raw = decode(slot.data_type, data)
             self._check_range(slot.entry, raw)
+            for check in self._checks:
+                check(index, sub, raw)
             slot.value = raw
         for hook in self._hooks:
             hook(index, sub, raw)
