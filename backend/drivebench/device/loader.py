@@ -149,6 +149,24 @@ class ProfileRegistry:
         self._profiles[profile.id] = profile
         return profile
 
+    def remove_upload(self, profile_id: str) -> None:
+        """Delete the file(s) of an uploaded profile and read the directories again. Built-in ones stay."""
+        self.get(profile_id)
+        if profile_id in self._builtin:
+            raise ProfileError(f"profile '{profile_id}' is built in; only uploaded profiles can be deleted")
+        directory = self.user_profiles_dir
+        for path in sorted(directory.iterdir()) if directory.is_dir() else []:
+            if path.suffix.lower() not in PROFILE_SUFFIXES or not path.is_file():
+                continue
+            if path.stem != profile_id:
+                try:
+                    if load_profile_file(path.read_bytes(), path.name).id != profile_id:
+                        continue
+                except (ProfileError, OSError):
+                    continue
+            path.unlink(missing_ok=True)
+        self.reload()
+
     def _stored_path(self, profile_id: str, suffix: str) -> Path:
         root = self.user_profiles_dir.resolve()
         target = (root / f"{profile_id}{suffix}").resolve()

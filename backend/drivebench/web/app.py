@@ -21,6 +21,7 @@ from drivebench.simulator.plant import Plant, PlantFile
 from drivebench.web import problems
 from drivebench.web.api import diagnostics, health, profiles, sessions
 from drivebench.web.pages import plant as plant_page
+from drivebench.web.pages import profiles as profiles_page
 from drivebench.web.pages import remote as remote_page
 from drivebench.web.state import AppState
 from drivebench.web.viewer import ViewerScope
@@ -31,7 +32,7 @@ log = logging.getLogger(__name__)
 
 # One line per router: screens grow without touching anything else here.
 API_ROUTERS = [health.router, sessions.router, profiles.router, diagnostics.router]
-PAGE_ROUTERS = [plant_page.router, remote_page.router]
+PAGE_ROUTERS = [plant_page.router, profiles_page.router, remote_page.router]
 WS_ROUTERS = [nodes_ws.router, remote_ws.router]
 
 

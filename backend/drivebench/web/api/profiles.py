@@ -1,22 +1,47 @@
-"""Device profiles: list, JSON schema, one profile, upload (EDS/DCF/JSON), EDS download."""
+"""Device profiles: list, load errors, JSON schema, one profile, its entries (search), upload, delete, downloads.
+
+Uploads are read as a stream and refused with 413 as soon as they pass ``max_upload_bytes`` (the body is never
+spooled whole first); the file name is used for its suffix and in messages only, the stored file is named after
+the profile id (see ``ProfileRegistry.add_upload``).
+"""
 
 from __future__ import annotations
 
-from typing import Any
+import asyncio
+import re
+from collections.abc import AsyncGenerator
+from typing import Annotated, Any, Literal
 
-from fastapi import APIRouter, UploadFile, status
-from fastapi.responses import PlainTextResponse
+from fastapi import APIRouter, Query, Request, status
+from fastapi.responses import HTMLResponse, JSONResponse, PlainTextResponse, Response
 from pydantic import BaseModel
+from starlette.datastructures import UploadFile
+from starlette.formparsers import MultiPartException, MultiPartParser
 
+from drivebench.device.catalog import Catalog, Item
 from drivebench.device.eds_export import export_eds
 from drivebench.device.loader import ProfileRegistry
-from drivebench.device.profile import Profile
-from drivebench.errors import ProfileError
+from drivebench.device.profile import ObjectEntry, Parameter, Profile, Value
+from drivebench.errors import Conflict, DriveBenchError, ProfileError
 from drivebench.web.deps import StateDep
+from drivebench.web.problems import error_fragment, problem_body
+from drivebench.web.state import AppState
 
 router = APIRouter(prefix="/api/profiles", tags=["profiles"])
 
+MULTIPART_OVERHEAD_BYTES = 64 * 1024
+"""Room for the multipart boundaries and part headers around the file itself."""
+MAX_PAGE = 500
+EntryKind = Literal["all", "parameters", "objects"]
 
+
+class UploadTooLarge(ProfileError):
+    """An upload past the size limit: answered with 413 (Content Too Large), not 422."""
+
+    title = "Upload too large"
+
+
+# --- response models ------------------------------------------------------------------------------------
 class ProfileSummary(BaseModel):
     id: str
     version: str
@@ -25,22 +50,227 @@ class ProfileSummary(BaseModel):
     product: str
     vendor_id: int | None
     product_code: int | None
+    transport: str
     objects: int
     parameters: int
     builtin: bool
+    source: str | None = None
 
 
+class LoadError(BaseModel):
+    """A profile file that did not load: which file, where in it, and why."""
+
+    file: str
+    line: int | None
+    reason: str
+
+
+class EntryRow(BaseModel):
+    """One row of a profile's table: a vendor parameter (code/subcode) or a CANopen object (index/subindex)."""
+
+    ref: str
+    kind: Literal["parameter", "object"]
+    code: str | None
+    """The vendor code; for an object, the code that shows the same data (cross reference), if any."""
+    subcode: int | None
+    name: str
+    index: str
+    subindex: int
+    parameter_set: int
+    data_type: str
+    access: str
+    unit: str | None
+    factor: int | float
+    default: Value | None
+    min: int | float | None
+    max: int | float | None
+    selection: dict[int, str]
+    bits: dict[int, str]
+    reset_required: bool
+    pdo_mappable: bool
+    group: str
+    description: str | None
+
+
+class EntryPage(BaseModel):
+    profile: str
+    q: str
+    kind: EntryKind
+    total: int
+    offset: int
+    limit: int
+    items: list[EntryRow]
+
+
+# --- what the API and the Profiles page share -----------------------------------------------------------
 def summary(profile: Profile, registry: ProfileRegistry) -> ProfileSummary:
     return ProfileSummary(id=profile.id, version=profile.version, family=profile.family,
                           vendor=profile.identity.vendor_name, product=profile.identity.product_name,
                           vendor_id=profile.identity.vendor_id, product_code=profile.identity.product_code,
-                          objects=len(profile.objects), parameters=len(profile.parameters),
-                          builtin=registry.is_builtin(profile.id))
+                          transport=profile.features.transport, objects=len(profile.objects),
+                          parameters=len(profile.parameters), builtin=registry.is_builtin(profile.id),
+                          source=profile.source)
 
 
+def split_location(file: str, message: str) -> LoadError:
+    """``"x.eds:12: reason"`` (as ProfileError words it) -> file, line 12, reason."""
+    rest = message[len(file) + 1:].lstrip() if message.startswith(file + ":") else message
+    found = re.match(r"^(\d+):\s*(.*)$", rest, re.DOTALL)
+    if found:
+        return LoadError(file=file, line=int(found.group(1)), reason=found.group(2))
+    return LoadError(file=file, line=None, reason=rest)
+
+
+def load_errors(registry: ProfileRegistry) -> list[LoadError]:
+    return [split_location(file, message) for file, message in registry.errors]
+
+
+def upload_error(exc: ProfileError) -> LoadError:
+    source = exc.source or "upload"
+    return split_location(source, exc.detail)
+
+
+_catalogs: dict[str, Catalog] = {}
+
+
+def catalog_for(profile: Profile) -> Catalog:
+    """One Catalog per loaded profile (rebuilt when an upload replaces the profile)."""
+    cached = _catalogs.get(profile.id)
+    if cached is None or cached.profile is not profile:
+        cached = _catalogs[profile.id] = Catalog(profile)
+    return cached
+
+
+def entry_row(item: Item) -> EntryRow:
+    entry = item.entry
+    is_parameter = isinstance(entry, Parameter)
+    return EntryRow(
+        ref=item.ref, kind="parameter" if is_parameter else "object",
+        code=entry.code if isinstance(entry, Parameter | ObjectEntry) else None,
+        subcode=entry.subcode if isinstance(entry, Parameter) else None,
+        name=item.name, index=f"0x{item.index:04X}", subindex=item.subindex, parameter_set=item.parameter_set,
+        data_type=entry.data_type.value, access=entry.access.value, unit=entry.unit, factor=entry.factor,
+        default=entry.default, min=entry.min, max=entry.max, selection=entry.selection, bits=entry.bits,
+        reset_required=entry.reset_required, pdo_mappable=entry.pdo_mappable, group=item.group,
+        description=entry.description)
+
+
+def find_entries(profile: Profile, q: str, kind: EntryKind) -> list[Item]:
+    """Entries matching ``q`` (code ``C00088``/``88``, name words, index ``0x5FA7``), exact match first."""
+    items = catalog_for(profile).search(q)
+    if kind == "parameters":
+        return [i for i in items if isinstance(i.entry, Parameter)]
+    if kind == "objects":
+        return [i for i in items if not isinstance(i.entry, Parameter)]
+    return items
+
+
+def entry_page(profile: Profile, q: str, kind: EntryKind, offset: int, limit: int) -> EntryPage:
+    items = find_entries(profile, q, kind)
+    rows = [entry_row(i) for i in items[offset:offset + limit]]
+    return EntryPage(profile=profile.id, q=q, kind=kind, total=len(items), offset=offset, limit=limit, items=rows)
+
+
+async def _capped(request: Request, cap: int, limit: int) -> AsyncGenerator[bytes, None]:
+    received = 0
+    async for chunk in request.stream():
+        received += len(chunk)
+        if received > cap:
+            raise UploadTooLarge(f"the upload is larger than the limit of {_size(limit)}")
+        yield chunk
+
+
+def _size(count: int) -> str:
+    return f"{count / 1024 / 1024:.1f} MiB" if count >= 1024 * 1024 else f"{count / 1024:.0f} KiB"
+
+
+async def read_upload(request: Request, limit: int) -> tuple[str, bytes]:
+    """The file of a multipart upload (field ``file``): its name and bytes. Raises UploadTooLarge as soon as the
+    declared or received size passes ``limit``, ProfileError when no file came."""
+    cap = limit + MULTIPART_OVERHEAD_BYTES
+    declared = request.headers.get("content-length", "")
+    if declared.isdigit() and int(declared) > cap:
+        raise UploadTooLarge(f"the upload is {_size(int(declared))}, more than the limit of {_size(limit)}")
+    if not request.headers.get("content-type", "").startswith("multipart/form-data"):
+        raise ProfileError("send the profile file as multipart/form-data in the field 'file'")
+    parser = MultiPartParser(request.headers, _capped(request, cap, limit), max_files=1, max_fields=20)
+    try:
+        form = await parser.parse()
+    except MultiPartException as exc:
+        raise ProfileError(f"the upload is not a readable form: {exc.message}") from exc
+    try:
+        upload = form.get("file")
+        if not isinstance(upload, UploadFile):
+            raise ProfileError("no file in the upload: choose an EDS, DCF or JSON file (form field 'file')")
+        name = upload.filename or "upload"
+        content = await upload.read(limit + 1)
+        if len(content) > limit:
+            raise UploadTooLarge(f"the file is larger than the limit of {_size(limit)}", source=name)
+        return name, content
+    finally:
+        await form.close()
+
+
+async def store_upload(request: Request, state: AppState) -> Profile:
+    """Read, check and store an uploaded profile; a bad file changes nothing."""
+    registry = state.registry
+    name, content = await read_upload(request, registry.max_upload_bytes)
+    if name.lower().endswith(".json"):
+        _check_utf8(content, name)
+    return await asyncio.to_thread(registry.add_upload, name, content)
+
+
+def _check_utf8(content: bytes, name: str) -> None:
+    """JSON must be UTF-8: name the line of the first bad byte (pydantic only says 'invalid unicode')."""
+    try:
+        content.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = content.count(b"\n", 0, exc.start) + 1
+        raise ProfileError(f"not UTF-8 text: byte 0x{content[exc.start]:02X} cannot be decoded", source=name,
+                           line=line) from exc
+
+
+def users_of(state: AppState, profile_id: str) -> list[str]:
+    """Nodes of open sessions handled with this profile (``node 5 of 'Demo plant'``)."""
+    return [f"node {node_id} of '{session.name}'" for session in state.manager.list()
+            for node_id, node in session.nodes.items() if node.profile is not None and node.profile.id == profile_id]
+
+
+async def delete_upload(state: AppState, profile_id: str) -> None:
+    registry = state.registry
+    registry.get(profile_id)
+    if registry.is_builtin(profile_id):
+        raise Conflict(f"'{profile_id}' is a built-in profile (device_profiles/); only uploaded profiles can be "
+                       "deleted")
+    in_use = users_of(state, profile_id)
+    if in_use:
+        raise Conflict(f"'{profile_id}' is in use by {', '.join(in_use)}; remove those nodes first")
+    await asyncio.to_thread(registry.remove_upload, profile_id)
+
+
+def problem_response(request: Request, exc: DriveBenchError, status_code: int) -> Response:
+    """A problem+json (or, for htmx, an error fragment) with a status the shared table does not give."""
+    body = problem_body(exc, str(request.url.path))
+    body["status"] = status_code
+    if request.headers.get("HX-Request") == "true":
+        return HTMLResponse(error_fragment(body), status_code=status_code)
+    return JSONResponse(body, status_code=status_code, media_type="application/problem+json")
+
+
+def _attachment(filename: str) -> dict[str, str]:
+    return {"Content-Disposition": f'attachment; filename="{filename}"'}
+
+
+# --- routes ---------------------------------------------------------------------------------------------
 @router.get("", response_model=list[ProfileSummary])
 async def list_profiles(state: StateDep) -> list[ProfileSummary]:
     return [summary(p, state.registry) for p in state.registry.all()]
+
+
+@router.get("/load-errors", response_model=list[LoadError])
+async def list_load_errors(state: StateDep) -> list[LoadError]:
+    """Profile files in the built-in and upload directories that did not load, with line and reason."""
+    return load_errors(state.registry)
 
 
 @router.get("/schema")
@@ -54,19 +284,50 @@ async def get_profile(profile_id: str, state: StateDep) -> Profile:
     return state.registry.get(profile_id)
 
 
+@router.get("/{profile_id}/parameters", response_model=EntryPage)
+async def search_parameters(profile_id: str, state: StateDep, q: str = "", kind: EntryKind = "all",
+                            offset: Annotated[int, Query(ge=0)] = 0,
+                            limit: Annotated[int, Query(ge=1, le=MAX_PAGE)] = 100) -> EntryPage:
+    """Vendor parameters and CANopen objects matching ``q``: a code (``C00088``, ``88``, ``C00118/3``), words of
+    the name, or an index (``0x5FA7``, ``0x1018.1``). The exact match of a code or index comes first."""
+    profile = state.registry.get(profile_id)
+    return await asyncio.to_thread(entry_page, profile, q, kind, offset, limit)
+
+
 @router.get("/{profile_id}/eds", response_class=PlainTextResponse)
 async def get_profile_eds(profile_id: str, state: StateDep) -> PlainTextResponse:
     profile = state.registry.get(profile_id)
-    return PlainTextResponse(export_eds(profile), headers={
-        "Content-Disposition": f'attachment; filename="{profile.id}.eds"'})
+    return PlainTextResponse(export_eds(profile), headers=_attachment(f"{profile.id}.eds"))
 
 
-@router.post("", response_model=ProfileSummary, status_code=status.HTTP_201_CREATED)
-async def upload_profile(file: UploadFile, state: StateDep) -> ProfileSummary:
+@router.get("/{profile_id}/json", response_class=Response,
+            responses={200: {"content": {"application/json": {}}, "description": "The profile file"}})
+async def get_profile_json(profile_id: str, state: StateDep) -> Response:
+    profile = state.registry.get(profile_id)
+    return Response(profile.model_dump_json(indent=2) + "\n", media_type="application/json",
+                    headers=_attachment(f"{profile.id}.json"))
+
+
+UPLOAD_BODY = {"requestBody": {"required": True, "content": {"multipart/form-data": {"schema": {
+    "type": "object", "required": ["file"],
+    "properties": {"file": {"type": "string", "format": "binary", "description": "An .eds, .dcf or .json file"}}}}}}}
+
+
+@router.post("", response_model=ProfileSummary, status_code=status.HTTP_201_CREATED, openapi_extra=UPLOAD_BODY,
+             responses={413: {"description": "The file is larger than the upload limit"},
+                        422: {"description": "The file is not a valid profile (problem+json with source, line)"}})
+async def upload_profile(request: Request, state: StateDep) -> ProfileSummary | Response:
     """Upload an EDS, DCF or JSON profile. A bad file is refused with file name, line and reason."""
-    limit = state.registry.max_upload_bytes
-    content = await file.read(limit + 1)
-    if len(content) > limit:
-        raise ProfileError(f"file is larger than {limit // 1024} KiB", source=file.filename or "upload")
-    profile = state.registry.add_upload(file.filename or "upload", content)
+    try:
+        profile = await store_upload(request, state)
+    except UploadTooLarge as exc:
+        return problem_response(request, exc, status.HTTP_413_CONTENT_TOO_LARGE)
     return summary(profile, state.registry)
+
+
+@router.delete("/{profile_id}", status_code=status.HTTP_204_NO_CONTENT,
+               responses={409: {"description": "Built-in profiles cannot be deleted"}})
+async def delete_profile(profile_id: str, state: StateDep) -> Response:
+    """Delete an uploaded profile (built-in ones answer 409)."""
+    await delete_upload(state, profile_id)
+    return Response(status_code=status.HTTP_204_NO_CONTENT)

@@ -1,0 +1,155 @@
+"""The Profiles screen: every device profile, upload (EDS/DCF/JSON), one profile with its searchable entries."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+from urllib.parse import urlencode
+
+from fastapi import APIRouter, Query, Request, status
+from fastapi.responses import HTMLResponse, Response
+
+from drivebench.device.profile import Profile, Value
+from drivebench.errors import ProfileError
+from drivebench.web.api.profiles import (
+    EntryKind,
+    UploadTooLarge,
+    delete_upload,
+    entry_page,
+    load_errors,
+    store_upload,
+    summary,
+    upload_error,
+)
+from drivebench.web.deps import StateDep
+from drivebench.web.problems import status_for
+from drivebench.web.state import AppState
+from drivebench.web.templating import templates
+
+router = APIRouter(include_in_schema=False)
+
+PAGE_SIZE = 100
+TYPE_SHORT = {"BOOLEAN": "BOOL", "VISIBLE_STRING": "VSTR", "OCTET_STRING": "OSTR", "UNICODE_STRING": "USTR"}
+
+
+class Show:
+    """How the entries table words values: engineering units with the factor's decimals, texts for lists."""
+
+    @staticmethod
+    def decimals(factor: float) -> int:
+        digits = 0
+        while factor >= 10 and digits < 6:
+            factor /= 10
+            digits += 1
+        return digits
+
+    @staticmethod
+    def number(value: Value | None, factor: float = 1) -> str:
+        if value is None:
+            return ""
+        if isinstance(value, str):
+            return value
+        digits = Show.decimals(float(factor))
+        if digits:
+            return f"{value:.{digits}f}"
+        return str(int(value)) if float(value).is_integer() else f"{value:g}"
+
+    @staticmethod
+    def value(value: Value | None, factor: float, selection: dict[int, str]) -> str:
+        text = Show.number(value, factor)
+        if isinstance(value, int | float) and float(value).is_integer() and int(value) in selection:
+            return f"{text} · {selection[int(value)]}"
+        return text
+
+    @staticmethod
+    def range(low: float | None, high: float | None, factor: float) -> str:
+        if low is None and high is None:
+            return ""
+        if high is None:
+            return f"≥ {Show.number(low, factor)}"
+        if low is None:
+            return f"≤ {Show.number(high, factor)}"
+        return f"{Show.number(low, factor)} … {Show.number(high, factor)}"
+
+    @staticmethod
+    def data_type(name: str) -> str:
+        if name in TYPE_SHORT:
+            return TYPE_SHORT[name]
+        for long, short in (("UNSIGNED", "U"), ("INTEGER", "I")):
+            if name.startswith(long):
+                return short + name[len(long):]
+        return name
+
+    @staticmethod
+    def choices(choices: dict[int, str], sep: str = " · ") -> str:
+        return sep.join(f"{raw} {text}" for raw, text in sorted(choices.items()))
+
+
+def _list_context(state: AppState, **extra: Any) -> dict[str, Any]:
+    registry = state.registry
+    summaries = [summary(p, registry) for p in registry.all()]
+    return {"active": "profiles", "profiles": summaries, "load_errors": load_errors(registry),
+            "builtin_count": sum(1 for s in summaries if s.builtin), "limit_mib": registry.max_upload_bytes / 2**20,
+            **extra}
+
+
+def _list_block(request: Request, state: AppState, status_code: int = 200, **extra: Any) -> Response:
+    return templates.TemplateResponse(request, "profiles.html", _list_context(state, **extra),
+                                      block_name="profiles_body", status_code=status_code)
+
+
+@router.get("/profiles", response_class=HTMLResponse)
+async def profiles_page(request: Request, state: StateDep) -> Response:
+    return templates.TemplateResponse(request, "profiles.html", _list_context(state))
+
+
+@router.post("/ui/profiles", response_class=HTMLResponse)
+async def upload(request: Request, state: StateDep) -> Response:
+    """Upload from the form: the list and the form come back, with the error beside the form if the file is bad."""
+    try:
+        profile = await store_upload(request, state)
+    except ProfileError as exc:
+        code = status.HTTP_413_CONTENT_TOO_LARGE if isinstance(exc, UploadTooLarge) else status_for(exc)
+        return _list_block(request, state, code, upload_error=upload_error(exc), upload_title=exc.title)
+    return _list_block(request, state, upload_ok=profile.id)
+
+
+@router.post("/ui/profiles/{profile_id}/delete", response_class=HTMLResponse)
+async def delete(request: Request, state: StateDep, profile_id: str,
+                 where: Annotated[str, Query(pattern="^(list|detail)$")] = "list") -> Response:
+    await delete_upload(state, profile_id)
+    if where == "detail":
+        return Response(headers={"HX-Redirect": "/profiles"})
+    return _list_block(request, state, deleted=profile_id)
+
+
+def _entries_context(profile: Profile, q: str, kind: EntryKind, offset: int) -> dict[str, Any]:
+    page = entry_page(profile, q, kind, offset, PAGE_SIZE)
+    shown = page.offset + len(page.items)
+    query = {k: v for k, v in (("q", q), ("kind", kind)) if v and v != "all"}
+    more_url = f"/profiles/{profile.id}/entries?" + urlencode({**query, "offset": shown})
+    return {"profile": profile, "page": page, "rows": page.items, "more_url": more_url,
+            "remaining": page.total - shown, "page_size": PAGE_SIZE, "show": Show}
+
+
+@router.get("/profiles/{profile_id}", response_class=HTMLResponse)
+async def profile_page(request: Request, state: StateDep, profile_id: str, q: str = "",
+                       kind: EntryKind = "all") -> Response:
+    profile = state.registry.get(profile_id)
+    context = {"active": "profiles", "summary": summary(profile, state.registry),
+               "counts": {"parameters": len(profile.parameters), "objects": len(profile.objects)},
+               **_entries_context(profile, q, kind, 0)}
+    return templates.TemplateResponse(request, "profiles.html", {**context, "detail": True})
+
+
+@router.get("/profiles/{profile_id}/entries", response_class=HTMLResponse)
+async def entries(request: Request, state: StateDep, profile_id: str, q: str = "", kind: EntryKind = "all",
+                  offset: Annotated[int, Query(ge=0)] = 0) -> Response:
+    """The entries table for a search (offset 0), or the next rows for 'show more'."""
+    profile = state.registry.get(profile_id)
+    context = _entries_context(profile, q, kind, offset)
+    response = templates.TemplateResponse(request, "profiles.html", context,
+                                          block_name="entries" if offset == 0 else "entry_rows")
+    if offset == 0:
+        query = urlencode({k: v for k, v in (("q", q), ("kind", kind)) if v and v != "all"})
+        response.headers["HX-Replace-Url"] = f"/profiles/{profile.id}" + (f"?{query}" if query else "")
+    return response
