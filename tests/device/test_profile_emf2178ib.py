@@ -173,6 +173,12 @@ def test_selection_lists(registry: ProfileRegistry, profile_id: str) -> None:
     assert all(p.reset_required for p in catalog.profile.parameters if p.code in ("C1850", "C1851"))
 
 
+def test_8200_identity_strings_are_the_manuals_examples(vector: Catalog) -> None:
+    assert _param(vector, "C0200").default == "82S8212V_14000"  # 10.5 block read: 82S8212 + V_14000
+    assert vector.resolve("0x1008").entry.default == "8212_AFU0"
+    assert vector.resolve("0x100A").entry.default == "14000_20000"
+
+
 def test_8200_parameter_saving(vector: Catalog) -> None:
     saving = _param(vector, "C0003")
     assert saving.selection[10000] == "Automatic saving (Lenze setting)"
@@ -188,9 +194,13 @@ def test_objects(registry: ProfileRegistry, profile_id: str) -> None:
         listed.setdefault(obj.index, []).append(obj.subindex)
     assert listed == OBJECTS
     catalog = Catalog(profile)
-    name = catalog.resolve("0x1008").entry
-    assert (name.access, name.data_type, name.default) == (Access.CONST, DataType.VISIBLE_STRING, "8212_AFU0")
-    assert len(catalog.resolve("0x100A").entry.default) == 11  # type: ignore[arg-type]
+    # 13.2.6/13.2.7: characters 4-7 (10-14) of the base device's C0200, "_", the same characters of C1500
+    base, module = str(_param(catalog, "C0200").default), str(_param(catalog, "C1500").default)
+    name, version = catalog.resolve("0x1008").entry, catalog.resolve("0x100A").entry
+    assert (name.access, name.data_type, name.default) == (
+        Access.CONST, DataType.VISIBLE_STRING, f"{base[3:7]}_{module[3:7]}")
+    assert (version.access, version.default) == (Access.CONST, f"{base[9:14]}_{module[9:14]}")
+    assert len(name.default) == 9 and len(version.default) == 11  # type: ignore[arg-type]
     guard = catalog.resolve("0x100C").entry
     assert (guard.data_type, guard.access, guard.default, guard.unit) == (DataType.UNSIGNED16, Access.RW, 0, "ms")
     assert catalog.resolve("0x1005").entry.default == 0x80
