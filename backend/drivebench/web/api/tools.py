@@ -1,12 +1,17 @@
-"""Tools JSON API: DIP-switch calculator, COB-ID table, cable planner, network planner (no bus needed)."""
+"""Tools JSON API: DIP-switch calculator, COB-ID table, cable planner, network planner and saved planned networks.
+
+The calculators are pure (no bus, no database): GET with query parameters or POST with a JSON body. Planned
+networks live in the database (``/api/planned-networks``); only ``compare`` touches a bus (it scans a session).
+"""
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Query
-from pydantic import BaseModel
+from fastapi import APIRouter, Depends, Query, Request, Response
+from pydantic import BaseModel, Field
 
 from drivebench.device.cable import (
     CROSS_SECTIONS_MM2,
@@ -20,18 +25,41 @@ from drivebench.device.cable import (
 from drivebench.device.cobids import NOTES, CobId, PdoIds, cob_ids
 from drivebench.device.dip import FAMILIES, LENZE_8400_MOTEC, DipResult, FamilySpec, decode, encode, family_spec
 from drivebench.errors import DriveBenchError, InvalidValue
-from drivebench.services.planner import NetworkPlan, PlanReport, ScanComparison, check_plan, compare_with_scan
+from drivebench.services.planned_networks import (
+    LiveComparison,
+    PlannedNetwork,
+    PlannedNetworkStore,
+    PlannedNetworkSummary,
+    compare_with_session,
+)
+from drivebench.services.planner import NetworkPlan, PlanReport, check_plan
 from drivebench.web.deps import ManagerDep
 
 router = APIRouter(prefix="/api/tools", tags=["tools"])
+planned_router = APIRouter(prefix="/api/planned-networks", tags=["planned networks"])
 
 
+# --- DIP-switch calculator and COB-IDs -------------------------------------------------------------------------
 class DipAnswer(BaseModel):
     family: FamilySpec
     result: DipResult
     cob_ids: list[CobId]
     """COB-IDs the node uses (empty when the node id is not known, e.g. the parameter value is not given)."""
     cob_id_notes: list[str]
+
+
+class DipRequest(BaseModel):
+    """Either ``switches`` (decode) or ``node_id`` + ``baud_kbit`` (encode)."""
+
+    switches: dict[str, bool] | None = None
+    """Switch label -> ON; switches not named are OFF."""
+    code_node_id: int | None = Field(None, ge=0, le=255)
+    """Decode: value of the node-address parameter (C00350, C1850/C2350, P0918)."""
+    code_baud_kbit: int | None = None
+    """Decode: baud rate [kbit/s] the baud-rate parameter selects (C00351, C1851/C2351, P2010)."""
+    node_id: int | None = Field(None, ge=0, le=127)
+    baud_kbit: int | None = None
+    pdo_ids: PdoIds = "canopen"
 
 
 class CobIdAnswer(BaseModel):
@@ -56,9 +84,19 @@ def dip_answer(result: DipResult, pdo_ids: PdoIds = "canopen") -> DipAnswer:
     return DipAnswer(family=spec, result=result, cob_ids=ids, cob_id_notes=NOTES[spec.key])
 
 
+def calculate(family: str, request: DipRequest) -> DipAnswer:
+    if request.node_id is not None or request.baud_kbit is not None:
+        if request.node_id is None or request.baud_kbit is None or request.switches is not None:
+            raise InvalidValue("Encode takes node_id and baud_kbit together; decode takes the switches.")
+        return dip_answer(encode(family, request.node_id, request.baud_kbit), request.pdo_ids)
+    result = decode(family, request.switches or {}, code_node_id=request.code_node_id,
+                    code_baud_kbit=request.code_baud_kbit)
+    return dip_answer(result, request.pdo_ids)
+
+
 @router.get("/dip", response_model=list[FamilySpec])
 async def dip_families() -> list[FamilySpec]:
-    """Device families with their switch blocks, baud-rate tables and rules."""
+    """Device families with their switch blocks, baud-rate tables, rules and the manuals' ambiguities."""
     return list(FAMILIES.values())
 
 
@@ -75,12 +113,16 @@ async def dip(
     pdo_ids: PdoIds = "canopen",
 ) -> DipAnswer:
     """Decode switch positions (``on``) or encode a node id and baud rate (``node_id`` + ``baud_kbit``)."""
-    if node_id is not None or baud_kbit is not None:
-        if node_id is None or baud_kbit is None or on is not None:
-            raise InvalidValue("Encode takes node_id and baud_kbit together; decode takes on (switches).")
-        return dip_answer(encode(family, node_id, baud_kbit), pdo_ids)
-    result = decode(family, parse_switches(on or ""), code_node_id=code_node_id, code_baud_kbit=code_baud_kbit)
-    return dip_answer(result, pdo_ids)
+    request = DipRequest(switches=parse_switches(on) if on is not None else None, node_id=node_id,
+                         baud_kbit=baud_kbit, code_node_id=code_node_id, code_baud_kbit=code_baud_kbit,
+                         pdo_ids=pdo_ids)
+    return calculate(family, request)
+
+
+@router.post("/dip/{family}", response_model=DipAnswer)
+async def dip_post(family: str, request: DipRequest) -> DipAnswer:
+    """As GET, with the switch positions as a JSON object (``{"switches": {"16": true, "a": true}}``)."""
+    return calculate(family, request)
 
 
 @router.get("/cobids", response_model=CobIdAnswer)
@@ -92,6 +134,7 @@ async def cobids(family: str, node_id: Annotated[int, Query(ge=1, le=127)],
                        notes=NOTES[key])
 
 
+# --- cable and network planner ---------------------------------------------------------------------------------
 @router.get("/cable", response_model=CablePlan)
 async def cable(baud_kbit: int, nodes: Annotated[int, Query(ge=2)], length_m: Annotated[float, Query(gt=0)],
                 cross_section_mm2: float = 0.5,
@@ -113,18 +156,78 @@ async def planner_check(plan: NetworkPlan) -> PlanReport:
     return check_plan(plan)
 
 
-class CompareRequest(BaseModel):
-    plan: NetworkPlan
-    session_id: str
-    scan: bool = True
-    """Scan the bus first (otherwise compare with the nodes the session already knows)."""
+@router.post("/planner/compare", response_model=LiveComparison)
+async def planner_compare(plan: NetworkPlan, manager: ManagerDep,
+                          session: Annotated[str, Query(description="Session (bus) to scan")],
+                          timeout_s: Annotated[float, Query(gt=0, le=5)] = 0.5) -> LiveComparison:
+    """Compare an unsaved plan with a live scan of a session's bus."""
+    return await compare_with_session(plan, manager.get(session), timeout_s)
 
 
-@router.post("/planner/compare", response_model=ScanComparison)
-async def planner_compare(request: CompareRequest, manager: ManagerDep) -> ScanComparison:
-    """Compare a plan with the nodes found on a session's bus."""
-    session = manager.get(request.session_id)
-    if request.scan:
-        await session.scan()
-    found = {node.node_id: (node.identity or None) for node in session.nodes.values()}
-    return compare_with_scan(request.plan, found)
+# --- saved planned networks ------------------------------------------------------------------------------------
+def get_store() -> PlannedNetworkStore:
+    return PlannedNetworkStore()
+
+
+StoreDep = Annotated[PlannedNetworkStore, Depends(get_store)]
+
+
+class PlannedNetworkChecked(PlannedNetwork):
+    report: PlanReport
+
+
+@planned_router.get("", response_model=list[PlannedNetworkSummary])
+def list_planned(store: StoreDep) -> list[PlannedNetworkSummary]:
+    return store.list()
+
+
+@planned_router.post("", response_model=PlannedNetworkChecked, status_code=201)
+def save_planned(plan: NetworkPlan, store: StoreDep) -> PlannedNetworkChecked:
+    """Save a plan (also when it has findings: they come back in ``report``)."""
+    saved = store.save(plan)
+    return PlannedNetworkChecked(**saved.model_dump(), report=check_plan(saved.plan))
+
+
+@planned_router.post("/import", response_model=PlannedNetworkChecked, status_code=201)
+async def import_planned(request: Request, store: StoreDep) -> PlannedNetworkChecked:
+    """Store a plan exported before (the JSON of ``/export`` as the request body). Bad JSON: 422 with the first
+    problem, nothing saved."""
+    saved = await asyncio.to_thread(store.import_json, await request.body())
+    return PlannedNetworkChecked(**saved.model_dump(), report=check_plan(saved.plan))
+
+
+@planned_router.get("/{network_id}", response_model=PlannedNetworkChecked)
+def get_planned(network_id: int, store: StoreDep) -> PlannedNetworkChecked:
+    saved = store.get(network_id)
+    return PlannedNetworkChecked(**saved.model_dump(), report=check_plan(saved.plan))
+
+
+@planned_router.put("/{network_id}", response_model=PlannedNetworkChecked)
+def update_planned(network_id: int, plan: NetworkPlan, store: StoreDep) -> PlannedNetworkChecked:
+    saved = store.update(network_id, plan)
+    return PlannedNetworkChecked(**saved.model_dump(), report=check_plan(saved.plan))
+
+
+@planned_router.delete("/{network_id}", status_code=204)
+def delete_planned(network_id: int, store: StoreDep) -> Response:
+    store.delete(network_id)
+    return Response(status_code=204)
+
+
+@planned_router.get("/{network_id}/export")
+def export_planned(network_id: int, store: StoreDep) -> Response:
+    """The plan as a JSON file (import it again with ``POST /api/planned-networks/import``)."""
+    saved = store.get(network_id)
+    filename = "".join(c if c.isalnum() or c in "-_" else "-" for c in saved.name).strip("-") or "network"
+    return Response(saved.plan.to_json(), media_type="application/json",
+                    headers={"Content-Disposition": f'attachment; filename="{filename}.json"'})
+
+
+@planned_router.post("/{network_id}/compare", response_model=LiveComparison)
+async def compare_planned(network_id: int, store: StoreDep, manager: ManagerDep,
+                          session: Annotated[str, Query(description="Session (bus) to scan")],
+                          timeout_s: Annotated[float, Query(gt=0, le=5)] = 0.5) -> LiveComparison:
+    """Scan the session's bus: which planned nodes answer as the planned device, which are missing or extra."""
+    target = manager.get(session)
+    saved = await asyncio.to_thread(store.get, network_id)
+    return await compare_with_session(saved.plan, target, timeout_s)
