@@ -1,0 +1,276 @@
+"""PDO configuration of a node: read it, check a new mapping against the profile, apply it in the CiA 301 order.
+
+Apply order (CiA 301 7.5.2.35-38): 1 COB-ID with the invalid bit set, 2 mapping count 0, 3 the entries,
+4 the count, 5 transmission type, inhibit time and event timer, 6 COB-ID valid; then everything is read back.
+A failed step stops the sequence; since step 1 made the PDO invalid, a failure never leaves it half-mapped and
+enabled, and the report says which step failed with its abort code.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, Field
+
+from drivebench.device.catalog import Catalog
+from drivebench.device.profile import Entry, ObjectEntry
+from drivebench.errors import InvalidValue, NotFound, ProtocolError, SdoAbortError
+from drivebench.protocol.datatypes import DataType, decode
+from drivebench.services.sessions import Session
+
+Direction = Literal["rpdo", "tpdo"]
+COMM_BASE: dict[str, int] = {"rpdo": 0x1400, "tpdo": 0x1800}
+MAP_BASE: dict[str, int] = {"rpdo": 0x1600, "tpdo": 0x1A00}
+COB_INVALID = 1 << 31
+COB_NO_RTR = 1 << 30
+MAX_PDO_BITS = 64
+
+
+class MappedObject(BaseModel):
+    index: int
+    subindex: int
+    bits: int
+    name: str
+    ref: str
+    unit: str | None = None
+
+
+class PdoConfig(BaseModel):
+    direction: Direction
+    number: int
+    cob_id: int
+    valid: bool
+    rtr_allowed: bool
+    transmission_type: int
+    transmission_text: str
+    inhibit_time_ms: float | None = None
+    event_timer_ms: int | None = None
+    sync_start: int | None = None
+    entries: list[MappedObject]
+    length_bytes: int
+    max_entries: int
+
+
+class PdoWrite(BaseModel):
+    cob_id: int | None = Field(None, ge=0x001, le=0x7FF, description="11-bit identifier; omitted = keep")
+    valid: bool = True
+    transmission_type: int | None = Field(None, ge=0, le=255)
+    inhibit_time_ms: float | None = Field(None, ge=0, le=6553.5)
+    event_timer_ms: int | None = Field(None, ge=0, le=65535)
+    entries: list[tuple[int, int]] = Field(description="(index, subindex) of each mapped object, in order")
+
+
+class ApplyStep(BaseModel):
+    step: str
+    index: int
+    subindex: int
+    value: str
+    ok: bool
+    abort_code: str | None = None
+    abort_text: str | None = None
+    detail: str | None = None
+
+
+class ApplyReport(BaseModel):
+    ok: bool
+    enabled: bool
+    message: str
+    steps: list[ApplyStep]
+    pdo: PdoConfig | None = None
+
+
+def transmission_text(trans_type: int, direction: Direction) -> str:
+    if trans_type == 0:
+        return "synchronous, acyclic" + (" (sent on SYNC after a change)" if direction == "tpdo" else "")
+    if 1 <= trans_type <= 240:
+        return f"synchronous, every {trans_type}. SYNC" if trans_type > 1 else "synchronous, every SYNC"
+    if trans_type in (252, 253):
+        return "RTR only" + (", synchronous" if trans_type == 252 else ", event-driven")
+    if trans_type in (254, 255):
+        return "event-driven" + (" (manufacturer-specific)" if trans_type == 254 else " (device profile)")
+    return "reserved"
+
+
+def _catalog(session: Session, node_id: int) -> Catalog:
+    catalog = session.node(node_id).catalog
+    if catalog is None:
+        raise NotFound(f"Node {node_id} has no device profile: its PDOs cannot be named or checked.",
+                       hint="Scan the bus or pick the node's profile on the Plant page.")
+    return catalog
+
+
+def _entry(catalog: Catalog, index: int, sub: int) -> ObjectEntry | Entry | None:
+    item = catalog.by_address(index, sub)
+    return item.entry if item else None
+
+
+def pdo_numbers(session: Session, node_id: int, direction: Direction) -> list[int]:
+    catalog = _catalog(session, node_id)
+    base = COMM_BASE[direction]
+    return sorted({o.index - base + 1 for o in catalog.profile.objects
+                   if base <= o.index < base + 0x200 and o.subindex == 1})
+
+
+def mappable_objects(session: Session, node_id: int, direction: Direction) -> list[MappedObject]:
+    """What the profile allows in a PDO of this direction (RPDO: writable objects, TPDO: readable ones)."""
+    catalog = _catalog(session, node_id)
+    found: list[MappedObject] = []
+    for obj in catalog.profile.objects:
+        if not obj.pdo_mappable or obj.data_type.size is None:
+            continue
+        if direction == "rpdo" and not obj.access.writable:
+            continue
+        found.append(_mapped(catalog, obj.index, obj.subindex, obj.data_type.size * 8))
+    return found
+
+
+def _mapped(catalog: Catalog, index: int, sub: int, bits: int) -> MappedObject:
+    item = catalog.by_address(index, sub)
+    if 0x0001 <= index <= 0x0007 and sub == 0:
+        return MappedObject(index=index, subindex=0, bits=bits, name="dummy entry", ref=f"0x{index:04X}.0")
+    return MappedObject(index=index, subindex=sub, bits=bits, name=item.name if item else "not in the profile",
+                        ref=catalog.vendor_ref(index, sub), unit=item.entry.unit if item else None)
+
+
+async def _read_u(session: Session, node_id: int, index: int, sub: int) -> int:
+    raw = decode(DataType.UNSIGNED32, (await session.client(node_id).aupload(index, sub)).ljust(4, b"\0")[:4])
+    assert isinstance(raw, int)
+    return raw
+
+
+async def _optional(session: Session, node_id: int, catalog: Catalog, index: int, sub: int) -> int | None:
+    if catalog.by_address(index, sub) is None:
+        return None
+    return await _read_u(session, node_id, index, sub)
+
+
+async def read_pdo(session: Session, node_id: int, direction: Direction, number: int) -> PdoConfig:
+    catalog = _catalog(session, node_id)
+    comm, mapping = COMM_BASE[direction] + number - 1, MAP_BASE[direction] + number - 1
+    if catalog.by_address(comm, 1) is None:
+        raise NotFound(f"{session.node(node_id).device_name} has no {direction.upper()}{number} "
+                       f"(object 0x{comm:04X} is not in its profile).")
+    cob = await _read_u(session, node_id, comm, 1)
+    trans_type = await _optional(session, node_id, catalog, comm, 2)
+    inhibit = await _optional(session, node_id, catalog, comm, 3) if direction == "tpdo" else None
+    event = await _optional(session, node_id, catalog, comm, 5)
+    sync_start = await _optional(session, node_id, catalog, comm, 6)
+    count = await _read_u(session, node_id, mapping, 0)
+    entries = []
+    for sub in range(1, count + 1):
+        value = await _read_u(session, node_id, mapping, sub)
+        entries.append(_mapped(catalog, value >> 16, (value >> 8) & 0xFF, value & 0xFF))
+    max_entries = max((o.subindex for o in catalog.profile.objects if o.index == mapping), default=0)
+    trans = 255 if trans_type is None else trans_type
+    return PdoConfig(direction=direction, number=number, cob_id=cob & 0x7FF, valid=not cob & COB_INVALID,
+                     rtr_allowed=not cob & COB_NO_RTR, transmission_type=trans,
+                     transmission_text=transmission_text(trans, direction),
+                     inhibit_time_ms=inhibit / 10 if inhibit is not None else None, event_timer_ms=event,
+                     sync_start=sync_start, entries=entries, length_bytes=sum(e.bits for e in entries) // 8,
+                     max_entries=max_entries)
+
+
+async def read_pdos(session: Session, node_id: int) -> list[PdoConfig]:
+    return [await read_pdo(session, node_id, direction, number)
+            for direction in ("rpdo", "tpdo") for number in pdo_numbers(session, node_id, direction)]
+
+
+def check_mapping(session: Session, node_id: int, direction: Direction, number: int,
+                  write: PdoWrite) -> list[MappedObject]:
+    """The new mapping, named; InvalidValue before anything is sent when the profile forbids it."""
+    catalog = _catalog(session, node_id)
+    allowed = {(o.index, o.subindex): o for o in mappable_objects(session, node_id, direction)}
+    mapping_index = MAP_BASE[direction] + number - 1
+    max_entries = max((o.subindex for o in catalog.profile.objects if o.index == mapping_index), default=0)
+    if len(write.entries) > max_entries:
+        raise InvalidValue(f"{direction.upper()}{number} takes at most {max_entries} mapping entries; "
+                           f"{len(write.entries)} were given.")
+    chosen = []
+    for index, sub in write.entries:
+        if (index, sub) not in allowed:
+            item = catalog.by_address(index, sub)
+            what = f"{item.name} (0x{index:04X}.{sub})" if item else f"0x{index:04X}.{sub}"
+            needs = "PDO-mappable and writable" if direction == "rpdo" else "PDO-mappable"
+            raise InvalidValue(f"{what} cannot be mapped into an {direction.upper()} of this device "
+                               f"(the profile does not list it as {needs}).")
+        chosen.append(allowed[(index, sub)])
+    bits = sum(m.bits for m in chosen)
+    if bits > MAX_PDO_BITS:
+        raise InvalidValue(f"The mapping needs {bits // 8} bytes; a PDO carries at most 8.")
+    if write.transmission_type is not None:
+        entry = _entry(catalog, COMM_BASE[direction] + number - 1, 2)
+        if entry is not None and entry.selection and write.transmission_type not in entry.selection:
+            allowed_types = ", ".join(f"{k} ({v})" for k, v in sorted(entry.selection.items()))
+            raise InvalidValue(f"Transmission type {write.transmission_type} is not permitted for this device; "
+                               f"its manual allows {allowed_types}.")
+        if entry is not None and entry.max is not None and write.transmission_type > entry.max:
+            raise InvalidValue(f"Transmission type {write.transmission_type} is above the device's maximum "
+                               f"{entry.max:g}.")
+    return chosen
+
+
+async def apply_pdo(session: Session, node_id: int, direction: Direction, number: int,
+                    write: PdoWrite) -> ApplyReport:
+    catalog = _catalog(session, node_id)
+    chosen = check_mapping(session, node_id, direction, number, write)
+    comm, mapping = COMM_BASE[direction] + number - 1, MAP_BASE[direction] + number - 1
+    current = await read_pdo(session, node_id, direction, number)
+    cob_id = write.cob_id if write.cob_id is not None else current.cob_id
+    flags = 0 if current.rtr_allowed else COB_NO_RTR
+    plan: list[tuple[str, int, int, int, int]] = [
+        ("disable PDO (COB-ID invalid)", comm, 1, cob_id | flags | COB_INVALID, 4),
+        ("disable mapping (count 0)", mapping, 0, 0, 1)]
+    plan += [(f"entry {n}: {m.ref} {m.name}", mapping, n, (m.index << 16) | (m.subindex << 8) | m.bits, 4)
+             for n, m in enumerate(chosen, start=1)]
+    plan.append((f"enable mapping (count {len(chosen)})", mapping, 0, len(chosen), 1))
+    if write.transmission_type is not None:
+        plan.append(("transmission type", comm, 2, write.transmission_type, 1))
+    if write.inhibit_time_ms is not None and direction == "tpdo" and catalog.by_address(comm, 3):
+        plan.append(("inhibit time", comm, 3, round(write.inhibit_time_ms * 10), 2))
+    if write.event_timer_ms is not None and catalog.by_address(comm, 5):
+        plan.append(("event timer", comm, 5, write.event_timer_ms, 2))
+    if write.valid:
+        plan.append(("enable PDO (COB-ID valid)", comm, 1, cob_id | flags, 4))
+
+    steps: list[ApplyStep] = []
+    client = session.client(node_id)
+    for name, index, sub, value, size in plan:
+        step = ApplyStep(step=name, index=index, subindex=sub, value=f"0x{value:0{size * 2}X}", ok=True)
+        steps.append(step)
+        try:
+            await client.adownload(index, sub, value.to_bytes(size, "little"))
+        except SdoAbortError as exc:
+            step.ok, step.abort_code, step.abort_text = False, f"0x{exc.abort_code:08X}", exc.abort_text
+            return await _failed(session, node_id, direction, number, steps, disabled=len(steps) > 1)
+        except ProtocolError as exc:
+            step.ok, step.detail = False, exc.detail
+            return await _failed(session, node_id, direction, number, steps, disabled=len(steps) > 1)
+    pdo = await read_pdo(session, node_id, direction, number)
+    mismatch = [m.ref for m, got in zip(chosen, pdo.entries, strict=False) if (m.index, m.subindex) !=
+                (got.index, got.subindex)] or ([] if len(pdo.entries) == len(chosen) else ["entry count"])
+    if mismatch or pdo.valid != write.valid or pdo.cob_id != cob_id:
+        return ApplyReport(ok=False, enabled=pdo.valid, steps=steps, pdo=pdo,
+                           message=f"{direction.upper()}{number} reads back differently from what was written "
+                                   f"({', '.join(mismatch) or 'COB-ID/valid bit'}).")
+    return ApplyReport(ok=True, enabled=pdo.valid, steps=steps, pdo=pdo,
+                       message=f"{direction.upper()}{number} applied and verified: {len(chosen)} entries, "
+                               f"{pdo.length_bytes} bytes, COB-ID 0x{pdo.cob_id:03X}"
+                               f"{'' if pdo.valid else ', left disabled as requested'}.")
+
+
+async def _failed(session: Session, node_id: int, direction: Direction, number: int, steps: list[ApplyStep],
+                  *, disabled: bool) -> ApplyReport:
+    try:
+        pdo: PdoConfig | None = await read_pdo(session, node_id, direction, number)
+    except ProtocolError:
+        pdo = None
+    failed = steps[-1]
+    reason = f"{failed.abort_code} {failed.abort_text}" if failed.abort_code else (failed.detail or "")
+    if not disabled:
+        state = "nothing was changed; the PDO keeps its previous configuration"
+    elif pdo is not None and pdo.valid:
+        state = "the PDO reads back as ENABLED - check the device"
+    else:
+        state = "the PDO is left disabled (COB-ID invalid), never half-mapped and enabled"
+    return ApplyReport(ok=False, enabled=bool(pdo and pdo.valid), steps=steps, pdo=pdo,
+                       message=f"{direction.upper()}{number}: step '{failed.step}' failed ({reason}); {state}.")
