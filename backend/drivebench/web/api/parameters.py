@@ -1,0 +1,289 @@
+"""Parameters of a node: list/search, read, write (validated, verified), read-all jobs, device commands.
+
+Values travel raw and scaled (``{"raw": 1020, "value": 10.2, "unit": "A", "text": null}``); SDO aborts and
+timeouts are problem+json with ``abort_code``/``abort_text``/``node``/``object`` (see ``web/problems.py``).
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Depends, Query, Request, status
+from pydantic import BaseModel, Field, model_validator
+
+from drivebench.device.catalog import Item
+from drivebench.device.scaling import ScaledValue
+from drivebench.services import parameters as service
+from drivebench.services.jobs import Job, JobManager
+from drivebench.services.parameters import DeviceCommand, ParameterValue, SdoSettings, WriteResult
+from drivebench.web.deps import NodeDep, SessionDep
+
+router = APIRouter(prefix="/api", tags=["parameters"])
+NODE = "/sessions/{session_id}/nodes/{node_id}"
+
+
+def jobs_of(app: Any) -> JobManager:
+    """The server's job manager (one per app, created on first use)."""
+    jobs = getattr(app.state, "jobs", None)
+    if jobs is None:
+        jobs = app.state.jobs = JobManager()
+    return jobs
+
+
+def get_jobs(request: Request) -> JobManager:
+    return jobs_of(request.app)
+
+
+JobsDep = Annotated[JobManager, Depends(get_jobs)]
+
+
+# --- models --------------------------------------------------------------------------------------------
+class ValueOut(BaseModel):
+    raw: int | float | str
+    value: int | float | str | None
+    unit: str | None
+    text: str | None
+    """Selection-list meaning or the names of the set bits."""
+
+
+class ParameterValueOut(ValueOut):
+    ref: str
+    name: str
+    index: str
+    subindex: int
+    display: str
+    read_at: float
+
+
+class ParameterInfo(BaseModel):
+    ref: str
+    name: str
+    group: str
+    index: str
+    subindex: int
+    address: str
+    data_type: str
+    access: str
+    writable: bool
+    unit: str | None
+    min: float | int | None
+    max: float | int | None
+    default: float | int | str | None
+    selection: dict[int, str]
+    bits: dict[int, str]
+    reset_required: bool
+    last: ParameterValueOut | None = None
+    """The value read last (by this server), if any."""
+
+
+class ParameterList(BaseModel):
+    node_id: int
+    device: str
+    groups: list[str]
+    """Groups in the manual's order."""
+    parameters: list[ParameterInfo]
+    pending_reset: list[str]
+
+
+class ParameterWrite(BaseModel):
+    """Either ``value`` (engineering units or what a user typed: ``10.2``, ``"10.20 A"``, ``"250 kbit/s"``) or
+    ``raw`` (the device's integer)."""
+
+    value: int | float | str | None = None
+    raw: int | None = None
+    check: bool = Field(True, description="Validate against the profile before sending (false: the device decides; "
+                                          "the value must still fit the data type)")
+    verify: bool = Field(True, description="Read the value back after writing and compare")
+
+    @model_validator(mode="after")
+    def _one_of(self) -> ParameterWrite:
+        if (self.value is None) == (self.raw is None):
+            raise ValueError("give exactly one of 'value' and 'raw'")
+        return self
+
+
+class WriteOut(BaseModel):
+    ref: str
+    written: ValueOut
+    read_back: ParameterValueOut | None
+    verified: bool | None
+    mismatch: str | None
+    reset_required: bool
+    pending_reset: list[str]
+
+
+class GroupRead(BaseModel):
+    group: str
+
+
+class SessionRead(BaseModel):
+    node_ids: list[Annotated[int, Field(ge=1, le=127)]] | None = Field(
+        None, description="Nodes to read; all nodes of the session with a profile when omitted")
+
+
+class ProgressOut(BaseModel):
+    done: int
+    total: int
+    failed: int
+    rate_per_s: float
+    eta_s: float | None
+    elapsed_s: float
+
+
+class IssueOut(BaseModel):
+    item: str
+    node: int | None
+    detail: str
+    abort_code: str | None
+    abort_text: str | None
+
+
+class JobOut(BaseModel):
+    id: str
+    kind: str
+    title: str
+    state: str
+    progress: ProgressOut
+    error: str | None
+    notes: list[str]
+    issues: list[IssueOut]
+    result: dict[str, Any] | None = None
+    links: dict[str, str]
+
+
+class CommandOut(BaseModel):
+    command: str
+    via: str
+    detail: str
+    pending_reset: list[str]
+
+
+class SdoSettingsModel(BaseModel):
+    timeout_s: float = Field(0.5, ge=0.01, le=30)
+    retries: int = Field(1, ge=0, le=10)
+    use_sdo2: bool = True
+
+
+# --- conversions -----------------------------------------------------------------------------------------
+def value_out(value: ParameterValue) -> ParameterValueOut:
+    return ParameterValueOut(ref=value.ref, name=value.name, index=f"0x{value.index:04X}", subindex=value.subindex,
+                             raw=value.raw if not isinstance(value.raw, bytes) else value.raw.hex(),
+                             value=value.value if not isinstance(value.value, bytes) else value.value.hex(),
+                             unit=value.unit, text=value.text, display=value.display, read_at=value.read_at)
+
+
+def _scaled_out(scaled: ScaledValue) -> ValueOut:
+    raw = scaled.raw.hex() if isinstance(scaled.raw, bytes) else scaled.raw
+    value = scaled.value.hex() if isinstance(scaled.value, bytes) else scaled.value
+    return ValueOut(raw=raw, value=value, unit=scaled.unit, text=scaled.text)
+
+
+def info_out(item: Item, last: ParameterValue | None) -> ParameterInfo:
+    entry = item.entry
+    return ParameterInfo(
+        ref=item.ref, name=item.name, group=item.group, index=f"0x{item.index:04X}", subindex=item.subindex,
+        address=item.address, data_type=entry.data_type.value, access=entry.access.value,
+        writable=entry.access.writable, unit=entry.unit, min=entry.min, max=entry.max, default=entry.default,
+        selection=entry.selection, bits=entry.bits, reset_required=entry.reset_required,
+        last=value_out(last) if last else None)
+
+
+def write_out(result: WriteResult, pending: set[str]) -> WriteOut:
+    return WriteOut(ref=result.ref, written=_scaled_out(result.written),
+                    read_back=value_out(result.read_back) if result.read_back else None,
+                    verified=result.verified, mismatch=result.mismatch, reset_required=result.reset_required,
+                    pending_reset=sorted(pending))
+
+
+def job_out(job: Job, *, with_result: bool = True) -> JobOut:
+    progress = job.progress()
+    result = None
+    if with_result:
+        values = job.result.get("values", {})
+        result = {"values": {node: {ref: value_out(v).model_dump() for ref, v in found.items()}
+                             for node, found in values.items()}}
+    return JobOut(
+        id=job.id, kind=job.kind, title=job.title, state=job.state.value,
+        progress=ProgressOut(**progress.__dict__), error=job.error, notes=list(job.notes),
+        issues=[IssueOut(item=i.item, node=i.node, detail=i.detail, abort_code=i.abort_code,
+                         abort_text=i.abort_text) for i in job.issues],
+        result=result, links={"self": f"/api/jobs/{job.id}", "progress": f"/ws/jobs/{job.id}"})
+
+
+# --- routes ----------------------------------------------------------------------------------------------
+@router.get(NODE + "/parameters", response_model=ParameterList)
+async def list_parameters(session: SessionDep, node: NodeDep,
+                          q: Annotated[str, Query(description="Code (C00088, 88), name words or index (0x5FA7)")] = "",
+                          group: str | None = None) -> ParameterList:
+    last = service.service(session).values.get(node.node_id, {})
+    found = service.items(node, q, group)
+    return ParameterList(node_id=node.node_id, device=node.device_name, groups=service.groups(node),
+                         parameters=[info_out(item, last.get(item.ref)) for item in found],
+                         pending_reset=sorted(node.pending_reset))
+
+
+@router.get(NODE + "/parameters/{ref:path}", response_model=ParameterValueOut)
+async def read_parameter(session: SessionDep, node: NodeDep, ref: str,
+                         transfer: Annotated[str, Query(pattern="^(auto|block)$")] = "auto") -> ParameterValueOut:
+    """Read from the device now (``transfer=block`` for a CiA 301 block upload)."""
+    return value_out(await service.read(session, node.node_id, ref, transfer=transfer))
+
+
+@router.put(NODE + "/parameters/{ref:path}", response_model=WriteOut)
+async def write_parameter(session: SessionDep, node: NodeDep, ref: str, body: ParameterWrite) -> WriteOut:
+    value: object = body.value
+    if body.raw is not None:
+        item = service.resolve(node, ref)
+        value = body.raw / item.entry.factor if item.entry.factor != 1 else body.raw
+    result = await service.write(session, node.node_id, ref, value, check=body.check, verify=body.verify)
+    return write_out(result, node.pending_reset)
+
+
+@router.post(NODE + "/read-all", response_model=JobOut, status_code=status.HTTP_202_ACCEPTED)
+async def read_all(session: SessionDep, node: NodeDep, jobs: JobsDep) -> JobOut:
+    return job_out(service.start_read(session, [node.node_id], jobs), with_result=False)
+
+
+@router.post(NODE + "/read-group", response_model=JobOut, status_code=status.HTTP_202_ACCEPTED)
+async def read_group(session: SessionDep, node: NodeDep, jobs: JobsDep, body: GroupRead) -> JobOut:
+    return job_out(service.start_read(session, [node.node_id], jobs, group=body.group), with_result=False)
+
+
+@router.post("/sessions/{session_id}/read-all", response_model=JobOut, status_code=status.HTTP_202_ACCEPTED)
+async def read_all_nodes(session: SessionDep, jobs: JobsDep, body: SessionRead | None = None) -> JobOut:
+    """Every node of the session in parallel (each node over its SDO channels)."""
+    node_ids = (body.node_ids if body and body.node_ids else
+                [n.node_id for n in session.nodes.values() if n.profile is not None])
+    return job_out(service.start_read(session, node_ids, jobs), with_result=False)
+
+
+@router.post(NODE + "/commands/{command}", response_model=CommandOut)
+async def device_command(session: SessionDep, node: NodeDep, command: DeviceCommand) -> CommandOut:
+    result = await service.command(session, node.node_id, command)
+    return CommandOut(command=result.command.value, via=result.via, detail=result.detail,
+                      pending_reset=sorted(node.pending_reset))
+
+
+@router.get("/sessions/{session_id}/sdo-settings", response_model=SdoSettingsModel)
+async def get_sdo_settings(session: SessionDep) -> SdoSettingsModel:
+    settings = service.service(session).settings
+    return SdoSettingsModel(timeout_s=settings.timeout_s, retries=settings.retries, use_sdo2=settings.use_sdo2)
+
+
+@router.put("/sessions/{session_id}/sdo-settings", response_model=SdoSettingsModel)
+async def put_sdo_settings(session: SessionDep, body: SdoSettingsModel) -> SdoSettingsModel:
+    service.configure(session, SdoSettings(body.timeout_s, body.retries, body.use_sdo2))
+    return body
+
+
+@router.get("/jobs/{job_id}", response_model=JobOut)
+async def get_job(job_id: str, jobs: JobsDep) -> JobOut:
+    return job_out(jobs.get(job_id))
+
+
+@router.delete("/jobs/{job_id}", response_model=JobOut)
+async def cancel_job(job_id: str, jobs: JobsDep) -> JobOut:
+    """Cancel a running job; what it read so far stays in its result."""
+    job = jobs.cancel(job_id)
+    await job.wait()
+    return job_out(job)

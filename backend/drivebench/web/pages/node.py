@@ -1,0 +1,159 @@
+"""The Node screen: tabs Parameters · PDO · Diagnostics · Control · Info for one node of a session.
+
+Each tab is its own template (``node/<tab>.html``) included by ``node.html``; the Parameters tab's parts are
+blocks of ``node/parameters.html`` (table rows, one row, the job progress) swapped by htmx.
+"""
+
+from __future__ import annotations
+
+import re
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Form, Query, Request
+from fastapi.responses import HTMLResponse, Response
+
+from drivebench.errors import DriveBenchError, NodeOffline, NotFound, SdoTimeoutError
+from drivebench.services import parameters as service
+from drivebench.services.parameters import DeviceCommand, WriteResult
+from drivebench.services.sessions import Session, SessionNode
+from drivebench.services.views import node_public
+from drivebench.web.api.parameters import jobs_of
+from drivebench.web.deps import NodeDep, SessionDep
+from drivebench.web.templating import templates
+
+router = APIRouter(include_in_schema=False)
+TABS = [("parameters", "Parameters"), ("pdo", "PDO"), ("diagnostics", "Diagnostics"), ("control", "Control"),
+        ("info", "Info")]
+UI = "/ui/sessions/{session_id}/nodes/{node_id}"
+
+IDENTITY = [("Device type", "0x1000"), ("Vendor ID", "0x1018.1"), ("Product code", "0x1018.2"),
+            ("Revision number", "0x1018.3"), ("Serial number", "0x1018.4")]
+FIRMWARE_REFS = ["C00099", "C0099", "C0200", "r0018", "0x100A"]
+
+
+def row_id(ref: str) -> str:
+    return "p-" + re.sub(r"[^A-Za-z0-9]+", "-", ref)
+
+
+templates.env.filters["row_id"] = row_id
+
+
+def _base(request: Request, session: Session, node: SessionNode, tab: str, **extra: Any) -> dict[str, Any]:
+    return {"active": "plant", "session": session, "node": node, "public": node_public(session, node),
+            "tabs": TABS, "tab": tab, "base": f"/ui/sessions/{session.id}/nodes/{node.node_id}",
+            "page": f"/sessions/{session.id}/nodes/{node.node_id}", **extra}
+
+
+def _parameters_context(session: Session, node: SessionNode, q: str = "", group: str = "") -> dict[str, Any]:
+    found = service.items(node, q, group or None)
+    by_group: dict[str, list[Any]] = {}
+    for item in found:
+        by_group.setdefault(item.group, []).append(item)
+    ordered = [(name, by_group[name]) for name in service.groups(node) if name in by_group]
+    return {"groups": service.groups(node), "grouped": ordered, "q": q, "group": group, "count": len(found),
+            "values": service.service(session).values.get(node.node_id, {}),
+            "settings": service.service(session).settings}
+
+
+def _tab_context(session: Session, node: SessionNode, tab: str) -> dict[str, Any]:
+    if tab == "parameters":
+        return _parameters_context(session, node)
+    if tab == "info":
+        return {"identity_rows": [(label, ref, node.identity.get(key)) for (label, ref), key in
+                                  zip(IDENTITY, ["device_type", "vendor_id", "product_code", "revision", "serial"],
+                                      strict=True)]}
+    return {}
+
+
+@router.get("/sessions/{session_id}/nodes/{node_id}", response_class=HTMLResponse)
+async def node_page(request: Request, session: SessionDep, node: NodeDep,
+                    tab: Annotated[str, Query()] = "parameters") -> Response:
+    if tab not in dict(TABS):
+        raise NotFound(f"No tab '{tab}' (tabs: {', '.join(dict(TABS))})")
+    context = _base(request, session, node, tab, **_tab_context(session, node, tab))
+    return templates.TemplateResponse(request, "node.html", context)
+
+
+@router.get(UI + "/tabs/{tab}", response_class=HTMLResponse)
+async def node_tab(request: Request, session: SessionDep, node: NodeDep, tab: str) -> Response:
+    if tab not in dict(TABS):
+        raise NotFound(f"No tab '{tab}'")
+    context = _base(request, session, node, tab, **_tab_context(session, node, tab))
+    return templates.TemplateResponse(request, "node.html", context, block_name="tab_body")
+
+
+# --- parameters tab --------------------------------------------------------------------------------------
+@router.get(UI + "/parameters", response_class=HTMLResponse)
+async def parameter_rows(request: Request, session: SessionDep, node: NodeDep, q: str = "",
+                         group: str = "") -> Response:
+    context = _base(request, session, node, "parameters", **_parameters_context(session, node, q, group))
+    return templates.TemplateResponse(request, "node/parameters.html", context, block_name="param_rows")
+
+
+def _row(request: Request, session: Session, node: SessionNode, ref: str, *,
+         result: WriteResult | None = None) -> Response:
+    item = service.resolve(node, ref)
+    context = _base(request, session, node, "parameters", item=item, result=result,
+                    values=service.service(session).values.get(node.node_id, {}))
+    return templates.TemplateResponse(request, "node/parameters.html", context, block_name="one_row")
+
+
+@router.post(UI + "/parameters/{ref:path}/read", response_class=HTMLResponse)
+async def read_row(request: Request, session: SessionDep, node: NodeDep, ref: str) -> Response:
+    await service.read(session, node.node_id, ref)
+    return _row(request, session, node, ref)
+
+
+@router.post(UI + "/parameters/{ref:path}/write", response_class=HTMLResponse)
+async def write_row(request: Request, session: SessionDep, node: NodeDep, ref: str,
+                    value: Annotated[str, Form()]) -> Response:
+    result = await service.write(session, node.node_id, ref, value)
+    return _row(request, session, node, ref, result=result)
+
+
+@router.post(UI + "/read", response_class=HTMLResponse)
+async def start_read(request: Request, session: SessionDep, node: NodeDep,
+                     group: Annotated[str, Form()] = "") -> Response:
+    job = service.start_read(session, [node.node_id], jobs_of(request.app), group=group or None)
+    context = _base(request, session, node, "parameters", job=job)
+    return templates.TemplateResponse(request, "node/parameters.html", context, block_name="job_progress")
+
+
+@router.post(UI + "/commands/{command}", response_class=HTMLResponse)
+async def run_command(request: Request, session: SessionDep, node: NodeDep, command: DeviceCommand) -> Response:
+    result = await service.command(session, node.node_id, command)
+    context = _base(request, session, node, "parameters", command_result=result)
+    return templates.TemplateResponse(request, "node/parameters.html", context, block_name="command_result")
+
+
+@router.post(UI + "/sdo-settings", response_class=HTMLResponse)
+async def sdo_settings(request: Request, session: SessionDep, node: NodeDep,
+                       timeout_ms: Annotated[int, Form(ge=10, le=30000)],
+                       retries: Annotated[int, Form(ge=0, le=10)], use_sdo2: Annotated[str, Form()] = "") -> Response:
+    service.configure(session, service.SdoSettings(timeout_ms / 1000, retries, bool(use_sdo2)))
+    context = _base(request, session, node, "parameters", settings=service.service(session).settings, saved=True)
+    return templates.TemplateResponse(request, "node/parameters.html", context, block_name="sdo_settings")
+
+
+# --- info tab --------------------------------------------------------------------------------------------
+@router.post(UI + "/info/read", response_class=HTMLResponse)
+async def read_info(request: Request, session: SessionDep, node: NodeDep) -> Response:
+    rows: list[tuple[str, str, str]] = []
+    for label, ref in IDENTITY:
+        try:
+            value = await service.read(session, node.node_id, ref)
+            shown = f"0x{value.raw:08X}" if isinstance(value.raw, int) else value.display
+        except SdoTimeoutError as exc:
+            raise NodeOffline(f"Node {node.node_id} does not answer: {exc.detail}") from exc
+        except DriveBenchError as exc:
+            shown = f"– ({exc.title})"
+        rows.append((label, ref, shown))
+    for ref in FIRMWARE_REFS:
+        try:
+            value = await service.read(session, node.node_id, ref)
+        except DriveBenchError:
+            continue
+        rows.append(("Firmware / software", value.ref, value.display))
+        break
+    context = _base(request, session, node, "info", live_rows=rows)
+    return templates.TemplateResponse(request, "node/info.html", context, block_name="identity_live")
