@@ -1,0 +1,42 @@
+"""PDO configuration of a node: read, mappable objects, apply with a step report."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter
+from fastapi.responses import JSONResponse
+
+from drivebench.services import pdo
+from drivebench.services.pdo import ApplyReport, Direction, MappedObject, PdoConfig, PdoWrite
+from drivebench.web.deps import NodeDep, SessionDep
+
+router = APIRouter(prefix="/api/sessions/{session_id}/nodes/{node_id}/pdos", tags=["pdo"])
+
+
+@router.get("", response_model=list[PdoConfig])
+async def list_pdos(session: SessionDep, node: NodeDep) -> list[PdoConfig]:
+    """Every RPDO and TPDO as the device holds it, mapping entries named from the profile."""
+    return await pdo.read_pdos(session, node.node_id)
+
+
+@router.get("/mappable/{direction}", response_model=list[MappedObject])
+async def mappable(session: SessionDep, node: NodeDep, direction: Direction) -> list[MappedObject]:
+    """The objects the profile allows in a PDO of this direction."""
+    return pdo.mappable_objects(session, node.node_id, direction)
+
+
+@router.get("/{direction}/{number}", response_model=PdoConfig)
+async def read_one(session: SessionDep, node: NodeDep, direction: Direction, number: int) -> PdoConfig:
+    return await pdo.read_pdo(session, node.node_id, direction, number)
+
+
+@router.put("/{direction}/{number}", response_model=ApplyReport,
+            responses={502: {"description": "The device refused a step; the body is the step report"}})
+async def apply(session: SessionDep, node: NodeDep, direction: Direction, number: int,
+                body: PdoWrite) -> ApplyReport | JSONResponse:
+    """Apply a mapping and communication parameters in the CiA 301 order, then read back."""
+    report = await pdo.apply_pdo(session, node.node_id, direction, number, body)
+    if report.ok:
+        return report
+    problem = {"type": "/problems/pdo-apply-failed", "title": "PDO not applied", "status": 502,
+               "detail": report.message, **report.model_dump(mode="json")}
+    return JSONResponse(problem, status_code=502, media_type="application/problem+json")
