@@ -95,6 +95,11 @@ def _key_text(key: int) -> str:
 
 
 class Monitor(can.Listener):
+    _cobs: dict[int, list[Any]]
+    """key (COB-ID, EXTENDED flag for 29-bit) -> [frames, bits, monotonic time of the last frame]"""
+    _last_error: float | None
+    _samples: deque[_Sample]
+
     def __init__(self, session: Session, *, trace_capacity: int = TRACE_CAPACITY,
                  history_s: int = HISTORY_S) -> None:
         self._session = weakref.ref(session)
@@ -147,10 +152,10 @@ class Monitor(can.Listener):
 
     # --- bookkeeping (under the lock) ------------------------------------------------------------------------
     def _reset_locked(self, now: float) -> None:
-        self._cobs: dict[int, list[Any]] = {}
+        self._cobs = {}
         self._frames = 0
         self._errors = 0
-        self._last_error: float | None = None
+        self._last_error = None
         self._seq = 0
         self._trace.clear()
         self._history.clear()
@@ -158,7 +163,7 @@ class Monitor(can.Listener):
         self._second = int(now)
         self._second_bits = 0
         self._peak: tuple[float, float] = (0.0, 0.0)
-        self._samples: deque[_Sample] = deque()
+        self._samples = deque()
         self._started = now
         self._frozen = None
 
@@ -295,23 +300,37 @@ class Monitor(can.Listener):
 
     def trace_rows(self, *, after: int = 0, limit: int = 200) -> list[dict[str, Any]]:
         """The newest ``limit`` telegrams after sequence number ``after`` that pass the filter, oldest first."""
+        return self.trace_since(after, limit)[0]
+
+    def trace_since(self, after: int, limit: int) -> tuple[list[dict[str, Any]], int]:
+        """Like ``trace_rows``, plus the sequence number the rows reach (pass it as ``after`` next time).
+
+        Only rows that pass the filter are decoded; the filter is checked on the COB-ID first (NMT: its target).
+        """
         with self._lock:
             entries = list(self._trace) if after == 0 else self._entries_after(after)
+        newest = entries[-1][0] if entries else after
         view = self.filter
         lookups = _Lookups(self._session())
         rows: list[dict[str, Any]] = []
         for seq, msg, context in reversed(entries):
             if seq <= after:
                 break
+            if msg.is_error_frame:
+                service, node = Service.ERROR_FRAME, None
+            else:
+                service, node = classify(msg.arbitration_id, msg.is_extended_id)
+                if service is Service.NMT and len(msg.data) >= 2 and msg.data[1]:
+                    node = msg.data[1]
+            if not view.accepts(service, node, msg.arbitration_id):
+                continue
             decoded = decode_frame(msg, names=lookups.name, vendor=lookups.vendor, emcy_texts=lookups.emcy,
                                    sdo_context=context)
-            if not view.accepts(decoded.service, decoded.node, msg.arbitration_id):
-                continue
             rows.append(_row(seq, decoded))
             if len(rows) >= limit:
                 break
         rows.reverse()
-        return rows
+        return rows, newest
 
     def _entries_after(self, after: int) -> list[tuple[int, can.Message, SdoContext | None]]:
         trace = self._trace

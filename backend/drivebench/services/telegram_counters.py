@@ -52,6 +52,11 @@ def cob_ids_for(label: str, node_id: int) -> list[int] | None:
     return None
 
 
+def _label(item: Item) -> str:
+    entry = item.entry
+    return entry.subcode_name if isinstance(entry, Parameter) and entry.subcode_name else entry.name
+
+
 @dataclass
 class _Previous:
     at: float
@@ -74,15 +79,14 @@ async def compare(session: Session, monitor: Monitor, node_id: int) -> dict[str,
         raw = await client.aupload(item.index, item.subindex)
         device[item.ref] = int.from_bytes(raw[:2], "little")
     # The monitor's counts after the reads, so both include the read requests themselves up to the last answer.
-    mapping = {item.ref: cob_ids_for(item.entry.subcode_name or item.entry.name, node_id) for item in items}
+    mapping = {item.ref: cob_ids_for(_label(item), node_id) for item in items}
     counted = {ref: monitor.counts_for(cobs) for ref, cobs in mapping.items() if cobs is not None}
     now = time.time()
     previous = _previous.get((session.id, node_id))
     _previous[(session.id, node_id)] = _Previous(now, device, counted)
     rows = []
     for item in items:
-        entry = item.entry
-        label = entry.subcode_name if isinstance(entry, Parameter) and entry.subcode_name else entry.name
+        label = _label(item)
         cobs = mapping[item.ref]
         row: dict[str, Any] = {
             "ref": item.ref, "label": label, "device": device[item.ref],

@@ -1,0 +1,123 @@
+"""The telegram monitor of a session: counters and load, trace, filter, pause/reset, recordings, device counters."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal
+
+from fastapi import APIRouter, Path, Query
+from fastapi.responses import FileResponse
+from pydantic import BaseModel, Field, model_validator
+
+from drivebench.services import telegram_counters
+from drivebench.services.monitor import MonitorFilter, monitor_for
+from drivebench.services.recording import FORMATS, MEDIA_TYPES, recordings_for
+from drivebench.web.deps import SessionDep
+
+router = APIRouter(prefix="/api/sessions/{session_id}/monitor", tags=["monitor"])
+
+ServiceName = Literal["NMT", "SYNC", "EMCY", "TIME", "PDO", "SDO", "Heartbeat", "LSS", "Unknown", "Error frame"]
+FormatName = Literal["log", "asc", "blf", "pcapng"]
+
+
+class FilterBody(BaseModel):
+    """What the counter tables and the trace show; counting and bus load always take every frame."""
+
+    nodes: list[Annotated[int, Field(ge=1, le=127)]] = Field(default_factory=list, description="empty = all")
+    services: list[ServiceName] = Field(default_factory=list, description="empty = all")
+    cob_min: int = Field(0, ge=0, le=0x1FFFFFFF)
+    cob_max: int = Field(0x1FFFFFFF, ge=0, le=0x1FFFFFFF)
+
+    @model_validator(mode="after")
+    def _ordered(self) -> FilterBody:
+        if self.cob_min > self.cob_max:
+            raise ValueError("cob_min must not be above cob_max")
+        return self
+
+
+class RecordingStart(BaseModel):
+    format: FormatName = "pcapng"
+
+
+@router.get("")
+async def snapshot(session: SessionDep, trace: Annotated[int, Query(ge=0, le=1000)] = 100) -> dict[str, Any]:
+    """Counters per service, node and COB-ID (total and rate), errors, load with peak, the newest trace rows."""
+    monitor = monitor_for(session)
+    return {**monitor.snapshot(), "trace": monitor.trace_rows(limit=trace) if trace else []}
+
+
+@router.get("/trace")
+async def trace(session: SessionDep, after: Annotated[int, Query(ge=0)] = 0,
+                limit: Annotated[int, Query(ge=1, le=10_000)] = 200) -> dict[str, Any]:
+    """Decoded telegrams after sequence number ``after`` (oldest first); ``next`` is the ``after`` for next time."""
+    rows, newest = monitor_for(session).trace_since(after, limit)
+    return {"rows": rows, "next": newest}
+
+
+@router.get("/history")
+async def history(session: SessionDep) -> dict[str, Any]:
+    """Bus load of each completed second of the last 10 minutes: ``[wall time, percent]``."""
+    monitor = monitor_for(session)
+    return {"bitrate": monitor.bitrate, "points": monitor.history()}
+
+
+@router.post("/reset")
+async def reset(session: SessionDep) -> dict[str, Any]:
+    monitor = monitor_for(session)
+    monitor.reset()
+    return monitor.snapshot()
+
+
+@router.post("/pause")
+async def pause(session: SessionDep) -> dict[str, bool]:
+    monitor = monitor_for(session)
+    monitor.pause()
+    return {"paused": monitor.paused}
+
+
+@router.post("/resume")
+async def resume(session: SessionDep) -> dict[str, bool]:
+    monitor = monitor_for(session)
+    monitor.resume()
+    return {"paused": monitor.paused}
+
+
+@router.get("/filter", response_model=FilterBody)
+async def get_filter(session: SessionDep) -> dict[str, Any]:
+    return monitor_for(session).filter.as_dict()
+
+
+@router.put("/filter", response_model=FilterBody)
+async def set_filter(session: SessionDep, body: FilterBody) -> dict[str, Any]:
+    monitor = monitor_for(session)
+    monitor.set_filter(MonitorFilter(set(body.nodes), set(body.services), body.cob_min, body.cob_max))
+    return monitor.filter.as_dict()
+
+
+@router.get("/recordings")
+async def list_recordings(session: SessionDep) -> dict[str, Any]:
+    recordings = recordings_for(session)
+    return {"formats": FORMATS, "recordings": [info.as_dict() for info in recordings.list()]}
+
+
+@router.post("/recordings", status_code=201)
+async def start_recording(session: SessionDep, body: RecordingStart) -> dict[str, Any]:
+    recorder = recordings_for(session).start(body.format)
+    return {"name": recorder.path.name, "format": recorder.format, "started": recorder.started}
+
+
+@router.post("/recordings/stop")
+async def stop_recording(session: SessionDep) -> dict[str, Any]:
+    recorder = recordings_for(session).stop()
+    return {"name": recorder.path.name, "format": recorder.format, "frames": recorder.frames}
+
+
+@router.get("/recordings/{name}")
+async def download_recording(session: SessionDep, name: Annotated[str, Path(max_length=200)]) -> FileResponse:
+    path = recordings_for(session).path(name)
+    return FileResponse(path, media_type=MEDIA_TYPES[path.suffix.lstrip(".")], filename=path.name)
+
+
+@router.get("/device-counters/{node_id}")
+async def device_counters(session: SessionDep, node_id: Annotated[int, Path(ge=1, le=127)]) -> dict[str, Any]:
+    """The node's own telegram counters (read via SDO now) beside the monitor's counts for the same COB-IDs."""
+    return await telegram_counters.compare(session, monitor_for(session), node_id)

@@ -1,0 +1,78 @@
+"""The Monitor screen: live counters, bus-load chart, trace, filters, recordings, device telegram counters."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Form, Query, Request
+from fastapi.responses import HTMLResponse, RedirectResponse, Response
+
+from drivebench.services import telegram_counters
+from drivebench.services.monitor import SERVICE_GROUPS, monitor_for
+from drivebench.services.recording import FORMATS, recordings_for
+from drivebench.services.sessions import Session
+from drivebench.services.views import session_public
+from drivebench.web.deps import SessionDep, StateDep
+from drivebench.web.templating import templates
+
+router = APIRouter(include_in_schema=False)
+
+
+def _recordings(session: Session, **extra: Any) -> dict[str, Any]:
+    recordings = recordings_for(session)
+    return {"session_id": session.id, "formats": FORMATS, "recordings": recordings.list(),
+            "active": recordings.active, **extra}
+
+
+def _counter_nodes(session: Session) -> list[dict[str, Any]]:
+    return [{"node_id": node_id, "device": node.device_name}
+            for node_id, node in sorted(session.nodes.items())
+            if telegram_counters.counter_items(session, node_id)]
+
+
+@router.get("/monitor", response_class=HTMLResponse)
+async def monitor_index(request: Request, state: StateDep) -> Response:
+    sessions = state.manager.list()
+    if sessions:
+        return RedirectResponse(f"/monitor/{sessions[0].id}", status_code=307)
+    return templates.TemplateResponse(request, "monitor.html", {"active": "monitor", "session": None,
+                                                                "sessions": []})
+
+
+@router.get("/monitor/{session_id}", response_class=HTMLResponse)
+async def monitor_page(request: Request, state: StateDep, session: SessionDep) -> Response:
+    monitor = monitor_for(session)
+    context = {"active": "monitor", "session": session_public(session),
+               "sessions": [session_public(s) for s in state.manager.list()],
+               "service_groups": SERVICE_GROUPS, "filter": monitor.filter.as_dict(), "paused": monitor.paused,
+               "nodes": sorted(session.nodes), "counter_nodes": _counter_nodes(session),
+               **_recordings(session)}
+    return templates.TemplateResponse(request, "monitor.html", context)
+
+
+@router.get("/ui/monitor/{session_id}/recordings", response_class=HTMLResponse)
+async def recordings_block(request: Request, session: SessionDep) -> Response:
+    return templates.TemplateResponse(request, "monitor.html", _recordings(session), block_name="recordings")
+
+
+@router.post("/ui/monitor/{session_id}/recordings", response_class=HTMLResponse)
+async def start_recording(request: Request, session: SessionDep, format: Annotated[str, Form()] = "pcapng"
+                          ) -> Response:
+    recordings_for(session).start(format)
+    return templates.TemplateResponse(request, "monitor.html", _recordings(session), block_name="recordings")
+
+
+@router.post("/ui/monitor/{session_id}/recordings/stop", response_class=HTMLResponse)
+async def stop_recording(request: Request, session: SessionDep) -> Response:
+    recorder = recordings_for(session).stop()
+    done = f"Recorded {recorder.frames} telegrams to {recorder.path.name}"
+    return templates.TemplateResponse(request, "monitor.html", _recordings(session, done=done),
+                                      block_name="recordings")
+
+
+@router.get("/ui/monitor/{session_id}/device-counters", response_class=HTMLResponse)
+async def device_counters(request: Request, session: SessionDep,
+                          node_id: Annotated[int, Query(ge=1, le=127)]) -> Response:
+    comparison = await telegram_counters.compare(session, monitor_for(session), node_id)
+    return templates.TemplateResponse(request, "monitor.html", {"comparison": comparison},
+                                      block_name="device_counters")

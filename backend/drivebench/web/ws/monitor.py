@@ -1,0 +1,174 @@
+"""Live monitor of a session over a websocket, about 10 updates a second.
+
+One feed per session builds each update once (snapshot, new load points, new trace rows, serialised once) and
+hands it to every client; a client that falls behind gets the next update merged with the ones it missed
+(trace rows and load points are kept, counters are the newest), so a slow browser never slows the others or
+the bus. Rendering on the client is throttled to animation frames.
+
+Messages (JSON text), one schema:
+
+``{"type": "hello" | "update", "seq": int, "server_time": float (epoch s, when built),
+   "snapshot": <GET /api/sessions/{id}/monitor without "trace">,
+   "history": [[epoch s, load %], ...]   # completed seconds since the previous message (hello: the last 10 min)
+   "trace": [<trace row>, ...],          # decoded telegrams since the previous message passing the filter
+   "trace_more": bool,                   # more telegrams came than one message carries (TRACE_PER_UPDATE)
+   "recording": {"name", "format", "frames"} | null}``
+
+A trace row: ``{"seq", "time", "cob_id", "service", "group", "node", "dlc", "hex", "summary", "text"}``.
+The socket closes with code 4404 when the session does not exist (or is closed).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+import time
+from typing import Any
+
+from fastapi import APIRouter, WebSocket, WebSocketDisconnect
+
+from drivebench.errors import NotFound
+from drivebench.services.monitor import Monitor, monitor_for
+from drivebench.services.recording import recordings_for
+from drivebench.services.sessions import Session
+
+router = APIRouter()
+PERIOD_S = 0.1
+TRACE_PER_UPDATE = 200
+HELLO_TRACE_ROWS = 200
+COB_ROWS_PER_UPDATE = 512
+
+
+class _Client:
+    def __init__(self, websocket: WebSocket) -> None:
+        self.websocket = websocket
+        self.pending: list[tuple[str, dict[str, Any]]] = []
+        self.ready = asyncio.Event()
+
+    def offer(self, text: str, message: dict[str, Any]) -> None:
+        self.pending.append((text, message))
+        if len(self.pending) > 50:  # a client this far behind keeps only the newest state
+            del self.pending[:-50]
+        self.ready.set()
+
+    def take(self) -> str:
+        pending, self.pending = self.pending, []
+        self.ready.clear()
+        if len(pending) == 1:
+            return pending[0][0]
+        merged = dict(pending[-1][1])
+        merged["history"] = [point for _, message in pending for point in message["history"]]
+        trace = [row for _, message in pending for row in message["trace"]]
+        merged["trace_more"] = len(trace) > TRACE_PER_UPDATE or any(m["trace_more"] for _, m in pending)
+        merged["trace"] = trace[-TRACE_PER_UPDATE:]
+        return json.dumps(merged)
+
+
+class Feed:
+    """Builds the updates of one session's monitor while at least one client listens."""
+
+    def __init__(self, session: Session, monitor: Monitor) -> None:
+        self.session = session
+        self.monitor = monitor
+        self.clients: set[_Client] = set()
+        self.seq = 0
+        self.trace_seq = monitor.last_seq
+        self.history_until = time.time()
+        self.task: asyncio.Task[None] | None = None
+
+    def message(self, kind: str, history: list[tuple[float, float]], trace: list[dict[str, Any]],
+                more: bool) -> dict[str, Any]:
+        snapshot = self.monitor.snapshot()
+        cob_ids = snapshot["cob_ids"]
+        if len(cob_ids) > COB_ROWS_PER_UPDATE:
+            snapshot = {**snapshot, "cob_ids": sorted(cob_ids, key=lambda row: -row["total"])[:COB_ROWS_PER_UPDATE],
+                        "cob_ids_cut": len(cob_ids)}
+        recorder = recordings_for(self.session).active
+        recording = ({"name": recorder.path.name, "format": recorder.format, "frames": recorder.frames}
+                     if recorder else None)
+        self.seq += 1
+        return {"type": kind, "seq": self.seq, "server_time": time.time(), "snapshot": snapshot,
+                "history": history, "trace": trace, "trace_more": more, "recording": recording}
+
+    def hello(self) -> str:
+        rows, _ = self.monitor.trace_since(0, HELLO_TRACE_ROWS)
+        return json.dumps(self.message("hello", self.monitor.history(), rows, False))
+
+    def tick(self) -> None:
+        if self.monitor.last_seq < self.trace_seq:  # reset since the last update
+            self.trace_seq = 0
+        rows, self.trace_seq = self.monitor.trace_since(self.trace_seq, TRACE_PER_UPDATE + 1)
+        history = self.monitor.history(self.history_until)
+        if history:
+            self.history_until = history[-1][0]
+        message = self.message("update", history, rows[-TRACE_PER_UPDATE:], len(rows) > TRACE_PER_UPDATE)
+        text = json.dumps(message)
+        for client in list(self.clients):
+            client.offer(text, message)
+
+    async def run(self) -> None:
+        loop = asyncio.get_running_loop()
+        next_at = loop.time()
+        while self.clients:
+            self.tick()
+            next_at += PERIOD_S
+            delay = next_at - loop.time()
+            if delay < 0:  # fell behind (a loaded machine): skip, never burst
+                next_at = loop.time()
+                delay = 0
+            await asyncio.sleep(delay)
+
+
+def _feed(websocket: WebSocket, session: Session) -> Feed:
+    feeds: dict[str, Feed] | None = getattr(websocket.app.state, "monitor_feeds", None)
+    if feeds is None:
+        feeds = {}
+        websocket.app.state.monitor_feeds = feeds
+    feed = feeds.get(session.id)
+    if feed is None or feed.session is not session:
+        feed = feeds[session.id] = Feed(session, monitor_for(session))
+    return feed
+
+
+async def _receive_until_closed(websocket: WebSocket) -> None:
+    while True:
+        await websocket.receive_text()
+
+
+async def _send_loop(client: _Client) -> None:
+    while True:
+        await client.ready.wait()
+        await client.websocket.send_text(client.take())
+
+
+@router.websocket("/ws/sessions/{session_id}/monitor")
+async def monitor_stream(websocket: WebSocket, session_id: str) -> None:
+    await websocket.accept()
+    try:
+        session = websocket.app.state.drivebench.manager.get(session_id)
+    except NotFound:
+        await websocket.close(code=4404, reason=f"No open session '{session_id}'")
+        return
+    feed = _feed(websocket, session)
+    client = _Client(websocket)
+    sender: asyncio.Task[None] | None = None
+    try:
+        await websocket.send_text(feed.hello())
+        feed.clients.add(client)
+        if feed.task is None or feed.task.done():
+            feed.task = asyncio.create_task(feed.run())
+        sender = asyncio.create_task(_send_loop(client))
+        # The client says nothing; receiving notices the disconnect.
+        receiver = asyncio.create_task(_receive_until_closed(websocket))
+        done, _ = await asyncio.wait({sender, receiver}, return_when=asyncio.FIRST_COMPLETED)
+        receiver.cancel()
+        for task in done:
+            with contextlib.suppress(WebSocketDisconnect, RuntimeError, asyncio.CancelledError):
+                task.result()
+    except (WebSocketDisconnect, RuntimeError):
+        pass
+    finally:
+        feed.clients.discard(client)
+        if sender is not None:
+            sender.cancel()

@@ -1,0 +1,207 @@
+// Monitor screen: one websocket (/ws/sessions/{id}/monitor, schema in web/ws/monitor.py), rendering throttled to
+// animation frames (only the newest counters are drawn; trace rows and load points accumulate in between).
+(() => {
+  const root = document.getElementById("monitor");
+  if (!root) return;
+  const sessionId = root.dataset.session;
+  const api = `/api/sessions/${encodeURIComponent(sessionId)}/monitor`;
+  const $ = (id) => document.getElementById(id);
+  const TRACE_ROWS = 500;
+  const HISTORY_S = 600;
+  let latest = null;
+  let pendingTrace = [];
+  let traceCount = 0;
+  let drawScheduled = false;
+  const loadPoints = { t: [], v: [] };
+
+  const esc = (text) => String(text ?? "").replace(/[&<>"']/g, (c) => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;", "'": "&#39;" })[c]);
+  const num = (value) => Number(value).toLocaleString("en-US");
+  const rate = (value) => `${value >= 100 ? Math.round(value) : value.toFixed(1)}/s`;
+  const pct = (value) => `${value.toFixed(value >= 10 ? 1 : 2)} %`;
+  const clock = (epoch, ms) => {
+    const d = new Date(epoch * 1000);
+    const text = d.toLocaleTimeString("en-GB", { hour12: false });
+    return ms ? `${text}.${String(d.getMilliseconds()).padStart(3, "0")}` : text;
+  };
+
+  // --- chart ---------------------------------------------------------------------------------------------
+  const chartBox = $("load-chart");
+  const chart = new uPlot({
+    width: Math.max(chartBox.clientWidth, 300), height: 240,
+    scales: { x: { time: true }, y: { range: (u, min, max) => [0, Math.max(5, Math.ceil((max || 0) * 1.2))] } },
+    axes: [
+      { label: "time (local)", labelSize: 18, stroke: "#5d6b79", grid: { stroke: "#eef1f4" } },
+      { label: "bus load (%)", labelSize: 18, stroke: "#5d6b79", grid: { stroke: "#eef1f4" }, size: 56,
+        values: (u, ticks) => ticks.map((v) => `${v} %`) },
+    ],
+    series: [
+      { value: (u, v) => (v == null ? "–" : clock(v)) },
+      { label: "Bus load", stroke: "#0b5fa5", width: 1.5, fill: "rgba(11,95,165,0.12)",
+        value: (u, v) => (v == null ? "–" : `${v.toFixed(2)} %`) },
+    ],
+    legend: { live: true },
+  }, [[], []], chartBox);
+  new ResizeObserver(() => chart.setSize({ width: Math.max(chartBox.clientWidth, 300), height: 240 })).observe(chartBox);
+
+  function addHistory(points, replace) {
+    if (replace) { loadPoints.t = []; loadPoints.v = []; }
+    for (const [t, v] of points) {
+      if (loadPoints.t.length && t <= loadPoints.t[loadPoints.t.length - 1]) continue;
+      loadPoints.t.push(t); loadPoints.v.push(v);
+    }
+    const excess = loadPoints.t.length - HISTORY_S;
+    if (excess > 0) { loadPoints.t.splice(0, excess); loadPoints.v.splice(0, excess); }
+  }
+
+  // --- tables --------------------------------------------------------------------------------------------
+  function renderStats(s) {
+    $("stat-load").textContent = pct(s.load.percent);
+    $("stat-peak").textContent = pct(s.load.peak_percent);
+    $("stat-peak-time").textContent = s.load.peak_time ? `at ${clock(s.load.peak_time)}` : "";
+    $("stat-avg").textContent = pct(s.load.average_percent);
+    $("stat-since").textContent = `since ${clock(s.since)}`;
+    $("stat-frames").textContent = num(s.totals.frames);
+    $("stat-rate").textContent = rate(s.totals.rate);
+    $("stat-errors").textContent = num(s.totals.errors);
+    $("stat-error-rate").textContent = s.totals.errors ? `${rate(s.totals.error_rate)}, last ${s.totals.last_error_age_s.toFixed(0)} s ago` : "none";
+    $("stat-bits").textContent = num(s.totals.bits);
+  }
+
+  function renderTables(s) {
+    $("services-body").innerHTML = s.services.map((r) =>
+      `<tr class="${r.rate ? "" : "silent"}"><td>${esc(r.label)}</td><td class="num">${num(r.total)}</td><td class="num">${rate(r.rate)}</td></tr>`).join("");
+    $("nodes-body").innerHTML = s.nodes.length ? s.nodes.map((r) =>
+      `<tr class="${r.rate ? "" : "silent"}"><td class="num">${r.node}</td><td class="device" title="${esc(r.name || "")}">${esc(r.name || "not in session")}</td>` +
+      `<td class="num">${num(r.total)}</td><td class="num">${rate(r.rate)}</td><td class="num">${pct(r.share_percent)}</td></tr>`).join("")
+      : '<tr><td colspan="5" class="empty">No node telegrams yet.</td></tr>';
+    $("cobs-body").innerHTML = s.cob_ids.length ? s.cob_ids.map((r) =>
+      `<tr class="${r.rate ? "" : "silent"}" title="last ${r.last_age_s.toFixed(1)} s ago"><td class="mono">${esc(r.text)}</td><td>${esc(r.service)}</td>` +
+      `<td class="num">${r.node ?? "–"}</td><td class="num">${num(r.total)}</td><td class="num">${rate(r.rate)}</td><td class="num">${pct(r.share_percent)}</td></tr>`).join("")
+      : '<tr><td colspan="6" class="empty">No telegrams (or none passes the filter).</td></tr>';
+    $("cob-note").textContent = s.cob_ids_cut ? `busiest ${s.cob_ids.length} of ${s.cob_ids_cut}` : "";
+  }
+
+  function renderTrace() {
+    if (!pendingTrace.length) return;
+    const body = $("trace-body");
+    const rows = pendingTrace.slice(-TRACE_ROWS);
+    pendingTrace = [];
+    body.insertAdjacentHTML("beforeend", rows.map((r) =>
+      `<tr class="svc-${esc(r.group).replace(/ /g, "-")}" data-seq="${r.seq}"><td class="time">${clock(r.time, true)}</td><td class="cob">${esc(r.cob_id)}</td>` +
+      `<td>${esc(r.service)}</td><td class="num">${r.node ?? "–"}</td><td class="num">${r.dlc}</td>` +
+      `<td class="decoded" title="${esc(r.cob_id)} [${r.dlc}] ${esc(r.hex || "(no data)")}">${esc(r.summary || r.service)}</td></tr>`).join(""));
+    while (body.rows.length > TRACE_ROWS) body.deleteRow(0);
+    traceCount = body.rows.length;
+    $("trace-count").textContent = `${traceCount} rows`;
+    if ($("trace-follow").checked) { const box = $("trace-scroll"); box.scrollTop = box.scrollHeight; }
+  }
+
+  function draw() {
+    drawScheduled = false;
+    if (!latest) return;
+    const s = latest.snapshot;
+    renderStats(s);
+    renderTables(s);
+    renderTrace();
+    chart.setData([loadPoints.t, loadPoints.v]);
+    setLive(s.paused ? "paused" : "live");
+    setPaused(s.paused);
+  }
+
+  function schedule() {
+    if (!drawScheduled) { drawScheduled = true; requestAnimationFrame(draw); }
+  }
+
+  // --- socket --------------------------------------------------------------------------------------------
+  function setLive(state) {
+    const badge = $("live-state");
+    badge.className = `badge ${state}`;
+    badge.textContent = { live: "live", paused: "paused", down: "disconnected, retrying…", connecting: "connecting…" }[state];
+  }
+
+  function connect() {
+    const scheme = location.protocol === "https:" ? "wss" : "ws";
+    const socket = new WebSocket(`${scheme}://${location.host}/ws/sessions/${encodeURIComponent(sessionId)}/monitor`);
+    socket.onmessage = (event) => {
+      const message = JSON.parse(event.data);
+      if (message.type === "hello") { $("trace-body").innerHTML = ""; pendingTrace = []; }
+      addHistory(message.history, message.type === "hello");
+      pendingTrace.push(...message.trace);
+      if (pendingTrace.length > TRACE_ROWS) pendingTrace = pendingTrace.slice(-TRACE_ROWS);
+      latest = message;
+      schedule();
+    };
+    socket.onclose = (event) => {
+      setLive("down");
+      if (event.code !== 4404) setTimeout(connect, 1000);
+    };
+  }
+
+  // --- controls ------------------------------------------------------------------------------------------
+  async function call(method, path, body, slot) {
+    try {
+      const response = await fetch(api + path, { method, headers: body ? { "Content-Type": "application/json" } : {},
+                                                 body: body ? JSON.stringify(body) : undefined });
+      if (!response.ok) {
+        let detail = `HTTP ${response.status}`;
+        try { const problem = await response.json(); detail = `<strong>${esc(problem.title)}</strong> ${esc(problem.detail)}`; } catch (e) { /* not JSON */ }
+        $(slot).innerHTML = `<div class="error" role="alert">${detail}</div>`;
+        return null;
+      }
+      $(slot).innerHTML = "";
+      return response.json();
+    } catch (e) {
+      $(slot).innerHTML = '<div class="error" role="alert"><strong>No answer from the DriveBench server.</strong> Is it still running?</div>';
+      return null;
+    }
+  }
+
+  function setPaused(paused) {
+    const button = $("pause");
+    button.dataset.paused = paused ? "true" : "false";
+    button.textContent = paused ? "Resume" : "Pause";
+  }
+
+  $("pause").addEventListener("click", async () => {
+    const paused = $("pause").dataset.paused === "true";
+    const result = await call("POST", paused ? "/resume" : "/pause", null, "control-result");
+    if (result) setPaused(result.paused);
+  });
+  $("reset").addEventListener("click", async () => {
+    if (await call("POST", "/reset", null, "control-result")) {
+      $("trace-body").innerHTML = ""; pendingTrace = []; addHistory([], true); $("trace-count").textContent = "0 rows";
+    }
+  });
+
+  const parseId = (text, fallback) => {
+    const value = text.trim();
+    if (!value) return fallback;
+    const parsed = /^0x/i.test(value) ? parseInt(value, 16) : parseInt(value, 10);
+    return Number.isNaN(parsed) ? NaN : parsed;
+  };
+  $("filter-form").addEventListener("submit", async (event) => {
+    event.preventDefault();
+    const form = event.target;
+    const nodes = form.nodes.value.split(/[\s,;]+/).filter(Boolean).map(Number);
+    const body = {
+      nodes, services: [...form.querySelectorAll("input[name=services]:checked")].map((box) => box.value),
+      cob_min: parseId(form.cob_min.value, 0), cob_max: parseId(form.cob_max.value, 0x1FFFFFFF),
+    };
+    if (nodes.some(Number.isNaN) || Number.isNaN(body.cob_min) || Number.isNaN(body.cob_max)) {
+      $("filter-result").innerHTML = '<div class="error" role="alert">Nodes are numbers 1…127; COB-IDs decimal or 0x-hex.</div>';
+      return;
+    }
+    if (await call("PUT", "/filter", body, "filter-result")) {
+      $("trace-body").innerHTML = ""; pendingTrace = [];
+    }
+  });
+  $("filter-clear").addEventListener("click", () => {
+    const form = $("filter-form");
+    form.nodes.value = ""; form.cob_min.value = "0x000"; form.cob_max.value = "0x1FFFFFFF";
+    form.querySelectorAll("input[name=services]").forEach((box) => { box.checked = false; });
+    form.requestSubmit();
+  });
+
+  setLive("connecting");
+  connect();
+})();

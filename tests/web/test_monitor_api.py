@@ -1,0 +1,92 @@
+"""The monitor's REST API on a simulated plant: snapshot, filter, pause/reset, recordings, device counters."""
+
+from __future__ import annotations
+
+import io
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import can
+import pytest
+from fastapi.testclient import TestClient
+
+from drivebench.services import recording
+from drivebench.web.app import create_app
+from tests.web.monitor_plant import SESSION_ID, write_plant
+
+API = f"/api/sessions/{SESSION_ID}/monitor"
+
+
+@pytest.fixture
+def api(tmp_path: Path, channel: str, monkeypatch: pytest.MonkeyPatch) -> Iterator[TestClient]:
+    monkeypatch.setattr(recording, "recordings_dir", lambda: tmp_path / "recordings")
+    app = create_app(plant_file=write_plant(tmp_path), plant_bus=f"virtual:{channel}@500000", latency="0ms")
+    with TestClient(app) as test_client:
+        yield test_client
+
+
+def _wait_frames(api: TestClient, minimum: int) -> dict[str, object]:
+    deadline = time.monotonic() + 15
+    while True:
+        body = api.get(API).json()
+        if body["totals"]["frames"] >= minimum:
+            return body  # type: ignore[no-any-return]
+        assert time.monotonic() < deadline, "no telegrams counted"
+        time.sleep(0.05)
+
+
+def test_snapshot_filter_pause_reset(api: TestClient) -> None:
+    body = _wait_frames(api, 5)
+    assert body["bitrate"] == 500000 and body["trace"]
+    assert api.put(f"{API}/filter", json={"nodes": [12], "services": ["Heartbeat"]}).json()["nodes"] == [12]
+    rows = api.get(f"{API}/trace", params={"limit": 50}).json()["rows"]
+    assert rows and all(row["cob_id"] == "0x70C" for row in rows)
+    bad = api.put(f"{API}/filter", json={"cob_min": 0x700, "cob_max": 0x100})
+    assert bad.status_code == 422 and bad.headers["content-type"].startswith("application/problem+json")
+    assert api.post(f"{API}/pause").json() == {"paused": True}
+    frozen = api.get(API).json()["totals"]["frames"]
+    time.sleep(0.3)
+    assert api.get(API).json()["totals"]["frames"] == frozen
+    assert api.post(f"{API}/resume").json() == {"paused": False}
+    assert api.post(f"{API}/reset").json()["totals"]["frames"] < frozen
+    assert len(api.get(f"{API}/history").json()["points"]) <= 2
+
+
+def test_recording_start_stop_list_download(api: TestClient) -> None:
+    started = api.post(f"{API}/recordings", json={"format": "asc"})
+    assert started.status_code == 201
+    name = started.json()["name"]
+    again = api.post(f"{API}/recordings", json={"format": "log"})
+    assert again.status_code == 409
+    _wait_frames(api, 10)
+    time.sleep(0.3)
+    stopped = api.post(f"{API}/recordings/stop").json()
+    assert stopped["frames"] > 0
+    assert api.post(f"{API}/recordings/stop").status_code == 409
+    listed = api.get(f"{API}/recordings").json()["recordings"]
+    assert [entry["name"] for entry in listed] == [name]
+    download = api.get(f"{API}/recordings/{name}")
+    assert download.status_code == 200 and "attachment" in download.headers["content-disposition"]
+    assert name.endswith(".asc") and name in download.headers["content-disposition"]
+    messages = list(can.ASCReader(io.StringIO(download.text)))
+    assert len(messages) == stopped["frames"]
+    assert api.get(f"{API}/recordings/..%2Fetc%2Fpasswd").status_code == 404
+    assert api.post(f"{API}/recordings", json={"format": "csv"}).status_code == 422
+
+
+def test_device_counters_side_by_side(api: TestClient) -> None:
+    first = api.get(f"{API}/device-counters/5")
+    assert first.status_code == 200, first.text
+    rows = {row["ref"]: row for row in first.json()["rows"]}
+    assert set(rows) == {"C00360/1", "C00360/2", "C00360/3", "C00360/4", "C00360/6", "C00360/7", "C00360/8",
+                         "C00360/9", "C00360/11", "C00360/12"}
+    assert rows["C00360/11"]["label"] == "Telegram counter SDO1 IN" and rows["C00360/11"]["cob_ids"] == ["0x605"]
+    # The monitor saw the 10 SDO requests of this read.
+    assert rows["C00360/11"]["monitor"] >= 10
+    second = api.get(f"{API}/device-counters/5").json()
+    sdo_in = {row["ref"]: row for row in second["rows"]}["C00360/11"]
+    assert sdo_in["monitor_increase"] == 10
+    assert sdo_in["device_increase"] is not None
+    missing = api.get(f"{API}/device-counters/12")
+    assert missing.status_code == 404 and "telegram counters" in missing.json()["detail"]

@@ -1,0 +1,65 @@
+"""The monitor websocket: a client gets the hello (history, trace) and then counter updates that move."""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+from fastapi.testclient import TestClient
+
+from drivebench.web.app import create_app
+from tests.web.monitor_plant import SESSION_ID, write_plant
+
+
+@pytest.fixture
+def monitor_client(tmp_path: Path, channel: str) -> Iterator[TestClient]:
+    app = create_app(plant_file=write_plant(tmp_path), plant_bus=f"virtual:{channel}@500000", latency="0ms")
+    with TestClient(app) as test_client:
+        yield test_client
+
+
+def test_client_receives_counter_updates(monitor_client: TestClient) -> None:
+    with monitor_client.websocket_connect(f"/ws/sessions/{SESSION_ID}/monitor") as socket:
+        hello: dict[str, Any] = json.loads(socket.receive_text())
+        assert hello["type"] == "hello"
+        assert {"snapshot", "history", "trace", "trace_more", "recording", "server_time", "seq"} <= hello.keys()
+        first_total = hello["snapshot"]["totals"]["frames"]
+        deadline = time.monotonic() + 15
+        heartbeat_rows: list[dict[str, Any]] = []
+        update: dict[str, Any] = {}
+        while time.monotonic() < deadline:
+            update = json.loads(socket.receive_text())
+            assert update["type"] == "update"
+            heartbeat_rows += [row for row in update["trace"] if row["service"] == "Heartbeat"]
+            if update["snapshot"]["totals"]["frames"] > first_total + 10 and heartbeat_rows:
+                break
+        assert update["snapshot"]["totals"]["frames"] > first_total + 10, "counters did not move"
+        assert heartbeat_rows and heartbeat_rows[-1]["text"] in ("0x705 Heartbeat node 5: Pre-operational",
+                                                                 "0x70C Heartbeat node 12: Pre-operational")
+        services = {row["service"]: row for row in update["snapshot"]["services"]}
+        assert services["Heartbeat"]["total"] > 0 and services["Heartbeat"]["rate"] > 0
+        nodes = {row["node"]: row for row in update["snapshot"]["nodes"]}
+        assert nodes[5]["name"] == "Conveyor (8400 motec)"
+
+
+def test_unknown_session_closes_with_4404(monitor_client: TestClient) -> None:
+    from starlette.websockets import WebSocketDisconnect
+
+    with pytest.raises(WebSocketDisconnect) as closed, \
+            monitor_client.websocket_connect("/ws/sessions/nope/monitor") as socket:
+        socket.receive_text()
+    assert closed.value.code == 4404
+
+
+def test_two_clients_share_one_feed(monitor_client: TestClient) -> None:
+    url = f"/ws/sessions/{SESSION_ID}/monitor"
+    with monitor_client.websocket_connect(url) as first, monitor_client.websocket_connect(url) as second:
+        assert json.loads(first.receive_text())["type"] == "hello"
+        assert json.loads(second.receive_text())["type"] == "hello"
+        seqs_first = [json.loads(first.receive_text())["seq"] for _ in range(3)]
+        seqs_second = [json.loads(second.receive_text())["seq"] for _ in range(3)]
+        assert seqs_first == sorted(seqs_first) and seqs_second == sorted(seqs_second)
