@@ -135,6 +135,9 @@ def test_8200_control_and_status_word_have_no_factor(vector: Catalog) -> None:
     assert to_raw(control, 0x047F) == 0x047F
     assert len(control.bits) == len(status.bits) == 16
     assert to_raw(_param(vector, "C0001"), 3) == 30000  # C0001 = 3: process data via AIF
+    # Fig. 9-4: C0421/1 and /2 select what AIF-OUT.W1/W2 carry; FIX32 like every code but C0135/C0150
+    assert [_address(vector, f"C0421/{n}") for n in (1, 2)] == [(0x5E5A, 1), (0x5E5A, 2)]
+    assert _param(vector, "C0421/2").factor == 10000
 
 
 def test_93xx_parameter_sets_are_not_bus_addressable(servo: Catalog) -> None:
@@ -224,7 +227,7 @@ def test_emergency_codes_and_notes(registry: ProfileRegistry, profile_id: str) -
     assert "CiA 301 wins" in notes
 
 
-@pytest.mark.parametrize(("profile_id", "parameters", "codes"), [(VECTOR, 157, 45), (SERVO, 181, 50)])
+@pytest.mark.parametrize(("profile_id", "parameters", "codes"), [(VECTOR, 159, 45), (SERVO, 181, 50)])
 def test_counts(registry: ProfileRegistry, profile_id: str, parameters: int, codes: int) -> None:
     profile = registry.get(profile_id)
     assert len(profile.parameters) == parameters
