@@ -20,6 +20,8 @@ from drivebench.services.sharing import ShareLinks
 from drivebench.simulator.plant import Plant, PlantFile
 from drivebench.web import problems
 from drivebench.web.api import diagnostics, health, parameters, profiles, sessions
+from drivebench.web.api import monitor as monitor_api
+from drivebench.web.pages import monitor as monitor_page
 from drivebench.web.pages import node as node_page
 from drivebench.web.pages import plant as plant_page
 from drivebench.web.pages import profiles as profiles_page
@@ -27,15 +29,17 @@ from drivebench.web.pages import remote as remote_page
 from drivebench.web.state import AppState
 from drivebench.web.viewer import ViewerScope
 from drivebench.web.ws import jobs as jobs_ws
+from drivebench.web.ws import monitor as monitor_ws
 from drivebench.web.ws import nodes as nodes_ws
 from drivebench.web.ws import remote as remote_ws
 
 log = logging.getLogger(__name__)
 
 # One line per router: screens grow without touching anything else here.
-API_ROUTERS = [health.router, sessions.router, profiles.router, diagnostics.router, parameters.router]
-PAGE_ROUTERS = [plant_page.router, node_page.router, profiles_page.router, remote_page.router]
-WS_ROUTERS = [nodes_ws.router, jobs_ws.router, remote_ws.router]
+API_ROUTERS = [monitor_api.router,
+               health.router, sessions.router, profiles.router, diagnostics.router, parameters.router]
+PAGE_ROUTERS = [monitor_page.router, plant_page.router, node_page.router, profiles_page.router, remote_page.router]
+WS_ROUTERS = [monitor_ws.router, nodes_ws.router, jobs_ws.router, remote_ws.router]
 
 
 async def start_plant(state: AppState, plant_path: Path, *, bus: str | None = None,
