@@ -18,6 +18,8 @@ from drivebench.device.profile import (
 from drivebench.errors import UnknownParameter
 
 _INDEX_RE = re.compile(r"^(?:0x)?([0-9a-f]{4})(?:(?:\.|sub|:|/)(?:0x)?([0-9a-f]{1,2}))?$", re.IGNORECASE)
+# MICROMASTER: 0x2802/0x2803 are the free process-data objects, not r2050/P2051 on the parameter channel.
+_MM4_FREE_OBJECTS = (0x2802, 0x2803)
 _CODE_RE = re.compile(r"^([CPR])?\s*0*(\d{1,5})(?:[./](\d{1,3}))?$", re.IGNORECASE)
 
 
@@ -68,7 +70,11 @@ def code_to_index(addressing: Addressing, number: int, subcode: int = 0) -> tupl
             raise UnknownParameter(f"Code C{number} is outside the Lenze code range (index 0x{index:04X})")
         return index, subcode
     if isinstance(addressing, SiemensParameterAddressing):
-        return addressing.base + number, subcode
+        index = addressing.base + number
+        if index in _MM4_FREE_OBJECTS or index > 0x5FFF:
+            raise UnknownParameter(f"Parameter {number} is not on the MICROMASTER parameter channel "
+                                   "(0x2000..0x2801, 0x2804..0x5FFF)")
+        return index, subcode
     raise UnknownParameter("This device has no vendor parameter codes; use a CANopen index such as 0x1017")
 
 
@@ -78,7 +84,7 @@ def index_to_code(addressing: Addressing, index: int, subindex: int) -> tuple[in
         number = addressing.base - index
         return (number, subindex) if 0 <= number <= addressing.base - 0x2000 and index < 0x6000 else None
     if isinstance(addressing, SiemensParameterAddressing):
-        if 0x2000 <= index <= 0x5FFF:
+        if 0x2000 <= index <= 0x5FFF and index not in _MM4_FREE_OBJECTS:
             return index - addressing.base, subindex
         return None
     if isinstance(addressing, CanopenOnlyAddressing):
