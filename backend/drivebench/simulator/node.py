@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 from drivebench.device.profile import Profile
 from drivebench.protocol.nmt import NmtCommand, NmtState
+from drivebench.protocol.sdo_server import SdoAbort as Abort
 from drivebench.protocol.sdo_server import SdoServer
 from drivebench.simulator.pdo import PdoEngine
 from drivebench.simulator.store import ObjectStore, RawValue
@@ -200,15 +201,23 @@ class SimulatedNode:
         if (index, sub) == (0x1017, 0):
             period = self.heartbeat_period_s()
             self._next_heartbeat = time.monotonic() + period if period else 0.0
-        elif index == 0x1010 and raw == SAVE_SIGNATURE:
-            self.store.saved = self.store.snapshot()
-        elif index == 0x1011 and raw == LOAD_SIGNATURE:
-            self.store.saved = ObjectStore(self.profile, self.node_id).snapshot()
+        elif index in (0x1010, 0x1011) and sub:
+            self._store_or_restore(index, sub, raw)
         elif index == 0x1201:
             self._build_sdo_servers()
         elif 0x1400 <= index <= 0x1BFF:
             self.pdo.reconfigure()
         self._lenze_device_command(index, sub, raw)
+
+    def _store_or_restore(self, index: int, sub: int, raw: RawValue) -> None:
+        """CiA 301 0x1010 'save' / 0x1011 'load' (defaults take effect at the next reset); any other value aborts."""
+        if raw != (SAVE_SIGNATURE if index == 0x1010 else LOAD_SIGNATURE):
+            self.store.set(index, sub, 1, notify=False)
+            raise Abort(0x08000020)  # data cannot be transferred or stored to the application
+        if index == 0x1010:
+            self.store.saved = self.store.snapshot()
+        else:
+            self.store.saved = ObjectStore(self.profile, self.node_id).snapshot()
 
     def _lenze_device_command(self, index: int, sub: int, raw: RawValue) -> None:
         """Lenze C00002 device commands (8400: index 0x5FFD): /11 save, /26 CAN reset node."""
