@@ -1,0 +1,285 @@
+"""The parameter service against simulated drives on a real virtual CAN bus (no mocks of the protocol layer)."""
+
+from __future__ import annotations
+
+import asyncio
+import time
+from collections.abc import Coroutine, Iterator
+from typing import Any, TypeVar
+
+import can
+import pytest
+
+from drivebench.device.loader import ProfileRegistry
+from drivebench.errors import InvalidValue, OutOfRange, ReadOnly, SdoAbortError, SdoTimeoutError, UnknownParameter
+from drivebench.services import parameters
+from drivebench.services.jobs import JobManager, JobState
+from drivebench.services.parameters import DeviceCommand
+from drivebench.services.sessions import Session, SessionManager
+from drivebench.simulator.plant import Plant, PlantFile
+
+T = TypeVar("T")
+ABSENT = 40
+PLANT = {
+    "name": "Parameter test plant",
+    "nodes": [
+        {"node_id": 2, "profile": "lenze-8400-motec-canopen"},
+        {"node_id": 3, "profile": "siemens-micromaster4-canopen"},
+        {"node_id": 5, "profile": "lenze-8400-motec-canopen", "values": {"C00061": 43}},
+        {"node_id": 12, "profile": "lenze-8200-vector-emf2178ib"},
+    ],
+}
+
+
+class Bench:
+    """A session on a simulated plant, driven from one event loop."""
+
+    def __init__(self, runner: asyncio.Runner, session: Session, plant: Plant, wire: can.BusABC) -> None:
+        self.runner = runner
+        self.session = session
+        self.plant = plant
+        self.wire = wire
+        self.jobs = JobManager()
+
+    def run(self, coro: Coroutine[Any, Any, T]) -> T:
+        return self.runner.run(coro)
+
+    def frames(self) -> list[can.Message]:
+        found = []
+        while (msg := self.wire.recv(timeout=0.05)) is not None:
+            found.append(msg)
+        return found
+
+
+@pytest.fixture
+def bench(registry: ProfileRegistry, channel: str) -> Iterator[Bench]:
+    plant = Plant(PlantFile.model_validate(PLANT), registry.get, bus=f"virtual:{channel}@500000",
+                  latency="0ms").start()
+    wire = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
+    runner = asyncio.Runner()
+    manager = SessionManager(registry, sdo_timeout_s=0.3, sdo_retries=0)
+    session = runner.run(manager.open(plant.spec, "params"))
+    for node in PLANT["nodes"]:
+        session.add_node(node["node_id"], node["profile"])  # type: ignore[arg-type]
+    session.add_node(ABSENT, "lenze-8400-motec-canopen")
+    try:
+        yield Bench(runner, session, plant, wire)
+    finally:
+        runner.run(manager.close_all())
+        runner.close()
+        wire.shutdown()
+        plant.stop()
+
+
+# --- reads -------------------------------------------------------------------------------------------------
+def test_read_c00061_on_the_8400_is_43_degrees(bench: Bench) -> None:
+    bench.frames()
+    value = bench.run(parameters.read(bench.session, 5, "C00061"))
+    assert (value.raw, value.value, value.unit, value.display) == (43, 43, "°C", "43 °C")
+    sent = [bytes(m.data) for m in bench.frames() if m.arbitration_id == 0x605]
+    assert sent == [bytes.fromhex("40 C2 5F 00 00 00 00 00")]  # manual 9.3.1
+
+
+def test_write_c00088_sends_raw_1020_and_reads_back(bench: Bench) -> None:
+    bench.run(parameters.write(bench.session, 5, "C00088", "7.5"))
+    bench.frames()
+    result = bench.run(parameters.write(bench.session, 5, "C00088", "10.20 A"))
+    assert result.written.raw == 1020 and result.verified is True and result.mismatch is None
+    assert result.read_back is not None and result.read_back.display == "10.20 A"
+    downloads = [bytes(m.data) for m in bench.frames() if m.arbitration_id == 0x605 and m.data[0] & 0xE0 == 0x20]
+    assert downloads == [bytes.fromhex("23 A7 5F 00 FC 03 00 00")]  # manual 9.3.2
+    assert bench.plant.nodes[5].store.get_ref("C00088") == 1020
+
+
+def test_selection_text_of_c00351(bench: Bench) -> None:
+    value = bench.run(parameters.read(bench.session, 5, "C00351"))
+    assert (value.raw, value.text, value.display) == (0, "500 kbit/s", "0 = 500 kbit/s")
+
+
+def test_string_c00099_by_segmented_and_by_block_upload(bench: Bench) -> None:
+    bench.frames()
+    assert bench.run(parameters.read(bench.session, 5, "C00099")).value == "01.00.00.00"
+    commands = [m.data[0] for m in bench.frames() if m.arbitration_id == 0x585]
+    assert commands[0] == 0x41  # segmented: initiate with size indicated
+    assert bench.run(parameters.read(bench.session, 5, "C00099", transfer="block")).value == "01.00.00.00"
+    commands = [m.data[0] for m in bench.frames() if m.arbitration_id == 0x585]
+    assert commands[0] & 0xE0 == 0xC0  # block upload response
+
+
+def test_bit_coded_word_shows_named_bits(bench: Bench) -> None:
+    bench.plant.nodes[12].store.set_ref("C0150", 0b1001)
+    value = bench.run(parameters.read(bench.session, 12, "C0150"))
+    bits = bench.session.node(12).catalog.resolve("C0150").entry.bits  # type: ignore[union-attr]
+    assert value.text == ", ".join([bits[0], bits[3]])
+
+
+def test_emf2178ib_fix32_values(bench: Bench) -> None:
+    """EMF2178IB section 10.5: C0061 = 43 °C travels as 430000; C0012 = 20 s as 200000."""
+    value = bench.run(parameters.read(bench.session, 12, "C0061"))
+    assert (value.raw, value.value, value.display) == (430000, 43, "43 °C")
+    result = bench.run(parameters.write(bench.session, 12, "C0012", 20))
+    assert result.written.raw == 200000 and result.verified
+    with pytest.raises(InvalidValue, match="decimals"):
+        bench.run(parameters.write(bench.session, 12, "C0012", "1.00005"))
+
+
+def test_micromaster_p_parameters(bench: Bench) -> None:
+    assert bench.run(parameters.read(bench.session, 3, "r0964.2")).raw == 105
+    assert bench.run(parameters.write(bench.session, 3, "P1203", 99)).verified
+    with pytest.raises(OutOfRange, match=r"P1203.*10 \.\.\. 200 %"):
+        bench.run(parameters.write(bench.session, 3, "P1203", 300))
+    assert bench.run(parameters.write(bench.session, 3, "P1082", "45.5 Hz")).read_back.value == 45.5  # type: ignore[union-attr]
+
+
+# --- validation before sending, and the device's aborts ---------------------------------------------------
+def test_validation_happens_before_anything_is_sent(bench: Bench) -> None:
+    bench.frames()
+    with pytest.raises(OutOfRange, match=r"C00350 \(CAN node address\): 100 is outside the allowed range 1 \.\.\. 63"):
+        bench.run(parameters.write(bench.session, 5, "C00350", 100))
+    with pytest.raises(ReadOnly, match="C00061"):
+        bench.run(parameters.write(bench.session, 5, "C00061", 3))
+    with pytest.raises(OutOfRange, match="selection list"):
+        bench.run(parameters.write(bench.session, 5, "C00351", 9))
+    with pytest.raises(OutOfRange, match="UNSIGNED8"):
+        bench.run(parameters.write(bench.session, 5, "C00351", 300, check=False))  # never truncated to 44
+    with pytest.raises(InvalidValue, match="expects a number"):
+        bench.run(parameters.write(bench.session, 5, "C00088", "ten"))
+    assert [m for m in bench.frames() if m.arbitration_id == 0x605] == []
+
+
+@pytest.mark.parametrize(("ref", "value", "code"), [
+    ("C00061", 3, 0x06010002),   # read-only
+    ("C00350", 100, 0x06090030),  # range
+])
+def test_device_aborts_when_the_profile_check_is_skipped(bench: Bench, ref: str, value: int, code: int) -> None:
+    with pytest.raises(SdoAbortError) as caught:
+        bench.run(parameters.write(bench.session, 5, ref, value, check=False))
+    assert caught.value.abort_code == code and caught.value.node == 5 and caught.value.abort_text
+
+
+def test_unknown_object_aborts_and_unknown_code_is_refused(bench: Bench) -> None:
+    with pytest.raises(SdoAbortError) as caught:
+        bench.run(parameters.read(bench.session, 5, "0x2FFF.0"))
+    assert caught.value.abort_code == 0x06020000
+    with pytest.raises(UnknownParameter, match="C09999"):
+        bench.run(parameters.read(bench.session, 5, "C09999"))
+
+
+def test_absent_node_times_out_without_blocking_others(bench: Bench) -> None:
+    """While the absent node's request waits for its timeout, reads of the other nodes complete."""
+    parameters.configure(bench.session, parameters.SdoSettings(timeout_s=3.0, retries=0))
+
+    async def go() -> tuple[int, bool]:
+        silent = asyncio.ensure_future(parameters.read(bench.session, ABSENT, "C00061"))
+        await asyncio.sleep(0)
+        others = await asyncio.gather(*(parameters.read(bench.session, node, "0x1018.1")
+                                        for node in (2, 3, 5, 12) for _ in range(3)))
+        still_waiting = not silent.done()
+        with pytest.raises(SdoTimeoutError) as caught:
+            await silent
+        assert caught.value.node == ABSENT
+        return len(others), still_waiting
+
+    count, still_waiting = bench.run(go())
+    assert count == 12 and still_waiting
+
+
+# --- reset-required, device commands ----------------------------------------------------------------------
+def test_reset_required_flag_until_reset_node(bench: Bench) -> None:
+    node = bench.session.node(5)
+    result = bench.run(parameters.write(bench.session, 5, "C00351", "250 kbit/s"))
+    assert result.reset_required and node.pending_reset == {"C00351"}
+    bench.run(parameters.command(bench.session, 5, DeviceCommand.SAVE))
+    assert node.pending_reset == {"C00351"}
+    bench.plant.nodes[5].on_frame(0x000, bytes([0x81, 5]), time.time())  # someone else resets the node
+    deadline = time.monotonic() + 5
+    while node.pending_reset and time.monotonic() < deadline:
+        time.sleep(0.02)
+    assert node.pending_reset == set()
+
+
+def test_device_commands_per_profile(bench: Bench) -> None:
+    saved = bench.run(parameters.command(bench.session, 5, DeviceCommand.SAVE))
+    assert saved.via == "C00002/11 = 1"
+    bench.run(parameters.write(bench.session, 12, "C0012", 30))
+    assert bench.run(parameters.command(bench.session, 12, DeviceCommand.SAVE)).via == "0x1010.1 = 'save'"
+    assert bench.plant.nodes[12].store.saved[(0x5FF3, 0)] == 300000
+    restored = bench.run(parameters.command(bench.session, 3, DeviceCommand.RESTORE_DEFAULTS))
+    assert restored.via == "0x1011.1 = 'load'"
+    assert "restore defaults" in bench.session.node(3).pending_reset
+    bench.run(parameters.command(bench.session, 3, DeviceCommand.RESET_NODE))
+    assert bench.session.node(3).pending_reset == set()
+
+
+# --- read-all jobs -----------------------------------------------------------------------------------------
+def test_read_all_of_several_nodes_uses_sdo2(bench: Bench) -> None:
+    async def go() -> Any:
+        job = parameters.start_read(bench.session, [2, 5, 12], bench.jobs)
+        await job.wait()
+        return job
+
+    job = bench.run(go())
+    assert job.state is JobState.DONE and job.failed == 0
+    assert job.done == job.total == sum(len(parameters.readable_items(bench.session.node(n))) for n in (2, 5, 12))
+    assert job.result["values"]["5"]["C00061"].display == "43 °C"
+    assert any("SDO2 activated on node 5 (0x645/0x5C5" in note for note in job.notes)
+    assert bench.plant.nodes[5].store.get(0x1201, 1) == 0x645
+    assert len(bench.session.network.nodes[5].channels) == 2
+    assert any(m.arbitration_id == 0x645 for m in bench.frames())  # reads really went over SDO2
+
+
+def test_read_all_with_a_silent_node_finishes_and_reports_it(bench: Bench) -> None:
+    async def go() -> Any:
+        job = parameters.start_read(bench.session, [ABSENT, 5], bench.jobs)
+        await job.wait()
+        return job
+
+    job = bench.run(go())
+    assert job.state is JobState.DONE and job.done == job.total
+    assert len(job.result["values"]["5"]) == len(parameters.readable_items(bench.session.node(5)))
+    assert job.result["values"][str(ABSENT)] == {}
+    assert any(f"Node {ABSENT} did not answer" in note for note in job.notes)
+
+
+def test_read_all_cancel_keeps_partial_result(bench: Bench) -> None:
+    bench.plant.nodes[12].latency = type(bench.plant.nodes[12].latency)(0.01)
+
+    async def go() -> Any:
+        job = parameters.start_read(bench.session, [12], bench.jobs)
+        version = 0
+        while job.done < 20:
+            version = await job.wait_change(version, timeout_s=5)
+        progress = job.progress()
+        assert progress.rate_per_s > 0 and progress.eta_s is not None
+        bench.jobs.cancel(job.id)
+        await job.wait()
+        return job
+
+    job = bench.run(go())
+    assert job.state is JobState.CANCELLED
+    kept = job.result["values"]["12"]
+    assert 20 <= len(kept) < job.total
+    assert parameters.service(bench.session).values[12].keys() >= kept.keys()
+
+
+def test_read_group_reads_only_that_group(bench: Bench) -> None:
+    async def go() -> Any:
+        job = parameters.start_read(bench.session, [5], bench.jobs, group="Motor data")
+        await job.wait()
+        return job
+
+    job = bench.run(go())
+    refs = set(job.result["values"]["5"])
+    assert "C00088" in refs and all(bench.session.node(5).catalog.resolve(r).group == "Motor data"  # type: ignore[union-attr]
+                                    for r in refs)
+
+
+def test_per_session_timeout_settings(bench: Bench) -> None:
+    parameters.configure(bench.session, parameters.SdoSettings(timeout_s=0.05, retries=0))
+    started = time.monotonic()
+    with pytest.raises(SdoTimeoutError):
+        bench.run(parameters.read(bench.session, ABSENT, "C00061"))
+    assert time.monotonic() - started < 5
+    assert bench.session.network.nodes[ABSENT].channels[0].client.RESPONSE_TIMEOUT == 0.05
+    with pytest.raises(OutOfRange):
+        parameters.configure(bench.session, parameters.SdoSettings(timeout_s=0, retries=0))
