@@ -1,0 +1,174 @@
+"""Database: the package's Alembic migrations on an empty SQLite file, planned networks saved and loaded,
+transactions rolled back on error, JSON export/import, and the comparison of a plan with scanned nodes."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from alembic.script import ScriptDirectory
+from sqlalchemy import inspect, select
+
+from drivebench.device.loader import ProfileRegistry
+from drivebench.errors import InvalidValue, NotFound
+from drivebench.services import database
+from drivebench.services.models import PlannedNetworkRow
+from drivebench.services.planned_networks import PlannedNetworkStore, compare_live
+from drivebench.services.planner import CableInput, NetworkPlan, PlannedNode
+from drivebench.services.sessions import SessionNode
+
+
+@pytest.fixture
+def db_url(tmp_path: Path) -> Iterator[str]:
+    url = f"sqlite:///{tmp_path / 'sub' / 'drivebench.db'}"
+    yield url
+    database.dispose(url)
+
+
+@pytest.fixture
+def store(db_url: str) -> PlannedNetworkStore:
+    database.upgrade_to_head(db_url)
+    return PlannedNetworkStore(db_url)
+
+
+def plan(name: str = "Line 1") -> NetworkPlan:
+    return NetworkPlan(
+        name=name,
+        nodes=[
+            PlannedNode(name="Conveyor", device="lenze-8400-motec", node_id=5, baud_kbit=500, channels=["pdo1"]),
+            PlannedNode(name="Fan", device="lenze-emf2178ib", node_id=12, baud_kbit=500, pdo_ids="canopen"),
+        ],
+        cable=CableInput(length_m=80),
+    )
+
+
+def test_migrations_create_the_schema_on_an_empty_file(db_url: str, tmp_path: Path) -> None:
+    assert not (tmp_path / "sub").exists()
+    database.upgrade_to_head(db_url)
+    head = ScriptDirectory.from_config(database.alembic_config(db_url)).get_current_head()
+    assert head is not None
+    assert database.current_revision(db_url) == head
+    columns = {c["name"] for c in inspect(database.engine(db_url)).get_columns("planned_network")}
+    assert columns == {"id", "name", "created", "updated", "body"}
+    database.upgrade_to_head(db_url)  # a second start-up finds the schema current and changes nothing
+    assert database.current_revision(db_url) == head
+
+
+def test_migrations_go_down_and_up_again(db_url: str) -> None:
+    from alembic import command
+
+    database.upgrade_to_head(db_url)
+    command.downgrade(database.alembic_config(db_url), "base")
+    assert "planned_network" not in inspect(database.engine(db_url)).get_table_names()
+    database.upgrade_to_head(db_url)
+    assert "planned_network" in inspect(database.engine(db_url)).get_table_names()
+
+
+def test_save_list_load_update_delete(store: PlannedNetworkStore) -> None:
+    first = store.save(plan("Line 1"))
+    second = store.save(plan("Hall A"))
+    assert first.id != second.id
+    assert [(s.name, s.node_count) for s in store.list()] == [("Hall A", 2), ("Line 1", 2)]
+    loaded = store.get(first.id)
+    assert loaded.plan == plan("Line 1")
+    assert loaded.created.tzinfo is not None
+
+    changed = plan("Line 1 (rebuilt)")
+    changed.nodes.append(PlannedNode(device="siemens-mm4", node_id=3, baud_kbit=500))
+    updated = store.update(first.id, changed)
+    assert (updated.name, updated.created, len(updated.plan.nodes)) == ("Line 1 (rebuilt)", loaded.created, 3)
+    assert updated.updated >= loaded.updated
+    assert store.get(first.id).plan == changed
+
+    store.delete(first.id)
+    with pytest.raises(NotFound):
+        store.get(first.id)
+    with pytest.raises(NotFound):
+        store.delete(first.id)
+    assert [s.id for s in store.list()] == [second.id]
+
+
+def test_a_failing_transaction_is_rolled_back(store: PlannedNetworkStore, db_url: str) -> None:
+    kept = store.save(plan("kept"))
+    with pytest.raises(RuntimeError), database.transaction(db_url) as db:
+        db.add(PlannedNetworkRow(name="half-done", body={"nodes": []}))
+        db.get(PlannedNetworkRow, kept.id).name = "renamed"  # type: ignore[union-attr]
+        db.flush()  # the rows are in the database's transaction ...
+        raise RuntimeError("... and the block fails before commit")
+    with database.transaction(db_url) as db:
+        assert db.scalars(select(PlannedNetworkRow.name)).all() == ["kept"]
+
+
+def test_update_of_a_missing_plan_changes_nothing(store: PlannedNetworkStore) -> None:
+    kept = store.save(plan())
+    with pytest.raises(NotFound):
+        store.update(kept.id + 1, plan("other"))
+    assert [(s.id, s.name) for s in store.list()] == [(kept.id, "Line 1")]
+
+
+def test_export_then_import_round_trips(store: PlannedNetworkStore) -> None:
+    saved = store.save(plan())
+    text = store.export_json(saved.id)
+    assert json.loads(text)["nodes"][0]["node_id"] == 5
+    again = store.import_json(text)
+    assert again.id != saved.id and again.plan == saved.plan
+
+
+@pytest.mark.parametrize(
+    "text",
+    ["{not json", '{"name": "x", "nodes": [{"device": "lenze-8400-motec", "node_id": 300, "baud_kbit": 500}]}',
+     "[]", ""],
+)
+def test_bad_json_import_is_refused_and_nothing_is_lost(store: PlannedNetworkStore, text: str) -> None:
+    kept = store.save(plan())
+    with pytest.raises(InvalidValue, match="Not a network plan"):
+        store.import_json(text)
+    assert [s.id for s in store.list()] == [kept.id]
+    assert store.get(kept.id).plan == plan()
+
+
+# --- comparison with the nodes a scan found ------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def profiles() -> ProfileRegistry:
+    return ProfileRegistry()
+
+
+def test_compare_live_names_ok_wrong_missing_extra_and_unidentified(profiles: ProfileRegistry) -> None:
+    planned = NetworkPlan(nodes=[
+        PlannedNode(device="lenze-8400-motec", node_id=5, baud_kbit=500),
+        PlannedNode(device="lenze-8400-motec", node_id=12, baud_kbit=500),
+        PlannedNode(device="lenze-emf2178ib", node_id=20, baud_kbit=500),
+        PlannedNode(device="lenze-8400-motec", node_id=7, baud_kbit=500),
+        PlannedNode(device="lenze-emf2178ib", node_id=9, baud_kbit=500),
+    ])
+    answered = [
+        SessionNode(5, profiles.get("lenze-8400-motec-canopen"), identity={"vendor_id": 0x3B}),
+        SessionNode(12, profiles.get("lenze-8200-vector-emf2178ib"), identity={"vendor_id": 0x3B}),
+        SessionNode(20, profiles.get("lenze-93xx-emf2178ib")),
+        SessionNode(9, None, identity={"vendor_id": 0x19, "product_code": 1}),
+        SessionNode(30, None, identity={"vendor_id": 0x3B}),
+        SessionNode(33, None),
+    ]
+    result = compare_live(planned, answered, session_id="s", session_name="Line")
+    status = {c.node_id: c.status for c in result.nodes}
+    assert status == {5: "ok", 12: "wrong_device", 20: "ok", 7: "missing", 9: "wrong_device", 30: "extra",
+                      33: "extra"}
+    assert not result.ok
+    assert result.counts == {"ok": 2, "wrong_device": 2, "unverified": 0, "missing": 1, "extra": 2}
+    by_id = {c.node_id: c for c in result.nodes}
+    assert "planned" in by_id[12].message and "8200" in (by_id[12].found_device or "")
+    assert "0x00000019" in by_id[9].message
+
+
+def test_compare_live_all_as_planned_is_ok(profiles: ProfileRegistry) -> None:
+    planned = NetworkPlan(nodes=[PlannedNode(device="lenze-8400-motec", node_id=5, baud_kbit=500),
+                                 PlannedNode(device="lenze-emf2178ib", node_id=6, baud_kbit=500)])
+    answered = [SessionNode(5, profiles.get("lenze-8400-motec-canopen")),
+                SessionNode(6, None, identity={"vendor_id": 0x3B, "product_code": 0x1234})]
+    result = compare_live(planned, answered)
+    assert [c.status for c in result.nodes] == ["ok", "unverified"]
+    assert not result.ok  # a node without a matching profile is not proof of the planned device
+    assert "no device profile matches" in result.nodes[1].message
+    assert compare_live(NetworkPlan(nodes=planned.nodes[:1]), answered[:1]).ok
