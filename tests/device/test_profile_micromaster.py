@@ -17,6 +17,7 @@ from drivebench.device.profile import Access, Profile, SiemensParameterAddressin
 from drivebench.errors import UnknownParameter
 from drivebench.protocol.datatypes import DataType
 from drivebench.protocol.sdo_server import SdoAbort
+from drivebench.simulator.node import SimulatedNode
 from drivebench.simulator.store import ObjectStore
 
 PATH = REPO_ROOT / "device_profiles" / "siemens-micromaster4-canopen.json"
@@ -174,3 +175,17 @@ def test_counts(profile: Profile) -> None:
     assert all(entry.default is not None or entry.default_expr is not None
                for entry in profile.objects if entry.access.readable)
     assert all(par.default is not None for par in profile.parameters)
+
+
+def test_mapping_changes_on_a_valid_pdo_as_the_manual_does(profile: Profile) -> None:
+    """Ch. 5.4: sub 0 := 0, entries in ascending order, sub 0 := count - without invalidating the COB-ID first."""
+    assert profile.features.mapping_needs_invalid_pdo is False
+    node = SimulatedNode(profile, 3, send=lambda cob_id, data: None)
+    store = node.store
+    assert store.get(0x1404, 1) == 0x303  # RPDO5 valid
+    for sub, value, size in [(1, 0x60400010, 4), (2, 0x60420010, 4), (0, 2, 1)]:
+        store.write(0x1604, sub, value.to_bytes(size, "little"))
+    assert [store.get(0x1604, sub) for sub in range(3)] == [2, 0x60400010, 0x60420010]
+    with pytest.raises(SdoAbort) as caught:  # entries change only while sub 0 is 0
+        store.write(0x1604, 3, (0x60710010).to_bytes(4, "little"))
+    assert caught.value.code == 0x06040043

@@ -191,6 +191,9 @@ class Features(BaseModel):
     rpdo_count: int = 0
     tpdo_count: int = 0
     max_mapping_entries: int = 8
+    mapping_needs_invalid_pdo: bool = True
+    """CiA 301: a mapping changes only while the PDO's COB-ID is invalid (bit 31). False where the manual changes
+    it on a valid PDO (MICROMASTER: sub 0 := 0, entries, sub 0 := count)."""
     heartbeat_producer: bool = True
     heartbeat_consumers: int = 0
     node_guarding: bool = False

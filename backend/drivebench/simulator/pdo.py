@@ -57,7 +57,7 @@ class PdoEngine:
         store = self.node.store
         comm_index = index - 0x200
         cob = _int(store.get(comm_index, 1)) if store.has(comm_index, 1) else COB_INVALID
-        if not cob & COB_INVALID:
+        if not cob & COB_INVALID and self.node.profile.features.mapping_needs_invalid_pdo:
             # Mapping of an existing (valid) PDO: CiA 301 leaves the abort code to the device; the Lenze
             # manuals list 0x06040043 "General parameter incompatibility".
             raise Abort(0x06040043)
