@@ -1,0 +1,244 @@
+"""The parameters REST API end to end: the manuals' SDO examples on the wire, problem+json for every abort, jobs.
+
+The vectors (tests/vectors/manual_sdo.py) name the nodes the manuals use, so each manual gets its own plant:
+8400 motec section 9.3 (nodes 2, 4, 5, 12) and EMF2178IB section 10.5 (8200 vector at nodes 1 and 5).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import can
+import pytest
+from fastapi.testclient import TestClient
+
+from drivebench.web.app import create_app
+from tests.vectors.manual_sdo import LENZE_8400, LENZE_EMF2178IB, SdoVector
+
+PLANTS: dict[str, list[dict[str, Any]]] = {
+    "8400": [{"node_id": n, "profile": "lenze-8400-motec-canopen", "values": {"C00061": 43}} for n in (2, 4, 5, 12)],
+    "emf": [{"node_id": n, "profile": "lenze-8200-vector-emf2178ib"} for n in (1, 5)],
+}
+SESSION = "api-plant"
+
+
+class Api:
+    def __init__(self, client: TestClient, wire: can.BusABC) -> None:
+        self.client = client
+        self.wire = wire
+
+    def url(self, node: int, tail: str = "") -> str:
+        return f"/api/sessions/{SESSION}/nodes/{node}{tail}"
+
+    def drain(self) -> list[can.Message]:
+        found = []
+        while (msg := self.wire.recv(timeout=0.05)) is not None:
+            found.append(msg)
+        return found
+
+
+def _start(tmp_path: Path, channel: str, nodes: list[dict[str, Any]]) -> Iterator[Api]:
+    plant = tmp_path / "plant.json"
+    plant.write_text(json.dumps({"name": "API plant", "nodes": nodes}), encoding="utf-8")
+    wire = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
+    app = create_app(plant_file=plant, plant_bus=f"virtual:{channel}@500000", latency="0ms")
+    try:
+        with TestClient(app) as client:
+            yield Api(client, wire)
+    finally:
+        wire.shutdown()
+
+
+@pytest.fixture
+def api_8400(tmp_path: Path, channel: str) -> Iterator[Api]:
+    yield from _start(tmp_path, channel, PLANTS["8400"])
+
+
+@pytest.fixture
+def api_emf(tmp_path: Path, channel: str) -> Iterator[Api]:
+    yield from _start(tmp_path, channel, PLANTS["emf"])
+
+
+def _ref_for(api: Api, vector: SdoVector) -> str:
+    """Find the parameter by its index through the search API, as a user would."""
+    found = api.client.get(api.url(vector.node, "/parameters"), params={"q": f"0x{vector.index:04X}"}).json()
+    matches = [p for p in found["parameters"] if p["index"] == f"0x{vector.index:04X}" and
+               p["subindex"] == vector.subindex]
+    assert matches, f"0x{vector.index:04X}sub{vector.subindex} not found by search"
+    return str(matches[0]["ref"])
+
+
+def _assert_on_wire(frames: list[can.Message], vector: SdoVector) -> None:
+    sdo = [(m.arbitration_id, bytes(m.data)) for m in frames if m.arbitration_id in
+           (0x600 + vector.node, 0x580 + vector.node)]
+    position = 0
+    for request, response in vector.exchanges:
+        for expected in (request, response):
+            while position < len(sdo) and not expected.matches(*sdo[position]):
+                position += 1
+            assert position < len(sdo), f"{vector.id}: {expected} not on the wire in order"
+            position += 1
+
+
+def _replay(api: Api, vector: SdoVector) -> dict[str, Any]:
+    ref = _ref_for(api, vector)
+    api.drain()
+    if vector.direction == "upload":
+        response = api.client.get(api.url(vector.node, f"/parameters/{ref}"))
+    else:
+        response = api.client.put(api.url(vector.node, f"/parameters/{ref}"),
+                                  json={"raw": int.from_bytes(vector.value, "little")})
+    assert response.status_code == 200, response.text
+    _assert_on_wire(api.drain(), vector)
+    body: dict[str, Any] = response.json()
+    return body
+
+
+@pytest.mark.parametrize("vector", LENZE_8400, ids=lambda v: v.id)
+def test_8400_motec_manual_examples(api_8400: Api, vector: SdoVector) -> None:
+    body = _replay(api_8400, vector)
+    if vector.direction == "upload":
+        expected = vector.value.decode() if vector.index == 0x5F9C else int.from_bytes(vector.value, "little")
+        assert body["raw"] == expected
+    else:
+        assert body["verified"] is True
+        assert body["written"]["raw"] == int.from_bytes(vector.value, "little")
+
+
+def test_8400_examples_scaled(api_8400: Api) -> None:
+    c00061 = api_8400.client.get(api_8400.url(5, "/parameters/C00061")).json()
+    assert {k: c00061[k] for k in ("raw", "value", "unit", "text")} == {"raw": 43, "value": 43, "unit": "°C",
+                                                                       "text": None}
+    written = api_8400.client.put(api_8400.url(2, "/parameters/C00088"), json={"value": "10.20 A"}).json()
+    assert written["written"] == {"raw": 1020, "value": 10.2, "unit": "A", "text": None}
+    assert written["read_back"]["display"] == "10.20 A"
+    assert api_8400.client.get(api_8400.url(12, "/parameters/C00099")).json()["value"] == "01.00.00.00"
+    assert api_8400.client.get(api_8400.url(5, "/parameters/C00351")).json()["text"] == "500 kbit/s"
+
+
+@pytest.mark.parametrize("vector", LENZE_EMF2178IB, ids=lambda v: v.id)
+def test_emf2178ib_manual_examples(api_emf: Api, vector: SdoVector) -> None:
+    body = _replay(api_emf, vector)
+    if vector.id == "emf-tv1-read-c0061":
+        assert (body["raw"], body["value"], body["unit"]) == (430000, 43, "°C")
+    elif vector.id == "emf-tv2-write-c0012":
+        assert body["read_back"]["value"] == 20 and body["read_back"]["unit"] == "s"
+    else:
+        assert body["value"] == "82S8212V_14000"
+
+
+# --- problem+json ------------------------------------------------------------------------------------------
+def _problem(response: Any, status: int) -> dict[str, Any]:
+    assert response.status_code == status, response.text
+    assert response.headers["content-type"].startswith("application/problem+json")
+    body: dict[str, Any] = response.json()
+    return body
+
+
+@pytest.mark.parametrize(("method", "ref", "body", "status", "code"), [
+    ("GET", "0x2FFF.0", None, 404, "0x06020000"),                            # unknown object
+    ("GET", "0x1018.9", None, 404, "0x06090011"),                            # unknown subindex
+    ("PUT", "C00061", {"value": 3, "check": False}, 422, "0x06010002"),      # read-only
+    ("PUT", "C00350", {"value": 100, "check": False}, 422, "0x06090030"),    # range
+])
+def test_sdo_aborts_are_problems_with_code_and_text(api_8400: Api, method: str, ref: str, body: Any,
+                                                     status: int, code: str) -> None:
+    response = api_8400.client.request(method, api_8400.url(5, f"/parameters/{ref}"), json=body)
+    problem = _problem(response, status)
+    assert problem["abort_code"] == code and problem["abort_text"]
+    assert problem["node"] == 5 and problem["object"].startswith("0x")
+    assert code in problem["detail"]
+
+
+def test_validation_problems_name_parameter_range_and_unit(api_8400: Api) -> None:
+    problem = _problem(api_8400.client.put(api_8400.url(5, "/parameters/C00350"), json={"value": 100}), 422)
+    assert "C00350" in problem["detail"] and "1 ... 63" in problem["detail"] and "abort_code" not in problem
+    problem = _problem(api_8400.client.put(api_8400.url(5, "/parameters/C00088"), json={"value": 1e9}), 422)
+    assert "C00088" in problem["detail"] and "UNSIGNED32" in problem["detail"]
+    problem = _problem(api_8400.client.put(api_8400.url(5, "/parameters/C00061"), json={"value": 1}), 422)
+    assert problem["title"] == "Parameter is read-only"
+    problem = _problem(api_8400.client.get(api_8400.url(5, "/parameters/C09999")), 404)
+    assert problem["title"] == "Unknown parameter"
+    assert api_8400.client.put(api_8400.url(5, "/parameters/C00088"), json={}).status_code == 422
+
+
+def test_absent_node_is_a_timeout_problem(api_8400: Api) -> None:
+    assert api_8400.client.post(f"/api/sessions/{SESSION}/nodes",
+                                json={"node_id": 40, "profile_id": "lenze-8400-motec-canopen"}).status_code < 300
+    problem = _problem(api_8400.client.get(api_8400.url(40, "/parameters/C00061")), 504)
+    assert problem["node"] == 40 and problem["object"] == "0x5FC2sub0"
+
+
+# --- list, search, jobs, commands ---------------------------------------------------------------------------
+def test_list_and_search(api_8400: Api) -> None:
+    listing = api_8400.client.get(api_8400.url(5, "/parameters")).json()
+    assert listing["groups"][0] == "Device commands" and len(listing["parameters"]) > 100
+    for query, ref in [("C00088", "C00088"), ("88", "C00088"), ("rated motor current", "C00088"),
+                       ("0x5FA7", "C00088"), ("5FA7sub0", "C00088")]:
+        found = api_8400.client.get(api_8400.url(5, "/parameters"), params={"q": query}).json()["parameters"]
+        assert found and found[0]["ref"] == ref, query
+    group = api_8400.client.get(api_8400.url(5, "/parameters"), params={"group": "Motor data"}).json()
+    assert {p["group"] for p in group["parameters"]} == {"Motor data"}
+
+
+def _wait_job(api: Api, job_id: str) -> dict[str, Any]:
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        job: dict[str, Any] = api.client.get(f"/api/jobs/{job_id}").json()
+        if job["state"] != "running":
+            return job
+        time.sleep(0.05)
+    raise AssertionError("job did not finish")
+
+
+def test_read_all_job_with_progress_stream(api_8400: Api) -> None:
+    started = api_8400.client.post(api_8400.url(5, "/read-all"))
+    assert started.status_code == 202
+    job = started.json()
+    messages = []
+    with api_8400.client.websocket_connect(job["links"]["progress"]) as socket:
+        while True:
+            messages.append(socket.receive_json())
+            if messages[-1]["state"] != "running":
+                break
+    assert messages[-1]["state"] == "done"
+    assert messages[-1]["progress"]["done"] == messages[-1]["progress"]["total"] == job["progress"]["total"]
+    final = _wait_job(api_8400, job["id"])
+    assert final["result"]["values"]["5"]["C00088"]["display"] == "10.20 A"
+    listing = api_8400.client.get(api_8400.url(5, "/parameters"), params={"q": "C00061"}).json()
+    assert listing["parameters"][0]["last"]["value"] == 43
+    assert api_8400.client.delete(f"/api/jobs/{job['id']}").status_code == 409
+
+
+def test_read_all_nodes_of_a_session_and_group_read(api_8400: Api) -> None:
+    job = api_8400.client.post(f"/api/sessions/{SESSION}/read-all", json={}).json()
+    final = _wait_job(api_8400, job["id"])
+    assert final["state"] == "done" and set(final["result"]["values"]) == {"2", "4", "5", "12"}
+    group = api_8400.client.post(api_8400.url(5, "/read-group"), json={"group": "Motor data"}).json()
+    final = _wait_job(api_8400, group["id"])
+    assert "C00088" in final["result"]["values"]["5"]
+    assert api_8400.client.post(api_8400.url(5, "/read-group"), json={"group": "Nope"}).status_code == 404
+    assert api_8400.client.get("/api/jobs/nope").status_code == 404
+
+
+def test_device_commands_and_reset_required(api_8400: Api) -> None:
+    written = api_8400.client.put(api_8400.url(5, "/parameters/C00351"), json={"value": "250 kbit/s"}).json()
+    assert written["reset_required"] and written["pending_reset"] == ["C00351"]
+    saved = api_8400.client.post(api_8400.url(5, "/commands/save")).json()
+    assert saved["via"] == "C00002/11 = 1" and saved["pending_reset"] == ["C00351"]
+    reset = api_8400.client.post(api_8400.url(5, "/commands/reset-node")).json()
+    assert reset["pending_reset"] == []
+    assert api_8400.client.post(api_8400.url(5, "/commands/explode")).status_code == 422
+
+
+def test_sdo_settings_per_session(api_8400: Api) -> None:
+    assert api_8400.client.put(f"/api/sessions/{SESSION}/sdo-settings",
+                               json={"timeout_s": 0.1, "retries": 0, "use_sdo2": False}).status_code == 200
+    assert api_8400.client.get(f"/api/sessions/{SESSION}/sdo-settings").json() == {
+        "timeout_s": 0.1, "retries": 0, "use_sdo2": False}
+    assert api_8400.client.put(f"/api/sessions/{SESSION}/sdo-settings",
+                               json={"timeout_s": 0, "retries": 0}).status_code == 422
