@@ -28,9 +28,10 @@
   const chartBox = $("load-chart");
   const chart = new uPlot({
     width: Math.max(chartBox.clientWidth, 300), height: 240,
-    scales: { x: { time: true }, y: { range: (u, min, max) => [0, Math.max(5, Math.ceil((max || 0) * 1.2))] } },
+    // The x axis always spans the last 10 minutes (ending at the newest point); drag-zoom narrows it.
+    scales: { x: { time: true, range: (u, min, max) => (max == null ? [Date.now() / 1000 - HISTORY_S, Date.now() / 1000] : [max - HISTORY_S, max]) }, y: { range: (u, min, max) => [0, Math.max(5, Math.ceil((max || 0) * 1.2))] } },
     axes: [
-      { label: "time (local)", labelSize: 18, stroke: "#5d6b79", grid: { stroke: "#eef1f4" } },
+      { label: "time (local)", labelSize: 18, space: 90, stroke: "#5d6b79", grid: { stroke: "#eef1f4" } },
       { label: "bus load (%)", labelSize: 18, stroke: "#5d6b79", grid: { stroke: "#eef1f4" }, size: 56,
         values: (u, ticks) => ticks.map((v) => `${v} %`) },
     ],
@@ -41,6 +42,7 @@
     ],
     legend: { live: true },
   }, [[], []], chartBox);
+  window.monitorChart = chart;  // for tests and the console
   new ResizeObserver(() => chart.setSize({ width: Math.max(chartBox.clientWidth, 300), height: 240 })).observe(chartBox);
 
   function addHistory(points, replace) {

@@ -133,6 +133,7 @@ def test_pause_freezes_the_view_reset_clears(session: Session, wire: can.BusABC)
     wire.send(_frame(0x185, bytes(4)))
     wait_for(lambda: monitor.counts_for([0x185]) == 5)  # counting goes on underneath
     assert monitor.snapshot()["totals"]["frames"] == len(WIRE_FRAMES)  # the view is frozen
+    assert monitor.snapshot()["paused"] is True
     assert monitor.trace_rows() == rows_before
     monitor.resume()
     assert monitor.snapshot()["totals"]["frames"] == len(WIRE_FRAMES) + 1

@@ -193,7 +193,7 @@ class Monitor(can.Listener):
         with self._lock:
             if self.paused:
                 return
-        frozen = self._snapshot()
+        frozen = {**self._snapshot(), "paused": True}
         with self._lock:
             self._frozen = frozen
             self.paused = True
