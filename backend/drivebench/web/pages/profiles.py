@@ -43,15 +43,15 @@ class Show:
         return digits
 
     @staticmethod
-    def number(value: Value | None, factor: float = 1) -> str:
+    def number(value: Value | None, factor: float = 1, *, trim: bool = False) -> str:
+        """``10.2`` with factor 100 -> ``10.20`` (the resolution shows); ``trim`` drops trailing zeros."""
         if value is None:
             return ""
         if isinstance(value, str):
             return value
         digits = Show.decimals(float(factor))
-        if digits:
-            return f"{value:.{digits}f}"
-        return str(int(value)) if float(value).is_integer() else f"{value:g}"
+        text = f"{value:.{digits}f}" if digits else (str(int(value)) if float(value).is_integer() else f"{value:g}")
+        return text.rstrip("0").rstrip(".") if trim and "." in text else text
 
     @staticmethod
     def value(value: Value | None, factor: float, selection: dict[int, str]) -> str:
@@ -65,10 +65,10 @@ class Show:
         if low is None and high is None:
             return ""
         if high is None:
-            return f"≥ {Show.number(low, factor)}"
+            return f"≥ {Show.number(low, factor, trim=True)}"
         if low is None:
-            return f"≤ {Show.number(high, factor)}"
-        return f"{Show.number(low, factor)} … {Show.number(high, factor)}"
+            return f"≤ {Show.number(high, factor, trim=True)}"
+        return f"{Show.number(low, factor, trim=True)} … {Show.number(high, factor, trim=True)}"
 
     @staticmethod
     def data_type(name: str) -> str:
