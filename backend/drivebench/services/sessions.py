@@ -58,7 +58,12 @@ class SessionNode:
     def device_name(self) -> str:
         if self.name:
             return self.name
-        return self.profile.identity.product_name if self.profile else "Unknown device"
+        if self.profile:
+            return self.profile.identity.product_name
+        if "vendor_id" in self.identity:  # scanned, but no profile matches its 0x1018 identity
+            return (f"Unknown device (vendor 0x{self.identity['vendor_id']:08X}, "
+                    f"product 0x{self.identity.get('product_code', 0):08X})")
+        return "Unknown device"
 
 
 def _slug(text: str) -> str:
@@ -133,6 +138,11 @@ class Session:
                 identity[key] = int.from_bytes(data[:4], "little")
             except (SdoAbortError, SdoTimeoutError):
                 continue
+        try:  # the producer period lets heartbeat loss be judged before two telegrams were measured
+            period = await client.aupload(0x1017, 0)
+            self.network.heartbeat.set_configured_period(node_id, int.from_bytes(period[:2], "little"))
+        except (SdoAbortError, SdoTimeoutError):
+            pass
         existing = self.nodes.get(node_id)
         profile = existing.profile if existing else None
         if profile is None:
