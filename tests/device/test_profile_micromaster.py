@@ -183,9 +183,11 @@ def test_mapping_changes_on_a_valid_pdo_as_the_manual_does(profile: Profile) -> 
     node = SimulatedNode(profile, 3, send=lambda cob_id, data: None)
     store = node.store
     assert store.get(0x1404, 1) == 0x303  # RPDO5 valid
-    for sub, value, size in [(1, 0x60400010, 4), (2, 0x60420010, 4), (0, 2, 1)]:
+    # the manual's RPDO5 example: control word, free object 0x2802.3, target torque, modes of operation
+    example = [(1, 0x60400010, 4), (2, 0x28020310, 4), (3, 0x60710010, 4), (4, 0x60600008, 4), (0, 4, 1)]
+    for sub, value, size in example:
         store.write(0x1604, sub, value.to_bytes(size, "little"))
-    assert [store.get(0x1604, sub) for sub in range(3)] == [2, 0x60400010, 0x60420010]
+    assert [store.get(0x1604, sub) for sub in range(5)] == [4, 0x60400010, 0x28020310, 0x60710010, 0x60600008]
     with pytest.raises(SdoAbort) as caught:  # entries change only while sub 0 is 0
-        store.write(0x1604, 3, (0x60710010).to_bytes(4, "little"))
+        store.write(0x1604, 3, (0x60420010).to_bytes(4, "little"))
     assert caught.value.code == 0x06040043
