@@ -46,7 +46,7 @@ document.body.addEventListener("htmx:sendError", (event) => {
 
 // A successful action clears an old error beside it.
 document.body.addEventListener("htmx:afterRequest", (event) => {
-  if (event.detail.successful) {
+  if (event.detail.successful && event.detail.xhr.status < 400) {  // not the error just shown there
     const slot = errorSlot(event.detail.elt);
     if (slot && slot.id !== "toast" && slot.querySelector(".error")) slot.innerHTML = "";
   }

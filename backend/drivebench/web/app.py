@@ -15,17 +15,19 @@ from fastapi.staticfiles import StaticFiles
 from drivebench import __version__
 from drivebench.config import settings
 from drivebench.device.loader import ProfileRegistry
+from drivebench.services.database import upgrade_to_head
 from drivebench.services.sessions import SessionManager
 from drivebench.services.sharing import ShareLinks
 from drivebench.simulator.plant import Plant, PlantFile
 from drivebench.web import problems
-from drivebench.web.api import diagnostics, health, parameters, profiles, sessions
+from drivebench.web.api import diagnostics, health, parameters, profiles, sessions, tools
 from drivebench.web.api import monitor as monitor_api
 from drivebench.web.pages import monitor as monitor_page
 from drivebench.web.pages import node as node_page
 from drivebench.web.pages import plant as plant_page
 from drivebench.web.pages import profiles as profiles_page
 from drivebench.web.pages import remote as remote_page
+from drivebench.web.pages import tools as tools_page
 from drivebench.web.state import AppState
 from drivebench.web.viewer import ViewerScope
 from drivebench.web.ws import jobs as jobs_ws
@@ -37,8 +39,10 @@ log = logging.getLogger(__name__)
 
 # One line per router: screens grow without touching anything else here.
 API_ROUTERS = [monitor_api.router,
-               health.router, sessions.router, profiles.router, diagnostics.router, parameters.router]
-PAGE_ROUTERS = [monitor_page.router, plant_page.router, node_page.router, profiles_page.router, remote_page.router]
+               health.router, sessions.router, profiles.router, diagnostics.router, parameters.router,
+               tools.router, tools.planned_router]
+PAGE_ROUTERS = [monitor_page.router, plant_page.router, node_page.router, profiles_page.router, remote_page.router,
+                tools_page.router]
 WS_ROUTERS = [monitor_ws.router, nodes_ws.router, jobs_ws.router, remote_ws.router]
 
 
@@ -60,6 +64,7 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
     @contextlib.asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         asyncio.get_running_loop().set_default_executor(ThreadPoolExecutor(64, thread_name_prefix="bus-work"))
+        await asyncio.to_thread(upgrade_to_head)  # the database schema (settings.database_url) to the newest
         registry = await asyncio.to_thread(ProfileRegistry)
         manager = SessionManager(registry, sdo_timeout_s=settings.sdo_timeout_s, sdo_retries=settings.sdo_retries)
         state = AppState(registry, manager, share_links=share_links)
