@@ -56,7 +56,7 @@ def _render(request: Request, context: dict[str, Any], block: str, status: int =
 def _base(**extra: Any) -> dict[str, Any]:
     return {"active": "tools", "families": FAMILIES, "lenze_8400": LENZE_8400_MOTEC, "mm4": SIEMENS_MM4,
             "channels_of": channels_of, "baud_rates": BAUD_RATES,
-            "short_names": SHORT_NAMES, **extra}
+            "short_names": SHORT_NAMES, "cross_sections": CROSS_SECTIONS_MM2, **extra}
 
 
 # --- DIP-switch calculator -------------------------------------------------------------------------------------
