@@ -222,3 +222,47 @@ def test_every_valid_address_round_trips(family: str, node: int) -> None:
     switches = encode(family, node, 500).switches
     assert decode(family, switches, code_baud_kbit=500).node_id == node
     assert sum(s.weight or 0 for s in FAMILIES[family].address_switches if switches[s.label]) == node
+
+
+# --- rows of the parameter tables ----------------------------------------------------------------------------------
+# 8400 motec §12.2 C00351 selection list, every row: value -> kbit/s
+C00351_ROWS = [(0, 500), (1, 250), (2, 125), (3, 50), (4, 1000), (5, 20), (14, 800)]
+
+
+@pytest.mark.parametrize(("value", "kbit"), C00351_ROWS)
+def test_8400_c00351_selection_list_rows(value: int, kbit: int) -> None:
+    result = decode(M8400, {}, code_node_id=7, code_baud_kbit=kbit)  # a, b, c OFF: the baud rate is C00351's
+    assert (result.baud_kbit, result.baud_source) == (kbit, "C00351")
+    assert {a.code: a.value for a in result.alternative} == {"C00350": 7, "C00351": value}
+
+
+# MICROMASTER §5.6 Table 5-1, P2041.04 hundreds digit, every row: digit -> kbit/s (8 and 9 are not permissible)
+P2041_ROWS = [(0, 10), (1, 20), (2, 50), (3, 125), (4, 250), (5, 500), (6, 800), (7, 1000)]
+
+
+@pytest.mark.parametrize(("digit", "kbit"), P2041_ROWS)
+def test_mm4_p2041_04_baud_digit_rows(digit: int, kbit: int) -> None:
+    settings = {a.code: a.value for a in encode(SIEMENS_MM4, 3, kbit).alternative}
+    assert settings == {"P0918": 3, "P2010": kbit, "P2041.04": digit}
+
+
+def test_mm4_p2041_04_worked_example_432() -> None:
+    """§5.6: 250 kbit/s, CAN state machine 'no state change' (3), drive 'OFF2' (2) -> P2041.04 = 432."""
+    digit = next(a.value for a in encode(SIEMENS_MM4, 3, 250).alternative if a.code == "P2041.04")
+    assert digit == 432 // 100
+
+
+def test_mm4_unsupported_values() -> None:
+    with pytest.raises(OutOfRange):
+        encode(SIEMENS_MM4, 128, 500)
+    with pytest.raises(InvalidValue):
+        encode(SIEMENS_MM4, 3, 100)
+    assert decode(SIEMENS_MM4, {}, code_node_id=0).problems
+
+
+@given(st.integers(1, 127), st.sampled_from(FAMILIES[SIEMENS_MM4].baud_rates_kbit))
+def test_mm4_parameters_round_trip(node: int, baud: int) -> None:
+    """MICROMASTER has no switches: node id and baud rate -> P0918/P2010 -> the same node id and baud rate."""
+    settings = {a.code: a.value for a in encode(SIEMENS_MM4, node, baud).alternative}
+    again = decode(SIEMENS_MM4, {}, code_node_id=settings["P0918"], code_baud_kbit=settings["P2010"])
+    assert (again.node_id, again.baud_kbit, again.problems) == (node, baud, [])
