@@ -1,0 +1,135 @@
+"""The Node page's Parameters tab in a real browser: search, read, write, scaled values, errors beside the field.
+
+Runs its own server on a Lenze-only plant (writes must not disturb the shared live server).
+"""
+
+from __future__ import annotations
+
+import json
+import threading
+import time
+from collections.abc import Iterator
+from typing import Any
+
+import pytest
+import uvicorn
+
+from drivebench.web.app import create_app
+from tests.conftest import _free_port, fresh_channel, screenshot
+
+expect = pytest.importorskip("playwright.sync_api").expect
+
+WAIT_MS = 15_000
+PLANT = {"name": "Browser plant", "nodes": [
+    {"node_id": 5, "profile": "lenze-8400-motec-canopen", "name": "Conveyor", "values": {"C00061": 43},
+     "heartbeat_ms": 500},
+    {"node_id": 12, "profile": "lenze-8200-vector-emf2178ib", "name": "Fan", "heartbeat_ms": 500},
+]}
+LAYOUT_PROBLEMS = """() => {
+  const problems = [];
+  if (document.documentElement.scrollWidth > window.innerWidth) problems.push("page scrolls sideways");
+  for (const table of document.querySelectorAll("table")) {
+    if (table.scrollWidth > table.parentElement.clientWidth + 1) problems.push("table wider than its card");
+  }
+  for (const cell of document.querySelectorAll("td, th, h1")) {
+    if (cell.scrollWidth > cell.clientWidth + 1) problems.push("clipped: " + cell.textContent.trim().slice(0, 60));
+  }
+  return problems;
+}"""
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, Any]]:
+    plant = tmp_path_factory.mktemp("plant") / "plant.json"
+    plant.write_text(json.dumps(PLANT), encoding="utf-8")
+    app = create_app(plant_file=plant, plant_bus=f"virtual:{fresh_channel()}@500000", latency="2ms")
+    port = _free_port()
+    uv = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning"))
+    thread = threading.Thread(target=uv.run, daemon=True)
+    thread.start()
+    deadline = time.time() + 20
+    while not uv.started and time.time() < deadline:
+        time.sleep(0.05)
+    assert uv.started
+    yield f"http://127.0.0.1:{port}", app
+    uv.should_exit = True
+    thread.join(timeout=10)
+
+
+def _row(page: Any, ref: str) -> Any:
+    return page.locator(f"tr[data-ref='{ref}']")
+
+
+def _search(page: Any, text: str) -> None:
+    page.fill("#param-q", text)
+    expect(page.locator("#param-rows")).to_have_attribute("data-count", "1", timeout=WAIT_MS)
+
+
+def test_search_read_write_and_errors_beside_the_field(server: tuple[str, Any], page: Any) -> None:
+    url, app = server
+    page.goto(url + "/")
+    page.locator("a[href='/sessions/browser-plant/nodes/5']").first.click()
+    expect(page.locator("h1")).to_contain_text("Node 5", timeout=WAIT_MS)
+    expect(page.locator("nav.tabs a.active")).to_have_text("Parameters")
+    assert page.evaluate(LAYOUT_PROBLEMS) == []
+    screenshot(page, "parameters-node-page")
+
+    _search(page, "rated motor current")
+    row = _row(page, "C00088")
+    row.get_by_role("button", name="Read").click()
+    expect(_row(page, "C00088").locator("td.val")).to_contain_text("10.20 A", timeout=WAIT_MS)
+
+    _row(page, "C00088").locator("input[name=value]").fill("12.5")
+    _row(page, "C00088").get_by_role("button", name="Write").click()
+    expect(_row(page, "C00088").locator("td.val")).to_contain_text("12.50 A", timeout=WAIT_MS)
+    expect(_row(page, "C00088").locator("td.val")).to_contain_text("verified")
+    screenshot(page, "parameters-written")
+
+    _search(page, "C00350")
+    _row(page, "C00350").locator("input[name=value]").fill("100")
+    _row(page, "C00350").get_by_role("button", name="Write").click()
+    error = _row(page, "C00350").locator("td.edit .error")
+    expect(error).to_contain_text("outside the allowed range 1 ... 63", timeout=WAIT_MS)
+    assert page.evaluate(LAYOUT_PROBLEMS) == []
+    screenshot(page, "parameters-range-error")
+
+    # A device whose range is narrower than its profile says: the SDO abort shows beside the field.
+    store = app.state.drivebench.plants["browser-plant"].nodes[5].store
+    slot = store.slot(0x5EA1, 0)
+    slot.entry = slot.entry.model_copy(update={"max": 20})
+    _row(page, "C00350").locator("input[name=value]").fill("30")
+    _row(page, "C00350").get_by_role("button", name="Write").click()
+    expect(_row(page, "C00350").locator("td.edit .error")).to_contain_text("0x06090030", timeout=WAIT_MS)
+    screenshot(page, "parameters-sdo-abort")
+
+
+def test_selection_list_reset_badge_and_read_all(server: tuple[str, Any], page: Any) -> None:
+    url, _ = server
+    page.goto(url + "/sessions/browser-plant/nodes/5")
+    _search(page, "CAN baud rate")
+    _row(page, "C00351").locator("select[name=value]").select_option("1")
+    _row(page, "C00351").get_by_role("button", name="Write").click()
+    expect(_row(page, "C00351").locator("td.val")).to_contain_text("1 = 250 kbit/s", timeout=WAIT_MS)
+    expect(page.locator("#reset-badge")).to_contain_text("reset node required: C00351")
+
+    page.fill("#param-q", "")
+    page.get_by_role("button", name="Read all").click()
+    expect(page.locator(".job-text")).to_contain_text("done", timeout=WAIT_MS)
+    expect(_row(page, "C00061").locator("td.val")).to_contain_text("43 °C", timeout=WAIT_MS)
+    screenshot(page, "parameters-read-all")
+    assert page.evaluate(LAYOUT_PROBLEMS) == []
+
+    page.once("dialog", lambda dialog: dialog.accept())
+    page.get_by_role("button", name="Reset node").click()
+    expect(page.locator("#command-result")).to_contain_text("resets", timeout=WAIT_MS)
+    expect(page.locator("#reset-badge")).not_to_contain_text("C00351")
+
+
+def test_info_tab_reads_identity(server: tuple[str, Any], page: Any) -> None:
+    url, _ = server
+    page.goto(url + "/sessions/browser-plant/nodes/12")
+    page.locator("nav.tabs a", has_text="Info").click()
+    expect(page.locator("#identity-live")).to_contain_text("82S8212V_14000", timeout=WAIT_MS)
+    expect(page).to_have_url(url + "/sessions/browser-plant/nodes/12?tab=info")
+    screenshot(page, "node-info")
+
