@@ -15,7 +15,7 @@ from collections.abc import Callable
 from typing import Any
 
 import can
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, Field, ValidationError
 
 from drivebench.errors import AdapterUnavailable, BusSpecError
 
@@ -52,16 +52,25 @@ class BusSpec(BaseModel):
         cleaned = text.strip()
         match = _SOCKETCAND_RE.match(cleaned)
         if match:
-            return cls(interface="socketcand", channel=match["channel"],
-                       bitrate=int(match["bitrate"] or DEFAULT_BITRATE),
-                       options={"host": match["host"], "port": int(match["port"])})
+            return cls.build(interface="socketcand", channel=match["channel"],
+                             bitrate=int(match["bitrate"] or DEFAULT_BITRATE),
+                             options={"host": match["host"], "port": int(match["port"])})
         match = _GENERIC_RE.match(cleaned)
         if not match:
             raise BusSpecError(
                 f"'{text}' is not a bus specification. Write INTERFACE:CHANNEL@BITRATE "
                 "(socketcan:can0@500000, pcan:PCAN_USBBUS1@250000) or socketcand:HOST:PORT/CHANNEL.")
-        return cls(interface=match["interface"], channel=match["channel"],
-                   bitrate=int(match["bitrate"] or DEFAULT_BITRATE))
+        return cls.build(interface=match["interface"], channel=match["channel"],
+                         bitrate=int(match["bitrate"] or DEFAULT_BITRATE))
+
+    @classmethod
+    def build(cls, **fields: Any) -> BusSpec:
+        """Construct from user input: a value out of range is a BusSpecError, not a validation traceback."""
+        try:
+            return cls(**fields)
+        except ValidationError as exc:
+            problems = "; ".join(f"{'.'.join(str(p) for p in e['loc'])}: {e['msg']}" for e in exc.errors())
+            raise BusSpecError(f"Invalid bus settings: {problems}") from exc
 
     def __str__(self) -> str:
         if self.interface == "socketcand":

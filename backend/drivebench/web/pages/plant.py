@@ -47,7 +47,7 @@ async def open_session(request: Request, state: StateDep, manager: ManagerDep,
         if interface == "socketcand":
             spec = BusSpec.parse(f"socketcand:{channel}@{bitrate}")
         else:
-            spec = BusSpec(interface=interface, channel=channel, bitrate=bitrate)
+            spec = BusSpec.build(interface=interface, channel=channel, bitrate=bitrate)
         session = await manager.open(spec, name or None)
     except DriveBenchError as exc:
         body = problem_body(exc, str(request.url.path))
