@@ -124,7 +124,7 @@ class PdoEngine:
             if rx is not None and rx.valid:
                 rpdos[rx.cob_id] = rx
             tx = self._read_config(0x1800 + n, 0x1A00 + n, n + 1)
-            if tx is not None and tx.valid:
+            if tx is not None and tx.valid and tx.mapping:  # nothing mapped: nothing to send
                 tpdos.append(tx)
         with self._lock:
             self.rpdos, self.tpdos = rpdos, tpdos
