@@ -180,6 +180,19 @@ def test_downloads_are_attachments_that_load_again(api: TestClient) -> None:
     assert "[DeviceInfo]" in as_eds.text
 
 
+def test_files_that_do_not_load_are_reported_with_line_and_the_rest_loads(user_dir: Path,
+                                                                           monkeypatch: pytest.MonkeyPatch) -> None:
+    user_dir.mkdir()
+    (user_dir / "bad.eds").write_bytes(broken_servo_eds(61))
+    (user_dir / "good.eds").write_bytes(SERVO_EDS.read_bytes())
+    monkeypatch.setattr(settings, "user_profiles_dir", user_dir)
+    with TestClient(create_app()) as client:
+        assert client.get("/api/profiles/load-errors").json() == [
+            {"file": "bad.eds", "line": 61,
+             "reason": "expected 'key=value', a [section] or a ';' comment, got 'this line is not an EDS line'"}]
+        assert "good" in ids(client) and MOTEC in ids(client)
+
+
 # --- upload ----------------------------------------------------------------------------------------------------
 def test_upload_good_eds_is_listed_as_uploaded_and_stored_in_the_user_dir(api: TestClient, user_dir: Path) -> None:
     response = upload(api, SERVO_EDS.name, SERVO_EDS.read_bytes())

@@ -6,6 +6,7 @@ stored runs on a server of its own whose registry keeps uploads in a temporary d
 
 from __future__ import annotations
 
+import json
 import threading
 import time
 from collections.abc import Iterator
@@ -75,7 +76,9 @@ def test_list_open_motec_and_search_c00088(live_server: str, page: Any) -> None:
     row = page.locator(f"#profile-{MOTEC}")
     expect(row).to_contain_text("Lenze")
     expect(row).to_contain_text("built in")
-    expect(row.locator("td").nth(6)).to_have_text("90")
+    motec = json.loads((REPO_ROOT / "device_profiles" / f"{MOTEC}.json").read_text())
+    expect(row.locator("td").nth(5)).to_have_text(str(len(motec["objects"])))
+    expect(row.locator("td").nth(6)).to_have_text(str(len(motec["parameters"])))
     assert_fits(page)
     screenshot(page, "profiles-list")
 

@@ -126,8 +126,8 @@ def load_errors(registry: ProfileRegistry) -> list[LoadError]:
 
 
 def upload_error(exc: ProfileError) -> LoadError:
-    source = exc.source or "upload"
-    return split_location(source, exc.detail)
+    """Where an upload failed; ``file`` is empty when the upload was refused before its name was read."""
+    return split_location(exc.source, exc.detail) if exc.source else LoadError(file="", line=None, reason=exc.detail)
 
 
 _catalogs: dict[str, Catalog] = {}
