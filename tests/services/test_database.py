@@ -172,3 +172,24 @@ def test_compare_live_all_as_planned_is_ok(profiles: ProfileRegistry) -> None:
     assert not result.ok  # a node without a matching profile is not proof of the planned device
     assert "no device profile matches" in result.nodes[1].message
     assert compare_live(NetworkPlan(nodes=planned.nodes[:1]), answered[:1]).ok
+
+
+def test_two_start_ups_at_once_on_one_new_file(tmp_path: Path) -> None:
+    """Two servers (processes) starting together on one new SQLite file: both come up, the schema exists once."""
+    import subprocess
+    import sys
+
+    url = f"sqlite:///{tmp_path / 'shared.db'}"
+    code = "import sys; from drivebench.services import database; database.upgrade_to_head(sys.argv[1])"
+    starts = [subprocess.Popen([sys.executable, "-c", code, url], stderr=subprocess.PIPE, text=True)
+              for _ in range(2)]
+    results = [(p.wait(timeout=60), p.stderr.read() if p.stderr else "") for p in starts]
+    for p in starts:
+        if p.stderr:
+            p.stderr.close()
+    assert results == [(0, ""), (0, "")]
+    try:
+        assert database.current_revision(url) is not None
+        assert inspect(database.engine(url)).get_table_names().count("planned_network") == 1
+    finally:
+        database.dispose(url)

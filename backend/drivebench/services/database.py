@@ -8,6 +8,7 @@ when several servers share one store. The schema is owned by the Alembic migrati
 from __future__ import annotations
 
 import threading
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -16,6 +17,7 @@ from alembic import command
 from alembic.config import Config
 from sqlalchemy import Engine, create_engine, event
 from sqlalchemy.engine import make_url
+from sqlalchemy.exc import OperationalError
 from sqlalchemy.orm import DeclarativeBase, Session, sessionmaker
 
 from drivebench.config import settings
@@ -29,6 +31,7 @@ class Base(DeclarativeBase):
 
 _engines: dict[str, Engine] = {}
 _engines_lock = threading.Lock()
+_upgrade_lock = threading.Lock()
 
 
 def _sqlite_foreign_keys(dbapi_connection: object, _record: object) -> None:
@@ -81,13 +84,24 @@ def alembic_config(url: str | None = None) -> Config:
     return config
 
 
-def upgrade_to_head(url: str | None = None) -> None:
-    """Bring the database at ``url`` to the newest migration (creates a SQLite file if it is missing)."""
+def upgrade_to_head(url: str | None = None, *, attempts: int = 3) -> None:
+    """Bring the database at ``url`` to the newest migration (creates a SQLite file if it is missing).
+
+    Two servers (or test runs) starting at once on one SQLite file can race to create the first tables; the
+    loser's transaction fails and is rolled back, and the retry finds the schema current.
+    """
     target = engine(url)
-    config = alembic_config(url)
-    with target.begin() as connection:
-        config.attributes["connection"] = connection
-        command.upgrade(config, "head")
+    for attempt in range(1, attempts + 1):
+        config = alembic_config(url)
+        try:
+            with _upgrade_lock, target.begin() as connection:  # Alembic loads env.py as a module: one at a time
+                config.attributes["connection"] = connection
+                command.upgrade(config, "head")
+            return
+        except OperationalError:
+            if attempt == attempts:
+                raise
+            time.sleep(0.2 * attempt)
 
 
 def current_revision(url: str | None = None) -> str | None:
