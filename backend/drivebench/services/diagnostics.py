@@ -11,9 +11,10 @@ import time
 from pydantic import BaseModel
 
 from drivebench.device.profile import EmcyCode, Profile
-from drivebench.errors import InvalidValue
+from drivebench.errors import DriveBenchError, InvalidValue
 from drivebench.protocol.emcy import EmcyEvent
 from drivebench.protocol.guarding import GuardStatus
+from drivebench.services import parameters
 from drivebench.services.sessions import Session, SessionNode
 
 HEARTBEAT_PRODUCER = 0x1017
@@ -206,3 +207,37 @@ async def start_guarding(session: Session, node_id: int, guard_time_ms: int, lif
         return GuardingPublic(guard_time_ms=0, life_time_factor=life_time_factor, lost=False, state=None,
                               requests=0, answers=0, toggle_errors=0, last_answer=None)
     return guarding_public(session.network.guarding.start(node_id, guard_time_ms, life_time_factor))
+
+
+# --- vendor diagnostic parameters (8400 motec bus status C00359 and telegram counters, MICROMASTER r2054 ...) -----
+class DiagnosticValue(BaseModel):
+    ref: str
+    name: str
+    group: str
+    display: str | None
+    unit: str | None
+    error: str | None
+
+
+def diagnostic_groups(node: SessionNode) -> list[str]:
+    """The profile's diagnostics groups, in the manual's order."""
+    if node.profile is None:
+        return []
+    return [g for g in node.profile.groups if "diagnos" in g.lower()]
+
+
+async def read_diagnostics(session: Session, node_id: int) -> list[DiagnosticValue]:
+    """Read every readable parameter of the node's diagnostics groups; one failing value does not stop the rest."""
+    node = session.node(node_id)
+    wanted = diagnostic_groups(node)
+    values: list[DiagnosticValue] = []
+    for group in wanted:
+        for item in parameters.readable_items(node, group):
+            try:
+                value = await parameters.read(session, node_id, item.ref)
+                values.append(DiagnosticValue(ref=item.ref, name=item.name, group=group, display=value.display,
+                                              unit=value.unit, error=None))
+            except DriveBenchError as exc:
+                values.append(DiagnosticValue(ref=item.ref, name=item.name, group=group, display=None,
+                                              unit=item.entry.unit, error=exc.detail))
+    return values

@@ -1,5 +1,5 @@
-"""The Remote tab in a real browser: create a share link, open it as the service engineer, watch an emergency
-appear live, and find every writing control absent and refused."""
+"""Diagnostics in a real browser: the Remote tab (share link, live emergency, refused writes) and the Node
+page's Diagnostics tab (heartbeat set-up written and verified, EMCY history, the device's diagnostic values)."""
 
 from __future__ import annotations
 
@@ -71,3 +71,29 @@ def test_share_link_view_is_live_and_read_only(lenze_server: tuple[str, Plant], 
     plant.nodes[5].clear_emcy()
     engineer.close()
     remote.close()
+
+
+def test_node_diagnostics_tab(lenze_server: tuple[str, Plant], page: Any) -> None:
+    base, plant = lenze_server
+    plant.nodes[5].raise_emcy(0x3100, register=0x05)
+    page.goto(f"{base}/sessions/line-2/nodes/5?tab=diagnostics")
+    page.wait_for_selector("#diag-heartbeat >> text=Producer time")
+    assert page.locator("#diag-heartbeat input[name=time_ms]").first.input_value() == "200"
+    page.wait_for_selector("#diag-emcy >> text=Supply voltage of standard device")
+
+    consumer = page.locator("#diag-heartbeat form").nth(1)
+    consumer.locator("input[name=producer_id]").fill("12")
+    consumer.locator("input[name=time_ms]").fill("500")
+    consumer.locator("button").click()
+    page.wait_for_selector("#diag-heartbeat >> text=written and read back")
+    assert plant.nodes[5].store.read(0x1016, 1) == ((12 << 16) | 500).to_bytes(4, "little")
+
+    consumer = page.locator("#diag-heartbeat form").nth(1)
+    consumer.locator("input[name=time_ms]").fill("100")  # shorter than node 12's 200 ms heartbeat
+    consumer.locator("button").click()
+    page.wait_for_selector("#diag-heartbeat .error >> text=must be longer than node 12's heartbeat")
+
+    page.wait_for_selector("#diag-vendor table.vendor tbody tr", timeout=15_000)
+    assert page.locator("#diag-vendor tbody tr").count() >= 3
+    screenshot(page, "node-diagnostics")
+    plant.nodes[5].clear_emcy()

@@ -1,0 +1,77 @@
+"""The Diagnostics tab of the Node screen: health, heartbeat and guarding set-up, EMCY history, vendor values."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Form, Request
+from fastapi.responses import HTMLResponse, Response
+
+from drivebench.errors import DriveBenchError
+from drivebench.services import diagnostics
+from drivebench.services.sessions import Session, SessionNode
+from drivebench.web.deps import NodeDep, SessionDep
+from drivebench.web.templating import templates
+
+router = APIRouter(include_in_schema=False)
+UI = "/ui/sessions/{session_id}/nodes/{node_id}/diagnostics"
+PAGE = "node/diagnostics_body.html"
+
+
+def _context(session: Session, node: SessionNode, **extra: Any) -> dict[str, Any]:
+    return {"session": session, "node": node, "base": f"/ui/sessions/{session.id}/nodes/{node.node_id}",
+            "health": diagnostics.node_health(session, node),
+            "history": diagnostics.emcy_history(session, node.node_id),
+            "groups": diagnostics.diagnostic_groups(node),
+            "guarding_supported": bool(node.profile and node.profile.features.node_guarding), **extra}
+
+
+async def _setup(session: Session, node: SessionNode) -> dict[str, Any]:
+    try:
+        return {"setup": await diagnostics.read_heartbeat_setup(session, node.node_id), "setup_error": None}
+    except DriveBenchError as exc:
+        return {"setup": None, "setup_error": exc}
+
+
+@router.get(UI, response_class=HTMLResponse)
+async def diagnostics_tab(request: Request, session: SessionDep, node: NodeDep) -> Response:
+    context = _context(session, node, **await _setup(session, node))
+    return templates.TemplateResponse(request, PAGE, context)
+
+
+@router.get(UI + "/health", response_class=HTMLResponse)
+async def health_block(request: Request, session: SessionDep, node: NodeDep) -> Response:
+    return templates.TemplateResponse(request, PAGE, _context(session, node), block_name="health")
+
+
+@router.get(UI + "/vendor", response_class=HTMLResponse)
+async def vendor_block(request: Request, session: SessionDep, node: NodeDep) -> Response:
+    values = await diagnostics.read_diagnostics(session, node.node_id)
+    return templates.TemplateResponse(request, PAGE, _context(session, node, values=values), block_name="vendor")
+
+
+@router.post(UI + "/producer", response_class=HTMLResponse)
+async def set_producer(request: Request, session: SessionDep, node: NodeDep,
+                       time_ms: Annotated[int, Form(ge=0, le=65535)]) -> Response:
+    setup = await diagnostics.write_heartbeat_producer(session, node.node_id, time_ms)
+    context = _context(session, node, setup=setup, setup_error=None,
+                       setup_ok=f"Heartbeat producer time {time_ms} ms written and read back.")
+    return templates.TemplateResponse(request, PAGE, context, block_name="heartbeat")
+
+
+@router.post(UI + "/consumers/{slot}", response_class=HTMLResponse)
+async def set_consumer(request: Request, session: SessionDep, node: NodeDep, slot: int,
+                       producer_id: Annotated[int, Form(ge=0, le=127)],
+                       time_ms: Annotated[int, Form(ge=0, le=65535)]) -> Response:
+    setup = await diagnostics.write_heartbeat_consumer(session, node.node_id, slot, producer_id, time_ms)
+    context = _context(session, node, setup=setup, setup_error=None,
+                       setup_ok=f"Consumer entry {slot}: node {producer_id}, {time_ms} ms written and read back.")
+    return templates.TemplateResponse(request, PAGE, context, block_name="heartbeat")
+
+
+@router.post(UI + "/guarding", response_class=HTMLResponse)
+async def set_guarding(request: Request, session: SessionDep, node: NodeDep,
+                       guard_time_ms: Annotated[int, Form(ge=0, le=65535)],
+                       life_time_factor: Annotated[int, Form(ge=0, le=255)]) -> Response:
+    await diagnostics.start_guarding(session, node.node_id, guard_time_ms, life_time_factor)
+    return templates.TemplateResponse(request, PAGE, _context(session, node), block_name="health")
