@@ -99,6 +99,11 @@ class Monitor(can.Listener):
     """key (COB-ID, EXTENDED flag for 29-bit) -> [frames, bits, monotonic time of the last frame]"""
     _last_error: float | None
     _samples: deque[_Sample]
+    _seq: int
+    _frames: int
+    _errors: int
+    _second: int
+    _second_bits: int
 
     def __init__(self, session: Session, *, trace_capacity: int = TRACE_CAPACITY,
                  history_s: int = HISTORY_S) -> None:
@@ -118,8 +123,9 @@ class Monitor(can.Listener):
         self._reset_locked(time.monotonic())
 
     # --- hot path (listener threads) ---------------------------------------------------------------------
-    def on_message_received(self, msg: can.Message) -> None:
-        now = time.monotonic()
+    def on_message_received(self, msg: can.Message, _clock: Any = time.monotonic,
+                            _bits: Any = message_bits) -> None:
+        now = _clock()
         if msg.is_error_frame:
             with self._lock:
                 self._errors += 1
@@ -129,7 +135,7 @@ class Monitor(can.Listener):
                     self._trace.append((self._seq, msg, None))
             return
         key = msg.arbitration_id | EXTENDED if msg.is_extended_id else msg.arbitration_id
-        bits = message_bits(msg)
+        bits = _bits(msg)
         second = int(now)
         with self._lock:
             entry = self._cobs.get(key)
@@ -143,9 +149,8 @@ class Monitor(can.Listener):
             self._second_bits += bits
             self._frames += 1
             if not self.paused:
-                self._seq += 1
-                context = self._tracker.observe(msg) if 0x580 < key < 0x680 else None
-                self._trace.append((self._seq, msg, context))
+                self._seq = seq = self._seq + 1
+                self._trace.append((seq, msg, self._tracker.observe(msg) if 0x580 < key < 0x680 else None))
 
     def on_error(self, exc: Exception) -> None:
         """The notifier reports reader errors here; the session's own error catcher handles them."""

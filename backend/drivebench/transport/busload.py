@@ -22,7 +22,7 @@ TRAILER_BITS = 1 + 2 + 7 + 3
 """CRC delimiter, ACK slot + delimiter, end of frame, intermission (not stuffed)."""
 
 CACHE_SIZE = 8192
-"""Distinct (id, flags, dlc, data) frames whose bit count is remembered (LRU)."""
+"""Distinct (id, flags, dlc) frame heads whose CRC and stuffing state is remembered (LRU)."""
 
 
 def crc15(bits: str) -> int:
@@ -80,15 +80,15 @@ def _crc15_table() -> list[int]:
     return table
 
 
-def _stuff_table() -> list[tuple[int, int, int]]:
-    """For (last bit, run length 0..4, byte): (stuff bits inserted, last bit after, run length after)."""
+def _stuff_table(width: int = 8) -> list[tuple[int, int, int]]:
+    """For (last bit, run length 0..4, ``width``-bit chunk): (stuff bits inserted, last bit after, run after)."""
     table = []
     for last in (0, 1):
         for run in range(5):
-            for byte in range(256):
+            for chunk in range(1 << width):
                 stuffed, bit_last, bit_run = 0, last, run
-                for shift in range(7, -1, -1):
-                    bit = (byte >> shift) & 1
+                for shift in range(width - 1, -1, -1):
+                    bit = (chunk >> shift) & 1
                     if bit == bit_last and bit_run:
                         bit_run += 1
                     else:
@@ -100,40 +100,35 @@ def _stuff_table() -> list[tuple[int, int, int]]:
     return table
 
 
+def _stepper(table: list[tuple[int, int, int]]) -> list[tuple[int, int]]:
+    """The stuff table with the state folded into the next index base: (stuff bits, (last * 5 + run) * 256)."""
+    return [(added, (last * 5 + run) << 8) for added, last, run in table]
+
+
 _CRC_TABLE = _crc15_table()
 _STUFF_TABLE = _stuff_table()
+_STUFF_STEP = _stepper(_STUFF_TABLE)
+_STUFF7_STEP = _stepper(_stuff_table(7))
 
 
-def _fast_bits(arbitration_id: int, is_extended: bool, is_remote: bool, dlc: int, data: bytes) -> int:
-    """Same result as the string reference (``stuffed_section`` + ``stuff_bit_count``), table-driven."""
-    rtr = 1 if is_remote else 0
+@lru_cache(maxsize=CACHE_SIZE)
+def _header_state(arbitration_id: int, is_extended: bool, is_remote: bool, dlc: int) -> tuple[int, int, int, int, int]:
+    """CRC register, stuff bits so far, last bit, run length and bit count after SOF .. DLC (same for every frame
+    of a COB-ID and length, so it is worked out bit by bit once)."""
+    rtr = "1" if is_remote else "0"
     if is_extended:
-        value = ((((arbitration_id >> 18) << 2 | 0b11) << 18 | (arbitration_id & 0x3FFFF)) << 3 | rtr << 2) << 4
-        length = 39
+        base, extension = arbitration_id >> 18, arbitration_id & 0x3FFFF
+        head = f"0{base:011b}11{extension:018b}{rtr}00{dlc & 0xF:04b}"
     else:
-        value = ((arbitration_id << 1 | rtr) << 2) << 4
-        length = 19
-    value |= dlc & 0xF
-    if not is_remote and data:
-        value = value << (8 * len(data)) | int.from_bytes(data, "big")
-        length += 8 * len(data)
-    # CRC-15 over SOF..data: the leading bits one by one, then whole bytes through the table.
+        head = f"0{arbitration_id:011b}{rtr}00{dlc & 0xF:04b}"
     crc = 0
-    lead = length % 8
-    for shift in range(length - 1, length - 1 - lead, -1):
-        feedback = ((value >> shift) & 1) ^ (crc >> 14)
+    stuffed, last, run = 0, 0, 0
+    for char in head:
+        bit = 1 if char == "1" else 0
+        feedback = bit ^ (crc >> 14)
         crc = (crc << 1) & 0x7FFF
         if feedback:
             crc ^= CRC15_POLY
-    for byte in (value & ((1 << (length - lead)) - 1)).to_bytes((length - lead) // 8, "big"):
-        crc = ((crc << 8) & 0x7FFF) ^ _CRC_TABLE[((crc >> 7) ^ byte) & 0xFF]
-    value = value << 15 | crc
-    length += 15
-    # Stuff bits over SOF..CRC, the same way.
-    stuffed, last, run = 0, 0, 0
-    lead = length % 8
-    for shift in range(length - 1, length - 1 - lead, -1):
-        bit = (value >> shift) & 1
         if bit == last and run:
             run += 1
         else:
@@ -141,10 +136,24 @@ def _fast_bits(arbitration_id: int, is_extended: bool, is_remote: bool, dlc: int
         if run == 5:
             stuffed += 1
             last, run = 1 - bit, 1
-    for byte in (value & ((1 << (length - lead)) - 1)).to_bytes((length - lead) // 8, "big"):
-        added, last, run = _STUFF_TABLE[(last * 5 + run) * 256 + byte]
+    return crc, stuffed, last, run, len(head)
+
+
+def _fast_bits(arbitration_id: int, is_extended: bool, is_remote: bool, dlc: int, data: bytes) -> int:
+    """Same result as the string reference (``stuffed_section`` + ``stuff_bit_count``): the header state is
+    cached per COB-ID and length, data bytes and the CRC go through byte tables (CRC and stuffing)."""
+    crc, stuffed, last, run, length = _header_state(arbitration_id, is_extended, is_remote, dlc)
+    crc_table, step = _CRC_TABLE, _STUFF_STEP
+    base = (last * 5 + run) << 8
+    for byte in data:
+        crc = ((crc << 8) & 0x7FFF) ^ crc_table[((crc >> 7) ^ byte) & 0xFF]
+        added, base = step[base + byte]
         stuffed += added
-    return length + stuffed + TRAILER_BITS
+    # The 15 CRC bits: the top 7 (the 7-bit table has 128 entries per state), then the low 8.
+    added, base = _STUFF7_STEP[(base >> 1) + (crc >> 8)]
+    stuffed += added
+    added, base = step[base + (crc & 0xFF)]
+    return length + 8 * len(data) + 15 + stuffed + added + TRAILER_BITS
 
 
 def reference_bits(arbitration_id: int, is_extended: bool, is_remote: bool, dlc: int, data: bytes) -> int:
@@ -153,7 +162,7 @@ def reference_bits(arbitration_id: int, is_extended: bool, is_remote: bool, dlc:
     return len(bits) + stuff_bit_count(bits) + TRAILER_BITS
 
 
-_bits_cached = lru_cache(maxsize=CACHE_SIZE)(_fast_bits)
+_bits_cached = _fast_bits
 
 
 def frame_bits(arbitration_id: int, data: bytes = b"", *, is_extended: bool = False, is_remote: bool = False,
@@ -198,4 +207,4 @@ def load_percent(bits: int, seconds: float, bitrate: int) -> float:
 
 
 def cache_info() -> str:
-    return str(_bits_cached.cache_info())
+    return str(_header_state.cache_info())
