@@ -13,9 +13,11 @@ from typing import Literal
 from pydantic import BaseModel, Field
 
 from drivebench.device.catalog import Catalog
+from drivebench.device.eds_export import export_eds
 from drivebench.device.profile import Entry, ObjectEntry
 from drivebench.errors import InvalidValue, NotFound, ProtocolError, SdoAbortError
 from drivebench.protocol.datatypes import DataType, decode
+from drivebench.services import pdo_notes
 from drivebench.services.sessions import Session
 
 Direction = Literal["rpdo", "tpdo"]
@@ -49,6 +51,10 @@ class PdoConfig(BaseModel):
     entries: list[MappedObject]
     length_bytes: int
     max_entries: int
+    fixed_mapping: bool = False
+    transmission_note: str | None = None
+    """Where the manual says the type is not permitted (or special) for this device."""
+    notes: list[str] = Field(default_factory=list)
 
 
 class PdoWrite(BaseModel):
@@ -115,13 +121,18 @@ def mappable_objects(session: Session, node_id: int, direction: Direction) -> li
     """What the profile allows in a PDO of this direction (RPDO: writable objects, TPDO: readable ones)."""
     catalog = _catalog(session, node_id)
     found: list[MappedObject] = []
-    for obj in catalog.profile.objects:
-        if not obj.pdo_mappable or obj.data_type.size is None:
+    seen: set[tuple[int, int]] = set()
+    for item in catalog.items:  # CANopen objects and vendor codes (Lenze AIF words C1822/1 = 0x58E1.1 ...)
+        entry = item.entry
+        if not entry.pdo_mappable or entry.data_type.size is None or (item.index, item.subindex) in seen:
             continue
-        if direction == "rpdo" and not obj.access.writable:
+        if item.parameter_set != 1 or (direction == "rpdo" and not entry.access.writable):
             continue
-        found.append(_mapped(catalog, obj.index, obj.subindex, obj.data_type.size * 8))
-    return found
+        if catalog.by_address(item.index, item.subindex) is not item:
+            continue  # an object listed twice (code and index): name it once, as the catalog does
+        seen.add((item.index, item.subindex))
+        found.append(_mapped(catalog, item.index, item.subindex, entry.data_type.size * 8))
+    return sorted(found, key=lambda m: (m.index, m.subindex))
 
 
 def _mapped(catalog: Catalog, index: int, sub: int, bits: int) -> MappedObject:
@@ -162,7 +173,12 @@ async def read_pdo(session: Session, node_id: int, direction: Direction, number:
         entries.append(_mapped(catalog, value >> 16, (value >> 8) & 0xFF, value & 0xFF))
     max_entries = max((o.subindex for o in catalog.profile.objects if o.index == mapping), default=0)
     trans = 255 if trans_type is None else trans_type
-    return PdoConfig(direction=direction, number=number, cob_id=cob & 0x7FF, valid=not cob & COB_INVALID,
+    entry_one = _entry(catalog, mapping, 1)
+    profile = catalog.profile
+    return PdoConfig(fixed_mapping=entry_one is None or not entry_one.access.writable,
+                     transmission_note=pdo_notes.transmission_note(profile, direction, trans),
+                     notes=pdo_notes.pdo_notes(profile, direction, number),
+                     direction=direction, number=number, cob_id=cob & 0x7FF, valid=not cob & COB_INVALID,
                      rtr_allowed=not cob & COB_NO_RTR, transmission_type=trans,
                      transmission_text=transmission_text(trans, direction),
                      inhibit_time_ms=inhibit / 10 if inhibit is not None else None, event_timer_ms=event,
@@ -182,6 +198,10 @@ def check_mapping(session: Session, node_id: int, direction: Direction, number: 
     allowed = {(o.index, o.subindex): o for o in mappable_objects(session, node_id, direction)}
     mapping_index = MAP_BASE[direction] + number - 1
     max_entries = max((o.subindex for o in catalog.profile.objects if o.index == mapping_index), default=0)
+    entry_one = _entry(catalog, mapping_index, 1)
+    if entry_one is None or not entry_one.access.writable:
+        raise InvalidValue(f"The mapping of {direction.upper()}{number} is fixed on this device "
+                           f"(0x{mapping_index:04X} is read-only in its profile).")
     if len(write.entries) > max_entries:
         raise InvalidValue(f"{direction.upper()}{number} takes at most {max_entries} mapping entries; "
                            f"{len(write.entries)} were given.")
@@ -197,6 +217,9 @@ def check_mapping(session: Session, node_id: int, direction: Direction, number: 
     bits = sum(m.bits for m in chosen)
     if bits > MAX_PDO_BITS:
         raise InvalidValue(f"The mapping needs {bits // 8} bytes; a PDO carries at most 8.")
+    rule = pdo_notes.mapping_rule_violation(catalog.profile, direction, number, write.entries)
+    if rule:
+        raise InvalidValue(rule)
     if write.transmission_type is not None:
         entry = _entry(catalog, COMM_BASE[direction] + number - 1, 2)
         if entry is not None and entry.selection and write.transmission_type not in entry.selection:
@@ -274,3 +297,19 @@ async def _failed(session: Session, node_id: int, direction: Direction, number: 
         state = "the PDO is left disabled (COB-ID invalid), never half-mapped and enabled"
     return ApplyReport(ok=False, enabled=bool(pdo and pdo.valid), steps=steps, pdo=pdo,
                        message=f"{direction.upper()}{number}: step '{failed.step}' failed ({reason}); {state}.")
+
+
+async def export_dcf(session: Session, node_id: int) -> str:
+    """A DCF of the node whose PDO communication and mapping objects hold the values read from the device."""
+    catalog = _catalog(session, node_id)
+    values: dict[tuple[int, int], int] = {}
+    for obj in catalog.profile.objects:
+        if 0x1400 <= obj.index <= 0x1BFF and obj.access.readable and obj.data_type.size:
+            try:
+                raw = await session.client(node_id).aupload(obj.index, obj.subindex)
+            except SdoAbortError:
+                continue  # e.g. a reserved sub-index the device lists but refuses
+            value = decode(obj.data_type, raw.ljust(obj.data_type.size, b"\0")[:obj.data_type.size])
+            if isinstance(value, int):
+                values[(obj.index, obj.subindex)] = value
+    return export_eds(catalog.profile, node_id=node_id, values=values, dcf=True)
