@@ -20,10 +20,11 @@ from drivebench.services.sessions import SessionManager
 from drivebench.services.sharing import ShareLinks
 from drivebench.simulator.plant import Plant, PlantFile
 from drivebench.web import problems
-from drivebench.web.api import diagnostics, health, parameters, profiles, sessions, tools
+from drivebench.web.api import diagnostics, health, parameters, pdo, profiles, sessions, tools
 from drivebench.web.api import monitor as monitor_api
 from drivebench.web.pages import monitor as monitor_page
 from drivebench.web.pages import node as node_page
+from drivebench.web.pages import node_diagnostics
 from drivebench.web.pages import plant as plant_page
 from drivebench.web.pages import profiles as profiles_page
 from drivebench.web.pages import remote as remote_page
@@ -38,11 +39,10 @@ from drivebench.web.ws import remote as remote_ws
 log = logging.getLogger(__name__)
 
 # One line per router: screens grow without touching anything else here.
-API_ROUTERS = [monitor_api.router,
-               health.router, sessions.router, profiles.router, diagnostics.router, parameters.router,
-               tools.router, tools.planned_router]
-PAGE_ROUTERS = [monitor_page.router, plant_page.router, node_page.router, profiles_page.router, remote_page.router,
-                tools_page.router]
+API_ROUTERS = [monitor_api.router, health.router, sessions.router, profiles.router, diagnostics.router, tools.router,
+               tools.planned_router, parameters.router, pdo.router]
+PAGE_ROUTERS = [node_diagnostics.router, monitor_page.router, plant_page.router, node_page.router,
+                profiles_page.router, remote_page.router, tools_page.router]
 WS_ROUTERS = [monitor_ws.router, nodes_ws.router, jobs_ws.router, remote_ws.router]
 
 
