@@ -232,3 +232,17 @@ def test_ui_save_then_load(api: TestClient) -> None:
                                                                                                 "lenze")
     loaded = api.post(f"/ui/tools/planner/load/{network_id}")
     assert 'value="Hall"' in loaded.text and f"saved as #{network_id}" in loaded.text
+
+
+def test_ui_compare_shows_each_node(plant_api: TestClient) -> None:
+    form = {"plan_name": "Line 1", "row": ["0", "1"], "device_0": "lenze-8400-motec", "node_id_0": "5",
+            "baud_kbit_0": "500", "device_1": "lenze-emf2178ib", "node_id_1": "8", "baud_kbit_1": "500",
+            "session_id": session_id(plant_api)}
+    page = plant_api.post("/ui/tools/planner/compare", data=form)
+    assert page.status_code == 200
+    assert 'class="cmp-ok" data-node="5"' in page.text
+    assert 'class="cmp-missing" data-node="8"' in page.text
+    assert 'class="cmp-extra" data-node="12"' in page.text
+    refused = plant_api.post("/ui/tools/planner/compare", data={**form, "session_id": "nope"},
+                             headers={"HX-Request": "true"})
+    assert refused.status_code == 404 and 'class="error"' in refused.text
