@@ -25,10 +25,10 @@ _GENERIC_RE = re.compile(r"^(?P<interface>[a-z_][a-z0-9_]*):(?P<channel>[^@]*)(?
 
 # What to check when an adapter cannot be opened, per interface (the rest get the generic hint).
 _HINTS = {
-    "socketcan": "Is the interface up? `ip link set {channel} up type can bitrate {bitrate}` (needs SocketCAN in "
+    "socketcan": "Is the interface up? Run 'ip link set {channel} up type can bitrate {bitrate}' (needs SocketCAN in "
                  "the kernel and root).",
     "socketcand": "Is a socketcand gateway listening at {host}:{port}, and does it serve channel '{channel}'? "
-                  "For a local test bus start `drivebench hub --port {port}`.",
+                  "For a local test bus start 'drivebench hub --port {port}'.",
     "pcan": "Is the PEAK driver installed and the adapter plugged in? Channel names look like PCAN_USBBUS1.",
     "kvaser": "Is Kvaser CANlib installed and the adapter plugged in? Channels are numbers (0, 1 ...).",
     "ixxat": "Is the IXXAT VCI driver installed and the adapter plugged in?",
