@@ -87,8 +87,11 @@ class SimulatedNode:
         self.powered = False
         self.sdo_servers: dict[int, SdoServer] = {}
         self.pdo = PdoEngine(self)
+        # One request queue and worker per SDO channel: a device serves SDO1 and SDO2 independently (two masters).
         self._requests: queue.Queue[tuple[int, bytes] | None] = queue.Queue()
+        self._requests2: queue.Queue[tuple[int, bytes] | None] = queue.Queue()
         self._worker: threading.Thread | None = None
+        self._worker2: threading.Thread | None = None
         self._next_heartbeat = 0.0
         self.emcy_active: list[tuple[int, int, bytes]] = []
         self._guard_toggle = 0
@@ -99,17 +102,23 @@ class SimulatedNode:
     def power_on(self) -> None:
         self.powered = True
         if self._worker is None:
-            self._worker = threading.Thread(target=self._work, name=f"sim-node-{self.node_id}", daemon=True)
+            self._worker = threading.Thread(target=self._work, args=(self._requests,),
+                                            name=f"sim-node-{self.node_id}", daemon=True)
             self._worker.start()
+            self._worker2 = threading.Thread(target=self._work, args=(self._requests2,),
+                                             name=f"sim-node-{self.node_id}-sdo2", daemon=True)
+            self._worker2.start()
         self._boot()
 
     def power_off(self) -> None:
         self.powered = False
         self.pdo.stop()
         self._requests.put(None)
-        if self._worker is not None:
-            self._worker.join(timeout=2)
-            self._worker = None
+        self._requests2.put(None)
+        for worker in (self._worker, self._worker2):
+            if worker is not None:
+                worker.join(timeout=2)
+        self._worker = self._worker2 = None
 
     def _boot(self) -> None:
         self.state = NmtState.BOOTUP
@@ -132,7 +141,7 @@ class SimulatedNode:
             self._on_nmt(data)
         elif cob_id in self.sdo_servers:
             if self.state is not NmtState.STOPPED:
-                self._requests.put((cob_id, data))
+                (self._requests if cob_id == 0x600 + self.node_id else self._requests2).put((cob_id, data))
         elif cob_id == 0x080 and self.state is NmtState.OPERATIONAL:
             self.pdo.on_sync()
         elif self.state is NmtState.OPERATIONAL:
@@ -180,9 +189,9 @@ class SimulatedNode:
             return None
         return rx & 0x7FF, tx & 0x7FF
 
-    def _work(self) -> None:
+    def _work(self, requests: queue.Queue[tuple[int, bytes] | None]) -> None:
         while True:
-            item = self._requests.get()
+            item = requests.get()
             if item is None:
                 return
             cob_id, data = item
