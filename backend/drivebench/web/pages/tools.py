@@ -219,6 +219,13 @@ async def planner_form(request: Request, state: StateDep) -> Response:
     return await _render_plan(request, plan, state, plan_id=_plan_id(form))
 
 
+@router.post("/ui/tools/planner/check", response_class=HTMLResponse)
+async def planner_check(request: Request, state: StateDep) -> Response:
+    """Findings and COB-IDs of the plan in the form (only that block: the rows stay as the user is typing them)."""
+    form, plan = await _form_plan(request)
+    return _render(request, _plan_context(plan, state, plan_id=_plan_id(form)), "plan_results")
+
+
 @router.post("/ui/tools/planner/export")
 async def planner_export(request: Request) -> Response:
     plan = _plan_from_form(await request.form())
