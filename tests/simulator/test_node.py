@@ -157,6 +157,24 @@ def test_block_download_of_a_long_domain(master: canopen.Network, plant: Plant) 
         assert stream.read() == payload
 
 
+@pytest.mark.parametrize("size", [0, 1, 7, 8, 889, 890])  # 889 = one full sub-block of 127 segments
+def test_block_download_sizes_at_the_edges(size: int, master: canopen.Network, plant: Plant) -> None:
+    node = remote(master, TEST_NODE)
+    payload = bytes((i * 7 + size) % 256 for i in range(size))
+    with node.sdo.open(0x2000, 0, "wb", size=size, block_transfer=True) as stream:
+        stream.write(payload)
+    assert plant.nodes[TEST_NODE].store.get(0x2000, 0) == payload
+    assert node.sdo.upload(0x2000, 0) == payload
+
+
+def test_a_vanished_client_does_not_block_the_channel(master: canopen.Network, recorder: Recorder) -> None:
+    """A block download left in its sub-block phase (every frame would be a segment) times out after 1 s."""
+    master.send_message(0x600 + TEST_NODE, bytes.fromhex("C6 00 20 00 64 00 00 00"))  # then silence
+    wait_for(lambda: recorder.of(0x580 + TEST_NODE))
+    time.sleep(1.2)
+    assert remote(master, TEST_NODE).sdo.upload(0x1018, 1) == (0x3B).to_bytes(4, "little")
+
+
 def test_block_upload_of_the_8400_firmware_version(master: canopen.Network) -> None:
     """C00099 (0x5F9C), 11 characters: the manual's segmented example, here by block transfer."""
     with remote(master, LENZE_8400).sdo.open(0x5F9C, 0, "rb", block_transfer=True) as stream:
@@ -299,6 +317,17 @@ def test_emcy_raise_and_clear(master: canopen.Network, plant: Plant, recorder: R
     drive.clear_emcy()
     wait_for(lambda: recorder.of(0x85)[-1:] == [bytes(8)])
     assert node.sdo.upload(0x1001, 0) == b"\x00"
+
+
+def test_writing_0_to_0x1003_deletes_the_error_history(master: canopen.Network, plant: Plant) -> None:
+    drive, node = plant.nodes[LENZE_8400], remote(master, LENZE_8400)
+    drive.raise_emcy(0x2310, 0x03)
+    drive.raise_emcy(0x4210, 0x09)
+    assert abort_code(lambda: node.sdo.download(0x1003, 0, b"\x05")) == 0x06090030
+    assert node.sdo.upload(0x1003, 0) == b"\x02", "a refused write changes nothing"
+    node.sdo.download(0x1003, 0, b"\x00")
+    assert node.sdo.upload(0x1003, 0) == b"\x00"
+    assert node.sdo.upload(0x1003, 1) == bytes(4)
 
 
 def test_emcy_uses_the_cob_id_of_0x1014(master: canopen.Network, plant: Plant, recorder: Recorder) -> None:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import binascii
 import struct
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Protocol
@@ -106,13 +107,13 @@ class SdoServer:
     Device options: ``segmented`` and ``block`` say which transfers the device supports (MICROMASTER:
     neither); ``expedited_size_indicated`` makes expedited upload responses carry the size
     (``0x43``/``0x47``/``0x4B``/``0x4F``) rather than four bytes without size (``0x42``); ``block_size`` is
-    the sub-block size the server asks for in block downloads.
+    the sub-block size the server asks for in block downloads; a transfer idle for ``timeout_s`` is dropped.
     """
 
     def __init__(self, node_id: int, send: Callable[[int, bytes], None], objects: ObjectAccess, *,
                  rx_cob: int | None = None, tx_cob: int | None = None, segmented: bool = True,
                  block: bool = True, expedited_size_indicated: bool = True,
-                 block_size: int = MAX_BLOCK_SIZE) -> None:
+                 block_size: int = MAX_BLOCK_SIZE, timeout_s: float = 1.0) -> None:
         if not 1 <= block_size <= MAX_BLOCK_SIZE:
             raise ValueError(f"block_size must be 1..{MAX_BLOCK_SIZE}, not {block_size}")
         self.node_id = node_id
@@ -124,7 +125,9 @@ class SdoServer:
         self.block_size = block_size
         self._send = send
         self._objects = objects
+        self.timeout_s = timeout_s
         self._transfer: _Transfer | None = None
+        self._last_request = 0.0
         self._handlers: dict[int, Callable[[bytes], None]] = {
             0: self._download_segment,
             1: self._initiate_download,
@@ -147,6 +150,11 @@ class SdoServer:
         """Handle one frame received on ``rx_cob``."""
         if len(data) != 8:
             return  # CiA 301: SDO frames have 8 data bytes; others are not SDO requests.
+        now = time.monotonic()
+        if self._transfer is not None and now - self._last_request > self.timeout_s:
+            # SDO server timeout: a client that vanished mid-transfer (no abort sent) must not block the channel.
+            self.reset()
+        self._last_request = now
         transfer = self._transfer
         sub_block = transfer if isinstance(transfer, _BlockDownload) and not transfer.complete else None
         # In a block download sub-block every frame is a segment (0x85: last segment, seqno 5); 0x80 aborts.
@@ -306,7 +314,8 @@ class SdoServer:
         command, index, subindex = _INDEXED.unpack_from(request)
         size = _SIZE.unpack_from(request, 4)[0] if command & 0x02 else None
         use_crc = bool(command & 0x04)
-        self._transfer = _BlockDownload(index, subindex, size, use_crc, self.block_size)
+        # A zero-size download has no sub-block: the next frame is already the end request (CiA 301 allows it).
+        self._transfer = _BlockDownload(index, subindex, size, use_crc, self.block_size, complete=size == 0)
         # scs 5, sc = 1 (server checks a CRC), ss = 0; byte 4 = blksize
         self._reply(_INDEXED.pack(0xA4, index, subindex) + bytes([self.block_size, 0, 0, 0]))
 

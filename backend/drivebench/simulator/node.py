@@ -210,6 +210,8 @@ class SimulatedNode:
         if (index, sub) == (0x1017, 0):
             period = self.heartbeat_period_s()
             self._next_heartbeat = time.monotonic() + period if period else 0.0
+        elif (index, sub) == (0x1003, 0):
+            self._clear_error_history(raw)
         elif index in (0x1010, 0x1011) and sub:
             self._store_or_restore(index, sub, raw)
         elif index == 0x1201:
@@ -292,6 +294,15 @@ class SimulatedNode:
         cob = self.emcy_cob_id()
         if cob is not None and self.state is not NmtState.STOPPED:
             self.send(cob, bytes(8))
+
+    def _clear_error_history(self, raw: RawValue) -> None:
+        """CiA 301: writing 0 to 0x1003 sub 0 deletes the error history; any other value is refused."""
+        entries = [sub for sub in range(1, 255) if self.store.has(0x1003, sub)]
+        if raw != 0:
+            self.store.set(0x1003, 0, sum(1 for sub in entries if self.store.get(0x1003, sub)), notify=False)
+            raise Abort(0x06090030)
+        for sub in entries:
+            self.store.set(0x1003, sub, 0, notify=False)
 
     def _push_error_history(self, code: int, vendor: bytes) -> None:
         if not self.store.has(0x1003, 0):
