@@ -14,7 +14,7 @@ from pydantic import BaseModel, Field
 
 from drivebench.device.catalog import Catalog
 from drivebench.device.eds_export import export_eds
-from drivebench.device.profile import Entry, ObjectEntry
+from drivebench.device.profile import Access, Entry, ObjectEntry
 from drivebench.errors import InvalidValue, NotFound, ProtocolError, SdoAbortError
 from drivebench.protocol.datatypes import DataType, decode
 from drivebench.services import pdo_notes
@@ -127,6 +127,10 @@ def mappable_objects(session: Session, node_id: int, direction: Direction) -> li
         if not entry.pdo_mappable or entry.data_type.size is None or (item.index, item.subindex) in seen:
             continue
         if item.parameter_set != 1 or (direction == "rpdo" and not entry.access.writable):
+            continue
+        # CiA 306: rww objects are process inputs (RPDO only), rwr process outputs (TPDO only)
+        if (direction == "tpdo" and entry.access in (Access.RWW, Access.WO)) or (
+                direction == "rpdo" and entry.access is Access.RWR):
             continue
         if catalog.by_address(item.index, item.subindex) is not item:
             continue  # an object listed twice (code and index): name it once, as the catalog does

@@ -25,6 +25,7 @@ from drivebench.web.api import monitor as monitor_api
 from drivebench.web.pages import monitor as monitor_page
 from drivebench.web.pages import node as node_page
 from drivebench.web.pages import node_diagnostics
+from drivebench.web.pages import node_pdo as node_pdo_page
 from drivebench.web.pages import plant as plant_page
 from drivebench.web.pages import profiles as profiles_page
 from drivebench.web.pages import remote as remote_page
@@ -34,6 +35,7 @@ from drivebench.web.viewer import ViewerScope
 from drivebench.web.ws import jobs as jobs_ws
 from drivebench.web.ws import monitor as monitor_ws
 from drivebench.web.ws import nodes as nodes_ws
+from drivebench.web.ws import process_data as process_data_ws
 from drivebench.web.ws import remote as remote_ws
 
 log = logging.getLogger(__name__)
@@ -41,9 +43,9 @@ log = logging.getLogger(__name__)
 # One line per router: screens grow without touching anything else here.
 API_ROUTERS = [monitor_api.router, health.router, sessions.router, profiles.router, diagnostics.router, tools.router,
                tools.planned_router, parameters.router, pdo.router]
-PAGE_ROUTERS = [node_diagnostics.router, monitor_page.router, plant_page.router, node_page.router,
-                profiles_page.router, remote_page.router, tools_page.router]
-WS_ROUTERS = [monitor_ws.router, nodes_ws.router, jobs_ws.router, remote_ws.router]
+PAGE_ROUTERS = [node_diagnostics.router, node_pdo_page.router, monitor_page.router, plant_page.router,
+                node_page.router, profiles_page.router, remote_page.router, tools_page.router]
+WS_ROUTERS = [monitor_ws.router, nodes_ws.router, jobs_ws.router, remote_ws.router, process_data_ws.router]
 
 
 async def start_plant(state: AppState, plant_path: Path, *, bus: str | None = None,

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from fastapi import APIRouter
-from fastapi.responses import JSONResponse
+from fastapi.responses import JSONResponse, PlainTextResponse
 
 from drivebench.services import pdo
 from drivebench.services.pdo import ApplyReport, Direction, MappedObject, PdoConfig, PdoWrite
@@ -16,6 +16,15 @@ router = APIRouter(prefix="/api/sessions/{session_id}/nodes/{node_id}/pdos", tag
 async def list_pdos(session: SessionDep, node: NodeDep) -> list[PdoConfig]:
     """Every RPDO and TPDO as the device holds it, mapping entries named from the profile."""
     return await pdo.read_pdos(session, node.node_id)
+
+
+@router.get("/dcf", response_class=PlainTextResponse)
+async def dcf(session: SessionDep, node: NodeDep) -> PlainTextResponse:
+    """The node as a DCF (CiA 306) whose PDO communication and mapping objects hold the device's values."""
+    text = await pdo.export_dcf(session, node.node_id)
+    profile_id = node.profile.id if node.profile else "node"
+    return PlainTextResponse(text, headers={
+        "Content-Disposition": f'attachment; filename="{profile_id}-node{node.node_id}.dcf"'})
 
 
 @router.get("/mappable/{direction}", response_model=list[MappedObject])

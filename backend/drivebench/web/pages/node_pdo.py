@@ -1,0 +1,135 @@
+"""The Node page's PDO tab: every RPDO/TPDO as the device holds it, the mapping editor, apply with its step
+report, RPDO sending and the SYNC producer. Blocks of ``node/pdo.html``; live values come over
+``/ws/sessions/{session}/nodes/{node}/process-data``.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Form, Request
+from fastapi.responses import HTMLResponse, Response
+from pydantic import BaseModel
+
+from drivebench.errors import InvalidValue
+from drivebench.protocol.nmt import NmtCommand
+from drivebench.services import pdo, pdo_notes
+from drivebench.services import process_data as live
+from drivebench.services.pdo import ApplyReport, Direction, PdoConfig, PdoWrite
+from drivebench.services.sessions import Session, SessionNode
+from drivebench.services.views import node_public
+from drivebench.web.deps import NodeDep, SessionDep
+from drivebench.web.templating import templates
+
+router = APIRouter(include_in_schema=False)
+UI = "/ui/sessions/{session_id}/nodes/{node_id}/pdo"
+
+
+def _model_json(items: Sequence[BaseModel]) -> str:
+    return json.dumps([item.model_dump(mode="json") for item in items])
+
+
+templates.env.filters["model_json"] = _model_json
+
+
+def _context(session: Session, node: SessionNode, **extra: Any) -> dict[str, Any]:
+    base = f"/ui/sessions/{session.id}/nodes/{node.node_id}"
+    return {"session": session, "node": node, "base": base, "public": node_public(session, node),
+            "api": f"/api/sessions/{session.id}/nodes/{node.node_id}/pdos",
+            "sync_period_ms": live.service(session).sync_period_ms, **extra}
+
+
+def _card_context(session: Session, node: SessionNode, config: PdoConfig) -> dict[str, Any]:
+    return {"pdo": config, "mappable": pdo.mappable_objects(session, node.node_id, config.direction)}
+
+
+def _parse_entries(text: str) -> list[tuple[int, int]]:
+    entries = []
+    for part in filter(None, (p.strip() for p in text.split(","))):
+        try:
+            index, sub = part.split(".")
+            entries.append((int(index, 16), int(sub)))
+        except ValueError as exc:
+            raise InvalidValue(f"'{part}' is not a mapping entry (expected index.sub like 0x6040.0)") from exc
+    return entries
+
+
+@router.get(UI, response_class=HTMLResponse)
+async def pdo_list(request: Request, session: SessionDep, node: NodeDep) -> Response:
+    configs = await live.service(session).load(node.node_id)
+    profile = node.profile
+    cards = [_card_context(session, node, c) for c in configs]
+    context = _context(session, node, cards=cards,
+                       device_notes=pdo_notes.device_notes(profile) if profile else [])
+    return templates.TemplateResponse(request, "node/pdo.html", context, block_name="pdo_list")
+
+
+@router.post(UI + "/{direction}/{number}/apply", response_class=HTMLResponse)
+async def apply(request: Request, session: SessionDep, node: NodeDep, direction: Direction, number: int,
+                entries: Annotated[str, Form()] = "", cob_id: Annotated[str, Form()] = "",
+                valid: Annotated[str, Form()] = "", transmission_type: Annotated[str, Form()] = "",
+                inhibit_time_ms: Annotated[str, Form()] = "", event_timer_ms: Annotated[str, Form()] = "") -> Response:
+    try:
+        write = PdoWrite(entries=_parse_entries(entries), valid=bool(valid),
+                         cob_id=int(cob_id, 16) if cob_id.strip() else None,
+                         transmission_type=int(transmission_type) if transmission_type.strip() else None,
+                         inhibit_time_ms=float(inhibit_time_ms) if inhibit_time_ms.strip() else None,
+                         event_timer_ms=int(event_timer_ms) if event_timer_ms.strip() else None)
+    except ValueError as exc:
+        raise InvalidValue(f"{direction.upper()}{number}: {exc}") from exc
+    report: ApplyReport = await pdo.apply_pdo(session, node.node_id, direction, number, write)
+    await live.service(session).load(node.node_id)
+    config = report.pdo or await pdo.read_pdo(session, node.node_id, direction, number)
+    context = _context(session, node, report=report, **_card_context(session, node, config))
+    response = templates.TemplateResponse(request, "node/_pdo_card.html", context,
+                                          status_code=200 if report.ok else 502)
+    response.headers["X-PDO-Report"] = "ok" if report.ok else "failed"  # pdo.js swaps a failed report in too
+    return response
+
+
+@router.post(UI + "/rpdo/{number}/send", response_class=HTMLResponse)
+async def send(request: Request, session: SessionDep, node: NodeDep, number: int) -> Response:
+    form = await request.form()
+    values = {key[2:]: str(value) for key, value in form.items() if key.startswith("v:")}
+    mode, owner = str(form.get("mode", "once")), str(form.get("client_id", ""))
+    service = live.service(session)
+    if mode == "cyclic":
+        period_ms = int(str(form.get("period_ms") or "100"))
+        data = await service.start_cyclic(owner, node.node_id, number, values, period_ms)
+        message = f"sending every {period_ms} ms"
+    else:
+        data = await service.send_rpdo(node.node_id, number, values)
+        message = "sent once"
+    context = _context(session, node, sent=f"{message}: {data.hex(' ').upper() or '(no data)'}", number=number,
+                       cyclic=mode == "cyclic")
+    return templates.TemplateResponse(request, "node/_pdo_card.html", context, block_name="send_result")
+
+
+@router.post(UI + "/rpdo/{number}/stop", response_class=HTMLResponse)
+async def stop(request: Request, session: SessionDep, node: NodeDep, number: int,
+               client_id: Annotated[str, Form()] = "") -> Response:
+    service = live.service(session)
+    layout = service.layout(node.node_id, "rpdo", number)
+    stopped = service.stop_cyclic(client_id, layout.config.cob_id)
+    context = _context(session, node, sent="cyclic sending stopped" if stopped else "was not sending", number=number,
+                       cyclic=False)
+    return templates.TemplateResponse(request, "node/_pdo_card.html", context, block_name="send_result")
+
+
+@router.post(UI + "/sync", response_class=HTMLResponse)
+async def sync(request: Request, session: SessionDep, node: NodeDep, period_ms: Annotated[int, Form()] = 100,
+               on: Annotated[str, Form()] = "") -> Response:
+    service = live.service(session)
+    if on:
+        service.start_sync(period_ms)
+    else:
+        service.stop_sync()
+    return templates.TemplateResponse(request, "node/pdo.html", _context(session, node), block_name="sync_form")
+
+
+@router.post(UI + "/start-node", response_class=HTMLResponse)
+async def start_node(request: Request, session: SessionDep, node: NodeDep) -> Response:
+    await session.nmt(NmtCommand.START, node.node_id)
+    return HTMLResponse(f'<span class="pdo-sent">NMT start sent to node {node.node_id}</span>')

@@ -1,0 +1,179 @@
+// PDO tab: the mapping editor (picker, reorder, live byte layout, limits) and the live process data socket.
+(() => {
+  if (window.drivebenchPdo) { window.drivebenchPdo(); return; }
+  const MAX_BITS = 64;
+  const COLORS = 8;
+
+  function layout(el, entries) {
+    el.innerHTML = "";
+    let offset = 0;
+    entries.forEach((e, i) => {
+      const bytes = Math.max(1, Math.round(e.bits / 8));
+      const cell = document.createElement("span");
+      cell.className = `byte-cell c${i % COLORS}` + (offset + e.bits > MAX_BITS ? " over" : "");
+      cell.style.flexGrow = bytes;
+      cell.title = `${e.ref} ${e.name}: byte ${offset / 8}${bytes > 1 ? "…" + (offset / 8 + bytes - 1) : ""}, ${e.bits} bits`;
+      cell.textContent = `${e.ref}`;
+      el.appendChild(cell);
+      offset += e.bits;
+    });
+    for (let b = Math.ceil(offset / 8); b < 8; b++) {
+      const free = document.createElement("span");
+      free.className = "byte-cell free";
+      free.textContent = `${b}`;
+      free.title = `byte ${b}: free`;
+      el.appendChild(free);
+    }
+  }
+
+  function initCard(card) {
+    if (card.dataset.ready) return;
+    card.dataset.ready = "1";
+    const applied = JSON.parse(card.dataset.entries || "[]");
+    const current = card.querySelector('.byte-layout[data-layout="current"]');
+    if (current) layout(current, applied);
+    const form = card.querySelector(".pdo-apply");
+    if (!form) return;
+    const mappable = JSON.parse(card.dataset.mappable || "[]");
+    const maxEntries = Number(card.dataset.maxEntries);
+    let entries = applied.map((e) => ({ ...e }));
+    const list = form.querySelector(".pdo-entries");
+    const picker = form.querySelector(".pdo-picker");
+    const search = form.querySelector(".pdo-search");
+    const total = form.querySelector(".pdo-total");
+    const limit = form.querySelector(".pdo-limit");
+    const field = form.querySelector(".pdo-entries-field");
+    const submit = form.querySelector("button[type=submit]");
+    const bits = () => entries.reduce((sum, e) => sum + e.bits, 0);
+
+    function render() {
+      list.innerHTML = "";
+      entries.forEach((e, i) => {
+        const li = document.createElement("li");
+        li.innerHTML = `<span class="name"></span> <span class="mono muted"></span> <span class="muted">${e.bits} bit</span>
+          <span class="entry-buttons"><button type="button" class="icon" data-act="up" title="Move up" ${i === 0 ? "disabled" : ""}>↑</button><button type="button" class="icon" data-act="down" title="Move down" ${i === entries.length - 1 ? "disabled" : ""}>↓</button><button type="button" class="icon" data-act="remove" title="Remove">✕</button></span>`;
+        li.querySelector(".name").textContent = e.name;
+        li.querySelector(".mono").textContent = e.ref;
+        li.querySelectorAll("button").forEach((b) => b.addEventListener("click", () => {
+          if (b.dataset.act === "remove") entries.splice(i, 1);
+          else {
+            const j = b.dataset.act === "up" ? i - 1 : i + 1;
+            [entries[i], entries[j]] = [entries[j], entries[i]];
+          }
+          render();
+        }));
+        list.appendChild(li);
+      });
+      if (!entries.length) list.innerHTML = '<li class="empty">No entries: the PDO carries nothing.</li>';
+      const used = bits();
+      total.textContent = `${used / 8} / 8 bytes · ${entries.length} / ${maxEntries} entries`;
+      total.classList.toggle("over", used > MAX_BITS || entries.length > maxEntries);
+      layout(form.querySelector('.byte-layout[data-layout="edit"]'), entries);
+      const problems = [];
+      if (used > MAX_BITS) problems.push(`${used / 8} bytes: a PDO carries at most 8.`);
+      if (entries.length > maxEntries) problems.push(`${entries.length} entries: this PDO takes at most ${maxEntries}.`);
+      limit.textContent = problems.join(" ");
+      submit.disabled = problems.length > 0;
+      field.value = entries.map((e) => `0x${e.index.toString(16).toUpperCase().padStart(4, "0")}.${e.subindex}`).join(",");
+      renderPicker();
+    }
+
+    function renderPicker() {
+      const query = search.value.trim().toLowerCase();
+      picker.innerHTML = "";
+      const used = bits();
+      mappable.filter((m) => !query || `${m.name} ${m.ref} 0x${m.index.toString(16)}`.toLowerCase().includes(query))
+        .forEach((m) => {
+          const li = document.createElement("li");
+          const full = entries.length >= maxEntries;
+          const tooLong = used + m.bits > MAX_BITS;
+          li.innerHTML = `<button type="button" class="small secondary">Add</button> <span class="name"></span> <span class="mono muted"></span> <span class="muted">${m.bits} bit${m.unit ? ", " + m.unit : ""}</span> <span class="why warn-text"></span>`;
+          li.querySelector(".name").textContent = m.name;
+          li.querySelector(".mono").textContent = m.ref;
+          const button = li.querySelector("button");
+          button.setAttribute("aria-label", `Add ${m.ref} ${m.name}`);
+          if (full || tooLong) {
+            button.disabled = true;
+            li.querySelector(".why").textContent = full ? "no entry left" : `would need ${(used + m.bits) / 8} bytes`;
+          }
+          button.addEventListener("click", () => { entries.push({ ...m }); render(); });
+          picker.appendChild(li);
+        });
+      if (!mappable.length) picker.innerHTML = '<li class="empty">The profile lists no PDO-mappable object for this direction.</li>';
+    }
+
+    search.addEventListener("input", renderPicker);
+    render();
+  }
+
+  // A failed apply answers 502 with the card (its step report): show it in place of the card.
+  document.body.addEventListener("htmx:beforeSwap", (event) => {
+    const xhr = event.detail.xhr;
+    if (xhr.status >= 400 && xhr.getResponseHeader("X-PDO-Report")) {
+      event.detail.shouldSwap = true;
+      event.detail.isError = false;
+      event.detail.target = event.detail.requestConfig.elt.closest(".pdo-card");
+      event.detail.swapOverride = "outerHTML";
+      event.detail.serverResponse = xhr.responseText;
+    }
+  });
+
+  let socket = null;
+  let clientId = "";
+
+  function connect(tab) {
+    if (socket && socket.readyState <= 1 && socket.tabElt === tab) return;
+    const state = document.getElementById("pdo-ws-state");
+    const url = `${location.protocol === "https:" ? "wss" : "ws"}://${location.host}${tab.dataset.ws}`;
+    socket = new WebSocket(url);
+    socket.tabElt = tab;
+    socket.onopen = () => { state.textContent = "connected"; state.className = "badge good"; };
+    socket.onclose = () => {
+      state.textContent = "disconnected"; state.className = "badge warn";
+      if (document.body.contains(tab)) setTimeout(() => connect(tab), 2000);
+    };
+    socket.onmessage = (event) => {
+      const msg = JSON.parse(event.data);
+      if (msg.type === "hello") {
+        clientId = msg.client_id;
+        document.querySelectorAll(".client-id").forEach((input) => { input.value = clientId; });
+      } else if (msg.type === "samples") {
+        msg.samples.forEach((sample) => sample.signals.forEach((sig) => {
+          document.querySelectorAll(`.live[data-cob="${sample.cob_id}"][data-ref="${CSS.escape(sig.ref)}"]`).forEach((cell) => {
+            let text = sig.value === null ? "–" : `${sig.value}${sig.unit ? " " + sig.unit : ""}`;
+            if (sig.text) text += ` (${sig.text})`;
+            if (sample.direction === "rpdo") text = `sent ${text}`;
+            cell.textContent = text;
+            cell.title = `raw ${sig.raw} · frame ${sample.data} · ${new Date(sample.t * 1000).toLocaleTimeString()}`;
+            cell.classList.add("fresh");
+            setTimeout(() => cell.classList.remove("fresh"), 300);
+          });
+        }));
+      } else if (msg.type === "state") {
+        const nmt = document.getElementById("pdo-nmt");
+        if (nmt) nmt.textContent = msg.nmt_state;
+      } else if (msg.type === "error") {
+        state.textContent = msg.detail; state.className = "badge warn";
+      }
+    };
+  }
+
+  function init() {
+    const tab = document.getElementById("pdo-tab");
+    if (!tab) { if (socket) { socket.tabElt = null; socket.close(); } return; }
+    document.querySelectorAll(".pdo-card").forEach(initCard);
+    document.querySelectorAll(".client-id").forEach((input) => { input.value = clientId; });
+    connect(tab);
+  }
+
+  document.body.addEventListener("htmx:afterSettle", (event) => {
+    init();
+    const target = event.detail.elt;
+    if (socket && socket.readyState === 1 && target && (target.classList?.contains("pdo-card") || target.id === "pdo-list")) {
+      socket.send(JSON.stringify({ cmd: "reload" }));  // the mapping may have changed: decode with the new one
+    }
+  });
+  window.drivebenchPdo = init;
+  if (document.readyState === "loading") document.addEventListener("DOMContentLoaded", init);
+  else init();
+})();
