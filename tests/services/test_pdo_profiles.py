@@ -1,0 +1,104 @@
+"""Apply / read-back round trips of PDO mappings against the simulated drives of every shipped CANopen profile
+(8400 motec, 8200 vector + EMF2178IB, 93XX + EMF2178IB, MICROMASTER 440), with the objects each profile marks
+PDO-mappable; and a mapping the device refuses mid-sequence leaves the PDO disabled."""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import Iterator
+
+import pytest
+
+from drivebench.device.loader import ProfileRegistry
+from drivebench.services import pdo
+from drivebench.services.pdo import Direction, PdoWrite
+from drivebench.services.sessions import Session, SessionManager
+from drivebench.simulator.plant import Plant, PlantFile, PlantNode
+from drivebench.simulator.store import Abort
+from tests.conftest import fresh_channel
+
+NODES = {3: "siemens-micromaster4-canopen", 5: "lenze-8400-motec-canopen", 12: "lenze-8200-vector-emf2178ib",
+         20: "lenze-93xx-emf2178ib"}
+# node, direction, number, entries (index, sub) - each from the profile's PDO-mappable objects
+ROUND_TRIPS: list[tuple[int, Direction, int, list[tuple[int, int]]]] = [
+    (3, "rpdo", 5, [(0x6040, 0), (0x6042, 0), (0x2802, 3), (0x6060, 0)]),  # 7 bytes, in the P2041 sequence
+    (3, "tpdo", 6, [(0x6041, 0), (0x6043, 0), (0x6077, 0), (0x6061, 0)]),
+    (5, "rpdo", 2, [(0x5C9D, 5), (0x5C9D, 6), (0x5C9D, 7), (0x5C9D, 8)]),  # C00866/5...8: CAN2_IN words
+    (5, "tpdo", 1, [(0x5C9B, 1), (0x5C9B, 2)]),  # C00868/1...2: CAN1_OUT words
+    (12, "rpdo", 1, [(0x58E1, 3), (0x58E1, 1)]),  # AIF-IN words, reordered
+    (12, "tpdo", 1, [(0x58E0, 2), (0x58E0, 1), (0x58E0, 3)]),
+    (20, "rpdo", 1, [(0x58E1, 1), (0x58DF, 2), (0x58E1, 4)]),  # word + double word 2 + word = 8 bytes
+    (20, "tpdo", 1, [(0x58DE, 3), (0x58E0, 1)]),
+]
+
+
+@pytest.fixture(scope="module")
+def loop() -> Iterator[asyncio.AbstractEventLoop]:
+    event_loop = asyncio.new_event_loop()
+    yield event_loop
+    event_loop.close()
+
+
+@pytest.fixture(scope="module")
+def drives(loop: asyncio.AbstractEventLoop) -> Iterator[tuple[Session, Plant]]:
+    registry = ProfileRegistry()
+    channel = fresh_channel()
+    plant = Plant(PlantFile(name="pdo-profiles", bus=f"virtual:{channel}@500000",
+                            nodes=[PlantNode(node_id=n, profile=p, heartbeat_ms=0) for n, p in NODES.items()]),
+                  registry.get, latency="0ms").start()
+    manager = SessionManager(registry)
+    session = loop.run_until_complete(manager.open(f"virtual:{channel}@500000", name="pdo-profiles"))
+    for node_id, profile_id in NODES.items():
+        session.add_node(node_id, profile_id)
+    yield session, plant
+    loop.run_until_complete(manager.close_all())
+    plant.stop()
+
+
+@pytest.mark.parametrize(("node_id", "direction", "number", "entries"), ROUND_TRIPS,
+                         ids=[f"{NODES[n].split('-')[1]}-{d}{k}" for n, d, k, _ in ROUND_TRIPS])
+def test_round_trip(drives: tuple[Session, Plant], loop: asyncio.AbstractEventLoop, node_id: int,
+                    direction: Direction, number: int, entries: list[tuple[int, int]]) -> None:
+    session, plant = drives
+    offered = {(m.index, m.subindex) for m in pdo.mappable_objects(session, node_id, direction)}
+    assert set(entries) <= offered, "the picker offers these objects"
+    report = loop.run_until_complete(pdo.apply_pdo(session, node_id, direction, number, PdoWrite(entries=entries)))
+    assert report.ok, report.message
+    assert report.pdo is not None and report.pdo.valid
+    assert [(e.index, e.subindex) for e in report.pdo.entries] == entries
+    assert all(e.name != "not in the profile" for e in report.pdo.entries)
+    store = plant.nodes[node_id].store
+    mapping = (0x1600 if direction == "rpdo" else 0x1A00) + number - 1
+    assert store.get(mapping, 0) == len(entries)
+    assert [store.get(mapping, sub) >> 8 for sub in range(1, len(entries) + 1)] == [
+        (index << 8) | sub for index, sub in entries]
+    again = loop.run_until_complete(pdo.read_pdo(session, node_id, direction, number))
+    assert again.entries == report.pdo.entries and again.length_bytes == report.pdo.length_bytes
+
+
+def test_motec_refuses_tpdo_type_255_nowhere_but_says_so(drives: tuple[Session, Plant],
+                                                         loop: asyncio.AbstractEventLoop) -> None:
+    """8400 motec ch. 8.4: 255 is 'not permissible'; the profile keeps the printed range, the tab says so."""
+    session, _ = drives
+    config = loop.run_until_complete(pdo.read_pdo(session, 5, "tpdo", 1))
+    assert config.transmission_type == 254 and config.transmission_note is None
+    assert any("C00324" in note for note in config.notes)
+    rpdo2 = loop.run_until_complete(pdo.read_pdo(session, 5, "rpdo", 2))
+    assert any("0x281" in note for note in rpdo2.notes) and any("C00593/2" in note for note in rpdo2.notes)
+
+
+def test_refused_entry_leaves_the_lenze_pdo_disabled(drives: tuple[Session, Plant],
+                                                     loop: asyncio.AbstractEventLoop) -> None:
+    session, plant = drives
+    store = plant.nodes[12].store
+
+    def refuse_word_3(index: int, sub: int, raw: object) -> None:
+        if index == 0x1A01 and raw == 0x58E00310:
+            raise Abort(0x06040042)
+
+    store.add_write_check(refuse_word_3)
+    report = loop.run_until_complete(pdo.apply_pdo(session, 12, "tpdo", 2, PdoWrite(
+        entries=[(0x58E0, 1), (0x58E0, 3)], cob_id=0x280 + 12)))
+    assert not report.ok and not report.enabled
+    assert report.steps[-1].abort_code == "0x06040042" and not report.steps[-1].ok
+    assert store.get(0x1801, 1) & 0x80000000
