@@ -126,3 +126,25 @@ def test_an_unreachable_gateway_is_reported_beside_the_form(live_server: str, pa
     expect(error).to_contain_text("127.0.0.1:9", timeout=TIMEOUT_MS)
     expect(error.locator(".hint")).to_contain_text("drivebench hub")
     screenshot(page, "plant-gateway-error")
+
+
+def test_open_and_close_a_second_session_from_the_form(live_server: str, page: Any) -> None:
+    from playwright.sync_api import expect
+
+    page.goto(live_server + "/")
+    form = page.locator("#open-session")
+    form.locator("select[name=interface]").select_option("virtual")
+    form.locator("input[name=channel]").fill("bench-2")
+    form.locator("select[name=bitrate]").select_option("250000")
+    form.locator("input[name=name]").fill("Bench 2")
+    form.get_by_role("button", name="Open session").click()
+    card = page.locator("#session-bench-2")
+    expect(card.locator("h2")).to_have_text("Bench 2", timeout=TIMEOUT_MS)  # the page reloads with the new card
+    expect(card).to_contain_text("virtual:bench-2@250000")
+    expect(card.locator("table.nodes")).to_contain_text("No nodes yet")
+    expect(row(page, 5)).to_be_visible()  # the demo plant is still there
+    screenshot(page, "plant-two-sessions")
+    page.once("dialog", lambda dialog: dialog.accept())
+    card.get_by_role("button", name="Close").click()
+    expect(card).to_have_count(0, timeout=TIMEOUT_MS)
+    expect(row(page, 5)).to_be_visible()
