@@ -66,11 +66,29 @@ def simulate(args: argparse.Namespace) -> int:
 
 def hub(args: argparse.Namespace) -> int:
     from drivebench.transport.hub import serve_hub
+    from drivebench.transport.hub_bridge import BusBridge
 
-    print(f"socketcand hub on {args.host}:{args.port} (python-can: interface='socketcand', "
-          f"host='{args.host}', port={args.port}, channel='can0')", flush=True)
+    if not _is_loopback(args.host) and not args.allow_remote:
+        print(f"Refusing to listen on {args.host}: anyone who reaches the hub can send frames to the drives.\n"
+              "Keep the default 127.0.0.1, or, on a closed machine network, start with --allow-remote.",
+              file=sys.stderr)
+        return 2
+    bridges = [BusBridge(spec, args.channel) for spec in args.bridge or []]
+
+    def listening(host: str, port: int) -> None:
+        print(f"socketcand hub on {host}:{port} (python-can: interface='socketcand', host='{host}', port={port}, "
+              f"channel='{args.channel}'; bus spec socketcand:{host}:{port}/{args.channel})"
+              + "".join(f"\n  {args.channel} bridged to {bridge.spec}" for bridge in bridges), flush=True)
+
+    async def run() -> None:
+        task = asyncio.current_task()
+        if task is not None:  # SIGTERM (docker stop, a supervisor) closes the hub like Ctrl+C
+            asyncio.get_running_loop().add_signal_handler(signal.SIGTERM, task.cancel)
+        with contextlib.suppress(asyncio.CancelledError):
+            await serve_hub(args.host, args.port, bridges=bridges, on_listening=listening)
+
     with contextlib.suppress(KeyboardInterrupt):
-        asyncio.run(serve_hub(args.host, args.port))
+        asyncio.run(run())
     return 0
 
 
@@ -100,7 +118,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     p_hub = sub.add_parser("hub", help="run a socketcand-protocol hub so processes share one bus")
     p_hub.add_argument("--host", default="127.0.0.1")
-    p_hub.add_argument("--port", type=int, default=29536)
+    p_hub.add_argument("--port", type=int, default=29536, help="TCP port (0 picks a free one and prints it)")
+    p_hub.add_argument("--channel", default="can0", help="channel the --bridge buses join (default can0)")
+    p_hub.add_argument("--bridge", action="append", metavar="SPEC",
+                       help="also relay frames to and from this python-can bus, e.g. socketcan:can0@500000")
+    p_hub.add_argument("--allow-remote", action="store_true",
+                       help="allow listening on a non-loopback address (no authentication)")
     p_hub.set_defaults(func=hub)
     return parser
 

@@ -9,19 +9,26 @@ part of the socketcand protocol is spoken::
     hub: < ok >            client: < send 601 8 40 0 10 0 0 0 0 0 >      (ID, LEN, bytes, all hex)
     hub, to every other client on can0: < frame 601 1732270000.123456 4000100000000000 >
 
-Things python-can 4.6.1's client relies on (``can/interfaces/socketcand/socketcand.py``):
+Like a real bus, a frame reaches every other member of its channel, never its sender (python-can's client
+does not expect its own frames back). What python-can 4.6.1's client relies on
+(``can/interfaces/socketcand/socketcand.py``), and what socketcand itself does (``src/state_raw.c``):
 
 * The handshake replies are compared with one exact ``recv(256)`` each, so every reply is its own write, and
   frames for a new client are held back until it has surely read its rawmode ``< ok >``: until it sends its
-  first command or ``settle_s`` has passed, whichever comes first.
+  first command or ``settle_s`` has passed, whichever comes first. Held frames are queued, not lost.
 * A frame with no data is written ``< frame ID SEC.USEC  >`` (two spaces before ``>``), as socketcand writes it;
   python-can's parser needs the empty third field.
 * The extended-ID flag travels as the ID's width: 3 hex digits standard, 8 extended.
-* Any ``< error ... >`` line breaks python-can's receive loop, so a malformed ``send`` is logged and counted,
-  not answered (socketcand does the same); only unknown commands get ``< error ... >``.
+* Remote frames cannot travel: python-can's client writes an RTR as ``< send ID LEN >`` without data bytes and
+  its parser has no RTR flag; socketcand drops them too. Such a ``send`` is rejected (counted).
+* Error frames go out as ``< error CLASS SEC.USEC >`` (socketcand's form, which python-can turns into an error
+  frame); only a bridged bus produces them.
+* Any other ``< error ... >`` text makes python-can's receive loop raise, so a malformed ``send`` is logged
+  and counted, not answered (socketcand does the same); only unknown commands get ``< error ... >``.
 
 A client that reads too slowly loses frames, counted per client like a CAN controller overrun, instead of
-stalling everyone else: each client has a bounded queue emptied by its own writer task.
+stalling everyone else: each client has a queue bounded to ``queue_frames`` (4096 by default) emptied by its
+own writer task, on top of what the socket buffers hold.
 """
 
 from __future__ import annotations
@@ -33,16 +40,19 @@ import socket
 import threading
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
+import can
+
 from drivebench.errors import TransportError
+from drivebench.transport.hub_bridge import BridgeStats, BusBridge
 
 log = logging.getLogger(__name__)
 
 DEFAULT_PORT = 29536
 DEFAULT_QUEUE_FRAMES = 4096
-DEFAULT_SETTLE_S = 0.05
+DEFAULT_SETTLE_S = 0.5  # a loaded machine may leave a new client unscheduled for a while
 MAX_COMMAND_BYTES = 1024  # a classic `send` is < 60 bytes; more without a '>' is garbage
 READ_CHUNK_BYTES = 16384  # about 300 `send`s: bounds the burst one sender can queue before any writer runs
 MAX_CLASSIC_DLC = 8
@@ -71,8 +81,8 @@ def parse_send(words: list[str]) -> tuple[int, bool, bytes]:
     is_extended = len(id_text) == 8
     if not is_extended and (len(id_text) > 3 or can_id > 0x7FF):
         raise CommandError(f"send ID {id_text} is neither 3 (standard) nor 8 (extended) hex digits")
-    if can_id > 0x1FFFFFFF:
-        raise CommandError(f"send ID {id_text} is over 29 bits")
+    if not 0 <= can_id <= 0x1FFFFFFF:
+        raise CommandError(f"send ID {id_text} is not a 29-bit identifier")
     if length > MAX_CLASSIC_DLC or len(data) != length:
         raise CommandError(f"send LEN {len_text} does not match {len(data)} data bytes (classic CAN, 0..8)")
     return can_id, is_extended, data
@@ -83,6 +93,12 @@ def format_frame(can_id: int, is_extended: bool, data: bytes, timestamp_ns: int)
     seconds, micros = divmod(timestamp_ns // 1000, 1_000_000)
     id_text = f"{can_id:08X}" if is_extended else f"{can_id:03X}"
     return f"< frame {id_text} {seconds}.{micros:06d} {data.hex().upper()} >".encode("ascii")
+
+
+def format_error_frame(error_class: int, timestamp_ns: int) -> bytes:
+    """An error frame as socketcand writes it: the error class bits (CAN_ERR_*) and the time."""
+    seconds, micros = divmod(timestamp_ns // 1000, 1_000_000)
+    return f"< error {error_class & 0x1FFFFFFF:03X} {seconds}.{micros:06d} >".encode("ascii")
 
 
 def error_reply(reason: str) -> bytes:
@@ -108,6 +124,7 @@ class HubStats:
     frames_dropped: int
     frames_rejected: int
     clients: tuple[ClientStats, ...]
+    bridges: tuple[BridgeStats, ...] = ()
 
 
 def _handshake_problem(client: _Client, words: list[str]) -> str:
@@ -155,7 +172,8 @@ class SocketcandHub:
     """Relays every frame a client sends on a channel to every other client that opened that channel."""
 
     def __init__(self, *, echo_to_sender: bool = False, queue_frames: int = DEFAULT_QUEUE_FRAMES,
-                 settle_s: float = DEFAULT_SETTLE_S, send_buffer_bytes: int | None = None) -> None:
+                 settle_s: float = DEFAULT_SETTLE_S, send_buffer_bytes: int | None = None,
+                 bridges: Sequence[BusBridge] = ()) -> None:
         if queue_frames < 1:
             raise ValueError("queue_frames must be at least 1")
         self.echo_to_sender = echo_to_sender
@@ -166,6 +184,7 @@ class SocketcandHub:
         self._channels: dict[str, dict[_Client, None]] = {}
         self._clients: dict[_Client, None] = {}
         self._handlers: set[asyncio.Task[None]] = set()
+        self._bridges = tuple(bridges)
         self._frames_in = 0
         self._retired = ClientStats("", None, 0, 0, 0, 0)  # counters of clients that have left
         self.port = 0
@@ -179,12 +198,21 @@ class SocketcandHub:
                                  hint="Is another hub or program using that port? Pick another with --port.",
                                  ) from exc
         self.port = self._server.sockets[0].getsockname()[1]
+        loop = asyncio.get_running_loop()
+        try:
+            for bridge in self._bridges:
+                await asyncio.to_thread(bridge.start, self._bridge_delivery(loop, bridge))
+        except BaseException:
+            await self.stop()
+            raise
         log.info("socketcand hub listening on %s:%d", host, self.port)
         return self.port
 
     async def stop(self) -> None:
         if self._server is not None:
             self._server.close()
+        for bridge in self._bridges:
+            await asyncio.to_thread(bridge.stop)
         for client in list(self._clients):
             client.writer.close()
         if self._handlers:
@@ -204,6 +232,7 @@ class SocketcandHub:
             frames_dropped=sum(c.frames_dropped for c in everyone),
             frames_rejected=sum(c.frames_rejected for c in everyone),
             clients=clients,
+            bridges=tuple(bridge.stats() for bridge in self._bridges),
         )
 
     # --- one connection ----------------------------------------------------------------------------------
@@ -288,6 +317,25 @@ class SocketcandHub:
         for member in self._channels.get(sender.channel or "", ()):
             if member is not sender or self.echo_to_sender:
                 member.offer(frame)
+        for bridge in self._bridges:
+            if bridge.channel == sender.channel:
+                bridge.offer(can.Message(arbitration_id=can_id, is_extended_id=is_extended, data=data))
+
+    def _bridge_delivery(self, loop: asyncio.AbstractEventLoop, bridge: BusBridge) -> Callable[[can.Message], None]:
+        def deliver(msg: can.Message) -> None:  # the bridge's reader thread
+            loop.call_soon_threadsafe(self._from_bridge, bridge, msg)
+        return deliver
+
+    def _from_bridge(self, bridge: BusBridge, msg: can.Message) -> None:
+        # Stamped with the hub's clock like every other frame: adapters' own time bases are not all epoch-based.
+        now_ns = time.time_ns()
+        if msg.is_error_frame:
+            frame = format_error_frame(msg.arbitration_id, now_ns)
+        else:
+            frame = format_frame(msg.arbitration_id, msg.is_extended_id, bytes(msg.data[:MAX_CLASSIC_DLC]), now_ns)
+        self._frames_in += 1
+        for member in self._channels.get(bridge.channel, ()):
+            member.offer(frame)
 
     async def _pump(self, client: _Client) -> None:
         """Write the client's queue in batches; while it cannot take more, its queue fills and drops."""
@@ -342,7 +390,7 @@ class HubHandle:
     def stop(self) -> None:
         if self._loop.is_closed():
             return
-        asyncio.run_coroutine_threadsafe(self.hub.stop(), self._loop).result(timeout=5)
+        asyncio.run_coroutine_threadsafe(self.hub.stop(), self._loop).result(timeout=10)
         self._loop.call_soon_threadsafe(self._loop.stop)
         self._thread.join(timeout=5)
         self._loop.close()
@@ -356,15 +404,15 @@ class HubHandle:
 
 def start_hub_thread(host: str = "127.0.0.1", port: int = 0, *, echo_to_sender: bool = False,
                      queue_frames: int = DEFAULT_QUEUE_FRAMES, settle_s: float = DEFAULT_SETTLE_S,
-                     send_buffer_bytes: int | None = None) -> HubHandle:
+                     send_buffer_bytes: int | None = None, bridges: Sequence[BusBridge] = ()) -> HubHandle:
     """Start a hub in a daemon thread; ``.port`` is the bound port, ``.stop()`` closes it and frees the port."""
     hub = SocketcandHub(echo_to_sender=echo_to_sender, queue_frames=queue_frames, settle_s=settle_s,
-                        send_buffer_bytes=send_buffer_bytes)
+                        send_buffer_bytes=send_buffer_bytes, bridges=bridges)
     loop = asyncio.new_event_loop()
     thread = threading.Thread(target=loop.run_forever, name=f"socketcand-hub-{port}", daemon=True)
     thread.start()
     try:
-        asyncio.run_coroutine_threadsafe(hub.start(host, port), loop).result(timeout=5)
+        asyncio.run_coroutine_threadsafe(hub.start(host, port), loop).result(timeout=15)
     except BaseException:
         loop.call_soon_threadsafe(loop.stop)
         thread.join(timeout=5)
@@ -374,10 +422,10 @@ def start_hub_thread(host: str = "127.0.0.1", port: int = 0, *, echo_to_sender: 
 
 
 async def serve_hub(host: str = "127.0.0.1", port: int = DEFAULT_PORT, *, echo_to_sender: bool = False,
-                    queue_frames: int = DEFAULT_QUEUE_FRAMES,
+                    queue_frames: int = DEFAULT_QUEUE_FRAMES, bridges: Sequence[BusBridge] = (),
                     on_listening: Callable[[str, int], None] | None = None) -> None:
     """Run a hub until cancelled (``drivebench hub``); ``on_listening(host, port)`` runs once it is bound."""
-    hub = SocketcandHub(echo_to_sender=echo_to_sender, queue_frames=queue_frames)
+    hub = SocketcandHub(echo_to_sender=echo_to_sender, queue_frames=queue_frames, bridges=bridges)
     bound_port = await hub.start(host, port)
     if on_listening is not None:
         on_listening(host, bound_port)
