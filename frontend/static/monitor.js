@@ -76,9 +76,10 @@
       `<tr class="${r.rate ? "" : "silent"}"><td class="num">${r.node}</td><td class="device" title="${esc(r.name || "")}">${esc(r.name || "not in session")}</td>` +
       `<td class="num">${num(r.total)}</td><td class="num">${rate(r.rate)}</td><td class="num">${pct(r.share_percent)}</td></tr>`).join("")
       : '<tr><td colspan="5" class="empty">No node telegrams yet.</td></tr>';
+    const col = Object.fromEntries(s.cob_columns.map((name, i) => [name, i]));
     $("cobs-body").innerHTML = s.cob_ids.length ? s.cob_ids.map((r) =>
-      `<tr class="${r.rate ? "" : "silent"}" title="last ${r.last_age_s.toFixed(1)} s ago"><td class="mono">${esc(r.text)}</td><td>${esc(r.service)}</td>` +
-      `<td class="num">${r.node ?? "–"}</td><td class="num">${num(r.total)}</td><td class="num">${rate(r.rate)}</td><td class="num">${pct(r.share_percent)}</td></tr>`).join("")
+      `<tr class="${r[col.rate] ? "" : "silent"}" title="last ${r[col.last_age_s].toFixed(1)} s ago"><td class="mono">${esc(r[col.text])}</td><td>${esc(r[col.service])}</td>` +
+      `<td class="num">${r[col.node] ?? "–"}</td><td class="num">${num(r[col.total])}</td><td class="num">${rate(r[col.rate])}</td><td class="num">${pct(r[col.share_percent])}</td></tr>`).join("")
       : '<tr><td colspan="6" class="empty">No telegrams (or none passes the filter).</td></tr>';
     $("cob-note").textContent = s.cob_ids_cut ? `busiest ${s.cob_ids.length} of ${s.cob_ids_cut}` : "";
   }

@@ -72,7 +72,7 @@ def test_recording_start_stop_list_download(api: TestClient) -> None:
     messages = list(can.ASCReader(io.StringIO(download.text)))
     assert len(messages) == stopped["frames"]
     assert api.get(f"{API}/recordings/..%2Fetc%2Fpasswd").status_code == 404
-    assert api.post(f"{API}/recordings", json={"format": "csv"}).status_code == 422
+    assert api.post(f"{API}/recordings", json={"format": "mf4"}).status_code == 422
 
 
 def test_device_counters_side_by_side(api: TestClient) -> None:

@@ -38,8 +38,14 @@ def test_client_receives_counter_updates(monitor_client: TestClient) -> None:
             if update["snapshot"]["totals"]["frames"] > first_total + 10 and heartbeat_rows:
                 break
         assert update["snapshot"]["totals"]["frames"] > first_total + 10, "counters did not move"
-        assert heartbeat_rows and heartbeat_rows[-1]["text"] in ("0x705 Heartbeat node 5: Pre-operational",
-                                                                 "0x70C Heartbeat node 12: Pre-operational")
+        last = heartbeat_rows[-1]
+        assert (last["cob_id"], last["node"], last["summary"]) in (("0x705", 5, "Pre-operational"),
+                                                                   ("0x70C", 12, "Pre-operational"))
+        # COB-ID rows travel as arrays in the order of cob_columns.
+        columns = update["snapshot"]["cob_columns"]
+        cobs = {row[columns.index("text")]: dict(zip(columns, row, strict=True))
+                for row in update["snapshot"]["cob_ids"]}
+        assert cobs["0x705"]["service"] == "Heartbeat" and cobs["0x705"]["node"] == 5 and cobs["0x705"]["total"] > 0
         services = {row["service"]: row for row in update["snapshot"]["services"]}
         assert services["Heartbeat"]["total"] > 0 and services["Heartbeat"]["rate"] > 0
         nodes = {row["node"]: row for row in update["snapshot"]["nodes"]}

@@ -20,6 +20,7 @@ import weakref
 from collections import deque
 from collections.abc import Iterable
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Any
 
 import can
@@ -90,6 +91,7 @@ class _Sample:
     errors: int
 
 
+@lru_cache(maxsize=4096)
 def _key_text(key: int) -> str:
     return f"0x{key & 0x1FFFFFFF:08X}" if key & EXTENDED else f"0x{key:03X}"
 
@@ -240,7 +242,7 @@ class Monitor(can.Listener):
             count, bits, last_seen = cobs[key]
             rate = (count - reference.frames.get(key, 0)) / elapsed
             total_rate += rate
-            service, node = classify(key & 0x1FFFFFFF, bool(key & EXTENDED))
+            service, node = _classify_key(key)
             service_row = services[service]
             service_row[0] += count
             service_row[1] += rate
@@ -361,6 +363,11 @@ class Monitor(can.Listener):
         with self._lock:
             return {"trace": len(self._trace), "history": len(self._history), "cob_ids": len(self._cobs),
                     "rate_samples": len(self._samples)}
+
+
+@lru_cache(maxsize=4096)
+def _classify_key(key: int) -> tuple[Service, int | None]:
+    return classify(key & 0x1FFFFFFF, bool(key & EXTENDED))
 
 
 def _row(seq: int, decoded: DecodedFrame) -> dict[str, Any]:

@@ -1,14 +1,19 @@
-"""Recording a session's frames to a file other tools open: candump ``.log``, Vector ``.asc``, ``.blf`` (python-can's
-writers) and ``.pcapng`` with the SocketCAN link type (our writer, for Wireshark's CANopen dissector).
+"""Recording a session's frames to a file other tools open: candump ``.log``, Vector ``.asc`` and ``.blf``, PEAK
+``.trc``, python-can ``.csv`` (python-can's writers) and ``.pcapng`` with the SocketCAN link type (our writer, for
+Wireshark's CANopen dissector).
 
 The recorder's listener only queues the frame; a writer thread formats and writes, so a slow disk or the ASC
-formatter never holds up the bus threads.
+formatter never holds up the bus threads. Frames are written on the writer's default channel (can0 / channel 1):
+a session is one bus, and python-can would otherwise turn trailing digits of the adapter's channel name into a
+channel number (a virtual channel ``line-1700000000`` does not fit BLF's 16-bit channel field).
 """
 
 from __future__ import annotations
 
+import copy
 import queue
 import re
+import struct
 import threading
 import time
 from dataclasses import dataclass
@@ -22,11 +27,12 @@ from drivebench.errors import Conflict, InvalidValue, NotFound
 from drivebench.services.sessions import Session
 from drivebench.transport.pcapng import PcapngWriter
 
-FORMATS = {"log": "candump log (.log)", "asc": "Vector ASCII (.asc)", "blf": "Vector BLF (.blf)",
-           "pcapng": "pcapng, SocketCAN link type (.pcapng, Wireshark)"}
+FORMATS = {"pcapng": "pcapng, SocketCAN link type (.pcapng, Wireshark)", "log": "candump log (.log)",
+           "asc": "Vector ASCII (.asc)", "blf": "Vector BLF (.blf)", "trc": "PEAK trace (.trc)",
+           "csv": "python-can CSV (.csv)"}
 MEDIA_TYPES = {"log": "text/plain", "asc": "text/plain", "blf": "application/octet-stream",
-               "pcapng": "application/vnd.tcpdump.pcap"}
-_SAFE_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*\.(log|asc|blf|pcapng)$")
+               "pcapng": "application/vnd.tcpdump.pcap", "trc": "text/plain", "csv": "text/csv"}
+_SAFE_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*\.(log|asc|blf|pcapng|trc|csv)$")
 
 
 def recordings_dir() -> Path:
@@ -42,6 +48,10 @@ def open_writer(path: Path) -> can.Listener:
         return can.ASCWriter(path)
     if path.suffix == ".blf":
         return can.BLFWriter(path)
+    if path.suffix == ".trc":
+        return can.TRCWriter(path)
+    if path.suffix == ".csv":
+        return can.CSVWriter(path)
     raise InvalidValue(f"Unknown recording format '{path.suffix}'; use one of {', '.join(FORMATS)}")
 
 
@@ -54,6 +64,9 @@ class Recorder(can.Listener):
         self.format = path.suffix.lstrip(".")
         self.started = time.time()
         self.frames = 0
+        self.skipped = 0
+        """Frames the writer refused (e.g. a CAN FD frame in a classic-only format); the first reason in ``error``."""
+        self.error: str | None = None
         self._queue: queue.SimpleQueue[can.Message | None] = queue.SimpleQueue()
         self._writer = open_writer(path)
         self._thread = threading.Thread(target=self._drain, name=f"recorder-{path.name}", daemon=True)
@@ -68,7 +81,15 @@ class Recorder(can.Listener):
             msg = self._queue.get()
             if msg is None:
                 break
-            self._writer.on_message_received(msg)
+            if msg.channel is not None:  # the frame may also sit in the monitor's trace: write a copy
+                msg = copy.copy(msg)
+                msg.channel = None
+            try:
+                self._writer.on_message_received(msg)
+            except (ValueError, TypeError, OverflowError, struct.error) as exc:  # one bad frame never ends the file
+                self.skipped += 1
+                self.error = self.error or f"{type(exc).__name__}: {exc}"
+                continue
             self.frames += 1
         self._writer.stop()
 

@@ -16,7 +16,7 @@ from drivebench.web.deps import SessionDep
 router = APIRouter(prefix="/api/sessions/{session_id}/monitor", tags=["monitor"])
 
 ServiceName = Literal["NMT", "SYNC", "EMCY", "TIME", "PDO", "SDO", "Heartbeat", "LSS", "Unknown", "Error frame"]
-FormatName = Literal["log", "asc", "blf", "pcapng"]
+FormatName = Literal["pcapng", "log", "asc", "blf", "trc", "csv"]
 
 
 class FilterBody(BaseModel):

@@ -8,13 +8,17 @@ the bus. Rendering on the client is throttled to animation frames.
 Messages (JSON text), one schema:
 
 ``{"type": "hello" | "update", "seq": int, "server_time": float (epoch s, when built),
-   "snapshot": <GET /api/sessions/{id}/monitor without "trace">,
+   "snapshot": <GET /api/sessions/{id}/monitor without "trace", except "cob_ids" (below)>,
    "history": [[epoch s, load %], ...]   # completed seconds since the previous message (hello: the last 10 min)
    "trace": [<trace row>, ...],          # decoded telegrams since the previous message passing the filter
    "trace_more": bool,                   # more telegrams came than one message carries (TRACE_PER_UPDATE)
    "recording": {"name", "format", "frames"} | null}``
 
-A trace row: ``{"seq", "time", "cob_id", "service", "group", "node", "dlc", "hex", "summary", "text"}``.
+A trace row: ``{"seq", "time", "cob_id", "service", "group", "node", "dlc", "hex", "summary"}`` (the REST trace
+rows also carry ``text``, which is ``cob_id service node N: summary``). To keep updates small, ``snapshot.cob_ids``
+rows are arrays in the order of ``snapshot.cob_columns``: ``["text", "service", "node", "total", "rate",
+"share_percent", "last_age_s"]``; more than COB_ROWS_PER_UPDATE COB-IDs send the busiest, with ``cob_ids_cut``
+the full count.
 The socket closes with code 4404 when the session does not exist (or is closed).
 """
 
@@ -35,9 +39,10 @@ from drivebench.services.sessions import Session
 
 router = APIRouter()
 PERIOD_S = 0.1
-TRACE_PER_UPDATE = 200
+TRACE_PER_UPDATE = 50
 HELLO_TRACE_ROWS = 200
 COB_ROWS_PER_UPDATE = 512
+COB_COLUMNS = ["text", "service", "node", "total", "rate", "share_percent", "last_age_s"]
 
 
 class _Client:
@@ -79,11 +84,16 @@ class Feed:
 
     def message(self, kind: str, history: list[tuple[float, float]], trace: list[dict[str, Any]],
                 more: bool) -> dict[str, Any]:
-        snapshot = self.monitor.snapshot()
+        snapshot = dict(self.monitor.snapshot())
         cob_ids = snapshot["cob_ids"]
         if len(cob_ids) > COB_ROWS_PER_UPDATE:
-            snapshot = {**snapshot, "cob_ids": sorted(cob_ids, key=lambda row: -row["total"])[:COB_ROWS_PER_UPDATE],
-                        "cob_ids_cut": len(cob_ids)}
+            snapshot["cob_ids_cut"] = len(cob_ids)
+            cob_ids = sorted(sorted(cob_ids, key=lambda row: -row["total"])[:COB_ROWS_PER_UPDATE],
+                             key=lambda row: (row["extended"], row["cob_id"]))
+        snapshot["cob_columns"] = COB_COLUMNS
+        snapshot["cob_ids"] = [[row[column] for column in COB_COLUMNS] for row in cob_ids]
+        for row in trace:
+            row.pop("text", None)
         recorder = recordings_for(self.session).active
         recording = ({"name": recorder.path.name, "format": recorder.format, "frames": recorder.frames}
                      if recorder else None)
