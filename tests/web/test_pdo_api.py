@@ -7,6 +7,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 
+import can
 from fastapi.testclient import TestClient
 
 from drivebench.simulator.plant import Plant
@@ -42,9 +43,14 @@ def test_list_names_the_mapping_and_offers_vendor_codes(client: TestClient) -> N
     assert mm_tpdo1["fixed_mapping"] and mm_tpdo1["entries"][0]["name"] == "Status word"
 
 
+def _pdo_objects(client: TestClient, node_id: int) -> dict[tuple[int, int], object]:
+    """The node's PDO communication and mapping objects (the drive model moves its status word by itself)."""
+    snapshot = _plant(client).nodes[node_id].store.snapshot()
+    return {key: value for key, value in snapshot.items() if 0x1400 <= key[0] <= 0x1BFF}
+
+
 def test_over_length_and_non_mappable_are_refused_before_sending(client: TestClient) -> None:
-    store = _plant(client).nodes[3].store
-    before = store.snapshot()
+    before = _pdo_objects(client, 3)
     too_long = {"entries": [[0x6040, 0], [0x6042, 0], [0x2802, 3], [0x2802, 4], [0x6071, 0]]}
     answer = client.put(f"{API}/3/pdos/rpdo/5", json=too_long)
     assert answer.status_code == 422 and "at most 4" in answer.json()["detail"]
@@ -60,7 +66,7 @@ def test_over_length_and_non_mappable_are_refused_before_sending(client: TestCli
     assert client.put(f"{API}/12/pdos/tpdo/1", json=eight_words).status_code == 422
     ui = client.post(f"{UI}/3/pdo/rpdo/5/apply", data={"entries": "0x6046.1", "valid": "1"})
     assert ui.status_code == 422
-    assert store.snapshot() == before
+    assert _pdo_objects(client, 3) == before
 
 
 def test_failed_apply_reports_the_step_and_leaves_the_pdo_disabled(client: TestClient) -> None:
@@ -82,8 +88,10 @@ def test_failed_apply_reports_the_step_and_leaves_the_pdo_disabled(client: TestC
 
 
 def test_apply_then_live_tpdo_decode_over_the_websocket(client: TestClient) -> None:
+    """TPDO5 of the MICROMASTER carries the status word and the free object 0x2803.3 (P2051.2, a value the drive
+    model leaves alone); a change of that value in the simulator arrives decoded over the websocket."""
     sim = _plant(client).nodes[3]
-    report = client.put(f"{API}/3/pdos/tpdo/5", json={"entries": [[0x6041, 0], [0x6044, 0]],
+    report = client.put(f"{API}/3/pdos/tpdo/5", json={"entries": [[0x6041, 0], [0x2803, 3]],
                                                       "transmission_type": 255})
     assert report.status_code == 200, report.text
     body = report.json()
@@ -94,18 +102,20 @@ def test_apply_then_live_tpdo_decode_over_the_websocket(client: TestClient) -> N
         hello = ws.receive_json()
         assert hello["type"] == "hello"
         tpdo5 = next(p for p in hello["pdos"] if p["direction"] == "tpdo" and p["number"] == 5)
-        assert [s["ref"] for s in tpdo5["signals"]] == ["0x6041", "0x6044"]
-        assert _wait(lambda: sim.state.name == "OPERATIONAL" if hasattr(sim, "state") else True)
-        sim.store.set(0x6044, 0, 1234)
+        assert [s["ref"] for s in tpdo5["signals"]] == ["0x6041", "0x2803.3"]
+        assert _wait(lambda: sim.state.name == "OPERATIONAL")
+        sim.store.set(0x2803, 3, -1234)
         deadline = time.monotonic() + 10
         found = None
         while time.monotonic() < deadline and found is None:
             message = ws.receive_json()
             for sample in message.get("samples", []):
-                speed = next(s for s in sample["signals"] if s["ref"] == "0x6044")
-                if sample["cob_id"] == 0x283 and speed["value"] == 1234:
-                    found = speed
-        assert found is not None and found["unit"] == "rpm" and found["bit_offset"] == 16
+                free = next(s for s in sample["signals"] if s["ref"] == "0x2803.3")
+                if sample["cob_id"] == 0x283 and free["value"] == -1234:
+                    found = sample
+        assert found is not None, "no TPDO5 with the new value arrived"
+        assert found["data"].endswith("2E FB"), "INTEGER16 -1234 little-endian in bytes 2...3"
+        assert found["signals"][1]["bit_offset"] == 16
 
 
 def test_rpdo_send_reaches_the_drive_and_dcf_holds_the_mapping(client: TestClient) -> None:
@@ -138,3 +148,36 @@ def test_sync_producer_puts_sync_on_the_bus(client: TestClient) -> None:
     assert process_data.service(session).sync_period_ms == 20
     off = client.post(f"{UI}/3/pdo/sync", data={"period_ms": "20", "on": ""})
     assert "Start SYNC" in off.text and process_data.service(session).sync_period_ms is None
+
+
+def _frames(wire: can.BusABC, cob_id: int, seconds: float) -> int:
+    """Frames with this COB-ID the wire sees within `seconds`."""
+    count, deadline = 0, time.monotonic() + seconds
+    while (left := deadline - time.monotonic()) > 0:
+        msg = wire.recv(timeout=left)
+        if msg is not None and msg.arbitration_id == cob_id:
+            count += 1
+    return count
+
+
+def test_cyclic_rpdo_stops_when_the_live_view_closes(client: TestClient, wire: can.BusABC) -> None:
+    from drivebench.services import process_data
+
+    sim = _plant(client).nodes[3]
+    session = client.app.state.drivebench.manager.get("demo-plant")  # type: ignore[attr-defined]
+    assert client.put(f"{API}/3/pdos/rpdo/5", json={"entries": [[0x6040, 0], [0x2802, 3]]}).status_code == 200
+    client.post(f"{API}/3/nmt", json={"command": "start"})
+    with client.websocket_connect("/ws/sessions/demo-plant/nodes/3/process-data") as ws:
+        owner = ws.receive_json()["client_id"]
+        started = client.post(f"{UI}/3/pdo/rpdo/5/send", data={
+            "mode": "cyclic", "client_id": owner, "period_ms": "20", "v:0x6040": "6", "v:r2050.2": "-5"})
+        assert started.status_code == 200 and "sending every 20 ms" in started.text
+        assert _wait(lambda: sim.store.get(0x2802, 3) == -5)
+        assert _frames(wire, 0x303, 0.5) >= 2, "cyclic RPDO5 frames on the wire"
+        state = ws.receive_json()
+        while state["type"] != "state":
+            state = ws.receive_json()
+        assert state["cyclic"] == [0x303]
+    assert _wait(lambda: not process_data.service(session).cyclic), "the closed socket's cyclic sends end"
+    _frames(wire, 0x303, 0.2)  # a frame already in flight
+    assert _frames(wire, 0x303, 0.5) == 0

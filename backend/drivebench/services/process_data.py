@@ -95,6 +95,11 @@ def unpack(layout: Layout, data: bytes, t: float) -> Sample:
 
 def pack(layout: Layout, values: dict[str, str]) -> bytes:
     """Engineering values by ref -> frame bytes (validated against the profile; missing values send 0)."""
+    unknown = set(values) - {ref for ref, _, _, _ in layout.entries}
+    if unknown:
+        config = layout.config
+        raise InvalidValue(f"{', '.join(sorted(unknown))} is not mapped into {config.direction.upper()}"
+                           f"{config.number}; read the PDOs again.")
     value, offset = 0, 0
     for ref, _name, entry, bits in layout.entries:
         text = values.get(ref, "").strip()
