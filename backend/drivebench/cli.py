@@ -35,12 +35,23 @@ def serve(args: argparse.Namespace) -> int:
             "Listen on 127.0.0.1 (the default) and reach it through an SSH tunnel, or, on a closed machine network\n"
             "where everyone may operate the drives, start with --allow-remote.", file=sys.stderr)
         return 2
+    _check_buses(args.bus or [])
     plant = Path(args.plant) if args.plant else None
     app = create_app(demo=args.demo, plant_file=plant, buses=args.bus or [], latency=args.latency)
     print(f"DriveBench on http://{args.host}:{args.port}"
           + (" with the simulated demo plant" if args.demo else ""), flush=True)
     uvicorn.run(app, host=args.host, port=args.port, log_level=args.log_level, ws_ping_interval=20)
     return 0
+
+
+def _check_buses(specs: list[str]) -> None:
+    """Open and close each --bus once before the server starts, so a wrong interface, a missing adapter or an
+    unreachable gateway ends the command with its message and hint (a DriveBenchError) instead of a traceback
+    from the server's start-up."""
+    from drivebench.transport.bus import BusSpec, open_bus
+
+    for text in specs:
+        open_bus(BusSpec.parse(text)).shutdown()
 
 
 def simulate(args: argparse.Namespace) -> int:

@@ -1,0 +1,111 @@
+"""``drivebench serve | simulate | hub``: the server on a socketcand bus shared with a simulator process, and the
+messages a user gets instead of tracebacks."""
+
+from __future__ import annotations
+
+import signal
+import socket
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import httpx
+import pytest
+
+from drivebench.cli import main
+from drivebench.transport.hub import start_hub_thread
+from tests.transport.test_multiprocess import START_TIMEOUT_S, CliProcess, start_simulator
+
+DEMO_NODE_IDS = [3, 5, 12]
+
+
+def free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+def poll(fetch: Callable[[], object], timeout_s: float, what: str) -> object:
+    """Call ``fetch`` until it returns something true (connection errors count as not yet)."""
+    deadline = time.monotonic() + timeout_s
+    last: object = None
+    while time.monotonic() < deadline:
+        try:
+            last = fetch()
+        except httpx.TransportError as exc:
+            last = exc
+        if last and not isinstance(last, Exception):
+            return last
+        time.sleep(0.1)
+    raise AssertionError(f"{what}: still {last!r} after {timeout_s} s")
+
+
+def test_serve_opens_a_socketcand_bus_shared_with_a_simulator_process(tmp_path: Path) -> None:
+    """`drivebench serve --bus socketcand:127.0.0.1:PORT/can0` against the hub, drives simulated by another
+    process: health answers, the session is listed, a scan finds the three drives with live heartbeat states."""
+    with start_hub_thread(port=0) as hub:
+        bus = f"socketcand:127.0.0.1:{hub.port}/can0"
+        simulator = start_simulator(bus)
+        port = free_port()
+        server = CliProcess("serve", "--port", str(port), "--bus", bus,
+                            env={"DRIVEBENCH_DATABASE_URL": f"sqlite:///{tmp_path / 'serve.db'}"})
+        try:
+            base = f"http://127.0.0.1:{port}"
+            with httpx.Client(base_url=base, timeout=10) as api:
+                health = poll(lambda: api.get("/api/health").json(), START_TIMEOUT_S, "health")
+                assert isinstance(health, dict) and health["status"] == "ok" and health["sessions"] == 1
+
+                (session,) = api.get("/api/sessions").json()
+                assert (session["interface"], session["channel"], session["simulated"]) == ("socketcand", "can0",
+                                                                                            False)
+                assert session["bus"] == f"{bus}@500000"
+
+                found = api.post(f"/api/sessions/{session['id']}/scan", json={"timeout_s": 1.0})
+                assert found.status_code == 200, found.text
+                assert sorted(node["node_id"] for node in found.json()) == DEMO_NODE_IDS
+
+                def live_states() -> list[str] | None:
+                    nodes = api.get(f"/api/sessions/{session['id']}/nodes").json()
+                    live = [n["nmt_state"] for n in nodes if n["state_from_heartbeat"]]
+                    return live if len(live) == len(DEMO_NODE_IDS) else None
+
+                assert poll(live_states, 15, "heartbeat states") == ["Pre-operational"] * 3
+        finally:
+            codes = [server.stop(), simulator.stop()]
+    # uvicorn shuts down gracefully on SIGTERM, then raises the signal again so the exit status tells why it ended
+    assert codes in ([0, 0], [-signal.SIGTERM, 0]), "serve and simulate end on SIGTERM"
+
+
+def test_serve_with_an_unreachable_gateway_says_what_to_check(capsys: pytest.CaptureFixture[str]) -> None:
+    with socket.socket() as sock:  # a port nobody listens on
+        sock.bind(("127.0.0.1", 0))
+        port = sock.getsockname()[1]
+    assert main(["serve", "--port", "0", "--bus", f"socketcand:127.0.0.1:{port}/can0"]) == 1
+    err = capsys.readouterr().err
+    assert f"Cannot reach the socketcand gateway at 127.0.0.1:{port}" in err
+    assert f"drivebench hub --port {port}" in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize(("bus", "message"), [
+    ("nosuchcan:can0@500000", "Unknown CAN interface 'nosuchcan'"),
+    ("socketcand:gateway/can0", "socketcand:HOST:PORT/CHANNEL"),
+    ("virtual:x@2000000", "bitrate"),
+    ("not a bus", "is not a bus specification"),
+])
+def test_serve_with_a_bad_bus_ends_with_a_message(bus: str, message: str, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["serve", "--port", "0", "--bus", bus]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("drivebench: ") and message in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("command", ["serve", "hub"])
+def test_non_loopback_addresses_are_refused_without_allow_remote(command: str,
+                                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    assert main([command, "--host", "0.0.0.0", "--port", "0"]) == 2
+    err = capsys.readouterr().err
+    assert "Refusing to listen on 0.0.0.0" in err and "--allow-remote" in err
+
+
+def test_simulate_on_an_unknown_interface_ends_with_a_message(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["simulate", "--bus", "nosuchcan:can0"]) == 1
+    assert "Unknown CAN interface 'nosuchcan'" in capsys.readouterr().err
