@@ -107,10 +107,10 @@ def test_string_c00099_by_segmented_and_by_block_upload(bench: Bench) -> None:
 
 
 def test_bit_coded_word_shows_named_bits(bench: Bench) -> None:
-    bench.plant.nodes[12].store.set_ref("C0150", 0b1001)
-    value = bench.run(parameters.read(bench.session, 12, "C0150"))
-    bits = bench.session.node(12).catalog.resolve("C0150").entry.bits  # type: ignore[union-attr]
-    assert value.text == ", ".join([bits[0], bits[3]])
+    bench.plant.nodes[5].store.set_ref("C00349", 0b101)
+    value = bench.run(parameters.read(bench.session, 5, "C00349"))
+    bits = bench.session.node(5).catalog.resolve("C00349").entry.bits  # type: ignore[union-attr]
+    assert value.text == ", ".join([bits[0], bits[2]]) and value.display == "0x0005"
 
 
 def test_emf2178ib_fix32_values(bench: Bench) -> None:

@@ -76,6 +76,7 @@ class Job:
     result: dict[str, Any] = field(default_factory=dict)
     _version: int = 0
     _changed: asyncio.Condition | None = None
+    _waiters: int = 0
     _task: asyncio.Task[None] | None = None
 
     # --- called by the work ---------------------------------------------------------------------------
@@ -109,8 +110,12 @@ class Job:
         condition = self._condition()
         async with condition:
             if self._version == since and not self.state.finished:
-                with contextlib.suppress(TimeoutError):
-                    await asyncio.wait_for(condition.wait(), timeout_s)
+                self._waiters += 1
+                try:
+                    with contextlib.suppress(TimeoutError):
+                        await asyncio.wait_for(condition.wait(), timeout_s)
+                finally:
+                    self._waiters -= 1
         return self._version
 
     async def wait(self) -> None:
@@ -126,7 +131,7 @@ class Job:
     def _notify(self) -> None:
         self._version += 1
         condition = self._changed
-        if condition is None:
+        if condition is None or not self._waiters:
             return
 
         async def wake() -> None:

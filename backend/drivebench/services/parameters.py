@@ -23,7 +23,7 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from enum import StrEnum
 from functools import partial
-from typing import TypeVar
+from typing import Protocol, TypeVar
 
 from drivebench.device.addressing import IndexRef, parse_ref
 from drivebench.device.catalog import Catalog, Item
@@ -38,6 +38,7 @@ from drivebench.errors import (
     SdoTimeoutError,
     UnknownParameter,
 )
+from drivebench.protocol.abort_codes import abort_text
 from drivebench.protocol.datatypes import DataType, decode, encode
 from drivebench.protocol.heartbeat import HeartbeatStatus
 from drivebench.protocol.network import NodeClient, SdoChannel
@@ -187,6 +188,9 @@ def resolve(node: SessionNode, ref: str) -> Item:
     """A profile item, or for an index the profile does not list a raw item (read as bytes)."""
     catalog = _catalog(node)
     if catalog is not None:
+        listed = _by_ref(catalog).get(ref.strip())
+        if listed is not None:  # the ref as the table shows it (0x1003.10 is subindex 10 there, not 0x10)
+            return listed
         try:
             return catalog.resolve(ref)
         except UnknownParameter:
@@ -201,6 +205,16 @@ def resolve(node: SessionNode, ref: str) -> Item:
                         index=parsed.index, subindex=sub)
     name = f"0x{parsed.index:04X}" if sub == 0 else f"0x{parsed.index:04X}.{sub}"
     return Item(name, parsed.index, sub, entry)
+
+
+_REFS: weakref.WeakKeyDictionary[Catalog, dict[str, Item]] = weakref.WeakKeyDictionary()
+
+
+def _by_ref(catalog: Catalog) -> dict[str, Item]:
+    refs = _REFS.get(catalog)
+    if refs is None:
+        refs = _REFS[catalog] = {item.ref: item for item in catalog.items}
+    return refs
 
 
 def items(node: SessionNode, query: str = "", group: str | None = None) -> list[Item]:
@@ -262,6 +276,106 @@ def _read_blocking(client: NodeClient, item: Item, *, block: bool = False, chann
     return client.upload(item.index, item.subindex, block=block, channel=channel)
 
 
+def _resolve(future: asyncio.Future[bytes], data: bytes) -> None:
+    if not future.done():
+        future.set_result(data)
+
+
+def _expire(future: asyncio.Future[bytes]) -> None:
+    if not future.done():
+        future.set_exception(TimeoutError())
+
+
+class _Expedited:
+    """Expedited SDO upload awaited on the event loop: the request is sent, the response resolves a future from
+    the bus reader thread. No worker thread per read, so the service layer keeps pace with a bare canopen client.
+
+    It takes the channel's lock without waiting (a transfer in progress sends the read to a worker thread
+    instead) and checks that the response names the requested object; canopen's own client on the same COB-ID
+    discards the copy it queued at its next transfer.
+    """
+
+    def __init__(self, client: NodeClient, channel: SdoChannel) -> None:
+        # no reference to the channel or the node client: they key ``_FAST`` weakly
+        self.node_id = client.node_id
+        self.vendor = client.vendor
+        self.lock = channel.lock
+        self.sdo = channel.client
+        self._pending: tuple[asyncio.AbstractEventLoop, asyncio.Future[bytes], bytes] | None = None
+        self.sdo.network.subscribe(self.sdo.tx_cobid, self._on_response)
+
+    def _on_response(self, can_id: int, data: bytearray, timestamp: float) -> None:  # bus reader thread
+        pending = self._pending
+        if pending is None or bytes(data[1:4]) != pending[2]:
+            return
+        loop, future, _ = pending
+        loop.call_soon_threadsafe(_resolve, future, bytes(data))
+
+    async def upload(self, index: int, sub: int) -> bytes | None:
+        """The value, or None when the channel is busy or the device answers other than expedited."""
+        if not self.lock.acquire(blocking=False):
+            return None
+        try:
+            address = bytes([index & 0xFF, index >> 8, sub])
+            attempts = max(int(self.sdo.MAX_RETRIES), 1)
+            loop = asyncio.get_running_loop()
+            for attempt in range(attempts):
+                future: asyncio.Future[bytes] = loop.create_future()
+                self._pending = (loop, future, address)
+                # a plain timer, not asyncio.wait_for: that costs two more loop iterations per read
+                timer = loop.call_later(float(self.sdo.RESPONSE_TIMEOUT), _expire, future)
+                self.sdo.network.send_message(self.sdo.rx_cobid, b"\x40" + address + bytes(4))
+                try:
+                    response = await future
+                except TimeoutError:
+                    if attempt + 1 < attempts:
+                        continue
+                    self._abort(address, 0x05040000)
+                    raise SdoTimeoutError(f"Node {self.node_id} did not answer the SDO request for "
+                                          f"0x{index:04X}sub{sub} (No SDO response received)",
+                                          node=self.node_id, index=index, subindex=sub) from None
+                finally:
+                    timer.cancel()
+                    self._pending = None
+                return self._data(response, index, sub, address)
+            return None
+        finally:
+            self.lock.release()
+
+    def _data(self, response: bytes, index: int, sub: int, address: bytes) -> bytes | None:
+        command = response[0]
+        if command == 0x80:
+            code = int.from_bytes(response[4:8], "little")
+            raise SdoAbortError(code, abort_text(code, self.vendor), node=self.node_id,
+                                index=index, subindex=sub)
+        if command & 0xE3 == 0x43:  # expedited, size indicated
+            return response[4:8 - ((command >> 2) & 0x3)]
+        if command & 0xE3 == 0x42:  # expedited, size not indicated
+            return response[4:8]
+        self._abort(address, 0x05040001)  # segmented: leave it to canopen's client in a worker thread
+        return None
+
+    def _abort(self, address: bytes, code: int) -> None:
+        self.sdo.network.send_message(self.sdo.rx_cobid, b"\x80" + address + code.to_bytes(4, "little"))
+
+
+_FAST: weakref.WeakKeyDictionary[SdoChannel, _Expedited] = weakref.WeakKeyDictionary()
+
+
+async def _upload(client: NodeClient, item: Item, *, block: bool = False, channel: int | None = None) -> bytes:
+    """Read one value: expedited on the event loop where it can be, else canopen's client in a worker thread."""
+    size = item.entry.data_type.size
+    if not block and size is not None and size <= 4 and item.entry.access.readable:
+        chosen = client._pick_channel(channel)
+        fast = _FAST.get(chosen)
+        if fast is None:
+            fast = _FAST[chosen] = _Expedited(client, chosen)
+        data = await fast.upload(item.index, item.subindex)
+        if data is not None:
+            return data
+    return await _on_bus(partial(_read_blocking, client, item, block=block, channel=channel))
+
+
 def _use_block(node: SessionNode, item: Item, transfer: str) -> bool:
     if transfer == "block":
         if node.profile is not None and not node.profile.features.block_sdo:
@@ -277,13 +391,36 @@ async def read(session: Session, node_id: int, ref: str, *, transfer: str = "aut
     item = resolve(node, ref)
     client = session.client(node_id)
     block = _use_block(node, item, transfer)
-    data = await _on_bus(lambda: _read_blocking(client, item, block=block))
+    data = await _upload(client, item, block=block)
     value = _value(item, _decode(item, data, node_id))
     service(session).remember(node_id, value)
     return value
 
 
 # --- write -----------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class WriteAttempt:
+    """A write about to be sent: what the tool last read there (``old``, None if never read) and the new value."""
+
+    session: Session
+    node_id: int
+    item: Item
+    old: ParameterValue | None
+    new: ScaledValue
+
+
+class WriteAudit(Protocol):
+    """Told about every write :func:`write` sends: before sending, and with the outcome (the audit log)."""
+
+    async def sending(self, attempt: WriteAttempt) -> object: ...
+
+    async def done(self, token: object, result: WriteResult | None, error: BaseException | None) -> None: ...
+
+
+WRITE_AUDITS: list[WriteAudit] = []
+"""Registered by ``services/audit.py`` while a server runs."""
+
+
 def _unchecked_raw(item: Item, value: object) -> RawValue:
     """The raw value without the profile's range/selection/read-only checks (the device decides); it must
     still fit the data type: nothing is ever truncated."""
@@ -311,6 +448,25 @@ async def write(session: Session, node_id: int, ref: str, value: object, *, chec
     except ValueError as exc:
         raise OutOfRange(f"{item.ref} ({item.entry.name}): {value!r} does not fit "
                          f"{item.entry.data_type.value}") from exc
+    if not WRITE_AUDITS:
+        return await _send(session, node, item, raw, data, verify)
+    attempt = WriteAttempt(session, node_id, item, service(session).values.get(node_id, {}).get(item.ref),
+                           from_raw(item.entry, raw))
+    tokens = [(audit, await audit.sending(attempt)) for audit in WRITE_AUDITS]
+    try:
+        result = await _send(session, node, item, raw, data, verify)
+    except BaseException as exc:
+        for audit, token in tokens:
+            await asyncio.shield(audit.done(token, None, exc))
+        raise
+    for audit, token in tokens:
+        await audit.done(token, result, None)
+    return result
+
+
+async def _send(session: Session, node: SessionNode, item: Item, raw: RawValue, data: bytes,
+                verify: bool) -> WriteResult:
+    node_id = node.node_id
     client = session.client(node_id)
     await _on_bus(lambda: client.download(item.index, item.subindex, data))
     if item.entry.reset_required:
@@ -460,7 +616,7 @@ async def _read_node(session: Session, node: SessionNode, work: list[Item], job:
                 return
             item = queue.popleft()
             try:
-                data = await _on_bus(partial(_read_blocking, client, item, channel=channel))
+                data = await _upload(client, item, channel=channel)
                 value = _value(item, _decode(item, data, node.node_id))
             except SdoTimeoutError as exc:
                 silent["timeouts"] += 1
