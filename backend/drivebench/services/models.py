@@ -5,7 +5,7 @@ from __future__ import annotations
 from datetime import UTC, datetime
 from typing import Any
 
-from sqlalchemy import JSON, DateTime, Integer, String
+from sqlalchemy import JSON, DateTime, ForeignKey, Integer, String, Text, UniqueConstraint
 from sqlalchemy.orm import Mapped, mapped_column
 
 from drivebench.services.database import Base
@@ -26,3 +26,89 @@ class PlannedNetworkRow(Base):
     updated: Mapped[datetime] = mapped_column(DateTime(timezone=True), nullable=False, default=utcnow,
                                               onupdate=utcnow)
     body: Mapped[dict[str, Any]] = mapped_column(JSON, nullable=False)
+
+
+# --- parameter sets, downloads, audit log (migration 0002_parameter_sets) -----------------------------------
+class ParameterSetRow(Base):
+    """A stored parameter set: what it is for (profile id + version), where it came from, who made it.
+
+    The values live in :class:`ParameterSetVersionRow` (one JSON body per version: a 5,000-parameter set is one
+    row to read and one dict to compare, not 5,000 rows)."""
+
+    __tablename__ = "parameter_set"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
+    name: Mapped[str] = mapped_column(String(200), nullable=False, index=True)
+    profile_id: Mapped[str] = mapped_column(String(120), nullable=False, index=True)
+    profile_version: Mapped[str] = mapped_column(String(40), nullable=False)
+    device: Mapped[str] = mapped_column(String(200), nullable=False)
+    node_id: Mapped[int | None] = mapped_column(Integer, nullable=True)
+    """The node the values were uploaded from (None: imported from a file)."""
+    session_id: Mapped[str | None] = mapped_column(String(120), nullable=True)
+    created: Mapped[datetime] = mapped_column(DateTime(timezone=True), nullable=False, default=utcnow)
+    updated: Mapped[datetime] = mapped_column(DateTime(timezone=True), nullable=False, default=utcnow)
+    created_by: Mapped[str] = mapped_column(String(120), nullable=False)
+    note: Mapped[str] = mapped_column(Text, nullable=False, default="")
+    version: Mapped[int] = mapped_column(Integer, nullable=False, default=1)
+    """The current version (the newest row in parameter_set_version)."""
+
+
+class ParameterSetVersionRow(Base):
+    """One version of a set's values: ``body = {"values": {ref: raw}}`` in the profile's order."""
+
+    __tablename__ = "parameter_set_version"
+    __table_args__ = (UniqueConstraint("set_id", "version", name="uq_parameter_set_version"),)
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
+    set_id: Mapped[int] = mapped_column(ForeignKey("parameter_set.id", ondelete="CASCADE"), nullable=False,
+                                        index=True)
+    version: Mapped[int] = mapped_column(Integer, nullable=False)
+    created: Mapped[datetime] = mapped_column(DateTime(timezone=True), nullable=False, default=utcnow)
+    created_by: Mapped[str] = mapped_column(String(120), nullable=False)
+    reason: Mapped[str] = mapped_column(String(300), nullable=False)
+    count: Mapped[int] = mapped_column(Integer, nullable=False)
+    body: Mapped[dict[str, Any]] = mapped_column(JSON, nullable=False)
+
+
+class DownloadRow(Base):
+    """One download (or rollback) of values to a node: the values read first (``before``, committed before the
+    first write, so a rollback works even after a crash) and the final report per parameter."""
+
+    __tablename__ = "parameter_download"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
+    kind: Mapped[str] = mapped_column(String(20), nullable=False)
+    """``download``, ``retry`` or ``rollback``."""
+    set_id: Mapped[int | None] = mapped_column(ForeignKey("parameter_set.id", ondelete="SET NULL"), nullable=True)
+    set_version: Mapped[int | None] = mapped_column(Integer, nullable=True)
+    session_id: Mapped[str] = mapped_column(String(120), nullable=False)
+    node_id: Mapped[int] = mapped_column(Integer, nullable=False)
+    profile_id: Mapped[str] = mapped_column(String(120), nullable=False)
+    user: Mapped[str] = mapped_column(String(120), nullable=False)
+    started: Mapped[datetime] = mapped_column(DateTime(timezone=True), nullable=False, default=utcnow)
+    finished: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
+    state: Mapped[str] = mapped_column(String(20), nullable=False)
+    """``running`` until the report is stored; a row still ``running`` after its job is gone was interrupted."""
+    before: Mapped[dict[str, Any]] = mapped_column(JSON, nullable=False)
+    report: Mapped[list[Any]] = mapped_column(JSON, nullable=False)
+
+
+class AuditRow(Base):
+    """Every write the tool sends to a device: one row before it is sent (result ``sending``), completed after."""
+
+    __tablename__ = "audit_log"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
+    time: Mapped[datetime] = mapped_column(DateTime(timezone=True), nullable=False, default=utcnow, index=True)
+    user: Mapped[str] = mapped_column(String(120), nullable=False)
+    session_id: Mapped[str] = mapped_column(String(120), nullable=False)
+    node_id: Mapped[int] = mapped_column(Integer, nullable=False, index=True)
+    ref: Mapped[str] = mapped_column(String(60), nullable=False)
+    address: Mapped[str] = mapped_column(String(20), nullable=False)
+    old_value: Mapped[str | None] = mapped_column(Text, nullable=True)
+    new_value: Mapped[str] = mapped_column(Text, nullable=False)
+    result: Mapped[str] = mapped_column(String(20), nullable=False)
+    """``sending`` (the tool stopped during the write), ``written``, ``not verified``, ``mismatch``, ``failed``."""
+    detail: Mapped[str | None] = mapped_column(Text, nullable=True)
+    origin: Mapped[str] = mapped_column(String(60), nullable=False)
+    """``parameters`` (a single write), ``download 12``, ``rollback 13`` ..."""

@@ -1,0 +1,444 @@
+"""Parameter sets: a node's parameter values stored under a name, with history, compared and copied.
+
+A set belongs to one device profile (id + version). Its values are raw values by canonical ref
+(``{"C00088": 1020, "0x1017": 500}``) in the profile's order, stored as one JSON body per version, so a
+5,000-parameter set is one row to load and one dict to compare. Every change of the values is a new version; the
+old ones stay (history). Only parameters a download can write go into a set: readable and writable, and not
+device commands (``C00002/x``, ``0x1010``/``0x1011`` save/restore, reset node) - downloading those would
+*do* something rather than set something.
+
+Jobs that talk to the device (upload, download, retry, rollback) are in ``services/set_jobs.py``; file formats
+in ``services/set_formats.py``.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import re
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from datetime import datetime
+from typing import Any
+
+from sqlalchemy import delete, select, update
+
+from drivebench.device.catalog import Catalog, Item
+from drivebench.device.eds import resolve_node_expr
+from drivebench.device.profile import ObjectEntry, Profile
+from drivebench.device.scaling import from_raw
+from drivebench.errors import Conflict, InvalidValue, NotFound
+from drivebench.services import parameters
+from drivebench.services.database import transaction
+from drivebench.services.models import DownloadRow, ParameterSetRow, ParameterSetVersionRow, utcnow
+
+Raw = int | float | str
+Values = dict[str, Raw]
+
+COMMAND_INDICES = (0x1010, 0x1011)
+_COMMAND_NAME = re.compile(r"device command|reset node|save all|load lenze|restore", re.IGNORECASE)
+_NODE_ADDRESS_NAME = re.compile(r"(node address|device address|node id)$", re.IGNORECASE)
+_COB_BASES = (0x080, 0x180, 0x200, 0x280, 0x300, 0x380, 0x400, 0x480, 0x500, 0x580, 0x600, 0x700)
+
+
+# --- what a set holds ---------------------------------------------------------------------------------------
+_catalogs: dict[int, tuple[Profile, Catalog]] = {}
+
+
+def catalog_for(profile: Profile) -> Catalog:
+    """The profile's catalog, built once per profile object."""
+    cached = _catalogs.get(id(profile))
+    if cached is None or cached[0] is not profile:
+        if len(_catalogs) > 64:
+            _catalogs.clear()
+        cached = _catalogs[id(profile)] = (profile, Catalog(profile))
+    return cached[1]
+
+
+def is_command(item: Item) -> bool:
+    return (item.index in COMMAND_INDICES or item.group == "Device commands"
+            or bool(_COMMAND_NAME.search(item.name)))
+
+
+TOOL_CHANNELS = range(0x1201, 0x1280)
+"""Additional SDO server parameters: DriveBench activates SDO2 itself to read faster (not saved on the device), so
+an upload would store the tool's own state; a set leaves them out."""
+
+
+def settable(item: Item) -> bool:
+    """Whether a set stores this item: readable, writable, not a device command, not an SDO channel the tool
+    opens for itself."""
+    access = item.entry.access
+    return access.readable and access.writable and not is_command(item) and item.index not in TOOL_CHANNELS
+
+
+def settable_items(profile: Profile) -> list[Item]:
+    return [item for item in catalog_for(profile).items if settable(item)]
+
+
+def same_raw(a: Raw | None, b: Raw | None) -> bool:
+    if isinstance(a, float) or isinstance(b, float):
+        if isinstance(a, (int, float)) and isinstance(b, (int, float)):
+            return math.isclose(a, b, rel_tol=1e-6, abs_tol=1e-9)
+        return False
+    if isinstance(a, str) and isinstance(b, str):
+        return a.rstrip("\x00") == b.rstrip("\x00")
+    return a == b
+
+
+def engineering(item: Item, raw: Raw) -> object:
+    """A raw value as :func:`parameters.write` takes it (engineering units; hex text for byte strings)."""
+    if isinstance(raw, str):
+        return raw
+    factor = item.entry.factor
+    return raw / factor if factor != 1 else raw
+
+
+def shown(item: Item, raw: Raw | None) -> str | None:
+    """``10.20 A``, ``0 = 500 kbit/s`` ... (what the Parameters tab shows)."""
+    if raw is None:
+        return None
+    return parameters.display(item, from_raw(item.entry, raw))
+
+
+def default_raw(item: Item, node_id: int | None) -> Raw | None:
+    """The profile's default as a raw value (``$NODEID`` formulas for ``node_id``), None where there is none."""
+    entry = item.entry
+    if isinstance(entry, ObjectEntry) and entry.default_expr is not None:
+        return resolve_node_expr(entry.default_expr, node_id) if node_id is not None else None
+    default = entry.default
+    if default is None or isinstance(default, str):
+        return default
+    if entry.data_type.is_float:
+        return float(default) * float(entry.factor)
+    return round(default * entry.factor)
+
+
+def defaults_of(profile: Profile, node_id: int | None = None) -> Values:
+    found: Values = {}
+    for item in settable_items(profile):
+        raw = default_raw(item, node_id)
+        if raw is not None:
+            found[item.ref] = raw
+    return found
+
+
+# --- stored sets -------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class SetInfo:
+    id: int
+    name: str
+    profile_id: str
+    profile_version: str
+    device: str
+    node_id: int | None
+    session_id: str | None
+    created: datetime
+    updated: datetime
+    created_by: str
+    note: str
+    version: int
+    count: int
+
+
+@dataclass(frozen=True)
+class StoredSet:
+    info: SetInfo
+    values: Values
+    """Raw values by ref, of the version asked for (the newest by default)."""
+    version: int
+
+
+@dataclass(frozen=True)
+class SetVersion:
+    version: int
+    created: datetime
+    created_by: str
+    reason: str
+    count: int
+
+
+def _info(row: ParameterSetRow, count: int) -> SetInfo:
+    return SetInfo(row.id, row.name, row.profile_id, row.profile_version, row.device, row.node_id, row.session_id,
+                   row.created, row.updated, row.created_by, row.note, row.version, count)
+
+
+def _check_name(name: str) -> str:
+    cleaned = " ".join(name.split())
+    if not cleaned or len(cleaned) > 200:
+        raise InvalidValue("A parameter set needs a name of 1 to 200 characters")
+    return cleaned
+
+
+class ParameterSetStore:
+    """Sets in the database at ``url`` (None: ``settings.database_url``, read at each call)."""
+
+    def __init__(self, url: str | None = None) -> None:
+        self.url = url
+
+    def create(self, name: str, profile: Profile, values: Mapping[str, Raw], *, user: str,
+               node_id: int | None = None, session_id: str | None = None, note: str = "",
+               reason: str = "created") -> StoredSet:
+        """Store a new set (version 1) in one transaction."""
+        now = utcnow()
+        body = dict(values)
+        with transaction(self.url) as db:
+            row = ParameterSetRow(name=_check_name(name), profile_id=profile.id, profile_version=profile.version,
+                                  device=profile.identity.product_name, node_id=node_id, session_id=session_id,
+                                  created=now, updated=now, created_by=user, note=note, version=1)
+            db.add(row)
+            db.flush()
+            db.add(ParameterSetVersionRow(set_id=row.id, version=1, created=now, created_by=user, reason=reason,
+                                          count=len(body), body={"values": body}))
+            return StoredSet(_info(row, len(body)), body, 1)
+
+    def all(self, profile_id: str | None = None) -> list[SetInfo]:
+        """Newest first, with the number of values of each set's current version."""
+        count = (select(ParameterSetVersionRow.count)
+                 .where(ParameterSetVersionRow.set_id == ParameterSetRow.id,
+                        ParameterSetVersionRow.version == ParameterSetRow.version)
+                 .scalar_subquery())
+        statement = select(ParameterSetRow, count).order_by(ParameterSetRow.updated.desc(), ParameterSetRow.id.desc())
+        if profile_id:
+            statement = statement.where(ParameterSetRow.profile_id == profile_id)
+        with transaction(self.url) as db:
+            return [_info(row, number or 0) for row, number in db.execute(statement)]
+
+    def _row(self, db: Any, set_id: int) -> ParameterSetRow:
+        row: ParameterSetRow | None = db.get(ParameterSetRow, set_id)
+        if row is None:
+            raise NotFound(f"No parameter set {set_id}")
+        return row
+
+    def get(self, set_id: int, version: int | None = None) -> StoredSet:
+        with transaction(self.url) as db:
+            row = self._row(db, set_id)
+            wanted = version or row.version
+            body = db.scalars(select(ParameterSetVersionRow).where(ParameterSetVersionRow.set_id == set_id,
+                                                                   ParameterSetVersionRow.version == wanted)).first()
+            if body is None:
+                raise NotFound(f"Parameter set {set_id} has no version {wanted}")
+            values: Values = dict(body.body.get("values", {}))
+            return StoredSet(_info(row, body.count), values, wanted)
+
+    def rename(self, set_id: int, name: str | None = None, note: str | None = None) -> SetInfo:
+        with transaction(self.url) as db:
+            row = self._row(db, set_id)
+            if name is not None:
+                row.name = _check_name(name)
+            if note is not None:
+                row.note = note
+            row.updated = utcnow()
+        return self.get(set_id).info
+
+    def update_values(self, set_id: int, values: Mapping[str, Raw], *, user: str, reason: str) -> StoredSet:
+        """A new version with these values (the old versions stay)."""
+        body = dict(values)
+        with transaction(self.url) as db:
+            row = self._row(db, set_id)
+            row.version += 1
+            row.updated = utcnow()
+            db.add(ParameterSetVersionRow(set_id=set_id, version=row.version, created=row.updated, created_by=user,
+                                          reason=reason, count=len(body), body={"values": body}))
+            db.flush()
+            return StoredSet(_info(row, len(body)), body, row.version)
+
+    def delete(self, set_id: int) -> None:
+        with transaction(self.url) as db:
+            self._row(db, set_id)
+            # bulk statements: the versions go first (SQLite without the foreign-key pragma does not cascade),
+            # downloads keep their report with set_id NULL (ON DELETE SET NULL)
+            db.execute(delete(ParameterSetVersionRow).where(ParameterSetVersionRow.set_id == set_id))
+            db.execute(update(DownloadRow).where(DownloadRow.set_id == set_id).values(set_id=None))
+            db.execute(delete(ParameterSetRow).where(ParameterSetRow.id == set_id))
+
+    def history(self, set_id: int) -> list[SetVersion]:
+        """Newest first."""
+        with transaction(self.url) as db:
+            self._row(db, set_id)
+            rows = db.scalars(select(ParameterSetVersionRow).where(ParameterSetVersionRow.set_id == set_id)
+                              .order_by(ParameterSetVersionRow.version.desc()))
+            return [SetVersion(r.version, r.created, r.created_by, r.reason, r.count) for r in rows]
+
+    # --- downloads ---------------------------------------------------------------------------------------
+    def start_download(self, *, kind: str, session_id: str, node_id: int, profile_id: str, user: str,
+                       before: Mapping[str, Raw], set_id: int | None = None,
+                       set_version: int | None = None) -> int:
+        """Record a download with the values read first; committed before the first write is sent."""
+        with transaction(self.url) as db:
+            row = DownloadRow(kind=kind, set_id=set_id, set_version=set_version, session_id=session_id,
+                              node_id=node_id, profile_id=profile_id, user=user, started=utcnow(), state="running",
+                              before=dict(before), report=[])
+            db.add(row)
+            db.flush()
+            return row.id
+
+    def finish_download(self, download_id: int, state: str, report: list[dict[str, Any]]) -> None:
+        with transaction(self.url) as db:
+            row = db.get(DownloadRow, download_id)
+            if row is None:
+                raise NotFound(f"No download {download_id}")
+            row.state, row.report, row.finished = state, report, utcnow()
+
+    def download(self, download_id: int) -> DownloadRow:
+        with transaction(self.url) as db:
+            row = db.get(DownloadRow, download_id)
+            if row is None:
+                raise NotFound(f"No download {download_id}")
+            db.expunge(row)
+            return row
+
+    def downloads(self, *, node_id: int | None = None, limit: int = 50) -> list[DownloadRow]:
+        statement = select(DownloadRow).order_by(DownloadRow.id.desc()).limit(limit)
+        if node_id is not None:
+            statement = statement.where(DownloadRow.node_id == node_id)
+        with transaction(self.url) as db:
+            rows = list(db.scalars(statement))
+            for row in rows:
+                db.expunge(row)
+            return rows
+
+
+# --- copy to another node -----------------------------------------------------------------------------------
+def retarget(profile: Profile, values: Mapping[str, Raw], from_node: int, to_node: int) -> tuple[Values, list[str]]:
+    """The values for an identical drive at ``to_node``: its own node address, and the COB-IDs the predefined
+    connection set derives from the node id (CiA 301 ``$NODEID`` formulas, ``0x180 + node`` ...) moved along.
+    Returns the values and one note per changed parameter."""
+    catalog = catalog_for(profile)
+    moved: Values = {}
+    notes: list[str] = []
+    for ref, raw in values.items():
+        new = raw
+        item = _item(catalog, ref)
+        if item is not None and isinstance(raw, int) and not isinstance(raw, bool):
+            entry = item.entry
+            if raw == from_node and _NODE_ADDRESS_NAME.search(entry.name):
+                new = to_node
+            elif isinstance(entry, ObjectEntry) and entry.default_expr and "NODEID" in entry.default_expr.upper():
+                if raw & 0x7F == from_node and (raw & 0x780) in _COB_BASES:
+                    new = raw - from_node + to_node
+            elif re.search(r"cob-?id|identifier", item.name, re.IGNORECASE) and raw & 0x7F == from_node \
+                    and raw & 0x780 in _COB_BASES and raw < 0x800:
+                new = raw - from_node + to_node
+        if new != raw and item is not None:
+            notes.append(f"{ref} ({item.name}): {shown(item, raw)} -> {shown(item, new)}")
+        moved[ref] = new
+    return moved, notes
+
+
+def _item(catalog: Catalog, ref: str) -> Item | None:
+    try:
+        return catalog.resolve(ref)
+    except Exception:  # a ref the profile no longer knows: compare and download report it
+        return None
+
+
+# --- compare ------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Source:
+    """One side of a comparison: raw values by ref for one profile."""
+
+    label: str
+    profile: Profile
+    values: Values
+    unread: dict[str, str] = field(default_factory=dict)
+    """Refs that could not be read from a device, with why."""
+
+
+@dataclass(frozen=True)
+class Difference:
+    ref: str
+    name: str
+    group: str
+    unit: str | None
+    left: str | None
+    right: str | None
+    left_raw: Raw | None
+    right_raw: Raw | None
+    kind: str
+    """``changed``, ``only left``, ``only right`` or ``unreadable``."""
+
+
+@dataclass(frozen=True)
+class Comparison:
+    left: str
+    right: str
+    profile_id: str
+    compared: int
+    equal: int
+    rows: list[Difference]
+    """Differences only, in the profile's order, after the filter."""
+    total_differences: int
+
+
+def compare(left: Source, right: Source, *, query: str = "", group: str | None = None) -> Comparison:
+    """The parameters in which the two sources differ (a ref only one side has counts as a difference)."""
+    if left.profile.id != right.profile.id:
+        raise Conflict(f"'{left.label}' is a {left.profile.identity.product_name} and '{right.label}' a "
+                       f"{right.profile.identity.product_name}: only sets of one device type compare")
+    catalog = catalog_for(left.profile)
+    words = query.lower().split()
+    rows: list[Difference] = []
+    refs = list(left.values) + [ref for ref in right.values if ref not in left.values]
+    refs += [ref for ref in (*left.unread, *right.unread) if ref not in left.values and ref not in right.values]
+    equal = 0
+    total = 0
+    for ref in refs:
+        a, b = left.values.get(ref), right.values.get(ref)
+        if a is not None and b is not None and same_raw(a, b):
+            equal += 1
+            continue
+        total += 1
+        item = _item(catalog, ref)
+        name = item.name if item else "(not in the profile)"
+        item_group = item.group if item else ""
+        if words and not all(w in f"{ref} {name}".lower() for w in words):
+            continue
+        if group and item_group != group:
+            continue
+        if ref in left.unread or ref in right.unread:
+            kind = "unreadable"
+        elif a is None:
+            kind = "only right"
+        elif b is None:
+            kind = "only left"
+        else:
+            kind = "changed"
+        left_text = shown(item, a) if item else (None if a is None else str(a))
+        right_text = shown(item, b) if item else (None if b is None else str(b))
+        if ref in left.unread:
+            left_text = left.unread[ref]
+        if ref in right.unread:
+            right_text = right.unread[ref]
+        rows.append(Difference(ref, name, item_group, item.entry.unit if item else None, left_text, right_text,
+                               a, b, kind))
+    return Comparison(left.label, right.label, left.profile.id, len(refs), equal, rows, total)
+
+
+def comparison_csv(comparison: Comparison) -> str:
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(["code", "name", "unit", comparison.left, comparison.right, "left raw", "right raw", "kind"])
+    for row in comparison.rows:
+        writer.writerow([row.ref, row.name, row.unit or "", row.left or "", row.right or "",
+                         "" if row.left_raw is None else row.left_raw,
+                         "" if row.right_raw is None else row.right_raw, row.kind])
+    return out.getvalue()
+
+
+def set_source(stored: StoredSet, profile: Profile) -> Source:
+    label = f"Set '{stored.info.name}' v{stored.version}"
+    return Source(label, profile, stored.values)
+
+
+def defaults_source(profile: Profile, node_id: int | None = None) -> Source:
+    return Source(f"{profile.identity.product_name} defaults", profile, defaults_of(profile, node_id))
+
+
+def ordered(profile: Profile, refs: Iterable[str]) -> list[str]:
+    """Refs in the profile's order (unknown ones last, as given)."""
+    wanted = set(refs)
+    known = [item.ref for item in catalog_for(profile).items if item.ref in wanted]
+    rest = [ref for ref in refs if ref not in set(known)]
+    return known + rest

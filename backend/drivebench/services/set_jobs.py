@@ -1,0 +1,387 @@
+"""Jobs between parameter sets and a device: upload a node into a set, download a set (preview, retry the
+failed ones, roll back), and the device side of a comparison.
+
+A download never stops silently halfway:
+
+1. it reads the values of every parameter it will touch first and commits them (``parameter_download.before``)
+   before the first write, so a rollback works even after a crash;
+2. it writes only what differs, in a dependency-safe order (parameters that take effect after reset node last,
+   communication ones - node address, baud rate, COB-IDs - at the very end), each verified by read-back;
+3. every parameter ends in the report as ``written``, ``unchanged``, ``mismatch`` (the device holds another value),
+   ``failed`` (with the abort code and text; the value the device now holds is read again) or ``not attempted``
+   (the node fell silent, or the job was cancelled) - and the report is stored whatever happens;
+4. every write goes through :func:`parameters.write`, so the audit log has a row for it.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import uuid
+from dataclasses import asdict, dataclass
+from typing import Any
+
+from drivebench.device.catalog import Item
+from drivebench.device.profile import Profile
+from drivebench.errors import Conflict, DriveBenchError, SdoAbortError, SdoTimeoutError, UnknownParameter
+from drivebench.services import audit, parameters
+from drivebench.services.jobs import Job, JobIssue, JobManager
+from drivebench.services.parameter_sets import (
+    ParameterSetStore,
+    Raw,
+    Source,
+    StoredSet,
+    Values,
+    catalog_for,
+    engineering,
+    same_raw,
+    settable,
+    shown,
+)
+from drivebench.services.sessions import Session, SessionNode
+
+SILENT_AFTER_TIMEOUTS = 2
+REDO = ("failed", "mismatch", "not attempted")
+"""Report states a retry writes again."""
+CHANGED = ("written", "mismatch", "failed")
+"""Report states a rollback restores (a failed write may still have changed the value)."""
+
+
+@dataclass
+class ReportLine:
+    ref: str
+    name: str
+    status: str
+    before: str | None
+    target: str | None
+    now: str | None
+    """What the device holds after the download (read back, or read again after a failure)."""
+    detail: str | None = None
+    abort_code: str | None = None
+    abort_text: str | None = None
+    before_raw: Raw | None = None
+    target_raw: Raw | None = None
+    now_raw: Raw | None = None
+
+
+def _profile(node: SessionNode) -> Profile:
+    if node.profile is None:
+        raise Conflict(f"Node {node.node_id} has no device profile: assign one on the Plant page first")
+    return node.profile
+
+
+def _communication(item: Item) -> bool:
+    group = (item.group or "").lower()
+    return 0x1000 <= item.index <= 0x1FFF or "communication" in group or "can " in f"{group} "
+
+
+def download_order(profile: Profile, refs: list[str]) -> list[str]:
+    """Dependency-safe order: ordinary parameters (profile order), then those that need a reset node, then
+    the communication parameters that need one (node address, baud rate, COB-IDs) - a drive that changes its
+    address or bit rate must do so last."""
+    catalog = catalog_for(profile)
+    position = {item.ref: n for n, item in enumerate(catalog.items)}
+
+    def key(ref: str) -> tuple[int, int]:
+        item = position.get(ref)
+        if item is None:
+            return (0, len(position))
+        found = catalog.items[item]
+        rank = (2 if _communication(found) else 1) if found.entry.reset_required else 0
+        return (rank, item)
+
+    return sorted(refs, key=key)
+
+
+# --- reading (the read-all machinery: SDO2 where there is one, silent nodes give up) ------------------------
+async def read_items(session: Session, node: SessionNode, items: list[Item], job: Job) -> tuple[Values, dict[str, str]]:
+    """Raw values by ref, and the refs that could not be read with why."""
+    first_issue = len(job.issues)
+    job.result.setdefault("values", {}).pop(str(node.node_id), None)
+    await parameters._read_node(session, node, items, job)
+    found = job.result.get("values", {}).pop(str(node.node_id), {})
+    values: Values = {}
+    for ref, value in found.items():
+        raw = value.raw
+        values[ref] = raw.hex() if isinstance(raw, bytes) else raw
+    unread = {i.item: (f"{i.abort_code} {i.abort_text}" if i.abort_code else i.detail)
+              for i in job.issues[first_issue:]}
+    return values, unread
+
+
+async def device_source(session: Session, node_id: int, refs: list[str] | None = None) -> Source:
+    """The node's current values of its settable parameters (or of ``refs``), read now."""
+    node = session.node(node_id)
+    profile = _profile(node)
+    catalog = catalog_for(profile)
+    if refs is None:
+        items = [item for item in catalog.items if settable(item)]
+    else:
+        items = [item for ref in refs if (item := _resolve(catalog, ref)) is not None and item.entry.access.readable]
+    job = Job(f"compare-{uuid.uuid4().hex[:6]}", "read", f"Read node {node_id}", len(items))
+    values, unread = await read_items(session, node, items, job)
+    return Source(f"Node {node_id} ({node.device_name})", profile, values, unread)
+
+
+def _resolve(catalog: Any, ref: str) -> Item | None:
+    try:
+        item: Item = catalog.resolve(ref)
+    except UnknownParameter:
+        return None
+    return item
+
+
+# --- upload ------------------------------------------------------------------------------------------------
+def start_upload(session: Session, node_id: int, jobs: JobManager, store: ParameterSetStore, *, name: str,
+                 note: str = "", user: str | None = None) -> Job:
+    """A job reading every settable parameter of the node into a new set (``job.result['set_id']``)."""
+    node = session.node(node_id)
+    profile = _profile(node)
+    items = [item for item in parameters.readable_items(node) if settable(item)]
+    who = user or audit.current_user.get()
+
+    async def run(job: Job) -> None:
+        found, unread = await read_items(session, node, items, job)
+        values = {item.ref: found[item.ref] for item in items if item.ref in found}  # the profile's order
+        if unread:
+            job.notes.append(f"{len(unread)} parameters could not be read and are not in the set")
+        remark = note or f"Uploaded from node {node_id} of session '{session.name}'"
+        stored = await asyncio.to_thread(store.create, name, profile, values, user=who, node_id=node_id,
+                                         session_id=session.id, note=remark, reason=f"upload from node {node_id}")
+        job.result["set_id"] = stored.info.id
+
+    return jobs.start("upload", f"Upload node {node_id} into '{name}'", len(items), run)
+
+
+# --- preview -----------------------------------------------------------------------------------------------
+async def preview(session: Session, node_id: int, stored: StoredSet) -> list[ReportLine]:
+    """What a download would change: only the parameters whose device value differs from the set's."""
+    node = session.node(node_id)
+    profile = _check_target(node, stored)
+    current = await device_source(session, node_id, list(stored.values))
+    catalog = catalog_for(profile)
+    lines: list[ReportLine] = []
+    for ref in download_order(profile, list(stored.values)):
+        target = stored.values[ref]
+        before = current.values.get(ref)
+        if before is not None and same_raw(before, target):
+            continue
+        item = _resolve(catalog, ref)
+        if item is None:
+            lines.append(ReportLine(ref, "(not in the profile)", "failed", None, str(target), None,
+                                    "not a parameter of this profile", target_raw=target))
+            continue
+        lines.append(ReportLine(ref, item.name, "will change", shown(item, before), shown(item, target),
+                                shown(item, before), current.unread.get(ref), before_raw=before, target_raw=target,
+                                now_raw=before))
+    return lines
+
+
+def _check_target(node: SessionNode, stored: StoredSet) -> Profile:
+    profile = _profile(node)
+    if profile.id != stored.info.profile_id:
+        raise Conflict(f"Set '{stored.info.name}' is for {stored.info.device} ({stored.info.profile_id}); node "
+                       f"{node.node_id} is a {node.device_name} ({profile.id})")
+    return profile
+
+
+# --- download, retry, rollback -----------------------------------------------------------------------------
+def start_download(session: Session, node_id: int, jobs: JobManager, store: ParameterSetStore, stored: StoredSet,
+                   *, save: bool = False, only: list[str] | None = None, user: str | None = None) -> Job:
+    """Download the set (or only the refs ``only``: a retry of the failed ones) to the node."""
+    node = session.node(node_id)
+    _check_target(node, stored)
+    targets = {ref: raw for ref, raw in stored.values.items() if only is None or ref in only}
+    kind = "download" if only is None else "retry"
+    title = f"{'Download' if only is None else 'Retry'} '{stored.info.name}' to node {node_id}"
+    return _start(session, node, jobs, store, targets, kind=kind, title=title, save=save, user=user,
+                  set_id=stored.info.id, set_version=stored.version)
+
+
+def start_retry(session: Session, jobs: JobManager, store: ParameterSetStore, download_id: int,
+                *, save: bool = False, user: str | None = None) -> Job:
+    """Write again what a download left failed, mismatched or not attempted."""
+    previous = store.download(download_id)
+    redo = {line["ref"]: line["target_raw"] for line in previous.report
+            if line["status"] in REDO and line.get("target_raw") is not None}
+    if not redo:
+        raise Conflict(f"Download {download_id} has nothing left to retry")
+    node = session.node(previous.node_id)
+    return _start(session, node, jobs, store, redo, kind="retry", save=save, user=user,
+                  title=f"Retry {len(redo)} parameters of download {download_id} on node {node.node_id}",
+                  set_id=previous.set_id, set_version=previous.set_version)
+
+
+def start_rollback(session: Session, jobs: JobManager, store: ParameterSetStore, download_id: int,
+                   *, save: bool = False, user: str | None = None) -> Job:
+    """Write back the values a download read first, for everything it changed (or may have changed)."""
+    previous = store.download(download_id)
+    node = session.node(previous.node_id)
+    if previous.report:
+        touched = [line["ref"] for line in previous.report if line["status"] in CHANGED]
+    else:  # interrupted before its report was stored: restore everything it read first
+        touched = list(previous.before)
+    targets = {ref: previous.before[ref] for ref in touched if ref in previous.before}
+    if not targets:
+        raise Conflict(f"Download {download_id} changed nothing that could be rolled back")
+    return _start(session, node, jobs, store, targets, kind="rollback", save=save, user=user,
+                  title=f"Roll back download {download_id} on node {node.node_id}", set_id=previous.set_id,
+                  set_version=previous.set_version)
+
+
+def _start(session: Session, node: SessionNode, jobs: JobManager, store: ParameterSetStore, targets: Values, *,
+           kind: str, title: str, save: bool, user: str | None, set_id: int | None,
+           set_version: int | None) -> Job:
+    profile = _profile(node)
+    order = download_order(profile, list(targets))
+    catalog = catalog_for(profile)
+    items = {ref: item for ref in order if (item := _resolve(catalog, ref)) is not None}
+    readable = [items[ref] for ref in order if ref in items and items[ref].entry.access.readable]
+    who = user or audit.current_user.get()
+
+    async def run(job: Job) -> None:
+        before, unread = await read_items(session, node, readable, job)
+        download_id = await asyncio.to_thread(
+            store.start_download, kind=kind, session_id=session.id, node_id=node.node_id, profile_id=profile.id,
+            user=who, before=before, set_id=set_id, set_version=set_version)
+        job.result["download_id"] = download_id
+        writer = _Writer(session, node, job, items, before, unread)
+        state = "failed"
+        try:
+            with audit.acting(f"{kind} {download_id}", who):
+                await writer.write_all(order, targets)
+                await writer.read_failed_again()
+                if save:
+                    await writer.save()
+            state = "done" if not writer.failures() else "incomplete"
+        except asyncio.CancelledError:
+            writer.give_up("cancelled before this parameter was written")
+            state = "cancelled"
+            raise
+        finally:
+            job.result["state"] = state
+            await asyncio.shield(asyncio.to_thread(store.finish_download, download_id, state, writer.report()))
+
+    total = len(readable) + len(order) + (1 if save else 0)
+    return jobs.start(kind, title, total, run)
+
+
+class _Writer:
+    def __init__(self, session: Session, node: SessionNode, job: Job, items: dict[str, Item], before: Values,
+                 unread: dict[str, str]) -> None:
+        self.session, self.node, self.job = session, node, job
+        self.items, self.before, self.unread = items, before, unread
+        self.lines: dict[str, ReportLine] = {}
+        self.timeouts = 0
+
+    def report(self) -> list[dict[str, Any]]:
+        return [asdict(line) for line in self.lines.values()]
+
+    def failures(self) -> list[ReportLine]:
+        return [line for line in self.lines.values() if line.status in REDO]
+
+    def _publish(self) -> None:
+        self.job.result["report"] = self.report()
+
+    def _line(self, ref: str, target: Raw) -> ReportLine:
+        item = self.items.get(ref)
+        before = self.before.get(ref)
+        name = item.name if item else "(not in the profile)"
+        line = ReportLine(ref, name, "not attempted", shown(item, before) if item else None,
+                          shown(item, target) if item else str(target), shown(item, before) if item else None,
+                          before_raw=before, target_raw=target, now_raw=before)
+        self.lines[ref] = line
+        return line
+
+    async def write_all(self, order: list[str], targets: Values) -> None:
+        for ref in order:
+            self._line(ref, targets[ref])
+        for ref in order:
+            await self._write_one(self.lines[ref])
+            self._publish()
+
+    async def _write_one(self, line: ReportLine) -> None:
+        item = self.items.get(line.ref)
+        target = line.target_raw
+        assert target is not None
+        if item is None:
+            line.status, line.detail = "failed", "not a parameter of this device's profile (not sent)"
+            self.job.advance(issue=JobIssue(line.ref, line.detail, self.node.node_id))
+            return
+        if self.timeouts >= SILENT_AFTER_TIMEOUTS:
+            line.detail = f"node {self.node.node_id} stopped answering; not sent (value as read before)"
+            self.job.advance(issue=JobIssue(line.ref, line.detail, self.node.node_id))
+            return
+        if line.before_raw is not None and same_raw(line.before_raw, target):
+            line.status = "unchanged"
+            self.job.advance()
+            return
+        try:
+            result = await parameters.write(self.session, self.node.node_id, item.ref, engineering(item, target))
+        except SdoTimeoutError as exc:
+            self.timeouts += 1
+            line.status, line.detail = "failed", exc.detail
+            line.now = None
+            line.now_raw = None
+            self.job.advance(issue=JobIssue(line.ref, exc.detail, self.node.node_id))
+            return
+        except SdoAbortError as exc:
+            self.timeouts = 0
+            line.status, line.detail = "failed", exc.detail
+            line.abort_code, line.abort_text = f"0x{exc.abort_code:08X}", exc.abort_text
+            self.job.advance(issue=JobIssue(line.ref, exc.detail, self.node.node_id, line.abort_code, exc.abort_text))
+            return
+        except DriveBenchError as exc:  # refused by the profile's checks before anything was sent
+            line.status, line.detail = "failed", f"not sent: {exc.detail}"
+            self.job.advance(issue=JobIssue(line.ref, line.detail, self.node.node_id))
+            return
+        self.timeouts = 0
+        state, detail = audit.outcome(result, None)
+        line.status = "mismatch" if state == "mismatch" else "written"
+        line.detail = detail
+        if result.read_back is not None:
+            raw = result.read_back.raw
+            line.now_raw = raw.hex() if isinstance(raw, bytes) else raw
+            line.now = result.read_back.display
+        else:
+            line.now_raw, line.now = target, line.target
+        if line.status == "mismatch":
+            self.job.advance(issue=JobIssue(line.ref, detail or "mismatch", self.node.node_id))
+        else:
+            self.job.advance()
+
+    async def read_failed_again(self) -> None:
+        """After an abort the device holds *some* value: read it, so the report says which."""
+        if self.timeouts >= SILENT_AFTER_TIMEOUTS:
+            return
+        for line in self.lines.values():
+            item = self.items.get(line.ref)
+            if line.status != "failed" or item is None or line.abort_code is None:
+                continue
+            try:
+                value = await parameters.read(self.session, self.node.node_id, item.ref)
+            except DriveBenchError:
+                continue
+            line.now_raw = value.raw.hex() if isinstance(value.raw, bytes) else value.raw
+            line.now = value.display
+        self._publish()
+
+    async def save(self) -> None:
+        failed = self.failures()
+        if failed:
+            self.job.notes.append(f"Not saved on the device: {len(failed)} parameters did not get their value")
+            self.job.advance()
+            return
+        try:
+            done = await parameters.command(self.session, self.node.node_id, parameters.DeviceCommand.SAVE)
+        except DriveBenchError as exc:
+            self.job.advance(issue=JobIssue("save", exc.detail, self.node.node_id))
+            self.job.notes.append(f"Save failed: {exc.detail}")
+            return
+        self.job.notes.append(f"Saved on the device ({done.via})")
+        self.job.result["saved"] = done.via
+        self.job.advance()
+
+    def give_up(self, why: str) -> None:
+        for line in self.lines.values():
+            if line.status == "not attempted" and line.detail is None:
+                line.detail = why
