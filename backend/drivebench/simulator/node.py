@@ -20,6 +20,8 @@ from drivebench.device.profile import Profile
 from drivebench.protocol.nmt import NmtCommand, NmtState
 from drivebench.protocol.sdo_server import SdoAbort as Abort
 from drivebench.protocol.sdo_server import SdoServer
+from drivebench.simulator.drive402 import Drive402
+from drivebench.simulator.lenze_control import LenzeControl
 from drivebench.simulator.pdo import PdoEngine
 from drivebench.simulator.store import ObjectStore, RawValue
 
@@ -60,6 +62,13 @@ class Latency:
         return f"{self.mean_s * 1000:g} ms{jitter}"
 
 
+def _device_control(node: SimulatedNode) -> Drive402 | LenzeControl | None:
+    if Drive402.applies(node):
+        return Drive402(node)
+    words = LenzeControl.words_for(node)
+    return LenzeControl(node, words) if words is not None else None
+
+
 def _seconds(text: str) -> float:
     if text.endswith("ms"):
         return float(text[:-2]) / 1000
@@ -97,6 +106,8 @@ class SimulatedNode:
         self._guard_toggle = 0
         self.store.add_write_hook(self._on_write)
         self._build_sdo_servers()
+        self.drive = _device_control(self)
+        """The drive's device control by profile family (CiA 402 or Lenze control/status words), if any."""
 
     # --- life cycle -------------------------------------------------------------------------------------
     def power_on(self) -> None:
@@ -126,6 +137,8 @@ class SimulatedNode:
         self._build_sdo_servers()
         self.send(0x700 + self.node_id, bytes([NmtState.BOOTUP]))
         self.state = NmtState.PRE_OPERATIONAL
+        if self.drive is not None:
+            self.drive.reset()
         self._next_heartbeat = time.monotonic() + self.heartbeat_period_s() if self.heartbeat_period_s() else 0.0
         self.pdo.reconfigure()
 
@@ -264,6 +277,8 @@ class SimulatedNode:
             self._next_heartbeat = (self._next_heartbeat + period) if period else 0.0
             if self._next_heartbeat and self._next_heartbeat < now:
                 self._next_heartbeat = now + period
+        if self.drive is not None:
+            self.drive.tick(now)
         if self.state is NmtState.OPERATIONAL:
             self.pdo.tick(now)
 

@@ -1,0 +1,305 @@
+"""Lenze device control of a simulated 8400 motec or 8200 vector / 93XX with EMF2178IB.
+
+The control word arrives by SDO or RPDO - both are store writes:
+
+* 8400 motec: CAN1_IN word 1 (``C00866/1``, also ``C00876/1``: LP_CanIn1_wIn1 = wCtrl), word 2 the speed
+  setpoint in % of the motor reference speed C00011 (0x4000 = 100 %); CAN1_OUT word 1 (``C00868/1``) the status
+  word, word 2 the actual speed (same scaling). The communication manual names only "wCtrl"; the bit layout is the
+  8400 device control of the network (LA_NCtrl) word: see ``CONTROL_8400``.
+* EMF2178IB: the control word ``C0135`` (SDO, 8200 vector) or AIF-IN word 1 ``C1822/1`` (RPDO1, 8200 vector and
+  93XX), AIF-IN.W1 ``C1822/2`` the setpoint; status word ``C0150`` and AIF-OUT word 1 ``C1823/1``, AIF-OUT.W1
+  ``C1823/2`` the actual value. Bits per the EMF2178IB manual (ch. 9.3.1): 3 QSP, 9 CINH, 10 TRIP-SET, 11 TRIP-RESET
+  (rising edge); status bits 8...11 the device status (0 initialisation, 2 switch-on inhibit, 3 operation
+  inhibited, 6 operation enabled, 8 fault active ...). 8200 vector: 24000 = 480 Hz (50 per Hz); 93XX:
+  16383 = 100 % of the maximum speed. Process data act once C0001 = 3 (8200 vector) or C0005 = xxx3 (93XX); with
+  C0142 = 0 (93XX) the controller stays inhibited after mains on or a fault until CINH has been set once.
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from drivebench.errors import UnknownParameter
+from drivebench.simulator.store import RawValue
+
+if TYPE_CHECKING:
+    from drivebench.simulator.node import SimulatedNode
+
+CYCLE_S = 0.004
+
+# 8400 device states (C00137, status word bits 8...11, 8400 reference manual table 4-1)
+INIT, READY_TO_SWITCH_ON, SWITCHED_ON, OPERATION_ENABLED, TROUBLE, FAULT_8400 = 1, 3, 4, 5, 7, 8
+# EMF2178IB device status (bits 8...11)
+SWITCH_ON_INHIBIT, OPERATION_INHIBITED, OPERATION_ENABLED_EMF, FAULT_ACTIVE = 2, 3, 6, 8
+
+
+@dataclass(frozen=True)
+class LenzeWords:
+    """Where a family keeps its words and how it scales them."""
+
+    family: str
+    control_refs: tuple[str, ...]
+    setpoint_refs: tuple[str, ...]
+    status_refs: tuple[str, ...]
+    actual_refs: tuple[str, ...]
+    quick_stop_bit: int
+    inhibit_bit: int
+    fail_bit: int
+    reset_bit: int
+    ccw_bit: int | None
+
+
+WORDS_8400 = LenzeWords("lenze-8400", ("C00866/1", "C00876/1"), ("C00866/2", "C00876/2"), ("C00868/1",),
+                        ("C00868/2",), quick_stop_bit=2, inhibit_bit=8, fail_bit=14, reset_bit=7, ccw_bit=10)
+WORDS_EMF = LenzeWords("lenze-emf2178ib", ("C0135", "C1822/1"), ("C1822/2",), ("C0150", "C1823/1"),
+                       ("C1823/2",), quick_stop_bit=3, inhibit_bit=9, fail_bit=10, reset_bit=11, ccw_bit=2)
+
+
+class LenzeControl:
+    def __init__(self, node: SimulatedNode, words: LenzeWords) -> None:
+        self.node = node
+        self.store = node.store
+        self.words = words
+        self._lock = threading.RLock()
+        self._keys = {self._key(ref): ref for ref in words.control_refs + words.setpoint_refs}
+        self._mode_keys = {self._key(ref) for ref in ("C0001", "C0005")} - {None}
+        self.device_state = INIT
+        self.control_word = 0
+        self.setpoint = 0
+        self.speed = 0.0  # in setpoint units (raw words)
+        self.restart_armed = False
+        self._published: tuple[int, int] | None = None
+        self._next_cycle = 0.0
+        self.history: list[int] = []
+        self.store.add_write_hook(self.on_write)
+        self.reset()
+
+    @staticmethod
+    def words_for(node: SimulatedNode) -> LenzeWords | None:
+        family = node.profile.family
+        if family == "lenze-8400" and _has(node, "C00866/1"):
+            return WORDS_8400
+        if family == "lenze-emf2178ib" and _has(node, "C1822/1"):
+            return WORDS_EMF
+        return None
+
+    def _key(self, ref: str) -> tuple[int, int] | None:
+        try:
+            item = self.store.catalog.resolve(ref)
+        except UnknownParameter:
+            return None
+        return item.index, item.subindex
+
+    def _param(self, ref: str, default: float) -> float:
+        try:
+            value = self.store.get_ref(ref)
+        except UnknownParameter:
+            return default
+        return float(value) / 10000 if self._fix32(ref) and isinstance(value, int) else \
+            float(value) if isinstance(value, (int, float)) else default
+
+    def _fix32(self, ref: str) -> bool:
+        return self.store.catalog.resolve(ref).entry.factor == 10000
+
+    @property
+    def is_8400(self) -> bool:
+        return self.words.family == "lenze-8400"
+
+    def _process_data_active(self) -> bool:
+        if self.is_8400:
+            return True
+        if _has(self.node, "C0001"):
+            return self._param("C0001", 0) == 3
+        return int(self._param("C0005", 1013)) % 10 == 3
+
+    def _restart_protection(self) -> bool:
+        return _has(self.node, "C0142") and self._param("C0142", 0) == 0
+
+    def full_scale(self) -> int:
+        """Raw setpoint of 100 %: 8400 0x4000, 93XX 16383, 8200 vector 24000 (= 480 Hz)."""
+        if self.is_8400:
+            return 0x4000
+        return 24000 if _has(self.node, "C0001") else 16383
+
+    def ramp_per_s(self) -> float:
+        if self.is_8400:
+            return self.full_scale() / 2.0  # 0 -> 100 % in 2 s (acceleration time not in this profile)
+        accel_s = self._param("C0012", 5.0) or 5.0
+        top = self._param("C0011", 50.0) * 50 if _has(self.node, "C0011") else self.full_scale()
+        return top / accel_s
+
+    # --- life cycle ------------------------------------------------------------------------------------
+    def reset(self) -> None:
+        with self._lock:
+            self.control_word = 0
+            self.setpoint = 0
+            self.speed = 0.0
+            self.restart_armed = False
+            self._published = None
+            self.history = []
+            self._enter(INIT)
+
+    def raise_fault(self, error_number: int = 1) -> None:
+        with self._lock:
+            self._enter(FAULT_8400 if self.is_8400 else FAULT_ACTIVE)
+        self.node.raise_emcy(0x1000, 0x01, error_number.to_bytes(4, "little"))
+
+    # --- words in ---------------------------------------------------------------------------------------
+    def on_write(self, index: int, sub: int, raw: RawValue) -> None:
+        if (index, sub) in self._mode_keys:
+            with self._lock:
+                self._evaluate()  # C0001 = 3 / C0005 = xxx3: the control word acts from now on
+            return
+        ref = self._keys.get((index, sub))
+        if ref is None or not isinstance(raw, int):
+            return
+        if ref in self.words.control_refs:
+            if ref == "C1822/1" and not self._process_data_active():
+                return
+            self._mirror(ref, raw, self.words.control_refs)
+            self._on_control_word(raw & 0xFFFF)
+        else:
+            self._mirror(ref, raw, self.words.setpoint_refs)
+            with self._lock:
+                self.setpoint = raw - 0x10000 if raw >= 0x8000 else raw
+
+    def _mirror(self, ref: str, raw: int, refs: tuple[str, ...]) -> None:
+        for other in refs:
+            key = self._key(other)
+            if other != ref and key is not None and self.store.get(*key) != raw:
+                self._set_word(key, raw, notify=False)
+
+    def _set_word(self, key: tuple[int, int], raw: int, *, notify: bool = True) -> None:
+        signed = self.store.slot(*key).data_type.name.startswith("INTEGER")
+        value = raw - 0x10000 if signed and raw >= 0x8000 else raw & 0xFFFF if not signed else raw
+        self.store.set(key[0], key[1], value, notify=notify)
+
+    def _bit(self, word: int, bit: int | None) -> bool:
+        return bit is not None and bool(word >> bit & 1)
+
+    def _on_control_word(self, cw: int) -> None:
+        words = self.words
+        with self._lock:
+            previous, self.control_word = self.control_word, cw
+            if self._bit(cw, words.fail_bit) and not self._bit(previous, words.fail_bit):
+                self.raise_fault(0x10)  # TRIP-SET / SetFail: external fault
+                return
+            if self.device_state in (FAULT_8400, FAULT_ACTIVE):
+                if self._bit(cw, words.reset_bit) and not self._bit(previous, words.reset_bit):
+                    self.restart_armed = not self._restart_protection()
+                    self._enter(READY_TO_SWITCH_ON if self.is_8400 else
+                                OPERATION_INHIBITED if self.restart_armed else SWITCH_ON_INHIBIT)
+                    self.node.clear_emcy()
+                return
+            if self._bit(cw, words.inhibit_bit):
+                self.restart_armed = True
+            self._evaluate()
+
+    def _evaluate(self) -> None:
+        cw, words = self.control_word, self.words
+        if self.device_state in (INIT, FAULT_8400, FAULT_ACTIVE):
+            return
+        if self.is_8400:
+            if self._bit(cw, words.inhibit_bit) or not cw & 0x01:
+                self._enter(READY_TO_SWITCH_ON)
+            elif not cw & 0x08:
+                self._enter(SWITCHED_ON)
+            else:
+                self._enter(OPERATION_ENABLED)
+            return
+        if not self._process_data_active() or self._bit(cw, words.inhibit_bit):
+            self._enter(OPERATION_INHIBITED if self.restart_armed or self.device_state != SWITCH_ON_INHIBIT
+                        else SWITCH_ON_INHIBIT)
+        elif self.restart_armed or self.device_state == OPERATION_ENABLED_EMF:
+            self._enter(OPERATION_ENABLED_EMF)
+
+    def _enter(self, state: int) -> None:
+        if state != self.device_state or not self.history:
+            self.device_state = state
+            self.history.append(state)
+        self._publish()
+
+    # --- words out --------------------------------------------------------------------------------------
+    @property
+    def running(self) -> bool:
+        return self.device_state in (OPERATION_ENABLED, OPERATION_ENABLED_EMF)
+
+    def quick_stop(self) -> bool:
+        return self._bit(self.control_word, self.words.quick_stop_bit)
+
+    def target(self) -> float:
+        if not self.running or self.quick_stop():
+            return 0.0
+        if self.is_8400:
+            sign = -1 if self._bit(self.control_word, self.words.ccw_bit) else 1
+            return float(sign * self.setpoint)
+        if not self._process_data_active():
+            return 0.0
+        sign = -1 if self._bit(self.control_word, self.words.ccw_bit) and _has(self.node, "C0001") else 1
+        return float(sign * self.setpoint)
+
+    def status_word(self) -> int:
+        actual = round(self.speed)
+        word = (self.device_state & 0x0F) << 8
+        if self.is_8400:
+            word |= (not self.running) << 1  # PulseInhibit
+            word |= self.quick_stop() << 4  # QuickStopIsActive
+            word |= (actual == 0) << 6  # SpeedActEqual0
+            word |= (self.device_state in (READY_TO_SWITCH_ON, INIT)) << 7  # ControllerInhibit
+            word |= (self.device_state in (FAULT_8400, TROUBLE)) << 13
+            word |= (actual < 0) << 14
+            word |= (self.device_state not in (FAULT_8400, INIT)) << 15
+            return word
+        word |= 0x0001  # current parameter set 1 (DCTRL-PAR-B0 ... PAR1-0)
+        word |= (not self.running) << 1  # DCTRL-IMP pulse inhibit
+        word |= (abs(actual - self.target()) < 1) << 3  # RFG1 = NOUT
+        word |= (abs(actual - self.target()) < 1) << 4  # RFG input = output
+        word |= (actual == 0) << 6  # DCTRL-NOUT=0
+        word |= (not self.running) << 7  # DCTRL-CINH
+        word |= (actual < 0) << 14  # DCTRL-CCW
+        word |= (self.device_state not in (FAULT_ACTIVE, INIT)) << 15  # DCTRL-RDY
+        return word
+
+    def _publish(self) -> None:
+        word, actual = self.status_word(), max(-0x8000, min(0x7FFF, round(self.speed)))
+        if (word, actual) == self._published:
+            return  # the words are written when they change, as the drive's process image does
+        self._published = (word, actual)
+        for ref in self.words.status_refs:
+            key = self._key(ref)
+            if key is not None:
+                current = self.store.get(*key)
+                if not isinstance(current, int) or current & 0xFFFF != word:
+                    self._set_word(key, word)
+        for ref in self.words.actual_refs:
+            key = self._key(ref)
+            if key is not None and self.store.get(*key) != actual:
+                self.store.set(key[0], key[1], actual)
+
+    def tick(self, now: float) -> None:
+        if now < self._next_cycle:
+            return
+        self._next_cycle = now + CYCLE_S
+        with self._lock:
+            if self.device_state == INIT:
+                self.restart_armed = not self._restart_protection()
+                start = READY_TO_SWITCH_ON if self.is_8400 else \
+                    SWITCH_ON_INHIBIT if self._restart_protection() else OPERATION_INHIBITED
+                self._enter(start)
+                self._evaluate()
+            target = self.target()
+            fast = self.quick_stop() or not self.running
+            step = self.ramp_per_s() * CYCLE_S * (4 if fast else 1)
+            delta = target - self.speed
+            self.speed = target if abs(delta) <= step else self.speed + (step if delta > 0 else -step)
+            self._publish()
+
+
+def _has(node: SimulatedNode, ref: str) -> bool:
+    try:
+        node.store.catalog.resolve(ref)
+    except UnknownParameter:
+        return False
+    return True
