@@ -144,7 +144,7 @@
             if (sig.text) text += ` (${sig.text})`;
             if (sample.direction === "rpdo") text = `sent ${text}`;
             cell.textContent = text;
-            cell.title = `raw ${sig.raw} · frame ${sample.data} · ${new Date(sample.t * 1000).toLocaleTimeString()}`;
+            cell.title = `${text}\nraw ${sig.raw} · frame ${sample.data} · ${new Date(sample.t * 1000).toLocaleTimeString()}`;
             cell.classList.add("fresh");
             setTimeout(() => cell.classList.remove("fresh"), 300);
           });

@@ -1,11 +1,25 @@
 """The PDO tab in a real browser on the demo plant: node 3 (MICROMASTER 440) - edit RPDO5's mapping with the
-picker, see the byte layout and the limits, apply, see the verified step report."""
+picker, see the byte layout and the limits, apply, see the verified step report; a refused entry and the report
+of the disabled PDO; a TPDO value changed in the simulator shown live; RPDO sends only after a confirmation;
+cyclic sending ends when the page goes away."""
 
 from __future__ import annotations
 
+import socket
+import threading
+import time
+from collections.abc import Callable, Iterator
 from typing import Any
 
-from tests.conftest import screenshot
+import httpx
+import pytest
+import uvicorn
+from fastapi import FastAPI
+
+from drivebench.services.process_data import service as live_service
+from drivebench.simulator.store import Abort
+from drivebench.web.app import create_app
+from tests.conftest import DEMO_PLANT, fresh_channel, screenshot
 
 
 def test_edit_and_apply_rpdo5_of_the_micromaster(live_server: str, page: Any) -> None:
@@ -37,3 +51,115 @@ def test_edit_and_apply_rpdo5_of_the_micromaster(live_server: str, page: Any) ->
     assert "4 entries" in report.inner_text()
     assert page.locator("#pdo-rpdo5 .pdo-signals tbody tr").count() == 4
     screenshot(page, "pdo-applied-mm4-rpdo5")
+
+
+@pytest.fixture(scope="module")
+def own_server() -> Iterator[tuple[str, FastAPI]]:
+    """A server of its own (the shared live server's plant is not reachable from a test): the tests below make the
+    simulated drive refuse a mapping entry and change its values."""
+    app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        port = int(sock.getsockname()[1])
+    server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning"))
+    thread = threading.Thread(target=server.run, daemon=True)
+    thread.start()
+    deadline = time.monotonic() + 20
+    while not server.started and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert server.started
+    yield f"http://127.0.0.1:{port}", app
+    server.should_exit = True
+    thread.join(timeout=10)
+
+
+def _wait(condition: Callable[[], bool], seconds: float = 10.0) -> bool:
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        if condition():
+            return True
+        time.sleep(0.05)
+    return condition()
+
+
+def test_failed_apply_shows_the_step_and_the_disabled_pdo(own_server: tuple[str, FastAPI], page: Any) -> None:
+    """The drive refuses the torque setpoint mid-sequence (a MICROMASTER 420 has no 6071)."""
+    url, app = own_server
+    store = app.state.drivebench.plants["demo-plant"].nodes[3].store
+
+    def refuse_torque(index: int, sub: int, raw: object) -> None:
+        if index == 0x1605 and raw == 0x60710010:
+            raise Abort(0x06040041)
+
+    store.add_write_check(refuse_torque)
+    page.goto(f"{url}/sessions/demo-plant/nodes/3?tab=pdo")
+    card = page.locator("#pdo-rpdo6")
+    card.wait_for(timeout=15000)
+    card.locator("summary").click()
+    search = card.locator(".pdo-search")
+    search.fill("control word")
+    card.get_by_role("button", name="Add 0x6040 Control word").click()
+    search.fill("target torque")
+    card.locator(".pdo-picker button").first.click()
+    card.get_by_role("button", name="Apply to device").click()
+    report = page.locator("#pdo-rpdo6 .pdo-report.failed")
+    report.wait_for(timeout=15000)
+    text = report.inner_text()
+    assert "Not applied" in text and "0x06040041" in text and "left disabled" in text
+    assert "entry 2" in report.locator("li.failed").inner_text()
+    assert "disabled" in page.locator("#pdo-rpdo6 .card-head .badge").inner_text()
+    assert store.get(0x1405, 1) & 0x80000000
+    screenshot(page, "pdo-apply-failed-mm4-rpdo6")
+
+
+def test_live_value_confirmed_send_and_cyclic_stop(own_server: tuple[str, FastAPI], page: Any) -> None:
+    url, app = own_server
+    sim = app.state.drivebench.plants["demo-plant"].nodes[3]
+    session = app.state.drivebench.manager.get("demo-plant")
+    api = f"{url}/api/sessions/demo-plant/nodes/3/pdos"  # the mapping through the API; the browser uses it
+    for pdo, entries in (("tpdo/5", [[0x6041, 0], [0x2803, 4]]), ("rpdo/5", [[0x6040, 0], [0x2802, 3]])):
+        answer = httpx.put(f"{api}/{pdo}", json={"entries": entries}, timeout=20)
+        assert answer.status_code == 200, answer.text
+    page.goto(f"{url}/sessions/demo-plant/nodes/3?tab=pdo")
+    page.locator("#pdo-rpdo5").wait_for(timeout=15000)
+    page.locator("#pdo-ws-state.good").wait_for(timeout=15000)
+    page.once("dialog", lambda dialog: dialog.accept())
+    page.get_by_role("button", name="Start node").click()
+    assert _wait(lambda: sim.state.name == "OPERATIONAL")
+    assert "synchronous, acyclic" in page.locator("#pdo-tpdo5 .pdo-comm").inner_text()  # type 0: sent on SYNC
+    sync = page.locator("#pdo-sync")
+    sync.locator('input[name="period_ms"]').fill("50")
+    sync.get_by_role("button", name="Start SYNC").click()
+    page.locator("#pdo-sync .badge.good").wait_for(timeout=10000)
+    assert "on, 50 ms" in sync.inner_text()
+    sim.store.set(0x2803, 4, 4321)
+    live = page.locator('#pdo-tpdo5 .live[data-ref="0x2803.4"]')
+    assert _wait(lambda: live.inner_text() == "4321"), live.inner_text()
+
+    rpdo5 = page.locator("#pdo-rpdo5")
+    rpdo5.locator('input[name="v:r2050.2"]').fill("77")
+    dialogs: list[str] = []
+
+    def dismiss(dialog: Any) -> None:
+        dialogs.append(dialog.message)
+        dialog.dismiss()
+
+    page.once("dialog", dismiss)
+    rpdo5.get_by_role("button", name="Send once").click()
+    assert _wait(lambda: bool(dialogs)) and "move the motor" in dialogs[0]
+    assert sim.store.get(0x2802, 3) == 0, "nothing is sent without the confirmation"
+    page.once("dialog", lambda dialog: dialog.accept())
+    rpdo5.get_by_role("button", name="Send once").click()
+    assert _wait(lambda: sim.store.get(0x2802, 3) == 77)
+    assert "sent once" in rpdo5.locator(".send-result").inner_text()
+
+    rpdo5.locator('input[name="v:r2050.2"]').fill("-300")
+    page.once("dialog", lambda dialog: dialog.accept())
+    rpdo5.get_by_role("button", name="Send cyclically").click()
+    assert _wait(lambda: sim.store.get(0x2802, 3) == -300)
+    assert "sending every 100 ms" in rpdo5.locator(".send-result").inner_text()
+    screenshot(page, "pdo-live-mm4")
+    assert live_service(session).cyclic
+    page.close()  # the browser goes away: its cyclic RPDO stops
+    assert _wait(lambda: not live_service(session).cyclic)
+    live_service(session).stop_sync()
