@@ -109,3 +109,10 @@ def test_non_loopback_addresses_are_refused_without_allow_remote(command: str,
 def test_simulate_on_an_unknown_interface_ends_with_a_message(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["simulate", "--bus", "nosuchcan:can0"]) == 1
     assert "Unknown CAN interface 'nosuchcan'" in capsys.readouterr().err
+
+
+def test_hub_with_a_bridge_to_a_missing_adapter_ends_with_a_message(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["hub", "--port", "0", "--bridge", "nosuchcan:can0@500000"]) == 1
+    captured = capsys.readouterr()
+    assert "Unknown CAN interface 'nosuchcan'" in captured.err and "Traceback" not in captured.err
+    assert "socketcand hub on" not in captured.out, "the hub never announced itself"

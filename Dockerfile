@@ -1,0 +1,40 @@
+# DriveBench web server. Build: docker build -t drivebench .
+# Run:  docker run -p 8000:8000 -v drivebench-var:/app/var drivebench
+#       (simulated plant: append `serve --host 0.0.0.0 --allow-remote --demo`;
+#        a socketcand gateway: `serve --host 0.0.0.0 --allow-remote --bus socketcand:GATEWAY:29536/can0`;
+#        SocketCAN adapters of the host need `--network host`.)
+FROM python:3.11-slim
+
+ENV PYTHONDONTWRITEBYTECODE=1 \
+    PYTHONUNBUFFERED=1 \
+    PIP_NO_CACHE_DIR=1 \
+    PIP_DISABLE_PIP_VERSION_CHECK=1 \
+    DRIVEBENCH_PORT=8000
+
+RUN groupadd --system --gid 10001 drivebench \
+    && useradd --system --uid 10001 --gid drivebench --home-dir /app --no-create-home drivebench
+
+WORKDIR /app
+# The server finds templates, static files, device profiles and plant files beside the package (config.REPO_ROOT),
+# so the tree is installed in place, as `make run` does.
+COPY pyproject.toml README.md ./
+COPY backend ./backend
+COPY frontend ./frontend
+COPY device_profiles ./device_profiles
+COPY plants ./plants
+RUN pip install --editable . \
+    && mkdir -p /app/var \
+    && chown drivebench:drivebench /app/var
+
+# Database (SQLite by default, DRIVEBENCH_DATABASE_URL for PostgreSQL) and uploaded profiles live here.
+VOLUME ["/app/var"]
+USER drivebench
+EXPOSE 8000
+
+HEALTHCHECK --interval=30s --timeout=5s --start-period=30s --retries=3 \
+    CMD python -c "import os, urllib.request; urllib.request.urlopen('http://127.0.0.1:' + os.environ.get('DRIVEBENCH_PORT', '8000') + '/api/health', timeout=4)"
+
+# Listening on all interfaces of the container: today's CLI asks for --allow-remote there, since there is no
+# authentication yet. Publish the port only on a network where everyone may operate the drives.
+ENTRYPOINT ["drivebench"]
+CMD ["serve", "--host", "0.0.0.0", "--allow-remote"]
