@@ -392,3 +392,29 @@ def guess_format(filename: str, text: str) -> str:
     if stripped.startswith("[") or stripped.startswith(";"):
         return "dcf"
     return "csv"
+
+
+def import_any(data: bytes, filename: str, profiles: ProfileLookup, *, fmt: str | None = None,
+               profile_id: str | None = None, name: str | None = None) -> ImportedSet:
+    """A file of any of the formats (``fmt``, else guessed from the name and the first characters)."""
+    text = decode_text(data, filename)
+    chosen = fmt or guess_format(filename, text)
+    if chosen == "json":
+        imported = import_json(text, profiles, source=filename)
+        if profile_id and imported.profile.id != profile_id:
+            raise SetImportError(filename, [LineError(None, None, f"the file is for profile '{imported.profile.id}', "
+                                                                  f"not '{profile_id}'")])
+        if name:
+            imported.name = name
+        return imported
+    if chosen == "csv":
+        return import_csv(text, profiles, profile_id=profile_id, name=name, source=filename)
+    if chosen == "dcf":
+        return import_dcf(text, profiles, profile_id=profile_id, name=name, source=filename)
+    raise InvalidValue(f"Unknown format '{chosen}' (formats: {', '.join(FORMATS)})")
+
+
+def file_name(stored: StoredSet, fmt: str) -> str:
+    """``Conveyor_1-v3.json``: the set's name made safe for a file name."""
+    safe = re.sub(r"[^A-Za-z0-9._-]+", "_", stored.info.name).strip("_") or f"set-{stored.info.id}"
+    return f"{safe}-v{stored.version}.{fmt}"

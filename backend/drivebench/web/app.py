@@ -15,12 +15,13 @@ from fastapi.staticfiles import StaticFiles
 from drivebench import __version__
 from drivebench.config import settings
 from drivebench.device.loader import ProfileRegistry
+from drivebench.services import audit
 from drivebench.services.database import upgrade_to_head
 from drivebench.services.sessions import SessionManager
 from drivebench.services.sharing import ShareLinks
 from drivebench.simulator.plant import Plant, PlantFile
 from drivebench.web import problems
-from drivebench.web.api import diagnostics, health, parameters, pdo, profiles, sessions, tools
+from drivebench.web.api import diagnostics, health, parameter_sets, parameters, pdo, profiles, sessions, tools
 from drivebench.web.api import monitor as monitor_api
 from drivebench.web.pages import monitor as monitor_page
 from drivebench.web.pages import node as node_page
@@ -42,7 +43,7 @@ log = logging.getLogger(__name__)
 
 # One line per router: screens grow without touching anything else here.
 API_ROUTERS = [monitor_api.router, health.router, sessions.router, profiles.router, diagnostics.router, tools.router,
-               tools.planned_router, parameters.router, pdo.router]
+               tools.planned_router, parameters.router, pdo.router, parameter_sets.router]
 PAGE_ROUTERS = [node_diagnostics.router, node_pdo_page.router, monitor_page.router, plant_page.router,
                 node_page.router, profiles_page.router, remote_page.router, tools_page.router]
 WS_ROUTERS = [monitor_ws.router, nodes_ws.router, jobs_ws.router, remote_ws.router, process_data_ws.router]
@@ -67,6 +68,7 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         asyncio.get_running_loop().set_default_executor(ThreadPoolExecutor(64, thread_name_prefix="bus-work"))
         await asyncio.to_thread(upgrade_to_head)  # the database schema (settings.database_url) to the newest
+        audit_log = audit.install()  # every write the tool sends is logged in the database
         registry = await asyncio.to_thread(ProfileRegistry)
         manager = SessionManager(registry, sdo_timeout_s=settings.sdo_timeout_s, sdo_retries=settings.sdo_retries)
         state = AppState(registry, manager, share_links=share_links)
@@ -79,6 +81,7 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
         try:
             yield
         finally:
+            audit.uninstall(audit_log)
             await manager.close_all()
             for plant in state.plants.values():
                 await asyncio.to_thread(plant.stop)

@@ -1,0 +1,483 @@
+"""Parameter sets: stored sets (list, rename, delete, history), upload from a node, import/export (JSON, CSV,
+DCF), compare two sources, download to a node (preview, job, report, retry, rollback), copy to another node, and
+the audit log of every write.
+
+Long work (upload, download, retry, rollback) is a job: ``202`` with the job, progress on ``/ws/jobs/{id}``, the
+report at ``/api/parameter-sets/jobs/{id}`` and, once stored, at ``/api/parameter-downloads/{download_id}``.
+"""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Annotated, Any, Literal
+
+from fastapi import APIRouter, File, Form, Header, Query, Request, UploadFile, status
+from fastapi.responses import Response
+from pydantic import BaseModel, Field
+
+from drivebench.config import settings
+from drivebench.device.profile import Profile
+from drivebench.errors import InvalidValue
+from drivebench.services import audit, set_formats, set_jobs
+from drivebench.services.jobs import Job, JobManager
+from drivebench.services.models import DownloadRow
+from drivebench.services.parameter_sets import (
+    Comparison,
+    ParameterSetStore,
+    SetInfo,
+    SetVersion,
+    Source,
+    StoredSet,
+    catalog_for,
+    compare,
+    comparison_csv,
+    defaults_source,
+    retarget,
+    set_source,
+    shown,
+)
+from drivebench.services.sessions import SessionManager
+from drivebench.web.api.parameters import JobOut, JobsDep, job_out
+from drivebench.web.deps import ManagerDep, StateDep
+from drivebench.web.state import AppState
+
+router = APIRouter(prefix="/api", tags=["parameter sets"])
+SETS = "/parameter-sets"
+UserHeader = Annotated[str | None, Header(alias="X-DriveBench-User", description="Who acts (audit log)")]
+
+
+def store() -> ParameterSetStore:
+    return ParameterSetStore()  # settings.database_url, read at each call
+
+
+def user_of(header: str | None) -> str:
+    return (header or "").strip()[:120] or audit.current_user.get()
+
+
+# --- models ------------------------------------------------------------------------------------------------
+class SetOut(BaseModel):
+    id: int
+    name: str
+    profile_id: str
+    profile_version: str
+    device: str
+    node_id: int | None
+    session_id: str | None
+    created: datetime
+    updated: datetime
+    created_by: str
+    note: str
+    version: int
+    count: int
+
+
+class SetValueOut(BaseModel):
+    ref: str
+    name: str
+    raw: int | float | str
+    display: str | None
+    unit: str | None
+
+
+class SetDetailOut(SetOut):
+    shown_version: int
+    values: list[SetValueOut]
+
+
+class VersionOut(BaseModel):
+    version: int
+    created: datetime
+    created_by: str
+    reason: str
+    count: int
+
+
+class SetUpdate(BaseModel):
+    name: str | None = Field(None, min_length=1, max_length=200)
+    note: str | None = Field(None, max_length=4000)
+
+
+class UploadIn(BaseModel):
+    session_id: str
+    node_id: int = Field(ge=1, le=127)
+    name: str = Field(min_length=1, max_length=200)
+    note: str = ""
+
+
+class SourceIn(BaseModel):
+    """One side of a comparison: a stored set (version: newest when omitted), a node's values read now, or a
+    profile's defaults."""
+
+    kind: Literal["set", "node", "defaults"]
+    set_id: int | None = None
+    version: int | None = None
+    session_id: str | None = None
+    node_id: int | None = Field(None, ge=1, le=127)
+    profile_id: str | None = None
+
+
+class CompareIn(BaseModel):
+    left: SourceIn
+    right: SourceIn
+    q: str = ""
+    group: str | None = None
+
+
+class DifferenceOut(BaseModel):
+    ref: str
+    name: str
+    group: str
+    unit: str | None
+    left: str | None
+    right: str | None
+    left_raw: int | float | str | None
+    right_raw: int | float | str | None
+    kind: str
+
+
+class ComparisonOut(BaseModel):
+    left: str
+    right: str
+    profile_id: str
+    compared: int
+    equal: int
+    total_differences: int
+    rows: list[DifferenceOut]
+
+
+class TargetIn(BaseModel):
+    session_id: str
+    node_id: int = Field(ge=1, le=127)
+
+
+class DownloadIn(TargetIn):
+    save: bool = Field(False, description="Save on the device at the end (C00002/11, 0x1010 ...) if all went in")
+
+
+class FollowUpIn(BaseModel):
+    save: bool = False
+
+
+class CopyIn(BaseModel):
+    to_node: int = Field(ge=1, le=127)
+    name: str | None = Field(None, min_length=1, max_length=200)
+    from_node: int | None = Field(None, ge=1, le=127, description="Default: the node the set was uploaded from")
+
+
+class CopyOut(BaseModel):
+    set: SetOut
+    notes: list[str]
+
+
+class ReportLineOut(BaseModel):
+    ref: str
+    name: str
+    status: str
+    before: str | None
+    target: str | None
+    now: str | None
+    detail: str | None = None
+    abort_code: str | None = None
+    abort_text: str | None = None
+    before_raw: int | float | str | None = None
+    target_raw: int | float | str | None = None
+    now_raw: int | float | str | None = None
+
+
+class DownloadOut(BaseModel):
+    id: int
+    kind: str
+    set_id: int | None
+    set_version: int | None
+    session_id: str
+    node_id: int
+    profile_id: str
+    user: str
+    started: datetime
+    finished: datetime | None
+    state: str
+    """``running``, ``done``, ``incomplete`` (some failed), ``cancelled``, ``failed`` or ``interrupted`` (the
+    server stopped during it: the values read first are stored, roll back to restore them)."""
+    counts: dict[str, int]
+    report: list[ReportLineOut]
+
+
+class SetJobOut(JobOut):
+    set_id: int | None = None
+    download_id: int | None = None
+    download_state: str | None = None
+    report: list[ReportLineOut] = []
+
+
+class ImportOut(BaseModel):
+    set: SetOut
+    notes: list[str]
+
+
+class AuditOut(BaseModel):
+    id: int
+    time: datetime
+    user: str
+    session_id: str
+    node_id: int
+    ref: str
+    address: str
+    old_value: str | None
+    new_value: str
+    result: str
+    detail: str | None
+    origin: str
+
+
+# --- conversions -------------------------------------------------------------------------------------------
+def set_out(info: SetInfo) -> SetOut:
+    return SetOut(**info.__dict__)
+
+
+def version_out(version: SetVersion) -> VersionOut:
+    return VersionOut(**version.__dict__)
+
+
+def detail_out(stored: StoredSet, profile: Profile) -> SetDetailOut:
+    catalog = catalog_for(profile)
+    values = []
+    for ref, raw in stored.values.items():
+        item = set_jobs._resolve(catalog, ref)
+        values.append(SetValueOut(ref=ref, name=item.name if item else "(not in the profile)", raw=raw,
+                                  display=shown(item, raw) if item else str(raw),
+                                  unit=item.entry.unit if item else None))
+    return SetDetailOut(**set_out(stored.info).model_dump(), shown_version=stored.version, values=values)
+
+
+def comparison_out(result: Comparison) -> ComparisonOut:
+    return ComparisonOut(left=result.left, right=result.right, profile_id=result.profile_id,
+                         compared=result.compared, equal=result.equal, total_differences=result.total_differences,
+                         rows=[DifferenceOut(**row.__dict__) for row in result.rows])
+
+
+def running_downloads(jobs: JobManager) -> set[int]:
+    return {int(job.result["download_id"]) for job in jobs.list()
+            if not job.state.finished and "download_id" in job.result}
+
+
+def download_state(row: DownloadRow, jobs: JobManager) -> str:
+    if row.state == "running" and row.id not in running_downloads(jobs):
+        return "interrupted"
+    return row.state
+
+
+def download_out(row: DownloadRow, jobs: JobManager) -> DownloadOut:
+    counts: dict[str, int] = {}
+    for line in row.report:
+        counts[line["status"]] = counts.get(line["status"], 0) + 1
+    return DownloadOut(id=row.id, kind=row.kind, set_id=row.set_id, set_version=row.set_version,
+                       session_id=row.session_id, node_id=row.node_id, profile_id=row.profile_id, user=row.user,
+                       started=row.started, finished=row.finished, state=download_state(row, jobs), counts=counts,
+                       report=[ReportLineOut(**line) for line in row.report])
+
+
+def set_job_out(job: Job) -> SetJobOut:
+    base = job_out(job, with_result=False)
+    report = job.result.get("report", [])
+    return SetJobOut(**base.model_dump(), set_id=job.result.get("set_id"),
+                     download_id=job.result.get("download_id"), download_state=job.result.get("state"),
+                     report=[ReportLineOut(**line) for line in report])
+
+
+def resolve_source(state: AppState, manager: SessionManager, spec: SourceIn) -> Source | tuple[str, int, list[str]]:
+    """A set or defaults source now; a node source as (session, node, refs) to read (async, see compare route)."""
+    if spec.kind == "set":
+        if spec.set_id is None:
+            raise InvalidValue("A set source needs set_id")
+        stored = store().get(spec.set_id, spec.version)
+        return set_source(stored, state.registry.get(stored.info.profile_id))
+    if spec.kind == "defaults":
+        if spec.profile_id is None:
+            raise InvalidValue("A defaults source needs profile_id")
+        return defaults_source(state.registry.get(spec.profile_id), spec.node_id)
+    if spec.session_id is None or spec.node_id is None:
+        raise InvalidValue("A node source needs session_id and node_id")
+    manager.get(spec.session_id).node(spec.node_id)
+    return (spec.session_id, spec.node_id, [])
+
+
+async def build_sources(state: AppState, manager: SessionManager, body: CompareIn) -> tuple[Source, Source]:
+    sides = [resolve_source(state, manager, body.left), resolve_source(state, manager, body.right)]
+    done: list[Source] = []
+    for side in sides:
+        if isinstance(side, Source):
+            done.append(side)
+        else:
+            done.append(await set_jobs.device_source(manager.get(side[0]), side[1]))
+    return done[0], done[1]
+
+
+# --- sets --------------------------------------------------------------------------------------------------
+@router.get(SETS, response_model=list[SetOut])
+async def list_sets(profile_id: str | None = None) -> list[SetOut]:
+    return [set_out(info) for info in store().all(profile_id)]
+
+
+@router.get(SETS + "/schema")
+async def set_file_schema() -> dict[str, Any]:
+    """The JSON schema of a parameter set file (``drivebench.parameter-set/1``)."""
+    return set_formats.ParameterSetFile.model_json_schema(by_alias=True)
+
+
+@router.post(SETS + "/upload", response_model=SetJobOut, status_code=status.HTTP_202_ACCEPTED)
+async def upload_from_node(body: UploadIn, manager: ManagerDep, jobs: JobsDep, user: UserHeader = None) -> SetJobOut:
+    """Read every settable parameter of the node into a new set (the job's ``set_id``)."""
+    job = set_jobs.start_upload(manager.get(body.session_id), body.node_id, jobs, store(), name=body.name,
+                                note=body.note, user=user_of(user))
+    return set_job_out(job)
+
+
+@router.post(SETS + "/import", response_model=ImportOut, status_code=status.HTTP_201_CREATED)
+async def import_set(state: StateDep, file: Annotated[UploadFile, File()],
+                     format: Annotated[str | None, Form()] = None,
+                     profile_id: Annotated[str | None, Form()] = None,
+                     name: Annotated[str | None, Form()] = None, user: UserHeader = None) -> ImportOut:
+    """A JSON, CSV or DCF file checked against the target profile; every value that does not fit is named with
+    its line (422, ``errors``) and nothing is stored."""
+    data = await file.read(set_formats.MAX_SET_FILE_BYTES + 1)
+    if len(data) > set_formats.MAX_SET_FILE_BYTES:
+        raise InvalidValue(f"The file is larger than {set_formats.MAX_SET_FILE_BYTES // 1024 // 1024} MB")
+    filename = file.filename or "upload"
+    imported = set_formats.import_any(data, filename, state.registry.get, fmt=format or None,
+                                      profile_id=profile_id or None, name=name or None)
+    stored = store().create(imported.name, imported.profile, imported.values, user=user_of(user),
+                            node_id=imported.node_id, note=imported.note, reason=f"imported from {filename}")
+    return ImportOut(set=set_out(stored.info), notes=imported.notes)
+
+
+@router.get(SETS + "/{set_id}", response_model=SetDetailOut)
+async def get_set(set_id: int, state: StateDep, version: int | None = None) -> SetDetailOut:
+    stored = store().get(set_id, version)
+    return detail_out(stored, state.registry.get(stored.info.profile_id))
+
+
+@router.patch(SETS + "/{set_id}", response_model=SetOut)
+async def update_set(set_id: int, body: SetUpdate) -> SetOut:
+    return set_out(store().rename(set_id, body.name, body.note))
+
+
+@router.delete(SETS + "/{set_id}", status_code=status.HTTP_204_NO_CONTENT)
+async def delete_set(set_id: int) -> Response:
+    store().delete(set_id)
+    return Response(status_code=status.HTTP_204_NO_CONTENT)
+
+
+@router.get(SETS + "/{set_id}/history", response_model=list[VersionOut])
+async def set_history(set_id: int) -> list[VersionOut]:
+    return [version_out(v) for v in store().history(set_id)]
+
+
+@router.get(SETS + "/{set_id}/export")
+async def export_set(set_id: int, state: StateDep,
+                     format: Annotated[Literal["json", "csv", "dcf"], Query()] = "json",
+                     version: int | None = None) -> Response:
+    stored = store().get(set_id, version)
+    text, media = set_formats.export(format, stored, state.registry.get(stored.info.profile_id))
+    filename = set_formats.file_name(stored, format)
+    return Response(text, media_type=media, headers={"Content-Disposition": f'attachment; filename="{filename}"'})
+
+
+@router.post(SETS + "/{set_id}/copy", response_model=CopyOut, status_code=status.HTTP_201_CREATED)
+async def copy_set(set_id: int, body: CopyIn, state: StateDep, user: UserHeader = None) -> CopyOut:
+    """A new set for an identical drive at ``to_node``: node address and node-id based COB-IDs moved along."""
+    stored = store().get(set_id)
+    profile = state.registry.get(stored.info.profile_id)
+    from_node = body.from_node or stored.info.node_id
+    if from_node is None:
+        raise InvalidValue("The set was not uploaded from a node: give from_node")
+    values, notes = retarget(profile, stored.values, from_node, body.to_node)
+    copy = store().create(body.name or f"{stored.info.name} (node {body.to_node})", profile, values,
+                          user=user_of(user), node_id=body.to_node, session_id=stored.info.session_id,
+                          note=f"Copy of set {set_id} v{stored.version} for node {body.to_node}",
+                          reason=f"copy of set {set_id} v{stored.version} for node {body.to_node}")
+    return CopyOut(set=set_out(copy.info), notes=notes)
+
+
+# --- compare -----------------------------------------------------------------------------------------------
+@router.post(SETS + "/compare", response_model=ComparisonOut)
+async def compare_sources(body: CompareIn, state: StateDep, manager: ManagerDep,
+                          format: Annotated[Literal["json", "csv"], Query()] = "json") -> Any:
+    """Only the differences, scaled with units, filtered by ``q`` (code or name words) and ``group``;
+    ``format=csv`` exports them."""
+    left, right = await build_sources(state, manager, body)
+    result = compare(left, right, query=body.q, group=body.group)
+    if format == "csv":
+        return Response(comparison_csv(result), media_type="text/csv",
+                        headers={"Content-Disposition": 'attachment; filename="comparison.csv"'})
+    return comparison_out(result)
+
+
+# --- download ----------------------------------------------------------------------------------------------
+@router.post(SETS + "/{set_id}/preview", response_model=list[ReportLineOut])
+async def preview_download(set_id: int, body: TargetIn, manager: ManagerDep,
+                           version: int | None = None) -> list[ReportLineOut]:
+    """What a download would change (device values read now), in the order it would write them."""
+    stored = store().get(set_id, version)
+    lines = await set_jobs.preview(manager.get(body.session_id), body.node_id, stored)
+    return [ReportLineOut(**line.__dict__) for line in lines]
+
+
+@router.post(SETS + "/{set_id}/download", response_model=SetJobOut, status_code=status.HTTP_202_ACCEPTED)
+async def download_set(set_id: int, body: DownloadIn, manager: ManagerDep, jobs: JobsDep,
+                       version: int | None = None, user: UserHeader = None) -> SetJobOut:
+    stored = store().get(set_id, version)
+    job = set_jobs.start_download(manager.get(body.session_id), body.node_id, jobs, store(), stored,
+                                  save=body.save, user=user_of(user))
+    return set_job_out(job)
+
+
+@router.get(SETS + "/jobs/{job_id}", response_model=SetJobOut)
+async def get_set_job(job_id: str, jobs: JobsDep) -> SetJobOut:
+    return set_job_out(jobs.get(job_id))
+
+
+@router.get("/parameter-downloads", response_model=list[DownloadOut])
+async def list_downloads(jobs: JobsDep, node_id: int | None = None,
+                         limit: Annotated[int, Query(ge=1, le=500)] = 50) -> list[DownloadOut]:
+    return [download_out(row, jobs) for row in store().downloads(node_id=node_id, limit=limit)]
+
+
+@router.get("/parameter-downloads/{download_id}", response_model=DownloadOut)
+async def get_download(download_id: int, jobs: JobsDep) -> DownloadOut:
+    return download_out(store().download(download_id), jobs)
+
+
+@router.post("/parameter-downloads/{download_id}/retry", response_model=SetJobOut,
+             status_code=status.HTTP_202_ACCEPTED)
+async def retry_download(download_id: int, manager: ManagerDep, jobs: JobsDep, body: FollowUpIn | None = None,
+                         user: UserHeader = None) -> SetJobOut:
+    """Write again what the download left failed, mismatched or not attempted."""
+    row = store().download(download_id)
+    job = set_jobs.start_retry(manager.get(row.session_id), jobs, store(), download_id,
+                               save=bool(body and body.save), user=user_of(user))
+    return set_job_out(job)
+
+
+@router.post("/parameter-downloads/{download_id}/rollback", response_model=SetJobOut,
+             status_code=status.HTTP_202_ACCEPTED)
+async def rollback_download(download_id: int, manager: ManagerDep, jobs: JobsDep,
+                            body: FollowUpIn | None = None, user: UserHeader = None) -> SetJobOut:
+    """Write back the values read before the download, for everything it changed (or may have changed)."""
+    row = store().download(download_id)
+    job = set_jobs.start_rollback(manager.get(row.session_id), jobs, store(), download_id,
+                                  save=bool(body and body.save), user=user_of(user))
+    return set_job_out(job)
+
+
+# --- audit log ---------------------------------------------------------------------------------------------
+@router.get("/audit", response_model=list[AuditOut])
+async def audit_log(request: Request, node_id: int | None = None, session_id: str | None = None, q: str = "",
+                    origin: str | None = None, limit: Annotated[int, Query(ge=1, le=100_000)] = 1000,
+                    format: Annotated[Literal["json", "csv"], Query()] = "json") -> Any:
+    """Every write the tool sent, newest first; ``format=csv`` exports it."""
+    found = audit.entries(settings.database_url, node_id=node_id, session_id=session_id, query=q, origin=origin,
+                          limit=limit)
+    if format == "csv":
+        return Response(audit.to_csv(found), media_type="text/csv",
+                        headers={"Content-Disposition": 'attachment; filename="audit-log.csv"'})
+    return [AuditOut(**entry.__dict__) for entry in found]

@@ -1,0 +1,198 @@
+"""Parameter sets REST API on the demo plant (node 5: 8400 motec, 12: 8200 vector + EMF2178IB) with its own
+temporary database: upload, list/rename/history/delete, export and import of every format, per-line import
+errors as problem+json, compare (node vs set, set vs set, set vs defaults, CSV), download with preview, report,
+retry and rollback, copy to another node, and the audit log (JSON and CSV)."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+from fastapi.testclient import TestClient
+
+from drivebench.config import settings
+from drivebench.services import database
+from drivebench.web.app import create_app
+from tests.conftest import DEMO_PLANT, fresh_channel
+
+SESSION = "demo-plant"
+SETS = "/api/parameter-sets"
+
+
+@pytest.fixture
+def db_url(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[str]:
+    url = f"sqlite:///{tmp_path / 'sets.db'}"
+    monkeypatch.setattr(settings, "database_url", url)
+    yield url
+    database.dispose(url)
+
+
+@pytest.fixture
+def api(db_url: str) -> Iterator[TestClient]:
+    app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
+    with TestClient(app) as client:
+        yield client
+
+
+def finish(api: TestClient, job: dict[str, Any], deadline_s: float = 30) -> dict[str, Any]:
+    end = time.monotonic() + deadline_s
+    while job["state"] == "running":
+        assert time.monotonic() < end, f"job {job['id']} still running"
+        time.sleep(0.05)
+        job = api.get(f"{SETS}/jobs/{job['id']}").json()
+    return job
+
+
+def upload(api: TestClient, node_id: int, name: str) -> int:
+    response = api.post(f"{SETS}/upload", json={"session_id": SESSION, "node_id": node_id, "name": name},
+                        headers={"X-DriveBench-User": "anna"})
+    assert response.status_code == 202, response.text
+    job = finish(api, response.json())
+    assert job["state"] == "done", job
+    return int(job["set_id"])
+
+
+def test_upload_list_rename_history_delete(api: TestClient) -> None:
+    set_id = upload(api, 5, "Conveyor")
+    listed = api.get(SETS).json()
+    assert [(s["id"], s["name"], s["profile_id"], s["node_id"], s["created_by"]) for s in listed] == \
+        [(set_id, "Conveyor", "lenze-8400-motec-canopen", 5, "anna")]
+    detail = api.get(f"{SETS}/{set_id}").json()
+    c88 = next(v for v in detail["values"] if v["ref"] == "C00088")
+    assert (c88["raw"], c88["display"], c88["unit"]) == (1020, "10.20 A", "A")
+    assert not any(v["ref"].startswith("C00002") for v in detail["values"])  # device commands are no settings
+
+    renamed = api.patch(f"{SETS}/{set_id}", json={"name": "Conveyor line 2", "note": "gearbox 1:20"}).json()
+    assert (renamed["name"], renamed["note"]) == ("Conveyor line 2", "gearbox 1:20")
+    assert [v["version"] for v in api.get(f"{SETS}/{set_id}/history").json()] == [1]
+    refused = api.patch(f"{SETS}/{set_id}", json={"name": ""})
+    assert refused.status_code == 422
+
+    assert api.delete(f"{SETS}/{set_id}").status_code == 204
+    gone = api.get(f"{SETS}/{set_id}")
+    assert gone.status_code == 404 and gone.headers["content-type"] == "application/problem+json"
+    assert api.get(SETS).json() == []
+
+
+@pytest.mark.parametrize("fmt", ["json", "csv", "dcf"])
+def test_export_import_round_trip(api: TestClient, fmt: str) -> None:
+    set_id = upload(api, 12, "Fan")
+    exported = api.get(f"{SETS}/{set_id}/export", params={"format": fmt})
+    assert exported.status_code == 200
+    assert f'filename="Fan-v1.{fmt}"' in exported.headers["content-disposition"]
+    imported = api.post(f"{SETS}/import", files={"file": (f"fan.{fmt}", exported.content)},
+                        data={"name": f"Fan from {fmt}"})
+    assert imported.status_code == 201, imported.text
+    copy = imported.json()["set"]
+    assert (copy["name"], copy["profile_id"]) == (f"Fan from {fmt}", "lenze-8200-vector-emf2178ib")
+    original = {v["ref"]: v["raw"] for v in api.get(f"{SETS}/{set_id}").json()["values"]}
+    again = {v["ref"]: v["raw"] for v in api.get(f"{SETS}/{copy['id']}").json()["values"]}
+    assert again == original
+
+
+def test_import_names_every_line_that_does_not_fit(api: TestClient) -> None:
+    set_id = upload(api, 5, "Conveyor")
+    lines = api.get(f"{SETS}/{set_id}/export", params={"format": "csv"}).text.splitlines()
+    row = next(n for n, line in enumerate(lines) if line.startswith("C00324/1,"))
+    lines[row] = "C00324/1,CAN Tx inhibit time,9999,ms"
+    lines.append("C12345,Nothing,1,")
+    response = api.post(f"{SETS}/import", files={"file": ("bad.csv", "\n".join(lines).encode())})
+    assert response.status_code == 422
+    assert response.headers["content-type"] == "application/problem+json"
+    problem = response.json()
+    assert [(e["line"], e["ref"]) for e in problem["errors"]] == [(row + 1, "C00324/1"), (len(lines), "C12345")]
+    assert "6500" in problem["errors"][0]["detail"]
+    assert len(api.get(SETS).json()) == 1  # nothing stored
+
+
+def test_compare_node_set_defaults_and_csv(api: TestClient) -> None:
+    set_id = upload(api, 5, "Conveyor")
+    written = api.put(f"/api/sessions/{SESSION}/nodes/5/parameters/C00088", json={"value": "7.5 A"})
+    assert written.status_code == 200, written.text
+    body = {"left": {"kind": "node", "session_id": SESSION, "node_id": 5}, "right": {"kind": "set", "set_id": set_id}}
+    result = api.post(f"{SETS}/compare", json=body).json()
+    assert [(r["ref"], r["left"], r["right"], r["unit"], r["kind"]) for r in result["rows"]] == \
+        [("C00088", "7.50 A", "10.20 A", "A", "changed")]
+    assert result["equal"] == result["compared"] - 1
+
+    defaults = {"left": {"kind": "set", "set_id": set_id},
+                "right": {"kind": "defaults", "profile_id": "lenze-8400-motec-canopen", "node_id": 5}}
+    against_defaults = api.post(f"{SETS}/compare", json=defaults).json()
+    assert against_defaults["right"] == "8400 motec defaults" or "defaults" in against_defaults["right"]
+    # the demo plant starts its drives at the defaults, except what its plant file sets (heartbeat producer)
+    assert [r["ref"] for r in against_defaults["rows"]] == ["0x1017"]
+
+    fan = upload(api, 12, "Fan")
+    mixed = api.post(f"{SETS}/compare", json={"left": {"kind": "set", "set_id": set_id},
+                                              "right": {"kind": "set", "set_id": fan}})
+    assert mixed.status_code == 409 and "8200" in mixed.json()["detail"]
+
+    exported = api.post(f"{SETS}/compare", params={"format": "csv"}, json=dict(body, q="motor current"))
+    rows = list(csv.reader(io.StringIO(exported.text)))
+    assert rows[0][:3] == ["code", "name", "unit"] and [r[0] for r in rows[1:]] == ["C00088"]
+    assert api.post(f"{SETS}/compare", json=dict(body, q="baud")).json()["rows"] == []
+
+
+def test_download_preview_report_retry_rollback_and_audit(api: TestClient) -> None:
+    set_id = upload(api, 5, "Conveyor")
+    exported = json.loads(api.get(f"{SETS}/{set_id}/export").text)
+    for parameter in exported["parameters"]:
+        if parameter["ref"] == "C00088":
+            parameter["value"] = 12.5
+        if parameter["ref"] == "C00039/1":
+            parameter["value"] = 55.0
+    exported["name"] = "Commissioned"
+    new_id = api.post(f"{SETS}/import", files={"file": ("c.json", json.dumps(exported).encode())}).json()["set"]["id"]
+
+    target = {"session_id": SESSION, "node_id": 5}
+    preview = api.post(f"{SETS}/{new_id}/preview", json=target).json()
+    assert [(p["ref"], p["before"], p["target"]) for p in preview] == \
+        [("C00039/1", "40.00 %", "55.00 %"), ("C00088", "10.20 A", "12.50 A")]
+    wrong = api.post(f"{SETS}/{new_id}/preview", json={"session_id": SESSION, "node_id": 12})
+    assert wrong.status_code == 409
+
+    started = api.post(f"{SETS}/{new_id}/download", json=dict(target, save=True),
+                       headers={"X-DriveBench-User": "bert"})
+    assert started.status_code == 202
+    job = finish(api, started.json())
+    assert job["download_state"] == "done", job
+    statuses = {line["ref"]: line["status"] for line in job["report"]}
+    assert statuses["C00088"] == statuses["C00039/1"] == "written"
+    assert {s for ref, s in statuses.items() if ref not in ("C00088", "C00039/1")} == {"unchanged"}
+    assert any("Saved on the device" in note for note in job["notes"])
+    value = api.get(f"/api/sessions/{SESSION}/nodes/5/parameters/C00088").json()
+    assert value["display"] == "12.50 A"
+
+    download = api.get(f"/api/parameter-downloads/{job['download_id']}").json()
+    assert (download["state"], download["user"], download["counts"]["written"]) == ("done", "bert", 2)
+    assert api.post(f"/api/parameter-downloads/{job['download_id']}/retry").status_code == 409  # nothing failed
+
+    back = finish(api, api.post(f"/api/parameter-downloads/{job['download_id']}/rollback").json())
+    assert back["download_state"] == "done"
+    assert api.get(f"/api/sessions/{SESSION}/nodes/5/parameters/C00088").json()["display"] == "10.20 A"
+
+    log = api.get("/api/audit", params={"node_id": 5}).json()
+    mine = [(e["ref"], e["new_value"], e["result"], e["user"]) for e in log if e["origin"].startswith("download")]
+    assert sorted(mine) == [("C00039/1", "55.00 %", "written", "bert"), ("C00088", "12.50 A", "written", "bert")]
+    assert any(e["origin"].startswith("rollback") and e["new_value"] == "10.20 A" for e in log)
+    exported_log = list(csv.reader(io.StringIO(api.get("/api/audit", params={"format": "csv"}).text)))
+    assert exported_log[0][:5] == ["time", "user", "session", "node", "parameter"] and len(exported_log) == len(log) + 1
+
+
+def test_copy_to_another_node_moves_the_node_address(api: TestClient) -> None:
+    set_id = upload(api, 5, "Axis 1")
+    copied = api.post(f"{SETS}/{set_id}/copy", json={"to_node": 6})
+    assert copied.status_code == 201, copied.text
+    body = copied.json()
+    assert body["set"]["node_id"] == 6 and body["set"]["name"] == "Axis 1 (node 6)"
+    values = {v["ref"]: v["raw"] for v in api.get(f"{SETS}/{body['set']['id']}").json()["values"]}
+    original = {v["ref"]: v["raw"] for v in api.get(f"{SETS}/{set_id}").json()["values"]}
+    changed = {ref for ref in values if values[ref] != original[ref]}
+    assert all(any(ref in note for note in body["notes"]) for ref in changed)
+    assert api.get(f"{SETS}/schema").json()["properties"]["schema"]["const"] == "drivebench.parameter-set/1"
