@@ -129,7 +129,8 @@
       const message = JSON.parse(event.data);
       if (message.type === "hello") { $("trace-body").innerHTML = ""; pendingTrace = []; }
       addHistory(message.history, message.type === "hello");
-      pendingTrace.push(...message.trace);
+      const names = message.trace_columns;
+      for (const row of message.trace) pendingTrace.push(Object.fromEntries(names.map((name, i) => [name, row[i]])));
       if (pendingTrace.length > TRACE_ROWS) pendingTrace = pendingTrace.slice(-TRACE_ROWS);
       latest = message;
       schedule();

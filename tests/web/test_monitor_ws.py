@@ -34,7 +34,8 @@ def test_client_receives_counter_updates(monitor_client: TestClient) -> None:
         while time.monotonic() < deadline:
             update = json.loads(socket.receive_text())
             assert update["type"] == "update"
-            heartbeat_rows += [row for row in update["trace"] if row["service"] == "Heartbeat"]
+            rows = [dict(zip(update["trace_columns"], row, strict=True)) for row in update["trace"]]
+            heartbeat_rows += [row for row in rows if row["service"] == "Heartbeat"]
             if update["snapshot"]["totals"]["frames"] > first_total + 10 and heartbeat_rows:
                 break
         assert update["snapshot"]["totals"]["frames"] > first_total + 10, "counters did not move"
@@ -59,6 +60,32 @@ def test_unknown_session_closes_with_4404(monitor_client: TestClient) -> None:
             monitor_client.websocket_connect("/ws/sessions/nope/monitor") as socket:
         socket.receive_text()
     assert closed.value.code == 4404
+
+
+def test_hello_and_updates_carry_each_telegram_once(monitor_client: TestClient) -> None:
+    """The hello's trace ends where the next update starts: sequence numbers run on without gap or repeat, also
+    for a client that joins a feed already running for another."""
+    url = f"/ws/sessions/{SESSION_ID}/monitor"
+    with monitor_client.websocket_connect(url) as first:
+        for _ in range(4):
+            first.receive_text()
+        _check_contiguous(monitor_client, url)
+        _check_contiguous(monitor_client, url)
+
+
+def _check_contiguous(monitor_client: TestClient, url: str) -> None:
+    with monitor_client.websocket_connect(url) as socket:
+        seqs: list[int] = []
+        more = False
+        deadline = time.monotonic() + 15
+        while len(seqs) < 40 and time.monotonic() < deadline:
+            message = json.loads(socket.receive_text())
+            position = message["trace_columns"].index("seq")
+            seqs += [row[position] for row in message["trace"]]
+            more = more or message["trace_more"]
+        assert len(seqs) >= 40, "too few telegrams"
+        assert not more  # a few heartbeats a second fit in every update
+        assert seqs == list(range(seqs[0], seqs[0] + len(seqs)))
 
 
 def test_two_clients_share_one_feed(monitor_client: TestClient) -> None:

@@ -309,18 +309,23 @@ class Monitor(can.Listener):
         """The newest ``limit`` telegrams after sequence number ``after`` that pass the filter, oldest first."""
         return self.trace_since(after, limit)[0]
 
-    def trace_since(self, after: int, limit: int) -> tuple[list[dict[str, Any]], int]:
-        """Like ``trace_rows``, plus the sequence number the rows reach (pass it as ``after`` next time).
+    def trace_since(self, after: int, limit: int, until: int | None = None) -> tuple[list[dict[str, Any]], int]:
+        """Like ``trace_rows``, plus the sequence number the rows reach (pass it as ``after`` next time); with
+        ``until``, only telegrams up to that sequence number.
 
         Only rows that pass the filter are decoded; the filter is checked on the COB-ID first (NMT: its target).
         """
         with self._lock:
             entries = list(self._trace) if after == 0 else self._entries_after(after)
         newest = entries[-1][0] if entries else after
+        if until is not None:
+            newest = min(newest, max(until, after))
         view = self.filter
         lookups = _Lookups(self._session())
         rows: list[dict[str, Any]] = []
         for seq, msg, context in reversed(entries):
+            if seq > newest:
+                continue
             if seq <= after:
                 break
             if msg.is_error_frame:

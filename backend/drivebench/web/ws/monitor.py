@@ -10,13 +10,15 @@ Messages (JSON text), one schema:
 ``{"type": "hello" | "update", "seq": int, "server_time": float (epoch s, when built),
    "snapshot": <GET /api/sessions/{id}/monitor without "trace", except "cob_ids" (below)>,
    "history": [[epoch s, load %], ...]   # completed seconds since the previous message (hello: the last 10 min)
-   "trace": [<trace row>, ...],          # decoded telegrams since the previous message passing the filter
+   "trace_columns": [...], "trace": [<trace row>, ...],  # decoded telegrams since the previous message that
+                                                         # pass the filter
    "trace_more": bool,                   # more telegrams came than one message carries (TRACE_PER_UPDATE)
    "recording": {"name", "format", "frames"} | null}``
 
-A trace row: ``{"seq", "time", "cob_id", "service", "group", "node", "dlc", "hex", "summary"}`` (the REST trace
-rows also carry ``text``, which is ``cob_id service node N: summary``). To keep updates small, ``snapshot.cob_ids``
-rows are arrays in the order of ``snapshot.cob_columns``: ``["text", "service", "node", "total", "rate",
+To keep updates small (each is compressed once per client), rows travel as arrays:
+``trace`` rows in the order of ``trace_columns``: ``["seq", "time", "cob_id", "service", "group", "node", "dlc",
+"hex", "summary"]`` (the REST trace rows are objects and also carry ``text``, ``cob_id service node N: summary``);
+``snapshot.cob_ids`` rows in the order of ``snapshot.cob_columns``: ``["text", "service", "node", "total", "rate",
 "share_percent", "last_age_s"]``; more than COB_ROWS_PER_UPDATE COB-IDs send the busiest, with ``cob_ids_cut``
 the full count.
 The socket closes with code 4404 when the session does not exist (or is closed).
@@ -43,6 +45,7 @@ TRACE_PER_UPDATE = 50
 HELLO_TRACE_ROWS = 200
 COB_ROWS_PER_UPDATE = 512
 COB_COLUMNS = ["text", "service", "node", "total", "rate", "share_percent", "last_age_s"]
+TRACE_COLUMNS = ["seq", "time", "cob_id", "service", "group", "node", "dlc", "hex", "summary"]
 
 
 class _Client:
@@ -79,11 +82,13 @@ class Feed:
         self.clients: set[_Client] = set()
         self.seq = 0
         self.trace_seq = monitor.last_seq
-        self.history_until = time.time()
+        self.history_until = 0.0
         self.task: asyncio.Task[None] | None = None
+        self._hello: tuple[int, str] | None = None
 
     def message(self, kind: str, history: list[tuple[float, float]], trace: list[dict[str, Any]],
                 more: bool) -> dict[str, Any]:
+        """One message; an update advances ``seq``, a hello carries the seq of the update it precedes."""
         snapshot = dict(self.monitor.snapshot())
         cob_ids = snapshot["cob_ids"]
         if len(cob_ids) > COB_ROWS_PER_UPDATE:
@@ -92,18 +97,33 @@ class Feed:
                              key=lambda row: (row["extended"], row["cob_id"]))
         snapshot["cob_columns"] = COB_COLUMNS
         snapshot["cob_ids"] = [[row[column] for column in COB_COLUMNS] for row in cob_ids]
-        for row in trace:
-            row.pop("text", None)
         recorder = recordings_for(self.session).active
         recording = ({"name": recorder.path.name, "format": recorder.format, "frames": recorder.frames}
                      if recorder else None)
-        self.seq += 1
+        if kind == "update":
+            self.seq += 1
         return {"type": kind, "seq": self.seq, "server_time": time.time(), "snapshot": snapshot,
-                "history": history, "trace": trace, "trace_more": more, "recording": recording}
+                "history": history, "trace_columns": TRACE_COLUMNS,
+                "trace": [[row[column] for column in TRACE_COLUMNS] for row in trace], "trace_more": more,
+                "recording": recording}
 
     def hello(self) -> str:
-        rows, _ = self.monitor.trace_since(0, HELLO_TRACE_ROWS)
-        return json.dumps(self.message("hello", self.monitor.history(), rows, False))
+        """The first message of a client: the newest trace rows up to where the next update starts (so the client
+        sees each telegram once), the whole load history. Clients joining within one period share one hello."""
+        if not self.clients:  # the feed was idle: start from now
+            self.trace_seq = self.monitor.last_seq
+            self._hello = None
+        elif self.monitor.last_seq < self.trace_seq:  # reset since the last update
+            self.trace_seq = 0
+        if self._hello is not None and self._hello[0] == self.seq:
+            return self._hello[1]
+        history = self.monitor.history()
+        if not self.clients:
+            self.history_until = history[-1][0] if history else 0.0
+        rows, _ = self.monitor.trace_since(0, HELLO_TRACE_ROWS, until=self.trace_seq)
+        text = json.dumps(self.message("hello", history, rows, False))
+        self._hello = (self.seq, text)
+        return text
 
     def tick(self) -> None:
         if self.monitor.last_seq < self.trace_seq:  # reset since the last update
@@ -164,10 +184,11 @@ async def monitor_stream(websocket: WebSocket, session_id: str) -> None:
     client = _Client(websocket)
     sender: asyncio.Task[None] | None = None
     try:
-        await websocket.send_text(feed.hello())
-        feed.clients.add(client)
+        hello = feed.hello()
+        feed.clients.add(client)  # before the first await: updates built from now on queue behind the hello
         if feed.task is None or feed.task.done():
             feed.task = asyncio.create_task(feed.run())
+        await websocket.send_text(hello)
         sender = asyncio.create_task(_send_loop(client))
         # The client says nothing; receiving notices the disconnect.
         receiver = asyncio.create_task(_receive_until_closed(websocket))
