@@ -131,6 +131,24 @@ def test_micromaster_p_parameters(bench: Bench) -> None:
     assert bench.run(parameters.write(bench.session, 3, "P1082", "45.5 Hz")).read_back.value == 45.5  # type: ignore[union-attr]
 
 
+def test_micromaster_indexed_parameters_as_siemens_writes_them(bench: Bench) -> None:
+    """``r0964[2]`` is ``r0964.2``; an index the profile does not list goes to the device, which refuses it."""
+    assert bench.run(parameters.read(bench.session, 3, "r0964[2]")).raw == 105
+    assert bench.run(parameters.read(bench.session, 3, "P0700[0]")).display == "2 = Terminal"
+    with pytest.raises(SdoAbortError) as caught:
+        bench.run(parameters.read(bench.session, 3, "P0700[1]"))
+    assert (caught.value.abort_code, caught.value.index, caught.value.subindex) == (0x06090011, 0x22BC, 1)
+    with pytest.raises(OutOfRange, match="selection list"):  # the profile's checks still apply to the index
+        bench.run(parameters.write(bench.session, 3, "P0700[1]", 9))
+    assert [item.ref for item in parameters.items(bench.session.node(3), "P0700[1]")] == ["P0700.1"]
+
+
+def test_search_finds_an_index_the_profile_does_not_list(bench: Bench) -> None:
+    found = parameters.items(bench.session.node(5), "0x6040")
+    assert [(item.index, item.subindex, item.name) for item in found] == [(0x6040, 0, "(not in the profile)")]
+    assert parameters.items(bench.session.node(5), "no such words") == []
+
+
 # --- validation before sending, and the device's aborts ---------------------------------------------------
 def test_validation_happens_before_anything_is_sent(bench: Bench) -> None:
     bench.frames()

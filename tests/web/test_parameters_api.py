@@ -173,6 +173,29 @@ def test_absent_node_is_a_timeout_problem(api_8400: Api) -> None:
     assert problem["node"] == 40 and problem["object"] == "0x5FC2sub0"
 
 
+def test_slow_node_times_out_with_the_session_timeout(api_8400: Api) -> None:
+    """A node that is there but answers after the session's SDO timeout: 504, and the other nodes still answer."""
+    from drivebench.simulator.node import Latency
+
+    assert api_8400.client.put(f"/api/sessions/{SESSION}/sdo-settings",
+                               json={"timeout_s": 0.05, "retries": 0}).status_code == 200
+    api_8400.client.app.state.drivebench.plants[SESSION].nodes[4].latency = Latency(0.4)  # type: ignore[attr-defined]
+    problem = _problem(api_8400.client.get(api_8400.url(4, "/parameters/C00088")), 504)
+    assert problem["node"] == 4 and problem["object"] == "0x5FA7sub0" and "did not answer" in problem["detail"]
+    assert api_8400.client.get(api_8400.url(5, "/parameters/C00088")).json()["display"] == "10.20 A"
+
+
+def test_write_verify_reports_a_mismatch(api_8400: Api) -> None:
+    """The device keeps C00088 in 0.1 A steps: the write succeeds, the read-back differs and the answer says so."""
+    store = api_8400.client.app.state.drivebench.plants[SESSION].nodes[5].store  # type: ignore[attr-defined]
+    store.add_write_hook(lambda index, sub, raw: store.set(index, sub, raw // 10 * 10, notify=False)
+                         if (index, sub) == (0x5FA7, 0) else None)
+    body = api_8400.client.put(api_8400.url(5, "/parameters/C00088"), json={"value": "12.34 A"}).json()
+    assert body["verified"] is False and body["written"]["raw"] == 1234 and body["read_back"]["raw"] == 1230
+    assert body["mismatch"] == "Wrote 12.34 A, the device reports 12.30 A"
+    assert api_8400.client.put(api_8400.url(5, "/parameters/C00088"), json={"value": 12.3}).json()["verified"]
+
+
 # --- list, search, jobs, commands ---------------------------------------------------------------------------
 def test_list_and_search(api_8400: Api) -> None:
     listing = api_8400.client.get(api_8400.url(5, "/parameters")).json()

@@ -85,6 +85,18 @@ def test_search_read_write_and_errors_beside_the_field(server: tuple[str, Any], 
     expect(_row(page, "C00088").locator("td.val")).to_contain_text("verified")
     screenshot(page, "parameters-written")
 
+    # A device that keeps C00088 in 0.1 A steps: the read-back differs from what was written, and the row says so.
+    store = app.state.drivebench.plants["browser-plant"].nodes[5].store
+    store.add_write_hook(lambda index, sub, raw: store.set(index, sub, raw // 10 * 10, notify=False)
+                         if (index, sub) == (0x5FA7, 0) else None)
+    _row(page, "C00088").locator("input[name=value]").fill("12.34")
+    _row(page, "C00088").get_by_role("button", name="Write").click()
+    mismatch = _row(page, "C00088").locator(".verify.bad")
+    expect(mismatch).to_contain_text("Wrote 12.34 A, the device reports 12.30 A", timeout=WAIT_MS)
+    expect(_row(page, "C00088").locator("td.val .v")).to_have_text("12.30 A")
+    assert page.evaluate(LAYOUT_PROBLEMS) == []
+    screenshot(page, "parameters-verify-mismatch")
+
     _search(page, "C00350")
     _row(page, "C00350").locator("input[name=value]").fill("100")
     _row(page, "C00350").get_by_role("button", name="Write").click()
@@ -94,7 +106,6 @@ def test_search_read_write_and_errors_beside_the_field(server: tuple[str, Any], 
     screenshot(page, "parameters-range-error")
 
     # A device whose range is narrower than its profile says: the SDO abort shows beside the field.
-    store = app.state.drivebench.plants["browser-plant"].nodes[5].store
     slot = store.slot(0x5EA1, 0)
     slot.entry = slot.entry.model_copy(update={"max": 20})
     _row(page, "C00350").locator("input[name=value]").fill("30")

@@ -14,7 +14,9 @@ Bus work runs in this module's own thread pool, so a slow node never waits for a
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import math
+import re
 import time
 import weakref
 from collections import deque
@@ -25,7 +27,7 @@ from enum import StrEnum
 from functools import partial
 from typing import Protocol, TypeVar
 
-from drivebench.device.addressing import IndexRef, parse_ref
+from drivebench.device.addressing import CodeRef, IndexRef, parse_ref
 from drivebench.device.catalog import Catalog, Item
 from drivebench.device.profile import Access, ObjectEntry
 from drivebench.device.scaling import RawValue, ScaledValue, from_raw, to_raw
@@ -184,8 +186,18 @@ def _catalog(node: SessionNode) -> Catalog | None:
     return node.catalog
 
 
+_BRACKET_INDEX = re.compile(r"^\s*([A-Za-z]?\s*\d{1,5})\s*\[\s*(\d{1,3})\s*\]\s*$")
+
+
 def resolve(node: SessionNode, ref: str) -> Item:
-    """A profile item, or for an index the profile does not list a raw item (read as bytes)."""
+    """A profile item, or for an index the profile does not list a raw item (read as bytes).
+
+    Siemens writes indexed parameters ``P0700[1]`` (= ``P0700.1``); an index of a MICROMASTER parameter the
+    profile lists only as ``.0`` is that parameter at sub-index n (the device aborts 0x06090011 if it has none).
+    """
+    bracket = _BRACKET_INDEX.match(ref)
+    if bracket is not None:
+        ref = f"{bracket.group(1)}.{bracket.group(2)}"
     catalog = _catalog(node)
     if catalog is not None:
         listed = _by_ref(catalog).get(ref.strip())
@@ -194,7 +206,11 @@ def resolve(node: SessionNode, ref: str) -> Item:
         try:
             return catalog.resolve(ref)
         except UnknownParameter:
-            if not isinstance(parse_ref(ref), IndexRef):
+            parsed = parse_ref(ref)
+            indexed = _siemens_index(catalog, parsed)
+            if indexed is not None:
+                return indexed
+            if not isinstance(parsed, IndexRef):
                 raise
     parsed = parse_ref(ref)
     if not isinstance(parsed, IndexRef):
@@ -205,6 +221,17 @@ def resolve(node: SessionNode, ref: str) -> Item:
                         index=parsed.index, subindex=sub)
     name = f"0x{parsed.index:04X}" if sub == 0 else f"0x{parsed.index:04X}.{sub}"
     return Item(name, parsed.index, sub, entry)
+
+
+def _siemens_index(catalog: Catalog, parsed: IndexRef | CodeRef) -> Item | None:
+    if (catalog.profile.addressing.kind != "siemens_mm4" or not isinstance(parsed, CodeRef)
+            or not parsed.subcode):
+        return None
+    try:
+        base = catalog.resolve(f"{parsed.prefix}{parsed.number}")
+    except UnknownParameter:
+        return None
+    return Item(f"{base.ref}.{parsed.subcode}", base.index, parsed.subcode, base.entry)
 
 
 _REFS: weakref.WeakKeyDictionary[Catalog, dict[str, Item]] = weakref.WeakKeyDictionary()
@@ -218,10 +245,18 @@ def _by_ref(catalog: Catalog) -> dict[str, Item]:
 
 
 def items(node: SessionNode, query: str = "", group: str | None = None) -> list[Item]:
+    """The profile's items matching ``query``; an address the profile does not list (``0x2FFF.1``,
+    ``P0700[1]``) gives the one item :func:`resolve` makes for it, so it can be read and written all the same."""
     catalog = _catalog(node)
     if catalog is None:
         return []
+    bracket = _BRACKET_INDEX.match(query)
+    if bracket is not None:
+        query = f"{bracket.group(1)}.{bracket.group(2)}"
     found = catalog.search(query) if query.strip() else catalog.items
+    if not found and query.strip():
+        with contextlib.suppress(UnknownParameter):
+            found = [resolve(node, query)]
     return [item for item in found if group is None or item.group == group]
 
 

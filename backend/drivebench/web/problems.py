@@ -64,7 +64,7 @@ def problem_body(exc: errors.DriveBenchError, instance: str) -> dict[str, object
 
 def error_fragment(body: dict[str, object]) -> str:
     parts = [f'<strong>{escape(body["title"])}</strong> {escape(body["detail"])}']
-    if "abort_code" in body:
+    if "abort_code" in body and str(body["abort_code"]) not in str(body["detail"]):  # not twice
         parts.append(f'<code class="abort">{escape(body["abort_code"])} {escape(body.get("abort_text", ""))}</code>')
     if body.get("hint"):
         parts.append(f'<div class="hint">{escape(body["hint"])}</div>')

@@ -49,7 +49,9 @@ def _parameters_context(session: Session, node: SessionNode, q: str = "", group:
     by_group: dict[str, list[Any]] = {}
     for item in found:
         by_group.setdefault(item.group, []).append(item)
-    ordered = [(name, by_group[name]) for name in service.groups(node) if name in by_group]
+    names = service.groups(node)
+    names += [name for name in by_group if name not in names]  # an address the profile does not list
+    ordered = [(name, by_group[name]) for name in names if name in by_group]
     return {"groups": service.groups(node), "grouped": ordered, "q": q, "group": group, "count": len(found),
             "values": service.service(session).values.get(node.node_id, {}),
             "settings": service.service(session).settings}
