@@ -10,7 +10,7 @@ from collections.abc import Iterator
 import pytest
 
 from drivebench.device.loader import ProfileRegistry
-from drivebench.services import pdo
+from drivebench.services import pdo, pdo_notes
 from drivebench.services.pdo import Direction, PdoWrite
 from drivebench.services.sessions import Session, SessionManager
 from drivebench.simulator.plant import Plant, PlantFile, PlantNode
@@ -53,6 +53,45 @@ def drives(loop: asyncio.AbstractEventLoop) -> Iterator[tuple[Session, Plant]]:
     yield session, plant
     loop.run_until_complete(manager.close_all())
     plant.stop()
+
+
+def test_defaults_as_the_manuals_list_them(drives: tuple[Session, Plant], loop: asyncio.AbstractEventLoop) -> None:
+    """Read from the simulated drives before any mapping changes (this test runs first in the module).
+
+    MICROMASTER (ch. 5.4, table 6.1): only PDO 1, 5, 6; PDO1 fixed (0x6040 / 0x6041); PDO5/6 on the DS301 COB-IDs of
+    PDO2/3, not mapped. 8400 motec (ch. 8.1, 8.3, 8.4): 2 RPDOs + 2 TPDOs on the CANopen base IDs (C00353 = 1, Lenze
+    setting), type 254 (C00322/C00323), RPDO monitoring 3000 ms (C00357) with response 0 No reaction (C00593).
+    EMF2178IB (ch. 4): three PDOs per direction on the predefined connection set."""
+    session, _ = drives
+
+    def table(node_id: int) -> list[tuple[str, int, int, bool, list[str]]]:
+        configs = loop.run_until_complete(pdo.read_pdos(session, node_id))
+        return [(c.direction, c.number, c.cob_id - node_id, c.fixed_mapping, [e.ref for e in c.entries])
+                for c in configs]
+
+    assert table(3) == [("rpdo", 1, 0x200, True, ["0x6040"]), ("rpdo", 5, 0x300, False, []),
+                        ("rpdo", 6, 0x400, False, []), ("tpdo", 1, 0x180, True, ["0x6041"]),
+                        ("tpdo", 5, 0x280, False, []), ("tpdo", 6, 0x380, False, [])]
+    motec = loop.run_until_complete(pdo.read_pdos(session, 5))
+    assert [(c.direction, c.number, c.cob_id - 5, c.transmission_type) for c in motec] == [
+        ("rpdo", 1, 0x200, 254), ("rpdo", 2, 0x300, 254), ("tpdo", 1, 0x180, 254), ("tpdo", 2, 0x280, 254)]
+    rpdo2 = {s.ref: s.value for s in motec[1].settings}
+    assert rpdo2 == {"C00353/2": "1 = COBID = C0350 + CANBaseID", "C00357/2": "3000 ms", "C00593/2": "0 = No Reaction"}
+    emf = loop.run_until_complete(pdo.read_pdos(session, 12))
+    assert [(c.direction, c.number, c.cob_id - 12) for c in emf] == [
+        ("rpdo", 1, 0x200), ("rpdo", 2, 0x300), ("rpdo", 3, 0x400),
+        ("tpdo", 1, 0x180), ("tpdo", 2, 0x280), ("tpdo", 3, 0x380)]
+
+
+def test_p2041_bytes_of_the_manuals_examples() -> None:
+    """MICROMASTER ch. 5.6 (table 5-1 examples, MM440): RPDO5 control word + target torque = 0x11, TPDO5 actual
+    torque + modes display = 0x50; RPDO6 control word, per-unit speed, torque, modes = 0xD3; TPDO6 status word,
+    actual torque, actual speed (rpm), modes display = 0x71."""
+    assert pdo_notes.p2041_bits("rpdo", [(0x6040, 0), (0x6071, 0)]) == 0x11
+    assert pdo_notes.p2041_bits("tpdo", [(0x6077, 0), (0x6061, 0)]) == 0x50
+    assert pdo_notes.p2041_bits("rpdo", [(0x6040, 0), (0x6052, 0), (0x6071, 0), (0x6060, 0)]) == 0xD3
+    assert pdo_notes.p2041_bits("tpdo", [(0x6041, 0), (0x6077, 0), (0x6044, 0), (0x6061, 0)]) == 0x71
+    assert pdo_notes.p2041_bits("tpdo", [(0x6041, 0), (0x6046, 1)]) is None, "an object outside the bit table"
 
 
 @pytest.mark.parametrize(("node_id", "direction", "number", "entries"), ROUND_TRIPS,

@@ -15,7 +15,8 @@ from pydantic import BaseModel, Field
 from drivebench.device.catalog import Catalog
 from drivebench.device.eds_export import export_eds
 from drivebench.device.profile import Access, Entry, ObjectEntry
-from drivebench.errors import InvalidValue, NotFound, ProtocolError, SdoAbortError
+from drivebench.device.scaling import from_raw
+from drivebench.errors import DriveBenchError, InvalidValue, NotFound, ProtocolError, SdoAbortError
 from drivebench.protocol.datatypes import DataType, decode
 from drivebench.services import pdo_notes
 from drivebench.services.sessions import Session
@@ -37,6 +38,17 @@ class MappedObject(BaseModel):
     unit: str | None = None
 
 
+class DeviceSetting(BaseModel):
+    """A vendor code that shapes the PDO (Lenze monitoring time, MICROMASTER P2041 ...), as the device holds it."""
+
+    ref: str
+    name: str
+    value: str
+    """Scaled, with unit or selection text; a bit field in hex; or why it could not be read."""
+    text: str | None = None
+    """The set bits' names of a bit field, or the abort text."""
+
+
 class PdoConfig(BaseModel):
     direction: Direction
     number: int
@@ -55,6 +67,7 @@ class PdoConfig(BaseModel):
     transmission_note: str | None = None
     """Where the manual says the type is not permitted (or special) for this device."""
     notes: list[str] = Field(default_factory=list)
+    settings: list[DeviceSetting] = Field(default_factory=list)
 
 
 class PdoWrite(BaseModel):
@@ -159,6 +172,27 @@ async def _optional(session: Session, node_id: int, catalog: Catalog, index: int
     return await _read_u(session, node_id, index, sub)
 
 
+async def _settings(session: Session, node_id: int, catalog: Catalog, refs: list[str]) -> list[DeviceSetting]:
+    found = []
+    for ref in refs:
+        try:
+            item = catalog.resolve(ref)
+        except DriveBenchError:
+            continue  # not in this profile's parameter list
+        entry, size = item.entry, item.entry.data_type.size or 4
+        try:
+            raw = decode(entry.data_type, (await session.client(node_id).aupload(item.index, item.subindex))
+                         .ljust(size, b"\0")[:size])
+            scaled = from_raw(entry, raw)
+            shown, text = scaled.display(), None
+            if entry.bits and isinstance(raw, int):  # a bit field (P2041.02): hex here, the bits' names on hover
+                shown, text = f"0x{raw:0{2 * size}X}", scaled.text
+        except SdoAbortError as exc:
+            shown, text = f"not readable: 0x{exc.abort_code:08X}", exc.abort_text
+        found.append(DeviceSetting(ref=item.ref, name=item.name, value=shown, text=text))
+    return found
+
+
 async def read_pdo(session: Session, node_id: int, direction: Direction, number: int) -> PdoConfig:
     catalog = _catalog(session, node_id)
     comm, mapping = COMM_BASE[direction] + number - 1, MAP_BASE[direction] + number - 1
@@ -179,9 +213,14 @@ async def read_pdo(session: Session, node_id: int, direction: Direction, number:
     trans = 255 if trans_type is None else trans_type
     entry_one = _entry(catalog, mapping, 1)
     profile = catalog.profile
-    return PdoConfig(fixed_mapping=entry_one is None or not entry_one.access.writable,
+    notes = pdo_notes.pdo_notes(profile, direction, number)
+    p2041 = pdo_notes.p2041_expected(profile, direction, number, [(e.index, e.subindex) for e in entries])
+    if p2041 and entries:
+        notes.append(p2041[0].upper() + p2041[1:] + ".")
+    settings = await _settings(session, node_id, catalog, pdo_notes.setting_refs(profile, direction, number))
+    return PdoConfig(settings=settings,fixed_mapping=entry_one is None or not entry_one.access.writable,
                      transmission_note=pdo_notes.transmission_note(profile, direction, trans),
-                     notes=pdo_notes.pdo_notes(profile, direction, number),
+                     notes=notes,
                      direction=direction, number=number, cob_id=cob & 0x7FF, valid=not cob & COB_INVALID,
                      rtr_allowed=not cob & COB_NO_RTR, transmission_type=trans,
                      transmission_text=transmission_text(trans, direction),

@@ -92,6 +92,31 @@ def pdo_notes(profile: Profile, direction: str, number: int) -> list[str]:
     return []
 
 
+def setting_refs(profile: Profile, direction: str, number: int) -> list[str]:
+    """Vendor codes that shape this PDO beyond its CiA 301 objects (read and shown on its card)."""
+    family = profile.family
+    if family == LENZE_8400:
+        if direction == "rpdo":  # COB-ID source, monitoring time and the response when it is exceeded (ch. 8.3, 8.5)
+            return [f"C00353/{number}", f"C00357/{number}", f"C00593/{number}"]
+        return [f"C00353/{number}", f"C00324/{number + 1}", f"C00356/{5 if number == 1 else 2}"]
+    if family == MM4 and number != 1:  # ch. 5.6: P2041.02 = PDO5 (low byte RPDO, high byte TPDO), .03 = PDO6
+        return [f"P2041.0{2 if number == 5 else 3}"]
+    return []
+
+
+def p2041_expected(profile: Profile, direction: str, number: int,
+                   entries: Sequence[tuple[int, int]]) -> str | None:
+    """MICROMASTER: the P2041.02/.03 byte the manual's bit table gives for this mapping, in words."""
+    if profile.family != MM4 or number == 1:
+        return None
+    bits = p2041_bits(direction, entries)
+    word = 2 if number == 5 else 3
+    byte = "low byte" if direction == "rpdo" else "high byte"
+    if bits is None:
+        return f"an object of this mapping has no bit in P2041.0{word}"
+    return f"this mapping is P2041.0{word} {byte} = 0x{bits:02X} (manual ch. 5.6, tables 5-3/5-4)"
+
+
 def transmission_note(profile: Profile, direction: str, trans_type: int) -> str | None:
     """Where the manual says this type is not permitted (or behaves specially) for the device."""
     family = profile.family
