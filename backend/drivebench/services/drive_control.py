@@ -1,0 +1,408 @@
+"""Drive control panel: state from the status word, transitions, setpoint in user units, jog, modes, actual values.
+
+Safety interlocks (the access-control issue's rules): every command after which the motor may turn needs
+``confirm=True``; once such a command was sent the node is *armed*: the client must send keep-alives (websocket
+message or POST) at least every :data:`KEEPALIVE_TIMEOUT_S`; when they stop, or the panel's websocket closes, the
+server sends quick stop. Shutdown, disable and quick stop disarm.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import time
+import weakref
+from dataclasses import dataclass
+
+from pydantic import BaseModel
+
+from drivebench.device.catalog import Catalog
+from drivebench.errors import Conflict, DriveBenchError, InvalidValue, OutOfRange, UnknownParameter
+from drivebench.services import parameters
+from drivebench.services.drive_words import (
+    CIA402,
+    COMMAND_LABELS,
+    EMF,
+    EMF_AIF,
+    L8400,
+    MOVING,
+    Command,
+    Family,
+    family_of,
+    next_control_word,
+    state_label,
+)
+from drivebench.services.sessions import Session, SessionNode
+
+KEEPALIVE_TIMEOUT_S = 2.0
+WATCH_PERIOD_S = 0.2
+MODES = {2: "Velocity mode", 4: "Profile torque mode"}  # MICROMASTER table 3-20 (profile torque: MM440 only)
+CW_RUN_RFG = 0x70  # MICROMASTER velocity mode: RFG enable, RFG start, setpoint enable
+
+
+# --- setpoint and actual values --------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Scale:
+    """User value = raw / raw_per_unit (a Lenze process-data word) or the profile's own scaling (raw_per_unit 0)."""
+
+    ref: str
+    unit: str
+    raw_per_unit: float = 0.0
+    minimum: float | None = None
+    maximum: float | None = None
+
+
+def _has(catalog: Catalog, ref: str) -> bool:
+    try:
+        catalog.resolve(ref)
+    except UnknownParameter:
+        return False
+    return True
+
+
+def _catalog(node: SessionNode) -> Catalog:
+    if node.catalog is None:
+        raise InvalidValue(f"Node {node.node_id} has no device profile: the control panel needs one.")
+    return node.catalog
+
+
+def family(node: SessionNode) -> Family:
+    found = family_of(node.catalog)
+    if found is None:
+        raise InvalidValue(f"{node.device_name} has no device control word DriveBench knows (CiA 402 0x6040/0x6041, "
+                           "Lenze C0135/C0150, AIF word 1 or 8400 CAN1_IN/CAN1_OUT).")
+    return found
+
+
+def _is_8200(catalog: Catalog) -> bool:
+    return _has(catalog, "C0001")
+
+
+async def setpoint_scale(session: Session, node: SessionNode, mode: int | None) -> Scale:
+    fam, catalog = family(node), _catalog(node)
+    if fam is CIA402:
+        if mode == 4:
+            return Scale("0x6071", "‰", minimum=-1000, maximum=1000)
+        top = 1500.0
+        if _has(catalog, "0x6046.2"):
+            top = float((await parameters.read(session, node.node_id, "0x6046.2")).value or top)
+        return Scale("0x6042", "rpm", minimum=-top, maximum=top)
+    if fam in (EMF, EMF_AIF):
+        if _is_8200(catalog):  # 24000 = 480 Hz (EMF2178IB ch. 9.3.1.1)
+            return Scale("C1822/2", "Hz", 50.0, -480, 480)
+        return Scale("C1822/2", "%", 16383 / 100, -100, 100)  # 93XX: 16383 = 100 %
+    reference = 1500.0
+    if _has(catalog, "C00011"):
+        reference = float((await parameters.read(session, node.node_id, "C00011")).value or reference)
+    return Scale("C00866/2", "rpm", 0x4000 / reference, -2 * reference, 2 * reference)  # 0x4000 = C00011
+
+
+def actual_refs(node: SessionNode) -> list[tuple[str, str, Scale | None]]:
+    """(label, ref, word scale or None for the profile's own scaling) of the actual values this device has."""
+    fam, catalog = family(node), _catalog(node)
+    wanted: list[tuple[str, str, Scale | None]]
+    if fam is CIA402:
+        wanted = [("Speed", "0x6044", None), ("Output frequency", "r0021", None), ("Current", "r0027", None),
+                  ("DC-bus voltage", "r0026", None), ("Torque", "r0080", None), ("Torque", "0x6077", None),
+                  ("Heat-sink temperature", "r0037", None)]
+    elif fam in (EMF, EMF_AIF):
+        word = Scale("C1823/2", "Hz", 50.0) if _is_8200(catalog) else Scale("C1823/2", "%", 16383 / 100)
+        wanted = [("Speed (AIF-OUT.W1)", "C1823/2", word), ("Current", "C0054", None),
+                  ("DC-bus voltage", "C0053", None), ("Torque", "C0056", None),
+                  ("Heat-sink temperature", "C0061", None)]
+    else:
+        wanted = [("Speed (CAN1_OUT word 2)", "C00868/2", None), ("Current", "C00054", None),
+                  ("DC-bus voltage", "C00053", None), ("Heat-sink temperature", "C00061", None)]
+    return [entry for entry in wanted if _has(catalog, entry[1])]
+
+
+MISSING_HINT = "not in this device's profile"
+
+
+class ActualValue(BaseModel):
+    label: str
+    ref: str
+    value: float | None
+    unit: str | None
+    error: str | None = None
+
+
+def _signed16(raw: int) -> int:
+    return raw - 0x10000 if raw >= 0x8000 else raw
+
+
+async def read_actuals(session: Session, node: SessionNode) -> list[ActualValue]:
+    out: list[ActualValue] = []
+    speed_scale: Scale | None = None
+    if family(node) is L8400:
+        speed_scale = await setpoint_scale(session, node, None)
+    for label, ref, scale in actual_refs(node):
+        try:
+            value = await parameters.read(session, node.node_id, ref)
+        except DriveBenchError as exc:
+            out.append(ActualValue(label=label, ref=ref, value=None, unit=None, error=str(exc)))
+            continue
+        if ref == "C00868/2" and speed_scale is not None and isinstance(value.raw, int):
+            out.append(ActualValue(label=label, ref=ref, unit="rpm",
+                                   value=round(_signed16(value.raw) / speed_scale.raw_per_unit, 1)))
+        elif scale is not None and isinstance(value.raw, int):
+            out.append(ActualValue(label=label, ref=ref, unit=scale.unit,
+                                   value=round(_signed16(value.raw & 0xFFFF) / scale.raw_per_unit, 2)))
+        else:
+            number = value.value if isinstance(value.value, (int, float)) else None
+            out.append(ActualValue(label=label, ref=ref, value=number, unit=value.unit))
+    return out
+
+
+# --- status --------------------------------------------------------------------------------------------------
+class Bit(BaseModel):
+    bit: int
+    name: str
+    set: bool
+
+
+class StateOut(BaseModel):
+    key: str
+    label: str
+    col: int
+    row: int
+    enabled: bool
+    fault: bool
+
+
+class DriveStatus(BaseModel):
+    node_id: int
+    family: str
+    title: str
+    note: str
+    state: str
+    state_label: str
+    enabled: bool
+    fault: bool
+    status_ref: str
+    status_word: int
+    status_bits: list[Bit]
+    control_ref: str
+    control_word: int | None
+    control_bits: list[Bit]
+    commands: dict[str, str]
+    moving_commands: list[str]
+    states: list[StateOut]
+    mode: int | None
+    mode_label: str | None
+    modes: dict[int, str]
+    setpoint_ref: str
+    setpoint_unit: str
+    setpoint_min: float | None
+    setpoint_max: float | None
+    armed: bool
+    last_trip: str | None
+
+
+def bits(names: dict[int, str], word: int | None) -> list[Bit]:
+    return [Bit(bit=bit, name=names.get(bit, f"Bit {bit}"), set=bool(word is not None and word >> bit & 1))
+            for bit in range(16)]
+
+
+def describe(fam: Family, status_word: int) -> tuple[str, str, bool, bool]:
+    """(state key, label, enabled?, fault?) for a status word."""
+    key = fam.state_of(status_word)
+    box = fam.state_box(key)
+    return key, state_label(fam, key), bool(box and box.enabled), bool(box and box.fault)
+
+
+async def _word(session: Session, node_id: int, ref: str) -> int:
+    raw = (await parameters.read(session, node_id, ref)).raw
+    if not isinstance(raw, int):
+        raise InvalidValue(f"{ref} did not read as an integer word")
+    return raw & 0xFFFF
+
+
+async def _mode(session: Session, node: SessionNode) -> int | None:
+    if family(node) is not CIA402 or not _has(_catalog(node), "0x6061"):
+        return None
+    raw = (await parameters.read(session, node.node_id, "0x6061")).raw
+    return int(raw) if isinstance(raw, int) else None
+
+
+async def read_status(session: Session, node: SessionNode) -> DriveStatus:
+    fam = family(node)
+    status_word = await _word(session, node.node_id, fam.status_ref)
+    try:
+        control_word: int | None = await _word(session, node.node_id, fam.control_ref)
+    except DriveBenchError:
+        control_word = None  # write-only on some devices
+    mode = await _mode(session, node)
+    scale = await setpoint_scale(session, node, mode)
+    key, label, enabled, fault = describe(fam, status_word)
+    guard = guard_for(session)
+    if not enabled:
+        guard.release(node.node_id)
+    return DriveStatus(
+        node_id=node.node_id, family=fam.key, title=fam.title, note=fam.note, state=key, state_label=label,
+        enabled=enabled, fault=fault, status_ref=fam.status_ref, status_word=status_word,
+        status_bits=bits(fam.status_bits, status_word), control_ref=fam.control_ref, control_word=control_word,
+        control_bits=bits(fam.control_bits, control_word),
+        commands={command.value: COMMAND_LABELS[command] for command in fam.commands},
+        moving_commands=[command.value for command in fam.commands if command in MOVING],
+        states=[StateOut(key=box.key, label=box.label, col=box.col, row=box.row, enabled=box.enabled, fault=box.fault)
+                for box in fam.states],
+        mode=mode, mode_label=MODES.get(mode) if mode is not None else None,
+        modes=MODES if mode is not None else {}, setpoint_ref=scale.ref, setpoint_unit=scale.unit,
+        setpoint_min=scale.minimum, setpoint_max=scale.maximum, armed=guard.armed(node.node_id),
+        last_trip=guard.trips.get(node.node_id))
+
+
+# --- commands ------------------------------------------------------------------------------------------------
+def _confirmed(confirm: bool, what: str) -> None:
+    if not confirm:
+        raise Conflict(f"{what} can make the motor turn: confirm it (confirm = true).")
+
+
+async def write_control_word(session: Session, node: SessionNode, word: int) -> None:
+    await parameters.write(session, node.node_id, family(node).control_ref, word & 0xFFFF, check=False, verify=False)
+
+
+async def _last_control_word(session: Session, node: SessionNode) -> int:
+    try:
+        return await _word(session, node.node_id, family(node).control_ref)
+    except DriveBenchError:
+        return 0
+
+
+async def command(session: Session, node: SessionNode, which: Command, *, confirm: bool = False) -> DriveStatus:
+    fam = family(node)
+    if which not in fam.commands:
+        raise InvalidValue(f"{COMMAND_LABELS[which]} is not a command of {fam.title}.")
+    if which in MOVING:
+        _confirmed(confirm, COMMAND_LABELS[which])
+    last = await _last_control_word(session, node)
+    word = next_control_word(fam, which, last)
+    edge = fam.edge_bits.get(which)
+    if edge is not None and last & edge:
+        await write_control_word(session, node, last & ~edge)  # a rising edge needs the bit at 0 first
+    guard = guard_for(session)
+    if which in MOVING:
+        guard.arm(node.node_id)
+    await write_control_word(session, node, word)
+    if which in (Command.SHUTDOWN, Command.DISABLE_VOLTAGE, Command.QUICK_STOP, Command.DISABLE_OPERATION):
+        guard.release(node.node_id)
+    return await read_status(session, node)
+
+
+async def set_setpoint(session: Session, node: SessionNode, value: float, *, confirm: bool = False) -> DriveStatus:
+    fam = family(node)
+    scale = await setpoint_scale(session, node, await _mode(session, node))
+    if (scale.minimum is not None and value < scale.minimum) or (scale.maximum is not None and value > scale.maximum):
+        raise OutOfRange(f"Setpoint {value:g} {scale.unit} is outside {scale.minimum:g} ... {scale.maximum:g} "
+                         f"{scale.unit}.")
+    if value != 0:
+        _confirmed(confirm, f"Setpoint {value:g} {scale.unit}")
+        guard_for(session).arm(node.node_id)
+    if scale.raw_per_unit:
+        raw = round(value * scale.raw_per_unit) & 0xFFFF
+        await parameters.write(session, node.node_id, scale.ref, raw, check=False, verify=False)
+    else:
+        await parameters.write(session, node.node_id, scale.ref, value, verify=False)
+    if fam is CIA402 and scale.ref == "0x6042":
+        last = await _last_control_word(session, node)
+        if last & 0x0F == 0x0F and last & CW_RUN_RFG != CW_RUN_RFG:  # velocity mode: run the ramp (0x7F)
+            await write_control_word(session, node, last | CW_RUN_RFG)
+    return await read_status(session, node)
+
+
+def jog_value(status: DriveStatus) -> float:
+    """10 % of the setpoint range."""
+    top = status.setpoint_max or 100.0
+    return round(top / 10, 1)
+
+
+async def jog(session: Session, node: SessionNode, direction: int, *, confirm: bool = False) -> DriveStatus:
+    """Hold-to-run: +1 / -1 runs at the jog value while the keep-alive lasts, 0 stops (setpoint 0)."""
+    if direction not in (-1, 0, 1):
+        raise InvalidValue("Jog direction is -1, 0 or 1.")
+    status = await read_status(session, node)
+    if direction and not status.enabled:
+        raise Conflict(f"Jog needs the drive in operation enabled (it is in '{status.state_label}').")
+    return await set_setpoint(session, node, direction * jog_value(status), confirm=confirm)
+
+
+async def set_mode(session: Session, node: SessionNode, mode: int, *, confirm: bool = False) -> DriveStatus:
+    if family(node) is not CIA402 or not _has(_catalog(node), "0x6060"):
+        raise InvalidValue(f"{node.device_name} has no modes of operation (0x6060).")
+    if mode not in MODES:
+        raise InvalidValue(f"Mode {mode} is not supported: the MICROMASTER knows 2 (velocity) and 4 (profile torque).")
+    status = await read_status(session, node)
+    if status.enabled:
+        _confirmed(confirm, "Changing the mode of operation while the drive is enabled")
+    await parameters.write(session, node.node_id, "0x6060", mode, verify=False)
+    status = await read_status(session, node)
+    if status.mode != mode:
+        raise Conflict(f"0x6061 shows {status.mode} after writing 0x6060 = {mode}: the MICROMASTER takes 0x6060 only "
+                       "once P1501 = r2091.12 (0x082B000C), see the commissioning wizard step 5.")
+    return status
+
+
+# --- keep-alive guard ----------------------------------------------------------------------------------------
+class Guard:
+    """Armed nodes of one session and their keep-alive deadlines; quick stop when a deadline passes."""
+
+    def __init__(self, session: Session) -> None:
+        self._session = weakref.ref(session)
+        self.deadlines: dict[int, float] = {}
+        self.trips: dict[int, str] = {}
+        self._task: asyncio.Task[None] | None = None
+
+    def armed(self, node_id: int) -> bool:
+        return node_id in self.deadlines
+
+    def arm(self, node_id: int) -> None:
+        self.deadlines[node_id] = time.monotonic() + KEEPALIVE_TIMEOUT_S
+        self.trips.pop(node_id, None)
+        self._ensure_watch()
+
+    def keepalive(self, node_id: int) -> bool:
+        if node_id in self.deadlines:
+            self.deadlines[node_id] = time.monotonic() + KEEPALIVE_TIMEOUT_S
+            return True
+        return False
+
+    def release(self, node_id: int) -> None:
+        self.deadlines.pop(node_id, None)
+
+    async def trip(self, node_id: int, reason: str) -> None:
+        """Quick stop an armed node (keep-alive lost or the panel disconnected)."""
+        if self.deadlines.pop(node_id, None) is None:
+            return
+        session = self._session()
+        if session is None or node_id not in session.nodes:
+            return
+        node = session.nodes[node_id]
+        try:
+            last = await _last_control_word(session, node)
+            await write_control_word(session, node, next_control_word(family(node), Command.QUICK_STOP, last))
+            self.trips[node_id] = f"Quick stop sent at {time.strftime('%H:%M:%S')}: {reason}."
+        except DriveBenchError as exc:
+            self.trips[node_id] = f"Quick stop FAILED at {time.strftime('%H:%M:%S')} ({reason}): {exc}"
+        session.emit("drive_trip", {"node": node_id, "reason": self.trips[node_id]})
+
+    def _ensure_watch(self) -> None:
+        if self._task is None or self._task.done():
+            self._task = asyncio.get_running_loop().create_task(self._watch())
+
+    async def _watch(self) -> None:
+        while self.deadlines:
+            await asyncio.sleep(WATCH_PERIOD_S)
+            now = time.monotonic()
+            for node_id, deadline in list(self.deadlines.items()):
+                if deadline < now:
+                    await self.trip(node_id, f"no keep-alive for {KEEPALIVE_TIMEOUT_S:g} s")
+
+
+_GUARDS: weakref.WeakKeyDictionary[Session, Guard] = weakref.WeakKeyDictionary()
+
+
+def guard_for(session: Session) -> Guard:
+    guard = _GUARDS.get(session)
+    if guard is None:
+        guard = _GUARDS[session] = Guard(session)
+    return guard

@@ -1,0 +1,173 @@
+"""Drive control service against the simulated demo plant (node 3 MICROMASTER 440, 12 8200 vector + EMF2178IB,
+5 8400 motec) through the real SDO path: state from the status word, transitions, setpoint, modes, interlocks."""
+
+from __future__ import annotations
+
+import asyncio
+import time
+from collections.abc import Coroutine, Iterator
+from typing import Any, TypeVar
+
+import pytest
+
+from drivebench.device.loader import ProfileRegistry
+from drivebench.errors import Conflict, OutOfRange
+from drivebench.services import drive_control, parameters
+from drivebench.services.drive_control import DriveStatus, describe
+from drivebench.services.drive_words import CIA402, EMF, L8400, Command
+from drivebench.services.sessions import Session, SessionManager
+from drivebench.simulator.plant import Plant
+
+T = TypeVar("T")
+MM, VECTOR, MOTEC = 3, 12, 5
+
+
+class Bench:
+    def __init__(self, runner: asyncio.Runner, session: Session, plant: Plant) -> None:
+        self.runner, self.session, self.plant = runner, session, plant
+
+    def run(self, coro: Coroutine[Any, Any, T]) -> T:
+        return self.runner.run(coro)
+
+    def status(self, node_id: int) -> DriveStatus:
+        return self.run(drive_control.read_status(self.session, self.session.node(node_id)))
+
+    def command(self, node_id: int, which: Command, confirm: bool = False) -> DriveStatus:
+        return self.run(drive_control.command(self.session, self.session.node(node_id), which, confirm=confirm))
+
+    def until(self, node_id: int, state: str, timeout_s: float = 8.0) -> DriveStatus:
+        deadline = time.monotonic() + timeout_s
+        while (status := self.status(node_id)).state != state:
+            assert time.monotonic() < deadline, f"node {node_id} stays in {status.state_label}"
+            self.run(asyncio.sleep(0.05))
+        return status
+
+
+@pytest.fixture
+def bench(plant: Plant, registry: ProfileRegistry) -> Iterator[Bench]:
+    runner = asyncio.Runner()
+    manager = SessionManager(registry, sdo_timeout_s=1.0, sdo_retries=1)
+    session = runner.run(manager.open(plant.spec, "drive control"))
+    for node in plant.nodes.values():
+        session.add_node(node.node_id, node.profile.id)
+    try:
+        yield Bench(runner, session, plant)
+    finally:
+        runner.run(manager.close_all())
+        runner.close()
+
+
+@pytest.mark.parametrize(("word", "state"), [
+    (0xFE20, "not_ready"), (0xFE60, "switch_on_disabled"), (0xFE31, "ready"), (0xFE33, "switched_on"),
+    (0xFE37, "operation_enabled"), (0xFA37, "operation_enabled"), (0xFE17, "quick_stop_active"),
+    (0xFE3F, "fault_reaction_active"), (0xFE28, "fault"), (0x0008, "fault")])
+def test_cia402_state_from_every_status_word(word: int, state: str) -> None:
+    """Table 3-18 of the MICROMASTER manual (the traces' 0xFE31/33/37/FA37 among them)."""
+    assert describe(CIA402, word)[0] == state
+
+
+@pytest.mark.parametrize(("device_status", "state", "enabled", "fault"), [
+    (0, "init", False, False), (2, "switch_on_inhibit", False, False), (3, "operation_inhibited", False, False),
+    (4, "flying_restart", True, False), (5, "dc_brake", True, False), (6, "operation_enabled", True, False),
+    (7, "message", False, True), (8, "fault", False, True), (10, "fail_qsp", False, True)])
+def test_emf2178ib_state_from_every_device_status(device_status: int, state: str, enabled: bool,
+                                                   fault: bool) -> None:
+    assert describe(EMF, 0x8000 | device_status << 8) == (state, EMF.state_box(state).label,  # type: ignore[union-attr]
+                                                           enabled, fault)
+
+
+@pytest.mark.parametrize(("device_state", "state"), [(1, "init"), (3, "ready"), (4, "switched_on"),
+                                                     (5, "operation_enabled"), (7, "trouble"), (8, "fault")])
+def test_8400_state_from_every_device_state(device_state: int, state: str) -> None:
+    assert describe(L8400, device_state << 8)[0] == state
+
+
+def test_micromaster_first_run_and_back(bench: Bench) -> None:
+    bench.plant.nodes[MM].store.set_ref("P1120", 1.0)  # test-only: 1 s ramp
+    bench.run(parameters.write(bench.session, MM, "P0700", 6))
+    bench.run(parameters.write(bench.session, MM, "P1000", 6))
+    assert bench.until(MM, "switch_on_disabled").status_bits[6].set
+    assert bench.command(MM, Command.SHUTDOWN).state == "ready"
+    assert bench.command(MM, Command.SWITCH_ON).state == "switched_on"
+    with pytest.raises(Conflict, match="confirm"):
+        bench.command(MM, Command.ENABLE_OPERATION)
+    status = bench.command(MM, Command.ENABLE_OPERATION, confirm=True)
+    assert status.state == "operation_enabled" and status.armed and status.control_word == 0x0F
+    with pytest.raises(OutOfRange):
+        bench.run(drive_control.set_setpoint(bench.session, bench.session.node(MM), 9000, confirm=True))
+    status = bench.run(drive_control.set_setpoint(bench.session, bench.session.node(MM), 300, confirm=True))
+    assert status.control_word == 0x7F  # velocity mode: RFG enable/start/setpoint enable
+    deadline = time.monotonic() + 8
+    while (speed := bench.run(drive_control.read_actuals(bench.session, bench.session.node(MM)))[0]).value != 300:
+        assert time.monotonic() < deadline, f"speed stays {speed.value}"
+        drive_control.guard_for(bench.session).keepalive(MM)
+        bench.run(asyncio.sleep(0.05))
+    assert speed.label == "Speed" and speed.unit == "rpm"
+    status = bench.command(MM, Command.DISABLE_OPERATION)
+    assert status.state == "switched_on" and not status.armed
+    assert bench.command(MM, Command.SHUTDOWN).state == "ready"
+
+
+def test_keepalive_lost_sends_quick_stop(bench: Bench) -> None:
+    bench.run(parameters.write(bench.session, MM, "P0700", 6))
+    bench.until(MM, "switch_on_disabled")
+    bench.command(MM, Command.SHUTDOWN)
+    bench.command(MM, Command.ENABLE_OPERATION, confirm=True)  # from ready: on by itself (manual ch. 3.3)
+    guard = drive_control.guard_for(bench.session)
+    assert guard.armed(MM)
+    deadline = time.monotonic() + drive_control.KEEPALIVE_TIMEOUT_S + 8
+    while MM not in guard.trips:
+        assert time.monotonic() < deadline, "no quick stop after the keep-alive stopped"
+        bench.run(asyncio.sleep(0.1))
+    assert "Quick stop sent" in guard.trips[MM]
+    drive = bench.plant.nodes[MM].drive
+    assert drive is not None and drive.control_word & 0x06 == 0x02  # quick stop command (bit 2 = 0)
+    status = bench.until(MM, "switch_on_disabled")  # quick stop active, then stopped
+    assert status.last_trip and "keep-alive" in status.last_trip
+
+
+def test_fault_and_fault_reset(bench: Bench) -> None:
+    bench.run(parameters.write(bench.session, MM, "P0700", 6))
+    bench.until(MM, "switch_on_disabled")
+    drive = bench.plant.nodes[MM].drive
+    assert drive is not None
+    drive.raise_fault(7)
+    status = bench.until(MM, "fault")
+    assert status.fault and status.status_bits[3].set and status.status_bits[3].name == "Fault"
+    with pytest.raises(Conflict):
+        bench.command(MM, Command.FAULT_RESET)
+    assert bench.command(MM, Command.FAULT_RESET, confirm=True).state == "switch_on_disabled"
+
+
+def test_modes_of_operation_need_p1501(bench: Bench) -> None:
+    node = bench.session.node(MM)
+    with pytest.raises(Conflict, match="P1501"):
+        bench.run(drive_control.set_mode(bench.session, node, 4))
+    bench.run(parameters.write(bench.session, MM, "P1501", 0x082B000C))
+    status = bench.run(drive_control.set_mode(bench.session, node, 4))
+    assert status.mode == 4 and status.mode_label == "Profile torque mode" and status.setpoint_ref == "0x6071"
+
+
+def test_8200_vector_enable_setpoint_in_hz_and_inhibit(bench: Bench) -> None:
+    bench.run(parameters.write(bench.session, VECTOR, "C0001", 3))
+    status = bench.command(VECTOR, Command.SHUTDOWN)
+    assert status.state == "operation_inhibited" and status.control_word == 0x0200
+    assert status.control_bits[9].name == "Controller inhibit (AIF-CTRL-CINH)" and status.control_bits[9].set
+    status = bench.command(VECTOR, Command.ENABLE_OPERATION, confirm=True)
+    assert status.state == "operation_enabled" and status.setpoint_unit == "Hz"
+    bench.run(drive_control.set_setpoint(bench.session, bench.session.node(VECTOR), 25, confirm=True))
+    assert bench.plant.nodes[VECTOR].store.get_ref("C1822/2") == 1250  # 24000 = 480 Hz
+    deadline = time.monotonic() + 8
+    while (actual := bench.run(drive_control.read_actuals(bench.session, bench.session.node(VECTOR)))[0]).value != 25:
+        assert time.monotonic() < deadline, f"actual stays {actual.value} Hz"
+        drive_control.guard_for(bench.session).keepalive(VECTOR)
+        bench.run(asyncio.sleep(0.05))
+    assert bench.command(VECTOR, Command.QUICK_STOP).status_bits[15].name == "Ready for operation (DCTRL1-RDY)"
+    assert bench.command(VECTOR, Command.DISABLE_OPERATION).state == "operation_inhibited"
+
+
+def test_8400_switch_on_enable_and_inhibit(bench: Bench) -> None:
+    assert bench.until(MOTEC, "ready").family == "lenze8400"
+    assert bench.command(MOTEC, Command.SWITCH_ON).state == "switched_on"
+    assert bench.command(MOTEC, Command.ENABLE_OPERATION, confirm=True).state == "operation_enabled"
+    assert bench.command(MOTEC, Command.DISABLE_VOLTAGE).state == "ready"
