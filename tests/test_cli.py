@@ -116,3 +116,10 @@ def test_hub_with_a_bridge_to_a_missing_adapter_ends_with_a_message(capsys: pyte
     captured = capsys.readouterr()
     assert "Unknown CAN interface 'nosuchcan'" in captured.err and "Traceback" not in captured.err
     assert "socketcand hub on" not in captured.out, "the hub never announced itself"
+
+
+def test_hub_on_a_port_in_use_ends_with_a_message(capsys: pytest.CaptureFixture[str]) -> None:
+    with start_hub_thread(port=0) as hub:
+        assert main(["hub", "--port", str(hub.port)]) == 1
+    err = capsys.readouterr().err
+    assert f"cannot listen on 127.0.0.1:{hub.port}" in err and "--port" in err and "Traceback" not in err

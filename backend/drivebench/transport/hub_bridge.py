@@ -46,9 +46,11 @@ class BusBridge:
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
         self._bus: ObservedBus | None = None
+        # Each counter has one writer thread: the hub's loop (queue full), the reader, the sender.
         self.frames_to_bus = 0
         self.frames_from_bus = 0
-        self.frames_dropped = 0
+        self.frames_overrun = 0
+        self.remote_frames_dropped = 0
         self.send_errors = 0
 
     def start(self, deliver: Deliver) -> None:
@@ -65,7 +67,7 @@ class BusBridge:
         try:
             self._outgoing.put_nowait(msg)
         except queue.Full:
-            self.frames_dropped += 1
+            self.frames_overrun += 1
 
     def stop(self) -> None:
         self._stop.set()
@@ -78,7 +80,7 @@ class BusBridge:
 
     def stats(self) -> BridgeStats:
         return BridgeStats(str(self.spec), self.channel, self.frames_to_bus, self.frames_from_bus,
-                           self.frames_dropped, self.send_errors)
+                           self.frames_overrun + self.remote_frames_dropped, self.send_errors)
 
     def _read(self, deliver: Deliver) -> None:
         bus = self._bus
@@ -93,7 +95,7 @@ class BusBridge:
             if msg is None:
                 continue
             if msg.is_remote_frame:
-                self.frames_dropped += 1
+                self.remote_frames_dropped += 1
                 continue
             self.frames_from_bus += 1
             deliver(msg)
