@@ -68,6 +68,8 @@ class PdoConfig(BaseModel):
     """Where the manual says the type is not permitted (or special) for this device."""
     notes: list[str] = Field(default_factory=list)
     settings: list[DeviceSetting] = Field(default_factory=list)
+    conflicts: list[str] = Field(default_factory=list)
+    """The COB-ID is also a predefined identifier of another node of the session (e.g. Lenze base IDs)."""
 
 
 class PdoWrite(BaseModel):
@@ -108,6 +110,34 @@ def transmission_text(trans_type: int, direction: Direction) -> str:
     if trans_type in (254, 255):
         return "event-driven" + (" (manufacturer-specific)" if trans_type == 254 else " (device profile)")
     return "reserved"
+
+
+# CiA 301 predefined connection set: base -> what a node n sends (producer) or receives on base + n
+PREDEFINED: dict[int, tuple[str, bool]] = {
+    0x080: ("EMCY", True), 0x180: ("TPDO1", True), 0x280: ("TPDO2", True), 0x380: ("TPDO3", True),
+    0x480: ("TPDO4", True), 0x200: ("RPDO1", False), 0x300: ("RPDO2", False), 0x400: ("RPDO3", False),
+    0x500: ("RPDO4", False), 0x580: ("SDO (tx)", True), 0x600: ("SDO (rx)", False), 0x700: ("heartbeat", True)}
+
+
+def cob_id_conflicts(session: Session, node_id: int, direction: Direction, cob_id: int) -> list[str]:
+    """Where a PDO's COB-ID is also a predefined identifier of another node of the session, in words.
+
+    The classic case is the Lenze base ID of RPDO2 (0x281 + n, 8400 motec C00353 = 0): it is TPDO2 of node n + 1.
+    """
+    found = []
+    for other in sorted(session.nodes):
+        if other == node_id:
+            continue
+        for base, (name, produces) in PREDEFINED.items():
+            if base + other != cob_id:
+                continue
+            if direction == "rpdo" and produces:
+                found.append(f"COB-ID 0x{cob_id:03X} is also {name} of node {other}: this RPDO receives what node "
+                             f"{other} sends - wanted only for cross communication (Lenze base ID of RPDO2?).")
+            elif direction == "tpdo":
+                what = "two producers on one identifier" if produces else f"node {other} would act on this TPDO"
+                found.append(f"COB-ID 0x{cob_id:03X} is also {name} of node {other}: {what}.")
+    return found
 
 
 def _catalog(session: Session, node_id: int) -> Catalog:
@@ -218,7 +248,9 @@ async def read_pdo(session: Session, node_id: int, direction: Direction, number:
     if p2041 and entries:
         notes.append(p2041[0].upper() + p2041[1:] + ".")
     settings = await _settings(session, node_id, catalog, pdo_notes.setting_refs(profile, direction, number))
-    return PdoConfig(settings=settings,fixed_mapping=entry_one is None or not entry_one.access.writable,
+    conflicts = cob_id_conflicts(session, node_id, direction, cob & 0x7FF)
+    return PdoConfig(settings=settings, conflicts=conflicts,
+                     fixed_mapping=entry_one is None or not entry_one.access.writable,
                      transmission_note=pdo_notes.transmission_note(profile, direction, trans),
                      notes=notes,
                      direction=direction, number=number, cob_id=cob & 0x7FF, valid=not cob & COB_INVALID,
