@@ -13,13 +13,16 @@ import sys
 import threading
 import time
 from collections.abc import Iterator
+from typing import Any
 
+import httpx
 import pytest
 
 from drivebench.config import REPO_ROOT
 from drivebench.device.loader import ProfileRegistry
 from drivebench.protocol.nmt import NmtCommand
 from drivebench.services.sessions import SessionManager
+from tests.conftest import screenshot
 
 START_TIMEOUT_S = 60.0  # a cold interpreter importing the package on a loaded 2-core machine
 DEMO_NODES = {3: "siemens-micromaster4-canopen", 5: "lenze-8400-motec-canopen", 12: "lenze-8200-vector-emf2178ib"}
@@ -133,3 +136,28 @@ def test_a_session_reads_sdo_and_sees_heartbeats_of_drives_in_another_process(
 
     asyncio.run(main())
 
+
+
+def test_the_plant_page_opens_a_gateway_session_and_scans_drives_of_another_process(
+        live_server: str, page: Any, hub_and_simulator: str) -> None:
+    """The Plant page's form on a socketcand gateway (the hub), drives simulated by another process."""
+    from playwright.sync_api import expect
+
+    timeout_ms = 20_000
+    page.goto(live_server + "/")
+    form = page.locator("#open-session")
+    form.locator("select[name=interface]").select_option("socketcand")
+    form.locator("input[name=channel]").fill(hub_and_simulator.removeprefix("socketcand:"))
+    form.locator("input[name=name]").fill("Gateway line")
+    try:
+        form.get_by_role("button", name="Open session").click()
+        card = page.locator("#session-gateway-line")
+        expect(card).to_contain_text(f"{hub_and_simulator}@500000", timeout=timeout_ms)
+        card.get_by_role("button", name="Scan bus").click()
+        for node_id in DEMO_NODES:
+            node_row = page.locator(f"#node-gateway-line-{node_id}")
+            expect(node_row.locator("td").nth(0)).to_have_text(str(node_id), timeout=timeout_ms)
+            expect(node_row.locator(".nmt")).to_have_text("Pre-operational", timeout=timeout_ms)
+        screenshot(page, "plant-gateway-session")
+    finally:  # the live server is shared by the test session: leave it as it was
+        httpx.delete(f"{live_server}/api/sessions/gateway-line", timeout=10)
