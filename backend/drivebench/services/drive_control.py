@@ -51,7 +51,7 @@ class Scale:
     maximum: float | None = None
 
 
-def _has(catalog: Catalog, ref: str) -> bool:
+def has_ref(catalog: Catalog, ref: str) -> bool:
     try:
         catalog.resolve(ref)
     except UnknownParameter:
@@ -74,7 +74,7 @@ def family(node: SessionNode) -> Family:
 
 
 def _is_8200(catalog: Catalog) -> bool:
-    return _has(catalog, "C0001")
+    return has_ref(catalog, "C0001")
 
 
 async def setpoint_scale(session: Session, node: SessionNode, mode: int | None) -> Scale:
@@ -83,7 +83,7 @@ async def setpoint_scale(session: Session, node: SessionNode, mode: int | None) 
         if mode == 4:
             return Scale("0x6071", "‰", minimum=-1000, maximum=1000)
         top = 1500.0
-        if _has(catalog, "0x6046.2"):
+        if has_ref(catalog, "0x6046.2"):
             top = float((await parameters.read(session, node.node_id, "0x6046.2")).value or top)
         return Scale("0x6042", "rpm", minimum=-top, maximum=top)
     if fam in (EMF, EMF_AIF):
@@ -91,7 +91,7 @@ async def setpoint_scale(session: Session, node: SessionNode, mode: int | None) 
             return Scale("C1822/2", "Hz", 50.0, -480, 480)
         return Scale("C1822/2", "%", 16383 / 100, -100, 100)  # 93XX: 16383 = 100 %
     reference = 1500.0
-    if _has(catalog, "C00011"):
+    if has_ref(catalog, "C00011"):
         reference = float((await parameters.read(session, node.node_id, "C00011")).value or reference)
     return Scale("C00866/2", "rpm", 0x4000 / reference, -2 * reference, 2 * reference)  # 0x4000 = C00011
 
@@ -112,7 +112,7 @@ def actual_refs(node: SessionNode) -> list[tuple[str, str, Scale | None]]:
     else:
         wanted = [("Speed (CAN1_OUT word 2)", "C00868/2", None), ("Current", "C00054", None),
                   ("DC-bus voltage", "C00053", None), ("Heat-sink temperature", "C00061", None)]
-    return [entry for entry in wanted if _has(catalog, entry[1])]
+    return [entry for entry in wanted if has_ref(catalog, entry[1])]
 
 
 MISSING_HINT = "not in this device's profile"
@@ -218,7 +218,7 @@ async def _word(session: Session, node_id: int, ref: str) -> int:
 
 
 async def _mode(session: Session, node: SessionNode) -> int | None:
-    if family(node) is not CIA402 or not _has(_catalog(node), "0x6061"):
+    if family(node) is not CIA402 or not has_ref(_catalog(node), "0x6061"):
         return None
     raw = (await parameters.read(session, node.node_id, "0x6061")).raw
     return int(raw) if isinstance(raw, int) else None
@@ -327,7 +327,7 @@ async def jog(session: Session, node: SessionNode, direction: int, *, confirm: b
 
 
 async def set_mode(session: Session, node: SessionNode, mode: int, *, confirm: bool = False) -> DriveStatus:
-    if family(node) is not CIA402 or not _has(_catalog(node), "0x6060"):
+    if family(node) is not CIA402 or not has_ref(_catalog(node), "0x6060"):
         raise InvalidValue(f"{node.device_name} has no modes of operation (0x6060).")
     if mode not in MODES:
         raise InvalidValue(f"Mode {mode} is not supported: the MICROMASTER knows 2 (velocity) and 4 (profile torque).")

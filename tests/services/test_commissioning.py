@@ -1,0 +1,91 @@
+"""Guided commissioning replayed against the simulated demo plant: the MICROMASTER velocity and torque sequences
+(manual ch. 5.7 / 5.8) and the EMF2178IB minimal enable, with the telegrams each step saw on the bus."""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import Iterator
+
+import pytest
+
+from drivebench.device.loader import ProfileRegistry
+from drivebench.errors import Conflict
+from drivebench.services import commissioning
+from drivebench.services.commissioning import Run
+from drivebench.services.sessions import Session, SessionManager
+from drivebench.simulator.plant import Plant
+
+MM, VECTOR = 3, 12
+
+
+@pytest.fixture
+def bench(plant: Plant, registry: ProfileRegistry) -> Iterator[tuple[asyncio.Runner, Session]]:
+    runner = asyncio.Runner()
+    manager = SessionManager(registry, sdo_timeout_s=1.0, sdo_retries=1)
+    session = runner.run(manager.open(plant.spec, "commissioning"))
+    for node in plant.nodes.values():
+        session.add_node(node.node_id, node.profile.id)
+    try:
+        yield runner, session
+    finally:
+        runner.run(manager.close_all())
+        runner.close()
+
+
+def _walk(runner: asyncio.Runner, session: Session, run: Run, stop_before: int | None = None) -> Run:
+    node = session.node(run.node_id)
+    while not run.finished and run.position != stop_before:
+        step = run.sequence.steps[run.position]
+        runner.run(commissioning.next_step(session, node, run, confirm=step.moves))
+        commissioning.drive_control.guard_for(session).keepalive(run.node_id)
+    return run
+
+
+def test_offered_sequences_per_device(bench: tuple[asyncio.Runner, Session]) -> None:
+    _, session = bench
+    assert [seq.key for seq in commissioning.sequences_for(session.node(MM))] == ["mm-velocity", "mm-torque"]
+    assert [seq.key for seq in commissioning.sequences_for(session.node(VECTOR))] == ["emf-8200"]
+    assert [seq.key for seq in commissioning.sequences_for(session.node(5))] == ["l8400"]
+
+
+def test_micromaster_velocity_sequence_as_printed(bench: tuple[asyncio.Runner, Session]) -> None:
+    runner, session = bench
+    wizard = commissioning.wizard(session)
+    run = _walk(runner, session, wizard.start(session, session.node(MM), "mm-velocity"))
+    assert run.failed is None and all(result.ok for result in run.results), run.failed
+    first = run.results[0]
+    assert first.printed == "2b f8 27 00 00 00 00 00"
+    assert [(t.direction, t.cob_id, t.data) for t in first.telegrams] == [
+        ("T", "0x603", "2B F8 27 00 00 00 00 00"), ("R", "0x583", "60 F8 27 00 00 00 00 00")]
+    switch_on = next(result for result in run.results if result.title.startswith("Switch on"))
+    assert ("T", "0x203", "07 00") in [(t.direction, t.cob_id, t.data) for t in switch_on.telegrams]
+    assert any(t.cob_id == "0x183" and t.data == "33 FE" for t in switch_on.telegrams)  # as printed
+    assert run.results[-1].telegrams[0].data == "7F 00 E8 03"
+
+
+def test_moving_step_needs_confirmation(bench: tuple[asyncio.Runner, Session]) -> None:
+    runner, session = bench
+    run = commissioning.wizard(session).start(session, session.node(VECTOR), "emf-8200")
+    moving = next(n for n, step in enumerate(run.sequence.steps) if step.moves)
+    _walk(runner, session, run, stop_before=moving)
+    with pytest.raises(Conflict, match="confirm"):
+        runner.run(commissioning.next_step(session, session.node(VECTOR), run))
+    _walk(runner, session, run)
+    assert run.failed is None and run.finished
+    assert any(t.cob_id == "0x58C" for t in run.results[2].telegrams)  # the C0150 read's answer
+
+
+def test_unexpected_answer_stops_the_run_with_a_message(bench: tuple[asyncio.Runner, Session],
+                                                         plant: Plant) -> None:
+    runner, session = bench
+    run = commissioning.wizard(session).start(session, session.node(MM), "mm-velocity")
+    shutdown = next(n for n, step in enumerate(run.sequence.steps) if step.title.startswith("Shutdown"))
+    _walk(runner, session, run, stop_before=shutdown)
+    drive = plant.nodes[MM].drive
+    assert drive is not None
+    drive.raise_fault(7)
+    _walk(runner, session, run)
+    assert run.failed is not None and "Shutdown" in run.failed and "expected 'ready'" in run.failed
+    assert run.position == shutdown and not run.results[-1].ok
+    with pytest.raises(Conflict):
+        runner.run(commissioning.next_step(session, session.node(MM), run))
