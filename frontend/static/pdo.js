@@ -26,6 +26,17 @@
     }
   }
 
+  // Same words as drivebench.services.pdo.transmission_text (CiA 301 table of transmission types).
+  function transmissionText(t, direction) {
+    if (!Number.isInteger(t) || t < 0 || t > 255) return "not a transmission type (0 ... 255)";
+    if (t === 0) return "synchronous, acyclic" + (direction === "tpdo" ? " (sent on SYNC after a change)" : "");
+    if (t <= 240) return t === 1 ? "synchronous, every SYNC" : `synchronous, every ${t}. SYNC`;
+    if (t === 252 || t === 253) return "RTR only" + (t === 252 ? ", synchronous" : ", event-driven");
+    if (t === 254) return "event-driven (manufacturer-specific)";
+    if (t === 255) return "event-driven (device profile)";
+    return "reserved";
+  }
+
   function initCard(card) {
     if (card.dataset.ready) return;
     card.dataset.ready = "1";
@@ -46,10 +57,27 @@
     const submit = form.querySelector("button[type=submit]");
     const bits = () => entries.reduce((sum, e) => sum + e.bits, 0);
 
+    let dragged = -1;
+
     function render() {
       list.innerHTML = "";
       entries.forEach((e, i) => {
         const li = document.createElement("li");
+        li.draggable = true;  // drag to reorder (the arrows do the same from the keyboard)
+        li.dataset.position = i;
+        li.addEventListener("dragstart", (ev) => { dragged = i; li.classList.add("dragging"); ev.dataTransfer.effectAllowed = "move"; ev.dataTransfer.setData("text/plain", String(i)); });
+        li.addEventListener("dragend", () => li.classList.remove("dragging"));
+        li.addEventListener("dragover", (ev) => { ev.preventDefault(); li.classList.add("drop-here"); });
+        li.addEventListener("dragleave", () => li.classList.remove("drop-here"));
+        li.addEventListener("drop", (ev) => {
+          ev.preventDefault();
+          const from = dragged >= 0 ? dragged : Number(ev.dataTransfer.getData("text/plain"));
+          dragged = -1;
+          if (Number.isNaN(from) || from === i) { render(); return; }
+          const [moved] = entries.splice(from, 1);
+          entries.splice(i, 0, moved);
+          render();
+        });
         li.innerHTML = `<span class="name"></span> <span class="mono muted"></span> <span class="muted">${e.bits} bit</span>
           <span class="entry-buttons"><button type="button" class="icon" data-act="up" title="Move up" ${i === 0 ? "disabled" : ""}>↑</button><button type="button" class="icon" data-act="down" title="Move down" ${i === entries.length - 1 ? "disabled" : ""}>↓</button><button type="button" class="icon" data-act="remove" title="Remove">✕</button></span>`;
         li.querySelector(".name").textContent = e.name;
@@ -103,6 +131,19 @@
     }
 
     search.addEventListener("input", renderPicker);
+    const typeInput = form.querySelector('input[name="transmission_type"]');
+    const typeText = form.querySelector(".pdo-type-text");
+    if (typeInput && typeText) {
+      const typeNotes = JSON.parse(card.dataset.typeNotes || "{}");
+      const showType = () => {
+        const t = Number(typeInput.value);
+        const note = typeNotes[t];
+        typeText.textContent = typeInput.value === "" ? "" : transmissionText(t, card.dataset.direction) + (note ? ` - ${note}` : "");
+        typeText.classList.toggle("warn-text", Boolean(note));
+      };
+      typeInput.addEventListener("input", showType);
+      showType();
+    }
     render();
   }
 

@@ -31,10 +31,19 @@ def test_edit_and_apply_rpdo5_of_the_micromaster(live_server: str, page: Any) ->
     search = card.locator(".pdo-search")
     search.fill("control word")
     card.get_by_role("button", name="Add 0x6040 Control word").click()
-    search.fill("0x2802")  # free object into drive (P2050.2): its name in the profile is the BICO one
-    card.locator(".pdo-picker button").first.click()
     search.fill("target torque")
     card.locator(".pdo-picker button").first.click()
+    search.fill("0x2802")  # free object into drive (P2050.2): its name in the profile is the BICO one
+    card.locator(".pdo-picker button").first.click()
+    entries = card.locator(".pdo-entries li")
+    entries.nth(2).drag_to(entries.nth(1))  # the MICROMASTER's mapping sequence: free object before the torque
+    assert [entries.nth(i).locator(".mono").inner_text() for i in range(3)] == ["0x6040", "r2050.2", "0x6071"]
+    trans_type = card.locator('input[name="transmission_type"]')
+    trans_type.fill("3")
+    assert "every 3. SYNC" in card.locator(".pdo-type-text").inner_text()
+    assert "stores only synchronous/asynchronous" in card.locator(".pdo-type-text.warn-text").inner_text()
+    trans_type.fill("255")
+    assert card.locator(".pdo-type-text").inner_text() == "event-driven (device profile)"
     total = card.locator(".pdo-total")
     assert total.inner_text() == "6 / 8 bytes · 3 / 4 entries"
     assert card.locator('.byte-layout[data-layout="edit"] .byte-cell.free').count() == 2

@@ -42,7 +42,11 @@ def _context(session: Session, node: SessionNode, **extra: Any) -> dict[str, Any
 
 
 def _card_context(session: Session, node: SessionNode, config: PdoConfig) -> dict[str, Any]:
-    return {"pdo": config, "mappable": pdo.mappable_objects(session, node.node_id, config.direction)}
+    profile = node.profile
+    type_notes = {} if profile is None else {
+        t: note for t in range(256) if (note := pdo_notes.transmission_note(profile, config.direction, t))}
+    return {"pdo": config, "mappable": pdo.mappable_objects(session, node.node_id, config.direction),
+            "type_notes": type_notes}
 
 
 def _parse_entries(text: str) -> list[tuple[int, int]]:
