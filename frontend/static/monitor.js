@@ -8,11 +8,13 @@
   const $ = (id) => document.getElementById(id);
   const TRACE_ROWS = 500;
   const HISTORY_S = 600;
+  const MIN_SPAN_S = 60;
   let latest = null;
   let pendingTrace = [];
   let traceCount = 0;
   let drawScheduled = false;
   const loadPoints = { t: [], v: [] };
+  let zoomed = false;
 
   const esc = (text) => String(text ?? "").replace(/[&<>"']/g, (c) => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;", "'": "&#39;" })[c]);
   const num = (value) => Number(value).toLocaleString("en-US");
@@ -28,8 +30,8 @@
   const chartBox = $("load-chart");
   const chart = new uPlot({
     width: Math.max(chartBox.clientWidth, 300), height: 240,
-    // The x axis always spans the last 10 minutes (ending at the newest point); drag-zoom narrows it.
-    scales: { x: { time: true, range: (u, min, max) => (max == null ? [Date.now() / 1000 - HISTORY_S, Date.now() / 1000] : [max - HISTORY_S, max]) }, y: { range: (u, min, max) => [0, Math.max(5, Math.ceil((max || 0) * 1.2))] } },
+    // Both scales are set by drawChart (not auto-ranged), so a drag-zoom stays put while points arrive.
+    scales: { x: { time: true, auto: false }, y: { auto: false } },
     axes: [
       { label: "time (local)", labelSize: 18, space: 90, stroke: "#5d6b79", grid: { stroke: "#eef1f4" } },
       { label: "bus load (%)", labelSize: 18, stroke: "#5d6b79", grid: { stroke: "#eef1f4" }, size: 56,
@@ -41,7 +43,25 @@
         value: (u, v) => (v == null ? "–" : `${v.toFixed(2)} %`) },
     ],
     legend: { live: true },
+    // A drag selects a time span and zooms into it; the zoom stays while new points arrive, until a double-click.
+    hooks: { setSelect: [(u) => { if (u.select.width > 0) zoomed = true; }] },
   }, [[], []], chartBox);
+  chartBox.addEventListener("dblclick", () => { zoomed = false; drawChart(); });
+
+  // The x axis spans the history there is (at least a minute, at most 10 minutes, ending at the newest point);
+  // the y axis starts at 0 % and leaves room above the highest point (1 % at least).
+  function drawChart() {
+    chart.setData([loadPoints.t, loadPoints.v], false);
+    if (zoomed) return;
+    const times = loadPoints.t;
+    const now = Date.now() / 1000;
+    const newest = times.length ? times[times.length - 1] : now;
+    const oldest = times.length ? times[0] : now;
+    chart.batch(() => {
+      chart.setScale("x", { min: newest - Math.min(HISTORY_S, Math.max(MIN_SPAN_S, newest - oldest)), max: newest });
+      chart.setScale("y", { min: 0, max: Math.max(1, Math.ceil(Math.max(0, ...loadPoints.v) * 1.2)) });
+    });
+  }
   window.monitorChart = chart;  // for tests and the console
   new ResizeObserver(() => chart.setSize({ width: Math.max(chartBox.clientWidth, 300), height: 240 })).observe(chartBox);
 
@@ -106,7 +126,7 @@
     renderStats(s);
     renderTables(s);
     renderTrace();
-    chart.setData([loadPoints.t, loadPoints.v]);
+    drawChart();
     setLive(s.paused ? "paused" : "live");
     setPaused(s.paused);
   }

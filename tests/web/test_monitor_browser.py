@@ -58,6 +58,21 @@ def test_counters_move_chart_renders_trace_decodes(page: Any, monitor_server: st
     assert page.locator("#load-chart canvas").count() >= 1
     page.wait_for_function("window.monitorChart.data[0].length >= 2 && Math.max(...window.monitorChart.data[1]) > 0",
                            timeout=10_000)
+    # Drag-zoom narrows the time axis and stays while updates arrive; a double-click goes back to the whole history.
+    span = "window.monitorChart.scales.x.max - window.monitorChart.scales.x.min"
+    assert page.evaluate(span) >= 60
+    box = page.locator("#load-chart .u-over").bounding_box()
+    assert box is not None
+    page.mouse.move(box["x"] + box["width"] * 0.5, box["y"] + box["height"] / 2)
+    page.mouse.down()
+    page.mouse.move(box["x"] + box["width"] * 0.8, box["y"] + box["height"] / 2, steps=5)
+    page.mouse.up()
+    zoomed = page.evaluate(span)
+    assert zoomed < 30
+    time.sleep(0.5)  # several updates
+    assert page.evaluate(span) == pytest.approx(zoomed)
+    page.dblclick("#load-chart .u-over")
+    page.wait_for_function(f"{span} >= 60", timeout=5_000)
     # Decoded trace rows; SDO traffic from reading the drive's own counters names the objects.
     page.click("text=Read device counters")
     page.wait_for_selector("#device-counters table", timeout=15_000)
