@@ -1,0 +1,104 @@
+"""Drive control panel API: status (state machine, named bits), transitions, setpoint, jog, modes, actual values,
+keep-alive, and the guided commissioning runs. Commands that can make the motor turn need ``"confirm": true``."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter
+from pydantic import BaseModel, Field
+
+from drivebench.services import commissioning, drive_control
+from drivebench.services.commissioning import RunOut
+from drivebench.services.drive_control import ActualValue, DriveStatus
+from drivebench.services.drive_words import Command
+from drivebench.web.deps import NodeDep, SessionDep
+
+router = APIRouter(prefix="/api/sessions/{session_id}/nodes/{node_id}/control", tags=["drive control"])
+
+
+class Confirmed(BaseModel):
+    confirm: bool = Field(False, description="Required (true) for commands after which the motor may turn")
+
+
+class SetpointIn(Confirmed):
+    value: float = Field(description="Setpoint in the unit the status names (rpm, Hz, %, permille)")
+
+
+class JogIn(Confirmed):
+    direction: int = Field(ge=-1, le=1, description="1 forward, -1 reverse, 0 stop")
+
+
+class ModeIn(Confirmed):
+    mode: int = Field(description="0x6060 modes of operation: 2 velocity, 4 profile torque")
+
+
+class KeepaliveOut(BaseModel):
+    armed: bool
+
+
+class SequenceOut(BaseModel):
+    key: str
+    title: str
+    source: str
+    preconditions: list[str]
+    steps: int
+
+
+@router.get("", response_model=DriveStatus)
+async def status(session: SessionDep, node: NodeDep) -> DriveStatus:
+    """State from the status word, every control and status bit named, the commands and setpoint range."""
+    return await drive_control.read_status(session, node)
+
+
+@router.post("/commands/{command}", response_model=DriveStatus)
+async def command(session: SessionDep, node: NodeDep, command: Command, body: Confirmed | None = None) -> DriveStatus:
+    return await drive_control.command(session, node, command, confirm=bool(body and body.confirm))
+
+
+@router.put("/setpoint", response_model=DriveStatus)
+async def setpoint(session: SessionDep, node: NodeDep, body: SetpointIn) -> DriveStatus:
+    return await drive_control.set_setpoint(session, node, body.value, confirm=body.confirm)
+
+
+@router.post("/jog", response_model=DriveStatus)
+async def jog(session: SessionDep, node: NodeDep, body: JogIn) -> DriveStatus:
+    return await drive_control.jog(session, node, body.direction, confirm=body.confirm)
+
+
+@router.put("/mode", response_model=DriveStatus)
+async def mode(session: SessionDep, node: NodeDep, body: ModeIn) -> DriveStatus:
+    return await drive_control.set_mode(session, node, body.mode, confirm=body.confirm)
+
+
+@router.get("/actuals", response_model=list[ActualValue])
+async def actuals(session: SessionDep, node: NodeDep) -> list[ActualValue]:
+    return await drive_control.read_actuals(session, node)
+
+
+@router.post("/keepalive", response_model=KeepaliveOut)
+async def keepalive(session: SessionDep, node: NodeDep) -> KeepaliveOut:
+    """While the node is armed, send this at least every 2 s, or the server sends quick stop."""
+    return KeepaliveOut(armed=drive_control.guard_for(session).keepalive(node.node_id))
+
+
+@router.get("/sequences", response_model=list[SequenceOut])
+async def sequences(node: NodeDep) -> list[SequenceOut]:
+    return [SequenceOut(key=seq.key, title=seq.title, source=seq.source, preconditions=list(seq.preconditions),
+                        steps=len(seq.steps)) for seq in commissioning.sequences_for(node)]
+
+
+@router.post("/sequences/{key}/runs", response_model=RunOut, status_code=201)
+async def start_run(session: SessionDep, node: NodeDep, key: str) -> RunOut:
+    return commissioning.wizard(session).start(session, node, key).public()
+
+
+@router.get("/runs/{run_id}", response_model=RunOut)
+async def get_run(session: SessionDep, node: NodeDep, run_id: str) -> RunOut:
+    return commissioning.wizard(session).get(run_id).public()
+
+
+@router.post("/runs/{run_id}/next", response_model=RunOut)
+async def next_step(session: SessionDep, node: NodeDep, run_id: str, body: Confirmed | None = None) -> RunOut:
+    """Run the next step; a step the manual marks as turning the motor needs confirm."""
+    run = commissioning.wizard(session).get(run_id)
+    await commissioning.next_step(session, node, run, confirm=bool(body and body.confirm))
+    return run.public()

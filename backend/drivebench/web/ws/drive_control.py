@@ -1,0 +1,68 @@
+"""Live drive panel of one node, and its keep-alive.
+
+``/ws/sessions/{session}/nodes/{node}/control`` sends ``{"type": "status", "status": DriveStatus, "actuals":
+[ActualValue], "t": unix time}`` every :data:`PERIOD_S` (``{"type": "error", "detail": ...}`` when a read fails).
+Every message the client sends (e.g. ``{"cmd": "keepalive"}``) is a keep-alive of the node. When the socket
+closes while the node is armed (a command that can move the motor was sent), the server sends quick stop at once.
+An unknown session or node closes the socket with code 4404.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import time
+
+from fastapi import APIRouter, WebSocket, WebSocketDisconnect
+
+from drivebench.errors import DriveBenchError, NotFound
+from drivebench.services import drive_control
+
+router = APIRouter()
+PERIOD_S = 0.25
+_trips: set[asyncio.Task[None]] = set()
+
+
+@router.websocket("/ws/sessions/{session_id}/nodes/{node_id}/control")
+async def control(websocket: WebSocket, session_id: str, node_id: int) -> None:
+    await websocket.accept()
+    try:
+        session = websocket.app.state.drivebench.manager.get(session_id)
+        node = session.node(node_id)
+    except NotFound as exc:
+        await websocket.close(code=4404, reason=exc.detail[:120])
+        return
+    guard = drive_control.guard_for(session)
+
+    async def receive() -> None:
+        while True:
+            await websocket.receive_text()
+            guard.keepalive(node_id)
+
+    async def send() -> None:
+        while True:
+            try:
+                status = await drive_control.read_status(session, node)
+                actuals = await drive_control.read_actuals(session, node)
+                await websocket.send_json({"type": "status", "status": status.model_dump(mode="json"),
+                                           "actuals": [a.model_dump(mode="json") for a in actuals],
+                                           "t": time.time()})
+            except DriveBenchError as exc:
+                await websocket.send_json({"type": "error", "detail": str(exc)})
+            await asyncio.sleep(PERIOD_S)
+
+    tasks = [asyncio.create_task(receive()), asyncio.create_task(send())]
+    try:
+        await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)
+    except (WebSocketDisconnect, RuntimeError):
+        pass
+    finally:
+        # quick stop first, in its own task: it must complete even when this handler is being cancelled
+        trip = asyncio.get_running_loop().create_task(guard.trip(node_id, "the control panel disconnected"))
+        _trips.add(trip)
+        trip.add_done_callback(_trips.discard)
+        for task in tasks:
+            task.cancel()
+        for task in tasks:
+            with contextlib.suppress(asyncio.CancelledError, WebSocketDisconnect, RuntimeError, Exception):
+                await task
