@@ -72,6 +72,9 @@ def test_defaults_as_the_manuals_list_them(drives: tuple[Session, Plant], loop: 
     assert table(3) == [("rpdo", 1, 0x200, True, ["0x6040"]), ("rpdo", 5, 0x300, False, []),
                         ("rpdo", 6, 0x400, False, []), ("tpdo", 1, 0x180, True, ["0x6041"]),
                         ("tpdo", 5, 0x280, False, []), ("tpdo", 6, 0x380, False, [])]
+    mm_tpdo5 = loop.run_until_complete(pdo.read_pdo(session, 3, "tpdo", 5))
+    assert [s.ref for s in mm_tpdo5.settings] == ["P2041", "P2041.2"], "P2041.00 (TPDO5 type) and .02 (PDO5 mapping)"
+    assert "Transmission type also set by P2041.00 high byte." in mm_tpdo5.notes
     motec = loop.run_until_complete(pdo.read_pdos(session, 5))
     assert [(c.direction, c.number, c.cob_id - 5, c.transmission_type) for c in motec] == [
         ("rpdo", 1, 0x200, 254), ("rpdo", 2, 0x300, 254), ("tpdo", 1, 0x180, 254), ("tpdo", 2, 0x280, 254)]

@@ -217,6 +217,8 @@ async def _settings(session: Session, node_id: int, catalog: Catalog, refs: list
             shown, text = scaled.display(), None
             if entry.bits and isinstance(raw, int):  # a bit field (P2041.02): hex here, the bits' names on hover
                 shown, text = f"0x{raw:0{2 * size}X}", scaled.text
+            elif isinstance(raw, int) and size > 1 and not (entry.unit or entry.selection or entry.factor != 1):
+                shown = f"{raw} (0x{raw:0{2 * size}X})"  # bytes with meanings (P2041.00: TPDO1/TPDO5 types)
         except SdoAbortError as exc:
             shown, text = f"not readable: 0x{exc.abort_code:08X}", exc.abort_text
         found.append(DeviceSetting(ref=item.ref, name=item.name, value=shown, text=text))
@@ -366,7 +368,10 @@ async def _failed(session: Session, node_id: int, direction: Direction, number: 
     reason = f"{failed.abort_code} {failed.abort_text}" if failed.abort_code else (failed.detail or "")
     if not disabled:
         state = "nothing was changed; the PDO keeps its previous configuration"
-    elif pdo is not None and pdo.valid:
+    elif pdo is None:
+        state = ("the PDO could not be read back; step 1 had set its COB-ID invalid, so it should be disabled - "
+                 "read the PDOs again to check")
+    elif pdo.valid:
         state = "the PDO reads back as ENABLED - check the device"
     else:
         state = "the PDO is left disabled (COB-ID invalid), never half-mapped and enabled"

@@ -23,6 +23,12 @@ MM4_TPDO_ORDER: dict[tuple[int, int], tuple[int, int]] = {
     (0x6041, 0): (1, 8), (0x6043, 0): (2, 9), (0x6053, 0): (2, 9), (0x2803, 3): (3, 10), (0x2803, 4): (4, 11),
     (0x6077, 0): (5, 12), (0x6044, 0): (6, 13), (0x6054, 0): (6, 13), (0x6061, 0): (7, 14)}
 MM4_PER_UNIT = {0x6052, 0x6053, 0x6054}
+# MICROMASTER ch. 5.6 table 5-1: where P2041 keeps each PDO's transmission type. The RPDO bits' text is garbled and
+# contradictory; the manual's trace (0xFF written to 0x1400/1404/1405.2 -> P2041.01 = 0x00FF) supports 0 = async.
+MM4_TYPE_PLACE: dict[tuple[str, int], tuple[str, str]] = {
+    ("tpdo", 1): ("P2041.00", "low byte"), ("tpdo", 5): ("P2041.00", "high byte"),
+    ("tpdo", 6): ("P2041.01", "low byte"),
+    ("rpdo", 1): ("P2041.01", "bit 8"), ("rpdo", 5): ("P2041.01", "bit 9"), ("rpdo", 6): ("P2041.01", "bit 10")}
 
 
 def _lenze_port(direction: str, number: int) -> str:
@@ -84,11 +90,17 @@ def pdo_notes(profile: Profile, direction: str, number: int) -> list[str]:
             notes.append(f"Inhibit time also as C00324/{number + 1} (ms); cycle time C00356/{5 if number == 1 else 2}.")
         return notes
     if family == MM4:
+        notes = []
+        place = MM4_TYPE_PLACE.get((direction, number))
+        if place and direction == "rpdo":
+            notes.append(f"Transmission type kept in {place[0]} {place[1]} (1 = synchronous 0, 0 = asynchronous 255).")
+        elif place:
+            notes.append(f"Transmission type also set by {place[0]} {place[1]}.")
         if number == 1:
-            return ["Fixed mapping (control word / status word): cannot be changed."]
+            return ["Fixed mapping (control word / status word): cannot be changed.", *notes]
         word = 2 if number == 5 else 3
         byte = "low byte" if direction == "rpdo" else "high byte"
-        return [f"Also set by P2041.0{word} {byte} (one bit per object, in the mapping sequence)."]
+        return [f"Also set by P2041.0{word} {byte} (one bit per object, in the mapping sequence).", *notes]
     return []
 
 
@@ -99,8 +111,10 @@ def setting_refs(profile: Profile, direction: str, number: int) -> list[str]:
         if direction == "rpdo":  # COB-ID source, monitoring time and the response when it is exceeded (ch. 8.3, 8.5)
             return [f"C00353/{number}", f"C00357/{number}", f"C00593/{number}"]
         return [f"C00353/{number}", f"C00324/{number + 1}", f"C00356/{5 if number == 1 else 2}"]
-    if family == MM4 and number != 1:  # ch. 5.6: P2041.02 = PDO5 (low byte RPDO, high byte TPDO), .03 = PDO6
-        return [f"P2041.0{2 if number == 5 else 3}"]
+    if family == MM4:  # ch. 5.6: P2041.00/.01 transmission types, .02 = PDO5 mapping (low RPDO, high TPDO), .03 PDO6
+        place = MM4_TYPE_PLACE.get((direction, number))
+        refs = [place[0]] if place else []
+        return refs + ([f"P2041.0{2 if number == 5 else 3}"] if number != 1 else [])
     return []
 
 
