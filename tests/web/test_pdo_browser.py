@@ -162,6 +162,12 @@ def test_live_value_confirmed_send_and_cyclic_stop(own_server: tuple[str, FastAP
     assert _wait(lambda: sim.store.get(0x2802, 3) == 77)
     assert "sent once" in rpdo5.locator(".send-result").inner_text()
 
+    rpdo5.locator('input[name="v:r2050.2"]').fill("40000")  # INTEGER16: refused before anything is sent
+    page.once("dialog", lambda dialog: dialog.accept())
+    rpdo5.get_by_role("button", name="Send once").click()
+    error = rpdo5.locator(".send-result .error")
+    error.wait_for(timeout=10000)
+    assert "40000" in error.inner_text() and sim.store.get(0x2802, 3) == 77
     rpdo5.locator('input[name="v:r2050.2"]').fill("-300")
     page.once("dialog", lambda dialog: dialog.accept())
     rpdo5.get_by_role("button", name="Send cyclically").click()
