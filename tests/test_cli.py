@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import signal
 import socket
+import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -23,6 +24,17 @@ def free_port() -> int:
     with socket.socket() as sock:
         sock.bind(("127.0.0.1", 0))
         return int(sock.getsockname()[1])
+
+
+def run_cli(args: list[str]) -> int:
+    """``main(args)`` in a thread of its own: a browser test earlier in the session leaves Playwright's event loop
+    running in the main thread, where ``asyncio.run`` refuses to start."""
+    codes: list[int] = []
+    worker = threading.Thread(target=lambda: codes.append(main(args)))
+    worker.start()
+    worker.join(timeout=START_TIMEOUT_S)
+    assert codes, f"drivebench {' '.join(args)} did not end"
+    return codes[0]
 
 
 def poll(fetch: Callable[[], object], timeout_s: float, what: str) -> object:
@@ -80,7 +92,7 @@ def test_serve_with_an_unreachable_gateway_says_what_to_check(capsys: pytest.Cap
     with socket.socket() as sock:  # a port nobody listens on
         sock.bind(("127.0.0.1", 0))
         port = sock.getsockname()[1]
-    assert main(["serve", "--port", "0", "--bus", f"socketcand:127.0.0.1:{port}/can0"]) == 1
+    assert run_cli(["serve", "--port", "0", "--bus", f"socketcand:127.0.0.1:{port}/can0"]) == 1
     err = capsys.readouterr().err
     assert f"Cannot reach the socketcand gateway at 127.0.0.1:{port}" in err
     assert f"drivebench hub --port {port}" in err and "Traceback" not in err
@@ -93,7 +105,7 @@ def test_serve_with_an_unreachable_gateway_says_what_to_check(capsys: pytest.Cap
     ("not a bus", "is not a bus specification"),
 ])
 def test_serve_with_a_bad_bus_ends_with_a_message(bus: str, message: str, capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["serve", "--port", "0", "--bus", bus]) == 1
+    assert run_cli(["serve", "--port", "0", "--bus", bus]) == 1
     err = capsys.readouterr().err
     assert err.startswith("drivebench: ") and message in err and "Traceback" not in err
 
@@ -101,18 +113,18 @@ def test_serve_with_a_bad_bus_ends_with_a_message(bus: str, message: str, capsys
 @pytest.mark.parametrize("command", ["serve", "hub"])
 def test_non_loopback_addresses_are_refused_without_allow_remote(command: str,
                                                                  capsys: pytest.CaptureFixture[str]) -> None:
-    assert main([command, "--host", "0.0.0.0", "--port", "0"]) == 2
+    assert run_cli([command, "--host", "0.0.0.0", "--port", "0"]) == 2
     err = capsys.readouterr().err
     assert "Refusing to listen on 0.0.0.0" in err and "--allow-remote" in err
 
 
 def test_simulate_on_an_unknown_interface_ends_with_a_message(capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["simulate", "--bus", "nosuchcan:can0"]) == 1
+    assert run_cli(["simulate", "--bus", "nosuchcan:can0"]) == 1
     assert "Unknown CAN interface 'nosuchcan'" in capsys.readouterr().err
 
 
 def test_hub_with_a_bridge_to_a_missing_adapter_ends_with_a_message(capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["hub", "--port", "0", "--bridge", "nosuchcan:can0@500000"]) == 1
+    assert run_cli(["hub", "--port", "0", "--bridge", "nosuchcan:can0@500000"]) == 1
     captured = capsys.readouterr()
     assert "Unknown CAN interface 'nosuchcan'" in captured.err and "Traceback" not in captured.err
     assert "socketcand hub on" not in captured.out, "the hub never announced itself"
@@ -120,6 +132,6 @@ def test_hub_with_a_bridge_to_a_missing_adapter_ends_with_a_message(capsys: pyte
 
 def test_hub_on_a_port_in_use_ends_with_a_message(capsys: pytest.CaptureFixture[str]) -> None:
     with start_hub_thread(port=0) as hub:
-        assert main(["hub", "--port", str(hub.port)]) == 1
+        assert run_cli(["hub", "--port", str(hub.port)]) == 1
     err = capsys.readouterr().err
     assert f"cannot listen on 127.0.0.1:{hub.port}" in err and "--port" in err and "Traceback" not in err

@@ -93,7 +93,8 @@ def hub(args: argparse.Namespace) -> int:
 
     async def run() -> None:
         task = asyncio.current_task()
-        if task is not None:  # SIGTERM (docker stop, a supervisor) closes the hub like Ctrl+C
+        if task is not None and threading.current_thread() is threading.main_thread():
+            # SIGTERM (docker stop, a supervisor) closes the hub like Ctrl+C
             asyncio.get_running_loop().add_signal_handler(signal.SIGTERM, task.cancel)
         with contextlib.suppress(asyncio.CancelledError):
             await serve_hub(args.host, args.port, bridges=bridges, on_listening=listening)

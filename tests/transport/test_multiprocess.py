@@ -12,7 +12,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Coroutine, Iterator
 from typing import Any
 
 import httpx
@@ -101,6 +101,25 @@ def hub_and_simulator() -> Iterator[str]:
     assert codes == [0, 0], "both processes end cleanly on SIGTERM"
 
 
+def run_outside_playwright(main: Callable[[], Coroutine[Any, Any, None]]) -> None:
+    """``asyncio.run(main())`` in a thread of its own: a browser test earlier in the session leaves Playwright's
+    event loop running in the main thread, where ``asyncio.run`` refuses to start."""
+    errors: list[BaseException] = []
+
+    def work() -> None:
+        try:
+            asyncio.run(main())
+        except BaseException as exc:
+            errors.append(exc)
+
+    worker = threading.Thread(target=work)
+    worker.start()
+    worker.join(timeout=120)
+    assert not worker.is_alive(), "the session work did not end"
+    if errors:
+        raise errors[0]
+
+
 async def until(check: object, timeout_s: float = 15.0) -> None:
     assert callable(check)
     deadline = time.monotonic() + timeout_s
@@ -134,7 +153,7 @@ def test_a_session_reads_sdo_and_sees_heartbeats_of_drives_in_another_process(
         finally:
             await manager.close_all()
 
-    asyncio.run(main())
+    run_outside_playwright(main)
 
 
 
