@@ -1,0 +1,149 @@
+"""The Parameter sets screen in a real browser, on a server of its own (demo plant on a fresh virtual bus,
+temporary database): upload node 5, export the set as JSON, change it, import it (first with a value out of
+range: the line is named), compare the node with the changed set, download it (preview -> report), roll back,
+and find the writes in the audit log."""
+
+from __future__ import annotations
+
+import json
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+import uvicorn
+
+from drivebench.config import settings
+from drivebench.services import database
+from drivebench.web.app import create_app
+from tests.conftest import DEMO_PLANT, _free_port, fresh_channel, screenshot
+
+expect = pytest.importorskip("playwright.sync_api").expect
+
+WAIT_MS = 20_000
+LAYOUT_PROBLEMS = """() => {
+  const problems = [];
+  if (document.documentElement.scrollWidth > window.innerWidth) problems.push("page scrolls sideways");
+  for (const table of document.querySelectorAll("table")) {
+    if (table.offsetParent && table.scrollWidth > table.parentElement.clientWidth + 1)
+      problems.push("table wider than its box: " + (table.className || table.id));
+  }
+  return problems;
+}"""
+
+
+@pytest.fixture(scope="module")
+def sets_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    url = f"sqlite:///{tmp_path_factory.mktemp('sets-db') / 'drivebench.db'}"
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(settings, "database_url", url)
+        port = _free_port()
+        app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
+        server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning"))
+        thread = threading.Thread(target=server.run, daemon=True)
+        thread.start()
+        deadline = time.time() + 20
+        while not server.started and time.time() < deadline:
+            time.sleep(0.05)
+        assert server.started, "the parameter sets test server did not start"
+        yield f"http://127.0.0.1:{port}"
+        server.should_exit = True
+        thread.join(timeout=10)
+    database.dispose(url)
+
+
+def import_file(page: Any, path: Path, name: str) -> None:
+    form = page.locator("#import-card form")
+    form.locator("input[type=file]").set_input_files(str(path))
+    form.locator("input[name=name]").fill(name)
+    form.get_by_role("button", name="Import").click()
+
+
+def test_export_change_compare_download(page: Any, sets_server: str, tmp_path: Path) -> None:
+    page.goto(f"{sets_server}/parameter-sets")
+    upload = page.locator("#upload-card form")
+    upload.locator("select[name=target]").select_option("demo-plant:5")
+    upload.locator("input[name=name]").fill("Conveyor as found")
+    upload.get_by_role("button", name="Upload all parameters").click()
+    expect(page.locator("#upload-result .ok")).to_contain_text("Stored as set", timeout=WAIT_MS)
+    expect(page.locator("#set-list")).to_contain_text("Conveyor as found", timeout=WAIT_MS)
+
+    page.locator("#set-list a", has_text="Conveyor as found").click()
+    expect(page.locator("#set-detail h2")).to_have_text("Conveyor as found", timeout=WAIT_MS)
+    with page.expect_download() as download_info:
+        page.get_by_role("link", name="Export JSON").click()
+    exported = json.loads(Path(download_info.value.path()).read_text())
+    assert exported["profile_id"] == "lenze-8400-motec-canopen"
+
+    # change: one value out of range first - the import names its line and stores nothing
+    for parameter in exported["parameters"]:
+        if parameter["ref"] == "C00088":
+            parameter["value"] = 12.5
+        if parameter["ref"] == "C00324/1":
+            parameter["value"] = 9999
+    bad = tmp_path / "conveyor-bad.json"
+    bad.write_text(json.dumps(exported, indent=1))
+    import_file(page, bad, "Conveyor commissioned")
+    errors = page.locator("#import-result .line-errors")
+    expect(errors).to_contain_text("C00324/1", timeout=WAIT_MS)
+    expect(errors).to_contain_text("6500")
+    screenshot(page, "sets-import-errors")
+
+    next(p for p in exported["parameters"] if p["ref"] == "C00324/1")["value"] = 0
+    good = tmp_path / "conveyor.json"
+    good.write_text(json.dumps(exported, indent=1))
+    import_file(page, good, "Conveyor commissioned")
+    expect(page.locator("#import-result .ok")).to_contain_text("Imported as", timeout=WAIT_MS)
+    href = page.locator("#import-result .ok a").get_attribute("href")
+    new_id = href.rsplit("=", 1)[1]
+
+    # compare the node with the changed set: only C00088, scaled with its unit
+    expect(page.locator(f"#compare-form select[name=right] option[value='set:{new_id}']")).to_have_count(
+        1, timeout=WAIT_MS)
+    compare = page.locator("#compare-form")
+    compare.locator("select[name=left]").select_option("node:demo-plant:5")
+    compare.locator("select[name=right]").select_option(f"set:{new_id}")
+    compare.get_by_role("button", name="Compare").click()
+    rows = page.locator("#compare-result .compare-table tbody tr")
+    expect(rows).to_have_count(1, timeout=WAIT_MS)
+    expect(rows.first).to_contain_text("C00088")
+    expect(rows.first).to_contain_text("10.20 A")
+    expect(rows.first).to_contain_text("12.50 A")
+    page.locator("#compare").scroll_into_view_if_needed()
+    screenshot(page, "sets-compare")
+
+    # download: preview -> report -> roll back
+    page.locator("#import-result .ok a").click()
+    expect(page.locator("#set-detail h2")).to_have_text("Conveyor commissioned", timeout=WAIT_MS)
+    page.locator("#set-detail").get_by_role("button", name="Preview changes").click()
+    preview = page.locator("#download-area .preview")
+    expect(preview).to_contain_text("1 of", timeout=WAIT_MS)
+    expect(preview.locator("tbody tr")).to_have_count(1)
+    expect(preview).to_contain_text("12.50 A")
+    screenshot(page, "sets-preview")
+    preview.get_by_role("button", name="Download 1 changes").click()
+    report = page.locator("#download-area .report")
+    expect(report).to_have_attribute("data-state", "done", timeout=WAIT_MS)
+    expect(report.locator(".report-table tbody tr")).to_have_count(1)
+    expect(report.locator(".report-table")).to_contain_text("written")
+    expect(report).to_contain_text("parameters unchanged")
+    assert page.evaluate(LAYOUT_PROBLEMS) == []
+    screenshot(page, "sets-download-report")
+
+    page.once("dialog", lambda dialog: dialog.accept())
+    report.get_by_role("button", name="Roll back").click()
+    rolled = page.locator("#download-area .report")
+    expect(rolled).to_contain_text("Rollback", timeout=WAIT_MS)
+    expect(rolled).to_have_attribute("data-state", "done", timeout=WAIT_MS)
+    expect(rolled.locator(".report-table")).to_contain_text("10.20 A")
+
+    page.reload()
+    audit = page.locator("#audit .audit-table tbody")
+    expect(audit.locator("tr")).to_have_count(2, timeout=WAIT_MS)
+    expect(audit.locator("tr").first).to_contain_text("rollback")
+    expect(audit.locator("tr").nth(1)).to_contain_text("12.50 A")
+    page.locator("#audit").scroll_into_view_if_needed()
+    assert page.evaluate(LAYOUT_PROBLEMS) == []
+    screenshot(page, "sets-audit")
