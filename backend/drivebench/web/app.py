@@ -27,6 +27,7 @@ from drivebench.web.pages import monitor as monitor_page
 from drivebench.web.pages import node as node_page
 from drivebench.web.pages import node_diagnostics
 from drivebench.web.pages import node_pdo as node_pdo_page
+from drivebench.web.pages import parameter_sets as parameter_sets_page
 from drivebench.web.pages import plant as plant_page
 from drivebench.web.pages import profiles as profiles_page
 from drivebench.web.pages import remote as remote_page
@@ -45,7 +46,8 @@ log = logging.getLogger(__name__)
 API_ROUTERS = [monitor_api.router, health.router, sessions.router, profiles.router, diagnostics.router, tools.router,
                tools.planned_router, parameters.router, pdo.router, parameter_sets.router]
 PAGE_ROUTERS = [node_diagnostics.router, node_pdo_page.router, monitor_page.router, plant_page.router,
-                node_page.router, profiles_page.router, remote_page.router, tools_page.router]
+                node_page.router, profiles_page.router, remote_page.router, tools_page.router,
+                parameter_sets_page.router]
 WS_ROUTERS = [monitor_ws.router, nodes_ws.router, jobs_ws.router, remote_ws.router, process_data_ws.router]
 
 
