@@ -89,6 +89,9 @@ def pdo_notes(profile: Profile, direction: str, number: int) -> list[str]:
         else:
             notes.append(f"Inhibit time also as C00324/{number + 1} (ms); cycle time C00356/{5 if number == 1 else 2}.")
         return notes
+    if family == EMF2178IB and direction == "rpdo" and number > 1:
+        return [f"I-140{number - 1} is not available with 8200 vector and 93XX controllers (manual p. 109): "
+                "RPDO2/3 serve the 9300 Servo PLC, Drive PLC and ECS (AIF mode 5, 12 words)."]
     if family == MM4:
         notes = []
         place = MM4_TYPE_PLACE.get((direction, number))
