@@ -1,17 +1,15 @@
-"""Network planner: findings on planned networks, JSON round trip, comparison with a scan."""
+"""Network planner: findings on planned networks, JSON round trip (the live comparison: test_tools_api)."""
 
 from __future__ import annotations
 
 import pytest
 
-from drivebench.device.profile import Identity
 from drivebench.errors import InvalidValue
 from drivebench.services.planner import (
     CableInput,
     NetworkPlan,
     PlannedNode,
     check_plan,
-    compare_with_scan,
 )
 
 MOTEC, EMF, MM4 = "lenze-8400-motec", "lenze-emf2178ib", "siemens-mm4"
@@ -125,15 +123,3 @@ def test_json_export_import_round_trip() -> None:
     assert NetworkPlan.from_json(plan.to_json()) == plan
     with pytest.raises(InvalidValue):
         NetworkPlan.from_json('{"nodes": [{"device": "x", "node_id": 200, "baud_kbit": 500}]}')
-
-
-def test_compare_with_scan() -> None:
-    plan = NetworkPlan(nodes=[PlannedNode(device=MOTEC, node_id=n, baud_kbit=500) for n in (1, 2, 3)])
-    lenze = Identity(vendor_name="Lenze", vendor_id=0x3B, product_name="8400 motec")
-    other = {"vendor_id": 0x53, "product_code": 1}
-    result = compare_with_scan(plan, {1: lenze, 3: other, 9: None})
-    assert [m.node.node_id for m in result.answering] == [1, 3]
-    assert result.answering[0].note is None and result.answering[0].identity["vendor_id"] == 0x3B  # type: ignore[index]
-    assert "vendor id 0x00000053" in (result.answering[1].note or "")
-    assert [n.node_id for n in result.missing] == [2]
-    assert result.extra == [9] and result.extra_identities == {9: None}

@@ -9,8 +9,7 @@ node ids or baud rates a device cannot use. Plans travel as JSON (``NetworkPlan.
 from __future__ import annotations
 
 from collections import defaultdict
-from collections.abc import Mapping
-from typing import Any, Literal
+from typing import Literal
 
 from pydantic import BaseModel, Field, ValidationError
 
@@ -303,61 +302,3 @@ def _cable(plan: NetworkPlan) -> tuple[CablePlan | None, list[Finding]]:
             )
         ]
     return cable, []
-
-
-class ScanMatch(BaseModel):
-    node: PlannedNode
-    identity: dict[str, Any] | None = None
-    note: str | None = None
-
-
-class ScanComparison(BaseModel):
-    answering: list[ScanMatch]
-    missing: list[PlannedNode]
-    extra: list[int]
-    """Node ids that answered but are not in the plan."""
-    extra_identities: dict[int, dict[str, Any] | None] = Field(default_factory=dict)
-
-
-def _as_dict(identity: Any) -> dict[str, Any] | None:
-    if identity is None:
-        return None
-    if isinstance(identity, BaseModel):
-        return {name: getattr(identity, name) for name in type(identity).model_fields}  # raw ints, not "0x…"
-    if isinstance(identity, Mapping):
-        return dict(identity)
-    return {k: v for k, v in vars(identity).items() if not k.startswith("_")}
-
-
-def compare_with_scan(plan: NetworkPlan, found_node_ids: Mapping[int, Any]) -> ScanComparison:
-    """Which planned nodes answered a scan, which are missing, which extra nodes appeared.
-
-    ``found_node_ids`` maps node id -> its identity (0x1018: a model, mapping or object with ``vendor_id``
-    ...)
-    or None when only the node's presence is known.
-    """
-    planned_ids = {n.node_id for n in plan.nodes}
-    answering, missing = [], []
-    for node in plan.nodes:
-        if node.node_id not in found_node_ids:
-            missing.append(node)
-            continue
-        identity = _as_dict(found_node_ids[node.node_id])
-        note = None
-        try:
-            expected = EXPECTED_VENDOR_ID.get(resolve_family(node.device))
-        except DriveBenchError:
-            expected = None
-        vendor = identity.get("vendor_id") if identity else None
-        if isinstance(vendor, str):
-            vendor = int(vendor, 0)
-        if expected is not None and isinstance(vendor, int) and vendor != expected:
-            note = f"vendor id 0x{vendor:08X} is not the planned device's (0x{expected:08X})"
-        answering.append(ScanMatch(node=node, identity=identity, note=note))
-    extra = sorted(nid for nid in found_node_ids if nid not in planned_ids)
-    return ScanComparison(
-        answering=answering,
-        missing=missing,
-        extra=extra,
-        extra_identities={nid: _as_dict(found_node_ids[nid]) for nid in extra},
-    )
