@@ -136,6 +136,45 @@ def test_selection_list_reset_badge_and_read_all(server: tuple[str, Any], page: 
     expect(page.locator("#reset-badge")).not_to_contain_text("C00351")
 
 
+def test_read_all_cancel_keeps_values_then_group_read_and_sdo_settings(server: tuple[str, Any], page: Any) -> None:
+    from drivebench.simulator.node import Latency
+
+    url, app = server
+    device = app.state.drivebench.plants["browser-plant"].nodes[12]
+    device.latency = Latency(0.1)  # slow enough to cancel mid-way, even on a loaded machine
+    try:
+        page.goto(url + "/sessions/browser-plant/nodes/12")
+        page.get_by_role("button", name="Read all").click()
+        expect(page.locator(".job-text")).to_contain_text("ETA", timeout=WAIT_MS)
+        screenshot(page, "parameters-read-all-running")
+        page.locator(".job-cancel").click()
+        expect(page.locator(".job-text")).to_contain_text("cancelled", timeout=WAIT_MS)
+        rows = page.locator("tr.prow")
+        expect(page.locator("tr.prow td.val .v").first).to_be_visible(timeout=WAIT_MS)
+        kept = page.locator("tr.prow td.val .v").count()
+        assert 0 < kept < rows.count()
+    finally:
+        device.latency = Latency(0.002)
+
+    group_row = page.locator("tr.group-row").nth(1)
+    group_name = group_row.locator(".group-name").inner_text()
+    group_row.get_by_role("button", name="Read group").click()
+    expect(page.locator(".job-text")).to_contain_text(f"Read group '{group_name}'", timeout=WAIT_MS)
+    expect(page.locator(".job-text")).to_contain_text("done", timeout=WAIT_MS)
+
+    page.locator("#sdo-settings summary").click()
+    page.fill("#sdo-settings input[name=timeout_ms]", "200")
+    page.fill("#sdo-settings input[name=retries]", "0")
+    page.locator("#sdo-settings").get_by_role("button", name="Apply").click()
+    expect(page.locator("#sdo-settings summary")).to_contain_text("SDO: 200 ms · 0 retries", timeout=WAIT_MS)
+    assert page.evaluate(LAYOUT_PROBLEMS) == []
+    screenshot(page, "parameters-sdo-settings")
+    page.locator("#sdo-settings input[name=timeout_ms]").fill("500")
+    page.locator("#sdo-settings input[name=retries]").fill("1")
+    page.locator("#sdo-settings").get_by_role("button", name="Apply").click()
+    expect(page.locator("#sdo-settings summary")).to_contain_text("SDO: 500 ms · 1 retry", timeout=WAIT_MS)
+
+
 def test_info_tab_reads_identity(server: tuple[str, Any], page: Any) -> None:
     url, _ = server
     page.goto(url + "/sessions/browser-plant/nodes/12")

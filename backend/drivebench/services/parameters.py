@@ -288,8 +288,9 @@ def display(item: Item, scaled: ScaledValue) -> str:
         if entry.bits and isinstance(scaled.raw, int):
             width = (entry.data_type.size or 4) * 2
             return f"0x{scaled.raw:0{width}X}"
-        number = f"{scaled.value:.{entry.decimals}f}" if entry.decimals else f"{scaled.value}"
-        if entry.decimals > 2 and "." in number:  # FIX32 (factor 10000) is a format, not a resolution
+        decimals = entry.decimals if entry.factor != 1 else 0
+        number = f"{scaled.value:.{decimals}f}" if decimals else f"{scaled.value}"
+        if decimals > 2 and "." in number:  # FIX32 (factor 10000) is a format, not a resolution
             number = number.rstrip("0").rstrip(".")
         return f"{number} {entry.unit}" if entry.unit else number
     if isinstance(scaled.value, str) and entry.data_type is not DataType.VISIBLE_STRING:

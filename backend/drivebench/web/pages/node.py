@@ -12,6 +12,7 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Form, Query, Request
 from fastapi.responses import HTMLResponse, Response
 
+from drivebench.device.catalog import Item
 from drivebench.errors import DriveBenchError, NodeOffline, NotFound, SdoTimeoutError
 from drivebench.services import parameters as service
 from drivebench.services.parameters import DeviceCommand, WriteResult
@@ -35,7 +36,20 @@ def row_id(ref: str) -> str:
     return "p-" + re.sub(r"[^A-Za-z0-9]+", "-", ref)
 
 
+def edit_value(last: service.ParameterValue | None, item: Item) -> str:
+    """What the new-value field starts with: the value read last as a user would type it (``50``, not
+    ``50.0``; a bit-coded word in hex)."""
+    if last is None or last.value is None:
+        return ""
+    if item.entry.bits and isinstance(last.raw, int):
+        return f"0x{last.raw:X}"
+    if isinstance(last.value, float) and last.value.is_integer():
+        return str(int(last.value))
+    return str(last.value)
+
+
 templates.env.filters["row_id"] = row_id
+templates.env.filters["edit_value"] = edit_value
 
 
 def _base(request: Request, session: Session, node: SessionNode, tab: str, **extra: Any) -> dict[str, Any]:
