@@ -6,14 +6,19 @@ from __future__ import annotations
 
 import asyncio
 import json
+import signal
+import subprocess
+import sys
+import time
 from collections.abc import Coroutine, Iterator
 from pathlib import Path
 from typing import Any, TypeVar
 
 import pytest
+from sqlalchemy import text
 
 from drivebench.device.loader import ProfileRegistry
-from drivebench.errors import Conflict, NotFound, OutOfRange
+from drivebench.errors import Conflict, DriveBenchError, NotFound, OutOfRange
 from drivebench.services import audit, database, parameters, set_formats, set_jobs
 from drivebench.services.jobs import Job, JobManager, JobState
 from drivebench.services.parameter_sets import (
@@ -246,7 +251,8 @@ def test_download_meets_read_only_and_out_of_range_mid_way_then_retry_and_rollba
     for ref in ("C00088", "C00039/1"):
         assert report[ref]["status"] == "written" and node.get_ref(ref) == changes[ref]
     others = {ref: (line["status"], line["detail"]) for ref, line in report.items() if ref not in changes}
-    assert {status for status, _ in others.values()} == {"unchanged"}, {r: v for r, v in others.items() if v[0] != "unchanged"}
+    assert {status for status, _ in others.values()} == {"unchanged"}, \
+        {ref: v for ref, v in others.items() if v[0] != "unchanged"}
     assert job.result["state"] == "incomplete" and "saved" not in job.result
     assert any("Not saved" in note for note in job.notes)
     download = bench.store.download(job.result["download_id"])
@@ -306,3 +312,138 @@ def test_single_writes_are_audited_with_old_and_new_value(bench: Bench) -> None:
     assert entry.old_value is not None and entry.user
     assert len(audit.entries(bench.url)) == 1
     assert audit.to_csv(audit.entries(bench.url)).splitlines()[1].split(",")[4] == "C00088"
+
+
+# --- kill during a download or an import ---------------------------------------------------------------------
+KILLED_DOWNLOAD = """
+import asyncio, sys
+from drivebench.device.loader import ProfileRegistry
+from drivebench.services import audit, set_jobs
+from drivebench.services.jobs import JobManager
+from drivebench.services.parameter_sets import ParameterSetStore
+from drivebench.services.sessions import SessionManager
+from drivebench.simulator.plant import Plant, PlantFile
+
+url, set_id = sys.argv[1], int(sys.argv[2])
+registry = ProfileRegistry()
+nodes = [{"node_id": 5, "profile": "lenze-8400-motec-canopen"}]
+plant_file = PlantFile.model_validate({"name": "kill", "nodes": nodes})
+plant = Plant(plant_file, registry.get, bus="virtual:kill@500000", latency="25ms").start()
+
+
+async def main() -> None:
+    session = await SessionManager(registry, sdo_timeout_s=3, sdo_retries=0).open(plant.spec, "kill")
+    session.add_node(5, "lenze-8400-motec-canopen")
+    audit.install(url)
+    store = ParameterSetStore(url)
+    job = set_jobs.start_download(session, 5, JobManager(), store, store.get(set_id))
+    await job.wait()
+    print("finished", job.state, flush=True)
+
+asyncio.run(main())
+"""
+
+KILLED_IMPORT = """
+import sys
+from drivebench.device.loader import ProfileRegistry
+from drivebench.services.parameter_sets import ParameterSetStore
+
+url = sys.argv[1]
+profile = ProfileRegistry().get("lenze-8400-motec-canopen")
+store = ParameterSetStore(url)
+values = {f"C{n:05d}": n for n in range(5000)}
+for number in range(10_000):
+    store.create(f"bulk {number}", profile, values, user="bulk")
+    print(number, flush=True)
+"""
+
+
+def _changed_values(profile: Any) -> dict[str, Any]:
+    """The profile's defaults with every ordinary numeric setting moved by one step (still in range)."""
+    from drivebench.services.parameter_sets import catalog_for, defaults_of, engineering
+
+    catalog = catalog_for(profile)
+    values = defaults_of(profile, 5)
+    for ref, raw in list(values.items()):
+        item = catalog.resolve(ref)
+        entry = item.entry
+        if not isinstance(raw, int) or entry.reset_required or 0x1000 <= item.index <= 0x1FFF or entry.selection \
+                or entry.bits:
+            continue
+        try:
+            set_formats._raw_for(item, engineering(item, raw + 1))
+        except DriveBenchError:  # not every setting has room above its default
+            continue
+        values[ref] = raw + 1
+    return values
+
+
+def _wait_for(predicate: Any, process: Any, deadline_s: float, what: str) -> None:
+    end = time.monotonic() + deadline_s
+    while not predicate():
+        assert process.poll() is None, f"the child ended before it was killed: {process.stdout.read()}"
+        assert time.monotonic() < end, f"timed out waiting for {what}"
+        time.sleep(0.02)
+
+
+def test_kill_during_download_loses_nothing_and_shows_interrupted(registry: ProfileRegistry, db_url: str,
+                                                                  tmp_path: Path) -> None:
+    from drivebench.services.jobs import JobManager
+    from drivebench.web.api.parameter_sets import download_state
+
+    profile = registry.get("lenze-8400-motec-canopen")
+    store = ParameterSetStore(db_url)
+    kept = store.create("kept", profile, {"C00088": 1020, "C00011": 1500}, user="t")
+    store.update_values(kept.info.id, {"C00088": 1100, "C00011": 1500}, user="t", reason="edited")
+    target = store.create("many changes", profile, _changed_values(profile), user="t")
+    changes = sum(1 for ref, raw in target.values.items() if raw != defaults_source(profile, 5).values.get(ref))
+    assert changes > 15
+
+    script = tmp_path / "download.py"
+    script.write_text(KILLED_DOWNLOAD)
+    child = subprocess.Popen([sys.executable, str(script), db_url, str(target.info.id)], stdout=subprocess.PIPE,
+                             stderr=subprocess.STDOUT, text=True)
+    try:
+        _wait_for(lambda: sum(e.result == "written" for e in audit.entries(db_url)) >= 3, child, 60,
+                  "three verified writes")
+        child.send_signal(signal.SIGKILL)
+        child.wait(10)
+    finally:
+        if child.poll() is None:
+            child.kill()
+            child.wait(10)
+
+    # nothing stored is lost: the sets and their history, and the values read before the first write
+    assert store.get(kept.info.id, version=1).values == {"C00088": 1020, "C00011": 1500}
+    assert store.get(kept.info.id).values == {"C00088": 1100, "C00011": 1500}
+    assert store.get(target.info.id).values == target.values
+    [download] = store.downloads()
+    assert download.state == "running" and download.report == []
+    assert download_state(download, JobManager()) == "interrupted"
+    assert set(download.before) == set(target.values)  # every value it would touch, read before writing
+    logged = audit.entries(db_url)
+    assert {e.result for e in logged} <= {"written", "sending"}
+    assert sum(e.result == "sending" for e in logged) <= 1  # at most the write under way when it was killed
+    assert all(e.origin == f"download {download.id}" for e in logged)
+    with database.transaction(db_url) as db:
+        assert db.execute(text("PRAGMA integrity_check")).scalar() == "ok"
+
+
+def test_kill_during_imports_leaves_only_whole_sets(registry: ProfileRegistry, db_url: str, tmp_path: Path) -> None:
+    script = tmp_path / "imports.py"
+    script.write_text(KILLED_IMPORT)
+    child = subprocess.Popen([sys.executable, str(script), db_url], stdout=subprocess.PIPE,
+                             stderr=subprocess.STDOUT, text=True)
+    store = ParameterSetStore(db_url)
+    try:
+        _wait_for(lambda: len(store.all()) >= 3, child, 60, "three stored sets")
+        child.send_signal(signal.SIGKILL)
+        child.wait(10)
+    finally:
+        if child.poll() is None:
+            child.kill()
+            child.wait(10)
+    stored = store.all()
+    assert len(stored) >= 3
+    for info in stored:  # each set is whole: its row, its version and all 5,000 values, or nothing
+        assert info.count == 5000 and len(store.get(info.id).values) == 5000
