@@ -148,7 +148,7 @@ async def read_actuals(session: Session, node: SessionNode) -> list[ActualValue]
             out.append(ActualValue(label=label, ref=ref, unit=scale.unit,
                                    value=round(_signed16(value.raw & 0xFFFF) / scale.raw_per_unit, 2)))
         else:
-            number = value.value if isinstance(value.value, (int, float)) else None
+            number = round(value.value, 3) if isinstance(value.value, (int, float)) else None  # REAL32 noise
             out.append(ActualValue(label=label, ref=ref, value=number, unit=value.unit))
     return out
 

@@ -103,10 +103,12 @@ MM_CONTROL_BITS = {  # table 3-15: CANopen name / MICROMASTER control word 1 nam
 MM_STATUS_BITS = {  # table 3-17
     0: "Ready to switch on", 1: "Switched on", 2: "Operation enabled", 3: "Fault", 4: "Voltage enabled (MM: OFF2)",
     5: "Quick stop (0 = active)", 6: "Switch on disabled", 7: "Warning", 8: "Max frequency reached",
-    9: "Remote (PZD control)", 10: "Target reached", 11: "Internal limit active (current limit)",
-    12: "Op-mode specific (motor holding brake)", 13: "Op-mode specific (motor overload)",
-    14: "Motor runs direction right", 15: "Inverter overload",
+    9: "Remote (PZD control)", 10: "Target reached", 11: "Internal limit (MM: motor current limit, 0 = active)",
+    12: "Op-mode specific (MM: motor holding brake active)", 13: "Op-mode specific (MM: motor overload, 0 = active)",
+    14: "Motor runs direction right", 15: "Manufacturer specific (MM: inverter overload, 0 = active)",
 }
+"""Bits 11, 13, 15: table 3-17 prints no polarity, but every trace frame at rest has them set (0xFE..), as the MM
+status word 1 r0052 shows these warnings low-active; the names say so."""
 CIA402 = Cia402(
     key="cia402", title="CiA 402 drive state machine", control_ref="0x6040", status_ref="0x6041",
     control_bits=MM_CONTROL_BITS, status_bits=MM_STATUS_BITS,
@@ -121,7 +123,7 @@ CIA402 = Cia402(
     arrows=(Arrow("not_ready", "switch_on_disabled", "1"), Arrow("switch_on_disabled", "ready", "2 Shutdown"),
             Arrow("ready", "switched_on", "3 Switch on"), Arrow("switched_on", "operation_enabled", "4 Enable"),
             Arrow("operation_enabled", "switched_on", "5 Disable op."), Arrow("switched_on", "ready", "6 Shutdown"),
-            Arrow("ready", "switch_on_disabled", "7 Quick stop / disable voltage"),
+            Arrow("ready", "switch_on_disabled", "7 QS / disable voltage"),
             Arrow("operation_enabled", "quick_stop_active", "11 Quick stop"),
             Arrow("quick_stop_active", "switch_on_disabled", "12"),
             Arrow("fault_reaction_active", "fault", "14"), Arrow("fault", "switch_on_disabled", "15 Fault reset")),
@@ -169,11 +171,11 @@ EMF = Emf2178(
     states=(StateBox("init", "Device initialisation", 0, 0), StateBox("switch_on_inhibit", "Switch-on inhibit", 0, 1),
             StateBox("operation_inhibited", "Operation inhibited", 0, 2),
             StateBox("operation_enabled", "Operation enabled", 0, 3, enabled=True),
-            StateBox("flying_restart", "Flying restart circuit active", 1, 3, enabled=True),
-            StateBox("dc_brake", "DC injection brake active", 1, 2, enabled=True),
-            StateBox("message", "Message active", 2, 2, fault=True),
+            StateBox("flying_restart", "Flying restart circuit active", 2, 3, enabled=True),
+            StateBox("dc_brake", "DC injection brake active", 1, 3, enabled=True),
+            StateBox("message", "Message active", 2, 0, fault=True),
             StateBox("fault", "Fault active", 2, 1, fault=True),
-            StateBox("fail_qsp", "Fail-QSP", 2, 3, fault=True)),
+            StateBox("fail_qsp", "Fail-QSP", 1, 0, fault=True)),
     arrows=(Arrow("init", "switch_on_inhibit", "C0142 = 0"), Arrow("init", "operation_inhibited", "C0142 = 1"),
             Arrow("switch_on_inhibit", "operation_inhibited", "CINH once"),
             Arrow("operation_inhibited", "operation_enabled", "CINH = 0"),

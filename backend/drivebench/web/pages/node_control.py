@@ -1,0 +1,67 @@
+"""The Control tab of the Node screen: the drive's state machine drawn with the current state highlighted, every
+control and status bit named, transitions, setpoint, jog, modes, live actual values and the guided commissioning.
+
+The page is rendered once (``node/control_body.html``); control.js then keeps it live over
+``/ws/sessions/{session}/nodes/{node}/control`` (whose messages are also the keep-alive) and sends the commands
+to the JSON API under ``/api/sessions/{session}/nodes/{node}/control``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from fastapi import APIRouter, Request
+from fastapi.responses import HTMLResponse, Response
+
+from drivebench.errors import DriveBenchError
+from drivebench.services import commissioning, drive_control
+from drivebench.services.drive_words import Family
+from drivebench.web.deps import NodeDep, SessionDep
+from drivebench.web.templating import templates
+
+router = APIRouter(include_in_schema=False)
+UI = "/ui/sessions/{session_id}/nodes/{node_id}/control"
+BOX_W, BOX_H, GAP_X, GAP_Y, PAD = 190, 42, 110, 30, 16
+
+
+def _diagram(fam: Family) -> dict[str, Any]:
+    """Box and arrow coordinates of the state machine (SVG units)."""
+    pos = {box.key: (PAD + box.col * (BOX_W + GAP_X), PAD + box.row * (BOX_H + GAP_Y)) for box in fam.states}
+    boxes = [{"key": box.key, "label": box.label, "x": pos[box.key][0], "y": pos[box.key][1], "enabled": box.enabled,
+              "fault": box.fault} for box in fam.states]
+    arrows = []
+    for arrow in fam.arrows:
+        (sx, sy), (tx, ty) = pos[arrow.source], pos[arrow.target]
+        if sx == tx:  # vertical: two lanes so up and down arrows do not overlap
+            down = ty > sy
+            x = sx + BOX_W / 2 + (-30 if down else 30)
+            x1, x2 = x, x
+            y1, y2 = float(sy + BOX_H if down else sy), float(ty if down else ty + BOX_H)
+            label_x, label_y, anchor = x + (-6 if down else 6), (y1 + y2) / 2 + 4, "end" if down else "start"
+        else:
+            right = tx > sx
+            x1, x2 = (float(sx + BOX_W), float(tx)) if right else (float(sx), float(tx + BOX_W))
+            y1, y2 = sy + BOX_H / 2, ty + BOX_H / 2
+            label_x, label_y, anchor = (x1 + x2) / 2, (y1 + y2) / 2 - 6, "middle"
+        arrows.append({"x1": x1, "y1": y1, "x2": x2, "y2": y2, "label": arrow.label, "lx": label_x, "ly": label_y,
+                       "anchor": anchor})
+    width = max(x for x, _ in pos.values()) + BOX_W + PAD
+    height = max(y for _, y in pos.values()) + BOX_H + PAD
+    return {"boxes": boxes, "arrows": arrows, "width": width, "height": height, "box_w": BOX_W, "box_h": BOX_H}
+
+
+@router.get(UI, response_class=HTMLResponse)
+async def control_tab(request: Request, session: SessionDep, node: NodeDep) -> Response:
+    base = f"/ui/sessions/{session.id}/nodes/{node.node_id}"
+    context: dict[str, Any] = {"session": session, "node": node, "base": base,
+                               "api": f"/api/sessions/{session.id}/nodes/{node.node_id}/control",
+                               "ws": f"/ws/sessions/{session.id}/nodes/{node.node_id}/control",
+                               "status": None, "error": None, "sequences": commissioning.sequences_for(node),
+                               "keepalive_s": drive_control.KEEPALIVE_TIMEOUT_S}
+    try:
+        fam = drive_control.family(node)
+        context["diagram"] = _diagram(fam)
+        context["status"] = await drive_control.read_status(session, node)
+    except DriveBenchError as exc:
+        context["error"] = exc
+    return templates.TemplateResponse(request, "node/control_body.html", context)

@@ -1,0 +1,236 @@
+// Control tab: live status over the control websocket (its messages are the keep-alive), commands to the JSON API,
+// confirmation for anything that can make the motor turn, live plots of the actual values, guided commissioning.
+(() => {
+  const HISTORY_S = 30;
+
+  function problemText(body, status) {
+    if (body && body.detail) return `<strong>${body.title || "Error"}</strong> ${body.detail}`;
+    return `<strong>Request failed</strong> (HTTP ${status})`;
+  }
+
+  function esc(text) {
+    return String(text ?? "").replace(/[&<>"]/g, (c) => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;" }[c]));
+  }
+
+  function init(panel) {
+    if (panel.dataset.ready) return;
+    panel.dataset.ready = "1";
+    const api = panel.dataset.api;
+    const moving = new Set(panel.dataset.moving.split(",").filter(Boolean));
+    const result = panel.querySelector("#ctl-result");
+    const dialog = panel.querySelector("#ctl-confirm");
+    const plots = new Map();  // ref -> {u, data}
+    let socket = null;
+    let closed = false;
+    let runId = null;
+
+    function showError(html, slot = result) { slot.innerHTML = `<div class="error" role="alert">${html}</div>`; }
+    function clearError(slot = result) { slot.innerHTML = ""; }
+
+    function confirmMove(text) {
+      return new Promise((resolve) => {
+        panel.querySelector("#ctl-confirm-text").textContent = text;
+        dialog.returnValue = "";
+        dialog.addEventListener("close", () => resolve(dialog.returnValue === "ok"), { once: true });
+        dialog.showModal();
+      });
+    }
+
+    async function call(method, url, body, slot = result) {
+      const response = await fetch(url, { method, headers: { "Content-Type": "application/json" },
+                                         body: body === undefined ? undefined : JSON.stringify(body) });
+      let data = null;
+      try { data = await response.json(); } catch (e) { data = null; }
+      if (!response.ok) { showError(problemText(data, response.status), slot); return null; }
+      clearError(slot);
+      return data;
+    }
+
+    function render(status) {
+      panel.querySelectorAll(".ctl-state").forEach((g) => g.classList.toggle("current", g.dataset.state === status.state));
+      const label = panel.querySelector("#ctl-state-label");
+      label.textContent = status.state_label;
+      label.dataset.state = status.state;
+      panel.querySelector("#ctl-sw").textContent = "0x" + status.status_word.toString(16).toUpperCase().padStart(4, "0");
+      panel.querySelector("#ctl-cw").textContent = status.control_word === null ? "–"
+        : "0x" + status.control_word.toString(16).toUpperCase().padStart(4, "0");
+      for (const [table, bits] of [["#ctl-sw-bits", status.status_bits], ["#ctl-cw-bits", status.control_bits]]) {
+        const rows = panel.querySelectorAll(`${table} tr`);
+        bits.forEach((bit, i) => rows[i] && rows[i].classList.toggle("on", bit.set));
+      }
+      const armed = panel.querySelector("#ctl-armed");
+      armed.textContent = status.armed ? "armed: keep-alive running" : "not armed";
+      armed.classList.toggle("armed", status.armed);
+      const trip = panel.querySelector("#ctl-trip");
+      trip.hidden = !status.last_trip;
+      trip.textContent = status.last_trip || "";
+      const display = panel.querySelector("#ctl-mode-display");
+      if (display && status.mode !== null) display.textContent = `${status.mode} ${status.mode_label}`;
+      panel.querySelector("#ctl-sp-ref").textContent = status.setpoint_ref;
+      panel.querySelector("#ctl-sp-unit").textContent = status.setpoint_unit;
+    }
+
+    function plot(actuals, t) {
+      const holder = panel.querySelector("#ctl-actuals");
+      if (!plots.size) holder.innerHTML = "";
+      for (const value of actuals) {
+        let entry = plots.get(value.ref);
+        if (!entry) {
+          const box = document.createElement("div");
+          box.className = "ctl-plot";
+          box.innerHTML = `<div class="ctl-plot-head"><span>${esc(value.label)} <span class="muted mono">${esc(value.ref)}</span></span>` +
+                          `<strong class="ctl-value" data-ref="${esc(value.ref)}"></strong></div>`;
+          holder.appendChild(box);
+          const data = [[], []];
+          const width = Math.max(240, holder.clientWidth - 8);
+          const u = window.uPlot ? new uPlot({ width, height: 90, legend: { show: false }, cursor: { show: false },
+            scales: { x: { time: true } }, series: [{}, { stroke: "#0b5fa5", width: 1.5 }],
+            axes: [{ size: 24, font: "10px sans-serif" }, { size: 46, font: "10px sans-serif", label: value.unit || "", labelSize: 12, labelFont: "10px sans-serif" }] },
+            data, box) : null;
+          entry = { u, data, box };
+          plots.set(value.ref, entry);
+        }
+        const text = value.error ? "read error" : value.value === null ? "–" : `${value.value} ${value.unit || ""}`;
+        entry.box.querySelector(".ctl-value").textContent = text;
+        if (value.value !== null && entry.u) {
+          entry.data[0].push(t);
+          entry.data[1].push(value.value);
+          while (entry.data[0].length && entry.data[0][0] < t - HISTORY_S) { entry.data[0].shift(); entry.data[1].shift(); }
+          entry.u.setData(entry.data);
+        }
+      }
+    }
+
+    function connect() {
+      const state = panel.querySelector("#ctl-ws");
+      const url = `${location.protocol === "https:" ? "wss" : "ws"}://${location.host}${panel.dataset.ws}`;
+      socket = new WebSocket(url);
+      socket.onopen = () => { state.textContent = "live"; state.className = "badge good"; };
+      socket.onclose = () => {
+        state.textContent = "disconnected"; state.className = "badge bad";
+        if (!closed && document.body.contains(panel)) setTimeout(connect, 1000);
+      };
+      socket.onmessage = (event) => {
+        const message = JSON.parse(event.data);
+        if (message.type === "status") { render(message.status); plot(message.actuals, message.t); }
+        else if (message.type === "error") showError(esc(message.detail));
+      };
+    }
+
+    const keepalive = setInterval(() => {
+      if (!document.body.contains(panel)) {  // tab left: closing the socket quick-stops an armed drive
+        closed = true;
+        clearInterval(keepalive);
+        if (socket) socket.close();
+        return;
+      }
+      if (socket && socket.readyState === WebSocket.OPEN) socket.send(JSON.stringify({ cmd: "keepalive" }));
+    }, 500);
+
+    async function command(key, label) {
+      let confirm = false;
+      if (moving.has(key)) {
+        confirm = await confirmMove(`${label}: after this command the motor may turn.`);
+        if (!confirm) return;
+      }
+      const status = await call("POST", `${api}/commands/${key}`, { confirm });
+      if (status) render(status);
+    }
+
+    panel.querySelectorAll("[data-command]").forEach((button) =>
+      button.addEventListener("click", () => command(button.dataset.command, button.textContent.trim())));
+
+    panel.querySelector("#ctl-setpoint").addEventListener("submit", async (event) => {
+      event.preventDefault();
+      const value = parseFloat(event.target.value.value);
+      if (Number.isNaN(value)) { showError("<strong>Setpoint</strong> enter a number"); return; }
+      let confirm = false;
+      if (value !== 0) {
+        confirm = await confirmMove(`Setpoint ${value} ${panel.querySelector("#ctl-sp-unit").textContent}: the motor may turn.`);
+        if (!confirm) return;
+      }
+      const status = await call("PUT", `${api}/setpoint`, { value, confirm });
+      if (status) render(status);
+    });
+
+    panel.querySelectorAll("[data-jog]").forEach((button) => {
+      let jogging = false;
+      const start = async () => {
+        const ok = await confirmMove(`Jog ${button.dataset.jog === "1" ? "forward" : "reverse"} while the button is held.`);
+        if (!ok) return;
+        jogging = true;
+        button.classList.add("held");
+        await call("POST", `${api}/jog`, { direction: Number(button.dataset.jog), confirm: true });
+      };
+      const stop = async () => {
+        if (!jogging) return;
+        jogging = false;
+        button.classList.remove("held");
+        await call("POST", `${api}/jog`, { direction: 0, confirm: false });
+      };
+      button.addEventListener("click", () => (jogging ? stop() : start()));
+      button.addEventListener("pointerleave", stop);
+    });
+
+    panel.querySelectorAll("input[name=ctl-mode]").forEach((radio) => radio.addEventListener("change", async () => {
+      const status = await call("PUT", `${api}/mode`, { mode: Number(radio.value), confirm: false });
+      if (status) render(status);
+    }));
+
+    // --- guided commissioning ---
+    const runBox = panel.querySelector("#ctl-run");
+    const nextButton = panel.querySelector("#ctl-seq-next");
+
+    function renderRun(run) {
+      const results = new Map(run.results.map((r) => [r.number, r]));
+      const rows = run.steps.map((step) => {
+        const r = results.get(step.number);
+        const cls = r ? (r.ok ? "done" : "failed") : step.number === run.position + 1 && !run.finished ? "next" : "";
+        const telegrams = r ? r.telegrams.map((t) => `<div class="mono tg ${t.direction}">${t.direction === "T" ? "→" : "←"} ${esc(t.cob_id)} ${esc(t.data)}</div>`).join("") : "";
+        return `<tr class="${cls}"><td>${step.number}</td><td>${esc(step.title)}${step.moves ? ' <span class="badge warn">moves</span>' : ""}` +
+               `${step.printed ? `<div class="muted mono small-text">manual: ${esc(step.printed)}</div>` : ""}</td>` +
+               `<td>${telegrams}</td><td>${r ? esc(r.message) : ""}</td></tr>`;
+      }).join("");
+      const pre = run.preconditions.map((p) => `<li>${esc(p)}</li>`).join("");
+      const banner = run.failed ? `<div class="error" role="alert">${esc(run.failed)}</div>`
+        : run.finished ? `<div class="ok-note">All ${run.steps.length} steps answered as the manual expects.</div>` : "";
+      runBox.innerHTML = `<p><strong>${esc(run.title)}</strong> · ${esc(run.source)}</p>` +
+        (pre ? `<p class="muted">Before starting (not sent over CAN):</p><ul class="muted">${pre}</ul>` : "") + banner +
+        `<div class="ctl-run-scroll"><table class="ctl-run"><thead><tr><th>#</th><th>Step</th><th>Telegrams</th><th>Answer</th></tr></thead><tbody>${rows}</tbody></table></div>`;
+      nextButton.disabled = run.finished;
+      const row = runBox.querySelector("tr.next, tr.failed");
+      const scroller = runBox.querySelector(".ctl-run-scroll");
+      if (row && scroller) scroller.scrollTop = Math.max(0, row.offsetTop - scroller.clientHeight / 2);  // not the page
+    }
+
+    const startButton = panel.querySelector("#ctl-seq-start");
+    if (startButton) {
+      startButton.addEventListener("click", async () => {
+        const key = panel.querySelector("#ctl-seq").value;
+        const run = await call("POST", `${api}/sequences/${key}/runs`, undefined, runBox);
+        if (run) { runId = run.id; renderRun(run); }
+      });
+      nextButton.addEventListener("click", async () => {
+        if (!runId) return;
+        const current = await call("GET", `${api}/runs/${runId}`);
+        if (!current) return;
+        const step = current.steps[current.position];
+        let confirm = false;
+        if (step && step.moves) {
+          confirm = await confirmMove(`Step ${step.number}: ${step.title}.`);
+          if (!confirm) return;
+        }
+        nextButton.disabled = true;
+        const slot = document.createElement("div");
+        const run = await call("POST", `${api}/runs/${runId}/next`, { confirm }, slot);
+        if (run) renderRun(run); else { runBox.prepend(slot); nextButton.disabled = false; }
+      });
+    }
+
+    connect();
+  }
+
+  function scan() { const panel = document.getElementById("control-panel"); if (panel) init(panel); }
+  scan();
+  document.body.addEventListener("htmx:afterSettle", scan);
+})();

@@ -1,0 +1,96 @@
+"""The Control tab in a real browser: a first run of the MICROMASTER to "operation enabled" and back, with the
+confirmation dialog, the highlighted state and live actual values; and the 8200 vector guided commissioning."""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Iterator
+from typing import Any
+
+import pytest
+import uvicorn
+
+from drivebench.simulator.plant import Plant
+from drivebench.web.app import create_app
+from tests.conftest import DEMO_PLANT, _free_port, fresh_channel, screenshot
+
+TIMEOUT_MS = 10_000
+
+
+@pytest.fixture
+def server() -> Iterator[tuple[str, Plant]]:
+    app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
+    port = _free_port()
+    uv = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning"))
+    thread = threading.Thread(target=uv.run, daemon=True)
+    thread.start()
+    deadline = time.time() + 20
+    while not uv.started and time.time() < deadline:
+        time.sleep(0.05)
+    assert uv.started
+    plants: dict[str, Plant] = app.state.drivebench.plants
+    yield f"http://127.0.0.1:{port}", next(iter(plants.values()))
+    uv.should_exit = True
+    thread.join(timeout=10)
+
+
+def _current(page: Any, state: str) -> None:
+    page.wait_for_selector(f'.ctl-state.current[data-state="{state}"]', timeout=TIMEOUT_MS)
+
+
+def test_first_run_to_operation_enabled_and_back(server: tuple[str, Plant], page: Any) -> None:
+    base, plant = server
+    plant.nodes[3].store.set_ref("P1120", 1.0)  # test-only: 1 s ramp instead of 10 s
+    for ref in ("P0700", "P1000"):
+        response = page.request.put(f"{base}/api/sessions/demo-plant/nodes/3/parameters/{ref}", data={"value": "6"})
+        assert response.ok, response.text()
+    page.goto(f"{base}/sessions/demo-plant/nodes/3?tab=control")
+    page.wait_for_selector("#ctl-ws.good", timeout=TIMEOUT_MS)
+    _current(page, "switch_on_disabled")
+    assert page.locator('#ctl-sw-bits tr[data-bit="6"]').get_attribute("class") == "on"  # switch on disabled
+    page.click("button[data-command=shutdown]")
+    _current(page, "ready")
+    page.click("button[data-command=switch_on]")
+    _current(page, "switched_on")
+    page.click("button[data-command=enable_operation]")
+    page.wait_for_selector("#ctl-confirm[open]")
+    screenshot(page, "control-confirm")
+    page.click("#ctl-confirm-ok")
+    _current(page, "operation_enabled")
+    assert page.locator("#ctl-armed").inner_text().startswith("armed")
+    page.fill("#ctl-setpoint input[name=value]", "300")
+    page.click("#ctl-setpoint button[type=submit]")
+    page.click("#ctl-confirm-ok")
+    page.wait_for_function("document.querySelector('.ctl-value[data-ref=\"0x6044\"]')?.textContent.startsWith('300')",
+                           timeout=TIMEOUT_MS)
+    assert page.locator("#ctl-cw").inner_text() == "0x007F"
+    assert "Operation enabled" in page.locator("#ctl-sw-bits tr.on").all_inner_texts()[2]
+    screenshot(page, "control-operation-enabled")
+    page.click("button[data-command=disable_operation]")
+    _current(page, "switched_on")
+    page.click("button[data-command=shutdown]")
+    _current(page, "ready")
+    assert page.locator("#ctl-armed").inner_text() == "not armed"
+    screenshot(page, "control-back-to-ready")
+
+
+def test_guided_commissioning_8200_vector(server: tuple[str, Plant], page: Any) -> None:
+    base, _ = server
+    page.goto(f"{base}/sessions/demo-plant/nodes/12?tab=control")
+    page.wait_for_selector("#ctl-ws.good", timeout=TIMEOUT_MS)
+    page.click("#ctl-seq-start")
+    page.wait_for_selector("table.ctl-run")
+    while page.is_enabled("#ctl-seq-next"):
+        done = page.locator("table.ctl-run tr.done").count()
+        answered = f"document.querySelectorAll('table.ctl-run tr.done, table.ctl-run tr.failed').length > {done}"
+        page.click("#ctl-seq-next")
+        page.wait_for_function(f"document.querySelector('#ctl-confirm[open]') || {answered}", timeout=TIMEOUT_MS)
+        if page.locator("#ctl-confirm[open]").count():
+            page.click("#ctl-confirm-ok")
+        page.wait_for_function(answered, timeout=TIMEOUT_MS)
+    assert page.locator("table.ctl-run tr.failed").count() == 0
+    assert "answered as the manual expects" in page.locator(".ok-note").inner_text()
+    assert "→ 0x60C 23 FE 5F 00 30 75 00 00" in page.locator("table.ctl-run").inner_text()
+    _current(page, "operation_inhibited")
+    screenshot(page, "control-commissioning-8200")
