@@ -22,10 +22,11 @@ from drivebench.services.sharing import ShareLinks
 from drivebench.simulator.plant import Plant, PlantFile
 from drivebench.web import problems
 from drivebench.web.api import diagnostics, health, parameter_sets, parameters, pdo, profiles, sessions, tools
+from drivebench.web.api import drive_control as drive_control_api
 from drivebench.web.api import monitor as monitor_api
 from drivebench.web.pages import monitor as monitor_page
 from drivebench.web.pages import node as node_page
-from drivebench.web.pages import node_diagnostics
+from drivebench.web.pages import node_control, node_diagnostics
 from drivebench.web.pages import node_pdo as node_pdo_page
 from drivebench.web.pages import parameter_sets as parameter_sets_page
 from drivebench.web.pages import plant as plant_page
@@ -34,6 +35,7 @@ from drivebench.web.pages import remote as remote_page
 from drivebench.web.pages import tools as tools_page
 from drivebench.web.state import AppState
 from drivebench.web.viewer import ViewerScope
+from drivebench.web.ws import drive_control as drive_control_ws
 from drivebench.web.ws import jobs as jobs_ws
 from drivebench.web.ws import monitor as monitor_ws
 from drivebench.web.ws import nodes as nodes_ws
@@ -44,11 +46,12 @@ log = logging.getLogger(__name__)
 
 # One line per router: screens grow without touching anything else here.
 API_ROUTERS = [monitor_api.router, health.router, sessions.router, profiles.router, diagnostics.router, tools.router,
-               tools.planned_router, parameters.router, pdo.router, parameter_sets.router]
+               tools.planned_router, parameters.router, pdo.router, parameter_sets.router, drive_control_api.router]
 PAGE_ROUTERS = [node_diagnostics.router, node_pdo_page.router, monitor_page.router, plant_page.router,
-                node_page.router, profiles_page.router, remote_page.router, tools_page.router,
+                node_control.router, node_page.router, profiles_page.router, remote_page.router, tools_page.router,
                 parameter_sets_page.router]
-WS_ROUTERS = [monitor_ws.router, nodes_ws.router, jobs_ws.router, remote_ws.router, process_data_ws.router]
+WS_ROUTERS = [monitor_ws.router, nodes_ws.router, jobs_ws.router, remote_ws.router, process_data_ws.router,
+              drive_control_ws.router]
 
 
 async def start_plant(state: AppState, plant_path: Path, *, bus: str | None = None,
