@@ -15,7 +15,7 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
-from drivebench.device.catalog import Item
+from drivebench.device.catalog import Catalog, Item
 from drivebench.device.profile import Parameter
 from drivebench.errors import NotFound
 from drivebench.services.monitor import Monitor
@@ -30,13 +30,20 @@ _CHANNEL_COB_BASES = {("CAN1", "OUT"): 0x180, ("CAN2", "OUT"): 0x280, ("CAN1", "
 
 def counter_items(session: Session, node_id: int) -> list[Item]:
     """The profile's telegram counter parameters of a node (reserved subcodes left out)."""
-    node = session.node(node_id)
-    catalog = node.catalog
-    if catalog is None:
-        return []
+    catalog = session.node(node_id).catalog
+    return counter_parameters(catalog) if catalog is not None else []
+
+
+def counter_parameters(catalog: Catalog) -> list[Item]:
+    """The telegram counter parameters of a profile's catalog (reserved subcodes left out)."""
     return [item for item in catalog.items
             if isinstance(item.entry, Parameter) and "telegram counter" in item.entry.name.lower()
             and (item.entry.subcode_name or "").lower() != "reserved"]
+
+
+def counted_cob_ids(item: Item, node_id: int) -> list[int] | None:
+    """The COB-IDs a device counter parameter counts (from its subcode name), None if the name says nothing."""
+    return cob_ids_for(_label(item), node_id)
 
 
 def cob_ids_for(label: str, node_id: int) -> list[int] | None:

@@ -24,6 +24,7 @@ from drivebench.simulator.drive402 import Drive402
 from drivebench.simulator.lenze_control import LenzeControl
 from drivebench.simulator.pdo import PdoEngine
 from drivebench.simulator.store import ObjectStore, RawValue
+from drivebench.simulator.telegram_counters import DeviceTelegramCounters
 
 log = logging.getLogger(__name__)
 Send = Callable[[int, bytes], None]
@@ -89,6 +90,7 @@ class SimulatedNode:
         self.latency = latency or Latency()
         self._send = send
         self.store = ObjectStore(profile, node_id, values)
+        self.telegram_counters = DeviceTelegramCounters(self.store, node_id)
         if heartbeat_ms is not None and self.store.has(0x1017, 0):
             self.store.set(0x1017, 0, heartbeat_ms, notify=False)
             self.store.saved[(0x1017, 0)] = heartbeat_ms
@@ -145,11 +147,13 @@ class SimulatedNode:
     def send(self, cob_id: int, data: bytes) -> None:
         if self.powered:
             self._send(cob_id, data)
+            self.telegram_counters.count(cob_id)
 
     # --- frames from the bus (dispatcher thread) --------------------------------------------------------
     def on_frame(self, cob_id: int, data: bytes, timestamp: float) -> None:
         if not self.powered:
             return
+        self.telegram_counters.count(cob_id)
         if cob_id == 0x000:
             self._on_nmt(data)
         elif cob_id in self.sdo_servers:
