@@ -72,7 +72,7 @@ def bench_profile(registry: ProfileRegistry) -> Profile:
 
 
 # --- (a) -----------------------------------------------------------------------------------------------------
-ROUNDS = 30
+ROUNDS = 60
 
 
 async def expedited_ratio(registry: ProfileRegistry, rounds: int = ROUNDS, per_round: int = 100) -> dict[str, float]:
@@ -122,13 +122,14 @@ async def expedited_ratio(registry: ProfileRegistry, rounds: int = ROUNDS, per_r
     finally:
         await manager.close_all()
         plant.stop()
+    load = os.getloadavg()[0]
     ratios = sorted(raw / service for raw, service in zip(raw_times, service_times, strict=True))
     return {"raw_per_s": per_round / statistics.median(raw_times),
             "threaded_per_s": per_round / statistics.median(threaded_times),
             "service_per_s": per_round / statistics.median(service_times),
             "ratio": statistics.median(ratios), "ratio_q1": ratios[len(ratios) // 4],
             "ratio_q3": ratios[3 * len(ratios) // 4],
-            "ratio_threaded": statistics.median(threaded_times) / statistics.median(service_times)}
+            "ratio_threaded": statistics.median(threaded_times) / statistics.median(service_times), "load": load}
 
 
 # --- (b), (c), (d) ---------------------------------------------------------------------------------------------
@@ -241,8 +242,8 @@ def write_results(a: dict[str, float], b: dict[str, Any]) -> str:
     lines = [
         HEADING, "",
         f"`benchmarks/param_speed.py`, {time.strftime('%Y-%m-%d %H:%M')} on {platform.node()} "
-        f"({platform.machine()}, Python {platform.python_version()}); simulator on a python-can virtual bus in the "
-        "same process.", "",
+        f"({platform.machine()}, Python {platform.python_version()}, {os.cpu_count()} cores, load average "
+        f"{a['load']:.1f} during (a)); simulator on a python-can virtual bus in the same process.", "",
         "| Figure | Measured | Target |", "|---|---|---|",
         f"| (a) expedited SDO reads/s, raw canopen `SdoClient.upload` | {a['raw_per_s']:.0f}/s | |",
         f"| (a) expedited SDO reads/s, service layer `parameters.read` (scaled) | {a['service_per_s']:.0f}/s | |",
@@ -265,6 +266,12 @@ def write_results(a: dict[str, float], b: dict[str, Any]) -> str:
         "scales the measured time to 3000 reads (a full sequential run would take minutes). The server is "
         "`drivebench serve --plant` in its own process (its RSS includes the simulated plant it runs); "
         "`/api/health` is polled from this process every 20 ms while the job runs.", "",
+        "(a) is one request at a time on one SDO channel, so it measures per-read overhead: the service layer adds "
+        "its lookup, scaling and one event-loop wake-up (the response arrives on the bus reader thread) to the same "
+        "wire round trip. Target NOT met: runs on this shared 2-core machine gave 0.65 ... 0.75. Timed one by one, "
+        "the median service read is as fast as the median raw read; the gap is in the slow tail (the extra thread "
+        "wake-up meets a busy CPU more often). The raw figure blocks the calling thread, which a server's event "
+        "loop must not do; against canopen called from a worker thread the service layer is faster.", "",
     ]
     section = "\n".join(lines)
     text = RESULTS.read_text(encoding="utf-8") if RESULTS.exists() else "# Benchmark results\n"
@@ -272,7 +279,7 @@ def write_results(a: dict[str, float], b: dict[str, Any]) -> str:
     if start >= 0:
         start += 1
         end = text.find("\n## ", start + len(HEADING))
-        text = text[:start] + section + (text[end + 1:] if end >= 0 else "")
+        text = text[:start] + section + ("\n" + text[end + 1:] if end >= 0 else "")
     else:
         text = text.rstrip("\n") + "\n\n" + section
     RESULTS.write_text(text, encoding="utf-8")
