@@ -70,7 +70,16 @@ def test_upload_list_rename_history_delete(api: TestClient) -> None:
 
     renamed = api.patch(f"{SETS}/{set_id}", json={"name": "Conveyor line 2", "note": "gearbox 1:20"}).json()
     assert (renamed["name"], renamed["note"]) == ("Conveyor line 2", "gearbox 1:20")
-    assert [v["version"] for v in api.get(f"{SETS}/{set_id}/history").json()] == [1]
+    api.put(f"/api/sessions/{SESSION}/nodes/5/parameters/C00088", json={"value": 8})
+    again = api.post(f"{SETS}/{set_id}/upload", json={"session_id": SESSION, "node_id": 5})
+    assert again.status_code == 202
+    assert finish(api, again.json())["version"] == 2
+    history = api.get(f"{SETS}/{set_id}/history").json()
+    assert [(v["version"], v["reason"]) for v in history] == [(2, "upload from node 5"), (1, "upload from node 5")]
+    versions = api.post(f"{SETS}/compare", json={"left": {"kind": "set", "set_id": set_id, "version": 1},
+                                                 "right": {"kind": "set", "set_id": set_id}}).json()
+    assert [(r["ref"], r["left"], r["right"]) for r in versions["rows"]] == [("C00088", "10.20 A", "8.00 A")]
+    assert api.post(f"{SETS}/{set_id}/upload", json={"session_id": SESSION, "node_id": 12}).status_code == 409
     refused = api.patch(f"{SETS}/{set_id}", json={"name": ""})
     assert refused.status_code == 422
 

@@ -132,22 +132,31 @@ def _resolve(catalog: Any, ref: str) -> Item | None:
 
 # --- upload ------------------------------------------------------------------------------------------------
 def start_upload(session: Session, node_id: int, jobs: JobManager, store: ParameterSetStore, *, name: str,
-                 note: str = "", user: str | None = None) -> Job:
-    """A job reading every settable parameter of the node into a new set (``job.result['set_id']``)."""
+                 note: str = "", user: str | None = None, into: int | None = None) -> Job:
+    """A job reading every settable parameter of the node into a new set (``job.result['set_id']``), or into a
+    new version of the set ``into`` (the older versions stay: history)."""
     node = session.node(node_id)
     profile = _profile(node)
     items = [item for item in parameters.readable_items(node) if settable(item)]
     who = user or audit.current_user.get()
+    if into is not None:
+        _check_target(node, existing := store.get(into))
+        name = existing.info.name
 
     async def run(job: Job) -> None:
         found, unread = await read_items(session, node, items, job)
         values = {item.ref: found[item.ref] for item in items if item.ref in found}  # the profile's order
         if unread:
             job.notes.append(f"{len(unread)} parameters could not be read and are not in the set")
-        remark = note or f"Uploaded from node {node_id} of session '{session.name}'"
-        stored = await asyncio.to_thread(store.create, name, profile, values, user=who, node_id=node_id,
-                                         session_id=session.id, note=remark, reason=f"upload from node {node_id}")
+        reason = f"upload from node {node_id}"
+        if into is not None:
+            stored = await asyncio.to_thread(store.update_values, into, values, user=who, reason=reason)
+        else:
+            remark = note or f"Uploaded from node {node_id} of session '{session.name}'"
+            stored = await asyncio.to_thread(store.create, name, profile, values, user=who, node_id=node_id,
+                                             session_id=session.id, note=remark, reason=reason)
         job.result["set_id"] = stored.info.id
+        job.result["version"] = stored.version
 
     return jobs.start("upload", f"Upload node {node_id} into '{name}'", len(items), run)
 

@@ -204,6 +204,7 @@ class DownloadOut(BaseModel):
 
 class SetJobOut(JobOut):
     set_id: int | None = None
+    version: int | None = None
     download_id: int | None = None
     download_state: str | None = None
     report: list[ReportLineOut] = []
@@ -279,7 +280,7 @@ def download_out(row: DownloadRow, jobs: JobManager) -> DownloadOut:
 def set_job_out(job: Job) -> SetJobOut:
     base = job_out(job, with_result=False)
     report = job.result.get("report", [])
-    return SetJobOut(**base.model_dump(), set_id=job.result.get("set_id"),
+    return SetJobOut(**base.model_dump(), set_id=job.result.get("set_id"), version=job.result.get("version"),
                      download_id=job.result.get("download_id"), download_state=job.result.get("state"),
                      report=[ReportLineOut(**line) for line in report])
 
@@ -329,6 +330,15 @@ async def upload_from_node(body: UploadIn, manager: ManagerDep, jobs: JobsDep, u
     """Read every settable parameter of the node into a new set (the job's ``set_id``)."""
     job = set_jobs.start_upload(manager.get(body.session_id), body.node_id, jobs, store(), name=body.name,
                                 note=body.note, user=user_of(user))
+    return set_job_out(job)
+
+
+@router.post(SETS + "/{set_id}/upload", response_model=SetJobOut, status_code=status.HTTP_202_ACCEPTED)
+async def upload_new_version(set_id: int, body: TargetIn, manager: ManagerDep, jobs: JobsDep,
+                             user: UserHeader = None) -> SetJobOut:
+    """Read the node again into a new version of the set (same device type; the old versions stay)."""
+    job = set_jobs.start_upload(manager.get(body.session_id), body.node_id, jobs, store(), name="", into=set_id,
+                                user=user_of(user))
     return set_job_out(job)
 
 

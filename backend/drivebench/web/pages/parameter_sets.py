@@ -138,6 +138,17 @@ async def upload(request: Request, manager: ManagerDep, jobs: JobsDep) -> Respon
     return _render(request, "job", _job_context(job, jobs))
 
 
+@router.post(UI + "/{set_id}/upload", response_class=HTMLResponse)
+async def upload_version(request: Request, set_id: int, manager: ManagerDep, jobs: JobsDep) -> Response:
+    form = await request.form()
+    try:
+        session_id, node_id = _target(form)
+        job = set_jobs.start_upload(manager.get(session_id), node_id, jobs, store(), name="", into=set_id)
+    except DriveBenchError as exc:
+        return _error(request, exc)
+    return _render(request, "job", _job_context(job, jobs))
+
+
 @router.post(UI + "/import", response_class=HTMLResponse)
 async def import_file(request: Request, state: StateDep) -> Response:
     form = await request.form()
