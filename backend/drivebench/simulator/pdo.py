@@ -14,12 +14,23 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 from drivebench.protocol.datatypes import decode, encode
+from drivebench.services.pdo_notes import p2041_bits
 from drivebench.simulator.store import Abort
 
 if TYPE_CHECKING:
     from drivebench.simulator.node import SimulatedNode
 
 COB_INVALID = 0x80000000
+
+# MICROMASTER (manual ch. 5.6, table 5-1): P2041 (0x27F9) keeps the PDO5/6 mappings as one bit per object and the
+# transmission types as bytes / sync bits, so CANopen writes show up there (the traces read 0x2103 after mapping
+# RPDO5 = 6040 + 6042, TPDO5 = 6041 + 6044). Only this direction is modelled: writing P2041 leaves the objects.
+MM4_FAMILY = "siemens-mm4"
+P2041 = 0x27F9
+P2041_MAPPING: dict[int, tuple[str, int, int]] = {  # mapping index -> (direction, P2041 sub, bit shift)
+    0x1604: ("rpdo", 2, 0), 0x1A04: ("tpdo", 2, 8), 0x1605: ("rpdo", 3, 0), 0x1A05: ("tpdo", 3, 8)}
+P2041_TYPE: dict[int, tuple[int, int, int]] = {  # communication index -> (P2041 sub, bit shift, width)
+    0x1800: (0, 0, 8), 0x1804: (0, 8, 8), 0x1805: (1, 0, 8), 0x1400: (1, 8, 1), 0x1404: (1, 9, 1), 0x1405: (1, 10, 1)}
 
 
 @dataclass
@@ -49,6 +60,8 @@ class PdoEngine:
         self.tpdos: list[PdoConfig] = []
         self._lock = threading.Lock()
         node.store.add_write_check(self.check_write)
+        if node.profile.family == MM4_FAMILY and node.store.has(P2041, 2):
+            node.store.add_write_hook(self._mirror_p2041)
 
     # --- CiA 301 rules for changing a mapping (7.5.2.36/38): the device refuses what would break a PDO ----------
     def check_write(self, index: int, sub: int, raw: object) -> None:
@@ -78,6 +91,26 @@ class PdoEngine:
             raise Abort(0x06040043)  # entries change only while sub 0 is 0 (mapping disabled)
         else:
             self._check_mappable(_int(raw), receive=index < 0x1A00)
+
+    def _mirror_p2041(self, index: int, sub: int, raw: object) -> None:
+        if index in P2041_MAPPING and sub == 0:
+            direction, word, shift = P2041_MAPPING[index]
+            entries = [(_int(self.node.store.get(index, n)) >> 16, (_int(self.node.store.get(index, n)) >> 8) & 0xFF)
+                       for n in range(1, _int(raw) + 1) if self.node.store.has(index, n)]
+            bits = p2041_bits(direction, entries)
+            if bits is not None:
+                self._set_p2041(word, shift, 8, bits)
+        elif index in P2041_TYPE and sub == 2:
+            word, shift, width = P2041_TYPE[index]
+            trans_type = _int(raw)
+            self._set_p2041(word, shift, width, trans_type if width == 8 else int(trans_type <= 240))  # 1 = sync
+
+    def _set_p2041(self, word: int, shift: int, width: int, value: int) -> None:
+        store = self.node.store
+        if not store.has(P2041, word):
+            return
+        mask = ((1 << width) - 1) << shift
+        store.set(P2041, word, (_int(store.get(P2041, word)) & ~mask) | (value << shift & mask), notify=False)
 
     def _max_entries(self, map_index: int) -> int:
         store = self.node.store
