@@ -171,3 +171,10 @@ def test_8400_switch_on_enable_and_inhibit(bench: Bench) -> None:
     assert bench.command(MOTEC, Command.SWITCH_ON).state == "switched_on"
     assert bench.command(MOTEC, Command.ENABLE_OPERATION, confirm=True).state == "operation_enabled"
     assert bench.command(MOTEC, Command.DISABLE_VOLTAGE).state == "ready"
+
+
+def test_missing_actual_values_are_named(bench: Bench) -> None:
+    """The MICROMASTER CANopen manual prints no current, DC-bus voltage or heat-sink parameter: the panel says so."""
+    assert drive_control.missing_actuals(bench.session.node(MM)) == ["Current", "DC-bus voltage",
+                                                                      "Heat-sink temperature"]
+    assert drive_control.missing_actuals(bench.session.node(VECTOR)) == ["Current", "DC-bus voltage", "Torque"]

@@ -115,7 +115,13 @@ def actual_refs(node: SessionNode) -> list[tuple[str, str, Scale | None]]:
     return [entry for entry in wanted if has_ref(catalog, entry[1])]
 
 
-MISSING_HINT = "not in this device's profile"
+ACTUAL_KINDS = ("Speed", "Current", "DC-bus voltage", "Torque", "Heat-sink temperature")
+
+
+def missing_actuals(node: SessionNode) -> list[str]:
+    """The kinds of actual value the panel plots elsewhere that this device's profile (and its manual) lacks."""
+    present = {label.split(" (")[0] for label, _, _ in actual_refs(node)}
+    return [kind for kind in ACTUAL_KINDS if kind not in present]
 
 
 class ActualValue(BaseModel):

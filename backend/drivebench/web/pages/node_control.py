@@ -62,6 +62,7 @@ async def control_tab(request: Request, session: SessionDep, node: NodeDep) -> R
         fam = drive_control.family(node)
         context["diagram"] = _diagram(fam)
         context["status"] = await drive_control.read_status(session, node)
+        context["missing"] = drive_control.missing_actuals(node)
     except DriveBenchError as exc:
         context["error"] = exc
     return templates.TemplateResponse(request, "node/control_body.html", context)
