@@ -193,6 +193,10 @@
       } else if (msg.type === "state") {
         const nmt = document.getElementById("pdo-nmt");
         if (nmt) nmt.textContent = msg.nmt_state;
+        document.querySelectorAll('.pdo-card[data-direction="rpdo"]').forEach((card) => {
+          const badge = card.querySelector(".pdo-cyclic-badge");
+          if (badge) badge.hidden = !msg.cyclic.includes(Number(card.dataset.cobId));
+        });
       } else if (msg.type === "error") {
         state.textContent = msg.detail; state.className = "badge warn";
       }

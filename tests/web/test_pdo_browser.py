@@ -173,6 +173,8 @@ def test_live_value_confirmed_send_and_cyclic_stop(own_server: tuple[str, FastAP
     rpdo5.get_by_role("button", name="Send cyclically").click()
     assert _wait(lambda: sim.store.get(0x2802, 3) == -300)
     assert "sending every 100 ms" in rpdo5.locator(".send-result").inner_text()
+    rpdo5.locator(".pdo-cyclic-badge").wait_for(state="visible", timeout=10000)  # from the socket's state message
+    assert page.locator("#pdo-rpdo1 .pdo-cyclic-badge").is_hidden()
     screenshot(page, "pdo-live-mm4")
     assert live_service(session).cyclic
     page.close()  # the browser goes away: its cyclic RPDO stops
