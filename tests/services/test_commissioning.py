@@ -13,7 +13,8 @@ from drivebench.errors import Conflict
 from drivebench.services import commissioning
 from drivebench.services.commissioning import Run
 from drivebench.services.sessions import Session, SessionManager
-from drivebench.simulator.plant import Plant
+from drivebench.simulator.plant import Plant, PlantFile
+from tests.conftest import fresh_channel
 
 MM, VECTOR = 3, 12
 
@@ -89,3 +90,39 @@ def test_unexpected_answer_stops_the_run_with_a_message(bench: tuple[asyncio.Run
     assert run.position == shutdown and not run.results[-1].ok
     with pytest.raises(Conflict):
         runner.run(commissioning.next_step(session, session.node(MM), run))
+
+
+def test_micromaster_torque_sequence_as_printed(bench: tuple[asyncio.Runner, Session]) -> None:
+    runner, session = bench
+    run = _walk(runner, session, commissioning.wizard(session).start(session, session.node(MM), "mm-torque"))
+    assert run.failed is None, run.failed
+    check = next(result for result in run.results if result.title == "Check: 0x6061 = 4")
+    assert [t.data[:14] for t in check.telegrams] == ["40 61 60 00 00", "4F 61 60 00 04"]
+    bico = next(result for result in run.results if result.title.startswith("P1503"))
+    assert bico.printed == "22 df 25 00 04 00 02 08"  # as printed; the client sends it with the size (0x23)
+    assert bico.telegrams[0].data == "23 DF 25 00 04 00 02 08"
+
+
+def test_8400_minimal_enable(bench: tuple[asyncio.Runner, Session]) -> None:
+    runner, session = bench
+    run = _walk(runner, session, commissioning.wizard(session).start(session, session.node(5), "l8400"))
+    assert run.failed is None, run.failed
+
+
+def test_93xx_minimal_enable(registry: ProfileRegistry) -> None:
+    """C0005 = 1013, C0142 = 0: the controller enables only after CINH was set once (EMF2178IB ch. 6.5)."""
+    plant_file = PlantFile.model_validate({"name": "93XX", "bus": "virtual:x@500000", "nodes": [
+        {"node_id": 7, "profile": "lenze-93xx-emf2178ib"}]})
+    plant = Plant(plant_file, registry.get, bus=f"virtual:{fresh_channel()}@500000", latency="0ms").start()
+    runner = asyncio.Runner()
+    manager = SessionManager(registry, sdo_timeout_s=1.0, sdo_retries=1)
+    try:
+        session = runner.run(manager.open(plant.spec, "93xx"))
+        node = session.add_node(7, "lenze-93xx-emf2178ib")
+        assert [seq.key for seq in commissioning.sequences_for(node)] == ["emf-93xx"]
+        run = _walk(runner, session, commissioning.wizard(session).start(session, node, "emf-93xx"))
+        assert run.failed is None, run.failed
+    finally:
+        runner.run(manager.close_all())
+        runner.close()
+        plant.stop()
