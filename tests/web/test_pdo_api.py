@@ -122,9 +122,12 @@ def test_rpdo_send_reaches_the_drive_and_dcf_holds_the_mapping(client: TestClien
     sim = _plant(client).nodes[3]
     applied = client.put(f"{API}/3/pdos/rpdo/5", json={"entries": [[0x6040, 0], [0x6042, 0]]})
     assert applied.status_code == 200, applied.text
-    client.post(f"{API}/3/nmt", json={"command": "start"})
     client.get(f"{UI}/3/pdo")  # reads the mappings the sender packs by
+    early = client.post(f"{UI}/3/pdo/rpdo/5/send", data={"mode": "once", "v:0x6040": "6"})
+    assert early.status_code == 200 and "ignores PDOs until it is started" in early.text
+    client.post(f"{API}/3/nmt", json={"command": "start"})
     sent = client.post(f"{UI}/3/pdo/rpdo/5/send", data={"mode": "once", "v:0x6040": "6", "v:0x6042": "-750"})
+    assert "ignores" not in sent.text
     assert sent.status_code == 200 and "06 00 12 FD" in sent.text
     assert _wait(lambda: sim.store.get(0x6042, 0) == -750)
     assert sim.store.get(0x6040, 0) == 6

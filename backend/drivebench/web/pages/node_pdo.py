@@ -106,6 +106,11 @@ async def send(request: Request, session: SessionDep, node: NodeDep, number: int
     else:
         data = await service.send_rpdo(node.node_id, number, values)
         message = "sent once"
+    state, _live = session.nmt_state(node.node_id)
+    commanded = node.commanded_state.label if node.commanded_state is not None else ""
+    if "Operational" not in (state, commanded):  # CiA 301: PDOs are processed only in Operational
+        # (a start just sent counts: the next heartbeat will confirm it)
+        message += f" - node {node.node_id} is {state}: it ignores PDOs until it is started"
     context = _context(session, node, sent=f"{message}: {data.hex(' ').upper() or '(no data)'}", number=number,
                        cyclic=mode == "cyclic")
     return templates.TemplateResponse(request, "node/_pdo_card.html", context, block_name="send_result")
