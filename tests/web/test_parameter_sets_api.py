@@ -205,3 +205,29 @@ def test_copy_to_another_node_moves_the_node_address(api: TestClient) -> None:
     changed = {ref for ref in values if values[ref] != original[ref]}
     assert all(any(ref in note for note in body["notes"]) for ref in changed)
     assert api.get(f"{SETS}/schema").json()["properties"]["schema"]["const"] == "drivebench.parameter-set/1"
+
+
+def test_page_fragments_compare_export_and_interrupted_download(api: TestClient) -> None:
+    """The page's own routes: the comparison CSV link, and a download whose server stopped shows as interrupted
+    with its roll back."""
+    set_id = upload(api, 5, "Conveyor")
+    api.put(f"/api/sessions/{SESSION}/nodes/5/parameters/C00088", json={"value": 9})
+    exported = api.get("/parameter-sets/compare/export.csv",
+                       params={"left": "node:demo-plant:5", "right": f"set:{set_id}", "q": ""})
+    assert exported.status_code == 200 and exported.text.splitlines()[1].startswith("C00088,")
+    page = api.get("/parameter-sets", params={"set": set_id})
+    assert page.status_code == 200 and "Conveyor" in page.text
+
+    from drivebench.services.parameter_sets import ParameterSetStore
+
+    download_id = ParameterSetStore().start_download(kind="download", session_id=SESSION, node_id=5,
+                                                     profile_id="lenze-8400-motec-canopen", user="t",
+                                                     before={"C00088": 1020}, set_id=set_id, set_version=1)
+    assert api.get(f"/api/parameter-downloads/{download_id}").json()["state"] == "interrupted"
+    report = api.get(f"/parameter-sets/downloads/{download_id}", headers={"HX-Request": "true"}).text
+    assert "interrupted" in report and "Roll back" in report
+    listed = api.get(f"/parameter-sets/{set_id}/downloads", headers={"HX-Request": "true"}).text
+    assert "status-interrupted" in listed
+    back = finish(api, api.post(f"/api/parameter-downloads/{download_id}/rollback").json())
+    assert [(line["ref"], line["status"]) for line in back["report"]] == [("C00088", "written")]
+    assert api.get(f"/api/sessions/{SESSION}/nodes/5/parameters/C00088").json()["display"] == "10.20 A"

@@ -129,6 +129,8 @@ def test_export_change_compare_download(page: Any, sets_server: str, tmp_path: P
     expect(report.locator(".report-table tbody tr")).to_have_count(1)
     expect(report.locator(".report-table")).to_contain_text("written")
     expect(report).to_contain_text("parameters unchanged")
+    expect(page.locator("#set-downloads")).to_contain_text("done", timeout=WAIT_MS)  # the set's download list
+    expect(page.locator("#audit .audit-table")).to_contain_text("12.50 A", timeout=WAIT_MS)  # and the audit log
     assert page.evaluate(LAYOUT_PROBLEMS) == []
     screenshot(page, "sets-download-report")
 

@@ -192,6 +192,16 @@ def _detail(state: AppState, manager: SessionManager, set_id: int, jobs: JobMana
             "targets": targets, "formats": set_formats.FORMATS, "downloads": downloads}
 
 
+@router.get(UI + "/{set_id}/downloads", response_class=HTMLResponse)
+async def set_downloads(request: Request, set_id: int, state: StateDep, manager: ManagerDep,
+                        jobs: JobsDep) -> Response:
+    try:
+        context = _detail(state, manager, set_id, jobs)
+    except DriveBenchError as exc:
+        return _error(request, exc)
+    return _render(request, "downloads", context)
+
+
 @router.post(UI + "/{set_id}/rename", response_class=HTMLResponse)
 async def rename(request: Request, set_id: int, state: StateDep, manager: ManagerDep, jobs: JobsDep) -> Response:
     form = await request.form()
@@ -306,7 +316,9 @@ async def job_state(request: Request, job_id: str, jobs: JobsDep) -> Response:
         job = jobs.get(job_id)
     except DriveBenchError as exc:
         return _error(request, exc)
-    headers = CHANGED_EVENT if job.state.finished and job.kind == "upload" else None
+    headers = None
+    if job.state.finished:
+        headers = CHANGED_EVENT if job.kind == "upload" else {"HX-Trigger": "downloads-changed"}
     return _render(request, "job", _job_context(job, jobs), headers=headers)
 
 
@@ -329,7 +341,7 @@ async def compare_view(request: Request, state: StateDep, manager: ManagerDep) -
                                                "right_key": form.get("right"), "q": form.get("q") or ""})
 
 
-@router.get(UI + "/compare.csv")
+@router.get(UI + "/compare/export.csv")
 async def compare_csv(request: Request, state: StateDep, manager: ManagerDep) -> Response:
     result = await _comparison(request.query_params, state, manager)
     return Response(comparison_csv(result), media_type="text/csv",
