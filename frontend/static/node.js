@@ -5,9 +5,22 @@
     return s < 60 ? ` · ETA ${s.toFixed(1)} s` : ` · ETA ${Math.round(s / 60)} min`;
   }
 
+  // Re-read the parameter rows; a refresh in flight would swap out the element a queued one belongs to, so the
+  // next one waits until that swap has settled.
+  function refreshRows(selector) {
+    const rows = document.querySelector(selector);
+    if (!rows) return;
+    if (rows.classList.contains("htmx-request")) {
+      document.body.addEventListener("htmx:afterSettle", () => refreshRows(selector), { once: true });
+      return;
+    }
+    htmx.trigger(rows, "refresh");
+  }
+
   function watch(box) {
     if (box.dataset.watching) return;
     box.dataset.watching = "1";
+    box.dataset.refreshed = String(Date.now());
     const bar = box.querySelector("progress");
     const text = box.querySelector(".job-text");
     const scheme = location.protocol === "https:" ? "wss" : "ws";
@@ -25,10 +38,17 @@
       text.textContent = line;
       text.title = (msg.notes || []).join("\n");
       box.dataset.state = msg.state;
+      const rows = document.querySelector(box.dataset.refresh);
+      // Values appear while the job runs: the rows are re-read from the server at most every 2 s, never while
+      // the user is in one of them (typing a new value).
+      if (msg.state === "running" && rows && !rows.contains(document.activeElement) &&
+          !rows.classList.contains("htmx-request") && Date.now() - Number(box.dataset.refreshed) > 2000) {
+        box.dataset.refreshed = String(Date.now());
+        htmx.trigger(rows, "refresh");
+      }
       if (msg.state !== "running") {
         box.classList.add("finished", `state-${msg.state}`);
-        const rows = document.querySelector(box.dataset.refresh);
-        if (rows) htmx.trigger(rows, "refresh");
+        refreshRows(box.dataset.refresh);
       }
     };
   }

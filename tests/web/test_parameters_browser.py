@@ -146,6 +146,8 @@ def test_read_all_cancel_keeps_values_then_group_read_and_sdo_settings(server: t
         page.goto(url + "/sessions/browser-plant/nodes/12")
         page.get_by_role("button", name="Read all").click()
         expect(page.locator(".job-text")).to_contain_text("ETA", timeout=WAIT_MS)
+        expect(page.locator("tr.prow td.val .v").first).to_be_visible(timeout=WAIT_MS)  # values while it runs
+        expect(page.locator(".job")).to_have_attribute("data-state", "running")
         screenshot(page, "parameters-read-all-running")
         page.locator(".job-cancel").click()
         expect(page.locator(".job-text")).to_contain_text("cancelled", timeout=WAIT_MS)
