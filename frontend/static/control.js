@@ -23,6 +23,7 @@
     let socket = null;
     let closed = false;
     let runId = null;
+    let freshUntil = 0;  // a command's answer is newer than a websocket status read before it
 
     function showError(html, slot = result) { slot.innerHTML = `<div class="error" role="alert">${html}</div>`; }
     function clearError(slot = result) { slot.innerHTML = ""; }
@@ -42,6 +43,7 @@
       let data = null;
       try { data = await response.json(); } catch (e) { data = null; }
       if (!response.ok) { showError(problemText(data, response.status), slot); return null; }
+      freshUntil = performance.now() + 600;
       clearError(slot);
       return data;
     }
@@ -112,7 +114,10 @@
       };
       socket.onmessage = (event) => {
         const message = JSON.parse(event.data);
-        if (message.type === "status") { render(message.status); plot(message.actuals, message.t); }
+        if (message.type === "status") {
+          if (performance.now() > freshUntil) render(message.status);
+          plot(message.actuals, message.t);
+        }
         else if (message.type === "error") showError(esc(message.detail));
       };
     }
@@ -153,11 +158,17 @@
       if (status) render(status);
     });
 
+    // Jog is hold-to-run: confirmed once for this page, then it turns while the button is held (pointer down)
+    // and stops on release; the keep-alive stops it too if the page goes away mid-jog.
+    let jogConfirmed = false;
     panel.querySelectorAll("[data-jog]").forEach((button) => {
       let jogging = false;
-      const start = async () => {
-        const ok = await confirmMove(`Jog ${button.dataset.jog === "1" ? "forward" : "reverse"} while the button is held.`);
-        if (!ok) return;
+      const start = async (event) => {
+        event.preventDefault();
+        if (!jogConfirmed) {
+          jogConfirmed = await confirmMove("Jog: the motor turns at 10 % while a jog button is held.");
+          return;  // the next press jogs
+        }
         jogging = true;
         button.classList.add("held");
         await call("POST", `${api}/jog`, { direction: Number(button.dataset.jog), confirm: true });
@@ -168,8 +179,8 @@
         button.classList.remove("held");
         await call("POST", `${api}/jog`, { direction: 0, confirm: false });
       };
-      button.addEventListener("click", () => (jogging ? stop() : start()));
-      button.addEventListener("pointerleave", stop);
+      button.addEventListener("pointerdown", start);
+      for (const name of ["pointerup", "pointerleave", "pointercancel"]) button.addEventListener(name, stop);
     });
 
     panel.querySelectorAll("input[name=ctl-mode]").forEach((radio) => radio.addEventListener("change", async () => {

@@ -104,3 +104,19 @@ def test_commissioning_run_over_the_api(client: TestClient) -> None:
                                                  "data": "23 FE 5F 00 30 75 00 00", "t": run["results"][1][
                                                      "telegrams"][0]["t"]}
     assert client.get(_url(VECTOR, "/runs/nope")).status_code == 404
+
+
+def test_jog_runs_only_when_enabled_and_stops_with_zero(client: TestClient) -> None:
+    _can_control(client)
+    _until(client, MM, "switch_on_disabled")
+    refused = client.post(_url(MM, "/jog"), json={"direction": 1, "confirm": True})
+    assert refused.status_code == 409 and "operation enabled" in refused.json()["detail"]
+    client.post(_url(MM, "/commands/shutdown"))
+    client.post(_url(MM, "/commands/enable_operation"), json={"confirm": True})
+    assert client.post(_url(MM, "/jog"), json={"direction": 1}).status_code == 409  # not confirmed
+    assert client.post(_url(MM, "/jog"), json={"direction": -1, "confirm": True}).status_code == 200
+    target = client.get(f"/api/sessions/demo-plant/nodes/{MM}/parameters/0x6042").json()
+    assert target["value"] == -150  # 10 % of 0x6046.2 = 1500 rpm
+    client.post(_url(MM, "/jog"), json={"direction": 0})
+    assert client.get(f"/api/sessions/demo-plant/nodes/{MM}/parameters/0x6042").json()["value"] == 0
+    assert client.post(_url(MM, "/jog"), json={"direction": 2}).status_code == 422

@@ -1,5 +1,6 @@
-"""The Control tab in a real browser: a first run of the MICROMASTER to "operation enabled" and back, with the
-confirmation dialog, the highlighted state and live actual values; and the 8200 vector guided commissioning."""
+"""The Control tab in a real browser: a first run of the MICROMASTER to "operation enabled" and back, with
+the confirmation dialog, the highlighted state, live actual values and hold-to-run jog; and the 8200 vector
+guided commissioning."""
 
 from __future__ import annotations
 
@@ -39,6 +40,14 @@ def _current(page: Any, state: str) -> None:
     page.wait_for_selector(f'.ctl-state.current[data-state="{state}"]', timeout=TIMEOUT_MS)
 
 
+def _target(page: Any, base: str, rpm: int) -> None:
+    deadline = time.monotonic() + TIMEOUT_MS / 1000
+    url = f"{base}/api/sessions/demo-plant/nodes/3/parameters/0x6042"
+    while page.request.get(url).json()["value"] != rpm:
+        assert time.monotonic() < deadline, f"0x6042 never became {rpm} rpm"
+        time.sleep(0.05)
+
+
 def test_first_run_to_operation_enabled_and_back(server: tuple[str, Plant], page: Any) -> None:
     base, plant = server
     plant.nodes[3].store.set_ref("P1120", 1.0)  # test-only: 1 s ramp instead of 10 s
@@ -58,7 +67,8 @@ def test_first_run_to_operation_enabled_and_back(server: tuple[str, Plant], page
     screenshot(page, "control-confirm")
     page.click("#ctl-confirm-ok")
     _current(page, "operation_enabled")
-    assert page.locator("#ctl-armed").inner_text().startswith("armed")
+    page.wait_for_function("document.querySelector('#ctl-armed').textContent.startsWith('armed')",
+                           timeout=TIMEOUT_MS)
     page.fill("#ctl-setpoint input[name=value]", "300")
     page.click("#ctl-setpoint button[type=submit]")
     page.click("#ctl-confirm-ok")
@@ -67,11 +77,21 @@ def test_first_run_to_operation_enabled_and_back(server: tuple[str, Plant], page
     assert page.locator("#ctl-cw").inner_text() == "0x007F"
     assert "Operation enabled" in page.locator("#ctl-sw-bits tr.on").all_inner_texts()[2]
     screenshot(page, "control-operation-enabled")
+    jog = page.locator("button[data-jog='1']")
+    jog.hover()
+    page.mouse.down()  # the first press asks for confirmation
+    page.mouse.up()
+    page.click("#ctl-confirm-ok")
+    jog.hover()
+    page.mouse.down()  # held: 10 % of 1500 rpm
+    _target(page, base, 150)
+    page.mouse.up()  # released: setpoint 0
+    _target(page, base, 0)
     page.click("button[data-command=disable_operation]")
     _current(page, "switched_on")
     page.click("button[data-command=shutdown]")
     _current(page, "ready")
-    assert page.locator("#ctl-armed").inner_text() == "not armed"
+    page.wait_for_function("document.querySelector('#ctl-armed').textContent === 'not armed'", timeout=TIMEOUT_MS)
     screenshot(page, "control-back-to-ready")
 
 
