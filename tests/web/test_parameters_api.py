@@ -178,8 +178,8 @@ def test_slow_node_times_out_with_the_session_timeout(api_8400: Api) -> None:
     from drivebench.simulator.node import Latency
 
     assert api_8400.client.put(f"/api/sessions/{SESSION}/sdo-settings",
-                               json={"timeout_s": 0.05, "retries": 0}).status_code == 200
-    api_8400.client.app.state.drivebench.plants[SESSION].nodes[4].latency = Latency(0.4)  # type: ignore[attr-defined]
+                               json={"timeout_s": 0.3, "retries": 0}).status_code == 200
+    api_8400.client.app.state.drivebench.plants[SESSION].nodes[4].latency = Latency(1.0)  # type: ignore[attr-defined]
     problem = _problem(api_8400.client.get(api_8400.url(4, "/parameters/C00088")), 504)
     assert problem["node"] == 4 and problem["object"] == "0x5FA7sub0" and "did not answer" in problem["detail"]
     assert api_8400.client.get(api_8400.url(5, "/parameters/C00088")).json()["display"] == "10.20 A"
