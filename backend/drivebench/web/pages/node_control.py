@@ -22,11 +22,12 @@ from drivebench.web.templating import templates
 router = APIRouter(include_in_schema=False)
 UI = "/ui/sessions/{session_id}/nodes/{node_id}/control"
 BOX_W, BOX_H, GAP_X, GAP_Y, PAD = 190, 42, 110, 30, 16
+PAD_LEFT = 96  # room for the labels of the left (downward) lane
 
 
 def _diagram(fam: Family) -> dict[str, Any]:
     """Box and arrow coordinates of the state machine (SVG units)."""
-    pos = {box.key: (PAD + box.col * (BOX_W + GAP_X), PAD + box.row * (BOX_H + GAP_Y)) for box in fam.states}
+    pos = {box.key: (PAD_LEFT + box.col * (BOX_W + GAP_X), PAD + box.row * (BOX_H + GAP_Y)) for box in fam.states}
     boxes = [{"key": box.key, "label": box.label, "x": pos[box.key][0], "y": pos[box.key][1], "enabled": box.enabled,
               "fault": box.fault} for box in fam.states]
     arrows = []
