@@ -22,15 +22,7 @@ class DeviceTelegramCounters:
             for cob_id in counted_cob_ids(item, node_id) or []:
                 self._by_cob_id.setdefault(cob_id, []).append((item.index, item.subindex))
 
-    def __bool__(self) -> bool:
-        return bool(self._by_cob_id)
-
     def count(self, cob_id: int) -> None:
         for index, sub in self._by_cob_id.get(cob_id, ()):
             value = self._store.get(index, sub)
             self._store.set(index, sub, (int(value) + 1) % WRAP if isinstance(value, int) else 1, notify=False)
-
-    def clear(self) -> None:
-        for slots in self._by_cob_id.values():
-            for index, sub in slots:
-                self._store.set(index, sub, 0, notify=False)
