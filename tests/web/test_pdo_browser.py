@@ -116,7 +116,7 @@ def test_failed_apply_shows_the_step_and_the_disabled_pdo(own_server: tuple[str,
     text = report.inner_text()
     assert "Not applied" in text and "0x06040041" in text and "left disabled" in text
     assert "entry 2" in report.locator("li.failed").inner_text()
-    assert "disabled" in page.locator("#pdo-rpdo6 .card-head .badge").inner_text()
+    assert "disabled" in page.locator("#pdo-rpdo6 .card-head .badge").first.inner_text()
     assert store.get(0x1405, 1) & 0x80000000
     screenshot(page, "pdo-apply-failed-mm4-rpdo6")
 
