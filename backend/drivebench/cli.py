@@ -40,6 +40,9 @@ def serve(args: argparse.Namespace) -> int:
     app = create_app(demo=args.demo, plant_file=plant, buses=args.bus or [], latency=args.latency)
     print(f"DriveBench on http://{args.host}:{args.port}"
           + (" with the simulated demo plant" if args.demo else ""), flush=True)
+    # Bus threads run Python per frame; after each socket write the event loop may wait a whole GIL switch interval
+    # (5 ms default) to run again. 0.5 ms keeps live websocket updates on time (benchmarks/RESULTS.md, Monitor).
+    sys.setswitchinterval(0.0005)
     uvicorn.run(app, host=args.host, port=args.port, log_level=args.log_level, ws_ping_interval=20)
     return 0
 
