@@ -93,6 +93,7 @@ def test_micromaster_first_run_and_back(bench: Bench) -> None:
         bench.command(MM, Command.ENABLE_OPERATION)
     status = bench.command(MM, Command.ENABLE_OPERATION, confirm=True)
     assert status.state == "operation_enabled" and status.armed and status.control_word == 0x0F
+    drive_control.guard_for(bench.session).keepalive(MM)
     with pytest.raises(OutOfRange):
         bench.run(drive_control.set_setpoint(bench.session, bench.session.node(MM), 9000, confirm=True))
     status = bench.run(drive_control.set_setpoint(bench.session, bench.session.node(MM), 300, confirm=True))

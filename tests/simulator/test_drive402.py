@@ -168,3 +168,18 @@ def test_quick_stop_ends_in_switch_on_disabled_once_stopped(plant: Plant, script
     _poll_until(script, lambda: drive.state is State402.SWITCH_ON_DISABLED)
     assert drive.state is State402.SWITCH_ON_DISABLED and drive.speed_rpm == 0
     assert State402.QUICK_STOP_ACTIVE in drive.history
+
+
+def test_reverse_bit_turns_the_motor_left(plant: Plant, script: WireScript) -> None:
+    """Table 3-15: control word bit 11 = MM "Reverse"; status bit 14 "motor runs direction right" then clears."""
+    _fast_ramp(plant)
+    drive = plant.nodes[MM].drive
+    assert drive is not None
+    for step in PREPARE:
+        script.sdo(MM, step[0])
+    script.sdo(MM, "2b 42 60 00 2c 01 00 00")  # 0x6042 = 300 rpm
+    for word in (0x06, 0x07, 0x087F):
+        _sdo_cw(script, word)
+    _poll_until(script, lambda: drive.speed_rpm <= -300)
+    assert not _sw(script) & 0x4000
+    assert plant.nodes[MM].store.get(0x6044, 0) == -300

@@ -89,3 +89,13 @@ def test_8400_motec_can1_in_control_word(plant: Plant, script: WireScript) -> No
     _write(script, MOTEC, C00866, 1, 0x0100, 2)  # controller inhibit
     word = _until(script, MOTEC, C00868, 1, lambda w: w & 0x0080 != 0)
     assert word & 0x0002  # pulse inhibit
+
+
+def test_8200_vector_jog_bits_select_c0037(plant: Plant, script: WireScript) -> None:
+    """EMF2178IB ch. 9.3.1.1: control word bits 1/0 = 01 -> NSET1-JOG1 (C0037) instead of the setpoint."""
+    plant.nodes[VECTOR].store.set_ref("C0037", 100000)  # 10 Hz (raw, x 10000)
+    _write(script, VECTOR, C0001, 0, 30000, 4)
+    _write(script, VECTOR, C0135, 0, 0x0001, 2)  # JOG1, controller enabled
+    _until(script, VECTOR, C1823, 2, lambda actual: actual == 500)  # 10 Hz x 50
+    _write(script, VECTOR, C0135, 0, 0x0000, 2)  # back to the setpoint (0)
+    _until(script, VECTOR, C1823, 2, lambda actual: actual == 0)

@@ -53,6 +53,7 @@ def test_first_run_needs_confirmation_and_goes_back(client: TestClient) -> None:
     assert "confirm" in refused.json()["detail"]
     enabled = client.post(_url(MM, "/commands/enable_operation"), json={"confirm": True}).json()
     assert enabled["state"] == "operation_enabled" and enabled["armed"]
+    assert client.post(_url(MM, "/keepalive")).json() == {"armed": True}  # the 2 s keep-alive deadline restarts
     assert client.put(_url(MM, "/setpoint"), json={"value": 200}).status_code == 409
     assert client.put(_url(MM, "/setpoint"), json={"value": 9000, "confirm": True}).status_code == 422
     assert client.put(_url(MM, "/setpoint"), json={"value": 200, "confirm": True}).json()["control_word"] == 0x7F
@@ -113,6 +114,7 @@ def test_jog_runs_only_when_enabled_and_stops_with_zero(client: TestClient) -> N
     assert refused.status_code == 409 and "operation enabled" in refused.json()["detail"]
     client.post(_url(MM, "/commands/shutdown"))
     client.post(_url(MM, "/commands/enable_operation"), json={"confirm": True})
+    client.post(_url(MM, "/keepalive"))
     assert client.post(_url(MM, "/jog"), json={"direction": 1}).status_code == 409  # not confirmed
     assert client.post(_url(MM, "/jog"), json={"direction": -1, "confirm": True}).status_code == 200
     target = client.get(f"/api/sessions/demo-plant/nodes/{MM}/parameters/0x6042").json()

@@ -63,6 +63,8 @@ HIGH_BYTE = 0xFA00  # bits 9, 11..15 as in every trace frame; bit 10 (target rea
 TARGET_REACHED = 0x0400
 MAX_FREQUENCY_REACHED = 0x0100
 VOLTAGE_BIT = 0x0010
+RUNS_RIGHT = 0x4000  # MM status word bit 14 "motor runs direction right" (set at rest in every trace)
+REVERSE = 0x0800  # control word bit 11, MM "Reverse"
 
 
 def _command_state(state: State402, cw: int) -> State402:
@@ -203,6 +205,8 @@ class Drive402:
             word |= TARGET_REACHED
         if abs(self.speed_rpm) >= self.max_speed_rpm() - 0.5:
             word |= MAX_FREQUENCY_REACHED
+        if self.speed_rpm < 0:
+            word &= ~RUNS_RIGHT
         return word
 
     def _publish(self) -> None:
@@ -250,7 +254,7 @@ class Drive402:
             return self.speed_rpm, True  # RFG stopped: holds its output
         if not cw & 0x40 or self._param("P1000", 6) != 6:
             return 0.0, True
-        target = float(self._obj(0x6042))
+        target = float(self._obj(0x6042)) * (-1 if cw & REVERSE else 1)  # bit 11: MM "Reverse" (table 3-15)
         limit = self.max_speed_rpm()
         return max(-limit, min(limit, target)), True
 
