@@ -260,6 +260,13 @@ Update latency: built on the server -> parsed by the client (the 20 clients shar
 waits for the others' parsing). "Newest frame -> client" includes the up to 100 ms batching and the notifier's
 backlog. The server's own part (built -> written) is the figure the server controls; the rest is the clients'
 process and the machine (shared: see the load average, 2 cores).
+
+Where the server's time goes: the bus threads (notifier; here also the generator) run Python for every frame, and
+the event loop gives up the GIL on every socket write and, with permessage-deflate, on every compression - 20 of
+each per update. Each time it may wait up to one switch interval to get the GIL back (the convoy effect), so the
+per-update cost grows with clients x switch interval, and deflate doubles the hand-overs (and compresses the same
+update 20 times). The rows compare the two remedies, start-up settings of the server process: `drivebench serve`
+sets the 0.5 ms switch interval; permessage-deflate stays on (uvicorn's default, `ws_per_message_deflate`).
 """)
 
 
