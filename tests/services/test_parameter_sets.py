@@ -389,7 +389,7 @@ def _wait_for(predicate: Any, process: Any, deadline_s: float, what: str) -> Non
 def test_kill_during_download_loses_nothing_and_shows_interrupted(registry: ProfileRegistry, db_url: str,
                                                                   tmp_path: Path) -> None:
     from drivebench.services.jobs import JobManager
-    from drivebench.web.api.parameter_sets import download_state
+    from drivebench.services.set_jobs import download_state
 
     profile = registry.get("lenze-8400-motec-canopen")
     store = ParameterSetStore(db_url)

@@ -25,6 +25,7 @@ from drivebench.device.profile import Profile
 from drivebench.errors import Conflict, DriveBenchError, SdoAbortError, SdoTimeoutError, UnknownParameter
 from drivebench.services import audit, parameters
 from drivebench.services.jobs import Job, JobIssue, JobManager
+from drivebench.services.models import DownloadRow
 from drivebench.services.parameter_sets import (
     ParameterSetStore,
     Raw,
@@ -394,3 +395,16 @@ class _Writer:
         for line in self.lines.values():
             if line.status == "not attempted" and line.detail is None:
                 line.detail = why
+
+
+def running_downloads(jobs: JobManager) -> set[int]:
+    """Ids of the downloads whose job is still running in this process."""
+    return {int(job.result["download_id"]) for job in jobs.list()
+            if not job.state.finished and "download_id" in job.result}
+
+
+def download_state(row: DownloadRow, jobs: JobManager) -> str:
+    """The stored state, except that a row still ``running`` with no job behind it was interrupted."""
+    if row.state == "running" and row.id not in running_downloads(jobs):
+        return "interrupted"
+    return row.state

@@ -256,25 +256,14 @@ def comparison_out(result: Comparison) -> ComparisonOut:
                          rows=[DifferenceOut(**row.__dict__) for row in result.rows])
 
 
-def running_downloads(jobs: JobManager) -> set[int]:
-    return {int(job.result["download_id"]) for job in jobs.list()
-            if not job.state.finished and "download_id" in job.result}
-
-
-def download_state(row: DownloadRow, jobs: JobManager) -> str:
-    if row.state == "running" and row.id not in running_downloads(jobs):
-        return "interrupted"
-    return row.state
-
-
 def download_out(row: DownloadRow, jobs: JobManager) -> DownloadOut:
     counts: dict[str, int] = {}
     for line in row.report:
         counts[line["status"]] = counts.get(line["status"], 0) + 1
     return DownloadOut(id=row.id, kind=row.kind, set_id=row.set_id, set_version=row.set_version,
                        session_id=row.session_id, node_id=row.node_id, profile_id=row.profile_id, user=row.user,
-                       started=row.started, finished=row.finished, state=download_state(row, jobs), counts=counts,
-                       report=[ReportLineOut(**line) for line in row.report])
+                       started=row.started, finished=row.finished, state=set_jobs.download_state(row, jobs),
+                       counts=counts, report=[ReportLineOut(**line) for line in row.report])
 
 
 def set_job_out(job: Job) -> SetJobOut:
