@@ -85,6 +85,10 @@ def test_defaults_as_the_manuals_list_them(drives: tuple[Session, Plant], loop: 
         ("rpdo", 1, 0x200), ("rpdo", 2, 0x300), ("rpdo", 3, 0x400),
         ("tpdo", 1, 0x180), ("tpdo", 2, 0x280), ("tpdo", 3, 0x380)]
     assert "not available with 8200 vector" in emf[1].notes[0] and not emf[0].notes
+    assert emf[0].transmission_type == 254 and emf[0].transmission_note is None
+    profile = session.node(12).profile
+    assert profile is not None
+    assert "0 ... 240, 254" in (pdo_notes.transmission_note(profile, "rpdo", 255) or "")
 
 
 def test_p2041_bytes_of_the_manuals_examples() -> None:

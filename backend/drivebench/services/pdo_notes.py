@@ -144,6 +144,9 @@ def transmission_note(profile: Profile, direction: str, trans_type: int) -> str 
             return "not permissible on the 8400 motec (manual ch. 8.4); use 254"
         if 241 <= trans_type <= 251:
             return "reserved"
+    if family == EMF2178IB and direction == "rpdo" and (241 <= trans_type <= 253 or trans_type == 255):
+        # p. 109 prints 0 ... 240, 254 for RPDO1 but 0 ... 255 for RPDO2/3; the narrower range is the safe reading
+        return "outside the range the EMF2178IB manual prints for RPDO1 (0 ... 240, 254; p. 109)"
     if family == MM4 and direction == "rpdo" and trans_type not in (0, 255):
         return "the MICROMASTER stores only synchronous/asynchronous for RPDOs: reads back as 0 after power-on"
     return None
