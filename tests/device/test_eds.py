@@ -26,6 +26,7 @@ from drivebench.protocol.datatypes import DataType
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "eds"
 REAL_FILES = sorted(p.name for p in DATA.iterdir() if p.suffix.lower() in (".eds", ".dcf"))
+CANOPEN_UNREADABLE = {"generic_quirks.eds"}  # canopen 2.4.1: int('', 0) on an empty VendorNumber=
 
 
 def load(name: str) -> Profile:
@@ -103,7 +104,7 @@ def test_real_files_round_trip(name: str) -> None:
     assert import_eds(export_eds(profile), source=name) == profile
 
 
-@pytest.mark.parametrize("name", REAL_FILES)
+@pytest.mark.parametrize("name", sorted(set(REAL_FILES) - CANOPEN_UNREADABLE))
 def test_canopen_reads_our_dcf_like_the_original(name: str) -> None:
     """canopen (an independent reader) sees the same defaults and resolved values in our DCF as in the file."""
     original = _canopen_od((DATA / name).read_bytes().decode("latin-1"), name)
@@ -121,6 +122,27 @@ def test_canopen_reads_our_dcf_like_the_original(name: str) -> None:
                 assert mine.default == var.default, (hex(index), var.subindex)
             if var.value is not None:
                 assert mine.value == var.value, (hex(index), var.subindex)
+
+
+def test_generic_file_quirks() -> None:
+    """Generated EDS files in the wild leave identity fields empty, count comment lines as 0, comment out tool keys,
+    write formulas constant first or with the 'disabled' bit, skip sub-indices and mix cases and number bases."""
+    quirks = load("generic_quirks.eds")
+    assert (quirks.identity.vendor_name, quirks.identity.vendor_id, quirks.identity.product_code) == ("", None, None)
+    assert quirks.notes == [] and quirks.features.baud_rates_kbit == [125, 500]
+    assert obj(quirks, 0x1014).default_expr == "0x80+$NODEID"
+    assert resolve_node_expr(obj(quirks, 0x1400, 1).default_expr or "", 5) == 0x80000205
+    assert [o.subindex for o in quirks.objects if o.index == 0x1400] == [0, 1, 5]
+    assert (obj(quirks, 0x1001).data_type, obj(quirks, 0x1001).access) == (DataType.UNSIGNED8, Access.RO)
+    assert obj(quirks, 0x1018, 1).default is None  # "DefaultValue=" with nothing after it
+    assert obj(quirks, 0x1A00, 1).default == 0x30040110
+    sampling = obj(quirks, 0x3002)
+    assert (sampling.default, sampling.min, sampling.parameter_value) == (pytest.approx(5.2), 4.5, pytest.approx(5.2))
+    assert [o.name for o in quirks.objects if o.index == 0x3004] == [
+        "NrOfObjects", "Status left", "Status middle", "Status right"]
+    # canopen cannot read the original (empty VendorNumber=), but it reads our DCF of it
+    ours = _canopen_od(export_eds(quirks, node_id=5, dcf=True), "ours.dcf")
+    assert ours[0x1400][1].value == 0x80000205 and ours[0x1014].value == 0x85
 
 
 def _canopen_od(text: str, name: str) -> canopen.ObjectDictionary:
