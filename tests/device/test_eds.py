@@ -419,3 +419,31 @@ def test_import_of_export_is_identity(profile: Profile) -> None:
     assert again.features.baud_rates_kbit == profile.features.baud_rates_kbit
     assert (again.features.rpdo_count, again.features.tpdo_count) == (
         profile.features.rpdo_count, profile.features.tpdo_count)
+
+
+@st.composite
+def _dcf_cases(draw: st.DrawFn) -> tuple[Profile, int, dict[tuple[int, int], int | float | str]]:
+    profile = draw(_profiles())
+    chosen = draw(st.lists(st.sampled_from(profile.objects), unique_by=lambda o: (o.index, o.subindex), max_size=6))
+    values = {(o.index, o.subindex): draw(_value(o.data_type, 1)) for o in chosen}
+    return profile, draw(st.integers(1, 127)), values
+
+
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(_dcf_cases())
+def test_dcf_of_device_values_round_trips(case: tuple[Profile, int, dict[tuple[int, int], int | float | str]]
+                                          ) -> None:
+    """A DCF written with a device's (or a parameter set's) raw values for one node id reads back with those values
+    as ParameterValue, every $NODEID formula resolved for that node, and the node id in [DeviceComissioning]."""
+    profile, node_id, values = case
+    again = import_eds(export_eds(profile, node_id=node_id, values=values, dcf=True, baud_kbit=250), source="n.dcf")
+    assert again.extra_sections["DeviceComissioning"] == {"NodeID": str(node_id), "Baudrate": "250"}
+    for before in profile.objects:
+        after = obj(again, before.index, before.subindex)
+        assert after.model_dump(exclude={"parameter_value"}) == before.model_dump(exclude={"parameter_value"})
+        expected = values.get((before.index, before.subindex), before.parameter_value)
+        if expected is None and before.default_expr is not None:
+            expected = resolve_node_expr(before.default_expr, node_id)
+        elif isinstance(expected, str) and before.data_type.is_integer:
+            expected = resolve_node_expr(expected, node_id)
+        assert after.parameter_value == expected, (hex(before.index), before.subindex)
