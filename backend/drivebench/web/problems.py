@@ -1,17 +1,21 @@
 """Errors as RFC 9457 problem details: one table from error class to HTTP status, one handler.
 
 JSON clients get ``application/problem+json``; htmx requests get an error partial with the same status, so
-the page shows the error next to the action that caused it.
+the page shows the error next to the action that caused it; a browser opening a page gets the problem as a page
+of the app (navigation bar, a way back), same status.
 """
 
 from __future__ import annotations
 
 from fastapi import FastAPI, Request
+from fastapi.exception_handlers import http_exception_handler
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import HTMLResponse, JSONResponse, Response
 from markupsafe import escape
+from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from drivebench import errors
+from drivebench.web.templating import templates
 
 # Most specific class first.
 STATUS: list[tuple[type[errors.DriveBenchError], int]] = [
@@ -71,6 +75,31 @@ def error_fragment(body: dict[str, object]) -> str:
     return f'<div class="error" role="alert">{" ".join(parts)}</div>'
 
 
+def wants_page(request: Request) -> bool:
+    """A browser opening a page (not htmx, not the JSON API, not a script's fetch)."""
+    return (request.method == "GET" and request.headers.get("HX-Request") != "true"
+            and "text/html" in request.headers.get("accept", "")
+            and not request.url.path.startswith(("/api/", "/ws/", "/static/")))
+
+
+# Where to go from a failed page, by the start of its path; the Plant screen lists sessions and nodes.
+WAYS_BACK = [("/profiles/", "/profiles", "All profiles"), ("/parameter-sets/", "/parameter-sets", "All parameter sets"),
+             ("/monitor/", "/monitor", "Monitor"), ("/sessions/", "/", "Plant: sessions and nodes")]
+
+
+def error_page(request: Request, body: dict[str, object]) -> Response:
+    path = request.url.path
+    context: dict[str, object] = {"problem": body, "active": None}
+    if path.startswith("/remote/"):  # a share link's viewer: no navigation into the engineer's screens
+        context["viewer"] = None
+        context["ways"] = []
+    else:
+        ways = [(href, label) for prefix, href, label in WAYS_BACK if path.startswith(prefix)]
+        context["ways"] = ways if any(href == "/" for href, _ in ways) else [*ways, ("/", "Plant")]
+    status = int(body["status"])  # type: ignore[call-overload]
+    return templates.TemplateResponse(request, "error.html", context, status_code=status)
+
+
 def install(app: FastAPI) -> None:
     @app.exception_handler(errors.DriveBenchError)
     async def _drivebench_error(request: Request, exc: errors.DriveBenchError) -> Response:
@@ -78,7 +107,20 @@ def install(app: FastAPI) -> None:
         status = int(body["status"])  # type: ignore[call-overload]
         if request.headers.get("HX-Request") == "true":
             return HTMLResponse(error_fragment(body), status_code=status)
+        if wants_page(request):
+            return error_page(request, body)
         return JSONResponse(body, status_code=status, media_type="application/problem+json")
+
+    @app.exception_handler(StarletteHTTPException)
+    async def _http_error(request: Request, exc: StarletteHTTPException) -> Response:
+        """Unknown URLs and methods: FastAPI's JSON for clients, a page of the app for a browser."""
+        if not wants_page(request):
+            return await http_exception_handler(request, exc)
+        detail = exc.detail if exc.status_code != 404 else f"There is no page at {request.url.path}."
+        title = "Page not found" if exc.status_code == 404 else "Request failed"
+        body: dict[str, object] = {"type": "about:blank", "title": title, "status": exc.status_code,
+                                   "detail": detail, "instance": request.url.path}
+        return error_page(request, body)
 
     @app.exception_handler(RequestValidationError)
     async def _validation_error(request: Request, exc: RequestValidationError) -> Response:
