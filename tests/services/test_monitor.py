@@ -15,7 +15,7 @@ import pytest
 
 from drivebench.device.loader import ProfileRegistry
 from drivebench.protocol.nmt import NmtCommand
-from drivebench.services.monitor import Monitor, MonitorFilter, monitor_for
+from drivebench.services.monitor import Monitor, MonitorFilter, MonitorView, monitor_for
 from drivebench.services.recording import Recordings
 from drivebench.services.sessions import Session, SessionManager
 from drivebench.transport.busload import reference_bits
@@ -140,6 +140,56 @@ def test_pause_freezes_the_view_reset_clears(session: Session, wire: can.BusABC)
     monitor.reset()
     snap = monitor.snapshot()
     assert snap["totals"]["frames"] == 0 and snap["cob_ids"] == [] and monitor.trace_rows() == []
+
+
+def test_views_filter_and_pause_on_their_own(session: Session, wire: can.BusABC) -> None:
+    """Two viewers of one monitor: each sees its own filter; one's pause freezes only its view; the REST view
+    (``defaults``) is a third, untouched."""
+    monitor = _feed(session, wire)
+    sdo, node_12 = MonitorView(MonitorFilter(services={"SDO"})), MonitorView(MonitorFilter(nodes={12}))
+    assert [row["cob_id"] for row in monitor.trace_rows(view=sdo)] == ["0x605", "0x585"]
+    assert [row["cob_id"] for row in monitor.trace_rows(view=node_12)] == ["0x70C"]
+    assert [row["text"] for row in monitor.snapshot(node_12)["cob_ids"]] == ["0x70C"]
+    assert [row["node"] for row in monitor.snapshot(node_12)["nodes"]] == [12]
+    assert len(monitor.snapshot()["cob_ids"]) == len(monitor.live_snapshot()["cob_ids"]) > 2
+    monitor.pause(sdo)
+    wire.send(_frame(0x605, bytes.fromhex("40C25F0000000000")))
+    wire.send(_frame(0x70C, bytes([0x7F])))
+    wait_for(lambda: monitor.counts_for([0x605, 0x70C]) == 4)
+    assert [row["cob_id"] for row in monitor.trace_rows(view=sdo)] == ["0x605", "0x585"]  # frozen
+    assert monitor.snapshot(sdo)["paused"] is True
+    assert monitor.snapshot(sdo)["totals"]["frames"] == len(WIRE_FRAMES)
+    assert [row["cob_id"] for row in monitor.trace_rows(view=node_12)] == ["0x70C", "0x70C"]  # live
+    assert monitor.snapshot(node_12)["totals"]["frames"] == len(WIRE_FRAMES) + 2
+    assert monitor.paused is False and monitor.snapshot()["paused"] is False
+    monitor.resume(sdo)
+    assert [row["cob_id"] for row in monitor.trace_rows(view=sdo)] == ["0x605", "0x585", "0x605"]
+
+
+def test_bus_state_from_error_frames(session: Session, wire: can.BusABC) -> None:
+    """SocketCAN error frames (linux/can/error.h): controller status in data[1], TEC/REC in data[6]/data[7]."""
+    monitor = monitor_for(session)
+
+    def error_frame(error_class: int, status: int = 0, tec: int = 0, rec: int = 0) -> can.Message:
+        return can.Message(arbitration_id=error_class, is_error_frame=True,
+                           data=bytes([0, status, 0, 0, 0, 0, tec, rec]))
+
+    def bus() -> dict[str, object]:
+        return monitor.snapshot()["bus"]  # type: ignore[no-any-return]
+
+    assert bus() == {"state": "active", "adapter_state": "active", "tx_errors": None, "rx_errors": None,
+                     "reported_age_s": None}
+    steps = [(error_frame(0x004, 0x08, 97, 3), ("warning", 97, 3)),     # CRTL: TX warning
+             (error_frame(0x004, 0x20, 128, 3), ("passive", 128, 3)),   # CRTL: TX passive
+             (error_frame(0x040), ("bus-off", 128, 3)),                 # BUSOFF (no counters)
+             (error_frame(0x100), ("active", 128, 3)),                  # RESTARTED
+             (error_frame(0x200, 0, 10, 120), ("warning", 10, 120)),    # CNT only: REC 120 >= 96
+             (error_frame(0x004, 0x40, 0, 0), ("active", 0, 0))]        # CRTL: back to error active
+    for frame, (state, tec, rec) in steps:
+        wire.send(frame)
+        wait_for(lambda state=state, tec=tec, rec=rec: (bus()["state"], bus()["tx_errors"], bus()["rx_errors"])
+                 == (state, tec, rec))
+    assert monitor.snapshot()["totals"]["errors"] == len(steps)
 
 
 def test_trace_ring_is_bounded(session: Session) -> None:

@@ -96,3 +96,143 @@ def test_two_clients_share_one_feed(monitor_client: TestClient) -> None:
         seqs_first = [json.loads(first.receive_text())["seq"] for _ in range(3)]
         seqs_second = [json.loads(second.receive_text())["seq"] for _ in range(3)]
         assert seqs_first == sorted(seqs_first) and seqs_second == sorted(seqs_second)
+
+
+# --- per-viewer filter and pause ---------------------------------------------------------------------------------
+URL = f"/ws/sessions/{SESSION_ID}/monitor"
+HEARTBEATS = {5: "0x705", 12: "0x70C"}
+
+
+def _rows(message: dict[str, Any]) -> list[dict[str, Any]]:
+    return [dict(zip(message["trace_columns"], row, strict=True)) for row in message["trace"]]
+
+
+def _until(socket: Any, accept: Any, what: str, timeout_s: float = 15) -> dict[str, Any]:
+    """The first message ``accept`` takes (earlier ones are skipped)."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        message: dict[str, Any] = json.loads(socket.receive_text())
+        if accept(message):
+            return message
+    raise AssertionError(f"no {what} in {timeout_s} s")
+
+
+def _heartbeat_view(node: int) -> str:
+    return json.dumps({"type": "view", "filter": {"nodes": [node], "services": ["Heartbeat"]}})
+
+
+def _collect_cobs(socket: Any, count: int) -> set[str]:
+    cobs: list[str] = []
+    deadline = time.monotonic() + 15
+    while len(cobs) < count and time.monotonic() < deadline:
+        message = json.loads(socket.receive_text())
+        assert message["type"] == "update"
+        cobs += [row["cob_id"] for row in _rows(message)]
+    assert len(cobs) >= count, "too few telegrams"
+    return set(cobs)
+
+
+def test_each_client_has_its_own_filter(monitor_client: TestClient) -> None:
+    with monitor_client.websocket_connect(URL) as first, monitor_client.websocket_connect(URL) as second:
+        first.receive_text()
+        second.receive_text()
+        first.send_text(_heartbeat_view(5))
+        second.send_text(_heartbeat_view(12))
+        hello_first = _until(first, lambda m: m["type"] == "hello", "hello")
+        hello_second = _until(second, lambda m: m["type"] == "hello", "hello")
+        assert hello_first["view"]["filter"]["nodes"] == [5] and hello_second["view"]["filter"]["nodes"] == [12]
+        # The hello's trace is already filtered (the newest matching rows of the shared ring).
+        assert {row["cob_id"] for row in _rows(hello_first)} <= {"0x705"}
+        assert {row["cob_id"] for row in _rows(hello_second)} <= {"0x70C"}
+        assert _collect_cobs(first, 6) == {"0x705"}
+        assert _collect_cobs(second, 3) == {"0x70C"}
+        update = _until(second, lambda m: m["type"] == "update", "update")
+        columns = update["snapshot"]["cob_columns"]
+        assert {row[columns.index("text")] for row in update["snapshot"]["cob_ids"]} == {"0x70C"}
+        assert [row["node"] for row in update["snapshot"]["nodes"]] == [12]
+        # Counting is shared and unfiltered: both see every service.
+        services = {row["service"]: row["total"] for row in update["snapshot"]["services"]}
+        assert services["Heartbeat"] > 0
+        # The REST default view is untouched by the clients' filters.
+        assert monitor_client.get(f"/api/sessions/{SESSION_ID}/monitor/filter").json()["nodes"] == []
+
+
+def test_pausing_one_client_does_not_pause_the_other(monitor_client: TestClient) -> None:
+    with monitor_client.websocket_connect(URL) as first, monitor_client.websocket_connect(URL) as second:
+        first.receive_text()
+        second.receive_text()
+        first.send_text(json.dumps({"type": "view", "paused": True}))
+        answer = _until(first, lambda m: m["type"] != "update", "pause answer")
+        assert answer == {"type": "view", "view": {"filter": answer["view"]["filter"], "paused": True}}
+        # The other client goes on: counters move and heartbeats arrive.
+        start = _until(second, lambda m: m["type"] == "update", "update")["snapshot"]["totals"]["frames"]
+        moved = _until(second, lambda m: m["snapshot"]["totals"]["frames"] > start + 5, "moving counters")
+        assert moved["type"] == "update" and moved["snapshot"]["paused"] is False
+        assert monitor_client.get(f"/api/sessions/{SESSION_ID}/monitor").json()["paused"] is False
+        # The paused client was sent nothing meanwhile: the first message after its resume is the resync hello.
+        first.send_text(json.dumps({"type": "view", "paused": False}))
+        resumed = json.loads(first.receive_text())
+        assert resumed["type"] == "hello" and resumed["view"]["paused"] is False
+        assert resumed["snapshot"]["totals"]["frames"] >= moved["snapshot"]["totals"]["frames"]
+        assert _until(first, lambda m: m["type"] == "update", "update after resume")["snapshot"]["paused"] is False
+
+
+def test_rest_filter_and_pause_are_the_defaults_for_new_viewers(monitor_client: TestClient) -> None:
+    api = f"/api/sessions/{SESSION_ID}/monitor"
+    with monitor_client.websocket_connect(URL) as earlier:
+        earlier.receive_text()
+        assert monitor_client.put(f"{api}/filter", json={"nodes": [12], "services": ["Heartbeat"]}).status_code == 200
+        with monitor_client.websocket_connect(URL) as newer:
+            hello = json.loads(newer.receive_text())
+            assert hello["view"] == {"filter": {"nodes": [12], "services": ["Heartbeat"], "cob_min": 0,
+                                                "cob_max": 0x1FFFFFFF}, "paused": False}
+            assert _collect_cobs(newer, 3) == {"0x70C"}
+        # A client connected before keeps its own (unfiltered) view.
+        assert _collect_cobs(earlier, 8) >= {"0x705", "0x70C"}
+        monitor_client.post(f"{api}/pause")
+        with monitor_client.websocket_connect(URL) as paused:
+            hello = json.loads(paused.receive_text())
+            assert hello["view"]["paused"] is True and hello["snapshot"]["paused"] is True
+        monitor_client.post(f"{api}/resume")
+
+
+def test_bad_view_message_is_answered_with_an_error(monitor_client: TestClient) -> None:
+    with monitor_client.websocket_connect(URL) as socket:
+        socket.receive_text()
+        socket.send_text(json.dumps({"type": "view", "filter": {"cob_min": 0x700, "cob_max": 0x100}}))
+        error = _until(socket, lambda m: m["type"] == "error", "error answer")
+        assert "cob_min must not be above cob_max" in error["detail"]
+        socket.send_text("not json")
+        assert "Not a view message" in _until(socket, lambda m: m["type"] == "error", "error answer")["detail"]
+        # The socket lives on with its view unchanged.
+        assert _until(socket, lambda m: m["type"] == "update", "update")["snapshot"]["filter"]["nodes"] == []
+
+
+def test_reset_sends_every_live_client_a_new_hello(monitor_client: TestClient) -> None:
+    with monitor_client.websocket_connect(URL) as first, monitor_client.websocket_connect(URL) as second:
+        first.receive_text()
+        second.receive_text()
+        second.send_text(_heartbeat_view(5))
+        _until(second, lambda m: m["type"] == "hello", "hello")
+        _until(first, lambda m: m["snapshot"]["totals"]["frames"] > 5, "frames")
+        monitor_client.post(f"/api/sessions/{SESSION_ID}/monitor/reset")
+        for socket, nodes in ((first, []), (second, [5])):
+            hello = _until(socket, lambda m: m["type"] == "hello", "hello after the reset")
+            assert hello["snapshot"]["totals"]["frames"] < 5 and hello["view"]["filter"]["nodes"] == nodes
+
+
+def test_bus_state_travels_in_the_updates(monitor_client: TestClient, wire: Any) -> None:
+    import can
+
+    with monitor_client.websocket_connect(URL) as socket:
+        hello = json.loads(socket.receive_text())
+        assert hello["snapshot"]["bus"]["state"] == "active" and hello["snapshot"]["bus"]["tx_errors"] is None
+        # SocketCAN error frame: controller problem (class 0x004), TX error passive, TEC 130, REC 7.
+        wire.send(can.Message(arbitration_id=0x004, is_error_frame=True,
+                              data=bytes([0, 0x20, 0, 0, 0, 0, 130, 7])))
+        bus = _until(socket, lambda m: m["snapshot"]["bus"]["state"] != "active", "bus state")["snapshot"]["bus"]
+        assert (bus["state"], bus["tx_errors"], bus["rx_errors"]) == ("passive", 130, 7)
+        wire.send(can.Message(arbitration_id=0x040, is_error_frame=True, data=bytes(8)))
+        _until(socket, lambda m: m["snapshot"]["bus"]["state"] == "bus-off", "bus-off")
+        wire.send(can.Message(arbitration_id=0x100, is_error_frame=True, data=bytes(8)))
+        _until(socket, lambda m: m["snapshot"]["bus"]["state"] == "active", "back to error active")

@@ -8,8 +8,10 @@ when someone looks (``snapshot``, ``trace_rows``), from those raw figures.
 Bounds: COB-ID table at most 2048 + the 29-bit ids seen; load history ``HISTORY_S`` one-second points; trace ring
 ``TRACE_CAPACITY`` frames; rate samples covering ``RATE_WINDOW_S``.
 
-Pause freezes the view (the trace takes no new telegrams, snapshots repeat the one taken at pause); counting goes
-on underneath, so totals stay exact and resume shows them.
+Filter and pause belong to a viewer (``MonitorView``): counters, load and the trace ring exist once per session and
+always take every frame; a view chooses which rows it is shown, and a paused view repeats the snapshot taken at
+pause and sees no telegram newer than the pause. Each websocket client has its own view; ``Monitor.defaults`` is
+the view of the REST API and the one a new websocket client starts with.
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ from drivebench.protocol.decode import (
     classify,
     decode_frame,
 )
+from drivebench.services.bus_state import BusErrorState
 from drivebench.services.sessions import Session
 from drivebench.transport.busload import message_bits
 
@@ -83,6 +86,26 @@ class MonitorFilter:
         return {"nodes": sorted(self.nodes), "services": sorted(self.services),
                 "cob_min": self.cob_min, "cob_max": self.cob_max}
 
+    def key(self) -> tuple[Any, ...]:
+        """Equal for equal filters (viewers with the same filter share one update)."""
+        return tuple(sorted(self.nodes)), tuple(sorted(self.services)), self.cob_min, self.cob_max
+
+
+@dataclass
+class MonitorView:
+    """One viewer's filter and pause; ``paused_at`` is the trace sequence number at pause (None: live)."""
+
+    filter: MonitorFilter = field(default_factory=MonitorFilter)
+    paused_at: int | None = None
+    frozen: dict[str, Any] | None = None
+    """The unfiltered snapshot taken at pause."""
+    epoch: int = 0
+    """The monitor's reset count at pause: after a reset, a paused view's trace is empty."""
+
+    @property
+    def paused(self) -> bool:
+        return self.paused_at is not None
+
 
 @dataclass
 class _Sample:
@@ -114,15 +137,25 @@ class Monitor(can.Listener):
         self.bitrate = session.spec.bitrate
         self.trace_capacity = trace_capacity
         self.history_s = history_s
-        self.filter = MonitorFilter()
+        self.defaults = MonitorView()
+        self.resets = 0
+        self._bus_errors = BusErrorState()
         self._lock = threading.Lock()
         self._wall_offset = time.time() - time.monotonic()
         self._trace: deque[tuple[int, can.Message, SdoContext | None]] = deque(maxlen=trace_capacity)
         self._history: deque[tuple[int, int]] = deque(maxlen=history_s)
         self._tracker = SdoTracker()
-        self._frozen: dict[str, Any] | None = None
-        self.paused = False
         self._reset_locked(time.monotonic())
+
+    @property
+    def filter(self) -> MonitorFilter:
+        """The default filter (REST API, new viewers)."""
+        return self.defaults.filter
+
+    @property
+    def paused(self) -> bool:
+        """Whether the default view (REST API, new viewers) is paused."""
+        return self.defaults.paused
 
     # --- hot path (listener threads) ---------------------------------------------------------------------
     def on_message_received(self, msg: can.Message, _clock: Any = time.monotonic,
@@ -132,9 +165,9 @@ class Monitor(can.Listener):
             with self._lock:
                 self._errors += 1
                 self._last_error = now
-                if not self.paused:
-                    self._seq += 1
-                    self._trace.append((self._seq, msg, None))
+                self._bus_errors.observe(msg, now)
+                self._seq += 1
+                self._trace.append((self._seq, msg, None))
             return
         key = msg.arbitration_id | EXTENDED if msg.is_extended_id else msg.arbitration_id
         bits = _bits(msg)
@@ -150,9 +183,8 @@ class Monitor(can.Listener):
                 self._roll(second)
             self._second_bits += bits
             self._frames += 1
-            if not self.paused:
-                self._seq = seq = self._seq + 1
-                self._trace.append((seq, msg, self._tracker.observe(msg) if 0x580 < key < 0x680 else None))
+            self._seq = seq = self._seq + 1
+            self._trace.append((seq, msg, self._tracker.observe(msg) if 0x580 < key < 0x680 else None))
 
     def on_error(self, exc: Exception) -> None:
         """The notifier reports reader errors here; the session's own error catcher handles them."""
@@ -172,7 +204,7 @@ class Monitor(can.Listener):
         self._peak: tuple[float, float] = (0.0, 0.0)
         self._samples = deque()
         self._started = now
-        self._frozen = None
+        self._bus_errors = BusErrorState()
 
     def _roll(self, second: int) -> None:
         """Close the current one-second bucket (and any silent seconds since) into the history."""
@@ -193,35 +225,50 @@ class Monitor(can.Listener):
 
     # --- control -----------------------------------------------------------------------------------------
     def reset(self) -> None:
+        """Counters, history, peak and trace start again, for every viewer; a paused default view stays paused
+        (at the empty state)."""
         with self._lock:
             self._reset_locked(time.monotonic())
+            self.resets += 1
+        if self.defaults.paused:
+            self.defaults.paused_at = None
+            self.pause()
 
-    def pause(self) -> None:
-        with self._lock:
-            if self.paused:
-                return
-        frozen = {**self._snapshot(), "paused": True}
-        with self._lock:
-            self._frozen = frozen
-            self.paused = True
+    def pause(self, view: MonitorView | None = None) -> None:
+        view = view or self.defaults
+        if view.paused:
+            return
+        view.frozen = self.live_snapshot()
+        view.epoch = self.resets
+        view.paused_at = self._seq
 
-    def resume(self) -> None:
-        with self._lock:
-            self.paused = False
-            self._frozen = None
+    def resume(self, view: MonitorView | None = None) -> None:
+        view = view or self.defaults
+        view.paused_at = None
+        view.frozen = None
 
-    def set_filter(self, new_filter: MonitorFilter) -> None:
-        self.filter = new_filter
+    def set_filter(self, new_filter: MonitorFilter, view: MonitorView | None = None) -> None:
+        (view or self.defaults).filter = new_filter
 
     # --- views ---------------------------------------------------------------------------------------------
-    def snapshot(self) -> dict[str, Any]:
-        """Counters, rates, load and its peak; a paused monitor repeats the snapshot taken at pause."""
-        frozen = self._frozen
-        if frozen is not None:
-            return frozen
-        return self._snapshot()
+    def snapshot(self, view: MonitorView | None = None) -> dict[str, Any]:
+        """Counters, rates, load and its peak, bus state, as ``view`` (default: the REST view) sees them: node and
+        COB-ID rows that pass its filter; a paused view repeats the snapshot taken at pause."""
+        view = view or self.defaults
+        return self.view_snapshot(view.frozen or self.live_snapshot(), view)
 
-    def _snapshot(self) -> dict[str, Any]:
+    @staticmethod
+    def view_snapshot(snapshot: dict[str, Any], view: MonitorView) -> dict[str, Any]:
+        """``snapshot`` (from ``live_snapshot``) with the node and COB-ID rows ``view`` shows."""
+        accepts = view.filter.accepts
+        nodes = view.filter.nodes
+        return {**snapshot, "paused": view.paused, "filter": view.filter.as_dict(),
+                "nodes": [row for row in snapshot["nodes"] if not nodes or row["node"] in nodes],
+                "cob_ids": [row for row in snapshot["cob_ids"]
+                            if accepts(_SERVICES[row["service"]], row["node"], row["cob_id"])]}
+
+    def live_snapshot(self) -> dict[str, Any]:
+        """The snapshot of now, unfiltered (every node and COB-ID row)."""
         now = time.monotonic()
         with self._lock:
             self._roll(int(now))
@@ -231,8 +278,8 @@ class Monitor(can.Listener):
             peak, started = self._peak, self._started
             current = _Sample(now, {key: value[0] for key, value in cobs.items()}, errors)
             reference = self._rate_reference(current)
+            bus = self._bus_errors.as_dict(self._adapter_state(), now)
         elapsed = max(now - reference.at, 1e-3)
-        view = self.filter
         total_bits = sum(entry[1] for entry in cobs.values())
         services: dict[Service, list[float]] = {service: [0, 0.0, 0] for service in SERVICE_ORDER}
         nodes: dict[int, list[float]] = {}
@@ -252,20 +299,20 @@ class Monitor(can.Listener):
                 node_row[0] += count
                 node_row[1] += rate
                 node_row[2] += bits
-            if view.accepts(service, node, key & 0x1FFFFFFF):
-                cob_rows.append({"cob_id": key & 0x1FFFFFFF, "extended": bool(key & EXTENDED),
-                                 "text": _key_text(key), "service": service.value, "node": node,
-                                 "total": count, "rate": round(rate, 2),
-                                 "share_percent": round(100.0 * bits / total_bits, 2) if total_bits else 0.0,
-                                 "last_age_s": round(now - last_seen, 2)})
+            cob_rows.append({"cob_id": key & 0x1FFFFFFF, "extended": bool(key & EXTENDED),
+                             "text": _key_text(key), "service": service.value, "node": node,
+                             "total": count, "rate": round(rate, 2),
+                             "share_percent": round(100.0 * bits / total_bits, 2) if total_bits else 0.0,
+                             "last_age_s": round(now - last_seen, 2)})
         names = self._node_names()
         load_now = 100.0 * last_second[1] / self.bitrate if last_second else 0.0
         return {
             "session": self.session_id,
             "time": now + self._wall_offset,
             "since": started + self._wall_offset,
-            "paused": self.paused,
+            "paused": False,
             "bitrate": self.bitrate,
+            "bus": bus,
             "totals": {"frames": frames, "bits": total_bits, "rate": round(total_rate, 2), "errors": errors,
                        "error_rate": round((errors - reference.errors) / elapsed, 2),
                        "last_error_age_s": round(now - last_error, 2) if last_error is not None else None},
@@ -277,10 +324,17 @@ class Monitor(can.Listener):
                          for service, row in services.items()],
             "nodes": [{"node": node, "name": names.get(node), "total": int(row[0]), "rate": round(row[1], 2),
                        "share_percent": round(100.0 * row[2] / total_bits, 2) if total_bits else 0.0}
-                      for node, row in sorted(nodes.items()) if not view.nodes or node in view.nodes],
+                      for node, row in sorted(nodes.items())],
             "cob_ids": cob_rows,
-            "filter": view.as_dict(),
+            "filter": MonitorFilter().as_dict(),
         }
+
+    def _adapter_state(self) -> str:
+        session = self._session()
+        try:
+            return session.network.bus_state if session is not None else "active"
+        except Exception:  # a closed or unplugged adapter: its state is unknown, the error frames still count
+            return "active"
 
     def _rate_reference(self, current: _Sample) -> _Sample:
         """The newest sample at least RATE_WINDOW_S old (else the oldest, else the reset); keeps the window."""
@@ -305,22 +359,29 @@ class Monitor(can.Listener):
     def last_seq(self) -> int:
         return self._seq
 
-    def trace_rows(self, *, after: int = 0, limit: int = 200) -> list[dict[str, Any]]:
+    def trace_rows(self, *, after: int = 0, limit: int = 200,
+                   view: MonitorView | None = None) -> list[dict[str, Any]]:
         """The newest ``limit`` telegrams after sequence number ``after`` that pass the filter, oldest first."""
-        return self.trace_since(after, limit)[0]
+        return self.trace_since(after, limit, view=view)[0]
 
-    def trace_since(self, after: int, limit: int, until: int | None = None) -> tuple[list[dict[str, Any]], int]:
+    def trace_since(self, after: int, limit: int, until: int | None = None,
+                    view: MonitorView | None = None) -> tuple[list[dict[str, Any]], int]:
         """Like ``trace_rows``, plus the sequence number the rows reach (pass it as ``after`` next time); with
-        ``until``, only telegrams up to that sequence number.
+        ``until``, only telegrams up to that sequence number. ``view`` (default: the REST view) filters; a paused
+        view sees nothing newer than its pause.
 
         Only rows that pass the filter are decoded; the filter is checked on the COB-ID first (NMT: its target).
         """
+        view = view or self.defaults
+        if view.paused_at is not None:
+            stop = view.paused_at if view.epoch == self.resets else 0
+            until = stop if until is None else min(until, stop)
         with self._lock:
             entries = list(self._trace) if after == 0 else self._entries_after(after)
         newest = entries[-1][0] if entries else after
         if until is not None:
             newest = min(newest, max(until, after))
-        view = self.filter
+        accepts = view.filter.accepts
         lookups = _Lookups(self._session())
         rows: list[dict[str, Any]] = []
         for seq, msg, context in reversed(entries):
@@ -334,7 +395,7 @@ class Monitor(can.Listener):
                 service, node = classify(msg.arbitration_id, msg.is_extended_id)
                 if service is Service.NMT and len(msg.data) >= 2 and msg.data[1]:
                     node = msg.data[1]
-            if not view.accepts(service, node, msg.arbitration_id):
+            if not accepts(service, node, msg.arbitration_id):
                 continue
             decoded = decode_frame(msg, names=lookups.name, vendor=lookups.vendor, emcy_texts=lookups.emcy,
                                    sdo_context=context)
@@ -368,6 +429,9 @@ class Monitor(can.Listener):
         with self._lock:
             return {"trace": len(self._trace), "history": len(self._history), "cob_ids": len(self._cobs),
                     "rate_samples": len(self._samples)}
+
+
+_SERVICES = {service.value: service for service in Service}
 
 
 @lru_cache(maxsize=4096)

@@ -1,4 +1,10 @@
-"""The telegram monitor of a session: counters and load, trace, filter, pause/reset, recordings, device counters."""
+"""The telegram monitor of a session: counters and load, trace, filter, pause/reset, recordings, device counters.
+
+Counters, load history and the trace ring are shared by everyone watching the session, and ``/reset`` clears them
+for all. Filter and pause here are the session's *default view*: what this REST API's snapshot and trace show, and
+what a websocket client starts with. A connected websocket client changes its own view over its socket (see
+``web/ws/monitor.py``); these endpoints never change another viewer's filter or pause.
+"""
 
 from __future__ import annotations
 
@@ -69,6 +75,7 @@ async def reset(session: SessionDep) -> dict[str, Any]:
 
 @router.post("/pause")
 async def pause(session: SessionDep) -> dict[str, bool]:
+    """Freeze the default view (REST snapshot and trace, new viewers); counting goes on underneath."""
     monitor = monitor_for(session)
     monitor.pause()
     return {"paused": monitor.paused}
@@ -83,11 +90,13 @@ async def resume(session: SessionDep) -> dict[str, bool]:
 
 @router.get("/filter", response_model=FilterBody)
 async def get_filter(session: SessionDep) -> dict[str, Any]:
+    """The default filter: of the REST snapshot and trace, and the one a new websocket viewer starts with."""
     return monitor_for(session).filter.as_dict()
 
 
 @router.put("/filter", response_model=FilterBody)
 async def set_filter(session: SessionDep, body: FilterBody) -> dict[str, Any]:
+    """Set the default filter (REST snapshot and trace, new viewers); connected viewers keep theirs."""
     monitor = monitor_for(session)
     monitor.set_filter(MonitorFilter(set(body.nodes), set(body.services), body.cob_min, body.cob_max))
     return monitor.filter.as_dict()

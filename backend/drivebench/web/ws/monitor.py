@@ -1,19 +1,37 @@
 """Live monitor of a session over a websocket, about 10 updates a second.
 
-One feed per session builds each update once (snapshot, new load points, new trace rows, serialised once) and
-hands it to every client; a client that falls behind gets the next update merged with the ones it missed
-(trace rows and load points are kept, counters are the newest), so a slow browser never slows the others or
-the bus. Rendering on the client is throttled to animation frames.
+Counters, load and the trace ring exist once per session; filter and pause belong to each websocket client (its
+view). One feed per session builds each update once per distinct filter among the live clients (the snapshot is
+taken once, then filtered per group; the same text goes to every client with that filter), so twenty viewers with
+the default filter cost one build. A client that falls behind gets the next update merged with the ones it missed
+(trace rows and load points are kept, counters are the newest), so a slow browser never slows the others or the
+bus. Rendering on the client is throttled to animation frames.
 
-Messages (JSON text), one schema:
+A new client starts with the session's default view (``PUT /api/.../monitor/filter``, ``POST .../pause``: those
+set the defaults for new viewers and the REST snapshot and trace; they do not change the views of connected
+clients). ``?rows=N`` asks for up to N trace rows in each hello (200 by default, at most HELLO_TRACE_ROWS_MAX).
+
+Client -> server (JSON text), to change this client's view only:
+``{"type": "view", "filter": {"nodes": [...], "services": [...], "cob_min": int, "cob_max": int}?,
+   "paused": bool?, "rows": int?}``
+The server answers with a ``hello`` (new filter, or resume from a pause: the trace starts again from the ring, so
+the rows shown are the newest that pass the new filter), or with ``{"type": "view", "view": {...}}`` (pause: no
+more updates until the resume; the page keeps what it shows), or ``{"type": "error", "detail": str}``.
+
+Server -> client (JSON text):
 
 ``{"type": "hello" | "update", "seq": int, "server_time": float (epoch s, when built),
-   "snapshot": <GET /api/sessions/{id}/monitor without "trace", except "cob_ids" (below)>,
+   "snapshot": <GET /api/sessions/{id}/monitor without "trace", except "cob_ids" (below); node and COB-ID rows
+                as this client's filter shows them; "bus": {"state": "active" | "warning" | "passive" | "bus-off",
+                "adapter_state", "tx_errors", "rx_errors", "reported_age_s"}>,
    "history": [[epoch s, load %], ...]   # completed seconds since the previous message (hello: the last 10 min)
    "trace_columns": [...], "trace": [<trace row>, ...],  # decoded telegrams since the previous message that
-                                                         # pass the filter
+                                                         # pass this client's filter
    "trace_more": bool,                   # more telegrams came than one message carries (TRACE_PER_UPDATE)
-   "recording": {"name", "format", "frames"} | null}``
+   "recording": {"name", "format", "frames"} | null,
+   "view": {"filter": {...}, "paused": bool}}``  # hello only
+
+A reset (``POST .../reset``, shared by all viewers) sends every live client a new hello.
 
 To keep updates small (each is compressed once per client), rows travel as arrays:
 ``trace`` rows in the order of ``trace_columns``: ``["seq", "time", "cob_id", "service", "group", "node", "dlc",
@@ -30,29 +48,42 @@ import asyncio
 import contextlib
 import json
 import time
-from typing import Any
+from dataclasses import replace
+from typing import Annotated, Any, Literal
 
-from fastapi import APIRouter, WebSocket, WebSocketDisconnect
+from fastapi import APIRouter, Query, WebSocket, WebSocketDisconnect
+from pydantic import BaseModel, Field, ValidationError
 
 from drivebench.errors import NotFound
-from drivebench.services.monitor import Monitor, monitor_for
+from drivebench.services.monitor import Monitor, MonitorFilter, MonitorView, monitor_for
 from drivebench.services.recording import recordings_for
 from drivebench.services.sessions import Session
+from drivebench.web.api.monitor import FilterBody
 
 router = APIRouter()
 PERIOD_S = 0.1
 TRACE_PER_UPDATE = 50
 HELLO_TRACE_ROWS = 200
+HELLO_TRACE_ROWS_MAX = 2000
+"""A hello decodes its rows on the event loop: more would hold up the other clients' updates."""
 COB_ROWS_PER_UPDATE = 512
 COB_COLUMNS = ["text", "service", "node", "total", "rate", "share_percent", "last_age_s"]
 TRACE_COLUMNS = ["seq", "time", "cob_id", "service", "group", "node", "dlc", "hex", "summary"]
 
 
 class _Client:
-    def __init__(self, websocket: WebSocket) -> None:
+    def __init__(self, websocket: WebSocket, view: MonitorView, hello_rows: int) -> None:
         self.websocket = websocket
+        self.view = view
+        self.hello_rows = hello_rows
         self.pending: list[tuple[str, dict[str, Any]]] = []
+        self.notices: list[str] = []
         self.ready = asyncio.Event()
+
+    def notify(self, text: str) -> None:
+        """A message outside the update stream (an error answer): sent as it is, before the next update."""
+        self.notices.append(text)
+        self.ready.set()
 
     def offer(self, text: str, message: dict[str, Any]) -> None:
         self.pending.append((text, message))
@@ -60,16 +91,34 @@ class _Client:
             del self.pending[:-50]
         self.ready.set()
 
+    def replace(self, text: str, message: dict[str, Any]) -> None:
+        """A hello or a view answer: what was queued for the old view is dropped."""
+        self.pending = [(text, message)]
+        self.ready.set()
+
+    def take_notices(self) -> list[str]:
+        notices, self.notices = self.notices, []
+        if not self.pending:
+            self.ready.clear()
+        return notices
+
     def take(self) -> str:
+        """The queued messages as one (the newest state, with every trace row and load point since)."""
         pending, self.pending = self.pending, []
         self.ready.clear()
         if len(pending) == 1:
             return pending[0][0]
+        first = pending[0][1]
         merged = dict(pending[-1][1])
-        merged["history"] = [point for _, message in pending for point in message["history"]]
-        trace = [row for _, message in pending for row in message["trace"]]
-        merged["trace_more"] = len(trace) > TRACE_PER_UPDATE or any(m["trace_more"] for _, m in pending)
-        merged["trace"] = trace[-TRACE_PER_UPDATE:]
+        merged["type"] = first["type"]
+        if first["type"] != "update":  # a hello (or view answer) with the updates built after it
+            merged.update({key: first[key] for key in ("view",) if key in first})
+        messages = [message for _, message in pending if "history" in message]
+        merged["history"] = [point for message in messages for point in message["history"]]
+        trace = [row for message in messages for row in message["trace"]]
+        keep = self.hello_rows if first["type"] == "hello" else TRACE_PER_UPDATE
+        merged["trace_more"] = len(trace) > keep or any(message["trace_more"] for message in messages)
+        merged["trace"] = trace[-keep:]
         return json.dumps(merged)
 
 
@@ -82,14 +131,16 @@ class Feed:
         self.clients: set[_Client] = set()
         self.seq = 0
         self.trace_seq = monitor.last_seq
+        self.resets = monitor.resets
         self.history_until = 0.0
         self.task: asyncio.Task[None] | None = None
-        self._hello: tuple[int, str] | None = None
+        self._hellos: dict[tuple[Any, ...], tuple[str, dict[str, Any]]] = {}
+        self._hellos_seq = -1
 
-    def message(self, kind: str, history: list[tuple[float, float]], trace: list[dict[str, Any]],
-                more: bool) -> dict[str, Any]:
-        """One message; an update advances ``seq``, a hello carries the seq of the update it precedes."""
-        snapshot = dict(self.monitor.snapshot())
+    def message(self, kind: str, snapshot: dict[str, Any], history: list[tuple[float, float]],
+                trace: list[dict[str, Any]], more: bool, recording: dict[str, Any] | None) -> dict[str, Any]:
+        """One message; ``snapshot`` as the client's view shows it."""
+        snapshot = dict(snapshot)
         cob_ids = snapshot["cob_ids"]
         if len(cob_ids) > COB_ROWS_PER_UPDATE:
             snapshot["cob_ids_cut"] = len(cob_ids)
@@ -97,45 +148,94 @@ class Feed:
                              key=lambda row: (row["extended"], row["cob_id"]))
         snapshot["cob_columns"] = COB_COLUMNS
         snapshot["cob_ids"] = [[row[column] for column in COB_COLUMNS] for row in cob_ids]
-        recorder = recordings_for(self.session).active
-        recording = ({"name": recorder.path.name, "format": recorder.format, "frames": recorder.frames}
-                     if recorder else None)
-        if kind == "update":
-            self.seq += 1
         return {"type": kind, "seq": self.seq, "server_time": time.time(), "snapshot": snapshot,
                 "history": history, "trace_columns": TRACE_COLUMNS,
                 "trace": [[row[column] for column in TRACE_COLUMNS] for row in trace], "trace_more": more,
                 "recording": recording}
 
-    def hello(self) -> str:
-        """The first message of a client: the newest trace rows up to where the next update starts (so the client
-        sees each telegram once), the whole load history. Clients joining within one period share one hello."""
+    def recording(self) -> dict[str, Any] | None:
+        recorder = recordings_for(self.session).active
+        return ({"name": recorder.path.name, "format": recorder.format, "frames": recorder.frames}
+                if recorder else None)
+
+    def _catch_up_reset(self) -> bool:
+        """After a reset the trace starts again at sequence number 1."""
+        if self.monitor.resets == self.resets:
+            return False
+        self.resets = self.monitor.resets
+        self.trace_seq = 0
+        return True
+
+    def hello(self, view: MonitorView, rows: int = HELLO_TRACE_ROWS) -> tuple[str, dict[str, Any]]:
+        """A client's first message (and its answer to a new filter or a resume): the newest trace rows that pass
+        its filter up to where the next update starts (so the client sees each telegram once), the whole load
+        history. Clients with the same view asking within one period share one hello."""
         if not self.clients:  # the feed was idle: start from now
             self.trace_seq = self.monitor.last_seq
-            self._hello = None
-        elif self.monitor.last_seq < self.trace_seq:  # reset since the last update
-            self.trace_seq = 0
-        if self._hello is not None and self._hello[0] == self.seq:
-            return self._hello[1]
+            self.resets = self.monitor.resets
+        self._catch_up_reset()
+        if self._hellos_seq != self.seq:
+            self._hellos, self._hellos_seq = {}, self.seq
+        key = (view.filter.key(), view.paused_at, view.epoch, rows, self.trace_seq, self.clients == set())
+        cached = self._hellos.get(key)
+        if cached is not None:
+            return cached
         history = self.monitor.history()
         if not self.clients:
             self.history_until = history[-1][0] if history else 0.0
-        rows, _ = self.monitor.trace_since(0, HELLO_TRACE_ROWS, until=self.trace_seq)
-        text = json.dumps(self.message("hello", history, rows, False))
-        self._hello = (self.seq, text)
-        return text
+        trace, _ = self.monitor.trace_since(0, rows, until=self.trace_seq, view=view)
+        message = self.message("hello", self.monitor.snapshot(view), history, trace, False, self.recording())
+        message["view"] = {"filter": view.filter.as_dict(), "paused": view.paused}
+        self._hellos[key] = json.dumps(message), message
+        return self._hellos[key]
 
     def tick(self) -> None:
-        if self.monitor.last_seq < self.trace_seq:  # reset since the last update
-            self.trace_seq = 0
-        rows, self.trace_seq = self.monitor.trace_since(self.trace_seq, TRACE_PER_UPDATE + 1)
+        if self._catch_up_reset():
+            for client in list(self.clients):
+                if not client.view.paused:
+                    client.replace(*self.hello(client.view, client.hello_rows))
+            return
+        after, newest = self.trace_seq, self.monitor.last_seq
+        self.trace_seq = newest
         history = self.monitor.history(self.history_until)
         if history:
             self.history_until = history[-1][0]
-        message = self.message("update", history, rows[-TRACE_PER_UPDATE:], len(rows) > TRACE_PER_UPDATE)
-        text = json.dumps(message)
+        groups: dict[tuple[Any, ...], list[_Client]] = {}
         for client in list(self.clients):
-            client.offer(text, message)
+            if not client.view.paused:
+                groups.setdefault(client.view.filter.key(), []).append(client)
+        if not groups:
+            return
+        self.seq += 1
+        live = self.monitor.live_snapshot()
+        recording = self.recording()
+        for members in groups.values():
+            view = members[0].view
+            rows, _ = self.monitor.trace_since(after, TRACE_PER_UPDATE + 1, until=newest, view=view)
+            message = self.message("update", self.monitor.view_snapshot(live, view), history,
+                                   rows[-TRACE_PER_UPDATE:], len(rows) > TRACE_PER_UPDATE, recording)
+            text = json.dumps(message)
+            for client in members:
+                client.offer(text, message)
+
+    def change_view(self, client: _Client, request: ViewRequest) -> None:
+        """Apply a client's view message and queue the answer (see the module docstring)."""
+        view = client.view
+        if request.rows is not None:
+            client.hello_rows = request.rows
+        if request.filter is not None:
+            body = request.filter
+            self.monitor.set_filter(MonitorFilter(set(body.nodes), set(body.services), body.cob_min, body.cob_max),
+                                    view)
+        if request.paused is True and not view.paused:
+            self.monitor.pause(view)
+            if request.filter is None:
+                answer = {"type": "view", "view": {"filter": view.filter.as_dict(), "paused": True}}
+                client.replace(json.dumps(answer), answer)
+                return
+        if request.paused is False:
+            self.monitor.resume(view)
+        client.replace(*self.hello(view, client.hello_rows))
 
     async def run(self) -> None:
         loop = asyncio.get_running_loop()
@@ -150,6 +250,15 @@ class Feed:
             await asyncio.sleep(delay)
 
 
+class ViewRequest(BaseModel):
+    """A client's message: its own filter, pause, hello size."""
+
+    type: Literal["view"]
+    filter: FilterBody | None = None
+    paused: bool | None = None
+    rows: int | None = Field(None, ge=1, le=HELLO_TRACE_ROWS_MAX)
+
+
 def _feed(websocket: WebSocket, session: Session) -> Feed:
     feeds: dict[str, Feed] | None = getattr(websocket.app.state, "monitor_feeds", None)
     if feeds is None:
@@ -161,19 +270,33 @@ def _feed(websocket: WebSocket, session: Session) -> Feed:
     return feed
 
 
-async def _receive_until_closed(websocket: WebSocket) -> None:
+async def _receive_views(websocket: WebSocket, feed: Feed, client: _Client) -> None:
+    """The client's view messages, until it goes away."""
     while True:
-        await websocket.receive_text()
+        text = await websocket.receive_text()
+        try:
+            request = ViewRequest.model_validate_json(text)
+        except ValidationError as exc:
+            problems = "; ".join(f"{'.'.join(str(part) for part in error['loc'])}: {error['msg']}"
+                                 for error in exc.errors(include_url=False))
+            answer = {"type": "error", "detail": f"Not a view message: {problems}"}
+            client.notify(json.dumps(answer))
+            continue
+        feed.change_view(client, request)
 
 
 async def _send_loop(client: _Client) -> None:
     while True:
         await client.ready.wait()
-        await client.websocket.send_text(client.take())
+        for notice in client.take_notices():
+            await client.websocket.send_text(notice)
+        if client.pending:
+            await client.websocket.send_text(client.take())
 
 
 @router.websocket("/ws/sessions/{session_id}/monitor")
-async def monitor_stream(websocket: WebSocket, session_id: str) -> None:
+async def monitor_stream(websocket: WebSocket, session_id: str,
+                         rows: Annotated[int, Query(ge=1, le=HELLO_TRACE_ROWS_MAX)] = HELLO_TRACE_ROWS) -> None:
     await websocket.accept()
     try:
         session = websocket.app.state.drivebench.manager.get(session_id)
@@ -181,17 +304,19 @@ async def monitor_stream(websocket: WebSocket, session_id: str) -> None:
         await websocket.close(code=4404, reason=f"No open session '{session_id}'")
         return
     feed = _feed(websocket, session)
-    client = _Client(websocket)
+    defaults = feed.monitor.defaults
+    view = MonitorView(filter=replace(defaults.filter), paused_at=defaults.paused_at, frozen=defaults.frozen,
+                       epoch=defaults.epoch)
+    client = _Client(websocket, view, rows)
     sender: asyncio.Task[None] | None = None
     try:
-        hello = feed.hello()
+        hello, _ = feed.hello(view, rows)
         feed.clients.add(client)  # before the first await: updates built from now on queue behind the hello
         if feed.task is None or feed.task.done():
             feed.task = asyncio.create_task(feed.run())
         await websocket.send_text(hello)
         sender = asyncio.create_task(_send_loop(client))
-        # The client says nothing; receiving notices the disconnect.
-        receiver = asyncio.create_task(_receive_until_closed(websocket))
+        receiver = asyncio.create_task(_receive_views(websocket, feed, client))
         done, _ = await asyncio.wait({sender, receiver}, return_when=asyncio.FIRST_COMPLETED)
         receiver.cancel()
         for task in done:
