@@ -20,6 +20,7 @@ from drivebench.services.sessions import Session, SessionNode
 from drivebench.services.views import node_public
 from drivebench.web.api.parameters import jobs_of
 from drivebench.web.deps import NodeDep, SessionDep
+from drivebench.web.pages.node_info import IdentityShown, shown
 from drivebench.web.templating import templates
 
 router = APIRouter(include_in_schema=False)
@@ -71,11 +72,16 @@ def _parameters_context(session: Session, node: SessionNode, q: str = "", group:
             "settings": service.service(session).settings}
 
 
+def _vendor(node: SessionNode) -> tuple[int | None, str]:
+    identity = node.profile.identity if node.profile else None
+    return (identity.vendor_id, identity.vendor_name) if identity else (None, "")
+
+
 def _tab_context(session: Session, node: SessionNode, tab: str) -> dict[str, Any]:
     if tab == "parameters":
         return _parameters_context(session, node)
     if tab == "info":
-        return {"identity_rows": [(label, ref, node.identity.get(key)) for (label, ref), key in
+        return {"identity_rows": [shown(label, ref, node.identity.get(key), _vendor(node)) for (label, ref), key in
                                   zip(IDENTITY, ["device_type", "vendor_id", "product_code", "revision", "serial"],
                                       strict=True)]}
     return {}
@@ -154,22 +160,23 @@ async def sdo_settings(request: Request, session: SessionDep, node: NodeDep,
 # --- info tab --------------------------------------------------------------------------------------------
 @router.post(UI + "/info/read", response_class=HTMLResponse)
 async def read_info(request: Request, session: SessionDep, node: NodeDep) -> Response:
-    rows: list[tuple[str, str, str]] = []
+    rows: list[IdentityShown] = []
     for label, ref in IDENTITY:
         try:
             value = await service.read(session, node.node_id, ref)
-            shown = f"0x{value.raw:08X}" if isinstance(value.raw, int) else value.display
+            row = (shown(label, ref, value.raw, _vendor(node)) if isinstance(value.raw, int)
+                   else IdentityShown(label, ref, value.display, ""))
         except SdoTimeoutError as exc:
             raise NodeOffline(f"Node {node.node_id} does not answer: {exc.detail}") from exc
         except DriveBenchError as exc:
-            shown = f"– ({exc.title})"
-        rows.append((label, ref, shown))
+            row = IdentityShown(label, ref, f"– ({exc.title})", "")
+        rows.append(row)
     for ref in FIRMWARE_REFS:
         try:
             value = await service.read(session, node.node_id, ref)
         except DriveBenchError:
             continue
-        rows.append(("Firmware / software", value.ref, value.display))
+        rows.append(IdentityShown("Firmware / software", value.ref, value.display, ""))
         break
     context = _base(request, session, node, "info", live_rows=rows)
     return templates.TemplateResponse(request, "node/info.html", context, block_name="identity_live")
