@@ -179,3 +179,83 @@ def test_missing_actual_values_are_named(bench: Bench) -> None:
     assert drive_control.missing_actuals(bench.session.node(MM)) == ["Current", "DC-bus voltage",
                                                                       "Heat-sink temperature"]
     assert drive_control.missing_actuals(bench.session.node(VECTOR)) == ["Current", "DC-bus voltage", "Torque"]
+
+
+ANNA = drive_control.Panel("panel:anna", "Anna at 10.0.0.7")
+BEN = drive_control.Panel("panel:ben", "Ben at 10.0.0.9")
+
+
+def test_the_panel_that_armed_the_drive_holds_it(bench: Bench) -> None:
+    """Anna enables: only she moves the drive and keeps it alive; Ben watches, sees who holds it, may stop it."""
+    bench.run(parameters.write(bench.session, MM, "P0700", 6))
+    bench.until(MM, "switch_on_disabled")
+    node = bench.session.node(MM)
+    bench.command(MM, Command.SHUTDOWN)
+    status = bench.run(drive_control.command(bench.session, node, Command.ENABLE_OPERATION, confirm=True, panel=ANNA))
+    assert status.you_hold and status.holder and status.holder.startswith("Anna at 10.0.0.7 since ")
+    seen_by_ben = bench.run(drive_control.read_status(bench.session, node, BEN))
+    assert seen_by_ben.armed and not seen_by_ben.you_hold and seen_by_ben.holder == status.holder
+    refused = [drive_control.set_setpoint(bench.session, node, 100, confirm=True, panel=BEN),
+               drive_control.set_setpoint(bench.session, node, 0, panel=BEN),
+               drive_control.jog(bench.session, node, 1, confirm=True, panel=BEN),
+               drive_control.set_mode(bench.session, node, 2, confirm=True, panel=BEN),
+               drive_control.command(bench.session, node, Command.ENABLE_OPERATION, confirm=True, panel=BEN)]
+    for attempt in refused:
+        with pytest.raises(Conflict, match=r"held by Anna at 10\.0\.0\.7"):
+            bench.run(attempt)
+    guard = drive_control.guard_for(bench.session)
+    assert not guard.keepalive(MM, BEN) and guard.keepalive(MM, ANNA)
+    bench.run(drive_control.set_setpoint(bench.session, node, 100, confirm=True, panel=ANNA))
+    assert bench.plant.nodes[MM].store.get_ref("0x6042") == 100
+    stopped = bench.run(drive_control.command(bench.session, node, Command.QUICK_STOP, panel=BEN))
+    assert not stopped.armed and stopped.holder is None  # any panel may stop the drive; that frees it
+    bench.until(MM, "switch_on_disabled")
+    bench.command(MM, Command.SHUTDOWN)
+    status = bench.run(drive_control.command(bench.session, node, Command.ENABLE_OPERATION, confirm=True, panel=BEN))
+    assert status.you_hold and status.holder and status.holder.startswith("Ben")
+    bench.command(MM, Command.DISABLE_VOLTAGE)
+
+
+def test_only_the_holders_last_panel_closing_trips(bench: Bench) -> None:
+    """Websocket bookkeeping of the guard: watchers come and go, the holder's second tab closing is no trip."""
+    guard = drive_control.Guard(bench.session)
+    guard.holders[MM], guard.deadlines[MM] = drive_control.Holder(ANNA, time.time()), time.monotonic() + 60
+    guard.opened(MM, ANNA)
+    guard.opened(MM, ANNA)
+    guard.opened(MM, BEN)
+    assert guard.panels(MM) == 3 and guard.panels(VECTOR) == 0
+    assert not guard.closed(MM, BEN)
+    assert not guard.closed(MM, ANNA)
+    assert guard.closed(MM, ANNA)
+    assert guard.panels(MM) == 0
+
+
+def test_8200_vector_jogs_with_its_own_jog1(bench: Bench) -> None:
+    """EMF2178IB ch. 9.3.1.1: AIF-CTRL bits 1/0 = 01 select NSET1-JOG1 (C0037, 20 Hz here), bit 2 reverses."""
+    node = bench.session.node(VECTOR)
+    bench.run(parameters.write(bench.session, VECTOR, "C0001", 3))
+    bench.command(VECTOR, Command.SHUTDOWN)
+    bench.command(VECTOR, Command.ENABLE_OPERATION, confirm=True)
+    plan = bench.run(drive_control.jog_plan(bench.session, node))
+    assert plan.method == "device" and plan.value == 20 and plan.unit == "Hz" and "C0037" in plan.text
+    with pytest.raises(Conflict, match="confirm"):
+        bench.run(drive_control.jog(bench.session, node, 1))
+    for direction, hz in ((1, 20), (-1, -20), (0, 0)):
+        status = bench.run(drive_control.jog(bench.session, node, direction, confirm=True))
+        assert status.control_word is not None
+        assert status.control_word & 0x07 == {1: 0x01, -1: 0x05, 0: 0x00}[direction]
+        assert bench.plant.nodes[VECTOR].store.get_ref("C1822/2") == 0  # no setpoint: the device's JOG1 runs
+        deadline = time.monotonic() + 8
+        while (actual := bench.run(drive_control.read_actuals(bench.session, node))[0]).value != hz:
+            assert time.monotonic() < deadline, f"actual stays {actual.value} Hz, expected {hz}"
+            drive_control.guard_for(bench.session).keepalive(VECTOR)
+            bench.run(asyncio.sleep(0.05))
+    bench.command(VECTOR, Command.DISABLE_OPERATION)
+
+
+def test_jog_plans_of_the_other_devices(bench: Bench) -> None:
+    """No jog bits in the MICROMASTER or 8400 CANopen manuals: setpoint jog, the 8400 at its C00039/1 JOG1 value."""
+    motec = bench.run(drive_control.jog_plan(bench.session, bench.session.node(MOTEC)))
+    assert motec.method == "setpoint" and motec.value == 600 and "C00039/1" in motec.text  # 40 % of 1500 rpm
+    micromaster = bench.run(drive_control.jog_plan(bench.session, bench.session.node(MM)))
+    assert micromaster.method == "setpoint" and micromaster.value == 150 and "no jog" in micromaster.text

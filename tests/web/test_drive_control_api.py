@@ -53,14 +53,15 @@ def test_first_run_needs_confirmation_and_goes_back(client: TestClient) -> None:
     assert "confirm" in refused.json()["detail"]
     enabled = client.post(_url(MM, "/commands/enable_operation"), json={"confirm": True}).json()
     assert enabled["state"] == "operation_enabled" and enabled["armed"]
-    assert client.post(_url(MM, "/keepalive")).json() == {"armed": True}  # the 2 s keep-alive deadline restarts
+    kept = client.post(_url(MM, "/keepalive")).json()  # the 2 s keep-alive deadline restarts
+    assert kept["armed"] and kept["holder"].startswith("an API client at testclient since ")
     assert client.put(_url(MM, "/setpoint"), json={"value": 200}).status_code == 409
     assert client.put(_url(MM, "/setpoint"), json={"value": 9000, "confirm": True}).status_code == 422
     assert client.put(_url(MM, "/setpoint"), json={"value": 200, "confirm": True}).json()["control_word"] == 0x7F
-    assert client.post(_url(MM, "/keepalive")).json() == {"armed": True}
+    assert client.post(_url(MM, "/keepalive")).json()["armed"]
     back = client.post(_url(MM, "/commands/shutdown")).json()
-    assert back["state"] == "ready" and not back["armed"]
-    assert client.post(_url(MM, "/keepalive")).json() == {"armed": False}
+    assert back["state"] == "ready" and not back["armed"] and back["holder"] is None
+    assert client.post(_url(MM, "/keepalive")).json() == {"armed": False, "holder": None}
     assert client.post(_url(MM, "/commands/nonsense")).status_code == 422
 
 
@@ -122,3 +123,63 @@ def test_jog_runs_only_when_enabled_and_stops_with_zero(client: TestClient) -> N
     client.post(_url(MM, "/jog"), json={"direction": 0})
     assert client.get(f"/api/sessions/demo-plant/nodes/{MM}/parameters/0x6042").json()["value"] == 0
     assert client.post(_url(MM, "/jog"), json={"direction": 2}).status_code == 422
+
+
+def _ws(panel: str, operator: str) -> str:
+    return f"/ws/sessions/demo-plant/nodes/{MM}/control?panel={panel}&operator={operator}"
+
+
+def _next_status(socket: Any) -> dict[str, Any]:
+    message = socket.receive_json()
+    while message["type"] != "status":
+        message = socket.receive_json()
+    status: dict[str, Any] = message["status"]
+    return status
+
+
+def test_two_panels_the_holder_moves_the_watcher_watches(client: TestClient) -> None:
+    """Anna's panel enables the drive and holds it; Ben's panel sees who holds it, cannot move it, and closing it
+    does not stop Anna's drive. Closing Anna's panel quick-stops."""
+    _can_control(client)
+    _until(client, MM, "switch_on_disabled")
+    anna = {"X-Drive-Panel": "a1b2c3", "X-Drive-Operator": "Anna"}
+    ben = {"X-Drive-Panel": "d4e5f6", "X-Drive-Operator": "Ben%20K."}
+    client.post(_url(MM, "/commands/shutdown"), headers=anna)
+    with client.websocket_connect(_ws("a1b2c3", "Anna")) as anna_socket:
+        with client.websocket_connect(_ws("d4e5f6", "Ben")) as ben_socket:
+            enabled = client.post(_url(MM, "/commands/enable_operation"), json={"confirm": True}, headers=anna)
+            assert enabled.json()["you_hold"]
+            status = _next_status(ben_socket)
+            while not status["armed"]:
+                anna_socket.send_json({"cmd": "keepalive"})
+                status = _next_status(ben_socket)
+            assert not status["you_hold"] and status["holder"].startswith("Anna at testclient since ")
+            assert status["panels"] == 2
+            refused = client.put(_url(MM, "/setpoint"), json={"value": 100, "confirm": True}, headers=ben)
+            assert refused.status_code == 409 and "held by Anna at testclient" in refused.json()["detail"]
+            assert client.post(_url(MM, "/keepalive"), headers=ben).json()["armed"] is False
+            assert client.get(_url(MM), headers=ben).json()["holder"].startswith("Anna")
+        status = _next_status(anna_socket)
+        while status["panels"] != 1:  # Ben's panel closed
+            anna_socket.send_json({"cmd": "keepalive"})
+            status = _next_status(anna_socket)
+        anna_socket.send_json({"cmd": "keepalive"})
+        status = _next_status(anna_socket)
+        assert status["state"] == "operation_enabled" and status["armed"] and status["you_hold"]
+        assert status["last_trip"] is None
+        assert client.post(_url(MM, "/keepalive"), headers=anna).json()["armed"]
+    status = _until(client, MM, "switch_on_disabled")  # the holder's panel closed: quick stop
+    assert "holding the drive disconnected" in status["last_trip"] and "(held by Anna" in status["last_trip"]
+
+
+def test_8200_vector_jog_plan_and_device_jog(client: TestClient) -> None:
+    plan = client.get(_url(VECTOR, "/jog")).json()
+    assert plan["method"] == "device" and plan["value"] == 20 and plan["unit"] == "Hz"
+    client.put(f"/api/sessions/demo-plant/nodes/{VECTOR}/parameters/C0001", json={"value": "3"})
+    client.post(_url(VECTOR, "/commands/shutdown"))
+    client.post(_url(VECTOR, "/commands/enable_operation"), json={"confirm": True})
+    jogging = client.post(_url(VECTOR, "/jog"), json={"direction": -1, "confirm": True}).json()
+    assert jogging["control_word"] & 0x07 == 0x05 and jogging["control_bits"][0]["set"]  # JOG1, CCW
+    stopped = client.post(_url(VECTOR, "/jog"), json={"direction": 0}).json()
+    assert stopped["control_word"] & 0x07 == 0
+    client.post(_url(VECTOR, "/commands/disable_operation"))

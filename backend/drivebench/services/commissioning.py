@@ -353,15 +353,19 @@ async def _execute(session: Session, node: SessionNode, step: Step) -> str | Non
     return None if raw == step.expect_value else f"{step.expect_ref} = {raw!r}, expected {step.expect_value}."
 
 
-async def next_step(session: Session, node: SessionNode, run: Run, *, confirm: bool = False) -> Run:
+async def next_step(session: Session, node: SessionNode, run: Run, *, confirm: bool = False,
+                    panel: drive_control.Panel = drive_control.SERVICE_PANEL) -> Run:
+    """Run the next step; while another panel holds the armed drive, this panel cannot run steps."""
     async with run.lock:
         if run.finished:
             raise Conflict("This commissioning run is finished; start it again to repeat it.")
         step = run.sequence.steps[run.position]
+        guard = drive_control.guard_for(session)
+        guard.check(node.node_id, panel, f"Step {run.position + 1} ({step.title})")
         if step.moves:
             if not confirm:
                 raise Conflict(f"Step {run.position + 1} ({step.title}) can make the motor turn: confirm it.")
-            drive_control.guard_for(session).arm(node.node_id)
+            guard.arm(node.node_id, panel)
         capture = _Capture(node.node_id)
         session.add_frame_listener(capture)
         t0 = time.time()

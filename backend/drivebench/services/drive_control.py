@@ -4,6 +4,11 @@ Safety interlocks (the access-control issue's rules): every command after which 
 ``confirm=True``; once such a command was sent the node is *armed*: the client must send keep-alives (websocket
 message or POST) at least every :data:`KEEPALIVE_TIMEOUT_S`; when they stop, or the panel's websocket closes, the
 server sends quick stop. Shutdown, disable and quick stop disarm.
+
+Several panels on one node: the panel that armed the drive *holds* it until the drive is disarmed. Only the holder
+moves it (enable, setpoint, jog, mode, fault reset, commissioning steps) and only its keep-alives count; closing the
+holder's last websocket quick-stops. Every other panel watches: it sees who holds the drive and since when, and it
+may still stop the drive (quick stop, disable, shutdown), as any station of a machine may - which disarms it.
 """
 
 from __future__ import annotations
@@ -12,6 +17,7 @@ import asyncio
 import time
 import weakref
 from dataclasses import dataclass
+from urllib.parse import unquote
 
 from pydantic import BaseModel
 
@@ -37,6 +43,27 @@ KEEPALIVE_TIMEOUT_S = 2.0
 WATCH_PERIOD_S = 0.2
 MODES = {2: "Velocity mode", 4: "Profile torque mode"}  # MICROMASTER table 3-20 (profile torque: MM440 only)
 CW_RUN_RFG = 0x70  # MICROMASTER velocity mode: RFG enable, RFG start, setpoint enable
+
+
+@dataclass(frozen=True)
+class Panel:
+    """Who sends a command: one control panel (browser tab) or one API client. ``key`` identifies it, ``who`` is
+    what the other panels are shown."""
+
+    key: str
+    who: str
+
+
+SERVICE_PANEL = Panel("service", "a DriveBench service call")
+
+
+def panel_of(host: str | None, panel_id: str | None, operator: str | None) -> Panel:
+    """The panel a request or websocket comes from: its id (one per browser tab) or, without one, its host."""
+    where = host or "an unknown host"
+    name = unquote(operator or "").strip()[:40]  # browsers send it URI-encoded (headers are Latin-1)
+    if panel_id:
+        return Panel(key=f"panel:{panel_id[:64]}", who=f"{name or 'panel ' + panel_id[:6]} at {where}")
+    return Panel(key=f"client:{where}", who=f"{name or 'an API client'} at {where}")
 
 
 # --- setpoint and actual values --------------------------------------------------------------------------------
@@ -201,6 +228,12 @@ class DriveStatus(BaseModel):
     setpoint_min: float | None
     setpoint_max: float | None
     armed: bool
+    holder: str | None
+    """Who holds the armed drive, and since when (None: nobody, any panel may arm it)."""
+    you_hold: bool
+    """The panel asking is the holder (False for watchers and while nobody holds the drive)."""
+    panels: int
+    """Control panels (websockets) open on this node."""
     last_trip: str | None
 
 
@@ -230,8 +263,9 @@ async def _mode(session: Session, node: SessionNode) -> int | None:
     return int(raw) if isinstance(raw, int) else None
 
 
-async def read_status(session: Session, node: SessionNode) -> DriveStatus:
+async def read_status(session: Session, node: SessionNode, panel: Panel = SERVICE_PANEL) -> DriveStatus:
     fam = family(node)
+    read_at = time.monotonic()
     status_word = await _word(session, node.node_id, fam.status_ref)
     try:
         control_word: int | None = await _word(session, node.node_id, fam.control_ref)
@@ -242,7 +276,8 @@ async def read_status(session: Session, node: SessionNode) -> DriveStatus:
     key, label, enabled, fault = describe(fam, status_word)
     guard = guard_for(session)
     if not enabled:
-        guard.release(node.node_id)
+        guard.release(node.node_id, armed_before=read_at)  # not a command that armed it while the word was read
+    holder = guard.holder(node.node_id)
     return DriveStatus(
         node_id=node.node_id, family=fam.key, title=fam.title, note=fam.note, state=key, state_label=label,
         enabled=enabled, fault=fault, status_ref=fam.status_ref, status_word=status_word,
@@ -255,6 +290,8 @@ async def read_status(session: Session, node: SessionNode) -> DriveStatus:
         mode=mode, mode_label=MODES.get(mode) if mode is not None else None,
         modes=MODES if mode is not None else {}, setpoint_ref=scale.ref, setpoint_unit=scale.unit,
         setpoint_min=scale.minimum, setpoint_max=scale.maximum, armed=guard.armed(node.node_id),
+        holder=holder.text() if holder else None, you_hold=bool(holder and holder.panel.key == panel.key),
+        panels=guard.panels(node.node_id),
         last_trip=guard.trips.get(node.node_id))
 
 
@@ -275,10 +312,18 @@ async def _last_control_word(session: Session, node: SessionNode) -> int:
         return 0
 
 
-async def command(session: Session, node: SessionNode, which: Command, *, confirm: bool = False) -> DriveStatus:
+STOPPING = {Command.SHUTDOWN, Command.DISABLE_VOLTAGE, Command.QUICK_STOP, Command.DISABLE_OPERATION}
+
+
+async def command(session: Session, node: SessionNode, which: Command, *, confirm: bool = False,
+                  panel: Panel = SERVICE_PANEL) -> DriveStatus:
+    """Send one transition. Stopping commands are open to every panel; the others only to the holder."""
     fam = family(node)
     if which not in fam.commands:
         raise InvalidValue(f"{COMMAND_LABELS[which]} is not a command of {fam.title}.")
+    guard = guard_for(session)
+    if which not in STOPPING:
+        guard.check(node.node_id, panel, COMMAND_LABELS[which])
     if which in MOVING:
         _confirmed(confirm, COMMAND_LABELS[which])
     last = await _last_control_word(session, node)
@@ -286,24 +331,26 @@ async def command(session: Session, node: SessionNode, which: Command, *, confir
     edge = fam.edge_bits.get(which)
     if edge is not None and last & edge:
         await write_control_word(session, node, last & ~edge)  # a rising edge needs the bit at 0 first
-    guard = guard_for(session)
     if which in MOVING:
-        guard.arm(node.node_id)
+        guard.arm(node.node_id, panel)
     await write_control_word(session, node, word)
-    if which in (Command.SHUTDOWN, Command.DISABLE_VOLTAGE, Command.QUICK_STOP, Command.DISABLE_OPERATION):
+    if which in STOPPING:
         guard.release(node.node_id)
-    return await read_status(session, node)
+    return await read_status(session, node, panel)
 
 
-async def set_setpoint(session: Session, node: SessionNode, value: float, *, confirm: bool = False) -> DriveStatus:
+async def set_setpoint(session: Session, node: SessionNode, value: float, *, confirm: bool = False,
+                       panel: Panel = SERVICE_PANEL) -> DriveStatus:
     fam = family(node)
+    guard = guard_for(session)
+    guard.check(node.node_id, panel, "Setpoint")
     scale = await setpoint_scale(session, node, await _mode(session, node))
     if (scale.minimum is not None and value < scale.minimum) or (scale.maximum is not None and value > scale.maximum):
         raise OutOfRange(f"Setpoint {value:g} {scale.unit} is outside {scale.minimum:g} ... {scale.maximum:g} "
                          f"{scale.unit}.")
     if value != 0:
         _confirmed(confirm, f"Setpoint {value:g} {scale.unit}")
-        guard_for(session).arm(node.node_id)
+        guard.arm(node.node_id, panel)
     if scale.raw_per_unit:
         raw = round(value * scale.raw_per_unit) & 0xFFFF
         await parameters.write(session, node.node_id, scale.ref, raw, check=False, verify=False)
@@ -313,82 +360,195 @@ async def set_setpoint(session: Session, node: SessionNode, value: float, *, con
         last = await _last_control_word(session, node)
         if last & 0x0F == 0x0F and last & CW_RUN_RFG != CW_RUN_RFG:  # velocity mode: run the ramp (0x7F)
             await write_control_word(session, node, last | CW_RUN_RFG)
-    return await read_status(session, node)
+    return await read_status(session, node, panel)
 
 
-def jog_value(status: DriveStatus) -> float:
-    """10 % of the setpoint range."""
-    top = status.setpoint_max or 100.0
-    return round(top / 10, 1)
+# --- jog -----------------------------------------------------------------------------------------------------
+EMF_JOG1 = 0x0001  # AIF-CTRL bits 1/0 = 01: NSET1-JOG1 (C0037) active (EMF2178IB ch. 9.3.1.1, C0007 <= 51)
+EMF_JOG_SELECT = 0x0003
+EMF_CCW = 0x0004  # bit 2: DCTRL1-CW/CCW
 
 
-async def jog(session: Session, node: SessionNode, direction: int, *, confirm: bool = False) -> DriveStatus:
-    """Hold-to-run: +1 / -1 runs at the jog value while the keep-alive lasts, 0 stops (setpoint 0)."""
+class JogPlan(BaseModel):
+    """How the panel jogs this device: with the device's own jog function or by a setpoint."""
+
+    method: str
+    """"device" (the control word selects the device's JOG value) or "setpoint" (the panel sends a setpoint)."""
+    value: float
+    unit: str
+    text: str
+
+
+async def _number(session: Session, node: SessionNode, ref: str, default: float) -> float:
+    if not has_ref(_catalog(node), ref):
+        return default
+    value = (await parameters.read(session, node.node_id, ref)).value
+    return float(value) if isinstance(value, (int, float)) else default
+
+
+async def jog_plan(session: Session, node: SessionNode) -> JogPlan:
+    fam, catalog = family(node), _catalog(node)
+    scale = await setpoint_scale(session, node, await _mode(session, node))
+    why = "this device's manual gives the panel no jog function"
+    if fam is EMF and _is_8200(catalog) and has_ref(catalog, "C0037"):
+        if await _number(session, node, "C0007", 0) <= 51:
+            hz = await _number(session, node, "C0037", 0)
+            return JogPlan(method="device", value=hz, unit="Hz",
+                           text=f"Device jog: {fam.control_ref} bits 1/0 = 01 select NSET1-JOG1 (C0037 = {hz:g} Hz), "
+                                "bit 2 (DCTRL1-CW/CCW) turns it round (EMF2178IB ch. 9.3.1.1).")
+        why = "with C0007 > 51 control bits 0/1 are freely configurable, not the JOG selection"
+    elif fam is L8400 and has_ref(catalog, "C00039/1"):
+        percent = await _number(session, node, "C00039/1", 0)
+        rpm = round(percent / 100 * await _number(session, node, "C00011", 1500), 1)
+        return JogPlan(method="setpoint", value=rpm, unit="rpm",
+                       text=f"Setpoint jog at C00039/1 Fixed setpoint-JOG1 = {percent:g} % of C00011 = {rpm:g} rpm, "
+                            "sent as the speed setpoint (CAN1_IN word 2): the 8400 CANopen manual names no "
+                            "control-word bit that selects JOG1.")
+    elif fam is CIA402:
+        why = "the MICROMASTER CANopen manual gives no jog (control bit 8 is 'Halt, not used in CAN')"
+    elif fam is EMF_AIF:
+        why = "the EMF2178IB manual names NSET-JOG*1/*2 (control bits 0/1) for the 93XX but not its JOG values"
+    top = scale.maximum or 100.0
+    value = round(top / 10, 1)
+    return JogPlan(method="setpoint", value=value, unit=scale.unit,
+                   text=f"Setpoint jog at 10 % of the range ({value:g} {scale.unit}): {why}.")
+
+
+async def jog(session: Session, node: SessionNode, direction: int, *, confirm: bool = False,
+              panel: Panel = SERVICE_PANEL) -> DriveStatus:
+    """Hold-to-run: +1 / -1 runs at the jog value while the keep-alive lasts, 0 stops."""
     if direction not in (-1, 0, 1):
         raise InvalidValue("Jog direction is -1, 0 or 1.")
-    status = await read_status(session, node)
+    guard = guard_for(session)
+    guard.check(node.node_id, panel, "Jog")
+    status = await read_status(session, node, panel)
     if direction and not status.enabled:
         raise Conflict(f"Jog needs the drive in operation enabled (it is in '{status.state_label}').")
-    return await set_setpoint(session, node, direction * jog_value(status), confirm=confirm)
+    plan = await jog_plan(session, node)
+    if plan.method == "setpoint":
+        return await set_setpoint(session, node, direction * plan.value, confirm=confirm, panel=panel)
+    if direction:
+        _confirmed(confirm, f"Jog at {plan.value:g} {plan.unit}")
+        guard.arm(node.node_id, panel)
+    word = await _last_control_word(session, node) & ~(EMF_JOG_SELECT | EMF_CCW)
+    if direction:
+        word |= EMF_JOG1 | (EMF_CCW if direction < 0 else 0)
+    await write_control_word(session, node, word)
+    return await read_status(session, node, panel)
 
 
-async def set_mode(session: Session, node: SessionNode, mode: int, *, confirm: bool = False) -> DriveStatus:
+async def set_mode(session: Session, node: SessionNode, mode: int, *, confirm: bool = False,
+                   panel: Panel = SERVICE_PANEL) -> DriveStatus:
     if family(node) is not CIA402 or not has_ref(_catalog(node), "0x6060"):
         raise InvalidValue(f"{node.device_name} has no modes of operation (0x6060).")
     if mode not in MODES:
         raise InvalidValue(f"Mode {mode} is not supported: the MICROMASTER knows 2 (velocity) and 4 (profile torque).")
-    status = await read_status(session, node)
+    guard_for(session).check(node.node_id, panel, "Changing the mode of operation")
+    status = await read_status(session, node, panel)
     if status.enabled:
         _confirmed(confirm, "Changing the mode of operation while the drive is enabled")
     await parameters.write(session, node.node_id, "0x6060", mode, verify=False)
-    status = await read_status(session, node)
+    status = await read_status(session, node, panel)
     if status.mode != mode:
         raise Conflict(f"0x6061 shows {status.mode} after writing 0x6060 = {mode}: the MICROMASTER takes 0x6060 only "
                        "once P1501 = r2091.12 (0x082B000C), see the commissioning wizard step 5.")
     return status
 
 
-# --- keep-alive guard ----------------------------------------------------------------------------------------
+# --- keep-alive guard and the holder of a drive --------------------------------------------------------------
+@dataclass(frozen=True)
+class Holder:
+    panel: Panel
+    since: float  # unix time
+
+    def text(self) -> str:
+        return f"{self.panel.who} since {time.strftime('%H:%M:%S', time.localtime(self.since))}"
+
+
 class Guard:
-    """Armed nodes of one session and their keep-alive deadlines; quick stop when a deadline passes."""
+    """Armed nodes of one session: who holds each, the keep-alive deadlines, the open panels; quick stop when the
+    holder's keep-alive stops or its last panel closes."""
 
     def __init__(self, session: Session) -> None:
         self._session = weakref.ref(session)
         self.deadlines: dict[int, float] = {}
+        self.holders: dict[int, Holder] = {}
+        self.armed_at: dict[int, float] = {}
         self.trips: dict[int, str] = {}
+        self.sockets: dict[tuple[int, str], int] = {}
         self._task: asyncio.Task[None] | None = None
 
     def armed(self, node_id: int) -> bool:
         return node_id in self.deadlines
 
-    def arm(self, node_id: int) -> None:
+    def holder(self, node_id: int) -> Holder | None:
+        return self.holders.get(node_id) if node_id in self.deadlines else None
+
+    def check(self, node_id: int, panel: Panel, what: str) -> None:
+        """Refuse ``what`` when another panel holds the armed node."""
+        holder = self.holder(node_id)
+        if holder is not None and holder.panel.key != panel.key:
+            raise Conflict(f"{what} refused: node {node_id} is held by {holder.text()}. This panel watches: it can "
+                           "stop the drive (quick stop, disable) but not move it.")
+
+    def arm(self, node_id: int, panel: Panel = SERVICE_PANEL) -> None:
+        self.check(node_id, panel, "Arming")
+        if self.holder(node_id) is None:
+            self.holders[node_id] = Holder(panel, time.time())
+        self.armed_at[node_id] = time.monotonic()
         self.deadlines[node_id] = time.monotonic() + KEEPALIVE_TIMEOUT_S
         self.trips.pop(node_id, None)
         self._ensure_watch()
 
-    def keepalive(self, node_id: int) -> bool:
-        if node_id in self.deadlines:
-            self.deadlines[node_id] = time.monotonic() + KEEPALIVE_TIMEOUT_S
-            return True
-        return False
+    def keepalive(self, node_id: int, panel: Panel = SERVICE_PANEL) -> bool:
+        """Restart the deadline if ``panel`` holds the node (a watcher's keep-alive keeps nothing alive)."""
+        holder = self.holder(node_id)
+        if holder is None or holder.panel.key != panel.key:
+            return False
+        self.deadlines[node_id] = time.monotonic() + KEEPALIVE_TIMEOUT_S
+        return True
 
-    def release(self, node_id: int) -> None:
+    def release(self, node_id: int, armed_before: float | None = None) -> None:
+        """Disarm; with ``armed_before``, only if the last arming happened before that (monotonic) time."""
+        if armed_before is not None and self.armed_at.get(node_id, 0.0) >= armed_before:
+            return
         self.deadlines.pop(node_id, None)
+        self.holders.pop(node_id, None)
+
+    def panels(self, node_id: int) -> int:
+        return sum(count for (node, _), count in self.sockets.items() if node == node_id)
+
+    def opened(self, node_id: int, panel: Panel) -> None:
+        key = (node_id, panel.key)
+        self.sockets[key] = self.sockets.get(key, 0) + 1
+
+    def closed(self, node_id: int, panel: Panel) -> bool:
+        """A panel's websocket closed: True when it was the holder's last one (then the node must quick stop)."""
+        key = (node_id, panel.key)
+        left = self.sockets.get(key, 1) - 1
+        if left > 0:
+            self.sockets[key] = left
+            return False
+        self.sockets.pop(key, None)
+        holder = self.holder(node_id)
+        return holder is not None and holder.panel.key == panel.key
 
     async def trip(self, node_id: int, reason: str) -> None:
-        """Quick stop an armed node (keep-alive lost or the panel disconnected)."""
+        """Quick stop an armed node (keep-alive lost or the holder's panel disconnected)."""
+        holder = self.holders.pop(node_id, None)
         if self.deadlines.pop(node_id, None) is None:
             return
         session = self._session()
         if session is None or node_id not in session.nodes:
             return
         node = session.nodes[node_id]
+        held = f" (held by {holder.panel.who})" if holder else ""
         try:
             last = await _last_control_word(session, node)
             await write_control_word(session, node, next_control_word(family(node), Command.QUICK_STOP, last))
-            self.trips[node_id] = f"Quick stop sent at {time.strftime('%H:%M:%S')}: {reason}."
+            self.trips[node_id] = f"Quick stop sent at {time.strftime('%H:%M:%S')}: {reason}{held}."
         except DriveBenchError as exc:
-            self.trips[node_id] = f"Quick stop FAILED at {time.strftime('%H:%M:%S')} ({reason}): {exc}"
+            self.trips[node_id] = f"Quick stop FAILED at {time.strftime('%H:%M:%S')} ({reason}{held}): {exc}"
         session.emit("drive_trip", {"node": node_id, "reason": self.trips[node_id]})
 
     def _ensure_watch(self) -> None:

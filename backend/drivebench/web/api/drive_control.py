@@ -1,17 +1,31 @@
 """Drive control panel API: status (state machine, named bits), transitions, setpoint, jog, modes, actual values,
-keep-alive, and the guided commissioning runs. Commands that can make the motor turn need ``"confirm": true``."""
+keep-alive, and the guided commissioning runs. Commands that can make the motor turn need ``"confirm": true``.
+
+A panel names itself with the headers ``X-Drive-Panel`` (an id, one per browser tab) and ``X-Drive-Operator`` (the
+name other panels are shown); without them the client is one panel per host. The panel that armed a drive holds
+it: other panels get 409 for anything but stopping it (see ``services.drive_control``).
+"""
 
 from __future__ import annotations
 
-from fastapi import APIRouter
+from typing import Annotated
+
+from fastapi import APIRouter, Depends, Header, Request
 from pydantic import BaseModel, Field
 
 from drivebench.services import commissioning, drive_control
 from drivebench.services.commissioning import RunOut
-from drivebench.services.drive_control import ActualValue, DriveStatus
+from drivebench.services.drive_control import ActualValue, DriveStatus, JogPlan, Panel
 from drivebench.services.drive_words import Command
 from drivebench.web.deps import NodeDep, SessionDep
 
+
+def get_panel(request: Request, x_drive_panel: Annotated[str | None, Header()] = None,
+              x_drive_operator: Annotated[str | None, Header()] = None) -> Panel:
+    return drive_control.panel_of(request.client.host if request.client else None, x_drive_panel, x_drive_operator)
+
+
+PanelDep = Annotated[Panel, Depends(get_panel)]
 router = APIRouter(prefix="/api/sessions/{session_id}/nodes/{node_id}/control", tags=["drive control"])
 
 
@@ -32,7 +46,8 @@ class ModeIn(Confirmed):
 
 
 class KeepaliveOut(BaseModel):
-    armed: bool
+    armed: bool = Field(description="This panel holds the armed node and its keep-alive restarted the deadline")
+    holder: str | None = Field(None, description="Who holds the armed node, and since when")
 
 
 class SequenceOut(BaseModel):
@@ -44,29 +59,36 @@ class SequenceOut(BaseModel):
 
 
 @router.get("", response_model=DriveStatus)
-async def status(session: SessionDep, node: NodeDep) -> DriveStatus:
-    """State from the status word, every control and status bit named, the commands and setpoint range."""
-    return await drive_control.read_status(session, node)
+async def status(session: SessionDep, node: NodeDep, panel: PanelDep) -> DriveStatus:
+    """State from the status word, every control and status bit named, the commands, setpoint range and holder."""
+    return await drive_control.read_status(session, node, panel)
 
 
 @router.post("/commands/{command}", response_model=DriveStatus)
-async def command(session: SessionDep, node: NodeDep, command: Command, body: Confirmed | None = None) -> DriveStatus:
-    return await drive_control.command(session, node, command, confirm=bool(body and body.confirm))
+async def command(session: SessionDep, node: NodeDep, panel: PanelDep, command: Command,
+                  body: Confirmed | None = None) -> DriveStatus:
+    return await drive_control.command(session, node, command, confirm=bool(body and body.confirm), panel=panel)
 
 
 @router.put("/setpoint", response_model=DriveStatus)
-async def setpoint(session: SessionDep, node: NodeDep, body: SetpointIn) -> DriveStatus:
-    return await drive_control.set_setpoint(session, node, body.value, confirm=body.confirm)
+async def setpoint(session: SessionDep, node: NodeDep, panel: PanelDep, body: SetpointIn) -> DriveStatus:
+    return await drive_control.set_setpoint(session, node, body.value, confirm=body.confirm, panel=panel)
+
+
+@router.get("/jog", response_model=JogPlan)
+async def jog_plan(session: SessionDep, node: NodeDep) -> JogPlan:
+    """How this device jogs: its own jog function (8200 vector: JOG1 by control word bits) or a setpoint."""
+    return await drive_control.jog_plan(session, node)
 
 
 @router.post("/jog", response_model=DriveStatus)
-async def jog(session: SessionDep, node: NodeDep, body: JogIn) -> DriveStatus:
-    return await drive_control.jog(session, node, body.direction, confirm=body.confirm)
+async def jog(session: SessionDep, node: NodeDep, panel: PanelDep, body: JogIn) -> DriveStatus:
+    return await drive_control.jog(session, node, body.direction, confirm=body.confirm, panel=panel)
 
 
 @router.put("/mode", response_model=DriveStatus)
-async def mode(session: SessionDep, node: NodeDep, body: ModeIn) -> DriveStatus:
-    return await drive_control.set_mode(session, node, body.mode, confirm=body.confirm)
+async def mode(session: SessionDep, node: NodeDep, panel: PanelDep, body: ModeIn) -> DriveStatus:
+    return await drive_control.set_mode(session, node, body.mode, confirm=body.confirm, panel=panel)
 
 
 @router.get("/actuals", response_model=list[ActualValue])
@@ -75,9 +97,11 @@ async def actuals(session: SessionDep, node: NodeDep) -> list[ActualValue]:
 
 
 @router.post("/keepalive", response_model=KeepaliveOut)
-async def keepalive(session: SessionDep, node: NodeDep) -> KeepaliveOut:
-    """While the node is armed, send this at least every 2 s, or the server sends quick stop."""
-    return KeepaliveOut(armed=drive_control.guard_for(session).keepalive(node.node_id))
+async def keepalive(session: SessionDep, node: NodeDep, panel: PanelDep) -> KeepaliveOut:
+    """While this panel holds the armed node, send this at least every 2 s, or the server sends quick stop."""
+    guard = drive_control.guard_for(session)
+    holder = guard.holder(node.node_id)
+    return KeepaliveOut(armed=guard.keepalive(node.node_id, panel), holder=holder.text() if holder else None)
 
 
 @router.get("/sequences", response_model=list[SequenceOut])
@@ -97,8 +121,9 @@ async def get_run(session: SessionDep, node: NodeDep, run_id: str) -> RunOut:
 
 
 @router.post("/runs/{run_id}/next", response_model=RunOut)
-async def next_step(session: SessionDep, node: NodeDep, run_id: str, body: Confirmed | None = None) -> RunOut:
+async def next_step(session: SessionDep, node: NodeDep, panel: PanelDep, run_id: str,
+                    body: Confirmed | None = None) -> RunOut:
     """Run the next step; a step the manual marks as turning the motor needs confirm."""
     run = commissioning.wizard(session).get(run_id)
-    await commissioning.next_step(session, node, run, confirm=bool(body and body.confirm))
+    await commissioning.next_step(session, node, run, confirm=bool(body and body.confirm), panel=panel)
     return run.public()

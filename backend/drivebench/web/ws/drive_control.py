@@ -2,9 +2,12 @@
 
 ``/ws/sessions/{session}/nodes/{node}/control`` sends ``{"type": "status", "status": DriveStatus, "actuals":
 [ActualValue], "t": unix time}`` every :data:`PERIOD_S` (``{"type": "error", "detail": ...}`` when a read fails).
-Every message the client sends (e.g. ``{"cmd": "keepalive"}``) is a keep-alive of the node. When the socket
-closes while the node is armed (a command that can move the motor was sent), the server sends quick stop at once.
-An unknown session or node closes the socket with code 4404.
+The query names the panel: ``?panel=<id>&operator=<name>`` (the same id and name the panel's API calls send as
+``X-Drive-Panel`` / ``X-Drive-Operator``; without them, one panel per host). Every message the client sends (e.g.
+``{"cmd": "keepalive"}``) is a keep-alive of the node if this panel holds it. When the holder's last socket closes
+while the node is armed, the server sends quick stop at once; a watcher's socket closing changes nothing. Each
+status says who holds the drive and whether it is this panel (``holder``, ``you_hold``). An unknown session or node
+closes the socket with code 4404.
 """
 
 from __future__ import annotations
@@ -33,16 +36,19 @@ async def control(websocket: WebSocket, session_id: str, node_id: int) -> None:
         await websocket.close(code=4404, reason=exc.detail[:120])
         return
     guard = drive_control.guard_for(session)
+    panel = drive_control.panel_of(websocket.client.host if websocket.client else None,
+                                   websocket.query_params.get("panel"), websocket.query_params.get("operator"))
+    guard.opened(node_id, panel)
 
     async def receive() -> None:
         while True:
             await websocket.receive_text()
-            guard.keepalive(node_id)
+            guard.keepalive(node_id, panel)
 
     async def send() -> None:
         while True:
             try:
-                status = await drive_control.read_status(session, node)
+                status = await drive_control.read_status(session, node, panel)
                 actuals = await drive_control.read_actuals(session, node)
                 await websocket.send_json({"type": "status", "status": status.model_dump(mode="json"),
                                            "actuals": [a.model_dump(mode="json") for a in actuals],
@@ -57,10 +63,12 @@ async def control(websocket: WebSocket, session_id: str, node_id: int) -> None:
     except (WebSocketDisconnect, RuntimeError):
         pass
     finally:
-        # quick stop first, in its own task: it must complete even when this handler is being cancelled
-        trip = asyncio.get_running_loop().create_task(guard.trip(node_id, "the control panel disconnected"))
-        _trips.add(trip)
-        trip.add_done_callback(_trips.discard)
+        if guard.closed(node_id, panel):
+            # quick stop first, in its own task: it must complete even when this handler is being cancelled
+            trip = asyncio.get_running_loop().create_task(
+                guard.trip(node_id, "the control panel holding the drive disconnected"))
+            _trips.add(trip)
+            trip.add_done_callback(_trips.discard)
         for task in tasks:
             task.cancel()
         for task in tasks:
