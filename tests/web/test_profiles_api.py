@@ -285,3 +285,19 @@ def test_delete_refuses_a_profile_a_node_uses(api: TestClient) -> None:
     assert refused.status_code == 409
     assert "node 7 of 'Bench'" in refused.json()["detail"]
     assert uploaded in ids(api)
+
+
+def test_json_that_is_no_valid_profile_is_refused_with_its_line_and_nothing_is_lost(api: TestClient,
+                                                                                    user_dir: Path) -> None:
+    data = api.get(f"/api/profiles/{MOTEC}").json() | {"id": "my-motec"}
+    assert upload(api, "mine.json", json.dumps(data, indent=2).encode()).status_code == 201
+    before, stored = ids(api), sorted(user_dir.iterdir())
+    data["objects"].append(dict(data["objects"][0]))
+    text = json.dumps(data, indent=2)
+    response = upload(api, "mine.json", text.encode())
+    assert response.status_code == 422
+    problem = response.json()
+    assert problem["source"] == "mine.json" and text.splitlines()[problem["line"] - 1] == "    {"
+    assert f"mine.json:{problem['line']}: objects.{len(data['objects']) - 1}: duplicate object 0x" in problem["detail"]
+    assert ids(api) == before and sorted(user_dir.iterdir()) == stored
+    assert api.get("/api/profiles/my-motec").json()["objects"] == data["objects"][:-1]

@@ -18,7 +18,8 @@ from pydantic import ValidationError
 
 from drivebench.config import settings
 from drivebench.device.eds import import_eds
-from drivebench.device.profile import Profile
+from drivebench.device.json_lines import DuplicateKey, JsonPath, line_of, reject_duplicate_keys, value_lines
+from drivebench.device.profile import ObjectEntry, Parameter, Profile
 from drivebench.errors import ProfileError, UnknownProfile
 
 PROFILE_SUFFIXES = (".json", ".eds", ".dcf")
@@ -32,14 +33,53 @@ def load_profile_file(content: bytes, name: str) -> Profile:
     if suffix != ".json":
         raise ProfileError(f"unknown profile file type {suffix or '(none)'}; use .json, .eds or .dcf", source=name)
     try:
+        reject_duplicate_keys(content)
         return Profile.model_validate_json(content)
+    except DuplicateKey as exc:
+        raise ProfileError(str(exc), source=name, line=exc.line) from exc
+    except UnicodeDecodeError as exc:
+        raise ProfileError("not UTF-8 text", source=name, line=content.count(b"\n", 0, exc.start) + 1) from exc
     except ValidationError as exc:
         first = exc.errors()[0]
         if first["type"] == "json_invalid":
             line = _json_error_line(content)
             raise ProfileError(f"not valid JSON: {first['msg']}", source=name, line=line) from exc
-        where = ".".join(str(part) for part in first["loc"])
-        raise ProfileError(f"{where}: {first['msg']} ({exc.error_count()} errors)", source=name) from exc
+        path, line = _where(content, tuple(first["loc"]))
+        where = ".".join(str(part) for part in path)
+        more = f" (and {exc.error_count() - 1} more)" if exc.error_count() > 1 else ""
+        reason = first["msg"].removeprefix("Value error, ")
+        raise ProfileError(f"{where + ': ' if where else ''}{reason}{more}", source=name, line=line) from exc
+
+
+def _where(content: bytes, path: JsonPath) -> tuple[JsonPath, int | None]:
+    """The path and line of a validation error. The model's uniqueness check has no path: the second of the
+    two entries with the same address is the one named."""
+    try:
+        data, lines = value_lines(content.decode("utf-8-sig"))
+    except ValueError:
+        return path, None
+    if not path and isinstance(data, dict):
+        path = _duplicate_entry(data) or path
+    return path, line_of(lines, path)
+
+
+def _duplicate_entry(data: dict[str, Any]) -> JsonPath | None:
+    checks: list[tuple[str, Any]] = [
+        ("objects", lambda item: (lambda e: (e.index, e.subindex))(ObjectEntry.model_validate(item))),
+        ("parameters", lambda item: (lambda p: (p.code.upper(), p.subcode))(Parameter.model_validate(item))),
+    ]
+    for field, address in checks:
+        items = data.get(field)
+        seen: set[Any] = set()
+        for position, item in enumerate(items if isinstance(items, list) else []):
+            try:
+                key = address(item)
+            except ValidationError:
+                continue
+            if key in seen:
+                return (field, position)
+            seen.add(key)
+    return None
 
 
 def _json_error_line(content: bytes) -> int | None:
