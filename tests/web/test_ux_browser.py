@@ -1,0 +1,129 @@
+"""The UX bar on every screen, in a real browser at 1440 x 900 against the live demo plant.
+
+Per screen: its own page title, the current screen marked in the one navigation bar, no console errors or
+uncaught exceptions, no sideways scroll, nothing fetched from outside the server (fully offline). Error pages
+(unknown session, node, profile, URL) are pages of the app with a way back. Screenshots land in test-artifacts/.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+
+from tests.conftest import screenshot
+
+SETTLE_MS = 10_000
+NODE = "/sessions/demo-plant/nodes/{}?tab={}"
+
+# (screenshot name, path, words the <title> starts with, navigation entry marked)
+SCREENS = [
+    ("plant", "/", "Plant", "Plant"),
+    *[(f"node-{node}-{tab}", NODE.format(node, tab), f"Node {node} ·", "Plant")
+      for node in (3, 5, 12) for tab in ("info", "diagnostics")],
+    *[(f"node-{node}-{tab}", NODE.format(node, tab), f"Node {node} ·", "Plant")
+      for node, tab in ((5, "parameters"), (3, "pdo"), (5, "pdo"), (12, "pdo"), (3, "control"), (12, "control"))],
+    ("monitor", "/monitor", "Monitor", "Monitor"),
+    ("tools", "/tools", "Tools", "Tools"),
+    ("profiles", "/profiles", "Profiles", "Profiles"),
+    ("profile-detail", "/profiles/lenze-8400-motec-canopen", "Inverter Drives 8400 motec", "Profiles"),
+    ("parameter-sets", "/parameter-sets", "Parameter sets", "Parameter sets"),
+    ("remote", "/remote", "Remote", "Remote"),
+]
+
+ERRORS = [
+    ("error-session", "/sessions/no-such-session/nodes/3", "Not found", "Plant: sessions and nodes"),
+    ("error-node", "/sessions/demo-plant/nodes/99", "Not found", "Plant: sessions and nodes"),
+    ("error-tab", "/sessions/demo-plant/nodes/3?tab=nonsense", "Not found", "Plant: sessions and nodes"),
+    ("error-profile", "/profiles/no-such-profile", "Unknown device profile", "All profiles"),
+    ("error-url", "/no/such/page", "Page not found", "Plant"),
+]
+
+
+class Watch:
+    """What a page did that the UX bar forbids: console errors, uncaught exceptions, requests off the server."""
+
+    def __init__(self, page: Any, origin: str) -> None:
+        self.problems: list[str] = []
+        self.origin = origin
+        page.on("console", self._console)
+        page.on("pageerror", lambda exc: self.problems.append(f"uncaught: {exc}"))
+        page.on("request", self._request)
+
+    def _console(self, message: Any) -> None:
+        if message.type == "error":
+            self.problems.append(f"console: {message.text} at {message.location.get('url', '')}")
+
+    def _request(self, request: Any) -> None:
+        url = request.url
+        same_server = url.startswith(self.origin) or url.startswith(self.origin.replace("http", "ws", 1))
+        if not same_server and not url.startswith(("data:", "blob:")):
+            self.problems.append(f"outside request: {url}")
+
+
+def settle(page: Any) -> None:
+    """Waits until htmx has no request in flight (the pages load parts after the first paint)."""
+    page.wait_for_load_state("load")
+    page.wait_for_function("() => !document.querySelector('.htmx-request')", timeout=SETTLE_MS)
+    page.wait_for_timeout(300)  # one more frame of websocket swaps
+
+
+def overflow(page: Any) -> int:
+    return int(page.evaluate("() => document.documentElement.scrollWidth - document.documentElement.clientWidth"))
+
+
+@pytest.mark.parametrize(("name", "path", "title", "nav"), SCREENS, ids=[s[0] for s in SCREENS])
+def test_screen_meets_the_ux_bar(live_server: str, page: Any, name: str, path: str, title: str, nav: str) -> None:
+    watch = Watch(page, live_server)
+    response = page.goto(live_server + path)
+    assert response is not None and response.status == 200
+    settle(page)
+    screenshot(page, f"ux-{name}")
+
+    assert page.title().startswith(title) and page.title().endswith("· DriveBench"), page.title()
+    assert page.locator("header nav").count() == 1
+    marked = page.locator("header nav a[aria-current=page]")
+    assert marked.count() == 1 and marked.inner_text() == nav
+    assert overflow(page) <= 0, f"{name} scrolls sideways by {overflow(page)} px at 1440 px"
+    assert watch.problems == []
+
+
+@pytest.mark.parametrize(("name", "path", "title", "way_back"), ERRORS, ids=[e[0] for e in ERRORS])
+def test_error_page_is_a_page_of_the_app(live_server: str, page: Any, name: str, path: str, title: str,
+                                         way_back: str) -> None:
+    watch = Watch(page, live_server)
+    response = page.goto(live_server + path)
+    assert response is not None and response.status == 404
+    assert response.headers["content-type"].startswith("text/html")
+    screenshot(page, f"ux-{name}")
+
+    assert page.title() == f"{title} · DriveBench"
+    assert page.locator("header nav a").count() == 6  # the navigation bar is there
+    assert page.locator(".error-page h1").inner_text() == title
+    link = page.locator(".error-page a", has_text=way_back)
+    link.click()
+    page.wait_for_load_state("load")
+    assert page.locator(".error-page").count() == 0  # the link led to a working screen
+    # the document's own 404 is the only resource error a browser reports on such a page
+    assert [p for p in watch.problems if "status of 404" not in p] == []
+
+
+def test_api_clients_still_get_problem_json(live_server: str, page: Any) -> None:
+    answer = page.request.get(live_server + "/sessions/demo-plant/nodes/99", headers={"Accept": "application/json"})
+    assert answer.status == 404
+    assert answer.headers["content-type"] == "application/problem+json"
+    assert answer.json()["detail"].startswith("Node 99 is not part of session")
+
+
+def test_every_control_is_reachable_by_keyboard_with_visible_focus(live_server: str, page: Any) -> None:
+    """Tab from the top of the Plant page: the skip link first, then the navigation, each with a focus ring."""
+    page.goto(live_server + "/")
+    settle(page)
+    page.keyboard.press("Tab")
+    assert page.evaluate("() => document.activeElement.className") == "skip-link"
+    assert page.locator(".skip-link").bounding_box()["y"] >= 0  # shown while focused
+    page.keyboard.press("Tab")
+    page.keyboard.press("Tab")  # brand, then the first navigation entry
+    focused = page.evaluate("""() => { const e = document.activeElement;
+        return {text: e.textContent.trim(), outline: getComputedStyle(e).outlineStyle}; }""")
+    assert focused == {"text": "Plant", "outline": "solid"}
