@@ -1,17 +1,25 @@
 // Monitor screen: one websocket (/ws/sessions/{id}/monitor, schema in web/ws/monitor.py), rendering throttled to
 // animation frames (only the newest counters are drawn; trace rows and load points accumulate in between).
+// Filter and pause are this window's own: they travel over the socket as a "view" message and change nothing for
+// other viewers. The trace length kept here is the user's choice, remembered in localStorage.
 (() => {
   const root = document.getElementById("monitor");
   if (!root) return;
   const sessionId = root.dataset.session;
   const api = `/api/sessions/${encodeURIComponent(sessionId)}/monitor`;
   const $ = (id) => document.getElementById(id);
-  const TRACE_ROWS = 500;
+  const TRACE_LENGTHS = [500, 2000, 10000];
+  const HELLO_ROWS_MAX = 2000;  // the server sends at most this many rows in a hello (web/ws/monitor.py)
+  const storedLength = Number(localStorage.getItem("drivebench.monitor.traceRows"));
+  let TRACE_ROWS = TRACE_LENGTHS.includes(storedLength) ? storedLength : 500;
+  let socket = null;
+  let paused = root.dataset.paused === "true";
+  let view = null;  // this window's own view once the user changed it (re-sent after a reconnect)
+  let errorSlot = "filter-result";
   const HISTORY_S = 600;
   const MIN_SPAN_S = 60;
   let latest = null;
   let pendingTrace = [];
-  let traceCount = 0;
   let drawScheduled = false;
   const loadPoints = { t: [], v: [] };
   let zoomed = false;
@@ -104,8 +112,10 @@
     $("cob-note").textContent = s.cob_ids_cut ? `busiest ${s.cob_ids.length} of ${s.cob_ids_cut}` : "";
   }
 
+  const showCount = () => { $("trace-count").textContent = `${num($("trace-body").rows.length)} of ${num(TRACE_ROWS)} rows`; };
+
   function renderTrace() {
-    if (!pendingTrace.length) return;
+    if (!pendingTrace.length) { showCount(); return; }
     const body = $("trace-body");
     const rows = pendingTrace.slice(-TRACE_ROWS);
     pendingTrace = [];
@@ -114,9 +124,21 @@
       `<td>${esc(r.service)}</td><td class="num">${r.node ?? "–"}</td><td class="num">${r.dlc}</td>` +
       `<td class="decoded" title="${esc(r.cob_id)} [${r.dlc}] ${esc(r.hex || "(no data)")}">${esc(r.summary || r.service)}</td></tr>`).join(""));
     while (body.rows.length > TRACE_ROWS) body.deleteRow(0);
-    traceCount = body.rows.length;
-    $("trace-count").textContent = `${traceCount} rows`;
+    showCount();
     if ($("trace-follow").checked) { const box = $("trace-scroll"); box.scrollTop = box.scrollHeight; }
+  }
+
+  const BUS_STATES = { active: "error active", warning: "warning", passive: "error passive", "bus-off": "bus-off" };
+  function renderBus(bus) {
+    if (!bus) return;
+    const badge = $("bus-state");
+    const counters = bus.tx_errors == null ? "" : ` · TEC ${bus.tx_errors} · REC ${bus.rx_errors}`;
+    badge.className = `badge bus-${bus.state}`;
+    badge.textContent = `${bus.state === "bus-off" ? "" : "bus "}${BUS_STATES[bus.state] || bus.state}${counters}`;
+    badge.title = `Adapter reports: ${BUS_STATES[bus.adapter_state] || bus.adapter_state}` +
+      (bus.reported_age_s == null ? "; no error frame with a controller state yet"
+        : `; last controller state from an error frame ${bus.reported_age_s.toFixed(0)} s ago`) +
+      ". Warning at 96, error passive at 128 errors (TEC: transmit, REC: receive error counter).";
   }
 
   function draw() {
@@ -124,11 +146,12 @@
     if (!latest) return;
     const s = latest.snapshot;
     renderStats(s);
+    renderBus(s.bus);
     renderTables(s);
     renderTrace();
     drawChart();
-    setLive(s.paused ? "paused" : "live");
-    setPaused(s.paused);
+    setLive(paused ? "paused" : "live");
+    setPaused(paused);
   }
 
   function schedule() {
@@ -142,12 +165,41 @@
     badge.textContent = { live: "live", paused: "paused", down: "disconnected, retrying…", connecting: "connecting…" }[state];
   }
 
+  const helloRows = () => Math.min(TRACE_ROWS, HELLO_ROWS_MAX);
+
+  function sendView(change, slot) {
+    view = { ...(view || {}), ...change };
+    errorSlot = slot;
+    $(slot).innerHTML = "";
+    if (socket && socket.readyState === WebSocket.OPEN) {
+      socket.send(JSON.stringify({ type: "view", ...change, rows: helloRows() }));
+    } else {
+      $(slot).innerHTML = '<div class="error" role="alert"><strong>Not connected.</strong> The change is sent when the connection is back.</div>';
+    }
+  }
+
   function connect() {
     const scheme = location.protocol === "https:" ? "wss" : "ws";
-    const socket = new WebSocket(`${scheme}://${location.host}/ws/sessions/${encodeURIComponent(sessionId)}/monitor`);
+    socket = new WebSocket(`${scheme}://${location.host}/ws/sessions/${encodeURIComponent(sessionId)}/monitor?rows=${helloRows()}`);
+    socket.onopen = () => {
+      if (view) socket.send(JSON.stringify({ type: "view", ...view, rows: helloRows() }));
+    };
     socket.onmessage = (event) => {
       const message = JSON.parse(event.data);
-      if (message.type === "hello") { $("trace-body").innerHTML = ""; pendingTrace = []; }
+      if (message.type === "error") {
+        $(errorSlot).innerHTML = `<div class="error" role="alert">${esc(message.detail)}</div>`;
+        return;
+      }
+      if (message.type === "view") {
+        paused = message.view.paused; setPaused(paused); setLive(paused ? "paused" : "live");
+        return;
+      }
+      if (message.type === "hello") {
+        $("trace-body").innerHTML = ""; pendingTrace = [];
+        paused = message.view.paused;
+      } else if (paused) {
+        return;  // sent before the server took our pause
+      }
       addHistory(message.history, message.type === "hello");
       const names = message.trace_columns;
       for (const row of message.trace) pendingTrace.push(Object.fromEntries(names.map((name, i) => [name, row[i]])));
@@ -186,14 +238,14 @@
     button.textContent = paused ? "Resume" : "Pause";
   }
 
-  $("pause").addEventListener("click", async () => {
-    const paused = $("pause").dataset.paused === "true";
-    const result = await call("POST", paused ? "/resume" : "/pause", null, "control-result");
-    if (result) setPaused(result.paused);
+  $("pause").addEventListener("click", () => {
+    paused = !paused;  // at once: updates already on their way are not drawn
+    setPaused(paused); setLive(paused ? "paused" : "live");
+    sendView({ paused }, "control-result");
   });
   $("reset").addEventListener("click", async () => {
     if (await call("POST", "/reset", null, "control-result")) {
-      $("trace-body").innerHTML = ""; pendingTrace = []; addHistory([], true); $("trace-count").textContent = "0 rows";
+      $("trace-body").innerHTML = ""; pendingTrace = []; addHistory([], true); showCount();
     }
   });
 
@@ -215,15 +267,25 @@
       $("filter-result").innerHTML = '<div class="error" role="alert">Nodes are numbers 1…127; COB-IDs decimal or 0x-hex.</div>';
       return;
     }
-    if (await call("PUT", "/filter", body, "filter-result")) {
-      $("trace-body").innerHTML = ""; pendingTrace = [];
-    }
+    sendView({ filter: body }, "filter-result");  // the answer is a hello: the newest matching rows, filtered tables
   });
   $("filter-clear").addEventListener("click", () => {
     const form = $("filter-form");
     form.nodes.value = ""; form.cob_min.value = "0x000"; form.cob_max.value = "0x1FFFFFFF";
     form.querySelectorAll("input[name=services]").forEach((box) => { box.checked = false; });
     form.requestSubmit();
+  });
+
+  // Trace length kept in this browser (remembered); the server re-sends up to HELLO_ROWS_MAX rows at once.
+  const lengthPicker = $("trace-length");
+  lengthPicker.value = String(TRACE_ROWS);
+  lengthPicker.addEventListener("change", () => {
+    TRACE_ROWS = Number(lengthPicker.value);
+    localStorage.setItem("drivebench.monitor.traceRows", String(TRACE_ROWS));
+    const body = $("trace-body");
+    while (body.rows.length > TRACE_ROWS) body.deleteRow(0);
+    showCount();
+    if (!paused && body.rows.length < helloRows()) sendView({}, "control-result");  // fill up from the ring
   });
 
   setLive("connecting");

@@ -17,6 +17,8 @@ from drivebench.web.app import create_app
 from tests.conftest import _free_port, fresh_channel, screenshot
 from tests.web.monitor_plant import SESSION_ID, write_plant
 
+CHANNEL = fresh_channel()
+
 
 @pytest.fixture(scope="module")
 def monitor_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
@@ -25,7 +27,7 @@ def monitor_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     patch = pytest.MonkeyPatch()
     patch.setattr(recording, "recordings_dir", lambda: recordings_dir)
     port = _free_port()
-    app = create_app(plant_file=plant, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
+    app = create_app(plant_file=plant, plant_bus=f"virtual:{CHANNEL}@500000", latency="0ms")
     server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning"))
     thread = threading.Thread(target=server.run, daemon=True)
     thread.start()
@@ -100,9 +102,12 @@ def test_filter_pause_and_recording(page: Any, monitor_server: str, tmp_path: Pa
     page.click("#filter-clear")
     page.click("#pause")
     page.wait_for_selector("#live-state.paused", timeout=5_000)
+    time.sleep(0.3)  # updates already on their way are not drawn
     frozen = _frames(page)
     time.sleep(0.5)
     assert _frames(page) == frozen
+    # This window's pause: the REST view (and every other viewer) stays live.
+    assert page.request.get(f"{monitor_server}/api/sessions/{SESSION_ID}/monitor").json()["paused"] is False
     page.click("#pause")
     page.wait_for_selector("#live-state.live", timeout=5_000)
     page.select_option("#recordings select[name=format]", "pcapng")
@@ -117,3 +122,98 @@ def test_filter_pause_and_recording(page: Any, monitor_server: str, tmp_path: Pa
     download_info.value.save_as(target)
     assert target.suffix == ".pcapng" and target.stat().st_size > 100
     screenshot(page, "monitor-recording")
+
+
+def _cobs(page: Any) -> set[str]:
+    return set(page.locator("#trace-body td.cob").all_text_contents())
+
+
+def test_two_viewers_filter_and_pause_on_their_own(browser: Any, monitor_server: str) -> None:
+    """Two browser windows on one session: one filters to node 12's heartbeats and pauses; the other stays
+    unfiltered and live."""
+    url = f"{monitor_server}/monitor/{SESSION_ID}"
+    contexts = [browser.new_context(viewport={"width": 1440, "height": 900}) for _ in range(2)]
+    try:
+        filtered, other = (context.new_page() for context in contexts)
+        for page in (filtered, other):
+            page.goto(url)
+            page.wait_for_selector("#live-state.live", timeout=10_000)
+        filtered.check("input[name=services][value=Heartbeat]")
+        filtered.fill("input[name=nodes]", "12")
+        filtered.click("#filter-form button[type=submit]")
+        filtered.wait_for_function("[...document.querySelectorAll('#trace-body td.cob')].length >= 3 && "
+                                   "[...document.querySelectorAll('#trace-body td.cob')].every(c => c.textContent === "
+                                   "'0x70C')", timeout=10_000)
+        other.wait_for_selector("#trace-body td.cob >> text=0x705", timeout=10_000)
+        time.sleep(0.5)
+        assert _cobs(filtered) == {"0x70C"}
+        assert {"0x705", "0x70C"} <= _cobs(other)
+        assert filtered.locator("#cobs-body td.mono").all_text_contents() == ["0x70C"]
+        assert "0x705" in other.locator("#cobs-body td.mono").all_text_contents()
+        # Pause the filtered window: it freezes, the other goes on counting.
+        filtered.click("#pause")
+        filtered.wait_for_selector("#live-state.paused", timeout=5_000)
+        time.sleep(0.3)
+        frozen, moving = _frames(filtered), _frames(other)
+        other.wait_for_function(f"Number(document.getElementById('stat-frames').textContent.replace(/,/g, '')) > "
+                                f"{moving + 5}", timeout=10_000)
+        assert other.text_content("#live-state") == "live"
+        assert _frames(filtered) == frozen
+        screenshot(filtered, "monitor-viewer-paused")
+        screenshot(other, "monitor-viewer-live")
+        filtered.click("#pause")
+        filtered.wait_for_function(f"Number(document.getElementById('stat-frames').textContent.replace(/,/g, '')) > "
+                                   f"{frozen}", timeout=10_000)
+        assert _cobs(filtered) == {"0x70C"}  # the filter survives the pause
+    finally:
+        for context in contexts:
+            context.close()
+
+
+def test_bus_state_badge_updates_live(page: Any, monitor_server: str) -> None:
+    import can
+
+    page.goto(f"{monitor_server}/monitor/{SESSION_ID}")
+    page.wait_for_selector("#live-state.live", timeout=10_000)
+    assert page.text_content("#bus-state") == "bus error active"
+    with can.Bus(interface="virtual", channel=CHANNEL) as wire:
+        wire.send(can.Message(arbitration_id=0x004, is_error_frame=True, data=bytes([0, 0x08, 0, 0, 0, 0, 101, 4])))
+        page.wait_for_selector("#bus-state.bus-warning", timeout=10_000)
+        assert page.text_content("#bus-state") == "bus warning · TEC 101 · REC 4"
+        screenshot(page, "monitor-bus-warning")
+        wire.send(can.Message(arbitration_id=0x040, is_error_frame=True, data=bytes(8)))
+        page.wait_for_selector("#bus-state.bus-bus-off", timeout=10_000)
+        assert page.text_content("#bus-state") == "bus-off"
+        screenshot(page, "monitor-bus-off")
+        wire.send(can.Message(arbitration_id=0x004, is_error_frame=True, data=bytes([0, 0x40, 0, 0, 0, 0, 0, 0])))
+        page.wait_for_selector("#bus-state.bus-active", timeout=10_000)
+    assert page.text_content("#bus-state") == "bus error active · TEC 0 · REC 0"
+
+
+def test_trace_length_is_chosen_and_remembered(page: Any, monitor_server: str) -> None:
+    page.goto(f"{monitor_server}/monitor/{SESSION_ID}")
+    page.wait_for_selector("#live-state.live", timeout=10_000)
+    assert page.input_value("#trace-length") == "500"
+    page.wait_for_function("document.querySelectorAll('#trace-body tr').length > 5", timeout=10_000)
+    page.select_option("#trace-length", "2000")
+    assert page.evaluate("localStorage.getItem('drivebench.monitor.traceRows')") == "2000"
+    page.wait_for_function("document.getElementById('trace-count').textContent.endsWith('of 2,000 rows')",
+                           timeout=5_000)
+    page.reload()
+    page.wait_for_selector("#live-state.live", timeout=10_000)
+    assert page.input_value("#trace-length") == "2000"
+    # A short length trims what is kept at once.
+    page.evaluate("localStorage.setItem('drivebench.monitor.traceRows', '500')")
+    page.reload()
+    page.wait_for_selector("#live-state.live", timeout=10_000)
+    assert page.input_value("#trace-length") == "500"
+    page.wait_for_function("document.querySelectorAll('#trace-body tr').length >= 3", timeout=10_000)
+    page.evaluate("""() => {  // pretend many rows came: the body is trimmed to the chosen length on change
+        const body = document.getElementById('trace-body');
+        const row = body.rows[0].outerHTML;
+        body.insertAdjacentHTML('afterbegin', row.repeat(700));
+    }""")
+    page.select_option("#trace-length", "2000")
+    page.select_option("#trace-length", "500")
+    assert page.locator("#trace-body tr").count() <= 500
+    screenshot(page, "monitor-trace-length")

@@ -74,8 +74,9 @@ class BusErrorState:
                 state = "active"
         if error_class & CAN_ERR_RESTARTED:
             state = "active"
-        if error_class & CAN_ERR_BUSOFF:
+        if error_class & CAN_ERR_BUSOFF:  # TEC went past 255; the frame carries no counters
             state = "bus-off"
+            self.tx_errors = self.rx_errors = None
         if state is not None:
             self.state = state
             self.reported_at = now

@@ -16,6 +16,7 @@ from drivebench.web.deps import SessionDep, StateDep
 from drivebench.web.templating import templates
 
 router = APIRouter(include_in_schema=False)
+BUS_LABELS = {"active": "error active", "warning": "warning", "passive": "error passive", "bus-off": "bus-off"}
 
 
 def _recordings(session: Session, **extra: Any) -> dict[str, Any]:
@@ -45,6 +46,7 @@ async def monitor_page(request: Request, state: StateDep, session: SessionDep) -
     context = {"active": "monitor", "session": session_public(session),
                "sessions": [session_public(s) for s in state.manager.list()],
                "service_groups": SERVICE_GROUPS, "filter": monitor.filter.as_dict(), "paused": monitor.paused,
+               "bus": monitor.snapshot()["bus"], "bus_labels": BUS_LABELS,
                "nodes": sorted(session.nodes), "counter_nodes": _counter_nodes(session),
                **_recordings(session)}
     return templates.TemplateResponse(request, "monitor.html", context)
