@@ -1,7 +1,18 @@
 // Control tab: live status over the control websocket (its messages are the keep-alive), commands to the JSON API,
 // confirmation for anything that can make the motor turn, live plots of the actual values, guided commissioning.
+// Each page load is one panel (X-Drive-Panel / ?panel=): the panel that arms a drive holds it; other panels on the
+// node watch - their moving controls are disabled, stopping ones stay.
 (() => {
   const HISTORY_S = 30;
+  const STOPPING = new Set(["shutdown", "disable_voltage", "quick_stop", "disable_operation"]);
+  const OPERATOR_KEY = "drivebench.operator";
+  window.drivebenchPanelId = window.drivebenchPanelId ||
+    Array.from(crypto.getRandomValues(new Uint8Array(8)), (b) => b.toString(16).padStart(2, "0")).join("");
+  const panelId = window.drivebenchPanelId;
+
+  function operator() {
+    try { return (localStorage.getItem(OPERATOR_KEY) || "").trim(); } catch (e) { return ""; }
+  }
 
   function problemText(body, status) {
     if (body && body.detail) return `<strong>${body.title || "Error"}</strong> ${body.detail}`;
@@ -23,7 +34,16 @@
     let socket = null;
     let closed = false;
     let runId = null;
+    const runBox = panel.querySelector("#ctl-run");
+    const nextButton = panel.querySelector("#ctl-seq-next");
     let freshUntil = 0;  // a command's answer is newer than a websocket status read before it
+    let watching = false;  // another panel holds the armed drive
+    let runOpen = false;  // a commissioning run has steps left
+    const nameInput = panel.querySelector("#ctl-operator");
+    nameInput.value = operator();
+    nameInput.addEventListener("change", () => {
+      try { localStorage.setItem(OPERATOR_KEY, nameInput.value.trim()); } catch (e) { /* private mode */ }
+    });
 
     function showError(html, slot = result) { slot.innerHTML = `<div class="error" role="alert">${html}</div>`; }
     function clearError(slot = result) { slot.innerHTML = ""; }
@@ -38,7 +58,9 @@
     }
 
     async function call(method, url, body, slot = result) {
-      const response = await fetch(url, { method, headers: { "Content-Type": "application/json" },
+      const headers = { "Content-Type": "application/json", "X-Drive-Panel": panelId,
+                        "X-Drive-Operator": encodeURIComponent(operator()) };
+      const response = await fetch(url, { method, headers,
                                          body: body === undefined ? undefined : JSON.stringify(body) });
       let data = null;
       try { data = await response.json(); } catch (e) { data = null; }
@@ -61,8 +83,10 @@
         bits.forEach((bit, i) => rows[i] && rows[i].classList.toggle("on", bit.set));
       }
       const armed = panel.querySelector("#ctl-armed");
-      armed.textContent = status.armed ? "armed: keep-alive running" : "not armed";
+      armed.textContent = !status.armed ? "not armed" : status.you_hold ? "armed by this panel: keep-alive running"
+        : "armed by another panel";
       armed.classList.toggle("armed", status.armed);
+      renderHolder(status);
       const trip = panel.querySelector("#ctl-trip");
       trip.hidden = !status.last_trip;
       trip.textContent = status.last_trip || "";
@@ -70,6 +94,26 @@
       if (display && status.mode !== null) display.textContent = `${status.mode} ${status.mode_label}`;
       panel.querySelector("#ctl-sp-ref").textContent = status.setpoint_ref;
       panel.querySelector("#ctl-sp-unit").textContent = status.setpoint_unit;
+    }
+
+    function renderHolder(status) {
+      const box = panel.querySelector("#ctl-holder");
+      const panels = panel.querySelector("#ctl-panels");
+      panels.textContent = `${status.panels} panel${status.panels === 1 ? "" : "s"} open`;
+      watching = Boolean(status.armed && status.holder && !status.you_hold);
+      box.hidden = !status.holder;
+      box.classList.toggle("watching", watching);
+      box.textContent = !status.holder ? ""
+        : watching ? `Held by ${status.holder}. This panel watches: it can stop the drive (Quick stop, Disable, ` +
+                     "Shutdown) but not move it until the drive is disarmed."
+        : `This panel holds the drive (${status.holder}): only it moves the drive; closing it sends quick stop.`;
+      panel.classList.toggle("watching", watching);
+      panel.querySelectorAll("[data-command]").forEach((button) => {
+        button.disabled = watching && !STOPPING.has(button.dataset.command);
+      });
+      panel.querySelectorAll("#ctl-setpoint input, #ctl-setpoint button, [data-jog], input[name=ctl-mode], #ctl-seq-start")
+        .forEach((control) => { control.disabled = watching; });
+      if (nextButton) nextButton.disabled = watching || !runOpen;
     }
 
     function plot(actuals, t) {
@@ -105,7 +149,8 @@
 
     function connect() {
       const state = panel.querySelector("#ctl-ws");
-      const url = `${location.protocol === "https:" ? "wss" : "ws"}://${location.host}${panel.dataset.ws}`;
+      const query = `panel=${panelId}&operator=${encodeURIComponent(operator())}`;
+      const url = `${location.protocol === "https:" ? "wss" : "ws"}://${location.host}${panel.dataset.ws}?${query}`;
       socket = new WebSocket(url);
       socket.onopen = () => { state.textContent = "live"; state.className = "badge good"; };
       socket.onclose = () => {
@@ -166,7 +211,9 @@
       const start = async (event) => {
         event.preventDefault();
         if (!jogConfirmed) {
-          jogConfirmed = await confirmMove("Jog: the motor turns at 10 % while a jog button is held.");
+          const how = panel.querySelector("#ctl-jog-how");
+          jogConfirmed = await confirmMove(`Jog: the motor turns at ${how.dataset.value} ${how.dataset.unit} while a ` +
+                                           "jog button is held.");
           return;  // the next press jogs
         }
         jogging = true;
@@ -189,8 +236,6 @@
     }));
 
     // --- guided commissioning ---
-    const runBox = panel.querySelector("#ctl-run");
-    const nextButton = panel.querySelector("#ctl-seq-next");
 
     function renderRun(run) {
       const results = new Map(run.results.map((r) => [r.number, r]));
@@ -208,7 +253,8 @@
       runBox.innerHTML = `<p><strong>${esc(run.title)}</strong> · ${esc(run.source)}</p>` +
         (pre ? `<p class="muted">Before starting (not sent over CAN):</p><ul class="muted">${pre}</ul>` : "") + banner +
         `<div class="ctl-run-scroll"><table class="ctl-run"><thead><tr><th>#</th><th>Step</th><th>Telegrams</th><th>Answer</th></tr></thead><tbody>${rows}</tbody></table></div>`;
-      nextButton.disabled = run.finished;
+      runOpen = !run.finished;
+      nextButton.disabled = watching || !runOpen;
       const row = runBox.querySelector("tr.next, tr.failed");
       const scroller = runBox.querySelector(".ctl-run-scroll");
       if (row && scroller) scroller.scrollTop = Math.max(0, row.offsetTop - scroller.clientHeight / 2);  // not the page
@@ -234,7 +280,7 @@
         nextButton.disabled = true;
         const slot = document.createElement("div");
         const run = await call("POST", `${api}/runs/${runId}/next`, { confirm }, slot);
-        if (run) renderRun(run); else { runBox.prepend(slot); nextButton.disabled = false; }
+        if (run) renderRun(run); else { runBox.prepend(slot); nextButton.disabled = watching; }
       });
     }
 

@@ -4,6 +4,7 @@ guided commissioning."""
 
 from __future__ import annotations
 
+import contextlib
 import threading
 import time
 from collections.abc import Iterator
@@ -99,6 +100,7 @@ def test_guided_commissioning_8200_vector(server: tuple[str, Plant], page: Any) 
     base, _ = server
     page.goto(f"{base}/sessions/demo-plant/nodes/12?tab=control")
     page.wait_for_selector("#ctl-ws.good", timeout=TIMEOUT_MS)
+    assert "NSET1-JOG1 (C0037 = 20 Hz)" in page.locator("#ctl-jog-how").inner_text()  # the device's own jog
     page.click("#ctl-seq-start")
     page.wait_for_selector("table.ctl-run")
     while page.is_enabled("#ctl-seq-next"):
@@ -114,3 +116,57 @@ def test_guided_commissioning_8200_vector(server: tuple[str, Plant], page: Any) 
     assert "→ 0x60C 23 FE 5F 00 30 75 00 00" in page.locator("table.ctl-run").inner_text()
     _current(page, "operation_inhibited")
     screenshot(page, "control-commissioning-8200")
+
+
+def test_second_panel_watches_the_drive_the_first_holds(server: tuple[str, Plant], browser: Any) -> None:
+    """Anna's panel arms the MICROMASTER; Ben's panel on the same node names her, offers only the stopping
+    commands, and closing it leaves her drive running. Closing Anna's panel quick-stops the drive."""
+    base, _ = server
+    for ref in ("P0700", "P1000"):
+        assert browser.new_context().request.put(
+            f"{base}/api/sessions/demo-plant/nodes/3/parameters/{ref}", data={"value": "6"}).ok
+    url = f"{base}/sessions/demo-plant/nodes/3?tab=control"
+    anna_context = browser.new_context(viewport={"width": 1440, "height": 900})
+    ben_context = browser.new_context(viewport={"width": 1440, "height": 900})
+    try:
+        anna, ben = anna_context.new_page(), ben_context.new_page()
+        for page in (anna, ben):
+            page.goto(url)
+            page.wait_for_selector("#ctl-ws.good", timeout=TIMEOUT_MS)
+            _current(page, "switch_on_disabled")
+        anna.fill("#ctl-operator", "Anna")
+        anna.press("#ctl-operator", "Tab")
+        anna.click("button[data-command=shutdown]")
+        _current(anna, "ready")
+        anna.click("button[data-command=enable_operation]")
+        anna.click("#ctl-confirm-ok")
+        _current(anna, "operation_enabled")
+        anna.wait_for_function("document.querySelector('#ctl-holder').textContent.startsWith('This panel holds')",
+                               timeout=TIMEOUT_MS)
+        ben.wait_for_selector("#ctl-holder.watching", timeout=TIMEOUT_MS)
+        assert ben.locator("#ctl-holder").inner_text().startswith("Held by Anna at 127.0.0.1 since ")
+        assert ben.locator("#ctl-panels").inner_text() == "2 panels open"
+        assert ben.is_disabled("button[data-command=enable_operation]")
+        assert ben.is_disabled("#ctl-setpoint button[type=submit]") and ben.is_disabled("button[data-jog='1']")
+        assert ben.is_enabled("button[data-command=quick_stop]")
+        screenshot(ben, "control-watching-panel")
+        ben_context.close()
+        anna.wait_for_function("document.querySelector('#ctl-panels').textContent === '1 panel open'",
+                               timeout=TIMEOUT_MS)
+        anna.wait_for_timeout(500)  # a trip would show at once; none must come
+        assert anna.locator("#ctl-trip").is_hidden()
+        _current(anna, "operation_enabled")
+        screenshot(anna, "control-holding-panel")
+        anna_context.close()
+        status_url = f"{base}/api/sessions/demo-plant/nodes/3/control"
+        checker = browser.new_context()
+        deadline = time.monotonic() + TIMEOUT_MS / 1000
+        while (status := checker.request.get(status_url).json())["state"] != "switch_on_disabled":
+            assert time.monotonic() < deadline, f"the drive stays in {status['state_label']} after Anna left"
+            time.sleep(0.05)
+        assert "held by Anna" in status["last_trip"] and "disconnected" in status["last_trip"]
+        checker.close()
+    finally:
+        for context in (anna_context, ben_context):
+            with contextlib.suppress(Exception):
+                context.close()

@@ -543,10 +543,11 @@ class Guard:
             return
         node = session.nodes[node_id]
         held = f" (held by {holder.panel.who})" if holder else ""
+        # recorded before the write returns: a status read queued behind it must already name the trip
+        self.trips[node_id] = f"Quick stop sent at {time.strftime('%H:%M:%S')}: {reason}{held}."
         try:
             last = await _last_control_word(session, node)
             await write_control_word(session, node, next_control_word(family(node), Command.QUICK_STOP, last))
-            self.trips[node_id] = f"Quick stop sent at {time.strftime('%H:%M:%S')}: {reason}{held}."
         except DriveBenchError as exc:
             self.trips[node_id] = f"Quick stop FAILED at {time.strftime('%H:%M:%S')} ({reason}{held}): {exc}"
         session.emit("drive_trip", {"node": node_id, "reason": self.trips[node_id]})

@@ -63,6 +63,7 @@ async def control_tab(request: Request, session: SessionDep, node: NodeDep) -> R
         fam = drive_control.family(node)
         context["diagram"] = _diagram(fam)
         context["status"] = await drive_control.read_status(session, node)
+        context["jog"] = await drive_control.jog_plan(session, node)
         context["missing"] = drive_control.missing_actuals(node)
     except DriveBenchError as exc:
         context["error"] = exc
