@@ -6,7 +6,9 @@ from __future__ import annotations
 import time
 from typing import Any
 
+import pytest
 from fastapi.testclient import TestClient
+from starlette.websockets import WebSocketDisconnect
 
 BASE = "/api/sessions/demo-plant/nodes/{node}/control"
 MM, VECTOR = 3, 12
@@ -183,3 +185,16 @@ def test_8200_vector_jog_plan_and_device_jog(client: TestClient) -> None:
     stopped = client.post(_url(VECTOR, "/jog"), json={"direction": 0}).json()
     assert stopped["control_word"] & 0x07 == 0
     client.post(_url(VECTOR, "/commands/disable_operation"))
+
+
+def test_a_remote_diagnostics_link_cannot_drive(client: TestClient) -> None:
+    """Access-control interlock: a share link holder watches the remote view only - no commands, no panel socket."""
+    token = client.post("/api/share-links", json={"ttl_minutes": 5}).json()["token"]
+    viewer = {"Authorization": f"Bearer {token}"}
+    refused = client.post(_url(MM, "/commands/enable_operation"), json={"confirm": True}, headers=viewer)
+    assert refused.status_code == 403 and refused.headers["content-type"] == "application/problem+json"
+    assert client.post(_url(MM, "/jog"), json={"direction": 1, "confirm": True}, headers=viewer).status_code == 403
+    socket_url = f"/ws/sessions/demo-plant/nodes/{MM}/control"
+    with pytest.raises(WebSocketDisconnect) as closed, client.websocket_connect(socket_url, headers=viewer) as socket:
+        socket.receive_json()
+    assert closed.value.code == 4403

@@ -138,7 +138,8 @@ def actual_refs(node: SessionNode) -> list[tuple[str, str, Scale | None]]:
                   ("Heat-sink temperature", "C0061", None)]
     else:
         wanted = [("Speed (CAN1_OUT word 2)", "C00868/2", None), ("Current", "C00054", None),
-                  ("DC-bus voltage", "C00053", None), ("Heat-sink temperature", "C00061", None)]
+                  ("DC-bus voltage", "C00053", None), ("Torque", "C00056", None),
+                  ("Heat-sink temperature", "C00061", None)]
     return [entry for entry in wanted if has_ref(catalog, entry[1])]
 
 
@@ -149,6 +150,20 @@ def missing_actuals(node: SessionNode) -> list[str]:
     """The kinds of actual value the panel plots elsewhere that this device's profile (and its manual) lacks."""
     present = {label.split(" (")[0] for label, _, _ in actual_refs(node)}
     return [kind for kind in ACTUAL_KINDS if kind not in present]
+
+
+MISSING_WHY = {  # what the manuals were searched for (issue 11 follow-up)
+    "cia402": "the MICROMASTER CANopen manual prints no r0027 current, r0026 DC-link voltage or r0037 temperature "
+              "(the parameter channel would reach them at 0x2000 + number, but type and scaling are not given)",
+    "emf2178ib": "the EMF2178IB manual names only C0061 (heat-sink temperature) among the actual values",
+    "emf2178ib-aif": "the EMF2178IB manual names only C0061 (heat-sink temperature) among the actual values",
+    "lenze8400": "the 8400 motec CANopen manual names only C00061 (heat-sink temperature); C00053 / C00054 / C00056 "
+                 "appear in the 8400 BaseLine C parameter list without scaling and are not assumed for the motec",
+}
+
+
+def missing_why(node: SessionNode) -> str:
+    return MISSING_WHY.get(family(node).key, "not in this device's profile")
 
 
 class ActualValue(BaseModel):

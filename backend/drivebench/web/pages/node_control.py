@@ -65,6 +65,7 @@ async def control_tab(request: Request, session: SessionDep, node: NodeDep) -> R
         context["status"] = await drive_control.read_status(session, node)
         context["jog"] = await drive_control.jog_plan(session, node)
         context["missing"] = drive_control.missing_actuals(node)
+        context["missing_why"] = drive_control.missing_why(node)
     except DriveBenchError as exc:
         context["error"] = exc
     return templates.TemplateResponse(request, "node/control_body.html", context)
