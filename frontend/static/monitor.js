@@ -197,6 +197,7 @@
       if (message.type === "hello") {
         $("trace-body").innerHTML = ""; pendingTrace = [];
         paused = message.view.paused;
+        if (view) view = { ...message.view };  // what the server took (a rejected filter is not re-sent)
       } else if (paused) {
         return;  // sent before the server took our pause
       }

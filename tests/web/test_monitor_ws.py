@@ -201,7 +201,10 @@ def test_bad_view_message_is_answered_with_an_error(monitor_client: TestClient) 
         socket.receive_text()
         socket.send_text(json.dumps({"type": "view", "filter": {"cob_min": 0x700, "cob_max": 0x100}}))
         error = _until(socket, lambda m: m["type"] == "error", "error answer")
-        assert "cob_min must not be above cob_max" in error["detail"]
+        assert error["detail"] == "Filter not applied: cob_min must not be above cob_max"
+        socket.send_text(json.dumps({"type": "view", "filter": {"nodes": [200]}}))
+        error = _until(socket, lambda m: m["type"] == "error", "error answer")
+        assert error["detail"] == "Filter not applied: nodes: Input should be less than or equal to 127"
         socket.send_text("not json")
         assert "Not a view message" in _until(socket, lambda m: m["type"] == "error", "error answer")["detail"]
         # The socket lives on with its view unchanged.

@@ -262,6 +262,8 @@ class Monitor(can.Listener):
         """``snapshot`` (from ``live_snapshot``) with the node and COB-ID rows ``view`` shows."""
         accepts = view.filter.accepts
         nodes = view.filter.nodes
+        if view.filter.key() == _ALL:
+            return {**snapshot, "paused": view.paused}
         return {**snapshot, "paused": view.paused, "filter": view.filter.as_dict(),
                 "nodes": [row for row in snapshot["nodes"] if not nodes or row["node"] in nodes],
                 "cob_ids": [row for row in snapshot["cob_ids"]
@@ -432,6 +434,7 @@ class Monitor(can.Listener):
 
 
 _SERVICES = {service.value: service for service in Service}
+_ALL = MonitorFilter().key()
 
 
 @lru_cache(maxsize=4096)

@@ -277,12 +277,24 @@ async def _receive_views(websocket: WebSocket, feed: Feed, client: _Client) -> N
         try:
             request = ViewRequest.model_validate_json(text)
         except ValidationError as exc:
-            problems = "; ".join(f"{'.'.join(str(part) for part in error['loc'])}: {error['msg']}"
-                                 for error in exc.errors(include_url=False))
-            answer = {"type": "error", "detail": f"Not a view message: {problems}"}
+            answer = {"type": "error", "detail": _problem_text(exc)}
             client.notify(json.dumps(answer))
             continue
         feed.change_view(client, request)
+
+
+def _problem_text(exc: ValidationError) -> str:
+    """``Filter not applied: nodes: Input should be less than or equal to 127`` (the user's words, not pydantic's)."""
+    errors = exc.errors(include_url=False)
+    if not errors or errors[0]["type"] == "json_invalid" or not errors[0]["loc"]:
+        return f"Not a view message: {errors[0]['msg'] if errors else exc}"
+    problems = []
+    for error in errors:
+        fields = [str(part) for part in error["loc"][1:] if not isinstance(part, int)]
+        message = str(error["msg"]).removeprefix("Value error, ")
+        problems.append(f"{', '.join(fields)}: {message}" if fields else message)
+    what = {"filter": "Filter", "paused": "Pause", "rows": "Trace rows"}.get(str(errors[0]["loc"][0]), "View")
+    return f"{what} not applied: {'; '.join(problems)}"
 
 
 async def _send_loop(client: _Client) -> None:
