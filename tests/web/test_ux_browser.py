@@ -127,3 +127,36 @@ def test_every_control_is_reachable_by_keyboard_with_visible_focus(live_server: 
     focused = page.evaluate("""() => { const e = document.activeElement;
         return {text: e.textContent.trim(), outline: getComputedStyle(e).outlineStyle}; }""")
     assert focused == {"text": "Plant", "outline": "solid"}
+
+
+def test_keyboard_focus_survives_the_live_plant_table(live_server: str, page: Any) -> None:
+    """The node table is pushed over the websocket twice a second; a focused NMT button must stay focused."""
+    page.goto(live_server + "/")
+    settle(page)
+    button = page.locator("#nmt-demo-plant-5-pre-operational")
+    button.focus()
+    page.evaluate("() => { document.querySelector('#node-demo-plant-5').dataset.seen = 'yes'; }")
+    page.wait_for_function("() => !document.querySelector('#node-demo-plant-5').dataset.seen",
+                           timeout=SETTLE_MS)  # the row was replaced by a newer one
+    assert page.evaluate("() => document.activeElement.id") == "nmt-demo-plant-5-pre-operational"
+
+
+def test_dip_switch_keeps_focus_after_toggling_by_keyboard(live_server: str, page: Any) -> None:
+    page.goto(live_server + "/tools")
+    settle(page)
+    page.locator("#dip-switch-6").focus()  # 8400 motec: c b a 64 32 16 -> the switch worth 16
+    page.keyboard.press("Space")
+    page.wait_for_function("() => document.querySelector('#dip-node-id').value === '16'", timeout=SETTLE_MS)
+    assert page.evaluate("() => document.activeElement.id") == "dip-switch-6"
+
+
+def test_guarding_form_keeps_what_the_user_types_while_health_refreshes(live_server: str, page: Any) -> None:
+    page.goto(live_server + "/sessions/demo-plant/nodes/12?tab=diagnostics")
+    settle(page)
+    field = page.locator("input[name=guard_time_ms]")
+    field.fill("250")
+    page.evaluate("() => { document.querySelector('#diag-health-live').dataset.seen = 'yes'; }")
+    page.wait_for_function("() => !document.querySelector('#diag-health-live').dataset.seen",
+                           timeout=SETTLE_MS)  # the health facts were refreshed
+    assert field.input_value() == "250"
+    assert page.evaluate("() => document.activeElement.name") == "guard_time_ms"

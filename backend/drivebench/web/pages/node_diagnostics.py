@@ -41,7 +41,7 @@ async def diagnostics_tab(request: Request, session: SessionDep, node: NodeDep) 
 
 @router.get(UI + "/health", response_class=HTMLResponse)
 async def health_block(request: Request, session: SessionDep, node: NodeDep) -> Response:
-    return templates.TemplateResponse(request, PAGE, _context(session, node), block_name="health")
+    return templates.TemplateResponse(request, PAGE, _context(session, node), block_name="health_live")
 
 
 @router.get(UI + "/vendor", response_class=HTMLResponse)
