@@ -112,14 +112,21 @@
     $("cob-note").textContent = s.cob_ids_cut ? `busiest ${s.cob_ids.length} of ${s.cob_ids_cut}` : "";
   }
 
-  const showCount = () => { $("trace-count").textContent = `${num($("trace-body").rows.length)} of ${num(TRACE_ROWS)} rows`; };
+  const gapRows = $("trace-body").getElementsByClassName("gap");  // live collection
+  const showCount = () => {
+    $("trace-count").textContent = `${num($("trace-body").rows.length - gapRows.length)} of ${num(TRACE_ROWS)} rows`;
+  };
+  // More telegrams came in one update than the server sends (TRACE_PER_UPDATE in web/ws/monitor.py): say so in
+  // the trace instead of letting it look complete.
+  const GAP_ROW = '<tr class="gap"><td colspan="6">… more telegrams than the trace shows (it keeps up to 500 a second); ' +
+    "the counters and a recording have every one</td></tr>";
 
   function renderTrace() {
     if (!pendingTrace.length) { showCount(); return; }
     const body = $("trace-body");
     const rows = pendingTrace.slice(-TRACE_ROWS);
     pendingTrace = [];
-    body.insertAdjacentHTML("beforeend", rows.map((r) =>
+    body.insertAdjacentHTML("beforeend", rows.map((r) => r.gap ? GAP_ROW :
       `<tr class="svc-${esc(r.group).replace(/ /g, "-")}" data-seq="${r.seq}"><td class="time">${clock(r.time, true)}</td><td class="cob">${esc(r.cob_id)}</td>` +
       `<td>${esc(r.service)}</td><td class="num">${r.node ?? "–"}</td><td class="num">${r.dlc}</td>` +
       `<td class="decoded" title="${esc(r.cob_id)} [${r.dlc}] ${esc(r.hex || "(no data)")}">${esc(r.summary || r.service)}</td></tr>`).join(""));
@@ -203,6 +210,7 @@
       }
       addHistory(message.history, message.type === "hello");
       const names = message.trace_columns;
+      if (message.trace_more && message.type === "update") pendingTrace.push({ gap: true });
       for (const row of message.trace) pendingTrace.push(Object.fromEntries(names.map((name, i) => [name, row[i]])));
       if (pendingTrace.length > TRACE_ROWS) pendingTrace = pendingTrace.slice(-TRACE_ROWS);
       latest = message;

@@ -222,3 +222,25 @@ def test_trace_length_is_chosen_and_remembered(page: Any, monitor_server: str) -
     page.select_option("#trace-length", "500")
     assert page.locator("#trace-body tr").count() <= 500
     screenshot(page, "monitor-trace-length")
+
+
+def test_trace_says_when_telegrams_came_faster_than_it_shows(page: Any, monitor_server: str) -> None:
+    import can
+
+    page.goto(f"{monitor_server}/monitor/{SESSION_ID}")
+    page.wait_for_selector("#live-state.live", timeout=10_000)
+    page.wait_for_function("document.querySelectorAll('#trace-body tr').length > 2", timeout=10_000)
+    assert page.locator("#trace-body tr.gap").count() == 0
+    with can.Bus(interface="virtual", channel=CHANNEL) as wire:
+        for counter in range(400):  # a burst: far more than one update's 50 rows
+            wire.send(can.Message(arbitration_id=0x080, is_extended_id=False, data=bytes([counter % 240 + 1])))
+    page.wait_for_selector("#trace-body tr.gap", timeout=10_000)
+    assert "more telegrams than the trace shows" in page.text_content("#trace-body tr.gap")
+    assert page.locator("#trace-body td.decoded", has_text="counter").count() >= 50
+    page.uncheck("#trace-follow")
+    page.evaluate("""() => {  // the gap row to the middle of the trace box (the page itself stays at the top)
+        const box = document.getElementById('trace-scroll');
+        box.scrollTop = document.querySelector('#trace-body tr.gap').offsetTop - box.clientHeight / 2;
+    }""")
+    page.evaluate("window.scrollTo(0, 0)")  # page.uncheck scrolled the window; the sticky bar would sit mid-shot
+    screenshot(page, "monitor-trace-gap")
