@@ -202,6 +202,48 @@ def test_absent_node_times_out_without_blocking_others(bench: Bench) -> None:
     assert count == 12 and still_waiting
 
 
+
+def test_repeated_reads_follow_the_device_value(bench: Bench) -> None:
+    """Scaling is remembered per item for the last raw value: a changed value is scaled afresh."""
+    store = bench.plant.nodes[5].store
+    store.set_ref("C00088", 1020)
+    first = bench.run(parameters.read(bench.session, 5, "C00088"))
+    store.set_ref("C00088", 750)
+    second = bench.run(parameters.read(bench.session, 5, "C00088"))
+    again = bench.run(parameters.read(bench.session, 5, "88"))
+    assert (first.raw, first.display) == (1020, "10.20 A")
+    assert (second.raw, second.value, second.display) == (750, 7.5, "7.50 A")
+    assert (again.ref, again.display) == ("C00088", "7.50 A")
+    assert parameters.service(bench.session).values[5]["C00088"] is again
+
+
+def test_a_retry_then_abort_of_an_unanswered_read(bench: Bench) -> None:
+    """With one retry, the request goes out twice; then the tool aborts the transfer (CiA 301 0x05040000)."""
+    parameters.configure(bench.session, parameters.SdoSettings(timeout_s=0.1, retries=1))
+    bench.frames()
+    with pytest.raises(SdoTimeoutError):
+        bench.run(parameters.read(bench.session, ABSENT, "C00061"))
+    sent = [bytes(m.data) for m in bench.frames() if m.arbitration_id == 0x600 + ABSENT]
+    request = bytes.fromhex("40 C2 5F 00 00 00 00 00")
+    assert sent == [request, request, bytes.fromhex("80 C2 5F 00 00 00 04 05")]
+
+
+def test_a_cancelled_read_leaves_the_channel_usable(bench: Bench) -> None:
+    parameters.configure(bench.session, parameters.SdoSettings(timeout_s=5.0, retries=0))
+
+    async def go() -> tuple[bool, int | float | str | None]:
+        waiting = asyncio.ensure_future(parameters.read(bench.session, ABSENT, "C00061"))
+        await asyncio.sleep(0.05)
+        waiting.cancel()
+        with pytest.raises(asyncio.CancelledError):
+            await waiting
+        lock_free = not bench.session.client(ABSENT).channels[0].lock.locked()
+        other = await parameters.read(bench.session, 5, "C00061")
+        return lock_free, other.value
+
+    assert bench.run(go()) == (True, 43)
+
+
 # --- reset-required, device commands ----------------------------------------------------------------------
 def test_reset_required_flag_until_reset_node(bench: Bench) -> None:
     node = bench.session.node(5)

@@ -15,12 +15,14 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import contextvars
 import math
+import os
 import re
 import time
 import weakref
 from collections import deque
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Generator, Iterable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from enum import StrEnum
@@ -68,8 +70,10 @@ class SdoSettings:
     """Activate and use a device's second SDO channel for read-all (8400 motec, EMF2178IB)."""
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)
 class ParameterValue:
+    """One value as read (not frozen: a frozen dataclass costs 3 us to build, a tenth of a read's own work)."""
+
     ref: str
     name: str
     index: int
@@ -273,12 +277,6 @@ def groups(node: SessionNode) -> list[str]:
 
 
 # --- read ------------------------------------------------------------------------------------------------
-def _value(item: Item, raw: RawValue) -> ParameterValue:
-    scaled = from_raw(item.entry, raw)
-    return ParameterValue(item.ref, item.name, item.index, item.subindex, scaled.raw, scaled.value, scaled.unit,
-                          scaled.text, display(item, scaled), time.time())
-
-
 def display(item: Item, scaled: ScaledValue) -> str:
     """What the table shows: ``10.20 A``, ``0 = 500 kbit/s``, ``0x00000644``, ``01.00.00.00``."""
     entry = item.entry
@@ -298,6 +296,83 @@ def display(item: Item, scaled: ScaledValue) -> str:
     return str(scaled.value) if scaled.value is not None else ""
 
 
+class _Plan:
+    """What reading one item needs, worked out once per item rather than once per read: the expedited request,
+    an integer decoder, the name; and the scaled form of the last raw value read (scaling and formatting run
+    again only when the value changes)."""
+
+    __slots__ = ("_last", "_signed", "_size", "address", "expedited", "item", "name", "request")
+
+    def __init__(self, item: Item) -> None:
+        entry = item.entry
+        data_type = entry.data_type
+        size = data_type.size
+        self.item = item
+        self.name = item.name
+        self.expedited = size is not None and size <= 4 and entry.access.readable
+        self.address = bytes([item.index & 0xFF, item.index >> 8, item.subindex])
+        self.request = b"\x40" + self.address + bytes(4)  # CiA 301 initiate upload
+        integer = data_type.is_integer and size is not None and data_type is not DataType.BOOLEAN
+        self._size = size if integer else 0
+        self._signed = data_type.is_signed
+        self._last: tuple[RawValue, ScaledValue, str] | None = None
+
+    def decode(self, data: bytes, node_id: int) -> RawValue:
+        size = self._size
+        if size and len(data) >= size:
+            return int.from_bytes(data[:size], "little", signed=self._signed)
+        return _decode(self.item, data, node_id)
+
+    def value(self, raw: RawValue) -> ParameterValue:
+        item = self.item
+        last = self._last
+        if last is None or type(last[0]) is not type(raw) or last[0] != raw:
+            scaled = from_raw(item.entry, raw)
+            last = self._last = (raw, scaled, display(item, scaled))
+        scaled, shown = last[1], last[2]
+        return ParameterValue(item.ref, self.name, item.index, item.subindex, scaled.raw, scaled.value, scaled.unit,
+                              scaled.text, shown, time.time())
+
+
+_PLANS: weakref.WeakKeyDictionary[Catalog, dict[int, _Plan]] = weakref.WeakKeyDictionary()
+_RESOLVED: weakref.WeakKeyDictionary[Catalog, dict[str, _Plan]] = weakref.WeakKeyDictionary()
+_CACHED_MAX = 4096
+"""Plans and refs remembered per profile (refs as typed: ``C00088``, ``88``, ``0x5FA7sub0``); past that, work
+them out each time."""
+
+
+def _plan_of(catalog: Catalog | None, item: Item) -> _Plan:
+    """The item's plan, cached per profile by the item's identity (items are not hashable; the plan holds its
+    item, so a cached id is never reused by another object)."""
+    if catalog is None:
+        return _Plan(item)
+    plans = _PLANS.get(catalog)
+    if plans is None:
+        plans = _PLANS[catalog] = {}
+    plan = plans.get(id(item))
+    if plan is None or plan.item is not item:
+        plan = _Plan(item)
+        if len(plans) < _CACHED_MAX:
+            plans[id(item)] = plan
+    return plan
+
+
+def _plan(node: SessionNode, ref: str) -> _Plan:
+    """:func:`resolve` and :func:`_plan_of`, remembered per profile and ref."""
+    catalog = node.catalog
+    if catalog is None:
+        return _Plan(resolve(node, ref))
+    known = _RESOLVED.get(catalog)
+    if known is None:
+        known = _RESOLVED[catalog] = {}
+    plan = known.get(ref)
+    if plan is None:
+        plan = _plan_of(catalog, resolve(node, ref))
+        if len(known) < _CACHED_MAX:
+            known[ref] = plan
+    return plan
+
+
 def _decode(item: Item, data: bytes, node_id: int) -> RawValue:
     try:
         return decode(item.entry.data_type, data)
@@ -312,23 +387,140 @@ def _read_blocking(client: NodeClient, item: Item, *, block: bool = False, chann
     return client.upload(item.index, item.subindex, block=block, channel=channel)
 
 
-def _resolve(future: asyncio.Future[bytes], data: bytes) -> None:
-    if not future.done():
-        future.set_result(data)
+class _Response:
+    """The awaited answer to one expedited request, resolved on the event loop.
+
+    Duck-typed asyncio future (``_asyncio_future_blocking``, ``add_done_callback``, ``result``, ``cancel``, as
+    ``asyncio.Task`` requires): where an ``asyncio.Future`` resolved by the reader thread's wake-up handle would
+    schedule the awaiting task for the *next* loop iteration, this one runs the task's step in that same
+    handle. One event-loop iteration per read instead of two (about 17 us on this machine, a tenth of a read).
+    """
+
+    __slots__ = ("_asyncio_future_blocking", "_callbacks", "_data", "_done", "_error", "_loop")
+
+    def __init__(self, loop: asyncio.AbstractEventLoop) -> None:
+        self._loop = loop
+        self._callbacks: list[tuple[Callable[[_Response], object], contextvars.Context | None]] = []
+        self._data = b""
+        self._error: BaseException | None = None
+        self._done = False
+        self._asyncio_future_blocking = False
+
+    def get_loop(self) -> asyncio.AbstractEventLoop:
+        return self._loop
+
+    def add_done_callback(self, callback: Callable[[_Response], object], *,
+                          context: contextvars.Context | None = None) -> None:
+        if self._done:
+            self._loop.call_soon(callback, self, context=context)
+        else:
+            self._callbacks.append((callback, context))
+
+    def done(self) -> bool:
+        return self._done
+
+    def cancelled(self) -> bool:
+        return isinstance(self._error, asyncio.CancelledError)
+
+    def result(self) -> bytes:
+        if self._error is not None:
+            raise self._error
+        return self._data
+
+    def deliver(self, data: bytes) -> None:
+        """Event loop, from a handle of its own (no task running): the awaiting task continues right here."""
+        if self._done:
+            return
+        self._done = True
+        self._data = data
+        self._run_callbacks()
+
+    def fail(self, error: BaseException) -> None:
+        if self._done:
+            return
+        self._done = True
+        self._error = error
+        self._run_callbacks()
+
+    def cancel(self, msg: object = None) -> bool:
+        """Called by ``Task.cancel`` from inside whatever task runs: the wake-up goes through the loop."""
+        if self._done:
+            return False
+        self._done = True
+        self._error = asyncio.CancelledError() if msg is None else asyncio.CancelledError(msg)
+        callbacks, self._callbacks = self._callbacks, []
+        for callback, context in callbacks:
+            self._loop.call_soon(callback, self, context=context)
+        return True
+
+    def _run_callbacks(self) -> None:
+        callbacks, self._callbacks = self._callbacks, []
+        for callback, context in callbacks:
+            if context is None:
+                callback(self)
+            else:
+                context.run(callback, self)
+
+    def __await__(self) -> Generator[_Response, None, bytes]:
+        if not self._done:
+            self._asyncio_future_blocking = True
+            yield self
+        return self.result()
 
 
-def _expire(future: asyncio.Future[bytes]) -> None:
-    if not future.done():
-        future.set_exception(TimeoutError())
+class _Waker:
+    """Wakes one event loop from the bus reader thread for :class:`_Response` deliveries: an eventfd the loop
+    watches and a queue of answers. One read of the eventfd per wake-up, where ``call_soon_threadsafe`` costs
+    two reads of the loop's self-pipe (each a release of the GIL the reader thread is waiting for)."""
+
+    def __init__(self, loop: asyncio.AbstractEventLoop) -> None:
+        self.fd = os.eventfd(0, os.EFD_NONBLOCK | os.EFD_CLOEXEC)
+        self.ready: deque[tuple[_Response, bytes]] = deque()
+        loop.add_reader(self.fd, self._drain)
+        weakref.finalize(loop, os.close, self.fd)
+
+    def post(self, response: _Response, data: bytes) -> None:  # bus reader thread
+        self.ready.append((response, data))
+        os.eventfd_write(self.fd, 1)
+
+    def _drain(self) -> None:
+        with contextlib.suppress(BlockingIOError):
+            os.eventfd_read(self.fd)
+        ready = self.ready
+        while ready:
+            response, data = ready.popleft()
+            response.deliver(data)
+
+
+_WAKERS: weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, _Waker | None] = weakref.WeakKeyDictionary()
+
+
+def _waker(loop: asyncio.AbstractEventLoop) -> _Waker | None:
+    """The loop's waker; None where the platform or loop has none (the reader thread then uses
+    ``call_soon_threadsafe``)."""
+    try:
+        return _WAKERS[loop]
+    except KeyError:
+        pass
+    waker: _Waker | None = None
+    if hasattr(os, "eventfd"):
+        try:
+            waker = _Waker(loop)
+        except (NotImplementedError, OSError):
+            waker = None
+    _WAKERS[loop] = waker
+    return waker
 
 
 class _Expedited:
-    """Expedited SDO upload awaited on the event loop: the request is sent, the response resolves a future from
-    the bus reader thread. No worker thread per read, so the service layer keeps pace with a bare canopen client.
+    """Expedited SDO upload awaited on the event loop: the request is sent, the response resolves a
+    :class:`_Response` from the bus reader thread. No worker thread per read, so the service layer keeps pace with
+    a bare canopen client.
 
     It takes the channel's lock without waiting (a transfer in progress sends the read to a worker thread
     instead) and checks that the response names the requested object; canopen's own client on the same COB-ID
-    discards the copy it queued at its next transfer.
+    discards the copy it queued at its next transfer. The SDO timeout is one watchdog timer per channel that
+    re-arms itself, not a timer per read.
     """
 
     def __init__(self, client: NodeClient, channel: SdoChannel) -> None:
@@ -337,43 +529,69 @@ class _Expedited:
         self.vendor = client.vendor
         self.lock = channel.lock
         self.sdo = channel.client
-        self._pending: tuple[asyncio.AbstractEventLoop, asyncio.Future[bytes], bytes] | None = None
+        self._pending: tuple[asyncio.AbstractEventLoop, _Response, bytes, _Waker | None] | None = None
+        self._deadline = 0.0
+        self._watch: asyncio.TimerHandle | None = None
+        self._watch_loop: asyncio.AbstractEventLoop | None = None
         self.sdo.network.subscribe(self.sdo.tx_cobid, self._on_response)
 
     def _on_response(self, can_id: int, data: bytearray, timestamp: float) -> None:  # bus reader thread
         pending = self._pending
-        if pending is None or bytes(data[1:4]) != pending[2]:
+        if pending is None or data[1:4] != pending[2]:
             return
-        loop, future, _ = pending
-        loop.call_soon_threadsafe(_resolve, future, bytes(data))
+        loop, response, _, waker = pending
+        if waker is not None:
+            waker.post(response, bytes(data))
+        else:
+            loop.call_soon_threadsafe(response.deliver, bytes(data))
 
-    async def upload(self, index: int, sub: int) -> bytes | None:
+    def _arm(self, loop: asyncio.AbstractEventLoop, deadline: float) -> None:
+        self._deadline = deadline
+        watch = self._watch
+        if watch is not None and self._watch_loop is loop and watch.when() <= deadline:
+            return  # fires first, then re-arms for this deadline
+        if watch is not None:
+            watch.cancel()
+        self._watch = loop.call_at(deadline, self._check, loop)
+        self._watch_loop = loop
+
+    def _check(self, loop: asyncio.AbstractEventLoop) -> None:
+        self._watch = None
+        pending = self._pending
+        if pending is None or pending[1].done() or pending[0] is not loop:
+            return
+        if loop.time() >= self._deadline:
+            pending[1].fail(TimeoutError())
+        else:
+            self._watch = loop.call_at(self._deadline, self._check, loop)
+
+    async def upload(self, plan: _Plan) -> bytes | None:
         """The value, or None when the channel is busy or the device answers other than expedited."""
         if not self.lock.acquire(blocking=False):
             return None
+        item = plan.item
         try:
-            address = bytes([index & 0xFF, index >> 8, sub])
             attempts = max(int(self.sdo.MAX_RETRIES), 1)
+            timeout = float(self.sdo.RESPONSE_TIMEOUT)
             loop = asyncio.get_running_loop()
+            waker = _waker(loop)
             for attempt in range(attempts):
-                future: asyncio.Future[bytes] = loop.create_future()
-                self._pending = (loop, future, address)
-                # a plain timer, not asyncio.wait_for: that costs two more loop iterations per read
-                timer = loop.call_later(float(self.sdo.RESPONSE_TIMEOUT), _expire, future)
-                self.sdo.network.send_message(self.sdo.rx_cobid, b"\x40" + address + bytes(4))
+                response = _Response(loop)
+                self._pending = (loop, response, plan.address, waker)
+                self._arm(loop, loop.time() + timeout)
+                self.sdo.network.send_message(self.sdo.rx_cobid, plan.request)
                 try:
-                    response = await future
+                    data = await response
                 except TimeoutError:
                     if attempt + 1 < attempts:
                         continue
-                    self._abort(address, 0x05040000)
+                    self._abort(plan.address, 0x05040000)
                     raise SdoTimeoutError(f"Node {self.node_id} did not answer the SDO request for "
-                                          f"0x{index:04X}sub{sub} (No SDO response received)",
-                                          node=self.node_id, index=index, subindex=sub) from None
+                                          f"0x{item.index:04X}sub{item.subindex} (No SDO response received)",
+                                          node=self.node_id, index=item.index, subindex=item.subindex) from None
                 finally:
-                    timer.cancel()
                     self._pending = None
-                return self._data(response, index, sub, address)
+                return self._data(data, item.index, item.subindex, plan.address)
             return None
         finally:
             self.lock.release()
@@ -398,18 +616,17 @@ class _Expedited:
 _FAST: weakref.WeakKeyDictionary[SdoChannel, _Expedited] = weakref.WeakKeyDictionary()
 
 
-async def _upload(client: NodeClient, item: Item, *, block: bool = False, channel: int | None = None) -> bytes:
+async def _upload(client: NodeClient, plan: _Plan, *, block: bool = False, channel: int | None = None) -> bytes:
     """Read one value: expedited on the event loop where it can be, else canopen's client in a worker thread."""
-    size = item.entry.data_type.size
-    if not block and size is not None and size <= 4 and item.entry.access.readable:
+    if plan.expedited and not block:
         chosen = client._pick_channel(channel)
         fast = _FAST.get(chosen)
         if fast is None:
             fast = _FAST[chosen] = _Expedited(client, chosen)
-        data = await fast.upload(item.index, item.subindex)
+        data = await fast.upload(plan)
         if data is not None:
             return data
-    return await _on_bus(partial(_read_blocking, client, item, block=block, channel=channel))
+    return await _on_bus(partial(_read_blocking, client, plan.item, block=block, channel=channel))
 
 
 def _use_block(node: SessionNode, item: Item, transfer: str) -> bool:
@@ -424,11 +641,10 @@ async def read(session: Session, node_id: int, ref: str, *, transfer: str = "aut
     """Read one parameter from the device. ``transfer``: ``auto`` (expedited/segmented as the size needs) or
     ``block`` (CiA 301 block upload)."""
     node = session.node(node_id)
-    item = resolve(node, ref)
-    client = session.client(node_id)
-    block = _use_block(node, item, transfer)
-    data = await _upload(client, item, block=block)
-    value = _value(item, _decode(item, data, node_id))
+    plan = _plan(node, ref)
+    block = transfer != "auto" and _use_block(node, plan.item, transfer)
+    data = await _upload(session.client(node_id), plan, block=block)
+    value = plan.value(plan.decode(data, node_id))
     service(session).remember(node_id, value)
     return value
 
@@ -652,8 +868,9 @@ async def _read_node(session: Session, node: SessionNode, work: list[Item], job:
                 return
             item = queue.popleft()
             try:
-                data = await _upload(client, item, channel=channel)
-                value = _value(item, _decode(item, data, node.node_id))
+                plan = _plan_of(node.catalog, item)
+                data = await _upload(client, plan, channel=channel)
+                value = plan.value(plan.decode(data, node.node_id))
             except SdoTimeoutError as exc:
                 silent["timeouts"] += 1
                 job.advance(issue=_issue(node.node_id, item, exc))
