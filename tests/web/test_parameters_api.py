@@ -265,3 +265,21 @@ def test_sdo_settings_per_session(api_8400: Api) -> None:
         "timeout_s": 0.1, "retries": 0, "use_sdo2": False}
     assert api_8400.client.put(f"/api/sessions/{SESSION}/sdo-settings",
                                json={"timeout_s": 0, "retries": 0}).status_code == 422
+
+
+def test_string_by_block_upload(api_8400: Api) -> None:
+    """C00099 (firmware version, VISIBLE_STRING) by CiA 301 block upload: initiate 0xA0 ... end 0xA1 on the wire."""
+    api_8400.drain()
+    value = api_8400.client.get(api_8400.url(5, "/parameters/C00099"), params={"transfer": "block"})
+    assert value.status_code == 200, value.text
+    assert value.json()["value"] == "01.00.00.00"
+    requests = [m.data[0] for m in api_8400.drain() if m.arbitration_id == 0x605]
+    assert requests[0] & 0xE3 == 0xA0 and requests[-1] == 0xA1
+    refused = api_8400.client.get(api_8400.url(5, "/parameters/C00099"), params={"transfer": "fast"})
+    assert refused.status_code == 422
+
+
+def test_block_upload_refused_where_the_device_has_none(api_emf: Api) -> None:
+    refused = api_emf.client.get(api_emf.url(5, "/parameters/C0200"), params={"transfer": "block"})
+    assert refused.status_code == 422, refused.text
+    assert "block transfer" in refused.json()["detail"]

@@ -185,3 +185,24 @@ def test_info_tab_reads_identity(server: tuple[str, Any], page: Any) -> None:
     expect(page).to_have_url(url + "/sessions/browser-plant/nodes/12?tab=info")
     screenshot(page, "node-info")
 
+
+
+def test_string_read_by_block_upload(server: tuple[str, Any], page: Any) -> None:
+    """Strings get a Block button where the device supports SDO block transfer (8400 motec, not the EMF2178IB)."""
+    url, _ = server
+    page.goto(url + "/sessions/browser-plant/nodes/5")
+    _search(page, "C00099")
+    row = _row(page, "C00099")
+    row.get_by_role("button", name="Block").click()
+    expect(_row(page, "C00099").locator("td.val .v")).to_have_text("01.00.00.00", timeout=WAIT_MS)
+    expect(_row(page, "C00099").locator("td.val .via")).to_have_text("block")
+    assert page.evaluate(LAYOUT_PROBLEMS) == []
+    screenshot(page, "parameters-block-upload")
+    _row(page, "C00099").get_by_role("button", name="Read", exact=True).click()
+    expect(_row(page, "C00099").locator("td.val .via")).to_have_count(0, timeout=WAIT_MS)
+    expect(_row(page, "C00099").locator("td.val .v")).to_have_text("01.00.00.00")
+
+    page.goto(url + "/sessions/browser-plant/nodes/12")
+    _search(page, "C0200")
+    expect(_row(page, "C0200").get_by_role("button", name="Read", exact=True)).to_be_visible()
+    expect(_row(page, "C0200").get_by_role("button", name="Block")).to_have_count(0)

@@ -113,17 +113,19 @@ async def parameter_rows(request: Request, session: SessionDep, node: NodeDep, q
 
 
 def _row(request: Request, session: Session, node: SessionNode, ref: str, *,
-         result: WriteResult | None = None) -> Response:
+         result: WriteResult | None = None, transfer: str = "auto") -> Response:
     item = service.resolve(node, ref)
-    context = _base(request, session, node, "parameters", item=item, result=result,
+    context = _base(request, session, node, "parameters", item=item, result=result, transfer=transfer,
                     values=service.service(session).values.get(node.node_id, {}))
     return templates.TemplateResponse(request, "node/parameters.html", context, block_name="one_row")
 
 
 @router.post(UI + "/parameters/{ref:path}/read", response_class=HTMLResponse)
-async def read_row(request: Request, session: SessionDep, node: NodeDep, ref: str) -> Response:
-    await service.read(session, node.node_id, ref)
-    return _row(request, session, node, ref)
+async def read_row(request: Request, session: SessionDep, node: NodeDep, ref: str,
+                   transfer: Annotated[str, Form(pattern="^(auto|block)$")] = "auto") -> Response:
+    """Read one row; ``transfer=block`` (the row's Block button on strings) reads by CiA 301 block upload."""
+    await service.read(session, node.node_id, ref, transfer=transfer)
+    return _row(request, session, node, ref, transfer=transfer)
 
 
 @router.post(UI + "/parameters/{ref:path}/write", response_class=HTMLResponse)
