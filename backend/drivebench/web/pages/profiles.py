@@ -21,11 +21,13 @@ from drivebench.web.api.profiles import (
     upload_error,
 )
 from drivebench.web.deps import StateDep
+from drivebench.web.pages.node_info import identity_text
 from drivebench.web.problems import status_for
 from drivebench.web.state import AppState
 from drivebench.web.templating import templates
 
 router = APIRouter(include_in_schema=False)
+templates.env.filters["device_type"] = lambda raw: identity_text("0x1000", raw)
 
 PAGE_SIZE = 100
 TYPE_SHORT = {"BOOLEAN": "BOOL", "VISIBLE_STRING": "VSTR", "OCTET_STRING": "OSTR", "UNICODE_STRING": "USTR"}
