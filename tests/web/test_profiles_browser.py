@@ -196,3 +196,14 @@ def test_upload_open_and_delete(own_server: tuple[str, Path, Any], page: Any) ->
     expect(page.locator("#upload-result .ok")).to_contain_text("Deleted", timeout=WAIT_MS)
     expect(page.locator("table.profiles tbody tr", has_text="EM-Servo 400")).to_have_count(0)
     assert uploads(user_dir) == []
+
+
+def test_a_pasted_code_is_searched_without_a_key_press(live_server: str, page: Any) -> None:
+    """Pasting (or autocompleting) a code fires no key event; the search must run on the input itself."""
+    page.goto(f"{live_server}/profiles/siemens-micromaster4-canopen")
+    expect(page.locator("#entries tr.entry")).to_have_count(100)
+    page.locator("#entry-q").fill("P2010")
+    hits = page.locator("#entries tr.entry")
+    expect(hits).to_have_count(1, timeout=WAIT_MS)
+    expect(hits.first.locator("td").nth(2)).to_have_text("0x27DA.0")
+    expect(hits.first.locator("td").nth(3)).to_have_text("CANopen baud rate")
