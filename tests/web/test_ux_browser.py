@@ -7,6 +7,7 @@ uncaught exceptions, no sideways scroll, nothing fetched from outside the server
 
 from __future__ import annotations
 
+import re
 from typing import Any
 
 import pytest
@@ -160,3 +161,13 @@ def test_guarding_form_keeps_what_the_user_types_while_health_refreshes(live_ser
                            timeout=SETTLE_MS)  # the health facts were refreshed
     assert field.input_value() == "250"
     assert page.evaluate("() => document.activeElement.name") == "guard_time_ms"
+
+
+def test_diagnostics_report_downloads_with_its_date(live_server: str, page: Any) -> None:
+    """The report goes into a service ticket: a file, with the full date it was made, every node in it."""
+    answer = page.request.get(live_server + "/api/sessions/demo-plant/diagnostics/report")
+    assert answer.status == 200
+    assert answer.headers["content-disposition"].startswith("attachment;")
+    text = answer.text()
+    assert re.search(r"created \d{4}-\d{2}-\d{2} \d{2}:\d{2}:\d{2}", text)
+    assert all(name in text for name in ("Pump (MICROMASTER 440)", "Conveyor (8400 motec)", "Fan (8200 vector"))

@@ -27,5 +27,6 @@ def _clock(timestamp: float | None) -> str:
 
 templates.env.filters["age"] = _age
 templates.env.filters["clock"] = _clock
+templates.env.filters["datetime"] = lambda ts: time.strftime("%Y-%m-%d %H:%M:%S %Z", time.localtime(ts)) if ts else "–"
 templates.env.filters["hex4"] = lambda v: f"0x{v:04X}"
 templates.env.filters["hex8"] = lambda v: f"0x{v:08X}"
