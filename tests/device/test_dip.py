@@ -6,6 +6,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from drivebench.device.catalog import Catalog
 from drivebench.device.dip import (
     FAMILIES,
     LENZE_8400_MOTEC,
@@ -17,6 +18,7 @@ from drivebench.device.dip import (
     family_spec,
     resolve_family,
 )
+from drivebench.device.loader import ProfileRegistry
 from drivebench.errors import InvalidValue, OutOfRange, UnknownProfile
 
 M8400 = LENZE_8400_MOTEC
@@ -89,6 +91,14 @@ def test_8400_c00349_readback_assumes_a_is_low_bit_and_says_so() -> None:
     result = decode(M8400, on("c", "b", "2"))  # 800 kbit/s
     assert result.readback["C00349"] == 2 | (1 << 8) | (1 << 9)
     assert any("which of the switches a/b/c is bit 7" in text for text in result.ambiguities)
+
+
+def test_8400_c00353_lenze_setting_follows_12_2_and_says_so(registry: ProfileRegistry) -> None:
+    """§8.3's short overview and §12.2 disagree on the Lenze setting of C00353; the page names the conflict and
+    the profile holds the §12.2 reading the COB-ID table uses (CANopen base IDs, RPDO2 = 0x300 + node id)."""
+    assert any("C00353" in text and "§12.2" in text for text in decode(M8400, {}).ambiguities)
+    catalog = Catalog(registry.get("lenze-8400-motec-canopen"))
+    assert [catalog.resolve(ref).entry.default for ref in ("C00353/1", "C00353/2", "C00354/3")] == [1, 1, 0x301]
 
 
 # Chapter 14 lists all 63 combinations: the 7-bit binary form of the address with switch 64 OFF.

@@ -128,6 +128,10 @@ FAMILIES: dict[str, FamilySpec] = {
             "of C00351.",
             "§6.3.2 note says 'The valid address range is 0 … 63'; everywhere else 1 … 63 (0 = use C00350).",
             "§6.3.1: c, b, a all ON is not in the table; the device's behaviour for it is not stated.",
+            "§8.3 short overview prints the Lenze setting of C00353 as '0: COBID = C0350 + CANBaseID' (the number "
+            "of the Lenze base IDs, the text of the CANopen ones); §12.2 C00353 says Lenze setting 1 = CANBaseID, "
+            "and the C00354 defaults (RPDO2 0x301) agree. This tool follows §12.2: CANopen base IDs are the "
+            "Lenze setting, the Lenze base IDs (RPDO2 0x281 + node id) need C00353 = 0.",
         ],
     ),
     LENZE_EMF2178IB: FamilySpec(
