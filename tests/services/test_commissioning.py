@@ -110,7 +110,8 @@ def test_8400_minimal_enable(bench: tuple[asyncio.Runner, Session]) -> None:
 
 
 def test_93xx_minimal_enable(registry: ProfileRegistry) -> None:
-    """C0005 = 1013, C0142 = 0: the controller enables only after CINH was set once (EMF2178IB ch. 6.5)."""
+    """C0005 = 1013, C0142 = 0: the controller enables only after CINH was set once (EMF2178IB ch. 6.5); the
+    panel names the AIF word 1 bits as the manual's 93XX tables do (column C0005 = 1xx3)."""
     plant_file = PlantFile.model_validate({"name": "93XX", "bus": "virtual:x@500000", "nodes": [
         {"node_id": 7, "profile": "lenze-93xx-emf2178ib"}]})
     plant = Plant(plant_file, registry.get, bus=f"virtual:{fresh_channel()}@500000", latency="0ms").start()
@@ -122,6 +123,12 @@ def test_93xx_minimal_enable(registry: ProfileRegistry) -> None:
         assert [seq.key for seq in commissioning.sequences_for(node)] == ["emf-93xx"]
         run = _walk(runner, session, commissioning.wizard(session).start(session, node, "emf-93xx"))
         assert run.failed is None, run.failed
+        status = runner.run(commissioning.drive_control.read_status(session, node))
+        assert status.family == "emf2178ib-aif" and status.control_ref == "C1822/1"
+        named = {bit.bit: (bit.name, bit.set) for bit in status.status_bits}  # the 93XX table, not the 8200 one
+        assert named[13] == ("DCTRL-MESS", False) and named[3] == ("MCTRL-MMAX", False)
+        assert named[15] == ("Ready for operation (DCTRL-RDY)", True)
+        assert status.control_bits[2].name == "NSET-N-INV"
     finally:
         runner.run(manager.close_all())
         runner.close()

@@ -290,8 +290,9 @@ async def _state_of(session: Session, node: SessionNode, ref: str) -> tuple[str,
     return drive_control.family(node).state_of(word), word
 
 
-async def _wait_state(session: Session, node: SessionNode, expected: str) -> str:
-    """Wait for TPDO1 with the expected state; without one (event TPDO unchanged) read the status word."""
+async def _send_and_wait_state(session: Session, node: SessionNode, cob_id: int, data: bytes, expected: str) -> str:
+    """Send the RPDO, wait for TPDO1 with the expected state; without one (event TPDO unchanged) read the status
+    word. The listener is attached before sending: the drive may answer before ``send`` returns."""
     fam = drive_control.family(node)
     loop = asyncio.get_running_loop()
     found: asyncio.Future[str] = loop.create_future()
@@ -310,6 +311,7 @@ async def _wait_state(session: Session, node: SessionNode, expected: str) -> str
     tap = Tpdo()
     session.add_frame_listener(tap)
     try:
+        await asyncio.to_thread(session.network.send, cob_id, data)
         return await asyncio.wait_for(found, ANSWER_TIMEOUT_S)
     except TimeoutError:
         state, word = await _state_of(session, node, fam.status_ref)
@@ -332,10 +334,10 @@ async def _execute(session: Session, node: SessionNode, step: Step) -> str | Non
         await asyncio.sleep(0.05)
         return None
     if step.kind == "pdo":
-        await asyncio.to_thread(session.network.send, step.cob + node.node_id, step.data)
         if step.expect_state is None:
+            await asyncio.to_thread(session.network.send, step.cob + node.node_id, step.data)
             return None
-        state = await _wait_state(session, node, step.expect_state)
+        state = await _send_and_wait_state(session, node, step.cob + node.node_id, step.data, step.expect_state)
         return None if state == step.expect_state else \
             f"The drive answered '{state}', expected '{step.expect_state}'."
     assert step.expect_ref is not None

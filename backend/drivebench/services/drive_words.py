@@ -229,9 +229,25 @@ L8400 = Lenze8400(
          "control word (LA_NCtrl) as the simulator implements it - check them against the 8400 reference manual.",
 )
 
+EMF_93XX_CONTROL_BITS = {  # EMF2178IB ch. 9.3.1.2, column 9300 servo inverter C0005 = 1xx3 (speed control)
+    0: "NSET-JOG*1", 1: "NSET-JOG*2", 2: "NSET-N-INV", 3: "Quick stop (AIF-CTRL.QSP)", 4: "NSET-RFG-STOP",
+    5: "NSET-RFG-0", 6: "Not assigned", 7: "Not assigned", 8: "Not assigned", 9: "Controller inhibit (AIF-CTRL.CINH)",
+    10: "External fault (AIF-CTRL.TRIP-SET)", 11: "Reset fault (AIF-CTRL.TRIP-RESET)", 12: "DCTRL-PAR*1",
+    13: "DCTRL-PAR-LOAD", 14: "NSET-Ti*1", 15: "NSET-Ti*2",
+}
+EMF_93XX_STATUS_BITS = {  # same column of the 93XX status word table
+    0: "DCTRL-PAR1-0", 1: "Pulse inhibit (DCTRL-IMP)", 2: "MCTRL-IMAX", 3: "MCTRL-MMAX", 4: "NSET-RFG-I=0",
+    5: "QMIN", 6: "DCTRL-NACT=0", 7: "Controller inhibit (DCTRL-CINH)", 8: "Device status bit 0",
+    9: "Device status bit 1", 10: "Device status bit 2", 11: "Device status bit 3", 12: "DCTRL-WARN",
+    13: "DCTRL-MESS", 14: "DCTRL-CW/CCW", 15: "Ready for operation (DCTRL-RDY)",
+}
 EMF_AIF = replace(EMF, key="emf2178ib-aif", control_ref="C1822/1", status_ref="C1823/1",
-                  title="Lenze device control (EMF2178IB: AIF-IN / AIF-OUT word 1)")
-"""93XX: no C0135/C0150 on the bus; the control and status words are AIF word 1 (RPDO1 / TPDO1)."""
+                  title="Lenze device control (EMF2178IB: AIF-IN / AIF-OUT word 1)",
+                  control_bits=EMF_93XX_CONTROL_BITS, status_bits=EMF_93XX_STATUS_BITS,
+                  note=EMF.note + " 93XX bit names: the manual's column for C0005 = 1xx3 (speed control); other "
+                       "signal configurations assign bits 0...2, 4, 5, 12...15 differently.")
+"""93XX: no C0135/C0150 on the bus; the control and status words are AIF word 1 (RPDO1 / TPDO1), bits named as
+the EMF2178IB manual's 93XX tables name them (not the 8200 vector's)."""
 
 FAMILIES = (CIA402, EMF, EMF_AIF, L8400)
 

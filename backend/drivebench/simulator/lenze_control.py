@@ -257,8 +257,9 @@ class LenzeControl:
             return word
         word |= 0x0001  # current parameter set 1 (DCTRL-PAR-B0 ... PAR1-0)
         word |= (not self.running) << 1  # DCTRL-IMP pulse inhibit
-        word |= (abs(actual - self.target()) < 1) << 3  # RFG1 = NOUT
-        word |= (abs(actual - self.target()) < 1) << 4  # RFG input = output
+        if _has(self.node, "C0001"):  # 8200 vector: RFG1 = NOUT; 93XX bit 3 is MCTRL-MMAX (torque limit): 0
+            word |= (abs(actual - self.target()) < 1) << 3
+        word |= (abs(actual - self.target()) < 1) << 4  # RFG input = output (NSET-RFG-I=0)
         word |= (actual == 0) << 6  # DCTRL-NOUT=0
         word |= (not self.running) << 7  # DCTRL-CINH
         word |= (actual < 0) << 14  # DCTRL-CCW
