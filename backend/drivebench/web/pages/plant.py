@@ -7,7 +7,7 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Form, Request
 from fastapi.responses import HTMLResponse, Response
 
-from drivebench.errors import DriveBenchError
+from drivebench.errors import Conflict, DriveBenchError
 from drivebench.protocol.nmt import COMMAND_BY_NAME
 from drivebench.services.sessions import Session
 from drivebench.services.views import nodes_public, session_public
@@ -85,5 +85,9 @@ async def scan(request: Request, session: SessionDep) -> Response:
 @router.post("/ui/sessions/{session_id}/nodes", response_class=HTMLResponse)
 async def add_node(request: Request, session: SessionDep, node_id: Annotated[int, Form(ge=1, le=127)],
                    profile_id: Annotated[str, Form()] = "") -> Response:
+    known = session.nodes.get(node_id)
+    if known is not None:  # adding it again would silently replace its profile (and its name)
+        raise Conflict(f"Node {node_id} is already in session '{session.name}' as {known.device_name}.",
+                       hint="Scan the bus to read its identity again.")
     session.add_node(node_id, profile_id or None)
     return nodes_table(request, session)
