@@ -99,3 +99,7 @@ def test_8200_vector_jog_bits_select_c0037(plant: Plant, script: WireScript) -> 
     _until(script, VECTOR, C1823, 2, lambda actual: actual == 500)  # 10 Hz x 50
     _write(script, VECTOR, C0135, 0, 0x0000, 2)  # back to the setpoint (0)
     _until(script, VECTOR, C1823, 2, lambda actual: actual == 0)
+    plant.nodes[VECTOR].store.set_ref("C0007", 520000)  # C0007 = 52 > 51: bits 0/1 freely configurable
+    _write(script, VECTOR, C1822, 2, 250, 2)  # setpoint 5 Hz
+    _write(script, VECTOR, C0135, 0, 0x0001, 2)  # bit 0 no longer selects JOG1 (10 Hz): the setpoint runs
+    _until(script, VECTOR, C1823, 2, lambda actual: actual == 250)

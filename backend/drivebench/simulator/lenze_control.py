@@ -239,7 +239,8 @@ class LenzeControl:
             return 0.0
         sign = -1 if self._bit(self.control_word, self.words.ccw_bit) and _has(self.node, "C0001") else 1
         jog = self.control_word & 0x03  # 8200 vector: bits 1/0 = 01/10/11 select JOG1/2/3 (C0037...C0039)
-        if jog and _has(self.node, "C0001") and _has(self.node, f"C00{36 + jog}"):
+        jog_bits = _has(self.node, "C0001") and self._param("C0007", 0) <= 51  # C0007 > 51: freely configurable
+        if jog and jog_bits and _has(self.node, f"C00{36 + jog}"):
             return float(sign * round(self._param(f"C00{36 + jog}", 0.0) * 50))  # Hz; 24000 = 480 Hz
         return float(sign * self.setpoint)
 
