@@ -171,3 +171,31 @@ def test_diagnostics_report_downloads_with_its_date(live_server: str, page: Any)
     text = answer.text()
     assert re.search(r"created \d{4}-\d{2}-\d{2} \d{2}:\d{2}:\d{2}", text)
     assert all(name in text for name in ("Pump (MICROMASTER 440)", "Conveyor (8400 motec)", "Fan (8200 vector"))
+
+
+def test_share_link_view_is_read_only_and_clean(live_server: str, browser: Any) -> None:
+    """The view a share link opens: its own title, no navigation into the engineer's screens, no console errors;
+    a link that is not valid is explained in a page of the app."""
+    engineer = browser.new_context(viewport={"width": 1440, "height": 900})
+    created = engineer.request.post(live_server + "/api/share-links", data={"ttl_minutes": 10, "label": "UX test"})
+    assert created.status == 201, created.text()
+    url = created.json()["url"]
+    engineer.close()
+    viewer = browser.new_context(viewport={"width": 1440, "height": 900})
+    try:
+        page = viewer.new_page()
+        watch = Watch(page, live_server)
+        page.goto(url)
+        settle(page)
+        screenshot(page, "ux-remote-view")
+        assert page.title() == "Remote diagnostics · DriveBench"
+        assert page.locator("header nav").count() == 0
+        health = page.locator("#remote-health").inner_text()
+        assert all(name in health for name in ("Pump (MICROMASTER 440)", "Conveyor (8400 motec)", "Fan (8200 vector"))
+        assert overflow(page) <= 0 and watch.problems == []
+        bad = page.goto(live_server + "/remote/dbv_not-a-link")
+        assert bad is not None and bad.status == 401
+        assert page.locator(".error-page h1").inner_text() == "Not signed in"
+        assert page.locator("header nav").count() == 0
+    finally:
+        viewer.close()
