@@ -317,6 +317,10 @@ def test_latin1_bytes_are_read_and_utf8_bom_is_skipped() -> None:
     latin = GOOD.replace("VendorName=V", "VendorName=Müller °C").encode("latin-1")
     assert import_eds(latin, source="l.eds").identity.vendor_name == "Müller °C"
     assert import_eds(b"\xef\xbb\xbf" + GOOD.encode(), source="b.eds").identity.vendor_name == "V"
+    windows = GOOD.replace("VendorName=V", "VendorName=\u201cM\u00fcller\u201d \u20ac").encode("cp1252")
+    assert import_eds(windows, source="w.eds").identity.vendor_name == "\u201cM\u00fcller\u201d \u20ac"
+    not_cp1252 = GOOD.replace("VendorName=V", "VendorName=\u00fc\x81").encode("latin-1")  # 0x81: no cp1252 char
+    assert import_eds(not_cp1252, source="x.eds").identity.vendor_name == "\u00fc\x81"
 
 
 # --- property: import(export(x)) == x ---------------------------------------------------------------------

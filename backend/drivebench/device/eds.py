@@ -4,8 +4,9 @@ The INI text is parsed here (not with configparser) so every error names the fil
 
 Decisions where CiA 306 leaves room:
 
-* Encoding: UTF-8 (with or without BOM) first, then ISO 8859-1 (CiA 306 files are 8-bit text; German vendors write
-  ``°C``/``ä`` in latin-1). Control characters other than tab are "binary junk" and rejected with their line.
+* Encoding: UTF-8 (with or without BOM) first, then Windows-1252, then ISO 8859-1 (CiA 306 files are 8-bit text;
+  German vendors write ``°C``/``ä``, Windows tools ``€`` and curly quotes, which latin-1 would turn into control
+  characters). Control characters other than tab are "binary junk" and rejected with their line.
 * ``;`` starts a comment only at the beginning of a line (CiA 306 4.1); a ``;`` inside a value is part of the value.
 * Integers: decimal, ``0x`` hex, or octal with a leading ``0`` (CiA 306 4.6.3). Hex limits of signed types are
   two's complement (``LowLimit=0x80000000`` of an INTEGER32 is -2147483648).
@@ -75,10 +76,12 @@ def decode_text(data: bytes, source: str) -> str:
     if len(data) > MAX_EDS_BYTES:
         raise ProfileError(f"file is {len(data)} bytes, more than the {MAX_EDS_BYTES} bytes an EDS may have",
                            source=source)
-    try:
-        return data.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        return data.decode("latin-1")
+    for encoding in ("utf-8-sig", "cp1252"):
+        try:
+            return data.decode(encoding)
+        except UnicodeDecodeError:
+            continue
+    return data.decode("latin-1")
 
 
 def parse_ini(text: str, source: str) -> dict[str, Section]:
