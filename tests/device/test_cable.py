@@ -63,3 +63,28 @@ def test_invalid_inputs() -> None:
         plan_cable(125, 0.34, 5, 100)
     with pytest.raises(OutOfRange):
         segment_length(64, 0.5)
+
+
+def test_a_cable_longer_than_the_baud_rate_allows_reports_the_longest_possible_plan() -> None:
+    """More repeaters add segment length but each costs 30 m of the total: past the crossing of the two limits
+    a plan only gets shorter. 99,999 m at 20 kbit/s once gave 357 repeaters and a negative maximum."""
+    plan = plan_cable(20, 0.5, 63, 99_999)  # 310 m segments, 280 m after each repeater, 4013 m total
+    assert plan.feasible is False
+    assert plan.repeaters == 12  # 11: min(310 + 11 * 280, 4013 - 11 * 30) = 3390; 12: min(3670, 3653) = 3653
+    assert (plan.segment_capacity_m, plan.delay_limit_m, plan.max_length_m) == (3670, 3653, 3653)
+    assert any("longest cable possible at 20 kbit/s" in note and "3653 m, with 12 repeater(s)" in note
+               for note in plan.notes)
+    for count in range(0, 40):  # no other repeater count does better
+        assert min(310 + count * 280, 4013 - count * 30) <= plan.max_length_m
+
+
+def test_just_beyond_the_worked_example_the_delay_limit_decides() -> None:
+    """28 nodes at 0.5 mm² and 125 kbit/s: one repeater gives 690 m of segments but 600 - 30 = 570 m of total."""
+    assert plan_cable(125, 0.5, 28, 570).feasible is True
+    plan = plan_cable(125, 0.5, 28, 580)
+    assert (plan.feasible, plan.repeaters, plan.max_length_m) == (False, 1, 570)
+
+
+def test_a_huge_length_is_answered_at_once() -> None:
+    plan = plan_cable(1000, 0.25, 2, 1e12)
+    assert (plan.feasible, plan.repeaters, plan.max_length_m) == (False, 0, 13)

@@ -12,6 +12,8 @@ EMF2178IB manual (§5, example 2) subtracts it from the total instead (630 m - 3
 
 from __future__ import annotations
 
+import math
+
 from pydantic import BaseModel, Field
 
 from drivebench.errors import InvalidValue, OutOfRange
@@ -93,6 +95,11 @@ def total_length(baud_kbit: int) -> int:
     return TOTAL_LENGTH_M[baud_kbit]
 
 
+def _limits(seg: int, total: int, reduction: int, repeaters: int) -> tuple[float, float]:
+    """(segment capacity, delay limit) with ``repeaters`` repeaters."""
+    return seg + repeaters * (seg - reduction), total - repeaters * reduction
+
+
 def plan_cable(
     baud_kbit: int,
     cross_section_mm2: float,
@@ -111,21 +118,26 @@ def plan_cable(
         f"2. Segment cable length for {nodes} nodes at {cross_section_mm2} mm²: {seg} m "
         f"(table [5-2], row {row} nodes).",
     ]
+    per_repeater = seg - repeater_reduction_m
     if seg >= required_length_m:
         steps.append(f"3. {seg} m ≥ {required_length_m:g} m: no repeater needed for the segment length.")
         repeaters = 0
     else:
         steps.append(f"3. {seg} m < {required_length_m:g} m: a repeater is needed after {seg} m.")
-        per_repeater = seg - repeater_reduction_m
-        repeaters = 1
-        if per_repeater > 0:
-            while seg + repeaters * per_repeater < required_length_m:
-                repeaters += 1
-    capacity = seg + repeaters * (seg - repeater_reduction_m)
-    delay_limit = total - repeaters * repeater_reduction_m
+        repeaters = math.ceil((required_length_m - seg) / per_repeater) if per_repeater > 0 else 1
+    capacity, delay_limit = _limits(seg, total, repeater_reduction_m, repeaters)
+    feasible = (per_repeater > 0 or repeaters == 0) and required_length_m <= min(capacity, delay_limit)
+    best_note = None
+    if not feasible and per_repeater > 0:
+        # More repeaters add segment length but cost total length: the longest cable is where the two limits
+        # cross, at (total - segment) / segment repeaters. Report that plan, not a count that makes it worse.
+        crossing = max(0.0, (total - seg) / seg)
+        repeaters = max((math.floor(crossing), math.ceil(crossing)),
+                        key=lambda count: (min(_limits(seg, total, repeater_reduction_m, count)), -count))
+        capacity, delay_limit = _limits(seg, total, repeater_reduction_m, repeaters)
+        best_note = (f"The longest cable possible at {baud_kbit} kbit/s with {nodes} nodes at {cross_section_mm2} mm² "
+                     f"is {min(capacity, delay_limit):g} m, with {repeaters} repeater(s).")
     max_length = min(capacity, delay_limit)
-    feasible = seg - repeater_reduction_m > 0 or repeaters == 0
-    feasible = feasible and required_length_m <= max_length
     if repeaters:
         steps.append(
             f"4. With {repeaters} repeater(s): segments {seg} m + {repeaters} x ({seg} m - "
@@ -146,6 +158,8 @@ def plan_cable(
             f"{required_length_m:g} m is not possible at {baud_kbit} kbit/s: lower the baud rate "
             "or the cable length."
         )
+    if best_note:
+        notes.append(best_note)
     return CablePlan(
         baud_kbit=baud_kbit,
         cross_section_mm2=cross_section_mm2,
