@@ -103,3 +103,18 @@ def test_a_bad_upload_leaves_the_registry_as_it_was(tmp_path: Path) -> None:
         registry.add_upload("mine.json", json.dumps(data, indent=2).encode())
     assert [p.id for p in registry.all()] == before and registry.get("my-motec") == good
     assert [p.name for p in (tmp_path / "uploads").iterdir()] == ["my-motec.json"]
+
+
+@pytest.mark.parametrize(("name", "content", "message"), [
+    ("motec.eds", json.dumps(motec()).encode(), "this is a JSON profile, not an EDS: name the file .json"),
+    ("servo.json", (REPO_ROOT / "tests" / "data" / "eds" / "cia402_servo.eds").read_bytes(),
+     "this is an EDS/DCF (INI text), not a JSON profile: name the file .eds or .dcf"),
+    ("servo.txt", (REPO_ROOT / "tests" / "data" / "eds" / "cia402_servo.eds").read_bytes(),
+     "unknown profile file type .txt; use .json, .eds or .dcf; this looks like an EDS, name it .eds"),
+    ("motec", json.dumps(motec()).encode(),
+     "unknown profile file type (none); use .json, .eds or .dcf; this looks like a JSON profile, name it .json"),
+])
+def test_a_file_with_the_wrong_suffix_is_named_for_what_it_is(name: str, content: bytes, message: str) -> None:
+    with pytest.raises(ProfileError) as caught:
+        load_profile_file(content, name)
+    assert caught.value.source == name and message in str(caught.value)

@@ -28,10 +28,19 @@ PROFILE_SUFFIXES = (".json", ".eds", ".dcf")
 def load_profile_file(content: bytes, name: str) -> Profile:
     """One profile file's bytes -> Profile, by suffix. Raises ProfileError naming ``name`` (and line)."""
     suffix = Path(name).suffix.lower()
+    looks_like = _looks_like(content)
     if suffix in (".eds", ".dcf"):
+        if looks_like == ".json":
+            raise ProfileError("this is a JSON profile, not an EDS: name the file .json", source=name, line=1)
         return import_eds(content, source=name)
     if suffix != ".json":
-        raise ProfileError(f"unknown profile file type {suffix or '(none)'}; use .json, .eds or .dcf", source=name)
+        hint = f"; this looks like {'an EDS' if looks_like == '.eds' else 'a JSON profile'}, name it {looks_like}" \
+            if looks_like else ""
+        raise ProfileError(f"unknown profile file type {suffix or '(none)'}; use .json, .eds or .dcf{hint}",
+                           source=name)
+    if looks_like == ".eds":
+        raise ProfileError("this is an EDS/DCF (INI text), not a JSON profile: name the file .eds or .dcf",
+                           source=name, line=1)
     try:
         reject_duplicate_keys(content)
         return Profile.model_validate_json(content)
@@ -49,6 +58,18 @@ def load_profile_file(content: bytes, name: str) -> Profile:
         more = f" (and {exc.error_count() - 1} more)" if exc.error_count() > 1 else ""
         reason = first["msg"].removeprefix("Value error, ")
         raise ProfileError(f"{where + ': ' if where else ''}{reason}{more}", source=name, line=line) from exc
+
+
+def _looks_like(content: bytes) -> str | None:
+    """'.json' or '.eds' when the first characters of a file say so (a JSON profile is an object)."""
+    head = content[:4096].lstrip(b"\xef\xbb\xbf \t\r\n")
+    if head.startswith(b"{"):
+        return ".json"
+    first_line = head.split(b"\n", 1)[0].strip()
+    if head.startswith(b";") or (first_line.startswith(b"[") and first_line.endswith(b"]")
+                                 and first_line[1:2].isalpha()):
+        return ".eds"
+    return None
 
 
 def _where(content: bytes, path: JsonPath) -> tuple[JsonPath, int | None]:
