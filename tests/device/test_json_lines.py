@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 
 import pytest
 from hypothesis import given
@@ -44,6 +45,13 @@ def test_duplicate_key_is_named_with_both_lines() -> None:
         reject_duplicate_keys(text.encode())
     assert (caught.value.key, caught.value.line, caught.value.first_line) == ("name", 8, 7)
     assert str(caught.value) == "duplicate key 'name' (first at line 7)"
+
+
+def test_the_json_modules_extra_literals() -> None:
+    data, lines = value_lines('{\n "a": NaN,\n "b": [Infinity, -Infinity]\n}')
+    assert math.isnan(data["a"]) and data["b"] == [math.inf, -math.inf] and lines[("b", 1)] == 3
+    with pytest.raises(DuplicateKey):
+        reject_duplicate_keys('{"a": NaN, "a": 1}')
 
 
 def test_the_same_key_in_two_objects_is_no_duplicate() -> None:

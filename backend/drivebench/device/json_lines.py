@@ -8,13 +8,14 @@ after a file has failed, so it favours being simple over being fast.
 from __future__ import annotations
 
 import json
+import math
 from json.decoder import scanstring  # type: ignore[attr-defined]
 from json.scanner import NUMBER_RE
 from typing import Any
 
 JsonPath = tuple[str | int, ...]
 _WHITESPACE = " \t\n\r"
-_LITERALS = {"true": True, "false": False, "null": None}
+_LITERALS = {"true": True, "false": False, "null": None, "NaN": math.nan, "Infinity": math.inf, "-Infinity": -math.inf}
 
 
 class DuplicateKey(ValueError):
@@ -36,7 +37,12 @@ def reject_duplicate_keys(text: str | bytes) -> None:
     try:
         json.loads(text, object_pairs_hook=no_duplicates)
     except _Found:
-        _Walker(text if isinstance(text, str) else text.decode("utf-8-sig")).walk()
+        try:
+            _Walker(text if isinstance(text, str) else text.decode("utf-8-sig")).walk()
+        except DuplicateKey:
+            raise
+        except ValueError:
+            return  # the walker cannot follow the text: the validator reports what it finds
     except ValueError:
         return  # a syntax error: the validator reports it with its line
 
