@@ -4,6 +4,7 @@ database), so it does not depend on the demo plant's profiles."""
 
 from __future__ import annotations
 
+import json
 import threading
 import time
 from collections.abc import Iterator
@@ -158,3 +159,26 @@ def test_type_a_node_id_then_scan_and_compare_at_once(page: Any, live_server: st
     expect(comparison.locator('tr[data-node="3"]')).to_have_class("cmp-extra")
     comparison.scroll_into_view_if_needed()
     screenshot(page, "tools-planner-compare")
+
+
+def test_export_json_downloads_the_plan_being_edited_and_it_imports_again(page: Any, tools_server: str,
+                                                                          tmp_path: Path) -> None:
+    page.goto(f"{tools_server}/tools")
+    expect(page.locator("#findings .finding.none")).to_be_visible(timeout=WAIT_MS)
+    page.locator('#planner input[name="plan_name"]').fill("Hall 2 / line A")
+    page.locator('input[name="node_id_1"]').fill("17")
+    with page.expect_download(timeout=WAIT_MS) as download_info:
+        page.locator("#planner-form button", has_text="Export JSON").click()
+    download = download_info.value
+    assert download.suggested_filename == "Hall-2---line-A.json"
+    saved = tmp_path / download.suggested_filename
+    download.save_as(saved)
+    exported = json.loads(saved.read_text())
+    assert exported["name"] == "Hall 2 / line A"
+    assert [n["node_id"] for n in exported["nodes"]] == [1, 17]
+
+    page.reload()  # a fresh page starts with the default plan again
+    expect(page.locator('input[name="node_id_1"]')).to_have_value("2", timeout=WAIT_MS)
+    page.locator('#planner input[name="plan_file"]').set_input_files(str(saved))
+    expect(page.locator('input[name="node_id_1"]')).to_have_value("17", timeout=WAIT_MS)
+    expect(page.locator('#planner input[name="plan_name"]')).to_have_value("Hall 2 / line A")
