@@ -199,3 +199,25 @@ def test_share_link_view_is_read_only_and_clean(live_server: str, browser: Any) 
         assert page.locator("header nav").count() == 0
     finally:
         viewer.close()
+
+
+NARROW = ["/", "/tools", "/profiles", "/profiles/lenze-8200-vector-emf2178ib", "/remote",
+          NODE.format(12, "info"), NODE.format(12, "diagnostics")]
+
+
+def test_screens_fit_1280_px_and_plant_cells_are_not_clipped(live_server: str, browser: Any) -> None:
+    context = browser.new_context(viewport={"width": 1280, "height": 800})
+    try:
+        page = context.new_page()
+        for path in NARROW:
+            page.goto(live_server + path)
+            settle(page)
+            assert overflow(page) <= 0, f"{path} scrolls sideways at 1280 px"
+        page.goto(live_server + "/")
+        settle(page)
+        screenshot(page, "ux-plant-1280")
+        clipped = page.evaluate("""() => [...document.querySelectorAll('table.nodes td')]
+            .filter(td => td.scrollWidth > td.clientWidth).map(td => td.innerText)""")
+        assert clipped == []  # device names and the four NMT buttons fit their columns
+    finally:
+        context.close()
