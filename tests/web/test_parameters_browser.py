@@ -206,3 +206,19 @@ def test_string_read_by_block_upload(server: tuple[str, Any], page: Any) -> None
     _search(page, "C0200")
     expect(_row(page, "C0200").get_by_role("button", name="Read", exact=True)).to_be_visible()
     expect(_row(page, "C0200").get_by_role("button", name="Block")).to_have_count(0)
+
+
+def test_header_nmt_badge_follows_nmt_commands(server: tuple[str, Any], page: Any) -> None:
+    url, _ = server
+    page.goto(url + "/sessions/browser-plant/nodes/12")
+    badge = page.locator("#nmt-badge")
+    expect(badge).to_have_text("Pre-operational", timeout=WAIT_MS)
+    nmt = url + "/api/sessions/browser-plant/nodes/12/nmt"
+    try:
+        assert page.request.post(nmt, data={"command": "start"}).ok
+        expect(badge).to_have_text("Operational", timeout=WAIT_MS)  # no reload: the badge polls its fragment
+        expect(badge).to_have_class("nmt nmt-operational")
+        screenshot(page, "parameters-nmt-badge-operational")
+    finally:
+        assert page.request.post(nmt, data={"command": "pre-operational"}).ok
+    expect(badge).to_have_text("Pre-operational", timeout=WAIT_MS)

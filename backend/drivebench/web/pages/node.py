@@ -104,6 +104,13 @@ async def node_tab(request: Request, session: SessionDep, node: NodeDep, tab: st
     return templates.TemplateResponse(request, "node.html", context, block_name="tab_body")
 
 
+@router.get(UI + "/nmt", response_class=HTMLResponse)
+async def nmt_badge(request: Request, session: SessionDep, node: NodeDep) -> Response:
+    """The header's NMT state badge, polled by itself so it follows NMT commands and heartbeats."""
+    context = _base(request, session, node, "parameters")
+    return templates.TemplateResponse(request, "node.html", context, block_name="nmt_badge")
+
+
 # --- parameters tab --------------------------------------------------------------------------------------
 @router.get(UI + "/parameters", response_class=HTMLResponse)
 async def parameter_rows(request: Request, session: SessionDep, node: NodeDep, q: str = "",

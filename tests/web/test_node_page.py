@@ -1,0 +1,30 @@
+"""The Node page's header: its NMT badge is a fragment of its own that follows the node's state."""
+
+from __future__ import annotations
+
+import time
+
+from fastapi.testclient import TestClient
+
+BADGE = "/ui/sessions/demo-plant/nodes/5/nmt"
+
+
+def _badge_after(client: TestClient, text: str) -> str:
+    deadline = time.monotonic() + 10
+    while text not in (html := client.get(BADGE).text):
+        assert time.monotonic() < deadline, f"the badge never said {text}: {html}"
+        time.sleep(0.05)
+    return html
+
+
+def test_nmt_badge_fragment_changes_after_nmt_start(client: TestClient) -> None:
+    page = client.get("/sessions/demo-plant/nodes/5").text
+    assert 'id="nmt-badge"' in page and 'hx-get="/ui/sessions/demo-plant/nodes/5/nmt"' in page
+    assert ">Pre-operational</span>" in _badge_after(client, "Pre-operational")
+    assert client.post("/api/sessions/demo-plant/nodes/5/nmt", json={"command": "start"}).status_code == 200
+    html = _badge_after(client, ">Operational<")
+    assert 'class="nmt nmt-operational"' in html and 'hx-trigger="every 1s"' in html
+
+
+def test_nmt_badge_of_unknown_node_is_not_found(client: TestClient) -> None:
+    assert client.get("/ui/sessions/demo-plant/nodes/99/nmt").status_code == 404
