@@ -4,6 +4,9 @@
 // node watch - their moving controls are disabled, stopping ones stay.
 (() => {
   const HISTORY_S = 30;
+  const WHOLE_SECONDS = [1, 2, 5, 10, 15, 30, 60];  // time axis ticks: never the milliseconds uPlot picks by itself
+  const clockLabels = (u, splits) => splits.map((t) => new Date(t * 1000).toLocaleTimeString("en-GB", { hour12: false }));
+  window.drivebenchClockLabels = clockLabels;  // the axis is drawn on a canvas: tests read its labels here
   const STOPPING = new Set(["shutdown", "disable_voltage", "quick_stop", "disable_operation"]);
   const OPERATOR_KEY = "drivebench.operator";
   window.drivebenchPanelId = window.drivebenchPanelId ||
@@ -131,7 +134,7 @@
           const width = Math.max(240, holder.clientWidth - 8);
           const u = window.uPlot ? new uPlot({ width, height: 90, legend: { show: false }, cursor: { show: false },
             scales: { x: { time: true } }, series: [{}, { stroke: "#0b5fa5", width: 1.5 }],
-            axes: [{ size: 24, font: "10px sans-serif" }, { size: 46, font: "10px sans-serif", label: value.unit || "", labelSize: 12, labelFont: "10px sans-serif" }] },
+            axes: [{ size: 24, font: "10px sans-serif", space: 56, incrs: WHOLE_SECONDS, values: clockLabels }, { size: 46, font: "10px sans-serif", label: value.unit || "", labelSize: 12, labelFont: "10px sans-serif" }] },
             data, box) : null;
           entry = { u, data, box };
           plots.set(value.ref, entry);

@@ -5,6 +5,7 @@ guided commissioning."""
 from __future__ import annotations
 
 import contextlib
+import re
 import threading
 import time
 from collections.abc import Iterator
@@ -18,6 +19,7 @@ from drivebench.web.app import create_app
 from tests.conftest import DEMO_PLANT, _free_port, fresh_channel, screenshot
 
 TIMEOUT_MS = 10_000
+BLUE, RED = "rgb(11, 95, 165)", "rgb(198, 40, 40)"  # app.css --accent and --bad
 
 
 @pytest.fixture
@@ -35,6 +37,10 @@ def server() -> Iterator[tuple[str, Plant]]:
     yield f"http://127.0.0.1:{port}", next(iter(plants.values()))
     uv.should_exit = True
     thread.join(timeout=10)
+
+
+def _background(page: Any, selector: str) -> str:
+    return str(page.locator(selector).evaluate("el => getComputedStyle(el).backgroundColor"))
 
 
 def _current(page: Any, state: str) -> None:
@@ -59,6 +65,13 @@ def test_first_run_to_operation_enabled_and_back(server: tuple[str, Plant], page
     page.wait_for_selector("#ctl-ws.good", timeout=TIMEOUT_MS)
     _current(page, "switch_on_disabled")
     assert page.locator('#ctl-sw-bits tr[data-bit="6"]').get_attribute("class") == "on"  # switch on disabled
+    # Primary actions are blue like the rest of the app; only quick stop is red.
+    assert _background(page, "button[data-command=enable_operation]") == _background(page, "#ctl-seq-next")
+    assert _background(page, "#ctl-setpoint button[type=submit]") == BLUE
+    assert _background(page, "button[data-command=quick_stop]") == RED
+    assert page.get_by_label("Sequence").evaluate("el => el.id") == "ctl-seq"
+    labels = page.evaluate("drivebenchClockLabels(null, [Date.now() / 1000])")
+    assert re.fullmatch(r"\d\d:\d\d:\d\d", labels[0]), labels  # the chart's time axis reads hh:mm:ss
     page.click("button[data-command=shutdown]")
     _current(page, "ready")
     page.click("button[data-command=switch_on]")
@@ -170,3 +183,14 @@ def test_second_panel_watches_the_drive_the_first_holds(server: tuple[str, Plant
         for context in (anna_context, ben_context):
             with contextlib.suppress(Exception):
                 context.close()
+
+
+def test_node_without_profile_shows_an_empty_state(server: tuple[str, Plant], page: Any) -> None:
+    base, _ = server
+    assert page.request.post(f"{base}/api/sessions/demo-plant/nodes", data={"node_id": 40}).ok
+    page.goto(f"{base}/sessions/demo-plant/nodes/40?tab=control")
+    empty = page.locator("#ctl-empty")
+    empty.wait_for(timeout=TIMEOUT_MS)
+    assert "has no device profile: assign one on the Plant page" in empty.inner_text()
+    assert page.locator("#control-tab .error").count() == 0  # not an error: nothing went wrong
+    screenshot(page, "control-no-profile")

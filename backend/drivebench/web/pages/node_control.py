@@ -15,7 +15,7 @@ from fastapi.responses import HTMLResponse, Response
 
 from drivebench.errors import DriveBenchError
 from drivebench.services import commissioning, drive_control
-from drivebench.services.drive_words import Family
+from drivebench.services.drive_words import Family, family_of
 from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.templating import templates
 
@@ -58,7 +58,14 @@ async def control_tab(request: Request, session: SessionDep, node: NodeDep) -> R
                                "api": f"/api/sessions/{session.id}/nodes/{node.node_id}/control",
                                "ws": f"/ws/sessions/{session.id}/nodes/{node.node_id}/control",
                                "status": None, "error": None, "sequences": commissioning.sequences_for(node),
-                               "keepalive_s": drive_control.KEEPALIVE_TIMEOUT_S}
+                               "keepalive_s": drive_control.KEEPALIVE_TIMEOUT_S, "empty": None}
+    if node.catalog is None:  # an empty state, not an error: nothing went wrong, the node needs a profile first
+        context["empty"] = f"Node {node.node_id} has no device profile: assign one on the Plant page to control it."
+        return templates.TemplateResponse(request, "node/control_body.html", context)
+    if family_of(node.catalog) is None:
+        context["empty"] = (f"{node.device_name} has no drive control word DriveBench knows (CiA 402 0x6040/0x6041, "
+                            "Lenze C0135/C0150, AIF word 1 or 8400 CAN1_IN/CAN1_OUT): there is nothing to control.")
+        return templates.TemplateResponse(request, "node/control_body.html", context)
     try:
         fam = drive_control.family(node)
         context["diagram"] = _diagram(fam)
