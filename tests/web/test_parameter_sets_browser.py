@@ -63,6 +63,11 @@ def import_file(page: Any, path: Path, name: str) -> None:
 
 def test_export_change_compare_download(page: Any, sets_server: str, tmp_path: Path) -> None:
     page.goto(f"{sets_server}/parameter-sets")
+    # every field has a label; the file input reads like the one on the Profiles page
+    assert page.get_by_label("JSON, CSV or DCF file").get_attribute("type") == "file"
+    assert page.locator("#audit").get_by_label("Filter").get_attribute("name") == "q"
+    assert page.evaluate(LAYOUT_PROBLEMS) == []
+    screenshot(page, "sets-empty")
     upload = page.locator("#upload-card form")
     upload.locator("select[name=target]").select_option("demo-plant:5")
     upload.locator("input[name=name]").fill("Conveyor as found")
