@@ -201,8 +201,27 @@ def test_share_link_view_is_read_only_and_clean(live_server: str, browser: Any) 
         viewer.close()
 
 
-NARROW = ["/", "/tools", "/profiles", "/profiles/lenze-8200-vector-emf2178ib", "/remote",
-          NODE.format(12, "info"), NODE.format(12, "diagnostics")]
+NARROW = ["/", "/tools", "/profiles", "/profiles/lenze-8200-vector-emf2178ib", "/remote", "/monitor",
+          NODE.format(12, "info"), NODE.format(12, "diagnostics"), NODE.format(12, "parameters"),
+          NODE.format(3, "control"), "/parameter-sets"]
+CLIPPED = """(selector) => [...document.querySelectorAll(selector)]
+    .filter(cell => cell.scrollWidth > cell.clientWidth + 1).map(cell => cell.innerText)"""
+
+
+@pytest.mark.parametrize("width", [1280, 1440])
+def test_monitor_shows_long_device_names_whole(live_server: str, browser: Any, width: int) -> None:
+    context = browser.new_context(viewport={"width": width, "height": 900})
+    try:
+        page = context.new_page()
+        page.goto(live_server + "/monitor")
+        fan = page.locator("#nodes-body td.device", has_text="Fan (8200 vector + EMF2178IB)")
+        fan.wait_for(timeout=SETTLE_MS)  # its heartbeats put node 12 in the table
+        assert fan.inner_text() == "Fan (8200 vector + EMF2178IB)"
+        assert fan.get_attribute("title") == "Fan (8200 vector + EMF2178IB)"
+        assert page.evaluate(CLIPPED, "#nodes-body td") == []
+        screenshot(page, f"ux-monitor-{width}")
+    finally:
+        context.close()
 
 
 def test_screens_fit_1280_px_and_plant_cells_are_not_clipped(live_server: str, browser: Any) -> None:
@@ -212,7 +231,7 @@ def test_screens_fit_1280_px_and_plant_cells_are_not_clipped(live_server: str, b
         for path in NARROW:
             page.goto(live_server + path)
             settle(page)
-            assert overflow(page) <= 0, f"{path} scrolls sideways at 1280 px"
+            assert overflow(page) <= 0, f"{path} scrolls sideways by {overflow(page)} px at 1280 px"
         page.goto(live_server + "/")
         settle(page)
         screenshot(page, "ux-plant-1280")
