@@ -64,6 +64,9 @@ class PdoConfig(BaseModel):
     length_bytes: int
     max_entries: int
     fixed_mapping: bool = False
+    static_mapping: bool = False
+    """The mapping count reads 0 and the device still carries fixed objects (8400 motec port words): those are
+    ``entries``."""
     transmission_note: str | None = None
     """Where the manual says the type is not permitted (or special) for this device."""
     notes: list[str] = Field(default_factory=list)
@@ -241,17 +244,21 @@ async def read_pdo(session: Session, node_id: int, direction: Direction, number:
     for sub in range(1, count + 1):
         value = await _read_u(session, node_id, mapping, sub)
         entries.append(_mapped(catalog, value >> 16, (value >> 8) & 0xFF, value & 0xFF))
+    static = [] if count else _static_entries(catalog, direction, number)
     max_entries = max((o.subindex for o in catalog.profile.objects if o.index == mapping), default=0)
     trans = 255 if trans_type is None else trans_type
     entry_one = _entry(catalog, mapping, 1)
     profile = catalog.profile
     notes = pdo_notes.pdo_notes(profile, direction, number)
+    if static:
+        entries = static
+        notes.insert(0, pdo_notes.static_mapping_note(direction, number))
     p2041 = pdo_notes.p2041_expected(profile, direction, number, [(e.index, e.subindex) for e in entries])
     if p2041 and entries:
         notes.append(p2041[0].upper() + p2041[1:] + ".")
     settings = await _settings(session, node_id, catalog, pdo_notes.setting_refs(profile, direction, number))
     conflicts = cob_id_conflicts(session, node_id, direction, cob & 0x7FF)
-    return PdoConfig(settings=settings, conflicts=conflicts,
+    return PdoConfig(settings=settings, conflicts=conflicts, static_mapping=bool(static),
                      fixed_mapping=entry_one is None or not entry_one.access.writable,
                      transmission_note=pdo_notes.transmission_note(profile, direction, trans),
                      notes=notes,
@@ -261,6 +268,17 @@ async def read_pdo(session: Session, node_id: int, direction: Direction, number:
                      inhibit_time_ms=inhibit / 10 if inhibit is not None else None, event_timer_ms=event,
                      sync_start=sync_start, entries=entries, length_bytes=sum(e.bits for e in entries) // 8,
                      max_entries=max_entries)
+
+
+def _static_entries(catalog: Catalog, direction: Direction, number: int) -> list[MappedObject]:
+    found = []
+    for ref in pdo_notes.static_mapping(catalog.profile, direction, number):
+        try:
+            item = catalog.resolve(ref)
+        except DriveBenchError:
+            return []  # a profile without the port words: count 0 shows as nothing mapped
+        found.append(_mapped(catalog, item.index, item.subindex, (item.entry.data_type.size or 0) * 8))
+    return found
 
 
 async def read_pdos(session: Session, node_id: int) -> list[PdoConfig]:
@@ -346,14 +364,16 @@ async def apply_pdo(session: Session, node_id: int, direction: Direction, number
             step.ok, step.detail = False, exc.detail
             return await _failed(session, node_id, direction, number, steps, disabled=len(steps) > 1)
     pdo = await read_pdo(session, node_id, direction, number)
-    mismatch = [m.ref for m, got in zip(chosen, pdo.entries, strict=False) if (m.index, m.subindex) !=
-                (got.index, got.subindex)] or ([] if len(pdo.entries) == len(chosen) else ["entry count"])
+    read_back = [] if pdo.static_mapping else pdo.entries  # count 0 written: the static mapping applies again
+    mismatch = [m.ref for m, got in zip(chosen, read_back, strict=False) if (m.index, m.subindex) !=
+                (got.index, got.subindex)] or ([] if len(read_back) == len(chosen) else ["entry count"])
     if mismatch or pdo.valid != write.valid or pdo.cob_id != cob_id:
         return ApplyReport(ok=False, enabled=pdo.valid, steps=steps, pdo=pdo,
                            message=f"{direction.upper()}{number} reads back differently from what was written "
                                    f"({', '.join(mismatch) or 'COB-ID/valid bit'}).")
     return ApplyReport(ok=True, enabled=pdo.valid, steps=steps, pdo=pdo,
-                       message=f"{direction.upper()}{number} applied and verified: {len(chosen)} entries, "
+                       message=f"{direction.upper()}{number} applied and verified: "
+                               f"{'count 0 = static mapping, ' if pdo.static_mapping else ''}{len(chosen)} entries, "
                                f"{pdo.length_bytes} bytes, COB-ID 0x{pdo.cob_id:03X}"
                                f"{'' if pdo.valid else ', left disabled as requested'}.")
 

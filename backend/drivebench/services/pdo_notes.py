@@ -74,6 +74,34 @@ def device_notes(profile: Profile) -> list[str]:
     return []
 
 
+def static_mapping(profile: Profile, direction: str, number: int) -> list[str]:
+    """What a PDO carries while its mapping count is 0, as codes; empty where count 0 means nothing is mapped.
+
+    8400 motec: the manual prints 0 as the default of I-1600/1601/1A00/1A01 sub 0...4 (so the device holds count 0)
+    and exchanges 4 words per port (ch. 8.1: CAN1_IN/CAN2_IN, CAN1_OUT/CAN2_OUT), "the 4th mapping entry is used
+    for the static mapping". CiA 301 would read count 0 as "PDO not used"; on the 8400 motec count 0 is the
+    static mapping of the port's 4 words: C00866/1...4 (RPDO1), /5...8 (RPDO2), C00868 likewise for the TPDOs.
+    """
+    if profile.family != LENZE_8400 or number not in (1, 2):
+        return []
+    code = "C00866" if direction == "rpdo" else "C00868"
+    return [f"{code}/{4 * (number - 1) + word}" for word in range(1, 5)]
+
+
+def static_mapping_note(direction: str, number: int) -> str:
+    port = _lenze_port(direction, number)
+    meaning = "what the words mean is set by the port interconnection in the »Engineer«"
+    if (direction, number) == ("rpdo", 1):
+        meaning = ("word 1 is the control word (C00409/1 'LP_CanIn1_wIn1(wCtrl)'); the other words' meaning is set by "
+                   "the port interconnection (C00007 = 40: preconfigured; word 2 = speed setpoint in the simulator)")
+    elif (direction, number) == ("tpdo", 1):
+        meaning = ("with C00007 = 40 (preconfigured interconnection) word 1 is the status word, word 2 the actual "
+                   "speed in the simulator; the manual leaves the words' meaning to the port interconnection")
+    return (f"Static mapping (Lenze setting): the mapping count reads 0 and the manual prints no default entries "
+            f"(I-1600...I-1A01 sub 0...4 default 0), yet the PDO carries the 4 process data words of port {port} "
+            f"(ch. 8.1); {meaning}. Mapping objects explicitly here replaces the static mapping.")
+
+
 def pdo_notes(profile: Profile, direction: str, number: int) -> list[str]:
     """Notes for one PDO (its port, its monitoring, its fixed mapping, its P2041 bits)."""
     family = profile.family

@@ -13,8 +13,9 @@ import time
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
+from drivebench.errors import UnknownParameter
 from drivebench.protocol.datatypes import decode, encode
-from drivebench.services.pdo_notes import p2041_bits
+from drivebench.services.pdo_notes import p2041_bits, static_mapping
 from drivebench.simulator.store import Abort
 
 if TYPE_CHECKING:
@@ -147,7 +148,20 @@ class PdoEngine:
                 break
             entry = _int(store.get(map_index, sub))
             mapping.append((entry >> 16, (entry >> 8) & 0xFF, entry & 0xFF))
+        if not count:
+            mapping = self._static_mapping("rpdo" if map_index < 0x1A00 else "tpdo", number)
         return PdoConfig(number, cob & 0x7FF, not cob & COB_INVALID, trans_type, inhibit, event, mapping)
+
+    def _static_mapping(self, direction: str, number: int) -> list[tuple[int, int, int]]:
+        """Count 0 on an 8400 motec: the port's 4 process data words (see ``pdo_notes.static_mapping``)."""
+        mapping = []
+        for ref in static_mapping(self.node.profile, direction, number):
+            try:
+                item = self.node.store.catalog.resolve(ref)
+            except UnknownParameter:
+                return []
+            mapping.append((item.index, item.subindex, (item.entry.data_type.size or 0) * 8))
+        return mapping
 
     def reconfigure(self) -> None:
         rpdos: dict[int, PdoConfig] = {}
