@@ -78,6 +78,11 @@ def test_defaults_as_the_manuals_list_them(drives: tuple[Session, Plant], loop: 
     motec = loop.run_until_complete(pdo.read_pdos(session, 5))
     assert [(c.direction, c.number, c.cob_id - 5, c.transmission_type) for c in motec] == [
         ("rpdo", 1, 0x200, 254), ("rpdo", 2, 0x300, 254), ("tpdo", 1, 0x180, 254), ("tpdo", 2, 0x280, 254)]
+    # I-1600...I-1A01 default 0 (count 0, no entries): the static mapping of the port's 4 words (ch. 8.1)
+    assert [[e.ref for e in c.entries] for c in motec] == [
+        [f"C0086{6 if c.direction == 'rpdo' else 8}/{4 * (c.number - 1) + w}" for w in range(1, 5)] for c in motec]
+    assert all(c.static_mapping and c.length_bytes == 8 for c in motec)
+    assert not any(c.static_mapping for c in loop.run_until_complete(pdo.read_pdos(session, 12)))
     rpdo2 = {s.ref: s.value for s in motec[1].settings}
     assert rpdo2 == {"C00353/2": "1 = COBID = C0350 + CANBaseID", "C00357/2": "3000 ms", "C00593/2": "0 = No Reaction"}
     emf = loop.run_until_complete(pdo.read_pdos(session, 12))

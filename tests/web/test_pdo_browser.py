@@ -62,6 +62,27 @@ def test_edit_and_apply_rpdo5_of_the_micromaster(live_server: str, page: Any) ->
     screenshot(page, "pdo-applied-mm4-rpdo5")
 
 
+def test_motec_tab_shows_the_static_mapping_and_the_whole_c00593_text(live_server: str, page: Any) -> None:
+    """8400 motec in its Lenze setting: each PDO lists its port's 4 words (count 0 = static mapping), and the
+    response code C00593 is readable in full (it used to be cut off at the card's edge)."""
+    page.goto(f"{live_server}/sessions/demo-plant/nodes/5?tab=pdo")
+    card = page.locator("#pdo-rpdo1")
+    card.wait_for(timeout=15000)
+    assert "Nothing mapped" not in page.locator(".pdo-grid").inner_text()
+    rows = card.locator(".pdo-signals tbody tr")
+    assert rows.count() == 4
+    assert [rows.nth(i).locator("td.mono").first.inner_text() for i in range(4)] == [
+        "C00866/1", "C00866/2", "C00866/3", "C00866/4"]
+    assert card.locator(".pdo-static-badge").is_visible()
+    assert card.locator('.byte-layout[data-layout="current"] .byte-cell.free').count() == 0, "8 of 8 bytes used"
+    response = card.locator("dd.pdo-setting").nth(2)
+    assert "C00357/1 for the reception of the PDO CAN1_IN is exceeded" in response.inner_text()
+    assert response.evaluate("el => el.scrollWidth <= el.clientWidth"), "C00593/1 text clipped"
+    tpdo1 = page.locator("#pdo-tpdo1 .pdo-signals tbody tr")
+    assert tpdo1.count() == 4 and "C00868/1" in tpdo1.first.inner_text()
+    screenshot(page, "pdo-motec-static-1440")
+
+
 @pytest.fixture(scope="module")
 def own_server() -> Iterator[tuple[str, FastAPI]]:
     """A server of its own (the shared live server's plant is not reachable from a test): the tests below make the

@@ -90,16 +90,15 @@ def static_mapping(profile: Profile, direction: str, number: int) -> list[str]:
 
 def static_mapping_note(direction: str, number: int) -> str:
     port = _lenze_port(direction, number)
-    meaning = "what the words mean is set by the port interconnection in the »Engineer«"
+    meaning = "the words' meaning follows the port interconnection (»Engineer«)"
     if (direction, number) == ("rpdo", 1):
-        meaning = ("word 1 is the control word (C00409/1 'LP_CanIn1_wIn1(wCtrl)'); the other words' meaning is set by "
-                   "the port interconnection (C00007 = 40: preconfigured; word 2 = speed setpoint in the simulator)")
+        meaning = ("word 1 = control word (C00409/1 'LP_CanIn1_wIn1(wCtrl)'), the others follow the port "
+                   "interconnection (C00007 = 40: preconfigured; simulator: word 2 = speed setpoint)")
     elif (direction, number) == ("tpdo", 1):
-        meaning = ("with C00007 = 40 (preconfigured interconnection) word 1 is the status word, word 2 the actual "
-                   "speed in the simulator; the manual leaves the words' meaning to the port interconnection")
-    return (f"Static mapping (Lenze setting): the mapping count reads 0 and the manual prints no default entries "
-            f"(I-1600...I-1A01 sub 0...4 default 0), yet the PDO carries the 4 process data words of port {port} "
-            f"(ch. 8.1); {meaning}. Mapping objects explicitly here replaces the static mapping.")
+        meaning = ("the words follow the port interconnection (C00007 = 40: preconfigured; simulator: word 1 = status "
+                   "word, word 2 = actual speed)")
+    return (f"Static mapping (Lenze setting): count 0, no entries (the manual's default), yet the PDO carries the 4 "
+            f"words of port {port} (ch. 8.1); {meaning}. Mapping objects replaces it; count 0 restores it.")
 
 
 def pdo_notes(profile: Profile, direction: str, number: int) -> list[str]:
