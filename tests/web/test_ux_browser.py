@@ -207,6 +207,12 @@ NARROW = ["/", "/tools", "/profiles", "/profiles/lenze-8200-vector-emf2178ib", "
 CLIPPED = """(selector) => [...document.querySelectorAll(selector)]
     .filter(cell => cell.scrollWidth > cell.clientWidth + 1).map(cell => cell.innerText)"""
 
+TABLES_PAST_THEIR_CARD = """(selector) => [...document.querySelectorAll(selector)].filter(table => {
+    const card = table.closest('.card'), style = getComputedStyle(card);
+    return table.getBoundingClientRect().right > card.getBoundingClientRect().right - parseFloat(style.paddingRight)
+      - parseFloat(style.borderRightWidth) + 1;
+  }).map(table => table.closest('.card').querySelector('h2')?.textContent)"""
+
 
 @pytest.mark.parametrize("width", [1280, 1440])
 def test_monitor_shows_long_device_names_whole(live_server: str, browser: Any, width: int) -> None:
@@ -219,6 +225,7 @@ def test_monitor_shows_long_device_names_whole(live_server: str, browser: Any, w
         assert fan.inner_text() == "Fan (8200 vector + EMF2178IB)"
         assert fan.get_attribute("title") == "Fan (8200 vector + EMF2178IB)"
         assert page.evaluate(CLIPPED, "#nodes-body td") == []
+        assert page.evaluate(TABLES_PAST_THEIR_CARD, ".counter-grid table") == []
         screenshot(page, f"ux-monitor-{width}")
     finally:
         context.close()
