@@ -215,21 +215,6 @@ class ImportOut(BaseModel):
     notes: list[str]
 
 
-class AuditOut(BaseModel):
-    id: int
-    time: datetime
-    user: str
-    session_id: str
-    node_id: int
-    ref: str
-    address: str
-    old_value: str | None
-    new_value: str
-    result: str
-    detail: str | None
-    origin: str
-
-
 # --- conversions -------------------------------------------------------------------------------------------
 def set_out(info: SetInfo) -> SetOut:
     return SetOut(**info.__dict__)
@@ -469,7 +454,7 @@ async def rollback_download(download_id: int, manager: ManagerDep, jobs: JobsDep
 
 
 # --- audit log ---------------------------------------------------------------------------------------------
-@router.get("/audit", response_model=list[AuditOut])
+@router.get("/audit", response_model=list[audit.AuditEntry])
 async def audit_log(request: Request, node_id: int | None = None, session_id: str | None = None, q: str = "",
                     origin: str | None = None, limit: Annotated[int, Query(ge=1, le=100_000)] = 1000,
                     format: Annotated[Literal["json", "csv"], Query()] = "json") -> Any:
@@ -479,4 +464,4 @@ async def audit_log(request: Request, node_id: int | None = None, session_id: st
     if format == "csv":
         return Response(audit.to_csv(found), media_type="text/csv",
                         headers={"Content-Disposition": 'attachment; filename="audit-log.csv"'})
-    return [AuditOut(**entry.__dict__) for entry in found]
+    return found
