@@ -143,7 +143,7 @@ def _table(result: dict[str, object]) -> str:
     for label, phase in (("no viewer", alone), (f"{VIEWERS} remote viewers", watched)):
         rows.append(f"| {label} | {phase['frames_per_s']:.1f} | {phase['reads']:,} "
                     f"| {phase['p50']:.1f} / {phase['p99']:.1f} ms |")
-    extra_frames = watched["frames_per_s"] - alone["frames_per_s"]
+    extra_frames = round(watched["frames_per_s"] - alone["frames_per_s"], 1) + 0.0  # no "-0.0"
     rows += [
         "",
         f"Updates per viewer: min {min(updates)}, max {max(updates)} (one a second). p50 ratio watched / alone: "
