@@ -15,7 +15,8 @@ from pydantic import BaseModel, Field
 
 from drivebench.services import commissioning, drive_control
 from drivebench.services.commissioning import RunOut
-from drivebench.services.drive_control import ActualValue, DriveStatus, JogPlan, Panel
+from drivebench.services.drive_control import ActualValue, DriveStatus, JogPlan
+from drivebench.services.drive_guard import Panel
 from drivebench.services.drive_words import Command
 from drivebench.web.deps import NodeDep, SessionDep
 
