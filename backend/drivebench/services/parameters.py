@@ -15,14 +15,12 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import contextvars
 import math
-import os
 import re
 import time
 import weakref
 from collections import deque
-from collections.abc import Callable, Generator, Iterable
+from collections.abc import Callable, Iterable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from enum import StrEnum
@@ -42,11 +40,11 @@ from drivebench.errors import (
     SdoTimeoutError,
     UnknownParameter,
 )
-from drivebench.protocol.abort_codes import abort_text
 from drivebench.protocol.datatypes import DataType, decode, encode
 from drivebench.protocol.heartbeat import HeartbeatStatus
 from drivebench.protocol.network import NodeClient, SdoChannel
 from drivebench.protocol.nmt import NmtCommand
+from drivebench.protocol.sdo_fast import ExpeditedRequest, upload_expedited
 from drivebench.services.jobs import Job, JobIssue, JobManager
 from drivebench.services.sessions import Session, SessionNode
 
@@ -301,7 +299,7 @@ class _Plan:
     an integer decoder, the name; and the scaled form of the last raw value read (scaling and formatting run
     again only when the value changes)."""
 
-    __slots__ = ("_last", "_signed", "_size", "address", "expedited", "item", "name", "request")
+    __slots__ = ("_last", "_signed", "_size", "expedited", "item", "name", "request")
 
     def __init__(self, item: Item) -> None:
         entry = item.entry
@@ -310,8 +308,7 @@ class _Plan:
         self.item = item
         self.name = item.name
         self.expedited = size is not None and size <= 4 and entry.access.readable
-        self.address = bytes([item.index & 0xFF, item.index >> 8, item.subindex])
-        self.request = b"\x40" + self.address + bytes(4)  # CiA 301 initiate upload
+        self.request = ExpeditedRequest(item.index, item.subindex)
         integer = data_type.is_integer and size is not None and data_type is not DataType.BOOLEAN
         self._size = size if integer else 0
         self._signed = data_type.is_signed
@@ -387,243 +384,11 @@ def _read_blocking(client: NodeClient, item: Item, *, block: bool = False, chann
     return client.upload(item.index, item.subindex, block=block, channel=channel)
 
 
-class _Response:
-    """The awaited answer to one expedited request, resolved on the event loop.
-
-    Duck-typed asyncio future (``_asyncio_future_blocking``, ``add_done_callback``, ``result``, ``cancel``, as
-    ``asyncio.Task`` requires): where an ``asyncio.Future`` resolved by the reader thread's wake-up handle would
-    schedule the awaiting task for the *next* loop iteration, this one runs the task's step in that same
-    handle. One event-loop iteration per read instead of two (about 17 us on this machine, a tenth of a read).
-    """
-
-    __slots__ = ("_asyncio_future_blocking", "_callbacks", "_data", "_done", "_error", "_loop")
-
-    def __init__(self, loop: asyncio.AbstractEventLoop) -> None:
-        self._loop = loop
-        self._callbacks: list[tuple[Callable[[_Response], object], contextvars.Context | None]] = []
-        self._data = b""
-        self._error: BaseException | None = None
-        self._done = False
-        self._asyncio_future_blocking = False
-
-    def get_loop(self) -> asyncio.AbstractEventLoop:
-        return self._loop
-
-    def add_done_callback(self, callback: Callable[[_Response], object], *,
-                          context: contextvars.Context | None = None) -> None:
-        if self._done:
-            self._loop.call_soon(callback, self, context=context)
-        else:
-            self._callbacks.append((callback, context))
-
-    def done(self) -> bool:
-        return self._done
-
-    def cancelled(self) -> bool:
-        return isinstance(self._error, asyncio.CancelledError)
-
-    def result(self) -> bytes:
-        if self._error is not None:
-            raise self._error
-        return self._data
-
-    def deliver(self, data: bytes) -> None:
-        """Event loop, from a handle of its own (no task running): the awaiting task continues right here."""
-        if self._done:
-            return
-        self._done = True
-        self._data = data
-        self._run_callbacks()
-
-    def fail(self, error: BaseException) -> None:
-        if self._done:
-            return
-        self._done = True
-        self._error = error
-        self._run_callbacks()
-
-    def cancel(self, msg: object = None) -> bool:
-        """Called by ``Task.cancel`` from inside whatever task runs: the wake-up goes through the loop."""
-        if self._done:
-            return False
-        self._done = True
-        self._error = asyncio.CancelledError() if msg is None else asyncio.CancelledError(msg)
-        callbacks, self._callbacks = self._callbacks, []
-        for callback, context in callbacks:
-            self._loop.call_soon(callback, self, context=context)
-        return True
-
-    def _run_callbacks(self) -> None:
-        callbacks, self._callbacks = self._callbacks, []
-        for callback, context in callbacks:
-            if context is None:
-                callback(self)
-            else:
-                context.run(callback, self)
-
-    def __await__(self) -> Generator[_Response, None, bytes]:
-        if not self._done:
-            self._asyncio_future_blocking = True
-            yield self
-        return self.result()
-
-
-class _Waker:
-    """Wakes one event loop from the bus reader thread for :class:`_Response` deliveries: an eventfd the loop
-    watches and a queue of answers. One read of the eventfd per wake-up, where ``call_soon_threadsafe`` costs
-    two reads of the loop's self-pipe (each a release of the GIL the reader thread is waiting for)."""
-
-    def __init__(self, loop: asyncio.AbstractEventLoop) -> None:
-        self.fd = os.eventfd(0, os.EFD_NONBLOCK | os.EFD_CLOEXEC)
-        self.ready: deque[tuple[_Response, bytes]] = deque()
-        loop.add_reader(self.fd, self._drain)
-        weakref.finalize(loop, os.close, self.fd)
-
-    def post(self, response: _Response, data: bytes) -> None:  # bus reader thread
-        self.ready.append((response, data))
-        os.eventfd_write(self.fd, 1)
-
-    def _drain(self) -> None:
-        with contextlib.suppress(BlockingIOError):
-            os.eventfd_read(self.fd)
-        ready = self.ready
-        while ready:
-            response, data = ready.popleft()
-            response.deliver(data)
-
-
-_WAKERS: weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, _Waker | None] = weakref.WeakKeyDictionary()
-
-
-def _waker(loop: asyncio.AbstractEventLoop) -> _Waker | None:
-    """The loop's waker; None where the platform or loop has none (the reader thread then uses
-    ``call_soon_threadsafe``)."""
-    try:
-        return _WAKERS[loop]
-    except KeyError:
-        pass
-    waker: _Waker | None = None
-    if hasattr(os, "eventfd"):
-        try:
-            waker = _Waker(loop)
-        except (NotImplementedError, OSError):
-            waker = None
-    _WAKERS[loop] = waker
-    return waker
-
-
-class _Expedited:
-    """Expedited SDO upload awaited on the event loop: the request is sent, the response resolves a
-    :class:`_Response` from the bus reader thread. No worker thread per read, so the service layer keeps pace with
-    a bare canopen client.
-
-    It takes the channel's lock without waiting (a transfer in progress sends the read to a worker thread
-    instead) and checks that the response names the requested object; canopen's own client on the same COB-ID
-    discards the copy it queued at its next transfer. The SDO timeout is one watchdog timer per channel that
-    re-arms itself, not a timer per read.
-    """
-
-    def __init__(self, client: NodeClient, channel: SdoChannel) -> None:
-        # no reference to the channel or the node client: they key ``_FAST`` weakly
-        self.node_id = client.node_id
-        self.vendor = client.vendor
-        self.lock = channel.lock
-        self.sdo = channel.client
-        self._pending: tuple[asyncio.AbstractEventLoop, _Response, bytes, _Waker | None] | None = None
-        self._deadline = 0.0
-        self._watch: asyncio.TimerHandle | None = None
-        self._watch_loop: asyncio.AbstractEventLoop | None = None
-        self.sdo.network.subscribe(self.sdo.tx_cobid, self._on_response)
-
-    def _on_response(self, can_id: int, data: bytearray, timestamp: float) -> None:  # bus reader thread
-        pending = self._pending
-        if pending is None or data[1:4] != pending[2]:
-            return
-        loop, response, _, waker = pending
-        if waker is not None:
-            waker.post(response, bytes(data))
-        else:
-            loop.call_soon_threadsafe(response.deliver, bytes(data))
-
-    def _arm(self, loop: asyncio.AbstractEventLoop, deadline: float) -> None:
-        self._deadline = deadline
-        watch = self._watch
-        if watch is not None and self._watch_loop is loop and watch.when() <= deadline:
-            return  # fires first, then re-arms for this deadline
-        if watch is not None:
-            watch.cancel()
-        self._watch = loop.call_at(deadline, self._check, loop)
-        self._watch_loop = loop
-
-    def _check(self, loop: asyncio.AbstractEventLoop) -> None:
-        self._watch = None
-        pending = self._pending
-        if pending is None or pending[1].done() or pending[0] is not loop:
-            return
-        if loop.time() >= self._deadline:
-            pending[1].fail(TimeoutError())
-        else:
-            self._watch = loop.call_at(self._deadline, self._check, loop)
-
-    async def upload(self, plan: _Plan) -> bytes | None:
-        """The value, or None when the channel is busy or the device answers other than expedited."""
-        if not self.lock.acquire(blocking=False):
-            return None
-        item = plan.item
-        try:
-            attempts = max(int(self.sdo.MAX_RETRIES), 1)
-            timeout = float(self.sdo.RESPONSE_TIMEOUT)
-            loop = asyncio.get_running_loop()
-            waker = _waker(loop)
-            for attempt in range(attempts):
-                response = _Response(loop)
-                self._pending = (loop, response, plan.address, waker)
-                self._arm(loop, loop.time() + timeout)
-                self.sdo.network.send_message(self.sdo.rx_cobid, plan.request)
-                try:
-                    data = await response
-                except TimeoutError:
-                    if attempt + 1 < attempts:
-                        continue
-                    self._abort(plan.address, 0x05040000)
-                    raise SdoTimeoutError(f"Node {self.node_id} did not answer the SDO request for "
-                                          f"0x{item.index:04X}sub{item.subindex} (No SDO response received)",
-                                          node=self.node_id, index=item.index, subindex=item.subindex) from None
-                finally:
-                    self._pending = None
-                return self._data(data, item.index, item.subindex, plan.address)
-            return None
-        finally:
-            self.lock.release()
-
-    def _data(self, response: bytes, index: int, sub: int, address: bytes) -> bytes | None:
-        command = response[0]
-        if command == 0x80:
-            code = int.from_bytes(response[4:8], "little")
-            raise SdoAbortError(code, abort_text(code, self.vendor), node=self.node_id,
-                                index=index, subindex=sub)
-        if command & 0xE3 == 0x43:  # expedited, size indicated
-            return response[4:8 - ((command >> 2) & 0x3)]
-        if command & 0xE3 == 0x42:  # expedited, size not indicated
-            return response[4:8]
-        self._abort(address, 0x05040001)  # segmented: leave it to canopen's client in a worker thread
-        return None
-
-    def _abort(self, address: bytes, code: int) -> None:
-        self.sdo.network.send_message(self.sdo.rx_cobid, b"\x80" + address + code.to_bytes(4, "little"))
-
-
-_FAST: weakref.WeakKeyDictionary[SdoChannel, _Expedited] = weakref.WeakKeyDictionary()
-
-
 async def _upload(client: NodeClient, plan: _Plan, *, block: bool = False, channel: int | None = None) -> bytes:
-    """Read one value: expedited on the event loop where it can be, else canopen's client in a worker thread."""
+    """Read one value: expedited on the event loop where it can be (:mod:`drivebench.protocol.sdo_fast`), else
+    canopen's client in a worker thread."""
     if plan.expedited and not block:
-        chosen = client._pick_channel(channel)
-        fast = _FAST.get(chosen)
-        if fast is None:
-            fast = _FAST[chosen] = _Expedited(client, chosen)
-        data = await fast.upload(plan)
+        data = await upload_expedited(client, plan.request, channel=channel)
         if data is not None:
             return data
     return await _on_bus(partial(_read_blocking, client, plan.item, block=block, channel=channel))

@@ -1,0 +1,108 @@
+"""The event-loop expedited SDO upload against the simulated demo drives on a real virtual CAN bus."""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import Iterator
+
+import can
+import pytest
+
+from drivebench.errors import SdoAbortError, SdoTimeoutError
+from drivebench.protocol.network import CanopenNetwork
+from drivebench.protocol.sdo_fast import ExpeditedRequest, upload_expedited, uploader
+from drivebench.simulator.plant import Plant
+from drivebench.transport.bus import BusSpec, open_bus
+
+MOTEC = 5  # Lenze 8400 motec in the demo plant
+ABSENT = 40
+C00061 = ExpeditedRequest(0x5FC2, 0)  # Lenze code = 0x5FFF - code number (8400 motec ch. 12)
+C00099 = ExpeditedRequest(0x5F9C, 0)  # 11-character firmware string: the device answers segmented
+
+
+@pytest.fixture
+def network(plant: Plant, channel: str) -> Iterator[CanopenNetwork]:
+    master = CanopenNetwork(open_bus(BusSpec.parse(f"virtual:{channel}@500000")), sdo_timeout_s=0.3,
+                            sdo_retries=0)
+    yield master
+    master.close()
+
+
+def frames_to(wire: can.BusABC, node_id: int) -> list[bytes]:
+    """The frames sent so far to the node's first SDO channel (client -> server)."""
+    sent = []
+    while (msg := wire.recv(timeout=0.05)) is not None:
+        if msg.arbitration_id == 0x600 + node_id:
+            sent.append(bytes(msg.data))
+    return sent
+
+
+def test_expedited_answer_is_the_value_bytes(plant: Plant, network: CanopenNetwork, wire: can.BusABC) -> None:
+    plant.nodes[MOTEC].store.set_ref("C00061", 43)
+    data = asyncio.run(upload_expedited(network.node(MOTEC), C00061))
+    assert data == (43).to_bytes(4, "little")
+    assert frames_to(wire, MOTEC) == [bytes.fromhex("40 C2 5F 00 00 00 00 00")]
+
+
+def test_device_abort_raises_the_abort_code(network: CanopenNetwork) -> None:
+    with pytest.raises(SdoAbortError) as caught:
+        asyncio.run(upload_expedited(network.node(MOTEC), ExpeditedRequest(0x2FFF, 0)))
+    assert (caught.value.abort_code, caught.value.node) == (0x06020000, MOTEC)
+
+
+def test_segmented_answer_is_left_to_the_blocking_client(network: CanopenNetwork, wire: can.BusABC) -> None:
+    """None, and the started segmented transfer is aborted (0x05040001) so the device is ready again."""
+    client = network.node(MOTEC)
+    assert asyncio.run(upload_expedited(client, C00099)) is None
+    assert frames_to(wire, MOTEC) == [bytes.fromhex("40 9C 5F 00 00 00 00 00"),
+                                      bytes.fromhex("80 9C 5F 00 01 00 04 05")]
+    assert len(client.upload(0x5F9C, 0)) > 4
+    assert not client.channels[0].lock.locked()
+
+
+def test_busy_channel_is_left_to_the_blocking_client(network: CanopenNetwork, wire: can.BusABC) -> None:
+    client = network.node(MOTEC)
+    with client.channels[0].lock:
+        assert asyncio.run(upload_expedited(client, C00061, channel=1)) is None
+    assert frames_to(wire, MOTEC) == []
+
+
+def test_timeout_retries_then_aborts(network: CanopenNetwork, wire: can.BusABC) -> None:
+    """With one retry the request goes out twice; then the transfer is aborted (CiA 301 0x05040000)."""
+    client = network.node(ABSENT)
+    client.configure(0.1, 1)
+    with pytest.raises(SdoTimeoutError) as caught:
+        asyncio.run(upload_expedited(client, C00061))
+    assert (caught.value.node, caught.value.index, caught.value.subindex) == (ABSENT, 0x5FC2, 0)
+    request = bytes.fromhex("40 C2 5F 00 00 00 00 00")
+    assert frames_to(wire, ABSENT) == [request, request, bytes.fromhex("80 C2 5F 00 00 00 04 05")]
+    assert not client.channels[0].lock.locked()
+
+
+def test_cancel_releases_the_channel(plant: Plant, network: CanopenNetwork) -> None:
+    plant.nodes[MOTEC].store.set_ref("C00061", 43)
+    absent = network.node(ABSENT)
+    absent.configure(5.0, 0)
+
+    async def go() -> tuple[bool, bytes | None]:
+        waiting = asyncio.ensure_future(upload_expedited(absent, C00061))
+        await asyncio.sleep(0.05)
+        waiting.cancel()
+        with pytest.raises(asyncio.CancelledError):
+            await waiting
+        lock_free = not absent.channels[0].lock.locked()
+        other = await upload_expedited(network.node(MOTEC), C00061)
+        return lock_free, other
+
+    assert asyncio.run(go()) == (True, (43).to_bytes(4, "little"))
+    absent.configure(0.05, 0)  # the cancelled channel takes a new transfer (no stale pending answer)
+    with pytest.raises(SdoTimeoutError):
+        asyncio.run(upload_expedited(absent, C00061))
+
+
+def test_one_uploader_per_channel(network: CanopenNetwork) -> None:
+    client = network.node(MOTEC)
+    second = client.add_channel(0x640 + MOTEC, 0x5C0 + MOTEC)
+    assert uploader(client, 1) is uploader(client, 1)
+    assert uploader(client, 2) is not uploader(client, 1)
+    assert uploader(client, 2).sdo is second.client
