@@ -4,18 +4,15 @@ page's Diagnostics tab (heartbeat set-up written and verified, EMCY history, the
 from __future__ import annotations
 
 import json
-import threading
-import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
-import uvicorn
 
 from drivebench.simulator.plant import Plant
 from drivebench.web.app import create_app
-from tests.conftest import _free_port, fresh_channel, screenshot
+from tests.conftest import fresh_channel, screenshot, serve_app
 
 
 @pytest.fixture
@@ -25,18 +22,9 @@ def lenze_server(tmp_path: Path) -> Iterator[tuple[str, Plant]]:
         {"node_id": 5, "profile": "lenze-8400-motec-canopen", "name": "Conveyor", "heartbeat_ms": 200},
         {"node_id": 12, "profile": "lenze-8200-vector-emf2178ib", "name": "Fan", "heartbeat_ms": 200}]}))
     app = create_app(plant_file=plant_file, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
-    port = _free_port()
-    server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning"))
-    thread = threading.Thread(target=server.run, daemon=True)
-    thread.start()
-    deadline = time.time() + 20
-    while not server.started and time.time() < deadline:
-        time.sleep(0.05)
-    assert server.started
-    plants: dict[str, Plant] = app.state.drivebench.plants
-    yield f"http://127.0.0.1:{port}", next(iter(plants.values()))
-    server.should_exit = True
-    thread.join(timeout=10)
+    with serve_app(app) as base_url:
+        plants: dict[str, Plant] = app.state.drivebench.plants  # set by the app's start-up
+        yield base_url, next(iter(plants.values()))
 
 
 def test_share_link_view_is_live_and_read_only(lenze_server: tuple[str, Plant], browser: Any) -> None:

@@ -6,17 +6,15 @@ from __future__ import annotations
 
 import contextlib
 import re
-import threading
 import time
 from collections.abc import Iterator
 from typing import Any
 
 import pytest
-import uvicorn
 
 from drivebench.simulator.plant import Plant
 from drivebench.web.app import create_app
-from tests.conftest import DEMO_PLANT, _free_port, fresh_channel, screenshot
+from tests.conftest import DEMO_PLANT, fresh_channel, screenshot, serve_app
 
 TIMEOUT_MS = 10_000
 BLUE, RED = "rgb(11, 95, 165)", "rgb(198, 40, 40)"  # app.css --accent and --bad
@@ -25,18 +23,9 @@ BLUE, RED = "rgb(11, 95, 165)", "rgb(198, 40, 40)"  # app.css --accent and --bad
 @pytest.fixture
 def server() -> Iterator[tuple[str, Plant]]:
     app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
-    port = _free_port()
-    uv = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning"))
-    thread = threading.Thread(target=uv.run, daemon=True)
-    thread.start()
-    deadline = time.time() + 20
-    while not uv.started and time.time() < deadline:
-        time.sleep(0.05)
-    assert uv.started
-    plants: dict[str, Plant] = app.state.drivebench.plants
-    yield f"http://127.0.0.1:{port}", next(iter(plants.values()))
-    uv.should_exit = True
-    thread.join(timeout=10)
+    with serve_app(app) as base_url:
+        plants: dict[str, Plant] = app.state.drivebench.plants  # set by the app's start-up
+        yield base_url, next(iter(plants.values()))
 
 
 def _background(page: Any, selector: str) -> str:

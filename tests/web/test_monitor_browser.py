@@ -3,18 +3,16 @@
 from __future__ import annotations
 
 import re
-import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
-import uvicorn
 
 from drivebench.services import recording
 from drivebench.web.app import create_app
-from tests.conftest import _free_port, fresh_channel, screenshot
+from tests.conftest import fresh_channel, screenshot, serve_app
 from tests.web.monitor_plant import SESSION_ID, write_plant
 
 CHANNEL = fresh_channel()
@@ -26,18 +24,9 @@ def monitor_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     recordings_dir = tmp_path_factory.mktemp("recordings")
     patch = pytest.MonkeyPatch()
     patch.setattr(recording, "recordings_dir", lambda: recordings_dir)
-    port = _free_port()
     app = create_app(plant_file=plant, plant_bus=f"virtual:{CHANNEL}@500000", latency="0ms")
-    server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning"))
-    thread = threading.Thread(target=server.run, daemon=True)
-    thread.start()
-    deadline = time.time() + 20
-    while not server.started and time.time() < deadline:
-        time.sleep(0.05)
-    assert server.started, "the server did not start"
-    yield f"http://127.0.0.1:{port}"
-    server.should_exit = True
-    thread.join(timeout=10)
+    with serve_app(app) as base_url:
+        yield base_url
     patch.undo()
 
 

@@ -6,19 +6,16 @@ and find the writes in the audit log."""
 from __future__ import annotations
 
 import json
-import threading
-import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
-import uvicorn
 
 from drivebench.config import settings
 from drivebench.services import database
 from drivebench.web.app import create_app
-from tests.conftest import DEMO_PLANT, _free_port, fresh_channel, screenshot
+from tests.conftest import DEMO_PLANT, fresh_channel, screenshot, serve_app
 
 expect = pytest.importorskip("playwright.sync_api").expect
 
@@ -39,18 +36,9 @@ def sets_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     url = f"sqlite:///{tmp_path_factory.mktemp('sets-db') / 'drivebench.db'}"
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(settings, "database_url", url)
-        port = _free_port()
         app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
-        server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning"))
-        thread = threading.Thread(target=server.run, daemon=True)
-        thread.start()
-        deadline = time.time() + 20
-        while not server.started and time.time() < deadline:
-            time.sleep(0.05)
-        assert server.started, "the parameter sets test server did not start"
-        yield f"http://127.0.0.1:{port}"
-        server.should_exit = True
-        thread.join(timeout=10)
+        with serve_app(app) as base_url:
+            yield base_url
     database.dispose(url)
 
 

@@ -6,16 +6,13 @@ Runs its own server on a Lenze-only plant (writes must not disturb the shared li
 from __future__ import annotations
 
 import json
-import threading
-import time
 from collections.abc import Iterator
 from typing import Any
 
 import pytest
-import uvicorn
 
 from drivebench.web.app import create_app
-from tests.conftest import _free_port, fresh_channel, screenshot
+from tests.conftest import fresh_channel, screenshot, serve_app
 
 expect = pytest.importorskip("playwright.sync_api").expect
 
@@ -43,17 +40,8 @@ def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, Any]
     plant = tmp_path_factory.mktemp("plant") / "plant.json"
     plant.write_text(json.dumps(PLANT), encoding="utf-8")
     app = create_app(plant_file=plant, plant_bus=f"virtual:{fresh_channel()}@500000", latency="2ms")
-    port = _free_port()
-    uv = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning"))
-    thread = threading.Thread(target=uv.run, daemon=True)
-    thread.start()
-    deadline = time.time() + 20
-    while not uv.started and time.time() < deadline:
-        time.sleep(0.05)
-    assert uv.started
-    yield f"http://127.0.0.1:{port}", app
-    uv.should_exit = True
-    thread.join(timeout=10)
+    with serve_app(app) as base_url:
+        yield base_url, app
 
 
 def _row(page: Any, ref: str) -> Any:

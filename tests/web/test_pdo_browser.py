@@ -5,21 +5,18 @@ cyclic sending ends when the page goes away."""
 
 from __future__ import annotations
 
-import socket
-import threading
 import time
 from collections.abc import Callable, Iterator
 from typing import Any
 
 import httpx
 import pytest
-import uvicorn
 from fastapi import FastAPI
 
 from drivebench.services.process_data import service as live_service
 from drivebench.simulator.store import Abort
 from drivebench.web.app import create_app
-from tests.conftest import DEMO_PLANT, fresh_channel, screenshot
+from tests.conftest import DEMO_PLANT, fresh_channel, screenshot, serve_app
 
 
 def test_edit_and_apply_rpdo5_of_the_micromaster(live_server: str, page: Any) -> None:
@@ -88,19 +85,8 @@ def own_server() -> Iterator[tuple[str, FastAPI]]:
     """A server of its own (the shared live server's plant is not reachable from a test): the tests below make the
     simulated drive refuse a mapping entry and change its values."""
     app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        port = int(sock.getsockname()[1])
-    server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning"))
-    thread = threading.Thread(target=server.run, daemon=True)
-    thread.start()
-    deadline = time.monotonic() + 20
-    while not server.started and time.monotonic() < deadline:
-        time.sleep(0.05)
-    assert server.started
-    yield f"http://127.0.0.1:{port}", app
-    server.should_exit = True
-    thread.join(timeout=10)
+    with serve_app(app) as base_url:
+        yield base_url, app
 
 
 def _wait(condition: Callable[[], bool], seconds: float = 10.0) -> bool:

@@ -7,18 +7,15 @@ stored runs on a server of its own whose registry keeps uploads in a temporary d
 from __future__ import annotations
 
 import json
-import threading
-import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
-import uvicorn
 
 from drivebench.config import REPO_ROOT, settings
 from drivebench.web.app import create_app
-from tests.conftest import _free_port, screenshot
+from tests.conftest import screenshot, serve_app
 
 expect = pytest.importorskip("playwright.sync_api").expect
 
@@ -54,17 +51,8 @@ def own_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, 
     app = create_app()
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(settings, "user_profiles_dir", user_dir)
-        port = _free_port()
-        server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning"))
-        thread = threading.Thread(target=server.run, daemon=True)
-        thread.start()
-        deadline = time.time() + 20
-        while not server.started and time.time() < deadline:
-            time.sleep(0.05)
-        assert server.started, "the profiles test server did not start"
-    yield f"http://127.0.0.1:{port}", user_dir, app
-    server.should_exit = True
-    thread.join(timeout=10)
+        with serve_app(app) as base_url:
+            yield base_url, user_dir, app
 
 
 def assert_fits(page: Any) -> None:

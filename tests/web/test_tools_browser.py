@@ -5,19 +5,16 @@ database), so it does not depend on the demo plant's profiles."""
 from __future__ import annotations
 
 import json
-import threading
-import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
-import uvicorn
 
 from drivebench.config import settings
 from drivebench.services import database
 from drivebench.web.app import create_app
-from tests.conftest import _free_port, screenshot
+from tests.conftest import screenshot, serve_app
 
 expect = pytest.importorskip("playwright.sync_api").expect
 
@@ -40,17 +37,8 @@ def tools_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     url = f"sqlite:///{tmp_path_factory.mktemp('tools-db') / 'drivebench.db'}"
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(settings, "database_url", url)
-        port = _free_port()
-        server = uvicorn.Server(uvicorn.Config(create_app(), host="127.0.0.1", port=port, log_level="warning"))
-        thread = threading.Thread(target=server.run, daemon=True)
-        thread.start()
-        deadline = time.time() + 20
-        while not server.started and time.time() < deadline:
-            time.sleep(0.05)
-        assert server.started, "the tools test server did not start"
-        yield f"http://127.0.0.1:{port}"
-        server.should_exit = True
-        thread.join(timeout=10)
+        with serve_app(create_app()) as base_url:
+            yield base_url
     database.dispose(url)
 
 
