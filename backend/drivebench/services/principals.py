@@ -1,0 +1,33 @@
+"""Who is acting: a principal (a name and a role). Roles are ordered: each one may do what the lower ones may."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import IntEnum
+
+
+class Role(IntEnum):
+    VIEWER = 1  # read, watch, remote diagnostics
+    ENGINEER = 2  # write parameters, PDOs, NMT, device commands
+    ADMIN = 3  # users, sessions, adapters
+
+    @property
+    def label(self) -> str:
+        return self.name.lower()
+
+    @classmethod
+    def parse(cls, text: str) -> Role:
+        try:
+            return cls[text.strip().upper()]
+        except KeyError:
+            raise ValueError(f"unknown role {text!r}: choose viewer, engineer or admin") from None
+
+
+@dataclass(frozen=True)
+class Principal:
+    name: str
+    role: Role
+    via: str = "local"  # local (no login configured), login (cookie session), token (API token), link (share link)
+
+    def may(self, role: Role) -> bool:
+        return self.role >= role
