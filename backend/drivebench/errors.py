@@ -75,6 +75,63 @@ class SdoTimeoutError(ProtocolError):
         return data
 
 
+class SdoStalledError(SdoTimeoutError):
+    """The node answered the start of a segmented (or block) transfer, then stopped answering."""
+
+    title = "Node stopped answering"
+
+    def __init__(self, *, node: int, index: int, subindex: int, done: int, total: int | None,
+                 what: str | None = None, kind: str = "segmented") -> None:
+        what = what or f"0x{index:04X}sub{subindex}"
+        of_total = f" of {total}" if total is not None else ""
+        super().__init__(f"Node {node} stopped answering during a {kind} transfer of {what} after {done}{of_total} "
+                         f"segments", node=node, index=index, subindex=subindex)
+        self.hint = ("The node answered the start of the transfer, so it is on the bus: it may have reset or "
+                     "be overloaded. The transfer was aborted; read again once it answers.")
+        self.done, self.total, self.what, self.kind = done, total, what, kind
+
+    def named(self, what: str) -> SdoStalledError:
+        return SdoStalledError(node=self.node, index=self.index or 0, subindex=self.subindex or 0, done=self.done,
+                               total=self.total, what=what, kind=self.kind)
+
+    def extra(self) -> dict[str, object]:
+        return {**super().extra(), "segments_done": self.done, "segments_total": self.total}
+
+
+class SdoOutOfStepError(ProtocolError):
+    """The node answered, but not what the transfer expects: the wrong toggle bit, another object, another
+    command. ``answered`` is the (index, subindex) the answer named when it named the wrong object."""
+
+    title = "SDO answer out of step"
+
+    def __init__(self, reason: str, *, node: int, index: int, subindex: int,
+                 answered: tuple[int, int] | None = None, what: str | None = None) -> None:
+        asked = f"0x{index:04X} sub {subindex}"
+        label = f" ({what})" if what and what != asked else ""
+        if reason == "toggle":
+            text = (f"Node {node}: toggle bit error: the node answered out of step during the segmented "
+                    f"transfer of {asked}{label}")
+        elif reason == "object" and answered is not None:
+            text = f"Node {node}: answer for 0x{answered[0]:04X} sub {answered[1]} while {asked}{label} was asked"
+        else:
+            text = f"Node {node}: unexpected SDO answer for {asked}{label}: {reason}"
+        super().__init__(text, hint="Another SDO client on the same channel (a second master or a tool) or a "
+                                    "device fault can cause this; the transfer was aborted.")
+        self.reason, self.node, self.index, self.subindex = reason, node, index, subindex
+        self.answered, self.what = answered, what
+
+    def named(self, what: str) -> SdoOutOfStepError:
+        return SdoOutOfStepError(self.reason, node=self.node, index=self.index, subindex=self.subindex,
+                                 answered=self.answered, what=what)
+
+    def extra(self) -> dict[str, object]:
+        data: dict[str, object] = {**super().extra(), "node": self.node,
+                                   "object": f"0x{self.index:04X}sub{self.subindex}"}
+        if self.answered is not None:
+            data["answered_object"] = f"0x{self.answered[0]:04X}sub{self.answered[1]}"
+        return data
+
+
 class NodeOffline(ProtocolError):
     title = "Node offline"
 

@@ -17,12 +17,13 @@ import can
 import canopen
 from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError
 
-from drivebench.errors import NodeOffline, ProtocolError, SdoAbortError, SdoTimeoutError, TransportError
+from drivebench.errors import NodeOffline, ProtocolError, SdoAbortError, TransportError
 from drivebench.protocol.abort_codes import abort_text
 from drivebench.protocol.emcy import EmcyMonitor
 from drivebench.protocol.guarding import NodeGuarding
 from drivebench.protocol.heartbeat import HeartbeatMonitor
 from drivebench.protocol.nmt import NmtCommand, nmt_frame
+from drivebench.protocol.sdo_errors import communication_error, read_segments
 from drivebench.transport.bus import ObservedBus
 
 T = TypeVar("T")
@@ -73,12 +74,7 @@ class NodeClient:
                 raise SdoAbortError(exc.code, abort_text(exc.code, self.vendor), node=self.node_id,
                                     index=index, subindex=sub) from exc
             except SdoCommunicationError as exc:
-                text = str(exc)
-                if "No SDO response" in text or "timeout" in text.lower():
-                    raise SdoTimeoutError(f"Node {self.node_id} did not answer the SDO request for "
-                                          f"0x{index:04X}sub{sub} ({text})", node=self.node_id, index=index,
-                                          subindex=sub) from exc
-                raise ProtocolError(f"Node {self.node_id}, 0x{index:04X}sub{sub}: {text}") from exc
+                raise communication_error(exc, node=self.node_id, index=index, subindex=sub) from exc
             except can.CanError as exc:
                 raise TransportError(f"CAN adapter error while talking to node {self.node_id}: {exc}",
                                      hint="Check the adapter connection; the session reconnects when it is back."
@@ -100,7 +96,7 @@ class NodeClient:
             if block:
                 with client.open(index, sub, "rb", block_transfer=True) as stream:
                     return bytes(stream.read())
-            return bytes(client.upload(index, sub))
+            return read_segments(client, index, sub)
 
         return self._with_channel(index, sub, work, channel)
 

@@ -21,6 +21,7 @@ from drivebench.protocol.nmt import NmtCommand, NmtState
 from drivebench.protocol.sdo_server import SdoAbort as Abort
 from drivebench.protocol.sdo_server import SdoServer
 from drivebench.simulator.drive402 import Drive402
+from drivebench.simulator.faults import FaultState
 from drivebench.simulator.lenze_control import LenzeControl
 from drivebench.simulator.pdo import PdoEngine
 from drivebench.simulator.store import ObjectStore, RawValue
@@ -106,6 +107,8 @@ class SimulatedNode:
         self._next_heartbeat = 0.0
         self.emcy_active: list[tuple[int, int, bytes]] = []
         self._guard_toggle = 0
+        self.faults = FaultState()
+        """SDO faults switched on for tests and demos (``node.faults.set(wrong_toggle=True)``)."""
         self.store.add_write_hook(self._on_write)
         self._build_sdo_servers()
         self.drive = _device_control(self)
@@ -194,8 +197,8 @@ class SimulatedNode:
             channels.append(second)
         features = self.profile.features
         for rx_cob, tx_cob in channels:
-            servers[rx_cob] = SdoServer(self.node_id, self.send, self.store, rx_cob=rx_cob, tx_cob=tx_cob,
-                                        segmented=features.segmented_sdo, block=features.block_sdo)
+            servers[rx_cob] = SdoServer(self.node_id, self._answer_sdo(rx_cob), self.store, rx_cob=rx_cob,
+                                        tx_cob=tx_cob, segmented=features.segmented_sdo, block=features.block_sdo)
         self.sdo_servers = servers
 
     def _second_sdo_channel(self) -> tuple[int, int] | None:
@@ -205,6 +208,27 @@ class SimulatedNode:
         if not isinstance(rx, int) or not isinstance(tx, int) or (rx | tx) & 0x80000000:
             return None
         return rx & 0x7FF, tx & 0x7FF
+
+    def _answer_sdo(self, rx_cob: int) -> Send:
+        def send(cob_id: int, data: bytes) -> None:
+            self.send(cob_id, self.faults.on_answer(rx_cob, data))
+
+        return send
+
+    def _faulty_request(self, server: SdoServer, data: bytes) -> bool:
+        """True when an active fault takes the request (dropped, or aborted with the fault's code)."""
+        if len(data) != 8:
+            return False
+        extra_ms = self.faults.faults.latency_ms
+        if extra_ms:
+            time.sleep(extra_ms / 1000)
+        verdict = self.faults.on_request(server.rx_cob, data)
+        if verdict is None:
+            return False
+        if verdict:
+            server.reset()
+            self.send(server.tx_cob, b"\x80" + data[1:4] + verdict.to_bytes(4, "little"))
+        return True
 
     def _work(self, requests: queue.Queue[tuple[int, bytes] | None]) -> None:
         while True:
@@ -218,7 +242,8 @@ class SimulatedNode:
             if self.latency.mean_s and not server.busy:
                 time.sleep(self.latency.sample())  # the device's parameter data processing time
             try:
-                server.on_request(data)
+                if not self._faulty_request(server, data):
+                    server.on_request(data)
             except Exception:  # a simulator bug must not kill the node
                 log.exception("node %d: SDO request %s failed", self.node_id, data.hex())
 

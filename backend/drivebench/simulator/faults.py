@@ -1,0 +1,166 @@
+"""SDO faults a simulated node can be told to show, switchable while it runs (tests and demos).
+
+The node applies them around its SDO server (``node.py``): requests are dropped or aborted before the server
+sees them, answers are altered on their way to the bus. The server's own state machine stays correct, so
+clearing a fault is all it takes for the node to answer properly again.
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import asdict, dataclass, fields, replace
+
+from drivebench.errors import InvalidValue
+
+_INDEXED_COMMANDS = (1, 2, 5, 6)
+"""Client command specifiers whose requests name an object: initiate download/upload, block download/upload."""
+
+
+@dataclass(frozen=True)
+class SdoFaults:
+    """The faults of one node; all off by default."""
+
+    silent_after_segments: int | None = None
+    """Answer this many segment requests of a segmented transfer, then no more until the next transfer starts."""
+    wrong_toggle: bool = False
+    """Segment answers carry the toggle bit the client did not ask for."""
+    index_offset: int = 0
+    """Answers that name an object name ``index + index_offset`` instead (0: off)."""
+    subindex_offset: int = 0
+    """Answers that name an object name ``subindex + subindex_offset`` instead (0: off)."""
+    abort_code: int | None = None
+    """Abort requests that start a transfer with this CiA 301 code (None: off)..."""
+    abort_every: int = 1
+    """...every one of them (1) or every n-th."""
+    latency_ms: float = 0.0
+    """Extra processing time per SDO request."""
+
+    def __post_init__(self) -> None:
+        if self.silent_after_segments is not None and self.silent_after_segments < 0:
+            raise InvalidValue("silent_after_segments must be 0 or more")
+        if self.abort_code is not None and not 0 < self.abort_code <= 0xFFFFFFFF:
+            raise InvalidValue("abort_code must be a 32-bit CiA 301 abort code")
+        if self.abort_every < 1:
+            raise InvalidValue("abort_every must be 1 or more")
+        if not 0 <= self.latency_ms <= 60_000:
+            raise InvalidValue("latency_ms must be 0 ... 60000")
+        if not -0xFFFF <= self.index_offset <= 0xFFFF or not -0xFF <= self.subindex_offset <= 0xFF:
+            raise InvalidValue("index_offset must be within ±0xFFFF and subindex_offset within ±0xFF")
+
+    @property
+    def active(self) -> bool:
+        return self != SdoFaults()
+
+    def as_dict(self) -> dict[str, object]:
+        return asdict(self)
+
+    def describe(self) -> list[str]:
+        """The active faults in words (the simulator's fault panel and logs)."""
+        words = []
+        if self.silent_after_segments is not None:
+            words.append(f"stops answering after {self.silent_after_segments} segments of a segmented transfer")
+        if self.wrong_toggle:
+            words.append("answers segments with the wrong toggle bit")
+        if self.index_offset or self.subindex_offset:
+            words.append(f"answers name another object (index {self.index_offset:+d}, "
+                         f"subindex {self.subindex_offset:+d})")
+        if self.abort_code is not None:
+            every = "every request" if self.abort_every == 1 else f"every {self.abort_every}th request"
+            words.append(f"aborts {every} with 0x{self.abort_code:08X}")
+        if self.latency_ms:
+            words.append(f"{self.latency_ms:g} ms extra SDO latency")
+        return words
+
+
+FAULT_NAMES = frozenset(f.name for f in fields(SdoFaults))
+
+
+@dataclass
+class _ChannelCounters:
+    transfers: int = 0
+    segments_answered: int = 0
+    block_upload_running: bool = False
+
+
+class FaultState:
+    """A node's active faults and the counters they need (per SDO channel); read by the node's SDO workers,
+    set from anywhere."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._faults = SdoFaults()
+        self._channels: dict[int, _ChannelCounters] = {}
+
+    @property
+    def faults(self) -> SdoFaults:
+        return self._faults
+
+    def set(self, faults: SdoFaults | None = None, **changes: object) -> SdoFaults:
+        """Replace the faults (``set(SdoFaults(...))``), change some (``set(wrong_toggle=True)``), or clear
+        them all (``set()``)."""
+        unknown = set(changes) - FAULT_NAMES
+        if unknown:
+            raise InvalidValue(f"unknown fault(s): {', '.join(sorted(unknown))}")
+        base = faults if faults is not None else (self._faults if changes else SdoFaults())
+        new = replace(base, **changes)  # type: ignore[arg-type]
+        with self._lock:
+            self._faults = new
+            self._channels.clear()
+        return new
+
+    def clear(self) -> None:
+        self.set()
+
+    # --- used by the node's SDO workers ----------------------------------------------------------------
+    def on_request(self, channel: int, request: bytes) -> int | None:
+        """None to pass the request on, 0 to drop it (silence), or an abort code to answer with."""
+        faults = self._faults
+        command = request[0] >> 5
+        with self._lock:
+            counters = self._channels.setdefault(channel, _ChannelCounters())
+            counters.block_upload_running = command == 5 and request[0] & 0x03 in (2, 3)
+            if command in _INDEXED_COMMANDS and not _is_block_follow_up(request):
+                counters.segments_answered = 0
+                if faults.abort_code is not None:
+                    counters.transfers += 1
+                    if counters.transfers % faults.abort_every == 0:
+                        return faults.abort_code
+                return None
+            if command in (0, 3) and faults.silent_after_segments is not None:
+                if counters.segments_answered >= faults.silent_after_segments:
+                    return 0
+                counters.segments_answered += 1
+        return None
+
+    def on_answer(self, channel: int, answer: bytes) -> bytes:
+        """The answer as the faulty node sends it."""
+        faults = self._faults
+        if not faults.wrong_toggle and not faults.index_offset and not faults.subindex_offset:
+            return answer
+        counters = self._channels.get(channel)
+        if counters is not None and counters.block_upload_running:
+            return answer  # sub-block segments start with a sequence number, not a command
+        data = bytearray(answer)
+        names_object = _names_object(answer)
+        if faults.wrong_toggle and answer[0] >> 5 in (0, 1) and not names_object:
+            data[0] ^= 0x10  # upload segment (scs 0) and download segment (scs 1) answers carry the toggle
+        if (faults.index_offset or faults.subindex_offset) and names_object:
+            index = (int.from_bytes(answer[1:3], "little") + faults.index_offset) & 0xFFFF
+            data[1:3] = index.to_bytes(2, "little")
+            data[3] = (answer[3] + faults.subindex_offset) & 0xFF
+        return bytes(data)
+
+
+def _is_block_follow_up(request: bytes) -> bool:
+    """Block upload start/ack/end (ccs 5, cs != 0) and block download end (ccs 6, cs = 1) carry no new object."""
+    command = request[0] >> 5
+    return (command == 5 and request[0] & 0x03 != 0) or (command == 6 and request[0] & 0x01 == 1)
+
+
+def _names_object(answer: bytes) -> bool:
+    """Initiate answers (upload 0x4x, download 0x60, block 0xA4/0xC6) and aborts carry index and subindex."""
+    command = answer[0]
+    return command >> 5 in (2, 3) or command in (0x80, 0xA4, 0xC2, 0xC6)
+
+
+__all__ = ["FAULT_NAMES", "FaultState", "SdoFaults"]
