@@ -193,6 +193,12 @@ class Conflict(ServiceError):
     title = "Conflict"
 
 
+class ConfirmationRequired(ServiceError):
+    """An action that can move a drive was sent without the explicit confirmation naming its node (HTTP 428)."""
+
+    title = "Confirmation required"
+
+
 class NotAuthenticated(ServiceError):
     title = "Not signed in"
 
