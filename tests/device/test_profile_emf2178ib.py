@@ -227,7 +227,8 @@ def test_emergency_codes_and_notes(registry: ProfileRegistry, profile_id: str) -
     assert "CiA 301 wins" in notes
 
 
-@pytest.mark.parametrize(("profile_id", "parameters", "codes"), [(VECTOR, 159, 45), (SERVO, 181, 50)])
+# 8200 vector: + C0053 / C0054 (actual values from the 8200 code table)
+@pytest.mark.parametrize(("profile_id", "parameters", "codes"), [(VECTOR, 161, 47), (SERVO, 181, 50)])
 def test_counts(registry: ProfileRegistry, profile_id: str, parameters: int, codes: int) -> None:
     profile = registry.get(profile_id)
     assert len(profile.parameters) == parameters

@@ -221,8 +221,9 @@ def test_motec_emergency_codes(motec: Profile) -> None:
 
 
 def test_motec_counts(motec: Profile) -> None:
-    assert len(motec.parameters) == 106  # 90 + C00866/1...8, C00868/1...8 (CAN input/output words, PDO-mappable)
-    assert len({p.code for p in motec.parameters}) == 42
+    # 90 + C00866/1...8, C00868/1...8 (CAN input/output words, PDO-mappable) + C00053/C00054 (actual values)
+    assert len(motec.parameters) == 108
+    assert len({p.code for p in motec.parameters}) == 44
     assert len(motec.objects) == 70
     assert len({o.index for o in motec.objects}) == 19
     assert len(motec.emcy_codes) == 10

@@ -167,8 +167,8 @@ def test_counts(profile: Profile) -> None:
     """What was extracted from the manual; an edit that drops entries fails here."""
     assert len(profile.objects) == 112
     assert len({o.index for o in profile.objects}) == 52
-    assert len(profile.parameters) == 70
-    assert len({p.code for p in profile.parameters}) == 50
+    assert len(profile.parameters) == 74  # + r0026, r0027, r0031, r0037 (actual values, MM440 parameter list)
+    assert len({p.code for p in profile.parameters}) == 54
     assert len(profile.emcy_codes) == 63
     groups = Counter(p.group for p in profile.parameters) + Counter(o.group for o in profile.objects)
     assert set(groups) == set(profile.groups)
