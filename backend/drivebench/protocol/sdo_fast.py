@@ -19,7 +19,7 @@ import weakref
 from collections import deque
 from collections.abc import Callable, Generator
 
-from drivebench.errors import SdoAbortError, SdoTimeoutError
+from drivebench.errors import SdoAbortError, SdoOutOfStepError, SdoTimeoutError
 from drivebench.protocol.abort_codes import abort_text
 from drivebench.protocol.network import NodeClient, SdoChannel
 
@@ -185,6 +185,9 @@ class ExpeditedUploader:
         self.lock = channel.lock
         self.sdo = channel.client
         self._pending: tuple[asyncio.AbstractEventLoop, _Response, bytes, _Waker | None] | None = None
+        self._other_object: bytes | None = None
+        """Address named by an initiate answer or abort for another object while a request waited (a late
+        answer to an earlier request, another client on the channel, or a faulty node)."""
         self._deadline = 0.0
         self._watch: asyncio.TimerHandle | None = None
         self._watch_loop: asyncio.AbstractEventLoop | None = None
@@ -192,7 +195,11 @@ class ExpeditedUploader:
 
     def _on_response(self, can_id: int, data: bytearray, timestamp: float) -> None:  # bus reader thread
         pending = self._pending
-        if pending is None or data[1:4] != pending[2]:
+        if pending is None:
+            return
+        if data[1:4] != pending[2]:
+            if data[0] >> 5 == 2 or data[0] == 0x80:  # an initiate upload answer or abort: names an object
+                self._other_object = bytes(data[1:4])
             return
         loop, response, _, waker = pending
         if waker is not None:
@@ -224,7 +231,8 @@ class ExpeditedUploader:
         """The value, or None when the channel is busy or the device answers other than expedited.
 
         Raises :class:`SdoAbortError` when the device aborts, :class:`SdoTimeoutError` when no attempt is
-        answered (the transfer is then aborted with 0x05040000)."""
+        answered (the transfer is then aborted with 0x05040000), :class:`SdoOutOfStepError` when the only answers
+        named another object."""
         if not self.lock.acquire(blocking=False):
             return None
         try:
@@ -232,6 +240,7 @@ class ExpeditedUploader:
             timeout = float(self.sdo.RESPONSE_TIMEOUT)
             loop = asyncio.get_running_loop()
             waker = _waker(loop)
+            self._other_object = None
             for attempt in range(attempts):
                 response = _Response(loop)
                 self._pending = (loop, response, request.address, waker)
@@ -243,6 +252,11 @@ class ExpeditedUploader:
                     if attempt + 1 < attempts:
                         continue
                     self._abort(request.address, ABORT_TIMEOUT)
+                    other = self._other_object
+                    if other is not None:  # it did answer, only never for this object
+                        raise SdoOutOfStepError("object", node=self.node_id, index=request.index,
+                                                subindex=request.subindex,
+                                                answered=(other[0] | other[1] << 8, other[2])) from None
                     raise SdoTimeoutError(f"Node {self.node_id} did not answer the SDO request for "
                                           f"0x{request.index:04X}sub{request.subindex} (No SDO response received)",
                                           node=self.node_id, index=request.index,
