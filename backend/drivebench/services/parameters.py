@@ -37,6 +37,8 @@ from drivebench.errors import (
     OutOfRange,
     ProtocolError,
     SdoAbortError,
+    SdoOutOfStepError,
+    SdoStalledError,
     SdoTimeoutError,
     UnknownParameter,
 )
@@ -386,12 +388,15 @@ def _read_blocking(client: NodeClient, item: Item, *, block: bool = False, chann
 
 async def _upload(client: NodeClient, plan: _Plan, *, block: bool = False, channel: int | None = None) -> bytes:
     """Read one value: expedited on the event loop where it can be (:mod:`drivebench.protocol.sdo_fast`), else
-    canopen's client in a worker thread."""
-    if plan.expedited and not block:
-        data = await upload_expedited(client, plan.request, channel=channel)
-        if data is not None:
-            return data
-    return await _on_bus(partial(_read_blocking, client, plan.item, block=block, channel=channel))
+    canopen's client in a worker thread. Transfer errors name the parameter as the user knows it (C00099)."""
+    try:
+        if plan.expedited and not block:
+            data = await upload_expedited(client, plan.request, channel=channel)
+            if data is not None:
+                return data
+        return await _on_bus(partial(_read_blocking, client, plan.item, block=block, channel=channel))
+    except (SdoStalledError, SdoOutOfStepError) as exc:
+        raise exc.named(plan.item.ref) from exc
 
 
 def _use_block(node: SessionNode, item: Item, transfer: str) -> bool:
@@ -617,7 +622,8 @@ async def _read_node(session: Session, node: SessionNode, work: list[Item], job:
     client = session.client(node.node_id)
     queue = deque(work)
     values: dict[str, object] = job.result.setdefault("values", {}).setdefault(str(node.node_id), {})
-    silent = {"timeouts": 0}
+    silent = {"timeouts": 0}  # consecutive reads with no usable answer (silence, or answers out of step)
+    why = ["did not answer"]
     channel_numbers = await sdo_channels(session, node)
     note = state.channels.get(node.node_id)
     if note is not None and note.note and note.note not in job.notes:
@@ -628,7 +634,7 @@ async def _read_node(session: Session, node: SessionNode, work: list[Item], job:
             if silent["timeouts"] >= SILENT_AFTER_TIMEOUTS:
                 skipped = len(queue)
                 queue.clear()
-                job.notes.append(f"Node {node.node_id} did not answer; {skipped} parameters not read")
+                job.notes.append(f"Node {node.node_id} {why[0]}; {skipped} parameters not read")
                 job.advance(skipped)
                 return
             item = queue.popleft()
@@ -636,8 +642,9 @@ async def _read_node(session: Session, node: SessionNode, work: list[Item], job:
                 plan = _plan_of(node.catalog, item)
                 data = await _upload(client, plan, channel=channel)
                 value = plan.value(plan.decode(data, node.node_id))
-            except SdoTimeoutError as exc:
+            except (SdoTimeoutError, SdoOutOfStepError) as exc:
                 silent["timeouts"] += 1
+                why[0] = "answered out of step" if isinstance(exc, SdoOutOfStepError) else "did not answer"
                 job.advance(issue=_issue(node.node_id, item, exc))
                 continue
             except (ProtocolError, InvalidValue) as exc:
