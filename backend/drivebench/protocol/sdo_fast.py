@@ -266,7 +266,17 @@ class ExpeditedUploader:
                 return self._data(data, request)
             return None
         finally:
+            self._drop_client_copies()
             self.lock.release()
+
+    def _drop_client_copies(self) -> None:
+        """canopen's client queues a copy of every answer on its COB-ID and empties the queue only at its own next
+        transfer: after thousands of reads on this path alone it would hold thousands of stale answers. The
+        channel lock is held, so nothing in the queue belongs to a transfer in progress."""
+        responses = self.sdo.responses
+        if not responses.empty():
+            with responses.mutex:
+                responses.queue.clear()
 
     def _data(self, response: bytes, request: ExpeditedRequest) -> bytes | None:
         command = response[0]
