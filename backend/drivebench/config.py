@@ -22,6 +22,11 @@ class Settings(BaseSettings):
     sdo_timeout_s: float = 0.5
     sdo_retries: int = 1
     max_upload_bytes: int = 5 * 1024 * 1024
+    secret_key: str | None = None
+    """Signs the sign-in cookies; without it a random key is made once and kept in ``secret_key_file`` (0600)."""
+    secret_key_file: Path = REPO_ROOT / "var" / "secret_key"
+    session_max_age_s: int = 12 * 3600
+    """A sign-in lasts this long (a working day), then the browser asks again."""
 
 
 settings = Settings()

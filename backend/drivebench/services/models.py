@@ -5,7 +5,7 @@ from __future__ import annotations
 from datetime import UTC, datetime
 from typing import Any
 
-from sqlalchemy import JSON, DateTime, ForeignKey, Integer, String, Text, UniqueConstraint
+from sqlalchemy import JSON, Boolean, DateTime, ForeignKey, Integer, String, Text, UniqueConstraint
 from sqlalchemy.orm import Mapped, mapped_column
 
 from drivebench.services.database import Base
@@ -112,3 +112,37 @@ class AuditRow(Base):
     detail: Mapped[str | None] = mapped_column(Text, nullable=True)
     origin: Mapped[str] = mapped_column(String(60), nullable=False)
     """``parameters`` (a single write), ``download 12``, ``rollback 13`` ..."""
+
+
+# --- users and API tokens (migration 0003_accounts) ------------------------------------------------------------
+class UserRow(Base):
+    """A person who may sign in: a role and an argon2 hash of the password (never the password)."""
+
+    __tablename__ = "user_account"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
+    name: Mapped[str] = mapped_column(String(60), nullable=False, unique=True)
+    role: Mapped[str] = mapped_column(String(20), nullable=False)
+    """``viewer``, ``engineer`` or ``admin`` (``services.principals.Role``)."""
+    password_hash: Mapped[str] = mapped_column(String(255), nullable=False)
+    created: Mapped[datetime] = mapped_column(DateTime(timezone=True), nullable=False, default=utcnow)
+    disabled: Mapped[bool] = mapped_column(Boolean, nullable=False, default=False)
+
+
+class ApiTokenRow(Base):
+    """An API token for scripts: only a SHA-256 of the token is stored; the token is shown once when issued."""
+
+    __tablename__ = "api_token"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
+    name: Mapped[str] = mapped_column(String(120), nullable=False)
+    owner_id: Mapped[int] = mapped_column(ForeignKey("user_account.id", ondelete="CASCADE"), nullable=False,
+                                          index=True)
+    role: Mapped[str] = mapped_column(String(20), nullable=False)
+    """Never higher than the owner's role; the lower of the two counts when the owner's role changes."""
+    token_hash: Mapped[str] = mapped_column(String(64), nullable=False, unique=True)
+    hint: Mapped[str] = mapped_column(String(16), nullable=False)
+    """The first characters of the token, so a user can tell tokens apart."""
+    created: Mapped[datetime] = mapped_column(DateTime(timezone=True), nullable=False, default=utcnow)
+    last_used: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
+    revoked: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)

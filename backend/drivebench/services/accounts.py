@@ -1,0 +1,397 @@
+"""Users, passwords and API tokens in the database, and the sign-in rate limit.
+
+Passwords are hashed with argon2 (argon2-cffi's ``PasswordHasher``); the database holds the hash only. An API
+token (``dbt_`` + 43 random characters) is shown once when issued; the database holds its SHA-256 (the token is
+random, so a fast hash is enough) and its first characters as a hint. Authentication is *configured* as soon as one
+enabled admin exists: from then on the web server asks everyone to sign in.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import re
+import secrets
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from datetime import UTC, datetime
+
+from argon2 import PasswordHasher
+from argon2.exceptions import InvalidHashError, VerificationError
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from drivebench.config import settings
+from drivebench.errors import AccessDenied, Conflict, InvalidValue, NotAuthenticated, NotFound
+from drivebench.services.database import transaction
+from drivebench.services.models import ApiTokenRow, UserRow, utcnow
+from drivebench.services.principals import Principal, Role
+
+TOKEN_PREFIX = "dbt_"
+NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9._@-]{0,59}")
+MIN_PASSWORD_LENGTH = 8
+MAX_PASSWORD_LENGTH = 1024
+DIRECTORY_TTL_S = 2.0  # a user added by the CLI while the server runs counts after at most this long
+
+_hasher = PasswordHasher()
+_dummy_hash: str | None = None
+
+
+@dataclass(frozen=True)
+class User:
+    id: int
+    name: str
+    role: Role
+    created: datetime
+    disabled: bool
+    stamp: str
+    """Changes with the password: a signed-in session carries it, so a new password ends the old sessions."""
+
+
+@dataclass(frozen=True)
+class ApiToken:
+    id: int
+    name: str
+    owner: str
+    role: Role
+    hint: str
+    created: datetime
+    last_used: datetime | None
+    revoked: datetime | None
+
+
+@dataclass(frozen=True)
+class IssuedToken:
+    token: ApiToken
+    secret: str
+    """The token itself: shown once, never stored."""
+
+
+class LoginLocked(NotAuthenticated):
+    title = "Too many failed sign-ins"
+
+    def __init__(self, detail: str, *, retry_after_s: int) -> None:
+        super().__init__(detail, hint="Wait, then sign in again; an admin can reset a forgotten password.")
+        self.retry_after_s = retry_after_s
+
+    def extra(self) -> dict[str, object]:
+        return {**super().extra(), "retry_after_s": self.retry_after_s}
+
+
+# --- checks ----------------------------------------------------------------------------------------------------
+def _check_name(name: str) -> str:
+    name = name.strip()
+    if not NAME_PATTERN.fullmatch(name):
+        raise InvalidValue(f"User name {name!r} is not allowed: use 1 to 60 letters, digits, '.', '_', '@' or '-', "
+                           "starting with a letter or digit.")
+    return name
+
+
+def _check_password(password: str) -> str:
+    if len(password) < MIN_PASSWORD_LENGTH:
+        raise InvalidValue(f"The password is too short: use at least {MIN_PASSWORD_LENGTH} characters.")
+    if len(password) > MAX_PASSWORD_LENGTH:
+        raise InvalidValue(f"The password is too long: use at most {MAX_PASSWORD_LENGTH} characters.")
+    return password
+
+
+def _stamp(password_hash: str) -> str:
+    return hashlib.sha256(password_hash.encode()).hexdigest()[:16]
+
+
+def _user(row: UserRow) -> User:
+    return User(row.id, row.name, Role.parse(row.role), row.created, row.disabled, _stamp(row.password_hash))
+
+
+def _token(row: ApiTokenRow, owner: str) -> ApiToken:
+    return ApiToken(row.id, row.name, owner, Role.parse(row.role), row.hint, row.created, row.last_used,
+                    row.revoked)
+
+
+def _token_hash(secret: str) -> str:
+    return hashlib.sha256(secret.encode()).hexdigest()
+
+
+# --- the directory: users by name, cached briefly (every request asks whether login is required) --------------
+class _Directory:
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._users: dict[str, User] = {}
+        self._loaded_at = -DIRECTORY_TTL_S
+        self._url: str | None = None
+
+    def users(self) -> dict[str, User]:
+        with self._lock:
+            fresh = time.monotonic() - self._loaded_at < DIRECTORY_TTL_S and self._url == settings.database_url
+            if fresh:
+                return self._users
+        with transaction() as db:
+            users = {row.name: _user(row) for row in db.scalars(select(UserRow))}
+        with self._lock:
+            self._users, self._loaded_at, self._url = users, time.monotonic(), settings.database_url
+        return users
+
+    def forget(self) -> None:
+        with self._lock:
+            self._loaded_at = -DIRECTORY_TTL_S
+
+
+directory = _Directory()
+
+
+def authentication_configured() -> bool:
+    """True as soon as one enabled admin exists: then everyone signs in."""
+    return any(user.role is Role.ADMIN and not user.disabled for user in directory.users().values())
+
+
+def account(name: str) -> User | None:
+    """The user called ``name`` as of at most ``DIRECTORY_TTL_S`` ago (None: no such user)."""
+    return directory.users().get(name)
+
+
+# --- users -----------------------------------------------------------------------------------------------------
+def create_user(name: str, password: str, role: Role) -> User:
+    name = _check_name(name)
+    password_hash = _hasher.hash(_check_password(password))
+    with transaction() as db:
+        if db.scalar(select(UserRow).where(UserRow.name == name)) is not None:
+            raise Conflict(f"A user called {name} exists already.")
+        row = UserRow(name=name, role=role.label, password_hash=password_hash, created=utcnow(), disabled=False)
+        db.add(row)
+        db.flush()
+        created = _user(row)
+    directory.forget()
+    return created
+
+
+def list_users() -> list[User]:
+    with transaction() as db:
+        return [_user(row) for row in db.scalars(select(UserRow).order_by(UserRow.name))]
+
+
+def get_user(name: str) -> User:
+    with transaction() as db:
+        return _user(_user_row(db, name))
+
+
+def _user_row(db: Session, name: str) -> UserRow:
+    row = db.scalar(select(UserRow).where(UserRow.name == name))
+    if row is None:
+        raise NotFound(f"There is no user called {name}.")
+    return row
+
+
+def _keep_an_admin(db: Session, row: UserRow, *, role: Role, disabled: bool) -> None:
+    """Refuse to leave no enabled admin: that would switch the sign-in off and open every screen to everyone."""
+    if row.role != Role.ADMIN.label or row.disabled or (role is Role.ADMIN and not disabled):
+        return
+    admins = db.scalars(select(UserRow).where(UserRow.role == Role.ADMIN.label, UserRow.disabled.is_(False)))
+    if len(list(admins)) <= 1:
+        raise Conflict(f"{row.name} is the last enabled admin: without one, signing in would be switched off and "
+                       "every screen open to anyone who reaches the server.",
+                       hint="Add another admin first.")
+
+
+def set_disabled(name: str, disabled: bool = True) -> User:
+    with transaction() as db:
+        row = _user_row(db, name)
+        _keep_an_admin(db, row, role=Role.parse(row.role), disabled=disabled)
+        row.disabled = disabled
+        changed = _user(row)
+    directory.forget()
+    return changed
+
+
+def set_role(name: str, role: Role) -> User:
+    with transaction() as db:
+        row = _user_row(db, name)
+        _keep_an_admin(db, row, role=role, disabled=row.disabled)
+        row.role = role.label
+        changed = _user(row)
+    directory.forget()
+    return changed
+
+
+def set_password(name: str, password: str) -> User:
+    password_hash = _hasher.hash(_check_password(password))
+    with transaction() as db:
+        row = _user_row(db, name)
+        row.password_hash = password_hash
+        changed = _user(row)
+    directory.forget()
+    return changed
+
+
+def verify_password(name: str, password: str) -> Principal:
+    """The principal of a correct name and password; ``NotAuthenticated`` (in the same words) otherwise."""
+    global _dummy_hash
+    wrong = NotAuthenticated("Wrong user name or password.")
+    with transaction() as db:
+        row = db.scalar(select(UserRow).where(UserRow.name == name.strip()))
+        if row is None or row.disabled:
+            _dummy_hash = _dummy_hash or _hasher.hash(secrets.token_hex(8))
+            with contextlib.suppress(VerificationError):  # as slow as a real check: the time tells no names
+                _hasher.verify(_dummy_hash, password)
+            raise wrong
+        try:
+            _hasher.verify(row.password_hash, password)
+        except (VerificationError, InvalidHashError):
+            raise wrong from None
+        if _hasher.check_needs_rehash(row.password_hash):
+            row.password_hash = _hasher.hash(password)
+        return Principal(row.name, Role.parse(row.role), via="login")
+
+
+# --- API tokens ------------------------------------------------------------------------------------------------
+def issue_token(owner: str, name: str, role: Role) -> IssuedToken:
+    name = name.strip()
+    if not 1 <= len(name) <= 120:
+        raise InvalidValue("Give the token a name of 1 to 120 characters (what the script does).")
+    secret = TOKEN_PREFIX + secrets.token_urlsafe(32)
+    with transaction() as db:
+        user = _user_row(db, owner)
+        if role > Role.parse(user.role):
+            raise AccessDenied(f"A token of {owner} cannot have the {role.label} role: {owner} is "
+                               f"{Role.parse(user.role).label}.")
+        row = ApiTokenRow(name=name, owner_id=user.id, role=role.label, token_hash=_token_hash(secret),
+                          hint=secret[:10], created=utcnow())
+        db.add(row)
+        db.flush()
+        return IssuedToken(_token(row, user.name), secret)
+
+
+def list_tokens(owner: str | None = None) -> list[ApiToken]:
+    with transaction() as db:
+        query = select(ApiTokenRow, UserRow.name).join(UserRow, ApiTokenRow.owner_id == UserRow.id)
+        if owner is not None:
+            query = query.where(UserRow.name == owner)
+        return [_token(row, owner_name) for row, owner_name in db.execute(query.order_by(ApiTokenRow.id))]
+
+
+def revoke_token(token_id: int, *, owner: str | None = None) -> ApiToken:
+    """Revoke a token (of ``owner`` only, when given: a user may revoke their own tokens)."""
+    with transaction() as db:
+        found = db.execute(select(ApiTokenRow, UserRow.name).join(UserRow, ApiTokenRow.owner_id == UserRow.id)
+                           .where(ApiTokenRow.id == token_id)).first()
+        if found is None or (owner is not None and found[1] != owner):
+            raise NotFound(f"There is no API token {token_id}" + (f" of {owner}." if owner else "."))
+        row, owner_name = found
+        row.revoked = row.revoked or utcnow()
+        return _token(row, owner_name)
+
+
+def verify_token(secret: str) -> Principal:
+    """The principal a token acts as: the lower of the token's and its owner's current role."""
+    refused = NotAuthenticated("The API token is unknown or revoked.",
+                               hint="Create a new token on the Users page or with `drivebench tokens create`.")
+    if not secret.startswith(TOKEN_PREFIX):
+        raise refused
+    with transaction() as db:
+        found = db.execute(select(ApiTokenRow, UserRow).join(UserRow, ApiTokenRow.owner_id == UserRow.id)
+                           .where(ApiTokenRow.token_hash == _token_hash(secret))).first()
+        if found is None or found[0].revoked is not None or found[1].disabled:
+            raise refused
+        row, user = found
+        now = utcnow()
+        if row.last_used is None or (now - _aware(row.last_used)).total_seconds() > 60:  # not a write per request
+            row.last_used = now
+        role = min(Role.parse(row.role), Role.parse(user.role))
+        return Principal(user.name, role, via="token")
+
+
+def _aware(moment: datetime) -> datetime:
+    """SQLite returns naive datetimes for timezone-aware columns; they were stored in UTC."""
+    return moment if moment.tzinfo else moment.replace(tzinfo=UTC)
+
+
+# --- the sign-in rate limit ------------------------------------------------------------------------------------
+def in_words(seconds: float) -> str:
+    """``95`` -> ``1 minute 35 seconds``."""
+    whole = max(1, int(seconds + 0.999))
+    minutes, rest = divmod(whole, 60)
+    parts = []
+    if minutes:
+        parts.append(f"{minutes} minute{'s' if minutes != 1 else ''}")
+    if rest or not minutes:
+        parts.append(f"{rest} second{'s' if rest != 1 else ''}")
+    return " ".join(parts)
+
+
+@dataclass
+class _Failures:
+    count: int = 0
+    locked_until: float = 0.0
+    last: float = 0.0
+
+
+class LoginLimiter:
+    """Failed sign-ins per key (a user name, a client address): after ``max_failures`` the key is locked for
+    ``first_lock_s``, and each further failure doubles the lock, up to ``max_lock_s``. A success clears the key."""
+
+    def __init__(self, max_failures: int = 5, first_lock_s: float = 30.0, max_lock_s: float = 900.0,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        self.max_failures = max_failures
+        self.first_lock_s = first_lock_s
+        self.max_lock_s = max_lock_s
+        self._clock = clock
+        self._lock = threading.Lock()
+        self._failures: dict[str, _Failures] = {}
+
+    def check(self, key: str, what: str) -> None:
+        """Raise ``LoginLocked`` while ``key`` is locked (``what`` names it in the message)."""
+        with self._lock:
+            entry = self._failures.get(key)
+            left = entry.locked_until - self._clock() if entry else 0.0
+        if left > 0:
+            raise LoginLocked(f"Too many failed sign-ins {what}: try again in {in_words(left)}.",
+                              retry_after_s=max(1, int(left + 0.999)))
+
+    def failed(self, key: str) -> None:
+        now = self._clock()
+        with self._lock:
+            self._forget_old(now)
+            entry = self._failures.setdefault(key, _Failures())
+            entry.count += 1
+            entry.last = now
+            if entry.count >= self.max_failures:
+                lock = self.first_lock_s * 2 ** (entry.count - self.max_failures)
+                entry.locked_until = now + min(lock, self.max_lock_s)
+
+    def succeeded(self, key: str) -> None:
+        with self._lock:
+            self._failures.pop(key, None)
+
+    def _forget_old(self, now: float) -> None:
+        if len(self._failures) < 10_000:
+            return
+        for key, entry in list(self._failures.items()):  # a flood of names must not fill the memory
+            if entry.locked_until < now and now - entry.last > self.max_lock_s:
+                del self._failures[key]
+
+
+class SignIn:
+    """Sign-in with a rate limit per user name (5 failures) and per client address (20: several people may share
+    one address)."""
+
+    def __init__(self, *, per_user: LoginLimiter | None = None, per_address: LoginLimiter | None = None) -> None:
+        self.per_user = per_user or LoginLimiter(max_failures=5)
+        self.per_address = per_address or LoginLimiter(max_failures=20)
+
+    def __call__(self, name: str, password: str, address: str) -> Principal:
+        user_key, address_key = f"user:{name.strip().lower()}", f"address:{address}"
+        self.per_user.check(user_key, f"for {name.strip()}")
+        self.per_address.check(address_key, f"from {address}")
+        try:
+            principal = verify_password(name, password)
+        except NotAuthenticated:
+            self.per_user.failed(user_key)
+            self.per_address.failed(address_key)
+            raise
+        self.per_user.succeeded(user_key)
+        self.per_address.succeeded(address_key)
+        return principal
+
+
+sign_in = SignIn()
