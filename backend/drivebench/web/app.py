@@ -24,6 +24,7 @@ from drivebench.web import problems
 from drivebench.web.api import diagnostics, health, parameter_sets, parameters, pdo, profiles, sessions, tools
 from drivebench.web.api import drive_control as drive_control_api
 from drivebench.web.api import monitor as monitor_api
+from drivebench.web.api import simulator as simulator_api
 from drivebench.web.pages import monitor as monitor_page
 from drivebench.web.pages import node as node_page
 from drivebench.web.pages import node_control, node_diagnostics
@@ -46,7 +47,8 @@ log = logging.getLogger(__name__)
 
 # One line per router: screens grow without touching anything else here.
 API_ROUTERS = [monitor_api.router, health.router, sessions.router, profiles.router, diagnostics.router, tools.router,
-               tools.planned_router, parameters.router, pdo.router, parameter_sets.router, drive_control_api.router]
+               tools.planned_router, parameters.router, pdo.router, parameter_sets.router, drive_control_api.router,
+               simulator_api.router]
 PAGE_ROUTERS = [node_diagnostics.router, node_pdo_page.router, monitor_page.router, plant_page.router,
                 node_control.router, node_page.router, profiles_page.router, remote_page.router, tools_page.router,
                 parameter_sets_page.router]

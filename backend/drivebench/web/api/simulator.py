@@ -1,0 +1,93 @@
+"""Switch SDO faults of a simulated node on and off (demos and tests); refused for sessions on a real bus."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import APIRouter, Path
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+from drivebench.errors import Conflict, NotFound
+from drivebench.simulator.faults import SdoFaults
+from drivebench.simulator.node import SimulatedNode
+from drivebench.web.deps import SessionDep, StateDep
+
+router = APIRouter(prefix="/api", tags=["simulator"])
+FAULTS = "/sessions/{session_id}/simulator/nodes/{node_id}/faults"
+NodeId = Annotated[int, Path(ge=1, le=127, description="CANopen node id")]
+
+
+class FaultsIn(BaseModel):
+    """The faults to switch on; fields left out are off. ``{}`` clears every fault."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    silent_after_segments: int | None = Field(None, ge=0, le=10_000,
+                                              description="Answer this many segments of a segmented transfer, "
+                                                          "then stop answering until the next transfer")
+    wrong_toggle: bool = Field(False, description="Answer segments with the wrong toggle bit")
+    index_offset: int = Field(0, ge=-0xFFFF, le=0xFFFF, description="Answers name index + this")
+    subindex_offset: int = Field(0, ge=-0xFF, le=0xFF, description="Answers name subindex + this")
+    abort_code: int | str | None = Field(None, description="Abort requests with this CiA 301 code "
+                                                           "(0x08000000 or 134217728)")
+    abort_every: int = Field(1, ge=1, le=10_000, description="Abort every n-th request (1: every one)")
+    latency_ms: float = Field(0.0, ge=0, le=60_000, description="Extra SDO processing time")
+
+    @field_validator("abort_code")
+    @classmethod
+    def _code(cls, value: int | str | None) -> int | None:
+        if value is None or isinstance(value, int):
+            code = value
+        else:
+            try:
+                code = int(value, 0)
+            except ValueError as exc:
+                raise ValueError("abort_code must be a number such as 0x08000000") from exc
+        if code is not None and not 0 < code <= 0xFFFFFFFF:
+            raise ValueError("abort_code must be a 32-bit CiA 301 abort code")
+        return code
+
+
+class FaultsOut(BaseModel):
+    session_id: str
+    node_id: int
+    faults: dict[str, object]
+    active: list[str]
+    """The active faults in words; empty when the node behaves."""
+
+
+def _simulated_node(state: StateDep, session: SessionDep, node_id: int) -> SimulatedNode:
+    plant = state.plants.get(session.id)
+    if not session.simulated or plant is None:
+        raise Conflict(f"Session '{session.id}' is on a real bus: faults can be switched on simulated sessions "
+                       "only")
+    node = plant.nodes.get(node_id)
+    if node is None:
+        raise NotFound(f"The simulated plant of session '{session.id}' has no node {node_id}")
+    return node
+
+
+def _out(session_id: str, node: SimulatedNode) -> FaultsOut:
+    faults = node.faults.faults
+    return FaultsOut(session_id=session_id, node_id=node.node_id, faults=faults.as_dict(), active=faults.describe())
+
+
+@router.get(FAULTS, response_model=FaultsOut)
+async def get_faults(state: StateDep, session: SessionDep, node_id: NodeId) -> FaultsOut:
+    return _out(session.id, _simulated_node(state, session, node_id))
+
+
+@router.put(FAULTS, response_model=FaultsOut)
+async def put_faults(state: StateDep, session: SessionDep, node_id: NodeId, body: FaultsIn) -> FaultsOut:
+    """Replace the node's faults with these (``{}``: the node behaves again, at once)."""
+    node = _simulated_node(state, session, node_id)
+    code = body.abort_code if isinstance(body.abort_code, int) else None
+    node.faults.set(SdoFaults(**{**body.model_dump(), "abort_code": code}))
+    return _out(session.id, node)
+
+
+@router.delete(FAULTS, response_model=FaultsOut)
+async def clear_faults(state: StateDep, session: SessionDep, node_id: NodeId) -> FaultsOut:
+    node = _simulated_node(state, session, node_id)
+    node.faults.clear()
+    return _out(session.id, node)
