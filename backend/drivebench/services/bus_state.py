@@ -9,17 +9,28 @@ Two sources, the worse one wins:
 
 Without counters from the controller the state is the last one reported; the kernel reports the way back to error
 active (``CAN_ERR_CRTL_ACTIVE``, ``CAN_ERR_RESTARTED``), so it does not stick.
+
+:class:`BusHealth` is a session's view of its bus: that state, plus whether the adapter works at all (the
+transport's link: ``adapter lost`` while it reconnects), in words for the Plant page, the monitor and the API.
 """
 
 from __future__ import annotations
 
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 import can
 
+from drivebench.transport.bus import LinkState, ObservedBus
+
 STATES = ("active", "warning", "passive", "bus-off")
 """Ordered from good to bad."""
+ADAPTER_LOST = "adapter lost"
+"""Not a controller state: the adapter itself does not work (``BusHealth.state``)."""
 
 CAN_ERR_CRTL = 0x004
 CAN_ERR_BUSOFF = 0x040
@@ -86,3 +97,102 @@ class BusErrorState:
         return {"state": worse(adapter, self.state or "active"), "adapter_state": adapter,
                 "tx_errors": self.tx_errors, "rx_errors": self.rx_errors,
                 "reported_age_s": round(now - self.reported_at, 1) if self.reported_at is not None else None}
+
+
+def _clock(wall: float | None) -> str:
+    return time.strftime("%H:%M:%S", time.localtime(wall)) if wall else "?"
+
+
+BusEvent = Callable[[str, dict[str, object]], None]
+
+
+class BusHealth(can.Listener):
+    """A session's bus in one word and one sentence: the adapter's link, then its controller's state.
+
+    Reads the error frames (listener), the adapter's own report (``bus.state``) and the link; a change of the
+    state is written to ``changes`` (newest last) and told to ``on_change`` when someone next looks (sends,
+    page, API, monitor), so no thread polls.
+    """
+
+    def __init__(self, bus: ObservedBus, on_change: BusEvent | None = None) -> None:
+        self.bus = bus
+        self.on_change = on_change
+        self.errors = BusErrorState()
+        self.changes: deque[tuple[float, str, str]] = deque(maxlen=20)
+        """(wall time, from, to)"""
+        self._lock = threading.Lock()
+        self._last = "active"
+        bus.watch_link(self._on_link)
+
+    def on_message_received(self, msg: can.Message) -> None:
+        if msg.is_error_frame:
+            with self._lock:
+                self.errors.observe(msg, time.monotonic())
+
+    def _on_link(self, link: LinkState) -> None:
+        self.state()
+
+    def adapter_state(self) -> str:
+        try:
+            return ADAPTER_STATES.get(self.bus.state.name.lower(), "active")
+        except Exception:  # a closed or unplugged adapter: its own report is unknown
+            return "active"
+
+    def state(self) -> str:
+        """``active``, ``warning``, ``passive``, ``bus-off`` or ``adapter lost``."""
+        if self.bus.link.lost:
+            current = ADAPTER_LOST
+        else:
+            with self._lock:
+                reported = self.errors.state or "active"
+            current = worse(self.adapter_state(), reported)
+        with self._lock:
+            previous, self._last = self._last, current
+            if current != previous:
+                self.changes.append((time.time(), previous, current))
+        if current != previous and self.on_change is not None:
+            self.on_change("bus_state", {"from": previous, "to": current})
+        return current
+
+    def refusal(self) -> str | None:
+        """Why nothing may be sent now (bus-off), or None (the ObservedBus send guard)."""
+        if self.state() == "bus-off":
+            return ("bus-off: the CAN controller has left the bus after too many transmit errors; "
+                    "nothing is sent until it recovers")
+        return None
+
+    def text(self) -> str | None:
+        """The state in a sentence; None while all is well and has been since the session opened."""
+        state = self.state()
+        link = self.bus.link
+        with self._lock:
+            tx, rx = self.errors.tx_errors, self.errors.rx_errors
+        counters = f" (TEC {tx}, REC {rx})" if tx is not None else ""
+        if state == ADAPTER_LOST:
+            retry = f"; reconnecting, {link.attempts} attempts so far" if link.attempts else "; reconnecting"
+            last = f" (last: {link.last_attempt_error})" if link.last_attempt_error else ""
+            return f"adapter lost: {link.lost_reason} since {_clock(link.lost_at)}{retry}{last}"
+        if state == "bus-off":
+            return ("bus-off: the CAN controller left the bus after too many transmit errors; requests fail at "
+                    "once until it recovers. Check wiring, termination and that every node has the same bit rate.")
+        if state == "passive":
+            return (f"error passive{counters}: the controller sees many bus errors and only sends passive error "
+                    "flags. Check wiring, termination and bit rate.")
+        if state == "warning":
+            return f"error warning{counters}: the error counters passed 96; the bus has frequent errors."
+        if self.changes:
+            at, previous, _ = self.changes[-1]
+            if previous == ADAPTER_LOST:
+                return f"adapter back at {_clock(at)} (reconnected {link.reconnects}x); error active"
+            return f"recovered from {previous} at {_clock(at)}: error active"
+        return None
+
+    def as_dict(self, now: float | None = None) -> dict[str, Any]:
+        """For the monitor: the state, its sentence, the counters, the adapter's own report and the link."""
+        with self._lock:
+            data = self.errors.as_dict(self.adapter_state(), time.monotonic() if now is None else now)
+        link = self.bus.link
+        data.update(state=self.state(), text=self.text(),
+                    link={"lost": link.lost, "reason": link.lost_reason, "since": link.lost_at,
+                          "attempts": link.attempts, "reconnects": link.reconnects})
+        return data

@@ -40,6 +40,7 @@ from drivebench.errors import (
     SdoOutOfStepError,
     SdoStalledError,
     SdoTimeoutError,
+    TransportError,
     UnknownParameter,
 )
 from drivebench.protocol.datatypes import DataType, decode, encode
@@ -671,6 +672,11 @@ def start_read(session: Session, node_ids: Iterable[int], jobs: JobManager, *, g
 
     async def run(job: Job) -> None:
         job.result["values"] = {}
-        await asyncio.gather(*(_read_node(session, node, work[node.node_id], job) for node in nodes))
+        try:
+            await asyncio.gather(*(_read_node(session, node, work[node.node_id], job) for node in nodes))
+        except TransportError as exc:  # the adapter is gone: stop, keep what was read, say how far it got
+            read = sum(len(values) for values in job.result["values"].values())
+            raise TransportError(f"{exc.detail}, {read} of {total} parameters read before",
+                                 hint=exc.hint) from exc
 
     return jobs.start("read", title, total, run)

@@ -23,6 +23,7 @@ from drivebench.protocol.emcy import EmcyEvent
 from drivebench.protocol.heartbeat import HeartbeatStatus
 from drivebench.protocol.network import CanopenNetwork, NodeClient
 from drivebench.protocol.nmt import STATE_AFTER, NmtCommand, NmtState
+from drivebench.services.bus_state import ADAPTER_LOST, BusHealth
 from drivebench.transport.bus import BusSpec, open_bus
 
 
@@ -83,6 +84,9 @@ class Session:
         self.nodes: dict[int, SessionNode] = {}
         self._lock = threading.Lock()
         self._listeners: list[Callable[[str, dict[str, object]], None]] = []
+        self.health = BusHealth(network.bus, self.emit)
+        network.add_listener(self.health)
+        network.bus.send_guard = self.health.refusal
 
     # --- nodes ------------------------------------------------------------------------------------------
     def add_node(self, node_id: int, profile_id: str | None, name: str | None = None) -> SessionNode:
@@ -158,8 +162,25 @@ class Session:
     def heartbeat(self, node_id: int) -> HeartbeatStatus:
         return self.network.heartbeat.status(node_id)
 
+    @property
+    def bus_state(self) -> str:
+        """``active``, ``warning``, ``passive``, ``bus-off`` or ``adapter lost``."""
+        return self.health.state()
+
+    @property
+    def bus_text(self) -> str | None:
+        """The bus state in a sentence when it is not plainly fine (adapter lost, bus-off, back again ...)."""
+        return self.health.text()
+
+    def reconnect(self) -> None:
+        """Try to reopen a lost adapter now (it is retried with back-off anyway)."""
+        self.network.bus.reconnect_now()
+
     def nmt_state(self, node_id: int) -> tuple[str, bool]:
         """The node's NMT state in words, and whether it comes from a live heartbeat."""
+        bus_state = self.health.state()
+        if bus_state in (ADAPTER_LOST, "bus-off"):
+            return f"No contact ({bus_state})", False
         guard = self.network.guarding.status(node_id)
         if guard is not None:
             if guard.is_lost():

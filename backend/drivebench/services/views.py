@@ -40,6 +40,9 @@ class SessionPublic(BaseModel):
     bitrate: int
     simulated: bool
     state: str
+    """Bus state: active, warning, passive, bus-off or adapter lost."""
+    state_text: str | None = None
+    """The bus state in a sentence when it is not plainly fine."""
     opened_at: float
     node_count: int
 
@@ -80,7 +83,8 @@ def session_public(session: Session) -> SessionPublic:
     return SessionPublic(
         id=session.id, name=session.name, bus=str(session.spec), interface=session.spec.interface,
         channel=session.spec.channel, bitrate=session.spec.bitrate, simulated=session.simulated,
-        state=session.network.bus_state, opened_at=session.opened_at, node_count=len(session.nodes),
+        state=session.bus_state, state_text=session.bus_text, opened_at=session.opened_at,
+        node_count=len(session.nodes),
     )
 
 

@@ -7,17 +7,21 @@ Any interface python-can knows is accepted; nothing here assumes the bus is loca
 
 from __future__ import annotations
 
+import contextlib
+import functools
 import re
+import select
 import socket
 import threading
 import time
 from collections.abc import Callable
+from dataclasses import dataclass, replace
 from typing import Any
 
 import can
 from pydantic import BaseModel, Field, ValidationError
 
-from drivebench.errors import AdapterUnavailable, BusSpecError
+from drivebench.errors import AdapterUnavailable, BusSpecError, TransportError
 
 DEFAULT_BITRATE = 500_000
 _SOCKETCAND_RE = re.compile(r"^socketcand:(?P<host>[^:/@]+):(?P<port>\d+)/(?P<channel>[^@]+)(?:@(?P<bitrate>\d+))?$")
@@ -90,20 +94,133 @@ def known_interfaces() -> list[str]:
 
 
 FrameObserver = Callable[[can.Message], None]
+Opener = Callable[[], can.BusABC]
+SendGuard = Callable[[], "str | None"]
+
+RECONNECT_FIRST_S = 0.2
+RECONNECT_MAX_S = 5.0
+"""Back-off between attempts to reopen a lost adapter: doubling from the first to the longest delay."""
+
+
+class AdapterLost(TransportError, can.CanOperationError):
+    """The adapter stopped working (unplugged, driver error, gateway connection closed). Also a python-can
+    error, so canopen's client and the protocol layer treat it like any adapter failure."""
+
+    title = "CAN adapter lost"
+
+
+class BusUnusable(TransportError, can.CanOperationError):
+    """The adapter is there but must not send now (bus-off), or did not take a frame in time."""
+
+    title = "CAN bus not usable"
+
+
+@dataclass(frozen=True)
+class LinkState:
+    """Whether the adapter works; while it is lost, why, since when and how the reconnection goes."""
+
+    lost_reason: str | None = None
+    lost_at: float | None = None
+    attempts: int = 0
+    last_attempt_error: str | None = None
+    reconnects: int = 0
+    reconnected_at: float | None = None
+
+    @property
+    def lost(self) -> bool:
+        return self.lost_reason is not None
+
+
+class SimulatedAdapter:
+    """The switches of a virtual bus's pretend adapter: pull its plug, make its controller report a state.
+
+    A test or the demo drives them; the session sees what a real adapter would show (python-can raising
+    ``CanOperationError`` on send and receive, ``BusABC.state`` passive or bus-off).
+    """
+
+    def __init__(self) -> None:
+        self.unplugged: str | None = None
+        self.state = can.BusState.ACTIVE
+
+    def unplug(self, reason: str = "USB adapter unplugged") -> None:
+        self.unplugged = reason
+
+    def plug_in(self) -> None:
+        self.unplugged = None
+
+    def report(self, state: can.BusState) -> None:
+        self.state = state
+
+
+class _SwitchedBus(can.BusABC):
+    """A real python-can bus behind a :class:`SimulatedAdapter`. Unplugged: send and receive raise. Bus-off: the
+    controller is off the bus, nothing is sent or received."""
+
+    def __init__(self, inner: can.BusABC, adapter: SimulatedAdapter) -> None:
+        self.inner = inner
+        self.adapter = adapter
+        self.channel_info = inner.channel_info
+        super().__init__(channel=getattr(inner, "channel", "") or "")
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        if self.adapter.unplugged:
+            raise can.CanOperationError(self.adapter.unplugged)
+        if self.adapter.state is not can.BusState.ERROR:
+            self.inner.send(msg, timeout)
+
+    def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
+        if self.adapter.unplugged:
+            raise can.CanOperationError(self.adapter.unplugged)
+        msg = self.inner.recv(timeout)
+        if self.adapter.state is can.BusState.ERROR:
+            return None, False
+        return msg, False
+
+    @property
+    def state(self) -> can.BusState:
+        return self.adapter.state
+
+    @state.setter
+    def state(self, new_state: can.BusState) -> None:
+        self.adapter.state = new_state
+
+    def shutdown(self) -> None:
+        if self._is_shutdown:
+            return
+        super().shutdown()
+        self.inner.shutdown()
 
 
 class ObservedBus(can.BusABC):
-    """Wraps an opened python-can bus so every transmitted frame is also seen by observers (the monitor).
+    """Wraps an opened python-can bus so every transmitted frame is also seen by observers (the monitor), and
+    keeps working when the adapter does not.
 
     Periodic sends use BusABC's software tasks, which call :meth:`send`, so they are observed too.
+
+    When the adapter fails (python-can raises on send or receive, a socketcand gateway closes the connection)
+    the bus is *lost*: sends fail at once with :class:`AdapterLost`, receiving waits quietly (the notifier thread
+    lives on), and a thread reopens the adapter with back-off; the reopened adapter replaces the old one under
+    the same object, so the canopen network and every listener carry on. ``send_guard`` (set by the session)
+    names a reason to refuse sending, e.g. bus-off, so requests fail at once instead of timing out one by one.
     """
 
-    def __init__(self, inner: can.BusABC, spec: BusSpec) -> None:
+    def __init__(self, inner: can.BusABC, spec: BusSpec, *, reopen: Opener | None = None,
+                 adapter: SimulatedAdapter | None = None) -> None:
         self.inner = inner
         self.spec = spec
+        self.adapter = adapter
         self.channel_info = f"{spec}"
+        self.send_guard: SendGuard | None = None
+        self.link = LinkState()
+        self._reopen = reopen
         self._observers: list[FrameObserver] = []
+        self._link_watchers: list[Callable[[LinkState], None]] = []
         self._lock = threading.Lock()
+        self._restored = threading.Event()
+        self._restored.set()
+        self._wake = threading.Event()
+        self._closing = threading.Event()
+        self._reconnector: threading.Thread | None = None
         super().__init__(channel=spec.channel or "")
 
     def add_observer(self, observer: FrameObserver) -> None:
@@ -114,15 +231,102 @@ class ObservedBus(can.BusABC):
         with self._lock:
             self._observers = [o for o in self._observers if o is not observer]
 
+    def watch_link(self, watcher: Callable[[LinkState], None]) -> None:
+        """``watcher(link)`` runs (on the thread that noticed) when the adapter is lost and when it is back."""
+        self._link_watchers.append(watcher)
+
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
-        self.inner.send(msg, timeout)
+        link = self.link
+        if link.lost_reason is not None:
+            raise AdapterLost(f"adapter lost: {link.lost_reason}", hint=self._lost_hint())
+        guard = self.send_guard
+        refusal = guard() if guard is not None else None
+        if refusal:
+            raise BusUnusable(refusal)
+        inner = self.inner
+        try:
+            inner.send(msg, timeout)
+        except can.CanTimeoutError as exc:  # transmit queue full: the adapter is there, the bus does not take it
+            raise BusUnusable(f"the adapter did not send the frame in time: {exc}") from exc
+        except (can.CanError, OSError, ValueError) as exc:
+            reason = self._lose(inner, exc)
+            raise AdapterLost(f"adapter lost: {reason}", hint=self._lost_hint()) from exc
         if not msg.timestamp:
             msg.timestamp = time.time()
         for observer in self._observers:
             observer(msg)
 
     def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
-        return self.inner.recv(timeout), False
+        if self.link.lost_reason is not None:
+            self._restored.wait(1.0 if timeout is None else timeout)
+            return None, False
+        inner = self.inner
+        try:
+            msg = inner.recv(timeout)
+        except (can.CanError, OSError, ValueError) as exc:
+            self._lose(inner, exc)
+            return None, False
+        if msg is None and _peer_closed(inner):
+            self._lose(inner, "the socketcand gateway closed the connection")
+        return msg, False
+
+    # --- adapter lost and back ----------------------------------------------------------------------------
+    def _lost_hint(self) -> str:
+        return f"The session reconnects by itself when the adapter is back. {self.spec.hint()}"
+
+    def _lose(self, inner: can.BusABC, cause: BaseException | str) -> str:
+        """Mark the adapter lost (once per adapter) and start reconnecting; returns the reason."""
+        reason = cause if isinstance(cause, str) else (str(cause).splitlines()[0] if str(cause)
+                                                        else type(cause).__name__)
+        with self._lock:
+            if inner is not self.inner or self.link.lost or self._closing.is_set():
+                return self.link.lost_reason or reason
+            self.link = replace(self.link, lost_reason=reason, lost_at=time.time(), attempts=0,
+                                last_attempt_error=None)
+            self._restored.clear()
+        with contextlib.suppress(Exception):  # a dead adapter may fail to close too; its queue must not grow
+            inner.shutdown()
+        self._tell_watchers()
+        if self._reopen is not None:
+            self._reconnector = threading.Thread(target=self._reconnect_loop, name=f"reconnect-{self.spec}",
+                                                 daemon=True)
+            self._reconnector.start()
+        return reason
+
+    def reconnect_now(self) -> None:
+        """Try to reopen the lost adapter now instead of after the back-off delay."""
+        self._wake.set()
+
+    def _reconnect_loop(self) -> None:
+        assert self._reopen is not None
+        delay = RECONNECT_FIRST_S
+        while True:
+            self._wake.wait(delay)
+            self._wake.clear()
+            if self._closing.is_set():
+                return
+            try:
+                fresh = self._reopen()
+            except Exception as exc:  # vendor drivers raise anything; keep trying
+                self.link = replace(self.link, attempts=self.link.attempts + 1,
+                                    last_attempt_error=getattr(exc, "detail", None) or str(exc))
+                delay = min(delay * 2, RECONNECT_MAX_S)
+                continue
+            with self._lock:
+                if self._closing.is_set():
+                    fresh.shutdown()
+                    return
+                self.inner = fresh
+                self.link = LinkState(reconnects=self.link.reconnects + 1, reconnected_at=time.time())
+                self._restored.set()
+            self._tell_watchers()
+            return
+
+    def _tell_watchers(self) -> None:
+        link = self.link
+        for watcher in list(self._link_watchers):
+            with contextlib.suppress(Exception):
+                watcher(link)
 
     @property
     def state(self) -> can.BusState:
@@ -135,16 +339,46 @@ class ObservedBus(can.BusABC):
     def shutdown(self) -> None:
         if self._is_shutdown:
             return
+        self._closing.set()
+        self._wake.set()
+        self._restored.set()
         super().shutdown()
-        self.inner.shutdown()
+        with contextlib.suppress(Exception):
+            self.inner.shutdown()
+        if self._reconnector is not None and self._reconnector is not threading.current_thread():
+            self._reconnector.join(timeout=RECONNECT_MAX_S)
+
+
+def _peer_closed(inner: can.BusABC) -> bool:
+    """Whether a socketcand client's gateway closed the TCP connection: python-can's client then reads nothing,
+    forever, instead of raising."""
+    sock = getattr(inner, "_SocketCanDaemonBus__socket", None)
+    if not isinstance(sock, socket.socket):
+        return False
+    try:
+        readable, _, _ = select.select([sock], [], [], 0)
+        return bool(readable) and sock.recv(1, socket.MSG_PEEK) == b""
+    except (OSError, ValueError):
+        return True
 
 
 def open_bus(spec: BusSpec) -> ObservedBus:
-    """Open the adapter. Every failure becomes a TransportError naming the interface and what to check."""
+    """Open the adapter. Every failure becomes a TransportError naming the interface and what to check.
+
+    A virtual bus gets a :class:`SimulatedAdapter` (``bus.adapter``) whose plug and controller state can be
+    switched at run time."""
+    adapter = SimulatedAdapter() if spec.interface == "virtual" else None
+    opener = functools.partial(_open_adapter, spec, adapter)
+    return ObservedBus(opener(), spec, reopen=opener, adapter=adapter)
+
+
+def _open_adapter(spec: BusSpec, adapter: SimulatedAdapter | None = None) -> can.BusABC:
     if spec.interface not in can.interfaces.VALID_INTERFACES:
         raise AdapterUnavailable(
             f"Unknown CAN interface '{spec.interface}'.",
             hint=f"python-can knows: {', '.join(known_interfaces())}.")
+    if adapter is not None and adapter.unplugged:
+        raise AdapterUnavailable(f"Cannot open {spec}: {adapter.unplugged}", hint=spec.hint())
     kwargs: dict[str, Any] = {"interface": spec.interface, "channel": spec.channel or None,
                               "bitrate": spec.bitrate, **spec.options}
     if spec.interface == "virtual":
@@ -156,7 +390,7 @@ def open_bus(spec: BusSpec) -> ObservedBus:
     except Exception as exc:  # vendor drivers raise anything (kvaser without CANlib: NameError)
         reason = str(exc) or type(exc).__name__
         raise AdapterUnavailable(f"Cannot open {spec}: {reason}", hint=spec.hint()) from exc
-    return ObservedBus(inner, spec)
+    return _SwitchedBus(inner, adapter) if adapter is not None else inner
 
 
 def _probe_gateway(spec: BusSpec, timeout_s: float = 2.0) -> None:
