@@ -174,17 +174,6 @@ def test_8400_switch_on_enable_and_inhibit(bench: Bench) -> None:
     assert bench.command(MOTEC, Command.DISABLE_VOLTAGE).state == "ready"
 
 
-def test_missing_actual_values_are_named(bench: Bench) -> None:
-    """The MICROMASTER CANopen manual prints no current, DC-bus voltage or heat-sink parameter: the panel says so."""
-    assert drive_control.missing_actuals(bench.session.node(MM)) == ["Current", "DC-bus voltage",
-                                                                      "Heat-sink temperature"]
-    assert drive_control.missing_actuals(bench.session.node(VECTOR)) == ["Current", "DC-bus voltage", "Torque"]
-    motec = bench.session.node(MOTEC)
-    assert drive_control.missing_actuals(motec) == ["Current", "DC-bus voltage", "Torque"]
-    assert "names only C00061" in drive_control.missing_why(motec)
-    assert "r0027" in drive_control.missing_why(bench.session.node(MM))
-
-
 ANNA = drive_control.Panel("panel:anna", "Anna at 10.0.0.7")
 BEN = drive_control.Panel("panel:ben", "Ben at 10.0.0.9")
 

@@ -135,18 +135,37 @@ def missing_actuals(node: SessionNode) -> list[str]:
     return [kind for kind in ACTUAL_KINDS if kind not in present]
 
 
-MISSING_WHY = {  # what the manuals were searched for (issue 11 follow-up)
-    "cia402": "the MICROMASTER CANopen manual prints no r0027 current, r0026 DC-link voltage or r0037 temperature "
-              "(the parameter channel would reach them at 0x2000 + number, but type and scaling are not given)",
-    "emf2178ib": "the EMF2178IB manual names only C0061 (heat-sink temperature) among the actual values",
-    "emf2178ib-aif": "the EMF2178IB manual names only C0061 (heat-sink temperature) among the actual values",
-    "lenze8400": "the 8400 motec CANopen manual names only C00061 (heat-sink temperature); C00053 / C00054 / C00056 "
-                 "appear in the 8400 BaseLine C parameter list without scaling and are not assumed for the motec",
-}
-
-
 def missing_why(node: SessionNode) -> str:
-    return MISSING_WHY.get(family(node).key, "not in this device's profile")
+    """Why the values :func:`missing_actuals` names are not there: which manual was searched for what."""
+    fam, catalog = family(node), _catalog(node)
+    if fam is CIA402:
+        return ("neither the MICROMASTER CANopen manual nor the MICROMASTER 440 parameter list entries taken over "
+                "(r0026, r0027, r0031, r0037) give it")
+    if fam in (EMF, EMF_AIF) and _is_8200(catalog):
+        return ("no actual-torque code: the EMF2178IB manual names only C0061, and only C0053 (DC bus) and C0054 "
+                "(motor current) were taken over from the 8200 vector code table")
+    if fam in (EMF, EMF_AIF):
+        return ("the EMF2178IB manual names only C0061 (heat-sink temperature) among the actual values; the 93XX "
+                "code table is not among the seed manuals")
+    return ("C00056 (torque) is named in the 8400 BaseLine C parameter list without unit or scaling and is not "
+            "assumed for the motec")
+
+
+def actual_source(node: SessionNode, ref: str, scale: Scale | None = None) -> str:
+    """Where a plotted value comes from: the object it is read from, its coding, and the manual that names it."""
+    catalog = _catalog(node)
+    item = catalog.resolve(ref)
+    coding = item.entry.data_type.name
+    if scale is not None and scale.raw_per_unit:
+        coding += f", {scale.unit} = raw / {scale.raw_per_unit:g}"
+    elif item.entry.factor != 1:
+        coding += f", value = raw / {item.entry.factor:g}"
+    text = item.entry.description or ""
+    if text.startswith("Source: "):
+        manual = text[len("Source: "):].split(". ")[0].split(";")[0].rstrip(".")
+    else:
+        manual = catalog.profile.source.split(", ")[0] if catalog.profile.source else "this device's profile"
+    return f"{ref} = 0x{item.index:04X}.{item.subindex} ({coding}); {manual}"
 
 
 class ActualValue(BaseModel):
@@ -155,6 +174,8 @@ class ActualValue(BaseModel):
     value: float | None
     unit: str | None
     error: str | None = None
+    source: str | None = None
+    """The object it is read from, its coding, and the manual that names it (see :func:`actual_source`)."""
 
 
 def _signed16(raw: int) -> int:
@@ -167,20 +188,21 @@ async def read_actuals(session: Session, node: SessionNode) -> list[ActualValue]
     if family(node) is L8400:
         speed_scale = await setpoint_scale(session, node, None)
     for label, ref, scale in actual_refs(node):
+        source = actual_source(node, ref, speed_scale if ref == "C00868/2" else scale)
         try:
             value = await parameters.read(session, node.node_id, ref)
         except DriveBenchError as exc:
-            out.append(ActualValue(label=label, ref=ref, value=None, unit=None, error=str(exc)))
+            out.append(ActualValue(label=label, ref=ref, value=None, unit=None, error=str(exc), source=source))
             continue
         if ref == "C00868/2" and speed_scale is not None and isinstance(value.raw, int):
-            out.append(ActualValue(label=label, ref=ref, unit="rpm",
+            out.append(ActualValue(label=label, ref=ref, unit="rpm", source=source,
                                    value=round(_signed16(value.raw) / speed_scale.raw_per_unit, 1)))
         elif scale is not None and isinstance(value.raw, int):
-            out.append(ActualValue(label=label, ref=ref, unit=scale.unit,
+            out.append(ActualValue(label=label, ref=ref, unit=scale.unit, source=source,
                                    value=round(_signed16(value.raw & 0xFFFF) / scale.raw_per_unit, 2)))
         else:
             number = round(value.value, 3) if isinstance(value.value, (int, float)) else None  # REAL32 noise
-            out.append(ActualValue(label=label, ref=ref, value=number, unit=value.unit))
+            out.append(ActualValue(label=label, ref=ref, value=number, unit=value.unit, source=source))
     return out
 
 

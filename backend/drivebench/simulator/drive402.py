@@ -27,6 +27,7 @@ from enum import Enum
 from typing import TYPE_CHECKING
 
 from drivebench.errors import UnknownParameter
+from drivebench.simulator.motor_model import MotorModel, load_torque
 from drivebench.simulator.store import RawValue
 
 if TYPE_CHECKING:
@@ -35,6 +36,7 @@ if TYPE_CHECKING:
 CYCLE_S = 0.008
 BICO_TORQUE_CONTROL = 0x082B000C  # r2091.12 -> P1501
 BICO_TORQUE_SETPOINT = 0x08020004  # r2050.4 -> P1503
+RATED_CURRENT_A = 1.9  # demo motor: 0.75 kW, 4 poles, 400 V (no P0305 in the profile; an assumption)
 
 
 class State402(Enum):
@@ -102,6 +104,8 @@ class Drive402:
         self.torque_permille = 0.0
         self.ramping = False
         self.fault_code = 0
+        self._speed_before = 0.0
+        self.motor = MotorModel(RATED_CURRENT_A, self._param("r0037", 35.0))
         self._next_cycle = 0.0
         self.history: list[State402] = []
         self.store.add_write_hook(self.on_write)
@@ -240,7 +244,7 @@ class Drive402:
                 self._enter(State402.SWITCH_ON_DISABLED)  # transition 12: quick stop done
             elif self.state is State402.FAULT_REACTION_ACTIVE and self.speed_rpm == 0:
                 self._enter(State402.FAULT)  # transition 14
-            self._write_actuals()
+            self._write_actuals(now)
             self._publish()
 
     def _velocity_target(self) -> tuple[float, bool]:
@@ -284,7 +288,29 @@ class Drive402:
         self.speed_rpm += (load_speed - self.speed_rpm) * 0.02
         self.ramping = abs(target - self.torque_permille) > 0.5
 
-    def _write_actuals(self) -> None:
+    def pulses_on(self) -> bool:
+        """The inverter drives the motor: operation enabled, or braking it in quick stop / fault reaction."""
+        return self.state in (State402.OPERATION_ENABLED, State402.QUICK_STOP_ACTIVE, State402.FAULT_REACTION_ACTIVE)
+
+    def actual_torque_permille(self) -> float:
+        """Torque mode: the torque the drive sets; velocity mode: what the demo machine's load needs."""
+        if self._obj(0x6061, 2) == 4 and self.state is State402.OPERATION_ENABLED:
+            return self.torque_permille
+        if not self.pulses_on():
+            return 0.0
+        change = self.speed_rpm - self._speed_before
+        accelerating = 0 if abs(change) < 1e-6 else (1 if change > 0 else -1)
+        return 1000 * load_torque(self.speed_rpm / self.max_speed_rpm(), accelerating)
+
+    def _write_actuals(self, now: float) -> None:
+        torque = self.actual_torque_permille()
+        self._speed_before = self.speed_rpm
+        electrical = self.motor.step(now, pulses=self.pulses_on(),
+                                     speed_fraction=self.speed_rpm / self.max_speed_rpm(),
+                                     torque_fraction=torque / 1000)
+        self._set_ref("r0027", electrical.current_a)
+        self._set_ref("r0026", electrical.dc_bus_v)
+        self._set_ref("r0037", electrical.heat_sink_c)
         rpm = round(self.speed_rpm)
         self._set_if(0x6043, rpm)
         self._set_if(0x6044, rpm)
@@ -292,9 +318,10 @@ class Drive402:
         percent = round(self.speed_rpm / reference * 0x4000)
         self._set_if(0x6053, max(-0x8000, min(0x7FFF, percent)))
         self._set_if(0x6054, max(-0x8000, min(0x7FFF, percent)))
-        self._set_if(0x6077, round(self.torque_permille))
+        self._set_if(0x6077, round(torque))
         hz = round(self.speed_rpm * max(self._param("r0313", 2), 1) / 60, 2)
         self._set_ref("r0021", hz)
         self._set_ref("r0063", hz)
         rated_nm = self._obj(0x6076, 5000) / 1000
-        self._set_ref("r0080", round(self.torque_permille * rated_nm / 1000, 3))
+        self._set_ref("r0080", round(torque * rated_nm / 1000, 3))
+        self._set_ref("r0031", round(torque * rated_nm / 1000, 2))

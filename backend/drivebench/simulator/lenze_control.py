@@ -22,6 +22,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from drivebench.errors import UnknownParameter
+from drivebench.simulator.motor_model import MotorModel, load_torque
 from drivebench.simulator.store import RawValue
 
 if TYPE_CHECKING:
@@ -33,6 +34,7 @@ CYCLE_S = 0.004
 INIT, READY_TO_SWITCH_ON, SWITCHED_ON, OPERATION_ENABLED, TROUBLE, FAULT_8400 = 1, 3, 4, 5, 7, 8
 # EMF2178IB device status (bits 8...11)
 SWITCH_ON_INHIBIT, OPERATION_INHIBITED, OPERATION_ENABLED_EMF, FAULT_ACTIVE = 2, 3, 6, 8
+RATED_CURRENT_8200_A = 2.4  # demo 8200 vector E82EV751 (0.75 kW): no rated-current code in the profile, assumed
 
 
 @dataclass(frozen=True)
@@ -44,6 +46,8 @@ class LenzeWords:
     setpoint_refs: tuple[str, ...]
     status_refs: tuple[str, ...]
     actual_refs: tuple[str, ...]
+    electrical_refs: tuple[str, str, str]
+    """Motor current, DC-bus voltage, heat-sink temperature (codes the profile may or may not have)."""
     quick_stop_bit: int
     inhibit_bit: int
     fail_bit: int
@@ -52,9 +56,11 @@ class LenzeWords:
 
 
 WORDS_8400 = LenzeWords("lenze-8400", ("C00866/1", "C00876/1"), ("C00866/2", "C00876/2"), ("C00868/1",),
-                        ("C00868/2",), quick_stop_bit=2, inhibit_bit=8, fail_bit=14, reset_bit=7, ccw_bit=10)
+                        ("C00868/2",), ("C00054", "C00053", "C00061"),
+                        quick_stop_bit=2, inhibit_bit=8, fail_bit=14, reset_bit=7, ccw_bit=10)
 WORDS_EMF = LenzeWords("lenze-emf2178ib", ("C0135", "C1822/1"), ("C1822/2",), ("C0150", "C1823/1"),
-                       ("C1823/2",), quick_stop_bit=3, inhibit_bit=9, fail_bit=10, reset_bit=11, ccw_bit=2)
+                       ("C1823/2",), ("C0054", "C0053", "C0061"),
+                       quick_stop_bit=3, inhibit_bit=9, fail_bit=10, reset_bit=11, ccw_bit=2)
 
 
 class LenzeControl:
@@ -73,6 +79,9 @@ class LenzeControl:
         self._published: tuple[int, int] | None = None
         self._next_cycle = 0.0
         self.history: list[int] = []
+        self._speed_before = 0.0
+        rated = self._engineering("C00088", 10.2) if self.is_8400 else RATED_CURRENT_8200_A
+        self.motor = MotorModel(rated, self._engineering(words.electrical_refs[2], 43.0))
         self.store.add_write_hook(self.on_write)
         self.reset()
 
@@ -99,6 +108,24 @@ class LenzeControl:
             return default
         return float(value) / 10000 if self._fix32(ref) and isinstance(value, int) else \
             float(value) if isinstance(value, (int, float)) else default
+
+    def _engineering(self, ref: str, default: float) -> float:
+        """A code's value in the manual's units (raw / factor)."""
+        try:
+            item = self.store.catalog.resolve(ref)
+        except UnknownParameter:
+            return default
+        raw = self.store.get(item.index, item.subindex)
+        return float(raw) / float(item.entry.factor) if isinstance(raw, (int, float)) else default
+
+    def _set_engineering(self, ref: str, value: float) -> None:
+        try:
+            item = self.store.catalog.resolve(ref)
+        except UnknownParameter:
+            return  # e.g. the 93XX profile has no C0053/C0054
+        raw = round(value * float(item.entry.factor))
+        if self.store.get(item.index, item.subindex) != raw:
+            self.store.set(item.index, item.subindex, raw)
 
     def _fix32(self, ref: str) -> bool:
         return self.store.catalog.resolve(ref).entry.factor == 10000
@@ -300,6 +327,28 @@ class LenzeControl:
             delta = target - self.speed
             self.speed = target if abs(delta) <= step else self.speed + (step if delta > 0 else -step)
             self._publish()
+            self._write_electrical(now)
+
+    def speed_fraction(self) -> float:
+        """Actual speed as a fraction of the top speed (8400: C00011 = 0x4000; 8200 vector: C0011 fmax)."""
+        if not self.is_8400 and _has(self.node, "C0011"):
+            top = self._param("C0011", 50.0) * 50
+        else:
+            top = float(self.full_scale())
+        return self.speed / top if top else 0.0
+
+    def _write_electrical(self, now: float) -> None:
+        """Motor current, DC-bus voltage, heat sink: current only while the pulses are enabled (see motor_model)."""
+        change = self.speed - self._speed_before
+        self._speed_before = self.speed
+        accelerating = 0 if abs(change) < 1e-6 else (1 if change > 0 else -1)
+        fraction = self.speed_fraction()
+        values = self.motor.step(now, pulses=self.running, speed_fraction=fraction,
+                                 torque_fraction=load_torque(fraction, accelerating) if self.running else 0.0)
+        current_ref, dc_ref, heat_ref = self.words.electrical_refs
+        self._set_engineering(current_ref, values.current_a)
+        self._set_engineering(dc_ref, values.dc_bus_v)
+        self._set_engineering(heat_ref, values.heat_sink_c)
 
 
 def _has(node: SimulatedNode, ref: str) -> bool:

@@ -16,6 +16,7 @@ from fastapi.responses import HTMLResponse, Response
 from drivebench.errors import DriveBenchError
 from drivebench.services import commissioning, drive_control
 from drivebench.services.drive_words import Family, family_of
+from drivebench.services.sessions import Session, SessionNode
 from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.templating import templates
 
@@ -51,6 +52,16 @@ def _diagram(fam: Family) -> dict[str, Any]:
     return {"boxes": boxes, "arrows": arrows, "width": width, "height": height, "box_w": BOX_W, "box_h": BOX_H}
 
 
+async def _actual_sources(session: Session, node: SessionNode) -> list[tuple[str, str]]:
+    """(label, where it comes from) of every plotted actual value."""
+    out = []
+    for label, ref, scale in drive_control.actual_refs(node):
+        if ref == "C00868/2":  # 8400 CAN1_OUT word 2: rpm by the speed reference C00011
+            scale = await drive_control.setpoint_scale(session, node, None)
+        out.append((label, drive_control.actual_source(node, ref, scale)))
+    return out
+
+
 @router.get(UI, response_class=HTMLResponse)
 async def control_tab(request: Request, session: SessionDep, node: NodeDep) -> Response:
     base = f"/ui/sessions/{session.id}/nodes/{node.node_id}"
@@ -73,6 +84,7 @@ async def control_tab(request: Request, session: SessionDep, node: NodeDep) -> R
         context["jog"] = await drive_control.jog_plan(session, node)
         context["missing"] = drive_control.missing_actuals(node)
         context["missing_why"] = drive_control.missing_why(node)
+        context["sources"] = await _actual_sources(session, node)
     except DriveBenchError as exc:
         context["error"] = exc
     return templates.TemplateResponse(request, "node/control_body.html", context)
