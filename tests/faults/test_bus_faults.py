@@ -7,6 +7,7 @@ sessions keep working, that what was read is kept, and that the session recovers
 
 from __future__ import annotations
 
+import threading
 import time
 from collections.abc import Callable, Iterator
 from typing import Any
@@ -18,7 +19,9 @@ from fastapi.testclient import TestClient
 from drivebench.services.sessions import Session
 from drivebench.simulator.plant import Plant, PlantFile, PlantNode
 from drivebench.transport.bus import SimulatedAdapter
-from tests.conftest import fresh_channel
+from drivebench.transport.hub import start_hub_thread
+from drivebench.web.app import create_app
+from tests.conftest import DEMO_PLANT, fresh_channel
 
 
 def wait_for(check: Callable[[], Any], timeout_s: float = 10.0, what: str = "condition") -> Any:
@@ -125,3 +128,47 @@ def test_unplugged_adapter_mid_read_all_keeps_values_says_so_and_reconnects(
                                 for n in client.get("/api/sessions/demo-plant/nodes").json()),
                     what="heartbeats after the reconnect")
     assert client.get(f"/api/jobs/{job['id']}").json()["result"]["values"]["5"] == kept  # nothing lost
+
+
+def test_socketcand_hub_cut_mid_read_all_is_adapter_lost_until_the_hub_is_back() -> None:
+    """The real socketcand path: python-can's client to the hub; the hub goes away mid read-all, then returns."""
+    hub = start_hub_thread()
+    port = hub.port
+    app = create_app(plant_file=DEMO_PLANT, plant_bus=f"socketcand:127.0.0.1:{port}/can0", latency="0ms")
+    try:
+        with TestClient(app) as client:
+            session = demo_session(client)
+            assert session.spec.interface == "socketcand"
+            wait_for(lambda: client.get("/api/sessions/demo-plant/nodes/5/parameters/0x1000").status_code == 200,
+                     what="the plant to answer through the hub")
+            stopper: list[threading.Thread] = []
+            trigger = AfterResponses(5, 14, lambda: stopper.append(_started(threading.Thread(target=hub.stop))))
+            session.add_frame_listener(trigger)
+            started = client.post("/api/sessions/demo-plant/nodes/5/read-all")
+            job = wait_for(lambda: job_finished(client, started.json()["id"]), what="the read-all to end")
+            session.remove_frame_listener(trigger)
+            stopper[0].join(timeout=15)
+
+            assert job["state"] == "failed"
+            assert "adapter lost: " in job["error"], job["error"]
+            kept = job["result"]["values"]["5"]
+            assert len(kept) >= 10
+            assert f"{len(kept)} of {job['progress']['total']} parameters read before" in job["error"]
+            state = wait_for(lambda: (s := client.get("/api/sessions/demo-plant").json())["state"] == "adapter lost"
+                             and s, what="the session to see the hub gone")
+            assert state["state_text"].startswith("adapter lost: ")
+            assert "socketcand" in client.get("/api/sessions/demo-plant/nodes/5/parameters/0x1000").json()["hint"]
+
+            hub = start_hub_thread(port=port)  # the gateway is back on the same address
+            wait_for(lambda: client.get("/api/sessions/demo-plant").json()["state"] == "active", timeout_s=20,
+                     what="the session to reconnect to the hub")
+            wait_for(lambda: client.get("/api/sessions/demo-plant/nodes/5/parameters/0x1000").status_code == 200,
+                     timeout_s=20, what="the plant (reconnected too) to answer again")
+            assert session.network.bus.link.reconnects == 1
+    finally:
+        hub.stop()
+
+
+def _started(thread: threading.Thread) -> threading.Thread:
+    thread.start()
+    return thread

@@ -21,7 +21,7 @@ import can
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from drivebench.device.profile import Profile
-from drivebench.errors import DriveBenchError, ProfileError
+from drivebench.errors import DriveBenchError, ProfileError, TransportError
 from drivebench.simulator.node import Latency, SimulatedNode
 from drivebench.transport.bus import BusSpec, open_bus
 
@@ -128,7 +128,10 @@ class Plant:
         with self._send_lock:
             if self._bus is None:
                 return
-            self._bus.send(msg)
+            try:
+                self._bus.send(msg)
+            except TransportError:  # the plant's own link is down (hub gone): the frame is lost, as on a wire
+                return
         # Nodes on a real bus hear each other; a python-can bus does not echo its own frames.
         self._dispatch(cob_id, data, time.time(), skip_sender=True)
 
