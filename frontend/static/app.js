@@ -51,3 +51,19 @@ document.body.addEventListener("htmx:afterRequest", (event) => {
     if (slot && slot.id !== "toast" && slot.querySelector(".error")) slot.innerHTML = "";
   }
 });
+
+// CSRF (web/access.py): with a signed-in session, every same-origin unsafe fetch carries the page's token, as
+// htmx requests do through hx-headers on <body>.
+(() => {
+  const token = document.body.dataset.csrf;
+  if (!token) return;
+  const plainFetch = window.fetch.bind(window);
+  window.fetch = (resource, options = {}) => {
+    const method = (options.method || (resource instanceof Request ? resource.method : "GET")).toUpperCase();
+    const url = new URL(resource instanceof Request ? resource.url : resource, location.href);
+    if (["GET", "HEAD", "OPTIONS"].includes(method) || url.origin !== location.origin) return plainFetch(resource, options);
+    const headers = new Headers(options.headers || (resource instanceof Request ? resource.headers : undefined));
+    headers.set("X-CSRF-Token", token);
+    return plainFetch(resource, { ...options, headers });
+  };
+})();

@@ -20,11 +20,13 @@ from drivebench.services.database import upgrade_to_head
 from drivebench.services.sessions import SessionManager
 from drivebench.services.sharing import ShareLinks
 from drivebench.simulator.plant import Plant, PlantFile
-from drivebench.web import problems
+from drivebench.web import access, problems
+from drivebench.web.api import accounts as accounts_api
 from drivebench.web.api import diagnostics, health, parameter_sets, parameters, pdo, profiles, sessions, tools
 from drivebench.web.api import drive_control as drive_control_api
 from drivebench.web.api import monitor as monitor_api
 from drivebench.web.api import simulator as simulator_api
+from drivebench.web.pages import accounts as accounts_page
 from drivebench.web.pages import monitor as monitor_page
 from drivebench.web.pages import node as node_page
 from drivebench.web.pages import node_control, node_diagnostics
@@ -48,10 +50,10 @@ log = logging.getLogger(__name__)
 # One line per router: screens grow without touching anything else here.
 API_ROUTERS = [monitor_api.router, health.router, sessions.router, profiles.router, diagnostics.router, tools.router,
                tools.planned_router, parameters.router, pdo.router, parameter_sets.router, drive_control_api.router,
-               simulator_api.router]
+               accounts_api.router, simulator_api.router]
 PAGE_ROUTERS = [node_diagnostics.router, node_pdo_page.router, monitor_page.router, plant_page.router,
                 node_control.router, node_page.router, profiles_page.router, remote_page.router, tools_page.router,
-                parameter_sets_page.router]
+                parameter_sets_page.router, accounts_page.router]
 WS_ROUTERS = [monitor_ws.router, nodes_ws.router, jobs_ws.router, remote_ws.router, process_data_ws.router,
               drive_control_ws.router]
 
@@ -96,6 +98,7 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
     app = FastAPI(title="DriveBench", version=__version__, lifespan=lifespan,
                   description="Commissioning of CANopen drives: parameters, PDOs, NMT, diagnostics.")
     problems.install(app)
+    access.install(app)  # sign-in, roles, CSRF; inside ViewerScope, which marks share-link requests first
     app.add_middleware(ViewerScope, links=share_links)
     for router in API_ROUTERS + PAGE_ROUTERS + WS_ROUTERS:
         app.include_router(router)

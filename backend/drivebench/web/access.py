@@ -1,0 +1,364 @@
+"""Access control for every request and websocket: who is it, may they, and did the request come from our page.
+
+* Another web site's page may never change anything here, login or not: an unsafe request or a websocket handshake
+  whose ``Origin`` is not this server (or whose ``Sec-Fetch-Site`` says another site) is refused. Requests without
+  those headers (curl, scripts) pass.
+* Once authentication is configured (an enabled admin exists, ``services.accounts``) everyone signs in: a signed
+  session cookie (HttpOnly, SameSite=Strict, Secure over https) or ``Authorization: Bearer dbt_…``. Without it an
+  API request gets 401, a page the sign-in form.
+* The role a route needs comes from ``access_policy``; too low a role gets 403 with the reason in words.
+* A cookie session's unsafe requests carry its CSRF token (header ``X-CSRF-Token``, or a form field
+  ``csrf_token``); token requests need none (a browser never sends a bearer token by itself).
+
+The principal goes into ``scope["state"]["principal"]`` (``identity.principal_of``) and, with login configured,
+into the audit log's ``current_user``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import re
+import secrets
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+from urllib.parse import quote, urlsplit
+
+import anyio.to_thread
+from fastapi import FastAPI
+from itsdangerous import BadSignature, URLSafeTimedSerializer
+from starlette.datastructures import Headers
+from starlette.requests import HTTPConnection, Request
+from starlette.responses import HTMLResponse, JSONResponse, RedirectResponse, Response
+from starlette.types import ASGIApp, Message, Receive, Scope, Send
+
+from drivebench.config import settings
+from drivebench.errors import AccessDenied, DriveBenchError, NotAuthenticated
+from drivebench.services import accounts, audit
+from drivebench.services.principals import Principal, Role
+from drivebench.web import access_policy
+from drivebench.web.identity import principal_of
+from drivebench.web.problems import error_fragment, error_page, problem_body, wants_page
+
+SESSION_COOKIE = "drivebench_session"
+CSRF_HEADER = "x-csrf-token"
+CSRF_FIELD = "csrf_token"
+SAFE_METHODS = access_policy.SAFE_METHODS
+
+
+# --- the key that signs the session cookies --------------------------------------------------------------------
+def secret_key() -> str:
+    """``DRIVEBENCH_SECRET_KEY``, else a random key made once and kept (mode 0600) in ``settings.secret_key_file``."""
+    if settings.secret_key:
+        return settings.secret_key
+    path = Path(settings.secret_key_file)
+    with contextlib.suppress(FileNotFoundError):
+        return path.read_text().strip()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    key = secrets.token_urlsafe(48)
+    try:
+        descriptor = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    except FileExistsError:  # another process made it first
+        return path.read_text().strip()
+    with os.fdopen(descriptor, "w") as file:
+        file.write(key + "\n")
+    return key
+
+
+# --- sessions ----------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class SignedIn:
+    name: str
+    stamp: str
+    csrf: str
+    sid: str
+
+
+class Sessions:
+    """Signed session cookies; a signed-out session is remembered (for its remaining life) and refused."""
+
+    def __init__(self) -> None:
+        self._signed_out: dict[str, float] = {}
+        self._lock = threading.Lock()
+        self._serializer: tuple[str, URLSafeTimedSerializer] | None = None
+
+    def _codec(self) -> URLSafeTimedSerializer:
+        key = secret_key()
+        if self._serializer is None or self._serializer[0] != key:
+            self._serializer = (key, URLSafeTimedSerializer(key, salt="drivebench-session"))
+        return self._serializer[1]
+
+    def issue(self, user: accounts.User) -> tuple[str, SignedIn]:
+        signed_in = SignedIn(user.name, user.stamp, secrets.token_urlsafe(32), secrets.token_urlsafe(16))
+        value = self._codec().dumps({"u": signed_in.name, "s": signed_in.stamp, "c": signed_in.csrf,
+                                     "i": signed_in.sid})
+        return value, signed_in
+
+    def load(self, value: str) -> SignedIn | None:
+        try:
+            data = self._codec().loads(value, max_age=settings.session_max_age_s)
+            signed_in = SignedIn(str(data["u"]), str(data["s"]), str(data["c"]), str(data["i"]))
+        except (BadSignature, KeyError, TypeError):
+            return None
+        with self._lock:
+            return None if signed_in.sid in self._signed_out else signed_in
+
+    def sign_out(self, signed_in: SignedIn) -> None:
+        now = time.monotonic()
+        with self._lock:
+            self._signed_out = {sid: until for sid, until in self._signed_out.items() if until > now}
+            self._signed_out[signed_in.sid] = now + settings.session_max_age_s
+
+
+sessions = Sessions()
+
+
+def set_session_cookie(response: Response, conn: HTTPConnection, value: str) -> None:
+    response.set_cookie(SESSION_COOKIE, value, max_age=settings.session_max_age_s, httponly=True, samesite="strict",
+                        secure=conn.url.scheme in ("https", "wss"), path="/")
+
+
+def clear_session_cookie(response: Response, conn: HTTPConnection) -> None:
+    response.delete_cookie(SESSION_COOKIE, httponly=True, samesite="strict", secure=conn.url.scheme == "https",
+                           path="/")
+
+
+@dataclass(frozen=True)
+class AccessView:
+    """What the templates show: who is signed in, whether signing in is on, the CSRF token of the session."""
+
+    principal: Principal
+    login: bool
+    csrf: str | None
+    session: SignedIn | None = None
+
+    def may(self, role: str) -> bool:
+        return self.principal.may(Role.parse(role))
+
+    def refused_rules(self) -> list[dict[str, str]]:
+        """The rules this principal does not meet, for the page to grey out their controls (the server decides)."""
+        return [{"method": method, "pattern": _pattern(template), "role": rule.role.label, "what": rule.what}
+                for (method, template), rule in access_policy.RULES.items()
+                if method != access_policy.WEBSOCKET and not self.principal.may(rule.role)]
+
+
+def _pattern(template: str) -> str:
+    """``/a/{id}/b/{ref:path}`` as a JavaScript regular expression for the page."""
+    parts = re.split(r"(\{[^}]+\})", template)
+    return "^" + "".join(("(.+)" if part.endswith(":path}") else "([^/]+)") if part.startswith("{")
+                         else re.escape(part) for part in parts) + "$"
+
+
+def access_of(conn: HTTPConnection) -> AccessView | None:
+    view = conn.scope.get("state", {}).get("access")
+    return view if isinstance(view, AccessView) else None
+
+
+# --- the middleware -----------------------------------------------------------------------------------------------
+def cross_site(scope: Scope, headers: Headers) -> str | None:
+    """Why an unsafe request or a websocket handshake comes from another site's page (None: it does not)."""
+    if scope["type"] == "http" and str(scope.get("method", "GET")).upper() in SAFE_METHODS:
+        return None
+    site = headers.get("sec-fetch-site")
+    if site and site not in ("same-origin", "none"):
+        return f"the browser says it comes from a {site} page"
+    origin = headers.get("origin")
+    if origin is None:
+        return None
+    if urlsplit(origin).netloc.lower() != headers.get("host", "").lower():
+        return f"it comes from a page of {origin}"
+    return None
+
+
+def _denied_words(principal: Principal, rule: access_policy.Rule) -> str:
+    who = ("you are using a remote diagnostics link (viewer)" if principal.via == "link"
+           else f"you are signed in as {principal.name} ({principal.role.label})")
+    return f"{rule.what} needs the {rule.role.label} role; {who}."
+
+
+class AccessControl:
+    def __init__(self, app: ASGIApp) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] not in ("http", "websocket"):
+            await self.app(scope, receive, send)
+            return
+        headers = Headers(scope=scope)
+        reason = cross_site(scope, headers)
+        if reason is not None:
+            await _refuse(scope, receive, send, AccessDenied(
+                f"Refused: {reason}. Another web site may not change anything on DriveBench or open its live "
+                "connections.", hint="Open DriveBench itself and do it there."))
+            return
+        decision = access_policy.decide(scope["app"], scope)
+        state = scope.setdefault("state", {})
+        configured = accounts.authentication_configured()
+        session: SignedIn | None = None
+        principal: Principal | None = None
+        try:
+            if state.get("viewer") is not None:  # a remote-diagnostics link (ViewerScope checked its token)
+                principal = principal_of(HTTPConnection(scope))
+            elif configured:
+                principal, session = await _authenticate(headers)
+        except NotAuthenticated as exc:
+            if not decision.public:
+                await _refuse(scope, receive, send, exc)
+                return
+        if principal is None and configured and not decision.public:
+            await _refuse(scope, receive, send, NotAuthenticated(
+                "Sign in first: this DriveBench server asks everyone to sign in.",
+                hint="API clients send `Authorization: Bearer dbt_…` (an API token from the Users page)."))
+            return
+        if principal is None and not configured:
+            principal = principal_of(HTTPConnection(scope))  # the local user: an admin
+        if principal is not None and not decision.public and not principal.may(decision.rule.role):
+            await _refuse(scope, receive, send, AccessDenied(_denied_words(principal, decision.rule),
+                                                             hint="Ask an admin for the role."))
+            return
+        if (session is not None and not decision.public and scope["type"] == "http"
+                and scope["method"] not in SAFE_METHODS):
+            token, receive = await _csrf_token(scope, receive, headers)
+            if token is None or not secrets.compare_digest(token, session.csrf):
+                await _refuse(scope, receive, send, AccessDenied(
+                    "The request lacks this page's security token (CSRF), so it was not carried out.",
+                    hint="Reload the page and try again."))
+                return
+        if principal is not None:
+            state["principal"] = principal
+        state["access"] = AccessView(principal or Principal("", Role.VIEWER, via="none"), configured,
+                                     session.csrf if session else None, session)
+        if configured and principal is not None:
+            # Whatever a client claims in X-DriveBench-User, the audit log names who signed in.
+            scope["headers"] = [(k, v) for k, v in scope["headers"] if k.lower() != b"x-drivebench-user"]
+            scope["headers"].append((b"x-drivebench-user", principal.name.encode()))
+            user_token = audit.current_user.set(principal.name)
+            try:
+                await self.app(scope, receive, send)
+            finally:
+                audit.current_user.reset(user_token)
+            return
+        await self.app(scope, receive, send)
+
+
+async def _authenticate(headers: Headers) -> tuple[Principal | None, SignedIn | None]:
+    authorization = headers.get("authorization", "")
+    if authorization.lower().startswith("bearer ") and authorization[7:].strip().startswith(accounts.TOKEN_PREFIX):
+        secret = authorization[7:].strip()
+        return await anyio.to_thread.run_sync(accounts.verify_token, secret), None
+    cookie = _cookie(headers, SESSION_COOKIE)
+    if cookie is None:
+        return None, None
+    signed_in = sessions.load(cookie)
+    if signed_in is None:
+        return None, None
+    user = accounts.account(signed_in.name)
+    if user is None or user.disabled or user.stamp != signed_in.stamp:
+        return None, None  # the user was disabled, removed or given a new password: sign in again
+    return Principal(user.name, user.role, via="login"), signed_in
+
+
+def _cookie(headers: Headers, name: str) -> str | None:
+    for part in headers.get("cookie", "").split(";"):
+        key, _, value = part.strip().partition("=")
+        if key == name and value:
+            return value.strip('"')
+    return None
+
+
+async def _csrf_token(scope: Scope, receive: Receive, headers: Headers) -> tuple[str | None, Receive]:
+    """The CSRF token from the header, else from a form's ``csrf_token`` field (the body is read once and replayed
+    to the route)."""
+    if (header := headers.get(CSRF_HEADER)) is not None:
+        return header, receive
+    content_type = headers.get("content-type", "")
+    if not content_type.startswith(("application/x-www-form-urlencoded", "multipart/form-data")):
+        return None, receive
+    chunks: list[bytes] = []
+    size, more = 0, True
+    while more:
+        message = await receive()
+        if message["type"] != "http.request":
+            return None, receive
+        chunks.append(message.get("body", b""))
+        size += len(chunks[-1])
+        more = message.get("more_body", False)
+        if size > settings.max_upload_bytes + 65536:
+            return None, receive
+    body = b"".join(chunks)
+    sent = False
+
+    async def replay() -> Message:
+        nonlocal sent
+        if not sent:
+            sent = True
+            return {"type": "http.request", "body": body, "more_body": False}
+        return await receive()
+
+    read_once = False
+
+    async def for_form() -> Message:
+        nonlocal read_once
+        if not read_once:
+            read_once = True
+            return {"type": "http.request", "body": body, "more_body": False}
+        return {"type": "http.disconnect"}
+
+    try:
+        form = await Request(scope, for_form).form()
+        token = form.get(CSRF_FIELD)
+        await form.close()
+    except Exception:  # a malformed form has no token; the route reports what is wrong with it
+        return None, replay
+    return (token if isinstance(token, str) else None), replay
+
+
+async def _refuse(scope: Scope, receive: Receive, send: Send, exc: DriveBenchError) -> None:
+    unauthenticated = isinstance(exc, NotAuthenticated)
+    if scope["type"] == "websocket":
+        await send({"type": "websocket.close", "code": 4401 if unauthenticated else 4403,
+                    "reason": exc.detail[:120]})
+        return
+    request = Request(scope, receive)
+    path = scope.get("path", "")
+    body = problem_body(exc, path)
+    status = int(body["status"])  # type: ignore[call-overload]
+    response: Response
+    if unauthenticated and wants_page(request):
+        target = path + (f"?{request.url.query}" if request.url.query else "")
+        response = RedirectResponse(f"/login?next={quote(target)}", status_code=303)
+    elif request.headers.get("HX-Request") == "true":
+        response = HTMLResponse(error_fragment(body), status_code=status)
+        if unauthenticated:
+            response.headers["HX-Redirect"] = "/login"
+    elif wants_page(request):
+        response = error_page(request, body)
+    else:
+        response = JSONResponse(body, status_code=status, media_type="application/problem+json")
+    if unauthenticated and not wants_page(request):
+        response.headers["WWW-Authenticate"] = 'Bearer realm="DriveBench"'
+    await response(scope, receive, send)
+
+
+# --- the app -----------------------------------------------------------------------------------------------------
+_CONVERTOR = re.compile(r"\{(\w+):\w+\}")
+
+
+def install(app: FastAPI) -> None:
+    """The middleware, and each operation's role in the OpenAPI document (``x-drivebench-role``)."""
+    app.add_middleware(AccessControl)
+    generate = app.openapi
+
+    def openapi_with_roles() -> dict[str, Any]:
+        schema = generate()
+        for method, template, rule in access_policy.operations(app):
+            operation = schema.get("paths", {}).get(_CONVERTOR.sub(r"{\1}", template), {}).get(method.lower())
+            if operation is not None:
+                public = (method, template) in access_policy.PUBLIC
+                operation["x-drivebench-role"] = "public" if public else rule.role.label
+        return schema
+
+    app.openapi = openapi_with_roles  # type: ignore[method-assign]

@@ -1,0 +1,206 @@
+"""Which role each route needs: the one place that decides.
+
+A request is matched against the app's routes (the same matching the router does); the route's path template and
+the method pick the rule. Reading (GET, HEAD, OPTIONS) needs the viewer role unless a rule says more; every other
+method, and every websocket, needs a rule of its own here - a route without one needs the admin role, so a new
+route is never open by accident. With no login configured the local user is an admin and passes every rule; a
+remote-diagnostics link is a viewer.
+"""
+
+from __future__ import annotations
+
+import weakref
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+from fastapi import FastAPI
+from fastapi.routing import iter_route_contexts
+from starlette.routing import Match
+from starlette.types import Scope
+
+from drivebench.services.principals import Role
+
+SAFE_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
+WEBSOCKET = "WS"
+
+
+@dataclass(frozen=True)
+class Rule:
+    role: Role
+    what: str
+    """What the route does, as the start of a sentence: "Writing parameters" (needs the engineer role)."""
+
+
+V, E, A = Role.VIEWER, Role.ENGINEER, Role.ADMIN
+S = "/api/sessions/{session_id}"
+N = S + "/nodes/{node_id}"
+US = "/ui/sessions/{session_id}"
+UN = US + "/nodes/{node_id}"
+
+
+def _rules(role: Role, what: str, *routes: tuple[str, str]) -> dict[tuple[str, str], Rule]:
+    return {route: Rule(role, what) for route in routes}
+
+
+RULES: dict[tuple[str, str], Rule] = {
+    # --- writes that only read or calculate: a viewer may ---------------------------------------------------
+    **_rules(V, "Reading parameters",
+             ("POST", N + "/read-all"), ("POST", N + "/read-group"), ("POST", S + "/read-all"),
+             ("POST", UN + "/parameters/{ref:path}/read"), ("POST", UN + "/read"), ("POST", UN + "/info/read")),
+    **_rules(V, "Changing your own monitor view",
+             ("POST", S + "/monitor/pause"), ("POST", S + "/monitor/resume"), ("PUT", S + "/monitor/filter")),
+    **_rules(V, "Using the calculators",
+             ("POST", "/api/tools/dip/{family}"), ("POST", "/api/tools/planner/check"),
+             ("POST", "/api/tools/planner/compare"), ("POST", "/api/planned-networks/{network_id}/compare"),
+             ("POST", "/ui/tools/dip"), ("POST", "/ui/tools/cable"), ("POST", "/ui/tools/planner"),
+             ("POST", "/ui/tools/planner/check"), ("POST", "/ui/tools/planner/export"),
+             ("POST", "/ui/tools/planner/import"), ("POST", "/ui/tools/planner/load/{network_id}"),
+             ("POST", "/ui/tools/planner/compare")),
+    **_rules(V, "Comparing parameter sets",
+             ("POST", "/api/parameter-sets/compare"), ("POST", "/api/parameter-sets/{set_id}/preview"),
+             ("POST", "/parameter-sets/compare"), ("POST", "/parameter-sets/{set_id}/preview")),
+    **_rules(V, "Keeping your own drive commands alive", ("POST", S + "/keepalive")),
+    **_rules(V, "Signing in", ("POST", "/api/auth/login"), ("GET", "/login"), ("POST", "/login")),
+    **_rules(V, "Signing out", ("POST", "/api/auth/logout"), ("POST", "/logout")),
+    **_rules(V, "Changing your own password", ("PUT", "/api/auth/password")),
+    **_rules(V, "Managing your own API tokens",
+             ("GET", "/api/auth/tokens"), ("POST", "/api/auth/tokens"), ("DELETE", "/api/auth/tokens/{token_id}")),
+    # --- engineer: anything that writes to a device or changes what others see ------------------------------
+    **_rules(E, "Writing parameters",
+             ("PUT", N + "/parameters/{ref:path}"), ("POST", UN + "/parameters/{ref:path}/write")),
+    **_rules(E, "Device commands (save, load defaults, reset)",
+             ("POST", N + "/commands/{command}"), ("POST", UN + "/commands/{command}")),
+    **_rules(E, "NMT commands", ("POST", S + "/nmt"), ("POST", N + "/nmt"), ("POST", US + "/nmt"),
+             ("POST", UN + "/pdo/start-node")),
+    **_rules(E, "Scanning the bus and adding or removing nodes",
+             ("POST", S + "/scan"), ("POST", S + "/nodes"), ("DELETE", N), ("POST", US + "/scan"),
+             ("POST", US + "/nodes")),
+    **_rules(E, "Changing heartbeat and node guarding",
+             ("PUT", N + "/heartbeat/producer"), ("PUT", N + "/heartbeat/consumers/{slot}"), ("PUT", N + "/guarding"),
+             ("POST", UN + "/diagnostics/producer"), ("POST", UN + "/diagnostics/consumers/{slot}"),
+             ("POST", UN + "/diagnostics/guarding")),
+    **_rules(E, "Changing PDOs", ("PUT", N + "/pdos/{direction}/{number}"),
+             ("POST", UN + "/pdo/{direction}/{number}/apply")),
+    **_rules(E, "Sending PDOs and SYNC", ("POST", UN + "/pdo/rpdo/{number}/send"),
+             ("POST", UN + "/pdo/rpdo/{number}/stop"), ("POST", UN + "/pdo/sync")),
+    **_rules(E, "Controlling a drive",
+             ("POST", N + "/control/commands/{command}"), ("PUT", N + "/control/setpoint"),
+             ("POST", N + "/control/jog"), ("PUT", N + "/control/mode"), ("POST", N + "/control/keepalive"),
+             ("POST", N + "/control/sequences/{key}/runs"), ("POST", N + "/control/runs/{run_id}/next")),
+    **_rules(E, "Resetting the monitor counters and recording", ("POST", S + "/monitor/reset"),
+             ("POST", S + "/monitor/recordings"), ("POST", S + "/monitor/recordings/stop"),
+             ("POST", "/ui/monitor/{session_id}/recordings"), ("POST", "/ui/monitor/{session_id}/recordings/stop")),
+    **_rules(E, "Changing device profiles", ("POST", "/api/profiles"), ("DELETE", "/api/profiles/{profile_id}"),
+             ("POST", "/ui/profiles"), ("POST", "/ui/profiles/{profile_id}/delete")),
+    **_rules(E, "Creating and revoking remote diagnostics links", ("POST", "/api/share-links"),
+             ("DELETE", "/api/share-links/{token}"), ("POST", "/ui/share-links"),
+             ("POST", "/ui/share-links/{token}/revoke")),
+    **_rules(E, "Saving planned networks", ("POST", "/api/planned-networks"), ("POST", "/api/planned-networks/import"),
+             ("PUT", "/api/planned-networks/{network_id}"), ("DELETE", "/api/planned-networks/{network_id}"),
+             ("POST", "/ui/tools/planner/save"), ("POST", "/ui/tools/planner/delete/{network_id}")),
+    **_rules(E, "Changing parameter sets",
+             ("POST", "/api/parameter-sets/upload"), ("POST", "/api/parameter-sets/{set_id}/upload"),
+             ("POST", "/api/parameter-sets/import"), ("PATCH", "/api/parameter-sets/{set_id}"),
+             ("DELETE", "/api/parameter-sets/{set_id}"), ("POST", "/api/parameter-sets/{set_id}/copy"),
+             ("POST", "/parameter-sets/upload"), ("POST", "/parameter-sets/{set_id}/upload"),
+             ("POST", "/parameter-sets/import"), ("POST", "/parameter-sets/{set_id}/rename"),
+             ("DELETE", "/parameter-sets/{set_id}"), ("POST", "/parameter-sets/{set_id}/copy")),
+    **_rules(E, "Downloading parameter sets to a drive",
+             ("POST", "/api/parameter-sets/{set_id}/download"),
+             ("POST", "/api/parameter-downloads/{download_id}/retry"),
+             ("POST", "/api/parameter-downloads/{download_id}/rollback"), ("POST", "/parameter-sets/{set_id}/download"),
+             ("POST", "/parameter-sets/downloads/{download_id}/{action}")),
+    **_rules(E, "Cancelling a job", ("DELETE", "/api/jobs/{job_id}")),
+    **_rules(E, "Releasing a node's write lease", ("DELETE", N + "/lease")),
+    # --- admin: sessions (adapters), their SDO settings, users and tokens -----------------------------------
+    **_rules(A, "Opening and closing sessions (CAN adapters)", ("POST", "/api/sessions"), ("DELETE", S),
+             ("POST", "/ui/sessions"), ("POST", US + "/close")),
+    **_rules(A, "Changing the SDO settings of a session", ("PUT", S + "/sdo-settings"),
+             ("POST", UN + "/sdo-settings")),
+    **_rules(A, "Managing users", ("GET", "/api/users"), ("POST", "/api/users"), ("GET", "/api/users/{name}"),
+             ("PATCH", "/api/users/{name}"), ("PUT", "/api/users/{name}/password"), ("GET", "/users"),
+             ("POST", "/ui/users"), ("POST", "/ui/users/{name}/disable"), ("POST", "/ui/users/{name}/enable"),
+             ("POST", "/ui/users/{name}/role"), ("POST", "/ui/users/{name}/password")),
+    **_rules(A, "Managing API tokens", ("GET", "/api/tokens"), ("POST", "/api/tokens"),
+             ("DELETE", "/api/tokens/{token_id}"), ("POST", "/ui/tokens"), ("POST", "/ui/tokens/{token_id}/revoke")),
+    # --- websockets ----------------------------------------------------------------------------------------
+    **_rules(E, "Controlling a drive", (WEBSOCKET, N.replace("/api/", "/ws/", 1) + "/control")),
+    **_rules(V, "Watching", (WEBSOCKET, "/ws/sessions/{session_id}/monitor"),
+             (WEBSOCKET, "/ws/sessions/{session_id}/nodes"),
+             (WEBSOCKET, "/ws/jobs/{job_id}"), (WEBSOCKET, "/ws/remote/{token}"),
+             (WEBSOCKET, "/ws/sessions/{session_id}/nodes/{node_id}/process-data")),
+}
+
+READING = Rule(V, "Reading")
+UNCLASSIFIED_WRITE = Rule(A, "This action (not yet given a role)")
+UNCLASSIFIED_WEBSOCKET = Rule(A, "This live connection (not yet given a role)")
+
+# Reached without signing in: the sign-in itself, static files, the health check, and the pages and stream of a
+# remote-diagnostics link (which check the link's own token).
+PUBLIC: frozenset[tuple[str, str]] = frozenset({
+    ("GET", "/login"), ("POST", "/login"), ("POST", "/api/auth/login"), ("GET", "/api/health"),
+    ("GET", "/remote/{token}"), (WEBSOCKET, "/ws/remote/{token}"),
+})
+PUBLIC_PREFIXES = ("/static/",)
+
+
+@dataclass(frozen=True)
+class Decision:
+    template: str | None
+    """The matched route's path template (None: no route matches; the router answers 404 or 405)."""
+    rule: Rule
+    public: bool
+
+
+def _method(scope: Scope) -> str:
+    if scope["type"] == "websocket":
+        return WEBSOCKET
+    method = str(scope.get("method", "GET")).upper()
+    return "GET" if method == "HEAD" else method
+
+
+def rule_for(method: str, template: str) -> Rule:
+    rule = RULES.get((method, template))
+    if rule is not None:
+        return rule
+    if method == WEBSOCKET:
+        return UNCLASSIFIED_WEBSOCKET
+    return READING if method in SAFE_METHODS else UNCLASSIFIED_WRITE
+
+
+_templates: weakref.WeakKeyDictionary[FastAPI, list[tuple[object, str]]] = weakref.WeakKeyDictionary()
+
+
+def _routes(app: FastAPI) -> list[tuple[object, str]]:
+    """The app's routes in the router's order, flattened once per app (routes are all added before it serves)."""
+    cached = _templates.get(app)
+    if cached is None:
+        cached = [(route, str(route.path)) for route in iter_route_contexts(app.router.routes)
+                  if getattr(route, "path", None) is not None]
+        _templates[app] = cached
+    return cached
+
+
+def decide(app: FastAPI, scope: Scope) -> Decision:
+    method = _method(scope)
+    path = scope.get("path", "")
+    match_scope = {**scope, "method": "GET"} if scope.get("method") == "HEAD" else scope
+    for route, template in _routes(app):
+        matched, _ = route.matches(match_scope)  # type: ignore[attr-defined]
+        if matched is Match.FULL:
+            if path.startswith(PUBLIC_PREFIXES) and method in SAFE_METHODS:
+                return Decision(template, READING, public=True)
+            return Decision(template, rule_for(method, template), public=(method, template) in PUBLIC)
+    return Decision(None, READING, public=path.startswith(PUBLIC_PREFIXES))
+
+
+def operations(app: FastAPI) -> Iterator[tuple[str, str, Rule]]:
+    """Every (method, path template, rule) of the app, websockets with method ``WS`` (tests, OpenAPI)."""
+    for route, template in _routes(app):
+        methods = getattr(route, "methods", None)
+        if methods is None:
+            if type(getattr(route, "original_route", route)).__name__.endswith("WebSocketRoute"):
+                yield WEBSOCKET, template, rule_for(WEBSOCKET, template)
+            continue
+        for method in sorted(methods - {"HEAD"}):
+            yield method, template, rule_for(method, template)

@@ -1,0 +1,248 @@
+"""Signing in and out, who am I, users and API tokens (JSON). Which role each route needs: ``web/access_policy``."""
+
+from __future__ import annotations
+
+import asyncio
+from datetime import datetime
+from typing import Annotated
+
+from fastapi import APIRouter, Request, Response
+from fastapi.responses import JSONResponse
+from pydantic import BaseModel, Field
+
+from drivebench.errors import Conflict, NotAuthenticated
+from drivebench.services import accounts
+from drivebench.services.principals import Principal, Role
+from drivebench.web import access
+from drivebench.web.identity import PrincipalDep
+from drivebench.web.problems import problem_body
+
+router = APIRouter(prefix="/api", tags=["accounts"])
+
+RoleName = Annotated[str, Field(pattern="^(viewer|engineer|admin)$", description="viewer, engineer or admin")]
+FIRST_ADMIN = "drivebench users add admin --role admin"
+
+
+class Credentials(BaseModel):
+    name: str = Field(min_length=1, max_length=60)
+    password: str = Field(min_length=1, max_length=accounts.MAX_PASSWORD_LENGTH)
+
+
+class Me(BaseModel):
+    name: str
+    role: str
+    via: str
+    """``login`` (cookie session), ``token``, ``link`` (remote diagnostics) or ``local`` (no login configured)."""
+    login_required: bool
+    csrf_token: str | None = None
+    """Send it as ``X-CSRF-Token`` with every unsafe request of this cookie session."""
+
+
+class UserOut(BaseModel):
+    name: str
+    role: str
+    created: datetime
+    disabled: bool
+
+
+class NewUser(BaseModel):
+    name: str = Field(min_length=1, max_length=60)
+    password: str = Field(min_length=accounts.MIN_PASSWORD_LENGTH, max_length=accounts.MAX_PASSWORD_LENGTH)
+    role: RoleName
+
+
+class UserChange(BaseModel):
+    role: RoleName | None = None
+    disabled: bool | None = None
+
+
+class NewPassword(BaseModel):
+    password: str = Field(min_length=accounts.MIN_PASSWORD_LENGTH, max_length=accounts.MAX_PASSWORD_LENGTH)
+
+
+class OwnPassword(NewPassword):
+    current_password: str = Field(min_length=1, max_length=accounts.MAX_PASSWORD_LENGTH)
+
+
+class TokenOut(BaseModel):
+    id: int
+    name: str
+    owner: str
+    role: str
+    hint: str
+    created: datetime
+    last_used: datetime | None
+    revoked: datetime | None
+
+
+class IssuedTokenOut(TokenOut):
+    token: str
+    """The token itself: shown this once, not stored. Send it as ``Authorization: Bearer dbt_…``."""
+
+
+class NewToken(BaseModel):
+    name: str = Field(min_length=1, max_length=120)
+    role: RoleName
+
+
+class NewTokenFor(NewToken):
+    user: str = Field(min_length=1, max_length=60)
+
+
+def user_out(user: accounts.User) -> UserOut:
+    return UserOut(name=user.name, role=user.role.label, created=user.created, disabled=user.disabled)
+
+
+def token_out(token: accounts.ApiToken) -> TokenOut:
+    return TokenOut(id=token.id, name=token.name, owner=token.owner, role=token.role.label, hint=token.hint,
+                    created=token.created, last_used=token.last_used, revoked=token.revoked)
+
+
+def issued_out(issued: accounts.IssuedToken) -> IssuedTokenOut:
+    return IssuedTokenOut(**token_out(issued.token).model_dump(), token=issued.secret)
+
+
+def me_of(request: Request, principal: Principal) -> Me:
+    view = access.access_of(request)
+    return Me(name=principal.name, role=principal.role.label, via=principal.via,
+              login_required=bool(view and view.login), csrf_token=view.csrf if view else None)
+
+
+def client_address(request: Request) -> str:
+    return request.client.host if request.client else "unknown"
+
+
+async def sign_in(request: Request, name: str, password: str) -> tuple[str, access.SignedIn, Principal]:
+    """Check the password (rate-limited); the cookie value and session of the new sign-in."""
+    if not await asyncio.to_thread(accounts.authentication_configured):
+        raise Conflict("Signing in is not switched on: there is no admin user yet, so this server trusts the "
+                       "local user.", hint=f"Create the first admin: {FIRST_ADMIN}")
+    principal = await asyncio.to_thread(accounts.sign_in, name, password, client_address(request))
+    user = await asyncio.to_thread(accounts.get_user, principal.name)
+    value, signed_in = access.sessions.issue(user)
+    return value, signed_in, principal
+
+
+def locked_response(exc: accounts.LoginLocked, path: str) -> JSONResponse:
+    body = problem_body(exc, path)
+    body["status"] = 429
+    return JSONResponse(body, status_code=429, media_type="application/problem+json",
+                        headers={"Retry-After": str(exc.retry_after_s)})
+
+
+@router.post("/auth/login", response_model=Me, responses={401: {}, 409: {}, 429: {}})
+async def login(request: Request, credentials: Credentials) -> Response:
+    """Sign in with name and password: sets the session cookie and returns the CSRF token of the session."""
+    try:
+        value, signed_in, principal = await sign_in(request, credentials.name, credentials.password)
+    except accounts.LoginLocked as exc:
+        return locked_response(exc, request.url.path)
+    me = Me(name=principal.name, role=principal.role.label, via="login", login_required=True,
+            csrf_token=signed_in.csrf)
+    response = JSONResponse(me.model_dump())
+    access.set_session_cookie(response, request, value)
+    return response
+
+
+@router.post("/auth/logout", status_code=204)
+async def logout(request: Request) -> Response:
+    view = access.access_of(request)
+    if view is not None and view.session is not None:
+        access.sessions.sign_out(view.session)
+    response = Response(status_code=204)
+    access.clear_session_cookie(response, request)
+    return response
+
+
+@router.get("/auth/me", response_model=Me)
+async def me(request: Request, principal: PrincipalDep) -> Me:
+    """Who this request acts as (with no login configured: the local user, an admin)."""
+    return me_of(request, principal)
+
+
+def _signed_in_user(principal: Principal) -> str:
+    if principal.via not in ("login", "token"):
+        raise NotAuthenticated("Only a signed-in user has a password and API tokens of their own.",
+                               hint=f"Signing in starts when an admin exists: {FIRST_ADMIN}")
+    return principal.name
+
+
+@router.put("/auth/password", status_code=204)
+async def change_own_password(body: OwnPassword, principal: PrincipalDep) -> Response:
+    name = _signed_in_user(principal)
+    await asyncio.to_thread(accounts.verify_password, name, body.current_password)
+    await asyncio.to_thread(accounts.set_password, name, body.password)
+    return Response(status_code=204)
+
+
+@router.get("/auth/tokens", response_model=list[TokenOut])
+async def own_tokens(principal: PrincipalDep) -> list[TokenOut]:
+    name = _signed_in_user(principal)
+    return [token_out(t) for t in await asyncio.to_thread(accounts.list_tokens, name)]
+
+
+@router.post("/auth/tokens", response_model=IssuedTokenOut, status_code=201)
+async def create_own_token(body: NewToken, principal: PrincipalDep) -> IssuedTokenOut:
+    """A token for your scripts, with your role or a lower one. The token is in this answer only."""
+    name = _signed_in_user(principal)
+    role = min(Role.parse(body.role), principal.role)  # a token request cannot mint more than it has
+    return issued_out(await asyncio.to_thread(accounts.issue_token, name, body.name, role))
+
+
+@router.delete("/auth/tokens/{token_id}", response_model=TokenOut)
+async def revoke_own_token(token_id: int, principal: PrincipalDep) -> TokenOut:
+    name = _signed_in_user(principal)
+    return token_out(await asyncio.to_thread(lambda: accounts.revoke_token(token_id, owner=name)))
+
+
+# --- admin: users and every token -----------------------------------------------------------------------------
+@router.get("/users", response_model=list[UserOut])
+async def list_users() -> list[UserOut]:
+    return [user_out(u) for u in await asyncio.to_thread(accounts.list_users)]
+
+
+@router.post("/users", response_model=UserOut, status_code=201)
+async def create_user(body: NewUser) -> UserOut:
+    return user_out(await asyncio.to_thread(accounts.create_user, body.name, body.password, Role.parse(body.role)))
+
+
+@router.get("/users/{name}", response_model=UserOut)
+async def get_user(name: str) -> UserOut:
+    return user_out(await asyncio.to_thread(accounts.get_user, name))
+
+
+@router.patch("/users/{name}", response_model=UserOut)
+async def change_user(name: str, body: UserChange) -> UserOut:
+    """Change the role or disable / enable; the last enabled admin cannot be demoted or disabled."""
+    def change() -> accounts.User:
+        user = accounts.get_user(name)
+        if body.role is not None:
+            user = accounts.set_role(name, Role.parse(body.role))
+        if body.disabled is not None:
+            user = accounts.set_disabled(name, body.disabled)
+        return user
+
+    return user_out(await asyncio.to_thread(change))
+
+
+@router.put("/users/{name}/password", status_code=204)
+async def reset_password(name: str, body: NewPassword) -> Response:
+    """Set a new password: the user's sessions end (tokens stay valid)."""
+    await asyncio.to_thread(accounts.set_password, name, body.password)
+    return Response(status_code=204)
+
+
+@router.get("/tokens", response_model=list[TokenOut])
+async def list_tokens() -> list[TokenOut]:
+    return [token_out(t) for t in await asyncio.to_thread(accounts.list_tokens)]
+
+
+@router.post("/tokens", response_model=IssuedTokenOut, status_code=201)
+async def create_token(body: NewTokenFor) -> IssuedTokenOut:
+    """A token for a user's scripts (role no higher than the user's). The token is in this answer only."""
+    return issued_out(await asyncio.to_thread(accounts.issue_token, body.user, body.name, Role.parse(body.role)))
+
+
+@router.delete("/tokens/{token_id}", response_model=TokenOut)
+async def revoke_token(token_id: int) -> TokenOut:
+    return token_out(await asyncio.to_thread(accounts.revoke_token, token_id))

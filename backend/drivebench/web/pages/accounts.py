@@ -1,0 +1,147 @@
+"""The sign-in page, signing out, and the Users screen (users, roles, passwords, API tokens)."""
+
+from __future__ import annotations
+
+import asyncio
+from typing import Any
+
+from fastapi import APIRouter, Form, Request
+from fastapi.responses import HTMLResponse, RedirectResponse, Response
+
+from drivebench.errors import DriveBenchError, InvalidValue
+from drivebench.services import accounts
+from drivebench.services.principals import Role
+from drivebench.web import access
+from drivebench.web.api.accounts import FIRST_ADMIN, sign_in
+from drivebench.web.problems import problem_body
+from drivebench.web.templating import templates
+
+router = APIRouter(include_in_schema=False)
+ROLES = [role.label for role in Role]
+
+
+def _role(text: str) -> Role:
+    try:
+        return Role.parse(text)
+    except ValueError as exc:
+        raise InvalidValue(str(exc)) from None
+
+
+def _safe_next(target: str | None) -> str:
+    """Only a path of this server (never ``//elsewhere`` or ``https://elsewhere``) after signing in."""
+    if not target or not target.startswith("/") or target.startswith("//") or "\\" in target:
+        return "/"
+    return target
+
+
+@router.get("/login", response_class=HTMLResponse)
+async def login_page(request: Request, next: str = "/") -> Response:
+    view = access.access_of(request)
+    if view is not None and view.session is not None:
+        return RedirectResponse(_safe_next(next), status_code=303)
+    configured = await asyncio.to_thread(accounts.authentication_configured)
+    return templates.TemplateResponse(request, "login.html", {"next": _safe_next(next), "configured": configured,
+                                                              "first_admin": FIRST_ADMIN, "active": None})
+
+
+@router.post("/login", response_class=HTMLResponse)
+async def login_form(request: Request, name: str = Form(""), password: str = Form(""),
+                     next: str = Form("/")) -> Response:
+    try:
+        if not name.strip() or not password:
+            raise InvalidValue("Enter your user name and your password.")
+        value, _, _ = await sign_in(request, name, password)
+    except DriveBenchError as exc:
+        body = problem_body(exc, request.url.path)
+        status = 429 if isinstance(exc, accounts.LoginLocked) else int(body["status"])  # type: ignore[call-overload]
+        context = {"next": _safe_next(next), "configured": True, "first_admin": FIRST_ADMIN, "name": name,
+                   "problem": body, "active": None}
+        return templates.TemplateResponse(request, "login.html", context, status_code=status)
+    response = RedirectResponse(_safe_next(next), status_code=303)
+    access.set_session_cookie(response, request, value)
+    return response
+
+
+@router.post("/logout")
+async def logout(request: Request) -> Response:
+    view = access.access_of(request)
+    if view is not None and view.session is not None:
+        access.sessions.sign_out(view.session)
+    response = RedirectResponse("/login", status_code=303)
+    access.clear_session_cookie(response, request)
+    return response
+
+
+# --- the Users screen (admin) -----------------------------------------------------------------------------------
+def _context(**extra: Any) -> dict[str, Any]:
+    return {"users": accounts.list_users(), "tokens": accounts.list_tokens(), "roles": ROLES,
+            "configured": accounts.authentication_configured(), "first_admin": FIRST_ADMIN, "active": "users",
+            **extra}
+
+
+async def _render(request: Request, block: str | None = None, status: int = 200, **extra: Any) -> Response:
+    context = await asyncio.to_thread(_context, **extra)
+    return templates.TemplateResponse(request, "users.html", context, block_name=block, status_code=status)
+
+
+@router.get("/users", response_class=HTMLResponse)
+async def users_page(request: Request) -> Response:
+    return await _render(request)
+
+
+async def _act(request: Request, block: str, action: Any, done: str) -> Response:
+    """Run ``action`` in a worker thread; the block again with ``done`` or the error inside it."""
+    try:
+        result = await asyncio.to_thread(action)
+    except DriveBenchError as exc:
+        body = problem_body(exc, request.url.path)
+        return await _render(request, block, status=int(body["status"]), problem=body)  # type: ignore[call-overload]
+    issued = result if isinstance(result, accounts.IssuedToken) else None
+    return await _render(request, block, done=done, issued=issued)
+
+
+@router.post("/ui/users", response_class=HTMLResponse)
+async def add_user(request: Request, name: str = Form(""), role: str = Form("viewer"), password: str = Form(""),
+                   password_again: str = Form("")) -> Response:
+    def add() -> accounts.User:
+        if password != password_again:
+            raise InvalidValue("The two passwords differ: type the same password twice.")
+        return accounts.create_user(name, password, _role(role))
+
+    return await _act(request, "users", add, f"Added {name.strip()} ({role}).")
+
+
+@router.post("/ui/users/{name}/disable", response_class=HTMLResponse)
+async def disable_user(request: Request, name: str) -> Response:
+    return await _act(request, "users", lambda: accounts.set_disabled(name, True),
+                      f"Disabled {name}: they can no longer sign in, and their tokens stop working.")
+
+
+@router.post("/ui/users/{name}/enable", response_class=HTMLResponse)
+async def enable_user(request: Request, name: str) -> Response:
+    return await _act(request, "users", lambda: accounts.set_disabled(name, False), f"Enabled {name}.")
+
+
+@router.post("/ui/users/{name}/role", response_class=HTMLResponse)
+async def change_role(request: Request, name: str, role: str = Form(...)) -> Response:
+    return await _act(request, "users", lambda: accounts.set_role(name, _role(role)),
+                      f"{name} is now {role}.")
+
+
+@router.post("/ui/users/{name}/password", response_class=HTMLResponse)
+async def reset_password(request: Request, name: str, password: str = Form("")) -> Response:
+    return await _act(request, "users", lambda: accounts.set_password(name, password),
+                      f"New password set for {name}; their open sessions have ended.")
+
+
+@router.post("/ui/tokens", response_class=HTMLResponse)
+async def create_token(request: Request, name: str = Form(""), user: str = Form(""),
+                       role: str = Form("viewer")) -> Response:
+    return await _act(request, "tokens", lambda: accounts.issue_token(user, name, _role(role)),
+                      f"Token '{name.strip()}' created for {user}. Copy it now: it is not shown again.")
+
+
+@router.post("/ui/tokens/{token_id}/revoke", response_class=HTMLResponse)
+async def revoke_token(request: Request, token_id: int) -> Response:
+    return await _act(request, "tokens", lambda: accounts.revoke_token(token_id),
+                      "Token revoked: scripts using it are refused from now on.")
