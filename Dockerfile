@@ -1,8 +1,13 @@
 # DriveBench web server. Build: docker build -t drivebench .
+# First create an admin in the volume (the server listens on all interfaces of the container, so it refuses to
+# start until someone can sign in):
+#       docker run -it --rm -v drivebench-var:/app/var drivebench users add admin --role admin
 # Run:  docker run -p 8000:8000 -v drivebench-var:/app/var drivebench
-#       (simulated plant: append `serve --host 0.0.0.0 --allow-remote --demo`;
-#        a socketcand gateway: `serve --host 0.0.0.0 --allow-remote --bus socketcand:GATEWAY:29536/can0`;
+#       (simulated plant: append `serve --host 0.0.0.0 --demo`;
+#        a socketcand gateway: `serve --host 0.0.0.0 --bus socketcand:GATEWAY:29536/can0`;
 #        SocketCAN adapters of the host need `--network host`.)
+#       The admin adds engineers and viewers on the Users page. The cookie key is made once in /app/var/secret_key
+#       (or set DRIVEBENCH_SECRET_KEY); put TLS in front (a reverse proxy) when the network is not trusted.
 FROM python:3.11-slim
 
 ENV PYTHONDONTWRITEBYTECODE=1 \
@@ -34,7 +39,7 @@ EXPOSE 8000
 HEALTHCHECK --interval=30s --timeout=5s --start-period=30s --retries=3 \
     CMD python -c "import os, urllib.request; urllib.request.urlopen('http://127.0.0.1:' + os.environ.get('DRIVEBENCH_PORT', '8000') + '/api/health', timeout=4)"
 
-# Listening on all interfaces of the container: today's CLI asks for --allow-remote there, since there is no
-# authentication yet. Publish the port only on a network where everyone may operate the drives.
+# Listening on all interfaces of the container: `serve` starts only once an admin exists in /app/var (see above);
+# then everyone signs in and each role may do only its part.
 ENTRYPOINT ["drivebench"]
-CMD ["serve", "--host", "0.0.0.0", "--allow-remote"]
+CMD ["serve", "--host", "0.0.0.0"]

@@ -3,17 +3,21 @@ messages a user gets instead of tracebacks."""
 
 from __future__ import annotations
 
+import io
+import re
 import signal
 import socket
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import httpx
 import pytest
 
 from drivebench.cli import main
+from drivebench.config import settings
+from drivebench.services import accounts, database
 from drivebench.transport.hub import start_hub_thread
 from tests.transport.test_multiprocess import START_TIMEOUT_S, CliProcess, start_simulator
 
@@ -110,12 +114,65 @@ def test_serve_with_a_bad_bus_ends_with_a_message(bus: str, message: str, capsys
     assert err.startswith("drivebench: ") and message in err and "Traceback" not in err
 
 
-@pytest.mark.parametrize("command", ["serve", "hub"])
-def test_non_loopback_addresses_are_refused_without_allow_remote(command: str,
-                                                                 capsys: pytest.CaptureFixture[str]) -> None:
-    assert run_cli([command, "--host", "0.0.0.0", "--port", "0"]) == 2
+def test_hub_refuses_non_loopback_addresses_without_allow_remote(capsys: pytest.CaptureFixture[str]) -> None:
+    assert run_cli(["hub", "--host", "0.0.0.0", "--port", "0"]) == 2
     err = capsys.readouterr().err
     assert "Refusing to listen on 0.0.0.0" in err and "--allow-remote" in err
+
+
+@pytest.fixture
+def cli_db(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[str]:
+    """A database of the test's own: users are never created in the shared one."""
+    url = f"sqlite:///{tmp_path / 'cli.db'}"
+    monkeypatch.setattr(settings, "database_url", url)
+    accounts.directory.forget()
+    yield url
+    accounts.directory.forget()
+    database.dispose(url)
+
+
+def test_serve_on_all_interfaces_needs_an_admin_and_says_how(cli_db: str, capsys: pytest.CaptureFixture[str],
+                                                             monkeypatch: pytest.MonkeyPatch) -> None:
+    assert run_cli(["serve", "--host", "0.0.0.0", "--port", "0"]) == 2
+    err = capsys.readouterr().err
+    assert "Refusing to listen on 0.0.0.0" in err and "drivebench users add admin --role admin" in err
+    with pytest.raises(SystemExit):  # no way around it any more
+        main(["serve", "--host", "0.0.0.0", "--allow-remote"])
+    assert "unrecognized arguments: --allow-remote" in capsys.readouterr().err
+
+    monkeypatch.setattr("sys.stdin", io.StringIO("a long admin password\n"))
+    assert run_cli(["users", "add", "admin", "--role", "admin", "--password-stdin"]) == 0
+    assert "Signing in is on" in capsys.readouterr().out
+    assert accounts.authentication_configured()
+    assert accounts.verify_password("admin", "a long admin password").name == "admin"
+    # now the check passes and the command goes on to its buses: a bad one ends it with that message
+    assert run_cli(["serve", "--host", "0.0.0.0", "--port", "0", "--bus", "not a bus"]) == 1
+    assert "is not a bus specification" in capsys.readouterr().err
+
+
+def test_users_and_tokens_commands(cli_db: str, capsys: pytest.CaptureFixture[str],
+                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    for name, role in [("root", "admin"), ("eve", "engineer")]:
+        monkeypatch.setattr("sys.stdin", io.StringIO(f"{name} password 123\n"))
+        assert run_cli(["users", "add", name, "--role", role, "--password-stdin"]) == 0
+    monkeypatch.setattr("sys.stdin", io.StringIO("x\n"))
+    assert run_cli(["users", "add", "short", "--role", "viewer", "--password-stdin"]) == 1
+    assert "too short" in capsys.readouterr().err
+    assert run_cli(["users", "disable", "root"]) == 1
+    assert "last enabled admin" in capsys.readouterr().err
+    assert run_cli(["tokens", "create", "nightly", "--user", "eve", "--role", "admin"]) == 1
+    assert "cannot have the admin role" in capsys.readouterr().err
+    assert run_cli(["tokens", "create", "nightly", "--user", "eve", "--role", "viewer"]) == 0
+    secret = capsys.readouterr().out.strip()
+    assert secret.startswith("dbt_") and accounts.verify_token(secret).name == "eve"
+    monkeypatch.setattr("sys.stdin", io.StringIO("eve password 456\n"))
+    assert run_cli(["users", "passwd", "eve", "--password-stdin"]) == 0
+    assert run_cli(["users", "disable", "eve"]) == 0
+    capsys.readouterr()
+    assert run_cli(["users", "list"]) == 0
+    listing = capsys.readouterr().out
+    assert re.search(r"eve\s+engineer\s+disabled", listing) and re.search(r"root\s+admin\s+active", listing)
+    assert run_cli(["tokens", "list"]) == 0 and secret not in capsys.readouterr().out
 
 
 def test_simulate_on_an_unknown_interface_ends_with_a_message(capsys: pytest.CaptureFixture[str]) -> None:

@@ -1,4 +1,4 @@
-"""``drivebench serve | simulate | hub``."""
+"""``drivebench serve | simulate | hub | users | tokens``."""
 
 from __future__ import annotations
 
@@ -12,7 +12,8 @@ import threading
 from pathlib import Path
 
 from drivebench.config import settings
-from drivebench.errors import DriveBenchError
+from drivebench.errors import DriveBenchError, InvalidValue
+from drivebench.services.principals import Role
 
 
 def _is_loopback(host: str) -> bool:
@@ -29,11 +30,12 @@ def serve(args: argparse.Namespace) -> int:
 
     from drivebench.web.app import create_app
 
-    if not _is_loopback(args.host) and not args.allow_remote:
+    if not _is_loopback(args.host) and not _authentication_configured():
         print(
             f"Refusing to listen on {args.host}: DriveBench can move motors, and authentication is not configured.\n"
-            "Listen on 127.0.0.1 (the default) and reach it through an SSH tunnel, or, on a closed machine network\n"
-            "where everyone may operate the drives, start with --allow-remote.", file=sys.stderr)
+            "Create an admin first (then everyone signs in; the admin adds engineers and viewers on the Users page):\n"
+            "  drivebench users add admin --role admin\n"
+            "or listen on 127.0.0.1 (the default) and reach it through an SSH tunnel.", file=sys.stderr)
         return 2
     _check_buses(args.bus or [])
     plant = Path(args.plant) if args.plant else None
@@ -44,6 +46,79 @@ def serve(args: argparse.Namespace) -> int:
     # (5 ms default) to run again. 0.5 ms keeps live websocket updates on time (benchmarks/RESULTS.md, Monitor).
     sys.setswitchinterval(0.0005)
     uvicorn.run(app, host=args.host, port=args.port, log_level=args.log_level, ws_ping_interval=20)
+    return 0
+
+
+def _authentication_configured() -> bool:
+    from drivebench.services import accounts
+    from drivebench.services.database import upgrade_to_head
+
+    upgrade_to_head()
+    return accounts.authentication_configured()
+
+
+def _read_password(args: argparse.Namespace) -> str:
+    """From stdin (``--password-stdin``: the first line) or typed twice at a prompt."""
+    if args.password_stdin:
+        return sys.stdin.readline().rstrip("\r\n")
+    import getpass
+
+    first = getpass.getpass("Password: ")
+    if getpass.getpass("Password again: ") != first:
+        raise InvalidValue("The two passwords differ: nothing was changed.")
+    return first
+
+
+def users(args: argparse.Namespace) -> int:
+    from drivebench.services import accounts
+    from drivebench.services.database import upgrade_to_head
+
+    upgrade_to_head()
+    if args.action == "list":
+        for user in accounts.list_users():
+            print(f"{user.name:<24} {user.role.label:<9} {'disabled' if user.disabled else 'active':<9} "
+                  f"created {user.created:%Y-%m-%d %H:%M}")
+        if not accounts.authentication_configured():
+            print("No enabled admin: signing in is off (the server trusts its local user).")
+        return 0
+    if args.action == "add":
+        user = accounts.create_user(args.name, _read_password(args), _role(args.role))
+        print(f"Added {user.name} ({user.role.label}).")
+        if user.role is Role.ADMIN:
+            print("Signing in is on: everyone who opens DriveBench signs in now.")
+    elif args.action == "passwd":
+        accounts.set_password(args.name, _read_password(args))
+        print(f"New password set for {args.name}; their open sessions end.")
+    elif args.action in ("disable", "enable"):
+        accounts.set_disabled(args.name, args.action == "disable")
+        print(f"{args.action.capitalize()}d {args.name}.")
+    return 0
+
+
+def _role(text: str) -> Role:
+    try:
+        return Role.parse(text)
+    except ValueError as exc:
+        raise InvalidValue(str(exc)) from None
+
+
+def tokens(args: argparse.Namespace) -> int:
+    from drivebench.services import accounts
+    from drivebench.services.database import upgrade_to_head
+
+    upgrade_to_head()
+    if args.action == "create":
+        issued = accounts.issue_token(args.user, args.name, _role(args.role))
+        print(f"Token '{issued.token.name}' of {issued.token.owner} ({issued.token.role.label}); shown this once:",
+              file=sys.stderr)
+        print(issued.secret)
+    elif args.action == "list":
+        for token in accounts.list_tokens(args.user):
+            print(f"{token.id:>4} {token.name:<24} {token.owner:<16} {token.role.label:<9} {token.hint}… "
+                  + ("revoked" if token.revoked else f"last used {token.last_used or 'never'}"))
+    elif args.action == "revoke":
+        token = accounts.revoke_token(args.id)
+        print(f"Revoked token {token.id} '{token.name}' of {token.owner}.")
     return 0
 
 
@@ -112,15 +187,14 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
 
     p_serve = sub.add_parser("serve", help="run the web server")
-    p_serve.add_argument("--host", default=settings.host)
+    p_serve.add_argument("--host", default=settings.host,
+                         help="listen address (default 127.0.0.1; any other needs an admin user: `users add`)")
     p_serve.add_argument("--port", type=int, default=settings.port)
     p_serve.add_argument("--bus", action="append", metavar="SPEC",
                          help="open a session at start-up: socketcan:can0@500000, socketcand:HOST:PORT/can0 ...")
     p_serve.add_argument("--demo", action="store_true", help="start the built-in simulated plant")
     p_serve.add_argument("--plant", help="start a simulated plant from this plant file")
     p_serve.add_argument("--latency", help="SDO processing time of simulated drives, e.g. 30ms±20ms")
-    p_serve.add_argument("--allow-remote", action="store_true",
-                         help="allow listening on a non-loopback address without authentication")
     p_serve.add_argument("--log-level", default="warning")
     p_serve.set_defaults(func=serve)
 
@@ -140,6 +214,33 @@ def build_parser() -> argparse.ArgumentParser:
     p_hub.add_argument("--allow-remote", action="store_true",
                        help="allow listening on a non-loopback address (no authentication)")
     p_hub.set_defaults(func=hub)
+
+    p_users = sub.add_parser("users", help="users who sign in (the first admin switches signing in on)")
+    users_sub = p_users.add_subparsers(dest="action", required=True)
+    p_add = users_sub.add_parser("add", help="add a user")
+    p_add.add_argument("name")
+    p_add.add_argument("--role", required=True, choices=["admin", "engineer", "viewer"])
+    p_add.add_argument("--password-stdin", action="store_true", help="read the password from stdin's first line")
+    users_sub.add_parser("list", help="list the users")
+    for action, text in [("disable", "disable a user (cannot sign in, tokens stop working)"),
+                         ("enable", "enable a disabled user")]:
+        users_sub.add_parser(action, help=text).add_argument("name")
+    p_passwd = users_sub.add_parser("passwd", help="set a new password")
+    p_passwd.add_argument("name")
+    p_passwd.add_argument("--password-stdin", action="store_true", help="read the password from stdin's first line")
+    p_users.set_defaults(func=users)
+
+    p_tokens = sub.add_parser("tokens", help="API tokens for scripts (Authorization: Bearer dbt_...)")
+    tokens_sub = p_tokens.add_subparsers(dest="action", required=True)
+    p_create = tokens_sub.add_parser("create", help="create a token and print it (once)")
+    p_create.add_argument("name", help="what the token is for")
+    p_create.add_argument("--user", required=True, help="the user the token acts for")
+    p_create.add_argument("--role", required=True, choices=["admin", "engineer", "viewer"],
+                          help="no higher than the user's role")
+    p_list = tokens_sub.add_parser("list", help="list tokens (never the tokens themselves)")
+    p_list.add_argument("--user")
+    tokens_sub.add_parser("revoke", help="revoke a token").add_argument("id", type=int)
+    p_tokens.set_defaults(func=tokens)
     return parser
 
 
