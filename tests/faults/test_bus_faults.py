@@ -20,6 +20,7 @@ from drivebench.services.sessions import Session
 from drivebench.simulator.plant import Plant, PlantFile, PlantNode
 from drivebench.transport.bus import SimulatedAdapter
 from drivebench.transport.hub import start_hub_thread
+from drivebench.transport.hub_bridge import BusBridge
 from drivebench.web.app import create_app
 from tests.conftest import DEMO_PLANT, fresh_channel
 
@@ -172,3 +173,82 @@ def test_socketcand_hub_cut_mid_read_all_is_adapter_lost_until_the_hub_is_back()
 def _started(thread: threading.Thread) -> threading.Thread:
     thread.start()
     return thread
+
+
+# --- bus-off / error passive reported by the interface -----------------------------------------------------------
+def test_error_passive_then_bus_off_fail_fast_in_words_and_recover(client: TestClient, wire: can.BusABC) -> None:
+    session = demo_session(client)
+    adapter = adapter_of(session)
+    events: list[tuple[str, dict[str, object]]] = []
+    session.on_event(lambda kind, data: events.append((kind, data)))
+    def monitor() -> dict[str, Any]:
+        return client.get("/api/sessions/demo-plant/monitor?trace=0").json()  # type: ignore[no-any-return]
+
+    assert client.get("/api/sessions/demo-plant/nodes/5/parameters/0x1000").status_code == 200
+
+    adapter.report(can.BusState.PASSIVE)
+    state = client.get("/api/sessions/demo-plant").json()
+    assert state["state"] == "passive"
+    assert state["state_text"].startswith("error passive: the controller sees many bus errors")
+    assert monitor()["bus"]["state"] == "passive" and "error passive" in monitor()["bus_text"]
+    assert "error passive" in client.get("/").text
+    assert client.get("/api/sessions/demo-plant/nodes/5/parameters/0x1000").status_code == 200  # still on the bus
+
+    adapter.report(can.BusState.ERROR)  # bus-off
+    requests_before = _count(wire, 0x605)
+    refused = client.get("/api/sessions/demo-plant/nodes/5/parameters/0x1000")
+    assert refused.status_code == 503
+    assert "bus-off: the CAN controller has left the bus" in refused.json()["detail"]
+    started = client.post("/api/sessions/demo-plant/read-all", json={})
+    job = wait_for(lambda: job_finished(client, started.json()["id"]), what="the read-all to end")
+    assert job["state"] == "failed" and "bus-off" in job["error"] and "0 of " in job["error"]
+    assert job["progress"]["failed"] == 0, "no request may time out one by one"
+    assert _count(wire, 0x605) == requests_before, "nothing is sent while bus-off"
+    state = client.get("/api/sessions/demo-plant").json()
+    assert state["state"] == "bus-off" and state["state_text"].startswith("bus-off: the CAN controller left the bus")
+    assert {n["nmt_state"] for n in client.get("/api/sessions/demo-plant/nodes").json()} == {"No contact (bus-off)"}
+    assert monitor()["bus"]["state"] == "bus-off"
+    page = client.get("/").text
+    assert "bus-off: the CAN controller left the bus" in page and "No contact (bus-off)" in page
+
+    adapter.report(can.BusState.ACTIVE)  # the controller recovered (128 x 11 recessive bits)
+    state = client.get("/api/sessions/demo-plant").json()
+    assert state["state"] == "active" and state["state_text"].startswith("recovered from bus-off at ")
+    assert client.get("/api/sessions/demo-plant/nodes/5/parameters/0x1000").status_code == 200
+    assert [data["to"] for kind, data in events if kind == "bus_state"] == ["passive", "bus-off", "active"]
+
+
+def _count(wire: can.BusABC, cob_id: int) -> int:
+    """Frames with ``cob_id`` the wire has received so far (drains its queue into a running tally)."""
+    tally = _tallies.setdefault(id(wire), {})
+    while (msg := wire.recv(0)) is not None:
+        tally[msg.arbitration_id] = tally.get(msg.arbitration_id, 0) + 1
+    return tally.get(cob_id, 0)
+
+
+_tallies: dict[int, dict[int, int]] = {}
+
+
+def test_bus_off_error_frames_through_the_socketcand_hub(channel: str) -> None:
+    """socketcand forwards a controller's error frames (class bits only): bus-off, then restarted."""
+    bridge = BusBridge(f"virtual:{channel}@500000")
+    hub = start_hub_thread(bridges=[bridge])
+    controller = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
+    app = create_app(plant_file=DEMO_PLANT, plant_bus=f"socketcand:127.0.0.1:{hub.port}/can0", latency="0ms")
+    try:
+        with TestClient(app) as client:
+            wait_for(lambda: client.get("/api/sessions/demo-plant/nodes/5/parameters/0x1000").status_code == 200,
+                     what="the plant to answer through the hub")
+            controller.send(can.Message(arbitration_id=0x040, is_error_frame=True, data=bytes(8)))  # CAN_ERR_BUSOFF
+            state = wait_for(lambda: (s := client.get("/api/sessions/demo-plant").json())["state"] == "bus-off"
+                             and s, what="bus-off from the error frame")
+            assert state["state_text"].startswith("bus-off: ")
+            refused = client.get("/api/sessions/demo-plant/nodes/5/parameters/0x1000")
+            assert refused.status_code == 503 and "bus-off" in refused.json()["detail"]
+            controller.send(can.Message(arbitration_id=0x100, is_error_frame=True, data=bytes(8)))  # RESTARTED
+            wait_for(lambda: client.get("/api/sessions/demo-plant").json()["state"] == "active",
+                     what="error active after the restart")
+            assert client.get("/api/sessions/demo-plant/nodes/5/parameters/0x1000").status_code == 200
+    finally:
+        controller.shutdown()
+        hub.stop()

@@ -192,7 +192,7 @@ class BusHealth(can.Listener):
         with self._lock:
             data = self.errors.as_dict(self.adapter_state(), time.monotonic() if now is None else now)
         link = self.bus.link
-        data.update(state=self.state(), text=self.text(),
+        data.update(state=self.state(), adapter_state=self.adapter_state(), text=self.text(),
                     link={"lost": link.lost, "reason": link.lost_reason, "since": link.lost_at,
                           "attempts": link.attempts, "reconnects": link.reconnects})
         return data

@@ -35,7 +35,6 @@ from drivebench.protocol.decode import (
     classify,
     decode_frame,
 )
-from drivebench.services.bus_state import BusErrorState
 from drivebench.services.sessions import Session
 from drivebench.transport.busload import message_bits
 
@@ -139,7 +138,6 @@ class Monitor(can.Listener):
         self.history_s = history_s
         self.defaults = MonitorView()
         self.resets = 0
-        self._bus_errors = BusErrorState()
         self._lock = threading.Lock()
         self._wall_offset = time.time() - time.monotonic()
         self._trace: deque[tuple[int, can.Message, SdoContext | None]] = deque(maxlen=trace_capacity)
@@ -165,7 +163,6 @@ class Monitor(can.Listener):
             with self._lock:
                 self._errors += 1
                 self._last_error = now
-                self._bus_errors.observe(msg, now)
                 self._seq += 1
                 self._trace.append((self._seq, msg, None))
             return
@@ -204,7 +201,6 @@ class Monitor(can.Listener):
         self._peak: tuple[float, float] = (0.0, 0.0)
         self._samples = deque()
         self._started = now
-        self._bus_errors = BusErrorState()
 
     def _roll(self, second: int) -> None:
         """Close the current one-second bucket (and any silent seconds since) into the history."""
@@ -280,7 +276,6 @@ class Monitor(can.Listener):
             peak, started = self._peak, self._started
             current = _Sample(now, {key: value[0] for key, value in cobs.items()}, errors)
             reference = self._rate_reference(current)
-            bus = self._bus_errors.as_dict(self._adapter_state(), now)
         elapsed = max(now - reference.at, 1e-3)
         total_bits = sum(entry[1] for entry in cobs.values())
         services: dict[Service, list[float]] = {service: [0, 0.0, 0] for service in SERVICE_ORDER}
@@ -308,6 +303,7 @@ class Monitor(can.Listener):
                              "last_age_s": round(now - last_seen, 2)})
         names = self._node_names()
         load_now = 100.0 * last_second[1] / self.bitrate if last_second else 0.0
+        bus, bus_text = self._bus()
         return {
             "session": self.session_id,
             "time": now + self._wall_offset,
@@ -315,6 +311,7 @@ class Monitor(can.Listener):
             "paused": False,
             "bitrate": self.bitrate,
             "bus": bus,
+            "bus_text": bus_text,
             "totals": {"frames": frames, "bits": total_bits, "rate": round(total_rate, 2), "errors": errors,
                        "error_rate": round((errors - reference.errors) / elapsed, 2),
                        "last_error_age_s": round(now - last_error, 2) if last_error is not None else None},
@@ -331,12 +328,16 @@ class Monitor(can.Listener):
             "filter": MonitorFilter().as_dict(),
         }
 
-    def _adapter_state(self) -> str:
+    def _bus(self) -> tuple[dict[str, Any], str | None]:
+        """The session's bus state (controller and adapter link, see :class:`BusHealth`) and its sentence."""
         session = self._session()
-        try:
-            return session.network.bus_state if session is not None else "active"
-        except Exception:  # a closed or unplugged adapter: its state is unknown, the error frames still count
-            return "active"
+        if session is None:
+            return {"state": "active", "adapter_state": "active", "tx_errors": None, "rx_errors": None,
+                    "reported_age_s": None}, None
+        health = session.health
+        data = health.as_dict()
+        return {key: data[key] for key in ("state", "adapter_state", "tx_errors", "rx_errors",
+                                           "reported_age_s")}, data["text"]
 
     def _rate_reference(self, current: _Sample) -> _Sample:
         """The newest sample at least RATE_WINDOW_S old (else the oldest, else the reset); keeps the window."""
