@@ -7,7 +7,7 @@ from __future__ import annotations
 import contextlib
 import re
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import Any
 
 import pytest
@@ -44,6 +44,16 @@ def _target(page: Any, base: str, rpm: int) -> None:
         time.sleep(0.05)
 
 
+def _shown(page: Any, ref: str, done: Callable[[str], bool]) -> str:
+    """Poll the live value of ``ref`` on the Control tab until ``done(text)``."""
+    deadline = time.monotonic() + TIMEOUT_MS / 1000
+    value = page.locator(f'.ctl-value[data-ref="{ref}"]')
+    while not done(text := (value.text_content() if value.count() else "") or ""):
+        assert time.monotonic() < deadline, f"{ref} shows {text!r}"
+        time.sleep(0.05)
+    return text
+
+
 def test_first_run_to_operation_enabled_and_back(server: tuple[str, Plant], page: Any) -> None:
     base, plant = server
     plant.nodes[3].store.set_ref("P1120", 1.0)  # test-only: 1 s ramp instead of 10 s
@@ -78,6 +88,7 @@ def test_first_run_to_operation_enabled_and_back(server: tuple[str, Plant], page
     page.wait_for_function("document.querySelector('.ctl-value[data-ref=\"0x6044\"]')?.textContent.startsWith('300')",
                            timeout=TIMEOUT_MS)
     assert page.locator("#ctl-cw").inner_text() == "0x007F"
+    _shown(page, "r0027", lambda text: text.endswith(" A") and float(text.split()[0]) > 0)  # running: current flows
     assert "Operation enabled" in page.locator("#ctl-sw-bits tr.on").all_inner_texts()[2]
     screenshot(page, "control-operation-enabled")
     jog = page.locator("button[data-jog='1']")
@@ -96,6 +107,7 @@ def test_first_run_to_operation_enabled_and_back(server: tuple[str, Plant], page
     _current(page, "ready")
     page.wait_for_function("document.querySelector('#ctl-armed').textContent === 'not armed'", timeout=TIMEOUT_MS)
     screenshot(page, "control-back-to-ready")
+    _shown(page, "r0027", lambda text: text == "0 A")  # pulses inhibited: no current
 
 
 def test_guided_commissioning_8200_vector(server: tuple[str, Plant], page: Any) -> None:
@@ -183,3 +195,28 @@ def test_node_without_profile_shows_an_empty_state(server: tuple[str, Plant], pa
     assert "has no device profile: assign one on the Plant page" in empty.inner_text()
     assert page.locator("#control-tab .error").count() == 0  # not an error: nothing went wrong
     screenshot(page, "control-no-profile")
+
+
+@pytest.mark.parametrize(("node_id", "current", "dc_bus", "source"), [
+    (3, "r0027", "r0026", "MICROMASTER 440 parameter list (not among the seed manuals)"),
+    (5, "C00054", "C00053", "ASSUMED"),
+    (12, "C0054", "C0053", "8200 vector code table")])
+def test_every_demo_node_plots_current_and_dc_bus(server: tuple[str, Plant], page: Any, node_id: int, current: str,
+                                                  dc_bus: str, source: str) -> None:
+    base, _ = server
+    page.goto(f"{base}/sessions/demo-plant/nodes/{node_id}?tab=control")
+    page.wait_for_selector("#ctl-ws.good", timeout=TIMEOUT_MS)
+    assert _shown(page, current, lambda text: text.endswith(" A")) == "0 A"  # at rest
+    volts = float(_shown(page, dc_bus, lambda text: text.endswith(" V")).split()[0])
+    assert 540 <= volts <= 566
+    for ref in (current, dc_bus):  # a chart with its unit on the axis, not just a number
+        plot = page.locator(".ctl-plot", has=page.locator(f'.ctl-value[data-ref="{ref}"]'))
+        expect_canvas = plot.locator("canvas")
+        assert expect_canvas.count() == 1 and expect_canvas.bounding_box()["width"] > 200
+    sources = page.locator("#ctl-sources").inner_text()
+    assert f"{current} = 0x" in sources and f"{dc_bus} = 0x" in sources and source in sources
+    if node_id == 3:
+        assert page.locator("#ctl-missing").count() == 0  # the MICROMASTER has all five
+    else:
+        assert "Not available: Torque" in page.locator("#ctl-missing").inner_text()
+    screenshot(page, f"control-actuals-node{node_id}")

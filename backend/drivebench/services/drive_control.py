@@ -162,7 +162,7 @@ def actual_source(node: SessionNode, ref: str, scale: Scale | None = None) -> st
         coding += f", value = raw / {item.entry.factor:g}"
     text = item.entry.description or ""
     if text.startswith("Source: "):
-        manual = text[len("Source: "):].split(". ")[0].split(";")[0].rstrip(".")
+        manual = text[len("Source: "):].split(". ")[0].rstrip(".")
     else:
         manual = catalog.profile.source.split(", ")[0] if catalog.profile.source else "this device's profile"
     return f"{ref} = 0x{item.index:04X}.{item.subindex} ({coding}); {manual}"
