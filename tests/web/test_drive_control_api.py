@@ -10,6 +10,8 @@ import pytest
 from fastapi.testclient import TestClient
 from starlette.websockets import WebSocketDisconnect
 
+from drivebench.services.audit import LOCAL_USER
+
 BASE = "/api/sessions/demo-plant/nodes/{node}/control"
 MM, VECTOR = 3, 12
 
@@ -30,6 +32,8 @@ def _can_control(client: TestClient) -> None:
     for ref in ("P0700", "P1000"):
         response = client.put(f"/api/sessions/demo-plant/nodes/{MM}/parameters/{ref}", json={"value": "6"})
         assert response.status_code == 200, response.text
+    # this client's writes took the node's write lease: release it for the panels the tests open
+    assert client.delete(f"/api/sessions/demo-plant/nodes/{MM}/lease").json()["holder"] is None
 
 
 def test_status_names_every_bit_as_the_manual(client: TestClient) -> None:
@@ -51,15 +55,17 @@ def test_first_run_needs_confirmation_and_goes_back(client: TestClient) -> None:
     assert client.post(_url(MM, "/commands/shutdown")).json()["state"] == "ready"
     assert client.post(_url(MM, "/commands/switch_on")).json()["state"] == "switched_on"
     refused = client.post(_url(MM, "/commands/enable_operation"))
-    assert refused.status_code == 409 and refused.headers["content-type"] == "application/problem+json"
-    assert "confirm" in refused.json()["detail"]
-    enabled = client.post(_url(MM, "/commands/enable_operation"), json={"confirm": True}).json()
+    assert refused.status_code == 428 and refused.headers["content-type"] == "application/problem+json"
+    assert "confirm" in refused.json()["detail"] and "node 3" in refused.json()["detail"]
+    bare = client.post(_url(MM, "/commands/enable_operation"), json={"confirm": True})
+    assert bare.status_code == 428, "a bare true does not name the node"
+    enabled = client.post(_url(MM, "/commands/enable_operation"), json={"confirm": MM}).json()
     assert enabled["state"] == "operation_enabled" and enabled["armed"]
     kept = client.post(_url(MM, "/keepalive")).json()  # the 2 s keep-alive deadline restarts
-    assert kept["armed"] and kept["holder"].startswith("an API client at testclient since ")
-    assert client.put(_url(MM, "/setpoint"), json={"value": 200}).status_code == 409
-    assert client.put(_url(MM, "/setpoint"), json={"value": 9000, "confirm": True}).status_code == 422
-    assert client.put(_url(MM, "/setpoint"), json={"value": 200, "confirm": True}).json()["control_word"] == 0x7F
+    assert kept["armed"] and kept["holder"].startswith(f"{LOCAL_USER} at testclient since ")  # the principal
+    assert client.put(_url(MM, "/setpoint"), json={"value": 200}).status_code == 428
+    assert client.put(_url(MM, "/setpoint"), json={"value": 9000, "confirm": MM}).status_code == 422
+    assert client.put(_url(MM, "/setpoint"), json={"value": 200, "confirm": MM}).json()["control_word"] == 0x7F
     assert client.post(_url(MM, "/keepalive")).json()["armed"]
     back = client.post(_url(MM, "/commands/shutdown")).json()
     assert back["state"] == "ready" and not back["armed"] and back["holder"] is None
@@ -72,7 +78,7 @@ def test_disconnect_sends_quick_stop(client: TestClient) -> None:
     _until(client, MM, "switch_on_disabled")
     client.post(_url(MM, "/commands/shutdown"))
     with client.websocket_connect(f"/ws/sessions/demo-plant/nodes/{MM}/control") as socket:
-        client.post(_url(MM, "/commands/enable_operation"), json={"confirm": True})
+        client.post(_url(MM, "/commands/enable_operation"), json={"confirm": MM})
         message = socket.receive_json()
         while message["status"]["state"] != "operation_enabled":
             socket.send_json({"cmd": "keepalive"})
@@ -99,7 +105,8 @@ def test_commissioning_run_over_the_api(client: TestClient) -> None:
     run = client.post(_url(VECTOR, "/sequences/emf-8200/runs")).json()
     while not run["finished"]:
         step = run["steps"][run["position"]]
-        response = client.post(_url(VECTOR, f"/runs/{run['id']}/next"), json={"confirm": step["moves"]})
+        confirm = VECTOR if step["moves"] else None
+        response = client.post(_url(VECTOR, f"/runs/{run['id']}/next"), json={"confirm": confirm})
         assert response.status_code == 200, response.text
         run = response.json()
         client.post(_url(VECTOR, "/keepalive"))
@@ -113,13 +120,13 @@ def test_commissioning_run_over_the_api(client: TestClient) -> None:
 def test_jog_runs_only_when_enabled_and_stops_with_zero(client: TestClient) -> None:
     _can_control(client)
     _until(client, MM, "switch_on_disabled")
-    refused = client.post(_url(MM, "/jog"), json={"direction": 1, "confirm": True})
+    refused = client.post(_url(MM, "/jog"), json={"direction": 1, "confirm": MM})
     assert refused.status_code == 409 and "operation enabled" in refused.json()["detail"]
     client.post(_url(MM, "/commands/shutdown"))
-    client.post(_url(MM, "/commands/enable_operation"), json={"confirm": True})
+    client.post(_url(MM, "/commands/enable_operation"), json={"confirm": MM})
     client.post(_url(MM, "/keepalive"))
-    assert client.post(_url(MM, "/jog"), json={"direction": 1}).status_code == 409  # not confirmed
-    assert client.post(_url(MM, "/jog"), json={"direction": -1, "confirm": True}).status_code == 200
+    assert client.post(_url(MM, "/jog"), json={"direction": 1}).status_code == 428  # not confirmed
+    assert client.post(_url(MM, "/jog"), json={"direction": -1, "confirm": MM}).status_code == 200
     target = client.get(f"/api/sessions/demo-plant/nodes/{MM}/parameters/0x6042").json()
     assert target["value"] == -150  # 10 % of 0x6046.2 = 1500 rpm
     client.post(_url(MM, "/jog"), json={"direction": 0})
@@ -149,7 +156,7 @@ def test_two_panels_the_holder_moves_the_watcher_watches(client: TestClient) -> 
     client.post(_url(MM, "/commands/shutdown"), headers=anna)
     with client.websocket_connect(_ws("a1b2c3", "Anna")) as anna_socket:
         with client.websocket_connect(_ws("d4e5f6", "Ben")) as ben_socket:
-            enabled = client.post(_url(MM, "/commands/enable_operation"), json={"confirm": True}, headers=anna)
+            enabled = client.post(_url(MM, "/commands/enable_operation"), json={"confirm": MM}, headers=anna)
             assert enabled.json()["you_hold"]
             status = _next_status(ben_socket)
             while not status["armed"]:
@@ -157,7 +164,7 @@ def test_two_panels_the_holder_moves_the_watcher_watches(client: TestClient) -> 
                 status = _next_status(ben_socket)
             assert not status["you_hold"] and status["holder"].startswith("Anna at testclient since ")
             assert status["panels"] == 2
-            refused = client.put(_url(MM, "/setpoint"), json={"value": 100, "confirm": True}, headers=ben)
+            refused = client.put(_url(MM, "/setpoint"), json={"value": 100, "confirm": MM}, headers=ben)
             assert refused.status_code == 409 and "held by Anna at testclient" in refused.json()["detail"]
             assert client.post(_url(MM, "/keepalive"), headers=ben).json()["armed"] is False
             assert client.get(_url(MM), headers=ben).json()["holder"].startswith("Anna")
@@ -179,8 +186,8 @@ def test_8200_vector_jog_plan_and_device_jog(client: TestClient) -> None:
     assert plan["method"] == "device" and plan["value"] == 20 and plan["unit"] == "Hz"
     client.put(f"/api/sessions/demo-plant/nodes/{VECTOR}/parameters/C0001", json={"value": "3"})
     client.post(_url(VECTOR, "/commands/shutdown"))
-    client.post(_url(VECTOR, "/commands/enable_operation"), json={"confirm": True})
-    jogging = client.post(_url(VECTOR, "/jog"), json={"direction": -1, "confirm": True}).json()
+    client.post(_url(VECTOR, "/commands/enable_operation"), json={"confirm": VECTOR})
+    jogging = client.post(_url(VECTOR, "/jog"), json={"direction": -1, "confirm": VECTOR}).json()
     assert jogging["control_word"] & 0x07 == 0x05 and jogging["control_bits"][0]["set"]  # JOG1, CCW
     stopped = client.post(_url(VECTOR, "/jog"), json={"direction": 0}).json()
     assert stopped["control_word"] & 0x07 == 0
@@ -191,9 +198,9 @@ def test_a_remote_diagnostics_link_cannot_drive(client: TestClient) -> None:
     """Access-control interlock: a share link holder watches the remote view only - no commands, no panel socket."""
     token = client.post("/api/share-links", json={"ttl_minutes": 5}).json()["token"]
     viewer = {"Authorization": f"Bearer {token}"}
-    refused = client.post(_url(MM, "/commands/enable_operation"), json={"confirm": True}, headers=viewer)
+    refused = client.post(_url(MM, "/commands/enable_operation"), json={"confirm": MM}, headers=viewer)
     assert refused.status_code == 403 and refused.headers["content-type"] == "application/problem+json"
-    assert client.post(_url(MM, "/jog"), json={"direction": 1, "confirm": True}, headers=viewer).status_code == 403
+    assert client.post(_url(MM, "/jog"), json={"direction": 1, "confirm": MM}, headers=viewer).status_code == 403
     socket_url = f"/ws/sessions/demo-plant/nodes/{MM}/control"
     with pytest.raises(WebSocketDisconnect) as closed, client.websocket_connect(socket_url, headers=viewer) as socket:
         socket.receive_json()

@@ -14,6 +14,8 @@ import pytest
 from drivebench.web.app import create_app
 from tests.conftest import fresh_channel, screenshot, serve_app
 
+NO_BROWSER = {"keepalive": False, "reason": "test without a browser"}  # NMT start without the keep-alive guard (admin)
+
 expect = pytest.importorskip("playwright.sync_api").expect
 
 WAIT_MS = 15_000
@@ -203,7 +205,7 @@ def test_header_nmt_badge_follows_nmt_commands(server: tuple[str, Any], page: An
     expect(badge).to_have_text("Pre-operational", timeout=WAIT_MS)
     nmt = url + "/api/sessions/browser-plant/nodes/12/nmt"
     try:
-        assert page.request.post(nmt, data={"command": "start"}).ok
+        assert page.request.post(nmt, data={"command": "start", "confirm": 12, **NO_BROWSER}).ok
         expect(badge).to_have_text("Operational", timeout=WAIT_MS)  # no reload: the badge polls its fragment
         expect(badge).to_have_class("nmt nmt-operational")
         screenshot(page, "parameters-nmt-badge-operational")

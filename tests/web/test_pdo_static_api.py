@@ -12,6 +12,9 @@ from fastapi.testclient import TestClient
 
 from drivebench.simulator.plant import Plant
 
+NO_BROWSER = {"keepalive": False, "reason": "test without a browser"}  # NMT start without the keep-alive guard (admin)
+SEND = {"confirm": "5", "keepalive": "false", "reason": "test without a browser"}  # RPDO form fields, as above
+
 API = "/api/sessions/demo-plant/nodes/5"
 UI = "/ui/sessions/demo-plant/nodes/5"
 STATIC = {("rpdo", 1): ["C00866/1", "C00866/2", "C00866/3", "C00866/4"],
@@ -59,9 +62,10 @@ def test_the_drive_exchanges_the_port_words(client: TestClient) -> None:
         hello = ws.receive_json()
         tpdo1 = next(p for p in hello["pdos"] if (p["direction"], p["number"]) == ("tpdo", 1))
         assert [s["ref"] for s in tpdo1["signals"]] == STATIC[("tpdo", 1)]
-        client.post(f"{API}/nmt", json={"command": "start"})  # event-driven TPDOs go out once on the start
+        # event-driven TPDOs go out once on the start
+        client.post(f"{API}/nmt", json={"command": "start", "confirm": 5, **NO_BROWSER})
         assert _wait(lambda: sim.state.name == "OPERATIONAL")
-        sent = client.post(f"{UI}/pdo/rpdo/1/send", data={"mode": "once", "v:C00866/2": "4660"})
+        sent = client.post(f"{UI}/pdo/rpdo/1/send", data={**SEND, "mode": "once", "v:C00866/2": "4660"})
         assert sent.status_code == 200 and "00 00 34 12 00 00 00 00" in sent.text, sent.text
         assert _wait(lambda: sim.store.get_ref("C00866/2") == 0x1234)
         deadline = time.monotonic() + 10

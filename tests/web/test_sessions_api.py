@@ -10,6 +10,8 @@ from fastapi.testclient import TestClient
 
 from tests.conftest import fresh_channel
 
+NO_BROWSER = {"keepalive": False, "reason": "test without a browser"}  # NMT start without the keep-alive guard (admin)
+
 DEMO = "demo-plant"
 DEMO_DEVICES = {3: "Pump (MICROMASTER 440)", 5: "Conveyor (8400 motec)", 12: "Fan (8200 vector + EMF2178IB)"}
 PROBLEM = "application/problem+json"
@@ -162,7 +164,8 @@ def test_nodes_list_device_names_and_heartbeat_states(client: TestClient) -> Non
 
 def test_nmt_broadcast_and_per_node(client: TestClient) -> None:
     wait_for(lambda: set(node_states(client).values()) == {"Pre-operational"})
-    answer = client.post(f"/api/sessions/{DEMO}/nmt", json={"command": "start"})
+    assert client.post(f"/api/sessions/{DEMO}/nmt", json={"command": "start"}).status_code == 428
+    answer = client.post(f"/api/sessions/{DEMO}/nmt", json={"command": "start", "confirm": "all", **NO_BROWSER})
     assert answer.status_code == 200 and len(answer.json()) == 3
     wait_for(lambda: set(node_states(client).values()) == {"Operational"})
     single = client.post(f"/api/sessions/{DEMO}/nodes/12/nmt", json={"command": "stop"})
@@ -201,7 +204,7 @@ def test_node_websocket_pushes_the_nodes_table_as_it_changes(client: TestClient)
         for device in ("Pump (MICROMASTER 440)", "Conveyor (8400 motec)", "Fan (8200 vector + EMF2178IB)"):
             assert device in first
         assert first.count("Pre-operational") >= 3
-        client.post(f"/api/sessions/{DEMO}/nmt", json={"command": "start"})
+        client.post(f"/api/sessions/{DEMO}/nmt", json={"command": "start", "confirm": "all", **NO_BROWSER})
         for _ in range(20):
             update = socket.receive_text()
             if update.count(">Operational<") == 3:

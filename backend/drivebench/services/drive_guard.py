@@ -1,26 +1,54 @@
-"""Safety guard of the drive control panels: arming, the panel that holds a drive, keep-alive deadlines, quick stop.
+"""Safety guard of everything that can move a drive: confirmation, arming, the panel that holds a node, keep-alive
+deadlines, the safe stop.
 
-Once a command after which the motor may turn was sent, the node is *armed*: the panel that armed it *holds* it until
-it is disarmed, and must send keep-alives at least every :data:`KEEPALIVE_TIMEOUT_S`. When they stop, or the holder's
-last websocket closes, the guard sends quick stop itself, through its own control-word I/O (below), so that stopping
-never depends on the panel logic in :mod:`drivebench.services.drive_control`.
+Anything after which a motor may turn (a control word, an RPDO, NMT start) needs an explicit confirmation that names
+the node (:func:`require_confirmation`). Once it was sent, the node is *armed*: the panel (browser tab or API client)
+that armed it *holds* it until it is disarmed, and must send keep-alives at least every :data:`KEEPALIVE_TIMEOUT_S`
+(an API client may ask for up to :data:`MAX_KEEPALIVE_S`). When they stop, or the holder's last websocket closes, the
+guard stops the node itself (:meth:`Guard.trip`): cyclic RPDOs to it end, quick stop is written to its control word
+(through the guard's own control-word I/O below, so stopping never depends on the panel logic in
+:mod:`drivebench.services.drive_control`) and, if the tool started it, NMT pre-operational is sent.
+
+A node armed by NMT start or an RPDO stays armed (the status word does not disarm it) until an NMT command that
+leaves Operational is sent through the tool, or the guard trips.
 """
 
 from __future__ import annotations
 
 import asyncio
+import contextlib
+import logging
 import time
 import weakref
 from dataclasses import dataclass
 from urllib.parse import unquote
 
-from drivebench.errors import Conflict, DriveBenchError, InvalidValue
-from drivebench.services import parameters
+from drivebench.errors import ConfirmationRequired, Conflict, DriveBenchError, InvalidValue
+from drivebench.protocol.nmt import NmtCommand
+from drivebench.services import node_lease, parameters
+from drivebench.services import process_data as live
 from drivebench.services.drive_words import Command, family_of, next_control_word
 from drivebench.services.sessions import Session, SessionNode
 
 KEEPALIVE_TIMEOUT_S = 2.0
+MAX_KEEPALIVE_S = 10.0
 WATCH_PERIOD_S = 0.2
+log = logging.getLogger(__name__)
+
+
+def require_confirmation(given: object, node_id: int | None, what: str) -> None:
+    """``given`` (a body field, query parameter or ``X-DriveBench-Confirm`` header) must name the node the action
+    moves: its id, or ``all`` for a broadcast (``node_id`` None). ``true`` is not enough: a script that confirms
+    everything blindly would confirm the wrong node too."""
+    wanted = "all" if node_id is None else str(node_id)
+    text = str(given).strip().lower() if given is not None and given is not False else ""
+    if text == wanted:
+        return
+    whom = "every node of the session" if node_id is None else f"node {node_id}"
+    said = f" (it said {str(given)[:20]!r})" if text else ""
+    raise ConfirmationRequired(
+        f"{what} lets {whom} move a drive: confirm it with confirm = {wanted!r} (or the header "
+        f"X-DriveBench-Confirm: {wanted}){said}.")
 
 
 @dataclass(frozen=True)
@@ -66,10 +94,11 @@ async def write_word(session: Session, node_id: int, ref: str, word: int) -> Non
 
 async def send_quick_stop(session: Session, node: SessionNode) -> None:
     fam = family_of(node.catalog)
-    if fam is None:  # not reached: only nodes with a known control word are ever armed
+    if fam is None:  # the trip skips such nodes (NMT pre-operational is their safe command)
         raise InvalidValue(f"{node.device_name} has no device control word DriveBench knows.")
-    last = await last_word(session, node.node_id, fam.control_ref)
-    await write_word(session, node.node_id, fam.control_ref, next_control_word(fam, Command.QUICK_STOP, last))
+    with node_lease.stopping():  # any station may stop a machine: no lease refuses it
+        last = await last_word(session, node.node_id, fam.control_ref)
+        await write_word(session, node.node_id, fam.control_ref, next_control_word(fam, Command.QUICK_STOP, last))
 
 
 # --- the guard -----------------------------------------------------------------------------------------------
@@ -93,6 +122,13 @@ class Guard:
         self.armed_at: dict[int, float] = {}
         self.trips: dict[int, str] = {}
         self.sockets: dict[tuple[int, str], int] = {}
+        self.clients: dict[str, int] = {}
+        """Open keep-alive sockets of each panel (a page's session-wide keep-alive, not a control panel)."""
+        self.timeouts: dict[int, float] = {}
+        self.pinned: set[int] = set()
+        """Armed by NMT start or an RPDO: the status word does not disarm these."""
+        self.started: set[int] = set()
+        """Started by the tool (NMT start): the trip sends them NMT pre-operational."""
         self._task: asyncio.Task[None] | None = None
 
     def armed(self, node_id: int) -> bool:
@@ -108,27 +144,51 @@ class Guard:
             raise Conflict(f"{what} refused: node {node_id} is held by {holder.text()}. This panel watches: it can "
                            "stop the drive (quick stop, disable) but not move it.")
 
-    def arm(self, node_id: int, panel: Panel = SERVICE_PANEL) -> None:
+    def arm(self, node_id: int, panel: Panel = SERVICE_PANEL, *, pinned: bool = False,
+            timeout_s: float = KEEPALIVE_TIMEOUT_S) -> None:
         self.check(node_id, panel, "Arming")
         if self.holder(node_id) is None:
             self.holders[node_id] = Holder(panel, time.time())
+            self.timeouts[node_id] = timeout_s
+        else:
+            self.timeouts[node_id] = max(timeout_s, self.timeouts.get(node_id, KEEPALIVE_TIMEOUT_S))
+        if pinned:
+            self.pinned.add(node_id)
         self.armed_at[node_id] = time.monotonic()
-        self.deadlines[node_id] = time.monotonic() + KEEPALIVE_TIMEOUT_S
+        self.deadlines[node_id] = time.monotonic() + self.timeouts[node_id]
         self.trips.pop(node_id, None)
         self._ensure_watch()
 
     def keepalive(self, node_id: int, panel: Panel = SERVICE_PANEL) -> bool:
-        """Restart the deadline if ``panel`` holds the node (a watcher's keep-alive keeps nothing alive)."""
+        """Restart the deadline if ``panel`` holds the node (a watcher's keep-alive keeps nothing alive); the
+        holder's write lease on the node is renewed with it."""
         holder = self.holder(node_id)
         if holder is None or holder.panel.key != panel.key:
             return False
-        self.deadlines[node_id] = time.monotonic() + KEEPALIVE_TIMEOUT_S
+        self.deadlines[node_id] = time.monotonic() + self.timeouts.get(node_id, KEEPALIVE_TIMEOUT_S)
+        session = self._session()
+        if session is not None:
+            node_lease.leases(session).renew(node_id, panel.key)
         return True
 
-    def release(self, node_id: int, armed_before: float | None = None) -> None:
-        """Disarm; with ``armed_before``, only if the last arming happened before that (monotonic) time."""
+    def held_by(self, panel: Panel) -> list[int]:
+        return sorted(node for node, holder in self.holders.items() if node in self.deadlines
+                      and holder.panel.key == panel.key)
+
+    def keepalive_all(self, panel: Panel) -> list[int]:
+        """A page's session-wide keep-alive: every node ``panel`` holds."""
+        return [node for node in self.held_by(panel) if self.keepalive(node, panel)]
+
+    def release(self, node_id: int, armed_before: float | None = None, *, nmt: bool = False) -> None:
+        """Disarm; with ``armed_before``, only if the last arming happened before that (monotonic) time. A node
+        armed by NMT start or an RPDO is disarmed only by an NMT command (``nmt``) that leaves Operational."""
         if armed_before is not None and self.armed_at.get(node_id, 0.0) >= armed_before:
             return
+        if node_id in self.pinned and not nmt:
+            return
+        self.pinned.discard(node_id)
+        if nmt:
+            self.started.discard(node_id)
         self.deadlines.pop(node_id, None)
         self.holders.pop(node_id, None)
 
@@ -150,22 +210,52 @@ class Guard:
         holder = self.holder(node_id)
         return holder is not None and holder.panel.key == panel.key
 
+    def client_opened(self, panel: Panel) -> None:
+        self.clients[panel.key] = self.clients.get(panel.key, 0) + 1
+
+    def client_closed(self, panel: Panel) -> list[int]:
+        """A page's keep-alive socket closed: the nodes to stop (held by it, no other socket of it left open)."""
+        left = self.clients.get(panel.key, 1) - 1
+        if left > 0:
+            self.clients[panel.key] = left
+            return []
+        self.clients.pop(panel.key, None)
+        return [node for node in self.held_by(panel) if not self.sockets.get((node, panel.key))]
+
     async def trip(self, node_id: int, reason: str) -> None:
-        """Quick stop an armed node (keep-alive lost or the holder's panel disconnected)."""
+        """Stop an armed node (keep-alive lost or the holder's panel disconnected): cyclic RPDOs to it end, quick
+        stop goes to its control word, and a node the tool started goes to NMT pre-operational."""
         holder = self.holders.pop(node_id, None)
         if self.deadlines.pop(node_id, None) is None:
             return
+        self.pinned.discard(node_id)
+        started = node_id in self.started
+        self.started.discard(node_id)
         session = self._session()
         if session is None or node_id not in session.nodes:
             return
         node = session.nodes[node_id]
         held = f" (held by {holder.panel.who})" if holder else ""
-        # recorded before the write returns: a status read queued behind it must already name the trip
-        self.trips[node_id] = f"Quick stop sent at {time.strftime('%H:%M:%S')}: {reason}{held}."
-        try:
-            await send_quick_stop(session, node)
-        except DriveBenchError as exc:
-            self.trips[node_id] = f"Quick stop FAILED at {time.strftime('%H:%M:%S')} ({reason}{held}): {exc}"
+        clock = time.strftime("%H:%M:%S")
+        has_word = family_of(node.catalog) is not None
+        head = "Quick stop sent" if has_word else "Safe stop"
+        # recorded before the writes return: a status read queued behind them must already name the trip
+        self.trips[node_id] = f"{head} at {clock}: {reason}{held}."
+        stopped = live.service(session).stop_node(node_id)
+        steps = [f"{stopped} cyclic RPDO{'s' if stopped != 1 else ''} stopped"] if stopped else []
+        if has_word:
+            try:
+                await send_quick_stop(session, node)
+            except DriveBenchError as exc:
+                head = f"Quick stop FAILED ({exc})"
+        if started:
+            try:
+                await session.nmt(NmtCommand.ENTER_PRE_OPERATIONAL, node_id)
+                steps.append("NMT pre-operational sent")
+            except DriveBenchError as exc:
+                steps.append(f"NMT pre-operational FAILED ({exc})")
+        self.trips[node_id] = f"{head} at {clock}: {reason}{held}" + "".join(f"; {step}" for step in steps) + "."
+        log.warning("node %s: %s", node_id, self.trips[node_id])
         session.emit("drive_trip", {"node": node_id, "reason": self.trips[node_id]})
 
     def _ensure_watch(self) -> None:
@@ -178,7 +268,8 @@ class Guard:
             now = time.monotonic()
             for node_id, deadline in list(self.deadlines.items()):
                 if deadline < now:
-                    await self.trip(node_id, f"no keep-alive for {KEEPALIVE_TIMEOUT_S:g} s")
+                    timeout = self.timeouts.get(node_id, KEEPALIVE_TIMEOUT_S)
+                    await self.trip(node_id, f"no keep-alive for {timeout:g} s")
 
 
 _GUARDS: weakref.WeakKeyDictionary[Session, Guard] = weakref.WeakKeyDictionary()
@@ -189,3 +280,52 @@ def guard_for(session: Session) -> Guard:
     if guard is None:
         guard = _GUARDS[session] = Guard(session)
     return guard
+
+
+# --- NMT and RPDOs: confirmed, armed, stopped by the guard ----------------------------------------------------
+async def nmt(session: Session, command: NmtCommand, node_id: int, panel: Panel = SERVICE_PANEL, *,
+              confirm: object = None, keepalive: bool = True, timeout_s: float = KEEPALIVE_TIMEOUT_S) -> list[int]:
+    """Send an NMT command to one node or (``node_id`` 0) to all. Start needs the confirmation naming the node (or
+    ``all``), the node's write lease, and arms the started nodes the session knows: ``panel`` must keep them alive
+    (every ``timeout_s``) or they are stopped. ``keepalive=False`` (the caller checked it may) arms nothing. Every
+    other command leaves Operational and disarms; it is open to anyone, as stopping a machine is."""
+    targets = sorted(session.nodes) if node_id == 0 else [session.node(node_id).node_id]
+    guard = guard_for(session)
+    if command is not NmtCommand.START:
+        await session.nmt(command, node_id)
+        for target in targets:
+            guard.release(target, nmt=True)
+        return targets
+    require_confirmation(confirm, node_id or None, "NMT start" if node_id else "NMT start of all nodes")
+    if not KEEPALIVE_TIMEOUT_S / 4 <= timeout_s <= MAX_KEEPALIVE_S:
+        raise InvalidValue(f"The keep-alive timeout must be {KEEPALIVE_TIMEOUT_S / 4:g} ... {MAX_KEEPALIVE_S:g} s.")
+    for target in targets:
+        guard.check(target, panel, f"NMT start of node {target}")
+    with contextlib.ExitStack() as leases:
+        for target in targets:
+            leases.enter_context(node_lease.writing(session, target))
+        await session.nmt(command, node_id)
+    guard.started.update(targets)
+    if keepalive:
+        for target in targets:
+            guard.arm(target, panel, pinned=True, timeout_s=timeout_s)
+    return targets
+
+
+async def send_rpdo(session: Session, node_id: int, number: int, values: dict[str, str], panel: Panel = SERVICE_PANEL,
+                    *, confirm: object = None, owner: str | None = None, period_ms: int | None = None,
+                    keepalive: bool = True) -> bytes:
+    """Send an RPDO once or (``owner`` and ``period_ms``) cyclically. Needs the confirmation naming the node and
+    its write lease, and arms the node for ``panel`` (unless ``keepalive`` is off: the caller checked it may)."""
+    require_confirmation(confirm, node_id, f"Sending RPDO{number}")
+    guard = guard_for(session)
+    guard.check(node_id, panel, f"Sending RPDO{number}")
+    service = live.service(session)
+    with node_lease.writing(session, node_id):
+        if owner is not None and period_ms is not None:
+            data = await service.start_cyclic(owner, node_id, number, values, period_ms)
+        else:
+            data = await service.send_rpdo(node_id, number, values)
+    if keepalive:
+        guard.arm(node_id, panel, pinned=True)
+    return data

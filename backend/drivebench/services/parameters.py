@@ -48,6 +48,7 @@ from drivebench.protocol.heartbeat import HeartbeatStatus
 from drivebench.protocol.network import NodeClient, SdoChannel
 from drivebench.protocol.nmt import NmtCommand
 from drivebench.protocol.sdo_fast import ExpeditedRequest, upload_expedited
+from drivebench.services import node_lease
 from drivebench.services.jobs import Job, JobIssue, JobManager
 from drivebench.services.sessions import Session, SessionNode
 
@@ -462,7 +463,15 @@ def _same(item: Item, written: RawValue, read_back: RawValue) -> bool:
 async def write(session: Session, node_id: int, ref: str, value: object, *, check: bool = True,
                 verify: bool = True) -> WriteResult:
     """Validate, send, read back. ``value`` is what a user typed (``"10.2"``, ``"10.20 A"``, ``"500 kbit/s"``)
-    or a number in engineering units. ``check=False`` leaves range, selection and read-only to the device."""
+    or a number in engineering units. ``check=False`` leaves range, selection and read-only to the device.
+    Refused (409) while another writer holds the node's lease (:mod:`drivebench.services.node_lease`)."""
+    session.node(node_id)
+    with node_lease.writing(session, node_id):
+        return await _write(session, node_id, ref, value, check=check, verify=verify)
+
+
+async def _write(session: Session, node_id: int, ref: str, value: object, *, check: bool,
+                 verify: bool) -> WriteResult:
     node = session.node(node_id)
     item = resolve(node, ref)
     raw = to_raw(item.entry, value, ref=item.ref) if check else _unchecked_raw(item, value)
@@ -529,6 +538,12 @@ def _lenze_command(catalog: Catalog | None, subcode: int) -> Item | None:
 
 
 async def command(session: Session, node_id: int, which: DeviceCommand) -> CommandResult:
+    session.node(node_id)
+    with node_lease.writing(session, node_id):
+        return await _command(session, node_id, which)
+
+
+async def _command(session: Session, node_id: int, which: DeviceCommand) -> CommandResult:
     node = session.node(node_id)
     catalog = _catalog(node)
     client = session.client(node_id)

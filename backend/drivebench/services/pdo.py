@@ -18,7 +18,7 @@ from drivebench.device.profile import Access, Entry, ObjectEntry
 from drivebench.device.scaling import from_raw
 from drivebench.errors import DriveBenchError, InvalidValue, NotFound, ProtocolError, SdoAbortError
 from drivebench.protocol.datatypes import DataType, decode
-from drivebench.services import pdo_notes
+from drivebench.services import node_lease, pdo_notes
 from drivebench.services.sessions import Session
 
 Direction = Literal["rpdo", "tpdo"]
@@ -329,6 +329,14 @@ def check_mapping(session: Session, node_id: int, direction: Direction, number: 
 
 async def apply_pdo(session: Session, node_id: int, direction: Direction, number: int,
                     write: PdoWrite) -> ApplyReport:
+    """Refused (409) while another writer holds the node's lease; holds it until the last step."""
+    _catalog(session, node_id)
+    with node_lease.writing(session, node_id):
+        return await _apply_pdo(session, node_id, direction, number, write)
+
+
+async def _apply_pdo(session: Session, node_id: int, direction: Direction, number: int,
+                     write: PdoWrite) -> ApplyReport:
     catalog = _catalog(session, node_id)
     chosen = check_mapping(session, node_id, direction, number, write)
     comm, mapping = COMM_BASE[direction] + number - 1, MAP_BASE[direction] + number - 1

@@ -246,6 +246,14 @@ class ProcessData:
             task.cancel()
         return task is not None
 
+    def stop_node(self, node_id: int) -> int:
+        """End every cyclic RPDO to the node (the safety guard's trip); how many were running."""
+        mine = {cob for cob, lay in self.layouts.items() if lay.node_id == node_id}
+        keys = [key for key in self.cyclic if key[1] in mine]
+        for key in keys:
+            self.cyclic.pop(key).cancel()
+        return len(keys)
+
     def stop_owner(self, owner: str) -> None:
         for key in [k for k in self.cyclic if k[0] == owner]:
             self.cyclic.pop(key).cancel()

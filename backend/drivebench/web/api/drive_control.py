@@ -1,37 +1,33 @@
 """Drive control panel API: status (state machine, named bits), transitions, setpoint, jog, modes, actual values,
-keep-alive, and the guided commissioning runs. Commands that can make the motor turn need ``"confirm": true``.
+keep-alive, and the guided commissioning runs. Commands that can make the motor turn need ``"confirm": <node id>``
+(or the header ``X-DriveBench-Confirm: <node id>``); without it they answer 428.
 
-A panel names itself with the headers ``X-Drive-Panel`` (an id, one per browser tab) and ``X-Drive-Operator`` (the
-name other panels are shown); without them the client is one panel per host. The panel that armed a drive holds
-it: other panels get 409 for anything but stopping it (see ``services.drive_control``).
+A panel names itself with the headers ``X-Drive-Panel`` or ``X-DriveBench-Client`` (an id, one per browser tab) and
+``X-Drive-Operator`` (the name other panels are shown; else the signed-in user); without them the client is one panel
+per host. The panel that armed a drive holds it: other panels get 409 for anything but stopping it (see
+``services.drive_control``), and the node's write lease is the holder's (``services.node_lease``).
 """
 
 from __future__ import annotations
 
-from typing import Annotated
-
-from fastapi import APIRouter, Depends, Header, Request
+from fastapi import APIRouter, Request
 from pydantic import BaseModel, Field
 
 from drivebench.services import commissioning, drive_control
 from drivebench.services.commissioning import RunOut
 from drivebench.services.drive_control import ActualValue, DriveStatus, JogPlan
-from drivebench.services.drive_guard import Panel
+from drivebench.services.drive_guard import require_confirmation
 from drivebench.services.drive_words import Command
 from drivebench.web.deps import NodeDep, SessionDep
+from drivebench.web.safety import ACTING, PanelDep, confirmation
 
-
-def get_panel(request: Request, x_drive_panel: Annotated[str | None, Header()] = None,
-              x_drive_operator: Annotated[str | None, Header()] = None) -> Panel:
-    return drive_control.panel_of(request.client.host if request.client else None, x_drive_panel, x_drive_operator)
-
-
-PanelDep = Annotated[Panel, Depends(get_panel)]
-router = APIRouter(prefix="/api/sessions/{session_id}/nodes/{node_id}/control", tags=["drive control"])
+router = APIRouter(prefix="/api/sessions/{session_id}/nodes/{node_id}/control", tags=["drive control"],
+                   dependencies=[ACTING], responses={428: {"description": "Not confirmed with the node id"}})
 
 
 class Confirmed(BaseModel):
-    confirm: bool = Field(False, description="Required (true) for commands after which the motor may turn")
+    confirm: int | str | None = Field(None, description="The node id, for commands after which the motor may turn "
+                                                        "(or the header X-DriveBench-Confirm)")
 
 
 class SetpointIn(Confirmed):
@@ -66,14 +62,17 @@ async def status(session: SessionDep, node: NodeDep, panel: PanelDep) -> DriveSt
 
 
 @router.post("/commands/{command}", response_model=DriveStatus)
-async def command(session: SessionDep, node: NodeDep, panel: PanelDep, command: Command,
+async def command(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep, command: Command,
                   body: Confirmed | None = None) -> DriveStatus:
-    return await drive_control.command(session, node, command, confirm=bool(body and body.confirm), panel=panel)
+    return await drive_control.command(session, node, command, confirm=confirmation(request, body and body.confirm),
+                                       panel=panel)
 
 
 @router.put("/setpoint", response_model=DriveStatus)
-async def setpoint(session: SessionDep, node: NodeDep, panel: PanelDep, body: SetpointIn) -> DriveStatus:
-    return await drive_control.set_setpoint(session, node, body.value, confirm=body.confirm, panel=panel)
+async def setpoint(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep,
+                   body: SetpointIn) -> DriveStatus:
+    return await drive_control.set_setpoint(session, node, body.value, confirm=confirmation(request, body.confirm),
+                                            panel=panel)
 
 
 @router.get("/jog", response_model=JogPlan)
@@ -83,13 +82,15 @@ async def jog_plan(session: SessionDep, node: NodeDep) -> JogPlan:
 
 
 @router.post("/jog", response_model=DriveStatus)
-async def jog(session: SessionDep, node: NodeDep, panel: PanelDep, body: JogIn) -> DriveStatus:
-    return await drive_control.jog(session, node, body.direction, confirm=body.confirm, panel=panel)
+async def jog(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep, body: JogIn) -> DriveStatus:
+    return await drive_control.jog(session, node, body.direction, confirm=confirmation(request, body.confirm),
+                                   panel=panel)
 
 
 @router.put("/mode", response_model=DriveStatus)
-async def mode(session: SessionDep, node: NodeDep, panel: PanelDep, body: ModeIn) -> DriveStatus:
-    return await drive_control.set_mode(session, node, body.mode, confirm=body.confirm, panel=panel)
+async def mode(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep, body: ModeIn) -> DriveStatus:
+    return await drive_control.set_mode(session, node, body.mode, confirm=confirmation(request, body.confirm),
+                                        panel=panel)
 
 
 @router.get("/actuals", response_model=list[ActualValue])
@@ -122,9 +123,12 @@ async def get_run(session: SessionDep, node: NodeDep, run_id: str) -> RunOut:
 
 
 @router.post("/runs/{run_id}/next", response_model=RunOut)
-async def next_step(session: SessionDep, node: NodeDep, panel: PanelDep, run_id: str,
+async def next_step(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep, run_id: str,
                     body: Confirmed | None = None) -> RunOut:
-    """Run the next step; a step the manual marks as turning the motor needs confirm."""
+    """Run the next step; a step the manual marks as turning the motor needs confirm (the node id)."""
     run = commissioning.wizard(session).get(run_id)
-    await commissioning.next_step(session, node, run, confirm=bool(body and body.confirm), panel=panel)
+    given = confirmation(request, body and body.confirm)
+    if not run.finished and run.sequence.steps[run.position].moves:
+        require_confirmation(given, node.node_id, f"Step {run.position + 1} ({run.sequence.steps[run.position].title})")
+    await commissioning.next_step(session, node, run, confirm=given is not None, panel=panel)
     return run.public()

@@ -39,9 +39,10 @@ from drivebench.services.parameter_sets import (
 from drivebench.services.sessions import SessionManager
 from drivebench.web.api.parameters import JobOut, JobsDep, job_out
 from drivebench.web.deps import ManagerDep, StateDep
+from drivebench.web.safety import ACTING
 from drivebench.web.state import AppState
 
-router = APIRouter(prefix="/api", tags=["parameter sets"])
+router = APIRouter(prefix="/api", tags=["parameter sets"], dependencies=[ACTING])  # downloads take the node lease
 SETS = "/parameter-sets"
 UserHeader = Annotated[str | None, Header(alias="X-DriveBench-User", description="Who acts (audit log)")]
 

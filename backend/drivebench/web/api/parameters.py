@@ -17,8 +17,9 @@ from drivebench.services import parameters as service
 from drivebench.services.jobs import Job, JobManager
 from drivebench.services.parameters import DeviceCommand, ParameterValue, SdoSettings, WriteResult
 from drivebench.web.deps import NodeDep, SessionDep
+from drivebench.web.safety import ACTING
 
-router = APIRouter(prefix="/api", tags=["parameters"])
+router = APIRouter(prefix="/api", tags=["parameters"], dependencies=[ACTING])  # writes take the node lease
 NODE = "/sessions/{session_id}/nodes/{node_id}"
 
 

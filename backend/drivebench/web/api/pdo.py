@@ -8,8 +8,9 @@ from fastapi.responses import JSONResponse, PlainTextResponse
 from drivebench.services import pdo
 from drivebench.services.pdo import ApplyReport, Direction, MappedObject, PdoConfig, PdoWrite
 from drivebench.web.deps import NodeDep, SessionDep
+from drivebench.web.safety import ACTING
 
-router = APIRouter(prefix="/api/sessions/{session_id}/nodes/{node_id}/pdos", tags=["pdo"])
+router = APIRouter(prefix="/api/sessions/{session_id}/nodes/{node_id}/pdos", tags=["pdo"], dependencies=[ACTING])
 
 
 @router.get("", response_model=list[PdoConfig])

@@ -1,18 +1,33 @@
-"""Sessions (CAN buses), their nodes, NMT and node scan."""
+"""Sessions (CAN buses), their nodes, NMT and node scan, the keep-alive of what a client started, node write leases.
+
+NMT start needs ``confirm`` naming the node (``all`` for the broadcast; else 428) and arms the started nodes: the
+client must POST ``/api/sessions/{session}/keepalive`` at least every ``keepalive_s`` (default 2 s, at most 10 s)
+or the server stops them (quick stop, NMT pre-operational). ``keepalive: false`` (admins only, with a ``reason``,
+logged) starts without that guard, for a supervisor that keeps its own.
+"""
 
 from __future__ import annotations
 
+import logging
+import time
 from typing import Literal
 
-from fastapi import APIRouter, status
+from fastapi import APIRouter, Request, status
 from pydantic import BaseModel, Field, model_validator
 
-from drivebench.protocol.nmt import COMMAND_BY_NAME
+from drivebench.errors import AccessDenied, InvalidValue
+from drivebench.protocol.nmt import COMMAND_BY_NAME, NmtCommand
+from drivebench.services import drive_guard, node_lease
+from drivebench.services.principals import Role
+from drivebench.services.sessions import Session
 from drivebench.services.views import NodePublic, SessionPublic, node_public, nodes_public, session_public
 from drivebench.transport.bus import BusSpec, known_interfaces
 from drivebench.web.deps import ManagerDep, NodeDep, SessionDep
+from drivebench.web.identity import PrincipalDep, principal_of
+from drivebench.web.safety import ACTING, PanelDep, WriterDep, confirmation
 
-router = APIRouter(prefix="/api", tags=["sessions"])
+router = APIRouter(prefix="/api", tags=["sessions"], dependencies=[ACTING])
+log = logging.getLogger(__name__)
 
 NmtName = Literal["start", "stop", "pre-operational", "reset-node", "reset-communication"]
 
@@ -44,13 +59,34 @@ class NodeCreate(BaseModel):
     name: str | None = Field(None, max_length=80)
 
 
-class NmtRequest(BaseModel):
+class NodeNmtRequest(BaseModel):
     command: NmtName
+    confirm: str | int | None = Field(None, description="Start only: the node id (or 'all' for the broadcast), "
+                                                        "else 428; or the X-DriveBench-Confirm header")
+    keepalive: bool = Field(True, description="Start only: false starts without the keep-alive guard (admins, "
+                                              "with a reason)")
+    keepalive_s: float = Field(drive_guard.KEEPALIVE_TIMEOUT_S, ge=0.5, le=drive_guard.MAX_KEEPALIVE_S,
+                               description="Start only: stop the started nodes when no keep-alive came for this long")
+    reason: str | None = Field(None, max_length=200, description="Why keepalive is false (logged)")
+
+
+class NmtRequest(NodeNmtRequest):
     node_id: int = Field(0, ge=0, le=127, description="0 = all nodes (broadcast)")
 
 
-class NodeNmtRequest(BaseModel):
-    command: NmtName
+class KeepaliveOut(BaseModel):
+    nodes: list[int] = Field(description="The nodes this client holds whose deadline restarted")
+    timeout_s: float = Field(description="Send the next keep-alive within this time")
+
+
+class LeaseOut(BaseModel):
+    node_id: int
+    holder: str | None = Field(None, description="Who writes the node now (None: nobody)")
+    where: str | None = None
+    since: str | None = None
+    expires_in_s: float | None = None
+    yours: bool = False
+    text: str | None = None
 
 
 class ScanRequest(BaseModel):
@@ -105,17 +141,75 @@ async def remove_node(session: SessionDep, node: NodeDep) -> None:
     session.remove_node(node.node_id)
 
 
-@router.post("/sessions/{session_id}/nmt", response_model=list[NodePublic])
-async def nmt_broadcast(body: NmtRequest, session: SessionDep) -> list[NodePublic]:
-    """Send an NMT command to one node or (node_id 0) to all nodes."""
-    await session.nmt(COMMAND_BY_NAME[body.command], body.node_id)
+async def send_nmt(request: Request, session: Session, body: NodeNmtRequest, node_id: int,
+                   panel: drive_guard.Panel) -> None:
+    """NMT through the safety guard (shared with the Plant and PDO pages)."""
+    command = COMMAND_BY_NAME[body.command]
+    if command is NmtCommand.START and not body.keepalive:
+        principal = principal_of(request)
+        if not principal.may(Role.ADMIN):
+            raise AccessDenied("Starting a node without the keep-alive guard is for admins only.")
+        if not (body.reason or "").strip():
+            raise InvalidValue("Say why the node runs without the keep-alive guard (reason).")
+        log.warning("NMT start of node %s without keep-alive by %s: %s", node_id or "all", principal.name,
+                    body.reason)
+    await drive_guard.nmt(session, command, node_id, panel, confirm=confirmation(request, body.confirm),
+                          keepalive=body.keepalive, timeout_s=body.keepalive_s)
+
+
+@router.post("/sessions/{session_id}/nmt", response_model=list[NodePublic],
+             responses={428: {"description": "NMT start without the confirmation naming the node (or 'all')"}})
+async def nmt_broadcast(request: Request, body: NmtRequest, session: SessionDep, panel: PanelDep) -> list[NodePublic]:
+    """Send an NMT command to one node or (node_id 0) to all nodes. Start: see the module notes (confirm,
+    keep-alive)."""
+    await send_nmt(request, session, body, body.node_id, panel)
     return nodes_public(session)
 
 
-@router.post("/sessions/{session_id}/nodes/{node_id}/nmt", response_model=NodePublic)
-async def nmt_node(body: NodeNmtRequest, session: SessionDep, node: NodeDep) -> NodePublic:
-    await session.nmt(COMMAND_BY_NAME[body.command], node.node_id)
+@router.post("/sessions/{session_id}/nodes/{node_id}/nmt", response_model=NodePublic,
+             responses={428: {"description": "NMT start without the confirmation naming the node"}})
+async def nmt_node(request: Request, body: NodeNmtRequest, session: SessionDep, node: NodeDep,
+                   panel: PanelDep) -> NodePublic:
+    await send_nmt(request, session, body, node.node_id, panel)
     return node_public(session, node)
+
+
+@router.post("/sessions/{session_id}/keepalive", response_model=KeepaliveOut)
+async def keepalive(session: SessionDep, panel: PanelDep) -> KeepaliveOut:
+    """Keep alive every node this client started or armed in the session (send it at least every keepalive_s)."""
+    guard = drive_guard.guard_for(session)
+    nodes = guard.keepalive_all(panel)
+    timeout = min((guard.timeouts.get(n, drive_guard.KEEPALIVE_TIMEOUT_S) for n in nodes),
+                  default=drive_guard.KEEPALIVE_TIMEOUT_S)
+    return KeepaliveOut(nodes=nodes, timeout_s=timeout)
+
+
+def lease_out(session: Session, node_id: int, writer: node_lease.Writer | None) -> LeaseOut:
+    lease = node_lease.leases(session).current(node_id)
+    if lease is None:
+        return LeaseOut(node_id=node_id)
+    return LeaseOut(node_id=node_id, holder=lease.writer.name, where=lease.writer.where,
+                    since=time.strftime("%H:%M:%S", time.localtime(lease.since)),
+                    expires_in_s=round(lease.expires_in(), 1),
+                    yours=writer is not None and lease.writer.same(writer), text=lease.text(node_id))
+
+
+@router.get("/sessions/{session_id}/nodes/{node_id}/lease", response_model=LeaseOut)
+async def get_lease(session: SessionDep, node: NodeDep, writer: WriterDep) -> LeaseOut:
+    """Who holds the node's write lease (writes of anyone else get 409 until it is released or expires)."""
+    return lease_out(session, node.node_id, writer)
+
+
+@router.delete("/sessions/{session_id}/nodes/{node_id}/lease", response_model=LeaseOut)
+async def release_lease(session: SessionDep, node: NodeDep, writer: WriterDep, principal: PrincipalDep,
+                        force: bool = False) -> LeaseOut:
+    """Release your lease; ``force=true`` (admins) breaks someone else's (logged)."""
+    table = node_lease.leases(session)
+    if not table.release(node.node_id, writer) and force:
+        if not principal.may(Role.ADMIN):
+            raise AccessDenied("Only an admin may break another writer's lease.")
+        table.break_lease(node.node_id, f"{principal.name} ({writer.client})")
+    return lease_out(session, node.node_id, writer)
 
 
 @router.post("/sessions/{session_id}/scan", response_model=list[NodePublic])

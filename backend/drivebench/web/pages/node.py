@@ -1,7 +1,8 @@
 """The Node screen: tabs Parameters · PDO · Diagnostics · Control · Info for one node of a session.
 
 Each tab is its own template (``node/<tab>.html``) included by ``node.html``; the Parameters tab's parts are
-blocks of ``node/parameters.html`` (table rows, one row, the job progress) swapped by htmx.
+blocks of ``node/parameters.html`` (table rows, one row, the job progress) swapped by htmx. The header shows who
+holds the node's write lease (``lease_banner``, polled), with release (the holder) and break (admins).
 """
 
 from __future__ import annotations
@@ -13,17 +14,21 @@ from fastapi import APIRouter, Form, Query, Request
 from fastapi.responses import HTMLResponse, Response
 
 from drivebench.device.catalog import Item
-from drivebench.errors import DriveBenchError, NodeOffline, NotFound, SdoTimeoutError
+from drivebench.errors import AccessDenied, DriveBenchError, NodeOffline, NotFound, SdoTimeoutError
+from drivebench.services import node_lease
 from drivebench.services import parameters as service
 from drivebench.services.parameters import DeviceCommand, WriteResult
+from drivebench.services.principals import Role
 from drivebench.services.sessions import Session, SessionNode
 from drivebench.services.views import node_public
 from drivebench.web.api.parameters import jobs_of
 from drivebench.web.deps import NodeDep, SessionDep
+from drivebench.web.identity import PrincipalDep
 from drivebench.web.pages.node_info import IdentityShown, shown
+from drivebench.web.safety import ACTING, WriterDep
 from drivebench.web.templating import templates
 
-router = APIRouter(include_in_schema=False)
+router = APIRouter(include_in_schema=False, dependencies=[ACTING])
 TABS = [("parameters", "Parameters"), ("pdo", "PDO"), ("diagnostics", "Diagnostics"), ("control", "Control"),
         ("info", "Info")]
 UI = "/ui/sessions/{session_id}/nodes/{node_id}"
@@ -109,6 +114,39 @@ async def nmt_badge(request: Request, session: SessionDep, node: NodeDep) -> Res
     """The header's NMT state badge, polled by itself so it follows NMT commands and heartbeats."""
     context = _base(request, session, node, "parameters")
     return templates.TemplateResponse(request, "node.html", context, block_name="nmt_badge")
+
+
+# --- write lease banner ----------------------------------------------------------------------------------
+def _lease_banner(request: Request, session: Session, node: SessionNode, writer: node_lease.Writer,
+                  may_break: bool, note: str = "") -> Response:
+    lease = node_lease.leases(session).current(node.node_id)
+    context = _base(request, session, node, "parameters", lease=lease, lease_text=lease.text(node.node_id) if lease
+                    else "", yours=bool(lease and lease.writer.same(writer)), may_break=may_break, lease_note=note)
+    return templates.TemplateResponse(request, "node.html", context, block_name="lease_banner")
+
+
+@router.get(UI + "/lease", response_class=HTMLResponse)
+async def lease_banner(request: Request, session: SessionDep, node: NodeDep, writer: WriterDep,
+                       principal: PrincipalDep) -> Response:
+    return _lease_banner(request, session, node, writer, principal.may(Role.ADMIN))
+
+
+@router.post(UI + "/lease/release", response_class=HTMLResponse)
+async def release_lease(request: Request, session: SessionDep, node: NodeDep, writer: WriterDep,
+                        principal: PrincipalDep) -> Response:
+    released = node_lease.leases(session).release(node.node_id, writer)
+    return _lease_banner(request, session, node, writer, principal.may(Role.ADMIN),
+                         "Lease released: others may write the node." if released else "")
+
+
+@router.post(UI + "/lease/break", response_class=HTMLResponse)
+async def break_lease(request: Request, session: SessionDep, node: NodeDep, writer: WriterDep,
+                      principal: PrincipalDep) -> Response:
+    if not principal.may(Role.ADMIN):
+        raise AccessDenied("Only an admin may break another writer's lease.")
+    broken = node_lease.leases(session).break_lease(node.node_id, f"{principal.name} ({writer.client})")
+    return _lease_banner(request, session, node, writer, True,
+                         f"Lease of {broken.writer.name} broken (logged).")
 
 
 # --- parameters tab --------------------------------------------------------------------------------------

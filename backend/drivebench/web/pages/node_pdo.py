@@ -1,11 +1,15 @@
 """The Node page's PDO tab: every RPDO/TPDO as the device holds it, the mapping editor, apply with its step
 report, RPDO sending and the SYNC producer. Blocks of ``node/pdo.html``; live values come over
 ``/ws/sessions/{session}/nodes/{node}/process-data``.
+
+RPDO sends and NMT start need the ``confirm`` field naming the node (the forms carry it, after the browser's
+confirmation) and arm the node for this tab: its keep-alive socket must stay open or the node is stopped.
 """
 
 from __future__ import annotations
 
 import json
+import logging
 from collections.abc import Sequence
 from typing import Annotated, Any
 
@@ -13,17 +17,21 @@ from fastapi import APIRouter, Form, Request
 from fastapi.responses import HTMLResponse, Response
 from pydantic import BaseModel
 
-from drivebench.errors import InvalidValue
+from drivebench.errors import AccessDenied, InvalidValue
 from drivebench.protocol.nmt import NmtCommand
-from drivebench.services import pdo, pdo_notes
+from drivebench.services import drive_guard, pdo, pdo_notes
 from drivebench.services import process_data as live
 from drivebench.services.pdo import ApplyReport, Direction, PdoConfig, PdoWrite
+from drivebench.services.principals import Role
 from drivebench.services.sessions import Session, SessionNode
 from drivebench.services.views import node_public
 from drivebench.web.deps import NodeDep, SessionDep
+from drivebench.web.identity import principal_of
+from drivebench.web.safety import ACTING, PanelDep, confirmation
 from drivebench.web.templating import templates
 
-router = APIRouter(include_in_schema=False)
+router = APIRouter(include_in_schema=False, dependencies=[ACTING])
+log = logging.getLogger(__name__)
 UI = "/ui/sessions/{session_id}/nodes/{node_id}/pdo"
 
 
@@ -94,17 +102,31 @@ async def apply(request: Request, session: SessionDep, node: NodeDep, direction:
 
 
 @router.post(UI + "/rpdo/{number}/send", response_class=HTMLResponse)
-async def send(request: Request, session: SessionDep, node: NodeDep, number: int) -> Response:
+async def send(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep, number: int) -> Response:
     form = await request.form()
     values = {key[2:]: str(value) for key, value in form.items() if key.startswith("v:")}
     mode, owner = str(form.get("mode", "once")), str(form.get("client_id", ""))
-    service = live.service(session)
+    confirm = confirmation(request, form.get("confirm") or None)
+    keepalive = str(form.get("keepalive", "true")).lower() != "false"
+    if not keepalive:  # a script that keeps its own watch: admins only, with a reason (logged)
+        principal = principal_of(request)
+        if not principal.may(Role.ADMIN):
+            raise AccessDenied("Sending RPDOs without the keep-alive guard is for admins only.")
+        if not str(form.get("reason") or "").strip():
+            raise InvalidValue("Say why the RPDO is sent without the keep-alive guard (reason).")
+        log.warning("RPDO%s to node %s sent without keep-alive by %s: %s", number, node.node_id, principal.name,
+                    form.get("reason"))
     if mode == "cyclic":
-        period_ms = int(str(form.get("period_ms") or "100"))
-        data = await service.start_cyclic(owner, node.node_id, number, values, period_ms)
+        try:
+            period_ms = int(str(form.get("period_ms") or "100"))
+        except ValueError as exc:
+            raise InvalidValue("The cycle time is a whole number of milliseconds.") from exc
+        data = await drive_guard.send_rpdo(session, node.node_id, number, values, panel, confirm=confirm, owner=owner,
+                                           period_ms=period_ms, keepalive=keepalive)
         message = f"sending every {period_ms} ms"
     else:
-        data = await service.send_rpdo(node.node_id, number, values)
+        data = await drive_guard.send_rpdo(session, node.node_id, number, values, panel, confirm=confirm,
+                                           keepalive=keepalive)
         message = "sent once"
     state, _live = session.nmt_state(node.node_id)
     commanded = node.commanded_state.label if node.commanded_state is not None else ""
@@ -139,6 +161,9 @@ async def sync(request: Request, session: SessionDep, node: NodeDep, period_ms: 
 
 
 @router.post(UI + "/start-node", response_class=HTMLResponse)
-async def start_node(request: Request, session: SessionDep, node: NodeDep) -> Response:
-    await session.nmt(NmtCommand.START, node.node_id)
-    return HTMLResponse(f'<span class="pdo-sent">NMT start sent to node {node.node_id}</span>')
+async def start_node(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep,
+                     confirm: Annotated[str, Form()] = "") -> Response:
+    await drive_guard.nmt(session, NmtCommand.START, node.node_id, panel,
+                          confirm=confirmation(request, confirm or None))
+    return HTMLResponse(f'<span class="pdo-sent">NMT start sent to node {node.node_id}: this tab keeps it running '
+                        '(closing it stops the node)</span>')

@@ -28,10 +28,11 @@ from drivebench.web.api.parameter_sets import (
 from drivebench.web.api.parameters import JobsDep
 from drivebench.web.deps import ManagerDep, StateDep
 from drivebench.web.problems import error_fragment, problem_body, status_for
+from drivebench.web.safety import ACTING
 from drivebench.web.state import AppState
 from drivebench.web.templating import templates
 
-router = APIRouter(include_in_schema=False)
+router = APIRouter(include_in_schema=False, dependencies=[ACTING])  # downloads take the node lease
 _DEVICE_NOISE = re.compile(r"^Inverter Drives\s+|\s+(frequency inverter|servo inverter)?\s*with .*$| - .*$")
 
 

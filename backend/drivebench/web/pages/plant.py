@@ -1,4 +1,8 @@
-"""The Plant screen: sessions, their nodes with live NMT state, NMT buttons, scan, add node."""
+"""The Plant screen: sessions, their nodes with live NMT state, NMT buttons, scan, add node.
+
+NMT start needs the confirmation field naming the node (``all`` for the broadcast) and is kept alive by the page's
+keep-alive socket (``/ws/sessions/{session}/keepalive``, safety.js): closing the page stops what it started.
+"""
 
 from __future__ import annotations
 
@@ -12,11 +16,13 @@ from drivebench.protocol.nmt import COMMAND_BY_NAME
 from drivebench.services.sessions import Session
 from drivebench.services.views import nodes_public, session_public
 from drivebench.transport.bus import BusSpec, known_interfaces
+from drivebench.web.api.sessions import NodeNmtRequest, send_nmt
 from drivebench.web.deps import ManagerDep, SessionDep, StateDep
 from drivebench.web.problems import error_fragment, problem_body
+from drivebench.web.safety import ACTING, PanelDep
 from drivebench.web.templating import templates
 
-router = APIRouter(include_in_schema=False)
+router = APIRouter(include_in_schema=False, dependencies=[ACTING])
 
 
 def _context(state: Any, **extra: Any) -> dict[str, Any]:
@@ -68,11 +74,14 @@ async def close_session(session: SessionDep, manager: ManagerDep) -> Response:
 
 
 @router.post("/ui/sessions/{session_id}/nmt", response_class=HTMLResponse)
-async def nmt(request: Request, session: SessionDep, command: Annotated[str, Form()],
-              node_id: Annotated[int, Form(ge=0, le=127)] = 0) -> Response:
+async def nmt(request: Request, session: SessionDep, panel: PanelDep, command: Annotated[str, Form()],
+              node_id: Annotated[int, Form(ge=0, le=127)] = 0, confirm: Annotated[str, Form()] = "") -> Response:
     if command not in COMMAND_BY_NAME:
         raise DriveBenchError(f"Unknown NMT command '{command}'")
-    await session.nmt(COMMAND_BY_NAME[command], node_id)
+    if node_id:
+        session.node(node_id)
+    await send_nmt(request, session, NodeNmtRequest(command=command, confirm=confirm or None),
+                   node_id, panel)
     return nodes_table(request, session)
 
 

@@ -8,6 +8,12 @@ The query names the panel: ``?panel=<id>&operator=<name>`` (the same id and name
 while the node is armed, the server sends quick stop at once; a watcher's socket closing changes nothing. Each
 status says who holds the drive and whether it is this panel (``holder``, ``you_hold``). An unknown session or node
 closes the socket with code 4404.
+
+``/ws/sessions/{session}/keepalive?client=<tab id>`` is a page's keep-alive for what it started (NMT start on the
+Plant page, RPDOs on the PDO tab): every message the client sends (``{"cmd": "keepalive"}``, at least every 2 s)
+keeps alive every node that tab holds in the session; when its last such socket closes, those nodes are stopped
+at once (cyclic RPDOs end, quick stop, NMT pre-operational for the nodes the tool started). The server answers each
+message with ``{"type": "held", "nodes": [5]}``.
 """
 
 from __future__ import annotations
@@ -20,6 +26,8 @@ from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 
 from drivebench.errors import DriveBenchError, NotFound
 from drivebench.services import drive_control
+from drivebench.services.drive_guard import Guard
+from drivebench.web.safety import panel_for
 
 router = APIRouter()
 PERIOD_S = 0.25
@@ -36,8 +44,7 @@ async def control(websocket: WebSocket, session_id: str, node_id: int) -> None:
         await websocket.close(code=4404, reason=exc.detail[:120])
         return
     guard = drive_control.guard_for(session)
-    panel = drive_control.panel_of(websocket.client.host if websocket.client else None,
-                                   websocket.query_params.get("panel"), websocket.query_params.get("operator"))
+    panel = panel_for(websocket)
     guard.opened(node_id, panel)
 
     async def receive() -> None:
@@ -64,13 +71,38 @@ async def control(websocket: WebSocket, session_id: str, node_id: int) -> None:
         pass
     finally:
         if guard.closed(node_id, panel):
-            # quick stop first, in its own task: it must complete even when this handler is being cancelled
-            trip = asyncio.get_running_loop().create_task(
-                guard.trip(node_id, "the control panel holding the drive disconnected"))
-            _trips.add(trip)
-            trip.add_done_callback(_trips.discard)
+            _trip(guard, node_id, "the control panel holding the drive disconnected")
         for task in tasks:
             task.cancel()
         for task in tasks:
             with contextlib.suppress(asyncio.CancelledError, WebSocketDisconnect, RuntimeError, Exception):
                 await task
+
+
+def _trip(guard: Guard, node_id: int, reason: str) -> None:
+    """Stop the node in its own task: it must complete even when the handler is being cancelled."""
+    trip = asyncio.get_running_loop().create_task(guard.trip(node_id, reason))
+    _trips.add(trip)
+    trip.add_done_callback(_trips.discard)
+
+
+@router.websocket("/ws/sessions/{session_id}/keepalive")
+async def keepalive(websocket: WebSocket, session_id: str) -> None:
+    await websocket.accept()
+    try:
+        session = websocket.app.state.drivebench.manager.get(session_id)
+    except NotFound as exc:
+        await websocket.close(code=4404, reason=exc.detail[:120])
+        return
+    guard = drive_control.guard_for(session)
+    panel = panel_for(websocket)
+    guard.client_opened(panel)
+    try:
+        while True:
+            await websocket.receive_text()
+            await websocket.send_json({"type": "held", "nodes": guard.keepalive_all(panel)})
+    except (WebSocketDisconnect, RuntimeError):
+        pass
+    finally:
+        for node_id in guard.client_closed(panel):
+            _trip(guard, node_id, f"the page that started it ({panel.who}) disconnected")

@@ -1,0 +1,196 @@
+"""Per-node write lease: one writer at a time per (session, node), so two engineers never interleave writes.
+
+A writer is a principal's name plus a client (one browser tab or one API client). The first write to a node takes
+its lease; the same writer may then write freely, and every write renews it. Another writer is refused (409, with
+who holds the node, since when, from where and when the lease expires) until the holder releases it or stays silent
+for :data:`LEASE_TTL_S`. An operation in progress (a parameter-set download) keeps the lease for as long as it runs.
+An admin may break a lease (logged).
+
+Who writes comes from a context variable the web layer sets per request (:func:`writing_as`); writes without one
+(internal service calls) take no lease but are still refused while someone else holds the node. Stopping a drive
+(quick stop, the guard's trip) is never refused: it runs inside :func:`stopping`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import threading
+import time
+import weakref
+from collections.abc import Iterator
+from contextvars import ContextVar
+from dataclasses import dataclass, field
+
+from drivebench.errors import Conflict, NotFound
+from drivebench.services.sessions import Session
+
+LEASE_TTL_S = 30.0
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class Writer:
+    name: str
+    """The principal's name (shown to the others)."""
+    client: str
+    """One browser tab (``panel:<tab id>``) or one API client (``client:<host>``)."""
+    where: str = "the API"
+    """Where the writes come from, as the others are shown it ("Parameters tab")."""
+
+    def same(self, other: Writer) -> bool:
+        return self.name == other.name and self.client == other.client
+
+
+@dataclass
+class Lease:
+    writer: Writer
+    since: float  # unix time
+    renewed: float  # monotonic
+    active: int = 0  # operations in progress
+
+    def expires_in(self, now: float | None = None) -> float:
+        if self.active:
+            return LEASE_TTL_S
+        return max(0.0, self.renewed + LEASE_TTL_S - (time.monotonic() if now is None else now))
+
+    def expired(self) -> bool:
+        return not self.active and self.expires_in() <= 0
+
+    def text(self, node_id: int) -> str:
+        clock = time.strftime("%H:%M", time.localtime(self.since))
+        until = ("until the operation under way ends" if self.active
+                 else f"or the lease expires in {self.expires_in():.0f} s")
+        return (f"Node {node_id} is being written by {self.writer.name} (since {clock}, {self.writer.where}); "
+                f"writes are refused until {self.writer.name} finishes {until}.")
+
+
+class NodeLeased(Conflict):
+    title = "Node is being written by someone else"
+
+    def __init__(self, node_id: int, lease: Lease) -> None:
+        super().__init__(lease.text(node_id), hint="An admin may break the lease (DELETE .../lease?force=true).")
+        self.node_id = node_id
+        self.lease = lease
+
+    def extra(self) -> dict[str, object]:
+        return {**super().extra(), "node": self.node_id, "holder": self.lease.writer.name,
+                "holder_where": self.lease.writer.where,
+                "since": time.strftime("%H:%M:%S", time.localtime(self.lease.since)),
+                "expires_in_s": round(self.lease.expires_in(), 1)}
+
+
+@dataclass
+class SessionLeases:
+    leases: dict[int, Lease] = field(default_factory=dict)
+    lock: threading.Lock = field(default_factory=threading.Lock)
+
+    def current(self, node_id: int) -> Lease | None:
+        with self.lock:
+            lease = self.leases.get(node_id)
+            if lease is not None and lease.expired():
+                del self.leases[node_id]
+                return None
+            return lease
+
+    def acquire(self, node_id: int, writer: Writer, *, hold: bool = False) -> Lease:
+        """Take or renew the lease; ``hold`` also counts one operation in progress (undo with :meth:`done`)."""
+        with self.lock:
+            lease = self.leases.get(node_id)
+            if lease is not None and not lease.expired() and not lease.writer.same(writer):
+                raise NodeLeased(node_id, lease)
+            if lease is None or not lease.writer.same(writer) or lease.expired():
+                lease = self.leases[node_id] = Lease(writer, time.time(), time.monotonic())
+            lease.renewed = time.monotonic()
+            if writer.where != lease.writer.where:
+                lease.writer = writer  # the same tab moved on (Parameters -> PDO)
+            if hold:
+                lease.active += 1
+            return lease
+
+    def done(self, node_id: int, writer: Writer) -> None:
+        with self.lock:
+            lease = self.leases.get(node_id)
+            if lease is not None and lease.writer.same(writer):
+                lease.active = max(0, lease.active - 1)
+                lease.renewed = time.monotonic()
+
+    def check(self, node_id: int) -> None:
+        """Refuse a write without a writer while someone holds the node."""
+        lease = self.current(node_id)
+        if lease is not None:
+            raise NodeLeased(node_id, lease)
+
+    def renew(self, node_id: int, client: str) -> bool:
+        with self.lock:
+            lease = self.leases.get(node_id)
+            if lease is None or lease.writer.client != client or lease.expired():
+                return False
+            lease.renewed = time.monotonic()
+            return True
+
+    def release(self, node_id: int, writer: Writer) -> bool:
+        with self.lock:
+            lease = self.leases.get(node_id)
+            if lease is None or not lease.writer.same(writer):
+                return False
+            del self.leases[node_id]
+            return True
+
+    def break_lease(self, node_id: int, by: str) -> Lease:
+        with self.lock:
+            lease = self.leases.pop(node_id, None)
+        if lease is None:
+            raise NotFound(f"Node {node_id} has no write lease.")
+        log.warning("write lease of node %s held by %s (%s, %s) broken by %s", node_id, lease.writer.name,
+                    lease.writer.client, lease.writer.where, by)
+        return lease
+
+
+_LEASES: weakref.WeakKeyDictionary[Session, SessionLeases] = weakref.WeakKeyDictionary()
+
+
+def leases(session: Session) -> SessionLeases:
+    found = _LEASES.get(session)
+    if found is None:
+        found = _LEASES[session] = SessionLeases()
+    return found
+
+
+# --- who writes: set per request by the web layer ---------------------------------------------------------------
+current_writer: ContextVar[Writer | None] = ContextVar("drivebench_writer", default=None)
+_stopping: ContextVar[bool] = ContextVar("drivebench_stopping", default=False)
+
+
+def writing_as(writer: Writer | None) -> None:
+    """Writes from here on (this request, and the tasks it starts) are ``writer``'s."""
+    current_writer.set(writer)
+
+
+@contextlib.contextmanager
+def stopping() -> Iterator[None]:
+    """Writes inside the block stop a drive: never refused by a lease (any station may stop a machine)."""
+    token = _stopping.set(True)
+    try:
+        yield
+    finally:
+        _stopping.reset(token)
+
+
+@contextlib.contextmanager
+def writing(session: Session, node_id: int) -> Iterator[None]:
+    """Around one write or one operation on the node: takes (or checks) the lease and holds it while inside."""
+    if _stopping.get():
+        yield
+        return
+    writer = current_writer.get()
+    table = leases(session)
+    if writer is None:
+        table.check(node_id)
+        yield
+        return
+    table.acquire(node_id, writer, hold=True)
+    try:
+        yield
+    finally:
+        table.done(node_id, writer)

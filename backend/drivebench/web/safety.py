@@ -1,0 +1,62 @@
+"""Who acts on a node, as the safety services see it: the panel (browser tab or API client), the writer of the node
+lease, and the confirmation an action that can move a drive carries.
+
+A browser tab names itself with ``X-DriveBench-Client`` (app.js sets it on every htmx request; the Control tab sends
+the same id as ``X-Drive-Panel``); websockets pass it as ``?client=``. Without one, a client is one panel per host.
+The confirmation is the ``X-DriveBench-Confirm`` header, the ``confirm`` query parameter or a body field.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import Depends
+from starlette.requests import HTTPConnection
+
+from drivebench.services import node_lease
+from drivebench.services.drive_guard import Panel, panel_of
+from drivebench.services.node_lease import Writer
+from drivebench.web.identity import principal_of
+
+WHERE = [("/parameter-sets", "Parameter sets"), ("/parameters", "Parameters tab"), ("/pdo", "PDO tab"),
+         ("/control", "Control tab"), ("/nmt", "NMT"), ("/commands", "device commands"), ("/lease", "node lease")]
+
+
+def client_id(conn: HTTPConnection) -> str | None:
+    return (conn.headers.get("x-drivebench-client") or conn.headers.get("x-drive-panel")
+            or conn.query_params.get("client") or conn.query_params.get("panel") or None)
+
+
+def panel_for(conn: HTTPConnection) -> Panel:
+    operator = conn.headers.get("x-drive-operator") or conn.query_params.get("operator") or principal_of(conn).name
+    return panel_of(conn.client.host if conn.client else None, client_id(conn), operator)
+
+
+def where_of(path: str) -> str:
+    for part, label in WHERE:
+        if part in path:
+            return label if path.startswith("/ui/") else f"{label.removesuffix(' tab')} API"
+    return "the API"
+
+
+def writer_for(conn: HTTPConnection) -> Writer:
+    return Writer(name=principal_of(conn).name, client=panel_for(conn).key, where=where_of(conn.url.path))
+
+
+async def acting_writer(conn: HTTPConnection) -> Writer:
+    """Router dependency: the writes of this request (and the jobs it starts) are this writer's."""
+    writer = writer_for(conn)
+    node_lease.writing_as(writer)
+    return writer
+
+
+def confirmation(conn: HTTPConnection, given: object = None) -> object:
+    """The confirmation an action carries: a body field, else the header, else the query parameter."""
+    if given is not None and given is not False:
+        return given
+    return conn.headers.get("x-drivebench-confirm") or conn.query_params.get("confirm")
+
+
+PanelDep = Annotated[Panel, Depends(panel_for)]
+WriterDep = Annotated[Writer, Depends(acting_writer)]
+ACTING = Depends(acting_writer)
