@@ -67,3 +67,19 @@ document.body.addEventListener("htmx:afterRequest", (event) => {
     return plainFetch(resource, { ...options, headers });
   };
 })();
+
+// --- safety interlocks: one client id per browser tab (X-DriveBench-Client) --------------------------------
+// The node write lease and the keep-alive of what a tab started belong to this id (safety.js uses the same one).
+window.drivebenchClientId = window.drivebenchClientId || (() => {
+  let id = null;
+  try { id = sessionStorage.getItem("drivebench.client"); } catch (e) { id = null; }
+  if (!id) {
+    id = Array.from(crypto.getRandomValues(new Uint8Array(8)), (b) => b.toString(16).padStart(2, "0")).join("");
+    try { sessionStorage.setItem("drivebench.client", id); } catch (e) { /* private mode: one id per page load */ }
+  }
+  return id;
+})();
+document.addEventListener("htmx:configRequest", (event) => {
+  event.detail.headers["X-DriveBench-Client"] = window.drivebenchClientId;
+});
+// --- end safety interlocks ---------------------------------------------------------------------------------

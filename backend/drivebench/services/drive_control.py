@@ -1,8 +1,9 @@
 """Drive control panel: state from the status word, transitions, setpoint in user units, jog, modes, actual values.
 
 Safety interlocks (the access-control issue's rules): every command after which the motor may turn needs
-``confirm=True``; once such a command was sent the node is *armed*: the client must send keep-alives (websocket
-message or POST) at least every :data:`KEEPALIVE_TIMEOUT_S`; when they stop, or the panel's websocket closes, the
+``confirm`` naming the node (its id, see :func:`drive_guard.require_confirmation`; else 428); once such a command
+was sent the node is *armed*: the client must send keep-alives (websocket message or POST) at least every
+:data:`KEEPALIVE_TIMEOUT_S`; when they stop, or the panel's websocket closes, the
 server sends quick stop. Shutdown, disable and quick stop disarm.
 
 Several panels on one node: the panel that armed the drive *holds* it until the drive is disarmed. Only the holder
@@ -15,6 +16,7 @@ The guard itself (arming, holders, keep-alive deadlines, quick stop) is :mod:`dr
 
 from __future__ import annotations
 
+import contextlib
 import time
 from dataclasses import dataclass
 
@@ -22,8 +24,16 @@ from pydantic import BaseModel
 
 from drivebench.device.catalog import Catalog
 from drivebench.errors import Conflict, DriveBenchError, InvalidValue, OutOfRange, UnknownParameter
-from drivebench.services import parameters
-from drivebench.services.drive_guard import SERVICE_PANEL, Panel, guard_for, last_word, read_word, write_word
+from drivebench.services import node_lease, parameters
+from drivebench.services.drive_guard import (
+    SERVICE_PANEL,
+    Panel,
+    guard_for,
+    last_word,
+    read_word,
+    require_confirmation,
+    write_word,
+)
 from drivebench.services.drive_words import (
     CIA402,
     COMMAND_LABELS,
@@ -309,9 +319,8 @@ async def read_status(session: Session, node: SessionNode, panel: Panel = SERVIC
 
 
 # --- commands ------------------------------------------------------------------------------------------------
-def _confirmed(confirm: bool, what: str) -> None:
-    if not confirm:
-        raise Conflict(f"{what} can make the motor turn: confirm it (confirm = true).")
+def _confirmed(confirm: object, node: SessionNode, what: str) -> None:
+    require_confirmation(confirm, node.node_id, what)
 
 
 async def write_control_word(session: Session, node: SessionNode, word: int) -> None:
@@ -328,7 +337,7 @@ async def _last_control_word(session: Session, node: SessionNode) -> int:
 STOPPING = {Command.SHUTDOWN, Command.DISABLE_VOLTAGE, Command.QUICK_STOP, Command.DISABLE_OPERATION}
 
 
-async def command(session: Session, node: SessionNode, which: Command, *, confirm: bool = False,
+async def command(session: Session, node: SessionNode, which: Command, *, confirm: object = None,
                   panel: Panel = SERVICE_PANEL) -> DriveStatus:
     """Send one transition. Stopping commands are open to every panel; the others only to the holder."""
     fam = family(node)
@@ -338,21 +347,22 @@ async def command(session: Session, node: SessionNode, which: Command, *, confir
     if which not in STOPPING:
         guard.check(node.node_id, panel, COMMAND_LABELS[which])
     if which in MOVING:
-        _confirmed(confirm, COMMAND_LABELS[which])
-    last = await _last_control_word(session, node)
-    word = next_control_word(fam, which, last)
-    edge = fam.edge_bits.get(which)
-    if edge is not None and last & edge:
-        await write_control_word(session, node, last & ~edge)  # a rising edge needs the bit at 0 first
-    if which in MOVING:
-        guard.arm(node.node_id, panel)
-    await write_control_word(session, node, word)
+        _confirmed(confirm, node, COMMAND_LABELS[which])
+    with node_lease.stopping() if which in STOPPING else contextlib.nullcontext():  # any station may stop it
+        last = await _last_control_word(session, node)
+        word = next_control_word(fam, which, last)
+        edge = fam.edge_bits.get(which)
+        if edge is not None and last & edge:
+            await write_control_word(session, node, last & ~edge)  # a rising edge needs the bit at 0 first
+        if which in MOVING:
+            guard.arm(node.node_id, panel)
+        await write_control_word(session, node, word)
     if which in STOPPING:
         guard.release(node.node_id)
     return await read_status(session, node, panel)
 
 
-async def set_setpoint(session: Session, node: SessionNode, value: float, *, confirm: bool = False,
+async def set_setpoint(session: Session, node: SessionNode, value: float, *, confirm: object = None,
                        panel: Panel = SERVICE_PANEL) -> DriveStatus:
     fam = family(node)
     guard = guard_for(session)
@@ -362,7 +372,7 @@ async def set_setpoint(session: Session, node: SessionNode, value: float, *, con
         raise OutOfRange(f"Setpoint {value:g} {scale.unit} is outside {scale.minimum:g} ... {scale.maximum:g} "
                          f"{scale.unit}.")
     if value != 0:
-        _confirmed(confirm, f"Setpoint {value:g} {scale.unit}")
+        _confirmed(confirm, node, f"Setpoint {value:g} {scale.unit}")
         guard.arm(node.node_id, panel)
     if scale.raw_per_unit:
         raw = round(value * scale.raw_per_unit) & 0xFFFF
@@ -427,7 +437,7 @@ async def jog_plan(session: Session, node: SessionNode) -> JogPlan:
                    text=f"Setpoint jog at 10 % of the range ({value:g} {scale.unit}): {why}.")
 
 
-async def jog(session: Session, node: SessionNode, direction: int, *, confirm: bool = False,
+async def jog(session: Session, node: SessionNode, direction: int, *, confirm: object = None,
               panel: Panel = SERVICE_PANEL) -> DriveStatus:
     """Hold-to-run: +1 / -1 runs at the jog value while the keep-alive lasts, 0 stops."""
     if direction not in (-1, 0, 1):
@@ -441,7 +451,7 @@ async def jog(session: Session, node: SessionNode, direction: int, *, confirm: b
     if plan.method == "setpoint":
         return await set_setpoint(session, node, direction * plan.value, confirm=confirm, panel=panel)
     if direction:
-        _confirmed(confirm, f"Jog at {plan.value:g} {plan.unit}")
+        _confirmed(confirm, node, f"Jog at {plan.value:g} {plan.unit}")
         guard.arm(node.node_id, panel)
     word = await _last_control_word(session, node) & ~(EMF_JOG_SELECT | EMF_CCW)
     if direction:
@@ -450,7 +460,7 @@ async def jog(session: Session, node: SessionNode, direction: int, *, confirm: b
     return await read_status(session, node, panel)
 
 
-async def set_mode(session: Session, node: SessionNode, mode: int, *, confirm: bool = False,
+async def set_mode(session: Session, node: SessionNode, mode: int, *, confirm: object = None,
                    panel: Panel = SERVICE_PANEL) -> DriveStatus:
     if family(node) is not CIA402 or not has_ref(_catalog(node), "0x6060"):
         raise InvalidValue(f"{node.device_name} has no modes of operation (0x6060).")
@@ -459,7 +469,7 @@ async def set_mode(session: Session, node: SessionNode, mode: int, *, confirm: b
     guard_for(session).check(node.node_id, panel, "Changing the mode of operation")
     status = await read_status(session, node, panel)
     if status.enabled:
-        _confirmed(confirm, "Changing the mode of operation while the drive is enabled")
+        _confirmed(confirm, node, "Changing the mode of operation while the drive is enabled")
     await parameters.write(session, node.node_id, "0x6060", mode, verify=False)
     status = await read_status(session, node, panel)
     if status.mode != mode:
