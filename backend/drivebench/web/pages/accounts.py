@@ -80,7 +80,11 @@ def _context(**extra: Any) -> dict[str, Any]:
 
 
 async def _render(request: Request, block: str | None = None, status: int = 200, **extra: Any) -> Response:
-    context = await asyncio.to_thread(_context, **extra)
+    """The page, or one block; a change of the users also refreshes the token form's list of users (out of band)."""
+    context = await asyncio.to_thread(_context, block=block, **extra)
+    if block == "users":
+        return templates.TemplateResponse(request, "users.html", context, block_names=["users", "tokens"],
+                                          status_code=status)
     return templates.TemplateResponse(request, "users.html", context, block_name=block, status_code=status)
 
 
