@@ -76,6 +76,8 @@ def test_every_demo_drive_plots_current_and_dc_bus(bench: Bench, node_id: int, c
 
 def test_scaling_on_the_wire(bench: Bench) -> None:
     """FIX32 x 10000 (EMF2178IB), factor 1 (8400 V), REAL32 (MICROMASTER): the raw telegram value and the shown one."""
+    for node_id, ref in ((VECTOR, "C0053"), (MOTEC, "C00053"), (MM, "r0026")):  # the model's first values are in
+        bench.until(node_id, ref, lambda volts: volts > 565)  # (before them: the profile default, 560 V)
     vector = bench.run(parameters.read(bench.session, VECTOR, "C0053"))
     assert (vector.index, vector.raw, vector.value, vector.unit) == (0x5FCA, 5657000, 565.7, "V")
     motec = bench.run(parameters.read(bench.session, MOTEC, "C00053"))
