@@ -1,0 +1,103 @@
+"""Safety interlocks in the browser: NMT start on the Plant page asks first (refusing sends nothing), the tab then
+keeps the node alive and says so; closing the tab stops the drive (quick stop, NMT pre-operational). The node page
+shows who holds a node's write lease to a second engineer."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterator
+from typing import Any
+
+import pytest
+from fastapi import FastAPI
+from playwright.sync_api import expect
+
+from drivebench.simulator.plant import Plant
+from drivebench.web.app import create_app
+from tests.conftest import DEMO_PLANT, fresh_channel, screenshot, serve_app
+
+MM, MOTEC = 3, 5
+WAIT_MS = 10_000
+
+
+@pytest.fixture
+def own_server() -> Iterator[tuple[str, FastAPI]]:
+    """A server of its own: the test reaches its simulated drives."""
+    app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
+    with serve_app(app) as base_url:
+        yield base_url, app
+
+
+def _plant(app: FastAPI) -> Plant:
+    plant: Plant = app.state.drivebench.plants["demo-plant"]
+    return plant
+
+
+def _wait(condition: Callable[[], bool], seconds: float = 10.0) -> bool:
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        if condition():
+            return True
+        time.sleep(0.05)
+    return False
+
+
+def test_nmt_start_asks_first_and_closing_the_tab_stops_the_drive(own_server: tuple[str, FastAPI],
+                                                                  browser: Any) -> None:
+    url, app = own_server
+    sim = _plant(app).nodes[MM]
+    context = browser.new_context(viewport={"width": 1440, "height": 900})
+    page = context.new_page()
+    try:
+        page.goto(url + "/")
+        start = page.locator(f"#nmt-demo-plant-{MM}-start")
+        asked: list[str] = []
+
+        def refuse(dialog: Any) -> None:
+            asked.append(dialog.message)
+            dialog.dismiss()
+
+        page.once("dialog", refuse)
+        start.click()
+        assert _wait(lambda: bool(asked)) and f"Start node {MM}?" in asked[0]
+        time.sleep(0.5)
+        assert sim.state.name == "PRE_OPERATIONAL", "refusing the confirmation sends nothing"
+
+        page.once("dialog", lambda dialog: dialog.accept())
+        start.click()
+        assert _wait(lambda: sim.state.name == "OPERATIONAL"), "NMT start did not reach the drive"
+        note = page.locator("#session-demo-plant .keepalive-state")
+        expect(note).to_have_text(f"This tab keeps node {MM} running: closing it stops it.", timeout=WAIT_MS)
+        full = screenshot(page, "safety-plant-keepalive")
+        page.screenshot(path=str(full.with_name("safety-plant-keepalive-top.png")))
+        time.sleep(3)  # longer than the 2 s keep-alive timeout: the open tab keeps the node running
+        assert sim.state.name == "OPERATIONAL"
+    finally:
+        context.close()  # closing the tab
+    assert _wait(lambda: sim.state.name == "PRE_OPERATIONAL"), "the node kept running after its tab closed"
+    drive = sim.drive
+    assert drive is not None and drive.control_word & 0x06 == 0x02, "no quick stop (0x6040 bit 1 set, bit 2 clear)"
+
+
+def test_second_engineer_sees_the_lease_holder_on_the_node_page(own_server: tuple[str, FastAPI],
+                                                                browser: Any) -> None:
+    url, _app = own_server
+    context = browser.new_context(viewport={"width": 1440, "height": 900}, extra_http_headers={
+        "X-DriveBench-User": "ben"})
+    page = context.new_page()
+    try:
+        anna = page.request.put(f"{url}/api/sessions/demo-plant/nodes/{MOTEC}/parameters/C00039/1",
+                                data={"value": 12.5, "verify": False},
+                                headers={"X-DriveBench-User": "anna", "X-DriveBench-Client": "anna-tab"})
+        assert anna.ok, anna.text()
+        page.goto(f"{url}/sessions/demo-plant/nodes/{MOTEC}")
+        banner = page.locator("#lease-slot .held-by-other")
+        expect(banner).to_contain_text(f"Node {MOTEC} is being written by anna (since ", timeout=WAIT_MS)
+        expect(banner).to_contain_text("writes are refused until anna finishes or the lease expires in")
+        expect(banner.locator("button", has_text="Break lease")).to_be_visible()
+        page.screenshot(path=str(screenshot(page, "safety-lease-banner").with_name("safety-lease-banner-top.png")))
+        page.once("dialog", lambda dialog: dialog.accept())
+        banner.locator("button", has_text="Break lease").click()
+        expect(page.locator("#lease-slot")).to_contain_text("Lease of anna broken (logged).", timeout=WAIT_MS)
+    finally:
+        context.close()
