@@ -16,6 +16,7 @@ import can
 import pytest
 from fastapi.testclient import TestClient
 
+from drivebench.services.monitor import HISTORY_S, TRACE_CAPACITY, monitor_for
 from drivebench.services.sessions import Session
 from drivebench.simulator.plant import Plant, PlantFile, PlantNode
 from drivebench.transport.bus import SimulatedAdapter
@@ -252,3 +253,39 @@ def test_bus_off_error_frames_through_the_socketcand_hub(channel: str) -> None:
     finally:
         controller.shutdown()
         hub.stop()
+
+
+# --- a babbling node at 100 % bus load ----------------------------------------------------------------------------
+def test_babbling_node_is_named_starves_the_others_and_everything_recovers(client: TestClient) -> None:
+    session = demo_session(client)
+    plant: Plant = client.app.state.drivebench.plants["demo-plant"]  # type: ignore[attr-defined]
+    snapshot = lambda: client.get("/api/sessions/demo-plant/monitor?trace=0").json()  # noqa: E731
+    assert snapshot()["flood"] is None
+    babbler = plant.start_babbler(0x001)
+    try:
+        flood = wait_for(lambda: (s := snapshot())["load"]["peak_percent"] >= 90 and s["flood"], timeout_s=20,
+                         what="the monitor to see the bus full")
+        assert flood["cob_id"] == "0x001" and flood["load_percent"] >= 50
+        assert flood["text"].startswith("COB-ID 0x001 floods the bus: ")
+        assert client.get("/api/health").status_code == 200  # the server answers meanwhile
+
+        # The plant models arbitration: every node's COB-ID is higher than 0x001, so no answer gets on the bus
+        # (the virtual bus itself would carry them; a real bus would not).
+        starved = client.get("/api/sessions/demo-plant/nodes/5/parameters/0x1000")
+        assert starved.status_code == 504
+        assert "Node 5 did not answer" in starved.json()["detail"]
+        wait_for(lambda: "floods the bus" in (client.get("/api/sessions/demo-plant").json()["state_text"] or ""),
+                 what="the session's bus state to name the flood")
+        wait_for(lambda: "COB-ID 0x001 floods the bus" in client.get("/").text, what="the Plant page to name it")
+
+        sizes = monitor_for(session).buffer_sizes()
+        assert sizes["trace"] <= TRACE_CAPACITY and sizes["history"] <= HISTORY_S and sizes["cob_ids"] < 40
+        assert babbler.sent > 1000
+    finally:
+        plant.stop_babbler()
+
+    wait_for(lambda: snapshot()["flood"] is None, timeout_s=15, what="the flood to end")
+    assert client.get("/api/sessions/demo-plant/nodes/5/parameters/0x1000").status_code == 200
+    assert client.get("/api/sessions/demo-plant/nodes/3/parameters/0x1000").status_code == 200
+    wait_for(lambda: "floods" not in (client.get("/api/sessions/demo-plant").json()["state_text"] or ""),
+             what="the Plant page to drop the flood")

@@ -122,6 +122,8 @@ class BusHealth(can.Listener):
         """(wall time, from, to)"""
         self._lock = threading.Lock()
         self._last = "active"
+        self.notes: list[Callable[[], str | None]] = []
+        """More sentences about the bus (the monitor's babbling-node finding), added to :meth:`text`."""
         bus.watch_link(self._on_link)
 
     def on_message_received(self, msg: can.Message) -> None:
@@ -162,7 +164,12 @@ class BusHealth(can.Listener):
         return None
 
     def text(self) -> str | None:
-        """The state in a sentence; None while all is well and has been since the session opened."""
+        """The state in a sentence, plus the notes; None while all is well and has been since the session opened."""
+        sentences = [self.state_text(), *(note() for note in list(self.notes))]
+        return " ".join(sentence for sentence in sentences if sentence) or None
+
+    def state_text(self) -> str | None:
+        """The state alone in a sentence (no notes)."""
         state = self.state()
         link = self.bus.link
         with self._lock:
@@ -192,7 +199,7 @@ class BusHealth(can.Listener):
         with self._lock:
             data = self.errors.as_dict(self.adapter_state(), time.monotonic() if now is None else now)
         link = self.bus.link
-        data.update(state=self.state(), adapter_state=self.adapter_state(), text=self.text(),
+        data.update(state=self.state(), adapter_state=self.adapter_state(), text=self.state_text(),
                     link={"lost": link.lost, "reason": link.lost_reason, "since": link.lost_at,
                           "attempts": link.attempts, "reconnects": link.reconnects})
         return data

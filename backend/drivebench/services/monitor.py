@@ -46,6 +46,11 @@ RATE_WINDOW_S = 2.0
 """Rates are frames over the last this many seconds: a silent COB-ID is at 0/s this long after its last frame."""
 EXTENDED = 1 << 29
 """Key flag for 29-bit identifiers in the COB-ID table."""
+FLOOD_BUS_PERCENT = 60.0
+FLOOD_COB_PERCENT = 50.0
+"""A COB-ID floods the bus when the load of the rate window is at least FLOOD_BUS_PERCENT and that COB-ID alone
+takes FLOOD_COB_PERCENT of the bit rate."""
+FLOOD_CACHE_S = 0.5
 
 SERVICE_GROUPS = ("NMT", "SYNC", "EMCY", "TIME", "PDO", "SDO", "Heartbeat", "LSS", "Unknown", "Error frame")
 """What the service filter offers; PDO and SDO stand for all their kinds."""
@@ -143,6 +148,7 @@ class Monitor(can.Listener):
         self._trace: deque[tuple[int, can.Message, SdoContext | None]] = deque(maxlen=trace_capacity)
         self._history: deque[tuple[int, int]] = deque(maxlen=history_s)
         self._tracker = SdoTracker()
+        self._flood_cache: tuple[float, str | None] | None = None
         self._reset_locked(time.monotonic())
 
     @property
@@ -304,6 +310,7 @@ class Monitor(can.Listener):
         names = self._node_names()
         load_now = 100.0 * last_second[1] / self.bitrate if last_second else 0.0
         bus, bus_text = self._bus()
+        flood = self._flood(cobs, reference, elapsed, names)
         return {
             "session": self.session_id,
             "time": now + self._wall_offset,
@@ -312,6 +319,7 @@ class Monitor(can.Listener):
             "bitrate": self.bitrate,
             "bus": bus,
             "bus_text": bus_text,
+            "flood": flood,
             "totals": {"frames": frames, "bits": total_bits, "rate": round(total_rate, 2), "errors": errors,
                        "error_rate": round((errors - reference.errors) / elapsed, 2),
                        "last_error_age_s": round(now - last_error, 2) if last_error is not None else None},
@@ -338,6 +346,35 @@ class Monitor(can.Listener):
         data = health.as_dict()
         return {key: data[key] for key in ("state", "adapter_state", "tx_errors", "rx_errors",
                                            "reported_age_s")}, data["text"]
+
+    def _flood(self, cobs: dict[int, tuple[int, int, float]], reference: _Sample, elapsed: float,
+               names: dict[int, str]) -> dict[str, Any] | None:
+        """The COB-ID that holds the bus (a babbling node), from the bits of the rate window; None if none does."""
+        capacity = self.bitrate * elapsed
+        recent = {key: (count - reference.frames.get(key, 0)) * bits / count
+                  for key, (count, bits, _) in cobs.items() if count}
+        if not recent or sum(recent.values()) < FLOOD_BUS_PERCENT / 100 * capacity:
+            return None
+        key = max(recent, key=recent.__getitem__)
+        share = 100.0 * recent[key] / capacity
+        if share < FLOOD_COB_PERCENT:
+            return None
+        service, node = _classify_key(key)
+        who = f"COB-ID {_key_text(key)}" + (f" ({service.value} of node {node}"
+                                             f"{', ' + names[node] if node in names else ''})" if node else "")
+        return {"cob_id": _key_text(key), "node": node, "load_percent": round(share, 1),
+                "text": f"{who} floods the bus: {share:.0f} % of the bit rate over the last {elapsed:.0f} s "
+                        "(a babbling node?). On a real bus every frame with a higher COB-ID loses arbitration: "
+                        "those nodes cannot answer until it stops."}
+
+    def flood_text(self) -> str | None:
+        """The babbling-node sentence for the Plant page (at most one snapshot per FLOOD_CACHE_S)."""
+        now = time.monotonic()
+        cached = self._flood_cache
+        if cached is None or now - cached[0] >= FLOOD_CACHE_S:
+            flood = self.live_snapshot()["flood"]
+            cached = self._flood_cache = (now, flood["text"] if flood else None)
+        return cached[1]
 
     def _rate_reference(self, current: _Sample) -> _Sample:
         """The newest sample at least RATE_WINDOW_S old (else the oldest, else the reset); keeps the window."""
@@ -486,4 +523,5 @@ def monitor_for(session: Session) -> Monitor:
         if monitor is None:
             monitor = _monitors[session] = Monitor(session)
             session.add_frame_listener(monitor)
+            session.health.notes.append(monitor.flood_text)
         return monitor

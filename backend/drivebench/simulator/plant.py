@@ -22,6 +22,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 from drivebench.device.profile import Profile
 from drivebench.errors import DriveBenchError, ProfileError, TransportError
+from drivebench.simulator.babbler import DEFAULT_COB_ID, Babbler
 from drivebench.simulator.node import Latency, SimulatedNode
 from drivebench.transport.bus import BusSpec, open_bus
 
@@ -87,6 +88,7 @@ class Plant:
         self._stop = threading.Event()
         self._ticker: threading.Thread | None = None
         self._send_lock = threading.Lock()
+        self.babbler: Babbler | None = None
         for spec in plant.nodes:
             profile = profiles(spec.profile)
             self.nodes[spec.node_id] = SimulatedNode(
@@ -104,6 +106,7 @@ class Plant:
         return self
 
     def stop(self) -> None:
+        self.stop_babbler()
         self._stop.set()
         if self._ticker is not None:
             self._ticker.join(timeout=2)
@@ -123,7 +126,23 @@ class Plant:
             node.power_on()
         return node
 
+    # --- a babbling node (switchable at run time) ------------------------------------------------------------
+    def start_babbler(self, cob_id: int = DEFAULT_COB_ID, *, load_percent: float = 100.0) -> Babbler:
+        """A node that floods the bus with ``cob_id``; at 100 % the plant's nodes with higher COB-IDs lose every
+        arbitration, as on a real bus, so their answers and heartbeats stop until :meth:`stop_babbler`."""
+        self.stop_babbler()
+        self.babbler = Babbler(self.spec, cob_id, load_percent=load_percent).start()
+        return self.babbler
+
+    def stop_babbler(self) -> None:
+        babbler, self.babbler = self.babbler, None
+        if babbler is not None:
+            babbler.stop()
+
     def _send(self, cob_id: int, data: bytes) -> None:
+        babbler = self.babbler
+        if babbler is not None and babbler.starves(cob_id):
+            return  # never wins arbitration against the babbler: the frame does not get on the bus
         msg = can.Message(arbitration_id=cob_id, data=data, is_extended_id=False)
         with self._send_lock:
             if self._bus is None:
