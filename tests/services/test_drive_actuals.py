@@ -123,8 +123,9 @@ def test_micromaster_current_follows_the_drive_state(bench: Bench) -> None:
     values = bench.actuals(MM)
     assert (values["r0080"].value or 0) > 0 and values["r0080"].unit == "Nm"
     assert 540 <= (values["r0026"].value or 0) <= 566 and running < 2 * 1.9
-    bench.write(MM, "0x6040", 0x06)  # shutdown: pulses off
-    bench.until(MM, "r0027", lambda amps: amps == 0)
+    bench.write(MM, "0x6040", 0x06)  # shutdown (OFF1): down the ramp (P1121 10 s for 1500 rpm), then pulses off
+    bench.until(MM, "r0027", lambda amps: amps == 0, timeout_s=30)
+    assert bench.actuals(MM)["0x6044"].value == 0
 
 
 def test_lenze_current_follows_the_drive_state(bench: Bench) -> None:

@@ -289,8 +289,11 @@ class Drive402:
         self.ramping = abs(target - self.torque_permille) > 0.5
 
     def pulses_on(self) -> bool:
-        """The inverter drives the motor: operation enabled, or braking it in quick stop / fault reaction."""
-        return self.state in (State402.OPERATION_ENABLED, State402.QUICK_STOP_ACTIVE, State402.FAULT_REACTION_ACTIVE)
+        """The inverter drives the motor: operation enabled, braking it in quick stop / fault reaction, or running
+        it down the ramp after shutdown / disable operation (MM OFF1: the pulses stop once the motor stands)."""
+        if self.state in (State402.OPERATION_ENABLED, State402.QUICK_STOP_ACTIVE, State402.FAULT_REACTION_ACTIVE):
+            return True
+        return abs(self.speed_rpm) > 0.5 and self.state in (State402.READY_TO_SWITCH_ON, State402.SWITCHED_ON)
 
     def actual_torque_permille(self) -> float:
         """Torque mode: the torque the drive sets; velocity mode: what the demo machine's load needs."""
