@@ -199,6 +199,12 @@ class ConfirmationRequired(ServiceError):
     title = "Confirmation required"
 
 
+class ContentTooLarge(ServiceError):
+    """A request body past the upload limit, refused before it is read (HTTP 413)."""
+
+    title = "Upload too large"
+
+
 class NotAuthenticated(ServiceError):
     title = "Not signed in"
 

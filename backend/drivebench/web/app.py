@@ -26,6 +26,7 @@ from drivebench.web.api import diagnostics, health, parameter_sets, parameters, 
 from drivebench.web.api import drive_control as drive_control_api
 from drivebench.web.api import monitor as monitor_api
 from drivebench.web.api import simulator as simulator_api
+from drivebench.web.limits import BodyLimit
 from drivebench.web.pages import accounts as accounts_page
 from drivebench.web.pages import monitor as monitor_page
 from drivebench.web.pages import node as node_page
@@ -100,6 +101,7 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
     problems.install(app)
     access.install(app)  # sign-in, roles, CSRF; inside ViewerScope, which marks share-link requests first
     app.add_middleware(ViewerScope, links=share_links)
+    app.add_middleware(BodyLimit, limit_bytes=settings.max_upload_bytes)  # before anything reads a body
     for router in API_ROUTERS + PAGE_ROUTERS + WS_ROUTERS:
         app.include_router(router)
     app.mount("/static", StaticFiles(directory=settings.frontend_dir / "static"), name="static")

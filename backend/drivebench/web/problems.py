@@ -29,6 +29,7 @@ STATUS: list[tuple[type[errors.DriveBenchError], int]] = [
     (errors.BusSpecError, 422),
     (errors.ParameterError, 422),
     (errors.Conflict, 409),
+    (errors.ContentTooLarge, 413),
     (errors.ConfirmationRequired, 428),
     (errors.NotAuthenticated, 401),
     (errors.AccessDenied, 403),

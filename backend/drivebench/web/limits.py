@@ -1,0 +1,89 @@
+"""Request bodies past the upload limit are refused with 413 before the server reads them.
+
+A declared ``Content-Length`` over the limit is answered at once, without reading a byte of the body; a body
+without one (chunked) is counted as it arrives and cut as soon as it passes the limit. Either way the client gets
+problem+json (htmx: an error fragment) in words: "The file is 7.4 MB; uploads are limited to 5 MB."
+Once the 413 is sent the route sees a disconnected client, and whatever it answers or raises is dropped.
+"""
+
+from __future__ import annotations
+
+from starlette.datastructures import Headers
+from starlette.responses import HTMLResponse, JSONResponse, Response
+from starlette.types import ASGIApp, Message, Receive, Scope, Send
+
+from drivebench.errors import ContentTooLarge
+from drivebench.web.problems import error_fragment, problem_body
+
+MULTIPART_OVERHEAD_BYTES = 64 * 1024
+"""Room for the multipart boundary and part headers around a file of exactly the limit."""
+
+
+def megabytes(count: int) -> str:
+    """``7759462`` -> ``7.4 MB``, ``5242880`` -> ``5 MB`` (MB of 1024 x 1024 bytes, as file managers show)."""
+    text = f"{count / 2**20:.1f}"
+    return f"{text.removesuffix('.0')} MB"
+
+
+class BodyLimit:
+    """ASGI middleware: refuse HTTP request bodies over ``limit_bytes`` (plus multipart framing) with 413."""
+
+    def __init__(self, app: ASGIApp, limit_bytes: int) -> None:
+        self.app = app
+        self.limit_bytes = limit_bytes
+        self.cap_bytes = limit_bytes + MULTIPART_OVERHEAD_BYTES
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        headers = Headers(scope=scope)
+        declared = headers.get("content-length", "")
+        if declared.isdigit() and int(declared) > self.cap_bytes:
+            await self.refusal(headers, scope, int(declared))(scope, receive, send)
+            return
+        received = 0
+        refused = False
+        started = False
+
+        async def limited_receive() -> Message:
+            nonlocal received, refused
+            if refused:
+                return {"type": "http.disconnect"}
+            message = await receive()
+            if message["type"] == "http.request":
+                received += len(message.get("body", b""))
+                if received > self.cap_bytes:
+                    refused = True
+                    if not started:
+                        await self.refusal(headers, scope, None)(scope, receive, send)
+                    return {"type": "http.disconnect"}
+            return message
+
+        async def guarded_send(message: Message) -> None:
+            nonlocal started
+            if refused:
+                return  # the 413 is the answer
+            started = started or message["type"] == "http.response.start"
+            await send(message)
+
+        try:
+            await self.app(scope, limited_receive, guarded_send)
+        except Exception:
+            if not refused:
+                raise
+            # The route failed on the body it did not get; the client already has its 413.
+
+    def refusal(self, headers: Headers, scope: Scope, declared: int | None) -> Response:
+        is_file = headers.get("content-type", "").startswith("multipart/form-data")
+        what = "file" if is_file else "request body"
+        limit = megabytes(self.limit_bytes)
+        if declared is not None:
+            detail = f"The {what} is {megabytes(declared)}; uploads are limited to {limit}."
+        else:
+            detail = f"The {what} is larger than {limit}; uploads are limited to {limit}."
+        body = problem_body(ContentTooLarge(detail), scope.get("path", ""))
+        if headers.get("hx-request") == "true":
+            return HTMLResponse(error_fragment(body), status_code=413, headers={"Connection": "close"})
+        return JSONResponse(body, status_code=413, media_type="application/problem+json",
+                            headers={"Connection": "close"})

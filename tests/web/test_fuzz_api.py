@@ -1,0 +1,162 @@
+"""Fuzz every operation of the REST API from its OpenAPI spec (schemathesis) against the real app and demo plant.
+
+No answer may be a server error: a 500 (or an exception out of the app) is a bug. 502/503/504 are what the design
+gives a drive's SDO abort, a silent node or a missing adapter; they pass only as problem+json that names such a
+fault (``sdo-abort-error``, ``sdo-timeout-error``, ``node-offline``, ``adapter-unavailable``, ``transport-error``).
+
+Each operation gets schema-valid and schema-invalid cases, half with random path parameters and half aimed at
+things that exist (session ``demo-plant``, nodes 3, 5 and 12 with their profiles and one object each), so the
+handlers behind the 404s are reached too. Nothing is excluded: the two operations that take the demo plant apart
+(delete a node, close the session) run last, so every other operation still meets the plant. CI runs a few
+derandomized examples per operation; ``benchmarks/fuzz_api.py`` runs many more with the same harness.
+"""
+
+from __future__ import annotations
+
+import collections
+import contextlib
+import dataclasses
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+import requests
+import schemathesis
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from hypothesis.errors import Unsatisfiable
+from schemathesis import GenerationMode
+
+from drivebench.config import REPO_ROOT
+from drivebench.config import settings as app_settings
+from drivebench.web.app import create_app
+from tests.conftest import fresh_channel, serve_app
+
+DEMO_PLANT = REPO_ROOT / "plants" / "demo.json"
+DEVICE_FAULTS = {"/problems/sdo-abort-error", "/problems/sdo-timeout-error", "/problems/node-offline",
+                 "/problems/adapter-unavailable", "/problems/transport-error"}
+# What exists in the demo plant, one set of path parameters per node (an operation takes the names it has).
+KNOWN = [
+    {"session_id": "demo-plant", "node_id": 3, "profile_id": "siemens-micromaster4-canopen", "ref": "P0700"},
+    {"session_id": "demo-plant", "node_id": 5, "profile_id": "lenze-8400-motec-canopen", "ref": "C00088"},
+    {"session_id": "demo-plant", "node_id": 12, "profile_id": "lenze-8200-vector-emf2178ib", "ref": "0x1017.0"},
+]
+# Run last, in this order: each takes away what the operations before it need.
+DESTRUCTIVE = ["DELETE /api/sessions/{session_id}/nodes/{node_id}", "DELETE /api/sessions/{session_id}"]
+CI_EXAMPLES = 3
+CALL_TIMEOUT_S = 30
+
+
+@dataclasses.dataclass
+class FuzzReport:
+    """What a fuzz run saw: cases sent, answers by status, and the failures with a curl line to repeat them."""
+
+    cases: int = 0
+    statuses: collections.Counter[int | str] = dataclasses.field(default_factory=collections.Counter)
+    failures: list[str] = dataclasses.field(default_factory=list)
+    device_faults: int = 0
+
+    def server_errors(self) -> int:
+        return sum(n for status, n in self.statuses.items() if not isinstance(status, int) or status >= 500)
+
+
+def operation_labels() -> list[str]:
+    """Every operation of the spec as 'METHOD /path', the destructive ones last (the spec needs no plant)."""
+    spec = create_app().openapi()
+    labels = [f"{method.upper()} {path}" for path, methods in spec["paths"].items() for method in methods]
+    return [label for label in labels if label not in DESTRUCTIVE] + DESTRUCTIVE
+
+
+def send(case: Any, target: Target, report: FuzzReport) -> None:
+    report.cases += 1
+    try:
+        response = case.call(base_url=target.base_url, session=target.session, timeout=CALL_TIMEOUT_S)
+    except requests.RequestException as exc:  # no answer at all (the server dropped the connection or hung)
+        report.statuses["no answer"] += 1
+        report.failures.append(f"no answer: {exc!r}\n    {case.as_curl_command(base_url=target.base_url)}")
+        return
+    report.statuses[response.status_code] += 1
+    if response.status_code < 500:
+        return
+    body: dict[str, Any] = {}
+    if (response.headers.get("content-type") or [""])[0].startswith("application/problem+json"):
+        body = response.json()
+    if response.status_code in (502, 503, 504) and body.get("type") in DEVICE_FAULTS:
+        report.device_faults += 1
+        return
+    report.failures.append(f"{response.status_code} {response.text[:300]}\n"
+                           f"    {case.as_curl_command(base_url=target.base_url)}")
+
+
+def can_be_invalid(operation: Any) -> bool:
+    """Whether schema-invalid cases exist: a body, a query or header parameter, or a path parameter that is more
+    than a free string (any string is a valid path segment)."""
+    if list(operation.body) or list(operation.query) or list(operation.headers):
+        return True
+    return any(parameter.definition.get("schema", {}).get("type") != "string" or "pattern" in parameter.definition
+               for parameter in operation.path_parameters)
+
+
+def fuzz_operation(operation: Any, target: Target, max_examples: int, report: FuzzReport) -> None:
+    """Schema-valid then schema-invalid cases for one operation, random and aimed at the demo plant."""
+    names = {parameter.name for parameter in operation.path_parameters}
+    aimed = [{k: v for k, v in known.items() if k in names} for known in KNOWN] if names else []
+    modes = [GenerationMode.POSITIVE] + ([GenerationMode.NEGATIVE] if can_be_invalid(operation) else [])
+    for mode in modes:
+        strategies = [operation.as_strategy(generation_mode=mode)]
+        strategies += [operation.as_strategy(generation_mode=mode, path_parameters=pins) for pins in aimed]
+
+        @given(case=st.one_of(strategies))
+        @settings(max_examples=max_examples, derandomize=True, deadline=None, database=None,
+                  suppress_health_check=list(HealthCheck))
+        def run(case: Any) -> None:
+            send(case, target, report)
+
+        try:
+            run()
+        except Unsatisfiable:  # an enum or boolean alone can be wrong only in ways a URL cannot carry
+            assert mode is GenerationMode.NEGATIVE, f"no valid case could be made for {operation.label}"
+
+
+@dataclasses.dataclass
+class Target:
+    """The API under fuzz: its spec as schemathesis reads it, where it runs, one keep-alive HTTP session."""
+
+    schema: Any
+    base_url: str
+    session: requests.Session
+
+
+@contextlib.contextmanager
+def running_api(work: Path) -> Iterator[Target]:
+    """The real app with the demo plant in uvicorn (one lifespan for the whole run), own database and uploads."""
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(app_settings, "database_url", f"sqlite:///{work / 'fuzz.db'}")
+        patch.setattr(app_settings, "user_profiles_dir", work / "profiles")
+        app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
+        with serve_app(app) as base_url, requests.Session() as session:
+            schema = schemathesis.openapi.from_dict(session.get(f"{base_url}/openapi.json", timeout=30).json())
+            schema.config.output.sanitization.enabled = False  # the curl lines show the ids that were sent
+            yield Target(schema, base_url, session)
+
+
+@pytest.fixture(scope="module")
+def target(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Target]:
+    with running_api(tmp_path_factory.mktemp("fuzz")) as running:
+        yield running
+
+
+@pytest.mark.parametrize("label", operation_labels())
+def test_no_server_error(target: Target, label: str) -> None:
+    method, path = label.split(" ", 1)
+    report = FuzzReport()
+    fuzz_operation(target.schema[path][method], target, CI_EXAMPLES, report)
+    assert report.cases > 0
+    assert not report.failures, f"{label}: {len(report.failures)} server errors\n" + "\n".join(report.failures[:5])
+
+
+def test_every_operation_of_the_spec_is_fuzzed() -> None:
+    """Nothing left out: the parametrized list is the spec's whole list of operations."""
+    spec = create_app().openapi()
+    assert len(operation_labels()) == sum(len(methods) for methods in spec["paths"].values()) > 100
