@@ -112,7 +112,7 @@ def test_api_client_that_stops_its_keepalive_gets_its_node_stopped(client: TestC
 
 def test_closing_the_page_socket_stops_what_it_started(client: TestClient, wire: can.BusABC) -> None:
     """The Plant page's keep-alive socket holds the 8400 motec it started; the page closes -> NMT pre-operational
-    and quick stop (C00866/1, the CAN1_IN control word) at once, before any deadline."""
+    and quick stop (C00866/1, the CAN1_IN control word) within the keep-alive timeout."""
     frames = Frames(wire)
     sim = _plant(client).nodes[MOTEC]
     with client.websocket_connect(f"/ws/sessions/{DEMO}/keepalive?client=tab-anna") as socket:
@@ -127,11 +127,29 @@ def test_closing_the_page_socket_stops_what_it_started(client: TestClient, wire:
         assert not frames.nmt(0x80, MOTEC) and sim.state.name == "OPERATIONAL"
         ben = client.post(_node("/nmt"), json={"command": "start", "confirm": 5}, headers=BEN)
         assert ben.status_code == 409 and "anna" in ben.json()["detail"], "another client cannot take the node"
-    assert _wait(lambda: frames.nmt(0x80, MOTEC), seconds=1.5), "the closed page's node was not stopped at once"
+    assert _wait(lambda: frames.nmt(0x80, MOTEC)), "the closed page's node was not stopped"
     assert frames.sdo_download(MOTEC, 0x5FFF - 866), "no quick stop written to C00866/1"
     assert _wait(lambda: sim.state.name == "PRE_OPERATIONAL")
-    status = client.get(_node("/control", MM)).json()
-    assert status["last_trip"] is None  # the other nodes are untouched
+    trip = client.get(_node("/control")).json()["last_trip"]
+    assert "the page that started it disconnected" in trip and "NMT pre-operational sent" in trip, trip
+    assert client.get(_node("/control", MM)).json()["last_trip"] is None  # the other nodes are untouched
+
+
+def test_the_same_tab_reconnecting_keeps_its_node_running(client: TestClient, wire: can.BusABC) -> None:
+    """An in-app navigation closes the page's socket and the next page opens one for the same tab: no stop."""
+    frames = Frames(wire)
+    url = f"/ws/sessions/{DEMO}/keepalive?client=tab-anna"
+    with client.websocket_connect(url) as socket:
+        assert client.post(_node("/nmt"), json={"command": "start", "confirm": 5}, headers=ANNA).status_code == 200
+        socket.send_text("{}")
+        assert socket.receive_json()["nodes"] == [MOTEC]
+    with client.websocket_connect(url) as socket:  # the next page of the same tab
+        for _ in range(8):
+            socket.send_text("{}")
+            assert socket.receive_json()["nodes"] == [MOTEC]
+            time.sleep(0.5)
+        assert not frames.nmt(0x80, MOTEC), "stopped although the tab came back"
+    assert _wait(lambda: frames.nmt(0x80, MOTEC)), "not stopped after the tab left for good"
 
 
 def test_cyclic_rpdo_page_closed_stops_the_frames_and_the_drive(client: TestClient, wire: can.BusABC) -> None:
@@ -247,3 +265,17 @@ def test_admin_breaks_a_lease_an_engineer_cannot(roles_client: TestClient) -> No
     no_guard = roles_client.post(_node("/nmt"), json={"command": "start", "confirm": 5, "keepalive": False,
                                                        "reason": "PLC supervises"}, headers=ben)
     assert no_guard.status_code == 403, "only admins start without the keep-alive guard"
+
+
+def test_a_closed_tab_ends_its_leases_and_the_same_engineer_takes_over_a_script(client: TestClient) -> None:
+    anna_tab2 = {"X-DriveBench-User": "anna", "X-DriveBench-Client": "tab-anna-2"}
+    with client.websocket_connect(f"/ws/sessions/{DEMO}/keepalive?client=tab-anna"):
+        assert _write(client, ANNA, 12).status_code == 200
+        refused = _write(client, anna_tab2, 13)  # her other tab, while the first one is open: refused too
+        assert refused.status_code == 409 and "anna" in refused.json()["detail"]
+    assert _wait(lambda: client.get(_node("/lease")).json()["holder"] is None), "the closed tab kept its lease"
+    script = {"X-DriveBench-User": "anna"}  # anna's script: no page open
+    assert _write(client, script, 14).status_code == 200
+    assert _write(client, BEN, 20).status_code == 409, "another engineer still waits"
+    assert _write(client, anna_tab2, 15).status_code == 200, "the same engineer's tab takes over from her script"
+    assert client.get(_node("/lease"), headers=anna_tab2).json()["yours"]

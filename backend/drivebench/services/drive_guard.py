@@ -129,6 +129,8 @@ class Guard:
         """Armed by NMT start or an RPDO: the status word does not disarm these."""
         self.started: set[int] = set()
         """Started by the tool (NMT start): the trip sends them NMT pre-operational."""
+        self.orphaned: dict[int, str] = {}
+        """Nodes whose holding page closed (who it was), stopped at their deadline unless the tab comes back."""
         self._task: asyncio.Task[None] | None = None
 
     def armed(self, node_id: int) -> bool:
@@ -165,6 +167,7 @@ class Guard:
         holder = self.holder(node_id)
         if holder is None or holder.panel.key != panel.key:
             return False
+        self.orphaned.pop(node_id, None)
         self.deadlines[node_id] = time.monotonic() + self.timeouts.get(node_id, KEEPALIVE_TIMEOUT_S)
         session = self._session()
         if session is not None:
@@ -214,18 +217,24 @@ class Guard:
         self.clients[panel.key] = self.clients.get(panel.key, 0) + 1
 
     def client_closed(self, panel: Panel) -> list[int]:
-        """A page's keep-alive socket closed: the nodes to stop (held by it, no other socket of it left open)."""
+        """A page's keep-alive socket closed: the nodes it held with no other socket of it left open. They stop at
+        their deadline (at most the keep-alive timeout) unless the same tab reconnects first (the next page of an
+        in-app navigation, a reload) and keeps them alive."""
         left = self.clients.get(panel.key, 1) - 1
         if left > 0:
             self.clients[panel.key] = left
             return []
         self.clients.pop(panel.key, None)
-        return [node for node in self.held_by(panel) if not self.sockets.get((node, panel.key))]
+        orphans = [node for node in self.held_by(panel) if not self.sockets.get((node, panel.key))]
+        for node in orphans:
+            self.orphaned[node] = panel.who
+        return orphans
 
     async def trip(self, node_id: int, reason: str) -> None:
         """Stop an armed node (keep-alive lost or the holder's panel disconnected): cyclic RPDOs to it end, quick
         stop goes to its control word, and a node the tool started goes to NMT pre-operational."""
         holder = self.holders.pop(node_id, None)
+        self.orphaned.pop(node_id, None)
         if self.deadlines.pop(node_id, None) is None:
             return
         self.pinned.discard(node_id)
@@ -269,7 +278,9 @@ class Guard:
             for node_id, deadline in list(self.deadlines.items()):
                 if deadline < now:
                     timeout = self.timeouts.get(node_id, KEEPALIVE_TIMEOUT_S)
-                    await self.trip(node_id, f"no keep-alive for {timeout:g} s")
+                    page = self.orphaned.pop(node_id, None)
+                    await self.trip(node_id, f"the page that started it disconnected (no keep-alive for {timeout:g} s)"
+                                    if page else f"no keep-alive for {timeout:g} s")
 
 
 _GUARDS: weakref.WeakKeyDictionary[Session, Guard] = weakref.WeakKeyDictionary()

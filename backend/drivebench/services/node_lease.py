@@ -4,7 +4,9 @@ A writer is a principal's name plus a client (one browser tab or one API client)
 its lease; the same writer may then write freely, and every write renews it. Another writer is refused (409, with
 who holds the node, since when, from where and when the lease expires) until the holder releases it or stays silent
 for :data:`LEASE_TTL_S`. An operation in progress (a parameter-set download) keeps the lease for as long as it runs.
-An admin may break a lease (logged).
+An admin may break a lease (logged). A browser tab's leases end when its last page closes (its keep-alive socket,
+:meth:`SessionLeases.client_closed`); the same principal in another tab or script takes over a lease whose client is
+not connected (it is the same engineer), never one of a tab still open.
 
 Who writes comes from a context variable the web layer sets per request (:func:`writing_as`); writes without one
 (internal service calls) take no lease but are still refused while someone else holds the node. Stopping a drive
@@ -83,7 +85,14 @@ class NodeLeased(Conflict):
 @dataclass
 class SessionLeases:
     leases: dict[int, Lease] = field(default_factory=dict)
+    connected: dict[str, int] = field(default_factory=dict)
+    """Open pages (keep-alive sockets) per client."""
     lock: threading.Lock = field(default_factory=threading.Lock)
+
+    def _yields_to(self, lease: Lease, writer: Writer) -> bool:
+        """The same engineer from another client, while the holding client has no page open and nothing under way."""
+        return (lease.writer.name == writer.name and not lease.active
+                and not self.connected.get(lease.writer.client))
 
     def current(self, node_id: int) -> Lease | None:
         with self.lock:
@@ -97,7 +106,8 @@ class SessionLeases:
         """Take or renew the lease; ``hold`` also counts one operation in progress (undo with :meth:`done`)."""
         with self.lock:
             lease = self.leases.get(node_id)
-            if lease is not None and not lease.expired() and not lease.writer.same(writer):
+            if (lease is not None and not lease.expired() and not lease.writer.same(writer)
+                    and not self._yields_to(lease, writer)):
                 raise NodeLeased(node_id, lease)
             if lease is None or not lease.writer.same(writer) or lease.expired():
                 lease = self.leases[node_id] = Lease(writer, time.time(), time.monotonic())
@@ -136,6 +146,23 @@ class SessionLeases:
                 return False
             del self.leases[node_id]
             return True
+
+    def client_opened(self, client: str) -> None:
+        with self.lock:
+            self.connected[client] = self.connected.get(client, 0) + 1
+
+    def client_closed(self, client: str) -> list[int]:
+        """A page of ``client`` closed; with its last one, its leases end (not one of an operation under way)."""
+        with self.lock:
+            left = self.connected.get(client, 1) - 1
+            if left > 0:
+                self.connected[client] = left
+                return []
+            self.connected.pop(client, None)
+            ended = [node for node, lease in self.leases.items() if lease.writer.client == client and not lease.active]
+            for node in ended:
+                del self.leases[node]
+            return ended
 
     def break_lease(self, node_id: int, by: str) -> Lease:
         with self.lock:

@@ -12,8 +12,10 @@ closes the socket with code 4404.
 ``/ws/sessions/{session}/keepalive?client=<tab id>`` is a page's keep-alive for what it started (NMT start on the
 Plant page, RPDOs on the PDO tab): every message the client sends (``{"cmd": "keepalive"}``, at least every 2 s)
 keeps alive every node that tab holds in the session; when its last such socket closes, those nodes are stopped
-at once (cyclic RPDOs end, quick stop, NMT pre-operational for the nodes the tool started). The server answers each
-message with ``{"type": "held", "nodes": [5]}``.
+(cyclic RPDOs end, quick stop, NMT pre-operational for the nodes the tool started) at their keep-alive deadline,
+at most 2 s later, unless the same tab reconnects first (the next page of an in-app navigation keeps them
+running). The tab's node write leases end with its last such socket. The server answers each message with
+``{"type": "held", "nodes": [5]}``.
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ import time
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 
 from drivebench.errors import DriveBenchError, NotFound
-from drivebench.services import drive_control
+from drivebench.services import drive_control, node_lease
 from drivebench.services.drive_guard import Guard
 from drivebench.web.safety import panel_for
 
@@ -97,6 +99,8 @@ async def keepalive(websocket: WebSocket, session_id: str) -> None:
     guard = drive_control.guard_for(session)
     panel = panel_for(websocket)
     guard.client_opened(panel)
+    leases = node_lease.leases(session)
+    leases.client_opened(panel.key)
     try:
         while True:
             await websocket.receive_text()
@@ -104,5 +108,5 @@ async def keepalive(websocket: WebSocket, session_id: str) -> None:
     except (WebSocketDisconnect, RuntimeError):
         pass
     finally:
-        for node_id in guard.client_closed(panel):
-            _trip(guard, node_id, f"the page that started it ({panel.who}) disconnected")
+        guard.client_closed(panel)  # its nodes stop at their deadline unless the same tab reconnects at once
+        leases.client_closed(panel.key)  # and its write leases end
