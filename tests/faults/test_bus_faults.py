@@ -289,3 +289,30 @@ def test_babbling_node_is_named_starves_the_others_and_everything_recovers(clien
     assert client.get("/api/sessions/demo-plant/nodes/3/parameters/0x1000").status_code == 200
     wait_for(lambda: "floods" not in (client.get("/api/sessions/demo-plant").json()["state_text"] or ""),
              what="the Plant page to drop the flood")
+
+
+# --- a duplicate node id --------------------------------------------------------------------------------------------
+def test_duplicate_node_id_is_reported_in_words_others_work_and_it_clears(client: TestClient, registry: Any) -> None:
+    plant: Plant = client.app.state.drivebench.plants["demo-plant"]  # type: ignore[attr-defined]
+    state_text = lambda: client.get("/api/sessions/demo-plant").json()["state_text"] or ""  # noqa: E731
+    assert client.post("/api/sessions/demo-plant/scan", json={}).status_code == 200
+    assert "Two devices" not in state_text()
+
+    plant.add_node(registry.get("lenze-8400-motec-canopen"), 5, duplicate=True, name="Second conveyor",
+                   heartbeat_ms=500)
+    assert client.post("/api/sessions/demo-plant/scan", json={}).status_code == 200
+    assert "Two devices answer as node 5: " in state_text() and "2 answers to one SDO request" in state_text()
+    assert "Two devices answer as node 5" in client.get("/").text
+    wait_for(lambda: "heartbeats at" in state_text(), what="the doubled heartbeats")  # 0x1017 says 500 ms
+    for other in (3, 12):
+        assert client.get(f"/api/sessions/demo-plant/nodes/{other}/parameters/0x1000").status_code == 200
+    assert "node 3" not in state_text() and "node 12" not in state_text()
+
+    reset = client.post("/api/sessions/demo-plant/nodes/5/nmt", json={"command": "reset-node"})
+    assert reset.status_code == 200, reset.text
+    wait_for(lambda: "two boot-ups" in state_text(), what="two boot-ups")
+
+    plant.remove_duplicates(5)
+    assert client.post("/api/sessions/demo-plant/scan", json={}).status_code == 200
+    assert "Two devices" not in state_text()
+    assert client.get("/api/sessions/demo-plant/nodes/5/parameters/0x1000").status_code == 200

@@ -24,6 +24,7 @@ from drivebench.protocol.heartbeat import HeartbeatStatus
 from drivebench.protocol.network import CanopenNetwork, NodeClient
 from drivebench.protocol.nmt import STATE_AFTER, NmtCommand, NmtState
 from drivebench.services.bus_state import ADAPTER_LOST, BusHealth
+from drivebench.services.duplicates import DuplicateWatch
 from drivebench.transport.bus import BusSpec, open_bus
 
 
@@ -87,6 +88,9 @@ class Session:
         self.health = BusHealth(network.bus, self.emit)
         network.add_listener(self.health)
         network.bus.send_guard = self.health.refusal
+        self.duplicates = DuplicateWatch()
+        network.add_listener(self.duplicates)
+        self.health.notes.append(self.duplicates.text)
 
     # --- nodes ------------------------------------------------------------------------------------------
     def add_node(self, node_id: int, profile_id: str | None, name: str | None = None) -> SessionNode:
@@ -129,6 +133,8 @@ class Session:
         """Find nodes (SDO 0x1000 to every id + heartbeats), read their identity, pick a profile."""
         found = await asyncio.to_thread(self.network.scan, timeout_s)
         results = await asyncio.gather(*(self._identify(node_id) for node_id in found))
+        if found:  # two devices on one id both answer: one more request each tells (Plant page, state_text)
+            await asyncio.to_thread(self.duplicates.probe, self.network, found)
         return list(results)
 
     async def _identify(self, node_id: int) -> SessionNode:
@@ -144,7 +150,10 @@ class Session:
                 continue
         try:  # the producer period lets heartbeat loss be judged before two telegrams were measured
             period = await client.aupload(0x1017, 0)
-            self.network.heartbeat.set_configured_period(node_id, int.from_bytes(period[:2], "little"))
+            period_ms = int.from_bytes(period[:2], "little")
+            self.network.heartbeat.set_configured_period(node_id, period_ms)
+            if period_ms:
+                self.duplicates.producer_period_s[node_id] = period_ms / 1000
         except (SdoAbortError, SdoTimeoutError):
             pass
         existing = self.nodes.get(node_id)

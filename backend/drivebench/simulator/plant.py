@@ -89,6 +89,8 @@ class Plant:
         self._ticker: threading.Thread | None = None
         self._send_lock = threading.Lock()
         self.babbler: Babbler | None = None
+        self.duplicates: list[SimulatedNode] = []
+        """Second devices set to a node id that is already taken (a commissioning mistake, switched at run time)."""
         for spec in plant.nodes:
             profile = profiles(spec.profile)
             self.nodes[spec.node_id] = SimulatedNode(
@@ -110,21 +112,36 @@ class Plant:
         self._stop.set()
         if self._ticker is not None:
             self._ticker.join(timeout=2)
-        for node in self.nodes.values():
+        for node in self._everyone():
             node.power_off()
         if self._notifier is not None:
             self._notifier.stop()
         if self._bus is not None:
             self._bus.shutdown()
 
-    def add_node(self, profile: Profile, node_id: int, **kwargs: object) -> SimulatedNode:
-        if node_id in self.nodes:
+    def add_node(self, profile: Profile, node_id: int, *, duplicate: bool = False,
+                 **kwargs: object) -> SimulatedNode:
+        """A node powered on now; ``duplicate`` puts a second device on an id that is taken (both answer)."""
+        if node_id in self.nodes and not duplicate:
             raise DriveBenchError(f"Node id {node_id} is already on the simulated bus")
         node = SimulatedNode(profile, node_id, self._send, **kwargs)  # type: ignore[arg-type]
-        self.nodes[node_id] = node
+        if node_id in self.nodes:
+            self.duplicates = [*self.duplicates, node]
+        else:
+            self.nodes[node_id] = node
         if self._bus is not None:
             node.power_on()
         return node
+
+    def remove_duplicates(self, node_id: int) -> None:
+        """Take the second devices on ``node_id`` off the bus again."""
+        gone = [node for node in self.duplicates if node.node_id == node_id]
+        self.duplicates = [node for node in self.duplicates if node.node_id != node_id]
+        for node in gone:
+            node.power_off()
+
+    def _everyone(self) -> list[SimulatedNode]:
+        return [*self.nodes.values(), *self.duplicates]
 
     # --- a babbling node (switchable at run time) ------------------------------------------------------------
     def start_babbler(self, cob_id: int = DEFAULT_COB_ID, *, load_percent: float = 100.0) -> Babbler:
@@ -158,13 +175,13 @@ class Plant:
         if msg.is_extended_id or msg.is_error_frame:
             return
         if msg.is_remote_frame:
-            for node in list(self.nodes.values()):
+            for node in self._everyone():
                 node.on_remote_request(msg.arbitration_id)
             return
         self._dispatch(msg.arbitration_id, bytes(msg.data), msg.timestamp, skip_sender=False)
 
     def _dispatch(self, cob_id: int, data: bytes, timestamp: float, *, skip_sender: bool) -> None:
-        for node in list(self.nodes.values()):
+        for node in self._everyone():
             if skip_sender and cob_id & 0x7F == node.node_id:
                 continue
             node.on_frame(cob_id, data, timestamp)
@@ -172,5 +189,5 @@ class Plant:
     def _tick(self) -> None:
         while not self._stop.wait(TICK_S):
             now = time.monotonic()
-            for node in list(self.nodes.values()):
+            for node in self._everyone():
                 node.tick(now)

@@ -1,0 +1,128 @@
+"""Two devices with one node id: what gives them away, in words.
+
+CAN cannot tell two transmitters of the same COB-ID apart, so a duplicate node id shows only in its effects:
+
+- two boot-up messages from one id within ``BOOTUP_WINDOW_S`` (both devices reset on one NMT command or power-up);
+- heartbeats arriving at (about) twice the producer rate the node was configured with (0x1017);
+- two answers to one SDO request (the probe after a scan: CiA 301 allows exactly one server per SDO channel).
+
+A finding is kept ``hold_s`` after its last evidence; a probe that gets one answer clears it at once.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import deque
+
+import can
+
+from drivebench.protocol.network import CanopenNetwork
+
+BOOTUP_WINDOW_S = 0.5
+HEARTBEATS_JUDGED = 7
+"""Heartbeats of one node over which the rate is judged."""
+DOUBLED_RATE_FACTOR = 0.65
+"""Heartbeats count as doubled when their span is below this share of what the producer period predicts."""
+PROBE_WAIT_S = 0.3
+IDENTITY_SERIAL = bytes([0x40, 0x18, 0x10, 0x04, 0, 0, 0, 0])
+"""SDO upload request for 0x1018sub4 (serial number)."""
+
+
+class DuplicateWatch(can.Listener):
+    """Collects the evidence of duplicate node ids on one session's bus (listener on the notifier thread)."""
+
+    def __init__(self, hold_s: float = 30.0) -> None:
+        self.hold_s = hold_s
+        self.producer_period_s: dict[int, float] = {}
+        """Heartbeat producer time per node as configured (0x1017), read by the session's scan."""
+        self._bootups: dict[int, float] = {}
+        self._beats: dict[int, deque[float]] = {}
+        self._found: dict[int, dict[str, tuple[str, float]]] = {}
+        """node id -> kind of evidence -> (words, monotonic time)"""
+        self._lock = threading.Lock()
+
+    def on_message_received(self, msg: can.Message) -> None:
+        cob_id = msg.arbitration_id
+        if msg.is_extended_id or msg.is_error_frame or msg.is_remote_frame or not 0x701 <= cob_id <= 0x77F:
+            return
+        if not msg.data:
+            return
+        # spans from the frames' own time stamps: a reader that lagged and catches up must not look like a double
+        node_id, now, stamp = cob_id - 0x700, time.monotonic(), msg.timestamp or time.time()
+        with self._lock:
+            if msg.data[0] == 0:
+                last = self._bootups.get(node_id)
+                self._bootups[node_id] = stamp
+                if last is not None and 0 <= stamp - last < BOOTUP_WINDOW_S:
+                    self._note(node_id, "boot-up", f"two boot-ups {1000 * (stamp - last):.0f} ms apart", now)
+                return
+            beats = self._beats.setdefault(node_id, deque(maxlen=HEARTBEATS_JUDGED))
+            beats.append(stamp)
+            period = self.producer_period_s.get(node_id)
+            if period and len(beats) == HEARTBEATS_JUDGED:
+                span = beats[-1] - beats[0]
+                if span < DOUBLED_RATE_FACTOR * period * (HEARTBEATS_JUDGED - 1):
+                    rate = (HEARTBEATS_JUDGED - 1) / span if span > 0 else float("inf")
+                    self._note(node_id, "heartbeat", f"heartbeats at {rate:.1f}/s where node {node_id} produces "
+                                                     f"one every {period * 1000:.0f} ms", now)
+
+    def _note(self, node_id: int, kind: str, evidence: str, now: float) -> None:
+        self._found.setdefault(node_id, {})[kind] = (evidence, now)
+
+    def probe(self, network: CanopenNetwork, node_ids: list[int]) -> dict[int, int]:
+        """Ask each node once for its serial number (0x1018sub4) and count the answers (blocking). Two or more:
+        a duplicate; exactly one clears an earlier finding. Returns the answers per node."""
+        answers: dict[int, list[bytes]] = {node_id: [] for node_id in node_ids}
+
+        def on_answer(can_id: int, data: bytearray, timestamp: float) -> None:
+            answers[can_id - 0x580].append(bytes(data))
+
+        locks = [channel.lock for client in list(network.nodes.values()) for channel in client.channels]
+        for lock in locks:  # no probe may land in the middle of a transfer
+            lock.acquire()
+        try:
+            for node_id in node_ids:
+                network.canopen.subscribe(0x580 + node_id, on_answer)
+            try:
+                for node_id in node_ids:
+                    network.send(0x600 + node_id, IDENTITY_SERIAL)
+                time.sleep(PROBE_WAIT_S)
+            finally:
+                for node_id in node_ids:
+                    network.canopen.unsubscribe(0x580 + node_id, on_answer)
+        finally:
+            for lock in locks:
+                lock.release()
+        now = time.monotonic()
+        with self._lock:
+            for node_id, frames in answers.items():
+                if len(frames) >= 2:
+                    serials = {int.from_bytes(frame[4:8], "little") for frame in frames if frame[0] & 0xE0 == 0x40}
+                    which = (f"two answers to one SDO request with different serial numbers "
+                             f"({', '.join(f'{s}' for s in sorted(serials))})" if len(serials) > 1
+                             else f"{len(frames)} answers to one SDO request")
+                    self._note(node_id, "sdo", which, now)
+                elif len(frames) == 1:
+                    self._found.pop(node_id, None)
+                    self._bootups.pop(node_id, None)
+                    self._beats.pop(node_id, None)
+        return {node_id: len(frames) for node_id, frames in answers.items()}
+
+    def found(self) -> dict[int, str]:
+        """Node id -> the evidence in words, from findings younger than ``hold_s``."""
+        now = time.monotonic()
+        found: dict[int, str] = {}
+        with self._lock:
+            for node_id, kinds in sorted(self._found.items()):
+                fresh = [words for words, at in kinds.values() if now - at <= self.hold_s]
+                if fresh:
+                    found[node_id] = "; ".join(fresh)
+        return found
+
+    def text(self) -> str | None:
+        found = self.found()
+        if not found:
+            return None
+        return " ".join(f"Two devices answer as node {node_id}: {evidence}. Give one of them another node id; "
+                        "until then neither can be trusted." for node_id, evidence in found.items())
