@@ -131,12 +131,17 @@ def test_every_state_shows_its_table_3_18_bits(plant: Plant, script: WireScript)
     node = plant.nodes[MM]
     drive = node.drive
     assert drive is not None
-    script.sdo(MM, "2b bc 22 00 06 00 00 00")  # P0700 = 6
+    for step in PREPARE:
+        script.sdo(MM, step[0])
+    script.sdo(MM, "2b 42 60 00 f4 01 00 00")  # 0x6042 = 500 rpm
     _poll_until(script, lambda: drive.state is State402.SWITCH_ON_DISABLED)  # after the power-up self-test
     seen = {State402.SWITCH_ON_DISABLED: _sw(script)}
     for word, state in ((0x06, State402.READY_TO_SWITCH_ON), (0x07, State402.SWITCHED_ON),
                         (0x0F, State402.OPERATION_ENABLED), (0x07, State402.SWITCHED_ON),
-                        (0x0F, State402.OPERATION_ENABLED), (0x0B, State402.QUICK_STOP_ACTIVE)):
+                        (0x7F, State402.OPERATION_ENABLED), (0x0B, State402.QUICK_STOP_ACTIVE)):
+        if state is State402.QUICK_STOP_ACTIVE:
+            # A drive at standstill leaves quick stop active within one cycle: stop a turning motor instead.
+            _poll_until(script, lambda: drive.speed_rpm >= 100)
         _sdo_cw(script, word)
         seen[state] = _sw(script)
         assert drive.state is state, f"CW 0x{word:02X}"
