@@ -23,7 +23,7 @@ from drivebench.transport.bus import SimulatedAdapter
 from drivebench.transport.hub import start_hub_thread
 from drivebench.transport.hub_bridge import BusBridge
 from drivebench.web.app import create_app
-from tests.conftest import DEMO_PLANT, fresh_channel
+from tests.conftest import DEMO_PLANT, fresh_channel, screenshot, serve_app
 
 
 def wait_for(check: Callable[[], Any], timeout_s: float = 10.0, what: str = "condition") -> Any:
@@ -105,7 +105,7 @@ def test_unplugged_adapter_mid_read_all_keeps_values_says_so_and_reconnects(
     state = client.get("/api/sessions/demo-plant").json()
     assert state["state"] == "adapter lost"
     assert state["state_text"].startswith("adapter lost: USB adapter unplugged since ")
-    assert "No contact (adapter lost)" in client.get("/").text
+    assert "Adapter lost" in client.get("/").text
     assert "adapter lost: USB adapter unplugged" in client.get("/").text
 
     lost = client.get("/api/sessions/demo-plant/nodes/5/parameters/0x1000")  # fails at once, in words
@@ -207,10 +207,10 @@ def test_error_passive_then_bus_off_fail_fast_in_words_and_recover(client: TestC
     assert _count(wire, 0x605) == requests_before, "nothing is sent while bus-off"
     state = client.get("/api/sessions/demo-plant").json()
     assert state["state"] == "bus-off" and state["state_text"].startswith("bus-off: the CAN controller left the bus")
-    assert {n["nmt_state"] for n in client.get("/api/sessions/demo-plant/nodes").json()} == {"No contact (bus-off)"}
+    assert {n["nmt_state"] for n in client.get("/api/sessions/demo-plant/nodes").json()} == {"Bus-off"}
     assert monitor()["bus"]["state"] == "bus-off"
     page = client.get("/").text
-    assert "bus-off: the CAN controller left the bus" in page and "No contact (bus-off)" in page
+    assert "bus-off: the CAN controller left the bus" in page and "Bus-off" in page
 
     adapter.report(can.BusState.ACTIVE)  # the controller recovered (128 x 11 recessive bits)
     state = client.get("/api/sessions/demo-plant").json()
@@ -316,3 +316,28 @@ def test_duplicate_node_id_is_reported_in_words_others_work_and_it_clears(client
     assert client.post("/api/sessions/demo-plant/scan", json={}).status_code == 200
     assert "Two devices" not in state_text()
     assert client.get("/api/sessions/demo-plant/nodes/5/parameters/0x1000").status_code == 200
+
+
+# --- the Plant page in a browser --------------------------------------------------------------------------------------
+def test_plant_page_says_adapter_lost_live_and_adapter_back(page: Any) -> None:
+    from playwright.sync_api import expect
+
+    app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
+    with serve_app(app) as url:
+        page.goto(url + "/")
+        node_state = page.locator("#node-demo-plant-5 .nmt")
+        expect(node_state).to_have_text("Pre-operational", timeout=10_000)
+        adapter = adapter_of(app.state.drivebench.manager.get("demo-plant"))
+
+        adapter.unplug("USB adapter unplugged")  # no reload: the table is pushed twice a second
+        caption = page.locator("#nodes-demo-plant caption.bus-state")
+        expect(caption).to_contain_text("adapter lost: USB adapter unplugged since ", timeout=10_000)
+        expect(node_state).to_have_text("Adapter lost", timeout=10_000)
+        expect(page.locator("#bus-badge-demo-plant")).to_have_text("bus adapter lost", timeout=10_000)
+        screenshot(page, "faults-plant-adapter-lost")
+
+        adapter.plug_in()
+        expect(caption).to_contain_text("adapter back at ", timeout=15_000)
+        expect(node_state).to_have_text("Pre-operational", timeout=15_000)
+        expect(page.locator("#bus-badge-demo-plant")).to_have_text("bus active", timeout=10_000)
+        screenshot(page, "faults-plant-adapter-back")

@@ -188,8 +188,10 @@ class Session:
     def nmt_state(self, node_id: int) -> tuple[str, bool]:
         """The node's NMT state in words, and whether it comes from a live heartbeat."""
         bus_state = self.health.state()
-        if bus_state in (ADAPTER_LOST, "bus-off"):
-            return f"No contact ({bus_state})", False
+        if bus_state == ADAPTER_LOST:
+            return "Adapter lost", False
+        if bus_state == "bus-off":
+            return "Bus-off", False
         guard = self.network.guarding.status(node_id)
         if guard is not None:
             if guard.is_lost():

@@ -30,7 +30,8 @@ async def node_states(websocket: WebSocket, session_id: str) -> None:
                 await websocket.close(code=4404, reason=f"No open session '{session_id}'")
                 return
             context = templates.env.get_template("plant.html").new_context(
-                {"session_id": session.id, "nodes": nodes_public(session), "bus_text": session.bus_text})
+                {"session_id": session.id, "nodes": nodes_public(session), "bus_text": session.bus_text,
+                 "bus_state": session.bus_state})
             html = "".join(block(context)).replace(f'id="nodes-{session.id}"',
                                                    f'id="nodes-{session.id}" hx-swap-oob="true"', 1)
             await websocket.send_text(html)
