@@ -159,8 +159,91 @@ def api(user_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iter
 
 
 def upload(api: TestClient, name: str, content: bytes) -> Any:
-    return api.post("/api/profiles", files={"file": (name, content)})
+    """A multipart upload with the file name as raw UTF-8 in the part header (no client escaping of NUL and
+    control characters, as a hand-made request would send it)."""
+    boundary = "drivebench-names"
+    body = (f"--{boundary}\r\nContent-Disposition: form-data; name=\"file\"; filename=\"{name}\"\r\n"
+            "Content-Type: application/octet-stream\r\n\r\n").encode() + content + f"\r\n--{boundary}--\r\n".encode()
+    return api.post("/api/profiles", content=body,
+                    headers={"Content-Type": f"multipart/form-data; boundary={boundary}"})
 
 
 def shipped_state() -> dict[str, bytes]:
     return {p.name: p.read_bytes() for p in sorted(SHIPPED.iterdir()) if p.is_file()}
+
+
+@pytest.mark.parametrize(("name", "shown"), [
+    ("../../etc/passwd.eds", "passwd.eds"),
+    ("C:\\x\\..\\y.eds", "y.eds"),
+    ("/absolute/servo.EDS", "servo.EDS"),
+    ("nul\x00byte.eds", "nulbyte.eds"),
+    ("\u202eevil\u200b\x07.eds", "evil.eds"),
+    (".eds", ".eds"),
+])
+def test_a_file_name_never_becomes_a_path(api: TestClient, user_dir: Path, tmp_path: Path, name: str,
+                                          shown: str) -> None:
+    before = shipped_state()
+    response = upload(api, name, SERVO_EDS.read_bytes())
+    assert response.status_code == 201, response.text
+    profile = response.json()
+    assert profile["uploaded_as"] == shown
+    stored = sorted(p.name for p in user_dir.iterdir())
+    assert stored == [f"{profile['id']}.eds"]
+    assert all((p.parent == user_dir) for p in user_dir.rglob("*"))
+    assert sorted(p.name for p in tmp_path.rglob("*.eds")) == stored
+    assert shipped_state() == before
+    listed = {p["id"]: p for p in api.get("/api/profiles").json()}
+    assert listed[profile["id"]]["uploaded_as"] == shown and not listed[profile["id"]]["builtin"]
+
+
+def test_a_500_character_name_is_shortened_for_showing_and_the_id_for_storing(api: TestClient, user_dir: Path
+                                                                                ) -> None:
+    response = upload(api, "a" * 496 + ".eds", SERVO_EDS.read_bytes())
+    assert response.status_code == 201, response.text
+    profile = response.json()
+    assert len(profile["uploaded_as"]) == 120 and profile["uploaded_as"].endswith("a….eds")
+    assert len(profile["id"]) <= 80
+    assert [p.name for p in user_dir.iterdir()] == [f"{profile['id']}.eds"]
+
+
+@pytest.mark.parametrize("name", ["CON.eds", "nul.eds", "com1.eds", "LPT9.dcf"])
+def test_windows_device_names_are_refused_in_words(api: TestClient, user_dir: Path, name: str) -> None:
+    response = upload(api, name, SERVO_EDS.read_bytes())
+    assert response.status_code == 422
+    assert "device name on Windows" in response.json()["detail"]
+    assert response.json()["source"] == name
+    assert not user_dir.exists() or list(user_dir.iterdir()) == []
+
+
+def test_a_long_profile_id_is_refused_in_words(api: TestClient) -> None:
+    profile = json.loads((SHIPPED / "lenze-8400-motec-canopen.json").read_text(encoding="utf-8"))
+    profile["id"] = "x" * 300
+    response = upload(api, "long.json", json.dumps(profile).encode())
+    assert response.status_code == 422
+    assert response.json()["detail"] == ("long.json: the profile id is 300 characters long; at most 100 are "
+                                         "allowed (it names the stored file)")
+
+
+def test_an_upload_cannot_replace_a_shipped_profile(api: TestClient, user_dir: Path) -> None:
+    before = shipped_state()
+    shipped = (SHIPPED / "lenze-8400-motec-canopen.json").read_bytes()
+    for name in ("lenze-8400-motec-canopen.json", "../../device_profiles/lenze-8400-motec-canopen.json"):
+        response = upload(api, name, shipped)
+        assert response.status_code == 422
+        assert "belongs to a built-in profile" in response.json()["detail"]
+    assert shipped_state() == before
+    assert not user_dir.exists() or list(user_dir.iterdir()) == []
+
+
+def test_a_name_only_of_a_suffix_and_an_unknown_suffix_are_answered_in_words(api: TestClient) -> None:
+    response = upload(api, "..", SERVO_EDS.read_bytes())
+    assert response.status_code == 422
+    assert response.json()["detail"].startswith("..: unknown profile file type (none); use .json, .eds or .dcf")
+
+
+def test_deleting_an_upload_forgets_the_name_it_came_in_as(api: TestClient, user_dir: Path) -> None:
+    profile = upload(api, "../x/Servo Drive.eds", SERVO_EDS.read_bytes()).json()
+    assert profile["uploaded_as"] == "Servo Drive.eds"
+    assert api.delete(f"/api/profiles/{profile['id']}").status_code == 204
+    assert json.loads((user_dir.parent / "user-profiles.names.json").read_text(encoding="utf-8")) == {}
+    assert list(user_dir.iterdir()) == []

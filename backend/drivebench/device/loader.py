@@ -8,9 +8,12 @@ A file that does not load is kept in ``errors`` as (file name, message); the oth
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
+import re
 import tempfile
+import unicodedata
 from pathlib import Path
 from typing import Any
 
@@ -23,6 +26,29 @@ from drivebench.device.profile import ObjectEntry, Parameter, Profile
 from drivebench.errors import ProfileError, UnknownProfile
 
 PROFILE_SUFFIXES = (".json", ".eds", ".dcf")
+UPLOAD_NAMES_SUFFIX = ".names.json"
+"""Beside the upload directory (``var/profiles.names.json``): profile id -> the file name it was uploaded as
+(shown, never used as a path)."""
+MAX_ID_CHARS = 100
+MAX_SHOWN_NAME_CHARS = 120
+# Names Windows keeps for devices, with any extension ("con.eds" opens the console there).
+WINDOWS_DEVICE_NAMES = {"con", "prn", "aux", "nul", *(f"com{n}" for n in range(10)), *(f"lpt{n}" for n in range(10))}
+
+
+def shown_name(filename: str) -> str:
+    """An uploaded file's name fit to show and to name in messages: its last path part (after ``/`` or ``\\``),
+    without control or format characters (NUL, newlines, right-to-left overrides), at most 120 characters."""
+    last = re.split(r"[/\\]", filename)[-1]
+    cleaned = "".join(ch for ch in last if unicodedata.category(ch)[0] != "C").strip()
+    if len(cleaned) > MAX_SHOWN_NAME_CHARS:  # shortened in the middle: the suffix says how to read the file
+        suffix = Path(cleaned).suffix[:10]
+        cleaned = cleaned[:MAX_SHOWN_NAME_CHARS - 1 - len(suffix)] + "…" + suffix
+    return cleaned or "upload"
+
+
+def _load_name(name: str) -> str:
+    """The name the loader reads the upload under: ``.eds`` alone (a name that is only a suffix) -> ``upload.eds``."""
+    return f"upload{name.lower()}" if name.lower() in PROFILE_SUFFIXES else name
 
 
 def load_profile_file(content: bytes, name: str) -> Profile:
@@ -184,16 +210,20 @@ class ProfileRegistry:
         return matches[0] if matches else None
 
     def add_upload(self, filename: str, content: bytes) -> Profile:
-        """Check and store an uploaded profile; the registry changes only if all of that succeeds."""
-        name = Path(filename.replace("\\", "/")).name or "upload"
+        """Check and store an uploaded profile; the registry changes only if all of that succeeds.
+
+        The stored file is named after the profile id (``<id>.eds``) in ``user_profiles_dir``; the uploaded
+        file name is only shown (``uploaded_as``) and never becomes a path."""
+        name = shown_name(filename)
         if len(content) > self.max_upload_bytes:
             raise ProfileError(f"upload is {len(content)} bytes, more than the limit of {self.max_upload_bytes}",
                                source=name)
-        profile = load_profile_file(content, name)
+        profile = load_profile_file(content, _load_name(name))
         if profile.id in self._builtin:
             raise ProfileError(f"profile id '{profile.id}' belongs to a built-in profile; give the upload "
                                "another id", source=name)
-        suffix = Path(name).suffix.lower()
+        self._check_storable(profile.id, name)
+        suffix = Path(_load_name(name)).suffix.lower()
         target = self._stored_path(profile.id, suffix)
         self.user_profiles_dir.mkdir(parents=True, exist_ok=True)
         handle, temp = tempfile.mkstemp(dir=self.user_profiles_dir, prefix=".upload-")
@@ -208,7 +238,38 @@ class ProfileRegistry:
             if other != suffix:
                 self._stored_path(profile.id, other).unlink(missing_ok=True)
         self._profiles[profile.id] = profile
+        self._write_names({**self._read_names(), profile.id: name})
         return profile
+
+    @staticmethod
+    def _check_storable(profile_id: str, name: str) -> None:
+        """The id becomes the stored file's name: short, and no name Windows keeps for a device."""
+        if len(profile_id) > MAX_ID_CHARS:
+            raise ProfileError(f"the profile id is {len(profile_id)} characters long; at most {MAX_ID_CHARS} are "
+                               "allowed (it names the stored file)", source=name)
+        if profile_id.split(".")[0] in WINDOWS_DEVICE_NAMES:
+            raise ProfileError(f"the profile id '{profile_id}' is a device name on Windows (CON, PRN, AUX, NUL, "
+                               "COM1-9, LPT1-9) and cannot name a file; rename the file or give the profile "
+                               "another id", source=name)
+
+    def uploaded_as(self, profile_id: str) -> str | None:
+        """The file name an uploaded profile came in as (None for built-in ones or when not recorded)."""
+        return None if profile_id in self._builtin else self._read_names().get(profile_id)
+
+    def _names_file(self) -> Path:
+        return self.user_profiles_dir.with_name(self.user_profiles_dir.name + UPLOAD_NAMES_SUFFIX)
+
+    def _read_names(self) -> dict[str, str]:
+        try:
+            names = json.loads(self._names_file().read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            return {}
+        return {str(k): str(v) for k, v in names.items()} if isinstance(names, dict) else {}
+
+    def _write_names(self, names: dict[str, str]) -> None:
+        with contextlib.suppress(OSError):  # only a name to show; the profile itself is stored
+            text = json.dumps(names, ensure_ascii=False, indent=1, sort_keys=True)
+            self._names_file().write_text(text, encoding="utf-8")
 
     def remove_upload(self, profile_id: str) -> None:
         """Delete the file(s) of an uploaded profile and read the directories again. Built-in ones stay."""
@@ -226,6 +287,9 @@ class ProfileRegistry:
                 except (ProfileError, OSError):
                     continue
             path.unlink(missing_ok=True)
+        names = self._read_names()
+        if names.pop(profile_id, None) is not None:
+            self._write_names(names)
         self.reload()
 
     def _stored_path(self, profile_id: str, suffix: str) -> Path:

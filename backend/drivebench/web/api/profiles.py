@@ -20,7 +20,7 @@ from starlette.formparsers import MultiPartException, MultiPartParser
 
 from drivebench.device.catalog import Catalog, Item
 from drivebench.device.eds_export import export_eds
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.loader import ProfileRegistry, shown_name
 from drivebench.device.profile import ObjectEntry, Parameter, Profile, Value
 from drivebench.errors import Conflict, DriveBenchError, ProfileError
 from drivebench.web.deps import StateDep
@@ -55,6 +55,8 @@ class ProfileSummary(BaseModel):
     parameters: int
     builtin: bool
     source: str | None = None
+    uploaded_as: str | None = None
+    """The file name an uploaded profile came in as (shown only; it is stored as ``<id>.<suffix>``)."""
 
 
 class LoadError(BaseModel):
@@ -109,7 +111,7 @@ def summary(profile: Profile, registry: ProfileRegistry) -> ProfileSummary:
                           vendor_id=profile.identity.vendor_id, product_code=profile.identity.product_code,
                           transport=profile.features.transport, objects=len(profile.objects),
                           parameters=len(profile.parameters), builtin=registry.is_builtin(profile.id),
-                          source=profile.source)
+                          source=profile.source, uploaded_as=registry.uploaded_as(profile.id))
 
 
 def split_location(file: str, message: str) -> LoadError:
@@ -202,7 +204,7 @@ async def read_upload(request: Request, limit: int) -> tuple[str, bytes]:
         upload = form.get("file")
         if not isinstance(upload, UploadFile):
             raise ProfileError("no file in the upload: choose an EDS, DCF or JSON file (form field 'file')")
-        name = upload.filename or "upload"
+        name = shown_name(upload.filename or "upload")
         content = await upload.read(limit + 1)
         if len(content) > limit:
             raise UploadTooLarge(f"the file is larger than the limit of {_size(limit)}", source=name)
