@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import Depends, Path, Request
+from fastapi import Depends, Path, Query, Request
 
 from drivebench.services.sessions import Session, SessionManager, SessionNode
 from drivebench.web.state import AppState
@@ -38,3 +38,8 @@ def get_node(session: SessionDep, node_id: Annotated[int, Path(ge=1, le=127, des
 
 
 NodeDep = Annotated[SessionNode, Depends(get_node)]
+
+MAX_ROW_ID = 2**31 - 1
+"""The largest id a database row can have (INTEGER on PostgreSQL; SQLite fails past 2**63): larger ones -> 422."""
+RowId = Annotated[int, Path(ge=1, le=MAX_ROW_ID, description="Database id")]
+RowVersion = Annotated[int | None, Query(ge=1, le=MAX_ROW_ID, description="Version (newest when left out)")]

@@ -38,7 +38,7 @@ from drivebench.services.parameter_sets import (
 )
 from drivebench.services.sessions import SessionManager
 from drivebench.web.api.parameters import JobOut, JobsDep, job_out
-from drivebench.web.deps import ManagerDep, StateDep
+from drivebench.web.deps import MAX_ROW_ID, ManagerDep, RowId, RowVersion, StateDep
 from drivebench.web.safety import ACTING
 from drivebench.web.state import AppState
 
@@ -110,8 +110,8 @@ class SourceIn(BaseModel):
     profile's defaults."""
 
     kind: Literal["set", "node", "defaults"]
-    set_id: int | None = None
-    version: int | None = None
+    set_id: int | None = Field(None, ge=1, le=MAX_ROW_ID)
+    version: int | None = Field(None, ge=1, le=MAX_ROW_ID)
     session_id: str | None = None
     node_id: int | None = Field(None, ge=1, le=127)
     profile_id: str | None = None
@@ -309,7 +309,7 @@ async def upload_from_node(body: UploadIn, manager: ManagerDep, jobs: JobsDep, u
 
 
 @router.post(SETS + "/{set_id}/upload", response_model=SetJobOut, status_code=status.HTTP_202_ACCEPTED)
-async def upload_new_version(set_id: int, body: TargetIn, manager: ManagerDep, jobs: JobsDep,
+async def upload_new_version(set_id: RowId, body: TargetIn, manager: ManagerDep, jobs: JobsDep,
                              user: UserHeader = None) -> SetJobOut:
     """Read the node again into a new version of the set (same device type; the old versions stay)."""
     job = set_jobs.start_upload(manager.get(body.session_id), body.node_id, jobs, store(), name="", into=set_id,
@@ -336,31 +336,31 @@ async def import_set(state: StateDep, file: Annotated[UploadFile, File()],
 
 
 @router.get(SETS + "/{set_id}", response_model=SetDetailOut)
-async def get_set(set_id: int, state: StateDep, version: int | None = None) -> SetDetailOut:
+async def get_set(set_id: RowId, state: StateDep, version: RowVersion = None) -> SetDetailOut:
     stored = store().get(set_id, version)
     return detail_out(stored, state.registry.get(stored.info.profile_id))
 
 
 @router.patch(SETS + "/{set_id}", response_model=SetOut)
-async def update_set(set_id: int, body: SetUpdate) -> SetOut:
+async def update_set(set_id: RowId, body: SetUpdate) -> SetOut:
     return set_out(store().rename(set_id, body.name, body.note))
 
 
 @router.delete(SETS + "/{set_id}", status_code=status.HTTP_204_NO_CONTENT)
-async def delete_set(set_id: int) -> Response:
+async def delete_set(set_id: RowId) -> Response:
     store().delete(set_id)
     return Response(status_code=status.HTTP_204_NO_CONTENT)
 
 
 @router.get(SETS + "/{set_id}/history", response_model=list[VersionOut])
-async def set_history(set_id: int) -> list[VersionOut]:
+async def set_history(set_id: RowId) -> list[VersionOut]:
     return [version_out(v) for v in store().history(set_id)]
 
 
 @router.get(SETS + "/{set_id}/export")
-async def export_set(set_id: int, state: StateDep,
+async def export_set(set_id: RowId, state: StateDep,
                      format: Annotated[Literal["json", "csv", "dcf"], Query()] = "json",
-                     version: int | None = None) -> Response:
+                     version: RowVersion = None) -> Response:
     stored = store().get(set_id, version)
     text, media = set_formats.export(format, stored, state.registry.get(stored.info.profile_id))
     filename = set_formats.file_name(stored, format)
@@ -368,7 +368,7 @@ async def export_set(set_id: int, state: StateDep,
 
 
 @router.post(SETS + "/{set_id}/copy", response_model=CopyOut, status_code=status.HTTP_201_CREATED)
-async def copy_set(set_id: int, body: CopyIn, state: StateDep, user: UserHeader = None) -> CopyOut:
+async def copy_set(set_id: RowId, body: CopyIn, state: StateDep, user: UserHeader = None) -> CopyOut:
     """A new set for an identical drive at ``to_node``: node address and node-id based COB-IDs moved along."""
     stored = store().get(set_id)
     profile = state.registry.get(stored.info.profile_id)
@@ -399,8 +399,8 @@ async def compare_sources(body: CompareIn, state: StateDep, manager: ManagerDep,
 
 # --- download ----------------------------------------------------------------------------------------------
 @router.post(SETS + "/{set_id}/preview", response_model=list[ReportLineOut])
-async def preview_download(set_id: int, body: TargetIn, manager: ManagerDep,
-                           version: int | None = None) -> list[ReportLineOut]:
+async def preview_download(set_id: RowId, body: TargetIn, manager: ManagerDep,
+                           version: RowVersion = None) -> list[ReportLineOut]:
     """What a download would change (device values read now), in the order it would write them."""
     stored = store().get(set_id, version)
     lines = await set_jobs.preview(manager.get(body.session_id), body.node_id, stored)
@@ -408,8 +408,8 @@ async def preview_download(set_id: int, body: TargetIn, manager: ManagerDep,
 
 
 @router.post(SETS + "/{set_id}/download", response_model=SetJobOut, status_code=status.HTTP_202_ACCEPTED)
-async def download_set(set_id: int, body: DownloadIn, manager: ManagerDep, jobs: JobsDep,
-                       version: int | None = None, user: UserHeader = None) -> SetJobOut:
+async def download_set(set_id: RowId, body: DownloadIn, manager: ManagerDep, jobs: JobsDep,
+                       version: RowVersion = None, user: UserHeader = None) -> SetJobOut:
     stored = store().get(set_id, version)
     job = set_jobs.start_download(manager.get(body.session_id), body.node_id, jobs, store(), stored,
                                   save=body.save, user=user_of(user))
@@ -422,19 +422,19 @@ async def get_set_job(job_id: str, jobs: JobsDep) -> SetJobOut:
 
 
 @router.get("/parameter-downloads", response_model=list[DownloadOut])
-async def list_downloads(jobs: JobsDep, node_id: int | None = None,
+async def list_downloads(jobs: JobsDep, node_id: Annotated[int | None, Query(ge=1, le=127)] = None,
                          limit: Annotated[int, Query(ge=1, le=500)] = 50) -> list[DownloadOut]:
     return [download_out(row, jobs) for row in store().downloads(node_id=node_id, limit=limit)]
 
 
 @router.get("/parameter-downloads/{download_id}", response_model=DownloadOut)
-async def get_download(download_id: int, jobs: JobsDep) -> DownloadOut:
+async def get_download(download_id: RowId, jobs: JobsDep) -> DownloadOut:
     return download_out(store().download(download_id), jobs)
 
 
 @router.post("/parameter-downloads/{download_id}/retry", response_model=SetJobOut,
              status_code=status.HTTP_202_ACCEPTED)
-async def retry_download(download_id: int, manager: ManagerDep, jobs: JobsDep, body: FollowUpIn | None = None,
+async def retry_download(download_id: RowId, manager: ManagerDep, jobs: JobsDep, body: FollowUpIn | None = None,
                          user: UserHeader = None) -> SetJobOut:
     """Write again what the download left failed, mismatched or not attempted."""
     row = store().download(download_id)
@@ -445,7 +445,7 @@ async def retry_download(download_id: int, manager: ManagerDep, jobs: JobsDep, b
 
 @router.post("/parameter-downloads/{download_id}/rollback", response_model=SetJobOut,
              status_code=status.HTTP_202_ACCEPTED)
-async def rollback_download(download_id: int, manager: ManagerDep, jobs: JobsDep,
+async def rollback_download(download_id: RowId, manager: ManagerDep, jobs: JobsDep,
                             body: FollowUpIn | None = None, user: UserHeader = None) -> SetJobOut:
     """Write back the values read before the download, for everything it changed (or may have changed)."""
     row = store().download(download_id)
@@ -456,7 +456,8 @@ async def rollback_download(download_id: int, manager: ManagerDep, jobs: JobsDep
 
 # --- audit log ---------------------------------------------------------------------------------------------
 @router.get("/audit", response_model=list[audit.AuditEntry])
-async def audit_log(request: Request, node_id: int | None = None, session_id: str | None = None, q: str = "",
+async def audit_log(request: Request, node_id: Annotated[int | None, Query(ge=0, le=127)] = None,
+                    session_id: str | None = None, q: str = "",
                     origin: str | None = None, limit: Annotated[int, Query(ge=1, le=100_000)] = 1000,
                     format: Annotated[Literal["json", "csv"], Query()] = "json") -> Any:
     """Every write the tool sent, newest first; ``format=csv`` exports it."""

@@ -33,7 +33,7 @@ from drivebench.services.planned_networks import (
     compare_with_session,
 )
 from drivebench.services.planner import NetworkPlan, PlanReport, check_plan
-from drivebench.web.deps import ManagerDep
+from drivebench.web.deps import ManagerDep, RowId
 
 router = APIRouter(prefix="/api/tools", tags=["tools"])
 planned_router = APIRouter(prefix="/api/planned-networks", tags=["planned networks"])
@@ -197,25 +197,25 @@ async def import_planned(request: Request, store: StoreDep) -> PlannedNetworkChe
 
 
 @planned_router.get("/{network_id}", response_model=PlannedNetworkChecked)
-def get_planned(network_id: int, store: StoreDep) -> PlannedNetworkChecked:
+def get_planned(network_id: RowId, store: StoreDep) -> PlannedNetworkChecked:
     saved = store.get(network_id)
     return PlannedNetworkChecked(**saved.model_dump(), report=check_plan(saved.plan))
 
 
 @planned_router.put("/{network_id}", response_model=PlannedNetworkChecked)
-def update_planned(network_id: int, plan: NetworkPlan, store: StoreDep) -> PlannedNetworkChecked:
+def update_planned(network_id: RowId, plan: NetworkPlan, store: StoreDep) -> PlannedNetworkChecked:
     saved = store.update(network_id, plan)
     return PlannedNetworkChecked(**saved.model_dump(), report=check_plan(saved.plan))
 
 
 @planned_router.delete("/{network_id}", status_code=204)
-def delete_planned(network_id: int, store: StoreDep) -> Response:
+def delete_planned(network_id: RowId, store: StoreDep) -> Response:
     store.delete(network_id)
     return Response(status_code=204)
 
 
 @planned_router.get("/{network_id}/export")
-def export_planned(network_id: int, store: StoreDep) -> Response:
+def export_planned(network_id: RowId, store: StoreDep) -> Response:
     """The plan as a JSON file (import it again with ``POST /api/planned-networks/import``)."""
     saved = store.get(network_id)
     filename = "".join(c if c.isalnum() or c in "-_" else "-" for c in saved.name).strip("-") or "network"
@@ -224,7 +224,7 @@ def export_planned(network_id: int, store: StoreDep) -> Response:
 
 
 @planned_router.post("/{network_id}/compare", response_model=LiveComparison)
-async def compare_planned(network_id: int, store: StoreDep, manager: ManagerDep,
+async def compare_planned(network_id: RowId, store: StoreDep, manager: ManagerDep,
                           session: Annotated[str, Query(description="Session (bus) to scan")],
                           timeout_s: Annotated[float, Query(gt=0, le=5)] = 0.5) -> LiveComparison:
     """Scan the session's bus: which planned nodes answer as the planned device, which are missing or extra."""

@@ -26,7 +26,7 @@ from drivebench.web.api.parameter_sets import (
     store,
 )
 from drivebench.web.api.parameters import JobsDep
-from drivebench.web.deps import ManagerDep, StateDep
+from drivebench.web.deps import ManagerDep, RowId, StateDep
 from drivebench.web.problems import error_fragment, problem_body, status_for
 from drivebench.web.safety import ACTING
 from drivebench.web.state import AppState
@@ -140,7 +140,7 @@ async def upload(request: Request, manager: ManagerDep, jobs: JobsDep) -> Respon
 
 
 @router.post(UI + "/{set_id}/upload", response_class=HTMLResponse)
-async def upload_version(request: Request, set_id: int, manager: ManagerDep, jobs: JobsDep) -> Response:
+async def upload_version(request: Request, set_id: RowId, manager: ManagerDep, jobs: JobsDep) -> Response:
     form = await request.form()
     try:
         session_id, node_id = _target(form)
@@ -176,7 +176,7 @@ async def import_file(request: Request, state: StateDep) -> Response:
 
 # --- one set -----------------------------------------------------------------------------------------------
 @router.get(UI + "/{set_id}", response_class=HTMLResponse)
-async def set_detail(request: Request, set_id: int, state: StateDep, manager: ManagerDep, jobs: JobsDep) -> Response:
+async def set_detail(request: Request, set_id: RowId, state: StateDep, manager: ManagerDep, jobs: JobsDep) -> Response:
     try:
         context = _detail(state, manager, set_id, jobs)
     except DriveBenchError as exc:
@@ -194,7 +194,7 @@ def _detail(state: AppState, manager: SessionManager, set_id: int, jobs: JobMana
 
 
 @router.get(UI + "/{set_id}/downloads", response_class=HTMLResponse)
-async def set_downloads(request: Request, set_id: int, state: StateDep, manager: ManagerDep,
+async def set_downloads(request: Request, set_id: RowId, state: StateDep, manager: ManagerDep,
                         jobs: JobsDep) -> Response:
     try:
         context = _detail(state, manager, set_id, jobs)
@@ -204,7 +204,7 @@ async def set_downloads(request: Request, set_id: int, state: StateDep, manager:
 
 
 @router.post(UI + "/{set_id}/rename", response_class=HTMLResponse)
-async def rename(request: Request, set_id: int, state: StateDep, manager: ManagerDep, jobs: JobsDep) -> Response:
+async def rename(request: Request, set_id: RowId, state: StateDep, manager: ManagerDep, jobs: JobsDep) -> Response:
     form = await request.form()
     try:
         store().rename(set_id, _text(form, "name"), _text(form, "note"))
@@ -215,7 +215,7 @@ async def rename(request: Request, set_id: int, state: StateDep, manager: Manage
 
 
 @router.delete(UI + "/{set_id}", response_class=HTMLResponse)
-async def delete(request: Request, set_id: int) -> Response:
+async def delete(request: Request, set_id: RowId) -> Response:
     try:
         store().delete(set_id)
     except DriveBenchError as exc:
@@ -224,7 +224,7 @@ async def delete(request: Request, set_id: int) -> Response:
 
 
 @router.post(UI + "/{set_id}/copy", response_class=HTMLResponse)
-async def copy(request: Request, set_id: int, state: StateDep, manager: ManagerDep, jobs: JobsDep) -> Response:
+async def copy(request: Request, set_id: RowId, state: StateDep, manager: ManagerDep, jobs: JobsDep) -> Response:
     form = await request.form()
     try:
         wanted = _text(form, "to_node")
@@ -249,7 +249,7 @@ async def copy(request: Request, set_id: int, state: StateDep, manager: ManagerD
 
 # --- download ----------------------------------------------------------------------------------------------
 @router.post(UI + "/{set_id}/preview", response_class=HTMLResponse)
-async def preview(request: Request, set_id: int, manager: ManagerDep) -> Response:
+async def preview(request: Request, set_id: RowId, manager: ManagerDep) -> Response:
     form = await request.form()
     try:
         session_id, node_id = _target(form)
@@ -262,7 +262,7 @@ async def preview(request: Request, set_id: int, manager: ManagerDep) -> Respons
 
 
 @router.post(UI + "/{set_id}/download", response_class=HTMLResponse)
-async def download(request: Request, set_id: int, manager: ManagerDep, jobs: JobsDep) -> Response:
+async def download(request: Request, set_id: RowId, manager: ManagerDep, jobs: JobsDep) -> Response:
     form = await request.form()
     try:
         session_id, node_id = _target(form)
