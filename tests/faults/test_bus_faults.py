@@ -23,7 +23,7 @@ from drivebench.transport.bus import SimulatedAdapter
 from drivebench.transport.hub import start_hub_thread
 from drivebench.transport.hub_bridge import BusBridge
 from drivebench.web.app import create_app
-from tests.conftest import DEMO_PLANT, fresh_channel, screenshot, serve_app
+from tests.conftest import CHROMIUM, CHROMIUM_ARGS, DEMO_PLANT, fresh_channel, screenshot, serve_app
 
 
 def wait_for(check: Callable[[], Any], timeout_s: float = 10.0, what: str = "condition") -> Any:
@@ -319,9 +319,23 @@ def test_duplicate_node_id_is_reported_in_words_others_work_and_it_clears(client
 
 
 # --- the Plant page in a browser --------------------------------------------------------------------------------------
-def test_plant_page_says_adapter_lost_live_and_adapter_back(page: Any) -> None:
+@pytest.fixture
+def own_page() -> Iterator[Any]:
+    """A browser page of its own: the shared session-scoped browser would keep Playwright's event loop running
+    for the rest of the run, and tests/faults runs before tests/services, whose tests call asyncio.run()."""
+    playwright_api = pytest.importorskip("playwright.sync_api")
+    with playwright_api.sync_playwright() as pw:
+        browser = pw.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        try:
+            yield browser.new_context(viewport={"width": 1440, "height": 900}).new_page()
+        finally:
+            browser.close()
+
+
+def test_plant_page_says_adapter_lost_live_and_adapter_back(own_page: Any) -> None:
     from playwright.sync_api import expect
 
+    page = own_page
     app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
     with serve_app(app) as url:
         page.goto(url + "/")
