@@ -182,7 +182,9 @@ def test_download_preview_report_retry_rollback_and_audit(api: TestClient) -> No
     assert (download["state"], download["user"], download["counts"]["written"]) == ("done", "bert", 2)
     assert api.post(f"/api/parameter-downloads/{job['download_id']}/retry").status_code == 409  # nothing failed
 
-    back = finish(api, api.post(f"/api/parameter-downloads/{job['download_id']}/rollback").json())
+    # bert's download holds node 5's write lease: he rolls it back (anyone else gets 409 until it ends)
+    back = finish(api, api.post(f"/api/parameter-downloads/{job['download_id']}/rollback",
+                                headers={"X-DriveBench-User": "bert"}).json())
     assert back["download_state"] == "done"
     assert api.get(f"/api/sessions/{SESSION}/nodes/5/parameters/C00088").json()["display"] == "10.20 A"
 
