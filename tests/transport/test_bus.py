@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import socket
+import time
 
 import can
 import pytest
 
 from drivebench.errors import AdapterUnavailable, BusSpecError
-from drivebench.transport.bus import BusSpec, open_bus
+from drivebench.transport.bus import AdapterLost, BusSpec, BusUnusable, open_bus
 
 
 @pytest.mark.parametrize(("text", "interface", "channel", "bitrate", "options"), [
@@ -64,5 +65,46 @@ def test_observed_bus_reports_transmitted_frames(channel: str, wire: can.BusABC)
         assert received is not None and received.arbitration_id == 0x605
         assert [m.arbitration_id for m in seen] == [0x605] and seen[0].timestamp > 0
         bus.remove_observer(seen.append)
+    finally:
+        bus.shutdown()
+
+
+def test_a_failing_adapter_is_lost_then_reopened_under_the_same_bus(channel: str, wire: can.BusABC) -> None:
+    bus = open_bus(BusSpec.parse(f"virtual:{channel}"))
+    changes: list[bool] = []
+    bus.watch_link(lambda link: changes.append(link.lost))
+    frame = can.Message(arbitration_id=0x605, data=bytes(8), is_extended_id=False)
+    try:
+        assert bus.adapter is not None
+        bus.adapter.unplug("USB adapter unplugged")
+        with pytest.raises(AdapterLost, match="adapter lost: USB adapter unplugged") as lost:
+            bus.send(frame)
+        assert isinstance(lost.value, can.CanOperationError)  # canopen and python-can callers see their own error
+        assert bus.link.lost and bus.recv(0.05) is None  # the reader waits quietly instead of raising
+        with pytest.raises(AdapterLost):
+            bus.send(frame)  # at once, without touching the adapter
+        deadline = time.monotonic() + 5
+        while bus.link.attempts < 1 and time.monotonic() < deadline:
+            time.sleep(0.02)
+        assert bus.link.attempts >= 1 and "USB adapter unplugged" in (bus.link.last_attempt_error or "")
+        bus.adapter.plug_in()
+        bus.reconnect_now()
+        while bus.link.lost and time.monotonic() < deadline:
+            time.sleep(0.02)
+        assert not bus.link.lost and bus.link.reconnects == 1 and changes == [True, False]
+        bus.send(frame)
+        received = wire.recv(1)
+        assert received is not None and received.arbitration_id == 0x605
+    finally:
+        bus.shutdown()
+
+
+def test_a_send_guard_refuses_at_once(channel: str) -> None:
+    bus = open_bus(BusSpec.parse(f"virtual:{channel}"))
+    bus.send_guard = lambda: "bus-off: nothing is sent until it recovers"
+    try:
+        with pytest.raises(BusUnusable, match="bus-off"):
+            bus.send(can.Message(arbitration_id=0x605, data=bytes(8), is_extended_id=False))
+        assert not bus.link.lost
     finally:
         bus.shutdown()
