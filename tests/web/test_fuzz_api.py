@@ -6,8 +6,9 @@ fault (``sdo-abort-error``, ``sdo-timeout-error``, ``node-offline``, ``adapter-u
 
 Each operation gets schema-valid and schema-invalid cases, half with random path parameters and half aimed at
 things that exist (session ``demo-plant``, nodes 3, 5 and 12 with their profiles and one object each), so the
-handlers behind the 404s are reached too. Nothing is excluded: the two operations that take the demo plant apart
-(delete a node, close the session) run last, so every other operation still meets the plant. CI runs a few
+handlers behind the 404s are reached too. Nothing is excluded: the operations that take the demo plant apart or
+slow every later request (``LAST``: SDO settings, simulated faults, delete a node, close the session) run last, so
+every other operation still meets a working plant. CI runs a few
 derandomized examples per operation; ``benchmarks/fuzz_api.py`` runs many more with the same harness.
 """
 
@@ -16,6 +17,9 @@ from __future__ import annotations
 import collections
 import contextlib
 import dataclasses
+import sys
+import threading
+import traceback
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -23,6 +27,7 @@ from typing import Any
 import pytest
 import requests
 import schemathesis
+from fastapi.testclient import TestClient
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from hypothesis.errors import Unsatisfiable
@@ -42,8 +47,16 @@ KNOWN = [
     {"session_id": "demo-plant", "node_id": 5, "profile_id": "lenze-8400-motec-canopen", "ref": "C00088"},
     {"session_id": "demo-plant", "node_id": 12, "profile_id": "lenze-8200-vector-emf2178ib", "ref": "0x1017.0"},
 ]
-# Run last, in this order: each takes away what the operations before it need.
-DESTRUCTIVE = ["DELETE /api/sessions/{session_id}/nodes/{node_id}", "DELETE /api/sessions/{session_id}"]
+# Run last, in this order, each for its reason: what it changes would make every operation after it slow or moot.
+LAST = {
+    "PUT /api/sessions/{session_id}/sdo-settings":
+        "sets the session's SDO timeout and retries (up to 30 s x 10): every later request to a stopped node would "
+        "wait that long",
+    "PUT /api/sessions/{session_id}/simulator/nodes/{node_id}/faults":
+        "switches on simulated SDO faults (up to 60 s latency, silence, aborts) for the nodes after it",
+    "DELETE /api/sessions/{session_id}/nodes/{node_id}": "removes the demo plant's nodes",
+    "DELETE /api/sessions/{session_id}": "closes the demo plant's session",
+}
 CI_EXAMPLES = 3
 CALL_TIMEOUT_S = 30
 
@@ -62,10 +75,10 @@ class FuzzReport:
 
 
 def operation_labels() -> list[str]:
-    """Every operation of the spec as 'METHOD /path', the destructive ones last (the spec needs no plant)."""
+    """Every operation of the spec as 'METHOD /path', those in LAST at the end (the spec needs no plant)."""
     spec = create_app().openapi()
     labels = [f"{method.upper()} {path}" for path, methods in spec["paths"].items() for method in methods]
-    return [label for label in labels if label not in DESTRUCTIVE] + DESTRUCTIVE
+    return [label for label in labels if label not in LAST] + [label for label in LAST if label in labels]
 
 
 def send(case: Any, target: Target, report: FuzzReport) -> None:
@@ -74,7 +87,8 @@ def send(case: Any, target: Target, report: FuzzReport) -> None:
         response = case.call(base_url=target.base_url, session=target.session, timeout=CALL_TIMEOUT_S)
     except requests.RequestException as exc:  # no answer at all (the server dropped the connection or hung)
         report.statuses["no answer"] += 1
-        report.failures.append(f"no answer: {exc!r}\n    {case.as_curl_command(base_url=target.base_url)}")
+        report.failures.append(f"no answer: {exc!r}\n    {case.as_curl_command(base_url=target.base_url)}\n"
+                               f"    the server's busy threads:\n{busy_threads()}")
         return
     report.statuses[response.status_code] += 1
     if response.status_code < 500:
@@ -87,6 +101,18 @@ def send(case: Any, target: Target, report: FuzzReport) -> None:
         return
     report.failures.append(f"{response.status_code} {response.text[:300]}\n"
                            f"    {case.as_curl_command(base_url=target.base_url)}")
+
+
+def busy_threads() -> str:
+    """Where the server's worker threads are (the server runs in this process): why a request hangs."""
+    names = {thread.ident: thread.name for thread in threading.enumerate()}
+    lines = []
+    for ident, frame in sys._current_frames().items():
+        stack = [f for f in traceback.extract_stack(frame) if "/drivebench/" in f.filename]
+        if stack and names.get(ident, "").startswith("bus-work"):
+            lines.append(f"      {names[ident]}: " + " <- ".join(f"{Path(f.filename).name}:{f.lineno} {f.name}"
+                                                             for f in reversed(stack[-4:])))
+    return "\n".join(lines) or "      (none in drivebench code)"
 
 
 def can_be_invalid(operation: Any) -> bool:
@@ -160,3 +186,28 @@ def test_every_operation_of_the_spec_is_fuzzed() -> None:
     """Nothing left out: the parametrized list is the spec's whole list of operations."""
     spec = create_app().openapi()
     assert len(operation_labels()) == sum(len(methods) for methods in spec["paths"].values()) > 100
+
+
+def test_the_operations_run_last_are_in_the_spec() -> None:
+    labels = operation_labels()
+    assert labels[-len(LAST):] == list(LAST)
+
+
+# --- what the fuzz found, pinned -------------------------------------------------------------------------------
+HUGE = 10**20  # past SQLite's 64-bit INTEGER: binding it raised OverflowError (a 500)
+
+
+@pytest.mark.parametrize("method, url", [
+    ("GET", f"/api/parameter-sets/{HUGE}"), ("GET", f"/api/parameter-sets/1?version={HUGE}"),
+    ("DELETE", f"/api/parameter-sets/{HUGE}"), ("GET", f"/api/parameter-sets/{HUGE}/history"),
+    ("GET", f"/api/parameter-downloads/{HUGE}"), ("POST", f"/api/parameter-downloads/{HUGE}/retry"),
+    ("GET", f"/api/planned-networks/{HUGE}"), ("DELETE", f"/api/planned-networks/{HUGE}"),
+    ("GET", f"/api/audit?node_id={HUGE}"),
+])
+def test_an_id_no_row_can_have_is_refused_in_words(method: str, url: str, tmp_path: Path,
+                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(app_settings, "database_url", f"sqlite:///{tmp_path / 'db.sqlite'}")
+    with TestClient(create_app(), raise_server_exceptions=False) as client:
+        response = client.request(method, url)
+    assert response.status_code == 422
+    assert "less than or equal to" in response.json()["detail"]
