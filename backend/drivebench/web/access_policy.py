@@ -59,7 +59,8 @@ RULES: dict[tuple[str, str], Rule] = {
     **_rules(V, "Comparing parameter sets",
              ("POST", "/api/parameter-sets/compare"), ("POST", "/api/parameter-sets/{set_id}/preview"),
              ("POST", "/parameter-sets/compare"), ("POST", "/parameter-sets/{set_id}/preview")),
-    **_rules(V, "Keeping your own drive commands alive", ("POST", S + "/keepalive")),
+    **_rules(V, "Keeping your own drive commands alive", ("POST", S + "/keepalive"),
+             (WEBSOCKET, "/ws/sessions/{session_id}/keepalive")),  # keeps alive only what this browser started
     **_rules(V, "Signing in", ("POST", "/api/auth/login"), ("GET", "/login"), ("POST", "/login")),
     **_rules(V, "Signing out", ("POST", "/api/auth/logout"), ("POST", "/logout")),
     **_rules(V, "Changing your own password", ("PUT", "/api/auth/password")),
@@ -111,7 +112,10 @@ RULES: dict[tuple[str, str], Rule] = {
              ("POST", "/api/parameter-downloads/{download_id}/rollback"), ("POST", "/parameter-sets/{set_id}/download"),
              ("POST", "/parameter-sets/downloads/{download_id}/{action}")),
     **_rules(E, "Cancelling a job", ("DELETE", "/api/jobs/{job_id}")),
-    **_rules(E, "Releasing a node's write lease", ("DELETE", N + "/lease")),
+    **_rules(E, "Releasing or taking over a node's write lease", ("DELETE", N + "/lease"),
+             ("POST", UN + "/lease/release"), ("POST", UN + "/lease/break")),
+    **_rules(E, "Injecting faults into simulated drives", ("PUT", S + "/simulator/nodes/{node_id}/faults"),
+             ("DELETE", S + "/simulator/nodes/{node_id}/faults")),
     # --- admin: sessions (adapters), their SDO settings, users and tokens -----------------------------------
     **_rules(A, "Opening and closing sessions (CAN adapters)", ("POST", "/api/sessions"), ("DELETE", S),
              ("POST", "/ui/sessions"), ("POST", US + "/close")),
