@@ -112,13 +112,14 @@ RULES: dict[tuple[str, str], Rule] = {
              ("POST", "/api/parameter-downloads/{download_id}/rollback"), ("POST", "/parameter-sets/{set_id}/download"),
              ("POST", "/parameter-sets/downloads/{download_id}/{action}")),
     **_rules(E, "Cancelling a job", ("DELETE", "/api/jobs/{job_id}")),
-    **_rules(E, "Releasing or taking over a node's write lease", ("DELETE", N + "/lease"),
-             ("POST", UN + "/lease/release"), ("POST", UN + "/lease/break")),
+    **_rules(E, "Releasing your write lease of a node", ("DELETE", N + "/lease"),  # force=true: the route asks admin
+             ("POST", UN + "/lease/release")),
     **_rules(E, "Injecting faults into simulated drives", ("PUT", S + "/simulator/nodes/{node_id}/faults"),
              ("DELETE", S + "/simulator/nodes/{node_id}/faults")),
     # --- admin: sessions (adapters), their SDO settings, users and tokens -----------------------------------
     **_rules(A, "Opening and closing sessions (CAN adapters)", ("POST", "/api/sessions"), ("DELETE", S),
              ("POST", "/ui/sessions"), ("POST", US + "/close")),
+    **_rules(A, "Breaking another writer's lease", ("POST", UN + "/lease/break")),
     **_rules(A, "Changing the SDO settings of a session", ("PUT", S + "/sdo-settings"),
              ("POST", UN + "/sdo-settings")),
     **_rules(A, "Managing users", ("GET", "/api/users"), ("POST", "/api/users"), ("GET", "/api/users/{name}"),
