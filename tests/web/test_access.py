@@ -272,3 +272,24 @@ def _try(client: TestClient, method: str, url: str, headers: dict[str, str]) -> 
     status = client.request(method, url, headers=headers, follow_redirects=False).status_code
     client.cookies.clear()  # a share link's page sets its viewer cookie; the next call must not carry it
     return status
+
+
+def test_sign_in_form_goes_only_to_pages_of_this_server(users: dict[str, str], app_client: TestClient) -> None:
+    for target, landing in [("/sessions/demo-plant/nodes/5", "/sessions/demo-plant/nodes/5"),
+                            ("//evil.example/x", "/"), ("https://evil.example", "/")]:
+        answer = app_client.post("/login", data={"name": "vera", "password": PASSWORDS["vera"], "next": target},
+                                 follow_redirects=False)
+        assert answer.status_code == 303 and answer.headers["location"] == landing
+        app_client.cookies.clear()
+    wrong = app_client.post("/login", data={"name": "vera", "password": "guess"})
+    assert wrong.status_code == 401 and "Wrong user name or password." in wrong.text
+
+
+def test_pages_and_htmx_get_their_own_refusals(users: dict[str, str], app_client: TestClient) -> None:
+    sign_in(app_client, "vera")
+    page = app_client.get("/users", headers={"Accept": "text/html"})
+    assert page.status_code == 403 and "Managing users needs the admin role; you are signed in as vera" in page.text
+    assert 'data-role="viewer"' in app_client.get("/", headers={"Accept": "text/html"}).text
+    app_client.cookies.clear()
+    fragment = app_client.post("/ui/sessions/demo-plant/scan", headers={"HX-Request": "true"})
+    assert fragment.status_code == 401 and fragment.headers["HX-Redirect"] == "/login"

@@ -101,6 +101,9 @@ def test_viewer_cannot_write_engineer_can(server: str, page: Any, browser: Any) 
     _row(page, "C00088").get_by_role("button", name="Write").click()
     expect(_row(page, "C00088").locator("td.val")).to_contain_text("12.50 A", timeout=WAIT_MS)
     expect(page.get_by_role("link", name="Users")).to_have_count(0)  # an engineer manages no users
+    # scripts of the page (control.js, monitor.js) use fetch: app.js adds the session's CSRF token to it
+    status = page.evaluate("fetch('/api/sessions/demo-plant/monitor/pause', {method: 'POST'}).then(r => r.status)")
+    assert status == 200
     screenshot(page, "access-engineer-wrote")
 
 
