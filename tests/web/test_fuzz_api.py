@@ -202,7 +202,7 @@ HUGE = 10**20  # past SQLite's 64-bit INTEGER: binding it raised OverflowError (
     ("DELETE", f"/api/parameter-sets/{HUGE}"), ("GET", f"/api/parameter-sets/{HUGE}/history"),
     ("GET", f"/api/parameter-downloads/{HUGE}"), ("POST", f"/api/parameter-downloads/{HUGE}/retry"),
     ("GET", f"/api/planned-networks/{HUGE}"), ("DELETE", f"/api/planned-networks/{HUGE}"),
-    ("GET", f"/api/audit?node_id={HUGE}"),
+    ("GET", f"/api/audit?node_id={HUGE}"), ("DELETE", f"/api/tokens/{HUGE}"), ("DELETE", f"/api/auth/tokens/{HUGE}"),
 ])
 def test_an_id_no_row_can_have_is_refused_in_words(method: str, url: str, tmp_path: Path,
                                                     monkeypatch: pytest.MonkeyPatch) -> None:

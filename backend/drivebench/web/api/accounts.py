@@ -14,6 +14,7 @@ from drivebench.errors import Conflict, NotAuthenticated
 from drivebench.services import accounts
 from drivebench.services.principals import Principal, Role
 from drivebench.web import access
+from drivebench.web.deps import RowId
 from drivebench.web.identity import PrincipalDep
 from drivebench.web.problems import problem_body
 
@@ -190,7 +191,7 @@ async def create_own_token(body: NewToken, principal: PrincipalDep) -> IssuedTok
 
 
 @router.delete("/auth/tokens/{token_id}", response_model=TokenOut)
-async def revoke_own_token(token_id: int, principal: PrincipalDep) -> TokenOut:
+async def revoke_own_token(token_id: RowId, principal: PrincipalDep) -> TokenOut:
     name = _signed_in_user(principal)
     return token_out(await asyncio.to_thread(lambda: accounts.revoke_token(token_id, owner=name)))
 
@@ -244,5 +245,5 @@ async def create_token(body: NewTokenFor) -> IssuedTokenOut:
 
 
 @router.delete("/tokens/{token_id}", response_model=TokenOut)
-async def revoke_token(token_id: int) -> TokenOut:
+async def revoke_token(token_id: RowId) -> TokenOut:
     return token_out(await asyncio.to_thread(accounts.revoke_token, token_id))

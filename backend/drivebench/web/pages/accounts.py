@@ -13,6 +13,7 @@ from drivebench.services import accounts
 from drivebench.services.principals import Role
 from drivebench.web import access
 from drivebench.web.api.accounts import FIRST_ADMIN, sign_in
+from drivebench.web.deps import RowId
 from drivebench.web.problems import problem_body
 from drivebench.web.templating import templates
 
@@ -146,6 +147,6 @@ async def create_token(request: Request, name: str = Form(""), user: str = Form(
 
 
 @router.post("/ui/tokens/{token_id}/revoke", response_class=HTMLResponse)
-async def revoke_token(request: Request, token_id: int) -> Response:
+async def revoke_token(request: Request, token_id: RowId) -> Response:
     return await _act(request, "tokens", lambda: accounts.revoke_token(token_id),
                       "Token revoked: scripts using it are refused from now on.")
