@@ -148,12 +148,21 @@
       ". Warning at 96, error passive at 128 errors (TEC: transmit, REC: receive error counter).";
   }
 
+  function renderBusText(text) {
+    // Adapter lost, bus-off, a babbling node, a duplicate node id: the session's bus trouble in words.
+    const line = $("bus-alert");
+    if (!line || line.textContent === (text || "")) return;
+    line.textContent = text || "";
+    line.hidden = !text;
+  }
+
   function draw() {
     drawScheduled = false;
     if (!latest) return;
     const s = latest.snapshot;
     renderStats(s);
     renderBus(s.bus);
+    renderBusText([s.bus_text, s.flood && s.flood.text].filter(Boolean).join(" "));
     renderTables(s);
     renderTrace();
     drawChart();

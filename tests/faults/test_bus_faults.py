@@ -355,3 +355,22 @@ def test_plant_page_says_adapter_lost_live_and_adapter_back(own_page: Any) -> No
         expect(node_state).to_have_text("Pre-operational", timeout=15_000)
         expect(page.locator("#bus-badge-demo-plant")).to_have_text("bus active", timeout=10_000)
         screenshot(page, "faults-plant-adapter-back")
+
+
+def test_monitor_page_names_the_babbling_node_and_clears(own_page: Any) -> None:
+    from playwright.sync_api import expect
+
+    page = own_page
+    app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
+    with serve_app(app) as url:
+        page.goto(url + "/monitor/demo-plant")
+        alert = page.locator("#bus-alert")
+        expect(alert).to_be_hidden(timeout=10_000)
+        plant: Plant = app.state.drivebench.plants["demo-plant"]
+        plant.start_babbler(0x001)
+        try:
+            expect(alert).to_contain_text("COB-ID 0x001 floods the bus", timeout=15_000)
+            screenshot(page, "faults-monitor-babbler")
+        finally:
+            plant.stop_babbler()
+        expect(alert).to_be_hidden(timeout=15_000)

@@ -43,10 +43,12 @@ async def monitor_index(request: Request, state: StateDep) -> Response:
 @router.get("/monitor/{session_id}", response_class=HTMLResponse)
 async def monitor_page(request: Request, state: StateDep, session: SessionDep) -> Response:
     monitor = monitor_for(session)
+    snapshot = monitor.snapshot()
+    bus_text = " ".join(filter(None, [snapshot["bus_text"], (snapshot["flood"] or {}).get("text")]))
     context = {"active": "monitor", "session": session_public(session),
                "sessions": [session_public(s) for s in state.manager.list()],
                "service_groups": SERVICE_GROUPS, "filter": monitor.filter.as_dict(), "paused": monitor.paused,
-               "bus": monitor.snapshot()["bus"], "bus_labels": BUS_LABELS,
+               "bus": snapshot["bus"], "bus_text": bus_text, "bus_labels": BUS_LABELS,
                "nodes": sorted(session.nodes), "counter_nodes": _counter_nodes(session),
                **_recordings(session)}
     return templates.TemplateResponse(request, "monitor.html", context)
