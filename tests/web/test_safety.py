@@ -196,6 +196,12 @@ def test_second_engineer_sees_who_holds_the_node(client: TestClient) -> None:
     assert "held-by-other" in banner and "Node 5 is being written by anna" in banner and "Break lease" in banner
     # ben's PDO apply and drive control are refused too; stopping is not
     assert client.put(_node("/pdos/rpdo/1"), json={"entries": []}, headers=BEN).status_code == 409
+    # ... and so is the heartbeat set-up on the Diagnostics tab (API and page)
+    heartbeat = client.put(_node("/heartbeat/producer"), json={"time_ms": 300}, headers=BEN)
+    assert heartbeat.status_code == 409 and "anna" in heartbeat.json()["detail"]
+    page = client.post(f"/ui/sessions/{DEMO}/nodes/{MOTEC}/diagnostics/producer", data={"time_ms": "300"},
+                       headers=BEN)
+    assert "Node 5 is being written by anna" in page.text
     stop = client.post(_node("/control/commands/quick_stop"), headers=BEN)
     assert stop.status_code == 200, "any station may stop the drive"
     assert client.delete(_node("/lease"), headers=ANNA).json()["holder"] is None  # released

@@ -14,7 +14,7 @@ from drivebench.device.profile import EmcyCode, Profile
 from drivebench.errors import DriveBenchError, InvalidValue
 from drivebench.protocol.emcy import EmcyEvent
 from drivebench.protocol.guarding import GuardStatus
-from drivebench.services import parameters
+from drivebench.services import node_lease, parameters
 from drivebench.services.sessions import Session, SessionNode
 
 HEARTBEAT_PRODUCER = 0x1017
@@ -148,6 +148,7 @@ async def read_heartbeat_setup(session: Session, node_id: int) -> HeartbeatSetup
     return HeartbeatSetup(node_id=node_id, producer_time_ms=producer, consumers=consumers)
 
 
+@node_lease.leased
 async def write_heartbeat_producer(session: Session, node_id: int, time_ms: int) -> HeartbeatSetup:
     if not 0 <= time_ms <= 0xFFFF:
         raise InvalidValue(f"Heartbeat producer time {time_ms} ms is outside 0 … 65535 ms (0 = off).")
@@ -160,6 +161,7 @@ async def write_heartbeat_producer(session: Session, node_id: int, time_ms: int)
     return setup
 
 
+@node_lease.leased
 async def write_heartbeat_consumer(session: Session, node_id: int, slot: int, producer_id: int,
                                    time_ms: int) -> HeartbeatSetup:
     """CiA 301 0x1016: bits 16..22 producer node id, bits 0..15 consumer time in ms (0 = slot unused)."""
@@ -188,6 +190,7 @@ async def write_heartbeat_consumer(session: Session, node_id: int, slot: int, pr
 
 
 # --- node guarding (devices that use it instead of heartbeat: EMF2178IB, MICROMASTER) ---------------------------
+@node_lease.leased
 async def start_guarding(session: Session, node_id: int, guard_time_ms: int, life_time_factor: int) -> GuardingPublic:
     """Write guard time (0x100C) and life time factor (0x100D) to the node, then guard it; 0 ms stops guarding."""
     node = session.node(node_id)

@@ -16,13 +16,15 @@ Who writes comes from a context variable the web layer sets per request (:func:`
 from __future__ import annotations
 
 import contextlib
+import functools
 import logging
 import threading
 import time
 import weakref
-from collections.abc import Iterator
+from collections.abc import Awaitable, Callable, Iterator
 from contextvars import ContextVar
 from dataclasses import dataclass, field
+from typing import Concatenate, ParamSpec, TypeVar
 
 from drivebench.errors import Conflict, NotFound
 from drivebench.services.sessions import Session
@@ -221,3 +223,17 @@ def writing(session: Session, node_id: int) -> Iterator[None]:
         yield
     finally:
         table.done(node_id, writer)
+
+
+P = ParamSpec("P")
+R = TypeVar("R")
+
+
+def leased(write: Callable[Concatenate[Session, int, P], Awaitable[R]]
+           ) -> Callable[Concatenate[Session, int, P], Awaitable[R]]:
+    """A service coroutine ``(session, node_id, ...)`` that writes to the node runs inside :func:`writing`."""
+    @functools.wraps(write)
+    async def under_lease(session: Session, node_id: int, /, *args: P.args, **kwargs: P.kwargs) -> R:
+        with writing(session, node_id):
+            return await write(session, node_id, *args, **kwargs)
+    return under_lease

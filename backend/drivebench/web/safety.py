@@ -28,7 +28,10 @@ def client_id(conn: HTTPConnection) -> str | None:
 
 
 def panel_for(conn: HTTPConnection) -> Panel:
-    operator = conn.headers.get("x-drive-operator") or conn.query_params.get("operator") or principal_of(conn).name
+    principal = principal_of(conn)
+    if principal.via != "local":  # signed in: the holder shown to others is who signed in, not what a header says
+        return panel_of(conn.client.host if conn.client else None, client_id(conn), principal.name)
+    operator = conn.headers.get("x-drive-operator") or conn.query_params.get("operator") or principal.name
     return panel_of(conn.client.host if conn.client else None, client_id(conn), operator)
 
 

@@ -13,10 +13,11 @@ from drivebench.services import diagnostics
 from drivebench.services.diagnostics import EmcyRecord, GuardingPublic, HeartbeatSetup, NodeHealth
 from drivebench.services.sharing import ShareLink
 from drivebench.web.deps import NodeDep, SessionDep, StateDep
+from drivebench.web.safety import ACTING
 from drivebench.web.templating import templates
 from drivebench.web.viewer import require_engineer
 
-router = APIRouter(prefix="/api", tags=["diagnostics"])
+router = APIRouter(prefix="/api", tags=["diagnostics"], dependencies=[ACTING])  # set-up writes take the node lease
 EngineerOnly = Depends(require_engineer)
 
 

@@ -11,9 +11,10 @@ from drivebench.errors import DriveBenchError
 from drivebench.services import diagnostics
 from drivebench.services.sessions import Session, SessionNode
 from drivebench.web.deps import NodeDep, SessionDep
+from drivebench.web.safety import ACTING
 from drivebench.web.templating import templates
 
-router = APIRouter(include_in_schema=False)
+router = APIRouter(include_in_schema=False, dependencies=[ACTING])  # set-up writes take the node lease
 UI = "/ui/sessions/{session_id}/nodes/{node_id}/diagnostics"
 PAGE = "node/diagnostics_body.html"
 
