@@ -237,6 +237,16 @@ def test_read_all_job_with_progress_stream(api_8400: Api) -> None:
     assert api_8400.client.delete(f"/api/jobs/{job['id']}").status_code == 409
 
 
+def test_the_same_read_asked_again_follows_the_running_job(api_8400: Api) -> None:
+    first = api_8400.client.post(api_8400.url(5, "/read-all")).json()
+    again = [api_8400.client.post(api_8400.url(5, "/read-all")).json() for _ in range(5)]
+    assert {job["id"] for job in again} == {first["id"]}, "no read queues up behind a running one of the same node"
+    assert _wait_job(api_8400, first["id"])["state"] == "done"
+    after = api_8400.client.post(api_8400.url(5, "/read-all")).json()
+    assert after["id"] != first["id"], "a finished read does not stand for a new one"
+    _wait_job(api_8400, after["id"])
+
+
 def test_read_all_nodes_of_a_session_and_group_read(api_8400: Api) -> None:
     job = api_8400.client.post(f"/api/sessions/{SESSION}/read-all", json={}).json()
     final = _wait_job(api_8400, job["id"])

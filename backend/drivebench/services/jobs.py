@@ -74,6 +74,7 @@ class Job:
     issues: list[JobIssue] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     result: dict[str, Any] = field(default_factory=dict)
+    same_as: str | None = None
     _version: int = 0
     _changed: asyncio.Condition | None = None
     _waiters: int = 0
@@ -155,9 +156,17 @@ class JobManager:
         self._jobs: OrderedDict[str, Job] = OrderedDict()
         self._serial = itertools.count(1)
 
-    def start(self, kind: str, title: str, total: int, work: Work) -> Job:
-        """Start ``work(job)`` as a task on the running loop and return the job at once."""
-        job = Job(f"{kind}-{next(self._serial)}-{uuid.uuid4().hex[:6]}", kind, title, total)
+    def start(self, kind: str, title: str, total: int, work: Work, *, same_as: str | None = None) -> Job:
+        """Start ``work(job)`` as a task on the running loop and return the job at once.
+
+        ``same_as`` names what the job does (e.g. which nodes it reads): while a job with the same name runs, that
+        job is returned instead of starting another, so repeated requests never queue up work on a node."""
+        if same_as is not None:
+            running = next((job for job in self._jobs.values()
+                            if job.same_as == same_as and not job.state.finished), None)
+            if running is not None:
+                return running
+        job = Job(f"{kind}-{next(self._serial)}-{uuid.uuid4().hex[:6]}", kind, title, total, same_as=same_as)
         job._task = asyncio.get_running_loop().create_task(self._run(job, work), name=job.id)
         self._jobs[job.id] = job
         self._prune()

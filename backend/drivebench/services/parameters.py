@@ -694,4 +694,6 @@ def start_read(session: Session, node_ids: Iterable[int], jobs: JobManager, *, g
             raise TransportError(f"{exc.detail}, {read} of {total} parameters read before",
                                  hint=exc.hint) from exc
 
-    return jobs.start("read", title, total, run)
+    # The same read asked again while it runs follows the running job (a read-all is minutes of bus work per node).
+    same_as = f"read {session.id} {sorted(work)} {group or '*'}"
+    return jobs.start("read", title, total, run, same_as=same_as)
