@@ -41,6 +41,7 @@
     const nextButton = panel.querySelector("#ctl-seq-next");
     let freshUntil = 0;  // a command's answer is newer than a websocket status read before it
     let watching = false;  // another panel holds the armed drive
+    const refused = Boolean(panel.dataset.refused);  // this user's role may watch the drive, not control it
     let runOpen = false;  // a commissioning run has steps left
     const nameInput = panel.querySelector("#ctl-operator");
     nameInput.value = operator();
@@ -114,11 +115,11 @@
         : `This panel holds the drive (${status.holder}): only it moves the drive; closing it sends quick stop.`;
       panel.classList.toggle("watching", watching);
       panel.querySelectorAll("[data-command]").forEach((button) => {
-        button.disabled = watching && !STOPPING.has(button.dataset.command);
+        button.disabled = refused || (watching && !STOPPING.has(button.dataset.command));
       });
       panel.querySelectorAll("#ctl-setpoint input, #ctl-setpoint button, [data-jog], input[name=ctl-mode], #ctl-seq-start")
-        .forEach((control) => { control.disabled = watching; });
-      if (nextButton) nextButton.disabled = watching || !runOpen;
+        .forEach((control) => { control.disabled = refused || watching; });
+      if (nextButton) nextButton.disabled = refused || watching || !runOpen;
     }
 
     function plot(actuals, t) {
@@ -259,7 +260,7 @@
         (pre ? `<p class="muted">Before starting (not sent over CAN):</p><ul class="muted">${pre}</ul>` : "") + banner +
         `<div class="ctl-run-scroll"><table class="ctl-run"><thead><tr><th>#</th><th>Step</th><th>Telegrams</th><th>Answer</th></tr></thead><tbody>${rows}</tbody></table></div>`;
       runOpen = !run.finished;
-      nextButton.disabled = watching || !runOpen;
+      nextButton.disabled = refused || watching || !runOpen;
       const row = runBox.querySelector("tr.next, tr.failed");
       const scroller = runBox.querySelector(".ctl-run-scroll");
       if (row && scroller) scroller.scrollTop = Math.max(0, row.offsetTop - scroller.clientHeight / 2);  // not the page
@@ -285,7 +286,7 @@
         nextButton.disabled = true;
         const slot = document.createElement("div");
         const run = await call("POST", `${api}/runs/${runId}/next`, { confirm }, slot);
-        if (run) renderRun(run); else { runBox.prepend(slot); nextButton.disabled = watching; }
+        if (run) renderRun(run); else { runBox.prepend(slot); nextButton.disabled = refused || watching; }
       });
     }
 

@@ -91,6 +91,16 @@ def test_viewer_cannot_write_engineer_can(server: str, page: Any, browser: Any) 
     expect(_row(page, "C00088")).to_contain_text(
         "Writing parameters needs the engineer role; you are signed in as vera (viewer).", timeout=WAIT_MS)
     screenshot(page, "access-viewer-refused")
+    # The Control tab: a viewer watches the drive live (state, actual values) but its controls are refused.
+    page.goto(f"{server}/sessions/demo-plant/nodes/3?tab=control")
+    expect(page.locator("#ctl-ws")).to_have_text("live", timeout=WAIT_MS)
+    expect(page.locator("#ctl-refused")).to_contain_text(
+        "Controlling a drive needs the engineer role; you are signed in as vera (viewer)")
+    expect(page.locator("#ctl-actuals canvas").first).to_be_visible(timeout=WAIT_MS)
+    expect(page.locator("[data-command=switch_on]")).to_be_disabled()
+    expect(page.locator("[data-command=quick_stop]")).to_be_disabled()
+    expect(page.locator("[data-jog='1']")).to_be_disabled()
+    screenshot(page, "access-viewer-control")
 
     page.locator(".signed-in").get_by_role("button", name="Sign out").click()
     expect(page).to_have_url(re.compile(r"/login$"), timeout=WAIT_MS)

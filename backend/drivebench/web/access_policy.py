@@ -129,7 +129,9 @@ RULES: dict[tuple[str, str], Rule] = {
     **_rules(A, "Managing API tokens", ("GET", "/api/tokens"), ("POST", "/api/tokens"),
              ("DELETE", "/api/tokens/{token_id}"), ("POST", "/ui/tokens"), ("POST", "/ui/tokens/{token_id}/revoke")),
     # --- websockets ----------------------------------------------------------------------------------------
-    **_rules(E, "Controlling a drive", (WEBSOCKET, N.replace("/api/", "/ws/", 1) + "/control")),
+    # The control socket only streams the drive's state; its messages keep alive a drive this panel holds, and
+    # only an engineer's command makes a panel a holder.
+    **_rules(V, "Watching a drive", (WEBSOCKET, N.replace("/api/", "/ws/", 1) + "/control")),
     **_rules(V, "Watching", (WEBSOCKET, "/ws/sessions/{session_id}/monitor"),
              (WEBSOCKET, "/ws/sessions/{session_id}/nodes"),
              (WEBSOCKET, "/ws/jobs/{job_id}"), (WEBSOCKET, "/ws/remote/{token}"),

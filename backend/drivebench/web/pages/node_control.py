@@ -17,13 +17,25 @@ from drivebench.errors import DriveBenchError
 from drivebench.services import commissioning, drive_control
 from drivebench.services.drive_words import Family, family_of
 from drivebench.services.sessions import Session, SessionNode
+from drivebench.web.access_policy import rule_for
 from drivebench.web.deps import NodeDep, SessionDep
+from drivebench.web.identity import principal_of
 from drivebench.web.templating import templates
 
 router = APIRouter(include_in_schema=False)
 UI = "/ui/sessions/{session_id}/nodes/{node_id}/control"
 BOX_W, BOX_H, GAP_X, GAP_Y, PAD = 190, 42, 110, 30, 16
 PAD_LEFT = 96  # room for the labels of the left (downward) lane
+CONTROL_RULE = rule_for("POST", "/api/sessions/{session_id}/nodes/{node_id}/control/commands/{command}")
+
+
+def refused_because(request: Request) -> str | None:
+    """Why this user may watch the drive but not control it (None: may control)."""
+    principal = principal_of(request)
+    if principal.may(CONTROL_RULE.role):
+        return None
+    return (f"{CONTROL_RULE.what} needs the {CONTROL_RULE.role.label} role; you are signed in as {principal.name} "
+            f"({principal.role.label}), so this panel only watches.")
 
 
 def _diagram(fam: Family) -> dict[str, Any]:
@@ -69,7 +81,8 @@ async def control_tab(request: Request, session: SessionDep, node: NodeDep) -> R
                                "api": f"/api/sessions/{session.id}/nodes/{node.node_id}/control",
                                "ws": f"/ws/sessions/{session.id}/nodes/{node.node_id}/control",
                                "status": None, "error": None, "sequences": commissioning.sequences_for(node),
-                               "keepalive_s": drive_control.KEEPALIVE_TIMEOUT_S, "empty": None}
+                               "keepalive_s": drive_control.KEEPALIVE_TIMEOUT_S, "empty": None,
+                               "refused": refused_because(request)}
     if node.catalog is None:  # an empty state, not an error: nothing went wrong, the node needs a profile first
         context["empty"] = f"Node {node.node_id} has no device profile: assign one on the Plant page to control it."
         return templates.TemplateResponse(request, "node/control_body.html", context)
