@@ -49,6 +49,9 @@ KNOWN = [
 ]
 # Run last, in this order, each for its reason: what it changes would make every operation after it slow or moot.
 LAST = {
+    "POST /api/users":
+        "may create the first admin: from then on every request without a sign-in is refused with 401, so the "
+        "operations after it would only test the sign-in wall",
     "PUT /api/sessions/{session_id}/sdo-settings":
         "sets the session's SDO timeout and retries (up to 30 s x 10): every later request to a stopped node would "
         "wait that long",
