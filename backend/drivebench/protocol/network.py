@@ -162,6 +162,8 @@ class CanopenNetwork:
             self.canopen.send_message(cob_id, data)
         except can.CanError as exc:
             raise TransportError(f"Cannot send on {self.bus.spec}: {exc}", hint=self.bus.spec.hint()) from exc
+        except RuntimeError as exc:  # canopen: "Not connected to CAN bus" once the session has closed
+            raise TransportError(f"Cannot send on {self.bus.spec}: the session's bus is closed ({exc})") from exc
 
     def scan(self, timeout_s: float = 0.5, node_ids: range = range(1, 128)) -> list[int]:
         """Ask every node id for 0x1000 (SDO) and collect who answers or sends heartbeats (blocking)."""
