@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import asyncio
-from collections.abc import Iterator
 
 import pytest
 
@@ -20,17 +19,8 @@ MM, VECTOR = 3, 12
 
 
 @pytest.fixture
-def bench(plant: Plant, registry: ProfileRegistry) -> Iterator[tuple[asyncio.Runner, Session]]:
-    runner = asyncio.Runner()
-    manager = SessionManager(registry, sdo_timeout_s=1.0, sdo_retries=1)
-    session = runner.run(manager.open(plant.spec, "commissioning"))
-    for node in plant.nodes.values():
-        session.add_node(node.node_id, node.profile.id)
-    try:
-        yield runner, session
-    finally:
-        runner.run(manager.close_all())
-        runner.close()
+def bench(plant_session: tuple[asyncio.Runner, Session]) -> tuple[asyncio.Runner, Session]:
+    return plant_session
 
 
 def _walk(runner: asyncio.Runner, session: Session, run: Run, stop_before: int | None = None) -> Run:

@@ -8,16 +8,14 @@ from __future__ import annotations
 
 import asyncio
 import time
-from collections.abc import Callable, Coroutine, Iterator
+from collections.abc import Callable, Coroutine
 from typing import Any, TypeVar
 
 import pytest
 
-from drivebench.device.loader import ProfileRegistry
 from drivebench.services import drive_control, parameters
 from drivebench.services.drive_control import ActualValue
-from drivebench.services.sessions import Session, SessionManager
-from drivebench.simulator.plant import Plant
+from drivebench.services.sessions import Session
 
 T = TypeVar("T")
 MM, MOTEC, VECTOR = 3, 5, 12
@@ -48,17 +46,8 @@ class Bench:
 
 
 @pytest.fixture
-def bench(plant: Plant, registry: ProfileRegistry) -> Iterator[Bench]:
-    runner = asyncio.Runner()
-    manager = SessionManager(registry, sdo_timeout_s=1.0, sdo_retries=1)
-    session = runner.run(manager.open(plant.spec, "actual values"))
-    for node in plant.nodes.values():
-        session.add_node(node.node_id, node.profile.id)
-    try:
-        yield Bench(runner, session)
-    finally:
-        runner.run(manager.close_all())
-        runner.close()
+def bench(plant_session: tuple[asyncio.Runner, Session]) -> Bench:
+    return Bench(*plant_session)
 
 
 @pytest.mark.parametrize(("node_id", "current", "dc_bus"), [(MM, "r0027", "r0026"), (MOTEC, "C00054", "C00053"),

@@ -5,17 +5,16 @@ from __future__ import annotations
 
 import asyncio
 import time
-from collections.abc import Coroutine, Iterator
+from collections.abc import Coroutine
 from typing import Any, TypeVar
 
 import pytest
 
-from drivebench.device.loader import ProfileRegistry
 from drivebench.errors import ConfirmationRequired, Conflict, OutOfRange
 from drivebench.services import drive_control, parameters
 from drivebench.services.drive_control import DriveStatus, describe
 from drivebench.services.drive_words import CIA402, EMF, L8400, Command
-from drivebench.services.sessions import Session, SessionManager
+from drivebench.services.sessions import Session
 from drivebench.simulator.plant import Plant
 
 T = TypeVar("T")
@@ -46,17 +45,8 @@ class Bench:
 
 
 @pytest.fixture
-def bench(plant: Plant, registry: ProfileRegistry) -> Iterator[Bench]:
-    runner = asyncio.Runner()
-    manager = SessionManager(registry, sdo_timeout_s=1.0, sdo_retries=1)
-    session = runner.run(manager.open(plant.spec, "drive control"))
-    for node in plant.nodes.values():
-        session.add_node(node.node_id, node.profile.id)
-    try:
-        yield Bench(runner, session, plant)
-    finally:
-        runner.run(manager.close_all())
-        runner.close()
+def bench(plant_session: tuple[asyncio.Runner, Session], plant: Plant) -> Bench:
+    return Bench(*plant_session, plant)
 
 
 @pytest.mark.parametrize(("word", "state"), [

@@ -6,16 +6,13 @@ from __future__ import annotations
 
 import asyncio
 import contextvars
-from collections.abc import Iterator
 
 import can
 import pytest
 
-from drivebench.device.loader import ProfileRegistry
 from drivebench.services import node_lease, parameters
 from drivebench.services.node_lease import NodeLeased, Writer
-from drivebench.services.sessions import Session, SessionManager
-from drivebench.simulator.plant import Plant
+from drivebench.services.sessions import Session
 
 MOTEC = 5
 ANNA = Writer("anna", "panel:a1", "Parameters tab")
@@ -25,17 +22,8 @@ REF, INDEX, SUB = "C00039/1", 0x5FFF - 39, 1  # Fixed setpoint-JOG1, INTEGER16, 
 
 
 @pytest.fixture
-def bench(plant: Plant, registry: ProfileRegistry) -> Iterator[tuple[asyncio.Runner, Session]]:
-    runner = asyncio.Runner()
-    manager = SessionManager(registry, sdo_timeout_s=1.0, sdo_retries=1)
-    session = runner.run(manager.open(plant.spec, "lease"))
-    for node in plant.nodes.values():
-        session.add_node(node.node_id, node.profile.id)
-    try:
-        yield runner, session
-    finally:
-        runner.run(manager.close_all())
-        runner.close()
+def bench(plant_session: tuple[asyncio.Runner, Session]) -> tuple[asyncio.Runner, Session]:
+    return plant_session
 
 
 async def _write_as(writer: Writer | None, session: Session, ref: str, value: object) -> parameters.WriteResult:

@@ -5,8 +5,7 @@ cyclic sending ends when the page goes away."""
 
 from __future__ import annotations
 
-import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from typing import Any
 
 import httpx
@@ -16,7 +15,7 @@ from fastapi import FastAPI
 from drivebench.services.process_data import service as live_service
 from drivebench.simulator.store import Abort
 from drivebench.web.app import create_app
-from tests.conftest import DEMO_PLANT, fresh_channel, screenshot, serve_app
+from tests.conftest import DEMO_PLANT, fresh_channel, screenshot, serve_app, wait_until
 
 
 def test_edit_and_apply_rpdo5_of_the_micromaster(live_server: str, page: Any) -> None:
@@ -89,15 +88,6 @@ def own_server() -> Iterator[tuple[str, FastAPI]]:
         yield base_url, app
 
 
-def _wait(condition: Callable[[], bool], seconds: float = 10.0) -> bool:
-    deadline = time.monotonic() + seconds
-    while time.monotonic() < deadline:
-        if condition():
-            return True
-        time.sleep(0.05)
-    return condition()
-
-
 def test_failed_apply_shows_the_step_and_the_disabled_pdo(own_server: tuple[str, FastAPI], page: Any) -> None:
     """The drive refuses the torque setpoint mid-sequence (a MICROMASTER 420 has no 6071)."""
     url, app = own_server
@@ -141,7 +131,7 @@ def test_live_value_confirmed_send_and_cyclic_stop(own_server: tuple[str, FastAP
     page.locator("#pdo-ws-state.good").wait_for(timeout=15000)
     page.once("dialog", lambda dialog: dialog.accept())
     page.get_by_role("button", name="Start node").click()
-    assert _wait(lambda: sim.state.name == "OPERATIONAL")
+    assert wait_until(lambda: sim.state.name == "OPERATIONAL")
     assert "synchronous, acyclic" in page.locator("#pdo-tpdo5 .pdo-comm").inner_text()  # type 0: sent on SYNC
     sync = page.locator("#pdo-sync")
     sync.locator('input[name="period_ms"]').fill("50")
@@ -150,7 +140,7 @@ def test_live_value_confirmed_send_and_cyclic_stop(own_server: tuple[str, FastAP
     assert "on, 50 ms" in sync.inner_text()
     sim.store.set(0x2803, 4, 4321)
     live = page.locator('#pdo-tpdo5 .live[data-ref="0x2803.4"]')
-    assert _wait(lambda: live.inner_text() == "4321"), live.inner_text()
+    assert wait_until(lambda: live.inner_text() == "4321"), live.inner_text()
 
     rpdo5 = page.locator("#pdo-rpdo5")
     rpdo5.locator('input[name="v:r2050.2"]').fill("77")
@@ -162,13 +152,13 @@ def test_live_value_confirmed_send_and_cyclic_stop(own_server: tuple[str, FastAP
 
     page.once("dialog", dismiss)
     rpdo5.get_by_role("button", name="Send once").click()
-    assert _wait(lambda: bool(dialogs)) and "move the motor" in dialogs[0]
+    assert wait_until(lambda: bool(dialogs)) and "move the motor" in dialogs[0]
     assert sim.store.get(0x2802, 3) == 0, "nothing is sent without the confirmation"
     page.once("dialog", lambda dialog: dialog.accept())
     rpdo5.get_by_role("button", name="Send once").click()
-    assert _wait(lambda: sim.store.get(0x2802, 3) == 77)
+    assert wait_until(lambda: sim.store.get(0x2802, 3) == 77)
     # the frame can reach the drive before the page has swapped in the answer
-    assert _wait(lambda: "sent once" in rpdo5.locator(".send-result").inner_text())
+    assert wait_until(lambda: "sent once" in rpdo5.locator(".send-result").inner_text())
 
     rpdo5.locator('input[name="v:r2050.2"]').fill("40000")  # INTEGER16: refused before anything is sent
     page.once("dialog", lambda dialog: dialog.accept())
@@ -179,12 +169,12 @@ def test_live_value_confirmed_send_and_cyclic_stop(own_server: tuple[str, FastAP
     rpdo5.locator('input[name="v:r2050.2"]').fill("-300")
     page.once("dialog", lambda dialog: dialog.accept())
     rpdo5.get_by_role("button", name="Send cyclically").click()
-    assert _wait(lambda: sim.store.get(0x2802, 3) == -300)
-    assert _wait(lambda: "sending every 100 ms" in rpdo5.locator(".send-result").inner_text())
+    assert wait_until(lambda: sim.store.get(0x2802, 3) == -300)
+    assert wait_until(lambda: "sending every 100 ms" in rpdo5.locator(".send-result").inner_text())
     rpdo5.locator(".pdo-cyclic-badge").wait_for(state="visible", timeout=10000)  # from the socket's state message
     assert page.locator("#pdo-rpdo1 .pdo-cyclic-badge").is_hidden()
     screenshot(page, "pdo-live-mm4")
     assert live_service(session).cyclic
     page.close()  # the browser goes away: its cyclic RPDO stops
-    assert _wait(lambda: not live_service(session).cyclic)
+    assert wait_until(lambda: not live_service(session).cyclic)
     live_service(session).stop_sync()

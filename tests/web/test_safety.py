@@ -6,7 +6,7 @@ interleaved on the wire, release, expiry, admin break)."""
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
@@ -19,7 +19,7 @@ from drivebench.services import node_lease
 from drivebench.services.principals import Principal, Role
 from drivebench.simulator.plant import Plant
 from drivebench.web.app import create_app
-from tests.conftest import DEMO_PLANT
+from tests.conftest import DEMO_PLANT, wait_until
 
 DEMO = "demo-plant"
 MM, MOTEC = 3, 5
@@ -35,15 +35,6 @@ def _node(path: str = "", node: int = MOTEC) -> str:
 def _plant(client: TestClient) -> Plant:
     plant: Plant = client.app.state.drivebench.plants[DEMO]  # type: ignore[attr-defined]
     return plant
-
-
-def _wait(condition: Callable[[], bool], seconds: float = 10.0) -> bool:
-    deadline = time.monotonic() + seconds
-    while time.monotonic() < deadline:
-        if condition():
-            return True
-        time.sleep(0.05)
-    return False
 
 
 class Frames:
@@ -95,16 +86,16 @@ def test_api_client_that_stops_its_keepalive_gets_its_node_stopped(client: TestC
     sim = _plant(client).nodes[MM]
     started = client.post(_node("/nmt", MM), json={"command": "start", "confirm": 3, "keepalive_s": 1})
     assert started.status_code == 200
-    assert _wait(lambda: sim.state.name == "OPERATIONAL")
+    assert wait_until(lambda: sim.state.name == "OPERATIONAL")
     until = time.monotonic() + 2.5
     while time.monotonic() < until:  # kept alive for longer than the timeout: nothing stops
         kept = client.post(f"/api/sessions/{DEMO}/keepalive").json()
         assert kept["nodes"] == [MM] and kept["timeout_s"] == 1
         time.sleep(0.3)
     assert not frames.nmt(0x80, MM) and sim.state.name == "OPERATIONAL"
-    assert _wait(lambda: frames.nmt(0x80, MM)), "no NMT pre-operational after the keep-alive stopped"
+    assert wait_until(lambda: frames.nmt(0x80, MM)), "no NMT pre-operational after the keep-alive stopped"
     assert frames.sdo_download(MM, 0x6040), "no quick stop written to the control word"
-    assert _wait(lambda: sim.state.name == "PRE_OPERATIONAL")
+    assert wait_until(lambda: sim.state.name == "PRE_OPERATIONAL")
     word = next(m for m in frames.sdo_download(MM, 0x6040))
     assert word.data[4] & 0x06 == 0x02, "CiA 402 quick stop: bit 1 set, bit 2 cleared"
     assert client.post(f"/api/sessions/{DEMO}/keepalive").json()["nodes"] == []
@@ -119,7 +110,7 @@ def test_closing_the_page_socket_stops_what_it_started(client: TestClient, wire:
         started = client.post(f"/ui/sessions/{DEMO}/nmt", data={"command": "start", "node_id": "5", "confirm": "5"},
                               headers=ANNA)
         assert started.status_code == 200
-        assert _wait(lambda: sim.state.name == "OPERATIONAL")
+        assert wait_until(lambda: sim.state.name == "OPERATIONAL")
         for _ in range(8):  # the page's keep-alive, 4 s in all: longer than the 2 s timeout
             socket.send_text('{"cmd": "keepalive"}')
             assert socket.receive_json() == {"type": "held", "nodes": [MOTEC]}
@@ -127,9 +118,9 @@ def test_closing_the_page_socket_stops_what_it_started(client: TestClient, wire:
         assert not frames.nmt(0x80, MOTEC) and sim.state.name == "OPERATIONAL"
         ben = client.post(_node("/nmt"), json={"command": "start", "confirm": 5}, headers=BEN)
         assert ben.status_code == 409 and "anna" in ben.json()["detail"], "another client cannot take the node"
-    assert _wait(lambda: frames.nmt(0x80, MOTEC)), "the closed page's node was not stopped"
+    assert wait_until(lambda: frames.nmt(0x80, MOTEC)), "the closed page's node was not stopped"
     assert frames.sdo_download(MOTEC, 0x5FFF - 866), "no quick stop written to C00866/1"
-    assert _wait(lambda: sim.state.name == "PRE_OPERATIONAL")
+    assert wait_until(lambda: sim.state.name == "PRE_OPERATIONAL")
     trip = client.get(_node("/control")).json()["last_trip"]
     assert "the page that started it disconnected" in trip and "NMT pre-operational sent" in trip, trip
     assert client.get(_node("/control", MM)).json()["last_trip"] is None  # the other nodes are untouched
@@ -149,7 +140,7 @@ def test_the_same_tab_reconnecting_keeps_its_node_running(client: TestClient, wi
             assert socket.receive_json()["nodes"] == [MOTEC]
             time.sleep(0.5)
         assert not frames.nmt(0x80, MOTEC), "stopped although the tab came back"
-    assert _wait(lambda: frames.nmt(0x80, MOTEC)), "not stopped after the tab left for good"
+    assert wait_until(lambda: frames.nmt(0x80, MOTEC)), "not stopped after the tab left for good"
 
 
 def test_cyclic_rpdo_page_closed_stops_the_frames_and_the_drive(client: TestClient, wire: can.BusABC) -> None:
@@ -167,8 +158,8 @@ def test_cyclic_rpdo_page_closed_stops_the_frames_and_the_drive(client: TestClie
         assert sent.status_code == 200, sent.text
         keepalive.send_text("{}")
         assert keepalive.receive_json()["nodes"] == [MM]
-        assert _wait(lambda: sum(m.arbitration_id == 0x303 for m in frames.drain()) >= 3)
-    assert _wait(lambda: len(frames.sdo_download(MM, 0x6040)) >= 1), "no quick stop after the page closed"
+        assert wait_until(lambda: sum(m.arbitration_id == 0x303 for m in frames.drain()) >= 3)
+    assert wait_until(lambda: len(frames.sdo_download(MM, 0x6040)) >= 1), "no quick stop after the page closed"
     quiet_from = len(frames.drain())
     time.sleep(0.5)
     assert not [m for m in frames.drain()[quiet_from:] if m.arbitration_id == 0x303], "RPDO5 still sent"
@@ -279,7 +270,7 @@ def test_a_closed_tab_ends_its_leases_and_the_same_engineer_takes_over_a_script(
         assert _write(client, ANNA, 12).status_code == 200
         refused = _write(client, anna_tab2, 13)  # her other tab, while the first one is open: refused too
         assert refused.status_code == 409 and "anna" in refused.json()["detail"]
-    assert _wait(lambda: client.get(_node("/lease")).json()["holder"] is None), "the closed tab kept its lease"
+    assert wait_until(lambda: client.get(_node("/lease")).json()["holder"] is None), "the closed tab kept its lease"
     script = {"X-DriveBench-User": "anna"}  # anna's script: no page open
     assert _write(client, script, 14).status_code == 200
     assert _write(client, BEN, 20).status_code == 409, "another engineer still waits"

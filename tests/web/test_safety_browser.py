@@ -5,7 +5,7 @@ shows who holds a node's write lease to a second engineer."""
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from typing import Any
 
 import pytest
@@ -14,7 +14,7 @@ from playwright.sync_api import expect
 
 from drivebench.simulator.plant import Plant
 from drivebench.web.app import create_app
-from tests.conftest import DEMO_PLANT, fresh_channel, screenshot, serve_app
+from tests.conftest import DEMO_PLANT, fresh_channel, screenshot, serve_app, wait_until
 
 MM, MOTEC = 3, 5
 WAIT_MS = 10_000
@@ -31,15 +31,6 @@ def own_server() -> Iterator[tuple[str, FastAPI]]:
 def _plant(app: FastAPI) -> Plant:
     plant: Plant = app.state.drivebench.plants["demo-plant"]
     return plant
-
-
-def _wait(condition: Callable[[], bool], seconds: float = 10.0) -> bool:
-    deadline = time.monotonic() + seconds
-    while time.monotonic() < deadline:
-        if condition():
-            return True
-        time.sleep(0.05)
-    return False
 
 
 def test_nmt_start_asks_first_and_closing_the_tab_stops_the_drive(own_server: tuple[str, FastAPI],
@@ -59,13 +50,13 @@ def test_nmt_start_asks_first_and_closing_the_tab_stops_the_drive(own_server: tu
 
         page.once("dialog", refuse)
         start.click()
-        assert _wait(lambda: bool(asked)) and f"Start node {MM}?" in asked[0]
+        assert wait_until(lambda: bool(asked)) and f"Start node {MM}?" in asked[0]
         time.sleep(0.5)
         assert sim.state.name == "PRE_OPERATIONAL", "refusing the confirmation sends nothing"
 
         page.once("dialog", lambda dialog: dialog.accept())
         start.click()
-        assert _wait(lambda: sim.state.name == "OPERATIONAL"), "NMT start did not reach the drive"
+        assert wait_until(lambda: sim.state.name == "OPERATIONAL"), "NMT start did not reach the drive"
         note = page.locator("#session-demo-plant .keepalive-state")
         expect(note).to_have_text(f"This tab keeps node {MM} running: closing it stops it.", timeout=WAIT_MS)
         full = screenshot(page, "safety-plant-keepalive")
@@ -74,7 +65,7 @@ def test_nmt_start_asks_first_and_closing_the_tab_stops_the_drive(own_server: tu
         assert sim.state.name == "OPERATIONAL"
     finally:
         context.close()  # closing the tab
-    assert _wait(lambda: sim.state.name == "PRE_OPERATIONAL"), "the node kept running after its tab closed"
+    assert wait_until(lambda: sim.state.name == "PRE_OPERATIONAL"), "the node kept running after its tab closed"
     drive = sim.drive
     assert drive is not None and drive.control_word & 0x06 == 0x02, "no quick stop (0x6040 bit 1 set, bit 2 clear)"
 

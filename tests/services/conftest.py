@@ -1,0 +1,28 @@
+"""Fixtures of the service tests: a session on the demo plant, driven by its own event loop runner."""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import Iterator
+
+import pytest
+
+from drivebench.device.loader import ProfileRegistry
+from drivebench.services.sessions import Session, SessionManager
+from drivebench.simulator.plant import Plant
+
+
+@pytest.fixture
+def plant_session(request: pytest.FixtureRequest, plant: Plant,
+                  registry: ProfileRegistry) -> Iterator[tuple[asyncio.Runner, Session]]:
+    """A session on the demo plant with its nodes, as the server opens one (SDO timeout 1 s, one retry)."""
+    runner = asyncio.Runner()
+    manager = SessionManager(registry, sdo_timeout_s=1.0, sdo_retries=1)
+    session = runner.run(manager.open(plant.spec, request.module.__name__.rsplit(".", 1)[-1]))
+    for node in plant.nodes.values():
+        session.add_node(node.node_id, node.profile.id)
+    try:
+        yield runner, session
+    finally:
+        runner.run(manager.close_all())
+        runner.close()
