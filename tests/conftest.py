@@ -21,7 +21,9 @@ from fastapi.testclient import TestClient
 from hypothesis import settings
 
 from drivebench.config import REPO_ROOT
+from drivebench.config import settings as app_settings
 from drivebench.device.loader import ProfileRegistry
+from drivebench.services import database
 from drivebench.simulator.plant import Plant, PlantFile
 from drivebench.web.app import create_app
 
@@ -51,6 +53,15 @@ def wait_until(condition: Callable[[], bool], seconds: float = 10.0) -> bool:
 def fresh_channel() -> str:
     """A virtual CAN channel no other test uses (python-can virtual channels are process-wide)."""
     return f"test-{os.getpid()}-{next(_channels)}-{uuid.uuid4().hex[:6]}"
+
+
+@pytest.fixture
+def app_db_url(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[str]:
+    """The app's database is a fresh SQLite file of this test's own (apps created in the test use it)."""
+    url = f"sqlite:///{tmp_path / 'drivebench.db'}"
+    monkeypatch.setattr(app_settings, "database_url", url)
+    yield url
+    database.dispose(url)
 
 
 @pytest.fixture(scope="session")

@@ -26,7 +26,6 @@ import httpx
 import pytest
 from fastapi.testclient import TestClient
 
-from drivebench.config import settings
 from drivebench.device.loader import ProfileRegistry
 from drivebench.protocol import sdo_fast
 from drivebench.services import audit, database
@@ -42,15 +41,7 @@ HTMX = {"HX-Request": "true"}
 
 
 @pytest.fixture
-def db_url(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[str]:
-    url = f"sqlite:///{tmp_path / 'faults.db'}"
-    monkeypatch.setattr(settings, "database_url", url)
-    yield url
-    database.dispose(url)
-
-
-@pytest.fixture
-def api(db_url: str) -> Iterator[TestClient]:
+def api(app_db_url: str) -> Iterator[TestClient]:
     app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
     with TestClient(app) as client:
         yield client
@@ -125,11 +116,11 @@ CASES = [
 
 
 @pytest.mark.parametrize(("faults", "ref", "status", "words"), CASES)
-def test_fault_is_told_in_words_others_keep_working_and_it_recovers(api: TestClient, db_url: str,
+def test_fault_is_told_in_words_others_keep_working_and_it_recovers(api: TestClient, app_db_url: str,
                                                                     faults: dict[str, Any], ref: str, status: int,
                                                                     words: str) -> None:
     profile = ProfileRegistry().get("lenze-8400-motec-canopen")
-    stored = ParameterSetStore(db_url).create("kept", profile, {"C00088": 1020, "C00011": 1500}, user="t")
+    stored = ParameterSetStore(app_db_url).create("kept", profile, {"C00088": 1020, "C00011": 1500}, user="t")
     before = read(api, 5, ref)
     assert before.status_code == 200, before.text
     set_faults(api, 5, **faults)
@@ -152,7 +143,7 @@ def test_fault_is_told_in_words_others_keep_working_and_it_recovers(api: TestCli
     again = read(api, 5, ref)
     assert again.status_code == 200, again.text
     assert again.json()["raw"] == before.json()["raw"]
-    assert ParameterSetStore(db_url).get(stored.info.id).values == {"C00088": 1020, "C00011": 1500}
+    assert ParameterSetStore(app_db_url).get(stored.info.id).values == {"C00088": 1020, "C00011": 1500}
 
 
 def test_abort_text_is_the_manuals_and_the_code_travels(api: TestClient) -> None:
@@ -257,15 +248,15 @@ def _changed(profile: Any, count: int) -> dict[str, int]:
     return changed
 
 
-def test_server_killed_during_a_download_loses_nothing_and_says_so_at_next_start(tmp_path: Path, db_url: str
+def test_server_killed_during_a_download_loses_nothing_and_says_so_at_next_start(tmp_path: Path, app_db_url: str
                                                                                  ) -> None:
     """The issue #9 test kills a process running the download service; this one kills the web server itself
     (SIGKILL, mid write: the audit row still says "sending") and starts a new one on the same database."""
-    database.upgrade_to_head(db_url)
+    database.upgrade_to_head(app_db_url)
     profile = ProfileRegistry().get("lenze-8400-motec-canopen")
-    target = ParameterSetStore(db_url).create("slow download", profile, _changed(profile, 6), user="t")
+    target = ParameterSetStore(app_db_url).create("slow download", profile, _changed(profile, 6), user="t")
     port = _free_port()
-    env = {**os.environ, "DRIVEBENCH_DATABASE_URL": db_url}
+    env = {**os.environ, "DRIVEBENCH_DATABASE_URL": app_db_url}
     server = subprocess.Popen([sys.executable, "-m", "drivebench.cli", "serve", "--demo", "--port", str(port)],
                               env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
@@ -287,8 +278,8 @@ def test_server_killed_during_a_download_loses_nothing_and_says_so_at_next_start
                                   json={"session_id": SESSION, "node_id": 5})
             assert started.status_code == 202, started.text
             end = time.monotonic() + 90
-            while not (any(e.result == "written" for e in audit.entries(db_url))
-                       and any(e.result == "sending" for e in audit.entries(db_url))):
+            while not (any(e.result == "written" for e in audit.entries(app_db_url))
+                       and any(e.result == "sending" for e in audit.entries(app_db_url))):
                 assert time.monotonic() < end, "no write under way"
                 time.sleep(0.02)
         server.send_signal(signal.SIGKILL)
@@ -298,9 +289,9 @@ def test_server_killed_during_a_download_loses_nothing_and_says_so_at_next_start
             server.kill()
             server.wait(10)
 
-    logged = audit.entries(db_url)
+    logged = audit.entries(app_db_url)
     assert [e.result for e in logged].count("sending") == 1  # the write under way when the server died
-    assert ParameterSetStore(db_url).get(target.info.id).values == target.values
+    assert ParameterSetStore(app_db_url).get(target.info.id).values == target.values
 
     app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
     with TestClient(app) as restarted:

@@ -10,14 +10,11 @@ import io
 import json
 import time
 from collections.abc import Iterator
-from pathlib import Path
 from typing import Any
 
 import pytest
 from fastapi.testclient import TestClient
 
-from drivebench.config import settings
-from drivebench.services import database
 from drivebench.web.app import create_app
 from tests.conftest import DEMO_PLANT, fresh_channel
 
@@ -26,15 +23,7 @@ SETS = "/api/parameter-sets"
 
 
 @pytest.fixture
-def db_url(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[str]:
-    url = f"sqlite:///{tmp_path / 'sets.db'}"
-    monkeypatch.setattr(settings, "database_url", url)
-    yield url
-    database.dispose(url)
-
-
-@pytest.fixture
-def api(db_url: str) -> Iterator[TestClient]:
+def api(app_db_url: str) -> Iterator[TestClient]:
     app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
     with TestClient(app) as client:
         yield client

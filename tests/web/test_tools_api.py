@@ -10,8 +10,6 @@ from pathlib import Path
 import pytest
 from fastapi.testclient import TestClient
 
-from drivebench.config import settings
-from drivebench.services import database
 from drivebench.web.app import create_app
 from tests.conftest import fresh_channel
 
@@ -26,22 +24,14 @@ PLANT = {
 
 
 @pytest.fixture
-def db_url(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[str]:
-    url = f"sqlite:///{tmp_path / 'tools.db'}"
-    monkeypatch.setattr(settings, "database_url", url)
-    yield url
-    database.dispose(url)
-
-
-@pytest.fixture
-def api(db_url: str) -> Iterator[TestClient]:
+def api(app_db_url: str) -> Iterator[TestClient]:
     """The real app without any bus: the calculators and the database need none."""
     with TestClient(create_app()) as client:
         yield client
 
 
 @pytest.fixture
-def plant_api(tmp_path: Path, db_url: str) -> Iterator[TestClient]:
+def plant_api(tmp_path: Path, app_db_url: str) -> Iterator[TestClient]:
     """The real app with a simulated plant: an 8400 motec as node 5, an 8200 vector + EMF2178IB as node 12."""
     plant_file = tmp_path / "plant.json"
     plant_file.write_text(json.dumps(PLANT))
