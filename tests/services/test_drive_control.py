@@ -11,7 +11,7 @@ from typing import Any, TypeVar
 import pytest
 
 from drivebench.errors import ConfirmationRequired, Conflict, OutOfRange
-from drivebench.services import drive_control, parameters
+from drivebench.services import drive_control, drive_guard, parameters
 from drivebench.services.drive_control import DriveStatus, describe
 from drivebench.services.drive_words import CIA402, EMF, L8400, Command
 from drivebench.services.sessions import Session
@@ -121,6 +121,22 @@ def test_keepalive_lost_sends_quick_stop(bench: Bench) -> None:
         bench.run(asyncio.sleep(0.05))
     status = bench.until(MM, "switch_on_disabled")  # quick stop active, then stopped
     assert status.last_trip and "keep-alive" in status.last_trip
+
+
+def test_a_status_read_while_the_drive_is_still_enabling_keeps_its_holder(bench: Bench) -> None:
+    """A drive armed a moment ago may not be "enabled" yet (ready -> switched on -> operation enabled run on its
+    own cycle): a status read in between must not disarm it, or it would run on with nobody holding it."""
+    bench.run(parameters.write(bench.session, MM, "P0700", 6))
+    bench.until(MM, "switch_on_disabled")
+    guard = drive_control.guard_for(bench.session)
+    anna = drive_guard.panel_of("127.0.0.1", "tab-anna", "Anna")
+
+    async def arm() -> None:  # as an enabling command does, before the drive gets there
+        guard.arm(MM, anna)
+
+    bench.run(arm())
+    status = bench.run(drive_control.read_status(bench.session, bench.session.node(MM), anna))
+    assert not status.enabled and status.armed and status.you_hold, status
 
 
 def test_fault_and_fault_reset(bench: Bench) -> None:

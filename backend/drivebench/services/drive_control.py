@@ -26,6 +26,7 @@ from drivebench.device.catalog import Catalog
 from drivebench.errors import Conflict, DriveBenchError, InvalidValue, OutOfRange, UnknownParameter
 from drivebench.services import node_lease, parameters
 from drivebench.services.drive_guard import (
+    ARM_SETTLE_S,
     SERVICE_PANEL,
     Panel,
     guard_for,
@@ -299,7 +300,10 @@ async def read_status(session: Session, node: SessionNode, panel: Panel = SERVIC
     key, label, enabled, fault = describe(fam, status_word)
     guard = guard_for(session)
     if not enabled:
-        guard.release(node.node_id, armed_before=read_at)  # not a command that armed it while the word was read
+        # Not if a command armed it while the word was read, nor shortly before: an enabling drive passes through
+        # states that are not "enabled" on its own cycle (ready -> switched on -> operation enabled), and a read
+        # in between must not leave the drive running with nobody holding it.
+        guard.release(node.node_id, armed_before=read_at - ARM_SETTLE_S)
     holder = guard.holder(node.node_id)
     return DriveStatus(
         node_id=node.node_id, family=fam.key, title=fam.title, note=fam.note, state=key, state_label=label,

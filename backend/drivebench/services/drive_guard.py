@@ -33,6 +33,8 @@ from drivebench.services.sessions import Session, SessionNode
 KEEPALIVE_TIMEOUT_S = 2.0
 MAX_KEEPALIVE_S = 10.0
 WATCH_PERIOD_S = 0.2
+ARM_SETTLE_S = 2.0
+"""A status read this soon after arming that finds the drive not enabled does not disarm it (still enabling)."""
 log = logging.getLogger(__name__)
 
 
