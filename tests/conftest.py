@@ -110,10 +110,12 @@ def _free_port() -> int:
 
 
 @contextlib.contextmanager
-def serve_app(app: FastAPI) -> Iterator[str]:
-    """Run ``app`` in uvicorn on a free loopback port in a thread; yields its base URL, stops it on exit."""
+def serve_app(app: FastAPI, **config: object) -> Iterator[str]:
+    """Run ``app`` in uvicorn on a free loopback port in a thread; yields its base URL, stops it on exit.
+    ``config`` goes to uvicorn (``ssl_certfile``/``ssl_keyfile`` serve https)."""
     port = _free_port()
-    server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning"))
+    server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning",
+                                           **config))  # type: ignore[arg-type]
     thread = threading.Thread(target=server.run, daemon=True)
     thread.start()
     deadline = time.monotonic() + 20
@@ -121,7 +123,7 @@ def serve_app(app: FastAPI) -> Iterator[str]:
         time.sleep(0.05)
     assert server.started, "the test server did not start"
     try:
-        yield f"http://127.0.0.1:{port}"
+        yield f"{'https' if config.get('ssl_certfile') else 'http'}://127.0.0.1:{port}"
     finally:
         server.should_exit = True
         thread.join(timeout=10)

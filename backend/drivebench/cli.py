@@ -29,6 +29,7 @@ def serve(args: argparse.Namespace) -> int:
     import uvicorn
 
     from drivebench.web.app import create_app
+    from drivebench.web.tls import check_pair
 
     if not _is_loopback(args.host) and not _authentication_configured():
         print(
@@ -37,15 +38,31 @@ def serve(args: argparse.Namespace) -> int:
             "  drivebench users add admin --role admin\n"
             "or listen on 127.0.0.1 (the default) and reach it through an SSH tunnel.", file=sys.stderr)
         return 2
+    check_pair(args.tls_cert, args.tls_key)
+    if args.hsts and not args.tls_cert:
+        raise InvalidValue("--hsts needs --tls-cert and --tls-key: HSTS is only sent over https.")
     _check_buses(args.bus or [])
     plant = Path(args.plant) if args.plant else None
-    app = create_app(demo=args.demo, plant_file=plant, buses=args.bus or [], latency=args.latency)
-    print(f"DriveBench on http://{args.host}:{args.port}"
+    app = create_app(demo=args.demo, plant_file=plant, buses=args.bus or [], latency=args.latency, hsts=args.hsts)
+    scheme = "https" if args.tls_cert else "http"
+    print(f"DriveBench on {scheme}://{args.host}:{args.port}"
           + (" with the simulated demo plant" if args.demo else ""), flush=True)
     # Bus threads run Python per frame; after each socket write the event loop may wait a whole GIL switch interval
     # (5 ms default) to run again. 0.5 ms keeps live websocket updates on time (benchmarks/RESULTS.md, Monitor).
     sys.setswitchinterval(0.0005)
-    uvicorn.run(app, host=args.host, port=args.port, log_level=args.log_level, ws_ping_interval=20)
+    uvicorn.run(app, host=args.host, port=args.port, log_level=args.log_level, ws_ping_interval=20,
+                ssl_certfile=args.tls_cert, ssl_keyfile=args.tls_key)
+    return 0
+
+
+def tls(args: argparse.Namespace) -> int:
+    from drivebench.web.tls import self_signed, write_pair
+
+    certificate = self_signed(args.host, days=args.days)
+    cert_file, key_file = write_pair(certificate, Path(args.out))
+    print(f"Certificate {cert_file} (for {', '.join(args.host)}, {args.days} days) and key {key_file}.\n"
+          f"SHA-256 fingerprint (compare it with what the browser shows before trusting it):\n  {certificate.sha256}\n"
+          f"Serve with: drivebench serve --host 0.0.0.0 --tls-cert {cert_file} --tls-key {key_file}")
     return 0
 
 
@@ -196,7 +213,22 @@ def build_parser() -> argparse.ArgumentParser:
     p_serve.add_argument("--plant", help="start a simulated plant from this plant file")
     p_serve.add_argument("--latency", help="SDO processing time of simulated drives, e.g. 30ms±20ms")
     p_serve.add_argument("--log-level", default="warning")
+    p_serve.add_argument("--tls-cert", type=Path, default=settings.tls_cert_file, metavar="FILE",
+                         help="serve https with this PEM certificate (with --tls-key)")
+    p_serve.add_argument("--tls-key", type=Path, default=settings.tls_key_file, metavar="FILE",
+                         help="the certificate's PEM private key")
+    p_serve.add_argument("--hsts", action="store_true", default=settings.hsts,
+                         help="send Strict-Transport-Security (browsers then insist on https for a year)")
     p_serve.set_defaults(func=serve)
+
+    p_tls = sub.add_parser("tls", help="certificates for https")
+    tls_sub = p_tls.add_subparsers(dest="action", required=True)
+    p_self = tls_sub.add_parser("self-signed", help="make a self-signed certificate and key for a plant network")
+    p_self.add_argument("--host", action="append", required=True, metavar="NAME",
+                        help="a name or address the browsers use (repeat for each)")
+    p_self.add_argument("--out", default="var/tls", help="folder for drivebench.crt and drivebench.key")
+    p_self.add_argument("--days", type=int, default=825)
+    p_tls.set_defaults(func=tls)
 
     p_sim = sub.add_parser("simulate", help="run simulated drives on a bus")
     p_sim.add_argument("--bus", help="bus for the drives (default: the plant file's), e.g. "

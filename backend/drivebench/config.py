@@ -27,6 +27,11 @@ class Settings(BaseSettings):
     secret_key_file: Path = REPO_ROOT / "var" / "secret_key"
     session_max_age_s: int = 12 * 3600
     """A sign-in lasts this long (a working day), then the browser asks again."""
+    tls_cert_file: Path | None = None
+    tls_key_file: Path | None = None
+    hsts: bool = False
+    """Send Strict-Transport-Security over https (off by default: a browser then refuses plain http to the name
+    for a year, which locks a plant out if the certificate is ever removed)."""
 
 
 settings = Settings()

@@ -38,6 +38,7 @@ from drivebench.web.pages import profiles as profiles_page
 from drivebench.web.pages import remote as remote_page
 from drivebench.web.pages import tools as tools_page
 from drivebench.web.state import AppState
+from drivebench.web.tls import HstsMiddleware
 from drivebench.web.viewer import ViewerScope
 from drivebench.web.ws import drive_control as drive_control_ws
 from drivebench.web.ws import jobs as jobs_ws
@@ -71,7 +72,7 @@ async def start_plant(state: AppState, plant_path: Path, *, bus: str | None = No
 
 
 def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: list[str] | None = None,
-               latency: str | None = None, plant_bus: str | None = None) -> FastAPI:
+               latency: str | None = None, plant_bus: str | None = None, hsts: bool | None = None) -> FastAPI:
     share_links = ShareLinks()
 
     @contextlib.asynccontextmanager
@@ -102,6 +103,8 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
     access.install(app)  # sign-in, roles, CSRF; inside ViewerScope, which marks share-link requests first
     app.add_middleware(ViewerScope, links=share_links)
     app.add_middleware(BodyLimit, limit_bytes=settings.max_upload_bytes)  # before anything reads a body
+    if settings.hsts if hsts is None else hsts:
+        app.add_middleware(HstsMiddleware)
     for router in API_ROUTERS + PAGE_ROUTERS + WS_ROUTERS:
         app.include_router(router)
     app.mount("/static", StaticFiles(directory=settings.frontend_dir / "static"), name="static")
