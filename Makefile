@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed
 HOST ?= 127.0.0.1
 PORT ?= 8000
 
-.PHONY: run test install lint typecheck importlint pytest bench chromium clean
+.PHONY: run test install lint typecheck importlint pytest bench chromium postgresql clean
 
 $(STAMP): pyproject.toml
 	test -d $(VENV) || $(PYTHON) -m venv $(VENV)
@@ -31,7 +31,11 @@ typecheck: $(STAMP)
 importlint: $(STAMP)
 	$(BIN)/lint-imports
 
-pytest: $(STAMP) chromium
+# The suite starts a throw-away PostgreSQL cluster of its own (initdb/pg_ctl in a temp dir on a free port).
+postgresql:
+	@ls /usr/lib/postgresql/*/bin/initdb >/dev/null 2>&1 || (apt-get update -qq && apt-get install -y -qq postgresql >/dev/null)
+
+pytest: $(STAMP) chromium postgresql
 	$(BIN)/pytest
 
 test: lint typecheck importlint pytest

@@ -26,6 +26,7 @@ from drivebench.device.loader import ProfileRegistry
 from drivebench.services import database
 from drivebench.simulator.plant import Plant, PlantFile
 from drivebench.web.app import create_app
+from tests.pg_cluster import PostgresCluster
 
 DEMO_PLANT = REPO_ROOT / "plants" / "demo.json"
 ARTIFACTS = REPO_ROOT / "test-artifacts"
@@ -62,6 +63,32 @@ def app_db_url(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[str]
     monkeypatch.setattr(app_settings, "database_url", url)
     yield url
     database.dispose(url)
+
+
+@pytest.fixture(scope="session")
+def postgres() -> Iterator[PostgresCluster]:
+    """One throw-away PostgreSQL cluster for the whole run (started on first use)."""
+    try:
+        cluster = PostgresCluster().start()
+    except RuntimeError as exc:
+        pytest.fail(str(exc))
+    yield cluster
+    cluster.stop()
+
+
+@pytest.fixture(params=["sqlite", pytest.param("postgresql", marks=pytest.mark.postgresql)])
+def database_url(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[str]:
+    """A fresh, empty database of this test's own: a SQLite file, and (the same test again) a PostgreSQL database."""
+    if request.param == "sqlite":
+        url = f"sqlite:///{tmp_path / 'db' / 'drivebench.db'}"
+        yield url
+        database.dispose(url)
+        return
+    cluster: PostgresCluster = request.getfixturevalue("postgres")
+    url = cluster.new_database()
+    yield url
+    database.dispose(url)
+    cluster.drop_database(url)
 
 
 @pytest.fixture(scope="session")

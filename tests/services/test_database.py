@@ -1,4 +1,4 @@
-"""Database: the package's Alembic migrations on an empty SQLite file, planned networks saved and loaded,
+"""Database: the package's Alembic migrations on an empty SQLite file and PostgreSQL database, planned networks saved and loaded,
 transactions rolled back on error, JSON export/import, and the comparison of a plan with scanned nodes."""
 
 from __future__ import annotations
@@ -21,10 +21,9 @@ from drivebench.services.sessions import SessionNode
 
 
 @pytest.fixture
-def db_url(tmp_path: Path) -> Iterator[str]:
-    url = f"sqlite:///{tmp_path / 'sub' / 'drivebench.db'}"
-    yield url
-    database.dispose(url)
+def db_url(database_url: str) -> str:
+    """Each test runs on a new SQLite file and again on a new PostgreSQL database."""
+    return database_url
 
 
 @pytest.fixture
@@ -44,8 +43,8 @@ def plan(name: str = "Line 1") -> NetworkPlan:
     )
 
 
-def test_migrations_create_the_schema_on_an_empty_file(db_url: str, tmp_path: Path) -> None:
-    assert not (tmp_path / "sub").exists()
+def test_migrations_create_the_schema_on_an_empty_database(db_url: str, tmp_path: Path) -> None:
+    assert not (tmp_path / "db").exists()  # a SQLite file's folder is made on the first start-up
     database.upgrade_to_head(db_url)
     head = ScriptDirectory.from_config(database.alembic_config(db_url)).get_current_head()
     assert head is not None
@@ -174,12 +173,12 @@ def test_compare_live_all_as_planned_is_ok(profiles: ProfileRegistry) -> None:
     assert compare_live(NetworkPlan(nodes=planned.nodes[:1]), answered[:1]).ok
 
 
-def test_two_start_ups_at_once_on_one_new_file(tmp_path: Path) -> None:
-    """Two servers (processes) starting together on one new SQLite file: both come up, the schema exists once."""
+def test_two_start_ups_at_once_on_one_new_database(db_url: str) -> None:
+    """Two servers (processes) starting together on one new database: both come up, the schema exists once."""
     import subprocess
     import sys
 
-    url = f"sqlite:///{tmp_path / 'shared.db'}"
+    url = db_url
     code = "import sys; from drivebench.services import database; database.upgrade_to_head(sys.argv[1])"
     starts = [subprocess.Popen([sys.executable, "-c", code, url], stderr=subprocess.PIPE, text=True)
               for _ in range(2)]
@@ -188,8 +187,38 @@ def test_two_start_ups_at_once_on_one_new_file(tmp_path: Path) -> None:
         if p.stderr:
             p.stderr.close()
     assert results == [(0, ""), (0, "")]
-    try:
-        assert database.current_revision(url) is not None
-        assert inspect(database.engine(url)).get_table_names().count("planned_network") == 1
-    finally:
-        database.dispose(url)
+    assert database.current_revision(url) is not None
+    assert inspect(database.engine(url)).get_table_names().count("planned_network") == 1
+
+
+def test_an_upgrade_from_the_oldest_migration_keeps_the_data_of_every_step(db_url: str) -> None:
+    """A database made by the first release, used at each release in turn, upgraded to today: nothing lost."""
+    from alembic import command
+    from sqlalchemy import text
+
+    database.engine(db_url)  # makes a SQLite file's folder, as a server's start-up does
+    config = database.alembic_config(db_url)
+    revisions = [r.revision for r in reversed(list(ScriptDirectory.from_config(config).walk_revisions()))]
+    assert revisions[0] == "0001_planned_network"
+    when = "2024-01-02 03:04:05+00:00"
+    rows_at = {
+        "0001_planned_network": ("INSERT INTO planned_network (name, created, updated, body) "
+                                 "VALUES ('Line 1', :t, :t, :body)", {"body": json.dumps(plan().model_dump())}),
+        "0002_parameter_sets": ("INSERT INTO audit_log (time, \"user\", session_id, node_id, ref, address, old_value, "
+                                "new_value, result, detail, origin) VALUES (:t, 'anna', 'line-1', 5, 'C00012', "
+                                "'0x5FF3.0', '2.00 s', '3.00 s', 'written', NULL, 'parameters')", {}),
+    }
+    for revision in revisions:
+        command.upgrade(config, revision)
+        if revision in rows_at:
+            sql, values = rows_at[revision]
+            with database.engine(db_url).begin() as connection:
+                connection.execute(text(sql), {"t": when, **values})
+    assert database.current_revision(db_url) == revisions[-1]
+    database.upgrade_to_head(db_url)  # what a server does at start: nothing left to do
+
+    networks = PlannedNetworkStore(db_url).list()
+    assert [n.name for n in networks] == ["Line 1"]
+    with database.engine(db_url).connect() as connection:
+        audit = connection.execute(text("SELECT \"user\", ref, new_value FROM audit_log")).all()
+    assert [tuple(row) for row in audit] == [("anna", "C00012", "3.00 s")]

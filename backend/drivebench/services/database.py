@@ -32,6 +32,7 @@ class Base(DeclarativeBase):
 _engines: dict[str, Engine] = {}
 _engines_lock = threading.Lock()
 _upgrade_lock = threading.Lock()
+_UPGRADE_LOCK_KEY = 0x44726976  # "Driv": one advisory lock id for schema upgrades on PostgreSQL
 
 
 def _sqlite_foreign_keys(dbapi_connection: object, _record: object) -> None:
@@ -95,6 +96,10 @@ def upgrade_to_head(url: str | None = None, *, attempts: int = 3) -> None:
         config = alembic_config(url)
         try:
             with _upgrade_lock, target.begin() as connection:  # Alembic loads env.py as a module: one at a time
+                if connection.dialect.name == "postgresql":
+                    # Servers sharing one PostgreSQL database upgrade one after the other (held to commit); the
+                    # second then finds the schema current. SQLite locks the whole file on the first write instead.
+                    connection.exec_driver_sql(f"SELECT pg_advisory_xact_lock({_UPGRADE_LOCK_KEY})")
                 config.attributes["connection"] = connection
                 command.upgrade(config, "head")
             return
