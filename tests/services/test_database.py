@@ -1,10 +1,10 @@
-"""Database: the package's Alembic migrations on an empty SQLite file and PostgreSQL database, planned networks saved and loaded,
-transactions rolled back on error, JSON export/import, and the comparison of a plan with scanned nodes."""
+"""Database: the package's Alembic migrations on an empty SQLite file and PostgreSQL database, planned networks
+saved and loaded, transactions rolled back on error, JSON export/import, and the comparison of a plan with scanned
+nodes."""
 
 from __future__ import annotations
 
 import json
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
