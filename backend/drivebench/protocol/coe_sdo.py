@@ -1,0 +1,149 @@
+"""SDO client over an EtherCAT mailbox (CoE): expedited, normal and segmented upload and download, with the same
+errors as CAN SDO (abort in words, timeout, stalled segmented transfer, answer out of step).
+
+The mailbox itself is reached through ``exchange(telegram, timeout_s)``: it sends one mailbox telegram and returns
+the slave's answering telegram, or ``None`` when none came in time (a mailbox gateway over UDP, a pysoem master,
+or a test). A request that got no answer is sent again with the same mailbox counter, so a slave that did receive
+it can tell the repetition from a new request. One transfer at a time per slave: the caller holds its lock.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Callable
+
+from drivebench.errors import ProtocolError, SdoAbortError, SdoOutOfStepError, SdoStalledError, SdoTimeoutError
+from drivebench.protocol import coe
+from drivebench.protocol.abort_codes import abort_text
+
+Exchange = Callable[[bytes, float], bytes | None]
+DEFAULT_MAILBOX_SIZE = 128
+"""Bytes of the slave's mailbox (SyncManager 0/1 length): the 8400 motec EtherCAT unit has 128."""
+
+MAILBOX_ERRORS = {
+    0x01: "syntax error in the mailbox header", 0x02: "the protocol is not supported",
+    0x03: "invalid channel", 0x04: "the service is not supported", 0x05: "invalid mailbox header",
+    0x06: "the mailbox data is too short", 0x07: "the slave has no memory left for the mailbox",
+    0x08: "invalid data size",
+}
+"""ETG.1000.6 mailbox error replies (mailbox type 0)."""
+
+
+class CoeSdoClient:
+    def __init__(self, exchange: Exchange, station: int, *, mailbox_size: int = DEFAULT_MAILBOX_SIZE,
+                 timeout_s: float = 0.5, retries: int = 1) -> None:
+        if mailbox_size < coe.MAILBOX_HEADER.size + coe.SDO_MIN_LENGTH:
+            raise ValueError(f"a mailbox of {mailbox_size} bytes cannot hold an SDO telegram")
+        self.exchange = exchange
+        self.station = station
+        self.mailbox_size = mailbox_size
+        self.timeout_s = timeout_s
+        self.retries = retries
+        self._counters = itertools.cycle(range(1, 8))
+
+    # --- one request, one answer ----------------------------------------------------------------------------
+    def _ask(self, body: bytes, index: int, subindex: int) -> bytes:
+        telegram = coe.coe_mailbox(self.station, coe.CoeService.SDO_REQUEST, body, next(self._counters))
+        for _ in range(self.retries + 1):
+            answer = self.exchange(telegram, self.timeout_s)
+            if answer is None:
+                continue
+            return self._sdo_body(answer, index, subindex)
+        raise SdoTimeoutError(f"Slave {self.station} did not answer the SDO request for 0x{index:04X}sub{subindex} "
+                              f"within {self.timeout_s:g} s ({self.retries + 1} tries)",
+                              node=self.station, index=index, subindex=subindex)
+
+    def _sdo_body(self, answer: bytes, index: int, subindex: int) -> bytes:
+        try:
+            mailbox = coe.Mailbox.decode(answer)
+            if mailbox.type == coe.MailboxType.ERROR:
+                detail = int.from_bytes(mailbox.data[2:4], "little") if len(mailbox.data) >= 4 else 0
+                reason = MAILBOX_ERRORS.get(detail, f"mailbox error 0x{detail:04X}")
+                raise ProtocolError(f"Slave {self.station} refused the mailbox request for 0x{index:04X}sub"
+                                    f"{subindex}: {reason}")
+            if mailbox.type != coe.MailboxType.COE:
+                raise SdoOutOfStepError(f"a mailbox of type {mailbox.type} answered a CoE request",
+                                        node=self.station, index=index, subindex=subindex)
+            message = coe.CoeMessage.decode(mailbox.data)
+        except coe.MailboxFormatError as exc:
+            raise ProtocolError(f"Slave {self.station}: malformed answer for 0x{index:04X}sub{subindex}: {exc}") \
+                from exc
+        if message.service not in (coe.CoeService.SDO_RESPONSE, coe.CoeService.SDO_REQUEST):
+            raise SdoOutOfStepError(f"CoE service {message.service} answered an SDO request",
+                                    node=self.station, index=index, subindex=subindex)
+        if len(message.body) >= coe.SDO_FRAME.size and message.body[0] == coe.ABORT:
+            frame = coe.parse_sdo(message.body)
+            raise SdoAbortError(frame.dword, abort_text(frame.dword), node=self.station, index=index,
+                                subindex=subindex)
+        return message.body
+
+    def _initiate(self, body: bytes, index: int, subindex: int, specifier: int) -> coe.SdoTelegram:
+        frame = coe.parse_sdo(self._ask(body, index, subindex))
+        if frame.specifier != specifier:
+            raise SdoOutOfStepError(f"command 0x{frame.command:02X}", node=self.station, index=index,
+                                    subindex=subindex)
+        if (frame.index, frame.subindex) != (index, subindex):
+            raise SdoOutOfStepError("object", node=self.station, index=index, subindex=subindex,
+                                    answered=(frame.index, frame.subindex))
+        return frame
+
+    # --- transfers -----------------------------------------------------------------------------------------
+    @property
+    def _initiate_room(self) -> int:
+        return self.mailbox_size - coe.MAILBOX_HEADER.size - coe.SDO_MIN_LENGTH
+
+    @property
+    def _segment_room(self) -> int:
+        return self.mailbox_size - coe.MAILBOX_HEADER.size - 3  # CoE header and the segment's command byte
+
+    def upload(self, index: int, subindex: int) -> bytes:
+        frame = self._initiate(coe.upload_request(index, subindex), index, subindex, specifier=2)
+        if frame.expedited:
+            return frame.expedited_data
+        size = frame.dword
+        data = bytearray(frame.tail[:size])
+        toggle, done = 0, 0
+        total = -(-(size - len(data)) // self._segment_room) if size > len(data) else 0
+        while len(data) < size:
+            request = bytes([0x60 | toggle << 4]) + bytes(7)
+            try:
+                segment = coe.parse_segment(self._ask(request, index, subindex))
+            except SdoTimeoutError as exc:
+                raise SdoStalledError(node=self.station, index=index, subindex=subindex, done=done,
+                                      total=total) from exc
+            if segment.specifier != 0:
+                raise SdoOutOfStepError(f"command specifier {segment.specifier} in an upload segment",
+                                        node=self.station, index=index, subindex=subindex)
+            if segment.toggle != toggle:
+                raise SdoOutOfStepError("toggle", node=self.station, index=index, subindex=subindex)
+            data += segment.data
+            done += 1
+            toggle ^= 1
+            if segment.last:
+                break
+        return bytes(data[:size])
+
+    def download(self, index: int, subindex: int, data: bytes) -> None:
+        self._initiate(coe.download_request(index, subindex, data, self._initiate_room), index, subindex,
+                       specifier=3)
+        if 1 <= len(data) <= 4:
+            return
+        sent = min(len(data), self._initiate_room)
+        toggle, done = 0, 0
+        total = -(-(len(data) - sent) // self._segment_room) if len(data) > sent else 0
+        while sent < len(data):
+            chunk = data[sent:sent + self._segment_room]
+            last = sent + len(chunk) == len(data)
+            try:
+                answer = coe.parse_segment(self._ask(coe.segment(0x00, toggle, chunk, last), index, subindex))
+            except SdoTimeoutError as exc:
+                raise SdoStalledError(node=self.station, index=index, subindex=subindex, done=done,
+                                      total=total) from exc
+            if answer.specifier != 1:
+                raise SdoOutOfStepError(f"command specifier {answer.specifier} answering a download segment",
+                                        node=self.station, index=index, subindex=subindex)
+            if answer.toggle != toggle:
+                raise SdoOutOfStepError("toggle", node=self.station, index=index, subindex=subindex)
+            sent += len(chunk)
+            done += 1
+            toggle ^= 1
