@@ -10,6 +10,7 @@ from drivebench.errors import ProtocolError, SdoAbortError, SdoOutOfStepError, S
 from drivebench.protocol import coe
 from drivebench.protocol.coe_sdo import CoeSdoClient
 from drivebench.protocol.coe_server import Abort, CoeSdoServer
+from drivebench.transport.ethercat_gateway import GatewayFormatError, gateway_frame, telegram_of
 from tests.vectors import manual_coe as vectors
 
 
@@ -46,13 +47,13 @@ def test_the_manual_s_emergency_carries_the_lenze_error_number() -> None:
 
 def test_a_gateway_frame_is_the_telegram_behind_an_ethercat_mailbox_header() -> None:
     telegram = vectors.UPLOAD_C00039_1_REQUEST.telegram
-    frame = coe.gateway_frame(telegram)
+    frame = gateway_frame(telegram)
     assert frame[:2] == (len(telegram) | 5 << 12).to_bytes(2, "little") == bytes.fromhex("1050")
-    assert coe.from_gateway_frame(frame + b"\xff\xff") == telegram  # trailing bytes are not part of it
-    with pytest.raises(coe.MailboxFormatError, match="type 1"):
-        coe.from_gateway_frame((len(telegram) | 1 << 12).to_bytes(2, "little") + telegram)
-    with pytest.raises(coe.MailboxFormatError, match="says 16 bytes"):
-        coe.from_gateway_frame(frame[:10])
+    assert telegram_of(frame + b"\xff\xff") == telegram  # trailing bytes are not part of it
+    with pytest.raises(GatewayFormatError, match="type 1"):
+        telegram_of((len(telegram) | 1 << 12).to_bytes(2, "little") + telegram)
+    with pytest.raises(GatewayFormatError, match="says 16 bytes"):
+        telegram_of(frame[:10])
 
 
 class Slave:

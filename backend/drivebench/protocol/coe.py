@@ -4,8 +4,8 @@ A mailbox telegram is a 6-byte mailbox header (length of what follows, station a
 type/counter) and the service data. For CoE the service data starts with a 2-byte CoE header (number, service);
 SDO services then carry the CiA 301 command byte, index, subindex and a DWORD, as the 8400 motec EtherCAT manual
 prints them (chapter 9.2: "Mailbox header 6 bytes | CoE header 2 bytes | SDO control byte | Index | Subindex |
-Data 4 bytes | Data 1 … n bytes"). A mailbox gateway (ETG.8200, UDP port 0x88A4) carries one telegram per datagram
-behind a 2-byte EtherCAT frame header of type 5 (mailbox) whose 11-bit length is the telegram's.
+Data 4 bytes | Data 1 … n bytes"). How telegrams travel (a mailbox gateway over UDP, a master on a NIC) is the
+transport's (:mod:`drivebench.transport.ethercat_gateway`).
 """
 
 from __future__ import annotations
@@ -14,9 +14,6 @@ import struct
 from dataclasses import dataclass
 from enum import IntEnum
 
-GATEWAY_PORT = 0x88A4
-"""34980: the mailbox gateway's UDP port, the EtherType of EtherCAT."""
-ETHERCAT_TYPE_MAILBOX = 5
 MAILBOX_HEADER = struct.Struct("<HHBB")
 SDO_FRAME = struct.Struct("<BHBI")
 """command byte, index, subindex, DWORD (data, complete size, abort code or reserved)."""
@@ -73,28 +70,6 @@ class Mailbox:
         return cls(address=address, type=type_counter & 0x0F, counter=(type_counter >> 4) & 7,
                    channel=channel_priority & 0x3F, priority=channel_priority >> 6,
                    data=bytes(raw[MAILBOX_HEADER.size:MAILBOX_HEADER.size + length]))
-
-
-def gateway_frame(telegram: bytes) -> bytes:
-    """The UDP payload a mailbox gateway takes: EtherCAT frame header (length, type 5) and the telegram."""
-    if len(telegram) > 0x7FF:
-        raise MailboxFormatError(f"a telegram of {len(telegram)} bytes does not fit an EtherCAT frame (2047)")
-    return struct.pack("<H", len(telegram) | ETHERCAT_TYPE_MAILBOX << 12) + telegram
-
-
-def from_gateway_frame(payload: bytes) -> bytes:
-    """The mailbox telegram in a gateway datagram (bytes after the telegram are ignored, as gateways do)."""
-    if len(payload) < 2 + MAILBOX_HEADER.size:
-        raise MailboxFormatError(f"a gateway datagram of {len(payload)} bytes holds no mailbox telegram")
-    (header,) = struct.unpack_from("<H", payload)
-    if header >> 12 != ETHERCAT_TYPE_MAILBOX:
-        raise MailboxFormatError(f"EtherCAT frame type {header >> 12}, not 5 (mailbox)")
-    length = header & 0x7FF
-    if length > len(payload) - 2:
-        raise MailboxFormatError(f"the frame header says {length} bytes, the datagram holds {len(payload) - 2}")
-    telegram = payload[2:2 + length]
-    (mailbox_length,) = struct.unpack_from("<H", telegram)
-    return bytes(telegram[:MAILBOX_HEADER.size + mailbox_length])
 
 
 @dataclass(frozen=True)
