@@ -40,6 +40,10 @@ settings.register_profile("ci", derandomize=True, deadline=None, print_blob=True
 settings.register_profile("dev", deadline=None)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
+# Starlette's TestClient addresses every request to ``testserver``: the tests' server has that name, as a deployment
+# names its own with `serve --allowed-host` (any other Host is refused: DNS rebinding).
+app_settings.allowed_hosts = [*app_settings.allowed_hosts, "testserver"]
+
 
 def wait_until(condition: Callable[[], bool], seconds: float = 10.0) -> bool:
     """Poll ``condition`` until it holds or ``seconds`` pass (tests on a loaded machine poll with a deadline)."""

@@ -6,6 +6,7 @@ import argparse
 import asyncio
 import contextlib
 import ipaddress
+import re
 import signal
 import sys
 import threading
@@ -42,6 +43,7 @@ def serve(args: argparse.Namespace) -> int:
     if args.hsts and not args.tls_cert:
         raise InvalidValue("--hsts needs --tls-cert and --tls-key: HSTS is only sent over https.")
     _check_buses(args.bus or [])
+    _apply_addressing(args)
     plant = Path(args.plant) if args.plant else None
     app = create_app(demo=args.demo, plant_file=plant, buses=args.bus or [], latency=args.latency, hsts=args.hsts)
     scheme = "https" if args.tls_cert else "http"
@@ -50,9 +52,26 @@ def serve(args: argparse.Namespace) -> int:
     # Bus threads run Python per frame; after each socket write the event loop may wait a whole GIL switch interval
     # (5 ms default) to run again. 0.5 ms keeps live websocket updates on time (benchmarks/RESULTS.md, Monitor).
     sys.setswitchinterval(0.0005)
+    # Forwarded headers only from the proxies named (uvicorn would believe any process on 127.0.0.1, so through an
+    # SSH tunnel every client could choose the address the sign-in limit counts).
+    forwarded = settings.forwarded_allow_ips
     uvicorn.run(app, host=args.host, port=args.port, log_level=args.log_level, ws_ping_interval=20,
-                ssl_certfile=args.tls_cert, ssl_keyfile=args.tls_key)
+                ssl_certfile=args.tls_cert, ssl_keyfile=args.tls_key, proxy_headers=bool(forwarded),
+                forwarded_allow_ips=forwarded or None)
     return 0
+
+
+def _apply_addressing(args: argparse.Namespace) -> None:
+    """The names the server answers to, where its links point, which proxies it believes: options over settings."""
+    names = [*settings.allowed_hosts, *(args.allowed_host or [])]
+    if args.host not in ("0.0.0.0", "::", "") and not _is_loopback(args.host):
+        names.append(args.host)  # the address it listens on is one of its names
+    settings.allowed_hosts = list(dict.fromkeys(names))
+    settings.public_url = args.public_url or settings.public_url
+    if settings.public_url and not re.fullmatch(r"https?://[^/\s?#]+(/[^\s?#]*)?", settings.public_url):
+        raise InvalidValue(f"--public-url {settings.public_url!r} is not a web address: give it as "
+                           "https://drivebench.example.com (the address others open).")
+    settings.forwarded_allow_ips = args.forwarded_allow_ips or settings.forwarded_allow_ips
 
 
 def tls(args: argparse.Namespace) -> int:
@@ -219,6 +238,15 @@ def build_parser() -> argparse.ArgumentParser:
                          help="the certificate's PEM private key")
     p_serve.add_argument("--hsts", action="store_true", default=settings.hsts,
                          help="send Strict-Transport-Security (browsers then insist on https for a year)")
+    p_serve.add_argument("--allowed-host", action="append", metavar="NAME",
+                         help="a name browsers reach the server by (repeatable; 127.0.0.1, localhost, [::1] and "
+                              "--host always); any other Host or Origin is refused (DNS rebinding)")
+    p_serve.add_argument("--public-url", metavar="URL",
+                         help="the address others open, e.g. https://drivebench.example.com (share links point "
+                              "there; default: the address the server was reached at)")
+    p_serve.add_argument("--forwarded-allow-ips", metavar="IPS",
+                         help="reverse proxies whose X-Forwarded-For/-Proto are believed, comma-separated "
+                              "(default: none)")
     p_serve.set_defaults(func=serve)
 
     p_tls = sub.add_parser("tls", help="certificates for https")

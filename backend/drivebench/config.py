@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Annotated
 
-from pydantic_settings import BaseSettings, SettingsConfigDict
+from pydantic import field_validator
+from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 
@@ -32,6 +34,21 @@ class Settings(BaseSettings):
     hsts: bool = False
     """Send Strict-Transport-Security over https (off by default: a browser then refuses plain http to the name
     for a year, which locks a plant out if the certificate is ever removed)."""
+    allowed_hosts: Annotated[list[str], NoDecode] = []
+    """Host names (besides 127.0.0.1, localhost and [::1]) under which browsers reach the server, e.g. behind a
+    reverse proxy or by the machine's name; ``DRIVEBENCH_ALLOWED_HOSTS=a.example,b.example``. Any other ``Host`` or
+    ``Origin`` is refused (DNS rebinding)."""
+    public_url: str | None = None
+    """Where others reach this server (``https://drivebench.plant.example``): share links are built from it, else
+    from the address the server listens on, never from a request's ``Host`` header."""
+    forwarded_allow_ips: str | None = None
+    """Proxies whose ``X-Forwarded-For`` / ``-Proto`` are believed (uvicorn's option, comma-separated addresses or
+    networks); none by default, so a client cannot choose the address the sign-in limit counts."""
+
+    @field_validator("allowed_hosts", mode="before")
+    @classmethod
+    def _split_names(cls, value: object) -> object:
+        return [name.strip() for name in value.split(",") if name.strip()] if isinstance(value, str) else value
 
 
 settings = Settings()

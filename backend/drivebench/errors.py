@@ -211,3 +211,9 @@ class NotAuthenticated(ServiceError):
 
 class AccessDenied(ServiceError):
     title = "Not allowed"
+
+
+class UnknownHostName(ServiceError):
+    """A request addressed (``Host``) to a name that is not this server's: DNS rebinding, refused with 400."""
+
+    title = "Not this server's name"

@@ -26,7 +26,7 @@ from sqlalchemy.orm import Session
 from drivebench.config import settings
 from drivebench.errors import AccessDenied, Conflict, InvalidValue, NotAuthenticated, NotFound
 from drivebench.services.database import transaction
-from drivebench.services.models import ApiTokenRow, UserRow, utcnow
+from drivebench.services.models import ApiTokenRow, UserRow, new_session_stamp, utcnow
 from drivebench.services.principals import Principal, Role
 
 TOKEN_PREFIX = "dbt_"
@@ -47,7 +47,8 @@ class User:
     created: datetime
     disabled: bool
     stamp: str
-    """Changes with the password: a signed-in session carries it, so a new password ends the old sessions."""
+    """The session stamp: a signed-in session carries it, and it changes on disable, enable, new password and new
+    role, so those end the old sessions (on every server of the database: it is stored there)."""
 
 
 @dataclass(frozen=True)
@@ -97,12 +98,8 @@ def _check_password(password: str) -> str:
     return password
 
 
-def _stamp(password_hash: str) -> str:
-    return hashlib.sha256(password_hash.encode()).hexdigest()[:16]
-
-
 def _user(row: UserRow) -> User:
-    return User(row.id, row.name, Role.parse(row.role), row.created, row.disabled, _stamp(row.password_hash))
+    return User(row.id, row.name, Role.parse(row.role), row.created, row.disabled, row.session_stamp)
 
 
 def _token(row: ApiTokenRow, owner: str) -> ApiToken:
@@ -198,6 +195,8 @@ def set_disabled(name: str, disabled: bool = True) -> User:
     with transaction() as db:
         row = _user_row(db, name)
         _keep_an_admin(db, row, role=Role.parse(row.role), disabled=disabled)
+        if row.disabled != disabled:
+            row.session_stamp = new_session_stamp()  # re-enabling does not bring the old sessions back
         row.disabled = disabled
         changed = _user(row)
     directory.forget()
@@ -208,6 +207,8 @@ def set_role(name: str, role: Role) -> User:
     with transaction() as db:
         row = _user_row(db, name)
         _keep_an_admin(db, row, role=role, disabled=row.disabled)
+        if row.role != role.label:
+            row.session_stamp = new_session_stamp()
         row.role = role.label
         changed = _user(row)
     directory.forget()
@@ -219,6 +220,7 @@ def set_password(name: str, password: str) -> User:
     with transaction() as db:
         row = _user_row(db, name)
         row.password_hash = password_hash
+        row.session_stamp = new_session_stamp()
         changed = _user(row)
     directory.forget()
     return changed

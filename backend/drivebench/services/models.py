@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import secrets
 from datetime import UTC, datetime
 from typing import Any
 
@@ -13,6 +14,10 @@ from drivebench.services.database import Base
 
 def utcnow() -> datetime:
     return datetime.now(UTC)
+
+
+def new_session_stamp() -> str:
+    return secrets.token_hex(8)
 
 
 class PlannedNetworkRow(Base):
@@ -127,6 +132,9 @@ class UserRow(Base):
     password_hash: Mapped[str] = mapped_column(String(255), nullable=False)
     created: Mapped[datetime] = mapped_column(DateTime(timezone=True), nullable=False, default=utcnow)
     disabled: Mapped[bool] = mapped_column(Boolean, nullable=False, default=False)
+    session_stamp: Mapped[str] = mapped_column(String(32), nullable=False, default=new_session_stamp)
+    """Part of every signed-in cookie; renewed on disable, enable, new password and new role (0004_session_stamp),
+    which ends the user's sessions on every server of the database for good."""
 
 
 class ApiTokenRow(Base):

@@ -1,8 +1,10 @@
 """Access control for every request and websocket: who is it, may they, and did the request come from our page.
 
+* Every request and websocket must be addressed to a name of this server (``Host``: loopback, ``--allowed-host``;
+  ``web/origins``), or it is refused with 400 before anything else: a rebound DNS name reaches nothing.
 * Another web site's page may never change anything here, login or not: an unsafe request or a websocket handshake
-  whose ``Origin`` is not this server (or whose ``Sec-Fetch-Site`` says another site) is refused. Requests without
-  those headers (curl, scripts) pass.
+  whose ``Origin`` is not a name of this server (or whose ``Sec-Fetch-Site`` says another site) is refused.
+  Requests without those headers (curl, scripts) pass.
 * Once authentication is configured (an enabled admin exists, ``services.accounts``) everyone signs in: a signed
   session cookie (HttpOnly, SameSite=Strict, Secure over https) or ``Authorization: Bearer dbt_…``. Without it an
   API request gets 401, a page the sign-in form.
@@ -25,21 +27,21 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
-from urllib.parse import quote, urlsplit
+from urllib.parse import quote
 
 import anyio.to_thread
 from fastapi import FastAPI
 from itsdangerous import BadSignature, URLSafeTimedSerializer
 from starlette.datastructures import Headers
 from starlette.requests import HTTPConnection, Request
-from starlette.responses import HTMLResponse, JSONResponse, RedirectResponse, Response
+from starlette.responses import HTMLResponse, JSONResponse, PlainTextResponse, RedirectResponse, Response
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from drivebench.config import settings
-from drivebench.errors import AccessDenied, DriveBenchError, NotAuthenticated
+from drivebench.errors import AccessDenied, DriveBenchError, NotAuthenticated, UnknownHostName
 from drivebench.services import accounts, audit
 from drivebench.services.principals import Principal, Role
-from drivebench.web import access_policy
+from drivebench.web import access_policy, origins
 from drivebench.web.identity import principal_of
 from drivebench.web.problems import error_fragment, error_page, problem_body, wants_page
 
@@ -165,12 +167,7 @@ def cross_site(scope: Scope, headers: Headers) -> str | None:
     site = headers.get("sec-fetch-site")
     if site and site not in ("same-origin", "none"):
         return f"the browser says it comes from a {site} page"
-    origin = headers.get("origin")
-    if origin is None:
-        return None
-    if urlsplit(origin).netloc.lower() != headers.get("host", "").lower():
-        return f"it comes from a page of {origin}"
-    return None
+    return origins.origin_refusal(scope, headers)
 
 
 def _denied_words(principal: Principal, rule: access_policy.Rule) -> str:
@@ -188,6 +185,9 @@ class AccessControl:
             await self.app(scope, receive, send)
             return
         headers = Headers(scope=scope)
+        if (wrong_host := origins.host_refusal(scope, headers)) is not None:
+            await _refuse_host(scope, receive, send, wrong_host)
+            return
         reason = cross_site(scope, headers)
         if reason is not None:
             await _refuse(scope, receive, send, AccessDenied(
@@ -314,6 +314,26 @@ async def _csrf_token(scope: Scope, receive: Receive, headers: Headers) -> tuple
     except Exception:  # a malformed form has no token; the route reports what is wrong with it
         return None, replay
     return (token if isinstance(token, str) else None), replay
+
+
+async def _refuse_host(scope: Scope, receive: Receive, send: Send, reason: str) -> None:
+    """400: problem+json for the API and websockets, plain text for anything else (no page of ours is rendered
+    for a name that is not ours)."""
+    exc = UnknownHostName(f"Refused: {reason}. A web page may have pointed its own name at this machine (DNS "
+                          "rebinding), so DriveBench answers only to its own names.",
+                          hint="Open DriveBench as http://127.0.0.1:PORT or by a name given to `drivebench serve "
+                               "--allowed-host NAME` (DRIVEBENCH_ALLOWED_HOSTS).")
+    if scope["type"] == "websocket":
+        await send({"type": "websocket.close", "code": 4400, "reason": exc.detail[:120]})
+        return
+    path = scope.get("path", "")
+    body = problem_body(exc, path)
+    response: Response
+    if path.startswith("/api/"):
+        response = JSONResponse(body, status_code=400, media_type="application/problem+json")
+    else:
+        response = PlainTextResponse(f"{exc.detail}\n{exc.hint}\n", status_code=400)
+    await response(scope, receive, send)
 
 
 async def _refuse(scope: Scope, receive: Receive, send: Send, exc: DriveBenchError) -> None:

@@ -1,8 +1,11 @@
 """The viewer scope of remote-diagnostics share links, enforced for every request that carries a link token.
 
 A token travels as the ``drivebench_viewer`` cookie (set when a share link is opened) or as
-``Authorization: Bearer dbv_…`` (scripts). Such a request may only read: any other HTTP method is refused with
-403, and websockets are limited to the read-only remote stream. Requests without a token are not affected here.
+``Authorization: Bearer dbv_…`` (scripts). Such a request may only read what DriveBench already holds: the routes
+in ``LINK_READS`` (the remote view, network health, emergencies, the bus monitor), which never make a drive answer.
+Any other API route is refused with 403 - a parameter, the PDO set-up, a drive's actual values or counters would
+be read from the drive over the bus, which a link must never cause - as is any other HTTP method. Other pages lead
+to the remote view, and websockets are limited to its read-only stream. Requests without a token are not affected.
 """
 
 from __future__ import annotations
@@ -15,12 +18,20 @@ from starlette.types import ASGIApp, Receive, Scope, Send
 
 from drivebench.errors import AccessDenied, DriveBenchError
 from drivebench.services.sharing import TOKEN_PREFIX, ShareLink, ShareLinks
+from drivebench.web import access_policy
 from drivebench.web.problems import problem_body
 
 COOKIE = "drivebench_viewer"
 SAFE_METHODS = {"GET", "HEAD", "OPTIONS"}
 VIEWER_WEBSOCKETS = ("/ws/remote",)
-VIEWER_PATHS = ("/remote", "/api/", "/static/", "/openapi.json", "/docs")
+_S = "/api/sessions/{session_id}"
+LINK_READS = frozenset({
+    "/remote", "/remote/{token}", "/static", "/openapi.json", "/docs",
+    "/api/health", "/api/health/nodes", "/api/auth/me", "/api/sessions", _S, _S + "/nodes", _S + "/nodes/{node_id}",
+    _S + "/nodes/{node_id}/emcy", _S + "/diagnostics/report",
+    _S + "/monitor", _S + "/monitor/history", _S + "/monitor/trace",
+})
+"""The route templates (GET) a link may read: each answers from the consumers' and the monitor's cached state."""
 
 
 def token_of(scope: Scope) -> str | None:
@@ -48,7 +59,7 @@ class ViewerScope:
             return
         try:
             link = self.links.check(token)
-            self._allow(scope)
+            readable = self._allow(scope)
         except DriveBenchError as exc:
             if scope["type"] == "websocket":
                 await send({"type": "websocket.close", "code": 4403, "reason": exc.detail[:120]})
@@ -58,25 +69,34 @@ class ViewerScope:
                                     media_type="application/problem+json")
             await response(scope, receive, send)
             return
-        scope.setdefault("state", {})["viewer"] = link
-        path = scope.get("path", "")
-        if scope["type"] == "http" and not path.startswith(VIEWER_PATHS):
+        state = scope.setdefault("state", {})
+        state["viewer"], state["viewer_token"] = link, token
+        if not readable:
             # The engineer's screens are not for link holders: they land on the remote view.
-            await RedirectResponse(f"/remote/{link.token}", status_code=303)(scope, receive, send)
+            await RedirectResponse(f"/remote/{token}", status_code=303)(scope, receive, send)
             return
         await self.app(scope, receive, send)
 
     @staticmethod
-    def _allow(scope: Scope) -> None:
+    def _allow(scope: Scope) -> bool:
+        """Raise for what a link may not do; False for a page it is led away from to the remote view."""
         path = scope.get("path", "")
         if scope["type"] == "websocket":
             if not path.startswith(VIEWER_WEBSOCKETS):
                 raise AccessDenied("A remote diagnostics link may only watch the remote diagnostics stream.")
-            return
+            return True
         if scope.get("method", "GET") not in SAFE_METHODS:
             raise AccessDenied("A remote diagnostics link is read-only: it cannot write parameters, send NMT "
                                "commands or PDOs, or change anything on this server.",
                                hint="Ask the engineer on site to make the change.")
+        if access_policy.decide(scope["app"], scope).template in LINK_READS:
+            return True
+        if path.startswith("/api/"):
+            raise AccessDenied(
+                "A remote diagnostics link shows only what DriveBench already holds (network health, emergencies, "
+                f"the bus monitor) and never makes a drive answer over the bus: {path} is not open to it.",
+                hint="Ask the engineer on site to read it for you.")
+        return False
 
 
 def viewer_of(request: Request) -> ShareLink | None:
@@ -85,8 +105,13 @@ def viewer_of(request: Request) -> ShareLink | None:
     return link
 
 
+def viewer_token(request: Request) -> str | None:
+    """The token of the share link the request came through (it is not stored on the server)."""
+    token: str | None = getattr(request.state, "viewer_token", None)
+    return token
+
+
 def require_engineer(request: Request) -> None:
-    """For read endpoints a viewer still must not see (e.g. the list of share links)."""
+    """For actions a link holder must not take even where the role table would let a viewer."""
     if viewer_of(request) is not None:
         raise AccessDenied("Not available through a remote diagnostics link.")
-

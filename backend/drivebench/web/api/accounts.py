@@ -168,10 +168,14 @@ def _signed_in_user(principal: Principal) -> str:
     return principal.name
 
 
-@router.put("/auth/password", status_code=204)
-async def change_own_password(body: OwnPassword, principal: PrincipalDep) -> Response:
+@router.put("/auth/password", status_code=204, responses={401: {}, 429: {}})
+async def change_own_password(request: Request, body: OwnPassword, principal: PrincipalDep) -> Response:
+    """A wrong ``current_password`` counts as a failed sign-in (the same limit per name and address: 429)."""
     name = _signed_in_user(principal)
-    await asyncio.to_thread(accounts.verify_password, name, body.current_password)
+    try:
+        await asyncio.to_thread(accounts.sign_in, name, body.current_password, client_address(request))
+    except accounts.LoginLocked as exc:
+        return locked_response(exc, request.url.path)
     await asyncio.to_thread(accounts.set_password, name, body.password)
     return Response(status_code=204)
 

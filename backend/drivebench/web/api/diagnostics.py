@@ -5,20 +5,20 @@ from __future__ import annotations
 import time
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, Request, status
+from fastapi import APIRouter, Path, Request, status
 from fastapi.responses import HTMLResponse, Response
 from pydantic import BaseModel, Field
+from starlette.requests import HTTPConnection
 
 from drivebench.services import diagnostics
 from drivebench.services.diagnostics import EmcyRecord, GuardingPublic, HeartbeatSetup, NodeHealth
-from drivebench.services.sharing import ShareLink
+from drivebench.services.sharing import IssuedLink, ShareLink
 from drivebench.web.deps import NodeDep, SessionDep, StateDep
+from drivebench.web.origins import public_base_url
 from drivebench.web.safety import ACTING
 from drivebench.web.templating import templates
-from drivebench.web.viewer import require_engineer
 
 router = APIRouter(prefix="/api", tags=["diagnostics"], dependencies=[ACTING])  # set-up writes take the node lease
-EngineerOnly = Depends(require_engineer)
 
 
 class SessionHealth(BaseModel):
@@ -48,16 +48,28 @@ class ShareLinkCreate(BaseModel):
 
 
 class ShareLinkPublic(BaseModel):
-    token: str
-    url: str
+    id: str
+    """Names the link to revoke it (``DELETE /api/share-links/{id}``)."""
+    hint: str
+    """The token's first characters; the token itself is shown once, when the link is made."""
     label: str
     created: float
     expires: float
 
 
-def share_link_public(link: ShareLink, base_url: str) -> ShareLinkPublic:
-    return ShareLinkPublic(token=link.token, url=f"{base_url.rstrip('/')}/remote/{link.token}", label=link.label,
-                           created=link.created, expires=link.expires)
+class IssuedShareLink(ShareLinkPublic):
+    token: str
+    url: str
+    """``public_url`` (``serve --public-url``) or the server's own address + ``/remote/{token}``."""
+
+
+def share_link_public(link: ShareLink) -> ShareLinkPublic:
+    return ShareLinkPublic(id=link.id, hint=link.hint, label=link.label, created=link.created, expires=link.expires)
+
+
+def issued_link(issued: IssuedLink, conn: HTTPConnection) -> IssuedShareLink:
+    url = f"{public_base_url(conn.scope)}/remote/{issued.token}"
+    return IssuedShareLink(**share_link_public(issued.link).model_dump(), token=issued.token, url=url)
 
 
 @router.get("/health/nodes", response_model=list[SessionHealth])
@@ -107,18 +119,20 @@ async def report(request: Request, session: SessionDep) -> Response:
         "Content-Disposition": f'attachment; filename="drivebench-diagnostics-{session.id}-{stamp}.html"'})
 
 
-@router.post("/share-links", response_model=ShareLinkPublic, status_code=status.HTTP_201_CREATED)
-async def create_share_link(request: Request, state: StateDep, body: ShareLinkCreate) -> ShareLinkPublic:
-    link = state.share_links.create(body.ttl_minutes * 60, body.label)
-    return share_link_public(link, str(request.base_url))
+@router.post("/share-links", response_model=IssuedShareLink, status_code=status.HTTP_201_CREATED)
+async def create_share_link(request: Request, state: StateDep, body: ShareLinkCreate) -> IssuedShareLink:
+    """A link for the remote view; its token and URL are in this answer only."""
+    return issued_link(state.share_links.create(body.ttl_minutes * 60, body.label), request)
 
 
-@router.get("/share-links", response_model=list[ShareLinkPublic], dependencies=[EngineerOnly])
-async def list_share_links(request: Request, state: StateDep) -> list[ShareLinkPublic]:
-    return [share_link_public(link, str(request.base_url)) for link in state.share_links.active()]
+@router.get("/share-links", response_model=list[ShareLinkPublic])
+async def list_share_links(state: StateDep) -> list[ShareLinkPublic]:
+    """The active links, without their tokens."""
+    return [share_link_public(link) for link in state.share_links.active()]
 
 
-@router.delete("/share-links/{token}", status_code=status.HTTP_204_NO_CONTENT)
-async def revoke_share_link(state: StateDep, token: Annotated[str, "share link token"]) -> Response:
-    state.share_links.revoke(token)
+@router.delete("/share-links/{link_id}", status_code=status.HTTP_204_NO_CONTENT)
+async def revoke_share_link(state: StateDep, link_id: Annotated[str, Path(max_length=80)]) -> Response:
+    """Revoke a link by its id (or by its token)."""
+    state.share_links.revoke(link_id)
     return Response(status_code=status.HTTP_204_NO_CONTENT)

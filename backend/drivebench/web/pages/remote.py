@@ -8,10 +8,12 @@ from fastapi import APIRouter, Form, Request
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 
 from drivebench.services import diagnostics
-from drivebench.web.api.diagnostics import share_link_public
+from drivebench.web import access_policy
+from drivebench.web.api.diagnostics import issued_link, share_link_public
 from drivebench.web.deps import StateDep
+from drivebench.web.identity import principal_of
 from drivebench.web.templating import templates
-from drivebench.web.viewer import COOKIE, require_engineer, viewer_of
+from drivebench.web.viewer import COOKIE, require_engineer, viewer_token
 
 router = APIRouter(include_in_schema=False)
 PAGE = "remote.html"
@@ -28,15 +30,17 @@ def health_context(state: Any) -> dict[str, Any]:
 
 
 def _links_context(request: Request, state: Any, **extra: Any) -> dict[str, Any]:
-    links = [share_link_public(link, str(request.base_url)) for link in state.share_links.active()]
+    """The active links (never their tokens) for those who may make them; None for everyone else."""
+    may_list = principal_of(request).may(access_policy.rule_for("GET", "/api/share-links").role)
+    links = [share_link_public(link) for link in state.share_links.active()] if may_list else None
     return {"active": "remote", "links": links, **health_context(state), **extra}
 
 
 @router.get("/remote", response_class=HTMLResponse)
 async def remote_page(request: Request, state: StateDep) -> Response:
-    link = viewer_of(request)
-    if link is not None:
-        return RedirectResponse(f"/remote/{link.token}", status_code=303)
+    token = viewer_token(request)
+    if token is not None:
+        return RedirectResponse(f"/remote/{token}", status_code=303)
     return templates.TemplateResponse(request, PAGE, _links_context(request, state))
 
 
@@ -54,14 +58,13 @@ async def remote_view(request: Request, state: StateDep, token: str) -> Response
 async def create_link(request: Request, state: StateDep, ttl_minutes: int = Form(60),
                       label: str = Form("")) -> Response:
     require_engineer(request)
-    link = state.share_links.create(min(max(ttl_minutes, 1), 7 * 24 * 60) * 60, label)
-    created = share_link_public(link, str(request.base_url))
+    created = issued_link(state.share_links.create(min(max(ttl_minutes, 1), 7 * 24 * 60) * 60, label), request)
     return templates.TemplateResponse(request, PAGE, _links_context(request, state, created=created),
                                       block_name="links")
 
 
-@router.post("/ui/share-links/{token}/revoke", response_class=HTMLResponse)
-async def revoke_link(request: Request, state: StateDep, token: str) -> Response:
+@router.post("/ui/share-links/{link_id}/revoke", response_class=HTMLResponse)
+async def revoke_link(request: Request, state: StateDep, link_id: str) -> Response:
     require_engineer(request)
-    state.share_links.revoke(token)
+    state.share_links.revoke(link_id)
     return templates.TemplateResponse(request, PAGE, _links_context(request, state), block_name="links")
