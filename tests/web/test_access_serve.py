@@ -5,9 +5,6 @@ believes (none by default: a client cannot choose the address the sign-in limit 
 from __future__ import annotations
 
 import contextlib
-import os
-import subprocess
-import sys
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -15,10 +12,11 @@ from pathlib import Path
 import httpx
 import pytest
 
-from drivebench.config import REPO_ROOT, settings
+from drivebench.config import settings
 from drivebench.services import accounts, database
 from drivebench.services.principals import Role
 from tests.conftest import _free_port, wait_until
+from tests.transport.test_multiprocess import START_TIMEOUT_S, CliProcess
 
 PASSWORDS = {"root": "root password", "eve": "engineer password", "vera": "viewer password"}
 
@@ -44,22 +42,17 @@ def drivebench_serve(tmp: Path, *options: str) -> Iterator[Served]:
             accounts.create_user(name, PASSWORDS[name], role)
         root_token = accounts.issue_token("root", "test", Role.ADMIN).secret
         accounts.directory.forget()
-    port = _free_port()
-    env = {**os.environ, "DRIVEBENCH_DATABASE_URL": db_url, "DRIVEBENCH_SECRET_KEY_FILE": str(tmp / "key"),
+    env = {"DRIVEBENCH_DATABASE_URL": db_url, "DRIVEBENCH_SECRET_KEY_FILE": str(tmp / "key"),
            "FORWARDED_ALLOW_IPS": "*"}  # uvicorn's own variable must not open the door either
-    log = (tmp / "serve.log").open("w")
-    server = subprocess.Popen([sys.executable, "-m", "drivebench.cli", "serve", "--port", str(port), *options],
-                              env=env, cwd=REPO_ROOT, stdout=log, stderr=subprocess.STDOUT)
-    url = f"http://127.0.0.1:{port}"
+    server = CliProcess("serve", "--port", str(_free_port()), *options, env=env)
     try:
-        assert wait_until(lambda: _answers(url), 60), (tmp / "serve.log").read_text()
+        url = server.wait_for_line(r"DriveBench on (http://\S+)").group(1)
+        assert wait_until(lambda: _answers(url), START_TIMEOUT_S), "".join(server.output)
         signed_in = httpx.post(f"{url}/api/auth/login", json={"name": "eve", "password": PASSWORDS["eve"]})
         assert signed_in.status_code == 200, signed_in.text
         yield Served(url, db_url, root_token, signed_in.cookies["drivebench_session"])
     finally:
-        server.terminate()
-        server.wait(timeout=20)
-        log.close()
+        server.stop()
         database.dispose(db_url)
 
 
@@ -117,7 +110,7 @@ def test_another_server_s_disable_ends_the_session_for_good(served: Served) -> N
 
 
 def test_serve_refuses_a_public_url_that_is_no_address(tmp_path: Path) -> None:
-    answer = subprocess.run([sys.executable, "-m", "drivebench.cli", "serve", "--public-url", "drivebench.example"],
-                            env={**os.environ, "DRIVEBENCH_DATABASE_URL": f"sqlite:///{tmp_path / 'db.sqlite'}"},
-                            cwd=REPO_ROOT, capture_output=True, text=True, timeout=60)
-    assert answer.returncode == 1 and "is not a web address" in answer.stderr
+    server = CliProcess("serve", "--port", "0", "--public-url", "drivebench.example",
+                        env={"DRIVEBENCH_DATABASE_URL": f"sqlite:///{tmp_path / 'db.sqlite'}"})
+    server.wait_for_line("is not a web address")
+    assert server.process.wait(timeout=START_TIMEOUT_S) == 1
