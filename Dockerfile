@@ -5,7 +5,8 @@
 # Run:  docker run -p 8000:8000 -v drivebench-var:/app/var drivebench
 #       (simulated plant: append `serve --host 0.0.0.0 --demo`;
 #        a socketcand gateway: `serve --host 0.0.0.0 --bus socketcand:GATEWAY:29536/can0`;
-#        SocketCAN adapters of the host need `--network host`.)
+#        SocketCAN adapters of the host need `--network host`; name the address browsers use:
+#        `-e DRIVEBENCH_ALLOWED_HOSTS=drivebench.plant.example,192.168.0.10`, any other Host is refused.)
 #       The admin adds engineers and viewers on the Users page. The cookie key is made once in /app/var/secret_key
 #       (or set DRIVEBENCH_SECRET_KEY); put TLS in front (a reverse proxy) when the network is not trusted.
 FROM python:3.11-slim
