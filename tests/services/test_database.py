@@ -207,6 +207,8 @@ def test_an_upgrade_from_the_oldest_migration_keeps_the_data_of_every_step(db_ur
         "0002_parameter_sets": ("INSERT INTO audit_log (time, \"user\", session_id, node_id, ref, address, old_value, "
                                 "new_value, result, detail, origin) VALUES (:t, 'anna', 'line-1', 5, 'C00012', "
                                 "'0x5FF3.0', '2.00 s', '3.00 s', 'written', NULL, 'parameters')", {}),
+        "0003_accounts": ("INSERT INTO user_account (name, role, password_hash, created, disabled) "
+                          "VALUES ('anna', 'engineer', 'argon2-hash', :t, false)", {}),
     }
     for revision in revisions:
         command.upgrade(config, revision)
@@ -221,4 +223,6 @@ def test_an_upgrade_from_the_oldest_migration_keeps_the_data_of_every_step(db_ur
     assert [n.name for n in networks] == ["Line 1"]
     with database.engine(db_url).connect() as connection:
         audit = connection.execute(text("SELECT \"user\", ref, new_value FROM audit_log")).all()
+        users = connection.execute(text("SELECT name, session_stamp FROM user_account")).all()
     assert [tuple(row) for row in audit] == [("anna", "C00012", "3.00 s")]
+    assert [row[0] for row in users] == ["anna"] and len(users[0][1]) == 16  # 0004 gave her a session stamp
