@@ -1,5 +1,76 @@
 // Small page helpers; htmx does the rest.
 //
+// --- text from the server goes into pages as text ----------------------------------------------------------
+// Names, units, selection texts, bit names, problem titles and details may come from an uploaded profile or another
+// user: build elements and set textContent; where an HTML string is needed, every value goes through escape().
+// The Content-Security-Policy (web/security_headers.py) allows no inline script besides.
+window.drivebench = window.drivebench || {};
+(() => {
+  const drivebench = window.drivebench;
+  const ENTITIES = { "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;", "'": "&#39;" };
+  drivebench.escape = (text) => String(text ?? "").replace(/[&<>"']/g, (c) => ENTITIES[c]);
+
+  // An element with attributes and children (strings become text nodes): el("li", {className: "x"}, "a", child)
+  drivebench.el = (tag, props = {}, ...children) => {
+    const node = Object.assign(document.createElement(tag), props);
+    node.append(...children.filter((child) => child !== null && child !== undefined && child !== false));
+    return node;
+  };
+
+  // The error box of the pages: <div class="error" role="alert"><strong>title</strong> detail</div>
+  drivebench.errorBox = (title, detail) => {
+    const box = drivebench.el("div", { className: "error" }, title ? drivebench.el("strong", {}, title) : null,
+                              title && detail ? " " : "", detail || "");
+    box.setAttribute("role", "alert");
+    return box;
+  };
+  // An RFC 9457 problem (or no JSON body) as that box.
+  drivebench.problemBox = (problem, status) => problem && (problem.title || problem.detail)
+    ? drivebench.errorBox(problem.title || "Error", problem.detail)
+    : drivebench.errorBox("Request failed", `(HTTP ${status})`);
+
+  // One websocket client for every live page: the URL on this server, JSON messages to onMessage, reconnects with
+  // back-off (retryMs doubled up to maxRetryMs, back to retryMs once open) while keepOpen(closeEvent) holds.
+  // path may be a function (a query that changes between connections). Returns {send(message), close(), open}.
+  drivebench.liveSocket = (path, { onMessage, onOpen, onClose, keepOpen = () => true, retryMs = 1000,
+                                   maxRetryMs = 10000 }) => {
+    let socket = null;
+    let timer = null;
+    let delay = retryMs;
+    let stopped = false;
+    const url = () => `${location.protocol === "https:" ? "wss" : "ws"}://${location.host}` +
+      (typeof path === "function" ? path() : path);
+    function connect() {
+      timer = null;
+      socket = new WebSocket(url());
+      socket.onopen = (event) => { delay = retryMs; if (onOpen) onOpen(event); };
+      socket.onmessage = (event) => {
+        let message;
+        try { message = JSON.parse(event.data); } catch (e) { console.warn("websocket: not JSON", e); return; }
+        onMessage(message);
+      };
+      socket.onclose = (event) => {
+        if (onClose) onClose(event);
+        if (stopped || !keepOpen(event)) { stopped = true; return; }
+        timer = setTimeout(connect, delay);
+        delay = Math.min(delay * 2, maxRetryMs);
+      };
+    }
+    connect();
+    return {
+      send(message) {
+        if (!socket || socket.readyState !== WebSocket.OPEN) return false;
+        socket.send(typeof message === "string" ? message : JSON.stringify(message));
+        return true;
+      },
+      close() { stopped = true; clearTimeout(timer); if (socket) socket.close(); },
+      get open() { return Boolean(socket) && socket.readyState === WebSocket.OPEN; },
+      get stopped() { return stopped; },
+    };
+  };
+})();
+
+// --- errors next to the action --------------------------------------------------------------------------------
 // Errors (problem fragments with a 4xx/5xx status) are shown next to the action that caused them: in the
 // element named by the nearest data-error-target, else the nearest .action-result, else the toast slot.
 // They never replace the content the request aimed at.
@@ -23,14 +94,11 @@ document.body.addEventListener("htmx:beforeSwap", (event) => {
   }
   const slot = errorSlot(event.detail.requestConfig.elt);
   const isHtml = (xhr.getResponseHeader("Content-Type") || "").startsWith("text/html");
-  let html = xhr.responseText;
+  let html = xhr.responseText;  // an error fragment the server rendered (escaped by Jinja)
   if (!isHtml) {
-    try {
-      const problem = JSON.parse(xhr.responseText);
-      html = `<div class="error" role="alert"><strong>${problem.title}</strong> ${problem.detail}</div>`;
-    } catch (e) {
-      html = `<div class="error" role="alert">Request failed (HTTP ${xhr.status})</div>`;
-    }
+    let problem = null;
+    try { problem = JSON.parse(xhr.responseText); } catch (e) { problem = null; }
+    html = window.drivebench.problemBox(problem, xhr.status).outerHTML;
   }
   event.detail.shouldSwap = true;
   event.detail.isError = false;
@@ -40,8 +108,18 @@ document.body.addEventListener("htmx:beforeSwap", (event) => {
 });
 
 document.body.addEventListener("htmx:sendError", (event) => {
-  errorSlot(event.detail.requestConfig.elt).innerHTML =
-    '<div class="error" role="alert"><strong>No answer from the DriveBench server.</strong> Is it still running?</div>';
+  errorSlot(event.detail.requestConfig.elt).replaceChildren(
+    window.drivebench.errorBox("No answer from the DriveBench server.", "Is it still running?"));
+});
+
+// Behaviour that used to be inline handlers (the CSP runs none): a form that only htmx sends, a field whose text is
+// selected by a click (a share link, a new token).
+document.addEventListener("submit", (event) => {
+  if (event.target.matches("form[data-no-submit]")) event.preventDefault();
+});
+document.addEventListener("click", (event) => {
+  const field = event.target.closest && event.target.closest("[data-select-on-click]");
+  if (field) field.select();
 });
 
 // A successful action clears an old error beside it.

@@ -17,13 +17,11 @@
     try { return (localStorage.getItem(OPERATOR_KEY) || "").trim(); } catch (e) { return ""; }
   }
 
-  function problemText(body, status) {
-    if (body && body.detail) return `<strong>${body.title || "Error"}</strong> ${body.detail}`;
-    return `<strong>Request failed</strong> (HTTP ${status})`;
-  }
+  const esc = window.drivebench.escape;  // problem texts name lease holders and operators: text, never markup
 
-  function esc(text) {
-    return String(text ?? "").replace(/[&<>"]/g, (c) => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;" }[c]));
+  function problemText(body, status) {
+    if (body && body.detail) return `<strong>${esc(body.title || "Error")}</strong> ${esc(body.detail)}`;
+    return `<strong>Request failed</strong> (HTTP ${esc(status)})`;
   }
 
   function init(panel) {
@@ -155,22 +153,19 @@
 
     function connect() {
       const state = panel.querySelector("#ctl-ws");
-      const query = `panel=${panelId}&operator=${encodeURIComponent(operator())}`;
-      const url = `${location.protocol === "https:" ? "wss" : "ws"}://${location.host}${panel.dataset.ws}?${query}`;
-      socket = new WebSocket(url);
-      socket.onopen = () => { state.textContent = "live"; state.className = "badge good"; };
-      socket.onclose = () => {
-        state.textContent = "disconnected"; state.className = "badge bad";
-        if (!closed && document.body.contains(panel)) setTimeout(connect, 1000);
-      };
-      socket.onmessage = (event) => {
-        const message = JSON.parse(event.data);
-        if (message.type === "status") {
-          if (performance.now() > freshUntil) render(message.status);
-          plot(message.actuals, message.t);
-        }
-        else if (message.type === "error") showError(esc(message.detail));
-      };
+      socket = window.drivebench.liveSocket(
+        () => `${panel.dataset.ws}?panel=${panelId}&operator=${encodeURIComponent(operator())}`, {
+          onOpen: () => { state.textContent = "live"; state.className = "badge good"; },
+          onClose: () => { state.textContent = "disconnected"; state.className = "badge bad"; },
+          keepOpen: () => !closed && document.body.contains(panel),
+          onMessage: (message) => {
+            if (message.type === "status") {
+              if (performance.now() > freshUntil) render(message.status);
+              plot(message.actuals, message.t);
+            }
+            else if (message.type === "error") showError(esc(message.detail));
+          },
+        });
     }
 
     const keepalive = setInterval(() => {
@@ -180,7 +175,7 @@
         if (socket) socket.close();
         return;
       }
-      if (socket && socket.readyState === WebSocket.OPEN) socket.send(JSON.stringify({ cmd: "keepalive" }));
+      if (socket) socket.send({ cmd: "keepalive" });
     }, 500);
 
     async function command(key, label) {
@@ -248,8 +243,8 @@
       const rows = run.steps.map((step) => {
         const r = results.get(step.number);
         const cls = r ? (r.ok ? "done" : "failed") : step.number === run.position + 1 && !run.finished ? "next" : "";
-        const telegrams = r ? r.telegrams.map((t) => `<div class="mono tg ${t.direction}">${t.direction === "T" ? "→" : "←"} ${esc(t.cob_id)} ${esc(t.data)}</div>`).join("") : "";
-        return `<tr class="${cls}"><td>${step.number}</td><td>${esc(step.title)}${step.moves ? ' <span class="badge warn">moves</span>' : ""}` +
+        const telegrams = r ? r.telegrams.map((t) => `<div class="mono tg ${esc(t.direction)}">${t.direction === "T" ? "→" : "←"} ${esc(t.cob_id)} ${esc(t.data)}</div>`).join("") : "";
+        return `<tr class="${cls}"><td>${esc(step.number)}</td><td>${esc(step.title)}${step.moves ? ' <span class="badge warn">moves</span>' : ""}` +
                `${step.printed ? `<div class="muted mono small-text">manual: ${esc(step.printed)}</div>` : ""}</td>` +
                `<td>${telegrams}</td><td>${r ? esc(r.message) : ""}</td></tr>`;
       }).join("");

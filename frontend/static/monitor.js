@@ -24,7 +24,7 @@
   const loadPoints = { t: [], v: [] };
   let zoomed = false;
 
-  const esc = (text) => String(text ?? "").replace(/[&<>"']/g, (c) => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;", "'": "&#39;" })[c]);
+  const esc = window.drivebench.escape;  // every value put into the tables' HTML (names come from profiles)
   const num = (value) => Number(value).toLocaleString("en-US");
   const rate = (value) => `${value >= 100 ? Math.round(value) : value.toFixed(1)}/s`;
   const pct = (value) => `${value.toFixed(value >= 10 ? 1 : 2)} %`;
@@ -101,13 +101,13 @@
     $("services-body").innerHTML = s.services.map((r) =>
       `<tr class="${r.rate ? "" : "silent"}"><td>${esc(r.label)}</td><td class="num">${num(r.total)}</td><td class="num">${rate(r.rate)}</td></tr>`).join("");
     $("nodes-body").innerHTML = s.nodes.length ? s.nodes.map((r) =>
-      `<tr class="${r.rate ? "" : "silent"}"><td class="num">${r.node}</td><td class="device" title="${esc(r.name || "")}">${esc(r.name || "not in session")}</td>` +
+      `<tr class="${r.rate ? "" : "silent"}"><td class="num">${esc(r.node)}</td><td class="device" title="${esc(r.name || "")}">${esc(r.name || "not in session")}</td>` +
       `<td class="num">${num(r.total)}</td><td class="num">${rate(r.rate)}</td><td class="num">${pct(r.share_percent)}</td></tr>`).join("")
       : '<tr><td colspan="5" class="empty">No node telegrams yet.</td></tr>';
     const col = Object.fromEntries(s.cob_columns.map((name, i) => [name, i]));
     $("cobs-body").innerHTML = s.cob_ids.length ? s.cob_ids.map((r) =>
       `<tr class="${r[col.rate] ? "" : "silent"}" title="last ${r[col.last_age_s].toFixed(1)} s ago"><td class="mono">${esc(r[col.text])}</td><td>${esc(r[col.service])}</td>` +
-      `<td class="num">${r[col.node] ?? "–"}</td><td class="num">${num(r[col.total])}</td><td class="num">${rate(r[col.rate])}</td><td class="num">${pct(r[col.share_percent])}</td></tr>`).join("")
+      `<td class="num">${esc(r[col.node] ?? "–")}</td><td class="num">${num(r[col.total])}</td><td class="num">${rate(r[col.rate])}</td><td class="num">${pct(r[col.share_percent])}</td></tr>`).join("")
       : '<tr><td colspan="6" class="empty">No telegrams (or none passes the filter).</td></tr>';
     $("cob-note").textContent = s.cob_ids_cut ? `busiest ${s.cob_ids.length} of ${s.cob_ids_cut}` : "";
   }
@@ -127,9 +127,9 @@
     const rows = pendingTrace.slice(-TRACE_ROWS);
     pendingTrace = [];
     body.insertAdjacentHTML("beforeend", rows.map((r) => r.gap ? GAP_ROW :
-      `<tr class="svc-${esc(r.group).replace(/ /g, "-")}" data-seq="${r.seq}"><td class="time">${clock(r.time, true)}</td><td class="cob">${esc(r.cob_id)}</td>` +
-      `<td>${esc(r.service)}</td><td class="num">${r.node ?? "–"}</td><td class="num">${r.dlc}</td>` +
-      `<td class="decoded" title="${esc(r.cob_id)} [${r.dlc}] ${esc(r.hex || "(no data)")}">${esc(r.summary || r.service)}</td></tr>`).join(""));
+      `<tr class="svc-${esc(r.group).replace(/ /g, "-")}" data-seq="${esc(r.seq)}"><td class="time">${clock(r.time, true)}</td><td class="cob">${esc(r.cob_id)}</td>` +
+      `<td>${esc(r.service)}</td><td class="num">${esc(r.node ?? "–")}</td><td class="num">${esc(r.dlc)}</td>` +
+      `<td class="decoded" title="${esc(r.cob_id)} [${esc(r.dlc)}] ${esc(r.hex || "(no data)")}">${esc(r.summary || r.service)}</td></tr>`).join(""));
     while (body.rows.length > TRACE_ROWS) body.deleteRow(0);
     showCount();
     if ($("trace-follow").checked) { const box = $("trace-scroll"); box.scrollTop = box.scrollHeight; }
@@ -187,48 +187,41 @@
     view = { ...(view || {}), ...change };
     errorSlot = slot;
     $(slot).innerHTML = "";
-    if (socket && socket.readyState === WebSocket.OPEN) {
-      socket.send(JSON.stringify({ type: "view", ...change, rows: helloRows() }));
-    } else {
-      $(slot).innerHTML = '<div class="error" role="alert"><strong>Not connected.</strong> The change is sent when the connection is back.</div>';
+    if (!socket || !socket.send({ type: "view", ...change, rows: helloRows() })) {
+      $(slot).replaceChildren(window.drivebench.errorBox("Not connected.", "The change is sent when the connection is back."));
     }
   }
 
   function connect() {
-    const scheme = location.protocol === "https:" ? "wss" : "ws";
-    socket = new WebSocket(`${scheme}://${location.host}/ws/sessions/${encodeURIComponent(sessionId)}/monitor?rows=${helloRows()}`);
-    socket.onopen = () => {
-      if (view) socket.send(JSON.stringify({ type: "view", ...view, rows: helloRows() }));
-    };
-    socket.onmessage = (event) => {
-      const message = JSON.parse(event.data);
-      if (message.type === "error") {
-        $(errorSlot).innerHTML = `<div class="error" role="alert">${esc(message.detail)}</div>`;
-        return;
-      }
-      if (message.type === "view") {
-        paused = message.view.paused; setPaused(paused); setLive(paused ? "paused" : "live");
-        return;
-      }
-      if (message.type === "hello") {
-        $("trace-body").innerHTML = ""; pendingTrace = [];
-        paused = message.view.paused;
-        if (view) view = { ...message.view };  // what the server took (a rejected filter is not re-sent)
-      } else if (paused) {
-        return;  // sent before the server took our pause
-      }
-      addHistory(message.history, message.type === "hello");
-      const names = message.trace_columns;
-      if (message.trace_more && message.type === "update") pendingTrace.push({ gap: true });
-      for (const row of message.trace) pendingTrace.push(Object.fromEntries(names.map((name, i) => [name, row[i]])));
-      if (pendingTrace.length > TRACE_ROWS) pendingTrace = pendingTrace.slice(-TRACE_ROWS);
-      latest = message;
-      schedule();
-    };
-    socket.onclose = (event) => {
-      setLive("down");
-      if (event.code !== 4404) setTimeout(connect, 1000);
-    };
+    socket = window.drivebench.liveSocket(
+      () => `/ws/sessions/${encodeURIComponent(sessionId)}/monitor?rows=${helloRows()}`,
+      { onOpen: () => { if (view) socket.send({ type: "view", ...view, rows: helloRows() }); },
+        onMessage: receive, onClose: () => setLive("down"), keepOpen: (event) => event.code !== 4404 });
+  }
+
+  function receive(message) {
+    if (message.type === "error") {
+      $(errorSlot).replaceChildren(window.drivebench.errorBox(null, message.detail));
+      return;
+    }
+    if (message.type === "view") {
+      paused = message.view.paused; setPaused(paused); setLive(paused ? "paused" : "live");
+      return;
+    }
+    if (message.type === "hello") {
+      $("trace-body").innerHTML = ""; pendingTrace = [];
+      paused = message.view.paused;
+      if (view) view = { ...message.view };  // what the server took (a rejected filter is not re-sent)
+    } else if (paused) {
+      return;  // sent before the server took our pause
+    }
+    addHistory(message.history, message.type === "hello");
+    const names = message.trace_columns;
+    if (message.trace_more && message.type === "update") pendingTrace.push({ gap: true });
+    for (const row of message.trace) pendingTrace.push(Object.fromEntries(names.map((name, i) => [name, row[i]])));
+    if (pendingTrace.length > TRACE_ROWS) pendingTrace = pendingTrace.slice(-TRACE_ROWS);
+    latest = message;
+    schedule();
   }
 
   // --- controls ------------------------------------------------------------------------------------------
@@ -237,15 +230,15 @@
       const response = await fetch(api + path, { method, headers: body ? { "Content-Type": "application/json" } : {},
                                                  body: body ? JSON.stringify(body) : undefined });
       if (!response.ok) {
-        let detail = `HTTP ${response.status}`;
-        try { const problem = await response.json(); detail = `<strong>${esc(problem.title)}</strong> ${esc(problem.detail)}`; } catch (e) { /* not JSON */ }
-        $(slot).innerHTML = `<div class="error" role="alert">${detail}</div>`;
+        let problem = null;
+        try { problem = await response.json(); } catch (e) { /* not JSON */ }
+        $(slot).replaceChildren(window.drivebench.problemBox(problem, response.status));
         return null;
       }
       $(slot).innerHTML = "";
       return response.json();
     } catch (e) {
-      $(slot).innerHTML = '<div class="error" role="alert"><strong>No answer from the DriveBench server.</strong> Is it still running?</div>';
+      $(slot).replaceChildren(window.drivebench.errorBox("No answer from the DriveBench server.", "Is it still running?"));
       return null;
     }
   }
@@ -282,7 +275,7 @@
       cob_min: parseId(form.cob_min.value, 0), cob_max: parseId(form.cob_max.value, 0x1FFFFFFF),
     };
     if (nodes.some(Number.isNaN) || Number.isNaN(body.cob_min) || Number.isNaN(body.cob_max)) {
-      $("filter-result").innerHTML = '<div class="error" role="alert">Nodes are numbers 1…127; COB-IDs decimal or 0x-hex.</div>';
+      $("filter-result").replaceChildren(window.drivebench.errorBox(null, "Nodes are numbers 1…127; COB-IDs decimal or 0x-hex."));
       return;
     }
     sendView({ filter: body }, "filter-result");  // the answer is a hello: the newest matching rows, filtered tables
@@ -305,6 +298,9 @@
     showCount();
     if (!paused && body.rows.length < helloRows()) sendView({}, "control-result");  // fill up from the ring
   });
+
+  const picker = $("session-picker");  // more than one session: the choice opens the other one's monitor
+  if (picker) picker.addEventListener("change", () => { location.href = `/monitor/${encodeURIComponent(picker.value)}`; });
 
   setLive("connecting");
   connect();

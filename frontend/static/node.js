@@ -23,34 +23,39 @@
     box.dataset.refreshed = String(Date.now());
     const bar = box.querySelector("progress");
     const text = box.querySelector(".job-text");
-    const scheme = location.protocol === "https:" ? "wss" : "ws";
-    const socket = new WebSocket(`${scheme}://${location.host}/ws/jobs/${box.dataset.job}`);
-    socket.onmessage = (event) => {
-      const msg = JSON.parse(event.data);
-      const p = msg.progress;
-      bar.max = Math.max(p.total, 1);
-      bar.value = p.done;
-      const failed = p.failed ? ` · ${p.failed} failed` : "";
-      let line = `${msg.title}: ${p.done}/${p.total} · ${p.rate_per_s.toFixed(1)}/s${failed}`;
-      if (msg.state === "running") line += fmtEta(p.eta_s);
-      else line += ` · ${msg.state} in ${p.elapsed_s.toFixed(1)} s`;
-      if (msg.error) line += ` · ${msg.error}`;
-      text.textContent = line;
-      text.title = (msg.notes || []).join("\n");
-      box.dataset.state = msg.state;
-      const rows = document.querySelector(box.dataset.refresh);
-      // Values appear while the job runs: the rows are re-read from the server at most every 2 s, never while
-      // the user is in one of them (typing a new value).
-      if (msg.state === "running" && rows && !rows.contains(document.activeElement) &&
-          !rows.classList.contains("htmx-request") && Date.now() - Number(box.dataset.refreshed) > 2000) {
-        box.dataset.refreshed = String(Date.now());
-        htmx.trigger(rows, "refresh");
-      }
-      if (msg.state !== "running") {
-        box.classList.add("finished", `state-${msg.state}`);
-        refreshRows(box.dataset.refresh);
-      }
-    };
+    // reconnects while the job runs and its box is shown (the server closes the socket after the final message,
+    // with 4404 for a job it does not know)
+    window.drivebench.liveSocket(`/ws/jobs/${encodeURIComponent(box.dataset.job)}`, {
+      keepOpen: (event) => event.code !== 4404 && (box.dataset.state || "running") === "running" &&
+        document.body.contains(box),
+      onMessage: (msg) => show(box, msg, bar, text),
+    });
+  }
+
+  function show(box, msg, bar, text) {
+    const p = msg.progress;
+    bar.max = Math.max(p.total, 1);
+    bar.value = p.done;
+    const failed = p.failed ? ` · ${p.failed} failed` : "";
+    let line = `${msg.title}: ${p.done}/${p.total} · ${p.rate_per_s.toFixed(1)}/s${failed}`;
+    if (msg.state === "running") line += fmtEta(p.eta_s);
+    else line += ` · ${msg.state} in ${p.elapsed_s.toFixed(1)} s`;
+    if (msg.error) line += ` · ${msg.error}`;
+    text.textContent = line;
+    text.title = (msg.notes || []).join("\n");
+    box.dataset.state = msg.state;
+    const rows = document.querySelector(box.dataset.refresh);
+    // Values appear while the job runs: the rows are re-read from the server at most every 2 s, never while
+    // the user is in one of them (typing a new value).
+    if (msg.state === "running" && rows && !rows.contains(document.activeElement) &&
+        !rows.classList.contains("htmx-request") && Date.now() - Number(box.dataset.refreshed) > 2000) {
+      box.dataset.refreshed = String(Date.now());
+      htmx.trigger(rows, "refresh");
+    }
+    if (msg.state !== "running") {
+      box.classList.add("finished", `state-${msg.state}`);
+      refreshRows(box.dataset.refresh);
+    }
   }
 
   htmx.onLoad((root) => {

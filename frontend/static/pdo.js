@@ -1,6 +1,7 @@
 // PDO tab: the mapping editor (picker, reorder, live byte layout, limits) and the live process data socket.
 (() => {
   if (window.drivebenchPdo) { window.drivebenchPdo(); return; }
+  const el = window.drivebench.el;  // names and units come from profiles: elements with text, never markup
   const MAX_BITS = 64;
   const COLORS = 8;
 
@@ -78,11 +79,15 @@
           entries.splice(i, 0, moved);
           render();
         });
-        li.innerHTML = `<span class="name"></span> <span class="mono muted"></span> <span class="muted">${e.bits} bit</span>
-          <span class="entry-buttons"><button type="button" class="icon" data-act="up" title="Move up" ${i === 0 ? "disabled" : ""}>↑</button><button type="button" class="icon" data-act="down" title="Move down" ${i === entries.length - 1 ? "disabled" : ""}>↓</button><button type="button" class="icon" data-act="remove" title="Remove">✕</button></span>`;
-        li.querySelector(".name").textContent = e.name;
-        li.querySelector(".mono").textContent = e.ref;
-        li.querySelectorAll("button").forEach((b) => b.addEventListener("click", () => {
+        const buttons = [["up", "Move up", "↑", i === 0], ["down", "Move down", "↓", i === entries.length - 1],
+                         ["remove", "Remove", "✕", false]].map(([act, title, text, disabled]) => {
+          const b = el("button", { type: "button", className: "icon", title, disabled }, text);
+          b.dataset.act = act;
+          return b;
+        });
+        li.append(el("span", { className: "name" }, e.name), " ", el("span", { className: "mono muted" }, e.ref), " ",
+                  el("span", { className: "muted" }, `${e.bits} bit`), " ", el("span", { className: "entry-buttons" }, ...buttons));
+        buttons.forEach((b) => b.addEventListener("click", () => {
           if (b.dataset.act === "remove") entries.splice(i, 1);
           else {
             const j = b.dataset.act === "up" ? i - 1 : i + 1;
@@ -92,7 +97,7 @@
         }));
         list.appendChild(li);
       });
-      if (!entries.length) list.innerHTML = '<li class="empty">No entries: the PDO carries nothing.</li>';
+      if (!entries.length) list.replaceChildren(el("li", { className: "empty" }, "No entries: the PDO carries nothing."));
       const used = bits();
       total.textContent = `${used / 8} / 8 bytes · ${entries.length} / ${maxEntries} entries`;
       total.classList.toggle("over", used > MAX_BITS || entries.length > maxEntries);
@@ -115,10 +120,10 @@
           const li = document.createElement("li");
           const full = entries.length >= maxEntries;
           const tooLong = used + m.bits > MAX_BITS;
-          li.innerHTML = `<button type="button" class="small secondary">Add</button> <span class="name"></span> <span class="mono muted"></span> <span class="muted">${m.bits} bit${m.unit ? ", " + m.unit : ""}</span> <span class="why warn-text"></span>`;
-          li.querySelector(".name").textContent = m.name;
-          li.querySelector(".mono").textContent = m.ref;
-          const button = li.querySelector("button");
+          const button = el("button", { type: "button", className: "small secondary" }, "Add");
+          li.append(button, " ", el("span", { className: "name" }, m.name), " ", el("span", { className: "mono muted" }, m.ref), " ",
+                    el("span", { className: "muted" }, `${m.bits} bit${m.unit ? ", " + m.unit : ""}`), " ",
+                    el("span", { className: "why warn-text" }));
           button.setAttribute("aria-label", `Add ${m.ref} ${m.name}`);
           if (full || tooLong) {
             button.disabled = true;
@@ -127,7 +132,7 @@
           button.addEventListener("click", () => { entries.push({ ...m }); render(); });
           picker.appendChild(li);
         });
-      if (!mappable.length) picker.innerHTML = '<li class="empty">The profile lists no PDO-mappable object for this direction.</li>';
+      if (!mappable.length) picker.replaceChildren(el("li", { className: "empty" }, "The profile lists no PDO-mappable object for this direction."));
     }
 
     search.addEventListener("input", renderPicker);
@@ -159,53 +164,54 @@
     }
   });
 
-  let socket = null;
+  let socket = null;  // drivebench.liveSocket of the PDO tab shown (socketTab)
+  let socketTab = null;
   let clientId = "";
 
-  function connect(tab) {
-    if (socket && socket.readyState <= 1 && socket.tabElt === tab) return;
-    const state = document.getElementById("pdo-ws-state");
-    const url = `${location.protocol === "https:" ? "wss" : "ws"}://${location.host}${tab.dataset.ws}`;
-    socket = new WebSocket(url);
-    socket.tabElt = tab;
-    socket.onopen = () => { state.textContent = "connected"; state.className = "badge good"; };
-    socket.onclose = () => {
-      state.textContent = "disconnected"; state.className = "badge warn";
-      if (document.body.contains(tab)) setTimeout(() => connect(tab), 2000);
-    };
-    socket.onmessage = (event) => {
-      const msg = JSON.parse(event.data);
-      if (msg.type === "hello") {
-        clientId = msg.client_id;
-        document.querySelectorAll(".client-id").forEach((input) => { input.value = clientId; });
-      } else if (msg.type === "samples") {
-        msg.samples.forEach((sample) => sample.signals.forEach((sig) => {
-          document.querySelectorAll(`.live[data-cob="${sample.cob_id}"][data-ref="${CSS.escape(sig.ref)}"]`).forEach((cell) => {
-            let text = sig.value === null ? "–" : `${sig.value}${sig.unit ? " " + sig.unit : ""}`;
-            if (sig.text) text += ` (${sig.text})`;
-            if (sample.direction === "rpdo") text = `sent ${text}`;
-            cell.textContent = text;
-            cell.title = `${text}\nraw ${sig.raw} · frame ${sample.data} · ${new Date(sample.t * 1000).toLocaleTimeString()}`;
-            cell.classList.add("fresh");
-            setTimeout(() => cell.classList.remove("fresh"), 300);
-          });
-        }));
-      } else if (msg.type === "state") {
-        const nmt = document.getElementById("pdo-nmt");
-        if (nmt) nmt.textContent = msg.nmt_state;
-        document.querySelectorAll('.pdo-card[data-direction="rpdo"]').forEach((card) => {
-          const badge = card.querySelector(".pdo-cyclic-badge");
-          if (badge) badge.hidden = !msg.cyclic.includes(Number(card.dataset.cobId));
+  function receive(msg, state) {
+    if (msg.type === "hello") {
+      clientId = msg.client_id;
+      document.querySelectorAll(".client-id").forEach((input) => { input.value = clientId; });
+    } else if (msg.type === "samples") {
+      msg.samples.forEach((sample) => sample.signals.forEach((sig) => {
+        document.querySelectorAll(`.live[data-cob="${CSS.escape(String(sample.cob_id))}"][data-ref="${CSS.escape(sig.ref)}"]`).forEach((cell) => {
+          let text = sig.value === null ? "–" : `${sig.value}${sig.unit ? " " + sig.unit : ""}`;
+          if (sig.text) text += ` (${sig.text})`;
+          if (sample.direction === "rpdo") text = `sent ${text}`;
+          cell.textContent = text;
+          cell.title = `${text}\nraw ${sig.raw} · frame ${sample.data} · ${new Date(sample.t * 1000).toLocaleTimeString()}`;
+          cell.classList.add("fresh");
+          setTimeout(() => cell.classList.remove("fresh"), 300);
         });
-      } else if (msg.type === "error") {
-        state.textContent = msg.detail; state.className = "badge warn";
-      }
-    };
+      }));
+    } else if (msg.type === "state") {
+      const nmt = document.getElementById("pdo-nmt");
+      if (nmt) nmt.textContent = msg.nmt_state;
+      document.querySelectorAll('.pdo-card[data-direction="rpdo"]').forEach((card) => {
+        const badge = card.querySelector(".pdo-cyclic-badge");
+        if (badge) badge.hidden = !msg.cyclic.includes(Number(card.dataset.cobId));
+      });
+    } else if (msg.type === "error") {
+      state.textContent = msg.detail; state.className = "badge warn";
+    }
+  }
+
+  function connect(tab) {
+    if (socket && !socket.stopped && socketTab === tab) return;
+    // (the socket of a replaced tab element is left as it was: it closes with the page)
+    const state = document.getElementById("pdo-ws-state");
+    socketTab = tab;
+    socket = window.drivebench.liveSocket(tab.dataset.ws, {
+      onOpen: () => { state.textContent = "connected"; state.className = "badge good"; },
+      onClose: () => { state.textContent = "disconnected"; state.className = "badge warn"; },
+      keepOpen: () => document.body.contains(tab), retryMs: 2000,
+      onMessage: (msg) => receive(msg, state),
+    });
   }
 
   function init() {
     const tab = document.getElementById("pdo-tab");
-    if (!tab) { if (socket) { socket.tabElt = null; socket.close(); } return; }
+    if (!tab) { if (socket) { socket.close(); socket = null; socketTab = null; } return; }
     document.querySelectorAll(".pdo-card").forEach(initCard);
     document.querySelectorAll(".client-id").forEach((input) => { input.value = clientId; });
     connect(tab);
@@ -214,8 +220,8 @@
   document.body.addEventListener("htmx:afterSettle", (event) => {
     init();
     const target = event.detail.elt;
-    if (socket && socket.readyState === 1 && target && (target.classList?.contains("pdo-card") || target.id === "pdo-list")) {
-      socket.send(JSON.stringify({ cmd: "reload" }));  // the mapping may have changed: decode with the new one
+    if (socket && target && (target.classList?.contains("pdo-card") || target.id === "pdo-list")) {
+      socket.send({ cmd: "reload" });  // the mapping may have changed: decode with the new one (when connected)
     }
   });
   window.drivebenchPdo = init;

@@ -14,40 +14,41 @@
   }
   window.drivebenchPanelId = window.drivebenchPanelId || window.drivebenchClientId;
 
-  const sockets = new Map();  // keep-alive path -> socket
+  const sockets = new Map();  // keep-alive path -> {socket (drivebench.liveSocket), holder}
+
+  function show(message, entry) {
+    if (message.type !== "held") return;
+    const slot = entry.holder.querySelector(".keepalive-state");
+    if (slot) {
+      slot.hidden = !message.nodes.length;
+      slot.textContent = message.nodes.length ? `This tab keeps node${message.nodes.length > 1 ? "s" : ""} ` +
+        `${message.nodes.join(", ")} running: closing it stops ${message.nodes.length > 1 ? "them" : "it"}.` : "";
+    }
+  }
 
   function open(path, holder) {
-    const url = `${location.protocol === "https:" ? "wss" : "ws"}://${location.host}${path}?client=${window.drivebenchClientId}`;
-    const socket = new WebSocket(url);
-    sockets.set(path, socket);
-    socket.onmessage = (event) => {
-      const message = JSON.parse(event.data);
-      if (message.type !== "held") return;
-      const slot = holder.querySelector(".keepalive-state");
-      if (slot) {
-        slot.hidden = !message.nodes.length;
-        slot.textContent = message.nodes.length ? `This tab keeps node${message.nodes.length > 1 ? "s" : ""} ` +
-          `${message.nodes.join(", ")} running: closing it stops ${message.nodes.length > 1 ? "them" : "it"}.` : "";
-      }
-    };
-    socket.onclose = () => {
-      sockets.delete(path);
-      if (document.body.contains(holder)) setTimeout(() => { if (!sockets.has(path)) open(path, holder); }, 1000);
-    };
+    const entry = { holder };
+    sockets.set(path, entry);
+    entry.socket = window.drivebench.liveSocket(`${path}?client=${encodeURIComponent(window.drivebenchClientId)}`, {
+      onMessage: (message) => show(message, entry),
+      keepOpen: () => document.body.contains(entry.holder),
+      onClose: () => { if (!document.body.contains(entry.holder) && sockets.get(path) === entry) sockets.delete(path); },
+    });
   }
 
   function scan() {
     document.querySelectorAll("[data-keepalive]").forEach((holder) => {
-      if (!sockets.has(holder.dataset.keepalive)) open(holder.dataset.keepalive, holder);
+      const entry = sockets.get(holder.dataset.keepalive);
+      if (entry && !entry.socket.stopped) entry.holder = holder;  // the same part drawn again (htmx): socket stays
+      else open(holder.dataset.keepalive, holder);
     });
   }
 
   setInterval(() => {
-    for (const socket of sockets.values()) {
-      if (socket.readyState === WebSocket.OPEN) socket.send('{"cmd": "keepalive"}');
-    }
+    for (const entry of sockets.values()) entry.socket.send({ cmd: "keepalive" });
   }, 500);
   document.addEventListener("DOMContentLoaded", scan);
+  window.addEventListener("pageshow", (event) => { if (event.persisted) scan(); });  // back from the page cache
   document.addEventListener("htmx:afterSettle", scan);
-  window.addEventListener("pagehide", () => { for (const socket of sockets.values()) socket.close(); });
+  window.addEventListener("pagehide", () => { for (const entry of sockets.values()) entry.socket.close(); });
 })();

@@ -37,6 +37,7 @@ from drivebench.web.pages import plant as plant_page
 from drivebench.web.pages import profiles as profiles_page
 from drivebench.web.pages import remote as remote_page
 from drivebench.web.pages import tools as tools_page
+from drivebench.web.security_headers import SecurityHeaders
 from drivebench.web.state import AppState
 from drivebench.web.tls import HstsMiddleware
 from drivebench.web.viewer import ViewerScope
@@ -105,6 +106,7 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
     app.add_middleware(BodyLimit, limit_bytes=settings.max_upload_bytes)  # before anything reads a body
     if settings.hsts if hsts is None else hsts:
         app.add_middleware(HstsMiddleware)
+    app.add_middleware(SecurityHeaders)  # outermost: every answer carries the CSP, refusals too
     for router in API_ROUTERS + PAGE_ROUTERS + WS_ROUTERS:
         app.include_router(router)
     app.mount("/static", StaticFiles(directory=settings.frontend_dir / "static"), name="static")
