@@ -80,13 +80,13 @@ def test_first_run_to_operation_enabled_and_back(server: tuple[str, Plant], page
     screenshot(page, "control-confirm")
     page.click("#ctl-confirm-ok")
     _current(page, "operation_enabled")
-    page.wait_for_function("document.querySelector('#ctl-armed').textContent.startsWith('armed')",
+    page.wait_for_function("() => document.querySelector('#ctl-armed').textContent.startsWith('armed')",
                            timeout=TIMEOUT_MS)
     page.fill("#ctl-setpoint input[name=value]", "300")
     page.click("#ctl-setpoint button[type=submit]")
     page.click("#ctl-confirm-ok")
-    page.wait_for_function("document.querySelector('.ctl-value[data-ref=\"0x6044\"]')?.textContent.startsWith('300')",
-                           timeout=TIMEOUT_MS)
+    page.wait_for_function("() => document.querySelector('.ctl-value[data-ref=\"0x6044\"]')"
+                           "?.textContent.startsWith('300')", timeout=TIMEOUT_MS)
     assert page.locator("#ctl-cw").inner_text() == "0x007F"
     _shown(page, "r0027", lambda text: text.endswith(" A") and float(text.split()[0]) > 0)  # running: current flows
     assert "Operation enabled" in page.locator("#ctl-sw-bits tr.on").all_inner_texts()[2]
@@ -105,7 +105,7 @@ def test_first_run_to_operation_enabled_and_back(server: tuple[str, Plant], page
     _current(page, "switched_on")
     page.click("button[data-command=shutdown]")
     _current(page, "ready")
-    page.wait_for_function("document.querySelector('#ctl-armed').textContent === 'not armed'", timeout=TIMEOUT_MS)
+    page.wait_for_function("() => document.querySelector('#ctl-armed').textContent === 'not armed'", timeout=TIMEOUT_MS)
     screenshot(page, "control-back-to-ready")
     _shown(page, "r0027", lambda text: text == "0 A")  # pulses inhibited: no current
 
@@ -121,10 +121,10 @@ def test_guided_commissioning_8200_vector(server: tuple[str, Plant], page: Any) 
         done = page.locator("table.ctl-run tr.done").count()
         answered = f"document.querySelectorAll('table.ctl-run tr.done, table.ctl-run tr.failed').length > {done}"
         page.click("#ctl-seq-next")
-        page.wait_for_function(f"document.querySelector('#ctl-confirm[open]') || {answered}", timeout=TIMEOUT_MS)
+        page.wait_for_function(f"() => document.querySelector('#ctl-confirm[open]') || {answered}", timeout=TIMEOUT_MS)
         if page.locator("#ctl-confirm[open]").count():
             page.click("#ctl-confirm-ok")
-        page.wait_for_function(answered, timeout=TIMEOUT_MS)
+        page.wait_for_function(f"() => {answered}", timeout=TIMEOUT_MS)
     assert page.locator("table.ctl-run tr.failed").count() == 0
     assert "answered as the manual expects" in page.locator(".ok-note").inner_text()
     assert "→ 0x60C 23 FE 5F 00 30 75 00 00" in page.locator("table.ctl-run").inner_text()
@@ -155,7 +155,7 @@ def test_second_panel_watches_the_drive_the_first_holds(server: tuple[str, Plant
         anna.click("button[data-command=enable_operation]")
         anna.click("#ctl-confirm-ok")
         _current(anna, "operation_enabled")
-        anna.wait_for_function("document.querySelector('#ctl-holder').textContent.startsWith('This panel holds')",
+        anna.wait_for_function("() => document.querySelector('#ctl-holder').textContent.startsWith('This panel holds')",
                                timeout=TIMEOUT_MS)
         ben.wait_for_selector("#ctl-holder.watching", timeout=TIMEOUT_MS)
         assert ben.locator("#ctl-holder").inner_text().startswith("Held by Anna at 127.0.0.1 since ")
@@ -165,7 +165,7 @@ def test_second_panel_watches_the_drive_the_first_holds(server: tuple[str, Plant
         assert ben.is_enabled("button[data-command=quick_stop]")
         screenshot(ben, "control-watching-panel")
         ben_context.close()
-        anna.wait_for_function("document.querySelector('#ctl-panels').textContent === '1 panel open'",
+        anna.wait_for_function("() => document.querySelector('#ctl-panels').textContent === '1 panel open'",
                                timeout=TIMEOUT_MS)
         anna.wait_for_timeout(500)  # a trip would show at once; none must come
         assert anna.locator("#ctl-trip").is_hidden()

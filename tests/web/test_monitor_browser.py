@@ -38,17 +38,17 @@ def test_counters_move_chart_renders_trace_decodes(page: Any, monitor_server: st
     page.goto(f"{monitor_server}/monitor")
     assert page.url.endswith(f"/monitor/{SESSION_ID}")
     page.wait_for_selector("#live-state.live", timeout=10_000)
-    page.wait_for_function("document.getElementById('stat-frames').textContent.replace(/,/g, '') > 0",
+    page.wait_for_function("() => document.getElementById('stat-frames').textContent.replace(/,/g, '') > 0",
                            timeout=10_000)
     first = _frames(page)
-    page.wait_for_function(f"Number(document.getElementById('stat-frames').textContent.replace(/,/g, '')) > {first}",
-                           timeout=10_000)
+    page.wait_for_function(f"() => Number(document.getElementById('stat-frames').textContent.replace(/,/g, '')) > "
+                           f"{first}", timeout=10_000)
     assert page.locator("#services-body tr", has_text="Heartbeat / boot-up").count() == 1
     assert page.locator("#nodes-body tr", has_text="Conveyor (8400 motec)").count() == 1
     # The chart: uPlot's canvas, fed with one-second load points (> 0 %: heartbeats are on the bus).
     assert page.locator("#load-chart canvas").count() >= 1
-    page.wait_for_function("window.monitorChart.data[0].length >= 2 && Math.max(...window.monitorChart.data[1]) > 0",
-                           timeout=10_000)
+    page.wait_for_function("() => window.monitorChart.data[0].length >= 2 && "
+                           "Math.max(...window.monitorChart.data[1]) > 0", timeout=10_000)
     # Drag-zoom narrows the time axis and stays while updates arrive; a double-click goes back to the whole history.
     span = "window.monitorChart.scales.x.max - window.monitorChart.scales.x.min"
     assert page.evaluate(span) >= 60
@@ -63,7 +63,7 @@ def test_counters_move_chart_renders_trace_decodes(page: Any, monitor_server: st
     time.sleep(0.5)  # several updates
     assert page.evaluate(span) == pytest.approx(zoomed)
     page.dblclick("#load-chart .u-over")
-    page.wait_for_function(f"{span} >= 60", timeout=5_000)
+    page.wait_for_function(f"() => {span} >= 60", timeout=5_000)
     # Decoded trace rows; SDO traffic from reading the drive's own counters names the objects.
     page.click("text=Read device counters")
     page.wait_for_selector("#device-counters table", timeout=15_000)
@@ -135,7 +135,7 @@ def test_two_viewers_filter_and_pause_on_their_own(browser: Any, monitor_server:
         filtered.check("input[name=services][value=Heartbeat]")
         filtered.fill("input[name=nodes]", "12")
         filtered.click("#filter-form button[type=submit]")
-        filtered.wait_for_function("[...document.querySelectorAll('#trace-body td.cob')].length >= 3 && "
+        filtered.wait_for_function("() => [...document.querySelectorAll('#trace-body td.cob')].length >= 3 && "
                                    "[...document.querySelectorAll('#trace-body td.cob')].every(c => c.textContent === "
                                    "'0x70C')", timeout=10_000)
         other.wait_for_selector("#trace-body td.cob >> text=0x705", timeout=10_000)
@@ -149,15 +149,15 @@ def test_two_viewers_filter_and_pause_on_their_own(browser: Any, monitor_server:
         filtered.wait_for_selector("#live-state.paused", timeout=5_000)
         time.sleep(0.3)
         frozen, moving = _frames(filtered), _frames(other)
-        other.wait_for_function(f"Number(document.getElementById('stat-frames').textContent.replace(/,/g, '')) > "
+        other.wait_for_function(f"() => Number(document.getElementById('stat-frames').textContent.replace(/,/g, '')) > "
                                 f"{moving + 5}", timeout=10_000)
         assert other.text_content("#live-state") == "live"
         assert _frames(filtered) == frozen
         screenshot(filtered, "monitor-viewer-paused")
         screenshot(other, "monitor-viewer-live")
         filtered.click("#pause")
-        filtered.wait_for_function(f"Number(document.getElementById('stat-frames').textContent.replace(/,/g, '')) > "
-                                   f"{frozen}", timeout=10_000)
+        filtered.wait_for_function("() => Number(document.getElementById('stat-frames').textContent"
+                                   f".replace(/,/g, '')) > {frozen}", timeout=10_000)
         assert _cobs(filtered) == {"0x70C"}  # the filter survives the pause
     finally:
         for context in contexts:
@@ -188,10 +188,10 @@ def test_trace_length_is_chosen_and_remembered(page: Any, monitor_server: str) -
     page.goto(f"{monitor_server}/monitor/{SESSION_ID}")
     page.wait_for_selector("#live-state.live", timeout=10_000)
     assert page.input_value("#trace-length") == "500"
-    page.wait_for_function("document.querySelectorAll('#trace-body tr').length > 5", timeout=10_000)
+    page.wait_for_function("() => document.querySelectorAll('#trace-body tr').length > 5", timeout=10_000)
     page.select_option("#trace-length", "2000")
     assert page.evaluate("localStorage.getItem('drivebench.monitor.traceRows')") == "2000"
-    page.wait_for_function("document.getElementById('trace-count').textContent.endsWith('of 2,000 rows')",
+    page.wait_for_function("() => document.getElementById('trace-count').textContent.endsWith('of 2,000 rows')",
                            timeout=5_000)
     page.reload()
     page.wait_for_selector("#live-state.live", timeout=10_000)
@@ -201,7 +201,7 @@ def test_trace_length_is_chosen_and_remembered(page: Any, monitor_server: str) -
     page.reload()
     page.wait_for_selector("#live-state.live", timeout=10_000)
     assert page.input_value("#trace-length") == "500"
-    page.wait_for_function("document.querySelectorAll('#trace-body tr').length >= 3", timeout=10_000)
+    page.wait_for_function("() => document.querySelectorAll('#trace-body tr').length >= 3", timeout=10_000)
     page.evaluate("""() => {  // pretend many rows came: the body is trimmed to the chosen length on change
         const body = document.getElementById('trace-body');
         const row = body.rows[0].outerHTML;
@@ -218,7 +218,7 @@ def test_trace_says_when_telegrams_came_faster_than_it_shows(page: Any, monitor_
 
     page.goto(f"{monitor_server}/monitor/{SESSION_ID}")
     page.wait_for_selector("#live-state.live", timeout=10_000)
-    page.wait_for_function("document.querySelectorAll('#trace-body tr').length > 2", timeout=10_000)
+    page.wait_for_function("() => document.querySelectorAll('#trace-body tr').length > 2", timeout=10_000)
     assert page.locator("#trace-body tr.gap").count() == 0
     with can.Bus(interface="virtual", channel=CHANNEL) as wire:
         for counter in range(400):  # a burst: far more than one update's 50 rows

@@ -11,6 +11,7 @@ from html.parser import HTMLParser
 import pytest
 from fastapi.testclient import TestClient
 
+from drivebench.config import REPO_ROOT
 from drivebench.web.templating import templates
 
 PAGES = ["/", "/monitor/demo-plant", "/tools", "/parameter-sets", "/profiles", "/profiles/siemens-micromaster4-canopen",
@@ -90,3 +91,8 @@ def test_the_api_docs_page_runs_its_own_script_by_hash_only(client: TestClient) 
     policy = directives(answer.headers["content-security-policy"])
     assert f"'sha256-{digest}'" in policy["script-src"] and "'unsafe-inline'" not in policy["script-src"]
     assert policy["frame-ancestors"] == ["'none'"]
+
+
+def test_no_template_marks_data_as_safe() -> None:
+    for template in (REPO_ROOT / "frontend" / "templates").rglob("*.html"):
+        assert not re.search(r"\|\s*safe\b|Markup\(", template.read_text()), template.name

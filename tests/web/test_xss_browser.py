@@ -191,11 +191,23 @@ def test_lease_holder_and_problem_texts_are_shown_as_text(server: tuple[str, Fas
     assert_clean(page, complaints, "control tab lease refusal")
 
     # htmx asking the JSON API: app.js shows the problem's title and detail next to the action
-    lease = f"/api/sessions/demo-plant/nodes/{JSON_NODE}/parameters/P2040"
-    page.evaluate("(url) => htmx.ajax('PUT', url, {source: '#toast', values: {value: 1}})", lease)
+    take_lease(base)
+    save = f"/api/sessions/demo-plant/nodes/{JSON_NODE}/commands/save"
+    page.evaluate("(url) => htmx.ajax('POST', url, {source: '#toast'})", save)
     toast = page.locator("#toast .error")
-    expect(toast).to_be_visible(timeout=WAIT_MS)
+    expect(toast).to_contain_text("Node is being written by someone else", timeout=WAIT_MS)
+    expect(toast).to_contain_text(PAYLOAD)
     screenshot(page, "xss-problem-toast")
+    assert_clean(page, complaints, "problem fragment in the toast")
+
+    # The server answers htmx with an HTML fragment it escaped; app.js shows a JSON problem reaching htmx (from a
+    # proxy, or a route answering JSON) itself: its title and detail must stay text as well.
+    problem = {"type": "about:blank", "title": PAYLOAD, "status": 409, "detail": f"held by {PAYLOAD}"}
+    page.route("**/commands/restore-defaults", lambda route: route.fulfill(
+        status=409, content_type="application/problem+json", body=json.dumps(problem)))
+    page.evaluate("(url) => htmx.ajax('POST', url, {source: '#toast'})", save.replace("save", "restore-defaults"))
+    expect(toast).to_contain_text(f"held by {PAYLOAD}", timeout=WAIT_MS)
+    expect(toast.locator("strong")).to_have_text(PAYLOAD)
     assert_clean(page, complaints, "JSON problem in the toast")
 
 
