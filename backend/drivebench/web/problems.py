@@ -11,7 +11,7 @@ from fastapi import FastAPI, Request
 from fastapi.exception_handlers import http_exception_handler
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import HTMLResponse, JSONResponse, Response
-from markupsafe import escape
+from markupsafe import Markup
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from drivebench import errors
@@ -68,13 +68,15 @@ def problem_body(exc: errors.DriveBenchError, instance: str) -> dict[str, object
     return body
 
 
-def error_fragment(body: dict[str, object]) -> str:
-    parts = [f'<strong>{escape(body["title"])}</strong> {escape(body["detail"])}']
+def error_fragment(body: dict[str, object]) -> Markup:
+    """The problem as the pages' error box; Markup.format escapes every value (titles and details may name a lease
+    holder, a profile's texts or a file name), so templates put it in as it is, without ``|safe``."""
+    parts = [Markup("<strong>{}</strong> {}").format(body["title"], body["detail"])]
     if "abort_code" in body and str(body["abort_code"]) not in str(body["detail"]):  # not twice
-        parts.append(f'<code class="abort">{escape(body["abort_code"])} {escape(body.get("abort_text", ""))}</code>')
+        parts.append(Markup('<code class="abort">{} {}</code>').format(body["abort_code"], body.get("abort_text", "")))
     if body.get("hint"):
-        parts.append(f'<div class="hint">{escape(body["hint"])}</div>')
-    return f'<div class="error" role="alert">{" ".join(parts)}</div>'
+        parts.append(Markup('<div class="hint">{}</div>').format(body["hint"]))
+    return Markup('<div class="error" role="alert">{}</div>').format(Markup(" ").join(parts))
 
 
 def wants_page(request: Request) -> bool:
