@@ -157,8 +157,10 @@ def test_payloads_in_every_profile_field_never_run(server: tuple[str, FastAPI], 
         if path.startswith("/profiles/"):
             for row in page.locator("tr.entry").all()[:20]:
                 row.click()  # the details row: description, selection list, bit names
-        if path.startswith("/monitor"):
-            page.locator("#nodes-body td.device").first.wait_for(timeout=WAIT_MS)
+        if path.startswith("/monitor"):  # an SDO read puts node 20 (named by a payload) into the node table
+            page.locator("#live-state.live").wait_for(timeout=WAIT_MS)
+            httpx.get(f"{base}/api/sessions/demo-plant/nodes/{JSON_NODE}/parameters/P2040", timeout=30)
+            expect(page.locator("#nodes-body td.device", has_text="onerror")).to_have_count(1, timeout=WAIT_MS)
         screenshot(page, "xss" + (path.replace("/", "-") if path != "/" else "-plant"))
         assert_clean(page, complaints, path)
     eds_profile = page.evaluate("fetch('/api/profiles').then((r) => r.json())")
