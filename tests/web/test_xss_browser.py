@@ -107,6 +107,7 @@ def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, Fast
             take_lease(base_url)
             answer = httpx.post(f"{api}/share-links", json={"ttl_minutes": 30, "label": PAYLOAD}, timeout=30)
             assert answer.status_code == 201, answer.text
+            app.state.xss_link = answer.json()["token"]  # shown once, at creation
             yield base_url, app
 
 
@@ -148,7 +149,7 @@ def open_node_tabs(page: Any, complaints: list[str], base: str, node_id: int) ->
 
 
 def test_payloads_in_every_profile_field_never_run(server: tuple[str, FastAPI], watched: Any) -> None:
-    base, _ = server
+    base, app = server
     page, complaints = watched
     for path in ("/", "/monitor/demo-plant", "/tools", "/parameter-sets", "/profiles", "/profiles/xss-micromaster",
                  "/remote"):
@@ -172,8 +173,7 @@ def test_payloads_in_every_profile_field_never_run(server: tuple[str, FastAPI], 
     for node_id in (JSON_NODE, EDS_NODE, 3):
         open_node_tabs(page, complaints, base, node_id)
 
-    token = httpx.get(f"{base}/api/share-links", timeout=30).json()[0]["token"]
-    page.goto(f"{base}/remote/{token}")
+    page.goto(f"{base}/remote/{app.state.xss_link}")
     page.locator("#remote-health").wait_for(timeout=WAIT_MS)
     assert_clean(page, complaints, "remote view")
 
