@@ -81,15 +81,14 @@ def bench(registry: ProfileRegistry, channel: str, db_url: str) -> Iterator[Benc
     plant = Plant(PlantFile.model_validate(PLANT), registry.get, bus=f"virtual:{channel}@500000",
                   latency="0ms").start()
     runner = asyncio.Runner()
-    manager = SessionManager(registry, sdo_timeout_s=1.0, sdo_retries=1)  # a loaded CI machine is slow
+    manager = SessionManager(registry, sdo_timeout_s=1.0, sdo_retries=1,  # a loaded CI machine is slow
+                             write_audits=[audit.AuditLog(db_url)])
     session = runner.run(manager.open(plant.spec, "sets"))
     for node in PLANT["nodes"]:
         session.add_node(node["node_id"], node["profile"])  # type: ignore[arg-type]
-    log = audit.install(db_url)
     try:
         yield Bench(runner, session, plant, ParameterSetStore(db_url), db_url)
     finally:
-        audit.uninstall(log)
         runner.run(manager.close_all())
         runner.close()
         plant.stop()
@@ -331,9 +330,9 @@ plant = Plant(plant_file, registry.get, bus="virtual:kill@500000", latency="25ms
 
 
 async def main() -> None:
-    session = await SessionManager(registry, sdo_timeout_s=3, sdo_retries=0).open(plant.spec, "kill")
+    manager = SessionManager(registry, sdo_timeout_s=3, sdo_retries=0, write_audits=[audit.AuditLog(url)])
+    session = await manager.open(plant.spec, "kill")
     session.add_node(5, "lenze-8400-motec-canopen")
-    audit.install(url)
     store = ParameterSetStore(url)
     job = set_jobs.start_download(session, 5, JobManager(), store, store.get(set_id))
     await job.wait()

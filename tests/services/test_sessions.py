@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import asyncio
 import socket
+import threading
 import time
 from collections.abc import Awaitable, Callable, Coroutine
 from typing import Any, TypeVar
@@ -14,6 +15,8 @@ import pytest
 from drivebench.device.loader import ProfileRegistry
 from drivebench.errors import AdapterUnavailable, BusSpecError, Conflict, NotFound
 from drivebench.protocol.nmt import NmtCommand
+from drivebench.services import node_lease, process_data
+from drivebench.services.monitor import monitor_for
 from drivebench.services.sessions import Session, SessionManager
 from drivebench.simulator.plant import Plant
 from drivebench.transport.bus import BusSpec
@@ -97,6 +100,30 @@ def test_two_sessions_with_the_same_name_get_distinct_ids(registry: ProfileRegis
             one = await manager.open(f"virtual:{fresh_channel()}", "Line")
             two = await manager.open(f"virtual:{fresh_channel()}", "Line")
             assert one.id == "line" and two.id != one.id
+        finally:
+            await manager.close_all()
+
+    run(main)
+
+
+def test_each_session_has_its_own_services_made_at_open_and_closed_with_it(registry: ProfileRegistry) -> None:
+    async def main() -> None:
+        manager = SessionManager(registry)
+        one = await manager.open(f"virtual:{fresh_channel()}@500000", "One")
+        two = await manager.open(f"virtual:{fresh_channel()}@500000", "Two")
+        try:
+            assert one.services is not two.services
+            assert monitor_for(one) is one.services.monitor and monitor_for(two) is two.services.monitor
+            assert node_lease.leases(one) is not node_lease.leases(two)
+            assert process_data.service(one) is not process_data.service(two)
+            others = set(threading.enumerate())
+            process_data.service(one).start_sync(10)
+            (producer,) = set(threading.enumerate()) - others
+            await until(lambda: monitor_for(one).snapshot()["totals"]["frames"] > 0)  # counting from the start
+            await manager.close(one.id)
+            assert one.services.process_data.sync_period_ms is None
+            await until(lambda: not producer.is_alive())  # the SYNC producer stopped with the session
+            assert two.services.monitor.snapshot()["totals"]["frames"] == 0  # the other session saw none of it
         finally:
             await manager.close_all()
 

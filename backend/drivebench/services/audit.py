@@ -92,7 +92,8 @@ def outcome(result: WriteResult | None, error: BaseException | None) -> tuple[st
 
 
 class AuditLog:
-    """The :class:`~drivebench.services.parameters.WriteAudit` that stores rows (``url``: None = settings')."""
+    """The :class:`~drivebench.services.parameters.WriteAudit` that stores rows (``url``: None = settings'); a server
+    hands it to its session manager, which gives it to every session it opens."""
 
     def __init__(self, url: str | None = None) -> None:
         self.url = url
@@ -118,32 +119,6 @@ class AuditLog:
     def _complete(self, row_id: int, state: str, detail: str | None) -> None:
         with transaction(self.url) as db:
             db.execute(update(AuditRow).where(AuditRow.id == row_id).values(result=state, detail=detail))
-
-
-_installed: dict[str | None, tuple[AuditLog, int]] = {}
-"""One log per database URL however many apps run in the process (tests, a live server): a write is logged once."""
-
-
-def install(url: str | None = None) -> AuditLog:
-    """Log every write :func:`parameters.write` sends from now on (a server calls it at start-up)."""
-    log, users = _installed.get(url, (None, 0))
-    if log is None:
-        log = AuditLog(url)
-        parameters.WRITE_AUDITS.append(log)
-    _installed[url] = (log, users + 1)
-    return log
-
-
-def uninstall(log: AuditLog) -> None:
-    found, users = _installed.get(log.url, (None, 0))
-    if found is not log:
-        return
-    if users > 1:
-        _installed[log.url] = (log, users - 1)
-        return
-    del _installed[log.url]
-    with contextlib.suppress(ValueError):
-        parameters.WRITE_AUDITS.remove(log)
 
 
 def entries(url: str | None = None, *, node_id: int | None = None, session_id: str | None = None,

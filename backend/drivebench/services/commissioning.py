@@ -18,7 +18,6 @@ import asyncio
 import threading
 import time
 import uuid
-import weakref
 from dataclasses import dataclass, field
 
 import can
@@ -267,14 +266,8 @@ class Wizard:
         return self.runs[run_id]
 
 
-_WIZARDS: weakref.WeakKeyDictionary[Session, Wizard] = weakref.WeakKeyDictionary()
-
-
 def wizard(session: Session) -> Wizard:
-    found = _WIZARDS.get(session)
-    if found is None:
-        found = _WIZARDS[session] = Wizard()
-    return found
+    return session.services.wizard
 
 
 def _telegrams(capture: _Capture, t0: float) -> list[Telegram]:

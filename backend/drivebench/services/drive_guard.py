@@ -285,14 +285,8 @@ class Guard:
                                     if page else f"no keep-alive for {timeout:g} s")
 
 
-_GUARDS: weakref.WeakKeyDictionary[Session, Guard] = weakref.WeakKeyDictionary()
-
-
 def guard_for(session: Session) -> Guard:
-    guard = _GUARDS.get(session)
-    if guard is None:
-        guard = _GUARDS[session] = Guard(session)
-    return guard
+    return session.services.guard
 
 
 # --- NMT and RPDOs: confirmed, armed, stopped by the guard ----------------------------------------------------

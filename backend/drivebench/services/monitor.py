@@ -512,16 +512,13 @@ class _Lookups:
         return None
 
 
-_monitors: weakref.WeakKeyDictionary[Session, Monitor] = weakref.WeakKeyDictionary()
-_monitors_lock = threading.Lock()
+def attach(session: Session) -> Monitor:
+    """A monitor on the session's frames (made with the session's services when it opens)."""
+    monitor = Monitor(session)
+    session.add_frame_listener(monitor)
+    session.health.notes.append(monitor.flood_text)
+    return monitor
 
 
 def monitor_for(session: Session) -> Monitor:
-    """The session's monitor, attached to its frames on first use."""
-    with _monitors_lock:
-        monitor = _monitors.get(session)
-        if monitor is None:
-            monitor = _monitors[session] = Monitor(session)
-            session.add_frame_listener(monitor)
-            session.health.notes.append(monitor.flood_text)
-        return monitor
+    return session.services.monitor

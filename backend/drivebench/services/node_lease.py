@@ -20,7 +20,6 @@ import functools
 import logging
 import threading
 import time
-import weakref
 from collections.abc import Awaitable, Callable, Iterator
 from contextvars import ContextVar
 from dataclasses import dataclass, field
@@ -176,14 +175,8 @@ class SessionLeases:
         return lease
 
 
-_LEASES: weakref.WeakKeyDictionary[Session, SessionLeases] = weakref.WeakKeyDictionary()
-
-
 def leases(session: Session) -> SessionLeases:
-    found = _LEASES.get(session)
-    if found is None:
-        found = _LEASES[session] = SessionLeases()
-    return found
+    return session.services.leases
 
 
 # --- who writes: set per request by the web layer ---------------------------------------------------------------

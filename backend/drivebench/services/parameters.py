@@ -157,18 +157,16 @@ class SessionParameters:
                 client.channels.remove(state.sdo2)
 
 
-_SERVICES: weakref.WeakKeyDictionary[Session, SessionParameters] = weakref.WeakKeyDictionary()
+def attach(session: Session) -> SessionParameters:
+    """The parameter state of a session (made with the session's services when it opens)."""
+    network = session.network
+    state = SessionParameters(weakref.ref(session), SdoSettings(network.sdo_timeout_s, network.sdo_retries))
+    network.heartbeat.add_callback(state.on_heartbeat)
+    return state
 
 
 def service(session: Session) -> SessionParameters:
-    """The parameter state of a session (created on first use)."""
-    state = _SERVICES.get(session)
-    if state is None:
-        network = session.network
-        state = SessionParameters(weakref.ref(session), SdoSettings(network.sdo_timeout_s, network.sdo_retries))
-        network.heartbeat.add_callback(state.on_heartbeat)
-        _SERVICES[session] = state
-    return state
+    return session.services.parameters
 
 
 def configure(session: Session, settings: SdoSettings) -> SdoSettings:
@@ -441,10 +439,6 @@ class WriteAudit(Protocol):
     async def done(self, token: object, result: WriteResult | None, error: BaseException | None) -> None: ...
 
 
-WRITE_AUDITS: list[WriteAudit] = []
-"""Registered by ``services/audit.py`` while a server runs."""
-
-
 def _unchecked_raw(item: Item, value: object) -> RawValue:
     """The raw value without the profile's range/selection/read-only checks (the device decides); it must
     still fit the data type: nothing is ever truncated."""
@@ -480,11 +474,12 @@ async def _write(session: Session, node_id: int, ref: str, value: object, *, che
     except ValueError as exc:
         raise OutOfRange(f"{item.ref} ({item.entry.name}): {value!r} does not fit "
                          f"{item.entry.data_type.value}") from exc
-    if not WRITE_AUDITS:
+    audits = session.services.write_audits
+    if not audits:
         return await _send(session, node, item, raw, data, verify)
     attempt = WriteAttempt(session, node_id, item, service(session).values.get(node_id, {}).get(item.ref),
                            from_raw(item.entry, raw))
-    tokens = [(audit, await audit.sending(attempt)) for audit in WRITE_AUDITS]
+    tokens = [(audit, await audit.sending(attempt)) for audit in audits]
     try:
         result = await _send(session, node, item, raw, data, verify)
     except BaseException as exc:

@@ -144,7 +144,7 @@ class _FrameTap(can.Listener):
 
 
 class ProcessData:
-    """Process data of one session (created on first use by :func:`service`)."""
+    """Process data of one session (made with the session's services when it opens)."""
 
     def __init__(self, session: Session) -> None:
         self._session = weakref.ref(session)
@@ -288,11 +288,5 @@ class ProcessData:
         self._sync_stop, self.sync_period_ms = None, None
 
 
-_SERVICES: weakref.WeakKeyDictionary[Session, ProcessData] = weakref.WeakKeyDictionary()
-
-
 def service(session: Session) -> ProcessData:
-    state = _SERVICES.get(session)
-    if state is None:
-        state = _SERVICES[session] = ProcessData(session)
-    return state
+    return session.services.process_data

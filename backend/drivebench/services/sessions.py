@@ -12,7 +12,7 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import can
 
@@ -26,6 +26,10 @@ from drivebench.protocol.nmt import STATE_AFTER, NmtCommand, NmtState
 from drivebench.services.bus_state import ADAPTER_LOST, BusHealth
 from drivebench.services.duplicates import DuplicateWatch
 from drivebench.transport.bus import BusSpec, open_bus
+
+if TYPE_CHECKING:
+    from drivebench.services.parameters import WriteAudit
+    from drivebench.services.session_services import SessionServices
 
 
 class ProfileSource(Protocol):
@@ -73,6 +77,9 @@ def _slug(text: str) -> str:
 
 
 class Session:
+    services: SessionServices
+    """What the services keep for this session (monitor, parameters, leases ...): set by ``SessionManager.open``."""
+
     def __init__(self, session_id: str, name: str, spec: BusSpec, network: CanopenNetwork,
                  profiles: ProfileSource, *, simulated: bool = False) -> None:
         self.id = session_id
@@ -234,8 +241,11 @@ class Session:
 class SessionManager:
     """The open sessions of this server."""
 
-    def __init__(self, profiles: ProfileSource, *, sdo_timeout_s: float = 0.5, sdo_retries: int = 1) -> None:
+    def __init__(self, profiles: ProfileSource, *, sdo_timeout_s: float = 0.5, sdo_retries: int = 1,
+                 write_audits: list[WriteAudit] | None = None) -> None:
         self.profiles = profiles
+        self.write_audits = write_audits or []
+        """Told about every write of every session (the server's audit log)."""
         self.sdo_timeout_s = sdo_timeout_s
         self.sdo_retries = sdo_retries
         self._sessions: dict[str, Session] = {}
@@ -255,6 +265,9 @@ class SessionManager:
             if session_id in self._sessions:
                 session_id = f"{session_id}-{next(self._ids)}"
             session = Session(session_id, label, bus_spec, network, self.profiles, simulated=simulated)
+            from drivebench.services.session_services import SessionServices  # it imports the session's services
+
+            session.services = SessionServices.open(session, self.write_audits)
             self._sessions[session_id] = session
             return session
 
@@ -271,6 +284,7 @@ class SessionManager:
         session = self.get(session_id)
         async with self._lock:
             self._sessions.pop(session_id, None)
+        session.services.close(session)
         await asyncio.to_thread(session.close)
 
     async def close_all(self) -> None:

@@ -80,9 +80,9 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         asyncio.get_running_loop().set_default_executor(ThreadPoolExecutor(64, thread_name_prefix="bus-work"))
         await asyncio.to_thread(upgrade_to_head)  # the database schema (settings.database_url) to the newest
-        audit_log = audit.install()  # every write the tool sends is logged in the database
         registry = await asyncio.to_thread(ProfileRegistry)
-        manager = SessionManager(registry, sdo_timeout_s=settings.sdo_timeout_s, sdo_retries=settings.sdo_retries)
+        manager = SessionManager(registry, sdo_timeout_s=settings.sdo_timeout_s, sdo_retries=settings.sdo_retries,
+                                 write_audits=[audit.AuditLog()])  # every write the tool sends is logged
         state = AppState(registry, manager, share_links=share_links)
         app.state.drivebench = state
         if demo or plant_file:
@@ -93,7 +93,6 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
         try:
             yield
         finally:
-            audit.uninstall(audit_log)
             await manager.close_all()
             for plant in state.plants.values():
                 await asyncio.to_thread(plant.stop)
