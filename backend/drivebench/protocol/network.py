@@ -66,7 +66,7 @@ class NodeClient:
 
     def _with_channel(self, index: int, sub: int, work: Callable[[canopen.sdo.SdoClient], T],
                       channel: int | None = None) -> T:
-        chosen = self._pick_channel(channel)
+        chosen = self.pick_channel(channel)
         with chosen.lock:
             try:
                 return work(chosen.client)
@@ -80,7 +80,8 @@ class NodeClient:
                                      hint="Check the adapter connection; the session reconnects when it is back."
                                      ) from exc
 
-    def _pick_channel(self, channel: int | None) -> SdoChannel:
+    def pick_channel(self, channel: int | None) -> SdoChannel:
+        """SDO channel ``channel`` (1 = the default SDO server), or without one the first that is free."""
         if channel is not None:
             if not 1 <= channel <= len(self.channels):
                 raise ProtocolError(f"Node {self.node_id} has no SDO channel {channel} configured")

@@ -301,7 +301,7 @@ _UPLOADERS: weakref.WeakKeyDictionary[SdoChannel, ExpeditedUploader] = weakref.W
 def uploader(client: NodeClient, channel: int | None = None) -> ExpeditedUploader:
     """The uploader of the node's SDO channel ``channel`` (1-based; None: the first one not busy), made on first
     use and kept as long as the channel."""
-    chosen = client._pick_channel(channel)
+    chosen = client.pick_channel(channel)
     found = _UPLOADERS.get(chosen)
     if found is None:
         found = _UPLOADERS[chosen] = ExpeditedUploader(client, chosen)

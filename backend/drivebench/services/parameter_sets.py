@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
 
+from pydantic import BaseModel, ConfigDict
 from sqlalchemy import delete, select, update
 
 from drivebench.device.catalog import Catalog, Item
@@ -125,8 +126,11 @@ def defaults_of(profile: Profile, node_id: int | None = None) -> Values:
 
 
 # --- stored sets -------------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class SetInfo:
+class SetInfo(BaseModel):
+    """A stored set without its values (also the API's answer)."""
+
+    model_config = ConfigDict(frozen=True)
+
     id: int
     name: str
     profile_id: str
@@ -150,8 +154,9 @@ class StoredSet:
     version: int
 
 
-@dataclass(frozen=True)
-class SetVersion:
+class SetVersion(BaseModel):
+    model_config = ConfigDict(frozen=True)
+
     version: int
     created: datetime
     created_by: str
@@ -160,8 +165,9 @@ class SetVersion:
 
 
 def _info(row: ParameterSetRow, count: int) -> SetInfo:
-    return SetInfo(row.id, row.name, row.profile_id, row.profile_version, row.device, row.node_id, row.session_id,
-                   row.created, row.updated, row.created_by, row.note, row.version, count)
+    return SetInfo(id=row.id, name=row.name, profile_id=row.profile_id, profile_version=row.profile_version,
+                   device=row.device, node_id=row.node_id, session_id=row.session_id, created=row.created,
+                   updated=row.updated, created_by=row.created_by, note=row.note, version=row.version, count=count)
 
 
 def _check_name(name: str) -> str:
@@ -259,7 +265,8 @@ class ParameterSetStore:
             self._row(db, set_id)
             rows = db.scalars(select(ParameterSetVersionRow).where(ParameterSetVersionRow.set_id == set_id)
                               .order_by(ParameterSetVersionRow.version.desc()))
-            return [SetVersion(r.version, r.created, r.created_by, r.reason, r.count) for r in rows]
+            return [SetVersion(version=r.version, created=r.created, created_by=r.created_by, reason=r.reason,
+                               count=r.count) for r in rows]
 
     # --- downloads ---------------------------------------------------------------------------------------
     def start_download(self, *, kind: str, session_id: str, node_id: int, profile_id: str, user: str,
@@ -346,8 +353,9 @@ class Source:
     """Refs that could not be read from a device, with why."""
 
 
-@dataclass(frozen=True)
-class Difference:
+class Difference(BaseModel):
+    model_config = ConfigDict(frozen=True)
+
     ref: str
     name: str
     group: str
@@ -360,8 +368,9 @@ class Difference:
     """``changed``, ``only left``, ``only right`` or ``unreadable``."""
 
 
-@dataclass(frozen=True)
-class Comparison:
+class Comparison(BaseModel):
+    model_config = ConfigDict(frozen=True)
+
     left: str
     right: str
     profile_id: str
@@ -411,9 +420,10 @@ def compare(left: Source, right: Source, *, query: str = "", group: str | None =
             left_text = left.unread[ref]
         if ref in right.unread:
             right_text = right.unread[ref]
-        rows.append(Difference(ref, name, item_group, item.entry.unit if item else None, left_text, right_text,
-                               a, b, kind))
-    return Comparison(left.label, right.label, left.profile.id, len(refs), equal, rows, total)
+        rows.append(Difference(ref=ref, name=name, group=item_group, unit=item.entry.unit if item else None,
+                               left=left_text, right=right_text, left_raw=a, right_raw=b, kind=kind))
+    return Comparison(left=left.label, right=right.label, profile_id=left.profile.id, compared=len(refs),
+                      equal=equal, rows=rows, total_differences=total)
 
 
 def comparison_csv(comparison: Comparison) -> str:

@@ -17,8 +17,9 @@ from __future__ import annotations
 
 import asyncio
 import uuid
-from dataclasses import asdict, dataclass
 from typing import Any
+
+from pydantic import BaseModel
 
 from drivebench.device.catalog import Item
 from drivebench.device.profile import Profile
@@ -47,8 +48,9 @@ CHANGED = ("written", "mismatch", "failed")
 """Report states a rollback restores (a failed write may still have changed the value)."""
 
 
-@dataclass
-class ReportLine:
+class ReportLine(BaseModel):
+    """One parameter of a download report (also the API's answer)."""
+
     ref: str
     name: str
     status: str
@@ -177,12 +179,13 @@ async def preview(session: Session, node_id: int, stored: StoredSet) -> list[Rep
             continue
         item = _resolve(catalog, ref)
         if item is None:
-            lines.append(ReportLine(ref, "(not in the profile)", "failed", None, str(target), None,
-                                    "not a parameter of this profile", target_raw=target))
+            lines.append(ReportLine(ref=ref, name="(not in the profile)", status="failed", before=None,
+                                    target=str(target), now=None, detail="not a parameter of this profile",
+                                    target_raw=target))
             continue
-        lines.append(ReportLine(ref, item.name, "will change", shown(item, before), shown(item, target),
-                                shown(item, before), current.unread.get(ref), before_raw=before, target_raw=target,
-                                now_raw=before))
+        lines.append(ReportLine(ref=ref, name=item.name, status="will change", before=shown(item, before),
+                                target=shown(item, target), now=shown(item, before), detail=current.unread.get(ref),
+                                before_raw=before, target_raw=target, now_raw=before))
     return lines
 
 
@@ -284,7 +287,7 @@ class _Writer:
         self.timeouts = 0
 
     def report(self) -> list[dict[str, Any]]:
-        return [asdict(line) for line in self.lines.values()]
+        return [line.model_dump() for line in self.lines.values()]
 
     def failures(self) -> list[ReportLine]:
         return [line for line in self.lines.values() if line.status in REDO]
@@ -296,9 +299,10 @@ class _Writer:
         item = self.items.get(ref)
         before = self.before.get(ref)
         name = item.name if item else "(not in the profile)"
-        line = ReportLine(ref, name, "not attempted", shown(item, before) if item else None,
-                          shown(item, target) if item else str(target), shown(item, before) if item else None,
-                          before_raw=before, target_raw=target, now_raw=before)
+        line = ReportLine(ref=ref, name=name, status="not attempted", before=shown(item, before) if item else None,
+                          target=shown(item, target) if item else str(target),
+                          now=shown(item, before) if item else None, before_raw=before, target_raw=target,
+                          now_raw=before)
         self.lines[ref] = line
         return line
 

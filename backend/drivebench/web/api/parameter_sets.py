@@ -37,6 +37,7 @@ from drivebench.services.parameter_sets import (
     shown,
 )
 from drivebench.services.sessions import SessionManager
+from drivebench.services.set_jobs import ReportLine
 from drivebench.web.api.parameters import JobOut, JobsDep, job_out
 from drivebench.web.deps import MAX_ROW_ID, ManagerDep, RowId, RowVersion, StateDep
 from drivebench.web.safety import ACTING
@@ -55,23 +56,7 @@ def user_of(header: str | None) -> str:
     return (header or "").strip()[:120] or audit.current_user.get()
 
 
-# --- models ------------------------------------------------------------------------------------------------
-class SetOut(BaseModel):
-    id: int
-    name: str
-    profile_id: str
-    profile_version: str
-    device: str
-    node_id: int | None
-    session_id: str | None
-    created: datetime
-    updated: datetime
-    created_by: str
-    note: str
-    version: int
-    count: int
-
-
+# --- models (sets, versions, comparisons and report lines are the services' own) ---------------------------
 class SetValueOut(BaseModel):
     ref: str
     name: str
@@ -80,17 +65,9 @@ class SetValueOut(BaseModel):
     unit: str | None
 
 
-class SetDetailOut(SetOut):
+class SetDetailOut(SetInfo):
     shown_version: int
     values: list[SetValueOut]
-
-
-class VersionOut(BaseModel):
-    version: int
-    created: datetime
-    created_by: str
-    reason: str
-    count: int
 
 
 class SetUpdate(BaseModel):
@@ -124,28 +101,6 @@ class CompareIn(BaseModel):
     group: str | None = None
 
 
-class DifferenceOut(BaseModel):
-    ref: str
-    name: str
-    group: str
-    unit: str | None
-    left: str | None
-    right: str | None
-    left_raw: int | float | str | None
-    right_raw: int | float | str | None
-    kind: str
-
-
-class ComparisonOut(BaseModel):
-    left: str
-    right: str
-    profile_id: str
-    compared: int
-    equal: int
-    total_differences: int
-    rows: list[DifferenceOut]
-
-
 class TargetIn(BaseModel):
     session_id: str
     node_id: int = Field(ge=1, le=127)
@@ -166,23 +121,8 @@ class CopyIn(BaseModel):
 
 
 class CopyOut(BaseModel):
-    set: SetOut
+    set: SetInfo
     notes: list[str]
-
-
-class ReportLineOut(BaseModel):
-    ref: str
-    name: str
-    status: str
-    before: str | None
-    target: str | None
-    now: str | None
-    detail: str | None = None
-    abort_code: str | None = None
-    abort_text: str | None = None
-    before_raw: int | float | str | None = None
-    target_raw: int | float | str | None = None
-    now_raw: int | float | str | None = None
 
 
 class DownloadOut(BaseModel):
@@ -200,7 +140,7 @@ class DownloadOut(BaseModel):
     """``running``, ``done``, ``incomplete`` (some failed), ``cancelled``, ``failed`` or ``interrupted`` (the
     server stopped during it: the values read first are stored, roll back to restore them)."""
     counts: dict[str, int]
-    report: list[ReportLineOut]
+    report: list[ReportLine]
 
 
 class SetJobOut(JobOut):
@@ -208,23 +148,15 @@ class SetJobOut(JobOut):
     version: int | None = None
     download_id: int | None = None
     download_state: str | None = None
-    report: list[ReportLineOut] = []
+    report: list[ReportLine] = []
 
 
 class ImportOut(BaseModel):
-    set: SetOut
+    set: SetInfo
     notes: list[str]
 
 
 # --- conversions -------------------------------------------------------------------------------------------
-def set_out(info: SetInfo) -> SetOut:
-    return SetOut(**info.__dict__)
-
-
-def version_out(version: SetVersion) -> VersionOut:
-    return VersionOut(**version.__dict__)
-
-
 def detail_out(stored: StoredSet, profile: Profile) -> SetDetailOut:
     catalog = catalog_for(profile)
     values = []
@@ -233,13 +165,7 @@ def detail_out(stored: StoredSet, profile: Profile) -> SetDetailOut:
         values.append(SetValueOut(ref=ref, name=item.name if item else "(not in the profile)", raw=raw,
                                   display=shown(item, raw) if item else str(raw),
                                   unit=item.entry.unit if item else None))
-    return SetDetailOut(**set_out(stored.info).model_dump(), shown_version=stored.version, values=values)
-
-
-def comparison_out(result: Comparison) -> ComparisonOut:
-    return ComparisonOut(left=result.left, right=result.right, profile_id=result.profile_id,
-                         compared=result.compared, equal=result.equal, total_differences=result.total_differences,
-                         rows=[DifferenceOut(**row.__dict__) for row in result.rows])
+    return SetDetailOut(**stored.info.model_dump(), shown_version=stored.version, values=values)
 
 
 def download_out(row: DownloadRow, jobs: JobManager) -> DownloadOut:
@@ -249,7 +175,7 @@ def download_out(row: DownloadRow, jobs: JobManager) -> DownloadOut:
     return DownloadOut(id=row.id, kind=row.kind, set_id=row.set_id, set_version=row.set_version,
                        session_id=row.session_id, node_id=row.node_id, profile_id=row.profile_id, user=row.user,
                        started=row.started, finished=row.finished, state=set_jobs.download_state(row, jobs),
-                       counts=counts, report=[ReportLineOut(**line) for line in row.report])
+                       counts=counts, report=[ReportLine(**line) for line in row.report])
 
 
 def set_job_out(job: Job) -> SetJobOut:
@@ -257,7 +183,7 @@ def set_job_out(job: Job) -> SetJobOut:
     report = job.result.get("report", [])
     return SetJobOut(**base.model_dump(), set_id=job.result.get("set_id"), version=job.result.get("version"),
                      download_id=job.result.get("download_id"), download_state=job.result.get("state"),
-                     report=[ReportLineOut(**line) for line in report])
+                     report=[ReportLine(**line) for line in report])
 
 
 def resolve_source(state: AppState, manager: SessionManager, spec: SourceIn) -> Source | tuple[str, int, list[str]]:
@@ -289,9 +215,9 @@ async def build_sources(state: AppState, manager: SessionManager, body: CompareI
 
 
 # --- sets --------------------------------------------------------------------------------------------------
-@router.get(SETS, response_model=list[SetOut])
-async def list_sets(profile_id: str | None = None) -> list[SetOut]:
-    return [set_out(info) for info in store().all(profile_id)]
+@router.get(SETS, response_model=list[SetInfo])
+async def list_sets(profile_id: str | None = None) -> list[SetInfo]:
+    return store().all(profile_id)
 
 
 @router.get(SETS + "/schema")
@@ -332,7 +258,7 @@ async def import_set(state: StateDep, file: Annotated[UploadFile, File()],
                                       profile_id=profile_id or None, name=name or None)
     stored = store().create(imported.name, imported.profile, imported.values, user=user_of(user),
                             node_id=imported.node_id, note=imported.note, reason=f"imported from {filename}")
-    return ImportOut(set=set_out(stored.info), notes=imported.notes)
+    return ImportOut(set=stored.info, notes=imported.notes)
 
 
 @router.get(SETS + "/{set_id}", response_model=SetDetailOut)
@@ -341,9 +267,9 @@ async def get_set(set_id: RowId, state: StateDep, version: RowVersion = None) ->
     return detail_out(stored, state.registry.get(stored.info.profile_id))
 
 
-@router.patch(SETS + "/{set_id}", response_model=SetOut)
-async def update_set(set_id: RowId, body: SetUpdate) -> SetOut:
-    return set_out(store().rename(set_id, body.name, body.note))
+@router.patch(SETS + "/{set_id}", response_model=SetInfo)
+async def update_set(set_id: RowId, body: SetUpdate) -> SetInfo:
+    return store().rename(set_id, body.name, body.note)
 
 
 @router.delete(SETS + "/{set_id}", status_code=status.HTTP_204_NO_CONTENT)
@@ -352,9 +278,9 @@ async def delete_set(set_id: RowId) -> Response:
     return Response(status_code=status.HTTP_204_NO_CONTENT)
 
 
-@router.get(SETS + "/{set_id}/history", response_model=list[VersionOut])
-async def set_history(set_id: RowId) -> list[VersionOut]:
-    return [version_out(v) for v in store().history(set_id)]
+@router.get(SETS + "/{set_id}/history", response_model=list[SetVersion])
+async def set_history(set_id: RowId) -> list[SetVersion]:
+    return store().history(set_id)
 
 
 @router.get(SETS + "/{set_id}/export")
@@ -380,11 +306,11 @@ async def copy_set(set_id: RowId, body: CopyIn, state: StateDep, user: UserHeade
                           user=user_of(user), node_id=body.to_node, session_id=stored.info.session_id,
                           note=f"Copy of set {set_id} v{stored.version} for node {body.to_node}",
                           reason=f"copy of set {set_id} v{stored.version} for node {body.to_node}")
-    return CopyOut(set=set_out(copy.info), notes=notes)
+    return CopyOut(set=copy.info, notes=notes)
 
 
 # --- compare -----------------------------------------------------------------------------------------------
-@router.post(SETS + "/compare", response_model=ComparisonOut)
+@router.post(SETS + "/compare", response_model=Comparison)
 async def compare_sources(body: CompareIn, state: StateDep, manager: ManagerDep,
                           format: Annotated[Literal["json", "csv"], Query()] = "json") -> Any:
     """Only the differences, scaled with units, filtered by ``q`` (code or name words) and ``group``;
@@ -394,17 +320,17 @@ async def compare_sources(body: CompareIn, state: StateDep, manager: ManagerDep,
     if format == "csv":
         return Response(comparison_csv(result), media_type="text/csv",
                         headers={"Content-Disposition": 'attachment; filename="comparison.csv"'})
-    return comparison_out(result)
+    return result
 
 
 # --- download ----------------------------------------------------------------------------------------------
-@router.post(SETS + "/{set_id}/preview", response_model=list[ReportLineOut])
+@router.post(SETS + "/{set_id}/preview", response_model=list[ReportLine])
 async def preview_download(set_id: RowId, body: TargetIn, manager: ManagerDep,
-                           version: RowVersion = None) -> list[ReportLineOut]:
+                           version: RowVersion = None) -> list[ReportLine]:
     """What a download would change (device values read now), in the order it would write them."""
     stored = store().get(set_id, version)
     lines = await set_jobs.preview(manager.get(body.session_id), body.node_id, stored)
-    return [ReportLineOut(**line.__dict__) for line in lines]
+    return lines
 
 
 @router.post(SETS + "/{set_id}/download", response_model=SetJobOut, status_code=status.HTTP_202_ACCEPTED)
