@@ -19,6 +19,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, PlainSerializer, WithJsonSchema, model_validator
 
+from drivebench.device.commands import CommandsSection
 from drivebench.protocol.datatypes import DataType
 
 
@@ -237,6 +238,8 @@ class Profile(BaseModel):
     emcy_codes: list[EmcyCode] = Field(default_factory=list)
     notes: list[str] = Field(default_factory=list)
     """Manual errata and ambiguities, with the reading this profile follows."""
+    commands: CommandsSection | None = None
+    """Save / restore defaults where they are not CiA 301's 0x1010/0x1011 (``device/commands.py``)."""
     extra_sections: dict[str, dict[str, str]] = Field(default_factory=dict)
     """EDS sections (and FileInfo/DeviceInfo keys) the model has no field for, kept for round trips."""
 

@@ -38,7 +38,7 @@ Raw = int | float | str
 Values = dict[str, Raw]
 
 COMMAND_INDICES = (0x1010, 0x1011)
-_COMMAND_NAME = re.compile(r"device command|reset node|save all|load lenze|restore", re.IGNORECASE)
+_COMMAND_NAME = re.compile(r"device command|reset node|save all|restore", re.IGNORECASE)
 _NODE_ADDRESS_NAME = re.compile(r"(node address|device address|node id)$", re.IGNORECASE)
 _COB_BASES = (0x080, 0x180, 0x200, 0x280, 0x300, 0x380, 0x400, 0x480, 0x500, 0x580, 0x600, 0x700)
 

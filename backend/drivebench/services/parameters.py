@@ -29,6 +29,7 @@ from typing import Protocol, TypeVar
 
 from drivebench.device.addressing import CodeRef, IndexRef, parse_ref
 from drivebench.device.catalog import Catalog, Item
+from drivebench.device.commands import CIA301_RESTORE, CIA301_SAVE, CommandWrite
 from drivebench.device.profile import Access, ObjectEntry
 from drivebench.device.scaling import RawValue, ScaledValue, from_raw, to_raw
 from drivebench.errors import (
@@ -58,8 +59,6 @@ _BUS_WORK = ThreadPoolExecutor(max_workers=128, thread_name_prefix="sdo")
 SILENT_AFTER_TIMEOUTS = 2
 """Consecutive timeouts after which a read-all stops asking a node (it is absent or silent)."""
 
-SAVE_SIGNATURE = int.from_bytes(b"save", "little")  # CiA 301 0x1010
-LOAD_SIGNATURE = int.from_bytes(b"load", "little")  # CiA 301 0x1011
 
 
 @dataclass
@@ -525,11 +524,14 @@ def _find(catalog: Catalog | None, *refs: str) -> Item | None:
     return None
 
 
-def _lenze_command(catalog: Catalog | None, subcode: int) -> Item | None:
-    """Lenze C00002/x device commands (8400: C00002/11 save all parameter sets, /1 load Lenze setting)."""
-    if catalog is None or catalog.profile.addressing.kind != "lenze_code":
-        return None
-    return _find(catalog, f"C2/{subcode}")
+def _command_write(node: SessionNode, catalog: Catalog | None, which: DeviceCommand) -> CommandWrite | None:
+    """The profile's own write for ``which`` (its ``commands`` section), else CiA 301's where the device has it."""
+    section = node.profile.commands if node.profile is not None else None
+    own = None if section is None else section.save if which is DeviceCommand.SAVE else section.restore_defaults
+    if own is not None:
+        return own
+    standard = CIA301_SAVE if which is DeviceCommand.SAVE else CIA301_RESTORE
+    return standard if catalog is None or _find(catalog, standard.ref) is not None else None
 
 
 async def command(session: Session, node_id: int, which: DeviceCommand) -> CommandResult:
@@ -545,27 +547,21 @@ async def _command(session: Session, node_id: int, which: DeviceCommand) -> Comm
     if which is DeviceCommand.RESET_NODE:
         await session.nmt(NmtCommand.RESET_NODE, node_id)
         return CommandResult(which, "NMT reset node", f"Node {node_id} resets; unsaved changes are lost.")
-    if which is DeviceCommand.SAVE:
-        cia = _find(catalog, "0x1010.1") if catalog is not None else None
-        if cia is not None or catalog is None:
-            await _on_bus(lambda: client.download(0x1010, 1, SAVE_SIGNATURE.to_bytes(4, "little")))
-            return CommandResult(which, "0x1010.1 = 'save'", f"Node {node_id} saved its parameters.")
-        lenze = _lenze_command(catalog, 11)
-        if lenze is not None:
-            await _on_bus(partial(client.download, lenze.index, lenze.subindex, encode(lenze.entry.data_type, 1)))
-            return CommandResult(which, f"{lenze.ref} = 1", f"Node {node_id} saved all parameter sets.")
-        raise Conflict(f"{node.device_name} offers no save command in its profile (no 0x1010, no C00002/11)")
-    cia = _find(catalog, "0x1011.1") if catalog is not None else None
-    if cia is not None or catalog is None:
-        await _on_bus(lambda: client.download(0x1011, 1, LOAD_SIGNATURE.to_bytes(4, "little")))
+    write = _command_write(node, catalog, which)
+    if write is None:
+        raise Conflict(f"{node.device_name} offers no {which.value.replace('-', ' ')} command in its profile "
+                       "(no CiA 301 object, no commands section)")
+    item = _find(catalog, write.ref)
+    if item is not None:
+        index, subindex, data = item.index, item.subindex, encode(item.entry.data_type, write.raw)
+    else:  # no profile: the CiA 301 object, addressed as such
+        parsed = parse_ref(write.ref)
+        assert isinstance(parsed, IndexRef)
+        index, subindex, data = parsed.index, parsed.subindex or 0, write.raw.to_bytes(4, "little")
+    await _on_bus(partial(client.download, index, subindex, data))
+    if write.after_reset:
         node.pending_reset.add("restore defaults")
-        return CommandResult(which, "0x1011.1 = 'load'",
-                             f"Node {node_id} restores its defaults at the next reset node.")
-    lenze = _lenze_command(catalog, 1)
-    if lenze is not None:
-        await _on_bus(partial(client.download, lenze.index, lenze.subindex, encode(lenze.entry.data_type, 1)))
-        return CommandResult(which, f"{lenze.ref} = 1", f"Node {node_id} loaded the Lenze setting.")
-    raise Conflict(f"{node.device_name} offers no restore-defaults command in its profile")
+    return CommandResult(which, write.via, write.done.format(node=node_id))
 
 
 # --- second SDO channel ----------------------------------------------------------------------------------
