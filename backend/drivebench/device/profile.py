@@ -15,26 +15,15 @@ JSON files in ``device_profiles/`` are this model serialised; ``/api/profiles/sc
 from __future__ import annotations
 
 from enum import StrEnum
-from typing import Annotated, Any, Literal
+from typing import Annotated, Literal
 
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, PlainSerializer, WithJsonSchema, model_validator
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from drivebench.device.commands import CommandsSection
+from drivebench.device.hex_int import HexInt
+from drivebench.device.sdo_channels import SdoServerChannel
 from drivebench.protocol.datatypes import DataType
 
-
-def _parse_int(value: Any) -> Any:
-    """Accept ints and strings like ``"0x5FA7"``, ``"24487"``, ``"0o17"`` in profile files."""
-    if isinstance(value, str):
-        return int(value.strip(), 0)
-    return value
-
-
-# The published schema accepts what the files hold: an integer or a string like "0x5FA7".
-HEX_INT_PATTERN = r"^\s*[-+]?(0[xX][0-9a-fA-F_]+|0[oO][0-7_]+|[0-9_]+)\s*$"
-HEX_INT_SCHEMA: dict[str, Any] = {"anyOf": [{"type": "integer"}, {"type": "string", "pattern": HEX_INT_PATTERN}]}
-HexInt = Annotated[int, BeforeValidator(_parse_int), PlainSerializer(lambda v: f"0x{v:04X}", return_type=str),
-                   WithJsonSchema(HEX_INT_SCHEMA)]
 Number = int | float
 Value = int | float | str
 
@@ -240,6 +229,8 @@ class Profile(BaseModel):
     """Manual errata and ambiguities, with the reading this profile follows."""
     commands: CommandsSection | None = None
     """Save / restore defaults where they are not CiA 301's 0x1010/0x1011 (``device/commands.py``)."""
+    sdo_channels: list[SdoServerChannel] = Field(default_factory=list)
+    """Additional SDO servers the tool may switch on to read faster (``device/sdo_channels.py``)."""
     extra_sections: dict[str, dict[str, str]] = Field(default_factory=dict)
     """EDS sections (and FileInfo/DeviceInfo keys) the model has no field for, kept for round trips."""
 

@@ -68,7 +68,7 @@ class SdoSettings:
     timeout_s: float = 0.5
     retries: int = 1
     use_sdo2: bool = True
-    """Activate and use a device's second SDO channel for read-all (8400 motec, EMF2178IB)."""
+    """Activate and use a device's second SDO channel for read-all (where its profile has ``sdo_channels``)."""
 
 
 @dataclass(slots=True)
@@ -565,36 +565,35 @@ async def _command(session: Session, node_id: int, which: DeviceCommand) -> Comm
 
 
 # --- second SDO channel ----------------------------------------------------------------------------------
-def _sdo2_cob_ids(node_id: int) -> tuple[int, int]:
-    """Lenze's SDO2 identifiers (8400 motec ch. 9.1, EMF2178IB §3.3): rx 0x640 + node, tx 0x5C0 + node."""
-    return 0x640 + node_id, 0x5C0 + node_id
-
-
 def _activate_sdo2_blocking(session: Session, node: SessionNode) -> _NodeChannels:
+    """Switch on the profile's first additional SDO server (its ``sdo_channels`` section) where that is safe."""
     state = service(session)
     channels = state.channels.setdefault(node.node_id, _NodeChannels())
     if channels.active:
         return channels
     catalog = _catalog(node)
     profile = node.profile
-    if (not state.settings.use_sdo2 or catalog is None or profile is None or profile.features.sdo_channels < 2
+    if (not state.settings.use_sdo2 or catalog is None or profile is None or not profile.sdo_channels
             or profile.features.transport != "canopen"):
         return channels
-    rx_item, tx_item = catalog.by_address(0x1201, 1), catalog.by_address(0x1201, 2)
+    extra = profile.sdo_channels[0]
+    index = extra.parameter_index
+    rx_item, tx_item = catalog.by_address(index, 1), catalog.by_address(index, 2)
     if rx_item is None or tx_item is None or not rx_item.entry.access.writable:
         return channels
-    if node.node_id > 63 or node.node_id + 64 in session.nodes:
-        channels.note = (f"SDO2 not used on node {node.node_id}: its identifiers would be node "
-                         f"{node.node_id + 64}'s SDO1")
+    clash = extra.clashes_with(node.node_id)
+    if node.node_id > extra.max_node_id or clash in session.nodes:
+        channels.note = (f"SDO{extra.number} not used on node {node.node_id}: its identifiers would be node "
+                         f"{clash}'s SDO1")
         return channels
     client = session.client(node.node_id)
-    rx, tx = (int.from_bytes(client.upload(0x1201, sub, channel=1)[:4], "little") for sub in (1, 2))
+    rx, tx = (int.from_bytes(client.upload(index, sub, channel=1)[:4], "little") for sub in (1, 2))
     if rx & 0x80000000 or tx & 0x80000000 or not rx or not tx:
-        rx, tx = _sdo2_cob_ids(node.node_id)
-        # The manual's order (8400 motec I-1201 example): client->server first, then server->client.
-        client.download(0x1201, 1, rx.to_bytes(4, "little"), channel=1)
-        client.download(0x1201, 2, tx.to_bytes(4, "little"), channel=1)
-        channels.note = f"SDO2 activated on node {node.node_id} (0x{rx:03X}/0x{tx:03X}, not saved)"
+        rx, tx = extra.cob_ids(node.node_id)
+        # Client -> server first, then server -> client (the order of the manuals' examples of 0x1201).
+        client.download(index, 1, rx.to_bytes(4, "little"), channel=1)
+        client.download(index, 2, tx.to_bytes(4, "little"), channel=1)
+        channels.note = f"SDO{extra.number} activated on node {node.node_id} (0x{rx:03X}/0x{tx:03X}, not saved)"
     if channels.sdo2 is None:
         channels.sdo2 = client.add_channel(rx & 0x7FF, tx & 0x7FF)
     elif channels.sdo2 not in client.channels:
