@@ -151,6 +151,7 @@ def test_abort_text_is_the_manuals_and_the_code_travels(api: TestClient) -> None
     problem = read(api, 5, "C00061").json()
     assert problem["abort_code"] == "0x06060000" and problem["abort_text"] and problem["abort_text"] in \
         problem["detail"]
+    assert problem["abort_text"] == "Access denied because of hardware error"  # the profile's abort_texts
     set_faults(api, 5)
 
 

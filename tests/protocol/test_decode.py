@@ -5,6 +5,7 @@ from __future__ import annotations
 import can
 import pytest
 
+from drivebench.device.loader import ProfileRegistry
 from drivebench.protocol.decode import SdoTracker, Service, classify, decode_frame
 from tests.vectors.manual_sdo import LENZE_8400
 
@@ -68,11 +69,15 @@ def test_emcy_uses_the_profile_text_and_register_bits() -> None:
     assert vendor.summary.startswith("0x3210 DC bus overvoltage, register 0x11")
 
 
-def test_abort_in_the_vendors_words() -> None:
+def test_abort_in_the_vendors_words(registry: ProfileRegistry) -> None:
     msg = frame(0x585, "80C25F0000000206")
     text = decode_frame(msg, names=names).text
-    assert text.startswith("0x585 SDO tx node 5: abort 0x06020000 ")
+    assert text.startswith("0x585 SDO tx node 5: abort 0x06020000 Object does not exist in the object dictionary")
     assert text.endswith("0x5FC2sub0 (C00061 Heatsink temperature)")
+    texts = registry.get("lenze-8400-motec-canopen").abort_texts
+    assert texts is not None  # the profile's abort_texts section: the manual's wording
+    worded = decode_frame(msg, names=names, abort_texts=lambda node: texts.texts if node == 5 else None).text
+    assert "abort 0x06020000 Object not listed in object directory, 0x5FC2sub0" in worded
 
 
 def test_error_frame_classes_in_words() -> None:

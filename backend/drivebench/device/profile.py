@@ -19,6 +19,7 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from drivebench.device.abort_texts import AbortTexts
 from drivebench.device.commands import CommandsSection
 from drivebench.device.hex_int import HexInt
 from drivebench.device.sdo_channels import SdoServerChannel
@@ -231,6 +232,8 @@ class Profile(BaseModel):
     """Save / restore defaults where they are not CiA 301's 0x1010/0x1011 (``device/commands.py``)."""
     sdo_channels: list[SdoServerChannel] = Field(default_factory=list)
     """Additional SDO servers the tool may switch on to read faster (``device/sdo_channels.py``)."""
+    abort_texts: AbortTexts | None = None
+    """The manual's wording of SDO abort codes (``device/abort_texts.py``); CiA 301's where it has none."""
     extra_sections: dict[str, dict[str, str]] = Field(default_factory=dict)
     """EDS sections (and FileInfo/DeviceInfo keys) the model has no field for, kept for round trips."""
 

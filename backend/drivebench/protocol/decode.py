@@ -8,7 +8,7 @@ data segment. A trace row reads ``0x605 SDO rx node 5: read 0x5FC2sub0 (C00061 H
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from datetime import datetime, timedelta
 from enum import StrEnum
@@ -21,8 +21,8 @@ from drivebench.protocol.nmt import NMT_COMMAND_NAMES, NMT_STATE_NAMES, NmtComma
 
 NameLookup = Callable[[int, int, int], str | None]
 """(node, index, subindex) -> the profile's name for the object, e.g. ``C00061 Heatsink temperature``."""
-VendorLookup = Callable[[int], str | None]
-"""node -> profile family, so abort codes read in the manual's words."""
+AbortTextsLookup = Callable[[int], Mapping[int, str] | None]
+"""node -> its profile's abort texts, so abort codes read in the manual's words."""
 EmcyLookup = Callable[[int, int], str | None]
 """(node, emergency code) -> the profile's text for it."""
 
@@ -150,10 +150,10 @@ class _Objects:
         return f"{text} ({name})" if name else text
 
 
-def _abort(data: bytes, obj: _Objects, vendor: str | None) -> str:
+def _abort(data: bytes, obj: _Objects, texts: Mapping[int, str] | None) -> str:
     code = int.from_bytes(data[4:8], "little")
     index, sub = int.from_bytes(data[1:3], "little"), data[3]
-    return f"abort 0x{code:08X} {abort_text(code, vendor)}, {obj(index, sub)}"
+    return f"abort 0x{code:08X} {abort_text(code, texts)}, {obj(index, sub)}"
 
 
 def _segment(data: bytes, direction: str, context: SdoContext | None, obj: _Objects) -> str:
@@ -171,7 +171,7 @@ def _block_segment(data: bytes, context: SdoContext, obj: _Objects) -> str:
     return f"block segment {seqno}{last} {obj(context.index, context.subindex)}: {_hex(data[1:8])}"
 
 
-def _sdo_request(data: bytes, context: SdoContext | None, obj: _Objects, vendor: str | None) -> str:
+def _sdo_request(data: bytes, context: SdoContext | None, obj: _Objects, texts: Mapping[int, str] | None) -> str:
     if context is not None and context.block_segment:
         return _block_segment(data, context, obj)
     command = data[0]
@@ -192,7 +192,7 @@ def _sdo_request(data: bytes, context: SdoContext | None, obj: _Objects, vendor:
         where = f" {obj(context.index, context.subindex)}" if context else ""
         return f"upload segment request{where} toggle {(command >> 4) & 1}"
     if ccs == 4:
-        return _abort(data, obj, vendor)
+        return _abort(data, obj, texts)
     if ccs == 5:  # block upload, client side
         cs = command & 3
         if cs == 0:
@@ -212,7 +212,7 @@ def _sdo_request(data: bytes, context: SdoContext | None, obj: _Objects, vendor:
     return f"unknown SDO command 0x{command:02X}"
 
 
-def _sdo_response(data: bytes, context: SdoContext | None, obj: _Objects, vendor: str | None) -> str:
+def _sdo_response(data: bytes, context: SdoContext | None, obj: _Objects, texts: Mapping[int, str] | None) -> str:
     if context is not None and context.block_segment:
         return _block_segment(data, context, obj)
     command = data[0]
@@ -233,7 +233,7 @@ def _sdo_response(data: bytes, context: SdoContext | None, obj: _Objects, vendor
         where = f" {obj(context.index, context.subindex)}" if context else ""
         return f"download segment response{where} toggle {(command >> 4) & 1}"
     if scs == 4:
-        return _abort(data, obj, vendor)
+        return _abort(data, obj, texts)
     if scs == 5:  # block download, server side
         ss = command & 3
         if ss == 0:
@@ -346,9 +346,9 @@ def _error_frame(error_class: int, data: bytes) -> str:
     return f"{', '.join(words)} (class 0x{error_class:03X}) {_hex(data)}".rstrip()
 
 
-def decode_frame(msg: can.Message, *, names: NameLookup | None = None, vendor: VendorLookup | None = None,
+def decode_frame(msg: can.Message, *, names: NameLookup | None = None, abort_texts: AbortTextsLookup | None = None,
                  emcy_texts: EmcyLookup | None = None, sdo_context: SdoContext | None = None) -> DecodedFrame:
-    """Decode ``msg``; ``names``/``vendor``/``emcy_texts`` add the profile's words where a caller has them."""
+    """Decode ``msg``; ``names``/``abort_texts``/``emcy_texts`` add the profile's words where a caller has them."""
     data = b"" if msg.is_remote_frame else bytes(msg.data)
 
     def make(service: Service, node: int | None, summary: str) -> DecodedFrame:
@@ -380,9 +380,9 @@ def decode_frame(msg: can.Message, *, names: NameLookup | None = None, vendor: V
         if len(data) != 8:
             return make(service, node, f"malformed SDO frame ({len(data)} bytes) {_hex(data)}")
         objects = _Objects(node, names)
-        family = vendor(node) if vendor else None
+        texts = abort_texts(node) if abort_texts else None
         decoder = _sdo_request if service is Service.SDO_RX else _sdo_response
-        return make(service, node, decoder(data, sdo_context, objects, family))
+        return make(service, node, decoder(data, sdo_context, objects, texts))
     return make(service, node, f"{len(data)} bytes {_hex(data)}")
 
 

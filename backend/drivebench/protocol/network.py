@@ -10,7 +10,7 @@ from __future__ import annotations
 import asyncio
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import TypeVar, cast
 
 import can
@@ -39,12 +39,13 @@ class SdoChannel:
 
 
 class NodeClient:
-    """SDO access to one node over one or more SDO channels (8400 motec and EMF2178IB have two)."""
+    """SDO access to one node over one or more SDO channels (a device may have more than one)."""
 
-    def __init__(self, network: CanopenNetwork, node_id: int, vendor: str | None = None) -> None:
+    def __init__(self, network: CanopenNetwork, node_id: int, abort_texts: Mapping[int, str] | None = None) -> None:
         self.network = network
         self.node_id = node_id
-        self.vendor = vendor
+        self.abort_texts: dict[int, str] = dict(abort_texts or {})
+        """The device manual's abort texts (its profile's ``abort_texts``); updated in place when it changes."""
         self.remote = canopen.RemoteNode(node_id, canopen.ObjectDictionary())
         network.canopen.add_node(self.remote)
         self.channels = [SdoChannel(self.remote.sdo, 1)]
@@ -71,7 +72,7 @@ class NodeClient:
             try:
                 return work(chosen.client)
             except SdoAbortedError as exc:
-                raise SdoAbortError(exc.code, abort_text(exc.code, self.vendor), node=self.node_id,
+                raise SdoAbortError(exc.code, abort_text(exc.code, self.abort_texts), node=self.node_id,
                                     index=index, subindex=sub) from exc
             except SdoCommunicationError as exc:
                 raise communication_error(exc, node=self.node_id, index=index, subindex=sub) from exc
@@ -147,12 +148,16 @@ class CanopenNetwork:
         if self.canopen.notifier is not None:
             self.canopen.notifier.remove_listener(listener)
 
-    def node(self, node_id: int, vendor: str | None = None) -> NodeClient:
+    def node(self, node_id: int, abort_texts: Mapping[int, str] | None = None) -> NodeClient:
+        """The node's client; ``abort_texts`` (the profile's, when the caller knows it) replaces the client's."""
         if not 1 <= node_id <= 127:
             raise NodeOffline(f"Node id {node_id} is outside 1..127")
         client = self.nodes.get(node_id)
         if client is None:
-            client = self.nodes[node_id] = NodeClient(self, node_id, vendor)
+            client = self.nodes[node_id] = NodeClient(self, node_id, abort_texts)
+        elif abort_texts is not None and abort_texts != client.abort_texts:
+            client.abort_texts.clear()
+            client.abort_texts.update(abort_texts)
         return client
 
     def send_nmt(self, command: NmtCommand, node_id: int = 0) -> None:

@@ -181,7 +181,7 @@ class ExpeditedUploader:
     def __init__(self, client: NodeClient, channel: SdoChannel) -> None:
         # no reference to the channel or the node client: they key ``_UPLOADERS`` weakly
         self.node_id = client.node_id
-        self.vendor = client.vendor
+        self.abort_texts = client.abort_texts
         self.lock = channel.lock
         self.sdo = channel.client
         self._pending: tuple[asyncio.AbstractEventLoop, _Response, bytes, _Waker | None] | None = None
@@ -282,7 +282,7 @@ class ExpeditedUploader:
         command = response[0]
         if command == 0x80:
             code = int.from_bytes(response[4:8], "little")
-            raise SdoAbortError(code, abort_text(code, self.vendor), node=self.node_id,
+            raise SdoAbortError(code, abort_text(code, self.abort_texts), node=self.node_id,
                                 index=request.index, subindex=request.subindex)
         if command & 0xE3 == 0x43:  # expedited, size indicated
             return response[4:8 - ((command >> 2) & 0x3)]

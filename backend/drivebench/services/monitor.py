@@ -20,7 +20,7 @@ import threading
 import time
 import weakref
 from collections import deque
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Any
@@ -437,7 +437,7 @@ class Monitor(can.Listener):
                     node = msg.data[1]
             if not accepts(service, node, msg.arbitration_id):
                 continue
-            decoded = decode_frame(msg, names=lookups.name, vendor=lookups.vendor, emcy_texts=lookups.emcy,
+            decoded = decode_frame(msg, names=lookups.name, abort_texts=lookups.abort_texts, emcy_texts=lookups.emcy,
                                    sdo_context=context)
             rows.append(_row(seq, decoded))
             if len(rows) >= limit:
@@ -487,7 +487,7 @@ def _row(seq: int, decoded: DecodedFrame) -> dict[str, Any]:
 
 
 class _Lookups:
-    """The profile's words for a session's nodes: object names, vendor family (abort texts), EMCY texts."""
+    """The profile's words for a session's nodes: object names, abort texts, EMCY texts."""
 
     def __init__(self, session: Session | None) -> None:
         self.session = session
@@ -498,9 +498,9 @@ class _Lookups:
         item = catalog.by_address(index, subindex) if catalog else None
         return f"{item.ref} {item.name}" if item else None
 
-    def vendor(self, node_id: int) -> str | None:
+    def abort_texts(self, node_id: int) -> Mapping[int, str] | None:
         node = self.session.nodes.get(node_id) if self.session else None
-        return node.profile.family if node and node.profile else None
+        return node.profile.abort_texts.texts if node and node.profile and node.profile.abort_texts else None
 
     def emcy(self, node_id: int, code: int) -> str | None:
         node = self.session.nodes.get(node_id) if self.session else None

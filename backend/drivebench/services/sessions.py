@@ -116,8 +116,10 @@ class Session:
 
     def client(self, node_id: int) -> NodeClient:
         node = self.nodes.get(node_id)
-        vendor = node.profile.family if node and node.profile else None
-        return self.network.node(node_id, vendor)
+        if node is None:
+            return self.network.node(node_id)
+        texts = node.profile.abort_texts if node.profile else None
+        return self.network.node(node_id, texts.texts if texts else {})
 
     def remove_node(self, node_id: int) -> None:
         with self._lock:
