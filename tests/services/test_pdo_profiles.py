@@ -96,15 +96,19 @@ def test_defaults_as_the_manuals_list_them(drives: tuple[Session, Plant], loop: 
     assert "0 ... 240, 254" in (pdo_notes.transmission_note(profile, "rpdo", 255) or "")
 
 
-def test_p2041_bytes_of_the_manuals_examples() -> None:
+def test_p2041_bytes_of_the_manuals_examples(registry: ProfileRegistry) -> None:
     """MICROMASTER ch. 5.6 (table 5-1 examples, MM440): RPDO5 control word + target torque = 0x11, TPDO5 actual
     torque + modes display = 0x50; RPDO6 control word, per-unit speed, torque, modes = 0xD3; TPDO6 status word,
-    actual torque, actual speed (rpm), modes display = 0x71."""
-    assert pdo_notes.p2041_bits("rpdo", [(0x6040, 0), (0x6071, 0)]) == 0x11
-    assert pdo_notes.p2041_bits("tpdo", [(0x6077, 0), (0x6061, 0)]) == 0x50
-    assert pdo_notes.p2041_bits("rpdo", [(0x6040, 0), (0x6052, 0), (0x6071, 0), (0x6060, 0)]) == 0xD3
-    assert pdo_notes.p2041_bits("tpdo", [(0x6041, 0), (0x6077, 0), (0x6044, 0), (0x6061, 0)]) == 0x71
-    assert pdo_notes.p2041_bits("tpdo", [(0x6041, 0), (0x6046, 1)]) is None, "an object outside the bit table"
+    actual torque, actual speed (rpm), modes display = 0x71 (the profile's pdo_rules.mapping_bits)."""
+    rules = registry.get("siemens-micromaster4-canopen").pdo_rules
+    assert rules is not None
+    rpdo, tpdo = (rules.bits_for(direction, 5) for direction in ("rpdo", "tpdo"))
+    assert rpdo is not None and tpdo is not None
+    assert pdo_notes.selecting_byte(rpdo[0], [(0x6040, 0), (0x6071, 0)]) == 0x11
+    assert pdo_notes.selecting_byte(tpdo[0], [(0x6077, 0), (0x6061, 0)]) == 0x50
+    assert pdo_notes.selecting_byte(rpdo[0], [(0x6040, 0), (0x6052, 0), (0x6071, 0), (0x6060, 0)]) == 0xD3
+    assert pdo_notes.selecting_byte(tpdo[0], [(0x6041, 0), (0x6077, 0), (0x6044, 0), (0x6061, 0)]) == 0x71
+    assert pdo_notes.selecting_byte(tpdo[0], [(0x6041, 0), (0x6046, 1)]) is None, "an object outside the bit table"
 
 
 @pytest.mark.parametrize(("node_id", "direction", "number", "entries"), ROUND_TRIPS,

@@ -22,6 +22,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from drivebench.device.abort_texts import AbortTexts
 from drivebench.device.commands import CommandsSection
 from drivebench.device.hex_int import HexInt
+from drivebench.device.pdo_rules import PdoRules
 from drivebench.device.sdo_channels import SdoServerChannel
 from drivebench.protocol.datatypes import DataType
 
@@ -234,6 +235,8 @@ class Profile(BaseModel):
     """Additional SDO servers the tool may switch on to read faster (``device/sdo_channels.py``)."""
     abort_texts: AbortTexts | None = None
     """The manual's wording of SDO abort codes (``device/abort_texts.py``); CiA 301's where it has none."""
+    pdo_rules: PdoRules | None = None
+    """What the manual says about the PDOs beyond CiA 301 (``device/pdo_rules.py``)."""
     extra_sections: dict[str, dict[str, str]] = Field(default_factory=dict)
     """EDS sections (and FileInfo/DeviceInfo keys) the model has no field for, kept for round trips."""
 

@@ -250,12 +250,14 @@ async def read_pdo(session: Session, node_id: int, direction: Direction, number:
     entry_one = _entry(catalog, mapping, 1)
     profile = catalog.profile
     notes = pdo_notes.pdo_notes(profile, direction, number)
+    static_note = pdo_notes.static_mapping_note(profile, direction, number)
     if static:
         entries = static
-        notes.insert(0, pdo_notes.static_mapping_note(direction, number))
-    p2041 = pdo_notes.p2041_expected(profile, direction, number, [(e.index, e.subindex) for e in entries])
-    if p2041 and entries:
-        notes.append(p2041[0].upper() + p2041[1:] + ".")
+        if static_note:
+            notes.insert(0, static_note)
+    selecting = pdo_notes.mapping_bits_note(profile, direction, number, [(e.index, e.subindex) for e in entries])
+    if selecting and entries:
+        notes.append(selecting[0].upper() + selecting[1:] + ".")
     settings = await _settings(session, node_id, catalog, pdo_notes.setting_refs(profile, direction, number))
     conflicts = cob_id_conflicts(session, node_id, direction, cob & 0x7FF)
     return PdoConfig(settings=settings, conflicts=conflicts, static_mapping=bool(static),

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 
 from drivebench.errors import UnknownParameter
 from drivebench.protocol.datatypes import decode, encode
-from drivebench.services.pdo_notes import p2041_bits, static_mapping
+from drivebench.services.pdo_notes import selecting_byte, static_mapping
 from drivebench.simulator.store import Abort
 
 if TYPE_CHECKING:
@@ -98,7 +98,9 @@ class PdoEngine:
             direction, word, shift = P2041_MAPPING[index]
             entries = [(_int(self.node.store.get(index, n)) >> 16, (_int(self.node.store.get(index, n)) >> 8) & 0xFF)
                        for n in range(1, _int(raw) + 1) if self.node.store.has(index, n)]
-            bits = p2041_bits(direction, entries)
+            rules = self.node.profile.pdo_rules
+            found = rules.bits_for(direction, (index & 0x1FF) + 1) if rules else None  # the profile's bit table
+            bits = selecting_byte(found[0], entries) if found else None
             if bits is not None:
                 self._set_p2041(word, shift, 8, bits)
         elif index in P2041_TYPE and sub == 2:
