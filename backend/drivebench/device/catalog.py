@@ -85,6 +85,18 @@ class Catalog:
     def by_address(self, index: int, subindex: int) -> Item | None:
         return self._by_address.get((index, subindex))
 
+    def unlisted_index(self, ref: IndexRef | CodeRef) -> Item | None:
+        """An index of a parameter the profile lists only as ``.0`` (MICROMASTER ``P0700.1``): that parameter at
+        sub-index n, where the addressing rule makes the index after the point the sub-index (the device aborts
+        0x06090011 if it has none)."""
+        if self.profile.addressing.kind != "siemens_mm4" or not isinstance(ref, CodeRef) or not ref.subcode:
+            return None
+        try:
+            base = self.resolve(f"{ref.prefix}{ref.number}")
+        except UnknownParameter:
+            return None
+        return Item(f"{base.ref}.{ref.subcode}", base.index, ref.subcode, base.entry)
+
     def resolve(self, text: str) -> Item:
         """Resolve what a user typed. Raises UnknownParameter naming the device."""
         ref = parse_ref(text)

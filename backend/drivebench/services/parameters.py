@@ -27,7 +27,7 @@ from enum import StrEnum
 from functools import partial
 from typing import Protocol, TypeVar
 
-from drivebench.device.addressing import CodeRef, IndexRef, parse_ref
+from drivebench.device.addressing import IndexRef, parse_ref
 from drivebench.device.catalog import Catalog, Item
 from drivebench.device.commands import CIA301_RESTORE, CIA301_SAVE, CommandWrite
 from drivebench.device.profile import Access, ObjectEntry
@@ -195,8 +195,8 @@ _BRACKET_INDEX = re.compile(r"^\s*([A-Za-z]?\s*\d{1,5})\s*\[\s*(\d{1,3})\s*\]\s*
 def resolve(node: SessionNode, ref: str) -> Item:
     """A profile item, or for an index the profile does not list a raw item (read as bytes).
 
-    Siemens writes indexed parameters ``P0700[1]`` (= ``P0700.1``); an index of a MICROMASTER parameter the
-    profile lists only as ``.0`` is that parameter at sub-index n (the device aborts 0x06090011 if it has none).
+    Indexed parameters may be written ``P0700[1]`` (= ``P0700.1``); an index of a parameter the profile lists
+    only as ``.0`` is found by the catalog (:meth:`Catalog.unlisted_index`).
     """
     bracket = _BRACKET_INDEX.match(ref)
     if bracket is not None:
@@ -210,7 +210,7 @@ def resolve(node: SessionNode, ref: str) -> Item:
             return catalog.resolve(ref)
         except UnknownParameter:
             parsed = parse_ref(ref)
-            indexed = _siemens_index(catalog, parsed)
+            indexed = catalog.unlisted_index(parsed)
             if indexed is not None:
                 return indexed
             if not isinstance(parsed, IndexRef):
@@ -224,17 +224,6 @@ def resolve(node: SessionNode, ref: str) -> Item:
                         index=parsed.index, subindex=sub)
     name = f"0x{parsed.index:04X}" if sub == 0 else f"0x{parsed.index:04X}.{sub}"
     return Item(name, parsed.index, sub, entry)
-
-
-def _siemens_index(catalog: Catalog, parsed: IndexRef | CodeRef) -> Item | None:
-    if (catalog.profile.addressing.kind != "siemens_mm4" or not isinstance(parsed, CodeRef)
-            or not parsed.subcode):
-        return None
-    try:
-        base = catalog.resolve(f"{parsed.prefix}{parsed.number}")
-    except UnknownParameter:
-        return None
-    return Item(f"{base.ref}.{parsed.subcode}", base.index, parsed.subcode, base.entry)
 
 
 _REFS: weakref.WeakKeyDictionary[Catalog, dict[str, Item]] = weakref.WeakKeyDictionary()
