@@ -84,8 +84,11 @@ class MappingBits(_Model):
 
     @model_validator(mode="after")
     def _check_texts(self) -> MappingBits:
-        self.byte_text.format(ref="P", byte="low byte", bits=0)
-        self.no_bit_text.format(ref="P")
+        try:
+            self.byte_text.format(ref="P", byte="low byte", bits=0)
+            self.no_bit_text.format(ref="P")
+        except (KeyError, IndexError, ValueError) as exc:
+            raise ValueError(f"byte_text/no_bit_text may use {{ref}}, {{byte}} and {{bits}} only, not {exc}") from exc
         if self.exclusive and not self.exclusive_text:
             raise ValueError("exclusive groups need an exclusive_text")
         return self

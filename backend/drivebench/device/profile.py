@@ -215,8 +215,9 @@ class Profile(BaseModel):
 
     id: str = Field(pattern=r"^[a-z0-9][a-z0-9_.-]*$")
     version: str = "1"
-    family: str
-    """Profile family: ``lenze-8400``, ``lenze-emf2178ib``, ``siemens-mm4`` ..."""
+    family: str = Field(pattern=r"^[a-z0-9][a-z0-9_.-]*$", max_length=64)
+    """Profile family, the one family key (``lenze-8400``, ``lenze-emf2178ib``, ``siemens-mm4``, ``cia402``): a name
+    for people and file lists; behaviour comes from the sections, never from this key."""
     identity: Identity
     source: str | None = None
     """The manual this profile was built from (title, edition, chapter)."""
