@@ -45,6 +45,16 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 app_settings.allowed_hosts = [*app_settings.allowed_hosts, "testserver"]
 
 
+BROWSER_FIXTURES = {"browser", "page", "own_page"}
+"""Fixtures that start Chromium: a test using one is a browser test (``-m "not browser"`` leaves it out)."""
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    for item in items:
+        if BROWSER_FIXTURES & set(getattr(item, "fixturenames", ())):
+            item.add_marker(pytest.mark.browser)
+
+
 def wait_until(condition: Callable[[], bool], seconds: float = 10.0) -> bool:
     """Poll ``condition`` until it holds or ``seconds`` pass (tests on a loaded machine poll with a deadline)."""
     deadline = time.monotonic() + seconds

@@ -6,8 +6,7 @@ from __future__ import annotations
 import asyncio
 import shutil
 import subprocess
-import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 
 import can
@@ -20,6 +19,7 @@ from drivebench.services.recording import Recordings
 from drivebench.services.sessions import Session, SessionManager
 from drivebench.transport.busload import reference_bits
 from drivebench.transport.pcapng import read_pcapng
+from tests.conftest import wait_until
 
 
 def _frame(cob_id: int, data: bytes = b"", **kwargs: object) -> can.Message:
@@ -46,13 +46,6 @@ WIRE_FRAMES = [
 NMT_START_ALL = _frame(0x000, bytes([0x01, 0x00]))
 
 
-def wait_for(condition: Callable[[], bool], timeout_s: float = 10.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not condition():
-        assert time.monotonic() < deadline, "condition not met in time"
-        time.sleep(0.01)
-
-
 @pytest.fixture
 def session(channel: str, registry: ProfileRegistry) -> Iterator[Session]:
     manager = SessionManager(registry)
@@ -68,7 +61,7 @@ def _feed(session: Session, wire: can.BusABC) -> Monitor:
     session.network.send_nmt(NmtCommand.START, 0)
     for msg in WIRE_FRAMES:
         wire.send(msg)
-    wait_for(lambda: monitor.snapshot()["totals"]["frames"] + monitor.snapshot()["totals"]["errors"]
+    assert wait_until(lambda: monitor.snapshot()["totals"]["frames"] + monitor.snapshot()["totals"]["errors"]
              == len(WIRE_FRAMES) + 1)
     return monitor
 
@@ -96,7 +89,7 @@ def test_counts_per_service_node_and_cob_id(session: Session, wire: can.BusABC) 
     def history_bits() -> float:
         return sum(load for _, load in monitor.history()) * 5000
 
-    wait_for(lambda: history_bits() == pytest.approx(expected_bits, abs=5 * len(monitor.history())), 3.0)
+    assert wait_until(lambda: history_bits() == pytest.approx(expected_bits, abs=5 * len(monitor.history())), 3.0)
     assert snap["load"]["peak_percent"] >= 0
 
 
@@ -104,7 +97,7 @@ def test_rates_decay_when_a_cob_id_goes_silent(session: Session, wire: can.BusAB
     monitor = _feed(session, wire)
     first = {row["text"]: row["rate"] for row in monitor.snapshot()["cob_ids"]}
     assert first["0x185"] > 0
-    wait_for(lambda: {row["text"]: row["rate"] for row in monitor.snapshot()["cob_ids"]}["0x185"] == 0, 10.0)
+    assert wait_until(lambda: {row["text"]: row["rate"] for row in monitor.snapshot()["cob_ids"]}["0x185"] == 0, 10.0)
     assert monitor.snapshot()["cob_ids"][0]["total"] >= 1  # totals stay
 
 
@@ -131,7 +124,7 @@ def test_pause_freezes_the_view_reset_clears(session: Session, wire: can.BusABC)
     monitor.pause()
     rows_before = monitor.trace_rows()
     wire.send(_frame(0x185, bytes(4)))
-    wait_for(lambda: monitor.counts_for([0x185]) == 5)  # counting goes on underneath
+    assert wait_until(lambda: monitor.counts_for([0x185]) == 5)  # counting goes on underneath
     assert monitor.snapshot()["totals"]["frames"] == len(WIRE_FRAMES)  # the view is frozen
     assert monitor.snapshot()["paused"] is True
     assert monitor.trace_rows() == rows_before
@@ -155,7 +148,7 @@ def test_views_filter_and_pause_on_their_own(session: Session, wire: can.BusABC)
     monitor.pause(sdo)
     wire.send(_frame(0x605, bytes.fromhex("40C25F0000000000")))
     wire.send(_frame(0x70C, bytes([0x7F])))
-    wait_for(lambda: monitor.counts_for([0x605, 0x70C]) == 4)
+    assert wait_until(lambda: monitor.counts_for([0x605, 0x70C]) == 4)
     assert [row["cob_id"] for row in monitor.trace_rows(view=sdo)] == ["0x605", "0x585"]  # frozen
     assert monitor.snapshot(sdo)["paused"] is True
     assert monitor.snapshot(sdo)["totals"]["frames"] == len(WIRE_FRAMES)
@@ -187,7 +180,7 @@ def test_bus_state_from_error_frames(session: Session, wire: can.BusABC) -> None
              (error_frame(0x004, 0x40, 0, 0), ("active", 0, 0))]        # CRTL: back to error active
     for frame, (state, tec, rec) in steps:
         wire.send(frame)
-        wait_for(lambda state=state, tec=tec, rec=rec: (bus()["state"], bus()["tx_errors"], bus()["rx_errors"])
+        assert wait_until(lambda state=state, tec=tec, rec=rec: (bus()["state"], bus()["tx_errors"], bus()["rx_errors"])
                  == (state, tec, rec))
     assert monitor.snapshot()["totals"]["errors"] == len(steps)
 
@@ -208,7 +201,7 @@ def test_recording_reads_back(session: Session, wire: can.BusABC, tmp_path: Path
     recorder = recordings.start(fmt)
     for msg in WIRE_FRAMES:
         wire.send(msg)
-    wait_for(lambda: recorder.frames == len(WIRE_FRAMES))
+    assert wait_until(lambda: recorder.frames == len(WIRE_FRAMES))
     recordings.stop()
     [info] = recordings.list()
     assert info.format == fmt and info.size > 0 and not info.active
@@ -238,7 +231,7 @@ def test_pcapng_decodes_as_canopen_in_tshark(session: Session, wire: can.BusABC,
     recorder = recordings.start("pcapng")
     for msg in WIRE_FRAMES:
         wire.send(msg)
-    wait_for(lambda: recorder.frames == len(WIRE_FRAMES))
+    assert wait_until(lambda: recorder.frames == len(WIRE_FRAMES))
     recordings.stop()
     path = recordings.path(recordings.list()[0].name)
     result = subprocess.run([tshark, "-r", str(path), "-d", "can.subdissector,canopen", "-T", "fields",

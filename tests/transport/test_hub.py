@@ -12,18 +12,13 @@ import pytest
 
 from drivebench.transport.hub import HubHandle, HubStats, start_hub_thread
 from drivebench.transport.hub_bridge import BusBridge
-from tests.conftest import fresh_channel
+from tests.conftest import fresh_channel, wait_until
 
 DEADLINE_S = 10.0
 
 
 def wait_for(check: Callable[[], object], timeout_s: float = DEADLINE_S, what: str = "condition") -> None:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if check():
-            return
-        time.sleep(0.02)
-    raise AssertionError(f"{what}: not met within {timeout_s} s")
+    assert wait_until(lambda: bool(check()), timeout_s), f"{what}: not met within {timeout_s} s"
 
 
 def connect(hub: HubHandle, channel: str = "can0") -> can.BusABC:

@@ -5,12 +5,12 @@ export, live decode of a TPDO after a value change in the simulator, RPDO sendin
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
 
 import can
 from fastapi.testclient import TestClient
 
 from drivebench.simulator.plant import Plant
+from tests.conftest import wait_until
 
 NO_BROWSER = {"keepalive": False, "reason": "test without a browser"}  # NMT start without the keep-alive guard (admin)
 SEND = {"confirm": "3", "keepalive": "false", "reason": "test without a browser"}  # RPDO form fields, as above
@@ -22,15 +22,6 @@ UI = "/ui/sessions/demo-plant/nodes"
 def _plant(client: TestClient) -> Plant:
     plant: Plant = client.app.state.drivebench.plants["demo-plant"]  # type: ignore[attr-defined]
     return plant
-
-
-def _wait(condition: Callable[[], bool], seconds: float = 5.0) -> bool:
-    deadline = time.monotonic() + seconds
-    while time.monotonic() < deadline:
-        if condition():
-            return True
-        time.sleep(0.02)
-    return condition()
 
 
 def test_list_names_the_mapping_and_offers_vendor_codes(client: TestClient) -> None:
@@ -106,7 +97,7 @@ def test_apply_then_live_tpdo_decode_over_the_websocket(client: TestClient) -> N
         assert hello["type"] == "hello"
         tpdo5 = next(p for p in hello["pdos"] if p["direction"] == "tpdo" and p["number"] == 5)
         assert [s["ref"] for s in tpdo5["signals"]] == ["0x6041", "0x2803.3"]
-        assert _wait(lambda: sim.state.name == "OPERATIONAL")
+        assert wait_until(lambda: sim.state.name == "OPERATIONAL")
         sim.store.set(0x2803, 3, -1234)
         deadline = time.monotonic() + 10
         found = None
@@ -134,7 +125,7 @@ def test_rpdo_send_reaches_the_drive_and_dcf_holds_the_mapping(client: TestClien
     sent = client.post(f"{UI}/3/pdo/rpdo/5/send", data={**SEND, "mode": "once", "v:0x6040": "6", "v:0x6042": "-750"})
     assert "ignores" not in sent.text
     assert sent.status_code == 200 and "06 00 12 FD" in sent.text
-    assert _wait(lambda: sim.store.get(0x6042, 0) == -750)
+    assert wait_until(lambda: sim.store.get(0x6042, 0) == -750)
     assert sim.store.get(0x6040, 0) == 6
     refused = client.post(f"{UI}/3/pdo/rpdo/5/send", data={**SEND, "mode": "once", "v:0x6042": "40000"})
     assert refused.status_code == 422, "INTEGER16 range is checked before sending"
@@ -180,13 +171,13 @@ def test_cyclic_rpdo_stops_when_the_live_view_closes(client: TestClient, wire: c
         started = client.post(f"{UI}/3/pdo/rpdo/5/send", data={
             **SEND, "mode": "cyclic", "client_id": owner, "period_ms": "20", "v:0x6040": "6", "v:r2050.2": "-5"})
         assert started.status_code == 200 and "sending every 20 ms" in started.text
-        assert _wait(lambda: sim.store.get(0x2802, 3) == -5)
+        assert wait_until(lambda: sim.store.get(0x2802, 3) == -5)
         assert _frames(wire, 0x303, 0.5) >= 2, "cyclic RPDO5 frames on the wire"
         state = ws.receive_json()
         while state["type"] != "state":
             state = ws.receive_json()
         assert state["cyclic"] == [0x303]
-    assert _wait(lambda: not process_data.service(session).cyclic), "the closed socket's cyclic sends end"
+    assert wait_until(lambda: not process_data.service(session).cyclic), "the closed socket's cyclic sends end"
     assert _quiet(wire, 0x303, 0.5, within_s=10), "RPDO5 still on the wire every 20 ms"
 
 

@@ -5,12 +5,12 @@ tab names them, the simulated drive exchanges them, and writing count 0 brings t
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
 from typing import Any
 
 from fastapi.testclient import TestClient
 
 from drivebench.simulator.plant import Plant
+from tests.conftest import wait_until
 
 NO_BROWSER = {"keepalive": False, "reason": "test without a browser"}  # NMT start without the keep-alive guard (admin)
 SEND = {"confirm": "5", "keepalive": "false", "reason": "test without a browser"}  # RPDO form fields, as above
@@ -26,15 +26,6 @@ STATIC = {("rpdo", 1): ["C00866/1", "C00866/2", "C00866/3", "C00866/4"],
 def _plant(client: TestClient) -> Plant:
     plant: Plant = client.app.state.drivebench.plants["demo-plant"]  # type: ignore[attr-defined]
     return plant
-
-
-def _wait(condition: Callable[[], bool], seconds: float = 5.0) -> bool:
-    deadline = time.monotonic() + seconds
-    while time.monotonic() < deadline:
-        if condition():
-            return True
-        time.sleep(0.02)
-    return condition()
 
 
 def test_count_0_is_shown_as_the_static_port_mapping(client: TestClient) -> None:
@@ -64,10 +55,10 @@ def test_the_drive_exchanges_the_port_words(client: TestClient) -> None:
         assert [s["ref"] for s in tpdo1["signals"]] == STATIC[("tpdo", 1)]
         # event-driven TPDOs go out once on the start
         client.post(f"{API}/nmt", json={"command": "start", "confirm": 5, **NO_BROWSER})
-        assert _wait(lambda: sim.state.name == "OPERATIONAL")
+        assert wait_until(lambda: sim.state.name == "OPERATIONAL")
         sent = client.post(f"{UI}/pdo/rpdo/1/send", data={**SEND, "mode": "once", "v:C00866/2": "4660"})
         assert sent.status_code == 200 and "00 00 34 12 00 00 00 00" in sent.text, sent.text
-        assert _wait(lambda: sim.store.get_ref("C00866/2") == 0x1234)
+        assert wait_until(lambda: sim.store.get_ref("C00866/2") == 0x1234)
         deadline = time.monotonic() + 10
         sample: dict[str, Any] | None = None
         while time.monotonic() < deadline and sample is None:

@@ -2,28 +2,16 @@
 
 from __future__ import annotations
 
-import time
-from collections.abc import Callable
-
 import pytest
 from fastapi.testclient import TestClient
 
-from tests.conftest import fresh_channel
+from tests.conftest import fresh_channel, wait_until
 
 NO_BROWSER = {"keepalive": False, "reason": "test without a browser"}  # NMT start without the keep-alive guard (admin)
 
 DEMO = "demo-plant"
 DEMO_DEVICES = {3: "Pump (MICROMASTER 440)", 5: "Conveyor (8400 motec)", 12: "Fan (8200 vector + EMF2178IB)"}
 PROBLEM = "application/problem+json"
-
-
-def wait_for(check: Callable[[], object], timeout_s: float = 5.0) -> object:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if result := check():
-            return result
-        time.sleep(0.05)
-    raise AssertionError("condition not met in time")
 
 
 def node_states(client: TestClient) -> dict[int, str]:
@@ -153,7 +141,7 @@ def test_invalid_nmt_and_scan_requests_are_422(path: str, payload: dict[str, obj
 
 # --- nodes, NMT, scan ---------------------------------------------------------------------------------------
 def test_nodes_list_device_names_and_heartbeat_states(client: TestClient) -> None:
-    wait_for(lambda: set(node_states(client).values()) == {"Pre-operational"})
+    assert wait_until(lambda: set(node_states(client).values()) == {"Pre-operational"})
     nodes = client.get(f"/api/sessions/{DEMO}/nodes").json()
     assert {n["node_id"]: n["device"] for n in nodes} == DEMO_DEVICES
     for node in nodes:
@@ -163,20 +151,20 @@ def test_nodes_list_device_names_and_heartbeat_states(client: TestClient) -> Non
 
 
 def test_nmt_broadcast_and_per_node(client: TestClient) -> None:
-    wait_for(lambda: set(node_states(client).values()) == {"Pre-operational"})
+    assert wait_until(lambda: set(node_states(client).values()) == {"Pre-operational"})
     assert client.post(f"/api/sessions/{DEMO}/nmt", json={"command": "start"}).status_code == 428
     answer = client.post(f"/api/sessions/{DEMO}/nmt", json={"command": "start", "confirm": "all", **NO_BROWSER})
     assert answer.status_code == 200 and len(answer.json()) == 3
-    wait_for(lambda: set(node_states(client).values()) == {"Operational"})
+    assert wait_until(lambda: set(node_states(client).values()) == {"Operational"})
     single = client.post(f"/api/sessions/{DEMO}/nodes/12/nmt", json={"command": "stop"})
     assert single.status_code == 200 and single.json()["node_id"] == 12
-    wait_for(lambda: node_states(client) == {3: "Operational", 5: "Operational", 12: "Stopped"})
+    assert wait_until(lambda: node_states(client) == {3: "Operational", 5: "Operational", 12: "Stopped"})
     client.post(f"/api/sessions/{DEMO}/nmt", json={"command": "pre-operational", "node_id": 5})
-    wait_for(lambda: node_states(client) == {3: "Operational", 5: "Pre-operational", 12: "Stopped"})
+    assert wait_until(lambda: node_states(client) == {3: "Operational", 5: "Pre-operational", 12: "Stopped"})
     bootups = client.get(f"/api/sessions/{DEMO}/nodes/3").json()["bootups"]
     client.post(f"/api/sessions/{DEMO}/nmt", json={"command": "reset-node"})
-    wait_for(lambda: client.get(f"/api/sessions/{DEMO}/nodes/3").json()["bootups"] > bootups)
-    wait_for(lambda: set(node_states(client).values()) == {"Pre-operational"})
+    assert wait_until(lambda: client.get(f"/api/sessions/{DEMO}/nodes/3").json()["bootups"] > bootups)
+    assert wait_until(lambda: set(node_states(client).values()) == {"Pre-operational"})
 
 
 def test_scan_finds_the_three_demo_nodes(client: TestClient) -> None:
@@ -197,7 +185,7 @@ def test_add_and_remove_a_node(client: TestClient) -> None:
 
 # --- websocket -----------------------------------------------------------------------------------------------
 def test_node_websocket_pushes_the_nodes_table_as_it_changes(client: TestClient) -> None:
-    wait_for(lambda: set(node_states(client).values()) == {"Pre-operational"})
+    assert wait_until(lambda: set(node_states(client).values()) == {"Pre-operational"})
     with client.websocket_connect(f"/ws/sessions/{DEMO}/nodes") as socket:
         first = socket.receive_text()
         assert f'id="nodes-{DEMO}" hx-swap-oob="true"' in first
