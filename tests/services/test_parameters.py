@@ -10,8 +10,17 @@ from typing import Any, TypeVar
 import can
 import pytest
 
+from drivebench.device.commands import CommandsSection, CommandWrite
 from drivebench.device.loader import ProfileRegistry
-from drivebench.errors import InvalidValue, OutOfRange, ReadOnly, SdoAbortError, SdoTimeoutError, UnknownParameter
+from drivebench.errors import (
+    Conflict,
+    InvalidValue,
+    OutOfRange,
+    ReadOnly,
+    SdoAbortError,
+    SdoTimeoutError,
+    UnknownParameter,
+)
 from drivebench.services import parameters
 from drivebench.services.jobs import JobManager, JobState
 from drivebench.services.parameters import DeviceCommand
@@ -269,6 +278,14 @@ def test_device_commands_per_profile(bench: Bench) -> None:
     assert "restore defaults" in bench.session.node(3).pending_reset
     bench.run(parameters.command(bench.session, 3, DeviceCommand.RESET_NODE))
     assert bench.session.node(3).pending_reset == set()
+
+
+def test_a_command_the_profile_names_but_does_not_list_is_refused_in_words(bench: Bench) -> None:
+    node = bench.session.node(5)
+    commands = CommandsSection(save=CommandWrite(ref="C09999", value=1, done="saved"))
+    node.profile = node.profile.model_copy(update={"commands": commands}) if node.profile else None
+    with pytest.raises(Conflict, match="save command writes C09999, which the profile does not list"):
+        bench.run(parameters.command(bench.session, 5, DeviceCommand.SAVE))
 
 
 # --- read-all jobs -----------------------------------------------------------------------------------------

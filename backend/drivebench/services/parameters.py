@@ -60,7 +60,6 @@ SILENT_AFTER_TIMEOUTS = 2
 """Consecutive timeouts after which a read-all stops asking a node (it is absent or silent)."""
 
 
-
 @dataclass
 class SdoSettings:
     """Per-session SDO behaviour (the REST API and the node page can change it)."""
@@ -543,10 +542,13 @@ async def _command(session: Session, node_id: int, which: DeviceCommand) -> Comm
     item = _find(catalog, write.ref)
     if item is not None:
         index, subindex, data = item.index, item.subindex, encode(item.entry.data_type, write.raw)
-    else:  # no profile: the CiA 301 object, addressed as such
+    elif catalog is None:  # no profile: the CiA 301 object, addressed as such
         parsed = parse_ref(write.ref)
-        assert isinstance(parsed, IndexRef)
+        assert isinstance(parsed, IndexRef)  # CIA301_SAVE / CIA301_RESTORE
         index, subindex, data = parsed.index, parsed.subindex or 0, write.raw.to_bytes(4, "little")
+    else:
+        raise Conflict(f"{node.device_name}: the profile's {which.value.replace('-', ' ')} command writes "
+                       f"{write.ref}, which the profile does not list as a writable entry")
     await _on_bus(partial(client.download, index, subindex, data))
     if write.after_reset:
         node.pending_reset.add("restore defaults")
