@@ -12,6 +12,7 @@ import time
 import uuid
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import TypeVar
 
 import can
 import pytest
@@ -55,6 +56,9 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
             item.add_marker(pytest.mark.browser)
 
 
+T = TypeVar("T")
+
+
 def wait_until(condition: Callable[[], bool], seconds: float = 10.0) -> bool:
     """Poll ``condition`` until it holds or ``seconds`` pass (tests on a loaded machine poll with a deadline)."""
     deadline = time.monotonic() + seconds
@@ -63,6 +67,13 @@ def wait_until(condition: Callable[[], bool], seconds: float = 10.0) -> bool:
             return True
         time.sleep(0.05)
     return bool(condition())
+
+
+def wait_for_value(check: Callable[[], T], seconds: float = 10.0, what: str = "condition") -> T:
+    """The first truthy value ``check`` gives within ``seconds`` (polled by :func:`wait_until`)."""
+    seen: list[T] = []
+    assert wait_until(lambda: bool(seen.append(check()) or seen[-1]), seconds), f"timed out waiting for {what}"
+    return seen[-1]
 
 
 def fresh_channel() -> str:

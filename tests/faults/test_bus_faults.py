@@ -23,17 +23,11 @@ from drivebench.transport.bus import SimulatedAdapter
 from drivebench.transport.hub import start_hub_thread
 from drivebench.transport.hub_bridge import BusBridge
 from drivebench.web.app import create_app
-from tests.conftest import CHROMIUM, CHROMIUM_ARGS, DEMO_PLANT, fresh_channel, screenshot, serve_app
+from tests.conftest import CHROMIUM, CHROMIUM_ARGS, DEMO_PLANT, fresh_channel, screenshot, serve_app, wait_for_value
 
 
 def wait_for(check: Callable[[], Any], timeout_s: float = 10.0, what: str = "condition") -> Any:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        value = check()
-        if value:
-            return value
-        time.sleep(0.02)
-    raise AssertionError(f"timed out waiting for {what}")
+    return wait_for_value(check, timeout_s, what)
 
 
 def demo_session(client: TestClient) -> Session:

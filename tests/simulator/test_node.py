@@ -13,6 +13,7 @@ import itertools
 import statistics
 import time
 from collections.abc import Callable, Iterator
+from typing import Any
 
 import can
 import canopen
@@ -25,19 +26,15 @@ from drivebench.protocol.datatypes import DataType
 from drivebench.protocol.nmt import NmtState
 from drivebench.simulator.node import LOAD_SIGNATURE, SAVE_SIGNATURE, Latency, SimulatedNode
 from drivebench.simulator.plant import Plant, PlantFile, PlantNode
+from tests.conftest import wait_for_value
 
 LENZE_8400, LENZE_8200, TEST_NODE = 5, 12, 20
 LONG_DOMAIN = bytes(range(256)) * 4 + b"end"  # 1027 bytes: several block-transfer sub-blocks of 127 segments
 C00324_1 = (0x5FFF - 324, 1)  # 8400 "CAN Tx inhibit time", U16 0..6500 ms
 
 
-def wait_for(check: Callable[[], object], timeout_s: float = 5.0) -> object:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if result := check():
-            return result
-        time.sleep(0.01)
-    raise AssertionError("condition not met in time")
+def wait_for(check: Callable[[], Any], timeout_s: float = 5.0, what: str = "condition") -> Any:
+    return wait_for_value(check, timeout_s, what)
 
 
 class Recorder(can.Listener):

@@ -4,16 +4,16 @@ the report, and the read-only guarantee of remote-diagnostics share links."""
 from __future__ import annotations
 
 import json
-import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 from fastapi.testclient import TestClient
 
 from drivebench.simulator.plant import Plant
 from drivebench.web.app import create_app
-from tests.conftest import fresh_channel
+from tests.conftest import fresh_channel, wait_for_value
 
 NO_BROWSER = {"keepalive": False, "reason": "test without a browser"}  # NMT start without the keep-alive guard (admin)
 
@@ -37,13 +37,8 @@ def plant_of(client: TestClient) -> Plant:
     return plants[SESSION]
 
 
-def wait_for(check: Callable[[], object], timeout_s: float = 5.0) -> object:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if result := check():
-            return result
-        time.sleep(0.05)
-    raise AssertionError("condition not met in time")
+def wait_for(check: Callable[[], Any], timeout_s: float = 5.0, what: str = "condition") -> Any:
+    return wait_for_value(check, timeout_s, what)
 
 
 def node_health(client: TestClient, node_id: int) -> dict[str, object]:
