@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import pytest
 
+from drivebench.config import settings
 from drivebench.device.cobids import channels_of, cob_ids, default_channels
 from drivebench.device.dip import LENZE_8400_MOTEC, LENZE_EMF2178IB, SIEMENS_MM4
+from drivebench.device.loader import load_profile_file
 from drivebench.errors import InvalidValue, OutOfRange
 
 
@@ -95,3 +97,20 @@ def test_rejects_out_of_range_and_lenze_ids_elsewhere() -> None:
     with pytest.raises(InvalidValue):
         cob_ids(SIEMENS_MM4, 3, pdo_ids="lenze")
     assert cob_ids(LENZE_EMF2178IB, 127)[-1].cob_id == 0x77F
+
+
+@pytest.mark.parametrize("profile_file", ["lenze-8200-vector-emf2178ib.json", "lenze-93xx-emf2178ib.json"])
+def test_emf_pdo_channels_on_by_default_like_the_profiles(profile_file: str) -> None:
+    """§8.1 lists PDO2/PDO3 like PDO1 (only SDO2 is "Lenze setting: not active"); the profiles hold them valid
+    (I-1401/I-1402/I-1801/I-1802 sub 1 bit 31 clear, C1865/3 and /4 = 1). The table must say the same."""
+    profile = load_profile_file((settings.profiles_dir / profile_file).read_bytes(), profile_file)
+    cob_id_defaults = {(o.index, o.subindex): o.default_expr for o in profile.objects}
+    validity = {p.subcode: p.default for p in profile.parameters if p.code == "C1865"}
+    on = default_channels(LENZE_EMF2178IB)
+    rpdo_base, tpdo_base = {1: 0x200, 2: 0x300, 3: 0x400}, {1: 0x180, 2: 0x280, 3: 0x380}
+    for number in (1, 2, 3):
+        assert cob_id_defaults[(0x1400 + number - 1, 1)] == f"$NODEID+0x{rpdo_base[number]:X}"  # bit 31 clear
+        assert cob_id_defaults[(0x1800 + number - 1, 1)] == f"$NODEID+0x{tpdo_base[number]:X}"
+        assert validity[number + 1] == 1
+        assert f"pdo{number}" in on
+    assert "sdo2" not in on and validity[1] == 0

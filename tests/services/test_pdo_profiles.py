@@ -89,7 +89,7 @@ def test_defaults_as_the_manuals_list_them(drives: tuple[Session, Plant], loop: 
     assert [(c.direction, c.number, c.cob_id - 12) for c in emf] == [
         ("rpdo", 1, 0x200), ("rpdo", 2, 0x300), ("rpdo", 3, 0x400),
         ("tpdo", 1, 0x180), ("tpdo", 2, 0x280), ("tpdo", 3, 0x380)]
-    assert "not available with 8200 vector" in emf[1].notes[0] and not emf[0].notes
+    assert "depending on the basic device (§9.1)" in emf[1].notes[0] and not emf[0].notes
     assert emf[0].transmission_type == 254 and emf[0].transmission_note is None
     profile = session.node(12).profile
     assert profile is not None

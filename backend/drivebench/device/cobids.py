@@ -113,19 +113,12 @@ SERVICES: dict[str, list[Service]] = {
         *_common(_SEMF),
         Service(name="TPDO1", channel="pdo1", base=0x180, direction="from node", source=_SEMF),
         Service(name="RPDO1", channel="pdo1", base=0x200, direction="to node", source=_SEMF),
-        # I-1401/I-1402 are not available with 8200 vector / 93XX (manual p. 109): PDO2/3 off by default here.
-        Service(
-            name="TPDO2", channel="pdo2", base=0x280, direction="from node", default_on=False, source=_SEMF
-        ),
-        Service(
-            name="RPDO2", channel="pdo2", base=0x300, direction="to node", default_on=False, source=_SEMF
-        ),
-        Service(
-            name="TPDO3", channel="pdo3", base=0x380, direction="from node", default_on=False, source=_SEMF
-        ),
-        Service(
-            name="RPDO3", channel="pdo3", base=0x400, direction="to node", default_on=False, source=_SEMF
-        ),
+        # §8.1 lists PDO2/PDO3 with the predefined basic identifiers like PDO1 (only SDO2 is marked "Lenze
+        # setting: not active"), and their validity codes C1865/3, /4 default to valid: on by default.
+        Service(name="TPDO2", channel="pdo2", base=0x280, direction="from node", source=_SEMF),
+        Service(name="RPDO2", channel="pdo2", base=0x300, direction="to node", source=_SEMF),
+        Service(name="TPDO3", channel="pdo3", base=0x380, direction="from node", source=_SEMF),
+        Service(name="RPDO3", channel="pdo3", base=0x400, direction="to node", source=_SEMF),
         *_tail(_SEMF),
         # SDO2 = "address + 64" (§7): activated with C1865/1 or C2365/1.
         Service(
@@ -182,7 +175,10 @@ NOTES: dict[str, list[str]] = {
     LENZE_EMF2178IB: [
         "§7: SDO2 is reached under node address + 64: its COB-IDs are the SDO1 COB-IDs of node id + 64, so "
         "that node id must stay free (and a node above 63 cannot use SDO2).",
-        "I-1401/I-1402 (PDO2/PDO3) are not available with 8200 vector and 93XX controllers.",
+        "§8.1 lists PDO2/PDO3 on the predefined identifiers and the profiles hold them valid (C1865/3, /4 = 1), "
+        "so they are on here. §9.1: 'depending on the basic device used, up to 3 RPDOs and TPDOs can be "
+        "available'; the 8200 vector's 3 and the 93XX's 4 AIF words fit into PDO1 (§9.3.2). A copy of p. 109 "
+        "from outside the seed text says I-1401/I-1402 are not available with 8200 vector and 93XX.",
     ],
     SIEMENS_MM4: [
         "Only PDO1, PDO5 and PDO6 exist; their default COB-IDs are those of the predefined connection set's "
