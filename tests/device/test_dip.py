@@ -170,7 +170,7 @@ def test_mm4_has_no_switches_and_gives_parameters() -> None:
     assert family_spec(SIEMENS_MM4).switches == []
     result = encode(SIEMENS_MM4, 4, 250)
     settings = {a.code: a.value for a in result.alternative}
-    assert settings == {"P0918": 4, "P2010": 250, "P2041.04": 4}  # §5.6 example: hundreds digit 4 = 250
+    assert settings == {"P0918": 4, "P2010": 250, "P2041.04": 400}  # §5.6: hundreds digit 4 = 250 kbit/s
     factory = decode(SIEMENS_MM4, {})
     assert (factory.node_id, factory.baud_kbit) == (3, 10)
     assert any("P2041.04" in a for a in factory.ambiguities)
@@ -251,15 +251,20 @@ P2041_ROWS = [(0, 10), (1, 20), (2, 50), (3, 125), (4, 250), (5, 500), (6, 800),
 
 
 @pytest.mark.parametrize(("digit", "kbit"), P2041_ROWS)
-def test_mm4_p2041_04_baud_digit_rows(digit: int, kbit: int) -> None:
-    settings = {a.code: a.value for a in encode(SIEMENS_MM4, 3, kbit).alternative}
-    assert settings == {"P0918": 3, "P2010": kbit, "P2041.04": digit}
+def test_mm4_p2041_04_is_the_whole_number_per_baud_rate(digit: int, kbit: int) -> None:
+    """The value to write is the whole decimal number: hundreds = baud rate, tens/ones = the factory reactions to a
+    communication error (0x6007 = 0, 0x1029.1 = 0). The hundreds digit alone (4 for 250 kbit/s) would select
+    10 kbit/s with ones digit 4, which 0x1029.1 does not define."""
+    setting = next(a for a in encode(SIEMENS_MM4, 3, kbit).alternative if a.code == "P2041.04")
+    assert setting.value == 100 * digit
+    assert (setting.value // 100, setting.value // 10 % 10, setting.value % 10) == (digit, 0, 0)
+    assert f"{kbit} kbit/s" in setting.meaning
 
 
 def test_mm4_p2041_04_worked_example_432() -> None:
-    """§5.6: 250 kbit/s, CAN state machine 'no state change' (3), drive 'OFF2' (2) -> P2041.04 = 432."""
-    digit = next(a.value for a in encode(SIEMENS_MM4, 3, 250).alternative if a.code == "P2041.04")
-    assert digit == 432 // 100
+    """§5.6: 250 kbit/s -> hundreds digit 4 of the example's P2041.04 = 432; the calculator keeps tens/ones 0."""
+    value = next(a.value for a in encode(SIEMENS_MM4, 3, 250).alternative if a.code == "P2041.04")
+    assert value is not None and value // 100 == 432 // 100 and value == 400
 
 
 def test_mm4_unsupported_values() -> None:

@@ -4,6 +4,7 @@ comparison with a live scan of a simulated bus (Lenze nodes only, so the test do
 from __future__ import annotations
 
 import json
+import re
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -87,7 +88,7 @@ def test_dip_encode_and_its_errors(api: TestClient) -> None:
     assert api.get("/api/tools/dip/acme").status_code == 404
     mm4 = api.post("/api/tools/dip/siemens-mm4", json={"node_id": 4, "baud_kbit": 250}).json()
     assert {a["code"]: a["value"] for a in mm4["result"]["alternative"]} == {"P0918": 4, "P2010": 250,
-                                                                             "P2041.04": 4}
+                                                                             "P2041.04": 400}
 
 
 def test_cobids_and_families(api: TestClient) -> None:
@@ -201,6 +202,18 @@ def test_tools_page_renders_every_family(api: TestClient) -> None:
         assert block.status_code == 200
         assert block.text.count('class="dip-switch') == switches
     assert "P0918" in block.text and "P2010" in block.text
+
+
+@pytest.mark.parametrize(("kbit", "value"), [(10, 0), (20, 100), (50, 200), (125, 300), (250, 400), (500, 500),
+                                             (800, 600), (1000, 700)])
+def test_tools_page_shows_the_whole_p2041_04_value(api: TestClient, kbit: int, value: int) -> None:
+    """MICROMASTER §5.6 Table 5-1: the Value column holds the number to write (hundreds digit = baud rate, tens and
+    ones = the factory communication-error reactions), not the hundreds digit alone."""
+    block = api.post("/ui/tools/dip", data={"family": "siemens-mm4", "action": "encode", "node_id": "4",
+                                            "baud_kbit": str(kbit)})
+    assert block.status_code == 200
+    row = re.search(r"<code>P2041\.04</code></td><td class=\"num\">([^<]*)</td>", block.text)
+    assert row is not None and row.group(1) == str(value)
 
 
 def test_ui_import_of_bad_json_reports_and_keeps_the_plan(api: TestClient) -> None:

@@ -296,6 +296,11 @@ def _check_baud(spec: FamilySpec, baud_kbit: int) -> None:
         )
 
 
+# P2041.04 digits below the baud rate (§5.6 Table 5-1) in the factory setting: 0x6007 and 0x1029.1 default to 0.
+_P2041_04_TENS = 0
+_P2041_04_ONES = 0
+
+
 def code_alternative(family: str, node_id: int, baud_kbit: int) -> list[ParameterSetting]:
     """Parameter values that set ``node_id`` and ``baud_kbit`` without switches (a note says where
     impossible)."""
@@ -365,13 +370,17 @@ def code_alternative(family: str, node_id: int, baud_kbit: int) -> list[Paramete
                 note="Object 0x27DA, value in kbit/s.",
             )
         )
+        digit = spec.baud_rates_kbit.index(baud_kbit)
         settings.append(
             ParameterSetting(
                 code="P2041.04",
-                value=spec.baud_rates_kbit.index(baud_kbit),
-                meaning=f"hundreds digit = {spec.baud_rates_kbit.index(baud_kbit)} ({baud_kbit} kbit/s)",
-                note="Only the hundreds digit; ones and tens digits are the "
-                "communication-error reactions (§5.6).",
+                value=100 * digit + 10 * _P2041_04_TENS + _P2041_04_ONES,
+                meaning=f"hundreds digit {digit} = {baud_kbit} kbit/s, tens digit {_P2041_04_TENS} = drive "
+                f"reaction to a communication error (0x6007), ones digit {_P2041_04_ONES} = CAN state machine "
+                "reaction (0x1029.1)",
+                note="The whole decimal number is written (§5.6 Table 5-1, example 432 = 250 kbit/s); tens and "
+                "ones are the factory reactions (0x6007 = 0 no action, 0x1029.1 = 0 pre-operational). "
+                "Writing the hundreds digit alone would select 10 kbit/s.",
             )
         )
     return settings
