@@ -34,7 +34,15 @@ def test_8400_manual_example_16_4_2_1_is_23() -> None:
     result = decode(M8400, on("16", "4", "2", "1", "a"))
     assert (result.node_id, result.node_id_source) == (23, "switches")
     assert result.address_switch_sum == 23
-    assert result.readback["C00349"] == 23 | (1 << 7)
+    assert result.readback["C00349"] == 23 | (1 << 7) | (1 << 15)
+
+
+@pytest.mark.parametrize("switches", [(), ("1",), ("64", "c", "b", "a"), ("32", "b")])
+def test_8400_c00349_bit_15_accept_dip_switch_at_24v_on(switches: tuple[str, ...]) -> None:
+    """§12.2 C00349: 'Display of the DIP switch setting at the last mains connection', bit 15 'Accept DIP switch at
+    24V-ON': the read-back after switch-on has bit 15 set, bits 10 ... 14 (reserved) clear."""
+    value = decode(M8400, on(*switches)).readback["C00349"]
+    assert value & 0x8000 and not value & 0x7C00
 
 
 def test_8400_all_off_uses_c00350_and_c00351() -> None:
@@ -89,7 +97,7 @@ def test_8400_unlisted_baud_pattern_is_a_problem() -> None:
 
 def test_8400_c00349_readback_assumes_a_is_low_bit_and_says_so() -> None:
     result = decode(M8400, on("c", "b", "2"))  # 800 kbit/s
-    assert result.readback["C00349"] == 2 | (1 << 8) | (1 << 9)
+    assert result.readback["C00349"] == 2 | (1 << 8) | (1 << 9) | (1 << 15)
     assert any("which of the switches a/b/c is bit 7" in text for text in result.ambiguities)
 
 
@@ -166,6 +174,16 @@ def test_emf_codes_cannot_give_100_or_10_kbit() -> None:
 
 
 # --- MICROMASTER --------------------------------------------------------------------------------------------
+def test_emf_rules_say_how_changed_codes_take_effect() -> None:
+    """§6.3: C1850/C2350, C1851/C2351 changes are accepted by power off/on, C0358 = 1, NMT 'Reset Communication',
+    C2120 = 1; the C18xx/C23xx device split is §7 ('Activate the 2. SDO channel')."""
+    rules = decode(EMF, {}, code_node_id=5, code_baud_kbit=500).rules_applied
+    accept = next(rule for rule in rules if "accepted by" in rule)
+    assert all(part in accept for part in ("off and on", "C0358 = 1", "Reset Communication", "C2120"))
+    split = next(rule for rule in family_spec(EMF).rules if "C23xx" in rule)
+    assert split.startswith("§7:")
+
+
 def test_mm4_has_no_switches_and_gives_parameters() -> None:
     assert family_spec(SIEMENS_MM4).switches == []
     result = encode(SIEMENS_MM4, 4, 250)

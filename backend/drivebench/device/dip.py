@@ -122,6 +122,9 @@ FAMILIES: dict[str, FamilySpec] = {
             "a/b/c is bit 7 (the low bit); this tool assumes a = 1, b = 2, c = 4 (then the DIP code equals "
             "the C00351 value for every baud rate except 800 kbit/s, where the switch code is 6 and C00351 "
             "is 14). It only affects the C00349 read-back value, not the baud rate the §6.3.1 table gives.",
+            "§12.2 C00349 bit 15 'Accept DIP switch at 24V-ON' is not explained further; as the display is 'the "
+            "DIP switch setting at the last mains connection', this tool sets it in every read-back (the "
+            "switches are read at 24 V on, also when they are all OFF and the codes apply).",
             "§6.3.1 vs §12.2: a, b, c OFF is printed as '500 kbps' in the switch table while C00351 says the "
             "code applies when the switches give baud rate 0; both hold with C00351 = 0 (500 kbit/s), the "
             "Lenze setting (bold print lost in the text). With a, b, c OFF this tool reports the baud rate "
@@ -158,9 +161,12 @@ FAMILIES: dict[str, FamilySpec] = {
             "C1850/C2350 and C1851/C2351; the baud switches 8 … 10 are then ignored.",
             "§6.3: the codes are inactive if at least one address switch is ON at mains connection.",
             "§6.3: node addresses > 99 can only be set via DIP switch; 10 and 20 kbit/s only via DIP switch.",
-            "§6.3: C18xx codes for 8200 vector / 93XX (EVS93xx-ES/EP/EK/ER, EVF93xx-EV, E82EVxxx); C23xx for "
+            "§7: C18xx codes for 8200 vector / 93XX (EVS93xx-ES/EP/EK/ER, EVF93xx-EV, E82EVxxx); C23xx for "
             "9300 Servo PLC, Drive PLC, ECS (EVS93xx-EI/ET, EPL-10200, ECSxS/P/M/A).",
             "§6.3: switch changes take effect after switching the module's supply off and on.",
+            "§6.3: changed C1850/C2350 and C1851/C2351 are accepted by switching the supply off and on, 'Reset "
+            "node' with C0358 = 1, the NMT command 'Reset Communication', or C2120 (AIF control byte) = 1 "
+            "(C2120 is described for 9300 Servo PLC / Drive PLC / ECS, §10.6.2).",
         ],
         ambiguities=[
             "The selection values of C1851/C2351 are in chapter 14, which the available manual text lacks "
@@ -386,13 +392,18 @@ def code_alternative(family: str, node_id: int, baud_kbit: int) -> list[Paramete
     return settings
 
 
+C00349_ACCEPTED_AT_24V_ON = 1 << 15
+
+
 def _c00349(spec: FamilySpec, positions: dict[str, bool]) -> int:
-    """8400 motec C00349: bits 0-6 address switches, bits 7-9 baud 1/2/4 (assumed a = 1, b = 2, c = 4)."""
+    """8400 motec C00349 after switch-on: bits 0-6 address switches, bits 7-9 baud 1/2/4 (assumed a = 1, b = 2,
+    c = 4), bit 15 "Accept DIP switch at 24V-ON" (§12.2: the display shows the setting read at the last mains
+    connection, so the switches were taken over at 24 V on)."""
     value = sum(1 << bit for bit, w in enumerate((1, 2, 4, 8, 16, 32, 64)) if positions[str(w)])
     for bit, label in ((7, "a"), (8, "b"), (9, "c")):
         if positions[label]:
             value |= 1 << bit
-    return value
+    return value | C00349_ACCEPTED_AT_24V_ON
 
 
 def decode(
@@ -483,7 +494,7 @@ def _decode_emf(
     if total == 0:
         node_id, node_source = code_node_id, "C1850/C2350"
         baud, baud_source = code_baud_kbit, "C1851/C2351"
-        rules.append(spec.rules[1])
+        rules += [spec.rules[1], spec.rules[6]]
         if code_node_id is not None and not 1 <= code_node_id <= 99:
             problems.append(
                 f"C1850/C2350 = {code_node_id}: node addresses > 99 only via DIP switch; "
