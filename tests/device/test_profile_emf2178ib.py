@@ -30,7 +30,7 @@ MODULE_CODES = {
 OBJECTS = {
     0x1000: [0], 0x1001: [0], 0x1003: list(range(11)), 0x1005: [0], 0x1006: [0], 0x1008: [0], 0x100A: [0],
     0x100C: [0], 0x100D: [0], 0x1010: [0, 1, 2, 3], 0x1011: list(range(8)), 0x1014: [0], 0x1015: [0],
-    0x1016: [0, 1], 0x1017: [0], 0x1018: [0, 1, 2, 3, 4], 0x1029: [0, 1], 0x1200: [0, 1, 2], 0x1201: [0, 1, 2],
+    0x1016: [0, 1], 0x1017: [0], 0x1018: [0, 1, 2, 3, 4], 0x1029: [0, 1], 0x1200: [0, 1, 2], 0x1201: [0, 1, 2, 3],
     **{index: [0, 1, 2, 5] for index in (0x1400, 0x1401, 0x1402)},
     **{index: [0, 1, 2, 3, 4] for index in (0x1600, 0x1601, 0x1602, 0x1A00, 0x1A01, 0x1A02)},
     **{index: [0, 1, 2, 3, 5] for index in (0x1800, 0x1801, 0x1802)},
@@ -233,5 +233,5 @@ def test_counts(registry: ProfileRegistry, profile_id: str, parameters: int, cod
     profile = registry.get(profile_id)
     assert len(profile.parameters) == parameters
     assert len({p.code for p in profile.parameters}) == codes
-    assert len(profile.objects) == 106
+    assert len(profile.objects) == 107
     assert len(profile.emcy_codes) == 9

@@ -38,7 +38,7 @@ CAN_CODE_SUBCODES = {
 # Chapter 13: every implemented object with its subindices.
 MOTEC_OBJECTS = {
     0x1000: [0], 0x1001: [0], 0x1003: list(range(11)), 0x1005: [0], 0x1006: [0], 0x1014: [0], 0x1016: [0, 1],
-    0x1017: [0], 0x1018: [0, 1, 2, 3, 4], 0x1200: [0, 1, 2], 0x1201: [0, 1, 2], 0x1400: [0, 1, 2, 3, 5],
+    0x1017: [0], 0x1018: [0, 1, 2, 3, 4], 0x1200: [0, 1, 2], 0x1201: [0, 1, 2, 3], 0x1400: [0, 1, 2, 3, 5],
     0x1401: [0, 1, 2, 3, 5], 0x1600: [0, 1, 2, 3, 4], 0x1601: [0, 1, 2, 3, 4], 0x1800: [0, 1, 2, 3, 5],
     0x1801: [0, 1, 2, 3, 5], 0x1A00: [0, 1, 2, 3, 4], 0x1A01: [0, 1, 2, 3, 4],
 }
@@ -195,7 +195,7 @@ def test_motec_objects_are_chapter_13(motec: Profile) -> None:
     catalog = Catalog(motec)
     sdo2 = catalog.resolve("0x1201.1").entry
     assert (sdo2.access, sdo2.default) == (Access.RW, 0x80000000)  # SDO2 invalid in the Lenze setting
-    assert catalog.resolve("0x1201.0").entry.default == 2  # printed 3; CiA 301: highest sub-index supported
+    assert catalog.resolve("0x1201.0").entry.default == 3  # printed 3; CiA 301 allows 3 for 0x1201 (sub 3 client id)
     assert catalog.resolve("0x1018.1").entry.default == 0x3B
     tpdo1 = catalog.resolve("0x1800.1").entry
     assert isinstance(tpdo1, ObjectEntry) and tpdo1.default_expr == "$NODEID+0x180"
@@ -224,7 +224,7 @@ def test_motec_counts(motec: Profile) -> None:
     # 90 + C00866/1...8, C00868/1...8 (CAN input/output words, PDO-mappable) + C00053/C00054 (actual values)
     assert len(motec.parameters) == 108
     assert len({p.code for p in motec.parameters}) == 44
-    assert len(motec.objects) == 70
+    assert len(motec.objects) == 71
     assert len({o.index for o in motec.objects}) == 19
     assert len(motec.emcy_codes) == 10
     assert motec.identity.vendor_id == 0x3B
@@ -236,7 +236,7 @@ def test_baseline_lists_every_code_of_the_parameter_list(baseline: Profile) -> N
     assert codes == [f"C{number}" for number in BASELINE_CODES]
     assert len(codes) == 170
     assert len(baseline.parameters) == 216
-    assert len(baseline.objects) == 70
+    assert len(baseline.objects) == 71
     names = {p.code: p.name for p in baseline.parameters}
     assert names["C00324"] == "CAN transmit blocking time"  # the BaseLine C manual's name for C00324
     assert names["C00994"] == "Flying restart fct.: Current"

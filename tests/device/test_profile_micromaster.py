@@ -91,7 +91,7 @@ def test_telegram_sizes_of_the_manuals_traces(catalog: Catalog) -> None:
     assert sizes == {
         "r0964.2": DataType.UNSIGNED16, "P1203": DataType.UNSIGNED16, "P2041.0": DataType.UNSIGNED16,
         "P2041.3": DataType.UNSIGNED16, "P2040": DataType.UNSIGNED16, "P2010": DataType.UNSIGNED16,
-        "P0918": DataType.UNSIGNED8, "P1501": DataType.UNSIGNED32, "0x6060": DataType.INTEGER8,
+        "P0918": DataType.UNSIGNED16, "P1501": DataType.UNSIGNED32, "0x6060": DataType.INTEGER8,
         "0x6061": DataType.INTEGER8, "0x1010.1": DataType.UNSIGNED32, "0x1604.1": DataType.UNSIGNED32,
         "0x1400.2": DataType.UNSIGNED8, "0x1404.2": DataType.UNSIGNED8}
 
@@ -119,7 +119,7 @@ def test_defaults_and_access(catalog: Catalog) -> None:
     defaults = {ref: catalog.resolve(ref).entry.default for ref in (
         "P2041.0", "P2041.1", "P2041.2", "P2041.3", "r0964.2", "P0918", "P2010", "0x6060", "0x6061", "0x100C",
         "0x100D", "0x1600.1", "0x1A00.1", "0x604E")}
-    assert defaults == {"P2041.0": 0xFFFF, "P2041.1": 0x00FF, "P2041.2": 0x2103, "P2041.3": 0x4141,
+    assert defaults == {"P2041.0": 0, "P2041.1": 0, "P2041.2": 0, "P2041.3": 0,  # §6.3 "0 = default value on powerup"
                         "r0964.2": 105, "P0918": 3, "P2010": 10, "0x6060": 2, "0x6061": 2, "0x100C": 10,
                         "0x100D": 2, "0x1600.1": 0x60400010, "0x1A00.1": 0x60410010, "0x604E": 1500}
     assert catalog.resolve("P0918").entry.reset_required and catalog.resolve("P2010").entry.reset_required

@@ -163,8 +163,8 @@ def test_refused_entry_leaves_the_lenze_pdo_disabled(drives: tuple[Session, Plan
 def test_micromaster_p2041_follows_the_canopen_mapping(drives: tuple[Session, Plant],
                                                        loop: asyncio.AbstractEventLoop) -> None:
     """MICROMASTER ch. 5.7.2 trace: with RPDO5 = control word + target velocity and TPDO5 = status word + actual
-    speed the drive reads P2041.02 = 0x2103; ch. 5.6 example: TPDO1 asynchronous (255) and TPDO5 every SYNC (1)
-    give P2041.00 = 0x01FF."""
+    speed the drive reads P2041.02 = 0x2103; ch. 5.6: TPDO5 every SYNC (1) is the high byte of P2041.00, whose low
+    byte (TPDO1) keeps its power-on 0 (P2041.00 and 0x1800 sub 2 default to 0)."""
     session, plant = drives
     writes: list[tuple[Direction, list[tuple[int, int]], int]] = [
         ("rpdo", [(0x6040, 0), (0x6042, 0)], 255), ("tpdo", [(0x6041, 0), (0x6044, 0)], 1)]
@@ -172,10 +172,10 @@ def test_micromaster_p2041_follows_the_canopen_mapping(drives: tuple[Session, Pl
         report = loop.run_until_complete(pdo.apply_pdo(session, 3, direction, 5, PdoWrite(
             entries=entries, transmission_type=trans_type)))
         assert report.ok, report.message
-    store = plant.nodes[3].store  # P2041.00 low byte (TPDO1) keeps its power-on 0xFF
+    store = plant.nodes[3].store
     assert store.get(0x27F9, 2) == 0x2103
-    assert store.get(0x27F9, 0) == 0x01FF
+    assert store.get(0x27F9, 0) == 0x0100
     assert not store.get(0x27F9, 1) & 1 << 9, "RPDO5 asynchronous (255): P2041.01 bit 9 = 0"
     tpdo5 = loop.run_until_complete(pdo.read_pdo(session, 3, "tpdo", 5))
     assert "P2041.02 high byte = 0x21" in " ".join(tpdo5.notes)
-    assert {s.ref: s.value for s in tpdo5.settings} == {"P2041": "511 (0x01FF)", "P2041.2": "0x2103"}
+    assert {s.ref: s.value for s in tpdo5.settings} == {"P2041": "256 (0x0100)", "P2041.2": "0x2103"}

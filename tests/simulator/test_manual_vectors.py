@@ -62,7 +62,8 @@ def test_manual_telegram(vector: SdoVector, profile_id: str, registry: ProfileRe
             assert sim.store.read(vector.index, vector.subindex) == vector.value
         else:
             remote.sdo.download(vector.index, vector.subindex, vector.value)
-            assert sim.store.read(vector.index, vector.subindex) == vector.value
+            # MICROMASTER P0918 is a word written with one byte (0x2F): the drive holds it as a word
+            assert sim.store.read(vector.index, vector.subindex) == vector.value.ljust(slot.data_type.size or 0, b"\0")
         frames = _wire_frames(wire, vector.node)
         expected = [frame for exchange in vector.exchanges for frame in exchange]
         assert len(frames) == len(expected), [f"{c:03X} {d.hex(' ')}" for c, d in frames]

@@ -183,6 +183,10 @@ class Features(BaseModel):
     rpdo_count: int = 0
     tpdo_count: int = 0
     max_mapping_entries: int = 8
+    sdo_word_tasks: bool = False
+    """The SDO server recodes writes into word / double-word parameter tasks (MICROMASTER §3.2.4): 1 or 2 bytes are
+    a word, 4 a double word; only a mixture of word and double word is refused (0x06070010), a word task to a byte
+    object or a byte to a word object is taken. False: CiA 301 (the length must match, else 0x06070012/13)."""
     mapping_needs_invalid_pdo: bool = True
     """CiA 301: a mapping changes only while the PDO's COB-ID is invalid (bit 31). False where the manual changes
     it on a valid PDO (MICROMASTER: sub 0 := 0, entries, sub 0 := count)."""

@@ -2,7 +2,8 @@
 
 Reads and writes check what a real device checks and answer the CiA 301 abort codes:
 unknown object 0x06020000, unknown subindex 0x06090011, write to read-only 0x06010002, read of write-only
-0x06010001, wrong length 0x06070010/12/13, out of range 0x06090030/31/32.
+0x06010001, wrong length 0x06070012/13 (0x06070010 where the profile's SDO server works in word and
+double-word tasks), out of range 0x06090030/31/32.
 """
 
 from __future__ import annotations
@@ -167,9 +168,7 @@ class ObjectStore:
             slot = self.slot(index, sub)
             if not slot.entry.access.writable:
                 raise Abort(0x06010002)
-            size = slot.data_type.size
-            if size is not None and len(data) != size:
-                raise Abort(0x06070012 if len(data) > size else 0x06070013)
+            data = self._sized(slot.data_type, data)
             raw = decode(slot.data_type, data)
             self._check_range(slot.entry, raw)
             for check in self._checks:
@@ -177,6 +176,19 @@ class ObjectStore:
             slot.value = raw
         for hook in self._hooks:
             hook(index, sub, raw)
+
+    def _sized(self, data_type: DataType, data: bytes) -> bytes:
+        """``data`` at the object's size, or the abort the device answers for a length that does not fit."""
+        size = data_type.size
+        if size is None or len(data) == size:
+            return data
+        if self.profile.features.sdo_word_tasks and len(data) <= 4 and size <= 4:
+            if (len(data) == 4) != (size == 4):  # the manual's only length abort: "mixture between word and dword"
+                raise Abort(0x06070010)
+            if any(data[size:]):
+                raise Abort(0x06090030)  # a word task whose value does not fit the byte object
+            return data[:size].ljust(size, b"\0")
+        raise Abort(0x06070012 if len(data) > size else 0x06070013)
 
     @staticmethod
     def _check_range(entry: Entry, raw: RawValue) -> None:
