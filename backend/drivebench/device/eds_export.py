@@ -186,6 +186,14 @@ def _object_list(index: int) -> str:
     return "ManufacturerObjects" if 0x2000 <= index <= 0x5FFF else "OptionalObjects"
 
 
+def eds_objects(profile: Profile) -> list[ObjectEntry]:
+    """Every entry the EDS of ``profile`` lists: its objects, the CiA 301 mandatory ones it lacks, and its vendor
+    parameters at their indices (Lenze parameter sets 2..4 and the sub 0 of coded arrays included)."""
+    objects = list(profile.objects)
+    present = {o.index for o in objects}
+    return objects + _mandatory_objects(profile, present) + _parameter_objects(profile, present)
+
+
 def export_eds(profile: Profile, *, node_id: int | None = None, values: Mapping[Address, Value] | None = None,
                dcf: bool = False, baud_kbit: int | None = None) -> str:
     """Write ``profile`` as an EDS, or with ``dcf=True`` a DCF for ``node_id``.
@@ -195,9 +203,7 @@ def export_eds(profile: Profile, *, node_id: int | None = None, values: Mapping[
     """
     if node_id is not None and not 1 <= node_id <= 127:
         raise ProfileError(f"node id {node_id} is outside 1..127", source=profile.id)
-    objects = list(profile.objects)
-    present = {o.index for o in objects}
-    objects += _mandatory_objects(profile, present) + _parameter_objects(profile, present)
+    objects = eds_objects(profile)
     by_index: dict[int, list[ObjectEntry]] = {}
     for entry in sorted(objects, key=lambda o: (o.index, o.subindex)):
         by_index.setdefault(entry.index, []).append(entry)

@@ -19,8 +19,11 @@ from __future__ import annotations
 
 import threading
 from dataclasses import dataclass
+from functools import cached_property
 from typing import TYPE_CHECKING
 
+from drivebench.device.addressing import format_code
+from drivebench.device.profile import LenzeCodeAddressing, Parameter
 from drivebench.errors import UnknownParameter
 from drivebench.simulator.motor_model import MotorModel, load_torque
 from drivebench.simulator.store import RawValue
@@ -53,6 +56,9 @@ class LenzeWords:
     fail_bit: int
     reset_bit: int
     ccw_bit: int | None
+    parameter_set_bits: tuple[int, int] | None = None
+    """Control-word bits that change over the parameter set (8200 vector AIF-CTRL bit 12 DCTRL1-PAR2/4, bit 13
+    DCTRL1-PAR3/4, EMF2178IB manual §9.3.1.1): active set = 1 + bit 12 + 2 x bit 13, where the profile has sets."""
 
 
 WORDS_8400 = LenzeWords("lenze-8400", ("C00866/1", "C00876/1"), ("C00866/2", "C00876/2"), ("C00868/1",),
@@ -60,7 +66,8 @@ WORDS_8400 = LenzeWords("lenze-8400", ("C00866/1", "C00876/1"), ("C00866/2", "C0
                         quick_stop_bit=2, inhibit_bit=8, fail_bit=14, reset_bit=7, ccw_bit=10)
 WORDS_EMF = LenzeWords("lenze-emf2178ib", ("C0135", "C1822/1"), ("C1822/2",), ("C0150", "C1823/1"),
                        ("C1823/2",), ("C0054", "C0053", "C0061"),
-                       quick_stop_bit=3, inhibit_bit=9, fail_bit=10, reset_bit=11, ccw_bit=2)
+                       quick_stop_bit=3, inhibit_bit=9, fail_bit=10, reset_bit=11, ccw_bit=2,
+                       parameter_set_bits=(12, 13))
 
 
 class LenzeControl:
@@ -101,9 +108,33 @@ class LenzeControl:
             return None
         return item.index, item.subindex
 
+    @property
+    def parameter_set(self) -> int:
+        """The active parameter set (1 ... 4) the control word selects; 1 where the profile has one set."""
+        bits = self.words.parameter_set_bits
+        if bits is None or not self._has_sets:
+            return 1
+        return 1 + self._bit(self.control_word, bits[0]) + 2 * self._bit(self.control_word, bits[1])
+
+    @cached_property
+    def _has_sets(self) -> bool:
+        return any(p.parameter_sets > 1 for p in self.store.profile.parameters)
+
+    def _in_active_set(self, ref: str) -> str:
+        """``C0012`` -> ``C2012`` while parameter set 2 is active, for codes the profile keeps per set."""
+        pset = self.parameter_set
+        item = self.store.catalog.resolve(ref)
+        addressing = self.store.profile.addressing
+        if pset == 1 or not isinstance(item.entry, Parameter) or item.entry.parameter_sets < pset or \
+                not isinstance(addressing, LenzeCodeAddressing):
+            return ref
+        number = int("".join(ch for ch in item.ref.split("/")[0] if ch.isdigit()))
+        code = format_code(addressing, "C", number + addressing.set_offset * (pset - 1))
+        return code if item.subindex == 0 else f"{code}/{item.subindex}"
+
     def _param(self, ref: str, default: float) -> float:
         try:
-            value = self.store.get_ref(ref)
+            value = self.store.get_ref(self._in_active_set(ref))
         except UnknownParameter:
             return default
         return float(value) / 10000 if self._fix32(ref) and isinstance(value, int) else \
@@ -283,7 +314,10 @@ class LenzeControl:
             word |= (actual < 0) << 14
             word |= (self.device_state not in (FAULT_8400, INIT)) << 15
             return word
-        word |= 0x0001  # current parameter set 1 (DCTRL-PAR-B0 ... PAR1-0)
+        if self.words.parameter_set_bits is not None and self._has_sets:
+            word |= (self.parameter_set - 1) & 1  # 8200 vector DCTRL-PAR-B0: bit 0 of the active set, binary
+        else:
+            word |= 0x0001  # 93XX: current parameter set 1 (DCTRL-PAR1-0)
         word |= (not self.running) << 1  # DCTRL-IMP pulse inhibit
         if _has(self.node, "C0001"):  # 8200 vector: RFG1 = NOUT; 93XX bit 3 is MCTRL-MMAX (torque limit): 0
             word |= (abs(actual - self.target()) < 1) << 3

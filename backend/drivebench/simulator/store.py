@@ -14,6 +14,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 from drivebench.device.catalog import Catalog
+from drivebench.device.eds_export import eds_objects
 from drivebench.device.profile import Access, Entry, Profile
 from drivebench.protocol.datatypes import DataType, decode, encode
 from drivebench.protocol.sdo_server import SdoAbort as Abort
@@ -98,6 +99,14 @@ class ObjectStore:
                 key = (item.index, item.subindex)
                 self._slots[key] = Slot(item.entry, default_raw(item.entry, self.node_id, *key))
                 self._indices.add(item.index)
+            # The rest of what the EDS lists: Lenze parameter sets 2..4 (their own values) and the sub 0 of coded
+            # arrays ("highest sub-index supported", CiA 301 for an ARRAY; the EMF2178IB manual §10.3: "for all
+            # array codes, the value of the highest subindex can be read out via subindex 0").
+            for entry in eds_objects(self.profile):
+                key = (entry.index, entry.subindex)
+                if key not in self._slots:
+                    self._slots[key] = Slot(entry, default_raw(entry, self.node_id, *key))
+                    self._indices.add(entry.index)
             for ref, value in self._overrides.items():
                 item = self.catalog.resolve(ref)
                 slot = self._slots[(item.index, item.subindex)]
