@@ -6,9 +6,11 @@ import re
 
 import pytest
 
+from drivebench.device.addressing import code_to_index, index_to_code
 from drivebench.device.catalog import Catalog
 from drivebench.device.loader import ProfileRegistry
-from drivebench.device.profile import Access, Profile
+from drivebench.device.profile import Access, LenzeCodeAddressing, Profile
+from drivebench.errors import UnknownParameter
 from drivebench.protocol.datatypes import DataType
 
 MOTEC, BASELINE = "lenze-8400-motec-canopen", "lenze-8400-baseline-c"
@@ -80,3 +82,25 @@ def test_ethercat_strings_fit_their_printed_length(registry: ProfileRegistry) ->
                if (m := re.search(r"STRING\((\d+)\)", o.description or ""))}
     assert printed[0x100A] == 7 and lengths[0x100A] == 7
     assert all(lengths[index] <= size for index, size in printed.items())
+
+
+@pytest.mark.parametrize("profile_id", [VECTOR, SERVO])
+def test_emf_codes_lie_between_0x40c0_and_0x5fff(registry: ProfileRegistry, profile_id: str) -> None:
+    """EMF2178IB §10.1: 'The index for Lenze code numbers is between 16576 (0x40C0) and 24575 (0x5FFF)'."""
+    profile = registry.get(profile_id)
+    addressing = profile.addressing
+    assert isinstance(addressing, LenzeCodeAddressing)
+    assert code_to_index(addressing, 7999) == (0x40C0, 0) and code_to_index(addressing, 0) == (0x5FFF, 0)
+    with pytest.raises(UnknownParameter, match="0x40C0 and 0x5FFF"):
+        code_to_index(addressing, 8000)
+    assert index_to_code(addressing, 0x40C0, 0) == (7999, 0)
+    assert index_to_code(addressing, 0x40BF, 0) is None and index_to_code(addressing, 0x2000, 0) is None
+    with pytest.raises(UnknownParameter):
+        Catalog(profile).resolve("C9000")
+
+
+def test_8400_codes_keep_their_wider_range(registry: ProfileRegistry) -> None:
+    """The 8400 codes reach below 0x40C0 (EtherCAT C13902 = 0x29B1)."""
+    addressing = registry.get(ETHERCAT).addressing
+    assert isinstance(addressing, LenzeCodeAddressing)
+    assert code_to_index(addressing, 13902) == (0x29B1, 0)

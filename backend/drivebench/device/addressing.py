@@ -66,8 +66,9 @@ def code_to_index(addressing: Addressing, number: int, subcode: int = 0) -> tupl
     """Vendor code number (including a Lenze parameter-set offset, C2011 = C0011 in set 2) -> (index, sub)."""
     if isinstance(addressing, LenzeCodeAddressing):
         index = addressing.base - number
-        if not 0x2000 <= index <= addressing.base:
-            raise UnknownParameter(f"Code C{number} is outside the Lenze code range (index 0x{index:04X})")
+        if not addressing.lowest_index <= index <= addressing.base:
+            raise UnknownParameter(f"Code C{number} is outside the Lenze code range (index 0x{index:04X}; codes "
+                                   f"lie between 0x{addressing.lowest_index:04X} and 0x{addressing.base:04X})")
         return index, subcode
     if isinstance(addressing, SiemensParameterAddressing):
         index = addressing.base + number
@@ -82,7 +83,8 @@ def index_to_code(addressing: Addressing, index: int, subindex: int) -> tuple[in
     """(index, sub) -> (code number, subcode), or None where the index is not a vendor parameter."""
     if isinstance(addressing, LenzeCodeAddressing):
         number = addressing.base - index
-        return (number, subindex) if 0 <= number <= addressing.base - 0x2000 and index < 0x6000 else None
+        in_range = 0 <= number <= addressing.base - addressing.lowest_index and index < 0x6000
+        return (number, subindex) if in_range else None
     if isinstance(addressing, SiemensParameterAddressing):
         if 0x2000 <= index <= 0x5FFF and index not in _MM4_FREE_OBJECTS:
             return index - addressing.base, subindex

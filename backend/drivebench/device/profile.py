@@ -138,6 +138,8 @@ class LenzeCodeAddressing(BaseModel):
 
     kind: Literal["lenze_code"] = "lenze_code"
     base: HexInt = 0x5FFF
+    lowest_index: HexInt = 0x2000
+    """Lowest index a code reaches (EMF2178IB §10.1: Lenze code indices lie between 0x40C0 and 0x5FFF)."""
     set_offset: int = 2000
     code_digits: int = 5
     """How the manual prints codes: 5 for ``C00088`` (8400), 4 for ``C0088`` (8200 vector/93XX)."""
