@@ -293,3 +293,21 @@ def test_block_upload_refused_where_the_device_has_none(api_emf: Api) -> None:
     refused = api_emf.client.get(api_emf.url(5, "/parameters/C0200"), params={"transfer": "block"})
     assert refused.status_code == 422, refused.text
     assert "block transfer" in refused.json()["detail"]
+
+
+def test_parameters_tab_shows_the_chosen_parameter_set(api_emf: Api) -> None:
+    """EMF2178IB §10.2.1: the 8200 vector's four parameter sets are addressed directly (C2012 = C0012 in set 2,
+    index 0x5823, §10.3). The Parameters tab offers the sets and shows such codes as "C0012 · set 2"."""
+    ui = f"/ui/sessions/{SESSION}/nodes/1/parameters"
+    first = api_emf.client.get(ui, params={"q": "acceleration time"}).text
+    assert 'data-ref="C0012"' in first and "· set" not in first
+    page = api_emf.client.get(f"/sessions/{SESSION}/nodes/1").text
+    assert 'id="param-set"' in page and ">Parameter set 4</option>" in page
+    second = api_emf.client.get(ui, params={"q": "acceleration time", "pset": 2}).text
+    assert 'data-ref="C2012"' in second and ">C0012 · set 2</td>" in second and ">5823.0</td>" in second
+    written = api_emf.client.post(f"{ui}/C2012/write", data={"value": "20"})
+    assert written.status_code == 200 and "verified" in written.text
+    assert api_emf.client.get(api_emf.url(1, "/parameters/C2012")).json()["value"] == 20
+    assert api_emf.client.get(api_emf.url(1, "/parameters/C0012")).json()["value"] != 20  # set 1 keeps its own
+    rows = api_emf.client.get(ui, params={"pset": 3}).text
+    assert ">C0011 · set 3</td>" in rows and ">C0001 · set 3</td>" in rows and 'data-ref="C0046"' in rows

@@ -212,3 +212,29 @@ def test_header_nmt_badge_follows_nmt_commands(server: tuple[str, Any], page: An
     finally:
         assert page.request.post(nmt, data={"command": "pre-operational"}).ok
     expect(badge).to_have_text("Pre-operational", timeout=WAIT_MS)
+
+
+def test_parameter_set_selector_of_the_8200_vector(server: tuple[str, Any], page: Any) -> None:
+    """EMF2178IB §10.2.1/§10.3: choose parameter set 2, the acceleration time row is C2012 (index 0x5823) shown as
+    "C0012 · set 2"; writing it leaves set 1 as it was. The 8400 motec (one set) has no selector."""
+    url, app = server
+    page.goto(url + "/sessions/browser-plant/nodes/5")
+    expect(page.locator("#param-rows")).to_be_visible(timeout=WAIT_MS)
+    expect(page.locator("#param-set")).to_have_count(0)
+    page.goto(url + "/sessions/browser-plant/nodes/12")
+    page.locator("#param-set").select_option("2")
+    expect(_row(page, "C2001")).to_be_visible(timeout=WAIT_MS)
+    _search(page, "acceleration time")
+    row = _row(page, "C2012")
+    expect(row.locator("td.code")).to_have_text("C0012 · set 2")
+    expect(row.locator("td.addr")).to_have_text("5823.0")
+    row.locator("input[name=value]").fill("12.5")
+    row.get_by_role("button", name="Write").click()
+    expect(_row(page, "C2012").locator("td.val")).to_contain_text("verified", timeout=WAIT_MS)
+    expect(_row(page, "C2012").locator("td.val .v")).to_have_text("12.5 s")
+    store = app.state.drivebench.plants["browser-plant"].nodes[12].store
+    assert store.get(0x5823, 0) == 125000 and store.get(0x5FF3, 0) != 125000  # FIX32; C0012 (set 1) unchanged
+    assert page.evaluate(LAYOUT_PROBLEMS) == []
+    screenshot(page, "parameters-set-2")
+    page.locator("#param-set").select_option("1")
+    expect(_row(page, "C0012").locator("td.code")).to_have_text("C0012", timeout=WAIT_MS)

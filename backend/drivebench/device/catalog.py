@@ -15,7 +15,7 @@ from drivebench.device.addressing import (
     lenze_parameter_set,
     parse_ref,
 )
-from drivebench.device.profile import Entry, ObjectEntry, Parameter, Profile
+from drivebench.device.profile import Entry, LenzeCodeAddressing, ObjectEntry, Parameter, Profile
 from drivebench.errors import UnknownParameter
 
 
@@ -38,6 +38,13 @@ class Item:
         if isinstance(entry, ObjectEntry) and entry.object_name and entry.object_type != "VAR":
             return f"{entry.object_name}: {entry.name}"
         return entry.name
+
+    @property
+    def label(self) -> str:
+        """The code as a user reads it: ``C0012 · set 2`` for C2012, else the ref."""
+        if self.parameter_set > 1 and isinstance(self.entry, Parameter):
+            return f"{self.entry.ref} · set {self.parameter_set}"
+        return self.ref
 
     @property
     def address(self) -> str:
@@ -81,6 +88,20 @@ class Catalog:
         objects = sorted((i for i in self._by_address.values() if not isinstance(i.entry, Parameter)),
                          key=lambda i: (i.index, i.subindex))
         return params + objects
+
+    @cached_property
+    def parameter_sets(self) -> int:
+        """How many parameter sets the profile's codes have (Lenze 8200 vector: 4; most devices 1)."""
+        return max((p.parameter_sets for p in self.profile.parameters), default=1)
+
+    def in_set(self, item: Item, parameter_set: int) -> Item:
+        """``item`` in ``parameter_set`` (C0012 -> C2012 for set 2) where its code exists per set, else ``item``."""
+        entry = item.entry
+        if parameter_set == 1 or not isinstance(entry, Parameter) or entry.parameter_sets < parameter_set:
+            return item
+        number, pset = lenze_parameter_set(self.profile.addressing, _number(entry.code))
+        code = format_code(self.profile.addressing, "C", number + (parameter_set - pset) * _set_offset(self))
+        return self.resolve(code if entry.subcode == 0 else f"{code}/{entry.subcode}")
 
     def by_address(self, index: int, subindex: int) -> Item | None:
         return self._by_address.get((index, subindex))
@@ -161,3 +182,12 @@ class Catalog:
         prefix = "P" if self.profile.addressing.kind == "siemens_mm4" else "C"
         code = format_code(self.profile.addressing, prefix, number)
         return code if sub == 0 else f"{code}/{sub}"
+
+
+def _number(code: str) -> int:
+    return int("".join(ch for ch in code if ch.isdigit()))
+
+
+def _set_offset(catalog: Catalog) -> int:
+    addressing = catalog.profile.addressing
+    return addressing.set_offset if isinstance(addressing, LenzeCodeAddressing) else 0

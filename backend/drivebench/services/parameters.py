@@ -235,9 +235,10 @@ def _by_ref(catalog: Catalog) -> dict[str, Item]:
     return refs
 
 
-def items(node: SessionNode, query: str = "", group: str | None = None) -> list[Item]:
+def items(node: SessionNode, query: str = "", group: str | None = None, parameter_set: int = 1) -> list[Item]:
     """The profile's items matching ``query``; an address the profile does not list (``0x2FFF.1``,
-    ``P0700[1]``) gives the one item :func:`resolve` makes for it, so it can be read and written all the same."""
+    ``P0700[1]``) gives the one item :func:`resolve` makes for it, so it can be read and written all the same.
+    With ``parameter_set`` > 1 the codes the device keeps per set are those of that set (C0012 -> C2012)."""
     catalog = _catalog(node)
     if catalog is None:
         return []
@@ -248,7 +249,13 @@ def items(node: SessionNode, query: str = "", group: str | None = None) -> list[
     if not found and query.strip():
         with contextlib.suppress(UnknownParameter):
             found = [resolve(node, query)]
-    return [item for item in found if group is None or item.group == group]
+    return [catalog.in_set(item, parameter_set) for item in found if group is None or item.group == group]
+
+
+def parameter_sets(node: SessionNode) -> int:
+    """How many parameter sets the node's codes have (1 without a profile)."""
+    catalog = _catalog(node)
+    return catalog.parameter_sets if catalog is not None else 1
 
 
 def groups(node: SessionNode) -> list[str]:
@@ -603,8 +610,8 @@ async def sdo_channels(session: Session, node: SessionNode) -> list[int]:
 
 
 # --- read-all ---------------------------------------------------------------------------------------------
-def readable_items(node: SessionNode, group: str | None = None) -> list[Item]:
-    return [item for item in items(node, group=group) if item.entry.access.readable]
+def readable_items(node: SessionNode, group: str | None = None, parameter_set: int = 1) -> list[Item]:
+    return [item for item in items(node, group=group, parameter_set=parameter_set) if item.entry.access.readable]
 
 
 def _issue(node_id: int, item: Item, exc: Exception) -> JobIssue:
@@ -655,10 +662,12 @@ async def _read_node(session: Session, node: SessionNode, work: list[Item], job:
     await asyncio.gather(*(drain(channel) for channel in channel_numbers))
 
 
-def start_read(session: Session, node_ids: Iterable[int], jobs: JobManager, *, group: str | None = None) -> Job:
-    """A job reading every readable parameter (or one group) of the nodes; different nodes in parallel."""
+def start_read(session: Session, node_ids: Iterable[int], jobs: JobManager, *, group: str | None = None,
+               parameter_set: int = 1) -> Job:
+    """A job reading every readable parameter (or one group) of the nodes, the codes kept per parameter set in
+    ``parameter_set``; different nodes in parallel."""
     nodes = [session.node(node_id) for node_id in node_ids]
-    work = {node.node_id: readable_items(node, group) for node in nodes}
+    work = {node.node_id: readable_items(node, group, parameter_set) for node in nodes}
     if group is not None and not any(work.values()):
         raise UnknownParameter(f"No readable parameters in group '{group}'")
     total = sum(len(found) for found in work.values())
@@ -676,5 +685,5 @@ def start_read(session: Session, node_ids: Iterable[int], jobs: JobManager, *, g
                                  hint=exc.hint) from exc
 
     # The same read asked again while it runs follows the running job (a read-all is minutes of bus work per node).
-    same_as = f"read {session.id} {sorted(work)} {group or '*'}"
+    same_as = f"read {session.id} {sorted(work)} {group or '*'} {parameter_set}"
     return jobs.start("read", title, total, run, same_as=same_as)

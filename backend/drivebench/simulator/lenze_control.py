@@ -19,11 +19,8 @@ from __future__ import annotations
 
 import threading
 from dataclasses import dataclass
-from functools import cached_property
 from typing import TYPE_CHECKING
 
-from drivebench.device.addressing import format_code
-from drivebench.device.profile import LenzeCodeAddressing, Parameter
 from drivebench.errors import UnknownParameter
 from drivebench.simulator.motor_model import MotorModel, load_torque
 from drivebench.simulator.store import RawValue
@@ -116,25 +113,15 @@ class LenzeControl:
             return 1
         return 1 + self._bit(self.control_word, bits[0]) + 2 * self._bit(self.control_word, bits[1])
 
-    @cached_property
+    @property
     def _has_sets(self) -> bool:
-        return any(p.parameter_sets > 1 for p in self.store.profile.parameters)
-
-    def _in_active_set(self, ref: str) -> str:
-        """``C0012`` -> ``C2012`` while parameter set 2 is active, for codes the profile keeps per set."""
-        pset = self.parameter_set
-        item = self.store.catalog.resolve(ref)
-        addressing = self.store.profile.addressing
-        if pset == 1 or not isinstance(item.entry, Parameter) or item.entry.parameter_sets < pset or \
-                not isinstance(addressing, LenzeCodeAddressing):
-            return ref
-        number = int("".join(ch for ch in item.ref.split("/")[0] if ch.isdigit()))
-        code = format_code(addressing, "C", number + addressing.set_offset * (pset - 1))
-        return code if item.subindex == 0 else f"{code}/{item.subindex}"
+        return self.store.catalog.parameter_sets > 1
 
     def _param(self, ref: str, default: float) -> float:
         try:
-            value = self.store.get_ref(self._in_active_set(ref))
+            catalog = self.store.catalog
+            item = catalog.in_set(catalog.resolve(ref), self.parameter_set)  # C0012 -> C2012 in set 2
+            value = self.store.get(item.index, item.subindex)
         except UnknownParameter:
             return default
         return float(value) / 10000 if self._fix32(ref) and isinstance(value, int) else \

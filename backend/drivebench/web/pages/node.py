@@ -64,8 +64,11 @@ def _base(request: Request, session: Session, node: SessionNode, tab: str, **ext
             "page": f"/sessions/{session.id}/nodes/{node.node_id}", **extra}
 
 
-def _parameters_context(session: Session, node: SessionNode, q: str = "", group: str = "") -> dict[str, Any]:
-    found = service.items(node, q, group or None)
+def _parameters_context(session: Session, node: SessionNode, q: str = "", group: str = "",
+                        pset: int = 1) -> dict[str, Any]:
+    sets = service.parameter_sets(node)
+    pset = pset if 1 <= pset <= sets else 1
+    found = service.items(node, q, group or None, pset)
     by_group: dict[str, list[Any]] = {}
     for item in found:
         by_group.setdefault(item.group, []).append(item)
@@ -73,6 +76,7 @@ def _parameters_context(session: Session, node: SessionNode, q: str = "", group:
     names += [name for name in by_group if name not in names]  # an address the profile does not list
     ordered = [(name, by_group[name]) for name in names if name in by_group]
     return {"groups": service.groups(node), "grouped": ordered, "q": q, "group": group, "count": len(found),
+            "parameter_sets": sets, "pset": pset,
             "values": service.service(session).values.get(node.node_id, {}),
             "settings": service.service(session).settings}
 
@@ -152,8 +156,8 @@ async def break_lease(request: Request, session: SessionDep, node: NodeDep, writ
 # --- parameters tab --------------------------------------------------------------------------------------
 @router.get(UI + "/parameters", response_class=HTMLResponse)
 async def parameter_rows(request: Request, session: SessionDep, node: NodeDep, q: str = "",
-                         group: str = "") -> Response:
-    context = _base(request, session, node, "parameters", **_parameters_context(session, node, q, group))
+                         group: str = "", pset: int = 1) -> Response:
+    context = _base(request, session, node, "parameters", **_parameters_context(session, node, q, group, pset))
     return templates.TemplateResponse(request, "node/parameters.html", context, block_name="param_rows")
 
 
@@ -182,8 +186,9 @@ async def write_row(request: Request, session: SessionDep, node: NodeDep, ref: s
 
 @router.post(UI + "/read", response_class=HTMLResponse)
 async def start_read(request: Request, session: SessionDep, node: NodeDep,
-                     group: Annotated[str, Form()] = "") -> Response:
-    job = service.start_read(session, [node.node_id], jobs_of(request.app), group=group or None)
+                     group: Annotated[str, Form()] = "", pset: Annotated[int, Form()] = 1) -> Response:
+    job = service.start_read(session, [node.node_id], jobs_of(request.app), group=group or None,
+                             parameter_set=pset if 1 <= pset <= service.parameter_sets(node) else 1)
     context = _base(request, session, node, "parameters", job=job)
     return templates.TemplateResponse(request, "node/parameters.html", context, block_name="job_progress")
 
