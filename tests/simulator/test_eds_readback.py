@@ -18,6 +18,7 @@ from canopen.sdo.exceptions import SdoAbortedError
 from drivebench.config import settings
 from drivebench.device.loader import ProfileRegistry
 from drivebench.simulator.plant import Plant, PlantFile, PlantNode
+from tests.simulator.canopen_master import connected
 
 NODE_ID = 9
 
@@ -42,10 +43,8 @@ def readable(od: canopen.ObjectDictionary) -> list[ODVariable]:
 
 @pytest.fixture
 def master(channel: str) -> Iterator[canopen.Network]:
-    network = canopen.Network()
-    network.connect(interface="virtual", channel=channel, receive_own_messages=False)
-    yield network
-    network.disconnect()
+    with connected(channel) as network:
+        yield network
 
 
 @pytest.mark.parametrize("eds", SHIPPED, ids=[path.stem for path in SHIPPED])

@@ -3,52 +3,33 @@ python-can virtual bus: abort codes, read-back values, Lenze parameter sets and 
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 
 import canopen
 import pytest
-from canopen.sdo.exceptions import SdoAbortedError
 
 from drivebench.device.loader import ProfileRegistry
 from drivebench.simulator.lenze_control import LenzeControl
 from drivebench.simulator.plant import Plant, PlantFile, PlantNode
 from tests.conftest import wait_until
+from tests.simulator.canopen_master import abort_code, remote
 
 MM4, MOTEC, VECTOR = 3, 5, 12
 P1203, P0918, C00349 = (0x24B3, 0), (0x2396, 0), (0x5FFF - 349, 0)
 C00324_1 = (0x5FFF - 324, 1)  # 8400 "CAN Tx inhibit time", U16
 
 
+NODES = {MM4: "siemens-micromaster4-canopen", MOTEC: "lenze-8400-motec-canopen", VECTOR: "lenze-8200-vector-emf2178ib"}
+
+
 @pytest.fixture
 def plant(registry: ProfileRegistry, channel: str) -> Iterator[Plant]:
-    plant_file = PlantFile(name="fidelity", bus=f"virtual:{channel}@500000", nodes=[
-        PlantNode(node_id=MM4, profile="siemens-micromaster4-canopen"),
-        PlantNode(node_id=MOTEC, profile="lenze-8400-motec-canopen"),
-        PlantNode(node_id=VECTOR, profile="lenze-8200-vector-emf2178ib")])
-    running = Plant(plant_file, registry.get).start()
-    yield running
-    running.stop()
-
-
-@pytest.fixture
-def master(channel: str, plant: Plant) -> Iterator[canopen.Network]:
-    network = canopen.Network()
-    network.connect(interface="virtual", channel=channel, receive_own_messages=False)
-    yield network
-    network.disconnect()
-
-
-def remote(master: canopen.Network, node_id: int) -> canopen.RemoteNode:
-    node = canopen.RemoteNode(node_id, canopen.ObjectDictionary())
-    master.add_node(node)
-    node.sdo.RESPONSE_TIMEOUT = 2.0
-    return node
-
-
-def abort_code(action: Callable[[], object]) -> int:
-    with pytest.raises(SdoAbortedError) as caught:
-        action()
-    return int(caught.value.code)
+    nodes = [PlantNode(node_id=node_id, profile=profile_id) for node_id, profile_id in NODES.items()]
+    running = Plant(PlantFile(name="fidelity", bus=f"virtual:{channel}@500000", nodes=nodes), registry.get)
+    try:
+        yield running.start()
+    finally:
+        running.stop()
 
 
 def test_mm4_double_word_to_a_word_parameter_is_0x06070010(master: canopen.Network, plant: Plant) -> None:
@@ -107,11 +88,14 @@ def test_8200_control_word_changes_over_the_parameter_set(master: canopen.Networ
     assert isinstance(control, LenzeControl)
     node.sdo.download(c_index(2012), 0, (1 * 10000).to_bytes(4, "little"))  # C2012 = 1 s, set 1 keeps its 5 s
     ramp_set_1 = control.ramp_per_s()
+
+    def status_bit_0() -> int:
+        return int.from_bytes(node.sdo.upload(c_index(150), 0), "little") & 1
+
     for bits, pset in ((0, 1), (1 << 12, 2), (1 << 13, 3), (3 << 12, 4)):
         node.sdo.download(c_index(135), 0, (bits | 1 << 9).to_bytes(2, "little"))  # + CINH
         assert control.parameter_set == pset
-        assert wait_until(lambda p=pset: int.from_bytes(node.sdo.upload(c_index(150), 0), "little") & 1
-                          == (p - 1) & 1)
+        assert wait_until(lambda expected=(pset - 1) & 1: status_bit_0() == expected)  # type: ignore[misc]
         if pset == 2:
             assert control.ramp_per_s() == pytest.approx(ramp_set_1 * 5)
 

@@ -18,7 +18,6 @@ from typing import Any
 import can
 import canopen
 import pytest
-from canopen.sdo.exceptions import SdoAbortedError
 
 from drivebench.device.loader import ProfileRegistry
 from drivebench.device.profile import Access, ObjectEntry, Profile
@@ -27,6 +26,7 @@ from drivebench.protocol.nmt import NmtState
 from drivebench.simulator.node import LOAD_SIGNATURE, SAVE_SIGNATURE, Latency, SimulatedNode
 from drivebench.simulator.plant import Plant, PlantFile, PlantNode
 from tests.conftest import wait_for_value
+from tests.simulator.canopen_master import abort_code, remote
 
 LENZE_8400, LENZE_8200, TEST_NODE = 5, 12, 20
 LONG_DOMAIN = bytes(range(256)) * 4 + b"end"  # 1027 bytes: several block-transfer sub-blocks of 127 segments
@@ -91,27 +91,6 @@ def plant(registry: ProfileRegistry, channel: str, recorder: Recorder) -> Iterat
     running.add_node(extended_profile(registry.get("lenze-8400-motec-canopen")), TEST_NODE)
     yield running
     running.stop()
-
-
-@pytest.fixture
-def master(channel: str, plant: Plant) -> Iterator[canopen.Network]:
-    network = canopen.Network()
-    network.connect(interface="virtual", channel=channel, receive_own_messages=False)
-    yield network
-    network.disconnect()
-
-
-def remote(master: canopen.Network, node_id: int) -> canopen.RemoteNode:
-    node = canopen.RemoteNode(node_id, canopen.ObjectDictionary())
-    master.add_node(node)
-    node.sdo.RESPONSE_TIMEOUT = 2.0
-    return node
-
-
-def abort_code(action: Callable[[], object]) -> int:
-    with pytest.raises(SdoAbortedError) as caught:
-        action()
-    return int(caught.value.code)
 
 
 # --- SDO transfers ---------------------------------------------------------------------------------------
