@@ -309,5 +309,7 @@ def test_parameters_tab_shows_the_chosen_parameter_set(api_emf: Api) -> None:
     assert written.status_code == 200 and "verified" in written.text
     assert api_emf.client.get(api_emf.url(1, "/parameters/C2012")).json()["value"] == 20
     assert api_emf.client.get(api_emf.url(1, "/parameters/C0012")).json()["value"] != 20  # set 1 keeps its own
+    listed = api_emf.client.get(api_emf.url(1, "/parameters"), params={"q": "C0012", "parameter_set": 2}).json()
+    assert [(p["ref"], p["index"]) for p in listed["parameters"]][:1] == [("C2012", "0x5823")]
     rows = api_emf.client.get(ui, params={"pset": 3}).text
     assert ">C0011 · set 3</td>" in rows and ">C0001 · set 3</td>" in rows and 'data-ref="C0046"' in rows
