@@ -217,8 +217,8 @@ async def list_parameters(session: SessionDep, node: NodeDep,
                           q: Annotated[str, Query(description="Code (C00088, 88), name words or index (0x5FA7)")] = "",
                           group: str | None = None,
                           parameter_set: Annotated[int, Query(ge=1, le=4, description=(
-                              "Lenze parameter set whose codes to list where the device keeps codes per set "
-                              "(8200 vector: 2 lists C2012 for C0012)"))] = 1) -> ParameterList:
+                              "Parameter set whose codes to list where the device keeps codes per set "
+                              "(set 2 lists C2012 for C0012)"))] = 1) -> ParameterList:
     last = service.service(session).values.get(node.node_id, {})
     found = service.items(node, q, group, parameter_set)
     return ParameterList(node_id=node.node_id, device=node.device_name, groups=service.groups(node),
