@@ -114,15 +114,15 @@ def test_search_by_index_and_number_and_show_more(live_server: str, page: Any) -
 def test_bad_upload_shows_file_line_and_reason_and_keeps_the_list(live_server: str, page: Any) -> None:
     page.goto(f"{live_server}/profiles")
     before = page.locator("table.profiles tbody tr").count()
-    lines = SERVO_EDS.read_bytes().split(b"\n")
-    lines[60] = b"this line is not an EDS line"
+    lines = SERVO_EDS.read_bytes().split(b"\n")[:51]  # no object section: refused
+    lines[40] = b"\x00\x01\x02PK\x03\x04"
     page.set_input_files("input[name=file]", files=[
         {"name": "broken.eds", "mimeType": "application/octet-stream", "buffer": b"\n".join(lines)}])
     page.get_by_role("button", name="Upload").click()
     error = page.locator("#upload-result .error")
     expect(error).to_contain_text("broken.eds", timeout=WAIT_MS)
-    expect(error).to_contain_text("line 61")
-    expect(error).to_contain_text("expected 'key=value'")
+    expect(error).to_contain_text("line 41")
+    expect(error).to_contain_text("binary junk")
     expect(error).to_contain_text("Nothing was stored")
     expect(page.locator("table.profiles tbody tr")).to_have_count(before)
     assert_fits(page)

@@ -331,6 +331,11 @@ class _Reader:
                 by_index[index] = Section(f"{index:04X}", first.line, {
                     "parametername": Key("ParameterName", f"Object 0x{index:04X}", first.line),
                     "objecttype": Key("ObjectType", "0x9", first.line)})
+        if listed:
+            for index in sorted(set(by_index) - set(listed)):
+                if index >= 0x1000:
+                    self.warn(by_index[index].line, None, f"object section [{by_index[index].name}] is in no "
+                              "object list ([MandatoryObjects] ...): read")
         entries: list[ObjectEntry] = []
         for index in sorted(i for i in by_index if i >= 0x1000):
             entries.extend(self.object(index, by_index[index], subs.get(index, {}), aux))
