@@ -12,11 +12,13 @@ from collections.abc import Iterable, Mapping
 
 from drivebench.device.addressing import code_to_index, format_code
 from drivebench.device.catalog import Catalog
+from drivebench.device.dcf_patch import patch_dcf
 from drivebench.device.eds import (
     BAUD_RATES_KBIT,
     DEVICE_INFO_DEFAULTS,
     OBJECT_TYPE_CODES,
     OWN_SECTION,
+    decode_text,
     file_info_defaults,
     node_expr,
     resolve_node_expr,
@@ -180,6 +182,21 @@ def _entry_keys(entry: ObjectEntry, *, with_flags: bool, value: Value | None) ->
     return keys
 
 
+def _patched_dcf(profile: Profile, original: bytes, node_id: int | None, values: Mapping[Address, Value],
+                 baud_kbit: int | None) -> str:
+    by_address = {(o.index, o.subindex): o for o in profile.objects}
+    texts: dict[Address, str] = {}
+    for address, value in values.items():
+        entry = by_address.get(address)
+        if entry is None:
+            raise UnknownParameter(f"0x{address[0]:04X}sub{address[1]} is not an object of '{profile.id}'")
+        texts[address] = _format(entry.data_type, value)
+    commissioning = {key: str(value) for key, value in (("NodeID", node_id), ("Baudrate", baud_kbit))
+                     if value is not None}
+    patched = patch_dcf(original, profile.id, texts, commissioning=commissioning)
+    return decode_text(patched, profile.id)
+
+
 def _object_list(index: int) -> str:
     if index in MANDATORY:
         return "MandatoryObjects"
@@ -187,14 +204,19 @@ def _object_list(index: int) -> str:
 
 
 def export_eds(profile: Profile, *, node_id: int | None = None, values: Mapping[Address, Value] | None = None,
-               dcf: bool = False, baud_kbit: int | None = None) -> str:
+               dcf: bool = False, baud_kbit: int | None = None, original: bytes | None = None) -> str:
     """Write ``profile`` as an EDS, or with ``dcf=True`` a DCF for ``node_id``.
 
     ``values`` are raw values (as read from the device or stored in a parameter set) by (index, subindex); they
     become ``ParameterValue``. In a DCF for a node id, ``$NODEID`` formulas get their value for that node.
+    With ``original`` (the bytes of the EDS/DCF the profile was read from) a DCF is that file with only the values
+    and ``[DeviceComissioning]`` changed (:func:`drivebench.device.dcf_patch.patch_dcf`): layout, comments and
+    keys the model has no field for stay.
     """
     if node_id is not None and not 1 <= node_id <= 127:
         raise ProfileError(f"node id {node_id} is outside 1..127", source=profile.id)
+    if original is not None and dcf:
+        return _patched_dcf(profile, original, node_id, values or {}, baud_kbit)
     objects = list(profile.objects)
     present = {o.index for o in objects}
     objects += _mandatory_objects(profile, present) + _parameter_objects(profile, present)

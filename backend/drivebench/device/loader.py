@@ -70,6 +70,18 @@ class LoadedFile:
         return "; ".join(notes) or None
 
 
+def original_file(profiles: object, profile: Profile) -> bytes | None:
+    """The EDS/DCF bytes ``profile`` was read from, when ``profiles`` is a registry that holds this very profile
+    (a DCF of it is then written over the original file)."""
+    if not isinstance(profiles, ProfileRegistry):
+        return None
+    try:
+        loaded = profiles.loaded(profile.id)
+    except UnknownProfile:
+        return None
+    return loaded.original if loaded.profile is profile and loaded.suffix in (".eds", ".dcf") else None
+
+
 def load_profile_file(content: bytes, name: str) -> Profile:
     """One profile file's bytes -> Profile, by suffix. Raises ProfileError naming ``name`` (and line)."""
     return read_profile_file(content, name).profile

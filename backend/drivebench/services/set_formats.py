@@ -295,15 +295,17 @@ def import_csv(text: str, profiles: ProfileLookup, *, profile_id: str | None = N
 
 
 # --- DCF -----------------------------------------------------------------------------------------------------
-def export_dcf(stored: StoredSet, profile: Profile, node_id: int | None = None) -> str:
-    """A CiA 306 DCF of the profile with the set's values as ``ParameterValue`` (raw)."""
+def export_dcf(stored: StoredSet, profile: Profile, node_id: int | None = None, original: bytes | None = None
+               ) -> str:
+    """A CiA 306 DCF of the profile with the set's values as ``ParameterValue`` (raw); with ``original`` (the
+    profile's EDS/DCF file) that file with only the values changed."""
     catalog = catalog_for(profile)
     values = {}
     for ref, raw in stored.values.items():
         item = catalog.resolve(ref)
         values[(item.index, item.subindex)] = raw
     target = node_id or stored.info.node_id
-    return export_eds(profile, node_id=target, values=values, dcf=True)
+    return export_eds(profile, node_id=target, values=values, dcf=True, original=original)
 
 
 def import_dcf(data: str | bytes, profiles: ProfileLookup, *, profile_id: str | None = None,
@@ -370,14 +372,14 @@ def import_dcf(data: str | bytes, profiles: ProfileLookup, *, profile_id: str | 
                        node_id=node_id, notes=notes)
 
 
-def export(fmt: str, stored: StoredSet, profile: Profile) -> tuple[str, str]:
+def export(fmt: str, stored: StoredSet, profile: Profile, original: bytes | None = None) -> tuple[str, str]:
     """(text, media type) of the set in ``fmt``."""
     if fmt == "json":
         return export_json(stored, profile), "application/json"
     if fmt == "csv":
         return export_csv(stored, profile), "text/csv"
     if fmt == "dcf":
-        return export_dcf(stored, profile), "text/plain"
+        return export_dcf(stored, profile, original=original), "text/plain"
     raise InvalidValue(f"Unknown format '{fmt}' (formats: {', '.join(FORMATS)})")
 
 
