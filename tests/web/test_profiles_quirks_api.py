@@ -77,3 +77,33 @@ def test_a_file_without_object_dictionary_is_refused_and_nothing_is_lost(api: Te
         assert refused.json()["source"] == "junk.eds" and "object" in refused.json()["detail"]
     assert api.get("/api/profiles").json() == before
     assert api.get(f"/api/profiles/{kept}/eds").content == content
+
+
+XDD_DIR = Path(__file__).resolve().parents[1] / "data" / "xdd"
+
+
+@pytest.mark.parametrize("name", sorted(p.name for p in XDD_DIR.iterdir()))
+def test_xdd_and_xdc_upload_and_download_byte_identical(api: TestClient, name: str) -> None:
+    content = (XDD_DIR / name).read_bytes()
+    response = api.post("/api/profiles", files={"file": (name, content)})
+    assert response.status_code == 201, response.text
+    profile_id = response.json()["id"]
+    original = api.get(f"/api/profiles/{profile_id}/xdd")
+    assert original.content == content and original.headers["content-type"].startswith("application/xml")
+    written = api.get(f"/api/profiles/{profile_id}/xdd", params={"regenerate": "true"}).content
+    again = api.post("/api/profiles", files={"file": ("again.xdd", written)})
+    # the export adds the CiA 301 mandatory objects a file lacks (quirks.xdd has no 0x1001, 0x1018)
+    assert again.status_code == 201 and again.json()["objects"] >= response.json()["objects"]
+    as_eds = api.get(f"/api/profiles/{profile_id}/eds").content
+    again_eds = api.post("/api/profiles", files={"file": ("again.eds", as_eds)})
+    assert again_eds.status_code == 201 and again_eds.json()["objects"] == again.json()["objects"]
+
+
+def test_unsafe_xml_upload_is_a_problem_in_words(api: TestClient) -> None:
+    before = api.get("/api/profiles").json()
+    xxe = b'<?xml version="1.0"?>\n<!DOCTYPE x [<!ENTITY e SYSTEM "file:///etc/passwd">]>\n<x>&e;</x>'
+    refused = api.post("/api/profiles", files={"file": ("evil.xdd", xxe)})
+    assert refused.status_code == 422
+    assert (refused.json()["source"], refused.json()["line"]) == ("evil.xdd", 2)
+    assert "DOCTYPE" in refused.json()["detail"] and "passwd" not in refused.text.replace("file:///etc/passwd", "")
+    assert api.get("/api/profiles").json() == before

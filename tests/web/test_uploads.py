@@ -238,7 +238,8 @@ def test_an_upload_cannot_replace_a_shipped_profile(api: TestClient, user_dir: P
 def test_a_name_only_of_a_suffix_and_an_unknown_suffix_are_answered_in_words(api: TestClient) -> None:
     response = upload(api, "..", SERVO_EDS.read_bytes())
     assert response.status_code == 422
-    assert response.json()["detail"].startswith("..: unknown profile file type (none); use .json, .eds or .dcf")
+    assert response.json()["detail"].startswith(
+        "..: unknown profile file type (none); use .json, .eds, .dcf, .xdd or .xdc")
 
 
 def test_deleting_an_upload_forgets_the_name_it_came_in_as(api: TestClient, user_dir: Path) -> None:

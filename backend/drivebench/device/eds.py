@@ -695,13 +695,19 @@ def read_eds(text_or_path: str | bytes | Path, *, source: str) -> ImportedEds:
     """Read an EDS or DCF into a Profile and the warnings of the readings applied (:mod:`eds_quirks`)."""
     text = _read_input(text_or_path, source)
     notes = Warnings(source)
-    reader = _Reader(parse_ini(text, source, notes), source, notes)
+    return read_sections(parse_ini(text, source, notes), source, notes, empty=not text.strip())
+
+
+def read_sections(sections: dict[str, Section], source: str, notes: Warnings, *, empty: bool = False
+                  ) -> ImportedEds:
+    """EDS-shaped sections (from INI text, or built from an XDD by :mod:`drivebench.device.xdd`) -> profile."""
+    reader = _Reader(sections, source, notes)
     if not any(_INDEX_SECTION.match(name) and int(name[:4], 16) >= 0x1000 for name in reader.sections):
         junk = next((w.line for w in notes.items if "binary junk" in w.message), None)
         if junk is not None:
             raise reader.fail("binary junk (control characters) instead of EDS text, and no object section", junk)
         raise reader.fail("no object dictionary: the file has no object section ([1000], [6040], [1018sub1] ...)",
-                          1 if text.strip() else None)
+                          None if empty else 1)
     info = reader.sections.get("DEVICEINFO")
     if info is None:
         reader.warn(1, None, "no [DeviceInfo] section: vendor and product are left unknown")

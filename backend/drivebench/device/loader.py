@@ -25,9 +25,11 @@ from drivebench.config import settings
 from drivebench.device.eds import ImportWarning, read_eds
 from drivebench.device.json_lines import DuplicateKey, JsonPath, line_of, reject_duplicate_keys, value_lines
 from drivebench.device.profile import ObjectEntry, Parameter, Profile
+from drivebench.device.xdd import XML_SUFFIXES, read_xdd
 from drivebench.errors import ProfileError, UnknownProfile
 
-PROFILE_SUFFIXES = (".json", ".eds", ".dcf")
+PROFILE_SUFFIXES = (".json", ".eds", ".dcf", ".xdd", ".xdc")
+KINDS = {".json": "a JSON profile", ".eds": "an EDS", ".xdd": "an XDD/XDC (XML)"}
 UPLOAD_NAMES_SUFFIX = ".names.json"
 """Beside the upload directory (``var/profiles.names.json``): profile id -> the file name it was uploaded as
 (shown, never used as a path)."""
@@ -96,11 +98,16 @@ def read_profile_file(content: bytes, name: str) -> LoadedFile:
             raise ProfileError("this is a JSON profile, not an EDS: name the file .json", source=name, line=1)
         imported = read_eds(content, source=name)
         return LoadedFile(imported.profile, imported.warnings, content, suffix)
+    if suffix in XML_SUFFIXES:
+        imported = read_xdd(content, source=name)
+        return LoadedFile(imported.profile, imported.warnings, content, suffix)
     if suffix != ".json":
-        hint = f"; this looks like {'an EDS' if looks_like == '.eds' else 'a JSON profile'}, name it {looks_like}" \
-            if looks_like else ""
-        raise ProfileError(f"unknown profile file type {suffix or '(none)'}; use .json, .eds or .dcf{hint}",
-                           source=name)
+        hint = f"; this looks like {KINDS[looks_like]}, name it {looks_like}" if looks_like else ""
+        raise ProfileError(f"unknown profile file type {suffix or '(none)'}; use .json, .eds, .dcf, .xdd or .xdc"
+                           f"{hint}", source=name)
+    if looks_like == ".xdd":
+        raise ProfileError("this is an XDD/XDC (XML), not a JSON profile: name the file .xdd or .xdc", source=name,
+                           line=1)
     if looks_like == ".eds":
         raise ProfileError("this is an EDS/DCF (INI text), not a JSON profile: name the file .eds or .dcf",
                            source=name, line=1)
@@ -128,6 +135,8 @@ def _looks_like(content: bytes) -> str | None:
     head = content[:4096].lstrip(b"\xef\xbb\xbf \t\r\n")
     if head.startswith(b"{"):
         return ".json"
+    if head.startswith(b"<"):
+        return ".xdd"
     first_line = head.split(b"\n", 1)[0].strip()
     if head.startswith(b";") or (first_line.startswith(b"[") and first_line.endswith(b"]")
                                  and first_line[1:2].isalpha()):

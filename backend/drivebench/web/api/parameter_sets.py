@@ -286,7 +286,7 @@ async def set_history(set_id: RowId) -> list[SetVersion]:
 
 @router.get(SETS + "/{set_id}/export")
 async def export_set(set_id: RowId, state: StateDep,
-                     format: Annotated[Literal["json", "csv", "dcf"], Query()] = "json",
+                     format: Annotated[Literal["json", "csv", "dcf", "xdc"], Query()] = "json",
                      version: RowVersion = None) -> Response:
     stored = store().get(set_id, version)
     profile = state.registry.get(stored.info.profile_id)

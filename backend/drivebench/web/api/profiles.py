@@ -23,6 +23,8 @@ from drivebench.device.eds import ImportWarning
 from drivebench.device.eds_export import export_eds
 from drivebench.device.loader import LoadedFile, ProfileRegistry, shown_name
 from drivebench.device.profile import ObjectEntry, Parameter, Profile, Value
+from drivebench.device.xdd import XML_SUFFIXES
+from drivebench.device.xdd_export import export_xdd
 from drivebench.errors import Conflict, DriveBenchError, ProfileError
 from drivebench.web.deps import StateDep
 from drivebench.web.problems import error_fragment, problem_body
@@ -348,6 +350,19 @@ async def get_profile_eds(profile_id: str, state: StateDep, regenerate: bool = F
         return Response(loaded.original, media_type="application/octet-stream",
                         headers=_attachment(f"{profile_id}{loaded.suffix}"))
     return PlainTextResponse(export_eds(loaded.profile), headers=_attachment(f"{profile_id}.eds"))
+
+
+@router.get("/{profile_id}/xdd", response_class=Response,
+            responses={200: {"content": {"application/xml": {}}, "description": "The XDD/XDC file"}})
+async def get_profile_xdd(profile_id: str, state: StateDep, regenerate: bool = False) -> Response:
+    """The profile as CiA 311 XDD: an XDD/XDC file exactly as it was loaded, else (or with ``regenerate=true``)
+    written from the profile."""
+    loaded = state.registry.loaded(profile_id)
+    if loaded.original is not None and loaded.suffix in XML_SUFFIXES and not regenerate:
+        return Response(loaded.original, media_type="application/xml",
+                        headers=_attachment(f"{profile_id}{loaded.suffix}"))
+    return Response(export_xdd(loaded.profile), media_type="application/xml",
+                    headers=_attachment(f"{profile_id}.xdd"))
 
 
 @router.get("/{profile_id}/json", response_class=Response,
