@@ -55,6 +55,7 @@ __all__ = ["ImportWarning", "ImportedEds", "import_eds", "node_expr", "parse_ini
            "read_eds", "resolve_node_expr"]
 
 MAX_EDS_BYTES = 16 * 1024 * 1024
+MAX_LINE_CHARS = 64 * 1024
 BAUD_RATES_KBIT = (10, 20, 50, 125, 250, 500, 800, 1000)
 OBJECT_LISTS = ("MandatoryObjects", "OptionalObjects", "ManufacturerObjects")
 OBJECT_TYPE_CODES = {"VAR": 0x7, "ARRAY": 0x8, "RECORD": 0x9}
@@ -130,6 +131,10 @@ def parse_ini(text: str, source: str, notes: Warnings | None = None) -> dict[str
     current: Section | None = None
     # CiA 306 lines end in CR LF; str.splitlines() would also split on NEL, FF, LS... inside values.
     for number, raw in enumerate(re.split(r"\r\n|\r|\n", text), start=1):
+        if len(raw) > MAX_LINE_CHARS:
+            quirk(number, None, f"line of {len(raw)} characters skipped (an EDS line has at most {MAX_LINE_CHARS})",
+                  f"line of {len(raw)} characters, more than {MAX_LINE_CHARS}")
+            continue
         line = raw.strip()
         if _JUNK.search(raw):
             if line.strip("\x1a") == "":  # DOS end-of-file mark
@@ -317,8 +322,10 @@ class _Reader:
                 subs.setdefault(index, {})[int(match.group(2), 16)] = section
             elif match.group(3) is not None:
                 aux[(index, match.group(3))] = section
-            else:
+            elif section.keys:
                 by_index[index] = section
+            else:
+                self.warn(section.line, None, f"[{section.name}] has no keys: skipped")
         for index, key in listed.items():
             if index not in by_index and index not in subs:
                 self.warn(key.line, key.name, f"object 0x{index:04X} is listed but has no [{index:04X}] section: "

@@ -22,6 +22,7 @@ from drivebench.device.catalog import Catalog, Item
 from drivebench.device.eds import ImportWarning
 from drivebench.device.eds_export import export_eds
 from drivebench.device.loader import LoadedFile, ProfileRegistry, shown_name
+from drivebench.device.profile_batch import MAX_FILES, add_many
 from drivebench.device.profile import ObjectEntry, Parameter, Profile, Value
 from drivebench.device.xdd import XML_SUFFIXES
 from drivebench.device.xdd_export import export_xdd
@@ -116,6 +117,24 @@ class EntryRow(BaseModel):
     description: str | None
     limits_note: str | None = None
     """The file's LowLimit/HighLimit of this object were repaired or dropped on import: how."""
+
+
+class BatchRowOut(BaseModel):
+    """One file of a many-file upload: accepted, accepted with warnings, or refused (line and reason)."""
+
+    file: str
+    outcome: Literal["accepted", "warnings", "refused"]
+    profile_id: str | None
+    warnings: int
+    line: int | None
+    reason: str | None
+
+
+class BatchResult(BaseModel):
+    accepted: int
+    with_warnings: int
+    refused: int
+    rows: list[BatchRowOut]
 
 
 class EntryPage(BaseModel):
@@ -249,6 +268,44 @@ async def read_upload(request: Request, limit: int) -> tuple[str, bytes]:
         return name, content
     finally:
         await form.close()
+
+
+MAX_BATCH_BODY_BYTES = 64 * 1024 * 1024
+
+
+async def read_uploads(request: Request, limit: int) -> list[tuple[str, bytes]]:
+    """The files of a multipart upload with several files (field ``files``, or ``file``). Raises UploadTooLarge
+    past ``limit`` in all, ProfileError for too many files or none."""
+    declared = request.headers.get("content-length", "")
+    if declared.isdigit() and int(declared) > limit:
+        raise UploadTooLarge(f"the upload is {_size(int(declared))}, more than the limit of {_size(limit)} for "
+                             "many files at once")
+    if not request.headers.get("content-type", "").startswith("multipart/form-data"):
+        raise ProfileError("send the files as multipart/form-data in the field 'files'")
+    parser = MultiPartParser(request.headers, _capped(request, limit, limit), max_files=MAX_FILES, max_fields=20)
+    try:
+        form = await parser.parse()
+    except MultiPartException as exc:
+        raise ProfileError(f"the upload is not a readable form: {exc.message} (at most {MAX_FILES} files at once)"
+                           ) from exc
+    try:
+        uploads = [u for key in ("files", "file") for u in form.getlist(key) if isinstance(u, UploadFile)]
+        if not uploads:
+            raise ProfileError("no file in the upload: choose EDS, DCF, XDD, XDC, JSON files or a .zip (field "
+                               "'files')")
+        return [(shown_name(u.filename or "upload"), await u.read()) for u in uploads]
+    finally:
+        await form.close()
+
+
+async def store_many(request: Request, state: AppState) -> BatchResult:
+    """Read and store several files or zips; each file is accepted or refused on its own."""
+    uploads = await read_uploads(request, MAX_BATCH_BODY_BYTES)
+    rows = await asyncio.to_thread(add_many, state.registry, uploads)
+    out = [BatchRowOut(**vars(row)) for row in rows]
+    return BatchResult(accepted=sum(r.outcome == "accepted" for r in out),
+                       with_warnings=sum(r.outcome == "warnings" for r in out),
+                       refused=sum(r.outcome == "refused" for r in out), rows=out)
 
 
 async def store_upload(request: Request, state: AppState) -> Profile:
@@ -389,6 +446,21 @@ async def upload_profile(request: Request, state: StateDep) -> UploadResult | Re
     except UploadTooLarge as exc:
         return problem_response(request, exc, status.HTTP_413_CONTENT_TOO_LARGE)
     return upload_result(profile, state.registry)
+
+
+@router.post("/batch", response_model=BatchResult, openapi_extra={"requestBody": {"required": True, "content": {
+    "multipart/form-data": {"schema": {"type": "object", "required": ["files"], "properties": {"files": {
+        "type": "array", "items": {"type": "string", "format": "binary"},
+        "description": "EDS, DCF, XDD, XDC or JSON files, or .zip archives of them"}}}}}}},
+             responses={413: {"description": "More than 64 MiB sent at once"},
+                        422: {"description": "Too many files, none, or not a form (problem+json)"}})
+async def upload_many(request: Request, state: StateDep) -> BatchResult | Response:
+    """Upload several device descriptions or a .zip of a vendor's folder. Every file is checked on its own: the
+    summary says which were accepted, accepted with warnings, or refused (file, line, reason)."""
+    try:
+        return await store_many(request, state)
+    except UploadTooLarge as exc:
+        return problem_response(request, exc, status.HTTP_413_CONTENT_TOO_LARGE)
 
 
 @router.delete("/{profile_id}", status_code=status.HTTP_204_NO_CONTENT,

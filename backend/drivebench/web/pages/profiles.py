@@ -18,6 +18,7 @@ from drivebench.web.api.profiles import (
     delete_upload,
     entry_page,
     load_errors,
+    store_many,
     store_upload,
     summary,
     upload_error,
@@ -132,6 +133,17 @@ async def upload(request: Request, state: StateDep) -> Response:
         return _list_block(request, state, code, upload_error=upload_error(exc), upload_title=exc.title)
     return _list_block(request, state, upload_ok=profile.id,
                        upload_warnings=len(state.registry.loaded(profile.id).warnings))
+
+
+@router.post("/ui/profiles/batch", response_class=HTMLResponse)
+async def upload_batch(request: Request, state: StateDep) -> Response:
+    """Several files or a zip from the form: the list comes back with the summary table of every file."""
+    try:
+        result = await store_many(request, state)
+    except ProfileError as exc:
+        code = status.HTTP_413_CONTENT_TOO_LARGE if isinstance(exc, UploadTooLarge) else status_for(exc)
+        return _list_block(request, state, code, upload_error=upload_error(exc), upload_title=exc.title)
+    return _list_block(request, state, batch=result)
 
 
 @router.post("/ui/profiles/{profile_id}/delete", response_class=HTMLResponse)
