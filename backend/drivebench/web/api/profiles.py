@@ -22,8 +22,8 @@ from drivebench.device.catalog import Catalog, Item
 from drivebench.device.eds import ImportWarning
 from drivebench.device.eds_export import export_eds
 from drivebench.device.loader import LoadedFile, ProfileRegistry, shown_name
-from drivebench.device.profile_batch import MAX_FILES, add_many
 from drivebench.device.profile import ObjectEntry, Parameter, Profile, Value
+from drivebench.device.profile_batch import MAX_FILES, add_many
 from drivebench.device.xdd import XML_SUFFIXES
 from drivebench.device.xdd_export import export_xdd
 from drivebench.errors import Conflict, DriveBenchError, ProfileError
