@@ -129,6 +129,7 @@ def parse_ini(text: str, source: str, notes: Warnings | None = None) -> dict[str
     quirk = _Quirks(source, notes)
     sections: dict[str, Section] = {}
     current: Section | None = None
+    junk_somewhere = _JUNK.search(text.replace("\r", "").replace("\n", "")) is not None
     # CiA 306 lines end in CR LF; str.splitlines() would also split on NEL, FF, LS... inside values.
     for number, raw in enumerate(re.split(r"\r\n|\r|\n", text), start=1):
         if len(raw) > MAX_LINE_CHARS:
@@ -136,7 +137,7 @@ def parse_ini(text: str, source: str, notes: Warnings | None = None) -> dict[str
                   f"line of {len(raw)} characters, more than {MAX_LINE_CHARS}")
             continue
         line = raw.strip()
-        if _JUNK.search(raw):
+        if junk_somewhere and _JUNK.search(raw):
             if line.strip("\x1a") == "":  # DOS end-of-file mark
                 continue
             quirk(number, None, "line skipped: control characters (binary junk)",
@@ -185,7 +186,8 @@ def _section(line: str, number: int, sections: dict[str, Section], quirk: _Quirk
 
 def _key_value(line: str, number: int, quirk: _Quirks) -> tuple[str, str] | None:
     if "=" in line:
-        key, value = (part.strip() for part in line.split("=", 1))
+        key, _, value = line.partition("=")
+        key, value = key.strip(), value.strip()
     elif ":" in line and quirk.notes is not None:
         key, value = (part.strip() for part in line.split(":", 1))
         quirk(number, key, "'key: value' read as 'key=value'")
@@ -196,7 +198,7 @@ def _key_value(line: str, number: int, quirk: _Quirks) -> tuple[str, str] | None
     if not key:
         quirk(number, None, "line skipped: empty key name", "empty key name")
         return None
-    comment = _INLINE_COMMENT.search(value)
+    comment = _INLINE_COMMENT.search(value) if ";" in value else None
     if comment is not None and quirk.notes is not None:
         value = value[:comment.start()].rstrip()
     return key, value

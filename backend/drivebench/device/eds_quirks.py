@@ -29,6 +29,8 @@ OTHER_TYPE_NAMES = {0x0C: "TIME_OF_DAY", 0x0D: "TIME_DIFFERENCE", 0x0E: "BIT_STR
                     0x1A: "UNSIGNED56", 0x20: "PDO_COMMUNICATION_PARAMETER", 0x21: "PDO_MAPPING",
                     0x22: "SDO_PARAMETER", 0x23: "IDENTITY"}
 
+_PLAIN_INT = re.compile(r"^\s*([-+]?)(?:0[xX]([0-9a-fA-F]+)|([1-9][0-9]*|0))\s*$")
+_INTEGER_LIMITS = {t: t.raw_limits() for t in DataType if t.is_integer and t.raw_limits() is not None}
 _NUMBER_HEAD = re.compile(r"^\s*([-+]?\s*(?:0[xX][0-9a-fA-F]+|\d+(?:\.\d*)?(?:[eE][-+]?\d+)?))(.*)$", re.DOTALL)
 _TERM = re.compile(r"\s*([-+]?)\s*(\$NODEID|0[xX][0-9a-fA-F]+|\d+)\s*", re.IGNORECASE)
 
@@ -93,6 +95,11 @@ def read_int(text: str) -> tuple[int, str | None]:
 
     Leading-zero numbers are octal (CiA 306 4.6.3) when their digits allow it; with an 8 or 9 they are decimal.
     Trailing text (``0x180 (COB-ID)``) is ignored, an integral float (``100.0``) is read as the integer."""
+    plain = _PLAIN_INT.match(text)
+    if plain is not None:  # the common case, fast: decimal without leading zeros or 0x hex
+        sign, hex_digits, decimal = plain.groups()
+        value = int(hex_digits, 16) if hex_digits is not None else int(decimal)
+        return (-value if sign == "-" else value), None
     try:
         return parse_int_strict(text), _octal_note(text)
     except ValueError:
@@ -160,7 +167,7 @@ def fit_int(data_type: DataType, value: int, *, limit: str | None = None) -> tup
     Hex patterns of signed types are two's complement (of the type's width, else of 32 or 64 bits, what tools
     that write every limit as UNSIGNED32 mean); a negative number of an unsigned type is the same bit pattern.
     A limit still outside the type's range is clamped to it (``limit`` names LowLimit/HighLimit)."""
-    limits = data_type.raw_limits()
+    limits = _INTEGER_LIMITS.get(data_type)
     if limits is None:
         return value, None
     low, high = limits
@@ -185,6 +192,13 @@ def fit_int(data_type: DataType, value: int, *, limit: str | None = None) -> tup
 
 def read_value(data_type: DataType, text: str, *, limit: str | None = None) -> tuple[Value | None, str | None]:
     """An EDS value of ``data_type`` -> (raw model value or None when unusable, the reading applied or None)."""
+    if data_type in _INTEGER_LIMITS and data_type is not DataType.BOOLEAN:
+        try:
+            number, note = read_int(text)
+        except ValueError as exc:
+            return None, f"{exc}: dropped"
+        value, fit_note = fit_int(data_type, number, limit=limit)
+        return value, ("; ".join(n for n in (note, fit_note) if n) or None) if note or fit_note else None
     if data_type in (DataType.VISIBLE_STRING, DataType.UNICODE_STRING):
         return text, None
     if data_type in (DataType.OCTET_STRING, DataType.DOMAIN):
