@@ -10,6 +10,8 @@ from hypothesis import strategies as st
 from drivebench.device.eds import read_eds
 from drivebench.device.eds_export import export_eds
 from drivebench.device.eds_quirks import node_expr, read_int
+from drivebench.device.xdd import read_xdd
+from drivebench.device.xdd_export import export_xdd
 from drivebench.errors import ProfileError
 from tests.device.quirk_corpus import BASE, CASES, CORPUS_FILES, Case
 
@@ -40,6 +42,15 @@ def test_export_of_a_corpus_file_reads_back_as_the_same_profile(name: str, conte
     again = read_eds(export_eds(profile), source=name)
     assert again.profile == profile
     assert again.warnings == []
+
+
+def test_keys_the_model_has_no_field_for_are_kept_and_exported() -> None:
+    name, content, _ = next(f for f in CORPUS_FILES if "domain-upload-download-file" in f[0])
+    profile = read_eds(content, source=name).profile
+    firmware = next(o for o in profile.objects if o.index == 0x2009)
+    assert firmware.section_keys == {"UploadFile": "fw_read.bin", "DownloadFile": "fw.bin"}
+    assert "UploadFile=fw_read.bin\nDownloadFile=fw.bin\n" in export_eds(profile)
+    assert read_xdd(export_xdd(profile), source="x.xdd").profile.objects == profile.objects
 
 
 def test_readings_of_numbers_and_formulas() -> None:

@@ -66,6 +66,9 @@ COMPACT_SUB0_NAME = "NrOfObjects"
 _INDEX_SECTION = re.compile(r"^([0-9A-F]{4})(?:SUB([0-9A-F]{1,2})|(NAME|VALUE|DENOTATION))?$")
 _JUNK = re.compile(r"[\x00-\x08\x0b-\x1f\x7f]")
 _INLINE_COMMENT = re.compile(r"\s;")
+_MODEL_KEYS = {"parametername", "objecttype", "datatype", "accesstype", "defaultvalue", "parametervalue",
+               "lowlimit", "highlimit", "pdomapping", "objflags", "denotation", "unit", "factor", "description",
+               "subnumber", "compactsubobj"}
 _MAPPED_DEVICE_INFO = {"vendorname", "vendornumber", "productname", "productnumber", "revisionnumber",
                        "ordercode", "nrofrxpdo", "nroftxpdo", *(f"baudrate_{b}" for b in BAUD_RATES_KBIT)}
 
@@ -529,6 +532,10 @@ class _Reader:
         value = section.get("ParameterValue") if own_values else None
         if value is not None and (value.value or data_type.is_string):
             fields["parameter_value"] = self.parameter_value(data_type, value, address)
+        other = {k.name: k.value for name, k in section.keys.items() if name not in _MODEL_KEYS} if own_values \
+            else {}
+        if other:
+            fields["section_keys"] = other
         try:
             return ObjectEntry(**fields)
         except ValidationError as exc:

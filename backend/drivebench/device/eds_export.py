@@ -185,6 +185,7 @@ def _entry_keys(entry: ObjectEntry, *, with_flags: bool, value: Value | None) ->
     if with_flags and entry.obj_flags is not None:
         keys.append(("ObjFlags", f"0x{entry.obj_flags:X}"))
     keys += [(key, texts[key]) for key in ("ParameterValue", "Denotation") if key in texts]
+    keys += list((entry.section_keys or {}).items())
     if entry.factor != 1:
         keys.append(("Factor", entry.factor))
     if entry.unit is not None:

@@ -32,6 +32,8 @@ from drivebench.device.eds_quirks import Warnings
 from drivebench.errors import ProfileError
 
 XML_SUFFIXES = (".xdd", ".xdc")
+EDS_KEY_PREFIX = "EDS:"
+"""A parameter ``property`` named ``EDS:UploadFile`` carries an EDS key CiA 311 has no attribute for."""
 _DECLARATION = re.compile(rb"<!\s*(DOCTYPE|ENTITY)", re.IGNORECASE)
 _BAUD = re.compile(r"^\s*(\d+)\s*([KM])bps\s*$", re.IGNORECASE)
 _OBJECT_KEYS = {"name": "ParameterName", "objectType": "ObjectType", "dataType": "DataType",
@@ -197,8 +199,11 @@ class _Builder:
             elif name in ("defaultValue", "actualValue") and child.get("value") is not None:
                 key = "DefaultValue" if name == "defaultValue" else "ParameterValue"
                 self.put(section, child.sourceline or line, key, str(child.get("value")))
-            elif name == "property" and child.get("name") in ("Unit", "Factor") and child.get("value") is not None:
-                self.put(section, child.sourceline or line, str(child.get("name")), str(child.get("value")))
+            elif name == "property" and child.get("value") is not None:
+                key = str(child.get("name"))
+                if key in ("Unit", "Factor") or key.startswith(EDS_KEY_PREFIX):
+                    self.put(section, child.sourceline or line, key.removeprefix(EDS_KEY_PREFIX),
+                             str(child.get("value")))
             elif name == "allowedValues":
                 for bound in child.iter():
                     limit = {"minValue": "LowLimit", "maxValue": "HighLimit"}.get(local(bound))

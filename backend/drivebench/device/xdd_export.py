@@ -16,6 +16,7 @@ from lxml import etree
 
 from drivebench.device.eds_export import Address, export_value_text, node_value, objects_by_index
 from drivebench.device.profile import ObjectEntry, Profile, Value
+from drivebench.device.xdd import EDS_KEY_PREFIX
 
 NS = "http://www.canopen.org/xml/1.0"
 XSI = "http://www.w3.org/2001/XMLSchema-instance"
@@ -64,7 +65,7 @@ def _uid(entry: ObjectEntry) -> str:
 
 
 def _parameter(parameters: etree._Element, entry: ObjectEntry) -> None:
-    if entry.description is None and entry.unit is None and entry.factor == 1:
+    if entry.description is None and entry.unit is None and entry.factor == 1 and not entry.section_keys:
         return
     parameter = _el(parameters, "parameter", uniqueID=_uid(entry), access="read")
     _el(parameter, "label", entry.name, lang="en")
@@ -74,6 +75,8 @@ def _parameter(parameters: etree._Element, entry: ObjectEntry) -> None:
     for name, value in (("Unit", entry.unit), ("Factor", None if entry.factor == 1 else str(entry.factor))):
         if value is not None:
             _el(parameter, "property", None, name=name, value=value)
+    for key, value in (entry.section_keys or {}).items():  # EDS keys without a CiA 311 attribute
+        _el(parameter, "property", None, name=f"{EDS_KEY_PREFIX}{key}", value=value)
 
 
 def _object_attributes(element: etree._Element, entry: ObjectEntry, value: Value | None, *,
@@ -90,7 +93,7 @@ def _object_attributes(element: etree._Element, entry: ObjectEntry, value: Value
     element.set("PDOmapping", "optional" if entry.pdo_mappable else "no")
     if with_flags and entry.obj_flags is not None:
         element.set("objFlags", f"{entry.obj_flags:X}")
-    if entry.description is not None or entry.unit is not None or entry.factor != 1:
+    if entry.description is not None or entry.unit is not None or entry.factor != 1 or entry.section_keys:
         element.set("uniqueIDRef", _uid(entry))
 
 
