@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import json
 import re
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -24,19 +23,6 @@ EDS_DIR = REPO_ROOT / "tests" / "data" / "eds"
 SERVO_EDS = EDS_DIR / "cia402_servo.eds"
 MOTEC = "lenze-8400-motec-canopen"
 SHIPPED = sorted(p.stem for p in (REPO_ROOT / "device_profiles").glob("*.json"))
-
-
-@pytest.fixture
-def user_dir(tmp_path: Path) -> Path:
-    return tmp_path / "user-profiles"
-
-
-@pytest.fixture
-def api(user_dir: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[TestClient]:
-    """The app without a plant; its registry stores uploads in ``user_dir``."""
-    monkeypatch.setattr(settings, "user_profiles_dir", user_dir)
-    with TestClient(create_app()) as client:
-        yield client
 
 
 def ids(api: TestClient) -> list[str]:

@@ -1,31 +1,27 @@
 """Quirky device descriptions through the real API: accepted with warnings[], the warnings stored with the profile
-(also after a restart), the file downloads back byte for byte, and a refused file changes nothing."""
+(also after a restart), the file downloads back byte for byte, and a refused file changes nothing. Many files at
+once: a summary row per file, limits refused in words (zip bomb, paths leaving the archive, too many files),
+/api/health answering while a large upload is checked."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+import io
+import threading
+import time
+import zipfile
 from pathlib import Path
 
+import httpx
 import pytest
 from fastapi.testclient import TestClient
 
 from drivebench.config import settings
+from drivebench.device.profile_batch import MAX_FILES
 from drivebench.web.app import create_app
-from tests.device.quirk_corpus import CORPUS_FILES
+from tests.conftest import serve_app
+from tests.device.quirk_corpus import BASE, CORPUS_FILES
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
-
-
-@pytest.fixture
-def user_dir(tmp_path: Path) -> Path:
-    return tmp_path / "user-profiles"
-
-
-@pytest.fixture
-def api(user_dir: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[TestClient]:
-    monkeypatch.setattr(settings, "user_profiles_dir", user_dir)
-    with TestClient(create_app()) as client:
-        yield client
 
 
 def test_every_corpus_file_uploads_with_its_warnings_and_downloads_byte_identical(api: TestClient,
@@ -107,3 +103,101 @@ def test_unsafe_xml_upload_is_a_problem_in_words(api: TestClient) -> None:
     assert (refused.json()["source"], refused.json()["line"]) == ("evil.xdd", 2)
     assert "DOCTYPE" in refused.json()["detail"] and "passwd" not in refused.text.replace("file:///etc/passwd", "")
     assert api.get("/api/profiles").json() == before
+
+
+# --- many files at once, bad input ------------------------------------------------------------------------
+def make_zip(members: list[tuple[str, bytes]]) -> bytes:
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as archive:
+        for name, content in members:
+            archive.writestr(name, content)
+    return buffer.getvalue()
+
+
+def test_a_vendor_folder_zip_gives_one_row_per_file(api: TestClient, user_dir: Path) -> None:
+    members = [(f"Vendor/EDS/{name}", content) for name, content, _ in CORPUS_FILES]
+    members += [("Vendor/readme.txt", b"not a profile"), ("Vendor/EDS/broken.eds", b"[FileInfo]\nFileName=b\n"),
+                ("../../outside.eds", BASE.encode()), ("Vendor/big.eds", b"\0" * (4 * 1024 * 1024))]
+    response = api.post("/api/profiles/batch", files={"files": ("vendor.zip", make_zip(members))})
+    assert response.status_code == 200, response.text
+    result = response.json()
+    rows = {row["file"]: row for row in result["rows"]}
+    assert result["accepted"] + result["with_warnings"] == len(CORPUS_FILES)
+    assert result["with_warnings"] == sum(1 for _, _, case in CORPUS_FILES if case.warns)
+    assert rows["broken.eds"]["outcome"] == "refused" and "no object dictionary" in rows["broken.eds"]["reason"]
+    assert "leaves the archive" in rows["vendor.zip/../../outside.eds"]["reason"]
+    assert "zip bomb" in rows["vendor.zip/Vendor/big.eds"]["reason"]
+    assert not any("readme" in name for name in rows)
+    assert not (user_dir.parent / "outside.eds").exists()
+    listed = {p["id"] for p in api.get("/api/profiles").json()}
+    assert {row["profile_id"] for row in result["rows"] if row["profile_id"]} <= listed
+
+
+def test_several_files_at_once_and_limits_in_words(api: TestClient) -> None:
+    (name, content, _), (other, second, _) = CORPUS_FILES[:2]
+    response = api.post("/api/profiles/batch", files=[("files", (name, content)), ("files", (other, second)),
+                                                      ("files", ("x.zip", b"PK not a zip"))])
+    assert [row["outcome"] for row in response.json()["rows"]] == ["refused", "warnings", "warnings"]
+    assert "not a readable zip archive" in response.json()["rows"][0]["reason"]
+    before = api.get("/api/profiles").json()
+    too_many = make_zip([(f"f{n}.eds", b"x") for n in range(MAX_FILES + 1)])
+    refused = api.post("/api/profiles/batch", files={"files": ("many.zip", too_many)}).json()["rows"][0]
+    assert refused["outcome"] == "refused" and f"at most {MAX_FILES}" in refused["reason"]
+    parts = [("files", (f"f{n}.eds", b"x")) for n in range(MAX_FILES + 1)]
+    problem = api.post("/api/profiles/batch", files=parts)
+    assert problem.status_code == 422 and f"at most {MAX_FILES} files" in problem.json()["detail"]
+    assert api.post("/api/profiles/batch", data={"x": "1"}).status_code == 422
+    assert api.get("/api/profiles").json() == before
+
+
+BAD_INPUT = [
+    ("truncated.eds", BASE.encode()[:700], "no object dictionary"),
+    ("random.eds", bytes(range(256)) * 64, "binary junk"),
+    ("one-line.eds", b"[1000]" + b"x" * (5 * 1024 * 1024 - 10), None),
+    ("nested.xdd", b"<ISO15745ProfileContainer>" + b"<a>" * 200_000 + b"</ISO15745ProfileContainer>", "XML"),
+]
+
+
+@pytest.mark.parametrize(("name", "content", "words"), BAD_INPUT, ids=[b[0] for b in BAD_INPUT])
+def test_bad_input_is_a_clear_4xx_and_loses_nothing(api: TestClient, name: str, content: bytes,
+                                                    words: str | None) -> None:
+    kept_name, kept, _ = CORPUS_FILES[0]
+    kept_id = api.post("/api/profiles", files={"file": (kept_name, kept)}).json()["id"]
+    before = api.get("/api/profiles").json()
+    response = api.post("/api/profiles", files={"file": (name, content)})
+    assert 400 <= response.status_code < 500, response.text
+    assert response.headers["content-type"].startswith("application/problem+json")
+    assert response.json()["detail"] and (words is None or words in response.json()["detail"])
+    assert api.get("/api/profiles").json() == before
+    assert api.get(f"/api/profiles/{kept_id}/eds").content == kept
+
+
+def test_100000_objects_load_or_are_refused_in_words(api: TestClient) -> None:
+    sections = "".join(f"[{0x2000 + n // 256:04X}sub{n % 256:X}]\nParameterName=P{n}\nDataType=0x0007\n"
+                       f"AccessType=rw\n" for n in range(100_000))
+    heads = "".join(f"[{0x2000 + i:04X}]\nParameterName=R{i}\nObjectType=0x9\nSubNumber=256\n"
+                    for i in range(100_000 // 256 + 1))
+    text = ("[DeviceInfo]\nVendorName=V\nProductName=Huge\n" + heads + sections).encode()
+    response = api.post("/api/profiles", files={"file": ("huge.eds", text)})
+    assert response.status_code in (201, 413, 422), response.text
+    if response.status_code != 201:
+        assert response.json()["detail"]
+
+
+def test_health_answers_while_a_large_zip_is_checked(user_dir: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(settings, "user_profiles_dir", user_dir)
+    members = [(f"n{n}-{name}", content) for n in range(3) for name, content, _ in CORPUS_FILES]
+    archive = make_zip(members)
+    with serve_app(create_app()) as url:
+        result: dict[str, httpx.Response] = {}
+        upload = threading.Thread(target=lambda: result.setdefault("r", httpx.post(
+            f"{url}/api/profiles/batch", files={"files": ("all.zip", archive)}, timeout=120)))
+        upload.start()
+        answered = []
+        while upload.is_alive():
+            started = time.monotonic()
+            health = httpx.get(f"{url}/api/health", timeout=10)
+            answered.append((health.status_code, time.monotonic() - started))
+        upload.join()
+        assert result["r"].status_code == 200 and len(result["r"].json()["rows"]) == len(members)
+        assert answered and all(code == 200 for code, _ in answered)

@@ -129,10 +129,15 @@ async def upload(request: Request, state: StateDep) -> Response:
     try:
         profile = await store_upload(request, state)
     except ProfileError as exc:
-        code = status.HTTP_413_CONTENT_TOO_LARGE if isinstance(exc, UploadTooLarge) else status_for(exc)
-        return _list_block(request, state, code, upload_error=upload_error(exc), upload_title=exc.title)
+        return _refused(request, state, exc)
     return _list_block(request, state, upload_ok=profile.id,
                        upload_warnings=len(state.registry.loaded(profile.id).warnings))
+
+
+def _refused(request: Request, state: AppState, exc: ProfileError) -> Response:
+    """The list and the form again, with why the upload was refused beside the form."""
+    code = status.HTTP_413_CONTENT_TOO_LARGE if isinstance(exc, UploadTooLarge) else status_for(exc)
+    return _list_block(request, state, code, upload_error=upload_error(exc), upload_title=exc.title)
 
 
 @router.post("/ui/profiles/batch", response_class=HTMLResponse)
@@ -141,8 +146,7 @@ async def upload_batch(request: Request, state: StateDep) -> Response:
     try:
         result = await store_many(request, state)
     except ProfileError as exc:
-        code = status.HTTP_413_CONTENT_TOO_LARGE if isinstance(exc, UploadTooLarge) else status_for(exc)
-        return _list_block(request, state, code, upload_error=upload_error(exc), upload_title=exc.title)
+        return _refused(request, state, exc)
     return _list_block(request, state, batch=result)
 
 
