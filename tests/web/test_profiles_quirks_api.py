@@ -5,7 +5,9 @@ once: a summary row per file, limits refused in words (zip bomb, paths leaving t
 
 from __future__ import annotations
 
+import html
 import io
+import re
 import threading
 import time
 import zipfile
@@ -14,11 +16,13 @@ from pathlib import Path
 import httpx
 import pytest
 from fastapi.testclient import TestClient
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
-from drivebench.config import settings
+from drivebench.config import settings as app_settings
 from drivebench.device.profile_batch import MAX_FILES
 from drivebench.web.app import create_app
-from tests.conftest import serve_app
+from tests.conftest import fresh_channel, serve_app
 from tests.device.quirk_corpus import BASE, CORPUS_FILES
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
@@ -48,7 +52,7 @@ def test_every_corpus_file_uploads_with_its_warnings_and_downloads_byte_identica
 def test_warnings_survive_a_restart_and_limit_notes_reach_the_rows(user_dir: Path,
                                                                     monkeypatch: pytest.MonkeyPatch) -> None:
     name, content, _ = next(f for f in CORPUS_FILES if "signed-limits-on-unsigned32" in f[0])
-    monkeypatch.setattr(settings, "user_profiles_dir", user_dir)
+    monkeypatch.setattr(app_settings, "user_profiles_dir", user_dir)
     with TestClient(create_app()) as client:
         profile_id = client.post("/api/profiles", files={"file": (name, content)}).json()["id"]
     with TestClient(create_app()) as client:  # read again from the upload folder
@@ -185,7 +189,7 @@ def test_100000_objects_load_or_are_refused_in_words(api: TestClient) -> None:
 
 
 def test_health_answers_while_a_large_zip_is_checked(user_dir: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(settings, "user_profiles_dir", user_dir)
+    monkeypatch.setattr(app_settings, "user_profiles_dir", user_dir)
     members = [(f"n{n}-{name}", content) for n in range(3) for name, content, _ in CORPUS_FILES]
     archive = make_zip(members)
     with serve_app(create_app()) as url:
@@ -201,3 +205,48 @@ def test_health_answers_while_a_large_zip_is_checked(user_dir: Path, monkeypatch
         upload.join()
         assert result["r"].status_code == 200 and len(result["r"].json()["rows"]) == len(members)
         assert answered and all(code == 200 for code, _ in answered)
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow,
+                                                                 HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_mutated_uploads_never_give_a_server_error(api: TestClient, data: st.DataObject) -> None:
+    """A mutation fuzz of valid files (EDS and XDD) through POST /api/profiles: 201 or a 4xx problem in words."""
+    name, content = data.draw(st.sampled_from(
+        [("servo.eds", BASE.encode())] + [(p.name, p.read_bytes()) for p in sorted(XDD_DIR.iterdir())]))
+    mutated = bytearray(content)
+    for _ in range(data.draw(st.integers(1, 8))):
+        position = data.draw(st.integers(0, max(len(mutated) - 1, 0)))
+        action = data.draw(st.sampled_from(["flip", "delete", "insert"]))
+        if action == "flip" and mutated:
+            mutated[position] = data.draw(st.integers(0, 255))
+        elif action == "delete":
+            del mutated[position:position + data.draw(st.integers(1, 60))]
+        else:
+            mutated[position:position] = data.draw(st.sampled_from(
+                [b"\x00", b"[", b"]", b"=", b"\n", b"<", b">", b"&", b"$NODEID", b"0x", b";", b'"', b"\xff"]))
+    response = api.post("/api/profiles", files={"file": (name, bytes(mutated))})
+    assert response.status_code < 500, response.text
+    if response.status_code >= 400:
+        assert response.headers["content-type"].startswith("application/problem+json")
+        assert response.json()["detail"]
+
+
+def test_a_node_row_with_repaired_limits_asks_before_a_write(api: TestClient) -> None:
+    name, content, _ = next(f for f in CORPUS_FILES if "signed-limits-on-unsigned32" in f[0])
+    profile_id = api.post("/api/profiles", files={"file": (name, content)}).json()["id"]
+    session = api.post("/api/sessions", json={"bus": f"virtual:{fresh_channel()}@500000", "name": "quirks"})
+    assert session.status_code == 201, session.text
+    session_id = session.json()["id"]
+    assert api.post(f"/api/sessions/{session_id}/nodes", json={"node_id": 5, "profile_id": profile_id}
+                    ).status_code == 201
+    page = api.get(f"/sessions/{session_id}/nodes/5")
+    assert page.status_code == 200
+    rows = {m.group(1): m.group(0) for m in re.finditer(r'<tr id="p-[^"]*"[^>]*data-ref="([^"]+)".*?</tr>',
+                                                          page.text, re.DOTALL)}
+    repaired = html.unescape(rows["0x2000"])
+    assert 'hx-confirm="0x2000: the limits of the device description were repaired or dropped on import' in repaired
+    assert "limits dropped: LowLimit 0x80000000 &gt; HighLimit 0x7FFFFFFF" in rows["0x2000"]
+    assert "badge warn tiny limits" in repaired
+    assert "hx-confirm" not in rows["0x1017"] and "limits" not in rows["0x1017"]
+    api.delete(f"/api/sessions/{session_id}")
