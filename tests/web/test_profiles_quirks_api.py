@@ -5,6 +5,7 @@ once: a summary row per file, limits refused in words (zip bomb, paths leaving t
 
 from __future__ import annotations
 
+import difflib
 import html
 import io
 import re
@@ -19,6 +20,7 @@ from fastapi.testclient import TestClient
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from drivebench.config import REPO_ROOT
 from drivebench.config import settings as app_settings
 from drivebench.device.profile_batch import MAX_FILES
 from drivebench.web.app import create_app
@@ -250,3 +252,32 @@ def test_a_node_row_with_repaired_limits_asks_before_a_write(api: TestClient) ->
     assert "badge warn tiny limits" in repaired
     assert "hx-confirm" not in rows["0x1017"] and "limits" not in rows["0x1017"]
     api.delete(f"/api/sessions/{session_id}")
+
+
+def test_pdo_dcf_of_a_node_is_written_over_its_uploaded_file(user_dir: Path, monkeypatch: pytest.MonkeyPatch
+                                                              ) -> None:
+    """PDO tab 'Export DCF' of a node whose profile came from a vendor's file: the file's lines, comments, line
+    ends and order stay; only ParameterValue and [DeviceComissioning] are added or changed."""
+    monkeypatch.setattr(app_settings, "user_profiles_dir", user_dir)
+    app = create_app(plant_file=REPO_ROOT / "plants" / "demo.json", plant_bus=f"virtual:{fresh_channel()}@500000",
+                     latency="0ms")
+    with TestClient(app) as client:
+        generated = client.get("/api/profiles/siemens-micromaster4-canopen/eds").text
+        vendor = ("; Vendor file as shipped (hand-edited copy)\n" + generated.replace(
+            "ProfileId=siemens-micromaster4-canopen", "ProfileId=mm4-vendor-file")).replace("\n", "\r\n")
+        assert client.post("/api/profiles", files={"file": ("mm4.eds", vendor.encode("cp1252"))}).status_code == 201
+        nodes = "/api/sessions/demo-plant/nodes"
+        assert client.delete(f"{nodes}/3").status_code == 204
+        assert client.post(nodes, json={"node_id": 3, "profile_id": "mm4-vendor-file"}).status_code == 201
+        dcf = client.get(f"{nodes}/3/pdos/dcf")
+        assert dcf.status_code == 200, dcf.text
+    written = dcf.text
+    assert written.startswith("; Vendor file as shipped (hand-edited copy)\r\n")
+    assert "\n" not in written.replace("\r\n", "")
+    old, new = vendor.split("\r\n"), written.split("\r\n")
+    for tag, old_from, old_to, new_from, new_to in difflib.SequenceMatcher(None, old, new, autojunk=False
+                                                                          ).get_opcodes():
+        assert tag in ("equal", "insert"), (old[old_from:old_to], new[new_from:new_to])
+        for line in new[new_from:new_to] if tag == "insert" else []:
+            assert re.match(r"(ParameterValue|NodeID)=|\[DeviceComissioning\]$|$", line), line
+    assert written.count("ParameterValue=") > 10 and "NodeID=3" in written
