@@ -89,7 +89,7 @@ def test_a_declared_50_mb_upload_is_refused_before_the_body_is_sent(server: str)
     boundary = "drivebench-big"
     head = multipart_head(boundary, "huge.eds")
     with connect(server) as sock:
-        sock.sendall(f"POST /api/profiles HTTP/1.1\r\nHost: test\r\nContent-Length: {FIFTY_MB}\r\n"
+        sock.sendall(f"POST /api/profiles HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: {FIFTY_MB}\r\n"
                      f"Content-Type: multipart/form-data; boundary={boundary}\r\n\r\n".encode() + head)
         sent = send_until_answered(sock, iter([b"x" * CHUNK] * 16))  # at most 1 MB of the 50
         status, headers, body = read_response(sock)
@@ -115,7 +115,7 @@ def test_a_chunked_50_mb_upload_is_cut_soon_after_the_limit(server: str) -> None
             yield f"{len(chunk):X}\r\n".encode() + chunk + b"\r\n"
 
     with connect(server) as sock:
-        sock.sendall(f"POST /api/profiles HTTP/1.1\r\nHost: test\r\nTransfer-Encoding: chunked\r\n"
+        sock.sendall(f"POST /api/profiles HTTP/1.1\r\nHost: 127.0.0.1\r\nTransfer-Encoding: chunked\r\n"
                      f"Content-Type: multipart/form-data; boundary={boundary}\r\n\r\n".encode())
         sent = send_until_answered(sock, framed())
         status, _, body = read_response(sock)
