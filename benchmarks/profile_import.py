@@ -111,7 +111,7 @@ def main() -> list[tuple[str, str]]:
             archive.writestr(name, content)
     with tempfile.TemporaryDirectory() as scratch:
         settings.user_profiles_dir = Path(scratch) / "user-profiles"
-        with TestClient(create_app()) as client:
+        with TestClient(create_app(), base_url="http://127.0.0.1") as client:  # the server's own name
             start = time.perf_counter()
             response = client.post("/api/profiles/batch", files={"files": ("vendor.zip", buffer.getvalue())})
             seconds = time.perf_counter() - start
