@@ -81,10 +81,15 @@ class _Builder:
         self.source = source
         self.notes = notes
         self.sections: dict[str, Section] = {}
+        self.listed: dict[str, int] = {}
+        """How many objects each object list ([MandatoryObjects] ...) holds so far."""
 
     def put(self, section: str, line: int, key: str, value: str) -> None:
-        found = self.sections.setdefault(section.upper(), Section(section, line))
-        found.keys.setdefault(key.lower(), Key(key, value, line))
+        found = self.sections.get(section.upper())
+        if found is None:
+            found = self.sections[section.upper()] = Section(section, line)
+        if key.lower() not in found.keys:
+            found.keys[key.lower()] = Key(key, value, line)
 
     def device(self, body: etree._Element) -> dict[str, etree._Element]:
         """Identity from the device body; returns parameters and templates by uniqueID."""
@@ -158,9 +163,8 @@ class _Builder:
             self.keys(f"{section}sub{number:X}", sub, parameters)
         listing = "MandatoryObjects" if index in (0x1000, 0x1001, 0x1018) else (
             "ManufacturerObjects" if 0x2000 <= index <= 0x5FFF else "OptionalObjects")
-        listed = self.sections.get(listing.upper())
-        position = 1 + sum(1 for k in listed.keys if k.isdigit()) if listed else 1
-        self.put(listing, line, str(position), f"0x{index:04X}")
+        self.listed[listing] = self.listed.get(listing, 0) + 1
+        self.put(listing, line, str(self.listed[listing]), f"0x{index:04X}")
 
     def keys(self, section: str, element: etree._Element, parameters: dict[str, etree._Element]) -> None:
         line = element.sourceline or 1
@@ -237,6 +241,5 @@ def read_xdd(data: bytes, *, source: str) -> ImportedEds:
     for listing in OBJECT_LISTS:
         found = builder.sections.get(listing.upper())
         if found is not None:
-            count = sum(1 for k in found.keys if k.isdigit())
-            found.keys["supportedobjects"] = Key("SupportedObjects", str(count), found.line)
+            found.keys["supportedobjects"] = Key("SupportedObjects", str(builder.listed[listing]), found.line)
     return read_sections(builder.sections, source, notes)
