@@ -10,7 +10,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from drivebench.device.eds import BAUD_RATES_KBIT, MAX_EDS_BYTES, import_eds, resolve_node_expr
+from drivebench.device.eds import BAUD_RATES_KBIT, MAX_EDS_BYTES, import_eds, read_eds, resolve_node_expr
 from drivebench.device.eds_export import export_eds
 from drivebench.device.profile import (
     Access,
@@ -250,58 +250,76 @@ def test_the_good_file_loads() -> None:
     assert obj(import_eds(GOOD, source="bad.eds"), 0x1018, 1).default == 0x1AB
 
 
-BAD = [
-    # (what, old, new, line finder, message)
+QUIRKS = [
+    # (what, old, new, line finder, words of the warning): each is read and noted, never refused
     ("truncated", "DataType=0x0007\nAccessType=ro\nDefaultValue=0x1AB\nLowLimit=0\nHighLimit=0xFFFF\n", "DataTy",
-     lambda t: line_of(t, "DataTy", 3), "expected 'key=value'"),
+     lambda t: line_of(t, "DataTy", 3), "no '='"),
     ("truncated object", "[1018sub1]\nParameterName=Vendor-ID\nDataType=0x0007\nAccessType=ro\n"
      "DefaultValue=0x1AB\nLowLimit=0\nHighLimit=0xFFFF\n", "", lambda t: line_of(t, "SubNumber"),
      "SubNumber=2 but object 0x1018 has 1"),
     ("unknown data type", "DataType=0x0005", "DataType=0x0099", lambda t: line_of(t, "DataType=0x0099"),
-     "DataType=0x0099"),
+     "DataType=0x0099 (no CiA 301 basic data type) is not a CiA 301 basic data type: read as DOMAIN"),
     ("text for a number", "DefaultValue=1\n", "DefaultValue=one\n", lambda t: line_of(t, "DefaultValue=one"),
-     "not a number"),
+     "not a number: dropped"),
     ("value too big", "DefaultValue=1\n", "DefaultValue=300\n", lambda t: line_of(t, "DefaultValue=300"),
      "does not fit UNSIGNED8"),
     ("duplicate section", "[1018sub1]", "[1018sub0]", lambda t: line_of(t, "[1018sub0]", 2),
      "duplicate section [1018sub0]"),
     ("duplicate key", "AccessType=ro\nDefaultValue=0\n", "AccessType=ro\naccesstype=rw\nDefaultValue=0\n",
-     lambda t: line_of(t, "accesstype"), "duplicate key"),
+     lambda t: line_of(t, "accesstype"), "the first value 'ro' is kept"),
     ("low above high", "LowLimit=0\n", "LowLimit=0x10000\n", lambda t: line_of(t, "HighLimit"),
-     "LowLimit 0x10000 is greater than HighLimit 0xFFFF"),
+     "limits dropped: LowLimit 0x10000 > HighLimit 0xFFFF"),
     ("binary junk", "[1000]\n", "[1000]\n\x00\x89PNG\x1a\n", lambda t: line_of(t, "\x00"), "binary junk"),
     ("missing ParameterName", "ParameterName=Device type\n", "", lambda t: line_of(t, "[1000]"),
-     "[1000] has no ParameterName="),
+     "[1000] has no ParameterName=: named 'Object 0x1000'"),
     ("missing AccessType", "AccessType=ro\nDefaultValue=0\n", "DefaultValue=0\n", lambda t: line_of(t, "[1000]"),
-     "[1000] has no AccessType="),
+     "[1000] has no AccessType=: read as ro"),
     ("listed object without section", "2=0x1018\n", "2=0x1018\n3=0x1001\n", lambda t: line_of(t, "SupportedObj"),
      "SupportedObjects=2 but [MandatoryObjects] lists 3"),
     ("object without section", "SupportedObjects=2\n", "SupportedObjects=3\n3=0x1001\n",
-     lambda t: line_of(t, "3=0x1001"), "no [1001] section"),
+     lambda t: line_of(t, "3=0x1001"), "no [1001] section: skipped"),
     ("bad formula", "DefaultValue=0x1AB", "DefaultValue=$NODEID*2", lambda t: line_of(t, "DefaultValue=$NODEID"),
-     "$NODEID+<number>"),
+     "is not a sum of numbers and $NODEID: dropped"),
     ("bad access", "AccessType=ro\nDefaultValue=0\n", "AccessType=rx\nDefaultValue=0\n",
-     lambda t: line_of(t, "AccessType=rx"), "AccessType='rx'"),
+     lambda t: line_of(t, "AccessType=rx"), "read as ro"),
     ("bad object type", "ObjectType=0x7", "ObjectType=0x5", lambda t: line_of(t, "ObjectType=0x5"),
-     "ObjectType=0x5 is not supported"),
-    ("unterminated header", "[1000]", "[1000", lambda t: line_of(t, "[1000"), "bad section header"),
+     "type definition"),
+    ("unterminated header", "[1000]", "[1000", lambda t: line_of(t, "[1000"), "has no ']': read as [1000]"),
     ("no DeviceInfo", "[DeviceInfo]\nVendorName=V\nProductName=P\n", "", lambda t: 1, "no [DeviceInfo]"),
     ("sub without object", "[1000]\n", "[2000sub1]\nParameterName=x\n[1000]\n",
-     lambda t: line_of(t, "[2000sub1]"), "belongs to no object"),
-    ("key before section", "[FileInfo]\n", "Junk=1\n[FileInfo]\n", lambda t: 1, "outside of any section"),
+     lambda t: line_of(t, "[2000sub1]"), "belongs to no object section [2000]: read as a RECORD"),
+    ("key before section", "[FileInfo]\n", "Junk=1\n[FileInfo]\n", lambda t: 1, "before the first [section]"),
 ]
 
 
-@pytest.mark.parametrize(("what", "old", "new", "find_line", "message"), BAD, ids=[b[0] for b in BAD])
-def test_bad_files_name_file_and_line(what: str, old: str, new: str, find_line, message: str) -> None:
+@pytest.mark.parametrize(("what", "old", "new", "find_line", "message"), QUIRKS, ids=[b[0] for b in QUIRKS])
+def test_quirks_are_read_with_a_warning_naming_file_line_and_reading(what: str, old: str, new: str, find_line,
+                                                                      message: str) -> None:
     assert old in GOOD, what
     text = GOOD.replace(old, new, 1)
-    with pytest.raises(ProfileError) as caught:
-        import_eds(text, source="bad.eds")
+    imported = read_eds(text, source="bad.eds")
     line = find_line(text)
-    assert caught.value.source == "bad.eds" and caught.value.line == line
-    assert str(caught.value).startswith(f"bad.eds:{line}: ")
-    assert message in str(caught.value)
+    found = [w for w in imported.warnings if message in w.message]
+    assert found, [w.text() for w in imported.warnings]
+    assert (found[0].file, found[0].line) == ("bad.eds", line)
+    assert found[0].text().startswith(f"bad.eds:{line}: ")
+    assert read_eds(GOOD, source="good.eds").warnings == []
+
+
+REFUSED = [
+    ("no object section", "[FileInfo]\nFileName=x.eds\n[DeviceInfo]\nVendorName=V\n", 1, "no object dictionary"),
+    ("empty", "", None, "no object dictionary"),
+    ("random bytes", "\x00\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR", 1, "binary junk"),
+    ("only a type definition", "[0020]\nParameterName=PDO\nObjectType=0x6\n[1000]\nParameterName=T\n"
+     "ObjectType=0x5\n", 1, "usable object"),
+]
+
+
+@pytest.mark.parametrize(("what", "text", "line", "message"), REFUSED, ids=[r[0] for r in REFUSED])
+def test_a_file_without_object_dictionary_is_refused(what: str, text: str, line: int | None, message: str) -> None:
+    with pytest.raises(ProfileError) as caught:
+        import_eds(text, source="x.eds")
+    assert caught.value.line == line and message in caught.value.detail
 
 
 def test_oversized_file_is_refused_before_parsing(tmp_path: Path) -> None:

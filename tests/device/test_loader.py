@@ -110,9 +110,10 @@ def test_a_bad_upload_leaves_the_registry_as_it_was(tmp_path: Path) -> None:
     ("servo.json", (REPO_ROOT / "tests" / "data" / "eds" / "cia402_servo.eds").read_bytes(),
      "this is an EDS/DCF (INI text), not a JSON profile: name the file .eds or .dcf"),
     ("servo.txt", (REPO_ROOT / "tests" / "data" / "eds" / "cia402_servo.eds").read_bytes(),
-     "unknown profile file type .txt; use .json, .eds or .dcf; this looks like an EDS, name it .eds"),
+     "unknown profile file type .txt; use .json, .eds, .dcf, .xdd or .xdc; this looks like an EDS, name it .eds"),
     ("motec", json.dumps(motec()).encode(),
-     "unknown profile file type (none); use .json, .eds or .dcf; this looks like a JSON profile, name it .json"),
+     "unknown profile file type (none); use .json, .eds, .dcf, .xdd or .xdc; this looks like a JSON profile, "
+     "name it .json"),
 ])
 def test_a_file_with_the_wrong_suffix_is_named_for_what_it_is(name: str, content: bytes, message: str) -> None:
     with pytest.raises(ProfileError) as caught:

@@ -15,6 +15,7 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
+from drivebench.device.xdd import read_xdd
 from drivebench.web.app import create_app
 from tests.conftest import DEMO_PLANT, fresh_channel
 
@@ -92,6 +93,23 @@ def test_export_import_round_trip(api: TestClient, fmt: str) -> None:
     original = {v["ref"]: v["raw"] for v in api.get(f"{SETS}/{set_id}").json()["values"]}
     again = {v["ref"]: v["raw"] for v in api.get(f"{SETS}/{copy['id']}").json()["values"]}
     assert again == original
+
+
+def test_export_as_xdc_holds_the_values_as_actual_values(api: TestClient) -> None:
+    """CiA 311 XDC of a set: every value of the set is the actualValue of its object; node id in commissioning."""
+    set_id = upload(api, 12, "Fan")
+    exported = api.get(f"{SETS}/{set_id}/export", params={"format": "xdc"})
+    assert exported.status_code == 200 and exported.headers["content-type"].startswith("application/xml")
+    assert 'filename="Fan-v1.xdc"' in exported.headers["content-disposition"]
+    node = read_xdd(exported.content, source="fan.xdc").profile
+    assert node.extra_sections["DeviceComissioning"]["NodeID"] == "12"
+    configured = {(o.index, o.subindex): o.parameter_value for o in node.objects if o.parameter_value is not None}
+    values = api.get(f"{SETS}/{set_id}").json()["values"]
+    assert len(configured) >= len(values) > 0
+    for value in values[:12]:
+        row = api.get("/api/profiles/lenze-8200-vector-emf2178ib/parameters", params={"q": value["ref"]}
+                      ).json()["items"][0]
+        assert configured[(int(row["index"], 16), row["subindex"])] == value["raw"], value["ref"]
 
 
 def test_import_names_every_line_that_does_not_fit(api: TestClient) -> None:

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import json
 import re
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -26,19 +25,6 @@ MOTEC = "lenze-8400-motec-canopen"
 SHIPPED = sorted(p.stem for p in (REPO_ROOT / "device_profiles").glob("*.json"))
 
 
-@pytest.fixture
-def user_dir(tmp_path: Path) -> Path:
-    return tmp_path / "user-profiles"
-
-
-@pytest.fixture
-def api(user_dir: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[TestClient]:
-    """The app without a plant; its registry stores uploads in ``user_dir``."""
-    monkeypatch.setattr(settings, "user_profiles_dir", user_dir)
-    with TestClient(create_app()) as client:
-        yield client
-
-
 def ids(api: TestClient) -> list[str]:
     return [p["id"] for p in api.get("/api/profiles").json()]
 
@@ -48,9 +34,10 @@ def upload(api: TestClient, name: str, content: bytes) -> Any:
 
 
 def broken_servo_eds(line_no: int) -> bytes:
-    """The servo EDS with line ``line_no`` replaced by text that is neither key=value, section nor comment."""
-    lines = SERVO_EDS.read_bytes().split(b"\n")
-    lines[line_no - 1] = b"this line is not an EDS line"
+    """The servo EDS cut before its object sections, with binary junk at line ``line_no`` (< 52): a file without
+    object dictionary, what the import refuses (quirks of a file with one are read with warnings)."""
+    lines = SERVO_EDS.read_bytes().split(b"\n")[:51]
+    lines[line_no - 1] = b"\x00\x01\x02PK\x03\x04"
     return b"\n".join(lines)
 
 
@@ -184,13 +171,13 @@ def test_downloads_are_attachments_that_load_again(api: TestClient) -> None:
 def test_files_that_do_not_load_are_reported_with_line_and_the_rest_loads(user_dir: Path,
                                                                            monkeypatch: pytest.MonkeyPatch) -> None:
     user_dir.mkdir()
-    (user_dir / "bad.eds").write_bytes(broken_servo_eds(61))
+    (user_dir / "bad.eds").write_bytes(broken_servo_eds(41))
     (user_dir / "good.eds").write_bytes(SERVO_EDS.read_bytes())
     monkeypatch.setattr(settings, "user_profiles_dir", user_dir)
     with TestClient(create_app()) as client:
         assert client.get("/api/profiles/load-errors").json() == [
-            {"file": "bad.eds", "line": 61,
-             "reason": "expected 'key=value', a [section] or a ';' comment, got 'this line is not an EDS line'"}]
+            {"file": "bad.eds", "line": 41,
+             "reason": "binary junk (control characters) instead of EDS text, and no object section"}]
         assert "good" in ids(client) and MOTEC in ids(client)
 
 
@@ -210,12 +197,12 @@ def test_bad_eds_is_refused_with_its_line_and_nothing_is_lost(api: TestClient, u
     kept = upload(api, SERVO_EDS.name, SERVO_EDS.read_bytes()).json()["id"]
     before = ids(api)
     stored = sorted(user_dir.iterdir())
-    response = upload(api, "broken.eds", broken_servo_eds(61))
+    response = upload(api, "broken.eds", broken_servo_eds(41))
     assert response.status_code == 422
     assert response.headers["content-type"].startswith("application/problem+json")
     problem = response.json()
-    assert (problem["source"], problem["line"]) == ("broken.eds", 61)
-    assert "broken.eds:61:" in problem["detail"] and "key=value" in problem["detail"]
+    assert (problem["source"], problem["line"]) == ("broken.eds", 41)
+    assert "broken.eds:41:" in problem["detail"] and "binary junk" in problem["detail"]
     assert ids(api) == before and kept in before
     assert sorted(user_dir.iterdir()) == stored
 

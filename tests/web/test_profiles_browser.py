@@ -114,15 +114,15 @@ def test_search_by_index_and_number_and_show_more(live_server: str, page: Any) -
 def test_bad_upload_shows_file_line_and_reason_and_keeps_the_list(live_server: str, page: Any) -> None:
     page.goto(f"{live_server}/profiles")
     before = page.locator("table.profiles tbody tr").count()
-    lines = SERVO_EDS.read_bytes().split(b"\n")
-    lines[60] = b"this line is not an EDS line"
+    lines = SERVO_EDS.read_bytes().split(b"\n")[:51]  # no object section: refused
+    lines[40] = b"\x00\x01\x02PK\x03\x04"
     page.set_input_files("input[name=file]", files=[
         {"name": "broken.eds", "mimeType": "application/octet-stream", "buffer": b"\n".join(lines)}])
     page.get_by_role("button", name="Upload").click()
     error = page.locator("#upload-result .error")
     expect(error).to_contain_text("broken.eds", timeout=WAIT_MS)
-    expect(error).to_contain_text("line 61")
-    expect(error).to_contain_text("expected 'key=value'")
+    expect(error).to_contain_text("line 41")
+    expect(error).to_contain_text("binary junk")
     expect(error).to_contain_text("Nothing was stored")
     expect(page.locator("table.profiles tbody tr")).to_have_count(before)
     assert_fits(page)
@@ -195,3 +195,68 @@ def test_a_pasted_code_is_searched_without_a_key_press(live_server: str, page: A
     expect(hits).to_have_count(1, timeout=WAIT_MS)
     expect(hits.first.locator("td").nth(2)).to_have_text("0x27DA.0")
     expect(hits.first.locator("td").nth(3)).to_have_text("CANopen baud rate")
+
+
+def quirky_servo() -> bytes:
+    """The corpus base with several quirks at once: limits repaired and dropped, no ProductName, a wrong count."""
+    from tests.device.quirk_corpus import BASE, LIMITS, STRUCTURE
+    text = BASE
+    for case in (LIMITS[0], LIMITS[1], LIMITS[2], STRUCTURE[2], STRUCTURE[4]):
+        text = case.quirk(text)
+    return text.replace("ProductName=Servo 400", "ProductName=Quirky Servo 400").encode()
+
+
+def test_import_warnings_are_shown_in_the_list_the_profile_and_its_rows(own_server: tuple[str, Path, Any],
+                                                                        page: Any) -> None:
+    base, _, _ = own_server
+    page.goto(f"{base}/profiles")
+    page.set_input_files("input[name=file]", files=[
+        {"name": "quirky_servo.eds", "mimeType": "application/octet-stream", "buffer": quirky_servo()}])
+    page.get_by_role("button", name="Upload", exact=True).click()
+    loaded = page.locator("#upload-result .ok")
+    expect(loaded).to_contain_text("Loaded quirky_servo with 5 warnings", timeout=WAIT_MS)
+    row = page.locator("#profile-quirky_servo")
+    expect(row.locator(".warn-count")).to_have_text("5 warnings")
+    assert_fits(page)
+    screenshot(page, "profiles-list-warning-badge")
+
+    row.locator(".warn-count").click()
+    warnings = page.locator("#import-warnings")
+    expect(warnings).to_be_visible(timeout=WAIT_MS)
+    expect(warnings.locator(".badge.warn").first).to_have_text("5")
+    expect(warnings.locator("tbody tr")).to_have_count(5)
+    dropped = warnings.locator("tbody tr.limits", has_text="limits dropped: LowLimit 0x80000000 > HighLimit")
+    expect(dropped.locator("td").nth(2)).to_have_text("0x2000sub0")
+    expect(warnings).to_contain_text("read as 65535")
+    expect(warnings).to_contain_text("SupportedObjects=6 but [ManufacturerObjects] lists 4")
+    page.locator("#entry-q").press_sequentially("0x2000", delay=30)
+    speed = page.locator("#entries tr.entry").first
+    expect(speed.locator(".badge.limits")).to_have_text("limits", timeout=WAIT_MS)
+    speed.click()
+    expect(page.locator("#entries tr.entry-detail").first).to_contain_text("repaired or dropped on import")
+    assert_fits(page)
+    screenshot(page, "profiles-import-warnings")
+
+
+def test_a_zip_of_several_files_gives_a_summary_table(own_server: tuple[str, Path, Any], page: Any) -> None:
+    import io
+    import zipfile
+
+    from tests.device.quirk_corpus import CORPUS_FILES
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w") as archive:
+        for name, content, _ in CORPUS_FILES[:6]:
+            archive.writestr(f"Vendor/{name}", content)
+        archive.writestr("Vendor/empty.eds", b"[FileInfo]\nFileName=empty.eds\n")
+    base, _, _ = own_server
+    page.goto(f"{base}/profiles")
+    page.set_input_files("input[name=files]", files=[
+        {"name": "vendor.zip", "mimeType": "application/zip", "buffer": buffer.getvalue()}])
+    page.get_by_role("button", name="Load all files").click()
+    summary = page.locator("#batch-result")
+    expect(summary).to_contain_text("7 files", timeout=WAIT_MS)
+    expect(summary).to_contain_text("6 with warnings")
+    expect(summary).to_contain_text("1 refused")
+    expect(summary.locator("tr.refused")).to_contain_text("no object dictionary")
+    assert_fits(page)
+    screenshot(page, "profiles-batch-summary")

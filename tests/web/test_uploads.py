@@ -89,7 +89,7 @@ def test_a_declared_50_mb_upload_is_refused_before_the_body_is_sent(server: str)
     boundary = "drivebench-big"
     head = multipart_head(boundary, "huge.eds")
     with connect(server) as sock:
-        sock.sendall(f"POST /api/profiles HTTP/1.1\r\nHost: test\r\nContent-Length: {FIFTY_MB}\r\n"
+        sock.sendall(f"POST /api/profiles HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: {FIFTY_MB}\r\n"
                      f"Content-Type: multipart/form-data; boundary={boundary}\r\n\r\n".encode() + head)
         sent = send_until_answered(sock, iter([b"x" * CHUNK] * 16))  # at most 1 MB of the 50
         status, headers, body = read_response(sock)
@@ -115,7 +115,7 @@ def test_a_chunked_50_mb_upload_is_cut_soon_after_the_limit(server: str) -> None
             yield f"{len(chunk):X}\r\n".encode() + chunk + b"\r\n"
 
     with connect(server) as sock:
-        sock.sendall(f"POST /api/profiles HTTP/1.1\r\nHost: test\r\nTransfer-Encoding: chunked\r\n"
+        sock.sendall(f"POST /api/profiles HTTP/1.1\r\nHost: 127.0.0.1\r\nTransfer-Encoding: chunked\r\n"
                      f"Content-Type: multipart/form-data; boundary={boundary}\r\n\r\n".encode())
         sent = send_until_answered(sock, framed())
         status, _, body = read_response(sock)
@@ -238,7 +238,8 @@ def test_an_upload_cannot_replace_a_shipped_profile(api: TestClient, user_dir: P
 def test_a_name_only_of_a_suffix_and_an_unknown_suffix_are_answered_in_words(api: TestClient) -> None:
     response = upload(api, "..", SERVO_EDS.read_bytes())
     assert response.status_code == 422
-    assert response.json()["detail"].startswith("..: unknown profile file type (none); use .json, .eds or .dcf")
+    assert response.json()["detail"].startswith(
+        "..: unknown profile file type (none); use .json, .eds, .dcf, .xdd or .xdc")
 
 
 def test_deleting_an_upload_forgets_the_name_it_came_in_as(api: TestClient, user_dir: Path) -> None:

@@ -1,13 +1,18 @@
 """CiA 306 EDS/DCF import: an electronic data sheet -> a :class:`Profile`.
 
-The INI text is parsed here (not with configparser) so every error names the file and line.
+The INI text is parsed by :mod:`drivebench.device.eds_ini` (not with configparser) so every warning and error
+names the file and line.
 
 Decisions where CiA 306 leaves room:
 
 * Encoding: UTF-8 (with or without BOM) first, then Windows-1252, then ISO 8859-1 (CiA 306 files are 8-bit text;
   German vendors write ``°C``/``ä``, Windows tools ``€`` and curly quotes, which latin-1 would turn into control
   characters). Control characters other than tab are "binary junk" and rejected with their line.
-* ``;`` starts a comment only at the beginning of a line (CiA 306 4.1); a ``;`` inside a value is part of the value.
+* ``;`` (or ``#``) starts a comment at the beginning of a line (CiA 306 4.1) and, after a space, inside a line
+  (what canopen's configparser reads); a ``;`` right after a character is part of the value.
+* Quirks of real files (limits that do not fit the type, numbers with trailing text, missing keys, counts that
+  do not match, duplicate keys...) are read as :mod:`drivebench.device.eds_quirks` says, each with a warning
+  (:func:`read_eds`); only a file with no usable object dictionary is refused.
 * Integers: decimal, ``0x`` hex, or octal with a leading ``0`` (CiA 306 4.6.3). Hex limits of signed types are
   two's complement (``LowLimit=0x80000000`` of an INTEGER32 is -2147483648).
 * ``$NODEID`` formulas are kept as formulas (``ObjectEntry.default_expr``; a formula ``ParameterValue`` stays a
@@ -25,18 +30,32 @@ from __future__ import annotations
 
 import math
 import re
-import struct
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from pydantic import ValidationError
 
+from drivebench.device.eds_ini import MAX_EDS_BYTES, Key, Section, decode_text, parse_ini
+from drivebench.device.eds_quirks import (
+    OBJECT_TYPE_NAMES,
+    ImportWarning,
+    Warnings,
+    fit_int,
+    node_expr,
+    parse_int_strict,
+    read_access,
+    read_int,
+    read_value,
+    type_name,
+)
 from drivebench.device.profile import Access, Features, Identity, ObjectEntry, Profile, Value
 from drivebench.errors import ProfileError
 from drivebench.protocol.datatypes import DATA_TYPE_BY_CODE, DataType
 
-MAX_EDS_BYTES = 16 * 1024 * 1024
+__all__ = ["MAX_EDS_BYTES", "ImportWarning", "ImportedEds", "Key", "Section", "decode_text", "import_eds",
+           "node_expr", "parse_ini", "parse_int", "parse_value", "read_eds", "resolve_node_expr"]
+
 BAUD_RATES_KBIT = (10, 20, 50, 125, 250, 500, 800, 1000)
 OBJECT_LISTS = ("MandatoryObjects", "OptionalObjects", "ManufacturerObjects")
 OBJECT_TYPE_CODES = {"VAR": 0x7, "ARRAY": 0x8, "RECORD": 0x9}
@@ -45,108 +64,15 @@ OWN_SECTION = "DriveBench"
 COMPACT_SUB0_NAME = "NrOfObjects"
 
 _INDEX_SECTION = re.compile(r"^([0-9A-F]{4})(?:SUB([0-9A-F]{1,2})|(NAME|VALUE|DENOTATION))?$")
-_NODEID_EXPR = re.compile(
-    r"^\s*(?:\$NODEID\s*(?:\+\s*(?P<a>[-+]?\w+))?|(?P<b>[-+]?\w+)\s*\+\s*\$NODEID)\s*$", re.IGNORECASE)
-_JUNK = re.compile(r"[\x00-\x08\x0b-\x1f\x7f]")
+_MODEL_KEYS = {"parametername", "objecttype", "datatype", "accesstype", "defaultvalue", "parametervalue",
+               "lowlimit", "highlimit", "pdomapping", "objflags", "denotation", "unit", "factor", "description",
+               "subnumber", "compactsubobj"}
 _MAPPED_DEVICE_INFO = {"vendorname", "vendornumber", "productname", "productnumber", "revisionnumber",
                        "ordercode", "nrofrxpdo", "nroftxpdo", *(f"baudrate_{b}" for b in BAUD_RATES_KBIT)}
 
 
-# --- INI text with line numbers ------------------------------------------------------------------------
-@dataclass
-class Key:
-    name: str
-    value: str
-    line: int
-
-
-@dataclass
-class Section:
-    name: str
-    line: int
-    keys: dict[str, Key] = field(default_factory=dict)
-    """Lower-case key name -> key (CiA 306 key names are case-insensitive)."""
-
-    def get(self, key: str) -> Key | None:
-        return self.keys.get(key.lower())
-
-
-def decode_text(data: bytes, source: str) -> str:
-    """Bytes of an EDS -> text: UTF-8, else latin-1 (see the module docstring)."""
-    if len(data) > MAX_EDS_BYTES:
-        raise ProfileError(f"file is {len(data)} bytes, more than the {MAX_EDS_BYTES} bytes an EDS may have",
-                           source=source)
-    for encoding in ("utf-8-sig", "cp1252"):
-        try:
-            return data.decode(encoding)
-        except UnicodeDecodeError:
-            continue
-    return data.decode("latin-1")
-
-
-def parse_ini(text: str, source: str) -> dict[str, Section]:
-    """INI text -> sections keyed by upper-case name, in file order. Rejects junk and duplicates."""
-    if len(text) > MAX_EDS_BYTES:
-        raise ProfileError(f"file has {len(text)} characters, more than {MAX_EDS_BYTES}", source=source)
-    sections: dict[str, Section] = {}
-    current: Section | None = None
-    # CiA 306 lines end in CR LF; str.splitlines() would also split on NEL, FF, LS... inside values.
-    for number, raw in enumerate(re.split(r"\r\n|\r|\n", text), start=1):
-        line = raw.strip()
-        if _JUNK.search(raw):
-            raise ProfileError("binary junk (control characters) instead of EDS text", source=source, line=number)
-        if not line or line.startswith(";"):
-            continue
-        if line.startswith("["):
-            if not line.endswith("]") or len(line) < 3:
-                raise ProfileError(f"bad section header {line!r}", source=source, line=number)
-            name = line[1:-1].strip()
-            first = sections.get(name.upper())
-            if first is not None:
-                raise ProfileError(f"duplicate section [{name}] (first at line {first.line})",
-                                   source=source, line=number)
-            current = sections[name.upper()] = Section(name, number)
-            continue
-        if "=" not in line:
-            raise ProfileError(f"expected 'key=value', a [section] or a ';' comment, got {line[:40]!r}",
-                               source=source, line=number)
-        if current is None:
-            raise ProfileError("key outside of any section", source=source, line=number)
-        key, value = (part.strip() for part in line.split("=", 1))
-        if not key:
-            raise ProfileError("empty key name", source=source, line=number)
-        seen = current.keys.get(key.lower())
-        if seen is not None:
-            raise ProfileError(f"duplicate key {key!r} in [{current.name}] (first at line {seen.line})",
-                               source=source, line=number)
-        current.keys[key.lower()] = Key(key, value, number)
-    return sections
-
-
 # --- values --------------------------------------------------------------------------------------------
-def parse_int(text: str) -> int:
-    """CiA 306 integer: decimal, 0x hex, or octal with a leading 0. Raises ValueError."""
-    cleaned = text.strip().replace(" ", "")
-    sign = -1 if cleaned.startswith("-") else 1
-    body = cleaned.lstrip("+-")
-    if body.lower().startswith("0x"):
-        return sign * int(body[2:], 16)
-    if len(body) > 1 and body.startswith("0"):
-        return sign * int(body[1:], 8)
-    if not body.isdigit():
-        raise ValueError(f"{text!r} is not a number")
-    return sign * int(body)
-
-
-def node_expr(text: str) -> int | None:
-    """The constant of a ``$NODEID`` formula (``$NODEID+0x180`` -> 0x180), None if ``text`` is no formula."""
-    if "$NODEID" not in text.upper():
-        return None
-    match = _NODEID_EXPR.match(text)
-    if match is None:
-        raise ValueError(f"{text!r} is not a formula of the form $NODEID+<number>")
-    constant = match.group("a") or match.group("b")
-    return parse_int(constant) if constant else 0
+parse_int = parse_int_strict
 
 
 def resolve_node_expr(text: str, node_id: int) -> int:
@@ -158,32 +84,18 @@ def resolve_node_expr(text: str, node_id: int) -> int:
 
 
 def parse_value(data_type: DataType, text: str) -> Value:
-    """An EDS value of ``data_type`` -> raw model value. Raises ValueError naming the problem."""
-    if data_type in (DataType.VISIBLE_STRING, DataType.UNICODE_STRING):
-        return text
-    if data_type in (DataType.OCTET_STRING, DataType.DOMAIN):
-        bytes.fromhex(text)  # validates; the hex text itself is what the model stores
-        return text
-    if data_type.is_float:
-        if text.strip().lower().startswith("0x"):  # some tools write the IEEE 754 bit pattern
-            bits = parse_int(text)
-            return struct.unpack("<f", bits.to_bytes(4, "little"))[0] if data_type is DataType.REAL32 else \
-                struct.unpack("<d", bits.to_bytes(8, "little"))[0]
-        value = float(text)
-        if not math.isfinite(value):
-            raise ValueError(f"{text!r} is not a finite number")
-        return value
-    if data_type is DataType.BOOLEAN and text.strip().lower() in ("true", "false"):
-        return int(text.strip().lower() == "true")
-    value_int = parse_int(text)
-    limits = data_type.raw_limits()
-    assert limits is not None
-    low, high = limits
-    if data_type.is_signed and text.strip().lower().startswith("0x") and high < value_int <= 2 * high + 1:
-        value_int -= 2 * (high + 1)  # two's complement hex (0x80000000 of an INTEGER32)
-    if not low <= value_int <= high:
-        raise ValueError(f"{text} does not fit {data_type.value} ({low}..{high})")
-    return value_int
+    """An EDS value of ``data_type`` -> raw model value, strictly (CiA 306 forms only). Raises ValueError."""
+    if data_type.is_integer and not (data_type is DataType.BOOLEAN and text.strip().lower() in ("true", "false")):
+        number = parse_int(text)
+        fitted, note = fit_int(data_type, number)
+        if fitted is None or (note and not (data_type.is_signed and text.strip().lower().startswith("0x"))):
+            low, high = data_type.raw_limits() or (0, 0)
+            raise ValueError(f"{text} does not fit {data_type.value} ({low}..{high})")
+        return fitted
+    value, note = read_value(data_type, text)
+    if value is None or note:
+        raise ValueError(f"{text!r} is not a {data_type.value} value")
+    return value
 
 
 # --- defaults of what export writes and import need not keep ----------------------------------------------
@@ -197,59 +109,70 @@ DEVICE_INFO_DEFAULTS = {"SimpleBootUpMaster": "0", "SimpleBootUpSlave": "1", "Gr
 
 
 # --- import --------------------------------------------------------------------------------------------
-class _Reader:
-    """One import: the parsed sections plus helpers that raise with file and line."""
+@dataclass
+class ImportedEds:
+    """A device description read with quirks: the profile and the readings applied to get it."""
 
-    def __init__(self, sections: dict[str, Section], source: str) -> None:
+    profile: Profile
+    warnings: list[ImportWarning]
+
+
+class _Reader:
+    """One import: the parsed sections, and the warnings of the readings applied."""
+
+    def __init__(self, sections: dict[str, Section], source: str, notes: Warnings) -> None:
         self.sections = sections
         self.source = source
+        self.notes = notes
 
     def fail(self, detail: str, line: int | None) -> ProfileError:
         return ProfileError(detail, source=self.source, line=line)
 
-    def require(self, section: Section, key: str) -> Key:
-        found = section.get(key)
-        if found is None:
-            raise self.fail(f"[{section.name}] has no {key}=", section.line)
-        return found
+    def warn(self, line: int | None, key: str | None, message: str, *, address: tuple[int, int] | None = None,
+             limits: bool = False) -> None:
+        self.notes.add(line, key, message, address=address, limits=limits)
 
-    def integer(self, key: Key) -> int:
+    def integer(self, key: Key, fallback: int | None = None, *, what: str = "") -> int | None:
+        """A whole number key; a quirk is read with a warning, no number at all gives ``fallback``."""
         try:
-            return parse_int(key.value)
-        except ValueError as exc:
-            raise self.fail(f"{key.name}={key.value!r} is not a number", key.line) from exc
-
-    def value(self, data_type: DataType, key: Key) -> Value:
-        try:
-            return parse_value(data_type, key.value)
-        except (ValueError, OverflowError) as exc:
-            raise self.fail(f"{key.name}={key.value!r}: {exc}", key.line) from exc
+            value, note = read_int(key.value)
+        except ValueError:
+            self.warn(key.line, key.name, f"{key.value!r} is not a number: {what or 'ignored'}")
+            return fallback
+        if note:
+            self.warn(key.line, key.name, f"{key.value!r} {note}")
+        return value
 
     # object lists ---------------------------------------------------------------------------------------
     def listed_indices(self) -> dict[int, Key]:
-        if "MANDATORYOBJECTS" not in self.sections:
-            raise self.fail("no [MandatoryObjects] section", 1)
+        if not any(n.upper() in self.sections for n in OBJECT_LISTS):
+            self.warn(1, None, "no [MandatoryObjects], [OptionalObjects] or [ManufacturerObjects]: every object "
+                      "section of the file is read")
         listed: dict[int, Key] = {}
         for list_name in OBJECT_LISTS:
             section = self.sections.get(list_name.upper())
             if section is None:
                 continue
-            count_key = self.require(section, "SupportedObjects")
-            count = self.integer(count_key)
-            numbered = [k for k in section.keys.values() if k.name.isdigit()]
-            if count != len(numbered) or count < 0:
-                raise self.fail(f"SupportedObjects={count} but [{section.name}] lists {len(numbered)} objects",
-                                count_key.line)
-            for position in range(1, count + 1):
-                key = section.get(str(position))
-                if key is None:
-                    raise self.fail(f"[{section.name}] has no entry {position}=", section.line)
-                index = self.integer(key)
+            numbered = sorted((k for k in section.keys.values() if k.name.isdigit()), key=lambda k: int(k.name))
+            count_key = section.get("SupportedObjects")
+            count = self.integer(count_key) if count_key is not None else None
+            if count_key is None:
+                self.warn(section.line, "SupportedObjects", f"[{section.name}] has no SupportedObjects=: the "
+                          f"{len(numbered)} numbered entries are read")
+            elif count != len(numbered):
+                self.warn(count_key.line, count_key.name, f"SupportedObjects={count_key.value} but "
+                          f"[{section.name}] lists {len(numbered)} objects: the {len(numbered)} listed are read")
+            for key in numbered:
+                index = self.integer(key, what="entry skipped")
+                if index is None:
+                    continue
                 if not 0x1000 <= index <= 0xFFFF:
-                    raise self.fail(f"object index 0x{index:04X} is outside 0x1000..0xFFFF", key.line)
+                    self.warn(key.line, key.name, f"object index 0x{index:04X} is outside 0x1000..0xFFFF: skipped")
+                    continue
                 if index in listed:
-                    raise self.fail(f"object 0x{index:04X} listed twice (first at line {listed[index].line})",
-                                    key.line)
+                    self.warn(key.line, key.name, f"object 0x{index:04X} listed twice (first at line "
+                              f"{listed[index].line})")
+                    continue
                 listed[index] = key
         return listed
 
@@ -268,55 +191,91 @@ class _Reader:
                 subs.setdefault(index, {})[int(match.group(2), 16)] = section
             elif match.group(3) is not None:
                 aux[(index, match.group(3))] = section
-            else:
+            elif section.keys:
                 by_index[index] = section
+            else:
+                self.warn(section.line, None, f"[{section.name}] has no keys: skipped")
         for index, key in listed.items():
-            if index not in by_index:
-                raise self.fail(f"object 0x{index:04X} is listed but has no [{index:04X}] section", key.line)
+            if index not in by_index and index not in subs:
+                self.warn(key.line, key.name, f"object 0x{index:04X} is listed but has no [{index:04X}] section: "
+                          "skipped")
         for index, sub_sections in subs.items():
-            if index not in by_index:
+            if index not in by_index and index >= 0x1000:
                 first = min(sub_sections.values(), key=lambda s: s.line)
-                raise self.fail(f"[{first.name}] belongs to no object section [{index:04X}]", first.line)
+                self.warn(first.line, None, f"[{first.name}] belongs to no object section [{index:04X}]: read as "
+                          f"a RECORD named 'Object 0x{index:04X}'")
+                by_index[index] = Section(f"{index:04X}", first.line, {
+                    "parametername": Key("ParameterName", f"Object 0x{index:04X}", first.line),
+                    "objecttype": Key("ObjectType", "0x9", first.line)})
+        if listed:
+            for index in sorted(set(by_index) - set(listed)):
+                if index >= 0x1000:
+                    self.warn(by_index[index].line, None, f"object section [{by_index[index].name}] is in no "
+                              "object list ([MandatoryObjects] ...): read")
         entries: list[ObjectEntry] = []
         for index in sorted(i for i in by_index if i >= 0x1000):
             entries.extend(self.object(index, by_index[index], subs.get(index, {}), aux))
         return entries
 
+    def object_type(self, index: int, section: Section, subs: dict[int, Section]) -> int | None:
+        type_key = section.get("ObjectType")
+        if type_key is None:
+            return 0x9 if subs else 0x7  # CiA 306 4.6.3.2: a missing ObjectType is VAR
+        named = OBJECT_TYPE_NAMES.get(type_key.value.strip().lower())
+        object_type = named if named is not None else self.integer(type_key, what="read as VAR")
+        if object_type in (0x0, 0x5, 0x6):
+            self.warn(type_key.line, type_key.name, f"object 0x{index:04X} is a type definition (NULL, DEFTYPE "
+                      "or DEFSTRUCT), no data: skipped")
+            return None
+        if object_type not in (0x2, 0x7, 0x8, 0x9):
+            guess = 0x9 if subs else 0x7
+            self.warn(type_key.line, type_key.name, f"ObjectType={type_key.value} is not VAR 0x7, DOMAIN 0x2, "
+                      f"ARRAY 0x8 or RECORD 0x9: read as {'RECORD' if subs else 'VAR'}")
+            return guess
+        if object_type in (0x2, 0x7) and subs:
+            first = min(subs.values(), key=lambda s: s.line)
+            self.warn(type_key.line, type_key.name, f"object 0x{index:04X} is a VAR but has sub-object sections "
+                      f"([{first.name}] ...): read as a RECORD")
+            return 0x9
+        return object_type
+
     def object(self, index: int, section: Section, subs: dict[int, Section],
                aux: dict[tuple[int, str], Section]) -> list[ObjectEntry]:
-        name = self.require(section, "ParameterName").value
-        type_key = section.get("ObjectType")
-        object_type = self.integer(type_key) if type_key else 0x7
+        name = self.name(section, f"Object 0x{index:04X}")
+        object_type = self.object_type(index, section, subs)
+        if object_type is None:
+            return []
         if object_type in (0x2, 0x7):
-            if subs:
-                first = min(subs.values(), key=lambda s: s.line)
-                raise self.fail(f"[{first.name}]: object 0x{index:04X} is a VAR and has no sub-objects", first.line)
             domain = DataType.DOMAIN if object_type == 0x2 else None
-            return [self.entry(section, index, 0, name=name, kind="VAR", default_type=domain)]
-        if object_type not in (0x8, 0x9):
-            assert type_key is not None
-            raise self.fail(f"ObjectType=0x{object_type:X} is not supported (VAR 0x7, DOMAIN 0x2, ARRAY 0x8, "
-                            "RECORD 0x9)", type_key.line)
+            entry = self.entry(section, index, 0, name=name, kind="VAR", default_type=domain)
+            return [entry] if entry else []
         kind = "ARRAY" if object_type == 0x8 else "RECORD"
         flags_key = section.get("ObjFlags")
         flags = self.integer(flags_key) if flags_key else None
         compact = section.get("CompactSubObj")
-        if compact is not None and self.integer(compact) != 0:
-            return self.compact(index, section, compact, name, flags, aux, subs)
-        number_key = self.require(section, "SubNumber")
-        if self.integer(number_key) != len(subs):
-            raise self.fail(f"SubNumber={number_key.value} but object 0x{index:04X} has {len(subs)} sub-objects",
-                            number_key.line)
-        return [self.entry(subs[sub], index, sub, object_name=name, kind=kind, obj_flags=flags)
-                for sub in sorted(subs)]
+        if compact is not None and (self.integer(compact, 0) or 0) != 0:
+            if not subs:
+                return self.compact(index, section, compact, name, flags, aux)
+            self.warn(compact.line, compact.name, f"object 0x{index:04X} has CompactSubObj and sub-object "
+                      "sections: the sections are read")
+        number_key = section.get("SubNumber")
+        if number_key is None:
+            self.warn(section.line, "SubNumber", f"[{section.name}] has no SubNumber=: its {len(subs)} "
+                      "sub-object sections are read")
+        elif self.integer(number_key) != len(subs):
+            self.warn(number_key.line, number_key.name, f"SubNumber={number_key.value} but object 0x{index:04X} "
+                      f"has {len(subs)} sub-objects: the {len(subs)} sections are read")
+        entries = [self.entry(subs[sub], index, sub, object_name=name, kind=kind, obj_flags=flags)
+                   for sub in sorted(subs)]
+        return [e for e in entries if e is not None]
 
     def compact(self, index: int, section: Section, compact: Key, name: str, flags: int | None,
-                aux: dict[tuple[int, str], Section], subs: dict[int, Section]) -> list[ObjectEntry]:
-        count = self.integer(compact)
-        if subs:
-            raise self.fail(f"object 0x{index:04X} has CompactSubObj and sub-object sections", compact.line)
+                aux: dict[tuple[int, str], Section]) -> list[ObjectEntry]:
+        count = self.integer(compact, 0) or 0
         if not 1 <= count <= 254:
-            raise self.fail(f"CompactSubObj={count} is outside 1..254", compact.line)
+            self.warn(compact.line, compact.name, f"CompactSubObj={count} is outside 1..254: read as "
+                      f"{min(max(count, 1), 254)}")
+            count = min(max(count, 1), 254)
         names = aux.get((index, "NAME"))
         values = aux.get((index, "VALUE"))
         denotations = aux.get((index, "DENOTATION"))
@@ -326,61 +285,96 @@ class _Reader:
         for sub in range(1, count + 1):
             sub_name = names.get(str(sub)) if names else None
             entry = self.entry(section, index, sub, name=sub_name.value if sub_name else f"{name}{sub}",
-                               object_name=name, kind="ARRAY", obj_flags=flags, own_values=False)
+                               object_name=name, kind="ARRAY", obj_flags=flags, own_values=False,
+                               quiet=sub > 1)
+            if entry is None:
+                return entries[:1]
             update: dict[str, Any] = {}
             value = values.get(str(sub)) if values else None
             if value is not None:
-                update["parameter_value"] = self.parameter_value(entry.data_type, value)
+                update["parameter_value"] = self.parameter_value(entry.data_type, value, (index, sub))
             denotation = denotations.get(str(sub)) if denotations else None
             if denotation is not None:
                 update["denotation"] = denotation.value
             entries.append(entry.model_copy(update=update))
         return entries
 
-    def parameter_value(self, data_type: DataType, key: Key) -> Value:
-        if data_type.is_integer and "$NODEID" in key.value.upper():
-            self.formula(key)
-            return key.value
-        return self.value(data_type, key)
+    def name(self, section: Section, fallback: str) -> str:
+        found = section.get("ParameterName")
+        if found is None or not found.value:
+            self.warn(section.line, "ParameterName", f"[{section.name}] has no ParameterName=: named {fallback!r}")
+            return fallback
+        return found.value
 
-    def formula(self, key: Key) -> str:
+    def parameter_value(self, data_type: DataType, key: Key, address: tuple[int, int]) -> Value | None:
+        if data_type.is_integer and "$NODEID" in key.value.upper():
+            return self.formula(key, address)
+        return self.value(data_type, key, address)
+
+    def formula(self, key: Key, address: tuple[int, int]) -> str | None:
         try:
             node_expr(key.value)
         except ValueError as exc:
-            raise self.fail(f"{key.name}: {exc}", key.line) from exc
+            self.warn(key.line, key.name, f"{exc}: dropped", address=address)
+            return None
         return key.value
+
+    def value(self, data_type: DataType, key: Key, address: tuple[int, int], *, limit: str | None = None,
+              quiet: bool = False) -> Value | None:
+        value, note = read_value(data_type, key.value, limit=limit)
+        if note and not quiet:
+            self.warn(key.line, key.name, f"{key.value!r}: {note}", address=address, limits=limit is not None)
+        return value
+
+    def data_type(self, section: Section, type_key: Key, quiet: bool) -> DataType:
+        code = self.integer(type_key, what="read as DOMAIN")
+        if code is None:
+            return DataType.DOMAIN
+        if code in DATA_TYPE_BY_CODE:
+            return DATA_TYPE_BY_CODE[code]
+        for name in (f"{code:04X}SUB1", f"{code:X}SUB1"):  # a DEFTYPE in the file: its sub 1 names the basic type
+            defined = self.sections.get(name)
+            base = defined.get("DefaultValue") if defined else None
+            try:
+                base_code = parse_int(base.value) if base else None
+            except ValueError:
+                base_code = None
+            if defined is not None and base_code in DATA_TYPE_BY_CODE:
+                base_type = DATA_TYPE_BY_CODE[base_code]
+                if not quiet:
+                    self.warn(type_key.line, type_key.name, f"DataType=0x{code:04X} is defined in [{defined.name}]"
+                              f" (sub 1): read as {base_type.value}")
+                return base_type
+        if not quiet:
+            self.warn(type_key.line, type_key.name, f"DataType=0x{code:04X} ({type_name(code)}) is not a CiA 301 "
+                      "basic data type: read as DOMAIN (bytes)")
+        return DataType.DOMAIN
 
     def entry(self, section: Section, index: int, sub: int, *, name: str | None = None,
               object_name: str | None = None, kind: str, obj_flags: int | None = None,
-              default_type: DataType | None = None, own_values: bool = True) -> ObjectEntry:
-        name = name if name is not None else self.require(section, "ParameterName").value
+              default_type: DataType | None = None, own_values: bool = True, quiet: bool = False
+              ) -> ObjectEntry | None:
+        address = (index, sub)
+        name = name if name is not None else self.name(section, f"Sub-index {sub}")
         type_key = section.get("DataType")
-        if type_key is None and default_type is None:
-            raise self.fail(f"[{section.name}] has no DataType=", section.line)
         data_type = default_type or DataType.DOMAIN
         if type_key is not None:
-            code = self.integer(type_key)
-            if code not in DATA_TYPE_BY_CODE:
-                raise self.fail(f"DataType=0x{code:04X} is not a CiA 301 basic data type", type_key.line)
-            data_type = DATA_TYPE_BY_CODE[code]
-        access_key = self.require(section, "AccessType")
-        try:
-            access = Access(access_key.value.strip().lower())
-        except ValueError as exc:
-            raise self.fail(f"AccessType={access_key.value!r} is not ro, wo, rw, rwr, rww or const",
-                            access_key.line) from exc
+            data_type = self.data_type(section, type_key, quiet)
+        elif default_type is None and not quiet:
+            self.warn(section.line, "DataType", f"[{section.name}] has no DataType=: read as DOMAIN (bytes)")
+        access_key = section.get("AccessType")
+        access = Access.RO
+        if access_key is None:
+            if not quiet:
+                self.warn(section.line, "AccessType", f"[{section.name}] has no AccessType=: read as ro")
+        else:
+            access, note = read_access(access_key.value)
+            if note and not quiet:
+                self.warn(access_key.line, access_key.name, f"{access_key.value!r} {note}")
         fields: dict[str, Any] = {"index": index, "subindex": sub, "name": name, "data_type": data_type,
                                   "access": access, "object_type": kind, "object_name": object_name}
-        factor_key = section.get("Factor")
-        factor: int | float = 1
-        if factor_key is not None:
-            try:
-                factor = parse_int(factor_key.value) if factor_key.value.strip().lstrip("+-").isdigit() \
-                    else float(factor_key.value)
-            except ValueError as exc:
-                raise self.fail(f"Factor={factor_key.value!r} is not a number", factor_key.line) from exc
-            if factor == 0:
-                raise self.fail("Factor=0", factor_key.line)
+        factor = self.factor(section, quiet)
+        if factor != 1:
             fields["factor"] = factor
         for key_name, field_name in (("Unit", "unit"), ("Description", "description"),
                                      ("Denotation", "denotation")):
@@ -389,35 +383,72 @@ class _Reader:
                 fields[field_name] = found.value
         mapping = section.get("PDOMapping")
         if mapping is not None:
-            fields["pdo_mappable"] = bool(self.integer(mapping))
+            fields["pdo_mappable"] = bool(self.integer(mapping, 0, what="read as 0 (not mappable)"))
         flags_key = section.get("ObjFlags") if own_values else None
         fields["obj_flags"] = self.integer(flags_key) if flags_key is not None else obj_flags
-        limits: dict[str, Key] = {}
-        for key_name, field_name in (("LowLimit", "min"), ("HighLimit", "max")):
-            found = section.get(key_name)
-            if found is not None and found.value and not data_type.is_string:
-                limits[field_name] = found
-                fields[field_name] = self.scaled(self.value(data_type, found), factor)
-        if "min" in fields and "max" in fields and fields["min"] > fields["max"]:
-            raise self.fail(f"LowLimit {limits['min'].value} is greater than HighLimit {limits['max'].value}",
-                            limits["max"].line)
+        self.limits(section, data_type, factor, fields, address, quiet)
         default = section.get("DefaultValue")
         if default is not None and (default.value or data_type.is_string):
             if data_type.is_integer and "$NODEID" in default.value.upper():
-                fields["default_expr"] = self.formula(default)
+                fields["default_expr"] = self.formula(default, address)
             else:
-                fields["default"] = self.scaled(self.value(data_type, default), factor)
+                fields["default"] = self.scaled(self.value(data_type, default, address, quiet=quiet), factor)
         value = section.get("ParameterValue") if own_values else None
         if value is not None and (value.value or data_type.is_string):
-            fields["parameter_value"] = self.parameter_value(data_type, value)
+            fields["parameter_value"] = self.parameter_value(data_type, value, address)
+        other = {k.name: k.value for name, k in section.keys.items() if name not in _MODEL_KEYS} if own_values \
+            else {}
+        if other:
+            fields["section_keys"] = other
         try:
             return ObjectEntry(**fields)
         except ValidationError as exc:
-            raise self.fail(f"[{section.name}]: {exc.errors()[0]['msg']}", section.line) from exc
+            self.warn(section.line, None, f"[{section.name}]: {exc.errors()[0]['msg']}: object skipped",
+                      address=address)
+            return None
+
+    def factor(self, section: Section, quiet: bool) -> int | float:
+        found = section.get("Factor")
+        if found is None:
+            return 1
+        text = found.value.strip()
+        try:
+            factor: int | float = parse_int(text) if text.lstrip("+-").isdigit() else float(text)
+        except ValueError:
+            factor = 0
+        if factor == 0 or not math.isfinite(factor):
+            if not quiet:
+                self.warn(found.line, found.name, f"Factor={found.value!r} is no usable factor: read as 1")
+            return 1
+        return factor
+
+    def limits(self, section: Section, data_type: DataType, factor: int | float, fields: dict[str, Any],
+               address: tuple[int, int], quiet: bool) -> None:
+        """LowLimit/HighLimit: unusable ones are dropped, out-of-type ones repaired, both dropped when the low
+        one is above the high one (each noted; the row then says so before a write)."""
+        if data_type.is_string:
+            return
+        found: dict[str, Key] = {}
+        for key_name, field_name in (("LowLimit", "min"), ("HighLimit", "max")):
+            key = section.get(key_name)
+            if key is None or not key.value or key.value.strip().lower() in ("none", "-", "n/a"):
+                if key is not None and key.value and not quiet:
+                    self.warn(key.line, key.name, f"{key.value!r} read as no limit", address=address, limits=True)
+                continue
+            raw = self.value(data_type, key, address, limit=key_name, quiet=quiet)
+            if raw is not None:
+                found[field_name] = key
+                fields[field_name] = self.scaled(raw, factor)
+        if "min" in fields and "max" in fields and fields["min"] > fields["max"]:
+            low, high = found["min"], found["max"]
+            if not quiet:
+                self.warn(high.line, "LowLimit/HighLimit", f"limits dropped: LowLimit {low.value} > HighLimit "
+                          f"{high.value} (as {data_type.value})", address=address, limits=True)
+            del fields["min"], fields["max"]
 
     @staticmethod
-    def scaled(raw: Value, factor: int | float) -> Value:
-        if factor == 1 or isinstance(raw, str):
+    def scaled(raw: Value | None, factor: int | float) -> Value | None:
+        if factor == 1 or raw is None or isinstance(raw, str):
             return raw
         return raw / factor
 
@@ -425,34 +456,58 @@ class _Reader:
     def identity(self, info: Section, objects: list[ObjectEntry]) -> Identity:
         def number(key: str) -> int | None:
             found = info.get(key)
-            return self.integer(found) if found is not None and found.value else None
+            value = self.integer(found, what="read as unknown") if found is not None and found.value else None
+            return value if value is None or 0 <= value <= 0xFFFFFFFF else None
 
         order = info.get("OrderCode")
         device_type = next((o.default for o in objects if (o.index, o.subindex) == (0x1000, 0)), None)
+        vendor = info.get("VendorName")
+        if vendor is None:
+            self.warn(info.line, "VendorName", f"[{info.name}] has no VendorName=: left empty")
         return Identity(
-            vendor_name=self.require(info, "VendorName").value,
+            vendor_name=vendor.value if vendor is not None else "",
             vendor_id=number("VendorNumber"),
-            product_name=self.require(info, "ProductName").value,
+            product_name=self.product_name(info),
             product_code=number("ProductNumber"),
             revision=number("RevisionNumber"),
             order_codes=[c.strip() for c in order.value.split(",") if c.strip()] if order else [],
             device_type=device_type if isinstance(device_type, int) else None,
         )
 
+    def product_name(self, info: Section) -> str:
+        found = info.get("ProductName")
+        if found is not None and found.value:
+            return found.value
+        file_info = self.sections.get("FILEINFO")
+        candidates = [(file_info.get(k) if file_info else None) for k in ("Description", "FileName")]
+        fallback = next((k.value for k in candidates if k is not None and k.value), None) or Path(
+            self.source.replace("\\", "/")).name
+        where = "FileInfo " + next(k.name for k in candidates if k is not None and k.value == fallback) \
+            if any(k is not None and k.value == fallback for k in candidates) else "the file name"
+        self.warn(found.line if found else info.line, "ProductName", f"[{info.name}] has no ProductName=: named "
+                  f"{fallback!r} after {where}")
+        return fallback
+
     def features(self, info: Section, objects: list[ObjectEntry]) -> Features:
         indices = {o.index for o in objects}
         rates = []
         for rate in BAUD_RATES_KBIT:
             key = info.get(f"BaudRate_{rate}")
-            if key is not None and self.integer(key):
+            if key is not None and self.integer(key, 0, what="read as 0 (not supported)"):
                 rates.append(rate)
         mapping_counts = [sum(1 for o in objects if o.index == i and o.subindex > 0)
                           for i in indices if 0x1600 <= i <= 0x17FF or 0x1A00 <= i <= 0x1BFF]
-        rx, tx = info.get("NrOfRXPDO"), info.get("NrOfTXPDO")
+        counted = {"NrOfRXPDO": sum(1 for i in indices if 0x1400 <= i <= 0x15FF),
+                   "NrOfTXPDO": sum(1 for i in indices if 0x1800 <= i <= 0x19FF)}
+        pdo_counts = {}
+        for name, present in counted.items():
+            key = info.get(name)
+            value = self.integer(key, what=f"read as {present} (the PDO objects in the file)") if key else None
+            pdo_counts[name] = present if value is None and key is not None else max(value or 0, 0)
         return Features(
             sdo_channels=max(1, sum(1 for i in indices if 0x1200 <= i <= 0x127F)),
-            rpdo_count=self.integer(rx) if rx else 0,
-            tpdo_count=self.integer(tx) if tx else 0,
+            rpdo_count=pdo_counts["NrOfRXPDO"],
+            tpdo_count=pdo_counts["NrOfTXPDO"],
             max_mapping_entries=max(mapping_counts, default=8),
             heartbeat_producer=0x1017 in indices,
             heartbeat_consumers=sum(1 for o in objects if o.index == 0x1016 and o.subindex > 0),
@@ -460,12 +515,19 @@ class _Reader:
             baud_rates_kbit=rates,
         )
 
-    def notes(self) -> list[str]:
+    def notes_section(self) -> list[str]:
         section = self.sections.get("COMMENTS")
         if section is None:
             return []
-        count = self.integer(self.require(section, "Lines"))
-        return [self.require(section, f"Line{n}").value for n in range(1, count + 1)]
+        lines = sorted((k for k in section.keys.values() if re.fullmatch(r"line\d+", k.name.lower())),
+                       key=lambda k: int(k.name[4:]))
+        count_key = section.get("Lines")
+        count = self.integer(count_key) if count_key is not None else None
+        if count != len(lines):
+            where = count_key.line if count_key is not None else section.line
+            self.warn(where, "Lines", f"Lines={count_key.value if count_key else '(missing)'} but [{section.name}] "
+                      f"has {len(lines)} LineN keys: the {len(lines)} are read")
+        return [k.value for k in lines]
 
     def extras(self, known: set[str]) -> dict[str, dict[str, str]]:
         extra: dict[str, dict[str, str]] = {}
@@ -504,30 +566,57 @@ def slug(text: str) -> str:
 
 
 def import_eds(text_or_path: str | bytes | Path, *, source: str) -> Profile:
-    """Read an EDS or DCF (text, bytes or a path) into a Profile. Raises ProfileError(source=, line=)."""
+    """Read an EDS or DCF (text, bytes or a path) into a Profile, quirks read as :func:`read_eds` reads them.
+    Raises ProfileError(source=, line=) only for a file without a usable object dictionary."""
+    return read_eds(text_or_path, source=source).profile
+
+
+def read_eds(text_or_path: str | bytes | Path, *, source: str) -> ImportedEds:
+    """Read an EDS or DCF into a Profile and the warnings of the readings applied (:mod:`eds_quirks`)."""
     text = _read_input(text_or_path, source)
-    reader = _Reader(parse_ini(text, source), source)
+    notes = Warnings(source)
+    return read_sections(parse_ini(text, source, notes), source, notes, empty=not text.strip())
+
+
+def read_sections(sections: dict[str, Section], source: str, notes: Warnings, *, empty: bool = False
+                  ) -> ImportedEds:
+    """EDS-shaped sections (from INI text, or built from an XDD by :mod:`drivebench.device.xdd`) -> profile."""
+    reader = _Reader(sections, source, notes)
+    if not any(_INDEX_SECTION.match(name) and int(name[:4], 16) >= 0x1000 for name in reader.sections):
+        junk = next((w.line for w in notes.items if "binary junk" in w.message), None)
+        if junk is not None:
+            raise reader.fail("binary junk (control characters) instead of EDS text, and no object section", junk)
+        raise reader.fail("no object dictionary: the file has no object section ([1000], [6040], [1018sub1] ...)",
+                          None if empty else 1)
     info = reader.sections.get("DEVICEINFO")
     if info is None:
-        raise reader.fail("no [DeviceInfo] section", 1)
+        reader.warn(1, None, "no [DeviceInfo] section: vendor and product are left unknown")
+        info = Section("DeviceInfo", 1)
     objects = reader.objects()
+    if not objects:
+        raise reader.fail("no object dictionary: no object section holds a usable object", 1)
     own = reader.sections.get(OWN_SECTION.upper())
     own_keys = {name: k.value for name, k in own.keys.items()} if own else {}
     extra = reader.extras({"DEVICEINFO", "COMMENTS", OWN_SECTION.upper(), *(n.upper() for n in OBJECT_LISTS)})
+    profile_id = own_keys.get("profileid") or slug(source)
+    if not re.fullmatch(r"[a-z0-9][a-z0-9_.-]*", profile_id):
+        line = own.get("ProfileId").line if own and own.get("ProfileId") else 1  # type: ignore[union-attr]
+        reader.warn(line, "ProfileId", f"{profile_id!r} is no profile id (a-z, 0-9, '_.-'): the file name's "
+                    f"{slug(source)!r} is used")
+        profile_id = slug(source)
     try:
         profile = Profile(
-            id=own_keys.get("profileid") or slug(source),
+            id=profile_id,
             version=own_keys.get("version", "1"),
             family=own_keys.get("family", DEFAULT_FAMILY),
             source=own_keys.get("source"),
             identity=reader.identity(info, objects),
             features=reader.features(info, objects),
             objects=objects,
-            notes=reader.notes(),
+            notes=reader.notes_section(),
         )
     except ValidationError as exc:
-        line = own.get("ProfileId").line if own and own.get("ProfileId") else info.line  # type: ignore[union-attr]
-        raise reader.fail(f"not a valid profile: {exc.errors()[0]['msg']}", line) from exc
+        raise reader.fail(f"not a valid profile: {exc.errors()[0]['msg']}", info.line) from exc
     device_extra = {k.name: k.value for k in info.keys.values()
                     if k.name.lower() not in _MAPPED_DEVICE_INFO and DEVICE_INFO_DEFAULTS.get(k.name) != k.value}
     if device_extra:
@@ -538,4 +627,4 @@ def import_eds(text_or_path: str | bytes | Path, *, source: str) -> Profile:
         kept = {k: v for k, v in file_info.items() if defaults.get(k) != v}
         if kept:
             extra["FileInfo"] = kept
-    return profile.model_copy(update={"extra_sections": extra})
+    return ImportedEds(profile.model_copy(update={"extra_sections": extra}), notes.result())

@@ -12,11 +12,13 @@ from collections.abc import Iterable, Mapping
 
 from drivebench.device.addressing import code_to_index, format_code
 from drivebench.device.catalog import Catalog
+from drivebench.device.dcf_patch import patch_dcf
 from drivebench.device.eds import (
     BAUD_RATES_KBIT,
     DEVICE_INFO_DEFAULTS,
     OBJECT_TYPE_CODES,
     OWN_SECTION,
+    decode_text,
     file_info_defaults,
     node_expr,
     resolve_node_expr,
@@ -151,26 +153,39 @@ def _extra(profile: Profile, name: str) -> dict[str, str]:
     return {}
 
 
+def export_value_text(entry: ObjectEntry, value: Value | None) -> dict[str, str]:
+    """The value keys of an object as EDS text (raw): DefaultValue, LowLimit, HighLimit, ParameterValue,
+    Denotation, where the object has them."""
+    texts: dict[str, str] = {}
+    if entry.default_expr is not None:
+        texts["DefaultValue"] = entry.default_expr
+    elif entry.default is not None:
+        texts["DefaultValue"] = _format(entry.data_type, _raw(entry, entry.default))
+    if entry.min is not None and not entry.data_type.is_string:
+        texts["LowLimit"] = _format(entry.data_type, _raw(entry, entry.min))
+    if entry.max is not None and not entry.data_type.is_string:
+        texts["HighLimit"] = _format(entry.data_type, _raw(entry, entry.max))
+    if value is not None:
+        texts["ParameterValue"] = _format(entry.data_type, value)
+    if entry.denotation is not None:
+        texts["Denotation"] = _one_line(entry.denotation)
+    return texts
+
+
 def _entry_keys(entry: ObjectEntry, *, with_flags: bool, value: Value | None) -> list[tuple[str, object]]:
     keys: list[tuple[str, object]] = [("ParameterName", entry.name)]
     if entry.object_type == "VAR":
         keys.append(("ObjectType", "0x7"))
     keys += [("DataType", f"0x{entry.data_type.code:04X}"), ("AccessType", entry.access.value)]
-    if entry.default_expr is not None:
-        keys.append(("DefaultValue", entry.default_expr))
-    elif entry.default is not None:
-        keys.append(("DefaultValue", _format(entry.data_type, _raw(entry, entry.default))))
+    texts = export_value_text(entry, value)
+    if "DefaultValue" in texts:
+        keys.append(("DefaultValue", texts["DefaultValue"]))
     keys.append(("PDOMapping", int(entry.pdo_mappable)))
-    if entry.min is not None and not entry.data_type.is_string:
-        keys.append(("LowLimit", _format(entry.data_type, _raw(entry, entry.min))))
-    if entry.max is not None and not entry.data_type.is_string:
-        keys.append(("HighLimit", _format(entry.data_type, _raw(entry, entry.max))))
+    keys += [(key, texts[key]) for key in ("LowLimit", "HighLimit") if key in texts]
     if with_flags and entry.obj_flags is not None:
         keys.append(("ObjFlags", f"0x{entry.obj_flags:X}"))
-    if value is not None:
-        keys.append(("ParameterValue", _format(entry.data_type, value)))
-    if entry.denotation is not None:
-        keys.append(("Denotation", entry.denotation))
+    keys += [(key, texts[key]) for key in ("ParameterValue", "Denotation") if key in texts]
+    keys += list((entry.section_keys or {}).items())
     if entry.factor != 1:
         keys.append(("Factor", entry.factor))
     if entry.unit is not None:
@@ -178,6 +193,43 @@ def _entry_keys(entry: ObjectEntry, *, with_flags: bool, value: Value | None) ->
     if entry.description is not None:
         keys.append(("Description", entry.description))
     return keys
+
+
+def _patched_dcf(profile: Profile, original: bytes, node_id: int | None, values: Mapping[Address, Value],
+                 baud_kbit: int | None) -> str:
+    by_address = {(o.index, o.subindex): o for o in profile.objects}
+    texts: dict[Address, str] = {}
+    for address, value in values.items():
+        entry = by_address.get(address)
+        if entry is None:
+            raise UnknownParameter(f"0x{address[0]:04X}sub{address[1]} is not an object of '{profile.id}'")
+        texts[address] = _format(entry.data_type, value)
+    commissioning = {key: str(value) for key, value in (("NodeID", node_id), ("Baudrate", baud_kbit))
+                     if value is not None}
+    patched = patch_dcf(original, profile.id, texts, commissioning=commissioning)
+    return decode_text(patched, profile.id)
+
+
+def objects_by_index(profile: Profile) -> dict[int, list[ObjectEntry]]:
+    """Every object an export writes, by index in index order: the profile's, the CiA 301 mandatory ones it lacks
+    and its vendor parameters as manufacturer objects."""
+    by_index: dict[int, list[ObjectEntry]] = {}
+    for entry in sorted(eds_objects(profile), key=lambda o: (o.index, o.subindex)):
+        by_index.setdefault(entry.index, []).append(entry)
+    return by_index
+
+
+def node_value(entry: ObjectEntry, values: Mapping[Address, Value], node_id: int | None, dcf: bool
+               ) -> Value | None:
+    """The value a DCF/XDC gives an object: the one asked for, else its ParameterValue; for a node id, a
+    ``$NODEID`` formula's value."""
+    value = values.get((entry.index, entry.subindex), entry.parameter_value)
+    if dcf and node_id is not None:
+        if value is None and entry.default_expr is not None:
+            return resolve_node_expr(entry.default_expr, node_id)
+        if isinstance(value, str) and entry.data_type.is_integer and node_expr(value) is not None:
+            return resolve_node_expr(value, node_id)
+    return value
 
 
 def _object_list(index: int) -> str:
@@ -195,31 +247,27 @@ def eds_objects(profile: Profile) -> list[ObjectEntry]:
 
 
 def export_eds(profile: Profile, *, node_id: int | None = None, values: Mapping[Address, Value] | None = None,
-               dcf: bool = False, baud_kbit: int | None = None) -> str:
+               dcf: bool = False, baud_kbit: int | None = None, original: bytes | None = None) -> str:
     """Write ``profile`` as an EDS, or with ``dcf=True`` a DCF for ``node_id``.
 
     ``values`` are raw values (as read from the device or stored in a parameter set) by (index, subindex); they
     become ``ParameterValue``. In a DCF for a node id, ``$NODEID`` formulas get their value for that node.
+    With ``original`` (the bytes of the EDS/DCF the profile was read from) a DCF is that file with only the values
+    and ``[DeviceComissioning]`` changed (:func:`drivebench.device.dcf_patch.patch_dcf`): layout, comments and
+    keys the model has no field for stay.
     """
     if node_id is not None and not 1 <= node_id <= 127:
         raise ProfileError(f"node id {node_id} is outside 1..127", source=profile.id)
-    objects = eds_objects(profile)
-    by_index: dict[int, list[ObjectEntry]] = {}
-    for entry in sorted(objects, key=lambda o: (o.index, o.subindex)):
-        by_index.setdefault(entry.index, []).append(entry)
-    addresses = {(o.index, o.subindex) for o in objects}
+    if original is not None and dcf:
+        return _patched_dcf(profile, original, node_id, values or {}, baud_kbit)
+    by_index = objects_by_index(profile)
+    addresses = {(o.index, o.subindex) for entries in by_index.values() for o in entries}
     for address in (values or {}):
         if address not in addresses:
             raise UnknownParameter(f"0x{address[0]:04X}sub{address[1]} is not an object of '{profile.id}'")
 
     def parameter_value(entry: ObjectEntry) -> Value | None:
-        value = (values or {}).get((entry.index, entry.subindex), entry.parameter_value)
-        if dcf and node_id is not None:
-            if value is None and entry.default_expr is not None:
-                return resolve_node_expr(entry.default_expr, node_id)
-            if isinstance(value, str) and entry.data_type.is_integer and node_expr(value) is not None:
-                return resolve_node_expr(value, node_id)
-        return value
+        return node_value(entry, values or {}, node_id, dcf)
 
     out = _Writer()
     ident, features = profile.identity, profile.features

@@ -14,18 +14,22 @@ import os
 import re
 import tempfile
 import unicodedata
+from dataclasses import dataclass
+from dataclasses import field as dataclass_field
 from pathlib import Path
 from typing import Any
 
 from pydantic import ValidationError
 
 from drivebench.config import settings
-from drivebench.device.eds import import_eds
+from drivebench.device.eds import ImportWarning, read_eds
 from drivebench.device.json_lines import DuplicateKey, JsonPath, line_of, reject_duplicate_keys, value_lines
 from drivebench.device.profile import ObjectEntry, Parameter, Profile
+from drivebench.device.xdd import XML_SUFFIXES, read_xdd
 from drivebench.errors import ProfileError, UnknownProfile
 
-PROFILE_SUFFIXES = (".json", ".eds", ".dcf")
+PROFILE_SUFFIXES = (".json", ".eds", ".dcf", ".xdd", ".xdc")
+KINDS = {".json": "a JSON profile", ".eds": "an EDS", ".xdd": "an XDD/XDC (XML)"}
 UPLOAD_NAMES_SUFFIX = ".names.json"
 """Beside the upload directory (``var/profiles.names.json``): profile id -> the file name it was uploaded as
 (shown, never used as a path)."""
@@ -51,25 +55,65 @@ def _load_name(name: str) -> str:
     return f"upload{name.lower()}" if name.lower() in PROFILE_SUFFIXES else name
 
 
+@dataclass(frozen=True)
+class LoadedFile:
+    """A profile as read from its file: the readings applied to quirks (warnings) and the file's own bytes, kept
+    so an unchanged file downloads back byte-identical and a DCF of it keeps its layout."""
+
+    profile: Profile
+    warnings: list[ImportWarning] = dataclass_field(default_factory=list)
+    original: bytes | None = None
+    """The bytes of an EDS/DCF/XDD/XDC file (None for a JSON profile: its JSON export is the file)."""
+    suffix: str = ".json"
+
+    def limits_note(self, index: int, subindex: int) -> str | None:
+        """What the import did to this object's limits (repaired or dropped), for a write to say first."""
+        notes = [w.message for w in self.warnings if w.limits and (w.index, w.subindex) == (index, subindex)]
+        return "; ".join(notes) or None
+
+
+def original_file(profiles: object, profile: Profile) -> bytes | None:
+    """The EDS/DCF bytes ``profile`` was read from, when ``profiles`` is a registry that holds this very profile
+    (a DCF of it is then written over the original file)."""
+    if not isinstance(profiles, ProfileRegistry):
+        return None
+    try:
+        loaded = profiles.loaded(profile.id)
+    except UnknownProfile:
+        return None
+    return loaded.original if loaded.profile is profile and loaded.suffix in (".eds", ".dcf") else None
+
+
 def load_profile_file(content: bytes, name: str) -> Profile:
     """One profile file's bytes -> Profile, by suffix. Raises ProfileError naming ``name`` (and line)."""
+    return read_profile_file(content, name).profile
+
+
+def read_profile_file(content: bytes, name: str) -> LoadedFile:
+    """One profile file's bytes -> the profile, its warnings and the bytes. Raises ProfileError naming ``name``."""
     suffix = Path(name).suffix.lower()
     looks_like = _looks_like(content)
     if suffix in (".eds", ".dcf"):
         if looks_like == ".json":
             raise ProfileError("this is a JSON profile, not an EDS: name the file .json", source=name, line=1)
-        return import_eds(content, source=name)
+        imported = read_eds(content, source=name)
+        return LoadedFile(imported.profile, imported.warnings, content, suffix)
+    if suffix in XML_SUFFIXES:
+        imported = read_xdd(content, source=name)
+        return LoadedFile(imported.profile, imported.warnings, content, suffix)
     if suffix != ".json":
-        hint = f"; this looks like {'an EDS' if looks_like == '.eds' else 'a JSON profile'}, name it {looks_like}" \
-            if looks_like else ""
-        raise ProfileError(f"unknown profile file type {suffix or '(none)'}; use .json, .eds or .dcf{hint}",
-                           source=name)
+        hint = f"; this looks like {KINDS[looks_like]}, name it {looks_like}" if looks_like else ""
+        raise ProfileError(f"unknown profile file type {suffix or '(none)'}; use .json, .eds, .dcf, .xdd or .xdc"
+                           f"{hint}", source=name)
+    if looks_like == ".xdd":
+        raise ProfileError("this is an XDD/XDC (XML), not a JSON profile: name the file .xdd or .xdc", source=name,
+                           line=1)
     if looks_like == ".eds":
         raise ProfileError("this is an EDS/DCF (INI text), not a JSON profile: name the file .eds or .dcf",
                            source=name, line=1)
     try:
         reject_duplicate_keys(content)
-        return Profile.model_validate_json(content)
+        return LoadedFile(Profile.model_validate_json(content))
     except DuplicateKey as exc:
         raise ProfileError(str(exc), source=name, line=exc.line) from exc
     except UnicodeDecodeError as exc:
@@ -91,6 +135,8 @@ def _looks_like(content: bytes) -> str | None:
     head = content[:4096].lstrip(b"\xef\xbb\xbf \t\r\n")
     if head.startswith(b"{"):
         return ".json"
+    if head.startswith(b"<"):
+        return ".xdd"
     first_line = head.split(b"\n", 1)[0].strip()
     if head.startswith(b";") or (first_line.startswith(b"[") and first_line.endswith(b"]")
                                  and first_line[1:2].isalpha()):
@@ -148,19 +194,21 @@ class ProfileRegistry:
         self.user_profiles_dir = user_profiles_dir or settings.user_profiles_dir
         self.max_upload_bytes = max_upload_bytes or settings.max_upload_bytes
         self._profiles: dict[str, Profile] = {}
+        self._files: dict[str, LoadedFile] = {}
         self._builtin: set[str] = set()
         self.errors: list[tuple[str, str]] = []
         self.reload()
 
     def reload(self) -> None:
-        profiles: dict[str, Profile] = {}
+        files: dict[str, LoadedFile] = {}
         errors: list[tuple[str, str]] = []
-        builtin = self._load_dir(self.profiles_dir, profiles, errors, taken=set())
-        self._load_dir(self.user_profiles_dir, profiles, errors, taken=set(builtin))
-        self._profiles, self._builtin, self.errors = profiles, builtin, errors
+        builtin = self._load_dir(self.profiles_dir, files, errors, taken=set())
+        self._load_dir(self.user_profiles_dir, files, errors, taken=set(builtin))
+        self._profiles = {profile_id: loaded.profile for profile_id, loaded in files.items()}
+        self._files, self._builtin, self.errors = files, builtin, errors
 
     @staticmethod
-    def _load_dir(directory: Path, profiles: dict[str, Profile], errors: list[tuple[str, str]],
+    def _load_dir(directory: Path, profiles: dict[str, LoadedFile], errors: list[tuple[str, str]],
                   taken: set[str]) -> set[str]:
         """Load one directory into ``profiles``: JSON first, then EDS/DCF without a JSON twin."""
         if not directory.is_dir():
@@ -171,13 +219,14 @@ class ProfileRegistry:
         json_ids: set[str] = set()
         for path in files:
             try:
-                profile = load_profile_file(path.read_bytes(), path.name)
+                loaded_file = read_profile_file(path.read_bytes(), path.name)
             except ProfileError as exc:
                 errors.append((path.name, exc.detail))
                 continue
             except OSError as exc:
                 errors.append((path.name, f"cannot read: {exc.strerror}"))
                 continue
+            profile = loaded_file.profile
             is_json = path.suffix.lower() == ".json"
             if not is_json and profile.id in json_ids:
                 continue  # the JSON twin wins
@@ -186,7 +235,7 @@ class ProfileRegistry:
                 continue
             if is_json:
                 json_ids.add(profile.id)
-            profiles[profile.id] = profile
+            profiles[profile.id] = loaded_file
             loaded.add(profile.id)
         return loaded
 
@@ -195,6 +244,11 @@ class ProfileRegistry:
             return self._profiles[profile_id]
         except KeyError:
             raise UnknownProfile(f"No device profile '{profile_id}'") from None
+
+    def loaded(self, profile_id: str) -> LoadedFile:
+        """The profile with the warnings of its import and its file's bytes."""
+        self.get(profile_id)
+        return self._files.get(profile_id) or LoadedFile(self._profiles[profile_id])
 
     def all(self) -> list[Profile]:
         return sorted(self._profiles.values(), key=lambda p: p.id)
@@ -218,7 +272,8 @@ class ProfileRegistry:
         if len(content) > self.max_upload_bytes:
             raise ProfileError(f"upload is {len(content)} bytes, more than the limit of {self.max_upload_bytes}",
                                source=name)
-        profile = load_profile_file(content, _load_name(name))
+        loaded_file = read_profile_file(content, _load_name(name))
+        profile = loaded_file.profile
         if profile.id in self._builtin:
             raise ProfileError(f"profile id '{profile.id}' belongs to a built-in profile; give the upload "
                                "another id", source=name)
@@ -238,6 +293,7 @@ class ProfileRegistry:
             if other != suffix:
                 self._stored_path(profile.id, other).unlink(missing_ok=True)
         self._profiles[profile.id] = profile
+        self._files[profile.id] = loaded_file
         self._write_names({**self._read_names(), profile.id: name})
         return profile
 

@@ -109,6 +109,9 @@ class ObjectEntry(Entry):
     """DCF ``Denotation``: the name a system integrator gave this object."""
     obj_flags: int | None = None
     """CiA 306 ``ObjFlags`` (bit 0: do not read in configuration, bit 1: do not write)."""
+    section_keys: dict[str, str] | None = None
+    """Keys of the object's EDS section the model has no field for (``UploadFile``, ``DownloadFile``,
+    ``StorageLocation``, vendor keys), in file order; an export writes them back."""
 
 
 class Parameter(Entry):

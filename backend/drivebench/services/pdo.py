@@ -14,6 +14,7 @@ from pydantic import BaseModel, Field
 
 from drivebench.device.catalog import Catalog
 from drivebench.device.eds_export import export_eds
+from drivebench.device.loader import original_file
 from drivebench.device.profile import Access, Entry, ObjectEntry
 from drivebench.device.scaling import from_raw
 from drivebench.errors import DriveBenchError, InvalidValue, NotFound, ProtocolError, SdoAbortError
@@ -422,4 +423,5 @@ async def export_dcf(session: Session, node_id: int) -> str:
             value = decode(obj.data_type, raw.ljust(obj.data_type.size, b"\0")[:obj.data_type.size])
             if isinstance(value, int):
                 values[(obj.index, obj.subindex)] = value
-    return export_eds(catalog.profile, node_id=node_id, values=values, dcf=True)
+    return export_eds(catalog.profile, node_id=node_id, values=values, dcf=True,
+                      original=original_file(session.profiles, catalog.profile))

@@ -33,6 +33,7 @@ from drivebench.device.eds import decode_text, parse_ini, parse_value, resolve_n
 from drivebench.device.eds_export import export_eds
 from drivebench.device.profile import Profile
 from drivebench.device.scaling import format_value, to_raw
+from drivebench.device.xdd_export import export_xdd
 from drivebench.errors import DriveBenchError, InvalidValue, ProfileError, UnknownParameter
 from drivebench.services.parameter_sets import (
     TOOL_CHANNELS,
@@ -295,15 +296,18 @@ def import_csv(text: str, profiles: ProfileLookup, *, profile_id: str | None = N
 
 
 # --- DCF -----------------------------------------------------------------------------------------------------
-def export_dcf(stored: StoredSet, profile: Profile, node_id: int | None = None) -> str:
-    """A CiA 306 DCF of the profile with the set's values as ``ParameterValue`` (raw)."""
+def _stored_items(stored: StoredSet, profile: Profile) -> list[tuple[Item, Raw]]:
     catalog = catalog_for(profile)
-    values = {}
-    for ref, raw in stored.values.items():
-        item = catalog.resolve(ref)
-        values[(item.index, item.subindex)] = raw
+    return [(catalog.resolve(ref), raw) for ref, raw in stored.values.items()]
+
+
+def export_dcf(stored: StoredSet, profile: Profile, node_id: int | None = None, original: bytes | None = None
+               ) -> str:
+    """A CiA 306 DCF of the profile with the set's values as ``ParameterValue`` (raw); with ``original`` (the
+    profile's EDS/DCF file) that file with only the values changed."""
+    values = {(item.index, item.subindex): raw for item, raw in _stored_items(stored, profile)}
     target = node_id or stored.info.node_id
-    return export_eds(profile, node_id=target, values=values, dcf=True)
+    return export_eds(profile, node_id=target, values=values, dcf=True, original=original)
 
 
 def import_dcf(data: str | bytes, profiles: ProfileLookup, *, profile_id: str | None = None,
@@ -370,14 +374,18 @@ def import_dcf(data: str | bytes, profiles: ProfileLookup, *, profile_id: str | 
                        node_id=node_id, notes=notes)
 
 
-def export(fmt: str, stored: StoredSet, profile: Profile) -> tuple[str, str]:
+def export(fmt: str, stored: StoredSet, profile: Profile, original: bytes | None = None) -> tuple[str, str]:
     """(text, media type) of the set in ``fmt``."""
     if fmt == "json":
         return export_json(stored, profile), "application/json"
     if fmt == "csv":
         return export_csv(stored, profile), "text/csv"
     if fmt == "dcf":
-        return export_dcf(stored, profile), "text/plain"
+        return export_dcf(stored, profile, original=original), "text/plain"
+    if fmt == "xdc":  # CiA 311 XML twin of the DCF (export only)
+        values = {(item.index, item.subindex): raw for item, raw in _stored_items(stored, profile)}
+        text = export_xdd(profile, node_id=stored.info.node_id, values=values, xdc=True).decode("utf-8")
+        return text, "application/xml"
     raise InvalidValue(f"Unknown format '{fmt}' (formats: {', '.join(FORMATS)})")
 
 

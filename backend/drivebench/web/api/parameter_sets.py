@@ -16,6 +16,7 @@ from fastapi.responses import Response
 from pydantic import BaseModel, Field
 
 from drivebench.config import settings
+from drivebench.device.loader import original_file
 from drivebench.device.profile import Profile
 from drivebench.errors import InvalidValue
 from drivebench.services import audit, set_formats, set_jobs
@@ -285,10 +286,11 @@ async def set_history(set_id: RowId) -> list[SetVersion]:
 
 @router.get(SETS + "/{set_id}/export")
 async def export_set(set_id: RowId, state: StateDep,
-                     format: Annotated[Literal["json", "csv", "dcf"], Query()] = "json",
+                     format: Annotated[Literal["json", "csv", "dcf", "xdc"], Query()] = "json",
                      version: RowVersion = None) -> Response:
     stored = store().get(set_id, version)
-    text, media = set_formats.export(format, stored, state.registry.get(stored.info.profile_id))
+    profile = state.registry.get(stored.info.profile_id)
+    text, media = set_formats.export(format, stored, profile, original_file(state.registry, profile))
     filename = set_formats.file_name(stored, format)
     return Response(text, media_type=media, headers={"Content-Disposition": f'attachment; filename="{filename}"'})
 

@@ -19,9 +19,13 @@ from starlette.datastructures import UploadFile
 from starlette.formparsers import MultiPartException, MultiPartParser
 
 from drivebench.device.catalog import Catalog, Item
+from drivebench.device.eds import ImportWarning
 from drivebench.device.eds_export import export_eds
-from drivebench.device.loader import ProfileRegistry, shown_name
+from drivebench.device.loader import LoadedFile, ProfileRegistry, shown_name
 from drivebench.device.profile import ObjectEntry, Parameter, Profile, Value
+from drivebench.device.profile_batch import MAX_FILES, add_many
+from drivebench.device.xdd import XML_SUFFIXES
+from drivebench.device.xdd_export import export_xdd
 from drivebench.errors import Conflict, DriveBenchError, ProfileError
 from drivebench.web.deps import StateDep
 from drivebench.web.problems import error_fragment, problem_body
@@ -57,6 +61,25 @@ class ProfileSummary(BaseModel):
     source: str | None = None
     uploaded_as: str | None = None
     """The file name an uploaded profile came in as (shown only; it is stored as ``<id>.<suffix>``)."""
+    warning_count: int = 0
+    """How many quirks of the file the import read with a warning (``/api/profiles/{id}/warnings``)."""
+
+
+class ImportWarningOut(BaseModel):
+    """A quirk of a device description and the reading the import applied."""
+
+    file: str
+    line: int | None
+    key: str | None
+    message: str
+    object: str | None
+    """``0x6040sub0`` when the warning concerns one object."""
+    limits: bool
+    """The object's limits were repaired or dropped (a write of it says so first)."""
+
+
+class UploadResult(ProfileSummary):
+    warnings: list[ImportWarningOut]
 
 
 class LoadError(BaseModel):
@@ -92,6 +115,26 @@ class EntryRow(BaseModel):
     pdo_mappable: bool
     group: str
     description: str | None
+    limits_note: str | None = None
+    """The file's LowLimit/HighLimit of this object were repaired or dropped on import: how."""
+
+
+class BatchRowOut(BaseModel):
+    """One file of a many-file upload: accepted, accepted with warnings, or refused (line and reason)."""
+
+    file: str
+    outcome: Literal["accepted", "warnings", "refused"]
+    profile_id: str | None
+    warnings: int
+    line: int | None
+    reason: str | None
+
+
+class BatchResult(BaseModel):
+    accepted: int
+    with_warnings: int
+    refused: int
+    rows: list[BatchRowOut]
 
 
 class EntryPage(BaseModel):
@@ -111,7 +154,19 @@ def summary(profile: Profile, registry: ProfileRegistry) -> ProfileSummary:
                           vendor_id=profile.identity.vendor_id, product_code=profile.identity.product_code,
                           transport=profile.features.transport, objects=len(profile.objects),
                           parameters=len(profile.parameters), builtin=registry.is_builtin(profile.id),
-                          source=profile.source, uploaded_as=registry.uploaded_as(profile.id))
+                          source=profile.source, uploaded_as=registry.uploaded_as(profile.id),
+                          warning_count=len(registry.loaded(profile.id).warnings))
+
+
+def warning_out(warning: ImportWarning) -> ImportWarningOut:
+    where = f"0x{warning.index:04X}sub{warning.subindex}" if warning.index is not None else None
+    return ImportWarningOut(file=warning.file, line=warning.line, key=warning.key, message=warning.message,
+                            object=where, limits=warning.limits)
+
+
+def upload_result(profile: Profile, registry: ProfileRegistry) -> UploadResult:
+    warnings = [warning_out(w) for w in registry.loaded(profile.id).warnings]
+    return UploadResult(**summary(profile, registry).model_dump(), warnings=warnings)
 
 
 def split_location(file: str, message: str) -> LoadError:
@@ -143,7 +198,7 @@ def catalog_for(profile: Profile) -> Catalog:
     return cached
 
 
-def entry_row(item: Item) -> EntryRow:
+def entry_row(item: Item, loaded: LoadedFile | None = None) -> EntryRow:
     entry = item.entry
     is_parameter = isinstance(entry, Parameter)
     return EntryRow(
@@ -154,7 +209,8 @@ def entry_row(item: Item) -> EntryRow:
         data_type=entry.data_type.value, access=entry.access.value, unit=entry.unit, factor=entry.factor,
         default=entry.default, min=entry.min, max=entry.max, selection=entry.selection, bits=entry.bits,
         reset_required=entry.reset_required, pdo_mappable=entry.pdo_mappable, group=item.group,
-        description=entry.description)
+        description=entry.description,
+        limits_note=loaded.limits_note(item.index, item.subindex) if loaded and loaded.warnings else None)
 
 
 def find_entries(profile: Profile, q: str, kind: EntryKind) -> list[Item]:
@@ -167,9 +223,10 @@ def find_entries(profile: Profile, q: str, kind: EntryKind) -> list[Item]:
     return items
 
 
-def entry_page(profile: Profile, q: str, kind: EntryKind, offset: int, limit: int) -> EntryPage:
+def entry_page(profile: Profile, q: str, kind: EntryKind, offset: int, limit: int,
+               loaded: LoadedFile | None = None) -> EntryPage:
     items = find_entries(profile, q, kind)
-    rows = [entry_row(i) for i in items[offset:offset + limit]]
+    rows = [entry_row(i, loaded) for i in items[offset:offset + limit]]
     return EntryPage(profile=profile.id, q=q, kind=kind, total=len(items), offset=offset, limit=limit, items=rows)
 
 
@@ -211,6 +268,44 @@ async def read_upload(request: Request, limit: int) -> tuple[str, bytes]:
         return name, content
     finally:
         await form.close()
+
+
+MAX_BATCH_BODY_BYTES = 64 * 1024 * 1024
+
+
+async def read_uploads(request: Request, limit: int) -> list[tuple[str, bytes]]:
+    """The files of a multipart upload with several files (field ``files``, or ``file``). Raises UploadTooLarge
+    past ``limit`` in all, ProfileError for too many files or none."""
+    declared = request.headers.get("content-length", "")
+    if declared.isdigit() and int(declared) > limit:
+        raise UploadTooLarge(f"the upload is {_size(int(declared))}, more than the limit of {_size(limit)} for "
+                             "many files at once")
+    if not request.headers.get("content-type", "").startswith("multipart/form-data"):
+        raise ProfileError("send the files as multipart/form-data in the field 'files'")
+    parser = MultiPartParser(request.headers, _capped(request, limit, limit), max_files=MAX_FILES, max_fields=20)
+    try:
+        form = await parser.parse()
+    except MultiPartException as exc:
+        raise ProfileError(f"the upload is not a readable form: {exc.message} (at most {MAX_FILES} files at once)"
+                           ) from exc
+    try:
+        uploads = [u for key in ("files", "file") for u in form.getlist(key) if isinstance(u, UploadFile)]
+        if not uploads:
+            raise ProfileError("no file in the upload: choose EDS, DCF, XDD, XDC, JSON files or a .zip (field "
+                               "'files')")
+        return [(shown_name(u.filename or "upload"), await u.read()) for u in uploads]
+    finally:
+        await form.close()
+
+
+async def store_many(request: Request, state: AppState) -> BatchResult:
+    """Read and store several files or zips; each file is accepted or refused on its own."""
+    uploads = await read_uploads(request, MAX_BATCH_BODY_BYTES)
+    rows = await asyncio.to_thread(add_many, state.registry, uploads)
+    out = [BatchRowOut(**vars(row)) for row in rows]
+    return BatchResult(accepted=sum(r.outcome == "accepted" for r in out),
+                       with_warnings=sum(r.outcome == "warnings" for r in out),
+                       refused=sum(r.outcome == "refused" for r in out), rows=out)
 
 
 async def store_upload(request: Request, state: AppState) -> Profile:
@@ -292,14 +387,39 @@ async def search_parameters(profile_id: str, state: StateDep, q: str = "", kind:
                             limit: Annotated[int, Query(ge=1, le=MAX_PAGE)] = 100) -> EntryPage:
     """Vendor parameters and CANopen objects matching ``q``: a code (``C00088``, ``88``, ``C00118/3``), words of
     the name, or an index (``0x5FA7``, ``0x1018.1``). The exact match of a code or index comes first."""
-    profile = state.registry.get(profile_id)
-    return await asyncio.to_thread(entry_page, profile, q, kind, offset, limit)
+    loaded = state.registry.loaded(profile_id)
+    return await asyncio.to_thread(entry_page, loaded.profile, q, kind, offset, limit, loaded)
 
 
-@router.get("/{profile_id}/eds", response_class=PlainTextResponse)
-async def get_profile_eds(profile_id: str, state: StateDep) -> PlainTextResponse:
-    profile = state.registry.get(profile_id)
-    return PlainTextResponse(export_eds(profile), headers=_attachment(f"{profile.id}.eds"))
+@router.get("/{profile_id}/warnings", response_model=list[ImportWarningOut])
+async def get_profile_warnings(profile_id: str, state: StateDep) -> list[ImportWarningOut]:
+    """The quirks of the profile's file and the reading the import applied to each (file, line, key)."""
+    return [warning_out(w) for w in state.registry.loaded(profile_id).warnings]
+
+
+@router.get("/{profile_id}/eds", response_class=Response,
+            responses={200: {"content": {"text/plain": {}}, "description": "The EDS/DCF file"}})
+async def get_profile_eds(profile_id: str, state: StateDep, regenerate: bool = False) -> Response:
+    """The profile as EDS: an EDS/DCF file exactly as it was loaded (byte for byte), else (or with
+    ``regenerate=true``) written from the profile."""
+    loaded = state.registry.loaded(profile_id)
+    if loaded.original is not None and loaded.suffix in (".eds", ".dcf") and not regenerate:
+        return Response(loaded.original, media_type="application/octet-stream",
+                        headers=_attachment(f"{profile_id}{loaded.suffix}"))
+    return PlainTextResponse(export_eds(loaded.profile), headers=_attachment(f"{profile_id}.eds"))
+
+
+@router.get("/{profile_id}/xdd", response_class=Response,
+            responses={200: {"content": {"application/xml": {}}, "description": "The XDD/XDC file"}})
+async def get_profile_xdd(profile_id: str, state: StateDep, regenerate: bool = False) -> Response:
+    """The profile as CiA 311 XDD: an XDD/XDC file exactly as it was loaded, else (or with ``regenerate=true``)
+    written from the profile."""
+    loaded = state.registry.loaded(profile_id)
+    if loaded.original is not None and loaded.suffix in XML_SUFFIXES and not regenerate:
+        return Response(loaded.original, media_type="application/xml",
+                        headers=_attachment(f"{profile_id}{loaded.suffix}"))
+    return Response(export_xdd(loaded.profile), media_type="application/xml",
+                    headers=_attachment(f"{profile_id}.xdd"))
 
 
 @router.get("/{profile_id}/json", response_class=Response,
@@ -315,16 +435,32 @@ UPLOAD_BODY = {"requestBody": {"required": True, "content": {"multipart/form-dat
     "properties": {"file": {"type": "string", "format": "binary", "description": "An .eds, .dcf or .json file"}}}}}}}
 
 
-@router.post("", response_model=ProfileSummary, status_code=status.HTTP_201_CREATED, openapi_extra=UPLOAD_BODY,
+@router.post("", response_model=UploadResult, status_code=status.HTTP_201_CREATED, openapi_extra=UPLOAD_BODY,
              responses={413: {"description": "The file is larger than the upload limit"},
                         422: {"description": "The file is not a valid profile (problem+json with source, line)"}})
-async def upload_profile(request: Request, state: StateDep) -> ProfileSummary | Response:
-    """Upload an EDS, DCF or JSON profile. A bad file is refused with file name, line and reason."""
+async def upload_profile(request: Request, state: StateDep) -> UploadResult | Response:
+    """Upload an EDS, DCF or JSON profile. Quirks of the file are read and listed in ``warnings``; a file without
+    a usable object dictionary is refused with file name, line and reason."""
     try:
         profile = await store_upload(request, state)
     except UploadTooLarge as exc:
         return problem_response(request, exc, status.HTTP_413_CONTENT_TOO_LARGE)
-    return summary(profile, state.registry)
+    return upload_result(profile, state.registry)
+
+
+@router.post("/batch", response_model=BatchResult, openapi_extra={"requestBody": {"required": True, "content": {
+    "multipart/form-data": {"schema": {"type": "object", "required": ["files"], "properties": {"files": {
+        "type": "array", "items": {"type": "string", "format": "binary"},
+        "description": "EDS, DCF, XDD, XDC or JSON files, or .zip archives of them"}}}}}}},
+             responses={413: {"description": "More than 64 MiB sent at once"},
+                        422: {"description": "Too many files, none, or not a form (problem+json)"}})
+async def upload_many(request: Request, state: StateDep) -> BatchResult | Response:
+    """Upload several device descriptions or a .zip of a vendor's folder. Every file is checked on its own: the
+    summary says which were accepted, accepted with warnings, or refused (file, line, reason)."""
+    try:
+        return await store_many(request, state)
+    except UploadTooLarge as exc:
+        return problem_response(request, exc, status.HTTP_413_CONTENT_TOO_LARGE)
 
 
 @router.delete("/{profile_id}", status_code=status.HTTP_204_NO_CONTENT,

@@ -8,17 +8,21 @@ from urllib.parse import urlencode
 from fastapi import APIRouter, Query, Request, status
 from fastapi.responses import HTMLResponse, Response
 
-from drivebench.device.profile import Profile, Value
-from drivebench.errors import ProfileError
+from drivebench.device.catalog import Item
+from drivebench.device.loader import LoadedFile
+from drivebench.device.profile import Value
+from drivebench.errors import DriveBenchError, ProfileError
 from drivebench.web.api.profiles import (
     EntryKind,
     UploadTooLarge,
     delete_upload,
     entry_page,
     load_errors,
+    store_many,
     store_upload,
     summary,
     upload_error,
+    warning_out,
 )
 from drivebench.web.deps import StateDep
 from drivebench.web.pages.node_info import identity_text
@@ -28,6 +32,21 @@ from drivebench.web.templating import templates
 
 router = APIRouter(include_in_schema=False)
 templates.env.filters["device_type"] = lambda raw: identity_text("0x1000", raw)
+
+
+def limits_note(request: Request, profile_id: str | None, item: Item) -> str | None:
+    """What the import of the profile's file did to this item's limits (a parameter row says it before a write)."""
+    registry = request.app.state.drivebench.registry
+    if profile_id is None:
+        return None
+    try:
+        loaded: LoadedFile = registry.loaded(profile_id)
+    except DriveBenchError:
+        return None
+    return loaded.limits_note(item.index, item.subindex) if loaded.warnings else None
+
+
+templates.env.globals["limits_note"] = limits_note
 
 PAGE_SIZE = 100
 TYPE_SHORT = {"BOOLEAN": "BOOL", "VISIBLE_STRING": "VSTR", "OCTET_STRING": "OSTR", "UNICODE_STRING": "USTR"}
@@ -110,9 +129,25 @@ async def upload(request: Request, state: StateDep) -> Response:
     try:
         profile = await store_upload(request, state)
     except ProfileError as exc:
-        code = status.HTTP_413_CONTENT_TOO_LARGE if isinstance(exc, UploadTooLarge) else status_for(exc)
-        return _list_block(request, state, code, upload_error=upload_error(exc), upload_title=exc.title)
-    return _list_block(request, state, upload_ok=profile.id)
+        return _refused(request, state, exc)
+    return _list_block(request, state, upload_ok=profile.id,
+                       upload_warnings=len(state.registry.loaded(profile.id).warnings))
+
+
+def _refused(request: Request, state: AppState, exc: ProfileError) -> Response:
+    """The list and the form again, with why the upload was refused beside the form."""
+    code = status.HTTP_413_CONTENT_TOO_LARGE if isinstance(exc, UploadTooLarge) else status_for(exc)
+    return _list_block(request, state, code, upload_error=upload_error(exc), upload_title=exc.title)
+
+
+@router.post("/ui/profiles/batch", response_class=HTMLResponse)
+async def upload_batch(request: Request, state: StateDep) -> Response:
+    """Several files or a zip from the form: the list comes back with the summary table of every file."""
+    try:
+        result = await store_many(request, state)
+    except ProfileError as exc:
+        return _refused(request, state, exc)
+    return _list_block(request, state, batch=result)
 
 
 @router.post("/ui/profiles/{profile_id}/delete", response_class=HTMLResponse)
@@ -124,8 +159,9 @@ async def delete(request: Request, state: StateDep, profile_id: str,
     return _list_block(request, state, deleted=profile_id)
 
 
-def _entries_context(profile: Profile, q: str, kind: EntryKind, offset: int) -> dict[str, Any]:
-    page = entry_page(profile, q, kind, offset, PAGE_SIZE)
+def _entries_context(loaded: LoadedFile, q: str, kind: EntryKind, offset: int) -> dict[str, Any]:
+    profile = loaded.profile
+    page = entry_page(profile, q, kind, offset, PAGE_SIZE, loaded)
     shown = page.offset + len(page.items)
     query = {k: v for k, v in (("q", q), ("kind", kind)) if v and v != "all"}
     more_url = f"/profiles/{profile.id}/entries?" + urlencode({**query, "offset": shown})
@@ -136,10 +172,12 @@ def _entries_context(profile: Profile, q: str, kind: EntryKind, offset: int) -> 
 @router.get("/profiles/{profile_id}", response_class=HTMLResponse)
 async def profile_page(request: Request, state: StateDep, profile_id: str, q: str = "",
                        kind: EntryKind = "all") -> Response:
-    profile = state.registry.get(profile_id)
+    loaded = state.registry.loaded(profile_id)
+    profile = loaded.profile
     context = {"active": "profiles", "summary": summary(profile, state.registry),
                "counts": {"parameters": len(profile.parameters), "objects": len(profile.objects)},
-               **_entries_context(profile, q, kind, 0)}
+               "import_warnings": [warning_out(w) for w in loaded.warnings],
+               **_entries_context(loaded, q, kind, 0)}
     return templates.TemplateResponse(request, "profiles.html", {**context, "detail": True})
 
 
@@ -147,8 +185,9 @@ async def profile_page(request: Request, state: StateDep, profile_id: str, q: st
 async def entries(request: Request, state: StateDep, profile_id: str, q: str = "", kind: EntryKind = "all",
                   offset: Annotated[int, Query(ge=0)] = 0) -> Response:
     """The entries table for a search (offset 0), or the next rows for 'show more'."""
-    profile = state.registry.get(profile_id)
-    context = _entries_context(profile, q, kind, offset)
+    loaded = state.registry.loaded(profile_id)
+    profile = loaded.profile
+    context = _entries_context(loaded, q, kind, offset)
     response = templates.TemplateResponse(request, "profiles.html", context,
                                           block_name="entries" if offset == 0 else "entry_rows")
     if offset == 0:

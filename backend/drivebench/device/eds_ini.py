@@ -1,0 +1,152 @@
+"""CiA 306 INI text with line numbers: bytes -> text -> sections of keys, each key knowing its line.
+
+With a :class:`~drivebench.device.eds_quirks.Warnings` collector the quirks of real files are read and noted; without
+one (the parameter-set DCF import) each quirk is an error naming file and line.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+
+from drivebench.device.eds_quirks import Warnings
+from drivebench.errors import ProfileError
+
+MAX_EDS_BYTES = 16 * 1024 * 1024
+MAX_LINE_CHARS = 64 * 1024
+_JUNK = re.compile(r"[\x00-\x08\x0b-\x1f\x7f]")
+_INLINE_COMMENT = re.compile(r"\s;")
+
+
+# --- INI text with line numbers ------------------------------------------------------------------------
+@dataclass
+class Key:
+    name: str
+    value: str
+    line: int
+
+
+@dataclass
+class Section:
+    name: str
+    line: int
+    keys: dict[str, Key] = field(default_factory=dict)
+    """Lower-case key name -> key (CiA 306 key names are case-insensitive)."""
+
+    def get(self, key: str) -> Key | None:
+        return self.keys.get(key.lower())
+
+
+def decode_text(data: bytes, source: str) -> str:
+    """Bytes of an EDS -> text: UTF-8, else latin-1 (see the module docstring)."""
+    if len(data) > MAX_EDS_BYTES:
+        raise ProfileError(f"file is {len(data)} bytes, more than the {MAX_EDS_BYTES} bytes an EDS may have",
+                           source=source)
+    for encoding in ("utf-8-sig", "cp1252"):
+        try:
+            return data.decode(encoding)
+        except UnicodeDecodeError:
+            continue
+    return data.decode("latin-1")
+
+
+class _Quirks:
+    """Where a quirk goes: a warning (import of a device description) or, without a collector, an error (the
+    strict reading the parameter-set DCF import keeps)."""
+
+    def __init__(self, source: str, notes: Warnings | None) -> None:
+        self.source = source
+        self.notes = notes
+
+    def __call__(self, line: int | None, key: str | None, message: str, strict: str | None = None) -> None:
+        if self.notes is None:
+            raise ProfileError(strict or message, source=self.source, line=line)
+        self.notes.add(line, key, message)
+
+
+def parse_ini(text: str, source: str, notes: Warnings | None = None) -> dict[str, Section]:
+    """INI text -> sections keyed by upper-case name, in file order.
+
+    With ``notes``, quirks are read as INI readers read them and noted: a duplicate key keeps its first value and
+    a duplicate section adds its new keys to the first (Windows' profile-string reader, which vendor tools use);
+    lines with control characters, without ``=`` or before any section are skipped; ``key: value`` is read like
+    ``key=value`` (Python's configparser); `` ;`` after a value starts a comment. Without ``notes`` each of these
+    raises ProfileError."""
+    if len(text) > MAX_EDS_BYTES:
+        raise ProfileError(f"file has {len(text)} characters, more than {MAX_EDS_BYTES}", source=source)
+    quirk = _Quirks(source, notes)
+    sections: dict[str, Section] = {}
+    current: Section | None = None
+    junk_somewhere = _JUNK.search(text.replace("\r", "").replace("\n", "")) is not None
+    # CiA 306 lines end in CR LF; str.splitlines() would also split on NEL, FF, LS... inside values.
+    for number, raw in enumerate(re.split(r"\r\n|\r|\n", text), start=1):
+        if len(raw) > MAX_LINE_CHARS:
+            quirk(number, None, f"line of {len(raw)} characters skipped (an EDS line has at most {MAX_LINE_CHARS})",
+                  f"line of {len(raw)} characters, more than {MAX_LINE_CHARS}")
+            continue
+        line = raw.strip()
+        if junk_somewhere and _JUNK.search(raw):
+            if line.strip("\x1a") == "":  # DOS end-of-file mark
+                continue
+            quirk(number, None, "line skipped: control characters (binary junk)",
+                  "binary junk (control characters) instead of EDS text")
+            continue
+        if not line or line.startswith((";", "#")):
+            continue
+        if line.startswith("["):
+            current = _section(line, number, sections, quirk)
+            continue
+        if current is None:
+            quirk(number, None, "line before the first [section] skipped", "key outside of any section")
+            continue
+        pair = _key_value(line, number, quirk)
+        if pair is None:
+            continue
+        key, value = pair
+        seen = current.keys.get(key.lower())
+        if seen is not None:
+            quirk(number, key, f"duplicate key in [{current.name}] (first at line {seen.line}): the first value "
+                  f"{seen.value!r} is kept", f"duplicate key {key!r} in [{current.name}] (first at line {seen.line})")
+            continue
+        current.keys[key.lower()] = Key(key, value, number)
+    return sections
+
+
+def _section(line: str, number: int, sections: dict[str, Section], quirk: _Quirks) -> Section:
+    closing = line.find("]")
+    if closing < 0 or len(line) < 3:
+        quirk(number, None, f"section header {line!r} has no ']': read as [{line[1:].strip()}]",
+              f"bad section header {line!r}")
+        name = line[1:].strip() or "?"
+    else:
+        name = line[1:closing].strip()
+        if line[closing + 1:].strip() and not line[closing + 1:].strip().startswith(";"):
+            quirk(number, None, f"text after [{name}] ignored", f"bad section header {line!r}")
+    first = sections.get(name.upper())
+    if first is not None:
+        quirk(number, None, f"duplicate section [{name}] (first at line {first.line}): its keys are added to the "
+              "first, a key both have keeps the first value", f"duplicate section [{name}] (first at line "
+              f"{first.line})")
+        return first
+    section = sections[name.upper()] = Section(name, number)
+    return section
+
+
+def _key_value(line: str, number: int, quirk: _Quirks) -> tuple[str, str] | None:
+    if "=" in line:
+        key, _, value = line.partition("=")
+        key, value = key.strip(), value.strip()
+    elif ":" in line and quirk.notes is not None:
+        key, value = (part.strip() for part in line.split(":", 1))
+        quirk(number, key, "'key: value' read as 'key=value'")
+    else:
+        quirk(number, None, f"line skipped: no '=' in {line[:40]!r}",
+              f"expected 'key=value', a [section] or a ';' comment, got {line[:40]!r}")
+        return None
+    if not key:
+        quirk(number, None, "line skipped: empty key name", "empty key name")
+        return None
+    comment = _INLINE_COMMENT.search(value) if ";" in value else None
+    if comment is not None and quirk.notes is not None:
+        value = value[:comment.start()].rstrip()
+    return key, value

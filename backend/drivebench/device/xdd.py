@@ -1,0 +1,245 @@
+"""CiA 311 XDD/XDC import (ISO 15745 XML device descriptions) -> a :class:`Profile` with warnings.
+
+The XML is parsed safely: a document with a DOCTYPE or ENTITY declaration is refused before parsing (no XXE, no
+billion laughs), and lxml runs with entity resolution, DTD loading and network access off and without
+``huge_tree`` (libxml2's depth and size limits stay on). No CiA 311 schema ships in a package, so the structure is
+checked here, with line numbers.
+
+The communication body (``ProfileBody_CommunicationNetwork_CANopen``) is turned into the sections an EDS holds
+(``CANopenObject`` -> ``[xxxx]``, ``CANopenSubObject`` -> ``[xxxxsubN]``, ``actualValue`` -> ``ParameterValue``,
+``deviceCommissioning`` -> ``[DeviceComissioning]``) and read by the EDS reader, so both formats get the same
+readings and warnings. The device body (``ProfileBody_Device_CANopen``) gives the identity and, through an
+object's ``uniqueIDRef``, the parameter (and its ``templateIDRef`` template) for what the object leaves out: name,
+default, actual value, limits, description, and the ``Unit``/``Factor`` properties DriveBench's export writes.
+"""
+
+from __future__ import annotations
+
+import re
+
+from lxml import etree
+
+from drivebench.device.eds import (
+    BAUD_RATES_KBIT,
+    MAX_EDS_BYTES,
+    OBJECT_LISTS,
+    ImportedEds,
+    Key,
+    Section,
+    read_sections,
+)
+from drivebench.device.eds_quirks import Warnings
+from drivebench.errors import ProfileError
+
+XML_SUFFIXES = (".xdd", ".xdc")
+EDS_KEY_PREFIX = "EDS:"
+"""A parameter ``property`` named ``EDS:UploadFile`` carries an EDS key CiA 311 has no attribute for."""
+_DECLARATION = re.compile(rb"<!\s*(DOCTYPE|ENTITY)", re.IGNORECASE)
+_BAUD = re.compile(r"^\s*(\d+)\s*([KM])bps\s*$", re.IGNORECASE)
+_OBJECT_KEYS = {"name": "ParameterName", "objectType": "ObjectType", "dataType": "DataType",
+                "lowLimit": "LowLimit", "highLimit": "HighLimit", "accessType": "AccessType",
+                "defaultValue": "DefaultValue", "actualValue": "ParameterValue", "denotation": "Denotation",
+                "PDOmapping": "PDOMapping", "objFlags": "ObjFlags", "subNumber": "SubNumber"}
+_COMMISSIONING = {"nodeID": "NodeID", "nodeName": "NodeName", "actualBaudRate": "Baudrate",
+                  "networkNumber": "NetNumber", "networkName": "NetworkName", "CANopenManager": "CANopenManager"}
+
+
+def local(element: etree._Element) -> str:
+    tag = element.tag
+    return etree.QName(tag).localname if isinstance(tag, str) else ""
+
+
+def parse_xml(data: bytes, source: str) -> etree._Element:
+    """Bytes -> the root element, safely (see the module docstring). Raises ProfileError with the line."""
+    if len(data) > MAX_EDS_BYTES:
+        raise ProfileError(f"file is {len(data)} bytes, more than the {MAX_EDS_BYTES} bytes a device description "
+                           "may have", source=source)
+    declaration = _DECLARATION.search(data)
+    if declaration is not None:
+        line = data.count(b"\n", 0, declaration.start()) + 1
+        raise ProfileError("a DOCTYPE or ENTITY declaration is not allowed in an XDD/XDC (it could read files or "
+                           "expand without end)", source=source, line=line)
+    parser = etree.XMLParser(resolve_entities=False, no_network=True, huge_tree=False, load_dtd=False,
+                             dtd_validation=False, remove_pis=True)
+    try:
+        return etree.fromstring(data, parser)
+    except etree.XMLSyntaxError as exc:
+        raise ProfileError(f"not well-formed XML: {exc.msg}", source=source, line=exc.lineno or None) from exc
+
+
+def _body_type(body: etree._Element) -> str:
+    for name, value in body.attrib.items():
+        if etree.QName(name).localname == "type":
+            return str(value).split(":")[-1]
+    return ""
+
+
+class _Builder:
+    """EDS-shaped sections from the XML, with the source line of each key."""
+
+    def __init__(self, source: str, notes: Warnings) -> None:
+        self.source = source
+        self.notes = notes
+        self.sections: dict[str, Section] = {}
+        self.listed: dict[str, int] = {}
+        """How many objects each object list ([MandatoryObjects] ...) holds so far."""
+
+    def put(self, section: str, line: int, key: str, value: str) -> None:
+        found = self.sections.get(section.upper())
+        if found is None:
+            found = self.sections[section.upper()] = Section(section, line)
+        if key.lower() not in found.keys:
+            found.keys[key.lower()] = Key(key, value, line)
+
+    def device(self, body: etree._Element) -> dict[str, etree._Element]:
+        """Identity from the device body; returns parameters and templates by uniqueID."""
+        identity = next((e for e in body.iter() if local(e) == "DeviceIdentity"), None)
+        if identity is not None:
+            for child in identity:
+                key = {"vendorName": "VendorName", "vendorID": "VendorNumber", "productName": "ProductName",
+                       "productID": "ProductNumber", "orderNumber": "OrderCode"}.get(local(child))
+                text = (child.text or "").strip()
+                if local(child) == "version" and re.fullmatch(r"0[xX][0-9a-fA-F]{1,8}", text):
+                    key = "RevisionNumber"  # CiA 301 revision number as DriveBench writes it; "1.0" is no number
+                if key == "OrderCode" and "ordercode" in (info := self.sections.get("DEVICEINFO", Section("", 0))).keys:
+                    info.keys["ordercode"].value += f", {text}"  # one orderNumber element per code
+                elif key is not None and (text or key == "VendorName"):
+                    self.put("DeviceInfo", child.sourceline or 1, key, text)
+        return {str(e.get("uniqueID")): e for e in body.iter()
+                if local(e) in ("parameter", "parameterTemplate") and e.get("uniqueID")}
+
+    def communication(self, body: etree._Element, parameters: dict[str, etree._Element]) -> None:
+        for element in body.iter():
+            name = local(element)
+            line = element.sourceline or 1
+            if name == "CANopenObject":
+                self.object(element, parameters)
+            elif name == "supportedBaudRate":
+                rate = self.baud(element.get("value", ""), line)
+                if rate in BAUD_RATES_KBIT:
+                    self.put("DeviceInfo", line, f"BaudRate_{rate}", "1")
+            elif name == "CANopenGeneralFeatures":
+                for attribute, key in (("nrOfRxPDO", "NrOfRXPDO"), ("nrOfTxPDO", "NrOfTXPDO")):
+                    if element.get(attribute) is not None:
+                        self.put("DeviceInfo", line, key, str(element.get(attribute)))
+            elif name == "deviceCommissioning":
+                for attribute, key in _COMMISSIONING.items():
+                    value = element.get(attribute)
+                    if value is not None:
+                        rate = self.baud(value, line) if attribute == "actualBaudRate" else None
+                        self.put("DeviceComissioning", line, key, str(rate) if rate else value)
+
+    def baud(self, text: str, line: int) -> int | None:
+        found = _BAUD.match(text)
+        if found is None:
+            self.notes.add(line, "baudRate", f"{text!r} is not a bit rate like '250 Kbps': ignored")
+            return None
+        return int(found.group(1)) * (1000 if found.group(2).upper() == "M" else 1)
+
+    def object(self, element: etree._Element, parameters: dict[str, etree._Element]) -> None:
+        line = element.sourceline or 1
+        index_text = element.get("index", "")
+        try:
+            index = int(index_text, 16)
+        except ValueError:
+            self.notes.add(line, "index", f"CANopenObject index={index_text!r} is not 4 hex digits: skipped")
+            return
+        section = f"{index:04X}"
+        if section.upper() in self.sections:
+            self.notes.add(line, "index", f"object 0x{index:04X} is in the object list twice: the first is read")
+            return
+        self.keys(section, element, parameters)
+        subs = [e for e in element if local(e) == "CANopenSubObject"]
+        if subs and element.get("subNumber") is None:
+            self.put(section, line, "SubNumber", str(len(subs)))
+        for sub in subs:
+            sub_text = sub.get("subIndex", "")
+            try:
+                number = int(sub_text, 16)
+            except ValueError:
+                self.notes.add(sub.sourceline, "subIndex", f"CANopenSubObject subIndex={sub_text!r} of "
+                               f"0x{index:04X} is not hex: skipped")
+                continue
+            self.keys(f"{section}sub{number:X}", sub, parameters)
+        listing = "MandatoryObjects" if index in (0x1000, 0x1001, 0x1018) else (
+            "ManufacturerObjects" if 0x2000 <= index <= 0x5FFF else "OptionalObjects")
+        self.listed[listing] = self.listed.get(listing, 0) + 1
+        self.put(listing, line, str(self.listed[listing]), f"0x{index:04X}")
+
+    def keys(self, section: str, element: etree._Element, parameters: dict[str, etree._Element]) -> None:
+        line = element.sourceline or 1
+        self.sections.setdefault(section.upper(), Section(section, line))
+        for attribute, key in _OBJECT_KEYS.items():
+            value = element.get(attribute)
+            if value is None:
+                continue
+            if attribute == "dataType":
+                value = f"0x{value}" if not value.lower().startswith("0x") else value
+            elif attribute == "PDOmapping":
+                value = "0" if value.strip().lower() == "no" else "1"
+            self.put(section, line, key, value)
+        reference = element.get("uniqueIDRef")
+        if reference is None:
+            return
+        parameter = parameters.get(reference)
+        if parameter is None:
+            self.notes.add(line, "uniqueIDRef", f"uniqueIDRef={reference!r} names no parameter of the device "
+                           "profile: ignored")
+            return
+        template = parameters.get(str(parameter.get("templateIDRef"))) if parameter.get("templateIDRef") else None
+        for source in (parameter, template):
+            if source is not None:
+                self.from_parameter(section, source)
+
+    def from_parameter(self, section: str, parameter: etree._Element) -> None:
+        """What the object leaves out, from its parameter (``put`` keeps what is already there)."""
+        line = parameter.sourceline or 1
+        for child in parameter:
+            name = local(child)
+            if name == "label" and (child.text or "").strip():
+                self.put(section, line, "ParameterName", (child.text or "").strip())
+            elif name == "description" and (child.text or "").strip():
+                self.put(section, child.sourceline or line, "Description", (child.text or "").strip())
+            elif name in ("defaultValue", "actualValue") and child.get("value") is not None:
+                key = "DefaultValue" if name == "defaultValue" else "ParameterValue"
+                self.put(section, child.sourceline or line, key, str(child.get("value")))
+            elif name == "property" and child.get("value") is not None:
+                key = str(child.get("name"))
+                if key in ("Unit", "Factor") or key.startswith(EDS_KEY_PREFIX):
+                    self.put(section, child.sourceline or line, key.removeprefix(EDS_KEY_PREFIX),
+                             str(child.get("value")))
+            elif name == "allowedValues":
+                for bound in child.iter():
+                    limit = {"minValue": "LowLimit", "maxValue": "HighLimit"}.get(local(bound))
+                    if limit is not None and bound.get("value") is not None:
+                        self.put(section, bound.sourceline or line, limit, str(bound.get("value")))
+
+
+def read_xdd(data: bytes, *, source: str) -> ImportedEds:
+    """Read an XDD or XDC into a Profile and the warnings of the readings applied. Raises ProfileError (with the
+    line) for unsafe or malformed XML and for a file without a CANopen object list."""
+    root = parse_xml(data, source)
+    if local(root) not in ("ISO15745ProfileContainer", "ISO15745Profile"):
+        raise ProfileError(f"not a CiA 311 device description: the root element is <{local(root)}>, not "
+                           "<ISO15745ProfileContainer>", source=source, line=root.sourceline)
+    bodies = [e for e in root.iter() if local(e) == "ProfileBody"]
+    communication = [b for b in bodies if _body_type(b).startswith("ProfileBody_CommunicationNetwork_CANopen")]
+    if not communication or not any(local(e) == "CANopenObjectList" for e in communication[0].iter()):
+        raise ProfileError("no object dictionary: no ProfileBody_CommunicationNetwork_CANopen with a "
+                           "CANopenObjectList", source=source, line=root.sourceline)
+    notes = Warnings(source)
+    builder = _Builder(source, notes)
+    parameters: dict[str, etree._Element] = {}
+    for body in bodies:
+        if _body_type(body).startswith("ProfileBody_Device_CANopen"):
+            parameters |= builder.device(body)
+    if "DEVICEINFO" not in builder.sections:
+        builder.put("DeviceInfo", root.sourceline or 1, "VendorName", "")
+        notes.add(root.sourceline, "DeviceIdentity", "no ProfileBody_Device_CANopen with a DeviceIdentity: vendor "
+                  "and product are left unknown")
+    builder.communication(communication[0], parameters)
+    for listing in OBJECT_LISTS:
+        found = builder.sections.get(listing.upper())
+        if found is not None:
+            found.keys["supportedobjects"] = Key("SupportedObjects", str(builder.listed[listing]), found.line)
+    return read_sections(builder.sections, source, notes)
