@@ -10,10 +10,10 @@ from typing import Any, TypeVar
 
 import pytest
 
+from drivebench.device.loader import ProfileRegistry
 from drivebench.errors import ConfirmationRequired, Conflict, OutOfRange
 from drivebench.services import drive_control, drive_guard, parameters
 from drivebench.services.drive_control import DriveStatus, describe
-from drivebench.device.loader import ProfileRegistry
 from drivebench.services.drive_words import Command, Family, family_of_profile
 from drivebench.services.sessions import Session
 from drivebench.simulator.plant import Plant

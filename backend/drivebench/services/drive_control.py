@@ -77,7 +77,7 @@ def has_ref(catalog: Catalog, ref: str) -> bool:
     return True
 
 
-def _catalog(node: SessionNode) -> Catalog:
+def catalog_of(node: SessionNode) -> Catalog:
     if node.catalog is None:
         raise InvalidValue(f"Node {node.node_id} has no device profile: the control panel needs one.")
     return node.catalog
@@ -93,7 +93,7 @@ def family(node: SessionNode) -> Family:
 
 
 async def _number(session: Session, node: SessionNode, ref: str | None, default: float) -> float:
-    if ref is None or not has_ref(_catalog(node), ref):
+    if ref is None or not has_ref(catalog_of(node), ref):
         return default
     value = (await parameters.read(session, node.node_id, ref)).value
     return float(value) if isinstance(value, (int, float)) else default
@@ -144,7 +144,7 @@ async def setpoint_scale(session: Session, node: SessionNode, mode: int | None) 
 
 def actual_refs(node: SessionNode) -> list[ActualSpec]:
     """The actual values of the profile's control section this device has."""
-    fam, catalog = family(node), _catalog(node)
+    fam, catalog = family(node), catalog_of(node)
     return [spec for spec in fam.section.actual_values if has_ref(catalog, spec.ref)]
 
 
@@ -161,7 +161,7 @@ def missing_why(node: SessionNode) -> str:
 
 def actual_source(node: SessionNode, ref: str, raw_per_unit: float = 0.0, unit: str | None = None) -> str:
     """Where a plotted value comes from: the object it is read from, its coding, and the manual that names it."""
-    catalog = _catalog(node)
+    catalog = catalog_of(node)
     item = catalog.resolve(ref)
     coding = item.entry.data_type.name
     if raw_per_unit:
@@ -299,7 +299,7 @@ def mode_label(fam: Family, mode: int) -> str:
 
 
 async def _mode(session: Session, node: SessionNode) -> int | None:
-    if family(node).section.state_machine != "cia402" or not has_ref(_catalog(node), "0x6061"):
+    if family(node).section.state_machine != "cia402" or not has_ref(catalog_of(node), "0x6061"):
         return None
     raw = (await parameters.read(session, node.node_id, "0x6061")).raw
     return int(raw) if isinstance(raw, int) else None
@@ -308,7 +308,7 @@ async def _mode(session: Session, node: SessionNode) -> int | None:
 async def modes(session: Session, node: SessionNode) -> dict[int, str]:
     """The modes the panel offers: the section's, for a generic drive those 0x6502 names (else its EDS lists)."""
     fam = family(node)
-    if fam.generic and has_ref(_catalog(node), "0x6502"):
+    if fam.generic and has_ref(catalog_of(node), "0x6502"):
         raw = (await parameters.read(session, node.node_id, "0x6502")).raw
         if isinstance(raw, int):
             return {mode: cia402.MODE_NAMES[mode] for mode in cia402.modes_from_6502(raw)}
@@ -317,7 +317,7 @@ async def modes(session: Session, node: SessionNode) -> dict[int, str]:
 
 async def _diagnostics(session: Session, node: SessionNode) -> tuple[list[Bit], int | None]:
     """Digital inputs 0x60FD and error code 0x603F of a generic CiA 402 drive (where it has them)."""
-    catalog = _catalog(node)
+    catalog = catalog_of(node)
     inputs: list[Bit] = []
     if has_ref(catalog, "0x60FD"):
         raw = (await parameters.read(session, node.node_id, "0x60FD")).raw
@@ -462,7 +462,7 @@ async def jog_plan(session: Session, node: SessionNode) -> JogPlan:
     fam = family(node)
     spec = fam.section.jog
     why = spec.why
-    if spec.method == "device" and spec.value_ref is not None and has_ref(_catalog(node), spec.value_ref):
+    if spec.method == "device" and spec.value_ref is not None and has_ref(catalog_of(node), spec.value_ref):
         if spec.enabled_ref is None or spec.enabled_max is None or \
                 await _number(session, node, spec.enabled_ref, 0) <= spec.enabled_max:
             value = await _number(session, node, spec.value_ref, 0)
@@ -471,7 +471,7 @@ async def jog_plan(session: Session, node: SessionNode) -> JogPlan:
         why = spec.disabled_why or why
     if spec.method == "profile_velocity":
         return await profile_velocity_jog(session, node, spec.text)
-    if spec.percent_ref is not None and has_ref(_catalog(node), spec.percent_ref):
+    if spec.percent_ref is not None and has_ref(catalog_of(node), spec.percent_ref):
         percent = await _number(session, node, spec.percent_ref, 0)
         reference = await _number(session, node, spec.reference_ref, spec.reference_default)
         value = round(percent / 100 * reference, 1)
@@ -543,7 +543,7 @@ MODE_SETTLE_S = 1.0
 async def set_mode(session: Session, node: SessionNode, mode: int, *, confirm: object = None,
                    panel: Panel = SERVICE_PANEL) -> DriveStatus:
     fam = family(node)
-    if fam.section.state_machine != "cia402" or not has_ref(_catalog(node), "0x6060"):
+    if fam.section.state_machine != "cia402" or not has_ref(catalog_of(node), "0x6060"):
         raise InvalidValue(f"{node.device_name} has no modes of operation (0x6060).")
     if mode not in await modes(session, node):
         raise InvalidValue((fam.section.modes_help or "Mode {mode} is not supported.").format(mode=mode))

@@ -61,7 +61,8 @@ class MotionInfo(BaseModel):
 SETTINGS = [("0x6081", "Profile velocity", "velocity"), ("0x6083", "Profile acceleration", "acceleration"),
             ("0x6084", "Profile deceleration", "acceleration"), ("0x6085", "Quick stop deceleration", "acceleration"),
             ("0x6099.1", "Homing speed: search for switch", "velocity"),
-            ("0x6099.2", "Homing speed: search for zero", "velocity"), ("0x609A", "Homing acceleration", "acceleration"),
+            ("0x6099.2", "Homing speed: search for zero", "velocity"),
+            ("0x609A", "Homing acceleration", "acceleration"),
             ("0x607C", "Home offset", "position"), ("0x607D.1", "Software position limit: min", "position"),
             ("0x607D.2", "Software position limit: max", "position"),
             ("0x607F", "Max profile velocity", "velocity"), ("0x60C2.1", "Interpolation time period", None)]
@@ -135,7 +136,7 @@ async def move(session: Session, node: SessionNode, target: float, *, relative: 
     status = await _enabled(session, node, panel, "A profile-position move")
     units = await motion_units(session, node)
     if velocity is not None:
-        top = await _read(session, node, "0x607F") if has_ref(node.catalog, "0x607F") else None  # type: ignore[arg-type]
+        top = await _read(session, node, "0x607F") if has_ref(drive_control.catalog_of(node), "0x607F") else None
         if velocity <= 0 or (top and velocity > top):
             raise OutOfRange(f"Profile velocity {velocity:g} {units.velocity} is outside 0 ... {top or '∞'} "
                              f"{units.velocity} (0x607F max profile velocity).")

@@ -43,7 +43,7 @@ def _diagram(fam: Family) -> dict[str, Any]:
     boxes = [{"key": box.key, "label": box.label, "x": pos[box.key][0], "y": pos[box.key][1], "enabled": box.enabled,
               "fault": box.fault} for box in fam.states]
     arrows = []
-    for arrow in fam.arrows:
+    for arrow in fam.section.arrows:
         (sx, sy), (tx, ty) = pos[arrow.source], pos[arrow.target]
         if sx == tx:  # vertical: two lanes so up and down arrows do not overlap
             down = ty > sy
