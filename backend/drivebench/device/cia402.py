@@ -169,10 +169,10 @@ def si_unit(code: int) -> str | None:
 
 
 # --- the generic section ----------------------------------------------------------------------------------------
-ACTUALS = [  # (label, object, unit kind: position / velocity / None for the entry's own unit)
-    ("Position", "0x6064", "position"), ("Velocity", "0x606C", "velocity"), ("Torque", "0x6077", None),
-    ("Current", "0x6078", None), ("DC link voltage", "0x6079", None), ("Following error", "0x60F4", "position"),
-    ("Position demand", "0x6062", "position"),
+ACTUALS = [  # (label, object, unit where CiA 402 fixes it; position and velocity units come from the drive)
+    ("Position", "0x6064", None), ("Velocity", "0x606C", None), ("Torque", "0x6077", "‰ of rated torque"),
+    ("Current", "0x6078", "‰ of rated current"), ("DC link voltage", "0x6079", "mV"),
+    ("Following error", "0x60F4", None), ("Position demand", "0x6062", None),
 ]
 UNIT_KIND = {"0x607A": "position", "0x60FF": "velocity", "0x6081": "velocity", "0x6099.1": "velocity",
              "0x6099.2": "velocity", "0x607C": "position", "0x607D.1": "position", "0x607D.2": "position",
@@ -204,10 +204,11 @@ def generic_section(profile: Profile) -> ControlSection:
              "them and this device's object dictionary lists them.",
         control_word="0x6040", status_word="0x6041", control_bits=CONTROL_BITS, status_bits=STATUS_BITS,
         states=STATES, arrows=ARROWS, commands=COMMANDS, setpoints=setpoints,
-        actual_values=[ActualSpec(label=label, ref=ref) for label, ref, _ in ACTUALS if int(ref, 16) in indices],
+        actual_values=[ActualSpec(label=label, ref=ref, unit=unit) for label, ref, unit in ACTUALS
+                       if int(ref, 16) in indices],
         actual_kinds=[], jog=JogPlan(method="profile_velocity" if 3 in modes else "setpoint",
-                                     text="Jog: a profile-velocity move (mode 3, 0x60FF) at {value:g} {unit} while the "
-                                          "button is held and the keep-alive runs; back to the previous mode after.",
+                                     text="Jog: a profile-velocity move (the panel switches to mode 3, 0x60FF) at "
+                                          "{value:g} {unit} while the button is held and the keep-alive runs.",
                                      why="the device lists no profile velocity mode (0x60FF)"),
         modes={mode: MODE_NAMES[mode] for mode in modes},
         mode_refused="0x6061 shows {shown} after writing 0x6060 = {mode}: the drive did not take the mode.",

@@ -218,7 +218,7 @@ async def read_actuals(session: Session, node: SessionNode) -> list[ActualValue]
                                    value=round(_signed16(value.raw & 0xFFFF) / raw_per_unit, spec.decimals)))
             continue
         number = round(value.value, 3) if isinstance(value.value, (int, float)) else None  # REAL32 noise
-        unit = value.unit
+        unit = value.unit or spec.unit
         if units is not None:
             unit = units.of(spec.ref) or unit
         out.append(ActualValue(label=spec.label, ref=spec.ref, value=number, unit=unit, source=source))

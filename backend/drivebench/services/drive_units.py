@@ -9,7 +9,6 @@ constant: one position unit is that many increments); else the values are raw in
 from __future__ import annotations
 
 import time
-import weakref
 from dataclasses import dataclass
 
 from drivebench.device import cia402
@@ -30,9 +29,6 @@ class Units:
     def of(self, ref: str) -> str | None:
         kind = cia402.UNIT_KIND.get(ref)
         return self.position if kind == "position" else self.velocity if kind == "velocity" else None
-
-
-_CACHE: weakref.WeakKeyDictionary[SessionNode, tuple[float, Units]] = weakref.WeakKeyDictionary()
 
 
 def _has(node: SessionNode, ref: str) -> bool:
@@ -61,7 +57,7 @@ async def _ratio(session: Session, node: SessionNode, index: str) -> float | Non
 
 
 async def motion_units(session: Session, node: SessionNode) -> Units:
-    cached = _CACHE.get(node)
+    cached: tuple[float, Units] | None = getattr(node, "_motion_units", None)  # kept on the node, as its catalog
     if cached is not None and time.monotonic() - cached[0] < UNITS_TTL_S:
         return cached[1]
     position_code, velocity_code = await _int(session, node, "0x60A8"), await _int(session, node, "0x60A9")
@@ -80,7 +76,7 @@ async def motion_units(session: Session, node: SessionNode) -> Units:
         else:
             units = Units("increments", velocity or "increments/s",
                           "no SI unit objects or factor group: raw increments")
-    _CACHE[node] = (time.monotonic(), units)
+    object.__setattr__(node, "_motion_units", (time.monotonic(), units))
     return units
 
 

@@ -69,7 +69,7 @@ RUNS_RIGHT = 0x4000  # MM status word bit 14 "motor runs direction right" (set a
 REVERSE = 0x0800  # control word bit 11, MM "Reverse"
 
 
-def _command_state(state: State402, cw: int) -> State402:
+def command_state(state: State402, cw: int) -> State402:
     """The state a control word leads to from ``state`` (table 3-16, CiA 402 transitions 2...12, 16)."""
     voltage, quick, switch_on, enable = cw & 0x02, cw & 0x04, cw & 0x01, cw & 0x08
     if state in (State402.NOT_READY_TO_SWITCH_ON, State402.FAULT_REACTION_ACTIVE, State402.FAULT):
@@ -181,7 +181,7 @@ class Drive402:
                     self.store.set(0x603F, 0, 0, notify=False)
                 self._enter(State402.SWITCH_ON_DISABLED)  # transition 15
                 self.node.clear_emcy()
-            target = _command_state(self.state, cw)
+            target = command_state(self.state, cw)
             if target is State402.OPERATION_ENABLED and self.state is State402.READY_TO_SWITCH_ON:
                 self._enter(State402.SWITCHED_ON)  # shown briefly, then on by itself (ch. 3.3)
             if target is not self.state:
