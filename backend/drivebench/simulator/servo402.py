@@ -227,7 +227,6 @@ class Servo402:
     def _homed(self, at: float) -> None:
         offset = self._obj(0x607C) * self.per_unit
         self.home = at - offset  # CiA 402: the home position is the home offset
-        self.demand = self.mech
         self.homing = []
         self.homing_done = True
 
@@ -335,8 +334,9 @@ class Servo402:
                 self.homing.pop(0)
                 if not self.homing:
                     self._homed(event)
-        if not self.jammed:
-            self.mech += (self.demand - self.mech) * min(1.0, dt / POSITION_LAG_S)
+        if not self.jammed:  # velocity feed-forward, the position loop takes out what is left
+            error = before - self.mech
+            self.mech += (self.demand - before) + error * min(1.0, dt / POSITION_LAG_S)
         actual = self.velocity if not self.jammed else 0.0
         self.torque = (actual - self.actual_velocity) / dt / self._per_velocity_unit() / 10 if dt else 0.0
         self.torque += math.copysign(20.0, actual) if actual else 0.0  # friction
