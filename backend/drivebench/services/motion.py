@@ -74,8 +74,10 @@ async def _read(session: Session, node: SessionNode, ref: str) -> float | None:
 
 
 async def info(session: Session, node: SessionNode) -> MotionInfo:
-    catalog = node.catalog
-    assert catalog is not None
+    catalog = drive_control.catalog_of(node)
+    if not drive_control.family(node).generic:
+        raise InvalidValue(f"{node.device_name} is driven by its profile's own control section, not by the standard "
+                           "CiA 402 motion panel.")
     units = await motion_units(session, node)
     unit_of = {"position": units.position, "velocity": units.velocity, "acceleration": f"{units.velocity}/s"}
     settings = [Setting(ref=ref, label=label, value=await _read(session, node, ref),

@@ -21,10 +21,9 @@ comparison per plant tick.
 from __future__ import annotations
 
 import math
-import threading
 from typing import TYPE_CHECKING
 
-from drivebench.simulator.drive402 import STATE_BITS, State402, command_state
+from drivebench.simulator.drive402 import STATE_BITS, State402, StateMachine402, command_state
 from drivebench.simulator.store import RawValue
 
 if TYPE_CHECKING:
@@ -52,13 +51,9 @@ def _signed(value: RawValue, default: float = 0.0) -> float:
     return float(value) if isinstance(value, (int, float)) else default
 
 
-class Servo402:
+class Servo402(StateMachine402):
     def __init__(self, node: SimulatedNode) -> None:
-        self.node = node
-        self.store = node.store
-        self._lock = threading.RLock()
-        self.state = State402.NOT_READY_TO_SWITCH_ON
-        self.control_word = 0
+        super().__init__(node)
         encoder = self._ratio(0x608F, 4096.0)
         self.increments_per_rev = encoder
         self.per_unit = self._per_unit(encoder)
@@ -75,11 +70,9 @@ class Servo402:
         self.ack = False
         self.limit_hit = False
         self.jammed = False
-        self.fault_code = 0
         self._error_since: float | None = None
         self._last: float | None = None
         self._published: dict[tuple[int, int], RawValue] = {}
-        self.history: list[State402] = []
         self.store.add_write_hook(self.on_write)
         self.reset()
 
@@ -168,12 +161,7 @@ class Servo402:
             self._wake()
             if self.state is State402.NOT_READY_TO_SWITCH_ON:
                 self._enter(State402.SWITCH_ON_DISABLED)
-            if cw & 0x80 and not previous & 0x80 and self.state is State402.FAULT:
-                self.fault_code = 0
-                if self.store.has(0x603F, 0):
-                    self.store.set(0x603F, 0, 0, notify=False)
-                self._enter(State402.SWITCH_ON_DISABLED)
-                self.node.clear_emcy()
+            self._fault_reset(cw, previous)
             target = command_state(self.state, cw)
             if target is not self.state:
                 if target is State402.QUICK_STOP_ACTIVE and int(self._obj(0x605A, 0, 2)) == 0:
@@ -373,10 +361,8 @@ class Servo402:
 
     # --- outputs ---------------------------------------------------------------------------------------------------
     def _enter(self, state: State402) -> None:
-        self.state = state
-        self.history.append(state)
         self._idle = False
-        self._publish()
+        super()._enter(state)
 
     def inputs(self) -> int:
         limit = LIMIT_REVS * self.increments_per_rev
