@@ -14,7 +14,7 @@ from typing import Any, TypeVar
 import can
 import pytest
 
-from drivebench.errors import ConfirmationRequired, Conflict, OutOfRange
+from drivebench.errors import ConfirmationRequired, Conflict, InvalidValue, OutOfRange
 from drivebench.services import drive_control, motion, parameters
 from drivebench.services.drive_control import DriveStatus
 from drivebench.services.drive_words import Command
@@ -213,3 +213,9 @@ def test_an_idle_axis_sleeps(axis: Axis) -> None:
     while not axis.drive._idle:
         assert time.monotonic() < deadline, "the idle axis keeps stepping its model"
         time.sleep(0.02)
+
+
+def test_a_setpoint_alone_is_refused_where_the_drive_needs_a_move(axis: Axis) -> None:
+    axis.enable()
+    with pytest.raises(InvalidValue, match="move"):
+        axis.run(drive_control.set_setpoint(axis.session, axis.node, 90, confirm=AXIS))

@@ -179,10 +179,10 @@ class Step(_Model):
     kind: Literal["sdo", "nmt_start", "pdo", "check"]
     """``sdo``: download ``data`` to index/sub; ``nmt_start``; ``pdo``: send ``data`` on ``cob`` + node id;
     ``check``: read ``expect_ref``."""
-    index: Annotated[int, BeforeValidator(_parse_int)] = 0
+    index: Word = 0
     sub: int = 0
     data: HexBytes = b""
-    cob: Annotated[int, BeforeValidator(_parse_int)] = 0
+    cob: Word = 0
     expect_state: str | None = None
     expect_ref: str | None = None
     expect_value: int | None = None

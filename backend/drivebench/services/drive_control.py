@@ -425,6 +425,10 @@ async def set_setpoint(session: Session, node: SessionNode, value: float, *, con
     guard = guard_for(session)
     guard.check(node.node_id, panel, "Setpoint")
     mode = await _mode(session, node)
+    if fam.generic and mode in (1, 6):  # a target alone does not move a CiA 402 drive: it needs the set-point bit
+        raise InvalidValue(f"In {mode_label(fam, mode)} mode the drive moves by a "
+                           f"{'move (POST …/control/move)' if mode == 1 else 'homing run (POST …/control/home)'}, "
+                           "not by a setpoint.")
     spec = _setpoint(fam, mode)
     scale = await setpoint_scale(session, node, mode)
     _check_range(value, scale)
