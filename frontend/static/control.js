@@ -277,6 +277,21 @@
         const status = await call("PUT", `${api}/setpoint`, { value, confirm: value !== 0 });
         if (status) render(status);
       });
+      const cyclicForm = motion.querySelector("#ctl-cyclic");
+      if (cyclicForm) {
+        cyclicForm.addEventListener("submit", async (event) => {
+          event.preventDefault();
+          const value = parseFloat(event.target.value.value);
+          if (Number.isNaN(value)) { showError("<strong>Target</strong> enter a number"); return; }
+          if (!await confirmed(`Cyclic synchronous setpoint ${value}`)) return;
+          const sent = await call("POST", `${api}/cyclic`, { value, confirm: true });
+          if (sent) result.textContent = `RPDO${sent.rpdo} (0x${sent.cob_id.toString(16).toUpperCase()}) every ${sent.period_ms} ms with SYNC: ${sent.data}`;
+        });
+        motion.querySelector("#ctl-cyclic-stop").addEventListener("click", async () => {
+          const stopped = await call("DELETE", `${api}/cyclic`);
+          if (stopped) result.textContent = `Cyclic RPDOs stopped: ${stopped.stopped}`;
+        });
+      }
       const homeForm = motion.querySelector("#ctl-home");
       if (homeForm) homeForm.addEventListener("submit", async (event) => {
         event.preventDefault();

@@ -15,7 +15,9 @@ import can
 import pytest
 
 from drivebench.errors import ConfirmationRequired, Conflict, InvalidValue, OutOfRange
+from drivebench.protocol.nmt import NmtCommand
 from drivebench.services import drive_control, motion, parameters
+from drivebench.services import process_data as live
 from drivebench.services.drive_control import DriveStatus
 from drivebench.services.drive_words import Command
 from drivebench.services.sessions import Session
@@ -219,3 +221,22 @@ def test_a_setpoint_alone_is_refused_where_the_drive_needs_a_move(axis: Axis) ->
     axis.enable()
     with pytest.raises(InvalidValue, match="move"):
         axis.run(drive_control.set_setpoint(axis.session, axis.node, 90, confirm=AXIS))
+
+
+def test_cyclic_synchronous_velocity_through_sync_and_an_rpdo(axis: Axis) -> None:
+    axis.enable()
+    axis.run(drive_control.set_mode(axis.session, axis.node, 9, confirm=AXIS))
+    with pytest.raises(Conflict, match="Operational"):
+        axis.run(motion.stream(axis.session, axis.node, 200, confirm=AXIS))
+    axis.run(axis.session.nmt(NmtCommand.START, AXIS))
+    axis.until(lambda _: axis.session.nmt_state(AXIS)[0] == "Operational", "node 7 operational")
+    sent = axis.run(motion.stream(axis.session, axis.node, 200, confirm=AXIS))
+    assert (sent.rpdo, sent.cob_id, sent.period_ms) == (3, 0x407, 10)  # RPDO3: 0x6040 + 0x60FF; 0x60C2 = 10 ms
+    assert sent.data == "0F 00 C8 00 00 00"
+    axis.until(lambda _: axis.read("0x606C") == 200, "following the cyclic target velocity")
+    assert live.service(axis.session).sync_period_ms == 10
+    status = axis.run(drive_control.command(axis.session, axis.node, Command.QUICK_STOP))
+    assert not live.service(axis.session).cyclic_cob_ids()  # the stream ended before the quick stop was written
+    axis.until(lambda status: status.state == "switch_on_disabled", "stopped")
+    assert status.control_word is not None and status.control_word & 0x06 == 0x02
+    live.service(axis.session).stop_sync()

@@ -29,6 +29,7 @@ from drivebench.device.control import ActualSpec, Setpoint, WordScale
 from drivebench.device.control import JogPlan as JogSpec
 from drivebench.errors import Conflict, DriveBenchError, InvalidValue, OutOfRange, UnknownParameter
 from drivebench.services import node_lease, parameters
+from drivebench.services import process_data as live
 from drivebench.services.drive_guard import (
     ARM_SETTLE_S,
     SERVICE_PANEL,
@@ -399,6 +400,8 @@ async def command(session: Session, node: SessionNode, which: Command, *, confir
         guard.check(node.node_id, panel, COMMAND_LABELS[which])
     if which in fam.moving:
         _confirmed(confirm, node, COMMAND_LABELS[which])
+    if which in STOPPING:  # a cyclic synchronous stream would send its control word again: it ends first
+        live.service(session).stop_node(node.node_id)
     with node_lease.stopping() if which in STOPPING else contextlib.nullcontext():  # any station may stop it
         last = await last_control_word(session, node)
         word = next_control_word(fam, which, last)
@@ -412,7 +415,7 @@ async def command(session: Session, node: SessionNode, which: Command, *, confir
     return await read_status(session, node, panel)
 
 
-def _check_range(value: float, scale: Scale, what: str = "Setpoint") -> None:
+def check_range(value: float, scale: Scale, what: str = "Setpoint") -> None:
     if (scale.minimum is not None and value < scale.minimum) or (scale.maximum is not None and value > scale.maximum):
         low = "-∞" if scale.minimum is None else f"{scale.minimum:g}"
         high = "∞" if scale.maximum is None else f"{scale.maximum:g}"
@@ -431,7 +434,7 @@ async def set_setpoint(session: Session, node: SessionNode, value: float, *, con
                            "not by a setpoint.")
     spec = _setpoint(fam, mode)
     scale = await setpoint_scale(session, node, mode)
-    _check_range(value, scale)
+    check_range(value, scale)
     if value != 0:
         _confirmed(confirm, node, f"Setpoint {value:g} {scale.unit}")
         guard.arm(node.node_id, panel)

@@ -21,6 +21,7 @@ from pydantic import BaseModel
 from drivebench.device import cia402
 from drivebench.errors import Conflict, InvalidValue, OutOfRange
 from drivebench.services import drive_control, parameters
+from drivebench.services import process_data as live
 from drivebench.services.drive_control import SERVICE_PANEL, DriveStatus, Panel, guard_for, has_ref
 from drivebench.services.drive_units import motion_units
 from drivebench.services.sessions import Session, SessionNode
@@ -174,3 +175,64 @@ async def home(session: Session, node: SessionNode, method: int, *, confirm: obj
     base = await drive_control.last_control_word(session, node) & ~MODE_BITS
     await _edge(session, node, base, hold=True)
     return await drive_control.read_status(session, node, panel)
+
+
+# --- cyclic synchronous modes (8/9/10): the setpoint travels in an RPDO every SYNC -----------------------------
+CYCLIC_TARGETS = {8: "0x607A", 9: "0x60FF", 10: "0x6071"}
+
+
+class CyclicStream(BaseModel):
+    mode: int
+    rpdo: int
+    cob_id: int
+    period_ms: int
+    data: str
+    """The RPDO as sent every cycle (control word and setpoint), hex."""
+
+
+async def _cycle_ms(session: Session, node: SessionNode) -> int:
+    """The interpolation time period 0x60C2 (value x 10^index s) in ms, 10 ms when the drive has none."""
+    catalog = drive_control.catalog_of(node)
+    if not has_ref(catalog, "0x60C2.1"):
+        return 10
+    value = await _read(session, node, "0x60C2.1") or 10
+    index = await _read(session, node, "0x60C2.2") if has_ref(catalog, "0x60C2.2") else -3
+    return max(1, round(value * 10 ** (index if index is not None else -3) * 1000))
+
+
+async def stream(session: Session, node: SessionNode, value: float, *, confirm: object = None,
+                 panel: Panel = SERVICE_PANEL) -> CyclicStream:
+    """Cyclic synchronous position / velocity / torque: SYNC at the drive's interpolation period (0x60C2) and an
+    RPDO mapping the control word and the mode's target, sent every cycle while the panel holds the drive."""
+    status = await _enabled(session, node, panel, "A cyclic synchronous setpoint")
+    if status.mode not in CYCLIC_TARGETS:
+        raise Conflict("Choose a cyclic synchronous mode (8, 9 or 10) first; it is in "
+                       f"{status.mode_label or 'no mode'}.")
+    target = CYCLIC_TARGETS[status.mode]
+    if session.nmt_state(node.node_id)[0] != "Operational":
+        raise Conflict(f"Node {node.node_id} takes RPDOs only in NMT Operational: start it first (Plant page).")
+    scale = await drive_control.setpoint_scale(session, node, status.mode)
+    drive_control.check_range(value, scale)
+    data = live.service(session)
+    configs = await data.load(node.node_id)
+    config = next((c for c in configs if c.direction == "rpdo" and c.valid and
+                   {"0x6040", target} <= {entry.ref for entry in c.entries}), None)
+    if config is None:
+        raise Conflict(f"No valid RPDO of node {node.node_id} maps the control word 0x6040 and {target}: map one on "
+                       "the PDO tab.")
+    drive_control.require_confirmation(confirm, node.node_id, f"Cyclic setpoint {value:g} {scale.unit}")
+    guard_for(session).arm(node.node_id, panel)
+    period = await _cycle_ms(session, node)
+    word = await drive_control.last_control_word(session, node)
+    if panel.key not in data.watchers:
+        data.watch(panel.key)
+    data.start_sync(period)
+    frame = await data.start_cyclic(panel.key, node.node_id, config.number,
+                                    {"0x6040": str(word), target: f"{value:g}"}, period)
+    return CyclicStream(mode=status.mode, rpdo=config.number, cob_id=config.cob_id, period_ms=period,
+                        data=frame.hex(" ").upper())
+
+
+def stop_stream(session: Session, node: SessionNode) -> int:
+    """End the cyclic RPDOs to the node (a stopping command does it too); how many ran."""
+    return live.service(session).stop_node(node.node_id)

@@ -18,7 +18,7 @@ from drivebench.services.commissioning import RunOut
 from drivebench.services.drive_control import ActualValue, DriveStatus, JogPlan
 from drivebench.services.drive_guard import require_confirmation
 from drivebench.services.drive_words import Command
-from drivebench.services.motion import MotionInfo
+from drivebench.services.motion import CyclicStream, MotionInfo
 from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.safety import ACTING, PanelDep, confirmation
 
@@ -46,6 +46,14 @@ class MoveIn(Confirmed):
     relative: bool = Field(False, description="Control word bit 6: relative to the last target")
     immediate: bool = Field(True, description="Control word bit 5: change set immediately")
     velocity: float | None = Field(None, gt=0, description="Profile velocity 0x6081 (velocity units)")
+
+
+class CyclicIn(Confirmed):
+    value: float = Field(description="Target of the cyclic synchronous mode shown (8: 0x607A, 9: 0x60FF, 10: 0x6071)")
+
+
+class StoppedOut(BaseModel):
+    stopped: int = Field(description="Cyclic RPDOs to the node that were running")
 
 
 class HomeIn(Confirmed):
@@ -112,6 +120,18 @@ async def move(request: Request, session: SessionDep, node: NodeDep, panel: Pane
     """CiA 402 profile-position move (mode 1): target, new set-point edge, set-point acknowledge."""
     return await motion.move(session, node, body.target, relative=body.relative, immediate=body.immediate,
                              velocity=body.velocity, confirm=confirmation(request, body.confirm), panel=panel)
+
+
+@router.post("/cyclic", response_model=CyclicStream)
+async def cyclic(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep, body: CyclicIn) -> CyclicStream:
+    """Cyclic synchronous mode (8/9/10): SYNC at 0x60C2 and an RPDO with the control word and the target, every
+    cycle, while this panel holds the drive (any stopping command or a lost keep-alive ends it)."""
+    return await motion.stream(session, node, body.value, confirm=confirmation(request, body.confirm), panel=panel)
+
+
+@router.delete("/cyclic", response_model=StoppedOut)
+async def stop_cyclic(session: SessionDep, node: NodeDep) -> StoppedOut:
+    return StoppedOut(stopped=motion.stop_stream(session, node))
 
 
 @router.post("/home", response_model=DriveStatus)
