@@ -255,7 +255,7 @@
     const motion = panel.querySelector("#ctl-motion");
     async function confirmed(text) { return await confirmMove(`${text}: the motor may turn.`); }
     if (motion) {
-      const { positionUnit, velocityUnit } = motion.dataset;
+      const { positionUnit } = motion.dataset;
       motion.querySelector("#ctl-move").addEventListener("submit", async (event) => {
         event.preventDefault();
         const form = event.target;
@@ -268,15 +268,16 @@
           immediate: form.immediate.checked, confirm: true, ...(Number.isNaN(velocity) ? {} : { velocity }) });
         if (status) render(status);
       });
-      motion.querySelector("#ctl-velocity").addEventListener("submit", async (event) => {
-        event.preventDefault();
-        const value = parseFloat(event.target.value.value);
-        if (Number.isNaN(value)) { showError("<strong>Target velocity</strong> enter a number"); return; }
-        if (value !== 0 && !await confirmed(`Profile velocity ${value} ${velocityUnit}`)) return;
-        if (currentMode !== 3 && !await call("PUT", `${api}/mode`, { mode: 3, confirm: true })) return;
+      motion.querySelectorAll("form[data-mode]").forEach((form) => form.addEventListener("submit", async (event) => {
+        event.preventDefault();  // profile velocity (3) or torque (4): the mode first, then its setpoint
+        const mode = Number(form.dataset.mode);
+        const value = parseFloat(form.value.value);
+        if (Number.isNaN(value)) { showError("<strong>Target</strong> enter a number"); return; }
+        if (value !== 0 && !await confirmed(`Target ${value} ${form.dataset.unit} (mode ${mode})`)) return;
+        if (currentMode !== mode && !await call("PUT", `${api}/mode`, { mode, confirm: true })) return;
         const status = await call("PUT", `${api}/setpoint`, { value, confirm: value !== 0 });
         if (status) render(status);
-      });
+      }));
       const cyclicForm = motion.querySelector("#ctl-cyclic");
       if (cyclicForm) {
         cyclicForm.addEventListener("submit", async (event) => {

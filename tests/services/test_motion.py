@@ -240,3 +240,13 @@ def test_cyclic_synchronous_velocity_through_sync_and_an_rpdo(axis: Axis) -> Non
     axis.until(lambda status: status.state == "switch_on_disabled", "stopped")
     assert status.control_word is not None and status.control_word & 0x06 == 0x02
     live.service(axis.session).stop_sync()
+
+
+def test_profile_torque_in_per_mille(axis: Axis) -> None:
+    axis.enable()
+    axis.run(drive_control.set_mode(axis.session, axis.node, 4, confirm=AXIS))
+    status = axis.run(drive_control.set_setpoint(axis.session, axis.node, 100, confirm=AXIS))
+    assert (status.setpoint_ref, status.setpoint_unit, status.setpoint_max) == ("0x6071", "‰", 3000)  # 0x6072
+    axis.until(lambda _: axis.read("0x606C") > 0, "the load turning under the torque")
+    with pytest.raises(OutOfRange):
+        axis.run(drive_control.set_setpoint(axis.session, axis.node, 4000, confirm=AXIS))
