@@ -66,7 +66,8 @@ SETTINGS = [("0x6081", "Profile velocity", "velocity"), ("0x6083", "Profile acce
             ("0x609A", "Homing acceleration", "acceleration"),
             ("0x607C", "Home offset", "position"), ("0x607D.1", "Software position limit: min", "position"),
             ("0x607D.2", "Software position limit: max", "position"),
-            ("0x607F", "Max profile velocity", "velocity"), ("0x60C2.1", "Interpolation time period", None)]
+            ("0x607F", "Max profile velocity", "velocity"), ("0x60C2.1", "Interpolation time period value", None),
+            ("0x60C2.2", "Interpolation time index (period = value x 10^index s)", None)]
 
 
 async def _read(session: Session, node: SessionNode, ref: str) -> float | None:
