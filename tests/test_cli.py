@@ -85,7 +85,7 @@ def test_serve_opens_a_socketcand_bus_shared_with_a_simulator_process(tmp_path: 
                     live = [n["nmt_state"] for n in nodes if n["state_from_heartbeat"]]
                     return live if len(live) == len(DEMO_NODE_IDS) else None
 
-                assert poll(live_states, 15, "heartbeat states") == ["Pre-operational"] * 3
+                assert poll(live_states, 15, "heartbeat states") == ["Pre-operational"] * len(DEMO_NODE_IDS)
         finally:
             codes = [server.stop(), simulator.stop()]
     # uvicorn shuts down gracefully on SIGTERM, then raises the signal again so the exit status tells why it ended
