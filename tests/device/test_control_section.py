@@ -74,3 +74,11 @@ def test_sequence_steps_round_trip_as_telegram_data(registry: ProfileRegistry) -
         "sdo", 0x27F8, 0, b"\0\0", "2b f8 27 00 00 00 00 00")
     again = Sequence.model_validate(json.loads(sequence.model_dump_json()))
     assert again == sequence
+
+
+def test_a_transition_to_a_state_the_section_lacks_is_refused() -> None:
+    with pytest.raises(ValidationError, match="arrow 1: 'nowhere'"):
+        ControlSection.model_validate({"key": "x", "state_machine": "cia402", "title": "t", "control_word": "0x6040",
+                                       "status_word": "0x6041", "states": [{"key": "ready", "label": "Ready",
+                                                                            "col": 0, "row": 0}],
+                                       "arrows": [{"from_state": "ready", "to_state": "nowhere"}]})

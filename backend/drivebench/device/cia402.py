@@ -52,17 +52,17 @@ STATES = [
     StateBox(key="fault", label="Fault", col=2, row=1, fault=True),
 ]
 ARROWS = [
-    Arrow(source="not_ready", target="switch_on_disabled", label="1"),
-    Arrow(source="switch_on_disabled", target="ready", label="2 Shutdown"),
-    Arrow(source="ready", target="switched_on", label="3 Switch on"),
-    Arrow(source="switched_on", target="operation_enabled", label="4 Enable"),
-    Arrow(source="operation_enabled", target="switched_on", label="5 Disable op."),
-    Arrow(source="switched_on", target="ready", label="6 Shutdown"),
-    Arrow(source="ready", target="switch_on_disabled", label="7 QS / disable voltage"),
-    Arrow(source="operation_enabled", target="quick_stop_active", label="11 Quick stop"),
-    Arrow(source="quick_stop_active", target="switch_on_disabled", label="12"),
-    Arrow(source="fault_reaction_active", target="fault", label="14"),
-    Arrow(source="fault", target="switch_on_disabled", label="15 Fault reset"),
+    Arrow(from_state="not_ready", to_state="switch_on_disabled", label="1"),
+    Arrow(from_state="switch_on_disabled", to_state="ready", label="2 Shutdown"),
+    Arrow(from_state="ready", to_state="switched_on", label="3 Switch on"),
+    Arrow(from_state="switched_on", to_state="operation_enabled", label="4 Enable"),
+    Arrow(from_state="operation_enabled", to_state="switched_on", label="5 Disable op."),
+    Arrow(from_state="switched_on", to_state="ready", label="6 Shutdown"),
+    Arrow(from_state="ready", to_state="switch_on_disabled", label="7 QS / disable voltage"),
+    Arrow(from_state="operation_enabled", to_state="quick_stop_active", label="11 Quick stop"),
+    Arrow(from_state="quick_stop_active", to_state="switch_on_disabled", label="12"),
+    Arrow(from_state="fault_reaction_active", to_state="fault", label="14"),
+    Arrow(from_state="fault", to_state="switch_on_disabled", label="15 Fault reset"),
 ]
 COMMANDS = {
     Command.SHUTDOWN: CommandBits(clear=0x8F, set=0x06), Command.SWITCH_ON: CommandBits(clear=0x8F, set=0x07),

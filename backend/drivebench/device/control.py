@@ -18,7 +18,7 @@ from __future__ import annotations
 from enum import StrEnum
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, PlainSerializer, WithJsonSchema
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, PlainSerializer, WithJsonSchema, model_validator
 
 
 def _parse_int(value: object) -> object:
@@ -62,8 +62,10 @@ class StateBox(_Model):
 
 
 class Arrow(_Model):
-    source: str
-    target: str
+    """A drawn transition between two states (their keys)."""
+
+    from_state: str
+    to_state: str
     label: str = ""
 
 
@@ -171,6 +173,17 @@ class ControlSection(_Model):
     simulation: str | None = None
     """The simulator's drive model for this device (a named behaviour: ``cia402_vf_inverter``, ``lenze_8400``,
     ``lenze_emf2178ib``, ``cia402_servo``)."""
+
+    @model_validator(mode="after")
+    def _states_known(self) -> ControlSection:
+        keys = {box.key for box in self.states}
+        named = [(f"arrow {n + 1}", key) for n, arrow in enumerate(self.arrows)
+                 for key in (arrow.from_state, arrow.to_state)]
+        unknown = [f"{where}: '{key}'" for where, key in named if key not in keys]
+        if unknown:
+            raise ValueError(f"states not among the section's states ({', '.join(sorted(keys))}): "
+                             + "; ".join(unknown))
+        return self
 
 
 # --- commissioning ---------------------------------------------------------------------------------------------

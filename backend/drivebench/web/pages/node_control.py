@@ -44,7 +44,7 @@ def _diagram(fam: Family) -> dict[str, Any]:
               "fault": box.fault} for box in fam.states]
     arrows = []
     for arrow in fam.section.arrows:
-        (sx, sy), (tx, ty) = pos[arrow.source], pos[arrow.target]
+        (sx, sy), (tx, ty) = pos[arrow.from_state], pos[arrow.to_state]
         if sx == tx:  # vertical: two lanes so up and down arrows do not overlap
             down = ty > sy
             x = sx + BOX_W / 2 + (-30 if down else 30)
