@@ -21,7 +21,7 @@ from drivebench.services import accounts, database
 from drivebench.transport.hub import start_hub_thread
 from tests.transport.test_multiprocess import START_TIMEOUT_S, CliProcess, start_simulator
 
-DEMO_NODE_IDS = [3, 5, 12]
+DEMO_NODE_IDS = [3, 5, 7, 12]
 
 
 def free_port() -> int:
@@ -58,7 +58,7 @@ def poll(fetch: Callable[[], object], timeout_s: float, what: str) -> object:
 
 def test_serve_opens_a_socketcand_bus_shared_with_a_simulator_process(tmp_path: Path) -> None:
     """`drivebench serve --bus socketcand:127.0.0.1:PORT/can0` against the hub, drives simulated by another
-    process: health answers, the session is listed, a scan finds the three drives with live heartbeat states."""
+    process: health answers, the session is listed, a scan finds the four drives with live heartbeat states."""
     with start_hub_thread(port=0) as hub:
         bus = f"socketcand:127.0.0.1:{hub.port}/can0"
         simulator = start_simulator(bus)
@@ -85,7 +85,7 @@ def test_serve_opens_a_socketcand_bus_shared_with_a_simulator_process(tmp_path: 
                     live = [n["nmt_state"] for n in nodes if n["state_from_heartbeat"]]
                     return live if len(live) == len(DEMO_NODE_IDS) else None
 
-                assert poll(live_states, 15, "heartbeat states") == ["Pre-operational"] * 3
+                assert poll(live_states, 15, "heartbeat states") == ["Pre-operational"] * len(DEMO_NODE_IDS)
         finally:
             codes = [server.stop(), simulator.stop()]
     # uvicorn shuts down gracefully on SIGTERM, then raises the signal again so the exit status tells why it ended

@@ -20,20 +20,12 @@ SCOPES = ("services", "web", "protocol")
 VENDOR = re.compile(r"lenze|siemens|micromaster|motec|baseline[ _-]?c\b|emf2178|\bemf(?:_|\b)|(?<![a-z])mm4|93xx"
                     r"|(?<![\w.])8[24]00(?!\d)", re.IGNORECASE)
 
-NAMED_BEHAVIOURS: set[str] = set()
+NAMED_BEHAVIOURS: set[str] = {
+    "services/drive_words.py",  # the state-machine kinds a control section selects: cia402 / lenze / none
+}
 """Modules that hold the table of named behaviours a profile selects by name (they may name a family)."""
 
-PENDING_CONTROL_SECTION: dict[str, int] = {
-    # Control tab, drive words and guided commissioning: issue 17 item 1 moves them into the profile's ``control``
-    # and ``commissioning`` sections (helper V's branch); until that lands they may keep at most these many names.
-    # Lower or delete these lines once it has.
-    "services/drive_control.py": 37,
-    "services/drive_words.py": 41,
-    "services/commissioning.py": 31,
-    "web/pages/node_control.py": 2,
-}
 KNOWN_EXCEPTIONS: dict[str, int] = {
-    **PENDING_CONTROL_SECTION,
     # DIP switches, COB-ID tables and the network planner follow device/dip.py's family keys and cobids.py's base-ID
     # rules (the ``switches`` section is not made yet).
     "services/planner.py": 12,
@@ -101,7 +93,7 @@ def test_services_web_and_protocol_name_no_vendor_outside_the_known_exceptions()
 
 def test_the_known_exceptions_are_still_needed() -> None:
     found = offences()
-    done = sorted(module for module in KNOWN_EXCEPTIONS.keys() - PENDING_CONTROL_SECTION.keys() if module not in found)
+    done = sorted(module for module in KNOWN_EXCEPTIONS if module not in found)
     assert not done, f"no vendor names left in {done}: remove them from KNOWN_EXCEPTIONS"
 
 

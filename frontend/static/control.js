@@ -41,6 +41,7 @@
     let watching = false;  // another panel holds the armed drive
     const refused = Boolean(panel.dataset.refused);  // this user's role may watch the drive, not control it
     let runOpen = false;  // a commissioning run has steps left
+    let currentMode = null;  // CiA 402 modes of operation display (0x6061), from the last status
     const nameInput = panel.querySelector("#ctl-operator");
     nameInput.value = operator();
     nameInput.addEventListener("change", () => {
@@ -95,9 +96,18 @@
       trip.hidden = !status.last_trip;
       trip.textContent = status.last_trip || "";
       const display = panel.querySelector("#ctl-mode-display");
-      if (display && status.mode !== null) display.textContent = `${status.mode} ${status.mode_label}`;
-      panel.querySelector("#ctl-sp-ref").textContent = status.setpoint_ref;
-      panel.querySelector("#ctl-sp-unit").textContent = status.setpoint_unit;
+      if (display && status.mode !== null) display.textContent = `${status.mode_label} (${status.mode})`;
+      currentMode = status.mode;
+      panel.querySelectorAll("input[name=ctl-mode]").forEach((radio) => { radio.checked = Number(radio.value) === status.mode; });
+      const spRef = panel.querySelector("#ctl-sp-ref");
+      if (spRef) spRef.textContent = status.setpoint_ref;
+      const spUnit = panel.querySelector("#ctl-sp-unit");
+      if (spUnit) spUnit.textContent = status.setpoint_unit;
+      const inputs = panel.querySelectorAll("#ctl-inputs tr");
+      (status.inputs || []).forEach((bit, i) => inputs[i] && inputs[i].classList.toggle("on", bit.set));
+      const error = panel.querySelector("#ctl-error-code");
+      if (error) error.textContent = status.error_code === null ? "–"
+        : `0x${status.error_code.toString(16).toUpperCase().padStart(4, "0")} ${status.error_text || ""}`;
     }
 
     function renderHolder(status) {
@@ -115,7 +125,8 @@
       panel.querySelectorAll("[data-command]").forEach((button) => {
         button.disabled = refused || (watching && !STOPPING.has(button.dataset.command));
       });
-      panel.querySelectorAll("#ctl-setpoint input, #ctl-setpoint button, [data-jog], input[name=ctl-mode], #ctl-seq-start")
+      panel.querySelectorAll("#ctl-setpoint input, #ctl-setpoint button, [data-jog], input[name=ctl-mode], #ctl-seq-start, " +
+                             "#ctl-motion form input, #ctl-motion form select, #ctl-motion form button, #ctl-jog-speed")
         .forEach((control) => { control.disabled = refused || watching; });
       if (nextButton) nextButton.disabled = refused || watching || !runOpen;
     }
@@ -191,7 +202,8 @@
     panel.querySelectorAll("[data-command]").forEach((button) =>
       button.addEventListener("click", () => command(button.dataset.command, button.textContent.trim())));
 
-    panel.querySelector("#ctl-setpoint").addEventListener("submit", async (event) => {
+    const setpointForm = panel.querySelector("#ctl-setpoint");
+    if (setpointForm) setpointForm.addEventListener("submit", async (event) => {
       event.preventDefault();
       const value = parseFloat(event.target.value.value);
       if (Number.isNaN(value)) { showError("<strong>Setpoint</strong> enter a number"); return; }
@@ -219,7 +231,10 @@
         }
         jogging = true;
         button.classList.add("held");
-        await call("POST", `${api}/jog`, { direction: Number(button.dataset.jog), confirm: true });
+        const speedInput = panel.querySelector("#ctl-jog-speed");
+        const speed = speedInput ? parseFloat(speedInput.value) : NaN;
+        await call("POST", `${api}/jog`, { direction: Number(button.dataset.jog), confirm: true,
+                                           ...(Number.isNaN(speed) ? {} : { speed }) });
       };
       const stop = async () => {
         if (!jogging) return;
@@ -235,6 +250,58 @@
       const status = await call("PUT", `${api}/mode`, { mode: Number(radio.value), confirm: false });
       if (status) render(status);
     }));
+
+    // --- CiA 402 motion (a drive without a vendor control section): profile position, profile velocity, homing ---
+    const motion = panel.querySelector("#ctl-motion");
+    async function confirmed(text) { return await confirmMove(`${text}: the motor may turn.`); }
+    if (motion) {
+      const { positionUnit } = motion.dataset;
+      motion.querySelector("#ctl-move").addEventListener("submit", async (event) => {
+        event.preventDefault();
+        const form = event.target;
+        const target = parseFloat(form.target.value);
+        const velocity = parseFloat(form.velocity.value);
+        if (Number.isNaN(target)) { showError("<strong>Target</strong> enter a number"); return; }
+        const how = form.relative.checked ? "by" : "to";
+        if (!await confirmed(`Move ${how} ${target} ${positionUnit}`)) return;
+        const status = await call("POST", `${api}/move`, { target, relative: form.relative.checked,
+          immediate: form.immediate.checked, confirm: true, ...(Number.isNaN(velocity) ? {} : { velocity }) });
+        if (status) render(status);
+      });
+      motion.querySelectorAll("form[data-mode]").forEach((form) => form.addEventListener("submit", async (event) => {
+        event.preventDefault();  // profile velocity (3) or torque (4): the mode first, then its setpoint
+        const mode = Number(form.dataset.mode);
+        const value = parseFloat(form.value.value);
+        if (Number.isNaN(value)) { showError("<strong>Target</strong> enter a number"); return; }
+        if (value !== 0 && !await confirmed(`Target ${value} ${form.dataset.unit} (mode ${mode})`)) return;
+        if (currentMode !== mode && !await call("PUT", `${api}/mode`, { mode, confirm: true })) return;
+        const status = await call("PUT", `${api}/setpoint`, { value, confirm: value !== 0 });
+        if (status) render(status);
+      }));
+      const cyclicForm = motion.querySelector("#ctl-cyclic");
+      if (cyclicForm) {
+        cyclicForm.addEventListener("submit", async (event) => {
+          event.preventDefault();
+          const value = parseFloat(event.target.value.value);
+          if (Number.isNaN(value)) { showError("<strong>Target</strong> enter a number"); return; }
+          if (!await confirmed(`Cyclic synchronous setpoint ${value}`)) return;
+          const sent = await call("POST", `${api}/cyclic`, { value, confirm: true });
+          if (sent) result.textContent = `RPDO${sent.rpdo} (0x${sent.cob_id.toString(16).toUpperCase()}) every ${sent.period_ms} ms with SYNC: ${sent.data}`;
+        });
+        motion.querySelector("#ctl-cyclic-stop").addEventListener("click", async () => {
+          const stopped = await call("DELETE", `${api}/cyclic`);
+          if (stopped) result.textContent = `Cyclic RPDOs stopped: ${stopped.stopped}`;
+        });
+      }
+      const homeForm = motion.querySelector("#ctl-home");
+      if (homeForm) homeForm.addEventListener("submit", async (event) => {
+        event.preventDefault();
+        const select = event.target.method;
+        if (!await confirmed(`Homing, method ${select.options[select.selectedIndex].text}`)) return;
+        const status = await call("POST", `${api}/home`, { method: Number(select.value), confirm: true });
+        if (status) render(status);
+      });
+    }
 
     // --- guided commissioning ---
 

@@ -10,15 +10,28 @@ from typing import Any, TypeVar
 
 import pytest
 
+from drivebench.device.loader import ProfileRegistry
 from drivebench.errors import ConfirmationRequired, Conflict, OutOfRange
 from drivebench.services import drive_control, drive_guard, parameters
 from drivebench.services.drive_control import DriveStatus, describe
-from drivebench.services.drive_words import CIA402, EMF, L8400, Command
+from drivebench.services.drive_words import Command, Family, family_of_profile
 from drivebench.services.sessions import Session
 from drivebench.simulator.plant import Plant
 
 T = TypeVar("T")
 MM, VECTOR, MOTEC = 3, 12, 5
+
+
+def _family(profile_id: str) -> Family:
+    """The drive control a shipped profile's control section describes."""
+    found = family_of_profile(ProfileRegistry().get(profile_id))
+    assert found is not None
+    return found
+
+
+CIA402 = _family("siemens-micromaster4-canopen")
+EMF = _family("lenze-8200-vector-emf2178ib")
+L8400 = _family("lenze-8400-motec-canopen")
 
 
 class Bench:

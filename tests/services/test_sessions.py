@@ -23,7 +23,8 @@ from drivebench.transport.bus import BusSpec
 from tests.conftest import fresh_channel
 
 T = TypeVar("T")
-DEMO_NODES = {3: "siemens-micromaster4-canopen", 5: "lenze-8400-motec-canopen", 12: "lenze-8200-vector-emf2178ib"}
+DEMO_NODES = {3: "siemens-micromaster4-canopen", 5: "lenze-8400-motec-canopen", 7: "generic-cia402-servo",
+              12: "lenze-8200-vector-emf2178ib"}
 
 
 def run(main: Callable[[], Coroutine[Any, Any, T]]) -> T:
@@ -176,7 +177,7 @@ def test_nmt_broadcast_and_per_node_change_the_heartbeat_state(registry: Profile
         await session.nmt(NmtCommand.START)
         await until(lambda: set(states(session).values()) == {"Operational"})
         await session.nmt(NmtCommand.STOP, 12)
-        await until(lambda: states(session) == {3: "Operational", 5: "Operational", 12: "Stopped"})
+        await until(lambda: states(session) == {3: "Operational", 5: "Operational", 7: "Operational", 12: "Stopped"})
         await session.nmt(NmtCommand.ENTER_PRE_OPERATIONAL)
         await until(lambda: set(states(session).values()) == {"Pre-operational"})
         bootups = session.heartbeat(5).bootups

@@ -25,7 +25,8 @@ from drivebench.services.sessions import SessionManager
 from tests.conftest import screenshot
 
 START_TIMEOUT_S = 60.0  # a cold interpreter importing the package on a loaded 2-core machine
-DEMO_NODES = {3: "siemens-micromaster4-canopen", 5: "lenze-8400-motec-canopen", 12: "lenze-8200-vector-emf2178ib"}
+DEMO_NODES = {3: "siemens-micromaster4-canopen", 5: "lenze-8400-motec-canopen", 7: "generic-cia402-servo",
+              12: "lenze-8200-vector-emf2178ib"}
 
 
 class CliProcess:
@@ -83,7 +84,7 @@ def start_hub() -> tuple[CliProcess, int]:
 
 def start_simulator(bus: str) -> CliProcess:
     simulator = CliProcess("simulate", "--bus", bus, "--latency", "0ms")
-    simulator.wait_for_line(r"Simulating 3 node\(s\)")
+    simulator.wait_for_line(r"Simulating 4 node\(s\)")
     return simulator
 
 

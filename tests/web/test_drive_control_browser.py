@@ -220,3 +220,21 @@ def test_every_demo_node_plots_current_and_dc_bus(server: tuple[str, Plant], pag
     else:
         assert "Not available: Torque" in page.locator("#ctl-missing").inner_text()
     screenshot(page, f"control-actuals-node{node_id}")
+
+
+def test_demo_axis_has_the_standard_cia402_panel_and_the_seed_drives_keep_theirs(server: tuple[str, Plant],
+                                                                                page: Any) -> None:
+    """Node 7 of the demo plant (generic CiA 402 servo): its own Control tab with the CiA 402 motion controls, none
+    of the seed drives' words; node 3 keeps the MICROMASTER's."""
+    base, _ = server
+    page.goto(f"{base}/sessions/demo-plant/nodes/7?tab=control")
+    page.wait_for_selector("#ctl-ws.good", timeout=TIMEOUT_MS)
+    assert page.locator("#ctl-motion").count() == 1 and page.locator("#ctl-home-method").count() == 1
+    assert page.locator("#ctl-units").inner_text().startswith("Position in °, velocity in rpm")
+    tab = page.locator("#control-tab").inner_text()
+    assert not [word for word in ("MICROMASTER", "Lenze", "P0700", "8400", "EMF2178IB") if word in tab]
+    assert page.locator("#ctl-seq").count() == 0
+    page.goto(f"{base}/sessions/demo-plant/nodes/3?tab=control")
+    page.wait_for_selector("#ctl-ws.good", timeout=TIMEOUT_MS)
+    assert page.locator("#ctl-motion").count() == 0
+    assert "P0700 = 6" in page.locator("#control-tab").inner_text()

@@ -11,7 +11,8 @@ from typing import Any
 from tests.conftest import screenshot
 
 SESSION = "demo-plant"
-DEMO_ROWS = {3: "Pump (MICROMASTER 440)", 5: "Conveyor (8400 motec)", 12: "Fan (8200 vector + EMF2178IB)"}
+DEMO_ROWS = {3: "Pump (MICROMASTER 440)", 5: "Conveyor (8400 motec)", 7: "Axis (generic CiA 402 servo)",
+             12: "Fan (8200 vector + EMF2178IB)"}
 TIMEOUT_MS = 10_000
 
 

@@ -10,7 +10,8 @@ from tests.conftest import fresh_channel, wait_until
 NO_BROWSER = {"keepalive": False, "reason": "test without a browser"}  # NMT start without the keep-alive guard (admin)
 
 DEMO = "demo-plant"
-DEMO_DEVICES = {3: "Pump (MICROMASTER 440)", 5: "Conveyor (8400 motec)", 12: "Fan (8200 vector + EMF2178IB)"}
+DEMO_DEVICES = {3: "Pump (MICROMASTER 440)", 5: "Conveyor (8400 motec)", 7: "Axis (generic CiA 402 servo)",
+                12: "Fan (8200 vector + EMF2178IB)"}
 PROBLEM = "application/problem+json"
 
 
@@ -54,7 +55,7 @@ def test_the_demo_plant_session(client: TestClient) -> None:
     assert [s["id"] for s in sessions] == [DEMO]
     demo = client.get(f"/api/sessions/{DEMO}").json()
     assert demo["simulated"] is True and demo["bitrate"] == 500_000 and demo["interface"] == "virtual"
-    assert demo["node_count"] == 3 and demo["name"] == "Demo plant" and demo["state"] == "active"
+    assert demo["node_count"] == 4 and demo["name"] == "Demo plant" and demo["state"] == "active"
 
 
 def test_open_list_and_close_a_second_session(client: TestClient) -> None:
@@ -154,20 +155,22 @@ def test_nmt_broadcast_and_per_node(client: TestClient) -> None:
     assert wait_until(lambda: set(node_states(client).values()) == {"Pre-operational"})
     assert client.post(f"/api/sessions/{DEMO}/nmt", json={"command": "start"}).status_code == 428
     answer = client.post(f"/api/sessions/{DEMO}/nmt", json={"command": "start", "confirm": "all", **NO_BROWSER})
-    assert answer.status_code == 200 and len(answer.json()) == 3
+    assert answer.status_code == 200 and len(answer.json()) == 4
     assert wait_until(lambda: set(node_states(client).values()) == {"Operational"})
     single = client.post(f"/api/sessions/{DEMO}/nodes/12/nmt", json={"command": "stop"})
     assert single.status_code == 200 and single.json()["node_id"] == 12
-    assert wait_until(lambda: node_states(client) == {3: "Operational", 5: "Operational", 12: "Stopped"})
+    assert wait_until(lambda: node_states(client) == {3: "Operational", 5: "Operational", 7: "Operational",
+                                                      12: "Stopped"})
     client.post(f"/api/sessions/{DEMO}/nmt", json={"command": "pre-operational", "node_id": 5})
-    assert wait_until(lambda: node_states(client) == {3: "Operational", 5: "Pre-operational", 12: "Stopped"})
+    assert wait_until(lambda: node_states(client) == {3: "Operational", 5: "Pre-operational", 7: "Operational",
+                                                      12: "Stopped"})
     bootups = client.get(f"/api/sessions/{DEMO}/nodes/3").json()["bootups"]
     client.post(f"/api/sessions/{DEMO}/nmt", json={"command": "reset-node"})
     assert wait_until(lambda: client.get(f"/api/sessions/{DEMO}/nodes/3").json()["bootups"] > bootups)
     assert wait_until(lambda: set(node_states(client).values()) == {"Pre-operational"})
 
 
-def test_scan_finds_the_three_demo_nodes(client: TestClient) -> None:
+def test_scan_finds_the_four_demo_nodes(client: TestClient) -> None:
     found = client.post(f"/api/sessions/{DEMO}/scan", json={"timeout_s": 0.3})
     assert found.status_code == 200, found.text
     assert {n["node_id"]: n["device"] for n in found.json()} == DEMO_DEVICES
@@ -195,10 +198,10 @@ def test_node_websocket_pushes_the_nodes_table_as_it_changes(client: TestClient)
         client.post(f"/api/sessions/{DEMO}/nmt", json={"command": "start", "confirm": "all", **NO_BROWSER})
         for _ in range(20):
             update = socket.receive_text()
-            if update.count(">Operational<") == 3:
+            if update.count(">Operational<") == 4:
                 break
         else:
-            raise AssertionError("the websocket never showed three Operational nodes")
+            raise AssertionError("the websocket never showed four Operational nodes")
 
 
 def test_node_websocket_of_an_unknown_session_closes(client: TestClient) -> None:

@@ -174,13 +174,13 @@ def test_compare_saved_plan_with_a_live_scan(plant_api: TestClient) -> None:
     plan = {"name": "Line 1", "nodes": [
         {"name": "Conveyor", "device": "lenze-8400-motec", "node_id": 5, "baud_kbit": 500},
         {"name": "Fan", "device": "lenze-8400-motec", "node_id": 12, "baud_kbit": 500},  # really an EMF2178IB
-        {"name": "Lift", "device": "lenze-8400-motec", "node_id": 7, "baud_kbit": 500},
+        {"name": "Lift", "device": "lenze-8400-motec", "node_id": 9, "baud_kbit": 500},
     ]}
     network_id = api.post("/api/planned-networks", json=plan).json()["id"]
     response = api.post(f"/api/planned-networks/{network_id}/compare", params={"session": session_id(api)})
     assert response.status_code == 200, response.text
     result = response.json()
-    assert {n["node_id"]: n["status"] for n in result["nodes"]} == {5: "ok", 12: "wrong_device", 7: "missing"}
+    assert {n["node_id"]: n["status"] for n in result["nodes"]} == {5: "ok", 12: "wrong_device", 9: "missing"}
     assert not result["ok"]
 
     fitting = {"name": "Only the conveyor", "nodes": [plan["nodes"][0]]}

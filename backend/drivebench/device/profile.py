@@ -21,6 +21,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from drivebench.device.abort_texts import AbortTexts
 from drivebench.device.commands import CommandsSection
+from drivebench.device.control import ControlSection, Sequence
 from drivebench.device.hex_int import HexInt
 from drivebench.device.pdo_rules import PdoRules
 from drivebench.device.sdo_channels import SdoServerChannel
@@ -247,6 +248,10 @@ class Profile(BaseModel):
     """The manual's wording of SDO abort codes (``device/abort_texts.py``); CiA 301's where it has none."""
     pdo_rules: PdoRules | None = None
     """What the manual says about the PDOs beyond CiA 301 (``device/pdo_rules.py``)."""
+    control: ControlSection | None = None
+    """How the drive is switched, set and watched (``device/control.py``); None: CiA 402 by its objects, or none."""
+    commissioning: list[Sequence] = Field(default_factory=list)
+    """The manuals' guided commissioning sequences as telegram data."""
     extra_sections: dict[str, dict[str, str]] = Field(default_factory=dict)
     """EDS sections (and FileInfo/DeviceInfo keys) the model has no field for, kept for round trips."""
 

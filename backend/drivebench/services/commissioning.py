@@ -1,12 +1,9 @@
 """Guided commissioning: the manuals' first-commissioning sequences, one step at a time, with the telegrams.
 
-* MICROMASTER 4 (manual ch. 5.7 velocity mode, 5.8 profile torque mode): the SDO steps as printed, NMT start,
-  shutdown / switch on / enable operation by RPDO1 (0x200 + node) and the first setpoint by RPDO5 (0x300 + node);
-  the answer is the status word in TPDO1 (0x180 + node). The manual's BOP-only preconditions (P2051.4/5/6) are
-  shown, not sent. The manual writes the BICO values with 0x22 (size not indicated); the SDO client sends 0x23.
-* 8200 vector + EMF2178IB (ch. 6.5): CINH, C0001 = 3, controller enable by C0135, C0150 checked after each word.
-* 93XX + EMF2178IB (ch. 6.5): C0005 = 1013, C0142 = 0, CINH set once, then enable by AIF word 1.
-* 8400 motec: CAN1_IN word 1: SwitchOn, EnableOperation (bit names assumed, see ``drive_words``).
+The sequences are profile data (``commissioning`` section, :class:`drivebench.device.control.Sequence`): SDO
+downloads with the request as the manual prints it, NMT start, process-data telegrams answered by the status word
+in TPDO1, and checks of a status word's state or an object's value. A device is offered only the sequences its own
+profile carries (and whose ``requires`` objects it has).
 
 Each step records the frames of the node seen on the bus while it ran (both directions) and stops the run with
 a message when the answer is not the expected one.
@@ -23,148 +20,24 @@ from dataclasses import dataclass, field
 import can
 from pydantic import BaseModel
 
+from drivebench.device.control import Sequence, Step
 from drivebench.errors import Conflict, DriveBenchError, NotFound, SdoAbortError
 from drivebench.protocol.nmt import NmtCommand
 from drivebench.services import drive_control, parameters
-from drivebench.services.drive_words import CIA402, EMF, EMF_AIF, L8400
 from drivebench.services.sessions import Session, SessionNode
+
+__all__ = ["Run", "RunOut", "Sequence", "Step", "Wizard", "next_step", "sequences_for", "wizard"]
 
 ANSWER_TIMEOUT_S = 3.0
 
 
-@dataclass(frozen=True)
-class Step:
-    title: str
-    kind: str  # "sdo" (write index/sub := data), "nmt_start", "pdo" (send cob offset + data), "check" (read ref)
-    index: int = 0
-    sub: int = 0
-    data: bytes = b""
-    cob: int = 0  # COB-ID base (0x200 RPDO1, 0x300 RPDO5), node id added
-    expect_state: str | None = None
-    expect_ref: str | None = None
-    expect_value: int | None = None
-    printed: str | None = None  # the request as the manual prints it
-    moves: bool = False
-    note: str | None = None
-
-
-@dataclass(frozen=True)
-class Sequence:
-    key: str
-    title: str
-    source: str
-    preconditions: tuple[str, ...]
-    steps: tuple[Step, ...]
-
-
-def _sdo(title: str, index: int, sub: int, value: int, size: int, printed_cmd: int | None = None,
-         note: str | None = None, moves: bool = False) -> Step:
-    data = value.to_bytes(size, "little")
-    command = printed_cmd if printed_cmd is not None else {1: 0x2F, 2: 0x2B, 4: 0x23}[size]
-    printed = bytes([command, index & 0xFF, index >> 8, sub]) + data.ljust(4, b"\0")
-    return Step(title, "sdo", index, sub, data, printed=printed.hex(" "), note=note, moves=moves)
-
-
-def _mm_mapping(index: int, second: int, second_name: str) -> list[Step]:
-    first = 0x60400010 if index < 0x1800 else 0x60410010
-    return [_sdo(f"0x{index:04X}.0 := 0 (mapping off)", index, 0, 0, 1),
-            _sdo(f"0x{index:04X}.1 := 0x{first:08X}", index, 1, first, 4),
-            _sdo(f"0x{index:04X}.2 := 0x{second:08X} ({second_name})", index, 2, second, 4),
-            _sdo(f"0x{index:04X}.0 := 2", index, 0, 2, 1)]
-
-
-def _mm_head(torque: bool) -> list[Step]:
-    steps = [_sdo("P2040 = 0 (telegram off time)", 0x27F8, 0, 0, 2),
-             _sdo("P0700 = 6 (command source CAN)", 0x22BC, 0, 6, 2),
-             _sdo("P1000 = 6 (setpoint source CAN)", 0x23E8, 0, 6, 2),
-             _sdo("P0719 = 0", 0x22CF, 0, 0, 2),
-             _sdo("P1501 = r2091.12 (activates 0x6060)", 0x25DD, 0, 0x082B000C, 4, printed_cmd=0x22),
-             _sdo("P1300 = 22 (sensorless vector control)" if torque else "P1300 = 0 (V/f operation)",
-                  0x2514, 0, 22 if torque else 0, 2)]
-    if torque:
-        steps += [_sdo("P1503 = r2050.4 (activates 0x6071)", 0x25DF, 0, 0x08020004, 4, printed_cmd=0x22),
-                  _sdo("0x6060 := 4 (profile torque mode)", 0x6060, 0, 4, 1),
-                  Step("Check: 0x6061 = 4", "check", expect_ref="0x6061", expect_value=4, printed="40 61 60 00")]
-    steps += [_sdo(f"0x{index:04X}.2 := 0xFF (transmission type)", index, 2, 0xFF, 1)
-              for index in (0x1400, 0x1404, 0x1405, 0x1800, 0x1804, 0x1805)]
-    return steps
-
-
-def _mm_run(torque: bool) -> list[Step]:
-    second = 0x60710010 if torque else 0x60420010
-    actual = 0x60770010 if torque else 0x60440010
-    first_run = (Step("Target torque 200 ‰ + CW 0x7F by RPDO5: the drive rotates", "pdo", cob=0x300,
-                      data=bytes.fromhex("7f 00 c8 00"), expect_state="operation_enabled", moves=True)
-                 if torque else
-                 Step("Velocity 1000 rpm + CW 0x7F by RPDO5: the drive rotates", "pdo", cob=0x300,
-                      data=bytes.fromhex("7f 00 e8 03"), expect_state="operation_enabled", moves=True))
-    return [*_mm_mapping(0x1604, second, "target torque" if torque else "target velocity"),
-            *_mm_mapping(0x1A04, actual, "actual torque" if torque else "vl control effort"),
-            *_mm_mapping(0x1605, 0x60600008, "modes of operation"),
-            *_mm_mapping(0x1A05, 0x60610008, "modes of operation display"),
-            Step("NMT start node", "nmt_start", printed="000: 01 <node>"),
-            Step("Shutdown (6) by RPDO1", "pdo", cob=0x200, data=bytes.fromhex("06 00"), expect_state="ready"),
-            Step("Switch on (7) by RPDO1", "pdo", cob=0x200, data=bytes.fromhex("07 00"), expect_state="switched_on"),
-            Step("Enable operation (F) by RPDO1", "pdo", cob=0x200, data=bytes.fromhex("0f 00"),
-                 expect_state="operation_enabled", moves=True),
-            first_run]
-
-
-MM_PRE = ("On the BOP or start-up tool (not possible via CAN): P2051.6 = 55 (0x6061 active), "
-          "P2051.5 = 63 (0x6044 active)",)
-SEQUENCES = {
-    "mm-velocity": Sequence("mm-velocity", "MICROMASTER first commissioning, velocity mode",
-                            "MICROMASTER CANopen manual ch. 5.7", MM_PRE, (*_mm_head(False), *_mm_run(False))),
-    "mm-torque": Sequence("mm-torque", "MICROMASTER 440 first commissioning, profile torque mode",
-                          "MICROMASTER CANopen manual ch. 5.8",
-                          ("Bit rate 500 kbit/s (0x27DA := 500, effective after restart)", *MM_PRE,
-                           "P2051.4 = 80 (r0080 torque -> 0x6077)"), (*_mm_head(True), *_mm_run(True))),
-    "emf-8200": Sequence("emf-8200", "8200 vector minimal enable (EMF2178IB)", "EMF2178IB manual ch. 6.5",
-                         ("Terminal 28 (controller enable) HIGH", "QSP terminal (if assigned) HIGH"), (
-        _sdo("C0135 := CINH (0x0200)", 0x5F78, 0, 0x0200, 2),
-        _sdo("C0001 := 3 (process data via AIF; 3 x 10000)", 0x5FFE, 0, 30000, 4),
-        Step("Check: C0150 device status = operation inhibited", "check", expect_ref="C0150",
-             expect_state="operation_inhibited"),
-        _sdo("C0135 := 0 (controller enable, QSP off)", 0x5F78, 0, 0x0000, 2, moves=True),
-        Step("Check: C0150 device status = operation enabled", "check", expect_ref="C0150",
-             expect_state="operation_enabled"),
-        _sdo("C0135 := CINH again (back to operation inhibited)", 0x5F78, 0, 0x0200, 2),
-        Step("Check: C0150 device status = operation inhibited", "check", expect_ref="C0150",
-             expect_state="operation_inhibited"))),
-    "emf-93xx": Sequence("emf-93xx", "93XX minimal enable (EMF2178IB)", "EMF2178IB manual ch. 6.5",
-                         ("Terminal 28 HIGH", "Terminal E1 HIGH (QSP with C0005 = 1013)"), (
-        _sdo("C0005 := 1013 (speed control via AIF; x 10000)", 0x5FFA, 0, 10130000, 4),
-        _sdo("C0142 := 0 (protection against uncontrolled restart)", 0x5FFF - 142, 0, 0, 4),
-        _sdo("AIF word 1 := CINH (0x0200)", 0x58E1, 1, 0x0200, 2),
-        Step("Check: AIF-OUT word 1 = operation inhibited", "check", expect_ref="C1823/1",
-             expect_state="operation_inhibited"),
-        _sdo("AIF word 1 := 0 (controller enable)", 0x58E1, 1, 0x0000, 2, moves=True),
-        Step("Check: AIF-OUT word 1 = operation enabled", "check", expect_ref="C1823/1",
-             expect_state="operation_enabled"))),
-    "l8400": Sequence("l8400", "8400 motec minimal enable (CAN1_IN word 1)", "8400 motec CANopen manual ch. 8.1",
-                      ("Bit names of wCtrl assumed (LA_NCtrl); check against the 8400 reference manual",), (
-        _sdo("C00866/1 := 0 (controller inhibited)", 0x5FFF - 866, 1, 0x0000, 2),
-        Step("Check: CAN1_OUT word 1 = ready to switch on", "check", expect_ref="C00868/1", expect_state="ready"),
-        _sdo("C00866/1 := 0x0001 (SwitchOn)", 0x5FFF - 866, 1, 0x0001, 2),
-        Step("Check: switched on", "check", expect_ref="C00868/1", expect_state="switched_on"),
-        _sdo("C00866/1 := 0x0009 (SwitchOn + EnableOperation)", 0x5FFF - 866, 1, 0x0009, 2, moves=True),
-        Step("Check: operation enabled", "check", expect_ref="C00868/1", expect_state="operation_enabled"))),
-}
-
-
 def sequences_for(node: SessionNode) -> list[Sequence]:
-    try:
-        fam = drive_control.family(node)
-    except DriveBenchError:
+    """The guided sequences this device's profile carries (none for a device whose profile has none)."""
+    catalog = node.catalog
+    if catalog is None:
         return []
-    if fam is CIA402:
-        has_torque = node.catalog is not None and drive_control.has_ref(node.catalog, "0x6071")
-        return [SEQUENCES["mm-velocity"], *([SEQUENCES["mm-torque"]] if has_torque else [])]
-    if fam is EMF:
-        return [SEQUENCES["emf-8200"]]
-    if fam is EMF_AIF:
-        return [SEQUENCES["emf-93xx"]]
-    return [SEQUENCES["l8400"]] if fam is L8400 else []
+    return [seq for seq in catalog.profile.commissioning
+            if all(drive_control.has_ref(catalog, ref) for ref in seq.requires)]
 
 
 # --- a run ---------------------------------------------------------------------------------------------------

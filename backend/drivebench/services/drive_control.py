@@ -16,15 +16,20 @@ The guard itself (arming, holders, keep-alive deadlines, quick stop) is :mod:`dr
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import time
 from dataclasses import dataclass
 
 from pydantic import BaseModel
 
+from drivebench.device import cia402
 from drivebench.device.catalog import Catalog
+from drivebench.device.control import ActualSpec, Setpoint, WordScale
+from drivebench.device.control import JogPlan as JogSpec
 from drivebench.errors import Conflict, DriveBenchError, InvalidValue, OutOfRange, UnknownParameter
 from drivebench.services import node_lease, parameters
+from drivebench.services import process_data as live
 from drivebench.services.drive_guard import (
     ARM_SETTLE_S,
     SERVICE_PANEL,
@@ -35,13 +40,10 @@ from drivebench.services.drive_guard import (
     require_confirmation,
     write_word,
 )
+from drivebench.services.drive_units import generic_limits as _generic_limits
+from drivebench.services.drive_units import motion_units
 from drivebench.services.drive_words import (
-    CIA402,
     COMMAND_LABELS,
-    EMF,
-    EMF_AIF,
-    L8400,
-    MOVING,
     Command,
     Family,
     family_of,
@@ -56,14 +58,10 @@ from drivebench.services.drive_guard import Guard as Guard  # isort: skip
 from drivebench.services.drive_guard import Holder as Holder  # isort: skip
 from drivebench.services.drive_guard import panel_of as panel_of  # isort: skip
 
-MODES = {2: "Velocity mode", 4: "Profile torque mode"}  # MICROMASTER table 3-20 (profile torque: MM440 only)
-CW_RUN_RFG = 0x70  # MICROMASTER velocity mode: RFG enable, RFG start, setpoint enable
-
-
 # --- setpoint and actual values --------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Scale:
-    """User value = raw / raw_per_unit (a Lenze process-data word) or the profile's own scaling (raw_per_unit 0)."""
+    """User value = raw / raw_per_unit (a process-data word) or the profile's own scaling (raw_per_unit 0)."""
 
     ref: str
     unit: str
@@ -80,7 +78,7 @@ def has_ref(catalog: Catalog, ref: str) -> bool:
     return True
 
 
-def _catalog(node: SessionNode) -> Catalog:
+def catalog_of(node: SessionNode) -> Catalog:
     if node.catalog is None:
         raise InvalidValue(f"Node {node.node_id} has no device profile: the control panel needs one.")
     return node.catalog
@@ -89,94 +87,105 @@ def _catalog(node: SessionNode) -> Catalog:
 def family(node: SessionNode) -> Family:
     found = family_of(node.catalog)
     if found is None:
-        raise InvalidValue(f"{node.device_name} has no device control word DriveBench knows (CiA 402 0x6040/0x6041, "
-                           "Lenze C0135/C0150, AIF word 1 or 8400 CAN1_IN/CAN1_OUT).")
+        raise InvalidValue(f"{node.device_name} has no device control word DriveBench knows: its profile has no "
+                           "control section and its object dictionary no CiA 402 control/status word "
+                           "(0x6040/0x6041).")
     return found
 
 
-def _is_8200(catalog: Catalog) -> bool:
-    return has_ref(catalog, "C0001")
+async def _number(session: Session, node: SessionNode, ref: str | None, default: float) -> float:
+    if ref is None or not has_ref(catalog_of(node), ref):
+        return default
+    value = (await parameters.read(session, node.node_id, ref)).value
+    return float(value) if isinstance(value, (int, float)) else default
+
+
+async def _raw_per_unit(session: Session, node: SessionNode, scale: WordScale | None) -> tuple[float, float]:
+    """(raw per unit, reference value) of a process-data word; (0, 0) for the entry's own scaling."""
+    if scale is None:
+        return 0.0, 0.0
+    if scale.raw_per_unit:
+        return scale.raw_per_unit, 0.0
+    reference = await _number(session, node, scale.reference_ref, scale.reference_default) or scale.reference_default
+    return (scale.full_scale_raw or 1) / reference, reference
+
+
+def _setpoint(fam: Family, mode: int | None) -> Setpoint:
+    for spec in fam.section.setpoints:
+        if mode in spec.modes:
+            return spec
+    found = next((spec for spec in fam.section.setpoints if not spec.modes), None)
+    if found is None:
+        shown = mode_label(fam, mode) if mode is not None else "none"
+        raise InvalidValue(f"The mode of operation shown ({shown}) takes no setpoint from this panel: choose "
+                           "another mode.")
+    return found
 
 
 async def setpoint_scale(session: Session, node: SessionNode, mode: int | None) -> Scale:
-    fam, catalog = family(node), _catalog(node)
-    if fam is CIA402:
-        if mode == 4:
-            return Scale("0x6071", "‰", minimum=-1000, maximum=1000)
-        top = 1500.0
-        if has_ref(catalog, "0x6046.2"):
-            top = float((await parameters.read(session, node.node_id, "0x6046.2")).value or top)
-        return Scale("0x6042", "rpm", minimum=-top, maximum=top)
-    if fam in (EMF, EMF_AIF):
-        if _is_8200(catalog):  # 24000 = 480 Hz (EMF2178IB ch. 9.3.1.1)
-            return Scale("C1822/2", "Hz", 50.0, -480, 480)
-        return Scale("C1822/2", "%", 16383 / 100, -100, 100)  # 93XX: 16383 = 100 %
-    reference = 1500.0
-    if has_ref(catalog, "C00011"):
-        reference = float((await parameters.read(session, node.node_id, "C00011")).value or reference)
-    return Scale("C00866/2", "rpm", 0x4000 / reference, -2 * reference, 2 * reference)  # 0x4000 = C00011
+    fam = family(node)
+    try:
+        spec = _setpoint(fam, mode)
+    except InvalidValue:
+        return Scale("", "")
+    raw_per_unit, reference = await _raw_per_unit(session, node, spec.scale)
+    unit = spec.unit
+    if unit in ("position", "velocity"):
+        unit = getattr(await motion_units(session, node), unit)
+    low, high = spec.min, spec.max
+    if spec.limit_ref is not None:
+        top = await _number(session, node, spec.limit_ref, spec.max or 0.0)
+        low, high = -top, top
+    elif spec.limit_times_reference is not None:
+        low, high = -spec.limit_times_reference * reference, spec.limit_times_reference * reference
+    elif fam.generic:
+        low, high = await _generic_limits(session, node, spec.ref)
+    return Scale(spec.ref, unit, raw_per_unit, low, high)
 
 
-def actual_refs(node: SessionNode) -> list[tuple[str, str, Scale | None]]:
-    """(label, ref, word scale or None for the profile's own scaling) of the actual values this device has."""
-    fam, catalog = family(node), _catalog(node)
-    wanted: list[tuple[str, str, Scale | None]]
-    if fam is CIA402:
-        wanted = [("Speed", "0x6044", None), ("Output frequency", "r0021", None), ("Current", "r0027", None),
-                  ("DC-bus voltage", "r0026", None), ("Torque", "r0080", None), ("Torque", "0x6077", None),
-                  ("Heat-sink temperature", "r0037", None)]
-    elif fam in (EMF, EMF_AIF):
-        word = Scale("C1823/2", "Hz", 50.0) if _is_8200(catalog) else Scale("C1823/2", "%", 16383 / 100)
-        wanted = [("Speed (AIF-OUT.W1)", "C1823/2", word), ("Current", "C0054", None),
-                  ("DC-bus voltage", "C0053", None), ("Torque", "C0056", None),
-                  ("Heat-sink temperature", "C0061", None)]
-    else:
-        wanted = [("Speed (CAN1_OUT word 2)", "C00868/2", None), ("Current", "C00054", None),
-                  ("DC-bus voltage", "C00053", None), ("Torque", "C00056", None),
-                  ("Heat-sink temperature", "C00061", None)]
-    return [entry for entry in wanted if has_ref(catalog, entry[1])]
-
-
-ACTUAL_KINDS = ("Speed", "Current", "DC-bus voltage", "Torque", "Heat-sink temperature")
+def actual_refs(node: SessionNode) -> list[ActualSpec]:
+    """The actual values of the profile's control section this device has."""
+    fam, catalog = family(node), catalog_of(node)
+    return [spec for spec in fam.section.actual_values if has_ref(catalog, spec.ref)]
 
 
 def missing_actuals(node: SessionNode) -> list[str]:
     """The kinds of actual value the panel plots elsewhere that this device's profile (and its manual) lacks."""
-    present = {label.split(" (")[0] for label, _, _ in actual_refs(node)}
-    return [kind for kind in ACTUAL_KINDS if kind not in present]
+    present = {spec.label.split(" (")[0] for spec in actual_refs(node)}
+    return [kind for kind in family(node).section.actual_kinds if kind not in present]
 
 
 def missing_why(node: SessionNode) -> str:
     """Why the values :func:`missing_actuals` names are not there: which manual was searched for what."""
-    fam, catalog = family(node), _catalog(node)
-    if fam is CIA402:
-        return ("neither the MICROMASTER CANopen manual nor the MICROMASTER 440 parameter list entries taken over "
-                "(r0026, r0027, r0031, r0037) give it")
-    if fam in (EMF, EMF_AIF) and _is_8200(catalog):
-        return ("no actual-torque code: the EMF2178IB manual names only C0061, and only C0053 (DC bus) and C0054 "
-                "(motor current) were taken over from the 8200 vector code table")
-    if fam in (EMF, EMF_AIF):
-        return ("the EMF2178IB manual names only C0061 (heat-sink temperature) among the actual values; the 93XX "
-                "code table is not among the seed manuals")
-    return ("C00056 (torque) is named in the 8400 BaseLine C parameter list without unit or scaling and is not "
-            "assumed for the motec")
+    return family(node).section.missing_why
 
 
-def actual_source(node: SessionNode, ref: str, scale: Scale | None = None) -> str:
+def actual_source(node: SessionNode, ref: str, raw_per_unit: float = 0.0, unit: str | None = None) -> str:
     """Where a plotted value comes from: the object it is read from, its coding, and the manual that names it."""
-    catalog = _catalog(node)
+    catalog = catalog_of(node)
     item = catalog.resolve(ref)
     coding = item.entry.data_type.name
-    if scale is not None and scale.raw_per_unit:
-        coding += f", {scale.unit} = raw / {scale.raw_per_unit:g}"
+    if raw_per_unit:
+        coding += f", {unit} = raw / {raw_per_unit:g}"
     elif item.entry.factor != 1:
         coding += f", value = raw / {item.entry.factor:g}"
     text = item.entry.description or ""
     if text.startswith("Source: "):
         manual = text[len("Source: "):].split(". ")[0].rstrip(".")
+    elif family(node).generic:
+        manual = "CiA 402-2 object"
     else:
         manual = catalog.profile.source.split(", ")[0] if catalog.profile.source else "this device's profile"
     return f"{ref} = 0x{item.index:04X}.{item.subindex} ({coding}); {manual}"
+
+
+async def actual_sources(session: Session, node: SessionNode) -> list[tuple[str, str]]:
+    """(label, where it comes from) of every plotted actual value."""
+    out = []
+    for spec in actual_refs(node):
+        raw_per_unit, _ = await _raw_per_unit(session, node, spec.scale)
+        out.append((spec.label, actual_source(node, spec.ref, raw_per_unit, spec.unit)))
+    return out
 
 
 class ActualValue(BaseModel):
@@ -195,27 +204,26 @@ def _signed16(raw: int) -> int:
 
 async def read_actuals(session: Session, node: SessionNode) -> list[ActualValue]:
     out: list[ActualValue] = []
-    speed_scale: Scale | None = None
-    if family(node) is L8400:
-        speed_scale = await setpoint_scale(session, node, None)
-    for label, ref, scale in actual_refs(node):
-        source = actual_source(node, ref, speed_scale if ref == "C00868/2" else scale)
+    units = await motion_units(session, node) if family(node).generic else None
+    for spec in actual_refs(node):
+        raw_per_unit, _ = await _raw_per_unit(session, node, spec.scale)
+        source = actual_source(node, spec.ref, raw_per_unit, spec.unit)
         try:
-            value = await parameters.read(session, node.node_id, ref)
+            value = await parameters.read(session, node.node_id, spec.ref)
         except DriveBenchError as exc:
-            out.append(ActualValue(label=label, ref=ref, value=None, unit=None, error=str(exc), source=source))
+            out.append(ActualValue(label=spec.label, ref=spec.ref, value=None, unit=None, error=str(exc),
+                                   source=source))
             continue
-        if ref == "C00868/2" and speed_scale is not None and isinstance(value.raw, int):
-            out.append(ActualValue(label=label, ref=ref, unit="rpm", source=source,
-                                   value=round(_signed16(value.raw) / speed_scale.raw_per_unit, 1)))
-        elif scale is not None and isinstance(value.raw, int):
-            out.append(ActualValue(label=label, ref=ref, unit=scale.unit, source=source,
-                                   value=round(_signed16(value.raw & 0xFFFF) / scale.raw_per_unit, 2)))
-        else:
-            number = round(value.value, 3) if isinstance(value.value, (int, float)) else None  # REAL32 noise
-            out.append(ActualValue(label=label, ref=ref, value=number, unit=value.unit, source=source))
+        if raw_per_unit and isinstance(value.raw, int):
+            out.append(ActualValue(label=spec.label, ref=spec.ref, unit=spec.unit, source=source,
+                                   value=round(_signed16(value.raw & 0xFFFF) / raw_per_unit, spec.decimals)))
+            continue
+        number = round(value.value, 3) if isinstance(value.value, (int, float)) else None  # REAL32 noise
+        unit = value.unit or spec.unit
+        if units is not None:
+            unit = units.of(spec.ref) or unit
+        out.append(ActualValue(label=spec.label, ref=spec.ref, value=number, unit=unit, source=source))
     return out
-
 
 # --- status --------------------------------------------------------------------------------------------------
 class Bit(BaseModel):
@@ -266,6 +274,13 @@ class DriveStatus(BaseModel):
     panels: int
     """Control panels (websockets) open on this node."""
     last_trip: str | None
+    generic: bool = False
+    """Standard CiA 402 control (no vendor section): the panel offers the motion controls (see ``motion``)."""
+    inputs: list[Bit] = []
+    """CiA 402 digital inputs 0x60FD (limit switches, home switch named), where the device has them."""
+    error_code: int | None = None
+    error_text: str | None = None
+    """CiA 402 0x603F error code, decoded with the CiA 402 error-code table."""
 
 
 def bits(names: dict[int, str], word: int | None) -> list[Bit]:
@@ -280,11 +295,40 @@ def describe(fam: Family, status_word: int) -> tuple[str, str, bool, bool]:
     return key, state_label(fam, key), bool(box and box.enabled), bool(box and box.fault)
 
 
+def mode_label(fam: Family, mode: int) -> str:
+    return fam.section.modes.get(mode) or cia402.mode_label(mode)
+
+
 async def _mode(session: Session, node: SessionNode) -> int | None:
-    if family(node) is not CIA402 or not has_ref(_catalog(node), "0x6061"):
+    if family(node).section.state_machine != "cia402" or not has_ref(catalog_of(node), "0x6061"):
         return None
     raw = (await parameters.read(session, node.node_id, "0x6061")).raw
     return int(raw) if isinstance(raw, int) else None
+
+
+async def modes(session: Session, node: SessionNode) -> dict[int, str]:
+    """The modes the panel offers: the section's, for a generic drive those 0x6502 names (else its EDS lists)."""
+    fam = family(node)
+    if fam.generic and has_ref(catalog_of(node), "0x6502"):
+        raw = (await parameters.read(session, node.node_id, "0x6502")).raw
+        if isinstance(raw, int):
+            return {mode: cia402.MODE_NAMES[mode] for mode in cia402.modes_from_6502(raw)}
+    return dict(fam.section.modes)
+
+
+async def _diagnostics(session: Session, node: SessionNode) -> tuple[list[Bit], int | None]:
+    """Digital inputs 0x60FD and error code 0x603F of a generic CiA 402 drive (where it has them)."""
+    catalog = catalog_of(node)
+    inputs: list[Bit] = []
+    if has_ref(catalog, "0x60FD"):
+        raw = (await parameters.read(session, node.node_id, "0x60FD")).raw
+        word = int(raw) if isinstance(raw, int) else 0
+        inputs = [Bit(bit=bit, name=name, set=bool(word >> bit & 1)) for bit, name in cia402.INPUT_BITS.items()]
+    code = None
+    if has_ref(catalog, "0x603F"):
+        raw = (await parameters.read(session, node.node_id, "0x603F")).raw
+        code = int(raw) & 0xFFFF if isinstance(raw, int) else None
+    return inputs, code
 
 
 async def read_status(session: Session, node: SessionNode, panel: Panel = SERVICE_PANEL) -> DriveStatus:
@@ -297,6 +341,7 @@ async def read_status(session: Session, node: SessionNode, panel: Panel = SERVIC
         control_word = None  # write-only on some devices
     mode = await _mode(session, node)
     scale = await setpoint_scale(session, node, mode)
+    inputs, error_code = await _diagnostics(session, node) if fam.generic else ([], None)
     key, label, enabled, fault = describe(fam, status_word)
     guard = guard_for(session)
     if not enabled:
@@ -305,21 +350,23 @@ async def read_status(session: Session, node: SessionNode, panel: Panel = SERVIC
         # in between must not leave the drive running with nobody holding it.
         guard.release(node.node_id, armed_before=read_at - ARM_SETTLE_S)
     holder = guard.holder(node.node_id)
+    section = fam.section
     return DriveStatus(
         node_id=node.node_id, family=fam.key, title=fam.title, note=fam.note, state=key, state_label=label,
         enabled=enabled, fault=fault, status_ref=fam.status_ref, status_word=status_word,
-        status_bits=bits(fam.status_bits, status_word), control_ref=fam.control_ref, control_word=control_word,
-        control_bits=bits(fam.control_bits, control_word),
-        commands={command.value: COMMAND_LABELS[command] for command in fam.commands},
-        moving_commands=[command.value for command in fam.commands if command in MOVING],
+        status_bits=bits(section.status_bits, status_word), control_ref=fam.control_ref, control_word=control_word,
+        control_bits=bits(section.control_bits, control_word),
+        commands={command.value: COMMAND_LABELS[command] for command in section.commands},
+        moving_commands=[command.value for command in section.commands if command in fam.moving],
         states=[StateOut(key=box.key, label=box.label, col=box.col, row=box.row, enabled=box.enabled, fault=box.fault)
-                for box in fam.states],
-        mode=mode, mode_label=MODES.get(mode) if mode is not None else None,
-        modes=MODES if mode is not None else {}, setpoint_ref=scale.ref, setpoint_unit=scale.unit,
-        setpoint_min=scale.minimum, setpoint_max=scale.maximum, armed=guard.armed(node.node_id),
-        holder=holder.text() if holder else None, you_hold=bool(holder and holder.panel.key == panel.key),
-        panels=guard.panels(node.node_id),
-        last_trip=guard.trips.get(node.node_id))
+                for box in section.states],
+        mode=mode, mode_label=mode_label(fam, mode) if mode is not None else None,
+        modes=await modes(session, node) if mode is not None else {}, setpoint_ref=scale.ref,
+        setpoint_unit=scale.unit, setpoint_min=scale.minimum, setpoint_max=scale.maximum,
+        armed=guard.armed(node.node_id), holder=holder.text() if holder else None,
+        you_hold=bool(holder and holder.panel.key == panel.key), panels=guard.panels(node.node_id),
+        last_trip=guard.trips.get(node.node_id), generic=fam.generic, inputs=inputs, error_code=error_code,
+        error_text=cia402.error_text(error_code) if error_code is not None else None)
 
 
 # --- commands ------------------------------------------------------------------------------------------------
@@ -331,7 +378,7 @@ async def write_control_word(session: Session, node: SessionNode, word: int) -> 
     await write_word(session, node.node_id, family(node).control_ref, word)
 
 
-async def _last_control_word(session: Session, node: SessionNode) -> int:
+async def last_control_word(session: Session, node: SessionNode) -> int:
     try:
         return await last_word(session, node.node_id, family(node).control_ref)
     except DriveBenchError:
@@ -345,20 +392,22 @@ async def command(session: Session, node: SessionNode, which: Command, *, confir
                   panel: Panel = SERVICE_PANEL) -> DriveStatus:
     """Send one transition. Stopping commands are open to every panel; the others only to the holder."""
     fam = family(node)
-    if which not in fam.commands:
+    bits_of = fam.section.commands.get(which)
+    if bits_of is None:
         raise InvalidValue(f"{COMMAND_LABELS[which]} is not a command of {fam.title}.")
     guard = guard_for(session)
     if which not in STOPPING:
         guard.check(node.node_id, panel, COMMAND_LABELS[which])
-    if which in MOVING:
+    if which in fam.moving:
         _confirmed(confirm, node, COMMAND_LABELS[which])
+    if which in STOPPING:  # a cyclic synchronous stream would send its control word again: it ends first
+        live.service(session).stop_node(node.node_id)
     with node_lease.stopping() if which in STOPPING else contextlib.nullcontext():  # any station may stop it
-        last = await _last_control_word(session, node)
+        last = await last_control_word(session, node)
         word = next_control_word(fam, which, last)
-        edge = fam.edge_bits.get(which)
-        if edge is not None and last & edge:
-            await write_control_word(session, node, last & ~edge)  # a rising edge needs the bit at 0 first
-        if which in MOVING:
+        if bits_of.edge is not None and last & bits_of.edge:
+            await write_control_word(session, node, last & ~bits_of.edge)  # a rising edge needs the bit at 0 first
+        if which in fam.moving:
             guard.arm(node.node_id, panel)
         await write_control_word(session, node, word)
     if which in STOPPING:
@@ -366,15 +415,26 @@ async def command(session: Session, node: SessionNode, which: Command, *, confir
     return await read_status(session, node, panel)
 
 
+def check_range(value: float, scale: Scale, what: str = "Setpoint") -> None:
+    if (scale.minimum is not None and value < scale.minimum) or (scale.maximum is not None and value > scale.maximum):
+        low = "-∞" if scale.minimum is None else f"{scale.minimum:g}"
+        high = "∞" if scale.maximum is None else f"{scale.maximum:g}"
+        raise OutOfRange(f"{what} {value:g} {scale.unit} is outside {low} ... {high} {scale.unit}.")
+
+
 async def set_setpoint(session: Session, node: SessionNode, value: float, *, confirm: object = None,
                        panel: Panel = SERVICE_PANEL) -> DriveStatus:
     fam = family(node)
     guard = guard_for(session)
     guard.check(node.node_id, panel, "Setpoint")
-    scale = await setpoint_scale(session, node, await _mode(session, node))
-    if (scale.minimum is not None and value < scale.minimum) or (scale.maximum is not None and value > scale.maximum):
-        raise OutOfRange(f"Setpoint {value:g} {scale.unit} is outside {scale.minimum:g} ... {scale.maximum:g} "
-                         f"{scale.unit}.")
+    mode = await _mode(session, node)
+    if fam.generic and mode in (1, 6):  # a target alone does not move a CiA 402 drive: it needs the set-point bit
+        raise InvalidValue(f"In {mode_label(fam, mode)} mode the drive moves by a "
+                           f"{'move (POST …/control/move)' if mode == 1 else 'homing run (POST …/control/home)'}, "
+                           "not by a setpoint.")
+    spec = _setpoint(fam, mode)
+    scale = await setpoint_scale(session, node, mode)
+    check_range(value, scale)
     if value != 0:
         _confirmed(confirm, node, f"Setpoint {value:g} {scale.unit}")
         guard.arm(node.node_id, panel)
@@ -383,66 +443,70 @@ async def set_setpoint(session: Session, node: SessionNode, value: float, *, con
         await parameters.write(session, node.node_id, scale.ref, raw, check=False, verify=False)
     else:
         await parameters.write(session, node.node_id, scale.ref, value, verify=False)
-    if fam is CIA402 and scale.ref == "0x6042":
-        last = await _last_control_word(session, node)
-        if last & 0x0F == 0x0F and last & CW_RUN_RFG != CW_RUN_RFG:  # velocity mode: run the ramp (0x7F)
-            await write_control_word(session, node, last | CW_RUN_RFG)
+    if spec.run_bits is not None:  # e.g. CiA 402 velocity mode: run the ramp-function generator (0x7F)
+        last = await last_control_word(session, node)
+        if last & spec.run_when == spec.run_when and last & spec.run_bits != spec.run_bits:
+            await write_control_word(session, node, last | spec.run_bits)
     return await read_status(session, node, panel)
 
 
 # --- jog -----------------------------------------------------------------------------------------------------
-EMF_JOG1 = 0x0001  # AIF-CTRL bits 1/0 = 01: NSET1-JOG1 (C0037) active (EMF2178IB ch. 9.3.1.1, C0007 <= 51)
-EMF_JOG_SELECT = 0x0003
-EMF_CCW = 0x0004  # bit 2: DCTRL1-CW/CCW
-
-
 class JogPlan(BaseModel):
-    """How the panel jogs this device: with the device's own jog function or by a setpoint."""
+    """How the panel jogs this device: with the device's own jog function, by a setpoint, or (CiA 402) by a
+    profile-velocity move."""
 
     method: str
-    """"device" (the control word selects the device's JOG value) or "setpoint" (the panel sends a setpoint)."""
+    """"device" (the control word selects the device's JOG value), "setpoint" (the panel sends a setpoint) or
+    "profile_velocity" (mode 3, 0x60FF at a speed the user sets)."""
     value: float
     unit: str
     text: str
-
-
-async def _number(session: Session, node: SessionNode, ref: str, default: float) -> float:
-    if not has_ref(_catalog(node), ref):
-        return default
-    value = (await parameters.read(session, node.node_id, ref)).value
-    return float(value) if isinstance(value, (int, float)) else default
+    maximum: float | None = None
+    """Highest jog speed the user may set (profile-velocity jog: 0x607F max profile velocity)."""
 
 
 async def jog_plan(session: Session, node: SessionNode) -> JogPlan:
-    fam, catalog = family(node), _catalog(node)
+    fam = family(node)
+    spec = fam.section.jog
+    why = spec.why
+    if spec.method == "device" and spec.value_ref is not None and has_ref(catalog_of(node), spec.value_ref):
+        if spec.enabled_ref is None or spec.enabled_max is None or \
+                await _number(session, node, spec.enabled_ref, 0) <= spec.enabled_max:
+            value = await _number(session, node, spec.value_ref, 0)
+            return JogPlan(method="device", value=value, unit=spec.unit or "",
+                           text=spec.text.format(value=value, unit=spec.unit, word=fam.control_ref))
+        why = spec.disabled_why or why
+    if spec.method == "profile_velocity":
+        return await profile_velocity_jog(session, node, spec.text)
+    if spec.percent_ref is not None and has_ref(catalog_of(node), spec.percent_ref):
+        percent = await _number(session, node, spec.percent_ref, 0)
+        reference = await _number(session, node, spec.reference_ref, spec.reference_default)
+        value = round(percent / 100 * reference, 1)
+        unit = _setpoint(fam, None).unit
+        return JogPlan(method="setpoint", value=value, unit=unit,
+                       text=spec.text.format(percent=percent, value=value, unit=unit, reference=reference))
     scale = await setpoint_scale(session, node, await _mode(session, node))
-    why = "this device's manual gives the panel no jog function"
-    if fam is EMF and _is_8200(catalog) and has_ref(catalog, "C0037"):
-        if await _number(session, node, "C0007", 0) <= 51:
-            hz = await _number(session, node, "C0037", 0)
-            return JogPlan(method="device", value=hz, unit="Hz",
-                           text=f"Device jog: {fam.control_ref} bits 1/0 = 01 select NSET1-JOG1 (C0037 = {hz:g} Hz), "
-                                "bit 2 (DCTRL1-CW/CCW) turns it round (EMF2178IB ch. 9.3.1.1).")
-        why = "with C0007 > 51 control bits 0/1 are freely configurable, not the JOG selection"
-    elif fam is L8400 and has_ref(catalog, "C00039/1"):
-        percent = await _number(session, node, "C00039/1", 0)
-        rpm = round(percent / 100 * await _number(session, node, "C00011", 1500), 1)
-        return JogPlan(method="setpoint", value=rpm, unit="rpm",
-                       text=f"Setpoint jog at C00039/1 Fixed setpoint-JOG1 = {percent:g} % of C00011 = {rpm:g} rpm, "
-                            "sent as the speed setpoint (CAN1_IN word 2): the 8400 CANopen manual names no "
-                            "control-word bit that selects JOG1.")
-    elif fam is CIA402:
-        why = "the MICROMASTER CANopen manual gives no jog (control bit 8 is 'Halt, not used in CAN')"
-    elif fam is EMF_AIF:
-        why = "the EMF2178IB manual names NSET-JOG*1/*2 (control bits 0/1) for the 93XX but not its JOG values"
-    top = scale.maximum or 100.0
-    value = round(top / 10, 1)
+    fraction = spec.fraction or 0.1
+    value = round((scale.maximum or 100.0) * fraction, 1)
+    text = JogSpec().text if spec.percent_ref is not None else spec.text
     return JogPlan(method="setpoint", value=value, unit=scale.unit,
-                   text=f"Setpoint jog at 10 % of the range ({value:g} {scale.unit}): {why}.")
+                   text=text.format(percent=fraction * 100, value=value, unit=scale.unit, why=why))
+
+
+async def profile_velocity_jog(session: Session, node: SessionNode, text: str,
+                               speed: float | None = None) -> JogPlan:
+    """CiA 402 jog: mode 3 at ``speed`` (default a tenth of 0x607F), never above 0x607F."""
+    units = await motion_units(session, node)
+    top = await _number(session, node, "0x607F", 0.0) or None
+    value = speed if speed is not None else round((top or 100.0) / 10, 1)
+    if top is not None:
+        value = min(abs(value), top)
+    return JogPlan(method="profile_velocity", value=abs(value), unit=units.velocity, maximum=top,
+                   text=text.format(value=abs(value), unit=units.velocity))
 
 
 async def jog(session: Session, node: SessionNode, direction: int, *, confirm: object = None,
-              panel: Panel = SERVICE_PANEL) -> DriveStatus:
+              panel: Panel = SERVICE_PANEL, speed: float | None = None) -> DriveStatus:
     """Hold-to-run: +1 / -1 runs at the jog value while the keep-alive lasts, 0 stops."""
     if direction not in (-1, 0, 1):
         raise InvalidValue("Jog direction is -1, 0 or 1.")
@@ -452,31 +516,53 @@ async def jog(session: Session, node: SessionNode, direction: int, *, confirm: o
     if direction and not status.enabled:
         raise Conflict(f"Jog needs the drive in operation enabled (it is in '{status.state_label}').")
     plan = await jog_plan(session, node)
+    if plan.method == "profile_velocity":
+        if speed is not None and speed <= 0:
+            raise OutOfRange(f"Jog speed {speed:g} {plan.unit} must be above 0.")
+        if speed is not None and plan.maximum is not None and speed > plan.maximum:
+            raise OutOfRange(f"Jog speed {speed:g} {plan.unit} is above the max profile velocity 0x607F = "
+                             f"{plan.maximum:g} {plan.unit}.")
+        if direction:
+            _confirmed(confirm, node, f"Jog at {speed or plan.value:g} {plan.unit}")
+            guard.arm(node.node_id, panel)
+            if status.mode != 3:
+                await parameters.write(session, node.node_id, "0x6060", 3, verify=False)
+        value = direction * (speed or plan.value)
+        await parameters.write(session, node.node_id, "0x60FF", value, verify=False)
+        return await read_status(session, node, panel)
     if plan.method == "setpoint":
         return await set_setpoint(session, node, direction * plan.value, confirm=confirm, panel=panel)
+    spec = family(node).section.jog
     if direction:
         _confirmed(confirm, node, f"Jog at {plan.value:g} {plan.unit}")
         guard.arm(node.node_id, panel)
-    word = await _last_control_word(session, node) & ~(EMF_JOG_SELECT | EMF_CCW)
+    word = await last_control_word(session, node) & ~spec.select_mask
     if direction:
-        word |= EMF_JOG1 | (EMF_CCW if direction < 0 else 0)
+        word |= spec.forward if direction > 0 else spec.reverse
     await write_control_word(session, node, word)
     return await read_status(session, node, panel)
 
 
+MODE_SETTLE_S = 1.0
+"""How long a drive may take to show a new mode in 0x6061."""
+
+
 async def set_mode(session: Session, node: SessionNode, mode: int, *, confirm: object = None,
                    panel: Panel = SERVICE_PANEL) -> DriveStatus:
-    if family(node) is not CIA402 or not has_ref(_catalog(node), "0x6060"):
+    fam = family(node)
+    if fam.section.state_machine != "cia402" or not has_ref(catalog_of(node), "0x6060"):
         raise InvalidValue(f"{node.device_name} has no modes of operation (0x6060).")
-    if mode not in MODES:
-        raise InvalidValue(f"Mode {mode} is not supported: the MICROMASTER knows 2 (velocity) and 4 (profile torque).")
+    if mode not in await modes(session, node):
+        raise InvalidValue((fam.section.modes_help or "Mode {mode} is not supported.").format(mode=mode))
     guard_for(session).check(node.node_id, panel, "Changing the mode of operation")
     status = await read_status(session, node, panel)
     if status.enabled:
         _confirmed(confirm, node, "Changing the mode of operation while the drive is enabled")
     await parameters.write(session, node.node_id, "0x6060", mode, verify=False)
-    status = await read_status(session, node, panel)
+    deadline = time.monotonic() + MODE_SETTLE_S
+    while (status := await read_status(session, node, panel)).mode != mode and time.monotonic() < deadline:
+        await asyncio.sleep(0.02)
     if status.mode != mode:
-        raise Conflict(f"0x6061 shows {status.mode} after writing 0x6060 = {mode}: the MICROMASTER takes 0x6060 only "
-                       "once P1501 = r2091.12 (0x082B000C), see the commissioning wizard step 5.")
+        raise Conflict((fam.section.mode_refused or "0x6061 shows {shown} after writing 0x6060 = {mode}.")
+                       .format(shown=status.mode, mode=mode))
     return status

@@ -69,7 +69,7 @@ RUNS_RIGHT = 0x4000  # MM status word bit 14 "motor runs direction right" (set a
 REVERSE = 0x0800  # control word bit 11, MM "Reverse"
 
 
-def _command_state(state: State402, cw: int) -> State402:
+def command_state(state: State402, cw: int) -> State402:
     """The state a control word leads to from ``state`` (table 3-16, CiA 402 transitions 2...12, 16)."""
     voltage, quick, switch_on, enable = cw & 0x02, cw & 0x04, cw & 0x01, cw & 0x08
     if state in (State402.NOT_READY_TO_SWITCH_ON, State402.FAULT_REACTION_ACTIVE, State402.FAULT):
@@ -91,8 +91,8 @@ def _command_state(state: State402, cw: int) -> State402:
     return State402.OPERATION_ENABLED  # enable operation (4); from ready via switched on (MM: automatically)
 
 
-class Drive402:
-    """Attached to a SimulatedNode whose profile has 0x6040/0x6041 (the MICROMASTER)."""
+class StateMachine402:
+    """What every simulated CiA 402 drive shares: its state, the last control word, states passed, fault reset."""
 
     def __init__(self, node: SimulatedNode) -> None:
         self.node = node
@@ -100,20 +100,40 @@ class Drive402:
         self._lock = threading.RLock()
         self.state = State402.NOT_READY_TO_SWITCH_ON
         self.control_word = 0
+        self.fault_code = 0
+        self.history: list[State402] = []
+
+    def _publish(self) -> None:
+        raise NotImplementedError
+
+    def _enter(self, state: State402) -> None:
+        self.state = state
+        self.history.append(state)
+        self._publish()
+
+    def _fault_reset(self, cw: int, previous: int) -> None:
+        """Transition 15: a rising edge of control word bit 7 in *fault* clears 0x603F and the EMCY."""
+        if cw & 0x80 and not previous & 0x80 and self.state is State402.FAULT:
+            self.fault_code = 0
+            if self.store.has(0x603F, 0):
+                self.store.set(0x603F, 0, 0, notify=False)
+            self._enter(State402.SWITCH_ON_DISABLED)
+            self.node.clear_emcy()
+
+
+class Drive402(StateMachine402):
+    """The MICROMASTER's drive model (the profile's control section names it ``cia402_vf_inverter``)."""
+
+    def __init__(self, node: SimulatedNode) -> None:
+        super().__init__(node)
         self.speed_rpm = 0.0
         self.torque_permille = 0.0
         self.ramping = False
-        self.fault_code = 0
         self._speed_before = 0.0
         self.motor = MotorModel(RATED_CURRENT_A, self._param("r0037", 35.0))
         self._next_cycle = 0.0
-        self.history: list[State402] = []
         self.store.add_write_hook(self.on_write)
         self.reset()
-
-    @staticmethod
-    def applies(node: SimulatedNode) -> bool:
-        return node.store.has(0x6040, 0) and node.store.has(0x6041, 0)
 
     # --- parameters the drive looks at --------------------------------------------------------------------
     def _param(self, ref: str, default: float) -> float:
@@ -175,13 +195,8 @@ class Drive402:
                 return  # P0700 != 6: the MICROMASTER takes its commands from elsewhere
             if self.state is State402.NOT_READY_TO_SWITCH_ON:
                 self._enter(State402.SWITCH_ON_DISABLED)
-            if cw & 0x80 and not previous & 0x80 and self.state is State402.FAULT:
-                self.fault_code = 0
-                if self.store.has(0x603F, 0):
-                    self.store.set(0x603F, 0, 0, notify=False)
-                self._enter(State402.SWITCH_ON_DISABLED)  # transition 15
-                self.node.clear_emcy()
-            target = _command_state(self.state, cw)
+            self._fault_reset(cw, previous)
+            target = command_state(self.state, cw)
             if target is State402.OPERATION_ENABLED and self.state is State402.READY_TO_SWITCH_ON:
                 self._enter(State402.SWITCHED_ON)  # shown briefly, then on by itself (ch. 3.3)
             if target is not self.state:
@@ -193,11 +208,6 @@ class Drive402:
         if self._param("P1501", BICO_TORQUE_CONTROL) != BICO_TORQUE_CONTROL:
             return  # 0x6060 acts only through CW2 bit 12 (P1501 = r2091.12)
         self.store.set(0x6061, 0, mode)
-        self._publish()
-
-    def _enter(self, state: State402) -> None:
-        self.state = state
-        self.history.append(state)
         self._publish()
 
     # --- status word and actual values -----------------------------------------------------------------

@@ -65,6 +65,8 @@ WORDS_EMF = LenzeWords("lenze-emf2178ib", ("C0135", "C1822/1"), ("C1822/2",), ("
                        ("C1823/2",), ("C0054", "C0053", "C0061"),
                        quick_stop_bit=3, inhibit_bit=9, fail_bit=10, reset_bit=11, ccw_bit=2,
                        parameter_set_bits=(12, 13))
+MODELS = {"lenze_8400": WORDS_8400, "lenze_emf2178ib": WORDS_EMF}
+"""The named drive models a profile's control section selects (``simulation``)."""
 
 
 class LenzeControl:
@@ -90,13 +92,10 @@ class LenzeControl:
         self.reset()
 
     @staticmethod
-    def words_for(node: SimulatedNode) -> LenzeWords | None:
-        family = node.profile.family
-        if family == "lenze-8400" and _has(node, "C00866/1"):
-            return WORDS_8400
-        if family == "lenze-emf2178ib" and _has(node, "C1822/1"):
-            return WORDS_EMF
-        return None
+    def words_for(node: SimulatedNode, model: str | None) -> LenzeWords | None:
+        """The words of the model a profile's control section names (``simulation``), if the device has them."""
+        words = MODELS.get(model or "")
+        return words if words is not None and any(_has(node, ref) for ref in words.control_refs) else None
 
     def _key(self, ref: str) -> tuple[int, int] | None:
         try:

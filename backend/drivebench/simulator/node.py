@@ -24,6 +24,7 @@ from drivebench.simulator.drive402 import Drive402
 from drivebench.simulator.faults import FaultState
 from drivebench.simulator.lenze_control import LenzeControl
 from drivebench.simulator.pdo import PdoEngine
+from drivebench.simulator.servo402 import Servo402
 from drivebench.simulator.store import ObjectStore, RawValue
 from drivebench.simulator.telegram_counters import DeviceTelegramCounters
 
@@ -64,10 +65,19 @@ class Latency:
         return f"{self.mean_s * 1000:g} ms{jitter}"
 
 
-def _device_control(node: SimulatedNode) -> Drive402 | LenzeControl | None:
-    if Drive402.applies(node):
+def _device_control(node: SimulatedNode) -> Drive402 | LenzeControl | Servo402 | None:
+    """The drive model the profile's control section names (``simulation``); a profile without one whose objects
+    have 0x6040/0x6041 is a generic CiA 402 servo."""
+    control = node.profile.control
+    if control is not None:
+        model = control.simulation
+    else:
+        model = "cia402_servo" if node.store.has(0x6040, 0) and node.store.has(0x6041, 0) else None
+    if model == "cia402_vf_inverter":
         return Drive402(node)
-    words = LenzeControl.words_for(node)
+    if model == "cia402_servo":
+        return Servo402(node)
+    words = LenzeControl.words_for(node, model)
     return LenzeControl(node, words) if words is not None else None
 
 
@@ -112,7 +122,7 @@ class SimulatedNode:
         self.store.add_write_hook(self._on_write)
         self._build_sdo_servers()
         self.drive = _device_control(self)
-        """The drive's device control by profile family (CiA 402 or Lenze control/status words), if any."""
+        """The drive model the profile names (CiA 402 inverter or servo, Lenze control/status words), if any."""
 
     # --- life cycle -------------------------------------------------------------------------------------
     def power_on(self) -> None:

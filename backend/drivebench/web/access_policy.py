@@ -87,6 +87,8 @@ RULES: dict[tuple[str, str], Rule] = {
     **_rules(E, "Controlling a drive",
              ("POST", N + "/control/commands/{command}"), ("PUT", N + "/control/setpoint"),
              ("POST", N + "/control/jog"), ("PUT", N + "/control/mode"), ("POST", N + "/control/keepalive"),
+             ("POST", N + "/control/move"), ("POST", N + "/control/home"), ("POST", N + "/control/cyclic"),
+             ("DELETE", N + "/control/cyclic"),
              ("POST", N + "/control/sequences/{key}/runs"), ("POST", N + "/control/runs/{run_id}/next")),
     **_rules(E, "Resetting the monitor counters and recording", ("POST", S + "/monitor/reset"),
              ("POST", S + "/monitor/recordings"), ("POST", S + "/monitor/recordings/stop"),

@@ -13,11 +13,12 @@ from __future__ import annotations
 from fastapi import APIRouter, Request
 from pydantic import BaseModel, Field
 
-from drivebench.services import commissioning, drive_control
+from drivebench.services import commissioning, drive_control, motion
 from drivebench.services.commissioning import RunOut
 from drivebench.services.drive_control import ActualValue, DriveStatus, JogPlan
 from drivebench.services.drive_guard import require_confirmation
 from drivebench.services.drive_words import Command
+from drivebench.services.motion import CyclicStream, MotionInfo
 from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.safety import ACTING, PanelDep, confirmation
 
@@ -36,10 +37,31 @@ class SetpointIn(Confirmed):
 
 class JogIn(Confirmed):
     direction: int = Field(ge=-1, le=1, description="1 forward, -1 reverse, 0 stop")
+    speed: float | None = Field(None, gt=0, description="CiA 402 profile-velocity jog: the speed in the drive's "
+                                                         "velocity units (at most 0x607F)")
+
+
+class MoveIn(Confirmed):
+    target: float = Field(description="Target position 0x607A in the drive's position units")
+    relative: bool = Field(False, description="Control word bit 6: relative to the last target")
+    immediate: bool = Field(True, description="Control word bit 5: change set immediately")
+    velocity: float | None = Field(None, gt=0, description="Profile velocity 0x6081 (velocity units)")
+
+
+class CyclicIn(Confirmed):
+    value: float = Field(description="Target of the cyclic synchronous mode shown (8: 0x607A, 9: 0x60FF, 10: 0x6071)")
+
+
+class StoppedOut(BaseModel):
+    stopped: int = Field(description="Cyclic RPDOs to the node that were running")
+
+
+class HomeIn(Confirmed):
+    method: int = Field(description="Homing method 0x6098 (CiA 402: 1 ... 35, 37)")
 
 
 class ModeIn(Confirmed):
-    mode: int = Field(description="0x6060 modes of operation: 2 velocity, 4 profile torque")
+    mode: int = Field(description="0x6060 modes of operation, as the status lists them in modes")
 
 
 class KeepaliveOut(BaseModel):
@@ -84,7 +106,38 @@ async def jog_plan(session: SessionDep, node: NodeDep) -> JogPlan:
 @router.post("/jog", response_model=DriveStatus)
 async def jog(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep, body: JogIn) -> DriveStatus:
     return await drive_control.jog(session, node, body.direction, confirm=confirmation(request, body.confirm),
-                                   panel=panel)
+                                   panel=panel, speed=body.speed)
+
+
+@router.get("/motion", response_model=MotionInfo)
+async def motion_info(session: SessionDep, node: NodeDep) -> MotionInfo:
+    """CiA 402 drive without a vendor control section: units, quick stop option, profile and homing settings."""
+    return await motion.info(session, node)
+
+
+@router.post("/move", response_model=DriveStatus)
+async def move(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep, body: MoveIn) -> DriveStatus:
+    """CiA 402 profile-position move (mode 1): target, new set-point edge, set-point acknowledge."""
+    return await motion.move(session, node, body.target, relative=body.relative, immediate=body.immediate,
+                             velocity=body.velocity, confirm=confirmation(request, body.confirm), panel=panel)
+
+
+@router.post("/cyclic", response_model=CyclicStream)
+async def cyclic(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep, body: CyclicIn) -> CyclicStream:
+    """Cyclic synchronous mode (8/9/10): SYNC at 0x60C2 and an RPDO with the control word and the target, every
+    cycle, while this panel holds the drive (any stopping command or a lost keep-alive ends it)."""
+    return await motion.stream(session, node, body.value, confirm=confirmation(request, body.confirm), panel=panel)
+
+
+@router.delete("/cyclic", response_model=StoppedOut)
+async def stop_cyclic(session: SessionDep, node: NodeDep) -> StoppedOut:
+    return StoppedOut(stopped=motion.stop_stream(session, node))
+
+
+@router.post("/home", response_model=DriveStatus)
+async def home(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep, body: HomeIn) -> DriveStatus:
+    """CiA 402 homing (mode 6) with the method given; status bit 12 homing attained, bit 13 homing error."""
+    return await motion.home(session, node, body.method, confirm=confirmation(request, body.confirm), panel=panel)
 
 
 @router.put("/mode", response_model=DriveStatus)

@@ -14,9 +14,8 @@ from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse, Response
 
 from drivebench.errors import DriveBenchError
-from drivebench.services import commissioning, drive_control
+from drivebench.services import commissioning, drive_control, motion
 from drivebench.services.drive_words import Family, family_of
-from drivebench.services.sessions import Session, SessionNode
 from drivebench.web.access_policy import rule_for
 from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.identity import principal_of
@@ -44,8 +43,8 @@ def _diagram(fam: Family) -> dict[str, Any]:
     boxes = [{"key": box.key, "label": box.label, "x": pos[box.key][0], "y": pos[box.key][1], "enabled": box.enabled,
               "fault": box.fault} for box in fam.states]
     arrows = []
-    for arrow in fam.arrows:
-        (sx, sy), (tx, ty) = pos[arrow.source], pos[arrow.target]
+    for arrow in fam.section.arrows:
+        (sx, sy), (tx, ty) = pos[arrow.from_state], pos[arrow.to_state]
         if sx == tx:  # vertical: two lanes so up and down arrows do not overlap
             down = ty > sy
             x = sx + BOX_W / 2 + (-30 if down else 30)
@@ -64,16 +63,6 @@ def _diagram(fam: Family) -> dict[str, Any]:
     return {"boxes": boxes, "arrows": arrows, "width": width, "height": height, "box_w": BOX_W, "box_h": BOX_H}
 
 
-async def _actual_sources(session: Session, node: SessionNode) -> list[tuple[str, str]]:
-    """(label, where it comes from) of every plotted actual value."""
-    out = []
-    for label, ref, scale in drive_control.actual_refs(node):
-        if ref == "C00868/2":  # 8400 CAN1_OUT word 2: rpm by the speed reference C00011
-            scale = await drive_control.setpoint_scale(session, node, None)
-        out.append((label, drive_control.actual_source(node, ref, scale)))
-    return out
-
-
 @router.get(UI, response_class=HTMLResponse)
 async def control_tab(request: Request, session: SessionDep, node: NodeDep) -> Response:
     base = f"/ui/sessions/{session.id}/nodes/{node.node_id}"
@@ -87,8 +76,9 @@ async def control_tab(request: Request, session: SessionDep, node: NodeDep) -> R
         context["empty"] = f"Node {node.node_id} has no device profile: assign one on the Plant page to control it."
         return templates.TemplateResponse(request, "node/control_body.html", context)
     if family_of(node.catalog) is None:
-        context["empty"] = (f"{node.device_name} has no drive control word DriveBench knows (CiA 402 0x6040/0x6041, "
-                            "Lenze C0135/C0150, AIF word 1 or 8400 CAN1_IN/CAN1_OUT): there is nothing to control.")
+        context["empty"] = (f"{node.device_name} has no drive control word DriveBench knows (its profile has no "
+                            "control section, its object dictionary no CiA 402 0x6040/0x6041): there is nothing "
+                            "to control.")
         return templates.TemplateResponse(request, "node/control_body.html", context)
     try:
         fam = drive_control.family(node)
@@ -97,7 +87,9 @@ async def control_tab(request: Request, session: SessionDep, node: NodeDep) -> R
         context["jog"] = await drive_control.jog_plan(session, node)
         context["missing"] = drive_control.missing_actuals(node)
         context["missing_why"] = drive_control.missing_why(node)
-        context["sources"] = await _actual_sources(session, node)
+        context["sources"] = await drive_control.actual_sources(session, node)
+        if fam.generic:
+            context["motion"] = await motion.info(session, node)
     except DriveBenchError as exc:
         context["error"] = exc
     return templates.TemplateResponse(request, "node/control_body.html", context)

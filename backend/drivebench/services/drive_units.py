@@ -1,0 +1,97 @@
+"""Units of a CiA 402 drive's position and velocity values, as the drive states them.
+
+CiA 402-2: position values (0x607A, 0x6064, 0x60F4, 0x607D …) are in the drive's position units, velocities
+(0x60FF, 0x606C, 0x6081, 0x607F …) in its velocity units. Their names come from the SI unit objects 0x60A8 / 0x60A9
+where the device has them; else from the factor group (0x608F encoder resolution, 0x6091 gear ratio, 0x6092 feed
+constant: one position unit is that many increments); else the values are raw increments, and the panel says so.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+from drivebench.device import cia402
+from drivebench.errors import DriveBenchError, UnknownParameter
+from drivebench.services import parameters
+from drivebench.services.sessions import Session, SessionNode
+
+UNITS_TTL_S = 5.0
+
+
+@dataclass(frozen=True)
+class Units:
+    position: str
+    velocity: str
+    how: str
+    """Where the names come from (0x60A8/0x60A9, the factor group, or nothing: increments)."""
+
+    def of(self, ref: str) -> str | None:
+        kind = cia402.UNIT_KIND.get(ref)
+        return self.position if kind == "position" else self.velocity if kind == "velocity" else None
+
+
+def _has(node: SessionNode, ref: str) -> bool:
+    if node.catalog is None:
+        return False
+    try:
+        node.catalog.resolve(ref)
+    except UnknownParameter:
+        return False
+    return True
+
+
+async def _int(session: Session, node: SessionNode, ref: str) -> int | None:
+    if not _has(node, ref):
+        return None
+    try:
+        raw = (await parameters.read(session, node.node_id, ref)).raw
+    except DriveBenchError:
+        return None
+    return int(raw) if isinstance(raw, int) else None
+
+
+async def _ratio(session: Session, node: SessionNode, index: str) -> float | None:
+    top, bottom = await _int(session, node, f"{index}.1"), await _int(session, node, f"{index}.2")
+    return top / bottom if top and bottom else None
+
+
+async def motion_units(session: Session, node: SessionNode) -> Units:
+    cached: tuple[float, Units] | None = getattr(node, "_motion_units", None)  # kept on the node, as its catalog
+    if cached is not None and time.monotonic() - cached[0] < UNITS_TTL_S:
+        return cached[1]
+    position_code, velocity_code = await _int(session, node, "0x60A8"), await _int(session, node, "0x60A9")
+    position = cia402.si_unit(position_code) if position_code is not None else None
+    velocity = cia402.si_unit(velocity_code) if velocity_code is not None else None
+    if position is not None:
+        units = Units(position, velocity or f"{position}/s", "SI unit objects 0x60A8/0x60A9")
+    else:
+        encoder = await _ratio(session, node, "0x608F")
+        gear = await _ratio(session, node, "0x6091") or 1.0
+        feed = await _ratio(session, node, "0x6092")
+        if encoder and feed:
+            per_unit = encoder * gear / feed
+            units = Units(f"position units ({per_unit:g} increments)", velocity or "position units/s",
+                          "factor group 0x608F/0x6091/0x6092")
+        else:
+            units = Units("increments", velocity or "increments/s",
+                          "no SI unit objects or factor group: raw increments")
+    object.__setattr__(node, "_motion_units", (time.monotonic(), units))
+    return units
+
+
+async def generic_limits(session: Session, node: SessionNode, ref: str) -> tuple[float | None, float | None]:
+    """Range of a CiA 402 setpoint: software position limits 0x607D (0/0: none), ± 0x607F max profile velocity,
+    ± 0x6072 max torque (‰, else ±1000 ‰)."""
+    if ref == "0x607A":
+        low, high = await _int(session, node, "0x607D.1"), await _int(session, node, "0x607D.2")
+        if low is None or high is None or low == high == 0:
+            return None, None
+        return float(low), float(high)
+    if ref == "0x60FF":
+        top = await _int(session, node, "0x607F")
+        return (-float(top), float(top)) if top else (None, None)
+    if ref == "0x6071":
+        top = await _int(session, node, "0x6072")
+        return -float(top or 1000), float(top or 1000)
+    return None, None

@@ -1,0 +1,239 @@
+"""CiA 402-2 motion of a drive without a vendor control section: profile position moves and homing.
+
+* Profile position (mode 1): target 0x607A, profile velocity 0x6081; control word bit 4 *new set-point* (rising
+  edge), bit 5 *change set immediately*, bit 6 *relative*; the drive answers with status bit 12 *set-point
+  acknowledge*, then the panel takes bit 4 back; status bit 10 *target reached* ends the move.
+* Homing (mode 6): method 0x6098, speeds 0x6099 (1: search for switch, 2: search for zero), acceleration 0x609A,
+  home offset 0x607C; control word bit 4 *homing operation start* stays set while homing runs; status bit 12
+  *homing attained*, bit 13 *homing error*.
+
+The interlocks are drive_control's: only the panel holding the drive moves it, a move is confirmed with the node
+id and arms the keep-alive guard.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import time
+
+from pydantic import BaseModel
+
+from drivebench.device import cia402
+from drivebench.errors import Conflict, InvalidValue, OutOfRange
+from drivebench.services import drive_control, parameters
+from drivebench.services import process_data as live
+from drivebench.services.drive_control import SERVICE_PANEL, DriveStatus, Panel, guard_for, has_ref
+from drivebench.services.drive_units import motion_units
+from drivebench.services.sessions import Session, SessionNode
+
+NEW_SET_POINT, CHANGE_IMMEDIATELY, RELATIVE = 0x0010, 0x0020, 0x0040
+MODE_BITS = NEW_SET_POINT | CHANGE_IMMEDIATELY | RELATIVE | 0x0100  # and halt
+SET_POINT_ACKNOWLEDGE = 0x1000
+ACK_TIMEOUT_S = 1.0
+QUICK_STOP_OPTIONS = {
+    0: "disable drive function", 1: "slow down on slow-down ramp, then switch on disabled",
+    2: "slow down on quick-stop ramp, then switch on disabled", 3: "slow down on current limit, then switch on "
+    "disabled", 4: "slow down on voltage limit, then switch on disabled", 5: "slow down on slow-down ramp and stay "
+    "in quick stop active", 6: "slow down on quick-stop ramp and stay in quick stop active",
+    7: "slow down on current limit and stay in quick stop active",
+    8: "slow down on voltage limit and stay in quick stop active",
+}
+
+
+class Setting(BaseModel):
+    ref: str
+    label: str
+    value: float | None
+    unit: str | None
+
+
+class MotionInfo(BaseModel):
+    position_unit: str
+    velocity_unit: str
+    units_from: str
+    quick_stop_option: str | None
+    settings: list[Setting]
+    """Profile and homing parameters as the drive holds them (0x6081, 0x6083, 0x6084, 0x6085, 0x6099, 0x609A,
+    0x607C, 0x607D, 0x607F, 0x60C2)."""
+    homing_methods: dict[int, str]
+    homing_method: int | None
+
+
+SETTINGS = [("0x6081", "Profile velocity", "velocity"), ("0x6083", "Profile acceleration", "acceleration"),
+            ("0x6084", "Profile deceleration", "acceleration"), ("0x6085", "Quick stop deceleration", "acceleration"),
+            ("0x6099.1", "Homing speed: search for switch", "velocity"),
+            ("0x6099.2", "Homing speed: search for zero", "velocity"),
+            ("0x609A", "Homing acceleration", "acceleration"),
+            ("0x607C", "Home offset", "position"), ("0x607D.1", "Software position limit: min", "position"),
+            ("0x607D.2", "Software position limit: max", "position"),
+            ("0x607F", "Max profile velocity", "velocity"), ("0x60C2.1", "Interpolation time period value", None),
+            ("0x60C2.2", "Interpolation time index (period = value x 10^index s)", None)]
+
+
+async def _read(session: Session, node: SessionNode, ref: str) -> float | None:
+    value = (await parameters.read(session, node.node_id, ref)).value
+    return float(value) if isinstance(value, (int, float)) else None
+
+
+async def info(session: Session, node: SessionNode) -> MotionInfo:
+    catalog = drive_control.catalog_of(node)
+    if not drive_control.family(node).generic:
+        raise InvalidValue(f"{node.device_name} is driven by its profile's own control section, not by the standard "
+                           "CiA 402 motion panel.")
+    units = await motion_units(session, node)
+    unit_of = {"position": units.position, "velocity": units.velocity, "acceleration": f"{units.velocity}/s"}
+    settings = [Setting(ref=ref, label=label, value=await _read(session, node, ref),
+                        unit=unit_of.get(kind or "") or catalog.resolve(ref).entry.unit)
+                for ref, label, kind in SETTINGS if has_ref(catalog, ref)]
+    option = None
+    if has_ref(catalog, "0x605A"):
+        code = await _read(session, node, "0x605A")
+        if code is not None:
+            option = f"{code:g}: " + (QUICK_STOP_OPTIONS.get(int(code)) or
+                                      ("manufacturer-specific" if code < 0 else "reserved"))
+    method = await _read(session, node, "0x6098") if has_ref(catalog, "0x6098") else None
+    return MotionInfo(position_unit=units.position, velocity_unit=units.velocity, units_from=units.how,
+                      quick_stop_option=option, settings=settings,
+                      homing_methods=cia402.HOMING_METHODS if has_ref(catalog, "0x6098") else {},
+                      homing_method=int(method) if method is not None else None)
+
+
+async def _enabled(session: Session, node: SessionNode, panel: Panel, what: str) -> DriveStatus:
+    guard_for(session).check(node.node_id, panel, what)
+    status = await drive_control.read_status(session, node, panel)
+    if not status.generic:
+        raise InvalidValue(f"{node.device_name} is not driven by the standard CiA 402 panel.")
+    if not status.enabled:
+        raise Conflict(f"{what} needs the drive in operation enabled (it is in '{status.state_label}').")
+    return status
+
+
+async def _mode(session: Session, node: SessionNode, status: DriveStatus, mode: int, panel: Panel) -> None:
+    if status.mode != mode:
+        if mode not in status.modes:
+            raise InvalidValue(f"{node.device_name} does not support {cia402.mode_label(mode)} mode.")
+        await drive_control.set_mode(session, node, mode, confirm=node.node_id, panel=panel)
+
+
+async def _edge(session: Session, node: SessionNode, base: int, *, hold: bool) -> None:
+    """Bit 4 from 0 to 1 on top of ``base``; unless ``hold``, back to 0 once the drive acknowledged it."""
+    await drive_control.write_control_word(session, node, base)
+    await drive_control.write_control_word(session, node, base | NEW_SET_POINT)
+    if hold:
+        return
+    deadline = time.monotonic() + ACK_TIMEOUT_S
+    while True:
+        word = (await parameters.read(session, node.node_id, "0x6041")).raw
+        if isinstance(word, int) and word & SET_POINT_ACKNOWLEDGE:
+            break
+        if time.monotonic() > deadline:
+            raise Conflict("The drive did not acknowledge the new set-point (status word bit 12) within "
+                           f"{ACK_TIMEOUT_S:g} s.")
+        await asyncio.sleep(0.01)
+    await drive_control.write_control_word(session, node, base)
+
+
+async def move(session: Session, node: SessionNode, target: float, *, relative: bool = False,
+               immediate: bool = True, velocity: float | None = None, confirm: object = None,
+               panel: Panel = SERVICE_PANEL) -> DriveStatus:
+    """A profile-position move to ``target`` (position units), at ``velocity`` (0x6081) when given."""
+    status = await _enabled(session, node, panel, "A profile-position move")
+    units = await motion_units(session, node)
+    if velocity is not None:
+        top = await _read(session, node, "0x607F") if has_ref(drive_control.catalog_of(node), "0x607F") else None
+        if velocity <= 0 or (top and velocity > top):
+            raise OutOfRange(f"Profile velocity {velocity:g} {units.velocity} is outside 0 ... {top or '∞'} "
+                             f"{units.velocity} (0x607F max profile velocity).")
+    if not relative:
+        scale = await drive_control.setpoint_scale(session, node, 1)
+        if (scale.minimum is not None and target < scale.minimum) or \
+                (scale.maximum is not None and target > scale.maximum):
+            raise OutOfRange(f"Target {target:g} {units.position} is outside the software position limits 0x607D "
+                             f"{scale.minimum:g} ... {scale.maximum:g} {units.position}.")
+    drive_control.require_confirmation(confirm, node.node_id, f"Move to {target:g} {units.position}")
+    guard_for(session).arm(node.node_id, panel)
+    await _mode(session, node, status, 1, panel)
+    if velocity is not None:
+        await parameters.write(session, node.node_id, "0x6081", velocity, verify=False)
+    await parameters.write(session, node.node_id, "0x607A", target, verify=False)
+    base = await drive_control.last_control_word(session, node) & ~MODE_BITS
+    base |= (CHANGE_IMMEDIATELY if immediate else 0) | (RELATIVE if relative else 0)
+    await _edge(session, node, base, hold=False)
+    return await drive_control.read_status(session, node, panel)
+
+
+async def home(session: Session, node: SessionNode, method: int, *, confirm: object = None,
+               panel: Panel = SERVICE_PANEL) -> DriveStatus:
+    """Homing (mode 6) with ``method`` (0x6098); bit 4 stays set until the next command."""
+    if method not in cia402.HOMING_METHODS:
+        raise InvalidValue(f"Homing method {method} is not a CiA 402 method (1 ... 35, 37).")
+    status = await _enabled(session, node, panel, "Homing")
+    drive_control.require_confirmation(confirm, node.node_id, f"Homing with method {method} "
+                                                              f"({cia402.homing_label(method)})")
+    guard_for(session).arm(node.node_id, panel)
+    await _mode(session, node, status, 6, panel)
+    await parameters.write(session, node.node_id, "0x6098", method, verify=False)
+    base = await drive_control.last_control_word(session, node) & ~MODE_BITS
+    await _edge(session, node, base, hold=True)
+    return await drive_control.read_status(session, node, panel)
+
+
+# --- cyclic synchronous modes (8/9/10): the setpoint travels in an RPDO every SYNC -----------------------------
+CYCLIC_TARGETS = {8: "0x607A", 9: "0x60FF", 10: "0x6071"}
+
+
+class CyclicStream(BaseModel):
+    mode: int
+    rpdo: int
+    cob_id: int
+    period_ms: int
+    data: str
+    """The RPDO as sent every cycle (control word and setpoint), hex."""
+
+
+async def _cycle_ms(session: Session, node: SessionNode) -> int:
+    """The interpolation time period 0x60C2 (value x 10^index s) in ms, 10 ms when the drive has none."""
+    catalog = drive_control.catalog_of(node)
+    if not has_ref(catalog, "0x60C2.1"):
+        return 10
+    value = await _read(session, node, "0x60C2.1") or 10
+    index = await _read(session, node, "0x60C2.2") if has_ref(catalog, "0x60C2.2") else -3
+    return max(1, round(value * 10 ** (index if index is not None else -3) * 1000))
+
+
+async def stream(session: Session, node: SessionNode, value: float, *, confirm: object = None,
+                 panel: Panel = SERVICE_PANEL) -> CyclicStream:
+    """Cyclic synchronous position / velocity / torque: SYNC at the drive's interpolation period (0x60C2) and an
+    RPDO mapping the control word and the mode's target, sent every cycle while the panel holds the drive."""
+    status = await _enabled(session, node, panel, "A cyclic synchronous setpoint")
+    if status.mode not in CYCLIC_TARGETS:
+        raise Conflict("Choose a cyclic synchronous mode (8, 9 or 10) first; it is in "
+                       f"{status.mode_label or 'no mode'}.")
+    target = CYCLIC_TARGETS[status.mode]
+    if session.nmt_state(node.node_id)[0] != "Operational":
+        raise Conflict(f"Node {node.node_id} takes RPDOs only in NMT Operational: start it first (Plant page).")
+    scale = await drive_control.setpoint_scale(session, node, status.mode)
+    drive_control.check_range(value, scale)
+    data = live.service(session)
+    configs = await data.load(node.node_id)
+    config = next((c for c in configs if c.direction == "rpdo" and c.valid and
+                   {"0x6040", target} <= {entry.ref for entry in c.entries}), None)
+    if config is None:
+        raise Conflict(f"No valid RPDO of node {node.node_id} maps the control word 0x6040 and {target}: map one on "
+                       "the PDO tab.")
+    drive_control.require_confirmation(confirm, node.node_id, f"Cyclic setpoint {value:g} {scale.unit}")
+    guard_for(session).arm(node.node_id, panel)
+    period = await _cycle_ms(session, node)
+    word = await drive_control.last_control_word(session, node)
+    if panel.key not in data.watchers:
+        data.watch(panel.key)
+    data.start_sync(period)
+    frame = await data.start_cyclic(panel.key, node.node_id, config.number,
+                                    {"0x6040": str(word), target: f"{value:g}"}, period)
+    return CyclicStream(mode=status.mode, rpdo=config.number, cob_id=config.cob_id, period_ms=period,
+                        data=frame.hex(" ").upper())
+
+
+def stop_stream(session: Session, node: SessionNode) -> int:
+    """End the cyclic RPDOs to the node (a stopping command does it too); how many ran."""
+    return live.service(session).stop_node(node.node_id)

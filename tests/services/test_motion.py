@@ -1,0 +1,252 @@
+"""A CiA 402 drive without a vendor control section (node 7 of the demo plant, the generic servo of
+``device_profiles/generic-cia402-servo.json``) driven through the real SDO path by the standard CiA 402 panel:
+standard names, modes from 0x6502, units from 0x60A8/0x60A9, homing methods, profile position and velocity, jog,
+limit switches, the following-error fault with its EMCY, quick stop, and the interlocks."""
+
+from __future__ import annotations
+
+import asyncio
+import threading
+import time
+from collections.abc import Callable, Coroutine
+from typing import Any, TypeVar
+
+import can
+import pytest
+
+from drivebench.errors import ConfirmationRequired, Conflict, InvalidValue, OutOfRange
+from drivebench.protocol.nmt import NmtCommand
+from drivebench.services import drive_control, motion, parameters
+from drivebench.services import process_data as live
+from drivebench.services.drive_control import DriveStatus
+from drivebench.services.drive_words import Command
+from drivebench.services.sessions import Session
+from drivebench.simulator.plant import Plant
+from drivebench.simulator.servo402 import LIMIT_REVS, Servo402
+
+T = TypeVar("T")
+AXIS = 7
+SEED_WORDS = ("MICROMASTER", "Lenze", "8400", "8200", "P0700", "EMF2178IB", "C0135", "AIF", "RFG")
+
+
+class Axis:
+    def __init__(self, runner: asyncio.Runner, session: Session, plant: Plant) -> None:
+        self.runner, self.session, self.plant = runner, session, plant
+        self.node = session.node(AXIS)
+        drive = plant.nodes[AXIS].drive
+        assert isinstance(drive, Servo402)
+        self.drive = drive
+
+    def run(self, coro: Coroutine[Any, Any, T]) -> T:
+        return self.runner.run(coro)
+
+    def status(self) -> DriveStatus:
+        return self.run(drive_control.read_status(self.session, self.node))
+
+    def read(self, ref: str) -> Any:
+        return self.run(parameters.read(self.session, AXIS, ref)).value
+
+    def until(self, done: Callable[[DriveStatus], bool], what: str, timeout_s: float = 10.0) -> DriveStatus:
+        deadline = time.monotonic() + timeout_s
+        while not done(status := self.status()):
+            assert time.monotonic() < deadline, f"{what}: status word 0x{status.status_word:04X} ({status.state})"
+            drive_control.guard_for(self.session).keepalive(AXIS)
+            self.run(asyncio.sleep(0.05))
+        return status
+
+    def enable(self) -> DriveStatus:
+        self.until(lambda status: status.state == "switch_on_disabled", "power-up")
+        for command in (Command.SHUTDOWN, Command.SWITCH_ON):
+            self.run(drive_control.command(self.session, self.node, command))
+        return self.run(drive_control.command(self.session, self.node, Command.ENABLE_OPERATION, confirm=AXIS))
+
+    def home(self, method: int) -> DriveStatus:
+        self.run(motion.home(self.session, self.node, method, confirm=AXIS))
+        return self.until(lambda status: status.status_bits[12].set and status.status_bits[10].set,
+                          f"homing with method {method}")
+
+
+@pytest.fixture
+def axis(plant_session: tuple[asyncio.Runner, Session], plant: Plant) -> Axis:
+    return Axis(*plant_session, plant)
+
+
+def test_standard_names_modes_units_and_no_vendor_words(axis: Axis) -> None:
+    status = axis.until(lambda status: status.state == "switch_on_disabled", "power-up")
+    assert status.family == "cia402-generic" and status.generic
+    assert status.status_bits[12].name.startswith("Operation mode specific (pp: set-point acknowledge")
+    assert status.control_bits[4].name.startswith("Operation mode specific (pp: new set-point")
+    assert status.modes == {1: "Profile position", 3: "Profile velocity", 4: "Profile torque", 6: "Homing",
+                            8: "Cyclic synchronous position", 9: "Cyclic synchronous velocity",
+                            10: "Cyclic synchronous torque"}  # 0x6502 = 0x3AD
+    assert (status.setpoint_ref, status.setpoint_unit, status.setpoint_max) == ("0x607A", "°", 3600)
+    assert [bit.name for bit in status.inputs[:3]] == ["Negative limit switch", "Positive limit switch", "Home switch"]
+    assert (status.error_code, status.error_text) == (0, "No error")
+    text = status.model_dump_json() + axis.run(motion.info(axis.session, axis.node)).model_dump_json()
+    assert [word for word in SEED_WORDS if word.lower() in text.lower()] == []
+    info = axis.run(motion.info(axis.session, axis.node))
+    assert (info.position_unit, info.velocity_unit) == ("°", "rpm")
+    assert info.quick_stop_option == "2: slow down on quick-stop ramp, then switch on disabled"
+    assert info.homing_methods[35] == "Current position (no movement)"
+    actuals = {value.ref: value for value in axis.run(drive_control.read_actuals(axis.session, axis.node))}
+    assert (actuals["0x6064"].label, actuals["0x6064"].unit) == ("Position", "°")
+    assert (actuals["0x606C"].unit, actuals["0x6079"].unit) == ("rpm", "mV")
+    axis.drive.store.set(0x6061, 0, -59)  # a vendor's own mode, as a maxon drive shows it
+    assert axis.status().mode_label == "manufacturer-specific (\u221259)"
+
+
+@pytest.mark.parametrize(("method", "near"), [(35, None), (37, None), (34, None), (33, None), (17, -LIMIT_REVS),
+                                              (18, LIMIT_REVS), (1, -LIMIT_REVS), (2, LIMIT_REVS)])
+def test_homing_methods(axis: Axis, method: int, near: float | None) -> None:
+    axis.enable()
+    start = axis.drive.mech
+    status = axis.home(method)
+    assert status.mode == 6 and status.mode_label == "Homing" and not status.status_bits[13].set
+    assert axis.read("0x6098") == method
+    assert abs(axis.read("0x6064")) <= 5  # at home: 0 ° plus the stop after the event (at most 5 °)
+    revs = axis.drive.mech / axis.drive.increments_per_rev
+    if near is None:
+        moved = abs(axis.drive.mech - start) / axis.drive.increments_per_rev
+        assert moved <= (0.02 if method in (35, 37) else 1.05)  # no motion / to the next index pulse
+    else:
+        assert abs(revs - near) <= (0.05 if method in (17, 18) else 1.05)  # at the switch (1, 2: next index)
+
+
+def test_profile_position_absolute_relative_and_target_reached(axis: Axis) -> None:
+    axis.enable()
+    axis.home(35)
+    axis.run(motion.move(axis.session, axis.node, 720, confirm=AXIS))
+    status = axis.until(lambda status: status.status_bits[10].set and axis.read("0x6064") == 720, "at 720 °")
+    assert status.mode == 1 and not status.status_bits[12].set  # set-point acknowledge taken back with bit 4
+    axis.run(motion.move(axis.session, axis.node, -90, relative=True, velocity=300, confirm=AXIS))
+    axis.until(lambda status: status.status_bits[10].set and axis.read("0x6064") == 630, "at 630 °")
+    assert axis.read("0x6081") == 300
+    with pytest.raises(OutOfRange, match="software position limits"):
+        axis.run(motion.move(axis.session, axis.node, 5000, confirm=AXIS))
+    with pytest.raises(OutOfRange, match="0x607F"):
+        axis.run(motion.move(axis.session, axis.node, 0, velocity=9000, confirm=AXIS))
+
+
+def test_profile_velocity_and_jog_at_a_user_set_speed(axis: Axis) -> None:
+    axis.enable()
+    axis.run(drive_control.set_mode(axis.session, axis.node, 3, confirm=AXIS))
+    status = axis.run(drive_control.set_setpoint(axis.session, axis.node, 300, confirm=AXIS))
+    assert (status.setpoint_ref, status.setpoint_unit, status.setpoint_max) == ("0x60FF", "rpm", 3000)
+    axis.until(lambda status: status.status_bits[10].set and axis.read("0x606C") == 300, "at 300 rpm")
+    axis.run(drive_control.set_setpoint(axis.session, axis.node, 0))
+    plan = axis.run(drive_control.jog_plan(axis.session, axis.node))
+    assert (plan.method, plan.value, plan.unit, plan.maximum) == ("profile_velocity", 300, "rpm", 3000)
+    with pytest.raises(ConfirmationRequired):
+        axis.run(drive_control.jog(axis.session, axis.node, 1, speed=120))
+    with pytest.raises(OutOfRange, match="0x607F"):
+        axis.run(drive_control.jog(axis.session, axis.node, 1, speed=5000, confirm=AXIS))
+    axis.run(drive_control.jog(axis.session, axis.node, -1, speed=120, confirm=AXIS))
+    axis.until(lambda _: axis.read("0x606C") == -120, "jogging at -120 rpm")
+    axis.run(drive_control.jog(axis.session, axis.node, 0))
+    axis.until(lambda _: axis.read("0x606C") == 0, "jog released")
+
+
+def test_a_limit_switch_stops_the_axis(axis: Axis) -> None:
+    axis.enable()
+    axis.run(drive_control.set_mode(axis.session, axis.node, 3, confirm=AXIS))
+    axis.run(drive_control.set_setpoint(axis.session, axis.node, 3000, confirm=AXIS))
+    status = axis.until(lambda status: status.status_bits[11].set, "internal limit active at the switch")
+    assert status.inputs[1].set and axis.read("0x606C") == 0
+    axis.run(drive_control.set_setpoint(axis.session, axis.node, -300, confirm=AXIS))  # away from it: free
+    axis.until(lambda status: not status.inputs[1].set and not status.status_bits[11].set, "off the switch")
+
+
+def test_following_error_faults_with_emcy_and_fault_reset_clears_it(axis: Axis) -> None:
+    frames: list[bytes] = []
+    seen = threading.Event()
+
+    class Emcy(can.Listener):
+        def on_message_received(self, msg: can.Message) -> None:
+            if msg.arbitration_id == 0x80 + AXIS:
+                frames.append(bytes(msg.data))
+                seen.set()
+
+    tap = Emcy()
+    axis.session.add_frame_listener(tap)
+    try:
+        axis.enable()
+        axis.home(35)
+        axis.drive.jam()
+        axis.run(motion.move(axis.session, axis.node, 360, confirm=AXIS))
+        status = axis.until(lambda status: status.state == "fault", "following error fault")
+        assert (status.error_code, status.error_text) == (0x8611, "Following error")
+        assert seen.wait(5) and frames[0][:2] == bytes([0x11, 0x86])
+        axis.drive.jam(False)
+        status = axis.run(drive_control.command(axis.session, axis.node, Command.FAULT_RESET, confirm=AXIS))
+        assert status.state == "switch_on_disabled" and status.error_code == 0
+    finally:
+        axis.session.remove_frame_listener(tap)
+
+
+def test_quick_stop_decelerates_then_switches_on_disabled(axis: Axis) -> None:
+    axis.enable()
+    axis.run(drive_control.set_mode(axis.session, axis.node, 3, confirm=AXIS))
+    axis.run(drive_control.set_setpoint(axis.session, axis.node, 1500, confirm=AXIS))
+    axis.until(lambda _: axis.read("0x606C") == 1500, "at 1500 rpm")
+    status = axis.run(drive_control.command(axis.session, axis.node, Command.QUICK_STOP))
+    assert not status.armed
+    axis.until(lambda status: status.state == "switch_on_disabled", "stopped by the quick-stop ramp (0x6085)")
+    assert state_history(axis)[-2:] == ["Quick stop active", "Switch on disabled"]
+    assert axis.read("0x606C") == 0
+
+
+def state_history(axis: Axis) -> list[str]:
+    return [state.value for state in axis.drive.history]
+
+
+def test_moves_need_the_holder_and_the_confirmation(axis: Axis) -> None:
+    axis.enable()
+    with pytest.raises(ConfirmationRequired, match="node 7"):
+        axis.run(motion.home(axis.session, axis.node, 35))
+    other = drive_control.Panel("panel:other", "someone else")
+    with pytest.raises(Conflict, match="held by"):
+        axis.run(motion.move(axis.session, axis.node, 10, confirm=AXIS, panel=other))
+
+
+def test_an_idle_axis_sleeps(axis: Axis) -> None:
+    """Nothing moves, nothing changes: the model skips its cycle (the plant's tick costs one comparison)."""
+    axis.until(lambda status: status.state == "switch_on_disabled", "power-up")
+    deadline = time.monotonic() + 5
+    while not axis.drive._idle:
+        assert time.monotonic() < deadline, "the idle axis keeps stepping its model"
+        time.sleep(0.02)
+
+
+def test_a_setpoint_alone_is_refused_where_the_drive_needs_a_move(axis: Axis) -> None:
+    axis.enable()
+    with pytest.raises(InvalidValue, match="move"):
+        axis.run(drive_control.set_setpoint(axis.session, axis.node, 90, confirm=AXIS))
+
+
+def test_cyclic_synchronous_velocity_through_sync_and_an_rpdo(axis: Axis) -> None:
+    axis.enable()
+    axis.run(drive_control.set_mode(axis.session, axis.node, 9, confirm=AXIS))
+    with pytest.raises(Conflict, match="Operational"):
+        axis.run(motion.stream(axis.session, axis.node, 200, confirm=AXIS))
+    axis.run(axis.session.nmt(NmtCommand.START, AXIS))
+    axis.until(lambda _: axis.session.nmt_state(AXIS)[0] == "Operational", "node 7 operational")
+    sent = axis.run(motion.stream(axis.session, axis.node, 200, confirm=AXIS))
+    assert (sent.rpdo, sent.cob_id, sent.period_ms) == (3, 0x407, 10)  # RPDO3: 0x6040 + 0x60FF; 0x60C2 = 10 ms
+    assert sent.data == "0F 00 C8 00 00 00"
+    axis.until(lambda _: axis.read("0x606C") == 200, "following the cyclic target velocity")
+    assert live.service(axis.session).sync_period_ms == 10
+    status = axis.run(drive_control.command(axis.session, axis.node, Command.QUICK_STOP))
+    assert not live.service(axis.session).cyclic_cob_ids()  # the stream ended before the quick stop was written
+    axis.until(lambda status: status.state == "switch_on_disabled", "stopped")
+    assert status.control_word is not None and status.control_word & 0x06 == 0x02
+    live.service(axis.session).stop_sync()
+
+
+def test_profile_torque_in_per_mille(axis: Axis) -> None:
+    axis.enable()
+    axis.run(drive_control.set_mode(axis.session, axis.node, 4, confirm=AXIS))
+    status = axis.run(drive_control.set_setpoint(axis.session, axis.node, 100, confirm=AXIS))
+    assert (status.setpoint_ref, status.setpoint_unit, status.setpoint_max) == ("0x6071", "‰", 3000)  # 0x6072
+    axis.until(lambda _: axis.read("0x606C") > 0, "the load turning under the torque")
+    with pytest.raises(OutOfRange):
+        axis.run(drive_control.set_setpoint(axis.session, axis.node, 4000, confirm=AXIS))
