@@ -8,6 +8,8 @@ from collections.abc import Iterator
 import pytest
 
 from drivebench.device.loader import ProfileRegistry
+from drivebench.services import drive_guard, parameters
+from drivebench.services.parameters import WriteResult
 from drivebench.services.sessions import Session, SessionManager
 from drivebench.simulator.plant import Plant
 
@@ -26,3 +28,10 @@ def plant_session(request: pytest.FixtureRequest, plant: Plant,
     finally:
         runner.run(manager.close_all())
         runner.close()
+
+
+async def set_up(session: Session, node_id: int, ref: str, value: object, **options: bool) -> WriteResult:
+    """A test's set-up write (command source, a drive run the test measures) as a caller that confirmed it itself
+    (:func:`drive_guard.cleared`): it needs no confirmation and arms nothing."""
+    with drive_guard.cleared():
+        return await parameters.write(session, node_id, ref, value, **options)

@@ -16,6 +16,7 @@ import pytest
 from drivebench.services import drive_control, parameters
 from drivebench.services.drive_control import ActualValue
 from drivebench.services.sessions import Session
+from tests.services.conftest import set_up
 
 T = TypeVar("T")
 MM, MOTEC, VECTOR = 3, 5, 12
@@ -33,7 +34,7 @@ class Bench:
         return {value.ref: value for value in values}
 
     def write(self, node_id: int, ref: str, value: float) -> None:
-        self.run(parameters.write(self.session, node_id, ref, value, check=False, verify=False))
+        self.run(set_up(self.session, node_id, ref, value, check=False, verify=False))
 
     def until(self, node_id: int, ref: str, done: Callable[[float], bool], timeout_s: float = 10.0) -> float:
         deadline = time.monotonic() + timeout_s

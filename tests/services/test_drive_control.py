@@ -12,11 +12,12 @@ import pytest
 
 from drivebench.device.loader import ProfileRegistry
 from drivebench.errors import ConfirmationRequired, Conflict, OutOfRange
-from drivebench.services import drive_control, drive_guard, parameters
+from drivebench.services import drive_control, drive_guard
 from drivebench.services.drive_control import DriveStatus, describe
 from drivebench.services.drive_words import Command, Family, family_of_profile
 from drivebench.services.sessions import Session
 from drivebench.simulator.plant import Plant
+from tests.services.conftest import set_up
 
 T = TypeVar("T")
 MM, VECTOR, MOTEC = 3, 12, 5
@@ -89,8 +90,8 @@ def test_8400_state_from_every_device_state(device_state: int, state: str) -> No
 
 def test_micromaster_first_run_and_back(bench: Bench) -> None:
     bench.plant.nodes[MM].store.set_ref("P1120", 1.0)  # test-only: 1 s ramp
-    bench.run(parameters.write(bench.session, MM, "P0700", 6))
-    bench.run(parameters.write(bench.session, MM, "P1000", 6))
+    bench.run(set_up(bench.session, MM, "P0700", 6))
+    bench.run(set_up(bench.session, MM, "P1000", 6))
     assert bench.until(MM, "switch_on_disabled").status_bits[6].set
     assert bench.command(MM, Command.SHUTDOWN).state == "ready"
     assert bench.command(MM, Command.SWITCH_ON).state == "switched_on"
@@ -115,7 +116,7 @@ def test_micromaster_first_run_and_back(bench: Bench) -> None:
 
 
 def test_keepalive_lost_sends_quick_stop(bench: Bench) -> None:
-    bench.run(parameters.write(bench.session, MM, "P0700", 6))
+    bench.run(set_up(bench.session, MM, "P0700", 6))
     bench.until(MM, "switch_on_disabled")
     bench.command(MM, Command.SHUTDOWN)
     bench.command(MM, Command.ENABLE_OPERATION, confirm=True)  # from ready: on by itself (manual ch. 3.3)
@@ -139,7 +140,7 @@ def test_keepalive_lost_sends_quick_stop(bench: Bench) -> None:
 def test_a_status_read_while_the_drive_is_still_enabling_keeps_its_holder(bench: Bench) -> None:
     """A drive armed a moment ago may not be "enabled" yet (ready -> switched on -> operation enabled run on its
     own cycle): a status read in between must not disarm it, or it would run on with nobody holding it."""
-    bench.run(parameters.write(bench.session, MM, "P0700", 6))
+    bench.run(set_up(bench.session, MM, "P0700", 6))
     bench.until(MM, "switch_on_disabled")
     guard = drive_control.guard_for(bench.session)
     anna = drive_guard.panel_of("127.0.0.1", "tab-anna", "Anna")
@@ -153,7 +154,7 @@ def test_a_status_read_while_the_drive_is_still_enabling_keeps_its_holder(bench:
 
 
 def test_fault_and_fault_reset(bench: Bench) -> None:
-    bench.run(parameters.write(bench.session, MM, "P0700", 6))
+    bench.run(set_up(bench.session, MM, "P0700", 6))
     bench.until(MM, "switch_on_disabled")
     drive = bench.plant.nodes[MM].drive
     assert drive is not None
@@ -169,13 +170,13 @@ def test_modes_of_operation_need_p1501(bench: Bench) -> None:
     node = bench.session.node(MM)
     with pytest.raises(Conflict, match="P1501"):
         bench.run(drive_control.set_mode(bench.session, node, 4))
-    bench.run(parameters.write(bench.session, MM, "P1501", 0x082B000C))
+    bench.run(set_up(bench.session, MM, "P1501", 0x082B000C))
     status = bench.run(drive_control.set_mode(bench.session, node, 4))
     assert status.mode == 4 and status.mode_label == "Profile torque mode" and status.setpoint_ref == "0x6071"
 
 
 def test_8200_vector_enable_setpoint_in_hz_and_inhibit(bench: Bench) -> None:
-    bench.run(parameters.write(bench.session, VECTOR, "C0001", 3))
+    bench.run(set_up(bench.session, VECTOR, "C0001", 3))
     status = bench.command(VECTOR, Command.SHUTDOWN)
     assert status.state == "operation_inhibited" and status.control_word == 0x0200
     assert status.control_bits[9].name == "Controller inhibit (AIF-CTRL-CINH)" and status.control_bits[9].set
@@ -205,7 +206,7 @@ BEN = drive_control.Panel("panel:ben", "Ben at 10.0.0.9")
 
 def test_the_panel_that_armed_the_drive_holds_it(bench: Bench) -> None:
     """Anna enables: only she moves the drive and keeps it alive; Ben watches, sees who holds it, may stop it."""
-    bench.run(parameters.write(bench.session, MM, "P0700", 6))
+    bench.run(set_up(bench.session, MM, "P0700", 6))
     bench.until(MM, "switch_on_disabled")
     node = bench.session.node(MM)
     bench.command(MM, Command.SHUTDOWN)
@@ -252,7 +253,7 @@ def test_only_the_holders_last_panel_closing_trips(bench: Bench) -> None:
 def test_8200_vector_jogs_with_its_own_jog1(bench: Bench) -> None:
     """EMF2178IB ch. 9.3.1.1: AIF-CTRL bits 1/0 = 01 select NSET1-JOG1 (C0037, 20 Hz here), bit 2 reverses."""
     node = bench.session.node(VECTOR)
-    bench.run(parameters.write(bench.session, VECTOR, "C0001", 3))
+    bench.run(set_up(bench.session, VECTOR, "C0001", 3))
     bench.command(VECTOR, Command.SHUTDOWN)
     bench.command(VECTOR, Command.ENABLE_OPERATION, confirm=True)
     plan = bench.run(drive_control.jog_plan(bench.session, node))

@@ -10,6 +10,7 @@ import pytest
 from fastapi.testclient import TestClient
 from starlette.websockets import WebSocketDisconnect
 
+from drivebench.device.scaling import to_raw
 from drivebench.services.audit import LOCAL_USER
 
 BASE = "/api/sessions/demo-plant/nodes/{node}/control"
@@ -28,12 +29,16 @@ def _until(client: TestClient, node: int, state: str, timeout_s: float = 8.0) ->
     return status
 
 
+def _plant_set(client: TestClient, node: int, ref: str, value: int) -> None:
+    """The plant as the test needs it (a command source set at the drive): writing these through the API is a
+    write that can move the drive (confirmed and armed, see test_moving_writes), not what these tests are about."""
+    store = client.app.state.drivebench.plants["demo-plant"].nodes[node].store  # type: ignore[attr-defined]
+    store.set_ref(ref, to_raw(store.catalog.resolve(ref).entry, value))
+
+
 def _can_control(client: TestClient) -> None:
     for ref in ("P0700", "P1000"):
-        response = client.put(f"/api/sessions/demo-plant/nodes/{MM}/parameters/{ref}", json={"value": "6"})
-        assert response.status_code == 200, response.text
-    # this client's writes took the node's write lease: release it for the panels the tests open
-    assert client.delete(f"/api/sessions/demo-plant/nodes/{MM}/lease").json()["holder"] is None
+        _plant_set(client, MM, ref, 6)
 
 
 def test_status_names_every_bit_as_the_manual(client: TestClient) -> None:
@@ -184,7 +189,7 @@ def test_two_panels_the_holder_moves_the_watcher_watches(client: TestClient) -> 
 def test_8200_vector_jog_plan_and_device_jog(client: TestClient) -> None:
     plan = client.get(_url(VECTOR, "/jog")).json()
     assert plan["method"] == "device" and plan["value"] == 20 and plan["unit"] == "Hz"
-    client.put(f"/api/sessions/demo-plant/nodes/{VECTOR}/parameters/C0001", json={"value": "3"})
+    _plant_set(client, VECTOR, "C0001", 3)
     client.post(_url(VECTOR, "/commands/shutdown"))
     client.post(_url(VECTOR, "/commands/enable_operation"), json={"confirm": VECTOR})
     jogging = client.post(_url(VECTOR, "/jog"), json={"direction": -1, "confirm": VECTOR}).json()

@@ -173,7 +173,8 @@ def test_download_preview_report_retry_rollback_and_audit(api: TestClient) -> No
     wrong = api.post(f"{SETS}/{new_id}/preview", json={"session_id": SESSION, "node_id": 12})
     assert wrong.status_code == 409
 
-    started = api.post(f"{SETS}/{new_id}/download", json=dict(target, save=True),
+    # the set holds C00007 (control mode: a command source), so the download names the node it may move
+    started = api.post(f"{SETS}/{new_id}/download", json=dict(target, save=True, confirm=5),
                        headers={"X-DriveBench-User": "bert"})
     assert started.status_code == 202
     job = finish(api, started.json())

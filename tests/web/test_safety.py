@@ -113,7 +113,7 @@ def test_closing_the_page_socket_stops_what_it_started(client: TestClient, wire:
         assert wait_until(lambda: sim.state.name == "OPERATIONAL")
         for _ in range(8):  # the page's keep-alive, 4 s in all: longer than the 2 s timeout
             socket.send_text('{"cmd": "keepalive"}')
-            assert socket.receive_json() == {"type": "held", "nodes": [MOTEC]}
+            assert socket.receive_json() == {"type": "held", "nodes": [MOTEC], "not_held": []}
             time.sleep(0.5)
         assert not frames.nmt(0x80, MOTEC) and sim.state.name == "OPERATIONAL"
         ben = client.post(_node("/nmt"), json={"command": "start", "confirm": 5}, headers=BEN)

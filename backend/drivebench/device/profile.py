@@ -50,6 +50,31 @@ class Access(StrEnum):
         return self in (Access.WO, Access.RW, Access.RWR, Access.RWW)
 
 
+class StillValue(BaseModel):
+    """A written raw value that cannot make the drive move: ``raw & mask == value`` (no mask: the whole value)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    value: HexInt
+    mask: HexInt | None = None
+    meaning: str | None = None
+    """What such a value does (``quick stop``, ``controller inhibit``)."""
+
+
+class Motion(BaseModel):
+    """Marks an object or parameter whose write can make the drive move: a control word, a setpoint, the mode of
+    operation, a command/setpoint source selection, an NMT self-start object. Such a write needs the confirmation
+    naming the node and arms the keep-alive guard, unless the value is one of ``still`` (a control word that only
+    disables or quick-stops, a velocity setpoint of 0). CiA 402 objects are marked by the standard even when a
+    profile does not say so (:mod:`drivebench.device.motion`)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    kind: Literal["control_word", "setpoint", "mode", "source", "start"]
+    still: list[StillValue] = Field(default_factory=list)
+    """Values that cannot move the drive; empty: every write may move it."""
+
+
 class Entry(BaseModel):
     """Fields shared by CANopen objects and vendor parameters: one readable/writable value."""
 
@@ -73,6 +98,8 @@ class Entry(BaseModel):
     """Takes effect only after reset node (C00350, C00351 ...)."""
     group: str | None = None
     description: str | None = None
+    motion: Motion | None = None
+    """Writing it can make the drive move (see :class:`Motion`)."""
 
     @model_validator(mode="after")
     def _check_limits(self) -> Entry:

@@ -20,8 +20,10 @@ from dataclasses import dataclass, field
 import can
 from pydantic import BaseModel
 
+from drivebench.device.catalog import index_ref
 from drivebench.device.control import Sequence, Step
-from drivebench.errors import Conflict, DriveBenchError, NotFound, SdoAbortError
+from drivebench.device.motion import moves, standard_motion
+from drivebench.errors import Conflict, DriveBenchError, NotFound, SdoAbortError, UnknownParameter
 from drivebench.protocol.nmt import NmtCommand
 from drivebench.services import drive_control, parameters
 from drivebench.services.sessions import Session, SessionNode
@@ -121,6 +123,24 @@ class Run:
                       position=self.position, results=self.results, finished=self.finished, failed=self.failed)
 
 
+def step_moves(node: SessionNode, step: Step) -> bool:
+    """A step can make the drive move when the sequence says so, when it starts the node (NMT start: the drive acts
+    on process data) or when it writes a value the profile (or CiA 402) marks as moving (a command source, the mode
+    of operation, a control word that enables)."""
+    if step.moves or step.kind == "nmt_start":
+        return True
+    if step.kind != "sdo":
+        return False
+    ref = index_ref(step.index, step.sub)
+    try:
+        item = node.catalog.resolve(ref) if node.catalog is not None else None
+    except UnknownParameter:
+        item = None
+    if item is None:
+        return standard_motion(step.index, step.sub) is not None
+    return moves(item, int.from_bytes(step.data, "little")) is not None
+
+
 class Wizard:
     def __init__(self) -> None:
         self.runs: dict[str, Run] = {}
@@ -129,6 +149,8 @@ class Wizard:
         sequence = next((seq for seq in sequences_for(node) if seq.key == key), None)
         if sequence is None:
             raise NotFound(f"No commissioning sequence '{key}' for {node.device_name}.")
+        sequence = sequence.model_copy(update={"steps": [step.model_copy(update={"moves": step_moves(node, step)})
+                                                         for step in sequence.steps]})
         run = Run(uuid.uuid4().hex[:12], node.node_id, sequence)
         self.runs[run.id] = run
         return run
@@ -233,7 +255,9 @@ async def next_step(session: Session, node: SessionNode, run: Run, *, confirm: b
         if step.moves:
             if not confirm:
                 raise Conflict(f"Step {run.position + 1} ({step.title}) can make the motor turn: confirm it.")
-            guard.arm(node.node_id, panel)
+            if step.kind == "nmt_start":  # as drive_guard.nmt: stays armed until NMT leaves Operational
+                guard.started.add(node.node_id)
+            guard.arm(node.node_id, panel, pinned=step.kind == "nmt_start")
         capture = _Capture(node.node_id)
         session.add_frame_listener(capture)
         t0 = time.time()

@@ -34,6 +34,7 @@ from drivebench.services.drive_guard import (
     ARM_SETTLE_S,
     SERVICE_PANEL,
     Panel,
+    cleared,
     guard_for,
     last_word,
     read_word,
@@ -438,11 +439,12 @@ async def set_setpoint(session: Session, node: SessionNode, value: float, *, con
     if value != 0:
         _confirmed(confirm, node, f"Setpoint {value:g} {scale.unit}")
         guard.arm(node.node_id, panel)
-    if scale.raw_per_unit:
-        raw = round(value * scale.raw_per_unit) & 0xFFFF
-        await parameters.write(session, node.node_id, scale.ref, raw, check=False, verify=False)
-    else:
-        await parameters.write(session, node.node_id, scale.ref, value, verify=False)
+    with cleared():  # confirmed and armed above (0 cannot speed it up)
+        if scale.raw_per_unit:
+            raw = round(value * scale.raw_per_unit) & 0xFFFF
+            await parameters.write(session, node.node_id, scale.ref, raw, check=False, verify=False)
+        else:
+            await parameters.write(session, node.node_id, scale.ref, value, verify=False)
     if spec.run_bits is not None:  # e.g. CiA 402 velocity mode: run the ramp-function generator (0x7F)
         last = await last_control_word(session, node)
         if last & spec.run_when == spec.run_when and last & spec.run_bits != spec.run_bits:
@@ -558,7 +560,8 @@ async def set_mode(session: Session, node: SessionNode, mode: int, *, confirm: o
     status = await read_status(session, node, panel)
     if status.enabled:
         _confirmed(confirm, node, "Changing the mode of operation while the drive is enabled")
-    await parameters.write(session, node.node_id, "0x6060", mode, verify=False)
+    with cleared():  # confirmed above while enabled; a disabled drive does not move when its mode changes
+        await parameters.write(session, node.node_id, "0x6060", mode, verify=False)
     deadline = time.monotonic() + MODE_SETTLE_S
     while (status := await read_status(session, node, panel)).mode != mode and time.monotonic() < deadline:
         await asyncio.sleep(0.02)

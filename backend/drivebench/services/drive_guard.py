@@ -20,6 +20,8 @@ import contextlib
 import logging
 import time
 import weakref
+from collections.abc import Iterator
+from contextvars import ContextVar
 from dataclasses import dataclass
 from urllib.parse import unquote
 
@@ -91,14 +93,16 @@ async def last_word(session: Session, node_id: int, ref: str) -> int:
 
 
 async def write_word(session: Session, node_id: int, ref: str, word: int) -> None:
-    await parameters.write(session, node_id, ref, word & 0xFFFF, check=False, verify=False)
+    """The callers (control panel, guard) confirmed and armed what moves, or stop the drive."""
+    with cleared():
+        await parameters.write(session, node_id, ref, word & 0xFFFF, check=False, verify=False)
 
 
 async def send_quick_stop(session: Session, node: SessionNode) -> None:
     fam = family_of(node.catalog)
     if fam is None:  # the trip skips such nodes (NMT pre-operational is their safe command)
         raise InvalidValue(f"{node.device_name} has no device control word DriveBench knows.")
-    with node_lease.stopping():  # any station may stop a machine: no lease refuses it
+    with node_lease.stopping(), cleared():  # any station may stop a machine: no lease refuses it
         last = await last_word(session, node.node_id, fam.control_ref)
         await write_word(session, node.node_id, fam.control_ref, next_control_word(fam, Command.QUICK_STOP, last))
 
@@ -179,6 +183,11 @@ class Guard:
     def held_by(self, panel: Panel) -> list[int]:
         return sorted(node for node, holder in self.holders.items() if node in self.deadlines
                       and holder.panel.key == panel.key)
+
+    def held_elsewhere(self, panel: Panel) -> dict[int, str]:
+        """Armed nodes another panel holds (their holder): a keep-alive of ``panel`` does not reach them."""
+        return {node: holder.text() for node, holder in sorted(self.holders.items())
+                if node in self.deadlines and holder.panel.key != panel.key}
 
     def keepalive_all(self, panel: Panel) -> list[int]:
         """A page's session-wide keep-alive: every node ``panel`` holds."""
@@ -287,6 +296,71 @@ class Guard:
 
 def guard_for(session: Session) -> Guard:
     return session.services.guard
+
+
+# --- writes that can move a drive, by any route (parameter API and tab, set downloads, commissioning) -------------
+@dataclass(frozen=True)
+class Acting:
+    """Who sends the writes of a request (and of the jobs it starts), and the confirmation it carries."""
+
+    panel: Panel
+    confirm: object = None
+
+
+_acting: ContextVar[Acting | None] = ContextVar("drivebench_acting", default=None)
+_cleared: ContextVar[bool] = ContextVar("drivebench_motion_cleared", default=False)
+
+
+def acting_as(panel: Panel, confirm: object = None) -> None:
+    """Writes from here on (this request, and the tasks it starts) come from ``panel`` and carry ``confirm``."""
+    _acting.set(Acting(panel, confirm))
+
+
+def confirming(confirm: object) -> None:
+    """The request's body carries the confirmation (it wins over the header and query parameter)."""
+    if confirm is not None and confirm is not False:
+        act = _acting.get()
+        _acting.set(Acting(act.panel if act else SERVICE_PANEL, confirm))
+
+
+@contextlib.contextmanager
+def cleared() -> Iterator[None]:
+    """Writes inside were confirmed and armed by the caller (the control panel, a commissioning step) or stop the
+    drive (the guard's quick stop): :func:`admit_moving_write` lets them through."""
+    token = _cleared.set(True)
+    try:
+        yield
+    finally:
+        _cleared.reset(token)
+
+
+def confirm_moving(session: Session, node_id: int, what: str) -> Panel | None:
+    """The acting request confirmed ``what`` (428 without the confirmation naming the node) and its panel is no
+    watcher of a node another panel holds (409). None inside :func:`cleared` (nothing to check), else the panel.
+    An operation that will write such values (a parameter-set download) checks this before it starts."""
+    if _cleared.get():
+        return None
+    act = _acting.get()
+    require_confirmation(act.confirm if act else None, node_id, what)
+    panel = act.panel if act else SERVICE_PANEL
+    guard_for(session).check(node_id, panel, what)
+    return panel
+
+
+def admit_moving_write(session: Session, node_id: int, what: str) -> None:
+    """A write that can make the drive move: confirmed (:func:`confirm_moving`), and it arms the node for the
+    acting panel, which must keep it alive from now on (or the guard quick-stops it). A write without a request
+    (an internal caller outside :func:`cleared`) carries no confirmation: refused."""
+    panel = confirm_moving(session, node_id, what)
+    if panel is not None:
+        guard_for(session).arm(node_id, panel)
+
+
+def stopped(session: Session, node_id: int) -> None:
+    """A control word that stops the drive was written (outside the control panel's own logic): disarmed, as the
+    panel's shutdown, disable and quick stop disarm."""
+    if not _cleared.get():
+        guard_for(session).release(node_id)
 
 
 # --- NMT and RPDOs: confirmed, armed, stopped by the guard ----------------------------------------------------

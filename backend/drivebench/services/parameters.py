@@ -30,6 +30,7 @@ from typing import Protocol, TypeVar
 from drivebench.device.addressing import IndexRef, parse_ref
 from drivebench.device.catalog import Catalog, Item
 from drivebench.device.commands import CIA301_RESTORE, CIA301_SAVE, CommandWrite
+from drivebench.device.motion import is_still, motion_of
 from drivebench.device.profile import Access, ObjectEntry
 from drivebench.device.scaling import RawValue, ScaledValue, from_raw, to_raw
 from drivebench.errors import (
@@ -452,17 +453,31 @@ async def write(session: Session, node_id: int, ref: str, value: object, *, chec
                 verify: bool = True) -> WriteResult:
     """Validate, send, read back. ``value`` is what a user typed (``"10.2"``, ``"10.20 A"``, ``"500 kbit/s"``)
     or a number in engineering units. ``check=False`` leaves range, selection and read-only to the device.
-    Refused (409) while another writer holds the node's lease (:mod:`drivebench.services.node_lease`)."""
-    session.node(node_id)
-    with node_lease.writing(session, node_id):
-        return await _write(session, node_id, ref, value, check=check, verify=verify)
+    Refused (409) while another writer holds the node's lease (:mod:`drivebench.services.node_lease`).
 
+    A write that can make the drive move (:mod:`drivebench.device.motion`: a control word, setpoint, mode ...)
+    needs the confirmation naming the node and arms the keep-alive guard (:func:`drive_guard.admit_moving_write`);
+    a control word that only stops the drive is never refused, by a lease or for a confirmation."""
+    from drivebench.services import drive_guard  # drive_guard writes its quick stop through this module
 
-async def _write(session: Session, node_id: int, ref: str, value: object, *, check: bool,
-                 verify: bool) -> WriteResult:
     node = session.node(node_id)
     item = resolve(node, ref)
     raw = to_raw(item.entry, value, ref=item.ref) if check else _unchecked_raw(item, value)
+    motion = motion_of(item)
+    still = motion is not None and is_still(motion, raw)
+    stopping = still and motion is not None and motion.kind == "control_word"
+    with node_lease.stopping() if stopping else contextlib.nullcontext(), node_lease.writing(session, node_id):
+        if motion is not None and not still:
+            drive_guard.admit_moving_write(session, node_id, f"Writing {item.ref} ({item.name}) = {value}")
+        result = await _write(session, node, item, raw, value, verify=verify)
+    if stopping:
+        drive_guard.stopped(session, node_id)
+    return result
+
+
+async def _write(session: Session, node: SessionNode, item: Item, raw: RawValue, value: object, *,
+                 verify: bool) -> WriteResult:
+    node_id = node.node_id
     try:
         data = encode(item.entry.data_type, raw)
     except ValueError as exc:

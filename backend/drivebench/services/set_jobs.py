@@ -22,9 +22,10 @@ from typing import Any
 from pydantic import BaseModel
 
 from drivebench.device.catalog import Item
+from drivebench.device.motion import moves
 from drivebench.device.profile import Profile
 from drivebench.errors import Conflict, DriveBenchError, SdoAbortError, SdoTimeoutError, UnknownParameter
-from drivebench.services import audit, parameters
+from drivebench.services import audit, drive_guard, parameters
 from drivebench.services.jobs import Job, JobIssue, JobManager
 from drivebench.services.models import DownloadRow
 from drivebench.services.parameter_sets import (
@@ -250,6 +251,11 @@ def _start(session: Session, node: SessionNode, jobs: JobManager, store: Paramet
     items = {ref: item for ref in order if (item := _resolve(catalog, ref)) is not None}
     readable = [items[ref] for ref in order if ref in items and items[ref].entry.access.readable]
     who = user or audit.current_user.get()
+    moving = [ref for ref in order if ref in items and isinstance(targets[ref], (int, float))
+              and moves(items[ref], targets[ref]) is not None]
+    if moving:  # asked before anything is read or written; each such write arms the guard as it goes out
+        drive_guard.confirm_moving(session, node.node_id, f"A {kind} that writes {', '.join(moving[:4])}"
+                                   f"{' ...' if len(moving) > 4 else ''}")
 
     async def run(job: Job) -> None:
         before, unread = await read_items(session, node, readable, job)

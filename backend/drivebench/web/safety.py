@@ -8,12 +8,13 @@ The confirmation is the ``X-DriveBench-Confirm`` header, the ``confirm`` query p
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Annotated
 
 from fastapi import Depends
 from starlette.requests import HTTPConnection
 
-from drivebench.services import node_lease
+from drivebench.services import drive_guard, node_lease
 from drivebench.services.drive_guard import Panel, panel_of
 from drivebench.services.node_lease import Writer
 from drivebench.web.identity import principal_of
@@ -30,7 +31,10 @@ def client_id(conn: HTTPConnection) -> str | None:
 def panel_for(conn: HTTPConnection) -> Panel:
     principal = principal_of(conn)
     if principal.via != "local":  # signed in: the holder shown to others is who signed in, not what a header says
-        return panel_of(conn.client.host if conn.client else None, client_id(conn), principal.name)
+        panel = panel_of(conn.client.host if conn.client else None, client_id(conn), principal.name)
+        # and the panel is that user's: another user (a viewer) sending the same tab id from the same host is
+        # another panel, so only the user (and client) that armed a drive keeps it alive
+        return replace(panel, key=f"{panel.key}|user:{principal.name}")
     operator = conn.headers.get("x-drive-operator") or conn.query_params.get("operator") or principal.name
     return panel_of(conn.client.host if conn.client else None, client_id(conn), operator)
 
@@ -47,9 +51,11 @@ def writer_for(conn: HTTPConnection) -> Writer:
 
 
 async def acting_writer(conn: HTTPConnection) -> Writer:
-    """Router dependency: the writes of this request (and the jobs it starts) are this writer's."""
+    """Router dependency: the writes of this request (and the jobs it starts) are this writer's, from this panel,
+    with the confirmation the header or query carries (a route with a ``confirm`` body field adds it)."""
     writer = writer_for(conn)
     node_lease.writing_as(writer)
+    drive_guard.acting_as(panel_for(conn), confirmation(conn))
     return writer
 
 

@@ -13,6 +13,7 @@ from pydantic import BaseModel, Field, model_validator
 
 from drivebench.device.catalog import Item
 from drivebench.device.scaling import ScaledValue
+from drivebench.services import drive_guard
 from drivebench.services import parameters as service
 from drivebench.services.jobs import Job, JobManager
 from drivebench.services.parameters import DeviceCommand, ParameterValue, SdoSettings, WriteResult
@@ -95,6 +96,9 @@ class ParameterWrite(BaseModel):
     check: bool = Field(True, description="Validate against the profile before sending (false: the device decides; "
                                           "the value must still fit the data type)")
     verify: bool = Field(True, description="Read the value back after writing and compare")
+    confirm: int | str | None = Field(None, description="The node id, for a write that can make the drive move (a "
+                                                        "control word that enables, a setpoint, the mode, a command "
+                                                        "source: the profile marks them); or X-DriveBench-Confirm")
 
     @model_validator(mode="after")
     def _one_of(self) -> ParameterWrite:
@@ -233,8 +237,14 @@ async def read_parameter(session: SessionDep, node: NodeDep, ref: str,
     return value_out(await service.read(session, node.node_id, ref, transfer=transfer))
 
 
-@router.put(NODE + "/parameters/{ref:path}", response_model=WriteOut)
+@router.put(NODE + "/parameters/{ref:path}", response_model=WriteOut,
+            responses={428: {"description": "A write that can make the drive move, without the confirmation naming "
+                                            "the node"}})
 async def write_parameter(session: SessionDep, node: NodeDep, ref: str, body: ParameterWrite) -> WriteOut:
+    """Write and read back. A write the profile marks as moving the drive needs ``confirm`` (the node id) and
+    arms the keep-alive guard: this client must then POST ``/api/sessions/{session}/keepalive`` at least every
+    2 s, or the drive is quick-stopped. A control word that only stops the drive is never refused."""
+    drive_guard.confirming(body.confirm)
     value: object = body.value
     if body.raw is not None:
         item = service.resolve(node, ref)

@@ -74,9 +74,16 @@ class NmtRequest(NodeNmtRequest):
     node_id: int = Field(0, ge=0, le=127, description="0 = all nodes (broadcast)")
 
 
+class NotHeldOut(BaseModel):
+    node: int
+    holder: str
+
+
 class KeepaliveOut(BaseModel):
     nodes: list[int] = Field(description="The nodes this client holds whose deadline restarted")
     timeout_s: float = Field(description="Send the next keep-alive within this time")
+    not_held: list[NotHeldOut] = Field(default_factory=list, description="Armed nodes this keep-alive does NOT keep "
+                                                                         "alive: another user or client holds them")
 
 
 class LeaseOut(BaseModel):
@@ -181,7 +188,8 @@ async def keepalive(session: SessionDep, panel: PanelDep) -> KeepaliveOut:
     nodes = guard.keepalive_all(panel)
     timeout = min((guard.timeouts.get(n, drive_guard.KEEPALIVE_TIMEOUT_S) for n in nodes),
                   default=drive_guard.KEEPALIVE_TIMEOUT_S)
-    return KeepaliveOut(nodes=nodes, timeout_s=timeout)
+    return KeepaliveOut(nodes=nodes, timeout_s=timeout, not_held=[
+        NotHeldOut(node=node, holder=holder) for node, holder in guard.held_elsewhere(panel).items()])
 
 
 def lease_out(session: Session, node_id: int, writer: node_lease.Writer | None) -> LeaseOut:

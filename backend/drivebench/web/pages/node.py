@@ -15,7 +15,7 @@ from fastapi.responses import HTMLResponse, Response
 
 from drivebench.device.catalog import Item
 from drivebench.errors import AccessDenied, DriveBenchError, NodeOffline, NotFound, SdoTimeoutError
-from drivebench.services import node_lease
+from drivebench.services import drive_guard, node_lease
 from drivebench.services import parameters as service
 from drivebench.services.parameters import DeviceCommand, WriteResult
 from drivebench.services.principals import Role
@@ -179,7 +179,9 @@ async def read_row(request: Request, session: SessionDep, node: NodeDep, ref: st
 
 @router.post(UI + "/parameters/{ref:path}/write", response_class=HTMLResponse)
 async def write_row(request: Request, session: SessionDep, node: NodeDep, ref: str,
-                    value: Annotated[str, Form()]) -> Response:
+                    value: Annotated[str, Form()], confirm: Annotated[str | None, Form()] = None) -> Response:
+    """A row the profile marks as moving the drive sends ``confirm`` after the page's question (see the row)."""
+    drive_guard.confirming(confirm)
     result = await service.write(session, node.node_id, ref, value)
     return _row(request, session, node, ref, result=result)
 

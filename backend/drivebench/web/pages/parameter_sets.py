@@ -12,7 +12,7 @@ from fastapi.responses import HTMLResponse, Response
 from starlette.datastructures import FormData, UploadFile
 
 from drivebench.errors import DriveBenchError, InvalidValue
-from drivebench.services import audit, set_formats, set_jobs
+from drivebench.services import audit, drive_guard, set_formats, set_jobs
 from drivebench.services.jobs import Job, JobManager
 from drivebench.services.parameter_sets import compare, comparison_csv, retarget
 from drivebench.services.sessions import SessionManager
@@ -266,6 +266,7 @@ async def download(request: Request, set_id: RowId, manager: ManagerDep, jobs: J
     form = await request.form()
     try:
         session_id, node_id = _target(form)
+        drive_guard.confirming(_text(form, "confirm") or None)  # the page's question for sets that move a drive
         job = set_jobs.start_download(manager.get(session_id), node_id, jobs, store(), store().get(set_id),
                                       save=form.get("save") == "on")
     except DriveBenchError as exc:
@@ -280,6 +281,7 @@ async def follow_up(request: Request, download_id: int, action: str, manager: Ma
         row = store().download(download_id)
         session = manager.get(row.session_id)
         save = form.get("save") == "on"
+        drive_guard.confirming(_text(form, "confirm") or None)
         if action == "retry":
             job = set_jobs.start_retry(session, jobs, store(), download_id, save=save)
         elif action == "rollback":

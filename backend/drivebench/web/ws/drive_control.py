@@ -15,7 +15,8 @@ keeps alive every node that tab holds in the session; when its last such socket 
 (cyclic RPDOs end, quick stop, NMT pre-operational for the nodes the tool started) at their keep-alive deadline,
 at most 2 s later, unless the same tab reconnects first (the next page of an in-app navigation keeps them
 running). The tab's node write leases end with its last such socket. The server answers each message with
-``{"type": "held", "nodes": [5]}``.
+``{"type": "held", "nodes": [5], "not_held": [{"node": 3, "holder": "..."}]}`` (``not_held``: armed nodes another
+user or client holds, which this keep-alive does not reach).
 """
 
 from __future__ import annotations
@@ -104,7 +105,9 @@ async def keepalive(websocket: WebSocket, session_id: str) -> None:
     try:
         while True:
             await websocket.receive_text()
-            await websocket.send_json({"type": "held", "nodes": guard.keepalive_all(panel)})
+            await websocket.send_json({"type": "held", "nodes": guard.keepalive_all(panel),
+                                       "not_held": [{"node": node, "holder": holder}
+                                                    for node, holder in guard.held_elsewhere(panel).items()]})
     except (WebSocketDisconnect, RuntimeError):
         pass
     finally:
