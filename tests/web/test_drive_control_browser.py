@@ -28,6 +28,13 @@ def server() -> Iterator[tuple[str, Plant]]:
         yield base_url, next(iter(plants.values()))
 
 
+def _control_from_can(plant: Plant) -> None:
+    """The MICROMASTER takes commands and setpoint from CAN (set at the drive: through the tool, P0700/P1000 are
+    writes that can move it, confirmed and kept alive; see test_moving_writes)."""
+    for ref in ("P0700", "P1000"):
+        plant.nodes[3].store.set_ref(ref, 6)
+
+
 def _background(page: Any, selector: str) -> str:
     return str(page.locator(selector).evaluate("el => getComputedStyle(el).backgroundColor"))
 
@@ -57,9 +64,7 @@ def _shown(page: Any, ref: str, done: Callable[[str], bool]) -> str:
 def test_first_run_to_operation_enabled_and_back(server: tuple[str, Plant], page: Any) -> None:
     base, plant = server
     plant.nodes[3].store.set_ref("P1120", 1.0)  # test-only: 1 s ramp instead of 10 s
-    for ref in ("P0700", "P1000"):
-        response = page.request.put(f"{base}/api/sessions/demo-plant/nodes/3/parameters/{ref}", data={"value": "6"})
-        assert response.ok, response.text()
+    _control_from_can(plant)
     page.goto(f"{base}/sessions/demo-plant/nodes/3?tab=control")
     page.wait_for_selector("#ctl-ws.good", timeout=TIMEOUT_MS)
     _current(page, "switch_on_disabled")
@@ -135,10 +140,8 @@ def test_guided_commissioning_8200_vector(server: tuple[str, Plant], page: Any) 
 def test_second_panel_watches_the_drive_the_first_holds(server: tuple[str, Plant], browser: Any) -> None:
     """Anna's panel arms the MICROMASTER; Ben's panel on the same node names her, offers only the stopping
     commands, and closing it leaves her drive running. Closing Anna's panel quick-stops the drive."""
-    base, _ = server
-    for ref in ("P0700", "P1000"):
-        assert browser.new_context().request.put(
-            f"{base}/api/sessions/demo-plant/nodes/3/parameters/{ref}", data={"value": "6"}).ok
+    base, plant = server
+    _control_from_can(plant)
     url = f"{base}/sessions/demo-plant/nodes/3?tab=control"
     anna_context = browser.new_context(viewport={"width": 1440, "height": 900})
     ben_context = browser.new_context(viewport={"width": 1440, "height": 900})

@@ -14,6 +14,7 @@ from fastapi import APIRouter, Form, Query, Request
 from fastapi.responses import HTMLResponse, Response
 
 from drivebench.device.catalog import Item
+from drivebench.device.motion import motion_of
 from drivebench.errors import AccessDenied, DriveBenchError, NodeOffline, NotFound, SdoTimeoutError
 from drivebench.services import drive_guard, node_lease
 from drivebench.services import parameters as service
@@ -56,6 +57,7 @@ def edit_value(last: service.ParameterValue | None, item: Item) -> str:
 
 templates.env.filters["row_id"] = row_id
 templates.env.filters["edit_value"] = edit_value
+templates.env.filters["motion"] = motion_of  # rows whose write can move the drive: the page asks first (node.js)
 
 
 def _base(request: Request, session: Session, node: SessionNode, tab: str, **extra: Any) -> dict[str, Any]:
