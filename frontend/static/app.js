@@ -160,4 +160,62 @@ window.drivebenchClientId = window.drivebenchClientId || (() => {
 document.addEventListener("htmx:configRequest", (event) => {
   event.detail.headers["X-DriveBench-Client"] = window.drivebenchClientId;
 });
+
+// A write the server refuses with 428 (it can make a drive move: Parameters tab, parameter-set downloads) is asked
+// in the page's own dialog, in the server's words; confirmed, the form is sent again with the confirmation the
+// server named (the node id), which its hidden "confirm" input carries for that one request. Forms opt in with
+// data-asks-moving. The page's keep-alive socket (safety.js) then holds the node.
+(() => {
+  let dialog = null;
+  function askDialog() {
+    if (dialog) return dialog;
+    dialog = document.createElement("dialog");
+    dialog.id = "moving-confirm";
+    const form = document.createElement("form");
+    form.method = "dialog";
+    const head = document.createElement("h3");
+    head.textContent = "The drive may move";
+    const text = document.createElement("p");
+    text.className = "moving-confirm-text";
+    const note = document.createElement("p");
+    note.className = "muted";
+    note.textContent = "Once sent, this page keeps the node alive (every 0.5 s); when the page closes or the network " +
+      "is lost, the server sends quick stop within 2 s.";
+    const row = document.createElement("div");
+    row.className = "ctl-row";
+    for (const [value, label, cls] of [["cancel", "Cancel", "secondary"], ["ok", "Send it", "moving warn"]]) {
+      const button = document.createElement("button");
+      button.value = value;
+      button.textContent = label;
+      button.className = cls;
+      row.append(button);
+    }
+    form.append(head, text, note, row);
+    dialog.append(form);
+    document.body.append(dialog);
+    return dialog;
+  }
+
+  document.body.addEventListener("htmx:afterRequest", (event) => {
+    const elt = event.detail.elt;
+    const form = elt.closest && elt.closest("form[data-asks-moving]");
+    if (!form) return;
+    const hidden = form.querySelector("input[name=confirm]");
+    if (hidden) hidden.value = "";  // a confirmation answers one question only
+    if (event.detail.xhr.status !== 428 || !hidden) return;
+    // the server's answer, read as text in an inert document (nothing in it runs or loads)
+    const text = new DOMParser().parseFromString(event.detail.xhr.responseText, "text/html").body.textContent.trim();
+    const named = text.match(/confirm = '([^']+)'/);
+    if (!named) return;
+    const ask = askDialog();
+    ask.querySelector(".moving-confirm-text").textContent = text;
+    ask.returnValue = "";
+    ask.addEventListener("close", () => {
+      if (ask.returnValue !== "ok") return;
+      hidden.value = named[1];
+      htmx.trigger(elt, elt === form ? "submit" : "click");
+    }, { once: true });
+    ask.showModal();
+  });
+})();
 // --- end safety interlocks ---------------------------------------------------------------------------------

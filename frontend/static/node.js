@@ -65,26 +65,3 @@
   });
 })();
 
-// Parameters tab: a write the server refuses with 428 can make the drive move. The page asks in its own dialog, with
-// the server's words, and sends the write again with the confirmation naming the node; this tab's keep-alive socket
-// (safety.js) then holds the node. A write that cannot move it (a quick stop) is never asked.
-(function () {
-  document.body.addEventListener("htmx:afterRequest", (event) => {
-    const form = event.detail.elt;
-    if (!form.matches || !form.matches("form.edit-form")) return;
-    const hidden = form.querySelector("input[name=confirm]");
-    if (hidden) hidden.value = "";  // a confirmation answers one question only
-    const dialog = document.getElementById("param-confirm");
-    if (event.detail.xhr.status !== 428 || !dialog || !hidden) return;
-    // the server's problem fragment, read as text in an inert document (nothing in it runs or loads)
-    const answer = new DOMParser().parseFromString(event.detail.xhr.responseText, "text/html");
-    document.getElementById("param-confirm-text").textContent = answer.body.textContent.trim();
-    dialog.returnValue = "";
-    dialog.addEventListener("close", () => {
-      if (dialog.returnValue !== "ok") return;
-      hidden.value = form.getAttribute("hx-post").split("/nodes/")[1].split("/")[0];
-      htmx.trigger(form, "submit");
-    }, { once: true });
-    dialog.showModal();
-  });
-})();

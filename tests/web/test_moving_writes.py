@@ -189,6 +189,9 @@ def test_a_set_download_with_a_control_word_needs_the_confirmation(plant_client:
     target = {"session_id": DEMO, "node_id": MOTEC}
     refused = api.post(f"{sets}/{running['id']}/download", json=target)
     assert refused.status_code == 428 and "C00866/1" in refused.json()["detail"], refused.text
+    page = api.post(f"/parameter-sets/{running['id']}/download", data={"target": f"{DEMO}:{MOTEC}"})
+    assert page.status_code == 428 and "confirm = &#39;5&#39;" in page.text, page.text  # the sets page asks (app.js)
+    assert f'data-keepalive="/ws/sessions/{DEMO}/keepalive"' in api.get("/parameter-sets").text
     assert sim.store.get_ref("C00866/1") == 0 and not sim.drive.running  # type: ignore[union-attr]
     done = _finish(api, api.post(f"{sets}/{running['id']}/download", json={**target, "confirm": MOTEC}).json())
     assert done["download_state"] == "done", done

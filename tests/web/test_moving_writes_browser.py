@@ -28,9 +28,10 @@ def server() -> Iterator[tuple[str, Plant]]:
 
 
 def _write(page: Any, ref: str, value: str) -> Any:
-    page.fill("#param-q", ref)
+    if page.input_value("#param-q") != ref:
+        page.fill("#param-q", ref)  # the search re-renders the rows: write in the row it shows
+        expect(page.locator("#param-rows")).to_have_attribute("data-count", "1", timeout=WAIT_MS)
     row = page.locator(f"tr[data-ref='{ref}']")
-    expect(row).to_have_count(1, timeout=WAIT_MS)
     row.locator("input[name=value]").fill(value)
     row.get_by_role("button", name="Write").click()
     return row
@@ -44,7 +45,7 @@ def test_the_parameters_tab_asks_before_a_write_that_moves_the_drive(server: tup
     context = browser.new_context(viewport={"width": 1440, "height": 900})
     page = context.new_page()
     page.goto(f"{base}/sessions/demo-plant/nodes/{MM}")
-    dialog = page.locator("#param-confirm")
+    dialog = page.locator("#moving-confirm")
 
     row = _write(page, "0x6040", "6")  # shutdown: cannot move it, sent without a question
     expect(row.locator("td.val")).to_contain_text("0x0006", timeout=WAIT_MS)
@@ -53,7 +54,7 @@ def test_the_parameters_tab_asks_before_a_write_that_moves_the_drive(server: tup
 
     _write(page, "0x6040", "15")  # enable operation
     expect(dialog).to_be_visible(timeout=WAIT_MS)
-    expect(page.locator("#param-confirm-text")).to_contain_text("lets node 3 move a drive")
+    expect(page.locator("#moving-confirm .moving-confirm-text")).to_contain_text("lets node 3 move a drive")
     screenshot(page, "parameters-moving-write-confirm")
     dialog.get_by_role("button", name="Cancel").click()
     expect(dialog).to_be_hidden()
@@ -62,7 +63,7 @@ def test_the_parameters_tab_asks_before_a_write_that_moves_the_drive(server: tup
 
     _write(page, "0x6040", "15")
     expect(dialog).to_be_visible(timeout=WAIT_MS)
-    dialog.get_by_role("button", name="Write it").click()
+    dialog.get_by_role("button", name="Send it").click()
     expect(page.locator("tr[data-ref='0x6040'] td.val")).to_contain_text("0x000F", timeout=WAIT_MS)
     assert sim.store.get(0x6040, 0) == 15
     expect(page.locator(".keepalive-state")).to_contain_text("keeps node 3 running", timeout=WAIT_MS)

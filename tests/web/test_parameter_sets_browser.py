@@ -117,6 +117,11 @@ def test_export_change_compare_download(page: Any, sets_server: str, tmp_path: P
     expect(preview).to_contain_text("12.50 A")
     screenshot(page, "sets-preview")
     preview.get_by_role("button", name="Download 1 changes").click()
+    # the set holds C00007 (control mode, a command source): the page asks in its own dialog, naming node 5
+    asked = page.locator("#moving-confirm")
+    expect(asked).to_be_visible(timeout=WAIT_MS)
+    expect(asked).to_contain_text("lets node 5 move a drive")
+    asked.get_by_role("button", name="Send it").click()
     report = page.locator("#download-area .report")
     expect(report).to_have_attribute("data-state", "done", timeout=WAIT_MS)
     expect(report.locator(".report-table tbody tr")).to_have_count(1)

@@ -76,7 +76,7 @@ def _nodes(manager: SessionManager) -> list[dict[str, Any]]:
     for session in manager.list():
         for node in sorted(session.nodes.values(), key=lambda n: n.node_id):
             if node.profile is not None:
-                found.append({"key": f"{session.id}:{node.node_id}", "session": session.name,
+                found.append({"key": f"{session.id}:{node.node_id}", "session": session.name, "session_id": session.id,
                               "node_id": node.node_id, "device": node.device_name, "profile_id": node.profile.id})
     return found
 
