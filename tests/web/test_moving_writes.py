@@ -209,6 +209,10 @@ def test_a_viewer_does_not_keep_an_engineers_drive_running(users: dict[str, str]
     assert started.status_code == 200, started.text
     assert wait_until(lambda: sim.state.name == "OPERATIONAL")
     armed_at = time.monotonic()
+    with app_client.websocket_connect(f"/ws/sessions/{DEMO}/keepalive?client=tab-1", headers=vera) as socket:
+        socket.send_text('{"cmd": "keepalive"}')  # the viewer's page socket, same tab id: holds nothing
+        held = socket.receive_json()
+        assert held["nodes"] == [] and [n["node"] for n in held["not_held"]] == [MOTEC], held
     kept = _keepalive(app_client, vera)
     assert kept["nodes"] == [] and [held["node"] for held in kept["not_held"]] == [MOTEC], kept
     assert "eve" in kept["not_held"][0]["holder"], "the answer says who holds the node it does not keep alive"
