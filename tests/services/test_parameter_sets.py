@@ -18,7 +18,7 @@ import pytest
 from sqlalchemy import text
 
 from drivebench.device.loader import ProfileRegistry
-from drivebench.errors import Conflict, DriveBenchError, NotFound, OutOfRange
+from drivebench.errors import ConfirmationRequired, Conflict, DriveBenchError, NotFound, OutOfRange
 from drivebench.services import audit, database, parameters, set_formats, set_jobs
 from drivebench.services.jobs import Job, JobManager, JobState
 from drivebench.services.parameter_sets import (
@@ -237,8 +237,10 @@ def test_download_meets_read_only_and_out_of_range_mid_way_then_retry_and_rollba
     assert [line.ref for line in preview] == ["C00011", "C00039/1", "C00088", "C00324/1", "C00356/1"]
     assert next(line for line in preview if line.ref == "C00088").target == "12.50 A"
 
+    with pytest.raises(ConfirmationRequired, match="C00007"):  # the set holds the control mode (a command source)
+        set_jobs.start_download(bench.session, 5, bench.jobs, bench.store, new_set)
     job = bench.finish(lambda: set_jobs.start_download(bench.session, 5, bench.jobs, bench.store, new_set,
-                                                       save=True))
+                                                       save=True, confirm=5))
     assert job.state is JobState.DONE
     report = {line["ref"]: line for line in job.result["report"]}
     assert len(report) == len(wanted)
@@ -288,7 +290,7 @@ def test_copy_to_a_second_identical_axis(bench: Bench, registry: ProfileRegistry
     values, notes = retarget(profile, source.values, 5, 2)
     assert values["C00350"] == 2 and any("C00350" in note for note in notes)
     copy = bench.store.create("axis 2", profile, values, user="t", node_id=2, reason="copy of set 1 for node 2")
-    job = bench.finish(lambda: set_jobs.start_download(bench.session, 2, bench.jobs, bench.store, copy))
+    job = bench.finish(lambda: set_jobs.start_download(bench.session, 2, bench.jobs, bench.store, copy, confirm=2))
     assert job.result["state"] == "done"
     statuses = {line["ref"]: line["status"] for line in job.result["report"]}
     assert statuses["C00088"] == "written" and statuses["C00350"] in ("written", "unchanged")
@@ -334,7 +336,7 @@ async def main() -> None:
     session = await manager.open(plant.spec, "kill")
     session.add_node(5, "lenze-8400-motec-canopen")
     store = ParameterSetStore(url)
-    job = set_jobs.start_download(session, 5, JobManager(), store, store.get(set_id))
+    job = set_jobs.start_download(session, 5, JobManager(), store, store.get(set_id), confirm=5)
     await job.wait()
     print("finished", job.state, flush=True)
 

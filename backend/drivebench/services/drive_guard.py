@@ -334,14 +334,15 @@ def cleared() -> Iterator[None]:
         _cleared.reset(token)
 
 
-def confirm_moving(session: Session, node_id: int, what: str) -> Panel | None:
-    """The acting request confirmed ``what`` (428 without the confirmation naming the node) and its panel is no
-    watcher of a node another panel holds (409). None inside :func:`cleared` (nothing to check), else the panel.
-    An operation that will write such values (a parameter-set download) checks this before it starts."""
+def confirm_moving(session: Session, node_id: int, what: str, *, confirm: object = None) -> Panel | None:
+    """``confirm`` (else the acting request's confirmation) confirmed ``what`` (428 without the one naming the
+    node) and the acting panel is no watcher of a node another panel holds (409). None inside :func:`cleared`
+    (nothing to check), else the panel. An operation that will write such values (a parameter-set download)
+    checks this before it starts."""
     if _cleared.get():
         return None
     act = _acting.get()
-    require_confirmation(act.confirm if act else None, node_id, what)
+    require_confirmation(confirm if confirm is not None else act.confirm if act else None, node_id, what)
     panel = act.panel if act else SERVICE_PANEL
     guard_for(session).check(node_id, panel, what)
     return panel

@@ -200,19 +200,21 @@ def _check_target(node: SessionNode, stored: StoredSet) -> Profile:
 
 # --- download, retry, rollback -----------------------------------------------------------------------------
 def start_download(session: Session, node_id: int, jobs: JobManager, store: ParameterSetStore, stored: StoredSet,
-                   *, save: bool = False, only: list[str] | None = None, user: str | None = None) -> Job:
-    """Download the set (or only the refs ``only``: a retry of the failed ones) to the node."""
+                   *, save: bool = False, only: list[str] | None = None, user: str | None = None,
+                   confirm: object = None) -> Job:
+    """Download the set (or only the refs ``only``: a retry of the failed ones) to the node. A set with values
+    that can move the drive needs ``confirm`` naming the node (or the request's confirmation)."""
     node = session.node(node_id)
     _check_target(node, stored)
     targets = {ref: raw for ref, raw in stored.values.items() if only is None or ref in only}
     kind = "download" if only is None else "retry"
     title = f"{'Download' if only is None else 'Retry'} '{stored.info.name}' to node {node_id}"
     return _start(session, node, jobs, store, targets, kind=kind, title=title, save=save, user=user,
-                  set_id=stored.info.id, set_version=stored.version)
+                  set_id=stored.info.id, set_version=stored.version, confirm=confirm)
 
 
 def start_retry(session: Session, jobs: JobManager, store: ParameterSetStore, download_id: int,
-                *, save: bool = False, user: str | None = None) -> Job:
+                *, save: bool = False, user: str | None = None, confirm: object = None) -> Job:
     """Write again what a download left failed, mismatched or not attempted."""
     previous = store.download(download_id)
     redo = {line["ref"]: line["target_raw"] for line in previous.report
@@ -222,11 +224,11 @@ def start_retry(session: Session, jobs: JobManager, store: ParameterSetStore, do
     node = session.node(previous.node_id)
     return _start(session, node, jobs, store, redo, kind="retry", save=save, user=user,
                   title=f"Retry {len(redo)} parameters of download {download_id} on node {node.node_id}",
-                  set_id=previous.set_id, set_version=previous.set_version)
+                  set_id=previous.set_id, set_version=previous.set_version, confirm=confirm)
 
 
 def start_rollback(session: Session, jobs: JobManager, store: ParameterSetStore, download_id: int,
-                   *, save: bool = False, user: str | None = None) -> Job:
+                   *, save: bool = False, user: str | None = None, confirm: object = None) -> Job:
     """Write back the values a download read first, for everything it changed (or may have changed)."""
     previous = store.download(download_id)
     node = session.node(previous.node_id)
@@ -239,12 +241,12 @@ def start_rollback(session: Session, jobs: JobManager, store: ParameterSetStore,
         raise Conflict(f"Download {download_id} changed nothing that could be rolled back")
     return _start(session, node, jobs, store, targets, kind="rollback", save=save, user=user,
                   title=f"Roll back download {download_id} on node {node.node_id}", set_id=previous.set_id,
-                  set_version=previous.set_version)
+                  set_version=previous.set_version, confirm=confirm)
 
 
 def _start(session: Session, node: SessionNode, jobs: JobManager, store: ParameterSetStore, targets: Values, *,
            kind: str, title: str, save: bool, user: str | None, set_id: int | None,
-           set_version: int | None) -> Job:
+           set_version: int | None, confirm: object = None) -> Job:
     profile = _profile(node)
     order = download_order(profile, list(targets))
     catalog = catalog_for(profile)
@@ -255,9 +257,10 @@ def _start(session: Session, node: SessionNode, jobs: JobManager, store: Paramet
               and moves(items[ref], targets[ref]) is not None]
     if moving:  # asked before anything is read or written; each such write arms the guard as it goes out
         drive_guard.confirm_moving(session, node.node_id, f"A {kind} that writes {', '.join(moving[:4])}"
-                                   f"{' ...' if len(moving) > 4 else ''}")
+                                   f"{' ...' if len(moving) > 4 else ''}", confirm=confirm)
 
     async def run(job: Job) -> None:
+        drive_guard.confirming(confirm)  # the job's own writes carry it (this task's context only)
         before, unread = await read_items(session, node, readable, job)
         download_id = await asyncio.to_thread(
             store.start_download, kind=kind, session_id=session.id, node_id=node.node_id, profile_id=profile.id,

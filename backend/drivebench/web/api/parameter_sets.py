@@ -19,7 +19,7 @@ from drivebench.config import settings
 from drivebench.device.loader import original_file
 from drivebench.device.profile import Profile
 from drivebench.errors import InvalidValue
-from drivebench.services import audit, drive_guard, set_formats, set_jobs
+from drivebench.services import audit, set_formats, set_jobs
 from drivebench.services.jobs import Job, JobManager
 from drivebench.services.models import DownloadRow
 from drivebench.services.parameter_sets import (
@@ -345,9 +345,8 @@ async def preview_download(set_id: RowId, body: TargetIn, manager: ManagerDep,
 async def download_set(set_id: RowId, body: DownloadIn, manager: ManagerDep, jobs: JobsDep,
                        version: RowVersion = None, user: UserHeader = None) -> SetJobOut:
     stored = store().get(set_id, version)
-    drive_guard.confirming(body.confirm)
     job = set_jobs.start_download(manager.get(body.session_id), body.node_id, jobs, store(), stored,
-                                  save=body.save, user=user_of(user))
+                                  save=body.save, user=user_of(user), confirm=body.confirm)
     return set_job_out(job)
 
 
@@ -373,9 +372,8 @@ async def retry_download(download_id: RowId, manager: ManagerDep, jobs: JobsDep,
                          user: UserHeader = None) -> SetJobOut:
     """Write again what the download left failed, mismatched or not attempted."""
     row = store().download(download_id)
-    drive_guard.confirming(body and body.confirm)
     job = set_jobs.start_retry(manager.get(row.session_id), jobs, store(), download_id,
-                               save=bool(body and body.save), user=user_of(user))
+                               save=bool(body and body.save), user=user_of(user), confirm=body and body.confirm)
     return set_job_out(job)
 
 
@@ -385,9 +383,8 @@ async def rollback_download(download_id: RowId, manager: ManagerDep, jobs: JobsD
                             body: FollowUpIn | None = None, user: UserHeader = None) -> SetJobOut:
     """Write back the values read before the download, for everything it changed (or may have changed)."""
     row = store().download(download_id)
-    drive_guard.confirming(body and body.confirm)
     job = set_jobs.start_rollback(manager.get(row.session_id), jobs, store(), download_id,
-                                  save=bool(body and body.save), user=user_of(user))
+                                  save=bool(body and body.save), user=user_of(user), confirm=body and body.confirm)
     return set_job_out(job)
 
 

@@ -12,7 +12,7 @@ from fastapi.responses import HTMLResponse, Response
 from starlette.datastructures import FormData, UploadFile
 
 from drivebench.errors import DriveBenchError, InvalidValue
-from drivebench.services import audit, drive_guard, set_formats, set_jobs
+from drivebench.services import audit, set_formats, set_jobs
 from drivebench.services.jobs import Job, JobManager
 from drivebench.services.parameter_sets import compare, comparison_csv, retarget
 from drivebench.services.sessions import SessionManager
@@ -266,9 +266,8 @@ async def download(request: Request, set_id: RowId, manager: ManagerDep, jobs: J
     form = await request.form()
     try:
         session_id, node_id = _target(form)
-        drive_guard.confirming(_text(form, "confirm") or None)  # the page's question for sets that move a drive
         job = set_jobs.start_download(manager.get(session_id), node_id, jobs, store(), store().get(set_id),
-                                      save=form.get("save") == "on")
+                                      save=form.get("save") == "on", confirm=_text(form, "confirm") or None)
     except DriveBenchError as exc:
         return _error(request, exc)
     return _render(request, "job", _job_context(job, jobs))
@@ -281,11 +280,11 @@ async def follow_up(request: Request, download_id: int, action: str, manager: Ma
         row = store().download(download_id)
         session = manager.get(row.session_id)
         save = form.get("save") == "on"
-        drive_guard.confirming(_text(form, "confirm") or None)
+        confirm = _text(form, "confirm") or None  # after the page's question, for sets that can move a drive
         if action == "retry":
-            job = set_jobs.start_retry(session, jobs, store(), download_id, save=save)
+            job = set_jobs.start_retry(session, jobs, store(), download_id, save=save, confirm=confirm)
         elif action == "rollback":
-            job = set_jobs.start_rollback(session, jobs, store(), download_id, save=save)
+            job = set_jobs.start_rollback(session, jobs, store(), download_id, save=save, confirm=confirm)
         else:
             raise InvalidValue(f"Unknown action '{action}'")
     except DriveBenchError as exc:
