@@ -9,6 +9,11 @@ guard stops the node itself (:meth:`Guard.trip`): cyclic RPDOs to it end, quick 
 (through the guard's own control-word I/O below, so stopping never depends on the panel logic in
 :mod:`drivebench.services.drive_control`) and, if the tool started it, NMT pre-operational is sent.
 
+Parameter writes go the same way, whatever route sends them (:func:`admit_moving_write`, called by
+:func:`parameters.write` for what :mod:`drivebench.device.motion` marks as moving): the request's confirmation and
+panel travel in a context variable the web layer sets (:func:`acting_as`); the control panel's own writes, already
+confirmed and armed, run inside :func:`cleared`.
+
 A node armed by NMT start or an RPDO stays armed (the status word does not disarm it) until an NMT command that
 leaves Operational is sent through the tool, or the guard trips.
 """
