@@ -224,10 +224,11 @@ class GatewayHealth:
         sentences = [self.network.link_text, *(note() for note in self.notes)]
         return " ".join(s for s in sentences if s) or None
 
-    state_text = text
+    def state_text(self) -> str | None:
+        return self.network.link_text
 
     def as_dict(self, now: float | None = None) -> dict[str, Any]:
         return {"state": self.state(), "adapter_state": self.state(), "tx_errors": None, "rx_errors": None,
-                "reported_age_s": None, "text": self.text(),
+                "reported_age_s": None, "text": self.state_text(),
                 "link": {"lost": bool(self.network.link_text), "reason": self.network.link_text, "since": None,
                          "attempts": 0, "reconnects": 0}}

@@ -22,13 +22,15 @@ import threading
 import time
 from collections.abc import Callable, Mapping
 
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
 from drivebench.device.profile import Profile
 from drivebench.protocol import coe, esm
 from drivebench.protocol.coe_server import Abort, CoeSdoServer
 from drivebench.protocol.datatypes import DataType, encode
 from drivebench.protocol.sdo_server import SdoAbort
 from drivebench.simulator.node import Latency, SimulatedNode
-from drivebench.transport.ethercat_gateway import GatewayFormatError, gateway_frame, telegram_of
+from drivebench.transport.ethercat_gateway import GatewayFormatError, GatewaySpec, gateway_frame, telegram_of
 
 PREOP_ONLY = (0x1600, 0x1A00, 0x1C12, 0x1C13)
 """PDO mapping and assignment: written only in Pre-Operational (manual §8, ETG.1000.6)."""
@@ -270,3 +272,56 @@ class GatewayServer:
             now = time.monotonic()
             for slave in self.slaves.values():
                 slave.tick(now)
+
+
+class LineSlave(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    station: int = Field(ge=1, le=0xFFFF, description="configured station address")
+    profile: str
+    name: str | None = None
+    latency: str = "0ms"
+    values: dict[str, int | float | str] = Field(default_factory=dict)
+
+    @field_validator("latency")
+    @classmethod
+    def _check_latency(cls, value: str) -> str:
+        Latency.parse(value)
+        return value
+
+
+class EthercatLine(BaseModel):
+    """A plant file's ``ethercat`` section: slaves behind a simulated master's mailbox gateway.
+
+    ``gateway`` is where it listens (``ethercat-mbg:127.0.0.1:0`` takes a free port)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    name: str = "EtherCAT line"
+    gateway: str = "ethercat-mbg:127.0.0.1:0"
+    slaves: list[LineSlave]
+
+    @field_validator("gateway")
+    @classmethod
+    def _check_gateway(cls, value: str) -> str:
+        GatewaySpec.parse(value.removesuffix(":0"))  # port 0: any free one
+        return value
+
+    @field_validator("slaves")
+    @classmethod
+    def _unique_stations(cls, slaves: list[LineSlave]) -> list[LineSlave]:
+        stations = [slave.station for slave in slaves]
+        if len(set(stations)) != len(stations):
+            raise ValueError("two slaves have the same station address")
+        return slaves
+
+    def start(self, profiles: Callable[[str], Profile], *, port: int | None = None,
+              latency: str | None = None) -> GatewayServer:
+        where = self.gateway.removeprefix("ethercat-mbg:")
+        host, _, configured = where.rpartition(":") if ":" in where else (where, "", "0")
+        slaves = [SimulatedSlave(profiles(slave.profile), slave.station, position, name=slave.name,
+                                 latency=Latency.parse(latency if latency is not None else slave.latency),
+                                 values=slave.values)
+                  for position, slave in enumerate(self.slaves)]
+        return GatewayServer(slaves, host=host or "127.0.0.1",
+                             port=int(configured or 0) if port is None else port).start()

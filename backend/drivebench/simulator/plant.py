@@ -6,8 +6,9 @@ Example (``plants/demo.json`` is the one ``make run`` starts)::
      "nodes": [{"node_id": 5, "profile": "lenze-8400-motec-canopen", "latency": "30ms±20ms",
                 "heartbeat_ms": 500, "values": {"C00061": 43}}]}
 
-The plant speaks only CAN: it opens its own python-can bus (``virtual`` in-process, or ``socketcand`` to a
-hub or gateway), so the tool's protocol layer cannot tell it from real drives.
+The plant's CAN nodes speak only CAN: it opens its own python-can bus (``virtual`` in-process, or ``socketcand`` to a
+hub or gateway), so the tool's protocol layer cannot tell it from real drives. Its ``ethercat`` section puts EtherCAT
+slaves behind a simulated master's mailbox gateway on UDP (:mod:`drivebench.simulator.ethercat`).
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from drivebench.device.profile import Profile
 from drivebench.errors import DriveBenchError, ProfileError, TransportError
 from drivebench.simulator.babbler import DEFAULT_COB_ID, Babbler
+from drivebench.simulator.ethercat import EthercatLine
 from drivebench.simulator.node import Latency, SimulatedNode
 from drivebench.transport.bus import BusSpec, open_bus
 
@@ -52,7 +54,9 @@ class PlantFile(BaseModel):
 
     name: str
     bus: str = "virtual:drivebench-plant@500000"
-    nodes: list[PlantNode]
+    nodes: list[PlantNode] = Field(default_factory=list)
+    ethercat: EthercatLine | None = None
+    """Slaves behind a simulated EtherCAT master's mailbox gateway (a second session next to the CAN bus)."""
 
     @field_validator("nodes")
     @classmethod
