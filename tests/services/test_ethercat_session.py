@@ -98,13 +98,42 @@ def test_a_refused_state_change_says_the_al_status_code(registry: ProfileRegistr
         segment = session.ethercat
         assert segment is not None
         try:
-            await asyncio.to_thread(segment.request_state, 2, esm.EsmState.INIT)
-            with pytest.raises(ProtocolError, match=r"did not change to Operational: Init \+ error: Invalid status "
-                                                    r"change requested \(0x0011\)"):
-                await asyncio.to_thread(segment.request_state, 2, esm.EsmState.OPERATIONAL)
+            with pytest.raises(ProtocolError, match=r"did not change to Bootstrap: Pre-Operational \+ error: "
+                                                    r"\"Bootstrap\" status is not supported \(0x0013\)"):
+                await asyncio.to_thread(segment.request_state, 2, esm.EsmState.BOOTSTRAP)
             assert gateway.slaves[1002].store.get_ref("C13879") == 1  # bit 0: general bus error
+            gateway.slaves[1002].request_state(esm.EsmState.INIT)
+            assert gateway.slaves[1002].request_state(esm.EsmState.OPERATIONAL) == 0x0011  # the slave: one step
+            await asyncio.to_thread(segment.request_state, 2, esm.EsmState.OPERATIONAL)  # the master steps up
+            assert gateway.slaves[1002].state is esm.EsmState.OPERATIONAL
+            await asyncio.to_thread(segment.request_state, 2, esm.EsmState.INIT)
             with pytest.raises(SdoTimeoutError, match="station 1002 did not answer"):  # Init: no mailbox
                 await parameters.read(session, 2, "C00039/1")
+        finally:
+            await manager.close_all()
+
+    _run(scenario())
+
+
+def test_nmt_commands_change_the_ethercat_state_through_the_safety_guard(registry: ProfileRegistry,
+                                                                         gateway: GatewayServer) -> None:
+    from drivebench.errors import ConfirmationRequired
+    from drivebench.protocol.nmt import NmtCommand
+    from drivebench.services import drive_guard
+
+    async def scenario() -> None:
+        manager, session = await _open(registry, gateway.spec)
+        try:
+            with pytest.raises(ConfirmationRequired, match="confirm it with confirm = '1'"):
+                await drive_guard.nmt(session, NmtCommand.START, 1)
+            await drive_guard.nmt(session, NmtCommand.START, 1, confirm="1")
+            assert gateway.slaves[1001].state is esm.EsmState.OPERATIONAL
+            assert session.nmt_state(1) == ("Operational", True)
+            assert drive_guard.guard_for(session).armed(1)  # kept alive by the page, or stopped
+            await drive_guard.guard_for(session).trip(1, "test: keep-alive lost")
+            assert gateway.slaves[1001].state is esm.EsmState.PRE_OPERATIONAL
+            await drive_guard.nmt(session, NmtCommand.STOP, 1)
+            assert session.nmt_state(1) == ("Safe-Operational", True)
         finally:
             await manager.close_all()
 

@@ -27,6 +27,8 @@ Network = CanopenNetwork | EthercatNetwork
 SdoClient = NodeClient | CoeNodeClient
 _DIRECT_RE = re.compile(r"^ethercat:(?P<nic>[A-Za-z0-9_.:-]{1,32})$")
 CAP_NET_RAW = 13
+ETHERCAT_INTERFACES = ("ethercat-mbg", "ethercat")
+"""What the session form offers next to python-can's interfaces: a master's mailbox gateway, a direct master."""
 
 
 @dataclass(frozen=True)

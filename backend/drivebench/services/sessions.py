@@ -7,6 +7,7 @@ Everything that touches the bus runs in worker threads (``asyncio.to_thread``); 
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import itertools
 import re
 import threading
@@ -21,6 +22,7 @@ from drivebench.device.catalog import Catalog
 from drivebench.device.profile import Profile
 from drivebench.errors import Conflict, DriveBenchError, NotFound, SdoAbortError, SdoTimeoutError
 from drivebench.protocol.emcy import EmcyEvent
+from drivebench.protocol.esm import EsmState
 from drivebench.protocol.ethercat_network import EthercatNetwork, SlaveInfo
 from drivebench.protocol.heartbeat import HeartbeatStatus
 from drivebench.protocol.network import CanopenNetwork
@@ -72,6 +74,18 @@ class SessionNode:
             return (f"Unknown device (vendor 0x{self.identity['vendor_id']:08X}, "
                     f"product 0x{self.identity.get('product_code', 0):08X})")
         return "Unknown device"
+
+
+ESM_FOR_NMT = {
+    NmtCommand.START: [EsmState.OPERATIONAL],
+    NmtCommand.ENTER_PRE_OPERATIONAL: [EsmState.PRE_OPERATIONAL],
+    NmtCommand.STOP: [EsmState.SAFE_OPERATIONAL],
+    NmtCommand.RESET_COMMUNICATION: [EsmState.INIT, EsmState.PRE_OPERATIONAL],
+    NmtCommand.RESET_NODE: [EsmState.INIT, EsmState.PRE_OPERATIONAL],
+}
+"""On EtherCAT, the state an NMT command's job asks for: start -> Operational (the drive acts on process data),
+stop -> Safe-Operational (outputs in their safe state; SDO still works, unlike NMT Stopped), reset -> through Init
+back to Pre-Operational (the master re-initialises the slave)."""
 
 
 def _slug(text: str) -> str:
@@ -140,8 +154,13 @@ class Session:
 
     # --- NMT --------------------------------------------------------------------------------------------
     async def nmt(self, command: NmtCommand, node_id: int = 0) -> None:
+        """NMT on CAN; on EtherCAT the state change that does the same job (:data:`ESM_FOR_NMT`), so the safety
+        guard's confirmation and keep-alive hold there too."""
         if node_id and node_id not in self.nodes:
             self.node(node_id)
+        if isinstance(self.network, EthercatNetwork):
+            await self._change_states(self.network, command, node_id)
+            return
         await asyncio.to_thread(self.network.send_nmt, command, node_id)
         targets = list(self.nodes.values()) if node_id == 0 else [self.nodes[node_id]]
         for node in targets:
@@ -149,6 +168,17 @@ class Session:
             if command in (NmtCommand.RESET_NODE, NmtCommand.RESET_COMMUNICATION):
                 node.pending_reset.clear()
         self.emit("nmt", {"command": command.label, "node": node_id})
+
+    async def _change_states(self, segment: EthercatNetwork, command: NmtCommand, node_id: int) -> None:
+        targets = [node_id] if node_id else sorted(self.nodes)
+        for target in targets:
+            try:
+                for state in ESM_FOR_NMT[command]:
+                    self.slaves[target] = await asyncio.to_thread(segment.request_state, target, state)
+            finally:
+                with contextlib.suppress(DriveBenchError):
+                    self.slaves[target] = await asyncio.to_thread(segment.slave, target)
+        self.emit("nmt", {"command": ESM_FOR_NMT[command][-1].label, "node": node_id})
 
     # --- scan -------------------------------------------------------------------------------------------
     async def scan(self, timeout_s: float = 0.5) -> list[SessionNode]:

@@ -188,7 +188,13 @@ class SimulatedMaster:
             raise Abort(0x06010002 if sub in (0, esm.SUB_AL_STATUS, esm.SUB_AL_STATUS_CODE) else 0x06090011)
         if len(data) != 2:
             raise Abort(0x06070010)
-        slave.request_state(int.from_bytes(data, "little") & 0x0F)
+        target = int.from_bytes(data, "little") & 0x0F
+        # A master takes a slave up one state at a time (Pre-Op -> Safe-Op -> Op); the slave refuses what it must.
+        steps = [esm.EsmState.PRE_OPERATIONAL, esm.EsmState.SAFE_OPERATIONAL, esm.EsmState.OPERATIONAL]
+        for step in steps:
+            if step.value < target and step.value > slave.state.value and slave.request_state(step):
+                return
+        slave.request_state(target)
 
 
 class GatewayServer:
