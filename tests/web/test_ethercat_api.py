@@ -1,0 +1,69 @@
+"""The demo plant's second session, "EtherCAT line" (two simulated 8400 motec EtherCAT units behind a simulated
+master's mailbox gateway on UDP 127.0.0.1), through the REST API: the slave list, a parameter-set round trip
+(upload, compare, download with save, rollback) and the Plant page's slave table."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator
+
+import pytest
+from fastapi.testclient import TestClient
+
+from drivebench.web.app import create_app
+from tests.conftest import DEMO_PLANT, fresh_channel
+from tests.web.test_parameter_sets_api import SETS, finish
+
+SESSION = "ethercat-line"
+NODE = f"/api/sessions/{SESSION}/nodes/1"
+
+
+@pytest.fixture
+def api(app_db_url: str) -> Iterator[TestClient]:
+    app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
+    with TestClient(app) as client:
+        yield client
+
+
+def test_the_demo_plant_has_an_ethercat_line(api: TestClient) -> None:
+    sessions = {s["id"]: s for s in api.get("/api/sessions").json()}
+    assert sessions[SESSION]["interface"] == "ethercat-mbg" and sessions[SESSION]["simulated"] is True
+    nodes = api.get(f"/api/sessions/{SESSION}/nodes").json()
+    assert [(n["node_id"], n["station"], n["profile_id"]) for n in nodes] == [
+        (1, 1001, "lenze-8400-motec-ethercat"), (2, 1002, "lenze-8400-motec-ethercat")]
+    page = api.get("/").text
+    assert 'id="node-ethercat-line-1"' in page and ">1001<" in page and "EtherCAT state (AL status)" in page
+
+
+def test_parameter_set_round_trip_on_the_ethercat_unit(api: TestClient) -> None:
+    started = api.post(f"{SETS}/upload", json={"session_id": SESSION, "node_id": 1, "name": "Palletiser"},
+                       headers={"X-DriveBench-User": "anna"})
+    assert started.status_code == 202, started.text
+    job = finish(api, started.json())
+    assert job["state"] == "done", job
+    set_id = job["set_id"]
+    values = {v["ref"]: v for v in api.get(f"{SETS}/{set_id}").json()["values"]}
+    assert values["C00039/1"]["raw"] == 0x0FA0
+
+    exported = json.loads(api.get(f"{SETS}/{set_id}/export").text)
+    for parameter in exported["parameters"]:
+        if parameter["ref"] == "C00039/1":
+            parameter["value"] = 55.0
+    exported["name"] = "Palletiser commissioned"
+    new_id = api.post(f"{SETS}/import", files={"file": ("p.json", json.dumps(exported).encode())}).json()["set"]["id"]
+    target = {"session_id": SESSION, "node_id": 1}
+    compared = api.post(f"{SETS}/compare", json={"left": {"kind": "node", **target},
+                                                 "right": {"kind": "set", "set_id": new_id}}).json()
+    assert [(row["ref"], row["left"], row["right"], row["kind"]) for row in compared["rows"]] == [
+        ("C00039/1", "40.00 %", "55.00 %", "changed")]
+
+    done = finish(api, api.post(f"{SETS}/{new_id}/download", json=dict(target, save=True),
+                                headers={"X-DriveBench-User": "bert"}).json())
+    assert done["download_state"] == "done", done
+    assert {line["ref"]: line["status"] for line in done["report"]}["C00039/1"] == "written"
+    assert api.get(f"{NODE}/parameters/C00039/1").json()["display"] == "55.00 %"
+
+    back = finish(api, api.post(f"/api/parameter-downloads/{done['download_id']}/rollback",
+                                headers={"X-DriveBench-User": "bert"}).json())
+    assert back["download_state"] == "done", back
+    assert api.get(f"{NODE}/parameters/C00039/1").json()["display"] == "40.00 %"
