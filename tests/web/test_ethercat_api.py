@@ -67,3 +67,17 @@ def test_parameter_set_round_trip_on_the_ethercat_unit(api: TestClient) -> None:
                                 headers={"X-DriveBench-User": "bert"}).json())
     assert back["download_state"] == "done", back
     assert api.get(f"{NODE}/parameters/C00039/1").json()["display"] == "40.00 %"
+
+
+def test_the_monitor_counts_mailbox_traffic_per_slave(api: TestClient) -> None:
+    assert api.get(f"{NODE}/parameters/C00039/1").status_code == 200
+    refused = api.put(f"{NODE}/parameters/0x1C12.1", json={"raw": 0x1600, "check": False})  # the device: abort
+    assert refused.status_code >= 400
+    page = api.get(f"/monitor/{SESSION}").text
+    assert "Mailbox traffic per slave" in page and 'id="mailbox-1"' in page
+    block = api.get(f"/ui/monitor/{SESSION}/mailbox").text
+    row = block[block.index('id="mailbox-1"'):]
+    cells = [cell.split("<")[0] for cell in row.split('<td class="num">')[1:]]
+    node, station, requests, responses, aborts = (int(cells[i]) for i in (0, 1, 2, 3, 4))
+    assert (node, station) == (1, 1001) and requests >= 2 and responses >= 2 and aborts >= 1
+    assert "Mailbox traffic" not in api.get("/monitor/demo-plant").text  # CAN: telegrams, no mailboxes
