@@ -5,7 +5,8 @@ fault in words."""
 from __future__ import annotations
 
 import asyncio
-from collections.abc import Iterator
+from collections.abc import Coroutine, Iterator
+from typing import Any
 
 import pytest
 
@@ -16,6 +17,7 @@ from drivebench.services import parameters
 from drivebench.services.sessions import Session, SessionManager
 from drivebench.simulator.ethercat import GatewayServer, SimulatedSlave
 from tests.conftest import wait_until
+from tests.transport.test_multiprocess import run_outside_playwright
 
 PROFILE = "lenze-8400-motec-ethercat"
 
@@ -29,8 +31,8 @@ def gateway(registry: ProfileRegistry) -> Iterator[GatewayServer]:
     server.stop()
 
 
-def _run(coro):  # type: ignore[no-untyped-def]
-    return asyncio.run(coro)
+def _run(scenario: Coroutine[Any, Any, None]) -> None:
+    run_outside_playwright(lambda: scenario)  # a browser test earlier in the run holds the main thread's loop
 
 
 async def _open(registry: ProfileRegistry, spec: str) -> tuple[SessionManager, Session]:

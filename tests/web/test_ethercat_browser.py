@@ -6,16 +6,14 @@ the manual's words."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from typing import Any
 
 import httpx
 import pytest
 
-from drivebench.config import settings
-from drivebench.services import database
-from drivebench.web.app import create_app
-from tests.conftest import DEMO_PLANT, fresh_channel, screenshot, serve_app
+from tests.conftest import screenshot
+from tests.web.test_parameter_sets_browser import sets_server  # noqa: F401 - the demo plant with its own database
+from tests.web.test_parameters_browser import _row, _search
 
 expect = pytest.importorskip("playwright.sync_api").expect
 pytestmark = pytest.mark.browser
@@ -24,27 +22,8 @@ WAIT_MS = 20_000
 SESSION = "ethercat-line"
 
 
-@pytest.fixture(scope="module")
-def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
-    url = f"sqlite:///{tmp_path_factory.mktemp('ecat-db') / 'drivebench.db'}"
-    with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(settings, "database_url", url)
-        app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
-        with serve_app(app) as base_url:
-            yield base_url
-    database.dispose(url)
-
-
-def _row(page: Any, ref: str) -> Any:
-    return page.locator(f"tr[data-ref='{ref}']")
-
-
-def _search(page: Any, text: str) -> None:
-    page.fill("#param-q", text)
-    expect(page.locator("#param-rows")).to_have_attribute("data-count", "1", timeout=WAIT_MS)
-
-
-def test_ethercat_unit_in_the_browser(server: str, page: Any) -> None:
+def test_ethercat_unit_in_the_browser(sets_server: str, page: Any) -> None:  # noqa: F811 - the fixture
+    server = sets_server
     page.goto(server + "/")
     card = page.locator(f"#session-{SESSION}")
     expect(card.locator("h2")).to_have_text("EtherCAT line")

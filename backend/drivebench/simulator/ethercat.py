@@ -29,7 +29,7 @@ from drivebench.protocol import coe, esm
 from drivebench.protocol.coe_server import Abort, CoeSdoServer
 from drivebench.protocol.datatypes import DataType, encode
 from drivebench.protocol.sdo_server import SdoAbort
-from drivebench.simulator.node import Latency, SimulatedNode
+from drivebench.simulator.node import Latency, LatencyText, SimulatedNode
 from drivebench.transport.ethercat_gateway import GatewayFormatError, GatewaySpec, gateway_frame, telegram_of
 
 PREOP_ONLY = (0x1600, 0x1A00, 0x1C12, 0x1C13)
@@ -286,14 +286,8 @@ class LineSlave(BaseModel):
     station: int = Field(ge=1, le=0xFFFF, description="configured station address")
     profile: str
     name: str | None = None
-    latency: str = "0ms"
+    latency: LatencyText = "0ms"
     values: dict[str, int | float | str] = Field(default_factory=dict)
-
-    @field_validator("latency")
-    @classmethod
-    def _check_latency(cls, value: str) -> str:
-        Latency.parse(value)
-        return value
 
 
 class EthercatLine(BaseModel):
