@@ -81,3 +81,17 @@ def test_the_monitor_counts_mailbox_traffic_per_slave(api: TestClient) -> None:
     node, station, requests, responses, aborts = (int(cells[i]) for i in (0, 1, 2, 3, 4))
     assert (node, station) == (1, 1001) and requests >= 2 and responses >= 2 and aborts >= 1
     assert "Mailbox traffic" not in api.get("/monitor/demo-plant").text  # CAN: telegrams, no mailboxes
+
+
+def test_the_session_form_opens_a_gateway_and_refuses_a_direct_master_in_words(api: TestClient) -> None:
+    htmx = {"HX-Request": "true"}
+    gateway = api.get(f"/api/sessions/{SESSION}").json()["channel"]
+    again = api.post("/ui/sessions", data={"interface": "ethercat-mbg", "channel": gateway, "name": "Again"},
+                     headers=htmx)
+    assert again.status_code == 409 and "already open as session" in again.text
+    direct = api.post("/ui/sessions", data={"interface": "ethercat", "channel": "eth9", "name": "Direct"},
+                      headers=htmx)
+    assert direct.status_code >= 400
+    assert ("pip install &#39;drivebench[ethercat]&#39;" in direct.text or "CAP_NET_RAW" in direct.text
+            or "no network card" in direct.text)
+    assert 'value="ethercat-mbg"' in api.get("/").text  # offered next to python-can's interfaces

@@ -36,7 +36,7 @@ def test_ethercat_unit_in_the_browser(sets_server: str, page: Any) -> None:  # n
 
     # C00039/1 reads 40.00 % (0x0FA0 raw), a write is verified
     page.locator(f"#link-{SESSION}-1").click()
-    expect(page.locator("h1")).to_contain_text("Node 1", timeout=WAIT_MS)
+    expect(page.locator("h1")).to_contain_text("Slave 1 (station 1001)", timeout=WAIT_MS)
     _search(page, "C00039/1")
     _row(page, "C00039/1").get_by_role("button", name="Read").click()
     expect(_row(page, "C00039/1").locator("td.val")).to_contain_text("40.00 %", timeout=WAIT_MS)
@@ -82,7 +82,7 @@ def test_ethercat_unit_in_the_browser(sets_server: str, page: Any) -> None:  # n
     expect(page.locator(f"#node-{SESSION}-1 .esm")).to_have_text("Safe-Operational", timeout=WAIT_MS)
     screenshot(page, "ethercat-safe-operational")
     page.locator(f"#link-{SESSION}-1").click()
-    expect(page.locator("h1")).to_contain_text("Node 1", timeout=WAIT_MS)
+    expect(page.locator("h1")).to_contain_text("Slave 1 (station 1001)", timeout=WAIT_MS)
     page.fill("#param-q", "0x1A00.1")  # finds 0x1A00.1 and 0x1A00.10
     expect(_row(page, "0x1A00.1")).to_have_count(1, timeout=WAIT_MS)
     _row(page, "0x1A00.1").locator("input[name=value]").fill(str(0x5C930110))

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import asyncio
 import threading
-import time
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -230,7 +229,3 @@ class EthercatNetwork:
     def close(self) -> None:
         self.guarding.close()
         self.segment.close()
-
-    @property
-    def opened_at(self) -> float:
-        return time.time()

@@ -7,6 +7,8 @@ EtherCAT manual's rules: mailbox only from Pre-Operational on (in Init the maste
 answer), PDO mapping 0x1600/0x1A00 and assignment 0x1C12/0x1C13 written only in Pre-Operational (else abort
 0x08000022, "Due to the current device state, data cannot be transferred to the application or stored in the
 application"), C13861 "Bus state" and C13879 "Bus error" following the state machine, AL status codes of §7.3.
+The manual does not say how C13861 encodes the state: the simulated unit shows the AL status register's value (our
+reading); C13879 bit 0 "General bus error" is set while a refused state change stands.
 
 :class:`GatewayServer` is the master's side: a UDP socket on 127.0.0.1 forwarding mailbox telegrams to the slave whose
 station address they name, and the master's own object dictionary at station address 0 (configured address list,
