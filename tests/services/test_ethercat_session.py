@@ -5,7 +5,8 @@ fault in words."""
 from __future__ import annotations
 
 import asyncio
-from collections.abc import Coroutine, Iterator
+import contextlib
+from collections.abc import AsyncIterator, Coroutine, Iterator
 from typing import Any
 
 import pytest
@@ -35,31 +36,31 @@ def _run(scenario: Coroutine[Any, Any, None]) -> None:
     run_outside_playwright(lambda: scenario)  # a browser test earlier in the run holds the main thread's loop
 
 
-async def _open(registry: ProfileRegistry, spec: str) -> tuple[SessionManager, Session]:
+@contextlib.asynccontextmanager
+async def _open(registry: ProfileRegistry, spec: str) -> AsyncIterator[tuple[SessionManager, Session]]:
     manager = SessionManager(registry, sdo_timeout_s=0.3, sdo_retries=1)
-    return manager, await manager.open(spec, "EtherCAT line")
+    try:
+        yield manager, await manager.open(spec, "EtherCAT line")
+    finally:
+        await manager.close_all()
 
 
 def test_slaves_come_from_the_master_with_station_and_state(registry: ProfileRegistry,
                                                              gateway: GatewayServer) -> None:
     async def scenario() -> None:
-        manager, session = await _open(registry, gateway.spec)
-        try:
+        async with _open(registry, gateway.spec) as (_, session):
             assert sorted(session.nodes) == [1, 2]
             assert session.slaves[1].station == 1001 and session.slaves[2].station == 1002
             assert session.nodes[1].profile is not None and session.nodes[1].profile.id == PROFILE
             assert session.nodes[2].device_name == "Lift"
             assert session.nmt_state(1) == ("Pre-Operational", True)
-        finally:
-            await manager.close_all()
 
     _run(scenario())
 
 
 def test_c00039_reads_40_percent_and_a_write_is_verified(registry: ProfileRegistry, gateway: GatewayServer) -> None:
     async def scenario() -> None:
-        manager, session = await _open(registry, gateway.spec)
-        try:
+        async with _open(registry, gateway.spec) as (_, session):
             value = await parameters.read(session, 1, "C00039/1")
             assert value.raw == 0x0FA0 and value.value == pytest.approx(40.0)
             result = await parameters.write(session, 1, "C00039/1", "55.5")
@@ -67,8 +68,6 @@ def test_c00039_reads_40_percent_and_a_write_is_verified(registry: ProfileRegist
             assert gateway.slaves[1001].store.get(0x5FD8, 1) == 5550
             assert gateway.slaves[1002].store.get(0x5FD8, 1) == 0x0FA0  # the other slave is untouched
             assert session.network.counters(1).requests >= 3  # type: ignore[union-attr]
-        finally:
-            await manager.close_all()
 
     _run(scenario())
 
@@ -76,10 +75,9 @@ def test_c00039_reads_40_percent_and_a_write_is_verified(registry: ProfileRegist
 def test_mapping_write_outside_pre_operational_is_refused_in_the_manuals_words(
         registry: ProfileRegistry, gateway: GatewayServer) -> None:
     async def scenario() -> None:
-        manager, session = await _open(registry, gateway.spec)
-        segment = session.ethercat
-        assert segment is not None
-        try:
+        async with _open(registry, gateway.spec) as (_, session):
+            segment = session.ethercat
+            assert segment is not None
             await parameters.write(session, 1, "0x1A00.1", 0x5C930110)  # Pre-Operational: accepted
             info = await asyncio.to_thread(segment.request_state, 1, esm.EsmState.SAFE_OPERATIONAL)
             assert info.state_text == "Safe-Operational"
@@ -88,18 +86,15 @@ def test_mapping_write_outside_pre_operational_is_refused_in_the_manuals_words(
             assert refused.value.abort_code == 0x08000022
             assert refused.value.abort_text == ("Due to the current device state, data cannot be transferred to the "
                                                 "application or stored in the application")
-        finally:
-            await manager.close_all()
 
     _run(scenario())
 
 
 def test_a_refused_state_change_says_the_al_status_code(registry: ProfileRegistry, gateway: GatewayServer) -> None:
     async def scenario() -> None:
-        manager, session = await _open(registry, gateway.spec)
-        segment = session.ethercat
-        assert segment is not None
-        try:
+        async with _open(registry, gateway.spec) as (_, session):
+            segment = session.ethercat
+            assert segment is not None
             with pytest.raises(ProtocolError, match=r"did not change to Bootstrap: Pre-Operational \+ error: "
                                                     r"\"Bootstrap\" status is not supported \(0x0013\)"):
                 await asyncio.to_thread(segment.request_state, 2, esm.EsmState.BOOTSTRAP)
@@ -111,8 +106,6 @@ def test_a_refused_state_change_says_the_al_status_code(registry: ProfileRegistr
             await asyncio.to_thread(segment.request_state, 2, esm.EsmState.INIT)
             with pytest.raises(SdoTimeoutError, match="station 1002 did not answer"):  # Init: no mailbox
                 await parameters.read(session, 2, "C00039/1")
-        finally:
-            await manager.close_all()
 
     _run(scenario())
 
@@ -124,8 +117,7 @@ def test_nmt_commands_change_the_ethercat_state_through_the_safety_guard(registr
     from drivebench.services import drive_guard
 
     async def scenario() -> None:
-        manager, session = await _open(registry, gateway.spec)
-        try:
+        async with _open(registry, gateway.spec) as (_, session):
             with pytest.raises(ConfirmationRequired, match="confirm it with confirm = '1'"):
                 await drive_guard.nmt(session, NmtCommand.START, 1)
             await drive_guard.nmt(session, NmtCommand.START, 1, confirm="1")
@@ -136,40 +128,32 @@ def test_nmt_commands_change_the_ethercat_state_through_the_safety_guard(registr
             assert gateway.slaves[1001].state is esm.EsmState.PRE_OPERATIONAL
             await drive_guard.nmt(session, NmtCommand.STOP, 1)
             assert session.nmt_state(1) == ("Safe-Operational", True)
-        finally:
-            await manager.close_all()
 
     _run(scenario())
 
 
 def test_emergency_of_a_slave_reaches_the_session(registry: ProfileRegistry, gateway: GatewayServer) -> None:
     async def scenario() -> None:
-        manager, session = await _open(registry, gateway.spec)
-        try:
+        async with _open(registry, gateway.spec) as (_, session):
             await parameters.read(session, 2, "C00039/1")  # the gateway learns where to send slave 2's mailbox
             gateway.slaves[1002].raise_fault(0x1000, 0x01, bytes.fromhex("3181BC01"))
             assert await asyncio.to_thread(wait_until, lambda: session.last_emcy(2) is not None)
             event = session.last_emcy(2)
             assert event is not None and event.code == 0x1000 and event.data[:4] == bytes.fromhex("3181BC01")
             assert session.network.counters(2).emergencies == 1  # type: ignore[union-attr]
-        finally:
-            await manager.close_all()
 
     _run(scenario())
 
 
 def test_a_slave_missing_from_the_segment_in_words(registry: ProfileRegistry, gateway: GatewayServer) -> None:
     async def scenario() -> None:
-        manager, session = await _open(registry, gateway.spec)
-        segment = session.ethercat
-        assert segment is not None
-        try:
+        async with _open(registry, gateway.spec) as (_, session):
+            segment = session.ethercat
+            assert segment is not None
             segment.stations[3] = 1003  # configured in the master, but not on the wire
             session.add_node(3, PROFILE)
             with pytest.raises(SdoTimeoutError, match=r"station 1003 did not answer .* not on the segment"):
                 await parameters.read(session, 3, "C00039/1")
-        finally:
-            await manager.close_all()
 
     _run(scenario())
 
@@ -179,14 +163,11 @@ def test_silent_gateway_and_no_direct_master_in_words(registry: ProfileRegistry,
     gateway.stop()
 
     async def scenario() -> None:
-        manager, session = await _open(registry, f"ethercat-mbg:127.0.0.1:{port}")
-        try:
+        async with _open(registry, f"ethercat-mbg:127.0.0.1:{port}") as (manager, session):
             assert session.nodes == {}
             assert "Slave list not read" in (session.bus_text or "")
             assert "did not answer" in (session.bus_text or "")
             with pytest.raises(TransportError, match=r"pip install 'drivebench\[ethercat\]'|CAP_NET_RAW|network card"):
                 await manager.open("ethercat:eth9")
-        finally:
-            await manager.close_all()
 
     _run(scenario())

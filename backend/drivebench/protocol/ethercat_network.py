@@ -12,7 +12,6 @@ station address, which the slave list shows next to it.
 
 from __future__ import annotations
 
-import asyncio
 import threading
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -26,6 +25,7 @@ from drivebench.protocol.emcy import EMCY_BASE, EmcyMonitor
 from drivebench.protocol.ethercat import EthercatSegment, MailboxCounters
 from drivebench.protocol.guarding import NodeGuarding
 from drivebench.protocol.heartbeat import HeartbeatMonitor
+from drivebench.protocol.network import EventLoopTransfers
 from drivebench.transport.ethercat_gateway import GatewaySpec
 
 NO_CAN = "EtherCAT has no CAN identifiers"
@@ -58,7 +58,7 @@ class SlaveInfo:
         return esm.al_status_text(self.al_status, self.al_status_code)
 
 
-class CoeNodeClient:
+class CoeNodeClient(EventLoopTransfers):
     """SDO access to one slave through its mailbox: the methods and errors of a CAN node's client."""
 
     def __init__(self, network: EthercatNetwork, node_id: int, station: int,
@@ -105,12 +105,6 @@ class CoeNodeClient:
     def download(self, index: int, sub: int, data: bytes, *, block: bool = False,
                  channel: int | None = None) -> None:
         self._transfer(index, sub, block, "download", data)
-
-    async def aupload(self, index: int, sub: int, **kwargs: object) -> bytes:
-        return await asyncio.to_thread(self.upload, index, sub, **kwargs)  # type: ignore[arg-type]
-
-    async def adownload(self, index: int, sub: int, data: bytes, **kwargs: object) -> None:
-        await asyncio.to_thread(self.download, index, sub, data, **kwargs)  # type: ignore[arg-type]
 
 
 class EthercatNetwork:
