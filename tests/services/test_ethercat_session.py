@@ -132,6 +132,22 @@ def test_nmt_commands_change_the_ethercat_state_through_the_safety_guard(registr
     _run(scenario())
 
 
+def test_states_changed_elsewhere_are_read_again(registry: ProfileRegistry, gateway: GatewayServer) -> None:
+    async def scenario() -> None:
+        async with _open(registry, gateway.spec) as (_, session):
+            gateway.slaves[1002].request_state(esm.EsmState.SAFE_OPERATIONAL)  # another master tool did it
+            gateway.slaves[1002].request_state(esm.EsmState.BOOTSTRAP)
+            assert session.nmt_state(2) == ("Pre-Operational", True)  # what the master said at the scan
+            await session.refresh_states(max_age_s=0)
+            assert session.nmt_state(2) == ("Safe-Operational + error: \"Bootstrap\" status is not supported "
+                                            "(0x0013)", True)
+            gateway.stop()
+            await session.refresh_states(max_age_s=0)
+            assert session.nmt_state(2) == ("Unknown", False)
+
+    _run(scenario())
+
+
 def test_emergency_of_a_slave_reaches_the_session(registry: ProfileRegistry, gateway: GatewayServer) -> None:
     async def scenario() -> None:
         async with _open(registry, gateway.spec) as (_, session):

@@ -168,6 +168,13 @@ class EthercatNetwork:
         info.al_status_code = int.from_bytes(self._master(diagnosis, esm.SUB_AL_STATUS_CODE), "little")
         return info
 
+    def al_state(self, node_id: int) -> tuple[int, int]:
+        """The slave's AL status and last AL status code, as the master reports them now."""
+        diagnosis = esm.DIAGNOSIS_BASE + node_id - 1
+        self.station(node_id)
+        return (int.from_bytes(self._master(diagnosis, esm.SUB_AL_STATUS), "little"),
+                int.from_bytes(self._master(diagnosis, esm.SUB_AL_STATUS_CODE), "little"))
+
     def request_state(self, node_id: int, state: esm.EsmState) -> SlaveInfo:
         """Ask the master to take one slave to ``state`` (AL control); refused changes raise in words."""
         diagnosis = esm.DIAGNOSIS_BASE + node_id - 1

@@ -110,6 +110,7 @@ class Session:
         self._listeners: list[Callable[[str, dict[str, object]], None]] = []
         self.duplicates = DuplicateWatch()
         self.slaves: dict[int, SlaveInfo] = {}
+        self._states_read = 0.0
         """EtherCAT only: what the master last said about each slave (station address, AL status)."""
         self.health: BusHealth | GatewayHealth
         if isinstance(network, EthercatNetwork):
@@ -179,6 +180,18 @@ class Session:
                 with contextlib.suppress(DriveBenchError):
                     self.slaves[target] = await asyncio.to_thread(segment.slave, target)
         self.emit("nmt", {"command": ESM_FOR_NMT[command][-1].label, "node": node_id})
+
+    async def refresh_states(self, max_age_s: float = 2.0) -> None:
+        """EtherCAT: the slaves' AL status read from the master again, at most every ``max_age_s`` however many
+        pages ask (on CAN the heartbeats keep the states live; nothing to do)."""
+        if not isinstance(self.network, EthercatNetwork) or time.monotonic() - self._states_read < max_age_s:
+            return
+        self._states_read = time.monotonic()
+        for node_id, info in list(self.slaves.items()):
+            try:
+                info.al_status, info.al_status_code = await asyncio.to_thread(self.network.al_state, node_id)
+            except DriveBenchError:
+                info.al_status, info.al_status_code = None, 0  # shown as Unknown: the master did not say
 
     # --- scan -------------------------------------------------------------------------------------------
     async def scan(self, timeout_s: float = 0.5) -> list[SessionNode]:
@@ -266,7 +279,7 @@ class Session:
         as the master last reported it)."""
         slave = self.slaves.get(node_id)
         if self.ethercat is not None:
-            return (slave.state_text, True) if slave is not None else ("Unknown", False)
+            return (slave.state_text, slave.al_status is not None) if slave is not None else ("Unknown", False)
         bus_state = self.health.state()
         if bus_state == ADAPTER_LOST:
             return "Adapter lost", False
