@@ -83,8 +83,8 @@ def test_ethercat_unit_in_the_browser(sets_server: str, page: Any) -> None:  # n
     screenshot(page, "ethercat-safe-operational")
     page.locator(f"#link-{SESSION}-1").click()
     expect(page.locator("h1")).to_contain_text("Slave 1 (station 1001)", timeout=WAIT_MS)
-    page.fill("#param-q", "0x1A00.1")  # finds 0x1A00.1 and 0x1A00.10
-    expect(_row(page, "0x1A00.1")).to_have_count(1, timeout=WAIT_MS)
+    page.fill("#param-q", "0x1A00.1")  # finds 0x1A00.1 and 0x1A00.10; the search answer replaces the rows
+    expect(page.locator("#param-rows")).to_have_attribute("data-count", "2", timeout=WAIT_MS)
     _row(page, "0x1A00.1").locator("input[name=value]").fill(str(0x5C930110))
     _row(page, "0x1A00.1").get_by_role("button", name="Write").click()
     error = _row(page, "0x1A00.1").locator("td.edit .error")
