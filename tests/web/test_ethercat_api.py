@@ -33,6 +33,9 @@ def test_the_demo_plant_has_an_ethercat_line(api: TestClient) -> None:
         (1, 1001, "lenze-8400-motec-ethercat"), (2, 1002, "lenze-8400-motec-ethercat")]
     page = api.get("/").text
     assert 'id="node-ethercat-line-1"' in page and ">1001<" in page and "EtherCAT state (AL status)" in page
+    diagnostics = api.get(f"/ui/sessions/{SESSION}/nodes/1/diagnostics").text
+    assert 'id="diag-ethercat"' in diagnostics and "<dd>1001</dd>" in diagnostics
+    assert "0x1017" not in diagnostics and "SDO transfer aborted" not in diagnostics  # no heartbeat asked for
 
 
 def test_parameter_set_round_trip_on_the_ethercat_unit(api: TestClient) -> None:
