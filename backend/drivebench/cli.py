@@ -162,10 +162,19 @@ def _check_buses(specs: list[str]) -> None:
     """Open and close each --bus once before the server starts, so a wrong interface, a missing adapter or an
     unreachable gateway ends the command with its message and hint (a DriveBenchError) instead of a traceback
     from the server's start-up."""
+    from drivebench.services.fieldbus import open_network, parse_spec
     from drivebench.transport.bus import BusSpec, open_bus
 
     for text in specs:
-        open_bus(BusSpec.parse(text)).shutdown()
+        spec = parse_spec(text)
+        if isinstance(spec, BusSpec):
+            open_bus(spec).shutdown()
+            continue
+        network = open_network(spec, settings.sdo_timeout_s, settings.sdo_retries)
+        try:  # a mailbox gateway answers with its master's address list, or the command ends saying it is silent
+            network.scan()
+        finally:
+            network.close()
 
 
 def simulate(args: argparse.Namespace) -> int:
@@ -175,9 +184,16 @@ def simulate(args: argparse.Namespace) -> int:
 
     plant_file = PlantFile.load(Path(args.plant) if args.plant else settings.plants_dir / "demo.json")
     registry = ProfileRegistry()
-    plant = Plant(plant_file, registry.get, bus=args.bus, latency=args.latency).start()
-    print(f"Simulating {len(plant.nodes)} node(s) of '{plant_file.name}' on {plant.spec}: "
-          + ", ".join(f"{n.node_id} {n.name}" for n in plant.nodes.values()), flush=True)
+    plant = Plant(plant_file, registry.get, bus=args.bus, latency=args.latency).start() if plant_file.nodes else None
+    if plant is not None:
+        print(f"Simulating {len(plant.nodes)} node(s) of '{plant_file.name}' on {plant.spec}: "
+              + ", ".join(f"{n.node_id} {n.name}" for n in plant.nodes.values()), flush=True)
+    gateway = None
+    if plant_file.ethercat is not None:
+        gateway = plant_file.ethercat.start(registry.get, port=args.ethercat_port, latency=args.latency)
+        print(f"Simulating {len(gateway.slaves)} EtherCAT slave(s) of '{plant_file.ethercat.name}' behind "
+              f"{gateway.spec}: " + ", ".join(f"station {s.station} {s.name}" for s in gateway.slaves.values()),
+              flush=True)
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
     try:
@@ -185,7 +201,10 @@ def simulate(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:
         pass
     finally:
-        plant.stop()
+        if gateway is not None:
+            gateway.stop()
+        if plant is not None:
+            plant.stop()
     return 0
 
 
@@ -262,6 +281,8 @@ def build_parser() -> argparse.ArgumentParser:
     p_sim.add_argument("--bus", help="bus for the drives (default: the plant file's), e.g. "
                                      "socketcand:127.0.0.1:29536/can0")
     p_sim.add_argument("--plant", help="plant file (default: the demo plant)")
+    p_sim.add_argument("--ethercat-port", type=int, help="UDP port of the simulated EtherCAT master's mailbox gateway "
+                                                          "on 127.0.0.1 (default: the plant file's, 0 = any free one)")
     p_sim.add_argument("--latency", help="SDO processing time, e.g. 30ms±20ms")
     p_sim.set_defaults(func=simulate)
 

@@ -10,6 +10,7 @@ from tests.conftest import fresh_channel, wait_until
 NO_BROWSER = {"keepalive": False, "reason": "test without a browser"}  # NMT start without the keep-alive guard (admin)
 
 DEMO = "demo-plant"
+DEMO_SESSIONS = [DEMO, "ethercat-line"]  # the demo plant's CAN bus and its EtherCAT line
 DEMO_DEVICES = {3: "Pump (MICROMASTER 440)", 5: "Conveyor (8400 motec)", 7: "Axis (generic CiA 402 servo)",
                 12: "Fan (8200 vector + EMF2178IB)"}
 PROBLEM = "application/problem+json"
@@ -31,7 +32,7 @@ def assert_problem(response: object, status: int) -> dict[str, object]:
 # --- service -------------------------------------------------------------------------------------------
 def test_health(client: TestClient) -> None:
     body = client.get("/api/health").json()
-    assert body["status"] == "ok" and body["sessions"] == 1 and body["version"]
+    assert body["status"] == "ok" and body["sessions"] == len(DEMO_SESSIONS) and body["version"]
 
 
 def test_openapi_documents_the_sessions_api(client: TestClient) -> None:
@@ -52,7 +53,7 @@ def test_interfaces_lists_python_can_interfaces(client: TestClient) -> None:
 # --- sessions --------------------------------------------------------------------------------------------
 def test_the_demo_plant_session(client: TestClient) -> None:
     sessions = client.get("/api/sessions").json()
-    assert [s["id"] for s in sessions] == [DEMO]
+    assert [s["id"] for s in sessions] == DEMO_SESSIONS
     demo = client.get(f"/api/sessions/{DEMO}").json()
     assert demo["simulated"] is True and demo["bitrate"] == 500_000 and demo["interface"] == "virtual"
     assert demo["node_count"] == 4 and demo["name"] == "Demo plant" and demo["state"] == "active"
@@ -65,10 +66,10 @@ def test_open_list_and_close_a_second_session(client: TestClient) -> None:
     assert created.status_code == 201, created.text
     session = created.json()
     assert session["bus"] == f"virtual:{channel}@250000" and session["simulated"] is False
-    assert {s["id"] for s in client.get("/api/sessions").json()} == {DEMO, session["id"]}
+    assert {s["id"] for s in client.get("/api/sessions").json()} == {*DEMO_SESSIONS, session["id"]}
     assert client.get(f"/api/sessions/{session['id']}/nodes").json() == []
     assert client.delete(f"/api/sessions/{session['id']}").status_code == 204
-    assert [s["id"] for s in client.get("/api/sessions").json()] == [DEMO]
+    assert [s["id"] for s in client.get("/api/sessions").json()] == DEMO_SESSIONS
     assert_problem(client.get(f"/api/sessions/{session['id']}"), 404)
 
 
@@ -127,7 +128,7 @@ def test_malformed_bus_text_is_422(client: TestClient) -> None:
 ])
 def test_invalid_session_requests_are_422(payload: dict[str, object], client: TestClient) -> None:
     assert_problem(client.post("/api/sessions", json=payload), 422)
-    assert [s["id"] for s in client.get("/api/sessions").json()] == [DEMO]
+    assert [s["id"] for s in client.get("/api/sessions").json()] == DEMO_SESSIONS
 
 
 @pytest.mark.parametrize(("path", "payload"), [

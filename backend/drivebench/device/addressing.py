@@ -17,7 +17,7 @@ from drivebench.device.profile import (
 )
 from drivebench.errors import UnknownParameter
 
-_INDEX_RE = re.compile(r"^(?:0x)?([0-9a-f]{4})(?:(?:\.|sub|:|/)(?:0x)?([0-9a-f]{1,2}))?$", re.IGNORECASE)
+_INDEX_RE = re.compile(r"^(?:0x)?([0-9a-f]{4})(?:(?:\.|sub|:|/)(0x)?([0-9a-f]{1,3}))?$", re.IGNORECASE)
 # MICROMASTER: 0x2802/0x2803 are the free process-data objects, not r2050/P2051 on the parameter channel.
 _MM4_FREE_OBJECTS = (0x2802, 0x2803)
 _CODE_RE = re.compile(r"^([CPR])?\s*0*(\d{1,5})(?:[./](\d{1,3}))?$", re.IGNORECASE)
@@ -39,6 +39,17 @@ class CodeRef:
 Ref = IndexRef | CodeRef
 
 
+def _subindex(hex_prefix: str | None, digits: str | None) -> int | None:
+    """The subindex as written after the index: decimal when it is digits only (``0x1A00.10`` is sub 10, the way a
+    catalog writes its refs and CiA 306 counts them), hex with ``0x`` or a letter (``0x1A00.0x0A``, ``0x1003.0A``)."""
+    if digits is None:
+        return None
+    value = int(digits, 16) if hex_prefix or not digits.isdigit() else int(digits)
+    if value > 0xFF:
+        raise UnknownParameter(f"Subindex {digits} is more than 255")
+    return value
+
+
 def parse_ref(text: str) -> Ref:
     """Parse what a user typed into a reference. Raises UnknownParameter with the accepted forms."""
     cleaned = text.strip()
@@ -48,8 +59,7 @@ def parse_ref(text: str) -> Ref:
     if is_hex_index:
         match = _INDEX_RE.match(cleaned)
         if match:
-            sub = int(match.group(2), 16) if match.group(2) else None
-            return IndexRef(int(match.group(1), 16), sub)
+            return IndexRef(int(match.group(1), 16), _subindex(match.group(2), match.group(3)))
     match = _CODE_RE.match(cleaned)
     if match:
         prefix = (match.group(1) or "")

@@ -38,7 +38,25 @@ class SdoChannel:
         self.lock = threading.Lock()
 
 
-class NodeClient:
+class EventLoopTransfers:
+    """``aupload``/``adownload`` for callers in the event loop: the blocking ``upload``/``download`` of the
+    subclass (a CAN node's, an EtherCAT slave's) in a worker thread."""
+
+    def upload(self, index: int, sub: int, *, block: bool = False, channel: int | None = None) -> bytes:
+        raise NotImplementedError
+
+    def download(self, index: int, sub: int, data: bytes, *, block: bool = False,
+                 channel: int | None = None) -> None:
+        raise NotImplementedError
+
+    async def aupload(self, index: int, sub: int, **kwargs: object) -> bytes:
+        return await asyncio.to_thread(self.upload, index, sub, **kwargs)  # type: ignore[arg-type]
+
+    async def adownload(self, index: int, sub: int, data: bytes, **kwargs: object) -> None:
+        await asyncio.to_thread(self.download, index, sub, data, **kwargs)  # type: ignore[arg-type]
+
+
+class NodeClient(EventLoopTransfers):
     """SDO access to one node over one or more SDO channels (a device may have more than one)."""
 
     def __init__(self, network: CanopenNetwork, node_id: int, abort_texts: Mapping[int, str] | None = None) -> None:
@@ -112,13 +130,6 @@ class NodeClient:
             client.download(index, sub, data)
 
         self._with_channel(index, sub, work, channel)
-
-    # --- event-loop side ----------------------------------------------------------------------------------
-    async def aupload(self, index: int, sub: int, **kwargs: object) -> bytes:
-        return await asyncio.to_thread(self.upload, index, sub, **kwargs)  # type: ignore[arg-type]
-
-    async def adownload(self, index: int, sub: int, data: bytes, **kwargs: object) -> None:
-        await asyncio.to_thread(self.download, index, sub, data, **kwargs)  # type: ignore[arg-type]
 
 
 class CanopenNetwork:

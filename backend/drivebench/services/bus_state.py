@@ -25,6 +25,7 @@ from typing import Any
 
 import can
 
+from drivebench.protocol.ethercat_network import EthercatNetwork
 from drivebench.transport.bus import LinkState, ObservedBus
 
 STATES = ("active", "warning", "passive", "bus-off")
@@ -203,3 +204,31 @@ class BusHealth(can.Listener):
                     link={"lost": link.lost, "reason": link.lost_reason, "since": link.lost_at,
                           "attempts": link.attempts, "reconnects": link.reconnects})
         return data
+
+
+class GatewayHealth:
+    """An EtherCAT session's link to its mailbox gateway in one word and one sentence: it has no CAN controller, so
+    only ``active`` or ``adapter lost`` (nothing listens on the gateway's port)."""
+
+    def __init__(self, network: EthercatNetwork) -> None:
+        self.network = network
+        self.notes: list[Callable[[], str | None]] = []
+
+    def state(self) -> str:
+        return ADAPTER_LOST if self.network.link_text else "active"
+
+    def refusal(self) -> str | None:
+        return None
+
+    def text(self) -> str | None:
+        sentences = [self.network.link_text, *(note() for note in self.notes)]
+        return " ".join(s for s in sentences if s) or None
+
+    def state_text(self) -> str | None:
+        return self.network.link_text
+
+    def as_dict(self, now: float | None = None) -> dict[str, Any]:
+        return {"state": self.state(), "adapter_state": self.state(), "tx_errors": None, "rx_errors": None,
+                "reported_age_s": None, "text": self.state_text(),
+                "link": {"lost": bool(self.network.link_text), "reason": self.network.link_text, "since": None,
+                         "attempts": 0, "reconnects": 0}}

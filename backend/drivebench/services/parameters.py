@@ -51,6 +51,7 @@ from drivebench.protocol.network import NodeClient, SdoChannel
 from drivebench.protocol.nmt import NmtCommand
 from drivebench.protocol.sdo_fast import ExpeditedRequest, upload_expedited
 from drivebench.services import node_lease
+from drivebench.services.fieldbus import SdoClient
 from drivebench.services.jobs import Job, JobIssue, JobManager
 from drivebench.services.sessions import Session, SessionNode
 
@@ -152,7 +153,7 @@ class SessionParameters:
         if state is not None and state.active:
             state.active = False
             client = session.network.nodes.get(status.node_id)
-            if client is not None and state.sdo2 in client.channels:
+            if isinstance(client, NodeClient) and state.sdo2 in client.channels:
                 client.channels.remove(state.sdo2)
 
 
@@ -375,17 +376,17 @@ def _decode(item: Item, data: bytes, node_id: int) -> RawValue:
                             f"{item.entry.data_type.value}") from exc
 
 
-def _read_blocking(client: NodeClient, item: Item, *, block: bool = False, channel: int | None = None) -> bytes:
+def _read_blocking(client: SdoClient, item: Item, *, block: bool = False, channel: int | None = None) -> bytes:
     if not item.entry.access.readable:
         raise InvalidValue(f"{item.ref} ({item.entry.name}) is write-only")
     return client.upload(item.index, item.subindex, block=block, channel=channel)
 
 
-async def _upload(client: NodeClient, plan: _Plan, *, block: bool = False, channel: int | None = None) -> bytes:
+async def _upload(client: SdoClient, plan: _Plan, *, block: bool = False, channel: int | None = None) -> bytes:
     """Read one value: expedited on the event loop where it can be (:mod:`drivebench.protocol.sdo_fast`), else
     canopen's client in a worker thread. Transfer errors name the parameter as the user knows it (C00099)."""
     try:
-        if plan.expedited and not block:
+        if plan.expedited and not block and isinstance(client, NodeClient):  # CAN's fast path; CoE has its own
             data = await upload_expedited(client, plan.request, channel=channel)
             if data is not None:
                 return data
@@ -600,6 +601,8 @@ def _activate_sdo2_blocking(session: Session, node: SessionNode) -> _NodeChannel
                          f"{clash}'s SDO1")
         return channels
     client = session.client(node.node_id)
+    if not isinstance(client, NodeClient):  # an EtherCAT slave has one mailbox
+        return channels
     rx, tx = (int.from_bytes(client.upload(index, sub, channel=1)[:4], "little") for sub in (1, 2))
     if rx & 0x80000000 or tx & 0x80000000 or not rx or not tx:
         rx, tx = extra.cob_ids(node.node_id)

@@ -1,4 +1,5 @@
-"""CAN sessions: one per bus, each with its own canopen network, nodes and their profiles.
+"""Sessions: one per bus, each with its own network (a canopen network on a CAN bus, or an EtherCAT segment behind
+a mailbox gateway: :mod:`drivebench.services.fieldbus`), nodes and their profiles.
 
 Everything that touches the bus runs in worker threads (``asyncio.to_thread``); the event loop only awaits.
 """
@@ -6,6 +7,7 @@ Everything that touches the bus runs in worker threads (``asyncio.to_thread``); 
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import itertools
 import re
 import threading
@@ -18,14 +20,16 @@ import can
 
 from drivebench.device.catalog import Catalog
 from drivebench.device.profile import Profile
-from drivebench.errors import Conflict, NotFound, SdoAbortError, SdoTimeoutError
+from drivebench.errors import Conflict, DriveBenchError, NotFound, SdoAbortError, SdoTimeoutError
 from drivebench.protocol.emcy import EmcyEvent
+from drivebench.protocol.esm import EsmState
+from drivebench.protocol.ethercat_network import EthercatNetwork, SlaveInfo
 from drivebench.protocol.heartbeat import HeartbeatStatus
-from drivebench.protocol.network import CanopenNetwork, NodeClient
+from drivebench.protocol.network import CanopenNetwork
 from drivebench.protocol.nmt import STATE_AFTER, NmtCommand, NmtState
-from drivebench.services.bus_state import ADAPTER_LOST, BusHealth
+from drivebench.services.bus_state import ADAPTER_LOST, BusHealth, GatewayHealth
 from drivebench.services.duplicates import DuplicateWatch
-from drivebench.transport.bus import BusSpec, open_bus
+from drivebench.services.fieldbus import Network, SdoClient, SessionSpec, open_network, parse_spec
 
 if TYPE_CHECKING:
     from drivebench.services.parameters import WriteAudit
@@ -72,6 +76,18 @@ class SessionNode:
         return "Unknown device"
 
 
+ESM_FOR_NMT = {
+    NmtCommand.START: [EsmState.OPERATIONAL],
+    NmtCommand.ENTER_PRE_OPERATIONAL: [EsmState.PRE_OPERATIONAL],
+    NmtCommand.STOP: [EsmState.SAFE_OPERATIONAL],
+    NmtCommand.RESET_COMMUNICATION: [EsmState.INIT, EsmState.PRE_OPERATIONAL],
+    NmtCommand.RESET_NODE: [EsmState.INIT, EsmState.PRE_OPERATIONAL],
+}
+"""On EtherCAT, the state an NMT command's job asks for: start -> Operational (the drive acts on process data),
+stop -> Safe-Operational (outputs in their safe state; SDO still works, unlike NMT Stopped), reset -> through Init
+back to Pre-Operational (the master re-initialises the slave)."""
+
+
 def _slug(text: str) -> str:
     return re.sub(r"[^a-z0-9]+", "-", text.lower()).strip("-") or "bus"
 
@@ -80,7 +96,7 @@ class Session:
     services: SessionServices
     """What the services keep for this session (monitor, parameters, leases ...): set by ``SessionManager.open``."""
 
-    def __init__(self, session_id: str, name: str, spec: BusSpec, network: CanopenNetwork,
+    def __init__(self, session_id: str, name: str, spec: SessionSpec, network: Network,
                  profiles: ProfileSource, *, simulated: bool = False) -> None:
         self.id = session_id
         self.name = name
@@ -92,12 +108,24 @@ class Session:
         self.nodes: dict[int, SessionNode] = {}
         self._lock = threading.Lock()
         self._listeners: list[Callable[[str, dict[str, object]], None]] = []
+        self.duplicates = DuplicateWatch()
+        self.slaves: dict[int, SlaveInfo] = {}
+        self._states_read = 0.0
+        """EtherCAT only: what the master last said about each slave (station address, AL status)."""
+        self.health: BusHealth | GatewayHealth
+        if isinstance(network, EthercatNetwork):
+            self.health = GatewayHealth(network)
+            return
         self.health = BusHealth(network.bus, self.emit)
         network.add_listener(self.health)
         network.bus.send_guard = self.health.refusal
-        self.duplicates = DuplicateWatch()
         network.add_listener(self.duplicates)
         self.health.notes.append(self.duplicates.text)
+
+    @property
+    def ethercat(self) -> EthercatNetwork | None:
+        """The session's EtherCAT segment, or None on CAN."""
+        return self.network if isinstance(self.network, EthercatNetwork) else None
 
     # --- nodes ------------------------------------------------------------------------------------------
     def add_node(self, node_id: int, profile_id: str | None, name: str | None = None) -> SessionNode:
@@ -114,7 +142,7 @@ class Session:
             raise NotFound(f"Node {node_id} is not part of session '{self.name}'. Scan the bus or add it.")
         return node
 
-    def client(self, node_id: int) -> NodeClient:
+    def client(self, node_id: int) -> SdoClient:
         node = self.nodes.get(node_id)
         if node is None:
             return self.network.node(node_id)
@@ -127,8 +155,13 @@ class Session:
 
     # --- NMT --------------------------------------------------------------------------------------------
     async def nmt(self, command: NmtCommand, node_id: int = 0) -> None:
+        """NMT on CAN; on EtherCAT the state change that does the same job (:data:`ESM_FOR_NMT`), so the safety
+        guard's confirmation and keep-alive hold there too."""
         if node_id and node_id not in self.nodes:
             self.node(node_id)
+        if isinstance(self.network, EthercatNetwork):
+            await self._change_states(self.network, command, node_id)
+            return
         await asyncio.to_thread(self.network.send_nmt, command, node_id)
         targets = list(self.nodes.values()) if node_id == 0 else [self.nodes[node_id]]
         for node in targets:
@@ -137,14 +170,60 @@ class Session:
                 node.pending_reset.clear()
         self.emit("nmt", {"command": command.label, "node": node_id})
 
+    async def _change_states(self, segment: EthercatNetwork, command: NmtCommand, node_id: int) -> None:
+        targets = [node_id] if node_id else sorted(self.nodes)
+        for target in targets:
+            try:
+                for state in ESM_FOR_NMT[command]:
+                    self.slaves[target] = await asyncio.to_thread(segment.request_state, target, state)
+            finally:
+                with contextlib.suppress(DriveBenchError):
+                    self.slaves[target] = await asyncio.to_thread(segment.slave, target)
+        self.emit("nmt", {"command": ESM_FOR_NMT[command][-1].label, "node": node_id})
+
+    async def refresh_states(self, max_age_s: float = 2.0) -> None:
+        """EtherCAT: the slaves' AL status read from the master again, at most every ``max_age_s`` however many
+        pages ask (on CAN the heartbeats keep the states live; nothing to do)."""
+        if not isinstance(self.network, EthercatNetwork) or time.monotonic() - self._states_read < max_age_s:
+            return
+        self._states_read = time.monotonic()
+        for node_id, info in list(self.slaves.items()):
+            try:
+                info.al_status, info.al_status_code = await asyncio.to_thread(self.network.al_state, node_id)
+            except DriveBenchError:
+                info.al_status, info.al_status_code = None, 0  # shown as Unknown: the master did not say
+
     # --- scan -------------------------------------------------------------------------------------------
     async def scan(self, timeout_s: float = 0.5) -> list[SessionNode]:
         """Find nodes (SDO 0x1000 to every id + heartbeats), read their identity, pick a profile."""
+        if isinstance(self.network, EthercatNetwork):
+            return await self._scan_segment(self.network)
         found = await asyncio.to_thread(self.network.scan, timeout_s)
         results = await asyncio.gather(*(self._identify(node_id) for node_id in found))
         if found:  # two devices on one id both answer: one more request each tells (Plant page, state_text)
             await asyncio.to_thread(self.duplicates.probe, self.network, found)
         return list(results)
+
+    async def _scan_segment(self, segment: EthercatNetwork) -> list[SessionNode]:
+        """The slaves the master has configured, with their identity from its configuration objects."""
+        found = await asyncio.to_thread(segment.scan)
+        nodes = []
+        for node_id in found:
+            info = await asyncio.to_thread(segment.slave, node_id)
+            self.slaves[node_id] = info
+            existing = self.nodes.get(node_id)
+            profile = existing.profile if existing else None
+            if profile is None:
+                profile = self.profiles.find_by_identity(info.vendor_id, info.product_code)
+            node = existing or SessionNode(node_id, profile, info.name or None)
+            node.profile = profile
+            node.identity = {key: value for key, value in (("vendor_id", info.vendor_id),
+                                                           ("product_code", info.product_code),
+                                                           ("station", info.station)) if value is not None}
+            with self._lock:
+                self.nodes[node_id] = node
+            nodes.append(node)
+        return nodes
 
     async def _identify(self, node_id: int) -> SessionNode:
         client = self.network.node(node_id)
@@ -192,10 +271,15 @@ class Session:
 
     def reconnect(self) -> None:
         """Try to reopen a lost adapter now (it is retried with back-off anyway)."""
-        self.network.bus.reconnect_now()
+        if isinstance(self.network, CanopenNetwork):
+            self.network.bus.reconnect_now()
 
     def nmt_state(self, node_id: int) -> tuple[str, bool]:
-        """The node's NMT state in words, and whether it comes from a live heartbeat."""
+        """The node's NMT state in words, and whether it comes from a live heartbeat (on EtherCAT: its AL status
+        as the master last reported it)."""
+        slave = self.slaves.get(node_id)
+        if self.ethercat is not None:
+            return (slave.state_text, slave.al_status is not None) if slave is not None else ("Unknown", False)
         bus_state = self.health.state()
         if bus_state == ADAPTER_LOST:
             return "Adapter lost", False
@@ -221,11 +305,15 @@ class Session:
         return self.network.emcy.last(node_id)
 
     def add_frame_listener(self, listener: can.Listener) -> None:
-        """Frames read from the bus and frames the tool sends (e.g. the monitor)."""
+        """Frames read from the bus and frames the tool sends (e.g. the monitor); EtherCAT has none."""
+        if isinstance(self.network, EthercatNetwork):
+            return
         self.network.add_listener(listener)
         self.network.bus.add_observer(listener.on_message_received)
 
     def remove_frame_listener(self, listener: can.Listener) -> None:
+        if isinstance(self.network, EthercatNetwork):
+            return
         self.network.remove_listener(listener)
         self.network.bus.remove_observer(listener.on_message_received)
 
@@ -254,14 +342,13 @@ class SessionManager:
         self._ids = itertools.count(1)
         self._lock = asyncio.Lock()
 
-    async def open(self, spec: BusSpec | str, name: str | None = None, *, simulated: bool = False) -> Session:
-        bus_spec = BusSpec.parse(spec) if isinstance(spec, str) else spec
+    async def open(self, spec: SessionSpec | str, name: str | None = None, *, simulated: bool = False) -> Session:
+        bus_spec = parse_spec(spec) if isinstance(spec, str) else spec
         async with self._lock:
             for session in self._sessions.values():
                 if str(session.spec) == str(bus_spec):
                     raise Conflict(f"{bus_spec} is already open as session '{session.name}'")
-            bus = await asyncio.to_thread(open_bus, bus_spec)
-            network = CanopenNetwork(bus, sdo_timeout_s=self.sdo_timeout_s, sdo_retries=self.sdo_retries)
+            network = await asyncio.to_thread(open_network, bus_spec, self.sdo_timeout_s, self.sdo_retries)
             label = name or f"{bus_spec.interface} {bus_spec.channel}".strip()
             session_id = _slug(name or f"{bus_spec.interface}-{bus_spec.channel}")
             if session_id in self._sessions:
@@ -271,7 +358,13 @@ class SessionManager:
 
             session.services = SessionServices.open(session, self.write_audits)
             self._sessions[session_id] = session
-            return session
+        if session.ethercat is not None:  # the master knows its slaves: list them at once
+            try:
+                await session.scan()
+            except DriveBenchError as exc:
+                why = f"Slave list not read: {exc}"
+                session.health.notes.append(lambda: why)
+        return session
 
     def get(self, session_id: str) -> Session:
         session = self._sessions.get(session_id)

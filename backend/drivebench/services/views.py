@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import time
+from dataclasses import asdict
+from typing import Any
 
 from pydantic import BaseModel
 
@@ -29,6 +31,10 @@ class NodePublic(BaseModel):
     bootups: int
     last_emcy: EmcyPublic | None
     pending_reset: list[str]
+    station: int | None = None
+    """EtherCAT: the slave's configured station address (the node number is its place in the master's list)."""
+    mailbox: dict[str, int] | None = None
+    """EtherCAT: mailbox traffic of this slave (requests, responses, aborts, emergencies, timeouts)."""
 
 
 class SessionPublic(BaseModel):
@@ -76,7 +82,16 @@ def node_public(session: Session, node: SessionNode, now: float | None = None) -
                              class_text=emcy.class_text, vendor_text=vendor_emcy_text(node, emcy.code),
                              time=emcy.timestamp) if emcy else None,
         pending_reset=sorted(node.pending_reset),
+        **_slave_fields(session, node.node_id),
     )
+
+
+def _slave_fields(session: Session, node_id: int) -> dict[str, Any]:
+    segment = session.ethercat
+    slave = session.slaves.get(node_id)
+    if segment is None or slave is None:
+        return {}
+    return {"station": slave.station, "mailbox": asdict(segment.counters(node_id))}
 
 
 def session_public(session: Session) -> SessionPublic:

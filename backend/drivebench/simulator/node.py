@@ -15,6 +15,9 @@ import threading
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from typing import Annotated
+
+from pydantic import AfterValidator
 
 from drivebench.device.profile import Profile
 from drivebench.protocol.nmt import NmtCommand, NmtState
@@ -63,6 +66,15 @@ class Latency:
             return "0 ms"
         jitter = f" ± {self.jitter_s * 1000:g} ms" if self.jitter_s else ""
         return f"{self.mean_s * 1000:g} ms{jitter}"
+
+
+def _checked_latency(text: str) -> str:
+    Latency.parse(text)
+    return text
+
+
+LatencyText = Annotated[str, AfterValidator(_checked_latency)]
+"""A plant file's latency field (``"30ms±20ms"``), checked when the file is read."""
 
 
 def _device_control(node: SimulatedNode) -> Drive402 | LenzeControl | Servo402 | None:

@@ -6,8 +6,9 @@ Example (``plants/demo.json`` is the one ``make run`` starts)::
      "nodes": [{"node_id": 5, "profile": "lenze-8400-motec-canopen", "latency": "30ms±20ms",
                 "heartbeat_ms": 500, "values": {"C00061": 43}}]}
 
-The plant speaks only CAN: it opens its own python-can bus (``virtual`` in-process, or ``socketcand`` to a
-hub or gateway), so the tool's protocol layer cannot tell it from real drives.
+The plant's CAN nodes speak only CAN: it opens its own python-can bus (``virtual`` in-process, or ``socketcand`` to a
+hub or gateway), so the tool's protocol layer cannot tell it from real drives. Its ``ethercat`` section puts EtherCAT
+slaves behind a simulated master's mailbox gateway on UDP (:mod:`drivebench.simulator.ethercat`).
 """
 
 from __future__ import annotations
@@ -23,7 +24,8 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from drivebench.device.profile import Profile
 from drivebench.errors import DriveBenchError, ProfileError, TransportError
 from drivebench.simulator.babbler import DEFAULT_COB_ID, Babbler
-from drivebench.simulator.node import Latency, SimulatedNode
+from drivebench.simulator.ethercat import EthercatLine
+from drivebench.simulator.node import Latency, LatencyText, SimulatedNode
 from drivebench.transport.bus import BusSpec, open_bus
 
 TICK_S = 0.002
@@ -35,16 +37,10 @@ class PlantNode(BaseModel):
     node_id: int = Field(ge=1, le=127)
     profile: str
     name: str | None = None
-    latency: str = "0ms"
+    latency: LatencyText = "0ms"
     heartbeat_ms: int | None = Field(None, ge=0, le=65535)
     values: dict[str, int | float | str] = Field(default_factory=dict)
     """Initial values by parameter reference (``C00061``, ``0x1017``), in engineering units."""
-
-    @field_validator("latency")
-    @classmethod
-    def _check_latency(cls, value: str) -> str:
-        Latency.parse(value)
-        return value
 
 
 class PlantFile(BaseModel):
@@ -52,7 +48,9 @@ class PlantFile(BaseModel):
 
     name: str
     bus: str = "virtual:drivebench-plant@500000"
-    nodes: list[PlantNode]
+    nodes: list[PlantNode] = Field(default_factory=list)
+    ethercat: EthercatLine | None = None
+    """Slaves behind a simulated EtherCAT master's mailbox gateway (a second session next to the CAN bus)."""
 
     @field_validator("nodes")
     @classmethod

@@ -37,6 +37,14 @@ class GatewaySpec:
     host: str
     port: int = GATEWAY_PORT
 
+    interface = "ethercat-mbg"
+    bitrate = 100_000_000
+    """EtherCAT's 100 Mbit/s (what a session shows where a CAN bus has its bit rate)."""
+
+    @property
+    def channel(self) -> str:
+        return f"{self.host}:{self.port}"
+
     @classmethod
     def parse(cls, text: str) -> GatewaySpec:
         match = _SPEC_RE.match(text.strip())

@@ -70,6 +70,15 @@ async def start_plant(state: AppState, plant_path: Path, *, bus: str | None = No
     state.plants[session.id] = plant
     for node in plant_file.nodes:
         session.add_node(node.node_id, node.profile, node.name)
+    if plant_file.ethercat is not None:  # a second session: the slaves behind a simulated master's gateway
+        line = plant_file.ethercat
+        gateway = await asyncio.to_thread(line.start, state.registry.get, latency=latency)
+        try:
+            ethercat = await state.manager.open(gateway.spec, name=line.name, simulated=True)
+        except BaseException:
+            await asyncio.to_thread(gateway.stop)
+            raise
+        state.gateways[ethercat.id] = gateway
 
 
 def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: list[str] | None = None,
@@ -96,6 +105,8 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
             await manager.close_all()
             for plant in state.plants.values():
                 await asyncio.to_thread(plant.stop)
+            for gateway in state.gateways.values():
+                await asyncio.to_thread(gateway.stop)
 
     app = FastAPI(title="DriveBench", version=__version__, lifespan=lifespan,
                   description="Commissioning of CANopen drives: parameters, PDOs, NMT, diagnostics.")

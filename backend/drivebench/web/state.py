@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from drivebench.device.loader import ProfileRegistry
 from drivebench.services.sessions import SessionManager
 from drivebench.services.sharing import ShareLinks
+from drivebench.simulator.ethercat import GatewayServer
 from drivebench.simulator.plant import Plant
 
 
@@ -17,3 +18,5 @@ class AppState:
     share_links: ShareLinks = field(default_factory=ShareLinks)
     plants: dict[str, Plant] = field(default_factory=dict)
     """Simulated plants by the id of the session that watches them."""
+    gateways: dict[str, GatewayServer] = field(default_factory=dict)
+    """Simulated EtherCAT masters' mailbox gateways by the id of the session that reaches them."""

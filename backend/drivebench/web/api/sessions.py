@@ -18,6 +18,7 @@ from pydantic import BaseModel, Field, model_validator
 from drivebench.errors import AccessDenied, InvalidValue
 from drivebench.protocol.nmt import COMMAND_BY_NAME, NmtCommand
 from drivebench.services import drive_guard, node_lease
+from drivebench.services.fieldbus import SessionSpec, parse_spec
 from drivebench.services.principals import Role
 from drivebench.services.sessions import Session
 from drivebench.services.views import NodePublic, SessionPublic, node_public, nodes_public, session_public
@@ -33,7 +34,8 @@ NmtName = Literal["start", "stop", "pre-operational", "reset-node", "reset-commu
 
 
 class SessionCreate(BaseModel):
-    """Either ``bus`` (``socketcan:can0@500000``, ``socketcand:HOST:PORT/can0``) or interface/channel/bitrate."""
+    """Either ``bus`` (``socketcan:can0@500000``, ``socketcand:HOST:PORT/can0``, ``ethercat-mbg:HOST:PORT``) or
+    interface/channel/bitrate."""
 
     bus: str | None = Field(None, examples=["socketcan:can0@500000"])
     interface: str | None = Field(None, examples=["pcan"])
@@ -47,9 +49,9 @@ class SessionCreate(BaseModel):
             raise ValueError("give either 'bus' or 'interface' (and 'channel', 'bitrate')")
         return self
 
-    def spec(self) -> BusSpec:
+    def spec(self) -> SessionSpec:
         if self.bus:
-            return BusSpec.parse(self.bus)
+            return parse_spec(self.bus)
         return BusSpec(interface=self.interface or "", channel=self.channel or "", bitrate=self.bitrate)
 
 

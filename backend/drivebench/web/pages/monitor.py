@@ -11,7 +11,7 @@ from drivebench.services import telegram_counters
 from drivebench.services.monitor import SERVICE_GROUPS, monitor_for
 from drivebench.services.recording import FORMATS, recordings_for
 from drivebench.services.sessions import Session
-from drivebench.services.views import session_public
+from drivebench.services.views import NodePublic, nodes_public, session_public
 from drivebench.web.deps import SessionDep, StateDep
 from drivebench.web.templating import templates
 
@@ -50,8 +50,22 @@ async def monitor_page(request: Request, state: StateDep, session: SessionDep) -
                "service_groups": SERVICE_GROUPS, "filter": monitor.filter.as_dict(), "paused": monitor.paused,
                "bus": snapshot["bus"], "bus_text": bus_text, "bus_labels": BUS_LABELS,
                "nodes": sorted(session.nodes), "counter_nodes": _counter_nodes(session),
-               **_recordings(session)}
+               "mailbox": _mailbox(session), **_recordings(session)}
     return templates.TemplateResponse(request, "monitor.html", context)
+
+
+def _mailbox(session: Session) -> list[NodePublic] | None:
+    """EtherCAT: the slaves with their mailbox counters; None on CAN."""
+    if session.ethercat is None:
+        return None
+    return [node for node in nodes_public(session) if node.mailbox is not None]
+
+
+@router.get("/ui/monitor/{session_id}/mailbox", response_class=HTMLResponse)
+async def mailbox_block(request: Request, session: SessionDep) -> Response:
+    return templates.TemplateResponse(request, "monitor.html", {"session": session_public(session),
+                                                                "mailbox": _mailbox(session) or []},
+                                      block_name="mailbox")
 
 
 @router.get("/ui/monitor/{session_id}/recordings", response_class=HTMLResponse)

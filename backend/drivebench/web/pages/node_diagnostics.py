@@ -10,6 +10,7 @@ from fastapi.responses import HTMLResponse, Response
 from drivebench.errors import DriveBenchError
 from drivebench.services import diagnostics
 from drivebench.services.sessions import Session, SessionNode
+from drivebench.services.views import node_public
 from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.safety import ACTING
 from drivebench.web.templating import templates
@@ -24,10 +25,13 @@ def _context(session: Session, node: SessionNode, **extra: Any) -> dict[str, Any
             "health": diagnostics.node_health(session, node),
             "history": diagnostics.emcy_history(session, node.node_id),
             "groups": diagnostics.diagnostic_groups(node),
-            "guarding_supported": bool(node.profile and node.profile.features.node_guarding), **extra}
+            "guarding_supported": bool(node.profile and node.profile.features.node_guarding),
+            "slave": node_public(session, node) if session.ethercat is not None else None, **extra}
 
 
 async def _setup(session: Session, node: SessionNode) -> dict[str, Any]:
+    if session.ethercat is not None:  # no heartbeat on EtherCAT: the master watches its slaves
+        return {"setup": None, "setup_error": None}
     try:
         return {"setup": await diagnostics.read_heartbeat_setup(session, node.node_id), "setup_error": None}
     except DriveBenchError as exc:

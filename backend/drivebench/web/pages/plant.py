@@ -13,6 +13,7 @@ from fastapi.responses import HTMLResponse, Response
 
 from drivebench.errors import Conflict, DriveBenchError
 from drivebench.protocol.nmt import COMMAND_BY_NAME
+from drivebench.services.fieldbus import ETHERCAT_INTERFACES, SessionSpec, parse_spec
 from drivebench.services.sessions import Session
 from drivebench.services.views import nodes_public, session_public
 from drivebench.transport.bus import BusSpec, known_interfaces
@@ -27,7 +28,7 @@ router = APIRouter(include_in_schema=False, dependencies=[ACTING])
 
 def _context(state: Any, **extra: Any) -> dict[str, Any]:
     sessions = [{"session": session_public(s), "nodes": nodes_public(s)} for s in state.manager.list()]
-    return {"active": "plant", "sessions": sessions, "interfaces": known_interfaces(),
+    return {"active": "plant", "sessions": sessions, "interfaces": [*known_interfaces(), *ETHERCAT_INTERFACES],
             "profiles": state.registry.all(),
             "form": {"interface": "socketcand", "channel": "", "bitrate": 500000, "name": ""}, **extra}
 
@@ -51,7 +52,9 @@ async def open_session(request: Request, state: StateDep, manager: ManagerDep,
     form = {"interface": interface, "channel": channel, "bitrate": bitrate, "name": name}
     try:
         if interface == "socketcand":
-            spec = BusSpec.parse(f"socketcand:{channel}@{bitrate}")
+            spec: SessionSpec = BusSpec.parse(f"socketcand:{channel}@{bitrate}")
+        elif interface in ETHERCAT_INTERFACES:
+            spec = parse_spec(f"{interface}:{channel}")
         else:
             spec = BusSpec.build(interface=interface, channel=channel, bitrate=bitrate)
         session = await manager.open(spec, name or None)

@@ -29,6 +29,7 @@ async def node_states(websocket: WebSocket, session_id: str) -> None:
             except NotFound:
                 await websocket.close(code=4404, reason=f"No open session '{session_id}'")
                 return
+            await session.refresh_states()
             context = templates.env.get_template("plant.html").new_context(
                 {"session_id": session.id, "nodes": nodes_public(session), "bus_text": session.bus_text,
                  "bus_state": session.bus_state})

@@ -1,0 +1,232 @@
+"""An EtherCAT segment behind a mailbox gateway, seen the way a session sees a CAN network.
+
+:class:`EthercatNetwork` offers what the services use of :class:`~drivebench.protocol.network.CanopenNetwork`:
+``node(node_id)`` gives an SDO client with the same methods and the same errors as a CAN node's
+(:class:`CoeNodeClient`), ``emcy`` keeps the slaves' CoE emergencies as the EMCY monitor keeps CAN's, ``scan`` finds
+the slaves. What CAN has and EtherCAT has not (NMT, heartbeat, node guarding, frames by COB-ID) is refused in words.
+
+A session numbers its nodes 1, 2, ... in the order of the master's configured address list (the "position"; the
+tool's pages and API address nodes by these numbers); every mailbox telegram is addressed by the slave's configured
+station address, which the slave list shows next to it.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import can
+
+from drivebench.errors import ProtocolError, SdoAbortError, SdoTimeoutError
+from drivebench.protocol import esm
+from drivebench.protocol.abort_codes import abort_text
+from drivebench.protocol.emcy import EMCY_BASE, EmcyMonitor
+from drivebench.protocol.ethercat import EthercatSegment, MailboxCounters
+from drivebench.protocol.guarding import NodeGuarding
+from drivebench.protocol.heartbeat import HeartbeatMonitor
+from drivebench.protocol.network import EventLoopTransfers
+from drivebench.transport.ethercat_gateway import GatewaySpec
+
+NO_CAN = "EtherCAT has no CAN identifiers"
+GATEWAY_HINT = ("Check that the master runs with its mailbox gateway on, that the slave is in the master's "
+                "configuration and at least Pre-Operational.")
+
+
+@dataclass
+class MailboxChannel:
+    """The slave's one mailbox, as an SDO channel (a CAN node may have two)."""
+
+    number: int
+    lock: threading.Lock
+
+
+@dataclass
+class SlaveInfo:
+    node_id: int
+    station: int
+    name: str = ""
+    vendor_id: int | None = None
+    product_code: int | None = None
+    al_status: int | None = None
+    al_status_code: int = 0
+
+    @property
+    def state_text(self) -> str:
+        if self.al_status is None:
+            return "Unknown"
+        return esm.al_status_text(self.al_status, self.al_status_code)
+
+
+class CoeNodeClient(EventLoopTransfers):
+    """SDO access to one slave through its mailbox: the methods and errors of a CAN node's client."""
+
+    def __init__(self, network: EthercatNetwork, node_id: int, station: int,
+                 abort_texts: Mapping[int, str] | None = None) -> None:
+        self.network = network
+        self.node_id = node_id
+        self.station = station
+        self.abort_texts: dict[int, str] = dict(abort_texts or {})
+        """The device manual's abort texts (its profile's ``abort_texts``)."""
+        self.channels = [MailboxChannel(1, network.segment.lock(station))]
+
+    def configure(self, timeout_s: float, retries: int) -> None:
+        client = self.network.segment.sdo(self.station)
+        client.timeout_s, client.retries = timeout_s, retries
+
+    def add_channel(self, rx_cobid: int, tx_cobid: int) -> MailboxChannel:
+        raise ProtocolError(f"Slave {self.node_id} (station {self.station}) has one mailbox; {NO_CAN} for a second "
+                            "SDO channel")
+
+    def _transfer(self, index: int, sub: int, block: bool, work: str, data: bytes = b"") -> bytes:
+        if block:
+            raise ProtocolError("CoE has no SDO block transfer; read or write it normally (segmented)")
+        client = self.network.segment.sdo(self.station)
+        with self.channels[0].lock:
+            try:
+                if work == "upload":
+                    return client.upload(index, sub)
+                client.download(index, sub, data)
+                return b""
+            except SdoAbortError as exc:
+                raise SdoAbortError(exc.abort_code, abort_text(exc.abort_code, self.abort_texts), node=self.node_id,
+                                    index=index, subindex=sub) from exc
+            except SdoTimeoutError as exc:
+                if type(exc) is not SdoTimeoutError:  # a stalled segmented transfer says so already
+                    raise
+                silent = SdoTimeoutError(self.network.silence_text(self.station, index, sub), node=self.node_id,
+                                         index=index, subindex=sub)
+                silent.hint = GATEWAY_HINT
+                raise silent from exc
+
+    def upload(self, index: int, sub: int, *, block: bool = False, channel: int | None = None) -> bytes:
+        return self._transfer(index, sub, block, "upload")
+
+    def download(self, index: int, sub: int, data: bytes, *, block: bool = False,
+                 channel: int | None = None) -> None:
+        self._transfer(index, sub, block, "download", data)
+
+
+class EthercatNetwork:
+    def __init__(self, spec: GatewaySpec, *, sdo_timeout_s: float = 0.5, sdo_retries: int = 1) -> None:
+        self.spec = spec
+        self.sdo_timeout_s = sdo_timeout_s
+        self.sdo_retries = sdo_retries
+        self.segment = EthercatSegment(spec, timeout_s=sdo_timeout_s, retries=sdo_retries)
+        self.heartbeat = HeartbeatMonitor()
+        self.emcy = EmcyMonitor()
+        self.guarding = NodeGuarding(self._no_frames)
+        self.nodes: dict[int, CoeNodeClient] = {}
+        self.stations: dict[int, int] = {}
+        """Session node number -> configured station address."""
+        self.segment.add_emergency_listener(self._on_emergency)
+
+    # --- nodes and slaves -----------------------------------------------------------------------------------
+    def station(self, node_id: int) -> int:
+        station = self.stations.get(node_id)
+        if station is None:
+            raise ProtocolError(f"Slave {node_id} is not in the master's list of {self.spec}: scan the segment")
+        return station
+
+    def node(self, node_id: int, abort_texts: Mapping[int, str] | None = None) -> CoeNodeClient:
+        """The slave's client; ``abort_texts`` (the profile's, when the caller knows it) replaces the client's."""
+        client = self.nodes.get(node_id)
+        if client is None:
+            client = self.nodes[node_id] = CoeNodeClient(self, node_id, self.station(node_id), abort_texts)
+        elif abort_texts is not None and abort_texts != client.abort_texts:
+            client.abort_texts.clear()
+            client.abort_texts.update(abort_texts)
+        return client
+
+    def counters(self, node_id: int) -> MailboxCounters:
+        return self.segment.counters(self.station(node_id))
+
+    def _master(self, index: int, sub: int) -> bytes:
+        with self.segment.lock(esm.MASTER_STATION):
+            try:
+                return self.segment.sdo(esm.MASTER_STATION).upload(index, sub)
+            except SdoTimeoutError as exc:
+                raise SdoTimeoutError(f"The master behind {self.spec} did not answer: {self._silence()}",
+                                      node=0, index=index, subindex=sub) from exc
+
+    def scan(self, timeout_s: float = 0.5, node_ids: range | None = None) -> list[int]:
+        """The slaves in the master's configured address list (0xF020), numbered 1, 2, ... in its order."""
+        count = self._master(esm.ADDRESS_LIST, 0)[0]
+        self.stations = {number: int.from_bytes(self._master(esm.ADDRESS_LIST, number)[:2], "little")
+                         for number in range(1, count + 1)}
+        return sorted(self.stations)
+
+    def slave(self, node_id: int) -> SlaveInfo:
+        """The master's configuration and diagnosis objects of one slave."""
+        station = self.station(node_id)
+        configuration, diagnosis = esm.CONFIGURATION_BASE + node_id - 1, esm.DIAGNOSIS_BASE + node_id - 1
+        info = SlaveInfo(node_id, station)
+        info.name = self._master(configuration, esm.SUB_NAME).decode("utf-8", "replace").rstrip("\0")
+        info.vendor_id = int.from_bytes(self._master(configuration, esm.SUB_VENDOR), "little")
+        info.product_code = int.from_bytes(self._master(configuration, esm.SUB_PRODUCT), "little")
+        info.al_status = int.from_bytes(self._master(diagnosis, esm.SUB_AL_STATUS), "little")
+        info.al_status_code = int.from_bytes(self._master(diagnosis, esm.SUB_AL_STATUS_CODE), "little")
+        return info
+
+    def al_state(self, node_id: int) -> tuple[int, int]:
+        """The slave's AL status and last AL status code, as the master reports them now."""
+        diagnosis = esm.DIAGNOSIS_BASE + node_id - 1
+        self.station(node_id)
+        return (int.from_bytes(self._master(diagnosis, esm.SUB_AL_STATUS), "little"),
+                int.from_bytes(self._master(diagnosis, esm.SUB_AL_STATUS_CODE), "little"))
+
+    def request_state(self, node_id: int, state: esm.EsmState) -> SlaveInfo:
+        """Ask the master to take one slave to ``state`` (AL control); refused changes raise in words."""
+        diagnosis = esm.DIAGNOSIS_BASE + node_id - 1
+        self.station(node_id)
+        with self.segment.lock(esm.MASTER_STATION):
+            try:
+                self.segment.sdo(esm.MASTER_STATION).download(diagnosis, esm.SUB_AL_CONTROL,
+                                                              int(state).to_bytes(2, "little"))
+            except SdoAbortError as exc:
+                raise ProtocolError(f"The master behind {self.spec} refused the state change of slave {node_id}: "
+                                    f"{exc.abort_text} (0x{exc.abort_code:08X})") from exc
+        info = self.slave(node_id)
+        if info.al_status is not None and info.al_status & esm.ERROR_FLAG:
+            raise ProtocolError(f"Slave {node_id} (station {info.station}) did not change to {state.label}: "
+                                f"{info.state_text}")
+        return info
+
+    # --- what a session asks of a CAN network -----------------------------------------------------------------
+    def _no_frames(self, *args: object) -> None:
+        raise ProtocolError(f"{NO_CAN}: NMT, SYNC, PDO frames and node guarding do not exist on {self.spec}")
+
+    send = _no_frames
+    send_nmt = _no_frames
+
+    def add_listener(self, listener: can.Listener) -> None:
+        """No CAN frames to listen to (mailbox traffic is counted per slave instead)."""
+
+    def remove_listener(self, listener: can.Listener) -> None:
+        """See :meth:`add_listener`."""
+
+    def _on_emergency(self, station: int, code: int, register: int, data: bytes, timestamp: float) -> None:
+        node_id = next((number for number, known in self.stations.items() if known == station), None)
+        if node_id is None or node_id > 127:
+            return
+        payload = code.to_bytes(2, "little") + bytes([register]) + data
+        self.emcy.on_message_received(can.Message(arbitration_id=EMCY_BASE + node_id, data=payload,
+                                                  is_extended_id=False, timestamp=timestamp))
+
+    def _silence(self) -> str:
+        return (self.segment.link.unreachable or "no answer in time") + \
+            " (is the master running with its mailbox gateway on?)"
+
+    def silence_text(self, station: int, index: int, sub: int) -> str:
+        if self.segment.link.unreachable:
+            return f"Mailbox gateway {self.spec}: {self._silence()}"
+        return (f"Slave at station {station} did not answer the mailbox request for 0x{index:04X}sub{sub} within "
+                f"{self.sdo_timeout_s:g} s: not in Pre-Operational or higher, not on the segment, or slow")
+
+    @property
+    def link_text(self) -> str | None:
+        return f"Mailbox gateway {self.spec}: {self._silence()}" if self.segment.link.unreachable else None
+
+    def close(self) -> None:
+        self.guarding.close()
+        self.segment.close()

@@ -1,0 +1,100 @@
+"""The demo plant's second session, "EtherCAT line" (two simulated 8400 motec EtherCAT units behind a simulated
+master's mailbox gateway on UDP 127.0.0.1), through the REST API: the slave list, a parameter-set round trip
+(upload, compare, download with save, rollback) and the Plant page's slave table."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator
+
+import pytest
+from fastapi.testclient import TestClient
+
+from drivebench.web.app import create_app
+from tests.conftest import DEMO_PLANT, fresh_channel
+from tests.web.test_parameter_sets_api import SETS, finish
+
+SESSION = "ethercat-line"
+NODE = f"/api/sessions/{SESSION}/nodes/1"
+
+
+@pytest.fixture
+def api(app_db_url: str) -> Iterator[TestClient]:
+    app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
+    with TestClient(app) as client:
+        yield client
+
+
+def test_the_demo_plant_has_an_ethercat_line(api: TestClient) -> None:
+    sessions = {s["id"]: s for s in api.get("/api/sessions").json()}
+    assert sessions[SESSION]["interface"] == "ethercat-mbg" and sessions[SESSION]["simulated"] is True
+    nodes = api.get(f"/api/sessions/{SESSION}/nodes").json()
+    assert [(n["node_id"], n["station"], n["profile_id"]) for n in nodes] == [
+        (1, 1001, "lenze-8400-motec-ethercat"), (2, 1002, "lenze-8400-motec-ethercat")]
+    page = api.get("/").text
+    assert 'id="node-ethercat-line-1"' in page and ">1001<" in page and "EtherCAT state (AL status)" in page
+    diagnostics = api.get(f"/ui/sessions/{SESSION}/nodes/1/diagnostics").text
+    assert 'id="diag-ethercat"' in diagnostics and "<dd>1001</dd>" in diagnostics
+    assert "0x1017" not in diagnostics and "SDO transfer aborted" not in diagnostics  # no heartbeat asked for
+
+
+def test_parameter_set_round_trip_on_the_ethercat_unit(api: TestClient) -> None:
+    started = api.post(f"{SETS}/upload", json={"session_id": SESSION, "node_id": 1, "name": "Palletiser"},
+                       headers={"X-DriveBench-User": "anna"})
+    assert started.status_code == 202, started.text
+    job = finish(api, started.json())
+    assert job["state"] == "done", job
+    set_id = job["set_id"]
+    values = {v["ref"]: v for v in api.get(f"{SETS}/{set_id}").json()["values"]}
+    assert values["C00039/1"]["raw"] == 0x0FA0
+
+    exported = json.loads(api.get(f"{SETS}/{set_id}/export").text)
+    for parameter in exported["parameters"]:
+        if parameter["ref"] == "C00039/1":
+            parameter["value"] = 55.0
+    exported["name"] = "Palletiser commissioned"
+    new_id = api.post(f"{SETS}/import", files={"file": ("p.json", json.dumps(exported).encode())}).json()["set"]["id"]
+    target = {"session_id": SESSION, "node_id": 1}
+    compared = api.post(f"{SETS}/compare", json={"left": {"kind": "node", **target},
+                                                 "right": {"kind": "set", "set_id": new_id}}).json()
+    assert [(row["ref"], row["left"], row["right"], row["kind"]) for row in compared["rows"]] == [
+        ("C00039/1", "40.00 %", "55.00 %", "changed")]
+
+    done = finish(api, api.post(f"{SETS}/{new_id}/download", json=dict(target, save=True),
+                                headers={"X-DriveBench-User": "bert"}).json())
+    assert done["download_state"] == "done", done
+    assert {line["ref"]: line["status"] for line in done["report"]}["C00039/1"] == "written"
+    assert api.get(f"{NODE}/parameters/C00039/1").json()["display"] == "55.00 %"
+
+    back = finish(api, api.post(f"/api/parameter-downloads/{done['download_id']}/rollback",
+                                headers={"X-DriveBench-User": "bert"}).json())
+    assert back["download_state"] == "done", back
+    assert api.get(f"{NODE}/parameters/C00039/1").json()["display"] == "40.00 %"
+
+
+def test_the_monitor_counts_mailbox_traffic_per_slave(api: TestClient) -> None:
+    assert api.get(f"{NODE}/parameters/C00039/1").status_code == 200
+    refused = api.put(f"{NODE}/parameters/0x1C12.1", json={"raw": 0x1600, "check": False})  # the device: abort
+    assert refused.status_code >= 400
+    page = api.get(f"/monitor/{SESSION}").text
+    assert "Mailbox traffic per slave" in page and 'id="mailbox-1"' in page
+    block = api.get(f"/ui/monitor/{SESSION}/mailbox").text
+    row = block[block.index('id="mailbox-1"'):]
+    cells = [cell.split("<")[0] for cell in row.split('<td class="num">')[1:]]
+    node, station, requests, responses, aborts = (int(cells[i]) for i in (0, 1, 2, 3, 4))
+    assert (node, station) == (1, 1001) and requests >= 2 and responses >= 2 and aborts >= 1
+    assert "Mailbox traffic" not in api.get("/monitor/demo-plant").text  # CAN: telegrams, no mailboxes
+
+
+def test_the_session_form_opens_a_gateway_and_refuses_a_direct_master_in_words(api: TestClient) -> None:
+    htmx = {"HX-Request": "true"}
+    gateway = api.get(f"/api/sessions/{SESSION}").json()["channel"]
+    again = api.post("/ui/sessions", data={"interface": "ethercat-mbg", "channel": gateway, "name": "Again"},
+                     headers=htmx)
+    assert again.status_code == 409 and "already open as session" in again.text
+    direct = api.post("/ui/sessions", data={"interface": "ethercat", "channel": "eth9", "name": "Direct"},
+                      headers=htmx)
+    assert direct.status_code >= 400
+    assert ("pip install &#39;drivebench[ethercat]&#39;" in direct.text or "CAP_NET_RAW" in direct.text
+            or "no network card" in direct.text)
+    assert 'value="ethercat-mbg"' in api.get("/").text  # offered next to python-can's interfaces
