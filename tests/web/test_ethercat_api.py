@@ -60,7 +60,9 @@ def test_parameter_set_round_trip_on_the_ethercat_unit(api: TestClient) -> None:
     assert [(row["ref"], row["left"], row["right"], row["kind"]) for row in compared["rows"]] == [
         ("C00039/1", "40.00 %", "55.00 %", "changed")]
 
-    done = finish(api, api.post(f"{SETS}/{new_id}/download", json=dict(target, save=True),
+    # the set holds C00007 (a command source) and setpoints: the download asks for the node-naming confirmation
+    assert api.post(f"{SETS}/{new_id}/download", json=dict(target, save=True)).status_code == 428
+    done = finish(api, api.post(f"{SETS}/{new_id}/download", json=dict(target, save=True, confirm=1),
                                 headers={"X-DriveBench-User": "bert"}).json())
     assert done["download_state"] == "done", done
     assert {line["ref"]: line["status"] for line in done["report"]}["C00039/1"] == "written"
