@@ -318,6 +318,25 @@ def test_read_all_with_a_silent_node_finishes_and_reports_it(bench: Bench) -> No
     assert any(f"Node {ABSENT} did not answer" in note for note in job.notes)
 
 
+def test_read_all_asks_again_what_a_busy_node_answered_too_late(bench: Bench) -> None:
+    """Two answers later than the SDO timeout (a busy machine), then normal answers: every parameter is read,
+    the two late ones at the end, and the job names them."""
+    parameters.configure(bench.session, parameters.SdoSettings(timeout_s=0.3, retries=0, use_sdo2=False))
+    bench.plant.nodes[5].faults.set(late_requests=2, latency_ms=700)
+    first_two = [item.ref for item in parameters.readable_items(bench.session.node(5))[:2]]
+
+    async def go() -> Any:
+        job = parameters.start_read(bench.session, [5], bench.jobs)
+        await job.wait()
+        return job
+
+    job = bench.run(go())
+    assert job.state is JobState.DONE and job.failed == 0, (job.issues, job.notes)
+    assert len(job.result["values"]["5"]) == job.total
+    # the two late ones, and on a loaded machine maybe more
+    assert job.result["retried"]["5"][:2] == first_two and job.result["failed_after_retry"]["5"] == []
+
+
 def test_read_all_cancel_keeps_partial_result(bench: Bench) -> None:
     bench.plant.nodes[12].latency = type(bench.plant.nodes[12].latency)(0.01)
 

@@ -6,7 +6,8 @@
 * Values that take effect only after reset node are flagged on the node until it boots again.
 * Device commands: save, restore defaults, reset node, the way the device's profile offers them.
 * Read-all spreads one node's reads over its SDO channels (SDO2 where the device has one) and runs different
-  nodes in parallel; a silent node gives up after a few timeouts and never holds the others up.
+  nodes in parallel; a read that timed out is asked again at the end, a node judged silent from evidence
+  (:mod:`drivebench.services.node_silence`) is given up and never holds the others up.
 
 Bus work runs in this module's own thread pool, so a slow node never waits for a free worker thread.
 """
@@ -53,13 +54,12 @@ from drivebench.protocol.sdo_fast import ExpeditedRequest, upload_expedited
 from drivebench.services import node_lease
 from drivebench.services.fieldbus import SdoClient
 from drivebench.services.jobs import Job, JobIssue, JobManager
+from drivebench.services.node_silence import NodeSilence
 from drivebench.services.sessions import Session, SessionNode
 
 T = TypeVar("T")
 
 _BUS_WORK = ThreadPoolExecutor(max_workers=128, thread_name_prefix="sdo")
-SILENT_AFTER_TIMEOUTS = 2
-"""Consecutive timeouts after which a read-all stops asking a node (it is absent or silent)."""
 
 
 @dataclass
@@ -619,12 +619,19 @@ def _activate_sdo2_blocking(session: Session, node: SessionNode) -> _NodeChannel
 
 
 async def sdo_channels(session: Session, node: SessionNode) -> list[int]:
-    """The channel numbers to spread reads over (SDO2 activated first where possible)."""
-    try:
-        channels = await _on_bus(lambda: _activate_sdo2_blocking(session, node))
-    except (SdoAbortError, SdoTimeoutError, ProtocolError):
-        return [1]
-    return [1, 2] if channels.active else [1]
+    """The channel numbers to spread reads over (SDO2 activated first where possible; asked twice when it times
+    out, as one late answer on a busy machine would otherwise halve the read-all's speed)."""
+    for attempt in range(2):
+        try:
+            channels = await _on_bus(lambda: _activate_sdo2_blocking(session, node))
+        except SdoTimeoutError:
+            if attempt:
+                return [1]
+            continue
+        except (SdoAbortError, ProtocolError):
+            return [1]
+        return [1, 2] if channels.active else [1]
+    return [1]
 
 
 # --- read-all ---------------------------------------------------------------------------------------------
@@ -639,45 +646,77 @@ def _issue(node_id: int, item: Item, exc: Exception) -> JobIssue:
     return JobIssue(item.ref, detail, node_id)
 
 
+_DEVICE_TYPE = ExpeditedRequest(0x1000, 0)
+"""What a silence probe reads: CiA 301 0x1000, mandatory on every device."""
+
+
+def _silence(session: Session, client: NodeClient, channel: int) -> NodeSilence:
+    async def probe() -> bytes:
+        data = await upload_expedited(client, _DEVICE_TYPE, channel=channel)
+        if data is None:  # the channel is busy with a transfer of another client: read through it in a worker
+            data = await _on_bus(partial(client.upload, 0x1000, 0, channel=channel))
+        return data
+
+    return NodeSilence(client.node_id, probe, session.network.heartbeat)
+
+
 async def _read_node(session: Session, node: SessionNode, work: list[Item], job: Job) -> None:
+    """Read the items over the node's SDO channels. A read that times out is asked again at the end; the node is
+    given up only when :class:`NodeSilence` judges it silent (not after two slow answers)."""
     state = service(session)
     client = session.client(node.node_id)
-    queue = deque(work)
-    values: dict[str, object] = job.result.setdefault("values", {}).setdefault(str(node.node_id), {})
-    silent = {"timeouts": 0}  # consecutive reads with no usable answer (silence, or answers out of step)
-    why = ["did not answer"]
+    key = str(node.node_id)
+    values: dict[str, object] = job.result.setdefault("values", {}).setdefault(key, {})
     channel_numbers = await sdo_channels(session, node)
     note = state.channels.get(node.node_id)
     if note is not None and note.note and note.note not in job.notes:
         job.notes.append(note.note)
+    silence = _silence(session, client, channel_numbers[0])
+    timed_out: dict[str, tuple[Item, Exception]] = {}
+    retried: list[str] = []
+    failed_again: list[str] = []
 
-    async def drain(channel: int) -> None:
-        while queue:
-            if silent["timeouts"] >= SILENT_AFTER_TIMEOUTS:
-                skipped = len(queue)
-                queue.clear()
-                job.notes.append(f"Node {node.node_id} {why[0]}; {skipped} parameters not read")
-                job.advance(skipped)
-                return
+    async def drain(queue: deque[Item], channel: int, last_pass: bool) -> None:
+        while queue and silence.verdict is None:
             item = queue.popleft()
             try:
                 plan = _plan_of(node.catalog, item)
                 data = await _upload(client, plan, channel=channel)
                 value = plan.value(plan.decode(data, node.node_id))
             except (SdoTimeoutError, SdoOutOfStepError) as exc:
-                silent["timeouts"] += 1
-                why[0] = "answered out of step" if isinstance(exc, SdoOutOfStepError) else "did not answer"
-                job.advance(issue=_issue(node.node_id, item, exc))
+                if last_pass:
+                    failed_again.append(item.ref)
+                    job.advance(issue=_issue(node.node_id, item, exc))
+                else:
+                    timed_out[item.ref] = (item, exc)  # counted when asked again (or given up)
+                await silence.timed_out(exc)
                 continue
             except (ProtocolError, InvalidValue) as exc:
                 job.advance(issue=_issue(node.node_id, item, exc))
                 continue
-            silent["timeouts"] = 0
+            silence.answered()
             state.remember(node.node_id, value)
             values[item.ref] = value
             job.advance()
 
-    await asyncio.gather(*(drain(channel) for channel in channel_numbers))
+    queue = deque(work)
+    await asyncio.gather(*(drain(queue, channel, False) for channel in channel_numbers))
+    if timed_out and silence.verdict is None:
+        again = deque(item for item, _ in timed_out.values())
+        retried.extend(item.ref for item in again)
+        timed_out.clear()
+        await asyncio.gather(*(drain(again, channel, True) for channel in channel_numbers))
+        queue.extend(again)  # left over if the node fell silent meanwhile
+    if retried:
+        job.result.setdefault("retried", {})[key] = retried
+        job.result.setdefault("failed_after_retry", {})[key] = failed_again
+        job.notes.append(f"Node {node.node_id}: {len(retried)} parameters timed out and were asked again at the "
+                         f"end, {len(retried) - len(failed_again)} of them answered")
+    if silence.verdict is not None:
+        for item, exc in timed_out.values():
+            job.advance(issue=_issue(node.node_id, item, exc))
+        job.notes.append(f"Node {node.node_id} {silence.verdict}; {len(queue)} parameters not read")
+        job.advance(len(queue))
 
 
 def start_read(session: Session, node_ids: Iterable[int], jobs: JobManager, *, group: str | None = None,

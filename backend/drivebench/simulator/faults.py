@@ -33,7 +33,12 @@ class SdoFaults:
     abort_every: int = 1
     """...every one of them (1) or every n-th."""
     latency_ms: float = 0.0
-    """Extra processing time per SDO request."""
+    """Extra processing time per SDO request..."""
+    late_requests: int = 0
+    """...for every request (0), or only for the next this many requests that start a transfer (a busy device
+    answering a few requests after the client gave up on them)."""
+    drop_requests: int = 0
+    """Leave the next this many requests that start a transfer unanswered (lost frames), then answer again."""
 
     def __post_init__(self) -> None:
         if self.silent_after_segments is not None and self.silent_after_segments < 0:
@@ -42,6 +47,8 @@ class SdoFaults:
             raise InvalidValue("abort_code must be a 32-bit CiA 301 abort code")
         if self.abort_every < 1:
             raise InvalidValue("abort_every must be 1 or more")
+        if self.late_requests < 0 or self.drop_requests < 0:
+            raise InvalidValue("late_requests and drop_requests must be 0 or more")
         if not 0 <= self.latency_ms <= 60_000:
             raise InvalidValue("latency_ms must be 0 ... 60000")
         if not -0xFFFF <= self.index_offset <= 0xFFFF or not -0xFF <= self.subindex_offset <= 0xFF:
@@ -68,7 +75,10 @@ class SdoFaults:
             every = "every request" if self.abort_every == 1 else f"every {self.abort_every}th request"
             words.append(f"aborts {every} with 0x{self.abort_code:08X}")
         if self.latency_ms:
-            words.append(f"{self.latency_ms:g} ms extra SDO latency")
+            which = f" on the next {self.late_requests} requests" if self.late_requests else ""
+            words.append(f"{self.latency_ms:g} ms extra SDO latency{which}")
+        if self.drop_requests:
+            words.append(f"leaves the next {self.drop_requests} requests unanswered")
         return words
 
 
@@ -90,6 +100,8 @@ class FaultState:
         self._lock = threading.Lock()
         self._faults = SdoFaults()
         self._channels: dict[int, _ChannelCounters] = {}
+        self._late_left = 0
+        self._drops_left = 0
 
     @property
     def faults(self) -> SdoFaults:
@@ -106,12 +118,27 @@ class FaultState:
         with self._lock:
             self._faults = new
             self._channels.clear()
+            self._late_left = new.late_requests
+            self._drops_left = new.drop_requests
         return new
 
     def clear(self) -> None:
         self.set()
 
     # --- used by the node's SDO workers ----------------------------------------------------------------
+    def delay_s(self, request: bytes) -> float:
+        """Extra processing time for this request (``latency_ms``, or only for the next ``late_requests``)."""
+        faults = self._faults
+        if not faults.latency_ms:
+            return 0.0
+        if not faults.late_requests:
+            return faults.latency_ms / 1000
+        with self._lock:
+            if self._late_left and _starts_transfer(request):
+                self._late_left -= 1
+                return faults.latency_ms / 1000
+        return 0.0
+
     def on_request(self, channel: int, request: bytes) -> int | None:
         """None to pass the request on, 0 to drop it (silence), or an abort code to answer with."""
         faults = self._faults
@@ -119,8 +146,11 @@ class FaultState:
         with self._lock:
             counters = self._channels.setdefault(channel, _ChannelCounters())
             counters.block_upload_running = command == 5 and request[0] & 0x03 in (2, 3)
-            if command in _INDEXED_COMMANDS and not _is_block_follow_up(request):
+            if _starts_transfer(request):
                 counters.segments_answered = 0
+                if self._drops_left:
+                    self._drops_left -= 1
+                    return 0
                 if faults.abort_code is not None:
                     counters.transfers += 1
                     if counters.transfers % faults.abort_every == 0:
@@ -149,6 +179,10 @@ class FaultState:
             data[1:3] = index.to_bytes(2, "little")
             data[3] = (answer[3] + faults.subindex_offset) & 0xFF
         return bytes(data)
+
+
+def _starts_transfer(request: bytes) -> bool:
+    return request[0] >> 5 in _INDEXED_COMMANDS and not _is_block_follow_up(request)
 
 
 def _is_block_follow_up(request: bytes) -> bool:

@@ -241,9 +241,9 @@ class SimulatedNode:
         """True when an active fault takes the request (dropped, or aborted with the fault's code)."""
         if len(data) != 8:
             return False
-        extra_ms = self.faults.faults.latency_ms
-        if extra_ms:
-            time.sleep(extra_ms / 1000)
+        extra_s = self.faults.delay_s(data)
+        if extra_s:
+            time.sleep(extra_s)
         verdict = self.faults.on_request(server.rx_cob, data)
         if verdict is None:
             return False

@@ -207,6 +207,9 @@ def job_out(job: Job, *, with_result: bool = True) -> JobOut:
         values = job.result.get("values", {})
         result = {"values": {node: {ref: value_out(v).model_dump() for ref, v in found.items()}
                              for node, found in values.items()}}
+        for retry in ("retried", "failed_after_retry"):  # read-all: asked again at the end / failed again then
+            if retry in job.result:
+                result[retry] = job.result[retry]
     return JobOut(
         id=job.id, kind=job.kind, title=job.title, state=job.state.value,
         progress=ProgressOut(**progress.__dict__), error=job.error, notes=list(job.notes),
