@@ -89,15 +89,19 @@ def test_counts_per_service_node_and_cob_id(session: Session, wire: can.BusABC) 
     def history_bits() -> float:
         return sum(load for _, load in monitor.history()) * 5000
 
-    assert wait_until(lambda: history_bits() == pytest.approx(expected_bits, abs=5 * len(monitor.history())), 3.0)
+    assert wait_until(lambda: history_bits() == pytest.approx(expected_bits, abs=5 * len(monitor.history())), 10.0)
     assert snap["load"]["peak_percent"] >= 0
 
 
 def test_rates_decay_when_a_cob_id_goes_silent(session: Session, wire: can.BusABC) -> None:
     monitor = _feed(session, wire)
-    first = {row["text"]: row["rate"] for row in monitor.snapshot()["cob_ids"]}
-    assert first["0x185"] > 0
-    assert wait_until(lambda: {row["text"]: row["rate"] for row in monitor.snapshot()["cob_ids"]}["0x185"] == 0, 10.0)
+
+    def rate_185() -> float:
+        rates: dict[str, float] = {row["text"]: row["rate"] for row in monitor.snapshot()["cob_ids"]}
+        return rates["0x185"]
+
+    assert wait_until(lambda: rate_185() > 0, 10.0)  # rates come from closed windows (here: 5 s after their end)
+    assert wait_until(lambda: rate_185() == 0, 15.0)
     assert monitor.snapshot()["cob_ids"][0]["total"] >= 1  # totals stay
 
 

@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+from collections import deque
+
 import can
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
 from drivebench.transport.busload import (
+    FrameClock,
+    LoadWindows,
     crc15,
     frame_bits,
     load_percent,
@@ -80,3 +84,25 @@ def test_load_of_a_known_frame_list() -> None:
     assert load_percent(bits, 1.0, 500_000) == pytest.approx(10.6)
     assert load_percent(2 * worst_case_bits(0) * 1000, 1.0, 125_000) == pytest.approx(88.0)
     assert load_percent(1000, 0.0, 500_000) == 0.0
+
+
+def test_load_windows_close_in_frame_time_and_take_late_frames_into_their_own_second() -> None:
+    closed: list[float] = []
+    windows = LoadWindows(1000, history_s=10, start=100.0, on_close=closed.append)
+    for stamp in (100.2, 100.5, 101.05):  # 101.05: within the reorder tolerance, 100 stays open
+        windows.add(stamp, 100)
+    assert windows.history == deque() and closed == []
+    windows.add(100.9, 100)  # out of order, still in time
+    windows.add(101.2, 100)
+    assert list(windows.history) == [(100, 3, 300)] and closed == [101.0]
+    windows.close_idle(105.5)  # a quiet bus: closed by the clock
+    assert [second for second, _, _ in windows.history] == [100, 101, 102]
+    windows.add(101.5, 50)  # counted after a stall: into its own (closed) second, not the current one
+    assert windows.history[1] == (101, 3, 250) and windows.peak == (30.0, 100.0)
+    assert windows.frames_per_s(2) == (3 + 0) / 2 and windows.frames_per_s(5) == (3 + 3 + 0) / 3
+
+    clock = FrameClock()
+    assert clock.time_of(0.0, 1_000_000.0) == 1_000_000.0  # no timestamp: the time of counting
+    assert clock.time_of(999_999.5, 1_000_000.0) == 999_999.5  # wall-clock time: as it is
+    assert clock.time_of(20.0, 1_000_000.3) == pytest.approx(1_000_000.3)  # an adapter's own clock: mapped
+    assert clock.time_of(21.0, 1_000_001.5) == pytest.approx(1_000_001.3)  # counted 0.2 s late: still its time

@@ -36,14 +36,15 @@ from drivebench.protocol.decode import (
     decode_frame,
 )
 from drivebench.services.sessions import Session
-from drivebench.transport.busload import message_bits
+from drivebench.transport.busload import REORDER_S, FrameClock, LoadWindows, message_bits
 
 TRACE_CAPACITY = 10_000
 """Frames kept in the trace ring (the newest)."""
 HISTORY_S = 600
 """Seconds of bus-load history (one point per second)."""
-RATE_WINDOW_S = 2.0
-"""Rates are frames over the last this many seconds: a silent COB-ID is at 0/s this long after its last frame."""
+RATE_WINDOW_S = 2
+"""Rates are frames over the last this many closed one-second windows of frame time: a silent COB-ID is at 0/s
+this long after its last frame."""
 EXTENDED = 1 << 29
 """Key flag for 29-bit identifiers in the COB-ID table."""
 FLOOD_BUS_PERCENT = 60.0
@@ -128,11 +129,11 @@ class Monitor(can.Listener):
     """key (COB-ID, EXTENDED flag for 29-bit) -> [frames, bits, monotonic time of the last frame]"""
     _last_error: float | None
     _samples: deque[_Sample]
+    """Counts at the close of each of the last RATE_WINDOW_S + 1 load windows (the rates' ends)."""
+    _load: LoadWindows
     _seq: int
     _frames: int
     _errors: int
-    _second: int
-    _second_bits: int
 
     def __init__(self, session: Session, *, trace_capacity: int = TRACE_CAPACITY,
                  history_s: int = HISTORY_S) -> None:
@@ -146,7 +147,7 @@ class Monitor(can.Listener):
         self._lock = threading.Lock()
         self._wall_offset = time.time() - time.monotonic()
         self._trace: deque[tuple[int, can.Message, SdoContext | None]] = deque(maxlen=trace_capacity)
-        self._history: deque[tuple[int, int]] = deque(maxlen=history_s)
+        self._clock = FrameClock()
         self._tracker = SdoTracker()
         self._flood_cache: tuple[float, str | None] | None = None
         self._reset_locked(time.monotonic())
@@ -165,8 +166,10 @@ class Monitor(can.Listener):
     def on_message_received(self, msg: can.Message, _clock: Any = time.monotonic,
                             _bits: Any = message_bits) -> None:
         now = _clock()
+        stamp = self._clock.time_of(msg.timestamp, now + self._wall_offset)
         if msg.is_error_frame:
             with self._lock:
+                self._load.close_until(stamp - REORDER_S)
                 self._errors += 1
                 self._last_error = now
                 self._seq += 1
@@ -174,17 +177,14 @@ class Monitor(can.Listener):
             return
         key = msg.arbitration_id | EXTENDED if msg.is_extended_id else msg.arbitration_id
         bits = _bits(msg)
-        second = int(now)
         with self._lock:
+            self._load.add(stamp, bits)  # first: a window it closes is sampled without it
             entry = self._cobs.get(key)
             if entry is None:
                 entry = self._cobs[key] = [0, 0, now]
             entry[0] += 1
             entry[1] += bits
             entry[2] = now
-            if second != self._second:
-                self._roll(second)
-            self._second_bits += bits
             self._frames += 1
             self._seq = seq = self._seq + 1
             self._trace.append((seq, msg, self._tracker.observe(msg) if 0x580 < key < 0x680 else None))
@@ -200,30 +200,14 @@ class Monitor(can.Listener):
         self._last_error = None
         self._seq = 0
         self._trace.clear()
-        self._history.clear()
         self._tracker.reset()
-        self._second = int(now)
-        self._second_bits = 0
-        self._peak: tuple[float, float] = (0.0, 0.0)
-        self._samples = deque()
+        self._samples = deque(maxlen=RATE_WINDOW_S + 1)
+        self._load = LoadWindows(self.bitrate, self.history_s, now + self._wall_offset, on_close=self._sample)
         self._started = now
 
-    def _roll(self, second: int) -> None:
-        """Close the current one-second bucket (and any silent seconds since) into the history."""
-        gap = second - self._second
-        if gap <= 0:
-            return
-        self._push_second(self._second, self._second_bits)
-        for empty in range(max(self._second + 1, second - self.history_s), second):
-            self._push_second(empty, 0)
-        self._second = second
-        self._second_bits = 0
-
-    def _push_second(self, second: int, bits: int) -> None:
-        self._history.append((second, bits))
-        load = 100.0 * bits / self.bitrate
-        if load > self._peak[0]:
-            self._peak = (load, second + self._wall_offset)
+    def _sample(self, end: float) -> None:
+        """The counts as a load window closes (called by ``_load`` under the lock)."""
+        self._samples.append(_Sample(end, {key: entry[0] for key, entry in self._cobs.items()}, self._errors))
 
     # --- control -----------------------------------------------------------------------------------------
     def reset(self) -> None:
@@ -275,23 +259,21 @@ class Monitor(can.Listener):
         """The snapshot of now, unfiltered (every node and COB-ID row)."""
         now = time.monotonic()
         with self._lock:
-            self._roll(int(now))
+            self._load.close_idle(now + self._wall_offset)
             cobs = {key: (entry[0], entry[1], entry[2]) for key, entry in self._cobs.items()}
             errors, last_error, frames = self._errors, self._last_error, self._frames
-            last_second = self._history[-1] if self._history else None
-            peak, started = self._peak, self._started
-            current = _Sample(now, {key: value[0] for key, value in cobs.items()}, errors)
-            reference = self._rate_reference(current)
-        elapsed = max(now - reference.at, 1e-3)
+            last_second = self._load.last()
+            peak, started = self._load.peak, self._started
+            frame_rate = self._load.frames_per_s(RATE_WINDOW_S)
+            current, reference = self._rate_window()
+        elapsed = max(current.at - reference.at, 1e-3)
         total_bits = sum(entry[1] for entry in cobs.values())
         services: dict[Service, list[float]] = {service: [0, 0.0, 0] for service in SERVICE_ORDER}
         nodes: dict[int, list[float]] = {}
         cob_rows = []
-        total_rate = 0.0
         for key in sorted(cobs):
             count, bits, last_seen = cobs[key]
-            rate = (count - reference.frames.get(key, 0)) / elapsed
-            total_rate += rate
+            rate = (current.frames.get(key, 0) - reference.frames.get(key, 0)) / elapsed
             service, node = _classify_key(key)
             service_row = services[service]
             service_row[0] += count
@@ -308,9 +290,9 @@ class Monitor(can.Listener):
                              "share_percent": round(100.0 * bits / total_bits, 2) if total_bits else 0.0,
                              "last_age_s": round(now - last_seen, 2)})
         names = self._node_names()
-        load_now = 100.0 * last_second[1] / self.bitrate if last_second else 0.0
+        load_now = self._load.percent(last_second[2]) if last_second else 0.0
         bus, bus_text = self._bus()
-        flood = self._flood(cobs, reference, elapsed, names)
+        flood = self._flood(cobs, current, reference, elapsed, names)
         return {
             "session": self.session_id,
             "time": now + self._wall_offset,
@@ -320,11 +302,12 @@ class Monitor(can.Listener):
             "bus": bus,
             "bus_text": bus_text,
             "flood": flood,
-            "totals": {"frames": frames, "bits": total_bits, "rate": round(total_rate, 2), "errors": errors,
-                       "error_rate": round((errors - reference.errors) / elapsed, 2),
+            "totals": {"frames": frames, "bits": total_bits, "rate": round(frame_rate, 2), "errors": errors,
+                       "error_rate": round((current.errors - reference.errors) / elapsed, 2),
                        "last_error_age_s": round(now - last_error, 2) if last_error is not None else None},
-            "load": {"percent": round(load_now, 2), "peak_percent": round(peak[0], 2),
-                     "peak_time": peak[1] or None,
+            "load": {"percent": round(load_now, 2), "second": last_second[0] if last_second else None,
+                     "peak_percent": round(peak[0], 2),
+                     "peak_time": peak[1] if peak[0] else None,
                      "average_percent": round(100.0 * total_bits / self.bitrate / max(now - started, 1e-3), 2)},
             "services": [{"service": service.value, "label": SERVICE_LABELS.get(service, service.value),
                           "group": service_group(service), "total": int(row[0]), "rate": round(row[1], 2)}
@@ -347,11 +330,11 @@ class Monitor(can.Listener):
         return {key: data[key] for key in ("state", "adapter_state", "tx_errors", "rx_errors",
                                            "reported_age_s")}, data["text"]
 
-    def _flood(self, cobs: dict[int, tuple[int, int, float]], reference: _Sample, elapsed: float,
+    def _flood(self, cobs: dict[int, tuple[int, int, float]], current: _Sample, reference: _Sample, elapsed: float,
                names: dict[int, str]) -> dict[str, Any] | None:
         """The COB-ID that holds the bus (a babbling node), from the bits of the rate window; None if none does."""
         capacity = self.bitrate * elapsed
-        recent = {key: (count - reference.frames.get(key, 0)) * bits / count
+        recent = {key: (current.frames.get(key, 0) - reference.frames.get(key, 0)) * bits / count
                   for key, (count, bits, _) in cobs.items() if count}
         if not recent or sum(recent.values()) < FLOOD_BUS_PERCENT / 100 * capacity:
             return None
@@ -376,24 +359,22 @@ class Monitor(can.Listener):
             cached = self._flood_cache = (now, flood["text"] if flood else None)
         return cached[1]
 
-    def _rate_reference(self, current: _Sample) -> _Sample:
-        """The newest sample at least RATE_WINDOW_S old (else the oldest, else the reset); keeps the window."""
+    def _rate_window(self) -> tuple[_Sample, _Sample]:
+        """The counts at the close of the newest load window and RATE_WINDOW_S windows before (or at the reset, while
+        fewer have closed); both the same while none has."""
         samples = self._samples
-        while len(samples) >= 2 and samples[1].at <= current.at - RATE_WINDOW_S:
-            samples.popleft()
-        if not samples or current.at - samples[-1].at >= 0.05:
-            samples.append(current)
-        if samples[0] is current:
-            return _Sample(self._started, {}, 0)
-        return samples[0]
+        start = _Sample(self._started + self._wall_offset, {}, 0)
+        if not samples:
+            return start, start
+        return samples[-1], samples[0] if len(samples) > RATE_WINDOW_S else start
 
     def history(self, since_second: float | None = None) -> list[tuple[float, float]]:
-        """(wall time of the second, load %) for the completed seconds after ``since_second``."""
+        """(wall time of the second, load %) for the closed one-second windows after ``since_second``."""
         with self._lock:
-            self._roll(int(time.monotonic()))
-            points = list(self._history)
-        return [(second + self._wall_offset, round(100.0 * bits / self.bitrate, 3)) for second, bits in points
-                if since_second is None or second + self._wall_offset > since_second]
+            self._load.close_idle(time.monotonic() + self._wall_offset)
+            points = list(self._load.history)
+        return [(float(second), round(100.0 * bits / self.bitrate, 3)) for second, _, bits in points
+                if since_second is None or second > since_second]
 
     @property
     def last_seq(self) -> int:
@@ -467,7 +448,7 @@ class Monitor(can.Listener):
     def buffer_sizes(self) -> dict[str, int]:
         """Current fill of each bounded buffer (for the memory benchmark)."""
         with self._lock:
-            return {"trace": len(self._trace), "history": len(self._history), "cob_ids": len(self._cobs),
+            return {"trace": len(self._trace), "history": len(self._load.history), "cob_ids": len(self._cobs),
                     "rate_samples": len(self._samples)}
 
 

@@ -13,6 +13,8 @@ to 8 data bytes at most, which is an estimate, not an exact count (the data phas
 
 from __future__ import annotations
 
+from collections import deque
+from collections.abc import Callable
 from functools import lru_cache
 
 import can
@@ -208,3 +210,117 @@ def load_percent(bits: int, seconds: float, bitrate: int) -> float:
 
 def cache_info() -> str:
     return str(_header_state.cache_info())
+
+
+# --- load over time, by the frames' own timestamps ------------------------------------------------------------
+REORDER_S = 0.1
+"""A window closes once a frame this far past its end has been counted (frames from several sources, received and
+sent, reach the counter a little out of order)."""
+IDLE_CLOSE_S = 2.0
+"""...or, on a quiet bus, once the clock is this far past its end (a process stalled for longer adds the frames
+it counts late to their closed window: the history is right, a live chart that already drew the point is not)."""
+PLAUSIBLE_S = 60.0
+"""A timestamp this close to the wall clock is wall-clock time (socketcand, SocketCAN, virtual bus, frames sent by
+the tool); further off it is an adapter's own clock, mapped with the smallest lag seen."""
+
+
+class FrameClock:
+    """Maps a frame's own timestamp to wall-clock seconds: the adapter's or hub's time when it has one (so a frame
+    counted late, after a stall of the process, still lands in the second it was on the bus), the time of
+    counting when it has none."""
+
+    def __init__(self) -> None:
+        self._offset: float | None = None
+        """For an adapter clock that is not wall-clock time: wall clock minus adapter clock (smallest lag)."""
+
+    def time_of(self, timestamp: float, wall_now: float) -> float:
+        if not timestamp:
+            return wall_now
+        if abs(timestamp - wall_now) <= PLAUSIBLE_S:
+            return timestamp
+        lag = wall_now - timestamp
+        offset = self._offset
+        if offset is None or lag < offset or timestamp + offset < wall_now - PLAUSIBLE_S:  # first, faster, restarted
+            offset = self._offset = lag
+        return timestamp + offset
+
+
+class LoadWindows:
+    """Frames and exact bits per one-second window of frame time (``FrameClock``), closed in order: a window is
+    closed when a frame ``REORDER_S`` past its end was counted or the clock is ``IDLE_CLOSE_S`` past it; the
+    load figures (each point, the peak, frames per second) come from closed windows only. A frame that comes in
+    after its window closed (a stall longer than ``IDLE_CLOSE_S``) is added to the closed window, not to the
+    current one. Not thread-safe: the caller holds its lock."""
+
+    def __init__(self, bitrate: int, history_s: int, start: float,
+                 on_close: Callable[[float], None] | None = None) -> None:
+        self.bitrate = bitrate
+        self.history: deque[tuple[int, int, int]] = deque(maxlen=history_s)
+        """Closed windows, oldest first: (second, frames, bits)."""
+        self.peak: tuple[float, float] = (0.0, 0.0)
+        """Highest load of a closed window (percent) and its second."""
+        self._open: dict[int, list[int]] = {}
+        self._closed_until = int(start)
+        self._on_close = on_close
+        """Called with the end of each window as it closes (before the frame that closed it is counted)."""
+
+    def add(self, stamp: float, bits: int) -> None:
+        second = int(stamp)
+        if second < self._closed_until:
+            self._amend(second, bits)
+            return
+        self.close_until(stamp - REORDER_S)
+        window = self._open.get(second)
+        if window is None:
+            window = self._open[second] = [0, 0]
+        window[0] += 1
+        window[1] += bits
+
+    def close_idle(self, wall_now: float) -> None:
+        self.close_until(wall_now - IDLE_CLOSE_S)
+
+    def close_until(self, moment: float) -> None:
+        """Close every window that ends at or before ``moment``."""
+        until = int(moment)
+        if until <= self._closed_until:
+            return
+        history_s = self.history.maxlen or 1
+        first = max(self._closed_until, until - history_s)
+        for second in [s for s in self._open if s < first]:  # older than the history keeps
+            del self._open[second]
+        for second in range(first, until):
+            frames, bits = self._open.pop(second, (0, 0))
+            self._push(second, frames, bits)
+            if self._on_close is not None:
+                self._on_close(second + 1.0)
+        self._closed_until = until
+
+    def _push(self, second: int, frames: int, bits: int) -> None:
+        self.history.append((second, frames, bits))
+        load = self.percent(bits)
+        if load > self.peak[0]:
+            self.peak = (load, float(second))
+
+    def _amend(self, second: int, bits: int) -> None:
+        history = self.history
+        if not history or second < history[0][0]:
+            return
+        index = second - history[0][0]
+        if index >= len(history) or history[index][0] != second:
+            return
+        _, frames, old_bits = history[index]
+        history[index] = (second, frames + 1, old_bits + bits)
+        load = self.percent(old_bits + bits)
+        if load > self.peak[0]:
+            self.peak = (load, float(second))
+
+    def percent(self, bits: int) -> float:
+        return 100.0 * bits / self.bitrate
+
+    def last(self) -> tuple[int, int, int] | None:
+        return self.history[-1] if self.history else None
+
+    def frames_per_s(self, window_s: int) -> float:
+        """Frames per second over the last ``window_s`` closed windows (fewer while fewer have closed)."""
+        count = min(window_s, len(self.history))
+        return sum(self.history[-i][1] for i in range(1, count + 1)) / count if count else 0.0
