@@ -104,7 +104,7 @@ Machine: {machine()}, shared with other work (load average at the end {os.getloa
 
 Bounds: trace ring {TRACE_CAPACITY:,} frames; load history {HISTORY_S} one-second points (this run fills
 {last['history']}); COB-ID table one entry per COB-ID seen (at most 2,048 11-bit + the 29-bit ids seen);
-rate samples covering {RATE_WINDOW_S:.0f} s (at most ~{int(RATE_WINDOW_S * 20) + 2}).
+rate samples at the close of the last {RATE_WINDOW_S} one-second load windows (at most {RATE_WINDOW_S + 1}).
 
 | Time | RSS | Frames fed | Trace ring | History points | COB-IDs | Rate samples |
 |---|---|---|---|---|---|---|

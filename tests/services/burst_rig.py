@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import can
 
 from drivebench.device.loader import ProfileRegistry
-from drivebench.services.monitor import Monitor, monitor_for
+from drivebench.services.monitor import RATE_WINDOW_S, Monitor, monitor_for
 from drivebench.services.sessions import SessionManager
 from drivebench.transport.busload import reference_bits
 
@@ -60,15 +60,17 @@ class BurstResult:
     frames_sent: int
     frames_counted: int
     peak_percent: float
-    snapshot_rate: float
-    """The snapshot's frames/s right after the burst's last full second closed..."""
-    exact_rate: float
-    """...and the exact frames/s of the same closed windows."""
+    rates: list[tuple[float, float]]
+    """Snapshots taken every 0.5 s during the burst (as the page polls): (frames/s shown, exact frames/s of the
+    closed windows the snapshot names)."""
 
     def full_seconds(self) -> list[int]:
         """The seconds the burst filled from start to end (not the partial first and last)."""
         seconds = sorted(self.exact)
         return seconds[1:-1]
+
+    def worst_rate_error_percent(self) -> float:
+        return max(abs(shown - exact) / exact * 100 for shown, exact in self.rates if exact)
 
     def worst_error_percent(self) -> float:
         """Largest deviation of a point from the exact load, relative to the exact load (every burst second)."""
@@ -152,14 +154,19 @@ def run_burst(registry: ProfileRegistry, *, rate: int = 2_000, seconds: float = 
             monitor = monitor_for(session)
             time.sleep(0.6)  # the hub lets a new client settle before relaying to it
             burner.start()
-            sender = subprocess.run([sys.executable, "-c", SENDER, str(port), str(rate), str(seconds)],
-                                    timeout=seconds + 60, check=True)
+            sender = subprocess.Popen([sys.executable, "-c", SENDER, str(port), str(rate), str(seconds)])
+            polled: list[tuple[int, float]] = []
+            while sender.poll() is None:
+                time.sleep(0.5)
+                load, totals = (snapshot := monitor.snapshot())["load"], snapshot["totals"]
+                if load["second"] is not None:
+                    polled.append((load["second"], totals["rate"]))
             assert sender.returncode == 0
             total = int(rate * seconds)
             _wait(lambda: recorder.count >= total and monitor.snapshot()["totals"]["frames"] >= total, 30)
             last = max(recorder.bits)
             _wait(lambda: _closed(monitor, last), 10)
-            return _result(monitor, recorder, total)
+            return _result(monitor, recorder, total, polled)
         finally:
             stop_burning.set()
             recorder.stop.set()
@@ -173,15 +180,14 @@ def _closed(monitor: Monitor, second: int) -> bool:
     return any(int(at) == second for at, _ in monitor.history())
 
 
-def _result(monitor: Monitor, recorder: _Recorder, total: int) -> BurstResult:
+def _result(monitor: Monitor, recorder: _Recorder, total: int, polled: list[tuple[int, float]]) -> BurstResult:
     snapshot = monitor.snapshot()
     points = {int(at): load for at, load in monitor.history()}
     exact = {second: 100.0 * bits / BITRATE for second, bits in recorder.bits.items()}
-    newest = int(snapshot["load"]["second"])  # the snapshot's figures are of the windows closed up to this one
-    window = [newest - 1, newest]
-    exact_rate = sum(recorder.frames.get(second, 0) for second in window) / len(window)
-    return BurstResult(points, exact, total, snapshot["totals"]["frames"], snapshot["load"]["peak_percent"],
-                       snapshot["totals"]["rate"], exact_rate)
+    # a snapshot's frames/s is of the RATE_WINDOW_S windows closed up to the one it names
+    rates = [(shown, sum(recorder.frames.get(s, 0) for s in range(newest - RATE_WINDOW_S + 1, newest + 1))
+              / RATE_WINDOW_S) for newest, shown in polled]
+    return BurstResult(points, exact, total, snapshot["totals"]["frames"], snapshot["load"]["peak_percent"], rates)
 
 
 def _wait(check: object, timeout_s: float) -> None:
