@@ -257,6 +257,16 @@ class Drive402(StateMachine402):
             self._write_actuals(now)
             self._publish()
 
+    def next_tick(self) -> float | None:
+        """When the next cycle is due; None while the drive rests (no motion, no transition under way, the motor
+        model settled): a write to the drive wakes the plant, which runs a cycle at once."""
+        with self._lock:
+            resting = (self.state not in (State402.NOT_READY_TO_SWITCH_ON, State402.QUICK_STOP_ACTIVE,
+                                          State402.FAULT_REACTION_ACTIVE)
+                       and self.speed_rpm == 0 and self.torque_permille == 0 and not self.pulses_on()
+                       and self.motor.settled())
+        return None if resting else self._next_cycle
+
     def _velocity_target(self) -> tuple[float, bool]:
         """(target rpm, ramp running?) from state, control word bits 4...6 and 0x6042."""
         cw = self.control_word

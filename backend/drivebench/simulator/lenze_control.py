@@ -349,6 +349,13 @@ class LenzeControl:
             self._publish()
             self._write_electrical(now)
 
+    def next_tick(self) -> float | None:
+        """When the next cycle is due; None while the drive rests (stopped, pulses inhibited, motor model settled):
+        a write to the drive wakes the plant, which runs a cycle at once."""
+        with self._lock:
+            resting = self.device_state != INIT and self.speed == 0 and not self.running and self.motor.settled()
+        return None if resting else self._next_cycle
+
     def speed_fraction(self) -> float:
         """Actual speed as a fraction of the top speed (8400: C00011 = 0x4000; 8200 vector: C0011 fmax)."""
         if not self.is_8400 and _has(self.node, "C0011"):

@@ -47,6 +47,10 @@ class MotorModel:
         self._last: float | None = None
         self._values: tuple[bool, Actuals] | None = None
 
+    def settled(self) -> bool:
+        """At rest: pulses off and the heat sink back at its start value (nothing changes until the drive runs)."""
+        return self._values is not None and not self._values[0] and self.heat_sink_c == self.start_c
+
     def step(self, now: float, *, pulses: bool, speed_fraction: float, torque_fraction: float) -> Actuals:
         """Advance to ``now`` (seconds, monotonic) and return the actual values."""
         if self._values is not None and self._last is not None and self._values[0] == pulses \

@@ -103,6 +103,10 @@ def _seconds(text: str) -> float:
     return float(text) / 1000  # a bare number is milliseconds
 
 
+def _no_wake() -> None:
+    """A node outside a plant is ticked by whoever drives it."""
+
+
 class SimulatedNode:
     def __init__(self, profile: Profile, node_id: int, send: Send, *, name: str | None = None,
                  latency: Latency | None = None, values: Mapping[str, object] | None = None,
@@ -131,6 +135,8 @@ class SimulatedNode:
         self._guard_toggle = 0
         self.faults = FaultState()
         """SDO faults switched on for tests and demos (``node.faults.set(wrong_toggle=True)``)."""
+        self.wake: Callable[[], None] = _no_wake
+        """Tells the plant's ticker that something changed (set by the plant): it ticks at once, not at a timer."""
         self.store.add_write_hook(self._on_write)
         self._build_sdo_servers()
         self.drive = _device_control(self)
@@ -168,6 +174,7 @@ class SimulatedNode:
             self.drive.reset()
         self._next_heartbeat = time.monotonic() + self.heartbeat_period_s() if self.heartbeat_period_s() else 0.0
         self.pdo.reconfigure()
+        self.wake()
 
     def send(self, cob_id: int, data: bytes) -> None:
         if self.powered:
@@ -181,6 +188,7 @@ class SimulatedNode:
         self.telegram_counters.count(cob_id)
         if cob_id == 0x000:
             self._on_nmt(data)
+            self.wake()  # a state change starts or stops the PDOs
         elif cob_id in self.sdo_servers:
             if self.state is not NmtState.STOPPED:
                 (self._requests if cob_id == 0x600 + self.node_id else self._requests2).put((cob_id, data))
@@ -271,6 +279,7 @@ class SimulatedNode:
 
     # --- behaviour of written objects -------------------------------------------------------------------
     def _on_write(self, index: int, sub: int, raw: RawValue) -> None:
+        self.wake()
         if (index, sub) == (0x1017, 0):
             period = self.heartbeat_period_s()
             self._next_heartbeat = time.monotonic() + period if period else 0.0
@@ -319,19 +328,24 @@ class SimulatedNode:
         raw = self.store.get(0x1017, 0)
         return float(raw) / 1000 if isinstance(raw, (int, float)) else 0.0
 
-    def tick(self, now: float) -> None:
+    def tick(self, now: float) -> float | None:
+        """Do what is due at ``now``; returns when the node next needs a tick (heartbeat, drive cycle, TPDO timer),
+        None if nothing is due until something changes (a frame or a write, which wakes the plant)."""
         if not self.powered:
-            return
+            return None
         if self._next_heartbeat and now >= self._next_heartbeat:
             self.send(0x700 + self.node_id, bytes([self.state]))
             period = self.heartbeat_period_s()
             self._next_heartbeat = (self._next_heartbeat + period) if period else 0.0
             if self._next_heartbeat and self._next_heartbeat < now:
                 self._next_heartbeat = now + period
+        due: list[float | None] = [self._next_heartbeat or None]
         if self.drive is not None:
             self.drive.tick(now)
+            due.append(self.drive.next_tick())
         if self.state is NmtState.OPERATIONAL:
-            self.pdo.tick(now)
+            due.append(self.pdo.tick(now))
+        return min((at for at in due if at is not None), default=None)
 
     # --- EMCY -------------------------------------------------------------------------------------------
     def emcy_cob_id(self) -> int | None:

@@ -250,14 +250,24 @@ class PdoEngine:
                     if data != config.last_data:
                         self._transmit(config, now, data)
 
-    def tick(self, now: float) -> None:
+    def tick(self, now: float) -> float | None:
+        """Send the event-driven TPDOs that are due or changed; returns when the next is due (an event timer, or a
+        change held back by its inhibit time), None if only a change can make one due."""
+        due: float | None = None
         with self._lock:
             for config in self.tpdos:
                 if config.trans_type < 254:
                     continue
-                if now - config.last_sent < config.inhibit_s:
-                    continue
-                due = config.event_s and now >= config.next_event
                 data = self._pack(config)
-                if due or data != config.last_data:
+                if now - config.last_sent < config.inhibit_s:
+                    if data != config.last_data:
+                        due = _earliest(due, config.last_sent + config.inhibit_s)
+                elif (config.event_s and now >= config.next_event) or data != config.last_data:
                     self._transmit(config, now, data)
+                if config.event_s:
+                    due = _earliest(due, max(config.next_event, config.last_sent + config.inhibit_s))
+        return due
+
+
+def _earliest(first: float | None, second: float) -> float:
+    return second if first is None else min(first, second)

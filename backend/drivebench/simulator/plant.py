@@ -28,7 +28,11 @@ from drivebench.simulator.ethercat import EthercatLine
 from drivebench.simulator.node import Latency, LatencyText, SimulatedNode
 from drivebench.transport.bus import BusSpec, open_bus
 
-TICK_S = 0.002
+MIN_SLEEP_S = 0.001
+MAX_SLEEP_S = 1.0
+"""The ticker sleeps until the earliest deadline a node names (a heartbeat, a drive's cycle while it moves, a TPDO
+timer) or until a node wakes it (a frame or a write changed something); never longer than this (a change made
+without telling the node, e.g. a value set with ``notify=False``, is taken up within this time)."""
 
 
 class PlantNode(BaseModel):
@@ -85,16 +89,18 @@ class Plant:
         self._notifier: can.Notifier | None = None
         self._stop = threading.Event()
         self._ticker: threading.Thread | None = None
+        self._wake = threading.Event()
         self._send_lock = threading.Lock()
         self.babbler: Babbler | None = None
         self.duplicates: list[SimulatedNode] = []
         """Second devices set to a node id that is already taken (a commissioning mistake, switched at run time)."""
         for spec in plant.nodes:
             profile = profiles(spec.profile)
-            self.nodes[spec.node_id] = SimulatedNode(
+            self.nodes[spec.node_id] = node = SimulatedNode(
                 profile, spec.node_id, self._send, name=spec.name,
                 latency=Latency.parse(latency if latency is not None else spec.latency),
                 values=spec.values, heartbeat_ms=spec.heartbeat_ms)
+            node.wake = self.wake
 
     def start(self) -> Plant:
         self._bus = open_bus(self.spec)
@@ -108,6 +114,7 @@ class Plant:
     def stop(self) -> None:
         self.stop_babbler()
         self._stop.set()
+        self._wake.set()
         if self._ticker is not None:
             self._ticker.join(timeout=2)
         for node in self._everyone():
@@ -123,6 +130,7 @@ class Plant:
         if node_id in self.nodes and not duplicate:
             raise DriveBenchError(f"Node id {node_id} is already on the simulated bus")
         node = SimulatedNode(profile, node_id, self._send, **kwargs)  # type: ignore[arg-type]
+        node.wake = self.wake
         if node_id in self.nodes:
             self.duplicates = [*self.duplicates, node]
         else:
@@ -184,8 +192,17 @@ class Plant:
                 continue
             node.on_frame(cob_id, data, timestamp)
 
+    def wake(self) -> None:
+        """Something changed (any thread): tick the nodes now rather than at the next deadline. The ticker's own
+        changes need no wake-up: it asks every node for its next deadline after ticking."""
+        ticker = self._ticker
+        if ticker is None or threading.current_thread() is not ticker:
+            self._wake.set()
+
     def _tick(self) -> None:
-        while not self._stop.wait(TICK_S):
+        while not self._stop.is_set():
+            self._wake.clear()
             now = time.monotonic()
-            for node in self._everyone():
-                node.tick(now)
+            due = [at for node in self._everyone() if (at := node.tick(now)) is not None]
+            sleep = min(due) - time.monotonic() if due else MAX_SLEEP_S
+            self._wake.wait(min(max(sleep, MIN_SLEEP_S), MAX_SLEEP_S))
