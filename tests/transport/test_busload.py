@@ -95,7 +95,7 @@ def test_load_windows_close_in_frame_time_and_take_late_frames_into_their_own_se
     windows.add(100.9, 100)  # out of order, still in time
     windows.add(101.2, 100)
     assert list(windows.history) == [(100, 3, 300)] and closed == [101.0]
-    windows.close_idle(105.5)  # a quiet bus: closed by the clock
+    windows.close_idle(108.5)  # a bus without frames: closed by the clock, IDLE_CLOSE_S (5 s) after their end
     assert [second for second, _, _ in windows.history] == [100, 101, 102]
     windows.add(101.5, 50)  # counted after a stall: into its own (closed) second, not the current one
     assert windows.history[1] == (101, 3, 250) and windows.peak == (30.0, 100.0)

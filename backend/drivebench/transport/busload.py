@@ -216,9 +216,11 @@ def cache_info() -> str:
 REORDER_S = 0.1
 """A window closes once a frame this far past its end has been counted (frames from several sources, received and
 sent, reach the counter a little out of order)."""
-IDLE_CLOSE_S = 2.0
-"""...or, on a quiet bus, once the clock is this far past its end (a process stalled for longer adds the frames
-it counts late to their closed window: the history is right, a live chart that already drew the point is not)."""
+IDLE_CLOSE_S = 5.0
+"""...or, on a bus without any frame, once the clock is this far past its end (a CANopen bus with heartbeats closes
+its windows by their frames, a tenth of a second after their end). A process stalled for longer still adds the
+frames it counts late to their closed window: the history comes right, but a snapshot or live chart taken during
+the stall showed the window without them."""
 PLAUSIBLE_S = 60.0
 """A timestamp this close to the wall clock is wall-clock time (socketcand, SocketCAN, virtual bus, frames sent by
 the tool); further off it is an adapter's own clock, mapped with the smallest lag seen."""
