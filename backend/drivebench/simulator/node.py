@@ -34,6 +34,8 @@ from drivebench.simulator.telegram_counters import DeviceTelegramCounters
 log = logging.getLogger(__name__)
 Send = Callable[[int, bytes], None]
 
+UNTIMED_DRIVE_TICK_S = 0.002
+"""How often a drive model without ``next_tick()`` (its own deadline, None at rest) is cycled."""
 SAVE_SIGNATURE = int.from_bytes(b"save", "little")
 LOAD_SIGNATURE = int.from_bytes(b"load", "little")
 
@@ -342,7 +344,8 @@ class SimulatedNode:
         due: list[float | None] = [self._next_heartbeat or None]
         if self.drive is not None:
             self.drive.tick(now)
-            due.append(self.drive.next_tick())
+            next_tick = getattr(self.drive, "next_tick", None)  # a drive model naming no deadline: cycled as before
+            due.append(next_tick() if next_tick is not None else now + UNTIMED_DRIVE_TICK_S)
         if self.state is NmtState.OPERATIONAL:
             due.append(self.pdo.tick(now))
         return min((at for at in due if at is not None), default=None)
