@@ -257,6 +257,12 @@ class Servo402(StateMachine402):
                                                           State402.FAULT_REACTION_ACTIVE)
             self._idle = not moving
 
+    def next_tick(self) -> float | None:
+        """When the next cycle is due for the plant's ticker; None while idle (a write clears that and wakes it)."""
+        if self._idle:
+            return None
+        return self._last + CYCLE_S if self._last is not None else 0.0
+
     def _decelerate(self, rate: float, dt: float) -> None:
         step = rate * dt
         self.velocity = 0.0 if abs(self.velocity) <= step else self.velocity - math.copysign(step, self.velocity)
