@@ -1,4 +1,5 @@
-"""Idle cost (issue 21 item 4): CPU of an idle `drivebench serve --demo` (three simulated drives, nobody connected).
+"""Idle cost (issue 21 item 4): CPU of an idle `drivebench serve --demo` (the demo plant's simulated drives, nobody
+connected).
 
 The server runs in a process of its own with a fresh database; after it answers /api/health and settles, its CPU time
 (user + system, /proc/<pid>/stat, every thread) is read over MEASURE_S. Target: < 2 % of one core.
@@ -85,9 +86,10 @@ def write_section(body: str) -> None:
 def main() -> int:
     percent, load = measure()
     verdict = "met" if percent < TARGET_PERCENT else "NOT met"
-    body = f"""Written by `benchmarks/idle_cpu.py`. An idle `drivebench serve --demo` (three simulated drives, nobody
-connected): CPU time of the server process (all threads, /proc/<pid>/stat) over {MEASURE_S:.0f} s after start-up and
-{SETTLE_S:.0f} s to settle. Machine: {machine()}, shared with other work (load average at the end {load:.1f}).
+    body = f"""Written by `benchmarks/idle_cpu.py`. An idle `drivebench serve --demo` (the demo plant's four simulated
+drives, nobody connected): CPU time of the server process (all threads, /proc/<pid>/stat) over {MEASURE_S:.0f} s
+after start-up and {SETTLE_S:.0f} s to settle. Machine: {machine()}, shared with other work (load average at the
+end {load:.1f}).
 
 | Figure | Value |
 |---|---|
