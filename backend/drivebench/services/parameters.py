@@ -646,18 +646,14 @@ def _issue(node_id: int, item: Item, exc: Exception) -> JobIssue:
     return JobIssue(item.ref, detail, node_id)
 
 
-_DEVICE_TYPE = ExpeditedRequest(0x1000, 0)
+_DEVICE_TYPE = _Plan(Item("0x1000", 0x1000, 0, ObjectEntry(name="Device type", data_type=DataType.UNSIGNED32,
+                                                             access=Access.RO, index=0x1000, subindex=0)))
 """What a silence probe reads: CiA 301 0x1000, mandatory on every device."""
 
 
-def _silence(session: Session, client: NodeClient, channel: int) -> NodeSilence:
-    async def probe() -> bytes:
-        data = await upload_expedited(client, _DEVICE_TYPE, channel=channel)
-        if data is None:  # the channel is busy with a transfer of another client: read through it in a worker
-            data = await _on_bus(partial(client.upload, 0x1000, 0, channel=channel))
-        return data
-
-    return NodeSilence(client.node_id, probe, session.network.heartbeat)
+def _silence(session: Session, client: SdoClient, channel: int) -> NodeSilence:
+    return NodeSilence(client.node_id, partial(_upload, client, _DEVICE_TYPE, channel=channel),
+                       session.network.heartbeat)
 
 
 async def _read_node(session: Session, node: SessionNode, work: list[Item], job: Job) -> None:
