@@ -96,6 +96,9 @@ class DownloadRow(Base):
     """``running`` until the report is stored; a row still ``running`` after its job is gone was interrupted."""
     before: Mapped[dict[str, Any]] = mapped_column(JSON, nullable=False)
     report: Mapped[list[Any]] = mapped_column(JSON, nullable=False)
+    server: Mapped[str | None] = mapped_column(String(120), nullable=True)
+    """The server process that runs it (host:pid, 0005_shared_state; None: before that): only it knows whether a
+    ``running`` row still has a job behind it."""
 
 
 class AuditRow(Base):

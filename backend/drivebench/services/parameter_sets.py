@@ -16,7 +16,9 @@ from __future__ import annotations
 import csv
 import io
 import math
+import os
 import re
+import socket
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
@@ -177,6 +179,10 @@ def _check_name(name: str) -> str:
     return cleaned
 
 
+SERVER = f"{socket.gethostname()}:{os.getpid()}"
+"""This server process among those of the database: its downloads carry it (``DownloadRow.server``)."""
+
+
 class ParameterSetStore:
     """Sets in the database at ``url`` (None: ``settings.database_url``, read at each call)."""
 
@@ -299,7 +305,7 @@ class ParameterSetStore:
         with transaction(self.url) as db:
             row = DownloadRow(kind=kind, set_id=set_id, set_version=set_version, session_id=session_id,
                               node_id=node_id, profile_id=profile_id, user=user, started=utcnow(), state="running",
-                              before=dict(before), report=[])
+                              before=dict(before), report=[], server=SERVER)
             db.add(row)
             db.flush()
             return row.id

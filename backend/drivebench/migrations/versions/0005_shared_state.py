@@ -18,6 +18,8 @@ depends_on = None
 
 
 def upgrade() -> None:
+    with op.batch_alter_table("parameter_download") as batch:
+        batch.add_column(sa.Column("server", sa.String(120), nullable=True))
     op.create_table(
         "share_link",
         sa.Column("id", sa.String(16), primary_key=True),
@@ -45,3 +47,5 @@ def downgrade() -> None:
     op.drop_table("sign_in_failure")
     op.drop_table("signed_out_session")
     op.drop_table("share_link")
+    with op.batch_alter_table("parameter_download") as batch:
+        batch.drop_column("server")
