@@ -19,7 +19,7 @@ import math
 import os
 import re
 import socket
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from typing import Any
@@ -324,6 +324,16 @@ class ParameterSetStore:
                 raise NotFound(f"No download {download_id}")
             db.expunge(row)
             return row
+
+    def interrupt_downloads(self, gone: Callable[[str], bool]) -> list[int]:
+        """Store as ``interrupted`` the downloads still ``running`` whose server process is ``gone``."""
+        with transaction(self.url) as db:
+            running = db.execute(select(DownloadRow.id, DownloadRow.server).where(DownloadRow.state == "running"))
+            ids = [download_id for download_id, server in running if server is not None and gone(server)]
+            if ids:
+                db.execute(update(DownloadRow).where(DownloadRow.id.in_(ids), DownloadRow.state == "running")
+                           .values(state="interrupted"))
+            return ids
 
     def downloads(self, *, node_id: int | None = None, limit: int = 50) -> list[DownloadRow]:
         statement = select(DownloadRow).order_by(DownloadRow.id.desc()).limit(limit)

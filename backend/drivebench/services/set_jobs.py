@@ -432,6 +432,12 @@ def download_state(row: DownloadRow, jobs: JobManager) -> str:
     return "interrupted" if _server_gone(row.server) else "running"
 
 
+def close_interrupted(store: ParameterSetStore) -> list[int]:
+    """At start-up: downloads left ``running`` by an ended server process of this machine (killed, crashed) are
+    stored as interrupted, so every server of the database says so (ids returned)."""
+    return store.interrupt_downloads(lambda server: server != SERVER and _server_gone(server))
+
+
 def _server_gone(server: str) -> bool:
     host, _, pid = server.rpartition(":")
     if host != socket.gethostname() or not pid.isdigit():
