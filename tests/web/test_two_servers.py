@@ -141,8 +141,9 @@ def test_sets_downloads_and_audit_rows_of_both_servers_are_one_history(plant: Pl
     set_id = upload(line_a, eve, "Conveyor from line A")
     assert [s["name"] for s in HTTP.get(f"{line_b}{SETS}", headers=anna).json()] == ["Conveyor from line A"]
 
-    started = HTTP.post(f"{line_b}{SETS}/{set_id}/download", json={"session_id": SESSION, "node_id": 5},
-                         headers=anna, timeout=60)  # line B's own drive gets line A's values
+    started = HTTP.post(f"{line_b}{SETS}/{set_id}/download",
+                        json={"session_id": SESSION, "node_id": 5, "confirm": "5"},  # the node it may move
+                        headers=anna, timeout=60)  # line B's own drive gets line A's values
     assert started.status_code == 202, started.text
     job = finish(line_b, anna, started.json())
     assert job["download_state"] == "done", job
@@ -243,8 +244,9 @@ def test_kill_9_mid_download_loses_no_committed_row(plant: Plant, line_a: str, l
     slow = plant.serve("--latency", "200ms")  # a third line whose drive answers slowly: the download takes seconds
     write_c88(slow, eve, 9)
     before_kill = _committed(line_b, anna)
-    started = HTTP.post(f"{slow}{SETS}/{set_id}/download", json={"session_id": SESSION, "node_id": 5},
-                         headers=eve, timeout=60)
+    started = HTTP.post(f"{slow}{SETS}/{set_id}/download",
+                        json={"session_id": SESSION, "node_id": 5, "confirm": "5"},  # the node it may move
+                        headers=eve, timeout=60)
     assert started.status_code == 202, started.text
     job_url = f"{slow}{SETS}/jobs/{started.json()['id']}"
 
