@@ -28,11 +28,12 @@ COPY backend ./backend
 COPY frontend ./frontend
 COPY device_profiles ./device_profiles
 COPY plants ./plants
-RUN pip install --editable . \
+RUN pip install --editable ".[postgresql]" \
     && mkdir -p /app/var \
     && chown drivebench:drivebench /app/var
 
-# Database (SQLite by default, DRIVEBENCH_DATABASE_URL for PostgreSQL) and uploaded profiles live here.
+# Database (SQLite by default, DRIVEBENCH_DATABASE_URL=postgresql+psycopg://... for one database of several
+# servers: psycopg is installed) and uploaded profiles live here.
 VOLUME ["/app/var"]
 USER drivebench
 EXPOSE 8000

@@ -12,7 +12,7 @@ from sqlalchemy import select
 from drivebench.config import settings
 from drivebench.errors import AccessDenied, Conflict, InvalidValue, NotAuthenticated
 from drivebench.services import accounts, database
-from drivebench.services.models import ApiTokenRow, UserRow
+from drivebench.services.models import ApiTokenRow, SignedOutSessionRow, UserRow
 from drivebench.services.principals import Role
 
 
@@ -113,6 +113,12 @@ def test_a_disabled_owner_s_tokens_stop_working(db: str) -> None:
     accounts.set_disabled("eve")
     with pytest.raises(NotAuthenticated):
         accounts.verify_token(issued.secret)
+    accounts.set_disabled("eve", False)  # enabled again: she signs in, but the old tokens stay dead
+    with pytest.raises(NotAuthenticated, match="unknown or revoked"):
+        accounts.verify_token(issued.secret)
+    assert accounts.list_tokens("eve")[0].revoked is not None
+    fresh = accounts.issue_token("eve", "new script", Role.VIEWER)
+    assert accounts.verify_token(fresh.secret).name == "eve"
 
 
 class FakeClock:
@@ -123,7 +129,7 @@ class FakeClock:
         return self.now
 
 
-def test_five_failures_lock_the_name_with_a_growing_lock_said_in_words() -> None:
+def test_five_failures_lock_the_name_with_a_growing_lock_said_in_words(db: str) -> None:
     clock = FakeClock()
     limiter = accounts.LoginLimiter(max_failures=5, first_lock_s=30, max_lock_s=600, clock=clock)
     for _ in range(4):
@@ -144,6 +150,31 @@ def test_five_failures_lock_the_name_with_a_growing_lock_said_in_words() -> None
     limiter.succeeded("user:anna")
     limiter.failed("user:anna")
     limiter.check("user:anna", "for anna")  # a success started the count again
+
+
+def test_a_lock_is_kept_in_the_database_for_every_server_and_a_restart(db: str) -> None:
+    clock = FakeClock()
+    here = accounts.LoginLimiter(max_failures=3, first_lock_s=30, clock=clock)
+    for _ in range(3):
+        here.failed("user:anna")
+    elsewhere = accounts.LoginLimiter(max_failures=3, first_lock_s=30, clock=clock)  # another server, a restart
+    with pytest.raises(accounts.LoginLocked, match="try again in 30 seconds"):
+        elsewhere.check("user:anna", "for anna")
+    elsewhere.succeeded("user:anna")
+    here.check("user:anna", "for anna")
+
+
+def test_a_signed_out_session_is_refused_until_it_would_have_expired(db: str) -> None:
+    assert not accounts.session_signed_out("sid-1")
+    accounts.sign_out_session("sid-1", 3600)
+    accounts.sign_out_session("sid-1", 3600)  # twice (two tabs) is no error
+    assert accounts.session_signed_out("sid-1")
+    assert not accounts.session_signed_out("sid-2")
+    accounts.sign_out_session("sid-2", -1)  # already expired: the next sign-out clears it away
+    accounts.sign_out_session("sid-3", 3600)
+    with database.transaction() as session:
+        assert session.scalars(select(SignedOutSessionRow.sid).order_by(SignedOutSessionRow.sid)).all() == [
+            "sid-1", "sid-3"]
 
 
 def test_in_words() -> None:

@@ -452,3 +452,22 @@ def test_kill_during_imports_leaves_only_whole_sets(registry: ProfileRegistry, d
     assert len(stored) >= 3
     for info in stored:  # each set is whole: its row, its version and all 5,000 values, or nothing
         assert info.count == 5000 and len(store.get(info.id).values) == 5000
+
+
+def test_an_edit_of_a_version_that_is_no_longer_current_is_refused_naming_who_changed_it(
+        registry: ProfileRegistry, db_url: str) -> None:
+    profile = registry.get("lenze-8400-motec-canopen")
+    store = ParameterSetStore(db_url)
+    stored = store.create("Conveyor", profile, {"C00088": 1020, "C00011": 1500}, user="eve")
+    store.update_values(stored.info.id, {"C00088": 1100, "C00011": 1500}, user="anna", reason="edited",
+                        base_version=1)
+    with pytest.raises(Conflict) as stale:
+        store.update_values(stored.info.id, {"C00088": 1200, "C00011": 1500}, user="eve", reason="edited",
+                            base_version=1)
+    assert f"Parameter set {stored.info.id} 'Conveyor' was changed by anna at " in stale.value.detail
+    assert "it is now version 2, and your change was made to version 1. Nothing was saved." in stale.value.detail
+    with pytest.raises(Conflict, match="changed by anna"):
+        store.rename(stored.info.id, "Conveyor 2", base_version=1)
+    assert store.get(stored.info.id).values["C00088"] == 1100 and store.get(stored.info.id).info.name == "Conveyor"
+    assert store.rename(stored.info.id, "Conveyor 2", base_version=2).name == "Conveyor 2"
+    assert store.update_values(stored.info.id, {"C00088": 1200}, user="eve", reason="x").version == 3  # unchecked

@@ -241,3 +241,19 @@ def test_page_fragments_compare_export_and_interrupted_download(api: TestClient)
     back = finish(api, api.post(f"/api/parameter-downloads/{download_id}/rollback").json())
     assert [(line["ref"], line["status"]) for line in back["report"]] == [("C00088", "written")]
     assert api.get(f"/api/sessions/{SESSION}/nodes/5/parameters/C00088").json()["display"] == "10.20 A"
+
+
+def test_an_edit_names_the_version_it_was_made_to_and_a_stale_one_gets_409(api: TestClient) -> None:
+    set_id = upload(api, 5, "Edited")
+    edited = api.patch(f"{SETS}/{set_id}", json={"version": 1, "values": {"C00088": "11 A"}, "reason": "motor swap"},
+                       headers={"X-DriveBench-User": "anna"})
+    assert edited.status_code == 200 and edited.json()["version"] == 2, edited.text
+    detail = api.get(f"{SETS}/{set_id}").json()
+    assert {v["ref"]: v["display"] for v in detail["values"]}["C00088"] == "11.00 A"
+    stale = api.patch(f"{SETS}/{set_id}", json={"version": 1, "values": {"C00088": 12}},
+                      headers={"X-DriveBench-User": "bert"})
+    assert stale.status_code == 409 and stale.headers["content-type"] == "application/problem+json"
+    assert "was changed by anna at " in stale.json()["detail"] and "Nothing was saved" in stale.json()["detail"]
+    wrong = api.patch(f"{SETS}/{set_id}", json={"version": 2, "values": {"C00088": "eleven", "nonsense": 1}})
+    assert wrong.status_code == 422 and [e["ref"] for e in wrong.json()["errors"]] == ["C00088", "nonsense"]
+    assert [v["version"] for v in api.get(f"{SETS}/{set_id}/history").json()] == [2, 1]

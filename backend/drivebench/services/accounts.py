@@ -20,19 +20,28 @@ from datetime import UTC, datetime
 
 from argon2 import PasswordHasher
 from argon2.exceptions import InvalidHashError, VerificationError
-from sqlalchemy import select
+from sqlalchemy import delete, select, update
+from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from drivebench.config import settings
 from drivebench.errors import AccessDenied, Conflict, InvalidValue, NotAuthenticated, NotFound
 from drivebench.services.database import transaction
-from drivebench.services.models import ApiTokenRow, UserRow, new_session_stamp, utcnow
+from drivebench.services.models import (
+    ApiTokenRow,
+    SignedOutSessionRow,
+    SignInFailureRow,
+    UserRow,
+    new_session_stamp,
+    utcnow,
+)
 from drivebench.services.principals import Principal, Role
 
 TOKEN_PREFIX = "dbt_"
 NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9._@-]{0,59}")
 MIN_PASSWORD_LENGTH = 8
 MAX_PASSWORD_LENGTH = 1024
+MAX_LIMIT_KEY = 300  # a sign-in limit key (``user:`` + the name as typed) is cut to the column
 DIRECTORY_TTL_S = 2.0  # a user added by the CLI while the server runs counts after at most this long
 
 _hasher = PasswordHasher()
@@ -197,6 +206,8 @@ def set_disabled(name: str, disabled: bool = True) -> User:
         _keep_an_admin(db, row, role=Role.parse(row.role), disabled=disabled)
         if row.disabled != disabled:
             row.session_stamp = new_session_stamp()  # re-enabling does not bring the old sessions back
+        if disabled:
+            _revoke_tokens_of(db, row.id)  # nor the old API tokens
         row.disabled = disabled
         changed = _user(row)
     directory.forget()
@@ -284,6 +295,11 @@ def revoke_token(token_id: int, *, owner: str | None = None) -> ApiToken:
         return _token(row, owner_name)
 
 
+def _revoke_tokens_of(db: Session, user_id: int) -> None:
+    db.execute(update(ApiTokenRow).where(ApiTokenRow.owner_id == user_id, ApiTokenRow.revoked.is_(None))
+               .values(revoked=utcnow()))
+
+
 def verify_token(secret: str) -> Principal:
     """The principal a token acts as: the lower of the token's and its owner's current role."""
     refused = NotAuthenticated("The API token is unknown or revoked.",
@@ -308,6 +324,21 @@ def _aware(moment: datetime) -> datetime:
     return moment if moment.tzinfo else moment.replace(tzinfo=UTC)
 
 
+# --- signed-out cookie sessions ------------------------------------------------------------------------------
+def sign_out_session(sid: str, max_age_s: float) -> None:
+    """Refuse the cookie session ``sid`` from now on, on every server of the database (until it would expire)."""
+    now = time.time()
+    with transaction() as db:
+        db.execute(delete(SignedOutSessionRow).where(SignedOutSessionRow.until < now))
+        if db.get(SignedOutSessionRow, sid) is None:
+            db.add(SignedOutSessionRow(sid=sid, until=now + max_age_s))
+
+
+def session_signed_out(sid: str) -> bool:
+    with transaction() as db:
+        return db.get(SignedOutSessionRow, sid) is not None
+
+
 # --- the sign-in rate limit ------------------------------------------------------------------------------------
 def in_words(seconds: float) -> str:
     """``95`` -> ``1 minute 35 seconds``."""
@@ -321,56 +352,53 @@ def in_words(seconds: float) -> str:
     return " ".join(parts)
 
 
-@dataclass
-class _Failures:
-    count: int = 0
-    locked_until: float = 0.0
-    last: float = 0.0
-
-
 class LoginLimiter:
-    """Failed sign-ins per key (a user name, a client address): after ``max_failures`` the key is locked for
-    ``first_lock_s``, and each further failure doubles the lock, up to ``max_lock_s``. A success clears the key."""
+    """Failed sign-ins per key (a user name, a client address), counted in the database so a lock holds on every
+    server and across a restart: after ``max_failures`` the key is locked for ``first_lock_s``, and each further
+    failure doubles the lock, up to ``max_lock_s``. A success clears the key; so does ``max_lock_s`` without a
+    failure once the lock is over. ``clock`` gives seconds since the epoch (the servers share the rows)."""
 
     def __init__(self, max_failures: int = 5, first_lock_s: float = 30.0, max_lock_s: float = 900.0,
-                 clock: Callable[[], float] = time.monotonic) -> None:
+                 clock: Callable[[], float] = time.time, url: str | None = None) -> None:
         self.max_failures = max_failures
         self.first_lock_s = first_lock_s
         self.max_lock_s = max_lock_s
         self._clock = clock
-        self._lock = threading.Lock()
-        self._failures: dict[str, _Failures] = {}
+        self.url = url
 
     def check(self, key: str, what: str) -> None:
         """Raise ``LoginLocked`` while ``key`` is locked (``what`` names it in the message)."""
-        with self._lock:
-            entry = self._failures.get(key)
+        with transaction(self.url) as db:
+            entry = db.get(SignInFailureRow, key[:MAX_LIMIT_KEY])
             left = entry.locked_until - self._clock() if entry else 0.0
         if left > 0:
             raise LoginLocked(f"Too many failed sign-ins {what}: try again in {in_words(left)}.",
                               retry_after_s=max(1, int(left + 0.999)))
 
     def failed(self, key: str) -> None:
-        now = self._clock()
-        with self._lock:
-            self._forget_old(now)
-            entry = self._failures.setdefault(key, _Failures())
-            entry.count += 1
-            entry.last = now
-            if entry.count >= self.max_failures:
-                lock = self.first_lock_s * 2 ** (entry.count - self.max_failures)
-                entry.locked_until = now + min(lock, self.max_lock_s)
+        now, key = self._clock(), key[:MAX_LIMIT_KEY]
+        for attempt in (1, 2, 3):
+            try:
+                with transaction(self.url) as db:
+                    db.execute(delete(SignInFailureRow).where(SignInFailureRow.locked_until < now,
+                                                              SignInFailureRow.last < now - self.max_lock_s))
+                    entry = db.scalar(select(SignInFailureRow).where(SignInFailureRow.key == key).with_for_update())
+                    if entry is None:
+                        entry = SignInFailureRow(key=key, count=0, locked_until=0.0, last=now)
+                        db.add(entry)
+                    entry.count += 1
+                    entry.last = now
+                    if entry.count >= self.max_failures:
+                        lock = self.first_lock_s * 2 ** (entry.count - self.max_failures)
+                        entry.locked_until = now + min(lock, self.max_lock_s)
+                return
+            except IntegrityError:  # another server counted the key's first failure at the same moment
+                if attempt == 3:
+                    raise
 
     def succeeded(self, key: str) -> None:
-        with self._lock:
-            self._failures.pop(key, None)
-
-    def _forget_old(self, now: float) -> None:
-        if len(self._failures) < 10_000:
-            return
-        for key, entry in list(self._failures.items()):  # a flood of names must not fill the memory
-            if entry.locked_until < now and now - entry.last > self.max_lock_s:
-                del self._failures[key]
+        with transaction(self.url) as db:
+            db.execute(delete(SignInFailureRow).where(SignInFailureRow.key == key[:MAX_LIMIT_KEY]))
 
 
 class SignIn:

@@ -6,7 +6,7 @@ import secrets
 from datetime import UTC, datetime
 from typing import Any
 
-from sqlalchemy import JSON, Boolean, DateTime, ForeignKey, Integer, String, Text, UniqueConstraint
+from sqlalchemy import JSON, Boolean, DateTime, Float, ForeignKey, Integer, String, Text, UniqueConstraint
 from sqlalchemy.orm import Mapped, mapped_column
 
 from drivebench.services.database import Base
@@ -96,6 +96,9 @@ class DownloadRow(Base):
     """``running`` until the report is stored; a row still ``running`` after its job is gone was interrupted."""
     before: Mapped[dict[str, Any]] = mapped_column(JSON, nullable=False)
     report: Mapped[list[Any]] = mapped_column(JSON, nullable=False)
+    server: Mapped[str | None] = mapped_column(String(120), nullable=True)
+    """The server process that runs it (host:pid, 0005_shared_state; None: before that): only it knows whether a
+    ``running`` row still has a job behind it."""
 
 
 class AuditRow(Base):
@@ -154,3 +157,38 @@ class ApiTokenRow(Base):
     created: Mapped[datetime] = mapped_column(DateTime(timezone=True), nullable=False, default=utcnow)
     last_used: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
     revoked: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
+
+
+# --- state every server of the database shares (migration 0005_shared_state) -----------------------------------
+# Times here are seconds since the epoch (``time.time()``): the servers compare them with their own clocks.
+class ShareLinkRow(Base):
+    """A remote-diagnostics link (``services.sharing``): only a SHA-256 of its token, never the token."""
+
+    __tablename__ = "share_link"
+
+    id: Mapped[str] = mapped_column(String(16), primary_key=True)
+    token_hash: Mapped[str] = mapped_column(String(64), nullable=False, unique=True)
+    hint: Mapped[str] = mapped_column(String(16), nullable=False)
+    label: Mapped[str] = mapped_column(String(80), nullable=False)
+    created: Mapped[float] = mapped_column(Float, nullable=False)
+    expires: Mapped[float] = mapped_column(Float, nullable=False, index=True)
+
+
+class SignedOutSessionRow(Base):
+    """A cookie session that was signed out, refused until its cookie would have expired anyway."""
+
+    __tablename__ = "signed_out_session"
+
+    sid: Mapped[str] = mapped_column(String(64), primary_key=True)
+    until: Mapped[float] = mapped_column(Float, nullable=False, index=True)
+
+
+class SignInFailureRow(Base):
+    """Failed sign-ins of one key (``user:anna``, ``address:10.0.0.9``) and the lock they earned."""
+
+    __tablename__ = "sign_in_failure"
+
+    key: Mapped[str] = mapped_column(String(300), primary_key=True)
+    count: Mapped[int] = mapped_column(Integer, nullable=False)
+    locked_until: Mapped[float] = mapped_column(Float, nullable=False)
+    last: Mapped[float] = mapped_column(Float, nullable=False, index=True)

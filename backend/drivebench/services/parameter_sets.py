@@ -16,10 +16,12 @@ from __future__ import annotations
 import csv
 import io
 import math
+import os
 import re
-from collections.abc import Iterable, Mapping
+import socket
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
-from datetime import datetime
+from datetime import UTC, datetime
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict
@@ -177,6 +179,10 @@ def _check_name(name: str) -> str:
     return cleaned
 
 
+SERVER = f"{socket.gethostname()}:{os.getpid()}"
+"""This server process among those of the database: its downloads carry it (``DownloadRow.server``)."""
+
+
 class ParameterSetStore:
     """Sets in the database at ``url`` (None: ``settings.database_url``, read at each call)."""
 
@@ -228,9 +234,30 @@ class ParameterSetStore:
             values: Values = dict(body.body.get("values", {}))
             return StoredSet(_info(row, body.count), values, wanted)
 
-    def rename(self, set_id: int, name: str | None = None, note: str | None = None) -> SetInfo:
+    def _row_to_edit(self, db: Any, set_id: int, base_version: int | None) -> ParameterSetRow:
+        """The set's row, locked until the edit commits (PostgreSQL: a second server's edit waits, then sees the new
+        version); Conflict, naming who made the newer version and when, if ``base_version`` is not the current."""
+        row: ParameterSetRow | None = db.scalar(select(ParameterSetRow).where(ParameterSetRow.id == set_id)
+                                                .with_for_update())
+        if row is None:
+            raise NotFound(f"No parameter set {set_id}")
+        if base_version is not None and base_version != row.version:
+            newest = db.scalar(select(ParameterSetVersionRow).where(ParameterSetVersionRow.set_id == set_id,
+                                                                    ParameterSetVersionRow.version == row.version))
+            who, when = (newest.created_by, newest.created) if newest else (row.created_by, row.updated)
+            when = when if when.tzinfo else when.replace(tzinfo=UTC)
+            raise Conflict(f"Parameter set {set_id} '{row.name}' was changed by {who} at "
+                           f"{when.astimezone(UTC):%Y-%m-%d %H:%M:%S} UTC: it is now version {row.version}, and "
+                           f"your change was made to version {base_version}. Nothing was saved.",
+                           hint="Reload the set, look at the newer values and make your change again.")
+        return row
+
+    def rename(self, set_id: int, name: str | None = None, note: str | None = None, *,
+               base_version: int | None = None) -> SetInfo:
+        """New name and note (not a new version: the values stay); refused when the values have moved on past
+        ``base_version``."""
         with transaction(self.url) as db:
-            row = self._row(db, set_id)
+            row = self._row_to_edit(db, set_id, base_version)
             if name is not None:
                 row.name = _check_name(name)
             if note is not None:
@@ -238,11 +265,13 @@ class ParameterSetStore:
             row.updated = utcnow()
         return self.get(set_id).info
 
-    def update_values(self, set_id: int, values: Mapping[str, Raw], *, user: str, reason: str) -> StoredSet:
-        """A new version with these values (the old versions stay)."""
+    def update_values(self, set_id: int, values: Mapping[str, Raw], *, user: str, reason: str,
+                      base_version: int | None = None) -> StoredSet:
+        """A new version with these values (the old versions stay). With ``base_version`` (the version the values
+        were edited from) a set changed meanwhile, by this server or another of the database, is a Conflict."""
         body = dict(values)
         with transaction(self.url) as db:
-            row = self._row(db, set_id)
+            row = self._row_to_edit(db, set_id, base_version)
             row.version += 1
             row.updated = utcnow()
             db.add(ParameterSetVersionRow(set_id=set_id, version=row.version, created=row.updated, created_by=user,
@@ -276,7 +305,7 @@ class ParameterSetStore:
         with transaction(self.url) as db:
             row = DownloadRow(kind=kind, set_id=set_id, set_version=set_version, session_id=session_id,
                               node_id=node_id, profile_id=profile_id, user=user, started=utcnow(), state="running",
-                              before=dict(before), report=[])
+                              before=dict(before), report=[], server=SERVER)
             db.add(row)
             db.flush()
             return row.id
@@ -295,6 +324,16 @@ class ParameterSetStore:
                 raise NotFound(f"No download {download_id}")
             db.expunge(row)
             return row
+
+    def interrupt_downloads(self, gone: Callable[[str], bool]) -> list[int]:
+        """Store as ``interrupted`` the downloads still ``running`` whose server process is ``gone``."""
+        with transaction(self.url) as db:
+            running = db.execute(select(DownloadRow.id, DownloadRow.server).where(DownloadRow.state == "running"))
+            ids = [download_id for download_id, server in running if server is not None and gone(server)]
+            if ids:
+                db.execute(update(DownloadRow).where(DownloadRow.id.in_(ids), DownloadRow.state == "running")
+                           .values(state="interrupted"))
+            return ids
 
     def downloads(self, *, node_id: int | None = None, limit: int = 50) -> list[DownloadRow]:
         statement = select(DownloadRow).order_by(DownloadRow.id.desc()).limit(limit)

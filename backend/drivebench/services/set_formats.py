@@ -21,7 +21,7 @@ import csv
 import io
 import json
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Literal
@@ -139,6 +139,19 @@ def _check(catalog: Catalog, ref: str, value: object, line: int | None, values: 
         values[item.ref] = _raw_for(item, value)
     except DriveBenchError as exc:
         errors.append(LineError(line, ref, _without_label(exc.detail, ref)))
+
+
+def checked_values(profile: Profile, values: Mapping[str, object], source: str) -> Values:
+    """Values by ref (engineering values, as a file gives them) checked like an import: raw values in the profile's
+    refs, or a ``SetImportError`` naming every one that does not fit."""
+    catalog = catalog_for(profile)
+    checked: Values = {}
+    errors: list[LineError] = []
+    for ref, value in values.items():
+        _check(catalog, ref, value, None, checked, errors)
+    if errors:
+        raise SetImportError(source, errors)
+    return checked
 
 
 def _without_label(detail: str, ref: str) -> str:

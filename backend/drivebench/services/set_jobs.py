@@ -16,6 +16,8 @@ A download never stops silently halfway:
 from __future__ import annotations
 
 import asyncio
+import os
+import socket
 import uuid
 from typing import Any
 
@@ -29,6 +31,7 @@ from drivebench.services import audit, drive_guard, parameters
 from drivebench.services.jobs import Job, JobIssue, JobManager
 from drivebench.services.models import DownloadRow
 from drivebench.services.parameter_sets import (
+    SERVER,
     ParameterSetStore,
     Raw,
     Source,
@@ -417,7 +420,32 @@ def running_downloads(jobs: JobManager) -> set[int]:
 
 
 def download_state(row: DownloadRow, jobs: JobManager) -> str:
-    """The stored state, except that a row still ``running`` with no job behind it was interrupted."""
-    if row.state == "running" and row.id not in running_downloads(jobs):
-        return "interrupted"
-    return row.state
+    """The stored state, except that a row still ``running`` whose server no longer runs it was interrupted.
+
+    This process knows its own jobs. Another server of the database (``row.server``: host and process id) is judged
+    gone only on this machine, where its process can be looked up; another machine's download stays ``running``
+    until that server ends it."""
+    if row.state != "running":
+        return row.state
+    if row.server in (None, SERVER):
+        return "running" if row.id in running_downloads(jobs) else "interrupted"
+    return "interrupted" if _server_gone(row.server) else "running"
+
+
+def close_interrupted(store: ParameterSetStore) -> list[int]:
+    """At start-up: downloads left ``running`` by an ended server process of this machine (killed, crashed) are
+    stored as interrupted, so every server of the database says so (ids returned)."""
+    return store.interrupt_downloads(lambda server: server != SERVER and _server_gone(server))
+
+
+def _server_gone(server: str) -> bool:
+    host, _, pid = server.rpartition(":")
+    if host != socket.gethostname() or not pid.isdigit():
+        return False
+    try:
+        os.kill(int(pid), 0)  # signal 0: only asks whether the process exists
+    except ProcessLookupError:
+        return True
+    except PermissionError:  # it exists, run by another user
+        return False
+    return False

@@ -3,18 +3,22 @@
 A token grants the *viewer* scope only: read what DriveBench already holds and watch, never write, NMT or PDO, and
 never make the drives answer (enforced by the web layer for every request that carries it). The token is shown
 once, when the link is made; the server keeps only its SHA-256 (the token is random, so a fast hash is enough), an
-id to name it and its first characters as a hint. Links live in memory: a server restart revokes them all.
+id to name it and its first characters as a hint, in the database: every server of the database honours a link
+made on any of them, and a restart keeps them.
 """
 
 from __future__ import annotations
 
 import hashlib
 import secrets
-import threading
 import time
 from dataclasses import dataclass
 
+from sqlalchemy import delete, or_, select
+
 from drivebench.errors import NotAuthenticated, NotFound
+from drivebench.services.database import transaction
+from drivebench.services.models import ShareLinkRow
 
 TOKEN_PREFIX = "dbv_"
 MAX_TTL_S = 7 * 24 * 3600
@@ -46,26 +50,30 @@ def _digest(token: str) -> str:
 
 
 class ShareLinks:
-    def __init__(self) -> None:
-        self._links: dict[str, ShareLink] = {}  # by the token's digest
-        self._lock = threading.Lock()
+    """The links in the database (``share_link``): every server of the database honours them, a restart keeps
+    them, a revocation on one server holds on all."""
+
+    def __init__(self, url: str | None = None) -> None:
+        self.url = url
 
     def create(self, ttl_s: float, label: str = "") -> IssuedLink:
         ttl_s = min(max(ttl_s, 60.0), MAX_TTL_S)
         now = time.time()
         token = TOKEN_PREFIX + secrets.token_urlsafe(24)
         link = ShareLink(secrets.token_hex(6), token[:HINT_LENGTH], label.strip()[:80], now, now + ttl_s)
-        with self._lock:
-            self._links = {d: lk for d, lk in self._links.items() if not lk.expired(now)}
-            self._links[_digest(token)] = link
+        with transaction(self.url) as db:
+            db.execute(delete(ShareLinkRow).where(ShareLinkRow.expires <= now))
+            db.add(ShareLinkRow(id=link.id, token_hash=_digest(token), hint=link.hint, label=link.label,
+                                created=link.created, expires=link.expires))
         return IssuedLink(link, token)
 
     def check(self, token: str) -> ShareLink:
         """The link for ``token``; NotAuthenticated when it is unknown, revoked or expired."""
-        with self._lock:
-            link = self._links.get(_digest(token))
+        with transaction(self.url) as db:
+            row = db.scalar(select(ShareLinkRow).where(ShareLinkRow.token_hash == _digest(token)))
+            link = _link(row) if row is not None else None
         if link is None:
-            raise NotAuthenticated("This share link is not valid (it was revoked, or the server restarted).",
+            raise NotAuthenticated("This share link is not valid (it was revoked, or it expired long ago).",
                                    hint="Ask the engineer on site for a new link.")
         if link.expired():
             expired_at = time.strftime("%Y-%m-%d %H:%M", time.localtime(link.expires))
@@ -75,14 +83,18 @@ class ShareLinks:
 
     def revoke(self, id_or_token: str) -> None:
         """Revoke the link with this id (as listed), or the link of this token."""
-        with self._lock:
-            digest = _digest(id_or_token)
-            if digest not in self._links:
-                digest = next((d for d, lk in self._links.items() if lk.id == id_or_token), "")
-            if self._links.pop(digest, None) is None:
+        with transaction(self.url) as db:
+            gone = db.execute(delete(ShareLinkRow).where(or_(ShareLinkRow.token_hash == _digest(id_or_token),
+                                                              ShareLinkRow.id == id_or_token)))
+            if not gone.rowcount:  # type: ignore[attr-defined]
                 raise NotFound("There is no active share link with that id or token.")
 
     def active(self) -> list[ShareLink]:
-        now = time.time()
-        with self._lock:
-            return sorted((lk for lk in self._links.values() if not lk.expired(now)), key=lambda lk: lk.created)
+        with transaction(self.url) as db:
+            rows = db.scalars(select(ShareLinkRow).where(ShareLinkRow.expires > time.time())
+                              .order_by(ShareLinkRow.created))
+            return [_link(row) for row in rows]
+
+
+def _link(row: ShareLinkRow) -> ShareLink:
+    return ShareLink(row.id, row.hint, row.label, row.created, row.expires)

@@ -22,8 +22,6 @@ import contextlib
 import os
 import re
 import secrets
-import threading
-import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -80,11 +78,10 @@ class SignedIn:
 
 
 class Sessions:
-    """Signed session cookies; a signed-out session is remembered (for its remaining life) and refused."""
+    """Signed session cookies; a signed-out session is refused until its cookie would have expired, by every server
+    of the database (``accounts.sign_out_session``)."""
 
     def __init__(self) -> None:
-        self._signed_out: dict[str, float] = {}
-        self._lock = threading.Lock()
         self._serializer: tuple[str, URLSafeTimedSerializer] | None = None
 
     def _codec(self) -> URLSafeTimedSerializer:
@@ -100,19 +97,16 @@ class Sessions:
         return value, signed_in
 
     def load(self, value: str) -> SignedIn | None:
+        """The session of a cookie: None when it is forged, expired or signed out (this asks the database)."""
         try:
             data = self._codec().loads(value, max_age=settings.session_max_age_s)
             signed_in = SignedIn(str(data["u"]), str(data["s"]), str(data["c"]), str(data["i"]))
         except (BadSignature, KeyError, TypeError):
             return None
-        with self._lock:
-            return None if signed_in.sid in self._signed_out else signed_in
+        return None if accounts.session_signed_out(signed_in.sid) else signed_in
 
     def sign_out(self, signed_in: SignedIn) -> None:
-        now = time.monotonic()
-        with self._lock:
-            self._signed_out = {sid: until for sid, until in self._signed_out.items() if until > now}
-            self._signed_out[signed_in.sid] = now + settings.session_max_age_s
+        accounts.sign_out_session(signed_in.sid, settings.session_max_age_s)
 
 
 sessions = Sessions()
@@ -252,7 +246,7 @@ async def _authenticate(headers: Headers) -> tuple[Principal | None, SignedIn | 
     cookie = _cookie(headers, SESSION_COOKIE)
     if cookie is None:
         return None, None
-    signed_in = sessions.load(cookie)
+    signed_in = await anyio.to_thread.run_sync(sessions.load, cookie)
     if signed_in is None:
         return None, None
     user = accounts.account(signed_in.name)

@@ -15,8 +15,9 @@ from fastapi.staticfiles import StaticFiles
 from drivebench import __version__
 from drivebench.config import settings
 from drivebench.device.loader import ProfileRegistry
-from drivebench.services import audit
+from drivebench.services import audit, set_jobs
 from drivebench.services.database import upgrade_to_head
+from drivebench.services.parameter_sets import ParameterSetStore
 from drivebench.services.sessions import SessionManager
 from drivebench.services.sharing import ShareLinks
 from drivebench.simulator.plant import Plant, PlantFile
@@ -89,6 +90,7 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         asyncio.get_running_loop().set_default_executor(ThreadPoolExecutor(64, thread_name_prefix="bus-work"))
         await asyncio.to_thread(upgrade_to_head)  # the database schema (settings.database_url) to the newest
+        await asyncio.to_thread(set_jobs.close_interrupted, ParameterSetStore())
         registry = await asyncio.to_thread(ProfileRegistry)
         manager = SessionManager(registry, sdo_timeout_s=settings.sdo_timeout_s, sdo_retries=settings.sdo_retries,
                                  write_audits=[audit.AuditLog()])  # every write the tool sends is logged

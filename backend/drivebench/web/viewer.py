@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from http.cookies import SimpleCookie
 
+import anyio.to_thread
 from fastapi import Request
 from starlette.responses import JSONResponse, RedirectResponse
 from starlette.types import ASGIApp, Receive, Scope, Send
@@ -58,7 +59,7 @@ class ViewerScope:
             await self.app(scope, receive, send)
             return
         try:
-            link = self.links.check(token)
+            link = await anyio.to_thread.run_sync(self.links.check, token)
             readable = self._allow(scope)
         except DriveBenchError as exc:
             if scope["type"] == "websocket":

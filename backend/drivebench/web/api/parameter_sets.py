@@ -72,8 +72,15 @@ class SetDetailOut(SetInfo):
 
 
 class SetUpdate(BaseModel):
+    """An edit of a set. ``version`` is the version the client edited: if the set has a newer one (another user, on
+    this server or another of the database), the edit is refused with 409 naming who changed it and when."""
+
     name: str | None = Field(None, min_length=1, max_length=200)
     note: str | None = Field(None, max_length=4000)
+    version: int | None = Field(None, ge=1, le=MAX_ROW_ID)
+    values: dict[str, float | int | str] | None = Field(
+        None, max_length=20_000, description="Changed values by ref (engineering values): a new version")
+    reason: str = Field("edited", min_length=1, max_length=300)
 
 
 class UploadIn(BaseModel):
@@ -275,8 +282,15 @@ async def get_set(set_id: RowId, state: StateDep, version: RowVersion = None) ->
 
 
 @router.patch(SETS + "/{set_id}", response_model=SetInfo)
-async def update_set(set_id: RowId, body: SetUpdate) -> SetInfo:
-    return store().rename(set_id, body.name, body.note)
+async def update_set(set_id: RowId, body: SetUpdate, state: StateDep, user: UserHeader = None) -> SetInfo:
+    info = store().rename(set_id, body.name, body.note, base_version=body.version)
+    if body.values:
+        edited = store().get(set_id, body.version)
+        changes = set_formats.checked_values(state.registry.get(info.profile_id), body.values,
+                                             f"Parameter set {set_id}")
+        info = store().update_values(set_id, {**edited.values, **changes}, user=user_of(user), reason=body.reason,
+                                     base_version=edited.version).info
+    return info
 
 
 @router.delete(SETS + "/{set_id}", status_code=status.HTTP_204_NO_CONTENT)

@@ -22,7 +22,7 @@ PERIOD_S = 1.0
 async def remote_health(websocket: WebSocket, token: str) -> None:
     state = websocket.app.state.drivebench
     try:
-        state.share_links.check(token)
+        await asyncio.to_thread(state.share_links.check, token)
     except DriveBenchError as exc:
         await websocket.close(code=4401, reason=exc.detail[:120])
         return
@@ -32,7 +32,7 @@ async def remote_health(websocket: WebSocket, token: str) -> None:
     try:
         while True:
             try:
-                state.share_links.check(token)
+                await asyncio.to_thread(state.share_links.check, token)
             except DriveBenchError as exc:
                 await websocket.close(code=4401, reason=exc.detail[:120])
                 return
