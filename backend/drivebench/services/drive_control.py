@@ -527,10 +527,11 @@ async def jog(session: Session, node: SessionNode, direction: int, *, confirm: o
         if direction:
             _confirmed(confirm, node, f"Jog at {speed or plan.value:g} {plan.unit}")
             guard.arm(node.node_id, panel)
-            if status.mode != 3:
+        with cleared():  # confirmed and armed above; 0 (release) stops it
+            if direction and status.mode != 3:
                 await parameters.write(session, node.node_id, "0x6060", 3, verify=False)
-        value = direction * (speed or plan.value)
-        await parameters.write(session, node.node_id, "0x60FF", value, verify=False)
+            value = direction * (speed or plan.value)
+            await parameters.write(session, node.node_id, "0x60FF", value, verify=False)
         return await read_status(session, node, panel)
     if plan.method == "setpoint":
         return await set_setpoint(session, node, direction * plan.value, confirm=confirm, panel=panel)

@@ -23,6 +23,7 @@ from drivebench.errors import Conflict, InvalidValue, OutOfRange
 from drivebench.services import drive_control, parameters
 from drivebench.services import process_data as live
 from drivebench.services.drive_control import SERVICE_PANEL, DriveStatus, Panel, guard_for, has_ref
+from drivebench.services.drive_guard import cleared
 from drivebench.services.drive_units import motion_units
 from drivebench.services.sessions import Session, SessionNode
 
@@ -153,9 +154,10 @@ async def move(session: Session, node: SessionNode, target: float, *, relative: 
     drive_control.require_confirmation(confirm, node.node_id, f"Move to {target:g} {units.position}")
     guard_for(session).arm(node.node_id, panel)
     await _mode(session, node, status, 1, panel)
-    if velocity is not None:
-        await parameters.write(session, node.node_id, "0x6081", velocity, verify=False)
-    await parameters.write(session, node.node_id, "0x607A", target, verify=False)
+    with cleared():  # confirmed and armed above
+        if velocity is not None:
+            await parameters.write(session, node.node_id, "0x6081", velocity, verify=False)
+        await parameters.write(session, node.node_id, "0x607A", target, verify=False)
     base = await drive_control.last_control_word(session, node) & ~MODE_BITS
     base |= (CHANGE_IMMEDIATELY if immediate else 0) | (RELATIVE if relative else 0)
     await _edge(session, node, base, hold=False)
@@ -172,7 +174,8 @@ async def home(session: Session, node: SessionNode, method: int, *, confirm: obj
                                                               f"({cia402.homing_label(method)})")
     guard_for(session).arm(node.node_id, panel)
     await _mode(session, node, status, 6, panel)
-    await parameters.write(session, node.node_id, "0x6098", method, verify=False)
+    with cleared():  # confirmed and armed above
+        await parameters.write(session, node.node_id, "0x6098", method, verify=False)
     base = await drive_control.last_control_word(session, node) & ~MODE_BITS
     await _edge(session, node, base, hold=True)
     return await drive_control.read_status(session, node, panel)
