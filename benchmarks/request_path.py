@@ -264,12 +264,12 @@ def write_results(body: str) -> None:
     section = (f"{HEADING}\n\n{machine()}; {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}. Hub, slave, server "
                f"and this client are four processes on the same 2 cores; each ratio is the median of {ROUNDS} "
                "interleaved rounds (benchmarks/request_path.py).\n\n" + body + "\n")
-    start = text.find(HEADING)
+    start = text.find(f"\n{HEADING}\n")  # the whole line: '## Request path: where …' is another section
     if start < 0:
         text = text.rstrip() + "\n\n" + section
     else:
         end = text.find("\n## ", start + len(HEADING))
-        text = text[:start] + section + (text[end + 1:] if end >= 0 else "")
+        text = text[:start + 1] + section + (text[end:] if end >= 0 else "")
     RESULTS.write_text(text, encoding="utf-8")
 
 
