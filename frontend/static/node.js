@@ -58,6 +58,67 @@
     }
   }
 
+  // "Read shown": the rows of one group, read in one batch request (POST …/parameters:read); each row's value cell
+  // gets its value or the error in words (textContent only: values come from the device).
+  function groupRows(header) {
+    const rows = [];
+    for (let row = header.nextElementSibling; row && !row.classList.contains("group-row"); row = row.nextElementSibling) {
+      if (row.dataset.ref) rows.push(row);
+    }
+    return rows;
+  }
+
+  function showValue(cell, item) {
+    cell.replaceChildren();
+    const span = document.createElement("span");
+    if (item.ok) {
+      const v = item.value;
+      span.className = "v";
+      span.textContent = v.display;
+      span.title = `raw ${v.raw}${v.text ? " · " + v.text : ""} · read now (batch)`;
+    } else {
+      span.className = "badge bad read-error";
+      span.textContent = item.error.detail;
+      span.title = item.error.abort_code ? `${item.error.abort_code} ${item.error.abort_text || ""}` : item.error.title;
+    }
+    cell.append(span);
+  }
+
+  async function readShown(button) {
+    const header = button.closest("tr.group-row");
+    const rows = groupRows(header);
+    if (!rows.length) return;
+    button.disabled = true;
+    button.setAttribute("aria-busy", "true");
+    try {
+      const answer = await fetch(`${button.dataset.api}/parameters:read`, {
+        method: "POST",
+        headers: { "Content-Type": "application/json", Accept: "application/json" },
+        body: JSON.stringify({ refs: rows.map((row) => row.dataset.ref) }),
+      });
+      const body = await answer.json();
+      if (!answer.ok) throw new Error(body.detail || `HTTP ${answer.status}`);
+      body.items.forEach((item, i) => showValue(rows[i].querySelector("td.val"), item));
+    } catch (error) {
+      const slot = document.querySelector("#job-slot");
+      if (slot) {
+        const box = document.createElement("div");
+        box.className = "error";
+        box.setAttribute("role", "alert");
+        box.textContent = `Reading the group failed: ${error.message}`;
+        slot.replaceChildren(box);
+      }
+    } finally {
+      button.disabled = false;
+      button.removeAttribute("aria-busy");
+    }
+  }
+
+  document.addEventListener("click", (event) => {
+    const button = event.target.closest && event.target.closest("button.read-shown");
+    if (button) readShown(button);
+  });
+
   htmx.onLoad((root) => {
     const boxes = root.matches && root.matches("[data-job]") ? [root] : [];
     root.querySelectorAll && boxes.push(...root.querySelectorAll("[data-job]"));

@@ -9,3 +9,13 @@ function toggleEntry(row) {
   details.hidden = !details.hidden;
   row.setAttribute("aria-expanded", String(!details.hidden));
 }
+
+// Many files at once: the upload's progress in the form's bar (htmx reports it per form; no inline handler under the
+// Content-Security-Policy).
+document.body.addEventListener("htmx:xhr:progress", (event) => {
+  const form = event.target.closest && event.target.closest("form[data-upload-progress]");
+  const bar = form && form.querySelector("progress");
+  if (!bar) return;
+  bar.hidden = false;
+  if (event.detail.total) bar.value = (100 * event.detail.loaded) / event.detail.total;
+});

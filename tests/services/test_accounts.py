@@ -7,7 +7,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from sqlalchemy import select
+from sqlalchemy import event, select
 
 from drivebench.config import settings
 from drivebench.errors import AccessDenied, Conflict, InvalidValue, NotAuthenticated
@@ -119,6 +119,35 @@ def test_a_disabled_owner_s_tokens_stop_working(db: str) -> None:
     assert accounts.list_tokens("eve")[0].revoked is not None
     fresh = accounts.issue_token("eve", "new script", Role.VIEWER)
     assert accounts.verify_token(fresh.secret).name == "eve"
+
+
+def test_a_verified_token_is_not_looked_up_again_until_revoked(db: str) -> None:
+    """Requests in a row with one token cost one database round trip, not one each; revoking it or disabling its
+    owner counts at once."""
+    accounts.create_user("root", "admin password", Role.ADMIN)
+    accounts.create_user("eve", "engineer password", Role.ENGINEER)
+    issued = accounts.issue_token("eve", "script", Role.ENGINEER)
+    other = accounts.issue_token("eve", "second", Role.VIEWER)
+    statements: list[str] = []
+
+    def count(_conn: object, _cursor: object, statement: str, *_args: object) -> None:
+        statements.append(statement)
+
+    engine = database.engine(db)
+    event.listen(engine, "before_cursor_execute", count)
+    try:
+        for _ in range(5):
+            assert accounts.verify_token(issued.secret).role is Role.ENGINEER
+        assert len([s for s in statements if "from api_token" in s.lower()]) == 1
+        accounts.revoke_token(issued.token.id)
+        with pytest.raises(NotAuthenticated, match="unknown or revoked"):
+            accounts.verify_token(issued.secret)
+        assert accounts.verify_token(other.secret).role is Role.VIEWER
+        accounts.set_disabled("eve")
+        with pytest.raises(NotAuthenticated):
+            accounts.verify_token(other.secret)
+    finally:
+        event.remove(engine, "before_cursor_execute", count)
 
 
 class FakeClock:

@@ -238,3 +238,26 @@ def test_parameter_set_selector_of_the_8200_vector(server: tuple[str, Any], page
     screenshot(page, "parameters-set-2")
     page.locator("#param-set").select_option("1")
     expect(_row(page, "C0012").locator("td.code")).to_have_text("C0012", timeout=WAIT_MS)
+
+
+def test_read_shown_reads_a_group_in_one_request(server: tuple[str, Any], page: Any) -> None:
+    url, _ = server
+    page.goto(url + "/sessions/browser-plant/nodes/5")
+    group_row = page.locator("tr.group-row").first
+    refs = page.evaluate("""(header) => {
+      const refs = [];
+      for (let row = header.nextElementSibling; row && !row.matches(".group-row"); row = row.nextElementSibling)
+        if (row.dataset.ref) refs.push(row.dataset.ref);
+      return refs;
+    }""", group_row.element_handle())
+    assert len(refs) > 1
+    sent: list[str] = []
+    page.on("request", lambda request: sent.append(f"{request.method} {request.url}")
+            if "/nodes/5/parameters" in request.url or request.url.endswith("/read") else None)
+    group_row.get_by_role("button", name="Read shown").click()
+    for ref in refs:
+        expect(_row(page, ref).locator("td.val .v, td.val .read-error")).to_be_visible(timeout=WAIT_MS)
+    assert sent == [f"POST {url}/api/sessions/browser-plant/nodes/5/parameters:read"]
+    single = page.request.get(f"{url}/api/sessions/browser-plant/nodes/5/parameters/{refs[0]}").json()
+    expect(_row(page, refs[0]).locator("td.val .v")).to_have_text(single["display"])  # as the single read shows it
+    assert page.evaluate(LAYOUT_PROBLEMS) == []

@@ -142,8 +142,40 @@ class _Directory:
     def forget(self) -> None:
         with self._lock:
             self._loaded_at = -DIRECTORY_TTL_S
+        verified_tokens.forget()  # a token acts with its owner's current role and state
 
 
+class _VerifiedTokens:
+    """API tokens verified in the last ``DIRECTORY_TTL_S``, by hash: a script's requests in a row cost no database
+    round trip each. Revoking a token or changing its owner forgets them all at once (in this process; a change
+    made by the CLI counts after at most ``DIRECTORY_TTL_S``, as for the directory)."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._known: dict[str, tuple[float, Principal]] = {}
+        self.generation = 0
+        """Counts forgets: a verification that began before one is not kept (it may have read the old state)."""
+
+    def get(self, token_hash: str) -> Principal | None:
+        with self._lock:
+            found = self._known.get(token_hash)
+        return found[1] if found is not None and time.monotonic() - found[0] < DIRECTORY_TTL_S else None
+
+    def put(self, token_hash: str, principal: Principal, generation: int) -> None:
+        now = time.monotonic()
+        with self._lock:
+            if generation != self.generation:
+                return
+            self._known = {key: kept for key, kept in self._known.items() if now - kept[0] < DIRECTORY_TTL_S}
+            self._known[token_hash] = (now, principal)
+
+    def forget(self) -> None:
+        with self._lock:
+            self._known.clear()
+            self.generation += 1
+
+
+verified_tokens = _VerifiedTokens()
 directory = _Directory()
 
 
@@ -292,7 +324,9 @@ def revoke_token(token_id: int, *, owner: str | None = None) -> ApiToken:
             raise NotFound(f"There is no API token {token_id}" + (f" of {owner}." if owner else "."))
         row, owner_name = found
         row.revoked = row.revoked or utcnow()
-        return _token(row, owner_name)
+        revoked = _token(row, owner_name)
+    verified_tokens.forget()
+    return revoked
 
 
 def _revoke_tokens_of(db: Session, user_id: int) -> None:
@@ -306,9 +340,13 @@ def verify_token(secret: str) -> Principal:
                                hint="Create a new token on the Users page or with `drivebench tokens create`.")
     if not secret.startswith(TOKEN_PREFIX):
         raise refused
+    token_hash = _token_hash(secret)
+    if (known := verified_tokens.get(token_hash)) is not None:
+        return known
+    generation = verified_tokens.generation
     with transaction() as db:
         found = db.execute(select(ApiTokenRow, UserRow).join(UserRow, ApiTokenRow.owner_id == UserRow.id)
-                           .where(ApiTokenRow.token_hash == _token_hash(secret))).first()
+                           .where(ApiTokenRow.token_hash == token_hash)).first()
         if found is None or found[0].revoked is not None or found[1].disabled:
             raise refused
         row, user = found
@@ -316,7 +354,9 @@ def verify_token(secret: str) -> Principal:
         if row.last_used is None or (now - _aware(row.last_used)).total_seconds() > 60:  # not a write per request
             row.last_used = now
         role = min(Role.parse(row.role), Role.parse(user.role))
-        return Principal(user.name, role, via="token")
+        principal = Principal(user.name, role, via="token")
+    verified_tokens.put(token_hash, principal, generation)
+    return principal
 
 
 def _aware(moment: datetime) -> datetime:

@@ -21,7 +21,7 @@ import re
 import time
 import weakref
 from collections import deque
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from enum import StrEnum
@@ -36,6 +36,7 @@ from drivebench.device.profile import Access, ObjectEntry
 from drivebench.device.scaling import RawValue, ScaledValue, from_raw, to_raw
 from drivebench.errors import (
     Conflict,
+    DriveBenchError,
     InvalidValue,
     OutOfRange,
     ProtocolError,
@@ -413,6 +414,25 @@ async def read(session: Session, node_id: int, ref: str, *, transfer: str = "aut
     value = plan.value(plan.decode(data, node_id))
     service(session).remember(node_id, value)
     return value
+
+
+MAX_BATCH = 500
+"""Refs one batch read may name (a whole Parameters group fits; a read of everything is a read-all job)."""
+
+
+async def read_many(session: Session, node_id: int, refs: Sequence[str]) -> list[ParameterValue | DriveBenchError]:
+    """Read ``refs`` one after the other (one SDO server answers one transfer at a time) and return, in their
+    order, each value or the error that ref met: one unknown or refused ref does not lose the others."""
+    session.node(node_id)  # an unknown node is the whole request's error, not one per ref
+    if len(refs) > MAX_BATCH:
+        raise InvalidValue(f"A batch read names at most {MAX_BATCH} parameters; this one names {len(refs)}.")
+    found: list[ParameterValue | DriveBenchError] = []
+    for ref in refs:
+        try:
+            found.append(await read(session, node_id, ref))
+        except DriveBenchError as exc:
+            found.append(exc)
+    return found
 
 
 # --- write -----------------------------------------------------------------------------------------------

@@ -46,6 +46,7 @@ RULES: dict[tuple[str, str], Rule] = {
     # --- writes that only read or calculate: a viewer may ---------------------------------------------------
     **_rules(V, "Reading parameters",
              ("POST", N + "/read-all"), ("POST", N + "/read-group"), ("POST", S + "/read-all"),
+             ("POST", N + "/parameters:read"),
              ("POST", UN + "/parameters/{ref:path}/read"), ("POST", UN + "/read"), ("POST", UN + "/info/read")),
     **_rules(V, "Changing your own monitor view",
              ("POST", S + "/monitor/pause"), ("POST", S + "/monitor/resume"), ("PUT", S + "/monitor/filter")),
@@ -190,7 +191,28 @@ def _routes(app: FastAPI) -> list[tuple[object, str]]:
     return cached
 
 
+DECISIONS_KEPT = 4096
+"""Decisions remembered per app, by (scope type, method, path): a route matches on nothing else (no host routes)."""
+_decisions: weakref.WeakKeyDictionary[FastAPI, dict[tuple[str, str, str], Decision]] = weakref.WeakKeyDictionary()
+
+
 def decide(app: FastAPI, scope: Scope) -> Decision:
+    """The rule of the route a request or websocket reaches; worked out once per (type, method, path), so a repeated
+    request costs a dictionary look-up instead of matching every route again."""
+    key = (scope["type"], str(scope.get("method", "")), scope.get("path", ""))
+    known = _decisions.get(app)
+    if known is None:
+        known = _decisions[app] = {}
+    decision = known.get(key)
+    if decision is None:
+        decision = _match(app, scope)
+        if len(known) >= DECISIONS_KEPT:
+            known.clear()  # many distinct paths (parameter refs): start over rather than grow without bound
+        known[key] = decision
+    return decision
+
+
+def _match(app: FastAPI, scope: Scope) -> Decision:
     method = _method(scope)
     path = scope.get("path", "")
     match_scope = {**scope, "method": "GET"} if scope.get("method") == "HEAD" else scope

@@ -1,4 +1,7 @@
-"""Dependencies shared by routes: the session manager, a session, a node (resolved once)."""
+"""Dependencies shared by routes: the session manager, a session, a node (resolved once).
+
+They only look things up in memory, so they are ``async``: a plain ``def`` dependency would run in the thread pool,
+a thread hop per dependency on every request (benchmarks/RESULTS.md, Request path)."""
 
 from __future__ import annotations
 
@@ -10,7 +13,7 @@ from drivebench.services.sessions import Session, SessionManager, SessionNode
 from drivebench.web.state import AppState
 
 
-def get_state(request: Request) -> AppState:
+async def get_state(request: Request) -> AppState:
     state: AppState = request.app.state.drivebench
     return state
 
@@ -18,21 +21,21 @@ def get_state(request: Request) -> AppState:
 StateDep = Annotated[AppState, Depends(get_state)]
 
 
-def get_manager(state: StateDep) -> SessionManager:
+async def get_manager(state: StateDep) -> SessionManager:
     return state.manager
 
 
 ManagerDep = Annotated[SessionManager, Depends(get_manager)]
 
 
-def get_session(manager: ManagerDep, session_id: Annotated[str, Path(description="Session id")]) -> Session:
+async def get_session(manager: ManagerDep, session_id: Annotated[str, Path(description="Session id")]) -> Session:
     return manager.get(session_id)
 
 
 SessionDep = Annotated[Session, Depends(get_session)]
 
 
-def get_node(session: SessionDep, node_id: Annotated[int, Path(ge=1, le=127, description="CANopen node id")]
+async def get_node(session: SessionDep, node_id: Annotated[int, Path(ge=1, le=127, description="CANopen node id")]
              ) -> SessionNode:
     return session.node(node_id)
 

@@ -66,6 +66,11 @@ def confirmation(conn: HTTPConnection, given: object = None) -> object:
     return conn.headers.get("x-drivebench-confirm") or conn.query_params.get("confirm")
 
 
-PanelDep = Annotated[Panel, Depends(panel_for)]
+async def current_panel(conn: HTTPConnection) -> Panel:
+    """Route dependency: ``panel_for`` without a thread-pool hop."""
+    return panel_for(conn)
+
+
+PanelDep = Annotated[Panel, Depends(current_panel)]
 WriterDep = Annotated[Writer, Depends(acting_writer)]
 ACTING = Depends(acting_writer)

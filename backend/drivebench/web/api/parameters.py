@@ -13,11 +13,13 @@ from pydantic import BaseModel, Field, model_validator
 
 from drivebench.device.catalog import Item
 from drivebench.device.scaling import ScaledValue
+from drivebench.errors import DriveBenchError
 from drivebench.services import drive_guard
 from drivebench.services import parameters as service
 from drivebench.services.jobs import Job, JobManager
 from drivebench.services.parameters import DeviceCommand, ParameterValue, SdoSettings, WriteResult
 from drivebench.web.deps import NodeDep, SessionDep
+from drivebench.web.problems import problem_body
 from drivebench.web.safety import ACTING
 
 router = APIRouter(prefix="/api", tags=["parameters"], dependencies=[ACTING])  # writes take the node lease
@@ -32,7 +34,7 @@ def jobs_of(app: Any) -> JobManager:
     return jobs
 
 
-def get_jobs(request: Request) -> JobManager:
+async def get_jobs(request: Request) -> JobManager:
     return jobs_of(request.app)
 
 
@@ -55,6 +57,25 @@ class ParameterValueOut(ValueOut):
     subindex: int
     display: str
     read_at: float
+
+
+class BatchRead(BaseModel):
+    refs: list[str] = Field(min_length=1, max_length=service.MAX_BATCH,
+                            description="Parameter refs as the single read takes them (C00011, 0x1017.0, P0700)")
+
+
+class BatchReadItem(BaseModel):
+    """One ref of a batch read: its value, or the problem it met (``error``, the words of a single read's answer)."""
+
+    ref: str
+    ok: bool
+    value: ParameterValueOut | None = None
+    error: dict[str, Any] | None = None
+
+
+class BatchReadOut(BaseModel):
+    node_id: int
+    items: list[BatchReadItem]
 
 
 class ParameterInfo(BaseModel):
@@ -238,6 +259,16 @@ async def read_parameter(session: SessionDep, node: NodeDep, ref: str,
                          transfer: Annotated[str, Query(pattern="^(auto|block)$")] = "auto") -> ParameterValueOut:
     """Read from the device now (``transfer=block`` for a CiA 301 block upload)."""
     return value_out(await service.read(session, node.node_id, ref, transfer=transfer))
+
+
+@router.post(NODE + "/parameters:read", response_model=BatchReadOut)
+async def read_parameters(request: Request, session: SessionDep, node: NodeDep, body: BatchRead) -> BatchReadOut:
+    """Read many parameters in one request, in the order given; each answers with its value or its own error."""
+    found = await service.read_many(session, node.node_id, body.refs)
+    items = [BatchReadItem(ref=ref, ok=False, error=problem_body(result, f"{request.url.path}#{ref}"))
+             if isinstance(result, DriveBenchError) else BatchReadItem(ref=ref, ok=True, value=value_out(result))
+             for ref, result in zip(body.refs, found, strict=True)]
+    return BatchReadOut(node_id=node.node_id, items=items)
 
 
 @router.put(NODE + "/parameters/{ref:path}", response_model=WriteOut,

@@ -165,7 +165,7 @@ async def planner_compare(plan: NetworkPlan, manager: ManagerDep,
 
 
 # --- saved planned networks ------------------------------------------------------------------------------------
-def get_store() -> PlannedNetworkStore:
+async def get_store() -> PlannedNetworkStore:
     return PlannedNetworkStore()
 
 

@@ -1,0 +1,30 @@
+"""The request path stays lean: no route's dependency hops to the thread pool just to look something up."""
+
+from __future__ import annotations
+
+import inspect
+from collections.abc import Iterator
+
+from fastapi.dependencies.models import Dependant
+from fastapi.routing import APIRoute, iter_route_contexts
+
+from drivebench.web.app import create_app
+
+
+def _sync_dependencies(dependant: Dependant) -> Iterator[str]:
+    for sub in dependant.dependencies:
+        call = sub.call
+        if call is not None and not (inspect.iscoroutinefunction(call) or inspect.isasyncgenfunction(call)):
+            yield f"{call.__module__}.{getattr(call, '__qualname__', call)}"
+        yield from _sync_dependencies(sub)
+
+
+def test_no_route_dependency_runs_in_the_thread_pool() -> None:
+    """A plain ``def`` dependency runs in a worker thread: on a loaded machine each hop costs more than the whole
+    health check (benchmarks/RESULTS.md, Request path). Blocking work belongs in the endpoint or the services."""
+    app = create_app()
+    routes = [context.route for context in iter_route_contexts(app.router.routes)
+              if isinstance(context.route, APIRoute)]
+    assert len(routes) > 100
+    found = {f"{name} (in {route.path})" for route in routes for name in _sync_dependencies(route.dependant)}
+    assert not found, sorted(found)
