@@ -361,6 +361,8 @@ def _value(draw: st.DrawFn, data_type: DataType, factor: int) -> int | float | s
         return draw(st.floats(allow_nan=False, allow_infinity=False, width=32 if data_type is DataType.REAL32
                               else 64))
     low, high = data_type.raw_limits()  # type: ignore[misc]
+    if factor != 1:  # a scaled value is a float (10.2 A): exact for raws up to 2**53, as every manual's value is
+        low, high = max(low, -(2**53)), min(high, 2**53)
     raw = draw(st.integers(low, high))
     return raw if factor == 1 else raw / factor
 

@@ -159,12 +159,13 @@ def run_burst(registry: ProfileRegistry, *, rate: int = 2_000, seconds: float = 
             time.sleep(0.6)  # the hub lets a new client settle before relaying to it
             burner.start()
             sender = subprocess.Popen([sys.executable, "-c", SENDER, str(port), str(rate), str(seconds)])
-            polled: list[tuple[int, float]] = []
+            polled: list[tuple[int, float, int]] = []
             while sender.poll() is None:
                 time.sleep(0.5)
                 load, totals = (snapshot := monitor.snapshot())["load"], snapshot["totals"]
-                if load["second"] is not None:
-                    polled.append((load["second"], totals["rate"]))
+                if load["second"] is not None:  # and how many windows had closed: fewer than RATE_WINDOW_S at first
+                    closed = sum(1 for at, _ in monitor.history() if at <= load["second"])
+                    polled.append((load["second"], totals["rate"], max(1, min(RATE_WINDOW_S, closed))))
             assert sender.returncode == 0
             total = int(rate * seconds)
             _wait(lambda: recorder.count >= total and monitor.snapshot()["totals"]["frames"] >= total, 30)
@@ -184,13 +185,13 @@ def _closed(monitor: Monitor, second: int) -> bool:
     return any(int(at) == second for at, _ in monitor.history())
 
 
-def _result(monitor: Monitor, recorder: _Recorder, total: int, polled: list[tuple[int, float]]) -> BurstResult:
+def _result(monitor: Monitor, recorder: _Recorder, total: int, polled: list[tuple[int, float, int]]) -> BurstResult:
     snapshot = monitor.snapshot()
     points = {int(at): load for at, load in monitor.history()}
     exact = {second: 100.0 * bits / BITRATE for second, bits in recorder.bits.items()}
-    # a snapshot's frames/s is of the RATE_WINDOW_S windows closed up to the one it names
-    rates = [(shown, sum(recorder.frames.get(s, 0) for s in range(newest - RATE_WINDOW_S + 1, newest + 1))
-              / RATE_WINDOW_S) for newest, shown in polled]
+    # a snapshot's frames/s is of the RATE_WINDOW_S windows closed up to the one it names (fewer just after start)
+    rates = [(shown, sum(recorder.frames.get(s, 0) for s in range(newest - windows + 1, newest + 1)) / windows)
+             for newest, shown, windows in polled]
     return BurstResult(points, exact, total, snapshot["totals"]["frames"], snapshot["load"]["peak_percent"], rates)
 
 

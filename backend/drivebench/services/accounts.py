@@ -136,7 +136,10 @@ class _Directory:
         with transaction() as db:
             users = {row.name: _user(row) for row in db.scalars(select(UserRow))}
         with self._lock:
+            changed = users != self._users
             self._users, self._loaded_at, self._url = users, time.monotonic(), settings.database_url
+        if changed:  # changed elsewhere (another server, the CLI): tokens act with their owner's state as now read
+            verified_tokens.forget()
         return users
 
     def forget(self) -> None:

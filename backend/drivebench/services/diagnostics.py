@@ -162,6 +162,21 @@ async def write_heartbeat_producer(session: Session, node_id: int, time_ms: int)
 
 
 @node_lease.leased
+async def _producer_period_s(session: Session, producer_id: int) -> float | None:
+    """The producer's configured heartbeat time (its 0x1017, what CiA 301 compares a consumer time with); the period
+    measured from its telegrams only when the producer cannot be asked (a late telegram must not refuse a right
+    consumer time)."""
+    status = session.network.heartbeat.status(producer_id)
+    if status.configured_period_s is not None:
+        return status.configured_period_s
+    try:
+        configured = _u(await session.client(producer_id).aupload(HEARTBEAT_PRODUCER, 0))
+    except DriveBenchError:
+        return status.period_s
+    session.network.heartbeat.set_configured_period(producer_id, configured)
+    return configured / 1000 if configured else None
+
+
 async def write_heartbeat_consumer(session: Session, node_id: int, slot: int, producer_id: int,
                                    time_ms: int) -> HeartbeatSetup:
     """CiA 301 0x1016: bits 16..22 producer node id, bits 0..15 consumer time in ms (0 = slot unused)."""
@@ -175,7 +190,7 @@ async def write_heartbeat_consumer(session: Session, node_id: int, slot: int, pr
     if not 1 <= slot <= len(setup.consumers):
         raise InvalidValue(f"Node {node_id} has {len(setup.consumers)} heartbeat consumer entries; "
                            f"entry {slot} does not exist.")
-    producer = session.network.heartbeat.status(producer_id).expected_period_s() if producer_id else None
+    producer = await _producer_period_s(session, producer_id) if producer_id and time_ms else None
     if producer and time_ms and time_ms <= producer * 1000:
         raise InvalidValue(f"Consumer time {time_ms} ms must be longer than node {producer_id}'s heartbeat "
                            f"producer time ({producer * 1000:.0f} ms), or every heartbeat would be late.")
