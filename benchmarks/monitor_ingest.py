@@ -24,7 +24,7 @@ from _monitor_results import machine, mixed_trace, write_subsection
 
 from drivebench.device.loader import ProfileRegistry
 from drivebench.services.monitor import Monitor
-from drivebench.services.sessions import SessionManager
+from drivebench.services.session_manager import SessionManager
 
 FRAMES = 200_000
 ROUNDS = 3

@@ -25,7 +25,7 @@ from _monitor_results import machine, mixed_trace, write_subsection
 
 from drivebench.device.loader import ProfileRegistry
 from drivebench.services.monitor import HISTORY_S, RATE_WINDOW_S, TRACE_CAPACITY, monitor_for
-from drivebench.services.sessions import SessionManager
+from drivebench.services.session_manager import SessionManager
 from drivebench.transport.busload import message_bits
 
 RUN_S = float(os.environ.get("MONITOR_MEMORY_RUN_S", "600"))

@@ -25,7 +25,7 @@ import can
 
 from drivebench.device.loader import ProfileRegistry
 from drivebench.services.monitor import RATE_WINDOW_S, Monitor, monitor_for
-from drivebench.services.sessions import SessionManager
+from drivebench.services.session_manager import SessionManager
 from drivebench.transport.busload import reference_bits
 
 BITRATE = 500_000

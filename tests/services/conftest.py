@@ -10,7 +10,8 @@ import pytest
 from drivebench.device.loader import ProfileRegistry
 from drivebench.services import drive_guard, parameters
 from drivebench.services.parameters import WriteResult
-from drivebench.services.sessions import Session, SessionManager
+from drivebench.services.session_manager import SessionManager
+from drivebench.services.sessions import Session
 from drivebench.simulator.plant import Plant
 
 

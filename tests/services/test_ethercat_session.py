@@ -15,7 +15,8 @@ from drivebench.device.loader import ProfileRegistry
 from drivebench.errors import ProtocolError, SdoAbortError, SdoTimeoutError, TransportError
 from drivebench.protocol import esm
 from drivebench.services import parameters
-from drivebench.services.sessions import Session, SessionManager
+from drivebench.services.session_manager import SessionManager
+from drivebench.services.sessions import Session
 from drivebench.simulator.ethercat import GatewayServer, SimulatedSlave
 from tests.conftest import wait_until
 from tests.transport.test_multiprocess import run_outside_playwright

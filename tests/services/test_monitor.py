@@ -16,7 +16,8 @@ from drivebench.device.loader import ProfileRegistry
 from drivebench.protocol.nmt import NmtCommand
 from drivebench.services.monitor import Monitor, MonitorFilter, MonitorView, monitor_for
 from drivebench.services.recording import Recordings
-from drivebench.services.sessions import Session, SessionManager
+from drivebench.services.session_manager import SessionManager
+from drivebench.services.sessions import Session
 from drivebench.transport.busload import reference_bits
 from drivebench.transport.pcapng import read_pcapng
 from tests.conftest import wait_until

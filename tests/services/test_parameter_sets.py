@@ -30,7 +30,8 @@ from drivebench.services.parameter_sets import (
     retarget,
     set_source,
 )
-from drivebench.services.sessions import Session, SessionManager
+from drivebench.services.session_manager import SessionManager
+from drivebench.services.sessions import Session
 from drivebench.simulator.plant import Plant, PlantFile
 from drivebench.simulator.store import Abort
 
@@ -321,7 +322,7 @@ from drivebench.device.loader import ProfileRegistry
 from drivebench.services import audit, set_jobs
 from drivebench.services.jobs import JobManager
 from drivebench.services.parameter_sets import ParameterSetStore
-from drivebench.services.sessions import SessionManager
+from drivebench.services.session_manager import SessionManager
 from drivebench.simulator.plant import Plant, PlantFile
 
 url, set_id = sys.argv[1], int(sys.argv[2])

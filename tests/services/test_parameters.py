@@ -24,7 +24,8 @@ from drivebench.errors import (
 from drivebench.services import parameters
 from drivebench.services.jobs import JobManager, JobState
 from drivebench.services.parameters import DeviceCommand
-from drivebench.services.sessions import Session, SessionManager
+from drivebench.services.session_manager import SessionManager
+from drivebench.services.sessions import Session
 from drivebench.simulator.plant import Plant, PlantFile
 
 T = TypeVar("T")

@@ -12,7 +12,8 @@ from drivebench.device.profile import Profile
 from drivebench.errors import InvalidValue
 from drivebench.services import pdo
 from drivebench.services.pdo import PdoWrite
-from drivebench.services.sessions import Session, SessionManager
+from drivebench.services.session_manager import SessionManager
+from drivebench.services.sessions import Session
 from drivebench.simulator.plant import Plant, PlantFile, PlantNode
 from tests.conftest import fresh_channel
 

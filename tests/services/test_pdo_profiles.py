@@ -12,7 +12,8 @@ import pytest
 from drivebench.device.loader import ProfileRegistry
 from drivebench.services import pdo, pdo_notes
 from drivebench.services.pdo import Direction, PdoWrite
-from drivebench.services.sessions import Session, SessionManager
+from drivebench.services.session_manager import SessionManager
+from drivebench.services.sessions import Session
 from drivebench.simulator.plant import Plant, PlantFile, PlantNode
 from drivebench.simulator.store import Abort
 from tests.conftest import fresh_channel

@@ -17,7 +17,8 @@ from drivebench.errors import AdapterUnavailable, BusSpecError, Conflict, NotFou
 from drivebench.protocol.nmt import NmtCommand
 from drivebench.services import node_lease, process_data
 from drivebench.services.monitor import monitor_for
-from drivebench.services.sessions import Session, SessionManager
+from drivebench.services.session_manager import SessionManager
+from drivebench.services.sessions import Session
 from drivebench.simulator.plant import Plant
 from drivebench.transport.bus import BusSpec
 from tests.conftest import fresh_channel
@@ -113,8 +114,9 @@ def test_each_session_has_its_own_services_made_at_open_and_closed_with_it(regis
         one = await manager.open(f"virtual:{fresh_channel()}@500000", "One")
         two = await manager.open(f"virtual:{fresh_channel()}@500000", "Two")
         try:
-            assert one.services is not two.services
-            assert monitor_for(one) is one.services.monitor and monitor_for(two) is two.services.monitor
+            assert set(one.parts) == set(two.parts) and len(one.parts) >= 8
+            assert all(one.parts[kind] is not two.parts[kind] for kind in one.parts)
+            assert monitor_for(one) is not monitor_for(two)
             assert node_lease.leases(one) is not node_lease.leases(two)
             assert process_data.service(one) is not process_data.service(two)
             others = set(threading.enumerate())
@@ -122,9 +124,9 @@ def test_each_session_has_its_own_services_made_at_open_and_closed_with_it(regis
             (producer,) = set(threading.enumerate()) - others
             await until(lambda: monitor_for(one).snapshot()["totals"]["frames"] > 0)  # counting from the start
             await manager.close(one.id)
-            assert one.services.process_data.sync_period_ms is None
+            assert process_data.service(one).sync_period_ms is None
             await until(lambda: not producer.is_alive())  # the SYNC producer stopped with the session
-            assert two.services.monitor.snapshot()["totals"]["frames"] == 0  # the other session saw none of it
+            assert monitor_for(two).snapshot()["totals"]["frames"] == 0  # the other session saw none of it
         finally:
             await manager.close_all()
 

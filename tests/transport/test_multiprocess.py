@@ -21,7 +21,7 @@ import pytest
 from drivebench.config import REPO_ROOT
 from drivebench.device.loader import ProfileRegistry
 from drivebench.protocol.nmt import NmtCommand
-from drivebench.services.sessions import SessionManager
+from drivebench.services.session_manager import SessionManager
 from tests.conftest import screenshot
 
 START_TIMEOUT_S = 60.0  # a cold interpreter importing the package on a loaded 2-core machine

@@ -162,7 +162,7 @@ class Wizard:
 
 
 def wizard(session: Session) -> Wizard:
-    return session.services.wizard
+    return session.part(Wizard)
 
 
 def _telegrams(capture: _Capture, t0: float) -> list[Telegram]:

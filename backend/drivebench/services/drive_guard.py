@@ -35,6 +35,7 @@ from drivebench.protocol.nmt import NmtCommand
 from drivebench.services import node_lease, parameters
 from drivebench.services import process_data as live
 from drivebench.services.drive_words import Command, family_of, next_control_word
+from drivebench.services.parameters import MovingWrites
 from drivebench.services.sessions import Session, SessionNode
 
 KEEPALIVE_TIMEOUT_S = 2.0
@@ -283,6 +284,21 @@ class Guard:
         log.warning("node %s: %s", node_id, self.trips[node_id])
         session.emit("drive_trip", {"node": node_id, "reason": self.trips[node_id]})
 
+    def moving_writes(self) -> MovingWrites:
+        """What :func:`parameters.write` asks before a write that can move the drive, and tells after one that stops
+        it (the session's part)."""
+        return MovingWrites(self._admit_moving_write, self._stopped)
+
+    def _admit_moving_write(self, node_id: int, what: str) -> None:
+        session = self._session()
+        if session is not None:
+            admit_moving_write(session, node_id, what)
+
+    def _stopped(self, node_id: int) -> None:
+        session = self._session()
+        if session is not None:
+            stopped(session, node_id)
+
     def _ensure_watch(self) -> None:
         if self._task is None or self._task.done():
             self._task = asyncio.get_running_loop().create_task(self._watch())
@@ -300,7 +316,7 @@ class Guard:
 
 
 def guard_for(session: Session) -> Guard:
-    return session.services.guard
+    return session.part(Guard)
 
 
 # --- writes that can move a drive, by any route (parameter API and tab, set downloads, commissioning) -------------

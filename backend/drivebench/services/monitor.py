@@ -502,4 +502,4 @@ def attach(session: Session) -> Monitor:
 
 
 def monitor_for(session: Session) -> Monitor:
-    return session.services.monitor
+    return session.part(Monitor)

@@ -176,7 +176,7 @@ class SessionLeases:
 
 
 def leases(session: Session) -> SessionLeases:
-    return session.services.leases
+    return session.part(SessionLeases)
 
 
 # --- who writes: set per request by the web layer ---------------------------------------------------------------

@@ -167,7 +167,7 @@ def attach(session: Session) -> SessionParameters:
 
 
 def service(session: Session) -> SessionParameters:
-    return session.services.parameters
+    return session.part(SessionParameters)
 
 
 def configure(session: Session, settings: SdoSettings) -> SdoSettings:
@@ -455,6 +455,21 @@ class WriteAudit(Protocol):
     async def done(self, token: object, result: WriteResult | None, error: BaseException | None) -> None: ...
 
 
+class WriteAudits(list[WriteAudit]):
+    """The session's :class:`WriteAudit` listeners (its part: ``session.part(WriteAudits)``)."""
+
+
+@dataclass(frozen=True)
+class MovingWrites:
+    """How :func:`write` lets a write that can move the drive through: the drive guard's checks, given to the session
+    when it opens (:meth:`drive_guard.Guard.moving_writes`), so this module needs nothing above it."""
+
+    admit: Callable[[int, str], None]
+    """Node id, what is written: refused without the confirmation naming the node; arms the keep-alive."""
+    stopped: Callable[[int], None]
+    """Node id: a control word that stops the drive was written."""
+
+
 def _unchecked_raw(item: Item, value: object) -> RawValue:
     """The raw value without the profile's range/selection/read-only checks (the device decides); it must
     still fit the data type: nothing is ever truncated."""
@@ -479,8 +494,6 @@ async def write(session: Session, node_id: int, ref: str, value: object, *, chec
     A write that can make the drive move (:mod:`drivebench.device.motion`: a control word, setpoint, mode ...)
     needs the confirmation naming the node and arms the keep-alive guard (:func:`drive_guard.admit_moving_write`);
     a control word that only stops the drive is never refused, by a lease or for a confirmation."""
-    from drivebench.services import drive_guard  # drive_guard writes its quick stop through this module
-
     node = session.node(node_id)
     item = resolve(node, ref)
     raw = to_raw(item.entry, value, ref=item.ref) if check else _unchecked_raw(item, value)
@@ -489,10 +502,10 @@ async def write(session: Session, node_id: int, ref: str, value: object, *, chec
     stopping = still and motion is not None and motion.kind == "control_word"
     with node_lease.stopping() if stopping else contextlib.nullcontext(), node_lease.writing(session, node_id):
         if motion is not None and not still:
-            drive_guard.admit_moving_write(session, node_id, f"Writing {item.ref} ({item.name}) = {value}")
+            session.part(MovingWrites).admit(node_id, f"Writing {item.ref} ({item.name}) = {value}")
         result = await _write(session, node, item, raw, value, verify=verify)
     if stopping:
-        drive_guard.stopped(session, node_id)
+        session.part(MovingWrites).stopped(node_id)
     return result
 
 
@@ -504,7 +517,7 @@ async def _write(session: Session, node: SessionNode, item: Item, raw: RawValue,
     except ValueError as exc:
         raise OutOfRange(f"{item.ref} ({item.entry.name}): {value!r} does not fit "
                          f"{item.entry.data_type.value}") from exc
-    audits = session.services.write_audits
+    audits = session.part(WriteAudits)
     if not audits:
         return await _send(session, node, item, raw, data, verify)
     attempt = WriteAttempt(session, node_id, item, service(session).values.get(node_id, {}).get(item.ref),

@@ -289,4 +289,4 @@ class ProcessData:
 
 
 def service(session: Session) -> ProcessData:
-    return session.services.process_data
+    return session.part(ProcessData)

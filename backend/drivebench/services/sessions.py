@@ -8,19 +8,17 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import itertools
-import re
 import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Protocol
+from typing import Protocol, TypeVar, cast
 
 import can
 
 from drivebench.device.catalog import Catalog
 from drivebench.device.profile import Profile
-from drivebench.errors import Conflict, DriveBenchError, NotFound, SdoAbortError, SdoTimeoutError
+from drivebench.errors import DriveBenchError, NotFound, SdoAbortError, SdoTimeoutError
 from drivebench.protocol.emcy import EmcyEvent
 from drivebench.protocol.esm import EsmState
 from drivebench.protocol.ethercat_network import EthercatNetwork, SlaveInfo
@@ -29,11 +27,9 @@ from drivebench.protocol.network import CanopenNetwork
 from drivebench.protocol.nmt import STATE_AFTER, NmtCommand, NmtState
 from drivebench.services.bus_state import ADAPTER_LOST, BusHealth, GatewayHealth
 from drivebench.services.duplicates import DuplicateWatch
-from drivebench.services.fieldbus import Network, SdoClient, SessionSpec, open_network, parse_spec
+from drivebench.services.fieldbus import Network, SdoClient, SessionSpec
 
-if TYPE_CHECKING:
-    from drivebench.services.parameters import WriteAudit
-    from drivebench.services.session_services import SessionServices
+PartT = TypeVar("PartT")
 
 
 class ProfileSource(Protocol):
@@ -88,14 +84,7 @@ stop -> Safe-Operational (outputs in their safe state; SDO still works, unlike N
 back to Pre-Operational (the master re-initialises the slave)."""
 
 
-def _slug(text: str) -> str:
-    return re.sub(r"[^a-z0-9]+", "-", text.lower()).strip("-") or "bus"
-
-
 class Session:
-    services: SessionServices
-    """What the services keep for this session (monitor, parameters, leases ...): set by ``SessionManager.open``."""
-
     def __init__(self, session_id: str, name: str, spec: SessionSpec, network: Network,
                  profiles: ProfileSource, *, simulated: bool = False) -> None:
         self.id = session_id
@@ -106,6 +95,9 @@ class Session:
         self.simulated = simulated
         self.opened_at = time.time()
         self.nodes: dict[int, SessionNode] = {}
+        self.parts: dict[type, object] = {}
+        """What the services keep for this session (its monitor, leases, guard ...), each under its own class: put
+        by :class:`~drivebench.services.session_manager.SessionManager` when the session opens."""
         self._lock = threading.Lock()
         self._listeners: list[Callable[[str, dict[str, object]], None]] = []
         self.duplicates = DuplicateWatch()
@@ -121,6 +113,12 @@ class Session:
         network.bus.send_guard = self.health.refusal
         network.add_listener(self.duplicates)
         self.health.notes.append(self.duplicates.text)
+
+    def part(self, kind: type[PartT]) -> PartT:
+        found = self.parts.get(kind)
+        if found is None:
+            raise RuntimeError(f"session '{self.id}' has no {kind.__name__}: it was not opened by a SessionManager")
+        return cast(PartT, found)
 
     @property
     def ethercat(self) -> EthercatNetwork | None:
@@ -326,62 +324,3 @@ class Session:
 
     def close(self) -> None:
         self.network.close()
-
-
-class SessionManager:
-    """The open sessions of this server."""
-
-    def __init__(self, profiles: ProfileSource, *, sdo_timeout_s: float = 0.5, sdo_retries: int = 1,
-                 write_audits: list[WriteAudit] | None = None) -> None:
-        self.profiles = profiles
-        self.write_audits = write_audits or []
-        """Told about every write of every session (the server's audit log)."""
-        self.sdo_timeout_s = sdo_timeout_s
-        self.sdo_retries = sdo_retries
-        self._sessions: dict[str, Session] = {}
-        self._ids = itertools.count(1)
-        self._lock = asyncio.Lock()
-
-    async def open(self, spec: SessionSpec | str, name: str | None = None, *, simulated: bool = False) -> Session:
-        bus_spec = parse_spec(spec) if isinstance(spec, str) else spec
-        async with self._lock:
-            for session in self._sessions.values():
-                if str(session.spec) == str(bus_spec):
-                    raise Conflict(f"{bus_spec} is already open as session '{session.name}'")
-            network = await asyncio.to_thread(open_network, bus_spec, self.sdo_timeout_s, self.sdo_retries)
-            label = name or f"{bus_spec.interface} {bus_spec.channel}".strip()
-            session_id = _slug(name or f"{bus_spec.interface}-{bus_spec.channel}")
-            if session_id in self._sessions:
-                session_id = f"{session_id}-{next(self._ids)}"
-            session = Session(session_id, label, bus_spec, network, self.profiles, simulated=simulated)
-            from drivebench.services.session_services import SessionServices  # it imports the session's services
-
-            session.services = SessionServices.open(session, self.write_audits)
-            self._sessions[session_id] = session
-        if session.ethercat is not None:  # the master knows its slaves: list them at once
-            try:
-                await session.scan()
-            except DriveBenchError as exc:
-                why = f"Slave list not read: {exc}"
-                session.health.notes.append(lambda: why)
-        return session
-
-    def get(self, session_id: str) -> Session:
-        session = self._sessions.get(session_id)
-        if session is None:
-            raise NotFound(f"No open session '{session_id}'")
-        return session
-
-    def list(self) -> list[Session]:
-        return list(self._sessions.values())
-
-    async def close(self, session_id: str) -> None:
-        session = self.get(session_id)
-        async with self._lock:
-            self._sessions.pop(session_id, None)
-        session.services.close(session)
-        await asyncio.to_thread(session.close)
-
-    async def close_all(self) -> None:
-        for session_id in list(self._sessions):
-            await self.close(session_id)

@@ -18,7 +18,7 @@ from drivebench.device.loader import ProfileRegistry
 from drivebench.services import audit, set_jobs
 from drivebench.services.database import upgrade_to_head
 from drivebench.services.parameter_sets import ParameterSetStore
-from drivebench.services.sessions import SessionManager
+from drivebench.services.session_manager import SessionManager
 from drivebench.services.sharing import ShareLinks
 from drivebench.simulator.plant import Plant, PlantFile
 from drivebench.web import access, problems

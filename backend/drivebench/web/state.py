@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from drivebench.device.loader import ProfileRegistry
-from drivebench.services.sessions import SessionManager
+from drivebench.services.session_manager import SessionManager
 from drivebench.services.sharing import ShareLinks
 from drivebench.simulator.ethercat import GatewayServer
 from drivebench.simulator.plant import Plant

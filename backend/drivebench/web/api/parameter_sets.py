@@ -37,7 +37,7 @@ from drivebench.services.parameter_sets import (
     set_source,
     shown,
 )
-from drivebench.services.sessions import SessionManager
+from drivebench.services.session_manager import SessionManager
 from drivebench.services.set_jobs import ReportLine
 from drivebench.web.api.parameters import JobOut, JobsDep, job_out
 from drivebench.web.deps import MAX_ROW_ID, ManagerDep, RowId, RowVersion, StateDep

@@ -15,7 +15,7 @@ from drivebench.errors import DriveBenchError, InvalidValue
 from drivebench.services import audit, set_formats, set_jobs
 from drivebench.services.jobs import Job, JobManager
 from drivebench.services.parameter_sets import compare, comparison_csv, retarget
-from drivebench.services.sessions import SessionManager
+from drivebench.services.session_manager import SessionManager
 from drivebench.web.api.parameter_sets import (
     CompareIn,
     SourceIn,

@@ -1,0 +1,118 @@
+"""The open sessions of this server, each with the services' container: made when the session opens, closed
+with it.
+
+The services reach their part through the session (``session.part(Monitor)``, wrapped by each module's accessor:
+:func:`~drivebench.services.monitor.monitor_for` ...), never through a module-level table; the session itself
+(:mod:`drivebench.services.sessions`) knows none of them.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import itertools
+import re
+from dataclasses import dataclass, field
+
+from drivebench.errors import Conflict, DriveBenchError, NotFound
+from drivebench.services import monitor as monitors
+from drivebench.services import parameters as params
+from drivebench.services.commissioning import Wizard
+from drivebench.services.drive_guard import Guard
+from drivebench.services.fieldbus import SessionSpec, open_network, parse_spec
+from drivebench.services.monitor import Monitor
+from drivebench.services.node_lease import SessionLeases
+from drivebench.services.parameters import SessionParameters, WriteAudit, WriteAudits
+from drivebench.services.process_data import ProcessData
+from drivebench.services.sessions import ProfileSource, Session
+
+
+def _slug(text: str) -> str:
+    return re.sub(r"[^a-z0-9]+", "-", text.lower()).strip("-") or "bus"
+
+
+@dataclass
+class SessionServices:
+    monitor: Monitor
+    parameters: SessionParameters
+    wizard: Wizard
+    leases: SessionLeases
+    process_data: ProcessData
+    guard: Guard
+    write_audits: WriteAudits = field(default_factory=WriteAudits)
+    """Told about every write the session sends (the server's audit log)."""
+
+    @classmethod
+    def open(cls, session: Session, write_audits: list[WriteAudit]) -> SessionServices:
+        guard = Guard(session)
+        services = cls(monitors.attach(session), params.attach(session), Wizard(), SessionLeases(),
+                       ProcessData(session), guard, WriteAudits(list(write_audits)))
+        for part in (services.monitor, services.parameters, services.wizard, services.leases, services.process_data,
+                     guard, services.write_audits, guard.moving_writes()):
+            session.parts[type(part)] = part
+        return services
+
+    def close(self, session: Session) -> None:
+        """Stop what the services run on the session's bus (SYNC, cyclic RPDOs) and detach the monitor from it."""
+        self.process_data.stop_sync()
+        for task in self.process_data.cyclic.values():
+            task.cancel()
+        self.process_data.cyclic.clear()
+        session.remove_frame_listener(self.monitor)
+
+
+class SessionManager:
+    """The open sessions of this server."""
+
+    def __init__(self, profiles: ProfileSource, *, sdo_timeout_s: float = 0.5, sdo_retries: int = 1,
+                 write_audits: list[WriteAudit] | None = None) -> None:
+        self.profiles = profiles
+        self.write_audits = write_audits or []
+        """Told about every write of every session (the server's audit log)."""
+        self.sdo_timeout_s = sdo_timeout_s
+        self.sdo_retries = sdo_retries
+        self._sessions: dict[str, Session] = {}
+        self._services: dict[str, SessionServices] = {}
+        self._ids = itertools.count(1)
+        self._lock = asyncio.Lock()
+
+    async def open(self, spec: SessionSpec | str, name: str | None = None, *, simulated: bool = False) -> Session:
+        bus_spec = parse_spec(spec) if isinstance(spec, str) else spec
+        async with self._lock:
+            for session in self._sessions.values():
+                if str(session.spec) == str(bus_spec):
+                    raise Conflict(f"{bus_spec} is already open as session '{session.name}'")
+            network = await asyncio.to_thread(open_network, bus_spec, self.sdo_timeout_s, self.sdo_retries)
+            label = name or f"{bus_spec.interface} {bus_spec.channel}".strip()
+            session_id = _slug(name or f"{bus_spec.interface}-{bus_spec.channel}")
+            if session_id in self._sessions:
+                session_id = f"{session_id}-{next(self._ids)}"
+            session = Session(session_id, label, bus_spec, network, self.profiles, simulated=simulated)
+            self._services[session_id] = SessionServices.open(session, self.write_audits)
+            self._sessions[session_id] = session
+        if session.ethercat is not None:  # the master knows its slaves: list them at once
+            try:
+                await session.scan()
+            except DriveBenchError as exc:
+                why = f"Slave list not read: {exc}"
+                session.health.notes.append(lambda: why)
+        return session
+
+    def get(self, session_id: str) -> Session:
+        session = self._sessions.get(session_id)
+        if session is None:
+            raise NotFound(f"No open session '{session_id}'")
+        return session
+
+    def list(self) -> list[Session]:
+        return list(self._sessions.values())
+
+    async def close(self, session_id: str) -> None:
+        session = self.get(session_id)
+        async with self._lock:
+            self._sessions.pop(session_id, None)
+        self._services.pop(session_id).close(session)
+        await asyncio.to_thread(session.close)
+
+    async def close_all(self) -> None:
+        for session_id in list(self._sessions):
+            await self.close(session_id)
