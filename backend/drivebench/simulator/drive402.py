@@ -24,14 +24,11 @@ from __future__ import annotations
 
 import threading
 from enum import Enum
-from typing import TYPE_CHECKING
 
 from drivebench.errors import UnknownParameter
+from drivebench.simulator.host import DeviceHost
 from drivebench.simulator.motor_model import MotorModel, load_torque
 from drivebench.simulator.store import RawValue
-
-if TYPE_CHECKING:
-    from drivebench.simulator.node import SimulatedNode
 
 CYCLE_S = 0.008
 BICO_TORQUE_CONTROL = 0x082B000C  # r2091.12 -> P1501
@@ -94,7 +91,7 @@ def command_state(state: State402, cw: int) -> State402:
 class StateMachine402:
     """What every simulated CiA 402 drive shares: its state, the last control word, states passed, fault reset."""
 
-    def __init__(self, node: SimulatedNode) -> None:
+    def __init__(self, node: DeviceHost) -> None:
         self.node = node
         self.store = node.store
         self._lock = threading.RLock()
@@ -124,7 +121,7 @@ class StateMachine402:
 class Drive402(StateMachine402):
     """The MICROMASTER's drive model (the profile's control section names it ``cia402_vf_inverter``)."""
 
-    def __init__(self, node: SimulatedNode) -> None:
+    def __init__(self, node: DeviceHost) -> None:
         super().__init__(node)
         self.speed_rpm = 0.0
         self.torque_permille = 0.0

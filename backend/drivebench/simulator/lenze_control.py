@@ -19,14 +19,11 @@ from __future__ import annotations
 
 import threading
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 from drivebench.errors import UnknownParameter
+from drivebench.simulator.host import DeviceHost
 from drivebench.simulator.motor_model import MotorModel, load_torque
 from drivebench.simulator.store import RawValue
-
-if TYPE_CHECKING:
-    from drivebench.simulator.node import SimulatedNode
 
 CYCLE_S = 0.004
 
@@ -70,7 +67,7 @@ MODELS = {"lenze_8400": WORDS_8400, "lenze_emf2178ib": WORDS_EMF}
 
 
 class LenzeControl:
-    def __init__(self, node: SimulatedNode, words: LenzeWords) -> None:
+    def __init__(self, node: DeviceHost, words: LenzeWords) -> None:
         self.node = node
         self.store = node.store
         self.words = words
@@ -92,7 +89,7 @@ class LenzeControl:
         self.reset()
 
     @staticmethod
-    def words_for(node: SimulatedNode, model: str | None) -> LenzeWords | None:
+    def words_for(node: DeviceHost, model: str | None) -> LenzeWords | None:
         """The words of the model a profile's control section names (``simulation``), if the device has them."""
         words = MODELS.get(model or "")
         return words if words is not None and any(_has(node, ref) for ref in words.control_refs) else None
@@ -378,7 +375,7 @@ class LenzeControl:
         self._set_engineering(heat_ref, values.heat_sink_c)
 
 
-def _has(node: SimulatedNode, ref: str) -> bool:
+def _has(node: DeviceHost, ref: str) -> bool:
     try:
         node.store.catalog.resolve(ref)
     except UnknownParameter:

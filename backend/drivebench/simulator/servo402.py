@@ -21,13 +21,10 @@ comparison per plant tick.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
 
 from drivebench.simulator.drive402 import STATE_BITS, State402, StateMachine402, command_state
+from drivebench.simulator.host import DeviceHost
 from drivebench.simulator.store import RawValue
-
-if TYPE_CHECKING:
-    from drivebench.simulator.node import SimulatedNode
 
 CYCLE_S = 0.002
 MAX_STEP_S = 0.02
@@ -52,7 +49,7 @@ def _signed(value: RawValue, default: float = 0.0) -> float:
 
 
 class Servo402(StateMachine402):
-    def __init__(self, node: SimulatedNode) -> None:
+    def __init__(self, node: DeviceHost) -> None:
         super().__init__(node)
         encoder = self._ratio(0x608F, 4096.0)
         self.increments_per_rev = encoder

@@ -1,0 +1,1 @@
+"""What the bus does: telegram counters, bus load, recordings, node diagnostics (EMCY, heartbeat)."""

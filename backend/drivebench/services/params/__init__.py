@@ -1,0 +1,1 @@
+"""A node's parameters: read and write by name or index, write leases, read-all jobs."""

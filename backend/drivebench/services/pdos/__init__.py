@@ -1,0 +1,1 @@
+"""PDO configuration and live process data."""

@@ -1,0 +1,1 @@
+"""Planned networks and the network planner."""

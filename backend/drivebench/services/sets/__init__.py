@@ -1,0 +1,1 @@
+"""Parameter sets: stored values, compare, upload and download jobs, file formats."""

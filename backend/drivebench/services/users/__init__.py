@@ -1,0 +1,1 @@
+"""Users, roles, API tokens, share links and the audit log."""
