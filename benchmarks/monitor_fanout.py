@@ -138,7 +138,7 @@ def run(switch_interval_s: float, deflate: bool) -> dict[str, float]:
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from _monitor_results import mixed_trace
 
-    from drivebench.services.monitor import monitor_for
+    from drivebench.services.monitoring.monitor import monitor_for
     from drivebench.web.app import create_app
 
     written: list[float] = []

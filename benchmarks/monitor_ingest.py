@@ -23,7 +23,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _monitor_results import machine, mixed_trace, write_subsection
 
 from drivebench.device.loader import ProfileRegistry
-from drivebench.services.monitor import Monitor
+from drivebench.services.monitoring.monitor import Monitor
 from drivebench.services.session_manager import SessionManager
 
 FRAMES = 200_000

@@ -34,7 +34,7 @@ from drivebench.device.loader import ProfileRegistry  # noqa: E402
 from drivebench.device.profile import Access, Parameter, Profile  # noqa: E402
 from drivebench.errors import DriveBenchError  # noqa: E402
 from drivebench.protocol.datatypes import DataType  # noqa: E402
-from drivebench.services import parameters  # noqa: E402
+from drivebench.services.params import parameters  # noqa: E402
 from drivebench.services.session_manager import SessionManager  # noqa: E402
 from drivebench.simulator.plant import Plant, PlantFile  # noqa: E402
 

@@ -24,8 +24,9 @@ from typing import Any
 
 from drivebench.config import REPO_ROOT
 from drivebench.device.profile import Profile
-from drivebench.services import database, set_formats
-from drivebench.services.parameter_sets import ParameterSetStore, compare, set_source
+from drivebench.services.sets import set_formats
+from drivebench.services.sets.parameter_sets import ParameterSetStore, compare, set_source
+from drivebench.services.storage import database
 
 COUNT = 5000
 ROUNDS = 5

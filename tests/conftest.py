@@ -24,7 +24,7 @@ from hypothesis import settings
 from drivebench.config import REPO_ROOT
 from drivebench.config import settings as app_settings
 from drivebench.device.loader import ProfileRegistry
-from drivebench.services import database
+from drivebench.services.storage import database
 from drivebench.simulator.plant import Plant, PlantFile
 from drivebench.web.app import create_app
 from tests.pg_cluster import PostgresCluster

@@ -17,7 +17,8 @@ import pytest
 
 from drivebench.cli import main
 from drivebench.config import settings
-from drivebench.services import accounts, database
+from drivebench.services.storage import database
+from drivebench.services.users import accounts
 from drivebench.transport.hub import start_hub_thread
 from tests.transport.test_multiprocess import START_TIMEOUT_S, CliProcess, start_simulator
 

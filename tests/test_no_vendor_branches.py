@@ -21,15 +21,15 @@ VENDOR = re.compile(r"lenze|siemens|micromaster|motec|baseline[ _-]?c\b|emf2178|
                     r"|(?<![\w.])8[24]00(?!\d)", re.IGNORECASE)
 
 NAMED_BEHAVIOURS: set[str] = {
-    "services/drive_words.py",  # the state-machine kinds a control section selects: cia402 / lenze / none
+    "services/control/drive_words.py",  # the state-machine kinds a control section selects: cia402 / lenze / none
 }
 """Modules that hold the table of named behaviours a profile selects by name (they may name a family)."""
 
 KNOWN_EXCEPTIONS: dict[str, int] = {
     # DIP switches, COB-ID tables and the network planner follow device/dip.py's family keys and cobids.py's base-ID
     # rules (the ``switches`` section is not made yet).
-    "services/planner.py": 12,
-    "services/pdo.py": 1,
+    "services/planning/planner.py": 12,
+    "services/pdos/pdo.py": 1,
     "web/api/tools.py": 4,
     "web/pages/tools.py": 38,
 }

@@ -14,7 +14,7 @@ from pathlib import Path
 
 from drivebench.config import settings
 from drivebench.errors import DriveBenchError, InvalidValue
-from drivebench.services.principals import Role
+from drivebench.services.users.principals import Role
 
 
 def _is_loopback(host: str) -> bool:
@@ -86,8 +86,8 @@ def tls(args: argparse.Namespace) -> int:
 
 
 def _authentication_configured() -> bool:
-    from drivebench.services import accounts
-    from drivebench.services.database import upgrade_to_head
+    from drivebench.services.storage.database import upgrade_to_head
+    from drivebench.services.users import accounts
 
     upgrade_to_head()
     return accounts.authentication_configured()
@@ -106,8 +106,8 @@ def _read_password(args: argparse.Namespace) -> str:
 
 
 def users(args: argparse.Namespace) -> int:
-    from drivebench.services import accounts
-    from drivebench.services.database import upgrade_to_head
+    from drivebench.services.storage.database import upgrade_to_head
+    from drivebench.services.users import accounts
 
     upgrade_to_head()
     if args.action == "list":
@@ -139,8 +139,8 @@ def _role(text: str) -> Role:
 
 
 def tokens(args: argparse.Namespace) -> int:
-    from drivebench.services import accounts
-    from drivebench.services.database import upgrade_to_head
+    from drivebench.services.storage.database import upgrade_to_head
+    from drivebench.services.users import accounts
 
     upgrade_to_head()
     if args.action == "create":
@@ -162,7 +162,7 @@ def _check_buses(specs: list[str]) -> None:
     """Open and close each --bus once before the server starts, so a wrong interface, a missing adapter or an
     unreachable gateway ends the command with its message and hint (a DriveBenchError) instead of a traceback
     from the server's start-up."""
-    from drivebench.services.fieldbus import open_network, parse_spec
+    from drivebench.services.bus.fieldbus import open_network, parse_spec
     from drivebench.transport.bus import BusSpec, open_bus
 
     for text in specs:

@@ -27,7 +27,7 @@
     }
   }
 
-  // Same words as drivebench.services.pdo.transmission_text (CiA 301 table of transmission types).
+  // Same words as drivebench.services.pdos.pdo.transmission_text (CiA 301 table of transmission types).
   function transmissionText(t, direction) {
     if (!Number.isInteger(t) || t < 0 || t > 255) return "not a transmission type (0 ... 255)";
     if (t === 0) return "synchronous, acyclic" + (direction === "tpdo" ? " (sent on SYNC after a change)" : "");

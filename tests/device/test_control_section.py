@@ -12,7 +12,7 @@ from drivebench.config import REPO_ROOT
 from drivebench.device import cia402
 from drivebench.device.control import ControlSection, Sequence
 from drivebench.device.loader import ProfileRegistry, load_profile_file
-from drivebench.services.drive_words import family_of_profile
+from drivebench.services.control.drive_words import family_of_profile
 
 SEEDS = {"siemens-micromaster4-canopen": ("cia402", ["mm-velocity", "mm-torque"]),
          "lenze-8200-vector-emf2178ib": ("emf2178ib", ["emf-8200"]),

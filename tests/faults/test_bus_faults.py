@@ -16,8 +16,8 @@ import can
 import pytest
 from fastapi.testclient import TestClient
 
-from drivebench.services.monitor import HISTORY_S, TRACE_CAPACITY, monitor_for
-from drivebench.services.sessions import Session
+from drivebench.services.bus.sessions import Session
+from drivebench.services.monitoring.monitor import HISTORY_S, TRACE_CAPACITY, monitor_for
 from drivebench.simulator.plant import Plant, PlantFile, PlantNode
 from drivebench.transport.bus import SimulatedAdapter
 from drivebench.transport.hub import start_hub_thread

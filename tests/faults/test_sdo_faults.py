@@ -11,6 +11,7 @@ C00099 (firmware version, 11 bytes) is node 5's segmented object: two segments o
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import socket
@@ -28,8 +29,9 @@ from fastapi.testclient import TestClient
 
 from drivebench.device.loader import ProfileRegistry
 from drivebench.protocol import sdo_fast
-from drivebench.services import audit, database
-from drivebench.services.parameter_sets import ParameterSetStore
+from drivebench.services.sets.parameter_sets import ParameterSetStore
+from drivebench.services.storage import database
+from drivebench.services.users import audit
 from drivebench.simulator.plant import Plant
 from drivebench.web.app import create_app
 from tests.conftest import DEMO_PLANT, fresh_channel
@@ -219,6 +221,47 @@ def test_read_all_reads_every_parameter_of_a_node_that_missed_two_answers(api: T
     assert not any("not read" in note for note in job["notes"]), job["notes"]
 
 
+def set_job_done(api: TestClient, job: dict[str, Any]) -> dict[str, Any]:
+    end = time.monotonic() + 60
+    while job["state"] == "running":
+        assert time.monotonic() < end, job
+        time.sleep(0.05)
+        job = api.get(f"/api/parameter-sets/jobs/{job['id']}").json()
+    return job
+
+
+def test_download_keeps_writing_to_a_node_that_missed_two_answers(api: TestClient) -> None:
+    """A drive busy writing its memory leaves two downloads unanswered, then answers again: the parameter-set
+    download writes everything after them (it gave up after two timeouts and sent nothing more), and the two show
+    as failed, ready for the retry."""
+    sets = "/api/parameter-sets"
+    started = api.post(f"{sets}/upload", json={"session_id": SESSION, "node_id": 5, "name": "Busy drive"})
+    assert started.status_code == 202, started.text
+    uploaded = set_job_done(api, started.json())
+    exported = json.loads(api.get(f"{sets}/{uploaded['set_id']}/export").text)
+    changes = {"C00088": 12.5, "C00039/1": 55.0, "C00324/1": 10, "C00324/2": 20, "C00324/3": 30}
+    for parameter in exported["parameters"]:
+        if parameter["ref"] in changes:
+            parameter["value"] = changes[parameter["ref"]]
+    exported["name"] = "Busy drive, changed"
+    imported = api.post(f"{sets}/import", files={"file": ("busy.json", json.dumps(exported).encode())})
+    new_id = imported.json()["set"]["id"]
+    assert api.put(f"/api/sessions/{SESSION}/sdo-settings",
+                   json={"timeout_s": 0.3, "retries": 0, "use_sdo2": False}).status_code == 200
+    set_faults(api, 5, drop_downloads=2)
+
+    job = set_job_done(api, api.post(f"{sets}/{new_id}/download",
+                                     json={"session_id": SESSION, "node_id": 5, "confirm": 5}).json())
+    statuses = {line["ref"]: line["status"] for line in job["report"] if line["ref"] in changes}
+    assert sorted(statuses.values()) == ["failed", "failed", "written", "written", "written"], job["report"]
+    assert not any("stopped answering" in (line["detail"] or "") for line in job["report"])
+
+    retried = set_job_done(api, api.post(f"/api/parameter-downloads/{job['download_id']}/retry",
+                                         json={"confirm": 5}).json())
+    assert {line["status"] for line in retried["report"] if line["ref"] in changes} <= {"written", "unchanged"}
+    assert api.get(f"{NODE}/5/parameters/C00088").json()["display"] == "12.50 A"
+
+
 def test_abort_storm_keeps_the_server_responsive_and_leaks_nothing(api: TestClient) -> None:
     """Every request of node 5 and 12 aborted: hundreds of aborts per second from one read-all of every node."""
     for node in (5, 12):
@@ -255,7 +298,7 @@ def _free_port() -> int:
 
 def _changed(profile: Any, count: int) -> dict[str, int]:
     """A partial set: ``count`` plain numeric settings of node 5, one step from their defaults (still in range)."""
-    from drivebench.services.parameter_sets import catalog_for, defaults_of
+    from drivebench.services.sets.parameter_sets import catalog_for, defaults_of
 
     catalog = catalog_for(profile)
     changed: dict[str, int] = {}

@@ -8,10 +8,11 @@ from collections.abc import Iterator
 import pytest
 
 from drivebench.device.loader import ProfileRegistry
-from drivebench.services import drive_guard, parameters
-from drivebench.services.parameters import WriteResult
+from drivebench.services.bus.sessions import Session
+from drivebench.services.control import drive_guard
+from drivebench.services.params import parameters
+from drivebench.services.params.parameters import WriteResult
 from drivebench.services.session_manager import SessionManager
-from drivebench.services.sessions import Session
 from drivebench.simulator.plant import Plant
 
 

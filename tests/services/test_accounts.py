@@ -11,9 +11,10 @@ from sqlalchemy import event, select
 
 from drivebench.config import settings
 from drivebench.errors import AccessDenied, Conflict, InvalidValue, NotAuthenticated
-from drivebench.services import accounts, database
-from drivebench.services.models import ApiTokenRow, SignedOutSessionRow, UserRow
-from drivebench.services.principals import Role
+from drivebench.services.storage import database
+from drivebench.services.storage.models import ApiTokenRow, SignedOutSessionRow, UserRow
+from drivebench.services.users import accounts
+from drivebench.services.users.principals import Role
 
 
 @pytest.fixture

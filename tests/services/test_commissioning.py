@@ -9,10 +9,10 @@ import pytest
 
 from drivebench.device.loader import ProfileRegistry
 from drivebench.errors import Conflict
-from drivebench.services import commissioning
-from drivebench.services.commissioning import Run
+from drivebench.services.bus.sessions import Session
+from drivebench.services.control import commissioning
+from drivebench.services.control.commissioning import Run
 from drivebench.services.session_manager import SessionManager
-from drivebench.services.sessions import Session
 from drivebench.simulator.plant import Plant, PlantFile
 from tests.conftest import fresh_channel
 

@@ -13,11 +13,11 @@ from sqlalchemy import inspect, select
 
 from drivebench.device.loader import ProfileRegistry
 from drivebench.errors import InvalidValue, NotFound
-from drivebench.services import database
-from drivebench.services.models import PlannedNetworkRow
-from drivebench.services.planned_networks import PlannedNetworkStore, compare_live
-from drivebench.services.planner import CableInput, NetworkPlan, PlannedNode
-from drivebench.services.sessions import SessionNode
+from drivebench.services.bus.sessions import SessionNode
+from drivebench.services.planning.planned_networks import PlannedNetworkStore, compare_live
+from drivebench.services.planning.planner import CableInput, NetworkPlan, PlannedNode
+from drivebench.services.storage import database
+from drivebench.services.storage.models import PlannedNetworkRow
 
 
 @pytest.fixture
@@ -179,7 +179,7 @@ def test_two_start_ups_at_once_on_one_new_database(db_url: str) -> None:
     import sys
 
     url = db_url
-    code = "import sys; from drivebench.services import database; database.upgrade_to_head(sys.argv[1])"
+    code = "import sys; from drivebench.services.storage import database; database.upgrade_to_head(sys.argv[1])"
     starts = [subprocess.Popen([sys.executable, "-c", code, url], stderr=subprocess.PIPE, text=True)
               for _ in range(2)]
     results = [(p.wait(timeout=60), p.stderr.read() if p.stderr else "") for p in starts]

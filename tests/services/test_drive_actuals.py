@@ -13,9 +13,10 @@ from typing import Any, TypeVar
 
 import pytest
 
-from drivebench.services import drive_control, parameters
-from drivebench.services.drive_control import ActualValue
-from drivebench.services.sessions import Session
+from drivebench.services.bus.sessions import Session
+from drivebench.services.control import drive_control
+from drivebench.services.control.drive_control import ActualValue
+from drivebench.services.params import parameters
 from tests.services.conftest import set_up
 
 T = TypeVar("T")

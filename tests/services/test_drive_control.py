@@ -12,10 +12,10 @@ import pytest
 
 from drivebench.device.loader import ProfileRegistry
 from drivebench.errors import ConfirmationRequired, Conflict, OutOfRange
-from drivebench.services import drive_control, drive_guard
-from drivebench.services.drive_control import DriveStatus, describe
-from drivebench.services.drive_words import Command, Family, family_of_profile
-from drivebench.services.sessions import Session
+from drivebench.services.bus.sessions import Session
+from drivebench.services.control import drive_control, drive_guard
+from drivebench.services.control.drive_control import DriveStatus, describe
+from drivebench.services.control.drive_words import Command, Family, family_of_profile
 from drivebench.simulator.plant import Plant
 from tests.services.conftest import set_up
 

@@ -14,9 +14,9 @@ import pytest
 from drivebench.device.loader import ProfileRegistry
 from drivebench.errors import ProtocolError, SdoAbortError, SdoTimeoutError, TransportError
 from drivebench.protocol import esm
-from drivebench.services import parameters
+from drivebench.services.bus.sessions import Session
+from drivebench.services.params import parameters
 from drivebench.services.session_manager import SessionManager
-from drivebench.services.sessions import Session
 from drivebench.simulator.ethercat import GatewayServer, SimulatedSlave
 from tests.conftest import wait_until
 from tests.transport.test_multiprocess import run_outside_playwright
@@ -115,7 +115,7 @@ def test_nmt_commands_change_the_ethercat_state_through_the_safety_guard(registr
                                                                          gateway: GatewayServer) -> None:
     from drivebench.errors import ConfirmationRequired
     from drivebench.protocol.nmt import NmtCommand
-    from drivebench.services import drive_guard
+    from drivebench.services.control import drive_guard
 
     async def scenario() -> None:
         async with _open(registry, gateway.spec) as (_, session):

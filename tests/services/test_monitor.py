@@ -14,10 +14,10 @@ import pytest
 
 from drivebench.device.loader import ProfileRegistry
 from drivebench.protocol.nmt import NmtCommand
-from drivebench.services.monitor import Monitor, MonitorFilter, MonitorView, monitor_for
-from drivebench.services.recording import Recordings
+from drivebench.services.bus.sessions import Session
+from drivebench.services.monitoring.monitor import Monitor, MonitorFilter, MonitorView, monitor_for
+from drivebench.services.monitoring.recording import Recordings
 from drivebench.services.session_manager import SessionManager
-from drivebench.services.sessions import Session
 from drivebench.transport.busload import reference_bits
 from drivebench.transport.pcapng import read_pcapng
 from tests.conftest import wait_until

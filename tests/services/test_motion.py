@@ -16,11 +16,12 @@ import pytest
 
 from drivebench.errors import ConfirmationRequired, Conflict, InvalidValue, OutOfRange
 from drivebench.protocol.nmt import NmtCommand
-from drivebench.services import drive_control, motion, parameters
-from drivebench.services import process_data as live
-from drivebench.services.drive_control import DriveStatus
-from drivebench.services.drive_words import Command
-from drivebench.services.sessions import Session
+from drivebench.services.bus.sessions import Session
+from drivebench.services.control import drive_control, motion
+from drivebench.services.control.drive_control import DriveStatus
+from drivebench.services.control.drive_words import Command
+from drivebench.services.params import parameters
+from drivebench.services.pdos import process_data as live
 from drivebench.simulator.plant import Plant
 from drivebench.simulator.servo402 import LIMIT_REVS, Servo402
 

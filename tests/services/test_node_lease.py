@@ -10,9 +10,9 @@ import contextvars
 import can
 import pytest
 
-from drivebench.services import node_lease, parameters
-from drivebench.services.node_lease import NodeLeased, Writer
-from drivebench.services.sessions import Session
+from drivebench.services.bus.sessions import Session
+from drivebench.services.params import node_lease, parameters
+from drivebench.services.params.node_lease import NodeLeased, Writer
 
 MOTEC = 5
 ANNA = Writer("anna", "panel:a1", "Parameters tab")

@@ -19,9 +19,12 @@ from sqlalchemy import text
 
 from drivebench.device.loader import ProfileRegistry
 from drivebench.errors import ConfirmationRequired, Conflict, DriveBenchError, NotFound, OutOfRange
-from drivebench.services import audit, database, parameters, set_formats, set_jobs
-from drivebench.services.jobs import Job, JobManager, JobState
-from drivebench.services.parameter_sets import (
+from drivebench.services.bus.sessions import Session
+from drivebench.services.params import parameters
+from drivebench.services.params.jobs import Job, JobManager, JobState
+from drivebench.services.session_manager import SessionManager
+from drivebench.services.sets import set_formats, set_jobs
+from drivebench.services.sets.parameter_sets import (
     ParameterSetStore,
     StoredSet,
     compare,
@@ -30,8 +33,8 @@ from drivebench.services.parameter_sets import (
     retarget,
     set_source,
 )
-from drivebench.services.session_manager import SessionManager
-from drivebench.services.sessions import Session
+from drivebench.services.storage import database
+from drivebench.services.users import audit
 from drivebench.simulator.plant import Plant, PlantFile
 from drivebench.simulator.store import Abort
 
@@ -319,9 +322,10 @@ def test_single_writes_are_audited_with_old_and_new_value(bench: Bench) -> None:
 KILLED_DOWNLOAD = """
 import asyncio, sys
 from drivebench.device.loader import ProfileRegistry
-from drivebench.services import audit, set_jobs
-from drivebench.services.jobs import JobManager
-from drivebench.services.parameter_sets import ParameterSetStore
+from drivebench.services.users import audit
+from drivebench.services.sets import set_jobs
+from drivebench.services.params.jobs import JobManager
+from drivebench.services.sets.parameter_sets import ParameterSetStore
 from drivebench.services.session_manager import SessionManager
 from drivebench.simulator.plant import Plant, PlantFile
 
@@ -347,7 +351,7 @@ asyncio.run(main())
 KILLED_IMPORT = """
 import sys
 from drivebench.device.loader import ProfileRegistry
-from drivebench.services.parameter_sets import ParameterSetStore
+from drivebench.services.sets.parameter_sets import ParameterSetStore
 
 url = sys.argv[1]
 profile = ProfileRegistry().get("lenze-8400-motec-canopen")
@@ -361,7 +365,7 @@ for number in range(10_000):
 
 def _changed_values(profile: Any) -> dict[str, Any]:
     """The profile's defaults with every ordinary numeric setting moved by one step (still in range)."""
-    from drivebench.services.parameter_sets import catalog_for, defaults_of, engineering
+    from drivebench.services.sets.parameter_sets import catalog_for, defaults_of, engineering
 
     catalog = catalog_for(profile)
     values = defaults_of(profile, 5)
@@ -389,8 +393,8 @@ def _wait_for(predicate: Any, process: Any, deadline_s: float, what: str) -> Non
 
 def test_kill_during_download_loses_nothing_and_shows_interrupted(registry: ProfileRegistry, db_url: str,
                                                                   tmp_path: Path) -> None:
-    from drivebench.services.jobs import JobManager
-    from drivebench.services.set_jobs import download_state
+    from drivebench.services.params.jobs import JobManager
+    from drivebench.services.sets.set_jobs import download_state
 
     profile = registry.get("lenze-8400-motec-canopen")
     store = ParameterSetStore(db_url)

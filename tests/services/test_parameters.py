@@ -21,11 +21,11 @@ from drivebench.errors import (
     SdoTimeoutError,
     UnknownParameter,
 )
-from drivebench.services import parameters
-from drivebench.services.jobs import JobManager, JobState
-from drivebench.services.parameters import DeviceCommand
+from drivebench.services.bus.sessions import Session
+from drivebench.services.params import parameters
+from drivebench.services.params.jobs import JobManager, JobState
+from drivebench.services.params.parameters import DeviceCommand
 from drivebench.services.session_manager import SessionManager
-from drivebench.services.sessions import Session
 from drivebench.simulator.plant import Plant, PlantFile
 
 T = TypeVar("T")

@@ -10,10 +10,10 @@ import pytest
 
 from drivebench.device.profile import Profile
 from drivebench.errors import InvalidValue
-from drivebench.services import pdo
-from drivebench.services.pdo import PdoWrite
+from drivebench.services.bus.sessions import Session
+from drivebench.services.pdos import pdo
+from drivebench.services.pdos.pdo import PdoWrite
 from drivebench.services.session_manager import SessionManager
-from drivebench.services.sessions import Session
 from drivebench.simulator.plant import Plant, PlantFile, PlantNode
 from tests.conftest import fresh_channel
 

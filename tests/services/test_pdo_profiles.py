@@ -10,10 +10,10 @@ from collections.abc import Iterator
 import pytest
 
 from drivebench.device.loader import ProfileRegistry
-from drivebench.services import pdo, pdo_notes
-from drivebench.services.pdo import Direction, PdoWrite
+from drivebench.services.bus.sessions import Session
+from drivebench.services.pdos import pdo, pdo_notes
+from drivebench.services.pdos.pdo import Direction, PdoWrite
 from drivebench.services.session_manager import SessionManager
-from drivebench.services.sessions import Session
 from drivebench.simulator.plant import Plant, PlantFile, PlantNode
 from drivebench.simulator.store import Abort
 from tests.conftest import fresh_channel

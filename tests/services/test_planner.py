@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from drivebench.errors import InvalidValue
-from drivebench.services.planner import (
+from drivebench.services.planning.planner import (
     CableInput,
     NetworkPlan,
     PlannedNode,

@@ -15,10 +15,11 @@ import pytest
 from drivebench.device.loader import ProfileRegistry
 from drivebench.errors import AdapterUnavailable, BusSpecError, Conflict, NotFound
 from drivebench.protocol.nmt import NmtCommand
-from drivebench.services import node_lease, process_data
-from drivebench.services.monitor import monitor_for
+from drivebench.services.bus.sessions import Session
+from drivebench.services.monitoring.monitor import monitor_for
+from drivebench.services.params import node_lease
+from drivebench.services.pdos import process_data
 from drivebench.services.session_manager import SessionManager
-from drivebench.services.sessions import Session
 from drivebench.simulator.plant import Plant
 from drivebench.transport.bus import BusSpec
 from tests.conftest import fresh_channel

@@ -8,9 +8,9 @@ from sqlalchemy import select
 
 from drivebench.config import settings
 from drivebench.errors import NotAuthenticated, NotFound
-from drivebench.services import database
-from drivebench.services.models import ShareLinkRow
-from drivebench.services.sharing import ShareLinks
+from drivebench.services.storage import database
+from drivebench.services.storage.models import ShareLinkRow
+from drivebench.services.users.sharing import ShareLinks
 
 
 @pytest.fixture

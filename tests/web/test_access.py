@@ -13,8 +13,9 @@ from fastapi.testclient import TestClient
 from starlette.websockets import WebSocketDisconnect
 
 from drivebench.config import settings
-from drivebench.services import accounts, audit, database
-from drivebench.services.principals import Role
+from drivebench.services.storage import database
+from drivebench.services.users import accounts, audit
+from drivebench.services.users.principals import Role
 from drivebench.web import access, access_policy
 from drivebench.web.app import create_app
 from tests.conftest import DEMO_PLANT, fresh_channel

@@ -13,8 +13,9 @@ from typing import Any
 import pytest
 
 from drivebench.config import settings
-from drivebench.services import accounts, database
-from drivebench.services.principals import Role
+from drivebench.services.storage import database
+from drivebench.services.users import accounts
+from drivebench.services.users.principals import Role
 from drivebench.web.app import create_app
 from tests.conftest import DEMO_PLANT, fresh_channel, screenshot, serve_app
 

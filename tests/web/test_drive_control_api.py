@@ -11,7 +11,7 @@ from fastapi.testclient import TestClient
 from starlette.websockets import WebSocketDisconnect
 
 from drivebench.device.scaling import to_raw
-from drivebench.services.audit import LOCAL_USER
+from drivebench.services.users.audit import LOCAL_USER
 
 BASE = "/api/sessions/demo-plant/nodes/{node}/control"
 MM, VECTOR = 3, 12

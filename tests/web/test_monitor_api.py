@@ -11,7 +11,7 @@ import can
 import pytest
 from fastapi.testclient import TestClient
 
-from drivebench.services import recording
+from drivebench.services.monitoring import recording
 from drivebench.web.app import create_app
 from tests.web.monitor_plant import SESSION_ID, write_plant
 

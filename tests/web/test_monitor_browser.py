@@ -10,7 +10,7 @@ from typing import Any
 
 import pytest
 
-from drivebench.services import recording
+from drivebench.services.monitoring import recording
 from drivebench.web.app import create_app
 from drivebench.web.ws.monitor import TRACE_PER_UPDATE
 from tests.conftest import fresh_channel, screenshot, serve_app

@@ -228,7 +228,7 @@ def test_page_fragments_compare_export_and_interrupted_download(api: TestClient)
     page = api.get("/parameter-sets", params={"set": set_id})
     assert page.status_code == 200 and "Conveyor" in page.text
 
-    from drivebench.services.parameter_sets import ParameterSetStore
+    from drivebench.services.sets.parameter_sets import ParameterSetStore
 
     download_id = ParameterSetStore().start_download(kind="download", session_id=SESSION, node_id=5,
                                                      profile_id="lenze-8400-motec-canopen", user="t",

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from drivebench.services.parameters import MAX_BATCH
+from drivebench.services.params.parameters import MAX_BATCH
 from tests.web.test_parameters_api import PLANTS, Api, _start
 
 

@@ -141,7 +141,7 @@ def test_rpdo_send_reaches_the_drive_and_dcf_holds_the_mapping(client: TestClien
 def test_sync_producer_puts_sync_on_the_bus(client: TestClient) -> None:
     page = client.post(f"{UI}/3/pdo/sync", data={"period_ms": "20", "on": "1"})
     assert page.status_code == 200 and "on, 20 ms" in page.text
-    from drivebench.services import process_data
+    from drivebench.services.pdos import process_data
 
     session = client.app.state.drivebench.manager.get("demo-plant")  # type: ignore[attr-defined]
     assert process_data.service(session).sync_period_ms == 20
@@ -160,7 +160,7 @@ def _frames(wire: can.BusABC, cob_id: int, seconds: float) -> int:
 
 
 def test_cyclic_rpdo_stops_when_the_live_view_closes(client: TestClient, wire: can.BusABC) -> None:
-    from drivebench.services import process_data
+    from drivebench.services.pdos import process_data
 
     sim = _plant(client).nodes[3]
     session = client.app.state.drivebench.manager.get("demo-plant")  # type: ignore[attr-defined]

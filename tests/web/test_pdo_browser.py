@@ -12,7 +12,7 @@ import httpx
 import pytest
 from fastapi import FastAPI
 
-from drivebench.services.process_data import service as live_service
+from drivebench.services.pdos.process_data import service as live_service
 from drivebench.simulator.store import Abort
 from drivebench.web.app import create_app
 from tests.conftest import DEMO_PLANT, fresh_channel, screenshot, serve_app, wait_until

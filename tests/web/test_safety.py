@@ -15,8 +15,8 @@ import pytest
 from fastapi.testclient import TestClient
 from starlette.types import ASGIApp, Receive, Scope, Send
 
-from drivebench.services import node_lease
-from drivebench.services.principals import Principal, Role
+from drivebench.services.params import node_lease
+from drivebench.services.users.principals import Principal, Role
 from drivebench.simulator.plant import Plant
 from drivebench.web.app import create_app
 from tests.conftest import DEMO_PLANT, wait_until

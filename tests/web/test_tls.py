@@ -14,8 +14,9 @@ from cryptography import x509
 
 from drivebench.config import settings
 from drivebench.errors import InvalidValue
-from drivebench.services import accounts, database
-from drivebench.services.principals import Role
+from drivebench.services.storage import database
+from drivebench.services.users import accounts
+from drivebench.services.users.principals import Role
 from drivebench.web.app import create_app
 from drivebench.web.tls import check_pair, self_signed, write_pair
 from tests.conftest import DEMO_PLANT, fresh_channel, serve_app

@@ -12,7 +12,7 @@ from typing import Any
 import pytest
 
 from drivebench.config import settings
-from drivebench.services import database
+from drivebench.services.storage import database
 from drivebench.web.app import create_app
 from tests.conftest import screenshot, serve_app
 

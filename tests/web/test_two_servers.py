@@ -18,9 +18,10 @@ import httpx
 import pytest
 
 from drivebench.config import settings
-from drivebench.services import accounts, database
-from drivebench.services.models import DownloadRow
-from drivebench.services.principals import Role
+from drivebench.services.storage import database
+from drivebench.services.storage.models import DownloadRow
+from drivebench.services.users import accounts
+from drivebench.services.users.principals import Role
 from tests.conftest import _free_port, wait_until
 from tests.pg_cluster import PostgresCluster
 from tests.transport.test_multiprocess import START_TIMEOUT_S, CliProcess

@@ -5,8 +5,8 @@ from __future__ import annotations
 from alembic import context
 from sqlalchemy import Connection, engine_from_config, pool
 
-from drivebench.services import models  # noqa: F401  (registers the tables on Base.metadata)
-from drivebench.services.database import Base
+from drivebench.services.storage import models  # noqa: F401  (registers the tables on Base.metadata)
+from drivebench.services.storage.database import Base
 
 config = context.config
 target_metadata = Base.metadata

@@ -2,8 +2,8 @@
 with it.
 
 The services reach their part through the session (``session.part(Monitor)``, wrapped by each module's accessor:
-:func:`~drivebench.services.monitor.monitor_for` ...), never through a module-level table; the session itself
-(:mod:`drivebench.services.sessions`) knows none of them.
+:func:`~drivebench.services.monitoring.monitor.monitor_for` ...), never through a module-level table; the session itself
+(:mod:`drivebench.services.bus.sessions`) knows none of them.
 """
 
 from __future__ import annotations
@@ -14,16 +14,16 @@ import re
 from dataclasses import dataclass, field
 
 from drivebench.errors import Conflict, DriveBenchError, NotFound
-from drivebench.services import monitor as monitors
-from drivebench.services import parameters as params
-from drivebench.services.commissioning import Wizard
-from drivebench.services.drive_guard import Guard
-from drivebench.services.fieldbus import SessionSpec, open_network, parse_spec
-from drivebench.services.monitor import Monitor
-from drivebench.services.node_lease import SessionLeases
-from drivebench.services.parameters import SessionParameters, WriteAudit, WriteAudits
-from drivebench.services.process_data import ProcessData
-from drivebench.services.sessions import ProfileSource, Session
+from drivebench.services.bus.fieldbus import SessionSpec, open_network, parse_spec
+from drivebench.services.bus.sessions import ProfileSource, Session
+from drivebench.services.control.commissioning import Wizard
+from drivebench.services.control.drive_guard import Guard
+from drivebench.services.monitoring import monitor as monitors
+from drivebench.services.monitoring.monitor import Monitor
+from drivebench.services.params import parameters as params
+from drivebench.services.params.node_lease import SessionLeases
+from drivebench.services.params.parameters import SessionParameters, WriteAudit, WriteAudits
+from drivebench.services.pdos.process_data import ProcessData
 
 
 def _slug(text: str) -> str:

@@ -14,6 +14,8 @@ from drivebench.errors import InvalidValue
 
 _INDEXED_COMMANDS = (1, 2, 5, 6)
 """Client command specifiers whose requests name an object: initiate download/upload, block download/upload."""
+_DOWNLOAD_COMMANDS = (1, 6)
+"""Initiate download and block download."""
 
 
 @dataclass(frozen=True)
@@ -39,6 +41,9 @@ class SdoFaults:
     answering a few requests after the client gave up on them)."""
     drop_requests: int = 0
     """Leave the next this many requests that start a transfer unanswered (lost frames), then answer again."""
+    drop_downloads: int = 0
+    """Leave the next this many download requests unanswered (a device busy writing its memory), then answer
+    again; uploads are answered meanwhile."""
 
     def __post_init__(self) -> None:
         if self.silent_after_segments is not None and self.silent_after_segments < 0:
@@ -47,8 +52,8 @@ class SdoFaults:
             raise InvalidValue("abort_code must be a 32-bit CiA 301 abort code")
         if self.abort_every < 1:
             raise InvalidValue("abort_every must be 1 or more")
-        if self.late_requests < 0 or self.drop_requests < 0:
-            raise InvalidValue("late_requests and drop_requests must be 0 or more")
+        if self.late_requests < 0 or self.drop_requests < 0 or self.drop_downloads < 0:
+            raise InvalidValue("late_requests, drop_requests and drop_downloads must be 0 or more")
         if not 0 <= self.latency_ms <= 60_000:
             raise InvalidValue("latency_ms must be 0 ... 60000")
         if not -0xFFFF <= self.index_offset <= 0xFFFF or not -0xFF <= self.subindex_offset <= 0xFF:
@@ -79,6 +84,8 @@ class SdoFaults:
             words.append(f"{self.latency_ms:g} ms extra SDO latency{which}")
         if self.drop_requests:
             words.append(f"leaves the next {self.drop_requests} requests unanswered")
+        if self.drop_downloads:
+            words.append(f"leaves the next {self.drop_downloads} download requests unanswered")
         return words
 
 
@@ -102,6 +109,7 @@ class FaultState:
         self._channels: dict[int, _ChannelCounters] = {}
         self._late_left = 0
         self._drops_left = 0
+        self._download_drops_left = 0
 
     @property
     def faults(self) -> SdoFaults:
@@ -120,6 +128,7 @@ class FaultState:
             self._channels.clear()
             self._late_left = new.late_requests
             self._drops_left = new.drop_requests
+            self._download_drops_left = new.drop_downloads
         return new
 
     def clear(self) -> None:
@@ -150,6 +159,9 @@ class FaultState:
                 counters.segments_answered = 0
                 if self._drops_left:
                     self._drops_left -= 1
+                    return 0
+                if self._download_drops_left and command in _DOWNLOAD_COMMANDS:
+                    self._download_drops_left -= 1
                     return 0
                 if faults.abort_code is not None:
                     counters.transfers += 1

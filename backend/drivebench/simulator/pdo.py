@@ -11,15 +11,12 @@ from __future__ import annotations
 import threading
 import time
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 from drivebench.errors import UnknownParameter
 from drivebench.protocol.datatypes import decode, encode
-from drivebench.services.pdo_notes import selecting_byte, static_mapping
+from drivebench.services.pdos.pdo_notes import selecting_byte, static_mapping
+from drivebench.simulator.host import DeviceHost
 from drivebench.simulator.store import Abort
-
-if TYPE_CHECKING:
-    from drivebench.simulator.node import SimulatedNode
 
 COB_INVALID = 0x80000000
 
@@ -55,7 +52,7 @@ def _int(value: object, default: int = 0) -> int:
 
 
 class PdoEngine:
-    def __init__(self, node: SimulatedNode) -> None:
+    def __init__(self, node: DeviceHost) -> None:
         self.node = node
         self.rpdos: dict[int, PdoConfig] = {}
         self.tpdos: list[PdoConfig] = []

@@ -37,8 +37,8 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from drivebench.config import settings
 from drivebench.errors import AccessDenied, DriveBenchError, NotAuthenticated, UnknownHostName
-from drivebench.services import accounts, audit
-from drivebench.services.principals import Principal, Role
+from drivebench.services.users import accounts, audit
+from drivebench.services.users.principals import Principal, Role
 from drivebench.web import access_policy, origins
 from drivebench.web.identity import principal_of
 from drivebench.web.problems import error_fragment, error_page, problem_body, wants_page

@@ -18,7 +18,7 @@ from fastapi.routing import iter_route_contexts
 from starlette.routing import Match
 from starlette.types import Scope
 
-from drivebench.services.principals import Role
+from drivebench.services.users.principals import Role
 
 SAFE_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
 WEBSOCKET = "WS"

@@ -15,11 +15,12 @@ from fastapi.staticfiles import StaticFiles
 from drivebench import __version__
 from drivebench.config import settings
 from drivebench.device.loader import ProfileRegistry
-from drivebench.services import audit, set_jobs
-from drivebench.services.database import upgrade_to_head
-from drivebench.services.parameter_sets import ParameterSetStore
 from drivebench.services.session_manager import SessionManager
-from drivebench.services.sharing import ShareLinks
+from drivebench.services.sets import set_jobs
+from drivebench.services.sets.parameter_sets import ParameterSetStore
+from drivebench.services.storage.database import upgrade_to_head
+from drivebench.services.users import audit
+from drivebench.services.users.sharing import ShareLinks
 from drivebench.simulator.plant import Plant, PlantFile
 from drivebench.web import access, problems
 from drivebench.web.api import accounts as accounts_api

@@ -9,8 +9,8 @@ from typing import Annotated
 
 from fastapi import Depends, Path, Query, Request
 
+from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.session_manager import SessionManager
-from drivebench.services.sessions import Session, SessionNode
 from drivebench.web.state import AppState
 
 

@@ -12,8 +12,8 @@ from typing import Annotated
 from fastapi import Depends
 from starlette.requests import HTTPConnection
 
-from drivebench.services import audit
-from drivebench.services.principals import Principal, Role
+from drivebench.services.users import audit
+from drivebench.services.users.principals import Principal, Role
 
 
 def principal_of(conn: HTTPConnection) -> Principal:

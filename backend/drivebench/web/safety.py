@@ -14,9 +14,10 @@ from typing import Annotated
 from fastapi import Depends
 from starlette.requests import HTTPConnection
 
-from drivebench.services import drive_guard, node_lease
-from drivebench.services.drive_guard import Panel, panel_of
-from drivebench.services.node_lease import Writer
+from drivebench.services.control import drive_guard
+from drivebench.services.control.drive_guard import Panel, panel_of
+from drivebench.services.params import node_lease
+from drivebench.services.params.node_lease import Writer
 from drivebench.web.identity import principal_of
 
 WHERE = [("/parameter-sets", "Parameter sets"), ("/parameters", "Parameters tab"), ("/pdo", "PDO tab"),

@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 from drivebench.device.loader import ProfileRegistry
 from drivebench.services.session_manager import SessionManager
-from drivebench.services.sharing import ShareLinks
+from drivebench.services.users.sharing import ShareLinks
 from drivebench.simulator.ethercat import GatewayServer
 from drivebench.simulator.plant import Plant
 

@@ -18,7 +18,7 @@ from starlette.responses import JSONResponse, RedirectResponse
 from starlette.types import ASGIApp, Receive, Scope, Send
 
 from drivebench.errors import AccessDenied, DriveBenchError
-from drivebench.services.sharing import TOKEN_PREFIX, ShareLink, ShareLinks
+from drivebench.services.users.sharing import TOKEN_PREFIX, ShareLink, ShareLinks
 from drivebench.web import access_policy
 from drivebench.web.problems import problem_body
 

@@ -1,5 +1,5 @@
 """Sessions: one per bus, each with its own network (a canopen network on a CAN bus, or an EtherCAT segment behind
-a mailbox gateway: :mod:`drivebench.services.fieldbus`), nodes and their profiles.
+a mailbox gateway: :mod:`drivebench.services.bus.fieldbus`), nodes and their profiles.
 
 Everything that touches the bus runs in worker threads (``asyncio.to_thread``); the event loop only awaits.
 """
@@ -25,9 +25,9 @@ from drivebench.protocol.ethercat_network import EthercatNetwork, SlaveInfo
 from drivebench.protocol.heartbeat import HeartbeatStatus
 from drivebench.protocol.network import CanopenNetwork
 from drivebench.protocol.nmt import STATE_AFTER, NmtCommand, NmtState
-from drivebench.services.bus_state import ADAPTER_LOST, BusHealth, GatewayHealth
-from drivebench.services.duplicates import DuplicateWatch
-from drivebench.services.fieldbus import Network, SdoClient, SessionSpec
+from drivebench.services.bus.bus_state import ADAPTER_LOST, BusHealth, GatewayHealth
+from drivebench.services.bus.duplicates import DuplicateWatch
+from drivebench.services.bus.fieldbus import Network, SdoClient, SessionSpec
 
 PartT = TypeVar("PartT")
 

@@ -8,7 +8,7 @@ from typing import Any
 
 from pydantic import BaseModel
 
-from drivebench.services.sessions import Session, SessionNode
+from drivebench.services.bus.sessions import Session, SessionNode
 
 
 class EmcyPublic(BaseModel):

@@ -25,8 +25,9 @@ from drivebench.device.control import Sequence, Step
 from drivebench.device.motion import moves, standard_motion
 from drivebench.errors import Conflict, DriveBenchError, NotFound, SdoAbortError, UnknownParameter
 from drivebench.protocol.nmt import NmtCommand
-from drivebench.services import drive_control, parameters
-from drivebench.services.sessions import Session, SessionNode
+from drivebench.services.bus.sessions import Session, SessionNode
+from drivebench.services.control import drive_control
+from drivebench.services.params import parameters
 
 __all__ = ["Run", "RunOut", "Sequence", "Step", "Wizard", "next_step", "sequences_for", "wizard"]
 

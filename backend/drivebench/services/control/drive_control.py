@@ -11,7 +11,7 @@ moves it (enable, setpoint, jog, mode, fault reset, commissioning steps) and onl
 holder's last websocket quick-stops. Every other panel watches: it sees who holds the drive and since when, and it
 may still stop the drive (quick stop, disable, shutdown), as any station of a machine may - which disarms it.
 
-The guard itself (arming, holders, keep-alive deadlines, quick stop) is :mod:`drivebench.services.drive_guard`.
+The guard itself (arming, holders, keep-alive deadlines, quick stop) is :mod:`drivebench.services.control.drive_guard`.
 """
 
 from __future__ import annotations
@@ -28,9 +28,8 @@ from drivebench.device.catalog import Catalog
 from drivebench.device.control import ActualSpec, Setpoint, WordScale
 from drivebench.device.control import JogPlan as JogSpec
 from drivebench.errors import Conflict, DriveBenchError, InvalidValue, OutOfRange, UnknownParameter
-from drivebench.services import node_lease, parameters
-from drivebench.services import process_data as live
-from drivebench.services.drive_guard import (
+from drivebench.services.bus.sessions import Session, SessionNode
+from drivebench.services.control.drive_guard import (
     ARM_SETTLE_S,
     SERVICE_PANEL,
     Panel,
@@ -41,9 +40,9 @@ from drivebench.services.drive_guard import (
     require_confirmation,
     write_word,
 )
-from drivebench.services.drive_units import generic_limits as _generic_limits
-from drivebench.services.drive_units import motion_units
-from drivebench.services.drive_words import (
+from drivebench.services.control.drive_units import generic_limits as _generic_limits
+from drivebench.services.control.drive_units import motion_units
+from drivebench.services.control.drive_words import (
     COMMAND_LABELS,
     Command,
     Family,
@@ -51,13 +50,14 @@ from drivebench.services.drive_words import (
     next_control_word,
     state_label,
 )
-from drivebench.services.sessions import Session, SessionNode
+from drivebench.services.params import node_lease, parameters
+from drivebench.services.pdos import process_data as live
 
 # the rest of the guard's surface, re-exported for this module's callers (web api/ws/pages, tests)
-from drivebench.services.drive_guard import KEEPALIVE_TIMEOUT_S as KEEPALIVE_TIMEOUT_S  # isort: skip
-from drivebench.services.drive_guard import Guard as Guard  # isort: skip
-from drivebench.services.drive_guard import Holder as Holder  # isort: skip
-from drivebench.services.drive_guard import panel_of as panel_of  # isort: skip
+from drivebench.services.control.drive_guard import KEEPALIVE_TIMEOUT_S as KEEPALIVE_TIMEOUT_S  # isort: skip
+from drivebench.services.control.drive_guard import Guard as Guard  # isort: skip
+from drivebench.services.control.drive_guard import Holder as Holder  # isort: skip
+from drivebench.services.control.drive_guard import panel_of as panel_of  # isort: skip
 
 # --- setpoint and actual values --------------------------------------------------------------------------------
 @dataclass(frozen=True)

@@ -7,7 +7,7 @@ that armed it *holds* it until it is disarmed, and must send keep-alives at leas
 (an API client may ask for up to :data:`MAX_KEEPALIVE_S`). When they stop, or the holder's last websocket closes, the
 guard stops the node itself (:meth:`Guard.trip`): cyclic RPDOs to it end, quick stop is written to its control word
 (through the guard's own control-word I/O below, so stopping never depends on the panel logic in
-:mod:`drivebench.services.drive_control`) and, if the tool started it, NMT pre-operational is sent.
+:mod:`drivebench.services.control.drive_control`) and, if the tool started it, NMT pre-operational is sent.
 
 Parameter writes go the same way, whatever route sends them (:func:`admit_moving_write`, called by
 :func:`parameters.write` for what :mod:`drivebench.device.motion` marks as moving): the request's confirmation and
@@ -32,11 +32,11 @@ from urllib.parse import unquote
 
 from drivebench.errors import ConfirmationRequired, Conflict, DriveBenchError, InvalidValue
 from drivebench.protocol.nmt import NmtCommand
-from drivebench.services import node_lease, parameters
-from drivebench.services import process_data as live
-from drivebench.services.drive_words import Command, family_of, next_control_word
-from drivebench.services.parameters import MovingWrites
-from drivebench.services.sessions import Session, SessionNode
+from drivebench.services.bus.sessions import Session, SessionNode
+from drivebench.services.control.drive_words import Command, family_of, next_control_word
+from drivebench.services.params import node_lease, parameters
+from drivebench.services.params.parameters import MovingWrites
+from drivebench.services.pdos import process_data as live
 
 KEEPALIVE_TIMEOUT_S = 2.0
 MAX_KEEPALIVE_S = 10.0

@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 from drivebench.device import cia402
 from drivebench.errors import DriveBenchError, UnknownParameter
-from drivebench.services import parameters
-from drivebench.services.sessions import Session, SessionNode
+from drivebench.services.bus.sessions import Session, SessionNode
+from drivebench.services.params import parameters
 
 UNITS_TTL_S = 5.0
 

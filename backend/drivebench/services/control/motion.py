@@ -20,12 +20,13 @@ from pydantic import BaseModel
 
 from drivebench.device import cia402
 from drivebench.errors import Conflict, InvalidValue, OutOfRange
-from drivebench.services import drive_control, parameters
-from drivebench.services import process_data as live
-from drivebench.services.drive_control import SERVICE_PANEL, DriveStatus, Panel, guard_for, has_ref
-from drivebench.services.drive_guard import cleared
-from drivebench.services.drive_units import motion_units
-from drivebench.services.sessions import Session, SessionNode
+from drivebench.services.bus.sessions import Session, SessionNode
+from drivebench.services.control import drive_control
+from drivebench.services.control.drive_control import SERVICE_PANEL, DriveStatus, Panel, guard_for, has_ref
+from drivebench.services.control.drive_guard import cleared
+from drivebench.services.control.drive_units import motion_units
+from drivebench.services.params import parameters
+from drivebench.services.pdos import process_data as live
 
 NEW_SET_POINT, CHANGE_IMMEDIATELY, RELATIVE = 0x0010, 0x0020, 0x0040
 MODE_BITS = NEW_SET_POINT | CHANGE_IMMEDIATELY | RELATIVE | 0x0100  # and halt

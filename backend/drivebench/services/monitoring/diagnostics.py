@@ -14,8 +14,8 @@ from drivebench.device.profile import EmcyCode, Profile
 from drivebench.errors import DriveBenchError, InvalidValue
 from drivebench.protocol.emcy import EmcyEvent
 from drivebench.protocol.guarding import GuardStatus
-from drivebench.services import node_lease, parameters
-from drivebench.services.sessions import Session, SessionNode
+from drivebench.services.bus.sessions import Session, SessionNode
+from drivebench.services.params import node_lease, parameters
 
 HEARTBEAT_PRODUCER = 0x1017
 HEARTBEAT_CONSUMERS = 0x1016

@@ -35,7 +35,7 @@ from drivebench.protocol.decode import (
     classify,
     decode_frame,
 )
-from drivebench.services.sessions import Session
+from drivebench.services.bus.sessions import Session
 from drivebench.transport.busload import REORDER_S, FrameClock, LoadWindows, message_bits
 
 TRACE_CAPACITY = 10_000

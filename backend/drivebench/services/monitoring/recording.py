@@ -24,7 +24,7 @@ import can
 
 from drivebench.config import settings
 from drivebench.errors import Conflict, InvalidValue, NotFound
-from drivebench.services.sessions import Session
+from drivebench.services.bus.sessions import Session
 from drivebench.transport.pcapng import PcapngWriter
 
 FORMATS = {"pcapng": "pcapng, SocketCAN link type (.pcapng, Wireshark)", "log": "candump log (.log)",

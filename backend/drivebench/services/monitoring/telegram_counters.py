@@ -18,8 +18,8 @@ from typing import Any
 from drivebench.device.catalog import Catalog, Item
 from drivebench.device.profile import Parameter
 from drivebench.errors import NotFound
-from drivebench.services.monitor import Monitor
-from drivebench.services.sessions import Session
+from drivebench.services.bus.sessions import Session
+from drivebench.services.monitoring.monitor import Monitor
 
 WRAP = 1 << 16
 _CHANNEL = re.compile(r"\b(CAN[12]|SDO[12])[ _](IN|OUT)\b", re.IGNORECASE)

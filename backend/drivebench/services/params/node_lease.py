@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 from typing import Concatenate, ParamSpec, TypeVar
 
 from drivebench.errors import Conflict, NotFound
-from drivebench.services.sessions import Session
+from drivebench.services.bus.sessions import Session
 
 LEASE_TTL_S = 30.0
 log = logging.getLogger(__name__)

@@ -7,7 +7,7 @@
 * Device commands: save, restore defaults, reset node, the way the device's profile offers them.
 * Read-all spreads one node's reads over its SDO channels (SDO2 where the device has one) and runs different
   nodes in parallel; a read that timed out is asked again at the end, a node judged silent from evidence
-  (:mod:`drivebench.services.node_silence`) is given up and never holds the others up.
+  (:mod:`drivebench.services.params.node_silence`) is given up and never holds the others up.
 
 Bus work runs in this module's own thread pool, so a slow node never waits for a free worker thread.
 """
@@ -52,11 +52,11 @@ from drivebench.protocol.heartbeat import HeartbeatStatus
 from drivebench.protocol.network import NodeClient, SdoChannel
 from drivebench.protocol.nmt import NmtCommand
 from drivebench.protocol.sdo_fast import ExpeditedRequest, upload_expedited
-from drivebench.services import node_lease
-from drivebench.services.fieldbus import SdoClient
-from drivebench.services.jobs import Job, JobIssue, JobManager
-from drivebench.services.node_silence import NodeSilence
-from drivebench.services.sessions import Session, SessionNode
+from drivebench.services.bus.fieldbus import SdoClient
+from drivebench.services.bus.sessions import Session, SessionNode
+from drivebench.services.params import node_lease
+from drivebench.services.params.jobs import Job, JobIssue, JobManager
+from drivebench.services.params.node_silence import NodeSilence
 
 T = TypeVar("T")
 
@@ -489,7 +489,7 @@ async def write(session: Session, node_id: int, ref: str, value: object, *, chec
                 verify: bool = True) -> WriteResult:
     """Validate, send, read back. ``value`` is what a user typed (``"10.2"``, ``"10.20 A"``, ``"500 kbit/s"``)
     or a number in engineering units. ``check=False`` leaves range, selection and read-only to the device.
-    Refused (409) while another writer holds the node's lease (:mod:`drivebench.services.node_lease`).
+    Refused (409) while another writer holds the node's lease (:mod:`drivebench.services.params.node_lease`).
 
     A write that can make the drive move (:mod:`drivebench.device.motion`: a control word, setpoint, mode ...)
     needs the confirmation naming the node and arms the keep-alive guard (:func:`drive_guard.admit_moving_write`);
@@ -689,7 +689,12 @@ def _silence(session: Session, client: SdoClient, channel: int) -> NodeSilence:
                        session.network.heartbeat)
 
 
-async def _read_node(session: Session, node: SessionNode, work: list[Item], job: Job) -> None:
+def silence_watch(session: Session, node_id: int) -> NodeSilence:
+    """Evidence whether the node has gone silent, for a long job that writes or reads it on its first channel."""
+    return _silence(session, session.client(node_id), 1)
+
+
+async def read_node(session: Session, node: SessionNode, work: list[Item], job: Job) -> None:
     """Read the items over the node's SDO channels. A read that times out is asked again at the end; the node is
     given up only when :class:`NodeSilence` judges it silent (not after two slow answers)."""
     state = service(session)
@@ -764,7 +769,7 @@ def start_read(session: Session, node_ids: Iterable[int], jobs: JobManager, *, g
     async def run(job: Job) -> None:
         job.result["values"] = {}
         try:
-            await asyncio.gather(*(_read_node(session, node, work[node.node_id], job) for node in nodes))
+            await asyncio.gather(*(read_node(session, node, work[node.node_id], job) for node in nodes))
         except TransportError as exc:  # the adapter is gone: stop, keep what was read, say how far it got
             read = sum(len(values) for values in job.result["values"].values())
             raise TransportError(f"{exc.detail}, {read} of {total} parameters read before",

@@ -19,8 +19,9 @@ from drivebench.device.profile import Access, Entry, ObjectEntry
 from drivebench.device.scaling import from_raw
 from drivebench.errors import DriveBenchError, InvalidValue, NotFound, ProtocolError, SdoAbortError
 from drivebench.protocol.datatypes import DataType, decode
-from drivebench.services import node_lease, pdo_notes
-from drivebench.services.sessions import Session
+from drivebench.services.bus.sessions import Session
+from drivebench.services.params import node_lease
+from drivebench.services.pdos import pdo_notes
 
 Direction = Literal["rpdo", "tpdo"]
 COMM_BASE: dict[str, int] = {"rpdo": 0x1400, "tpdo": 0x1800}

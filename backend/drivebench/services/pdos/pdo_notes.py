@@ -1,7 +1,7 @@
 """What the manuals say about a device's PDOs beyond CiA 301, read from its profile's ``pdo_rules`` section
 (:mod:`drivebench.device.pdo_rules`): notes, permitted transmission types, static mappings, the vendor parameters
 that shape a PDO and the mapping sequence a selecting byte imposes. Texts for the PDO tab and checks for
-:func:`drivebench.services.pdo.check_mapping`.
+:func:`drivebench.services.pdos.pdo.check_mapping`.
 """
 
 from __future__ import annotations

@@ -23,9 +23,9 @@ from drivebench.device.profile import Entry
 from drivebench.device.scaling import from_raw, to_raw
 from drivebench.errors import Conflict, DriveBenchError, InvalidValue, NotFound
 from drivebench.protocol.datatypes import decode, encode
-from drivebench.services import pdo
-from drivebench.services.pdo import Direction, PdoConfig
-from drivebench.services.sessions import Session
+from drivebench.services.bus.sessions import Session
+from drivebench.services.pdos import pdo
+from drivebench.services.pdos.pdo import Direction, PdoConfig
 
 SYNC_COB_ID = 0x080
 MIN_CYCLE_MS = 1

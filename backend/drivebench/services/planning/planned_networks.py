@@ -12,10 +12,10 @@ from sqlalchemy.orm import Session as DbSession
 
 from drivebench.device.dip import family_spec, resolve_family
 from drivebench.errors import DriveBenchError, NotFound
-from drivebench.services.database import transaction
-from drivebench.services.models import PlannedNetworkRow, utcnow
-from drivebench.services.planner import EXPECTED_VENDOR_ID, NetworkPlan, PlannedNode
-from drivebench.services.sessions import Session, SessionNode
+from drivebench.services.bus.sessions import Session, SessionNode
+from drivebench.services.planning.planner import EXPECTED_VENDOR_ID, NetworkPlan, PlannedNode
+from drivebench.services.storage.database import transaction
+from drivebench.services.storage.models import PlannedNetworkRow, utcnow
 
 
 class PlannedNetworkSummary(BaseModel):

@@ -7,8 +7,8 @@ old ones stay (history). Only parameters a download can write go into a set: rea
 device commands (``C00002/x``, ``0x1010``/``0x1011`` save/restore, reset node) - downloading those would
 *do* something rather than set something.
 
-Jobs that talk to the device (upload, download, retry, rollback) are in ``services/set_jobs.py``; file formats
-in ``services/set_formats.py``.
+Jobs that talk to the device (upload, download, retry, rollback) are in ``services/sets/set_jobs.py``; file formats
+in ``services/sets/set_formats.py``.
 """
 
 from __future__ import annotations
@@ -32,9 +32,9 @@ from drivebench.device.eds import resolve_node_expr
 from drivebench.device.profile import ObjectEntry, Profile
 from drivebench.device.scaling import from_raw
 from drivebench.errors import Conflict, InvalidValue, NotFound
-from drivebench.services import parameters
-from drivebench.services.database import transaction
-from drivebench.services.models import DownloadRow, ParameterSetRow, ParameterSetVersionRow, utcnow
+from drivebench.services.params import parameters
+from drivebench.services.storage.database import transaction
+from drivebench.services.storage.models import DownloadRow, ParameterSetRow, ParameterSetVersionRow, utcnow
 
 Raw = int | float | str
 Values = dict[str, Raw]

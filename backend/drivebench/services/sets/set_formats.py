@@ -35,7 +35,7 @@ from drivebench.device.profile import Profile
 from drivebench.device.scaling import format_value, to_raw
 from drivebench.device.xdd_export import export_xdd
 from drivebench.errors import DriveBenchError, InvalidValue, ProfileError, UnknownParameter
-from drivebench.services.parameter_sets import (
+from drivebench.services.sets.parameter_sets import (
     TOOL_CHANNELS,
     Raw,
     StoredSet,

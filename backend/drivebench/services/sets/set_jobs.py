@@ -27,10 +27,11 @@ from drivebench.device.catalog import Item
 from drivebench.device.motion import moves
 from drivebench.device.profile import Profile
 from drivebench.errors import Conflict, DriveBenchError, SdoAbortError, SdoTimeoutError, UnknownParameter
-from drivebench.services import audit, drive_guard, parameters
-from drivebench.services.jobs import Job, JobIssue, JobManager
-from drivebench.services.models import DownloadRow
-from drivebench.services.parameter_sets import (
+from drivebench.services.bus.sessions import Session, SessionNode
+from drivebench.services.control import drive_guard
+from drivebench.services.params import parameters
+from drivebench.services.params.jobs import Job, JobIssue, JobManager
+from drivebench.services.sets.parameter_sets import (
     SERVER,
     ParameterSetStore,
     Raw,
@@ -43,9 +44,9 @@ from drivebench.services.parameter_sets import (
     settable,
     shown,
 )
-from drivebench.services.sessions import Session, SessionNode
+from drivebench.services.storage.models import DownloadRow
+from drivebench.services.users import audit
 
-SILENT_AFTER_TIMEOUTS = 2
 REDO = ("failed", "mismatch", "not attempted")
 """Report states a retry writes again."""
 CHANGED = ("written", "mismatch", "failed")
@@ -104,7 +105,7 @@ async def read_items(session: Session, node: SessionNode, items: list[Item], job
     """Raw values by ref, and the refs that could not be read with why."""
     first_issue = len(job.issues)
     job.result.setdefault("values", {}).pop(str(node.node_id), None)
-    await parameters._read_node(session, node, items, job)
+    await parameters.read_node(session, node, items, job)
     found = job.result.get("values", {}).pop(str(node.node_id), {})
     values: Values = {}
     for ref, value in found.items():
@@ -296,7 +297,9 @@ class _Writer:
         self.session, self.node, self.job = session, node, job
         self.items, self.before, self.unread = items, before, unread
         self.lines: dict[str, ReportLine] = {}
-        self.timeouts = 0
+        self.silence = parameters.silence_watch(session, node.node_id)
+        """Gives the node up only on evidence (:mod:`~drivebench.services.params.node_silence`), not after two slow
+        answers on a busy machine."""
 
     def report(self) -> list[dict[str, Any]]:
         return [line.model_dump() for line in self.lines.values()]
@@ -333,7 +336,7 @@ class _Writer:
             line.status, line.detail = "failed", "not a parameter of this device's profile (not sent)"
             self.job.advance(issue=JobIssue(line.ref, line.detail, self.node.node_id))
             return
-        if self.timeouts >= SILENT_AFTER_TIMEOUTS:
+        if self.silence.verdict is not None:
             line.detail = f"node {self.node.node_id} stopped answering; not sent (value as read before)"
             self.job.advance(issue=JobIssue(line.ref, line.detail, self.node.node_id))
             return
@@ -344,14 +347,14 @@ class _Writer:
         try:
             result = await parameters.write(self.session, self.node.node_id, item.ref, engineering(item, target))
         except SdoTimeoutError as exc:
-            self.timeouts += 1
+            await self.silence.timed_out(exc)
             line.status, line.detail = "failed", exc.detail
             line.now = None
             line.now_raw = None
             self.job.advance(issue=JobIssue(line.ref, exc.detail, self.node.node_id))
             return
         except SdoAbortError as exc:
-            self.timeouts = 0
+            self.silence.answered()
             line.status, line.detail = "failed", exc.detail
             line.abort_code, line.abort_text = f"0x{exc.abort_code:08X}", exc.abort_text
             self.job.advance(issue=JobIssue(line.ref, exc.detail, self.node.node_id, line.abort_code, exc.abort_text))
@@ -360,7 +363,7 @@ class _Writer:
             line.status, line.detail = "failed", f"not sent: {exc.detail}"
             self.job.advance(issue=JobIssue(line.ref, line.detail, self.node.node_id))
             return
-        self.timeouts = 0
+        self.silence.answered()
         state, detail = audit.outcome(result, None)
         line.status = "mismatch" if state == "mismatch" else "written"
         line.detail = detail
@@ -377,7 +380,7 @@ class _Writer:
 
     async def read_failed_again(self) -> None:
         """After an abort the device holds *some* value: read it, so the report says which."""
-        if self.timeouts >= SILENT_AFTER_TIMEOUTS:
+        if self.silence.verdict is not None:
             return
         for line in self.lines.values():
             item = self.items.get(line.ref)

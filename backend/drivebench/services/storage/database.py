@@ -22,11 +22,11 @@ from sqlalchemy.orm import DeclarativeBase, Session, sessionmaker
 
 from drivebench.config import settings
 
-MIGRATIONS_DIR = Path(__file__).resolve().parents[1] / "migrations"
+MIGRATIONS_DIR = Path(__file__).resolve().parents[2] / "migrations"
 
 
 class Base(DeclarativeBase):
-    """Declarative base of every table (``services/models.py``)."""
+    """Declarative base of every table (``services/storage/models.py``)."""
 
 
 _engines: dict[str, Engine] = {}

@@ -9,7 +9,7 @@ from typing import Any
 from sqlalchemy import JSON, Boolean, DateTime, Float, ForeignKey, Integer, String, Text, UniqueConstraint
 from sqlalchemy.orm import Mapped, mapped_column
 
-from drivebench.services.database import Base
+from drivebench.services.storage.database import Base
 
 
 def utcnow() -> datetime:

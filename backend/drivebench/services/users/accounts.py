@@ -26,8 +26,8 @@ from sqlalchemy.orm import Session
 
 from drivebench.config import settings
 from drivebench.errors import AccessDenied, Conflict, InvalidValue, NotAuthenticated, NotFound
-from drivebench.services.database import transaction
-from drivebench.services.models import (
+from drivebench.services.storage.database import transaction
+from drivebench.services.storage.models import (
     ApiTokenRow,
     SignedOutSessionRow,
     SignInFailureRow,
@@ -35,7 +35,7 @@ from drivebench.services.models import (
     new_session_stamp,
     utcnow,
 )
-from drivebench.services.principals import Principal, Role
+from drivebench.services.users.principals import Principal, Role
 
 TOKEN_PREFIX = "dbt_"
 NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9._@-]{0,59}")

@@ -21,10 +21,10 @@ from datetime import datetime
 from sqlalchemy import or_, select, update
 
 from drivebench.errors import DriveBenchError, SdoAbortError
-from drivebench.services import parameters
-from drivebench.services.database import transaction
-from drivebench.services.models import AuditRow, utcnow
-from drivebench.services.parameters import WriteAttempt, WriteResult
+from drivebench.services.params import parameters
+from drivebench.services.params.parameters import WriteAttempt, WriteResult
+from drivebench.services.storage.database import transaction
+from drivebench.services.storage.models import AuditRow, utcnow
 
 
 def _local_user() -> str:
@@ -92,8 +92,8 @@ def outcome(result: WriteResult | None, error: BaseException | None) -> tuple[st
 
 
 class AuditLog:
-    """The :class:`~drivebench.services.parameters.WriteAudit` that stores rows (``url``: None = settings'); a server
-    hands it to its session manager, which gives it to every session it opens."""
+    """The :class:`~drivebench.services.params.parameters.WriteAudit` that stores rows (``url``: None =
+    settings'); a server hands it to its session manager, which gives it to every session it opens."""
 
     def __init__(self, url: str | None = None) -> None:
         self.url = url

@@ -17,8 +17,8 @@ from dataclasses import dataclass
 from sqlalchemy import delete, or_, select
 
 from drivebench.errors import NotAuthenticated, NotFound
-from drivebench.services.database import transaction
-from drivebench.services.models import ShareLinkRow
+from drivebench.services.storage.database import transaction
+from drivebench.services.storage.models import ShareLinkRow
 
 TOKEN_PREFIX = "dbv_"
 MAX_TTL_S = 7 * 24 * 3600

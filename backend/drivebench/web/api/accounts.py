@@ -11,8 +11,8 @@ from fastapi.responses import JSONResponse
 from pydantic import BaseModel, Field
 
 from drivebench.errors import Conflict, NotAuthenticated
-from drivebench.services import accounts
-from drivebench.services.principals import Principal, Role
+from drivebench.services.users import accounts
+from drivebench.services.users.principals import Principal, Role
 from drivebench.web import access
 from drivebench.web.deps import RowId
 from drivebench.web.identity import PrincipalDep

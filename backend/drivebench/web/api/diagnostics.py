@@ -10,9 +10,9 @@ from fastapi.responses import HTMLResponse, Response
 from pydantic import BaseModel, Field
 from starlette.requests import HTTPConnection
 
-from drivebench.services import diagnostics
-from drivebench.services.diagnostics import EmcyRecord, GuardingPublic, HeartbeatSetup, NodeHealth
-from drivebench.services.sharing import IssuedLink, ShareLink
+from drivebench.services.monitoring import diagnostics
+from drivebench.services.monitoring.diagnostics import EmcyRecord, GuardingPublic, HeartbeatSetup, NodeHealth
+from drivebench.services.users.sharing import IssuedLink, ShareLink
 from drivebench.web.deps import NodeDep, SessionDep, StateDep
 from drivebench.web.origins import public_base_url
 from drivebench.web.safety import ACTING

@@ -13,12 +13,12 @@ from __future__ import annotations
 from fastapi import APIRouter, Request
 from pydantic import BaseModel, Field
 
-from drivebench.services import commissioning, drive_control, motion
-from drivebench.services.commissioning import RunOut
-from drivebench.services.drive_control import ActualValue, DriveStatus, JogPlan
-from drivebench.services.drive_guard import require_confirmation
-from drivebench.services.drive_words import Command
-from drivebench.services.motion import CyclicStream, MotionInfo
+from drivebench.services.control import commissioning, drive_control, motion
+from drivebench.services.control.commissioning import RunOut
+from drivebench.services.control.drive_control import ActualValue, DriveStatus, JogPlan
+from drivebench.services.control.drive_guard import require_confirmation
+from drivebench.services.control.drive_words import Command
+from drivebench.services.control.motion import CyclicStream, MotionInfo
 from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.safety import ACTING, PanelDep, confirmation
 

@@ -14,9 +14,9 @@ from fastapi import APIRouter, Path, Query
 from fastapi.responses import FileResponse
 from pydantic import BaseModel, Field, model_validator
 
-from drivebench.services import telegram_counters
-from drivebench.services.monitor import MonitorFilter, monitor_for
-from drivebench.services.recording import FORMATS, MEDIA_TYPES, recordings_for
+from drivebench.services.monitoring import telegram_counters
+from drivebench.services.monitoring.monitor import MonitorFilter, monitor_for
+from drivebench.services.monitoring.recording import FORMATS, MEDIA_TYPES, recordings_for
 from drivebench.web.deps import SessionDep
 
 router = APIRouter(prefix="/api/sessions/{session_id}/monitor", tags=["monitor"])

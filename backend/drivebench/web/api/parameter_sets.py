@@ -19,10 +19,10 @@ from drivebench.config import settings
 from drivebench.device.loader import original_file
 from drivebench.device.profile import Profile
 from drivebench.errors import InvalidValue
-from drivebench.services import audit, set_formats, set_jobs
-from drivebench.services.jobs import Job, JobManager
-from drivebench.services.models import DownloadRow
-from drivebench.services.parameter_sets import (
+from drivebench.services.params.jobs import Job, JobManager
+from drivebench.services.session_manager import SessionManager
+from drivebench.services.sets import set_formats, set_jobs
+from drivebench.services.sets.parameter_sets import (
     Comparison,
     ParameterSetStore,
     SetInfo,
@@ -37,8 +37,9 @@ from drivebench.services.parameter_sets import (
     set_source,
     shown,
 )
-from drivebench.services.session_manager import SessionManager
-from drivebench.services.set_jobs import ReportLine
+from drivebench.services.sets.set_jobs import ReportLine
+from drivebench.services.storage.models import DownloadRow
+from drivebench.services.users import audit
 from drivebench.web.api.parameters import JobOut, JobsDep, job_out
 from drivebench.web.deps import MAX_ROW_ID, ManagerDep, RowId, RowVersion, StateDep
 from drivebench.web.safety import ACTING

@@ -14,10 +14,10 @@ from pydantic import BaseModel, Field, model_validator
 from drivebench.device.catalog import Item
 from drivebench.device.scaling import ScaledValue
 from drivebench.errors import DriveBenchError
-from drivebench.services import drive_guard
-from drivebench.services import parameters as service
-from drivebench.services.jobs import Job, JobManager
-from drivebench.services.parameters import DeviceCommand, ParameterValue, SdoSettings, WriteResult
+from drivebench.services.control import drive_guard
+from drivebench.services.params import parameters as service
+from drivebench.services.params.jobs import Job, JobManager
+from drivebench.services.params.parameters import DeviceCommand, ParameterValue, SdoSettings, WriteResult
 from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.problems import problem_body
 from drivebench.web.safety import ACTING

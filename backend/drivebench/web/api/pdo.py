@@ -5,8 +5,8 @@ from __future__ import annotations
 from fastapi import APIRouter
 from fastapi.responses import JSONResponse, PlainTextResponse
 
-from drivebench.services import pdo
-from drivebench.services.pdo import ApplyReport, Direction, MappedObject, PdoConfig, PdoWrite
+from drivebench.services.pdos import pdo
+from drivebench.services.pdos.pdo import ApplyReport, Direction, MappedObject, PdoConfig, PdoWrite
 from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.safety import ACTING
 

@@ -17,11 +17,12 @@ from pydantic import BaseModel, Field, model_validator
 
 from drivebench.errors import AccessDenied, InvalidValue
 from drivebench.protocol.nmt import COMMAND_BY_NAME, NmtCommand
-from drivebench.services import drive_guard, node_lease
-from drivebench.services.fieldbus import SessionSpec, parse_spec
-from drivebench.services.principals import Role
-from drivebench.services.sessions import Session
-from drivebench.services.views import NodePublic, SessionPublic, node_public, nodes_public, session_public
+from drivebench.services.bus.fieldbus import SessionSpec, parse_spec
+from drivebench.services.bus.sessions import Session
+from drivebench.services.bus.views import NodePublic, SessionPublic, node_public, nodes_public, session_public
+from drivebench.services.control import drive_guard
+from drivebench.services.params import node_lease
+from drivebench.services.users.principals import Role
 from drivebench.transport.bus import BusSpec, known_interfaces
 from drivebench.web.deps import ManagerDep, NodeDep, SessionDep
 from drivebench.web.identity import PrincipalDep, principal_of

@@ -36,6 +36,8 @@ class FaultsIn(BaseModel):
                                                                    "a transfer get the extra time (0: every one)")
     drop_requests: int = Field(0, ge=0, le=1_000_000, description="Leave the next this many requests that start "
                                                                    "a transfer unanswered")
+    drop_downloads: int = Field(0, ge=0, le=1_000_000, description="Leave the next this many download requests "
+                                                                    "unanswered (uploads are answered)")
 
     @field_validator("abort_code")
     @classmethod

@@ -25,14 +25,14 @@ from drivebench.device.cable import (
 from drivebench.device.cobids import NOTES, CobId, PdoIds, cob_ids
 from drivebench.device.dip import FAMILIES, LENZE_8400_MOTEC, DipResult, FamilySpec, decode, encode, family_spec
 from drivebench.errors import DriveBenchError, InvalidValue
-from drivebench.services.planned_networks import (
+from drivebench.services.planning.planned_networks import (
     LiveComparison,
     PlannedNetwork,
     PlannedNetworkStore,
     PlannedNetworkSummary,
     compare_with_session,
 )
-from drivebench.services.planner import NetworkPlan, PlanReport, check_plan
+from drivebench.services.planning.planner import NetworkPlan, PlanReport, check_plan
 from drivebench.web.deps import ManagerDep, RowId
 
 router = APIRouter(prefix="/api/tools", tags=["tools"])

@@ -9,8 +9,8 @@ from fastapi import APIRouter, Form, Request
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 
 from drivebench.errors import DriveBenchError, InvalidValue
-from drivebench.services import accounts
-from drivebench.services.principals import Role
+from drivebench.services.users import accounts
+from drivebench.services.users.principals import Role
 from drivebench.web import access
 from drivebench.web.api.accounts import FIRST_ADMIN, sign_in
 from drivebench.web.deps import RowId

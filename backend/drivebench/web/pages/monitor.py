@@ -7,11 +7,11 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Form, Query, Request
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 
-from drivebench.services import telegram_counters
-from drivebench.services.monitor import SERVICE_GROUPS, monitor_for
-from drivebench.services.recording import FORMATS, recordings_for
-from drivebench.services.sessions import Session
-from drivebench.services.views import NodePublic, nodes_public, session_public
+from drivebench.services.bus.sessions import Session
+from drivebench.services.bus.views import NodePublic, nodes_public, session_public
+from drivebench.services.monitoring import telegram_counters
+from drivebench.services.monitoring.monitor import SERVICE_GROUPS, monitor_for
+from drivebench.services.monitoring.recording import FORMATS, recordings_for
 from drivebench.web.deps import SessionDep, StateDep
 from drivebench.web.templating import templates
 

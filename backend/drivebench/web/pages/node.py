@@ -16,12 +16,13 @@ from fastapi.responses import HTMLResponse, Response
 from drivebench.device.catalog import Item
 from drivebench.device.motion import motion_of
 from drivebench.errors import AccessDenied, DriveBenchError, NodeOffline, NotFound, SdoTimeoutError
-from drivebench.services import drive_guard, node_lease
-from drivebench.services import parameters as service
-from drivebench.services.parameters import DeviceCommand, WriteResult
-from drivebench.services.principals import Role
-from drivebench.services.sessions import Session, SessionNode
-from drivebench.services.views import node_public
+from drivebench.services.bus.sessions import Session, SessionNode
+from drivebench.services.bus.views import node_public
+from drivebench.services.control import drive_guard
+from drivebench.services.params import node_lease
+from drivebench.services.params import parameters as service
+from drivebench.services.params.parameters import DeviceCommand, WriteResult
+from drivebench.services.users.principals import Role
 from drivebench.web.api.parameters import jobs_of
 from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.identity import PrincipalDep

@@ -14,8 +14,8 @@ from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse, Response
 
 from drivebench.errors import DriveBenchError
-from drivebench.services import commissioning, drive_control, motion
-from drivebench.services.drive_words import Family, family_of
+from drivebench.services.control import commissioning, drive_control, motion
+from drivebench.services.control.drive_words import Family, family_of
 from drivebench.web.access_policy import rule_for
 from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.identity import principal_of

@@ -8,9 +8,9 @@ from fastapi import APIRouter, Form, Request
 from fastapi.responses import HTMLResponse, Response
 
 from drivebench.errors import DriveBenchError
-from drivebench.services import diagnostics
-from drivebench.services.sessions import Session, SessionNode
-from drivebench.services.views import node_public
+from drivebench.services.bus.sessions import Session, SessionNode
+from drivebench.services.bus.views import node_public
+from drivebench.services.monitoring import diagnostics
 from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.safety import ACTING
 from drivebench.web.templating import templates

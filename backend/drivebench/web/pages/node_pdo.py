@@ -19,12 +19,13 @@ from pydantic import BaseModel
 
 from drivebench.errors import AccessDenied, InvalidValue
 from drivebench.protocol.nmt import NmtCommand
-from drivebench.services import drive_guard, pdo, pdo_notes
-from drivebench.services import process_data as live
-from drivebench.services.pdo import ApplyReport, Direction, PdoConfig, PdoWrite
-from drivebench.services.principals import Role
-from drivebench.services.sessions import Session, SessionNode
-from drivebench.services.views import node_public
+from drivebench.services.bus.sessions import Session, SessionNode
+from drivebench.services.bus.views import node_public
+from drivebench.services.control import drive_guard
+from drivebench.services.pdos import pdo, pdo_notes
+from drivebench.services.pdos import process_data as live
+from drivebench.services.pdos.pdo import ApplyReport, Direction, PdoConfig, PdoWrite
+from drivebench.services.users.principals import Role
 from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.identity import principal_of
 from drivebench.web.safety import ACTING, PanelDep, confirmation

@@ -12,10 +12,11 @@ from fastapi.responses import HTMLResponse, Response
 from starlette.datastructures import FormData, UploadFile
 
 from drivebench.errors import DriveBenchError, InvalidValue
-from drivebench.services import audit, set_formats, set_jobs
-from drivebench.services.jobs import Job, JobManager
-from drivebench.services.parameter_sets import compare, comparison_csv, retarget
+from drivebench.services.params.jobs import Job, JobManager
 from drivebench.services.session_manager import SessionManager
+from drivebench.services.sets import set_formats, set_jobs
+from drivebench.services.sets.parameter_sets import compare, comparison_csv, retarget
+from drivebench.services.users import audit
 from drivebench.web.api.parameter_sets import (
     CompareIn,
     SourceIn,

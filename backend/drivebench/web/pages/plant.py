@@ -13,9 +13,9 @@ from fastapi.responses import HTMLResponse, Response
 
 from drivebench.errors import Conflict, DriveBenchError
 from drivebench.protocol.nmt import COMMAND_BY_NAME
-from drivebench.services.fieldbus import ETHERCAT_INTERFACES, SessionSpec, parse_spec
-from drivebench.services.sessions import Session
-from drivebench.services.views import nodes_public, session_public
+from drivebench.services.bus.fieldbus import ETHERCAT_INTERFACES, SessionSpec, parse_spec
+from drivebench.services.bus.sessions import Session
+from drivebench.services.bus.views import nodes_public, session_public
 from drivebench.transport.bus import BusSpec, known_interfaces
 from drivebench.web.api.sessions import NodeNmtRequest, send_nmt
 from drivebench.web.deps import ManagerDep, SessionDep, StateDep

@@ -7,7 +7,7 @@ from typing import Any
 from fastapi import APIRouter, Form, Request
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 
-from drivebench.services import diagnostics
+from drivebench.services.monitoring import diagnostics
 from drivebench.web import access_policy
 from drivebench.web.api.diagnostics import issued_link, share_link_public
 from drivebench.web.deps import StateDep

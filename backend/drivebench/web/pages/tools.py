@@ -20,8 +20,8 @@ from drivebench.device.cable import (
 from drivebench.device.cobids import channels_of, default_channels
 from drivebench.device.dip import FAMILIES, LENZE_8400_MOTEC, LENZE_EMF2178IB, SIEMENS_MM4, decode, encode, family_spec
 from drivebench.errors import DriveBenchError, InvalidValue
-from drivebench.services.planned_networks import PlannedNetworkStore, compare_with_session
-from drivebench.services.planner import CableInput, NetworkPlan, PlannedNode, check_plan
+from drivebench.services.planning.planned_networks import PlannedNetworkStore, compare_with_session
+from drivebench.services.planning.planner import CableInput, NetworkPlan, PlannedNode, check_plan
 from drivebench.web.api.tools import dip_answer
 from drivebench.web.deps import StateDep
 from drivebench.web.problems import error_fragment, problem_body, status_for

@@ -28,8 +28,9 @@ import time
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 
 from drivebench.errors import DriveBenchError, NotFound
-from drivebench.services import drive_control, node_lease
-from drivebench.services.drive_guard import Guard
+from drivebench.services.control import drive_control
+from drivebench.services.control.drive_guard import Guard
+from drivebench.services.params import node_lease
 from drivebench.web.safety import panel_for
 
 router = APIRouter()

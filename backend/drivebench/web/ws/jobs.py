@@ -16,7 +16,7 @@ import asyncio
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 
 from drivebench.errors import NotFound
-from drivebench.services.jobs import Job
+from drivebench.services.params.jobs import Job
 from drivebench.web.api.parameters import jobs_of
 
 router = APIRouter()

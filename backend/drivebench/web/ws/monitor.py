@@ -55,9 +55,9 @@ from fastapi import APIRouter, Query, WebSocket, WebSocketDisconnect
 from pydantic import BaseModel, Field, ValidationError
 
 from drivebench.errors import NotFound
-from drivebench.services.monitor import Monitor, MonitorFilter, MonitorView, monitor_for
-from drivebench.services.recording import recordings_for
-from drivebench.services.sessions import Session
+from drivebench.services.bus.sessions import Session
+from drivebench.services.monitoring.monitor import Monitor, MonitorFilter, MonitorView, monitor_for
+from drivebench.services.monitoring.recording import recordings_for
 from drivebench.web.api.monitor import FilterBody
 
 router = APIRouter()

@@ -10,7 +10,7 @@ import asyncio
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 
 from drivebench.errors import NotFound
-from drivebench.services.views import nodes_public
+from drivebench.services.bus.views import nodes_public
 from drivebench.web.templating import templates
 
 router = APIRouter()

@@ -7,7 +7,7 @@
   the client sends ``{"cmd": "reload"}`` (the mapping was changed). ``client_id`` owns the cyclic RPDOs the page
   starts: they stop when this socket closes.
 * ``{"type": "samples", "samples": [Sample ...]}`` at most ten a second, the newest frame per COB-ID
-  (``drivebench.services.process_data.Sample``: node_id, direction, number, cob_id, data, t, signals with
+  (``drivebench.services.pdos.process_data.Sample``: node_id, direction, number, cob_id, data, t, signals with
   raw/value/unit/text).
 * ``{"type": "state", "nmt_state": "Operational", "sync_period_ms": null, "cyclic": [771]}`` once a second.
 * ``{"type": "error", "detail": "..."}`` when the PDOs cannot be read; the socket stays open for a reload.
@@ -25,8 +25,8 @@ import uuid
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 
 from drivebench.errors import DriveBenchError, NotFound
-from drivebench.services import process_data as live
-from drivebench.services.sessions import Session
+from drivebench.services.bus.sessions import Session
+from drivebench.services.pdos import process_data as live
 
 router = APIRouter()
 MIN_INTERVAL_S = 0.1
