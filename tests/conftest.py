@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import functools
 import itertools
 import os
 import shutil
@@ -23,7 +24,8 @@ from hypothesis import settings
 
 from drivebench.config import REPO_ROOT
 from drivebench.config import settings as app_settings
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.dip import SwitchDevices
+from drivebench.device.loader import ProfileRegistry, load_profile_file
 from drivebench.services.storage import database
 from drivebench.simulator.plant import Plant, PlantFile
 from drivebench.web.app import create_app
@@ -119,6 +121,13 @@ def database_url(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[str
 @pytest.fixture(scope="session")
 def registry() -> ProfileRegistry:
     return ProfileRegistry()
+
+
+@functools.cache
+def shipped_switch_devices() -> SwitchDevices:
+    """The calculator's devices: the ``switches`` sections of the shipped profiles (device_profiles/*.json)."""
+    paths = sorted(app_settings.profiles_dir.glob("*.json"))
+    return SwitchDevices(load_profile_file(path.read_bytes(), path.name) for path in paths)
 
 
 @pytest.fixture

@@ -25,14 +25,7 @@ NAMED_BEHAVIOURS: set[str] = {
 }
 """Modules that hold the table of named behaviours a profile selects by name (they may name a family)."""
 
-KNOWN_EXCEPTIONS: dict[str, int] = {
-    # DIP switches, COB-ID tables and the network planner follow device/dip.py's family keys and cobids.py's base-ID
-    # rules (the ``switches`` section is not made yet).
-    "services/planning/planner.py": 12,
-    "services/pdos/pdo.py": 1,
-    "web/api/tools.py": 4,
-    "web/pages/tools.py": 38,
-}
+KNOWN_EXCEPTIONS: dict[str, int] = {}
 """Modules that still name a vendor, with how many names each may hold: the numbers only go down."""
 
 

@@ -5,14 +5,20 @@ from __future__ import annotations
 import pytest
 
 from drivebench.config import settings
-from drivebench.device.cobids import channels_of, cob_ids, default_channels
-from drivebench.device.dip import LENZE_8400_MOTEC, LENZE_EMF2178IB, SIEMENS_MM4
+from drivebench.device.cobids import alternative_hint, channels_of, cob_ids, default_channels
 from drivebench.device.loader import load_profile_file
+from drivebench.device.switches import SwitchesSection
 from drivebench.errors import InvalidValue, OutOfRange
+from tests.conftest import shipped_switch_devices
+
+DEVICES = shipped_switch_devices()
+LENZE_8400_MOTEC = DEVICES.get("lenze-8400-motec").spec
+LENZE_EMF2178IB = DEVICES.get("lenze-emf2178ib").spec
+SIEMENS_MM4 = DEVICES.get("siemens-mm4").spec
 
 
-def table(family: str, node: int, **kw: object) -> dict[str, int]:
-    return {c.service: c.cob_id for c in cob_ids(family, node, **kw)}  # type: ignore[arg-type]
+def table(spec: SwitchesSection, node: int, **kw: object) -> dict[str, int]:
+    return {c.service: c.cob_id for c in cob_ids(spec, node, **kw)}  # type: ignore[arg-type]
 
 
 # 8400 motec §7.1.1: (service, Lenze base, CANopen base)
@@ -44,6 +50,9 @@ def test_8400_lenze_rpdo2_equals_tpdo2_of_next_node() -> None:
     assert (
         table(LENZE_8400_MOTEC, 4, pdo_ids="lenze")["RPDO2"] == table(LENZE_8400_MOTEC, 5)["TPDO2"] == 0x285
     )
+    assert alternative_hint(LENZE_8400_MOTEC, 4, 0x285) == "Lenze base ID of RPDO2"  # the PDO tab's hint
+    assert alternative_hint(LENZE_8400_MOTEC, 4, 0x305) is None
+    assert alternative_hint(LENZE_EMF2178IB, 4, 0x285) is None
 
 
 def test_emf_manual_sdo_identifiers_and_derived_node_5_set() -> None:

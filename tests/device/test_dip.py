@@ -1,4 +1,5 @@
-"""DIP-switch calculator against the manuals' tables and examples (8400 motec §6.3, EMF2178IB §6.3)."""
+"""DIP-switch calculator against the manuals' tables and examples (8400 motec §6.3, EMF2178IB §6.3), evaluating the
+shipped profiles' ``switches`` sections."""
 
 from __future__ import annotations
 
@@ -7,22 +8,16 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from drivebench.device.catalog import Catalog
-from drivebench.device.dip import (
-    FAMILIES,
-    LENZE_8400_MOTEC,
-    LENZE_EMF2178IB,
-    SIEMENS_MM4,
-    NotSettableBySwitches,
-    decode,
-    encode,
-    family_spec,
-    resolve_family,
-)
+from drivebench.device.dip import NotSettableBySwitches, decode, encode
 from drivebench.device.loader import ProfileRegistry
 from drivebench.errors import InvalidValue, OutOfRange, UnknownProfile
+from tests.conftest import shipped_switch_devices
 
-M8400 = LENZE_8400_MOTEC
-EMF = LENZE_EMF2178IB
+DEVICES = shipped_switch_devices()
+FAMILIES = {device.spec.key: device for device in DEVICES.all()}
+M8400 = DEVICES.get("lenze-8400-motec")
+EMF = DEVICES.get("lenze-emf2178ib")
+SIEMENS_MM4 = DEVICES.get("siemens-mm4")
 
 
 def on(*labels: str) -> dict[str, bool]:
@@ -180,12 +175,12 @@ def test_emf_rules_say_how_changed_codes_take_effect() -> None:
     rules = decode(EMF, {}, code_node_id=5, code_baud_kbit=500).rules_applied
     accept = next(rule for rule in rules if "accepted by" in rule)
     assert all(part in accept for part in ("off and on", "C0358 = 1", "Reset Communication", "C2120"))
-    split = next(rule for rule in family_spec(EMF).rules if "C23xx" in rule)
+    split = next(rule.text for rule in EMF.spec.rules if "C23xx" in rule.text)
     assert split.startswith("§7:")
 
 
 def test_mm4_has_no_switches_and_gives_parameters() -> None:
-    assert family_spec(SIEMENS_MM4).switches == []
+    assert SIEMENS_MM4.spec.switches == []
     result = encode(SIEMENS_MM4, 4, 250)
     settings = {a.code: a.value for a in result.alternative}
     assert settings == {"P0918": 4, "P2010": 250, "P2041.04": 400}  # §5.6: hundreds digit 4 = 250 kbit/s
@@ -200,9 +195,10 @@ def test_unknown_switch_and_family() -> None:
     with pytest.raises(InvalidValue):
         decode(M8400, {"S1": True})
     with pytest.raises(UnknownProfile):
-        resolve_family("acme-drive")
-    assert resolve_family("lenze-8400-motec-canopen") == M8400
-    assert resolve_family("EMF2178IB") == EMF
+        DEVICES.get("acme-drive")
+    assert DEVICES.get("lenze-8400-motec-canopen") == M8400
+    assert DEVICES.get("EMF2178IB") == EMF
+    assert DEVICES.get("lenze-93xx-emf2178ib") == EMF  # both EMF2178IB profiles carry the module's section
 
 
 def test_not_settable_by_switches_carries_alternative() -> None:
@@ -211,32 +207,33 @@ def test_not_settable_by_switches_carries_alternative() -> None:
 
 
 # --- round trips --------------------------------------------------------------------------------------------
-SWITCH_FAMILIES = [k for k, spec in FAMILIES.items() if spec.switches]
+SWITCH_FAMILIES = [k for k, device in FAMILIES.items() if device.spec.switches]
 
 
 @given(st.sampled_from(SWITCH_FAMILIES), st.data())
 def test_address_switches_address_round_trip(family: str, data: st.DataObject) -> None:
-    spec = FAMILIES[family]
+    device = FAMILIES[family]
+    spec = device.spec
     assert spec.switch_node_range is not None
     node = data.draw(st.integers(*spec.switch_node_range))
     baud = data.draw(st.sampled_from([r.baud_kbit for r in spec.baud_table]))
-    first = encode(family, node, baud)
+    first = encode(device, node, baud)
     assert (first.node_id, first.baud_kbit) == (node, baud)
-    again = decode(family, first.switches, code_baud_kbit=baud)
+    again = decode(device, first.switches, code_baud_kbit=baud)
     assert again.switches == first.switches
-    assert encode(family, again.node_id or 0, again.baud_kbit or 0).switches == first.switches
+    assert encode(device, again.node_id or 0, again.baud_kbit or 0).switches == first.switches
 
 
 @given(st.sampled_from(SWITCH_FAMILIES), st.data())
 def test_any_switch_setting_re_encodes_to_the_same_result(family: str, data: st.DataObject) -> None:
-    spec = FAMILIES[family]
-    switches = {s.label: data.draw(st.booleans()) for s in spec.switches}
-    result = decode(family, switches, code_node_id=7, code_baud_kbit=125)
+    device = FAMILIES[family]
+    switches = {s.label: data.draw(st.booleans()) for s in device.spec.switches}
+    result = decode(device, switches, code_node_id=7, code_baud_kbit=125)
     if result.node_id_source != "switches" or result.baud_kbit is None:
         return
     again = decode(
-        family,
-        encode(family, result.node_id or 0, result.baud_kbit).switches,
+        device,
+        encode(device, result.node_id or 0, result.baud_kbit).switches,
         code_baud_kbit=result.baud_kbit,
     )
     assert (again.node_id, again.baud_kbit) == (result.node_id, result.baud_kbit)
@@ -244,12 +241,13 @@ def test_any_switch_setting_re_encodes_to_the_same_result(family: str, data: st.
 
 @pytest.mark.parametrize(
     ("family", "node"),
-    [(f, n) for f in SWITCH_FAMILIES for n in range(1, (FAMILIES[f].switch_node_range or (0, 0))[1] + 1)],
+    [(f, n) for f in SWITCH_FAMILIES for n in range(1, (FAMILIES[f].spec.switch_node_range or (0, 0))[1] + 1)],
 )
 def test_every_valid_address_round_trips(family: str, node: int) -> None:
-    switches = encode(family, node, 500).switches
-    assert decode(family, switches, code_baud_kbit=500).node_id == node
-    assert sum(s.weight or 0 for s in FAMILIES[family].address_switches if switches[s.label]) == node
+    device = FAMILIES[family]
+    switches = encode(device, node, 500).switches
+    assert decode(device, switches, code_baud_kbit=500).node_id == node
+    assert sum(s.weight or 0 for s in device.spec.address_switches if switches[s.label]) == node
 
 
 # --- rows of the parameter tables ----------------------------------------------------------------------------------
@@ -293,7 +291,7 @@ def test_mm4_unsupported_values() -> None:
     assert decode(SIEMENS_MM4, {}, code_node_id=0).problems
 
 
-@given(st.integers(1, 127), st.sampled_from(FAMILIES[SIEMENS_MM4].baud_rates_kbit))
+@given(st.integers(1, 127), st.sampled_from(SIEMENS_MM4.spec.baud_rates_kbit))
 def test_mm4_parameters_round_trip(node: int, baud: int) -> None:
     """MICROMASTER has no switches: node id and baud rate -> P0918/P2010 -> the same node id and baud rate."""
     settings = {a.code: a.value for a in encode(SIEMENS_MM4, node, baud).alternative}

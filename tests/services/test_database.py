@@ -18,6 +18,7 @@ from drivebench.services.planning.planned_networks import PlannedNetworkStore, c
 from drivebench.services.planning.planner import CableInput, NetworkPlan, PlannedNode
 from drivebench.services.storage import database
 from drivebench.services.storage.models import PlannedNetworkRow
+from tests.conftest import shipped_switch_devices
 
 
 @pytest.fixture
@@ -150,7 +151,7 @@ def test_compare_live_names_ok_wrong_missing_extra_and_unidentified(profiles: Pr
         SessionNode(30, None, identity={"vendor_id": 0x3B}),
         SessionNode(33, None),
     ]
-    result = compare_live(planned, answered, session_id="s", session_name="Line")
+    result = compare_live(planned, answered, shipped_switch_devices(), session_id="s", session_name="Line")
     status = {c.node_id: c.status for c in result.nodes}
     assert status == {5: "ok", 12: "wrong_device", 20: "ok", 7: "missing", 9: "wrong_device", 30: "extra",
                       33: "extra"}
@@ -166,11 +167,11 @@ def test_compare_live_all_as_planned_is_ok(profiles: ProfileRegistry) -> None:
                                  PlannedNode(device="lenze-emf2178ib", node_id=6, baud_kbit=500)])
     answered = [SessionNode(5, profiles.get("lenze-8400-motec-canopen")),
                 SessionNode(6, None, identity={"vendor_id": 0x3B, "product_code": 0x1234})]
-    result = compare_live(planned, answered)
+    result = compare_live(planned, answered, shipped_switch_devices())
     assert [c.status for c in result.nodes] == ["ok", "unverified"]
     assert not result.ok  # a node without a matching profile is not proof of the planned device
     assert "no device profile matches" in result.nodes[1].message
-    assert compare_live(NetworkPlan(nodes=planned.nodes[:1]), answered[:1]).ok
+    assert compare_live(NetworkPlan(nodes=planned.nodes[:1]), answered[:1], shipped_switch_devices()).ok
 
 
 def test_two_start_ups_at_once_on_one_new_database(db_url: str) -> None:

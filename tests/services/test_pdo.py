@@ -156,14 +156,15 @@ def test_failed_apply_leaves_the_pdo_disabled(servo: tuple[Session, Plant], loop
 
 def test_cob_id_of_another_nodes_pdo_is_flagged(servo: tuple[Session, Plant], loop: asyncio.AbstractEventLoop) -> None:
     """Node 8 is known to the session (not simulated: only its predefined identifiers matter). The Lenze base ID
-    case: an RPDO on 0x281 + 7 = 0x288 receives TPDO2 of node 8; a TPDO on 0x188 is a second producer of TPDO1."""
+    case: an RPDO on 0x281 + 7 = 0x288 receives TPDO2 of node 8; a TPDO on 0x188 is a second producer of TPDO1.
+    The servo's profile has no alternative base identifiers, so no base ID is named (test_cobids: the 8400 motec's)."""
     session, _ = servo
     session.add_node(8, "test-servo")
     assert loop.run_until_complete(pdo.read_pdo(session, NODE, "rpdo", 1)).conflicts == []
     rpdo = loop.run_until_complete(pdo.apply_pdo(session, NODE, "rpdo", 1, PdoWrite(cob_id=0x288, entries=[])))
     assert rpdo.pdo is not None and rpdo.pdo.conflicts == [
         "COB-ID 0x288 is also TPDO2 of node 8: this RPDO receives what node 8 sends - wanted only for cross "
-        "communication (Lenze base ID of RPDO2?)."]
+        "communication."]
     tpdo = loop.run_until_complete(pdo.apply_pdo(session, NODE, "tpdo", 1, PdoWrite(cob_id=0x188, entries=[])))
     assert tpdo.pdo is not None and tpdo.pdo.conflicts == [
         "COB-ID 0x188 is also TPDO1 of node 8: two producers on one identifier."]

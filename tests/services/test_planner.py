@@ -9,10 +9,17 @@ from drivebench.services.planning.planner import (
     CableInput,
     NetworkPlan,
     PlannedNode,
-    check_plan,
+    PlanReport,
 )
+from drivebench.services.planning.planner import check_plan as check_with
+from tests.conftest import shipped_switch_devices
 
 MOTEC, EMF, MM4 = "lenze-8400-motec", "lenze-emf2178ib", "siemens-mm4"
+
+
+def check_plan(plan: NetworkPlan) -> PlanReport:
+    """The plan checked against the shipped profiles' ``switches`` sections."""
+    return check_with(plan, shipped_switch_devices())
 
 
 def kinds(plan: NetworkPlan) -> list[str]:

@@ -110,7 +110,8 @@ def test_list_names_every_shipped_profile_with_its_counts(api: TestClient) -> No
 def test_schema_is_a_json_schema_that_accepts_a_shipped_profile_and_rejects_a_broken_one(api: TestClient) -> None:
     schema = api.get("/api/profiles/schema").json()
     assert schema["type"] == "object" and "identity" in schema["required"]
-    assert {"commands", "sdo_channels", "pdo_rules", "abort_texts"} <= set(schema["properties"])  # behaviour sections
+    # the behaviour sections
+    assert {"commands", "sdo_channels", "pdo_rules", "abort_texts", "switches"} <= set(schema["properties"])
     for profile_id in SHIPPED:
         shipped = json.loads((REPO_ROOT / "device_profiles" / f"{profile_id}.json").read_text())
         assert schema_errors(shipped, schema, schema) == [], profile_id

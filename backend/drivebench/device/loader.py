@@ -22,6 +22,7 @@ from typing import Any
 from pydantic import ValidationError
 
 from drivebench.config import settings
+from drivebench.device.dip import clash
 from drivebench.device.eds import ImportWarning, read_eds
 from drivebench.device.json_lines import DuplicateKey, JsonPath, line_of, reject_duplicate_keys, value_lines
 from drivebench.device.profile import ObjectEntry, Parameter, Profile
@@ -278,6 +279,9 @@ class ProfileRegistry:
             raise ProfileError(f"profile id '{profile.id}' belongs to a built-in profile; give the upload "
                                "another id", source=name)
         self._check_storable(profile.id, name)
+        switch_clash = clash(profile, self._profiles.values())
+        if switch_clash:
+            raise ProfileError(switch_clash, source=name)
         suffix = Path(_load_name(name)).suffix.lower()
         target = self._stored_path(profile.id, suffix)
         self.user_profiles_dir.mkdir(parents=True, exist_ok=True)

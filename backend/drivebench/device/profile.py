@@ -25,6 +25,7 @@ from drivebench.device.control import ControlSection, Sequence
 from drivebench.device.hex_int import HexInt
 from drivebench.device.pdo_rules import PdoRules
 from drivebench.device.sdo_channels import SdoServerChannel
+from drivebench.device.switches import SwitchesSection
 from drivebench.protocol.datatypes import DataType
 
 Number = int | float
@@ -275,6 +276,9 @@ class Profile(BaseModel):
     """The manual's wording of SDO abort codes (``device/abort_texts.py``); CiA 301's where it has none."""
     pdo_rules: PdoRules | None = None
     """What the manual says about the PDOs beyond CiA 301 (``device/pdo_rules.py``)."""
+    switches: SwitchesSection | None = None
+    """DIP switches, node address / baud rate parameters and COB-ID base rules (``device/switches.py``): the
+    DIP-switch calculator and the network planner list every profile that has one."""
     control: ControlSection | None = None
     """How the drive is switched, set and watched (``device/control.py``); None: CiA 402 by its objects, or none."""
     commissioning: list[Sequence] = Field(default_factory=list)

@@ -13,6 +13,7 @@ from typing import Literal
 from pydantic import BaseModel, Field
 
 from drivebench.device.catalog import Catalog
+from drivebench.device.cobids import alternative_hint
 from drivebench.device.eds_export import export_eds
 from drivebench.device.loader import original_file
 from drivebench.device.profile import Access, Entry, ObjectEntry
@@ -127,9 +128,12 @@ PREDEFINED: dict[int, tuple[str, bool]] = {
 def cob_id_conflicts(session: Session, node_id: int, direction: Direction, cob_id: int) -> list[str]:
     """Where a PDO's COB-ID is also a predefined identifier of another node of the session, in words.
 
-    The classic case is the Lenze base ID of RPDO2 (0x281 + n, 8400 motec C00353 = 0): it is TPDO2 of node n + 1.
+    The classic case is the Lenze base ID of RPDO2 (0x281 + n, 8400 motec C00353 = 0): it is TPDO2 of node n + 1;
+    where the node's profile has such alternative base identifiers (``switches.cob_ids``), the message names them.
     """
     found = []
+    own = session.nodes.get(node_id)
+    hint = alternative_hint(own.profile.switches if own and own.profile else None, node_id, cob_id)
     for other in sorted(session.nodes):
         if other == node_id:
             continue
@@ -138,7 +142,7 @@ def cob_id_conflicts(session: Session, node_id: int, direction: Direction, cob_i
                 continue
             if direction == "rpdo" and produces:
                 found.append(f"COB-ID 0x{cob_id:03X} is also {name} of node {other}: this RPDO receives what node "
-                             f"{other} sends - wanted only for cross communication (Lenze base ID of RPDO2?).")
+                             f"{other} sends - wanted only for cross communication" + (f" ({hint}?)." if hint else "."))
             elif direction == "tpdo":
                 what = "two producers on one identifier" if produces else f"node {other} would act on this TPDO"
                 found.append(f"COB-ID 0x{cob_id:03X} is also {name} of node {other}: {what}.")

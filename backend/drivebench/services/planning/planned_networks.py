@@ -10,10 +10,10 @@ from pydantic import BaseModel
 from sqlalchemy import select
 from sqlalchemy.orm import Session as DbSession
 
-from drivebench.device.dip import family_spec, resolve_family
-from drivebench.errors import DriveBenchError, NotFound
+from drivebench.device.dip import SwitchDevices
+from drivebench.errors import NotFound
 from drivebench.services.bus.sessions import Session, SessionNode
-from drivebench.services.planning.planner import EXPECTED_VENDOR_ID, NetworkPlan, PlannedNode
+from drivebench.services.planning.planner import NetworkPlan, PlannedNode
 from drivebench.services.storage.database import transaction
 from drivebench.services.storage.models import PlannedNetworkRow, utcnow
 
@@ -118,27 +118,20 @@ class LiveComparison(BaseModel):
     nodes: list[NodeCheck]
 
 
-def _family(device: str) -> str | None:
-    try:
-        return resolve_family(device)
-    except DriveBenchError:
-        return None
-
-
-def _check_found(planned: PlannedNode, found: SessionNode) -> NodeCheck:
-    planned_family = _family(planned.device)
-    planned_name = family_spec(planned_family).name if planned_family else planned.device
+def _check_found(planned: PlannedNode, found: SessionNode, devices: SwitchDevices) -> NodeCheck:
+    device = devices.find(planned.device)
+    planned_name = device.spec.name if device else planned.device
     profile = found.profile
     base = {"node_id": planned.node_id, "planned": planned, "identity": dict(found.identity) or None,
             "found_profile": profile.id if profile else None,
             "found_device": profile.identity.product_name if profile else None}
     if profile is not None:
-        if planned_family is not None and _family(profile.id) == planned_family:
+        if device is not None and profile.switches is not None and profile.switches.key == device.spec.key:
             return NodeCheck(status="ok", message=f"Answers as {profile.identity.product_name}.", **base)
         return NodeCheck(status="wrong_device", **base,
                          message=f"Answers as {profile.identity.product_name}, planned: {planned_name}.")
     vendor = found.identity.get("vendor_id")
-    expected = EXPECTED_VENDOR_ID.get(planned_family or "")
+    expected = device.vendor_id if device else None
     if vendor is not None and expected is not None and vendor != expected:
         return NodeCheck(status="wrong_device", **base,
                          message=f"Vendor id 0x{vendor:08X} is not the planned device's (0x{expected:08X}).")
@@ -147,7 +140,7 @@ def _check_found(planned: PlannedNode, found: SessionNode) -> NodeCheck:
                      message=f"Answers, but no device profile matches its identity ({ident}).")
 
 
-def compare_live(plan: NetworkPlan, answered: Iterable[SessionNode], *, session_id: str = "",
+def compare_live(plan: NetworkPlan, answered: Iterable[SessionNode], devices: SwitchDevices, *, session_id: str = "",
                  session_name: str = "") -> LiveComparison:
     """Which planned nodes answered (as the planned device), which are missing, which extra nodes appeared."""
     found = {node.node_id: node for node in answered}
@@ -155,7 +148,7 @@ def compare_live(plan: NetworkPlan, answered: Iterable[SessionNode], *, session_
     checks: list[NodeCheck] = []
     for planned in plan.nodes:
         if planned.node_id in found:
-            checks.append(_check_found(planned, found[planned.node_id]))
+            checks.append(_check_found(planned, found[planned.node_id], devices))
         else:
             checks.append(NodeCheck(node_id=planned.node_id, status="missing", planned=planned,
                                     message="No answer to the scan (SDO 0x1000 / heartbeat)."))
@@ -174,7 +167,8 @@ def compare_live(plan: NetworkPlan, answered: Iterable[SessionNode], *, session_
                           ok=counts["ok"] == len(plan.nodes) and counts["extra"] == 0, counts=counts, nodes=checks)
 
 
-async def compare_with_session(plan: NetworkPlan, session: Session, timeout_s: float = 0.5) -> LiveComparison:
+async def compare_with_session(plan: NetworkPlan, session: Session, devices: SwitchDevices,
+                               timeout_s: float = 0.5) -> LiveComparison:
     """Scan ``session``'s bus and compare the nodes that answered with ``plan``."""
     answered = await session.scan(timeout_s)
-    return compare_live(plan, answered, session_id=session.id, session_name=session.name)
+    return compare_live(plan, answered, devices, session_id=session.id, session_name=session.name)

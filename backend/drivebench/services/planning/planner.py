@@ -1,38 +1,38 @@
 """Network planner: check a planned CANopen network before it is built, and compare it with a bus scan.
 
-A plan lists nodes (device family or profile id, node id, baud rate, the SDO/PDO channels that are on, CANopen
-or Lenze PDO identifiers). ``check_plan`` finds duplicate node ids, COB-ID collisions, mixed baud rates and
-node ids or baud rates a device cannot use. Plans travel as JSON (``NetworkPlan.model_dump_json`` /
-``from_json``).
+A plan lists nodes (a device of the loaded profiles' ``switches`` sections, named by its key, an alias or a profile
+id; node id, baud rate, the SDO/PDO channels that are on, the standard or the device's alternative PDO
+identifiers). ``check_plan`` finds duplicate node ids, COB-ID collisions, mixed baud rates and node ids or baud
+rates a device cannot use. Plans travel as JSON (``NetworkPlan.model_dump_json`` / ``from_json``).
 """
 
 from __future__ import annotations
 
 from collections import defaultdict
+from dataclasses import dataclass
 from typing import Literal
 
 from pydantic import BaseModel, Field, ValidationError
 
 from drivebench.device.cable import CablePlan, plan_cable
-from drivebench.device.cobids import PdoIds, channels_of, cob_ids, default_channels
-from drivebench.device.dip import LENZE_8400_MOTEC, LENZE_EMF2178IB, family_spec, resolve_family
+from drivebench.device.cobids import STANDARD_IDS, CobId, PdoIds, channels_of, cob_ids, default_channels, partner
+from drivebench.device.dip import SwitchDevices
+from drivebench.device.switches import SwitchesSection
 from drivebench.errors import DriveBenchError, InvalidValue
 
 Severity = Literal["error", "warning", "info"]
-
-EXPECTED_VENDOR_ID = {LENZE_8400_MOTEC: 0x3B, LENZE_EMF2178IB: 0x3B}
-"""0x1018sub1 a scan should read (8400 motec manual §13: 0x0000003B = Lenze; EMF2178IB: Lenze too)."""
 
 
 class PlannedNode(BaseModel):
     name: str = ""
     device: str
-    """Device family key (``lenze-8400-motec``, ``lenze-emf2178ib``, ``siemens-mm4``) or a profile id."""
+    """Key of a profile's ``switches`` section, one of its aliases, or the id of a profile that has one."""
     node_id: int = Field(ge=1, le=127)
     baud_kbit: int
     channels: list[str] | None = None
     """Channels that are on (``pdo1``, ``pdo2``, ``sdo2`` ...); None = the device's factory setting."""
-    pdo_ids: PdoIds = "canopen"
+    pdo_ids: PdoIds = STANDARD_IDS
+    """``canopen`` or the key of the device's alternative identifiers (others: the standard ones are used)."""
 
     @property
     def label(self) -> str:
@@ -98,101 +98,87 @@ class PlanReport(BaseModel):
     cable: CablePlan | None = None
 
 
-def _channels(node: PlannedNode, family: str) -> set[str]:
-    return set(default_channels(family) if node.channels is None else node.channels) | {"sdo1"}
+@dataclass(frozen=True)
+class _Use:
+    """One COB-ID a planned node uses."""
+
+    position: int
+    node: PlannedNode
+    spec: SwitchesSection
+    cob: CobId
 
 
-def check_plan(plan: NetworkPlan) -> PlanReport:
+def _channels(node: PlannedNode, spec: SwitchesSection) -> set[str]:
+    return set(default_channels(spec) if node.channels is None else node.channels) | {"sdo1"}
+
+
+def check_plan(plan: NetworkPlan, devices: SwitchDevices) -> PlanReport:
+    """Findings and COB-ID table of ``plan``; its devices are looked up in ``devices``."""
     findings: list[Finding] = []
-    rows: list[tuple[int, PlannedNode, str, int]] = []  # (position in plan, node, service, cob id)
+    uses: list[_Use] = []
     for pos, node in enumerate(plan.nodes):
         try:
-            family = resolve_family(node.device)
+            spec = devices.get(node.device).spec
         except DriveBenchError as exc:
-            findings.append(
-                Finding(
-                    kind="unknown_device",
-                    severity="error",
-                    message=f"{node.label}: {exc.detail}",
-                    node_ids=[node.node_id],
-                )
-            )
+            findings.append(Finding(kind="unknown_device", severity="error", message=f"{node.label}: {exc.detail}",
+                                    node_ids=[node.node_id]))
             continue
-        spec = family_spec(family)
-        lo = spec.code_node_range[0]
-        hi = max(spec.code_node_range[1], spec.switch_node_range[1] if spec.switch_node_range else 0)
+        lo, hi = spec.node_range
         if not lo <= node.node_id <= hi:
-            findings.append(
-                Finding(
-                    kind="out_of_range",
-                    severity="error",
-                    node_ids=[node.node_id],
-                    message=f"{node.label}: {spec.name} accepts node ids {lo} … {hi}.",
-                )
-            )
+            findings.append(Finding(kind="out_of_range", severity="error", node_ids=[node.node_id],
+                                    message=f"{node.label}: {spec.name} accepts node ids {lo} … {hi}."))
             continue
         if node.baud_kbit not in spec.baud_rates_kbit:
-            findings.append(
-                Finding(
-                    kind="unsupported_baud",
-                    severity="error",
-                    node_ids=[node.node_id],
-                    message=f"{node.label}: {spec.name} does not support {node.baud_kbit} kbit/s "
-                    f"({', '.join(map(str, spec.baud_rates_kbit))}).",
-                )
-            )
-        channels = _channels(node, family)
-        unknown = channels - set(channels_of(family))
+            findings.append(Finding(kind="unsupported_baud", severity="error", node_ids=[node.node_id],
+                                    message=f"{node.label}: {spec.name} does not support {node.baud_kbit} kbit/s "
+                                    f"({', '.join(map(str, spec.baud_rates_kbit))})."))
+        channels = _channels(node, spec)
+        unknown = channels - set(channels_of(spec))
         if unknown:
-            findings.append(
-                Finding(
-                    kind="unknown_channel",
-                    severity="error",
-                    node_ids=[node.node_id],
-                    message=f"{node.label}: {spec.name} has no channel(s) "
-                    f"{', '.join(sorted(unknown))} ({', '.join(channels_of(family))}).",
-                )
-            )
-        pdo_ids: PdoIds = node.pdo_ids if family == LENZE_8400_MOTEC else "canopen"
-        for cob in cob_ids(family, node.node_id, pdo_ids=pdo_ids, channels=channels):
+            findings.append(Finding(kind="unknown_channel", severity="error", node_ids=[node.node_id],
+                                    message=f"{node.label}: {spec.name} has no channel(s) "
+                                    f"{', '.join(sorted(unknown))} ({', '.join(channels_of(spec))})."))
+        alternative = spec.cob_ids.alternative
+        pdo_ids = node.pdo_ids if alternative is not None and node.pdo_ids == alternative.key else STANDARD_IDS
+        for cob in cob_ids(spec, node.node_id, pdo_ids=pdo_ids, channels=channels):
             if cob.node_specific:
-                rows.append((pos, node, cob.service, cob.cob_id))
-        if "sdo2" in channels:
-            findings.append(_sdo2_finding(node))
+                uses.append(_Use(pos, node, spec, cob))
+        findings.extend(_shared_finding(node, spec, channel) for channel in sorted(channels)
+                        if any(s.shares_with for s in spec.cob_ids.services if s.channel == channel))
     findings.extend(_duplicates(plan))
-    findings.extend(_collisions(rows))
+    findings.extend(_collisions(uses))
     findings.extend(_mixed_baud(plan))
     cable = None
     if plan.cable is not None and plan.nodes:
         cable, cable_findings = _cable(plan)
         findings.extend(cable_findings)
     table = [
-        CobIdRow(node_id=node.node_id, node_name=node.name, service=service, cob_id=cob, hex=f"0x{cob:03X}")
-        for _, node, service, cob in sorted(rows, key=lambda r: (r[3], r[0]))
+        CobIdRow(node_id=use.node.node_id, node_name=use.node.name, service=use.cob.service, cob_id=use.cob.cob_id,
+                 hex=use.cob.hex)
+        for use in sorted(uses, key=lambda u: (u.cob.cob_id, u.position))
     ]
     return PlanReport(
         ok=not any(f.severity == "error" for f in findings), findings=findings, cob_table=table, cable=cable
     )
 
 
-def _sdo2_finding(node: PlannedNode) -> Finding:
-    partner = node.node_id + 64
-    if partner > 127:
-        return Finding(
-            kind="sdo2_reserved",
-            severity="warning",
-            node_ids=[node.node_id],
-            message=f"{node.label}: SDO2 uses 0x{0x640 + node.node_id:03X}/0x{0x5C0 + node.node_id:03X}, "
-            "beyond the SDO1 identifiers of node ids 1 … 127 (SDO2 = address + 64 needs a node "
-            "id ≤ 63).",
-        )
-    return Finding(
-        kind="sdo2_reserved",
-        severity="info",
-        node_ids=[node.node_id],
-        message=f"{node.label}: SDO2 is reached as node id {partner} (address + 64); node id {partner} "
-        "must stay free.",
-    )
+def _shared_finding(node: PlannedNode, spec: SwitchesSection, channel: str) -> Finding:
+    """A channel whose identifiers are those of another service at a node id further on (SDO2 = SDO1 of address
+    + 64): that node id must stay free, and past 127 the identifiers leave the ones of the node ids."""
+    shared = sorted((s for s in spec.cob_ids.services if s.channel == channel and s.shares_with),
+                    key=lambda s: s.direction != "to node")
+    first = shared[0]
+    other = partner(spec, first, node.node_id) or node.node_id
+    offset = other - node.node_id
+    name, base_name = channel.upper(), (first.shares_with or "").split()[0]
+    if other > 127:
+        ids = "/".join(f"0x{s.base + node.node_id:03X}" for s in shared)
+        return Finding(kind="sdo2_reserved", severity="warning", node_ids=[node.node_id],
+                       message=f"{node.label}: {name} uses {ids}, beyond the {base_name} identifiers of node ids "
+                       f"1 … 127 ({name} = address + {offset} needs a node id ≤ {127 - offset}).")
+    return Finding(kind="sdo2_reserved", severity="info", node_ids=[node.node_id],
+                   message=f"{node.label}: {name} is reached as node id {other} (address + {offset}); node id "
+                   f"{other} must stay free.")
 
 
 def _duplicates(plan: NetworkPlan) -> list[Finding]:
@@ -213,40 +199,42 @@ def _duplicates(plan: NetworkPlan) -> list[Finding]:
     ]
 
 
-def _explain(a: tuple[PlannedNode, str], b: tuple[PlannedNode, str]) -> str:
-    (na, sa), (nb, sb) = sorted([a, b], key=lambda x: x[1])
-    services = {sa.split()[0], sb.split()[0]}
-    if services == {"SDO1", "SDO2"}:
-        sdo2 = na if sa.startswith("SDO2") else nb
-        return f" (SDO2 of node {sdo2.node_id} is reached as node {sdo2.node_id + 64}: address + 64)"
-    if services == {"RPDO2", "TPDO2"}:
-        rx = na if sa == "RPDO2" else nb
-        if rx.pdo_ids == "lenze":
-            return (
-                f" (Lenze RPDO2 base 0x281: RPDO2 of node {rx.node_id} equals TPDO2 of node {rx.node_id + 1};"
-                " use the CANopen base 0x300, C00353 = 1)"
-            )
+def _explain(first: _Use, second: _Use) -> str:
+    """Why two services of different nodes meet on one COB-ID, where the device's rules say it."""
+    for use, other in ((first, second), (second, first)):
+        svc = use.spec.cob_ids.service(use.cob.service)
+        alternative = use.spec.cob_ids.alternative
+        if alternative is not None and svc.alternative_base is not None and use.cob.base == svc.alternative_base:
+            return (f" ({alternative.label} of {svc.name} 0x{svc.alternative_base:03X}: {svc.name} of node "
+                    f"{use.node.node_id} equals {other.cob.service} of node {other.node.node_id}; use the CANopen "
+                    f"base 0x{svc.base:03X}, {alternative.remedy})")
+    for use, other in ((first, second), (second, first)):
+        svc = use.spec.cob_ids.service(use.cob.service)
+        reached = partner(use.spec, svc, use.node.node_id)
+        if reached is not None and reached == other.node.node_id:
+            return (f" ({svc.channel.upper()} of node {use.node.node_id} is reached as node {reached}: address + "
+                    f"{reached - use.node.node_id})")
     return ""
 
 
-def _collisions(rows: list[tuple[int, PlannedNode, str, int]]) -> list[Finding]:
-    by_cob: dict[int, list[tuple[int, PlannedNode, str]]] = defaultdict(list)
-    for pos, node, service, cob in rows:
-        by_cob[cob].append((pos, node, service))
+def _collisions(uses: list[_Use]) -> list[Finding]:
+    by_cob: dict[int, list[_Use]] = defaultdict(list)
+    for use in uses:
+        by_cob[use.cob.cob_id].append(use)
     findings = []
     for cob, users in sorted(by_cob.items()):
-        distinct_ids = {node.node_id for _, node, _ in users}
+        distinct_ids = {use.node.node_id for use in users}
         if len(users) < 2 or len(distinct_ids) < 2:
             continue  # same node id twice is reported once as a duplicate node id
-        described = [f"{service} of {node.label}" for _, node, service in users]
-        reason = _explain((users[0][1], users[0][2]), (users[1][1], users[1][2]))
+        described = [f"{use.cob.service} of {use.node.label}" for use in users]
         findings.append(
             Finding(
                 kind="cob_id_collision",
                 severity="error",
                 cob_id=cob,
                 node_ids=sorted(distinct_ids),
-                message=f"COB-ID 0x{cob:03X} ({cob}) is used by " + " and ".join(described) + reason + ".",
+                message=f"COB-ID 0x{cob:03X} ({cob}) is used by " + " and ".join(described)
+                + _explain(users[0], users[1]) + ".",
             )
         )
     return findings

@@ -22,8 +22,9 @@ from drivebench.device.cable import (
     CablePlan,
     plan_cable,
 )
-from drivebench.device.cobids import NOTES, CobId, PdoIds, cob_ids
-from drivebench.device.dip import FAMILIES, LENZE_8400_MOTEC, DipResult, FamilySpec, decode, encode, family_spec
+from drivebench.device.cobids import STANDARD_IDS, CobId, PdoIds, cob_ids, uses_alternative
+from drivebench.device.dip import DipResult, SwitchDevice, SwitchDevices, decode, encode
+from drivebench.device.switches import SwitchesSection
 from drivebench.errors import DriveBenchError, InvalidValue
 from drivebench.services.planning.planned_networks import (
     LiveComparison,
@@ -33,15 +34,24 @@ from drivebench.services.planning.planned_networks import (
     compare_with_session,
 )
 from drivebench.services.planning.planner import NetworkPlan, PlanReport, check_plan
-from drivebench.web.deps import ManagerDep, RowId
+from drivebench.web.deps import ManagerDep, RowId, StateDep
 
 router = APIRouter(prefix="/api/tools", tags=["tools"])
 planned_router = APIRouter(prefix="/api/planned-networks", tags=["planned networks"])
 
 
 # --- DIP-switch calculator and COB-IDs -------------------------------------------------------------------------
+async def get_devices(state: StateDep) -> SwitchDevices:
+    """The devices of the loaded profiles (built-in and uploaded) that have a ``switches`` section."""
+    return SwitchDevices(state.registry.all())
+
+
+DevicesDep = Annotated[SwitchDevices, Depends(get_devices)]
+
+
 class DipAnswer(BaseModel):
-    family: FamilySpec
+    family: SwitchesSection
+    """The device's ``switches`` section (its profile's)."""
     result: DipResult
     cob_ids: list[CobId]
     """COB-IDs the node uses (empty when the node id is not known, e.g. the parameter value is not given)."""
@@ -54,12 +64,12 @@ class DipRequest(BaseModel):
     switches: dict[str, bool] | None = None
     """Switch label -> ON; switches not named are OFF."""
     code_node_id: int | None = Field(None, ge=0, le=255)
-    """Decode: value of the node-address parameter (C00350, C1850/C2350, P0918)."""
+    """Decode: value of the node-address parameter (the section's ``node_parameter``)."""
     code_baud_kbit: int | None = None
-    """Decode: baud rate [kbit/s] the baud-rate parameter selects (C00351, C1851/C2351, P2010)."""
+    """Decode: baud rate [kbit/s] the baud-rate parameter selects (the section's ``baud_parameter``)."""
     node_id: int | None = Field(None, ge=0, le=127)
     baud_kbit: int | None = None
-    pdo_ids: PdoIds = "canopen"
+    pdo_ids: PdoIds = STANDARD_IDS
 
 
 class CobIdAnswer(BaseModel):
@@ -75,29 +85,30 @@ def parse_switches(on: str) -> dict[str, bool]:
     return {label.strip(): True for label in on.split(",") if label.strip()}
 
 
-def dip_answer(result: DipResult, pdo_ids: PdoIds = "canopen") -> DipAnswer:
-    spec = family_spec(result.family)
+def dip_answer(device: SwitchDevice, result: DipResult, pdo_ids: PdoIds = STANDARD_IDS) -> DipAnswer:
+    spec = device.spec
     ids: list[CobId] = []
     if result.node_id is not None:
         with contextlib.suppress(DriveBenchError):  # a parameter value outside the range: no COB-IDs to show
-            ids = cob_ids(spec.key, result.node_id, pdo_ids=pdo_ids if spec.key == LENZE_8400_MOTEC else "canopen")
-    return DipAnswer(family=spec, result=result, cob_ids=ids, cob_id_notes=NOTES[spec.key])
+            ids = cob_ids(spec, result.node_id, pdo_ids=pdo_ids if uses_alternative(spec, pdo_ids) else STANDARD_IDS)
+    return DipAnswer(family=spec, result=result, cob_ids=ids, cob_id_notes=spec.cob_ids.notes)
 
 
-def calculate(family: str, request: DipRequest) -> DipAnswer:
+def calculate(device: SwitchDevice, request: DipRequest) -> DipAnswer:
     if request.node_id is not None or request.baud_kbit is not None:
         if request.node_id is None or request.baud_kbit is None or request.switches is not None:
             raise InvalidValue("Encode takes node_id and baud_kbit together; decode takes the switches.")
-        return dip_answer(encode(family, request.node_id, request.baud_kbit), request.pdo_ids)
-    result = decode(family, request.switches or {}, code_node_id=request.code_node_id,
+        return dip_answer(device, encode(device, request.node_id, request.baud_kbit), request.pdo_ids)
+    result = decode(device, request.switches or {}, code_node_id=request.code_node_id,
                     code_baud_kbit=request.code_baud_kbit)
-    return dip_answer(result, request.pdo_ids)
+    return dip_answer(device, result, request.pdo_ids)
 
 
-@router.get("/dip", response_model=list[FamilySpec])
-async def dip_families() -> list[FamilySpec]:
-    """Device families with their switch blocks, baud-rate tables, rules and the manuals' ambiguities."""
-    return list(FAMILIES.values())
+@router.get("/dip", response_model=list[SwitchesSection])
+async def dip_families(devices: DevicesDep) -> list[SwitchesSection]:
+    """Devices with their switch blocks, baud-rate tables, rules and the manuals' ambiguities: the ``switches``
+    sections of the loaded profiles, one per key."""
+    return [device.spec for device in devices.all()]
 
 
 @router.get("/dip/{family}", response_model=DipAnswer)
@@ -108,30 +119,32 @@ async def dip(
     node_id: Annotated[int | None, Query(ge=0, le=127, description="Encode: node id to set")] = None,
     baud_kbit: Annotated[int | None, Query(description="Encode: baud rate [kbit/s] to set")] = None,
     code_node_id: Annotated[int | None, Query(ge=0, le=255, description="Decode: value of the node-address "
-                                                                         "parameter (C00350 ...)")] = None,
+                                                                         "parameter")] = None,
     code_baud_kbit: Annotated[int | None, Query(description="Decode: baud rate of the baud-rate parameter")] = None,
-    pdo_ids: PdoIds = "canopen",
+    pdo_ids: PdoIds = STANDARD_IDS,
+    *,
+    devices: DevicesDep,
 ) -> DipAnswer:
     """Decode switch positions (``on``) or encode a node id and baud rate (``node_id`` + ``baud_kbit``)."""
     request = DipRequest(switches=parse_switches(on) if on is not None else None, node_id=node_id,
                          baud_kbit=baud_kbit, code_node_id=code_node_id, code_baud_kbit=code_baud_kbit,
                          pdo_ids=pdo_ids)
-    return calculate(family, request)
+    return calculate(devices.get(family), request)
 
 
 @router.post("/dip/{family}", response_model=DipAnswer)
-async def dip_post(family: str, request: DipRequest) -> DipAnswer:
+async def dip_post(family: str, request: DipRequest, devices: DevicesDep) -> DipAnswer:
     """As GET, with the switch positions as a JSON object (``{"switches": {"16": true, "a": true}}``)."""
-    return calculate(family, request)
+    return calculate(devices.get(family), request)
 
 
 @router.get("/cobids", response_model=CobIdAnswer)
-async def cobids(family: str, node_id: Annotated[int, Query(ge=1, le=127)],
-                 pdo_ids: PdoIds = "canopen") -> CobIdAnswer:
-    """Every COB-ID a node uses, hex and decimal, with the Lenze base-ID variant where it differs."""
-    key = family_spec(family).key
-    return CobIdAnswer(family=key, node_id=node_id, pdo_ids=pdo_ids, cob_ids=cob_ids(key, node_id, pdo_ids=pdo_ids),
-                       notes=NOTES[key])
+async def cobids(family: str, node_id: Annotated[int, Query(ge=1, le=127)], devices: DevicesDep,
+                 pdo_ids: PdoIds = STANDARD_IDS) -> CobIdAnswer:
+    """Every COB-ID a node uses, hex and decimal, with the device's alternative base ID where it differs."""
+    spec = devices.get(family).spec
+    return CobIdAnswer(family=spec.key, node_id=node_id, pdo_ids=pdo_ids,
+                       cob_ids=cob_ids(spec, node_id, pdo_ids=pdo_ids), notes=spec.cob_ids.notes)
 
 
 # --- cable and network planner ---------------------------------------------------------------------------------
@@ -151,17 +164,17 @@ async def cable_tables() -> dict[str, Any]:
 
 
 @router.post("/planner/check", response_model=PlanReport)
-async def planner_check(plan: NetworkPlan) -> PlanReport:
+async def planner_check(plan: NetworkPlan, devices: DevicesDep) -> PlanReport:
     """Findings for a planned network: duplicate node ids, COB-ID collisions, mixed baud rates, ranges."""
-    return check_plan(plan)
+    return check_plan(plan, devices)
 
 
 @router.post("/planner/compare", response_model=LiveComparison)
-async def planner_compare(plan: NetworkPlan, manager: ManagerDep,
+async def planner_compare(plan: NetworkPlan, manager: ManagerDep, devices: DevicesDep,
                           session: Annotated[str, Query(description="Session (bus) to scan")],
                           timeout_s: Annotated[float, Query(gt=0, le=5)] = 0.5) -> LiveComparison:
     """Compare an unsaved plan with a live scan of a session's bus."""
-    return await compare_with_session(plan, manager.get(session), timeout_s)
+    return await compare_with_session(plan, manager.get(session), devices, timeout_s)
 
 
 # --- saved planned networks ------------------------------------------------------------------------------------
@@ -182,30 +195,30 @@ def list_planned(store: StoreDep) -> list[PlannedNetworkSummary]:
 
 
 @planned_router.post("", response_model=PlannedNetworkChecked, status_code=201)
-def save_planned(plan: NetworkPlan, store: StoreDep) -> PlannedNetworkChecked:
+def save_planned(plan: NetworkPlan, store: StoreDep, devices: DevicesDep) -> PlannedNetworkChecked:
     """Save a plan (also when it has findings: they come back in ``report``)."""
     saved = store.save(plan)
-    return PlannedNetworkChecked(**saved.model_dump(), report=check_plan(saved.plan))
+    return PlannedNetworkChecked(**saved.model_dump(), report=check_plan(saved.plan, devices))
 
 
 @planned_router.post("/import", response_model=PlannedNetworkChecked, status_code=201)
-async def import_planned(request: Request, store: StoreDep) -> PlannedNetworkChecked:
+async def import_planned(request: Request, store: StoreDep, devices: DevicesDep) -> PlannedNetworkChecked:
     """Store a plan exported before (the JSON of ``/export`` as the request body). Bad JSON: 422 with the first
     problem, nothing saved."""
     saved = await asyncio.to_thread(store.import_json, await request.body())
-    return PlannedNetworkChecked(**saved.model_dump(), report=check_plan(saved.plan))
+    return PlannedNetworkChecked(**saved.model_dump(), report=check_plan(saved.plan, devices))
 
 
 @planned_router.get("/{network_id}", response_model=PlannedNetworkChecked)
-def get_planned(network_id: RowId, store: StoreDep) -> PlannedNetworkChecked:
+def get_planned(network_id: RowId, store: StoreDep, devices: DevicesDep) -> PlannedNetworkChecked:
     saved = store.get(network_id)
-    return PlannedNetworkChecked(**saved.model_dump(), report=check_plan(saved.plan))
+    return PlannedNetworkChecked(**saved.model_dump(), report=check_plan(saved.plan, devices))
 
 
 @planned_router.put("/{network_id}", response_model=PlannedNetworkChecked)
-def update_planned(network_id: RowId, plan: NetworkPlan, store: StoreDep) -> PlannedNetworkChecked:
+def update_planned(network_id: RowId, plan: NetworkPlan, store: StoreDep, devices: DevicesDep) -> PlannedNetworkChecked:
     saved = store.update(network_id, plan)
-    return PlannedNetworkChecked(**saved.model_dump(), report=check_plan(saved.plan))
+    return PlannedNetworkChecked(**saved.model_dump(), report=check_plan(saved.plan, devices))
 
 
 @planned_router.delete("/{network_id}", status_code=204)
@@ -224,10 +237,10 @@ def export_planned(network_id: RowId, store: StoreDep) -> Response:
 
 
 @planned_router.post("/{network_id}/compare", response_model=LiveComparison)
-async def compare_planned(network_id: RowId, store: StoreDep, manager: ManagerDep,
+async def compare_planned(network_id: RowId, store: StoreDep, manager: ManagerDep, devices: DevicesDep,
                           session: Annotated[str, Query(description="Session (bus) to scan")],
                           timeout_s: Annotated[float, Query(gt=0, le=5)] = 0.5) -> LiveComparison:
     """Scan the session's bus: which planned nodes answer as the planned device, which are missing or extra."""
     target = manager.get(session)
     saved = await asyncio.to_thread(store.get, network_id)
-    return await compare_with_session(saved.plan, target, timeout_s)
+    return await compare_with_session(saved.plan, target, devices, timeout_s)

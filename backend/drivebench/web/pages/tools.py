@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import re
 from typing import Any
 
 from fastapi import APIRouter, Request
@@ -17,22 +18,33 @@ from drivebench.device.cable import (
     TOTAL_LENGTH_M,
     plan_cable,
 )
-from drivebench.device.cobids import channels_of, default_channels
-from drivebench.device.dip import FAMILIES, LENZE_8400_MOTEC, LENZE_EMF2178IB, SIEMENS_MM4, decode, encode, family_spec
+from drivebench.device.cobids import STANDARD_IDS, channels_of, default_channels, uses_alternative
+from drivebench.device.dip import SwitchDevices, decode, encode
 from drivebench.errors import DriveBenchError, InvalidValue
 from drivebench.services.planning.planned_networks import PlannedNetworkStore, compare_with_session
 from drivebench.services.planning.planner import CableInput, NetworkPlan, PlannedNode, check_plan
 from drivebench.web.api.tools import dip_answer
 from drivebench.web.deps import StateDep
 from drivebench.web.problems import error_fragment, problem_body, status_for
+from drivebench.web.state import AppState
 from drivebench.web.templating import templates
 
 router = APIRouter(include_in_schema=False)
 
 PAGE = "tools.html"
 BAUD_RATES = [1000, 800, 500, 250, 125, 50, 20, 10]
-SHORT_NAMES = {LENZE_8400_MOTEC: "8400 motec", LENZE_EMF2178IB: "EMF2178IB (8200 vector / 93XX)",
-               SIEMENS_MM4: "MICROMASTER 4"}
+
+
+def _devices(state: AppState) -> SwitchDevices:
+    """Every loaded profile (built-in or uploaded) that has a ``switches`` section, one device per key."""
+    return SwitchDevices(state.registry.all())
+
+
+def _first_key(devices: SwitchDevices) -> str:
+    every = devices.all()
+    if not every:
+        raise InvalidValue("No loaded profile has a 'switches' section: the calculator has no device.")
+    return every[0].spec.key
 
 
 def _int(form: FormData, key: str, label: str) -> int | None:
@@ -53,18 +65,22 @@ def _render(request: Request, context: dict[str, Any], block: str, status: int =
     return templates.TemplateResponse(request, PAGE, context, block_name=block, status_code=status)
 
 
-def _base(**extra: Any) -> dict[str, Any]:
-    return {"active": "tools", "families": FAMILIES, "lenze_8400": LENZE_8400_MOTEC, "mm4": SIEMENS_MM4,
-            "channels_of": channels_of, "baud_rates": BAUD_RATES,
-            "short_names": SHORT_NAMES, "cross_sections": CROSS_SECTIONS_MM2, **extra}
+def _base(devices: SwitchDevices, **extra: Any) -> dict[str, Any]:
+    families = {device.spec.key: device.spec for device in devices.all()}
+    return {"active": "tools", "families": families, "find_device": devices.find, "channels_of": channels_of,
+            "baud_rates": BAUD_RATES, "short_names": {key: spec.short_name for key, spec in families.items()},
+            "cross_sections": CROSS_SECTIONS_MM2, **extra}
 
 
 # --- DIP-switch calculator -------------------------------------------------------------------------------------
-def _dip_context(request: Request, family: str, form: FormData | None = None) -> tuple[dict[str, Any], int]:
-    spec = family_spec(family)
+def _dip_context(request: Request, devices: SwitchDevices, family: str,
+                 form: FormData | None = None) -> tuple[dict[str, Any], int]:
+    device = devices.get(family)
+    spec = device.spec
     form = form or FormData()
     on = {str(v) for v in form.getlist("on")}
-    pdo_ids = "lenze" if form.get("pdo_ids") == "lenze" and spec.key == LENZE_8400_MOTEC else "canopen"
+    wanted = str(form.get("pdo_ids") or STANDARD_IDS)
+    pdo_ids = wanted if uses_alternative(spec, wanted) else STANDARD_IDS
     fields = {key: str(form.get(key) or "") for key in ("node_id", "baud_kbit", "code_node_id", "code_baud_kbit")}
     error, status = None, 200
     toggle = form.get("toggle")
@@ -75,48 +91,54 @@ def _dip_context(request: Request, family: str, form: FormData | None = None) ->
             node_id, baud = _int(form, "node_id", "Node address"), _int(form, "baud_kbit", "Baud rate")
             if node_id is None or baud is None:
                 raise InvalidValue("Enter a node address and a baud rate.")
-            result = encode(spec.key, node_id, baud)
+            result = encode(device, node_id, baud)
             on = {label for label, state in result.switches.items() if state}
         else:
-            result = decode(spec.key, dict.fromkeys(on, True),
-                            code_node_id=_int(form, "code_node_id", spec.node_code),
-                            code_baud_kbit=_int(form, "code_baud_kbit", spec.baud_code))
+            result = decode(device, dict.fromkeys(on, True),
+                            code_node_id=_int(form, "code_node_id", spec.node_parameter.code),
+                            code_baud_kbit=_int(form, "code_baud_kbit", spec.baud_parameter.code))
     except DriveBenchError as exc:
         error, status = _error(request, exc), status_for(exc)
-        result = decode(spec.key, dict.fromkeys(on, True))
-    answer = dip_answer(result, pdo_ids)  # type: ignore[arg-type]
+        result = decode(device, dict.fromkeys(on, True))
+    answer = dip_answer(device, result, pdo_ids)
     if error is None:  # the node-address form always shows what the switches give
         fields["node_id"] = "" if result.node_id is None else str(result.node_id)
         fields["baud_kbit"] = "" if result.baud_kbit is None else str(result.baud_kbit)
-    return _base(spec=spec, answer=answer, on=on, fields=fields, pdo_ids=pdo_ids, dip_error=error), status
+    code_values = next((s.values for s in spec.settings if s.code == spec.baud_parameter.code), {})
+    baud_code_values = {kbit: value for kbit, value in code_values.items() if value is not None and value != kbit}
+    return _base(devices, spec=spec, answer=answer, on=on, fields=fields, pdo_ids=pdo_ids, dip_error=error,
+                 baud_code_values=baud_code_values), status
 
 
 @router.get("/tools", response_class=HTMLResponse)
-async def tools_page(request: Request, state: StateDep, family: str = LENZE_8400_MOTEC) -> Response:
-    dip_context, _ = _dip_context(request, family)
+async def tools_page(request: Request, state: StateDep, family: str | None = None) -> Response:
+    devices = _devices(state)
+    first = _first_key(devices)
+    dip_context, _ = _dip_context(request, devices, family or first)
     plan = NetworkPlan(name="Line 1", nodes=[
-        PlannedNode(name="Conveyor", device=LENZE_8400_MOTEC, node_id=1, baud_kbit=500),
-        PlannedNode(name="Lift", device=LENZE_8400_MOTEC, node_id=2, baud_kbit=500)])
+        PlannedNode(name="Conveyor", device=first, node_id=1, baud_kbit=500),
+        PlannedNode(name="Lift", device=first, node_id=2, baud_kbit=500)])
     saved = await asyncio.to_thread(PlannedNetworkStore().list)
-    context = {**dip_context, **_cable_context(request, None), **_plan_context(plan, state, saved=saved)}
+    context = {**dip_context, **_cable_context(request, devices, None),
+               **_plan_context(plan, state, devices, saved=saved)}
     return templates.TemplateResponse(request, PAGE, context)
 
 
 @router.get("/ui/tools/dip", response_class=HTMLResponse)
-async def dip_family(request: Request, family: str) -> Response:
-    context, status = _dip_context(request, family)
+async def dip_family(request: Request, state: StateDep, family: str) -> Response:
+    context, status = _dip_context(request, _devices(state), family)
     return _render(request, context, "dip", status)
 
 
 @router.post("/ui/tools/dip", response_class=HTMLResponse)
-async def dip_form(request: Request) -> Response:
+async def dip_form(request: Request, state: StateDep) -> Response:
     form = await request.form()
-    context, status = _dip_context(request, str(form.get("family")), form)
+    context, status = _dip_context(request, _devices(state), str(form.get("family")), form)
     return _render(request, context, "dip", status)
 
 
 # --- cable planner ---------------------------------------------------------------------------------------------
-def _cable_context(request: Request, form: FormData | None) -> dict[str, Any]:
+def _cable_context(request: Request, devices: SwitchDevices, form: FormData | None) -> dict[str, Any]:
     values = {"baud_kbit": "125", "cross_section_mm2": "0.5", "nodes": "28", "length_m": "450",
               "repeater_reduction_m": str(REPEATER_2176_REDUCTION_M)}
     if form is not None:
@@ -130,14 +152,14 @@ def _cable_context(request: Request, form: FormData | None) -> dict[str, Any]:
                                              "for the cable length."))
     except DriveBenchError as exc:
         error = _error(request, exc)
-    return _base(cable=plan, cable_values=values, cable_error=error, total_lengths=TOTAL_LENGTH_M,
+    return _base(devices, cable=plan, cable_values=values, cable_error=error, total_lengths=TOTAL_LENGTH_M,
                  segment_lengths=SEGMENT_LENGTH_M, cross_sections=CROSS_SECTIONS_MM2,
                  selection_example=SELECTION_EXAMPLE)
 
 
 @router.post("/ui/tools/cable", response_class=HTMLResponse)
-async def cable_form(request: Request) -> Response:
-    context = _cable_context(request, await request.form())
+async def cable_form(request: Request, state: StateDep) -> Response:
+    context = _cable_context(request, _devices(state), await request.form())
     return _render(request, context, "cable", 422 if context["cable_error"] else 200)
 
 
@@ -153,8 +175,11 @@ def _plan_from_form(form: FormData) -> NetworkPlan:
             raise InvalidValue(f"{label}: node id {node_id if node_id is not None else '(empty)'} is not a "
                                "CANopen node id (1 … 127).")
         channels = [str(c) for c in form.getlist(f"channels_{row}")]
+        pdo_ids = value("pdo_ids") or STANDARD_IDS
+        if not re.fullmatch(r"[a-z0-9][a-z0-9_.-]{0,63}", pdo_ids):
+            raise InvalidValue(f"{label}: '{pdo_ids}' is not a name of PDO identifiers.")
         nodes.append(PlannedNode(name=value("name"), device=value("device"), node_id=node_id, baud_kbit=baud or 0,
-                                 channels=channels, pdo_ids="lenze" if value("pdo_ids") == "lenze" else "canopen"))
+                                 channels=channels, pdo_ids=pdo_ids))
     cable = None
     length = str(form.get("cable_length_m") or "").strip()
     if length:
@@ -166,24 +191,24 @@ def _plan_from_form(form: FormData) -> NetworkPlan:
     return NetworkPlan(name=str(form.get("plan_name") or "").strip() or "Planned network", nodes=nodes, cable=cable)
 
 
-def _plan_context(plan: NetworkPlan, state: Any, *, plan_id: int | None = None,
+def _plan_context(plan: NetworkPlan, state: AppState, devices: SwitchDevices, *, plan_id: int | None = None,
                   saved: list[Any] | None = None, **extra: Any) -> dict[str, Any]:
     rows = []
     for node in plan.nodes:
-        try:
-            family = family_spec(node.device).key
-            channels = set(node.channels) if node.channels is not None else default_channels(family)
-        except DriveBenchError:
-            family, channels = node.device, set()
-        rows.append({"node": node, "family": family, "channels": channels})
+        device = devices.find(node.device)
+        if device is None:
+            rows.append({"node": node, "family": node.device, "spec": None, "channels": set()})
+            continue
+        channels = set(node.channels) if node.channels is not None else default_channels(device.spec)
+        rows.append({"node": node, "family": device.spec.key, "spec": device.spec, "channels": channels})
     sessions = [{"id": s.id, "name": s.name} for s in state.manager.list()]
-    return _base(plan=plan, plan_id=plan_id, plan_rows=rows, report=check_plan(plan), sessions=sessions,
-                 saved=saved if saved is not None else [], **extra)
+    return _base(devices, plan=plan, plan_id=plan_id, plan_rows=rows, report=check_plan(plan, devices),
+                 sessions=sessions, saved=saved if saved is not None else [], **extra)
 
 
-async def _render_plan(request: Request, plan: NetworkPlan, state: Any, **extra: Any) -> Response:
+async def _render_plan(request: Request, plan: NetworkPlan, state: AppState, **extra: Any) -> Response:
     saved = await asyncio.to_thread(PlannedNetworkStore().list)
-    return _render(request, _plan_context(plan, state, saved=saved, **extra), "planner")
+    return _render(request, _plan_context(plan, state, _devices(state), saved=saved, **extra), "planner")
 
 
 def _plan_id(form: FormData) -> int | None:
@@ -206,7 +231,7 @@ async def planner_form(request: Request, state: StateDep) -> Response:
         last = plan.nodes[-1] if plan.nodes else None
         used = {n.node_id for n in plan.nodes}
         next_id = next((i for i in range(1, 128) if i not in used), 127)
-        plan.nodes.append(PlannedNode(device=last.device if last else LENZE_8400_MOTEC, node_id=next_id,
+        plan.nodes.append(PlannedNode(device=last.device if last else _first_key(_devices(state)), node_id=next_id,
                                       baud_kbit=last.baud_kbit if last else 500))
     elif action.startswith("remove:"):
         index = int(action.split(":", 1)[1])
@@ -223,7 +248,7 @@ async def planner_form(request: Request, state: StateDep) -> Response:
 async def planner_check(request: Request, state: StateDep) -> Response:
     """Findings and COB-IDs of the plan in the form (only that block: the rows stay as the user is typing them)."""
     form, plan = await _form_plan(request)
-    return _render(request, _plan_context(plan, state, plan_id=_plan_id(form)), "plan_results")
+    return _render(request, _plan_context(plan, state, _devices(state), plan_id=_plan_id(form)), "plan_results")
 
 
 @router.post("/ui/tools/planner/export")
@@ -282,5 +307,5 @@ async def planner_delete(request: Request, state: StateDep, network_id: int) -> 
 async def planner_compare(request: Request, state: StateDep) -> Response:
     form, plan = await _form_plan(request)
     session = state.manager.get(str(form.get("session_id") or ""))
-    comparison = await compare_with_session(plan, session)
+    comparison = await compare_with_session(plan, session, _devices(state))
     return await _render_plan(request, plan, state, plan_id=_plan_id(form), comparison=comparison)
