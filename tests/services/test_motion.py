@@ -63,7 +63,7 @@ class Axis:
     def home(self, method: int) -> DriveStatus:
         self.run(motion.home(self.session, self.node, method, confirm=AXIS))
         return self.until(lambda status: status.status_bits[12].set and status.status_bits[10].set,
-                          f"homing with method {method}")
+                          f"homing with method {method}", timeout_s=20)
 
 
 @pytest.fixture
@@ -96,7 +96,8 @@ def test_standard_names_modes_units_and_no_vendor_words(axis: Axis) -> None:
 
 
 @pytest.mark.parametrize(("method", "near"), [(35, None), (37, None), (34, None), (33, None), (17, -LIMIT_REVS),
-                                              (18, LIMIT_REVS), (1, -LIMIT_REVS), (2, LIMIT_REVS)])
+                                              (18, LIMIT_REVS), (1, -LIMIT_REVS), (2, LIMIT_REVS), (11, 1.0),
+                                              (27, 0.5), (10, 1.0)])
 def test_homing_methods(axis: Axis, method: int, near: float | None) -> None:
     axis.enable()
     start = axis.drive.mech
@@ -110,6 +111,16 @@ def test_homing_methods(axis: Axis, method: int, near: float | None) -> None:
         assert moved <= (0.02 if method in (35, 37) else 1.05)  # no motion / to the next index pulse
     else:
         assert abs(revs - near) <= (0.05 if method in (17, 18) else 1.05)  # at the switch (1, 2: next index)
+
+
+def test_a_home_switch_method_started_away_from_its_switch_ends_in_a_homing_error(axis: Axis) -> None:
+    """Method 3 seeks a positive home switch: the switch is off above the cam, so it starts positive, runs onto the
+    positive limit switch and (CiA 402 gives 3 ... 6 no reversal there) reports homing error, status bit 13."""
+    axis.enable()
+    axis.run(motion.home(axis.session, axis.node, 3, confirm=AXIS))
+    status = axis.until(lambda status: status.status_bits[13].set, "homing error", timeout_s=20)
+    assert not status.status_bits[12].set and status.inputs[1].name == "Positive limit switch"
+    assert axis.drive.demand == LIMIT_REVS * axis.drive.increments_per_rev
 
 
 def test_profile_position_absolute_relative_and_target_reached(axis: Axis) -> None:

@@ -99,17 +99,26 @@ def modes_from_6502(value: int) -> list[int]:
     return [mode for mode, bit in MODE_BITS.items() if value >> bit & 1]
 
 
+_CAM_METHODS = {  # 7 ... 14: a home switch active over part of the travel; (first move, edge, index side)
+    7: ("positive", "lower", "below"), 8: ("positive", "lower", "above"), 9: ("positive", "upper", "below"),
+    10: ("positive", "upper", "above"), 11: ("negative", "upper", "above"), 12: ("negative", "upper", "below"),
+    13: ("negative", "lower", "above"), 14: ("negative", "lower", "below"),
+}
 HOMING_METHODS = {
     1: "Negative limit switch and index pulse", 2: "Positive limit switch and index pulse",
-    3: "Positive home switch and index pulse (falling edge left)",
-    4: "Positive home switch and index pulse (rising edge)",
-    5: "Negative home switch and index pulse (falling edge right)",
-    6: "Negative home switch and index pulse (rising edge)",
-    **{method: f"Home switch and index pulse, variant {method}" for method in range(7, 15)},
+    3: "Positive home switch and index pulse (index below the switch edge)",
+    4: "Positive home switch and index pulse (index above the switch edge)",
+    5: "Negative home switch and index pulse (index above the switch edge)",
+    6: "Negative home switch and index pulse (index below the switch edge)",
+    **{method: f"Home switch and index pulse: start {way}, reverse at the {way} limit switch, index {side} the "
+               f"switch's {edge} edge" for method, (way, edge, side) in _CAM_METHODS.items()},
     17: "Negative limit switch", 18: "Positive limit switch",
-    19: "Positive home switch (falling edge left)", 20: "Positive home switch (rising edge)",
-    21: "Negative home switch (falling edge right)", 22: "Negative home switch (rising edge)",
-    **{method: f"Home switch, variant {method}" for method in range(23, 31)},
+    19: "Positive home switch (its edge, reached from above)", 20: "Positive home switch (its edge, reached from "
+    "below)", 21: "Negative home switch (its edge, reached from below)",
+    22: "Negative home switch (its edge, reached from above)",
+    **{method + 16: f"Home switch: start {way}, reverse at the {way} limit switch, the switch's {edge} edge "
+                    f"reached from {'above' if side == 'below' else 'below'}"
+       for method, (way, edge, side) in _CAM_METHODS.items()},
     33: "Index pulse in negative direction", 34: "Index pulse in positive direction",
     35: "Current position (no movement)", 37: "Current position (no movement, CiA 402-2)",
 }

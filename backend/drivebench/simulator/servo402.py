@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING
 
+from drivebench.simulator import homing
 from drivebench.simulator.drive402 import STATE_BITS, State402, StateMachine402, command_state
 from drivebench.simulator.store import RawValue
 
@@ -64,7 +65,9 @@ class Servo402(StateMachine402):
         self.actual_velocity = 0.0
         self.torque = 0.0  # per mille of rated torque: acceleration and friction
         self.target: float | None = None  # profile position: demand target (mechanical increments)
-        self.homing: list[tuple[int, float, str]] = []  # phases: (direction, speed inc/s, until)
+        self.machine = homing.Machine(limit=LIMIT_REVS * encoder, cam=(0.0, encoder / 2))
+        self.homing: list[homing.Phase] = []
+        self.homing_method = 0
         self.homing_done = False
         self.homing_error = False
         self.ack = False
@@ -195,22 +198,20 @@ class Servo402(StateMachine402):
     # --- homing ----------------------------------------------------------------------------------------------------
     def _start_homing(self) -> None:
         method = int(self._obj(0x6098, 0, 35))
-        fast, slow = self._velocity(0x6099, 1, 600), self._velocity(0x6099, 2, 60)
-        phases = {
-            17: [(-1, fast, "neg_on"), (1, slow, "neg_off")], 18: [(1, fast, "pos_on"), (-1, slow, "pos_off")],
-            1: [(-1, fast, "neg_on"), (1, slow, "neg_off"), (1, slow, "index")],
-            2: [(1, fast, "pos_on"), (-1, slow, "pos_off"), (-1, slow, "index")],
-            33: [(-1, slow, "index")], 34: [(1, slow, "index")], 35: [], 37: [],
-        }.get(method)
         self.homing_done = self.homing_error = False
         self.target = None
-        if phases is None:
-            self.homing_error = True  # a method this drive does not know
-            return
-        if not phases:
+        self.homing_method = method
+        if method in (35, 37):
             self._homed(self.mech)
             return
-        self.homing = list(phases)
+        if method not in homing.METHODS:
+            self.homing_error = True  # a method this drive does not know: status bit 13, no motion
+            return
+        self._plan_homing(method)
+
+    def _plan_homing(self, method: int, *, reversed_at_limit: bool = False) -> None:
+        fast, slow = self._velocity(0x6099, 1, 600), self._velocity(0x6099, 2, 60)
+        self.homing = homing.plan(method, self.demand, self.machine, fast, slow, reversed_at_limit=reversed_at_limit)
 
     def _homed(self, at: float) -> None:
         offset = self._obj(0x607C) * self.per_unit
@@ -220,22 +221,10 @@ class Servo402(StateMachine402):
 
     def _homing_event(self, before: float, after: float) -> float | None:
         """The mechanical position where the current phase's event happened between two positions, if it did."""
-        if after == before:
-            return None
-        until = self.homing[0][2]
-        limit = LIMIT_REVS * self.increments_per_rev
-        edges = {"neg_on": -limit, "neg_off": -limit, "pos_on": limit, "pos_off": limit}
-        if until in edges:
-            edge = edges[until]
-            return edge if min(before, after) <= edge <= max(before, after) else None
-        rev = self.increments_per_rev
-        if after > before:  # the next index pulse past ``before`` in the direction of travel
-            pulse = (math.floor((before - INDEX_AT) / rev) + 1) * rev + INDEX_AT
-            found = pulse <= after
-        else:
-            pulse = (math.ceil((before - INDEX_AT) / rev) - 1) * rev + INDEX_AT
-            found = pulse >= after
-        return pulse if found else None
+        phase = self.homing[0]
+        if phase.edge is not None:
+            return self.machine.position(phase.edge) if homing.crossed(self.machine, phase, before, after) else None
+        return homing.index_pulse(before, after, self.increments_per_rev, INDEX_AT)
 
     # --- the cycle -------------------------------------------------------------------------------------------------
     _idle = False
@@ -292,8 +281,8 @@ class Servo402(StateMachine402):
         if not self.homing:
             self._decelerate(self._acceleration(0x609A, 3000), dt)
             return
-        direction, speed, _ = self.homing[0]
-        self._ramp_to(direction * speed, dt, self._acceleration(0x609A, 3000), self._acceleration(0x609A, 3000))
+        phase, rate = self.homing[0], self._acceleration(0x609A, 3000)
+        self._ramp_to(phase.direction * phase.speed, dt, rate, rate)
 
     def _step(self, dt: float, now: float) -> None:
         accel, decel = self._acceleration(0x6083, 3000), self._acceleration(0x6084, 3000)
@@ -343,16 +332,24 @@ class Servo402(StateMachine402):
             self._enter(State402.FAULT)  # transition 14
 
     def _limits(self) -> None:
-        """The limit switches stop a move towards them (status bit 11); homing runs onto them on purpose."""
-        limit = LIMIT_REVS * self.increments_per_rev
-        homing_to = self.homing[0][2] if self.homing else ""
+        """The limit switches stop a move towards them (status bit 11). Homing runs onto one on purpose when its
+        phase seeks that switch; a method that did not seek it turns round there (7 ... 14, 23 ... 30) or ends with
+        a homing error (status bit 13)."""
+        limit = self.machine.limit
+        seeking = self.homing[0].edge if self.homing else None
         self.limit_hit = False
-        if self.demand <= -limit and self.velocity < 0 and homing_to != "neg_on":
+        if self.demand <= -limit and self.velocity < 0 and seeking != "neg_limit":
             self.demand, self.velocity, self.limit_hit = -limit, 0.0, True
-        elif self.demand >= limit and self.velocity > 0 and homing_to != "pos_on":
+        elif self.demand >= limit and self.velocity > 0 and seeking != "pos_limit":
             self.demand, self.velocity, self.limit_hit = limit, 0.0, True
-        if self.homing and homing_to in ("neg_on", "pos_on") and abs(self.demand) >= limit + self.increments_per_rev:
-            self.homing, self.homing_error = [], True  # ran past the switch: it is broken
+        if self.limit_hit and self.homing:
+            if homing.METHODS[self.homing_method].reverses:
+                self._plan_homing(self.homing_method, reversed_at_limit=True)
+            else:
+                self.homing, self.homing_error = [], True
+        outwards = self.homing and (seeking, self.homing[0].direction) in (("neg_limit", -1), ("pos_limit", 1))
+        if outwards and abs(self.demand) >= limit + self.increments_per_rev:
+            self.homing, self.homing_error = [], True  # ran a revolution past the switch: it is broken
 
     def _following_error(self, now: float) -> None:
         window = self._obj(0x6065, 0, 0) * self.per_unit
@@ -371,10 +368,9 @@ class Servo402(StateMachine402):
         super()._enter(state)
 
     def inputs(self) -> int:
-        limit = LIMIT_REVS * self.increments_per_rev
-        word = 0x1 if self.mech <= -limit else 0
-        word |= 0x2 if self.mech >= limit else 0
-        word |= 0x4 if 0 <= self.mech < self.increments_per_rev / 2 else 0
+        word = 0x1 if self.machine.switch_active("neg_limit", self.mech) else 0
+        word |= 0x2 if self.machine.switch_active("pos_limit", self.mech) else 0
+        word |= 0x4 if self.machine.switch_active("cam_low", self.mech) else 0
         return word
 
     def status_word(self) -> int:
