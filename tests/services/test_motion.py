@@ -77,8 +77,8 @@ def test_standard_names_modes_units_and_no_vendor_words(axis: Axis) -> None:
     assert status.status_bits[12].name.startswith("Operation mode specific (pp: set-point acknowledge")
     assert status.control_bits[4].name.startswith("Operation mode specific (pp: new set-point")
     assert status.modes == {1: "Profile position", 3: "Profile velocity", 4: "Profile torque", 6: "Homing",
-                            8: "Cyclic synchronous position", 9: "Cyclic synchronous velocity",
-                            10: "Cyclic synchronous torque"}  # 0x6502 = 0x3AD
+                            7: "Interpolated position", 8: "Cyclic synchronous position",
+                            9: "Cyclic synchronous velocity", 10: "Cyclic synchronous torque"}  # 0x6502 = 0x3ED
     assert (status.setpoint_ref, status.setpoint_unit, status.setpoint_max) == ("0x607A", "°", 3600)
     assert [bit.name for bit in status.inputs[:3]] == ["Negative limit switch", "Positive limit switch", "Home switch"]
     assert (status.error_code, status.error_text) == (0, "No error")

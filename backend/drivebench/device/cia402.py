@@ -80,10 +80,11 @@ MODE_NAMES = {
 }
 MODE_BITS = {1: 0, 2: 1, 3: 2, 4: 3, 6: 5, 7: 6, 8: 7, 9: 8, 10: 9}
 """0x6502 supported drive modes: mode -> bit."""
-MODE_OBJECTS = {1: (0x607A, 0x6081), 2: (0x6042,), 3: (0x60FF,), 4: (0x6071,), 6: (0x6098,), 7: (0x60C1,),
+MODE_OBJECTS = {1: (0x607A, 0x6081), 2: (0x6042,), 3: (0x60FF,), 4: (0x6071,), 6: (0x6098,), 7: (0x60C1, 0x60C2),
                 8: (0x607A, 0x60C2), 9: (0x60FF, 0x60C2), 10: (0x6071, 0x60C2)}
 """The objects a mode needs in the object dictionary (modes found from the EDS when there is no 0x6502)."""
-CYCLIC_MODES = (8, 9, 10)
+CYCLIC_MODES = (7, 8, 9, 10)
+"""Modes whose setpoint travels in an RPDO every SYNC (7: the interpolation data record 0x60C1.1)."""
 
 
 def mode_label(mode: int) -> str:
@@ -186,7 +187,7 @@ ACTUALS = [  # (label, object, unit where CiA 402 fixes it; position and velocit
 UNIT_KIND = {"0x607A": "position", "0x60FF": "velocity", "0x6081": "velocity", "0x6099.1": "velocity",
              "0x6099.2": "velocity", "0x607C": "position", "0x607D.1": "position", "0x607D.2": "position",
              "0x607F": "velocity", "0x60F4": "position", "0x6064": "position", "0x606C": "velocity",
-             "0x6062": "position", "0x6065": "position"}
+             "0x6062": "position", "0x6065": "position", "0x60C1.1": "position"}
 
 
 def has_drive_words(profile: Profile) -> bool:
@@ -206,7 +207,8 @@ def generic_section(profile: Profile) -> ControlSection:
     modes = listed_modes(profile)
     setpoints = [Setpoint(ref=ref, unit=unit, modes=[mode]) for mode, ref, unit in (
         (1, "0x607A", "position"), (3, "0x60FF", "velocity"), (4, "0x6071", "‰"), (2, "0x6042", "rpm"),
-        (8, "0x607A", "position"), (9, "0x60FF", "velocity"), (10, "0x6071", "‰")) if int(ref, 16) in indices]
+        (7, "0x60C1.1", "position"), (8, "0x607A", "position"), (9, "0x60FF", "velocity"), (10, "0x6071", "‰"))
+        if int(ref.split(".")[0], 16) in indices]
     return ControlSection(
         key="cia402-generic", state_machine="cia402", title="CiA 402 drive state machine",
         note="Standard CiA 402 drive control (no vendor profile): bit names, modes and units as CiA 402-2 defines "

@@ -181,8 +181,11 @@ async def home(session: Session, node: SessionNode, method: int, *, confirm: obj
     return await drive_control.read_status(session, node, panel)
 
 
-# --- cyclic synchronous modes (8/9/10): the setpoint travels in an RPDO every SYNC -----------------------------
-CYCLIC_TARGETS = {8: "0x607A", 9: "0x60FF", 10: "0x6071"}
+# --- interpolated position (7) and cyclic synchronous modes (8/9/10): the setpoint travels in an RPDO every SYNC --
+CYCLIC_TARGETS = {7: "0x60C1.1", 8: "0x607A", 9: "0x60FF", 10: "0x6071"}
+ENABLE_IP_MODE = NEW_SET_POINT
+"""Interpolated position: control word bit 4 *enable ip mode*; the drive answers with status bit 12 *ip mode
+active* and follows the interpolation data record 0x60C1.1, linearly over each interpolation period (0x60C2)."""
 
 
 class CyclicStream(BaseModel):
@@ -206,11 +209,13 @@ async def _cycle_ms(session: Session, node: SessionNode) -> int:
 
 async def stream(session: Session, node: SessionNode, value: float, *, confirm: object = None,
                  panel: Panel = SERVICE_PANEL) -> CyclicStream:
-    """Cyclic synchronous position / velocity / torque: SYNC at the drive's interpolation period (0x60C2) and an
-    RPDO mapping the control word and the mode's target, sent every cycle while the panel holds the drive."""
+    """Interpolated position or cyclic synchronous position / velocity / torque: SYNC at the drive's interpolation
+    period (0x60C2) and an RPDO mapping the control word and the mode's target (interpolated position: the data
+    record 0x60C1.1, with bit 4 *enable ip mode* in the control word), sent every cycle while the panel holds the
+    drive."""
     status = await _enabled(session, node, panel, "A cyclic synchronous setpoint")
     if status.mode not in CYCLIC_TARGETS:
-        raise Conflict("Choose a cyclic synchronous mode (8, 9 or 10) first; it is in "
+        raise Conflict("Choose interpolated position (7) or a cyclic synchronous mode (8, 9 or 10) first; it is in "
                        f"{status.mode_label or 'no mode'}.")
     target = CYCLIC_TARGETS[status.mode]
     if session.nmt_state(node.node_id)[0] != "Operational":
@@ -227,7 +232,8 @@ async def stream(session: Session, node: SessionNode, value: float, *, confirm: 
     drive_control.require_confirmation(confirm, node.node_id, f"Cyclic setpoint {value:g} {scale.unit}")
     guard_for(session).arm(node.node_id, panel)
     period = await _cycle_ms(session, node)
-    word = await drive_control.last_control_word(session, node)
+    word = await drive_control.last_control_word(session, node) & ~MODE_BITS
+    word |= ENABLE_IP_MODE if status.mode == 7 else 0
     if panel.key not in data.watchers:
         data.watch(panel.key)
     data.start_sync(period)

@@ -39,13 +39,15 @@ LIMIT_REVS = 20.0
 START_REVS = 5.3
 INDEX_AT = 100
 """Index pulse at this many increments past each whole revolution."""
-SUPPORTED = (1, 3, 4, 6, 8, 9, 10)
+SUPPORTED = (1, 3, 4, 6, 7, 8, 9, 10)
 FOLLOWING_ERROR = 0x8611
 RPM_CODE = 0x00B44700
 
 CW_NEW_SET_POINT, CW_IMMEDIATE, CW_RELATIVE, CW_HALT = 0x0010, 0x0020, 0x0040, 0x0100
+CW_ENABLE_IP = CW_NEW_SET_POINT  # ip: enable ip mode
 SW_VOLTAGE, SW_REMOTE, SW_TARGET_REACHED, SW_LIMIT = 0x0010, 0x0200, 0x0400, 0x0800
 SW_ACK, SW_ERROR = 0x1000, 0x2000  # pp: set-point acknowledge / following error; hm: homing attained / error
+SW_IP_ACTIVE = SW_ACK  # ip: ip mode active
 
 
 def _signed(value: RawValue, default: float = 0.0) -> float:
@@ -65,6 +67,8 @@ class Servo402(StateMachine402):
         self.actual_velocity = 0.0
         self.torque = 0.0  # per mille of rated torque: acceleration and friction
         self.target: float | None = None  # profile position: demand target (mechanical increments)
+        self.ip_goal: float | None = None  # interpolated position: the last data record (mechanical increments)
+        self.ip_speed = 0.0  # ... reached linearly within one interpolation period (increments/s)
         self.machine = homing.Machine(limit=LIMIT_REVS * encoder, cam=(0.0, encoder / 2))
         self.homing: list[homing.Phase] = []
         self.homing_method = 0
@@ -114,7 +118,7 @@ class Servo402(StateMachine402):
             self.control_word = int(self._obj(0x6040))
             self.velocity = self.actual_velocity = 0.0
             self.demand = self.mech
-            self.target, self.homing = None, []
+            self.target, self.homing, self.ip_goal = None, [], None
             self.fault_code = 0
             self.history = [self.state]
             self._last = None
@@ -139,6 +143,8 @@ class Servo402(StateMachine402):
 
     # --- inputs ----------------------------------------------------------------------------------------------------
     def on_write(self, index: int, sub: int, raw: RawValue) -> None:
+        if index == 0x60C1 and sub == 1 and isinstance(raw, int):
+            self._ip_record(raw)
         if sub != 0 or not isinstance(raw, int):
             return
         if index == 0x6040:
@@ -147,10 +153,25 @@ class Servo402(StateMachine402):
             with self._lock:
                 if raw in SUPPORTED and self.store.has(0x6061, 0):
                     self.store.set(0x6061, 0, raw, notify=False)
-                    self.target, self.homing = None, []
+                    self.target, self.homing, self.ip_goal = None, [], None
                     self._publish()
         elif index in (0x607A, 0x60FF, 0x6071):
             self._wake()  # a setpoint may start a move (cyclic modes: every RPDO)
+
+    def _ip_record(self, raw: int) -> None:
+        """Linear interpolation (0x60C0 = 0): from where the demand is to the new record within one period."""
+        with self._lock:
+            self.ip_goal = self.home + raw * self.per_unit
+            period = self._obj(0x60C2, 1, 10) * 10 ** self._obj(0x60C2, 2, -3) or CYCLE_S
+            self.ip_speed = abs(self.ip_goal - self.demand) / max(period, CYCLE_S)
+            self._wake()
+
+    def _interpolated(self, top: float) -> None:
+        if self.ip_goal is None or not self.control_word & CW_ENABLE_IP:
+            self.velocity = 0.0
+            return
+        speed = min(self.ip_speed, top)
+        self.velocity = math.copysign(speed, self.ip_goal - self.demand) if self.ip_goal != self.demand else 0.0
 
     def _wake(self) -> None:
         self._idle = False
@@ -171,7 +192,7 @@ class Servo402(StateMachine402):
                     target = State402.SWITCH_ON_DISABLED  # option 0: disable drive function at once
                 self._enter(target)
             if self.state is not State402.OPERATION_ENABLED:
-                self.target, self.homing = None, []
+                self.target, self.homing, self.ip_goal = None, [], None
                 self.ack = False
                 self._publish()
                 return
@@ -302,6 +323,8 @@ class Servo402(StateMachine402):
                 self.velocity = wanted
             else:
                 self._ramp_to(wanted, dt, accel, decel)
+        elif mode == 7:
+            self._interpolated(top)
         elif mode == 8:
             goal = self.home + self._obj(0x607A) * self.per_unit
             self.velocity = max(-top, min(top, (goal - self.demand) / dt)) if dt else 0.0
@@ -310,6 +333,8 @@ class Servo402(StateMachine402):
             self._ramp_to(torque / 1000 * top, dt, accel, decel)  # a load whose speed follows the torque
         before = self.demand
         self.demand += self.velocity * dt
+        if mode == 7 and self.ip_goal is not None and (self.demand - self.ip_goal) * self.velocity > 0:
+            self.demand, self.velocity = self.ip_goal, 0.0  # the record reached within the period
         self._limits()
         if mode == 6 and self.homing:
             event = self._homing_event(before, self.demand)
@@ -392,6 +417,9 @@ class Servo402(StateMachine402):
             word |= SW_ACK if self.homing_done else 0
             word |= SW_ERROR if self.homing_error else 0
             word |= SW_TARGET_REACHED if (self.homing_done or self.homing_error or not self.homing) and settled else 0
+        elif mode == 7:
+            word |= SW_IP_ACTIVE if self.control_word & CW_ENABLE_IP else 0
+            word |= SW_TARGET_REACHED if self.ip_goal is not None and self.demand == self.ip_goal and settled else 0
         elif mode == 3:
             wanted = self._velocity(0x60FF)
             word |= SW_TARGET_REACHED if abs(self.velocity - wanted) < 1 else 0
