@@ -6,14 +6,18 @@ limit switches, the following-error fault with its EMCY, quick stop, and the int
 from __future__ import annotations
 
 import asyncio
+import json
 import threading
 import time
 from collections.abc import Callable, Coroutine
+from pathlib import Path
 from typing import Any, TypeVar
 
 import can
 import pytest
 
+from drivebench.config import settings
+from drivebench.device.loader import ProfileRegistry
 from drivebench.errors import ConfirmationRequired, Conflict, InvalidValue, OutOfRange
 from drivebench.protocol.nmt import NmtCommand
 from drivebench.services import drive_control, motion, parameters
@@ -22,7 +26,7 @@ from drivebench.services.drive_control import DriveStatus
 from drivebench.services.drive_words import Command
 from drivebench.services.sessions import Session
 from drivebench.simulator.plant import Plant
-from drivebench.simulator.servo402 import LIMIT_REVS, Servo402
+from drivebench.simulator.servo402 import INDEX_AT, LIMIT_REVS, Servo402
 
 T = TypeVar("T")
 AXIS = 7
@@ -91,8 +95,43 @@ def test_standard_names_modes_units_and_no_vendor_words(axis: Axis) -> None:
     actuals = {value.ref: value for value in axis.run(drive_control.read_actuals(axis.session, axis.node))}
     assert (actuals["0x6064"].label, actuals["0x6064"].unit) == ("Position", "°")
     assert (actuals["0x606C"].unit, actuals["0x6079"].unit) == ("rpm", "mV")
+    assert (actuals["0x60F4"].label, actuals["0x60F4"].unit) == ("Following error", "°")
+    assert (actuals["0x6077"].unit, actuals["0x6078"].unit) == ("‰ of rated torque", "‰ of rated current")
+    assert [setting.ref for setting in info.settings if setting.ref.startswith(("0x607D", "0x607F"))] == [
+        "0x607D.1", "0x607D.2", "0x607F"]
+    assert {setting.ref: setting.unit for setting in info.settings}["0x607D.2"] == "°"
     axis.drive.store.set(0x6061, 0, -59)  # a vendor's own mode, as a maxon drive shows it
     assert axis.status().mode_label == "manufacturer-specific (\u221259)"
+
+
+def test_modes_come_from_0x6502_where_the_drive_has_it(axis: Axis) -> None:
+    """The EDS lists the objects of eight modes; the drive's 0x6502 says which it supports, and that wins."""
+    axis.drive.store.set(0x6502, 0, 0x0000_0025)  # bits 0, 2, 5: profile position, profile velocity, homing
+    assert axis.status().modes == {1: "Profile position", 3: "Profile velocity", 6: "Homing"}
+    with pytest.raises(InvalidValue, match="Mode 9 is not among this device's supported modes"):
+        axis.run(drive_control.set_mode(axis.session, axis.node, 9))
+
+
+@pytest.mark.parametrize(("without", "position", "velocity", "how"), [
+    ({"0x60A8", "0x60A9"}, "position units (11.3778 increments)", "position units/s", "factor group"),
+    ({"0x60A8", "0x60A9", "0x6092"}, "increments", "increments/s", "raw increments")], ids=["factor", "raw"])
+def test_units_without_the_si_unit_objects(plant_session: tuple[asyncio.Runner, Session], plant: Plant,
+                                           registry: ProfileRegistry, tmp_path: Path, without: set[str],
+                                           position: str, velocity: str, how: str) -> None:
+    """A drive without 0x60A8/0x60A9 is shown in position units of its factor group (4096 increments per
+    revolution, 360 per revolution of feed), and without a feed constant in raw increments, said as such."""
+    runner, session = plant_session
+    data = json.loads((settings.profiles_dir / "generic-cia402-servo.json").read_text())
+    data["id"] = "servo-without-si-units"
+    data["objects"] = [obj for obj in data["objects"] if obj["index"] not in without]
+    registry.user_profiles_dir = tmp_path
+    profile = registry.add_upload("servo-without-si-units.json", json.dumps(data).encode())  # as the Profiles page
+    plant.add_node(profile, 30)
+    node = session.add_node(30, profile.id)
+    info = runner.run(motion.info(session, node))
+    assert (info.position_unit, info.velocity_unit) == (position, velocity) and how in info.units_from
+    actuals = {value.ref: value.unit for value in runner.run(drive_control.read_actuals(session, node))}
+    assert (actuals["0x6064"], actuals["0x606C"], actuals["0x60F4"]) == (position, velocity, position)
 
 
 @pytest.mark.parametrize(("method", "near"), [(35, None), (37, None), (34, None), (33, None), (17, -LIMIT_REVS),
@@ -111,6 +150,16 @@ def test_homing_methods(axis: Axis, method: int, near: float | None) -> None:
         assert moved <= (0.02 if method in (35, 37) else 1.05)  # no motion / to the next index pulse
     else:
         assert abs(revs - near) <= (0.05 if method in (17, 18) else 1.05)  # at the switch (1, 2: next index)
+
+
+def test_the_home_offset_is_the_position_at_home(axis: Axis) -> None:
+    """CiA 402: after homing the home position reads as the home offset 0x607C."""
+    axis.enable()
+    axis.run(parameters.write(axis.session, AXIS, "0x607C", 90))
+    axis.home(34)
+    assert abs(axis.read("0x6064") - 90) <= 5  # plus the stop after the index pulse (at most 5 °)
+    at_home = axis.drive.home + 90 * axis.drive.per_unit  # the index pulse found: 0x6064 = 90 ° there
+    assert round(at_home - INDEX_AT) % axis.drive.increments_per_rev == 0
 
 
 def test_a_home_switch_method_started_away_from_its_switch_ends_in_a_homing_error(axis: Axis) -> None:
