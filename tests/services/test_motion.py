@@ -156,6 +156,25 @@ def test_homing_methods(axis: Axis, method: int, near: float | None) -> None:
         assert abs(revs - near) <= (0.05 if method in (17, 18) else 1.05)  # at the switch (1, 2: next index)
 
 
+def test_the_methods_offered_are_those_0x60E3_lists(axis: Axis) -> None:
+    """The servo lists its 32 methods in 0x60E3; a drive that lists fewer is offered those, and another is refused
+    in words before anything is written (next test)."""
+    assert list(axis.run(motion.info(axis.session, axis.node)).homing_methods) == [
+        *range(1, 15), *range(17, 31), 33, 34, 35, 37]
+
+
+def test_a_method_0x60E3_does_not_list_is_refused_in_words(axis: Axis) -> None:
+    axis.drive.store.set(0x60E3, 0, 3)  # as a drive listing 1, 2 and 3 only (read once per node: set it first)
+    assert axis.run(motion.info(axis.session, axis.node)).homing_methods == {
+        1: "Negative limit switch and index pulse", 2: "Positive limit switch and index pulse",
+        3: "Positive home switch and index pulse (index below the switch edge)"}
+    axis.enable()
+    with pytest.raises(InvalidValue, match=r"Homing method 34 \(Index pulse in positive direction\) is not among "
+                                           r"the supported homing methods 0x60E3 of .* \(1, 2, 3\)"):
+        axis.run(motion.home(axis.session, axis.node, 34, confirm=AXIS))
+    assert axis.read("0x6098") == 35 and axis.status().mode != 6
+
+
 def test_the_home_offset_is_the_position_at_home(axis: Axis) -> None:
     """CiA 402: after homing the home position reads as the home offset 0x607C."""
     axis.enable()

@@ -58,7 +58,8 @@ class StoppedOut(BaseModel):
 
 
 class HomeIn(Confirmed):
-    method: int = Field(description="Homing method 0x6098 (CiA 402: 1 ... 35, 37)")
+    method: int = Field(description="Homing method 0x6098 (CiA 402: 1 ... 14, 17 ... 30, 33 ... 35, 37; where the "
+                                    "drive has 0x60E3, one it lists there)")
 
 
 class ModeIn(Confirmed):
