@@ -234,6 +234,9 @@ def test_demo_axis_has_the_standard_cia402_panel_and_the_seed_drives_keep_theirs
     page.goto(f"{base}/sessions/demo-plant/nodes/7?tab=control")
     page.wait_for_selector("#ctl-ws.good", timeout=TIMEOUT_MS)
     assert page.locator("#ctl-motion").count() == 1 and page.locator("#ctl-home-method").count() == 1
+    assert page.locator("input[name=ctl-mode][value='7']").count() == 1  # 0x6502 bit 6: interpolated position
+    assert page.locator("#ctl-cyclic").count() == 1  # streamed by SYNC + RPDO as modes 8/9/10
+    assert page.locator("#ctl-home-method option").count() == 32  # the methods 0x60E3 lists
     assert page.locator("#ctl-units").inner_text().startswith("Position in °, velocity in rpm")
     tab = page.locator("#control-tab").inner_text()
     assert not [word for word in ("MICROMASTER", "Lenze", "P0700", "8400", "EMF2178IB") if word in tab]
