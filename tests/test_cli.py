@@ -8,7 +8,6 @@ import re
 import signal
 import socket
 import threading
-import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
@@ -20,6 +19,7 @@ from drivebench.config import settings
 from drivebench.services.storage import database
 from drivebench.services.users import accounts
 from drivebench.transport.hub import start_hub_thread
+from tests.conftest import wait_until
 from tests.transport.test_multiprocess import START_TIMEOUT_S, CliProcess, start_simulator
 
 DEMO_NODE_IDS = [3, 5, 7, 12]
@@ -44,17 +44,16 @@ def run_cli(args: list[str]) -> int:
 
 def poll(fetch: Callable[[], object], timeout_s: float, what: str) -> object:
     """Call ``fetch`` until it returns something true (connection errors count as not yet)."""
-    deadline = time.monotonic() + timeout_s
-    last: object = None
-    while time.monotonic() < deadline:
+    last: list[object] = [None]
+
+    def fetched() -> bool:
         try:
-            last = fetch()
+            last[0] = fetch()
         except httpx.TransportError as exc:
-            last = exc
-        if last and not isinstance(last, Exception):
-            return last
-        time.sleep(0.1)
-    raise AssertionError(f"{what}: still {last!r} after {timeout_s} s")
+            last[0] = exc
+        return bool(last[0]) and not isinstance(last[0], Exception)
+    assert wait_until(fetched, timeout_s), f"{what}: still {last[0]!r} after {timeout_s} s"
+    return last[0]
 
 
 def test_serve_opens_a_socketcand_bus_shared_with_a_simulator_process(tmp_path: Path) -> None:

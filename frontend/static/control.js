@@ -158,6 +158,8 @@
           entry.data[1].push(value.value);
           while (entry.data[0].length && entry.data[0][0] < t - HISTORY_S) { entry.data[0].shift(); entry.data[1].shift(); }
           entry.u.setData(entry.data);
+          const shown = entry.box.dataset;  // what the chart holds, for a reader that cannot see the canvas
+          [shown.samples, shown.min, shown.max] = [entry.data[1].length, Math.min(...entry.data[1]), Math.max(...entry.data[1])];
         }
       }
     }

@@ -18,7 +18,7 @@ import sys
 import threading
 import time
 from collections import defaultdict
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import can
@@ -27,6 +27,7 @@ from drivebench.device.loader import ProfileRegistry
 from drivebench.services.monitoring.monitor import RATE_WINDOW_S, Monitor, monitor_for
 from drivebench.services.session_manager import SessionManager
 from drivebench.transport.busload import reference_bits
+from tests.conftest import wait_until
 
 BITRATE = 500_000
 HUB = """
@@ -195,10 +196,5 @@ def _result(monitor: Monitor, recorder: _Recorder, total: int, polled: list[tupl
     return BurstResult(points, exact, total, snapshot["totals"]["frames"], snapshot["load"]["peak_percent"], rates)
 
 
-def _wait(check: object, timeout_s: float) -> None:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if callable(check) and check():
-            return
-        time.sleep(0.05)
-    raise AssertionError(f"not met within {timeout_s} s")
+def _wait(check: Callable[[], object], timeout_s: float) -> None:
+    assert wait_until(lambda: bool(check()), timeout_s), f"not met within {timeout_s} s"

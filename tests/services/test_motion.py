@@ -6,14 +6,18 @@ limit switches, the following-error fault with its EMCY, quick stop, and the int
 from __future__ import annotations
 
 import asyncio
+import json
 import threading
 import time
 from collections.abc import Callable, Coroutine
+from pathlib import Path
 from typing import Any, TypeVar
 
 import can
 import pytest
 
+from drivebench.config import settings
+from drivebench.device.loader import ProfileRegistry
 from drivebench.errors import ConfirmationRequired, Conflict, InvalidValue, OutOfRange
 from drivebench.protocol.nmt import NmtCommand
 from drivebench.services.bus.sessions import Session
@@ -23,10 +27,14 @@ from drivebench.services.control.drive_words import Command
 from drivebench.services.params import parameters
 from drivebench.services.pdos import process_data as live
 from drivebench.simulator.plant import Plant
-from drivebench.simulator.servo402 import LIMIT_REVS, Servo402
+from drivebench.simulator.servo402 import INDEX_AT, LIMIT_REVS, MAX_STEP_S, Servo402
 
 T = TypeVar("T")
 AXIS = 7
+STOP_AFTER_HOME_DEG = 360 * MAX_STEP_S + 360 ** 2 / (2 * 18_000) + 0.5
+"""How far the axis goes on after the event that homes it: the last event is found at the zero-search speed
+0x6099.2 = 60 rpm (360 °/s), at most one model step late (a late tick on a loaded machine integrates up to
+MAX_STEP_S), then it brakes at 0x609A = 3000 rpm/s (18000 °/s²)."""
 SEED_WORDS = ("MICROMASTER", "Lenze", "8400", "8200", "P0700", "EMF2178IB", "C0135", "AIF", "RFG")
 
 
@@ -64,7 +72,7 @@ class Axis:
     def home(self, method: int) -> DriveStatus:
         self.run(motion.home(self.session, self.node, method, confirm=AXIS))
         return self.until(lambda status: status.status_bits[12].set and status.status_bits[10].set,
-                          f"homing with method {method}")
+                          f"homing with method {method}", timeout_s=20)
 
 
 @pytest.fixture
@@ -78,8 +86,8 @@ def test_standard_names_modes_units_and_no_vendor_words(axis: Axis) -> None:
     assert status.status_bits[12].name.startswith("Operation mode specific (pp: set-point acknowledge")
     assert status.control_bits[4].name.startswith("Operation mode specific (pp: new set-point")
     assert status.modes == {1: "Profile position", 3: "Profile velocity", 4: "Profile torque", 6: "Homing",
-                            8: "Cyclic synchronous position", 9: "Cyclic synchronous velocity",
-                            10: "Cyclic synchronous torque"}  # 0x6502 = 0x3AD
+                            7: "Interpolated position", 8: "Cyclic synchronous position",
+                            9: "Cyclic synchronous velocity", 10: "Cyclic synchronous torque"}  # 0x6502 = 0x3ED
     assert (status.setpoint_ref, status.setpoint_unit, status.setpoint_max) == ("0x607A", "°", 3600)
     assert [bit.name for bit in status.inputs[:3]] == ["Negative limit switch", "Positive limit switch", "Home switch"]
     assert (status.error_code, status.error_text) == (0, "No error")
@@ -92,25 +100,100 @@ def test_standard_names_modes_units_and_no_vendor_words(axis: Axis) -> None:
     actuals = {value.ref: value for value in axis.run(drive_control.read_actuals(axis.session, axis.node))}
     assert (actuals["0x6064"].label, actuals["0x6064"].unit) == ("Position", "°")
     assert (actuals["0x606C"].unit, actuals["0x6079"].unit) == ("rpm", "mV")
+    assert (actuals["0x60F4"].label, actuals["0x60F4"].unit) == ("Following error", "°")
+    assert (actuals["0x6077"].unit, actuals["0x6078"].unit) == ("‰ of rated torque", "‰ of rated current")
+    assert [setting.ref for setting in info.settings if setting.ref.startswith(("0x607D", "0x607F"))] == [
+        "0x607D.1", "0x607D.2", "0x607F"]
+    assert {setting.ref: setting.unit for setting in info.settings}["0x607D.2"] == "°"
     axis.drive.store.set(0x6061, 0, -59)  # a vendor's own mode, as a maxon drive shows it
     assert axis.status().mode_label == "manufacturer-specific (\u221259)"
 
 
+def test_modes_come_from_0x6502_where_the_drive_has_it(axis: Axis) -> None:
+    """The EDS lists the objects of eight modes; the drive's 0x6502 says which it supports, and that wins."""
+    axis.drive.store.set(0x6502, 0, 0x0000_0025)  # bits 0, 2, 5: profile position, profile velocity, homing
+    assert axis.status().modes == {1: "Profile position", 3: "Profile velocity", 6: "Homing"}
+    with pytest.raises(InvalidValue, match="Mode 9 is not among this device's supported modes"):
+        axis.run(drive_control.set_mode(axis.session, axis.node, 9))
+
+
+@pytest.mark.parametrize(("without", "position", "velocity", "how"), [
+    ({"0x60A8", "0x60A9"}, "position units (11.3778 increments)", "position units/s", "factor group"),
+    ({"0x60A8", "0x60A9", "0x6092"}, "increments", "increments/s", "raw increments")], ids=["factor", "raw"])
+def test_units_without_the_si_unit_objects(plant_session: tuple[asyncio.Runner, Session], plant: Plant,
+                                           registry: ProfileRegistry, tmp_path: Path, without: set[str],
+                                           position: str, velocity: str, how: str) -> None:
+    """A drive without 0x60A8/0x60A9 is shown in position units of its factor group (4096 increments per
+    revolution, 360 per revolution of feed), and without a feed constant in raw increments, said as such."""
+    runner, session = plant_session
+    data = json.loads((settings.profiles_dir / "generic-cia402-servo.json").read_text())
+    data["id"] = "servo-without-si-units"
+    data["objects"] = [obj for obj in data["objects"] if obj["index"] not in without]
+    registry.user_profiles_dir = tmp_path
+    profile = registry.add_upload("servo-without-si-units.json", json.dumps(data).encode())  # as the Profiles page
+    plant.add_node(profile, 30)
+    node = session.add_node(30, profile.id)
+    info = runner.run(motion.info(session, node))
+    assert (info.position_unit, info.velocity_unit) == (position, velocity) and how in info.units_from
+    actuals = {value.ref: value.unit for value in runner.run(drive_control.read_actuals(session, node))}
+    assert (actuals["0x6064"], actuals["0x606C"], actuals["0x60F4"]) == (position, velocity, position)
+
+
 @pytest.mark.parametrize(("method", "near"), [(35, None), (37, None), (34, None), (33, None), (17, -LIMIT_REVS),
-                                              (18, LIMIT_REVS), (1, -LIMIT_REVS), (2, LIMIT_REVS)])
+                                              (18, LIMIT_REVS), (1, -LIMIT_REVS), (2, LIMIT_REVS), (11, 1.0),
+                                              (27, 0.5), (10, 1.0)])
 def test_homing_methods(axis: Axis, method: int, near: float | None) -> None:
     axis.enable()
     start = axis.drive.mech
     status = axis.home(method)
     assert status.mode == 6 and status.mode_label == "Homing" and not status.status_bits[13].set
     assert axis.read("0x6098") == method
-    assert abs(axis.read("0x6064")) <= 5  # at home: 0 ° plus the stop after the event (at most 5 °)
+    assert abs(axis.read("0x6064")) <= STOP_AFTER_HOME_DEG  # at home: 0 ° plus the stop after the event
     revs = axis.drive.mech / axis.drive.increments_per_rev
     if near is None:
         moved = abs(axis.drive.mech - start) / axis.drive.increments_per_rev
         assert moved <= (0.02 if method in (35, 37) else 1.05)  # no motion / to the next index pulse
     else:
         assert abs(revs - near) <= (0.05 if method in (17, 18) else 1.05)  # at the switch (1, 2: next index)
+
+
+def test_the_methods_offered_are_those_0x60E3_lists(axis: Axis) -> None:
+    """The servo lists its 32 methods in 0x60E3; a drive that lists fewer is offered those, and another is refused
+    in words before anything is written (next test)."""
+    assert list(axis.run(motion.info(axis.session, axis.node)).homing_methods) == [
+        *range(1, 15), *range(17, 31), 33, 34, 35, 37]
+
+
+def test_a_method_0x60E3_does_not_list_is_refused_in_words(axis: Axis) -> None:
+    axis.drive.store.set(0x60E3, 0, 3)  # as a drive listing 1, 2 and 3 only (read once per node: set it first)
+    assert axis.run(motion.info(axis.session, axis.node)).homing_methods == {
+        1: "Negative limit switch and index pulse", 2: "Positive limit switch and index pulse",
+        3: "Positive home switch and index pulse (index below the switch edge)"}
+    axis.enable()
+    with pytest.raises(InvalidValue, match=r"Homing method 34 \(Index pulse in positive direction\) is not among "
+                                           r"the supported homing methods 0x60E3 of .* \(1, 2, 3\)"):
+        axis.run(motion.home(axis.session, axis.node, 34, confirm=AXIS))
+    assert axis.read("0x6098") == 35 and axis.status().mode != 6
+
+
+def test_the_home_offset_is_the_position_at_home(axis: Axis) -> None:
+    """CiA 402: after homing the home position reads as the home offset 0x607C."""
+    axis.enable()
+    axis.run(parameters.write(axis.session, AXIS, "0x607C", 90))
+    axis.home(34)
+    assert abs(axis.read("0x6064") - 90) <= STOP_AFTER_HOME_DEG  # plus the stop after the index pulse
+    at_home = axis.drive.home + 90 * axis.drive.per_unit  # the index pulse found: 0x6064 = 90 ° there
+    assert round(at_home - INDEX_AT) % axis.drive.increments_per_rev == 0
+
+
+def test_a_home_switch_method_started_away_from_its_switch_ends_in_a_homing_error(axis: Axis) -> None:
+    """Method 3 seeks a positive home switch: the switch is off above the cam, so it starts positive, runs onto the
+    positive limit switch and (CiA 402 gives 3 ... 6 no reversal there) reports homing error, status bit 13."""
+    axis.enable()
+    axis.run(motion.home(axis.session, axis.node, 3, confirm=AXIS))
+    status = axis.until(lambda status: status.status_bits[13].set, "homing error", timeout_s=20)
+    assert not status.status_bits[12].set and status.inputs[1].name == "Positive limit switch"
+    assert axis.drive.demand == LIMIT_REVS * axis.drive.increments_per_rev
 
 
 def test_profile_position_absolute_relative_and_target_reached(axis: Axis) -> None:

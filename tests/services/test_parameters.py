@@ -27,6 +27,7 @@ from drivebench.services.params.jobs import JobManager, JobState
 from drivebench.services.params.parameters import DeviceCommand
 from drivebench.services.session_manager import SessionManager
 from drivebench.simulator.plant import Plant, PlantFile
+from tests.conftest import wait_until
 
 T = TypeVar("T")
 ABSENT = 40
@@ -262,9 +263,7 @@ def test_reset_required_flag_until_reset_node(bench: Bench) -> None:
     bench.run(parameters.command(bench.session, 5, DeviceCommand.SAVE))
     assert node.pending_reset == {"C00351"}
     bench.plant.nodes[5].on_frame(0x000, bytes([0x81, 5]), time.time())  # someone else resets the node
-    deadline = time.monotonic() + 5
-    while node.pending_reset and time.monotonic() < deadline:
-        time.sleep(0.02)
+    assert wait_until(lambda: not node.pending_reset, 5)
     assert node.pending_reset == set()
 
 

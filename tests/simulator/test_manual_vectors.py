@@ -16,6 +16,7 @@ import pytest
 from drivebench.device.loader import ProfileRegistry
 from drivebench.protocol.datatypes import decode
 from drivebench.simulator.plant import Plant, PlantFile, PlantNode
+from tests.conftest import wait_until
 from tests.vectors.manual_sdo import LENZE_8400, LENZE_EMF2178IB, MICROMASTER, SdoVector
 
 PROFILE_BY_GROUP = [
@@ -56,10 +57,7 @@ def test_manual_telegram(vector: SdoVector, profile_id: str, registry: ProfileRe
             # Expedited without size (MICROMASTER 0x22): canopen always indicates the size, so send the manual's
             # frame itself and wait for the drive to take it.
             network.send_message(vector.request.cob_id, vector.request.data)
-            deadline = time.monotonic() + 5
-            while sim.store.read(vector.index, vector.subindex) != vector.value and time.monotonic() < deadline:
-                time.sleep(0.01)
-            assert sim.store.read(vector.index, vector.subindex) == vector.value
+            assert wait_until(lambda: sim.store.read(vector.index, vector.subindex) == vector.value, 5)
         else:
             remote.sdo.download(vector.index, vector.subindex, vector.value)
             # MICROMASTER P0918 is a word written with one byte (0x2F): the drive holds it as a word

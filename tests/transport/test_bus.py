@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import socket
-import time
 
 import can
 import pytest
 
 from drivebench.errors import AdapterUnavailable, BusSpecError
 from drivebench.transport.bus import AdapterLost, BusSpec, BusUnusable, open_bus
+from tests.conftest import wait_until
 
 
 @pytest.mark.parametrize(("text", "interface", "channel", "bitrate", "options"), [
@@ -83,14 +83,11 @@ def test_a_failing_adapter_is_lost_then_reopened_under_the_same_bus(channel: str
         assert bus.link.lost and bus.recv(0.05) is None  # the reader waits quietly instead of raising
         with pytest.raises(AdapterLost):
             bus.send(frame)  # at once, without touching the adapter
-        deadline = time.monotonic() + 5
-        while bus.link.attempts < 1 and time.monotonic() < deadline:
-            time.sleep(0.02)
+        assert wait_until(lambda: bus.link.attempts >= 1, 5)
         assert bus.link.attempts >= 1 and "USB adapter unplugged" in (bus.link.last_attempt_error or "")
         bus.adapter.plug_in()
         bus.reconnect_now()
-        while bus.link.lost and time.monotonic() < deadline:
-            time.sleep(0.02)
+        assert wait_until(lambda: not bus.link.lost, 5)
         assert not bus.link.lost and bus.link.reconnects == 1 and changes == [True, False]
         bus.send(frame)
         received = wire.recv(1)

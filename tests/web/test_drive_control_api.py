@@ -3,7 +3,6 @@ commissioning runs, problem+json errors, and the websocket keep-alive: disconnec
 
 from __future__ import annotations
 
-import time
 from typing import Any
 
 import pytest
@@ -12,6 +11,7 @@ from starlette.websockets import WebSocketDisconnect
 
 from drivebench.device.scaling import to_raw
 from drivebench.services.users.audit import LOCAL_USER
+from tests.conftest import wait_until
 
 BASE = "/api/sessions/demo-plant/nodes/{node}/control"
 MM, VECTOR = 3, 12
@@ -22,10 +22,12 @@ def _url(node: int, tail: str = "") -> str:
 
 
 def _until(client: TestClient, node: int, state: str, timeout_s: float = 8.0) -> dict[str, Any]:
-    deadline = time.monotonic() + timeout_s
-    while (status := client.get(_url(node)).json())["state"] != state:
-        assert time.monotonic() < deadline, f"node {node} stays in {status['state_label']}"
-        time.sleep(0.05)
+    status: dict[str, Any] = {}
+
+    def reached() -> bool:
+        status.update(client.get(_url(node)).json())
+        return status["state"] == state
+    assert wait_until(reached, timeout_s), f"node {node} stays in {status['state_label']}"
     return status
 
 

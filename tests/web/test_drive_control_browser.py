@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import contextlib
 import re
-import time
 from collections.abc import Callable, Iterator
 from typing import Any
 
@@ -14,7 +13,7 @@ import pytest
 
 from drivebench.simulator.plant import Plant
 from drivebench.web.app import create_app
-from tests.conftest import DEMO_PLANT, fresh_channel, screenshot, serve_app
+from tests.conftest import DEMO_PLANT, fresh_channel, screenshot, serve_app, wait_until
 
 TIMEOUT_MS = 10_000
 BLUE, RED = "rgb(11, 95, 165)", "rgb(198, 40, 40)"  # app.css --accent and --bad
@@ -44,21 +43,21 @@ def _current(page: Any, state: str) -> None:
 
 
 def _target(page: Any, base: str, rpm: int) -> None:
-    deadline = time.monotonic() + TIMEOUT_MS / 1000
     url = f"{base}/api/sessions/demo-plant/nodes/3/parameters/0x6042"
-    while page.request.get(url).json()["value"] != rpm:
-        assert time.monotonic() < deadline, f"0x6042 never became {rpm} rpm"
-        time.sleep(0.05)
+    assert wait_until(lambda: page.request.get(url).json()["value"] == rpm, TIMEOUT_MS / 1000), \
+        f"0x6042 never became {rpm} rpm"
 
 
 def _shown(page: Any, ref: str, done: Callable[[str], bool]) -> str:
     """Poll the live value of ``ref`` on the Control tab until ``done(text)``."""
-    deadline = time.monotonic() + TIMEOUT_MS / 1000
     value = page.locator(f'.ctl-value[data-ref="{ref}"]')
-    while not done(text := (value.text_content() if value.count() else "") or ""):
-        assert time.monotonic() < deadline, f"{ref} shows {text!r}"
-        time.sleep(0.05)
-    return text
+    shown: list[str] = [""]
+
+    def reached() -> bool:
+        shown[0] = (value.text_content() if value.count() else "") or ""
+        return done(shown[0])
+    assert wait_until(reached, TIMEOUT_MS / 1000), f"{ref} shows {shown[0]!r}"
+    return shown[0]
 
 
 def test_first_run_to_operation_enabled_and_back(server: tuple[str, Plant], page: Any) -> None:
@@ -177,10 +176,12 @@ def test_second_panel_watches_the_drive_the_first_holds(server: tuple[str, Plant
         anna_context.close()
         status_url = f"{base}/api/sessions/demo-plant/nodes/3/control"
         checker = browser.new_context()
-        deadline = time.monotonic() + TIMEOUT_MS / 1000
-        while (status := checker.request.get(status_url).json())["state"] != "switch_on_disabled":
-            assert time.monotonic() < deadline, f"the drive stays in {status['state_label']} after Anna left"
-            time.sleep(0.05)
+        status: dict[str, Any] = {}
+
+        def stopped() -> bool:
+            status.update(checker.request.get(status_url).json())
+            return status["state"] == "switch_on_disabled"
+        assert wait_until(stopped, TIMEOUT_MS / 1000), f"the drive stays in {status['state_label']} after Anna left"
         assert "held by Anna" in status["last_trip"] and "disconnected" in status["last_trip"]
         checker.close()
     finally:
@@ -233,6 +234,9 @@ def test_demo_axis_has_the_standard_cia402_panel_and_the_seed_drives_keep_theirs
     page.goto(f"{base}/sessions/demo-plant/nodes/7?tab=control")
     page.wait_for_selector("#ctl-ws.good", timeout=TIMEOUT_MS)
     assert page.locator("#ctl-motion").count() == 1 and page.locator("#ctl-home-method").count() == 1
+    assert page.locator("input[name=ctl-mode][value='7']").count() == 1  # 0x6502 bit 6: interpolated position
+    assert page.locator("#ctl-cyclic").count() == 1  # streamed by SYNC + RPDO as modes 8/9/10
+    assert page.locator("#ctl-home-method option").count() == 32  # the methods 0x60E3 lists
     assert page.locator("#ctl-units").inner_text().startswith("Position in °, velocity in rpm")
     tab = page.locator("#control-tab").inner_text()
     assert not [word for word in ("MICROMASTER", "Lenze", "P0700", "8400", "EMF2178IB") if word in tab]

@@ -6,6 +6,7 @@ import io
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import can
 import pytest
@@ -13,6 +14,7 @@ from fastapi.testclient import TestClient
 
 from drivebench.services.monitoring import recording
 from drivebench.web.app import create_app
+from tests.conftest import wait_for_value
 from tests.web.monitor_plant import SESSION_ID, write_plant
 
 API = f"/api/sessions/{SESSION_ID}/monitor"
@@ -27,13 +29,10 @@ def api(tmp_path: Path, channel: str, monkeypatch: pytest.MonkeyPatch) -> Iterat
 
 
 def _wait_frames(api: TestClient, minimum: int) -> dict[str, object]:
-    deadline = time.monotonic() + 15
-    while True:
-        body = api.get(API).json()
-        if body["totals"]["frames"] >= minimum:
-            return body  # type: ignore[no-any-return]
-        assert time.monotonic() < deadline, "no telegrams counted"
-        time.sleep(0.05)
+    def counted() -> dict[str, Any] | None:
+        body: dict[str, Any] = api.get(API).json()
+        return body if body["totals"]["frames"] >= minimum else None
+    return wait_for_value(counted, 15, "telegrams counted")
 
 
 def test_snapshot_filter_pause_reset(api: TestClient) -> None:

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-import time
-
 from fastapi.testclient import TestClient
+
+from tests.conftest import wait_for_value
 
 NO_BROWSER = {"keepalive": False, "reason": "test without a browser"}  # NMT start without the keep-alive guard (admin)
 
@@ -12,11 +12,11 @@ BADGE = "/ui/sessions/demo-plant/nodes/5/nmt"
 
 
 def _badge_after(client: TestClient, text: str) -> str:
-    deadline = time.monotonic() + 10
-    while text not in (html := client.get(BADGE).text):
-        assert time.monotonic() < deadline, f"the badge never said {text}: {html}"
-        time.sleep(0.05)
-    return html
+    def said() -> str:
+        html = client.get(BADGE).text
+        return html if text in html else ""
+    shown: str = wait_for_value(said, 10, f"the badge to say {text}")
+    return shown
 
 
 def test_nmt_badge_fragment_changes_after_nmt_start(client: TestClient) -> None:

@@ -7,7 +7,6 @@ The vectors (tests/vectors/manual_sdo.py) name the nodes the manuals use, so eac
 from __future__ import annotations
 
 import json
-import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -17,6 +16,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from drivebench.web.app import create_app
+from tests.conftest import wait_for_value
 from tests.vectors.manual_sdo import LENZE_8400, LENZE_EMF2178IB, SdoVector
 
 PLANTS: dict[str, list[dict[str, Any]]] = {
@@ -209,13 +209,11 @@ def test_list_and_search(api_8400: Api) -> None:
 
 
 def _wait_job(api: Api, job_id: str) -> dict[str, Any]:
-    deadline = time.monotonic() + 60
-    while time.monotonic() < deadline:
+    def finished() -> dict[str, Any] | None:
         job: dict[str, Any] = api.client.get(f"/api/jobs/{job_id}").json()
-        if job["state"] != "running":
-            return job
-        time.sleep(0.05)
-    raise AssertionError("job did not finish")
+        return job if job["state"] != "running" else None
+    done: dict[str, Any] = wait_for_value(finished, 60, f"job {job_id} to finish")
+    return done
 
 
 def test_read_all_job_with_progress_stream(api_8400: Api) -> None:

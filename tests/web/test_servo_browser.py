@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import json
 import re
-import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -18,7 +17,7 @@ import pytest
 from drivebench.config import REPO_ROOT, settings
 from drivebench.simulator.plant import Plant
 from drivebench.web.app import create_app
-from tests.conftest import fresh_channel, screenshot, serve_app
+from tests.conftest import fresh_channel, screenshot, serve_app, wait_until
 
 pytestmark = pytest.mark.browser
 
@@ -56,10 +55,16 @@ def _value(page: Any, ref: str) -> str:
 
 
 def _until(page: Any, ref: str, wanted: str) -> None:
-    deadline = time.monotonic() + TIMEOUT_MS / 1000
-    while (shown := _value(page, ref)) != wanted:
-        assert time.monotonic() < deadline, f"{ref} shows {shown!r}, expected {wanted!r}"
-        time.sleep(0.05)
+    assert wait_until(lambda: _value(page, ref) == wanted, TIMEOUT_MS / 1000), \
+        f"{ref} shows {_value(page, ref)!r}, expected {wanted!r}"
+
+
+def _plotted(page: Any, ref: str) -> tuple[int, float, float]:
+    """(samples, lowest, highest) the live chart of ``ref`` holds (its last 30 s)."""
+    box = page.locator(".ctl-plot", has=page.locator(f'.ctl-value[data-ref="{ref}"]'))
+    assert box.locator("canvas").count() == 1
+    shown = box.evaluate("box => [box.dataset.samples, box.dataset.min, box.dataset.max]")
+    return int(shown[0] or 0), float(shown[1] or "nan"), float(shown[2] or "nan")
 
 
 def _bit(page: Any, bit: int, on: bool = True) -> None:
@@ -113,10 +118,8 @@ def test_upload_scan_home_move_velocity_and_jog_a_cia402_axis(server: tuple[str,
     page.select_option("#ctl-home-method", "34")
     page.click("#ctl-home button[type=submit]")
     _confirm(page)
-    deadline = time.monotonic() + TIMEOUT_MS / 1000
-    while not (_read(page, base, "0x6098") == 34 and _read(page, base, "0x6041") & 0x1400 == 0x1400):
-        assert time.monotonic() < deadline, "homing with method 34 never attained"
-        time.sleep(0.05)
+    assert wait_until(lambda: _read(page, base, "0x6098") == 34 and _read(page, base, "0x6041") & 0x1400 == 0x1400,
+                      TIMEOUT_MS / 1000), "homing with method 34 never attained"
     assert 0 <= _read(page, base, "0x6064") <= 6  # at the next index pulse: at most one revolution (5 mm) on
     screenshot(page, "servo-homed")
 
@@ -131,6 +134,9 @@ def test_upload_scan_home_move_velocity_and_jog_a_cia402_axis(server: tuple[str,
     _confirm(page)
     _until(page, "0x6064", "0 mm")
     assert page.locator("#ctl-mode-display").inner_text() == "Profile position (1)"
+    samples, lowest, highest = _plotted(page, "0x6064")
+    assert lowest <= 0.5 and highest >= 49.5, (lowest, highest)  # the way to 50 mm and back is on the chart
+    assert wait_until(lambda: _plotted(page, "0x6064")[0] > samples, TIMEOUT_MS / 1000)  # and it goes on: live
 
     page.fill("#ctl-velocity input[name=value]", "20")
     page.click("#ctl-velocity button[type=submit]")
@@ -153,9 +159,8 @@ def test_upload_scan_home_move_velocity_and_jog_a_cia402_axis(server: tuple[str,
     page.mouse.up()  # released
     _until(page, "0x606C", "0 mm/s")
 
-    points = page.evaluate("""() => [...document.querySelectorAll('.ctl-plot')].map(box =>
-        [box.querySelector('.ctl-value').dataset.ref, box.querySelectorAll('canvas').length])""")
-    assert ["0x6064", 1] in points and ["0x606C", 1] in points  # position and velocity plotted live
+    _, lowest, highest = _plotted(page, "0x606C")
+    assert lowest <= -9.5 and highest >= 19.5, (lowest, highest)  # 20 mm/s and the -10 mm/s jog on the chart
     text = page.locator("body").inner_text()
     assert [word for word in SEED_WORDS if re.search(re.escape(word), text, re.IGNORECASE)] == []
     assert "null" not in text

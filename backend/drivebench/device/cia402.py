@@ -80,10 +80,11 @@ MODE_NAMES = {
 }
 MODE_BITS = {1: 0, 2: 1, 3: 2, 4: 3, 6: 5, 7: 6, 8: 7, 9: 8, 10: 9}
 """0x6502 supported drive modes: mode -> bit."""
-MODE_OBJECTS = {1: (0x607A, 0x6081), 2: (0x6042,), 3: (0x60FF,), 4: (0x6071,), 6: (0x6098,), 7: (0x60C1,),
+MODE_OBJECTS = {1: (0x607A, 0x6081), 2: (0x6042,), 3: (0x60FF,), 4: (0x6071,), 6: (0x6098,), 7: (0x60C1, 0x60C2),
                 8: (0x607A, 0x60C2), 9: (0x60FF, 0x60C2), 10: (0x6071, 0x60C2)}
 """The objects a mode needs in the object dictionary (modes found from the EDS when there is no 0x6502)."""
-CYCLIC_MODES = (8, 9, 10)
+CYCLIC_MODES = (7, 8, 9, 10)
+"""Modes whose setpoint travels in an RPDO every SYNC (7: the interpolation data record 0x60C1.1)."""
 
 
 def mode_label(mode: int) -> str:
@@ -99,17 +100,26 @@ def modes_from_6502(value: int) -> list[int]:
     return [mode for mode, bit in MODE_BITS.items() if value >> bit & 1]
 
 
+_CAM_METHODS = {  # 7 ... 14: a home switch active over part of the travel; (first move, edge, index side)
+    7: ("positive", "lower", "below"), 8: ("positive", "lower", "above"), 9: ("positive", "upper", "below"),
+    10: ("positive", "upper", "above"), 11: ("negative", "upper", "above"), 12: ("negative", "upper", "below"),
+    13: ("negative", "lower", "above"), 14: ("negative", "lower", "below"),
+}
 HOMING_METHODS = {
     1: "Negative limit switch and index pulse", 2: "Positive limit switch and index pulse",
-    3: "Positive home switch and index pulse (falling edge left)",
-    4: "Positive home switch and index pulse (rising edge)",
-    5: "Negative home switch and index pulse (falling edge right)",
-    6: "Negative home switch and index pulse (rising edge)",
-    **{method: f"Home switch and index pulse, variant {method}" for method in range(7, 15)},
+    3: "Positive home switch and index pulse (index below the switch edge)",
+    4: "Positive home switch and index pulse (index above the switch edge)",
+    5: "Negative home switch and index pulse (index above the switch edge)",
+    6: "Negative home switch and index pulse (index below the switch edge)",
+    **{method: f"Home switch and index pulse: start {way}, reverse at the {way} limit switch, index {side} the "
+               f"switch's {edge} edge" for method, (way, edge, side) in _CAM_METHODS.items()},
     17: "Negative limit switch", 18: "Positive limit switch",
-    19: "Positive home switch (falling edge left)", 20: "Positive home switch (rising edge)",
-    21: "Negative home switch (falling edge right)", 22: "Negative home switch (rising edge)",
-    **{method: f"Home switch, variant {method}" for method in range(23, 31)},
+    19: "Positive home switch (its edge, reached from above)", 20: "Positive home switch (its edge, reached from "
+    "below)", 21: "Negative home switch (its edge, reached from below)",
+    22: "Negative home switch (its edge, reached from above)",
+    **{method + 16: f"Home switch: start {way}, reverse at the {way} limit switch, the switch's {edge} edge "
+                    f"reached from {'above' if side == 'below' else 'below'}"
+       for method, (way, edge, side) in _CAM_METHODS.items()},
     33: "Index pulse in negative direction", 34: "Index pulse in positive direction",
     35: "Current position (no movement)", 37: "Current position (no movement, CiA 402-2)",
 }
@@ -177,7 +187,7 @@ ACTUALS = [  # (label, object, unit where CiA 402 fixes it; position and velocit
 UNIT_KIND = {"0x607A": "position", "0x60FF": "velocity", "0x6081": "velocity", "0x6099.1": "velocity",
              "0x6099.2": "velocity", "0x607C": "position", "0x607D.1": "position", "0x607D.2": "position",
              "0x607F": "velocity", "0x60F4": "position", "0x6064": "position", "0x606C": "velocity",
-             "0x6062": "position", "0x6065": "position"}
+             "0x6062": "position", "0x6065": "position", "0x60C1.1": "position"}
 
 
 def has_drive_words(profile: Profile) -> bool:
@@ -197,7 +207,8 @@ def generic_section(profile: Profile) -> ControlSection:
     modes = listed_modes(profile)
     setpoints = [Setpoint(ref=ref, unit=unit, modes=[mode]) for mode, ref, unit in (
         (1, "0x607A", "position"), (3, "0x60FF", "velocity"), (4, "0x6071", "‰"), (2, "0x6042", "rpm"),
-        (8, "0x607A", "position"), (9, "0x60FF", "velocity"), (10, "0x6071", "‰")) if int(ref, 16) in indices]
+        (7, "0x60C1.1", "position"), (8, "0x607A", "position"), (9, "0x60FF", "velocity"), (10, "0x6071", "‰"))
+        if int(ref.split(".")[0], 16) in indices]
     return ControlSection(
         key="cia402-generic", state_machine="cia402", title="CiA 402 drive state machine",
         note="Standard CiA 402 drive control (no vendor profile): bit names, modes and units as CiA 402-2 defines "

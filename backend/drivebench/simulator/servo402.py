@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 
+from drivebench.simulator import homing
 from drivebench.simulator.drive402 import STATE_BITS, State402, StateMachine402, command_state
 from drivebench.simulator.host import DeviceHost
 from drivebench.simulator.store import RawValue
@@ -35,13 +36,15 @@ LIMIT_REVS = 20.0
 START_REVS = 5.3
 INDEX_AT = 100
 """Index pulse at this many increments past each whole revolution."""
-SUPPORTED = (1, 3, 4, 6, 8, 9, 10)
+SUPPORTED = (1, 3, 4, 6, 7, 8, 9, 10)
 FOLLOWING_ERROR = 0x8611
 RPM_CODE = 0x00B44700
 
 CW_NEW_SET_POINT, CW_IMMEDIATE, CW_RELATIVE, CW_HALT = 0x0010, 0x0020, 0x0040, 0x0100
+CW_ENABLE_IP = CW_NEW_SET_POINT  # ip: enable ip mode
 SW_VOLTAGE, SW_REMOTE, SW_TARGET_REACHED, SW_LIMIT = 0x0010, 0x0200, 0x0400, 0x0800
 SW_ACK, SW_ERROR = 0x1000, 0x2000  # pp: set-point acknowledge / following error; hm: homing attained / error
+SW_IP_ACTIVE = SW_ACK  # ip: ip mode active
 
 
 def _signed(value: RawValue, default: float = 0.0) -> float:
@@ -61,7 +64,11 @@ class Servo402(StateMachine402):
         self.actual_velocity = 0.0
         self.torque = 0.0  # per mille of rated torque: acceleration and friction
         self.target: float | None = None  # profile position: demand target (mechanical increments)
-        self.homing: list[tuple[int, float, str]] = []  # phases: (direction, speed inc/s, until)
+        self.ip_goal: float | None = None  # interpolated position: the last data record (mechanical increments)
+        self.ip_speed = 0.0  # ... reached linearly within one interpolation period (increments/s)
+        self.machine = homing.Machine(limit=LIMIT_REVS * encoder, cam=(0.0, encoder / 2))
+        self.homing: list[homing.Phase] = []
+        self.homing_method = 0
         self.homing_done = False
         self.homing_error = False
         self.ack = False
@@ -108,7 +115,7 @@ class Servo402(StateMachine402):
             self.control_word = int(self._obj(0x6040))
             self.velocity = self.actual_velocity = 0.0
             self.demand = self.mech
-            self.target, self.homing = None, []
+            self.target, self.homing, self.ip_goal = None, [], None
             self.fault_code = 0
             self.history = [self.state]
             self._last = None
@@ -133,6 +140,8 @@ class Servo402(StateMachine402):
 
     # --- inputs ----------------------------------------------------------------------------------------------------
     def on_write(self, index: int, sub: int, raw: RawValue) -> None:
+        if index == 0x60C1 and sub == 1 and isinstance(raw, int):
+            self._ip_record(raw)
         if sub != 0 or not isinstance(raw, int):
             return
         if index == 0x6040:
@@ -141,10 +150,25 @@ class Servo402(StateMachine402):
             with self._lock:
                 if raw in SUPPORTED and self.store.has(0x6061, 0):
                     self.store.set(0x6061, 0, raw, notify=False)
-                    self.target, self.homing = None, []
+                    self.target, self.homing, self.ip_goal = None, [], None
                     self._publish()
         elif index in (0x607A, 0x60FF, 0x6071):
             self._wake()  # a setpoint may start a move (cyclic modes: every RPDO)
+
+    def _ip_record(self, raw: int) -> None:
+        """Linear interpolation (0x60C0 = 0): from where the demand is to the new record within one period."""
+        with self._lock:
+            self.ip_goal = self.home + raw * self.per_unit
+            period = self._obj(0x60C2, 1, 10) * 10 ** self._obj(0x60C2, 2, -3) or CYCLE_S
+            self.ip_speed = abs(self.ip_goal - self.demand) / max(period, CYCLE_S)
+            self._wake()
+
+    def _interpolated(self, top: float) -> None:
+        if self.ip_goal is None or not self.control_word & CW_ENABLE_IP:
+            self.velocity = 0.0
+            return
+        speed = min(self.ip_speed, top)
+        self.velocity = math.copysign(speed, self.ip_goal - self.demand) if self.ip_goal != self.demand else 0.0
 
     def _wake(self) -> None:
         self._idle = False
@@ -165,7 +189,7 @@ class Servo402(StateMachine402):
                     target = State402.SWITCH_ON_DISABLED  # option 0: disable drive function at once
                 self._enter(target)
             if self.state is not State402.OPERATION_ENABLED:
-                self.target, self.homing = None, []
+                self.target, self.homing, self.ip_goal = None, [], None
                 self.ack = False
                 self._publish()
                 return
@@ -192,22 +216,20 @@ class Servo402(StateMachine402):
     # --- homing ----------------------------------------------------------------------------------------------------
     def _start_homing(self) -> None:
         method = int(self._obj(0x6098, 0, 35))
-        fast, slow = self._velocity(0x6099, 1, 600), self._velocity(0x6099, 2, 60)
-        phases = {
-            17: [(-1, fast, "neg_on"), (1, slow, "neg_off")], 18: [(1, fast, "pos_on"), (-1, slow, "pos_off")],
-            1: [(-1, fast, "neg_on"), (1, slow, "neg_off"), (1, slow, "index")],
-            2: [(1, fast, "pos_on"), (-1, slow, "pos_off"), (-1, slow, "index")],
-            33: [(-1, slow, "index")], 34: [(1, slow, "index")], 35: [], 37: [],
-        }.get(method)
         self.homing_done = self.homing_error = False
         self.target = None
-        if phases is None:
-            self.homing_error = True  # a method this drive does not know
-            return
-        if not phases:
+        self.homing_method = method
+        if method in (35, 37):
             self._homed(self.mech)
             return
-        self.homing = list(phases)
+        if method not in homing.METHODS:
+            self.homing_error = True  # a method this drive does not know: status bit 13, no motion
+            return
+        self._plan_homing(method)
+
+    def _plan_homing(self, method: int, *, reversed_at_limit: bool = False) -> None:
+        fast, slow = self._velocity(0x6099, 1, 600), self._velocity(0x6099, 2, 60)
+        self.homing = homing.plan(method, self.demand, self.machine, fast, slow, reversed_at_limit=reversed_at_limit)
 
     def _homed(self, at: float) -> None:
         offset = self._obj(0x607C) * self.per_unit
@@ -217,22 +239,10 @@ class Servo402(StateMachine402):
 
     def _homing_event(self, before: float, after: float) -> float | None:
         """The mechanical position where the current phase's event happened between two positions, if it did."""
-        if after == before:
-            return None
-        until = self.homing[0][2]
-        limit = LIMIT_REVS * self.increments_per_rev
-        edges = {"neg_on": -limit, "neg_off": -limit, "pos_on": limit, "pos_off": limit}
-        if until in edges:
-            edge = edges[until]
-            return edge if min(before, after) <= edge <= max(before, after) else None
-        rev = self.increments_per_rev
-        if after > before:  # the next index pulse past ``before`` in the direction of travel
-            pulse = (math.floor((before - INDEX_AT) / rev) + 1) * rev + INDEX_AT
-            found = pulse <= after
-        else:
-            pulse = (math.ceil((before - INDEX_AT) / rev) - 1) * rev + INDEX_AT
-            found = pulse >= after
-        return pulse if found else None
+        phase = self.homing[0]
+        if phase.edge is not None:
+            return self.machine.position(phase.edge) if homing.crossed(self.machine, phase, before, after) else None
+        return homing.index_pulse(before, after, self.increments_per_rev, INDEX_AT)
 
     # --- the cycle -------------------------------------------------------------------------------------------------
     _idle = False
@@ -289,8 +299,8 @@ class Servo402(StateMachine402):
         if not self.homing:
             self._decelerate(self._acceleration(0x609A, 3000), dt)
             return
-        direction, speed, _ = self.homing[0]
-        self._ramp_to(direction * speed, dt, self._acceleration(0x609A, 3000), self._acceleration(0x609A, 3000))
+        phase, rate = self.homing[0], self._acceleration(0x609A, 3000)
+        self._ramp_to(phase.direction * phase.speed, dt, rate, rate)
 
     def _step(self, dt: float, now: float) -> None:
         accel, decel = self._acceleration(0x6083, 3000), self._acceleration(0x6084, 3000)
@@ -310,6 +320,8 @@ class Servo402(StateMachine402):
                 self.velocity = wanted
             else:
                 self._ramp_to(wanted, dt, accel, decel)
+        elif mode == 7:
+            self._interpolated(top)
         elif mode == 8:
             goal = self.home + self._obj(0x607A) * self.per_unit
             self.velocity = max(-top, min(top, (goal - self.demand) / dt)) if dt else 0.0
@@ -318,6 +330,8 @@ class Servo402(StateMachine402):
             self._ramp_to(torque / 1000 * top, dt, accel, decel)  # a load whose speed follows the torque
         before = self.demand
         self.demand += self.velocity * dt
+        if mode == 7 and self.ip_goal is not None and (self.demand - self.ip_goal) * self.velocity > 0:
+            self.demand, self.velocity = self.ip_goal, 0.0  # the record reached within the period
         self._limits()
         if mode == 6 and self.homing:
             event = self._homing_event(before, self.demand)
@@ -340,16 +354,24 @@ class Servo402(StateMachine402):
             self._enter(State402.FAULT)  # transition 14
 
     def _limits(self) -> None:
-        """The limit switches stop a move towards them (status bit 11); homing runs onto them on purpose."""
-        limit = LIMIT_REVS * self.increments_per_rev
-        homing_to = self.homing[0][2] if self.homing else ""
+        """The limit switches stop a move towards them (status bit 11). Homing runs onto one on purpose when its
+        phase seeks that switch; a method that did not seek it turns round there (7 ... 14, 23 ... 30) or ends with
+        a homing error (status bit 13)."""
+        limit = self.machine.limit
+        seeking = self.homing[0].edge if self.homing else None
         self.limit_hit = False
-        if self.demand <= -limit and self.velocity < 0 and homing_to != "neg_on":
+        if self.demand <= -limit and self.velocity < 0 and seeking != "neg_limit":
             self.demand, self.velocity, self.limit_hit = -limit, 0.0, True
-        elif self.demand >= limit and self.velocity > 0 and homing_to != "pos_on":
+        elif self.demand >= limit and self.velocity > 0 and seeking != "pos_limit":
             self.demand, self.velocity, self.limit_hit = limit, 0.0, True
-        if self.homing and homing_to in ("neg_on", "pos_on") and abs(self.demand) >= limit + self.increments_per_rev:
-            self.homing, self.homing_error = [], True  # ran past the switch: it is broken
+        if self.limit_hit and self.homing:
+            if homing.METHODS[self.homing_method].reverses:
+                self._plan_homing(self.homing_method, reversed_at_limit=True)
+            else:
+                self.homing, self.homing_error = [], True
+        outwards = self.homing and (seeking, self.homing[0].direction) in (("neg_limit", -1), ("pos_limit", 1))
+        if outwards and abs(self.demand) >= limit + self.increments_per_rev:
+            self.homing, self.homing_error = [], True  # ran a revolution past the switch: it is broken
 
     def _following_error(self, now: float) -> None:
         window = self._obj(0x6065, 0, 0) * self.per_unit
@@ -368,10 +390,9 @@ class Servo402(StateMachine402):
         super()._enter(state)
 
     def inputs(self) -> int:
-        limit = LIMIT_REVS * self.increments_per_rev
-        word = 0x1 if self.mech <= -limit else 0
-        word |= 0x2 if self.mech >= limit else 0
-        word |= 0x4 if 0 <= self.mech < self.increments_per_rev / 2 else 0
+        word = 0x1 if self.machine.switch_active("neg_limit", self.mech) else 0
+        word |= 0x2 if self.machine.switch_active("pos_limit", self.mech) else 0
+        word |= 0x4 if self.machine.switch_active("cam_low", self.mech) else 0
         return word
 
     def status_word(self) -> int:
@@ -393,6 +414,9 @@ class Servo402(StateMachine402):
             word |= SW_ACK if self.homing_done else 0
             word |= SW_ERROR if self.homing_error else 0
             word |= SW_TARGET_REACHED if (self.homing_done or self.homing_error or not self.homing) and settled else 0
+        elif mode == 7:
+            word |= SW_IP_ACTIVE if self.control_word & CW_ENABLE_IP else 0
+            word |= SW_TARGET_REACHED if self.ip_goal is not None and self.demand == self.ip_goal and settled else 0
         elif mode == 3:
             wanted = self._velocity(0x60FF)
             word |= SW_TARGET_REACHED if abs(self.velocity - wanted) < 1 else 0

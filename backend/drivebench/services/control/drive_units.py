@@ -81,9 +81,9 @@ async def motion_units(session: Session, node: SessionNode) -> Units:
 
 
 async def generic_limits(session: Session, node: SessionNode, ref: str) -> tuple[float | None, float | None]:
-    """Range of a CiA 402 setpoint: software position limits 0x607D (0/0: none), ± 0x607F max profile velocity,
-    ± 0x6072 max torque (‰, else ±1000 ‰)."""
-    if ref == "0x607A":
+    """Range of a CiA 402 setpoint: software position limits 0x607D (0/0: none) for a position, ± 0x607F max
+    profile velocity, ± 0x6072 max torque (‰, else ±1000 ‰)."""
+    if ref in ("0x607A", "0x60C1.1"):  # target position, interpolation data record (position)
         low, high = await _int(session, node, "0x607D.1"), await _int(session, node, "0x607D.2")
         if low is None or high is None or low == high == 0:
             return None, None

@@ -5,7 +5,8 @@
   acknowledge*, then the panel takes bit 4 back; status bit 10 *target reached* ends the move.
 * Homing (mode 6): method 0x6098, speeds 0x6099 (1: search for switch, 2: search for zero), acceleration 0x609A,
   home offset 0x607C; control word bit 4 *homing operation start* stays set while homing runs; status bit 12
-  *homing attained*, bit 13 *homing error*.
+  *homing attained*, bit 13 *homing error*. The methods offered are those the drive lists in 0x60E3 (supported
+  homing methods) where it has that object, else every CiA 402 method.
 
 The interlocks are drive_control's: only the panel holding the drive moves it, a move is confirmed with the node
 id and arms the keep-alive guard.
@@ -19,7 +20,7 @@ import time
 from pydantic import BaseModel
 
 from drivebench.device import cia402
-from drivebench.errors import Conflict, InvalidValue, OutOfRange
+from drivebench.errors import Conflict, DriveBenchError, InvalidValue, OutOfRange
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.control import drive_control
 from drivebench.services.control.drive_control import SERVICE_PANEL, DriveStatus, Panel, guard_for, has_ref
@@ -96,8 +97,25 @@ async def info(session: Session, node: SessionNode) -> MotionInfo:
     method = await _read(session, node, "0x6098") if has_ref(catalog, "0x6098") else None
     return MotionInfo(position_unit=units.position, velocity_unit=units.velocity, units_from=units.how,
                       quick_stop_option=option, settings=settings,
-                      homing_methods=cia402.HOMING_METHODS if has_ref(catalog, "0x6098") else {},
+                      homing_methods=await homing_methods(session, node) if has_ref(catalog, "0x6098") else {},
                       homing_method=int(method) if method is not None else None)
+
+
+async def homing_methods(session: Session, node: SessionNode) -> dict[int, str]:
+    """The methods the drive lists in 0x60E3 (read once per node: read-only), else every CiA 402 method."""
+    cached: dict[int, str] | None = getattr(node, "_homing_methods", None)  # kept on the node, as its units
+    if cached is not None:
+        return cached
+    catalog = drive_control.catalog_of(node)
+    methods = dict(cia402.HOMING_METHODS)
+    if has_ref(catalog, "0x60E3.1"):
+        count = int(await _read(session, node, "0x60E3.0") or 0)
+        refs = [f"0x60E3.{sub}" for sub in range(1, count + 1) if has_ref(catalog, f"0x60E3.{sub}")]
+        listed = [found.value for found in await parameters.read_many(session, node.node_id, refs)
+                  if not isinstance(found, DriveBenchError) and isinstance(found.value, int)]
+        methods = {method: cia402.homing_label(method) for method in listed}
+    object.__setattr__(node, "_homing_methods", methods)
+    return methods
 
 
 async def _enabled(session: Session, node: SessionNode, panel: Panel, what: str) -> DriveStatus:
@@ -168,8 +186,12 @@ async def move(session: Session, node: SessionNode, target: float, *, relative: 
 async def home(session: Session, node: SessionNode, method: int, *, confirm: object = None,
                panel: Panel = SERVICE_PANEL) -> DriveStatus:
     """Homing (mode 6) with ``method`` (0x6098); bit 4 stays set until the next command."""
-    if method not in cia402.HOMING_METHODS:
-        raise InvalidValue(f"Homing method {method} is not a CiA 402 method (1 ... 35, 37).")
+    supported = await homing_methods(session, node)
+    if method not in supported:
+        among = (f"the supported homing methods 0x60E3 of {node.device_name} ({', '.join(map(str, supported))})"
+                 if has_ref(drive_control.catalog_of(node), "0x60E3.1") else
+                 "the CiA 402 methods (1 ... 14, 17 ... 30, 33 ... 35, 37; the drive lists no others in 0x60E3)")
+        raise InvalidValue(f"Homing method {method} ({cia402.homing_label(method)}) is not among {among}.")
     status = await _enabled(session, node, panel, "Homing")
     drive_control.require_confirmation(confirm, node.node_id, f"Homing with method {method} "
                                                               f"({cia402.homing_label(method)})")
@@ -182,8 +204,11 @@ async def home(session: Session, node: SessionNode, method: int, *, confirm: obj
     return await drive_control.read_status(session, node, panel)
 
 
-# --- cyclic synchronous modes (8/9/10): the setpoint travels in an RPDO every SYNC -----------------------------
-CYCLIC_TARGETS = {8: "0x607A", 9: "0x60FF", 10: "0x6071"}
+# --- interpolated position (7) and cyclic synchronous modes (8/9/10): the setpoint travels in an RPDO every SYNC --
+CYCLIC_TARGETS = {7: "0x60C1.1", 8: "0x607A", 9: "0x60FF", 10: "0x6071"}
+ENABLE_IP_MODE = NEW_SET_POINT
+"""Interpolated position: control word bit 4 *enable ip mode*; the drive answers with status bit 12 *ip mode
+active* and follows the interpolation data record 0x60C1.1, linearly over each interpolation period (0x60C2)."""
 
 
 class CyclicStream(BaseModel):
@@ -207,11 +232,13 @@ async def _cycle_ms(session: Session, node: SessionNode) -> int:
 
 async def stream(session: Session, node: SessionNode, value: float, *, confirm: object = None,
                  panel: Panel = SERVICE_PANEL) -> CyclicStream:
-    """Cyclic synchronous position / velocity / torque: SYNC at the drive's interpolation period (0x60C2) and an
-    RPDO mapping the control word and the mode's target, sent every cycle while the panel holds the drive."""
+    """Interpolated position or cyclic synchronous position / velocity / torque: SYNC at the drive's interpolation
+    period (0x60C2) and an RPDO mapping the control word and the mode's target (interpolated position: the data
+    record 0x60C1.1, with bit 4 *enable ip mode* in the control word), sent every cycle while the panel holds the
+    drive."""
     status = await _enabled(session, node, panel, "A cyclic synchronous setpoint")
     if status.mode not in CYCLIC_TARGETS:
-        raise Conflict("Choose a cyclic synchronous mode (8, 9 or 10) first; it is in "
+        raise Conflict("Choose interpolated position (7) or a cyclic synchronous mode (8, 9 or 10) first; it is in "
                        f"{status.mode_label or 'no mode'}.")
     target = CYCLIC_TARGETS[status.mode]
     if session.nmt_state(node.node_id)[0] != "Operational":
@@ -228,7 +255,8 @@ async def stream(session: Session, node: SessionNode, value: float, *, confirm: 
     drive_control.require_confirmation(confirm, node.node_id, f"Cyclic setpoint {value:g} {scale.unit}")
     guard_for(session).arm(node.node_id, panel)
     period = await _cycle_ms(session, node)
-    word = await drive_control.last_control_word(session, node)
+    word = await drive_control.last_control_word(session, node) & ~MODE_BITS
+    word |= ENABLE_IP_MODE if status.mode == 7 else 0
     if panel.key not in data.watchers:
         data.watch(panel.key)
     data.start_sync(period)

@@ -49,7 +49,8 @@ class MoveIn(Confirmed):
 
 
 class CyclicIn(Confirmed):
-    value: float = Field(description="Target of the cyclic synchronous mode shown (8: 0x607A, 9: 0x60FF, 10: 0x6071)")
+    value: float = Field(description="Target of the mode shown (7: interpolation data record 0x60C1.1, 8: 0x607A, "
+                                     "9: 0x60FF, 10: 0x6071)")
 
 
 class StoppedOut(BaseModel):
@@ -57,7 +58,8 @@ class StoppedOut(BaseModel):
 
 
 class HomeIn(Confirmed):
-    method: int = Field(description="Homing method 0x6098 (CiA 402: 1 ... 35, 37)")
+    method: int = Field(description="Homing method 0x6098 (CiA 402: 1 ... 14, 17 ... 30, 33 ... 35, 37; where the "
+                                    "drive has 0x60E3, one it lists there)")
 
 
 class ModeIn(Confirmed):
@@ -124,8 +126,9 @@ async def move(request: Request, session: SessionDep, node: NodeDep, panel: Pane
 
 @router.post("/cyclic", response_model=CyclicStream)
 async def cyclic(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep, body: CyclicIn) -> CyclicStream:
-    """Cyclic synchronous mode (8/9/10): SYNC at 0x60C2 and an RPDO with the control word and the target, every
-    cycle, while this panel holds the drive (any stopping command or a lost keep-alive ends it)."""
+    """Interpolated position (7) or cyclic synchronous mode (8/9/10): SYNC at 0x60C2 and an RPDO with the control
+    word and the target, every cycle, while this panel holds the drive (any stopping command or a lost keep-alive
+    ends it)."""
     return await motion.stream(session, node, body.value, confirm=confirmation(request, body.confirm), panel=panel)
 
 
