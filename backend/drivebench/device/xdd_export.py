@@ -79,10 +79,21 @@ def _parameter(parameters: etree._Element, entry: ObjectEntry) -> None:
         _el(parameter, "property", None, name=f"{EDS_KEY_PREFIX}{key}", value=value)
 
 
+def _object_parameter(parameters: etree._Element, index: int, first: ObjectEntry) -> str:
+    """A parameter carrying the keys of an ARRAY/RECORD's own EDS section (``object_keys``); its uniqueID."""
+    unique_id = f"UID_OBJ_{index:04X}"
+    parameter = _el(parameters, "parameter", uniqueID=unique_id, access="read")
+    _el(parameter, "label", first.object_name or first.name, lang="en")
+    _el(parameter, "BYTE")
+    for key, value in (first.object_keys or {}).items():
+        _el(parameter, "property", None, name=f"{EDS_KEY_PREFIX}{key}", value=value)
+    return unique_id
+
+
 def _object_attributes(element: etree._Element, entry: ObjectEntry, value: Value | None, *,
                        with_flags: bool) -> None:
     element.set("name", entry.name)
-    element.set("objectType", "7")
+    element.set("objectType", "2" if entry.domain_object else "7")
     element.set("dataType", f"{entry.data_type.code:04X}")
     element.set("accessType", entry.access.value)
     texts = export_value_text(entry, value)
@@ -138,6 +149,8 @@ def export_xdd(profile: Profile, *, node_id: int | None = None, values: Mapping[
         obj.set("subNumber", str(len(entries)))
         if shared is not None:
             obj.set("objFlags", f"{shared:X}")
+        if first.object_keys:
+            obj.set("uniqueIDRef", _object_parameter(parameters, index, first))
         for entry in entries:
             sub = _el(obj, "CANopenSubObject", subIndex=f"{entry.subindex:02X}")
             _object_attributes(sub, entry, node_value(entry, values or {}, node_id, xdc), with_flags=shared is None)
