@@ -295,6 +295,10 @@ class _Reader:
         entries = [ObjectEntry(index=index, subindex=0, name=COMPACT_SUB0_NAME, object_name=name,
                                object_type="ARRAY", data_type=DataType.UNSIGNED8, access=Access.RO, default=count,
                                obj_flags=flags, compact=True)]
+        count_value = values.get("0") if values else None  # a DCF's value of sub 0, as DriveBench writes it
+        if count_value is not None:
+            entries[0] = entries[0].model_copy(update={"parameter_value": self.parameter_value(
+                DataType.UNSIGNED8, count_value, (index, 0))})
         for sub in range(1, count + 1):
             sub_name = names.get(str(sub)) if names else None
             entry = self.entry(section, index, sub, name=sub_name.value if sub_name else f"{name}{sub}",
@@ -440,6 +444,10 @@ class _Reader:
         """LowLimit/HighLimit: unusable ones are dropped, out-of-type ones repaired, both dropped when the low
         one is above the high one (each noted; the row then says so before a write)."""
         if data_type.is_string:
+            for key in (section.get("LowLimit"), section.get("HighLimit")):
+                if key is not None and key.value.strip() and not quiet:
+                    self.warn(key.line, key.name, f"{key.value!r} ignored: a {data_type.value} has no limits",
+                              address=address)
             return
         found: dict[str, Key] = {}
         for key_name, field_name in (("LowLimit", "min"), ("HighLimit", "max")):

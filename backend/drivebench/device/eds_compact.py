@@ -50,7 +50,7 @@ def compact_sections(entries: list[ObjectEntry], entry_keys: Callable[[ObjectEnt
     index = f"{head.index:04X}"
     sections = [(index, keys)]
     names = [(e.subindex, e.name) for e in subs if e.name != f"{head.object_name}{e.subindex}"]
-    values: list[tuple[int, Value]] = [(e.subindex, text) for e in subs if (text := value_text(e)) is not None]
+    values: list[tuple[int, Value]] = [(e.subindex, text) for e in entries if (text := value_text(e)) is not None]
     denotations = [(e.subindex, e.denotation) for e in subs if e.denotation is not None]
     for suffix, items in (("Name", names), ("Value", values), ("Denotation", denotations)):
         if items:
