@@ -331,8 +331,8 @@ def export_eds(profile: Profile, *, node_id: int | None = None, values: Mapping[
         out.section(list_name, [("SupportedObjects", len(listed)),
                                 *((str(n), f"0x{i:04X}") for n, i in enumerate(listed, start=1))])
     for index, entries in by_index.items():
-        for name, keys in _object_sections(index, entries, parameter_value):
-            out.section(name, keys)
+        for section_name, section_keys in _object_sections(index, entries, parameter_value):
+            out.section(section_name, section_keys)
     handled = {"fileinfo", "deviceinfo", "devicecomissioning", "comments", OWN_SECTION.lower()}
     for name, keys in profile.extra_sections.items():
         if name.lower() not in handled:

@@ -23,6 +23,7 @@ from drivebench.device.eds import (
     BAUD_RATES_KBIT,
     MAX_EDS_BYTES,
     OBJECT_LISTS,
+    OWN_SECTION,
     ImportedEds,
     Key,
     Section,
@@ -30,6 +31,7 @@ from drivebench.device.eds import (
 )
 from drivebench.device.eds_quirks import Warnings
 from drivebench.errors import ProfileError
+from drivebench.protocol.datatypes import DATA_TYPE_BY_CODE, DataType
 
 XML_SUFFIXES = (".xdd", ".xdc")
 EDS_KEY_PREFIX = "EDS:"
@@ -83,6 +85,31 @@ class _Builder:
         self.sections: dict[str, Section] = {}
         self.listed: dict[str, int] = {}
         """How many objects each object list ([MandatoryObjects] ...) holds so far."""
+        self.defined_types: dict[int, DataType] = {}
+        """``dataTypeList`` codes outside CiA 301's basic types that name one (``<defType dataType="0040">
+        <Unsigned32/>``)."""
+
+    def header(self, profile_root: etree._Element) -> None:
+        """ProfileRevision and ProfileSource (DriveBench's profile version and source) of the first header."""
+        for child in next((e for e in profile_root if local(e) == "ProfileHeader"), []):
+            text = (child.text or "").strip()
+            key = {"ProfileRevision": "Version", "ProfileSource": "Source"}.get(local(child))
+            if key is not None and text:
+                self.put(OWN_SECTION, child.sourceline or 1, key, text)
+
+    def data_types(self, body: etree._Element) -> None:
+        for element in body.iter():
+            if local(element).lower() != "datatypelist":
+                continue
+            for definition in element:
+                code_text, named = definition.get("dataType", ""), next(iter(definition), None)
+                name = local(named).upper() if named is not None else ""
+                try:
+                    code = int(code_text, 16)
+                except ValueError:
+                    continue
+                if code not in DATA_TYPE_BY_CODE and name in DataType.__members__:
+                    self.defined_types[code] = DataType[name]
 
     def put(self, section: str, line: int, key: str, value: str) -> None:
         found = self.sections.get(section.upper())
@@ -174,7 +201,7 @@ class _Builder:
             if value is None:
                 continue
             if attribute == "dataType":
-                value = f"0x{value}" if not value.lower().startswith("0x") else value
+                value = self.data_type(value, line)
             elif attribute == "PDOmapping":
                 value = "0" if value.strip().lower() == "no" else "1"
             self.put(section, line, key, value)
@@ -190,6 +217,18 @@ class _Builder:
         for source in (parameter, template):
             if source is not None:
                 self.from_parameter(section, source)
+
+    def data_type(self, text: str, line: int) -> str:
+        """A dataType attribute as an EDS DataType: hex, and a code the dataTypeList defines as its basic type."""
+        value = f"0x{text}" if not text.lower().startswith("0x") else text
+        try:
+            defined = self.defined_types.get(int(value, 16))
+        except ValueError:
+            return value
+        if defined is None:
+            return value
+        self.notes.add(line, "dataType", f"dataType={text} is defined in the dataTypeList: read as {defined.value}")
+        return f"0x{defined.code:04X}"
 
     def from_parameter(self, section: str, parameter: etree._Element) -> None:
         """What the object leaves out, from its parameter (``put`` keeps what is already there)."""
@@ -230,6 +269,10 @@ def read_xdd(data: bytes, *, source: str) -> ImportedEds:
     notes = Warnings(source)
     builder = _Builder(source, notes)
     parameters: dict[str, etree._Element] = {}
+    profiles = [root] if local(root) == "ISO15745Profile" else [e for e in root if local(e) == "ISO15745Profile"]
+    if profiles:
+        builder.header(profiles[0])
+    builder.data_types(communication[0])
     for body in bodies:
         if _body_type(body).startswith("ProfileBody_Device_CANopen"):
             parameters |= builder.device(body)
