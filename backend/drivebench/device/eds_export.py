@@ -13,7 +13,6 @@ from collections.abc import Callable, Iterable, Mapping
 from drivebench.device.addressing import code_to_index, format_code
 from drivebench.device.catalog import Catalog
 from drivebench.device.dcf_patch import patch_dcf
-from drivebench.device.eds_compact import compact_sections, fits_compact
 from drivebench.device.eds import (
     BAUD_RATES_KBIT,
     DEVICE_INFO_DEFAULTS,
@@ -24,6 +23,7 @@ from drivebench.device.eds import (
     node_expr,
     resolve_node_expr,
 )
+from drivebench.device.eds_compact import compact_sections, fits_compact
 from drivebench.device.profile import Access, LenzeCodeAddressing, ObjectEntry, Parameter, Profile, Value
 from drivebench.errors import ProfileError, UnknownParameter
 from drivebench.protocol.datatypes import DataType
