@@ -98,7 +98,8 @@ class _Builder:
                 self.put(OWN_SECTION, child.sourceline or 1, key, text)
 
     def data_types(self, body: etree._Element) -> None:
-        for element in body.iter():
+        layers = [e for e in body if local(e) == "ApplicationLayers"]
+        for element in (e for layer in layers for e in layer):
             if local(element).lower() != "datatypelist":
                 continue
             for definition in element:
@@ -195,16 +196,16 @@ class _Builder:
 
     def keys(self, section: str, element: etree._Element, parameters: dict[str, etree._Element]) -> None:
         line = element.sourceline or 1
-        self.sections.setdefault(section.upper(), Section(section, line))
-        for attribute, key in _OBJECT_KEYS.items():
-            value = element.get(attribute)
-            if value is None:
+        target = self.sections.setdefault(section.upper(), Section(section, line)).keys
+        for attribute, value in element.items():  # one pass over what the element has (a 5 MB XDD: 150,000)
+            key = _OBJECT_KEYS.get(str(attribute))
+            if key is None:
                 continue
             if attribute == "dataType":
                 value = self.data_type(value, line)
             elif attribute == "PDOmapping":
                 value = "0" if value.strip().lower() == "no" else "1"
-            self.put(section, line, key, value)
+            target.setdefault(key.lower(), Key(key, value, line))
         reference = element.get("uniqueIDRef")
         if reference is None:
             return
