@@ -50,6 +50,24 @@ def test_servo_objects_take_what_they_leave_out_from_parameters_and_templates() 
     assert [(w.line, w.key) for w in imported.warnings] == [(82, "LowLimit")]
 
 
+def test_objects_typed_only_by_their_parameters_take_type_access_values_and_denotation_from_them() -> None:
+    """An XDD as object dictionary editors write it: the CANopenObject names its parameter, which holds the IEC
+    type, the access, default, range, actual value and denotation (the heads' dataTypeIDRef types are skipped)."""
+    imported = read_xdd((DATA / "typed_parameters.xdd").read_bytes(), source="typed_parameters.xdd")
+    io = imported.profile
+    assert imported.warnings == []
+    rows = [(o.index, o.subindex, o.data_type.value, o.access.value, o.default) for o in io.objects]
+    assert rows == [(0x1000, 0, "UNSIGNED32", "ro", 0x30191), (0x1017, 0, "UNSIGNED16", "rw", 0),
+                    (0x1018, 0, "UNSIGNED8", "ro", 1), (0x1018, 1, "UNSIGNED32", "ro", 0x321),
+                    (0x1F50, 0, "UNSIGNED8", "ro", 1), (0x1F50, 1, "DOMAIN", "wo", None),
+                    (0x6200, 0, "UNSIGNED8", "rww", 0)]
+    heartbeat = obj(io, 0x1017)
+    assert (heartbeat.min, heartbeat.max, heartbeat.parameter_value) == (0, 60000, 100)
+    assert (heartbeat.denotation, heartbeat.description) == ("Heartbeat of the door IO", "Heartbeat period in ms.")
+    assert obj(io, 0x6200).pdo_mappable and not obj(io, 0x1000).pdo_mappable
+    assert all(o.object_keys is None for o in io.objects) and io.version == "1.1"
+
+
 def test_xdc_actual_values_become_the_configured_values() -> None:
     node = load("io_node12.xdc")
     assert obj(node, 0x1017).parameter_value == 500

@@ -42,6 +42,18 @@ _OBJECT_KEYS = {"name": "ParameterName", "objectType": "ObjectType", "dataType":
                 "lowLimit": "LowLimit", "highLimit": "HighLimit", "accessType": "AccessType",
                 "defaultValue": "DefaultValue", "actualValue": "ParameterValue", "denotation": "Denotation",
                 "PDOmapping": "PDOMapping", "objFlags": "ObjFlags", "subNumber": "SubNumber"}
+_PARAMETER_ACCESS = {"const": "const", "read": "ro", "write": "wo", "readWrite": "rw", "readWriteInput": "rwr",
+                     "readWriteOutput": "rww"}
+"""A CiA 311 parameter's ``access`` as the EDS AccessType (``noAccess`` has none)."""
+_IEC_TYPES = {"BOOL": DataType.BOOLEAN, "SINT": DataType.INTEGER8, "CHAR": DataType.INTEGER8,
+              "INT": DataType.INTEGER16, "DINT": DataType.INTEGER32, "LINT": DataType.INTEGER64,
+              "USINT": DataType.UNSIGNED8, "BYTE": DataType.UNSIGNED8, "UINT": DataType.UNSIGNED16,
+              "WORD": DataType.UNSIGNED16, "UDINT": DataType.UNSIGNED32, "DWORD": DataType.UNSIGNED32,
+              "ULINT": DataType.UNSIGNED64, "LWORD": DataType.UNSIGNED64, "REAL": DataType.REAL32,
+              "LREAL": DataType.REAL64, "STRING": DataType.VISIBLE_STRING, "WSTRING": DataType.UNICODE_STRING,
+              "BITSTRING": DataType.OCTET_STRING}
+"""A parameter's IEC 61131 type element as the CiA 301 type, for an object without ``dataType`` (generators such
+as CANopenEditor type the parameter only)."""
 _COMMISSIONING = {"nodeID": "NodeID", "nodeName": "NodeName", "actualBaudRate": "Baudrate",
                   "networkNumber": "NetNumber", "networkName": "NetworkName", "CANopenManager": "CANopenManager"}
 
@@ -215,9 +227,11 @@ class _Builder:
                            "profile: ignored")
             return
         template = parameters.get(str(parameter.get("templateIDRef"))) if parameter.get("templateIDRef") else None
+        holds_value = local(element) == "CANopenSubObject" or not any(local(e) == "CANopenSubObject"
+                                                                       for e in element)
         for source in (parameter, template):
             if source is not None:
-                self.from_parameter(section, source)
+                self.from_parameter(section, source, holds_value=holds_value)
 
     def data_type(self, text: str, line: int) -> str:
         """A dataType attribute as an EDS DataType: hex, and a code the dataTypeList defines as its basic type."""
@@ -231,12 +245,25 @@ class _Builder:
         self.notes.add(line, "dataType", f"dataType={text} is defined in the dataTypeList: read as {defined.value}")
         return f"0x{defined.code:04X}"
 
-    def from_parameter(self, section: str, parameter: etree._Element) -> None:
-        """What the object leaves out, from its parameter (``put`` keeps what is already there)."""
+    def from_parameter(self, section: str, parameter: etree._Element, *, holds_value: bool) -> None:
+        """What the object leaves out, from its parameter (``put`` keeps what is already there); the access and the
+        type only for an object holding a value (not the head of an ARRAY/RECORD)."""
         line = parameter.sourceline or 1
+        access = _PARAMETER_ACCESS.get(str(parameter.get("access")))
+        if holds_value and access is not None:
+            self.put(section, line, "AccessType", access)
         for child in parameter:
             name = local(child)
-            if name == "label" and (child.text or "").strip():
+            if holds_value and name in _IEC_TYPES:
+                data_type = _IEC_TYPES[name]
+                if name == "BITSTRING" and not any(local(e) == "defaultValue" for e in parameter):
+                    data_type = DataType.DOMAIN  # bytes without a default: CANopenEditor writes DOMAIN so
+                self.put(section, child.sourceline or line, "DataType", f"0x{data_type.code:04X}")
+            elif name == "denotation":
+                text = " ".join(t.strip() for t in child.itertext() if t.strip())
+                if text:
+                    self.put(section, child.sourceline or line, "Denotation", text)
+            elif name == "label" and (child.text or "").strip():
                 self.put(section, line, "ParameterName", (child.text or "").strip())
             elif name == "description" and (child.text or "").strip():
                 self.put(section, child.sourceline or line, "Description", (child.text or "").strip())

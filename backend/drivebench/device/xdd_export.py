@@ -25,7 +25,8 @@ OBJECT_TYPE_NUMBERS = {"VAR": "7", "ARRAY": "8", "RECORD": "9"}
 IEC_TYPES = {DataType.BOOLEAN: "BOOL", DataType.INTEGER8: "SINT", DataType.INTEGER16: "INT", DataType.INTEGER32: "DINT",
              DataType.INTEGER64: "LINT", DataType.UNSIGNED8: "USINT", DataType.UNSIGNED16: "UINT",
              DataType.UNSIGNED32: "UDINT", DataType.UNSIGNED64: "ULINT", DataType.REAL32: "REAL",
-             DataType.REAL64: "LREAL", DataType.VISIBLE_STRING: "STRING", DataType.UNICODE_STRING: "WSTRING"}
+             DataType.REAL64: "LREAL", DataType.VISIBLE_STRING: "STRING", DataType.UNICODE_STRING: "WSTRING",
+             DataType.OCTET_STRING: "BITSTRING", DataType.DOMAIN: "BITSTRING"}
 """The IEC 61131 type of a parameter holding an object's value (CiA 311 parameters are typed so); BYTE else."""
 
 
