@@ -10,7 +10,10 @@ The communication body (``ProfileBody_CommunicationNetwork_CANopen``) is turned 
 ``deviceCommissioning`` -> ``[DeviceComissioning]``) and read by the EDS reader, so both formats get the same
 readings and warnings. The device body (``ProfileBody_Device_CANopen``) gives the identity and, through an
 object's ``uniqueIDRef``, the parameter (and its ``templateIDRef`` template) for what the object leaves out: name,
-default, actual value, limits, description, and the ``Unit``/``Factor`` properties DriveBench's export writes.
+default, actual value, limits, description, denotation, the ``Unit``/``Factor`` properties DriveBench's export writes
+and its ``EDS:`` properties (EDS keys without a CiA 311 attribute); an object without ``dataType``/``accessType``
+takes them from the parameter's IEC type and ``access``. A ``dataTypeList`` code outside CiA 301's basic types
+that it defines as one is read as that type; the first ProfileHeader's revision and source are the profile's.
 """
 
 from __future__ import annotations
