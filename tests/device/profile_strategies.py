@@ -70,7 +70,8 @@ def compact_array(draw: st.DrawFn, index: int, name: str) -> list[ObjectEntry]:
     count = draw(st.integers(1, 5))
     shape = draw(_entry(index, 1, "ARRAY", name)).model_copy(update={"section_keys": None, "compact": True})
     head = ObjectEntry(index=index, name="NrOfObjects", object_name=name, object_type="ARRAY", compact=True,
-                       data_type=DataType.UNSIGNED8, access=Access.RO, default=count, obj_flags=shape.obj_flags)
+                       data_type=DataType.UNSIGNED8, access=Access.RO, default=count, obj_flags=shape.obj_flags,
+                       parameter_value=draw(st.none() | st.integers(0, 255)))
     subs = [shape.model_copy(update={
         "subindex": sub, "name": draw(st.just(f"{name}{sub}") | TEXT), "denotation": draw(st.none() | TEXT),
         "parameter_value": draw(st.none() | raw_value(shape.data_type, 1))}) for sub in range(1, count + 1)]

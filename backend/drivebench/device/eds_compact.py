@@ -20,13 +20,13 @@ HEAD_KEYS_NOT_SHARED = {"ParameterName", "ObjectType", "ParameterValue", "Denota
 
 def fits_compact(entries: list[ObjectEntry]) -> bool:
     """Whether an object's entries (in sub-index order) were read compact and still fit that form: sub 0 the count
-    of subs 1..N, which are alike but for :data:`PER_SUB`."""
+    of subs 1..N (a DCF value of its own), which are alike but for :data:`PER_SUB`."""
     head, subs = entries[0], entries[1:]
     if not subs or len(subs) > 254 or not all(e.compact and e.object_type == "ARRAY" for e in entries):
         return False
     count = ObjectEntry(index=head.index, name=COMPACT_SUB0_NAME, object_name=head.object_name, object_type="ARRAY",
                         data_type=DataType.UNSIGNED8, access=Access.RO, default=len(subs), obj_flags=head.obj_flags,
-                        compact=True, object_keys=head.object_keys)
+                        compact=True, object_keys=head.object_keys, parameter_value=head.parameter_value)
     if head != count or [e.subindex for e in subs] != list(range(1, len(subs) + 1)):
         return False
     shape = subs[0].model_dump(exclude=PER_SUB)
