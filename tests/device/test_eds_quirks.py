@@ -3,19 +3,23 @@ and what is exported from it reads back as the same profile; generated and mutat
 
 from __future__ import annotations
 
+import re
+from pathlib import Path
+
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from drivebench.device.eds import read_eds
+from drivebench.device.eds import Section, decode_text, parse_ini, read_eds
 from drivebench.device.eds_export import export_eds
-from drivebench.device.eds_quirks import node_expr, read_int
+from drivebench.device.eds_quirks import Warnings, node_expr, read_int
 from drivebench.device.xdd import read_xdd
 from drivebench.device.xdd_export import export_xdd
 from drivebench.errors import ProfileError
 from tests.device.quirk_corpus import BASE, CASES, CORPUS_FILES, Case
 
 CORPUS = CORPUS_FILES
+DATA_EDS = Path(__file__).resolve().parents[1] / "data" / "eds"
 
 
 def test_the_corpus_is_large_and_its_base_is_clean() -> None:
@@ -122,3 +126,39 @@ def test_mutated_files_are_accepted_or_refused_in_words(data: st.DataObject) -> 
         assert again == imported.profile
     else:  # the export adds the CiA 301 mandatory objects the file lacked
         assert all(o in again.objects for o in imported.profile.objects)
+
+
+_INDEX_SUB = re.compile(r"^([0-9A-F]{4})SUB([0-9A-F]{1,2})$")
+_REGENERATED = {"MANDATORYOBJECTS", "OPTIONALOBJECTS", "MANUFACTUREROBJECTS"}
+"""Object lists are written from the objects read (their counts and order are the export's)."""
+
+
+def _sections(text: str, name: str) -> dict[str, Section]:
+    def same_sub(section: str) -> str:  # [1018sub01] is [1018sub1]
+        found = _INDEX_SUB.match(section)
+        return f"{found.group(1)}SUB{int(found.group(2), 16):X}" if found else section
+    return {same_sub(n): s for n, s in parse_ini(text, name, Warnings(name)).items()}
+
+
+@pytest.mark.parametrize(("name", "content"), [(n, c) for n, c, _ in CORPUS] + [
+    (p.name, p.read_bytes()) for p in sorted(DATA_EDS.iterdir())], ids=lambda v: v if isinstance(v, str) else "")
+def test_the_export_writes_every_key_of_the_file_or_the_import_said_why(name: str, content: bytes) -> None:
+    """A regenerated EDS (not the kept bytes) holds every section and key of the file it was imported from,
+    ObjectType of sub-objects, ObjFlags, CompactSubObj, Denotation, ParameterValue, UploadFile and [Comments]
+    included; a key left out is in a section the import warned about (a quirk's reading)."""
+    imported = read_eds(content, source=name)
+    warned = {w.line for w in imported.warnings}
+    original = _sections(decode_text(content, name), name)
+    exported = _sections(export_eds(imported.profile), name)
+    starts = sorted(s.line for s in original.values())
+    for upper, section in original.items():
+        if upper in _REGENERATED or (upper == "COMMENTS" and not imported.profile.notes):
+            continue
+        end = next((line for line in starts if line > section.line), 1 << 30)
+        said = any(section.line <= line < end for line in warned)
+        written = exported.get(upper)
+        for key in section.keys.values():
+            if key.value.strip() and (written is None or written.get(key.name) is None):
+                assert said, f"[{section.name}] {key.name}={key.value} (line {key.line}) is not exported"
+            elif key.name.lower() == "objecttype" and not said:  # DOMAIN stays 0x2, a sub-object's 0x7 stays
+                assert read_int(written.get(key.name).value) == read_int(key.value), key  # type: ignore[union-attr]

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from drivebench.device.build_eds import shipped_profiles
 from drivebench.device.eds import read_eds
@@ -13,9 +16,11 @@ from drivebench.device.profile import ObjectEntry, Profile
 from drivebench.device.xdd import read_xdd
 from drivebench.device.xdd_export import export_xdd
 from drivebench.errors import ProfileError
-from tests.device.quirk_corpus import CORPUS_FILES
+from tests.device.profile_strategies import profiles, raw_value
+from tests.device.quirk_corpus import BASE, CORPUS_FILES
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "xdd"
+DATA_EDS = DATA.parent / "eds"
 
 
 def load(name: str) -> Profile:
@@ -43,6 +48,24 @@ def test_servo_objects_take_what_they_leave_out_from_parameters_and_templates() 
     assert obj(servo, 0x2001).min == -2147483648 and obj(servo, 0x2001).obj_flags == 1
     assert servo.features.baud_rates_kbit == [125, 250, 500, 1000] and servo.features.tpdo_count == 1
     assert [(w.line, w.key) for w in imported.warnings] == [(82, "LowLimit")]
+
+
+def test_objects_typed_only_by_their_parameters_take_type_access_values_and_denotation_from_them() -> None:
+    """An XDD as object dictionary editors write it: the CANopenObject names its parameter, which holds the IEC
+    type, the access, default, range, actual value and denotation (the heads' dataTypeIDRef types are skipped)."""
+    imported = read_xdd((DATA / "typed_parameters.xdd").read_bytes(), source="typed_parameters.xdd")
+    io = imported.profile
+    assert imported.warnings == []
+    rows = [(o.index, o.subindex, o.data_type.value, o.access.value, o.default) for o in io.objects]
+    assert rows == [(0x1000, 0, "UNSIGNED32", "ro", 0x30191), (0x1017, 0, "UNSIGNED16", "rw", 0),
+                    (0x1018, 0, "UNSIGNED8", "ro", 1), (0x1018, 1, "UNSIGNED32", "ro", 0x321),
+                    (0x1F50, 0, "UNSIGNED8", "ro", 1), (0x1F50, 1, "DOMAIN", "wo", None),
+                    (0x6200, 0, "UNSIGNED8", "rww", 0)]
+    heartbeat = obj(io, 0x1017)
+    assert (heartbeat.min, heartbeat.max, heartbeat.parameter_value) == (0, 60000, 100)
+    assert (heartbeat.denotation, heartbeat.description) == ("Heartbeat of the door IO", "Heartbeat period in ms.")
+    assert obj(io, 0x6200).pdo_mappable and not obj(io, 0x1000).pdo_mappable
+    assert all(o.object_keys is None for o in io.objects) and io.version == "1.1"
 
 
 def test_xdc_actual_values_become_the_configured_values() -> None:
@@ -93,21 +116,81 @@ def test_unsafe_or_broken_xml_is_refused_with_line_and_reason(what: str, content
     assert caught.value.line == line
 
 
-@pytest.mark.parametrize(("name", "content"), [(n, c) for n, c, _ in CORPUS_FILES[::3]])
-def test_xdd_of_a_corpus_profile_reads_back_to_the_same_objects(name: str, content: bytes) -> None:
+def what_xdd_holds(profile: Profile) -> dict[str, object]:
+    """The part of a profile CiA 311 can express: the object dictionary (every field of every entry; the EDS
+    CompactSubObj layout aside), identity, bit rates, PDO counts, and the header's revision and source."""
+    objects = sorted((o.model_copy(update={"compact": False}) for o in profile.objects),
+                     key=lambda o: (o.index, o.subindex))
+    features = profile.features
+    return {"objects": objects, "identity": profile.identity, "version": profile.version, "source": profile.source,
+            "features": (features.baud_rates_kbit, features.rpdo_count, features.tpdo_count)}
+
+
+EDS_FILES = [(n, c) for n, c, _ in CORPUS_FILES] + [(p.name, p.read_bytes()) for p in sorted(DATA_EDS.iterdir())]
+
+
+@pytest.mark.parametrize(("name", "content"), EDS_FILES, ids=[n for n, _ in EDS_FILES])
+def test_xdd_of_an_imported_file_reads_back_to_the_same_profile(name: str, content: bytes) -> None:
+    """Every quirk corpus file and every test EDS/DCF: EDS -> profile -> XDD -> the same profile, without a
+    warning; and its regenerated EDS (not the kept bytes) reads back to the same profile too."""
     profile = read_eds(content, source=name).profile
     again = read_xdd(export_xdd(profile), source=name)
     assert again.warnings == []
-    assert again.profile.objects == profile.objects and again.profile.identity == profile.identity
-    assert again.profile.features.baud_rates_kbit == profile.features.baud_rates_kbit
+    assert what_xdd_holds(again.profile) == what_xdd_holds(profile)
+    assert read_eds(export_eds(again.profile), source=name).profile.objects == again.profile.objects
 
 
 @pytest.mark.parametrize("profile", shipped_profiles(), ids=lambda p: p.id)
-def test_xdd_of_a_shipped_profile_holds_what_its_eds_holds(profile: Profile) -> None:
-    """Vendor parameters, factors, units and descriptions go through XDD like through EDS."""
-    via_xdd = read_xdd(export_xdd(profile), source=f"{profile.id}.xdd").profile
+def test_a_shipped_profile_goes_through_eds_and_xdd_to_the_same_profile(profile: Profile) -> None:
+    """Vendor parameters, factors, units and descriptions go through XDD like through EDS; the profile read from
+    either goes through both again unchanged."""
     via_eds = read_eds(export_eds(profile), source=f"{profile.id}.eds").profile
-    assert via_xdd.objects == via_eds.objects
+    via_xdd = read_xdd(export_xdd(profile), source=f"{profile.id}.xdd").profile
+    assert what_xdd_holds(via_xdd) == what_xdd_holds(via_eds)
+    assert read_eds(export_eds(via_eds), source=f"{profile.id}.eds").profile == via_eds
+    assert what_xdd_holds(read_xdd(export_xdd(via_xdd), source="again.xdd").profile) == what_xdd_holds(via_xdd)
+
+
+@settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(profiles())
+def test_import_of_xdd_export_is_the_same_profile(profile: Profile) -> None:
+    again = read_xdd(export_xdd(profile), source="generated.xdd")
+    assert again.warnings == []
+    assert what_xdd_holds(again.profile) == what_xdd_holds(profile)
+
+
+@st.composite
+def _node_values(draw: st.DrawFn) -> tuple[Profile, int, dict[tuple[int, int], int | float | str]]:
+    profile = draw(profiles())
+    chosen = draw(st.lists(st.sampled_from(profile.objects), unique_by=lambda o: (o.index, o.subindex), max_size=6))
+    return profile, draw(st.integers(1, 127)), {(o.index, o.subindex): draw(raw_value(o.data_type, 1))
+                                                for o in chosen}
+
+
+@settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(_node_values())
+def test_xdc_of_node_values_reads_back_like_the_dcf_of_them(
+        case: tuple[Profile, int, dict[tuple[int, int], int | float | str]]) -> None:
+    """A node's values written as XDC (actualValue, deviceCommissioning) read back as the configured values the
+    DCF of the same values gives, $NODEID formulas resolved for that node."""
+    profile, node_id, values = case
+    xdc = read_xdd(export_xdd(profile, node_id=node_id, values=values, xdc=True, baud_kbit=250), source="n.xdc")
+    dcf = read_eds(export_eds(profile, node_id=node_id, values=values, dcf=True, baud_kbit=250), source="n.dcf")
+    assert xdc.warnings == [] and what_xdd_holds(xdc.profile)["objects"] == what_xdd_holds(dcf.profile)["objects"]
+    commissioning = xdc.profile.extra_sections["DeviceComissioning"]
+    assert (commissioning["NodeID"], commissioning["Baudrate"]) == (str(node_id), "250")
+
+
+def test_a_data_type_the_data_type_list_defines_is_read_as_its_basic_type() -> None:
+    xml = export_xdd(read_eds(BASE, source="base.eds").profile).decode()
+    assert re.search(r'<defType dataType="0007">\s*<Unsigned32/>', xml)
+    xml = xml.replace("<dataTypeList>", '<dataTypeList><defType dataType="0040"><Unsigned32/></defType>')
+    xml, replaced = re.subn(r'(index="2000" name="Speed limit" objectType="7") dataType="0007"', r'\1 dataType="0040"',
+                            xml)
+    imported = read_xdd(xml.encode(), source="types.xdd")
+    assert replaced == 1 and obj(imported.profile, 0x2000).data_type.value == "UNSIGNED32"
+    assert [w.key for w in imported.warnings] == ["dataType"]
+    assert "dataType=0040 is defined in the dataTypeList: read as UNSIGNED32" in imported.warnings[0].message
 
 
 def test_xdc_of_node_values_reads_back_as_parameter_values() -> None:

@@ -67,6 +67,8 @@ _INDEX_SECTION = re.compile(r"^([0-9A-F]{4})(?:SUB([0-9A-F]{1,2})|(NAME|VALUE|DE
 _MODEL_KEYS = {"parametername", "objecttype", "datatype", "accesstype", "defaultvalue", "parametervalue",
                "lowlimit", "highlimit", "pdomapping", "objflags", "denotation", "unit", "factor", "description",
                "subnumber", "compactsubobj"}
+_HEAD_KEYS = {"parametername", "objecttype", "subnumber", "objflags", "compactsubobj"}
+"""Keys of an ARRAY/RECORD's own section the model reads; the others are kept (``ObjectEntry.object_keys``)."""
 _MAPPED_DEVICE_INFO = {"vendorname", "vendornumber", "productname", "productnumber", "revisionnumber",
                        "ordercode", "nrofrxpdo", "nroftxpdo", *(f"baudrate_{b}" for b in BAUD_RATES_KBIT)}
 
@@ -248,6 +250,8 @@ class _Reader:
         if object_type in (0x2, 0x7):
             domain = DataType.DOMAIN if object_type == 0x2 else None
             entry = self.entry(section, index, 0, name=name, kind="VAR", default_type=domain)
+            if entry is not None and domain is not None:
+                entry = entry.model_copy(update={"domain_object": True})
             return [entry] if entry else []
         kind = "ARRAY" if object_type == 0x8 else "RECORD"
         flags_key = section.get("ObjFlags")
@@ -255,7 +259,8 @@ class _Reader:
         compact = section.get("CompactSubObj")
         if compact is not None and (self.integer(compact, 0) or 0) != 0:
             if not subs:
-                return self.compact(index, section, compact, name, flags, aux)
+                return self.with_object_keys(self.compact(index, section, compact, name, flags, aux), section,
+                                             _MODEL_KEYS)
             self.warn(compact.line, compact.name, f"object 0x{index:04X} has CompactSubObj and sub-object "
                       "sections: the sections are read")
         number_key = section.get("SubNumber")
@@ -267,7 +272,15 @@ class _Reader:
                       f"has {len(subs)} sub-objects: the {len(subs)} sections are read")
         entries = [self.entry(subs[sub], index, sub, object_name=name, kind=kind, obj_flags=flags)
                    for sub in sorted(subs)]
-        return [e for e in entries if e is not None]
+        return self.with_object_keys([e for e in entries if e is not None], section, _HEAD_KEYS)
+
+    @staticmethod
+    def with_object_keys(entries: list[ObjectEntry], section: Section, read: set[str]) -> list[ObjectEntry]:
+        """The keys of an ARRAY/RECORD's own section that were not read go on its first entry."""
+        kept = {k.name: k.value for name, k in section.keys.items() if name not in read}
+        if kept and entries:
+            entries[0] = entries[0].model_copy(update={"object_keys": kept})
+        return entries
 
     def compact(self, index: int, section: Section, compact: Key, name: str, flags: int | None,
                 aux: dict[tuple[int, str], Section]) -> list[ObjectEntry]:
@@ -281,15 +294,19 @@ class _Reader:
         denotations = aux.get((index, "DENOTATION"))
         entries = [ObjectEntry(index=index, subindex=0, name=COMPACT_SUB0_NAME, object_name=name,
                                object_type="ARRAY", data_type=DataType.UNSIGNED8, access=Access.RO, default=count,
-                               obj_flags=flags)]
+                               obj_flags=flags, compact=True)]
+        count_value = values.get("0") if values else None  # a DCF's value of sub 0, as DriveBench writes it
+        if count_value is not None:
+            entries[0] = entries[0].model_copy(update={"parameter_value": self.parameter_value(
+                DataType.UNSIGNED8, count_value, (index, 0))})
         for sub in range(1, count + 1):
             sub_name = names.get(str(sub)) if names else None
             entry = self.entry(section, index, sub, name=sub_name.value if sub_name else f"{name}{sub}",
                                object_name=name, kind="ARRAY", obj_flags=flags, own_values=False,
                                quiet=sub > 1)
             if entry is None:
-                return entries[:1]
-            update: dict[str, Any] = {}
+                return [entries[0].model_copy(update={"compact": False})]
+            update: dict[str, Any] = {"compact": True}
             value = values.get(str(sub)) if values else None
             if value is not None:
                 update["parameter_value"] = self.parameter_value(entry.data_type, value, (index, sub))
@@ -427,6 +444,10 @@ class _Reader:
         """LowLimit/HighLimit: unusable ones are dropped, out-of-type ones repaired, both dropped when the low
         one is above the high one (each noted; the row then says so before a write)."""
         if data_type.is_string:
+            for key in (section.get("LowLimit"), section.get("HighLimit")):
+                if key is not None and key.value.strip() and not quiet:
+                    self.warn(key.line, key.name, f"{key.value!r} ignored: a {data_type.value} has no limits",
+                              address=address)
             return
         found: dict[str, Key] = {}
         for key_name, field_name in (("LowLimit", "min"), ("HighLimit", "max")):

@@ -8,7 +8,7 @@ addressing rule gives, named ``C00088: Rated motor current``. Values are written
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 
 from drivebench.device.addressing import code_to_index, format_code
 from drivebench.device.catalog import Catalog
@@ -23,6 +23,7 @@ from drivebench.device.eds import (
     node_expr,
     resolve_node_expr,
 )
+from drivebench.device.eds_compact import compact_sections, fits_compact
 from drivebench.device.profile import Access, LenzeCodeAddressing, ObjectEntry, Parameter, Profile, Value
 from drivebench.errors import ProfileError, UnknownParameter
 from drivebench.protocol.datatypes import DataType
@@ -173,9 +174,8 @@ def export_value_text(entry: ObjectEntry, value: Value | None) -> dict[str, str]
 
 
 def _entry_keys(entry: ObjectEntry, *, with_flags: bool, value: Value | None) -> list[tuple[str, object]]:
-    keys: list[tuple[str, object]] = [("ParameterName", entry.name)]
-    if entry.object_type == "VAR":
-        keys.append(("ObjectType", "0x7"))
+    keys: list[tuple[str, object]] = [("ParameterName", entry.name),
+                                      ("ObjectType", "0x2" if entry.domain_object else "0x7")]
     keys += [("DataType", f"0x{entry.data_type.code:04X}"), ("AccessType", entry.access.value)]
     texts = export_value_text(entry, value)
     if "DefaultValue" in texts:
@@ -246,6 +246,30 @@ def eds_objects(profile: Profile) -> list[ObjectEntry]:
     return objects + _mandatory_objects(profile, present) + _parameter_objects(profile, present)
 
 
+def _object_sections(index: int, entries: list[ObjectEntry], parameter_value: Callable[[ObjectEntry], Value | None]
+                     ) -> list[tuple[str, list[tuple[str, object]]]]:
+    """The sections of one object: ``[xxxx]`` of a VAR; ``[xxxx]`` and ``[xxxxsubN]`` of an ARRAY/RECORD, or
+    one compact section where it was read so (:mod:`drivebench.device.eds_compact`)."""
+    first = entries[0]
+    if len(entries) == 1 and first.subindex == 0 and first.object_type == "VAR":
+        return [(f"{index:04X}", _entry_keys(first, with_flags=True, value=parameter_value(first)))]
+    if fits_compact(entries):
+        def value_text(entry: ObjectEntry) -> str | None:
+            return export_value_text(entry, parameter_value(entry)).get("ParameterValue")
+
+        return compact_sections(entries, lambda e: _entry_keys(e, with_flags=False, value=None), value_text)
+    flags = {e.obj_flags for e in entries}
+    shared_flags = flags.pop() if len(flags) == 1 else None
+    kind = first.object_type if first.object_type != "VAR" else "RECORD"
+    head: list[tuple[str, object]] = [("ParameterName", first.object_name or first.name),
+                                      ("ObjectType", f"0x{OBJECT_TYPE_CODES[kind]:X}"), ("SubNumber", len(entries))]
+    if shared_flags is not None:
+        head.append(("ObjFlags", f"0x{shared_flags:X}"))
+    head += list((first.object_keys or {}).items())
+    return [(f"{index:04X}", head), *((f"{index:04X}sub{entry.subindex:X}", _entry_keys(
+        entry, with_flags=shared_flags is None, value=parameter_value(entry))) for entry in entries)]
+
+
 def export_eds(profile: Profile, *, node_id: int | None = None, values: Mapping[Address, Value] | None = None,
                dcf: bool = False, baud_kbit: int | None = None, original: bytes | None = None) -> str:
     """Write ``profile`` as an EDS, or with ``dcf=True`` a DCF for ``node_id``.
@@ -307,22 +331,8 @@ def export_eds(profile: Profile, *, node_id: int | None = None, values: Mapping[
         out.section(list_name, [("SupportedObjects", len(listed)),
                                 *((str(n), f"0x{i:04X}") for n, i in enumerate(listed, start=1))])
     for index, entries in by_index.items():
-        first = entries[0]
-        if len(entries) == 1 and first.subindex == 0 and first.object_type == "VAR":
-            out.section(f"{index:04X}", _entry_keys(first, with_flags=True, value=parameter_value(first)))
-            continue
-        flags = {e.obj_flags for e in entries}
-        shared_flags = flags.pop() if len(flags) == 1 else None
-        kind = first.object_type if first.object_type != "VAR" else "RECORD"
-        head: list[tuple[str, object]] = [("ParameterName", first.object_name or first.name),
-                                          ("ObjectType", f"0x{OBJECT_TYPE_CODES[kind]:X}"),
-                                          ("SubNumber", len(entries))]
-        if shared_flags is not None:
-            head.append(("ObjFlags", f"0x{shared_flags:X}"))
-        out.section(f"{index:04X}", head)
-        for entry in entries:
-            out.section(f"{index:04X}sub{entry.subindex:X}",
-                        _entry_keys(entry, with_flags=shared_flags is None, value=parameter_value(entry)))
+        for section_name, section_keys in _object_sections(index, entries, parameter_value):
+            out.section(section_name, section_keys)
     handled = {"fileinfo", "deviceinfo", "devicecomissioning", "comments", OWN_SECTION.lower()}
     for name, keys in profile.extra_sections.items():
         if name.lower() not in handled:

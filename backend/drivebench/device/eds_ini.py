@@ -19,14 +19,14 @@ _INLINE_COMMENT = re.compile(r"\s;")
 
 
 # --- INI text with line numbers ------------------------------------------------------------------------
-@dataclass
+@dataclass(slots=True)
 class Key:
     name: str
     value: str
     line: int
 
 
-@dataclass
+@dataclass(slots=True)
 class Section:
     name: str
     line: int
@@ -99,16 +99,21 @@ def parse_ini(text: str, source: str, notes: Warnings | None = None) -> dict[str
         if current is None:
             quirk(number, None, "line before the first [section] skipped", "key outside of any section")
             continue
-        pair = _key_value(line, number, quirk)
-        if pair is None:
-            continue
-        key, value = pair
-        seen = current.keys.get(key.lower())
+        key, equals, value = line.partition("=")
+        if equals and key and ";" not in value and not key[-1].isspace() and not value[:1].isspace():
+            pass  # the common case, read here: "Key=value" without spaces or comments
+        else:
+            pair = _key_value(line, number, quirk)
+            if pair is None:
+                continue
+            key, value = pair
+        lower = key.lower()
+        seen = current.keys.get(lower)
         if seen is not None:
             quirk(number, key, f"duplicate key in [{current.name}] (first at line {seen.line}): the first value "
                   f"{seen.value!r} is kept", f"duplicate key {key!r} in [{current.name}] (first at line {seen.line})")
             continue
-        current.keys[key.lower()] = Key(key, value, number)
+        current.keys[lower] = Key(key, value, number)
     return sections
 
 

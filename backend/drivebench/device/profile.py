@@ -141,6 +141,14 @@ class ObjectEntry(Entry):
     section_keys: dict[str, str] | None = None
     """Keys of the object's EDS section the model has no field for (``UploadFile``, ``DownloadFile``,
     ``StorageLocation``, vendor keys), in file order; an export writes them back."""
+    object_keys: dict[str, str] | None = None
+    """On the first entry of an ARRAY/RECORD: keys of the object's own section (``[1018]``) the model has no field
+    for, in file order; an export writes them back there."""
+    domain_object: bool = False
+    """The file gave ``ObjectType=0x2`` (DOMAIN): read as a VAR, written as 0x2 again."""
+    compact: bool = False
+    """Read from a CiA 306 ``CompactSubObj`` array (one section, ``[xxxxName]``/``[xxxxValue]``); an EDS export
+    writes it compact again while its entries still fit that form."""
 
 
 class Parameter(Entry):

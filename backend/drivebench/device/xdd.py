@@ -10,7 +10,10 @@ The communication body (``ProfileBody_CommunicationNetwork_CANopen``) is turned 
 ``deviceCommissioning`` -> ``[DeviceComissioning]``) and read by the EDS reader, so both formats get the same
 readings and warnings. The device body (``ProfileBody_Device_CANopen``) gives the identity and, through an
 object's ``uniqueIDRef``, the parameter (and its ``templateIDRef`` template) for what the object leaves out: name,
-default, actual value, limits, description, and the ``Unit``/``Factor`` properties DriveBench's export writes.
+default, actual value, limits, description, denotation, the ``Unit``/``Factor`` properties DriveBench's export writes
+and its ``EDS:`` properties (EDS keys without a CiA 311 attribute); an object without ``dataType``/``accessType``
+takes them from the parameter's IEC type and ``access``. A ``dataTypeList`` code outside CiA 301's basic types
+that it defines as one is read as that type; the first ProfileHeader's revision and source are the profile's.
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ from drivebench.device.eds import (
     BAUD_RATES_KBIT,
     MAX_EDS_BYTES,
     OBJECT_LISTS,
+    OWN_SECTION,
     ImportedEds,
     Key,
     Section,
@@ -30,6 +34,7 @@ from drivebench.device.eds import (
 )
 from drivebench.device.eds_quirks import Warnings
 from drivebench.errors import ProfileError
+from drivebench.protocol.datatypes import DATA_TYPE_BY_CODE, DataType
 
 XML_SUFFIXES = (".xdd", ".xdc")
 EDS_KEY_PREFIX = "EDS:"
@@ -40,6 +45,18 @@ _OBJECT_KEYS = {"name": "ParameterName", "objectType": "ObjectType", "dataType":
                 "lowLimit": "LowLimit", "highLimit": "HighLimit", "accessType": "AccessType",
                 "defaultValue": "DefaultValue", "actualValue": "ParameterValue", "denotation": "Denotation",
                 "PDOmapping": "PDOMapping", "objFlags": "ObjFlags", "subNumber": "SubNumber"}
+_PARAMETER_ACCESS = {"const": "const", "read": "ro", "write": "wo", "readWrite": "rw", "readWriteInput": "rwr",
+                     "readWriteOutput": "rww"}
+"""A CiA 311 parameter's ``access`` as the EDS AccessType (``noAccess`` has none)."""
+_IEC_TYPES = {"BOOL": DataType.BOOLEAN, "SINT": DataType.INTEGER8, "CHAR": DataType.INTEGER8,
+              "INT": DataType.INTEGER16, "DINT": DataType.INTEGER32, "LINT": DataType.INTEGER64,
+              "USINT": DataType.UNSIGNED8, "BYTE": DataType.UNSIGNED8, "UINT": DataType.UNSIGNED16,
+              "WORD": DataType.UNSIGNED16, "UDINT": DataType.UNSIGNED32, "DWORD": DataType.UNSIGNED32,
+              "ULINT": DataType.UNSIGNED64, "LWORD": DataType.UNSIGNED64, "REAL": DataType.REAL32,
+              "LREAL": DataType.REAL64, "STRING": DataType.VISIBLE_STRING, "WSTRING": DataType.UNICODE_STRING,
+              "BITSTRING": DataType.OCTET_STRING}
+"""A parameter's IEC 61131 type element as the CiA 301 type, for an object without ``dataType`` (generators such
+as CANopenEditor type the parameter only)."""
 _COMMISSIONING = {"nodeID": "NodeID", "nodeName": "NodeName", "actualBaudRate": "Baudrate",
                   "networkNumber": "NetNumber", "networkName": "NetworkName", "CANopenManager": "CANopenManager"}
 
@@ -83,6 +100,32 @@ class _Builder:
         self.sections: dict[str, Section] = {}
         self.listed: dict[str, int] = {}
         """How many objects each object list ([MandatoryObjects] ...) holds so far."""
+        self.defined_types: dict[int, DataType] = {}
+        """``dataTypeList`` codes outside CiA 301's basic types that name one (``<defType dataType="0040">
+        <Unsigned32/>``)."""
+
+    def header(self, profile_root: etree._Element) -> None:
+        """ProfileRevision and ProfileSource (DriveBench's profile version and source) of the first header."""
+        for child in next((e for e in profile_root if local(e) == "ProfileHeader"), []):
+            text = (child.text or "").strip()
+            key = {"ProfileRevision": "Version", "ProfileSource": "Source"}.get(local(child))
+            if key is not None and text:
+                self.put(OWN_SECTION, child.sourceline or 1, key, text)
+
+    def data_types(self, body: etree._Element) -> None:
+        layers = [e for e in body if local(e) == "ApplicationLayers"]
+        for element in (e for layer in layers for e in layer):
+            if local(element).lower() != "datatypelist":
+                continue
+            for definition in element:
+                code_text, named = definition.get("dataType", ""), next(iter(definition), None)
+                name = local(named).upper() if named is not None else ""
+                try:
+                    code = int(code_text, 16)
+                except ValueError:
+                    continue
+                if code not in DATA_TYPE_BY_CODE and name in DataType.__members__:
+                    self.defined_types[code] = DataType[name]
 
     def put(self, section: str, line: int, key: str, value: str) -> None:
         found = self.sections.get(section.upper())
@@ -168,16 +211,16 @@ class _Builder:
 
     def keys(self, section: str, element: etree._Element, parameters: dict[str, etree._Element]) -> None:
         line = element.sourceline or 1
-        self.sections.setdefault(section.upper(), Section(section, line))
-        for attribute, key in _OBJECT_KEYS.items():
-            value = element.get(attribute)
-            if value is None:
+        target = self.sections.setdefault(section.upper(), Section(section, line)).keys
+        for attribute, value in element.items():  # one pass over what the element has (a 5 MB XDD: 150,000)
+            key = _OBJECT_KEYS.get(str(attribute))
+            if key is None:
                 continue
             if attribute == "dataType":
-                value = f"0x{value}" if not value.lower().startswith("0x") else value
+                value = self.data_type(value, line)
             elif attribute == "PDOmapping":
                 value = "0" if value.strip().lower() == "no" else "1"
-            self.put(section, line, key, value)
+            target.setdefault(key.lower(), Key(key, value, line))
         reference = element.get("uniqueIDRef")
         if reference is None:
             return
@@ -187,16 +230,43 @@ class _Builder:
                            "profile: ignored")
             return
         template = parameters.get(str(parameter.get("templateIDRef"))) if parameter.get("templateIDRef") else None
+        holds_value = local(element) == "CANopenSubObject" or not any(local(e) == "CANopenSubObject"
+                                                                       for e in element)
         for source in (parameter, template):
             if source is not None:
-                self.from_parameter(section, source)
+                self.from_parameter(section, source, holds_value=holds_value)
 
-    def from_parameter(self, section: str, parameter: etree._Element) -> None:
-        """What the object leaves out, from its parameter (``put`` keeps what is already there)."""
+    def data_type(self, text: str, line: int) -> str:
+        """A dataType attribute as an EDS DataType: hex, and a code the dataTypeList defines as its basic type."""
+        value = f"0x{text}" if not text.lower().startswith("0x") else text
+        try:
+            defined = self.defined_types.get(int(value, 16))
+        except ValueError:
+            return value
+        if defined is None:
+            return value
+        self.notes.add(line, "dataType", f"dataType={text} is defined in the dataTypeList: read as {defined.value}")
+        return f"0x{defined.code:04X}"
+
+    def from_parameter(self, section: str, parameter: etree._Element, *, holds_value: bool) -> None:
+        """What the object leaves out, from its parameter (``put`` keeps what is already there); the access and the
+        type only for an object holding a value (not the head of an ARRAY/RECORD)."""
         line = parameter.sourceline or 1
+        access = _PARAMETER_ACCESS.get(str(parameter.get("access")))
+        if holds_value and access is not None:
+            self.put(section, line, "AccessType", access)
         for child in parameter:
             name = local(child)
-            if name == "label" and (child.text or "").strip():
+            if holds_value and name in _IEC_TYPES:
+                data_type = _IEC_TYPES[name]
+                if name == "BITSTRING" and not any(local(e) == "defaultValue" for e in parameter):
+                    data_type = DataType.DOMAIN  # bytes without a default: CANopenEditor writes DOMAIN so
+                self.put(section, child.sourceline or line, "DataType", f"0x{data_type.code:04X}")
+            elif name == "denotation":
+                text = " ".join(t.strip() for t in child.itertext() if t.strip())
+                if text:
+                    self.put(section, child.sourceline or line, "Denotation", text)
+            elif name == "label" and (child.text or "").strip():
                 self.put(section, line, "ParameterName", (child.text or "").strip())
             elif name == "description" and (child.text or "").strip():
                 self.put(section, child.sourceline or line, "Description", (child.text or "").strip())
@@ -230,6 +300,10 @@ def read_xdd(data: bytes, *, source: str) -> ImportedEds:
     notes = Warnings(source)
     builder = _Builder(source, notes)
     parameters: dict[str, etree._Element] = {}
+    profiles = [root] if local(root) == "ISO15745Profile" else [e for e in root if local(e) == "ISO15745Profile"]
+    if profiles:
+        builder.header(profiles[0])
+    builder.data_types(communication[0])
     for body in bodies:
         if _body_type(body).startswith("ProfileBody_Device_CANopen"):
             parameters |= builder.device(body)

@@ -17,10 +17,22 @@ from lxml import etree
 from drivebench.device.eds_export import Address, export_value_text, node_value, objects_by_index
 from drivebench.device.profile import ObjectEntry, Profile, Value
 from drivebench.device.xdd import EDS_KEY_PREFIX
+from drivebench.protocol.datatypes import DataType
 
 NS = "http://www.canopen.org/xml/1.0"
 XSI = "http://www.w3.org/2001/XMLSchema-instance"
 OBJECT_TYPE_NUMBERS = {"VAR": "7", "ARRAY": "8", "RECORD": "9"}
+IEC_TYPES = {DataType.BOOLEAN: "BOOL", DataType.INTEGER8: "SINT", DataType.INTEGER16: "INT", DataType.INTEGER32: "DINT",
+             DataType.INTEGER64: "LINT", DataType.UNSIGNED8: "USINT", DataType.UNSIGNED16: "UINT",
+             DataType.UNSIGNED32: "UDINT", DataType.UNSIGNED64: "ULINT", DataType.REAL32: "REAL",
+             DataType.REAL64: "LREAL", DataType.VISIBLE_STRING: "STRING", DataType.UNICODE_STRING: "WSTRING",
+             DataType.OCTET_STRING: "BITSTRING", DataType.DOMAIN: "BITSTRING"}
+"""The IEC 61131 type of a parameter holding an object's value (CiA 311 parameters are typed so); BYTE else."""
+
+
+def type_element_name(data_type: DataType) -> str:
+    """The element naming a CiA 301 type in a ``dataTypeList`` ``defType``: ``Unsigned32``, ``Visible_String``."""
+    return "_".join(part.capitalize() for part in data_type.value.split("_"))
 
 
 def _el(parent: etree._Element | None, local_name: str, text: str | None = None, /, **attributes: str
@@ -37,7 +49,7 @@ def _el(parent: etree._Element | None, local_name: str, text: str | None = None,
 def _header(profile_root: etree._Element, profile: Profile, name: str, classification: str) -> None:
     header = _el(profile_root, "ProfileHeader")
     _el(header, "ProfileIdentification", f"CANopen {name}")
-    _el(header, "ProfileRevision", "1")
+    _el(header, "ProfileRevision", profile.version)
     _el(header, "ProfileName", profile.identity.product_name)
     _el(header, "ProfileSource", profile.source or "")
     _el(header, "ProfileClassID", classification)
@@ -71,7 +83,7 @@ def _parameter(parameters: etree._Element, entry: ObjectEntry) -> None:
     _el(parameter, "label", entry.name, lang="en")
     if entry.description is not None:
         _el(parameter, "description", entry.description, lang="en")
-    _el(parameter, "BYTE")
+    _el(parameter, IEC_TYPES.get(entry.data_type, "BYTE"))
     for name, value in (("Unit", entry.unit), ("Factor", None if entry.factor == 1 else str(entry.factor))):
         if value is not None:
             _el(parameter, "property", None, name=name, value=value)
@@ -79,10 +91,21 @@ def _parameter(parameters: etree._Element, entry: ObjectEntry) -> None:
         _el(parameter, "property", None, name=f"{EDS_KEY_PREFIX}{key}", value=value)
 
 
+def _object_parameter(parameters: etree._Element, index: int, first: ObjectEntry) -> str:
+    """A parameter carrying the keys of an ARRAY/RECORD's own EDS section (``object_keys``); its uniqueID."""
+    unique_id = f"UID_OBJ_{index:04X}"
+    parameter = _el(parameters, "parameter", uniqueID=unique_id, access="read")
+    _el(parameter, "label", first.object_name or first.name, lang="en")
+    _el(parameter, "BYTE")
+    for key, value in (first.object_keys or {}).items():
+        _el(parameter, "property", None, name=f"{EDS_KEY_PREFIX}{key}", value=value)
+    return unique_id
+
+
 def _object_attributes(element: etree._Element, entry: ObjectEntry, value: Value | None, *,
                        with_flags: bool) -> None:
     element.set("name", entry.name)
-    element.set("objectType", "7")
+    element.set("objectType", "2" if entry.domain_object else "7")
     element.set("dataType", f"{entry.data_type.code:04X}")
     element.set("accessType", entry.access.value)
     texts = export_value_text(entry, value)
@@ -122,8 +145,13 @@ def export_xdd(profile: Profile, *, node_id: int | None = None, values: Mapping[
     network = _el(container, "ISO15745Profile")
     _header(network, profile, "communication network profile", "CommunicationNetwork")
     network_body = _body(network, "ProfileBody_CommunicationNetwork_CANopen")
-    object_list = _el(_el(network_body, "ApplicationLayers"), "CANopenObjectList")
-    for index, entries in objects_by_index(profile).items():
+    layers = _el(network_body, "ApplicationLayers")
+    by_index = objects_by_index(profile)
+    type_list = _el(layers, "dataTypeList")
+    for data_type in sorted({e.data_type for es in by_index.values() for e in es}, key=lambda t: t.code):
+        _el(_el(type_list, "defType", dataType=f"{data_type.code:04X}"), type_element_name(data_type))
+    object_list = _el(layers, "CANopenObjectList")
+    for index, entries in by_index.items():
         first = entries[0]
         obj = _el(object_list, "CANopenObject", index=f"{index:04X}")
         if len(entries) == 1 and first.subindex == 0 and first.object_type == "VAR":
@@ -138,6 +166,8 @@ def export_xdd(profile: Profile, *, node_id: int | None = None, values: Mapping[
         obj.set("subNumber", str(len(entries)))
         if shared is not None:
             obj.set("objFlags", f"{shared:X}")
+        if first.object_keys:
+            obj.set("uniqueIDRef", _object_parameter(parameters, index, first))
         for entry in entries:
             sub = _el(obj, "CANopenSubObject", subIndex=f"{entry.subindex:02X}")
             _object_attributes(sub, entry, node_value(entry, values or {}, node_id, xdc), with_flags=shared is None)
