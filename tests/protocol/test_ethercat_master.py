@@ -84,7 +84,7 @@ def test_sdo_abort_from_soem_in_cia301_or_the_profiles_words(network: DirectNetw
 
 
 def test_state_machine_maps_process_data_refuses_in_the_manuals_words_and_acknowledges(
-        network: DirectNetwork, registry: ProfileRegistry) -> None:
+        units: list[SimulatedSlave], network: DirectNetwork, registry: ProfileRegistry) -> None:
     network.scan()
     texts = registry.get(PROFILE).abort_texts
     assert texts is not None
@@ -101,11 +101,11 @@ def test_state_machine_maps_process_data_refuses_in_the_manuals_words_and_acknow
         network.scan()
 
     network.request_state(2, esm.EsmState.INIT)
-    with pytest.raises(ProtocolError) as jump:
-        network.request_state(2, esm.EsmState.OPERATIONAL)
-    assert str(jump.value) == ("Slave 2 (station 4098) did not change to Operational: Init + error: Invalid status "
-                               "change requested (0x0011)")
+    assert network.request_state(2, esm.EsmState.OPERATIONAL).state_text == "Operational"  # one step at a time
+    network.request_state(2, esm.EsmState.INIT)
+    units[1].request_state(esm.EsmState.SAFE_OPERATIONAL)  # a slave refusing a jump (0x0011), as a bad master asks
     assert network.al_state(2) == (esm.EsmState.INIT | esm.ERROR_FLAG, 0x0011)  # registers 0x0130 and 0x0134
+    assert network.slave(2).state_text == "Init + error: Invalid status change requested (0x0011)"
     assert network.request_state(2, esm.EsmState.PRE_OPERATIONAL).state_text == "Pre-Operational"  # acknowledged
 
     network.request_state(1, esm.EsmState.PRE_OPERATIONAL)
@@ -136,3 +136,14 @@ def test_emergency_read_from_the_mailbox_reaches_the_emcy_monitor(units: list[Si
     event = network.emcy.last(2)
     assert event is not None and (event.code, event.register) == (0x3210, 0x05)
     assert network.counters(2).emergencies == 1 and network.emcy.last(1) is None
+
+
+def test_a_slave_lost_from_the_segment_in_words(units: list[SimulatedSlave], network: DirectNetwork) -> None:
+    network.scan()
+    units[0].power_off()
+    with pytest.raises(ProtocolError) as lost:
+        network.al_state(1)
+    assert str(lost.value) == ("The slave at position 1 on eth1 did not answer the read of register 0x0130: lost "
+                               "from the segment (cable, power)?")
+    with pytest.raises(SdoTimeoutError, match=r"^Slave at station 4097 on eth1 did not answer"):
+        network.node(1).upload(0x5FD8, 1)

@@ -29,6 +29,8 @@ STATE_TIMEOUT_S = 5.0
 """How long a slave may take to reach a requested state (Init -> Pre-Op includes its mailbox set-up)."""
 ACKNOWLEDGE = 0x10
 """AL control bit 4: acknowledge the error the AL status shows."""
+UPWARDS: list[esm.EsmState] = [esm.EsmState.INIT, esm.EsmState.PRE_OPERATIONAL, esm.EsmState.SAFE_OPERATIONAL,
+                               esm.EsmState.OPERATIONAL]
 DIRECT_HINT = ("Check the cable from this card to the first slave's IN port, the slaves' power, and that the slave is "
                "at least Pre-Operational (the Plant page shows its state).")
 
@@ -208,10 +210,16 @@ class DirectNetwork(EthercatNetwork):
             self.link.mapped = False
 
     def request_state(self, node_id: int, state: esm.EsmState) -> SlaveInfo:
+        """Take one slave to ``state``, upwards one state at a time as a master does (a slave refuses a jump)."""
         if state is esm.EsmState.BOOTSTRAP:
             raise ProtocolError("The tool does not take slaves to Bootstrap (firmware download is not offered)")
         with self.link.lock:
-            self._change(node_id, state)
+            current = self._read_al(node_id)[0] & 0x0F
+            steps: list[esm.EsmState] = [state]
+            if current in UPWARDS and UPWARDS.index(state) > UPWARDS.index(esm.EsmState(current)):
+                steps = UPWARDS[UPWARDS.index(esm.EsmState(current)) + 1:UPWARDS.index(state) + 1]
+            for step in steps:
+                self._change(node_id, step)
         return self.slave(node_id)
 
     # --- silence ----------------------------------------------------------------------------------------------
