@@ -40,6 +40,7 @@ def test_without_the_extra_the_api_and_the_session_form_name_it(api: TestClient,
     form = api.post("/ui/sessions", data={"interface": "ethercat", "channel": "lo", "name": "Direct"}, headers=HTMX)
     assert form.status_code == 503 and "pip install &#39;drivebench[ethercat]&#39;" in form.text
     assert api.get("/api/sessions").json() == []
+    assert ">ethercat (direct master: needs pip install &#39;drivebench[ethercat]&#39;)</option>" in api.get("/").text
 
 
 @PRIVILEGED
@@ -49,6 +50,7 @@ def test_an_unknown_card_is_named_with_the_cards_present(api: TestClient) -> Non
                              "(see ip link)."
     form = api.post("/ui/sessions", data={"interface": "ethercat", "channel": "eth9"}, headers=HTMX)
     assert form.status_code == 503 and "no network card &#39;eth9&#39;; it has" in form.text
+    assert '<option value="ethercat" >ethercat</option>' in api.get("/").text  # installed and privileged: no note
 
 
 @PRIVILEGED
@@ -82,6 +84,7 @@ def test_a_server_without_cap_net_raw_says_how_to_grant_it(tmp_path: Path) -> No
                 "The direct EtherCAT master sends raw Ethernet frames on lo: run DriveBench as root or give its "
                 "Python CAP_NET_RAW (setcap cap_net_raw+ep), or reach the slaves through a master's mailbox gateway "
                 "(ethercat-mbg:HOST).")
+            assert ">ethercat (direct master: needs root or CAP_NET_RAW)</option>" in client.get("/").text
     finally:
         server.terminate()
         server.wait(timeout=15)

@@ -155,6 +155,7 @@ class DirectNetwork(EthercatNetwork):
             raise ProtocolError(f"No EtherCAT slave answered on {self.nic}: check the cable from this card to the "
                                 "first slave's IN port, the slaves' power, and that no other master uses the card.")
         self.found = {slave.position: slave for slave in found}
+        self.statuses.clear()
         self.stations = {slave.position: slave.station for slave in found}
         self.mailboxes.positions = {slave.station: slave.position for slave in found}
         self.nodes.clear()

@@ -18,13 +18,22 @@ from drivebench.protocol.ethercat_network import CoeNodeClient, EthercatNetwork,
 from drivebench.protocol.network import CanopenNetwork, NodeClient
 from drivebench.transport.bus import BusSpec, open_bus
 from drivebench.transport.ethercat_gateway import GatewaySpec
-from drivebench.transport.ethercat_soem import DirectSpec, open_link
+from drivebench.transport.ethercat_soem import INSTALL, DirectSpec, load_pysoem, may_use_raw_sockets, open_link
 
 Network = CanopenNetwork | EthercatNetwork
 SdoClient = NodeClient | CoeNodeClient
 ETHERCAT_INTERFACES = ("ethercat-mbg", "ethercat")
 """What the session form offers next to python-can's interfaces: a master's mailbox gateway, a direct master."""
 SessionSpec = BusSpec | GatewaySpec | DirectSpec
+
+
+def interface_notes() -> dict[str, str]:
+    """What the session form says next to an interface that cannot open here (the direct master's needs)."""
+    if load_pysoem() is None:
+        return {"ethercat": f"direct master: needs {INSTALL}"}
+    if not may_use_raw_sockets():
+        return {"ethercat": "direct master: needs root or CAP_NET_RAW"}
+    return {}
 
 
 def parse_spec(text: str) -> SessionSpec:
