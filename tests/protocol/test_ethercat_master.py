@@ -147,3 +147,24 @@ def test_a_slave_lost_from_the_segment_in_words(units: list[SimulatedSlave], net
                                "from the segment (cable, power)?")
     with pytest.raises(SdoTimeoutError, match=r"^Slave at station 4097 on eth1 did not answer"):
         network.node(1).upload(0x5FD8, 1)
+
+
+def test_mailbox_and_packet_errors_from_soem_in_words(network: DirectNetwork) -> None:
+    import pysoem
+
+    network.scan()
+    slave = network.link.slaves[0]
+    refusals = iter([pysoem.MailboxError(1, 0x0004, "The service is not supported"), pysoem.PacketError(1, 1)])
+
+    def refuse(*args: object) -> bytes:
+        raise next(refusals)
+
+    slave.sdo_read = refuse
+    with pytest.raises(ProtocolError) as mailbox:
+        network.node(1).upload(0x5FD8, 1)
+    assert str(mailbox.value) == ("Slave at position 1, 0x5FD8sub1: the slave refused the mailbox request: The service "
+                                  "is not supported (mailbox error 4)")
+    with pytest.raises(ProtocolError, match=r"^Slave at position 1, 0x5FD8sub1: mailbox packet error: Unexpected "
+                                            r"frame returned$"):
+        network.node(1).upload(0x5FD8, 1)
+    assert (network.counters(1).requests, network.counters(1).responses) == (2, 2)

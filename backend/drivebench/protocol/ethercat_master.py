@@ -64,6 +64,9 @@ class SoemSdo:
                 if attempt == self.retries:
                     raise
                 continue
+            except ProtocolError:  # a mailbox error reply is an answer too
+                self.counters.responses += 1
+                raise
             self.counters.responses += 1
             return answer
         raise AssertionError("unreachable")
