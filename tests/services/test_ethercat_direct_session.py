@@ -20,7 +20,7 @@ from drivebench.protocol import esm
 from drivebench.protocol.ethercat_master import DirectNetwork
 from drivebench.protocol.nmt import NmtCommand
 from drivebench.services import drive_guard, parameters
-from drivebench.services.session_services import SessionServices
+from drivebench.services.session_manager import SessionServices
 from drivebench.services.sessions import Session
 from drivebench.simulator.ethercat import SimulatedSlave
 from drivebench.transport.ethercat_soem import DirectSpec, SoemLink
@@ -34,12 +34,12 @@ async def _direct(registry: ProfileRegistry, units: list[SimulatedSlave]) -> Asy
     network = DirectNetwork(spec, SoemLink(spec, fake_pysoem(units), timeout_s=0.3), sdo_timeout_s=0.3,
                             sdo_retries=1)
     session = Session("direct", "Direct master", spec, network, registry)
-    session.services = SessionServices.open(session, [])
+    services = SessionServices.open(session, [])
     try:
         await session.scan()
         yield session
     finally:
-        session.services.close(session)
+        services.close(session)
         session.close()
 
 
