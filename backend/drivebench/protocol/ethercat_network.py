@@ -1,9 +1,11 @@
-"""An EtherCAT segment behind a mailbox gateway, seen the way a session sees a CAN network.
+"""An EtherCAT segment, seen the way a session sees a CAN network.
 
 :class:`EthercatNetwork` offers what the services use of :class:`~drivebench.protocol.network.CanopenNetwork`:
 ``node(node_id)`` gives an SDO client with the same methods and the same errors as a CAN node's
 (:class:`CoeNodeClient`), ``emcy`` keeps the slaves' CoE emergencies as the EMCY monitor keeps CAN's, ``scan`` finds
 the slaves. What CAN has and EtherCAT has not (NMT, heartbeat, node guarding, frames by COB-ID) is refused in words.
+How the slaves are reached is the subclass's: :class:`GatewayNetwork` through a running master's mailbox gateway,
+:class:`~drivebench.protocol.ethercat_master.DirectNetwork` as the master itself on a network card (pysoem).
 
 A session numbers its nodes 1, 2, ... in the order of the master's configured address list (the "position"; the
 tool's pages and API address nodes by these numbers); every mailbox telegram is addressed by the slave's configured
@@ -15,6 +17,7 @@ from __future__ import annotations
 import threading
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Protocol
 
 import can
 
@@ -22,11 +25,12 @@ from drivebench.errors import ProtocolError, SdoAbortError, SdoTimeoutError
 from drivebench.protocol import esm
 from drivebench.protocol.abort_codes import abort_text
 from drivebench.protocol.emcy import EMCY_BASE, EmcyMonitor
-from drivebench.protocol.ethercat import EthercatSegment, MailboxCounters
+from drivebench.protocol.ethercat import EmergencyListener, EthercatSegment, MailboxCounters
 from drivebench.protocol.guarding import NodeGuarding
 from drivebench.protocol.heartbeat import HeartbeatMonitor
 from drivebench.protocol.network import EventLoopTransfers
 from drivebench.transport.ethercat_gateway import GatewaySpec
+from drivebench.transport.ethercat_soem import DirectSpec
 
 NO_CAN = "EtherCAT has no CAN identifiers"
 GATEWAY_HINT = ("Check that the master runs with its mailbox gateway on, that the slave is in the master's "
@@ -48,6 +52,7 @@ class SlaveInfo:
     name: str = ""
     vendor_id: int | None = None
     product_code: int | None = None
+    revision: int | None = None
     al_status: int | None = None
     al_status_code: int = 0
 
@@ -56,6 +61,31 @@ class SlaveInfo:
         if self.al_status is None:
             return "Unknown"
         return esm.al_status_text(self.al_status, self.al_status_code)
+
+
+class SdoTransfers(Protocol):
+    """A slave's SDO client: upload/download raising the errors of CAN SDO."""
+
+    timeout_s: float
+    retries: int
+
+    def upload(self, index: int, subindex: int) -> bytes: ...
+
+    def download(self, index: int, subindex: int, data: bytes) -> None: ...
+
+
+class SlaveMailboxes(Protocol):
+    """The slaves' mailboxes by station address: what :class:`CoeNodeClient` and the monitor use of a segment."""
+
+    def lock(self, station: int) -> threading.Lock: ...
+
+    def sdo(self, station: int) -> SdoTransfers: ...
+
+    def counters(self, station: int) -> MailboxCounters: ...
+
+    def add_emergency_listener(self, listener: EmergencyListener) -> None: ...
+
+    def close(self) -> None: ...
 
 
 class CoeNodeClient(EventLoopTransfers):
@@ -96,7 +126,7 @@ class CoeNodeClient(EventLoopTransfers):
                     raise
                 silent = SdoTimeoutError(self.network.silence_text(self.station, index, sub), node=self.node_id,
                                          index=index, subindex=sub)
-                silent.hint = GATEWAY_HINT
+                silent.hint = self.network.silence_hint
                 raise silent from exc
 
     def upload(self, index: int, sub: int, *, block: bool = False, channel: int | None = None) -> bytes:
@@ -108,11 +138,18 @@ class CoeNodeClient(EventLoopTransfers):
 
 
 class EthercatNetwork:
-    def __init__(self, spec: GatewaySpec, *, sdo_timeout_s: float = 0.5, sdo_retries: int = 1) -> None:
+    """What every EtherCAT segment offers a session; the subclass opens ``segment`` and says how the slaves are
+    found (scan), what state they are in and how to change it, and what a silence means."""
+
+    silence_hint = GATEWAY_HINT
+    """What to check when a slave does not answer its mailbox."""
+
+    def __init__(self, spec: GatewaySpec | DirectSpec, segment: SlaveMailboxes, *, sdo_timeout_s: float = 0.5,
+                 sdo_retries: int = 1) -> None:
         self.spec = spec
         self.sdo_timeout_s = sdo_timeout_s
         self.sdo_retries = sdo_retries
-        self.segment = EthercatSegment(spec, timeout_s=sdo_timeout_s, retries=sdo_retries)
+        self.segment = segment
         self.heartbeat = HeartbeatMonitor()
         self.emcy = EmcyMonitor()
         self.guarding = NodeGuarding(self._no_frames)
@@ -141,10 +178,63 @@ class EthercatNetwork:
     def counters(self, node_id: int) -> MailboxCounters:
         return self.segment.counters(self.station(node_id))
 
+    def scan(self, timeout_s: float = 0.5, node_ids: range | None = None) -> list[int]:
+        raise NotImplementedError
+
+    def slave(self, node_id: int) -> SlaveInfo:
+        raise NotImplementedError
+
+    def al_state(self, node_id: int) -> tuple[int, int]:
+        raise NotImplementedError
+
+    def request_state(self, node_id: int, state: esm.EsmState) -> SlaveInfo:
+        raise NotImplementedError
+
+    def silence_text(self, station: int, index: int, sub: int) -> str:
+        raise NotImplementedError
+
+    @property
+    def link_text(self) -> str | None:
+        """The link to the segment in a sentence while it is lost, else None."""
+        raise NotImplementedError
+
+    # --- what a session asks of a CAN network -----------------------------------------------------------------
+    def _no_frames(self, *args: object) -> None:
+        raise ProtocolError(f"{NO_CAN}: NMT, SYNC, PDO frames and node guarding do not exist on {self.spec}")
+
+    send = _no_frames
+    send_nmt = _no_frames
+
+    def add_listener(self, listener: can.Listener) -> None:
+        """No CAN frames to listen to (mailbox traffic is counted per slave instead)."""
+
+    def remove_listener(self, listener: can.Listener) -> None:
+        """See :meth:`add_listener`."""
+
+    def _on_emergency(self, station: int, code: int, register: int, data: bytes, timestamp: float) -> None:
+        node_id = next((number for number, known in self.stations.items() if known == station), None)
+        if node_id is None or node_id > 127:
+            return
+        payload = code.to_bytes(2, "little") + bytes([register]) + data
+        self.emcy.on_message_received(can.Message(arbitration_id=EMCY_BASE + node_id, data=payload,
+                                                  is_extended_id=False, timestamp=timestamp))
+
+    def close(self) -> None:
+        self.guarding.close()
+        self.segment.close()
+
+
+class GatewayNetwork(EthercatNetwork):
+    """The slaves behind a running master's mailbox gateway (ETG.8200, ``ethercat-mbg:HOST[:PORT]``)."""
+
+    def __init__(self, spec: GatewaySpec, *, sdo_timeout_s: float = 0.5, sdo_retries: int = 1) -> None:
+        self.gateway = EthercatSegment(spec, timeout_s=sdo_timeout_s, retries=sdo_retries)
+        super().__init__(spec, self.gateway, sdo_timeout_s=sdo_timeout_s, sdo_retries=sdo_retries)
+
     def _master(self, index: int, sub: int) -> bytes:
-        with self.segment.lock(esm.MASTER_STATION):
+        with self.gateway.lock(esm.MASTER_STATION):
             try:
-                return self.segment.sdo(esm.MASTER_STATION).upload(index, sub)
+                return self.gateway.sdo(esm.MASTER_STATION).upload(index, sub)
             except SdoTimeoutError as exc:
                 raise SdoTimeoutError(f"The master behind {self.spec} did not answer: {self._silence()}",
                                       node=0, index=index, subindex=sub) from exc
@@ -179,9 +269,9 @@ class EthercatNetwork:
         """Ask the master to take one slave to ``state`` (AL control); refused changes raise in words."""
         diagnosis = esm.DIAGNOSIS_BASE + node_id - 1
         self.station(node_id)
-        with self.segment.lock(esm.MASTER_STATION):
+        with self.gateway.lock(esm.MASTER_STATION):
             try:
-                self.segment.sdo(esm.MASTER_STATION).download(diagnosis, esm.SUB_AL_CONTROL,
+                self.gateway.sdo(esm.MASTER_STATION).download(diagnosis, esm.SUB_AL_CONTROL,
                                                               int(state).to_bytes(2, "little"))
             except SdoAbortError as exc:
                 raise ProtocolError(f"The master behind {self.spec} refused the state change of slave {node_id}: "
@@ -192,41 +282,16 @@ class EthercatNetwork:
                                 f"{info.state_text}")
         return info
 
-    # --- what a session asks of a CAN network -----------------------------------------------------------------
-    def _no_frames(self, *args: object) -> None:
-        raise ProtocolError(f"{NO_CAN}: NMT, SYNC, PDO frames and node guarding do not exist on {self.spec}")
-
-    send = _no_frames
-    send_nmt = _no_frames
-
-    def add_listener(self, listener: can.Listener) -> None:
-        """No CAN frames to listen to (mailbox traffic is counted per slave instead)."""
-
-    def remove_listener(self, listener: can.Listener) -> None:
-        """See :meth:`add_listener`."""
-
-    def _on_emergency(self, station: int, code: int, register: int, data: bytes, timestamp: float) -> None:
-        node_id = next((number for number, known in self.stations.items() if known == station), None)
-        if node_id is None or node_id > 127:
-            return
-        payload = code.to_bytes(2, "little") + bytes([register]) + data
-        self.emcy.on_message_received(can.Message(arbitration_id=EMCY_BASE + node_id, data=payload,
-                                                  is_extended_id=False, timestamp=timestamp))
-
     def _silence(self) -> str:
-        return (self.segment.link.unreachable or "no answer in time") + \
+        return (self.gateway.link.unreachable or "no answer in time") + \
             " (is the master running with its mailbox gateway on?)"
 
     def silence_text(self, station: int, index: int, sub: int) -> str:
-        if self.segment.link.unreachable:
+        if self.gateway.link.unreachable:
             return f"Mailbox gateway {self.spec}: {self._silence()}"
         return (f"Slave at station {station} did not answer the mailbox request for 0x{index:04X}sub{sub} within "
                 f"{self.sdo_timeout_s:g} s: not in Pre-Operational or higher, not on the segment, or slow")
 
     @property
     def link_text(self) -> str | None:
-        return f"Mailbox gateway {self.spec}: {self._silence()}" if self.segment.link.unreachable else None
-
-    def close(self) -> None:
-        self.guarding.close()
-        self.segment.close()
+        return f"Mailbox gateway {self.spec}: {self._silence()}" if self.gateway.link.unreachable else None

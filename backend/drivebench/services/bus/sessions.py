@@ -217,6 +217,7 @@ class Session:
             node.profile = profile
             node.identity = {key: value for key, value in (("vendor_id", info.vendor_id),
                                                            ("product_code", info.product_code),
+                                                           ("revision", info.revision),
                                                            ("station", info.station)) if value is not None}
             with self._lock:
                 self.nodes[node_id] = node

@@ -13,7 +13,7 @@ from fastapi.responses import HTMLResponse, Response
 
 from drivebench.errors import Conflict, DriveBenchError
 from drivebench.protocol.nmt import COMMAND_BY_NAME
-from drivebench.services.bus.fieldbus import ETHERCAT_INTERFACES, SessionSpec, parse_spec
+from drivebench.services.bus.fieldbus import ETHERCAT_INTERFACES, SessionSpec, interface_notes, parse_spec
 from drivebench.services.bus.sessions import Session
 from drivebench.services.bus.views import nodes_public, session_public
 from drivebench.transport.bus import BusSpec, known_interfaces
@@ -29,6 +29,7 @@ router = APIRouter(include_in_schema=False, dependencies=[ACTING])
 def _context(state: Any, **extra: Any) -> dict[str, Any]:
     sessions = [{"session": session_public(s), "nodes": nodes_public(s)} for s in state.manager.list()]
     return {"active": "plant", "sessions": sessions, "interfaces": [*known_interfaces(), *ETHERCAT_INTERFACES],
+            "interface_notes": interface_notes(),
             "profiles": state.registry.all(),
             "form": {"interface": "socketcand", "channel": "", "bitrate": 500000, "name": ""}, **extra}
 
