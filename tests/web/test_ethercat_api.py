@@ -100,3 +100,24 @@ def test_the_session_form_opens_a_gateway_and_refuses_a_direct_master_in_words(a
     assert ("pip install &#39;drivebench[ethercat]&#39;" in direct.text or "CAP_NET_RAW" in direct.text
             or "no network card" in direct.text)
     assert 'value="ethercat-mbg"' in api.get("/").text  # offered next to python-can's interfaces
+
+
+def test_the_pdo_tab_shows_the_ethercat_rules_of_the_profile(api: TestClient) -> None:
+    pdo_list = api.get(f"/ui/sessions/{SESSION}/nodes/1/pdo").text
+    assert "0x1C12" in pdo_list and "0x1C13" in pdo_list and "0x1600" in pdo_list and "0x1A00" in pdo_list
+    assert "Pre-Operational" in pdo_list and "0x08000022" in pdo_list
+    assert "CAN1_IN" not in pdo_list and "COB-ID of TPDO2" not in pdo_list  # the CANopen unit's notes
+    tab = api.get(f"/ui/sessions/{SESSION}/nodes/1/tabs/pdo").text
+    assert "Start SYNC" not in tab and "NMT operational" not in tab  # no SYNC or NMT on EtherCAT
+    assert "Start SYNC" in api.get("/ui/sessions/demo-plant/nodes/5/tabs/pdo").text
+
+
+def test_the_parameters_tab_names_the_coe_mailbox_not_sdo2(api: TestClient) -> None:
+    gateway = api.get(f"/api/sessions/{SESSION}").json()["channel"]
+    tab = api.get(f"/ui/sessions/{SESSION}/nodes/2/tabs/parameters").text
+    summary = tab[tab.index('<details id="sdo-settings"'):]
+    summary = summary[summary.index("<summary>") + 9:summary.index("</summary>")]
+    assert summary.startswith(f"CoE mailbox (station 1002, gateway ethercat-mbg:{gateway}): ")
+    assert "SDO2" not in summary and 'name="use_sdo2" value="1" ' not in tab
+    can_tab = api.get("/ui/sessions/demo-plant/nodes/5/tabs/parameters").text
+    assert "<summary>SDO: " in can_tab and "SDO2</label>" in can_tab

@@ -138,6 +138,15 @@ class EthercatNetwork:
             client.abort_texts.update(abort_texts)
         return client
 
+    second_sdo_channel = False
+    """A slave has one mailbox."""
+
+    def sdo_label(self, node_id: int) -> str:
+        """How the slave's SDOs travel, for the Parameters tab: its mailbox, station address and gateway."""
+        station = self.stations.get(node_id)
+        where = f"station {station}" if station is not None else "not in the master's list"
+        return f"CoE mailbox ({where}, gateway {self.spec})"
+
     def counters(self, node_id: int) -> MailboxCounters:
         return self.segment.counters(self.station(node_id))
 
