@@ -10,6 +10,9 @@ from collections.abc import Iterator
 import pytest
 from fastapi.testclient import TestClient
 
+from drivebench.device.loader import ProfileRegistry
+from drivebench.device.profile import ObjectEntry
+from drivebench.simulator.ethercat import GatewayServer, SimulatedSlave
 from drivebench.web.app import create_app
 from tests.conftest import DEMO_PLANT, fresh_channel
 from tests.web.test_parameter_sets_api import SETS, finish
@@ -121,3 +124,41 @@ def test_the_parameters_tab_names_the_coe_mailbox_not_sdo2(api: TestClient) -> N
     assert "SDO2" not in summary and 'name="use_sdo2" value="1" ' not in tab
     can_tab = api.get("/ui/sessions/demo-plant/nodes/5/tabs/parameters").text
     assert "<summary>SDO: " in can_tab and "SDO2</label>" in can_tab
+
+
+@pytest.fixture
+def changed_unit(registry: ProfileRegistry) -> Iterator[GatewayServer]:
+    """An 8400 motec EtherCAT unit whose object dictionary differs from the shipped profile: it has a vendor
+    object 0x2100 the profile does not list and lacks 0x1C33 (Sync Man 3 Synchronization)."""
+    shipped = registry.get("lenze-8400-motec-ethercat")
+    extra = ObjectEntry.model_validate({"index": "0x2100", "subindex": 0, "name": "Vendor diagnosis word",
+                                        "data_type": "UNSIGNED16", "access": "ro"})
+    device = shipped.model_copy(update={"objects": [o for o in shipped.objects if o.index != 0x1C33] + [extra]})
+    server = GatewayServer([SimulatedSlave(device, 1001, 0, name="Changed unit")]).start()
+    yield server
+    server.stop()
+
+
+def test_the_info_tab_reads_the_object_list_and_compares_it_with_the_profile(
+        api: TestClient, changed_unit: GatewayServer) -> None:
+    same = api.post(f"/ui/sessions/{SESSION}/nodes/1/info/object-list")
+    assert same.status_code == 200, same.text
+    assert "The device reports 36 objects, the profile lists 36; 36 in both." in same.text
+    assert same.text.count("none") == 2 and "Read object list from device" in api.get(
+        f"/ui/sessions/{SESSION}/nodes/1/tabs/info").text
+
+    opened = api.post("/api/sessions", json={"bus": changed_unit.spec, "name": "Changed"})
+    assert opened.status_code == 201, opened.text
+    session_id = opened.json()["id"]
+    assert [n["profile_id"] for n in api.post(f"/api/sessions/{session_id}/scan").json()] == [
+        "lenze-8400-motec-ethercat"]
+    compared = api.post(f"/ui/sessions/{session_id}/nodes/1/info/object-list").text
+    assert "The device reports 36 objects, the profile lists 36; 35 in both." in compared
+    only_device = compared[compared.index('id="only-device"'):compared.index("In the profile, not on the device")]
+    assert "0x2100" in only_device and "Vendor diagnosis word" in only_device and "VAR" in only_device
+    only_profile = compared[compared.index('id="only-profile"'):]
+    assert "0x1C33" in only_profile and "0x2100" not in only_profile
+
+    can = api.post("/ui/sessions/demo-plant/nodes/5/info/object-list")
+    assert can.status_code >= 400 and "the SDO information service is CoE" in can.text
+    assert "Read object list from device" not in api.get("/ui/sessions/demo-plant/nodes/5/tabs/info").text

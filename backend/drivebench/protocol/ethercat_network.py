@@ -13,14 +13,16 @@ station address, which the slave list shows next to it.
 from __future__ import annotations
 
 import threading
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from typing import TypeVar
 
 import can
 
 from drivebench.errors import ProtocolError, SdoAbortError, SdoTimeoutError
 from drivebench.protocol import esm
 from drivebench.protocol.abort_codes import abort_text
+from drivebench.protocol.coe_sdo import SERVICE_NOT_SUPPORTED, CoeSdoClient, MailboxRefused
 from drivebench.protocol.emcy import EMCY_BASE, EmcyMonitor
 from drivebench.protocol.ethercat import EthercatSegment, MailboxCounters
 from drivebench.protocol.guarding import NodeGuarding
@@ -28,6 +30,7 @@ from drivebench.protocol.heartbeat import HeartbeatMonitor
 from drivebench.protocol.network import EventLoopTransfers
 from drivebench.transport.ethercat_gateway import GatewaySpec
 
+T = TypeVar("T")
 NO_CAN = "EtherCAT has no CAN identifiers"
 GATEWAY_HINT = ("Check that the master runs with its mailbox gateway on, that the slave is in the master's "
                 "configuration and at least Pre-Operational.")
@@ -96,6 +99,30 @@ class CoeNodeClient(EventLoopTransfers):
                     raise
                 silent = SdoTimeoutError(self.network.silence_text(self.station, index, sub), node=self.node_id,
                                          index=index, subindex=sub)
+                silent.hint = GATEWAY_HINT
+                raise silent from exc
+
+    def information(self, ask: Callable[[CoeSdoClient], T], index: int = 0, sub: int = 0) -> T:
+        """One SDO information exchange (``ask(client)``, blocking) with the errors of an SDO transfer."""
+        client = self.network.segment.sdo(self.station)
+        with self.channels[0].lock:
+            try:
+                return ask(client)
+            except SdoAbortError as exc:
+                raise SdoAbortError(exc.abort_code, abort_text(exc.abort_code, self.abort_texts), node=self.node_id,
+                                    index=exc.index, subindex=exc.subindex) from exc
+            except MailboxRefused as exc:
+                if exc.code == SERVICE_NOT_SUPPORTED:
+                    raise ProtocolError(f"Slave {self.node_id} (station {self.station}) does not offer the SDO "
+                                        f"information service (its mailbox answered: the service is not "
+                                        f"supported)") from exc
+                raise
+            except SdoTimeoutError as exc:
+                if type(exc) is not SdoTimeoutError:
+                    raise
+                silent = SdoTimeoutError(self.network.silence_text(self.station, index, sub) +
+                                         " (a slave without the SDO information service may not answer at all)",
+                                         node=self.node_id, index=index, subindex=sub)
                 silent.hint = GATEWAY_HINT
                 raise silent from exc
 

@@ -16,7 +16,7 @@ from fastapi.responses import HTMLResponse, Response
 from drivebench.device.catalog import Item
 from drivebench.device.motion import motion_of
 from drivebench.errors import AccessDenied, DriveBenchError, NodeOffline, NotFound, SdoTimeoutError
-from drivebench.services import drive_guard, node_lease
+from drivebench.services import drive_guard, node_lease, object_list
 from drivebench.services import parameters as service
 from drivebench.services.parameters import DeviceCommand, WriteResult
 from drivebench.services.principals import Role
@@ -216,6 +216,14 @@ async def sdo_settings(request: Request, session: SessionDep, node: NodeDep,
 
 
 # --- info tab --------------------------------------------------------------------------------------------
+@router.post(UI + "/info/object-list", response_class=HTMLResponse)
+async def read_object_list(request: Request, session: SessionDep, node: NodeDep) -> Response:
+    """The slave's object list through the CoE SDO information service, compared with its profile."""
+    objects = await object_list.compare(session, node.node_id)
+    context = _base(request, session, node, "info", objects=objects)
+    return templates.TemplateResponse(request, "node/info.html", context, block_name="object_list")
+
+
 @router.post(UI + "/info/read", response_class=HTMLResponse)
 async def read_info(request: Request, session: SessionDep, node: NodeDep) -> Response:
     rows: list[IdentityShown] = []
