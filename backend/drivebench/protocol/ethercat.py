@@ -1,5 +1,6 @@
 """The slaves behind one EtherCAT mailbox gateway: an SDO client per station address (SDO and SDO information),
-their emergencies, and counters of the mailbox traffic (requests, responses, aborts, emergencies per slave) for the monitor.
+their emergencies, and counters of the mailbox traffic (requests, responses, aborts, emergencies per slave)
+for the monitor.
 
 Answers are matched to requests by the station address in their mailbox header; one transfer at a time per slave
 (:meth:`EthercatSegment.lock`), any number of slaves at once. Emergencies a slave puts into its mailbox arrive
