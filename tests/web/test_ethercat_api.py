@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Iterator
+from typing import Any
 
 import pytest
 from fastapi.testclient import TestClient
@@ -14,7 +15,7 @@ from drivebench.device.loader import ProfileRegistry
 from drivebench.device.profile import ObjectEntry
 from drivebench.simulator.ethercat import GatewayServer, SimulatedSlave
 from drivebench.web.app import create_app
-from tests.conftest import DEMO_PLANT, fresh_channel
+from tests.conftest import DEMO_PLANT, fresh_channel, wait_for_value
 from tests.web.test_parameter_sets_api import SETS, finish
 
 SESSION = "ethercat-line"
@@ -162,3 +163,48 @@ def test_the_info_tab_reads_the_object_list_and_compares_it_with_the_profile(
     can = api.post("/ui/sessions/demo-plant/nodes/5/info/object-list")
     assert can.status_code >= 400 and "the SDO information service is CoE" in can.text
     assert "Read object list from device" not in api.get("/ui/sessions/demo-plant/nodes/5/tabs/info").text
+
+
+def _control_until(api: TestClient, state: str, timeout_s: float = 8.0) -> dict[str, Any]:
+    return wait_for_value(lambda: (status := api.get(f"{NODE}/control").json())["state"] == state and status,
+                          timeout_s, f"the EtherCAT unit in state {state}")
+
+
+def test_the_control_tab_drives_the_unit_over_coe_with_confirmation_and_keepalive(api: TestClient) -> None:
+    status = _control_until(api, "ready")
+    assert status["family"] == "lenze8400" and status["status_ref"] == "C13850/1"
+    assert status["control_bits"][8]["name"] == "SetCInh (controller inhibit)"
+    assert api.post(f"{NODE}/control/commands/switch_on").json()["state"] == "switched_on"
+    refused = api.post(f"{NODE}/control/commands/enable_operation", json={"confirm": 2})
+    assert refused.status_code == 428 and "node 1" in refused.json()["detail"]  # the wrong node is named
+    enabled = api.post(f"{NODE}/control/commands/enable_operation", json={"confirm": 1}).json()
+    assert enabled["state"] == "operation_enabled" and enabled["armed"]
+    assert api.put(f"{NODE}/control/setpoint", json={"value": 300}).status_code == 428
+    moving = api.put(f"{NODE}/control/setpoint", json={"value": 300, "confirm": 1}).json()
+    assert moving["armed"] and api.get(f"{NODE}/parameters/C00876/2").json()["raw"] == round(300 * 16384 / 1500)
+    speed = wait_for_value(lambda: next(a["value"] for a in api.get(f"{NODE}/control/actuals").json()
+                                        if a["ref"] == "C13850/2") or None, 8, "the actual speed (C13850/2)")
+    assert 0 < speed <= 300
+    # the control word itself, written on the Parameters tab, is a moving write too
+    assert api.put(f"{NODE}/parameters/C00876/1", json={"raw": 0x0009}).status_code == 428
+    assert api.post(f"{NODE}/control/keepalive").json()["armed"]
+    stopped = api.post(f"{NODE}/control/commands/disable_voltage").json()
+    assert stopped["state"] == "ready" and not stopped["armed"]
+
+
+def test_a_lost_keepalive_quick_stops_the_ethercat_unit(api: TestClient) -> None:
+    _control_until(api, "ready")
+    api.post(f"{NODE}/control/commands/switch_on")
+    with api.websocket_connect(f"/ws/sessions/{SESSION}/nodes/1/control") as socket:
+        api.post(f"{NODE}/control/commands/enable_operation", json={"confirm": 1})
+        message = socket.receive_json()
+        while message["status"]["state"] != "operation_enabled":
+            socket.send_json({"cmd": "keepalive"})
+            message = socket.receive_json()
+        socket.send_json({"cmd": "keepalive"})
+    status = wait_for_value(lambda: (s := api.get(f"{NODE}/control").json())["last_trip"] and s, 8, "the trip")
+    assert "disconnected" in status["last_trip"] and not status["armed"]
+    assert wait_for_value(lambda: api.get(f"{NODE}/parameters/C00876/1").json()["raw"] & 0x0004, 8,
+                          "quick stop (bit 2) in the control word C00876/1")  # written just after the trip's record
+    assert wait_for_value(lambda: api.get(f"{NODE}/control").json()["status_bits"][4]["set"], 8,
+                          "QuickStopIsActive in the status word C13850/1")
