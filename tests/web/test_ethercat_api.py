@@ -89,6 +89,15 @@ def test_the_monitor_counts_mailbox_traffic_per_slave(api: TestClient) -> None:
     cells = [cell.split("<")[0] for cell in row.split('<td class="num">')[1:]]
     node, station, requests, responses, aborts = (int(cells[i]) for i in (0, 1, 2, 3, 4))
     assert (node, station) == (1, 1001) and requests >= 2 and responses >= 2 and aborts >= 1
+
+    unit = api.app.state.drivebench.gateways[SESSION].slaves[1001]  # type: ignore[attr-defined]
+    unit.raise_fault(0x1000, 0x01, bytes.fromhex("00 31 81 BC 01"))  # the manual's "Operational status quit"
+
+    def emergencies() -> int:
+        block = api.get(f"/ui/monitor/{SESSION}/mailbox").text
+        cells = block[block.index('id="mailbox-1"'):].split('<td class="num">')[1:]
+        return int(cells[5].split("<")[0])
+    assert wait_for_value(lambda: emergencies() == 1, 8, "the emergency counted for slave 1")
     assert "Mailbox traffic" not in api.get("/monitor/demo-plant").text  # CAN: telegrams, no mailboxes
 
 
