@@ -169,6 +169,10 @@ def test_the_info_tab_reads_the_object_list_and_compares_it_with_the_profile(
     only_profile = compared[compared.index('id="only-profile"'):]
     assert "0x1C33" in only_profile and "0x2100" not in only_profile
 
+    changed_unit.slaves[1001].server.dictionary = None  # a slave without the SDO information service
+    refused = api.post(f"/ui/sessions/{session_id}/nodes/1/info/object-list")
+    assert refused.status_code >= 400 and "does not offer the SDO information service" in refused.text
+
     can = api.post("/ui/sessions/demo-plant/nodes/5/info/object-list")
     assert can.status_code >= 400 and "the SDO information service is CoE" in can.text
     assert "Read object list from device" not in api.get("/ui/sessions/demo-plant/nodes/5/tabs/info").text

@@ -81,50 +81,43 @@ class CoeNodeClient(EventLoopTransfers):
         raise ProtocolError(f"Slave {self.node_id} (station {self.station}) has one mailbox; {NO_CAN} for a second "
                             "SDO channel")
 
-    def _transfer(self, index: int, sub: int, block: bool, work: str, data: bytes = b"") -> bytes:
-        if block:
-            raise ProtocolError("CoE has no SDO block transfer; read or write it normally (segmented)")
+    def _in_mailbox(self, work: Callable[[CoeSdoClient], T], index: int, sub: int, silence: str = "") -> T:
+        """``work(client)`` while holding the slave's mailbox, with the profile's abort texts and the silence of
+        the gateway or slave in words."""
         client = self.network.segment.sdo(self.station)
         with self.channels[0].lock:
             try:
-                if work == "upload":
-                    return client.upload(index, sub)
-                client.download(index, sub, data)
-                return b""
-            except SdoAbortError as exc:
-                raise SdoAbortError(exc.abort_code, abort_text(exc.abort_code, self.abort_texts), node=self.node_id,
-                                    index=index, subindex=sub) from exc
-            except SdoTimeoutError as exc:
-                if type(exc) is not SdoTimeoutError:  # a stalled segmented transfer says so already
-                    raise
-                silent = SdoTimeoutError(self.network.silence_text(self.station, index, sub), node=self.node_id,
-                                         index=index, subindex=sub)
-                silent.hint = GATEWAY_HINT
-                raise silent from exc
-
-    def information(self, ask: Callable[[CoeSdoClient], T], index: int = 0, sub: int = 0) -> T:
-        """One SDO information exchange (``ask(client)``, blocking) with the errors of an SDO transfer."""
-        client = self.network.segment.sdo(self.station)
-        with self.channels[0].lock:
-            try:
-                return ask(client)
+                return work(client)
             except SdoAbortError as exc:
                 raise SdoAbortError(exc.abort_code, abort_text(exc.abort_code, self.abort_texts), node=self.node_id,
                                     index=exc.index, subindex=exc.subindex) from exc
-            except MailboxRefused as exc:
-                if exc.code == SERVICE_NOT_SUPPORTED:
-                    raise ProtocolError(f"Slave {self.node_id} (station {self.station}) does not offer the SDO "
-                                        f"information service (its mailbox answered: the service is not "
-                                        f"supported)") from exc
-                raise
             except SdoTimeoutError as exc:
-                if type(exc) is not SdoTimeoutError:
+                if type(exc) is not SdoTimeoutError:  # a stalled segmented transfer says so already
                     raise
-                silent = SdoTimeoutError(self.network.silence_text(self.station, index, sub) +
-                                         " (a slave without the SDO information service may not answer at all)",
+                silent = SdoTimeoutError(self.network.silence_text(self.station, index, sub) + silence,
                                          node=self.node_id, index=index, subindex=sub)
                 silent.hint = GATEWAY_HINT
                 raise silent from exc
+
+    def _transfer(self, index: int, sub: int, block: bool, work: str, data: bytes = b"") -> bytes:
+        if block:
+            raise ProtocolError("CoE has no SDO block transfer; read or write it normally (segmented)")
+        if work == "upload":
+            return self._in_mailbox(lambda client: client.upload(index, sub), index, sub)
+        self._in_mailbox(lambda client: client.download(index, sub, data), index, sub)
+        return b""
+
+    def information(self, ask: Callable[[CoeSdoClient], T], index: int = 0, sub: int = 0) -> T:
+        """One SDO information exchange (``ask(client)``, blocking) with the errors of an SDO transfer; a slave
+        without the service says so in words."""
+        try:
+            return self._in_mailbox(ask, index, sub, " (a slave without the SDO information service may not "
+                                                     "answer at all)")
+        except MailboxRefused as exc:
+            if exc.code != SERVICE_NOT_SUPPORTED:
+                raise
+            raise ProtocolError(f"Slave {self.node_id} (station {self.station}) does not offer the SDO information "
+                                "service (its mailbox answered: the service is not supported)") from exc
 
     def upload(self, index: int, sub: int, *, block: bool = False, channel: int | None = None) -> bytes:
         return self._transfer(index, sub, block, "upload")
