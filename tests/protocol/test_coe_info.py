@@ -183,3 +183,14 @@ def test_a_slave_without_the_service_answers_with_a_mailbox_error(slave: Simulat
     answer = tap.answers[0]
     # mailbox type 0 (error), Type 0x0001 (mailbox command), Detail 0x0004 (service not supported)
     assert answer == mailbox(counter_of(answer), 0x00, bytes.fromhex("01 00 04 00"))
+
+
+def test_entry_description_with_default_minimum_and_maximum(tap: Tap, segment: EthercatSegment) -> None:
+    asked = 0x10 | 0x20 | 0x40  # value info: default, minimum, maximum
+    entry = segment.sdo(STATION).entry_description(0x29C2, 0, asked)  # C13885 Clear process data: 0 ... 1, default 1
+    request, answer = tap.requests[0], tap.answers[0]
+    assert request == info(counter_of(request), 0x05, bytes.fromhex("c2 29 00 70"))
+    # Index, Subindex, Value info 0x70, UNSIGNED8, 8 bits, access 0x003F, default 1, minimum 0, maximum 1, name
+    assert answer == info(counter_of(answer), 0x06, bytes.fromhex("c2 29 00 70 05 00 08 00 3f 00 01 00 01")
+                          + b"Clear process data")
+    assert (entry.value_info, entry.values, entry.name) == (0x70, b"\x01\x00\x01", "Clear process data")

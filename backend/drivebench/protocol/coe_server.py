@@ -29,7 +29,9 @@ class ObjectDictionary(Protocol):
 
     def object_description(self, index: int) -> coe_info.ObjectDescription: ...
 
-    def entry_description(self, index: int, subindex: int) -> coe_info.EntryDescription: ...
+    def entry_description(self, index: int, subindex: int, value_info: int = 0) -> coe_info.EntryDescription:
+        """``value_info``: the values asked for (the answer's value info says which it carries)."""
+        ...
 
 
 class Abort(Exception):
@@ -134,7 +136,8 @@ class CoeSdoServer:
             return op.OBJECT_DESCRIPTION_RESPONSE, self.dictionary.object_description(index).encode()
         if info.opcode == op.ENTRY_DESCRIPTION_REQUEST and len(info.data) >= 4:
             index = int.from_bytes(info.data[:2], "little")
-            return op.ENTRY_DESCRIPTION_RESPONSE, self.dictionary.entry_description(index, info.data[2]).encode()
+            described = self.dictionary.entry_description(index, info.data[2], info.data[3])
+            return op.ENTRY_DESCRIPTION_RESPONSE, described.encode()
         raise Abort(ABORT_COMMAND)
 
     def _sdo(self, body: bytes) -> bytes | None:

@@ -4,8 +4,9 @@ answered from the object store, so from the same profile the slave was built fro
 Object code: an object with only subindex 0 is a VAR (unless the profile says ARRAY/RECORD), one with subindices an
 ARRAY (a Lenze code with subcodes) or what the profile says. Access: readable entries are readable in every state;
 writable ones in every state, except the objects the slave writes only in Pre-Operational (PDO mapping and
-assignment). A RECORD's data type is given as 0 (the standard names a structure's own type index there; the
-profiles keep no such index).
+assignment). Entry descriptions carry the default, minimum and maximum of a number when asked (raw, as on the
+bus); no unit type (the profiles keep no ETG unit index). A RECORD's data type is given as 0 (the standard names
+a structure's own type index there; the profiles keep no such index).
 """
 
 from __future__ import annotations
@@ -14,11 +15,11 @@ from collections.abc import Collection
 
 from drivebench.device.profile import Entry, ObjectEntry, Parameter
 from drivebench.protocol import coe_info
-from drivebench.protocol.coe_info import ListType, ObjectCode
+from drivebench.protocol.coe_info import ListType, ObjectCode, ValueInfo
 from drivebench.protocol.coe_server import Abort
 from drivebench.protocol.datatypes import encode
 from drivebench.protocol.sdo_server import SdoAbort
-from drivebench.simulator.store import ObjectStore
+from drivebench.simulator.store import ObjectStore, default_raw
 
 ABORT_NO_OBJECT, ABORT_NO_SUBINDEX = 0x06020000, 0x06090011
 
@@ -78,10 +79,20 @@ class StoreDictionary:
         data_type = 0 if code is ObjectCode.RECORD else entry.data_type.code
         return coe_info.ObjectDescription(index, data_type, subs[-1], code, _name(entry, of_object=True))
 
-    def entry_description(self, index: int, subindex: int) -> coe_info.EntryDescription:
-        slot_entry = self._entry(index, subindex)
-        size = slot_entry.data_type.size
+    def entry_description(self, index: int, subindex: int, value_info: int = 0) -> coe_info.EntryDescription:
+        entry = self._entry(index, subindex)
+        data_type = entry.data_type
+        size = data_type.size
         if size is None:
-            size = len(encode(slot_entry.data_type, self.store.get(index, subindex)))
-        return coe_info.EntryDescription(index, subindex, slot_entry.data_type.code, size * 8,
-                                         self._access(index, slot_entry), _name(slot_entry, of_object=False))
+            size = len(encode(data_type, self.store.get(index, subindex)))
+        answered, values = 0, b""
+        limits = data_type.raw_limits()
+        if limits is not None:  # default, minimum and maximum of a number, raw as on the bus
+            for flag, raw in ((ValueInfo.DEFAULT, default_raw(entry, self.store.node_id, index, subindex)),
+                              (ValueInfo.MINIMUM, limits[0] if entry.min is None else round(entry.min * entry.factor)),
+                              (ValueInfo.MAXIMUM, limits[1] if entry.max is None else round(entry.max * entry.factor))):
+                if value_info & flag:
+                    answered |= flag
+                    values += encode(data_type, raw)
+        return coe_info.EntryDescription(index, subindex, data_type.code, size * 8, self._access(index, entry),
+                                         _name(entry, of_object=False), answered, values)
