@@ -168,6 +168,11 @@ def test_the_info_tab_reads_the_object_list_and_compares_it_with_the_profile(
     assert "0x2100" in only_device and "Vendor diagnosis word" in only_device and "VAR" in only_device
     only_profile = compared[compared.index('id="only-profile"'):]
     assert "0x1C33" in only_profile and "0x2100" not in only_profile
+    listed = api.get(f"/api/sessions/{session_id}/nodes/1/object-list").json()
+    assert (listed["device_count"], listed["profile_count"], listed["common"]) == (36, 36, 35)
+    assert [(o["index"], o["name"], o["kind"]) for o in listed["only_device"]] == [
+        (0x2100, "Vendor diagnosis word", "VAR")]
+    assert [(o["index"], o["ref"]) for o in listed["only_profile"]] == [(0x1C33, "0x1C33")]
 
     changed_unit.slaves[1001].server.dictionary = None  # a slave without the SDO information service
     refused = api.post(f"/ui/sessions/{session_id}/nodes/1/info/object-list")
@@ -175,6 +180,9 @@ def test_the_info_tab_reads_the_object_list_and_compares_it_with_the_profile(
 
     can = api.post("/ui/sessions/demo-plant/nodes/5/info/object-list")
     assert can.status_code >= 400 and "the SDO information service is CoE" in can.text
+    problem = api.get("/api/sessions/demo-plant/nodes/5/object-list")
+    assert problem.status_code == 409 and problem.headers["content-type"] == "application/problem+json"
+    assert "CoE" in problem.json()["detail"]
     assert "Read object list from device" not in api.get("/ui/sessions/demo-plant/nodes/5/tabs/info").text
 
 

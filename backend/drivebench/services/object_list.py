@@ -10,7 +10,7 @@ from __future__ import annotations
 import asyncio
 from dataclasses import dataclass
 
-from drivebench.errors import DriveBenchError, ProtocolError
+from drivebench.errors import Conflict, DriveBenchError
 from drivebench.protocol.coe_sdo import CoeSdoClient
 from drivebench.protocol.ethercat_network import CoeNodeClient
 from drivebench.services.sessions import Session
@@ -40,7 +40,7 @@ async def compare(session: Session, node_id: int) -> ObjectListComparison:
     node = session.node(node_id)
     client = session.client(node_id)
     if not isinstance(client, CoeNodeClient):
-        raise ProtocolError(f"Node {node_id} is a CANopen node: the SDO information service is CoE's (EtherCAT); "
+        raise Conflict(f"Node {node_id} is a CANopen node: the SDO information service is CoE's (EtherCAT); "
                             "a CANopen node's object list is its EDS (Profiles page).")
     catalog = node.catalog
     device = await asyncio.to_thread(client.information, CoeSdoClient.od_list)
