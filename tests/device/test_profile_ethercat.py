@@ -135,7 +135,7 @@ def test_error_messages(profile: Profile) -> None:
 
 
 def test_counts(profile: Profile) -> None:
-    assert len(profile.parameters) == 38
+    assert len(profile.parameters) == 39  # C00876/2 (MCI_IN word 2, the control section's setpoint) next to C00876/1
     assert len({p.code for p in profile.parameters}) == 21
     assert len(profile.objects) == 52
     assert len(profile.emcy_codes) == 13

@@ -102,7 +102,7 @@ def test_uploads_and_downloads_of_every_length_arrive_whole(mailbox_size: int, l
 def test_a_long_string_is_read_through_a_normal_upload_response() -> None:
     slave = Slave()
     assert CoeSdoClient(slave.exchange, 0x03E9).upload(0x29B2, 0) == b"Mar 21 2005 12:31:21"
-    mailbox = coe.Mailbox.decode(slave.server._last[2])  # type: ignore[index]
+    mailbox = coe.Mailbox.decode(slave.server._last[2][0])  # type: ignore[index]
     assert len(mailbox.data) == 10 + 20  # the manual's "n = 10 + data bytes"
 
 

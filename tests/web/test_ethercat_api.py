@@ -6,12 +6,16 @@ from __future__ import annotations
 
 import json
 from collections.abc import Iterator
+from typing import Any
 
 import pytest
 from fastapi.testclient import TestClient
 
+from drivebench.device.loader import ProfileRegistry
+from drivebench.device.profile import ObjectEntry
+from drivebench.simulator.ethercat import GatewayServer, SimulatedSlave
 from drivebench.web.app import create_app
-from tests.conftest import DEMO_PLANT, fresh_channel
+from tests.conftest import DEMO_PLANT, fresh_channel, wait_for_value
 from tests.web.test_parameter_sets_api import SETS, finish
 
 SESSION = "ethercat-line"
@@ -85,6 +89,15 @@ def test_the_monitor_counts_mailbox_traffic_per_slave(api: TestClient) -> None:
     cells = [cell.split("<")[0] for cell in row.split('<td class="num">')[1:]]
     node, station, requests, responses, aborts = (int(cells[i]) for i in (0, 1, 2, 3, 4))
     assert (node, station) == (1, 1001) and requests >= 2 and responses >= 2 and aborts >= 1
+
+    unit = api.app.state.drivebench.gateways[SESSION].slaves[1001]  # type: ignore[attr-defined]
+    unit.raise_fault(0x1000, 0x01, bytes.fromhex("00 31 81 BC 01"))  # the manual's "Operational status quit"
+
+    def emergencies() -> int:
+        block = api.get(f"/ui/monitor/{SESSION}/mailbox").text
+        cells = block[block.index('id="mailbox-1"'):].split('<td class="num">')[1:]
+        return int(cells[5].split("<")[0])
+    assert wait_for_value(lambda: emergencies() == 1, 8, "the emergency counted for slave 1")
     assert "Mailbox traffic" not in api.get("/monitor/demo-plant").text  # CAN: telegrams, no mailboxes
 
 
@@ -100,3 +113,120 @@ def test_the_session_form_opens_a_gateway_and_refuses_a_direct_master_in_words(a
     assert ("pip install &#39;drivebench[ethercat]&#39;" in direct.text or "CAP_NET_RAW" in direct.text
             or "no network card" in direct.text)
     assert 'value="ethercat-mbg"' in api.get("/").text  # offered next to python-can's interfaces
+
+
+def test_the_pdo_tab_shows_the_ethercat_rules_of_the_profile(api: TestClient) -> None:
+    pdo_list = api.get(f"/ui/sessions/{SESSION}/nodes/1/pdo").text
+    assert "0x1C12" in pdo_list and "0x1C13" in pdo_list and "0x1600" in pdo_list and "0x1A00" in pdo_list
+    assert "Pre-Operational" in pdo_list and "0x08000022" in pdo_list
+    assert "CAN1_IN" not in pdo_list and "COB-ID of TPDO2" not in pdo_list  # the CANopen unit's notes
+    tab = api.get(f"/ui/sessions/{SESSION}/nodes/1/tabs/pdo").text
+    assert "Start SYNC" not in tab and "NMT operational" not in tab  # no SYNC or NMT on EtherCAT
+    assert "Start SYNC" in api.get("/ui/sessions/demo-plant/nodes/5/tabs/pdo").text
+
+
+def test_the_parameters_tab_names_the_coe_mailbox_not_sdo2(api: TestClient) -> None:
+    gateway = api.get(f"/api/sessions/{SESSION}").json()["channel"]
+    tab = api.get(f"/ui/sessions/{SESSION}/nodes/2/tabs/parameters").text
+    summary = tab[tab.index('<details id="sdo-settings"'):]
+    summary = summary[summary.index("<summary>") + 9:summary.index("</summary>")]
+    assert summary.startswith(f"CoE mailbox (station 1002, gateway ethercat-mbg:{gateway}): ")
+    assert "SDO2" not in summary and 'name="use_sdo2" value="1" ' not in tab
+    can_tab = api.get("/ui/sessions/demo-plant/nodes/5/tabs/parameters").text
+    assert "<summary>SDO: " in can_tab and "SDO2</label>" in can_tab
+
+
+@pytest.fixture
+def changed_unit(registry: ProfileRegistry) -> Iterator[GatewayServer]:
+    """An 8400 motec EtherCAT unit whose object dictionary differs from the shipped profile: it has a vendor
+    object 0x2100 the profile does not list and lacks 0x1C33 (Sync Man 3 Synchronization)."""
+    shipped = registry.get("lenze-8400-motec-ethercat")
+    extra = ObjectEntry.model_validate({"index": "0x2100", "subindex": 0, "name": "Vendor diagnosis word",
+                                        "data_type": "UNSIGNED16", "access": "ro"})
+    device = shipped.model_copy(update={"objects": [o for o in shipped.objects if o.index != 0x1C33] + [extra]})
+    server = GatewayServer([SimulatedSlave(device, 1001, 0, name="Changed unit")]).start()
+    yield server
+    server.stop()
+
+
+def test_the_info_tab_reads_the_object_list_and_compares_it_with_the_profile(
+        api: TestClient, changed_unit: GatewayServer) -> None:
+    same = api.post(f"/ui/sessions/{SESSION}/nodes/1/info/object-list")
+    assert same.status_code == 200, same.text
+    assert "The device reports 36 objects, the profile lists 36; 36 in both." in same.text
+    info_tab = api.get(f"/ui/sessions/{SESSION}/nodes/1/tabs/info").text
+    assert same.text.count("none") == 2 and "Read object list from device" in info_tab
+    assert "kbit/s" not in info_tab and "<dt>Heartbeat</dt>" not in info_tab  # no CAN bit rates on EtherCAT
+
+    opened = api.post("/api/sessions", json={"bus": changed_unit.spec, "name": "Changed"})
+    assert opened.status_code == 201, opened.text
+    session_id = opened.json()["id"]
+    assert [n["profile_id"] for n in api.post(f"/api/sessions/{session_id}/scan").json()] == [
+        "lenze-8400-motec-ethercat"]
+    compared = api.post(f"/ui/sessions/{session_id}/nodes/1/info/object-list").text
+    assert "The device reports 36 objects, the profile lists 36; 35 in both." in compared
+    only_device = compared[compared.index('id="only-device"'):compared.index("In the profile, not on the device")]
+    assert "0x2100" in only_device and "Vendor diagnosis word" in only_device and "VAR" in only_device
+    only_profile = compared[compared.index('id="only-profile"'):]
+    assert "0x1C33" in only_profile and "0x2100" not in only_profile
+    listed = api.get(f"/api/sessions/{session_id}/nodes/1/object-list").json()
+    assert (listed["device_count"], listed["profile_count"], listed["common"]) == (36, 36, 35)
+    assert [(o["index"], o["name"], o["kind"]) for o in listed["only_device"]] == [
+        (0x2100, "Vendor diagnosis word", "VAR")]
+    assert [(o["index"], o["ref"]) for o in listed["only_profile"]] == [(0x1C33, "0x1C33")]
+
+    changed_unit.slaves[1001].server.dictionary = None  # a slave without the SDO information service
+    refused = api.post(f"/ui/sessions/{session_id}/nodes/1/info/object-list")
+    assert refused.status_code >= 400 and "does not offer the SDO information service" in refused.text
+
+    can = api.post("/ui/sessions/demo-plant/nodes/5/info/object-list")
+    assert can.status_code >= 400 and "the SDO information service is CoE" in can.text
+    problem = api.get("/api/sessions/demo-plant/nodes/5/object-list")
+    assert problem.status_code == 409 and problem.headers["content-type"] == "application/problem+json"
+    assert "CoE" in problem.json()["detail"]
+    assert "Read object list from device" not in api.get("/ui/sessions/demo-plant/nodes/5/tabs/info").text
+
+
+def _control_until(api: TestClient, state: str, timeout_s: float = 8.0) -> dict[str, Any]:
+    return wait_for_value(lambda: (status := api.get(f"{NODE}/control").json())["state"] == state and status,
+                          timeout_s, f"the EtherCAT unit in state {state}")
+
+
+def test_the_control_tab_drives_the_unit_over_coe_with_confirmation_and_keepalive(api: TestClient) -> None:
+    status = _control_until(api, "ready")
+    assert status["family"] == "lenze8400" and status["status_ref"] == "C13850/1"
+    assert status["control_bits"][8]["name"] == "SetCInh (controller inhibit)"
+    assert api.post(f"{NODE}/control/commands/switch_on").json()["state"] == "switched_on"
+    refused = api.post(f"{NODE}/control/commands/enable_operation", json={"confirm": 2})
+    assert refused.status_code == 428 and "node 1" in refused.json()["detail"]  # the wrong node is named
+    enabled = api.post(f"{NODE}/control/commands/enable_operation", json={"confirm": 1}).json()
+    assert enabled["state"] == "operation_enabled" and enabled["armed"]
+    assert api.put(f"{NODE}/control/setpoint", json={"value": 300}).status_code == 428
+    moving = api.put(f"{NODE}/control/setpoint", json={"value": 300, "confirm": 1}).json()
+    assert moving["armed"] and api.get(f"{NODE}/parameters/C00876/2").json()["raw"] == round(300 * 16384 / 1500)
+    speed = wait_for_value(lambda: next(a["value"] for a in api.get(f"{NODE}/control/actuals").json()
+                                        if a["ref"] == "C13850/2") or None, 8, "the actual speed (C13850/2)")
+    assert 0 < speed <= 300
+    # the control word itself, written on the Parameters tab, is a moving write too
+    assert api.put(f"{NODE}/parameters/C00876/1", json={"raw": 0x0009}).status_code == 428
+    assert api.post(f"{NODE}/control/keepalive").json()["armed"]
+    stopped = api.post(f"{NODE}/control/commands/disable_voltage").json()
+    assert stopped["state"] == "ready" and not stopped["armed"]
+
+
+def test_a_lost_keepalive_quick_stops_the_ethercat_unit(api: TestClient) -> None:
+    _control_until(api, "ready")
+    api.post(f"{NODE}/control/commands/switch_on")
+    with api.websocket_connect(f"/ws/sessions/{SESSION}/nodes/1/control") as socket:
+        api.post(f"{NODE}/control/commands/enable_operation", json={"confirm": 1})
+        message = socket.receive_json()
+        while message["status"]["state"] != "operation_enabled":
+            socket.send_json({"cmd": "keepalive"})
+            message = socket.receive_json()
+        socket.send_json({"cmd": "keepalive"})
+    status = wait_for_value(lambda: (s := api.get(f"{NODE}/control").json())["last_trip"] and s, 8, "the trip")
+    assert "disconnected" in status["last_trip"] and not status["armed"]
+    assert wait_for_value(lambda: api.get(f"{NODE}/parameters/C00876/1").json()["raw"] & 0x0004, 8,
+                          "quick stop (bit 2) in the control word C00876/1")  # written just after the trip's record
+    assert wait_for_value(lambda: api.get(f"{NODE}/control").json()["status_bits"][4]["set"], 8,
+                          "QuickStopIsActive in the status word C13850/1")

@@ -96,3 +96,18 @@ def test_ethercat_unit_in_the_browser(sets_server: str, page: Any) -> None:  # n
                                   "or stored in the application", timeout=WAIT_MS)
     expect(error).to_contain_text("0x08000022")
     screenshot(page, "ethercat-mapping-refused")
+
+    # Info tab: the object list through the CoE SDO information service, against the profile
+    page.goto(f"{server}/sessions/{SESSION}/nodes/1?tab=info")
+    page.get_by_role("button", name="Read object list from device").click()
+    listed = page.locator("#object-list")
+    expect(listed).to_contain_text("The device reports 36 objects, the profile lists 36; 36 in both.",
+                                   timeout=WAIT_MS)
+    # PDO tab: the EtherCAT rules of the profile, not the CANopen unit's
+    page.goto(f"{server}/sessions/{SESSION}/nodes/1?tab=pdo")
+    expect(page.locator(".pdo-notes")).to_contain_text("0x1C12", timeout=WAIT_MS)
+    expect(page.locator(".pdo-notes")).not_to_contain_text("CAN1_IN")
+    # Parameters tab: SDOs go through the slave's CoE mailbox
+    page.goto(f"{server}/sessions/{SESSION}/nodes/1?tab=parameters")
+    expect(page.locator("#sdo-settings summary")).to_contain_text("CoE mailbox (station 1001, gateway ethercat-mbg:")
+    screenshot(page, "ethercat-sdo-label")

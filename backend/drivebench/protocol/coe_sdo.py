@@ -13,10 +13,12 @@ import itertools
 from collections.abc import Callable
 
 from drivebench.errors import ProtocolError, SdoAbortError, SdoOutOfStepError, SdoStalledError, SdoTimeoutError
-from drivebench.protocol import coe
+from drivebench.protocol import coe, coe_info
 from drivebench.protocol.abort_codes import abort_text
 
 Exchange = Callable[[bytes, float], bytes | None]
+Receive = Callable[[float], bytes | None]
+"""The slave's next telegram without sending one (the further fragments of an SDO information response)."""
 DEFAULT_MAILBOX_SIZE = 128
 """Bytes of the slave's mailbox (SyncManager 0/1 length): the 8400 motec EtherCAT unit has 128."""
 
@@ -27,14 +29,24 @@ MAILBOX_ERRORS = {
     0x08: "invalid data size",
 }
 """ETG.1000.6 mailbox error replies (mailbox type 0)."""
+SERVICE_NOT_SUPPORTED = 0x04
+
+
+class MailboxRefused(ProtocolError):
+    """The slave answered with a mailbox error (type 0); ``code`` is its detail (:data:`MAILBOX_ERRORS`)."""
+
+    def __init__(self, detail: str, code: int) -> None:
+        super().__init__(detail)
+        self.code = code
 
 
 class CoeSdoClient:
     def __init__(self, exchange: Exchange, station: int, *, mailbox_size: int = DEFAULT_MAILBOX_SIZE,
-                 timeout_s: float = 0.5, retries: int = 1) -> None:
+                 timeout_s: float = 0.5, retries: int = 1, receive: Receive | None = None) -> None:
         if mailbox_size < coe.MAILBOX_HEADER.size + coe.SDO_MIN_LENGTH:
             raise ValueError(f"a mailbox of {mailbox_size} bytes cannot hold an SDO telegram")
         self.exchange = exchange
+        self.receive = receive
         self.station = station
         self.mailbox_size = mailbox_size
         self.timeout_s = timeout_s
@@ -42,32 +54,38 @@ class CoeSdoClient:
         self._counters = itertools.cycle(range(1, 8))
 
     # --- one request, one answer ----------------------------------------------------------------------------
-    def _ask(self, body: bytes, index: int, subindex: int) -> bytes:
-        telegram = coe.coe_mailbox(self.station, coe.CoeService.SDO_REQUEST, body, next(self._counters))
+    def _send(self, service: coe.CoeService, body: bytes, what: str, index: int, subindex: int) -> bytes:
+        telegram = coe.coe_mailbox(self.station, service, body, next(self._counters))
         for _ in range(self.retries + 1):
             answer = self.exchange(telegram, self.timeout_s)
-            if answer is None:
-                continue
-            return self._sdo_body(answer, index, subindex)
-        raise SdoTimeoutError(f"Slave {self.station} did not answer the SDO request for 0x{index:04X}sub{subindex} "
+            if answer is not None:
+                return answer
+        raise SdoTimeoutError(f"Slave {self.station} did not answer the {what} for 0x{index:04X}sub{subindex} "
                               f"within {self.timeout_s:g} s ({self.retries + 1} tries)",
                               node=self.station, index=index, subindex=subindex)
 
-    def _sdo_body(self, answer: bytes, index: int, subindex: int) -> bytes:
+    def _ask(self, body: bytes, index: int, subindex: int) -> bytes:
+        answer = self._send(coe.CoeService.SDO_REQUEST, body, "SDO request", index, subindex)
+        return self._sdo_body(answer, index, subindex)
+
+    def _coe_message(self, answer: bytes, index: int, subindex: int) -> coe.CoeMessage:
         try:
             mailbox = coe.Mailbox.decode(answer)
             if mailbox.type == coe.MailboxType.ERROR:
                 detail = int.from_bytes(mailbox.data[2:4], "little") if len(mailbox.data) >= 4 else 0
                 reason = MAILBOX_ERRORS.get(detail, f"mailbox error 0x{detail:04X}")
-                raise ProtocolError(f"Slave {self.station} refused the mailbox request for 0x{index:04X}sub"
-                                    f"{subindex}: {reason}")
+                raise MailboxRefused(f"Slave {self.station} refused the mailbox request for 0x{index:04X}sub"
+                                     f"{subindex}: {reason}", detail)
             if mailbox.type != coe.MailboxType.COE:
                 raise SdoOutOfStepError(f"a mailbox of type {mailbox.type} answered a CoE request",
                                         node=self.station, index=index, subindex=subindex)
-            message = coe.CoeMessage.decode(mailbox.data)
+            return coe.CoeMessage.decode(mailbox.data)
         except coe.MailboxFormatError as exc:
             raise ProtocolError(f"Slave {self.station}: malformed answer for 0x{index:04X}sub{subindex}: {exc}") \
                 from exc
+
+    def _sdo_body(self, answer: bytes, index: int, subindex: int) -> bytes:
+        message = self._coe_message(answer, index, subindex)
         if message.service not in (coe.CoeService.SDO_RESPONSE, coe.CoeService.SDO_REQUEST):
             raise SdoOutOfStepError(f"CoE service {message.service} answered an SDO request",
                                     node=self.station, index=index, subindex=subindex)
@@ -147,3 +165,56 @@ class CoeSdoClient:
             sent += len(chunk)
             done += 1
             toggle ^= 1
+
+    # --- SDO information service (ETG.1000.6 5.6.3) ----------------------------------------------------------
+    def information(self, request: bytes) -> bytes:
+        """Send an SDO information request and return its response's data, the fragments joined. A slave without
+        the service answers with a mailbox error (in words), an SDO Info Error request raises its abort code."""
+        index, subindex = coe_info.request_key(request)
+        expected = coe_info.parse_info(request).opcode + 1
+        answer: bytes | None = self._send(coe.CoeService.SDO_INFORMATION, request, "SDO information request",
+                                          index, subindex)
+        data, fragment, left = bytearray(), 0, None
+        while True:
+            assert answer is not None
+            message = self._coe_message(answer, index, subindex)
+            if message.service != coe.CoeService.SDO_INFORMATION:
+                raise SdoOutOfStepError(f"CoE service {message.service} answered an SDO information request",
+                                        node=self.station, index=index, subindex=subindex)
+            try:
+                info = coe_info.parse_info(message.body)
+            except coe.MailboxFormatError as exc:
+                raise ProtocolError(f"Slave {self.station}: malformed SDO information answer: {exc}") from exc
+            if info.opcode == coe_info.InfoOpcode.ERROR_REQUEST:
+                code = int.from_bytes(info.data[:4], "little")
+                raise SdoAbortError(code, abort_text(code), node=self.station, index=index, subindex=subindex)
+            if info.opcode != expected:
+                raise SdoOutOfStepError(f"SDO information opcode {info.opcode} answered opcode {expected - 1}",
+                                        node=self.station, index=index, subindex=subindex)
+            if left is not None and info.fragments_left != left - 1:
+                raise SdoOutOfStepError(f"a fragment of the SDO information response was lost ({left - 1} "
+                                        f"fragments left expected, the slave says {info.fragments_left})",
+                                        node=self.station, index=index, subindex=subindex)
+            data += info.data
+            if not info.incomplete:
+                return bytes(data)
+            left, fragment = info.fragments_left, fragment + 1
+            answer = self.receive(self.timeout_s) if self.receive is not None else None
+            if answer is None:
+                raise SdoStalledError(node=self.station, index=index, subindex=subindex, done=fragment,
+                                      total=fragment + left, what="the SDO information response",
+                                      kind="fragmented")
+
+    def od_list(self, list_type: int = coe_info.ListType.ALL) -> list[int]:
+        answered, indices = coe_info.parse_od_list(self.information(coe_info.od_list_request(list_type)))
+        if answered != list_type:
+            raise SdoOutOfStepError(f"OD list type {answered} answered a request for type {list_type}",
+                                    node=self.station, index=0, subindex=0)
+        return indices
+
+    def object_description(self, index: int) -> coe_info.ObjectDescription:
+        return coe_info.ObjectDescription.decode(self.information(coe_info.object_description_request(index)))
+
+    def entry_description(self, index: int, subindex: int, value_info: int = 0) -> coe_info.EntryDescription:
+        return coe_info.EntryDescription.decode(
+            self.information(coe_info.entry_description_request(index, subindex, value_info)))

@@ -3,20 +3,35 @@
 ``read(index, subindex) -> bytes`` and ``write(index, subindex, data)`` are the slave's object dictionary; they raise
 :class:`Abort` with a CiA 301 / ETG abort code. Answers are whole mailbox telegrams. A request repeated with the
 same non-zero mailbox counter (the client's retry after a lost answer) gets the previous answer again instead of
-being carried out twice.
+being carried out twice. With an :class:`ObjectDictionary` it also answers the SDO information service
+(:mod:`drivebench.protocol.coe_info`), in as many fragments as its mailbox needs.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Protocol
 
-from drivebench.protocol import coe
+from drivebench.protocol import coe, coe_info
 
 ABORT_TOGGLE = 0x05030000
 ABORT_COMMAND = 0x05040001
 ABORT_NO_OBJECT = 0x06020000
 ABORT_GENERAL = 0x08000000
+MAILBOX_SERVICE_NOT_SUPPORTED = 0x04
+
+
+class ObjectDictionary(Protocol):
+    """What a slave says about its objects through the SDO information service; raises :class:`Abort`."""
+
+    def od_list(self, list_type: int) -> list[int]: ...
+
+    def object_description(self, index: int) -> coe_info.ObjectDescription: ...
+
+    def entry_description(self, index: int, subindex: int, value_info: int = 0) -> coe_info.EntryDescription:
+        """``value_info``: the values asked for (the answer's value info says which it carries)."""
+        ...
 
 
 class Abort(Exception):
@@ -47,14 +62,16 @@ class _Download:
 
 class CoeSdoServer:
     def __init__(self, station: int, read: Callable[[int, int], bytes], write: Callable[[int, int, bytes], None],
-                 *, mailbox_size: int = 128) -> None:
+                 *, mailbox_size: int = 128, dictionary: ObjectDictionary | None = None) -> None:
         self.station = station
         self.read = read
         self.write = write
         self.mailbox_size = mailbox_size
+        self.dictionary = dictionary
+        """Answers the SDO information service; None: the slave does not offer it (mailbox error)."""
         self._upload: _Upload | None = None
         self._download: _Download | None = None
-        self._last: tuple[int, bytes, bytes] | None = None  # counter, request, answer
+        self._last: tuple[int, bytes, list[bytes]] | None = None  # counter, request, answers
         self._counters = 0
 
     def _answer(self, service: coe.CoeService, body: bytes) -> bytes:
@@ -62,22 +79,66 @@ class CoeSdoServer:
         return coe.coe_mailbox(self.station, service, body, self._counters)
 
     def handle(self, telegram: bytes) -> bytes | None:
-        """The answer to one request telegram, or None for telegrams a slave ignores (not CoE SDO)."""
+        """The (first) answer to one request telegram, or None for telegrams a slave ignores."""
+        answers = self.respond(telegram)
+        return answers[0] if answers else None
+
+    def respond(self, telegram: bytes) -> list[bytes]:
+        """The answers to one request telegram (several: the fragments of an SDO information response)."""
         try:
             mailbox = coe.Mailbox.decode(telegram)
         except coe.MailboxFormatError:
-            return None
+            return []
         if self._last and mailbox.counter and self._last[0] == mailbox.counter and self._last[1] == telegram:
             return self._last[2]
         if mailbox.type != coe.MailboxType.COE:
-            return None
+            return []
         message = coe.CoeMessage.decode(mailbox.data)
-        if message.service != coe.CoeService.SDO_REQUEST or not message.body:
-            return None
-        answer = self._sdo(message.body)
-        if answer is not None:
-            self._last = (mailbox.counter, telegram, answer)
-        return answer
+        if message.service == coe.CoeService.SDO_INFORMATION:
+            answers = self._information(message.body)
+        elif message.service == coe.CoeService.SDO_REQUEST and message.body:
+            answer = self._sdo(message.body)
+            answers = [answer] if answer is not None else []
+        else:
+            return []
+        if answers:
+            self._last = (mailbox.counter, telegram, answers)
+        return answers
+
+    # --- SDO information service -------------------------------------------------------------------------
+    def _information(self, body: bytes) -> list[bytes]:
+        if self.dictionary is None:  # ETG.1000.6 mailbox error reply: command 0x01, detail "service not supported"
+            self._counters = self._counters % 7 + 1
+            return [coe.Mailbox(self.station, coe.MailboxType.ERROR, bytes([1, 0, MAILBOX_SERVICE_NOT_SUPPORTED, 0]),
+                                self._counters).encode()]
+        try:
+            info = coe_info.parse_info(body)
+            opcode, data = self._describe(info)
+        except Abort as exc:
+            return [self._answer(coe.CoeService.SDO_INFORMATION, coe_info.info_error(exc.code))]
+        except (coe.MailboxFormatError, IndexError, ValueError):
+            return [self._answer(coe.CoeService.SDO_INFORMATION, coe_info.info_error(ABORT_COMMAND))]
+        room = self.mailbox_size - coe.MAILBOX_HEADER.size - 2 - coe_info.INFO_HEADER.size
+        return [self._answer(coe.CoeService.SDO_INFORMATION, fragment)
+                for fragment in coe_info.fragments(opcode, data, room)]
+
+    def _describe(self, info: coe_info.InfoTelegram) -> tuple[int, bytes]:
+        assert self.dictionary is not None
+        op = coe_info.InfoOpcode
+        if info.opcode == op.OD_LIST_REQUEST and len(info.data) >= 2:
+            list_type = int.from_bytes(info.data[:2], "little")
+            if list_type == coe_info.ListType.LENGTHS:
+                lengths = [len(self.dictionary.od_list(kind)) for kind in range(1, 6)]
+                return op.OD_LIST_RESPONSE, coe_info.od_list_data(list_type, lengths)
+            return op.OD_LIST_RESPONSE, coe_info.od_list_data(list_type, self.dictionary.od_list(list_type))
+        if info.opcode == op.OBJECT_DESCRIPTION_REQUEST and len(info.data) >= 2:
+            index = int.from_bytes(info.data[:2], "little")
+            return op.OBJECT_DESCRIPTION_RESPONSE, self.dictionary.object_description(index).encode()
+        if info.opcode == op.ENTRY_DESCRIPTION_REQUEST and len(info.data) >= 4:
+            index = int.from_bytes(info.data[:2], "little")
+            described = self.dictionary.entry_description(index, info.data[2], info.data[3])
+            return op.ENTRY_DESCRIPTION_RESPONSE, described.encode()
+        raise Abort(ABORT_COMMAND)
 
     def _sdo(self, body: bytes) -> bytes | None:
         specifier = body[0] >> 5

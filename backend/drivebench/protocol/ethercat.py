@@ -1,5 +1,6 @@
-"""The slaves behind one EtherCAT mailbox gateway: an SDO client per station address, their emergencies, and
-counters of the mailbox traffic (requests, responses, aborts, emergencies per slave) for the monitor.
+"""The slaves behind one EtherCAT mailbox gateway: an SDO client per station address (SDO and SDO information),
+their emergencies, and counters of the mailbox traffic (requests, responses, aborts, emergencies per slave)
+for the monitor.
 
 Answers are matched to requests by the station address in their mailbox header; one transfer at a time per slave
 (:meth:`EthercatSegment.lock`), any number of slaves at once. Emergencies a slave puts into its mailbox arrive
@@ -14,7 +15,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from drivebench.protocol import coe
+from drivebench.protocol import coe, coe_info
 from drivebench.protocol.coe_sdo import DEFAULT_MAILBOX_SIZE, CoeSdoClient
 from drivebench.transport.ethercat_gateway import GatewayLink, GatewaySpec
 
@@ -70,7 +71,7 @@ class EthercatSegment:
         if slave.client is None:
             slave.client = CoeSdoClient(lambda telegram, timeout: self._exchange(station, telegram, timeout), station,
                                         mailbox_size=self.mailbox_size, timeout_s=self.timeout_s,
-                                        retries=self.retries)
+                                        retries=self.retries, receive=lambda timeout: self._receive(station, timeout))
         return slave.client
 
     def _exchange(self, station: int, telegram: bytes, timeout_s: float) -> bytes | None:
@@ -85,6 +86,13 @@ class EthercatSegment:
             slave.counters.timeouts += 1
             return None
 
+    def _receive(self, station: int, timeout_s: float) -> bytes | None:
+        """The slave's next telegram without a request (a further fragment of an SDO information response)."""
+        try:
+            return self._slave(station).answers.get(timeout=timeout_s)
+        except queue.Empty:
+            return None
+
     def _on_telegram(self, telegram: bytes) -> None:
         mailbox = coe.Mailbox.decode(telegram)
         slave = self._slave(mailbox.address)
@@ -97,7 +105,9 @@ class EthercatSegment:
                 for listener in self._emergency_listeners:
                     listener(mailbox.address, code, register, data, now)
                 return
-            if message.body[:1] == bytes([coe.ABORT]):
+            if message.body[:1] == bytes([coe.ABORT]) or (
+                    message.service == coe.CoeService.SDO_INFORMATION
+                    and message.body[:1] == bytes([coe_info.InfoOpcode.ERROR_REQUEST])):
                 slave.counters.aborts += 1
         slave.counters.responses += 1
         slave.answers.put(telegram)

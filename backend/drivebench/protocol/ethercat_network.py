@@ -15,15 +15,16 @@ station address, which the slave list shows next to it.
 from __future__ import annotations
 
 import threading
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Protocol, TypeVar
 
 import can
 
 from drivebench.errors import ProtocolError, SdoAbortError, SdoTimeoutError
 from drivebench.protocol import esm
 from drivebench.protocol.abort_codes import abort_text
+from drivebench.protocol.coe_sdo import SERVICE_NOT_SUPPORTED, CoeSdoClient, MailboxRefused
 from drivebench.protocol.emcy import EMCY_BASE, EmcyMonitor
 from drivebench.protocol.ethercat import EmergencyListener, EthercatSegment, MailboxCounters
 from drivebench.protocol.guarding import NodeGuarding
@@ -32,6 +33,7 @@ from drivebench.protocol.network import EventLoopTransfers
 from drivebench.transport.ethercat_gateway import GatewaySpec
 from drivebench.transport.ethercat_soem import DirectSpec
 
+T = TypeVar("T")
 NO_CAN = "EtherCAT has no CAN identifiers"
 GATEWAY_HINT = ("Check that the master runs with its mailbox gateway on, that the slave is in the master's "
                 "configuration and at least Pre-Operational.")
@@ -108,26 +110,49 @@ class CoeNodeClient(EventLoopTransfers):
         raise ProtocolError(f"Slave {self.node_id} (station {self.station}) has one mailbox; {NO_CAN} for a second "
                             "SDO channel")
 
-    def _transfer(self, index: int, sub: int, block: bool, work: str, data: bytes = b"") -> bytes:
-        if block:
-            raise ProtocolError("CoE has no SDO block transfer; read or write it normally (segmented)")
+    def _in_mailbox(self, work: Callable[[SdoTransfers], T], index: int, sub: int, silence: str = "") -> T:
+        """``work(client)`` while holding the slave's mailbox, with the profile's abort texts and the silence of
+        the gateway or slave in words."""
         client = self.network.segment.sdo(self.station)
         with self.channels[0].lock:
             try:
-                if work == "upload":
-                    return client.upload(index, sub)
-                client.download(index, sub, data)
-                return b""
+                return work(client)
             except SdoAbortError as exc:
                 raise SdoAbortError(exc.abort_code, abort_text(exc.abort_code, self.abort_texts), node=self.node_id,
-                                    index=index, subindex=sub) from exc
+                                    index=exc.index, subindex=exc.subindex) from exc
             except SdoTimeoutError as exc:
                 if type(exc) is not SdoTimeoutError:  # a stalled segmented transfer says so already
                     raise
-                silent = SdoTimeoutError(self.network.silence_text(self.station, index, sub), node=self.node_id,
-                                         index=index, subindex=sub)
+                silent = SdoTimeoutError(self.network.silence_text(self.station, index, sub) + silence,
+                                         node=self.node_id, index=index, subindex=sub)
                 silent.hint = self.network.silence_hint
                 raise silent from exc
+
+    def _transfer(self, index: int, sub: int, block: bool, work: str, data: bytes = b"") -> bytes:
+        if block:
+            raise ProtocolError("CoE has no SDO block transfer; read or write it normally (segmented)")
+        if work == "upload":
+            return self._in_mailbox(lambda client: client.upload(index, sub), index, sub)
+        self._in_mailbox(lambda client: client.download(index, sub, data), index, sub)
+        return b""
+
+    def information(self, ask: Callable[[CoeSdoClient], T], index: int = 0, sub: int = 0) -> T:
+        """One SDO information exchange (``ask(client)``, blocking) with the errors of an SDO transfer; a slave
+        without the service says so in words."""
+        def on_coe(client: SdoTransfers) -> T:
+            if not isinstance(client, CoeSdoClient):
+                raise ProtocolError(f"Slave {self.node_id} (station {self.station}): the SDO information service is "
+                                    "read through a mailbox gateway; the direct master does not ask it yet")
+            return ask(client)
+
+        try:
+            return self._in_mailbox(on_coe, index, sub, " (a slave without the SDO information service may not "
+                                                     "answer at all)")
+        except MailboxRefused as exc:
+            if exc.code != SERVICE_NOT_SUPPORTED:
+                raise
+            raise ProtocolError(f"Slave {self.node_id} (station {self.station}) does not offer the SDO information "
+                                "service (its mailbox answered: the service is not supported)") from exc
 
     def upload(self, index: int, sub: int, *, block: bool = False, channel: int | None = None) -> bytes:
         return self._transfer(index, sub, block, "upload")
@@ -174,6 +199,15 @@ class EthercatNetwork:
             client.abort_texts.clear()
             client.abort_texts.update(abort_texts)
         return client
+
+    second_sdo_channel = False
+    """A slave has one mailbox."""
+
+    def sdo_label(self, node_id: int) -> str:
+        """How the slave's SDOs travel, for the Parameters tab: its mailbox, station address and gateway."""
+        station = self.stations.get(node_id)
+        where = f"station {station}" if station is not None else "not in the master's list"
+        return f"CoE mailbox ({where}, gateway {self.spec})"
 
     def counters(self, node_id: int) -> MailboxCounters:
         return self.segment.counters(self.station(node_id))

@@ -159,6 +159,13 @@ class CanopenNetwork:
         if self.canopen.notifier is not None:
             self.canopen.notifier.remove_listener(listener)
 
+    second_sdo_channel = True
+    """A node may offer a second SDO channel (SDO2) on CAN."""
+
+    def sdo_label(self, node_id: int) -> str:
+        """How the node's SDOs travel, for the Parameters tab."""
+        return "SDO"
+
     def node(self, node_id: int, abort_texts: Mapping[int, str] | None = None) -> NodeClient:
         """The node's client; ``abort_texts`` (the profile's, when the caller knows it) replaces the client's."""
         if not 1 <= node_id <= 127:

@@ -1,7 +1,8 @@
 """Simulated EtherCAT slaves behind a simulated master's mailbox gateway (ETG.8200) on UDP.
 
 A :class:`SimulatedSlave` is a :class:`SimulatedNode` (the object store, drive behaviour and faults the CAN drives
-use, built from the same profile) behind a CoE mailbox instead of CAN: SDO through the protocol's
+use, built from the same profile) behind a CoE mailbox instead of CAN: SDO and the SDO information service (its
+object dictionary described from the store, :mod:`drivebench.simulator.coe_dictionary`) through the protocol's
 :class:`CoeSdoServer`, emergencies as CoE emergency telegrams, and the EtherCAT state machine with the 8400 motec
 EtherCAT manual's rules: mailbox only from Pre-Operational on (in Init the master cannot reach the mailbox: no
 answer), PDO mapping 0x1600/0x1A00 and assignment 0x1C12/0x1C13 written only in Pre-Operational (else abort
@@ -31,6 +32,7 @@ from drivebench.protocol import coe, esm
 from drivebench.protocol.coe_server import Abort, CoeSdoServer
 from drivebench.protocol.datatypes import DataType, encode
 from drivebench.protocol.sdo_server import SdoAbort
+from drivebench.simulator.coe_dictionary import StoreDictionary
 from drivebench.simulator.node import Latency, LatencyText, SimulatedNode
 from drivebench.transport.ethercat_gateway import GatewayFormatError, GatewaySpec, gateway_frame, telegram_of
 
@@ -58,7 +60,8 @@ class SimulatedSlave:
         self.status_code = 0
         self._lock = threading.Lock()
         self._emergency_counter = 0
-        self.server = CoeSdoServer(station, self._read, self._write, mailbox_size=mailbox_size)
+        self.server = CoeSdoServer(station, self._read, self._write, mailbox_size=mailbox_size,
+                                   dictionary=StoreDictionary(self.store, PREOP_ONLY))
         self.store.add_write_check(self._check_state)
 
     # --- power and state machine ----------------------------------------------------------------------
@@ -97,15 +100,16 @@ class SimulatedSlave:
             raise SdoAbort(ABORT_DEVICE_STATE)
 
     # --- mailbox ---------------------------------------------------------------------------------------
-    def mailbox(self, telegram: bytes) -> bytes | None:
-        """The answer to one mailbox telegram, or None (Init: no mailbox; or a fault drops it)."""
+    def mailbox(self, telegram: bytes) -> list[bytes]:
+        """The answers to one mailbox telegram (several: the fragments of an SDO information response), or none
+        (Init: no mailbox)."""
         if self.state is esm.EsmState.INIT:
-            return None
+            return []
         extra_ms = self.node.faults.faults.latency_ms
         delay = self.node.latency.sample() + (extra_ms or 0) / 1000
         if delay:
             time.sleep(delay)
-        return self.server.handle(telegram)
+        return self.server.respond(telegram)
 
     def _read(self, index: int, sub: int) -> bytes:
         try:
@@ -264,14 +268,16 @@ class GatewayServer:
 
     def _answer(self, station: int, telegram: bytes, peer: tuple[str, int]) -> None:
         if station == esm.MASTER_STATION:
-            answer = self.master.server.handle(telegram)
+            answers = self.master.server.respond(telegram)
         else:
             slave = self.slaves.get(station)
             if slave is None:
                 return  # no slave has this station address: the master has nowhere to deliver it
             with self._slave_locks[station]:
-                answer = slave.mailbox(telegram)
-        if answer is not None and not self._closed.is_set():
+                answers = slave.mailbox(telegram)
+        for answer in answers:
+            if self._closed.is_set():
+                return
             with contextlib.suppress(OSError):
                 self._sock.sendto(gateway_frame(answer), peer)
 

@@ -4,8 +4,10 @@ The control word arrives by SDO or RPDO - both are store writes:
 
 * 8400 motec: CAN1_IN word 1 (``C00866/1``, also ``C00876/1``: LP_CanIn1_wIn1 = wCtrl), word 2 the speed
   setpoint in % of the motor reference speed C00011 (0x4000 = 100 %); CAN1_OUT word 1 (``C00868/1``) the status
-  word, word 2 the actual speed (same scaling). The communication manual names only "wCtrl"; the bit layout is the
-  8400 device control of the network (LA_NCtrl) word: see ``CONTROL_8400``.
+  word, word 2 the actual speed (same scaling). The EtherCAT unit has no CAN1 words: MCI_IN words ``C00876/1..2``
+  in, and its display of the words to the master ``C13850/1..2`` out (the preconfigured interconnection, C00007
+  = 40; our reading, the EtherCAT manual names no word's meaning). The communication manual names only "wCtrl";
+  the bit layout is the 8400 device control of the network (LA_NCtrl) word: see ``CONTROL_8400``.
 * EMF2178IB: the control word ``C0135`` (SDO, 8200 vector) or AIF-IN word 1 ``C1822/1`` (RPDO1, 8200 vector and
   93XX), AIF-IN.W1 ``C1822/2`` the setpoint; status word ``C0150`` and AIF-OUT word 1 ``C1823/1``, AIF-OUT.W1
   ``C1823/2`` the actual value. Bits per the EMF2178IB manual (ch. 9.3.1): 3 QSP, 9 CINH, 10 TRIP-SET, 11 TRIP-RESET
@@ -55,8 +57,8 @@ class LenzeWords:
     DCTRL1-PAR3/4, EMF2178IB manual §9.3.1.1): active set = 1 + bit 12 + 2 x bit 13, where the profile has sets."""
 
 
-WORDS_8400 = LenzeWords("lenze-8400", ("C00866/1", "C00876/1"), ("C00866/2", "C00876/2"), ("C00868/1",),
-                        ("C00868/2",), ("C00054", "C00053", "C00061"),
+WORDS_8400 = LenzeWords("lenze-8400", ("C00866/1", "C00876/1"), ("C00866/2", "C00876/2"), ("C00868/1", "C13850/1"),
+                        ("C00868/2", "C13850/2"), ("C00054", "C00053", "C00061"),
                         quick_stop_bit=2, inhibit_bit=8, fail_bit=14, reset_bit=7, ccw_bit=10)
 WORDS_EMF = LenzeWords("lenze-emf2178ib", ("C0135", "C1822/1"), ("C1822/2",), ("C0150", "C1823/1"),
                        ("C1823/2",), ("C0054", "C0053", "C0061"),
@@ -325,7 +327,7 @@ class LenzeControl:
         for ref in self.words.actual_refs:
             key = self._key(ref)
             if key is not None and self.store.get(*key) != actual:
-                self.store.set(key[0], key[1], actual)
+                self._set_word(key, actual & 0xFFFF)  # an UNSIGNED16 display word (C13850/2) holds it as 16 bits
 
     def tick(self, now: float) -> None:
         if now < self._next_cycle:

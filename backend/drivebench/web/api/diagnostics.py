@@ -1,4 +1,5 @@
-"""Node health, EMCY history, heartbeat set-up, the diagnostics report and remote-diagnostics share links."""
+"""Node health, EMCY history, an EtherCAT slave's object list (SDO information), heartbeat set-up, the diagnostics
+report and remote-diagnostics share links."""
 
 from __future__ import annotations
 
@@ -10,8 +11,9 @@ from fastapi.responses import HTMLResponse, Response
 from pydantic import BaseModel, Field
 from starlette.requests import HTTPConnection
 
-from drivebench.services.monitoring import diagnostics
+from drivebench.services.monitoring import diagnostics, object_list
 from drivebench.services.monitoring.diagnostics import EmcyRecord, GuardingPublic, HeartbeatSetup, NodeHealth
+from drivebench.services.monitoring.object_list import ObjectListComparison
 from drivebench.services.users.sharing import IssuedLink, ShareLink
 from drivebench.web.deps import NodeDep, SessionDep, StateDep
 from drivebench.web.origins import public_base_url
@@ -70,6 +72,12 @@ def share_link_public(link: ShareLink) -> ShareLinkPublic:
 def issued_link(issued: IssuedLink, conn: HTTPConnection) -> IssuedShareLink:
     url = f"{public_base_url(conn.scope)}/remote/{issued.token}"
     return IssuedShareLink(**share_link_public(issued.link).model_dump(), token=issued.token, url=url)
+
+
+@router.get("/sessions/{session_id}/nodes/{node_id}/object-list", response_model=ObjectListComparison)
+async def object_list_of(session: SessionDep, node: NodeDep) -> ObjectListComparison:
+    """An EtherCAT slave's object list through the CoE SDO information service, against its profile."""
+    return await object_list.compare(session, node.node_id)
 
 
 @router.get("/health/nodes", response_model=list[SessionHealth])

@@ -19,6 +19,7 @@ from drivebench.errors import AccessDenied, DriveBenchError, NodeOffline, NotFou
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.bus.views import node_public
 from drivebench.services.control import drive_guard
+from drivebench.services.monitoring import object_list
 from drivebench.services.params import node_lease
 from drivebench.services.params import parameters as service
 from drivebench.services.params.parameters import DeviceCommand, WriteResult
@@ -63,6 +64,8 @@ templates.env.filters["motion"] = motion_of  # rows whose write can move the dri
 
 def _base(request: Request, session: Session, node: SessionNode, tab: str, **extra: Any) -> dict[str, Any]:
     return {"active": "plant", "session": session, "node": node, "public": node_public(session, node),
+            "sdo_label": session.network.sdo_label(node.node_id),
+            "second_sdo_channel": session.network.second_sdo_channel,
             "tabs": TABS, "tab": tab, "base": f"/ui/sessions/{session.id}/nodes/{node.node_id}",
             "page": f"/sessions/{session.id}/nodes/{node.node_id}", **extra}
 
@@ -215,6 +218,14 @@ async def sdo_settings(request: Request, session: SessionDep, node: NodeDep,
 
 
 # --- info tab --------------------------------------------------------------------------------------------
+@router.post(UI + "/info/object-list", response_class=HTMLResponse)
+async def read_object_list(request: Request, session: SessionDep, node: NodeDep) -> Response:
+    """The slave's object list through the CoE SDO information service, compared with its profile."""
+    objects = await object_list.compare(session, node.node_id)
+    context = _base(request, session, node, "info", objects=objects)
+    return templates.TemplateResponse(request, "node/info.html", context, block_name="object_list")
+
+
 @router.post(UI + "/info/read", response_class=HTMLResponse)
 async def read_info(request: Request, session: SessionDep, node: NodeDep) -> Response:
     rows: list[IdentityShown] = []
