@@ -207,6 +207,27 @@ def create_user(name: str, password: str, role: Role) -> User:
     return created
 
 
+def create_first_admin(name: str, password: str) -> User | None:
+    """The admin of a new installation (a container's first start): made only while no user exists at all, so a
+    restart with the same settings, or an admin renamed or removed since, changes nothing (None)."""
+    name = _check_name(name)
+    password_hash = _hasher.hash(_check_password(password))
+    try:
+        with transaction() as db:
+            if db.scalar(select(UserRow.id).limit(1)) is not None:
+                return None
+            row = UserRow(name=name, role=Role.ADMIN.label, password_hash=password_hash, created=utcnow(),
+                          disabled=False)
+            db.add(row)
+            db.flush()
+            created = _user(row)
+    except IntegrityError:  # another server of the database made it at the same moment
+        return None
+    finally:
+        directory.forget()
+    return created
+
+
 def list_users() -> list[User]:
     with transaction() as db:
         return [_user(row) for row in db.scalars(select(UserRow).order_by(UserRow.name))]
