@@ -175,6 +175,48 @@ def test_users_and_tokens_commands(cli_db: str, capsys: pytest.CaptureFixture[st
     assert run_cli(["tokens", "list"]) == 0 and secret not in capsys.readouterr().out
 
 
+FIRST_PASSWORD = "first admin password"
+
+
+def test_serve_makes_the_first_admin_from_a_secret_file_once_and_never_prints_it(
+        cli_db: str, tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
+    secret = tmp_path / "admin_password"
+    secret.write_text(FIRST_PASSWORD + "\n")  # a secret file's line break is not part of the password
+    monkeypatch.setattr(settings, "admin_user", "plantadmin")
+    monkeypatch.setattr(settings, "admin_password_file", secret)
+    # on all interfaces, as in the container: the admin is made before the check, which then passes (a bad bus ends it)
+    assert run_cli(["serve", "--host", "0.0.0.0", "--port", "0", "--bus", "not a bus"]) == 1
+    out, err = capsys.readouterr()
+    assert "created the admin plantadmin" in out and "is not a bus specification" in err
+    assert FIRST_PASSWORD not in out + err
+    assert accounts.verify_password("plantadmin", FIRST_PASSWORD).role.label == "admin"
+
+    secret.write_text("a changed password\n")  # a restart with other settings leaves the users alone
+    assert run_cli(["serve", "--port", "0", "--bus", "not a bus"]) == 1
+    out = capsys.readouterr().out
+    assert "Users exist already" in out and "a changed password" not in out
+    assert accounts.verify_password("plantadmin", FIRST_PASSWORD).name == "plantadmin"
+    assert [user.name for user in accounts.list_users()] == ["plantadmin"]
+
+
+def test_first_admin_settings_in_error_say_what_to_fix_and_make_nobody(
+        cli_db: str, tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
+    from pydantic import SecretStr
+
+    monkeypatch.setattr(settings, "admin_password", SecretStr("pw7x!"))
+    assert run_cli(["serve", "--port", "0"]) == 1
+    err = capsys.readouterr().err
+    assert "The password is too short" in err and "pw7x!" not in err
+    monkeypatch.setattr(settings, "admin_password_file", tmp_path / "missing")
+    assert run_cli(["serve", "--port", "0"]) == 1
+    assert "keep one" in capsys.readouterr().err
+    monkeypatch.setattr(settings, "admin_password", None)
+    assert run_cli(["serve", "--port", "0"]) == 1
+    assert f"Cannot read the admin password from DRIVEBENCH_ADMIN_PASSWORD_FILE={tmp_path / 'missing'}: " \
+           "No such file or directory" in capsys.readouterr().err
+    assert accounts.list_users() == []
+
+
 def test_simulate_on_an_unknown_interface_ends_with_a_message(capsys: pytest.CaptureFixture[str]) -> None:
     assert run_cli(["simulate", "--bus", "nosuchcan:can0"]) == 1
     assert "Unknown CAN interface 'nosuchcan'" in capsys.readouterr().err

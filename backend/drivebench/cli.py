@@ -1,4 +1,4 @@
-"""``drivebench serve | simulate | hub | users | tokens``."""
+"""``drivebench serve | health | tls | simulate | hub | users | tokens``."""
 
 from __future__ import annotations
 
@@ -32,6 +32,7 @@ def serve(args: argparse.Namespace) -> int:
     from drivebench.web.app import create_app
     from drivebench.web.tls import check_pair
 
+    _first_start_admin()
     if not _is_loopback(args.host) and not _authentication_configured():
         print(
             f"Refusing to listen on {args.host}: DriveBench can move motors, and authentication is not configured.\n"
@@ -61,6 +62,28 @@ def serve(args: argparse.Namespace) -> int:
     return 0
 
 
+def health(args: argparse.Namespace) -> int:
+    """Ask the server on this machine for /api/health: exit 0 when it answers ok (a container's health check)."""
+    import json
+    import ssl
+    import urllib.request
+
+    tls_on = settings.tls_cert_file is not None
+    url = f"{'https' if tls_on else 'http'}://{args.host}:{args.port}/api/health"
+    context = None
+    if tls_on:  # its own certificate names the plant's host names, not the loopback address asked here
+        context = ssl.create_default_context()
+        context.check_hostname, context.verify_mode = False, ssl.CERT_NONE
+    try:
+        with urllib.request.urlopen(url, timeout=args.timeout, context=context) as response:
+            status = json.load(response).get("status")
+    except (OSError, ValueError) as exc:
+        print(f"No health answer from {url}: {exc}", file=sys.stderr)
+        return 1
+    print(f"{url}: {status}")
+    return 0 if status == "ok" else 1
+
+
 def _apply_addressing(args: argparse.Namespace) -> None:
     """The names the server answers to, where its links point, which proxies it believes: options over settings."""
     names = [*settings.allowed_hosts, *(args.allowed_host or [])]
@@ -83,6 +106,39 @@ def tls(args: argparse.Namespace) -> int:
           f"SHA-256 fingerprint (compare it with what the browser shows before trusting it):\n  {certificate.sha256}\n"
           f"Serve with: drivebench serve --host 0.0.0.0 --tls-cert {cert_file} --tls-key {key_file}")
     return 0
+
+
+def _first_start_admin() -> None:
+    """The admin named by DRIVEBENCH_ADMIN_USER with the password of DRIVEBENCH_ADMIN_PASSWORD(_FILE), made on a
+    database without users; later starts leave the users alone. The password is never printed."""
+    given, file = settings.admin_password, settings.admin_password_file
+    if given is None and file is None:
+        return
+    if given is not None and file is not None:
+        raise InvalidValue("Both DRIVEBENCH_ADMIN_PASSWORD and DRIVEBENCH_ADMIN_PASSWORD_FILE are set: "
+                           "keep one (the file, e.g. a container secret, is better).")
+    from drivebench.services.storage.database import upgrade_to_head
+    from drivebench.services.users import accounts
+
+    upgrade_to_head()
+    if accounts.list_users():
+        print("Users exist already: the DRIVEBENCH_ADMIN_* settings are not used (a new password: "
+              "`drivebench users passwd NAME`).", flush=True)
+        return
+    if file is not None:
+        try:
+            password = file.read_text(encoding="utf-8").rstrip("\r\n")  # a secret file's last line break
+        except (OSError, UnicodeDecodeError) as exc:
+            why = exc.strerror if isinstance(exc, OSError) else "it is not UTF-8 text"
+            raise InvalidValue(f"Cannot read the admin password from DRIVEBENCH_ADMIN_PASSWORD_FILE={file}: "
+                               f"{why}.") from None
+    else:
+        password = given.get_secret_value() if given is not None else ""
+    admin = accounts.create_first_admin(settings.admin_user, password)
+    if admin is not None:
+        print(f"First start: created the admin {admin.name} (password from "
+              f"{'DRIVEBENCH_ADMIN_PASSWORD_FILE' if file else 'DRIVEBENCH_ADMIN_PASSWORD'}); everyone signs in.",
+              flush=True)
 
 
 def _authentication_configured() -> bool:
@@ -267,6 +323,12 @@ def build_parser() -> argparse.ArgumentParser:
                          help="reverse proxies whose X-Forwarded-For/-Proto are believed, comma-separated "
                               "(default: none)")
     p_serve.set_defaults(func=serve)
+
+    p_health = sub.add_parser("health", help="exit 0 if the server on this machine answers /api/health")
+    p_health.add_argument("--host", default="127.0.0.1")
+    p_health.add_argument("--port", type=int, default=settings.port)
+    p_health.add_argument("--timeout", type=float, default=4.0, help="seconds")
+    p_health.set_defaults(func=health)
 
     p_tls = sub.add_parser("tls", help="certificates for https")
     tls_sub = p_tls.add_subparsers(dest="action", required=True)

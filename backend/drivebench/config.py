@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Annotated
 
-from pydantic import field_validator
+from pydantic import SecretStr, field_validator
 from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
@@ -29,6 +29,11 @@ class Settings(BaseSettings):
     secret_key_file: Path = REPO_ROOT / "var" / "secret_key"
     session_max_age_s: int = 12 * 3600
     """A sign-in lasts this long (a working day), then the browser asks again."""
+    admin_user: str = "admin"
+    admin_password: SecretStr | None = None
+    admin_password_file: Path | None = None
+    """The first admin, made when ``drivebench serve`` starts on a database without users (a container's first
+    start): the password from ``DRIVEBENCH_ADMIN_PASSWORD`` or, better, a secret file. Never printed."""
     tls_cert_file: Path | None = None
     tls_key_file: Path | None = None
     hsts: bool = False

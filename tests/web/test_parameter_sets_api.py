@@ -8,6 +8,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import re
 import time
 from collections.abc import Iterator
 from typing import Any
@@ -257,3 +258,27 @@ def test_an_edit_names_the_version_it_was_made_to_and_a_stale_one_gets_409(api: 
     wrong = api.patch(f"{SETS}/{set_id}", json={"version": 2, "values": {"C00088": "eleven", "nonsense": 1}})
     assert wrong.status_code == 422 and [e["ref"] for e in wrong.json()["errors"]] == ["C00088", "nonsense"]
     assert [v["version"] for v in api.get(f"{SETS}/{set_id}/history").json()] == [2, 1]
+
+
+def test_the_pages_rename_form_sends_the_version_it_showed_and_a_stale_one_gets_409(api: TestClient) -> None:
+    set_id = upload(api, 5, "Renamed")
+    shown = api.get(f"/parameter-sets/{set_id}", headers={"HX-Request": "true"}).text
+    form = re.search(r'<form class="inline-form rename".*?</form>', shown, re.S)
+    assert form is not None, shown
+    version = re.search(r'name="version" value="(\d+)"', form.group(0))
+    assert version is not None and version.group(1) == "1", form.group(0)
+    # meanwhile another user makes version 2 (here or on another server of the database)
+    edited = api.patch(f"{SETS}/{set_id}", json={"version": 1, "values": {"C00088": "11 A"}},
+                       headers={"X-DriveBench-User": "anna"})
+    assert edited.status_code == 200, edited.text
+    stale = api.post(f"/parameter-sets/{set_id}/rename", headers={"HX-Request": "true"},
+                     data={"name": "Renamed late", "note": "", "version": version.group(1)})
+    assert stale.status_code == 409 and "was changed by anna at " in stale.text and "Nothing was saved" in stale.text
+    assert api.get(f"{SETS}/{set_id}").json()["name"] == "Renamed"
+    fresh = api.post(f"/parameter-sets/{set_id}/rename", headers={"HX-Request": "true"},
+                     data={"name": "Renamed again", "note": "", "version": "2"})
+    assert fresh.status_code == 200 and 'name="version" value="2"' in fresh.text
+    assert api.get(f"{SETS}/{set_id}").json()["name"] == "Renamed again"
+    bad = api.post(f"/parameter-sets/{set_id}/rename", headers={"HX-Request": "true"},
+                   data={"name": "x", "version": "two"})
+    assert bad.status_code == 422 and "is not a number" in bad.text

@@ -199,11 +199,32 @@ def create_user(name: str, password: str, role: Role) -> User:
     with transaction() as db:
         if db.scalar(select(UserRow).where(UserRow.name == name)) is not None:
             raise Conflict(f"A user called {name} exists already.")
-        row = UserRow(name=name, role=role.label, password_hash=password_hash, created=utcnow(), disabled=False)
-        db.add(row)
-        db.flush()
-        created = _user(row)
+        created = _add_user(db, name, password_hash, role)
     directory.forget()
+    return created
+
+
+def _add_user(db: Session, name: str, password_hash: str, role: Role) -> User:
+    row = UserRow(name=name, role=role.label, password_hash=password_hash, created=utcnow(), disabled=False)
+    db.add(row)
+    db.flush()
+    return _user(row)
+
+
+def create_first_admin(name: str, password: str) -> User | None:
+    """The admin of a new installation (a container's first start): made only while no user exists at all, so a
+    restart, with the same settings or others, changes nothing (None)."""
+    name = _check_name(name)
+    password_hash = _hasher.hash(_check_password(password))
+    try:
+        with transaction() as db:
+            if db.scalar(select(UserRow.id).limit(1)) is not None:
+                return None
+            created = _add_user(db, name, password_hash, Role.ADMIN)
+    except IntegrityError:  # another server of the database made it at the same moment
+        return None
+    finally:
+        directory.forget()
     return created
 
 

@@ -63,6 +63,13 @@ def _text(form: FormData, key: str) -> str:
     return value.strip() if isinstance(value, str) else ""
 
 
+def _version(form: FormData) -> int | None:
+    text = _text(form, "version")
+    if text and not text.isdigit():
+        raise InvalidValue(f"The set's version {text!r} is not a number")
+    return int(text) if text else None
+
+
 def _target(form: FormData, key: str = "target") -> tuple[str, int]:
     """``demo-plant:5`` -> (session id, node id)."""
     session_id, _, node = _text(form, key).rpartition(":")
@@ -208,7 +215,8 @@ async def set_downloads(request: Request, set_id: RowId, state: StateDep, manage
 async def rename(request: Request, set_id: RowId, state: StateDep, manager: ManagerDep, jobs: JobsDep) -> Response:
     form = await request.form()
     try:
-        store().rename(set_id, _text(form, "name"), _text(form, "note"))
+        # the version the page showed: a set changed meanwhile (another user, another server) is a 409 in words
+        store().rename(set_id, _text(form, "name"), _text(form, "note"), base_version=_version(form))
         context = _detail(state, manager, set_id, jobs)
     except DriveBenchError as exc:
         return _error(request, exc)
