@@ -485,6 +485,29 @@ def _same(item: Item, written: RawValue, read_back: RawValue) -> bool:
     return written == read_back
 
 
+def checked_raw(node: SessionNode, ref: str, value: object, *, check: bool = True) -> tuple[Item, RawValue]:
+    """The item and the raw value a write of ``value`` sends, validated as :func:`write` validates it."""
+    item = resolve(node, ref)
+    return item, to_raw(item.entry, value, ref=item.ref) if check else _unchecked_raw(item, value)
+
+
+def encoded(item: Item, raw: RawValue, value: object) -> bytes:
+    """The bytes of ``raw`` in the item's data type (OutOfRange in words when it does not fit)."""
+    try:
+        return encode(item.entry.data_type, raw)
+    except ValueError as exc:
+        raise OutOfRange(f"{item.ref} ({item.entry.name}): {value!r} does not fit "
+                         f"{item.entry.data_type.value}") from exc
+
+
+def given_value(node: SessionNode, ref: str, value: object, raw: int | None) -> object:
+    """What to write: ``value`` as given, or the device's integer ``raw`` in engineering units."""
+    if raw is None:
+        return value
+    item = resolve(node, ref)
+    return raw / item.entry.factor if item.entry.factor != 1 else raw
+
+
 async def write(session: Session, node_id: int, ref: str, value: object, *, check: bool = True,
                 verify: bool = True) -> WriteResult:
     """Validate, send, read back. ``value`` is what a user typed (``"10.2"``, ``"10.20 A"``, ``"500 kbit/s"``)
@@ -495,8 +518,7 @@ async def write(session: Session, node_id: int, ref: str, value: object, *, chec
     needs the confirmation naming the node and arms the keep-alive guard (:func:`drive_guard.admit_moving_write`);
     a control word that only stops the drive is never refused, by a lease or for a confirmation."""
     node = session.node(node_id)
-    item = resolve(node, ref)
-    raw = to_raw(item.entry, value, ref=item.ref) if check else _unchecked_raw(item, value)
+    item, raw = checked_raw(node, ref, value, check=check)
     motion = motion_of(item)
     still = motion is not None and is_still(motion, raw)
     stopping = still and motion is not None and motion.kind == "control_word"
@@ -512,11 +534,7 @@ async def write(session: Session, node_id: int, ref: str, value: object, *, chec
 async def _write(session: Session, node: SessionNode, item: Item, raw: RawValue, value: object, *,
                  verify: bool) -> WriteResult:
     node_id = node.node_id
-    try:
-        data = encode(item.entry.data_type, raw)
-    except ValueError as exc:
-        raise OutOfRange(f"{item.ref} ({item.entry.name}): {value!r} does not fit "
-                         f"{item.entry.data_type.value}") from exc
+    data = encoded(item, raw, value)
     audits = session.part(WriteAudits)
     if not audits:
         return await _send(session, node, item, raw, data, verify)

@@ -69,7 +69,8 @@ RULES: dict[tuple[str, str], Rule] = {
              ("GET", "/api/auth/tokens"), ("POST", "/api/auth/tokens"), ("DELETE", "/api/auth/tokens/{token_id}")),
     # --- engineer: anything that writes to a device or changes what others see ------------------------------
     **_rules(E, "Writing parameters",
-             ("PUT", N + "/parameters/{ref:path}"), ("POST", UN + "/parameters/{ref:path}/write")),
+             ("PUT", N + "/parameters/{ref:path}"), ("POST", N + "/parameters:write"),
+             ("POST", UN + "/parameters/{ref:path}/write")),
     **_rules(E, "Device commands (save, load defaults, reset)",
              ("POST", N + "/commands/{command}"), ("POST", UN + "/commands/{command}")),
     **_rules(E, "NMT commands", ("POST", S + "/nmt"), ("POST", N + "/nmt"), ("POST", US + "/nmt"),
