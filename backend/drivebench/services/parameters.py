@@ -298,7 +298,7 @@ class _Plan:
     an integer decoder, the name; and the scaled form of the last raw value read (scaling and formatting run
     again only when the value changes)."""
 
-    __slots__ = ("_last", "_signed", "_size", "expedited", "item", "name", "request")
+    __slots__ = ("_last", "_signed", "_size", "expedited", "item", "name", "on_loop", "request")
 
     def __init__(self, item: Item) -> None:
         entry = item.entry
@@ -307,6 +307,8 @@ class _Plan:
         self.item = item
         self.name = item.name
         self.expedited = size is not None and size <= 4 and entry.access.readable
+        self.on_loop = entry.access.readable
+        """Read on the event loop (:mod:`drivebench.protocol.sdo_fast`): expedited, or segmented for longer ones."""
         self.request = ExpeditedRequest(item.index, item.subindex)
         integer = data_type.is_integer and size is not None and data_type is not DataType.BOOLEAN
         self._size = size if integer else 0
@@ -387,8 +389,8 @@ async def _upload(client: SdoClient, plan: _Plan, *, block: bool = False, channe
     """Read one value: expedited on the event loop where it can be (:mod:`drivebench.protocol.sdo_fast`), else
     canopen's client in a worker thread. Transfer errors name the parameter as the user knows it (C00099)."""
     try:
-        if plan.expedited and not block and isinstance(client, NodeClient):  # CAN's fast path; CoE has its own
-            data = await upload_expedited(client, plan.request, channel=channel)
+        if plan.on_loop and not block and isinstance(client, NodeClient):  # CAN's fast path; CoE has its own
+            data = await upload_expedited(client, plan.request, channel=channel, segmented=not plan.expedited)
             if data is not None:
                 return data
         return await _on_bus(partial(_read_blocking, client, plan.item, block=block, channel=channel))
