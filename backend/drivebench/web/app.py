@@ -48,10 +48,12 @@ from drivebench.web.ws import remote as remote_ws
 
 log = logging.getLogger(__name__)
 
-# One line per router: screens grow without touching anything else here.
-API_ROUTERS = [monitor_api.router, health.router, sessions.router, profiles.router, diagnostics.router, tools.router,
-               tools.planned_router, parameters.router, pdo.router, parameter_sets.router, drive_control_api.router,
-               accounts_api.router, simulator_api.router]
+# One line per router: screens grow without touching anything else here. FastAPI matches a request router by
+# router, so the routes a client polls come first (the parameter reads: one router walked instead of eight, ~0.3 ms
+# per read on this machine); none of their paths is a path of a router after them (benchmarks/RESULTS.md).
+API_ROUTERS = [health.router, parameters.router, monitor_api.router, sessions.router, profiles.router,
+               diagnostics.router, tools.router, tools.planned_router, pdo.router, parameter_sets.router,
+               drive_control_api.router, accounts_api.router, simulator_api.router]
 PAGE_ROUTERS = [node_diagnostics.router, node_pdo_page.router, monitor_page.router, plant_page.router,
                 node_control.router, node_page.router, profiles_page.router, remote_page.router, tools_page.router,
                 parameter_sets_page.router, accounts_page.router]

@@ -25,7 +25,9 @@ from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.problems import problem_body
 from drivebench.web.safety import ACTING
 
-router = APIRouter(prefix="/api", tags=["parameters"], dependencies=[ACTING])  # writes take the node lease
+# Every route but the two reads clients poll carries ACTING (writes take the node lease, jobs carry the writer); a GET
+# sends no write, so it is spared that dependency (benchmarks/RESULTS.md, Request path).
+router = APIRouter(prefix="/api", tags=["parameters"])
 NODE = "/sessions/{session_id}/nodes/{node_id}"
 
 
@@ -306,7 +308,7 @@ async def read_parameter(session: SessionDep, node: NodeDep, ref: str,
     return value_out(await service.read(session, node.node_id, ref, transfer=transfer))
 
 
-@router.post(NODE + "/parameters:read", response_model=BatchReadOut)
+@router.post(NODE + "/parameters:read", dependencies=[ACTING], response_model=BatchReadOut)
 async def read_parameters(request: Request, session: SessionDep, node: NodeDep, body: BatchRead) -> BatchReadOut:
     """Read many parameters in one request, in the order given; each answers with its value or its own error."""
     found = await service.read_many(session, node.node_id, body.refs)
@@ -316,7 +318,7 @@ async def read_parameters(request: Request, session: SessionDep, node: NodeDep, 
     return BatchReadOut(node_id=node.node_id, items=items)
 
 
-@router.put(NODE + "/parameters/{ref:path}", response_model=WriteOut,
+@router.put(NODE + "/parameters/{ref:path}", dependencies=[ACTING], response_model=WriteOut,
             responses={428: {"description": "A write that can make the drive move, without the confirmation naming "
                                             "the node"}})
 async def write_parameter(session: SessionDep, node: NodeDep, ref: str, body: ParameterWrite) -> WriteOut:
@@ -329,7 +331,7 @@ async def write_parameter(session: SessionDep, node: NodeDep, ref: str, body: Pa
     return write_out(result, node.pending_reset)
 
 
-@router.post(NODE + "/parameters:write", response_model=BatchWriteOut,
+@router.post(NODE + "/parameters:write", dependencies=[ACTING], response_model=BatchWriteOut,
              responses={422: {"description": "An item does not validate: nothing was written ('items' says which)"},
                         428: {"description": "A write that can make the drive move, without the confirmation naming "
                                             "the node: nothing was written"}})
@@ -357,17 +359,18 @@ async def write_parameters(request: Request, session: SessionDep, node: NodeDep,
                          pending_reset=sorted(node.pending_reset))
 
 
-@router.post(NODE + "/read-all", response_model=JobOut, status_code=status.HTTP_202_ACCEPTED)
+@router.post(NODE + "/read-all", dependencies=[ACTING], response_model=JobOut, status_code=status.HTTP_202_ACCEPTED)
 async def read_all(session: SessionDep, node: NodeDep, jobs: JobsDep) -> JobOut:
     return job_out(service.start_read(session, [node.node_id], jobs), with_result=False)
 
 
-@router.post(NODE + "/read-group", response_model=JobOut, status_code=status.HTTP_202_ACCEPTED)
+@router.post(NODE + "/read-group", dependencies=[ACTING], response_model=JobOut, status_code=status.HTTP_202_ACCEPTED)
 async def read_group(session: SessionDep, node: NodeDep, jobs: JobsDep, body: GroupRead) -> JobOut:
     return job_out(service.start_read(session, [node.node_id], jobs, group=body.group), with_result=False)
 
 
-@router.post("/sessions/{session_id}/read-all", response_model=JobOut, status_code=status.HTTP_202_ACCEPTED)
+@router.post("/sessions/{session_id}/read-all", dependencies=[ACTING], response_model=JobOut,
+             status_code=status.HTTP_202_ACCEPTED)
 async def read_all_nodes(session: SessionDep, jobs: JobsDep, body: SessionRead | None = None) -> JobOut:
     """Every node of the session in parallel (each node over its SDO channels)."""
     node_ids = (body.node_ids if body and body.node_ids else
@@ -375,31 +378,31 @@ async def read_all_nodes(session: SessionDep, jobs: JobsDep, body: SessionRead |
     return job_out(service.start_read(session, node_ids, jobs), with_result=False)
 
 
-@router.post(NODE + "/commands/{command}", response_model=CommandOut)
+@router.post(NODE + "/commands/{command}", dependencies=[ACTING], response_model=CommandOut)
 async def device_command(session: SessionDep, node: NodeDep, command: DeviceCommand) -> CommandOut:
     result = await service.command(session, node.node_id, command)
     return CommandOut(command=result.command.value, via=result.via, detail=result.detail,
                       pending_reset=sorted(node.pending_reset))
 
 
-@router.get("/sessions/{session_id}/sdo-settings", response_model=SdoSettingsModel)
+@router.get("/sessions/{session_id}/sdo-settings", dependencies=[ACTING], response_model=SdoSettingsModel)
 async def get_sdo_settings(session: SessionDep) -> SdoSettingsModel:
     settings = service.service(session).settings
     return SdoSettingsModel(timeout_s=settings.timeout_s, retries=settings.retries, use_sdo2=settings.use_sdo2)
 
 
-@router.put("/sessions/{session_id}/sdo-settings", response_model=SdoSettingsModel)
+@router.put("/sessions/{session_id}/sdo-settings", dependencies=[ACTING], response_model=SdoSettingsModel)
 async def put_sdo_settings(session: SessionDep, body: SdoSettingsModel) -> SdoSettingsModel:
     service.configure(session, SdoSettings(body.timeout_s, body.retries, body.use_sdo2))
     return body
 
 
-@router.get("/jobs/{job_id}", response_model=JobOut)
+@router.get("/jobs/{job_id}", dependencies=[ACTING], response_model=JobOut)
 async def get_job(job_id: str, jobs: JobsDep) -> JobOut:
     return job_out(jobs.get(job_id))
 
 
-@router.delete("/jobs/{job_id}", response_model=JobOut)
+@router.delete("/jobs/{job_id}", dependencies=[ACTING], response_model=JobOut)
 async def cancel_job(job_id: str, jobs: JobsDep) -> JobOut:
     """Cancel a running job; what it read so far stays in its result."""
     job = jobs.cancel(job_id)
