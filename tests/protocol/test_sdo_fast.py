@@ -1,4 +1,5 @@
-"""The event-loop expedited (and, when asked, segmented) SDO upload against the simulated demo drives on a real virtual CAN bus."""
+"""The event-loop expedited (and, when asked, segmented) SDO upload against the simulated demo drives on a real
+virtual CAN bus."""
 
 from __future__ import annotations
 
