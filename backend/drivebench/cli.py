@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import contextlib
+import importlib.util
 import ipaddress
 import re
 import signal
@@ -56,9 +57,10 @@ def serve(args: argparse.Namespace) -> int:
     # Forwarded headers only from the proxies named (uvicorn would believe any process on 127.0.0.1, so through an
     # SSH tunnel every client could choose the address the sign-in limit counts).
     forwarded = settings.forwarded_allow_ips
+    # uvloop and httptools (uvicorn[standard]) by name: a missing one is an installation error, not a slow server.
     uvicorn.run(app, host=args.host, port=args.port, log_level=args.log_level, ws_ping_interval=20,
                 ssl_certfile=args.tls_cert, ssl_keyfile=args.tls_key, proxy_headers=bool(forwarded),
-                forwarded_allow_ips=forwarded or None)
+                forwarded_allow_ips=forwarded or None, loop=_fastest("uvloop"), http=_fastest("httptools"))
     return 0
 
 
@@ -82,6 +84,11 @@ def health(args: argparse.Namespace) -> int:
         return 1
     print(f"{url}: {status}")
     return 0 if status == "ok" else 1
+
+
+def _fastest(module: str) -> str:
+    """``module`` where it is installed (``uvicorn[standard]`` brings it), else uvicorn's pure-Python choice."""
+    return module if importlib.util.find_spec(module) is not None else "auto"
 
 
 def _apply_addressing(args: argparse.Namespace) -> None:

@@ -1,4 +1,5 @@
-"""The event-loop expedited SDO upload against the simulated demo drives on a real virtual CAN bus."""
+"""The event-loop expedited (and, when asked, segmented) SDO upload against the simulated demo drives on a real
+virtual CAN bus."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ from collections.abc import Iterator
 import can
 import pytest
 
-from drivebench.errors import SdoAbortError, SdoTimeoutError
+from drivebench.errors import SdoAbortError, SdoOutOfStepError, SdoStalledError, SdoTimeoutError
 from drivebench.protocol.network import CanopenNetwork
 from drivebench.protocol.sdo_fast import ExpeditedRequest, upload_expedited, uploader
 from drivebench.simulator.plant import Plant
@@ -58,6 +59,33 @@ def test_segmented_answer_is_left_to_the_blocking_client(network: CanopenNetwork
                                       bytes.fromhex("80 9C 5F 00 01 00 04 05")]
     assert len(client.upload(0x5F9C, 0)) > 4
     assert not client.channels[0].lock.locked()
+
+
+def test_segmented_answer_is_read_on_the_loop_when_asked(network: CanopenNetwork, wire: can.BusABC) -> None:
+    """segmented=True: the segments are asked for on the event loop (toggle 0, 1, ...), the value is the one the
+    blocking client reads, and no abort is sent."""
+    client = network.node(MOTEC)
+    data = asyncio.run(upload_expedited(client, C00099, segmented=True))
+    assert data is not None and len(data) > 7
+    sent = frames_to(wire, MOTEC)
+    assert sent[0] == bytes.fromhex("40 9C 5F 00 00 00 00 00")
+    assert sent[1:] == [bytes([0x60 | (n % 2) << 4]) + bytes(7) for n in range(len(sent) - 1)]
+    assert len(sent) - 1 == -(-len(data) // 7), "one request per segment"
+    assert client.upload(0x5F9C, 0) == data
+    assert not client.channels[0].lock.locked()
+
+
+def test_segments_out_of_step_abort_the_transfer(plant: Plant, network: CanopenNetwork, wire: can.BusABC) -> None:
+    plant.nodes[MOTEC].faults.set(wrong_toggle=True)
+    with pytest.raises(SdoOutOfStepError) as caught:
+        asyncio.run(upload_expedited(network.node(MOTEC), C00099, segmented=True))
+    assert caught.value.reason == "toggle"
+    assert frames_to(wire, MOTEC)[-1] == bytes.fromhex("80 9C 5F 00 00 00 03 05")  # CiA 301 0x05030000
+    plant.nodes[MOTEC].faults.set(wrong_toggle=False, silent_after_segments=1)
+    with pytest.raises(SdoStalledError) as stalled:
+        asyncio.run(upload_expedited(network.node(MOTEC), C00099, segmented=True))
+    assert (stalled.value.done, stalled.value.total) == (1, 2)
+    assert frames_to(wire, MOTEC)[-1] == bytes.fromhex("80 9C 5F 00 00 00 04 05")  # timed out: 0x05040000
 
 
 def test_busy_channel_is_left_to_the_blocking_client(network: CanopenNetwork, wire: can.BusABC) -> None:

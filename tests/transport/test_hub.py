@@ -10,6 +10,7 @@ from collections.abc import Callable, Iterator
 import can
 import pytest
 
+from drivebench.transport.bus import BusSpec, open_bus
 from drivebench.transport.hub import HubHandle, HubStats, start_hub_thread
 from drivebench.transport.hub_bridge import BusBridge
 from tests.conftest import fresh_channel, wait_until
@@ -263,3 +264,14 @@ def test_a_bridge_to_a_missing_adapter_stops_the_hub_from_starting() -> None:
 
     with pytest.raises(AdapterUnavailable, match="nosuchcan"):
         start_hub_thread(port=0, bridges=[BusBridge("nosuchcan:can0@500000")])
+
+
+def test_a_session_bus_on_a_gateway_sends_without_nagle_delays(hub: HubHandle) -> None:
+    """``open_bus`` asks python-can for its low-latency socket (``tcp_tune``): an SDO request is a small write
+    that must not wait for the previous answer's ACK (benchmarks/RESULTS.md, Request path)."""
+    bus = open_bus(BusSpec.parse(f"socketcand:127.0.0.1:{hub.port}/can0"))
+    try:
+        sock: socket.socket = bus.inner._SocketCanDaemonBus__socket  # type: ignore[attr-defined]  # python-can's own
+        assert sock.getsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY) == 1
+    finally:
+        bus.shutdown()

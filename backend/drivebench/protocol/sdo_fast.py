@@ -1,8 +1,10 @@
-"""Expedited SDO upload awaited on the event loop, without a worker thread per read.
+"""Expedited (and segmented) SDO upload awaited on the event loop, without a worker thread per read.
 
 :func:`upload_expedited` sends the CiA 301 initiate-upload request on one of a node's SDO channels and awaits the
-response, which the bus reader thread hands to the loop. It answers ``None`` where it cannot do the transfer
-itself (the channel is busy with another transfer, or the device answers segmented): the caller then uses
+response, which the bus reader thread hands to the loop; with ``segmented`` it also asks for the segments of a
+segmented answer there (a string, a long record: a thread hop per segment saved). It answers ``None`` where it
+cannot do the transfer itself (the channel is busy with another transfer, or the device answers segmented and
+``segmented`` is off): the caller then uses
 :meth:`NodeClient.upload <drivebench.protocol.network.NodeClient.upload>` in a worker thread.
 
 Timeout and retries are the channel's own (``NodeClient.configure``), read at every call, as canopen's client
@@ -19,12 +21,16 @@ import weakref
 from collections import deque
 from collections.abc import Callable, Generator
 
-from drivebench.errors import SdoAbortError, SdoOutOfStepError, SdoTimeoutError
+from drivebench.errors import SdoAbortError, SdoOutOfStepError, SdoStalledError, SdoTimeoutError
 from drivebench.protocol.abort_codes import abort_text
 from drivebench.protocol.network import NodeClient, SdoChannel
 
 ABORT_TIMEOUT = 0x05040000
 """CiA 301: SDO protocol timed out (sent when the last attempt got no answer)."""
+ABORT_TOGGLE = 0x05030000
+"""CiA 301: toggle bit not alternated."""
+SEGMENT_DATA = 7
+"""Data bytes of one SDO segment."""
 ABORT_INVALID_COMMAND = 0x05040001
 """CiA 301: command specifier not valid (sent to end a segmented answer this path does not handle)."""
 
@@ -197,7 +203,7 @@ class ExpeditedUploader:
         pending = self._pending
         if pending is None:
             return
-        if data[1:4] != pending[2]:
+        if pending[2] and data[1:4] != pending[2]:  # a segment answer names no object (empty address)
             if data[0] >> 5 == 2 or data[0] == 0x80:  # an initiate upload answer or abort: names an object
                 self._other_object = bytes(data[1:4])
             return
@@ -227,8 +233,9 @@ class ExpeditedUploader:
         else:
             self._watch = loop.call_at(self._deadline, self._check, loop)
 
-    async def upload(self, request: ExpeditedRequest) -> bytes | None:
-        """The value, or None when the channel is busy or the device answers other than expedited.
+    async def upload(self, request: ExpeditedRequest, *, segmented: bool = False) -> bytes | None:
+        """The value, or None when the channel is busy or the device answers other than expedited (``segmented``:
+        a segmented answer is read here too, segment by segment on the event loop).
 
         Raises :class:`SdoAbortError` when the device aborts, :class:`SdoTimeoutError` when no attempt is
         answered (the transfer is then aborted with 0x05040000), :class:`SdoOutOfStepError` when the only answers
@@ -263,11 +270,58 @@ class ExpeditedUploader:
                                           subindex=request.subindex) from None
                 finally:
                     self._pending = None
+                if segmented and data[0] >> 5 == 2 and not data[0] & 0x02:  # initiate answer: segmented
+                    return await self._segments(loop, waker, request, data, attempts, timeout)
                 return self._data(data, request)
             return None
         finally:
             self._drop_client_copies()
             self.lock.release()
+
+    async def _segments(self, loop: asyncio.AbstractEventLoop, waker: _Waker | None, request: ExpeditedRequest,
+                        initiate: bytes, attempts: int, timeout: float) -> bytes:
+        """The segments of a segmented upload (CiA 301 upload segment protocol), each request sent as canopen's
+        client sends it (``attempts`` tries per segment), the errors those of a transfer in a worker thread."""
+        size = int.from_bytes(initiate[4:8], "little") if initiate[0] & 0x01 else None
+        total = -(-size // SEGMENT_DATA) if size else None
+        node, index, subindex = self.node_id, request.index, request.subindex
+        value = bytearray()
+        toggle = done = 0
+        while True:
+            frame = bytes([0x60 | toggle << 4]) + bytes(7)
+            for attempt in range(attempts):
+                response = _Response(loop)
+                self._pending = (loop, response, b"", waker)
+                self._arm(loop, loop.time() + timeout)
+                self.sdo.network.send_message(self.sdo.rx_cobid, frame)
+                try:
+                    data = await response
+                    break
+                except TimeoutError:
+                    if attempt + 1 < attempts:
+                        continue
+                    self._abort(request.address, ABORT_TIMEOUT)
+                    raise SdoStalledError(node=node, index=index, subindex=subindex, done=done,
+                                          total=total) from None
+                finally:
+                    self._pending = None
+            command = data[0]
+            if command == 0x80:
+                code = int.from_bytes(data[4:8], "little")
+                raise SdoAbortError(code, abort_text(code, self.abort_texts), node=node, index=index,
+                                    subindex=subindex)
+            if command >> 5 != 0:
+                self._abort(request.address, ABORT_INVALID_COMMAND)
+                raise SdoOutOfStepError(f"unexpected response 0x{command:02X}", node=node, index=index,
+                                        subindex=subindex)
+            if (command >> 4) & 1 != toggle:
+                self._abort(request.address, ABORT_TOGGLE)
+                raise SdoOutOfStepError("toggle", node=node, index=index, subindex=subindex)
+            value += data[1:8 - ((command >> 1) & 0x7)]
+            done += 1
+            if command & 0x01:  # no more segments
+                return bytes(value[:size]) if size is not None else bytes(value)
+            toggle ^= 1
 
     def _drop_client_copies(self) -> None:
         """canopen's client queues a copy of every answer on its COB-ID and empties the queue only at its own next
@@ -308,9 +362,9 @@ def uploader(client: NodeClient, channel: int | None = None) -> ExpeditedUploade
     return found
 
 
-async def upload_expedited(client: NodeClient, request: ExpeditedRequest, *,
-                           channel: int | None = None) -> bytes | None:
+async def upload_expedited(client: NodeClient, request: ExpeditedRequest, *, channel: int | None = None,
+                           segmented: bool = False) -> bytes | None:
     """The object's value read by an expedited upload on the event loop, or None where the caller must use the
     blocking client (channel busy, segmented answer). Raises the SDO errors of :meth:`ExpeditedUploader.upload`
     and ``ProtocolError`` for a channel number the node has not configured."""
-    return await uploader(client, channel).upload(request)
+    return await uploader(client, channel).upload(request, segmented=segmented)

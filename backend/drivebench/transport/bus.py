@@ -385,6 +385,9 @@ def _open_adapter(spec: BusSpec, adapter: SimulatedAdapter | None = None) -> can
         kwargs["receive_own_messages"] = False
     if spec.interface == "socketcand":
         _probe_gateway(spec)
+        # python-can's low-latency option: TCP_NODELAY and TCP_QUICKACK, so an SDO request or answer on the
+        # gateway's TCP connection never waits for Nagle's algorithm or a delayed ACK (benchmarks/RESULTS.md).
+        kwargs.setdefault("tcp_tune", True)
     try:
         inner = can.Bus(**kwargs)
     except Exception as exc:  # vendor drivers raise anything (kvaser without CANlib: NameError)

@@ -33,11 +33,11 @@ from itsdangerous import BadSignature, URLSafeTimedSerializer
 from starlette.datastructures import Headers
 from starlette.requests import HTTPConnection, Request
 from starlette.responses import HTMLResponse, JSONResponse, PlainTextResponse, RedirectResponse, Response
-from starlette.types import ASGIApp, Message, Receive, Scope, Send
+from starlette.types import Message, Receive, Scope, Send
 
 from drivebench.config import settings
 from drivebench.errors import AccessDenied, DriveBenchError, NotAuthenticated, UnknownHostName
-from drivebench.services.users import accounts, audit
+from drivebench.services.users import accounts
 from drivebench.services.users.principals import Principal, Role
 from drivebench.web import access_policy, origins
 from drivebench.web.identity import principal_of
@@ -170,72 +170,62 @@ def _denied_words(principal: Principal, rule: access_policy.Rule) -> str:
     return f"{rule.what} needs the {rule.role.label} role; {who}."
 
 
-class AccessControl:
-    def __init__(self, app: ASGIApp) -> None:
-        self.app = app
-
-    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if scope["type"] not in ("http", "websocket"):
-            await self.app(scope, receive, send)
-            return
-        headers = Headers(scope=scope)
-        if (wrong_host := origins.host_refusal(scope, headers)) is not None:
-            await _refuse_host(scope, receive, send, wrong_host)
-            return
-        reason = cross_site(scope, headers)
-        if reason is not None:
+async def admitted(scope: Scope, receive: Receive, send: Send, headers: Headers, decision: access_policy.Decision
+                   ) -> tuple[Receive, str | None] | None:
+    """Host, origin, sign-in, role and CSRF of a request or websocket (``web/gate.py`` calls it once per request).
+    None: refused, the answer is sent. Else the receive to pass on (a form read for its CSRF token is replayed) and
+    the name the audit log gives the request's writes (None: the local user, no login configured)."""
+    if (wrong_host := origins.host_refusal(scope, headers)) is not None:
+        await _refuse_host(scope, receive, send, wrong_host)
+        return None
+    reason = cross_site(scope, headers)
+    if reason is not None:
+        await _refuse(scope, receive, send, AccessDenied(
+            f"Refused: {reason}. Another web site may not change anything on DriveBench or open its live "
+            "connections.", hint="Open DriveBench itself and do it there."))
+        return None
+    state = scope.setdefault("state", {})
+    configured = accounts.authentication_configured()
+    session: SignedIn | None = None
+    principal: Principal | None = None
+    try:
+        if state.get("viewer") is not None:  # a remote-diagnostics link (the gate checked its token)
+            principal = principal_of(HTTPConnection(scope))
+        elif configured:
+            principal, session = await _authenticate(headers)
+    except NotAuthenticated as exc:
+        if not decision.public:
+            await _refuse(scope, receive, send, exc)
+            return None
+    if principal is None and configured and not decision.public:
+        await _refuse(scope, receive, send, NotAuthenticated(
+            "Sign in first: this DriveBench server asks everyone to sign in.",
+            hint="API clients send `Authorization: Bearer dbt_…` (an API token from the Users page)."))
+        return None
+    if principal is None and not configured:
+        principal = principal_of(HTTPConnection(scope))  # the local user: an admin
+    if principal is not None and not decision.public and not principal.may(decision.rule.role):
+        await _refuse(scope, receive, send, AccessDenied(_denied_words(principal, decision.rule),
+                                                         hint="Ask an admin for the role."))
+        return None
+    if (session is not None and not decision.public and scope["type"] == "http"
+            and scope["method"] not in SAFE_METHODS):
+        token, receive = await _csrf_token(scope, receive, headers)
+        if token is None or not secrets.compare_digest(token, session.csrf):
             await _refuse(scope, receive, send, AccessDenied(
-                f"Refused: {reason}. Another web site may not change anything on DriveBench or open its live "
-                "connections.", hint="Open DriveBench itself and do it there."))
-            return
-        decision = access_policy.decide(scope["app"], scope)
-        state = scope.setdefault("state", {})
-        configured = accounts.authentication_configured()
-        session: SignedIn | None = None
-        principal: Principal | None = None
-        try:
-            if state.get("viewer") is not None:  # a remote-diagnostics link (ViewerScope checked its token)
-                principal = principal_of(HTTPConnection(scope))
-            elif configured:
-                principal, session = await _authenticate(headers)
-        except NotAuthenticated as exc:
-            if not decision.public:
-                await _refuse(scope, receive, send, exc)
-                return
-        if principal is None and configured and not decision.public:
-            await _refuse(scope, receive, send, NotAuthenticated(
-                "Sign in first: this DriveBench server asks everyone to sign in.",
-                hint="API clients send `Authorization: Bearer dbt_…` (an API token from the Users page)."))
-            return
-        if principal is None and not configured:
-            principal = principal_of(HTTPConnection(scope))  # the local user: an admin
-        if principal is not None and not decision.public and not principal.may(decision.rule.role):
-            await _refuse(scope, receive, send, AccessDenied(_denied_words(principal, decision.rule),
-                                                             hint="Ask an admin for the role."))
-            return
-        if (session is not None and not decision.public and scope["type"] == "http"
-                and scope["method"] not in SAFE_METHODS):
-            token, receive = await _csrf_token(scope, receive, headers)
-            if token is None or not secrets.compare_digest(token, session.csrf):
-                await _refuse(scope, receive, send, AccessDenied(
-                    "The request lacks this page's security token (CSRF), so it was not carried out.",
-                    hint="Reload the page and try again."))
-                return
-        if principal is not None:
-            state["principal"] = principal
-        state["access"] = AccessView(principal or Principal("", Role.VIEWER, via="none"), configured,
-                                     session.csrf if session else None, session)
-        if configured and principal is not None:
-            # Whatever a client claims in X-DriveBench-User, the audit log names who signed in.
-            scope["headers"] = [(k, v) for k, v in scope["headers"] if k.lower() != b"x-drivebench-user"]
-            scope["headers"].append((b"x-drivebench-user", principal.name.encode()))
-            user_token = audit.current_user.set(principal.name)
-            try:
-                await self.app(scope, receive, send)
-            finally:
-                audit.current_user.reset(user_token)
-            return
-        await self.app(scope, receive, send)
+                "The request lacks this page's security token (CSRF), so it was not carried out.",
+                hint="Reload the page and try again."))
+            return None
+    if principal is not None:
+        state["principal"] = principal
+    state["access"] = AccessView(principal or Principal("", Role.VIEWER, via="none"), configured,
+                                 session.csrf if session else None, session)
+    if configured and principal is not None:
+        # Whatever a client claims in X-DriveBench-User, the audit log names who signed in.
+        scope["headers"] = [(k, v) for k, v in scope["headers"] if k.lower() != b"x-drivebench-user"]
+        scope["headers"].append((b"x-drivebench-user", principal.name.encode()))
+        return receive, principal.name
+    return receive, None
 
 
 async def _authenticate(headers: Headers) -> tuple[Principal | None, SignedIn | None]:
@@ -362,8 +352,7 @@ _CONVERTOR = re.compile(r"\{(\w+):\w+\}")
 
 
 def install(app: FastAPI) -> None:
-    """The middleware, and each operation's role in the OpenAPI document (``x-drivebench-role``)."""
-    app.add_middleware(AccessControl)
+    """Each operation's role in the OpenAPI document (``x-drivebench-role``); ``web/gate.py`` enforces them."""
     generate = app.openapi
 
     def openapi_with_roles() -> dict[str, Any]:

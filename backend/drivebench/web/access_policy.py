@@ -69,7 +69,8 @@ RULES: dict[tuple[str, str], Rule] = {
              ("GET", "/api/auth/tokens"), ("POST", "/api/auth/tokens"), ("DELETE", "/api/auth/tokens/{token_id}")),
     # --- engineer: anything that writes to a device or changes what others see ------------------------------
     **_rules(E, "Writing parameters",
-             ("PUT", N + "/parameters/{ref:path}"), ("POST", UN + "/parameters/{ref:path}/write")),
+             ("PUT", N + "/parameters/{ref:path}"), ("POST", N + "/parameters:write"),
+             ("POST", UN + "/parameters/{ref:path}/write")),
     **_rules(E, "Device commands (save, load defaults, reset)",
              ("POST", N + "/commands/{command}"), ("POST", UN + "/commands/{command}")),
     **_rules(E, "NMT commands", ("POST", S + "/nmt"), ("POST", N + "/nmt"), ("POST", US + "/nmt"),
@@ -178,17 +179,37 @@ def rule_for(method: str, template: str) -> Rule:
     return READING if method in SAFE_METHODS else UNCLASSIFIED_WRITE
 
 
-_templates: weakref.WeakKeyDictionary[FastAPI, list[tuple[object, str]]] = weakref.WeakKeyDictionary()
+@dataclass(frozen=True)
+class RoutePolicy:
+    """One route of the app with its decision per method, worked out at start-up (:func:`precompute`)."""
+
+    route: object
+    template: str
+    by_method: dict[str, Decision]
 
 
-def _routes(app: FastAPI) -> list[tuple[object, str]]:
-    """The app's routes in the router's order, flattened once per app (routes are all added before it serves)."""
-    cached = _templates.get(app)
-    if cached is None:
-        cached = [(route, str(route.path)) for route in iter_route_contexts(app.router.routes)
-                  if getattr(route, "path", None) is not None]
-        _templates[app] = cached
-    return cached
+_policies: weakref.WeakKeyDictionary[FastAPI, list[RoutePolicy]] = weakref.WeakKeyDictionary()
+
+
+def _decision(method: str, template: str) -> Decision:
+    return Decision(template, rule_for(method, template), public=(method, template) in PUBLIC)
+
+
+def precompute(app: FastAPI) -> list[RoutePolicy]:
+    """Every route of the app in the router's order with its decisions (routes are all added before it serves);
+    done once per app, at start-up or by the first request."""
+    policies = _policies.get(app)
+    if policies is None:
+        policies = []
+        for route in iter_route_contexts(app.router.routes):
+            template = getattr(route, "path", None)
+            if template is None:
+                continue
+            methods = getattr(route, "methods", None) or ()
+            by_method = {method: _decision(method, str(template)) for method in (*methods, WEBSOCKET)}
+            policies.append(RoutePolicy(route, str(template), by_method))
+        _policies[app] = policies
+    return policies
 
 
 DECISIONS_KEPT = 4096
@@ -197,8 +218,8 @@ _decisions: weakref.WeakKeyDictionary[FastAPI, dict[tuple[str, str, str], Decisi
 
 
 def decide(app: FastAPI, scope: Scope) -> Decision:
-    """The rule of the route a request or websocket reaches; worked out once per (type, method, path), so a repeated
-    request costs a dictionary look-up instead of matching every route again."""
+    """The rule of the route a request or websocket reaches: the precomputed decision of the route that matches,
+    remembered per (type, method, path), so a repeated request costs one dictionary look-up."""
     key = (scope["type"], str(scope.get("method", "")), scope.get("path", ""))
     known = _decisions.get(app)
     if known is None:
@@ -216,18 +237,20 @@ def _match(app: FastAPI, scope: Scope) -> Decision:
     method = _method(scope)
     path = scope.get("path", "")
     match_scope = {**scope, "method": "GET"} if scope.get("method") == "HEAD" else scope
-    for route, template in _routes(app):
-        matched, _ = route.matches(match_scope)  # type: ignore[attr-defined]
+    for policy in precompute(app):
+        matched, _ = policy.route.matches(match_scope)  # type: ignore[attr-defined]
         if matched is Match.FULL:
             if path.startswith(PUBLIC_PREFIXES) and method in SAFE_METHODS:
-                return Decision(template, READING, public=True)
-            return Decision(template, rule_for(method, template), public=(method, template) in PUBLIC)
+                return Decision(policy.template, READING, public=True)
+            found = policy.by_method.get(method)
+            return found if found is not None else _decision(method, policy.template)
     return Decision(None, READING, public=path.startswith(PUBLIC_PREFIXES))
 
 
 def operations(app: FastAPI) -> Iterator[tuple[str, str, Rule]]:
     """Every (method, path template, rule) of the app, websockets with method ``WS`` (tests, OpenAPI)."""
-    for route, template in _routes(app):
+    for policy in precompute(app):
+        route, template = policy.route, policy.template
         methods = getattr(route, "methods", None)
         if methods is None:
             if type(getattr(route, "original_route", route)).__name__.endswith("WebSocketRoute"):

@@ -22,13 +22,13 @@ from drivebench.services.storage.database import upgrade_to_head
 from drivebench.services.users import audit
 from drivebench.services.users.sharing import ShareLinks
 from drivebench.simulator.plant import Plant, PlantFile
-from drivebench.web import access, problems
+from drivebench.web import access, access_policy, problems
 from drivebench.web.api import accounts as accounts_api
 from drivebench.web.api import diagnostics, health, parameter_sets, parameters, pdo, profiles, sessions, tools
 from drivebench.web.api import drive_control as drive_control_api
 from drivebench.web.api import monitor as monitor_api
 from drivebench.web.api import simulator as simulator_api
-from drivebench.web.limits import BodyLimit
+from drivebench.web.gate import RequestGate
 from drivebench.web.pages import accounts as accounts_page
 from drivebench.web.pages import monitor as monitor_page
 from drivebench.web.pages import node as node_page
@@ -39,10 +39,7 @@ from drivebench.web.pages import plant as plant_page
 from drivebench.web.pages import profiles as profiles_page
 from drivebench.web.pages import remote as remote_page
 from drivebench.web.pages import tools as tools_page
-from drivebench.web.security_headers import SecurityHeaders
 from drivebench.web.state import AppState
-from drivebench.web.tls import HstsMiddleware
-from drivebench.web.viewer import ViewerScope
 from drivebench.web.ws import drive_control as drive_control_ws
 from drivebench.web.ws import jobs as jobs_ws
 from drivebench.web.ws import monitor as monitor_ws
@@ -52,10 +49,12 @@ from drivebench.web.ws import remote as remote_ws
 
 log = logging.getLogger(__name__)
 
-# One line per router: screens grow without touching anything else here.
-API_ROUTERS = [monitor_api.router, health.router, sessions.router, profiles.router, diagnostics.router, tools.router,
-               tools.planned_router, parameters.router, pdo.router, parameter_sets.router, drive_control_api.router,
-               accounts_api.router, simulator_api.router]
+# One line per router: screens grow without touching anything else here. FastAPI matches a request router by
+# router, so the routes a client polls come first (the parameter reads: one router walked instead of eight, ~0.3 ms
+# per read on this machine); none of their paths is a path of a router after them (benchmarks/RESULTS.md).
+API_ROUTERS = [health.router, parameters.router, monitor_api.router, sessions.router, profiles.router,
+               diagnostics.router, tools.router, tools.planned_router, pdo.router, parameter_sets.router,
+               drive_control_api.router, accounts_api.router, simulator_api.router]
 PAGE_ROUTERS = [node_diagnostics.router, node_pdo_page.router, monitor_page.router, plant_page.router,
                 node_control.router, node_page.router, profiles_page.router, remote_page.router, tools_page.router,
                 parameter_sets_page.router, accounts_page.router]
@@ -97,6 +96,7 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
                                  write_audits=[audit.AuditLog()])  # every write the tool sends is logged
         state = AppState(registry, manager, share_links=share_links)
         app.state.drivebench = state
+        access_policy.precompute(app)  # every route's access decisions, before the first request
         if demo or plant_file:
             await start_plant(state, plant_file or settings.plants_dir / "demo.json", bus=plant_bus,
                               latency=latency)
@@ -114,12 +114,10 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
     app = FastAPI(title="DriveBench", version=__version__, lifespan=lifespan,
                   description="Commissioning of CANopen drives: parameters, PDOs, NMT, diagnostics.")
     problems.install(app)
-    access.install(app)  # sign-in, roles, CSRF; inside ViewerScope, which marks share-link requests first
-    app.add_middleware(ViewerScope, links=share_links)
-    app.add_middleware(BodyLimit, limit_bytes=settings.max_upload_bytes)  # before anything reads a body
-    if settings.hsts if hsts is None else hsts:
-        app.add_middleware(HstsMiddleware)
-    app.add_middleware(SecurityHeaders)  # outermost: every answer carries the CSP, refusals too
+    access.install(app)  # the roles in the OpenAPI document
+    # One pass for security headers, body limit, share-link scope, host/origin, sign-in, roles and CSRF.
+    app.add_middleware(RequestGate, links=share_links, limit_bytes=settings.max_upload_bytes,
+                       hsts=settings.hsts if hsts is None else hsts)
     for router in API_ROUTERS + PAGE_ROUTERS + WS_ROUTERS:
         app.include_router(router)
     app.mount("/static", StaticFiles(directory=settings.frontend_dir / "static"), name="static")

@@ -29,8 +29,11 @@ async def get_manager(state: StateDep) -> SessionManager:
 ManagerDep = Annotated[SessionManager, Depends(get_manager)]
 
 
-async def get_session(manager: ManagerDep, session_id: Annotated[str, Path(description="Session id")]) -> Session:
-    return manager.get(session_id)
+async def get_session(request: Request, session_id: Annotated[str, Path(description="Session id")]) -> Session:
+    """The session, looked up directly (not through StateDep and ManagerDep: each dependency level costs a request
+    some microseconds, and every node route has this one; benchmarks/RESULTS.md, Request path)."""
+    state: AppState = request.app.state.drivebench
+    return state.manager.get(session_id)
 
 
 SessionDep = Annotated[Session, Depends(get_session)]

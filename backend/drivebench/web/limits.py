@@ -26,20 +26,19 @@ def megabytes(count: int) -> str:
 
 
 class BodyLimit:
-    """ASGI middleware: refuse HTTP request bodies over ``limit_bytes`` (plus multipart framing) with 413."""
+    """Refuse HTTP request bodies over ``limit_bytes`` (plus multipart framing) with 413 (``web/gate.py`` runs it)."""
 
-    def __init__(self, app: ASGIApp, limit_bytes: int) -> None:
-        self.app = app
+    def __init__(self, limit_bytes: int) -> None:
         self.limit_bytes = limit_bytes
         self.cap_bytes = limit_bytes + MULTIPART_OVERHEAD_BYTES
 
-    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if scope["type"] != "http":
-            await self.app(scope, receive, send)
+    async def run(self, scope: Scope, receive: Receive, send: Send, headers: Headers, app: ASGIApp) -> None:
+        """``app`` with the request's body limited."""
+        declared = headers.get("content-length")
+        if declared is None and "transfer-encoding" not in headers:
+            await app(scope, receive, send)  # no body (HTTP/1.1 has none without either header): nothing to count
             return
-        headers = Headers(scope=scope)
-        declared = headers.get("content-length", "")
-        if declared.isdigit() and int(declared) > self.cap_bytes:
+        if declared is not None and declared.isdigit() and int(declared) > self.cap_bytes:
             await self.refusal(headers, scope, int(declared))(scope, receive, send)
             return
         received = 0
@@ -68,7 +67,7 @@ class BodyLimit:
             await send(message)
 
         try:
-            await self.app(scope, limited_receive, guarded_send)
+            await app(scope, limited_receive, guarded_send)
         except Exception:
             if not refused:
                 raise

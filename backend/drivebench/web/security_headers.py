@@ -18,9 +18,10 @@ from __future__ import annotations
 import base64
 import hashlib
 import re
+from collections.abc import Awaitable, Callable
 
 from starlette.datastructures import MutableHeaders
-from starlette.types import ASGIApp, Message, Receive, Scope, Send
+from starlette.types import Message, Send
 
 PAGE_POLICY = "; ".join([
     "default-src 'self'",
@@ -58,41 +59,38 @@ def docs_policy(body: bytes) -> str:
     ])
 
 
-class SecurityHeaders:
-    """ASGI middleware: add the headers above to every HTTP response (websockets have no such headers)."""
+_RAW_HEADERS = [(name.lower().encode(), value.encode()) for name, value in
+                {"Content-Security-Policy": PAGE_POLICY, **HEADERS}.items()]
 
-    def __init__(self, app: ASGIApp) -> None:
-        self.app = app
 
-    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if scope["type"] != "http":
-            await self.app(scope, receive, send)
-            return
-        if scope["path"] in DOCS_PATHS:
-            await self.docs(scope, receive, send)
-            return
+def adding_headers(send: Send, extra: list[tuple[bytes, bytes]]) -> Send:
+    """``send`` that adds the headers above (and ``extra``: HSTS over https) to the response's start
+    (``web/gate.py`` wraps every HTTP answer, refusals too; websockets have no such headers)."""
+    added = _RAW_HEADERS + extra
+    names = {name for name, _ in added}
 
-        async def send_with_headers(message: Message) -> None:
-            if message["type"] == "http.response.start":
-                headers = MutableHeaders(scope=message)
-                headers["Content-Security-Policy"] = PAGE_POLICY
-                headers.update(HEADERS)
-            await send(message)
+    async def send_with_headers(message: Message) -> None:
+        if message["type"] == "http.response.start":
+            message["headers"] = [(name, value) for name, value in message.get("headers", ())
+                                  if name.lower() not in names] + added
+        await send(message)
 
-        await self.app(scope, receive, send_with_headers)
+    return send_with_headers
 
-    async def docs(self, scope: Scope, receive: Receive, send: Send) -> None:
-        """The docs page is small: hold it back until its inline script can be hashed into the policy."""
-        held: list[Message] = []
 
-        async def hold(message: Message) -> None:
-            held.append(message)
+async def held_docs(answer: Callable[[Send], Awaitable[None]], send: Send, extra: list[tuple[bytes, bytes]]) -> None:
+    """The docs page is small: hold it back until its inline script can be hashed into the policy."""
+    held: list[Message] = []
 
-        await self.app(scope, receive, hold)
-        body = b"".join(m.get("body", b"") for m in held if m["type"] == "http.response.body")
-        start = next(m for m in held if m["type"] == "http.response.start")
-        headers = MutableHeaders(scope=start)
-        headers["Content-Security-Policy"] = docs_policy(body)
-        headers.update(HEADERS)
-        await send(start)
-        await send({"type": "http.response.body", "body": body})
+    async def hold(message: Message) -> None:
+        held.append(message)
+
+    await answer(hold)
+    body = b"".join(m.get("body", b"") for m in held if m["type"] == "http.response.body")
+    start = next(m for m in held if m["type"] == "http.response.start")
+    headers = MutableHeaders(scope=start)
+    headers["Content-Security-Policy"] = docs_policy(body)
+    headers.update(HEADERS)
+    start["headers"] = [*start["headers"], *extra]
+    await send(start)
+    await send({"type": "http.response.body", "body": body})

@@ -15,7 +15,6 @@ from cryptography import x509
 from cryptography.hazmat.primitives import hashes, serialization
 from cryptography.hazmat.primitives.asymmetric import ec
 from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
-from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from drivebench.errors import InvalidValue
 
@@ -98,22 +97,3 @@ def check_pair(cert_file: Path | None, key_file: Path | None) -> None:
         raise InvalidValue(f"--tls-cert {cert_file} with --tls-key {key_file}: {reason}.") from exc
     except (OSError, ValueError) as exc:
         raise InvalidValue(f"--tls-cert {cert_file} / --tls-key {key_file} cannot be read as PEM: {exc}.") from exc
-
-
-class HstsMiddleware:
-    """Adds Strict-Transport-Security to answers sent over https (browsers ignore it over http, and so do we)."""
-
-    def __init__(self, app: ASGIApp) -> None:
-        self.app = app
-
-    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if scope["type"] != "http" or scope.get("scheme") != "https":
-            await self.app(scope, receive, send)
-            return
-
-        async def send_with_hsts(message: Message) -> None:
-            if message["type"] == "http.response.start":
-                message["headers"] = [*message.get("headers", []), HSTS_HEADER]
-            await send(message)
-
-        await self.app(scope, receive, send_with_hsts)

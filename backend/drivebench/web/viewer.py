@@ -14,8 +14,9 @@ from http.cookies import SimpleCookie
 
 import anyio.to_thread
 from fastapi import Request
+from starlette.datastructures import Headers
 from starlette.responses import JSONResponse, RedirectResponse
-from starlette.types import ASGIApp, Receive, Scope, Send
+from starlette.types import Receive, Scope, Send
 
 from drivebench.errors import AccessDenied, DriveBenchError
 from drivebench.services.users.sharing import TOKEN_PREFIX, ShareLink, ShareLinks
@@ -35,69 +36,68 @@ LINK_READS = frozenset({
 """The route templates (GET) a link may read: each answers from the consumers' and the monitor's cached state."""
 
 
-def token_of(scope: Scope) -> str | None:
-    headers = {k.decode("latin-1").lower(): v.decode("latin-1") for k, v in scope.get("headers", [])}
+def token_of(headers: Headers) -> str | None:
     auth = headers.get("authorization", "")
     if auth.lower().startswith("bearer ") and auth[7:].strip().startswith(TOKEN_PREFIX):
         return auth[7:].strip()
+    cookies = headers.get("cookie", "")
+    if COOKIE not in cookies:  # the common case: no link cookie, nothing to parse
+        return None
     cookie = SimpleCookie()
     try:
-        cookie.load(headers.get("cookie", ""))
+        cookie.load(cookies)
     except Exception:  # a malformed cookie header is ignored, as browsers do
         return None
     morsel = cookie.get(COOKIE)
     return morsel.value if morsel and morsel.value.startswith(TOKEN_PREFIX) else None
 
 
-class ViewerScope:
-    def __init__(self, app: ASGIApp, links: ShareLinks) -> None:
-        self.app = app
-        self.links = links
-
-    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if scope["type"] not in ("http", "websocket") or (token := token_of(scope)) is None:
-            await self.app(scope, receive, send)
-            return
-        try:
-            link = await anyio.to_thread.run_sync(self.links.check, token)
-            readable = self._allow(scope)
-        except DriveBenchError as exc:
-            if scope["type"] == "websocket":
-                await send({"type": "websocket.close", "code": 4403, "reason": exc.detail[:120]})
-                return
-            body = problem_body(exc, scope.get("path", ""))
-            response = JSONResponse(body, status_code=int(body["status"]),  # type: ignore[call-overload]
-                                    media_type="application/problem+json")
-            await response(scope, receive, send)
-            return
-        state = scope.setdefault("state", {})
-        state["viewer"], state["viewer_token"] = link, token
-        if not readable:
-            # The engineer's screens are not for link holders: they land on the remote view.
-            await RedirectResponse(f"/remote/{token}", status_code=303)(scope, receive, send)
-            return
-        await self.app(scope, receive, send)
-
-    @staticmethod
-    def _allow(scope: Scope) -> bool:
-        """Raise for what a link may not do; False for a page it is led away from to the remote view."""
-        path = scope.get("path", "")
+async def link_admitted(scope: Scope, receive: Receive, send: Send, links: ShareLinks, headers: Headers,
+                        decision: access_policy.Decision) -> bool:
+    """A request carrying a link token: the link checked and marked in ``scope["state"]``, what it may not do
+    refused, the engineer's pages led to the remote view. False: answered here (``web/gate.py`` stops)."""
+    if (token := token_of(headers)) is None:
+        return True
+    try:
+        link = await anyio.to_thread.run_sync(links.check, token)
+        readable = _allow(scope, decision)
+    except DriveBenchError as exc:
         if scope["type"] == "websocket":
-            if not path.startswith(VIEWER_WEBSOCKETS):
-                raise AccessDenied("A remote diagnostics link may only watch the remote diagnostics stream.")
-            return True
-        if scope.get("method", "GET") not in SAFE_METHODS:
-            raise AccessDenied("A remote diagnostics link is read-only: it cannot write parameters, send NMT "
-                               "commands or PDOs, or change anything on this server.",
-                               hint="Ask the engineer on site to make the change.")
-        if access_policy.decide(scope["app"], scope).template in LINK_READS:
-            return True
-        if path.startswith("/api/"):
-            raise AccessDenied(
-                "A remote diagnostics link shows only what DriveBench already holds (network health, emergencies, "
-                f"the bus monitor) and never makes a drive answer over the bus: {path} is not open to it.",
-                hint="Ask the engineer on site to read it for you.")
+            await send({"type": "websocket.close", "code": 4403, "reason": exc.detail[:120]})
+            return False
+        body = problem_body(exc, scope.get("path", ""))
+        response = JSONResponse(body, status_code=int(body["status"]),  # type: ignore[call-overload]
+                                media_type="application/problem+json")
+        await response(scope, receive, send)
         return False
+    state = scope.setdefault("state", {})
+    state["viewer"], state["viewer_token"] = link, token
+    if not readable:
+        # The engineer's screens are not for link holders: they land on the remote view.
+        await RedirectResponse(f"/remote/{token}", status_code=303)(scope, receive, send)
+        return False
+    return True
+
+
+def _allow(scope: Scope, decision: access_policy.Decision) -> bool:
+    """Raise for what a link may not do; False for a page it is led away from to the remote view."""
+    path = scope.get("path", "")
+    if scope["type"] == "websocket":
+        if not path.startswith(VIEWER_WEBSOCKETS):
+            raise AccessDenied("A remote diagnostics link may only watch the remote diagnostics stream.")
+        return True
+    if scope.get("method", "GET") not in SAFE_METHODS:
+        raise AccessDenied("A remote diagnostics link is read-only: it cannot write parameters, send NMT "
+                           "commands or PDOs, or change anything on this server.",
+                           hint="Ask the engineer on site to make the change.")
+    if decision.template in LINK_READS:
+        return True
+    if path.startswith("/api/"):
+        raise AccessDenied(
+            "A remote diagnostics link shows only what DriveBench already holds (network health, emergencies, "
+            f"the bus monitor) and never makes a drive answer over the bus: {path} is not open to it.",
+            hint="Ask the engineer on site to read it for you.")
+    return False
 
 
 def viewer_of(request: Request) -> ShareLink | None:

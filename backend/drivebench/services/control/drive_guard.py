@@ -287,7 +287,12 @@ class Guard:
     def moving_writes(self) -> MovingWrites:
         """What :func:`parameters.write` asks before a write that can move the drive, and tells after one that stops
         it (the session's part)."""
-        return MovingWrites(self._admit_moving_write, self._stopped)
+        return MovingWrites(self._admit_moving_write, self._stopped, self._confirm_moving)
+
+    def _confirm_moving(self, node_id: int, what: str) -> None:
+        session = self._session()
+        if session is not None:
+            confirm_moving(session, node_id, what)
 
     def _admit_moving_write(self, node_id: int, what: str) -> None:
         session = self._session()

@@ -298,7 +298,7 @@ class _Plan:
     an integer decoder, the name; and the scaled form of the last raw value read (scaling and formatting run
     again only when the value changes)."""
 
-    __slots__ = ("_last", "_signed", "_size", "expedited", "item", "name", "request")
+    __slots__ = ("_last", "_signed", "_size", "expedited", "item", "name", "on_loop", "request")
 
     def __init__(self, item: Item) -> None:
         entry = item.entry
@@ -307,6 +307,8 @@ class _Plan:
         self.item = item
         self.name = item.name
         self.expedited = size is not None and size <= 4 and entry.access.readable
+        self.on_loop = entry.access.readable
+        """Read on the event loop (:mod:`drivebench.protocol.sdo_fast`): expedited, or segmented for longer ones."""
         self.request = ExpeditedRequest(item.index, item.subindex)
         integer = data_type.is_integer and size is not None and data_type is not DataType.BOOLEAN
         self._size = size if integer else 0
@@ -387,8 +389,8 @@ async def _upload(client: SdoClient, plan: _Plan, *, block: bool = False, channe
     """Read one value: expedited on the event loop where it can be (:mod:`drivebench.protocol.sdo_fast`), else
     canopen's client in a worker thread. Transfer errors name the parameter as the user knows it (C00099)."""
     try:
-        if plan.expedited and not block and isinstance(client, NodeClient):  # CAN's fast path; CoE has its own
-            data = await upload_expedited(client, plan.request, channel=channel)
+        if plan.on_loop and not block and isinstance(client, NodeClient):  # CAN's fast path; CoE has its own
+            data = await upload_expedited(client, plan.request, channel=channel, segmented=not plan.expedited)
             if data is not None:
                 return data
         return await _on_bus(partial(_read_blocking, client, plan.item, block=block, channel=channel))
@@ -468,6 +470,9 @@ class MovingWrites:
     """Node id, what is written: refused without the confirmation naming the node; arms the keep-alive."""
     stopped: Callable[[int], None]
     """Node id: a control word that stops the drive was written."""
+    confirm: Callable[[int, str], None]
+    """Node id, what will be written: refused without the confirmation naming the node, nothing armed yet (a batch
+    checks this before its first write)."""
 
 
 def _unchecked_raw(item: Item, value: object) -> RawValue:
@@ -485,6 +490,29 @@ def _same(item: Item, written: RawValue, read_back: RawValue) -> bool:
     return written == read_back
 
 
+def checked_raw(node: SessionNode, ref: str, value: object, *, check: bool = True) -> tuple[Item, RawValue]:
+    """The item and the raw value a write of ``value`` sends, validated as :func:`write` validates it."""
+    item = resolve(node, ref)
+    return item, to_raw(item.entry, value, ref=item.ref) if check else _unchecked_raw(item, value)
+
+
+def encoded(item: Item, raw: RawValue, value: object) -> bytes:
+    """The bytes of ``raw`` in the item's data type (OutOfRange in words when it does not fit)."""
+    try:
+        return encode(item.entry.data_type, raw)
+    except ValueError as exc:
+        raise OutOfRange(f"{item.ref} ({item.entry.name}): {value!r} does not fit "
+                         f"{item.entry.data_type.value}") from exc
+
+
+def given_value(node: SessionNode, ref: str, value: object, raw: int | None) -> object:
+    """What to write: ``value`` as given, or the device's integer ``raw`` in engineering units."""
+    if raw is None:
+        return value
+    item = resolve(node, ref)
+    return raw / item.entry.factor if item.entry.factor != 1 else raw
+
+
 async def write(session: Session, node_id: int, ref: str, value: object, *, check: bool = True,
                 verify: bool = True) -> WriteResult:
     """Validate, send, read back. ``value`` is what a user typed (``"10.2"``, ``"10.20 A"``, ``"500 kbit/s"``)
@@ -495,8 +523,7 @@ async def write(session: Session, node_id: int, ref: str, value: object, *, chec
     needs the confirmation naming the node and arms the keep-alive guard (:func:`drive_guard.admit_moving_write`);
     a control word that only stops the drive is never refused, by a lease or for a confirmation."""
     node = session.node(node_id)
-    item = resolve(node, ref)
-    raw = to_raw(item.entry, value, ref=item.ref) if check else _unchecked_raw(item, value)
+    item, raw = checked_raw(node, ref, value, check=check)
     motion = motion_of(item)
     still = motion is not None and is_still(motion, raw)
     stopping = still and motion is not None and motion.kind == "control_word"
@@ -512,11 +539,7 @@ async def write(session: Session, node_id: int, ref: str, value: object, *, chec
 async def _write(session: Session, node: SessionNode, item: Item, raw: RawValue, value: object, *,
                  verify: bool) -> WriteResult:
     node_id = node.node_id
-    try:
-        data = encode(item.entry.data_type, raw)
-    except ValueError as exc:
-        raise OutOfRange(f"{item.ref} ({item.entry.name}): {value!r} does not fit "
-                         f"{item.entry.data_type.value}") from exc
+    data = encoded(item, raw, value)
     audits = session.part(WriteAudits)
     if not audits:
         return await _send(session, node, item, raw, data, verify)

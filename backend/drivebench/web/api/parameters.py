@@ -9,20 +9,25 @@ from __future__ import annotations
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Depends, Query, Request, status
+from fastapi.responses import JSONResponse
 from pydantic import BaseModel, Field, model_validator
 
 from drivebench.device.catalog import Item
 from drivebench.device.scaling import ScaledValue
 from drivebench.errors import DriveBenchError
 from drivebench.services.control import drive_guard
+from drivebench.services.params import parameter_batch as batch
 from drivebench.services.params import parameters as service
 from drivebench.services.params.jobs import Job, JobManager
+from drivebench.services.params.parameter_batch import MAX_BATCH_WRITE, Wanted
 from drivebench.services.params.parameters import DeviceCommand, ParameterValue, SdoSettings, WriteResult
 from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.problems import problem_body
 from drivebench.web.safety import ACTING
 
-router = APIRouter(prefix="/api", tags=["parameters"], dependencies=[ACTING])  # writes take the node lease
+# Every route but the two reads clients poll carries ACTING (writes take the node lease, jobs carry the writer); a GET
+# sends no write, so it is spared that dependency (benchmarks/RESULTS.md, Request path).
+router = APIRouter(prefix="/api", tags=["parameters"])
 NODE = "/sessions/{session_id}/nodes/{node_id}"
 
 
@@ -108,24 +113,46 @@ class ParameterList(BaseModel):
     pending_reset: list[str]
 
 
-class ParameterWrite(BaseModel):
+class GivenValue(BaseModel):
     """Either ``value`` (engineering units or what a user typed: ``10.2``, ``"10.20 A"``, ``"250 kbit/s"``) or
     ``raw`` (the device's integer)."""
 
     value: int | float | str | None = None
     raw: int | None = None
-    check: bool = Field(True, description="Validate against the profile before sending (false: the device decides; "
-                                          "the value must still fit the data type)")
-    verify: bool = Field(True, description="Read the value back after writing and compare")
-    confirm: int | str | None = Field(None, description="The node id, for a write that can make the drive move (a "
-                                                        "control word that enables, a setpoint, the mode, a command "
-                                                        "source: the profile marks them); or X-DriveBench-Confirm")
 
     @model_validator(mode="after")
-    def _one_of(self) -> ParameterWrite:
+    def _one_of(self) -> GivenValue:
         if (self.value is None) == (self.raw is None):
             raise ValueError("give exactly one of 'value' and 'raw'")
         return self
+
+
+CHECK = Field(True, description="Validate against the profile before sending (false: the device decides; the value "
+                                "must still fit the data type)")
+VERIFY = Field(True, description="Read the value back after writing and compare")
+CONFIRM = Field(None, description="The node id, for a write that can make the drive move (a control word that "
+                                  "enables, a setpoint, the mode, a command source: the profile marks them); or "
+                                  "X-DriveBench-Confirm")
+
+
+class ParameterWrite(GivenValue):
+    check: bool = CHECK
+    verify: bool = VERIFY
+    confirm: int | str | None = CONFIRM
+
+
+class BatchWriteEntry(GivenValue):
+    ref: str
+
+
+class BatchWrite(BaseModel):
+    """Values to write in their order (see ``services/params/parameter_batch.py``); ``confirm`` covers every write of
+    the batch that can make the drive move."""
+
+    items: list[BatchWriteEntry] = Field(min_length=1, max_length=MAX_BATCH_WRITE)
+    check: bool = CHECK
+    verify: bool = VERIFY
+    confirm: int | str | None = CONFIRM
 
 
 class WriteOut(BaseModel):
@@ -135,6 +162,26 @@ class WriteOut(BaseModel):
     verified: bool | None
     mismatch: str | None
     reset_required: bool
+    pending_reset: list[str]
+
+
+class BatchWriteItem(BaseModel):
+    """One value of a batch write: ``written`` (``result`` as a single write answers), ``failed`` (``error``, the
+    problem in words; the batch stopped here) or ``not sent`` (after a failed one)."""
+
+    ref: str
+    ok: bool
+    state: str
+    result: WriteOut | None = None
+    error: dict[str, Any] | None = None
+
+
+class BatchWriteOut(BaseModel):
+    node_id: int
+    complete: bool
+    """Every value was written."""
+    written: int
+    items: list[BatchWriteItem]
     pending_reset: list[str]
 
 
@@ -261,7 +308,7 @@ async def read_parameter(session: SessionDep, node: NodeDep, ref: str,
     return value_out(await service.read(session, node.node_id, ref, transfer=transfer))
 
 
-@router.post(NODE + "/parameters:read", response_model=BatchReadOut)
+@router.post(NODE + "/parameters:read", dependencies=[ACTING], response_model=BatchReadOut)
 async def read_parameters(request: Request, session: SessionDep, node: NodeDep, body: BatchRead) -> BatchReadOut:
     """Read many parameters in one request, in the order given; each answers with its value or its own error."""
     found = await service.read_many(session, node.node_id, body.refs)
@@ -271,7 +318,7 @@ async def read_parameters(request: Request, session: SessionDep, node: NodeDep, 
     return BatchReadOut(node_id=node.node_id, items=items)
 
 
-@router.put(NODE + "/parameters/{ref:path}", response_model=WriteOut,
+@router.put(NODE + "/parameters/{ref:path}", dependencies=[ACTING], response_model=WriteOut,
             responses={428: {"description": "A write that can make the drive move, without the confirmation naming "
                                             "the node"}})
 async def write_parameter(session: SessionDep, node: NodeDep, ref: str, body: ParameterWrite) -> WriteOut:
@@ -279,25 +326,51 @@ async def write_parameter(session: SessionDep, node: NodeDep, ref: str, body: Pa
     arms the keep-alive guard: this client must then POST ``/api/sessions/{session}/keepalive`` at least every
     2 s, or the drive is quick-stopped. A control word that only stops the drive is never refused."""
     drive_guard.confirming(body.confirm)
-    value: object = body.value
-    if body.raw is not None:
-        item = service.resolve(node, ref)
-        value = body.raw / item.entry.factor if item.entry.factor != 1 else body.raw
+    value = service.given_value(node, ref, body.value, body.raw)
     result = await service.write(session, node.node_id, ref, value, check=body.check, verify=body.verify)
     return write_out(result, node.pending_reset)
 
 
-@router.post(NODE + "/read-all", response_model=JobOut, status_code=status.HTTP_202_ACCEPTED)
+@router.post(NODE + "/parameters:write", dependencies=[ACTING], response_model=BatchWriteOut,
+             responses={422: {"description": "An item does not validate: nothing was written ('items' says which)"},
+                        428: {"description": "A write that can make the drive move, without the confirmation naming "
+                                            "the node: nothing was written"}})
+async def write_parameters(request: Request, session: SessionDep, node: NodeDep, body: BatchWrite) -> Any:
+    """Write many values in one request: all are validated first (one invalid refuses the batch, each item's problem
+    in words), a batch with a moving write needs ``confirm`` like the single write; then each is written in order
+    through the single write's path (lease, keep-alive guard, one audit row, read-back) until the first error."""
+    drive_guard.confirming(body.confirm)
+    wanted = [Wanted(entry.ref, entry.value, entry.raw) for entry in body.items]
+    try:
+        outcomes = await batch.write_many(session, node.node_id, wanted, check=body.check, verify=body.verify)
+    except batch.BatchInvalid as exc:
+        problem = problem_body(exc, request.url.path)
+        problem["items"] = [{"ref": entry.ref, "ok": error is None,
+                             "error": None if error is None else problem_body(error, f"{request.url.path}#{entry.ref}")}
+                            for entry, error in zip(body.items, exc.problems, strict=True)]
+        return JSONResponse(problem, status_code=422, media_type="application/problem+json")
+    items = [BatchWriteItem(ref=outcome.ref, ok=outcome.state is batch.State.WRITTEN, state=outcome.state.value,
+                            result=write_out(outcome.result, node.pending_reset) if outcome.result else None,
+                            error=problem_body(outcome.error, f"{request.url.path}#{outcome.ref}")
+                            if outcome.error else None)
+             for outcome in outcomes]
+    written = sum(item.ok for item in items)
+    return BatchWriteOut(node_id=node.node_id, complete=written == len(items), written=written, items=items,
+                         pending_reset=sorted(node.pending_reset))
+
+
+@router.post(NODE + "/read-all", dependencies=[ACTING], response_model=JobOut, status_code=status.HTTP_202_ACCEPTED)
 async def read_all(session: SessionDep, node: NodeDep, jobs: JobsDep) -> JobOut:
     return job_out(service.start_read(session, [node.node_id], jobs), with_result=False)
 
 
-@router.post(NODE + "/read-group", response_model=JobOut, status_code=status.HTTP_202_ACCEPTED)
+@router.post(NODE + "/read-group", dependencies=[ACTING], response_model=JobOut, status_code=status.HTTP_202_ACCEPTED)
 async def read_group(session: SessionDep, node: NodeDep, jobs: JobsDep, body: GroupRead) -> JobOut:
     return job_out(service.start_read(session, [node.node_id], jobs, group=body.group), with_result=False)
 
 
-@router.post("/sessions/{session_id}/read-all", response_model=JobOut, status_code=status.HTTP_202_ACCEPTED)
+@router.post("/sessions/{session_id}/read-all", dependencies=[ACTING], response_model=JobOut,
+             status_code=status.HTTP_202_ACCEPTED)
 async def read_all_nodes(session: SessionDep, jobs: JobsDep, body: SessionRead | None = None) -> JobOut:
     """Every node of the session in parallel (each node over its SDO channels)."""
     node_ids = (body.node_ids if body and body.node_ids else
@@ -305,31 +378,31 @@ async def read_all_nodes(session: SessionDep, jobs: JobsDep, body: SessionRead |
     return job_out(service.start_read(session, node_ids, jobs), with_result=False)
 
 
-@router.post(NODE + "/commands/{command}", response_model=CommandOut)
+@router.post(NODE + "/commands/{command}", dependencies=[ACTING], response_model=CommandOut)
 async def device_command(session: SessionDep, node: NodeDep, command: DeviceCommand) -> CommandOut:
     result = await service.command(session, node.node_id, command)
     return CommandOut(command=result.command.value, via=result.via, detail=result.detail,
                       pending_reset=sorted(node.pending_reset))
 
 
-@router.get("/sessions/{session_id}/sdo-settings", response_model=SdoSettingsModel)
+@router.get("/sessions/{session_id}/sdo-settings", dependencies=[ACTING], response_model=SdoSettingsModel)
 async def get_sdo_settings(session: SessionDep) -> SdoSettingsModel:
     settings = service.service(session).settings
     return SdoSettingsModel(timeout_s=settings.timeout_s, retries=settings.retries, use_sdo2=settings.use_sdo2)
 
 
-@router.put("/sessions/{session_id}/sdo-settings", response_model=SdoSettingsModel)
+@router.put("/sessions/{session_id}/sdo-settings", dependencies=[ACTING], response_model=SdoSettingsModel)
 async def put_sdo_settings(session: SessionDep, body: SdoSettingsModel) -> SdoSettingsModel:
     service.configure(session, SdoSettings(body.timeout_s, body.retries, body.use_sdo2))
     return body
 
 
-@router.get("/jobs/{job_id}", response_model=JobOut)
+@router.get("/jobs/{job_id}", dependencies=[ACTING], response_model=JobOut)
 async def get_job(job_id: str, jobs: JobsDep) -> JobOut:
     return job_out(jobs.get(job_id))
 
 
-@router.delete("/jobs/{job_id}", response_model=JobOut)
+@router.delete("/jobs/{job_id}", dependencies=[ACTING], response_model=JobOut)
 async def cancel_job(job_id: str, jobs: JobsDep) -> JobOut:
     """Cancel a running job; what it read so far stays in its result."""
     job = jobs.cancel(job_id)
