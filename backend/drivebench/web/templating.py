@@ -6,9 +6,16 @@ import time
 
 from jinja2_fragments.fastapi import Jinja2Blocks
 
+from drivebench import i18n
 from drivebench.config import settings
 
 templates = Jinja2Blocks(directory=str(settings.frontend_dir / "templates"))
+# Texts of the pages through gettext ({% trans %}, _()): the functions read the request's language (web/language).
+templates.env.add_extension("jinja2.ext.i18n")
+templates.env.policies["ext.i18n.trimmed"] = True  # babel.cfg extracts with trimmed = true too
+templates.env.install_gettext_callables(i18n.gettext, i18n.ngettext, newstyle=True)  # type: ignore[attr-defined]
+templates.env.globals["current_locale"] = i18n.current
+templates.env.globals["locales"] = i18n.LOCALES
 
 
 def _age(seconds: float | None) -> str:
@@ -26,6 +33,7 @@ def _clock(timestamp: float | None) -> str:
 
 
 templates.env.filters["age"] = _age
+templates.env.filters["number"] = i18n.number
 templates.env.filters["clock"] = _clock
 templates.env.filters["datetime"] = lambda ts: time.strftime("%Y-%m-%d %H:%M:%S %Z", time.localtime(ts)) if ts else "–"
 templates.env.filters["hex4"] = lambda v: f"0x{v:04X}"
