@@ -35,7 +35,7 @@ COOKIE = "drivebench_lang"
 _current: ContextVar[str] = ContextVar("drivebench_locale", default=DEFAULT)
 
 
-def N_(message: str) -> str:  # noqa: N802 - the usual name of gettext's "mark only" keyword
+def N_(message: str) -> str:
     """Marks a text for extraction where it is defined (an error class's title); it is translated when shown."""
     return message
 
