@@ -14,6 +14,7 @@ from typing import Literal
 from pydantic import BaseModel, Field
 
 from drivebench.errors import InvalidValue, OutOfRange, UnknownProfile
+from drivebench.i18n import N_
 
 LENZE_8400_MOTEC = "lenze-8400-motec"
 LENZE_EMF2178IB = "lenze-emf2178ib"
@@ -263,7 +264,7 @@ class DipResult(BaseModel):
 class NotSettableBySwitches(InvalidValue):
     """The node id / baud rate exists for the device but the switches cannot set it."""
 
-    title = "Not settable by DIP switches"
+    title = N_("Not settable by DIP switches")
 
     def __init__(self, detail: str, *, alternative: list[ParameterSetting]) -> None:
         super().__init__(detail)

@@ -16,6 +16,7 @@ from fastapi.responses import HTMLResponse, Response
 from drivebench.device.catalog import Item
 from drivebench.device.motion import motion_of
 from drivebench.errors import AccessDenied, DriveBenchError, NodeOffline, NotFound, SdoTimeoutError
+from drivebench.i18n import N_
 from drivebench.services import drive_guard, node_lease
 from drivebench.services import parameters as service
 from drivebench.services.parameters import DeviceCommand, WriteResult
@@ -30,8 +31,8 @@ from drivebench.web.safety import ACTING, WriterDep
 from drivebench.web.templating import templates
 
 router = APIRouter(include_in_schema=False, dependencies=[ACTING])
-TABS = [("parameters", "Parameters"), ("pdo", "PDO"), ("diagnostics", "Diagnostics"), ("control", "Control"),
-        ("info", "Info")]
+TABS = [("parameters", N_("Parameters")), ("pdo", N_("PDO")), ("diagnostics", N_("Diagnostics")),
+        ("control", N_("Control")), ("info", N_("Info"))]  # translated where shown (node.html)
 UI = "/ui/sessions/{session_id}/nodes/{node_id}"
 
 IDENTITY = [("Device type", "0x1000"), ("Vendor ID", "0x1018.1"), ("Product code", "0x1018.2"),
