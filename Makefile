@@ -24,7 +24,7 @@ i18n-extract: $(STAMP)
 		--project DriveBench --copyright-holder "DriveBench contributors" -o $(LOCALE_DIR)/messages.pot .
 
 i18n-update: i18n-extract
-	$(BIN)/pybabel --quiet update -i $(LOCALE_DIR)/messages.pot -d $(LOCALE_DIR) --width 120 --no-fuzzy-matching
+	$(BIN)/pybabel --quiet update -i $(LOCALE_DIR)/messages.pot -d $(LOCALE_DIR) --width 120 --no-fuzzy-matching --ignore-obsolete
 
 i18n-compile: $(STAMP)
 	$(BIN)/pybabel compile --statistics -d $(LOCALE_DIR)

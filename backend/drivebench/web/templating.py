@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from typing import Any
 
 from jinja2_fragments.fastapi import Jinja2Blocks
 
@@ -22,10 +23,23 @@ def _age(seconds: float | None) -> str:
     if seconds is None:
         return "–"
     if seconds < 10:
-        return f"{seconds * 1000:.0f} ms" if seconds < 1 else f"{seconds:.1f} s"
+        return f"{i18n.number(seconds * 1000, 0)} ms" if seconds < 1 else f"{i18n.number(seconds, 1)} s"
     if seconds < 120:
-        return f"{seconds:.0f} s"
-    return f"{seconds / 60:.0f} min"
+        return f"{i18n.number(seconds, 0)} s"
+    return f"{i18n.number(seconds / 60, 0)} min"
+
+
+def _shown(value: Any, item: Any) -> str:
+    """A value read from a node as its row shows it: a number with its unit in the request's language
+    (``1.234,5 V`` in German); selections, bit words, text and hex bytes, and every value in English, as the service
+    formats them (``display``, which the JSON API sends too)."""
+    number, entry = value.value, item.entry
+    if (i18n.current() == i18n.DEFAULT or not isinstance(number, int | float) or isinstance(number, bool)
+            or entry.selection or entry.bits):
+        return str(value.display)
+    decimals = entry.decimals if entry.factor != 1 else 0
+    text = i18n.number(number, decimals if 0 < decimals <= 2 else None)  # FIX32 (4 decimals) keeps what it has
+    return f"{text} {entry.unit}" if entry.unit else text
 
 
 def _clock(timestamp: float | None) -> str:
@@ -34,6 +48,7 @@ def _clock(timestamp: float | None) -> str:
 
 templates.env.filters["age"] = _age
 templates.env.filters["number"] = i18n.number
+templates.env.filters["shown"] = _shown
 templates.env.filters["clock"] = _clock
 templates.env.filters["datetime"] = lambda ts: time.strftime("%Y-%m-%d %H:%M:%S %Z", time.localtime(ts)) if ts else "–"
 templates.env.filters["hex4"] = lambda v: f"0x{v:04X}"
