@@ -24,7 +24,7 @@ from pathlib import Path
 from babel import Locale, negotiate_locale
 from babel.messages.mofile import write_mo
 from babel.messages.pofile import read_po
-from babel.numbers import format_decimal
+from babel.numbers import format_decimal, get_decimal_symbol
 
 LOCALES = ("en", "de")
 DEFAULT = "en"
@@ -115,3 +115,8 @@ def number(value: float | int | Decimal, digits: int | None = None) -> str:
         pattern = "#,##0" + ("." + "0" * digits if digits > 0 else "")
         return format_decimal(value, format=pattern, locale=locale)
     return format_decimal(value, format="#,##0.######", locale=locale)
+
+
+def decimal_symbol() -> str:
+    """The decimal mark of the current language (``.`` or ``,``)."""
+    return str(get_decimal_symbol(Locale.parse(_current.get())))

@@ -25,9 +25,19 @@
   let zoomed = false;
 
   const esc = window.drivebench.escape;  // every value put into the tables' HTML (names come from profiles)
-  const num = (value) => Number(value).toLocaleString("en-US");
-  const rate = (value) => `${value >= 100 ? Math.round(value) : value.toFixed(1)}/s`;
-  const pct = (value) => `${value.toFixed(value >= 10 ? 1 : 2)} %`;
+  // Numbers as the page's language writes them (<html lang>, chosen by the server: 12.5 % or 12,5 %).
+  const lang = document.documentElement.lang || "en";
+  const formats = new Map();
+  const fixed = (value, digits) => {
+    if (!formats.has(digits)) {
+      formats.set(digits, new Intl.NumberFormat(lang, { minimumFractionDigits: digits, maximumFractionDigits: digits,
+                                                         useGrouping: false }));
+    }
+    return formats.get(digits).format(value);
+  };
+  const num = (value) => Number(value).toLocaleString(lang);
+  const rate = (value) => `${value >= 100 ? fixed(value, 0) : fixed(value, 1)}/s`;
+  const pct = (value) => `${fixed(value, value >= 10 ? 1 : 2)} %`;
   const clock = (epoch, ms) => {
     const d = new Date(epoch * 1000);
     const text = d.toLocaleTimeString("en-GB", { hour12: false });
@@ -43,12 +53,12 @@
     axes: [
       { label: "time (local)", labelSize: 18, space: 90, stroke: "#5d6b79", grid: { stroke: "#eef1f4" } },
       { label: "bus load (%)", labelSize: 18, stroke: "#5d6b79", grid: { stroke: "#eef1f4" }, size: 56,
-        values: (u, ticks) => ticks.map((v) => `${v} %`) },
+        values: (u, ticks) => ticks.map((v) => `${num(v)} %`) },
     ],
     series: [
       { value: (u, v) => (v == null ? "–" : clock(v)) },
       { label: "Bus load", stroke: "#0b5fa5", width: 1.5, fill: "rgba(11,95,165,0.12)",
-        value: (u, v) => (v == null ? "–" : `${v.toFixed(2)} %`) },
+        value: (u, v) => (v == null ? "–" : `${fixed(v, 2)} %`) },
     ],
     legend: { live: true },
     // A drag selects a time span and zooms into it; the zoom stays while new points arrive, until a double-click.

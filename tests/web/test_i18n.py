@@ -149,8 +149,7 @@ def test_problem_details_follow_the_language_and_stay_english_by_default(client:
     unknown = client.get(f"/api/sessions/{SESSION}/nodes/99/parameters/C00088", headers=GERMAN)
     assert unknown.status_code == 404
     assert unknown.json()["title"] == "Nicht gefunden"
-    assert unknown.json()["detail"] == ("Knoten 99 gehört nicht zur Sitzung 'Demo plant'. Scannen Sie den Bus oder "
-                                        "fügen Sie ihn hinzu.") or "Knoten 99" in unknown.json()["detail"]
+    assert unknown.json()["detail"].startswith("Knoten 99 gehört nicht zur Sitzung")
     assert unknown.json()["type"] == "/problems/not-found"  # what scripts branch on never changes
     plain = client.get(f"/api/sessions/{SESSION}/nodes/99/parameters/C00088")
     assert plain.json()["title"] == "Not found" and plain.json()["detail"].startswith("Node 99 is not part of")

@@ -13,6 +13,7 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Form, Query, Request
 from fastapi.responses import HTMLResponse, Response
 
+from drivebench import i18n
 from drivebench.device.catalog import Item
 from drivebench.device.motion import motion_of
 from drivebench.errors import AccessDenied, DriveBenchError, NodeOffline, NotFound, SdoTimeoutError
@@ -53,6 +54,8 @@ def edit_value(last: service.ParameterValue | None, item: Item) -> str:
         return f"0x{last.raw:X}"
     if isinstance(last.value, float) and last.value.is_integer():
         return str(int(last.value))
+    if isinstance(last.value, float):  # 12,5 in German (the value parser reads either mark)
+        return str(last.value).replace(".", i18n.decimal_symbol())
     return str(last.value)
 
 
