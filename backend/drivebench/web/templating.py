@@ -9,6 +9,7 @@ from jinja2_fragments.fastapi import Jinja2Blocks
 
 from drivebench import i18n
 from drivebench.config import settings
+from drivebench.i18n import N_
 
 templates = Jinja2Blocks(directory=str(settings.frontend_dir / "templates"))
 # Texts of the pages through gettext ({% trans %}, _()): the functions read the request's language (web/language).
@@ -46,6 +47,9 @@ def _clock(timestamp: float | None) -> str:
     return time.strftime("%H:%M:%S", time.localtime(timestamp)) if timestamp else "–"
 
 
+# The states services.bus_state reports, marked for the catalogue; the pages show them through the filter.
+BUS_STATES = (N_("active"), N_("warning"), N_("passive"), N_("bus-off"), N_("adapter lost"))
+templates.env.filters["bus_state"] = lambda state: i18n.gettext(state) if state in BUS_STATES else state
 templates.env.filters["age"] = _age
 templates.env.filters["number"] = i18n.number
 templates.env.filters["shown"] = _shown
