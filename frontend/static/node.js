@@ -39,10 +39,11 @@
     const p = msg.progress;
     bar.max = Math.max(p.total, 1);
     bar.value = p.done;
-    const failed = p.failed ? ` · ${p.failed} failed` : "";
+    const _ = window.drivebench.gettext;
+    const failed = p.failed ? ` · ${_("{count} failed", { count: p.failed })}` : "";
     let line = `${msg.title}: ${p.done}/${p.total} · ${oneDecimal.format(p.rate_per_s)}/s${failed}`;
     if (msg.state === "running") line += fmtEta(p.eta_s);
-    else line += ` · ${msg.state} in ${oneDecimal.format(p.elapsed_s)} s`;
+    else line += ` · ${_("{state} in {seconds} s", { state: msg.state, seconds: oneDecimal.format(p.elapsed_s) })}`;
     if (msg.error) line += ` · ${msg.error}`;
     text.textContent = line;
     text.title = (msg.notes || []).join("\n");
@@ -78,7 +79,7 @@
       const v = item.value;
       span.className = "v";
       span.textContent = v.display;
-      span.title = `raw ${v.raw}${v.text ? " · " + v.text : ""} · read now (batch)`;
+      span.title = window.drivebench.gettext("raw {raw}{text} · read now (batch)", { raw: v.raw, text: v.text ? " · " + v.text : "" });
     } else {
       span.className = "badge bad read-error";
       span.textContent = item.error.detail;
@@ -108,7 +109,7 @@
         const box = document.createElement("div");
         box.className = "error";
         box.setAttribute("role", "alert");
-        box.textContent = `Reading the group failed: ${error.message}`;
+        box.textContent = window.drivebench.gettext("Reading the group failed: {reason}", { reason: error.message });
         slot.replaceChildren(box);
       }
     } finally {

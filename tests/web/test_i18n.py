@@ -106,7 +106,9 @@ def test_accept_language_german_gives_the_german_plant_page(client: TestClient) 
     assert "Open session" not in page.text
     assert {v.strip() for v in page.headers["vary"].split(",")} >= {"Accept-Language", "Cookie"}
     assert page.headers["content-language"] == "de"
+    assert "Der Antrieb kann sich bewegen" in page.text  # app.js's texts, handed to it as JSON (js-messages)
     english = client.get("/")
+    assert 'id="js-messages"' not in english.text
     assert '<html lang="en">' in english.text and "<h1>Plant</h1>" in english.text and "Open session" in english.text
 
 
@@ -157,6 +159,7 @@ def test_problem_details_follow_the_language_and_stay_english_by_default(client:
     start = client.post(f"/api/sessions/{SESSION}/nodes/5/nmt", json={"command": "start"}, headers=GERMAN)
     assert start.status_code == 428
     assert start.json()["title"] == "Bestätigung erforderlich" and "Knoten 5" in start.json()["detail"]
+    assert "confirm = '5'" in start.json()["detail"]  # what app.js reads to ask and send the confirmation again
     # a page that does not exist, as a browser opens it
     missing = client.get("/nowhere", headers={**GERMAN, "Accept": "text/html"})
     assert missing.status_code == 404 and "Seite nicht gefunden" in missing.text and "Unter /nowhere" in missing.text
@@ -186,3 +189,19 @@ def test_every_screen_renders_in_german(client: TestClient, path: str) -> None:
     page = client.get(path, headers=GERMAN)
     assert page.status_code == 200, page.text[:500]
     assert '<html lang="de">' in page.text and 'aria-label="Ansichten"' in page.text
+
+
+def test_a_catalogue_without_its_mo_is_compiled_from_the_po(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A clean clone (no make install) or a .po edited after the last compile: Babel compiles the .po in memory."""
+    messages = tmp_path / "de" / "LC_MESSAGES"
+    messages.mkdir(parents=True)
+    (messages / "messages.po").write_bytes(DE_PO.read_bytes())
+    monkeypatch.setattr(i18n, "LOCALE_DIR", tmp_path)
+    i18n.translations.cache_clear()
+    try:
+        with i18n.using("de"):
+            assert i18n.gettext("Plant") == "Anlage"
+            assert i18n.ngettext("%(count)s warning", "%(count)s warnings", 2) == "%(count)s Warnungen"
+        assert not (messages / "messages.mo").exists()  # nothing written into the package
+    finally:
+        i18n.translations.cache_clear()

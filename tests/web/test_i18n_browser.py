@@ -74,6 +74,7 @@ def test_switch_to_german_and_back(server: str, page: Any) -> None:
 
     page.goto(server + "/monitor")  # the load figures are written by monitor.js, in the page's language
     expect(page.locator("#stat-load")).to_have_text(re.compile(r"^\d+,\d{1,2} %$"), timeout=WAIT_MS)
+    expect(page.locator("#stat-since")).to_have_text(re.compile(r"^seit \d"))  # a text of monitor.js, in German
 
     page.locator("#lang-en").click()
     expect(page.locator("html")).to_have_attribute("lang", "en", timeout=WAIT_MS)

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import functools
 import time
 from typing import Any
 
+from babel.messages.extract import extract_from_file
 from jinja2_fragments.fastapi import Jinja2Blocks
 
 from drivebench import i18n
@@ -18,6 +20,24 @@ templates.env.policies["ext.i18n.trimmed"] = True  # babel.cfg extracts with tri
 templates.env.install_gettext_callables(i18n.gettext, i18n.ngettext, newstyle=True)  # type: ignore[attr-defined]
 templates.env.globals["current_locale"] = i18n.current
 templates.env.globals["locales"] = i18n.LOCALES
+
+
+@functools.cache
+def _script_texts() -> tuple[str, ...]:
+    """The texts the page scripts mark with _("…"), found once by Babel's JavaScript extractor (as pybabel does)."""
+    found: set[str] = set()
+    for script in sorted((settings.frontend_dir / "static").glob("*.js")):
+        found.update(message for _line, message, _comments, _context in extract_from_file("javascript", str(script))
+                     if isinstance(message, str))
+    return tuple(sorted(found))
+
+
+def _script_messages() -> dict[str, str]:
+    """The scripts' texts in the request's language, for the page's <script type="application/json">."""
+    return {text: i18n.gettext(text) for text in _script_texts()}
+
+
+templates.env.globals["script_messages"] = _script_messages
 
 
 def _age(seconds: float | None) -> str:
