@@ -8,7 +8,8 @@ hands a German page to an English browser.
 from __future__ import annotations
 
 from fastapi import APIRouter, Request
-from starlette.datastructures import Headers, MutableHeaders
+from starlette.datastructures import MutableHeaders
+from starlette.requests import HTTPConnection
 from starlette.responses import RedirectResponse
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
@@ -20,26 +21,19 @@ COOKIE_MAX_AGE_S = 365 * 24 * 3600
 VARY = ("Accept-Language", "Cookie")
 
 
-def _cookie(headers: Headers) -> str | None:
-    for part in headers.get("cookie", "").split(";"):
-        name, _eq, value = part.strip().partition("=")
-        if name == i18n.COOKIE:
-            return value
-    return None
-
-
 class LanguageMiddleware:
     def __init__(self, app: ASGIApp) -> None:
         self.app = app
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if scope["type"] not in ("http", "websocket"):
+        if scope["type"] in ("http", "websocket"):
+            connection = HTTPConnection(scope)
+            locale = i18n.negotiate(connection.headers.get("accept-language"), connection.cookies.get(i18n.COOKIE))
+            await self._speaking(locale, scope, receive, send)
+        else:
             await self.app(scope, receive, send)
-            return
-        headers = Headers(scope=scope)
-        locale = i18n.negotiate(headers.get("accept-language"), _cookie(headers))
-        scope.setdefault("state", {})["locale"] = locale
 
+    async def _speaking(self, locale: str, scope: Scope, receive: Receive, send: Send) -> None:
         async def send_varying(message: Message) -> None:
             if message["type"] == "http.response.start":
                 answer = MutableHeaders(scope=message)
