@@ -138,6 +138,12 @@ def test_the_parameters_tab_in_german_with_german_numbers(client: TestClient) ->
     tab = client.get(f"/sessions/{SESSION}/nodes/5?tab=parameters", headers=GERMAN).text
     assert ">Parameter</a>" in tab and "Alle lesen" in tab and "Neuer Wert" in tab
     assert "Rated motor current" in tab  # the vendor's name as the manual prints it: no name_de in this profile
+    profile = client.app.state.drivebench.registry.get("lenze-8400-motec-canopen")  # type: ignore[attr-defined]
+    rated_current = next(p for p in profile.parameters if p.code == "C00088")
+    rated_current.name_de = "Motor-Bemessungsstrom"  # as a profile with the German manual's names would give it
+    tab = client.get(f"/sessions/{SESSION}/nodes/5?tab=parameters&q=C00088", headers=GERMAN).text
+    assert "Motor-Bemessungsstrom" in tab and "Rated motor current" not in tab
+    assert "Rated motor current" in client.get(f"/sessions/{SESSION}/nodes/5?tab=parameters&q=C00088").text
     row = client.post(f"/ui/sessions/{SESSION}/nodes/5/parameters/C00088/read",
                       headers={**GERMAN, "HX-Request": "true", "X-DriveBench": "1"})
     assert row.status_code == 200, row.text
