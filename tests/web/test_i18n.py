@@ -211,3 +211,11 @@ def test_a_catalogue_without_its_mo_is_compiled_from_the_po(tmp_path: Path, monk
         assert not (messages / "messages.mo").exists()  # nothing written into the package
     finally:
         i18n.translations.cache_clear()
+
+
+def test_the_plant_pages_websocket_pushes_the_table_in_the_asked_language(client: TestClient) -> None:
+    with client.websocket_connect(f"/ws/sessions/{SESSION}/nodes", headers=GERMAN) as socket:
+        table = socket.receive_text()
+    assert "NMT-Zustand" in table and "NMT state" not in table
+    with client.websocket_connect(f"/ws/sessions/{SESSION}/nodes") as socket:
+        assert "NMT state" in socket.receive_text()
