@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed
 HOST ?= 127.0.0.1
 PORT ?= 8000
 
-.PHONY: run test install lint typecheck importlint pytest bench chromium postgresql clean
+.PHONY: run test install lint typecheck importlint pytest bench chromium postgresql clean i18n-extract i18n-update i18n-compile
 
 $(STAMP): pyproject.toml
 	test -d $(VENV) || $(PYTHON) -m venv $(VENV)
@@ -14,9 +14,22 @@ $(STAMP): pyproject.toml
 	$(BIN)/pip install --quiet -e '.[dev]'
 	touch $(STAMP)
 
-install: $(STAMP)
+install: $(STAMP) i18n-compile
 
-run: $(STAMP)
+# Translations (Babel): extract the texts of the code and templates into the template catalogue, merge it into
+# each language's .po (translate there: msgstr, no "#, fuzzy"), compile the .mo files the server reads.
+LOCALE_DIR := backend/drivebench/locale
+i18n-extract: $(STAMP)
+	$(BIN)/pybabel --quiet extract -F babel.cfg --no-location --sort-output --width 120 \
+		--project DriveBench --copyright-holder "DriveBench contributors" -o $(LOCALE_DIR)/messages.pot .
+
+i18n-update: i18n-extract
+	$(BIN)/pybabel --quiet update -i $(LOCALE_DIR)/messages.pot -d $(LOCALE_DIR) --width 120 --no-fuzzy-matching --ignore-obsolete
+
+i18n-compile: $(STAMP)
+	$(BIN)/pybabel compile --statistics -d $(LOCALE_DIR)
+
+run: install
 	$(BIN)/drivebench serve --host $(HOST) --port $(PORT) --demo
 
 chromium:
@@ -35,7 +48,7 @@ importlint: $(STAMP)
 postgresql:
 	@ls /usr/lib/postgresql/*/bin/initdb >/dev/null 2>&1 || (apt-get update -qq && apt-get install -y -qq postgresql >/dev/null)
 
-pytest: $(STAMP) chromium postgresql
+pytest: install chromium postgresql
 	$(BIN)/pytest
 
 test: lint typecheck importlint pytest

@@ -6,11 +6,13 @@ Lower layers convert foreign exceptions (python-can, canopen) with ``raise ... f
 
 from __future__ import annotations
 
+from drivebench.i18n import N_
+
 
 class DriveBenchError(Exception):
     """Root of all errors the tool reports to a user."""
 
-    title = "DriveBench error"
+    title = N_("DriveBench error")
 
     def __init__(self, detail: str, *, hint: str | None = None) -> None:
         super().__init__(detail)
@@ -24,24 +26,24 @@ class DriveBenchError(Exception):
 
 # --- transport -------------------------------------------------------------------------------------------
 class TransportError(DriveBenchError):
-    title = "CAN adapter error"
+    title = N_("CAN adapter error")
 
 
 class AdapterUnavailable(TransportError):
-    title = "CAN adapter not available"
+    title = N_("CAN adapter not available")
 
 
 class BusSpecError(TransportError):
-    title = "Invalid bus specification"
+    title = N_("Invalid bus specification")
 
 
 # --- protocol --------------------------------------------------------------------------------------------
 class ProtocolError(DriveBenchError):
-    title = "CANopen protocol error"
+    title = N_("CANopen protocol error")
 
 
 class SdoAbortError(ProtocolError):
-    title = "SDO transfer aborted"
+    title = N_("SDO transfer aborted")
 
     def __init__(self, abort_code: int, abort_text: str, *, node: int, index: int, subindex: int,
                  detail: str | None = None) -> None:
@@ -59,7 +61,7 @@ class SdoAbortError(ProtocolError):
 
 
 class SdoTimeoutError(ProtocolError):
-    title = "No SDO response"
+    title = N_("No SDO response")
 
     def __init__(self, detail: str, *, node: int, index: int | None = None, subindex: int | None = None) -> None:
         super().__init__(detail, hint="Check that the node is powered, has this node id and the same bit rate, "
@@ -78,7 +80,7 @@ class SdoTimeoutError(ProtocolError):
 class SdoStalledError(SdoTimeoutError):
     """The node answered the start of a segmented (or block) transfer, then stopped answering."""
 
-    title = "Node stopped answering"
+    title = N_("Node stopped answering")
 
     def __init__(self, *, node: int, index: int, subindex: int, done: int, total: int | None,
                  what: str | None = None, kind: str = "segmented") -> None:
@@ -102,7 +104,7 @@ class SdoOutOfStepError(ProtocolError):
     """The node answered, but not what the transfer expects: the wrong toggle bit, another object, another
     command. ``answered`` is the (index, subindex) the answer named when it named the wrong object."""
 
-    title = "SDO answer out of step"
+    title = N_("SDO answer out of step")
 
     def __init__(self, reason: str, *, node: int, index: int, subindex: int,
                  answered: tuple[int, int] | None = None, what: str | None = None) -> None:
@@ -133,18 +135,18 @@ class SdoOutOfStepError(ProtocolError):
 
 
 class NodeOffline(ProtocolError):
-    title = "Node offline"
+    title = N_("Node offline")
 
 
 # --- device ----------------------------------------------------------------------------------------------
 class DeviceError(DriveBenchError):
-    title = "Device profile error"
+    title = N_("Device profile error")
 
 
 class ProfileError(DeviceError):
     """A profile file (EDS/JSON) cannot be loaded; ``source`` and ``line`` say where."""
 
-    title = "Invalid device profile"
+    title = N_("Invalid device profile")
 
     def __init__(self, detail: str, *, source: str | None = None, line: int | None = None) -> None:
         where = f"{source}:{line}: " if source and line else (f"{source}: " if source else "")
@@ -157,63 +159,63 @@ class ProfileError(DeviceError):
 
 
 class UnknownProfile(DeviceError):
-    title = "Unknown device profile"
+    title = N_("Unknown device profile")
 
 
 class ParameterError(DeviceError):
-    title = "Parameter error"
+    title = N_("Parameter error")
 
 
 class UnknownParameter(ParameterError):
-    title = "Unknown parameter"
+    title = N_("Unknown parameter")
 
 
 class OutOfRange(ParameterError):
-    title = "Value out of range"
+    title = N_("Value out of range")
 
 
 class InvalidValue(ParameterError):
-    title = "Invalid value"
+    title = N_("Invalid value")
 
 
 class ReadOnly(ParameterError):
-    title = "Parameter is read-only"
+    title = N_("Parameter is read-only")
 
 
 # --- services --------------------------------------------------------------------------------------------
 class ServiceError(DriveBenchError):
-    title = "Request failed"
+    title = N_("Request failed")
 
 
 class NotFound(ServiceError):
-    title = "Not found"
+    title = N_("Not found")
 
 
 class Conflict(ServiceError):
-    title = "Conflict"
+    title = N_("Conflict")
 
 
 class ConfirmationRequired(ServiceError):
     """An action that can move a drive was sent without the explicit confirmation naming its node (HTTP 428)."""
 
-    title = "Confirmation required"
+    title = N_("Confirmation required")
 
 
 class ContentTooLarge(ServiceError):
     """A request body past the upload limit, refused before it is read (HTTP 413)."""
 
-    title = "Upload too large"
+    title = N_("Upload too large")
 
 
 class NotAuthenticated(ServiceError):
-    title = "Not signed in"
+    title = N_("Not signed in")
 
 
 class AccessDenied(ServiceError):
-    title = "Not allowed"
+    title = N_("Not allowed")
 
 
 class UnknownHostName(ServiceError):
     """A request addressed (``Host``) to a name that is not this server's: DNS rebinding, refused with 400."""
 
-    title = "Not this server's name"
+    title = N_("Not this server's name")

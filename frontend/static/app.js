@@ -10,6 +10,19 @@ window.drivebench = window.drivebench || {};
   const ENTITIES = { "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;", "'": "&#39;" };
   drivebench.escape = (text) => String(text ?? "").replace(/[&<>"']/g, (c) => ENTITIES[c]);
 
+  // The scripts' texts in the page's language: they are marked _("…") (pybabel extracts them, babel.cfg), and the
+  // server puts their translations into <script type="application/json" id="js-messages"> (base.html; none in
+  // English). {name} in a text is replaced by values[name].
+  let messages = null;
+  drivebench.gettext = (text, values = {}) => {
+    if (messages === null) {
+      const tag = document.getElementById("js-messages");
+      messages = tag ? JSON.parse(tag.textContent) : {};
+    }
+    return (messages[text] || text).replace(/\{(\w+)\}/g, (whole, name) => (name in values ? String(values[name]) : whole));
+  };
+  const _ = drivebench.gettext;
+
   // An element with attributes and children (strings become text nodes): el("li", {className: "x"}, "a", child)
   drivebench.el = (tag, props = {}, ...children) => {
     const node = Object.assign(document.createElement(tag), props);
@@ -26,8 +39,8 @@ window.drivebench = window.drivebench || {};
   };
   // An RFC 9457 problem (or no JSON body) as that box.
   drivebench.problemBox = (problem, status) => problem && (problem.title || problem.detail)
-    ? drivebench.errorBox(problem.title || "Error", problem.detail)
-    : drivebench.errorBox("Request failed", `(HTTP ${status})`);
+    ? drivebench.errorBox(problem.title || _("Error"), problem.detail)
+    : drivebench.errorBox(_("Request failed"), `(HTTP ${status})`);
 
   // One websocket client for every live page: the URL on this server, JSON messages to onMessage, reconnects with
   // back-off (retryMs doubled up to maxRetryMs, back to retryMs once open) while keepOpen(closeEvent) holds.
@@ -109,7 +122,8 @@ document.body.addEventListener("htmx:beforeSwap", (event) => {
 
 document.body.addEventListener("htmx:sendError", (event) => {
   errorSlot(event.detail.requestConfig.elt).replaceChildren(
-    window.drivebench.errorBox("No answer from the DriveBench server.", "Is it still running?"));
+    window.drivebench.errorBox(window.drivebench.gettext("No answer from the DriveBench server."),
+                               window.drivebench.gettext("Is it still running?")));
 });
 
 // Behaviour that used to be inline handlers (the CSP runs none): a form that only htmx sends, a field whose text is
@@ -166,6 +180,7 @@ document.addEventListener("htmx:configRequest", (event) => {
 // server named (the node id), which its hidden "confirm" input carries for that one request. Forms opt in with
 // data-asks-moving. The page's keep-alive socket (safety.js) then holds the node.
 (() => {
+  const _ = window.drivebench.gettext;
   let dialog = null;
   function askDialog() {
     if (dialog) return dialog;
@@ -174,16 +189,16 @@ document.addEventListener("htmx:configRequest", (event) => {
     const form = document.createElement("form");
     form.method = "dialog";
     const head = document.createElement("h3");
-    head.textContent = "The drive may move";
+    head.textContent = _("The drive may move");
     const text = document.createElement("p");
     text.className = "moving-confirm-text";
     const note = document.createElement("p");
     note.className = "muted";
-    note.textContent = "Once sent, this page keeps the node alive (every 0.5 s); when the page closes or the network " +
-      "is lost, the server sends quick stop within 2 s.";
+    note.textContent = _("Once sent, this page keeps the node alive (every 0.5 s); when the page closes or the " +
+      "network is lost, the server sends quick stop within 2 s.");
     const row = document.createElement("div");
     row.className = "ctl-row";
-    for (const [value, label, cls] of [["cancel", "Cancel", "secondary"], ["ok", "Send it", "moving warn"]]) {
+    for (const [value, label, cls] of [["cancel", _("Cancel"), "secondary"], ["ok", _("Send it"), "moving warn"]]) {
       const button = document.createElement("button");
       button.value = value;
       button.textContent = label;

@@ -24,10 +24,21 @@
   const loadPoints = { t: [], v: [] };
   let zoomed = false;
 
-  const esc = window.drivebench.escape;  // every value put into the tables' HTML (names come from profiles)
-  const num = (value) => Number(value).toLocaleString("en-US");
-  const rate = (value) => `${value >= 100 ? Math.round(value) : value.toFixed(1)}/s`;
-  const pct = (value) => `${value.toFixed(value >= 10 ? 1 : 2)} %`;
+  const esc = window.drivebench.escape;
+  const _ = window.drivebench.gettext;  // every value put into the tables' HTML (names come from profiles)
+  // Numbers as the page's language writes them (<html lang>, chosen by the server: 12.5 % or 12,5 %).
+  const lang = document.documentElement.lang || "en";
+  const formats = new Map();
+  const fixed = (value, digits) => {
+    if (!formats.has(digits)) {
+      formats.set(digits, new Intl.NumberFormat(lang, { minimumFractionDigits: digits, maximumFractionDigits: digits,
+                                                         useGrouping: false }));
+    }
+    return formats.get(digits).format(value);
+  };
+  const num = (value) => Number(value).toLocaleString(lang);
+  const rate = (value) => `${value >= 100 ? fixed(value, 0) : fixed(value, 1)}/s`;
+  const pct = (value) => `${fixed(value, value >= 10 ? 1 : 2)} %`;
   const clock = (epoch, ms) => {
     const d = new Date(epoch * 1000);
     const text = d.toLocaleTimeString("en-GB", { hour12: false });
@@ -41,14 +52,14 @@
     // Both scales are set by drawChart (not auto-ranged), so a drag-zoom stays put while points arrive.
     scales: { x: { time: true, auto: false }, y: { auto: false } },
     axes: [
-      { label: "time (local)", labelSize: 18, space: 90, stroke: "#5d6b79", grid: { stroke: "#eef1f4" } },
-      { label: "bus load (%)", labelSize: 18, stroke: "#5d6b79", grid: { stroke: "#eef1f4" }, size: 56,
-        values: (u, ticks) => ticks.map((v) => `${v} %`) },
+      { label: _("time (local)"), labelSize: 18, space: 90, stroke: "#5d6b79", grid: { stroke: "#eef1f4" } },
+      { label: _("bus load (%)"), labelSize: 18, stroke: "#5d6b79", grid: { stroke: "#eef1f4" }, size: 56,
+        values: (u, ticks) => ticks.map((v) => `${num(v)} %`) },
     ],
     series: [
       { value: (u, v) => (v == null ? "–" : clock(v)) },
-      { label: "Bus load", stroke: "#0b5fa5", width: 1.5, fill: "rgba(11,95,165,0.12)",
-        value: (u, v) => (v == null ? "–" : `${v.toFixed(2)} %`) },
+      { label: _("Bus load"), stroke: "#0b5fa5", width: 1.5, fill: "rgba(11,95,165,0.12)",
+        value: (u, v) => (v == null ? "–" : `${fixed(v, 2)} %`) },
     ],
     legend: { live: true },
     // A drag selects a time span and zooms into it; the zoom stays while new points arrive, until a double-click.
@@ -87,13 +98,15 @@
   function renderStats(s) {
     $("stat-load").textContent = pct(s.load.percent);
     $("stat-peak").textContent = pct(s.load.peak_percent);
-    $("stat-peak-time").textContent = s.load.peak_time ? `at ${clock(s.load.peak_time)}` : "";
+    $("stat-peak-time").textContent = s.load.peak_time ? _("at {time}", { time: clock(s.load.peak_time) }) : "";
     $("stat-avg").textContent = pct(s.load.average_percent);
-    $("stat-since").textContent = `since ${clock(s.since)}`;
+    $("stat-since").textContent = _("since {time}", { time: clock(s.since) });
     $("stat-frames").textContent = num(s.totals.frames);
     $("stat-rate").textContent = rate(s.totals.rate);
     $("stat-errors").textContent = num(s.totals.errors);
-    $("stat-error-rate").textContent = s.totals.errors ? `${rate(s.totals.error_rate)}, last ${s.totals.last_error_age_s.toFixed(0)} s ago` : "none";
+    $("stat-error-rate").textContent = s.totals.errors
+      ? _("{rate}, last {age} s ago", { rate: rate(s.totals.error_rate), age: fixed(s.totals.last_error_age_s, 0) })
+      : _("none");
     $("stat-bits").textContent = num(s.totals.bits);
   }
 
@@ -109,17 +122,17 @@
       `<tr class="${r[col.rate] ? "" : "silent"}" title="last ${r[col.last_age_s].toFixed(1)} s ago"><td class="mono">${esc(r[col.text])}</td><td>${esc(r[col.service])}</td>` +
       `<td class="num">${esc(r[col.node] ?? "–")}</td><td class="num">${num(r[col.total])}</td><td class="num">${rate(r[col.rate])}</td><td class="num">${pct(r[col.share_percent])}</td></tr>`).join("")
       : '<tr><td colspan="6" class="empty">No telegrams (or none passes the filter).</td></tr>';
-    $("cob-note").textContent = s.cob_ids_cut ? `busiest ${s.cob_ids.length} of ${s.cob_ids_cut}` : "";
+    $("cob-note").textContent = s.cob_ids_cut ? _("busiest {shown} of {all}", { shown: s.cob_ids.length, all: s.cob_ids_cut }) : "";
   }
 
   const gapRows = $("trace-body").getElementsByClassName("gap");  // live collection
   const showCount = () => {
-    $("trace-count").textContent = `${num($("trace-body").rows.length - gapRows.length)} of ${num(TRACE_ROWS)} rows`;
+    $("trace-count").textContent = _("{shown} of {all} rows", { shown: num($("trace-body").rows.length - gapRows.length), all: num(TRACE_ROWS) });
   };
   // More telegrams came in one update than the server sends (TRACE_PER_UPDATE in web/ws/monitor.py): say so in
   // the trace instead of letting it look complete.
-  const GAP_ROW = '<tr class="gap"><td colspan="6">… more telegrams than the trace shows (it keeps up to 500 a second); ' +
-    "the counters and a recording have every one</td></tr>";
+  const GAP_ROW = '<tr class="gap"><td colspan="6">' + esc(_("… more telegrams than the trace shows (it keeps up to " +
+    "500 a second); the counters and a recording have every one")) + "</td></tr>";
 
   function renderTrace() {
     if (!pendingTrace.length) { showCount(); return; }
@@ -135,17 +148,19 @@
     if ($("trace-follow").checked) { const box = $("trace-scroll"); box.scrollTop = box.scrollHeight; }
   }
 
-  const BUS_STATES = { active: "error active", warning: "warning", passive: "error passive", "bus-off": "bus-off" };
+  const BUS_STATES = { active: _("error active"), warning: _("warning"), passive: _("error passive"),
+                       "bus-off": _("bus-off") };
   function renderBus(bus) {
     if (!bus) return;
     const badge = $("bus-state");
     const counters = bus.tx_errors == null ? "" : ` · TEC ${bus.tx_errors} · REC ${bus.rx_errors}`;
     badge.className = `badge bus-${bus.state}`;
-    badge.textContent = `${bus.state === "bus-off" ? "" : "bus "}${BUS_STATES[bus.state] || bus.state}${counters}`;
-    badge.title = `Adapter reports: ${BUS_STATES[bus.adapter_state] || bus.adapter_state}` +
-      (bus.reported_age_s == null ? "; no error frame with a controller state yet"
-        : `; last controller state from an error frame ${bus.reported_age_s.toFixed(0)} s ago`) +
-      ". Warning at 96, error passive at 128 errors (TEC: transmit, REC: receive error counter).";
+    const label = BUS_STATES[bus.state] || bus.state;
+    badge.textContent = (bus.state === "bus-off" ? label : _("bus {state}", { state: label })) + counters;
+    badge.title = _("Adapter reports: {state}", { state: BUS_STATES[bus.adapter_state] || bus.adapter_state }) +
+      (bus.reported_age_s == null ? _("; no error frame with a controller state yet")
+        : _("; last controller state from an error frame {age} s ago", { age: fixed(bus.reported_age_s, 0) })) +
+      _(". Warning at 96, error passive at 128 errors (TEC: transmit, REC: receive error counter).");
   }
 
   function renderBusText(text) {
@@ -188,7 +203,7 @@
     errorSlot = slot;
     $(slot).innerHTML = "";
     if (!socket || !socket.send({ type: "view", ...change, rows: helloRows() })) {
-      $(slot).replaceChildren(window.drivebench.errorBox("Not connected.", "The change is sent when the connection is back."));
+      $(slot).replaceChildren(window.drivebench.errorBox(_("Not connected."), _("The change is sent when the connection is back.")));
     }
   }
 
@@ -238,7 +253,7 @@
       $(slot).innerHTML = "";
       return response.json();
     } catch (e) {
-      $(slot).replaceChildren(window.drivebench.errorBox("No answer from the DriveBench server.", "Is it still running?"));
+      $(slot).replaceChildren(window.drivebench.errorBox(_("No answer from the DriveBench server."), _("Is it still running?")));
       return null;
     }
   }
@@ -275,7 +290,7 @@
       cob_min: parseId(form.cob_min.value, 0), cob_max: parseId(form.cob_max.value, 0x1FFFFFFF),
     };
     if (nodes.some(Number.isNaN) || Number.isNaN(body.cob_min) || Number.isNaN(body.cob_max)) {
-      $("filter-result").replaceChildren(window.drivebench.errorBox(null, "Nodes are numbers 1…127; COB-IDs decimal or 0x-hex."));
+      $("filter-result").replaceChildren(window.drivebench.errorBox(null, _("Nodes are numbers 1…127; COB-IDs decimal or 0x-hex.")));
       return;
     }
     sendView({ filter: body }, "filter-result");  // the answer is a hello: the newest matching rows, filtered tables

@@ -1,8 +1,11 @@
 // Node page: the progress of read jobs, fed by the job websocket (/ws/jobs/{id}, JSON messages).
 (function () {
+  // One decimal as the page's language writes it (<html lang>: 2.5 or 2,5).
+  const oneDecimal = new Intl.NumberFormat(document.documentElement.lang || "en",
+                                           { minimumFractionDigits: 1, maximumFractionDigits: 1, useGrouping: false });
   function fmtEta(s) {
     if (s === null || s === undefined) return "";
-    return s < 60 ? ` · ETA ${s.toFixed(1)} s` : ` · ETA ${Math.round(s / 60)} min`;
+    return s < 60 ? ` · ETA ${oneDecimal.format(s)} s` : ` · ETA ${Math.round(s / 60)} min`;
   }
 
   // Re-read the parameter rows; a refresh in flight would swap out the element a queued one belongs to, so the
@@ -36,10 +39,11 @@
     const p = msg.progress;
     bar.max = Math.max(p.total, 1);
     bar.value = p.done;
-    const failed = p.failed ? ` · ${p.failed} failed` : "";
-    let line = `${msg.title}: ${p.done}/${p.total} · ${p.rate_per_s.toFixed(1)}/s${failed}`;
+    const _ = window.drivebench.gettext;
+    const failed = p.failed ? ` · ${_("{count} failed", { count: p.failed })}` : "";
+    let line = `${msg.title}: ${p.done}/${p.total} · ${oneDecimal.format(p.rate_per_s)}/s${failed}`;
     if (msg.state === "running") line += fmtEta(p.eta_s);
-    else line += ` · ${msg.state} in ${p.elapsed_s.toFixed(1)} s`;
+    else line += ` · ${_("{state} in {seconds} s", { state: msg.state, seconds: oneDecimal.format(p.elapsed_s) })}`;
     if (msg.error) line += ` · ${msg.error}`;
     text.textContent = line;
     text.title = (msg.notes || []).join("\n");
@@ -75,7 +79,7 @@
       const v = item.value;
       span.className = "v";
       span.textContent = v.display;
-      span.title = `raw ${v.raw}${v.text ? " · " + v.text : ""} · read now (batch)`;
+      span.title = window.drivebench.gettext("raw {raw}{text} · read now (batch)", { raw: v.raw, text: v.text ? " · " + v.text : "" });
     } else {
       span.className = "badge bad read-error";
       span.textContent = item.error.detail;
@@ -105,7 +109,7 @@
         const box = document.createElement("div");
         box.className = "error";
         box.setAttribute("role", "alert");
-        box.textContent = `Reading the group failed: ${error.message}`;
+        box.textContent = window.drivebench.gettext("Reading the group failed: {reason}", { reason: error.message });
         slot.replaceChildren(box);
       }
     } finally {

@@ -21,8 +21,11 @@
     const slot = entry.holder.querySelector(".keepalive-state");
     if (slot) {
       slot.hidden = !message.nodes.length;
-      slot.textContent = message.nodes.length ? `This tab keeps node${message.nodes.length > 1 ? "s" : ""} ` +
-        `${message.nodes.join(", ")} running: closing it stops ${message.nodes.length > 1 ? "them" : "it"}.` : "";
+      const _ = window.drivebench.gettext;
+      const nodes = message.nodes.join(", ");
+      slot.textContent = !message.nodes.length ? ""
+        : message.nodes.length > 1 ? _("This tab keeps nodes {nodes} running: closing it stops them.", { nodes })
+          : _("This tab keeps node {nodes} running: closing it stops it.", { nodes });
     }
   }
 

@@ -32,12 +32,18 @@ class Item:
 
     @property
     def name(self) -> str:
+        return self.name_for("en")
+
+    def name_for(self, language: str) -> str:
+        """The name as the manual in ``language`` prints it: the profile's ``name_de`` in German where it gives one,
+        else the name the profile was written with (vendor names are never translated by the tool)."""
         entry = self.entry
+        own = entry.name_de if language == "de" and entry.name_de else entry.name
         if isinstance(entry, Parameter) and entry.subcode_name:
-            return f"{entry.name}: {entry.subcode_name}"
+            return f"{own}: {entry.subcode_name}"
         if isinstance(entry, ObjectEntry) and entry.object_name and entry.object_type != "VAR":
-            return f"{entry.object_name}: {entry.name}"
-        return entry.name
+            return f"{entry.object_name}: {own}"
+        return own
 
     @property
     def label(self) -> str:

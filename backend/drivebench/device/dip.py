@@ -17,6 +17,7 @@ from pydantic import BaseModel, Field
 from drivebench.device.profile import Profile
 from drivebench.device.switches import Case, SwitchesSection
 from drivebench.errors import InvalidValue, OutOfRange, UnknownProfile
+from drivebench.i18n import N_
 
 
 @dataclass(frozen=True)
@@ -128,7 +129,7 @@ class DipResult(BaseModel):
 class NotSettableBySwitches(InvalidValue):
     """The node id / baud rate exists for the device but the switches cannot set it."""
 
-    title = "Not settable by DIP switches"
+    title = N_("Not settable by DIP switches")
 
     def __init__(self, detail: str, *, alternative: list[ParameterSetting]) -> None:
         super().__init__(detail)

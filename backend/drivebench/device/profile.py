@@ -82,6 +82,8 @@ class Entry(BaseModel):
     model_config = ConfigDict(extra="forbid", use_enum_values=False)
 
     name: str
+    name_de: str | None = None
+    """The German name as the vendor's German manual prints it: the German UI shows it instead of ``name``."""
     data_type: DataType
     access: Access = Access.RW
     unit: str | None = None

@@ -14,6 +14,7 @@ import re
 from dataclasses import dataclass, field
 
 from drivebench.errors import Conflict, DriveBenchError, NotFound
+from drivebench.i18n import _
 from drivebench.services.bus.fieldbus import SessionSpec, open_network, parse_spec
 from drivebench.services.bus.sessions import ProfileSource, Session
 from drivebench.services.control.commissioning import Wizard
@@ -100,7 +101,7 @@ class SessionManager:
     def get(self, session_id: str) -> Session:
         session = self._sessions.get(session_id)
         if session is None:
-            raise NotFound(f"No open session '{session_id}'")
+            raise NotFound(_("No open session '{session}'").format(session=session_id))
         return session
 
     def list(self) -> list[Session]:

@@ -22,6 +22,7 @@ import can
 from pydantic import BaseModel, Field, ValidationError
 
 from drivebench.errors import AdapterUnavailable, BusSpecError, TransportError
+from drivebench.i18n import N_
 
 DEFAULT_BITRATE = 500_000
 _SOCKETCAND_RE = re.compile(r"^socketcand:(?P<host>[^:/@]+):(?P<port>\d+)/(?P<channel>[^@]+)(?:@(?P<bitrate>\d+))?$")
@@ -106,13 +107,13 @@ class AdapterLost(TransportError, can.CanOperationError):
     """The adapter stopped working (unplugged, driver error, gateway connection closed). Also a python-can
     error, so canopen's client and the protocol layer treat it like any adapter failure."""
 
-    title = "CAN adapter lost"
+    title = N_("CAN adapter lost")
 
 
 class BusUnusable(TransportError, can.CanOperationError):
     """The adapter is there but must not send now (bus-off), or did not take a frame in time."""
 
-    title = "CAN bus not usable"
+    title = N_("CAN bus not usable")
 
 
 @dataclass(frozen=True)

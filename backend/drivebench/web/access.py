@@ -37,6 +37,7 @@ from starlette.types import Message, Receive, Scope, Send
 
 from drivebench.config import settings
 from drivebench.errors import AccessDenied, DriveBenchError, NotAuthenticated, UnknownHostName
+from drivebench.i18n import _
 from drivebench.services.users import accounts
 from drivebench.services.users.principals import Principal, Role
 from drivebench.web import access_policy, origins
@@ -165,9 +166,9 @@ def cross_site(scope: Scope, headers: Headers) -> str | None:
 
 
 def _denied_words(principal: Principal, rule: access_policy.Rule) -> str:
-    who = ("you are using a remote diagnostics link (viewer)" if principal.via == "link"
-           else f"you are signed in as {principal.name} ({principal.role.label})")
-    return f"{rule.what} needs the {rule.role.label} role; {who}."
+    who = (_("you are using a remote diagnostics link (viewer)") if principal.via == "link"
+           else _("you are signed in as {name} ({role})").format(name=principal.name, role=principal.role.label))
+    return _("{what} needs the {role} role; {who}.").format(what=_(rule.what), role=rule.role.label, who=who)
 
 
 async def admitted(scope: Scope, receive: Receive, send: Send, headers: Headers, decision: access_policy.Decision
@@ -199,22 +200,22 @@ async def admitted(scope: Scope, receive: Receive, send: Send, headers: Headers,
             return None
     if principal is None and configured and not decision.public:
         await _refuse(scope, receive, send, NotAuthenticated(
-            "Sign in first: this DriveBench server asks everyone to sign in.",
-            hint="API clients send `Authorization: Bearer dbt_…` (an API token from the Users page)."))
+            _("Sign in first: this DriveBench server asks everyone to sign in."),
+            hint=_("API clients send `Authorization: Bearer dbt_…` (an API token from the Users page).")))
         return None
     if principal is None and not configured:
         principal = principal_of(HTTPConnection(scope))  # the local user: an admin
     if principal is not None and not decision.public and not principal.may(decision.rule.role):
         await _refuse(scope, receive, send, AccessDenied(_denied_words(principal, decision.rule),
-                                                         hint="Ask an admin for the role."))
+                                                         hint=_("Ask an admin for the role.")))
         return None
     if (session is not None and not decision.public and scope["type"] == "http"
             and scope["method"] not in SAFE_METHODS):
         token, receive = await _csrf_token(scope, receive, headers)
         if token is None or not secrets.compare_digest(token, session.csrf):
             await _refuse(scope, receive, send, AccessDenied(
-                "The request lacks this page's security token (CSRF), so it was not carried out.",
-                hint="Reload the page and try again."))
+                _("The request lacks this page's security token (CSRF), so it was not carried out."),
+                hint=_("Reload the page and try again.")))
             return None
     if principal is not None:
         state["principal"] = principal

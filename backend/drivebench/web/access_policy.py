@@ -18,6 +18,7 @@ from fastapi.routing import iter_route_contexts
 from starlette.routing import Match
 from starlette.types import Scope
 
+from drivebench.i18n import N_
 from drivebench.services.users.principals import Role
 
 SAFE_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
@@ -44,113 +45,115 @@ def _rules(role: Role, what: str, *routes: tuple[str, str]) -> dict[tuple[str, s
 
 RULES: dict[tuple[str, str], Rule] = {
     # --- writes that only read or calculate: a viewer may ---------------------------------------------------
-    **_rules(V, "Reading parameters",
+    **_rules(V, N_("Reading parameters"),
              ("POST", N + "/read-all"), ("POST", N + "/read-group"), ("POST", S + "/read-all"),
              ("POST", N + "/parameters:read"),
              ("POST", UN + "/parameters/{ref:path}/read"), ("POST", UN + "/read"), ("POST", UN + "/info/read")),
-    **_rules(V, "Changing your own monitor view",
+    **_rules(V, N_("Changing your own monitor view"),
              ("POST", S + "/monitor/pause"), ("POST", S + "/monitor/resume"), ("PUT", S + "/monitor/filter")),
-    **_rules(V, "Using the calculators",
+    **_rules(V, N_("Using the calculators"),
              ("POST", "/api/tools/dip/{family}"), ("POST", "/api/tools/planner/check"),
              ("POST", "/api/tools/planner/compare"), ("POST", "/api/planned-networks/{network_id}/compare"),
              ("POST", "/ui/tools/dip"), ("POST", "/ui/tools/cable"), ("POST", "/ui/tools/planner"),
              ("POST", "/ui/tools/planner/check"), ("POST", "/ui/tools/planner/export"),
              ("POST", "/ui/tools/planner/import"), ("POST", "/ui/tools/planner/load/{network_id}"),
              ("POST", "/ui/tools/planner/compare")),
-    **_rules(V, "Comparing parameter sets",
+    **_rules(V, N_("Comparing parameter sets"),
              ("POST", "/api/parameter-sets/compare"), ("POST", "/api/parameter-sets/{set_id}/preview"),
              ("POST", "/parameter-sets/compare"), ("POST", "/parameter-sets/{set_id}/preview")),
-    **_rules(V, "Keeping your own drive commands alive", ("POST", S + "/keepalive"),
+    **_rules(V, N_("Keeping your own drive commands alive"), ("POST", S + "/keepalive"),
              (WEBSOCKET, "/ws/sessions/{session_id}/keepalive")),  # keeps alive only what this browser started
-    **_rules(V, "Signing in", ("POST", "/api/auth/login"), ("GET", "/login"), ("POST", "/login")),
-    **_rules(V, "Signing out", ("POST", "/api/auth/logout"), ("POST", "/logout")),
-    **_rules(V, "Changing your own password", ("PUT", "/api/auth/password")),
-    **_rules(V, "Managing your own API tokens",
+    **_rules(V, N_("Signing in"), ("POST", "/api/auth/login"), ("GET", "/login"), ("POST", "/login")),
+    **_rules(V, N_("Signing out"), ("POST", "/api/auth/logout"), ("POST", "/logout")),
+    **_rules(V, N_("Changing your own password"), ("PUT", "/api/auth/password")),
+    **_rules(V, N_("Managing your own API tokens"),
              ("GET", "/api/auth/tokens"), ("POST", "/api/auth/tokens"), ("DELETE", "/api/auth/tokens/{token_id}")),
     # --- engineer: anything that writes to a device or changes what others see ------------------------------
-    **_rules(E, "Writing parameters",
+    **_rules(E, N_("Writing parameters"),
              ("PUT", N + "/parameters/{ref:path}"), ("POST", N + "/parameters:write"),
              ("POST", UN + "/parameters/{ref:path}/write")),
-    **_rules(E, "Device commands (save, load defaults, reset)",
+    **_rules(E, N_("Device commands (save, load defaults, reset)"),
              ("POST", N + "/commands/{command}"), ("POST", UN + "/commands/{command}")),
-    **_rules(E, "NMT commands", ("POST", S + "/nmt"), ("POST", N + "/nmt"), ("POST", US + "/nmt"),
+    **_rules(E, N_("NMT commands"), ("POST", S + "/nmt"), ("POST", N + "/nmt"), ("POST", US + "/nmt"),
              ("POST", UN + "/pdo/start-node")),
-    **_rules(E, "Scanning the bus and adding or removing nodes",
+    **_rules(E, N_("Scanning the bus and adding or removing nodes"),
              ("POST", S + "/scan"), ("POST", S + "/nodes"), ("DELETE", N), ("POST", US + "/scan"),
              ("POST", US + "/nodes")),
-    **_rules(E, "Changing heartbeat and node guarding",
+    **_rules(E, N_("Changing heartbeat and node guarding"),
              ("PUT", N + "/heartbeat/producer"), ("PUT", N + "/heartbeat/consumers/{slot}"), ("PUT", N + "/guarding"),
              ("POST", UN + "/diagnostics/producer"), ("POST", UN + "/diagnostics/consumers/{slot}"),
              ("POST", UN + "/diagnostics/guarding")),
-    **_rules(E, "Changing PDOs", ("PUT", N + "/pdos/{direction}/{number}"),
+    **_rules(E, N_("Changing PDOs"), ("PUT", N + "/pdos/{direction}/{number}"),
              ("POST", UN + "/pdo/{direction}/{number}/apply")),
-    **_rules(E, "Sending PDOs and SYNC", ("POST", UN + "/pdo/rpdo/{number}/send"),
+    **_rules(E, N_("Sending PDOs and SYNC"), ("POST", UN + "/pdo/rpdo/{number}/send"),
              ("POST", UN + "/pdo/rpdo/{number}/stop"), ("POST", UN + "/pdo/sync")),
-    **_rules(E, "Controlling a drive",
+    **_rules(E, N_("Controlling a drive"),
              ("POST", N + "/control/commands/{command}"), ("PUT", N + "/control/setpoint"),
              ("POST", N + "/control/jog"), ("PUT", N + "/control/mode"), ("POST", N + "/control/keepalive"),
              ("POST", N + "/control/move"), ("POST", N + "/control/home"), ("POST", N + "/control/cyclic"),
              ("DELETE", N + "/control/cyclic"),
              ("POST", N + "/control/sequences/{key}/runs"), ("POST", N + "/control/runs/{run_id}/next")),
-    **_rules(E, "Resetting the monitor counters and recording", ("POST", S + "/monitor/reset"),
+    **_rules(E, N_("Resetting the monitor counters and recording"), ("POST", S + "/monitor/reset"),
              ("POST", S + "/monitor/recordings"), ("POST", S + "/monitor/recordings/stop"),
              ("POST", "/ui/monitor/{session_id}/recordings"), ("POST", "/ui/monitor/{session_id}/recordings/stop")),
-    **_rules(E, "Changing device profiles", ("POST", "/api/profiles"), ("DELETE", "/api/profiles/{profile_id}"),
+    **_rules(E, N_("Changing device profiles"), ("POST", "/api/profiles"), ("DELETE", "/api/profiles/{profile_id}"),
              ("POST", "/ui/profiles"), ("POST", "/ui/profiles/{profile_id}/delete")),
-    **_rules(E, "Creating, listing and revoking remote diagnostics links", ("POST", "/api/share-links"),
+    **_rules(E, N_("Creating, listing and revoking remote diagnostics links"), ("POST", "/api/share-links"),
              ("GET", "/api/share-links"), ("DELETE", "/api/share-links/{link_id}"), ("POST", "/ui/share-links"),
              ("POST", "/ui/share-links/{link_id}/revoke")),
-    **_rules(E, "Saving planned networks", ("POST", "/api/planned-networks"), ("POST", "/api/planned-networks/import"),
+    **_rules(E, N_("Saving planned networks"),
+             ("POST", "/api/planned-networks"), ("POST", "/api/planned-networks/import"),
              ("PUT", "/api/planned-networks/{network_id}"), ("DELETE", "/api/planned-networks/{network_id}"),
              ("POST", "/ui/tools/planner/save"), ("POST", "/ui/tools/planner/delete/{network_id}")),
-    **_rules(E, "Changing parameter sets",
+    **_rules(E, N_("Changing parameter sets"),
              ("POST", "/api/parameter-sets/upload"), ("POST", "/api/parameter-sets/{set_id}/upload"),
              ("POST", "/api/parameter-sets/import"), ("PATCH", "/api/parameter-sets/{set_id}"),
              ("DELETE", "/api/parameter-sets/{set_id}"), ("POST", "/api/parameter-sets/{set_id}/copy"),
              ("POST", "/parameter-sets/upload"), ("POST", "/parameter-sets/{set_id}/upload"),
              ("POST", "/parameter-sets/import"), ("POST", "/parameter-sets/{set_id}/rename"),
              ("DELETE", "/parameter-sets/{set_id}"), ("POST", "/parameter-sets/{set_id}/copy")),
-    **_rules(E, "Downloading parameter sets to a drive",
+    **_rules(E, N_("Downloading parameter sets to a drive"),
              ("POST", "/api/parameter-sets/{set_id}/download"),
              ("POST", "/api/parameter-downloads/{download_id}/retry"),
              ("POST", "/api/parameter-downloads/{download_id}/rollback"), ("POST", "/parameter-sets/{set_id}/download"),
              ("POST", "/parameter-sets/downloads/{download_id}/{action}")),
-    **_rules(E, "Cancelling a job", ("DELETE", "/api/jobs/{job_id}")),
-    **_rules(E, "Releasing your write lease of a node", ("DELETE", N + "/lease"),  # force=true: the route asks admin
+    **_rules(E, N_("Cancelling a job"), ("DELETE", "/api/jobs/{job_id}")),
+    **_rules(E, N_("Releasing your write lease of a node"),
+             ("DELETE", N + "/lease"),  # force=true: the route asks admin
              ("POST", UN + "/lease/release")),
-    **_rules(E, "Injecting faults into simulated drives", ("PUT", S + "/simulator/nodes/{node_id}/faults"),
+    **_rules(E, N_("Injecting faults into simulated drives"), ("PUT", S + "/simulator/nodes/{node_id}/faults"),
              ("DELETE", S + "/simulator/nodes/{node_id}/faults")),
     # --- admin: sessions (adapters), their SDO settings, users and tokens -----------------------------------
-    **_rules(A, "Opening and closing sessions (CAN adapters)", ("POST", "/api/sessions"), ("DELETE", S),
+    **_rules(A, N_("Opening and closing sessions (CAN adapters)"), ("POST", "/api/sessions"), ("DELETE", S),
              ("POST", "/ui/sessions"), ("POST", US + "/close")),
-    **_rules(A, "Breaking another writer's lease", ("POST", UN + "/lease/break")),
-    **_rules(A, "Changing the SDO settings of a session", ("PUT", S + "/sdo-settings"),
+    **_rules(A, N_("Breaking another writer's lease"), ("POST", UN + "/lease/break")),
+    **_rules(A, N_("Changing the SDO settings of a session"), ("PUT", S + "/sdo-settings"),
              ("POST", UN + "/sdo-settings")),
-    **_rules(A, "Managing users", ("GET", "/api/users"), ("POST", "/api/users"), ("GET", "/api/users/{name}"),
+    **_rules(A, N_("Managing users"), ("GET", "/api/users"), ("POST", "/api/users"), ("GET", "/api/users/{name}"),
              ("PATCH", "/api/users/{name}"), ("PUT", "/api/users/{name}/password"), ("GET", "/users"),
              ("POST", "/ui/users"), ("POST", "/ui/users/{name}/disable"), ("POST", "/ui/users/{name}/enable"),
              ("POST", "/ui/users/{name}/role"), ("POST", "/ui/users/{name}/password")),
-    **_rules(A, "Managing API tokens", ("GET", "/api/tokens"), ("POST", "/api/tokens"),
+    **_rules(A, N_("Managing API tokens"), ("GET", "/api/tokens"), ("POST", "/api/tokens"),
              ("DELETE", "/api/tokens/{token_id}"), ("POST", "/ui/tokens"), ("POST", "/ui/tokens/{token_id}/revoke")),
     # --- websockets ----------------------------------------------------------------------------------------
     # The control socket only streams the drive's state; its messages keep alive a drive this panel holds, and
     # only an engineer's command makes a panel a holder.
-    **_rules(V, "Watching a drive", (WEBSOCKET, N.replace("/api/", "/ws/", 1) + "/control")),
-    **_rules(V, "Watching", (WEBSOCKET, "/ws/sessions/{session_id}/monitor"),
+    **_rules(V, N_("Watching a drive"), (WEBSOCKET, N.replace("/api/", "/ws/", 1) + "/control")),
+    **_rules(V, N_("Watching"), (WEBSOCKET, "/ws/sessions/{session_id}/monitor"),
              (WEBSOCKET, "/ws/sessions/{session_id}/nodes"),
              (WEBSOCKET, "/ws/jobs/{job_id}"), (WEBSOCKET, "/ws/remote/{token}"),
              (WEBSOCKET, "/ws/sessions/{session_id}/nodes/{node_id}/process-data")),
 }
 
-READING = Rule(V, "Reading")
-UNCLASSIFIED_WRITE = Rule(A, "This action (not yet given a role)")
-UNCLASSIFIED_WEBSOCKET = Rule(A, "This live connection (not yet given a role)")
+READING = Rule(V, N_("Reading"))
+UNCLASSIFIED_WRITE = Rule(A, N_("This action (not yet given a role)"))
+UNCLASSIFIED_WEBSOCKET = Rule(A, N_("This live connection (not yet given a role)"))
 
 # Reached without signing in: the sign-in itself, static files, the health check, and the pages and stream of a
 # remote-diagnostics link (which check the link's own token).
 PUBLIC: frozenset[tuple[str, str]] = frozenset({
     ("GET", "/login"), ("POST", "/login"), ("POST", "/api/auth/login"), ("GET", "/api/health"),
-    ("GET", "/remote/{token}"), (WEBSOCKET, "/ws/remote/{token}"),
+    ("GET", "/remote/{token}"), (WEBSOCKET, "/ws/remote/{token}"), ("GET", "/language/{code}"),
 })
 PUBLIC_PREFIXES = ("/static/",)
 

@@ -22,7 +22,7 @@ from drivebench.services.storage.database import upgrade_to_head
 from drivebench.services.users import audit
 from drivebench.services.users.sharing import ShareLinks
 from drivebench.simulator.plant import Plant, PlantFile
-from drivebench.web import access, access_policy, problems
+from drivebench.web import access, access_policy, language, problems
 from drivebench.web.api import accounts as accounts_api
 from drivebench.web.api import diagnostics, health, parameter_sets, parameters, pdo, profiles, sessions, tools
 from drivebench.web.api import drive_control as drive_control_api
@@ -55,7 +55,7 @@ log = logging.getLogger(__name__)
 API_ROUTERS = [health.router, parameters.router, monitor_api.router, sessions.router, profiles.router,
                diagnostics.router, tools.router, tools.planned_router, pdo.router, parameter_sets.router,
                drive_control_api.router, accounts_api.router, simulator_api.router]
-PAGE_ROUTERS = [node_diagnostics.router, node_pdo_page.router, monitor_page.router, plant_page.router,
+PAGE_ROUTERS = [language.router, node_diagnostics.router, node_pdo_page.router, monitor_page.router, plant_page.router,
                 node_control.router, node_page.router, profiles_page.router, remote_page.router, tools_page.router,
                 parameter_sets_page.router, accounts_page.router]
 WS_ROUTERS = [monitor_ws.router, nodes_ws.router, jobs_ws.router, remote_ws.router, process_data_ws.router,
@@ -118,6 +118,7 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
     # One pass for security headers, body limit, share-link scope, host/origin, sign-in, roles and CSRF.
     app.add_middleware(RequestGate, links=share_links, limit_bytes=settings.max_upload_bytes,
                        hsts=settings.hsts if hsts is None else hsts)
+    app.add_middleware(language.LanguageMiddleware)  # outside the gate: the language of all inside, refusals too
     for router in API_ROUTERS + PAGE_ROUTERS + WS_ROUTERS:
         app.include_router(router)
     app.mount("/static", StaticFiles(directory=settings.frontend_dir / "static"), name="static")

@@ -15,6 +15,7 @@ from markupsafe import Markup
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from drivebench import errors
+from drivebench.i18n import N_, _
 from drivebench.web.templating import templates
 
 # Most specific class first.
@@ -59,7 +60,7 @@ def problem_body(exc: errors.DriveBenchError, instance: str) -> dict[str, object
     kebab = "".join("-" + c.lower() if c.isupper() else c for c in type_name).lstrip("-")
     body: dict[str, object] = {
         "type": f"/problems/{kebab}",
-        "title": exc.title,
+        "title": _(exc.title),  # the request's language (web/language): English unless the browser asks German
         "status": status_for(exc),
         "detail": exc.detail,
         "instance": instance,
@@ -87,8 +88,9 @@ def wants_page(request: Request) -> bool:
 
 
 # Where to go from a failed page, by the start of its path; the Plant screen lists sessions and nodes.
-WAYS_BACK = [("/profiles/", "/profiles", "All profiles"), ("/parameter-sets/", "/parameter-sets", "All parameter sets"),
-             ("/monitor/", "/monitor", "Monitor"), ("/sessions/", "/", "Plant: sessions and nodes")]
+WAYS_BACK = [("/profiles/", "/profiles", N_("All profiles")),
+             ("/parameter-sets/", "/parameter-sets", N_("All parameter sets")),
+             ("/monitor/", "/monitor", N_("Monitor")), ("/sessions/", "/", N_("Plant: sessions and nodes"))]
 
 
 def error_page(request: Request, body: dict[str, object]) -> Response:
@@ -98,8 +100,8 @@ def error_page(request: Request, body: dict[str, object]) -> Response:
         context["viewer"] = None
         context["ways"] = []
     else:
-        ways = [(href, label) for prefix, href, label in WAYS_BACK if path.startswith(prefix)]
-        context["ways"] = ways if any(href == "/" for href, _ in ways) else [*ways, ("/", "Plant")]
+        ways = [(href, _(label)) for prefix, href, label in WAYS_BACK if path.startswith(prefix)]
+        context["ways"] = ways if any(href == "/" for href, _label in ways) else [*ways, ("/", _("Plant"))]
     status = int(body["status"])  # type: ignore[call-overload]
     return templates.TemplateResponse(request, "error.html", context, status_code=status)
 
@@ -120,8 +122,9 @@ def install(app: FastAPI) -> None:
         """Unknown URLs and methods: FastAPI's JSON for clients, a page of the app for a browser."""
         if not wants_page(request):
             return await http_exception_handler(request, exc)
-        detail = exc.detail if exc.status_code != 404 else f"There is no page at {request.url.path}."
-        title = "Page not found" if exc.status_code == 404 else "Request failed"
+        missing = _("There is no page at {path}.").format(path=request.url.path)
+        detail = exc.detail if exc.status_code != 404 else missing
+        title = _("Page not found") if exc.status_code == 404 else _("Request failed")
         body: dict[str, object] = {"type": "about:blank", "title": title, "status": exc.status_code,
                                    "detail": detail, "instance": request.url.path}
         return error_page(request, body)
@@ -129,7 +132,7 @@ def install(app: FastAPI) -> None:
     @app.exception_handler(RequestValidationError)
     async def _validation_error(request: Request, exc: RequestValidationError) -> Response:
         problems = [f"{'.'.join(str(p) for p in e['loc'] if p != 'body')}: {e['msg']}" for e in exc.errors()]
-        body = {"type": "/problems/validation", "title": "Invalid request", "status": 422,
+        body = {"type": "/problems/validation", "title": _("Invalid request"), "status": 422,
                 "detail": "; ".join(problems), "instance": str(request.url.path), "errors": exc.errors()}
         if request.headers.get("HX-Request") == "true":
             return HTMLResponse(error_fragment(body), status_code=422)

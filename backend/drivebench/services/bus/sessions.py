@@ -19,6 +19,7 @@ import can
 from drivebench.device.catalog import Catalog
 from drivebench.device.profile import Profile
 from drivebench.errors import DriveBenchError, NotFound, SdoAbortError, SdoTimeoutError
+from drivebench.i18n import _
 from drivebench.protocol.emcy import EmcyEvent
 from drivebench.protocol.esm import EsmState
 from drivebench.protocol.ethercat_network import EthercatNetwork, SlaveInfo
@@ -137,7 +138,8 @@ class Session:
     def node(self, node_id: int) -> SessionNode:
         node = self.nodes.get(node_id)
         if node is None:
-            raise NotFound(f"Node {node_id} is not part of session '{self.name}'. Scan the bus or add it.")
+            raise NotFound(_("Node {node} is not part of session '{session}'. Scan the bus or add it.").format(
+                node=node_id, session=self.name))
         return node
 
     def client(self, node_id: int) -> SdoClient:

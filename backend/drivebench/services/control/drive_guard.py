@@ -31,6 +31,7 @@ from dataclasses import dataclass
 from urllib.parse import unquote
 
 from drivebench.errors import ConfirmationRequired, Conflict, DriveBenchError, InvalidValue
+from drivebench.i18n import _
 from drivebench.protocol.nmt import NmtCommand
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.control.drive_words import Command, family_of, next_control_word
@@ -54,11 +55,12 @@ def require_confirmation(given: object, node_id: int | None, what: str) -> None:
     text = str(given).strip().lower() if given is not None and given is not False else ""
     if text == wanted:
         return
-    whom = "every node of the session" if node_id is None else f"node {node_id}"
-    said = f" (it said {str(given)[:20]!r})" if text else ""
+    whom = _("every node of the session") if node_id is None else _("node {node}").format(node=node_id)
+    said = _(" (it said {given})").format(given=repr(str(given)[:20])) if text else ""
     raise ConfirmationRequired(
-        f"{what} lets {whom} move a drive: confirm it with confirm = {wanted!r} (or the header "
-        f"X-DriveBench-Confirm: {wanted}){said}.")
+        _("{what} lets {whom} move a drive: confirm it with confirm = {wanted} (or the header "
+          "X-DriveBench-Confirm: {plain}){said}.").format(what=what, whom=whom, wanted=repr(wanted), plain=wanted,
+                                                         said=said))
 
 
 @dataclass(frozen=True)

@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 from typing import Concatenate, ParamSpec, TypeVar
 
 from drivebench.errors import Conflict, NotFound
+from drivebench.i18n import N_
 from drivebench.services.bus.sessions import Session
 
 LEASE_TTL_S = 30.0
@@ -69,7 +70,7 @@ class Lease:
 
 
 class NodeLeased(Conflict):
-    title = "Node is being written by someone else"
+    title = N_("Node is being written by someone else")
 
     def __init__(self, node_id: int, lease: Lease) -> None:
         super().__init__(lease.text(node_id), hint="An admin may break the lease (DELETE .../lease?force=true).")

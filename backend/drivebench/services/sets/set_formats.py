@@ -35,6 +35,7 @@ from drivebench.device.profile import Profile
 from drivebench.device.scaling import format_value, to_raw
 from drivebench.device.xdd_export import export_xdd
 from drivebench.errors import DriveBenchError, InvalidValue, ProfileError, UnknownParameter
+from drivebench.i18n import N_
 from drivebench.services.sets.parameter_sets import (
     TOOL_CHANNELS,
     Raw,
@@ -93,7 +94,7 @@ class LineError:
 class SetImportError(InvalidValue):
     """A file that does not fit the target profile; ``errors`` name every line that does not."""
 
-    title = "Parameter set file does not fit"
+    title = N_("Parameter set file does not fit")
 
     def __init__(self, source: str, errors: list[LineError]) -> None:
         shown = "; ".join(str(e) for e in errors[:5]) + (f"; ... {len(errors) - 5} more" if len(errors) > 5 else "")

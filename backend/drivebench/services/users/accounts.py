@@ -26,6 +26,7 @@ from sqlalchemy.orm import Session
 
 from drivebench.config import settings
 from drivebench.errors import AccessDenied, Conflict, InvalidValue, NotAuthenticated, NotFound
+from drivebench.i18n import N_
 from drivebench.services.storage.database import transaction
 from drivebench.services.storage.models import (
     ApiTokenRow,
@@ -80,7 +81,7 @@ class IssuedToken:
 
 
 class LoginLocked(NotAuthenticated):
-    title = "Too many failed sign-ins"
+    title = N_("Too many failed sign-ins")
 
     def __init__(self, detail: str, *, retry_after_s: int) -> None:
         super().__init__(detail, hint="Wait, then sign in again; an admin can reset a forgotten password.")

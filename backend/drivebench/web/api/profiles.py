@@ -27,6 +27,7 @@ from drivebench.device.profile_batch import MAX_FILES, add_many
 from drivebench.device.xdd import XML_SUFFIXES
 from drivebench.device.xdd_export import export_xdd
 from drivebench.errors import Conflict, DriveBenchError, ProfileError
+from drivebench.i18n import N_
 from drivebench.web.deps import StateDep
 from drivebench.web.problems import error_fragment, problem_body
 from drivebench.web.state import AppState
@@ -42,7 +43,7 @@ EntryKind = Literal["all", "parameters", "objects"]
 class UploadTooLarge(ProfileError):
     """An upload past the size limit: answered with 413 (Content Too Large), not 422."""
 
-    title = "Upload too large"
+    title = N_("Upload too large")
 
 
 # --- response models ------------------------------------------------------------------------------------

@@ -7,6 +7,7 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Form, Query, Request
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 
+from drivebench.i18n import N_
 from drivebench.services.bus.sessions import Session
 from drivebench.services.bus.views import NodePublic, nodes_public, session_public
 from drivebench.services.monitoring import telegram_counters
@@ -16,7 +17,8 @@ from drivebench.web.deps import SessionDep, StateDep
 from drivebench.web.templating import templates
 
 router = APIRouter(include_in_schema=False)
-BUS_LABELS = {"active": "error active", "warning": "warning", "passive": "error passive", "bus-off": "bus-off"}
+BUS_LABELS = {"active": N_("error active"), "warning": N_("warning"), "passive": N_("error passive"),
+              "bus-off": N_("bus-off")}  # translated where shown (monitor.html)
 
 
 def _recordings(session: Session, **extra: Any) -> dict[str, Any]:

@@ -13,9 +13,11 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Form, Query, Request
 from fastapi.responses import HTMLResponse, Response
 
+from drivebench import i18n
 from drivebench.device.catalog import Item
 from drivebench.device.motion import motion_of
 from drivebench.errors import AccessDenied, DriveBenchError, NodeOffline, NotFound, SdoTimeoutError
+from drivebench.i18n import N_
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.bus.views import node_public
 from drivebench.services.control import drive_guard
@@ -32,8 +34,8 @@ from drivebench.web.safety import ACTING, WriterDep
 from drivebench.web.templating import templates
 
 router = APIRouter(include_in_schema=False, dependencies=[ACTING])
-TABS = [("parameters", "Parameters"), ("pdo", "PDO"), ("diagnostics", "Diagnostics"), ("control", "Control"),
-        ("info", "Info")]
+TABS = [("parameters", N_("Parameters")), ("pdo", N_("PDO")), ("diagnostics", N_("Diagnostics")),
+        ("control", N_("Control")), ("info", N_("Info"))]  # translated where shown (node.html)
 UI = "/ui/sessions/{session_id}/nodes/{node_id}"
 
 IDENTITY = [("Device type", "0x1000"), ("Vendor ID", "0x1018.1"), ("Product code", "0x1018.2"),
@@ -54,6 +56,8 @@ def edit_value(last: service.ParameterValue | None, item: Item) -> str:
         return f"0x{last.raw:X}"
     if isinstance(last.value, float) and last.value.is_integer():
         return str(int(last.value))
+    if isinstance(last.value, float):  # 12,5 in German (the value parser reads either mark)
+        return str(last.value).replace(".", i18n.decimal_symbol())
     return str(last.value)
 
 

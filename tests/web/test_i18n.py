@@ -1,0 +1,221 @@
+"""The German UI: every text of the templates and of the problem details has a German catalogue entry, and the real
+HTTP API answers in the language the switch or the browser asks for, numbers written as that language writes them."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+from babel.messages.extract import extract_from_dir
+from babel.messages.frontend import parse_mapping_cfg
+from babel.messages.pofile import read_po
+from fastapi.testclient import TestClient
+
+from drivebench import i18n
+
+ROOT = Path(__file__).resolve().parents[2]
+DE_PO = i18n.LOCALE_DIR / "de" / "LC_MESSAGES" / "messages.po"
+SESSION = "demo-plant"
+GERMAN = {"Accept-Language": "de-DE,de;q=0.9,en;q=0.5"}
+
+
+def _extracted() -> dict[str, str]:
+    """Every text pybabel extract finds (babel.cfg: the Python code and the templates), with where it is."""
+    with (ROOT / "babel.cfg").open() as cfg:
+        method_map, options_map = parse_mapping_cfg(cfg)
+    found: dict[str, str] = {}
+    for filename, lineno, message, _comments, _context in extract_from_dir(str(ROOT), method_map, options_map):
+        msgid = message if isinstance(message, str) else message[0]
+        found.setdefault(msgid, f"{filename}:{lineno}")
+    return found
+
+
+def _german() -> dict[str, object]:
+    with DE_PO.open("rb") as po:
+        catalog = read_po(po, locale="de")
+    return {(m.id if isinstance(m.id, str) else m.id[0]): m for m in catalog if m.id}
+
+
+def test_every_text_of_the_templates_and_code_has_a_german_translation() -> None:
+    extracted, german = _extracted(), _german()
+    assert any(where.startswith("frontend/templates/node/") for where in extracted.values())  # templates were read
+    assert "Plant" in extracted and "Not signed in" in extracted  # a template text and an error title
+    missing = [f"{where}: {msgid!r}" for msgid, where in sorted(extracted.items())
+               if msgid not in german or "fuzzy" in german[msgid].flags  # type: ignore[attr-defined]
+               or not all(german[msgid].string if isinstance(german[msgid].string, tuple)  # type: ignore[attr-defined]
+                          else [german[msgid].string])]  # type: ignore[attr-defined]
+    assert not missing, "no German catalogue entry (run `make i18n-update` and translate):\n" + "\n".join(missing)
+
+
+PLACEHOLDER = re.compile(r"%\((\w+)\)s|\{(\w+)\}")
+
+
+def test_german_texts_keep_the_placeholders_of_the_english() -> None:
+    wrong = []
+    for msgid, message in _german().items():
+        strings = message.string if isinstance(message.string, tuple) else (message.string,)  # type: ignore[attr-defined]
+        wanted = set(PLACEHOLDER.findall(msgid))
+        wrong += [f"{msgid!r} -> {text!r}" for text in strings if text and set(PLACEHOLDER.findall(text)) != wanted]
+    assert not wrong, "\n".join(wrong)
+
+
+# Text left outside gettext in a template: a text node or a shown attribute with a word in it. Jinja code, scripts
+# and <code> are left out; what remains must be a symbol, a number or one of these words that read the same in both.
+_JINJA = re.compile(r"\{%-?\s*trans\b.*?\{%-?\s*endtrans\s*-?%\}|\{\{.*?\}\}|\{%.*?%\}|\{#.*?#\}", re.S)
+_RAW = re.compile(r"<(script|style|code|pre|textarea)\b[^>]*>.*?</\1>", re.S | re.I)
+_SHOWN_ATTRIBUTES = re.compile(r'\s(?:title|placeholder|aria-label|hx-confirm|alt)="([^"]*)"')
+SAME_IN_BOTH = {"DriveBench", "TEC", "REC", "kbit", "ms", "mm", "s", "expedited"}  # expedited: CiA 301 transfer name
+
+
+def test_no_english_text_is_left_outside_gettext_in_the_templates() -> None:
+    left = []
+    for template in sorted((ROOT / "frontend" / "templates").rglob("*.html")):
+        source = _RAW.sub("<raw></raw>", _JINJA.sub("\x00", template.read_text()))
+        pieces = re.findall(r">([^<>]+)<", source) + _SHOWN_ATTRIBUTES.findall(source)
+        for piece in pieces:
+            words = {w for w in re.findall(r"[A-Za-z]{2,}", piece) if w not in SAME_IN_BOTH}
+            if words:
+                left.append(f"{template.relative_to(ROOT)}: {piece.strip()[:100]!r}")
+    assert not left, "English text outside {% trans %} / _():\n" + "\n".join(left)
+
+
+def test_the_language_comes_from_the_switch_else_the_browser() -> None:
+    assert i18n.negotiate("de-AT,de;q=0.9,en;q=0.8") == "de"
+    assert i18n.negotiate("fr-FR, de;q=0.5, en;q=0.4") == "de"  # the first one we have
+    assert i18n.negotiate("en-GB,en;q=0.9,de;q=0.8") == "en"
+    assert i18n.negotiate("de;q=0, en") == "en"  # q=0: not German
+    assert i18n.negotiate(None) == "en" and i18n.negotiate("fr") == "en"
+    assert i18n.negotiate("de", cookie="en") == "en" and i18n.negotiate("en", cookie="de") == "de"
+    assert i18n.negotiate("de", cookie="xx") == "de"  # a cookie naming no language we have is ignored
+
+
+def test_numbers_as_each_language_writes_them() -> None:
+    with i18n.using("de"):
+        assert i18n.number(1234.5) == "1.234,5"
+        assert i18n.number(1234.5, 2) == "1.234,50"
+    with i18n.using("en"):
+        assert i18n.number(1234.5) == "1,234.5"
+
+
+def test_accept_language_german_gives_the_german_plant_page(client: TestClient) -> None:
+    page = client.get("/", headers=GERMAN)
+    assert page.status_code == 200
+    assert '<html lang="de">' in page.text
+    assert "<h1>Anlage</h1>" in page.text and "Sitzung öffnen" in page.text and "Bus scannen" in page.text
+    assert "Open session" not in page.text
+    assert {v.strip() for v in page.headers["vary"].split(",")} >= {"Accept-Language", "Cookie"}
+    assert page.headers["content-language"] == "de"
+    assert "Der Antrieb kann sich bewegen" in page.text  # app.js's texts, handed to it as JSON (js-messages)
+    english = client.get("/")
+    assert 'id="js-messages"' not in english.text
+    assert '<html lang="en">' in english.text and "<h1>Plant</h1>" in english.text and "Open session" in english.text
+
+
+def test_the_switch_sets_a_cookie_that_overrides_the_browser(client: TestClient) -> None:
+    switched = client.get("/language/en?next=/monitor", headers=GERMAN, follow_redirects=False)
+    assert switched.status_code == 303 and switched.headers["location"] == "/monitor"
+    assert "drivebench_lang=en" in switched.headers["set-cookie"]
+    page = client.get("/", headers=GERMAN)  # the test client keeps the cookie
+    assert '<html lang="en">' in page.text and "<h1>Plant</h1>" in page.text
+    client.get("/language/de", follow_redirects=False)
+    assert "<h1>Anlage</h1>" in client.get("/", headers={"Accept-Language": "en"}).text
+    # the switch never sends anyone to another site
+    for target in ("//evil.example/", "https://evil.example/", "/\\evil.example"):
+        assert client.get("/language/de", params={"next": target}, follow_redirects=False).headers["location"] == "/"
+
+
+def test_the_header_switch_links_both_languages_back_to_this_page(client: TestClient) -> None:
+    page = client.get("/tools?x=1", headers=GERMAN).text
+    assert 'href="/language/en?next=/tools%3Fx%3D1"' in page
+    assert re.search(r'id="lang-de"\s+class="active" aria-current="true"', page)
+
+
+def test_the_parameters_tab_in_german_with_german_numbers(client: TestClient) -> None:
+    written = client.put(f"/api/sessions/{SESSION}/nodes/5/parameters/C00088", json={"value": 1234.5})
+    assert written.status_code == 200, written.text
+    assert written.json()["read_back"]["display"] == "1234.50 A"  # the JSON API keeps one number format
+    tab = client.get(f"/sessions/{SESSION}/nodes/5?tab=parameters", headers=GERMAN).text
+    assert ">Parameter</a>" in tab and "Alle lesen" in tab and "Neuer Wert" in tab
+    assert "Rated motor current" in tab  # the vendor's name as the manual prints it: no name_de in this profile
+    profile = client.app.state.drivebench.registry.get("lenze-8400-motec-canopen")  # type: ignore[attr-defined]
+    rated_current = next(p for p in profile.parameters if p.code == "C00088")
+    rated_current.name_de = "Motor-Bemessungsstrom"  # as a profile with the German manual's names would give it
+    tab = client.get(f"/sessions/{SESSION}/nodes/5?tab=parameters&q=C00088", headers=GERMAN).text
+    assert "Motor-Bemessungsstrom" in tab and "Rated motor current" not in tab
+    assert "Rated motor current" in client.get(f"/sessions/{SESSION}/nodes/5?tab=parameters&q=C00088").text
+    row = client.post(f"/ui/sessions/{SESSION}/nodes/5/parameters/C00088/read",
+                      headers={**GERMAN, "HX-Request": "true", "X-DriveBench": "1"})
+    assert row.status_code == 200, row.text
+    assert ">1.234,50 A</span>" in row.text and "Lesen" in row.text
+    english = client.post(f"/ui/sessions/{SESSION}/nodes/5/parameters/C00088/read",
+                          headers={"HX-Request": "true", "X-DriveBench": "1"})
+    assert ">1234.50 A</span>" in english.text
+
+
+def test_problem_details_follow_the_language_and_stay_english_by_default(client: TestClient) -> None:
+    unknown = client.get(f"/api/sessions/{SESSION}/nodes/99/parameters/C00088", headers=GERMAN)
+    assert unknown.status_code == 404
+    assert unknown.json()["title"] == "Nicht gefunden"
+    assert unknown.json()["detail"].startswith("Knoten 99 gehört nicht zur Sitzung")
+    assert unknown.json()["type"] == "/problems/not-found"  # what scripts branch on never changes
+    plain = client.get(f"/api/sessions/{SESSION}/nodes/99/parameters/C00088")
+    assert plain.json()["title"] == "Not found" and plain.json()["detail"].startswith("Node 99 is not part of")
+    # confirmation naming the node, in German for a German browser
+    start = client.post(f"/api/sessions/{SESSION}/nodes/5/nmt", json={"command": "start"}, headers=GERMAN)
+    assert start.status_code == 428
+    assert start.json()["title"] == "Bestätigung erforderlich" and "Knoten 5" in start.json()["detail"]
+    assert "confirm = '5'" in start.json()["detail"]  # what app.js reads to ask and send the confirmation again
+    # a page that does not exist, as a browser opens it
+    missing = client.get("/nowhere", headers={**GERMAN, "Accept": "text/html"})
+    assert missing.status_code == 404 and "Seite nicht gefunden" in missing.text and "Unter /nowhere" in missing.text
+    # validation
+    invalid = client.put(f"/api/sessions/{SESSION}/nodes/5/parameters/C00088", json={}, headers=GERMAN)
+    assert invalid.status_code == 422 and invalid.json()["title"] == "Ungültige Anfrage"
+
+
+def test_a_profile_name_de_is_shown_in_german_only(registry: object) -> None:
+    from drivebench.device.catalog import Item
+    from drivebench.device.profile import Parameter
+
+    entry = Parameter(code="C00088", name="Rated motor current", name_de="Motor-Bemessungsstrom",
+                      data_type="UNSIGNED32", unit="A", factor=100)  # type: ignore[arg-type]
+    item = Item(ref="C00088", index=0x5FA7, subindex=0, entry=entry)
+    assert item.name_for("de") == "Motor-Bemessungsstrom" and item.name_for("en") == item.name == "Rated motor current"
+    plain = Item(ref="C00089", index=0x5FA6, subindex=0, entry=Parameter(code="C00089", name="Rated motor voltage",
+                                                                           data_type="UNSIGNED32"))  # type: ignore[arg-type]
+    assert plain.name_for("de") == "Rated motor voltage"  # no German name in the profile: the manual's own
+
+
+@pytest.mark.parametrize("path", ["/", "/monitor", "/tools", "/parameter-sets", "/profiles", "/remote",
+                                  f"/sessions/{SESSION}/nodes/5?tab=parameters", f"/sessions/{SESSION}/nodes/5?tab=pdo",
+                                  f"/sessions/{SESSION}/nodes/5?tab=diagnostics",
+                                  f"/sessions/{SESSION}/nodes/7?tab=control", f"/sessions/{SESSION}/nodes/5?tab=info"])
+def test_every_screen_renders_in_german(client: TestClient, path: str) -> None:
+    page = client.get(path, headers=GERMAN)
+    assert page.status_code == 200, page.text[:500]
+    assert '<html lang="de">' in page.text and 'aria-label="Ansichten"' in page.text
+
+
+def test_a_catalogue_without_its_mo_is_compiled_from_the_po(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A clean clone (no make install) or a .po edited after the last compile: Babel compiles the .po in memory."""
+    messages = tmp_path / "de" / "LC_MESSAGES"
+    messages.mkdir(parents=True)
+    (messages / "messages.po").write_bytes(DE_PO.read_bytes())
+    monkeypatch.setattr(i18n, "LOCALE_DIR", tmp_path)
+    i18n.translations.cache_clear()
+    try:
+        with i18n.using("de"):
+            assert i18n.gettext("Plant") == "Anlage"
+            assert i18n.ngettext("%(count)s warning", "%(count)s warnings", 2) == "%(count)s Warnungen"
+        assert not (messages / "messages.mo").exists()  # nothing written into the package
+    finally:
+        i18n.translations.cache_clear()
+
+
+def test_the_plant_pages_websocket_pushes_the_table_in_the_asked_language(client: TestClient) -> None:
+    with client.websocket_connect(f"/ws/sessions/{SESSION}/nodes", headers=GERMAN) as socket:
+        table = socket.receive_text()
+    assert "NMT-Zustand" in table and "NMT state" not in table
+    with client.websocket_connect(f"/ws/sessions/{SESSION}/nodes") as socket:
+        assert "NMT state" in socket.receive_text()
