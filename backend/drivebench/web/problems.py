@@ -136,6 +136,8 @@ def install(app: FastAPI) -> None:
                 "detail": "; ".join(problems), "instance": str(request.url.path), "errors": exc.errors()}
         if request.headers.get("HX-Request") == "true":
             return HTMLResponse(error_fragment(body), status_code=422)
+        if wants_page(request):  # a mistyped address in the browser (/sessions/x/nodes/1001): a page of the app
+            return error_page(request, body)
         return JSONResponse(jsonable(body), status_code=422, media_type="application/problem+json")
 
 
