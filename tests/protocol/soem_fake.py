@@ -37,7 +37,8 @@ class FakeSlave:
         self.callbacks: list[Any] = []
         self.emergencies: list[bytes] = []
         unit.emergency_sink = self.emergencies.append
-        self.sdo = CoeSdoClient(lambda telegram, timeout: unit.mailbox(telegram), unit.station, retries=0)
+        self.sdo = CoeSdoClient(lambda telegram, timeout: next(iter(unit.mailbox(telegram)), None), unit.station,
+                                retries=0)
 
     def _answering(self) -> None:
         if not self.unit.node.powered:
