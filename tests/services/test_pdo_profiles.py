@@ -9,9 +9,10 @@ from collections.abc import Iterator
 
 import pytest
 
+from drivebench.device import pdo_notes
 from drivebench.device.loader import ProfileRegistry
 from drivebench.services.bus.sessions import Session
-from drivebench.services.pdos import pdo, pdo_notes
+from drivebench.services.pdos import pdo
 from drivebench.services.pdos.pdo import Direction, PdoWrite
 from drivebench.services.session_manager import SessionManager
 from drivebench.simulator.plant import Plant, PlantFile, PlantNode

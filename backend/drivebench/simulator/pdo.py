@@ -12,9 +12,9 @@ import threading
 import time
 from dataclasses import dataclass, field
 
+from drivebench.device.pdo_notes import selecting_byte, static_mapping
 from drivebench.errors import UnknownParameter
 from drivebench.protocol.datatypes import decode, encode
-from drivebench.services.pdos.pdo_notes import selecting_byte, static_mapping
 from drivebench.simulator.host import DeviceHost
 from drivebench.simulator.store import Abort
 

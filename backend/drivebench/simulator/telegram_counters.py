@@ -2,13 +2,13 @@
 so the monitor's side-by-side comparison compares with something that moves.
 
 Each counter counts the frames of the COB-IDs its subcode name stands for (see
-``services.telegram_counters.cob_ids_for``): frames the node sends, and frames on the bus it receives. Like the
+``device.telegram_counters.cob_ids_for``): frames the node sends, and frames on the bus it receives. Like the
 drive, in 16 bits that wrap, from power-up (the values are not saved).
 """
 
 from __future__ import annotations
 
-from drivebench.services.monitoring.telegram_counters import counted_cob_ids, counter_parameters
+from drivebench.device.telegram_counters import counted_cob_ids, counter_parameters
 from drivebench.simulator.store import ObjectStore
 
 WRAP = 1 << 16

@@ -12,6 +12,7 @@ from typing import Literal
 
 from pydantic import BaseModel, Field
 
+from drivebench.device import pdo_notes
 from drivebench.device.catalog import Catalog
 from drivebench.device.cobids import alternative_hint
 from drivebench.device.eds_export import export_eds
@@ -22,7 +23,6 @@ from drivebench.errors import DriveBenchError, InvalidValue, NotFound, ProtocolE
 from drivebench.protocol.datatypes import DataType, decode
 from drivebench.services.bus.sessions import Session
 from drivebench.services.params import node_lease
-from drivebench.services.pdos import pdo_notes
 
 Direction = Literal["rpdo", "tpdo"]
 COMM_BASE: dict[str, int] = {"rpdo": 0x1400, "tpdo": 0x1800}

@@ -17,12 +17,13 @@ from fastapi import APIRouter, Form, Request
 from fastapi.responses import HTMLResponse, Response
 from pydantic import BaseModel
 
+from drivebench.device import pdo_notes
 from drivebench.errors import AccessDenied, InvalidValue
 from drivebench.protocol.nmt import NmtCommand
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.bus.views import node_public
 from drivebench.services.control import drive_guard
-from drivebench.services.pdos import pdo, pdo_notes
+from drivebench.services.pdos import pdo
 from drivebench.services.pdos import process_data as live
 from drivebench.services.pdos.pdo import ApplyReport, Direction, PdoConfig, PdoWrite
 from drivebench.services.users.principals import Role
