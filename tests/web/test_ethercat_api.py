@@ -230,3 +230,52 @@ def test_a_lost_keepalive_quick_stops_the_ethercat_unit(api: TestClient) -> None
                           "quick stop (bit 2) in the control word C00876/1")  # written just after the trip's record
     assert wait_for_value(lambda: api.get(f"{NODE}/control").json()["status_bits"][4]["set"], 8,
                           "QuickStopIsActive in the status word C13850/1")
+
+
+def _esm(api: TestClient, command: str) -> None:
+    answer = api.post(f"{NODE}/nmt", json={"command": command, "confirm": 1})
+    assert answer.status_code == 200, answer.text
+
+
+def test_the_pdo_tab_reads_the_assignment_and_the_mappings_over_coe(api: TestClient) -> None:
+    assigned = {a["index"]: a for a in api.get(f"{NODE}/pdos/assignment").json()}
+    assert sorted(assigned) == [0x1C12, 0x1C13]
+    assert [p["mapping_index"] for p in assigned[0x1C12]["pdos"]] == [0x1600]
+    assert [p["mapping_index"] for p in assigned[0x1C13]["pdos"]] == [0x1A00]
+    assert not assigned[0x1C12]["writable"] and assigned[0x1C12]["sync_manager"] == 2
+    unit = api.app.state.drivebench.gateways[SESSION].slaves[1001]  # type: ignore[attr-defined]
+    count = unit.store.get(0x1600, 0)
+    rx = assigned[0x1C12]["pdos"][0]
+    assert len(rx["entries"]) == count and rx["max_entries"] == 8
+    tab = api.get(f"/ui/sessions/{SESSION}/nodes/1/pdo").text
+    assert 'id="ecat-assign-rpdo"' in tab and 'id="ecat-pdo-tpdo1"' in tab and "Write mapping" in tab
+    card = tab[tab.index('id="ecat-pdo-rpdo1"'):tab.index('id="ecat-assign-tpdo"')]
+    assert "0x1600" in card and "COB-ID" not in card and "Transmission type" not in card
+    for entry in rx["entries"]:
+        assert entry["ref"] in card and entry["name"] in card
+
+
+def test_a_mapping_is_written_in_pre_operational_and_refused_in_safe_operational(api: TestClient) -> None:
+    mappable = api.get(f"{NODE}/pdos/mappable/tpdo").json()
+    words = [(m["index"], m["subindex"]) for m in mappable if m["bits"] == 16][:3]
+    assert len(words) == 3
+    _esm(api, "pre-operational")
+    done = api.put(f"{NODE}/pdos/mapping/tpdo/1", json={"entries": words})
+    assert done.status_code == 200, done.text
+    assert [s["step"].split(":")[0] for s in done.json()["steps"]] == [
+        "disable mapping (count 0)", "entry 1", "entry 2", "entry 3", "enable mapping (count 3)"]
+    tx = {a["index"]: a for a in api.get(f"{NODE}/pdos/assignment").json()}[0x1C13]["pdos"][0]
+    assert [(e["index"], e["subindex"]) for e in tx["entries"]] == words and tx["length_bytes"] == 6
+
+    _esm(api, "stop")  # Safe-Operational
+    refused = api.put(f"{NODE}/pdos/mapping/tpdo/1", json={"entries": words[:1]})
+    assert refused.status_code == 409 and refused.headers["content-type"] == "application/problem+json"
+    problem = refused.json()
+    assert "0x08000022" in problem["detail"] and "nothing was changed" in problem["detail"]
+    assert "Due to the current device state" in problem["detail"]
+    assert "Pre-Operational" in problem["rule"]
+    page = api.post(f"/ui/sessions/{SESSION}/nodes/1/pdo/ethercat/tpdo/1/apply",
+                    data={"entries": f"0x{words[0][0]:04X}.{words[0][1]}"})
+    assert page.status_code == 409 and "0x08000022" in page.text and "Take the slave to Pre-Operational" in page.text
+    tx = {a["index"]: a for a in api.get(f"{NODE}/pdos/assignment").json()}[0x1C13]["pdos"][0]
+    assert [(e["index"], e["subindex"]) for e in tx["entries"]] == words  # unchanged

@@ -149,7 +149,7 @@ def cob_id_conflicts(session: Session, node_id: int, direction: Direction, cob_i
     return found
 
 
-def _catalog(session: Session, node_id: int) -> Catalog:
+def node_catalog(session: Session, node_id: int) -> Catalog:
     catalog = session.node(node_id).catalog
     if catalog is None:
         raise NotFound(f"Node {node_id} has no device profile: its PDOs cannot be named or checked.",
@@ -157,13 +157,13 @@ def _catalog(session: Session, node_id: int) -> Catalog:
     return catalog
 
 
-def _entry(catalog: Catalog, index: int, sub: int) -> ObjectEntry | Entry | None:
+def profile_entry(catalog: Catalog, index: int, sub: int) -> ObjectEntry | Entry | None:
     item = catalog.by_address(index, sub)
     return item.entry if item else None
 
 
 def pdo_numbers(session: Session, node_id: int, direction: Direction) -> list[int]:
-    catalog = _catalog(session, node_id)
+    catalog = node_catalog(session, node_id)
     base = COMM_BASE[direction]
     return sorted({o.index - base + 1 for o in catalog.profile.objects
                    if base <= o.index < base + 0x200 and o.subindex == 1})
@@ -171,7 +171,7 @@ def pdo_numbers(session: Session, node_id: int, direction: Direction) -> list[in
 
 def mappable_objects(session: Session, node_id: int, direction: Direction) -> list[MappedObject]:
     """What the profile allows in a PDO of this direction (RPDO: writable objects, TPDO: readable ones)."""
-    catalog = _catalog(session, node_id)
+    catalog = node_catalog(session, node_id)
     found: list[MappedObject] = []
     seen: set[tuple[int, int]] = set()
     for item in catalog.items:  # CANopen objects and vendor codes (Lenze AIF words C1822/1 = 0x58E1.1 ...)
@@ -199,7 +199,7 @@ def _mapped(catalog: Catalog, index: int, sub: int, bits: int) -> MappedObject:
                         ref=catalog.vendor_ref(index, sub), unit=item.entry.unit if item else None)
 
 
-async def _read_u(session: Session, node_id: int, index: int, sub: int) -> int:
+async def read_u32(session: Session, node_id: int, index: int, sub: int) -> int:
     raw = decode(DataType.UNSIGNED32, (await session.client(node_id).aupload(index, sub)).ljust(4, b"\0")[:4])
     assert isinstance(raw, int)
     return raw
@@ -208,7 +208,7 @@ async def _read_u(session: Session, node_id: int, index: int, sub: int) -> int:
 async def _optional(session: Session, node_id: int, catalog: Catalog, index: int, sub: int) -> int | None:
     if catalog.by_address(index, sub) is None:
         return None
-    return await _read_u(session, node_id, index, sub)
+    return await read_u32(session, node_id, index, sub)
 
 
 async def _settings(session: Session, node_id: int, catalog: Catalog, refs: list[str]) -> list[DeviceSetting]:
@@ -234,26 +234,63 @@ async def _settings(session: Session, node_id: int, catalog: Catalog, refs: list
     return found
 
 
+async def read_mapping(session: Session, node_id: int, catalog: Catalog, mapping: int) -> list[MappedObject]:
+    """The entries of mapping object ``mapping`` (0x1600, 0x1A00 ...) as the device holds them, named."""
+    count = await read_u32(session, node_id, mapping, 0)
+    entries = []
+    for sub in range(1, count + 1):
+        value = await read_u32(session, node_id, mapping, sub)
+        entries.append(_mapped(catalog, value >> 16, (value >> 8) & 0xFF, value & 0xFF))
+    return entries
+
+
+def max_mapping_entries(catalog: Catalog, mapping: int) -> int:
+    return max((o.subindex for o in catalog.profile.objects if o.index == mapping), default=0)
+
+
+def mapping_plan(mapping: int, chosen: list[MappedObject]) -> list[tuple[str, int, int, int, int]]:
+    """CiA 301 steps 2-4: count 0, the entries, the count - as (step, index, sub, value, size)."""
+    plan = [("disable mapping (count 0)", mapping, 0, 0, 1)]
+    plan += [(f"entry {n}: {m.ref} {m.name}", mapping, n, (m.index << 16) | (m.subindex << 8) | m.bits, 4)
+             for n, m in enumerate(chosen, start=1)]
+    plan.append((f"enable mapping (count {len(chosen)})", mapping, 0, len(chosen), 1))
+    return plan
+
+
+async def run_plan(session: Session, node_id: int, plan: list[tuple[str, int, int, int, int]]) -> list[ApplyStep]:
+    """Download the plan's steps in order; stops at the first refused one (the last step, ``ok`` False)."""
+    steps: list[ApplyStep] = []
+    client = session.client(node_id)
+    for name, index, sub, value, size in plan:
+        step = ApplyStep(step=name, index=index, subindex=sub, value=f"0x{value:0{size * 2}X}", ok=True)
+        steps.append(step)
+        try:
+            await client.adownload(index, sub, value.to_bytes(size, "little"))
+        except SdoAbortError as exc:
+            step.ok, step.abort_code, step.abort_text = False, f"0x{exc.abort_code:08X}", exc.abort_text
+            break
+        except ProtocolError as exc:
+            step.ok, step.detail = False, exc.detail
+            break
+    return steps
+
+
 async def read_pdo(session: Session, node_id: int, direction: Direction, number: int) -> PdoConfig:
-    catalog = _catalog(session, node_id)
+    catalog = node_catalog(session, node_id)
     comm, mapping = COMM_BASE[direction] + number - 1, MAP_BASE[direction] + number - 1
     if catalog.by_address(comm, 1) is None:
         raise NotFound(f"{session.node(node_id).device_name} has no {direction.upper()}{number} "
                        f"(object 0x{comm:04X} is not in its profile).")
-    cob = await _read_u(session, node_id, comm, 1)
+    cob = await read_u32(session, node_id, comm, 1)
     trans_type = await _optional(session, node_id, catalog, comm, 2)
     inhibit = await _optional(session, node_id, catalog, comm, 3) if direction == "tpdo" else None
     event = await _optional(session, node_id, catalog, comm, 5)
     sync_start = await _optional(session, node_id, catalog, comm, 6)
-    count = await _read_u(session, node_id, mapping, 0)
-    entries = []
-    for sub in range(1, count + 1):
-        value = await _read_u(session, node_id, mapping, sub)
-        entries.append(_mapped(catalog, value >> 16, (value >> 8) & 0xFF, value & 0xFF))
-    static = [] if count else _static_entries(catalog, direction, number)
-    max_entries = max((o.subindex for o in catalog.profile.objects if o.index == mapping), default=0)
+    entries = await read_mapping(session, node_id, catalog, mapping)
+    static = [] if entries else _static_entries(catalog, direction, number)
+    max_entries = max_mapping_entries(catalog, mapping)
     trans = 255 if trans_type is None else trans_type
-    entry_one = _entry(catalog, mapping, 1)
+    entry_one = profile_entry(catalog, mapping, 1)
     profile = catalog.profile
     notes = pdo_notes.pdo_notes(profile, direction, number)
     static_note = pdo_notes.static_mapping_note(profile, direction, number)
@@ -295,13 +332,14 @@ async def read_pdos(session: Session, node_id: int) -> list[PdoConfig]:
 
 
 def check_mapping(session: Session, node_id: int, direction: Direction, number: int,
-                  write: PdoWrite) -> list[MappedObject]:
-    """The new mapping, named; InvalidValue before anything is sent when the profile forbids it."""
-    catalog = _catalog(session, node_id)
+                  write: PdoWrite, *, max_bits: int | None = MAX_PDO_BITS) -> list[MappedObject]:
+    """The new mapping, named; InvalidValue before anything is sent when the profile forbids it. ``max_bits``:
+    a CAN frame's 8 bytes; None where the number of entries bounds it (EtherCAT)."""
+    catalog = node_catalog(session, node_id)
     allowed = {(o.index, o.subindex): o for o in mappable_objects(session, node_id, direction)}
     mapping_index = MAP_BASE[direction] + number - 1
-    max_entries = max((o.subindex for o in catalog.profile.objects if o.index == mapping_index), default=0)
-    entry_one = _entry(catalog, mapping_index, 1)
+    max_entries = max_mapping_entries(catalog, mapping_index)
+    entry_one = profile_entry(catalog, mapping_index, 1)
     if entry_one is None or not entry_one.access.writable:
         raise InvalidValue(f"The mapping of {direction.upper()}{number} is fixed on this device "
                            f"(0x{mapping_index:04X} is read-only in its profile).")
@@ -318,13 +356,13 @@ def check_mapping(session: Session, node_id: int, direction: Direction, number: 
                                f"(the profile does not list it as {needs}).")
         chosen.append(allowed[(index, sub)])
     bits = sum(m.bits for m in chosen)
-    if bits > MAX_PDO_BITS:
+    if max_bits is not None and bits > max_bits:
         raise InvalidValue(f"The mapping needs {bits // 8} bytes; a PDO carries at most 8.")
     rule = pdo_notes.mapping_rule_violation(catalog.profile, direction, number, write.entries)
     if rule:
         raise InvalidValue(rule)
     if write.transmission_type is not None:
-        entry = _entry(catalog, COMM_BASE[direction] + number - 1, 2)
+        entry = profile_entry(catalog, COMM_BASE[direction] + number - 1, 2)
         if entry is not None and entry.selection and write.transmission_type not in entry.selection:
             allowed_types = ", ".join(f"{k} ({v})" for k, v in sorted(entry.selection.items()))
             raise InvalidValue(f"Transmission type {write.transmission_type} is not permitted for this device; "
@@ -338,25 +376,21 @@ def check_mapping(session: Session, node_id: int, direction: Direction, number: 
 async def apply_pdo(session: Session, node_id: int, direction: Direction, number: int,
                     write: PdoWrite) -> ApplyReport:
     """Refused (409) while another writer holds the node's lease; holds it until the last step."""
-    _catalog(session, node_id)
+    node_catalog(session, node_id)
     with node_lease.writing(session, node_id):
         return await _apply_pdo(session, node_id, direction, number, write)
 
 
 async def _apply_pdo(session: Session, node_id: int, direction: Direction, number: int,
                      write: PdoWrite) -> ApplyReport:
-    catalog = _catalog(session, node_id)
+    catalog = node_catalog(session, node_id)
     chosen = check_mapping(session, node_id, direction, number, write)
     comm, mapping = COMM_BASE[direction] + number - 1, MAP_BASE[direction] + number - 1
     current = await read_pdo(session, node_id, direction, number)
     cob_id = write.cob_id if write.cob_id is not None else current.cob_id
     flags = 0 if current.rtr_allowed else COB_NO_RTR
     plan: list[tuple[str, int, int, int, int]] = [
-        ("disable PDO (COB-ID invalid)", comm, 1, cob_id | flags | COB_INVALID, 4),
-        ("disable mapping (count 0)", mapping, 0, 0, 1)]
-    plan += [(f"entry {n}: {m.ref} {m.name}", mapping, n, (m.index << 16) | (m.subindex << 8) | m.bits, 4)
-             for n, m in enumerate(chosen, start=1)]
-    plan.append((f"enable mapping (count {len(chosen)})", mapping, 0, len(chosen), 1))
+        ("disable PDO (COB-ID invalid)", comm, 1, cob_id | flags | COB_INVALID, 4), *mapping_plan(mapping, chosen)]
     if write.transmission_type is not None:
         plan.append(("transmission type", comm, 2, write.transmission_type, 1))
     if write.inhibit_time_ms is not None and direction == "tpdo" and catalog.by_address(comm, 3):
@@ -366,19 +400,9 @@ async def _apply_pdo(session: Session, node_id: int, direction: Direction, numbe
     if write.valid:
         plan.append(("enable PDO (COB-ID valid)", comm, 1, cob_id | flags, 4))
 
-    steps: list[ApplyStep] = []
-    client = session.client(node_id)
-    for name, index, sub, value, size in plan:
-        step = ApplyStep(step=name, index=index, subindex=sub, value=f"0x{value:0{size * 2}X}", ok=True)
-        steps.append(step)
-        try:
-            await client.adownload(index, sub, value.to_bytes(size, "little"))
-        except SdoAbortError as exc:
-            step.ok, step.abort_code, step.abort_text = False, f"0x{exc.abort_code:08X}", exc.abort_text
-            return await _failed(session, node_id, direction, number, steps, disabled=len(steps) > 1)
-        except ProtocolError as exc:
-            step.ok, step.detail = False, exc.detail
-            return await _failed(session, node_id, direction, number, steps, disabled=len(steps) > 1)
+    steps = await run_plan(session, node_id, plan)
+    if not steps[-1].ok:
+        return await _failed(session, node_id, direction, number, steps, disabled=len(steps) > 1)
     pdo = await read_pdo(session, node_id, direction, number)
     read_back = [] if pdo.static_mapping else pdo.entries  # count 0 written: the static mapping applies again
     mismatch = [m.ref for m, got in zip(chosen, read_back, strict=False) if (m.index, m.subindex) !=
@@ -417,7 +441,7 @@ async def _failed(session: Session, node_id: int, direction: Direction, number: 
 
 async def export_dcf(session: Session, node_id: int) -> str:
     """A DCF of the node whose PDO communication and mapping objects hold the values read from the device."""
-    catalog = _catalog(session, node_id)
+    catalog = node_catalog(session, node_id)
     values: dict[tuple[int, int], int] = {}
     for obj in catalog.profile.objects:
         if 0x1400 <= obj.index <= 0x1BFF and obj.access.readable and obj.data_type.size:

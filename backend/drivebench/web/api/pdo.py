@@ -4,8 +4,10 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 from fastapi.responses import JSONResponse, PlainTextResponse
+from pydantic import BaseModel, Field
 
-from drivebench.services.pdos import pdo
+from drivebench.services.pdos import ethercat_pdo, pdo
+from drivebench.services.pdos.ethercat_pdo import EcatApplyReport, EcatAssignment
 from drivebench.services.pdos.pdo import ApplyReport, Direction, MappedObject, PdoConfig, PdoWrite
 from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.safety import ACTING
@@ -32,6 +34,30 @@ async def dcf(session: SessionDep, node: NodeDep) -> PlainTextResponse:
 async def mappable(session: SessionDep, node: NodeDep, direction: Direction) -> list[MappedObject]:
     """The objects the profile allows in a PDO of this direction."""
     return pdo.mappable_objects(session, node.node_id, direction)
+
+
+class MappingWrite(BaseModel):
+    entries: list[tuple[int, int]] = Field(description="(index, subindex) of each mapped object, in order")
+
+
+@router.get("/assignment", response_model=list[EcatAssignment])
+async def assignment(session: SessionDep, node: NodeDep) -> list[EcatAssignment]:
+    """EtherCAT: the PDO assignment 0x1C12/0x1C13 and each assigned PDO's mapping, read over CoE."""
+    return await ethercat_pdo.read_assignments(session, node.node_id)
+
+
+@router.put("/mapping/{direction}/{number}", response_model=EcatApplyReport,
+            responses={409: {"description": "The slave refused a step (e.g. not Pre-Operational); the body is the "
+                                            "step report"}})
+async def apply_mapping(session: SessionDep, node: NodeDep, direction: Direction, number: int,
+                        body: MappingWrite) -> EcatApplyReport | JSONResponse:
+    """EtherCAT: write a PDO mapping (sub 0 := 0, the entries, sub 0 := n), then read it back."""
+    report = await ethercat_pdo.apply_mapping(session, node.node_id, direction, number, body.entries)
+    if report.ok:
+        return report
+    problem = {"type": "/problems/pdo-mapping-refused", "title": "PDO mapping not applied", "status": 409,
+               "detail": report.message, **report.model_dump(mode="json")}
+    return JSONResponse(problem, status_code=409, media_type="application/problem+json")
 
 
 @router.get("/{direction}/{number}", response_model=PdoConfig)

@@ -23,7 +23,7 @@ from drivebench.protocol.nmt import NmtCommand
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.bus.views import node_public
 from drivebench.services.control import drive_guard
-from drivebench.services.pdos import pdo
+from drivebench.services.pdos import ethercat_pdo, pdo
 from drivebench.services.pdos import process_data as live
 from drivebench.services.pdos.pdo import ApplyReport, Direction, PdoConfig, PdoWrite
 from drivebench.services.users.principals import Role
@@ -59,6 +59,10 @@ def _card_context(session: Session, node: SessionNode, config: PdoConfig) -> dic
             "type_notes": type_notes}
 
 
+def _ecat_context(session: Session, node: SessionNode, assignment: ethercat_pdo.EcatAssignment) -> dict[str, Any]:
+    return {"assignment": assignment, "mappable": pdo.mappable_objects(session, node.node_id, assignment.direction)}
+
+
 def _parse_entries(text: str) -> list[tuple[int, int]]:
     entries = []
     for part in filter(None, (p.strip() for p in text.split(","))):
@@ -72,10 +76,15 @@ def _parse_entries(text: str) -> list[tuple[int, int]]:
 
 @router.get(UI, response_class=HTMLResponse)
 async def pdo_list(request: Request, session: SessionDep, node: NodeDep) -> Response:
-    configs = await live.service(session).load(node.node_id)
     profile = node.profile
-    cards = [_card_context(session, node, c) for c in configs]
-    context = _context(session, node, cards=cards,
+    if session.ethercat is not None:  # EtherCAT: assignment 0x1C12/0x1C13 and the mappings, no COB-IDs
+        cards = []
+        assignments = [_ecat_context(session, node, a) for a in
+                       await ethercat_pdo.read_assignments(session, node.node_id)]
+    else:
+        cards = [_card_context(session, node, c) for c in await live.service(session).load(node.node_id)]
+        assignments = []
+    context = _context(session, node, cards=cards, assignments=assignments,
                        device_notes=pdo_notes.device_notes(profile) if profile else [])
     return templates.TemplateResponse(request, "node/pdo.html", context, block_name="pdo_list")
 
@@ -101,6 +110,17 @@ async def apply(request: Request, session: SessionDep, node: NodeDep, direction:
                                           status_code=200 if report.ok else 502)
     response.headers["X-PDO-Report"] = "ok" if report.ok else "failed"  # pdo.js swaps a failed report in too
     return response
+
+
+@router.post(UI + "/ethercat/{direction}/{number}/apply", response_class=HTMLResponse)
+async def apply_ethercat(request: Request, session: SessionDep, node: NodeDep, direction: Direction, number: int,
+                         entries: Annotated[str, Form()] = "") -> Response:
+    report = await ethercat_pdo.apply_mapping(session, node.node_id, direction, number, _parse_entries(entries))
+    mapped = report.pdo or await ethercat_pdo.read_mapping_object(session, node.node_id, direction, number)
+    context = _context(session, node, report=report, ecat_pdo=mapped,
+                       mappable=pdo.mappable_objects(session, node.node_id, direction))
+    return templates.TemplateResponse(request, "node/_ecat_pdo_card.html", context,
+                                      status_code=200 if report.ok else 409)
 
 
 @router.post(UI + "/rpdo/{number}/send", response_class=HTMLResponse)
