@@ -248,34 +248,39 @@ def test_the_pdo_tab_reads_the_assignment_and_the_mappings_over_coe(api: TestCli
     rx = assigned[0x1C12]["pdos"][0]
     assert len(rx["entries"]) == count and rx["max_entries"] == 8
     tab = api.get(f"/ui/sessions/{SESSION}/nodes/1/pdo").text
-    assert 'id="ecat-assign-rpdo"' in tab and 'id="ecat-pdo-tpdo1"' in tab and "Write mapping" in tab
+    assert 'id="ecat-assign-rpdo"' in tab and 'id="ecat-pdo-tpdo1"' in tab
+    tx_card = tab[tab.index('id="ecat-pdo-tpdo1"'):]
+    assert "0x1A00" in tx_card and "Write mapping" not in tx_card  # the profile lets nothing be mapped into it
     card = tab[tab.index('id="ecat-pdo-rpdo1"'):tab.index('id="ecat-assign-tpdo"')]
-    assert "0x1600" in card and "COB-ID" not in card and "Transmission type" not in card
+    assert "0x1600" in card and "Write mapping" in card and "COB-ID" not in card and "Transmission type" not in card
     for entry in rx["entries"]:
         assert entry["ref"] in card and entry["name"] in card
 
 
 def test_a_mapping_is_written_in_pre_operational_and_refused_in_safe_operational(api: TestClient) -> None:
-    mappable = api.get(f"{NODE}/pdos/mappable/tpdo").json()
-    words = [(m["index"], m["subindex"]) for m in mappable if m["bits"] == 16][:3]
-    assert len(words) == 3
+    words = [(0x5C93, 1), (0x5C93, 2)]  # C00876/1 and /2, the manual's mapping example 0x5C930110 and the next word
+    assert [(m["index"], m["subindex"]) for m in api.get(f"{NODE}/pdos/mappable/rpdo").json()] == words
     _esm(api, "pre-operational")
-    done = api.put(f"{NODE}/pdos/mapping/tpdo/1", json={"entries": words})
+    done = api.put(f"{NODE}/pdos/mapping/rpdo/1", json={"entries": words})
     assert done.status_code == 200, done.text
-    assert [s["step"].split(":")[0] for s in done.json()["steps"]] == [
-        "disable mapping (count 0)", "entry 1", "entry 2", "entry 3", "enable mapping (count 3)"]
-    tx = {a["index"]: a for a in api.get(f"{NODE}/pdos/assignment").json()}[0x1C13]["pdos"][0]
-    assert [(e["index"], e["subindex"]) for e in tx["entries"]] == words and tx["length_bytes"] == 6
+    assert [(s["step"].split(":")[0], s["value"]) for s in done.json()["steps"]] == [
+        ("disable mapping (count 0)", "0x00"), ("entry 1", "0x5C930110"), ("entry 2", "0x5C930210"),
+        ("enable mapping (count 2)", "0x02")]
+    unit = api.app.state.drivebench.gateways[SESSION].slaves[1001]  # type: ignore[attr-defined]
+    assert [unit.store.get(0x1600, sub) for sub in (0, 1, 2)] == [2, 0x5C930110, 0x5C930210]
+    rx = {a["index"]: a for a in api.get(f"{NODE}/pdos/assignment").json()}[0x1C12]["pdos"][0]
+    assert [(e["index"], e["subindex"], e["ref"]) for e in rx["entries"]] == [
+        (0x5C93, 1, "C00876/1"), (0x5C93, 2, "C00876/2")] and rx["length_bytes"] == 4
 
     _esm(api, "stop")  # Safe-Operational
-    refused = api.put(f"{NODE}/pdos/mapping/tpdo/1", json={"entries": words[:1]})
+    refused = api.put(f"{NODE}/pdos/mapping/rpdo/1", json={"entries": words[:1]})
     assert refused.status_code == 409 and refused.headers["content-type"] == "application/problem+json"
     problem = refused.json()
     assert "0x08000022" in problem["detail"] and "nothing was changed" in problem["detail"]
     assert "Due to the current device state" in problem["detail"]
     assert "Pre-Operational" in problem["rule"]
-    page = api.post(f"/ui/sessions/{SESSION}/nodes/1/pdo/ethercat/tpdo/1/apply",
+    page = api.post(f"/ui/sessions/{SESSION}/nodes/1/pdo/ethercat/rpdo/1/apply",
                     data={"entries": f"0x{words[0][0]:04X}.{words[0][1]}"})
     assert page.status_code == 409 and "0x08000022" in page.text and "Take the slave to Pre-Operational" in page.text
-    tx = {a["index"]: a for a in api.get(f"{NODE}/pdos/assignment").json()}[0x1C13]["pdos"][0]
-    assert [(e["index"], e["subindex"]) for e in tx["entries"]] == words  # unchanged
+    rx = {a["index"]: a for a in api.get(f"{NODE}/pdos/assignment").json()}[0x1C12]["pdos"][0]
+    assert [(e["index"], e["subindex"]) for e in rx["entries"]] == words  # unchanged

@@ -109,10 +109,10 @@ def test_ethercat_unit_in_the_browser(sets_server: str, page: Any) -> None:  # n
     expect(page.locator(".pdo-notes")).not_to_contain_text("CAN1_IN")
     # ... the assignment read from the slave and its mapping editor: still Safe-Operational, the write is refused
     expect(page.locator("#ecat-assign-tpdo")).to_contain_text("0x1A00", timeout=WAIT_MS)
-    tx = page.locator("#ecat-pdo-tpdo1")
-    tx.locator("input[name=entries]").fill("0x29E5.1")
-    tx.get_by_role("button", name="Write mapping").click()
-    refused = page.locator("#ecat-pdo-tpdo1 .pdo-report.failed")
+    rx = page.locator("#ecat-pdo-rpdo1")
+    rx.locator("input[name=entries]").fill("0x5C93.1")  # the manual's example: C00876/1
+    rx.get_by_role("button", name="Write mapping").click()
+    refused = page.locator("#ecat-pdo-rpdo1 .pdo-report.failed")
     expect(refused).to_contain_text("0x08000022", timeout=WAIT_MS)
     expect(refused).to_contain_text("Take the slave to Pre-Operational on the Plant page first")
     screenshot(page, "ethercat-pdo-mapping-refused")
