@@ -6,13 +6,18 @@ Lower layers convert foreign exceptions (python-can, canopen) with ``raise ... f
 
 from __future__ import annotations
 
-from drivebench.i18n import N_
+from collections.abc import Mapping
+from typing import Self
+
+from drivebench.i18n import N_, _
 
 
 class DriveBenchError(Exception):
     """Root of all errors the tool reports to a user."""
 
     title = N_("DriveBench error")
+    _template: str | None = None  # see keep_template
+    _values: Mapping[str, object] = {}
 
     def __init__(self, detail: str, *, hint: str | None = None) -> None:
         super().__init__(detail)
@@ -22,6 +27,16 @@ class DriveBenchError(Exception):
     def extra(self) -> dict[str, object]:
         """Fields added to the problem+json body next to ``detail``."""
         return {"hint": self.hint} if self.hint else {}
+
+    def shown_detail(self) -> str:
+        """``detail`` in the language of whoever reads it (web/problems.py calls it in the request's language); an
+        error raised outside a request (a bus thread) keeps an N_() template and its values for this."""
+        return _(self._template).format(**self._values) if self._template else self.detail
+
+    def keep_template(self, template: str, **values: object) -> Self:
+        """Keeps the N_() text ``detail`` was formatted from (``detail`` itself stays the English text)."""
+        self._template, self._values = template, values
+        return self
 
 
 # --- transport -------------------------------------------------------------------------------------------
@@ -62,10 +77,11 @@ class SdoAbortError(ProtocolError):
 
 class SdoTimeoutError(ProtocolError):
     title = N_("No SDO response")
+    NO_ANSWER = N_("Node {node} did not answer the SDO request for {object} ({reason})")
 
     def __init__(self, detail: str, *, node: int, index: int | None = None, subindex: int | None = None) -> None:
-        super().__init__(detail, hint="Check that the node is powered, has this node id and the same bit rate, "
-                                      "and that the bus is terminated at both ends.")
+        super().__init__(detail, hint=N_("Check that the node is powered, has this node id and the same bit rate, "
+                                         "and that the bus is terminated at both ends."))
         self.node = node
         self.index = index
         self.subindex = subindex

@@ -18,10 +18,11 @@
   }
 
   const esc = window.drivebench.escape;  // problem texts name lease holders and operators: text, never markup
+  const _ = window.drivebench.gettext;
 
   function problemText(body, status) {
-    if (body && body.detail) return `<strong>${esc(body.title || "Error")}</strong> ${esc(body.detail)}`;
-    return `<strong>Request failed</strong> (HTTP ${esc(status)})`;
+    if (body && body.detail) return `<strong>${esc(body.title || _("Error"))}</strong> ${esc(body.detail)}`;
+    return `<strong>${esc(_("Request failed"))}</strong> (HTTP ${esc(status)})`;
   }
 
   function init(panel) {
@@ -88,8 +89,8 @@
         bits.forEach((bit, i) => rows[i] && rows[i].classList.toggle("on", bit.set));
       }
       const armed = panel.querySelector("#ctl-armed");
-      armed.textContent = !status.armed ? "not armed" : status.you_hold ? "armed by this panel: keep-alive running"
-        : "armed by another panel";
+      armed.textContent = !status.armed ? _("not armed") : status.you_hold ? _("armed by this panel: keep-alive running")
+        : _("armed by another panel");
       armed.classList.toggle("armed", status.armed);
       renderHolder(status);
       const trip = panel.querySelector("#ctl-trip");
@@ -113,14 +114,15 @@
     function renderHolder(status) {
       const box = panel.querySelector("#ctl-holder");
       const panels = panel.querySelector("#ctl-panels");
-      panels.textContent = `${status.panels} panel${status.panels === 1 ? "" : "s"} open`;
+      panels.textContent = status.panels === 1 ? _("1 panel open") : _("{count} panels open", { count: status.panels });
       watching = Boolean(status.armed && status.holder && !status.you_hold);
       box.hidden = !status.holder;
       box.classList.toggle("watching", watching);
       box.textContent = !status.holder ? ""
-        : watching ? `Held by ${status.holder}. This panel watches: it can stop the drive (Quick stop, Disable, ` +
-                     "Shutdown) but not move it until the drive is disarmed."
-        : `This panel holds the drive (${status.holder}): only it moves the drive; closing it sends quick stop.`;
+        : watching ? _("Held by {holder}. This panel watches: it can stop the drive (Quick stop, Disable, " +
+                       "Shutdown) but not move it until the drive is disarmed.", { holder: status.holder })
+        : _("This panel holds the drive ({holder}): only it moves the drive; closing it sends quick stop.",
+            { holder: status.holder });
       panel.classList.toggle("watching", watching);
       panel.querySelectorAll("[data-command]").forEach((button) => {
         button.disabled = refused || (watching && !STOPPING.has(button.dataset.command));
@@ -151,7 +153,7 @@
           entry = { u, data, box };
           plots.set(value.ref, entry);
         }
-        const text = value.error ? "read error" : value.value === null ? "–" : `${value.value} ${value.unit || ""}`;
+        const text = value.error ? _("read error") : value.value === null ? "–" : `${value.value} ${value.unit || ""}`;
         entry.box.querySelector(".ctl-value").textContent = text;
         if (value.value !== null && entry.u) {
           entry.data[0].push(t);
@@ -168,8 +170,8 @@
       const state = panel.querySelector("#ctl-ws");
       socket = window.drivebench.liveSocket(
         () => `${panel.dataset.ws}?panel=${panelId}&operator=${encodeURIComponent(operator())}`, {
-          onOpen: () => { state.textContent = "live"; state.className = "badge good"; },
-          onClose: () => { state.textContent = "disconnected"; state.className = "badge bad"; },
+          onOpen: () => { state.textContent = _("live"); state.className = "badge good"; },
+          onClose: () => { state.textContent = _("disconnected"); state.className = "badge bad"; },
           keepOpen: () => !closed && document.body.contains(panel),
           onMessage: (message) => {
             if (message.type === "status") {
@@ -194,7 +196,7 @@
     async function command(key, label) {
       let confirm = false;
       if (moving.has(key)) {
-        confirm = await confirmMove(`${label}: after this command the motor may turn.`);
+        confirm = await confirmMove(_("{command}: after this command the motor may turn.", { command: label }));
         if (!confirm) return;
       }
       const status = await call("POST", `${api}/commands/${key}`, { confirm });
@@ -208,10 +210,11 @@
     if (setpointForm) setpointForm.addEventListener("submit", async (event) => {
       event.preventDefault();
       const value = parseFloat(event.target.value.value);
-      if (Number.isNaN(value)) { showError("<strong>Setpoint</strong> enter a number"); return; }
+      if (Number.isNaN(value)) { showError(`<strong>${esc(_("Setpoint"))}</strong> ${esc(_("enter a number"))}`); return; }
       let confirm = false;
       if (value !== 0) {
-        confirm = await confirmMove(`Setpoint ${value} ${panel.querySelector("#ctl-sp-unit").textContent}: the motor may turn.`);
+        confirm = await confirmMove(_("Setpoint {value} {unit}: the motor may turn.",
+                                        { value, unit: panel.querySelector("#ctl-sp-unit").textContent }));
         if (!confirm) return;
       }
       const status = await call("PUT", `${api}/setpoint`, { value, confirm });
@@ -227,8 +230,8 @@
         event.preventDefault();
         if (!jogConfirmed) {
           const how = panel.querySelector("#ctl-jog-how");
-          jogConfirmed = await confirmMove(`Jog: the motor turns at ${how.dataset.value} ${how.dataset.unit} while a ` +
-                                           "jog button is held.");
+          jogConfirmed = await confirmMove(_("Jog: the motor turns at {value} {unit} while a jog button is held.",
+                                             { value: how.dataset.value, unit: how.dataset.unit }));
           return;  // the next press jogs
         }
         jogging = true;
@@ -255,7 +258,7 @@
 
     // --- CiA 402 motion (a drive without a vendor control section): profile position, profile velocity, homing ---
     const motion = panel.querySelector("#ctl-motion");
-    async function confirmed(text) { return await confirmMove(`${text}: the motor may turn.`); }
+    async function confirmed(text) { return await confirmMove(_("{what}: the motor may turn.", { what: text })); }
     if (motion) {
       const { positionUnit } = motion.dataset;
       motion.querySelector("#ctl-move").addEventListener("submit", async (event) => {
@@ -263,9 +266,10 @@
         const form = event.target;
         const target = parseFloat(form.target.value);
         const velocity = parseFloat(form.velocity.value);
-        if (Number.isNaN(target)) { showError("<strong>Target</strong> enter a number"); return; }
-        const how = form.relative.checked ? "by" : "to";
-        if (!await confirmed(`Move ${how} ${target} ${positionUnit}`)) return;
+        if (Number.isNaN(target)) { showError(`<strong>${esc(_("Target"))}</strong> ${esc(_("enter a number"))}`); return; }
+        const move = form.relative.checked ? _("Move by {target} {unit}", { target, unit: positionUnit })
+          : _("Move to {target} {unit}", { target, unit: positionUnit });
+        if (!await confirmed(move)) return;
         const status = await call("POST", `${api}/move`, { target, relative: form.relative.checked,
           immediate: form.immediate.checked, confirm: true, ...(Number.isNaN(velocity) ? {} : { velocity }) });
         if (status) render(status);
@@ -274,8 +278,8 @@
         event.preventDefault();  // profile velocity (3) or torque (4): the mode first, then its setpoint
         const mode = Number(form.dataset.mode);
         const value = parseFloat(form.value.value);
-        if (Number.isNaN(value)) { showError("<strong>Target</strong> enter a number"); return; }
-        if (value !== 0 && !await confirmed(`Target ${value} ${form.dataset.unit} (mode ${mode})`)) return;
+        if (Number.isNaN(value)) { showError(`<strong>${esc(_("Target"))}</strong> ${esc(_("enter a number"))}`); return; }
+        if (value !== 0 && !await confirmed(_("Target {value} {unit} (mode {mode})", { value, unit: form.dataset.unit, mode }))) return;
         if (currentMode !== mode && !await call("PUT", `${api}/mode`, { mode, confirm: true })) return;
         const status = await call("PUT", `${api}/setpoint`, { value, confirm: value !== 0 });
         if (status) render(status);
@@ -285,21 +289,22 @@
         cyclicForm.addEventListener("submit", async (event) => {
           event.preventDefault();
           const value = parseFloat(event.target.value.value);
-          if (Number.isNaN(value)) { showError("<strong>Target</strong> enter a number"); return; }
-          if (!await confirmed(`Cyclic synchronous setpoint ${value}`)) return;
+          if (Number.isNaN(value)) { showError(`<strong>${esc(_("Target"))}</strong> ${esc(_("enter a number"))}`); return; }
+          if (!await confirmed(_("Cyclic synchronous setpoint {value}", { value }))) return;
           const sent = await call("POST", `${api}/cyclic`, { value, confirm: true });
-          if (sent) result.textContent = `RPDO${sent.rpdo} (0x${sent.cob_id.toString(16).toUpperCase()}) every ${sent.period_ms} ms with SYNC: ${sent.data}`;
+          if (sent) result.textContent = _("RPDO{rpdo} ({cob_id}) every {period} ms with SYNC: {data}", { rpdo: sent.rpdo,
+            cob_id: `0x${sent.cob_id.toString(16).toUpperCase()}`, period: sent.period_ms, data: sent.data });
         });
         motion.querySelector("#ctl-cyclic-stop").addEventListener("click", async () => {
           const stopped = await call("DELETE", `${api}/cyclic`);
-          if (stopped) result.textContent = `Cyclic RPDOs stopped: ${stopped.stopped}`;
+          if (stopped) result.textContent = _("Cyclic RPDOs stopped: {stopped}", { stopped: stopped.stopped });
         });
       }
       const homeForm = motion.querySelector("#ctl-home");
       if (homeForm) homeForm.addEventListener("submit", async (event) => {
         event.preventDefault();
         const select = event.target.method;
-        if (!await confirmed(`Homing, method ${select.options[select.selectedIndex].text}`)) return;
+        if (!await confirmed(_("Homing, method {method}", { method: select.options[select.selectedIndex].text }))) return;
         const status = await call("POST", `${api}/home`, { method: Number(select.value), confirm: true });
         if (status) render(status);
       });
@@ -313,16 +318,17 @@
         const r = results.get(step.number);
         const cls = r ? (r.ok ? "done" : "failed") : step.number === run.position + 1 && !run.finished ? "next" : "";
         const telegrams = r ? r.telegrams.map((t) => `<div class="mono tg ${esc(t.direction)}">${t.direction === "T" ? "→" : "←"} ${esc(t.cob_id)} ${esc(t.data)}</div>`).join("") : "";
-        return `<tr class="${cls}"><td>${esc(step.number)}</td><td>${esc(step.title)}${step.moves ? ' <span class="badge warn">moves</span>' : ""}` +
-               `${step.printed ? `<div class="muted mono small-text">manual: ${esc(step.printed)}</div>` : ""}</td>` +
+        return `<tr class="${cls}"><td>${esc(step.number)}</td><td>${esc(step.title)}${step.moves ? ` <span class="badge warn">${esc(_("moves"))}</span>` : ""}` +
+               `${step.printed ? `<div class="muted mono small-text">${esc(_("manual: {steps}", { steps: step.printed }))}</div>` : ""}</td>` +
                `<td>${telegrams}</td><td>${r ? esc(r.message) : ""}</td></tr>`;
       }).join("");
       const pre = run.preconditions.map((p) => `<li>${esc(p)}</li>`).join("");
       const banner = run.failed ? `<div class="error" role="alert">${esc(run.failed)}</div>`
-        : run.finished ? `<div class="ok-note">All ${run.steps.length} steps answered as the manual expects.</div>` : "";
+        : run.finished ? `<div class="ok-note">${esc(_("All {count} steps answered as the manual expects.", { count: run.steps.length }))}</div>` : "";
       runBox.innerHTML = `<p><strong>${esc(run.title)}</strong> · ${esc(run.source)}</p>` +
-        (pre ? `<p class="muted">Before starting (not sent over CAN):</p><ul class="muted">${pre}</ul>` : "") + banner +
-        `<div class="ctl-run-scroll"><table class="ctl-run"><thead><tr><th>#</th><th>Step</th><th>Telegrams</th><th>Answer</th></tr></thead><tbody>${rows}</tbody></table></div>`;
+        (pre ? `<p class="muted">${esc(_("Before starting (not sent over CAN):"))}</p><ul class="muted">${pre}</ul>` : "") + banner +
+        `<div class="ctl-run-scroll"><table class="ctl-run"><thead><tr><th>#</th><th>${esc(_("Step"))}</th>` +
+        `<th>${esc(_("Telegrams"))}</th><th>${esc(_("Answer"))}</th></tr></thead><tbody>${rows}</tbody></table></div>`;
       runOpen = !run.finished;
       nextButton.disabled = refused || watching || !runOpen;
       const row = runBox.querySelector("tr.next, tr.failed");
@@ -344,7 +350,7 @@
         const step = current.steps[current.position];
         let confirm = false;
         if (step && step.moves) {
-          confirm = await confirmMove(`Step ${step.number}: ${step.title}.`);
+          confirm = await confirmMove(_("Step {number}: {title}.", { number: step.number, title: step.title }));
           if (!confirm) return;
         }
         nextButton.disabled = true;

@@ -2,6 +2,7 @@
 (() => {
   if (window.drivebenchPdo) { window.drivebenchPdo(); return; }
   const el = window.drivebench.el;  // names and units come from profiles: elements with text, never markup
+  const _ = window.drivebench.gettext;
   const MAX_BITS = 64;
   const COLORS = 8;
 
@@ -13,7 +14,8 @@
       const cell = document.createElement("span");
       cell.className = `byte-cell c${i % COLORS}` + (offset + e.bits > MAX_BITS ? " over" : "");
       cell.style.flexGrow = bytes;
-      cell.title = `${e.ref} ${e.name}: byte ${offset / 8}${bytes > 1 ? "…" + (offset / 8 + bytes - 1) : ""}, ${e.bits} bits`;
+      cell.title = _("{ref} {name}: byte {bytes}, {bits} bits", { ref: e.ref, name: e.name, bits: e.bits,
+        bytes: `${offset / 8}${bytes > 1 ? "…" + (offset / 8 + bytes - 1) : ""}` });
       cell.textContent = `${e.ref}`;
       el.appendChild(cell);
       offset += e.bits;
@@ -22,20 +24,20 @@
       const free = document.createElement("span");
       free.className = "byte-cell free";
       free.textContent = `${b}`;
-      free.title = `byte ${b}: free`;
+      free.title = _("byte {byte}: free", { byte: b });
       el.appendChild(free);
     }
   }
 
   // Same words as drivebench.services.pdos.pdo.transmission_text (CiA 301 table of transmission types).
   function transmissionText(t, direction) {
-    if (!Number.isInteger(t) || t < 0 || t > 255) return "not a transmission type (0 ... 255)";
-    if (t === 0) return "synchronous, acyclic" + (direction === "tpdo" ? " (sent on SYNC after a change)" : "");
-    if (t <= 240) return t === 1 ? "synchronous, every SYNC" : `synchronous, every ${t}. SYNC`;
-    if (t === 252 || t === 253) return "RTR only" + (t === 252 ? ", synchronous" : ", event-driven");
-    if (t === 254) return "event-driven (manufacturer-specific)";
-    if (t === 255) return "event-driven (device profile)";
-    return "reserved";
+    if (!Number.isInteger(t) || t < 0 || t > 255) return _("not a transmission type (0 ... 255)");
+    if (t === 0) return direction === "tpdo" ? _("synchronous, acyclic (sent on SYNC after a change)") : _("synchronous, acyclic");
+    if (t <= 240) return t === 1 ? _("synchronous, every SYNC") : _("synchronous, every {n}. SYNC", { n: t });
+    if (t === 252 || t === 253) return t === 252 ? _("RTR only, synchronous") : _("RTR only, event-driven");
+    if (t === 254) return _("event-driven (manufacturer-specific)");
+    if (t === 255) return _("event-driven (device profile)");
+    return _("reserved");
   }
 
   function initCard(card) {
@@ -79,14 +81,14 @@
           entries.splice(i, 0, moved);
           render();
         });
-        const buttons = [["up", "Move up", "↑", i === 0], ["down", "Move down", "↓", i === entries.length - 1],
-                         ["remove", "Remove", "✕", false]].map(([act, title, text, disabled]) => {
+        const buttons = [["up", _("Move up"), "↑", i === 0], ["down", _("Move down"), "↓", i === entries.length - 1],
+                         ["remove", _("Remove"), "✕", false]].map(([act, title, text, disabled]) => {
           const b = el("button", { type: "button", className: "icon", title, disabled }, text);
           b.dataset.act = act;
           return b;
         });
         li.append(el("span", { className: "name" }, e.name), " ", el("span", { className: "mono muted" }, e.ref), " ",
-                  el("span", { className: "muted" }, `${e.bits} bit`), " ", el("span", { className: "entry-buttons" }, ...buttons));
+                  el("span", { className: "muted" }, _("{bits} bit", { bits: e.bits })), " ", el("span", { className: "entry-buttons" }, ...buttons));
         buttons.forEach((b) => b.addEventListener("click", () => {
           if (b.dataset.act === "remove") entries.splice(i, 1);
           else {
@@ -97,14 +99,14 @@
         }));
         list.appendChild(li);
       });
-      if (!entries.length) list.replaceChildren(el("li", { className: "empty" }, "No entries: the PDO carries nothing."));
+      if (!entries.length) list.replaceChildren(el("li", { className: "empty" }, _("No entries: the PDO carries nothing.")));
       const used = bits();
-      total.textContent = `${used / 8} / 8 bytes · ${entries.length} / ${maxEntries} entries`;
+      total.textContent = _("{used} / 8 bytes · {count} / {max} entries", { used: used / 8, count: entries.length, max: maxEntries });
       total.classList.toggle("over", used > MAX_BITS || entries.length > maxEntries);
       layout(form.querySelector('.byte-layout[data-layout="edit"]'), entries);
       const problems = [];
-      if (used > MAX_BITS) problems.push(`${used / 8} bytes: a PDO carries at most 8.`);
-      if (entries.length > maxEntries) problems.push(`${entries.length} entries: this PDO takes at most ${maxEntries}.`);
+      if (used > MAX_BITS) problems.push(_("{used} bytes: a PDO carries at most 8.", { used: used / 8 }));
+      if (entries.length > maxEntries) problems.push(_("{count} entries: this PDO takes at most {max}.", { count: entries.length, max: maxEntries }));
       limit.textContent = problems.join(" ");
       submit.disabled = problems.length > 0;
       field.value = entries.map((e) => `0x${e.index.toString(16).toUpperCase().padStart(4, "0")}.${e.subindex}`).join(",");
@@ -120,19 +122,19 @@
           const li = document.createElement("li");
           const full = entries.length >= maxEntries;
           const tooLong = used + m.bits > MAX_BITS;
-          const button = el("button", { type: "button", className: "small secondary" }, "Add");
+          const button = el("button", { type: "button", className: "small secondary" }, _("Add"));
           li.append(button, " ", el("span", { className: "name" }, m.name), " ", el("span", { className: "mono muted" }, m.ref), " ",
-                    el("span", { className: "muted" }, `${m.bits} bit${m.unit ? ", " + m.unit : ""}`), " ",
+                    el("span", { className: "muted" }, _("{bits} bit", { bits: m.bits }) + (m.unit ? ", " + m.unit : "")), " ",
                     el("span", { className: "why warn-text" }));
-          button.setAttribute("aria-label", `Add ${m.ref} ${m.name}`);
+          button.setAttribute("aria-label", _("Add {ref} {name}", { ref: m.ref, name: m.name }));
           if (full || tooLong) {
             button.disabled = true;
-            li.querySelector(".why").textContent = full ? "no entry left" : `would need ${(used + m.bits) / 8} bytes`;
+            li.querySelector(".why").textContent = full ? _("no entry left") : _("would need {bytes} bytes", { bytes: (used + m.bits) / 8 });
           }
           button.addEventListener("click", () => { entries.push({ ...m }); render(); });
           picker.appendChild(li);
         });
-      if (!mappable.length) picker.replaceChildren(el("li", { className: "empty" }, "The profile lists no PDO-mappable object for this direction."));
+      if (!mappable.length) picker.replaceChildren(el("li", { className: "empty" }, _("The profile lists no PDO-mappable object for this direction.")));
     }
 
     search.addEventListener("input", renderPicker);
@@ -177,9 +179,10 @@
         document.querySelectorAll(`.live[data-cob="${CSS.escape(String(sample.cob_id))}"][data-ref="${CSS.escape(sig.ref)}"]`).forEach((cell) => {
           let text = sig.value === null ? "–" : `${sig.value}${sig.unit ? " " + sig.unit : ""}`;
           if (sig.text) text += ` (${sig.text})`;
-          if (sample.direction === "rpdo") text = `sent ${text}`;
+          if (sample.direction === "rpdo") text = _("sent {value}", { value: text });
           cell.textContent = text;
-          cell.title = `${text}\nraw ${sig.raw} · frame ${sample.data} · ${new Date(sample.t * 1000).toLocaleTimeString()}`;
+          cell.title = `${text}\n` + _("raw {raw} · frame {frame} · {time}", { raw: sig.raw, frame: sample.data,
+            time: new Date(sample.t * 1000).toLocaleTimeString() });
           cell.classList.add("fresh");
           setTimeout(() => cell.classList.remove("fresh"), 300);
         });
@@ -202,8 +205,8 @@
     const state = document.getElementById("pdo-ws-state");
     socketTab = tab;
     socket = window.drivebench.liveSocket(tab.dataset.ws, {
-      onOpen: () => { state.textContent = "connected"; state.className = "badge good"; },
-      onClose: () => { state.textContent = "disconnected"; state.className = "badge warn"; },
+      onOpen: () => { state.textContent = _("connected"); state.className = "badge good"; },
+      onClose: () => { state.textContent = _("disconnected"); state.className = "badge warn"; },
       keepOpen: () => document.body.contains(tab), retryMs: 2000,
       onMessage: (msg) => receive(msg, state),
     });

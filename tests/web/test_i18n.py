@@ -3,6 +3,7 @@ HTTP API answers in the language the switch or the browser asks for, numbers wri
 
 from __future__ import annotations
 
+import json
 import re
 from pathlib import Path
 
@@ -195,6 +196,53 @@ def test_every_screen_renders_in_german(client: TestClient, path: str) -> None:
     page = client.get(path, headers=GERMAN)
     assert page.status_code == 200, page.text[:500]
     assert '<html lang="de">' in page.text and 'aria-label="Ansichten"' in page.text
+
+
+def _script_messages(page: str) -> dict[str, str]:
+    block = re.search(r'<script type="application/json" id="js-messages">(.*?)</script>', page, re.S)
+    assert block, "no js-messages block in the page"
+    return json.loads(block.group(1))
+
+
+def test_the_control_and_pdo_scripts_texts_reach_the_page_in_german(client: TestClient) -> None:
+    """control.js and pdo.js build texts in the browser: they are extracted, translated and handed to the page."""
+    extracted = _extracted()
+    for text, script in (("armed by another panel", "control.js"), ("{what}: the motor may turn.", "control.js"),
+                         ("No entries: the PDO carries nothing.", "pdo.js"), ("byte {byte}: free", "pdo.js")):
+        assert extracted.get(text, "").startswith(f"frontend/static/{script}"), text
+    control = _script_messages(client.get(f"/sessions/{SESSION}/nodes/7?tab=control", headers=GERMAN).text)
+    assert control["armed by another panel"] == "von einem anderen Panel scharf geschaltet"
+    assert control["{what}: the motor may turn."] == "{what}: Der Motor kann sich drehen."  # app.js fills {what}
+    pdo = _script_messages(client.get(f"/sessions/{SESSION}/nodes/5?tab=pdo", headers=GERMAN).text)
+    assert pdo["No entries: the PDO carries nothing."] == "Keine Einträge: Das PDO überträgt nichts."
+
+
+def test_service_error_details_follow_the_language(client: TestClient) -> None:
+    """Details built deep in the services (scaling, the SDO client) come back German to a German browser and
+    unchanged English to everyone else."""
+    url = f"/api/sessions/{SESSION}/nodes/5/parameters/C00088"
+    german = client.put(url, json={"value": 10**9}, headers=GERMAN)
+    assert german.status_code == 422, german.text
+    assert german.json()["detail"] == ("C00088 (Rated motor current): 1000000000 passt nicht in den Datentyp "
+                                       "UNSIGNED32 (roh 0 ... 4294967295)")
+    english = client.put(url, json={"value": 10**9})
+    assert english.json()["detail"] == ("C00088 (Rated motor current): 1000000000 does not fit the data type "
+                                        "UNSIGNED32 (raw 0 ... 4294967295)")
+    typed = client.put(url, json={"value": "viel"}, headers=GERMAN)
+    assert typed.json()["detail"] == "C00088 (Rated motor current) erwartet eine Zahl, erhalten: 'viel'"
+
+    plant = client.app.state.drivebench.plants[SESSION]  # type: ignore[attr-defined]
+    plant.nodes[12].power_off()  # the SDO request is sent and never answered
+    try:
+        silent = client.get(f"/api/sessions/{SESSION}/nodes/12/parameters/0x1000", headers=GERMAN)
+        assert silent.json()["type"] == "/problems/sdo-timeout-error", silent.text
+        assert silent.json()["detail"].startswith("Knoten 12 hat auf die SDO-Anfrage für 0x1000sub0 nicht geantwortet")
+        assert silent.json()["hint"].startswith("Prüfen Sie, ob der Knoten Spannung hat")
+        plain = client.get(f"/api/sessions/{SESSION}/nodes/12/parameters/0x1000").json()
+        assert plain["detail"].startswith("Node 12 did not answer the SDO request for 0x1000sub0 (")
+        assert plain["hint"].startswith("Check that the node is powered")
+    finally:
+        plant.nodes[12].power_on()
 
 
 def test_a_catalogue_without_its_mo_is_compiled_from_the_po(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 from drivebench.device.profile import Access, Entry
 from drivebench.errors import InvalidValue, OutOfRange, ReadOnly
+from drivebench.i18n import _
 from drivebench.protocol.datatypes import DataType
 
 RawValue = int | float | str | bytes
@@ -66,7 +67,7 @@ def to_raw(entry: Entry, value: object, *, ref: str = "") -> RawValue:
     """What a user typed -> raw value to send, or a ParameterError naming the parameter, range and unit."""
     label = f"{ref} ({entry.name})" if ref else entry.name
     if not entry.access.writable:
-        raise ReadOnly(f"{label} is read-only")
+        raise ReadOnly(_("{label} is read-only").format(label=label))
     dt = entry.data_type
     if dt.is_string:
         if dt is DataType.VISIBLE_STRING:
@@ -75,31 +76,33 @@ def to_raw(entry: Entry, value: object, *, ref: str = "") -> RawValue:
             try:
                 return bytes.fromhex(value)
             except ValueError as exc:
-                raise InvalidValue(f"{label} expects hex bytes such as '01 02 0A'") from exc
-        raise InvalidValue(f"{label} expects hex bytes")
+                raise InvalidValue(_("{label} expects hex bytes such as '01 02 0A'").format(label=label)) from exc
+        raise InvalidValue(_("{label} expects hex bytes").format(label=label))
     if isinstance(value, str):
         value = _parse_number_or_selection(entry, value, label)
     if not isinstance(value, (int, float)) or (isinstance(value, bool) and dt is not DataType.BOOLEAN):
-        raise InvalidValue(f"{label} expects a number, got {value!r}")
+        raise InvalidValue(_("{label} expects a number, got {value}").format(label=label, value=repr(value)))
     if isinstance(value, float) and not math.isfinite(value):
-        raise InvalidValue(f"{label} expects a finite number")
+        raise InvalidValue(_("{label} expects a finite number").format(label=label))
     if (entry.min is not None and value < entry.min) or (entry.max is not None and value > entry.max):
-        raise OutOfRange(f"{label}: {value} is outside the allowed range {_limits_text(entry)}")
+        raise OutOfRange(_("{label}: {value} is outside the allowed range {limits}").format(
+            label=label, value=value, limits=_limits_text(entry)))
     if dt.is_float:
         return float(value) * float(entry.factor)
     scaled = value * entry.factor
     raw = round(scaled)
     if abs(scaled - raw) > 1e-6 * max(1.0, abs(scaled)):
         step = 1 / entry.factor
-        raise InvalidValue(f"{label}: {value} has more decimals than the device resolves (step {step:g}"
-                           f"{' ' + entry.unit if entry.unit else ''})")
+        raise InvalidValue(_("{label}: {value} has more decimals than the device resolves (step {step})").format(
+            label=label, value=value, step=f"{step:g}{' ' + entry.unit if entry.unit else ''}"))
     limits = dt.raw_limits()
     if limits and not limits[0] <= raw <= limits[1]:
-        raise OutOfRange(f"{label}: {value} does not fit the data type {dt.value} "
-                         f"(raw {limits[0]} ... {limits[1]})")
+        raise OutOfRange(_("{label}: {value} does not fit the data type {type} (raw {low} ... {high})").format(
+            label=label, value=value, type=dt.value, low=limits[0], high=limits[1]))
     if entry.selection and raw not in entry.selection:
         allowed = ", ".join(f"{k} = {v}" for k, v in sorted(entry.selection.items()))
-        raise OutOfRange(f"{label}: {raw} is not in the selection list ({allowed})")
+        raise OutOfRange(_("{label}: {raw} is not in the selection list ({allowed})").format(
+            label=label, raw=raw, allowed=allowed))
     return raw
 
 
@@ -115,7 +118,7 @@ def _parse_number_or_selection(entry: Entry, text: str, label: str) -> int | flo
             return int(cleaned, 0)
         number = float(cleaned.replace(",", "."))
     except ValueError as exc:
-        raise InvalidValue(f"{label} expects a number, got '{text}'") from exc
+        raise InvalidValue(_("{label} expects a number, got '{text}'").format(label=label, text=text)) from exc
     return int(number) if number.is_integer() and entry.factor == 1 else number
 
 

@@ -48,8 +48,10 @@ def communication_error(exc: SdoCommunicationError, *, node: int, index: int, su
     if isinstance(exc, SegmentsLost) and silent:
         return SdoStalledError(node=node, index=index, subindex=subindex, done=exc.done, total=exc.total)
     if silent:
-        return SdoTimeoutError(f"Node {node} did not answer the SDO request for 0x{index:04X}sub{subindex} ({text})",
-                               node=node, index=index, subindex=subindex)
+        where = f"0x{index:04X}sub{subindex}"
+        return SdoTimeoutError(SdoTimeoutError.NO_ANSWER.format(node=node, object=where, reason=text),
+                               node=node, index=index, subindex=subindex).keep_template(
+            SdoTimeoutError.NO_ANSWER, node=node, object=where, reason=text)
     if "Toggle bit" in text:
         return SdoOutOfStepError("toggle", node=node, index=index, subindex=subindex)
     other = _OTHER_OBJECT.search(text)

@@ -264,10 +264,11 @@ class ExpeditedUploader:
                         raise SdoOutOfStepError("object", node=self.node_id, index=request.index,
                                                 subindex=request.subindex,
                                                 answered=(other[0] | other[1] << 8, other[2])) from None
-                    raise SdoTimeoutError(f"Node {self.node_id} did not answer the SDO request for "
-                                          f"0x{request.index:04X}sub{request.subindex} (No SDO response received)",
-                                          node=self.node_id, index=request.index,
-                                          subindex=request.subindex) from None
+                    values = {"node": self.node_id, "object": f"0x{request.index:04X}sub{request.subindex}",
+                              "reason": "No SDO response received"}
+                    raise SdoTimeoutError(SdoTimeoutError.NO_ANSWER.format(**values), node=self.node_id,
+                                          index=request.index, subindex=request.subindex).keep_template(
+                        SdoTimeoutError.NO_ANSWER, **values) from None
                 finally:
                     self._pending = None
                 if segmented and data[0] >> 5 == 2 and not data[0] & 0x02:  # initiate answer: segmented

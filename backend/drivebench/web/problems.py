@@ -62,10 +62,12 @@ def problem_body(exc: errors.DriveBenchError, instance: str) -> dict[str, object
         "type": f"/problems/{kebab}",
         "title": _(exc.title),  # the request's language (web/language): English unless the browser asks German
         "status": status_for(exc),
-        "detail": exc.detail,
+        "detail": exc.shown_detail(),
         "instance": instance,
     }
     body.update({k: v for k, v in exc.extra().items() if v is not None})
+    if exc.hint:
+        body["hint"] = _(exc.hint)  # a hint marked N_() where it is written; any other stays as it is
     return body
 
 

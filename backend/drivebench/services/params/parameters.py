@@ -47,6 +47,7 @@ from drivebench.errors import (
     TransportError,
     UnknownParameter,
 )
+from drivebench.i18n import _
 from drivebench.protocol.datatypes import DataType, decode, encode
 from drivebench.protocol.heartbeat import HeartbeatStatus
 from drivebench.protocol.network import NodeClient, SdoChannel
@@ -381,7 +382,7 @@ def _decode(item: Item, data: bytes, node_id: int) -> RawValue:
 
 def _read_blocking(client: SdoClient, item: Item, *, block: bool = False, channel: int | None = None) -> bytes:
     if not item.entry.access.readable:
-        raise InvalidValue(f"{item.ref} ({item.entry.name}) is write-only")
+        raise InvalidValue(_("{ref} ({name}) is write-only").format(ref=item.ref, name=item.entry.name))
     return client.upload(item.index, item.subindex, block=block, channel=channel)
 
 
@@ -501,8 +502,8 @@ def encoded(item: Item, raw: RawValue, value: object) -> bytes:
     try:
         return encode(item.entry.data_type, raw)
     except ValueError as exc:
-        raise OutOfRange(f"{item.ref} ({item.entry.name}): {value!r} does not fit "
-                         f"{item.entry.data_type.value}") from exc
+        raise OutOfRange(_("{ref} ({name}): {value} does not fit {type}").format(
+            ref=item.ref, name=item.entry.name, value=repr(value), type=item.entry.data_type.value)) from exc
 
 
 def given_value(node: SessionNode, ref: str, value: object, raw: int | None) -> object:
@@ -759,7 +760,7 @@ async def read_node(session: Session, node: SessionNode, work: list[Item], job: 
     queue = deque(work)
     await asyncio.gather(*(drain(queue, channel, False) for channel in channel_numbers))
     if timed_out and silence.verdict is None:
-        again = deque(item for item, _ in timed_out.values())
+        again = deque(item for item, _error in timed_out.values())
         retried.extend(item.ref for item in again)
         timed_out.clear()
         await asyncio.gather(*(drain(again, channel, True) for channel in channel_numbers))
