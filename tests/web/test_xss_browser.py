@@ -60,6 +60,9 @@ def poisoned_json_profile() -> bytes:
     profile = json.loads((REPO_ROOT / "device_profiles" / "siemens-micromaster4-canopen.json").read_text())
     profile = poisoned(profile)
     profile["id"] = "xss-micromaster"
+    # a switch block of its own (a key or alias another profile's block uses is refused), its texts poisoned too
+    profile["switches"].update(key="xss-switches", aliases=[], name=f"XSS switches {PAYLOAD}",
+                               short_name=f"XSS {PAYLOAD}")
     profile["notes"].append(PAYLOAD)
     return json.dumps(profile).encode()
 
