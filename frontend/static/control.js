@@ -20,11 +20,6 @@
   const esc = window.drivebench.escape;  // problem texts name lease holders and operators: text, never markup
   const _ = window.drivebench.gettext;
 
-  function problemText(body, status) {
-    if (body && body.detail) return `<strong>${esc(body.title || _("Error"))}</strong> ${esc(body.detail)}`;
-    return `<strong>${esc(_("Request failed"))}</strong> (HTTP ${esc(status)})`;
-  }
-
   function init(panel) {
     if (panel.dataset.ready) return;
     panel.dataset.ready = "1";
@@ -49,7 +44,8 @@
       try { localStorage.setItem(OPERATOR_KEY, nameInput.value.trim()); } catch (e) { /* private mode */ }
     });
 
-    function showError(html, slot = result) { slot.innerHTML = `<div class="error" role="alert">${html}</div>`; }
+    // The pages' error box (app.js): titles and details are text nodes, never markup.
+    function showError(box, slot = result) { slot.replaceChildren(box); }
     function clearError(slot = result) { slot.innerHTML = ""; }
 
     function confirmMove(text) {
@@ -70,7 +66,7 @@
                                          body: body === undefined ? undefined : JSON.stringify(body) });
       let data = null;
       try { data = await response.json(); } catch (e) { data = null; }
-      if (!response.ok) { showError(problemText(data, response.status), slot); return null; }
+      if (!response.ok) { showError(window.drivebench.problemBox(data, response.status), slot); return null; }
       freshUntil = performance.now() + 600;
       clearError(slot);
       return data;
@@ -178,7 +174,7 @@
               if (performance.now() > freshUntil) render(message.status);
               plot(message.actuals, message.t);
             }
-            else if (message.type === "error") showError(esc(message.detail));
+            else if (message.type === "error") showError(window.drivebench.errorBox(null, message.detail));
           },
         });
     }
@@ -210,7 +206,7 @@
     if (setpointForm) setpointForm.addEventListener("submit", async (event) => {
       event.preventDefault();
       const value = parseFloat(event.target.value.value);
-      if (Number.isNaN(value)) { showError(`<strong>${esc(_("Setpoint"))}</strong> ${esc(_("enter a number"))}`); return; }
+      if (Number.isNaN(value)) { showError(window.drivebench.errorBox(_("Setpoint"), _("enter a number"))); return; }
       let confirm = false;
       if (value !== 0) {
         confirm = await confirmMove(_("Setpoint {value} {unit}: the motor may turn.",
@@ -266,7 +262,7 @@
         const form = event.target;
         const target = parseFloat(form.target.value);
         const velocity = parseFloat(form.velocity.value);
-        if (Number.isNaN(target)) { showError(`<strong>${esc(_("Target"))}</strong> ${esc(_("enter a number"))}`); return; }
+        if (Number.isNaN(target)) { showError(window.drivebench.errorBox(_("Target"), _("enter a number"))); return; }
         const move = form.relative.checked ? _("Move by {target} {unit}", { target, unit: positionUnit })
           : _("Move to {target} {unit}", { target, unit: positionUnit });
         if (!await confirmed(move)) return;
@@ -278,7 +274,7 @@
         event.preventDefault();  // profile velocity (3) or torque (4): the mode first, then its setpoint
         const mode = Number(form.dataset.mode);
         const value = parseFloat(form.value.value);
-        if (Number.isNaN(value)) { showError(`<strong>${esc(_("Target"))}</strong> ${esc(_("enter a number"))}`); return; }
+        if (Number.isNaN(value)) { showError(window.drivebench.errorBox(_("Target"), _("enter a number"))); return; }
         if (value !== 0 && !await confirmed(_("Target {value} {unit} (mode {mode})", { value, unit: form.dataset.unit, mode }))) return;
         if (currentMode !== mode && !await call("PUT", `${api}/mode`, { mode, confirm: true })) return;
         const status = await call("PUT", `${api}/setpoint`, { value, confirm: value !== 0 });
@@ -289,7 +285,7 @@
         cyclicForm.addEventListener("submit", async (event) => {
           event.preventDefault();
           const value = parseFloat(event.target.value.value);
-          if (Number.isNaN(value)) { showError(`<strong>${esc(_("Target"))}</strong> ${esc(_("enter a number"))}`); return; }
+          if (Number.isNaN(value)) { showError(window.drivebench.errorBox(_("Target"), _("enter a number"))); return; }
           if (!await confirmed(_("Cyclic synchronous setpoint {value}", { value }))) return;
           const sent = await call("POST", `${api}/cyclic`, { value, confirm: true });
           if (sent) result.textContent = _("RPDO{rpdo} ({cob_id}) every {period} ms with SYNC: {data}", { rpdo: sent.rpdo,
