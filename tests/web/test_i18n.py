@@ -267,3 +267,52 @@ def test_the_plant_pages_websocket_pushes_the_table_in_the_asked_language(client
     assert "NMT-Zustand" in table and "NMT state" not in table
     with client.websocket_connect(f"/ws/sessions/{SESSION}/nodes") as socket:
         assert "NMT state" in socket.receive_text()
+
+
+# --- problem details written in the code ----------------------------------------------------------------------------
+# An error built from an English literal (a plain string, an f-string, "...".format()) reaches a German user in English:
+# every text given to a DriveBench error as its detail or hint goes through _() (in a request: the reader's language),
+# or N_() with keep_template (raised outside a request, translated when shown).
+def _error_classes() -> set[str]:
+    import inspect
+
+    from drivebench import errors
+
+    return {name for name, cls in vars(errors).items()
+            if inspect.isclass(cls) and issubclass(cls, errors.DriveBenchError)}
+
+
+def _english_literal(node: object) -> bool:
+    import ast
+
+    if isinstance(node, ast.JoinedStr) or (isinstance(node, ast.Constant) and isinstance(node.value, str)):
+        return True
+    if isinstance(node, ast.BinOp):
+        return _english_literal(node.left) or _english_literal(node.right)
+    if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr == "format":
+        return _english_literal(node.func.value)
+    return False
+
+
+def untranslated_error_texts(package: Path) -> list[str]:
+    import ast
+
+    classes = _error_classes()
+    found = []
+    for source in sorted(package.rglob("*.py")):
+        for node in ast.walk(ast.parse(source.read_text())):
+            if not isinstance(node, ast.Call):
+                continue
+            called = node.func.attr if isinstance(node.func, ast.Attribute) else getattr(node.func, "id", None)
+            if called not in classes:
+                continue
+            texts = list(node.args[:1]) + [k.value for k in node.keywords if k.arg in ("detail", "hint")]
+            if any(_english_literal(text) for text in texts):
+                found.append(f"{source.relative_to(ROOT)}:{node.lineno}")
+    return found
+
+
+def test_every_error_text_in_the_code_is_translatable() -> None:
+    left = untranslated_error_texts(ROOT / "backend" / "drivebench")
+    assert not left, f"{len(left)} error texts given as English literals (wrap in _() or N_() + keep_template):\n" \
+                     + "\n".join(left)
