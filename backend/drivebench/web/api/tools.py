@@ -26,6 +26,7 @@ from drivebench.device.cobids import STANDARD_IDS, CobId, PdoIds, cob_ids, uses_
 from drivebench.device.dip import DipResult, SwitchDevice, SwitchDevices, decode, encode
 from drivebench.device.switches import SwitchesSection
 from drivebench.errors import DriveBenchError, InvalidValue
+from drivebench.i18n import _
 from drivebench.services.planning.planned_networks import (
     LiveComparison,
     PlannedNetwork,
@@ -97,7 +98,7 @@ def dip_answer(device: SwitchDevice, result: DipResult, pdo_ids: PdoIds = STANDA
 def calculate(device: SwitchDevice, request: DipRequest) -> DipAnswer:
     if request.node_id is not None or request.baud_kbit is not None:
         if request.node_id is None or request.baud_kbit is None or request.switches is not None:
-            raise InvalidValue("Encode takes node_id and baud_kbit together; decode takes the switches.")
+            raise InvalidValue(_("Encode takes node_id and baud_kbit together; decode takes the switches."))
         return dip_answer(device, encode(device, request.node_id, request.baud_kbit), request.pdo_ids)
     result = decode(device, request.switches or {}, code_node_id=request.code_node_id,
                     code_baud_kbit=request.code_baud_kbit)
