@@ -17,7 +17,7 @@ import math
 from pydantic import BaseModel, Field
 
 from drivebench.errors import InvalidValue, OutOfRange
-from drivebench.i18n import _
+from drivebench.i18n import N_, _
 
 TOTAL_LENGTH_M: dict[int, int] = {20: 4013, 50: 1575, 125: 600, 250: 275, 500: 113, 800: 38, 1000: 13}
 """Table [5-1]: baud rate [kbit/s] -> max. bus length [m]."""
@@ -37,17 +37,23 @@ SEGMENT_LENGTH_M: dict[int, tuple[int, int, int, int]] = {
 REPEATER_2176_REDUCTION_M = 30
 
 SELECTION_EXAMPLE = {
-    "given": "0.5 mm², 63 nodes, Lenze repeater type 2176 (cable reduction 30 m)",
+    "given": N_("0.5 mm², 63 nodes, Lenze repeater type 2176 (cable reduction 30 m)"),
     "baud_kbit": [20, 50, 125, 250, 500, 800, 1000],
     "max_cable_length_m": [4013, 1575, 600, 275, 113, 38, 13],
     "segment_cable_length_m": [270, 270, 270, 270, 113, 38, 13],
     "repeaters": [15, 6, 2, 1, 0, 0, 0],
-    "note": (
+    "note": N_(
         "As printed in §5.2.4. The segment length 270 m does not follow from table [5-2] (310 m for 63 nodes "
         "at 0.5 mm², 280 m after the 30 m reduction), and the repeater counts do not follow one rule "
         "(20/50 kbit/s: total / segment rounded up; 125/250 kbit/s: one fewer)."
     ),
 }
+"""Its ``given`` and ``note`` are N_() texts: translated where shown (:func:`selection_example`)."""
+
+
+def selection_example() -> dict[str, object]:
+    """The selection example with its words in the current language."""
+    return {**SELECTION_EXAMPLE, "given": _(str(SELECTION_EXAMPLE["given"])), "note": _(str(SELECTION_EXAMPLE["note"]))}
 
 
 class CablePlan(BaseModel):

@@ -17,10 +17,10 @@ from drivebench.device.cable import (
     CROSS_SECTIONS_MM2,
     REPEATER_2176_REDUCTION_M,
     SEGMENT_LENGTH_M,
-    SELECTION_EXAMPLE,
     TOTAL_LENGTH_M,
     CablePlan,
     plan_cable,
+    selection_example,
 )
 from drivebench.device.cobids import STANDARD_IDS, CobId, PdoIds, cob_ids, uses_alternative
 from drivebench.device.dip import DipResult, SwitchDevice, SwitchDevices, decode, encode
@@ -161,7 +161,7 @@ async def cable(baud_kbit: int, nodes: Annotated[int, Query(ge=2)], length_m: An
 async def cable_tables() -> dict[str, Any]:
     """The manual's tables as printed: total length per baud rate, segment length, the selection example."""
     return {"total_length_m": TOTAL_LENGTH_M, "cross_sections_mm2": CROSS_SECTIONS_MM2,
-            "segment_length_m": SEGMENT_LENGTH_M, "selection_example": SELECTION_EXAMPLE}
+            "segment_length_m": SEGMENT_LENGTH_M, "selection_example": selection_example()}
 
 
 @router.post("/planner/check", response_model=PlanReport)

@@ -14,9 +14,9 @@ from drivebench.device.cable import (
     CROSS_SECTIONS_MM2,
     REPEATER_2176_REDUCTION_M,
     SEGMENT_LENGTH_M,
-    SELECTION_EXAMPLE,
     TOTAL_LENGTH_M,
     plan_cable,
+    selection_example,
 )
 from drivebench.device.cobids import STANDARD_IDS, channels_of, default_channels, uses_alternative
 from drivebench.device.dip import SwitchDevices, decode, encode
@@ -155,7 +155,7 @@ def _cable_context(request: Request, devices: SwitchDevices, form: FormData | No
         error = _error(request, exc)
     return _base(devices, cable=plan, cable_values=values, cable_error=error, total_lengths=TOTAL_LENGTH_M,
                  segment_lengths=SEGMENT_LENGTH_M, cross_sections=CROSS_SECTIONS_MM2,
-                 selection_example=SELECTION_EXAMPLE)
+                 selection_example=selection_example())
 
 
 @router.post("/ui/tools/cable", response_class=HTMLResponse)
