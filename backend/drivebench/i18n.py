@@ -106,9 +106,18 @@ class Text(str):
         joined.translated = False
         return joined
 
+    def __reduce__(self) -> tuple[object, ...]:  # copy and pickle: str's own would format the English text again
+        return _rebuilt, (type(self), self.template, self.values, self.translated)
+
     def shown(self) -> str:
         template = gettext(self.template) if self.translated and self.template else self.template
         return template.format(**{k: shown(v) if isinstance(v, Text) else v for k, v in self.values.items()})
+
+
+def _rebuilt(cls: type[Text], template: str, values: dict[str, object], translated: bool) -> Text:
+    text = cls(template, **values)
+    text.translated = translated
+    return text
 
 
 def shown(text: str) -> str:

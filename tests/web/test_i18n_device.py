@@ -4,8 +4,10 @@ the unchanged English. Warnings stored with a profile keep their template: each 
 
 from __future__ import annotations
 
+import copy
 import io
 import json
+import pickle
 import zipfile
 from pathlib import Path
 
@@ -29,6 +31,12 @@ def test_a_text_keeps_its_template_and_is_shown_in_the_readers_language() -> Non
         assert shown(joined) == "'x1' ist keine Zahl: verworfen; plain"
         assert shown("any other string") == "any other string"
     assert shown(joined) == joined
+    for copied in (copy.deepcopy(joined), pickle.loads(pickle.dumps(joined))):
+        assert copied == joined and copied.template == joined.template
+        with using("de"):
+            assert shown(copied) == "'x1' ist keine Zahl: verworfen; plain"
+    braces = Text(N_("may use {names} only"), names="{ref}")  # the English text holds braces of its own
+    assert copy.copy(braces) == "may use {ref} only"
 
 
 def test_an_eds_quirk_is_warned_in_the_language_of_each_reader(api: TestClient) -> None:
