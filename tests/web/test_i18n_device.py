@@ -53,6 +53,16 @@ def test_an_eds_quirk_is_warned_in_the_language_of_each_reader(api: TestClient) 
     assert "als Oktalzahl 64 gelesen" in page and "read as octal" not in page
 
 
+def test_every_quirk_of_the_corpus_is_warned_in_german(api: TestClient) -> None:
+    for name, content, _case in CORPUS_FILES:
+        uploaded = api.post("/api/profiles", files={"file": (name, content)}, headers=GERMAN)
+        assert uploaded.status_code == 201, (name, uploaded.text)
+        german = [w["message"] for w in uploaded.json()["warnings"]]
+        english = [w["message"] for w in api.get(f"/api/profiles/{uploaded.json()['id']}/warnings").json()]
+        assert len(german) == len(english)
+        assert not [text for text in german if text in english], name  # every one is German, none left English
+
+
 def test_a_file_that_did_not_load_at_start_is_reported_in_german(user_dir: Path,
                                                                    monkeypatch: pytest.MonkeyPatch) -> None:
     user_dir.mkdir()
