@@ -9,7 +9,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Self
 
-from drivebench.i18n import N_, _
+from drivebench.i18n import N_, Text, _, shown
 
 
 class DriveBenchError(Exception):
@@ -31,7 +31,7 @@ class DriveBenchError(Exception):
     def shown_detail(self) -> str:
         """``detail`` in the language of whoever reads it (web/problems.py calls it in the request's language); an
         error raised outside a request (a bus thread) keeps an N_() template and its values for this."""
-        return _(self._template).format(**self._values) if self._template else self.detail
+        return _(self._template).format(**self._values) if self._template else shown(self.detail)
 
     def keep_template(self, template: str, **values: object) -> Self:
         """Keeps the N_() text ``detail`` was formatted from (``detail`` itself stays the English text)."""
@@ -160,13 +160,15 @@ class DeviceError(DriveBenchError):
 
 
 class ProfileError(DeviceError):
-    """A profile file (EDS/JSON) cannot be loaded; ``source`` and ``line`` say where."""
+    """A profile file (EDS/JSON) cannot be loaded; ``source`` and ``line`` say where, ``reason`` what (a
+    :class:`~drivebench.i18n.Text` when it may be shown later, in another language: a file read at start)."""
 
     title = N_("Invalid device profile")
 
     def __init__(self, detail: str, *, source: str | None = None, line: int | None = None) -> None:
         where = f"{source}:{line}: " if source and line else (f"{source}: " if source else "")
-        super().__init__(where + detail)
+        super().__init__(Text.joined("", [where, detail]))
+        self.reason = detail
         self.source = source
         self.line = line
 

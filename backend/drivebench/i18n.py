@@ -16,10 +16,11 @@ import contextlib
 import functools
 import gettext as gettext_module
 import io
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from contextvars import ContextVar
 from decimal import Decimal
 from pathlib import Path
+from typing import Self
 
 from babel import Locale, negotiate_locale
 from babel.messages.mofile import write_mo
@@ -80,6 +81,48 @@ def ngettext(singular: str, plural: str, n: int) -> str:
 
 
 _ = gettext
+
+
+class Text(str):
+    """A text kept as its N_() template and values, for one made outside a request and shown later to readers of
+    any language (a warning stored with a profile, a file that did not load at start). The string itself is the
+    English text; ``shown()`` puts it into the current language. Values may be Texts themselves."""
+
+    template: str
+    values: dict[str, object]
+    translated = True
+
+    def __new__(cls, template: str, /, **values: object) -> Self:
+        text = super().__new__(cls, template.format(**values))
+        text.template, text.values = template, values
+        return text
+
+    @classmethod
+    def joined(cls, separator: str, texts: Iterable[str]) -> Self:
+        """``separator.join(texts)`` that keeps each part's template."""
+        values = {f"t{n}": text for n, text in enumerate(texts)}
+        escaped = separator.replace("{", "{{").replace("}", "}}")
+        joined = cls(escaped.join("{" + name + "}" for name in values), **values)
+        joined.translated = False
+        return joined
+
+    def __reduce__(self) -> tuple[object, ...]:  # copy and pickle: str's own would format the English text again
+        return _rebuilt, (type(self), self.template, self.values, self.translated)
+
+    def shown(self) -> str:
+        template = gettext(self.template) if self.translated and self.template else self.template
+        return template.format(**{k: shown(v) if isinstance(v, Text) else v for k, v in self.values.items()})
+
+
+def _rebuilt(cls: type[Text], template: str, values: dict[str, object], translated: bool) -> Text:
+    text = cls(template, **values)
+    text.translated = translated
+    return text
+
+
+def shown(text: str) -> str:
+    """``text`` in the current language when it is a :class:`Text`; any other string as it is."""
+    return text.shown() if isinstance(text, Text) else text
 
 
 def accepted_languages(header: str | None) -> list[str]:

@@ -16,6 +16,7 @@ from drivebench.device.profile import (
     SiemensParameterAddressing,
 )
 from drivebench.errors import UnknownParameter
+from drivebench.i18n import _
 
 _INDEX_RE = re.compile(r"^(?:0x)?([0-9a-f]{4})(?:(?:\.|sub|:|/)(0x)?([0-9a-f]{1,3}))?$", re.IGNORECASE)
 # MICROMASTER: 0x2802/0x2803 are the free process-data objects, not r2050/P2051 on the parameter channel.
@@ -46,7 +47,7 @@ def _subindex(hex_prefix: str | None, digits: str | None) -> int | None:
         return None
     value = int(digits, 16) if hex_prefix or not digits.isdigit() else int(digits)
     if value > 0xFF:
-        raise UnknownParameter(f"Subindex {digits} is more than 255")
+        raise UnknownParameter(_("Subindex {sub} is more than 255").format(sub=digits))
     return value
 
 
@@ -66,10 +67,8 @@ def parse_ref(text: str) -> Ref:
         prefix = "r" if prefix == "r" else prefix.upper()
         sub = int(match.group(3)) if match.group(3) is not None else None
         return CodeRef(prefix, int(match.group(2)), sub)
-    raise UnknownParameter(
-        f"'{text}' is not a parameter reference. Use a vendor code (C00088, C00118/3, P2040, r2054.3) "
-        "or a CANopen index (0x5FA7, 0x5FA7.0, 0x1018sub1)."
-    )
+    raise UnknownParameter(_("'{text}' is not a parameter reference. Use a vendor code (C00088, C00118/3, P2040, "
+                             "r2054.3) or a CANopen index (0x5FA7, 0x5FA7.0, 0x1018sub1).").format(text=text))
 
 
 def code_to_index(addressing: Addressing, number: int, subcode: int = 0) -> tuple[int, int]:
@@ -77,16 +76,18 @@ def code_to_index(addressing: Addressing, number: int, subcode: int = 0) -> tupl
     if isinstance(addressing, LenzeCodeAddressing):
         index = addressing.base - number
         if not addressing.lowest_index <= index <= addressing.base:
-            raise UnknownParameter(f"Code C{number} is outside the Lenze code range (index 0x{index:04X}; codes "
-                                   f"lie between 0x{addressing.lowest_index:04X} and 0x{addressing.base:04X})")
+            raise UnknownParameter(_("Code C{number} is outside the Lenze code range (index {index}; codes lie "
+                                     "between {lowest} and {base})").format(
+                                         number=number, index=f"0x{index:04X}",
+                                         lowest=f"0x{addressing.lowest_index:04X}", base=f"0x{addressing.base:04X}"))
         return index, subcode
     if isinstance(addressing, SiemensParameterAddressing):
         index = addressing.base + number
         if index in _MM4_FREE_OBJECTS or index > 0x5FFF:
-            raise UnknownParameter(f"Parameter {number} is not on the MICROMASTER parameter channel "
-                                   "(0x2000..0x2801, 0x2804..0x5FFF)")
+            raise UnknownParameter(_("Parameter {number} is not on the MICROMASTER parameter channel "
+                                     "(0x2000..0x2801, 0x2804..0x5FFF)").format(number=number))
         return index, subcode
-    raise UnknownParameter("This device has no vendor parameter codes; use a CANopen index such as 0x1017")
+    raise UnknownParameter(_("This device has no vendor parameter codes; use a CANopen index such as 0x1017"))
 
 
 def index_to_code(addressing: Addressing, index: int, subindex: int) -> tuple[int, int] | None:

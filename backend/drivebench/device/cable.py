@@ -17,6 +17,7 @@ import math
 from pydantic import BaseModel, Field
 
 from drivebench.errors import InvalidValue, OutOfRange
+from drivebench.i18n import N_, _
 
 TOTAL_LENGTH_M: dict[int, int] = {20: 4013, 50: 1575, 125: 600, 250: 275, 500: 113, 800: 38, 1000: 13}
 """Table [5-1]: baud rate [kbit/s] -> max. bus length [m]."""
@@ -36,17 +37,23 @@ SEGMENT_LENGTH_M: dict[int, tuple[int, int, int, int]] = {
 REPEATER_2176_REDUCTION_M = 30
 
 SELECTION_EXAMPLE = {
-    "given": "0.5 mm², 63 nodes, Lenze repeater type 2176 (cable reduction 30 m)",
+    "given": N_("0.5 mm², 63 nodes, Lenze repeater type 2176 (cable reduction 30 m)"),
     "baud_kbit": [20, 50, 125, 250, 500, 800, 1000],
     "max_cable_length_m": [4013, 1575, 600, 275, 113, 38, 13],
     "segment_cable_length_m": [270, 270, 270, 270, 113, 38, 13],
     "repeaters": [15, 6, 2, 1, 0, 0, 0],
-    "note": (
+    "note": N_(
         "As printed in §5.2.4. The segment length 270 m does not follow from table [5-2] (310 m for 63 nodes "
         "at 0.5 mm², 280 m after the 30 m reduction), and the repeater counts do not follow one rule "
         "(20/50 kbit/s: total / segment rounded up; 125/250 kbit/s: one fewer)."
     ),
 }
+"""Its ``given`` and ``note`` are N_() texts: translated where shown (:func:`selection_example`)."""
+
+
+def selection_example() -> dict[str, object]:
+    """The selection example with its words in the current language."""
+    return {**SELECTION_EXAMPLE, "given": _(str(SELECTION_EXAMPLE["given"])), "note": _(str(SELECTION_EXAMPLE["note"]))}
 
 
 class CablePlan(BaseModel):
@@ -77,21 +84,18 @@ class CablePlan(BaseModel):
 def segment_length(nodes: int, cross_section_mm2: float) -> tuple[int, int]:
     """Table [5-2]: (row used, max. segment length [m])."""
     if cross_section_mm2 not in CROSS_SECTIONS_MM2:
-        raise InvalidValue(
-            f"Cross-section {cross_section_mm2} mm² is not in table [5-2] "
-            f"({', '.join(str(c) for c in CROSS_SECTIONS_MM2)} mm²)."
-        )
+        raise InvalidValue(_("Cross-section {section} mm² is not in table [5-2] ({sections} mm²).").format(
+            section=cross_section_mm2, sections=", ".join(str(c) for c in CROSS_SECTIONS_MM2)))
     for row, lengths in SEGMENT_LENGTH_M.items():
         if nodes <= row:
             return row, lengths[CROSS_SECTIONS_MM2.index(cross_section_mm2)]
-    raise OutOfRange(f"{nodes} nodes per segment: table [5-2] ends at 63.")
+    raise OutOfRange(_("{nodes} nodes per segment: table [5-2] ends at 63.").format(nodes=nodes))
 
 
 def total_length(baud_kbit: int) -> int:
     if baud_kbit not in TOTAL_LENGTH_M:
-        raise InvalidValue(
-            f"{baud_kbit} kbit/s is not in table [5-1] ({', '.join(str(b) for b in TOTAL_LENGTH_M)} kbit/s)."
-        )
+        raise InvalidValue(_("{baud} kbit/s is not in table [5-1] ({rates} kbit/s).").format(
+            baud=baud_kbit, rates=", ".join(str(b) for b in TOTAL_LENGTH_M)))
     return TOTAL_LENGTH_M[baud_kbit]
 
 
@@ -108,22 +112,24 @@ def plan_cable(
     repeater_reduction_m: int = REPEATER_2176_REDUCTION_M,
 ) -> CablePlan:
     if nodes < 2:
-        raise OutOfRange("A CAN segment has at least 2 nodes.")
+        raise OutOfRange(_("A CAN segment has at least 2 nodes."))
     if required_length_m <= 0:
-        raise OutOfRange("The required cable length must be greater than 0 m.")
+        raise OutOfRange(_("The required cable length must be greater than 0 m."))
     total = total_length(baud_kbit)
     row, seg = segment_length(nodes, cross_section_mm2)
     steps = [
-        f"1. Total cable length at {baud_kbit} kbit/s: {total} m (table [5-1]).",
-        f"2. Segment cable length for {nodes} nodes at {cross_section_mm2} mm²: {seg} m "
-        f"(table [5-2], row {row} nodes).",
+        _("1. Total cable length at {baud} kbit/s: {total} m (table [5-1]).").format(baud=baud_kbit, total=total),
+        _("2. Segment cable length for {nodes} nodes at {section} mm²: {segment} m (table [5-2], row {row} "
+          "nodes).").format(nodes=nodes, section=cross_section_mm2, segment=seg, row=row),
     ]
     per_repeater = seg - repeater_reduction_m
     if seg >= required_length_m:
-        steps.append(f"3. {seg} m ≥ {required_length_m:g} m: no repeater needed for the segment length.")
+        steps.append(_("3. {segment} m ≥ {required} m: no repeater needed for the segment length.").format(
+            segment=seg, required=f"{required_length_m:g}"))
         repeaters = 0
     else:
-        steps.append(f"3. {seg} m < {required_length_m:g} m: a repeater is needed after {seg} m.")
+        steps.append(_("3. {segment} m < {required} m: a repeater is needed after {segment} m.").format(
+            segment=seg, required=f"{required_length_m:g}"))
         repeaters = math.ceil((required_length_m - seg) / per_repeater) if per_repeater > 0 else 1
     capacity, delay_limit = _limits(seg, total, repeater_reduction_m, repeaters)
     feasible = (per_repeater > 0 or repeaters == 0) and required_length_m <= min(capacity, delay_limit)
@@ -135,29 +141,26 @@ def plan_cable(
         repeaters = max((math.floor(crossing), math.ceil(crossing)),
                         key=lambda count: (min(_limits(seg, total, repeater_reduction_m, count)), -count))
         capacity, delay_limit = _limits(seg, total, repeater_reduction_m, repeaters)
-        best_note = (f"The longest cable possible at {baud_kbit} kbit/s with {nodes} nodes at {cross_section_mm2} mm² "
-                     f"is {min(capacity, delay_limit):g} m, with {repeaters} repeater(s).")
+        best_note = _("The longest cable possible at {baud} kbit/s with {nodes} nodes at {section} mm² is {length} m, "
+                      "with {repeaters} repeater(s).").format(baud=baud_kbit, nodes=nodes, section=cross_section_mm2,
+                                                               length=f"{min(capacity, delay_limit):g}",
+                                                               repeaters=repeaters)
     max_length = min(capacity, delay_limit)
     if repeaters:
-        steps.append(
-            f"4. With {repeaters} repeater(s): segments {seg} m + {repeaters} x ({seg} m - "
-            f"{repeater_reduction_m} m) = {capacity:g} m."
-        )
-    steps.append(
-        f"{'5' if repeaters else '4'}. Signal delay: {total} m - {repeaters} x {repeater_reduction_m} m "
-        f"= {delay_limit:g} m for {baud_kbit} kbit/s."
-    )
+        steps.append(_("4. With {repeaters} repeater(s): segments {segment} m + {repeaters} x ({segment} m - "
+                       "{reduction} m) = {capacity} m.").format(repeaters=repeaters, segment=seg,
+                                                               reduction=repeater_reduction_m,
+                                                               capacity=f"{capacity:g}"))
+    steps.append(_("{step}. Signal delay: {total} m - {repeaters} x {reduction} m = {limit} m for {baud} "
+                   "kbit/s.").format(step=5 if repeaters else 4, total=total, repeaters=repeaters,
+                                     reduction=repeater_reduction_m, limit=f"{delay_limit:g}", baud=baud_kbit))
     notes = []
     if capacity > delay_limit:
-        notes.append(
-            "The segments would allow more than the baud rate's total length: the total length "
-            f"({delay_limit:g} m after repeater delays) is the limit."
-        )
+        notes.append(_("The segments would allow more than the baud rate's total length: the total length "
+                       "({limit} m after repeater delays) is the limit.").format(limit=f"{delay_limit:g}"))
     if not feasible:
-        notes.append(
-            f"{required_length_m:g} m is not possible at {baud_kbit} kbit/s: lower the baud rate "
-            "or the cable length."
-        )
+        notes.append(_("{required} m is not possible at {baud} kbit/s: lower the baud rate or the cable "
+                       "length.").format(required=f"{required_length_m:g}", baud=baud_kbit))
     if best_note:
         notes.append(best_note)
     return CablePlan(

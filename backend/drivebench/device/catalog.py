@@ -17,6 +17,7 @@ from drivebench.device.addressing import (
 )
 from drivebench.device.profile import Entry, LenzeCodeAddressing, ObjectEntry, Parameter, Profile
 from drivebench.errors import UnknownParameter
+from drivebench.i18n import _
 
 
 @dataclass(frozen=True)
@@ -131,8 +132,8 @@ class Catalog:
             sub = ref.subindex if ref.subindex is not None else 0
             item = self._by_address.get((ref.index, sub))
             if item is None:
-                raise UnknownParameter(
-                    f"0x{ref.index:04X}sub{sub} is not in the profile '{self.profile.identity.product_name}'")
+                raise UnknownParameter(_("{object} is not in the profile '{product}'").format(
+                    object=f"0x{ref.index:04X}sub{sub}", product=self.profile.identity.product_name))
             return item
         return self._resolve_code(ref, text)
 
@@ -154,7 +155,8 @@ class Catalog:
                 index, sub = code_to_index(addressing, ref.number, subcode)
                 name = format_code(addressing, "C", ref.number)
                 return Item(name if subcode == 0 else f"{name}/{subcode}", index, sub, base.entry, pset)
-        raise UnknownParameter(f"'{text}' is not a parameter of '{self.profile.identity.product_name}'")
+        raise UnknownParameter(_("'{text}' is not a parameter of '{product}'").format(
+            text=text, product=self.profile.identity.product_name))
 
     def search(self, text: str) -> list[Item]:
         """Items whose code, index or name matches ``text`` (``88``, ``C00088``, ``rated motor current``,

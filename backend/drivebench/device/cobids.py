@@ -13,6 +13,7 @@ from pydantic import BaseModel, StringConstraints, computed_field
 
 from drivebench.device.switches import INFRASTRUCTURE, Direction, Service, SwitchesSection
 from drivebench.errors import InvalidValue, OutOfRange
+from drivebench.i18n import _
 
 STANDARD_IDS = "canopen"
 """``pdo_ids`` of CiA 301's predefined connection set; a device's ``alternative`` names the other set."""
@@ -55,12 +56,14 @@ def cob_ids(spec: SwitchesSection, node_id: int, *, pdo_ids: PdoIds = STANDARD_I
     """Every COB-ID ``node_id`` uses; with ``channels``, only those plus NMT/SYNC/EMCY/heartbeat."""
     lo, hi = spec.node_range
     if not lo <= node_id <= hi:
-        raise OutOfRange(f"{spec.name}: node id {node_id} is outside {lo} … {hi}.")
+        raise OutOfRange(_("{device}: node id {node} is outside {lo} … {hi}.").format(
+            device=spec.name, node=node_id, lo=lo, hi=hi))
     alternative = spec.cob_ids.alternative
     if pdo_ids != STANDARD_IDS and not uses_alternative(spec, pdo_ids):
-        other = f" or '{alternative.key}' ({alternative.name})" if alternative else ""
-        raise InvalidValue(f"{spec.name}: no '{pdo_ids}' identifiers are defined for this device; use the CANopen "
-                           f"identifiers ('{STANDARD_IDS}'){other}.")
+        other = _(" or '{key}' ({name})").format(key=alternative.key, name=alternative.name) if alternative else ""
+        raise InvalidValue(_("{device}: no '{ids}' identifiers are defined for this device; use the CANopen "
+                             "identifiers ('{standard}'){other}.").format(
+                                 device=spec.name, ids=pdo_ids, standard=STANDARD_IDS, other=other))
     result = []
     for svc in spec.cob_ids.services:
         if channels is not None and svc.channel not in channels | set(INFRASTRUCTURE):
@@ -73,7 +76,8 @@ def cob_ids(spec: SwitchesSection, node_id: int, *, pdo_ids: PdoIds = STANDARD_I
                     f"0x{svc.base:03X} ({alternative.standard_by})")
         other_node = partner(spec, svc, node_id)
         if other_node is not None and svc.shares_with is not None:
-            note = f"= {svc.shares_with.split()[0]} COB-ID of node id {other_node}"
+            note = _("= {service} COB-ID of node id {node}").format(service=svc.shares_with.split()[0],
+                                                                     node=other_node)
         result.append(CobId(service=svc.name, channel=svc.channel, cob_id=base + (node_id if svc.node_specific else 0),
                             direction=svc.direction, base=base, node_specific=svc.node_specific,
                             default_on=svc.default_on, source=svc.source, note=note))
@@ -86,7 +90,8 @@ def alternative_hint(spec: SwitchesSection | None, node_id: int, cob_id: int) ->
     alternative = spec.cob_ids.alternative if spec else None
     if spec is None or alternative is None:
         return None
-    return next((f"{alternative.label} of {svc.name}" for svc in spec.cob_ids.services
+    return next((_("{label} of {service}").format(label=alternative.label, service=svc.name)
+                 for svc in spec.cob_ids.services
                  if svc.alternative_base is not None and svc.alternative_base + node_id == cob_id), None)
 
 

@@ -17,7 +17,7 @@ from pydantic import BaseModel, Field
 from drivebench.device.profile import Profile
 from drivebench.device.switches import Case, SwitchesSection
 from drivebench.errors import InvalidValue, OutOfRange, UnknownProfile
-from drivebench.i18n import N_
+from drivebench.i18n import N_, _
 
 
 @dataclass(frozen=True)
@@ -67,9 +67,9 @@ class SwitchDevices:
     def get(self, name: str) -> SwitchDevice:
         device = self.find(name)
         if device is None:
-            raise UnknownProfile(f"No switch/addressing data for device '{name}' (no loaded profile has a "
-                                 f"'switches' section of that name). Known devices: "
-                                 f"{', '.join(self._devices) or 'none'}.")
+            raise UnknownProfile(_("No switch/addressing data for device '{name}' (no loaded profile has a "
+                                   "'switches' section of that name). Known devices: {known}.").format(
+                                       name=name, known=", ".join(self._devices) or _("none")))
         return device
 
 
@@ -89,8 +89,9 @@ def clash(profile: Profile, others: Iterable[Profile]) -> str | None:
             continue
         shared = _names(spec) & _names(theirs)
         if shared:
-            return (f"switches: the name(s) {', '.join(sorted(shared))} belong to the switch block of profile "
-                    f"'{other.id}', which differs; give this switch block another key and aliases")
+            return _("switches: the name(s) {names} belong to the switch block of profile '{profile}', which "
+                     "differs; give this switch block another key and aliases").format(
+                         names=", ".join(sorted(shared)), profile=other.id)
     return None
 
 
@@ -141,15 +142,15 @@ class NotSettableBySwitches(InvalidValue):
 
 def _normalise(spec: SwitchesSection, switches: dict[str, bool]) -> dict[str, bool]:
     if switches and not spec.switches:
-        raise InvalidValue(f"{spec.name} has no DIP switches; set {spec.node_parameter.code} and "
-                           f"{spec.baud_parameter.code} instead.")
+        raise InvalidValue(_("{device} has no DIP switches; set {node} and {baud} instead.").format(
+            device=spec.name, node=spec.node_parameter.code, baud=spec.baud_parameter.code))
     known = {s.label.lower(): s.label for s in spec.switches}
     result = {s.label: False for s in spec.switches}
     for label, on in switches.items():
         key = str(label).strip().lower()
         if key not in known:
-            raise InvalidValue(f"{spec.name} has no switch '{label}'. Switches: "
-                               f"{', '.join(s.label for s in spec.switches) or 'none'}.")
+            raise InvalidValue(_("{device} has no switch '{label}'. Switches: {switches}.").format(
+                device=spec.name, label=label, switches=", ".join(s.label for s in spec.switches) or _("none")))
         result[known[key]] = bool(on)
     return result
 
@@ -165,16 +166,17 @@ def _unlisted_baud(spec: SwitchesSection, positions: dict[str, bool]) -> str:
     labels = [s.label for s in spec.baud_switches]
     on = [label for label in labels if positions[label]]
     if len(on) == len(labels):
-        where = f"{', '.join(labels)} all ON"
+        where = _("{switches} all ON").format(switches=", ".join(labels))
     else:
-        where = ", ".join(f"{label} {'ON' if positions[label] else 'OFF'}" for label in labels)
-    return f"Baud switches {where}: this position is not in the {spec.baud_table_source} table."
+        where = ", ".join(f"{label} {_('ON') if positions[label] else _('OFF')}" for label in labels)
+    return _("Baud switches {where}: this position is not in the {table} table.").format(
+        where=where, table=spec.baud_table_source)
 
 
 def _check_baud(spec: SwitchesSection, baud_kbit: int) -> None:
     if baud_kbit not in spec.baud_rates_kbit:
-        raise InvalidValue(f"{spec.name} does not support {baud_kbit} kbit/s. Baud rates: "
-                           f"{', '.join(str(b) for b in spec.baud_rates_kbit)} kbit/s.")
+        raise InvalidValue(_("{device} does not support {baud} kbit/s. Baud rates: {rates} kbit/s.").format(
+            device=spec.name, baud=baud_kbit, rates=", ".join(str(b) for b in spec.baud_rates_kbit)))
 
 
 def code_alternative(spec: SwitchesSection, node_id: int, baud_kbit: int) -> list[ParameterSetting]:
@@ -238,7 +240,8 @@ def decode(device: SwitchDevice, switches: dict[str, bool], *, code_node_id: int
         else:
             cases.append("node_from_switches")
             if total > hi:
-                problems.append(f"The address switches give {total}, outside {lo} … {hi}.")
+                problems.append(_("The address switches give {total}, outside {lo} … {hi}.").format(
+                    total=total, lo=lo, hi=hi))
     baud = spec.baud_parameter
     all_baud_off = not any(positions[s.label] for s in spec.baud_switches)
     from_parameter = (not spec.baud_switches or (total == 0 and spec.all_address_off == "node_and_baud_from_parameters")
@@ -256,14 +259,15 @@ def decode(device: SwitchDevice, switches: dict[str, bool], *, code_node_id: int
             problems.append(_unlisted_baud(spec, positions))
     rules = [rule.text for rule in spec.rules if cases[0] in rule.when] + notes
     rules += [rule.text for rule in spec.rules if cases[1] in rule.when and rule.text not in rules]
-    node_text = "unknown (value of the parameter not given)" if node_id is None else str(node_id)
-    baud_text = "unknown" if baud_kbit is None else f"{baud_kbit} kbit/s"
+    node_text = _("unknown (value of the parameter not given)") if node_id is None else str(node_id)
+    baud_text = _("unknown") if baud_kbit is None else f"{baud_kbit} kbit/s"
     alternative = (code_alternative(spec, node_id, baud_kbit)
                    if node_id is not None and baud_kbit is not None and baud_kbit in spec.baud_rates_kbit else [])
     return DipResult(
         family=spec.key, switches=positions, address_switch_sum=total, baud_switch_kbit=baud_switch,
         node_id=node_id, node_id_source=node_source, baud_kbit=baud_kbit, baud_source=baud_source,
-        summary=f"Node id {node_text} (from {node_source}), baud rate {baud_text} (from {baud_source}).",
+        summary=_("Node id {node} (from {node_source}), baud rate {baud} (from {baud_source}).").format(
+            node=node_text, node_source=_source(node_source), baud=baud_text, baud_source=_source(baud_source)),
         rules_applied=rules, problems=problems, alternative=alternative, readback=_readback(spec, positions),
         ambiguities=list(spec.ambiguities),
     )
@@ -280,21 +284,33 @@ def encode(device: SwitchDevice, node_id: int, baud_kbit: int) -> DipResult:
     if not spec.address_switches:
         lo, hi = spec.node_parameter.range
         if not lo <= node_id <= hi:
-            raise OutOfRange(f"{spec.name}: node id {node_id} is outside {lo} … {hi}.")
+            raise OutOfRange(_outside(spec.name, node_id, lo, hi))
         return decode(device, {}, code_node_id=node_id, code_baud_kbit=baud_kbit)
     lo, hi = spec.switch_node_range or (1, 127)
     if not lo <= node_id <= hi:
         clo, chi = spec.node_parameter.range
         if clo <= node_id <= chi:
-            raise NotSettableBySwitches(f"Node id {node_id} cannot be set by the switches of {spec.name}.",
+            raise NotSettableBySwitches(_("Node id {node} cannot be set by the switches of {device}.").format(
+                                        node=node_id, device=spec.name),
                                         alternative=code_alternative(spec, node_id, baud_kbit))
-        raise OutOfRange(f"{spec.name}: node id {node_id} is outside {lo} … {hi}.")
+        raise OutOfRange(_outside(spec.name, node_id, lo, hi))
     positions = {s.label: bool(node_id & (s.weight or 0)) for s in spec.address_switches}
     row = next((r for r in spec.baud_table if r.baud_kbit == baud_kbit), None)
     if row is not None:
         positions.update(row.positions)
     result = decode(device, positions, code_baud_kbit=baud_kbit)
     if (result.node_id, result.baud_kbit) != (node_id, baud_kbit):
-        raise InvalidValue(f"{spec.name}: the switches give node id {result.node_id} at {result.baud_kbit} kbit/s "
-                           f"for {node_id} at {baud_kbit} kbit/s; its switches section does not add up.")
+        raise InvalidValue(_("{device}: the switches give node id {got} at {got_baud} kbit/s for {node} at {baud} "
+                             "kbit/s; its switches section does not add up.").format(
+                                 device=spec.name, got=result.node_id, got_baud=result.baud_kbit, node=node_id,
+                                 baud=baud_kbit))
     return result
+
+
+def _outside(device: str, node_id: int, lo: int, hi: int) -> str:
+    return _("{device}: node id {node} is outside {lo} … {hi}.").format(device=device, node=node_id, lo=lo, hi=hi)
+
+
+def _source(source: str) -> str:
+    """``switches`` in words; a parameter code as it is."""
+    return _("switches") if source == "switches" else source

@@ -51,6 +51,7 @@ from drivebench.device.eds_quirks import (
 )
 from drivebench.device.profile import Access, Features, Identity, ObjectEntry, Profile, Value
 from drivebench.errors import ProfileError
+from drivebench.i18n import N_, Text
 from drivebench.protocol.datatypes import DATA_TYPE_BY_CODE, DataType
 
 __all__ = ["MAX_EDS_BYTES", "ImportWarning", "ImportedEds", "Key", "Section", "decode_text", "import_eds",
@@ -92,11 +93,12 @@ def parse_value(data_type: DataType, text: str) -> Value:
         fitted, note = fit_int(data_type, number)
         if fitted is None or (note and not (data_type.is_signed and text.strip().lower().startswith("0x"))):
             low, high = data_type.raw_limits() or (0, 0)
-            raise ValueError(f"{text} does not fit {data_type.value} ({low}..{high})")
+            raise ValueError(Text(N_("{value} does not fit {type} ({low}..{high})"), value=text, type=data_type.value,
+                                  low=low, high=high))
         return fitted
     value, note = read_value(data_type, text)
     if value is None or note:
-        raise ValueError(f"{text!r} is not a {data_type.value} value")
+        raise ValueError(Text(N_("{value!r} is not a {type} value"), value=text, type=data_type.value))
     return value
 
 
@@ -139,17 +141,18 @@ class _Reader:
         try:
             value, note = read_int(key.value)
         except ValueError:
-            self.warn(key.line, key.name, f"{key.value!r} is not a number: {what or 'ignored'}")
+            self.warn(key.line, key.name, Text(N_("{value!r} is not a number: {reading}"), value=key.value,
+                                               reading=what or Text(N_("ignored"))))
             return fallback
         if note:
-            self.warn(key.line, key.name, f"{key.value!r} {note}")
+            self.warn(key.line, key.name, Text(N_("{value!r} {note}"), value=key.value, note=note))
         return value
 
     # object lists ---------------------------------------------------------------------------------------
     def listed_indices(self) -> dict[int, Key]:
         if not any(n.upper() in self.sections for n in OBJECT_LISTS):
-            self.warn(1, None, "no [MandatoryObjects], [OptionalObjects] or [ManufacturerObjects]: every object "
-                      "section of the file is read")
+            self.warn(1, None, Text(N_("no [MandatoryObjects], [OptionalObjects] or [ManufacturerObjects]: every "
+                                       "object section of the file is read")))
         listed: dict[int, Key] = {}
         for list_name in OBJECT_LISTS:
             section = self.sections.get(list_name.upper())
@@ -159,21 +162,25 @@ class _Reader:
             count_key = section.get("SupportedObjects")
             count = self.integer(count_key) if count_key is not None else None
             if count_key is None:
-                self.warn(section.line, "SupportedObjects", f"[{section.name}] has no SupportedObjects=: the "
-                          f"{len(numbered)} numbered entries are read")
+                self.warn(section.line, "SupportedObjects", Text(N_("[{name}] has no SupportedObjects=: the {count} "
+                                                                    "numbered entries are read"), name=section.name,
+                                                                 count=len(numbered)))
             elif count != len(numbered):
-                self.warn(count_key.line, count_key.name, f"SupportedObjects={count_key.value} but "
-                          f"[{section.name}] lists {len(numbered)} objects: the {len(numbered)} listed are read")
+                self.warn(count_key.line, count_key.name, Text(N_("SupportedObjects={value} but [{name}] lists "
+                                                                  "{count} objects: the {count} listed are read"),
+                                                               value=count_key.value, name=section.name,
+                                                               count=len(numbered)))
             for key in numbered:
-                index = self.integer(key, what="entry skipped")
+                index = self.integer(key, what=Text(N_("entry skipped")))
                 if index is None:
                     continue
                 if not 0x1000 <= index <= 0xFFFF:
-                    self.warn(key.line, key.name, f"object index 0x{index:04X} is outside 0x1000..0xFFFF: skipped")
+                    self.warn(key.line, key.name, Text(N_("object index 0x{index:04X} is outside 0x1000..0xFFFF: "
+                                                          "skipped"), index=index))
                     continue
                 if index in listed:
-                    self.warn(key.line, key.name, f"object 0x{index:04X} listed twice (first at line "
-                              f"{listed[index].line})")
+                    self.warn(key.line, key.name, Text(N_("object 0x{index:04X} listed twice (first at line {line})"),
+                                                       index=index, line=listed[index].line))
                     continue
                 listed[index] = key
         return listed
@@ -196,24 +203,26 @@ class _Reader:
             elif section.keys:
                 by_index[index] = section
             else:
-                self.warn(section.line, None, f"[{section.name}] has no keys: skipped")
+                self.warn(section.line, None, Text(N_("[{name}] has no keys: skipped"), name=section.name))
         for index, key in listed.items():
             if index not in by_index and index not in subs:
-                self.warn(key.line, key.name, f"object 0x{index:04X} is listed but has no [{index:04X}] section: "
-                          "skipped")
+                self.warn(key.line, key.name, Text(N_("object 0x{index:04X} is listed but has no [{index:04X}] "
+                                                      "section: skipped"), index=index))
         for index, sub_sections in subs.items():
             if index not in by_index and index >= 0x1000:
                 first = min(sub_sections.values(), key=lambda s: s.line)
-                self.warn(first.line, None, f"[{first.name}] belongs to no object section [{index:04X}]: read as "
-                          f"a RECORD named 'Object 0x{index:04X}'")
+                self.warn(first.line, None, Text(N_("[{name}] belongs to no object section [{index:04X}]: read as a "
+                                                    "RECORD named 'Object 0x{index:04X}'"), name=first.name,
+                                                 index=index))
                 by_index[index] = Section(f"{index:04X}", first.line, {
                     "parametername": Key("ParameterName", f"Object 0x{index:04X}", first.line),
                     "objecttype": Key("ObjectType", "0x9", first.line)})
         if listed:
             for index in sorted(set(by_index) - set(listed)):
                 if index >= 0x1000:
-                    self.warn(by_index[index].line, None, f"object section [{by_index[index].name}] is in no "
-                              "object list ([MandatoryObjects] ...): read")
+                    self.warn(by_index[index].line, None, Text(N_("object section [{name}] is in no object list "
+                                                                  "([MandatoryObjects] ...): read"),
+                                                               name=by_index[index].name))
         entries: list[ObjectEntry] = []
         for index in sorted(i for i in by_index if i >= 0x1000):
             entries.extend(self.object(index, by_index[index], subs.get(index, {}), aux))
@@ -224,20 +233,22 @@ class _Reader:
         if type_key is None:
             return 0x9 if subs else 0x7  # CiA 306 4.6.3.2: a missing ObjectType is VAR
         named = OBJECT_TYPE_NAMES.get(type_key.value.strip().lower())
-        object_type = named if named is not None else self.integer(type_key, what="read as VAR")
+        object_type = named if named is not None else self.integer(type_key, what=Text(N_("read as VAR")))
         if object_type in (0x0, 0x5, 0x6):
-            self.warn(type_key.line, type_key.name, f"object 0x{index:04X} is a type definition (NULL, DEFTYPE "
-                      "or DEFSTRUCT), no data: skipped")
+            self.warn(type_key.line, type_key.name, Text(N_("object 0x{index:04X} is a type definition (NULL, "
+                                                            "DEFTYPE or DEFSTRUCT), no data: skipped"), index=index))
             return None
         if object_type not in (0x2, 0x7, 0x8, 0x9):
             guess = 0x9 if subs else 0x7
-            self.warn(type_key.line, type_key.name, f"ObjectType={type_key.value} is not VAR 0x7, DOMAIN 0x2, "
-                      f"ARRAY 0x8 or RECORD 0x9: read as {'RECORD' if subs else 'VAR'}")
+            self.warn(type_key.line, type_key.name, Text(N_("ObjectType={value} is not VAR 0x7, DOMAIN 0x2, ARRAY "
+                                                            "0x8 or RECORD 0x9: read as {type}"),
+                                                         value=type_key.value, type="RECORD" if subs else "VAR"))
             return guess
         if object_type in (0x2, 0x7) and subs:
             first = min(subs.values(), key=lambda s: s.line)
-            self.warn(type_key.line, type_key.name, f"object 0x{index:04X} is a VAR but has sub-object sections "
-                      f"([{first.name}] ...): read as a RECORD")
+            self.warn(type_key.line, type_key.name, Text(N_("object 0x{index:04X} is a VAR but has sub-object "
+                                                            "sections ([{name}] ...): read as a RECORD"), index=index,
+                                                         name=first.name))
             return 0x9
         return object_type
 
@@ -261,15 +272,16 @@ class _Reader:
             if not subs:
                 return self.with_object_keys(self.compact(index, section, compact, name, flags, aux), section,
                                              _MODEL_KEYS)
-            self.warn(compact.line, compact.name, f"object 0x{index:04X} has CompactSubObj and sub-object "
-                      "sections: the sections are read")
+            self.warn(compact.line, compact.name, Text(N_("object 0x{index:04X} has CompactSubObj and sub-object "
+                                                          "sections: the sections are read"), index=index))
         number_key = section.get("SubNumber")
         if number_key is None:
-            self.warn(section.line, "SubNumber", f"[{section.name}] has no SubNumber=: its {len(subs)} "
-                      "sub-object sections are read")
+            self.warn(section.line, "SubNumber", Text(N_("[{name}] has no SubNumber=: its {count} sub-object "
+                                                         "sections are read"), name=section.name, count=len(subs)))
         elif self.integer(number_key) != len(subs):
-            self.warn(number_key.line, number_key.name, f"SubNumber={number_key.value} but object 0x{index:04X} "
-                      f"has {len(subs)} sub-objects: the {len(subs)} sections are read")
+            self.warn(number_key.line, number_key.name, Text(N_("SubNumber={value} but object 0x{index:04X} has "
+                                                                "{count} sub-objects: the {count} sections are read"),
+                                                             value=number_key.value, index=index, count=len(subs)))
         entries = [self.entry(subs[sub], index, sub, object_name=name, kind=kind, obj_flags=flags)
                    for sub in sorted(subs)]
         return self.with_object_keys([e for e in entries if e is not None], section, _HEAD_KEYS)
@@ -286,8 +298,8 @@ class _Reader:
                 aux: dict[tuple[int, str], Section]) -> list[ObjectEntry]:
         count = self.integer(compact, 0) or 0
         if not 1 <= count <= 254:
-            self.warn(compact.line, compact.name, f"CompactSubObj={count} is outside 1..254: read as "
-                      f"{min(max(count, 1), 254)}")
+            self.warn(compact.line, compact.name, Text(N_("CompactSubObj={count} is outside 1..254: read as {min}"),
+                                                       count=count, min=min(max(count, 1), 254)))
             count = min(max(count, 1), 254)
         names = aux.get((index, "NAME"))
         values = aux.get((index, "VALUE"))
@@ -319,7 +331,8 @@ class _Reader:
     def name(self, section: Section, fallback: str) -> str:
         found = section.get("ParameterName")
         if found is None or not found.value:
-            self.warn(section.line, "ParameterName", f"[{section.name}] has no ParameterName=: named {fallback!r}")
+            self.warn(section.line, "ParameterName", Text(N_("[{name}] has no ParameterName=: named {fallback!r}"),
+                                                          name=section.name, fallback=fallback))
             return fallback
         return found.value
 
@@ -332,7 +345,7 @@ class _Reader:
         try:
             node_expr(key.value)
         except ValueError as exc:
-            self.warn(key.line, key.name, f"{exc}: dropped", address=address)
+            self.warn(key.line, key.name, Text(N_("{reason}: dropped"), reason=exc.args[0]), address=address)
             return None
         return key.value
 
@@ -340,11 +353,12 @@ class _Reader:
               quiet: bool = False) -> Value | None:
         value, note = read_value(data_type, key.value, limit=limit)
         if note and not quiet:
-            self.warn(key.line, key.name, f"{key.value!r}: {note}", address=address, limits=limit is not None)
+            self.warn(key.line, key.name, Text(N_("{value!r}: {note}"), value=key.value,
+                                               note=note), address=address, limits=limit is not None)
         return value
 
     def data_type(self, section: Section, type_key: Key, quiet: bool) -> DataType:
-        code = self.integer(type_key, what="read as DOMAIN")
+        code = self.integer(type_key, what=Text(N_("read as DOMAIN")))
         if code is None:
             return DataType.DOMAIN
         if code in DATA_TYPE_BY_CODE:
@@ -359,12 +373,14 @@ class _Reader:
             if defined is not None and base_code in DATA_TYPE_BY_CODE:
                 base_type = DATA_TYPE_BY_CODE[base_code]
                 if not quiet:
-                    self.warn(type_key.line, type_key.name, f"DataType=0x{code:04X} is defined in [{defined.name}]"
-                              f" (sub 1): read as {base_type.value}")
+                    self.warn(type_key.line, type_key.name, Text(N_("DataType=0x{code:04X} is defined in [{name}] "
+                                                                    "(sub 1): read as {value}"), code=code,
+                                                                 name=defined.name, value=base_type.value))
                 return base_type
         if not quiet:
-            self.warn(type_key.line, type_key.name, f"DataType=0x{code:04X} ({type_name(code)}) is not a CiA 301 "
-                      "basic data type: read as DOMAIN (bytes)")
+            self.warn(type_key.line, type_key.name, Text(N_("DataType=0x{code:04X} ({type_name}) is not a CiA 301 "
+                                                            "basic data type: read as DOMAIN (bytes)"), code=code,
+                                                         type_name=type_name(code)))
         return DataType.DOMAIN
 
     def entry(self, section: Section, index: int, sub: int, *, name: str | None = None,
@@ -378,16 +394,19 @@ class _Reader:
         if type_key is not None:
             data_type = self.data_type(section, type_key, quiet)
         elif default_type is None and not quiet:
-            self.warn(section.line, "DataType", f"[{section.name}] has no DataType=: read as DOMAIN (bytes)")
+            self.warn(section.line, "DataType", Text(N_("[{name}] has no DataType=: read as DOMAIN (bytes)"),
+                                                     name=section.name))
         access_key = section.get("AccessType")
         access = Access.RO
         if access_key is None:
             if not quiet:
-                self.warn(section.line, "AccessType", f"[{section.name}] has no AccessType=: read as ro")
+                self.warn(section.line, "AccessType", Text(N_("[{name}] has no AccessType=: read as ro"),
+                                                           name=section.name))
         else:
             access, note = read_access(access_key.value)
             if note and not quiet:
-                self.warn(access_key.line, access_key.name, f"{access_key.value!r} {note}")
+                self.warn(access_key.line, access_key.name, Text(N_("{value!r} {note}"), value=access_key.value,
+                                                                 note=note))
         fields: dict[str, Any] = {"index": index, "subindex": sub, "name": name, "data_type": data_type,
                                   "access": access, "object_type": kind, "object_name": object_name}
         factor = self.factor(section, quiet)
@@ -400,7 +419,7 @@ class _Reader:
                 fields[field_name] = found.value
         mapping = section.get("PDOMapping")
         if mapping is not None:
-            fields["pdo_mappable"] = bool(self.integer(mapping, 0, what="read as 0 (not mappable)"))
+            fields["pdo_mappable"] = bool(self.integer(mapping, 0, what=Text(N_("read as 0 (not mappable)"))))
         flags_key = section.get("ObjFlags") if own_values else None
         fields["obj_flags"] = self.integer(flags_key) if flags_key is not None else obj_flags
         self.limits(section, data_type, factor, fields, address, quiet)
@@ -420,7 +439,8 @@ class _Reader:
         try:
             return ObjectEntry(**fields)
         except ValidationError as exc:
-            self.warn(section.line, None, f"[{section.name}]: {exc.errors()[0]['msg']}: object skipped",
+            self.warn(section.line, None, Text(N_("[{name}]: {value}: object skipped"), name=section.name,
+                                               value=exc.errors()[0]["msg"]),
                       address=address)
             return None
 
@@ -435,7 +455,8 @@ class _Reader:
             factor = 0
         if factor == 0 or not math.isfinite(factor):
             if not quiet:
-                self.warn(found.line, found.name, f"Factor={found.value!r} is no usable factor: read as 1")
+                self.warn(found.line, found.name, Text(N_("Factor={value!r} is no usable factor: read as 1"),
+                                                       value=found.value))
             return 1
         return factor
 
@@ -446,7 +467,8 @@ class _Reader:
         if data_type.is_string:
             for key in (section.get("LowLimit"), section.get("HighLimit")):
                 if key is not None and key.value.strip() and not quiet:
-                    self.warn(key.line, key.name, f"{key.value!r} ignored: a {data_type.value} has no limits",
+                    self.warn(key.line, key.name, Text(N_("{value!r} ignored: a {type} has no limits"),
+                                                       value=key.value, type=data_type.value),
                               address=address)
             return
         found: dict[str, Key] = {}
@@ -454,7 +476,8 @@ class _Reader:
             key = section.get(key_name)
             if key is None or not key.value or key.value.strip().lower() in ("none", "-", "n/a"):
                 if key is not None and key.value and not quiet:
-                    self.warn(key.line, key.name, f"{key.value!r} read as no limit", address=address, limits=True)
+                    self.warn(key.line, key.name, Text(N_("{value!r} read as no limit"),
+                                                       value=key.value), address=address, limits=True)
                 continue
             raw = self.value(data_type, key, address, limit=key_name, quiet=quiet)
             if raw is not None:
@@ -463,8 +486,10 @@ class _Reader:
         if "min" in fields and "max" in fields and fields["min"] > fields["max"]:
             low, high = found["min"], found["max"]
             if not quiet:
-                self.warn(high.line, "LowLimit/HighLimit", f"limits dropped: LowLimit {low.value} > HighLimit "
-                          f"{high.value} (as {data_type.value})", address=address, limits=True)
+                self.warn(high.line, "LowLimit/HighLimit", Text(N_("limits dropped: LowLimit {value} > HighLimit "
+                                                                   "{high} (as {type})"), value=low.value,
+                                                                high=high.value, type=data_type.value),
+                          address=address, limits=True)
             del fields["min"], fields["max"]
 
     @staticmethod
@@ -477,14 +502,14 @@ class _Reader:
     def identity(self, info: Section, objects: list[ObjectEntry]) -> Identity:
         def number(key: str) -> int | None:
             found = info.get(key)
-            value = self.integer(found, what="read as unknown") if found is not None and found.value else None
+            value = self.integer(found, what=Text(N_("read as unknown"))) if found is not None and found.value else None
             return value if value is None or 0 <= value <= 0xFFFFFFFF else None
 
         order = info.get("OrderCode")
         device_type = next((o.default for o in objects if (o.index, o.subindex) == (0x1000, 0)), None)
         vendor = info.get("VendorName")
         if vendor is None:
-            self.warn(info.line, "VendorName", f"[{info.name}] has no VendorName=: left empty")
+            self.warn(info.line, "VendorName", Text(N_("[{name}] has no VendorName=: left empty"), name=info.name))
         return Identity(
             vendor_name=vendor.value if vendor is not None else "",
             vendor_id=number("VendorNumber"),
@@ -504,9 +529,11 @@ class _Reader:
         fallback = next((k.value for k in candidates if k is not None and k.value), None) or Path(
             self.source.replace("\\", "/")).name
         where = "FileInfo " + next(k.name for k in candidates if k is not None and k.value == fallback) \
-            if any(k is not None and k.value == fallback for k in candidates) else "the file name"
-        self.warn(found.line if found else info.line, "ProductName", f"[{info.name}] has no ProductName=: named "
-                  f"{fallback!r} after {where}")
+            if any(k is not None and k.value == fallback for k in candidates) else Text(N_("the file name"))
+        self.warn(found.line if found else info.line, "ProductName", Text(N_("[{name}] has no ProductName=: named "
+                                                                             "{fallback!r} after {where}"),
+                                                                          name=info.name, fallback=fallback,
+                                                                          where=where))
         return fallback
 
     def features(self, info: Section, objects: list[ObjectEntry]) -> Features:
@@ -514,7 +541,7 @@ class _Reader:
         rates = []
         for rate in BAUD_RATES_KBIT:
             key = info.get(f"BaudRate_{rate}")
-            if key is not None and self.integer(key, 0, what="read as 0 (not supported)"):
+            if key is not None and self.integer(key, 0, what=Text(N_("read as 0 (not supported)"))):
                 rates.append(rate)
         mapping_counts = [sum(1 for o in objects if o.index == i and o.subindex > 0)
                           for i in indices if 0x1600 <= i <= 0x17FF or 0x1A00 <= i <= 0x1BFF]
@@ -523,7 +550,8 @@ class _Reader:
         pdo_counts = {}
         for name, present in counted.items():
             key = info.get(name)
-            value = self.integer(key, what=f"read as {present} (the PDO objects in the file)") if key else None
+            reading = Text(N_("read as {count} (the PDO objects in the file)"), count=present)
+            value = self.integer(key, what=reading) if key else None
             pdo_counts[name] = present if value is None and key is not None else max(value or 0, 0)
         return Features(
             sdo_channels=max(1, sum(1 for i in indices if 0x1200 <= i <= 0x127F)),
@@ -546,8 +574,9 @@ class _Reader:
         count = self.integer(count_key) if count_key is not None else None
         if count != len(lines):
             where = count_key.line if count_key is not None else section.line
-            self.warn(where, "Lines", f"Lines={count_key.value if count_key else '(missing)'} but [{section.name}] "
-                      f"has {len(lines)} LineN keys: the {len(lines)} are read")
+            self.warn(where, "Lines", Text(N_("Lines={value} but [{name}] has {count} LineN keys: the {count} are "
+                                              "read"), value=count_key.value if count_key else '(missing)',
+                                           name=section.name, count=len(lines)))
         return [k.value for k in lines]
 
     def extras(self, known: set[str]) -> dict[str, dict[str, str]]:
@@ -568,11 +597,12 @@ def _read_input(text_or_path: str | bytes | Path, source: str) -> str:
         try:
             size = path.stat().st_size
             if size > MAX_EDS_BYTES:
-                raise ProfileError(f"file is {size} bytes, more than the {MAX_EDS_BYTES} bytes an EDS may have",
+                raise ProfileError(Text(N_("file is {size} bytes, more than the {limit} bytes an EDS may have"),
+                                        size=size, limit=MAX_EDS_BYTES),
                                    source=source)
             return decode_text(path.read_bytes(), source)
         except OSError as exc:
-            raise ProfileError(f"cannot read the file: {exc.strerror}", source=source) from exc
+            raise ProfileError(Text(N_("cannot read the file: {reason}"), reason=exc.strerror), source=source) from exc
     if isinstance(text_or_path, bytes):
         return decode_text(text_or_path, source)
     return text_or_path
@@ -606,24 +636,26 @@ def read_sections(sections: dict[str, Section], source: str, notes: Warnings, *,
     if not any(_INDEX_SECTION.match(name) and int(name[:4], 16) >= 0x1000 for name in reader.sections):
         junk = next((w.line for w in notes.items if "binary junk" in w.message), None)
         if junk is not None:
-            raise reader.fail("binary junk (control characters) instead of EDS text, and no object section", junk)
-        raise reader.fail("no object dictionary: the file has no object section ([1000], [6040], [1018sub1] ...)",
+            raise reader.fail(Text(N_("binary junk (control characters) instead of EDS text, and no object "
+                                       "section")), junk)
+        raise reader.fail(Text(N_("no object dictionary: the file has no object section ([1000], [6040], [1018sub1] "
+                                  "...)")),
                           None if empty else 1)
     info = reader.sections.get("DEVICEINFO")
     if info is None:
-        reader.warn(1, None, "no [DeviceInfo] section: vendor and product are left unknown")
+        reader.warn(1, None, Text(N_("no [DeviceInfo] section: vendor and product are left unknown")))
         info = Section("DeviceInfo", 1)
     objects = reader.objects()
     if not objects:
-        raise reader.fail("no object dictionary: no object section holds a usable object", 1)
+        raise reader.fail(Text(N_("no object dictionary: no object section holds a usable object")), 1)
     own = reader.sections.get(OWN_SECTION.upper())
     own_keys = {name: k.value for name, k in own.keys.items()} if own else {}
     extra = reader.extras({"DEVICEINFO", "COMMENTS", OWN_SECTION.upper(), *(n.upper() for n in OBJECT_LISTS)})
     profile_id = own_keys.get("profileid") or slug(source)
     if not re.fullmatch(r"[a-z0-9][a-z0-9_.-]*", profile_id):
         line = own.get("ProfileId").line if own and own.get("ProfileId") else 1  # type: ignore[union-attr]
-        reader.warn(line, "ProfileId", f"{profile_id!r} is no profile id (a-z, 0-9, '_.-'): the file name's "
-                    f"{slug(source)!r} is used")
+        reader.warn(line, "ProfileId", Text(N_("{profile_id!r} is no profile id (a-z, 0-9, '_.-'): the file name's "
+                                               "{slug!r} is used"), profile_id=profile_id, slug=slug(source)))
         profile_id = slug(source)
     try:
         profile = Profile(
@@ -637,7 +669,7 @@ def read_sections(sections: dict[str, Section], source: str, notes: Warnings, *,
             notes=reader.notes_section(),
         )
     except ValidationError as exc:
-        raise reader.fail(f"not a valid profile: {exc.errors()[0]['msg']}", info.line) from exc
+        raise reader.fail(Text(N_("not a valid profile: {value}"), value=exc.errors()[0]["msg"]), info.line) from exc
     device_extra = {k.name: k.value for k in info.keys.values()
                     if k.name.lower() not in _MAPPED_DEVICE_INFO and DEVICE_INFO_DEFAULTS.get(k.name) != k.value}
     if device_extra:

@@ -26,6 +26,7 @@ from drivebench.device.eds import (
 from drivebench.device.eds_compact import compact_sections, fits_compact
 from drivebench.device.profile import Access, LenzeCodeAddressing, ObjectEntry, Parameter, Profile, Value
 from drivebench.errors import ProfileError, UnknownParameter
+from drivebench.i18n import _
 from drivebench.protocol.datatypes import DataType
 
 MANDATORY = (0x1000, 0x1001, 0x1018)
@@ -67,7 +68,7 @@ def _parameter_objects(profile: Profile, taken: set[int]) -> list[ObjectEntry]:
     try:
         catalog = Catalog(profile)
     except UnknownParameter as exc:
-        raise ProfileError(f"{profile.id}: {exc.detail}", source=profile.id) from exc
+        raise ProfileError(exc.detail, source=profile.id) from exc
     by_index: dict[int, dict[int, tuple[Parameter, str, str]]] = {}
     for item in catalog.items:
         par = item.entry
@@ -202,7 +203,7 @@ def _patched_dcf(profile: Profile, original: bytes, node_id: int | None, values:
     for address, value in values.items():
         entry = by_address.get(address)
         if entry is None:
-            raise UnknownParameter(f"0x{address[0]:04X}sub{address[1]} is not an object of '{profile.id}'")
+            raise UnknownParameter(_not_an_object(address, profile))
         texts[address] = _format(entry.data_type, value)
     commissioning = {key: str(value) for key, value in (("NodeID", node_id), ("Baudrate", baud_kbit))
                      if value is not None}
@@ -281,14 +282,14 @@ def export_eds(profile: Profile, *, node_id: int | None = None, values: Mapping[
     keys the model has no field for stay.
     """
     if node_id is not None and not 1 <= node_id <= 127:
-        raise ProfileError(f"node id {node_id} is outside 1..127", source=profile.id)
+        raise ProfileError(_("node id {node} is outside 1..127").format(node=node_id), source=profile.id)
     if original is not None and dcf:
         return _patched_dcf(profile, original, node_id, values or {}, baud_kbit)
     by_index = objects_by_index(profile)
     addresses = {(o.index, o.subindex) for entries in by_index.values() for o in entries}
     for address in (values or {}):
         if address not in addresses:
-            raise UnknownParameter(f"0x{address[0]:04X}sub{address[1]} is not an object of '{profile.id}'")
+            raise UnknownParameter(_not_an_object(address, profile))
 
     def parameter_value(entry: ObjectEntry) -> Value | None:
         return node_value(entry, values or {}, node_id, dcf)
@@ -338,3 +339,8 @@ def export_eds(profile: Profile, *, node_id: int | None = None, values: Mapping[
         if name.lower() not in handled:
             out.section(name, keys.items())
     return out.text()
+
+
+def _not_an_object(address: Address, profile: Profile) -> str:
+    return _("{object} is not an object of '{profile}'").format(object=f"0x{address[0]:04X}sub{address[1]}",
+                                                                 profile=profile.id)

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 
 from drivebench.device.eds_quirks import Warnings
 from drivebench.errors import ProfileError
+from drivebench.i18n import N_, Text
 
 MAX_EDS_BYTES = 16 * 1024 * 1024
 MAX_LINE_CHARS = 64 * 1024
@@ -40,7 +41,8 @@ class Section:
 def decode_text(data: bytes, source: str) -> str:
     """Bytes of an EDS -> text: UTF-8, else latin-1 (see the module docstring)."""
     if len(data) > MAX_EDS_BYTES:
-        raise ProfileError(f"file is {len(data)} bytes, more than the {MAX_EDS_BYTES} bytes an EDS may have",
+        raise ProfileError(Text(N_("file is {count} bytes, more than the {limit} bytes an EDS may have"),
+                                count=len(data), limit=MAX_EDS_BYTES),
                            source=source)
     for encoding in ("utf-8-sig", "cp1252"):
         try:
@@ -73,7 +75,8 @@ def parse_ini(text: str, source: str, notes: Warnings | None = None) -> dict[str
     ``key=value`` (Python's configparser); `` ;`` after a value starts a comment. Without ``notes`` each of these
     raises ProfileError."""
     if len(text) > MAX_EDS_BYTES:
-        raise ProfileError(f"file has {len(text)} characters, more than {MAX_EDS_BYTES}", source=source)
+        raise ProfileError(Text(N_("file has {count} characters, more than {limit}"), count=len(text),
+                                limit=MAX_EDS_BYTES), source=source)
     quirk = _Quirks(source, notes)
     sections: dict[str, Section] = {}
     current: Section | None = None
@@ -81,15 +84,17 @@ def parse_ini(text: str, source: str, notes: Warnings | None = None) -> dict[str
     # CiA 306 lines end in CR LF; str.splitlines() would also split on NEL, FF, LS... inside values.
     for number, raw in enumerate(re.split(r"\r\n|\r|\n", text), start=1):
         if len(raw) > MAX_LINE_CHARS:
-            quirk(number, None, f"line of {len(raw)} characters skipped (an EDS line has at most {MAX_LINE_CHARS})",
-                  f"line of {len(raw)} characters, more than {MAX_LINE_CHARS}")
+            quirk(number, None, Text(N_("line of {count} characters skipped (an EDS line has at most "
+                                        "{limit})"), count=len(raw), limit=MAX_LINE_CHARS),
+                  Text(N_("line of {count} characters, more than {limit}"), count=len(raw),
+                       limit=MAX_LINE_CHARS))
             continue
         line = raw.strip()
         if junk_somewhere and _JUNK.search(raw):
             if line.strip("\x1a") == "":  # DOS end-of-file mark
                 continue
-            quirk(number, None, "line skipped: control characters (binary junk)",
-                  "binary junk (control characters) instead of EDS text")
+            quirk(number, None, Text(N_("line skipped: control characters (binary junk)")),
+                  Text(N_("binary junk (control characters) instead of EDS text")))
             continue
         if not line or line.startswith((";", "#")):
             continue
@@ -97,7 +102,8 @@ def parse_ini(text: str, source: str, notes: Warnings | None = None) -> dict[str
             current = _section(line, number, sections, quirk)
             continue
         if current is None:
-            quirk(number, None, "line before the first [section] skipped", "key outside of any section")
+            quirk(number, None, Text(N_("line before the first [section] skipped")),
+                  Text(N_("key outside of any section")))
             continue
         key, equals, value = line.partition("=")
         if equals and key and ";" not in value and not key[-1].isspace() and not value[:1].isspace():
@@ -110,8 +116,10 @@ def parse_ini(text: str, source: str, notes: Warnings | None = None) -> dict[str
         lower = key.lower()
         seen = current.keys.get(lower)
         if seen is not None:
-            quirk(number, key, f"duplicate key in [{current.name}] (first at line {seen.line}): the first value "
-                  f"{seen.value!r} is kept", f"duplicate key {key!r} in [{current.name}] (first at line {seen.line})")
+            quirk(number, key, Text(N_("duplicate key in [{name}] (first at line {line}): the first value {value!r} "
+                                       "is kept"), name=current.name, line=seen.line, value=seen.value),
+                  Text(N_("duplicate key {key!r} in [{name}] (first at line {line})"), key=key, name=current.name,
+                       line=seen.line))
             continue
         current.keys[lower] = Key(key, value, number)
     return sections
@@ -120,18 +128,21 @@ def parse_ini(text: str, source: str, notes: Warnings | None = None) -> dict[str
 def _section(line: str, number: int, sections: dict[str, Section], quirk: _Quirks) -> Section:
     closing = line.find("]")
     if closing < 0 or len(line) < 3:
-        quirk(number, None, f"section header {line!r} has no ']': read as [{line[1:].strip()}]",
-              f"bad section header {line!r}")
+        quirk(number, None, Text(N_("section header {line!r} has no ']': read as [{name}]"), line=line,
+                                 name=line[1:].strip()),
+              Text(N_("bad section header {line!r}"), line=line))
         name = line[1:].strip() or "?"
     else:
         name = line[1:closing].strip()
         if line[closing + 1:].strip() and not line[closing + 1:].strip().startswith(";"):
-            quirk(number, None, f"text after [{name}] ignored", f"bad section header {line!r}")
+            quirk(number, None, Text(N_("text after [{name}] ignored"), name=name),
+                  Text(N_("bad section header {line!r}"), line=line))
     first = sections.get(name.upper())
     if first is not None:
-        quirk(number, None, f"duplicate section [{name}] (first at line {first.line}): its keys are added to the "
-              "first, a key both have keeps the first value", f"duplicate section [{name}] (first at line "
-              f"{first.line})")
+        quirk(number, None, Text(N_("duplicate section [{name}] (first at line {line}): its keys are added to the "
+                                    "first, a key both have keeps the first value"), name=name,
+                                 line=first.line), Text(N_("duplicate section [{name}] (first at line "
+                                                                      "{line})"), name=name, line=first.line))
         return first
     section = sections[name.upper()] = Section(name, number)
     return section
@@ -143,13 +154,13 @@ def _key_value(line: str, number: int, quirk: _Quirks) -> tuple[str, str] | None
         key, value = key.strip(), value.strip()
     elif ":" in line and quirk.notes is not None:
         key, value = (part.strip() for part in line.split(":", 1))
-        quirk(number, key, "'key: value' read as 'key=value'")
+        quirk(number, key, Text(N_("'key: value' read as 'key=value'")))
     else:
-        quirk(number, None, f"line skipped: no '=' in {line[:40]!r}",
-              f"expected 'key=value', a [section] or a ';' comment, got {line[:40]!r}")
+        quirk(number, None, Text(N_("line skipped: no '=' in {value!r}"), value=line[:40]),
+              Text(N_("expected 'key=value', a [section] or a ';' comment, got {value!r}"), value=line[:40]))
         return None
     if not key:
-        quirk(number, None, "line skipped: empty key name", "empty key name")
+        quirk(number, None, Text(N_("line skipped: empty key name")), Text(N_("empty key name")))
         return None
     comment = _INLINE_COMMENT.search(value) if ";" in value else None
     if comment is not None and quirk.notes is not None:

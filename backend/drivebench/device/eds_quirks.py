@@ -14,6 +14,7 @@ import struct
 from dataclasses import dataclass, field
 
 from drivebench.device.profile import Access, Value
+from drivebench.i18n import N_, Text, shown
 from drivebench.protocol.datatypes import DATA_TYPE_BY_CODE, DataType
 
 MAX_WARNINGS = 500
@@ -50,7 +51,7 @@ class ImportWarning:
 
     def text(self) -> str:
         where = f"{self.file}:{self.line}" if self.line else self.file
-        return f"{where}: {self.key + ': ' if self.key else ''}{self.message}"
+        return f"{where}: {self.key + ': ' if self.key else ''}{shown(self.message)}"
 
 
 @dataclass
@@ -72,7 +73,8 @@ class Warnings:
     def result(self) -> list[ImportWarning]:
         if not self.dropped:
             return list(self.items)
-        return [*self.items, ImportWarning(self.file, None, None, f"{self.dropped} more warnings not listed")]
+        return [*self.items, ImportWarning(self.file, None, None, Text(N_("{dropped} more warnings not listed"),
+                                                                       dropped=self.dropped))]
 
 
 # --- numbers ---------------------------------------------------------------------------------------------
@@ -86,7 +88,7 @@ def parse_int_strict(text: str) -> int:
     if len(body) > 1 and body.startswith("0"):
         return sign * int(body[1:], 8)
     if not body.isdigit():
-        raise ValueError(f"{text!r} is not a number")
+        raise ValueError(Text(N_("{text!r} is not a number"), text=text))
     return sign * int(body)
 
 
@@ -106,13 +108,13 @@ def read_int(text: str) -> tuple[int, str | None]:
         pass
     head = _NUMBER_HEAD.match(text)
     if head is None:
-        raise ValueError(f"{text.strip()!r} is not a number")
+        raise ValueError(Text(N_("{text!r} is not a number"), text=text.strip()))
     number, rest = head.group(1).replace(" ", ""), head.group(2).strip()
     notes: list[str] = []
     body = number.lstrip("+-")
     if body.isdigit() and body.startswith("0") and len(body) > 1:  # octal digits failed: 8 or 9 inside
         value = int(number, 10)
-        notes.append(f"read as decimal {value}: leading zeros, and 8/9 are no octal digits")
+        notes.append(Text(N_("read as decimal {value}: leading zeros, and 8/9 are no octal digits"), value=value))
     elif body.lower().startswith("0x") or body.isdigit():
         value = parse_int_strict(number)
         note = _octal_note(number)
@@ -121,18 +123,19 @@ def read_int(text: str) -> tuple[int, str | None]:
     else:
         as_float = float(number)
         if not as_float.is_integer():
-            raise ValueError(f"{text.strip()!r} is not a whole number")
+            raise ValueError(Text(N_("{text!r} is not a whole number"), text=text.strip()))
         value = int(as_float)
-        notes.append(f"{number} read as the integer {value}")
+        notes.append(Text(N_("{number} read as the integer {value}"), number=number, value=value))
     if rest:
-        notes.append(f"text after the number ignored ({rest[:40]!r})")
-    return value, "; ".join(notes) or None
+        notes.append(Text(N_("text after the number ignored ({value!r})"), value=rest[:40]))
+    return value, Text.joined("; ", notes) if notes else None
 
 
 def _octal_note(text: str) -> str | None:
     body = text.strip().lstrip("+-").replace(" ", "")
     if len(body) > 1 and body.startswith("0") and body.isdigit() and int(body, 8) != int(body, 10):
-        return f"read as octal {int(body, 8)} (CiA 306: a leading 0 means octal), not decimal {int(body, 10)}"
+        return Text(N_("read as octal {octal} (CiA 306: a leading 0 means octal), not decimal {decimal}"),
+                    octal=int(body, 8), decimal=int(body, 10))
     return None
 
 
@@ -146,17 +149,17 @@ def node_expr(text: str) -> int | None:
     while position < len(stripped):
         term = _TERM.match(stripped, position)
         if term is None or (position and not term.group(1)):
-            raise ValueError(f"{text!r} is not a sum of numbers and $NODEID")
+            raise ValueError(Text(N_("{text!r} is not a sum of numbers and $NODEID"), text=text))
         sign = -1 if term.group(1) == "-" else 1
         if term.group(2).upper() == "$NODEID":
             if sign < 0:
-                raise ValueError(f"{text!r} subtracts $NODEID")
+                raise ValueError(Text(N_("{text!r} subtracts $NODEID"), text=text))
             node_terms += 1
         else:
             constant += sign * parse_int_strict(term.group(2))
         position = term.end()
     if node_terms != 1:
-        raise ValueError(f"{text!r} has $NODEID {node_terms} times")
+        raise ValueError(Text(N_("{text!r} has $NODEID {count} times"), text=text, count=node_terms))
     return constant
 
 
@@ -178,16 +181,19 @@ def fit_int(data_type: DataType, value: int, *, limit: str | None = None) -> tup
             if value < 1 << bits:
                 signed = value - (1 << bits) if value >= 1 << (bits - 1) else value
                 if low <= signed <= high:
-                    return signed, (f"read as {signed}: the type is {data_type.value}, a {bits}-bit two's "
-                                    "complement pattern")
+                    return signed, (Text(N_("read as {signed}: the type is {type}, a {bits}-bit two's complement "
+                                            "pattern"), signed=signed, type=data_type.value, bits=bits))
     if not data_type.is_signed and value < 0 and data_type is not DataType.BOOLEAN:
         pattern = value + (high + 1)
         if 0 <= pattern <= high and limit is None:
-            return pattern, f"read as 0x{pattern:X}: the type is {data_type.value}, the same bit pattern"
+            return pattern, Text(N_("read as 0x{pattern:X}: the type is {type}, the same bit pattern"),
+                                 pattern=pattern, type=data_type.value)
     if limit is not None:
         clamped = high if value > high else low
-        return clamped, f"{value} does not fit {data_type.value} ({low}..{high}): read as {clamped}"
-    return None, f"{value} does not fit {data_type.value} ({low}..{high}): dropped"
+        return clamped, Text(N_("{value} does not fit {type} ({low}..{high}): read as {clamped}"), value=value,
+                             type=data_type.value, low=low, high=high, clamped=clamped)
+    return None, Text(N_("{value} does not fit {type} ({low}..{high}): dropped"), value=value, type=data_type.value,
+                      low=low, high=high)
 
 
 def read_value(data_type: DataType, text: str, *, limit: str | None = None) -> tuple[Value | None, str | None]:
@@ -196,16 +202,16 @@ def read_value(data_type: DataType, text: str, *, limit: str | None = None) -> t
         try:
             number, note = read_int(text)
         except ValueError as exc:
-            return None, f"{exc}: dropped"
+            return None, Text(N_("{reason}: dropped"), reason=exc.args[0])
         value, fit_note = fit_int(data_type, number, limit=limit)
-        return value, ("; ".join(n for n in (note, fit_note) if n) or None) if note or fit_note else None
+        return value, _joined(note, fit_note)
     if data_type in (DataType.VISIBLE_STRING, DataType.UNICODE_STRING):
         return text, None
     if data_type in (DataType.OCTET_STRING, DataType.DOMAIN):
         try:
             bytes.fromhex(text)
         except ValueError:
-            return None, "not hexadecimal bytes: dropped (the file keeps it)"
+            return None, Text(N_("not hexadecimal bytes: dropped (the file keeps it)"))
         return text, None
     if data_type.is_float:
         return _read_float(data_type, text)
@@ -214,10 +220,14 @@ def read_value(data_type: DataType, text: str, *, limit: str | None = None) -> t
     try:
         number, note = read_int(text)
     except ValueError as exc:
-        return None, f"{exc}: dropped"
+        return None, Text(N_("{reason}: dropped"), reason=exc.args[0])
     value, fit_note = fit_int(data_type, number, limit=limit)
-    notes = "; ".join(n for n in (note, fit_note) if n)
-    return value, notes or None
+    return value, _joined(note, fit_note)
+
+
+def _joined(*notes: str | None) -> str | None:
+    given = [note for note in notes if note]
+    return Text.joined("; ", given) if given else None
 
 
 def _read_float(data_type: DataType, text: str) -> tuple[Value | None, str | None]:
@@ -229,20 +239,21 @@ def _read_float(data_type: DataType, text: str) -> tuple[Value | None, str | Non
                 return struct.unpack("<f", bits.to_bytes(4, "little"))[0], None
             return struct.unpack("<d", bits.to_bytes(8, "little"))[0], None
         except (ValueError, OverflowError):
-            return None, f"{cleaned!r} is not a {data_type.value} bit pattern: dropped"
+            return None, Text(N_("{text!r} is not a {type} bit pattern: dropped"), text=cleaned,
+                              type=data_type.value)
     note = None
     if "," in cleaned and "." not in cleaned:
-        cleaned, note = cleaned.replace(",", "."), "decimal comma read as a point"
+        cleaned, note = cleaned.replace(",", "."), Text(N_("decimal comma read as a point"))
     head = _NUMBER_HEAD.match(cleaned)
     try:
         value = float(cleaned)
     except ValueError:
         if head is None:
-            return None, f"{text.strip()!r} is not a number: dropped"
+            return None, Text(N_("{text!r} is not a number: dropped"), text=text.strip())
         value = float(head.group(1).replace(" ", ""))
-        note = f"text after the number ignored ({head.group(2).strip()[:40]!r})"
+        note = Text(N_("text after the number ignored ({value!r})"), value=head.group(2).strip()[:40])
     if not math.isfinite(value):
-        return None, f"{text.strip()!r} is not a finite number: dropped"
+        return None, Text(N_("{text!r} is not a finite number: dropped"), text=text.strip())
     return value, note
 
 
@@ -253,10 +264,10 @@ def read_access(text: str) -> tuple[Access, str | None]:
     except ValueError:
         pass
     if cleaned in ACCESS_ALIASES:
-        return ACCESS_ALIASES[cleaned], f"read as {ACCESS_ALIASES[cleaned].value}"
-    return Access.RO, "not ro, wo, rw, rwr, rww or const: read as ro (nothing is written to it)"
+        return ACCESS_ALIASES[cleaned], Text(N_("read as {value}"), value=ACCESS_ALIASES[cleaned].value)
+    return Access.RO, Text(N_("not ro, wo, rw, rwr, rww or const: read as ro (nothing is written to it)"))
 
 
 def type_name(code: int) -> str:
     known = DATA_TYPE_BY_CODE.get(code)
-    return known.value if known else OTHER_TYPE_NAMES.get(code, "no CiA 301 basic data type")
+    return known.value if known else OTHER_TYPE_NAMES.get(code, Text(N_("no CiA 301 basic data type")))

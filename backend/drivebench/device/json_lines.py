@@ -13,6 +13,8 @@ from json.decoder import scanstring  # type: ignore[attr-defined]
 from json.scanner import NUMBER_RE
 from typing import Any
 
+from drivebench.i18n import N_, Text
+
 JsonPath = tuple[str | int, ...]
 _WHITESPACE = " \t\n\r"
 _LITERALS = {"true": True, "false": False, "null": None, "NaN": math.nan, "Infinity": math.inf, "-Infinity": -math.inf}
@@ -20,7 +22,7 @@ _LITERALS = {"true": True, "false": False, "null": None, "NaN": math.nan, "Infin
 
 class DuplicateKey(ValueError):
     def __init__(self, key: str, line: int, first_line: int) -> None:
-        super().__init__(f"duplicate key '{key}' (first at line {first_line})")
+        super().__init__(Text(N_("duplicate key '{key}' (first at line {line})"), key=key, line=first_line))
         self.key, self.line, self.first_line = key, line, first_line
 
 

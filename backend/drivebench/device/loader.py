@@ -28,9 +28,12 @@ from drivebench.device.json_lines import DuplicateKey, JsonPath, line_of, reject
 from drivebench.device.profile import ObjectEntry, Parameter, Profile
 from drivebench.device.xdd import XML_SUFFIXES, read_xdd
 from drivebench.errors import ProfileError, UnknownProfile
+from drivebench.i18n import N_, Text, shown
 
 PROFILE_SUFFIXES = (".json", ".eds", ".dcf", ".xdd", ".xdc")
-KINDS = {".json": "a JSON profile", ".eds": "an EDS", ".xdd": "an XDD/XDC (XML)"}
+KINDS = {".json": N_("this looks like a JSON profile, name it .json"),
+         ".eds": N_("this looks like an EDS, name it .eds"),
+         ".xdd": N_("this looks like an XDD/XDC (XML), name it .xdd")}
 UPLOAD_NAMES_SUFFIX = ".names.json"
 """Beside the upload directory (``var/profiles.names.json``): profile id -> the file name it was uploaded as
 (shown, never used as a path)."""
@@ -69,7 +72,7 @@ class LoadedFile:
 
     def limits_note(self, index: int, subindex: int) -> str | None:
         """What the import did to this object's limits (repaired or dropped), for a write to say first."""
-        notes = [w.message for w in self.warnings if w.limits and (w.index, w.subindex) == (index, subindex)]
+        notes = [shown(w.message) for w in self.warnings if w.limits and (w.index, w.subindex) == (index, subindex)]
         return "; ".join(notes) or None
 
 
@@ -96,39 +99,45 @@ def read_profile_file(content: bytes, name: str) -> LoadedFile:
     looks_like = _looks_like(content)
     if suffix in (".eds", ".dcf"):
         if looks_like == ".json":
-            raise ProfileError("this is a JSON profile, not an EDS: name the file .json", source=name, line=1)
+            raise ProfileError(Text(N_("this is a JSON profile, not an EDS: name the file .json")), source=name, line=1)
         imported = read_eds(content, source=name)
         return LoadedFile(imported.profile, imported.warnings, content, suffix)
     if suffix in XML_SUFFIXES:
         imported = read_xdd(content, source=name)
         return LoadedFile(imported.profile, imported.warnings, content, suffix)
     if suffix != ".json":
-        hint = f"; this looks like {KINDS[looks_like]}, name it {looks_like}" if looks_like else ""
-        raise ProfileError(f"unknown profile file type {suffix or '(none)'}; use .json, .eds, .dcf, .xdd or .xdc"
-                           f"{hint}", source=name)
+        unknown = Text(N_("unknown profile file type {suffix}; use .json, .eds, .dcf, .xdd or .xdc"),
+                       suffix=suffix or "(none)")
+        raise ProfileError(Text.joined("; ", [unknown, Text(KINDS[looks_like])]) if looks_like else unknown,
+                           source=name)
     if looks_like == ".xdd":
-        raise ProfileError("this is an XDD/XDC (XML), not a JSON profile: name the file .xdd or .xdc", source=name,
-                           line=1)
+        raise ProfileError(Text(N_("this is an XDD/XDC (XML), not a JSON profile: name the file .xdd or .xdc")),
+                           source=name, line=1)
     if looks_like == ".eds":
-        raise ProfileError("this is an EDS/DCF (INI text), not a JSON profile: name the file .eds or .dcf",
+        raise ProfileError(Text(N_("this is an EDS/DCF (INI text), not a JSON profile: name the file .eds or .dcf")),
                            source=name, line=1)
     try:
         reject_duplicate_keys(content)
         return LoadedFile(Profile.model_validate_json(content))
     except DuplicateKey as exc:
-        raise ProfileError(str(exc), source=name, line=exc.line) from exc
+        raise ProfileError(exc.args[0], source=name, line=exc.line) from exc
     except UnicodeDecodeError as exc:
-        raise ProfileError("not UTF-8 text", source=name, line=content.count(b"\n", 0, exc.start) + 1) from exc
+        bad_line = content.count(b"\n", 0, exc.start) + 1
+        raise ProfileError(Text(N_("not UTF-8 text")), source=name, line=bad_line) from exc
     except ValidationError as exc:
         first = exc.errors()[0]
         if first["type"] == "json_invalid":
             line = _json_error_line(content)
-            raise ProfileError(f"not valid JSON: {first['msg']}", source=name, line=line) from exc
+            raise ProfileError(Text(N_("not valid JSON: {reason}"), reason=first["msg"]), source=name,
+                               line=line) from exc
         path, line = _where(content, tuple(first["loc"]))
         where = ".".join(str(part) for part in path)
-        more = f" (and {exc.error_count() - 1} more)" if exc.error_count() > 1 else ""
-        reason = first["msg"].removeprefix("Value error, ")
-        raise ProfileError(f"{where + ': ' if where else ''}{reason}{more}", source=name, line=line) from exc
+        error = first.get("ctx", {}).get("error")  # a validator's ValueError (its Text); else pydantic's words
+        reason = error.args[0] if isinstance(error, ValueError) and error.args and isinstance(error.args[0], str) \
+            else first["msg"].removeprefix("Value error, ")
+        if exc.error_count() > 1:
+            reason = Text(N_("{reason} (and {count} more)"), reason=reason, count=exc.error_count() - 1)
+        raise ProfileError(Text.joined(": ", [where, reason]) if where else reason, source=name, line=line) from exc
 
 
 def _looks_like(content: bytes) -> str | None:
@@ -225,14 +234,14 @@ class ProfileRegistry:
                 errors.append((path.name, exc.detail))
                 continue
             except OSError as exc:
-                errors.append((path.name, f"cannot read: {exc.strerror}"))
+                errors.append((path.name, Text(N_("cannot read: {reason}"), reason=exc.strerror)))
                 continue
             profile = loaded_file.profile
             is_json = path.suffix.lower() == ".json"
             if not is_json and profile.id in json_ids:
                 continue  # the JSON twin wins
             if profile.id in taken or profile.id in loaded:
-                errors.append((path.name, f"profile id '{profile.id}' is already used by another file"))
+                errors.append((path.name, Text(N_("profile id '{id}' is already used by another file"), id=profile.id)))
                 continue
             if is_json:
                 json_ids.add(profile.id)
@@ -244,7 +253,7 @@ class ProfileRegistry:
         try:
             return self._profiles[profile_id]
         except KeyError:
-            raise UnknownProfile(f"No device profile '{profile_id}'") from None
+            raise UnknownProfile(Text(N_("No device profile '{id}'"), id=profile_id)) from None
 
     def loaded(self, profile_id: str) -> LoadedFile:
         """The profile with the warnings of its import and its file's bytes."""
@@ -271,13 +280,13 @@ class ProfileRegistry:
         file name is only shown (``uploaded_as``) and never becomes a path."""
         name = shown_name(filename)
         if len(content) > self.max_upload_bytes:
-            raise ProfileError(f"upload is {len(content)} bytes, more than the limit of {self.max_upload_bytes}",
-                               source=name)
+            raise ProfileError(Text(N_("upload is {size} bytes, more than the limit of {limit}"), size=len(content),
+                                    limit=self.max_upload_bytes), source=name)
         loaded_file = read_profile_file(content, _load_name(name))
         profile = loaded_file.profile
         if profile.id in self._builtin:
-            raise ProfileError(f"profile id '{profile.id}' belongs to a built-in profile; give the upload "
-                               "another id", source=name)
+            raise ProfileError(Text(N_("profile id '{id}' belongs to a built-in profile; give the upload another id"),
+                                    id=profile.id), source=name)
         self._check_storable(profile.id, name)
         switch_clash = clash(profile, self._profiles.values())
         if switch_clash:
@@ -292,7 +301,7 @@ class ProfileRegistry:
             os.replace(temp, target)
         except OSError as exc:
             Path(temp).unlink(missing_ok=True)
-            raise ProfileError(f"cannot store the upload: {exc.strerror}", source=name) from exc
+            raise ProfileError(Text(N_("cannot store the upload: {reason}"), reason=exc.strerror), source=name) from exc
         for other in PROFILE_SUFFIXES:
             if other != suffix:
                 self._stored_path(profile.id, other).unlink(missing_ok=True)
@@ -305,12 +314,13 @@ class ProfileRegistry:
     def _check_storable(profile_id: str, name: str) -> None:
         """The id becomes the stored file's name: short, and no name Windows keeps for a device."""
         if len(profile_id) > MAX_ID_CHARS:
-            raise ProfileError(f"the profile id is {len(profile_id)} characters long; at most {MAX_ID_CHARS} are "
-                               "allowed (it names the stored file)", source=name)
+            raise ProfileError(Text(N_("the profile id is {length} characters long; at most {limit} are allowed (it "
+                                       "names the stored file)"), length=len(profile_id), limit=MAX_ID_CHARS),
+                               source=name)
         if profile_id.split(".")[0] in WINDOWS_DEVICE_NAMES:
-            raise ProfileError(f"the profile id '{profile_id}' is a device name on Windows (CON, PRN, AUX, NUL, "
-                               "COM1-9, LPT1-9) and cannot name a file; rename the file or give the profile "
-                               "another id", source=name)
+            raise ProfileError(Text(N_("the profile id '{id}' is a device name on Windows (CON, PRN, AUX, NUL, "
+                                       "COM1-9, LPT1-9) and cannot name a file; rename the file or give the profile "
+                                       "another id"), id=profile_id), source=name)
 
     def uploaded_as(self, profile_id: str) -> str | None:
         """The file name an uploaded profile came in as (None for built-in ones or when not recorded)."""
@@ -335,7 +345,8 @@ class ProfileRegistry:
         """Delete the file(s) of an uploaded profile and read the directories again. Built-in ones stay."""
         self.get(profile_id)
         if profile_id in self._builtin:
-            raise ProfileError(f"profile '{profile_id}' is built in; only uploaded profiles can be deleted")
+            raise ProfileError(Text(N_("profile '{id}' is built in; only uploaded profiles can be deleted"),
+                                    id=profile_id))
         directory = self.user_profiles_dir
         for path in sorted(directory.iterdir()) if directory.is_dir() else []:
             if path.suffix.lower() not in PROFILE_SUFFIXES or not path.is_file():
@@ -356,7 +367,7 @@ class ProfileRegistry:
         root = self.user_profiles_dir.resolve()
         target = (root / f"{profile_id}{suffix}").resolve()
         if target.parent != root:  # the id pattern forbids '/', this is a second fence
-            raise ProfileError(f"profile id '{profile_id}' is not a safe file name")
+            raise ProfileError(Text(N_("profile id '{id}' is not a safe file name"), id=profile_id))
         return target
 
     @staticmethod

@@ -15,6 +15,7 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from drivebench.device.hex_int import HexInt
+from drivebench.i18n import N_, Text
 
 Direction = Literal["rpdo", "tpdo"]
 
@@ -88,9 +89,10 @@ class MappingBits(_Model):
             self.byte_text.format(ref="P", byte="low byte", bits=0)
             self.no_bit_text.format(ref="P")
         except (KeyError, IndexError, ValueError) as exc:
-            raise ValueError(f"byte_text/no_bit_text may use {{ref}}, {{byte}} and {{bits}} only, not {exc}") from exc
+            raise ValueError(Text(N_("byte_text/no_bit_text may use {{ref}}, {{byte}} and {{bits}} only, not {name}"),
+                                  name=exc)) from exc
         if self.exclusive and not self.exclusive_text:
-            raise ValueError("exclusive groups need an exclusive_text")
+            raise ValueError(Text(N_("exclusive groups need an exclusive_text")))
         return self
 
 

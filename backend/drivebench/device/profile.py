@@ -26,6 +26,7 @@ from drivebench.device.hex_int import HexInt
 from drivebench.device.pdo_rules import PdoRules
 from drivebench.device.sdo_channels import SdoServerChannel
 from drivebench.device.switches import SwitchesSection
+from drivebench.i18n import N_, Text
 from drivebench.protocol.datatypes import DataType
 
 Number = int | float
@@ -107,9 +108,10 @@ class Entry(BaseModel):
     @model_validator(mode="after")
     def _check_limits(self) -> Entry:
         if self.min is not None and self.max is not None and self.min > self.max:
-            raise ValueError(f"{self.name}: min {self.min} is greater than max {self.max}")
+            raise ValueError(Text(N_("{name}: min {min} is greater than max {max}"), name=self.name, min=self.min,
+                                  max=self.max))
         if self.factor == 0:
-            raise ValueError(f"{self.name}: factor must not be 0")
+            raise ValueError(Text(N_("{name}: factor must not be 0"), name=self.name))
         return self
 
     @property
@@ -302,12 +304,13 @@ class Profile(BaseModel):
         for obj in self.objects:
             key = (obj.index, obj.subindex)
             if key in seen:
-                raise ValueError(f"duplicate object 0x{obj.index:04X}sub{obj.subindex}")
+                raise ValueError(Text(N_("duplicate object 0x{index:04X}sub{subindex}"), index=obj.index,
+                                      subindex=obj.subindex))
             seen.add(key)
         refs: set[tuple[str, int]] = set()
         for par in self.parameters:
             pkey = (par.code.upper(), par.subcode)
             if pkey in refs:
-                raise ValueError(f"duplicate parameter {par.ref}")
+                raise ValueError(Text(N_("duplicate parameter {ref}"), ref=par.ref))
             refs.add(pkey)
         return self

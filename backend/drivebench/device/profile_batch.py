@@ -16,6 +16,7 @@ from typing import Literal
 
 from drivebench.device.loader import PROFILE_SUFFIXES, ProfileRegistry, shown_name
 from drivebench.errors import ProfileError
+from drivebench.i18n import _, shown
 
 MAX_FILES = 500
 MAX_TOTAL_BYTES = 128 * 1024 * 1024
@@ -37,11 +38,13 @@ class BatchRow:
 def _member_problem(info: zipfile.ZipInfo, limit: int) -> str | None:
     path = PurePosixPath(info.filename.replace("\\", "/"))
     if path.is_absolute() or ".." in path.parts or (path.parts and ":" in path.parts[0]):
-        return "its path leaves the archive (absolute or with '..'): not read"
+        return _("its path leaves the archive (absolute or with '..'): not read")
     if info.file_size > limit:
-        return f"it unpacks to {info.file_size} bytes, more than the limit of {limit} for one file"
+        return _("it unpacks to {size} bytes, more than the limit of {limit} for one file").format(
+            size=info.file_size, limit=limit)
     if info.file_size > 1024 * 1024 and info.file_size > MAX_RATIO * max(info.compress_size, 1):
-        return f"it expands {info.file_size // max(info.compress_size, 1)} times (a zip bomb): not read"
+        return _("it expands {ratio} times (a zip bomb): not read").format(
+            ratio=info.file_size // max(info.compress_size, 1))
     return None
 
 
@@ -52,13 +55,14 @@ def unpack_zip(data: bytes, name: str, limit: int) -> tuple[list[tuple[str, byte
         archive = zipfile.ZipFile(io.BytesIO(data))
         members = [i for i in archive.infolist() if not i.is_dir()]
     except (zipfile.BadZipFile, OSError, ValueError) as exc:
-        raise ProfileError(f"not a readable zip archive: {exc}", source=name) from exc
+        raise ProfileError(_("not a readable zip archive: {reason}").format(reason=exc), source=name) from exc
     if len(members) > MAX_FILES:
-        raise ProfileError(f"the archive holds {len(members)} files; at most {MAX_FILES} are read at once",
-                           source=name)
+        raise ProfileError(_("the archive holds {count} files; at most {limit} are read at once").format(
+            count=len(members), limit=MAX_FILES), source=name)
     declared = sum(i.file_size for i in members)
     if declared > MAX_TOTAL_BYTES:
-        raise ProfileError(f"the archive unpacks to {declared} bytes, more than {MAX_TOTAL_BYTES}", source=name)
+        raise ProfileError(_("the archive unpacks to {size} bytes, more than {limit}").format(
+            size=declared, limit=MAX_TOTAL_BYTES), source=name)
     files: list[tuple[str, bytes]] = []
     refused: list[BatchRow] = []
     total = 0
@@ -74,12 +78,14 @@ def unpack_zip(data: bytes, name: str, limit: int) -> tuple[list[tuple[str, byte
             with archive.open(info) as member:
                 content = member.read(limit + 1)  # as read, whatever the header claims
         except (zipfile.BadZipFile, OSError, ValueError, NotImplementedError) as exc:
-            refused.append(BatchRow(f"{name}/{info.filename}", "refused", reason=f"cannot unpack: {exc}"))
+            refused.append(BatchRow(f"{name}/{info.filename}", "refused",
+                                    reason=_("cannot unpack: {reason}").format(reason=exc)))
             continue
         total += len(content)
         if len(content) > limit or total > MAX_TOTAL_BYTES:
             refused.append(BatchRow(f"{name}/{info.filename}", "refused",
-                                    reason=f"it unpacks to more than the limit of {limit} bytes"))
+                                    reason=_("it unpacks to more than the limit of {limit} bytes").format(
+                                        limit=limit)))
             continue
         files.append((shown, content))
     return files, refused
@@ -94,21 +100,20 @@ def add_many(registry: ProfileRegistry, uploads: list[tuple[str, bytes]]) -> lis
             try:
                 unpacked, refused = unpack_zip(content, name, registry.max_upload_bytes)
             except ProfileError as exc:
-                rows.append(BatchRow(name, "refused", line=exc.line, reason=exc.detail.removeprefix(f"{name}: ")))
+                rows.append(BatchRow(name, "refused", line=exc.line, reason=shown(exc.reason)))
                 continue
             files += unpacked
             rows += refused
         else:
             files.append((name, content))
     if len(files) > MAX_FILES:
-        raise ProfileError(f"{len(files)} files sent; at most {MAX_FILES} are read at once")
+        raise ProfileError(_("{count} files sent; at most {limit} are read at once").format(count=len(files),
+                                                                                         limit=MAX_FILES))
     for name, content in files:
         try:
             profile = registry.add_upload(name, content)
         except ProfileError as exc:
-            where = f"{exc.source}:{exc.line}: " if exc.source and exc.line else (f"{exc.source}: " if exc.source
-                                                                                 else "")
-            rows.append(BatchRow(name, "refused", line=exc.line, reason=exc.detail.removeprefix(where)))
+            rows.append(BatchRow(name, "refused", line=exc.line, reason=shown(exc.reason)))
             continue
         count = len(registry.loaded(profile.id).warnings)
         rows.append(BatchRow(name, "warnings" if count else "accepted", profile.id, count))

@@ -56,10 +56,10 @@ def from_raw(entry: Entry, raw: RawValue) -> ScaledValue:
             value = round(value, entry.decimals)
     text = None
     if isinstance(raw, int) and entry.selection:
-        text = entry.selection.get(raw, "(not in the selection list)")
+        text = entry.selection.get(raw, _("(not in the selection list)"))
     elif isinstance(raw, int) and entry.bits:
         set_bits = [name for bit, name in sorted(entry.bits.items()) if raw >> bit & 1]
-        text = ", ".join(set_bits) if set_bits else "no bit set"
+        text = ", ".join(set_bits) if set_bits else _("no bit set")
     return ScaledValue(raw, value, entry.unit, text)
 
 

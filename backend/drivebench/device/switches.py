@@ -22,6 +22,7 @@ from typing import Annotated, Literal
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from drivebench.device.hex_int import HexInt
+from drivebench.i18n import N_, Text
 
 Key = Annotated[str, Field(pattern=r"^[a-z0-9][a-z0-9_.-]*$", max_length=64)]
 Direction = Literal["to node", "from node", "broadcast"]
@@ -40,8 +41,9 @@ def _check_template(text: str, allowed: set[str], where: str) -> None:
     names = {name for _, name, _, _ in Formatter().parse(text) if name is not None}
     unknown = names - allowed
     if unknown:
-        raise ValueError(f"{where} may use {', '.join('{' + n + '}' for n in sorted(allowed))} only, not "
-                         f"{', '.join('{' + n + '}' for n in sorted(unknown))}")
+        raise ValueError(Text(N_("{where} may use {allowed} only, not {unknown}"), where=where,
+                              allowed=", ".join("{" + n + "}" for n in sorted(allowed)),
+                              unknown=", ".join("{" + n + "}" for n in sorted(unknown))))
 
 
 class Switch(_Model):
@@ -76,7 +78,7 @@ class NodeParameter(_Model):
     @model_validator(mode="after")
     def _check(self) -> NodeParameter:
         if not 0 <= self.range[0] <= self.range[1] <= 127:
-            raise ValueError(f"range {list(self.range)} is not within 0 … 127 (lowest first)")
+            raise ValueError(Text(N_("range {range} is not within 0 … 127 (lowest first)"), range=list(self.range)))
         _check_template(self.invalid, {"code", "value", "lo", "hi"}, "invalid")
         return self
 
@@ -114,7 +116,7 @@ class Setting(_Model):
     @model_validator(mode="after")
     def _check(self) -> Setting:
         if self.sets == "node_id" and self.values:
-            raise ValueError("values are baud rate -> value; a node id setting writes the node id itself")
+            raise ValueError(Text(N_("values are baud rate -> value; a node id setting writes the node id itself")))
         for text in (self.meaning, self.note or "", self.unavailable or ""):
             _check_template(text, {"node_id", "baud_kbit", "value"}, "meaning/note")
         return self
@@ -180,18 +182,21 @@ class CobIdRules(_Model):
     def _check(self) -> CobIdRules:
         names = [s.name for s in self.services]
         for name in {n for n in names if names.count(n) > 1}:
-            raise ValueError(f"service '{name}' is listed twice")
+            raise ValueError(Text(N_("service '{name}' is listed twice"), name=name))
         for svc in self.services:
             if svc.shares_with is not None:
                 other = next((s for s in self.services if s.name == svc.shares_with), None)
                 if other is None:
-                    raise ValueError(f"{svc.name}: shares_with names '{svc.shares_with}', which is not a service")
+                    raise ValueError(Text(N_("{name}: shares_with names '{shares_with}', which is not a service"),
+                                          name=svc.name, shares_with=svc.shares_with))
                 if not 0 < svc.base - other.base < 128:
-                    raise ValueError(f"{svc.name}: its base must lie 1 … 127 above the base of {other.name}")
+                    raise ValueError(Text(N_("{name}: its base must lie 1 … 127 above the base of {other}"),
+                                          name=svc.name, other=other.name))
             if svc.alternative_base is not None and self.alternative is None:
-                raise ValueError(f"{svc.name}: alternative_base needs an 'alternative' set of identifiers")
+                raise ValueError(Text(N_("{name}: alternative_base needs an 'alternative' set of identifiers"),
+                                      name=svc.name))
         if self.alternative is not None and self.alternative.key == "canopen":
-            raise ValueError("alternative.key 'canopen' names the standard identifiers; choose another key")
+            raise ValueError(Text(N_("alternative.key 'canopen' names the standard identifiers; choose another key")))
         return self
 
     def service(self, name: str) -> Service:
@@ -252,45 +257,48 @@ class SwitchesSection(_Model):
     def _check(self) -> SwitchesSection:
         labels = [s.label.lower() for s in self.switches]
         for label in {lab for lab in labels if labels.count(lab) > 1}:
-            raise ValueError(f"switch '{label}' is listed twice")
+            raise ValueError(Text(N_("switch '{label}' is listed twice"), label=label))
         self._check_address()
         self._check_baud()
         if self.readback is not None and any(s.readback_bit is None for s in self.switches):
-            raise ValueError("with a readback every switch needs its readback_bit")
+            raise ValueError(Text(N_("with a readback every switch needs its readback_bit")))
         return self
 
     def _check_address(self) -> None:
         weights = [s.weight for s in self.address_switches]
         if any(w is None for w in weights):
-            raise ValueError("every address switch needs its weight")
+            raise ValueError(Text(N_("every address switch needs its weight")))
         if any(s.weight is not None for s in self.baud_switches):
-            raise ValueError("baud switches have no weight")
+            raise ValueError(Text(N_("baud switches have no weight")))
         if any(w is not None and w & (w - 1) for w in weights) or len(set(weights)) != len(weights):
-            raise ValueError("address switch weights must be distinct powers of two (1, 2, 4 … 64)")
+            raise ValueError(Text(N_("address switch weights must be distinct powers of two (1, 2, 4 … 64)")))
         if self.address_switches and self.switch_node_range is None:
-            raise ValueError("address switches need a switch_node_range")
+            raise ValueError(Text(N_("address switches need a switch_node_range")))
         if self.switch_node_range is not None:
             lo, hi = self.switch_node_range
             top = sum(w or 0 for w in weights)
             if not 1 <= lo <= hi <= min(top, 127):
-                raise ValueError(f"switch_node_range {[lo, hi]} is not within 1 … {min(top, 127)} (the sum of the "
-                                 "address switch weights)")
+                raise ValueError(Text(N_("switch_node_range {value} is not within 1 … {top} (the sum of the address "
+                                         "switch weights)"), value=[lo, hi], top=min(top, 127)))
 
     def _check_baud(self) -> None:
         baud_labels = [s.label for s in self.baud_switches]
         seen: set[tuple[bool, ...]] = set()
         for number, row in enumerate(self.baud_table):
             if set(row.positions) != set(baud_labels):
-                raise ValueError(f"baud_table row {number} ({row.baud_kbit} kbit/s) names switches "
-                                 f"{', '.join(row.positions) or 'none'}; it must name each baud switch "
-                                 f"({', '.join(baud_labels) or 'there are none'}) once")
+                raise ValueError(Text(N_("baud_table row {number} ({baud_kbit} kbit/s) names switches {named}; it "
+                                         "must name each baud switch ({labels}) once"), number=number,
+                                      baud_kbit=row.baud_kbit, named=", ".join(row.positions) or Text(N_("none")),
+                                      labels=", ".join(baud_labels) or Text(N_("there are none"))))
             pattern = tuple(row.positions[label] for label in baud_labels)
             if pattern in seen:
-                raise ValueError(f"baud_table row {number}: the same switch positions as an earlier row")
+                raise ValueError(Text(N_("baud_table row {number}: the same switch positions as an earlier row"),
+                                      number=number))
             seen.add(pattern)
             if row.baud_kbit not in self.baud_rates_kbit:
-                raise ValueError(f"baud_table row {number}: {row.baud_kbit} kbit/s is not in baud_rates_kbit")
+                raise ValueError(Text(N_("baud_table row {number}: {baud_kbit} kbit/s is not in baud_rates_kbit"),
+                                      number=number, baud_kbit=row.baud_kbit))
         if baud_labels:
             missing = set(self.baud_rates_kbit) - {row.baud_kbit for row in self.baud_table}
             if missing:
-                raise ValueError(f"baud rates {sorted(missing)} have no row in baud_table")
+                raise ValueError(Text(N_("baud rates {values} have no row in baud_table"), values=sorted(missing)))

@@ -34,6 +34,7 @@ from drivebench.device.eds import (
 )
 from drivebench.device.eds_quirks import Warnings
 from drivebench.errors import ProfileError
+from drivebench.i18n import N_, Text
 from drivebench.protocol.datatypes import DATA_TYPE_BY_CODE, DataType
 
 XML_SUFFIXES = (".xdd", ".xdc")
@@ -69,19 +70,20 @@ def local(element: etree._Element) -> str:
 def parse_xml(data: bytes, source: str) -> etree._Element:
     """Bytes -> the root element, safely (see the module docstring). Raises ProfileError with the line."""
     if len(data) > MAX_EDS_BYTES:
-        raise ProfileError(f"file is {len(data)} bytes, more than the {MAX_EDS_BYTES} bytes a device description "
-                           "may have", source=source)
+        raise ProfileError(Text(N_("file is {count} bytes, more than the {limit} bytes a device description "
+                                   "may have"), count=len(data), limit=MAX_EDS_BYTES), source=source)
     declaration = _DECLARATION.search(data)
     if declaration is not None:
         line = data.count(b"\n", 0, declaration.start()) + 1
-        raise ProfileError("a DOCTYPE or ENTITY declaration is not allowed in an XDD/XDC (it could read files or "
-                           "expand without end)", source=source, line=line)
+        raise ProfileError(Text(N_("a DOCTYPE or ENTITY declaration is not allowed in an XDD/XDC (it could read "
+                                   "files or expand without end)")), source=source, line=line)
     parser = etree.XMLParser(resolve_entities=False, no_network=True, huge_tree=False, load_dtd=False,
                              dtd_validation=False, remove_pis=True)
     try:
         return etree.fromstring(data, parser)
     except etree.XMLSyntaxError as exc:
-        raise ProfileError(f"not well-formed XML: {exc.msg}", source=source, line=exc.lineno or None) from exc
+        raise ProfileError(Text(N_("not well-formed XML: {msg}"),
+                                msg=exc.msg), source=source, line=exc.lineno or None) from exc
 
 
 def _body_type(body: etree._Element) -> str:
@@ -175,7 +177,7 @@ class _Builder:
     def baud(self, text: str, line: int) -> int | None:
         found = _BAUD.match(text)
         if found is None:
-            self.notes.add(line, "baudRate", f"{text!r} is not a bit rate like '250 Kbps': ignored")
+            self.notes.add(line, "baudRate", Text(N_("{text!r} is not a bit rate like '250 Kbps': ignored"), text=text))
             return None
         return int(found.group(1)) * (1000 if found.group(2).upper() == "M" else 1)
 
@@ -185,11 +187,13 @@ class _Builder:
         try:
             index = int(index_text, 16)
         except ValueError:
-            self.notes.add(line, "index", f"CANopenObject index={index_text!r} is not 4 hex digits: skipped")
+            self.notes.add(line, "index", Text(N_("CANopenObject index={value!r} is not 4 hex digits: skipped"),
+                                               value=index_text))
             return
         section = f"{index:04X}"
         if section.upper() in self.sections:
-            self.notes.add(line, "index", f"object 0x{index:04X} is in the object list twice: the first is read")
+            self.notes.add(line, "index", Text(N_("object 0x{index:04X} is in the object list twice: the first is "
+                                                  "read"), index=index))
             return
         self.keys(section, element, parameters)
         subs = [e for e in element if local(e) == "CANopenSubObject"]
@@ -200,8 +204,9 @@ class _Builder:
             try:
                 number = int(sub_text, 16)
             except ValueError:
-                self.notes.add(sub.sourceline, "subIndex", f"CANopenSubObject subIndex={sub_text!r} of "
-                               f"0x{index:04X} is not hex: skipped")
+                self.notes.add(sub.sourceline, "subIndex", Text(N_("CANopenSubObject subIndex={value!r} of "
+                                                                   "0x{index:04X} is not hex: skipped"),
+                                                                value=sub_text, index=index))
                 continue
             self.keys(f"{section}sub{number:X}", sub, parameters)
         listing = "MandatoryObjects" if index in (0x1000, 0x1001, 0x1018) else (
@@ -226,8 +231,8 @@ class _Builder:
             return
         parameter = parameters.get(reference)
         if parameter is None:
-            self.notes.add(line, "uniqueIDRef", f"uniqueIDRef={reference!r} names no parameter of the device "
-                           "profile: ignored")
+            self.notes.add(line, "uniqueIDRef", Text(N_("uniqueIDRef={reference!r} names no parameter of the device "
+                                                        "profile: ignored"), reference=reference))
             return
         template = parameters.get(str(parameter.get("templateIDRef"))) if parameter.get("templateIDRef") else None
         holds_value = local(element) == "CANopenSubObject" or not any(local(e) == "CANopenSubObject"
@@ -245,7 +250,8 @@ class _Builder:
             return value
         if defined is None:
             return value
-        self.notes.add(line, "dataType", f"dataType={text} is defined in the dataTypeList: read as {defined.value}")
+        self.notes.add(line, "dataType", Text(N_("dataType={text} is defined in the dataTypeList: read as {value}"),
+                                              text=text, value=defined.value))
         return f"0x{defined.code:04X}"
 
     def from_parameter(self, section: str, parameter: etree._Element, *, holds_value: bool) -> None:
@@ -290,13 +296,14 @@ def read_xdd(data: bytes, *, source: str) -> ImportedEds:
     line) for unsafe or malformed XML and for a file without a CANopen object list."""
     root = parse_xml(data, source)
     if local(root) not in ("ISO15745ProfileContainer", "ISO15745Profile"):
-        raise ProfileError(f"not a CiA 311 device description: the root element is <{local(root)}>, not "
-                           "<ISO15745ProfileContainer>", source=source, line=root.sourceline)
+        raise ProfileError(Text(N_("not a CiA 311 device description: the root element is <{element}>, not "
+                                   "<ISO15745ProfileContainer>"),
+                                element=local(root)), source=source, line=root.sourceline)
     bodies = [e for e in root.iter() if local(e) == "ProfileBody"]
     communication = [b for b in bodies if _body_type(b).startswith("ProfileBody_CommunicationNetwork_CANopen")]
     if not communication or not any(local(e) == "CANopenObjectList" for e in communication[0].iter()):
-        raise ProfileError("no object dictionary: no ProfileBody_CommunicationNetwork_CANopen with a "
-                           "CANopenObjectList", source=source, line=root.sourceline)
+        raise ProfileError(Text(N_("no object dictionary: no ProfileBody_CommunicationNetwork_CANopen with a "
+                                   "CANopenObjectList")), source=source, line=root.sourceline)
     notes = Warnings(source)
     builder = _Builder(source, notes)
     parameters: dict[str, etree._Element] = {}
@@ -309,8 +316,8 @@ def read_xdd(data: bytes, *, source: str) -> ImportedEds:
             parameters |= builder.device(body)
     if "DEVICEINFO" not in builder.sections:
         builder.put("DeviceInfo", root.sourceline or 1, "VendorName", "")
-        notes.add(root.sourceline, "DeviceIdentity", "no ProfileBody_Device_CANopen with a DeviceIdentity: vendor "
-                  "and product are left unknown")
+        notes.add(root.sourceline, "DeviceIdentity", Text(N_("no ProfileBody_Device_CANopen with a DeviceIdentity: "
+                                                             "vendor and product are left unknown")))
     builder.communication(communication[0], parameters)
     for listing in OBJECT_LISTS:
         found = builder.sections.get(listing.upper())

@@ -27,7 +27,7 @@ from drivebench.device.profile_batch import MAX_FILES, add_many
 from drivebench.device.xdd import XML_SUFFIXES
 from drivebench.device.xdd_export import export_xdd
 from drivebench.errors import Conflict, DriveBenchError, ProfileError
-from drivebench.i18n import N_
+from drivebench.i18n import N_, _, shown
 from drivebench.web.deps import StateDep
 from drivebench.web.problems import error_fragment, problem_body
 from drivebench.web.state import AppState
@@ -161,7 +161,7 @@ def summary(profile: Profile, registry: ProfileRegistry) -> ProfileSummary:
 
 def warning_out(warning: ImportWarning) -> ImportWarningOut:
     where = f"0x{warning.index:04X}sub{warning.subindex}" if warning.index is not None else None
-    return ImportWarningOut(file=warning.file, line=warning.line, key=warning.key, message=warning.message,
+    return ImportWarningOut(file=warning.file, line=warning.line, key=warning.key, message=shown(warning.message),
                             object=where, limits=warning.limits)
 
 
@@ -180,12 +180,13 @@ def split_location(file: str, message: str) -> LoadError:
 
 
 def load_errors(registry: ProfileRegistry) -> list[LoadError]:
-    return [split_location(file, message) for file, message in registry.errors]
+    return [split_location(file, shown(message)) for file, message in registry.errors]
 
 
 def upload_error(exc: ProfileError) -> LoadError:
     """Where an upload failed; ``file`` is empty when the upload was refused before its name was read."""
-    return split_location(exc.source, exc.detail) if exc.source else LoadError(file="", line=None, reason=exc.detail)
+    detail = exc.shown_detail()
+    return split_location(exc.source, detail) if exc.source else LoadError(file="", line=None, reason=detail)
 
 
 _catalogs: dict[str, Catalog] = {}
@@ -236,7 +237,7 @@ async def _capped(request: Request, cap: int, limit: int) -> AsyncGenerator[byte
     async for chunk in request.stream():
         received += len(chunk)
         if received > cap:
-            raise UploadTooLarge(f"the upload is larger than the limit of {_size(limit)}")
+            raise UploadTooLarge(_("the upload is larger than the limit of {limit}").format(limit=_size(limit)))
         yield chunk
 
 
@@ -250,22 +251,24 @@ async def read_upload(request: Request, limit: int) -> tuple[str, bytes]:
     cap = limit + MULTIPART_OVERHEAD_BYTES
     declared = request.headers.get("content-length", "")
     if declared.isdigit() and int(declared) > cap:
-        raise UploadTooLarge(f"the upload is {_size(int(declared))}, more than the limit of {_size(limit)}")
+        raise UploadTooLarge(_("the upload is {size}, more than the limit of {limit}").format(
+            size=_size(int(declared)), limit=_size(limit)))
     if not request.headers.get("content-type", "").startswith("multipart/form-data"):
-        raise ProfileError("send the profile file as multipart/form-data in the field 'file'")
+        raise ProfileError(_("send the profile file as multipart/form-data in the field 'file'"))
     parser = MultiPartParser(request.headers, _capped(request, cap, limit), max_files=1, max_fields=20)
     try:
         form = await parser.parse()
     except MultiPartException as exc:
-        raise ProfileError(f"the upload is not a readable form: {exc.message}") from exc
+        raise ProfileError(_("the upload is not a readable form: {reason}").format(reason=exc.message)) from exc
     try:
         upload = form.get("file")
         if not isinstance(upload, UploadFile):
-            raise ProfileError("no file in the upload: choose an EDS, DCF or JSON file (form field 'file')")
+            raise ProfileError(_("no file in the upload: choose an EDS, DCF or JSON file (form field 'file')"))
         name = shown_name(upload.filename or "upload")
         content = await upload.read(limit + 1)
         if len(content) > limit:
-            raise UploadTooLarge(f"the file is larger than the limit of {_size(limit)}", source=name)
+            raise UploadTooLarge(_("the file is larger than the limit of {limit}").format(limit=_size(limit)),
+                                 source=name)
         return name, content
     finally:
         await form.close()
@@ -279,21 +282,21 @@ async def read_uploads(request: Request, limit: int) -> list[tuple[str, bytes]]:
     past ``limit`` in all, ProfileError for too many files or none."""
     declared = request.headers.get("content-length", "")
     if declared.isdigit() and int(declared) > limit:
-        raise UploadTooLarge(f"the upload is {_size(int(declared))}, more than the limit of {_size(limit)} for "
-                             "many files at once")
+        raise UploadTooLarge(_("the upload is {size}, more than the limit of {limit} for many files at once").format(
+            size=_size(int(declared)), limit=_size(limit)))
     if not request.headers.get("content-type", "").startswith("multipart/form-data"):
-        raise ProfileError("send the files as multipart/form-data in the field 'files'")
+        raise ProfileError(_("send the files as multipart/form-data in the field 'files'"))
     parser = MultiPartParser(request.headers, _capped(request, limit, limit), max_files=MAX_FILES, max_fields=20)
     try:
         form = await parser.parse()
     except MultiPartException as exc:
-        raise ProfileError(f"the upload is not a readable form: {exc.message} (at most {MAX_FILES} files at once)"
-                           ) from exc
+        raise ProfileError(_("the upload is not a readable form: {reason} (at most {limit} files at once)").format(
+            reason=exc.message, limit=MAX_FILES)) from exc
     try:
         uploads = [u for key in ("files", "file") for u in form.getlist(key) if isinstance(u, UploadFile)]
         if not uploads:
-            raise ProfileError("no file in the upload: choose EDS, DCF, XDD, XDC, JSON files or a .zip (field "
-                               "'files')")
+            raise ProfileError(_("no file in the upload: choose EDS, DCF, XDD, XDC, JSON files or a .zip (field "
+                                 "'files')"))
         return [(shown_name(u.filename or "upload"), await u.read()) for u in uploads]
     finally:
         await form.close()
@@ -324,13 +327,14 @@ def _check_utf8(content: bytes, name: str) -> None:
         content.decode("utf-8")
     except UnicodeDecodeError as exc:
         line = content.count(b"\n", 0, exc.start) + 1
-        raise ProfileError(f"not UTF-8 text: byte 0x{content[exc.start]:02X} cannot be decoded", source=name,
-                           line=line) from exc
+        raise ProfileError(_("not UTF-8 text: byte {byte} cannot be decoded").format(
+            byte=f"0x{content[exc.start]:02X}"), source=name, line=line) from exc
 
 
 def users_of(state: AppState, profile_id: str) -> list[str]:
     """Nodes of open sessions handled with this profile (``node 5 of 'Demo plant'``)."""
-    return [f"node {node_id} of '{session.name}'" for session in state.manager.list()
+    return [_("node {node} of '{session}'").format(node=node_id, session=session.name)
+            for session in state.manager.list()
             for node_id, node in session.nodes.items() if node.profile is not None and node.profile.id == profile_id]
 
 
@@ -338,11 +342,12 @@ async def delete_upload(state: AppState, profile_id: str) -> None:
     registry = state.registry
     registry.get(profile_id)
     if registry.is_builtin(profile_id):
-        raise Conflict(f"'{profile_id}' is a built-in profile (device_profiles/); only uploaded profiles can be "
-                       "deleted")
+        raise Conflict(_("'{profile}' is a built-in profile (device_profiles/); only uploaded profiles can be "
+                         "deleted").format(profile=profile_id))
     in_use = users_of(state, profile_id)
     if in_use:
-        raise Conflict(f"'{profile_id}' is in use by {', '.join(in_use)}; remove those nodes first")
+        raise Conflict(_("'{profile}' is in use by {nodes}; remove those nodes first").format(
+            profile=profile_id, nodes=", ".join(in_use)))
     await asyncio.to_thread(registry.remove_upload, profile_id)
 
 

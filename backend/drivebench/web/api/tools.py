@@ -17,15 +17,16 @@ from drivebench.device.cable import (
     CROSS_SECTIONS_MM2,
     REPEATER_2176_REDUCTION_M,
     SEGMENT_LENGTH_M,
-    SELECTION_EXAMPLE,
     TOTAL_LENGTH_M,
     CablePlan,
     plan_cable,
+    selection_example,
 )
 from drivebench.device.cobids import STANDARD_IDS, CobId, PdoIds, cob_ids, uses_alternative
 from drivebench.device.dip import DipResult, SwitchDevice, SwitchDevices, decode, encode
 from drivebench.device.switches import SwitchesSection
 from drivebench.errors import DriveBenchError, InvalidValue
+from drivebench.i18n import _
 from drivebench.services.planning.planned_networks import (
     LiveComparison,
     PlannedNetwork,
@@ -97,7 +98,7 @@ def dip_answer(device: SwitchDevice, result: DipResult, pdo_ids: PdoIds = STANDA
 def calculate(device: SwitchDevice, request: DipRequest) -> DipAnswer:
     if request.node_id is not None or request.baud_kbit is not None:
         if request.node_id is None or request.baud_kbit is None or request.switches is not None:
-            raise InvalidValue("Encode takes node_id and baud_kbit together; decode takes the switches.")
+            raise InvalidValue(_("Encode takes node_id and baud_kbit together; decode takes the switches."))
         return dip_answer(device, encode(device, request.node_id, request.baud_kbit), request.pdo_ids)
     result = decode(device, request.switches or {}, code_node_id=request.code_node_id,
                     code_baud_kbit=request.code_baud_kbit)
@@ -160,7 +161,7 @@ async def cable(baud_kbit: int, nodes: Annotated[int, Query(ge=2)], length_m: An
 async def cable_tables() -> dict[str, Any]:
     """The manual's tables as printed: total length per baud rate, segment length, the selection example."""
     return {"total_length_m": TOTAL_LENGTH_M, "cross_sections_mm2": CROSS_SECTIONS_MM2,
-            "segment_length_m": SEGMENT_LENGTH_M, "selection_example": SELECTION_EXAMPLE}
+            "segment_length_m": SEGMENT_LENGTH_M, "selection_example": selection_example()}
 
 
 @router.post("/planner/check", response_model=PlanReport)

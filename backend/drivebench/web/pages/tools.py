@@ -14,13 +14,14 @@ from drivebench.device.cable import (
     CROSS_SECTIONS_MM2,
     REPEATER_2176_REDUCTION_M,
     SEGMENT_LENGTH_M,
-    SELECTION_EXAMPLE,
     TOTAL_LENGTH_M,
     plan_cable,
+    selection_example,
 )
 from drivebench.device.cobids import STANDARD_IDS, channels_of, default_channels, uses_alternative
 from drivebench.device.dip import SwitchDevices, decode, encode
 from drivebench.errors import DriveBenchError, InvalidValue
+from drivebench.i18n import _
 from drivebench.services.planning.planned_networks import PlannedNetworkStore, compare_with_session
 from drivebench.services.planning.planner import CableInput, NetworkPlan, PlannedNode, check_plan
 from drivebench.web.api.tools import dip_answer
@@ -43,7 +44,7 @@ def _devices(state: AppState) -> SwitchDevices:
 def _first_key(devices: SwitchDevices) -> str:
     every = devices.all()
     if not every:
-        raise InvalidValue("No loaded profile has a 'switches' section: the calculator has no device.")
+        raise InvalidValue(_("No loaded profile has a 'switches' section: the calculator has no device."))
     return every[0].spec.key
 
 
@@ -54,7 +55,7 @@ def _int(form: FormData, key: str, label: str) -> int | None:
     try:
         return int(value, 0)
     except ValueError as exc:
-        raise InvalidValue(f"{label}: '{value}' is not a number.") from exc
+        raise InvalidValue(_("{label}: '{value}' is not a number.").format(label=label, value=value)) from exc
 
 
 def _error(request: Request, exc: DriveBenchError) -> str:
@@ -88,9 +89,9 @@ def _dip_context(request: Request, devices: SwitchDevices, family: str,
         on ^= {str(toggle)}
     try:
         if form.get("action") == "encode":
-            node_id, baud = _int(form, "node_id", "Node address"), _int(form, "baud_kbit", "Baud rate")
+            node_id, baud = _int(form, "node_id", _("Node address")), _int(form, "baud_kbit", _("Baud rate"))
             if node_id is None or baud is None:
-                raise InvalidValue("Enter a node address and a baud rate.")
+                raise InvalidValue(_("Enter a node address and a baud rate."))
             result = encode(device, node_id, baud)
             on = {label for label, state in result.switches.items() if state}
         else:
@@ -114,7 +115,7 @@ def _dip_context(request: Request, devices: SwitchDevices, family: str,
 async def tools_page(request: Request, state: StateDep, family: str | None = None) -> Response:
     devices = _devices(state)
     first = _first_key(devices)
-    dip_context, _ = _dip_context(request, devices, family or first)
+    dip_context, _status = _dip_context(request, devices, family or first)
     plan = NetworkPlan(name="Line 1", nodes=[
         PlannedNode(name="Conveyor", device=first, node_id=1, baud_kbit=500),
         PlannedNode(name="Lift", device=first, node_id=2, baud_kbit=500)])
@@ -148,13 +149,13 @@ def _cable_context(request: Request, devices: SwitchDevices, form: FormData | No
         plan = plan_cable(int(values["baud_kbit"]), float(values["cross_section_mm2"]), int(values["nodes"]),
                           float(values["length_m"]), int(values["repeater_reduction_m"]))
     except ValueError:
-        error = _error(request, InvalidValue("Enter whole numbers for nodes and repeater reduction, a number "
-                                             "for the cable length."))
+        error = _error(request, InvalidValue(_("Enter whole numbers for nodes and repeater reduction, a number "
+                                               "for the cable length.")))
     except DriveBenchError as exc:
         error = _error(request, exc)
     return _base(devices, cable=plan, cable_values=values, cable_error=error, total_lengths=TOTAL_LENGTH_M,
                  segment_lengths=SEGMENT_LENGTH_M, cross_sections=CROSS_SECTIONS_MM2,
-                 selection_example=SELECTION_EXAMPLE)
+                 selection_example=selection_example())
 
 
 @router.post("/ui/tools/cable", response_class=HTMLResponse)
@@ -169,15 +170,16 @@ def _plan_from_form(form: FormData) -> NetworkPlan:
     for row in form.getlist("row"):
         def value(key: str, row: Any = row) -> str:
             return str(form.get(f"{key}_{row}") or "").strip()
-        label = f"Row {int(str(row)) + 1}"
-        node_id, baud = _int(form, f"node_id_{row}", f"{label}, node id"), _int(form, f"baud_kbit_{row}", label)
+        label = _("Row {number}").format(number=int(str(row)) + 1)
+        node_id = _int(form, f"node_id_{row}", _("{row}, node id").format(row=label))
+        baud = _int(form, f"baud_kbit_{row}", label)
         if node_id is None or not 1 <= node_id <= 127:
-            raise InvalidValue(f"{label}: node id {node_id if node_id is not None else '(empty)'} is not a "
-                               "CANopen node id (1 … 127).")
+            raise InvalidValue(_("{row}: node id {node} is not a CANopen node id (1 … 127).").format(
+                row=label, node=node_id if node_id is not None else _("(empty)")))
         channels = [str(c) for c in form.getlist(f"channels_{row}")]
         pdo_ids = value("pdo_ids") or STANDARD_IDS
         if not re.fullmatch(r"[a-z0-9][a-z0-9_.-]{0,63}", pdo_ids):
-            raise InvalidValue(f"{label}: '{pdo_ids}' is not a name of PDO identifiers.")
+            raise InvalidValue(_("{row}: '{ids}' is not a name of PDO identifiers.").format(row=label, ids=pdo_ids))
         nodes.append(PlannedNode(name=value("name"), device=value("device"), node_id=node_id, baud_kbit=baud or 0,
                                  channels=channels, pdo_ids=pdo_ids))
     cable = None
@@ -187,7 +189,7 @@ def _plan_from_form(form: FormData) -> NetworkPlan:
             cable = CableInput(length_m=float(length),
                                cross_section_mm2=float(str(form.get("cable_cross_section_mm2") or 0.5)))
         except ValueError as exc:
-            raise InvalidValue(f"Cable length '{length}' is not a number.") from exc
+            raise InvalidValue(_("Cable length '{length}' is not a number.").format(length=length)) from exc
     return NetworkPlan(name=str(form.get("plan_name") or "").strip() or "Planned network", nodes=nodes, cable=cable)
 
 
@@ -265,10 +267,11 @@ async def planner_import(request: Request, state: StateDep) -> Response:
     form = await request.form()
     upload = form.get("plan_file")
     if not isinstance(upload, UploadFile) or not upload.filename:
-        raise InvalidValue("Choose a plan JSON file to import.")
+        raise InvalidValue(_("Choose a plan JSON file to import."))
     plan = NetworkPlan.from_json(await upload.read())
     return await _render_plan(request, plan, state,
-                              planner_ok=f"Imported '{plan.name}' from {upload.filename} (not saved yet).")
+                              planner_ok=_("Imported '{name}' from {file} (not saved yet).").format(
+                                  name=plan.name, file=upload.filename))
 
 
 @router.post("/ui/tools/planner/save", response_class=HTMLResponse)
@@ -278,7 +281,7 @@ async def planner_save(request: Request, state: StateDep) -> Response:
     saved = await asyncio.to_thread(store.update, plan_id, plan) if plan_id else await asyncio.to_thread(
         store.save, plan)
     return await _render_plan(request, saved.plan, state, plan_id=saved.id,
-                              planner_ok=f"Saved '{saved.name}' (#{saved.id}).")
+                              planner_ok=_("Saved '{name}' (#{id}).").format(name=saved.name, id=saved.id))
 
 
 @router.post("/ui/tools/planner/load/{network_id}", response_class=HTMLResponse)
@@ -300,7 +303,7 @@ async def planner_delete(request: Request, state: StateDep, network_id: int) -> 
     plan_id = _plan_id(form)
     return await _render_plan(request, plan or NetworkPlan(), state,
                               plan_id=None if plan_id == network_id else plan_id,
-                              planner_ok=f"Deleted '{gone.name}' (#{network_id}).")
+                              planner_ok=_("Deleted '{name}' (#{id}).").format(name=gone.name, id=network_id))
 
 
 @router.post("/ui/tools/planner/compare", response_class=HTMLResponse)
