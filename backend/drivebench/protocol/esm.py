@@ -24,6 +24,7 @@ which the tool reports in words.
 
 from __future__ import annotations
 
+from collections.abc import Collection
 from enum import IntEnum
 
 MASTER_STATION = 0
@@ -99,16 +100,29 @@ def al_status_text(status: int, code: int = 0) -> str:
     return state
 
 
-def transition_refusal(current: EsmState, target: int) -> int | None:
+MANDATORY_STATES = frozenset({EsmState.INIT, EsmState.PRE_OPERATIONAL, EsmState.SAFE_OPERATIONAL,
+                              EsmState.OPERATIONAL})
+"""What every slave has (ETG.1000.6); Bootstrap is optional: a device's profile says whether it has it."""
+UPWARDS = (EsmState.INIT, EsmState.PRE_OPERATIONAL, EsmState.SAFE_OPERATIONAL, EsmState.OPERATIONAL)
+
+INVALID_CHANGE, UNKNOWN_STATE, NO_BOOTSTRAP = 0x0011, 0x0012, 0x0013
+
+
+def transition_refusal(current: EsmState, target: int, supported: Collection[EsmState] = MANDATORY_STATES
+                       ) -> int | None:
     """The AL status code a slave answers a requested state change with, or None if it may change (ETG.1000.6:
-    up one step at a time, Init -> Pre-Op -> Safe-Op -> Op; down to any lower state; Bootstrap only from Init)."""
+    up one step at a time, Init -> Pre-Op -> Safe-Op -> Op; down to any lower state; Bootstrap only from and back
+    to Init). ``supported``: the states the device has (its profile's ``ethercat`` section)."""
     try:
         wanted = EsmState(target)
     except ValueError:
-        return 0x0012
-    if wanted is EsmState.BOOTSTRAP:
-        return 0x0013  # the 8400 motec EtherCAT unit has no Bootstrap state
-    order = [EsmState.INIT, EsmState.PRE_OPERATIONAL, EsmState.SAFE_OPERATIONAL, EsmState.OPERATIONAL]
-    if order.index(wanted) > order.index(current) + 1:
-        return 0x0011
+        return UNKNOWN_STATE
+    if wanted not in supported:
+        return NO_BOOTSTRAP if wanted is EsmState.BOOTSTRAP else UNKNOWN_STATE
+    if wanted is current:
+        return None
+    if EsmState.BOOTSTRAP in (wanted, current):
+        return None if EsmState.INIT in (wanted, current) else INVALID_CHANGE
+    if UPWARDS.index(wanted) > UPWARDS.index(current) + 1:
+        return INVALID_CHANGE
     return None
