@@ -27,6 +27,8 @@ from __future__ import annotations
 from collections.abc import Collection
 from enum import IntEnum
 
+from drivebench.i18n import _
+
 MASTER_STATION = 0
 CONFIGURATION_BASE = 0x8000
 DIAGNOSIS_BASE = 0xA000
@@ -59,7 +61,8 @@ class EsmState(IntEnum):
                    "safe-op": cls.SAFE_OPERATIONAL, "op": cls.OPERATIONAL, "boot": cls.BOOTSTRAP}
         if key in aliases:
             return aliases[key]
-        raise ValueError(f"'{text}' is no EtherCAT state: Init, Pre-Operational, Safe-Operational or Operational")
+        raise ValueError(_("'{text}' is no EtherCAT state: Init, Pre-Operational, Safe-Operational or Operational")
+                         .format(text=text))
 
 
 AL_STATUS_CODES = {
@@ -77,7 +80,8 @@ AL_STATUS_CODES = {
     0x9001: "Firmware watchdog error",
     0x9002: "Mapping error",
 }
-"""The 8400 motec EtherCAT manual's AL status codes (§7.3), its words."""
+"""The 8400 motec EtherCAT manual's AL status codes (§7.3), its words (shown as the manual prints them, like the
+texts a profile brings; the tool's own words around them are translated when shown)."""
 
 
 def al_status_code_text(code: int) -> str:
@@ -85,8 +89,8 @@ def al_status_code_text(code: int) -> str:
     if text is not None:
         return text
     if code >= 0x8000:
-        return f"vendor-specific AL status code 0x{code:04X}"
-    return f"AL status code 0x{code:04X}"
+        return _("vendor-specific AL status code 0x{code:04X}").format(code=code)
+    return _("AL status code 0x{code:04X}").format(code=code)
 
 
 def al_status_text(status: int, code: int = 0) -> str:
@@ -94,9 +98,10 @@ def al_status_text(status: int, code: int = 0) -> str:
     try:
         state = EsmState(status & 0x0F).label
     except ValueError:
-        state = f"unknown state 0x{status & 0x0F:X}"
+        state = _("unknown state 0x{state:X}").format(state=status & 0x0F)
     if status & ERROR_FLAG:
-        return f"{state} + error: {al_status_code_text(code)} (0x{code:04X})"
+        return _("{state} + error: {text} (0x{code:04X})").format(state=state, text=al_status_code_text(code),
+                                                                   code=code)
     return state
 
 
