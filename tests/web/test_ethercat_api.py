@@ -6,11 +6,13 @@ from __future__ import annotations
 
 import json
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 import pytest
 from fastapi.testclient import TestClient
 
+from drivebench.config import settings
 from drivebench.device.loader import ProfileRegistry
 from drivebench.device.profile import ObjectEntry
 from drivebench.simulator.ethercat import GatewayServer, SimulatedSlave
@@ -353,3 +355,23 @@ def test_each_failed_mapping_gets_its_own_status_and_problem_type(api: TestClien
     problem = silent.json()
     assert problem["type"] == "/problems/mapping-unanswered" and "did not answer" in problem["detail"]
     assert problem["detail"].endswith("nothing was changed.") and len(problem["steps"]) == 1
+
+
+def test_a_fixed_mapping_is_said_in_words_on_the_tab_and_refused_with_422(
+        api: TestClient, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(settings, "user_profiles_dir", tmp_path)  # the upload stays out of the repository
+    fixed = json.loads((settings.profiles_dir / "lenze-8400-motec-ethercat.json").read_text())
+    fixed["id"] = "ethercat-fixed-rxpdo"
+    for entry in fixed["objects"]:
+        if entry["index"] == "0x1600":
+            entry["access"] = "ro"
+    assert api.post("/api/profiles", files={"file": ("fixed.json", json.dumps(fixed).encode())}).status_code == 201
+    assert api.post(f"/api/sessions/{SESSION}/nodes", json={"node_id": 1, "profile_id": "ethercat-fixed-rxpdo"}
+                    ).json()["profile_id"] == "ethercat-fixed-rxpdo"
+    tab = api.get(f"/ui/sessions/{SESSION}/nodes/1/pdo").text
+    card = tab[tab.index('id="ecat-pdo-rpdo1"'):tab.index('id="ecat-assign-tpdo"')]
+    assert "Fixed mapping: the entries of 0x1600 are read-only in this device's profile (manual)" in card
+    assert "Write mapping" not in card
+    refused = api.put(f"{NODE}/pdos/mapping/rpdo/1", json={"entries": [[0x5C93, 1]]})
+    assert refused.status_code == 422 and refused.json()["detail"] == (
+        "The mapping of RxPDO 0x1600 is fixed on this device (its entries are read-only in the profile).")
