@@ -6,11 +6,13 @@ from __future__ import annotations
 
 import json
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 import pytest
 from fastapi.testclient import TestClient
 
+from drivebench.config import settings
 from drivebench.device.loader import ProfileRegistry
 from drivebench.device.profile import ObjectEntry
 from drivebench.simulator.ethercat import GatewayServer, SimulatedSlave
@@ -250,7 +252,9 @@ def test_the_pdo_tab_reads_the_assignment_and_the_mappings_over_coe(api: TestCli
     tab = api.get(f"/ui/sessions/{SESSION}/nodes/1/pdo").text
     assert 'id="ecat-assign-rpdo"' in tab and 'id="ecat-pdo-tpdo1"' in tab
     tx_card = tab[tab.index('id="ecat-pdo-tpdo1"'):]
-    assert "0x1A00" in tx_card and "Write mapping" not in tx_card  # the profile lets nothing be mapped into it
+    assert "0x1A00" in tx_card and "Write mapping" not in tx_card  # the manual names nothing to map into it
+    assert "Nothing to map: the profile marks no object as mappable into 0x1A00." in tx_card
+    assert "no code of the Communication Unit carries the PDO_MAP_TX attribute" in tx_card
     card = tab[tab.index('id="ecat-pdo-rpdo1"'):tab.index('id="ecat-assign-tpdo"')]
     assert "0x1600" in card and "Write mapping" in card and "COB-ID" not in card and "Transmission type" not in card
     for entry in rx["entries"]:
@@ -276,6 +280,9 @@ def test_a_mapping_is_written_in_pre_operational_and_refused_in_safe_operational
     refused = api.put(f"{NODE}/pdos/mapping/rpdo/1", json={"entries": words[:1]})
     assert refused.status_code == 409 and refused.headers["content-type"] == "application/problem+json"
     problem = refused.json()
+    assert problem["type"] == "/problems/mapping-refused-in-state" and problem["status"] == 409
+    assert problem["detail"].startswith("RxPDO 0x1600: step 'disable mapping (count 0)' refused (0x08000022 ")
+    assert problem["steps"][-1]["ok"] is False and problem["pdo"]["mapping_index"] == 0x1600
     assert "0x08000022" in problem["detail"] and "nothing was changed" in problem["detail"]
     assert "Due to the current device state" in problem["detail"]
     assert "Pre-Operational" in problem["rule"]
@@ -284,3 +291,87 @@ def test_a_mapping_is_written_in_pre_operational_and_refused_in_safe_operational
     assert page.status_code == 409 and "0x08000022" in page.text and "Take the slave to Pre-Operational" in page.text
     rx = {a["index"]: a for a in api.get(f"{NODE}/pdos/assignment").json()}[0x1C12]["pdos"][0]
     assert [(e["index"], e["subindex"]) for e in rx["entries"]] == words  # unchanged
+
+
+def test_the_txpdo_mapping_is_configurable_but_the_manual_names_nothing_to_map(api: TestClient) -> None:
+    assert api.get(f"{NODE}/pdos/mappable/tpdo").json() == []
+    tx = {a["index"]: a for a in api.get(f"{NODE}/pdos/assignment").json()}[0x1C13]["pdos"][0]
+    assert not tx["fixed_mapping"] and tx["max_entries"] == 10  # the manual: input objects 1 ... 10, RW
+    assert any("PDO_MAP_TX" in note for note in tx["notes"])
+    _esm(api, "pre-operational")
+    refused = api.put(f"{NODE}/pdos/mapping/tpdo/1", json={"entries": [[0x29E5, 1]]})  # C13850/1: R only
+    assert refused.status_code == 422 and refused.json()["detail"] == (
+        "C13850/1 (All words from drive to master: 1st word) cannot be mapped into TxPDO 0x1A00: the profile does "
+        "not list it as mappable (inputs of the master)")
+
+
+def test_a_mapping_the_profile_forbids_is_422_in_ethercat_words_and_nothing_is_sent(api: TestClient) -> None:
+    _esm(api, "pre-operational")
+    unit = api.app.state.drivebench.gateways[SESSION].slaves[1001]  # type: ignore[attr-defined]
+    before = [unit.store.get(0x1600, sub) for sub in range(3)]
+    not_mappable = api.put(f"{NODE}/pdos/mapping/rpdo/1", json={"entries": [[0x5FD8, 1]]})  # C00039/1
+    assert not_mappable.status_code == 422 and not_mappable.json()["type"] == "/problems/invalid-value"
+    assert not_mappable.json()["detail"] == (
+        "C00039/1 (Fixed setpoint: Fixed_Setpoint_1) cannot be mapped into RxPDO 0x1600: the profile does not list "
+        "it as mappable and writable (outputs of the master)")
+    too_many = api.put(f"{NODE}/pdos/mapping/rpdo/1", json={"entries": [[0x5C93, 1]] * 9})
+    assert too_many.status_code == 422
+    assert too_many.json()["detail"] == "RxPDO 0x1600 takes at most 8 entries; 9 were given."
+    missing = api.put(f"{NODE}/pdos/mapping/rpdo/2", json={"entries": []})
+    assert missing.status_code == 404 and "has no RxPDO 0x1601 in its profile" in missing.json()["detail"]
+    for problem in (not_mappable, too_many, missing):
+        assert "RPDO" not in problem.text and "TPDO" not in problem.text
+    assert [unit.store.get(0x1600, sub) for sub in range(3)] == before
+
+
+@pytest.fixture
+def strict_unit(registry: ProfileRegistry) -> Iterator[GatewayServer]:
+    """An 8400 motec EtherCAT unit whose firmware maps fewer words than the shipped profile says: C00876/2 is not
+    mappable on it (the slave refuses it with 0x06040041)."""
+    shipped = registry.get("lenze-8400-motec-ethercat")
+    parameters = [p.model_copy(update={"pdo_mappable": False}) if p.ref == "C00876/2" else p
+                  for p in shipped.parameters]
+    server = GatewayServer([SimulatedSlave(shipped.model_copy(update={"parameters": parameters}), 1001, 0)]).start()
+    yield server
+    server.stop()
+
+
+def test_each_failed_mapping_gets_its_own_status_and_problem_type(api: TestClient, strict_unit: GatewayServer) -> None:
+    opened = api.post("/api/sessions", json={"bus": strict_unit.spec, "name": "Strict"})
+    assert opened.status_code == 201, opened.text
+    node = f"/api/sessions/{opened.json()['id']}/nodes/1"
+    assert api.post(f"/api/sessions/{opened.json()['id']}/scan").status_code == 200
+    words = [[0x5C93, 1], [0x5C93, 2]]
+    refused = api.put(f"{node}/pdos/mapping/rpdo/1", json={"entries": words})  # the slave: not C00876/2
+    assert refused.status_code == 422, refused.text
+    problem = refused.json()
+    assert problem["type"] == "/problems/invalid-mapping" and problem["title"] == "PDO mapping refused by the slave"
+    assert "step 'entry 2: C00876/2 Process data input words: Word 2' refused (0x06040041 " in problem["detail"]
+    assert problem["detail"].endswith("it reads back with 0 entries.") and problem["pdo"]["entries"] == []
+
+    strict_unit.slaves[1001].request_state(1)  # another master tool took it to Init: no mailbox
+    silent = api.put(f"{node}/pdos/mapping/rpdo/1", json={"entries": words[:1]})
+    assert silent.status_code == 504, silent.text
+    problem = silent.json()
+    assert problem["type"] == "/problems/mapping-unanswered" and "did not answer" in problem["detail"]
+    assert problem["detail"].endswith("nothing was changed.") and len(problem["steps"]) == 1
+
+
+def test_a_fixed_mapping_is_said_in_words_on_the_tab_and_refused_with_422(
+        api: TestClient, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(settings, "user_profiles_dir", tmp_path)  # the upload stays out of the repository
+    fixed = json.loads((settings.profiles_dir / "lenze-8400-motec-ethercat.json").read_text())
+    fixed["id"] = "ethercat-fixed-rxpdo"
+    for entry in fixed["objects"]:
+        if entry["index"] == "0x1600":
+            entry["access"] = "ro"
+    assert api.post("/api/profiles", files={"file": ("fixed.json", json.dumps(fixed).encode())}).status_code == 201
+    assert api.post(f"/api/sessions/{SESSION}/nodes", json={"node_id": 1, "profile_id": "ethercat-fixed-rxpdo"}
+                    ).json()["profile_id"] == "ethercat-fixed-rxpdo"
+    tab = api.get(f"/ui/sessions/{SESSION}/nodes/1/pdo").text
+    card = tab[tab.index('id="ecat-pdo-rpdo1"'):tab.index('id="ecat-assign-tpdo"')]
+    assert "Fixed mapping: the entries of 0x1600 are read-only in this device's profile (manual)" in card
+    assert "Write mapping" not in card
+    refused = api.put(f"{NODE}/pdos/mapping/rpdo/1", json={"entries": [[0x5C93, 1]]})
+    assert refused.status_code == 422 and refused.json()["detail"] == (
+        "The mapping of RxPDO 0x1600 is fixed on this device (its entries are read-only in the profile).")

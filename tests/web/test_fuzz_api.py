@@ -40,7 +40,8 @@ from tests.conftest import fresh_channel, serve_app
 
 DEMO_PLANT = REPO_ROOT / "plants" / "demo.json"
 DEVICE_FAULTS = {"/problems/sdo-abort-error", "/problems/sdo-timeout-error", "/problems/node-offline",
-                 "/problems/adapter-unavailable", "/problems/transport-error"}
+                 "/problems/adapter-unavailable", "/problems/transport-error",
+                 "/problems/mapping-unanswered", "/problems/mapping-not-applied"}  # an EtherCAT slave's PDO mapping
 # What exists in the demo plant, one set of path parameters per node (an operation takes the names it has).
 KNOWN = [
     {"session_id": "demo-plant", "node_id": 3, "profile_id": "siemens-micromaster4-canopen", "ref": "P0700"},

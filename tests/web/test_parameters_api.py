@@ -228,6 +228,10 @@ def test_read_all_job_with_progress_stream(api_8400: Api) -> None:
                 break
     assert messages[-1]["state"] == "done"
     assert messages[-1]["progress"]["done"] == messages[-1]["progress"]["total"] == job["progress"]["total"]
+    fields = {"done", "total", "failed", "rate_per_s", "eta_s", "elapsed_s"}  # one model: the API and the websocket
+    assert set(job["progress"]) == set(messages[-1]["progress"]) == fields and messages[-1]["progress"]["eta_s"] is None
+    schema = api_8400.client.get("/openapi.json").json()["components"]["schemas"]
+    assert set(schema["Progress"]["properties"]) == fields and "ProgressOut" not in schema
     final = _wait_job(api_8400, job["id"])
     assert final["result"]["values"]["5"]["C00088"]["display"] == "10.20 A"
     listing = api_8400.client.get(api_8400.url(5, "/parameters"), params={"q": "C00061"}).json()

@@ -22,6 +22,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from drivebench.device.abort_texts import AbortTexts
 from drivebench.device.commands import CommandsSection
 from drivebench.device.control import ControlSection, Sequence
+from drivebench.device.ethercat_section import EthercatSection
 from drivebench.device.hex_int import HexInt
 from drivebench.device.pdo_rules import PdoRules
 from drivebench.device.sdo_channels import SdoServerChannel
@@ -293,6 +294,8 @@ class Profile(BaseModel):
     DIP-switch calculator and the network planner list every profile that has one."""
     control: ControlSection | None = None
     """How the drive is switched, set and watched (``device/control.py``); None: CiA 402 by its objects, or none."""
+    ethercat: EthercatSection | None = None
+    """EtherCAT devices: the states of the slave's state machine (``device/ethercat_section.py``)."""
     commissioning: list[Sequence] = Field(default_factory=list)
     """The manuals' guided commissioning sequences as telegram data."""
     extra_sections: dict[str, dict[str, str]] = Field(default_factory=dict)

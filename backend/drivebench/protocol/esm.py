@@ -24,7 +24,10 @@ which the tool reports in words.
 
 from __future__ import annotations
 
+from collections.abc import Collection
 from enum import IntEnum
+
+from drivebench.i18n import _
 
 MASTER_STATION = 0
 CONFIGURATION_BASE = 0x8000
@@ -58,7 +61,8 @@ class EsmState(IntEnum):
                    "safe-op": cls.SAFE_OPERATIONAL, "op": cls.OPERATIONAL, "boot": cls.BOOTSTRAP}
         if key in aliases:
             return aliases[key]
-        raise ValueError(f"'{text}' is no EtherCAT state: Init, Pre-Operational, Safe-Operational or Operational")
+        raise ValueError(_("'{text}' is no EtherCAT state: Init, Pre-Operational, Safe-Operational or Operational")
+                         .format(text=text))
 
 
 AL_STATUS_CODES = {
@@ -76,7 +80,8 @@ AL_STATUS_CODES = {
     0x9001: "Firmware watchdog error",
     0x9002: "Mapping error",
 }
-"""The 8400 motec EtherCAT manual's AL status codes (§7.3), its words."""
+"""The 8400 motec EtherCAT manual's AL status codes (§7.3), its words (shown as the manual prints them, like the
+texts a profile brings; the tool's own words around them are translated when shown)."""
 
 
 def al_status_code_text(code: int) -> str:
@@ -84,8 +89,8 @@ def al_status_code_text(code: int) -> str:
     if text is not None:
         return text
     if code >= 0x8000:
-        return f"vendor-specific AL status code 0x{code:04X}"
-    return f"AL status code 0x{code:04X}"
+        return _("vendor-specific AL status code 0x{code:04X}").format(code=code)
+    return _("AL status code 0x{code:04X}").format(code=code)
 
 
 def al_status_text(status: int, code: int = 0) -> str:
@@ -93,22 +98,36 @@ def al_status_text(status: int, code: int = 0) -> str:
     try:
         state = EsmState(status & 0x0F).label
     except ValueError:
-        state = f"unknown state 0x{status & 0x0F:X}"
+        state = _("unknown state 0x{state:X}").format(state=status & 0x0F)
     if status & ERROR_FLAG:
-        return f"{state} + error: {al_status_code_text(code)} (0x{code:04X})"
+        return _("{state} + error: {text} (0x{code:04X})").format(state=state, text=al_status_code_text(code),
+                                                                   code=code)
     return state
 
 
-def transition_refusal(current: EsmState, target: int) -> int | None:
+MANDATORY_STATES = frozenset({EsmState.INIT, EsmState.PRE_OPERATIONAL, EsmState.SAFE_OPERATIONAL,
+                              EsmState.OPERATIONAL})
+"""What every slave has (ETG.1000.6); Bootstrap is optional: a device's profile says whether it has it."""
+UPWARDS = (EsmState.INIT, EsmState.PRE_OPERATIONAL, EsmState.SAFE_OPERATIONAL, EsmState.OPERATIONAL)
+
+INVALID_CHANGE, UNKNOWN_STATE, NO_BOOTSTRAP = 0x0011, 0x0012, 0x0013
+
+
+def transition_refusal(current: EsmState, target: int, supported: Collection[EsmState] = MANDATORY_STATES
+                       ) -> int | None:
     """The AL status code a slave answers a requested state change with, or None if it may change (ETG.1000.6:
-    up one step at a time, Init -> Pre-Op -> Safe-Op -> Op; down to any lower state; Bootstrap only from Init)."""
+    up one step at a time, Init -> Pre-Op -> Safe-Op -> Op; down to any lower state; Bootstrap only from and back
+    to Init). ``supported``: the states the device has (its profile's ``ethercat`` section)."""
     try:
         wanted = EsmState(target)
     except ValueError:
-        return 0x0012
-    if wanted is EsmState.BOOTSTRAP:
-        return 0x0013  # the 8400 motec EtherCAT unit has no Bootstrap state
-    order = [EsmState.INIT, EsmState.PRE_OPERATIONAL, EsmState.SAFE_OPERATIONAL, EsmState.OPERATIONAL]
-    if order.index(wanted) > order.index(current) + 1:
-        return 0x0011
+        return UNKNOWN_STATE
+    if wanted not in supported:
+        return NO_BOOTSTRAP if wanted is EsmState.BOOTSTRAP else UNKNOWN_STATE
+    if wanted is current:
+        return None
+    if EsmState.BOOTSTRAP in (wanted, current):
+        return None if EsmState.INIT in (wanted, current) else INVALID_CHANGE
+    if UPWARDS.index(wanted) > UPWARDS.index(current) + 1:
+        return INVALID_CHANGE
     return None

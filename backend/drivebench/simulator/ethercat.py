@@ -27,6 +27,7 @@ from collections.abc import Callable, Mapping
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
+from drivebench.device import ethercat_section
 from drivebench.device.profile import Profile
 from drivebench.protocol import coe, esm
 from drivebench.protocol.coe_server import Abort, CoeSdoServer
@@ -56,6 +57,7 @@ class SimulatedSlave:
         self.name = self.node.name
         self.store = self.node.store
         self.state = esm.EsmState.INIT
+        self.states = (profile.ethercat or ethercat_section.DEFAULT).states
         self.error = False
         self.status_code = 0
         self._lock = threading.Lock()
@@ -79,7 +81,7 @@ class SimulatedSlave:
     def request_state(self, target: int) -> int:
         """Carry out an AL control request; returns the AL status code (0: reached)."""
         with self._lock:
-            refusal = esm.transition_refusal(self.state, target)
+            refusal = esm.transition_refusal(self.state, target, self.states)
             if refusal is None:
                 self.state = esm.EsmState(target)
                 self.error = False
@@ -102,8 +104,8 @@ class SimulatedSlave:
     # --- mailbox ---------------------------------------------------------------------------------------
     def mailbox(self, telegram: bytes) -> list[bytes]:
         """The answers to one mailbox telegram (several: the fragments of an SDO information response), or none
-        (Init: no mailbox)."""
-        if self.state is esm.EsmState.INIT:
+        (Init: no mailbox; Bootstrap: FoE only, no CoE)."""
+        if self.state in (esm.EsmState.INIT, esm.EsmState.BOOTSTRAP):
             return []
         extra_ms = self.node.faults.faults.latency_ms
         delay = self.node.latency.sample() + (extra_ms or 0) / 1000
@@ -195,7 +197,15 @@ class SimulatedMaster:
         if len(data) != 2:
             raise Abort(0x06070010)
         target = int.from_bytes(data, "little") & 0x0F
-        # A master takes a slave up one state at a time (Pre-Op -> Safe-Op -> Op); the slave refuses what it must.
+        # A master takes a slave up one state at a time (Pre-Op -> Safe-Op -> Op), and to and from Bootstrap through
+        # Init where the slave has it; the slave refuses what it must.
+        bootstrap = esm.EsmState.BOOTSTRAP
+        if bootstrap in slave.states and bootstrap in (target, slave.state):
+            if target not in (slave.state, esm.EsmState.INIT) and slave.request_state(esm.EsmState.INIT):
+                return
+            if target == bootstrap:
+                slave.request_state(target)
+                return
         steps = [esm.EsmState.PRE_OPERATIONAL, esm.EsmState.SAFE_OPERATIONAL, esm.EsmState.OPERATIONAL]
         for step in steps:
             if step.value < target and step.value > slave.state.value and slave.request_state(step):

@@ -18,6 +18,8 @@ from dataclasses import dataclass, field
 from enum import StrEnum
 from typing import Any
 
+from pydantic import BaseModel, ConfigDict
+
 from drivebench.errors import Conflict, NotFound
 
 
@@ -32,8 +34,11 @@ class JobState(StrEnum):
         return self is not JobState.RUNNING
 
 
-@dataclass(frozen=True)
-class Progress:
+class Progress(BaseModel):
+    """How far a job is; the API and the websocket send it as it is."""
+
+    model_config = ConfigDict(frozen=True)
+
     done: int
     total: int
     failed: int
@@ -99,8 +104,8 @@ class Job:
         rate = self.done / elapsed
         remaining = max(self.total - self.done, 0)
         eta = None if self.state.finished else (remaining / rate if rate > 0 else None)
-        return Progress(self.done, self.total, self.failed, round(rate, 1),
-                        None if eta is None else round(eta, 1), round(elapsed, 2))
+        return Progress(done=self.done, total=self.total, failed=self.failed, rate_per_s=round(rate, 1),
+                        eta_s=None if eta is None else round(eta, 1), elapsed_s=round(elapsed, 2))
 
     @property
     def version(self) -> int:

@@ -1,25 +1,36 @@
 """PDO assignment and mapping of an EtherCAT slave over CoE: what Sync Manager 2/3 carry (0x1C12 RxPDO, 0x1C13
-TxPDO) and the entries of each assigned mapping object (0x1600..., 0x1A00...), decoded as for CANopen.
+TxPDO) and the entries of each assigned mapping object (RxPDO 0x1600..., TxPDO 0x1A00...), decoded as for CANopen.
 
 No COB-IDs, transmission types or SYNC: the master exchanges the process data cyclically. A mapping is written in
 the CiA 301 order (sub 0 := 0, the entries, sub 0 := n); ETG.1000.6 and the 8400 motec EtherCAT manual allow it only
 in Pre-Operational, elsewhere the slave aborts (0x08000022) and the report gives its words and the profile's rule.
+
+A mapping the slave does not take raises :class:`MappingNotApplied` carrying the step report; its class says what
+went wrong, and so the HTTP status (``web/problems.py``): refused in this EtherCAT state 409, a mapping the slave
+finds invalid 422, no answer 504, anything else (another abort, a read-back that differs) 502.
 """
 
 from __future__ import annotations
 
-from pydantic import BaseModel
+from pydantic import BaseModel, Field
 
+from drivebench import errors
 from drivebench.device import pdo_notes
 from drivebench.device.catalog import Catalog
-from drivebench.errors import InvalidValue, NotFound
+from drivebench.i18n import N_, _, ngettext
 from drivebench.services.bus.sessions import Session
 from drivebench.services.params import node_lease
 from drivebench.services.pdos import pdo
-from drivebench.services.pdos.pdo import ApplyStep, Direction, MappedObject, PdoWrite
+from drivebench.services.pdos.pdo import ApplyStep, Direction, MappedObject
 
 ASSIGNMENT: dict[Direction, int] = {"rpdo": 0x1C12, "tpdo": 0x1C13}
 SYNC_MANAGER: dict[str, int] = {"rpdo": 2, "tpdo": 3}
+KIND: dict[str, str] = {"rpdo": "RxPDO", "tpdo": "TxPDO"}
+STATE_ABORTS = frozenset({0x08000021, 0x08000022})
+"""Local control, device state: the slave takes the mapping in another state (ETG.1000.6: Pre-Operational)."""
+INVALID_ABORTS = frozenset({0x06010002, 0x06040041, 0x06040042, 0x06040043, 0x06070010, 0x06070012, 0x06070013,
+                            0x06090011, 0x06090030, 0x06090031, 0x06090032})
+"""The slave finds the mapping itself wrong: read-only, not mappable, too long, no such entry, out of range."""
 
 
 class EcatPdo(BaseModel):
@@ -31,6 +42,8 @@ class EcatPdo(BaseModel):
     length_bytes: int
     max_entries: int
     fixed_mapping: bool
+    notes: list[str] = Field(default_factory=list)
+    """The profile's words on this PDO (``pdo_rules.pdos``): what the manual says about its mapping."""
 
 
 class EcatAssignment(BaseModel):
@@ -51,9 +64,40 @@ class EcatApplyReport(BaseModel):
     pdo: EcatPdo | None = None
 
 
+class MappingNotApplied(errors.ProtocolError):
+    """The slave answered, but the mapping is not what was written (another abort, a read-back that differs)."""
+
+    title = N_("PDO mapping not applied")
+
+    def __init__(self, report: EcatApplyReport) -> None:
+        super().__init__(report.message)
+        self.report = report
+
+    def extra(self) -> dict[str, object]:
+        return {**super().extra(), **self.report.model_dump(mode="json")}
+
+
+class MappingRefusedInState(MappingNotApplied, errors.Conflict):
+    title = N_("PDO mapping refused in this EtherCAT state")
+
+
+class InvalidMapping(MappingNotApplied, errors.InvalidValue):
+    title = N_("PDO mapping refused by the slave")
+
+
+class MappingUnanswered(MappingNotApplied, errors.NodeOffline):
+    title = N_("No answer to the PDO mapping")
+
+
+def pdo_name(direction: Direction, number: int) -> str:
+    """``RxPDO 0x1600``, ``TxPDO 0x1A01``: EtherCAT names a PDO by its mapping object."""
+    return f"{KIND[direction]} 0x{pdo.MAP_BASE[direction] + number - 1:04X}"
+
+
 def _catalog(session: Session, node_id: int) -> Catalog:
     if session.ethercat is None:
-        raise InvalidValue(f"Session {session.id} is not an EtherCAT session: its PDOs have COB-IDs (PDO tab).")
+        raise errors.Conflict(_("Session {session} is not an EtherCAT session: its PDOs have COB-IDs (PDO tab).")
+                              .format(session=session.id))
     return pdo.node_catalog(session, node_id)
 
 
@@ -62,16 +106,24 @@ def _writable(catalog: Catalog, index: int, sub: int) -> bool:
     return entry is not None and entry.access.writable
 
 
-async def read_mapping_object(session: Session, node_id: int, direction: Direction, number: int) -> EcatPdo:
+def _mapping_object(session: Session, node_id: int, direction: Direction, number: int) -> tuple[Catalog, int]:
+    """The node's catalog and the index of the mapping object (NotFound where the profile has none)."""
     catalog = _catalog(session, node_id)
     mapping = pdo.MAP_BASE[direction] + number - 1
     if catalog.by_address(mapping, 0) is None:
-        raise NotFound(f"{session.node(node_id).device_name} has no mapping object 0x{mapping:04X} in its profile.")
+        raise errors.NotFound(_("{device} has no {pdo} in its profile.").format(
+            device=session.node(node_id).device_name, pdo=pdo_name(direction, number)))
+    return catalog, mapping
+
+
+async def read_mapping_object(session: Session, node_id: int, direction: Direction, number: int) -> EcatPdo:
+    catalog, mapping = _mapping_object(session, node_id, direction, number)
     entries = await pdo.read_mapping(session, node_id, catalog, mapping)
     return EcatPdo(direction=direction, number=number, mapping_index=mapping, entries=entries,
                    length_bytes=sum(e.bits for e in entries) // 8,
                    max_entries=pdo.max_mapping_entries(catalog, mapping),
-                   fixed_mapping=not _writable(catalog, mapping, 1))
+                   fixed_mapping=not _writable(catalog, mapping, 1),
+                   notes=pdo_notes.pdo_notes(catalog.profile, direction, number))
 
 
 async def read_assignments(session: Session, node_id: int) -> list[EcatAssignment]:
@@ -92,6 +144,34 @@ async def read_assignments(session: Session, node_id: int) -> list[EcatAssignmen
     return found
 
 
+def check_mapping(session: Session, node_id: int, direction: Direction, number: int,
+                  entries: list[tuple[int, int]]) -> list[MappedObject]:
+    """The new mapping, named; InvalidValue (422) before anything is sent when the profile forbids it."""
+    catalog, mapping = _mapping_object(session, node_id, direction, number)
+    name = pdo_name(direction, number)
+    if not _writable(catalog, mapping, 1):
+        raise errors.InvalidValue(_("The mapping of {pdo} is fixed on this device (its entries are read-only in "
+                                    "the profile).").format(pdo=name))
+    most = pdo.max_mapping_entries(catalog, mapping)
+    if len(entries) > most:
+        raise errors.InvalidValue(_("{pdo} takes at most {most} entries; {given} were given.").format(
+            pdo=name, most=most, given=len(entries)))
+    allowed = {(o.index, o.subindex): o for o in pdo.mappable_objects(session, node_id, direction)}
+    for index, sub in entries:
+        if (index, sub) not in allowed:
+            item = catalog.by_address(index, sub)
+            what = f"{catalog.vendor_ref(index, sub)} ({item.name})" if item else f"0x{index:04X}.{sub}"
+            text = (_("{what} cannot be mapped into {pdo}: the profile does not list it as mappable and writable "
+                      "(outputs of the master)") if direction == "rpdo" else
+                    _("{what} cannot be mapped into {pdo}: the profile does not list it as mappable (inputs of the "
+                      "master)"))
+            raise errors.InvalidValue(text.format(what=what, pdo=name))
+    rule = pdo_notes.mapping_rule_violation(catalog.profile, direction, number, entries)
+    if rule:
+        raise errors.InvalidValue(rule)
+    return [allowed[entry] for entry in entries]
+
+
 def _rule(session: Session, node_id: int, abort_code: str | None) -> str | None:
     profile = session.node(node_id).profile
     if profile is None or abort_code is None:
@@ -99,26 +179,55 @@ def _rule(session: Session, node_id: int, abort_code: str | None) -> str | None:
     return next((note for note in pdo_notes.device_notes(profile) if abort_code in note), None)
 
 
+async def _read_back(session: Session, node_id: int, direction: Direction,
+                     number: int) -> tuple[EcatPdo | None, errors.ProtocolError | None]:
+    try:
+        return await read_mapping_object(session, node_id, direction, number), None
+    except errors.ProtocolError as exc:
+        return None, exc
+
+
+def _failure(error: errors.ProtocolError | None) -> type[MappingNotApplied]:
+    if isinstance(error, errors.SdoAbortError):
+        if error.abort_code in STATE_ABORTS:
+            return MappingRefusedInState
+        if error.abort_code in INVALID_ABORTS:
+            return InvalidMapping
+    if isinstance(error, errors.SdoTimeoutError | errors.NodeOffline):
+        return MappingUnanswered
+    return MappingNotApplied
+
+
 async def apply_mapping(session: Session, node_id: int, direction: Direction, number: int,
                         entries: list[tuple[int, int]]) -> EcatApplyReport:
-    """Write a mapping (refused 409 while another writer holds the node's lease), then read it back."""
-    _catalog(session, node_id)
-    chosen = pdo.check_mapping(session, node_id, direction, number, PdoWrite(entries=entries), max_bits=None)
-    mapping = pdo.MAP_BASE[direction] + number - 1
-    name = f"0x{mapping:04X}"
+    """Write a mapping (refused 409 while another writer holds the node's lease), then read it back; raises
+    :class:`MappingNotApplied` (its subclass says why) with the report when the slave does not take it."""
+    chosen = check_mapping(session, node_id, direction, number, entries)
+    name = pdo_name(direction, number)
     with node_lease.writing(session, node_id):
-        steps = await pdo.run_plan(session, node_id, pdo.mapping_plan(mapping, chosen))
-        read_back = await read_mapping_object(session, node_id, direction, number)
+        steps = await pdo.run_plan(session, node_id, pdo.mapping_plan(pdo.MAP_BASE[direction] + number - 1, chosen))
+        read_back, unread = await _read_back(session, node_id, direction, number)
     failed = steps[-1]
     if not failed.ok:
         reason = f"{failed.abort_code} {failed.abort_text}" if failed.abort_code else (failed.detail or "")
-        state = ("nothing was changed" if len(steps) == 1 else
-                 f"it reads back with {len(read_back.entries)} entries")
-        return EcatApplyReport(ok=False, steps=steps, pdo=read_back, rule=_rule(session, node_id, failed.abort_code),
-                               message=f"{name}: step '{failed.step}' refused ({reason}); {state}.")
+        if len(steps) == 1:
+            state = _("nothing was changed")
+        elif read_back is None:
+            state = _("it could not be read back: read the PDOs again")
+        else:
+            state = ngettext("it reads back with {n} entry", "it reads back with {n} entries",
+                             len(read_back.entries)).format(n=len(read_back.entries))
+        raise _failure(failed.error)(EcatApplyReport(
+            ok=False, steps=steps, pdo=read_back, rule=_rule(session, node_id, failed.abort_code),
+            message=_("{pdo}: step '{step}' refused ({reason}); {state}.").format(
+                pdo=name, step=failed.step, reason=reason, state=state)))
+    if read_back is None:
+        raise _failure(unread)(EcatApplyReport(ok=False, steps=steps, message=_(
+            "{pdo} was written, but reading it back failed ({reason}).").format(
+                pdo=name, reason=unread.detail if unread else "")))
     if [(e.index, e.subindex) for e in read_back.entries] != [(m.index, m.subindex) for m in chosen]:
-        return EcatApplyReport(ok=False, steps=steps, pdo=read_back,
-                               message=f"{name} reads back differently from what was written.")
-    return EcatApplyReport(ok=True, steps=steps, pdo=read_back,
-                           message=f"{name} applied and verified: {len(chosen)} entries, "
-                                   f"{read_back.length_bytes} bytes.")
+        raise MappingNotApplied(EcatApplyReport(ok=False, steps=steps, pdo=read_back, message=_(
+            "{pdo} reads back differently from what was written.").format(pdo=name)))
+    return EcatApplyReport(ok=True, steps=steps, pdo=read_back, message=ngettext(
+        "{pdo} applied and verified: {n} entry, {size} bytes.", "{pdo} applied and verified: {n} entries, "
+        "{size} bytes.", len(chosen)).format(pdo=name, n=len(chosen), size=read_back.length_bytes))

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, Field, PrivateAttr
 
 from drivebench.device import pdo_notes
 from drivebench.device.catalog import Catalog
@@ -96,6 +96,12 @@ class ApplyStep(BaseModel):
     abort_code: str | None = None
     abort_text: str | None = None
     detail: str | None = None
+    _error: ProtocolError | None = PrivateAttr(None)
+
+    @property
+    def error(self) -> ProtocolError | None:
+        """Why the step failed (an abort, no answer ...), for the status a report is answered with."""
+        return self._error
 
 
 class ApplyReport(BaseModel):
@@ -267,10 +273,11 @@ async def run_plan(session: Session, node_id: int, plan: list[tuple[str, int, in
         try:
             await client.adownload(index, sub, value.to_bytes(size, "little"))
         except SdoAbortError as exc:
-            step.ok, step.abort_code, step.abort_text = False, f"0x{exc.abort_code:08X}", exc.abort_text
+            step.ok, step.abort_code, step.abort_text, step._error = (False, f"0x{exc.abort_code:08X}",
+                                                                      exc.abort_text, exc)
             break
         except ProtocolError as exc:
-            step.ok, step.detail = False, exc.detail
+            step.ok, step.detail, step._error = False, exc.detail, exc
             break
     return steps
 

@@ -18,7 +18,7 @@ from drivebench.errors import DriveBenchError
 from drivebench.services.control import drive_guard
 from drivebench.services.params import parameter_batch as batch
 from drivebench.services.params import parameters as service
-from drivebench.services.params.jobs import Job, JobManager
+from drivebench.services.params.jobs import Job, JobManager, Progress
 from drivebench.services.params.parameter_batch import MAX_BATCH_WRITE, Wanted
 from drivebench.services.params.parameters import DeviceCommand, ParameterValue, SdoSettings, WriteResult
 from drivebench.web.deps import NodeDep, SessionDep
@@ -194,15 +194,6 @@ class SessionRead(BaseModel):
         None, description="Nodes to read; all nodes of the session with a profile when omitted")
 
 
-class ProgressOut(BaseModel):
-    done: int
-    total: int
-    failed: int
-    rate_per_s: float
-    eta_s: float | None
-    elapsed_s: float
-
-
 class IssueOut(BaseModel):
     item: str
     node: int | None
@@ -216,7 +207,7 @@ class JobOut(BaseModel):
     kind: str
     title: str
     state: str
-    progress: ProgressOut
+    progress: Progress
     error: str | None
     notes: list[str]
     issues: list[IssueOut]
@@ -269,7 +260,6 @@ def write_out(result: WriteResult, pending: set[str]) -> WriteOut:
 
 
 def job_out(job: Job, *, with_result: bool = True) -> JobOut:
-    progress = job.progress()
     result = None
     if with_result:
         values = job.result.get("values", {})
@@ -280,7 +270,7 @@ def job_out(job: Job, *, with_result: bool = True) -> JobOut:
                 result[retry] = job.result[retry]
     return JobOut(
         id=job.id, kind=job.kind, title=job.title, state=job.state.value,
-        progress=ProgressOut(**progress.__dict__), error=job.error, notes=list(job.notes),
+        progress=job.progress(), error=job.error, notes=list(job.notes),
         issues=[IssueOut(item=i.item, node=i.node, detail=i.detail, abort_code=i.abort_code,
                          abort_text=i.abort_text) for i in job.issues],
         result=result, links={"self": f"/api/jobs/{job.id}", "progress": f"/ws/jobs/{job.id}"})

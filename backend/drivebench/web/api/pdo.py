@@ -46,18 +46,16 @@ async def assignment(session: SessionDep, node: NodeDep) -> list[EcatAssignment]
     return await ethercat_pdo.read_assignments(session, node.node_id)
 
 
-@router.put("/mapping/{direction}/{number}", response_model=EcatApplyReport,
-            responses={409: {"description": "The slave refused a step (e.g. not Pre-Operational); the body is the "
-                                            "step report"}})
+@router.put("/mapping/{direction}/{number}", response_model=EcatApplyReport, responses={
+    409: {"description": "Refused in this EtherCAT state (not Pre-Operational) or while another writer holds the "
+                         "node; the body has the step report"},
+    422: {"description": "A mapping the profile or the slave refuses; the body has the step report if it was sent"},
+    502: {"description": "The slave refused otherwise or reads back differently; the body has the step report"},
+    504: {"description": "The slave did not answer; the body has the step report"}})
 async def apply_mapping(session: SessionDep, node: NodeDep, direction: Direction, number: int,
-                        body: MappingWrite) -> EcatApplyReport | JSONResponse:
+                        body: MappingWrite) -> EcatApplyReport:
     """EtherCAT: write a PDO mapping (sub 0 := 0, the entries, sub 0 := n), then read it back."""
-    report = await ethercat_pdo.apply_mapping(session, node.node_id, direction, number, body.entries)
-    if report.ok:
-        return report
-    problem = {"type": "/problems/pdo-mapping-refused", "title": "PDO mapping not applied", "status": 409,
-               "detail": report.message, **report.model_dump(mode="json")}
-    return JSONResponse(problem, status_code=409, media_type="application/problem+json")
+    return await ethercat_pdo.apply_mapping(session, node.node_id, direction, number, body.entries)
 
 
 @router.get("/{direction}/{number}", response_model=PdoConfig)

@@ -29,6 +29,7 @@ from drivebench.services.pdos.pdo import ApplyReport, Direction, PdoConfig, PdoW
 from drivebench.services.users.principals import Role
 from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.identity import principal_of
+from drivebench.web.problems import status_for
 from drivebench.web.safety import ACTING, PanelDep, confirmation
 from drivebench.web.templating import templates
 
@@ -115,12 +116,15 @@ async def apply(request: Request, session: SessionDep, node: NodeDep, direction:
 @router.post(UI + "/ethercat/{direction}/{number}/apply", response_class=HTMLResponse)
 async def apply_ethercat(request: Request, session: SessionDep, node: NodeDep, direction: Direction, number: int,
                          entries: Annotated[str, Form()] = "") -> Response:
-    report = await ethercat_pdo.apply_mapping(session, node.node_id, direction, number, _parse_entries(entries))
+    try:
+        report = await ethercat_pdo.apply_mapping(session, node.node_id, direction, number, _parse_entries(entries))
+        status = 200
+    except ethercat_pdo.MappingNotApplied as exc:  # the card shows the step report, with the problem's status
+        report, status = exc.report, status_for(exc)
     mapped = report.pdo or await ethercat_pdo.read_mapping_object(session, node.node_id, direction, number)
     context = _context(session, node, report=report, ecat_pdo=mapped,
                        mappable=pdo.mappable_objects(session, node.node_id, direction))
-    return templates.TemplateResponse(request, "node/_ecat_pdo_card.html", context,
-                                      status_code=200 if report.ok else 409)
+    return templates.TemplateResponse(request, "node/_ecat_pdo_card.html", context, status_code=status)
 
 
 @router.post(UI + "/rpdo/{number}/send", response_class=HTMLResponse)

@@ -24,7 +24,7 @@ MIN_INTERVAL_S = 0.1
 
 
 def message(job: Job) -> dict[str, object]:
-    return {"id": job.id, "state": job.state.value, "title": job.title, "progress": job.progress().__dict__,
+    return {"id": job.id, "state": job.state.value, "title": job.title, "progress": job.progress().model_dump(),
             "notes": list(job.notes), "issues": len(job.issues), "error": job.error}
 
 
