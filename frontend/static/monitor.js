@@ -114,14 +114,14 @@
     $("services-body").innerHTML = s.services.map((r) =>
       `<tr class="${r.rate ? "" : "silent"}"><td>${esc(r.label)}</td><td class="num">${num(r.total)}</td><td class="num">${rate(r.rate)}</td></tr>`).join("");
     $("nodes-body").innerHTML = s.nodes.length ? s.nodes.map((r) =>
-      `<tr class="${r.rate ? "" : "silent"}"><td class="num">${esc(r.node)}</td><td class="device" title="${esc(r.name || "")}">${esc(r.name || "not in session")}</td>` +
+      `<tr class="${r.rate ? "" : "silent"}"><td class="num">${esc(r.node)}</td><td class="device" title="${esc(r.name || "")}">${esc(r.name || _("not in session"))}</td>` +
       `<td class="num">${num(r.total)}</td><td class="num">${rate(r.rate)}</td><td class="num">${pct(r.share_percent)}</td></tr>`).join("")
-      : '<tr><td colspan="5" class="empty">No node telegrams yet.</td></tr>';
+      : `<tr><td colspan="5" class="empty">${esc(_("No node telegrams yet."))}</td></tr>`;
     const col = Object.fromEntries(s.cob_columns.map((name, i) => [name, i]));
     $("cobs-body").innerHTML = s.cob_ids.length ? s.cob_ids.map((r) =>
-      `<tr class="${r[col.rate] ? "" : "silent"}" title="last ${r[col.last_age_s].toFixed(1)} s ago"><td class="mono">${esc(r[col.text])}</td><td>${esc(r[col.service])}</td>` +
+      `<tr class="${r[col.rate] ? "" : "silent"}" title="${esc(_("last {age} s ago", { age: fixed(r[col.last_age_s], 1) }))}"><td class="mono">${esc(r[col.text])}</td><td>${esc(r[col.service])}</td>` +
       `<td class="num">${esc(r[col.node] ?? "–")}</td><td class="num">${num(r[col.total])}</td><td class="num">${rate(r[col.rate])}</td><td class="num">${pct(r[col.share_percent])}</td></tr>`).join("")
-      : '<tr><td colspan="6" class="empty">No telegrams (or none passes the filter).</td></tr>';
+      : `<tr><td colspan="6" class="empty">${esc(_("No telegrams (or none passes the filter)."))}</td></tr>`;
     $("cob-note").textContent = s.cob_ids_cut ? _("busiest {shown} of {all}", { shown: s.cob_ids.length, all: s.cob_ids_cut }) : "";
   }
 
@@ -193,7 +193,8 @@
   function setLive(state) {
     const badge = $("live-state");
     badge.className = `badge ${state}`;
-    badge.textContent = { live: "live", paused: "paused", down: "disconnected, retrying…", connecting: "connecting…" }[state];
+    badge.textContent = { live: _("live"), paused: _("paused"), down: _("disconnected, retrying…"),
+                          connecting: _("connecting…") }[state];
   }
 
   const helloRows = () => Math.min(TRACE_ROWS, HELLO_ROWS_MAX);
@@ -261,7 +262,7 @@
   function setPaused(paused) {
     const button = $("pause");
     button.dataset.paused = paused ? "true" : "false";
-    button.textContent = paused ? "Resume" : "Pause";
+    button.textContent = paused ? _("Resume") : _("Pause");
   }
 
   $("pause").addEventListener("click", () => {

@@ -5,7 +5,9 @@
                                            { minimumFractionDigits: 1, maximumFractionDigits: 1, useGrouping: false });
   function fmtEta(s) {
     if (s === null || s === undefined) return "";
-    return s < 60 ? ` · ETA ${oneDecimal.format(s)} s` : ` · ETA ${Math.round(s / 60)} min`;
+    const _ = window.drivebench.gettext;
+    return " · " + (s < 60 ? _("ETA {seconds} s", { seconds: oneDecimal.format(s) })
+      : _("ETA {minutes} min", { minutes: Math.round(s / 60) }));
   }
 
   // Re-read the parameter rows; a refresh in flight would swap out the element a queued one belongs to, so the
