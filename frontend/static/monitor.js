@@ -111,17 +111,21 @@
   }
 
   function renderTables(s) {
+    // The texts first: pybabel's JavaScript extractor does not see _() inside a template literal.
+    const notInSession = _("not in session"), noNodes = _("No node telegrams yet.");
+    const noTelegrams = _("No telegrams (or none passes the filter).");
+    const lastSeen = (age) => _("last {age} s ago", { age: fixed(age, 1) });
     $("services-body").innerHTML = s.services.map((r) =>
       `<tr class="${r.rate ? "" : "silent"}"><td>${esc(r.label)}</td><td class="num">${num(r.total)}</td><td class="num">${rate(r.rate)}</td></tr>`).join("");
     $("nodes-body").innerHTML = s.nodes.length ? s.nodes.map((r) =>
-      `<tr class="${r.rate ? "" : "silent"}"><td class="num">${esc(r.node)}</td><td class="device" title="${esc(r.name || "")}">${esc(r.name || _("not in session"))}</td>` +
+      `<tr class="${r.rate ? "" : "silent"}"><td class="num">${esc(r.node)}</td><td class="device" title="${esc(r.name || "")}">${esc(r.name || notInSession)}</td>` +
       `<td class="num">${num(r.total)}</td><td class="num">${rate(r.rate)}</td><td class="num">${pct(r.share_percent)}</td></tr>`).join("")
-      : `<tr><td colspan="5" class="empty">${esc(_("No node telegrams yet."))}</td></tr>`;
+      : `<tr><td colspan="5" class="empty">${esc(noNodes)}</td></tr>`;
     const col = Object.fromEntries(s.cob_columns.map((name, i) => [name, i]));
     $("cobs-body").innerHTML = s.cob_ids.length ? s.cob_ids.map((r) =>
-      `<tr class="${r[col.rate] ? "" : "silent"}" title="${esc(_("last {age} s ago", { age: fixed(r[col.last_age_s], 1) }))}"><td class="mono">${esc(r[col.text])}</td><td>${esc(r[col.service])}</td>` +
+      `<tr class="${r[col.rate] ? "" : "silent"}" title="${esc(lastSeen(r[col.last_age_s]))}"><td class="mono">${esc(r[col.text])}</td><td>${esc(r[col.service])}</td>` +
       `<td class="num">${esc(r[col.node] ?? "–")}</td><td class="num">${num(r[col.total])}</td><td class="num">${rate(r[col.rate])}</td><td class="num">${pct(r[col.share_percent])}</td></tr>`).join("")
-      : `<tr><td colspan="6" class="empty">${esc(_("No telegrams (or none passes the filter)."))}</td></tr>`;
+      : `<tr><td colspan="6" class="empty">${esc(noTelegrams)}</td></tr>`;
     $("cob-note").textContent = s.cob_ids_cut ? _("busiest {shown} of {all}", { shown: s.cob_ids.length, all: s.cob_ids_cut }) : "";
   }
 

@@ -189,6 +189,8 @@ def test_a_profile_name_de_is_shown_in_german_only(registry: object) -> None:
 
 
 @pytest.mark.parametrize("path", ["/", "/monitor", "/tools", "/parameter-sets", "/profiles", "/remote",
+                                  "/profiles/lenze-8400-motec-canopen", "/monitor/ethercat-line",
+                                  "/sessions/ethercat-line/nodes/1?tab=pdo",
                                   f"/sessions/{SESSION}/nodes/5?tab=parameters", f"/sessions/{SESSION}/nodes/5?tab=pdo",
                                   f"/sessions/{SESSION}/nodes/5?tab=diagnostics",
                                   f"/sessions/{SESSION}/nodes/7?tab=control", f"/sessions/{SESSION}/nodes/5?tab=info"])
@@ -398,6 +400,21 @@ def test_the_script_check_finds_english_left_outside_gettext() -> None:
     assert not english_script_texts('row.innerHTML = `<tr class="${r.rate ? "" : "silent"}"><td>${num(n)}</td>`;')
 
 
+def test_every_text_a_script_marks_is_extracted() -> None:
+    """pybabel's JavaScript extractor misses a _() inside a template literal's ${…}: such a text would have no
+    catalogue entry and stay English on a German page."""
+    marked = re.compile(r"\b_\(\s*(\"(?:[^\"\\]|\\.)*\"(?:\s*\+\s*\"(?:[^\"\\]|\\.)*\")*)")
+    missed = []
+    for script in sorted((ROOT / "frontend" / "static").glob("*.js")):
+        extracted = {message for _line, message, _c, _ctx in extract_from_file_js(script)}
+        for literal in marked.findall(re.sub(r"(^|\s)//[^\n]*", r"\1", script.read_text())):
+            text = "".join(json.loads(part) for part in re.findall(r'"(?:[^"\\]|\\.)*"', literal))
+            if text not in extracted:
+                missed.append(f"{script.name}: {text!r}")
+    assert not missed, "_() texts pybabel does not extract (take them out of the template literal):\n" + "\n".join(
+        missed)
+
+
 def test_no_page_script_shows_english_outside_gettext() -> None:
     left = [f"{script.name}: {text}" for script in sorted((ROOT / "frontend" / "static").glob("*.js"))
             for text in english_script_texts(script.read_text())]
@@ -457,3 +474,16 @@ def test_the_info_tab_names_the_device_profile_in_german() -> None:
         assert identity_text("0x1000", 0x00020192) == "CiA 402 Antriebe und Bewegungssteuerung, Zusatzinformation 2"
         assert identity_text("0x1000", 0x1F4) == "Geräteprofil 500"
     assert identity_text("0x1000", 0x192) == "CiA 402 drives and motion control"
+
+
+def test_a_plural_in_a_template_counts_with_its_number() -> None:
+    """{% pluralize %} counts with the first variable of its {% trans %}: a text there (not the count) breaks the
+    German page (gettext needs a number for the plural form; English never asks)."""
+    wrong = []
+    for template in sorted((ROOT / "frontend" / "templates").rglob("*.html")):
+        for variables in re.findall(r"\{%-?\s*trans\s+([^%]*?)-?%\}(?:(?!\{%-?\s*endtrans).)*?\{%-?\s*pluralize\s*-?%\}",
+                                    template.read_text(), re.S):
+            first = variables.split("=", 1)[0].strip()
+            if "=" in variables and first != "count":
+                wrong.append(f"{template.relative_to(ROOT)}: trans {variables.strip()[:80]}")
+    assert not wrong, "name the count: {% pluralize count %}\n" + "\n".join(wrong)
