@@ -52,12 +52,18 @@
     // Both scales are set by drawChart (not auto-ranged), so a drag-zoom stays put while points arrive.
     scales: { x: { time: true, auto: false }, y: { auto: false } },
     axes: [
-      { label: _("time (local)"), labelSize: 18, space: 90, stroke: "#5d6b79", grid: { stroke: "#eef1f4" } },
+      // uPlot's own tick texts are American (2:02am, 11/26/26); a 24-hour clock and an ISO date read alike in both
+      // languages. Rows: tick step (s), its text, then the text when the year, month, day, hour, minute changes.
+      { label: _("time (local)"), labelSize: 18, space: 90, stroke: "#5d6b79", grid: { stroke: "#eef1f4" },
+        values: [[3600, "{HH}:{mm}", "\n{YYYY}-{MM}-{DD}", null, "\n{YYYY}-{MM}-{DD}", null, null, null, 1],
+                 [60, "{HH}:{mm}", "\n{YYYY}-{MM}-{DD}", null, "\n{YYYY}-{MM}-{DD}", null, null, null, 1],
+                 [1, ":{ss}", "\n{YYYY}-{MM}-{DD} {HH}:{mm}", null, "\n{YYYY}-{MM}-{DD} {HH}:{mm}", null,
+                  "\n{HH}:{mm}", null, 1]] },
       { label: _("bus load (%)"), labelSize: 18, stroke: "#5d6b79", grid: { stroke: "#eef1f4" }, size: 56,
         values: (u, ticks) => ticks.map((v) => `${num(v)} %`) },
     ],
     series: [
-      { value: (u, v) => (v == null ? "–" : clock(v)) },
+      { label: _("Time"), value: (u, v) => (v == null ? "–" : clock(v)) },
       { label: _("Bus load"), stroke: "#0b5fa5", width: 1.5, fill: "rgba(11,95,165,0.12)",
         value: (u, v) => (v == null ? "–" : `${fixed(v, 2)} %`) },
     ],
