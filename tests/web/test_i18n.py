@@ -476,13 +476,16 @@ def test_the_info_tab_names_the_device_profile_in_german() -> None:
     assert identity_text("0x1000", 0x192) == "CiA 402 drives and motion control"
 
 
+_PLURAL_WITHOUT_NAME = (r"\{%-?\s*trans\s+([^%]*?)-?%\}(?:(?!\{%-?\s*endtrans).)*?"
+                        r"\{%-?\s*pluralize\s*-?%\}")
+
+
 def test_a_plural_in_a_template_counts_with_its_number() -> None:
     """{% pluralize %} counts with the first variable of its {% trans %}: a text there (not the count) breaks the
     German page (gettext needs a number for the plural form; English never asks)."""
     wrong = []
     for template in sorted((ROOT / "frontend" / "templates").rglob("*.html")):
-        for variables in re.findall(r"\{%-?\s*trans\s+([^%]*?)-?%\}(?:(?!\{%-?\s*endtrans).)*?\{%-?\s*pluralize\s*-?%\}",
-                                    template.read_text(), re.S):
+        for variables in re.findall(_PLURAL_WITHOUT_NAME, template.read_text(), re.S):
             first = variables.split("=", 1)[0].strip()
             if "=" in variables and first != "count":
                 wrong.append(f"{template.relative_to(ROOT)}: trans {variables.strip()[:80]}")
