@@ -490,3 +490,16 @@ def test_a_plural_in_a_template_counts_with_its_number() -> None:
             if "=" in variables and first != "count":
                 wrong.append(f"{template.relative_to(ROOT)}: trans {variables.strip()[:80]}")
     assert not wrong, "name the count: {% pluralize count %}\n" + "\n".join(wrong)
+
+
+def test_the_write_lease_names_where_it_comes_from_in_the_readers_language(client: TestClient) -> None:
+    """The lease keeps where a write came from in English (others read it later, in their language)."""
+    written = client.put(f"/api/sessions/{SESSION}/nodes/5/parameters/C00088", json={"value": 12.5})
+    assert written.status_code == 200, written.text
+    try:
+        banner = client.get(f"/ui/sessions/{SESSION}/nodes/5/lease", headers=GERMAN).text
+        assert "Sie haben das Schreibrecht auf Knoten 5 (Parameter-API)" in banner, banner
+        assert "(Parameters API)" in client.get(f"/ui/sessions/{SESSION}/nodes/5/lease").text
+    finally:
+        client.post(f"/ui/sessions/{SESSION}/nodes/5/lease/release", headers={"HX-Request": "true",
+                                                                               "X-DriveBench": "1"})
