@@ -149,10 +149,11 @@
     const body = $("trace-body");
     const rows = pendingTrace.slice(-TRACE_ROWS);
     pendingTrace = [];
+    const noData = _("(no data)");  // outside the template literal: pybabel's extractor does not look inside
     body.insertAdjacentHTML("beforeend", rows.map((r) => r.gap ? GAP_ROW :
       `<tr class="svc-${esc(r.group).replace(/ /g, "-")}" data-seq="${esc(r.seq)}"><td class="time">${clock(r.time, true)}</td><td class="cob">${esc(r.cob_id)}</td>` +
       `<td>${esc(r.service)}</td><td class="num">${esc(r.node ?? "–")}</td><td class="num">${esc(r.dlc)}</td>` +
-      `<td class="decoded" title="${esc(r.cob_id)} [${esc(r.dlc)}] ${esc(r.hex || "(no data)")}">${esc(r.summary || r.service)}</td></tr>`).join(""));
+      `<td class="decoded" title="${esc(r.cob_id)} [${esc(r.dlc)}] ${esc(r.hex || noData)}">${esc(r.summary || r.service)}</td></tr>`).join(""));
     while (body.rows.length > TRACE_ROWS) body.deleteRow(0);
     showCount();
     if ($("trace-follow").checked) { const box = $("trace-scroll"); box.scrollTop = box.scrollHeight; }

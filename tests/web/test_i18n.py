@@ -324,15 +324,17 @@ def test_every_error_text_in_the_code_is_translatable() -> None:
 # A text a script puts on the page goes through _() (drivebench.gettext); these sinks show text to a user.
 _JS_SINKS = [re.compile(r"\.(?:textContent|innerText|innerHTML|title|placeholder|ariaLabel)\s*(?:\+?=)\s*([^;]*)"),
              re.compile(r"\b(?:alert|confirm|prompt|errorBox|setCustomValidity)\(([^;]*)"),
-             re.compile(r"\b(?:append|replaceChildren|prepend)\(([^;]*)"),
+             re.compile(r"\b(?:append|replaceChildren|prepend|insertAdjacentHTML|insertAdjacentText)\(([^;]*)"),
              re.compile(r"\bel\(\s*\"\w+\"\s*,\s*(?:\{[^{}]*\}|null|undefined)\s*,([^;]*)"),
              re.compile(r"\blabel:\s*(\"[^\"]*\"|'[^']*')")]
 _JS_LITERAL = re.compile(r"\"(?:[^\"\\\n]|\\.)*\"|'(?:[^'\\\n]|\\.)*'|`[^`]*`")
 _JS_TRANSLATED = re.compile(r"\b(?:_|gettext)\(\s*(?:\"(?:[^\"\\]|\\.)*\"|'(?:[^'\\]|\\.)*'|`[^`]*`)"
                             r"(?:\s*\+\s*(?:\"(?:[^\"\\]|\\.)*\"|'(?:[^'\\]|\\.)*'))*")
-# Literals that are no text: tag names (el("span"), createElement("div")), element properties (className: "x"), ids
+# Literals that are no text: tag names (el("span"), createElement("div")), element properties (className: "x"),
+# where insertAdjacentHTML puts it ("beforeend"), ids
 # looked up ($("trace-body")) and values compared with (state === "bus-off").
-_JS_NOT_TEXT = re.compile(r"(\bel\(|\bcreateElement\(|\$\(|\bgetElementById\(|\bquerySelector(?:All)?\(|[=!]==?"
+_JS_NOT_TEXT = re.compile(r"(\bel\(|\bcreateElement\(|\binsertAdjacent\w+\(|\$\(|\bgetElementById\("
+                          r"|\bquerySelector(?:All)?\(|[=!]==?"
                           r"|\b(?:className|id|type|name|href|src|method|role|rel|target|kind)\s*:)"
                           r"\s*(\"[^\"]*\"|'[^']*')")
 _JS_SHOWN_ATTRIBUTE = {"title", "aria-label", "placeholder", "alt"}
