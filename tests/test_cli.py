@@ -4,9 +4,12 @@ messages a user gets instead of tracebacks."""
 from __future__ import annotations
 
 import io
+import os
 import re
 import signal
 import socket
+import subprocess
+import sys
 import threading
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -234,3 +237,27 @@ def test_hub_on_a_port_in_use_ends_with_a_message(capsys: pytest.CaptureFixture[
         assert run_cli(["hub", "--port", str(hub.port)]) == 1
     err = capsys.readouterr().err
     assert f"cannot listen on 127.0.0.1:{hub.port}" in err and "--port" in err and "Traceback" not in err
+
+
+def _drivebench(args: list[str], tmp_path: Path, **language: str) -> subprocess.CompletedProcess[str]:
+    """The command as a shell runs it, with only these language variables set."""
+    env = {k: v for k, v in os.environ.items() if k not in ("LC_ALL", "LC_MESSAGES", "LANG", "LANGUAGE")}
+    return subprocess.run([sys.executable, "-m", "drivebench.cli", *args], env={**env, **language}, cwd=tmp_path,
+                          capture_output=True, text=True, timeout=60, check=False)
+
+
+def test_the_command_speaks_the_language_of_the_shell(tmp_path: Path) -> None:
+    """LANG=de_DE.UTF-8 gives German messages, help and errors; LC_ALL and LC_MESSAGES come first, as in C."""
+    refused = _drivebench(["tls", "self-signed", "--host", "plant.local", "--days", "0"], tmp_path,
+                          LANG="de_DE.UTF-8")
+    assert refused.returncode == 1
+    assert refused.stderr == "drivebench: --days 0: Ein Zertifikat wird für 1 bis 3650 Tage ausgestellt.\n"
+    made = _drivebench(["tls", "self-signed", "--host", "plant.local", "--out", "tls"], tmp_path, LANG="de_DE.UTF-8")
+    assert made.returncode == 0, made.stderr
+    assert made.stdout.startswith("Zertifikat tls/drivebench.crt (für plant.local, 825 Tage)")
+    assert "SHA-256-Fingerabdruck" in made.stdout and "Starten mit: drivebench serve" in made.stdout
+    assert "den Webserver starten" in _drivebench(["--help"], tmp_path, LC_MESSAGES="de_DE").stdout
+    english = _drivebench(["tls", "self-signed", "--host", "plant.local", "--days", "0"], tmp_path,
+                          LC_ALL="C", LANG="de_DE.UTF-8")
+    assert english.stderr == "drivebench: --days 0: a certificate is made for 1 to 3650 days.\n"
+    assert "run the web server" in _drivebench(["--help"], tmp_path).stdout  # nothing set: English

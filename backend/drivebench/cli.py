@@ -7,14 +7,17 @@ import asyncio
 import contextlib
 import importlib.util
 import ipaddress
+import os
 import re
 import signal
 import sys
 import threading
 from pathlib import Path
 
+from drivebench import i18n
 from drivebench.config import settings
 from drivebench.errors import DriveBenchError, InvalidValue
+from drivebench.i18n import _
 from drivebench.services.users.principals import Role
 
 
@@ -35,22 +38,24 @@ def serve(args: argparse.Namespace) -> int:
 
     _first_start_admin()
     if not _is_loopback(args.host) and not _authentication_configured():
-        print(
-            f"Refusing to listen on {args.host}: DriveBench can move motors, and authentication is not configured.\n"
+        print(_(
+            "Refusing to listen on {host}: DriveBench can move motors, and authentication is not configured.\n"
             "Create an admin first (then everyone signs in; the admin adds engineers and viewers on the Users page):\n"
             "  drivebench users add admin --role admin\n"
-            "or listen on 127.0.0.1 (the default) and reach it through an SSH tunnel.", file=sys.stderr)
+            "or listen on 127.0.0.1 (the default) and reach it through an SSH tunnel.").format(host=args.host),
+            file=sys.stderr)
         return 2
     check_pair(args.tls_cert, args.tls_key)
     if args.hsts and not args.tls_cert:
-        raise InvalidValue("--hsts needs --tls-cert and --tls-key: HSTS is only sent over https.")
+        raise InvalidValue(_("--hsts needs --tls-cert and --tls-key: HSTS is only sent over https."))
     _check_buses(args.bus or [])
     _apply_addressing(args)
     plant = Path(args.plant) if args.plant else None
     app = create_app(demo=args.demo, plant_file=plant, buses=args.bus or [], latency=args.latency, hsts=args.hsts)
     scheme = "https" if args.tls_cert else "http"
-    print(f"DriveBench on {scheme}://{args.host}:{args.port}"
-          + (" with the simulated demo plant" if args.demo else ""), flush=True)
+    address = f"{scheme}://{args.host}:{args.port}"
+    print((_("DriveBench on {address} with the simulated demo plant") if args.demo else _("DriveBench on {address}"))
+          .format(address=address), flush=True)
     # Bus threads run Python per frame; after each socket write the event loop may wait a whole GIL switch interval
     # (5 ms default) to run again. 0.5 ms keeps live websocket updates on time (benchmarks/RESULTS.md, Monitor).
     sys.setswitchinterval(0.0005)
@@ -58,9 +63,10 @@ def serve(args: argparse.Namespace) -> int:
     # SSH tunnel every client could choose the address the sign-in limit counts).
     forwarded = settings.forwarded_allow_ips
     # uvloop and httptools (uvicorn[standard]) by name: a missing one is an installation error, not a slow server.
-    uvicorn.run(app, host=args.host, port=args.port, log_level=args.log_level, ws_ping_interval=20,
-                ssl_certfile=args.tls_cert, ssl_keyfile=args.tls_key, proxy_headers=bool(forwarded),
-                forwarded_allow_ips=forwarded or None, loop=_fastest("uvloop"), http=_fastest("httptools"))
+    with i18n.using(i18n.DEFAULT):  # a request speaks its browser's language, never the server shell's
+        uvicorn.run(app, host=args.host, port=args.port, log_level=args.log_level, ws_ping_interval=20,
+                    ssl_certfile=args.tls_cert, ssl_keyfile=args.tls_key, proxy_headers=bool(forwarded),
+                    forwarded_allow_ips=forwarded or None, loop=_fastest("uvloop"), http=_fastest("httptools"))
     return 0
 
 
@@ -80,7 +86,7 @@ def health(args: argparse.Namespace) -> int:
         with urllib.request.urlopen(url, timeout=args.timeout, context=context) as response:
             status = json.load(response).get("status")
     except (OSError, ValueError) as exc:
-        print(f"No health answer from {url}: {exc}", file=sys.stderr)
+        print(_("No health answer from {url}: {reason}").format(url=url, reason=exc), file=sys.stderr)
         return 1
     print(f"{url}: {status}")
     return 0 if status == "ok" else 1
@@ -99,8 +105,9 @@ def _apply_addressing(args: argparse.Namespace) -> None:
     settings.allowed_hosts = list(dict.fromkeys(names))
     settings.public_url = args.public_url or settings.public_url
     if settings.public_url and not re.fullmatch(r"https?://[^/\s?#]+(/[^\s?#]*)?", settings.public_url):
-        raise InvalidValue(f"--public-url {settings.public_url!r} is not a web address: give it as "
-                           "https://drivebench.example.com (the address others open).")
+        raise InvalidValue(_("--public-url {url} is not a web address: give it as "
+                             "https://drivebench.example.com (the address others open).").format(
+                                 url=repr(settings.public_url)))
     settings.forwarded_allow_ips = args.forwarded_allow_ips or settings.forwarded_allow_ips
 
 
@@ -109,9 +116,11 @@ def tls(args: argparse.Namespace) -> int:
 
     certificate = self_signed(args.host, days=args.days)
     cert_file, key_file = write_pair(certificate, Path(args.out))
-    print(f"Certificate {cert_file} (for {', '.join(args.host)}, {args.days} days) and key {key_file}.\n"
-          f"SHA-256 fingerprint (compare it with what the browser shows before trusting it):\n  {certificate.sha256}\n"
-          f"Serve with: drivebench serve --host 0.0.0.0 --tls-cert {cert_file} --tls-key {key_file}")
+    print(_("Certificate {cert} (for {hosts}, {days} days) and key {key}.\n"
+            "SHA-256 fingerprint (compare it with what the browser shows before trusting it):\n  {fingerprint}\n"
+            "Serve with: drivebench serve --host 0.0.0.0 --tls-cert {cert} --tls-key {key}").format(
+              cert=cert_file, hosts=", ".join(args.host), days=args.days, key=key_file,
+              fingerprint=certificate.sha256))
     return 0
 
 
@@ -122,30 +131,30 @@ def _first_start_admin() -> None:
     if given is None and file is None:
         return
     if given is not None and file is not None:
-        raise InvalidValue("Both DRIVEBENCH_ADMIN_PASSWORD and DRIVEBENCH_ADMIN_PASSWORD_FILE are set: "
-                           "keep one (the file, e.g. a container secret, is better).")
+        raise InvalidValue(_("Both DRIVEBENCH_ADMIN_PASSWORD and DRIVEBENCH_ADMIN_PASSWORD_FILE are set: "
+                             "keep one (the file, e.g. a container secret, is better)."))
     from drivebench.services.storage.database import upgrade_to_head
     from drivebench.services.users import accounts
 
     upgrade_to_head()
     if accounts.list_users():
-        print("Users exist already: the DRIVEBENCH_ADMIN_* settings are not used (a new password: "
-              "`drivebench users passwd NAME`).", flush=True)
+        print(_("Users exist already: the DRIVEBENCH_ADMIN_* settings are not used (a new password: "
+                "`drivebench users passwd NAME`)."), flush=True)
         return
     if file is not None:
         try:
             password = file.read_text(encoding="utf-8").rstrip("\r\n")  # a secret file's last line break
         except (OSError, UnicodeDecodeError) as exc:
-            why = exc.strerror if isinstance(exc, OSError) else "it is not UTF-8 text"
-            raise InvalidValue(f"Cannot read the admin password from DRIVEBENCH_ADMIN_PASSWORD_FILE={file}: "
-                               f"{why}.") from None
+            why = exc.strerror if isinstance(exc, OSError) else _("it is not UTF-8 text")
+            raise InvalidValue(_("Cannot read the admin password from DRIVEBENCH_ADMIN_PASSWORD_FILE={file}: "
+                                 "{reason}.").format(file=file, reason=why)) from None
     else:
         password = given.get_secret_value() if given is not None else ""
     admin = accounts.create_first_admin(settings.admin_user, password)
     if admin is not None:
-        print(f"First start: created the admin {admin.name} (password from "
-              f"{'DRIVEBENCH_ADMIN_PASSWORD_FILE' if file else 'DRIVEBENCH_ADMIN_PASSWORD'}); everyone signs in.",
-              flush=True)
+        print(_("First start: created the admin {name} (password from {setting}); everyone signs in.").format(
+            name=admin.name, setting="DRIVEBENCH_ADMIN_PASSWORD_FILE" if file else "DRIVEBENCH_ADMIN_PASSWORD"),
+            flush=True)
 
 
 def _authentication_configured() -> bool:
@@ -162,9 +171,9 @@ def _read_password(args: argparse.Namespace) -> str:
         return sys.stdin.readline().rstrip("\r\n")
     import getpass
 
-    first = getpass.getpass("Password: ")
-    if getpass.getpass("Password again: ") != first:
-        raise InvalidValue("The two passwords differ: nothing was changed.")
+    first = getpass.getpass(_("Password: "))
+    if getpass.getpass(_("Password again: ")) != first:
+        raise InvalidValue(_("The two passwords differ: nothing was changed."))
     return first
 
 
@@ -175,22 +184,24 @@ def users(args: argparse.Namespace) -> int:
     upgrade_to_head()
     if args.action == "list":
         for user in accounts.list_users():
-            print(f"{user.name:<24} {user.role.label:<9} {'disabled' if user.disabled else 'active':<9} "
-                  f"created {user.created:%Y-%m-%d %H:%M}")
+            status = _("disabled") if user.disabled else _("active")
+            print(f"{user.name:<24} {user.role.label:<9} {status:<9} "
+                  + _("created {time}").format(time=f"{user.created:%Y-%m-%d %H:%M}"))
         if not accounts.authentication_configured():
-            print("No enabled admin: signing in is off (the server trusts its local user).")
+            print(_("No enabled admin: signing in is off (the server trusts its local user)."))
         return 0
     if args.action == "add":
         user = accounts.create_user(args.name, _read_password(args), _role(args.role))
-        print(f"Added {user.name} ({user.role.label}).")
+        print(_("Added {name} ({role}).").format(name=user.name, role=user.role.label))
         if user.role is Role.ADMIN:
-            print("Signing in is on: everyone who opens DriveBench signs in now.")
+            print(_("Signing in is on: everyone who opens DriveBench signs in now."))
     elif args.action == "passwd":
         accounts.set_password(args.name, _read_password(args))
-        print(f"New password set for {args.name}; their open sessions end.")
+        print(_("New password set for {name}; their open sessions end.").format(name=args.name))
     elif args.action in ("disable", "enable"):
         accounts.set_disabled(args.name, args.action == "disable")
-        print(f"{args.action.capitalize()}d {args.name}.")
+        done = _("Disabled {name}.") if args.action == "disable" else _("Enabled {name}.")
+        print(done.format(name=args.name))
     return 0
 
 
@@ -208,16 +219,17 @@ def tokens(args: argparse.Namespace) -> int:
     upgrade_to_head()
     if args.action == "create":
         issued = accounts.issue_token(args.user, args.name, _role(args.role))
-        print(f"Token '{issued.token.name}' of {issued.token.owner} ({issued.token.role.label}); shown this once:",
-              file=sys.stderr)
+        print(_("Token '{name}' of {owner} ({role}); shown this once:").format(
+            name=issued.token.name, owner=issued.token.owner, role=issued.token.role.label), file=sys.stderr)
         print(issued.secret)
     elif args.action == "list":
         for token in accounts.list_tokens(args.user):
+            used = _("last used {time}").format(time=token.last_used) if token.last_used else _("never used")
             print(f"{token.id:>4} {token.name:<24} {token.owner:<16} {token.role.label:<9} {token.hint}… "
-                  + ("revoked" if token.revoked else f"last used {token.last_used or 'never'}"))
+                  + (_("revoked") if token.revoked else used))
     elif args.action == "revoke":
         token = accounts.revoke_token(args.id)
-        print(f"Revoked token {token.id} '{token.name}' of {token.owner}.")
+        print(_("Revoked token {id} '{name}' of {owner}.").format(id=token.id, name=token.name, owner=token.owner))
     return 0
 
 
@@ -249,14 +261,19 @@ def simulate(args: argparse.Namespace) -> int:
     registry = ProfileRegistry()
     plant = Plant(plant_file, registry.get, bus=args.bus, latency=args.latency).start() if plant_file.nodes else None
     if plant is not None:
-        print(f"Simulating {len(plant.nodes)} node(s) of '{plant_file.name}' on {plant.spec}: "
-              + ", ".join(f"{n.node_id} {n.name}" for n in plant.nodes.values()), flush=True)
+        print(i18n.ngettext("Simulating {count} node of '{plant}' on {bus}: {nodes}",
+                            "Simulating {count} nodes of '{plant}' on {bus}: {nodes}", len(plant.nodes)).format(
+            count=len(plant.nodes), plant=plant_file.name, bus=plant.spec,
+            nodes=", ".join(f"{n.node_id} {n.name}" for n in plant.nodes.values())), flush=True)
     gateway = None
     if plant_file.ethercat is not None:
         gateway = plant_file.ethercat.start(registry.get, port=args.ethercat_port, latency=args.latency)
-        print(f"Simulating {len(gateway.slaves)} EtherCAT slave(s) of '{plant_file.ethercat.name}' behind "
-              f"{gateway.spec}: " + ", ".join(f"station {s.station} {s.name}" for s in gateway.slaves.values()),
-              flush=True)
+        slaves = ", ".join(_("station {station} {name}").format(station=s.station, name=s.name)
+                           for s in gateway.slaves.values())
+        print(i18n.ngettext("Simulating {count} EtherCAT slave of '{plant}' behind {gateway}: {slaves}",
+                            "Simulating {count} EtherCAT slaves of '{plant}' behind {gateway}: {slaves}",
+                            len(gateway.slaves)).format(count=len(gateway.slaves), plant=plant_file.ethercat.name,
+                                                        gateway=gateway.spec, slaves=slaves), flush=True)
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
     try:
@@ -276,16 +293,18 @@ def hub(args: argparse.Namespace) -> int:
     from drivebench.transport.hub_bridge import BusBridge
 
     if not _is_loopback(args.host) and not args.allow_remote:
-        print(f"Refusing to listen on {args.host}: anyone who reaches the hub can send frames to the drives.\n"
-              "Keep the default 127.0.0.1, or, on a closed machine network, start with --allow-remote.",
-              file=sys.stderr)
+        print(_("Refusing to listen on {host}: anyone who reaches the hub can send frames to the drives.\n"
+                "Keep the default 127.0.0.1, or, on a closed machine network, start with --allow-remote.").format(
+                    host=args.host), file=sys.stderr)
         return 2
     bridges = [BusBridge(spec, args.channel) for spec in args.bridge or []]
 
     def listening(host: str, port: int) -> None:
-        print(f"socketcand hub on {host}:{port} (python-can: interface='socketcand', host='{host}', port={port}, "
-              f"channel='{args.channel}'; bus spec socketcand:{host}:{port}/{args.channel})"
-              + "".join(f"\n  {args.channel} bridged to {bridge.spec}" for bridge in bridges), flush=True)
+        print(_("socketcand hub on {host}:{port} (python-can: interface='socketcand', host='{host}', port={port}, "
+                "channel='{channel}'; bus spec socketcand:{host}:{port}/{channel})").format(
+                    host=host, port=port, channel=args.channel)
+              + "".join("\n  " + _("{channel} bridged to {bus}").format(channel=args.channel, bus=bridge.spec)
+                        for bridge in bridges), flush=True)
 
     async def run() -> None:
         task = asyncio.current_task()
@@ -301,106 +320,111 @@ def hub(args: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="drivebench", description=__doc__)
+    parser = argparse.ArgumentParser(prog="drivebench", description=_(
+        "Commissioning of CANopen drives: parameters, PDOs, NMT, diagnostics."))
     sub = parser.add_subparsers(dest="command", required=True)
 
-    p_serve = sub.add_parser("serve", help="run the web server")
+    p_serve = sub.add_parser("serve", help=_("run the web server"))
     p_serve.add_argument("--host", default=settings.host,
-                         help="listen address (default 127.0.0.1; any other needs an admin user: `users add`)")
+                         help=_("listen address (default 127.0.0.1; any other needs an admin user: `users add`)"))
     p_serve.add_argument("--port", type=int, default=settings.port)
     p_serve.add_argument("--bus", action="append", metavar="SPEC",
-                         help="open a session at start-up: socketcan:can0@500000, socketcand:HOST:PORT/can0 ...")
-    p_serve.add_argument("--demo", action="store_true", help="start the built-in simulated plant")
-    p_serve.add_argument("--plant", help="start a simulated plant from this plant file")
-    p_serve.add_argument("--latency", help="SDO processing time of simulated drives, e.g. 30ms±20ms")
+                         help=_("open a session at start-up: socketcan:can0@500000, socketcand:HOST:PORT/can0 ..."))
+    p_serve.add_argument("--demo", action="store_true", help=_("start the built-in simulated plant"))
+    p_serve.add_argument("--plant", help=_("start a simulated plant from this plant file"))
+    p_serve.add_argument("--latency", help=_("SDO processing time of simulated drives, e.g. 30ms±20ms"))
     p_serve.add_argument("--log-level", default="warning")
     p_serve.add_argument("--tls-cert", type=Path, default=settings.tls_cert_file, metavar="FILE",
-                         help="serve https with this PEM certificate (with --tls-key)")
+                         help=_("serve https with this PEM certificate (with --tls-key)"))
     p_serve.add_argument("--tls-key", type=Path, default=settings.tls_key_file, metavar="FILE",
-                         help="the certificate's PEM private key")
+                         help=_("the certificate's PEM private key"))
     p_serve.add_argument("--hsts", action="store_true", default=settings.hsts,
-                         help="send Strict-Transport-Security (browsers then insist on https for a year)")
+                         help=_("send Strict-Transport-Security (browsers then insist on https for a year)"))
     p_serve.add_argument("--allowed-host", action="append", metavar="NAME",
-                         help="a name browsers reach the server by (repeatable; 127.0.0.1, localhost, [::1] and "
-                              "--host always); any other Host or Origin is refused (DNS rebinding)")
+                         help=_("a name browsers reach the server by (repeatable; 127.0.0.1, localhost, [::1] and "
+                              "--host always); any other Host or Origin is refused (DNS rebinding)"))
     p_serve.add_argument("--public-url", metavar="URL",
-                         help="the address others open, e.g. https://drivebench.example.com (share links point "
-                              "there; default: the address the server was reached at)")
+                         help=_("the address others open, e.g. https://drivebench.example.com (share links point "
+                              "there; default: the address the server was reached at)"))
     p_serve.add_argument("--forwarded-allow-ips", metavar="IPS",
-                         help="reverse proxies whose X-Forwarded-For/-Proto are believed, comma-separated "
-                              "(default: none)")
+                         help=_("reverse proxies whose X-Forwarded-For/-Proto are believed, comma-separated "
+                              "(default: none)"))
     p_serve.set_defaults(func=serve)
 
-    p_health = sub.add_parser("health", help="exit 0 if the server on this machine answers /api/health")
+    p_health = sub.add_parser("health", help=_("exit 0 if the server on this machine answers /api/health"))
     p_health.add_argument("--host", default="127.0.0.1")
     p_health.add_argument("--port", type=int, default=settings.port)
-    p_health.add_argument("--timeout", type=float, default=4.0, help="seconds")
+    p_health.add_argument("--timeout", type=float, default=4.0, help=_("seconds"))
     p_health.set_defaults(func=health)
 
-    p_tls = sub.add_parser("tls", help="certificates for https")
+    p_tls = sub.add_parser("tls", help=_("certificates for https"))
     tls_sub = p_tls.add_subparsers(dest="action", required=True)
-    p_self = tls_sub.add_parser("self-signed", help="make a self-signed certificate and key for a plant network")
+    p_self = tls_sub.add_parser("self-signed", help=_("make a self-signed certificate and key for a plant network"))
     p_self.add_argument("--host", action="append", required=True, metavar="NAME",
-                        help="a name or address the browsers use (repeat for each)")
-    p_self.add_argument("--out", default="var/tls", help="folder for drivebench.crt and drivebench.key")
+                        help=_("a name or address the browsers use (repeat for each)"))
+    p_self.add_argument("--out", default="var/tls", help=_("folder for drivebench.crt and drivebench.key"))
     p_self.add_argument("--days", type=int, default=825)
     p_tls.set_defaults(func=tls)
 
-    p_sim = sub.add_parser("simulate", help="run simulated drives on a bus")
-    p_sim.add_argument("--bus", help="bus for the drives (default: the plant file's), e.g. "
-                                     "socketcand:127.0.0.1:29536/can0")
-    p_sim.add_argument("--plant", help="plant file (default: the demo plant)")
-    p_sim.add_argument("--ethercat-port", type=int, help="UDP port of the simulated EtherCAT master's mailbox gateway "
-                                                          "on 127.0.0.1 (default: the plant file's, 0 = any free one)")
-    p_sim.add_argument("--latency", help="SDO processing time, e.g. 30ms±20ms")
+    p_sim = sub.add_parser("simulate", help=_("run simulated drives on a bus"))
+    p_sim.add_argument("--bus", help=_("bus for the drives (default: the plant file's), e.g. "
+                                     "socketcand:127.0.0.1:29536/can0"))
+    p_sim.add_argument("--plant", help=_("plant file (default: the demo plant)"))
+    p_sim.add_argument("--ethercat-port", type=int,
+                       help=_("UDP port of the simulated EtherCAT master's mailbox gateway on 127.0.0.1 (default: the "
+                              "plant file's, 0 = any free one)"))
+    p_sim.add_argument("--latency", help=_("SDO processing time, e.g. 30ms±20ms"))
     p_sim.set_defaults(func=simulate)
 
-    p_hub = sub.add_parser("hub", help="run a socketcand-protocol hub so processes share one bus")
+    p_hub = sub.add_parser("hub", help=_("run a socketcand-protocol hub so processes share one bus"))
     p_hub.add_argument("--host", default="127.0.0.1")
-    p_hub.add_argument("--port", type=int, default=29536, help="TCP port (0 picks a free one and prints it)")
-    p_hub.add_argument("--channel", default="can0", help="channel the --bridge buses join (default can0)")
+    p_hub.add_argument("--port", type=int, default=29536, help=_("TCP port (0 picks a free one and prints it)"))
+    p_hub.add_argument("--channel", default="can0", help=_("channel the --bridge buses join (default can0)"))
     p_hub.add_argument("--bridge", action="append", metavar="SPEC",
-                       help="also relay frames to and from this python-can bus, e.g. socketcan:can0@500000")
+                       help=_("also relay frames to and from this python-can bus, e.g. socketcan:can0@500000"))
     p_hub.add_argument("--allow-remote", action="store_true",
-                       help="allow listening on a non-loopback address (no authentication)")
+                       help=_("allow listening on a non-loopback address (no authentication)"))
     p_hub.set_defaults(func=hub)
 
-    p_users = sub.add_parser("users", help="users who sign in (the first admin switches signing in on)")
+    p_users = sub.add_parser("users", help=_("users who sign in (the first admin switches signing in on)"))
     users_sub = p_users.add_subparsers(dest="action", required=True)
-    p_add = users_sub.add_parser("add", help="add a user")
+    p_add = users_sub.add_parser("add", help=_("add a user"))
     p_add.add_argument("name")
     p_add.add_argument("--role", required=True, choices=["admin", "engineer", "viewer"])
-    p_add.add_argument("--password-stdin", action="store_true", help="read the password from stdin's first line")
-    users_sub.add_parser("list", help="list the users")
-    for action, text in [("disable", "disable a user (cannot sign in, tokens stop working)"),
-                         ("enable", "enable a disabled user")]:
+    p_add.add_argument("--password-stdin", action="store_true", help=_("read the password from stdin's first line"))
+    users_sub.add_parser("list", help=_("list the users"))
+    for action, text in [("disable", _("disable a user (cannot sign in, tokens stop working)")),
+                         ("enable", _("enable a disabled user"))]:
         users_sub.add_parser(action, help=text).add_argument("name")
-    p_passwd = users_sub.add_parser("passwd", help="set a new password")
+    p_passwd = users_sub.add_parser("passwd", help=_("set a new password"))
     p_passwd.add_argument("name")
-    p_passwd.add_argument("--password-stdin", action="store_true", help="read the password from stdin's first line")
+    p_passwd.add_argument("--password-stdin", action="store_true", help=_("read the password from stdin's first line"))
     p_users.set_defaults(func=users)
 
-    p_tokens = sub.add_parser("tokens", help="API tokens for scripts (Authorization: Bearer dbt_...)")
+    p_tokens = sub.add_parser("tokens", help=_("API tokens for scripts (Authorization: Bearer dbt_...)"))
     tokens_sub = p_tokens.add_subparsers(dest="action", required=True)
-    p_create = tokens_sub.add_parser("create", help="create a token and print it (once)")
-    p_create.add_argument("name", help="what the token is for")
-    p_create.add_argument("--user", required=True, help="the user the token acts for")
+    p_create = tokens_sub.add_parser("create", help=_("create a token and print it (once)"))
+    p_create.add_argument("name", help=_("what the token is for"))
+    p_create.add_argument("--user", required=True, help=_("the user the token acts for"))
     p_create.add_argument("--role", required=True, choices=["admin", "engineer", "viewer"],
-                          help="no higher than the user's role")
-    p_list = tokens_sub.add_parser("list", help="list tokens (never the tokens themselves)")
+                          help=_("no higher than the user's role"))
+    p_list = tokens_sub.add_parser("list", help=_("list tokens (never the tokens themselves)"))
     p_list.add_argument("--user")
-    tokens_sub.add_parser("revoke", help="revoke a token").add_argument("id", type=int)
+    tokens_sub.add_parser("revoke", help=_("revoke a token")).add_argument("id", type=int)
     p_tokens.set_defaults(func=tokens)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    try:
-        return int(args.func(args))
-    except DriveBenchError as exc:
-        print(f"drivebench: {exc.detail}" + (f"\n  {exc.hint}" if exc.hint else ""), file=sys.stderr)
-        return 1
+    """Messages in the language of the shell (LC_ALL, LC_MESSAGES, LANG: ``LANG=de_DE.UTF-8`` gives German)."""
+    with i18n.using(i18n.from_environment(os.environ)):
+        args = build_parser().parse_args(argv)
+        try:
+            return int(args.func(args))
+        except DriveBenchError as exc:
+            hint = f"\n  {_(exc.hint)}" if exc.hint else ""
+            print(f"drivebench: {exc.shown_detail()}{hint}", file=sys.stderr)
+            return 1
 
 
 if __name__ == "__main__":

@@ -16,7 +16,7 @@ import contextlib
 import functools
 import gettext as gettext_module
 import io
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Mapping
 from contextvars import ContextVar
 from decimal import Decimal
 from pathlib import Path
@@ -148,6 +148,16 @@ def negotiate(accept_language: str | None, cookie: str | None = None) -> str:
     if cookie in LOCALES:
         return str(cookie)
     return negotiate_locale(accepted_languages(accept_language), LOCALES, sep="-") or DEFAULT
+
+
+def from_environment(environ: Mapping[str, str]) -> str:
+    """The language of a command line: the first of LC_ALL, LC_MESSAGES, LANG that is set (``de_DE.UTF-8``: German;
+    ``C``, ``POSIX`` or a language we do not have: English), as the C library chooses the messages' language."""
+    for name in ("LC_ALL", "LC_MESSAGES", "LANG"):
+        if value := environ.get(name, ""):
+            language = value.split(".")[0].split("@")[0].split("_")[0].lower()
+            return language if language in LOCALES else DEFAULT
+    return DEFAULT
 
 
 def number(value: float | int | Decimal, digits: int | None = None) -> str:

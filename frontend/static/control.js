@@ -319,12 +319,16 @@
                `<td>${telegrams}</td><td>${r ? esc(r.message) : ""}</td></tr>`;
       }).join("");
       const pre = run.preconditions.map((p) => `<li>${esc(p)}</li>`).join("");
+      // The texts first: pybabel's JavaScript extractor does not see _() inside a template literal.
+      const allAnswered = _("All {count} steps answered as the manual expects.", { count: run.steps.length });
+      const beforeStarting = _("Before starting (not sent over CAN):");
+      const [stepHead, telegramsHead, answerHead] = [_("Step"), _("Telegrams"), _("Answer")];
       const banner = run.failed ? `<div class="error" role="alert">${esc(run.failed)}</div>`
-        : run.finished ? `<div class="ok-note">${esc(_("All {count} steps answered as the manual expects.", { count: run.steps.length }))}</div>` : "";
+        : run.finished ? `<div class="ok-note">${esc(allAnswered)}</div>` : "";
       runBox.innerHTML = `<p><strong>${esc(run.title)}</strong> · ${esc(run.source)}</p>` +
-        (pre ? `<p class="muted">${esc(_("Before starting (not sent over CAN):"))}</p><ul class="muted">${pre}</ul>` : "") + banner +
-        `<div class="ctl-run-scroll"><table class="ctl-run"><thead><tr><th>#</th><th>${esc(_("Step"))}</th>` +
-        `<th>${esc(_("Telegrams"))}</th><th>${esc(_("Answer"))}</th></tr></thead><tbody>${rows}</tbody></table></div>`;
+        (pre ? `<p class="muted">${esc(beforeStarting)}</p><ul class="muted">${pre}</ul>` : "") + banner +
+        `<div class="ctl-run-scroll"><table class="ctl-run"><thead><tr><th>#</th><th>${esc(stepHead)}</th>` +
+        `<th>${esc(telegramsHead)}</th><th>${esc(answerHead)}</th></tr></thead><tbody>${rows}</tbody></table></div>`;
       runOpen = !run.finished;
       nextButton.disabled = refused || watching || !runOpen;
       const row = runBox.querySelector("tr.next, tr.failed");

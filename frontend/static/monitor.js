@@ -52,12 +52,18 @@
     // Both scales are set by drawChart (not auto-ranged), so a drag-zoom stays put while points arrive.
     scales: { x: { time: true, auto: false }, y: { auto: false } },
     axes: [
-      { label: _("time (local)"), labelSize: 18, space: 90, stroke: "#5d6b79", grid: { stroke: "#eef1f4" } },
+      // uPlot's own tick texts are American (2:02am, 11/26/26); a 24-hour clock and an ISO date read alike in both
+      // languages. Rows: tick step (s), its text, then the text when the year, month, day, hour, minute changes.
+      { label: _("time (local)"), labelSize: 18, space: 90, stroke: "#5d6b79", grid: { stroke: "#eef1f4" },
+        values: [[3600, "{HH}:{mm}", "\n{YYYY}-{MM}-{DD}", null, "\n{YYYY}-{MM}-{DD}", null, null, null, 1],
+                 [60, "{HH}:{mm}", "\n{YYYY}-{MM}-{DD}", null, "\n{YYYY}-{MM}-{DD}", null, null, null, 1],
+                 [1, ":{ss}", "\n{YYYY}-{MM}-{DD} {HH}:{mm}", null, "\n{YYYY}-{MM}-{DD} {HH}:{mm}", null,
+                  "\n{HH}:{mm}", null, 1]] },
       { label: _("bus load (%)"), labelSize: 18, stroke: "#5d6b79", grid: { stroke: "#eef1f4" }, size: 56,
         values: (u, ticks) => ticks.map((v) => `${num(v)} %`) },
     ],
     series: [
-      { value: (u, v) => (v == null ? "–" : clock(v)) },
+      { label: _("Time"), value: (u, v) => (v == null ? "–" : clock(v)) },
       { label: _("Bus load"), stroke: "#0b5fa5", width: 1.5, fill: "rgba(11,95,165,0.12)",
         value: (u, v) => (v == null ? "–" : `${fixed(v, 2)} %`) },
     ],
@@ -111,17 +117,21 @@
   }
 
   function renderTables(s) {
+    // The texts first: pybabel's JavaScript extractor does not see _() inside a template literal.
+    const notInSession = _("not in session"), noNodes = _("No node telegrams yet.");
+    const noTelegrams = _("No telegrams (or none passes the filter).");
+    const lastSeen = (age) => _("last {age} s ago", { age: fixed(age, 1) });
     $("services-body").innerHTML = s.services.map((r) =>
       `<tr class="${r.rate ? "" : "silent"}"><td>${esc(r.label)}</td><td class="num">${num(r.total)}</td><td class="num">${rate(r.rate)}</td></tr>`).join("");
     $("nodes-body").innerHTML = s.nodes.length ? s.nodes.map((r) =>
-      `<tr class="${r.rate ? "" : "silent"}"><td class="num">${esc(r.node)}</td><td class="device" title="${esc(r.name || "")}">${esc(r.name || "not in session")}</td>` +
+      `<tr class="${r.rate ? "" : "silent"}"><td class="num">${esc(r.node)}</td><td class="device" title="${esc(r.name || "")}">${esc(r.name || notInSession)}</td>` +
       `<td class="num">${num(r.total)}</td><td class="num">${rate(r.rate)}</td><td class="num">${pct(r.share_percent)}</td></tr>`).join("")
-      : '<tr><td colspan="5" class="empty">No node telegrams yet.</td></tr>';
+      : `<tr><td colspan="5" class="empty">${esc(noNodes)}</td></tr>`;
     const col = Object.fromEntries(s.cob_columns.map((name, i) => [name, i]));
     $("cobs-body").innerHTML = s.cob_ids.length ? s.cob_ids.map((r) =>
-      `<tr class="${r[col.rate] ? "" : "silent"}" title="last ${r[col.last_age_s].toFixed(1)} s ago"><td class="mono">${esc(r[col.text])}</td><td>${esc(r[col.service])}</td>` +
+      `<tr class="${r[col.rate] ? "" : "silent"}" title="${esc(lastSeen(r[col.last_age_s]))}"><td class="mono">${esc(r[col.text])}</td><td>${esc(r[col.service])}</td>` +
       `<td class="num">${esc(r[col.node] ?? "–")}</td><td class="num">${num(r[col.total])}</td><td class="num">${rate(r[col.rate])}</td><td class="num">${pct(r[col.share_percent])}</td></tr>`).join("")
-      : '<tr><td colspan="6" class="empty">No telegrams (or none passes the filter).</td></tr>';
+      : `<tr><td colspan="6" class="empty">${esc(noTelegrams)}</td></tr>`;
     $("cob-note").textContent = s.cob_ids_cut ? _("busiest {shown} of {all}", { shown: s.cob_ids.length, all: s.cob_ids_cut }) : "";
   }
 
@@ -139,10 +149,11 @@
     const body = $("trace-body");
     const rows = pendingTrace.slice(-TRACE_ROWS);
     pendingTrace = [];
+    const noData = _("(no data)");  // outside the template literal: pybabel's extractor does not look inside
     body.insertAdjacentHTML("beforeend", rows.map((r) => r.gap ? GAP_ROW :
       `<tr class="svc-${esc(r.group).replace(/ /g, "-")}" data-seq="${esc(r.seq)}"><td class="time">${clock(r.time, true)}</td><td class="cob">${esc(r.cob_id)}</td>` +
       `<td>${esc(r.service)}</td><td class="num">${esc(r.node ?? "–")}</td><td class="num">${esc(r.dlc)}</td>` +
-      `<td class="decoded" title="${esc(r.cob_id)} [${esc(r.dlc)}] ${esc(r.hex || "(no data)")}">${esc(r.summary || r.service)}</td></tr>`).join(""));
+      `<td class="decoded" title="${esc(r.cob_id)} [${esc(r.dlc)}] ${esc(r.hex || noData)}">${esc(r.summary || r.service)}</td></tr>`).join(""));
     while (body.rows.length > TRACE_ROWS) body.deleteRow(0);
     showCount();
     if ($("trace-follow").checked) { const box = $("trace-scroll"); box.scrollTop = box.scrollHeight; }
@@ -193,7 +204,8 @@
   function setLive(state) {
     const badge = $("live-state");
     badge.className = `badge ${state}`;
-    badge.textContent = { live: "live", paused: "paused", down: "disconnected, retrying…", connecting: "connecting…" }[state];
+    badge.textContent = { live: _("live"), paused: _("paused"), down: _("disconnected, retrying…"),
+                          connecting: _("connecting…") }[state];
   }
 
   const helloRows = () => Math.min(TRACE_ROWS, HELLO_ROWS_MAX);
@@ -261,7 +273,7 @@
   function setPaused(paused) {
     const button = $("pause");
     button.dataset.paused = paused ? "true" : "false";
-    button.textContent = paused ? "Resume" : "Pause";
+    button.textContent = paused ? _("Resume") : _("Pause");
   }
 
   $("pause").addEventListener("click", () => {

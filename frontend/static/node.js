@@ -5,7 +5,9 @@
                                            { minimumFractionDigits: 1, maximumFractionDigits: 1, useGrouping: false });
   function fmtEta(s) {
     if (s === null || s === undefined) return "";
-    return s < 60 ? ` · ETA ${oneDecimal.format(s)} s` : ` · ETA ${Math.round(s / 60)} min`;
+    const _ = window.drivebench.gettext;
+    return " · " + (s < 60 ? _("ETA {seconds} s", { seconds: oneDecimal.format(s) })
+      : _("ETA {minutes} min", { minutes: Math.round(s / 60) }));
   }
 
   // Re-read the parameter rows; a refresh in flight would swap out the element a queued one belongs to, so the
@@ -40,10 +42,12 @@
     bar.max = Math.max(p.total, 1);
     bar.value = p.done;
     const _ = window.drivebench.gettext;
-    const failed = p.failed ? ` · ${_("{count} failed", { count: p.failed })}` : "";
+    // The texts first: pybabel's JavaScript extractor does not see _() inside a template literal.
+    const failed = p.failed ? " · " + _("{count} failed", { count: p.failed }) : "";
+    const state = { done: _("done"), cancelled: _("cancelled"), failed: _("failed") }[msg.state] || msg.state;
     let line = `${msg.title}: ${p.done}/${p.total} · ${oneDecimal.format(p.rate_per_s)}/s${failed}`;
     if (msg.state === "running") line += fmtEta(p.eta_s);
-    else line += ` · ${_("{state} in {seconds} s", { state: msg.state, seconds: oneDecimal.format(p.elapsed_s) })}`;
+    else line += " · " + _("{state} in {seconds} s", { state, seconds: oneDecimal.format(p.elapsed_s) });
     if (msg.error) line += ` · ${msg.error}`;
     text.textContent = line;
     text.title = (msg.notes || []).join("\n");

@@ -84,7 +84,7 @@ def start_hub() -> tuple[CliProcess, int]:
 
 def start_simulator(bus: str) -> CliProcess:
     simulator = CliProcess("simulate", "--bus", bus, "--latency", "0ms")
-    simulator.wait_for_line(r"Simulating 4 node\(s\)")
+    simulator.wait_for_line(r"Simulating 4 nodes")
     return simulator
 
 

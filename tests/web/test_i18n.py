@@ -189,6 +189,8 @@ def test_a_profile_name_de_is_shown_in_german_only(registry: object) -> None:
 
 
 @pytest.mark.parametrize("path", ["/", "/monitor", "/tools", "/parameter-sets", "/profiles", "/remote",
+                                  "/profiles/lenze-8400-motec-canopen", "/monitor/ethercat-line",
+                                  "/sessions/ethercat-line/nodes/1?tab=pdo",
                                   f"/sessions/{SESSION}/nodes/5?tab=parameters", f"/sessions/{SESSION}/nodes/5?tab=pdo",
                                   f"/sessions/{SESSION}/nodes/5?tab=diagnostics",
                                   f"/sessions/{SESSION}/nodes/7?tab=control", f"/sessions/{SESSION}/nodes/5?tab=info"])
@@ -316,3 +318,190 @@ def test_every_error_text_in_the_code_is_translatable() -> None:
     left = untranslated_error_texts(ROOT / "backend" / "drivebench")
     assert not left, f"{len(left)} error texts given as English literals (wrap in _() or N_() + keep_template):\n" \
                      + "\n".join(left)
+
+
+# --- the page scripts ---------------------------------------------------------------------------------------------
+# A text a script puts on the page goes through _() (drivebench.gettext); these sinks show text to a user.
+_JS_SINKS = [re.compile(r"\.(?:textContent|innerText|innerHTML|title|placeholder|ariaLabel)\s*(?:\+?=)\s*([^;]*)"),
+             re.compile(r"\b(?:alert|confirm|prompt|errorBox|setCustomValidity)\(([^;]*)"),
+             re.compile(r"\b(?:append|replaceChildren|prepend|insertAdjacentHTML|insertAdjacentText)\(([^;]*)"),
+             re.compile(r"\bel\(\s*\"\w+\"\s*,\s*(?:\{[^{}]*\}|null|undefined)\s*,([^;]*)"),
+             re.compile(r"\blabel:\s*(\"[^\"]*\"|'[^']*')")]
+_JS_LITERAL = re.compile(r"\"(?:[^\"\\\n]|\\.)*\"|'(?:[^'\\\n]|\\.)*'|`[^`]*`")
+_JS_TRANSLATED = re.compile(r"\b(?:_|gettext)\(\s*(?:\"(?:[^\"\\]|\\.)*\"|'(?:[^'\\]|\\.)*'|`[^`]*`)"
+                            r"(?:\s*\+\s*(?:\"(?:[^\"\\]|\\.)*\"|'(?:[^'\\]|\\.)*'))*")
+# Literals that are no text: tag names (el("span"), createElement("div")), element properties (className: "x"),
+# where insertAdjacentHTML puts it ("beforeend"), ids
+# looked up ($("trace-body")) and values compared with (state === "bus-off").
+_JS_NOT_TEXT = re.compile(r"(\bel\(|\bcreateElement\(|\binsertAdjacent\w+\(|\$\(|\bgetElementById\("
+                          r"|\bquerySelector(?:All)?\(|[=!]==?"
+                          r"|\b(?:className|id|type|name|href|src|method|role|rel|target|kind)\s*:)"
+                          r"\s*(\"[^\"]*\"|'[^']*')")
+_JS_SHOWN_ATTRIBUTE = {"title", "aria-label", "placeholder", "alt"}
+# Words that read the same in both languages (units, CAN terms, the product's name).
+JS_SAME_IN_BOTH = SAME_IN_BOTH | {"HTTP", "min"}
+
+
+def _template_parts(template: str) -> tuple[str, list[str]]:
+    """A template literal's text (the ${…} taken out) and the expressions whose value becomes text (not those inside
+    an attribute such as class="…", which no one reads)."""
+    text, shown, depth, start, i = [], [], 0, 0, 0
+    while i < len(template):
+        if depth == 0 and template.startswith("${", i):
+            text.append(template[start:i])
+            depth, start, i = 1, i + 2, i + 2
+            continue
+        if depth:
+            depth += {"{": 1, "}": -1}.get(template[i], 0)
+            if depth == 0:
+                before = "".join(text)
+                attribute = re.search(r"([\w-]+)=\"[^\"]*$", before)
+                if attribute is None or attribute.group(1) in _JS_SHOWN_ATTRIBUTE:
+                    shown.append(template[start:i])
+                start = i + 1
+        i += 1
+    text.append(template[start:])
+    return "".join(text), shown
+
+
+def _english_words(text: str) -> set[str]:
+    shown = " ".join(_SHOWN_ATTRIBUTES.findall(text)) + " " + re.sub(r"<[^<>]*>", " ", text)
+    return {w for w in re.findall(r"[A-Za-z]{2,}", shown) if w not in JS_SAME_IN_BOTH}
+
+
+def _english_in(expression: str) -> list[str]:
+    found = []
+    for literal in _JS_LITERAL.findall(expression):
+        body = literal[1:-1]
+        if literal.startswith("`"):
+            body, shown = _template_parts(body)
+            found += [english for inner in shown for english in _english_in(inner)]
+        if _english_words(body):
+            found.append(literal)
+    return found
+
+
+def english_script_texts(source: str) -> list[str]:
+    """Literals with English words a script shows (textContent, title, innerHTML, alerts, error boxes, el()
+    children, chart labels) without _()."""
+    code = re.sub(r"(^|\s)//[^\n]*", r"\1", source)  # comments (not the // of a URL in a string)
+    code = _JS_TRANSLATED.sub('_(""', code)
+    code = _JS_NOT_TEXT.sub(lambda m: m.group(0)[:m.start(2) - m.start(0)] + '""', code)
+    return sorted({english for sink in _JS_SINKS for match in sink.finditer(code)
+                   for english in _english_in(match.group(1))})
+
+
+def test_the_script_check_finds_english_left_outside_gettext() -> None:
+    assert english_script_texts('badge.textContent = { live: "live", down: "retrying" }[state];') == [
+        '"live"', '"retrying"']
+    assert english_script_texts('x.innerHTML = `<td title="${esc(r.name || "not here")}">${n} s</td>`;') == [
+        '"not here"']
+    assert english_script_texts("alert('Saved.'); box.append(el(\"span\", {}, \"at once\"));") == [
+        '"at once"', "'Saved.'"]
+    assert not english_script_texts('x.textContent = _("Pause"); y.title = _("{n} ms", {n}) + " · TEC";')
+    assert not english_script_texts('row.innerHTML = `<tr class="${r.rate ? "" : "silent"}"><td>${num(n)}</td>`;')
+
+
+def test_every_text_a_script_marks_is_extracted() -> None:
+    """pybabel's JavaScript extractor misses a _() inside a template literal's ${…}: such a text would have no
+    catalogue entry and stay English on a German page."""
+    marked = re.compile(r"\b_\(\s*(\"(?:[^\"\\]|\\.)*\"(?:\s*\+\s*\"(?:[^\"\\]|\\.)*\")*)")
+    missed = []
+    for script in sorted((ROOT / "frontend" / "static").glob("*.js")):
+        extracted = {message for _line, message, _c, _ctx in extract_from_file_js(script)}
+        for literal in marked.findall(re.sub(r"(^|\s)//[^\n]*", r"\1", script.read_text())):
+            text = "".join(json.loads(part) for part in re.findall(r'"(?:[^"\\]|\\.)*"', literal))
+            if text not in extracted:
+                missed.append(f"{script.name}: {text!r}")
+    assert not missed, "_() texts pybabel does not extract (take them out of the template literal):\n" + "\n".join(
+        missed)
+
+
+def test_no_page_script_shows_english_outside_gettext() -> None:
+    left = [f"{script.name}: {text}" for script in sorted((ROOT / "frontend" / "static").glob("*.js"))
+            for text in english_script_texts(script.read_text())]
+    assert not left, "English text a script shows without _():\n" + "\n".join(left)
+
+
+_PAGES_WITH_SCRIPTS = ["/", "/monitor", "/tools", "/parameter-sets", "/profiles",
+                       f"/sessions/{SESSION}/nodes/5?tab=parameters", f"/sessions/{SESSION}/nodes/5?tab=pdo",
+                       f"/sessions/{SESSION}/nodes/7?tab=control"]
+
+
+@pytest.mark.parametrize("path", _PAGES_WITH_SCRIPTS)
+def test_each_page_hands_its_scripts_their_german_texts(client: TestClient, path: str) -> None:
+    """Every _()-text of every script a German page loads is in that page's js-messages, translated."""
+    page = client.get(path, headers=GERMAN).text
+    messages = _script_messages(page)
+    scripts = re.findall(r'<script src="/static/(\w+\.js)"', page)
+    assert "app.js" in scripts
+    german = _german()
+    same_in_german = {msgid for msgid, entry in german.items() if entry.string == msgid}  # type: ignore[attr-defined]
+    untranslated = []
+    for script in scripts:
+        texts = [message for _line, message, _c, _ctx in extract_from_file_js(ROOT / "frontend" / "static" / script)]
+        untranslated += [f"{script}: {text!r}" for text in texts
+                         if not messages.get(text) or (messages[text] == text and text not in same_in_german)]
+    assert not untranslated, "\n".join(untranslated)
+
+
+def extract_from_file_js(path: Path) -> list[tuple[int, str, list[str], str | None]]:
+    from babel.messages.extract import extract_from_file
+
+    return [(line, message if isinstance(message, str) else message[0], comments, context)
+            for line, message, comments, context in extract_from_file("javascript", str(path))]
+
+
+def test_the_simulators_fault_panel_and_refusals_in_german(client: TestClient) -> None:
+    url = f"/api/sessions/{SESSION}/simulator/nodes/5/faults"
+    try:
+        faults = client.put(url, json={"abort_code": "0x08000022", "abort_every": 3, "latency_ms": 20.5},
+                            headers=GERMAN)
+        assert faults.status_code == 200, faults.text
+        assert faults.json()["active"] == ["bricht jede 3. Anfrage mit 0x08000022 ab", "20,5 ms zusätzliche SDO-Latenz"]
+        assert client.get(url).json()["active"][0] == "aborts every 3th request with 0x08000022"
+    finally:
+        client.delete(url)
+    missing = client.get(f"/api/sessions/{SESSION}/simulator/nodes/99/faults", headers=GERMAN)
+    assert missing.status_code == 404
+    assert missing.json()["detail"] == f"Die simulierte Anlage der Sitzung '{SESSION}' hat keinen Knoten 99"
+    wrong = client.put(url, json={"abort_code": "viele"}, headers=GERMAN)
+    assert wrong.status_code == 422 and "abort_code muss eine Zahl sein" in wrong.text
+
+
+def test_the_info_tab_names_the_device_profile_in_german() -> None:
+    from drivebench.web.pages.node_info import identity_text
+
+    with i18n.using("de"):
+        assert identity_text("0x1000", 0x00020192) == "CiA 402 Antriebe und Bewegungssteuerung, Zusatzinformation 2"
+        assert identity_text("0x1000", 0x1F4) == "Geräteprofil 500"
+    assert identity_text("0x1000", 0x192) == "CiA 402 drives and motion control"
+
+
+_PLURAL_WITHOUT_NAME = (r"\{%-?\s*trans\s+([^%]*?)-?%\}(?:(?!\{%-?\s*endtrans).)*?"
+                        r"\{%-?\s*pluralize\s*-?%\}")
+
+
+def test_a_plural_in_a_template_counts_with_its_number() -> None:
+    """{% pluralize %} counts with the first variable of its {% trans %}: a text there (not the count) breaks the
+    German page (gettext needs a number for the plural form; English never asks)."""
+    wrong = []
+    for template in sorted((ROOT / "frontend" / "templates").rglob("*.html")):
+        for variables in re.findall(_PLURAL_WITHOUT_NAME, template.read_text(), re.S):
+            first = variables.split("=", 1)[0].strip()
+            if "=" in variables and first != "count":
+                wrong.append(f"{template.relative_to(ROOT)}: trans {variables.strip()[:80]}")
+    assert not wrong, "name the count: {% pluralize count %}\n" + "\n".join(wrong)
+
+
+def test_the_write_lease_names_where_it_comes_from_in_the_readers_language(client: TestClient) -> None:
+    """The lease keeps where a write came from in English (others read it later, in their language)."""
+    written = client.put(f"/api/sessions/{SESSION}/nodes/5/parameters/C00088", json={"value": 12.5})
+    assert written.status_code == 200, written.text
+    try:
+        banner = client.get(f"/ui/sessions/{SESSION}/nodes/5/lease", headers=GERMAN).text
+        assert "Sie haben das Schreibrecht auf Knoten 5 (Parameter-API)" in banner, banner
+        assert "(Parameters API)" in client.get(f"/ui/sessions/{SESSION}/nodes/5/lease").text
+    finally:
+        client.post(f"/ui/sessions/{SESSION}/nodes/5/lease/release", headers={"HX-Request": "true",
+                                                                               "X-DriveBench": "1"})

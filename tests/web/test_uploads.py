@@ -248,3 +248,11 @@ def test_deleting_an_upload_forgets_the_name_it_came_in_as(api: TestClient, user
     assert api.delete(f"/api/profiles/{profile['id']}").status_code == 204
     assert json.loads((user_dir.parent / "user-profiles.names.json").read_text(encoding="utf-8")) == {}
     assert list(user_dir.iterdir()) == []
+
+
+def test_the_refusal_speaks_the_browsers_language_and_writes_its_numbers(server: str) -> None:
+    too_big = b"[" + b"0," * int(3.7 * 1024 * 1024) + b"0]"
+    response = requests.post(f"{server}/api/tools/planner/check", data=too_big, timeout=30,
+                             headers={"Content-Type": "application/json", "Accept-Language": "de-DE,de;q=0.9"})
+    assert response.status_code == 413
+    assert response.json()["detail"] == "Der Inhalt der Anfrage ist 7,4 MB groß; Uploads sind auf 5 MB begrenzt."

@@ -29,6 +29,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from drivebench.device import ethercat_section
 from drivebench.device.profile import Profile
+from drivebench.i18n import _
 from drivebench.protocol import coe, esm
 from drivebench.protocol.coe_server import Abort, CoeSdoServer
 from drivebench.protocol.datatypes import DataType, encode
@@ -330,7 +331,7 @@ class EthercatLine(BaseModel):
     def _unique_stations(cls, slaves: list[LineSlave]) -> list[LineSlave]:
         stations = [slave.station for slave in slaves]
         if len(set(stations)) != len(stations):
-            raise ValueError("two slaves have the same station address")
+            raise ValueError(_("two slaves have the same station address"))
         return slaves
 
     def start(self, profiles: Callable[[str], Profile], *, port: int | None = None,

@@ -11,11 +11,13 @@ import threading
 from dataclasses import asdict, dataclass, fields, replace
 
 from drivebench.errors import InvalidValue
+from drivebench.i18n import N_, _, number
 
 _INDEXED_COMMANDS = (1, 2, 5, 6)
 """Client command specifiers whose requests name an object: initiate download/upload, block download/upload."""
 _DOWNLOAD_COMMANDS = (1, 6)
 """Initiate download and block download."""
+ABORT_CODE_RANGE = N_("abort_code must be a 32-bit CiA 301 abort code")
 
 
 @dataclass(frozen=True)
@@ -47,17 +49,18 @@ class SdoFaults:
 
     def __post_init__(self) -> None:
         if self.silent_after_segments is not None and self.silent_after_segments < 0:
-            raise InvalidValue("silent_after_segments must be 0 or more")
+            raise InvalidValue(_("{field} must be 0 or more").format(field="silent_after_segments"))
         if self.abort_code is not None and not 0 < self.abort_code <= 0xFFFFFFFF:
-            raise InvalidValue("abort_code must be a 32-bit CiA 301 abort code")
+            raise InvalidValue(_(ABORT_CODE_RANGE))
         if self.abort_every < 1:
-            raise InvalidValue("abort_every must be 1 or more")
+            raise InvalidValue(_("abort_every must be 1 or more"))
         if self.late_requests < 0 or self.drop_requests < 0 or self.drop_downloads < 0:
-            raise InvalidValue("late_requests, drop_requests and drop_downloads must be 0 or more")
+            raise InvalidValue(_("{field} must be 0 or more").format(
+                field="late_requests, drop_requests, drop_downloads"))
         if not 0 <= self.latency_ms <= 60_000:
-            raise InvalidValue("latency_ms must be 0 ... 60000")
+            raise InvalidValue(_("latency_ms must be 0 ... 60000"))
         if not -0xFFFF <= self.index_offset <= 0xFFFF or not -0xFF <= self.subindex_offset <= 0xFF:
-            raise InvalidValue("index_offset must be within ±0xFFFF and subindex_offset within ±0xFF")
+            raise InvalidValue(_("index_offset must be within ±0xFFFF and subindex_offset within ±0xFF"))
 
     @property
     def active(self) -> bool:
@@ -70,22 +73,25 @@ class SdoFaults:
         """The active faults in words (the simulator's fault panel and logs)."""
         words = []
         if self.silent_after_segments is not None:
-            words.append(f"stops answering after {self.silent_after_segments} segments of a segmented transfer")
+            words.append(_("stops answering after {count} segments of a segmented transfer").format(
+                count=self.silent_after_segments))
         if self.wrong_toggle:
-            words.append("answers segments with the wrong toggle bit")
+            words.append(_("answers segments with the wrong toggle bit"))
         if self.index_offset or self.subindex_offset:
-            words.append(f"answers name another object (index {self.index_offset:+d}, "
-                         f"subindex {self.subindex_offset:+d})")
+            words.append(_("answers name another object (index {index}, subindex {subindex})").format(
+                index=f"{self.index_offset:+d}", subindex=f"{self.subindex_offset:+d}"))
         if self.abort_code is not None:
-            every = "every request" if self.abort_every == 1 else f"every {self.abort_every}th request"
-            words.append(f"aborts {every} with 0x{self.abort_code:08X}")
+            aborts = (_("aborts every request with {code}") if self.abort_every == 1
+                      else _("aborts every {n}th request with {code}"))
+            words.append(aborts.format(n=self.abort_every, code=f"0x{self.abort_code:08X}"))
         if self.latency_ms:
-            which = f" on the next {self.late_requests} requests" if self.late_requests else ""
-            words.append(f"{self.latency_ms:g} ms extra SDO latency{which}")
+            latency = (_("{ms} ms extra SDO latency on the next {count} requests") if self.late_requests
+                       else _("{ms} ms extra SDO latency"))
+            words.append(latency.format(ms=number(self.latency_ms), count=self.late_requests))
         if self.drop_requests:
-            words.append(f"leaves the next {self.drop_requests} requests unanswered")
+            words.append(_("leaves the next {count} requests unanswered").format(count=self.drop_requests))
         if self.drop_downloads:
-            words.append(f"leaves the next {self.drop_downloads} download requests unanswered")
+            words.append(_("leaves the next {count} download requests unanswered").format(count=self.drop_downloads))
         return words
 
 
@@ -120,7 +126,7 @@ class FaultState:
         them all (``set()``)."""
         unknown = set(changes) - FAULT_NAMES
         if unknown:
-            raise InvalidValue(f"unknown fault(s): {', '.join(sorted(unknown))}")
+            raise InvalidValue(_("unknown fault(s): {names}").format(names=", ".join(sorted(unknown))))
         base = faults if faults is not None else (self._faults if changes else SdoFaults())
         new = replace(base, **changes)  # type: ignore[arg-type]
         with self._lock:

@@ -23,6 +23,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 from drivebench.device.profile import Profile
 from drivebench.errors import DriveBenchError, ProfileError, TransportError
+from drivebench.i18n import _
 from drivebench.simulator.babbler import DEFAULT_COB_ID, Babbler
 from drivebench.simulator.ethercat import EthercatLine
 from drivebench.simulator.node import Latency, LatencyText, SimulatedNode
@@ -62,7 +63,7 @@ class PlantFile(BaseModel):
         seen: set[int] = set()
         for node in nodes:
             if node.node_id in seen:
-                raise ValueError(f"node id {node.node_id} appears twice")
+                raise ValueError(_("node id {node} appears twice").format(node=node.node_id))
             seen.add(node.node_id)
         return nodes
 
@@ -71,7 +72,7 @@ class PlantFile(BaseModel):
         try:
             return cls.model_validate_json(path.read_text(encoding="utf-8"))
         except (OSError, ValidationError, ValueError) as exc:
-            raise ProfileError(f"invalid plant file: {exc}", source=path.name) from exc
+            raise ProfileError(_("invalid plant file: {reason}").format(reason=exc), source=path.name) from exc
 
 
 ProfileLookup = Callable[[str], Profile]
@@ -128,7 +129,7 @@ class Plant:
                  **kwargs: object) -> SimulatedNode:
         """A node powered on now; ``duplicate`` puts a second device on an id that is taken (both answer)."""
         if node_id in self.nodes and not duplicate:
-            raise DriveBenchError(f"Node id {node_id} is already on the simulated bus")
+            raise DriveBenchError(_("Node id {node} is already on the simulated bus").format(node=node_id))
         node = SimulatedNode(profile, node_id, self._send, **kwargs)  # type: ignore[arg-type]
         node.wake = self.wake
         if node_id in self.nodes:

@@ -12,7 +12,9 @@ from starlette.datastructures import Headers
 from starlette.responses import HTMLResponse, JSONResponse, Response
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
+from drivebench import i18n
 from drivebench.errors import ContentTooLarge
+from drivebench.i18n import _
 from drivebench.web.problems import error_fragment, problem_body
 
 MULTIPART_OVERHEAD_BYTES = 64 * 1024
@@ -21,8 +23,7 @@ MULTIPART_OVERHEAD_BYTES = 64 * 1024
 
 def megabytes(count: int) -> str:
     """``7759462`` -> ``7.4 MB``, ``5242880`` -> ``5 MB`` (MB of 1024 x 1024 bytes, as file managers show)."""
-    text = f"{count / 2**20:.1f}"
-    return f"{text.removesuffix('.0')} MB"
+    return f"{i18n.number(round(count / 2**20, 1))} MB"  # 7,4 MB in German
 
 
 class BodyLimit:
@@ -75,12 +76,15 @@ class BodyLimit:
 
     def refusal(self, headers: Headers, scope: Scope, declared: int | None) -> Response:
         is_file = headers.get("content-type", "").startswith("multipart/form-data")
-        what = "file" if is_file else "request body"
         limit = megabytes(self.limit_bytes)
         if declared is not None:
-            detail = f"The {what} is {megabytes(declared)}; uploads are limited to {limit}."
+            detail = (_("The file is {size}; uploads are limited to {limit}.") if is_file
+                      else _("The request body is {size}; uploads are limited to {limit}.")).format(
+                size=megabytes(declared), limit=limit)
         else:
-            detail = f"The {what} is larger than {limit}; uploads are limited to {limit}."
+            detail = (_("The file is larger than {limit}; uploads are limited to {limit}.") if is_file
+                      else _("The request body is larger than {limit}; uploads are limited to {limit}.")).format(
+                limit=limit)
         body = problem_body(ContentTooLarge(detail), scope.get("path", ""))
         if headers.get("hx-request") == "true":
             return HTMLResponse(error_fragment(body), status_code=413, headers={"Connection": "close"})

@@ -15,6 +15,7 @@ from starlette.datastructures import Headers
 from starlette.types import Scope
 
 from drivebench.config import settings
+from drivebench.i18n import _
 
 LOOPBACK_NAMES = frozenset({"127.0.0.1", "localhost", "[::1]"})
 _NAME = r"(\[[0-9a-f:.]+\]|[a-z0-9_.-]+)"
@@ -52,10 +53,10 @@ def host_refusal(scope: Scope, headers: Headers) -> str | None:
     """Why the request's ``Host`` is not a name of this server (None: it is)."""
     host = headers.get("host")
     if not host:
-        return "the request names no host (it has no Host header)"
+        return _("the request names no host (it has no Host header)")
     match = _HOST.fullmatch(host.strip().lower())
     if match is None or not _ours(match.group(1), scope):
-        return f"the request is addressed to {host[:100]!r}, which is not a name of this server"
+        return _("the request is addressed to {host}, which is not a name of this server").format(host=repr(host[:100]))
     return None
 
 
@@ -69,7 +70,7 @@ def origin_refusal(scope: Scope, headers: Headers) -> str | None:
         return None
     match = _ORIGIN.fullmatch(origin.strip().lower())
     if match is None or not _ours(match.group(1), scope):
-        return f"it comes from a page of {origin[:100]}"
+        return _("it comes from a page of {origin}").format(origin=origin[:100])
     if match.group(1) in configured_names():
         return None
     host = _HOST.fullmatch(headers.get("host", "").strip().lower())
@@ -77,7 +78,7 @@ def origin_refusal(scope: Scope, headers: Headers) -> str | None:
     origin_port = int(match.group(2) or _DEFAULT_PORTS.get(scheme, 0))
     host_port = int(host.group(2) or _DEFAULT_PORTS.get(scheme, 0)) if host else -1
     if host is None or host.group(1) != match.group(1) or host_port != origin_port:
-        return f"it comes from a page of {origin[:100]}, another program on this machine"
+        return _("it comes from a page of {origin}, another program on this machine").format(origin=origin[:100])
     return None
 
 

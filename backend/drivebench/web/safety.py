@@ -14,14 +14,20 @@ from typing import Annotated
 from fastapi import Depends
 from starlette.requests import HTTPConnection
 
+from drivebench.i18n import N_
 from drivebench.services.control import drive_guard
 from drivebench.services.control.drive_guard import Panel, panel_of
 from drivebench.services.params import node_lease
 from drivebench.services.params.node_lease import Writer
 from drivebench.web.identity import principal_of
 
-WHERE = [("/parameter-sets", "Parameter sets"), ("/parameters", "Parameters tab"), ("/pdo", "PDO tab"),
-         ("/control", "Control tab"), ("/nmt", "NMT"), ("/commands", "device commands"), ("/lease", "node lease")]
+# Where a write comes from, as the node lease names it to others: kept English (N_) in the lease, each reader sees
+# it in their own language (the template calls _() on it). (path part, from a page, from the API)
+WHERE = [("/parameter-sets", N_("Parameter sets"), N_("Parameter sets API")),
+         ("/parameters", N_("Parameters tab"), N_("Parameters API")), ("/pdo", N_("PDO tab"), N_("PDO API")),
+         ("/control", N_("Control tab"), N_("Control API")), ("/nmt", N_("NMT"), N_("NMT API")),
+         ("/commands", N_("device commands"), N_("device commands API")),
+         ("/lease", N_("node lease"), N_("node lease API"))]
 
 
 def client_id(conn: HTTPConnection) -> str | None:
@@ -41,10 +47,10 @@ def panel_for(conn: HTTPConnection) -> Panel:
 
 
 def where_of(path: str) -> str:
-    for part, label in WHERE:
+    for part, page, api in WHERE:
         if part in path:
-            return label if path.startswith("/ui/") else f"{label.removesuffix(' tab')} API"
-    return "the API"
+            return page if path.startswith("/ui/") else api
+    return N_("the API")
 
 
 def writer_for(conn: HTTPConnection) -> Writer:

@@ -17,6 +17,7 @@ from cryptography.hazmat.primitives.asymmetric import ec
 from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
 
 from drivebench.errors import InvalidValue
+from drivebench.i18n import _
 
 HSTS_HEADER = (b"strict-transport-security", b"max-age=31536000")
 """One year, without includeSubDomains: a plant server's name says nothing about its neighbours."""
@@ -43,9 +44,9 @@ def _subject_names(hosts: list[str]) -> list[x509.GeneralName]:
 def self_signed(hosts: list[str], days: int = 825) -> Certificate:
     """A certificate for ``hosts`` (names and addresses), valid for ``days`` (825: what browsers still accept)."""
     if not hosts:
-        raise InvalidValue("A certificate needs at least one host name or address (--host).")
+        raise InvalidValue(_("A certificate needs at least one host name or address (--host)."))
     if not 1 <= days <= 3650:
-        raise InvalidValue(f"--days {days}: a certificate is made for 1 to 3650 days.")
+        raise InvalidValue(_("--days {days}: a certificate is made for 1 to 3650 days.").format(days=days))
     key = ec.generate_private_key(ec.SECP256R1())
     name = x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, hosts[0]),
                       x509.NameAttribute(NameOID.ORGANIZATION_NAME, "DriveBench (self-signed)")])
@@ -83,17 +84,20 @@ def check_pair(cert_file: Path | None, key_file: Path | None) -> None:
     """Both given, both readable, and the key is the certificate's: else :class:`InvalidValue` in words."""
     if (cert_file is None) != (key_file is None):
         given, missing = ("--tls-cert", "--tls-key") if key_file is None else ("--tls-key", "--tls-cert")
-        raise InvalidValue(f"{given} needs {missing} too: HTTPS takes a certificate and its private key.")
+        raise InvalidValue(_("{given} needs {missing} too: HTTPS takes a certificate and its private key.").format(
+            given=given, missing=missing))
     if cert_file is None or key_file is None:
         return
     for option, path in (("--tls-cert", cert_file), ("--tls-key", key_file)):
         if not path.is_file():
-            raise InvalidValue(f"{option} {path}: no such file. `drivebench tls self-signed --host NAME` makes a "
-                               "certificate and key for a plant network.")
+            raise InvalidValue(_("{option} {path}: no such file. `drivebench tls self-signed --host NAME` makes a "
+                                 "certificate and key for a plant network.").format(option=option, path=path))
     try:
         ssl.create_default_context(ssl.Purpose.CLIENT_AUTH).load_cert_chain(cert_file, key_file)
     except ssl.SSLError as exc:
-        reason = "the key does not belong to the certificate" if "KEY_VALUES_MISMATCH" in str(exc) else str(exc)
-        raise InvalidValue(f"--tls-cert {cert_file} with --tls-key {key_file}: {reason}.") from exc
+        reason = _("the key does not belong to the certificate") if "KEY_VALUES_MISMATCH" in str(exc) else str(exc)
+        raise InvalidValue(_("--tls-cert {cert} with --tls-key {key}: {reason}.").format(
+            cert=cert_file, key=key_file, reason=reason)) from exc
     except (OSError, ValueError) as exc:
-        raise InvalidValue(f"--tls-cert {cert_file} / --tls-key {key_file} cannot be read as PEM: {exc}.") from exc
+        raise InvalidValue(_("--tls-cert {cert} / --tls-key {key} cannot be read as PEM: {reason}.").format(
+            cert=cert_file, key=key_file, reason=exc)) from exc

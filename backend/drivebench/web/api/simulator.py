@@ -8,7 +8,8 @@ from fastapi import APIRouter, Path
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from drivebench.errors import Conflict, NotFound
-from drivebench.simulator.faults import SdoFaults
+from drivebench.i18n import _
+from drivebench.simulator.faults import ABORT_CODE_RANGE, SdoFaults
 from drivebench.simulator.node import SimulatedNode
 from drivebench.web.deps import SessionDep, StateDep
 
@@ -48,9 +49,9 @@ class FaultsIn(BaseModel):
             try:
                 code = int(value, 0)
             except ValueError as exc:
-                raise ValueError("abort_code must be a number such as 0x08000000") from exc
+                raise ValueError(_("abort_code must be a number such as 0x08000000")) from exc
         if code is not None and not 0 < code <= 0xFFFFFFFF:
-            raise ValueError("abort_code must be a 32-bit CiA 301 abort code")
+            raise ValueError(_(ABORT_CODE_RANGE))
         return code
 
 
@@ -65,11 +66,12 @@ class FaultsOut(BaseModel):
 def _simulated_node(state: StateDep, session: SessionDep, node_id: int) -> SimulatedNode:
     plant = state.plants.get(session.id)
     if not session.simulated or plant is None:
-        raise Conflict(f"Session '{session.id}' is on a real bus: faults can be switched on simulated sessions "
-                       "only")
+        raise Conflict(_("Session '{session}' is on a real bus: faults can be switched on simulated sessions "
+                         "only").format(session=session.id))
     node = plant.nodes.get(node_id)
     if node is None:
-        raise NotFound(f"The simulated plant of session '{session.id}' has no node {node_id}")
+        raise NotFound(_("The simulated plant of session '{session}' has no node {node}").format(
+            session=session.id, node=node_id))
     return node
 
 

@@ -7,7 +7,7 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Form, Query, Request
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 
-from drivebench.i18n import N_
+from drivebench.i18n import N_, ngettext
 from drivebench.services.bus.sessions import Session
 from drivebench.services.bus.views import NodePublic, nodes_public, session_public
 from drivebench.services.monitoring import telegram_counters
@@ -85,7 +85,8 @@ async def start_recording(request: Request, session: SessionDep, format: Annotat
 @router.post("/ui/monitor/{session_id}/recordings/stop", response_class=HTMLResponse)
 async def stop_recording(request: Request, session: SessionDep) -> Response:
     recorder = recordings_for(session).stop()
-    done = f"Recorded {recorder.frames} telegrams to {recorder.path.name}"
+    done = ngettext("Recorded {count} telegram to {file}", "Recorded {count} telegrams to {file}",
+                    recorder.frames).format(count=recorder.frames, file=recorder.path.name)
     return templates.TemplateResponse(request, "monitor.html", _recordings(session, done=done),
                                       block_name="recordings")
 

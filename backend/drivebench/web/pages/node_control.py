@@ -14,6 +14,7 @@ from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse, Response
 
 from drivebench.errors import DriveBenchError
+from drivebench.i18n import _
 from drivebench.services.control import commissioning, drive_control, motion
 from drivebench.services.control.drive_words import Family, family_of
 from drivebench.web.access_policy import rule_for
@@ -33,8 +34,9 @@ def refused_because(request: Request) -> str | None:
     principal = principal_of(request)
     if principal.may(CONTROL_RULE.role):
         return None
-    return (f"{CONTROL_RULE.what} needs the {CONTROL_RULE.role.label} role; you are signed in as {principal.name} "
-            f"({principal.role.label}), so this panel only watches.")
+    return _("{what} needs the {role} role; you are signed in as {name} ({own_role}), so this panel only "
+             "watches.").format(what=_(CONTROL_RULE.what), role=CONTROL_RULE.role.label, name=principal.name,
+                                own_role=principal.role.label)
 
 
 def _diagram(fam: Family) -> dict[str, Any]:
@@ -73,12 +75,13 @@ async def control_tab(request: Request, session: SessionDep, node: NodeDep) -> R
                                "keepalive_s": drive_control.KEEPALIVE_TIMEOUT_S, "empty": None,
                                "refused": refused_because(request)}
     if node.catalog is None:  # an empty state, not an error: nothing went wrong, the node needs a profile first
-        context["empty"] = f"Node {node.node_id} has no device profile: assign one on the Plant page to control it."
+        context["empty"] = _("Node {node} has no device profile: assign one on the Plant page to control it.").format(
+            node=node.node_id)
         return templates.TemplateResponse(request, "node/control_body.html", context)
     if family_of(node.catalog) is None:
-        context["empty"] = (f"{node.device_name} has no drive control word DriveBench knows (its profile has no "
-                            "control section, its object dictionary no CiA 402 0x6040/0x6041): there is nothing "
-                            "to control.")
+        context["empty"] = _("{device} has no drive control word DriveBench knows (its profile has no control "
+                             "section, its object dictionary no CiA 402 0x6040/0x6041): there is nothing to "
+                             "control.").format(device=node.device_name)
         return templates.TemplateResponse(request, "node/control_body.html", context)
     try:
         fam = drive_control.family(node)

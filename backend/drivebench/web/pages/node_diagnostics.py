@@ -8,6 +8,7 @@ from fastapi import APIRouter, Form, Request
 from fastapi.responses import HTMLResponse, Response
 
 from drivebench.errors import DriveBenchError
+from drivebench.i18n import _
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.bus.views import node_public
 from drivebench.services.monitoring import diagnostics
@@ -60,7 +61,7 @@ async def set_producer(request: Request, session: SessionDep, node: NodeDep,
                        time_ms: Annotated[int, Form(ge=0, le=65535)]) -> Response:
     setup = await diagnostics.write_heartbeat_producer(session, node.node_id, time_ms)
     context = _context(session, node, setup=setup, setup_error=None,
-                       setup_ok=f"Heartbeat producer time {time_ms} ms written and read back.")
+                       setup_ok=_("Heartbeat producer time {ms} ms written and read back.").format(ms=time_ms))
     return templates.TemplateResponse(request, PAGE, context, block_name="heartbeat")
 
 
@@ -70,7 +71,8 @@ async def set_consumer(request: Request, session: SessionDep, node: NodeDep, slo
                        time_ms: Annotated[int, Form(ge=0, le=65535)]) -> Response:
     setup = await diagnostics.write_heartbeat_consumer(session, node.node_id, slot, producer_id, time_ms)
     context = _context(session, node, setup=setup, setup_error=None,
-                       setup_ok=f"Consumer entry {slot}: node {producer_id}, {time_ms} ms written and read back.")
+                       setup_ok=_("Consumer entry {slot}: node {node}, {ms} ms written and read back.").format(
+                           slot=slot, node=producer_id, ms=time_ms))
     return templates.TemplateResponse(request, PAGE, context, block_name="heartbeat")
 
 

@@ -4,9 +4,11 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+from drivebench.i18n import N_, _
+
 # CiA device profile numbers (0x1000 bits 0-15) a drive engineer meets on this bench.
-DEVICE_PROFILES = {0: "no standard device profile", 401: "CiA 401 generic I/O",
-                   402: "CiA 402 drives and motion control", 406: "CiA 406 encoders"}
+DEVICE_PROFILES = {0: N_("no standard device profile"), 401: N_("CiA 401 generic I/O"),
+                   402: N_("CiA 402 drives and motion control"), 406: N_("CiA 406 encoders")}
 
 
 class IdentityShown(NamedTuple):
@@ -22,9 +24,10 @@ def identity_text(ref: str, raw: int | None, vendor: tuple[int | None, str] = (N
         return "–"
     if ref == "0x1000":  # CiA 301 7.5.2.1: bits 0-15 device profile number, 16-31 additional information
         profile = raw & 0xFFFF
-        name = DEVICE_PROFILES.get(profile, f"device profile {profile}")
+        name = _(DEVICE_PROFILES[profile]) if profile in DEVICE_PROFILES else _("device profile {number}").format(
+            number=profile)
         extra = raw >> 16
-        return f"{name}{f', additional information {extra}' if extra else ''}"
+        return _("{profile}, additional information {extra}").format(profile=name, extra=extra) if extra else name
     if ref == "0x1018.1":  # vendor ids are printed in hex by CiA and the manuals; the name says more
         vendor_id, vendor_name = vendor
         return f"0x{raw:08X}{f' · {vendor_name}' if vendor_id == raw and vendor_name else ''}"
