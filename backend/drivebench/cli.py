@@ -47,7 +47,8 @@ def serve(args: argparse.Namespace) -> int:
     _check_buses(args.bus or [])
     _apply_addressing(args)
     plant = Path(args.plant) if args.plant else None
-    app = create_app(demo=args.demo, plant_file=plant, buses=args.bus or [], latency=args.latency, hsts=args.hsts)
+    app = create_app(demo=args.demo, plant_file=plant, buses=args.bus or [], latency=args.latency, hsts=args.hsts,
+                     settle_heap=True)
     scheme = "https" if args.tls_cert else "http"
     print(f"DriveBench on {scheme}://{args.host}:{args.port}"
           + (" with the simulated demo plant" if args.demo else ""), flush=True)

@@ -10,10 +10,11 @@ from typing import Any
 import httpx
 import pytest
 
+from drivebench import __version__
 from drivebench.errors import NotFound
 from drivebench.services.bus.sessions import Session
 from drivebench.web.app import create_app
-from drivebench.web.deps import get_session
+from drivebench.web.deps import get_session, get_state
 from tests.conftest import serve_app
 from tests.transport.test_multiprocess import hub_and_simulator  # noqa: F401  (the fixture)
 from tests.web.test_access import own_db, users  # noqa: F401  (the fixtures)
@@ -102,3 +103,20 @@ def test_the_lean_read_is_behind_the_same_gate(users: dict[str, str], hub_and_si
         assert anonymous.json() == anonymous_full.json()
         viewer = http.get(path, headers={"Authorization": f"Bearer {users['vera']}"})
         assert viewer.status_code == 200 and viewer.json()["ref"] == "0x1017"
+
+
+def test_health_answers_without_solving_dependencies(served: tuple[httpx.Client, Any, str]) -> None:
+    http, app, _ = served
+
+    async def refusing_state() -> None:
+        raise NotFound("the full path ran")
+
+    app.dependency_overrides[get_state] = refusing_state
+    try:
+        answer = http.get("/api/health")
+    finally:
+        app.dependency_overrides.clear()
+    assert answer.status_code == 200 and answer.headers["content-type"] == "application/json"
+    body = answer.json()
+    assert body["status"] == "ok" and body["sessions"] == 1 and body["version"] == __version__
+    assert set(body) == set(http.get("/openapi.json").json()["components"]["schemas"]["Health"]["properties"])
