@@ -4,7 +4,8 @@ exactly as the full path does: the same body, the same problems, the same 422s, 
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+import contextlib
+from collections.abc import Callable, Iterator
 from typing import Any
 
 import httpx
@@ -12,7 +13,6 @@ import pytest
 
 from drivebench import __version__
 from drivebench.errors import NotFound
-from drivebench.services.bus.sessions import Session
 from drivebench.web.app import create_app
 from drivebench.web.deps import get_session, get_state
 from tests.conftest import serve_app
@@ -31,6 +31,20 @@ def served(hub_and_simulator: str) -> Iterator[tuple[httpx.Client, Any, str]]:  
         session = http.get("/api/sessions").json()[0]["id"]
         http.post(f"/api/sessions/{session}/nodes", json={"node_id": NODE, "profile_id": PROFILE}).raise_for_status()
         yield http, app, f"/api/sessions/{session}/nodes/{NODE}"
+
+
+@contextlib.contextmanager
+def full_path_refused(app: Any, dependency: Callable[..., Any]) -> Iterator[None]:
+    """While inside, the route's dependency ``dependency`` refuses: only the full path solves it."""
+
+    async def refusing() -> None:
+        raise NotFound("the full path ran")
+
+    app.dependency_overrides[dependency] = refusing
+    try:
+        yield
+    finally:
+        app.dependency_overrides.clear()
 
 
 def _without_time(body: dict[str, Any]) -> dict[str, Any]:
@@ -76,17 +90,10 @@ def test_a_node_id_the_lean_read_does_not_take_gets_the_full_paths_422(served: t
 def test_the_lean_read_is_the_one_taken(served: tuple[httpx.Client, Any, str]) -> None:
     """A plain read does not solve the route's dependencies; a read with a query does (the full path)."""
     http, app, base = served
-
-    async def refusing_session() -> Session:
-        raise NotFound("the full path ran")
-
-    app.dependency_overrides[get_session] = refusing_session
-    try:
+    with full_path_refused(app, get_session):
         assert http.get(f"{base}/parameters/0x1017.0").status_code == 200
         full = http.get(f"{base}/parameters/0x1017.0", params={"transfer": "auto"})
         assert full.status_code == 404 and "the full path ran" in full.text
-    finally:
-        app.dependency_overrides.clear()
 
 
 def test_the_lean_read_is_behind_the_same_gate(users: dict[str, str], hub_and_simulator: str) -> None:  # noqa: F811
@@ -107,15 +114,8 @@ def test_the_lean_read_is_behind_the_same_gate(users: dict[str, str], hub_and_si
 
 def test_health_answers_without_solving_dependencies(served: tuple[httpx.Client, Any, str]) -> None:
     http, app, _ = served
-
-    async def refusing_state() -> None:
-        raise NotFound("the full path ran")
-
-    app.dependency_overrides[get_state] = refusing_state
-    try:
+    with full_path_refused(app, get_state):
         answer = http.get("/api/health")
-    finally:
-        app.dependency_overrides.clear()
     assert answer.status_code == 200 and answer.headers["content-type"] == "application/json"
     body = answer.json()
     assert body["status"] == "ok" and body["sessions"] == 1 and body["version"] == __version__
