@@ -51,7 +51,8 @@ def serve(args: argparse.Namespace) -> int:
     _check_buses(args.bus or [])
     _apply_addressing(args)
     plant = Path(args.plant) if args.plant else None
-    app = create_app(demo=args.demo, plant_file=plant, buses=args.bus or [], latency=args.latency, hsts=args.hsts)
+    app = create_app(demo=args.demo, plant_file=plant, buses=args.bus or [], latency=args.latency, hsts=args.hsts,
+                     settle_heap=True)
     scheme = "https" if args.tls_cert else "http"
     address = f"{scheme}://{args.host}:{args.port}"
     print((_("DriveBench on {address} with the simulated demo plant") if args.demo else _("DriveBench on {address}"))

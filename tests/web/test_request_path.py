@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import gc
 import inspect
 from collections.abc import Iterator
 
 from fastapi.dependencies.models import Dependant
 from fastapi.routing import APIRoute, iter_route_contexts
+from fastapi.testclient import TestClient
 
 from drivebench.web.app import create_app
 
@@ -28,3 +30,15 @@ def test_no_route_dependency_runs_in_the_thread_pool() -> None:
     assert len(routes) > 100
     found = {f"{name} (in {route.path})" for route in routes for name in _sync_dependencies(route.dependant)}
     assert not found, sorted(found)
+
+
+def test_a_server_of_its_own_freezes_what_start_up_made() -> None:
+    """``drivebench serve`` (``settle_heap``): full collections then skip the objects start-up made."""
+    assert gc.get_freeze_count() == 0
+    try:
+        with TestClient(create_app()):
+            assert gc.get_freeze_count() == 0, "only a server process of its own freezes its heap"
+        with TestClient(create_app(settle_heap=True)):
+            assert gc.get_freeze_count() > 10_000
+    finally:
+        gc.unfreeze()

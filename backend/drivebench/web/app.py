@@ -22,7 +22,7 @@ from drivebench.services.storage.database import upgrade_to_head
 from drivebench.services.users import audit
 from drivebench.services.users.sharing import ShareLinks
 from drivebench.simulator.plant import Plant, PlantFile
-from drivebench.web import access, access_policy, language, problems
+from drivebench.web import access, access_policy, heap, language, problems
 from drivebench.web.api import accounts as accounts_api
 from drivebench.web.api import diagnostics, health, parameter_sets, parameters, pdo, profiles, sessions, tools
 from drivebench.web.api import drive_control as drive_control_api
@@ -83,7 +83,9 @@ async def start_plant(state: AppState, plant_path: Path, *, bus: str | None = No
 
 
 def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: list[str] | None = None,
-               latency: str | None = None, plant_bus: str | None = None, hsts: bool | None = None) -> FastAPI:
+               latency: str | None = None, plant_bus: str | None = None, hsts: bool | None = None,
+               settle_heap: bool = False) -> FastAPI:
+    """``settle_heap``: a server process of its own (``drivebench serve``) freezes what start-up made (``heap``)."""
     share_links = ShareLinks()
 
     @contextlib.asynccontextmanager
@@ -102,6 +104,8 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
                               latency=latency)
         for bus in buses or []:
             await manager.open(bus)
+        if settle_heap:
+            heap.settle()
         try:
             yield
         finally:

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Depends, Query, Request, status
+from fastapi import APIRouter, Depends, Query, Request, Response, status
 from fastapi.responses import JSONResponse
-from pydantic import BaseModel, Field, model_validator
+from pydantic import BaseModel, Field, TypeAdapter, model_validator
 
 from drivebench.device.catalog import Item
 from drivebench.device.scaling import ScaledValue
@@ -22,8 +22,10 @@ from drivebench.services.params.jobs import Job, JobManager, Progress
 from drivebench.services.params.parameter_batch import MAX_BATCH_WRITE, Wanted
 from drivebench.services.params.parameters import DeviceCommand, ParameterValue, SdoSettings, WriteResult
 from drivebench.web.deps import NodeDep, SessionDep
+from drivebench.web.lean_route import lean_route, path_int
 from drivebench.web.problems import problem_body
 from drivebench.web.safety import ACTING
+from drivebench.web.state import AppState
 
 # Every route but the two reads clients poll carries ACTING (writes take the node lease, jobs carry the writer); a GET
 # sends no write, so it is spared that dependency (benchmarks/RESULTS.md, Request path).
@@ -291,11 +293,32 @@ async def list_parameters(session: SessionDep, node: NodeDep,
                          pending_reset=sorted(node.pending_reset))
 
 
-@router.get(NODE + "/parameters/{ref:path}", response_model=ParameterValueOut)
 async def read_parameter(session: SessionDep, node: NodeDep, ref: str,
                          transfer: Annotated[str, Query(pattern="^(auto|block)$")] = "auto") -> ParameterValueOut:
     """Read from the device now (``transfer=block`` for a CiA 301 block upload)."""
     return value_out(await service.read(session, node.node_id, ref, transfer=transfer))
+
+
+_VALUE_JSON = TypeAdapter(ParameterValueOut)
+
+
+async def _lean_read(request: Request) -> Response | None:
+    """``read_parameter`` without FastAPI's dependency solving, for the read clients poll: a plain node id and no
+    query (anything else, ``transfer=block`` too, takes the full path). The same look-ups in the same order
+    (session, node), the same service call, the same body."""
+    params = request.scope["path_params"]
+    node_id = path_int(params["node_id"], 1, 127)
+    if node_id is None or request.scope["query_string"]:
+        return None
+    state: AppState = request.app.state.drivebench
+    session = state.manager.get(params["session_id"])
+    node = session.node(node_id)
+    value = value_out(await service.read(session, node.node_id, params["ref"]))
+    return Response(_VALUE_JSON.dump_json(value, by_alias=True), media_type="application/json")
+
+
+router.add_api_route(NODE + "/parameters/{ref:path}", read_parameter, methods=["GET"],
+                     response_model=ParameterValueOut, route_class_override=lean_route(_lean_read))
 
 
 @router.post(NODE + "/parameters:read", dependencies=[ACTING], response_model=BatchReadOut)
