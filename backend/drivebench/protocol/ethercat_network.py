@@ -22,7 +22,7 @@ from typing import Protocol, TypeVar
 import can
 
 from drivebench.errors import ProtocolError, SdoAbortError, SdoTimeoutError
-from drivebench.i18n import N_, Later
+from drivebench.i18n import N_, Later, _
 from drivebench.protocol import esm
 from drivebench.protocol.abort_codes import abort_reason
 from drivebench.protocol.coe_sdo import SERVICE_NOT_SUPPORTED, CoeSdoClient, MailboxRefused
@@ -63,7 +63,7 @@ class SlaveInfo:
     @property
     def state_text(self) -> str:
         if self.al_status is None:
-            return "Unknown"
+            return N_("Unknown")  # a state word: a page shows _(state)
         return esm.al_status_text(self.al_status, self.al_status_code)
 
 
@@ -209,10 +209,12 @@ class EthercatNetwork:
     """A slave has one mailbox."""
 
     def sdo_label(self, node_id: int) -> str:
-        """How the slave's SDOs travel, for the Parameters tab: its mailbox, station address and gateway."""
+        """How the slave's SDOs travel, for the Parameters tab (in the reader's language): its mailbox, station address
+        and gateway."""
         station = self.stations.get(node_id)
-        where = f"station {station}" if station is not None else "not in the master's list"
-        return f"CoE mailbox ({where}, gateway {self.spec})"
+        if station is None:
+            return _("CoE mailbox (not in the master's list, gateway {bus})").format(bus=self.spec)
+        return _("CoE mailbox (station {station}, gateway {bus})").format(station=station, bus=self.spec)
 
     def counters(self, node_id: int) -> MailboxCounters:
         return self.segment.counters(self.station(node_id))

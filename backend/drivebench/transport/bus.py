@@ -145,7 +145,7 @@ class SimulatedAdapter:
         self.unplugged: str | None = None
         self.state = can.BusState.ACTIVE
 
-    def unplug(self, reason: str = "USB adapter unplugged") -> None:
+    def unplug(self, reason: str = N_("USB adapter unplugged")) -> None:
         self.unplugged = reason
 
     def plug_in(self) -> None:
@@ -270,7 +270,7 @@ class ObservedBus(can.BusABC):
             self._lose(inner, exc)
             return None, False
         if msg is None and _peer_closed(inner):
-            self._lose(inner, "the socketcand gateway closed the connection")
+            self._lose(inner, N_("the socketcand gateway closed the connection"))  # a page shows _(lost_reason)
         return msg, False
 
     # --- adapter lost and back ----------------------------------------------------------------------------

@@ -206,7 +206,8 @@ class SoemLink:
         try:
             size = int(self.master.config_map())
         except self.pysoem.ConfigMapError as exc:
-            reasons = "; ".join(self._error_text(error) for error in exc.error_list)
+            texts = {f"error{number}": self._error_text(error) for number, error in enumerate(exc.error_list)}
+            reasons = Later("; ".join(f"{{{name}}}" for name in texts), **texts)  # each in the reader's words
             raise ProtocolError(Later(N_("The process data of the slaves on {nic} could not be mapped: {reasons}"),
                                       nic=self.spec.nic, reasons=reasons)) from exc
         self.mapped = True
@@ -238,15 +239,18 @@ class SoemLink:
             raise ProtocolError(Later(N_("Slave at position {position}, {object}: {reason}"), position=position,
                                       object=f"0x{index:04X}sub{subindex}", reason=self._error_text(exc))) from exc
 
-    def _error_text(self, error: Exception) -> str:
+    def _error_text(self, error: Exception) -> str | Later:
+        """One of pysoem's errors in words (its ``desc`` is SOEM's own English)."""
         if isinstance(error, self.pysoem.SdoError):
-            return f"SDO abort 0x{error.abort_code:08X} for 0x{error.index:04X}sub{error.subindex} ({error.desc})"
+            return Later(N_("SDO abort {code} for {object} ({reason})"), code=f"0x{error.abort_code:08X}",
+                         object=f"0x{error.index:04X}sub{error.subindex}", reason=error.desc)
         if isinstance(error, self.pysoem.MailboxError):
-            return f"the slave refused the mailbox request: {error.desc} (mailbox error {error.error_code})"
+            return Later(N_("the slave refused the mailbox request: {reason} (mailbox error {code})"),
+                         reason=error.desc, code=error.error_code)
         if isinstance(error, self.pysoem.PacketError):
             with contextlib.suppress(KeyError):
-                return f"mailbox packet error: {error.desc}"
-            return f"mailbox packet error {error.error_code}"
+                return Later(N_("mailbox packet error: {reason}"), reason=error.desc)
+            return Later(N_("mailbox packet error {code}"), code=error.error_code)
         return str(error)
 
     def _emergency(self, emergency: Any) -> None:
