@@ -125,23 +125,6 @@ def shown(text: str) -> str:
     return text.shown() if isinstance(text, Text) else text
 
 
-class Later:
-    """(replaced by :class:`Text` at the end of this rebase)"""
-
-    def __init__(self, template: str, **values: object) -> None:
-        self.template, self.values = template, values
-
-    def __str__(self) -> str:
-        return (gettext(self.template) if self.template else "").format(**self.values)
-
-    def __format__(self, spec: str) -> str:
-        return format(str(self), spec)
-
-    def english(self) -> str:
-        with using(DEFAULT):
-            return str(self)
-
-
 def accepted_languages(header: str | None) -> list[str]:
     """The languages of an ``Accept-Language`` header, most wanted first (q=0 means "not this one")."""
     weighted: list[tuple[float, int, str]] = []

@@ -1,15 +1,15 @@
 """SDO abort codes: the CiA 301 table, and the device manual's wording where a profile has one.
 
-``abort_reason(code, texts)`` answers the text a user sees next to an aborted read or write; ``texts`` is the
+``abort_text(code, texts)`` answers the text a user sees next to an aborted read or write; ``texts`` is the
 profile's ``abort_texts`` section (the manual's own wording, or the device's meaning of a code), kept as the manual
-prints it. CiA 301's texts are put into the reader's language where they are shown (a :class:`Later`).
+prints it. CiA 301's texts are English :class:`~drivebench.i18n.Text` put into the reader's language where shown.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 
-from drivebench.i18n import N_, Later
+from drivebench.i18n import N_, Text
 
 # CiA 301 V4.2, section 7.2.4.3.17 "Protocol SDO abort transfer", table 22.
 CIA301: dict[int, str] = {
@@ -49,17 +49,11 @@ CIA301: dict[int, str] = {
 UNKNOWN = N_("Unknown abort code {code}")
 
 
-def abort_reason(code: int, texts: Mapping[int, str] | None = None) -> str | Later:
+def abort_text(code: int, texts: Mapping[int, str] | None = None) -> str:
     """The text for abort ``code``: the device manual's wording where its profile has one (``texts``, the
-    profile's ``abort_texts``), else CiA 301's, translated where it is shown."""
+    profile's ``abort_texts``), else CiA 301's (translated where shown)."""
     if texts:
         text = texts.get(code)
         if text:
             return text
-    return Later(CIA301[code]) if code in CIA301 else Later(UNKNOWN, code=f"0x{code:08X}")
-
-
-def abort_text(code: int, texts: Mapping[int, str] | None = None) -> str:
-    """:func:`abort_reason` in English (the trace, the simulated devices)."""
-    reason = abort_reason(code, texts)
-    return reason.english() if isinstance(reason, Later) else reason
+    return Text(CIA301[code]) if code in CIA301 else Text(UNKNOWN, code=f"0x{code:08X}")

@@ -13,9 +13,9 @@ import itertools
 from collections.abc import Callable
 
 from drivebench.errors import ProtocolError, SdoAbortError, SdoOutOfStepError, SdoStalledError, SdoTimeoutError
-from drivebench.i18n import N_, Later
+from drivebench.i18n import N_, Text
 from drivebench.protocol import coe, coe_info
-from drivebench.protocol.abort_codes import abort_reason
+from drivebench.protocol.abort_codes import abort_text
 
 Exchange = Callable[[bytes, float], bytes | None]
 Receive = Callable[[float], bytes | None]
@@ -36,7 +36,7 @@ SERVICE_NOT_SUPPORTED = 0x04
 class MailboxRefused(ProtocolError):
     """The slave answered with a mailbox error (type 0); ``code`` is its detail (:data:`MAILBOX_ERRORS`)."""
 
-    def __init__(self, detail: str | Later, code: int) -> None:
+    def __init__(self, detail: str, code: int) -> None:
         super().__init__(detail)
         self.code = code
 
@@ -55,19 +55,19 @@ class CoeSdoClient:
         self._counters = itertools.cycle(range(1, 8))
 
     # --- one request, one answer ----------------------------------------------------------------------------
-    def _send(self, service: coe.CoeService, body: bytes, what: Later, index: int, subindex: int) -> bytes:
+    def _send(self, service: coe.CoeService, body: bytes, what: str, index: int, subindex: int) -> bytes:
         telegram = coe.coe_mailbox(self.station, service, body, next(self._counters))
         for _ in range(self.retries + 1):
             answer = self.exchange(telegram, self.timeout_s)
             if answer is not None:
                 return answer
-        raise SdoTimeoutError(Later(N_("Slave {station} did not answer the {what} for {object} within {seconds} s "
+        raise SdoTimeoutError(Text(N_("Slave {station} did not answer the {what} for {object} within {seconds} s "
                                        "({tries} tries)"), station=self.station, what=what, tries=self.retries + 1,
                                     seconds=f"{self.timeout_s:g}", object=f"0x{index:04X}sub{subindex}"),
                               node=self.station, index=index, subindex=subindex)
 
     def _ask(self, body: bytes, index: int, subindex: int) -> bytes:
-        answer = self._send(coe.CoeService.SDO_REQUEST, body, Later(N_("SDO request")), index, subindex)
+        answer = self._send(coe.CoeService.SDO_REQUEST, body, Text(N_("SDO request")), index, subindex)
         return self._sdo_body(answer, index, subindex)
 
     def _coe_message(self, answer: bytes, index: int, subindex: int) -> coe.CoeMessage:
@@ -75,34 +75,34 @@ class CoeSdoClient:
             mailbox = coe.Mailbox.decode(answer)
             if mailbox.type == coe.MailboxType.ERROR:
                 detail = int.from_bytes(mailbox.data[2:4], "little") if len(mailbox.data) >= 4 else 0
-                reason = Later(MAILBOX_ERRORS.get(detail, N_("mailbox error {code}")), code=f"0x{detail:04X}")
-                raise MailboxRefused(Later(N_("Slave {station} refused the mailbox request for {object}: {reason}"),
+                reason = Text(MAILBOX_ERRORS.get(detail, N_("mailbox error {code}")), code=f"0x{detail:04X}")
+                raise MailboxRefused(Text(N_("Slave {station} refused the mailbox request for {object}: {reason}"),
                                            station=self.station, object=f"0x{index:04X}sub{subindex}", reason=reason),
                                      detail)
             if mailbox.type != coe.MailboxType.COE:
-                raise SdoOutOfStepError(Later(N_("a mailbox of type {type} answered a CoE request"),
+                raise SdoOutOfStepError(Text(N_("a mailbox of type {type} answered a CoE request"),
                                               type=mailbox.type), node=self.station, index=index, subindex=subindex)
             return coe.CoeMessage.decode(mailbox.data)
         except coe.MailboxFormatError as exc:
-            raise ProtocolError(Later(N_("Slave {station}: malformed answer for {object}: {reason}"),
+            raise ProtocolError(Text(N_("Slave {station}: malformed answer for {object}: {reason}"),
                                       station=self.station, object=f"0x{index:04X}sub{subindex}", reason=exc)) \
                 from exc
 
     def _sdo_body(self, answer: bytes, index: int, subindex: int) -> bytes:
         message = self._coe_message(answer, index, subindex)
         if message.service not in (coe.CoeService.SDO_RESPONSE, coe.CoeService.SDO_REQUEST):
-            raise SdoOutOfStepError(Later(N_("CoE service {service} answered an SDO request"), service=message.service),
+            raise SdoOutOfStepError(Text(N_("CoE service {service} answered an SDO request"), service=message.service),
                                     node=self.station, index=index, subindex=subindex)
         if len(message.body) >= coe.SDO_FRAME.size and message.body[0] == coe.ABORT:
             frame = coe.parse_sdo(message.body)
-            raise SdoAbortError(frame.dword, abort_reason(frame.dword), node=self.station, index=index,
+            raise SdoAbortError(frame.dword, abort_text(frame.dword), node=self.station, index=index,
                                 subindex=subindex)
         return message.body
 
     def _initiate(self, body: bytes, index: int, subindex: int, specifier: int) -> coe.SdoTelegram:
         frame = coe.parse_sdo(self._ask(body, index, subindex))
         if frame.specifier != specifier:
-            raise SdoOutOfStepError(Later(N_("command {command}"), command=f"0x{frame.command:02X}"),
+            raise SdoOutOfStepError(Text(N_("command {command}"), command=f"0x{frame.command:02X}"),
                                     node=self.station, index=index, subindex=subindex)
         if (frame.index, frame.subindex) != (index, subindex):
             raise SdoOutOfStepError(SdoOutOfStepError.OTHER_OBJECT, node=self.station, index=index, subindex=subindex,
@@ -134,7 +134,7 @@ class CoeSdoClient:
                 raise SdoStalledError(node=self.station, index=index, subindex=subindex, done=done,
                                       total=total) from exc
             if segment.specifier != 0:
-                raise SdoOutOfStepError(Later(N_("command specifier {specifier} in an upload segment"),
+                raise SdoOutOfStepError(Text(N_("command specifier {specifier} in an upload segment"),
                                               specifier=segment.specifier),
                                         node=self.station, index=index, subindex=subindex)
             if segment.toggle != toggle:
@@ -163,7 +163,7 @@ class CoeSdoClient:
                 raise SdoStalledError(node=self.station, index=index, subindex=subindex, done=done,
                                       total=total) from exc
             if answer.specifier != 1:
-                raise SdoOutOfStepError(Later(N_("command specifier {specifier} answering a download segment"),
+                raise SdoOutOfStepError(Text(N_("command specifier {specifier} answering a download segment"),
                                               specifier=answer.specifier),
                                         node=self.station, index=index, subindex=subindex)
             if answer.toggle != toggle:
@@ -179,29 +179,29 @@ class CoeSdoClient:
         index, subindex = coe_info.request_key(request)
         expected = coe_info.parse_info(request).opcode + 1
         answer: bytes | None = self._send(coe.CoeService.SDO_INFORMATION, request,
-                                          Later(N_("SDO information request")), index, subindex)
+                                          Text(N_("SDO information request")), index, subindex)
         data, fragment, left = bytearray(), 0, None
         while True:
             assert answer is not None
             message = self._coe_message(answer, index, subindex)
             if message.service != coe.CoeService.SDO_INFORMATION:
-                raise SdoOutOfStepError(Later(N_("CoE service {service} answered an SDO information request"),
+                raise SdoOutOfStepError(Text(N_("CoE service {service} answered an SDO information request"),
                                               service=message.service),
                                         node=self.station, index=index, subindex=subindex)
             try:
                 info = coe_info.parse_info(message.body)
             except coe.MailboxFormatError as exc:
-                raise ProtocolError(Later(N_("Slave {station}: malformed SDO information answer: {reason}"),
+                raise ProtocolError(Text(N_("Slave {station}: malformed SDO information answer: {reason}"),
                                           station=self.station, reason=exc)) from exc
             if info.opcode == coe_info.InfoOpcode.ERROR_REQUEST:
                 code = int.from_bytes(info.data[:4], "little")
-                raise SdoAbortError(code, abort_reason(code), node=self.station, index=index, subindex=subindex)
+                raise SdoAbortError(code, abort_text(code), node=self.station, index=index, subindex=subindex)
             if info.opcode != expected:
-                raise SdoOutOfStepError(Later(N_("SDO information opcode {opcode} answered opcode {asked}"),
+                raise SdoOutOfStepError(Text(N_("SDO information opcode {opcode} answered opcode {asked}"),
                                               opcode=info.opcode, asked=expected - 1),
                                         node=self.station, index=index, subindex=subindex)
             if left is not None and info.fragments_left != left - 1:
-                raise SdoOutOfStepError(Later(N_("a fragment of the SDO information response was lost ({expected} "
+                raise SdoOutOfStepError(Text(N_("a fragment of the SDO information response was lost ({expected} "
                                                  "fragments left expected, the slave says {left})"),
                                               expected=left - 1, left=info.fragments_left),
                                         node=self.station, index=index, subindex=subindex)
@@ -212,13 +212,13 @@ class CoeSdoClient:
             answer = self.receive(self.timeout_s) if self.receive is not None else None
             if answer is None:
                 raise SdoStalledError(node=self.station, index=index, subindex=subindex, done=fragment,
-                                      total=fragment + left, what=Later(N_("the SDO information response")),
+                                      total=fragment + left, what=Text(N_("the SDO information response")),
                                       kind="fragmented")
 
     def od_list(self, list_type: int = coe_info.ListType.ALL) -> list[int]:
         answered, indices = coe_info.parse_od_list(self.information(coe_info.od_list_request(list_type)))
         if answered != list_type:
-            raise SdoOutOfStepError(Later(N_("OD list type {answered} answered a request for type {asked}"),
+            raise SdoOutOfStepError(Text(N_("OD list type {answered} answered a request for type {asked}"),
                                           answered=answered, asked=list_type),
                                     node=self.station, index=0, subindex=0)
         return indices

@@ -20,7 +20,7 @@ from __future__ import annotations
 import threading
 
 from drivebench.errors import ProtocolError, SdoAbortError, SdoTimeoutError
-from drivebench.i18n import N_, Later
+from drivebench.i18n import N_, Text
 from drivebench.protocol import esm
 from drivebench.protocol.ethercat import EmergencyListener, MailboxCounters
 from drivebench.protocol.ethercat_network import NOT_CHANGED, EthercatNetwork, SlaveInfo
@@ -102,7 +102,7 @@ class SoemMailboxes:
     def position(self, station: int) -> int:
         position = self.positions.get(station)
         if position is None:
-            raise ProtocolError(Later(N_("No slave has station address {station} on {nic}: scan the segment"),
+            raise ProtocolError(Text(N_("No slave has station address {station} on {nic}: scan the segment"),
                                       station=station, nic=self.link.spec.nic))
         return position
 
@@ -153,12 +153,12 @@ class DirectNetwork(EthercatNetwork):
                 except ProtocolError:
                     continue  # gone from the segment: nothing of it runs
                 if status & 0x0F > esm.EsmState.PRE_OPERATIONAL:
-                    raise ProtocolError(Later(N_("Slave {node} is {state}: take the slaves to Pre-Operational "
+                    raise ProtocolError(Text(N_("Slave {node} is {state}: take the slaves to Pre-Operational "
                                                  "before scanning again (a scan takes every slave to Init)."),
                                               node=node_id, state=esm.al_status_text(status)))
             found = self.link.scan()
         if not found:
-            raise ProtocolError(Later(N_("No EtherCAT slave answered on {nic}: check the cable from this card to "
+            raise ProtocolError(Text(N_("No EtherCAT slave answered on {nic}: check the cable from this card to "
                                          "the first slave's IN port, the slaves' power, and that no other master "
                                          "uses the card."), nic=self.nic))
         self.found = {slave.position: slave for slave in found}
@@ -203,7 +203,7 @@ class DirectNetwork(EthercatNetwork):
         status, code = self._read_al(node_id)
         self._update_cycle()
         if status & esm.ERROR_FLAG or status & 0x0F != state:
-            raise ProtocolError(Later(NOT_CHANGED, node=node_id, station=self.station(node_id), state=state.label,
+            raise ProtocolError(Text(NOT_CHANGED, node=node_id, station=self.station(node_id), state=state.label,
                                       reason=esm.al_status_text(status, code)))
         return status, code
 
@@ -220,7 +220,7 @@ class DirectNetwork(EthercatNetwork):
     def request_state(self, node_id: int, state: esm.EsmState) -> SlaveInfo:
         """Take one slave to ``state``, upwards one state at a time as a master does (a slave refuses a jump)."""
         if state is esm.EsmState.BOOTSTRAP:
-            raise ProtocolError(Later(N_("The tool does not take slaves to Bootstrap (firmware download is not "
+            raise ProtocolError(Text(N_("The tool does not take slaves to Bootstrap (firmware download is not "
                                          "offered)")))
         with self.link.lock:
             current = self._read_al(node_id)[0] & 0x0F
@@ -232,8 +232,8 @@ class DirectNetwork(EthercatNetwork):
         return self.slave(node_id)
 
     # --- silence ----------------------------------------------------------------------------------------------
-    def silence_text(self, station: int, index: int, sub: int) -> Later:
-        return Later(N_("Slave at station {station} on {nic} did not answer the mailbox request for {object} within "
+    def silence_text(self, station: int, index: int, sub: int) -> Text:
+        return Text(N_("Slave at station {station} on {nic} did not answer the mailbox request for {object} within "
                         "{seconds} s: not in Pre-Operational or higher, not on the segment any more, or slow"),
                      station=station, nic=self.nic, object=f"0x{index:04X}sub{sub}", seconds=f"{self.sdo_timeout_s:g}")
 

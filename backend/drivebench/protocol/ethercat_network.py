@@ -22,9 +22,9 @@ from typing import Protocol, TypeVar
 import can
 
 from drivebench.errors import ProtocolError, SdoAbortError, SdoTimeoutError
-from drivebench.i18n import N_, Later, _
+from drivebench.i18n import N_, Text, _, shown
 from drivebench.protocol import esm
-from drivebench.protocol.abort_codes import abort_reason
+from drivebench.protocol.abort_codes import abort_text
 from drivebench.protocol.coe_sdo import SERVICE_NOT_SUPPORTED, CoeSdoClient, MailboxRefused
 from drivebench.protocol.emcy import EMCY_BASE, EmcyMonitor
 from drivebench.protocol.ethercat import EmergencyListener, EthercatSegment, MailboxCounters
@@ -109,10 +109,10 @@ class CoeNodeClient(EventLoopTransfers):
         client.timeout_s, client.retries = timeout_s, retries
 
     def add_channel(self, rx_cobid: int, tx_cobid: int) -> MailboxChannel:
-        raise ProtocolError(Later(N_("Slave {node} (station {station}) has one mailbox; EtherCAT has no CAN "
+        raise ProtocolError(Text(N_("Slave {node} (station {station}) has one mailbox; EtherCAT has no CAN "
                                      "identifiers for a second SDO channel"), node=self.node_id, station=self.station))
 
-    def _in_mailbox(self, work: Callable[[SdoTransfers], T], index: int, sub: int, silence: str | Later = "") -> T:
+    def _in_mailbox(self, work: Callable[[SdoTransfers], T], index: int, sub: int, silence: str = "") -> T:
         """``work(client)`` while holding the slave's mailbox, with the profile's abort texts and the silence of
         the gateway or slave in words."""
         client = self.network.segment.sdo(self.station)
@@ -120,19 +120,18 @@ class CoeNodeClient(EventLoopTransfers):
             try:
                 return work(client)
             except SdoAbortError as exc:
-                raise SdoAbortError(exc.abort_code, abort_reason(exc.abort_code, self.abort_texts), node=self.node_id,
+                raise SdoAbortError(exc.abort_code, abort_text(exc.abort_code, self.abort_texts), node=self.node_id,
                                     index=exc.index, subindex=exc.subindex) from exc
             except SdoTimeoutError as exc:
                 if type(exc) is not SdoTimeoutError:  # a stalled segmented transfer says so already
                     raise
-                said = Later("{text}{silence}", text=self.network.silence_text(self.station, index, sub),
-                             silence=silence)  # not N_(): the two texts are translated, their joining is not
+                said = Text.joined("", [self.network.silence_text(self.station, index, sub), silence])
                 raise SdoTimeoutError(said, node=self.node_id, index=index, subindex=sub,
                                       hint=self.network.silence_hint) from exc
 
     def _transfer(self, index: int, sub: int, block: bool, work: str, data: bytes = b"") -> bytes:
         if block:
-            raise ProtocolError(Later(N_("CoE has no SDO block transfer; read or write it normally (segmented)")))
+            raise ProtocolError(Text(N_("CoE has no SDO block transfer; read or write it normally (segmented)")))
         if work == "upload":
             return self._in_mailbox(lambda client: client.upload(index, sub), index, sub)
         self._in_mailbox(lambda client: client.download(index, sub, data), index, sub)
@@ -143,18 +142,18 @@ class CoeNodeClient(EventLoopTransfers):
         without the service says so in words."""
         def on_coe(client: SdoTransfers) -> T:
             if not isinstance(client, CoeSdoClient):
-                raise ProtocolError(Later(N_("Slave {node} (station {station}): the SDO information service is read "
+                raise ProtocolError(Text(N_("Slave {node} (station {station}): the SDO information service is read "
                                              "through a mailbox gateway; the direct master does not ask it yet"),
                                           node=self.node_id, station=self.station))
             return ask(client)
 
         try:
-            return self._in_mailbox(on_coe, index, sub, Later(N_(" (a slave without the SDO information service "
+            return self._in_mailbox(on_coe, index, sub, Text(N_(" (a slave without the SDO information service "
                                                                  "may not answer at all)")))
         except MailboxRefused as exc:
             if exc.code != SERVICE_NOT_SUPPORTED:
                 raise
-            raise ProtocolError(Later(N_("Slave {node} (station {station}) does not offer the SDO information "
+            raise ProtocolError(Text(N_("Slave {node} (station {station}) does not offer the SDO information "
                                          "service (its mailbox answered: the service is not supported)"),
                                       node=self.node_id, station=self.station)) from exc
 
@@ -191,7 +190,7 @@ class EthercatNetwork:
     def station(self, node_id: int) -> int:
         station = self.stations.get(node_id)
         if station is None:
-            raise ProtocolError(Later(N_("Slave {node} is not in the master's list of {bus}: scan the segment"),
+            raise ProtocolError(Text(N_("Slave {node} is not in the master's list of {bus}: scan the segment"),
                                       node=node_id, bus=self.spec))
         return station
 
@@ -231,7 +230,7 @@ class EthercatNetwork:
     def request_state(self, node_id: int, state: esm.EsmState) -> SlaveInfo:
         raise NotImplementedError
 
-    def silence_text(self, station: int, index: int, sub: int) -> Later:
+    def silence_text(self, station: int, index: int, sub: int) -> Text:
         raise NotImplementedError
 
     @property
@@ -241,7 +240,7 @@ class EthercatNetwork:
 
     # --- what a session asks of a CAN network -----------------------------------------------------------------
     def _no_frames(self, *args: object) -> None:
-        raise ProtocolError(Later(N_("EtherCAT has no CAN identifiers: NMT, SYNC, PDO frames and node guarding do "
+        raise ProtocolError(Text(N_("EtherCAT has no CAN identifiers: NMT, SYNC, PDO frames and node guarding do "
                                      "not exist on {bus}"), bus=self.spec))
 
     send = _no_frames
@@ -278,7 +277,7 @@ class GatewayNetwork(EthercatNetwork):
             try:
                 return self.gateway.sdo(esm.MASTER_STATION).upload(index, sub)
             except SdoTimeoutError as exc:
-                raise SdoTimeoutError(Later(N_("The master behind {bus} did not answer: {reason}"), bus=self.spec,
+                raise SdoTimeoutError(Text(N_("The master behind {bus} did not answer: {reason}"), bus=self.spec,
                                             reason=self._silence()), node=0, index=index, subindex=sub) from exc
 
     def scan(self, timeout_s: float = 0.5, node_ids: range | None = None) -> list[int]:
@@ -316,28 +315,28 @@ class GatewayNetwork(EthercatNetwork):
                 self.gateway.sdo(esm.MASTER_STATION).download(diagnosis, esm.SUB_AL_CONTROL,
                                                               int(state).to_bytes(2, "little"))
             except SdoAbortError as exc:
-                raise ProtocolError(Later(N_("The master behind {bus} refused the state change of slave {node}: "
+                raise ProtocolError(Text(N_("The master behind {bus} refused the state change of slave {node}: "
                                              "{reason} ({code})"), bus=self.spec, node=node_id,
-                                          reason=exc.abort_reason, code=f"0x{exc.abort_code:08X}")) from exc
+                                          reason=exc.abort_text, code=f"0x{exc.abort_code:08X}")) from exc
         info = self.slave(node_id)
         if info.al_status is not None and info.al_status & esm.ERROR_FLAG:
-            raise ProtocolError(Later(NOT_CHANGED, node=node_id, station=info.station, state=state.label,
+            raise ProtocolError(Text(NOT_CHANGED, node=node_id, station=info.station, state=state.label,
                                       reason=info.state_text))
         return info
 
-    def _silence(self) -> Later:
+    def _silence(self) -> Text:
         unreachable = self.gateway.link.unreachable  # an N_() text of the transport
-        return Later(N_("{reason} (is the master running with its mailbox gateway on?)"),
-                     reason=Later(unreachable or N_("no answer in time")))
+        return Text(N_("{reason} (is the master running with its mailbox gateway on?)"),
+                     reason=Text(unreachable or N_("no answer in time")))
 
-    def silence_text(self, station: int, index: int, sub: int) -> Later:
+    def silence_text(self, station: int, index: int, sub: int) -> Text:
         if self.gateway.link.unreachable:
-            return Later(GATEWAY_SILENT, bus=self.spec, reason=self._silence())
-        return Later(N_("Slave at station {station} did not answer the mailbox request for {object} within {seconds} "
+            return Text(GATEWAY_SILENT, bus=self.spec, reason=self._silence())
+        return Text(N_("Slave at station {station} did not answer the mailbox request for {object} within {seconds} "
                         "s: not in Pre-Operational or higher, not on the segment, or slow"),
                      station=station, object=f"0x{index:04X}sub{sub}", seconds=f"{self.sdo_timeout_s:g}")
 
     @property
     def link_text(self) -> str | None:
-        silent = Later(GATEWAY_SILENT, bus=self.spec, reason=self._silence())
-        return str(silent) if self.gateway.link.unreachable else None
+        silent = Text(GATEWAY_SILENT, bus=self.spec, reason=self._silence())
+        return shown(silent) if self.gateway.link.unreachable else None

@@ -18,8 +18,8 @@ import canopen
 from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError
 
 from drivebench.errors import NodeOffline, ProtocolError, SdoAbortError, TransportError
-from drivebench.i18n import N_, Later
-from drivebench.protocol.abort_codes import abort_reason
+from drivebench.i18n import N_, Text
+from drivebench.protocol.abort_codes import abort_text
 from drivebench.protocol.emcy import EmcyMonitor
 from drivebench.protocol.guarding import NodeGuarding
 from drivebench.protocol.heartbeat import HeartbeatMonitor
@@ -92,12 +92,12 @@ class NodeClient(EventLoopTransfers):
             try:
                 return work(chosen.client)
             except SdoAbortedError as exc:
-                raise SdoAbortError(exc.code, abort_reason(exc.code, self.abort_texts), node=self.node_id,
+                raise SdoAbortError(exc.code, abort_text(exc.code, self.abort_texts), node=self.node_id,
                                     index=index, subindex=sub) from exc
             except SdoCommunicationError as exc:
                 raise communication_error(exc, node=self.node_id, index=index, subindex=sub) from exc
             except can.CanError as exc:
-                raise TransportError(Later(N_("CAN adapter error while talking to node {node}: {reason}"),
+                raise TransportError(Text(N_("CAN adapter error while talking to node {node}: {reason}"),
                                            node=self.node_id, reason=exc),
                                      hint=N_("Check the adapter connection; the session reconnects when it is back.")
                                      ) from exc
@@ -106,7 +106,7 @@ class NodeClient(EventLoopTransfers):
         """SDO channel ``channel`` (1 = the default SDO server), or without one the first that is free."""
         if channel is not None:
             if not 1 <= channel <= len(self.channels):
-                raise ProtocolError(Later(N_("Node {node} has no SDO channel {channel} configured"),
+                raise ProtocolError(Text(N_("Node {node} has no SDO channel {channel} configured"),
                                           node=self.node_id, channel=channel))
             return self.channels[channel - 1]
         for candidate in self.channels:
@@ -173,7 +173,7 @@ class CanopenNetwork:
     def node(self, node_id: int, abort_texts: Mapping[int, str] | None = None) -> NodeClient:
         """The node's client; ``abort_texts`` (the profile's, when the caller knows it) replaces the client's."""
         if not 1 <= node_id <= 127:
-            raise NodeOffline(Later(N_("Node id {node} is outside 1..127"), node=node_id))
+            raise NodeOffline(Text(N_("Node id {node} is outside 1..127"), node=node_id))
         client = self.nodes.get(node_id)
         if client is None:
             client = self.nodes[node_id] = NodeClient(self, node_id, abort_texts)
@@ -189,10 +189,10 @@ class CanopenNetwork:
         try:
             self.canopen.send_message(cob_id, data)
         except can.CanError as exc:
-            raise TransportError(Later(CANNOT_SEND, bus=self.bus.spec, reason=exc), hint=self.bus.spec.hint()) \
+            raise TransportError(Text(CANNOT_SEND, bus=self.bus.spec, reason=exc), hint=self.bus.spec.hint()) \
                 from exc
         except RuntimeError as exc:  # canopen: "Not connected to CAN bus" once the session has closed
-            raise TransportError(Later(CANNOT_SEND, bus=self.bus.spec, reason=Later(
+            raise TransportError(Text(CANNOT_SEND, bus=self.bus.spec, reason=Text(
                 N_("the session's bus is closed ({reason})"), reason=exc))) from exc
 
     def scan(self, timeout_s: float = 0.5, node_ids: range = range(1, 128)) -> list[int]:

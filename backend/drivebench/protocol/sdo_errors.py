@@ -13,7 +13,7 @@ import canopen
 from canopen.sdo.exceptions import SdoCommunicationError
 
 from drivebench.errors import ProtocolError, SdoOutOfStepError, SdoStalledError, SdoTimeoutError
-from drivebench.i18n import N_, Later
+from drivebench.i18n import N_, Text
 
 SEGMENT_DATA = 7
 _OTHER_OBJECT = re.compile(r"value for 0x([0-9A-Fa-f]{1,4}):([0-9A-Fa-f]{1,2}) instead")
@@ -59,17 +59,17 @@ UNEXPECTED_INSTEAD = N_("unexpected response {command} (expected {expected})")
 FAILED = N_("Node {node}, {object}: {reason}")
 
 
-def reason(text: str) -> str | Later:
+def reason(text: str) -> str:
     """canopen's message ``text`` in words that each reader gets in their language, where it is one we know."""
     known = _REASONS.get(text)
     if known is not None:
-        return Later(known)
+        return Text(known)
     unexpected = _UNEXPECTED.fullmatch(text)
     if unexpected is not None:
         command = f"0x{unexpected.group(1).upper()}"
         if unexpected.group(2):
-            return Later(UNEXPECTED_INSTEAD, command=command, expected=f"0x{unexpected.group(2).upper()}")
-        return Later(UNEXPECTED, command=command)
+            return Text(UNEXPECTED_INSTEAD, command=command, expected=f"0x{unexpected.group(2).upper()}")
+        return Text(UNEXPECTED, command=command)
     return text
 
 
@@ -81,7 +81,7 @@ def communication_error(exc: SdoCommunicationError, *, node: int, index: int, su
         return SdoStalledError(node=node, index=index, subindex=subindex, done=exc.done, total=exc.total)
     where = f"0x{index:04X}sub{subindex}"
     if silent:
-        return SdoTimeoutError(Later(SdoTimeoutError.NO_ANSWER, node=node, object=where, reason=reason(text)),
+        return SdoTimeoutError(Text(SdoTimeoutError.NO_ANSWER, node=node, object=where, reason=reason(text)),
                                node=node, index=index, subindex=subindex)
     if "Toggle bit" in text:
         return SdoOutOfStepError(SdoOutOfStepError.TOGGLE, node=node, index=index, subindex=subindex)
@@ -91,5 +91,5 @@ def communication_error(exc: SdoCommunicationError, *, node: int, index: int, su
                                  answered=(int(other.group(1), 16), int(other.group(2), 16)))
     if text.startswith("Unexpected response"):
         return SdoOutOfStepError(reason(text), node=node, index=index, subindex=subindex)
-    return ProtocolError(Later(FAILED, node=node, object=where, reason=reason(text)))
+    return ProtocolError(Text(FAILED, node=node, object=where, reason=reason(text)))
 

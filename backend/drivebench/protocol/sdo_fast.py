@@ -22,8 +22,8 @@ from collections import deque
 from collections.abc import Callable, Generator
 
 from drivebench.errors import SdoAbortError, SdoOutOfStepError, SdoStalledError, SdoTimeoutError
-from drivebench.i18n import Later
-from drivebench.protocol.abort_codes import abort_reason
+from drivebench.i18n import Text
+from drivebench.protocol.abort_codes import abort_text
 from drivebench.protocol.network import NodeClient, SdoChannel
 from drivebench.protocol.sdo_errors import NO_RESPONSE, UNEXPECTED, reason
 
@@ -266,7 +266,7 @@ class ExpeditedUploader:
                         raise SdoOutOfStepError(SdoOutOfStepError.OTHER_OBJECT, node=self.node_id, index=request.index,
                                                 subindex=request.subindex,
                                                 answered=(other[0] | other[1] << 8, other[2])) from None
-                    silent = Later(SdoTimeoutError.NO_ANSWER, node=self.node_id, reason=reason(NO_RESPONSE),
+                    silent = Text(SdoTimeoutError.NO_ANSWER, node=self.node_id, reason=reason(NO_RESPONSE),
                                    object=f"0x{request.index:04X}sub{request.subindex}")
                     raise SdoTimeoutError(silent, node=self.node_id, index=request.index,
                                           subindex=request.subindex) from None
@@ -310,11 +310,11 @@ class ExpeditedUploader:
             command = data[0]
             if command == 0x80:
                 code = int.from_bytes(data[4:8], "little")
-                raise SdoAbortError(code, abort_reason(code, self.abort_texts), node=node, index=index,
+                raise SdoAbortError(code, abort_text(code, self.abort_texts), node=node, index=index,
                                     subindex=subindex)
             if command >> 5 != 0:
                 self._abort(request.address, ABORT_INVALID_COMMAND)
-                raise SdoOutOfStepError(Later(UNEXPECTED, command=f"0x{command:02X}"), node=node, index=index,
+                raise SdoOutOfStepError(Text(UNEXPECTED, command=f"0x{command:02X}"), node=node, index=index,
                                         subindex=subindex)
             if (command >> 4) & 1 != toggle:
                 self._abort(request.address, ABORT_TOGGLE)
@@ -338,7 +338,7 @@ class ExpeditedUploader:
         command = response[0]
         if command == 0x80:
             code = int.from_bytes(response[4:8], "little")
-            raise SdoAbortError(code, abort_reason(code, self.abort_texts), node=self.node_id,
+            raise SdoAbortError(code, abort_text(code, self.abort_texts), node=self.node_id,
                                 index=request.index, subindex=request.subindex)
         if command & 0xE3 == 0x43:  # expedited, size indicated
             return response[4:8 - ((command >> 2) & 0x3)]

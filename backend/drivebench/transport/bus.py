@@ -22,7 +22,7 @@ import can
 from pydantic import BaseModel, Field, ValidationError
 
 from drivebench.errors import AdapterUnavailable, BusSpecError, TransportError
-from drivebench.i18n import N_, Later
+from drivebench.i18n import N_, Text
 
 DEFAULT_BITRATE = 500_000
 _SOCKETCAND_RE = re.compile(r"^socketcand:(?P<host>[^:/@]+):(?P<port>\d+)/(?P<channel>[^@]+)(?:@(?P<bitrate>\d+))?$")
@@ -65,7 +65,7 @@ class BusSpec(BaseModel):
                              options={"host": match["host"], "port": int(match["port"])})
         match = _GENERIC_RE.match(cleaned)
         if not match:
-            raise BusSpecError(Later(N_("'{text}' is not a bus specification. Write INTERFACE:CHANNEL@BITRATE "
+            raise BusSpecError(Text(N_("'{text}' is not a bus specification. Write INTERFACE:CHANNEL@BITRATE "
                                         "(socketcan:can0@500000, pcan:PCAN_USBBUS1@250000) or "
                                         "socketcand:HOST:PORT/CHANNEL."), text=text))
         return cls.build(interface=match["interface"], channel=match["channel"],
@@ -78,7 +78,7 @@ class BusSpec(BaseModel):
             return cls(**fields)
         except ValidationError as exc:
             problems = "; ".join(f"{'.'.join(str(p) for p in e['loc'])}: {e['msg']}" for e in exc.errors())
-            raise BusSpecError(Later(N_("Invalid bus settings: {problems}"), problems=problems)) from exc
+            raise BusSpecError(Text(N_("Invalid bus settings: {problems}"), problems=problems)) from exc
 
     def __str__(self) -> str:
         if self.interface == "socketcand":
@@ -86,9 +86,9 @@ class BusSpec(BaseModel):
                     f"@{self.bitrate}")
         return f"{self.interface}:{self.channel}@{self.bitrate}"
 
-    def hint(self) -> Later:
+    def hint(self) -> Text:
         """What to check when the adapter cannot be opened, in the reader's words (``str()`` where it is shown)."""
-        return Later(_HINTS.get(self.interface, _GENERIC_HINT), channel=self.channel or "can0", bitrate=self.bitrate,
+        return Text(_HINTS.get(self.interface, _GENERIC_HINT), channel=self.channel or "can0", bitrate=self.bitrate,
                      host=self.options.get("host", "?"), port=self.options.get("port", "?"))
 
 
@@ -241,7 +241,7 @@ class ObservedBus(can.BusABC):
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
         link = self.link
         if link.lost_reason is not None:
-            raise AdapterLost(Later(ADAPTER_LOST, reason=link.lost_reason), hint=self._lost_hint())
+            raise AdapterLost(Text(ADAPTER_LOST, reason=link.lost_reason), hint=self._lost_hint())
         guard = self.send_guard
         refusal = guard() if guard is not None else None
         if refusal:
@@ -250,10 +250,10 @@ class ObservedBus(can.BusABC):
         try:
             inner.send(msg, timeout)
         except can.CanTimeoutError as exc:  # transmit queue full: the adapter is there, the bus does not take it
-            raise BusUnusable(Later(N_("the adapter did not send the frame in time: {reason}"), reason=exc)) from exc
+            raise BusUnusable(Text(N_("the adapter did not send the frame in time: {reason}"), reason=exc)) from exc
         except (can.CanError, OSError, ValueError) as exc:
             reason = self._lose(inner, exc)
-            raise AdapterLost(Later(ADAPTER_LOST, reason=reason), hint=self._lost_hint()) from exc
+            raise AdapterLost(Text(ADAPTER_LOST, reason=reason), hint=self._lost_hint()) from exc
         if not msg.timestamp:
             msg.timestamp = time.time()
         for observer in self._observers:
@@ -274,8 +274,8 @@ class ObservedBus(can.BusABC):
         return msg, False
 
     # --- adapter lost and back ----------------------------------------------------------------------------
-    def _lost_hint(self) -> Later:
-        return Later(N_("The session reconnects by itself when the adapter is back. {hint}"), hint=self.spec.hint())
+    def _lost_hint(self) -> Text:
+        return Text(N_("The session reconnects by itself when the adapter is back. {hint}"), hint=self.spec.hint())
 
     def _lose(self, inner: can.BusABC, cause: BaseException | str) -> str:
         """Mark the adapter lost (once per adapter) and start reconnecting; returns the reason."""
@@ -378,10 +378,10 @@ def open_bus(spec: BusSpec) -> ObservedBus:
 def _open_adapter(spec: BusSpec, adapter: SimulatedAdapter | None = None) -> can.BusABC:
     if spec.interface not in can.interfaces.VALID_INTERFACES:
         raise AdapterUnavailable(
-            Later(N_("Unknown CAN interface '{interface}'."), interface=spec.interface),
-            hint=Later(N_("python-can knows: {interfaces}."), interfaces=", ".join(known_interfaces())))
+            Text(N_("Unknown CAN interface '{interface}'."), interface=spec.interface),
+            hint=Text(N_("python-can knows: {interfaces}."), interfaces=", ".join(known_interfaces())))
     if adapter is not None and adapter.unplugged:
-        raise AdapterUnavailable(Later(CANNOT_OPEN, bus=spec, reason=adapter.unplugged), hint=spec.hint())
+        raise AdapterUnavailable(Text(CANNOT_OPEN, bus=spec, reason=adapter.unplugged), hint=spec.hint())
     kwargs: dict[str, Any] = {"interface": spec.interface, "channel": spec.channel or None,
                               "bitrate": spec.bitrate, **spec.options}
     if spec.interface == "virtual":
@@ -395,7 +395,7 @@ def _open_adapter(spec: BusSpec, adapter: SimulatedAdapter | None = None) -> can
         inner = can.Bus(**kwargs)
     except Exception as exc:  # vendor drivers raise anything (kvaser without CANlib: NameError)
         reason = str(exc) or type(exc).__name__
-        raise AdapterUnavailable(Later(CANNOT_OPEN, bus=spec, reason=reason), hint=spec.hint()) from exc
+        raise AdapterUnavailable(Text(CANNOT_OPEN, bus=spec, reason=reason), hint=spec.hint()) from exc
     return _SwitchedBus(inner, adapter) if adapter is not None else inner
 
 
@@ -403,10 +403,10 @@ def _probe_gateway(spec: BusSpec, timeout_s: float = 2.0) -> None:
     """python-can's socketcand client retries for 10 s and prints every attempt: ask once, quickly."""
     host, port = spec.options.get("host"), spec.options.get("port")
     if not host or not port:
-        raise BusSpecError(Later(N_("A socketcand bus needs host and port: socketcand:HOST:PORT/CHANNEL")))
+        raise BusSpecError(Text(N_("A socketcand bus needs host and port: socketcand:HOST:PORT/CHANNEL")))
     try:
         with socket.create_connection((str(host), int(port)), timeout=timeout_s):
             pass
     except OSError as exc:
-        raise AdapterUnavailable(Later(N_("Cannot reach the socketcand gateway at {host}:{port}: {reason}"),
+        raise AdapterUnavailable(Text(N_("Cannot reach the socketcand gateway at {host}:{port}: {reason}"),
                                        host=host, port=port, reason=exc), hint=spec.hint()) from exc

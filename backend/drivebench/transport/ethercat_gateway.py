@@ -18,7 +18,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from drivebench.errors import BusSpecError, TransportError
-from drivebench.i18n import N_, Later
+from drivebench.i18n import N_, Text
 
 GATEWAY_PORT = 0x88A4
 ETHERCAT_TYPE_MAILBOX = 5
@@ -52,12 +52,12 @@ class GatewaySpec:
     def parse(cls, text: str) -> GatewaySpec:
         match = _SPEC_RE.match(text.strip())
         if not match:
-            raise BusSpecError(Later(N_("'{text}' is not a mailbox gateway: write ethercat-mbg:HOST or "
+            raise BusSpecError(Text(N_("'{text}' is not a mailbox gateway: write ethercat-mbg:HOST or "
                                         "ethercat-mbg:HOST:PORT (the gateway's UDP port, {port} by default)."),
                                      text=text, port=GATEWAY_PORT))
         port = int(match["port"] or GATEWAY_PORT)
         if not 1 <= port <= 65535:
-            raise BusSpecError(Later(N_("'{text}': UDP port {port} is not between 1 and 65535."), text=text, port=port))
+            raise BusSpecError(Text(N_("'{text}': UDP port {port} is not between 1 and 65535."), text=text, port=port))
         return cls(match["host"].strip("[]"), port)
 
     def __str__(self) -> str:
@@ -108,7 +108,7 @@ class GatewayLink:
             self._sock = socket.socket(family, socket.SOCK_DGRAM)
             self._sock.connect((spec.host, spec.port))
         except OSError as exc:
-            raise TransportError(Later(GATEWAY_FAILED, bus=spec, reason=exc.strerror or exc),
+            raise TransportError(Text(GATEWAY_FAILED, bus=spec, reason=exc.strerror or exc),
                                  hint=N_("Check the gateway's address and that its master has the mailbox gateway "
                                          "switched on (UDP port 34980).")) from exc
         self._closed = threading.Event()
@@ -117,13 +117,13 @@ class GatewayLink:
 
     def send(self, telegram: bytes) -> None:
         if self._closed.is_set():
-            raise TransportError(Later(GATEWAY_FAILED, bus=self.spec, reason=Later(N_("the link is closed."))))
+            raise TransportError(Text(GATEWAY_FAILED, bus=self.spec, reason=Text(N_("the link is closed."))))
         try:
             self._sock.send(gateway_frame(telegram))
         except ConnectionRefusedError:
             self.unreachable = NOTHING_LISTENS
         except OSError as exc:
-            raise TransportError(Later(GATEWAY_FAILED, bus=self.spec, reason=Later(
+            raise TransportError(Text(GATEWAY_FAILED, bus=self.spec, reason=Text(
                 N_("sending failed: {reason}"), reason=exc.strerror or exc))) from exc
         self.sent += 1
 

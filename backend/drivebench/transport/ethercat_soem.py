@@ -26,7 +26,7 @@ from types import ModuleType
 from typing import Any
 
 from drivebench.errors import BusSpecError, ProtocolError, SdoAbortError, SdoTimeoutError, TransportError
-from drivebench.i18n import N_, Later, _
+from drivebench.i18n import N_, Text, _
 
 NET_CLASS = Path("/sys/class/net")
 CAP_NET_RAW = 13
@@ -62,7 +62,7 @@ class DirectSpec:
     def parse(cls, text: str) -> DirectSpec:
         match = _NIC_RE.match(text.strip())
         if not match:
-            raise BusSpecError(Later(N_("'{text}' is not a network card: write ethercat:NIC, e.g. ethercat:eth1"),
+            raise BusSpecError(Text(N_("'{text}' is not a network card: write ethercat:NIC, e.g. ethercat:eth1"),
                                      text=text))
         return cls(match["nic"])
 
@@ -105,21 +105,21 @@ def load_pysoem() -> ModuleType | None:
         return None
 
 
-def refusal(spec: DirectSpec) -> Later | None:
+def refusal(spec: DirectSpec) -> Text | None:
     """Why a direct master on ``spec.nic`` cannot run here, in words (in the reader's language where shown); None if
     it could."""
     if load_pysoem() is None:
-        return Later(N_("The direct EtherCAT master needs pysoem: install DriveBench with its extra ({install}), or "
+        return Text(N_("The direct EtherCAT master needs pysoem: install DriveBench with its extra ({install}), or "
                         "reach the slaves through a master's mailbox gateway (ethercat-mbg:HOST)."), install=INSTALL)
     if not may_use_raw_sockets():
-        return Later(N_("The direct EtherCAT master sends raw Ethernet frames on {nic}: run DriveBench as root or give "
+        return Text(N_("The direct EtherCAT master sends raw Ethernet frames on {nic}: run DriveBench as root or give "
                         "its Python CAP_NET_RAW (setcap cap_net_raw+ep), or reach the slaves through a master's "
                         "mailbox gateway (ethercat-mbg:HOST)."), nic=spec.nic)
     cards = network_cards()
     if spec.nic not in cards:
         if not cards:
-            return Later(N_("This computer has no network card '{nic}'; it has none (see ip link)."), nic=spec.nic)
-        return Later(N_("This computer has no network card '{nic}'; it has {cards} (see ip link)."), nic=spec.nic,
+            return Text(N_("This computer has no network card '{nic}'; it has none (see ip link)."), nic=spec.nic)
+        return Text(N_("This computer has no network card '{nic}'; it has {cards} (see ip link)."), nic=spec.nic,
                      cards=", ".join(cards))
     return None
 
@@ -129,7 +129,7 @@ def open_link(spec: DirectSpec, timeout_s: float) -> SoemLink:
     why = refusal(spec)
     pysoem = load_pysoem()
     if why is not None or pysoem is None:
-        raise TransportError(why or Later(N_("pysoem is missing ({install})"), install=INSTALL))
+        raise TransportError(why or Text(N_("pysoem is missing ({install})"), install=INSTALL))
     return SoemLink(spec, pysoem, timeout_s=timeout_s)
 
 
@@ -154,7 +154,7 @@ class SoemLink:
         try:
             self.master.open(spec.nic)
         except ConnectionError as exc:
-            raise TransportError(Later(N_("pysoem could not open {nic} for raw EtherCAT frames: {reason}"),
+            raise TransportError(Text(N_("pysoem could not open {nic} for raw EtherCAT frames: {reason}"),
                                        nic=spec.nic, reason=exc),
                                  hint=N_("Check that the card is up (ip link set dev NIC up) and that no other master "
                                          "uses it.")) from exc
@@ -178,7 +178,7 @@ class SoemLink:
 
     def _slave(self, position: int) -> Any:
         if not 1 <= position <= len(self.slaves):
-            raise ProtocolError(Later(N_("No slave at position {position} on {nic}: scan the segment"),
+            raise ProtocolError(Text(N_("No slave at position {position} on {nic}: scan the segment"),
                                       position=position, nic=self.spec.nic))
         return self.slaves[position - 1]
 
@@ -188,7 +188,7 @@ class SoemLink:
         try:
             data = self._slave(position)._fprd(address, 2, int(self.timeout_s * 1e6))
         except self.pysoem.WkcError as exc:
-            raise ProtocolError(Later(N_("The slave at position {position} on {nic} did not answer the read of "
+            raise ProtocolError(Text(N_("The slave at position {position} on {nic} did not answer the read of "
                                          "register {register}: lost from the segment (cable, power)?"),
                                       position=position, nic=self.spec.nic, register=f"0x{address:04X}")) from exc
         return int.from_bytes(data[:2], "little")
@@ -206,9 +206,8 @@ class SoemLink:
         try:
             size = int(self.master.config_map())
         except self.pysoem.ConfigMapError as exc:
-            texts = {f"error{number}": self._error_text(error) for number, error in enumerate(exc.error_list)}
-            reasons = Later("; ".join(f"{{{name}}}" for name in texts), **texts)  # each in the reader's words
-            raise ProtocolError(Later(N_("The process data of the slaves on {nic} could not be mapped: {reasons}"),
+            reasons = Text.joined("; ", [self._error_text(error) for error in exc.error_list])
+            raise ProtocolError(Text(N_("The process data of the slaves on {nic} could not be mapped: {reasons}"),
                                       nic=self.spec.nic, reasons=reasons)) from exc
         self.mapped = True
         return size
@@ -232,25 +231,25 @@ class SoemLink:
             raise SdoAbortError(int(exc.abort_code), str(exc.desc), node=position, index=index,
                                 subindex=subindex) from exc
         except errors.WkcError as exc:
-            raise SdoTimeoutError(Later(N_("The slave at position {position} did not answer the SDO request for "
+            raise SdoTimeoutError(Text(N_("The slave at position {position} did not answer the SDO request for "
                                            "{object}"), position=position, object=f"0x{index:04X}sub{subindex}"),
                                   node=position, index=index, subindex=subindex) from exc
         except (errors.MailboxError, errors.PacketError) as exc:
-            raise ProtocolError(Later(N_("Slave at position {position}, {object}: {reason}"), position=position,
+            raise ProtocolError(Text(N_("Slave at position {position}, {object}: {reason}"), position=position,
                                       object=f"0x{index:04X}sub{subindex}", reason=self._error_text(exc))) from exc
 
-    def _error_text(self, error: Exception) -> str | Later:
+    def _error_text(self, error: Exception) -> str:
         """One of pysoem's errors in words (its ``desc`` is SOEM's own English)."""
         if isinstance(error, self.pysoem.SdoError):
-            return Later(N_("SDO abort {code} for {object} ({reason})"), code=f"0x{error.abort_code:08X}",
+            return Text(N_("SDO abort {code} for {object} ({reason})"), code=f"0x{error.abort_code:08X}",
                          object=f"0x{error.index:04X}sub{error.subindex}", reason=error.desc)
         if isinstance(error, self.pysoem.MailboxError):
-            return Later(N_("the slave refused the mailbox request: {reason} (mailbox error {code})"),
+            return Text(N_("the slave refused the mailbox request: {reason} (mailbox error {code})"),
                          reason=error.desc, code=error.error_code)
         if isinstance(error, self.pysoem.PacketError):
             with contextlib.suppress(KeyError):
-                return Later(N_("mailbox packet error: {reason}"), reason=error.desc)
-            return Later(N_("mailbox packet error {code}"), code=error.error_code)
+                return Text(N_("mailbox packet error: {reason}"), reason=error.desc)
+            return Text(N_("mailbox packet error {code}"), code=error.error_code)
         return str(error)
 
     def _emergency(self, emergency: Any) -> None:
