@@ -33,6 +33,13 @@ class DriveBenchError(Exception):
         error raised outside a request (a bus thread) keeps an N_() template and its values for this."""
         return _(self._template).format(**self._values) if self._template else shown(self.detail)
 
+    def shown_hint(self) -> str | None:
+        """``hint`` in the reader's language: a :class:`~drivebench.i18n.Text` put into words now, a plain one
+        marked N_() translated."""
+        if not self.hint:
+            return None
+        return shown(self.hint) if isinstance(self.hint, Text) else _(self.hint)
+
     def keep_template(self, template: str, **values: object) -> Self:
         """Keeps the N_() text ``detail`` was formatted from (``detail`` itself stays the English text)."""
         self._template, self._values = template, values
@@ -57,31 +64,44 @@ class ProtocolError(DriveBenchError):
     title = N_("CANopen protocol error")
 
 
+def _object(index: int, subindex: int) -> str:
+    return f"0x{index:04X}sub{subindex}"
+
+
 class SdoAbortError(ProtocolError):
+    """``abort_text`` is CiA 301's text (a :class:`~drivebench.i18n.Text`, protocol/abort_codes.py: German where
+    shown) or the device manual's (as it prints it); ``shown_abort_text()`` is the reader's."""
+
     title = N_("SDO transfer aborted")
+    DETAIL = N_("Node {node}: {object}: SDO abort {code} {text}")
 
     def __init__(self, abort_code: int, abort_text: str, *, node: int, index: int, subindex: int,
                  detail: str | None = None) -> None:
-        super().__init__(detail or f"Node {node}: 0x{index:04X}sub{subindex}: "
-                                   f"SDO abort 0x{abort_code:08X} {abort_text}")
+        super().__init__(detail or Text(self.DETAIL, node=node, object=_object(index, subindex),
+                                        code=f"0x{abort_code:08X}", text=abort_text))
         self.abort_code = abort_code
         self.abort_text = abort_text
         self.node = node
         self.index = index
         self.subindex = subindex
 
+    def shown_abort_text(self) -> str:
+        return shown(self.abort_text)
+
     def extra(self) -> dict[str, object]:
-        return {**super().extra(), "abort_code": f"0x{self.abort_code:08X}", "abort_text": self.abort_text,
-                "node": self.node, "object": f"0x{self.index:04X}sub{self.subindex}"}
+        return {**super().extra(), "abort_code": f"0x{self.abort_code:08X}", "abort_text": self.shown_abort_text(),
+                "node": self.node, "object": _object(self.index, self.subindex)}
 
 
 class SdoTimeoutError(ProtocolError):
     title = N_("No SDO response")
     NO_ANSWER = N_("Node {node} did not answer the SDO request for {object} ({reason})")
+    HINT = N_("Check that the node is powered, has this node id and the same bit rate, and that the bus is "
+              "terminated at both ends.")
 
-    def __init__(self, detail: str, *, node: int, index: int | None = None, subindex: int | None = None) -> None:
-        super().__init__(detail, hint=N_("Check that the node is powered, has this node id and the same bit rate, "
-                                         "and that the bus is terminated at both ends."))
+    def __init__(self, detail: str, *, node: int, index: int | None = None, subindex: int | None = None,
+                 hint: str | None = HINT) -> None:
+        super().__init__(detail, hint=hint)
         self.node = node
         self.index = index
         self.subindex = subindex
@@ -89,23 +109,27 @@ class SdoTimeoutError(ProtocolError):
     def extra(self) -> dict[str, object]:
         data: dict[str, object] = {**super().extra(), "node": self.node}
         if self.index is not None:
-            data["object"] = f"0x{self.index:04X}sub{self.subindex or 0}"
+            data["object"] = _object(self.index, self.subindex or 0)
         return data
 
 
 class SdoStalledError(SdoTimeoutError):
-    """The node answered the start of a segmented (or block) transfer, then stopped answering."""
+    """The node answered the start of a segmented transfer (or of a fragmented SDO information response), then
+    stopped answering. ``what`` names the object when a caller knows better than its index."""
 
     title = N_("Node stopped answering")
+    STALLED = N_("Node {node} stopped answering {during} of {what} after {done} segments")
+    STALLED_OF = N_("Node {node} stopped answering {during} of {what} after {done} of {total} segments")
+    DURING = {"segmented": N_("during a segmented transfer"), "fragmented": N_("during a fragmented transfer")}
+    STALLED_HINT = N_("The node answered the start of the transfer, so it is on the bus: it may have reset or be "
+                      "overloaded. The transfer was aborted; read again once it answers.")
 
     def __init__(self, *, node: int, index: int, subindex: int, done: int, total: int | None,
                  what: str | None = None, kind: str = "segmented") -> None:
-        what = what or f"0x{index:04X}sub{subindex}"
-        of_total = f" of {total}" if total is not None else ""
-        super().__init__(f"Node {node} stopped answering during a {kind} transfer of {what} after {done}{of_total} "
-                         f"segments", node=node, index=index, subindex=subindex)
-        self.hint = ("The node answered the start of the transfer, so it is on the bus: it may have reset or "
-                     "be overloaded. The transfer was aborted; read again once it answers.")
+        what = what or _object(index, subindex)
+        template = self.STALLED_OF if total is not None else self.STALLED
+        super().__init__(Text(template, node=node, during=Text(self.DURING[kind]), what=what, done=done, total=total),
+                         node=node, index=index, subindex=subindex, hint=self.STALLED_HINT)
         self.done, self.total, self.what, self.kind = done, total, what, kind
 
     def named(self, what: str) -> SdoStalledError:
@@ -117,24 +141,31 @@ class SdoStalledError(SdoTimeoutError):
 
 
 class SdoOutOfStepError(ProtocolError):
-    """The node answered, but not what the transfer expects: the wrong toggle bit, another object, another
-    command. ``answered`` is the (index, subindex) the answer named when it named the wrong object."""
+    """The node answered, but not what the transfer expects: the wrong toggle bit (``TOGGLE``), another object
+    (``OTHER_OBJECT``, ``answered`` the (index, subindex) the answer named), or anything else (``reason``, a
+    :class:`~drivebench.i18n.Text`)."""
 
     title = N_("SDO answer out of step")
+    TOGGLE, OTHER_OBJECT = "toggle", "object"
+    TOGGLE_TEXT = N_("Node {node}: toggle bit error: the node answered out of step during the segmented transfer "
+                     "of {asked}{label}")
+    OTHER_OBJECT_TEXT = N_("Node {node}: answer for {answered} while {asked}{label} was asked")
+    UNEXPECTED_TEXT = N_("Node {node}: unexpected SDO answer for {asked}{label}: {reason}")
+    HINT = N_("Another SDO client on the same channel (a second master or a tool) or a device fault can cause "
+              "this; the transfer was aborted.")
 
     def __init__(self, reason: str, *, node: int, index: int, subindex: int,
                  answered: tuple[int, int] | None = None, what: str | None = None) -> None:
         asked = f"0x{index:04X} sub {subindex}"
         label = f" ({what})" if what and what != asked else ""
-        if reason == "toggle":
-            text = (f"Node {node}: toggle bit error: the node answered out of step during the segmented "
-                    f"transfer of {asked}{label}")
-        elif reason == "object" and answered is not None:
-            text = f"Node {node}: answer for 0x{answered[0]:04X} sub {answered[1]} while {asked}{label} was asked"
+        values: dict[str, object] = {"node": node, "asked": asked, "label": label}
+        if reason == self.TOGGLE:
+            text = Text(self.TOGGLE_TEXT, **values)
+        elif reason == self.OTHER_OBJECT and answered is not None:
+            text = Text(self.OTHER_OBJECT_TEXT, answered=f"0x{answered[0]:04X} sub {answered[1]}", **values)
         else:
-            text = f"Node {node}: unexpected SDO answer for {asked}{label}: {reason}"
-        super().__init__(text, hint="Another SDO client on the same channel (a second master or a tool) or a "
-                                    "device fault can cause this; the transfer was aborted.")
+            text = Text(self.UNEXPECTED_TEXT, reason=reason, **values)
+        super().__init__(text, hint=self.HINT)
         self.reason, self.node, self.index, self.subindex = reason, node, index, subindex
         self.answered, self.what = answered, what
 
@@ -144,7 +175,7 @@ class SdoOutOfStepError(ProtocolError):
 
     def extra(self) -> dict[str, object]:
         data: dict[str, object] = {**super().extra(), "node": self.node,
-                                   "object": f"0x{self.index:04X}sub{self.subindex}"}
+                                   "object": _object(self.index, self.subindex)}
         if self.answered is not None:
             data["answered_object"] = f"0x{self.answered[0]:04X}sub{self.answered[1]}"
         return data

@@ -13,6 +13,7 @@ import itertools
 from collections.abc import Callable
 
 from drivebench.errors import ProtocolError, SdoAbortError, SdoOutOfStepError, SdoStalledError, SdoTimeoutError
+from drivebench.i18n import N_, Text
 from drivebench.protocol import coe, coe_info
 from drivebench.protocol.abort_codes import abort_text
 
@@ -23,10 +24,10 @@ DEFAULT_MAILBOX_SIZE = 128
 """Bytes of the slave's mailbox (SyncManager 0/1 length): the 8400 motec EtherCAT unit has 128."""
 
 MAILBOX_ERRORS = {
-    0x01: "syntax error in the mailbox header", 0x02: "the protocol is not supported",
-    0x03: "invalid channel", 0x04: "the service is not supported", 0x05: "invalid mailbox header",
-    0x06: "the mailbox data is too short", 0x07: "the slave has no memory left for the mailbox",
-    0x08: "invalid data size",
+    0x01: N_("syntax error in the mailbox header"), 0x02: N_("the protocol is not supported"),
+    0x03: N_("invalid channel"), 0x04: N_("the service is not supported"), 0x05: N_("invalid mailbox header"),
+    0x06: N_("the mailbox data is too short"), 0x07: N_("the slave has no memory left for the mailbox"),
+    0x08: N_("invalid data size"),
 }
 """ETG.1000.6 mailbox error replies (mailbox type 0)."""
 SERVICE_NOT_SUPPORTED = 0x04
@@ -60,12 +61,13 @@ class CoeSdoClient:
             answer = self.exchange(telegram, self.timeout_s)
             if answer is not None:
                 return answer
-        raise SdoTimeoutError(f"Slave {self.station} did not answer the {what} for 0x{index:04X}sub{subindex} "
-                              f"within {self.timeout_s:g} s ({self.retries + 1} tries)",
+        raise SdoTimeoutError(Text(N_("Slave {station} did not answer the {what} for {object} within {seconds} s "
+                                       "({tries} tries)"), station=self.station, what=what, tries=self.retries + 1,
+                                    seconds=f"{self.timeout_s:g}", object=f"0x{index:04X}sub{subindex}"),
                               node=self.station, index=index, subindex=subindex)
 
     def _ask(self, body: bytes, index: int, subindex: int) -> bytes:
-        answer = self._send(coe.CoeService.SDO_REQUEST, body, "SDO request", index, subindex)
+        answer = self._send(coe.CoeService.SDO_REQUEST, body, Text(N_("SDO request")), index, subindex)
         return self._sdo_body(answer, index, subindex)
 
     def _coe_message(self, answer: bytes, index: int, subindex: int) -> coe.CoeMessage:
@@ -73,21 +75,23 @@ class CoeSdoClient:
             mailbox = coe.Mailbox.decode(answer)
             if mailbox.type == coe.MailboxType.ERROR:
                 detail = int.from_bytes(mailbox.data[2:4], "little") if len(mailbox.data) >= 4 else 0
-                reason = MAILBOX_ERRORS.get(detail, f"mailbox error 0x{detail:04X}")
-                raise MailboxRefused(f"Slave {self.station} refused the mailbox request for 0x{index:04X}sub"
-                                     f"{subindex}: {reason}", detail)
+                reason = Text(MAILBOX_ERRORS.get(detail, N_("mailbox error {code}")), code=f"0x{detail:04X}")
+                raise MailboxRefused(Text(N_("Slave {station} refused the mailbox request for {object}: {reason}"),
+                                           station=self.station, object=f"0x{index:04X}sub{subindex}", reason=reason),
+                                     detail)
             if mailbox.type != coe.MailboxType.COE:
-                raise SdoOutOfStepError(f"a mailbox of type {mailbox.type} answered a CoE request",
-                                        node=self.station, index=index, subindex=subindex)
+                raise SdoOutOfStepError(Text(N_("a mailbox of type {type} answered a CoE request"),
+                                              type=mailbox.type), node=self.station, index=index, subindex=subindex)
             return coe.CoeMessage.decode(mailbox.data)
         except coe.MailboxFormatError as exc:
-            raise ProtocolError(f"Slave {self.station}: malformed answer for 0x{index:04X}sub{subindex}: {exc}") \
+            raise ProtocolError(Text(N_("Slave {station}: malformed answer for {object}: {reason}"),
+                                      station=self.station, object=f"0x{index:04X}sub{subindex}", reason=exc)) \
                 from exc
 
     def _sdo_body(self, answer: bytes, index: int, subindex: int) -> bytes:
         message = self._coe_message(answer, index, subindex)
         if message.service not in (coe.CoeService.SDO_RESPONSE, coe.CoeService.SDO_REQUEST):
-            raise SdoOutOfStepError(f"CoE service {message.service} answered an SDO request",
+            raise SdoOutOfStepError(Text(N_("CoE service {service} answered an SDO request"), service=message.service),
                                     node=self.station, index=index, subindex=subindex)
         if len(message.body) >= coe.SDO_FRAME.size and message.body[0] == coe.ABORT:
             frame = coe.parse_sdo(message.body)
@@ -98,10 +102,10 @@ class CoeSdoClient:
     def _initiate(self, body: bytes, index: int, subindex: int, specifier: int) -> coe.SdoTelegram:
         frame = coe.parse_sdo(self._ask(body, index, subindex))
         if frame.specifier != specifier:
-            raise SdoOutOfStepError(f"command 0x{frame.command:02X}", node=self.station, index=index,
-                                    subindex=subindex)
+            raise SdoOutOfStepError(Text(N_("command {command}"), command=f"0x{frame.command:02X}"),
+                                    node=self.station, index=index, subindex=subindex)
         if (frame.index, frame.subindex) != (index, subindex):
-            raise SdoOutOfStepError("object", node=self.station, index=index, subindex=subindex,
+            raise SdoOutOfStepError(SdoOutOfStepError.OTHER_OBJECT, node=self.station, index=index, subindex=subindex,
                                     answered=(frame.index, frame.subindex))
         return frame
 
@@ -130,10 +134,11 @@ class CoeSdoClient:
                 raise SdoStalledError(node=self.station, index=index, subindex=subindex, done=done,
                                       total=total) from exc
             if segment.specifier != 0:
-                raise SdoOutOfStepError(f"command specifier {segment.specifier} in an upload segment",
+                raise SdoOutOfStepError(Text(N_("command specifier {specifier} in an upload segment"),
+                                              specifier=segment.specifier),
                                         node=self.station, index=index, subindex=subindex)
             if segment.toggle != toggle:
-                raise SdoOutOfStepError("toggle", node=self.station, index=index, subindex=subindex)
+                raise SdoOutOfStepError(SdoOutOfStepError.TOGGLE, node=self.station, index=index, subindex=subindex)
             data += segment.data
             done += 1
             toggle ^= 1
@@ -158,10 +163,11 @@ class CoeSdoClient:
                 raise SdoStalledError(node=self.station, index=index, subindex=subindex, done=done,
                                       total=total) from exc
             if answer.specifier != 1:
-                raise SdoOutOfStepError(f"command specifier {answer.specifier} answering a download segment",
+                raise SdoOutOfStepError(Text(N_("command specifier {specifier} answering a download segment"),
+                                              specifier=answer.specifier),
                                         node=self.station, index=index, subindex=subindex)
             if answer.toggle != toggle:
-                raise SdoOutOfStepError("toggle", node=self.station, index=index, subindex=subindex)
+                raise SdoOutOfStepError(SdoOutOfStepError.TOGGLE, node=self.station, index=index, subindex=subindex)
             sent += len(chunk)
             done += 1
             toggle ^= 1
@@ -172,28 +178,32 @@ class CoeSdoClient:
         the service answers with a mailbox error (in words), an SDO Info Error request raises its abort code."""
         index, subindex = coe_info.request_key(request)
         expected = coe_info.parse_info(request).opcode + 1
-        answer: bytes | None = self._send(coe.CoeService.SDO_INFORMATION, request, "SDO information request",
-                                          index, subindex)
+        answer: bytes | None = self._send(coe.CoeService.SDO_INFORMATION, request,
+                                          Text(N_("SDO information request")), index, subindex)
         data, fragment, left = bytearray(), 0, None
         while True:
             assert answer is not None
             message = self._coe_message(answer, index, subindex)
             if message.service != coe.CoeService.SDO_INFORMATION:
-                raise SdoOutOfStepError(f"CoE service {message.service} answered an SDO information request",
+                raise SdoOutOfStepError(Text(N_("CoE service {service} answered an SDO information request"),
+                                              service=message.service),
                                         node=self.station, index=index, subindex=subindex)
             try:
                 info = coe_info.parse_info(message.body)
             except coe.MailboxFormatError as exc:
-                raise ProtocolError(f"Slave {self.station}: malformed SDO information answer: {exc}") from exc
+                raise ProtocolError(Text(N_("Slave {station}: malformed SDO information answer: {reason}"),
+                                          station=self.station, reason=exc)) from exc
             if info.opcode == coe_info.InfoOpcode.ERROR_REQUEST:
                 code = int.from_bytes(info.data[:4], "little")
                 raise SdoAbortError(code, abort_text(code), node=self.station, index=index, subindex=subindex)
             if info.opcode != expected:
-                raise SdoOutOfStepError(f"SDO information opcode {info.opcode} answered opcode {expected - 1}",
+                raise SdoOutOfStepError(Text(N_("SDO information opcode {opcode} answered opcode {asked}"),
+                                              opcode=info.opcode, asked=expected - 1),
                                         node=self.station, index=index, subindex=subindex)
             if left is not None and info.fragments_left != left - 1:
-                raise SdoOutOfStepError(f"a fragment of the SDO information response was lost ({left - 1} "
-                                        f"fragments left expected, the slave says {info.fragments_left})",
+                raise SdoOutOfStepError(Text(N_("a fragment of the SDO information response was lost ({expected} "
+                                                 "fragments left expected, the slave says {left})"),
+                                              expected=left - 1, left=info.fragments_left),
                                         node=self.station, index=index, subindex=subindex)
             data += info.data
             if not info.incomplete:
@@ -202,13 +212,14 @@ class CoeSdoClient:
             answer = self.receive(self.timeout_s) if self.receive is not None else None
             if answer is None:
                 raise SdoStalledError(node=self.station, index=index, subindex=subindex, done=fragment,
-                                      total=fragment + left, what="the SDO information response",
+                                      total=fragment + left, what=Text(N_("the SDO information response")),
                                       kind="fragmented")
 
     def od_list(self, list_type: int = coe_info.ListType.ALL) -> list[int]:
         answered, indices = coe_info.parse_od_list(self.information(coe_info.od_list_request(list_type)))
         if answered != list_type:
-            raise SdoOutOfStepError(f"OD list type {answered} answered a request for type {list_type}",
+            raise SdoOutOfStepError(Text(N_("OD list type {answered} answered a request for type {asked}"),
+                                          answered=answered, asked=list_type),
                                     node=self.station, index=0, subindex=0)
         return indices
 

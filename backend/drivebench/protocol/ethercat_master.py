@@ -20,9 +20,10 @@ from __future__ import annotations
 import threading
 
 from drivebench.errors import ProtocolError, SdoAbortError, SdoTimeoutError
+from drivebench.i18n import N_, Text
 from drivebench.protocol import esm
 from drivebench.protocol.ethercat import EmergencyListener, MailboxCounters
-from drivebench.protocol.ethercat_network import EthercatNetwork, SlaveInfo
+from drivebench.protocol.ethercat_network import NOT_CHANGED, EthercatNetwork, SlaveInfo
 from drivebench.transport.ethercat_soem import REG_AL_STATUS, REG_AL_STATUS_CODE, DirectSpec, SiiSlave, SoemLink
 
 STATE_TIMEOUT_S = 5.0
@@ -31,8 +32,8 @@ ACKNOWLEDGE = 0x10
 """AL control bit 4: acknowledge the error the AL status shows."""
 UPWARDS: list[esm.EsmState] = [esm.EsmState.INIT, esm.EsmState.PRE_OPERATIONAL, esm.EsmState.SAFE_OPERATIONAL,
                                esm.EsmState.OPERATIONAL]
-DIRECT_HINT = ("Check the cable from this card to the first slave's IN port, the slaves' power, and that the slave is "
-               "at least Pre-Operational (the Plant page shows its state).")
+DIRECT_HINT = N_("Check the cable from this card to the first slave's IN port, the slaves' power, and that the slave "
+                 "is at least Pre-Operational (the Plant page shows its state).")
 
 
 class SoemSdo:
@@ -101,7 +102,8 @@ class SoemMailboxes:
     def position(self, station: int) -> int:
         position = self.positions.get(station)
         if position is None:
-            raise ProtocolError(f"No slave has station address {station} on {self.link.spec.nic}: scan the segment")
+            raise ProtocolError(Text(N_("No slave has station address {station} on {nic}: scan the segment"),
+                                      station=station, nic=self.link.spec.nic))
         return position
 
     def sdo(self, station: int) -> SoemSdo:
@@ -151,12 +153,14 @@ class DirectNetwork(EthercatNetwork):
                 except ProtocolError:
                     continue  # gone from the segment: nothing of it runs
                 if status & 0x0F > esm.EsmState.PRE_OPERATIONAL:
-                    raise ProtocolError(f"Slave {node_id} is {esm.al_status_text(status)}: take the slaves to "
-                                        f"Pre-Operational before scanning again (a scan takes every slave to Init).")
+                    raise ProtocolError(Text(N_("Slave {node} is {state}: take the slaves to Pre-Operational "
+                                                 "before scanning again (a scan takes every slave to Init)."),
+                                              node=node_id, state=esm.al_status_text(status)))
             found = self.link.scan()
         if not found:
-            raise ProtocolError(f"No EtherCAT slave answered on {self.nic}: check the cable from this card to the "
-                                "first slave's IN port, the slaves' power, and that no other master uses the card.")
+            raise ProtocolError(Text(N_("No EtherCAT slave answered on {nic}: check the cable from this card to "
+                                         "the first slave's IN port, the slaves' power, and that no other master "
+                                         "uses the card."), nic=self.nic))
         self.found = {slave.position: slave for slave in found}
         self.statuses.clear()
         self.stations = {slave.position: slave.station for slave in found}
@@ -199,8 +203,8 @@ class DirectNetwork(EthercatNetwork):
         status, code = self._read_al(node_id)
         self._update_cycle()
         if status & esm.ERROR_FLAG or status & 0x0F != state:
-            raise ProtocolError(f"Slave {node_id} (station {self.station(node_id)}) did not change to {state.label}: "
-                                f"{esm.al_status_text(status, code)}")
+            raise ProtocolError(Text(NOT_CHANGED, node=node_id, station=self.station(node_id), state=state.label,
+                                      reason=esm.al_status_text(status, code)))
         return status, code
 
     def _update_cycle(self) -> None:
@@ -216,7 +220,8 @@ class DirectNetwork(EthercatNetwork):
     def request_state(self, node_id: int, state: esm.EsmState) -> SlaveInfo:
         """Take one slave to ``state``, upwards one state at a time as a master does (a slave refuses a jump)."""
         if state is esm.EsmState.BOOTSTRAP:
-            raise ProtocolError("The tool does not take slaves to Bootstrap (firmware download is not offered)")
+            raise ProtocolError(Text(N_("The tool does not take slaves to Bootstrap (firmware download is not "
+                                         "offered)")))
         with self.link.lock:
             current = self._read_al(node_id)[0] & 0x0F
             steps: list[esm.EsmState] = [state]
@@ -227,10 +232,10 @@ class DirectNetwork(EthercatNetwork):
         return self.slave(node_id)
 
     # --- silence ----------------------------------------------------------------------------------------------
-    def silence_text(self, station: int, index: int, sub: int) -> str:
-        return (f"Slave at station {station} on {self.nic} did not answer the mailbox request for 0x{index:04X}sub"
-                f"{sub} within {self.sdo_timeout_s:g} s: not in Pre-Operational or higher, not on the segment "
-                "any more, or slow")
+    def silence_text(self, station: int, index: int, sub: int) -> Text:
+        return Text(N_("Slave at station {station} on {nic} did not answer the mailbox request for {object} within "
+                        "{seconds} s: not in Pre-Operational or higher, not on the segment any more, or slow"),
+                     station=station, nic=self.nic, object=f"0x{index:04X}sub{sub}", seconds=f"{self.sdo_timeout_s:g}")
 
     @property
     def link_text(self) -> str | None:

@@ -22,6 +22,7 @@ from typing import Protocol, TypeVar
 import can
 
 from drivebench.errors import ProtocolError, SdoAbortError, SdoTimeoutError
+from drivebench.i18n import N_, Text, _, shown
 from drivebench.protocol import esm
 from drivebench.protocol.abort_codes import abort_text
 from drivebench.protocol.coe_sdo import SERVICE_NOT_SUPPORTED, CoeSdoClient, MailboxRefused
@@ -34,9 +35,10 @@ from drivebench.transport.ethercat_gateway import GatewaySpec
 from drivebench.transport.ethercat_soem import DirectSpec
 
 T = TypeVar("T")
-NO_CAN = "EtherCAT has no CAN identifiers"
-GATEWAY_HINT = ("Check that the master runs with its mailbox gateway on, that the slave is in the master's "
-                "configuration and at least Pre-Operational.")
+GATEWAY_HINT = N_("Check that the master runs with its mailbox gateway on, that the slave is in the master's "
+                  "configuration and at least Pre-Operational.")
+NOT_CHANGED = N_("Slave {node} (station {station}) did not change to {state}: {reason}")
+GATEWAY_SILENT = N_("Mailbox gateway {bus}: {reason}")
 
 
 @dataclass
@@ -61,7 +63,7 @@ class SlaveInfo:
     @property
     def state_text(self) -> str:
         if self.al_status is None:
-            return "Unknown"
+            return N_("Unknown")  # a state word: a page shows _(state)
         return esm.al_status_text(self.al_status, self.al_status_code)
 
 
@@ -107,8 +109,8 @@ class CoeNodeClient(EventLoopTransfers):
         client.timeout_s, client.retries = timeout_s, retries
 
     def add_channel(self, rx_cobid: int, tx_cobid: int) -> MailboxChannel:
-        raise ProtocolError(f"Slave {self.node_id} (station {self.station}) has one mailbox; {NO_CAN} for a second "
-                            "SDO channel")
+        raise ProtocolError(Text(N_("Slave {node} (station {station}) has one mailbox; EtherCAT has no CAN "
+                                     "identifiers for a second SDO channel"), node=self.node_id, station=self.station))
 
     def _in_mailbox(self, work: Callable[[SdoTransfers], T], index: int, sub: int, silence: str = "") -> T:
         """``work(client)`` while holding the slave's mailbox, with the profile's abort texts and the silence of
@@ -123,14 +125,13 @@ class CoeNodeClient(EventLoopTransfers):
             except SdoTimeoutError as exc:
                 if type(exc) is not SdoTimeoutError:  # a stalled segmented transfer says so already
                     raise
-                silent = SdoTimeoutError(self.network.silence_text(self.station, index, sub) + silence,
-                                         node=self.node_id, index=index, subindex=sub)
-                silent.hint = self.network.silence_hint
-                raise silent from exc
+                said = Text.joined("", [self.network.silence_text(self.station, index, sub), silence])
+                raise SdoTimeoutError(said, node=self.node_id, index=index, subindex=sub,
+                                      hint=self.network.silence_hint) from exc
 
     def _transfer(self, index: int, sub: int, block: bool, work: str, data: bytes = b"") -> bytes:
         if block:
-            raise ProtocolError("CoE has no SDO block transfer; read or write it normally (segmented)")
+            raise ProtocolError(Text(N_("CoE has no SDO block transfer; read or write it normally (segmented)")))
         if work == "upload":
             return self._in_mailbox(lambda client: client.upload(index, sub), index, sub)
         self._in_mailbox(lambda client: client.download(index, sub, data), index, sub)
@@ -141,18 +142,20 @@ class CoeNodeClient(EventLoopTransfers):
         without the service says so in words."""
         def on_coe(client: SdoTransfers) -> T:
             if not isinstance(client, CoeSdoClient):
-                raise ProtocolError(f"Slave {self.node_id} (station {self.station}): the SDO information service is "
-                                    "read through a mailbox gateway; the direct master does not ask it yet")
+                raise ProtocolError(Text(N_("Slave {node} (station {station}): the SDO information service is read "
+                                             "through a mailbox gateway; the direct master does not ask it yet"),
+                                          node=self.node_id, station=self.station))
             return ask(client)
 
         try:
-            return self._in_mailbox(on_coe, index, sub, " (a slave without the SDO information service may not "
-                                                     "answer at all)")
+            return self._in_mailbox(on_coe, index, sub, Text(N_(" (a slave without the SDO information service "
+                                                                 "may not answer at all)")))
         except MailboxRefused as exc:
             if exc.code != SERVICE_NOT_SUPPORTED:
                 raise
-            raise ProtocolError(f"Slave {self.node_id} (station {self.station}) does not offer the SDO information "
-                                "service (its mailbox answered: the service is not supported)") from exc
+            raise ProtocolError(Text(N_("Slave {node} (station {station}) does not offer the SDO information "
+                                         "service (its mailbox answered: the service is not supported)"),
+                                      node=self.node_id, station=self.station)) from exc
 
     def upload(self, index: int, sub: int, *, block: bool = False, channel: int | None = None) -> bytes:
         return self._transfer(index, sub, block, "upload")
@@ -187,7 +190,8 @@ class EthercatNetwork:
     def station(self, node_id: int) -> int:
         station = self.stations.get(node_id)
         if station is None:
-            raise ProtocolError(f"Slave {node_id} is not in the master's list of {self.spec}: scan the segment")
+            raise ProtocolError(Text(N_("Slave {node} is not in the master's list of {bus}: scan the segment"),
+                                      node=node_id, bus=self.spec))
         return station
 
     def node(self, node_id: int, abort_texts: Mapping[int, str] | None = None) -> CoeNodeClient:
@@ -204,10 +208,12 @@ class EthercatNetwork:
     """A slave has one mailbox."""
 
     def sdo_label(self, node_id: int) -> str:
-        """How the slave's SDOs travel, for the Parameters tab: its mailbox, station address and gateway."""
+        """How the slave's SDOs travel, for the Parameters tab (in the reader's language): its mailbox, station address
+        and gateway."""
         station = self.stations.get(node_id)
-        where = f"station {station}" if station is not None else "not in the master's list"
-        return f"CoE mailbox ({where}, gateway {self.spec})"
+        if station is None:
+            return _("CoE mailbox (not in the master's list, gateway {bus})").format(bus=self.spec)
+        return _("CoE mailbox (station {station}, gateway {bus})").format(station=station, bus=self.spec)
 
     def counters(self, node_id: int) -> MailboxCounters:
         return self.segment.counters(self.station(node_id))
@@ -224,7 +230,7 @@ class EthercatNetwork:
     def request_state(self, node_id: int, state: esm.EsmState) -> SlaveInfo:
         raise NotImplementedError
 
-    def silence_text(self, station: int, index: int, sub: int) -> str:
+    def silence_text(self, station: int, index: int, sub: int) -> Text:
         raise NotImplementedError
 
     @property
@@ -234,7 +240,8 @@ class EthercatNetwork:
 
     # --- what a session asks of a CAN network -----------------------------------------------------------------
     def _no_frames(self, *args: object) -> None:
-        raise ProtocolError(f"{NO_CAN}: NMT, SYNC, PDO frames and node guarding do not exist on {self.spec}")
+        raise ProtocolError(Text(N_("EtherCAT has no CAN identifiers: NMT, SYNC, PDO frames and node guarding do "
+                                     "not exist on {bus}"), bus=self.spec))
 
     send = _no_frames
     send_nmt = _no_frames
@@ -270,8 +277,8 @@ class GatewayNetwork(EthercatNetwork):
             try:
                 return self.gateway.sdo(esm.MASTER_STATION).upload(index, sub)
             except SdoTimeoutError as exc:
-                raise SdoTimeoutError(f"The master behind {self.spec} did not answer: {self._silence()}",
-                                      node=0, index=index, subindex=sub) from exc
+                raise SdoTimeoutError(Text(N_("The master behind {bus} did not answer: {reason}"), bus=self.spec,
+                                            reason=self._silence()), node=0, index=index, subindex=sub) from exc
 
     def scan(self, timeout_s: float = 0.5, node_ids: range | None = None) -> list[int]:
         """The slaves in the master's configured address list (0xF020), numbered 1, 2, ... in its order."""
@@ -308,24 +315,28 @@ class GatewayNetwork(EthercatNetwork):
                 self.gateway.sdo(esm.MASTER_STATION).download(diagnosis, esm.SUB_AL_CONTROL,
                                                               int(state).to_bytes(2, "little"))
             except SdoAbortError as exc:
-                raise ProtocolError(f"The master behind {self.spec} refused the state change of slave {node_id}: "
-                                    f"{exc.abort_text} (0x{exc.abort_code:08X})") from exc
+                raise ProtocolError(Text(N_("The master behind {bus} refused the state change of slave {node}: "
+                                             "{reason} ({code})"), bus=self.spec, node=node_id,
+                                          reason=exc.abort_text, code=f"0x{exc.abort_code:08X}")) from exc
         info = self.slave(node_id)
         if info.al_status is not None and info.al_status & esm.ERROR_FLAG:
-            raise ProtocolError(f"Slave {node_id} (station {info.station}) did not change to {state.label}: "
-                                f"{info.state_text}")
+            raise ProtocolError(Text(NOT_CHANGED, node=node_id, station=info.station, state=state.label,
+                                      reason=info.state_text))
         return info
 
-    def _silence(self) -> str:
-        return (self.gateway.link.unreachable or "no answer in time") + \
-            " (is the master running with its mailbox gateway on?)"
+    def _silence(self) -> Text:
+        unreachable = self.gateway.link.unreachable  # an N_() text of the transport
+        return Text(N_("{reason} (is the master running with its mailbox gateway on?)"),
+                     reason=Text(unreachable or N_("no answer in time")))
 
-    def silence_text(self, station: int, index: int, sub: int) -> str:
+    def silence_text(self, station: int, index: int, sub: int) -> Text:
         if self.gateway.link.unreachable:
-            return f"Mailbox gateway {self.spec}: {self._silence()}"
-        return (f"Slave at station {station} did not answer the mailbox request for 0x{index:04X}sub{sub} within "
-                f"{self.sdo_timeout_s:g} s: not in Pre-Operational or higher, not on the segment, or slow")
+            return Text(GATEWAY_SILENT, bus=self.spec, reason=self._silence())
+        return Text(N_("Slave at station {station} did not answer the mailbox request for {object} within {seconds} "
+                        "s: not in Pre-Operational or higher, not on the segment, or slow"),
+                     station=station, object=f"0x{index:04X}sub{sub}", seconds=f"{self.sdo_timeout_s:g}")
 
     @property
     def link_text(self) -> str | None:
-        return f"Mailbox gateway {self.spec}: {self._silence()}" if self.gateway.link.unreachable else None
+        silent = Text(GATEWAY_SILENT, bus=self.spec, reason=self._silence())
+        return shown(silent) if self.gateway.link.unreachable else None

@@ -18,6 +18,7 @@ import canopen
 from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError
 
 from drivebench.errors import NodeOffline, ProtocolError, SdoAbortError, TransportError
+from drivebench.i18n import N_, Text
 from drivebench.protocol.abort_codes import abort_text
 from drivebench.protocol.emcy import EmcyMonitor
 from drivebench.protocol.guarding import NodeGuarding
@@ -27,6 +28,7 @@ from drivebench.protocol.sdo_errors import communication_error, read_segments
 from drivebench.transport.bus import ObservedBus
 
 T = TypeVar("T")
+CANNOT_SEND = N_("Cannot send on {bus}: {reason}")
 
 
 class SdoChannel:
@@ -95,15 +97,17 @@ class NodeClient(EventLoopTransfers):
             except SdoCommunicationError as exc:
                 raise communication_error(exc, node=self.node_id, index=index, subindex=sub) from exc
             except can.CanError as exc:
-                raise TransportError(f"CAN adapter error while talking to node {self.node_id}: {exc}",
-                                     hint="Check the adapter connection; the session reconnects when it is back."
+                raise TransportError(Text(N_("CAN adapter error while talking to node {node}: {reason}"),
+                                           node=self.node_id, reason=exc),
+                                     hint=N_("Check the adapter connection; the session reconnects when it is back.")
                                      ) from exc
 
     def pick_channel(self, channel: int | None) -> SdoChannel:
         """SDO channel ``channel`` (1 = the default SDO server), or without one the first that is free."""
         if channel is not None:
             if not 1 <= channel <= len(self.channels):
-                raise ProtocolError(f"Node {self.node_id} has no SDO channel {channel} configured")
+                raise ProtocolError(Text(N_("Node {node} has no SDO channel {channel} configured"),
+                                          node=self.node_id, channel=channel))
             return self.channels[channel - 1]
         for candidate in self.channels:
             if not candidate.lock.locked():
@@ -169,7 +173,7 @@ class CanopenNetwork:
     def node(self, node_id: int, abort_texts: Mapping[int, str] | None = None) -> NodeClient:
         """The node's client; ``abort_texts`` (the profile's, when the caller knows it) replaces the client's."""
         if not 1 <= node_id <= 127:
-            raise NodeOffline(f"Node id {node_id} is outside 1..127")
+            raise NodeOffline(Text(N_("Node id {node} is outside 1..127"), node=node_id))
         client = self.nodes.get(node_id)
         if client is None:
             client = self.nodes[node_id] = NodeClient(self, node_id, abort_texts)
@@ -185,9 +189,11 @@ class CanopenNetwork:
         try:
             self.canopen.send_message(cob_id, data)
         except can.CanError as exc:
-            raise TransportError(f"Cannot send on {self.bus.spec}: {exc}", hint=self.bus.spec.hint()) from exc
+            raise TransportError(Text(CANNOT_SEND, bus=self.bus.spec, reason=exc), hint=self.bus.spec.hint()) \
+                from exc
         except RuntimeError as exc:  # canopen: "Not connected to CAN bus" once the session has closed
-            raise TransportError(f"Cannot send on {self.bus.spec}: the session's bus is closed ({exc})") from exc
+            raise TransportError(Text(CANNOT_SEND, bus=self.bus.spec, reason=Text(
+                N_("the session's bus is closed ({reason})"), reason=exc))) from exc
 
     def scan(self, timeout_s: float = 0.5, node_ids: range = range(1, 128)) -> list[int]:
         """Ask every node id for 0x1000 (SDO) and collect who answers or sends heartbeats (blocking)."""

@@ -1,8 +1,11 @@
-"""NMT commands and states (CiA 301), in the manuals' words."""
+"""NMT commands and states (CiA 301), in the manuals' words: English, marked N_() for the catalogue (a state word is
+also a CSS class and an API value; a page shows ``_(label)``)."""
 
 from __future__ import annotations
 
 from enum import IntEnum
+
+from drivebench.i18n import N_
 
 
 class NmtCommand(IntEnum):
@@ -18,11 +21,11 @@ class NmtCommand(IntEnum):
 
 
 NMT_COMMAND_NAMES = {
-    NmtCommand.START: "Start remote node",
-    NmtCommand.STOP: "Stop remote node",
-    NmtCommand.ENTER_PRE_OPERATIONAL: "Enter pre-operational",
-    NmtCommand.RESET_NODE: "Reset node",
-    NmtCommand.RESET_COMMUNICATION: "Reset communication",
+    NmtCommand.START: N_("Start remote node"),
+    NmtCommand.STOP: N_("Stop remote node"),
+    NmtCommand.ENTER_PRE_OPERATIONAL: N_("Enter pre-operational"),
+    NmtCommand.RESET_NODE: N_("Reset node"),
+    NmtCommand.RESET_COMMUNICATION: N_("Reset communication"),
 }
 
 
@@ -40,10 +43,10 @@ class NmtState(IntEnum):
 
 
 NMT_STATE_NAMES = {
-    NmtState.BOOTUP: "Boot-up",
-    NmtState.STOPPED: "Stopped",
-    NmtState.OPERATIONAL: "Operational",
-    NmtState.PRE_OPERATIONAL: "Pre-operational",
+    NmtState.BOOTUP: N_("Boot-up"),
+    NmtState.STOPPED: N_("Stopped"),
+    NmtState.OPERATIONAL: N_("Operational"),
+    NmtState.PRE_OPERATIONAL: N_("Pre-operational"),
 }
 
 # The state a node is in after each command.

@@ -22,8 +22,10 @@ from collections import deque
 from collections.abc import Callable, Generator
 
 from drivebench.errors import SdoAbortError, SdoOutOfStepError, SdoStalledError, SdoTimeoutError
+from drivebench.i18n import Text
 from drivebench.protocol.abort_codes import abort_text
 from drivebench.protocol.network import NodeClient, SdoChannel
+from drivebench.protocol.sdo_errors import NO_RESPONSE, UNEXPECTED, reason
 
 ABORT_TIMEOUT = 0x05040000
 """CiA 301: SDO protocol timed out (sent when the last attempt got no answer)."""
@@ -261,14 +263,13 @@ class ExpeditedUploader:
                     self._abort(request.address, ABORT_TIMEOUT)
                     other = self._other_object
                     if other is not None:  # it did answer, only never for this object
-                        raise SdoOutOfStepError("object", node=self.node_id, index=request.index,
+                        raise SdoOutOfStepError(SdoOutOfStepError.OTHER_OBJECT, node=self.node_id, index=request.index,
                                                 subindex=request.subindex,
                                                 answered=(other[0] | other[1] << 8, other[2])) from None
-                    values = {"node": self.node_id, "object": f"0x{request.index:04X}sub{request.subindex}",
-                              "reason": "No SDO response received"}
-                    raise SdoTimeoutError(SdoTimeoutError.NO_ANSWER.format(**values), node=self.node_id,
-                                          index=request.index, subindex=request.subindex).keep_template(
-                        SdoTimeoutError.NO_ANSWER, **values) from None
+                    silent = Text(SdoTimeoutError.NO_ANSWER, node=self.node_id, reason=reason(NO_RESPONSE),
+                                   object=f"0x{request.index:04X}sub{request.subindex}")
+                    raise SdoTimeoutError(silent, node=self.node_id, index=request.index,
+                                          subindex=request.subindex) from None
                 finally:
                     self._pending = None
                 if segmented and data[0] >> 5 == 2 and not data[0] & 0x02:  # initiate answer: segmented
@@ -313,11 +314,11 @@ class ExpeditedUploader:
                                     subindex=subindex)
             if command >> 5 != 0:
                 self._abort(request.address, ABORT_INVALID_COMMAND)
-                raise SdoOutOfStepError(f"unexpected response 0x{command:02X}", node=node, index=index,
+                raise SdoOutOfStepError(Text(UNEXPECTED, command=f"0x{command:02X}"), node=node, index=index,
                                         subindex=subindex)
             if (command >> 4) & 1 != toggle:
                 self._abort(request.address, ABORT_TOGGLE)
-                raise SdoOutOfStepError("toggle", node=node, index=index, subindex=subindex)
+                raise SdoOutOfStepError(SdoOutOfStepError.TOGGLE, node=node, index=index, subindex=subindex)
             value += data[1:8 - ((command >> 1) & 0x7)]
             done += 1
             if command & 0x01:  # no more segments

@@ -22,7 +22,7 @@ import can
 from pydantic import BaseModel, Field, ValidationError
 
 from drivebench.errors import AdapterUnavailable, BusSpecError, TransportError
-from drivebench.i18n import N_
+from drivebench.i18n import N_, Text
 
 DEFAULT_BITRATE = 500_000
 _SOCKETCAND_RE = re.compile(r"^socketcand:(?P<host>[^:/@]+):(?P<port>\d+)/(?P<channel>[^@]+)(?:@(?P<bitrate>\d+))?$")
@@ -30,18 +30,21 @@ _GENERIC_RE = re.compile(r"^(?P<interface>[a-z_][a-z0-9_]*):(?P<channel>[^@]*)(?
 
 # What to check when an adapter cannot be opened, per interface (the rest get the generic hint).
 _HINTS = {
-    "socketcan": "Is the interface up? Run 'ip link set {channel} up type can bitrate {bitrate}' (needs SocketCAN in "
-                 "the kernel and root).",
-    "socketcand": "Is a socketcand gateway listening at {host}:{port}, and does it serve channel '{channel}'? "
-                  "For a local test bus start 'drivebench hub --port {port}'.",
-    "pcan": "Is the PEAK driver installed and the adapter plugged in? Channel names look like PCAN_USBBUS1.",
-    "kvaser": "Is Kvaser CANlib installed and the adapter plugged in? Channels are numbers (0, 1 ...).",
-    "ixxat": "Is the IXXAT VCI driver installed and the adapter plugged in?",
-    "vector": "Is the Vector XL driver installed, and is the channel assigned to an application in Vector Hardware "
-              "Config?",
-    "slcan": "Is the serial port right (e.g. /dev/ttyACM0 or COM3) and not used by another program?",
-    "gs_usb": "Is the candleLight/gs_usb adapter plugged in and is pyusb installed?",
+    "socketcan": N_("Is the interface up? Run 'ip link set {channel} up type can bitrate {bitrate}' (needs SocketCAN "
+                    "in the kernel and root)."),
+    "socketcand": N_("Is a socketcand gateway listening at {host}:{port}, and does it serve channel '{channel}'? "
+                     "For a local test bus start 'drivebench hub --port {port}'."),
+    "pcan": N_("Is the PEAK driver installed and the adapter plugged in? Channel names look like PCAN_USBBUS1."),
+    "kvaser": N_("Is Kvaser CANlib installed and the adapter plugged in? Channels are numbers (0, 1 ...)."),
+    "ixxat": N_("Is the IXXAT VCI driver installed and the adapter plugged in?"),
+    "vector": N_("Is the Vector XL driver installed, and is the channel assigned to an application in Vector "
+                 "Hardware Config?"),
+    "slcan": N_("Is the serial port right (e.g. /dev/ttyACM0 or COM3) and not used by another program?"),
+    "gs_usb": N_("Is the candleLight/gs_usb adapter plugged in and is pyusb installed?"),
 }
+_GENERIC_HINT = N_("Check that the adapter is plugged in, its driver is installed, and the channel name is right.")
+CANNOT_OPEN = N_("Cannot open {bus}: {reason}")
+ADAPTER_LOST = N_("adapter lost: {reason}")
 
 
 class BusSpec(BaseModel):
@@ -62,9 +65,9 @@ class BusSpec(BaseModel):
                              options={"host": match["host"], "port": int(match["port"])})
         match = _GENERIC_RE.match(cleaned)
         if not match:
-            raise BusSpecError(
-                f"'{text}' is not a bus specification. Write INTERFACE:CHANNEL@BITRATE "
-                "(socketcan:can0@500000, pcan:PCAN_USBBUS1@250000) or socketcand:HOST:PORT/CHANNEL.")
+            raise BusSpecError(Text(N_("'{text}' is not a bus specification. Write INTERFACE:CHANNEL@BITRATE "
+                                        "(socketcan:can0@500000, pcan:PCAN_USBBUS1@250000) or "
+                                        "socketcand:HOST:PORT/CHANNEL."), text=text))
         return cls.build(interface=match["interface"], channel=match["channel"],
                          bitrate=int(match["bitrate"] or DEFAULT_BITRATE))
 
@@ -75,7 +78,7 @@ class BusSpec(BaseModel):
             return cls(**fields)
         except ValidationError as exc:
             problems = "; ".join(f"{'.'.join(str(p) for p in e['loc'])}: {e['msg']}" for e in exc.errors())
-            raise BusSpecError(f"Invalid bus settings: {problems}") from exc
+            raise BusSpecError(Text(N_("Invalid bus settings: {problems}"), problems=problems)) from exc
 
     def __str__(self) -> str:
         if self.interface == "socketcand":
@@ -83,11 +86,10 @@ class BusSpec(BaseModel):
                     f"@{self.bitrate}")
         return f"{self.interface}:{self.channel}@{self.bitrate}"
 
-    def hint(self) -> str:
-        template = _HINTS.get(self.interface, "Check that the adapter is plugged in, its driver is installed, and "
-                                              "the channel name is right.")
-        return template.format(channel=self.channel or "can0", bitrate=self.bitrate,
-                               host=self.options.get("host", "?"), port=self.options.get("port", "?"))
+    def hint(self) -> Text:
+        """What to check when the adapter cannot be opened, in the reader's words (``str()`` where it is shown)."""
+        return Text(_HINTS.get(self.interface, _GENERIC_HINT), channel=self.channel or "can0", bitrate=self.bitrate,
+                     host=self.options.get("host", "?"), port=self.options.get("port", "?"))
 
 
 def known_interfaces() -> list[str]:
@@ -143,7 +145,7 @@ class SimulatedAdapter:
         self.unplugged: str | None = None
         self.state = can.BusState.ACTIVE
 
-    def unplug(self, reason: str = "USB adapter unplugged") -> None:
+    def unplug(self, reason: str = N_("USB adapter unplugged")) -> None:
         self.unplugged = reason
 
     def plug_in(self) -> None:
@@ -239,7 +241,7 @@ class ObservedBus(can.BusABC):
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
         link = self.link
         if link.lost_reason is not None:
-            raise AdapterLost(f"adapter lost: {link.lost_reason}", hint=self._lost_hint())
+            raise AdapterLost(Text(ADAPTER_LOST, reason=link.lost_reason), hint=self._lost_hint())
         guard = self.send_guard
         refusal = guard() if guard is not None else None
         if refusal:
@@ -248,10 +250,10 @@ class ObservedBus(can.BusABC):
         try:
             inner.send(msg, timeout)
         except can.CanTimeoutError as exc:  # transmit queue full: the adapter is there, the bus does not take it
-            raise BusUnusable(f"the adapter did not send the frame in time: {exc}") from exc
+            raise BusUnusable(Text(N_("the adapter did not send the frame in time: {reason}"), reason=exc)) from exc
         except (can.CanError, OSError, ValueError) as exc:
             reason = self._lose(inner, exc)
-            raise AdapterLost(f"adapter lost: {reason}", hint=self._lost_hint()) from exc
+            raise AdapterLost(Text(ADAPTER_LOST, reason=reason), hint=self._lost_hint()) from exc
         if not msg.timestamp:
             msg.timestamp = time.time()
         for observer in self._observers:
@@ -268,12 +270,12 @@ class ObservedBus(can.BusABC):
             self._lose(inner, exc)
             return None, False
         if msg is None and _peer_closed(inner):
-            self._lose(inner, "the socketcand gateway closed the connection")
+            self._lose(inner, N_("the socketcand gateway closed the connection"))  # a page shows _(lost_reason)
         return msg, False
 
     # --- adapter lost and back ----------------------------------------------------------------------------
-    def _lost_hint(self) -> str:
-        return f"The session reconnects by itself when the adapter is back. {self.spec.hint()}"
+    def _lost_hint(self) -> Text:
+        return Text(N_("The session reconnects by itself when the adapter is back. {hint}"), hint=self.spec.hint())
 
     def _lose(self, inner: can.BusABC, cause: BaseException | str) -> str:
         """Mark the adapter lost (once per adapter) and start reconnecting; returns the reason."""
@@ -376,10 +378,10 @@ def open_bus(spec: BusSpec) -> ObservedBus:
 def _open_adapter(spec: BusSpec, adapter: SimulatedAdapter | None = None) -> can.BusABC:
     if spec.interface not in can.interfaces.VALID_INTERFACES:
         raise AdapterUnavailable(
-            f"Unknown CAN interface '{spec.interface}'.",
-            hint=f"python-can knows: {', '.join(known_interfaces())}.")
+            Text(N_("Unknown CAN interface '{interface}'."), interface=spec.interface),
+            hint=Text(N_("python-can knows: {interfaces}."), interfaces=", ".join(known_interfaces())))
     if adapter is not None and adapter.unplugged:
-        raise AdapterUnavailable(f"Cannot open {spec}: {adapter.unplugged}", hint=spec.hint())
+        raise AdapterUnavailable(Text(CANNOT_OPEN, bus=spec, reason=adapter.unplugged), hint=spec.hint())
     kwargs: dict[str, Any] = {"interface": spec.interface, "channel": spec.channel or None,
                               "bitrate": spec.bitrate, **spec.options}
     if spec.interface == "virtual":
@@ -393,7 +395,7 @@ def _open_adapter(spec: BusSpec, adapter: SimulatedAdapter | None = None) -> can
         inner = can.Bus(**kwargs)
     except Exception as exc:  # vendor drivers raise anything (kvaser without CANlib: NameError)
         reason = str(exc) or type(exc).__name__
-        raise AdapterUnavailable(f"Cannot open {spec}: {reason}", hint=spec.hint()) from exc
+        raise AdapterUnavailable(Text(CANNOT_OPEN, bus=spec, reason=reason), hint=spec.hint()) from exc
     return _SwitchedBus(inner, adapter) if adapter is not None else inner
 
 
@@ -401,10 +403,10 @@ def _probe_gateway(spec: BusSpec, timeout_s: float = 2.0) -> None:
     """python-can's socketcand client retries for 10 s and prints every attempt: ask once, quickly."""
     host, port = spec.options.get("host"), spec.options.get("port")
     if not host or not port:
-        raise BusSpecError("A socketcand bus needs host and port: socketcand:HOST:PORT/CHANNEL")
+        raise BusSpecError(Text(N_("A socketcand bus needs host and port: socketcand:HOST:PORT/CHANNEL")))
     try:
         with socket.create_connection((str(host), int(port)), timeout=timeout_s):
             pass
     except OSError as exc:
-        raise AdapterUnavailable(f"Cannot reach the socketcand gateway at {host}:{port}: {exc}",
-                                 hint=spec.hint()) from exc
+        raise AdapterUnavailable(Text(N_("Cannot reach the socketcand gateway at {host}:{port}: {reason}"),
+                                       host=host, port=port, reason=exc), hint=spec.hint()) from exc

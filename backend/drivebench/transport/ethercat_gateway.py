@@ -18,11 +18,14 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from drivebench.errors import BusSpecError, TransportError
+from drivebench.i18n import N_, Text
 
 GATEWAY_PORT = 0x88A4
 ETHERCAT_TYPE_MAILBOX = 5
 MAILBOX_HEADER_SIZE = 6
 MAX_DATAGRAM = 1500
+GATEWAY_FAILED = N_("Mailbox gateway {bus}: {reason}")
+NOTHING_LISTENS = N_("nothing listens on the gateway's UDP port")
 _SPEC_RE = re.compile(r"^ethercat-mbg:(?P<host>\[[0-9A-Fa-f:.]+\]|[^:/\s]+)(?::(?P<port>\d{1,5}))?$")
 
 TelegramHandler = Callable[[bytes], None]
@@ -49,11 +52,12 @@ class GatewaySpec:
     def parse(cls, text: str) -> GatewaySpec:
         match = _SPEC_RE.match(text.strip())
         if not match:
-            raise BusSpecError(f"'{text}' is not a mailbox gateway: write ethercat-mbg:HOST or ethercat-mbg:HOST:PORT "
-                               f"(the gateway's UDP port, {GATEWAY_PORT} by default).")
+            raise BusSpecError(Text(N_("'{text}' is not a mailbox gateway: write ethercat-mbg:HOST or "
+                                        "ethercat-mbg:HOST:PORT (the gateway's UDP port, {port} by default)."),
+                                     text=text, port=GATEWAY_PORT))
         port = int(match["port"] or GATEWAY_PORT)
         if not 1 <= port <= 65535:
-            raise BusSpecError(f"'{text}': UDP port {port} is not between 1 and 65535.")
+            raise BusSpecError(Text(N_("'{text}': UDP port {port} is not between 1 and 65535."), text=text, port=port))
         return cls(match["host"].strip("[]"), port)
 
     def __str__(self) -> str:
@@ -104,22 +108,23 @@ class GatewayLink:
             self._sock = socket.socket(family, socket.SOCK_DGRAM)
             self._sock.connect((spec.host, spec.port))
         except OSError as exc:
-            raise TransportError(f"Mailbox gateway {spec}: {exc.strerror or exc}",
-                                 hint="Check the gateway's address and that its master has the mailbox gateway "
-                                      "switched on (UDP port 34980).") from exc
+            raise TransportError(Text(GATEWAY_FAILED, bus=spec, reason=exc.strerror or exc),
+                                 hint=N_("Check the gateway's address and that its master has the mailbox gateway "
+                                         "switched on (UDP port 34980).")) from exc
         self._closed = threading.Event()
         self._reader = threading.Thread(target=self._read, name=f"mbg-{spec.host}:{spec.port}", daemon=True)
         self._reader.start()
 
     def send(self, telegram: bytes) -> None:
         if self._closed.is_set():
-            raise TransportError(f"Mailbox gateway {self.spec}: the link is closed.")
+            raise TransportError(Text(GATEWAY_FAILED, bus=self.spec, reason=Text(N_("the link is closed."))))
         try:
             self._sock.send(gateway_frame(telegram))
         except ConnectionRefusedError:
-            self.unreachable = "nothing listens on the gateway's UDP port"
+            self.unreachable = NOTHING_LISTENS
         except OSError as exc:
-            raise TransportError(f"Mailbox gateway {self.spec}: sending failed: {exc.strerror or exc}") from exc
+            raise TransportError(Text(GATEWAY_FAILED, bus=self.spec, reason=Text(
+                N_("sending failed: {reason}"), reason=exc.strerror or exc))) from exc
         self.sent += 1
 
     def _read(self) -> None:
@@ -127,7 +132,7 @@ class GatewayLink:
             try:
                 datagram = self._sock.recv(MAX_DATAGRAM)
             except ConnectionRefusedError:
-                self.unreachable = "nothing listens on the gateway's UDP port"
+                self.unreachable = NOTHING_LISTENS
                 continue
             except OSError:
                 if self._closed.is_set():

@@ -26,6 +26,7 @@ from types import ModuleType
 from typing import Any
 
 from drivebench.errors import BusSpecError, ProtocolError, SdoAbortError, SdoTimeoutError, TransportError
+from drivebench.i18n import N_, Text, _
 
 NET_CLASS = Path("/sys/class/net")
 CAP_NET_RAW = 13
@@ -38,7 +39,6 @@ CYCLE_S = 0.004
 """Process data period while a slave is Safe-Operational or higher (outputs stay zero)."""
 MAILBOX_POLL_S = 0.5
 INSTALL = "pip install 'drivebench[ethercat]'"
-GATEWAY_INSTEAD = "or reach the slaves through a master's mailbox gateway (ethercat-mbg:HOST)"
 _NIC_RE = re.compile(r"^ethercat:(?P<nic>[A-Za-z0-9_.:-]{1,32})$")
 
 EmergencyHandler = Callable[[int, int, int, bytes, float], None]
@@ -62,7 +62,8 @@ class DirectSpec:
     def parse(cls, text: str) -> DirectSpec:
         match = _NIC_RE.match(text.strip())
         if not match:
-            raise BusSpecError(f"'{text}' is not a network card: write ethercat:NIC, e.g. ethercat:eth1")
+            raise BusSpecError(Text(N_("'{text}' is not a network card: write ethercat:NIC, e.g. ethercat:eth1"),
+                                     text=text))
         return cls(match["nic"])
 
     def __str__(self) -> str:
@@ -104,17 +105,22 @@ def load_pysoem() -> ModuleType | None:
         return None
 
 
-def refusal(spec: DirectSpec) -> str | None:
-    """Why a direct master on ``spec.nic`` cannot run here, in words; None if it could."""
+def refusal(spec: DirectSpec) -> Text | None:
+    """Why a direct master on ``spec.nic`` cannot run here, in words (in the reader's language where shown); None if
+    it could."""
     if load_pysoem() is None:
-        return f"The direct EtherCAT master needs pysoem: install DriveBench with its extra ({INSTALL}), " \
-               f"{GATEWAY_INSTEAD}."
+        return Text(N_("The direct EtherCAT master needs pysoem: install DriveBench with its extra ({install}), or "
+                        "reach the slaves through a master's mailbox gateway (ethercat-mbg:HOST)."), install=INSTALL)
     if not may_use_raw_sockets():
-        return (f"The direct EtherCAT master sends raw Ethernet frames on {spec.nic}: run DriveBench as root or give "
-                f"its Python CAP_NET_RAW (setcap cap_net_raw+ep), {GATEWAY_INSTEAD}.")
+        return Text(N_("The direct EtherCAT master sends raw Ethernet frames on {nic}: run DriveBench as root or give "
+                        "its Python CAP_NET_RAW (setcap cap_net_raw+ep), or reach the slaves through a master's "
+                        "mailbox gateway (ethercat-mbg:HOST)."), nic=spec.nic)
     cards = network_cards()
     if spec.nic not in cards:
-        return f"This computer has no network card '{spec.nic}'; it has {', '.join(cards) or 'none'} (see ip link)."
+        if not cards:
+            return Text(N_("This computer has no network card '{nic}'; it has none (see ip link)."), nic=spec.nic)
+        return Text(N_("This computer has no network card '{nic}'; it has {cards} (see ip link)."), nic=spec.nic,
+                     cards=", ".join(cards))
     return None
 
 
@@ -123,7 +129,7 @@ def open_link(spec: DirectSpec, timeout_s: float) -> SoemLink:
     why = refusal(spec)
     pysoem = load_pysoem()
     if why is not None or pysoem is None:
-        raise TransportError(why or f"pysoem is missing ({INSTALL})")
+        raise TransportError(why or Text(N_("pysoem is missing ({install})"), install=INSTALL))
     return SoemLink(spec, pysoem, timeout_s=timeout_s)
 
 
@@ -148,9 +154,10 @@ class SoemLink:
         try:
             self.master.open(spec.nic)
         except ConnectionError as exc:
-            raise TransportError(f"pysoem could not open {spec.nic} for raw EtherCAT frames: {exc}",
-                                 hint="Check that the card is up (ip link set dev NIC up) and that no other master "
-                                      "uses it.") from exc
+            raise TransportError(Text(N_("pysoem could not open {nic} for raw EtherCAT frames: {reason}"),
+                                       nic=spec.nic, reason=exc),
+                                 hint=N_("Check that the card is up (ip link set dev NIC up) and that no other master "
+                                         "uses it.")) from exc
         self.master.manual_state_change = 1  # the tool asks for every state itself (SOEM would go to Pre-Op/Safe-Op)
         self.master.always_release_gil = True  # the cycle thread runs while a transfer waits for its answer
 
@@ -171,7 +178,8 @@ class SoemLink:
 
     def _slave(self, position: int) -> Any:
         if not 1 <= position <= len(self.slaves):
-            raise ProtocolError(f"No slave at position {position} on {self.spec.nic}: scan the segment")
+            raise ProtocolError(Text(N_("No slave at position {position} on {nic}: scan the segment"),
+                                      position=position, nic=self.spec.nic))
         return self.slaves[position - 1]
 
     # --- registers and states -----------------------------------------------------------------------------------
@@ -180,8 +188,9 @@ class SoemLink:
         try:
             data = self._slave(position)._fprd(address, 2, int(self.timeout_s * 1e6))
         except self.pysoem.WkcError as exc:
-            raise ProtocolError(f"The slave at position {position} on {self.spec.nic} did not answer the read of "
-                                f"register 0x{address:04X}: lost from the segment (cable, power)?") from exc
+            raise ProtocolError(Text(N_("The slave at position {position} on {nic} did not answer the read of "
+                                         "register {register}: lost from the segment (cable, power)?"),
+                                      position=position, nic=self.spec.nic, register=f"0x{address:04X}")) from exc
         return int.from_bytes(data[:2], "little")
 
     def request_state(self, position: int, request: int, timeout_s: float) -> int:
@@ -197,9 +206,9 @@ class SoemLink:
         try:
             size = int(self.master.config_map())
         except self.pysoem.ConfigMapError as exc:
-            reasons = "; ".join(self._error_text(error) for error in exc.error_list)
-            raise ProtocolError(f"The process data of the slaves on {self.spec.nic} could not be mapped: {reasons}") \
-                from exc
+            reasons = Text.joined("; ", [self._error_text(error) for error in exc.error_list])
+            raise ProtocolError(Text(N_("The process data of the slaves on {nic} could not be mapped: {reasons}"),
+                                      nic=self.spec.nic, reasons=reasons)) from exc
         self.mapped = True
         return size
 
@@ -222,21 +231,25 @@ class SoemLink:
             raise SdoAbortError(int(exc.abort_code), str(exc.desc), node=position, index=index,
                                 subindex=subindex) from exc
         except errors.WkcError as exc:
-            raise SdoTimeoutError(f"The slave at position {position} did not answer the SDO request for "
-                                  f"0x{index:04X}sub{subindex}", node=position, index=index, subindex=subindex) from exc
+            raise SdoTimeoutError(Text(N_("The slave at position {position} did not answer the SDO request for "
+                                           "{object}"), position=position, object=f"0x{index:04X}sub{subindex}"),
+                                  node=position, index=index, subindex=subindex) from exc
         except (errors.MailboxError, errors.PacketError) as exc:
-            raise ProtocolError(f"Slave at position {position}, 0x{index:04X}sub{subindex}: "
-                                f"{self._error_text(exc)}") from exc
+            raise ProtocolError(Text(N_("Slave at position {position}, {object}: {reason}"), position=position,
+                                      object=f"0x{index:04X}sub{subindex}", reason=self._error_text(exc))) from exc
 
     def _error_text(self, error: Exception) -> str:
+        """One of pysoem's errors in words (its ``desc`` is SOEM's own English)."""
         if isinstance(error, self.pysoem.SdoError):
-            return f"SDO abort 0x{error.abort_code:08X} for 0x{error.index:04X}sub{error.subindex} ({error.desc})"
+            return Text(N_("SDO abort {code} for {object} ({reason})"), code=f"0x{error.abort_code:08X}",
+                         object=f"0x{error.index:04X}sub{error.subindex}", reason=error.desc)
         if isinstance(error, self.pysoem.MailboxError):
-            return f"the slave refused the mailbox request: {error.desc} (mailbox error {error.error_code})"
+            return Text(N_("the slave refused the mailbox request: {reason} (mailbox error {code})"),
+                         reason=error.desc, code=error.error_code)
         if isinstance(error, self.pysoem.PacketError):
             with contextlib.suppress(KeyError):
-                return f"mailbox packet error: {error.desc}"
-            return f"mailbox packet error {error.error_code}"
+                return Text(N_("mailbox packet error: {reason}"), reason=error.desc)
+            return Text(N_("mailbox packet error {code}"), code=error.error_code)
         return str(error)
 
     def _emergency(self, emergency: Any) -> None:
@@ -275,7 +288,9 @@ class SoemLink:
             carrier = (NET_CLASS / self.spec.nic / "carrier").read_text(encoding="ascii").strip()
         except OSError:
             return None  # down cards cannot be read; the next transfer says what is wrong
-        return None if carrier == "1" else f"{self.spec.nic} has no link: is the cable to the first slave plugged in?"
+        if carrier == "1":
+            return None
+        return _("{nic} has no link: is the cable to the first slave plugged in?").format(nic=self.spec.nic)
 
     def close(self) -> None:
         self._closed.set()

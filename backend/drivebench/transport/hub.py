@@ -46,6 +46,7 @@ from dataclasses import dataclass
 import can
 
 from drivebench.errors import TransportError
+from drivebench.i18n import N_, Text
 from drivebench.transport.hub_bridge import BridgeStats, BusBridge
 
 log = logging.getLogger(__name__)
@@ -194,8 +195,9 @@ class SocketcandHub:
         try:
             self._server = await asyncio.start_server(self._handle, host, port)
         except OSError as exc:
-            raise TransportError(f"The CAN hub cannot listen on {host}:{port}: {exc.strerror or exc}",
-                                 hint="Is another hub or program using that port? Pick another with --port.",
+            raise TransportError(Text(N_("The CAN hub cannot listen on {host}:{port}: {reason}"), host=host, port=port,
+                                       reason=exc.strerror or exc),
+                                 hint=N_("Is another hub or program using that port? Pick another with --port."),
                                  ) from exc
         self.port = self._server.sockets[0].getsockname()[1]
         loop = asyncio.get_running_loop()

@@ -67,7 +67,7 @@ def problem_body(exc: errors.DriveBenchError, instance: str) -> dict[str, object
     }
     body.update({k: v for k, v in exc.extra().items() if v is not None})
     if exc.hint:
-        body["hint"] = _(exc.hint)  # a hint marked N_() where it is written; any other stays as it is
+        body["hint"] = exc.shown_hint()  # a Text or N_() hint in the reader's words; any other stays as it is
     return body
 
 
