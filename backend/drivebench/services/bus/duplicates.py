@@ -25,6 +25,11 @@ HEARTBEATS_JUDGED = 7
 DOUBLED_RATE_FACTOR = 0.65
 """Heartbeats count as doubled when their span is below this share of what the producer period predicts."""
 PROBE_WAIT_S = 0.3
+"""Time left for a second answer after the last node's first one; longer when the first answers were slow (a loaded
+machine or a busy bus slows the duplicate as much): a fixed window read a late second answer as "one answer" and
+cleared a real finding."""
+FIRST_ANSWER_WAIT_S = 2.0
+"""The most the probe waits for each node's first answer (the scan found them, so they are expected to answer)."""
 IDENTITY_SERIAL = bytes([0x40, 0x18, 0x10, 0x04, 0, 0, 0, 0])
 """SDO upload request for 0x1018sub4 (serial number)."""
 
@@ -74,9 +79,12 @@ class DuplicateWatch(can.Listener):
         """Ask each node once for its serial number (0x1018sub4) and count the answers (blocking). Two or more:
         a duplicate; exactly one clears an earlier finding. Returns the answers per node."""
         answers: dict[int, list[bytes]] = {node_id: [] for node_id in node_ids}
+        answered = threading.Condition()
 
         def on_answer(can_id: int, data: bytearray, timestamp: float) -> None:
-            answers[can_id - 0x580].append(bytes(data))
+            with answered:
+                answers[can_id - 0x580].append(bytes(data))
+                answered.notify_all()
 
         locks = [channel.lock for client in list(network.nodes.values()) for channel in client.channels]
         for lock in locks:  # no probe may land in the middle of a transfer
@@ -85,9 +93,13 @@ class DuplicateWatch(can.Listener):
             for node_id in node_ids:
                 network.canopen.subscribe(0x580 + node_id, on_answer)
             try:
+                sent = time.monotonic()
                 for node_id in node_ids:
                     network.send(0x600 + node_id, IDENTITY_SERIAL)
-                time.sleep(PROBE_WAIT_S)
+                with answered:
+                    all_answered = answered.wait_for(lambda: all(answers.values()), timeout=FIRST_ANSWER_WAIT_S)
+                slowest_first = time.monotonic() - sent if all_answered else 0.0  # a silent node: waited enough
+                time.sleep(max(PROBE_WAIT_S, 2 * slowest_first))
             finally:
                 for node_id in node_ids:
                     network.canopen.unsubscribe(0x580 + node_id, on_answer)
