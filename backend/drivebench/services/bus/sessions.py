@@ -18,7 +18,7 @@ import can
 
 from drivebench.device.catalog import Catalog
 from drivebench.device.profile import Profile
-from drivebench.errors import DriveBenchError, NotFound, SdoAbortError, SdoTimeoutError
+from drivebench.errors import DriveBenchError, NotFound, SdoAbortError, SdoOutOfStepError, SdoTimeoutError
 from drivebench.i18n import _
 from drivebench.protocol.emcy import EmcyEvent
 from drivebench.protocol.esm import EsmState
@@ -235,7 +235,9 @@ class Session:
             try:
                 data = await client.aupload(index, sub)
                 identity[key] = int.from_bytes(data[:4], "little")
-            except (SdoAbortError, SdoTimeoutError):
+            except (SdoAbortError, SdoTimeoutError, SdoOutOfStepError):
+                # out of step: a late second answer to the read before (two devices on this id; the duplicate
+                # probe after the scan says so in words). One node's unreliable answers must not fail the scan.
                 continue
         try:  # the producer period lets heartbeat loss be judged before two telegrams were measured
             period = await client.aupload(0x1017, 0)
@@ -243,7 +245,7 @@ class Session:
             self.network.heartbeat.set_configured_period(node_id, period_ms)
             if period_ms:
                 self.duplicates.producer_period_s[node_id] = period_ms / 1000
-        except (SdoAbortError, SdoTimeoutError):
+        except (SdoAbortError, SdoTimeoutError, SdoOutOfStepError):
             pass
         existing = self.nodes.get(node_id)
         profile = existing.profile if existing else None
