@@ -55,6 +55,7 @@ from fastapi import APIRouter, Query, WebSocket, WebSocketDisconnect
 from pydantic import BaseModel, Field, ValidationError
 
 from drivebench.errors import NotFound
+from drivebench.i18n import N_, _
 from drivebench.services.bus.sessions import Session
 from drivebench.services.monitoring.monitor import Monitor, MonitorFilter, MonitorView, monitor_for
 from drivebench.services.monitoring.recording import recordings_for
@@ -287,14 +288,15 @@ def _problem_text(exc: ValidationError) -> str:
     """``Filter not applied: nodes: Input should be less than or equal to 127`` (the user's words, not pydantic's)."""
     errors = exc.errors(include_url=False)
     if not errors or errors[0]["type"] == "json_invalid" or not errors[0]["loc"]:
-        return f"Not a view message: {errors[0]['msg'] if errors else exc}"
+        return _("Not a view message: {problem}").format(problem=errors[0]["msg"] if errors else exc)
     problems = []
     for error in errors:
         fields = [str(part) for part in error["loc"][1:] if not isinstance(part, int)]
         message = str(error["msg"]).removeprefix("Value error, ")
         problems.append(f"{', '.join(fields)}: {message}" if fields else message)
-    what = {"filter": "Filter", "paused": "Pause", "rows": "Trace rows"}.get(str(errors[0]["loc"][0]), "View")
-    return f"{what} not applied: {'; '.join(problems)}"
+    what = {"filter": N_("Filter"), "paused": N_("Pause"), "rows": N_("Trace rows")}.get(str(errors[0]["loc"][0]),
+                                                                                         N_("View"))
+    return _("{what} not applied: {problems}").format(what=_(what), problems="; ".join(problems))
 
 
 async def _send_loop(client: _Client) -> None:
@@ -313,7 +315,7 @@ async def monitor_stream(websocket: WebSocket, session_id: str,
     try:
         session = websocket.app.state.drivebench.manager.get(session_id)
     except NotFound:
-        await websocket.close(code=4404, reason=f"No open session '{session_id}'")
+        await websocket.close(code=4404, reason=_("No open session '{session}'").format(session=session_id))
         return
     feed = _feed(websocket, session)
     defaults = feed.monitor.defaults
@@ -322,14 +324,14 @@ async def monitor_stream(websocket: WebSocket, session_id: str,
     client = _Client(websocket, view, rows)
     sender: asyncio.Task[None] | None = None
     try:
-        hello, _ = feed.hello(view, rows)
+        hello, _rows = feed.hello(view, rows)
         feed.clients.add(client)  # before the first await: updates built from now on queue behind the hello
         if feed.task is None or feed.task.done():
             feed.task = asyncio.create_task(feed.run())
         await websocket.send_text(hello)
         sender = asyncio.create_task(_send_loop(client))
         receiver = asyncio.create_task(_receive_views(websocket, feed, client))
-        done, _ = await asyncio.wait({sender, receiver}, return_when=asyncio.FIRST_COMPLETED)
+        done, _pending = await asyncio.wait({sender, receiver}, return_when=asyncio.FIRST_COMPLETED)
         receiver.cancel()
         for task in done:
             with contextlib.suppress(WebSocketDisconnect, RuntimeError, asyncio.CancelledError):

@@ -1,0 +1,126 @@
+"""The German UI of drive control, diagnostics and PDOs over the real HTTP API on the demo plant: the standard CiA 402
+names of the generic servo (node 7) in German, a vendor section's own texts as its manual prints them, refusals in
+words of the reader's language, and a stop recorded by the keep-alive guard put into each reader's words."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from fastapi.testclient import TestClient
+
+from tests.conftest import wait_until
+
+API = "/api/sessions/demo-plant/nodes"
+UI = "/ui/sessions/demo-plant/nodes"
+GERMAN = {"Accept-Language": "de-DE,de;q=0.9,en;q=0.5"}
+SERVO, MM = 7, 3
+
+
+def _status(client: TestClient, node: int, headers: dict[str, str] | None = None) -> dict[str, Any]:
+    answer = client.get(f"{API}/{node}/control", headers=headers or {})
+    assert answer.status_code == 200, answer.text
+    return dict(answer.json())
+
+
+def _until(client: TestClient, node: int, state: str) -> None:
+    assert wait_until(lambda: _status(client, node)["state"] == state, 8.0), f"node {node} never in {state}"
+
+
+def test_the_control_tab_of_the_generic_servo_shows_cia402_in_german(client: TestClient) -> None:
+    _until(client, SERVO, "switch_on_disabled")
+    german = client.get(f"{UI}/{SERVO}/control", headers=GERMAN)
+    assert german.status_code == 200
+    page = german.text
+    for text in (">Stillsetzen<", ">Einschalten<", ">Betrieb freigeben<", ">Schnellhalt<",  # transition buttons
+                 ">Einschaltsperre<", ">Betrieb freigegeben<", ">Störung<",  # the drawn states
+                 ">2 Stillsetzen<", ">15 Fehler quittieren<",  # the arrows
+                 "Schnellhalt (0 = aktiv)", "Ziel erreicht",  # control and status word bits
+                 "Referenzfahrt", "Interpolierte Position",  # modes of operation
+                 "CiA-402-Zustandsmaschine des Antriebs"):
+        assert text in page, text
+    for english in (">Shutdown<", ">Enable operation<", ">Switch on disabled<", ">Target reached<"):
+        assert english not in page, english
+    plain = client.get(f"{UI}/{SERVO}/control").text
+    assert ">Shutdown<" in plain and ">Switch on disabled<" in plain and ">2 Shutdown<" in plain
+
+
+def test_the_status_api_names_standard_texts_in_german_and_a_vendors_as_printed(client: TestClient) -> None:
+    _until(client, SERVO, "switch_on_disabled")
+    servo = _status(client, SERVO, GERMAN)
+    assert servo["state_label"] == "Einschaltsperre" and servo["title"] == "CiA-402-Zustandsmaschine des Antriebs"
+    assert servo["commands"]["enable_operation"] == "Betrieb freigeben"
+    assert servo["commands"]["shutdown"] == "Stillsetzen"
+    assert servo["status_bits"][10]["name"] == "Ziel erreicht"
+    assert servo["control_bits"][7]["name"] == "Fehler quittieren"
+    assert servo["modes"]["6"] == "Referenzfahrt" and servo["modes"]["7"] == "Interpolierte Position"
+    assert [bit["name"] for bit in servo["inputs"]][:3] == ["Negativer Endschalter", "Positiver Endschalter",
+                                                            "Referenzschalter"]
+    english = _status(client, SERVO)
+    assert english["state_label"] == "Switch on disabled" and english["commands"]["shutdown"] == "Shutdown"
+    assert english["modes"]["6"] == "Homing" and english["error_text"] == "No error"
+    # MICROMASTER: the section's own texts stay as the Siemens manual prints them; its standard CiA 402 names in German
+    micromaster = _status(client, MM, GERMAN)
+    names = [bit["name"] for bit in micromaster["status_bits"]]
+    assert names[0] == "Einschaltbereit" and names[4] == "Voltage enabled (MM: OFF2)"
+    assert micromaster["control_bits"][7]["name"] == "Fault reset (fault acknowledge)"
+
+
+def test_homing_methods_are_named_in_each_readers_language(client: TestClient) -> None:
+    german = client.get(f"{API}/{SERVO}/control/motion", headers=GERMAN).json()
+    assert german["homing_methods"]["34"] == "Nullimpuls in positiver Richtung"
+    assert german["homing_methods"]["7"].startswith("Referenzschalter und Nullimpuls: Start in Richtung positiv")
+    assert any(setting["label"] == "Maximale Profilgeschwindigkeit" for setting in german["settings"])
+    english = client.get(f"{API}/{SERVO}/control/motion").json()  # the methods read once are not kept in German
+    assert english["homing_methods"]["34"] == "Index pulse in positive direction"
+    assert english["homing_methods"]["7"] == ("Home switch and index pulse: start positive, reverse at the positive "
+                                              "limit switch, index below the switch's lower edge")
+
+
+def test_a_refused_move_and_an_unconfirmed_enable_answer_in_german(client: TestClient) -> None:
+    _until(client, SERVO, "switch_on_disabled")
+    move = client.post(f"{API}/{SERVO}/control/move", json={"target": 10, "confirm": SERVO}, headers=GERMAN)
+    assert move.status_code == 409, move.text
+    assert move.json()["detail"] == ("Eine Profilpositionsfahrt braucht den Antrieb im Zustand Betrieb freigegeben "
+                                     "(er ist in 'Einschaltsperre').")
+    plain = client.post(f"{API}/{SERVO}/control/move", json={"target": 10, "confirm": SERVO})
+    assert plain.json()["detail"] == ("A profile-position move needs the drive in operation enabled (it is in "
+                                      "'Switch on disabled').")
+    homing = client.post(f"{API}/{SERVO}/control/home", json={"method": 99, "confirm": SERVO}, headers=GERMAN)
+    assert homing.status_code == 422 and homing.json()["detail"].startswith("Die Referenzfahrt-Methode 99 (reserviert")
+    for command in ("shutdown", "switch_on"):
+        assert client.post(f"{API}/{SERVO}/control/commands/{command}").status_code == 200
+    unconfirmed = client.post(f"{API}/{SERVO}/control/commands/enable_operation", headers=GERMAN)
+    assert unconfirmed.status_code == 428
+    assert unconfirmed.json()["detail"].startswith("Betrieb freigeben ") and "Knoten 7" in unconfirmed.json()["detail"]
+    assert client.post(f"{API}/{SERVO}/control/commands/shutdown").status_code == 200
+
+
+def test_a_stop_by_the_keep_alive_guard_reads_in_each_readers_language(client: TestClient) -> None:
+    _until(client, SERVO, "switch_on_disabled")
+    for command in ("shutdown", "switch_on"):
+        assert client.post(f"{API}/{SERVO}/control/commands/{command}").status_code == 200
+    enabled = client.post(f"{API}/{SERVO}/control/commands/enable_operation", json={"confirm": SERVO},
+                          headers=GERMAN)
+    assert enabled.status_code == 200 and enabled.json()["armed"]
+    assert " an testclient seit " in enabled.json()["holder"]  # who holds it, in the German reader's words
+    # no keep-alive: the guard stops the drive on its own (a background task) and keeps what it did
+    assert wait_until(lambda: _status(client, SERVO)["last_trip"] is not None, 8.0)
+    english, german = _status(client, SERVO)["last_trip"], _status(client, SERVO, GERMAN)["last_trip"]
+    assert english.startswith("Quick stop sent at ") and "no keep-alive for 2 s (held by " in english
+    assert german.startswith("Schnellhalt gesendet um ") and "kein Keep-Alive seit 2 s (gehalten von " in german
+    assert english.split(" ")[4] == german.split(" ")[3]  # the same clock time
+
+
+def test_pdo_and_diagnostics_refusals_answer_in_german(client: TestClient) -> None:
+    too_long = {"entries": [[0x6040, 0], [0x6042, 0], [0x2802, 3], [0x2802, 4], [0x6071, 0]]}
+    answer = client.put(f"{API}/{MM}/pdos/rpdo/5", json=too_long, headers=GERMAN)
+    assert answer.status_code == 422
+    assert answer.json()["detail"] == "RPDO5 nimmt höchstens 4 Mapping-Einträge; angegeben waren 5."
+    fixed = client.put(f"{API}/{MM}/pdos/rpdo/1", json={"entries": [[0x6040, 0]]}, headers=GERMAN)
+    assert fixed.json()["detail"].startswith("Das Mapping von RPDO1 ist bei diesem Gerät fest")
+    german = {pdo["transmission_text"] for pdo in client.get(f"{API}/{MM}/pdos", headers=GERMAN).json()}
+    english = {pdo["transmission_text"] for pdo in client.get(f"{API}/{MM}/pdos").json()}
+    assert "synchron, azyklisch" in german and "synchronous, acyclic" in english
+    own = client.put(f"{API}/{SERVO}/heartbeat/consumers/1", json={"producer_id": SERVO, "time_ms": 500},
+                     headers=GERMAN)
+    assert own.status_code == 422 and own.json()["detail"] == "Knoten 7 kann seinen eigenen Heartbeat nicht überwachen."
