@@ -4,6 +4,8 @@ words of the reader's language, and a stop recorded by the keep-alive guard put 
 
 from __future__ import annotations
 
+import json
+import time
 from typing import Any
 
 from fastapi.testclient import TestClient
@@ -124,3 +126,31 @@ def test_pdo_and_diagnostics_refusals_answer_in_german(client: TestClient) -> No
     own = client.put(f"{API}/{SERVO}/heartbeat/consumers/1", json={"producer_id": SERVO, "time_ms": 500},
                      headers=GERMAN)
     assert own.status_code == 422 and own.json()["detail"] == "Knoten 7 kann seinen eigenen Heartbeat nicht überwachen."
+
+
+def _flood_of(socket: Any, timeout_s: float = 20.0) -> dict[str, Any]:
+    """The flood a monitor websocket reports first (its messages come every 0.25 s)."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        message = json.loads(socket.receive_text())
+        flood = message.get("snapshot", {}).get("flood")
+        if flood:
+            return dict(flood)
+    raise AssertionError("the monitor never named the flood")
+
+
+def test_the_monitor_names_a_babbling_node_in_each_viewers_language(client: TestClient) -> None:
+    plant = client.app.state.drivebench.plants["demo-plant"]  # type: ignore[attr-defined]
+    plant.start_babbler(0x001)
+    try:
+        url = "/ws/sessions/demo-plant/monitor?rows=1"
+        with client.websocket_connect(url, headers=GERMAN) as german, client.websocket_connect(url) as english:
+            assert _flood_of(german)["text"].startswith("COB-ID 0x001 überflutet den Bus: ")
+            assert _flood_of(english)["text"].startswith("COB-ID 0x001 floods the bus: ")  # one feed, two languages
+
+        def rest_says_it() -> bool:
+            flood = client.get("/api/sessions/demo-plant/monitor?trace=0", headers=GERMAN).json()["flood"]
+            return bool(flood) and flood["text"].startswith("COB-ID 0x001 überflutet den Bus: ")
+        assert wait_until(rest_says_it, 20.0)
+    finally:
+        plant.stop_babbler()
