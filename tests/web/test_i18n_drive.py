@@ -65,6 +65,8 @@ def test_the_status_api_names_standard_texts_in_german_and_a_vendors_as_printed(
     names = [bit["name"] for bit in micromaster["status_bits"]]
     assert names[0] == "Einschaltbereit" and names[4] == "Voltage enabled (MM: OFF2)"
     assert micromaster["control_bits"][7]["name"] == "Fault reset (fault acknowledge)"
+    jog = client.get(f"{API}/{MM}/control/jog", headers=GERMAN).json()["text"]  # DriveBench's words, the manual's why
+    assert jog.startswith("Sollwert-Tippen mit 10 Prozent des Bereichs") and "the MICROMASTER CANopen manual" in jog
 
 
 def test_homing_methods_are_named_in_each_readers_language(client: TestClient) -> None:
