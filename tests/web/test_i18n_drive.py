@@ -37,7 +37,7 @@ def test_the_control_tab_of_the_generic_servo_shows_cia402_in_german(client: Tes
                  ">Einschaltsperre<", ">Betrieb freigegeben<", ">Störung<",  # the drawn states
                  ">2 Stillsetzen<", ">15 Fehler quittieren<",  # the arrows
                  "Schnellhalt (0 = aktiv)", "Ziel erreicht",  # control and status word bits
-                 "Referenzfahrt", "Interpolierte Position",  # modes of operation
+                 "6 Referenzfahrt", "Cyclic Synchronous Position",  # modes of operation (CiA's names, as the catalogue)
                  "CiA-402-Zustandsmaschine des Antriebs"):
         assert text in page, text
     for english in (">Shutdown<", ">Enable operation<", ">Switch on disabled<", ">Target reached<"):
@@ -53,8 +53,9 @@ def test_the_status_api_names_standard_texts_in_german_and_a_vendors_as_printed(
     assert servo["commands"]["enable_operation"] == "Betrieb freigeben"
     assert servo["commands"]["shutdown"] == "Stillsetzen"
     assert servo["status_bits"][10]["name"] == "Ziel erreicht"
+    assert servo["status_bits"][9]["name"] == "Remote (Steuerwort wird verarbeitet)"  # not the Remote page's word
     assert servo["control_bits"][7]["name"] == "Fehler quittieren"
-    assert servo["modes"]["6"] == "Referenzfahrt" and servo["modes"]["7"] == "Interpolierte Position"
+    assert servo["modes"]["6"] == "Referenzfahrt" and servo["modes"]["1"] == "Profile Position"
     assert [bit["name"] for bit in servo["inputs"]][:3] == ["Negativer Endschalter", "Positiver Endschalter",
                                                             "Referenzschalter"]
     english = _status(client, SERVO)

@@ -21,7 +21,7 @@ from drivebench.device.control import (
     StateBox,
 )
 from drivebench.device.profile import Profile
-from drivebench.i18n import N_, _
+from drivebench.i18n import DEFAULT, N_, _, current
 
 STATE_MASKS = (  # (mask, value, state) on status word bits 0, 1, 2, 3, 5, 6
     (0x4F, 0x00, "not_ready"), (0x4F, 0x40, "switch_on_disabled"), (0x6F, 0x21, "ready"),
@@ -257,7 +257,14 @@ STANDARD_TEXTS = frozenset({
     *DRIVEBENCH_TEXTS})
 
 
+OWN_MSGID = {"Remote": N_("Remote (status word bit 9: the control word is processed)")}
+"""Standard names whose English is also another text of the UI (the header's Remote page): translated by a msgid of
+their own."""
+
+
 def shown(text: str) -> str:
     """A text of a control section in the reader's language when it is one of the standard's (or DriveBench's own
     default); a vendor profile's own text (its manual's wording) as it is."""
-    return _(text) if text in STANDARD_TEXTS else text
+    if text not in STANDARD_TEXTS:
+        return text
+    return _(OWN_MSGID[text]) if text in OWN_MSGID and current() != DEFAULT else _(text)
