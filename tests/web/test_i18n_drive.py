@@ -157,3 +157,14 @@ def test_the_monitor_names_a_babbling_node_in_each_viewers_language(client: Test
         assert wait_until(rest_says_it, 20.0)
     finally:
         plant.stop_babbler()
+
+
+def test_the_pdo_and_diagnostics_tabs_leave_no_english_half_sentence(client: TestClient) -> None:
+    pdo_tab = client.get(f"{UI}/{MM}/pdo", headers=GERMAN)
+    assert pdo_tab.status_code == 200
+    assert "bis Objekte gemappt sind (RPDO5 bearbeiten)" in pdo_tab.text
+    assert "until objects are mapped" not in pdo_tab.text
+    assert "PDO-mappbare Objekte (schreibbar, für ein RPDO)" in pdo_tab.text and "0 ms (aus)" in pdo_tab.text
+    assert "until objects are mapped (Edit RPDO5)" in client.get(f"{UI}/{MM}/pdo").text
+    diagnostics = client.get(f"{UI}/{SERVO}/diagnostics", headers=GERMAN).text  # node 7 has no 0x1016
+    assert "<strong>SDO-Übertragung abgebrochen</strong>" in diagnostics and "SDO transfer aborted" not in diagnostics
