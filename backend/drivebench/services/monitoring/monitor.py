@@ -54,8 +54,8 @@ FLOOD_COB_PERCENT = 50.0
 takes FLOOD_COB_PERCENT of the bit rate."""
 FLOOD_CACHE_S = 0.5
 
-SERVICE_GROUPS = ("NMT", "SYNC", "EMCY", "TIME", "PDO", "SDO", "Heartbeat", "LSS", "Unknown", "Error frame")
-"""What the service filter offers; PDO and SDO stand for all their kinds."""
+SERVICE_GROUPS = ("NMT", "SYNC", "EMCY", "TIME", "PDO", "SDO", "Heartbeat", "LSS", N_("Unknown"), N_("Error frame"))
+"""What the service filter offers; PDO and SDO stand for all their kinds (the page shows them through _())."""
 SERVICE_ORDER = [Service.NMT, Service.SYNC, Service.EMCY, Service.TIME,
                  Service.TPDO1, Service.TPDO2, Service.TPDO3, Service.TPDO4,
                  Service.RPDO1, Service.RPDO2, Service.RPDO3, Service.RPDO4,
