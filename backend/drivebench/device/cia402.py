@@ -3,12 +3,14 @@ dictionary has 0x6040/0x6041 and whose profile brings no ``control`` section of 
 
 Standard names only: the state machine, control/status word bits, modes of operation (0x6060/0x6502), homing
 methods (0x6098), the error codes of 0x603F, the SI units of 0x60A8/0x60A9 (CiA 303-2 notation index and prefix),
-and the actual values the panel shows.
+and the actual values the panel shows. The names are English data marked N_(); :func:`shown` gives them in the
+reader's language (a vendor profile's own texts, the manual's wording, stay as printed).
 """
 
 from __future__ import annotations
 
 from drivebench.device.control import (
+    DRIVEBENCH_TEXTS,
     ActualSpec,
     Arrow,
     Command,
@@ -19,50 +21,51 @@ from drivebench.device.control import (
     StateBox,
 )
 from drivebench.device.profile import Profile
+from drivebench.i18n import DEFAULT, N_, _, current
 
 STATE_MASKS = (  # (mask, value, state) on status word bits 0, 1, 2, 3, 5, 6
     (0x4F, 0x00, "not_ready"), (0x4F, 0x40, "switch_on_disabled"), (0x6F, 0x21, "ready"),
     (0x6F, 0x23, "switched_on"), (0x6F, 0x27, "operation_enabled"), (0x6F, 0x07, "quick_stop_active"),
     (0x4F, 0x0F, "fault_reaction_active"), (0x4F, 0x08, "fault"),
 )
+MODE_SPECIFIC, MANUFACTURER = N_("Operation mode specific"), N_("Manufacturer specific")
 CONTROL_BITS = {
-    0: "Switch on", 1: "Enable voltage", 2: "Quick stop (0 = active)", 3: "Enable operation",
-    4: "Operation mode specific (pp: new set-point; hm: homing operation start)",
-    5: "Operation mode specific (pp: change set immediately)", 6: "Operation mode specific (pp: absolute / relative)",
-    7: "Fault reset", 8: "Halt", 9: "Operation mode specific (pp: change on set-point)", 10: "Reserved",
-    11: "Manufacturer specific", 12: "Manufacturer specific", 13: "Manufacturer specific",
-    14: "Manufacturer specific", 15: "Manufacturer specific",
+    0: N_("Switch on"), 1: N_("Enable voltage"), 2: N_("Quick stop (0 = active)"), 3: N_("Enable operation"),
+    4: N_("Operation mode specific (pp: new set-point; hm: homing operation start)"),
+    5: N_("Operation mode specific (pp: change set immediately)"),
+    6: N_("Operation mode specific (pp: absolute / relative)"), 7: N_("Fault reset"), 8: N_("Halt"),
+    9: N_("Operation mode specific (pp: change on set-point)"), 10: N_("Reserved"),
+    11: MANUFACTURER, 12: MANUFACTURER, 13: MANUFACTURER, 14: MANUFACTURER, 15: MANUFACTURER,
 }
 STATUS_BITS = {
-    0: "Ready to switch on", 1: "Switched on", 2: "Operation enabled", 3: "Fault", 4: "Voltage enabled",
-    5: "Quick stop (0 = active)", 6: "Switch on disabled", 7: "Warning", 8: "Manufacturer specific", 9: "Remote",
-    10: "Target reached", 11: "Internal limit active",
-    12: "Operation mode specific (pp: set-point acknowledge; pv: speed = 0; hm: homing attained)",
-    13: "Operation mode specific (pp: following error; hm: homing error)", 14: "Manufacturer specific",
-    15: "Manufacturer specific",
+    0: N_("Ready to switch on"), 1: N_("Switched on"), 2: N_("Operation enabled"), 3: N_("Fault"),
+    4: N_("Voltage enabled"), 5: N_("Quick stop (0 = active)"), 6: N_("Switch on disabled"), 7: N_("Warning"),
+    8: MANUFACTURER, 9: N_("Remote"), 10: N_("Target reached"), 11: N_("Internal limit active"),
+    12: N_("Operation mode specific (pp: set-point acknowledge; pv: speed = 0; hm: homing attained)"),
+    13: N_("Operation mode specific (pp: following error; hm: homing error)"), 14: MANUFACTURER, 15: MANUFACTURER,
 }
 STATES = [
-    StateBox(key="not_ready", label="Not ready to switch on", col=0, row=0),
-    StateBox(key="switch_on_disabled", label="Switch on disabled", col=0, row=1),
-    StateBox(key="ready", label="Ready to switch on", col=0, row=2),
-    StateBox(key="switched_on", label="Switched on", col=0, row=3),
-    StateBox(key="operation_enabled", label="Operation enabled", col=0, row=4, enabled=True),
-    StateBox(key="quick_stop_active", label="Quick stop active", col=1, row=4, enabled=True),
-    StateBox(key="fault_reaction_active", label="Fault reaction active", col=2, row=0, fault=True),
-    StateBox(key="fault", label="Fault", col=2, row=1, fault=True),
+    StateBox(key="not_ready", label=N_("Not ready to switch on"), col=0, row=0),
+    StateBox(key="switch_on_disabled", label=N_("Switch on disabled"), col=0, row=1),
+    StateBox(key="ready", label=N_("Ready to switch on"), col=0, row=2),
+    StateBox(key="switched_on", label=N_("Switched on"), col=0, row=3),
+    StateBox(key="operation_enabled", label=N_("Operation enabled"), col=0, row=4, enabled=True),
+    StateBox(key="quick_stop_active", label=N_("Quick stop active"), col=1, row=4, enabled=True),
+    StateBox(key="fault_reaction_active", label=N_("Fault reaction active"), col=2, row=0, fault=True),
+    StateBox(key="fault", label=N_("Fault"), col=2, row=1, fault=True),
 ]
 ARROWS = [
     Arrow(from_state="not_ready", to_state="switch_on_disabled", label="1"),
-    Arrow(from_state="switch_on_disabled", to_state="ready", label="2 Shutdown"),
-    Arrow(from_state="ready", to_state="switched_on", label="3 Switch on"),
-    Arrow(from_state="switched_on", to_state="operation_enabled", label="4 Enable"),
-    Arrow(from_state="operation_enabled", to_state="switched_on", label="5 Disable op."),
-    Arrow(from_state="switched_on", to_state="ready", label="6 Shutdown"),
-    Arrow(from_state="ready", to_state="switch_on_disabled", label="7 QS / disable voltage"),
-    Arrow(from_state="operation_enabled", to_state="quick_stop_active", label="11 Quick stop"),
+    Arrow(from_state="switch_on_disabled", to_state="ready", label=N_("2 Shutdown")),
+    Arrow(from_state="ready", to_state="switched_on", label=N_("3 Switch on")),
+    Arrow(from_state="switched_on", to_state="operation_enabled", label=N_("4 Enable")),
+    Arrow(from_state="operation_enabled", to_state="switched_on", label=N_("5 Disable op.")),
+    Arrow(from_state="switched_on", to_state="ready", label=N_("6 Shutdown")),
+    Arrow(from_state="ready", to_state="switch_on_disabled", label=N_("7 QS / disable voltage")),
+    Arrow(from_state="operation_enabled", to_state="quick_stop_active", label=N_("11 Quick stop")),
     Arrow(from_state="quick_stop_active", to_state="switch_on_disabled", label="12"),
     Arrow(from_state="fault_reaction_active", to_state="fault", label="14"),
-    Arrow(from_state="fault", to_state="switch_on_disabled", label="15 Fault reset"),
+    Arrow(from_state="fault", to_state="switch_on_disabled", label=N_("15 Fault reset")),
 ]
 COMMANDS = {
     Command.SHUTDOWN: CommandBits(clear=0x8F, set=0x06), Command.SWITCH_ON: CommandBits(clear=0x8F, set=0x07),
@@ -74,9 +77,9 @@ COMMANDS = {
 
 # --- modes of operation ---------------------------------------------------------------------------------------
 MODE_NAMES = {
-    1: "Profile position", 2: "Velocity", 3: "Profile velocity", 4: "Profile torque", 6: "Homing",
-    7: "Interpolated position", 8: "Cyclic synchronous position", 9: "Cyclic synchronous velocity",
-    10: "Cyclic synchronous torque",
+    1: N_("Profile position"), 2: N_("Velocity"), 3: N_("Profile velocity"), 4: N_("Profile torque"), 6: N_("Homing"),
+    7: N_("Interpolated position"), 8: N_("Cyclic synchronous position"), 9: N_("Cyclic synchronous velocity"),
+    10: N_("Cyclic synchronous torque"),
 }
 MODE_BITS = {1: 0, 2: 1, 3: 2, 4: 3, 6: 5, 7: 6, 8: 7, 9: 8, 10: 9}
 """0x6502 supported drive modes: mode -> bit."""
@@ -88,12 +91,12 @@ CYCLIC_MODES = (7, 8, 9, 10)
 
 
 def mode_label(mode: int) -> str:
-    """A mode's name; a negative one is the manufacturer's (never shown as "null")."""
+    """A mode's name in the reader's language; a negative one is the manufacturer's (never shown as "null")."""
     if mode < 0:
-        return f"manufacturer-specific (\u2212{-mode})"
+        return _("manufacturer-specific (\u2212{number})").format(number=-mode)
     if mode == 0:
-        return "no mode assigned"
-    return MODE_NAMES.get(mode, f"reserved ({mode})")
+        return _("no mode assigned")
+    return _(MODE_NAMES[mode]) if mode in MODE_NAMES else _("reserved ({number})").format(number=mode)
 
 
 def modes_from_6502(value: int) -> list[int]:
@@ -105,60 +108,75 @@ _CAM_METHODS = {  # 7 ... 14: a home switch active over part of the travel; (fir
     10: ("positive", "upper", "above"), 11: ("negative", "upper", "above"), 12: ("negative", "upper", "below"),
     13: ("negative", "lower", "above"), 14: ("negative", "lower", "below"),
 }
+CAM_WORDS = (N_("positive"), N_("negative"), N_("lower"), N_("upper"), N_("below"), N_("above"))
+CAM_INDEX = N_("Home switch and index pulse: start {way}, reverse at the {way} limit switch, index {side} the "
+               "switch's {edge} edge")
+CAM_EDGE = N_("Home switch: start {way}, reverse at the {way} limit switch, the switch's {edge} edge reached from "
+              "{side}")
 HOMING_METHODS = {
-    1: "Negative limit switch and index pulse", 2: "Positive limit switch and index pulse",
-    3: "Positive home switch and index pulse (index below the switch edge)",
-    4: "Positive home switch and index pulse (index above the switch edge)",
-    5: "Negative home switch and index pulse (index above the switch edge)",
-    6: "Negative home switch and index pulse (index below the switch edge)",
-    **{method: f"Home switch and index pulse: start {way}, reverse at the {way} limit switch, index {side} the "
-               f"switch's {edge} edge" for method, (way, edge, side) in _CAM_METHODS.items()},
-    17: "Negative limit switch", 18: "Positive limit switch",
-    19: "Positive home switch (its edge, reached from above)", 20: "Positive home switch (its edge, reached from "
-    "below)", 21: "Negative home switch (its edge, reached from below)",
-    22: "Negative home switch (its edge, reached from above)",
-    **{method + 16: f"Home switch: start {way}, reverse at the {way} limit switch, the switch's {edge} edge "
-                    f"reached from {'above' if side == 'below' else 'below'}"
-       for method, (way, edge, side) in _CAM_METHODS.items()},
-    33: "Index pulse in negative direction", 34: "Index pulse in positive direction",
-    35: "Current position (no movement)", 37: "Current position (no movement, CiA 402-2)",
+    1: N_("Negative limit switch and index pulse"), 2: N_("Positive limit switch and index pulse"),
+    3: N_("Positive home switch and index pulse (index below the switch edge)"),
+    4: N_("Positive home switch and index pulse (index above the switch edge)"),
+    5: N_("Negative home switch and index pulse (index above the switch edge)"),
+    6: N_("Negative home switch and index pulse (index below the switch edge)"),
+    **{method: CAM_INDEX for method in _CAM_METHODS},
+    17: N_("Negative limit switch"), 18: N_("Positive limit switch"),
+    19: N_("Positive home switch (its edge, reached from above)"),
+    20: N_("Positive home switch (its edge, reached from below)"),
+    21: N_("Negative home switch (its edge, reached from below)"),
+    22: N_("Negative home switch (its edge, reached from above)"),
+    **{method + 16: CAM_EDGE for method in _CAM_METHODS},
+    33: N_("Index pulse in negative direction"), 34: N_("Index pulse in positive direction"),
+    35: N_("Current position (no movement)"), 37: N_("Current position (no movement, CiA 402-2)"),
 }
+"""Method -> its name; the cam methods 7...14 and 23...30 name their move, edge and side (:func:`homing_label`)."""
 
 
 def homing_label(method: int) -> str:
+    """A homing method's name in the reader's language."""
     if method < 0:
-        return f"manufacturer-specific (\u2212{-method})"
-    return HOMING_METHODS.get(method, f"reserved ({method})")
+        return _("manufacturer-specific (\u2212{number})").format(number=-method)
+    if method not in HOMING_METHODS:
+        return _("reserved ({number})").format(number=method)
+    cam = _CAM_METHODS.get(method if method <= 14 else method - 16)
+    if cam is None:
+        return _(HOMING_METHODS[method])
+    way, edge, side = cam
+    if method > 14:  # reached from the other side than the index of the same cam method
+        side = "above" if side == "below" else "below"
+    return _(HOMING_METHODS[method]).format(way=_(way), edge=_(edge), side=_(side))
 
 
 # --- error codes (0x603F) --------------------------------------------------------------------------------------
 ERROR_CODES = {
-    0x0000: "No error", 0x1000: "Generic error", 0x2110: "Short circuit / earth leakage (input)",
-    0x2220: "Continuous over current (device input)", 0x2300: "Current, device output side",
-    0x2310: "Continuous over current", 0x2320: "Short circuit / earth leakage (motor side)",
-    0x3100: "Mains voltage", 0x3210: "DC link over-voltage", 0x3220: "DC link under-voltage",
-    0x4210: "Excess temperature device", 0x4310: "Excess temperature drive", 0x5112: "Supply low voltage",
-    0x5400: "Power section", 0x6010: "Software reset (watchdog)", 0x6320: "Parameter error",
-    0x7121: "Motor blocked", 0x7300: "Sensor", 0x7305: "Incremental sensor 1 fault", 0x7500: "Communication",
-    0x8110: "CAN overrun", 0x8120: "CAN in error passive mode", 0x8130: "Life guard or heartbeat error",
-    0x8140: "Recovered from bus-off", 0x8400: "Velocity speed controller", 0x8500: "Position controller",
-    0x8611: "Following error", 0x8612: "Reference limit", 0x9000: "External error",
+    0x0000: N_("No error"), 0x1000: N_("Generic error"), 0x2110: N_("Short circuit / earth leakage (input)"),
+    0x2220: N_("Continuous over current (device input)"), 0x2300: N_("Current, device output side"),
+    0x2310: N_("Continuous over current"), 0x2320: N_("Short circuit / earth leakage (motor side)"),
+    0x3100: N_("Mains voltage"), 0x3210: N_("DC link over-voltage"), 0x3220: N_("DC link under-voltage"),
+    0x4210: N_("Excess temperature device"), 0x4310: N_("Excess temperature drive"),
+    0x5112: N_("Supply low voltage"), 0x5400: N_("Power section"), 0x6010: N_("Software reset (watchdog)"),
+    0x6320: N_("Parameter error"), 0x7121: N_("Motor blocked"), 0x7300: N_("Sensor"),
+    0x7305: N_("Incremental sensor 1 fault"), 0x7500: N_("Communication"), 0x8110: N_("CAN overrun"),
+    0x8120: N_("CAN in error passive mode"), 0x8130: N_("Life guard or heartbeat error"),
+    0x8140: N_("Recovered from bus-off"), 0x8400: N_("Velocity speed controller"), 0x8500: N_("Position controller"),
+    0x8611: N_("Following error"), 0x8612: N_("Reference limit"), 0x9000: N_("External error"),
 }
-ERROR_CLASSES = {0x1: "Generic error", 0x2: "Current", 0x3: "Voltage", 0x4: "Temperature", 0x5: "Device hardware",
-                 0x6: "Device software", 0x7: "Additional modules", 0x8: "Monitoring", 0x9: "External error",
-                 0xF: "Additional functions"}
-
+ERROR_CLASSES = {0x1: N_("Generic error"), 0x2: N_("Current"), 0x3: N_("Voltage"), 0x4: N_("Temperature"),
+                 0x5: N_("Device hardware"), 0x6: N_("Device software"), 0x7: N_("Additional modules"),
+                 0x8: N_("Monitoring"), 0x9: N_("External error"), 0xF: N_("Additional functions")}
 
 def error_text(code: int) -> str:
+    """The CiA 402 name of an error code in the reader's language."""
     if code in ERROR_CODES:
-        return ERROR_CODES[code]
+        return _(ERROR_CODES[code])
     if code >> 8 == 0xFF:
-        return "Manufacturer-specific error"
-    return f"{ERROR_CLASSES.get(code >> 12, 'Unknown error class')} (0x{code:04X})"
+        return _("Manufacturer-specific error")
+    return f"{_(ERROR_CLASSES.get(code >> 12, N_('Unknown error class')))} (0x{code:04X})"
 
 
 # --- digital inputs (0x60FD) -----------------------------------------------------------------------------------
-INPUT_BITS = {0: "Negative limit switch", 1: "Positive limit switch", 2: "Home switch", 3: "Interlock"}
+INPUT_BITS = {0: N_("Negative limit switch"), 1: N_("Positive limit switch"), 2: N_("Home switch"),
+              3: N_("Interlock")}
 
 # --- SI units (0x60A8 / 0x60A9): byte 3 prefix, byte 2 unit, byte 1 denominator (CiA 303-2) ------------------
 SI_PREFIX = {0x00: "", 0x03: "k", 0xFF: "d", 0xFE: "c", 0xFD: "m", 0xFA: "µ", 0xF7: "n"}
@@ -180,9 +198,10 @@ def si_unit(code: int) -> str | None:
 
 # --- the generic section ----------------------------------------------------------------------------------------
 ACTUALS = [  # (label, object, unit where CiA 402 fixes it; position and velocity units come from the drive)
-    ("Position", "0x6064", None), ("Velocity", "0x606C", None), ("Torque", "0x6077", "‰ of rated torque"),
-    ("Current", "0x6078", "‰ of rated current"), ("DC link voltage", "0x6079", "mV"),
-    ("Following error", "0x60F4", None), ("Position demand", "0x6062", None),
+    (N_("Position"), "0x6064", None), (N_("Velocity"), "0x606C", None),
+    (N_("Torque"), "0x6077", N_("‰ of rated torque")), (N_("Current"), "0x6078", N_("‰ of rated current")),
+    (N_("DC link voltage"), "0x6079", "mV"), (N_("Following error"), "0x60F4", None),
+    (N_("Position demand"), "0x6062", None),
 ]
 UNIT_KIND = {"0x607A": "position", "0x60FF": "velocity", "0x6081": "velocity", "0x6099.1": "velocity",
              "0x6099.2": "velocity", "0x607C": "position", "0x607D.1": "position", "0x607D.2": "position",
@@ -201,6 +220,16 @@ def listed_modes(profile: Profile) -> list[int]:
     return [mode for mode, needs in MODE_OBJECTS.items() if all(index in indices for index in needs)]
 
 
+TITLE = N_("CiA 402 drive state machine")
+NOTE = N_("Standard CiA 402 drive control (no vendor profile): bit names, modes and units as CiA 402-2 defines them "
+          "and this device's object dictionary lists them.")
+JOG_TEXT = N_("Jog: a profile-velocity move (the panel switches to mode 3, 0x60FF) at {value:g} {unit} while the "
+              "button is held and the keep-alive runs.")
+JOG_WHY = N_("the device lists no profile velocity mode (0x60FF)")
+MODE_REFUSED = N_("0x6061 shows {shown} after writing 0x6060 = {mode}: the drive did not take the mode.")
+MODES_HELP = N_("Mode {mode} is not among this device's supported modes (0x6502 or its object dictionary).")
+
+
 def generic_section(profile: Profile) -> ControlSection:
     """The standard CiA 402 drive control of ``profile`` (standard names only, modes and values by its objects)."""
     indices = {obj.index for obj in profile.objects}
@@ -210,18 +239,32 @@ def generic_section(profile: Profile) -> ControlSection:
         (7, "0x60C1.1", "position"), (8, "0x607A", "position"), (9, "0x60FF", "velocity"), (10, "0x6071", "‰"))
         if int(ref.split(".")[0], 16) in indices]
     return ControlSection(
-        key="cia402-generic", state_machine="cia402", title="CiA 402 drive state machine",
-        note="Standard CiA 402 drive control (no vendor profile): bit names, modes and units as CiA 402-2 defines "
-             "them and this device's object dictionary lists them.",
+        key="cia402-generic", state_machine="cia402", title=TITLE, note=NOTE,
         control_word="0x6040", status_word="0x6041", control_bits=CONTROL_BITS, status_bits=STATUS_BITS,
         states=STATES, arrows=ARROWS, commands=COMMANDS, setpoints=setpoints,
         actual_values=[ActualSpec(label=label, ref=ref, unit=unit) for label, ref, unit in ACTUALS
                        if int(ref, 16) in indices],
-        actual_kinds=[], jog=JogPlan(method="profile_velocity" if 3 in modes else "setpoint",
-                                     text="Jog: a profile-velocity move (the panel switches to mode 3, 0x60FF) at "
-                                          "{value:g} {unit} while the button is held and the keep-alive runs.",
-                                     why="the device lists no profile velocity mode (0x60FF)"),
-        modes={mode: MODE_NAMES[mode] for mode in modes},
-        mode_refused="0x6061 shows {shown} after writing 0x6060 = {mode}: the drive did not take the mode.",
-        modes_help="Mode {mode} is not among this device's supported modes (0x6502 or its object dictionary).",
+        actual_kinds=[], jog=JogPlan(method="profile_velocity" if 3 in modes else "setpoint", text=JOG_TEXT,
+                                     why=JOG_WHY),
+        modes={mode: MODE_NAMES[mode] for mode in modes}, mode_refused=MODE_REFUSED, modes_help=MODES_HELP,
         simulation="cia402_servo")
+
+
+STANDARD_TEXTS = frozenset({
+    *CONTROL_BITS.values(), *STATUS_BITS.values(), *(box.label for box in STATES), *(arrow.label for arrow in ARROWS),
+    *MODE_NAMES.values(), *INPUT_BITS.values(), *(text for label, _ref, unit in ACTUALS for text in (label, unit)
+                                                   if text), TITLE, NOTE, JOG_TEXT, JOG_WHY, MODE_REFUSED, MODES_HELP,
+    *DRIVEBENCH_TEXTS})
+
+
+OWN_MSGID = {"Remote": N_("Remote (status word bit 9: the control word is processed)")}
+"""Standard names whose English is also another text of the UI (the header's Remote page): translated by a msgid of
+their own."""
+
+
+def shown(text: str) -> str:
+    """A text of a control section in the reader's language when it is one of the standard's (or DriveBench's own
+    default); a vendor profile's own text (its manual's wording) as it is."""
+    if text not in STANDARD_TEXTS:
+        return text
+    return _(OWN_MSGID[text]) if text in OWN_MSGID and current() != DEFAULT else _(text)

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from drivebench.i18n import N_
+
 
 class CommandWrite(BaseModel):
     """One device command as a write, and what the tool tells the user once it went through."""
@@ -36,9 +38,9 @@ class CommandWrite(BaseModel):
         return f"{self.ref} = {self.value!r}"
 
 
-CIA301_SAVE = CommandWrite(ref="0x1010.1", value="save", done="Node {node} saved its parameters.")
+CIA301_SAVE = CommandWrite(ref="0x1010.1", value="save", done=N_("Node {node} saved its parameters."))
 CIA301_RESTORE = CommandWrite(ref="0x1011.1", value="load", after_reset=True,
-                              done="Node {node} restores its defaults at the next reset node.")
+                              done=N_("Node {node} restores its defaults at the next reset node."))
 
 
 class CommandsSection(BaseModel):

@@ -20,6 +20,8 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, PlainSerializer, WithJsonSchema, model_validator
 
+from drivebench.i18n import N_
+
 
 def _parse_int(value: object) -> object:
     return int(value.strip(), 0) if isinstance(value, str) else value
@@ -33,6 +35,14 @@ HexBytes = Annotated[bytes, BeforeValidator(lambda v: bytes.fromhex(v) if isinst
                      PlainSerializer(lambda v: v.hex(" "), return_type=str),
                      WithJsonSchema({"type": "string", "pattern": r"^([0-9a-fA-F]{2}( |$))*$"})]
 """Telegram data as the manuals print it: ``"7f 00 e8 03"``."""
+
+
+# DriveBench's own defaults of a section (not a manual's words): shown in the reader's language (cia402.shown)
+SETPOINT_JOG = N_("Setpoint jog at {percent:g} percent of the range ({value:g} {unit}): {why}.")
+NO_JOG = N_("this device's profile gives the panel no jog function")
+NOT_NAMED = N_("this device's profile does not name it")
+ACTUAL_KINDS = [N_("Speed"), N_("Current"), N_("DC-bus voltage"), N_("Torque"), N_("Heat-sink temperature")]
+DRIVEBENCH_TEXTS = (SETPOINT_JOG, NO_JOG, NOT_NAMED, *ACTUAL_KINDS)
 
 
 class Command(StrEnum):
@@ -123,8 +133,8 @@ class JogPlan(_Model):
     ``{value}``, ``{unit}``, ``{percent}``, ``{reference}`` and ``{word}``."""
 
     method: Literal["device", "setpoint", "profile_velocity"] = "setpoint"
-    text: str = "Setpoint jog at {percent:g} % of the range ({value:g} {unit}): {why}."
-    why: str = "this device's profile gives the panel no jog function"
+    text: str = SETPOINT_JOG
+    why: str = NO_JOG
     fraction: float = 0.1
     percent_ref: str | None = None
     reference_ref: str | None = None
@@ -159,10 +169,9 @@ class ControlSection(_Model):
     """Commands after which the motor may turn (fault reset too: a drive may restart by itself)."""
     setpoints: list[Setpoint] = Field(default_factory=list)
     actual_values: list[ActualSpec] = Field(default_factory=list)
-    actual_kinds: list[str] = Field(default_factory=lambda: ["Speed", "Current", "DC-bus voltage", "Torque",
-                                                             "Heat-sink temperature"])
+    actual_kinds: list[str] = Field(default_factory=lambda: list(ACTUAL_KINDS))
     """The kinds the panel looks for; the ones the device lacks are named with ``missing_why``."""
-    missing_why: str = "this device's profile does not name it"
+    missing_why: str = NOT_NAMED
     jog: JogPlan = Field(default_factory=JogPlan)
     modes: dict[int, str] = Field(default_factory=dict)
     """Modes of operation (0x6060) the panel offers."""

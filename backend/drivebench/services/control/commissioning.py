@@ -24,6 +24,7 @@ from drivebench.device.catalog import index_ref
 from drivebench.device.control import Sequence, Step
 from drivebench.device.motion import moves, standard_motion
 from drivebench.errors import Conflict, DriveBenchError, NotFound, SdoAbortError, UnknownParameter
+from drivebench.i18n import _
 from drivebench.protocol.nmt import NmtCommand
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.control import drive_control
@@ -149,7 +150,8 @@ class Wizard:
     def start(self, session: Session, node: SessionNode, key: str) -> Run:
         sequence = next((seq for seq in sequences_for(node) if seq.key == key), None)
         if sequence is None:
-            raise NotFound(f"No commissioning sequence '{key}' for {node.device_name}.")
+            raise NotFound(_("No commissioning sequence '{key}' for {device}.").format(key=key,
+                                                                                         device=node.device_name))
         sequence = sequence.model_copy(update={"steps": [step.model_copy(update={"moves": step_moves(node, step)})
                                                          for step in sequence.steps]})
         run = Run(uuid.uuid4().hex[:12], node.node_id, sequence)
@@ -158,7 +160,7 @@ class Wizard:
 
     def get(self, run_id: str) -> Run:
         if run_id not in self.runs:
-            raise NotFound(f"Commissioning run {run_id} does not exist (any more).")
+            raise NotFound(_("Commissioning run {run} does not exist (any more).").format(run=run_id))
         return self.runs[run_id]
 
 
@@ -204,7 +206,8 @@ async def _send_and_wait_state(session: Session, node: SessionNode, cob_id: int,
         return await asyncio.wait_for(found, ANSWER_TIMEOUT_S)
     except TimeoutError:
         state, word = await _state_of(session, node, fam.status_ref)
-        return state if state == expected else f"{state} (status word 0x{word:04X})"
+        return state if state == expected else _("{state} (status word 0x{word})").format(state=state,
+                                                                                          word=f"{word:04X}")
     finally:
         session.remove_frame_listener(tap)
 
@@ -216,7 +219,8 @@ async def _execute(session: Session, node: SessionNode, step: Step) -> str | Non
         try:
             await client.adownload(step.index, step.sub, step.data)
         except SdoAbortError as exc:
-            return f"SDO abort 0x{exc.abort_code:08X} ({exc.abort_text}) instead of the download response 0x60."
+            return _("SDO abort 0x{code} ({text}) instead of the download response 0x60.").format(
+                code=f"{exc.abort_code:08X}", text=exc.abort_text)
         return None
     if step.kind == "nmt_start":
         await session.nmt(NmtCommand.START, node.node_id)
@@ -228,7 +232,7 @@ async def _execute(session: Session, node: SessionNode, step: Step) -> str | Non
             return None
         state = await _send_and_wait_state(session, node, step.cob + node.node_id, step.data, step.expect_state)
         return None if state == step.expect_state else \
-            f"The drive answered '{state}', expected '{step.expect_state}'."
+            _("The drive answered '{state}', expected '{expected}'.").format(state=state, expected=step.expect_state)
     assert step.expect_ref is not None
     if step.expect_state is not None:
         deadline = time.monotonic() + ANSWER_TIMEOUT_S
@@ -237,11 +241,13 @@ async def _execute(session: Session, node: SessionNode, step: Step) -> str | Non
             if state == step.expect_state:
                 return None
             if time.monotonic() > deadline:
-                return (f"{step.expect_ref} = 0x{word:04X} shows '{state}', expected '{step.expect_state}'. Check "
-                        "the preconditions (terminals, command source).")
+                return _("{ref} = 0x{word} shows '{state}', expected '{expected}'. Check the preconditions "
+                         "(terminals, command source).").format(ref=step.expect_ref, word=f"{word:04X}", state=state,
+                                                                expected=step.expect_state)
             await asyncio.sleep(0.05)
     raw = (await parameters.read(session, node.node_id, step.expect_ref)).raw
-    return None if raw == step.expect_value else f"{step.expect_ref} = {raw!r}, expected {step.expect_value}."
+    return None if raw == step.expect_value else _("{ref} = {raw}, expected {expected}.").format(
+        ref=step.expect_ref, raw=repr(raw), expected=step.expect_value)
 
 
 async def next_step(session: Session, node: SessionNode, run: Run, *, confirm: bool = False,
@@ -249,13 +255,14 @@ async def next_step(session: Session, node: SessionNode, run: Run, *, confirm: b
     """Run the next step; while another panel holds the armed drive, this panel cannot run steps."""
     async with run.lock:
         if run.finished:
-            raise Conflict("This commissioning run is finished; start it again to repeat it.")
+            raise Conflict(_("This commissioning run is finished; start it again to repeat it."))
         step = run.sequence.steps[run.position]
         guard = drive_control.guard_for(session)
-        guard.check(node.node_id, panel, f"Step {run.position + 1} ({step.title})")
+        named = _("Step {number} ({title})").format(number=run.position + 1, title=step.title)
+        guard.check(node.node_id, panel, named)
         if step.moves:
             if not confirm:
-                raise Conflict(f"Step {run.position + 1} ({step.title}) can make the motor turn: confirm it.")
+                raise Conflict(_("{step} can make the motor turn: confirm it.").format(step=named))
             if step.kind == "nmt_start":  # as drive_guard.nmt: stays armed until NMT leaves Operational
                 guard.started.add(node.node_id)
             guard.arm(node.node_id, panel, pinned=step.kind == "nmt_start")
@@ -265,15 +272,16 @@ async def next_step(session: Session, node: SessionNode, run: Run, *, confirm: b
         try:
             problem = await _execute(session, node, step)
         except DriveBenchError as exc:
-            problem = str(exc)
+            problem = exc.shown_detail()
         finally:
             await asyncio.sleep(0.02)  # let the last answer frame reach the capture
             session.remove_frame_listener(capture)
         run.results.append(StepResult(number=run.position + 1, title=step.title, printed=step.printed,
                                       telegrams=_telegrams(capture, t0), ok=problem is None,
-                                      message=problem or "Answer as expected."))
+                                      message=problem or _("Answer as expected.")))
         if problem is not None:
-            run.failed = f"Stopped at step {run.position + 1} ({step.title}): {problem}"
+            run.failed = _("Stopped at step {number} ({title}): {problem}").format(number=run.position + 1,
+                                                                                    title=step.title, problem=problem)
         else:
             run.position += 1
         return run

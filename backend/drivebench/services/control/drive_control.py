@@ -28,6 +28,7 @@ from drivebench.device.catalog import Catalog
 from drivebench.device.control import ActualSpec, Setpoint, WordScale
 from drivebench.device.control import JogPlan as JogSpec
 from drivebench.errors import Conflict, DriveBenchError, InvalidValue, OutOfRange, UnknownParameter
+from drivebench.i18n import _
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.control.drive_guard import (
     ARM_SETTLE_S,
@@ -43,9 +44,9 @@ from drivebench.services.control.drive_guard import (
 from drivebench.services.control.drive_units import generic_limits as _generic_limits
 from drivebench.services.control.drive_units import motion_units
 from drivebench.services.control.drive_words import (
-    COMMAND_LABELS,
     Command,
     Family,
+    command_label,
     family_of,
     next_control_word,
     state_label,
@@ -81,16 +82,17 @@ def has_ref(catalog: Catalog, ref: str) -> bool:
 
 def catalog_of(node: SessionNode) -> Catalog:
     if node.catalog is None:
-        raise InvalidValue(f"Node {node.node_id} has no device profile: the control panel needs one.")
+        raise InvalidValue(_("Node {node} has no device profile: the control panel needs one.").format(
+            node=node.node_id))
     return node.catalog
 
 
 def family(node: SessionNode) -> Family:
     found = family_of(node.catalog)
     if found is None:
-        raise InvalidValue(f"{node.device_name} has no device control word DriveBench knows: its profile has no "
-                           "control section and its object dictionary no CiA 402 control/status word "
-                           "(0x6040/0x6041).")
+        raise InvalidValue(_("{device} has no device control word DriveBench knows: its profile has no control "
+                             "section and its object dictionary no CiA 402 control/status word (0x6040/0x6041).")
+                           .format(device=node.device_name))
     return found
 
 
@@ -117,9 +119,9 @@ def _setpoint(fam: Family, mode: int | None) -> Setpoint:
             return spec
     found = next((spec for spec in fam.section.setpoints if not spec.modes), None)
     if found is None:
-        shown = mode_label(fam, mode) if mode is not None else "none"
-        raise InvalidValue(f"The mode of operation shown ({shown}) takes no setpoint from this panel: choose "
-                           "another mode.")
+        shown = mode_label(fam, mode) if mode is not None else _("none")
+        raise InvalidValue(_("The mode of operation shown ({mode}) takes no setpoint from this panel: choose "
+                             "another mode.").format(mode=shown))
     return found
 
 
@@ -153,12 +155,12 @@ def actual_refs(node: SessionNode) -> list[ActualSpec]:
 def missing_actuals(node: SessionNode) -> list[str]:
     """The kinds of actual value the panel plots elsewhere that this device's profile (and its manual) lacks."""
     present = {spec.label.split(" (")[0] for spec in actual_refs(node)}
-    return [kind for kind in family(node).section.actual_kinds if kind not in present]
+    return [cia402.shown(kind) for kind in family(node).section.actual_kinds if kind not in present]
 
 
 def missing_why(node: SessionNode) -> str:
     """Why the values :func:`missing_actuals` names are not there: which manual was searched for what."""
-    return family(node).section.missing_why
+    return cia402.shown(family(node).section.missing_why)
 
 
 def actual_source(node: SessionNode, ref: str, raw_per_unit: float = 0.0, unit: str | None = None) -> str:
@@ -167,16 +169,16 @@ def actual_source(node: SessionNode, ref: str, raw_per_unit: float = 0.0, unit: 
     item = catalog.resolve(ref)
     coding = item.entry.data_type.name
     if raw_per_unit:
-        coding += f", {unit} = raw / {raw_per_unit:g}"
+        coding += f", {unit} = " + _("raw / {factor}").format(factor=f"{raw_per_unit:g}")
     elif item.entry.factor != 1:
-        coding += f", value = raw / {item.entry.factor:g}"
+        coding += ", " + _("value = raw / {factor}").format(factor=f"{item.entry.factor:g}")
     text = item.entry.description or ""
     if text.startswith("Source: "):
         manual = text[len("Source: "):].split(". ")[0].rstrip(".")
     elif family(node).generic:
-        manual = "CiA 402-2 object"
+        manual = _("CiA 402-2 object")
     else:
-        manual = catalog.profile.source.split(", ")[0] if catalog.profile.source else "this device's profile"
+        manual = catalog.profile.source.split(", ")[0] if catalog.profile.source else _("this device's profile")
     return f"{ref} = 0x{item.index:04X}.{item.subindex} ({coding}); {manual}"
 
 
@@ -185,7 +187,7 @@ async def actual_sources(session: Session, node: SessionNode) -> list[tuple[str,
     out = []
     for spec in actual_refs(node):
         raw_per_unit, _ = await _raw_per_unit(session, node, spec.scale)
-        out.append((spec.label, actual_source(node, spec.ref, raw_per_unit, spec.unit)))
+        out.append((cia402.shown(spec.label), actual_source(node, spec.ref, raw_per_unit, spec.unit)))
     return out
 
 
@@ -212,18 +214,18 @@ async def read_actuals(session: Session, node: SessionNode) -> list[ActualValue]
         try:
             value = await parameters.read(session, node.node_id, spec.ref)
         except DriveBenchError as exc:
-            out.append(ActualValue(label=spec.label, ref=spec.ref, value=None, unit=None, error=str(exc),
-                                   source=source))
+            out.append(ActualValue(label=cia402.shown(spec.label), ref=spec.ref, value=None, unit=None,
+                                   error=exc.shown_detail(), source=source))
             continue
         if raw_per_unit and isinstance(value.raw, int):
-            out.append(ActualValue(label=spec.label, ref=spec.ref, unit=spec.unit, source=source,
+            out.append(ActualValue(label=cia402.shown(spec.label), ref=spec.ref, unit=spec.unit, source=source,
                                    value=round(_signed16(value.raw & 0xFFFF) / raw_per_unit, spec.decimals)))
             continue
         number = round(value.value, 3) if isinstance(value.value, (int, float)) else None  # REAL32 noise
-        unit = value.unit or spec.unit
+        unit = value.unit or (cia402.shown(spec.unit) if spec.unit else None)
         if units is not None:
             unit = units.of(spec.ref) or unit
-        out.append(ActualValue(label=spec.label, ref=spec.ref, value=number, unit=unit, source=source))
+        out.append(ActualValue(label=cia402.shown(spec.label), ref=spec.ref, value=number, unit=unit, source=source))
     return out
 
 # --- status --------------------------------------------------------------------------------------------------
@@ -285,8 +287,8 @@ class DriveStatus(BaseModel):
 
 
 def bits(names: dict[int, str], word: int | None) -> list[Bit]:
-    return [Bit(bit=bit, name=names.get(bit, f"Bit {bit}"), set=bool(word is not None and word >> bit & 1))
-            for bit in range(16)]
+    return [Bit(bit=bit, name=cia402.shown(names[bit]) if bit in names else _("Bit {bit}").format(bit=bit),
+                set=bool(word is not None and word >> bit & 1)) for bit in range(16)]
 
 
 def describe(fam: Family, status_word: int) -> tuple[str, str, bool, bool]:
@@ -297,7 +299,8 @@ def describe(fam: Family, status_word: int) -> tuple[str, str, bool, bool]:
 
 
 def mode_label(fam: Family, mode: int) -> str:
-    return fam.section.modes.get(mode) or cia402.mode_label(mode)
+    named = fam.section.modes.get(mode)
+    return cia402.shown(named) if named else cia402.mode_label(mode)
 
 
 async def _mode(session: Session, node: SessionNode) -> int | None:
@@ -313,8 +316,8 @@ async def modes(session: Session, node: SessionNode) -> dict[int, str]:
     if fam.generic and has_ref(catalog_of(node), "0x6502"):
         raw = (await parameters.read(session, node.node_id, "0x6502")).raw
         if isinstance(raw, int):
-            return {mode: cia402.MODE_NAMES[mode] for mode in cia402.modes_from_6502(raw)}
-    return dict(fam.section.modes)
+            return {mode: cia402.mode_label(mode) for mode in cia402.modes_from_6502(raw)}
+    return {mode: cia402.shown(name) for mode, name in fam.section.modes.items()}
 
 
 async def _diagnostics(session: Session, node: SessionNode) -> tuple[list[Bit], int | None]:
@@ -324,7 +327,7 @@ async def _diagnostics(session: Session, node: SessionNode) -> tuple[list[Bit], 
     if has_ref(catalog, "0x60FD"):
         raw = (await parameters.read(session, node.node_id, "0x60FD")).raw
         word = int(raw) if isinstance(raw, int) else 0
-        inputs = [Bit(bit=bit, name=name, set=bool(word >> bit & 1)) for bit, name in cia402.INPUT_BITS.items()]
+        inputs = [Bit(bit=bit, name=_(name), set=bool(word >> bit & 1)) for bit, name in cia402.INPUT_BITS.items()]
     code = None
     if has_ref(catalog, "0x603F"):
         raw = (await parameters.read(session, node.node_id, "0x603F")).raw
@@ -357,16 +360,16 @@ async def read_status(session: Session, node: SessionNode, panel: Panel = SERVIC
         enabled=enabled, fault=fault, status_ref=fam.status_ref, status_word=status_word,
         status_bits=bits(section.status_bits, status_word), control_ref=fam.control_ref, control_word=control_word,
         control_bits=bits(section.control_bits, control_word),
-        commands={command.value: COMMAND_LABELS[command] for command in section.commands},
+        commands={command.value: command_label(command) for command in section.commands},
         moving_commands=[command.value for command in section.commands if command in fam.moving],
-        states=[StateOut(key=box.key, label=box.label, col=box.col, row=box.row, enabled=box.enabled, fault=box.fault)
-                for box in section.states],
+        states=[StateOut(key=box.key, label=cia402.shown(box.label), col=box.col, row=box.row, enabled=box.enabled,
+                         fault=box.fault) for box in section.states],
         mode=mode, mode_label=mode_label(fam, mode) if mode is not None else None,
         modes=await modes(session, node) if mode is not None else {}, setpoint_ref=scale.ref,
         setpoint_unit=scale.unit, setpoint_min=scale.minimum, setpoint_max=scale.maximum,
         armed=guard.armed(node.node_id), holder=holder.text() if holder else None,
         you_hold=bool(holder and holder.panel.key == panel.key), panels=guard.panels(node.node_id),
-        last_trip=guard.trips.get(node.node_id), generic=fam.generic, inputs=inputs, error_code=error_code,
+        last_trip=guard.trip_text(node.node_id), generic=fam.generic, inputs=inputs, error_code=error_code,
         error_text=cia402.error_text(error_code) if error_code is not None else None)
 
 
@@ -395,12 +398,13 @@ async def command(session: Session, node: SessionNode, which: Command, *, confir
     fam = family(node)
     bits_of = fam.section.commands.get(which)
     if bits_of is None:
-        raise InvalidValue(f"{COMMAND_LABELS[which]} is not a command of {fam.title}.")
+        raise InvalidValue(_("{command} is not a command of {control}.").format(command=command_label(which),
+                                                                                 control=fam.title))
     guard = guard_for(session)
     if which not in STOPPING:
-        guard.check(node.node_id, panel, COMMAND_LABELS[which])
+        guard.check(node.node_id, panel, command_label(which))
     if which in fam.moving:
-        _confirmed(confirm, node, COMMAND_LABELS[which])
+        _confirmed(confirm, node, command_label(which))
     if which in STOPPING:  # a cyclic synchronous stream would send its control word again: it ends first
         live.service(session).stop_node(node.node_id)
     with node_lease.stopping() if which in STOPPING else contextlib.nullcontext():  # any station may stop it
@@ -416,28 +420,29 @@ async def command(session: Session, node: SessionNode, which: Command, *, confir
     return await read_status(session, node, panel)
 
 
-def check_range(value: float, scale: Scale, what: str = "Setpoint") -> None:
+def check_range(value: float, scale: Scale) -> None:
     if (scale.minimum is not None and value < scale.minimum) or (scale.maximum is not None and value > scale.maximum):
         low = "-∞" if scale.minimum is None else f"{scale.minimum:g}"
         high = "∞" if scale.maximum is None else f"{scale.maximum:g}"
-        raise OutOfRange(f"{what} {value:g} {scale.unit} is outside {low} ... {high} {scale.unit}.")
+        raise OutOfRange(_("Setpoint {value} {unit} is outside {low} ... {high} {unit}.").format(
+            value=f"{value:g}", unit=scale.unit, low=low, high=high))
 
 
 async def set_setpoint(session: Session, node: SessionNode, value: float, *, confirm: object = None,
                        panel: Panel = SERVICE_PANEL) -> DriveStatus:
     fam = family(node)
     guard = guard_for(session)
-    guard.check(node.node_id, panel, "Setpoint")
+    guard.check(node.node_id, panel, _("Setpoint"))
     mode = await _mode(session, node)
     if fam.generic and mode in (1, 6):  # a target alone does not move a CiA 402 drive: it needs the set-point bit
-        raise InvalidValue(f"In {mode_label(fam, mode)} mode the drive moves by a "
-                           f"{'move (POST …/control/move)' if mode == 1 else 'homing run (POST …/control/home)'}, "
-                           "not by a setpoint.")
+        by = _("a move (POST …/control/move)") if mode == 1 else _("a homing run (POST …/control/home)")
+        raise InvalidValue(_("In {mode} mode the drive moves by {by}, not by a setpoint.").format(
+            mode=mode_label(fam, mode), by=by))
     spec = _setpoint(fam, mode)
     scale = await setpoint_scale(session, node, mode)
     check_range(value, scale)
     if value != 0:
-        _confirmed(confirm, node, f"Setpoint {value:g} {scale.unit}")
+        _confirmed(confirm, node, _("Setpoint {value} {unit}").format(value=f"{value:g}", unit=scale.unit))
         guard.arm(node.node_id, panel)
     with cleared():  # confirmed and armed above (0 cannot speed it up)
         if scale.raw_per_unit:
@@ -476,23 +481,25 @@ async def jog_plan(session: Session, node: SessionNode) -> JogPlan:
                 await _number(session, node, spec.enabled_ref, 0) <= spec.enabled_max:
             value = await _number(session, node, spec.value_ref, 0)
             return JogPlan(method="device", value=value, unit=spec.unit or "",
-                           text=spec.text.format(value=value, unit=spec.unit, word=fam.control_ref))
+                           text=cia402.shown(spec.text).format(value=value, unit=spec.unit, word=fam.control_ref))
         why = spec.disabled_why or why
     if spec.method == "profile_velocity":
-        return await profile_velocity_jog(session, node, spec.text)
+        return await profile_velocity_jog(session, node, cia402.shown(spec.text))
     if spec.percent_ref is not None and has_ref(catalog_of(node), spec.percent_ref):
         percent = await _number(session, node, spec.percent_ref, 0)
         reference = await _number(session, node, spec.reference_ref, spec.reference_default)
         value = round(percent / 100 * reference, 1)
         unit = _setpoint(fam, None).unit
         return JogPlan(method="setpoint", value=value, unit=unit,
-                       text=spec.text.format(percent=percent, value=value, unit=unit, reference=reference))
+                       text=cia402.shown(spec.text).format(percent=percent, value=value, unit=unit,
+                                                           reference=reference))
     scale = await setpoint_scale(session, node, await _mode(session, node))
     fraction = spec.fraction or 0.1
     value = round((scale.maximum or 100.0) * fraction, 1)
     text = JogSpec().text if spec.percent_ref is not None else spec.text
     return JogPlan(method="setpoint", value=value, unit=scale.unit,
-                   text=text.format(percent=fraction * 100, value=value, unit=scale.unit, why=why))
+                   text=cia402.shown(text).format(percent=fraction * 100, value=value, unit=scale.unit,
+                                                  why=cia402.shown(why)))
 
 
 async def profile_velocity_jog(session: Session, node: SessionNode, text: str,
@@ -507,25 +514,35 @@ async def profile_velocity_jog(session: Session, node: SessionNode, text: str,
                    text=text.format(value=abs(value), unit=units.velocity))
 
 
+def jog_at(speed: float, unit: str) -> str:
+    return _("Jog at {speed} {unit}").format(speed=f"{speed:g}", unit=unit)
+
+
+def not_enabled(what: str, status: DriveStatus) -> str:
+    return _("{what} needs the drive in operation enabled (it is in '{state}').").format(what=what,
+                                                                                         state=status.state_label)
+
+
 async def jog(session: Session, node: SessionNode, direction: int, *, confirm: object = None,
               panel: Panel = SERVICE_PANEL, speed: float | None = None) -> DriveStatus:
     """Hold-to-run: +1 / -1 runs at the jog value while the keep-alive lasts, 0 stops."""
     if direction not in (-1, 0, 1):
-        raise InvalidValue("Jog direction is -1, 0 or 1.")
+        raise InvalidValue(_("Jog direction is -1, 0 or 1."))
     guard = guard_for(session)
-    guard.check(node.node_id, panel, "Jog")
+    guard.check(node.node_id, panel, _("Jog"))
     status = await read_status(session, node, panel)
     if direction and not status.enabled:
-        raise Conflict(f"Jog needs the drive in operation enabled (it is in '{status.state_label}').")
+        raise Conflict(not_enabled(_("Jog"), status))
     plan = await jog_plan(session, node)
     if plan.method == "profile_velocity":
         if speed is not None and speed <= 0:
-            raise OutOfRange(f"Jog speed {speed:g} {plan.unit} must be above 0.")
+            raise OutOfRange(_("Jog speed {speed} {unit} must be above 0.").format(speed=f"{speed:g}",
+                                                                                    unit=plan.unit))
         if speed is not None and plan.maximum is not None and speed > plan.maximum:
-            raise OutOfRange(f"Jog speed {speed:g} {plan.unit} is above the max profile velocity 0x607F = "
-                             f"{plan.maximum:g} {plan.unit}.")
+            raise OutOfRange(_("Jog speed {speed} {unit} is above the max profile velocity 0x607F = {top} {unit}.")
+                             .format(speed=f"{speed:g}", unit=plan.unit, top=f"{plan.maximum:g}"))
         if direction:
-            _confirmed(confirm, node, f"Jog at {speed or plan.value:g} {plan.unit}")
+            _confirmed(confirm, node, jog_at(speed or plan.value, plan.unit))
             guard.arm(node.node_id, panel)
         with cleared():  # confirmed and armed above; 0 (release) stops it
             if direction and status.mode != 3:
@@ -537,7 +554,7 @@ async def jog(session: Session, node: SessionNode, direction: int, *, confirm: o
         return await set_setpoint(session, node, direction * plan.value, confirm=confirm, panel=panel)
     spec = family(node).section.jog
     if direction:
-        _confirmed(confirm, node, f"Jog at {plan.value:g} {plan.unit}")
+        _confirmed(confirm, node, jog_at(plan.value, plan.unit))
         guard.arm(node.node_id, panel)
     word = await last_control_word(session, node) & ~spec.select_mask
     if direction:
@@ -554,19 +571,21 @@ async def set_mode(session: Session, node: SessionNode, mode: int, *, confirm: o
                    panel: Panel = SERVICE_PANEL) -> DriveStatus:
     fam = family(node)
     if fam.section.state_machine != "cia402" or not has_ref(catalog_of(node), "0x6060"):
-        raise InvalidValue(f"{node.device_name} has no modes of operation (0x6060).")
+        raise InvalidValue(_("{device} has no modes of operation (0x6060).").format(device=node.device_name))
     if mode not in await modes(session, node):
-        raise InvalidValue((fam.section.modes_help or "Mode {mode} is not supported.").format(mode=mode))
-    guard_for(session).check(node.node_id, panel, "Changing the mode of operation")
+        unknown = cia402.shown(fam.section.modes_help) if fam.section.modes_help else _("Mode {mode} is not supported.")
+        raise InvalidValue(unknown.format(mode=mode))
+    guard_for(session).check(node.node_id, panel, _("Changing the mode of operation"))
     status = await read_status(session, node, panel)
     if status.enabled:
-        _confirmed(confirm, node, "Changing the mode of operation while the drive is enabled")
+        _confirmed(confirm, node, _("Changing the mode of operation while the drive is enabled"))
     with cleared():  # confirmed above while enabled; a disabled drive does not move when its mode changes
         await parameters.write(session, node.node_id, "0x6060", mode, verify=False)
     deadline = time.monotonic() + MODE_SETTLE_S
     while (status := await read_status(session, node, panel)).mode != mode and time.monotonic() < deadline:
         await asyncio.sleep(0.02)
     if status.mode != mode:
-        raise Conflict((fam.section.mode_refused or "0x6061 shows {shown} after writing 0x6060 = {mode}.")
-                       .format(shown=status.mode, mode=mode))
+        refused = (cia402.shown(fam.section.mode_refused) if fam.section.mode_refused else
+                   _("0x6061 shows {shown} after writing 0x6060 = {mode}."))
+        raise Conflict(refused.format(shown=status.mode, mode=mode))
     return status

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 from urllib.parse import unquote
 
 from drivebench.errors import ConfirmationRequired, Conflict, DriveBenchError, InvalidValue
-from drivebench.i18n import _
+from drivebench.i18n import DEFAULT, N_, Text, _, shown, using
 from drivebench.protocol.nmt import NmtCommand
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.control.drive_words import Command, family_of, next_control_word
@@ -70,25 +70,28 @@ class Panel:
 
     key: str
     who: str
+    """Shown to the other panels in their language (a :class:`~drivebench.i18n.Text`)."""
 
 
-SERVICE_PANEL = Panel("service", "a DriveBench service call")
+SERVICE_PANEL = Panel("service", Text(N_("a DriveBench service call")))
 
 
 def panel_of(host: str | None, panel_id: str | None, operator: str | None) -> Panel:
     """The panel a request or websocket comes from: its id (one per browser tab) or, without one, its host."""
-    where = host or "an unknown host"
+    where = host or Text(N_("an unknown host"))
     name = unquote(operator or "").strip()[:40]  # browsers send it URI-encoded (headers are Latin-1)
     if panel_id:
-        return Panel(key=f"panel:{panel_id[:64]}", who=f"{name or 'panel ' + panel_id[:6]} at {where}")
-    return Panel(key=f"client:{where}", who=f"{name or 'an API client'} at {where}")
+        who = Text(N_("{name} at {where}"), name=name or Text(N_("panel {id}"), id=panel_id[:6]), where=where)
+        return Panel(key=f"panel:{panel_id[:64]}", who=who)
+    return Panel(key=f"client:{where}", who=Text(N_("{name} at {where}"), name=name or Text(N_("an API client")),
+                                                  where=where))
 
 
 # --- control-word I/O (shared with drive_control) -------------------------------------------------------------
 async def read_word(session: Session, node_id: int, ref: str) -> int:
     raw = (await parameters.read(session, node_id, ref)).raw
     if not isinstance(raw, int):
-        raise InvalidValue(f"{ref} did not read as an integer word")
+        raise InvalidValue(_("{ref} did not read as an integer word").format(ref=ref))
     return raw & 0xFFFF
 
 
@@ -109,7 +112,7 @@ async def write_word(session: Session, node_id: int, ref: str, word: int) -> Non
 async def send_quick_stop(session: Session, node: SessionNode) -> None:
     fam = family_of(node.catalog)
     if fam is None:  # the trip skips such nodes (NMT pre-operational is their safe command)
-        raise InvalidValue(f"{node.device_name} has no device control word DriveBench knows.")
+        raise InvalidValue(_("{device} has no device control word DriveBench knows.").format(device=node.device_name))
     with node_lease.stopping(), cleared():  # any station may stop a machine: no lease refuses it
         last = await last_word(session, node.node_id, fam.control_ref)
         await write_word(session, node.node_id, fam.control_ref, next_control_word(fam, Command.QUICK_STOP, last))
@@ -122,7 +125,9 @@ class Holder:
     since: float  # unix time
 
     def text(self) -> str:
-        return f"{self.panel.who} since {time.strftime('%H:%M:%S', time.localtime(self.since))}"
+        """Who holds the drive, in the reader's language."""
+        return _("{who} since {time}").format(who=shown(self.panel.who),
+                                              time=time.strftime("%H:%M:%S", time.localtime(self.since)))
 
 
 class Guard:
@@ -135,6 +140,7 @@ class Guard:
         self.holders: dict[int, Holder] = {}
         self.armed_at: dict[int, float] = {}
         self.trips: dict[int, str] = {}
+        """The last stop of each node (a :class:`~drivebench.i18n.Text`: shown in the reader's language)."""
         self.sockets: dict[tuple[int, str], int] = {}
         self.clients: dict[str, int] = {}
         """Open keep-alive sockets of each panel (a page's session-wide keep-alive, not a control panel)."""
@@ -157,12 +163,13 @@ class Guard:
         """Refuse ``what`` when another panel holds the armed node."""
         holder = self.holder(node_id)
         if holder is not None and holder.panel.key != panel.key:
-            raise Conflict(f"{what} refused: node {node_id} is held by {holder.text()}. This panel watches: it can "
-                           "stop the drive (quick stop, disable) but not move it.")
+            raise Conflict(_("{what} refused: node {node} is held by {holder}. This panel watches: it can stop the "
+                             "drive (quick stop, disable) but not move it.").format(what=what, node=node_id,
+                                                                                    holder=holder.text()))
 
     def arm(self, node_id: int, panel: Panel = SERVICE_PANEL, *, pinned: bool = False,
             timeout_s: float = KEEPALIVE_TIMEOUT_S) -> None:
-        self.check(node_id, panel, "Arming")
+        self.check(node_id, panel, _("Arming"))
         if self.holder(node_id) is None:
             self.holders[node_id] = Holder(panel, time.time())
             self.timeouts[node_id] = timeout_s
@@ -191,6 +198,11 @@ class Guard:
     def held_by(self, panel: Panel) -> list[int]:
         return sorted(node for node, holder in self.holders.items() if node in self.deadlines
                       and holder.panel.key == panel.key)
+
+    def trip_text(self, node_id: int) -> str | None:
+        """The node's last stop in the reader's language."""
+        trip = self.trips.get(node_id)
+        return shown(trip) if trip is not None else None
 
     def held_elsewhere(self, panel: Panel) -> dict[int, str]:
         """Armed nodes another panel holds (their holder): a keep-alive of ``panel`` does not reach them."""
@@ -251,7 +263,12 @@ class Guard:
 
     async def trip(self, node_id: int, reason: str) -> None:
         """Stop an armed node (keep-alive lost or the holder's panel disconnected): cyclic RPDOs to it end, quick
-        stop goes to its control word, and a node the tool started goes to NMT pre-operational."""
+        stop goes to its control word, and a node the tool started goes to NMT pre-operational. What was done is
+        kept as a :class:`~drivebench.i18n.Text` (``reason`` may be one): every reader sees it in their language."""
+        with using(DEFAULT):  # a task started by a request carries its language: the record is kept in N_() texts
+            await self._trip(node_id, reason)
+
+    async def _trip(self, node_id: int, reason: str) -> None:
         holder = self.holders.pop(node_id, None)
         self.orphaned.pop(node_id, None)
         if self.deadlines.pop(node_id, None) is None:
@@ -263,26 +280,29 @@ class Guard:
         if session is None or node_id not in session.nodes:
             return
         node = session.nodes[node_id]
-        held = f" (held by {holder.panel.who})" if holder else ""
         clock = time.strftime("%H:%M:%S")
         has_word = family_of(node.catalog) is not None
-        head = "Quick stop sent" if has_word else "Safe stop"
+        head = Text(N_("Quick stop sent")) if has_word else Text(N_("Safe stop"))
+        why = Text(N_("{reason} (held by {who})"), reason=reason, who=holder.panel.who) if holder else reason
         # recorded before the writes return: a status read queued behind them must already name the trip
-        self.trips[node_id] = f"{head} at {clock}: {reason}{held}."
+        self.trips[node_id] = Text(N_("{head} at {clock}: {reason}."), head=head, clock=clock, reason=why)
         stopped = live.service(session).stop_node(node_id)
-        steps = [f"{stopped} cyclic RPDO{'s' if stopped != 1 else ''} stopped"] if stopped else []
+        steps = [Text(N_("{count} cyclic RPDOs stopped") if stopped != 1 else N_("1 cyclic RPDO stopped"),
+                       count=stopped)] if stopped else []
         if has_word:
             try:
                 await send_quick_stop(session, node)
             except DriveBenchError as exc:
-                head = f"Quick stop FAILED ({exc})"
+                head = Text(N_("Quick stop FAILED ({error})"), error=exc.detail)
         if started:
             try:
                 await session.nmt(NmtCommand.ENTER_PRE_OPERATIONAL, node_id)
-                steps.append("NMT pre-operational sent")
+                steps.append(Text(N_("NMT pre-operational sent")))
             except DriveBenchError as exc:
-                steps.append(f"NMT pre-operational FAILED ({exc})")
-        self.trips[node_id] = f"{head} at {clock}: {reason}{held}" + "".join(f"; {step}" for step in steps) + "."
+                steps.append(Text(N_("NMT pre-operational FAILED ({error})"), error=exc.detail))
+        for step in steps:
+            why = Text(N_("{reason}; {step}"), reason=why, step=step)
+        self.trips[node_id] = Text(N_("{head} at {clock}: {reason}."), head=head, clock=clock, reason=why)
         log.warning("node %s: %s", node_id, self.trips[node_id])
         session.emit("drive_trip", {"node": node_id, "reason": self.trips[node_id]})
 
@@ -318,8 +338,9 @@ class Guard:
                 if deadline < now:
                     timeout = self.timeouts.get(node_id, KEEPALIVE_TIMEOUT_S)
                     page = self.orphaned.pop(node_id, None)
-                    await self.trip(node_id, f"the page that started it disconnected (no keep-alive for {timeout:g} s)"
-                                    if page else f"no keep-alive for {timeout:g} s")
+                    lost = (N_("the page that started it disconnected (no keep-alive for {seconds} s)") if page
+                            else N_("no keep-alive for {seconds} s"))
+                    await self.trip(node_id, Text(lost, seconds=f"{timeout:g}"))
 
 
 def guard_for(session: Session) -> Guard:
@@ -406,11 +427,12 @@ async def nmt(session: Session, command: NmtCommand, node_id: int, panel: Panel 
         for target in targets:
             guard.release(target, nmt=True)
         return targets
-    require_confirmation(confirm, node_id or None, "NMT start" if node_id else "NMT start of all nodes")
+    require_confirmation(confirm, node_id or None, _("NMT start") if node_id else _("NMT start of all nodes"))
     if not KEEPALIVE_TIMEOUT_S / 4 <= timeout_s <= MAX_KEEPALIVE_S:
-        raise InvalidValue(f"The keep-alive timeout must be {KEEPALIVE_TIMEOUT_S / 4:g} ... {MAX_KEEPALIVE_S:g} s.")
+        raise InvalidValue(_("The keep-alive timeout must be {low} ... {high} s.").format(
+            low=f"{KEEPALIVE_TIMEOUT_S / 4:g}", high=f"{MAX_KEEPALIVE_S:g}"))
     for target in targets:
-        guard.check(target, panel, f"NMT start of node {target}")
+        guard.check(target, panel, _("NMT start of node {node}").format(node=target))
     with contextlib.ExitStack() as leases:
         for target in targets:
             leases.enter_context(node_lease.writing(session, target))
@@ -427,9 +449,10 @@ async def send_rpdo(session: Session, node_id: int, number: int, values: dict[st
                     keepalive: bool = True) -> bytes:
     """Send an RPDO once or (``owner`` and ``period_ms``) cyclically. Needs the confirmation naming the node and
     its write lease, and arms the node for ``panel`` (unless ``keepalive`` is off: the caller checked it may)."""
-    require_confirmation(confirm, node_id, f"Sending RPDO{number}")
+    what = _("Sending RPDO{number}").format(number=number)
+    require_confirmation(confirm, node_id, what)
     guard = guard_for(session)
-    guard.check(node_id, panel, f"Sending RPDO{number}")
+    guard.check(node_id, panel, what)
     service = live.service(session)
     with node_lease.writing(session, node_id):
         if owner is not None and period_ms is not None:

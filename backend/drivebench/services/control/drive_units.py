@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 from drivebench.device import cia402
 from drivebench.errors import DriveBenchError, UnknownParameter
+from drivebench.i18n import _
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.params import parameters
 
@@ -57,27 +58,35 @@ async def _ratio(session: Session, node: SessionNode, index: str) -> float | Non
 
 
 async def motion_units(session: Session, node: SessionNode) -> Units:
-    cached: tuple[float, Units] | None = getattr(node, "_motion_units", None)  # kept on the node, as its catalog
-    if cached is not None and time.monotonic() - cached[0] < UNITS_TTL_S:
-        return cached[1]
+    """The units, named in the reader's language (what was read is kept on the node for :data:`UNITS_TTL_S`)."""
+    cached: tuple[float, _Read] | None = getattr(node, "_motion_units", None)  # kept on the node, as its catalog
+    if cached is None or time.monotonic() - cached[0] >= UNITS_TTL_S:
+        cached = time.monotonic(), await _read_units(session, node)
+        object.__setattr__(node, "_motion_units", cached)
+    position, velocity, per_unit = cached[1]
+    if position is not None:
+        return Units(position, velocity or f"{position}/s", _("SI unit objects 0x60A8/0x60A9"))
+    if per_unit is not None:
+        return Units(_("position units ({count} increments)").format(count=f"{per_unit:g}"),
+                     velocity or _("position units/s"), _("factor group 0x608F/0x6091/0x6092"))
+    return Units(_("increments"), velocity or _("increments/s"),
+                 _("no SI unit objects or factor group: raw increments"))
+
+
+_Read = tuple[str | None, str | None, float | None]
+"""Position unit and velocity unit from 0x60A8/0x60A9, position units per increment from the factor group."""
+
+
+async def _read_units(session: Session, node: SessionNode) -> _Read:
     position_code, velocity_code = await _int(session, node, "0x60A8"), await _int(session, node, "0x60A9")
     position = cia402.si_unit(position_code) if position_code is not None else None
     velocity = cia402.si_unit(velocity_code) if velocity_code is not None else None
     if position is not None:
-        units = Units(position, velocity or f"{position}/s", "SI unit objects 0x60A8/0x60A9")
-    else:
-        encoder = await _ratio(session, node, "0x608F")
-        gear = await _ratio(session, node, "0x6091") or 1.0
-        feed = await _ratio(session, node, "0x6092")
-        if encoder and feed:
-            per_unit = encoder * gear / feed
-            units = Units(f"position units ({per_unit:g} increments)", velocity or "position units/s",
-                          "factor group 0x608F/0x6091/0x6092")
-        else:
-            units = Units("increments", velocity or "increments/s",
-                          "no SI unit objects or factor group: raw increments")
-    object.__setattr__(node, "_motion_units", (time.monotonic(), units))
-    return units
+        return position, velocity, None
+    encoder = await _ratio(session, node, "0x608F")
+    gear = await _ratio(session, node, "0x6091") or 1.0
+    feed = await _ratio(session, node, "0x6092")
+    return None, velocity, encoder * gear / feed if encoder and feed else None
 
 
 async def generic_limits(session: Session, node: SessionNode, ref: str) -> tuple[float | None, float | None]:

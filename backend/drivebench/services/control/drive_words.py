@@ -14,14 +14,20 @@ from drivebench.device import cia402
 from drivebench.device.catalog import Catalog
 from drivebench.device.control import Command, ControlSection, StateBox
 from drivebench.device.profile import Profile
+from drivebench.i18n import N_, _
 
-__all__ = ["COMMAND_LABELS", "Command", "Family", "family_of", "next_control_word", "state_label"]
+__all__ = ["COMMAND_LABELS", "Command", "Family", "command_label", "family_of", "next_control_word", "state_label"]
 
-COMMAND_LABELS = {
-    Command.SHUTDOWN: "Shutdown", Command.SWITCH_ON: "Switch on", Command.ENABLE_OPERATION: "Enable operation",
-    Command.DISABLE_OPERATION: "Disable operation", Command.QUICK_STOP: "Quick stop",
-    Command.DISABLE_VOLTAGE: "Disable voltage", Command.FAULT_RESET: "Fault reset",
+COMMAND_LABELS = {  # DriveBench's names of the commands (CiA 402's): command_label() gives them translated
+    Command.SHUTDOWN: N_("Shutdown"), Command.SWITCH_ON: N_("Switch on"),
+    Command.ENABLE_OPERATION: N_("Enable operation"), Command.DISABLE_OPERATION: N_("Disable operation"),
+    Command.QUICK_STOP: N_("Quick stop"), Command.DISABLE_VOLTAGE: N_("Disable voltage"),
+    Command.FAULT_RESET: N_("Fault reset"),
 }
+
+
+def command_label(command: Command) -> str:
+    return _(COMMAND_LABELS[command])
 
 
 @dataclass(frozen=True, eq=False)
@@ -36,11 +42,11 @@ class Family:
 
     @property
     def title(self) -> str:
-        return self.section.title
+        return cia402.shown(self.section.title)
 
     @property
     def note(self) -> str:
-        return self.section.note
+        return cia402.shown(self.section.note)
 
     @property
     def control_ref(self) -> str:
@@ -71,6 +77,12 @@ class Family:
             return self.section.state_codes.get(status_word >> 8 & 0x0F, "unknown")
         return "unknown"
 
+    @staticmethod
+    def shown(text: str) -> str:
+        """A text of the section as the panel shows it: a standard (CiA 402) name in the reader's language, a
+        vendor's own text as its manual prints it."""
+        return cia402.shown(text)
+
     def state_box(self, key: str) -> StateBox | None:
         return next((box for box in self.section.states if box.key == key), None)
 
@@ -98,8 +110,9 @@ def family_of(catalog: Catalog | None) -> Family | None:
 
 
 def state_label(family: Family, key: str) -> str:
+    """The state's name as the panel shows it (a standard name in the reader's language)."""
     box = family.state_box(key)
-    return box.label if box else "Unknown state"
+    return cia402.shown(box.label) if box else _("Unknown state")
 
 
 def next_control_word(family: Family, command: Command, last: int) -> int:

@@ -21,6 +21,7 @@ from pydantic import BaseModel
 
 from drivebench.device import cia402
 from drivebench.errors import Conflict, DriveBenchError, InvalidValue, OutOfRange
+from drivebench.i18n import N_, _
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.control import drive_control
 from drivebench.services.control.drive_control import SERVICE_PANEL, DriveStatus, Panel, guard_for, has_ref
@@ -34,12 +35,14 @@ MODE_BITS = NEW_SET_POINT | CHANGE_IMMEDIATELY | RELATIVE | 0x0100  # and halt
 SET_POINT_ACKNOWLEDGE = 0x1000
 ACK_TIMEOUT_S = 1.0
 QUICK_STOP_OPTIONS = {
-    0: "disable drive function", 1: "slow down on slow-down ramp, then switch on disabled",
-    2: "slow down on quick-stop ramp, then switch on disabled", 3: "slow down on current limit, then switch on "
-    "disabled", 4: "slow down on voltage limit, then switch on disabled", 5: "slow down on slow-down ramp and stay "
-    "in quick stop active", 6: "slow down on quick-stop ramp and stay in quick stop active",
-    7: "slow down on current limit and stay in quick stop active",
-    8: "slow down on voltage limit and stay in quick stop active",
+    0: N_("disable drive function"), 1: N_("slow down on slow-down ramp, then switch on disabled"),
+    2: N_("slow down on quick-stop ramp, then switch on disabled"),
+    3: N_("slow down on current limit, then switch on disabled"),
+    4: N_("slow down on voltage limit, then switch on disabled"),
+    5: N_("slow down on slow-down ramp and stay in quick stop active"),
+    6: N_("slow down on quick-stop ramp and stay in quick stop active"),
+    7: N_("slow down on current limit and stay in quick stop active"),
+    8: N_("slow down on voltage limit and stay in quick stop active"),
 }
 
 
@@ -62,15 +65,17 @@ class MotionInfo(BaseModel):
     homing_method: int | None
 
 
-SETTINGS = [("0x6081", "Profile velocity", "velocity"), ("0x6083", "Profile acceleration", "acceleration"),
-            ("0x6084", "Profile deceleration", "acceleration"), ("0x6085", "Quick stop deceleration", "acceleration"),
-            ("0x6099.1", "Homing speed: search for switch", "velocity"),
-            ("0x6099.2", "Homing speed: search for zero", "velocity"),
-            ("0x609A", "Homing acceleration", "acceleration"),
-            ("0x607C", "Home offset", "position"), ("0x607D.1", "Software position limit: min", "position"),
-            ("0x607D.2", "Software position limit: max", "position"),
-            ("0x607F", "Max profile velocity", "velocity"), ("0x60C2.1", "Interpolation time period value", None),
-            ("0x60C2.2", "Interpolation time index (period = value x 10^index s)", None)]
+SETTINGS = [("0x6081", N_("Profile velocity"), "velocity"), ("0x6083", N_("Profile acceleration"), "acceleration"),
+            ("0x6084", N_("Profile deceleration"), "acceleration"),
+            ("0x6085", N_("Quick stop deceleration"), "acceleration"),
+            ("0x6099.1", N_("Homing speed: search for switch"), "velocity"),
+            ("0x6099.2", N_("Homing speed: search for zero"), "velocity"),
+            ("0x609A", N_("Homing acceleration"), "acceleration"),
+            ("0x607C", N_("Home offset"), "position"), ("0x607D.1", N_("Software position limit: min"), "position"),
+            ("0x607D.2", N_("Software position limit: max"), "position"),
+            ("0x607F", N_("Max profile velocity"), "velocity"),
+            ("0x60C2.1", N_("Interpolation time period value"), None),
+            ("0x60C2.2", N_("Interpolation time index (period = value x 10^index s)"), None)]
 
 
 async def _read(session: Session, node: SessionNode, ref: str) -> float | None:
@@ -81,19 +86,19 @@ async def _read(session: Session, node: SessionNode, ref: str) -> float | None:
 async def info(session: Session, node: SessionNode) -> MotionInfo:
     catalog = drive_control.catalog_of(node)
     if not drive_control.family(node).generic:
-        raise InvalidValue(f"{node.device_name} is driven by its profile's own control section, not by the standard "
-                           "CiA 402 motion panel.")
+        raise InvalidValue(_("{device} is driven by its profile's own control section, not by the standard CiA 402 "
+                             "motion panel.").format(device=node.device_name))
     units = await motion_units(session, node)
     unit_of = {"position": units.position, "velocity": units.velocity, "acceleration": f"{units.velocity}/s"}
-    settings = [Setting(ref=ref, label=label, value=await _read(session, node, ref),
+    settings = [Setting(ref=ref, label=_(label), value=await _read(session, node, ref),
                         unit=unit_of.get(kind or "") or catalog.resolve(ref).entry.unit)
                 for ref, label, kind in SETTINGS if has_ref(catalog, ref)]
     option = None
     if has_ref(catalog, "0x605A"):
         code = await _read(session, node, "0x605A")
         if code is not None:
-            option = f"{code:g}: " + (QUICK_STOP_OPTIONS.get(int(code)) or
-                                      ("manufacturer-specific" if code < 0 else "reserved"))
+            named = QUICK_STOP_OPTIONS.get(int(code))
+            option = f"{code:g}: " + (_(named) if named else _("manufacturer-specific") if code < 0 else _("reserved"))
     method = await _read(session, node, "0x6098") if has_ref(catalog, "0x6098") else None
     return MotionInfo(position_unit=units.position, velocity_unit=units.velocity, units_from=units.how,
                       quick_stop_option=option, settings=settings,
@@ -102,36 +107,36 @@ async def info(session: Session, node: SessionNode) -> MotionInfo:
 
 
 async def homing_methods(session: Session, node: SessionNode) -> dict[int, str]:
-    """The methods the drive lists in 0x60E3 (read once per node: read-only), else every CiA 402 method."""
-    cached: dict[int, str] | None = getattr(node, "_homing_methods", None)  # kept on the node, as its units
-    if cached is not None:
-        return cached
-    catalog = drive_control.catalog_of(node)
-    methods = dict(cia402.HOMING_METHODS)
-    if has_ref(catalog, "0x60E3.1"):
-        count = int(await _read(session, node, "0x60E3.0") or 0)
-        refs = [f"0x60E3.{sub}" for sub in range(1, count + 1) if has_ref(catalog, f"0x60E3.{sub}")]
-        listed = [found.value for found in await parameters.read_many(session, node.node_id, refs)
-                  if not isinstance(found, DriveBenchError) and isinstance(found.value, int)]
-        methods = {method: cia402.homing_label(method) for method in listed}
-    object.__setattr__(node, "_homing_methods", methods)
-    return methods
+    """The methods the drive lists in 0x60E3 (read once per node: read-only), else every CiA 402 method; named in
+    the reader's language."""
+    cached: list[int] | None = getattr(node, "_homing_methods", None)  # kept on the node, as its units
+    if cached is None:
+        catalog = drive_control.catalog_of(node)
+        cached = list(cia402.HOMING_METHODS)
+        if has_ref(catalog, "0x60E3.1"):
+            count = int(await _read(session, node, "0x60E3.0") or 0)
+            refs = [f"0x60E3.{sub}" for sub in range(1, count + 1) if has_ref(catalog, f"0x60E3.{sub}")]
+            cached = [found.value for found in await parameters.read_many(session, node.node_id, refs)
+                      if not isinstance(found, DriveBenchError) and isinstance(found.value, int)]
+        object.__setattr__(node, "_homing_methods", cached)
+    return {method: cia402.homing_label(method) for method in cached}
 
 
 async def _enabled(session: Session, node: SessionNode, panel: Panel, what: str) -> DriveStatus:
     guard_for(session).check(node.node_id, panel, what)
     status = await drive_control.read_status(session, node, panel)
     if not status.generic:
-        raise InvalidValue(f"{node.device_name} is not driven by the standard CiA 402 panel.")
+        raise InvalidValue(_("{device} is not driven by the standard CiA 402 panel.").format(device=node.device_name))
     if not status.enabled:
-        raise Conflict(f"{what} needs the drive in operation enabled (it is in '{status.state_label}').")
+        raise Conflict(drive_control.not_enabled(what, status))
     return status
 
 
 async def _mode(session: Session, node: SessionNode, status: DriveStatus, mode: int, panel: Panel) -> None:
     if status.mode != mode:
         if mode not in status.modes:
-            raise InvalidValue(f"{node.device_name} does not support {cia402.mode_label(mode)} mode.")
+            raise InvalidValue(_("{device} does not support {mode} mode.").format(device=node.device_name,
+                                                                                   mode=cia402.mode_label(mode)))
         await drive_control.set_mode(session, node, mode, confirm=node.node_id, panel=panel)
 
 
@@ -147,8 +152,8 @@ async def _edge(session: Session, node: SessionNode, base: int, *, hold: bool) -
         if isinstance(word, int) and word & SET_POINT_ACKNOWLEDGE:
             break
         if time.monotonic() > deadline:
-            raise Conflict("The drive did not acknowledge the new set-point (status word bit 12) within "
-                           f"{ACK_TIMEOUT_S:g} s.")
+            raise Conflict(_("The drive did not acknowledge the new set-point (status word bit 12) within {seconds} s.")
+                           .format(seconds=f"{ACK_TIMEOUT_S:g}"))
         await asyncio.sleep(0.01)
     await drive_control.write_control_word(session, node, base)
 
@@ -157,20 +162,23 @@ async def move(session: Session, node: SessionNode, target: float, *, relative: 
                immediate: bool = True, velocity: float | None = None, confirm: object = None,
                panel: Panel = SERVICE_PANEL) -> DriveStatus:
     """A profile-position move to ``target`` (position units), at ``velocity`` (0x6081) when given."""
-    status = await _enabled(session, node, panel, "A profile-position move")
+    status = await _enabled(session, node, panel, _("A profile-position move"))
     units = await motion_units(session, node)
     if velocity is not None:
         top = await _read(session, node, "0x607F") if has_ref(drive_control.catalog_of(node), "0x607F") else None
         if velocity <= 0 or (top and velocity > top):
-            raise OutOfRange(f"Profile velocity {velocity:g} {units.velocity} is outside 0 ... {top or '∞'} "
-                             f"{units.velocity} (0x607F max profile velocity).")
+            raise OutOfRange(_("Profile velocity {velocity} {unit} is outside 0 ... {top} {unit} (0x607F max profile "
+                               "velocity).").format(velocity=f"{velocity:g}", unit=units.velocity,
+                                                    top=f"{top:g}" if top else "∞"))
     if not relative:
         scale = await drive_control.setpoint_scale(session, node, 1)
         if (scale.minimum is not None and target < scale.minimum) or \
                 (scale.maximum is not None and target > scale.maximum):
-            raise OutOfRange(f"Target {target:g} {units.position} is outside the software position limits 0x607D "
-                             f"{scale.minimum:g} ... {scale.maximum:g} {units.position}.")
-    drive_control.require_confirmation(confirm, node.node_id, f"Move to {target:g} {units.position}")
+            raise OutOfRange(_("Target {target} {unit} is outside the software position limits 0x607D {low} ... "
+                               "{high} {unit}.").format(target=f"{target:g}", unit=units.position,
+                                                        low=f"{scale.minimum:g}", high=f"{scale.maximum:g}"))
+    drive_control.require_confirmation(confirm, node.node_id, _("Move to {target} {unit}").format(
+        target=f"{target:g}", unit=units.position))
     guard_for(session).arm(node.node_id, panel)
     await _mode(session, node, status, 1, panel)
     with cleared():  # confirmed and armed above
@@ -188,13 +196,15 @@ async def home(session: Session, node: SessionNode, method: int, *, confirm: obj
     """Homing (mode 6) with ``method`` (0x6098); bit 4 stays set until the next command."""
     supported = await homing_methods(session, node)
     if method not in supported:
-        among = (f"the supported homing methods 0x60E3 of {node.device_name} ({', '.join(map(str, supported))})"
+        among = (_("the supported homing methods 0x60E3 of {device} ({methods})").format(
+            device=node.device_name, methods=", ".join(map(str, supported)))
                  if has_ref(drive_control.catalog_of(node), "0x60E3.1") else
-                 "the CiA 402 methods (1 ... 14, 17 ... 30, 33 ... 35, 37; the drive lists no others in 0x60E3)")
-        raise InvalidValue(f"Homing method {method} ({cia402.homing_label(method)}) is not among {among}.")
-    status = await _enabled(session, node, panel, "Homing")
-    drive_control.require_confirmation(confirm, node.node_id, f"Homing with method {method} "
-                                                              f"({cia402.homing_label(method)})")
+                 _("the CiA 402 methods (1 ... 14, 17 ... 30, 33 ... 35, 37; the drive lists no others in 0x60E3)"))
+        raise InvalidValue(_("Homing method {method} ({name}) is not among {among}.").format(
+            method=method, name=cia402.homing_label(method), among=among))
+    status = await _enabled(session, node, panel, _("Homing"))
+    drive_control.require_confirmation(confirm, node.node_id, _("Homing with method {method} ({name})").format(
+        method=method, name=cia402.homing_label(method)))
     guard_for(session).arm(node.node_id, panel)
     await _mode(session, node, status, 6, panel)
     with cleared():  # confirmed and armed above
@@ -236,13 +246,14 @@ async def stream(session: Session, node: SessionNode, value: float, *, confirm: 
     period (0x60C2) and an RPDO mapping the control word and the mode's target (interpolated position: the data
     record 0x60C1.1, with bit 4 *enable ip mode* in the control word), sent every cycle while the panel holds the
     drive."""
-    status = await _enabled(session, node, panel, "A cyclic synchronous setpoint")
+    status = await _enabled(session, node, panel, _("A cyclic synchronous setpoint"))
     if status.mode not in CYCLIC_TARGETS:
-        raise Conflict("Choose interpolated position (7) or a cyclic synchronous mode (8, 9 or 10) first; it is in "
-                       f"{status.mode_label or 'no mode'}.")
+        raise Conflict(_("Choose interpolated position (7) or a cyclic synchronous mode (8, 9 or 10) first; it is in "
+                         "{mode}.").format(mode=status.mode_label or _("no mode")))
     target = CYCLIC_TARGETS[status.mode]
     if session.nmt_state(node.node_id)[0] != "Operational":
-        raise Conflict(f"Node {node.node_id} takes RPDOs only in NMT Operational: start it first (Plant page).")
+        raise Conflict(_("Node {node} takes RPDOs only in NMT Operational: start it first (Plant page).").format(
+            node=node.node_id))
     scale = await drive_control.setpoint_scale(session, node, status.mode)
     drive_control.check_range(value, scale)
     data = live.service(session)
@@ -250,9 +261,10 @@ async def stream(session: Session, node: SessionNode, value: float, *, confirm: 
     config = next((c for c in configs if c.direction == "rpdo" and c.valid and
                    {"0x6040", target} <= {entry.ref for entry in c.entries}), None)
     if config is None:
-        raise Conflict(f"No valid RPDO of node {node.node_id} maps the control word 0x6040 and {target}: map one on "
-                       "the PDO tab.")
-    drive_control.require_confirmation(confirm, node.node_id, f"Cyclic setpoint {value:g} {scale.unit}")
+        raise Conflict(_("No valid RPDO of node {node} maps the control word 0x6040 and {target}: map one on the PDO "
+                         "tab.").format(node=node.node_id, target=target))
+    drive_control.require_confirmation(confirm, node.node_id, _("Cyclic setpoint {value} {unit}").format(
+        value=f"{value:g}", unit=scale.unit))
     guard_for(session).arm(node.node_id, panel)
     period = await _cycle_ms(session, node)
     word = await drive_control.last_control_word(session, node) & ~MODE_BITS

@@ -12,6 +12,7 @@ from pydantic import BaseModel
 
 from drivebench.device.profile import EmcyCode, Profile
 from drivebench.errors import DriveBenchError, InvalidValue
+from drivebench.i18n import N_, _
 from drivebench.protocol.emcy import EmcyEvent
 from drivebench.protocol.guarding import GuardStatus
 from drivebench.services.bus.sessions import Session, SessionNode
@@ -21,6 +22,18 @@ HEARTBEAT_PRODUCER = 0x1017
 HEARTBEAT_CONSUMERS = 0x1016
 GUARD_TIME = 0x100C
 LIFE_TIME_FACTOR = 0x100D
+# The words a node's NMT state is given in (heartbeat, guarding, boot-up, the bus): shown in the reader's language
+NMT_WORDS = frozenset({N_("Boot-up"), N_("Stopped"), N_("Operational"), N_("Pre-operational"), N_("Unknown"),
+                       N_("Adapter lost"), N_("Bus-off"), N_("Node guarding lost"), N_("Heartbeat lost")})
+COMMANDED = " (commanded)"
+
+
+def nmt_state_text(state: str) -> str:
+    """``Pre-operational (commanded)`` as the reader's language says it; any other word (an EtherCAT AL status as
+    the master reports it) as it is."""
+    if state.endswith(COMMANDED) and state.removesuffix(COMMANDED) in NMT_WORDS:
+        return _("{state} (commanded)").format(state=_(state.removesuffix(COMMANDED)))
+    return _(state) if state in NMT_WORDS else state
 
 
 class EmcyRecord(BaseModel):
@@ -39,7 +52,7 @@ class EmcyRecord(BaseModel):
     @property
     def text(self) -> str:
         if self.is_reset:
-            return "Error reset / no error"
+            return _("Error reset / no error")
         return self.vendor_text or self.class_text
 
 
@@ -74,6 +87,8 @@ class NodeHealth(BaseModel):
     node_id: int
     device: str
     nmt_state: str
+    nmt_state_text: str
+    """``nmt_state`` in the reader's language (``nmt_state`` itself names the state's style)."""
     heartbeat_age_s: float | None
     heartbeat_period_ms: float | None
     heartbeat_lost: bool
@@ -111,8 +126,9 @@ def node_health(session: Session, node: SessionNode, now: float | None = None) -
     period = status.expected_period_s()
     active = session.network.emcy.active(node.node_id)
     guard = session.network.guarding.status(node.node_id)
+    state = session.nmt_state(node.node_id)[0]
     return NodeHealth(
-        node_id=node.node_id, device=node.device_name, nmt_state=session.nmt_state(node.node_id)[0],
+        node_id=node.node_id, device=node.device_name, nmt_state=state, nmt_state_text=nmt_state_text(state),
         heartbeat_age_s=status.age_s(now), heartbeat_period_ms=round(period * 1000, 1) if period else None,
         heartbeat_lost=guard is None and status.is_lost(now), bootups=status.bootups, last_bootup=status.last_bootup,
         active_emcy=emcy_record(active, node.profile) if active else None,
@@ -122,7 +138,7 @@ def node_health(session: Session, node: SessionNode, now: float | None = None) -
 
 def guarding_public(guard: GuardStatus, now: float | None = None) -> GuardingPublic:
     return GuardingPublic(guard_time_ms=round(guard.guard_time_s * 1000), life_time_factor=guard.life_time_factor,
-                          lost=guard.is_lost(now), state=guard.state.label if guard.state else None,
+                          lost=guard.is_lost(now), state=_(guard.state.label) if guard.state else None,
                           requests=guard.requests, answers=guard.answers, toggle_errors=guard.toggle_errors,
                           last_answer=guard.last_answer)
 
@@ -151,13 +167,14 @@ async def read_heartbeat_setup(session: Session, node_id: int) -> HeartbeatSetup
 @node_lease.leased
 async def write_heartbeat_producer(session: Session, node_id: int, time_ms: int) -> HeartbeatSetup:
     if not 0 <= time_ms <= 0xFFFF:
-        raise InvalidValue(f"Heartbeat producer time {time_ms} ms is outside 0 … 65535 ms (0 = off).")
+        raise InvalidValue(_("Heartbeat producer time {time} ms is outside 0 … 65535 ms (0 = off).").format(
+            time=time_ms))
     await session.client(node_id).adownload(HEARTBEAT_PRODUCER, 0, time_ms.to_bytes(2, "little"))
     session.network.heartbeat.set_configured_period(node_id, time_ms)
     setup = await read_heartbeat_setup(session, node_id)
     if setup.producer_time_ms != time_ms:
-        raise InvalidValue(f"Node {node_id} reads back a heartbeat producer time of {setup.producer_time_ms} ms "
-                           f"after {time_ms} ms was written.")
+        raise InvalidValue(_("Node {node} reads back a heartbeat producer time of {read} ms after {time} ms was "
+                             "written.").format(node=node_id, read=setup.producer_time_ms, time=time_ms))
     return setup
 
 
@@ -181,26 +198,30 @@ async def write_heartbeat_consumer(session: Session, node_id: int, slot: int, pr
                                    time_ms: int) -> HeartbeatSetup:
     """CiA 301 0x1016: bits 16..22 producer node id, bits 0..15 consumer time in ms (0 = slot unused)."""
     if not 0 <= producer_id <= 127:
-        raise InvalidValue(f"Producer node id {producer_id} is not a CANopen node id (1 … 127, 0 = unused).")
+        raise InvalidValue(_("Producer node id {producer} is not a CANopen node id (1 … 127, 0 = unused).").format(
+            producer=producer_id))
     if not 0 <= time_ms <= 0xFFFF:
-        raise InvalidValue(f"Consumer time {time_ms} ms is outside 0 … 65535 ms.")
+        raise InvalidValue(_("Consumer time {time} ms is outside 0 … 65535 ms.").format(time=time_ms))
     if producer_id == node_id and time_ms:
-        raise InvalidValue(f"Node {node_id} cannot consume its own heartbeat.")
+        raise InvalidValue(_("Node {node} cannot consume its own heartbeat.").format(node=node_id))
     setup = await read_heartbeat_setup(session, node_id)
     if not 1 <= slot <= len(setup.consumers):
-        raise InvalidValue(f"Node {node_id} has {len(setup.consumers)} heartbeat consumer entries; "
-                           f"entry {slot} does not exist.")
+        raise InvalidValue(_("Node {node} has {count} heartbeat consumer entries; entry {slot} does not exist.")
+                           .format(node=node_id, count=len(setup.consumers), slot=slot))
     producer = await _producer_period_s(session, producer_id) if producer_id and time_ms else None
     if producer and time_ms and time_ms <= producer * 1000:
-        raise InvalidValue(f"Consumer time {time_ms} ms must be longer than node {producer_id}'s heartbeat "
-                           f"producer time ({producer * 1000:.0f} ms), or every heartbeat would be late.")
+        raise InvalidValue(_("Consumer time {time} ms must be longer than node {producer}'s heartbeat producer time "
+                             "({period} ms), or every heartbeat would be late.").format(
+            time=time_ms, producer=producer_id, period=f"{producer * 1000:.0f}"))
     entry = (producer_id << 16) | time_ms
     await session.client(node_id).adownload(HEARTBEAT_CONSUMERS, slot, entry.to_bytes(4, "little"))
     setup = await read_heartbeat_setup(session, node_id)
     written = setup.consumers[slot - 1]
     if (written.producer_id, written.time_ms) != (producer_id, time_ms):
-        raise InvalidValue(f"Node {node_id} reads back consumer entry {slot} as node {written.producer_id}, "
-                           f"{written.time_ms} ms after node {producer_id}, {time_ms} ms was written.")
+        raise InvalidValue(_("Node {node} reads back consumer entry {slot} as node {read_producer}, {read_time} ms "
+                             "after node {producer}, {time} ms was written.").format(
+            node=node_id, slot=slot, read_producer=written.producer_id, read_time=written.time_ms,
+            producer=producer_id, time=time_ms))
     return setup
 
 
@@ -210,10 +231,10 @@ async def start_guarding(session: Session, node_id: int, guard_time_ms: int, lif
     """Write guard time (0x100C) and life time factor (0x100D) to the node, then guard it; 0 ms stops guarding."""
     node = session.node(node_id)
     if node.profile is not None and not node.profile.features.node_guarding:
-        raise InvalidValue(f"{node.device_name} (node {node_id}) does not support node guarding per its profile; "
-                           "use the heartbeat instead.")
+        raise InvalidValue(_("{device} (node {node}) does not support node guarding per its profile; use the "
+                             "heartbeat instead.").format(device=node.device_name, node=node_id))
     if not 0 <= guard_time_ms <= 0xFFFF or not 0 <= life_time_factor <= 0xFF:
-        raise InvalidValue("Guard time must be 0 … 65535 ms and life time factor 0 … 255.")
+        raise InvalidValue(_("Guard time must be 0 … 65535 ms and life time factor 0 … 255."))
     client = session.client(node_id)
     if guard_time_ms and life_time_factor:  # CiA 301: a node with a heartbeat producer time does not guard
         await client.adownload(HEARTBEAT_PRODUCER, 0, (0).to_bytes(2, "little"))
@@ -257,5 +278,5 @@ async def read_diagnostics(session: Session, node_id: int) -> list[DiagnosticVal
                                               unit=value.unit, error=None))
             except DriveBenchError as exc:
                 values.append(DiagnosticValue(ref=item.ref, name=item.name, group=group, display=None,
-                                              unit=item.entry.unit, error=exc.detail))
+                                              unit=item.entry.unit, error=exc.shown_detail()))
     return values

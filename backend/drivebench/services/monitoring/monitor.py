@@ -27,6 +27,7 @@ from typing import Any
 
 import can
 
+from drivebench.i18n import N_, Text, shown
 from drivebench.protocol.decode import (
     DecodedFrame,
     SdoContext,
@@ -53,8 +54,8 @@ FLOOD_COB_PERCENT = 50.0
 takes FLOOD_COB_PERCENT of the bit rate."""
 FLOOD_CACHE_S = 0.5
 
-SERVICE_GROUPS = ("NMT", "SYNC", "EMCY", "TIME", "PDO", "SDO", "Heartbeat", "LSS", "Unknown", "Error frame")
-"""What the service filter offers; PDO and SDO stand for all their kinds."""
+SERVICE_GROUPS = ("NMT", "SYNC", "EMCY", "TIME", "PDO", "SDO", "Heartbeat", "LSS", N_("Unknown"), N_("Error frame"))
+"""What the service filter offers; PDO and SDO stand for all their kinds (the page shows them through _())."""
 SERVICE_ORDER = [Service.NMT, Service.SYNC, Service.EMCY, Service.TIME,
                  Service.TPDO1, Service.TPDO2, Service.TPDO3, Service.TPDO4,
                  Service.RPDO1, Service.RPDO2, Service.RPDO3, Service.RPDO4,
@@ -245,7 +246,10 @@ class Monitor(can.Listener):
 
     @staticmethod
     def view_snapshot(snapshot: dict[str, Any], view: MonitorView) -> dict[str, Any]:
-        """``snapshot`` (from ``live_snapshot``) with the node and COB-ID rows ``view`` shows."""
+        """``snapshot`` (from ``live_snapshot``) with the node and COB-ID rows ``view`` shows, its flood sentence in
+        the current language."""
+        if snapshot.get("flood"):
+            snapshot = {**snapshot, "flood": {**snapshot["flood"], "text": shown(snapshot["flood"]["text"])}}
         accepts = view.filter.accepts
         nodes = view.filter.nodes
         if view.filter.key() == _ALL:
@@ -343,21 +347,29 @@ class Monitor(can.Listener):
         if share < FLOOD_COB_PERCENT:
             return None
         service, node = _classify_key(key)
-        who = f"COB-ID {_key_text(key)}" + (f" ({service.value} of node {node}"
-                                             f"{', ' + names[node] if node in names else ''})" if node else "")
+        cob = f"COB-ID {_key_text(key)}"
+        who = cob if not node else Text(N_("{cob} ({service} of node {node}, {name})") if node in names else
+                                         N_("{cob} ({service} of node {node})"), cob=cob, service=service.value,
+                                         node=node, name=names.get(node, ""))
         return {"cob_id": _key_text(key), "node": node, "load_percent": round(share, 1),
-                "text": f"{who} floods the bus: {share:.0f} % of the bit rate over the last {elapsed:.0f} s "
-                        "(a babbling node?). On a real bus every frame with a higher COB-ID loses arbitration: "
-                        "those nodes cannot answer until it stops."}
+                "text": Text(N_("{who} floods the bus: {share} % bus load over the last {seconds} s (a babbling "
+                                 "node?). On a real bus every frame with a higher COB-ID loses arbitration: those "
+                                 "nodes cannot answer until it stops."), who=who, share=f"{share:.0f}",
+                              seconds=f"{elapsed:.0f}")}
 
     def flood_text(self) -> str | None:
-        """The babbling-node sentence for the Plant page (at most one snapshot per FLOOD_CACHE_S)."""
+        """The babbling-node sentence for the Plant page in the reader's language (at most one snapshot per
+        FLOOD_CACHE_S)."""
         now = time.monotonic()
         cached = self._flood_cache
         if cached is None or now - cached[0] >= FLOOD_CACHE_S:
             flood = self.live_snapshot()["flood"]
             cached = self._flood_cache = (now, flood["text"] if flood else None)
-        return cached[1]
+        return shown(cached[1]) if cached[1] is not None else None
+
+    def bus_text(self) -> str | None:
+        """The bus state's sentence (see :class:`BusHealth`) in the current language."""
+        return self._bus()[1]
 
     def _rate_window(self) -> tuple[_Sample, _Sample]:
         """The counts at the close of the newest load window and RATE_WINDOW_S windows before (or at the reset, while

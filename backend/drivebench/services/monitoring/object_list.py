@@ -11,6 +11,7 @@ import asyncio
 from dataclasses import dataclass
 
 from drivebench.errors import Conflict, DriveBenchError
+from drivebench.i18n import _
 from drivebench.protocol.coe_sdo import CoeSdoClient
 from drivebench.protocol.ethercat_network import CoeNodeClient
 from drivebench.services.bus.sessions import Session
@@ -40,8 +41,8 @@ async def compare(session: Session, node_id: int) -> ObjectListComparison:
     node = session.node(node_id)
     client = session.client(node_id)
     if not isinstance(client, CoeNodeClient):
-        raise Conflict(f"Node {node_id} is a CANopen node: the SDO information service is CoE's (EtherCAT); "
-                            "a CANopen node's object list is its EDS (Profiles page).")
+        raise Conflict(_("Node {node} is a CANopen node: the SDO information service is CoE's (EtherCAT); a CANopen "
+                         "node's object list is its EDS (Profiles page).").format(node=node_id))
     catalog = node.catalog
     device = await asyncio.to_thread(client.information, CoeSdoClient.od_list)
     listed: dict[int, ListedObject] = {}

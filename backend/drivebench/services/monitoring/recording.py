@@ -24,15 +24,21 @@ import can
 
 from drivebench.config import settings
 from drivebench.errors import Conflict, InvalidValue, NotFound
+from drivebench.i18n import N_, _
 from drivebench.services.bus.sessions import Session
 from drivebench.transport.pcapng import PcapngWriter
 
-FORMATS = {"pcapng": "pcapng, SocketCAN link type (.pcapng, Wireshark)", "log": "candump log (.log)",
-           "asc": "Vector ASCII (.asc)", "blf": "Vector BLF (.blf)", "trc": "PEAK trace (.trc)",
+FORMATS = {"pcapng": N_("pcapng, SocketCAN link type (.pcapng, Wireshark)"), "log": N_("candump log (.log)"),
+           "asc": "Vector ASCII (.asc)", "blf": "Vector BLF (.blf)", "trc": N_("PEAK trace (.trc)"),
            "csv": "python-can CSV (.csv)"}
+"""Format -> its name (:func:`format_names` in the reader's language)."""
 MEDIA_TYPES = {"log": "text/plain", "asc": "text/plain", "blf": "application/octet-stream",
                "pcapng": "application/vnd.tcpdump.pcap", "trc": "text/plain", "csv": "text/csv"}
 _SAFE_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*\.(log|asc|blf|pcapng|trc|csv)$")
+
+
+def format_names() -> dict[str, str]:
+    return {key: _(name) for key, name in FORMATS.items()}
 
 
 def recordings_dir() -> Path:
@@ -52,7 +58,12 @@ def open_writer(path: Path) -> can.Listener:
         return can.TRCWriter(path)
     if path.suffix == ".csv":
         return can.CSVWriter(path)
-    raise InvalidValue(f"Unknown recording format '{path.suffix}'; use one of {', '.join(FORMATS)}")
+    raise unknown_format(path.suffix)
+
+
+def unknown_format(fmt: str) -> InvalidValue:
+    return InvalidValue(_("Unknown recording format '{format}'; use one of {formats}").format(
+        format=fmt, formats=", ".join(FORMATS)))
 
 
 class Recorder(can.Listener):
@@ -124,10 +135,10 @@ class Recordings:
 
     def start(self, fmt: str) -> Recorder:
         if fmt not in FORMATS:
-            raise InvalidValue(f"Unknown recording format '{fmt}'; use one of {', '.join(FORMATS)}")
+            raise unknown_format(fmt)
         with self._lock:
             if self.active is not None:
-                raise Conflict(f"Already recording to {self.active.path.name}; stop it first")
+                raise Conflict(_("Already recording to {file}; stop it first").format(file=self.active.path.name))
             self.directory.mkdir(parents=True, exist_ok=True)
             stamp = time.strftime("%Y%m%d-%H%M%S")
             path = self.directory / f"{self.session.id}-{stamp}.{fmt}"
@@ -142,7 +153,7 @@ class Recordings:
         with self._lock:
             recorder = self.active
             if recorder is None:
-                raise Conflict("No recording is running")
+                raise Conflict(_("No recording is running"))
             self.active = None
         recorder.stop()
         return recorder
@@ -162,11 +173,10 @@ class Recordings:
         return sorted(infos, key=lambda info: info.modified, reverse=True)
 
     def path(self, name: str) -> Path:
-        if not _SAFE_NAME.match(name) or not name.startswith(f"{self.session.id}-"):
-            raise NotFound(f"No recording '{name}' in session '{self.session.id}'")
         path = self.directory / name
-        if not path.is_file():
-            raise NotFound(f"No recording '{name}' in session '{self.session.id}'")
+        if not _SAFE_NAME.match(name) or not name.startswith(f"{self.session.id}-") or not path.is_file():
+            raise NotFound(_("No recording '{name}' in session '{session}'").format(name=name,
+                                                                                    session=self.session.id))
         return path
 
 

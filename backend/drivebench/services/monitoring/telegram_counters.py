@@ -13,6 +13,7 @@ from typing import Any
 from drivebench.device.catalog import Item
 from drivebench.device.telegram_counters import cob_ids_for, counter_label, counter_parameters
 from drivebench.errors import NotFound
+from drivebench.i18n import _
 from drivebench.services.bus.sessions import Session
 from drivebench.services.monitoring.monitor import Monitor
 
@@ -40,7 +41,8 @@ async def compare(session: Session, monitor: Monitor, node_id: int) -> dict[str,
     items = counter_items(session, node_id)
     if not items:
         node = session.node(node_id)
-        raise NotFound(f"The profile of node {node_id} ({node.device_name}) has no telegram counters")
+        raise NotFound(_("The profile of node {node} ({device}) has no telegram counters").format(
+            node=node_id, device=node.device_name))
     client = session.client(node_id)
     device: dict[str, int] = {}
     for item in items:

@@ -20,6 +20,7 @@ from drivebench.device.loader import original_file
 from drivebench.device.profile import Access, Entry, ObjectEntry
 from drivebench.device.scaling import from_raw
 from drivebench.errors import DriveBenchError, InvalidValue, NotFound, ProtocolError, SdoAbortError
+from drivebench.i18n import N_, _
 from drivebench.protocol.datatypes import DataType, decode
 from drivebench.services.bus.sessions import Session
 from drivebench.services.params import node_lease
@@ -113,22 +114,25 @@ class ApplyReport(BaseModel):
 
 
 def transmission_text(trans_type: int, direction: Direction) -> str:
+    """CiA 301's meaning of a transmission type, in the reader's language."""
     if trans_type == 0:
-        return "synchronous, acyclic" + (" (sent on SYNC after a change)" if direction == "tpdo" else "")
+        return _("synchronous, acyclic (sent on SYNC after a change)") if direction == "tpdo" else \
+            _("synchronous, acyclic")
     if 1 <= trans_type <= 240:
-        return f"synchronous, every {trans_type}. SYNC" if trans_type > 1 else "synchronous, every SYNC"
+        return _("synchronous, every {count}. SYNC").format(count=trans_type) if trans_type > 1 else \
+            _("synchronous, every SYNC")
     if trans_type in (252, 253):
-        return "RTR only" + (", synchronous" if trans_type == 252 else ", event-driven")
+        return _("RTR only, synchronous") if trans_type == 252 else _("RTR only, event-driven")
     if trans_type in (254, 255):
-        return "event-driven" + (" (manufacturer-specific)" if trans_type == 254 else " (device profile)")
-    return "reserved"
+        return _("event-driven (manufacturer-specific)") if trans_type == 254 else _("event-driven (device profile)")
+    return _("reserved")
 
 
 # CiA 301 predefined connection set: base -> what a node n sends (producer) or receives on base + n
 PREDEFINED: dict[int, tuple[str, bool]] = {
     0x080: ("EMCY", True), 0x180: ("TPDO1", True), 0x280: ("TPDO2", True), 0x380: ("TPDO3", True),
     0x480: ("TPDO4", True), 0x200: ("RPDO1", False), 0x300: ("RPDO2", False), 0x400: ("RPDO3", False),
-    0x500: ("RPDO4", False), 0x580: ("SDO (tx)", True), 0x600: ("SDO (rx)", False), 0x700: ("heartbeat", True)}
+    0x500: ("RPDO4", False), 0x580: ("SDO (tx)", True), 0x600: ("SDO (rx)", False), 0x700: (N_("heartbeat"), True)}
 
 
 def cob_id_conflicts(session: Session, node_id: int, direction: Direction, cob_id: int) -> list[str]:
@@ -146,20 +150,26 @@ def cob_id_conflicts(session: Session, node_id: int, direction: Direction, cob_i
         for base, (name, produces) in PREDEFINED.items():
             if base + other != cob_id:
                 continue
+            cob, name = f"0x{cob_id:03X}", _(name)
             if direction == "rpdo" and produces:
-                found.append(f"COB-ID 0x{cob_id:03X} is also {name} of node {other}: this RPDO receives what node "
-                             f"{other} sends - wanted only for cross communication" + (f" ({hint}?)." if hint else "."))
+                found.append((_("COB-ID {cob} is also {name} of node {other}: this RPDO receives what node {other} "
+                                "sends - wanted only for cross communication ({hint}?).") if hint else
+                              _("COB-ID {cob} is also {name} of node {other}: this RPDO receives what node {other} "
+                                "sends - wanted only for cross communication.")).format(cob=cob, name=name,
+                                                                                        other=other, hint=hint))
             elif direction == "tpdo":
-                what = "two producers on one identifier" if produces else f"node {other} would act on this TPDO"
-                found.append(f"COB-ID 0x{cob_id:03X} is also {name} of node {other}: {what}.")
+                what = _("two producers on one identifier") if produces else \
+                    _("node {other} would act on this TPDO").format(other=other)
+                found.append(_("COB-ID {cob} is also {name} of node {other}: {what}.").format(
+                    cob=cob, name=name, other=other, what=what))
     return found
 
 
 def node_catalog(session: Session, node_id: int) -> Catalog:
     catalog = session.node(node_id).catalog
     if catalog is None:
-        raise NotFound(f"Node {node_id} has no device profile: its PDOs cannot be named or checked.",
-                       hint="Scan the bus or pick the node's profile on the Plant page.")
+        raise NotFound(_("Node {node} has no device profile: its PDOs cannot be named or checked.").format(
+            node=node_id), hint=N_("Scan the bus or pick the node's profile on the Plant page."))
     return catalog
 
 
@@ -200,8 +210,8 @@ def mappable_objects(session: Session, node_id: int, direction: Direction) -> li
 def _mapped(catalog: Catalog, index: int, sub: int, bits: int) -> MappedObject:
     item = catalog.by_address(index, sub)
     if 0x0001 <= index <= 0x0007 and sub == 0:
-        return MappedObject(index=index, subindex=0, bits=bits, name="dummy entry", ref=f"0x{index:04X}.0")
-    return MappedObject(index=index, subindex=sub, bits=bits, name=item.name if item else "not in the profile",
+        return MappedObject(index=index, subindex=0, bits=bits, name=_("dummy entry"), ref=f"0x{index:04X}.0")
+    return MappedObject(index=index, subindex=sub, bits=bits, name=item.name if item else _("not in the profile"),
                         ref=catalog.vendor_ref(index, sub), unit=item.entry.unit if item else None)
 
 
@@ -235,7 +245,7 @@ async def _settings(session: Session, node_id: int, catalog: Catalog, refs: list
             elif isinstance(raw, int) and size > 1 and not (entry.unit or entry.selection or entry.factor != 1):
                 shown = f"{raw} (0x{raw:0{2 * size}X})"  # bytes with meanings (P2041.00: TPDO1/TPDO5 types)
         except SdoAbortError as exc:
-            shown, text = f"not readable: 0x{exc.abort_code:08X}", exc.abort_text
+            shown, text = _("not readable: 0x{code}").format(code=f"{exc.abort_code:08X}"), exc.abort_text
         found.append(DeviceSetting(ref=item.ref, name=item.name, value=shown, text=text))
     return found
 
@@ -256,10 +266,10 @@ def max_mapping_entries(catalog: Catalog, mapping: int) -> int:
 
 def mapping_plan(mapping: int, chosen: list[MappedObject]) -> list[tuple[str, int, int, int, int]]:
     """CiA 301 steps 2-4: count 0, the entries, the count - as (step, index, sub, value, size)."""
-    plan = [("disable mapping (count 0)", mapping, 0, 0, 1)]
-    plan += [(f"entry {n}: {m.ref} {m.name}", mapping, n, (m.index << 16) | (m.subindex << 8) | m.bits, 4)
-             for n, m in enumerate(chosen, start=1)]
-    plan.append((f"enable mapping (count {len(chosen)})", mapping, 0, len(chosen), 1))
+    plan = [(_("disable mapping (count 0)"), mapping, 0, 0, 1)]
+    plan += [(_("entry {number}: {ref} {name}").format(number=n, ref=m.ref, name=m.name), mapping, n,
+              (m.index << 16) | (m.subindex << 8) | m.bits, 4) for n, m in enumerate(chosen, start=1)]
+    plan.append((_("enable mapping (count {count})").format(count=len(chosen)), mapping, 0, len(chosen), 1))
     return plan
 
 
@@ -286,8 +296,8 @@ async def read_pdo(session: Session, node_id: int, direction: Direction, number:
     catalog = node_catalog(session, node_id)
     comm, mapping = COMM_BASE[direction] + number - 1, MAP_BASE[direction] + number - 1
     if catalog.by_address(comm, 1) is None:
-        raise NotFound(f"{session.node(node_id).device_name} has no {direction.upper()}{number} "
-                       f"(object 0x{comm:04X} is not in its profile).")
+        raise NotFound(_("{device} has no {pdo} (object 0x{index} is not in its profile).").format(
+            device=session.node(node_id).device_name, pdo=f"{direction.upper()}{number}", index=f"{comm:04X}"))
     cob = await read_u32(session, node_id, comm, 1)
     trans_type = await _optional(session, node_id, catalog, comm, 2)
     inhibit = await _optional(session, node_id, catalog, comm, 3) if direction == "tpdo" else None
@@ -348,23 +358,23 @@ def check_mapping(session: Session, node_id: int, direction: Direction, number: 
     max_entries = max_mapping_entries(catalog, mapping_index)
     entry_one = profile_entry(catalog, mapping_index, 1)
     if entry_one is None or not entry_one.access.writable:
-        raise InvalidValue(f"The mapping of {direction.upper()}{number} is fixed on this device "
-                           f"(0x{mapping_index:04X} is read-only in its profile).")
+        raise InvalidValue(_("The mapping of {pdo} is fixed on this device (0x{index} is read-only in its profile).")
+                           .format(pdo=f"{direction.upper()}{number}", index=f"{mapping_index:04X}"))
     if len(write.entries) > max_entries:
-        raise InvalidValue(f"{direction.upper()}{number} takes at most {max_entries} mapping entries; "
-                           f"{len(write.entries)} were given.")
+        raise InvalidValue(_("{pdo} takes at most {count} mapping entries; {given} were given.").format(
+            pdo=f"{direction.upper()}{number}", count=max_entries, given=len(write.entries)))
     chosen = []
     for index, sub in write.entries:
         if (index, sub) not in allowed:
             item = catalog.by_address(index, sub)
             what = f"{item.name} (0x{index:04X}.{sub})" if item else f"0x{index:04X}.{sub}"
-            needs = "PDO-mappable and writable" if direction == "rpdo" else "PDO-mappable"
-            raise InvalidValue(f"{what} cannot be mapped into an {direction.upper()} of this device "
-                               f"(the profile does not list it as {needs}).")
+            needs = _("PDO-mappable and writable") if direction == "rpdo" else _("PDO-mappable")
+            raise InvalidValue(_("{what} cannot be mapped into an {pdo} of this device (the profile does not list it "
+                                 "as {needs}).").format(what=what, pdo=direction.upper(), needs=needs))
         chosen.append(allowed[(index, sub)])
     bits = sum(m.bits for m in chosen)
     if max_bits is not None and bits > max_bits:
-        raise InvalidValue(f"The mapping needs {bits // 8} bytes; a PDO carries at most 8.")
+        raise InvalidValue(_("The mapping needs {count} bytes; a PDO carries at most 8.").format(count=bits // 8))
     rule = pdo_notes.mapping_rule_violation(catalog.profile, direction, number, write.entries)
     if rule:
         raise InvalidValue(rule)
@@ -372,11 +382,11 @@ def check_mapping(session: Session, node_id: int, direction: Direction, number: 
         entry = profile_entry(catalog, COMM_BASE[direction] + number - 1, 2)
         if entry is not None and entry.selection and write.transmission_type not in entry.selection:
             allowed_types = ", ".join(f"{k} ({v})" for k, v in sorted(entry.selection.items()))
-            raise InvalidValue(f"Transmission type {write.transmission_type} is not permitted for this device; "
-                               f"its manual allows {allowed_types}.")
+            raise InvalidValue(_("Transmission type {type} is not permitted for this device; its manual allows "
+                                 "{allowed}.").format(type=write.transmission_type, allowed=allowed_types))
         if entry is not None and entry.max is not None and write.transmission_type > entry.max:
-            raise InvalidValue(f"Transmission type {write.transmission_type} is above the device's maximum "
-                               f"{entry.max:g}.")
+            raise InvalidValue(_("Transmission type {type} is above the device's maximum {max}.").format(
+                type=write.transmission_type, max=f"{entry.max:g}"))
     return chosen
 
 
@@ -397,15 +407,15 @@ async def _apply_pdo(session: Session, node_id: int, direction: Direction, numbe
     cob_id = write.cob_id if write.cob_id is not None else current.cob_id
     flags = 0 if current.rtr_allowed else COB_NO_RTR
     plan: list[tuple[str, int, int, int, int]] = [
-        ("disable PDO (COB-ID invalid)", comm, 1, cob_id | flags | COB_INVALID, 4), *mapping_plan(mapping, chosen)]
+        (_("disable PDO (COB-ID invalid)"), comm, 1, cob_id | flags | COB_INVALID, 4), *mapping_plan(mapping, chosen)]
     if write.transmission_type is not None:
-        plan.append(("transmission type", comm, 2, write.transmission_type, 1))
+        plan.append((_("transmission type"), comm, 2, write.transmission_type, 1))
     if write.inhibit_time_ms is not None and direction == "tpdo" and catalog.by_address(comm, 3):
-        plan.append(("inhibit time", comm, 3, round(write.inhibit_time_ms * 10), 2))
+        plan.append((_("inhibit time"), comm, 3, round(write.inhibit_time_ms * 10), 2))
     if write.event_timer_ms is not None and catalog.by_address(comm, 5):
-        plan.append(("event timer", comm, 5, write.event_timer_ms, 2))
+        plan.append((_("event timer"), comm, 5, write.event_timer_ms, 2))
     if write.valid:
-        plan.append(("enable PDO (COB-ID valid)", comm, 1, cob_id | flags, 4))
+        plan.append((_("enable PDO (COB-ID valid)"), comm, 1, cob_id | flags, 4))
 
     steps = await run_plan(session, node_id, plan)
     if not steps[-1].ok:
@@ -413,16 +423,18 @@ async def _apply_pdo(session: Session, node_id: int, direction: Direction, numbe
     pdo = await read_pdo(session, node_id, direction, number)
     read_back = [] if pdo.static_mapping else pdo.entries  # count 0 written: the static mapping applies again
     mismatch = [m.ref for m, got in zip(chosen, read_back, strict=False) if (m.index, m.subindex) !=
-                (got.index, got.subindex)] or ([] if len(read_back) == len(chosen) else ["entry count"])
+                (got.index, got.subindex)] or ([] if len(read_back) == len(chosen) else [N_("entry count")])
     if mismatch or pdo.valid != write.valid or pdo.cob_id != cob_id:
         return ApplyReport(ok=False, enabled=pdo.valid, steps=steps, pdo=pdo,
-                           message=f"{direction.upper()}{number} reads back differently from what was written "
-                                   f"({', '.join(mismatch) or 'COB-ID/valid bit'}).")
-    return ApplyReport(ok=True, enabled=pdo.valid, steps=steps, pdo=pdo,
-                       message=f"{direction.upper()}{number} applied and verified: "
-                               f"{'count 0 = static mapping, ' if pdo.static_mapping else ''}{len(chosen)} entries, "
-                               f"{pdo.length_bytes} bytes, COB-ID 0x{pdo.cob_id:03X}"
-                               f"{'' if pdo.valid else ', left disabled as requested'}.")
+                           message=_("{pdo} reads back differently from what was written ({what}).").format(
+                               pdo=f"{direction.upper()}{number}",
+                               what=", ".join(_(ref) if ref == "entry count" else ref for ref in mismatch)
+                               or _("COB-ID/valid bit")))
+    verified = _("{pdo} applied and verified: {static}{count} entries, {size} bytes, COB-ID 0x{cob}{disabled}.")
+    return ApplyReport(ok=True, enabled=pdo.valid, steps=steps, pdo=pdo, message=verified.format(
+        pdo=f"{direction.upper()}{number}", static=_("count 0 = static mapping, ") if pdo.static_mapping else "",
+        count=len(chosen), size=pdo.length_bytes, cob=f"{pdo.cob_id:03X}",
+        disabled="" if pdo.valid else _(", left disabled as requested")))
 
 
 async def _failed(session: Session, node_id: int, direction: Direction, number: int, steps: list[ApplyStep],
@@ -434,16 +446,17 @@ async def _failed(session: Session, node_id: int, direction: Direction, number: 
     failed = steps[-1]
     reason = f"{failed.abort_code} {failed.abort_text}" if failed.abort_code else (failed.detail or "")
     if not disabled:
-        state = "nothing was changed; the PDO keeps its previous configuration"
+        state = _("nothing was changed; the PDO keeps its previous configuration")
     elif pdo is None:
-        state = ("the PDO could not be read back; step 1 had set its COB-ID invalid, so it should be disabled - "
-                 "read the PDOs again to check")
+        state = _("the PDO could not be read back; step 1 had set its COB-ID invalid, so it should be disabled - "
+                  "read the PDOs again to check")
     elif pdo.valid:
-        state = "the PDO reads back as ENABLED - check the device"
+        state = _("the PDO reads back as ENABLED - check the device")
     else:
-        state = "the PDO is left disabled (COB-ID invalid), never half-mapped and enabled"
+        state = _("the PDO is left disabled (COB-ID invalid), never half-mapped and enabled")
     return ApplyReport(ok=False, enabled=bool(pdo and pdo.valid), steps=steps, pdo=pdo,
-                       message=f"{direction.upper()}{number}: step '{failed.step}' failed ({reason}); {state}.")
+                       message=_("{pdo}: step '{step}' failed ({reason}); {state}.").format(
+                           pdo=f"{direction.upper()}{number}", step=failed.step, reason=reason, state=state))
 
 
 async def export_dcf(session: Session, node_id: int) -> str:

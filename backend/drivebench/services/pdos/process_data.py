@@ -22,6 +22,7 @@ from drivebench.device.catalog import Catalog
 from drivebench.device.profile import Entry
 from drivebench.device.scaling import from_raw, to_raw
 from drivebench.errors import Conflict, DriveBenchError, InvalidValue, NotFound
+from drivebench.i18n import N_, _
 from drivebench.protocol.datatypes import decode, encode
 from drivebench.services.bus.sessions import Session
 from drivebench.services.pdos import pdo
@@ -98,8 +99,8 @@ def pack(layout: Layout, values: dict[str, str]) -> bytes:
     unknown = set(values) - {ref for ref, _, _, _ in layout.entries}
     if unknown:
         config = layout.config
-        raise InvalidValue(f"{', '.join(sorted(unknown))} is not mapped into {config.direction.upper()}"
-                           f"{config.number}; read the PDOs again.")
+        raise InvalidValue(_("{refs} is not mapped into {pdo}; read the PDOs again.").format(
+            refs=", ".join(sorted(unknown)), pdo=f"{config.direction.upper()}{config.number}"))
     value, offset = 0, 0
     for ref, _name, entry, bits in layout.entries:
         text = values.get(ref, "").strip()
@@ -161,7 +162,7 @@ class ProcessData:
     def session(self) -> Session:
         session = self._session()
         if session is None:
-            raise NotFound("The session is closed.")
+            raise NotFound(_("The session is closed."))
         return session
 
     # --- layouts -----------------------------------------------------------------------------------------
@@ -183,8 +184,8 @@ class ProcessData:
             config = lay.config
             if (lay.node_id, config.direction, config.number) == (node_id, direction, number):
                 return lay
-        raise NotFound(f"{direction.upper()}{number} of node {node_id} is not valid and mapped "
-                       "(or its mapping was not read yet).")
+        raise NotFound(_("{pdo} of node {node} is not valid and mapped (or its mapping was not read yet).").format(
+            pdo=f"{direction.upper()}{number}", node=node_id))
 
     def _on_frame(self, msg: can.Message) -> None:
         lay = self.layouts.get(msg.arbitration_id)
@@ -222,10 +223,10 @@ class ProcessData:
     async def start_cyclic(self, owner: str, node_id: int, number: int, values: dict[str, str],
                            period_ms: int) -> bytes:
         if owner not in self.watchers:
-            raise Conflict("Cyclic sending needs the live view open (it stops when the browser disconnects).",
-                           hint="Reload the PDO tab and try again.")
+            raise Conflict(_("Cyclic sending needs the live view open (it stops when the browser disconnects)."),
+                           hint=N_("Reload the PDO tab and try again."))
         if period_ms < MIN_CYCLE_MS:
-            raise InvalidValue(f"The cycle time must be at least {MIN_CYCLE_MS} ms.")
+            raise InvalidValue(_("The cycle time must be at least {time} ms.").format(time=MIN_CYCLE_MS))
         lay = self.layout(node_id, "rpdo", number)
         data = pack(lay, values)
         cob_id = lay.config.cob_id
@@ -264,7 +265,7 @@ class ProcessData:
     # --- SYNC producer -----------------------------------------------------------------------------------
     def start_sync(self, period_ms: int) -> None:
         if not 1 <= period_ms <= 65535:
-            raise InvalidValue("The SYNC period must be 1 ... 65535 ms.")
+            raise InvalidValue(_("The SYNC period must be 1 ... 65535 ms."))
         self.stop_sync()
         stop = threading.Event()
         network = self.session.network

@@ -13,6 +13,7 @@ from __future__ import annotations
 from fastapi import APIRouter, Request
 from pydantic import BaseModel, Field
 
+from drivebench.i18n import _
 from drivebench.services.control import commissioning, drive_control, motion
 from drivebench.services.control.commissioning import RunOut
 from drivebench.services.control.drive_control import ActualValue, DriveStatus, JogPlan
@@ -185,6 +186,7 @@ async def next_step(request: Request, session: SessionDep, node: NodeDep, panel:
     run = commissioning.wizard(session).get(run_id)
     given = confirmation(request, body and body.confirm)
     if not run.finished and run.sequence.steps[run.position].moves:
-        require_confirmation(given, node.node_id, f"Step {run.position + 1} ({run.sequence.steps[run.position].title})")
+        require_confirmation(given, node.node_id, _("Step {number} ({title})").format(
+            number=run.position + 1, title=run.sequence.steps[run.position].title))
     await commissioning.next_step(session, node, run, confirm=given is not None, panel=panel)
     return run.public()

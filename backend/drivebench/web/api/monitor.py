@@ -14,9 +14,10 @@ from fastapi import APIRouter, Path, Query
 from fastapi.responses import FileResponse
 from pydantic import BaseModel, Field, model_validator
 
+from drivebench.i18n import _
 from drivebench.services.monitoring import telegram_counters
 from drivebench.services.monitoring.monitor import MonitorFilter, monitor_for
-from drivebench.services.monitoring.recording import FORMATS, MEDIA_TYPES, recordings_for
+from drivebench.services.monitoring.recording import MEDIA_TYPES, format_names, recordings_for
 from drivebench.web.deps import SessionDep
 
 router = APIRouter(prefix="/api/sessions/{session_id}/monitor", tags=["monitor"])
@@ -36,7 +37,7 @@ class FilterBody(BaseModel):
     @model_validator(mode="after")
     def _ordered(self) -> FilterBody:
         if self.cob_min > self.cob_max:
-            raise ValueError("cob_min must not be above cob_max")
+            raise ValueError(_("cob_min must not be above cob_max"))
         return self
 
 
@@ -105,7 +106,7 @@ async def set_filter(session: SessionDep, body: FilterBody) -> dict[str, Any]:
 @router.get("/recordings")
 async def list_recordings(session: SessionDep) -> dict[str, Any]:
     recordings = recordings_for(session)
-    return {"formats": FORMATS, "recordings": [info.as_dict() for info in recordings.list()]}
+    return {"formats": format_names(), "recordings": [info.as_dict() for info in recordings.list()]}
 
 
 @router.post("/recordings", status_code=201)

@@ -12,7 +12,7 @@ from drivebench.services.bus.sessions import Session
 from drivebench.services.bus.views import NodePublic, nodes_public, session_public
 from drivebench.services.monitoring import telegram_counters
 from drivebench.services.monitoring.monitor import SERVICE_GROUPS, monitor_for
-from drivebench.services.monitoring.recording import FORMATS, recordings_for
+from drivebench.services.monitoring.recording import format_names, recordings_for
 from drivebench.web.deps import SessionDep, StateDep
 from drivebench.web.templating import templates
 
@@ -23,7 +23,7 @@ BUS_LABELS = {"active": N_("error active"), "warning": N_("warning"), "passive":
 
 def _recordings(session: Session, **extra: Any) -> dict[str, Any]:
     recordings = recordings_for(session)
-    return {"session_id": session.id, "formats": FORMATS, "recordings": recordings.list(),
+    return {"session_id": session.id, "formats": format_names(), "recordings": recordings.list(),
             "active": recordings.active, **extra}
 
 

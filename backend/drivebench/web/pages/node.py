@@ -17,7 +17,7 @@ from drivebench import i18n
 from drivebench.device.catalog import Item
 from drivebench.device.motion import motion_of
 from drivebench.errors import AccessDenied, DriveBenchError, NodeOffline, NotFound, SdoTimeoutError
-from drivebench.i18n import N_
+from drivebench.i18n import N_, _
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.bus.views import node_public
 from drivebench.services.control import drive_guard
@@ -38,8 +38,8 @@ TABS = [("parameters", N_("Parameters")), ("pdo", N_("PDO")), ("diagnostics", N_
         ("control", N_("Control")), ("info", N_("Info"))]  # translated where shown (node.html)
 UI = "/ui/sessions/{session_id}/nodes/{node_id}"
 
-IDENTITY = [("Device type", "0x1000"), ("Vendor ID", "0x1018.1"), ("Product code", "0x1018.2"),
-            ("Revision number", "0x1018.3"), ("Serial number", "0x1018.4")]
+IDENTITY = [(N_("Device type"), "0x1000"), (N_("Vendor ID"), "0x1018.1"), (N_("Product code"), "0x1018.2"),
+            (N_("Revision number"), "0x1018.3"), (N_("Serial number"), "0x1018.4")]  # translated where shown
 FIRMWARE_REFS = ["C00099", "C0099", "C0200", "r0018", "0x100A"]
 
 
@@ -100,7 +100,7 @@ def _tab_context(session: Session, node: SessionNode, tab: str) -> dict[str, Any
     if tab == "parameters":
         return _parameters_context(session, node)
     if tab == "info":
-        return {"identity_rows": [shown(label, ref, node.identity.get(key), _vendor(node)) for (label, ref), key in
+        return {"identity_rows": [shown(_(label), ref, node.identity.get(key), _vendor(node)) for (label, ref), key in
                                   zip(IDENTITY, ["device_type", "vendor_id", "product_code", "revision", "serial"],
                                       strict=True)]}
     return {}
@@ -110,7 +110,7 @@ def _tab_context(session: Session, node: SessionNode, tab: str) -> dict[str, Any
 async def node_page(request: Request, session: SessionDep, node: NodeDep,
                     tab: Annotated[str, Query()] = "parameters") -> Response:
     if tab not in dict(TABS):
-        raise NotFound(f"No tab '{tab}' (tabs: {', '.join(dict(TABS))})")
+        raise NotFound(_("No tab '{tab}' (tabs: {tabs})").format(tab=tab, tabs=", ".join(dict(TABS))))
     context = _base(request, session, node, tab, **_tab_context(session, node, tab))
     return templates.TemplateResponse(request, "node.html", context)
 
@@ -118,7 +118,7 @@ async def node_page(request: Request, session: SessionDep, node: NodeDep,
 @router.get(UI + "/tabs/{tab}", response_class=HTMLResponse)
 async def node_tab(request: Request, session: SessionDep, node: NodeDep, tab: str) -> Response:
     if tab not in dict(TABS):
-        raise NotFound(f"No tab '{tab}'")
+        raise NotFound(_("No tab '{tab}'").format(tab=tab))
     context = _base(request, session, node, tab, **_tab_context(session, node, tab))
     return templates.TemplateResponse(request, "node.html", context, block_name="tab_body")
 
@@ -150,17 +150,17 @@ async def release_lease(request: Request, session: SessionDep, node: NodeDep, wr
                         principal: PrincipalDep) -> Response:
     released = node_lease.leases(session).release(node.node_id, writer)
     return _lease_banner(request, session, node, writer, principal.may(Role.ADMIN),
-                         "Lease released: others may write the node." if released else "")
+                         _("Lease released: others may write the node.") if released else "")
 
 
 @router.post(UI + "/lease/break", response_class=HTMLResponse)
 async def break_lease(request: Request, session: SessionDep, node: NodeDep, writer: WriterDep,
                       principal: PrincipalDep) -> Response:
     if not principal.may(Role.ADMIN):
-        raise AccessDenied("Only an admin may break another writer's lease.")
+        raise AccessDenied(_("Only an admin may break another writer's lease."))
     broken = node_lease.leases(session).break_lease(node.node_id, f"{principal.name} ({writer.client})")
     return _lease_banner(request, session, node, writer, True,
-                         f"Lease of {broken.writer.name} broken (logged).")
+                         _("Lease of {writer} broken (logged).").format(writer=broken.writer.name))
 
 
 # --- parameters tab --------------------------------------------------------------------------------------
@@ -236,19 +236,20 @@ async def read_info(request: Request, session: SessionDep, node: NodeDep) -> Res
     for label, ref in IDENTITY:
         try:
             value = await service.read(session, node.node_id, ref)
-            row = (shown(label, ref, value.raw, _vendor(node)) if isinstance(value.raw, int)
-                   else IdentityShown(label, ref, value.display, ""))
+            row = (shown(_(label), ref, value.raw, _vendor(node)) if isinstance(value.raw, int)
+                   else IdentityShown(_(label), ref, value.display, ""))
         except SdoTimeoutError as exc:
-            raise NodeOffline(f"Node {node.node_id} does not answer: {exc.detail}") from exc
+            raise NodeOffline(_("Node {node} does not answer: {problem}").format(
+                node=node.node_id, problem=exc.shown_detail())) from exc
         except DriveBenchError as exc:
-            row = IdentityShown(label, ref, f"– ({exc.title})", "")
+            row = IdentityShown(_(label), ref, f"– ({_(exc.title)})", "")
         rows.append(row)
     for ref in FIRMWARE_REFS:
         try:
             value = await service.read(session, node.node_id, ref)
         except DriveBenchError:
             continue
-        rows.append(IdentityShown("Firmware / software", value.ref, value.display, ""))
+        rows.append(IdentityShown(_("Firmware / software"), value.ref, value.display, ""))
         break
     context = _base(request, session, node, "info", live_rows=rows)
     return templates.TemplateResponse(request, "node/info.html", context, block_name="identity_live")

@@ -42,8 +42,8 @@ def refused_because(request: Request) -> str | None:
 def _diagram(fam: Family) -> dict[str, Any]:
     """Box and arrow coordinates of the state machine (SVG units)."""
     pos = {box.key: (PAD_LEFT + box.col * (BOX_W + GAP_X), PAD + box.row * (BOX_H + GAP_Y)) for box in fam.states}
-    boxes = [{"key": box.key, "label": box.label, "x": pos[box.key][0], "y": pos[box.key][1], "enabled": box.enabled,
-              "fault": box.fault} for box in fam.states]
+    boxes = [{"key": box.key, "label": fam.shown(box.label), "x": pos[box.key][0], "y": pos[box.key][1],
+              "enabled": box.enabled, "fault": box.fault} for box in fam.states]
     arrows = []
     for arrow in fam.section.arrows:
         (sx, sy), (tx, ty) = pos[arrow.from_state], pos[arrow.to_state]
@@ -58,8 +58,8 @@ def _diagram(fam: Family) -> dict[str, Any]:
             x1, x2 = (float(sx + BOX_W), float(tx)) if right else (float(sx), float(tx + BOX_W))
             y1, y2 = sy + BOX_H / 2, ty + BOX_H / 2
             label_x, label_y, anchor = (x1 + x2) / 2, (y1 + y2) / 2 - 6, "middle"
-        arrows.append({"x1": x1, "y1": y1, "x2": x2, "y2": y2, "label": arrow.label, "lx": label_x, "ly": label_y,
-                       "anchor": anchor})
+        arrows.append({"x1": x1, "y1": y1, "x2": x2, "y2": y2, "label": fam.shown(arrow.label), "lx": label_x,
+                       "ly": label_y, "anchor": anchor})
     width = max(x for x, _ in pos.values()) + BOX_W + PAD
     height = max(y for _, y in pos.values()) + BOX_H + PAD
     return {"boxes": boxes, "arrows": arrows, "width": width, "height": height, "box_w": BOX_W, "box_h": BOX_H}

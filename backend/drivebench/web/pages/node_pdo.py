@@ -15,14 +15,17 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, Form, Request
 from fastapi.responses import HTMLResponse, Response
+from markupsafe import Markup
 from pydantic import BaseModel
 
 from drivebench.device import pdo_notes
 from drivebench.errors import AccessDenied, InvalidValue
+from drivebench.i18n import _
 from drivebench.protocol.nmt import NmtCommand
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.bus.views import node_public
 from drivebench.services.control import drive_guard
+from drivebench.services.monitoring.diagnostics import nmt_state_text
 from drivebench.services.pdos import ethercat_pdo, pdo
 from drivebench.services.pdos import process_data as live
 from drivebench.services.pdos.pdo import ApplyReport, Direction, PdoConfig, PdoWrite
@@ -71,7 +74,8 @@ def _parse_entries(text: str) -> list[tuple[int, int]]:
             index, sub = part.split(".")
             entries.append((int(index, 16), int(sub)))
         except ValueError as exc:
-            raise InvalidValue(f"'{part}' is not a mapping entry (expected index.sub like 0x6040.0)") from exc
+            raise InvalidValue(_("'{entry}' is not a mapping entry (expected index.sub like 0x6040.0)").format(
+                entry=part)) from exc
     return entries
 
 
@@ -102,7 +106,7 @@ async def apply(request: Request, session: SessionDep, node: NodeDep, direction:
                          inhibit_time_ms=float(inhibit_time_ms) if inhibit_time_ms.strip() else None,
                          event_timer_ms=int(event_timer_ms) if event_timer_ms.strip() else None)
     except ValueError as exc:
-        raise InvalidValue(f"{direction.upper()}{number}: {exc}") from exc
+        raise InvalidValue(_("{pdo}: {problem}").format(pdo=f"{direction.upper()}{number}", problem=exc)) from exc
     report: ApplyReport = await pdo.apply_pdo(session, node.node_id, direction, number, write)
     await live.service(session).load(node.node_id)
     config = report.pdo or await pdo.read_pdo(session, node.node_id, direction, number)
@@ -137,29 +141,30 @@ async def send(request: Request, session: SessionDep, node: NodeDep, panel: Pane
     if not keepalive:  # a script that keeps its own watch: admins only, with a reason (logged)
         principal = principal_of(request)
         if not principal.may(Role.ADMIN):
-            raise AccessDenied("Sending RPDOs without the keep-alive guard is for admins only.")
+            raise AccessDenied(_("Sending RPDOs without the keep-alive guard is for admins only."))
         if not str(form.get("reason") or "").strip():
-            raise InvalidValue("Say why the RPDO is sent without the keep-alive guard (reason).")
+            raise InvalidValue(_("Say why the RPDO is sent without the keep-alive guard (reason)."))
         log.warning("RPDO%s to node %s sent without keep-alive by %s: %s", number, node.node_id, principal.name,
                     form.get("reason"))
     if mode == "cyclic":
         try:
             period_ms = int(str(form.get("period_ms") or "100"))
         except ValueError as exc:
-            raise InvalidValue("The cycle time is a whole number of milliseconds.") from exc
+            raise InvalidValue(_("The cycle time is a whole number of milliseconds.")) from exc
         data = await drive_guard.send_rpdo(session, node.node_id, number, values, panel, confirm=confirm, owner=owner,
                                            period_ms=period_ms, keepalive=keepalive)
-        message = f"sending every {period_ms} ms"
+        message = _("sending every {time} ms").format(time=period_ms)
     else:
         data = await drive_guard.send_rpdo(session, node.node_id, number, values, panel, confirm=confirm,
                                            keepalive=keepalive)
-        message = "sent once"
+        message = _("sent once")
     state, _live = session.nmt_state(node.node_id)
     commanded = node.commanded_state.label if node.commanded_state is not None else ""
     if "Operational" not in (state, commanded):  # CiA 301: PDOs are processed only in Operational
         # (a start just sent counts: the next heartbeat will confirm it)
-        message += f" - node {node.node_id} is {state}: it ignores PDOs until it is started"
-    context = _context(session, node, sent=f"{message}: {data.hex(' ').upper() or '(no data)'}", number=number,
+        message += _(" - node {node} is {state}: it ignores PDOs until it is started").format(
+            node=node.node_id, state=nmt_state_text(state))
+    context = _context(session, node, sent=f"{message}: {data.hex(' ').upper() or _('(no data)')}", number=number,
                        cyclic=mode == "cyclic")
     return templates.TemplateResponse(request, "node/_pdo_card.html", context, block_name="send_result")
 
@@ -170,8 +175,8 @@ async def stop(request: Request, session: SessionDep, node: NodeDep, number: int
     service = live.service(session)
     layout = service.layout(node.node_id, "rpdo", number)
     stopped = service.stop_cyclic(client_id, layout.config.cob_id)
-    context = _context(session, node, sent="cyclic sending stopped" if stopped else "was not sending", number=number,
-                       cyclic=False)
+    context = _context(session, node, sent=_("cyclic sending stopped") if stopped else _("was not sending"),
+                       number=number, cyclic=False)
     return templates.TemplateResponse(request, "node/_pdo_card.html", context, block_name="send_result")
 
 
@@ -191,5 +196,6 @@ async def start_node(request: Request, session: SessionDep, node: NodeDep, panel
                      confirm: Annotated[str, Form()] = "") -> Response:
     await drive_guard.nmt(session, NmtCommand.START, node.node_id, panel,
                           confirm=confirmation(request, confirm or None))
-    return HTMLResponse(f'<span class="pdo-sent">NMT start sent to node {node.node_id}: this tab keeps it running '
-                        '(closing it stops the node)</span>')
+    return HTMLResponse(Markup('<span class="pdo-sent">{}</span>').format(
+        _("NMT start sent to node {node}: this tab keeps it running (closing it stops the node)").format(
+            node=node.node_id)))

@@ -28,6 +28,7 @@ import time
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 
 from drivebench.errors import DriveBenchError, NotFound
+from drivebench.i18n import N_, Text
 from drivebench.services.control import drive_control
 from drivebench.services.control.drive_guard import Guard
 from drivebench.services.params import node_lease
@@ -45,7 +46,7 @@ async def control(websocket: WebSocket, session_id: str, node_id: int) -> None:
         session = websocket.app.state.drivebench.manager.get(session_id)
         node = session.node(node_id)
     except NotFound as exc:
-        await websocket.close(code=4404, reason=exc.detail[:120])
+        await websocket.close(code=4404, reason=exc.shown_detail()[:120])
         return
     guard = drive_control.guard_for(session)
     panel = panel_for(websocket)
@@ -65,7 +66,7 @@ async def control(websocket: WebSocket, session_id: str, node_id: int) -> None:
                                            "actuals": [a.model_dump(mode="json") for a in actuals],
                                            "t": time.time()})
             except DriveBenchError as exc:
-                await websocket.send_json({"type": "error", "detail": str(exc)})
+                await websocket.send_json({"type": "error", "detail": exc.shown_detail()})
             await asyncio.sleep(PERIOD_S)
 
     tasks = [asyncio.create_task(receive()), asyncio.create_task(send())]
@@ -75,7 +76,7 @@ async def control(websocket: WebSocket, session_id: str, node_id: int) -> None:
         pass
     finally:
         if guard.closed(node_id, panel):
-            _trip(guard, node_id, "the control panel holding the drive disconnected")
+            _trip(guard, node_id, Text(N_("the control panel holding the drive disconnected")))
         for task in tasks:
             task.cancel()
         for task in tasks:
@@ -96,7 +97,7 @@ async def keepalive(websocket: WebSocket, session_id: str) -> None:
     try:
         session = websocket.app.state.drivebench.manager.get(session_id)
     except NotFound as exc:
-        await websocket.close(code=4404, reason=exc.detail[:120])
+        await websocket.close(code=4404, reason=exc.shown_detail()[:120])
         return
     guard = drive_control.guard_for(session)
     panel = panel_for(websocket)

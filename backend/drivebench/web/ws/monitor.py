@@ -54,7 +54,9 @@ from typing import Annotated, Any, Literal
 from fastapi import APIRouter, Query, WebSocket, WebSocketDisconnect
 from pydantic import BaseModel, Field, ValidationError
 
+from drivebench import i18n
 from drivebench.errors import NotFound
+from drivebench.i18n import N_, _
 from drivebench.services.bus.sessions import Session
 from drivebench.services.monitoring.monitor import Monitor, MonitorFilter, MonitorView, monitor_for
 from drivebench.services.monitoring.recording import recordings_for
@@ -73,6 +75,7 @@ TRACE_COLUMNS = ["seq", "time", "cob_id", "service", "group", "node", "dlc", "he
 
 class _Client:
     def __init__(self, websocket: WebSocket, view: MonitorView, hello_rows: int) -> None:
+        self.locale = i18n.current()  # the connection's language: its messages are worded in it
         self.websocket = websocket
         self.view = view
         self.hello_rows = hello_rows
@@ -166,17 +169,19 @@ class Feed:
         self.trace_seq = 0
         return True
 
-    def hello(self, view: MonitorView, rows: int = HELLO_TRACE_ROWS) -> tuple[str, dict[str, Any]]:
+    def hello(self, view: MonitorView, rows: int = HELLO_TRACE_ROWS, locale: str = i18n.DEFAULT
+              ) -> tuple[str, dict[str, Any]]:
         """A client's first message (and its answer to a new filter or a resume): the newest trace rows that pass
         its filter up to where the next update starts (so the client sees each telegram once), the whole load
-        history. Clients with the same view asking within one period share one hello."""
+        history, worded in ``locale``. Clients with the same view and language asking within one period share one
+        hello."""
         if not self.clients:  # the feed was idle: start from now
             self.trace_seq = self.monitor.last_seq
             self.resets = self.monitor.resets
         self._catch_up_reset()
         if self._hellos_seq != self.seq:
             self._hellos, self._hellos_seq = {}, self.seq
-        key = (view.filter.key(), view.paused_at, view.epoch, rows, self.trace_seq, self.clients == set())
+        key = (locale, view.filter.key(), view.paused_at, view.epoch, rows, self.trace_seq, self.clients == set())
         cached = self._hellos.get(key)
         if cached is not None:
             return cached
@@ -184,7 +189,9 @@ class Feed:
         if not self.clients:
             self.history_until = history[-1][0] if history else 0.0
         trace, _ = self.monitor.trace_since(0, rows, until=self.trace_seq, view=view)
-        message = self.message("hello", self.monitor.snapshot(view), history, trace, False, self.recording())
+        with i18n.using(locale):
+            snapshot = self.monitor.snapshot(view)
+        message = self.message("hello", snapshot, history, trace, False, self.recording())
         message["view"] = {"filter": view.filter.as_dict(), "paused": view.paused}
         self._hellos[key] = json.dumps(message), message
         return self._hellos[key]
@@ -193,7 +200,7 @@ class Feed:
         if self._catch_up_reset():
             for client in list(self.clients):
                 if not client.view.paused:
-                    client.replace(*self.hello(client.view, client.hello_rows))
+                    client.replace(*self.hello(client.view, client.hello_rows, client.locale))
             return
         after, newest = self.trace_seq, self.monitor.last_seq
         self.trace_seq = newest
@@ -203,17 +210,22 @@ class Feed:
         groups: dict[tuple[Any, ...], list[_Client]] = {}
         for client in list(self.clients):
             if not client.view.paused:
-                groups.setdefault(client.view.filter.key(), []).append(client)
+                groups.setdefault((client.locale, client.view.filter.key()), []).append(client)
         if not groups:
             return
         self.seq += 1
         live = self.monitor.live_snapshot()
         recording = self.recording()
-        for members in groups.values():
+        bus_texts: dict[str, str | None] = {}
+        for (locale, _filter), members in groups.items():
             view = members[0].view
-            rows, _ = self.monitor.trace_since(after, TRACE_PER_UPDATE + 1, until=newest, view=view)
-            message = self.message("update", self.monitor.view_snapshot(live, view), history,
-                                   rows[-TRACE_PER_UPDATE:], len(rows) > TRACE_PER_UPDATE, recording)
+            rows, _more = self.monitor.trace_since(after, TRACE_PER_UPDATE + 1, until=newest, view=view)
+            with i18n.using(locale):  # one message per language and filter: the bus and flood sentences in it
+                if locale not in bus_texts:
+                    bus_texts[locale] = self.monitor.bus_text()
+                snapshot = {**self.monitor.view_snapshot(live, view), "bus_text": bus_texts[locale]}
+            message = self.message("update", snapshot, history, rows[-TRACE_PER_UPDATE:],
+                                   len(rows) > TRACE_PER_UPDATE, recording)
             text = json.dumps(message)
             for client in members:
                 client.offer(text, message)
@@ -235,7 +247,7 @@ class Feed:
                 return
         if request.paused is False:
             self.monitor.resume(view)
-        client.replace(*self.hello(view, client.hello_rows))
+        client.replace(*self.hello(view, client.hello_rows, client.locale))
 
     async def run(self) -> None:
         loop = asyncio.get_running_loop()
@@ -287,14 +299,15 @@ def _problem_text(exc: ValidationError) -> str:
     """``Filter not applied: nodes: Input should be less than or equal to 127`` (the user's words, not pydantic's)."""
     errors = exc.errors(include_url=False)
     if not errors or errors[0]["type"] == "json_invalid" or not errors[0]["loc"]:
-        return f"Not a view message: {errors[0]['msg'] if errors else exc}"
+        return _("Not a view message: {problem}").format(problem=errors[0]["msg"] if errors else exc)
     problems = []
     for error in errors:
         fields = [str(part) for part in error["loc"][1:] if not isinstance(part, int)]
         message = str(error["msg"]).removeprefix("Value error, ")
         problems.append(f"{', '.join(fields)}: {message}" if fields else message)
-    what = {"filter": "Filter", "paused": "Pause", "rows": "Trace rows"}.get(str(errors[0]["loc"][0]), "View")
-    return f"{what} not applied: {'; '.join(problems)}"
+    what = {"filter": N_("Filter"), "paused": N_("Pause"), "rows": N_("Trace rows")}.get(str(errors[0]["loc"][0]),
+                                                                                         N_("View"))
+    return _("{what} not applied: {problems}").format(what=_(what), problems="; ".join(problems))
 
 
 async def _send_loop(client: _Client) -> None:
@@ -313,7 +326,7 @@ async def monitor_stream(websocket: WebSocket, session_id: str,
     try:
         session = websocket.app.state.drivebench.manager.get(session_id)
     except NotFound:
-        await websocket.close(code=4404, reason=f"No open session '{session_id}'")
+        await websocket.close(code=4404, reason=_("No open session '{session}'").format(session=session_id))
         return
     feed = _feed(websocket, session)
     defaults = feed.monitor.defaults
@@ -322,14 +335,14 @@ async def monitor_stream(websocket: WebSocket, session_id: str,
     client = _Client(websocket, view, rows)
     sender: asyncio.Task[None] | None = None
     try:
-        hello, _ = feed.hello(view, rows)
+        hello, _rows = feed.hello(view, rows, client.locale)
         feed.clients.add(client)  # before the first await: updates built from now on queue behind the hello
         if feed.task is None or feed.task.done():
             feed.task = asyncio.create_task(feed.run())
         await websocket.send_text(hello)
         sender = asyncio.create_task(_send_loop(client))
         receiver = asyncio.create_task(_receive_views(websocket, feed, client))
-        done, _ = await asyncio.wait({sender, receiver}, return_when=asyncio.FIRST_COMPLETED)
+        done, _pending = await asyncio.wait({sender, receiver}, return_when=asyncio.FIRST_COMPLETED)
         receiver.cancel()
         for task in done:
             with contextlib.suppress(WebSocketDisconnect, RuntimeError, asyncio.CancelledError):

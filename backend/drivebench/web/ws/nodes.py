@@ -10,6 +10,7 @@ import asyncio
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 
 from drivebench.errors import NotFound
+from drivebench.i18n import _
 from drivebench.services.bus.views import nodes_public
 from drivebench.web.templating import templates
 
@@ -27,7 +28,7 @@ async def node_states(websocket: WebSocket, session_id: str) -> None:
             try:
                 session = manager.get(session_id)
             except NotFound:
-                await websocket.close(code=4404, reason=f"No open session '{session_id}'")
+                await websocket.close(code=4404, reason=_("No open session '{session}'").format(session=session_id))
                 return
             await session.refresh_states()
             context = templates.env.get_template("plant.html").new_context(

@@ -38,7 +38,7 @@ async def _hello(websocket: WebSocket, session: Session, node_id: int, owner: st
     try:
         await service.load(node_id)
     except DriveBenchError as exc:
-        await websocket.send_json({"type": "error", "detail": exc.detail})
+        await websocket.send_json({"type": "error", "detail": exc.shown_detail()})
     pdos = [{"direction": lay.config.direction, "number": lay.config.number, "cob_id": lay.config.cob_id,
              "signals": [{"ref": ref, "name": name, "unit": entry.unit if entry else None}
                          for ref, name, entry, _ in lay.entries]}
@@ -60,7 +60,7 @@ async def process_data(websocket: WebSocket, session_id: str, node_id: int) -> N
         session = websocket.app.state.drivebench.manager.get(session_id)
         session.node(node_id)
     except NotFound as exc:
-        await websocket.close(code=4404, reason=exc.detail[:120])
+        await websocket.close(code=4404, reason=exc.shown_detail()[:120])
         return
     owner = uuid.uuid4().hex
     service = live.service(session)
