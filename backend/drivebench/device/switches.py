@@ -26,6 +26,8 @@ from drivebench.i18n import N_, Text
 
 Key = Annotated[str, Field(pattern=r"^[a-z0-9][a-z0-9_.-]*$", max_length=64)]
 Direction = Literal["to node", "from node", "broadcast"]
+DIRECTION_TEXTS = (N_("to node"), N_("from node"), N_("broadcast"))
+"""The directions as the COB-ID table shows them (translated there: the profile's value stays the English key)."""
 Case = Literal["node_from_switches", "node_above_range", "node_from_parameter", "baud_from_switches",
                "baud_from_parameter"]
 """What a decode found: where the node id and the baud rate came from."""

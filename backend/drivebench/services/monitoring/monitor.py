@@ -27,7 +27,7 @@ from typing import Any
 
 import can
 
-from drivebench.i18n import N_, Text, shown
+from drivebench.i18n import N_, Text, gettext, shown
 from drivebench.protocol.decode import (
     DecodedFrame,
     SdoContext,
@@ -60,8 +60,9 @@ SERVICE_ORDER = [Service.NMT, Service.SYNC, Service.EMCY, Service.TIME,
                  Service.TPDO1, Service.TPDO2, Service.TPDO3, Service.TPDO4,
                  Service.RPDO1, Service.RPDO2, Service.RPDO3, Service.RPDO4,
                  Service.SDO_RX, Service.SDO_TX, Service.HEARTBEAT, Service.LSS, Service.UNKNOWN]
-SERVICE_LABELS = {Service.SDO_RX: "SDO request (rx)", Service.SDO_TX: "SDO response (tx)",
-                  Service.HEARTBEAT: "Heartbeat / boot-up"}
+SERVICE_LABELS = {Service.SDO_RX: N_("SDO request (rx)"), Service.SDO_TX: N_("SDO response (tx)"),
+                  Service.HEARTBEAT: N_("Heartbeat / boot-up")}
+"""Shown in each viewer's language (``view_snapshot``), as are "Unknown" and "Error frame"."""
 
 
 def service_group(service: Service) -> str:
@@ -250,6 +251,9 @@ class Monitor(can.Listener):
         the current language."""
         if snapshot.get("flood"):
             snapshot = {**snapshot, "flood": {**snapshot["flood"], "text": shown(snapshot["flood"]["text"])}}
+        rows = snapshot["services"]
+        labels = [gettext(label) for label in (row["label"] for row in rows)]
+        snapshot = {**snapshot, "services": [{**row, "label": label} for row, label in zip(rows, labels, strict=True)]}
         accepts = view.filter.accepts
         nodes = view.filter.nodes
         if view.filter.key() == _ALL:
