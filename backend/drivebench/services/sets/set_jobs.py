@@ -79,8 +79,8 @@ class ReportLine(BaseModel):
 
 def report_line(line: dict[str, Any]) -> ReportLine:
     """A report line as the job or the database holds it, its detail in the reader's language."""
-    said = line.get(SAID)
-    return ReportLine(**{**line, "detail": i18n.shown(i18n.Text.loaded(said))} if said else line)
+    kept = line.get(SAID)
+    return ReportLine(**{**line, "detail": i18n.shown(Text.loaded(kept))} if kept else line)
 
 
 def _profile(node: SessionNode) -> Profile:
