@@ -26,6 +26,7 @@ from babel import Locale, negotiate_locale
 from babel.messages.mofile import write_mo
 from babel.messages.pofile import read_po
 from babel.numbers import format_decimal, get_decimal_symbol
+from markupsafe import escape
 
 LOCALES = ("en", "de")
 DEFAULT = "en"
@@ -112,6 +113,22 @@ class Text(str):
     def shown(self) -> str:
         template = gettext(self.template) if self.translated and self.template else self.template
         return template.format(**{k: shown(v) if isinstance(v, Text) else v for k, v in self.values.items()})
+
+    def __html__(self) -> str:
+        """A template shows it in the reader's language (Jinja escapes through ``__html__``)."""
+        return str(escape(self.shown()))
+
+    def saved(self) -> dict[str, object]:
+        """As JSON keeps it (a download report in the database); ``Text.loaded`` makes it again."""
+        return {"template": self.template, "translated": self.translated,
+                "values": {k: v.saved() if isinstance(v, Text) else v for k, v in self.values.items()}}
+
+    @classmethod
+    def loaded(cls, data: dict[str, object]) -> Text:
+        values = data["values"]
+        assert isinstance(values, dict)
+        return _rebuilt(cls, str(data["template"]), {k: cls.loaded(v) if isinstance(v, dict) else v
+                                                      for k, v in values.items()}, bool(data.get("translated", True)))
 
 
 def _rebuilt(cls: type[Text], template: str, values: dict[str, object], translated: bool) -> Text:

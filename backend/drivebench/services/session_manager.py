@@ -81,7 +81,8 @@ class SessionManager:
         async with self._lock:
             for session in self._sessions.values():
                 if str(session.spec) == str(bus_spec):
-                    raise Conflict(f"{bus_spec} is already open as session '{session.name}'")
+                    raise Conflict(_("{bus} is already open as session '{session}'").format(bus=bus_spec,
+                                                                                          session=session.name))
             network = await asyncio.to_thread(open_network, bus_spec, self.sdo_timeout_s, self.sdo_retries)
             label = name or f"{bus_spec.interface} {bus_spec.channel}".strip()
             session_id = _slug(name or f"{bus_spec.interface}-{bus_spec.channel}")
@@ -94,8 +95,9 @@ class SessionManager:
             try:
                 await session.scan()
             except DriveBenchError as exc:
-                why = f"Slave list not read: {exc}"
-                session.health.notes.append(lambda: why)
+                failure = exc  # the note is worded when shown, in the reader's language
+                session.health.notes.append(lambda: _("Slave list not read: {why}").format(
+                    why=failure.shown_detail()))
         return session
 
     def get(self, session_id: str) -> Session:

@@ -37,7 +37,7 @@ from starlette.types import Message, Receive, Scope, Send
 
 from drivebench.config import settings
 from drivebench.errors import AccessDenied, DriveBenchError, NotAuthenticated, UnknownHostName
-from drivebench.i18n import _
+from drivebench.i18n import N_, _
 from drivebench.services.users import accounts
 from drivebench.services.users.principals import Principal, Role
 from drivebench.web import access_policy, origins
@@ -161,7 +161,7 @@ def cross_site(scope: Scope, headers: Headers) -> str | None:
         return None
     site = headers.get("sec-fetch-site")
     if site and site not in ("same-origin", "none"):
-        return f"the browser says it comes from a {site} page"
+        return _("the browser says it comes from a {site} page").format(site=site)
     return origins.origin_refusal(scope, headers)
 
 
@@ -182,8 +182,8 @@ async def admitted(scope: Scope, receive: Receive, send: Send, headers: Headers,
     reason = cross_site(scope, headers)
     if reason is not None:
         await _refuse(scope, receive, send, AccessDenied(
-            f"Refused: {reason}. Another web site may not change anything on DriveBench or open its live "
-            "connections.", hint="Open DriveBench itself and do it there."))
+            _("Refused: {reason}. Another web site may not change anything on DriveBench or open its live "
+              "connections.").format(reason=reason), hint=N_("Open DriveBench itself and do it there.")))
         return None
     state = scope.setdefault("state", {})
     configured = accounts.authentication_configured()
@@ -304,10 +304,10 @@ async def _csrf_token(scope: Scope, receive: Receive, headers: Headers) -> tuple
 async def _refuse_host(scope: Scope, receive: Receive, send: Send, reason: str) -> None:
     """400: problem+json for the API and websockets, plain text for anything else (no page of ours is rendered
     for a name that is not ours)."""
-    exc = UnknownHostName(f"Refused: {reason}. A web page may have pointed its own name at this machine (DNS "
-                          "rebinding), so DriveBench answers only to its own names.",
-                          hint="Open DriveBench as http://127.0.0.1:PORT or by a name given to `drivebench serve "
-                               "--allowed-host NAME` (DRIVEBENCH_ALLOWED_HOSTS).")
+    exc = UnknownHostName(_("Refused: {reason}. A web page may have pointed its own name at this machine (DNS "
+                            "rebinding), so DriveBench answers only to its own names.").format(reason=reason),
+                          hint=_("Open DriveBench as http://127.0.0.1:PORT or by a name given to `drivebench serve "
+                                 "--allowed-host NAME` (DRIVEBENCH_ALLOWED_HOSTS)."))
     if scope["type"] == "websocket":
         await send({"type": "websocket.close", "code": 4400, "reason": exc.detail[:120]})
         return

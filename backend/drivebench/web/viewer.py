@@ -19,6 +19,7 @@ from starlette.responses import JSONResponse, RedirectResponse
 from starlette.types import Receive, Scope, Send
 
 from drivebench.errors import AccessDenied, DriveBenchError
+from drivebench.i18n import N_, _
 from drivebench.services.users.sharing import TOKEN_PREFIX, ShareLink, ShareLinks
 from drivebench.web import access_policy
 from drivebench.web.problems import problem_body
@@ -84,19 +85,20 @@ def _allow(scope: Scope, decision: access_policy.Decision) -> bool:
     path = scope.get("path", "")
     if scope["type"] == "websocket":
         if not path.startswith(VIEWER_WEBSOCKETS):
-            raise AccessDenied("A remote diagnostics link may only watch the remote diagnostics stream.")
+            raise AccessDenied(_("A remote diagnostics link may only watch the remote diagnostics stream."))
         return True
     if scope.get("method", "GET") not in SAFE_METHODS:
-        raise AccessDenied("A remote diagnostics link is read-only: it cannot write parameters, send NMT "
-                           "commands or PDOs, or change anything on this server.",
-                           hint="Ask the engineer on site to make the change.")
+        raise AccessDenied(_("A remote diagnostics link is read-only: it cannot write parameters, send NMT "
+                             "commands or PDOs, or change anything on this server."),
+                           hint=N_("Ask the engineer on site to make the change."))
     if decision.template in LINK_READS:
         return True
     if path.startswith("/api/"):
         raise AccessDenied(
-            "A remote diagnostics link shows only what DriveBench already holds (network health, emergencies, "
-            f"the bus monitor) and never makes a drive answer over the bus: {path} is not open to it.",
-            hint="Ask the engineer on site to read it for you.")
+            _("A remote diagnostics link shows only what DriveBench already holds (network health, emergencies, "
+              "the bus monitor) and never makes a drive answer over the bus: {path} is not open to it.").format(
+                path=path),
+            hint=N_("Ask the engineer on site to read it for you."))
     return False
 
 
@@ -115,4 +117,4 @@ def viewer_token(request: Request) -> str | None:
 def require_engineer(request: Request) -> None:
     """For actions a link holder must not take even where the role table would let a viewer."""
     if viewer_of(request) is not None:
-        raise AccessDenied("Not available through a remote diagnostics link.")
+        raise AccessDenied(_("Not available through a remote diagnostics link."))

@@ -25,6 +25,7 @@ from typing import Any
 
 import can
 
+from drivebench.i18n import _
 from drivebench.protocol.ethercat_network import EthercatNetwork
 from drivebench.transport.bus import LinkState, ObservedBus
 
@@ -160,8 +161,8 @@ class BusHealth(can.Listener):
     def refusal(self) -> str | None:
         """Why nothing may be sent now (bus-off), or None (the ObservedBus send guard)."""
         if self.state() == "bus-off":
-            return ("bus-off: the CAN controller has left the bus after too many transmit errors; "
-                    "nothing is sent until it recovers")
+            return _("bus-off: the CAN controller has left the bus after too many transmit errors; nothing is sent "
+                     "until it recovers")
         return None
 
     def text(self) -> str | None:
@@ -177,22 +178,28 @@ class BusHealth(can.Listener):
             tx, rx = self.errors.tx_errors, self.errors.rx_errors
         counters = f" (TEC {tx}, REC {rx})" if tx is not None else ""
         if state == ADAPTER_LOST:
-            retry = f"; reconnecting, {link.attempts} attempts so far" if link.attempts else "; reconnecting"
-            last = f" (last: {link.last_attempt_error})" if link.last_attempt_error else ""
-            return f"adapter lost: {link.lost_reason} since {_clock(link.lost_at)}{retry}{last}"
+            text = _("adapter lost: {reason} since {clock}").format(reason=link.lost_reason,
+                                                                    clock=_clock(link.lost_at))
+            text += "; " + (_("reconnecting, {count} attempts so far").format(count=link.attempts) if link.attempts
+                            else _("reconnecting"))
+            if link.last_attempt_error:
+                text += " " + _("(last: {error})").format(error=link.last_attempt_error)
+            return text
         if state == "bus-off":
-            return ("bus-off: the CAN controller left the bus after too many transmit errors; requests fail at "
-                    "once until it recovers. Check wiring, termination and that every node has the same bit rate.")
+            return _("bus-off: the CAN controller left the bus after too many transmit errors; requests fail at once "
+                     "until it recovers. Check wiring, termination and that every node has the same bit rate.")
         if state == "passive":
-            return (f"error passive{counters}: the controller sees many bus errors and only sends passive error "
-                    "flags. Check wiring, termination and bit rate.")
+            return _("error passive{counters}: the controller sees many bus errors and only sends passive error "
+                     "flags. Check wiring, termination and bit rate.").format(counters=counters)
         if state == "warning":
-            return f"error warning{counters}: the error counters passed 96; the bus has frequent errors."
+            return _("error warning{counters}: the error counters passed 96; the bus has frequent errors.").format(
+                counters=counters)
         if self.changes:
-            at, previous, _ = self.changes[-1]
+            at, previous, _current = self.changes[-1]
             if previous == ADAPTER_LOST:
-                return f"adapter back at {_clock(at)} (reconnected {link.reconnects}x); error active"
-            return f"recovered from {previous} at {_clock(at)}: error active"
+                return _("adapter back at {clock} (reconnected {count}x); error active").format(
+                    clock=_clock(at), count=link.reconnects)
+            return _("recovered from {state} at {clock}: error active").format(state=previous, clock=_clock(at))
         return None
 
     def as_dict(self, now: float | None = None) -> dict[str, Any]:

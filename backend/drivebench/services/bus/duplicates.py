@@ -17,6 +17,7 @@ from collections import deque
 
 import can
 
+from drivebench.i18n import N_, Text, _, shown
 from drivebench.protocol.network import CanopenNetwork
 
 BOOTUP_WINDOW_S = 0.5
@@ -60,7 +61,8 @@ class DuplicateWatch(can.Listener):
                 last = self._bootups.get(node_id)
                 self._bootups[node_id] = stamp
                 if last is not None and 0 <= stamp - last < BOOTUP_WINDOW_S:
-                    self._note(node_id, "boot-up", f"two boot-ups {1000 * (stamp - last):.0f} ms apart", now)
+                    self._note(node_id, "boot-up", Text(N_("two boot-ups {ms} ms apart"),
+                                                         ms=f"{1000 * (stamp - last):.0f}"), now)
                 return
             beats = self._beats.setdefault(node_id, deque(maxlen=HEARTBEATS_JUDGED))
             beats.append(stamp)
@@ -69,8 +71,9 @@ class DuplicateWatch(can.Listener):
                 span = beats[-1] - beats[0]
                 if span < DOUBLED_RATE_FACTOR * period * (HEARTBEATS_JUDGED - 1):
                     rate = (HEARTBEATS_JUDGED - 1) / span if span > 0 else float("inf")
-                    self._note(node_id, "heartbeat", f"heartbeats at {rate:.1f}/s where node {node_id} produces "
-                                                     f"one every {period * 1000:.0f} ms", now)
+                    self._note(node_id, "heartbeat", Text(N_("heartbeats at {rate}/s where node {node} produces one "
+                                                              "every {ms} ms"), rate=f"{rate:.1f}", node=node_id,
+                                                           ms=f"{period * 1000:.0f}"), now)
 
     def _note(self, node_id: int, kind: str, evidence: str, now: float) -> None:
         self._found.setdefault(node_id, {})[kind] = (evidence, now)
@@ -111,9 +114,9 @@ class DuplicateWatch(can.Listener):
             for node_id, frames in answers.items():
                 if len(frames) >= 2:
                     serials = {int.from_bytes(frame[4:8], "little") for frame in frames if frame[0] & 0xE0 == 0x40}
-                    which = (f"two answers to one SDO request with different serial numbers "
-                             f"({', '.join(f'{s}' for s in sorted(serials))})" if len(serials) > 1
-                             else f"{len(frames)} answers to one SDO request")
+                    which = (Text(N_("two answers to one SDO request with different serial numbers ({serials})"),
+                                   serials=", ".join(f"{s}" for s in sorted(serials))) if len(serials) > 1
+                             else Text(N_("{count} answers to one SDO request"), count=len(frames)))
                     self._note(node_id, "sdo", which, now)
                 elif len(frames) == 1:
                     self._found.pop(node_id, None)
@@ -127,7 +130,7 @@ class DuplicateWatch(can.Listener):
         found: dict[int, str] = {}
         with self._lock:
             for node_id, kinds in sorted(self._found.items()):
-                fresh = [words for words, at in kinds.values() if now - at <= self.hold_s]
+                fresh = [shown(words) for words, at in kinds.values() if now - at <= self.hold_s]
                 if fresh:
                     found[node_id] = "; ".join(fresh)
         return found
@@ -136,5 +139,6 @@ class DuplicateWatch(can.Listener):
         found = self.found()
         if not found:
             return None
-        return " ".join(f"Two devices answer as node {node_id}: {evidence}. Give one of them another node id; "
-                        "until then neither can be trusted." for node_id, evidence in found.items())
+        return " ".join(_("Two devices answer as node {node}: {evidence}. Give one of them another node id; until "
+                          "then neither can be trusted.").format(node=node_id, evidence=evidence)
+                        for node_id, evidence in found.items())

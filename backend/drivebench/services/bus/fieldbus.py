@@ -13,6 +13,7 @@ network card through pysoem, the ``drivebench[ethercat]`` extra).
 
 from __future__ import annotations
 
+from drivebench.i18n import _
 from drivebench.protocol.ethercat_master import DirectNetwork
 from drivebench.protocol.ethercat_network import CoeNodeClient, EthercatNetwork, GatewayNetwork
 from drivebench.protocol.network import CanopenNetwork, NodeClient
@@ -30,9 +31,9 @@ SessionSpec = BusSpec | GatewaySpec | DirectSpec
 def interface_notes() -> dict[str, str]:
     """What the session form says next to an interface that cannot open here (the direct master's needs)."""
     if load_pysoem() is None:
-        return {"ethercat": f"direct master: needs {INSTALL}"}
+        return {"ethercat": _("direct master: needs {install}").format(install=INSTALL)}
     if not may_use_raw_sockets():
-        return {"ethercat": "direct master: needs root or CAP_NET_RAW"}
+        return {"ethercat": _("direct master: needs root or CAP_NET_RAW")}
     return {}
 
 

@@ -68,9 +68,9 @@ class SessionNode:
         if self.profile:
             return self.profile.identity.product_name
         if "vendor_id" in self.identity:  # scanned, but no profile matches its 0x1018 identity
-            return (f"Unknown device (vendor 0x{self.identity['vendor_id']:08X}, "
-                    f"product 0x{self.identity.get('product_code', 0):08X})")
-        return "Unknown device"
+            return _("Unknown device (vendor {vendor}, product {product})").format(
+                vendor=f"0x{self.identity['vendor_id']:08X}", product=f"0x{self.identity.get('product_code', 0):08X}")
+        return _("Unknown device")
 
 
 ESM_FOR_NMT = {

@@ -20,7 +20,9 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict
 
-from drivebench.errors import Conflict, NotFound
+from drivebench import i18n
+from drivebench.errors import Conflict, DriveBenchError, NotFound
+from drivebench.i18n import Text, _
 
 
 class JobState(StrEnum):
@@ -46,6 +48,13 @@ class Progress(BaseModel):
     """Items per second since the job started."""
     eta_s: float | None
     elapsed_s: float
+
+
+def said(exc: BaseException) -> str:
+    """What an error says, as a ``Text`` where it keeps its N_() template (translated where the job is shown)."""
+    if isinstance(exc, DriveBenchError):
+        return Text(exc._template, **exc._values) if exc._template else exc.detail
+    return f"{type(exc).__name__}: {exc}"
 
 
 @dataclass
@@ -178,20 +187,23 @@ class JobManager:
         return job
 
     async def _run(self, job: Job, work: Work) -> None:
+        # The task copied the context of the request that started it: its texts are English (or a Text, translated
+        # for each reader), never in the language of whoever happened to start it.
         try:
-            await work(job)
+            with i18n.using(i18n.DEFAULT):
+                await work(job)
         except asyncio.CancelledError:
             job._finish(JobState.CANCELLED)
             return
         except Exception as exc:  # a failed job reports why; the server keeps running
-            job._finish(JobState.FAILED, getattr(exc, "detail", None) or f"{type(exc).__name__}: {exc}")
+            job._finish(JobState.FAILED, said(exc))
             return
         job._finish(JobState.DONE)
 
     def get(self, job_id: str) -> Job:
         job = self._jobs.get(job_id)
         if job is None:
-            raise NotFound(f"No job '{job_id}' (finished jobs are kept for a while, then dropped)")
+            raise NotFound(_("No job '{job}' (finished jobs are kept for a while, then dropped)").format(job=job_id))
         return job
 
     def list(self) -> list[Job]:
@@ -200,7 +212,7 @@ class JobManager:
     def cancel(self, job_id: str) -> Job:
         job = self.get(job_id)
         if job.state.finished:
-            raise Conflict(f"Job '{job_id}' has already finished ({job.state.value})")
+            raise Conflict(_("Job '{job}' has already finished ({state})").format(job=job_id, state=job.state.value))
         if job._task is not None:
             job._task.cancel()
         return job

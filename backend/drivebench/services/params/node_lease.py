@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 from typing import Concatenate, ParamSpec, TypeVar
 
 from drivebench.errors import Conflict, NotFound
-from drivebench.i18n import N_
+from drivebench.i18n import N_, _
 from drivebench.services.bus.sessions import Session
 
 LEASE_TTL_S = 30.0
@@ -39,7 +39,7 @@ class Writer:
     """The principal's name (shown to the others)."""
     client: str
     """One browser tab (``panel:<tab id>``) or one API client (``client:<host>``)."""
-    where: str = "the API"
+    where: str = N_("the API")
     """Where the writes come from, as the others are shown it ("Parameters tab")."""
 
     def same(self, other: Writer) -> bool:
@@ -63,17 +63,19 @@ class Lease:
 
     def text(self, node_id: int) -> str:
         clock = time.strftime("%H:%M", time.localtime(self.since))
-        until = ("until the operation under way ends" if self.active
-                 else f"or the lease expires in {self.expires_in():.0f} s")
-        return (f"Node {node_id} is being written by {self.writer.name} (since {clock}, {self.writer.where}); "
-                f"writes are refused until {self.writer.name} finishes {until}.")
+        values = {"node": node_id, "name": self.writer.name, "clock": clock, "where": _(self.writer.where)}
+        if self.active:
+            return _("Node {node} is being written by {name} (since {clock}, {where}); writes are refused until "
+                     "{name} finishes until the operation under way ends.").format(**values)
+        return _("Node {node} is being written by {name} (since {clock}, {where}); writes are refused until {name} "
+                 "finishes or the lease expires in {seconds} s.").format(**values, seconds=f"{self.expires_in():.0f}")
 
 
 class NodeLeased(Conflict):
     title = N_("Node is being written by someone else")
 
     def __init__(self, node_id: int, lease: Lease) -> None:
-        super().__init__(lease.text(node_id), hint="An admin may break the lease (DELETE .../lease?force=true).")
+        super().__init__(lease.text(node_id), hint=N_("An admin may break the lease (DELETE .../lease?force=true)."))
         self.node_id = node_id
         self.lease = lease
 
@@ -170,7 +172,7 @@ class SessionLeases:
         with self.lock:
             lease = self.leases.pop(node_id, None)
         if lease is None:
-            raise NotFound(f"Node {node_id} has no write lease.")
+            raise NotFound(_("Node {node} has no write lease.").format(node=node_id))
         log.warning("write lease of node %s held by %s (%s, %s) broken by %s", node_id, lease.writer.name,
                     lease.writer.client, lease.writer.where, by)
         return lease

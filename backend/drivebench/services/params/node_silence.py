@@ -19,6 +19,7 @@ import time
 from collections.abc import Awaitable, Callable
 
 from drivebench.errors import SdoAbortError, SdoOutOfStepError, SdoTimeoutError
+from drivebench.i18n import N_
 from drivebench.protocol.heartbeat import HeartbeatMonitor
 
 SUSPECT_AFTER_TIMEOUTS = 2
@@ -29,8 +30,8 @@ SILENT_AFTER_TIMEOUTS = 8
 SILENT_AFTER_SPAN_S = 5.0
 """This many timeouts in a row, the first and last this far apart: silent even if the node answers probes."""
 
-DID_NOT_ANSWER = "did not answer"
-OUT_OF_STEP = "answered out of step"
+DID_NOT_ANSWER = N_("did not answer")
+OUT_OF_STEP = N_("answered out of step")
 
 Probe = Callable[[], Awaitable[object]]
 """Reads 0x1000 of the node once (raises the SDO errors of a read)."""

@@ -22,6 +22,7 @@ from enum import StrEnum
 
 from drivebench.device.motion import is_still, motion_of
 from drivebench.errors import DriveBenchError, InvalidValue
+from drivebench.i18n import N_, _
 from drivebench.services.bus.sessions import Session
 from drivebench.services.params import node_lease
 from drivebench.services.params import parameters as service
@@ -45,8 +46,8 @@ class BatchInvalid(InvalidValue):
 
     def __init__(self, problems: list[DriveBenchError | None]) -> None:
         bad = [problem for problem in problems if problem is not None]
-        super().__init__(f"{len(bad)} of the {len(problems)} values of the batch are not valid, so none was written.",
-                         hint="Correct the items named in 'items' and send the batch again.")
+        super().__init__(_("{bad} of the {count} values of the batch are not valid, so none was written.").format(
+            bad=len(bad), count=len(problems)), hint=N_("Correct the items named in 'items' and send the batch again."))
         self.problems = problems
 
 
@@ -90,7 +91,7 @@ def _validated(session: Session, node_id: int, wanted: Sequence[Wanted], *, chec
     if any(problems):
         raise BatchInvalid(problems)
     if moving:
-        session.part(service.MovingWrites).confirm(node_id, "Writing " + ", ".join(moving))
+        session.part(service.MovingWrites).confirm(node_id, _("Writing {refs}").format(refs=", ".join(moving)))
     return checked
 
 
@@ -98,12 +99,13 @@ async def write_many(session: Session, node_id: int, wanted: Sequence[Wanted], *
                      verify: bool = True) -> list[Outcome]:
     """Validate all, then write in order and stop at the first error (see the module's text)."""
     if len(wanted) > MAX_BATCH_WRITE:
-        raise InvalidValue(f"A batch write carries at most {MAX_BATCH_WRITE} values; this one carries {len(wanted)}.")
+        raise InvalidValue(_("A batch write carries at most {most} values; this one carries {count}.").format(
+            most=MAX_BATCH_WRITE, count=len(wanted)))
     checked = _validated(session, node_id, wanted, check=check)
     outcomes: list[Outcome] = []
-    stopping_only = all(stopping for _, stopping in checked)
+    stopping_only = all(stopping for _value, stopping in checked)
     with contextlib.nullcontext() if stopping_only else node_lease.writing(session, node_id):
-        for item, (value, _) in zip(wanted, checked, strict=True):
+        for item, (value, _stopping) in zip(wanted, checked, strict=True):
             if outcomes and outcomes[-1].state is not State.WRITTEN:
                 outcomes.append(Outcome(item.ref, State.NOT_SENT))
                 continue

@@ -47,7 +47,7 @@ from drivebench.errors import (
     TransportError,
     UnknownParameter,
 )
-from drivebench.i18n import _
+from drivebench.i18n import N_, Text, _
 from drivebench.protocol.datatypes import DataType, decode, encode
 from drivebench.protocol.heartbeat import HeartbeatStatus
 from drivebench.protocol.network import NodeClient, SdoChannel
@@ -56,7 +56,7 @@ from drivebench.protocol.sdo_fast import ExpeditedRequest, upload_expedited
 from drivebench.services.bus.fieldbus import SdoClient
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.params import node_lease
-from drivebench.services.params.jobs import Job, JobIssue, JobManager
+from drivebench.services.params.jobs import Job, JobIssue, JobManager, said
 from drivebench.services.params.node_silence import NodeSilence
 
 T = TypeVar("T")
@@ -135,7 +135,7 @@ class SessionParameters:
     def session(self) -> Session:
         session = self.session_ref()
         if session is None:
-            raise Conflict("The session has been closed")
+            raise Conflict(_("The session has been closed"))
         return session
 
     def remember(self, node_id: int, value: ParameterValue) -> None:
@@ -173,7 +173,7 @@ def service(session: Session) -> SessionParameters:
 
 def configure(session: Session, settings: SdoSettings) -> SdoSettings:
     if not 0.01 <= settings.timeout_s <= 30 or not 0 <= settings.retries <= 10:
-        raise OutOfRange("SDO timeout must be 0.01 ... 30 s and retries 0 ... 10")
+        raise OutOfRange(_("SDO timeout must be 0.01 ... 30 s and retries 0 ... 10"))
     state = service(session)
     state.settings = settings
     session.network.sdo_timeout_s = settings.timeout_s
@@ -220,8 +220,8 @@ def resolve(node: SessionNode, ref: str) -> Item:
                 raise
     parsed = parse_ref(ref)
     if not isinstance(parsed, IndexRef):
-        raise UnknownParameter(f"Node {node.node_id} has no profile: address '{ref}' by its CANopen index "
-                               "(0x1018.1) or assign a profile")
+        raise UnknownParameter(_("Node {node} has no profile: address '{ref}' by its CANopen index (0x1018.1) or "
+                                 "assign a profile").format(node=node.node_id, ref=ref))
     sub = parsed.subindex or 0
     entry = ObjectEntry(name="(not in the profile)", data_type=DataType.DOMAIN, access=Access.RW,
                         index=parsed.index, subindex=sub)
@@ -375,9 +375,9 @@ def _plan(node: SessionNode, ref: str) -> _Plan:
 def _decode(item: Item, data: bytes, node_id: int) -> RawValue:
     try:
         return decode(item.entry.data_type, data)
-    except (ValueError, UnicodeDecodeError) as exc:
-        raise ProtocolError(f"Node {node_id}: {item.ref} answered {data.hex(' ')}, which is not a "
-                            f"{item.entry.data_type.value}") from exc
+    except (ValueError, UnicodeDecodeError) as exc:  # a Text: a read-all job raises it too
+        raise ProtocolError(Text(N_("Node {node}: {ref} answered {data}, which is not a {type}"), node=node_id,
+                                 ref=item.ref, data=data.hex(" "), type=item.entry.data_type.value)) from exc
 
 
 def _read_blocking(client: SdoClient, item: Item, *, block: bool = False, channel: int | None = None) -> bytes:
@@ -402,7 +402,7 @@ async def _upload(client: SdoClient, plan: _Plan, *, block: bool = False, channe
 def _use_block(node: SessionNode, item: Item, transfer: str) -> bool:
     if transfer == "block":
         if node.profile is not None and not node.profile.features.block_sdo:
-            raise InvalidValue(f"{node.device_name} does not support SDO block transfer")
+            raise InvalidValue(_("{device} does not support SDO block transfer").format(device=node.device_name))
         return True
     return False
 
@@ -428,7 +428,8 @@ async def read_many(session: Session, node_id: int, refs: Sequence[str]) -> list
     order, each value or the error that ref met: one unknown or refused ref does not lose the others."""
     session.node(node_id)  # an unknown node is the whole request's error, not one per ref
     if len(refs) > MAX_BATCH:
-        raise InvalidValue(f"A batch read names at most {MAX_BATCH} parameters; this one names {len(refs)}.")
+        raise InvalidValue(_("A batch read names at most {most} parameters; this one names {count}.").format(
+            most=MAX_BATCH, count=len(refs)))
     found: list[ParameterValue | DriveBenchError] = []
     for ref in refs:
         try:
@@ -573,8 +574,9 @@ async def _send(session: Session, node: SessionNode, item: Item, raw: RawValue, 
         read_back = await read(session, node_id, item.ref)
         verified = _same(item, raw, read_back.raw)
         if not verified:
-            mismatch = (f"Wrote {display(item, written)}, the device reports {read_back.display}"
-                        + (" (takes effect after reset node)" if item.entry.reset_required else ""))
+            mismatch = Text(N_("Wrote {written}, the device reports {reported} (takes effect after reset node)")
+                             if item.entry.reset_required else N_("Wrote {written}, the device reports {reported}"),
+                             written=display(item, written), reported=read_back.display)
     return WriteResult(item.ref, written, read_back, verified, mismatch, item.entry.reset_required)
 
 
@@ -614,11 +616,12 @@ async def _command(session: Session, node_id: int, which: DeviceCommand) -> Comm
     client = session.client(node_id)
     if which is DeviceCommand.RESET_NODE:
         await session.nmt(NmtCommand.RESET_NODE, node_id)
-        return CommandResult(which, "NMT reset node", f"Node {node_id} resets; unsaved changes are lost.")
+        return CommandResult(which, "NMT reset node",
+                             Text(N_("Node {node} resets; unsaved changes are lost."), node=node_id))
     write = _command_write(node, catalog, which)
     if write is None:
-        raise Conflict(f"{node.device_name} offers no {which.value.replace('-', ' ')} command in its profile "
-                       "(no CiA 301 object, no commands section)")
+        raise Conflict(_("{device} offers no {command} command in its profile (no CiA 301 object, no commands "
+                         "section)").format(device=node.device_name, command=_command_name(which)))
     item = _find(catalog, write.ref)
     if item is not None:
         index, subindex, data = item.index, item.subindex, encode(item.entry.data_type, write.raw)
@@ -627,12 +630,18 @@ async def _command(session: Session, node_id: int, which: DeviceCommand) -> Comm
         assert isinstance(parsed, IndexRef)  # CIA301_SAVE / CIA301_RESTORE
         index, subindex, data = parsed.index, parsed.subindex or 0, write.raw.to_bytes(4, "little")
     else:
-        raise Conflict(f"{node.device_name}: the profile's {which.value.replace('-', ' ')} command writes "
-                       f"{write.ref}, which the profile does not list as a writable entry")
+        raise Conflict(_("{device}: the profile's {command} command writes {ref}, which the profile does not list as "
+                         "a writable entry").format(device=node.device_name, command=_command_name(which),
+                                                    ref=write.ref))
     await _on_bus(partial(client.download, index, subindex, data))
     if write.after_reset:
         node.pending_reset.add("restore defaults")
-    return CommandResult(which, write.via, write.done.format(node=node_id))
+    return CommandResult(which, write.via, Text(write.done, node=node_id))
+
+
+def _command_name(which: DeviceCommand) -> str:
+    return {DeviceCommand.SAVE: _("save"), DeviceCommand.RESTORE_DEFAULTS: _("restore defaults"),
+            DeviceCommand.RESET_NODE: _("reset node")}[which]
 
 
 # --- second SDO channel ----------------------------------------------------------------------------------
@@ -654,8 +663,8 @@ def _activate_sdo2_blocking(session: Session, node: SessionNode) -> _NodeChannel
         return channels
     clash = extra.clashes_with(node.node_id)
     if node.node_id > extra.max_node_id or clash in session.nodes:
-        channels.note = (f"SDO{extra.number} not used on node {node.node_id}: its identifiers would be node "
-                         f"{clash}'s SDO1")
+        channels.note = Text(N_("SDO{number} not used on node {node}: its identifiers would be node {other}'s SDO1"),
+                              number=extra.number, node=node.node_id, other=clash)
         return channels
     client = session.client(node.node_id)
     if not isinstance(client, NodeClient):  # an EtherCAT slave has one mailbox
@@ -666,7 +675,8 @@ def _activate_sdo2_blocking(session: Session, node: SessionNode) -> _NodeChannel
         # Client -> server first, then server -> client (the order of the manuals' examples of 0x1201).
         client.download(index, 1, rx.to_bytes(4, "little"), channel=1)
         client.download(index, 2, tx.to_bytes(4, "little"), channel=1)
-        channels.note = f"SDO{extra.number} activated on node {node.node_id} (0x{rx:03X}/0x{tx:03X}, not saved)"
+        channels.note = Text(N_("SDO{number} activated on node {node} ({rx}/{tx}, not saved)"), number=extra.number,
+                              node=node.node_id, rx=f"0x{rx:03X}", tx=f"0x{tx:03X}")
     if channels.sdo2 is None:
         channels.sdo2 = client.add_channel(rx & 0x7FF, tx & 0x7FF)
     elif channels.sdo2 not in client.channels:
@@ -697,7 +707,7 @@ def readable_items(node: SessionNode, group: str | None = None, parameter_set: i
 
 
 def _issue(node_id: int, item: Item, exc: Exception) -> JobIssue:
-    detail = getattr(exc, "detail", str(exc))
+    detail = said(exc)
     if isinstance(exc, SdoAbortError):
         return JobIssue(item.ref, detail, node_id, f"0x{exc.abort_code:08X}", exc.abort_text)
     return JobIssue(item.ref, detail, node_id)
@@ -768,12 +778,14 @@ async def read_node(session: Session, node: SessionNode, work: list[Item], job: 
     if retried:
         job.result.setdefault("retried", {})[key] = retried
         job.result.setdefault("failed_after_retry", {})[key] = failed_again
-        job.notes.append(f"Node {node.node_id}: {len(retried)} parameters timed out and were asked again at the "
-                         f"end, {len(retried) - len(failed_again)} of them answered")
+        job.notes.append(Text(N_("Node {node}: {count} parameters timed out and were asked again at the end, "
+                                  "{answered} of them answered"), node=node.node_id, count=len(retried),
+                               answered=len(retried) - len(failed_again)))
     if silence.verdict is not None:
         for item, exc in timed_out.values():
             job.advance(issue=_issue(node.node_id, item, exc))
-        job.notes.append(f"Node {node.node_id} {silence.verdict}; {len(queue)} parameters not read")
+        job.notes.append(Text(N_("Node {node} {verdict}; {count} parameters not read"), node=node.node_id,
+                               verdict=Text(silence.verdict), count=len(queue)))
         job.advance(len(queue))
 
 
@@ -784,11 +796,14 @@ def start_read(session: Session, node_ids: Iterable[int], jobs: JobManager, *, g
     nodes = [session.node(node_id) for node_id in node_ids]
     work = {node.node_id: readable_items(node, group, parameter_set) for node in nodes}
     if group is not None and not any(work.values()):
-        raise UnknownParameter(f"No readable parameters in group '{group}'")
+        raise UnknownParameter(_("No readable parameters in group '{group}'").format(group=group))
     total = sum(len(found) for found in work.values())
-    scope = f"group '{group}'" if group else "all parameters"
-    where = f"node {nodes[0].node_id}" if len(nodes) == 1 else f"{len(nodes)} nodes"
-    title = f"Read {scope} of {where}"
+    if len(nodes) == 1:
+        title = (Text(N_("Read group '{group}' of node {node}"), group=group, node=nodes[0].node_id) if group
+                 else Text(N_("Read all parameters of node {node}"), node=nodes[0].node_id))
+    else:
+        title = (Text(N_("Read group '{group}' of {count} nodes"), group=group, count=len(nodes)) if group
+                 else Text(N_("Read all parameters of {count} nodes"), count=len(nodes)))
 
     async def run(job: Job) -> None:
         job.result["values"] = {}
@@ -796,8 +811,8 @@ def start_read(session: Session, node_ids: Iterable[int], jobs: JobManager, *, g
             await asyncio.gather(*(read_node(session, node, work[node.node_id], job) for node in nodes))
         except TransportError as exc:  # the adapter is gone: stop, keep what was read, say how far it got
             read = sum(len(values) for values in job.result["values"].values())
-            raise TransportError(f"{exc.detail}, {read} of {total} parameters read before",
-                                 hint=exc.hint) from exc
+            raise TransportError(Text(N_("{why}, {read} of {total} parameters read before"), why=said(exc),
+                                      read=read, total=total), hint=exc.hint) from exc
 
     # The same read asked again while it runs follows the running job (a read-all is minutes of bus work per node).
     same_as = f"read {session.id} {sorted(work)} {group or '*'} {parameter_set}"

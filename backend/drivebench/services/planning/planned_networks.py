@@ -12,6 +12,7 @@ from sqlalchemy.orm import Session as DbSession
 
 from drivebench.device.dip import SwitchDevices
 from drivebench.errors import NotFound
+from drivebench.i18n import _
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.planning.planner import NetworkPlan, PlannedNode
 from drivebench.services.storage.database import transaction
@@ -89,7 +90,8 @@ class PlannedNetworkStore:
     def _row(db: DbSession, network_id: int) -> PlannedNetworkRow:
         row = db.get(PlannedNetworkRow, network_id)
         if row is None:
-            raise NotFound(f"Planned network {network_id} does not exist (deleted, or saved in another database).")
+            raise NotFound(_("Planned network {id} does not exist (deleted, or saved in another database).").format(
+                id=network_id))
         return row
 
 
@@ -127,17 +129,21 @@ def _check_found(planned: PlannedNode, found: SessionNode, devices: SwitchDevice
             "found_device": profile.identity.product_name if profile else None}
     if profile is not None:
         if device is not None and profile.switches is not None and profile.switches.key == device.spec.key:
-            return NodeCheck(status="ok", message=f"Answers as {profile.identity.product_name}.", **base)
+            return NodeCheck(status="ok", message=_("Answers as {device}.").format(
+                device=profile.identity.product_name), **base)
         return NodeCheck(status="wrong_device", **base,
-                         message=f"Answers as {profile.identity.product_name}, planned: {planned_name}.")
+                         message=_("Answers as {device}, planned: {planned}.").format(
+                             device=profile.identity.product_name, planned=planned_name))
     vendor = found.identity.get("vendor_id")
     expected = device.vendor_id if device else None
     if vendor is not None and expected is not None and vendor != expected:
         return NodeCheck(status="wrong_device", **base,
-                         message=f"Vendor id 0x{vendor:08X} is not the planned device's (0x{expected:08X}).")
-    ident = ", ".join(f"{k} 0x{v:08X}" for k, v in found.identity.items()) or "identity 0x1018 not readable"
+                         message=_("Vendor id {vendor} is not the planned device's ({expected}).").format(
+                             vendor=f"0x{vendor:08X}", expected=f"0x{expected:08X}"))
+    ident = ", ".join(f"{k} 0x{v:08X}" for k, v in found.identity.items()) or _("identity 0x1018 not readable")
     return NodeCheck(status="unverified", **base,
-                     message=f"Answers, but no device profile matches its identity ({ident}).")
+                     message=_("Answers, but no device profile matches its identity ({identity}).").format(
+                         identity=ident))
 
 
 def compare_live(plan: NetworkPlan, answered: Iterable[SessionNode], devices: SwitchDevices, *, session_id: str = "",
@@ -151,14 +157,14 @@ def compare_live(plan: NetworkPlan, answered: Iterable[SessionNode], devices: Sw
             checks.append(_check_found(planned, found[planned.node_id], devices))
         else:
             checks.append(NodeCheck(node_id=planned.node_id, status="missing", planned=planned,
-                                    message="No answer to the scan (SDO 0x1000 / heartbeat)."))
+                                    message=_("No answer to the scan (SDO 0x1000 / heartbeat).")))
     for node_id in sorted(set(found) - planned_ids):
         node = found[node_id]
-        name = node.profile.identity.product_name if node.profile else "unknown device"
+        name = node.profile.identity.product_name if node.profile else _("unknown device")
         checks.append(NodeCheck(node_id=node_id, status="extra", identity=dict(node.identity) or None,
                                 found_profile=node.profile.id if node.profile else None,
                                 found_device=node.profile.identity.product_name if node.profile else None,
-                                message=f"Not in the plan; answers as {name}."))
+                                message=_("Not in the plan; answers as {device}.").format(device=name)))
     checks.sort(key=lambda c: c.node_id)
     counts: dict[NodeStatus, int] = {s: 0 for s in ("ok", "wrong_device", "unverified", "missing", "extra")}
     for check in checks:

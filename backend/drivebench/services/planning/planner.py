@@ -19,6 +19,7 @@ from drivebench.device.cobids import STANDARD_IDS, CobId, PdoIds, channels_of, c
 from drivebench.device.dip import SwitchDevices
 from drivebench.device.switches import SwitchesSection
 from drivebench.errors import DriveBenchError, InvalidValue
+from drivebench.i18n import _, ngettext
 
 Severity = Literal["error", "warning", "info"]
 
@@ -36,7 +37,9 @@ class PlannedNode(BaseModel):
 
     @property
     def label(self) -> str:
-        return f"node {self.node_id}" + (f" ({self.name})" if self.name else "")
+        if self.name:
+            return _("node {node} ({name})").format(node=self.node_id, name=self.name)
+        return _("node {node}").format(node=self.node_id)
 
 
 class CableInput(BaseModel):
@@ -59,8 +62,8 @@ class NetworkPlan(BaseModel):
             return cls.model_validate_json(text)
         except ValidationError as exc:
             raise InvalidValue(
-                f"Not a network plan: {exc.error_count()} problem(s); first: "
-                f"{exc.errors()[0]['loc']}: {exc.errors()[0]['msg']}"
+                _("Not a network plan: {count} problem(s); first: {where}: {why}").format(
+                    count=exc.error_count(), where=exc.errors()[0]["loc"], why=exc.errors()[0]["msg"])
             ) from exc
 
 
@@ -120,24 +123,28 @@ def check_plan(plan: NetworkPlan, devices: SwitchDevices) -> PlanReport:
         try:
             spec = devices.get(node.device).spec
         except DriveBenchError as exc:
-            findings.append(Finding(kind="unknown_device", severity="error", message=f"{node.label}: {exc.detail}",
+            findings.append(Finding(kind="unknown_device", severity="error",
+                                    message=f"{node.label}: {exc.shown_detail()}",
                                     node_ids=[node.node_id]))
             continue
         lo, hi = spec.node_range
         if not lo <= node.node_id <= hi:
             findings.append(Finding(kind="out_of_range", severity="error", node_ids=[node.node_id],
-                                    message=f"{node.label}: {spec.name} accepts node ids {lo} … {hi}."))
+                                    message=_("{node}: {device} accepts node ids {low} … {high}.").format(
+                                        node=node.label, device=spec.name, low=lo, high=hi)))
             continue
         if node.baud_kbit not in spec.baud_rates_kbit:
             findings.append(Finding(kind="unsupported_baud", severity="error", node_ids=[node.node_id],
-                                    message=f"{node.label}: {spec.name} does not support {node.baud_kbit} kbit/s "
-                                    f"({', '.join(map(str, spec.baud_rates_kbit))})."))
+                                    message=_("{node}: {device} does not support {baud} kbit/s ({rates}).").format(
+                                        node=node.label, device=spec.name, baud=node.baud_kbit,
+                                        rates=", ".join(map(str, spec.baud_rates_kbit)))))
         channels = _channels(node, spec)
         unknown = channels - set(channels_of(spec))
         if unknown:
             findings.append(Finding(kind="unknown_channel", severity="error", node_ids=[node.node_id],
-                                    message=f"{node.label}: {spec.name} has no channel(s) "
-                                    f"{', '.join(sorted(unknown))} ({', '.join(channels_of(spec))})."))
+                                    message=_("{node}: {device} has no channel(s) {unknown} ({channels}).").format(
+                                        node=node.label, device=spec.name, unknown=", ".join(sorted(unknown)),
+                                        channels=", ".join(channels_of(spec)))))
         alternative = spec.cob_ids.alternative
         pdo_ids = node.pdo_ids if alternative is not None and node.pdo_ids == alternative.key else STANDARD_IDS
         for cob in cob_ids(spec, node.node_id, pdo_ids=pdo_ids, channels=channels):
@@ -174,11 +181,12 @@ def _shared_finding(node: PlannedNode, spec: SwitchesSection, channel: str) -> F
     if other > 127:
         ids = "/".join(f"0x{s.base + node.node_id:03X}" for s in shared)
         return Finding(kind="sdo2_reserved", severity="warning", node_ids=[node.node_id],
-                       message=f"{node.label}: {name} uses {ids}, beyond the {base_name} identifiers of node ids "
-                       f"1 … 127 ({name} = address + {offset} needs a node id ≤ {127 - offset}).")
+                       message=_("{node}: {channel} uses {ids}, beyond the {base} identifiers of node ids 1 … 127 "
+                                 "({channel} = address + {offset} needs a node id ≤ {most}).").format(
+                           node=node.label, channel=name, ids=ids, base=base_name, offset=offset, most=127 - offset))
     return Finding(kind="sdo2_reserved", severity="info", node_ids=[node.node_id],
-                   message=f"{node.label}: {name} is reached as node id {other} (address + {offset}); node id "
-                   f"{other} must stay free.")
+                   message=_("{node}: {channel} is reached as node id {other} (address + {offset}); node id {other} "
+                             "must stay free.").format(node=node.label, channel=name, other=other, offset=offset))
 
 
 def _duplicates(plan: NetworkPlan) -> list[Finding]:
@@ -190,9 +198,9 @@ def _duplicates(plan: NetworkPlan) -> list[Finding]:
             kind="duplicate_node_id",
             severity="error",
             node_ids=[nid],
-            message=f"Node id {nid} is planned {len(nodes)} times"
-            + (f" ({', '.join(n.name for n in nodes if n.name)})" if any(n.name for n in nodes) else "")
-            + ".",
+            message=(_("Node id {node} is planned {count} times ({names}).") if any(n.name for n in nodes)
+                     else _("Node id {node} is planned {count} times.")).format(
+                node=nid, count=len(nodes), names=", ".join(n.name for n in nodes if n.name)),
         )
         for nid, nodes in sorted(by_id.items())
         if len(nodes) > 1
@@ -205,15 +213,18 @@ def _explain(first: _Use, second: _Use) -> str:
         svc = use.spec.cob_ids.service(use.cob.service)
         alternative = use.spec.cob_ids.alternative
         if alternative is not None and svc.alternative_base is not None and use.cob.base == svc.alternative_base:
-            return (f" ({alternative.label} of {svc.name} 0x{svc.alternative_base:03X}: {svc.name} of node "
-                    f"{use.node.node_id} equals {other.cob.service} of node {other.node.node_id}; use the CANopen "
-                    f"base 0x{svc.base:03X}, {alternative.remedy})")
+            return " " + _("({alternative} of {service} {alternative_base}: {service} of node {node} equals "
+                           "{other_service} of node {other}; use the CANopen base {base}, {remedy})").format(
+                alternative=alternative.label, service=svc.name, alternative_base=f"0x{svc.alternative_base:03X}",
+                node=use.node.node_id, other_service=other.cob.service, other=other.node.node_id,
+                base=f"0x{svc.base:03X}", remedy=alternative.remedy)
     for use, other in ((first, second), (second, first)):
         svc = use.spec.cob_ids.service(use.cob.service)
         reached = partner(use.spec, svc, use.node.node_id)
         if reached is not None and reached == other.node.node_id:
-            return (f" ({svc.channel.upper()} of node {use.node.node_id} is reached as node {reached}: address + "
-                    f"{reached - use.node.node_id})")
+            return " " + _("({channel} of node {node} is reached as node {reached}: address + {offset})").format(
+                channel=svc.channel.upper(), node=use.node.node_id, reached=reached,
+                offset=reached - use.node.node_id)
     return ""
 
 
@@ -226,15 +237,15 @@ def _collisions(uses: list[_Use]) -> list[Finding]:
         distinct_ids = {use.node.node_id for use in users}
         if len(users) < 2 or len(distinct_ids) < 2:
             continue  # same node id twice is reported once as a duplicate node id
-        described = [f"{use.cob.service} of {use.node.label}" for use in users]
+        described = [_("{service} of {node}").format(service=use.cob.service, node=use.node.label) for use in users]
         findings.append(
             Finding(
                 kind="cob_id_collision",
                 severity="error",
                 cob_id=cob,
                 node_ids=sorted(distinct_ids),
-                message=f"COB-ID 0x{cob:03X} ({cob}) is used by " + " and ".join(described)
-                + _explain(users[0], users[1]) + ".",
+                message=_("COB-ID {hex} ({cob}) is used by {users}{why}.").format(
+                    hex=f"0x{cob:03X}", cob=cob, users=_(" and ").join(described), why=_explain(users[0], users[1])),
             )
         )
     return findings
@@ -247,14 +258,16 @@ def _mixed_baud(plan: NetworkPlan) -> list[Finding]:
     if len(by_baud) < 2:
         return []
     parts = "; ".join(
-        f"{baud} kbit/s: node(s) {', '.join(map(str, ids))}" for baud, ids in sorted(by_baud.items())
+        _("{baud} kbit/s: node(s) {nodes}").format(baud=baud, nodes=", ".join(map(str, ids)))
+        for baud, ids in sorted(by_baud.items())
     )
     return [
         Finding(
             kind="mixed_baud",
             severity="error",
             node_ids=sorted({n.node_id for n in plan.nodes}),
-            message=f"Mixed baud rates — every node on a bus must use the same baud rate: {parts}.",
+            message=_("Mixed baud rates — every node on a bus must use the same baud rate: {parts}.").format(
+                parts=parts),
         )
     ]
 
@@ -271,14 +284,15 @@ def _cable(plan: NetworkPlan) -> tuple[CablePlan | None, list[Finding]]:
             plan.cable.repeater_reduction_m,
         )
     except DriveBenchError as exc:
-        return None, [Finding(kind="cable", severity="error", message=f"Cable: {exc.detail}")]
+        return None, [Finding(kind="cable", severity="error",
+                              message=_("Cable: {why}").format(why=exc.shown_detail()))]
     if not cable.feasible:
         return cable, [
             Finding(
                 kind="cable",
                 severity="error",
-                message=f"Cable: {plan.cable.length_m:g} m is too long at {baud} kbit/s "
-                f"(max. {cable.max_length_m:g} m).",
+                message=_("Cable: {length} m is too long at {baud} kbit/s (max. {most} m).").format(
+                    length=f"{plan.cable.length_m:g}", baud=baud, most=f"{cable.max_length_m:g}"),
             )
         ]
     if cable.repeaters:
@@ -286,7 +300,9 @@ def _cable(plan: NetworkPlan) -> tuple[CablePlan | None, list[Finding]]:
             Finding(
                 kind="cable",
                 severity="info",
-                message=f"Cable: {cable.repeaters} repeater(s) needed for {plan.cable.length_m:g} m.",
+                message=ngettext("Cable: {count} repeater needed for {length} m.",
+                                 "Cable: {count} repeaters needed for {length} m.", cable.repeaters).format(
+                    count=cable.repeaters, length=f"{plan.cable.length_m:g}"),
             )
         ]
     return cable, []

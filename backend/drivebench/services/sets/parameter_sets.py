@@ -32,6 +32,7 @@ from drivebench.device.eds import resolve_node_expr
 from drivebench.device.profile import ObjectEntry, Profile
 from drivebench.device.scaling import from_raw
 from drivebench.errors import Conflict, InvalidValue, NotFound
+from drivebench.i18n import N_, _
 from drivebench.services.params import parameters
 from drivebench.services.storage.database import transaction
 from drivebench.services.storage.models import DownloadRow, ParameterSetRow, ParameterSetVersionRow, utcnow
@@ -175,7 +176,7 @@ def _info(row: ParameterSetRow, count: int) -> SetInfo:
 def _check_name(name: str) -> str:
     cleaned = " ".join(name.split())
     if not cleaned or len(cleaned) > 200:
-        raise InvalidValue("A parameter set needs a name of 1 to 200 characters")
+        raise InvalidValue(_("A parameter set needs a name of 1 to 200 characters"))
     return cleaned
 
 
@@ -220,7 +221,7 @@ class ParameterSetStore:
     def _row(self, db: Any, set_id: int) -> ParameterSetRow:
         row: ParameterSetRow | None = db.get(ParameterSetRow, set_id)
         if row is None:
-            raise NotFound(f"No parameter set {set_id}")
+            raise NotFound(_("No parameter set {id}").format(id=set_id))
         return row
 
     def get(self, set_id: int, version: int | None = None) -> StoredSet:
@@ -230,7 +231,7 @@ class ParameterSetStore:
             body = db.scalars(select(ParameterSetVersionRow).where(ParameterSetVersionRow.set_id == set_id,
                                                                    ParameterSetVersionRow.version == wanted)).first()
             if body is None:
-                raise NotFound(f"Parameter set {set_id} has no version {wanted}")
+                raise NotFound(_("Parameter set {id} has no version {version}").format(id=set_id, version=wanted))
             values: Values = dict(body.body.get("values", {}))
             return StoredSet(_info(row, body.count), values, wanted)
 
@@ -240,16 +241,17 @@ class ParameterSetStore:
         row: ParameterSetRow | None = db.scalar(select(ParameterSetRow).where(ParameterSetRow.id == set_id)
                                                 .with_for_update())
         if row is None:
-            raise NotFound(f"No parameter set {set_id}")
+            raise NotFound(_("No parameter set {id}").format(id=set_id))
         if base_version is not None and base_version != row.version:
             newest = db.scalar(select(ParameterSetVersionRow).where(ParameterSetVersionRow.set_id == set_id,
                                                                     ParameterSetVersionRow.version == row.version))
             who, when = (newest.created_by, newest.created) if newest else (row.created_by, row.updated)
             when = when if when.tzinfo else when.replace(tzinfo=UTC)
-            raise Conflict(f"Parameter set {set_id} '{row.name}' was changed by {who} at "
-                           f"{when.astimezone(UTC):%Y-%m-%d %H:%M:%S} UTC: it is now version {row.version}, and "
-                           f"your change was made to version {base_version}. Nothing was saved.",
-                           hint="Reload the set, look at the newer values and make your change again.")
+            raise Conflict(_("Parameter set {id} '{name}' was changed by {who} at {moment} UTC: it is now version "
+                             "{version}, and your change was made to version {base}. Nothing was saved.").format(
+                id=set_id, name=row.name, who=who, moment=f"{when.astimezone(UTC):%Y-%m-%d %H:%M:%S}",
+                version=row.version, base=base_version),
+                           hint=N_("Reload the set, look at the newer values and make your change again."))
         return row
 
     def rename(self, set_id: int, name: str | None = None, note: str | None = None, *,
@@ -314,14 +316,14 @@ class ParameterSetStore:
         with transaction(self.url) as db:
             row = db.get(DownloadRow, download_id)
             if row is None:
-                raise NotFound(f"No download {download_id}")
+                raise NotFound(_("No download {id}").format(id=download_id))
             row.state, row.report, row.finished = state, report, utcnow()
 
     def download(self, download_id: int) -> DownloadRow:
         with transaction(self.url) as db:
             row = db.get(DownloadRow, download_id)
             if row is None:
-                raise NotFound(f"No download {download_id}")
+                raise NotFound(_("No download {id}").format(id=download_id))
             db.expunge(row)
             return row
 
@@ -423,8 +425,9 @@ class Comparison(BaseModel):
 def compare(left: Source, right: Source, *, query: str = "", group: str | None = None) -> Comparison:
     """The parameters in which the two sources differ (a ref only one side has counts as a difference)."""
     if left.profile.id != right.profile.id:
-        raise Conflict(f"'{left.label}' is a {left.profile.identity.product_name} and '{right.label}' a "
-                       f"{right.profile.identity.product_name}: only sets of one device type compare")
+        raise Conflict(_("'{left}' is a {left_device} and '{right}' a {right_device}: only sets of one device type "
+                         "compare").format(left=left.label, left_device=left.profile.identity.product_name,
+                                           right=right.label, right_device=right.profile.identity.product_name))
     catalog = catalog_for(left.profile)
     words = query.lower().split()
     rows: list[Difference] = []
@@ -439,7 +442,7 @@ def compare(left: Source, right: Source, *, query: str = "", group: str | None =
             continue
         total += 1
         item = _item(catalog, ref)
-        name = item.name if item else "(not in the profile)"
+        name = item.name if item else _("(not in the profile)")
         item_group = item.group if item else ""
         if words and not all(w in f"{ref} {name}".lower() for w in words):
             continue
@@ -477,12 +480,13 @@ def comparison_csv(comparison: Comparison) -> str:
 
 
 def set_source(stored: StoredSet, profile: Profile) -> Source:
-    label = f"Set '{stored.info.name}' v{stored.version}"
+    label = _("Set '{name}' v{version}").format(name=stored.info.name, version=stored.version)
     return Source(label, profile, stored.values)
 
 
 def defaults_source(profile: Profile, node_id: int | None = None) -> Source:
-    return Source(f"{profile.identity.product_name} defaults", profile, defaults_of(profile, node_id))
+    return Source(_("{device} defaults").format(device=profile.identity.product_name), profile,
+                  defaults_of(profile, node_id))
 
 
 def ordered(profile: Profile, refs: Iterable[str]) -> list[str]:

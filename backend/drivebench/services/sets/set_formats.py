@@ -35,7 +35,7 @@ from drivebench.device.profile import Profile
 from drivebench.device.scaling import format_value, to_raw
 from drivebench.device.xdd_export import export_xdd
 from drivebench.errors import DriveBenchError, InvalidValue, ProfileError, UnknownParameter
-from drivebench.i18n import N_
+from drivebench.i18n import N_, _, ngettext, shown
 from drivebench.services.sets.parameter_sets import (
     TOOL_CHANNELS,
     Raw,
@@ -87,7 +87,7 @@ class LineError:
     detail: str
 
     def __str__(self) -> str:
-        where = f"line {self.line}: " if self.line else ""
+        where = _("line {line}: ").format(line=self.line) if self.line else ""
         return f"{where}{self.ref + ': ' if self.ref else ''}{self.detail}"
 
 
@@ -97,9 +97,12 @@ class SetImportError(InvalidValue):
     title = N_("Parameter set file does not fit")
 
     def __init__(self, source: str, errors: list[LineError]) -> None:
-        shown = "; ".join(str(e) for e in errors[:5]) + (f"; ... {len(errors) - 5} more" if len(errors) > 5 else "")
-        super().__init__(f"{source}: {len(errors)} {'value does' if len(errors) == 1 else 'values do'} not fit: "
-                         f"{shown}")
+        shown = "; ".join(str(e) for e in errors[:5])
+        if len(errors) > 5:
+            shown += "; " + _("... {count} more").format(count=len(errors) - 5)
+        super().__init__(ngettext("{source}: {count} value does not fit: {errors}",
+                                  "{source}: {count} values do not fit: {errors}", len(errors)).format(
+            source=source, count=len(errors), errors=shown))
         self.source = source
         self.errors = errors
 
@@ -122,11 +125,11 @@ class ImportedSet:
 def _raw_for(item: Item, value: object) -> Raw:
     """A value from a file -> raw, checked like a write (raises a ParameterError)."""
     if is_command(item):
-        raise InvalidValue("is a device command, not a setting; sets do not hold it")
+        raise InvalidValue(_("is a device command, not a setting; sets do not hold it"))
     if not item.entry.access.readable:
-        raise InvalidValue("is write-only; a set holds values that can be read back")
+        raise InvalidValue(_("is write-only; a set holds values that can be read back"))
     if item.index in TOOL_CHANNELS:
-        raise InvalidValue("is an additional SDO channel (DriveBench opens SDO2 itself); sets do not hold it")
+        raise InvalidValue(_("is an additional SDO channel (DriveBench opens SDO2 itself); sets do not hold it"))
     raw = to_raw(item.entry, value, ref=item.ref)
     return raw.hex() if isinstance(raw, bytes) else raw
 
@@ -136,10 +139,10 @@ def _check(catalog: Catalog, ref: str, value: object, line: int | None, values: 
     try:
         item = catalog.resolve(ref)
         if item.ref in values:
-            raise InvalidValue(f"appears twice (as {item.ref})")
+            raise InvalidValue(_("appears twice (as {ref})").format(ref=item.ref))
         values[item.ref] = _raw_for(item, value)
     except DriveBenchError as exc:
-        errors.append(LineError(line, ref, _without_label(exc.detail, ref)))
+        errors.append(LineError(line, ref, _without_label(exc.shown_detail(), ref)))
 
 
 def checked_values(profile: Profile, values: Mapping[str, object], source: str) -> Values:
@@ -198,7 +201,7 @@ def export_json(stored: StoredSet, profile: Profile) -> str:
 
 
 def import_json(text: str, profiles: ProfileLookup, *, source: str | None = None) -> ImportedSet:
-    name = _source_name(source, "JSON file")
+    name = _source_name(source, _("JSON file"))
     try:
         document = ParameterSetFile.model_validate_json(text)
     except ValidationError as exc:
@@ -217,10 +220,10 @@ def import_json(text: str, profiles: ProfileLookup, *, source: str | None = None
             try:
                 value = engineering(catalog.resolve(parameter.ref), parameter.raw)
             except UnknownParameter as exc:
-                errors.append(LineError(line, parameter.ref, exc.detail))
+                errors.append(LineError(line, parameter.ref, exc.shown_detail()))
                 continue
         if value is None:
-            errors.append(LineError(line, parameter.ref, "has neither 'value' nor 'raw'"))
+            errors.append(LineError(line, parameter.ref, _("has neither 'value' nor 'raw'")))
             continue
         _check(catalog, parameter.ref, value, line, values, errors)
     if errors:
@@ -231,8 +234,9 @@ def import_json(text: str, profiles: ProfileLookup, *, source: str | None = None
 
 def _version_note(version: str | None, profile: Profile) -> list[str]:
     if version and version != profile.version:
-        return [f"The file was made for version {version} of profile '{profile.id}'; version {profile.version} "
-                "is installed (every value was checked against it)"]
+        return [_("The file was made for version {version} of profile '{profile}'; version {installed} is installed "
+                  "(every value was checked against it)").format(version=version, profile=profile.id,
+                                                                 installed=profile.version)]
     return []
 
 
@@ -258,17 +262,17 @@ def export_csv(stored: StoredSet, profile: Profile) -> str:
 def import_csv(text: str, profiles: ProfileLookup, *, profile_id: str | None = None, name: str | None = None,
                source: str | None = None) -> ImportedSet:
     """``profile_id`` (or the file's ``# DriveBench parameter set: profile=...`` line) names the target."""
-    label = _source_name(source, "CSV file")
+    label = _source_name(source, _("CSV file"))
     lines = text.splitlines()
     meta: dict[str, str] = {}
     if lines and (match := _CSV_META.match(lines[0].strip())):
         for part in match.group("meta").split(";"):
-            key, _, value = part.partition("=")
+            key, _sep, value = part.partition("=")
             meta[key.strip().lower()] = value.strip()
     target = profile_id or meta.get("profile")
     if not target:
-        raise SetImportError(label, [LineError(1, None, "no target profile: choose one, or start the file with "
-                                                        "'# DriveBench parameter set: profile=<id>'")])
+        raise SetImportError(label, [LineError(1, None, _("no target profile: choose one, or start the file with "
+                                                          "'# DriveBench parameter set: profile=<id>'"))])
     profile = profiles(target)
     catalog = catalog_for(profile)
     reader = csv.reader(io.StringIO(text))
@@ -282,30 +286,30 @@ def import_csv(text: str, profiles: ProfileLookup, *, profile_id: str | None = N
         if columns is None:
             lowered = [c.strip().lower() for c in row]
             if "code" not in lowered or "value" not in lowered:
-                errors.append(LineError(line, None, "expected a header line 'code,name,value,unit'"))
+                errors.append(LineError(line, None, _("expected a header line 'code,name,value,unit'")))
                 break
             columns = {c: n for n, c in enumerate(lowered)}
             continue
         code = row[columns["code"]].strip() if columns["code"] < len(row) else ""
         value = row[columns["value"]] if columns["value"] < len(row) else ""
         if not code:
-            errors.append(LineError(line, None, "no code"))
+            errors.append(LineError(line, None, _("no code")))
             continue
         try:
             item = catalog.resolve(code)
         except UnknownParameter as exc:
-            errors.append(LineError(line, code, exc.detail))
+            errors.append(LineError(line, code, exc.shown_detail()))
             continue
         typed: object = value if item.entry.data_type.is_string else value.strip()
         if typed == "":
-            errors.append(LineError(line, code, "no value"))
+            errors.append(LineError(line, code, _("no value")))
             continue
         _check(catalog, code, typed, line, values, errors)
     if columns is None and not errors:
-        errors.append(LineError(None, None, "the file has no header line 'code,name,value,unit'"))
+        errors.append(LineError(None, None, _("the file has no header line 'code,name,value,unit'")))
     if errors:
         raise SetImportError(label, errors)
-    set_name = name or meta.get("name") or "Imported CSV"
+    set_name = name or meta.get("name") or _("Imported CSV")
     return ImportedSet(set_name, profile, values, notes=_version_note(meta.get("version"), profile))
 
 
@@ -328,18 +332,18 @@ def import_dcf(data: str | bytes, profiles: ProfileLookup, *, profile_id: str | 
                name: str | None = None, source: str | None = None) -> ImportedSet:
     """The ``ParameterValue`` of every writable setting in the DCF; read-only objects (and device commands) a
     DCF lists are left out (noted). The target is ``profile_id`` or the DCF's ``[DriveBench] ProfileId``."""
-    label = _source_name(source, "DCF file")
+    label = _source_name(source, _("DCF file"))
     text = decode_text(data, label) if isinstance(data, bytes) else data
     try:
         sections = parse_ini(text, label)
     except ProfileError as exc:
-        raise SetImportError(label, [LineError(exc.line, None, exc.detail.split(": ", 1)[-1])]) from exc
+        raise SetImportError(label, [LineError(exc.line, None, shown(exc.reason))]) from exc
     own = sections.get("DRIVEBENCH")
     profile_key = own.get("ProfileId") if own else None
     target = profile_id or (profile_key.value if profile_key is not None else None)
     if not target:
-        raise SetImportError(label, [LineError(None, None, "no target profile: choose one (the DCF has no "
-                                                           "[DriveBench] ProfileId)")])
+        raise SetImportError(label, [LineError(None, None, _("no target profile: choose one (the DCF has no "
+                                                             "[DriveBench] ProfileId)"))])
     profile = profiles(target)
     catalog = catalog_for(profile)
     commissioning = sections.get("DEVICECOMISSIONING")
@@ -361,7 +365,7 @@ def import_dcf(data: str | bytes, profiles: ProfileLookup, *, profile_id: str | 
         index, sub = int(match.group(1), 16), int(match.group(2) or "0", 16)
         item = catalog.by_address(index, sub)
         if item is None:
-            errors.append(LineError(key.line, f"0x{index:04X}sub{sub}", "is not an object of this profile"))
+            errors.append(LineError(key.line, f"0x{index:04X}sub{sub}", _("is not an object of this profile")))
             continue
         if not settable(item):
             skipped += 1
@@ -370,7 +374,8 @@ def import_dcf(data: str | bytes, profiles: ProfileLookup, *, profile_id: str | 
             text_raw = key.value
             if "$NODEID" in text_raw.upper():
                 if node_id is None:
-                    raise ValueError(f"{text_raw!r} needs a node id ([DeviceComissioning] NodeID)")
+                    raise ValueError(_("{value} needs a node id ([DeviceComissioning] NodeID)").format(
+                        value=repr(text_raw)))
                 text_raw = str(resolve_node_expr(text_raw, node_id))
             raw = parse_value(item.entry.data_type, text_raw)
         except ValueError as exc:
@@ -379,12 +384,15 @@ def import_dcf(data: str | bytes, profiles: ProfileLookup, *, profile_id: str | 
         _check(catalog, item.ref, engineering(item, raw), key.line, values, errors)
     if errors:
         raise SetImportError(label, errors)
-    notes = [f"{skipped} read-only objects or device commands in the DCF were left out"] if skipped else []
+    notes = [ngettext("{count} read-only object or device command in the DCF was left out",
+                      "{count} read-only objects or device commands in the DCF were left out", skipped).format(
+        count=skipped)] if skipped else []
     version_key = own.get("Version") if own else None
     if version_key is not None:
         notes += _version_note(version_key.value, profile)
     ordered_values = {item.ref: values[item.ref] for item in catalog.items if item.ref in values}
-    return ImportedSet(name or f"Imported DCF ({profile.identity.product_name})", profile, ordered_values,
+    return ImportedSet(name or _("Imported DCF ({device})").format(device=profile.identity.product_name), profile,
+                       ordered_values,
                        node_id=node_id, notes=notes)
 
 
@@ -400,7 +408,8 @@ def export(fmt: str, stored: StoredSet, profile: Profile, original: bytes | None
         values = {(item.index, item.subindex): raw for item, raw in _stored_items(stored, profile)}
         text = export_xdd(profile, node_id=stored.info.node_id, values=values, xdc=True).decode("utf-8")
         return text, "application/xml"
-    raise InvalidValue(f"Unknown format '{fmt}' (formats: {', '.join(FORMATS)})")
+    raise InvalidValue(_("Unknown format '{format}' (formats: {formats})").format(format=fmt,
+                                                                                  formats=", ".join(FORMATS)))
 
 
 def guess_format(filename: str, text: str) -> str:
@@ -424,8 +433,9 @@ def import_any(data: bytes, filename: str, profiles: ProfileLookup, *, fmt: str 
     if chosen == "json":
         imported = import_json(text, profiles, source=filename)
         if profile_id and imported.profile.id != profile_id:
-            raise SetImportError(filename, [LineError(None, None, f"the file is for profile '{imported.profile.id}', "
-                                                                  f"not '{profile_id}'")])
+            raise SetImportError(filename, [LineError(None, None, _("the file is for profile '{profile}', not "
+                                                                    "'{wanted}'").format(profile=imported.profile.id,
+                                                                                         wanted=profile_id))])
         if name:
             imported.name = name
         return imported
@@ -433,7 +443,8 @@ def import_any(data: bytes, filename: str, profiles: ProfileLookup, *, fmt: str 
         return import_csv(text, profiles, profile_id=profile_id, name=name, source=filename)
     if chosen == "dcf":
         return import_dcf(text, profiles, profile_id=profile_id, name=name, source=filename)
-    raise InvalidValue(f"Unknown format '{chosen}' (formats: {', '.join(FORMATS)})")
+    raise InvalidValue(_("Unknown format '{format}' (formats: {formats})").format(format=chosen,
+                                                                                  formats=", ".join(FORMATS)))
 
 
 def file_name(stored: StoredSet, fmt: str) -> str:

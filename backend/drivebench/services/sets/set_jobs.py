@@ -23,14 +23,16 @@ from typing import Any
 
 from pydantic import BaseModel
 
+from drivebench import i18n
 from drivebench.device.catalog import Item
 from drivebench.device.motion import moves
 from drivebench.device.profile import Profile
 from drivebench.errors import Conflict, DriveBenchError, SdoAbortError, SdoTimeoutError, UnknownParameter
+from drivebench.i18n import N_, Text, _
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.control import drive_guard
 from drivebench.services.params import parameters
-from drivebench.services.params.jobs import Job, JobIssue, JobManager
+from drivebench.services.params.jobs import Job, JobIssue, JobManager, said
 from drivebench.services.sets.parameter_sets import (
     SERVER,
     ParameterSetStore,
@@ -51,6 +53,10 @@ REDO = ("failed", "mismatch", "not attempted")
 """Report states a retry writes again."""
 CHANGED = ("written", "mismatch", "failed")
 """Report states a rollback restores (a failed write may still have changed the value)."""
+WHAT_WRITES = {"download": N_("A download that writes {refs}"), "retry": N_("A retry that writes {refs}"),
+               "rollback": N_("A rollback that writes {refs}")}
+SAID = "detail_said"
+"""A stored report line's detail as ``Text.saved`` keeps it (translated for each reader, see ``report_line``)."""
 
 
 class ReportLine(BaseModel):
@@ -71,9 +77,16 @@ class ReportLine(BaseModel):
     now_raw: Raw | None = None
 
 
+def report_line(line: dict[str, Any]) -> ReportLine:
+    """A report line as the job or the database holds it, its detail in the reader's language."""
+    kept = line.get(SAID)
+    return ReportLine(**{**line, "detail": i18n.shown(Text.loaded(kept))} if kept else line)
+
+
 def _profile(node: SessionNode) -> Profile:
     if node.profile is None:
-        raise Conflict(f"Node {node.node_id} has no device profile: assign one on the Plant page first")
+        raise Conflict(_("Node {node} has no device profile: assign one on the Plant page first").format(
+            node=node.node_id))
     return node.profile
 
 
@@ -127,7 +140,8 @@ async def device_source(session: Session, node_id: int, refs: list[str] | None =
         items = [item for ref in refs if (item := _resolve(catalog, ref)) is not None and item.entry.access.readable]
     job = Job(f"compare-{uuid.uuid4().hex[:6]}", "read", f"Read node {node_id}", len(items))
     values, unread = await read_items(session, node, items, job)
-    return Source(f"Node {node_id} ({node.device_name})", profile, values, unread)
+    unread = {ref: i18n.shown(why) for ref, why in unread.items()}  # this request's own comparison
+    return Source(_("Node {node} ({device})").format(node=node_id, device=node.device_name), profile, values, unread)
 
 
 def _resolve(catalog: Any, ref: str) -> Item | None:
@@ -151,22 +165,26 @@ def start_upload(session: Session, node_id: int, jobs: JobManager, store: Parame
         _check_target(node, existing := store.get(into))
         name = existing.info.name
 
+    remark = note or _("Uploaded from node {node} of session '{session}'").format(node=node_id,  # the set's note
+                                                                                   session=session.name)
+
     async def run(job: Job) -> None:
         found, unread = await read_items(session, node, items, job)
         values = {item.ref: found[item.ref] for item in items if item.ref in found}  # the profile's order
         if unread:
-            job.notes.append(f"{len(unread)} parameters could not be read and are not in the set")
+            job.notes.append(Text(N_("{count} parameters could not be read and are not in the set"),
+                                   count=len(unread)))
         reason = f"upload from node {node_id}"
         if into is not None:
             stored = await asyncio.to_thread(store.update_values, into, values, user=who, reason=reason)
         else:
-            remark = note or f"Uploaded from node {node_id} of session '{session.name}'"
             stored = await asyncio.to_thread(store.create, name, profile, values, user=who, node_id=node_id,
                                              session_id=session.id, note=remark, reason=reason)
         job.result["set_id"] = stored.info.id
         job.result["version"] = stored.version
 
-    return jobs.start("upload", f"Upload node {node_id} into '{name}'", len(items), run)
+    return jobs.start("upload", Text(N_("Upload node {node} into '{name}'"), node=node_id, name=name), len(items),
+                      run)
 
 
 # --- preview -----------------------------------------------------------------------------------------------
@@ -184,8 +202,8 @@ async def preview(session: Session, node_id: int, stored: StoredSet) -> list[Rep
             continue
         item = _resolve(catalog, ref)
         if item is None:
-            lines.append(ReportLine(ref=ref, name="(not in the profile)", status="failed", before=None,
-                                    target=str(target), now=None, detail="not a parameter of this profile",
+            lines.append(ReportLine(ref=ref, name=_("(not in the profile)"), status="failed", before=None,
+                                    target=str(target), now=None, detail=_("not a parameter of this profile"),
                                     target_raw=target))
             continue
         lines.append(ReportLine(ref=ref, name=item.name, status="will change", before=shown(item, before),
@@ -197,8 +215,9 @@ async def preview(session: Session, node_id: int, stored: StoredSet) -> list[Rep
 def _check_target(node: SessionNode, stored: StoredSet) -> Profile:
     profile = _profile(node)
     if profile.id != stored.info.profile_id:
-        raise Conflict(f"Set '{stored.info.name}' is for {stored.info.device} ({stored.info.profile_id}); node "
-                       f"{node.node_id} is a {node.device_name} ({profile.id})")
+        raise Conflict(_("Set '{name}' is for {device} ({profile}); node {node} is a {node_device} ({node_profile})"
+                         ).format(name=stored.info.name, device=stored.info.device, profile=stored.info.profile_id,
+                                  node=node.node_id, node_device=node.device_name, node_profile=profile.id))
     return profile
 
 
@@ -212,7 +231,8 @@ def start_download(session: Session, node_id: int, jobs: JobManager, store: Para
     _check_target(node, stored)
     targets = {ref: raw for ref, raw in stored.values.items() if only is None or ref in only}
     kind = "download" if only is None else "retry"
-    title = f"{'Download' if only is None else 'Retry'} '{stored.info.name}' to node {node_id}"
+    title = Text(N_("Download '{name}' to node {node}") if only is None else N_("Retry '{name}' to node {node}"),
+                  name=stored.info.name, node=node_id)
     return _start(session, node, jobs, store, targets, kind=kind, title=title, save=save, user=user,
                   set_id=stored.info.id, set_version=stored.version, confirm=confirm)
 
@@ -224,10 +244,11 @@ def start_retry(session: Session, jobs: JobManager, store: ParameterSetStore, do
     redo = {line["ref"]: line["target_raw"] for line in previous.report
             if line["status"] in REDO and line.get("target_raw") is not None}
     if not redo:
-        raise Conflict(f"Download {download_id} has nothing left to retry")
+        raise Conflict(_("Download {id} has nothing left to retry").format(id=download_id))
     node = session.node(previous.node_id)
     return _start(session, node, jobs, store, redo, kind="retry", save=save, user=user,
-                  title=f"Retry {len(redo)} parameters of download {download_id} on node {node.node_id}",
+                  title=Text(N_("Retry {count} parameters of download {id} on node {node}"), count=len(redo),
+                              id=download_id, node=node.node_id),
                   set_id=previous.set_id, set_version=previous.set_version, confirm=confirm)
 
 
@@ -242,9 +263,10 @@ def start_rollback(session: Session, jobs: JobManager, store: ParameterSetStore,
         touched = list(previous.before)
     targets = {ref: previous.before[ref] for ref in touched if ref in previous.before}
     if not targets:
-        raise Conflict(f"Download {download_id} changed nothing that could be rolled back")
+        raise Conflict(_("Download {id} changed nothing that could be rolled back").format(id=download_id))
     return _start(session, node, jobs, store, targets, kind="rollback", save=save, user=user,
-                  title=f"Roll back download {download_id} on node {node.node_id}", set_id=previous.set_id,
+                  title=Text(N_("Roll back download {id} on node {node}"), id=download_id, node=node.node_id),
+                  set_id=previous.set_id,
                   set_version=previous.set_version, confirm=confirm)
 
 
@@ -260,8 +282,8 @@ def _start(session: Session, node: SessionNode, jobs: JobManager, store: Paramet
     moving = [ref for ref in order if ref in items and isinstance(targets[ref], (int, float))
               and moves(items[ref], targets[ref]) is not None]
     if moving:  # asked before anything is read or written; each such write arms the guard as it goes out
-        drive_guard.confirm_moving(session, node.node_id, f"A {kind} that writes {', '.join(moving[:4])}"
-                                   f"{' ...' if len(moving) > 4 else ''}", confirm=confirm)
+        refs = ", ".join(moving[:4]) + (" ..." if len(moving) > 4 else "")
+        drive_guard.confirm_moving(session, node.node_id, _(WHAT_WRITES[kind]).format(refs=refs), confirm=confirm)
 
     async def run(job: Job) -> None:
         drive_guard.confirming(confirm)  # the job's own writes carry it (this task's context only)
@@ -280,7 +302,7 @@ def _start(session: Session, node: SessionNode, jobs: JobManager, store: Paramet
                     await writer.save()
             state = "done" if not writer.failures() else "incomplete"
         except asyncio.CancelledError:
-            writer.give_up("cancelled before this parameter was written")
+            writer.give_up(Text(N_("cancelled before this parameter was written")))
             state = "cancelled"
             raise
         finally:
@@ -297,12 +319,21 @@ class _Writer:
         self.session, self.node, self.job = session, node, job
         self.items, self.before, self.unread = items, before, unread
         self.lines: dict[str, ReportLine] = {}
+        self.said: dict[str, Text] = {}
+        """The details that are a ``Text``, by ref (a ReportLine keeps only the English text)."""
         self.silence = parameters.silence_watch(session, node.node_id)
         """Gives the node up only on evidence (:mod:`~drivebench.services.params.node_silence`), not after two slow
         answers on a busy machine."""
 
     def report(self) -> list[dict[str, Any]]:
-        return [line.model_dump() for line in self.lines.values()]
+        return [line.model_dump() | ({SAID: kept.saved()} if (kept := self.said.get(line.ref)) is not None
+                                     and kept == line.detail else {}) for line in self.lines.values()]
+
+    def _say(self, line: ReportLine, detail: str | None) -> str | None:
+        line.detail = detail
+        if isinstance(detail, Text):
+            self.said[line.ref] = detail
+        return detail
 
     def failures(self) -> list[ReportLine]:
         return [line for line in self.lines.values() if line.status in REDO]
@@ -333,12 +364,14 @@ class _Writer:
         target = line.target_raw
         assert target is not None
         if item is None:
-            line.status, line.detail = "failed", "not a parameter of this device's profile (not sent)"
-            self.job.advance(issue=JobIssue(line.ref, line.detail, self.node.node_id))
+            line.status = "failed"
+            detail = self._say(line, Text(N_("not a parameter of this device's profile (not sent)")))
+            self.job.advance(issue=JobIssue(line.ref, detail or "", self.node.node_id))
             return
         if self.silence.verdict is not None:
-            line.detail = f"node {self.node.node_id} stopped answering; not sent (value as read before)"
-            self.job.advance(issue=JobIssue(line.ref, line.detail, self.node.node_id))
+            detail = self._say(line, Text(N_("node {node} stopped answering; not sent (value as read before)"),
+                                           node=self.node.node_id))
+            self.job.advance(issue=JobIssue(line.ref, detail or "", self.node.node_id))
             return
         if line.before_raw is not None and same_raw(line.before_raw, target):
             line.status = "unchanged"
@@ -348,25 +381,27 @@ class _Writer:
             result = await parameters.write(self.session, self.node.node_id, item.ref, engineering(item, target))
         except SdoTimeoutError as exc:
             await self.silence.timed_out(exc)
-            line.status, line.detail = "failed", exc.detail
+            line.status = "failed"
             line.now = None
             line.now_raw = None
-            self.job.advance(issue=JobIssue(line.ref, exc.detail, self.node.node_id))
+            self.job.advance(issue=JobIssue(line.ref, self._say(line, said(exc)) or "", self.node.node_id))
             return
         except SdoAbortError as exc:
             self.silence.answered()
-            line.status, line.detail = "failed", exc.detail
+            line.status = "failed"
             line.abort_code, line.abort_text = f"0x{exc.abort_code:08X}", exc.abort_text
-            self.job.advance(issue=JobIssue(line.ref, exc.detail, self.node.node_id, line.abort_code, exc.abort_text))
+            self.job.advance(issue=JobIssue(line.ref, self._say(line, said(exc)) or "", self.node.node_id,
+                                            line.abort_code, exc.abort_text))
             return
         except DriveBenchError as exc:  # refused by the profile's checks before anything was sent
-            line.status, line.detail = "failed", f"not sent: {exc.detail}"
-            self.job.advance(issue=JobIssue(line.ref, line.detail, self.node.node_id))
+            line.status = "failed"
+            detail = self._say(line, Text(N_("not sent: {why}"), why=said(exc)))
+            self.job.advance(issue=JobIssue(line.ref, detail or "", self.node.node_id))
             return
         self.silence.answered()
         state, detail = audit.outcome(result, None)
         line.status = "mismatch" if state == "mismatch" else "written"
-        line.detail = detail
+        self._say(line, detail)
         if result.read_back is not None:
             raw = result.read_back.raw
             line.now_raw = raw.hex() if isinstance(raw, bytes) else raw
@@ -374,7 +409,7 @@ class _Writer:
         else:
             line.now_raw, line.now = target, line.target
         if line.status == "mismatch":
-            self.job.advance(issue=JobIssue(line.ref, detail or "mismatch", self.node.node_id))
+            self.job.advance(issue=JobIssue(line.ref, detail or Text(N_("mismatch")), self.node.node_id))
         else:
             self.job.advance()
 
@@ -397,23 +432,24 @@ class _Writer:
     async def save(self) -> None:
         failed = self.failures()
         if failed:
-            self.job.notes.append(f"Not saved on the device: {len(failed)} parameters did not get their value")
+            self.job.notes.append(Text(N_("Not saved on the device: {count} parameters did not get their value"),
+                                        count=len(failed)))
             self.job.advance()
             return
         try:
             done = await parameters.command(self.session, self.node.node_id, parameters.DeviceCommand.SAVE)
         except DriveBenchError as exc:
-            self.job.advance(issue=JobIssue("save", exc.detail, self.node.node_id))
-            self.job.notes.append(f"Save failed: {exc.detail}")
+            self.job.advance(issue=JobIssue("save", said(exc), self.node.node_id))
+            self.job.notes.append(Text(N_("Save failed: {why}"), why=said(exc)))
             return
-        self.job.notes.append(f"Saved on the device ({done.via})")
+        self.job.notes.append(Text(N_("Saved on the device ({via})"), via=done.via))
         self.job.result["saved"] = done.via
         self.job.advance()
 
     def give_up(self, why: str) -> None:
         for line in self.lines.values():
             if line.status == "not attempted" and line.detail is None:
-                line.detail = why
+                self._say(line, why)
 
 
 def running_downloads(jobs: JobManager) -> set[int]:

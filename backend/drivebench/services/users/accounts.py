@@ -26,7 +26,7 @@ from sqlalchemy.orm import Session
 
 from drivebench.config import settings
 from drivebench.errors import AccessDenied, Conflict, InvalidValue, NotAuthenticated, NotFound
-from drivebench.i18n import N_
+from drivebench.i18n import N_, _, ngettext
 from drivebench.services.storage.database import transaction
 from drivebench.services.storage.models import (
     ApiTokenRow,
@@ -84,7 +84,7 @@ class LoginLocked(NotAuthenticated):
     title = N_("Too many failed sign-ins")
 
     def __init__(self, detail: str, *, retry_after_s: int) -> None:
-        super().__init__(detail, hint="Wait, then sign in again; an admin can reset a forgotten password.")
+        super().__init__(detail, hint=N_("Wait, then sign in again; an admin can reset a forgotten password."))
         self.retry_after_s = retry_after_s
 
     def extra(self) -> dict[str, object]:
@@ -95,16 +95,18 @@ class LoginLocked(NotAuthenticated):
 def _check_name(name: str) -> str:
     name = name.strip()
     if not NAME_PATTERN.fullmatch(name):
-        raise InvalidValue(f"User name {name!r} is not allowed: use 1 to 60 letters, digits, '.', '_', '@' or '-', "
-                           "starting with a letter or digit.")
+        raise InvalidValue(_("User name {name} is not allowed: use 1 to 60 letters, digits, '.', '_', '@' or '-', "
+                             "starting with a letter or digit.").format(name=repr(name)))
     return name
 
 
 def _check_password(password: str) -> str:
     if len(password) < MIN_PASSWORD_LENGTH:
-        raise InvalidValue(f"The password is too short: use at least {MIN_PASSWORD_LENGTH} characters.")
+        raise InvalidValue(_("The password is too short: use at least {count} characters.").format(
+            count=MIN_PASSWORD_LENGTH))
     if len(password) > MAX_PASSWORD_LENGTH:
-        raise InvalidValue(f"The password is too long: use at most {MAX_PASSWORD_LENGTH} characters.")
+        raise InvalidValue(_("The password is too long: use at most {count} characters.").format(
+            count=MAX_PASSWORD_LENGTH))
     return password
 
 
@@ -199,7 +201,7 @@ def create_user(name: str, password: str, role: Role) -> User:
     password_hash = _hasher.hash(_check_password(password))
     with transaction() as db:
         if db.scalar(select(UserRow).where(UserRow.name == name)) is not None:
-            raise Conflict(f"A user called {name} exists already.")
+            raise Conflict(_("A user called {name} exists already.").format(name=name))
         created = _add_user(db, name, password_hash, role)
     directory.forget()
     return created
@@ -242,7 +244,7 @@ def get_user(name: str) -> User:
 def _user_row(db: Session, name: str) -> UserRow:
     row = db.scalar(select(UserRow).where(UserRow.name == name))
     if row is None:
-        raise NotFound(f"There is no user called {name}.")
+        raise NotFound(_("There is no user called {name}.").format(name=name))
     return row
 
 
@@ -252,9 +254,9 @@ def _keep_an_admin(db: Session, row: UserRow, *, role: Role, disabled: bool) -> 
         return
     admins = db.scalars(select(UserRow).where(UserRow.role == Role.ADMIN.label, UserRow.disabled.is_(False)))
     if len(list(admins)) <= 1:
-        raise Conflict(f"{row.name} is the last enabled admin: without one, signing in would be switched off and "
-                       "every screen open to anyone who reaches the server.",
-                       hint="Add another admin first.")
+        raise Conflict(_("{name} is the last enabled admin: without one, signing in would be switched off and "
+                         "every screen open to anyone who reaches the server.").format(name=row.name),
+                       hint=N_("Add another admin first."))
 
 
 def set_disabled(name: str, disabled: bool = True) -> User:
@@ -297,7 +299,7 @@ def set_password(name: str, password: str) -> User:
 def verify_password(name: str, password: str) -> Principal:
     """The principal of a correct name and password; ``NotAuthenticated`` (in the same words) otherwise."""
     global _dummy_hash
-    wrong = NotAuthenticated("Wrong user name or password.")
+    wrong = NotAuthenticated(_("Wrong user name or password."))
     with transaction() as db:
         row = db.scalar(select(UserRow).where(UserRow.name == name.strip()))
         if row is None or row.disabled:
@@ -318,13 +320,13 @@ def verify_password(name: str, password: str) -> Principal:
 def issue_token(owner: str, name: str, role: Role) -> IssuedToken:
     name = name.strip()
     if not 1 <= len(name) <= 120:
-        raise InvalidValue("Give the token a name of 1 to 120 characters (what the script does).")
+        raise InvalidValue(_("Give the token a name of 1 to 120 characters (what the script does)."))
     secret = TOKEN_PREFIX + secrets.token_urlsafe(32)
     with transaction() as db:
         user = _user_row(db, owner)
         if role > Role.parse(user.role):
-            raise AccessDenied(f"A token of {owner} cannot have the {role.label} role: {owner} is "
-                               f"{Role.parse(user.role).label}.")
+            raise AccessDenied(_("A token of {owner} cannot have the {role} role: {owner} is {owner_role}.").format(
+                owner=owner, role=role.label, owner_role=Role.parse(user.role).label))
         row = ApiTokenRow(name=name, owner_id=user.id, role=role.label, token_hash=_token_hash(secret),
                           hint=secret[:10], created=utcnow())
         db.add(row)
@@ -346,7 +348,8 @@ def revoke_token(token_id: int, *, owner: str | None = None) -> ApiToken:
         found = db.execute(select(ApiTokenRow, UserRow.name).join(UserRow, ApiTokenRow.owner_id == UserRow.id)
                            .where(ApiTokenRow.id == token_id)).first()
         if found is None or (owner is not None and found[1] != owner):
-            raise NotFound(f"There is no API token {token_id}" + (f" of {owner}." if owner else "."))
+            raise NotFound(_("There is no API token {id} of {owner}.").format(id=token_id, owner=owner) if owner
+                           else _("There is no API token {id}.").format(id=token_id))
         row, owner_name = found
         row.revoked = row.revoked or utcnow()
         revoked = _token(row, owner_name)
@@ -361,8 +364,8 @@ def _revoke_tokens_of(db: Session, user_id: int) -> None:
 
 def verify_token(secret: str) -> Principal:
     """The principal a token acts as: the lower of the token's and its owner's current role."""
-    refused = NotAuthenticated("The API token is unknown or revoked.",
-                               hint="Create a new token on the Users page or with `drivebench tokens create`.")
+    refused = NotAuthenticated(_("The API token is unknown or revoked."),
+                               hint=N_("Create a new token on the Users page or with `drivebench tokens create`."))
     if not secret.startswith(TOKEN_PREFIX):
         raise refused
     token_hash = _token_hash(secret)
@@ -411,9 +414,9 @@ def in_words(seconds: float) -> str:
     minutes, rest = divmod(whole, 60)
     parts = []
     if minutes:
-        parts.append(f"{minutes} minute{'s' if minutes != 1 else ''}")
+        parts.append(ngettext("{count} minute", "{count} minutes", minutes).format(count=minutes))
     if rest or not minutes:
-        parts.append(f"{rest} second{'s' if rest != 1 else ''}")
+        parts.append(ngettext("{count} second", "{count} seconds", rest).format(count=rest))
     return " ".join(parts)
 
 
@@ -437,8 +440,8 @@ class LoginLimiter:
             entry = db.get(SignInFailureRow, key[:MAX_LIMIT_KEY])
             left = entry.locked_until - self._clock() if entry else 0.0
         if left > 0:
-            raise LoginLocked(f"Too many failed sign-ins {what}: try again in {in_words(left)}.",
-                              retry_after_s=max(1, int(left + 0.999)))
+            raise LoginLocked(_("Too many failed sign-ins {what}: try again in {wait}.").format(
+                what=what, wait=in_words(left)), retry_after_s=max(1, int(left + 0.999)))
 
     def failed(self, key: str) -> None:
         now, key = self._clock(), key[:MAX_LIMIT_KEY]
@@ -476,8 +479,8 @@ class SignIn:
 
     def __call__(self, name: str, password: str, address: str) -> Principal:
         user_key, address_key = f"user:{name.strip().lower()}", f"address:{address}"
-        self.per_user.check(user_key, f"for {name.strip()}")
-        self.per_address.check(address_key, f"from {address}")
+        self.per_user.check(user_key, _("for {name}").format(name=name.strip()))
+        self.per_address.check(address_key, _("from {address}").format(address=address))
         try:
             principal = verify_password(name, password)
         except NotAuthenticated:

@@ -21,6 +21,7 @@ from datetime import datetime
 from sqlalchemy import or_, select, update
 
 from drivebench.errors import DriveBenchError, SdoAbortError
+from drivebench.i18n import N_, Text
 from drivebench.services.params import parameters
 from drivebench.services.params.parameters import WriteAttempt, WriteResult
 from drivebench.services.storage.database import transaction
@@ -81,14 +82,14 @@ def outcome(result: WriteResult | None, error: BaseException | None) -> tuple[st
         if isinstance(error, DriveBenchError):
             return "failed", error.detail
         if isinstance(error, asyncio.CancelledError):
-            return "failed", "cancelled while the write was under way: the device may hold either value"
+            return "failed", Text(N_("cancelled while the write was under way: the device may hold either value"))
         return "failed", f"{type(error).__name__}: {error}"
     assert result is not None
     if result.verified is None:
-        return "not verified", "not read back"
+        return "not verified", Text(N_("not read back"))
     if not result.verified:
         return "mismatch", result.mismatch
-    return "written", "takes effect after reset node" if result.reset_required else None
+    return "written", Text(N_("takes effect after reset node")) if result.reset_required else None
 
 
 class AuditLog:
@@ -108,7 +109,8 @@ class AuditLog:
 
     async def done(self, token: object, result: WriteResult | None, error: BaseException | None) -> None:
         state, detail = outcome(result, error)
-        await asyncio.to_thread(self._complete, int(token), state, detail)  # type: ignore[call-overload]
+        await asyncio.to_thread(self._complete, int(token), state,  # type: ignore[call-overload]
+                                None if detail is None else str(detail))
 
     def _insert(self, row: AuditRow) -> int:
         with transaction(self.url) as db:

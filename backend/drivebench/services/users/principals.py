@@ -5,6 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import IntEnum
 
+from drivebench.i18n import _
+
 
 class Role(IntEnum):
     VIEWER = 1  # read, watch, remote diagnostics
@@ -20,7 +22,8 @@ class Role(IntEnum):
         try:
             return cls[text.strip().upper()]
         except KeyError:
-            raise ValueError(f"unknown role {text!r}: choose viewer, engineer or admin") from None
+            raise ValueError(_("unknown role {role}: choose viewer, engineer or admin").format(
+                role=repr(text))) from None
 
 
 @dataclass(frozen=True)

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from sqlalchemy import delete, or_, select
 
 from drivebench.errors import NotAuthenticated, NotFound
+from drivebench.i18n import N_, _
 from drivebench.services.storage.database import transaction
 from drivebench.services.storage.models import ShareLinkRow
 
@@ -73,12 +74,12 @@ class ShareLinks:
             row = db.scalar(select(ShareLinkRow).where(ShareLinkRow.token_hash == _digest(token)))
             link = _link(row) if row is not None else None
         if link is None:
-            raise NotAuthenticated("This share link is not valid (it was revoked, or it expired long ago).",
-                                   hint="Ask the engineer on site for a new link.")
+            raise NotAuthenticated(_("This share link is not valid (it was revoked, or it expired long ago)."),
+                                   hint=N_("Ask the engineer on site for a new link."))
         if link.expired():
             expired_at = time.strftime("%Y-%m-%d %H:%M", time.localtime(link.expires))
-            raise NotAuthenticated(f"This share link expired at {expired_at}.",
-                                   hint="Ask the engineer on site for a new link.")
+            raise NotAuthenticated(_("This share link expired at {moment}.").format(moment=expired_at),
+                                   hint=N_("Ask the engineer on site for a new link."))
         return link
 
     def revoke(self, id_or_token: str) -> None:
@@ -87,7 +88,7 @@ class ShareLinks:
             gone = db.execute(delete(ShareLinkRow).where(or_(ShareLinkRow.token_hash == _digest(id_or_token),
                                                               ShareLinkRow.id == id_or_token)))
             if not gone.rowcount:  # type: ignore[attr-defined]
-                raise NotFound("There is no active share link with that id or token.")
+                raise NotFound(_("There is no active share link with that id or token."))
 
     def active(self) -> list[ShareLink]:
         with transaction(self.url) as db:

@@ -11,6 +11,7 @@ from fastapi.responses import JSONResponse
 from pydantic import BaseModel, Field
 
 from drivebench.errors import Conflict, NotAuthenticated
+from drivebench.i18n import _
 from drivebench.services.users import accounts
 from drivebench.services.users.principals import Principal, Role
 from drivebench.web import access
@@ -116,8 +117,8 @@ def client_address(request: Request) -> str:
 async def sign_in(request: Request, name: str, password: str) -> tuple[str, access.SignedIn, Principal]:
     """Check the password (rate-limited); the cookie value and session of the new sign-in."""
     if not await asyncio.to_thread(accounts.authentication_configured):
-        raise Conflict("Signing in is not switched on: there is no admin user yet, so this server trusts the "
-                       "local user.", hint=f"Create the first admin: {FIRST_ADMIN}")
+        raise Conflict(_("Signing in is not switched on: there is no admin user yet, so this server trusts the "
+                         "local user."), hint=_("Create the first admin: {command}").format(command=FIRST_ADMIN))
     principal = await asyncio.to_thread(accounts.sign_in, name, password, client_address(request))
     user = await asyncio.to_thread(accounts.get_user, principal.name)
     value, signed_in = access.sessions.issue(user)
@@ -163,8 +164,9 @@ async def me(request: Request, principal: PrincipalDep) -> Me:
 
 def _signed_in_user(principal: Principal) -> str:
     if principal.via not in ("login", "token"):
-        raise NotAuthenticated("Only a signed-in user has a password and API tokens of their own.",
-                               hint=f"Signing in starts when an admin exists: {FIRST_ADMIN}")
+        raise NotAuthenticated(_("Only a signed-in user has a password and API tokens of their own."),
+                               hint=_("Signing in starts when an admin exists: {command}").format(
+                                   command=FIRST_ADMIN))
     return principal.name
 
 

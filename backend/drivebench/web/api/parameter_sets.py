@@ -19,6 +19,7 @@ from drivebench.config import settings
 from drivebench.device.loader import original_file
 from drivebench.device.profile import Profile
 from drivebench.errors import InvalidValue
+from drivebench.i18n import _
 from drivebench.services.params.jobs import Job, JobManager
 from drivebench.services.session_manager import SessionManager
 from drivebench.services.sets import set_formats, set_jobs
@@ -177,7 +178,7 @@ def detail_out(stored: StoredSet, profile: Profile) -> SetDetailOut:
     values = []
     for ref, raw in stored.values.items():
         item = set_jobs._resolve(catalog, ref)
-        values.append(SetValueOut(ref=ref, name=item.name if item else "(not in the profile)", raw=raw,
+        values.append(SetValueOut(ref=ref, name=item.name if item else _("(not in the profile)"), raw=raw,
                                   display=shown(item, raw) if item else str(raw),
                                   unit=item.entry.unit if item else None))
     return SetDetailOut(**stored.info.model_dump(), shown_version=stored.version, values=values)
@@ -190,7 +191,7 @@ def download_out(row: DownloadRow, jobs: JobManager) -> DownloadOut:
     return DownloadOut(id=row.id, kind=row.kind, set_id=row.set_id, set_version=row.set_version,
                        session_id=row.session_id, node_id=row.node_id, profile_id=row.profile_id, user=row.user,
                        started=row.started, finished=row.finished, state=set_jobs.download_state(row, jobs),
-                       counts=counts, report=[ReportLine(**line) for line in row.report])
+                       counts=counts, report=[set_jobs.report_line(line) for line in row.report])
 
 
 def set_job_out(job: Job) -> SetJobOut:
@@ -198,22 +199,22 @@ def set_job_out(job: Job) -> SetJobOut:
     report = job.result.get("report", [])
     return SetJobOut(**base.model_dump(), set_id=job.result.get("set_id"), version=job.result.get("version"),
                      download_id=job.result.get("download_id"), download_state=job.result.get("state"),
-                     report=[ReportLine(**line) for line in report])
+                     report=[set_jobs.report_line(line) for line in report])
 
 
 def resolve_source(state: AppState, manager: SessionManager, spec: SourceIn) -> Source | tuple[str, int, list[str]]:
     """A set or defaults source now; a node source as (session, node, refs) to read (async, see compare route)."""
     if spec.kind == "set":
         if spec.set_id is None:
-            raise InvalidValue("A set source needs set_id")
+            raise InvalidValue(_("A set source needs set_id"))
         stored = store().get(spec.set_id, spec.version)
         return set_source(stored, state.registry.get(stored.info.profile_id))
     if spec.kind == "defaults":
         if spec.profile_id is None:
-            raise InvalidValue("A defaults source needs profile_id")
+            raise InvalidValue(_("A defaults source needs profile_id"))
         return defaults_source(state.registry.get(spec.profile_id), spec.node_id)
     if spec.session_id is None or spec.node_id is None:
-        raise InvalidValue("A node source needs session_id and node_id")
+        raise InvalidValue(_("A node source needs session_id and node_id"))
     manager.get(spec.session_id).node(spec.node_id)
     return (spec.session_id, spec.node_id, [])
 
@@ -267,7 +268,8 @@ async def import_set(state: StateDep, file: Annotated[UploadFile, File()],
     its line (422, ``errors``) and nothing is stored."""
     data = await file.read(set_formats.MAX_SET_FILE_BYTES + 1)
     if len(data) > set_formats.MAX_SET_FILE_BYTES:
-        raise InvalidValue(f"The file is larger than {set_formats.MAX_SET_FILE_BYTES // 1024 // 1024} MB")
+        raise InvalidValue(_("The file is larger than {size} MB").format(
+            size=set_formats.MAX_SET_FILE_BYTES // 1024 // 1024))
     filename = file.filename or "upload"
     imported = set_formats.import_any(data, filename, state.registry.get, fmt=format or None,
                                       profile_id=profile_id or None, name=name or None)
@@ -288,7 +290,7 @@ async def update_set(set_id: RowId, body: SetUpdate, state: StateDep, user: User
     if body.values:
         edited = store().get(set_id, body.version)
         changes = set_formats.checked_values(state.registry.get(info.profile_id), body.values,
-                                             f"Parameter set {set_id}")
+                                             _("Parameter set {id}").format(id=set_id))
         info = store().update_values(set_id, {**edited.values, **changes}, user=user_of(user), reason=body.reason,
                                      base_version=edited.version).info
     return info
@@ -323,11 +325,13 @@ async def copy_set(set_id: RowId, body: CopyIn, state: StateDep, user: UserHeade
     profile = state.registry.get(stored.info.profile_id)
     from_node = body.from_node or stored.info.node_id
     if from_node is None:
-        raise InvalidValue("The set was not uploaded from a node: give from_node")
+        raise InvalidValue(_("The set was not uploaded from a node: give from_node"))
     values, notes = retarget(profile, stored.values, from_node, body.to_node)
-    copy = store().create(body.name or f"{stored.info.name} (node {body.to_node})", profile, values,
-                          user=user_of(user), node_id=body.to_node, session_id=stored.info.session_id,
-                          note=f"Copy of set {set_id} v{stored.version} for node {body.to_node}",
+    copy = store().create(body.name or _("{name} (node {node})").format(name=stored.info.name, node=body.to_node),
+                          profile, values, user=user_of(user), node_id=body.to_node,
+                          session_id=stored.info.session_id,
+                          note=_("Copy of set {id} v{version} for node {node}").format(
+                              id=set_id, version=stored.version, node=body.to_node),
                           reason=f"copy of set {set_id} v{stored.version} for node {body.to_node}")
     return CopyOut(set=copy.info, notes=notes)
 

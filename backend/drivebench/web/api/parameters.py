@@ -15,6 +15,7 @@ from pydantic import BaseModel, Field, TypeAdapter, model_validator
 from drivebench.device.catalog import Item
 from drivebench.device.scaling import ScaledValue
 from drivebench.errors import DriveBenchError
+from drivebench.i18n import shown
 from drivebench.services.control import drive_guard
 from drivebench.services.params import parameter_batch as batch
 from drivebench.services.params import parameters as service
@@ -257,7 +258,8 @@ def info_out(item: Item, last: ParameterValue | None) -> ParameterInfo:
 def write_out(result: WriteResult, pending: set[str]) -> WriteOut:
     return WriteOut(ref=result.ref, written=_scaled_out(result.written),
                     read_back=value_out(result.read_back) if result.read_back else None,
-                    verified=result.verified, mismatch=result.mismatch, reset_required=result.reset_required,
+                    verified=result.verified, mismatch=result.mismatch and shown(result.mismatch),
+                    reset_required=result.reset_required,
                     pending_reset=sorted(pending))
 
 
@@ -271,9 +273,9 @@ def job_out(job: Job, *, with_result: bool = True) -> JobOut:
             if retry in job.result:
                 result[retry] = job.result[retry]
     return JobOut(
-        id=job.id, kind=job.kind, title=job.title, state=job.state.value,
-        progress=job.progress(), error=job.error, notes=list(job.notes),
-        issues=[IssueOut(item=i.item, node=i.node, detail=i.detail, abort_code=i.abort_code,
+        id=job.id, kind=job.kind, title=shown(job.title), state=job.state.value,
+        progress=job.progress(), error=job.error and shown(job.error), notes=[shown(note) for note in job.notes],
+        issues=[IssueOut(item=i.item, node=i.node, detail=shown(i.detail), abort_code=i.abort_code,
                          abort_text=i.abort_text) for i in job.issues],
         result=result, links={"self": f"/api/jobs/{job.id}", "progress": f"/ws/jobs/{job.id}"})
 
@@ -394,7 +396,7 @@ async def read_all_nodes(session: SessionDep, jobs: JobsDep, body: SessionRead |
 @router.post(NODE + "/commands/{command}", dependencies=[ACTING], response_model=CommandOut)
 async def device_command(session: SessionDep, node: NodeDep, command: DeviceCommand) -> CommandOut:
     result = await service.command(session, node.node_id, command)
-    return CommandOut(command=result.command.value, via=result.via, detail=result.detail,
+    return CommandOut(command=result.command.value, via=result.via, detail=shown(result.detail),
                       pending_reset=sorted(node.pending_reset))
 
 

@@ -16,6 +16,7 @@ from fastapi import APIRouter, Request, status
 from pydantic import BaseModel, Field, model_validator
 
 from drivebench.errors import AccessDenied, InvalidValue
+from drivebench.i18n import _
 from drivebench.protocol.nmt import COMMAND_BY_NAME, NmtCommand
 from drivebench.services.bus.fieldbus import SessionSpec, parse_spec
 from drivebench.services.bus.sessions import Session
@@ -158,9 +159,9 @@ async def send_nmt(request: Request, session: Session, body: NodeNmtRequest, nod
     if command is NmtCommand.START and not body.keepalive:
         principal = principal_of(request)
         if not principal.may(Role.ADMIN):
-            raise AccessDenied("Starting a node without the keep-alive guard is for admins only.")
+            raise AccessDenied(_("Starting a node without the keep-alive guard is for admins only."))
         if not (body.reason or "").strip():
-            raise InvalidValue("Say why the node runs without the keep-alive guard (reason).")
+            raise InvalidValue(_("Say why the node runs without the keep-alive guard (reason)."))
         log.warning("NMT start of node %s without keep-alive by %s: %s", node_id or "all", principal.name,
                     body.reason)
     await drive_guard.nmt(session, command, node_id, panel, confirm=confirmation(request, body.confirm),
@@ -218,7 +219,7 @@ async def release_lease(session: SessionDep, node: NodeDep, writer: WriterDep, p
     table = node_lease.leases(session)
     if not table.release(node.node_id, writer) and force:
         if not principal.may(Role.ADMIN):
-            raise AccessDenied("Only an admin may break another writer's lease.")
+            raise AccessDenied(_("Only an admin may break another writer's lease."))
         table.break_lease(node.node_id, f"{principal.name} ({writer.client})")
     return lease_out(session, node.node_id, writer)
 

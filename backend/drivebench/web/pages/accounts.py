@@ -9,6 +9,7 @@ from fastapi import APIRouter, Form, Request
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 
 from drivebench.errors import DriveBenchError, InvalidValue
+from drivebench.i18n import _
 from drivebench.services.users import accounts
 from drivebench.services.users.principals import Role
 from drivebench.web import access
@@ -50,8 +51,8 @@ async def login_form(request: Request, name: str = Form(""), password: str = For
                      next: str = Form("/")) -> Response:
     try:
         if not name.strip() or not password:
-            raise InvalidValue("Enter your user name and your password.")
-        value, _, _ = await sign_in(request, name, password)
+            raise InvalidValue(_("Enter your user name and your password."))
+        value, _signed_in, _principal = await sign_in(request, name, password)
     except DriveBenchError as exc:
         body = problem_body(exc, request.url.path)
         status = 429 if isinstance(exc, accounts.LoginLocked) else int(body["status"])  # type: ignore[call-overload]
@@ -110,43 +111,46 @@ async def add_user(request: Request, name: str = Form(""), role: str = Form("vie
                    password_again: str = Form("")) -> Response:
     def add() -> accounts.User:
         if password != password_again:
-            raise InvalidValue("The two passwords differ: type the same password twice.")
+            raise InvalidValue(_("The two passwords differ: type the same password twice."))
         return accounts.create_user(name, password, _role(role))
 
-    return await _act(request, "users", add, f"Added {name.strip()} ({role}).")
+    return await _act(request, "users", add, _("Added {name} ({role}).").format(name=name.strip(), role=role))
 
 
 @router.post("/ui/users/{name}/disable", response_class=HTMLResponse)
 async def disable_user(request: Request, name: str) -> Response:
     return await _act(request, "users", lambda: accounts.set_disabled(name, True),
-                      f"Disabled {name}: they can no longer sign in, and their tokens stop working.")
+                      _("Disabled {name}: they can no longer sign in, and their tokens stop working.").format(
+                          name=name))
 
 
 @router.post("/ui/users/{name}/enable", response_class=HTMLResponse)
 async def enable_user(request: Request, name: str) -> Response:
-    return await _act(request, "users", lambda: accounts.set_disabled(name, False), f"Enabled {name}.")
+    return await _act(request, "users", lambda: accounts.set_disabled(name, False),
+                      _("Enabled {name}.").format(name=name))
 
 
 @router.post("/ui/users/{name}/role", response_class=HTMLResponse)
 async def change_role(request: Request, name: str, role: str = Form(...)) -> Response:
     return await _act(request, "users", lambda: accounts.set_role(name, _role(role)),
-                      f"{name} is now {role}.")
+                      _("{name} is now {role}.").format(name=name, role=role))
 
 
 @router.post("/ui/users/{name}/password", response_class=HTMLResponse)
 async def reset_password(request: Request, name: str, password: str = Form("")) -> Response:
     return await _act(request, "users", lambda: accounts.set_password(name, password),
-                      f"New password set for {name}; their open sessions have ended.")
+                      _("New password set for {name}; their open sessions have ended.").format(name=name))
 
 
 @router.post("/ui/tokens", response_class=HTMLResponse)
 async def create_token(request: Request, name: str = Form(""), user: str = Form(""),
                        role: str = Form("viewer")) -> Response:
     return await _act(request, "tokens", lambda: accounts.issue_token(user, name, _role(role)),
-                      f"Token '{name.strip()}' created for {user}. Copy it now: it is not shown again.")
+                      _("Token '{name}' created for {user}. Copy it now: it is not shown again.").format(
+                          name=name.strip(), user=user))
 
 
 @router.post("/ui/tokens/{token_id}/revoke", response_class=HTMLResponse)
 async def revoke_token(request: Request, token_id: RowId) -> Response:
     return await _act(request, "tokens", lambda: accounts.revoke_token(token_id),
-                      "Token revoked: scripts using it are refused from now on.")
+                      _("Token revoked: scripts using it are refused from now on."))

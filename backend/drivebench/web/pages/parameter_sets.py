@@ -9,9 +9,11 @@ from typing import Any
 
 from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse, Response
+from markupsafe import escape
 from starlette.datastructures import FormData, UploadFile
 
 from drivebench.errors import DriveBenchError, InvalidValue
+from drivebench.i18n import _
 from drivebench.services.params.jobs import Job, JobManager
 from drivebench.services.session_manager import SessionManager
 from drivebench.services.sets import set_formats, set_jobs
@@ -66,15 +68,15 @@ def _text(form: FormData, key: str) -> str:
 def _version(form: FormData) -> int | None:
     text = _text(form, "version")
     if text and not text.isdigit():
-        raise InvalidValue(f"The set's version {text!r} is not a number")
+        raise InvalidValue(_("The set's version {version} is not a number").format(version=repr(text)))
     return int(text) if text else None
 
 
 def _target(form: FormData, key: str = "target") -> tuple[str, int]:
     """``demo-plant:5`` -> (session id, node id)."""
-    session_id, _, node = _text(form, key).rpartition(":")
+    session_id, _sep, node = _text(form, key).rpartition(":")
     if not session_id or not node.isdigit():
-        raise InvalidValue("Choose a node")
+        raise InvalidValue(_("Choose a node"))
     return session_id, int(node)
 
 
@@ -91,18 +93,18 @@ def _nodes(manager: SessionManager) -> list[dict[str, Any]]:
 
 def _source(key: str) -> SourceIn:
     """``set:3``, ``set:3:2`` (version 2), ``node:demo-plant:5``, ``defaults:<profile id>``."""
-    kind, _, rest = key.partition(":")
+    kind, _sep, rest = key.partition(":")
     if kind == "set":
-        set_id, _, version = rest.partition(":")
+        set_id, _sep, version = rest.partition(":")
         if set_id.isdigit():
             return SourceIn(kind="set", set_id=int(set_id), version=int(version) if version.isdigit() else None)
     if kind == "node":
-        session_id, _, node = rest.rpartition(":")
+        session_id, _sep, node = rest.rpartition(":")
         if session_id and node.isdigit():
             return SourceIn(kind="node", session_id=session_id, node_id=int(node))
     if kind == "defaults" and rest:
         return SourceIn(kind="defaults", profile_id=rest)
-    raise InvalidValue(f"Choose what to compare ('{key}' is not a source)")
+    raise InvalidValue(_("Choose what to compare ('{key}' is not a source)").format(key=key))
 
 
 def _page_context(state: AppState, manager: SessionManager, selected: int | None = None) -> dict[str, Any]:
@@ -139,7 +141,7 @@ async def upload(request: Request, manager: ManagerDep, jobs: JobsDep) -> Respon
     form = await request.form()
     try:
         session_id, node_id = _target(form)
-        name = _text(form, "name") or f"Node {node_id}"
+        name = _text(form, "name") or _("Node {node}").format(node=node_id)
         job = set_jobs.start_upload(manager.get(session_id), node_id, jobs, store(), name=name,
                                     note=_text(form, "note"))
     except DriveBenchError as exc:
@@ -163,11 +165,12 @@ async def import_file(request: Request, state: StateDep) -> Response:
     form = await request.form()
     upload = form.get("file")
     if not isinstance(upload, UploadFile) or not upload.filename:
-        return _error(request, InvalidValue("Choose a file (JSON, CSV or DCF)"))
+        return _error(request, InvalidValue(_("Choose a file (JSON, CSV or DCF)")))
     data = await upload.read(set_formats.MAX_SET_FILE_BYTES + 1)
     try:
         if len(data) > set_formats.MAX_SET_FILE_BYTES:
-            raise InvalidValue("The file is larger than 8 MB")
+            raise InvalidValue(_("The file is larger than {size} MB").format(
+                size=set_formats.MAX_SET_FILE_BYTES // 1024 // 1024))
         imported = set_formats.import_any(data, upload.filename, state.registry.get,
                                           profile_id=_text(form, "profile_id") or None,
                                           name=_text(form, "name") or None)
@@ -220,7 +223,7 @@ async def rename(request: Request, set_id: RowId, state: StateDep, manager: Mana
         context = _detail(state, manager, set_id, jobs)
     except DriveBenchError as exc:
         return _error(request, exc)
-    return _render(request, "set_detail", dict(context, saved="Saved"), headers=CHANGED_EVENT)
+    return _render(request, "set_detail", dict(context, saved=_("Saved")), headers=CHANGED_EVENT)
 
 
 @router.delete(UI + "/{set_id}", response_class=HTMLResponse)
@@ -229,7 +232,7 @@ async def delete(request: Request, set_id: RowId) -> Response:
         store().delete(set_id)
     except DriveBenchError as exc:
         return _error(request, exc)
-    return HTMLResponse('<p class="muted">Set deleted.</p>', headers=CHANGED_EVENT)
+    return HTMLResponse(f'<p class="muted">{escape(_("Set deleted."))}</p>', headers=CHANGED_EVENT)
 
 
 @router.post(UI + "/{set_id}/copy", response_class=HTMLResponse)
@@ -238,21 +241,23 @@ async def copy(request: Request, set_id: RowId, state: StateDep, manager: Manage
     try:
         wanted = _text(form, "to_node")
         if not wanted.isdigit() or not 1 <= int(wanted) <= 127:
-            raise InvalidValue("The node id to copy to must be 1 ... 127")
+            raise InvalidValue(_("The node id to copy to must be 1 ... 127"))
         to_node = int(wanted)
         stored = store().get(set_id)
         if stored.info.node_id is None:
-            raise InvalidValue("The set was not uploaded from a node, so its node address is unknown")
+            raise InvalidValue(_("The set was not uploaded from a node, so its node address is unknown"))
         profile = state.registry.get(stored.info.profile_id)
         values, notes = retarget(profile, stored.values, stored.info.node_id, to_node)
-        copied = store().create(f"{stored.info.name} (node {to_node})", profile, values,
-                                user=audit.current_user.get(), node_id=to_node, session_id=stored.info.session_id,
-                                note=f"Copy of '{stored.info.name}' v{stored.version} for node {to_node}",
+        copied = store().create(_("{name} (node {node})").format(name=stored.info.name, node=to_node), profile,
+                                values, user=audit.current_user.get(), node_id=to_node,
+                                session_id=stored.info.session_id,
+                                note=_("Copy of '{name}' v{version} for node {node}").format(
+                                    name=stored.info.name, version=stored.version, node=to_node),
                                 reason=f"copy of set {set_id} v{stored.version} for node {to_node}")
         context = _detail(state, manager, copied.info.id, jobs)
     except DriveBenchError as exc:
         return _error(request, exc)
-    return _render(request, "set_detail", dict(context, copy_notes=notes or ["No node-specific values to move"]),
+    return _render(request, "set_detail", dict(context, copy_notes=notes or [_("No node-specific values to move")]),
                    headers=CHANGED_EVENT)
 
 
@@ -295,7 +300,7 @@ async def follow_up(request: Request, download_id: int, action: str, manager: Ma
         elif action == "rollback":
             job = set_jobs.start_rollback(session, jobs, store(), download_id, save=save, confirm=confirm)
         else:
-            raise InvalidValue(f"Unknown action '{action}'")
+            raise InvalidValue(_("Unknown action '{action}'").format(action=action))
     except DriveBenchError as exc:
         return _error(request, exc)
     return _render(request, "job", _job_context(job, jobs))

@@ -12,6 +12,7 @@ from fastapi import APIRouter, Form, Request
 from fastapi.responses import HTMLResponse, Response
 
 from drivebench.errors import Conflict, DriveBenchError
+from drivebench.i18n import N_, _
 from drivebench.protocol.nmt import COMMAND_BY_NAME
 from drivebench.services.bus.fieldbus import ETHERCAT_INTERFACES, SessionSpec, interface_notes, parse_spec
 from drivebench.services.bus.sessions import Session
@@ -81,7 +82,7 @@ async def close_session(session: SessionDep, manager: ManagerDep) -> Response:
 async def nmt(request: Request, session: SessionDep, panel: PanelDep, command: Annotated[str, Form()],
               node_id: Annotated[int, Form(ge=0, le=127)] = 0, confirm: Annotated[str, Form()] = "") -> Response:
     if command not in COMMAND_BY_NAME:
-        raise DriveBenchError(f"Unknown NMT command '{command}'")
+        raise DriveBenchError(_("Unknown NMT command '{command}'").format(command=command))
     if node_id:
         session.node(node_id)
     await send_nmt(request, session, NodeNmtRequest(command=command, confirm=confirm or None),
@@ -100,7 +101,8 @@ async def add_node(request: Request, session: SessionDep, node_id: Annotated[int
                    profile_id: Annotated[str, Form()] = "") -> Response:
     known = session.nodes.get(node_id)
     if known is not None:  # adding it again would silently replace its profile (and its name)
-        raise Conflict(f"Node {node_id} is already in session '{session.name}' as {known.device_name}.",
-                       hint="Scan the bus to read its identity again.")
+        raise Conflict(_("Node {node} is already in session '{session}' as {device}.").format(
+            node=node_id, session=session.name, device=known.device_name),
+                       hint=N_("Scan the bus to read its identity again."))
     session.add_node(node_id, profile_id or None)
     return nodes_table(request, session)

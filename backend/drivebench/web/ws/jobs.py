@@ -16,6 +16,7 @@ import asyncio
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 
 from drivebench.errors import NotFound
+from drivebench.i18n import shown
 from drivebench.services.params.jobs import Job
 from drivebench.web.api.parameters import jobs_of
 
@@ -24,8 +25,9 @@ MIN_INTERVAL_S = 0.1
 
 
 def message(job: Job) -> dict[str, object]:
-    return {"id": job.id, "state": job.state.value, "title": job.title, "progress": job.progress().model_dump(),
-            "notes": list(job.notes), "issues": len(job.issues), "error": job.error}
+    return {"id": job.id, "state": job.state.value, "title": shown(job.title), "progress": job.progress().model_dump(),
+            "notes": [shown(note) for note in job.notes], "issues": len(job.issues),
+            "error": job.error and shown(job.error)}
 
 
 @router.websocket("/ws/jobs/{job_id}")
