@@ -49,6 +49,12 @@ from drivebench.services.sets.parameter_sets import (
 from drivebench.services.storage.models import DownloadRow
 from drivebench.services.users import audit
 
+SHOWN_WORDS = (N_("running"), N_("done"), N_("incomplete"), N_("cancelled"), N_("failed"), N_("interrupted"),
+               N_("download"), N_("retry"), N_("rollback"), N_("will change"), N_("not attempted"), N_("unchanged"),
+               N_("written"), N_("mismatch"), N_("not verified"), N_("sending"), N_("changed"), N_("only left"),
+               N_("only right"), N_("unreadable"))
+"""The states, kinds, report statuses, audit results and compare kinds of the sets page: English in the API, the
+database and CSS classes; the page shows them through _()."""
 REDO = ("failed", "mismatch", "not attempted")
 """Report states a retry writes again."""
 CHANGED = ("written", "mismatch", "failed")
