@@ -49,7 +49,7 @@ def test_switch_to_german_and_back(server: str, page: Any) -> None:
     expect(card.get_by_role("button", name="Bus scannen")).to_be_visible()
     expect(card.get_by_role("button", name="NMT senden")).to_be_visible()
     expect(card.locator("table.nodes thead")).to_contain_text("NMT-Zustand")
-    expect(page.locator("#node-linie-3-5 .nmt")).to_have_text("Pre-operational", timeout=WAIT_MS)  # CiA's name
+    expect(page.locator("#node-linie-3-5 .nmt")).to_have_text("Pre-Operational", timeout=WAIT_MS)
     assert page.evaluate(CLIPPED) == []
     screenshot(page, "i18n-plant-de")
 
