@@ -6,9 +6,6 @@ Lower layers convert foreign exceptions (python-can, canopen) with ``raise ... f
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import Self
-
 from drivebench.i18n import N_, Text, _, shown
 
 
@@ -16,8 +13,6 @@ class DriveBenchError(Exception):
     """Root of all errors the tool reports to a user."""
 
     title = N_("DriveBench error")
-    _template: str | None = None  # see keep_template
-    _values: Mapping[str, object] = {}
 
     def __init__(self, detail: str, *, hint: str | None = None) -> None:
         super().__init__(detail)
@@ -30,8 +25,8 @@ class DriveBenchError(Exception):
 
     def shown_detail(self) -> str:
         """``detail`` in the language of whoever reads it (web/problems.py calls it in the request's language); an
-        error raised outside a request (a bus thread) keeps an N_() template and its values for this."""
-        return _(self._template).format(**self._values) if self._template else shown(self.detail)
+        error raised outside a request (a bus thread) gives its detail as a :class:`~drivebench.i18n.Text` for this."""
+        return shown(self.detail)
 
     def shown_hint(self) -> str | None:
         """``hint`` in the reader's language: a :class:`~drivebench.i18n.Text` put into words now, a plain one
@@ -39,11 +34,6 @@ class DriveBenchError(Exception):
         if not self.hint:
             return None
         return shown(self.hint) if isinstance(self.hint, Text) else _(self.hint)
-
-    def keep_template(self, template: str, **values: object) -> Self:
-        """Keeps the N_() text ``detail`` was formatted from (``detail`` itself stays the English text)."""
-        self._template, self._values = template, values
-        return self
 
 
 # --- transport -------------------------------------------------------------------------------------------

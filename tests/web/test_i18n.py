@@ -274,7 +274,7 @@ def test_the_plant_pages_websocket_pushes_the_table_in_the_asked_language(client
 # --- problem details written in the code ----------------------------------------------------------------------------
 # An error built from an English literal (a plain string, an f-string, "...".format()) reaches a German user in English:
 # every text given to a DriveBench error as its detail or hint goes through _() (in a request: the reader's language),
-# or N_() with keep_template (raised outside a request, translated when shown).
+# or an i18n.Text of an N_() template (raised outside a request, translated when shown).
 def _error_classes() -> set[str]:
     import inspect
 
@@ -316,7 +316,7 @@ def untranslated_error_texts(package: Path) -> list[str]:
 
 def test_every_error_text_in_the_code_is_translatable() -> None:
     left = untranslated_error_texts(ROOT / "backend" / "drivebench")
-    assert not left, f"{len(left)} error texts given as English literals (wrap in _() or N_() + keep_template):\n" \
+    assert not left, f"{len(left)} error texts given as English literals (wrap in _() or i18n.Text(N_(...))):\n" \
                      + "\n".join(left)
 
 

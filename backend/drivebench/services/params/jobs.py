@@ -22,7 +22,7 @@ from pydantic import BaseModel, ConfigDict
 
 from drivebench import i18n
 from drivebench.errors import Conflict, DriveBenchError, NotFound
-from drivebench.i18n import Text, _
+from drivebench.i18n import _
 
 
 class JobState(StrEnum):
@@ -53,7 +53,7 @@ class Progress(BaseModel):
 def said(exc: BaseException) -> str:
     """What an error says, as a ``Text`` where it keeps its N_() template (translated where the job is shown)."""
     if isinstance(exc, DriveBenchError):
-        return Text(exc._template, **exc._values) if exc._template else exc.detail
+        return exc.detail
     return f"{type(exc).__name__}: {exc}"
 
 
