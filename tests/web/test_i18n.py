@@ -113,6 +113,29 @@ def test_accept_language_german_gives_the_german_plant_page(client: TestClient) 
     assert '<html lang="en">' in english.text and "<h1>Plant</h1>" in english.text and "Open session" in english.text
 
 
+def test_a_refusal_of_the_gate_speaks_the_browsers_language_and_says_so(client: TestClient) -> None:
+    """The gate picks the language before it refuses anything: another site's POST is refused in German, with the
+    same Vary and Content-Language as a page."""
+    refused = client.post("/api/sessions", json={}, headers={**GERMAN, "Origin": "https://evil.example",
+                                                             "Sec-Fetch-Site": "cross-site"})
+    assert refused.status_code == 403
+    assert "Eine andere Website darf an DriveBench nichts ändern" in refused.json()["detail"]
+    assert refused.headers["content-language"] == "de"
+    assert {v.strip() for v in refused.headers["vary"].split(",")} >= {"Accept-Language", "Cookie"}
+    switched = client.get("/api/health", headers={**GERMAN, "Cookie": f"{i18n.COOKIE}=en"})
+    assert switched.headers["content-language"] == "en"  # the switch's cookie wins over the browser
+
+
+def test_an_answer_keeps_its_own_vary_names_and_language() -> None:
+    from drivebench.web.language import varying
+
+    assert varying([(b"vary", b"Origin")], "de") == [(b"vary", b"Origin, Accept-Language, Cookie"),
+                                                     (b"content-language", b"de")]
+    assert varying([(b"Vary", b"cookie, accept-language"), (b"Content-Language", b"en")], "de") == [
+        (b"Vary", b"cookie, accept-language"), (b"Content-Language", b"en")]
+    assert varying([], "en") == [(b"vary", b"Accept-Language, Cookie"), (b"content-language", b"en")]
+
+
 def test_the_switch_sets_a_cookie_that_overrides_the_browser(client: TestClient) -> None:
     switched = client.get("/language/en?next=/monitor", headers=GERMAN, follow_redirects=False)
     assert switched.status_code == 303 and switched.headers["location"] == "/monitor"

@@ -96,6 +96,36 @@ def test_the_lean_read_is_the_one_taken(served: tuple[httpx.Client, Any, str]) -
         assert full.status_code == 404 and "the full path ran" in full.text
 
 
+@contextlib.contextmanager
+def router_calls(app: Any) -> Iterator[list[str]]:
+    """The paths of the requests that reach the app's router while inside."""
+    entered: list[str] = []
+    inner = app.router.middleware_stack
+
+    async def counting(scope: Any, receive: Any, send: Any) -> None:
+        entered.append(scope["path"])
+        await inner(scope, receive, send)
+
+    app.router.middleware_stack = counting
+    try:
+        yield entered
+    finally:
+        app.router.middleware_stack = inner
+
+
+def test_the_gate_answers_the_lean_read_before_the_router(served: tuple[httpx.Client, Any, str]) -> None:
+    """The lean read and its problems never reach the router; a read it does not take does."""
+    http, app, base = served
+    with router_calls(app) as entered:
+        assert http.get(f"{base}/parameters/0x1017.0").status_code == 200
+        missing = http.get(f"{base}/parameters/0x7FFF.0")
+        assert missing.status_code == 404 and missing.headers["content-type"] == "application/problem+json"
+        assert http.get("/api/health").status_code == 200
+        assert entered == []
+        assert http.get(f"{base}/parameters/0x1017.0", params={"transfer": "auto"}).status_code == 200
+        assert entered == [f"{base}/parameters/0x1017.0"]
+
+
 def test_the_lean_read_is_behind_the_same_gate(users: dict[str, str], hub_and_simulator: str) -> None:  # noqa: F811
     """Once an admin exists: no sign-in, no read (401, as the full path); a viewer's token reads."""
     app = create_app(buses=[hub_and_simulator])

@@ -40,7 +40,7 @@ from drivebench.errors import AccessDenied, DriveBenchError, NotAuthenticated, U
 from drivebench.i18n import N_, _
 from drivebench.services.users import accounts
 from drivebench.services.users.principals import Principal, Role
-from drivebench.web import access_policy, origins
+from drivebench.web import access_policy, cookies, origins
 from drivebench.web.identity import principal_of
 from drivebench.web.problems import error_fragment, error_page, problem_body, wants_page
 
@@ -234,7 +234,7 @@ async def _authenticate(headers: Headers) -> tuple[Principal | None, SignedIn | 
     if authorization.lower().startswith("bearer ") and authorization[7:].strip().startswith(accounts.TOKEN_PREFIX):
         secret = authorization[7:].strip()
         return await anyio.to_thread.run_sync(accounts.verify_token, secret), None
-    cookie = _cookie(headers, SESSION_COOKIE)
+    cookie = cookies.value(headers.get("cookie"), SESSION_COOKIE)
     if cookie is None:
         return None, None
     signed_in = await anyio.to_thread.run_sync(sessions.load, cookie)
@@ -244,14 +244,6 @@ async def _authenticate(headers: Headers) -> tuple[Principal | None, SignedIn | 
     if user is None or user.disabled or user.stamp != signed_in.stamp:
         return None, None  # the user was disabled, removed or given a new password: sign in again
     return Principal(user.name, user.role, via="login"), signed_in
-
-
-def _cookie(headers: Headers, name: str) -> str | None:
-    for part in headers.get("cookie", "").split(";"):
-        key, _, value = part.strip().partition("=")
-        if key == name and value:
-            return value.strip('"')
-    return None
 
 
 async def _csrf_token(scope: Scope, receive: Receive, headers: Headers) -> tuple[str | None, Receive]:

@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import weakref
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
+from typing import Any
 
 from fastapi import FastAPI
 from fastapi.routing import iter_route_contexts
@@ -20,6 +21,7 @@ from starlette.types import Scope
 
 from drivebench.i18n import N_
 from drivebench.services.users.principals import Role
+from drivebench.web.lean_route import LeanHandler
 
 SAFE_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
 WEBSOCKET = "WS"
@@ -164,6 +166,10 @@ class Decision:
     """The matched route's path template (None: no route matches; the router answers 404 or 405)."""
     rule: Rule
     public: bool
+    lean: LeanHandler | None = None
+    """The route's lean answer for a GET (``lean_route``), which the gate tries before the router."""
+    path_params: dict[str, Any] = field(default_factory=dict)
+    """The path's parameters as the route converts them, where ``lean`` is set (the decision is then this path's)."""
 
 
 def _method(scope: Scope) -> str:
@@ -241,12 +247,15 @@ def _match(app: FastAPI, scope: Scope) -> Decision:
     path = scope.get("path", "")
     match_scope = {**scope, "method": "GET"} if scope.get("method") == "HEAD" else scope
     for policy in precompute(app):
-        matched, _ = policy.route.matches(match_scope)  # type: ignore[attr-defined]
+        matched, child = policy.route.matches(match_scope)  # type: ignore[attr-defined]
         if matched is Match.FULL:
             if path.startswith(PUBLIC_PREFIXES) and method in SAFE_METHODS:
                 return Decision(policy.template, READING, public=True)
-            found = policy.by_method.get(method)
-            return found if found is not None else _decision(method, policy.template)
+            found = policy.by_method.get(method) or _decision(method, policy.template)
+            lean = getattr(getattr(policy.route, "original_route", policy.route), "lean", None)
+            if lean is not None and scope.get("method") == "GET":
+                found = replace(found, lean=lean, path_params=dict(child["path_params"]))
+            return found
     return Decision(None, READING, public=path.startswith(PUBLIC_PREFIXES))
 
 

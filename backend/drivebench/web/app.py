@@ -119,10 +119,10 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
                   description="Commissioning of CANopen drives: parameters, PDOs, NMT, diagnostics.")
     problems.install(app)
     access.install(app)  # the roles in the OpenAPI document
-    # One pass for security headers, body limit, share-link scope, host/origin, sign-in, roles and CSRF.
+    # One pass for the language, security headers, body limit, share-link scope, host/origin, sign-in, roles, CSRF
+    # and the lean answers.
     app.add_middleware(RequestGate, links=share_links, limit_bytes=settings.max_upload_bytes,
                        hsts=settings.hsts if hsts is None else hsts)
-    app.add_middleware(language.LanguageMiddleware)  # outside the gate: the language of all inside, refusals too
     for router in API_ROUTERS + PAGE_ROUTERS + WS_ROUTERS:
         app.include_router(router)
     app.mount("/static", StaticFiles(directory=settings.frontend_dir / "static"), name="static")

@@ -1,13 +1,17 @@
 """Every request and websocket passes one gate, in one pass: a pure ASGI middleware (no BaseHTTPMiddleware).
 
-In this order, as the separate middlewares did before (issue 21: one pass instead of five layers, the headers read
+In this order, as the separate middlewares did before (issue 21: one pass instead of six layers, the headers read
 once, the route's policy looked up once, precomputed at start-up by ``access_policy.precompute``):
 
-1. HTTP answers get the browser security headers (``security_headers``; HSTS over https when switched on), refusals
+1. The language (``language``): picked once, held for everything inside, refusals too; every HTTP answer says it
+   varies with the language's headers and which language it speaks.
+2. HTTP answers get the browser security headers (``security_headers``; HSTS over https when switched on), refusals
    too; the docs pages are held back until their inline script is hashed into the policy.
-2. A request body past the upload limit is refused with 413 (``limits``).
-3. A share-link token (``viewer``): the link checked, what a link may not do refused, pages led to the remote view.
-4. Host and Origin, sign-in, role and CSRF (``access``); the audit log's ``current_user`` is who signed in.
+3. A request body past the upload limit is refused with 413 (``limits``).
+4. A share-link token (``viewer``): the link checked, what a link may not do refused, pages led to the remote view.
+5. Host and Origin, sign-in, role and CSRF (``access``); the audit log's ``current_user`` is who signed in.
+6. A route with a lean answer (``lean_route``) answers its common request here, without the router's second match
+   and FastAPI's dependency solving; every other request goes on to the app.
 """
 
 from __future__ import annotations
@@ -15,11 +19,12 @@ from __future__ import annotations
 from functools import partial
 
 from starlette.datastructures import Headers
-from starlette.types import ASGIApp, Receive, Scope, Send
+from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
+from drivebench import i18n
 from drivebench.services.users import audit
 from drivebench.services.users.sharing import ShareLinks
-from drivebench.web import access, access_policy, security_headers, viewer
+from drivebench.web import access, access_policy, language, lean_route, security_headers, viewer
 from drivebench.web.limits import BodyLimit
 from drivebench.web.tls import HSTS_HEADER
 
@@ -33,19 +38,24 @@ class RequestGate:
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         kind = scope["type"]
-        if kind == "websocket":
-            await self._admitted(scope, receive, send, Headers(scope=scope))
-        elif kind == "http":
+        if kind not in ("http", "websocket"):
+            await self.app(scope, receive, send)
+            return
+        headers = Headers(scope=scope)
+        locale = language.of_request(headers)
+        with i18n.using(locale):
+            if kind == "websocket":
+                await self._admitted(scope, receive, send, headers)
+                return
             extra = [HSTS_HEADER] if self.hsts and scope.get("scheme") == "https" else []
             if scope["path"] in security_headers.DOCS_PATHS:
-                await security_headers.held_docs(partial(self._http, scope, receive), send, extra)
+                await security_headers.held_docs(partial(self._http, scope, receive, headers), _speaking(send, locale),
+                                                 extra)
             else:
-                await self._http(scope, receive, security_headers.adding_headers(send, extra))
-        else:
-            await self.app(scope, receive, send)
+                await self._http(scope, receive, headers, _answering(send, security_headers.RAW_HEADERS + extra,
+                                                                      locale))
 
-    async def _http(self, scope: Scope, receive: Receive, send: Send) -> None:
-        headers = Headers(scope=scope)
+    async def _http(self, scope: Scope, receive: Receive, headers: Headers, send: Send) -> None:
         await self.body_limit.run(scope, receive, send, headers,
                                   lambda scope, receive, send: self._admitted(scope, receive, send, headers))
 
@@ -57,11 +67,30 @@ class RequestGate:
         if admitted is None:
             return
         receive, user = admitted
-        if user is None:
-            await self.app(scope, receive, send)
-            return
-        token = audit.current_user.set(user)
+        token = audit.current_user.set(user) if user is not None else None
         try:
+            if decision.lean is not None and scope.get("method") == "GET" and await lean_route.answered(
+                    decision.lean, decision.path_params, scope, receive, send):
+                return
             await self.app(scope, receive, send)
         finally:
-            audit.current_user.reset(token)
+            if token is not None:
+                audit.current_user.reset(token)
+
+
+def _answering(send: Send, added: list[tuple[bytes, bytes]], locale: str) -> Send:
+    """``send`` that puts the gate's headers on the answer's start: the language's, then ``added`` (these replace
+    a route's own of the same name)."""
+    names = {name for name, _value in added}
+
+    async def send_with_headers(message: Message) -> None:
+        if message["type"] == "http.response.start":
+            kept = [(name, value) for name, value in message.get("headers", ()) if name.lower() not in names]
+            message["headers"] = language.varying(kept, locale) + added
+        await send(message)
+
+    return send_with_headers
+
+
+def _speaking(send: Send, locale: str) -> Send:
+    return _answering(send, [], locale)

@@ -1,51 +1,70 @@
 """The language of each request and websocket, and the header's switch (en | de).
 
-The middleware picks the language once (``i18n.negotiate``: the switch's cookie, else ``Accept-Language``) and
-holds it for all the request renders or raises; every HTTP answer says it varies with both headers, so no cache
-hands a German page to an English browser.
+The gate (``web/gate.py``) picks the language once (``i18n.negotiate``: the switch's cookie, else
+``Accept-Language``) and holds it for all the request renders or raises, refusals too; every HTTP answer says it
+varies with both headers, so no cache hands a German page to an English browser.
 """
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 from fastapi import APIRouter, Request
-from starlette.datastructures import MutableHeaders
-from starlette.requests import HTTPConnection
+from starlette.datastructures import Headers
 from starlette.responses import RedirectResponse
-from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from drivebench import i18n
 from drivebench.errors import NotFound
+from drivebench.web import cookies
 
 router = APIRouter()
 COOKIE_MAX_AGE_S = 365 * 24 * 3600
 VARY = ("Accept-Language", "Cookie")
+VARY_BYTES = tuple(name.encode() for name in VARY)
+_VARY = b", ".join(VARY_BYTES)
 
 
-class LanguageMiddleware:
-    def __init__(self, app: ASGIApp) -> None:
-        self.app = app
+def of_request(headers: Headers) -> str:
+    """The language of a request or websocket (``web/gate.py`` asks once per request): the switch's cookie, else
+    ``Accept-Language``."""
+    accept = headers.get("accept-language")
+    chosen = cookies.value(headers.get("cookie"), i18n.COOKIE)
+    chosen = chosen if chosen in i18n.LOCALES else None
+    if accept is not None and len(accept) > ACCEPT_REMEMBERED_CHARS:
+        return i18n.negotiate(accept, chosen)
+    return _negotiated(accept, chosen)
 
-    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if scope["type"] in ("http", "websocket"):
-            connection = HTTPConnection(scope)
-            locale = i18n.negotiate(connection.headers.get("accept-language"), connection.cookies.get(i18n.COOKIE))
-            await self._speaking(locale, scope, receive, send)
-        else:
-            await self.app(scope, receive, send)
 
-    async def _speaking(self, locale: str, scope: Scope, receive: Receive, send: Send) -> None:
-        async def send_varying(message: Message) -> None:
-            if message["type"] == "http.response.start":
-                answer = MutableHeaders(scope=message)
-                present = {v.strip().lower() for v in answer.get("vary", "").split(",") if v.strip()}
-                for name in VARY:
-                    if name.lower() not in present:
-                        answer.add_vary_header(name)
-                answer.setdefault("content-language", locale)
-            await send(message)
+ACCEPT_REMEMBERED_CHARS = 200
+"""A browser sends the same Accept-Language with every request: the answers for short ones are remembered."""
 
-        with i18n.using(locale):
-            await self.app(scope, receive, send_varying if scope["type"] == "http" else send)
+
+@lru_cache(maxsize=256)
+def _negotiated(accept_language: str | None, cookie: str | None) -> str:
+    return i18n.negotiate(accept_language, cookie)
+
+
+def varying(headers: list[tuple[bytes, bytes]], locale: str) -> list[tuple[bytes, bytes]]:
+    """A response's raw headers, saying it varies with the language's two headers and which language it speaks
+    (a route's own ``Vary`` names are kept, its ``Content-Language`` wins)."""
+    vary_at = language_given = None
+    for position, (name, _value) in enumerate(headers):
+        lowered = name.lower()
+        if lowered == b"vary":
+            vary_at = position
+        elif lowered == b"content-language":
+            language_given = position
+    if vary_at is None:
+        headers.append((b"vary", _VARY))
+    else:
+        value = headers[vary_at][1]
+        present = {token.strip().lower() for token in value.split(b",")}
+        missing = [name for name in VARY_BYTES if name.lower() not in present]
+        if missing:
+            headers[vary_at] = (b"vary", b", ".join([value, *missing]))
+    if language_given is None:
+        headers.append((b"content-language", locale.encode()))
+    return headers
 
 
 def _local_target(target: str | None) -> str:

@@ -59,23 +59,10 @@ def docs_policy(body: bytes) -> str:
     ])
 
 
-_RAW_HEADERS = [(name.lower().encode(), value.encode()) for name, value in
-                {"Content-Security-Policy": PAGE_POLICY, **HEADERS}.items()]
-
-
-def adding_headers(send: Send, extra: list[tuple[bytes, bytes]]) -> Send:
-    """``send`` that adds the headers above (and ``extra``: HSTS over https) to the response's start
-    (``web/gate.py`` wraps every HTTP answer, refusals too; websockets have no such headers)."""
-    added = _RAW_HEADERS + extra
-    names = {name for name, _ in added}
-
-    async def send_with_headers(message: Message) -> None:
-        if message["type"] == "http.response.start":
-            message["headers"] = [(name, value) for name, value in message.get("headers", ())
-                                  if name.lower() not in names] + added
-        await send(message)
-
-    return send_with_headers
+RAW_HEADERS = [(name.lower().encode(), value.encode()) for name, value in
+               {"Content-Security-Policy": PAGE_POLICY, **HEADERS}.items()]
+"""The headers above as an ASGI response carries them (``web/gate.py`` puts them on every HTTP answer, refusals
+too; websockets have no such headers)."""
 
 
 async def held_docs(answer: Callable[[Send], Awaitable[None]], send: Send, extra: list[tuple[bytes, bytes]]) -> None:
