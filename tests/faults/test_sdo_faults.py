@@ -281,7 +281,7 @@ def test_abort_storm_keeps_the_server_responsive_and_leaks_nothing(api: TestClie
             assert not channel.lock.locked()
             assert channel.client.responses.empty()
             uploader = sdo_fast._UPLOADERS.get(channel)
-            assert uploader is None or uploader._pending is None
+            assert uploader is None or uploader._transfer is None
 
     for node in (5, 12):
         set_faults(api, node)

@@ -4,6 +4,7 @@ virtual CAN bus."""
 from __future__ import annotations
 
 import asyncio
+import time
 from collections.abc import Iterator
 
 import can
@@ -19,6 +20,7 @@ MOTEC = 5  # Lenze 8400 motec in the demo plant
 ABSENT = 40
 C00061 = ExpeditedRequest(0x5FC2, 0)  # Lenze code = 0x5FFF - code number (8400 motec ch. 12)
 C00099 = ExpeditedRequest(0x5F9C, 0)  # 11-character firmware string: the device answers segmented
+SEGMENTS = 2  # of C00099: 7 + 4 characters
 
 
 @pytest.fixture
@@ -73,6 +75,27 @@ def test_segmented_answer_is_read_on_the_loop_when_asked(network: CanopenNetwork
     assert len(sent) - 1 == -(-len(data) // 7), "one request per segment"
     assert client.upload(0x5F9C, 0) == data
     assert not client.channels[0].lock.locked()
+
+
+def test_the_segments_are_asked_for_while_the_event_loop_is_busy(network: CanopenNetwork, wire: can.BusABC) -> None:
+    """The bus reader thread asks for each segment as the previous one arrives: while the loop stands still
+    (a long synchronous step of another task) the whole transfer goes by on the bus, and the loop wakes once."""
+    client = network.node(MOTEC)
+
+    async def go() -> tuple[list[bytes], bytes | None]:
+        reading = asyncio.ensure_future(upload_expedited(client, C00099, segmented=True))
+        await asyncio.sleep(0)  # the read sends its initiate request and waits
+        sent_meanwhile: list[bytes] = []  # the loop is busy here: nothing on it runs
+        deadline = time.monotonic() + 10
+        while len(sent_meanwhile) < 1 + SEGMENTS and time.monotonic() < deadline:
+            sent_meanwhile += frames_to(wire, MOTEC)
+        return sent_meanwhile, await reading
+
+    sent, data = asyncio.run(go())
+    assert data is not None and data == client.upload(0x5F9C, 0)
+    assert -(-len(data) // 7) == SEGMENTS
+    assert sent == [bytes.fromhex("40 9C 5F 00 00 00 00 00")] + [bytes([0x60 | (n % 2) << 4]) + bytes(7)
+                                                                  for n in range(SEGMENTS)]
 
 
 def test_segments_out_of_step_abort_the_transfer(plant: Plant, network: CanopenNetwork, wire: can.BusABC) -> None:

@@ -2,7 +2,8 @@
 
 :func:`upload_expedited` sends the CiA 301 initiate-upload request on one of a node's SDO channels and awaits the
 response, which the bus reader thread hands to the loop; with ``segmented`` it also asks for the segments of a
-segmented answer there (a string, a long record: a thread hop per segment saved). It answers ``None`` where it
+segmented answer, from the bus reader thread as each segment arrives (a string, a long record: no hop to the
+loop per segment). It answers ``None`` where it
 cannot do the transfer itself (the channel is busy with another transfer, or the device answers segmented and
 ``segmented`` is off): the caller then uses
 :meth:`NodeClient.upload <drivebench.protocol.network.NodeClient.upload>` in a worker thread.
@@ -17,6 +18,8 @@ import asyncio
 import contextlib
 import contextvars
 import os
+import threading
+import time
 import weakref
 from collections import deque
 from collections.abc import Callable, Generator
@@ -175,10 +178,48 @@ def _waker(loop: asyncio.AbstractEventLoop) -> _Waker | None:
     return waker
 
 
+class _Transfer:
+    """One upload in progress on a channel, advanced by the bus reader thread as each answer arrives.
+
+    A segmented answer's segments are asked for right there, in the reader thread (the next request goes out as
+    soon as the answer is in, as a device's own SDO server would answer): the event loop hears only the outcome,
+    one wake-up per read instead of one per segment. ``lock`` orders the reader thread's steps against the loop's
+    timeouts and retries."""
+
+    __slots__ = ("deadline", "done", "finished", "frame", "lock", "phase", "response", "segmented", "size",
+                 "toggle", "value")
+
+    INITIATE, SEGMENTS = 0, 1
+
+    def __init__(self, request: ExpeditedRequest, segmented: bool) -> None:
+        self.lock = threading.Lock()
+        self.phase = self.INITIATE
+        self.frame = request.frame
+        """The request the transfer waits on (sent again, as it is, when an attempt times out)."""
+        self.segmented = segmented
+        self.size: int | None = None
+        self.value = bytearray()
+        self.toggle = 0
+        self.done = 0
+        """Segments received."""
+        self.deadline = 0.0
+        """``time.monotonic()`` by which the answer to ``frame`` is due."""
+        self.response: _Response | None = None
+        self.finished = True
+        """The current ``response`` is resolved: answers are ignored until the loop sends again."""
+
+    def progress(self) -> tuple[int, int]:
+        return self.phase, self.done
+
+
+DONE = b""
+"""What a transfer delivers when its last segment is in (the value is the transfer's ``value``)."""
+
+
 class ExpeditedUploader:
-    """Expedited SDO upload on one SDO channel, awaited on the event loop: the request is sent, the response
-    resolves a :class:`_Response` from the bus reader thread. No worker thread per read, so the service layer
-    keeps pace with a bare canopen client.
+    """SDO upload on one SDO channel, awaited on the event loop: the request is sent, the answer resolves a
+    :class:`_Response` from the bus reader thread (with ``segmented``, after the reader thread has asked for every
+    segment). No worker thread per read, so the service layer keeps pace with a bare canopen client.
 
     It takes the channel's lock without waiting (a transfer in progress sends the read to a worker thread
     instead) and checks that the response names the requested object; canopen's own client on the same COB-ID
@@ -192,138 +233,175 @@ class ExpeditedUploader:
         self.abort_texts = client.abort_texts
         self.lock = channel.lock
         self.sdo = channel.client
-        self._pending: tuple[asyncio.AbstractEventLoop, _Response, bytes, _Waker | None] | None = None
+        self._transfer: _Transfer | None = None
+        self._address = b""
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._waker: _Waker | None = None
+        self._timeout = 0.0
         self._other_object: bytes | None = None
         """Address named by an initiate answer or abort for another object while a request waited (a late
         answer to an earlier request, another client on the channel, or a faulty node)."""
-        self._deadline = 0.0
         self._watch: asyncio.TimerHandle | None = None
         self._watch_loop: asyncio.AbstractEventLoop | None = None
+        self._watch_at = 0.0
         self.sdo.network.subscribe(self.sdo.tx_cobid, self._on_response)
 
     def _on_response(self, can_id: int, data: bytearray, timestamp: float) -> None:  # bus reader thread
-        pending = self._pending
-        if pending is None:
+        transfer = self._transfer
+        if transfer is None:
             return
-        if pending[2] and data[1:4] != pending[2]:  # a segment answer names no object (empty address)
-            if data[0] >> 5 == 2 or data[0] == 0x80:  # an initiate upload answer or abort: names an object
-                self._other_object = bytes(data[1:4])
-            return
-        loop, response, _, waker = pending
+        with transfer.lock:
+            if transfer.finished:
+                return
+            if transfer.phase == _Transfer.INITIATE:
+                if data[1:4] != self._address:
+                    if data[0] >> 5 == 2 or data[0] == 0x80:  # an initiate upload answer or abort: names an object
+                        self._other_object = bytes(data[1:4])
+                    return
+                if transfer.segmented and data[0] >> 5 == 2 and not data[0] & 0x02:  # segmented answer
+                    transfer.size = int.from_bytes(data[4:8], "little") if data[0] & 0x01 else None
+                    transfer.phase = _Transfer.SEGMENTS
+                    self._next_segment(transfer)
+                    return
+            else:
+                command = data[0]
+                if command >> 5 == 0 and (command >> 4) & 1 == transfer.toggle:  # the segment asked for
+                    transfer.value += data[1:8 - ((command >> 1) & 0x7)]
+                    transfer.done += 1
+                    if not command & 0x01:  # more to come
+                        transfer.toggle ^= 1
+                        self._next_segment(transfer)
+                        return
+                    data = bytearray(DONE)
+            transfer.finished = True
+            self._deliver(transfer, bytes(data))
+
+    def _next_segment(self, transfer: _Transfer) -> None:  # reader thread, transfer lock held
+        transfer.frame = bytes([0x60 | transfer.toggle << 4]) + bytes(7)
+        transfer.deadline = time.monotonic() + self._timeout
+        self.sdo.network.send_message(self.sdo.rx_cobid, transfer.frame)
+
+    def _deliver(self, transfer: _Transfer, data: bytes) -> None:
+        response, loop, waker = transfer.response, self._loop, self._waker
+        assert response is not None and loop is not None
         if waker is not None:
-            waker.post(response, bytes(data))
+            waker.post(response, data)
         else:
-            loop.call_soon_threadsafe(response.deliver, bytes(data))
+            loop.call_soon_threadsafe(response.deliver, data)
 
     def _arm(self, loop: asyncio.AbstractEventLoop, deadline: float) -> None:
-        self._deadline = deadline
         watch = self._watch
-        if watch is not None and self._watch_loop is loop and watch.when() <= deadline:
+        if watch is not None and self._watch_loop is loop and self._watch_at <= deadline:
             return  # fires first, then re-arms for this deadline
         if watch is not None:
             watch.cancel()
-        self._watch = loop.call_at(deadline, self._check, loop)
-        self._watch_loop = loop
+        self._watch_after(loop, deadline)
+
+    def _watch_after(self, loop: asyncio.AbstractEventLoop, deadline: float) -> None:
+        self._watch = loop.call_later(max(deadline - time.monotonic(), 0.0), self._check, loop)
+        self._watch_loop, self._watch_at = loop, deadline
 
     def _check(self, loop: asyncio.AbstractEventLoop) -> None:
         self._watch = None
-        pending = self._pending
-        if pending is None or pending[1].done() or pending[0] is not loop:
+        transfer = self._transfer
+        if transfer is None or self._loop is not loop:
             return
-        if loop.time() >= self._deadline:
-            pending[1].fail(TimeoutError())
-        else:
-            self._watch = loop.call_at(self._deadline, self._check, loop)
+        with transfer.lock:
+            if transfer.finished:
+                return
+            left = transfer.deadline - time.monotonic()
+            if left <= 0:
+                transfer.finished = True
+                response = transfer.response
+        if left > 0:
+            self._watch_after(loop, transfer.deadline)
+        elif response is not None:
+            response.fail(TimeoutError())
 
     async def upload(self, request: ExpeditedRequest, *, segmented: bool = False) -> bytes | None:
         """The value, or None when the channel is busy or the device answers other than expedited (``segmented``:
-        a segmented answer is read here too, segment by segment on the event loop).
+        a segmented answer is read here too, its segments asked for by the bus reader thread).
 
         Raises :class:`SdoAbortError` when the device aborts, :class:`SdoTimeoutError` when no attempt is
-        answered (the transfer is then aborted with 0x05040000), :class:`SdoOutOfStepError` when the only answers
-        named another object."""
+        answered (the transfer is then aborted with 0x05040000), :class:`SdoStalledError` when the segments stop,
+        :class:`SdoOutOfStepError` when the only answers named another object or a segment came out of step."""
         if not self.lock.acquire(blocking=False):
             return None
         try:
             attempts = max(int(self.sdo.MAX_RETRIES), 1)
-            timeout = float(self.sdo.RESPONSE_TIMEOUT)
-            loop = asyncio.get_running_loop()
-            waker = _waker(loop)
+            self._timeout = float(self.sdo.RESPONSE_TIMEOUT)
+            loop = self._loop = asyncio.get_running_loop()
+            self._waker = _waker(loop)
+            self._address = request.address
             self._other_object = None
-            for attempt in range(attempts):
-                response = _Response(loop)
-                self._pending = (loop, response, request.address, waker)
-                self._arm(loop, loop.time() + timeout)
-                self.sdo.network.send_message(self.sdo.rx_cobid, request.frame)
-                try:
-                    data = await response
-                except TimeoutError:
-                    if attempt + 1 < attempts:
-                        continue
-                    self._abort(request.address, ABORT_TIMEOUT)
-                    other = self._other_object
-                    if other is not None:  # it did answer, only never for this object
-                        raise SdoOutOfStepError(SdoOutOfStepError.OTHER_OBJECT, node=self.node_id, index=request.index,
-                                                subindex=request.subindex,
-                                                answered=(other[0] | other[1] << 8, other[2])) from None
-                    silent = Text(SdoTimeoutError.NO_ANSWER, node=self.node_id, reason=reason(NO_RESPONSE),
-                                   object=f"0x{request.index:04X}sub{request.subindex}")
-                    raise SdoTimeoutError(silent, node=self.node_id, index=request.index,
-                                          subindex=request.subindex) from None
-                finally:
-                    self._pending = None
-                if segmented and data[0] >> 5 == 2 and not data[0] & 0x02:  # initiate answer: segmented
-                    return await self._segments(loop, waker, request, data, attempts, timeout)
-                return self._data(data, request)
-            return None
+            transfer = self._transfer = _Transfer(request, segmented)
+            try:
+                data = await self._answer(loop, transfer, request, attempts)
+            finally:
+                with transfer.lock:  # a cancelled read: the reader thread asks for no further segment
+                    transfer.finished = True
+            if transfer.phase == _Transfer.SEGMENTS:
+                return self._segments_end(transfer, request, data)
+            return self._data(data, request)
         finally:
+            self._transfer = None
             self._drop_client_copies()
             self.lock.release()
 
-    async def _segments(self, loop: asyncio.AbstractEventLoop, waker: _Waker | None, request: ExpeditedRequest,
-                        initiate: bytes, attempts: int, timeout: float) -> bytes:
-        """The segments of a segmented upload (CiA 301 upload segment protocol), each request sent as canopen's
-        client sends it (``attempts`` tries per segment), the errors those of a transfer in a worker thread."""
-        size = int.from_bytes(initiate[4:8], "little") if initiate[0] & 0x01 else None
-        total = -(-size // SEGMENT_DATA) if size else None
-        node, index, subindex = self.node_id, request.index, request.subindex
-        value = bytearray()
-        toggle = done = 0
+    async def _answer(self, loop: asyncio.AbstractEventLoop, transfer: _Transfer, request: ExpeditedRequest,
+                      attempts: int) -> bytes:
+        """The transfer's outcome: the initiate answer (expedited or abort), the first segment out of step, or
+        :data:`DONE`. Each request is sent up to ``attempts`` times as canopen's client sends it."""
+        tried, last_progress = 0, transfer.progress()
         while True:
-            frame = bytes([0x60 | toggle << 4]) + bytes(7)
-            for attempt in range(attempts):
-                response = _Response(loop)
-                self._pending = (loop, response, b"", waker)
-                self._arm(loop, loop.time() + timeout)
-                self.sdo.network.send_message(self.sdo.rx_cobid, frame)
-                try:
-                    data = await response
-                    break
-                except TimeoutError:
-                    if attempt + 1 < attempts:
-                        continue
-                    self._abort(request.address, ABORT_TIMEOUT)
-                    raise SdoStalledError(node=node, index=index, subindex=subindex, done=done,
-                                          total=total) from None
-                finally:
-                    self._pending = None
-            command = data[0]
-            if command == 0x80:
-                code = int.from_bytes(data[4:8], "little")
-                raise SdoAbortError(code, abort_text(code, self.abort_texts), node=node, index=index,
+            with transfer.lock:
+                response = transfer.response = _Response(loop)
+                transfer.finished = False
+                transfer.deadline = time.monotonic() + self._timeout
+                self.sdo.network.send_message(self.sdo.rx_cobid, transfer.frame)
+            self._arm(loop, transfer.deadline)
+            try:
+                return await response
+            except TimeoutError:
+                with transfer.lock:
+                    progress = transfer.progress()
+                tried = tried + 1 if progress == last_progress else 1  # attempts count per request
+                last_progress = progress
+                if tried < attempts:
+                    continue
+                self._abort(request.address, ABORT_TIMEOUT)
+                raise self._silence(transfer, request) from None
+
+    def _silence(self, transfer: _Transfer, request: ExpeditedRequest) -> Exception:
+        node, index, subindex = self.node_id, request.index, request.subindex
+        if transfer.phase == _Transfer.SEGMENTS:
+            total = -(-transfer.size // SEGMENT_DATA) if transfer.size else None
+            return SdoStalledError(node=node, index=index, subindex=subindex, done=transfer.done, total=total)
+        other = self._other_object
+        if other is not None:  # it did answer, only never for this object
+            return SdoOutOfStepError(SdoOutOfStepError.OTHER_OBJECT, node=node, index=index, subindex=subindex,
+                                     answered=(other[0] | other[1] << 8, other[2]))
+        silent = Text(SdoTimeoutError.NO_ANSWER, node=node, reason=reason(NO_RESPONSE),
+                      object=f"0x{index:04X}sub{subindex}")
+        return SdoTimeoutError(silent, node=node, index=index, subindex=subindex)
+
+    def _segments_end(self, transfer: _Transfer, request: ExpeditedRequest, data: bytes) -> bytes:
+        """The value of a segmented upload (CiA 301 upload segment protocol), or the error of the answer that
+        ended it early."""
+        node, index, subindex = self.node_id, request.index, request.subindex
+        if data == DONE:
+            size = transfer.size
+            return bytes(transfer.value[:size]) if size is not None else bytes(transfer.value)
+        command = data[0]
+        if command == 0x80:
+            code = int.from_bytes(data[4:8], "little")
+            raise SdoAbortError(code, abort_text(code, self.abort_texts), node=node, index=index, subindex=subindex)
+        if command >> 5 != 0:
+            self._abort(request.address, ABORT_INVALID_COMMAND)
+            raise SdoOutOfStepError(Text(UNEXPECTED, command=f"0x{command:02X}"), node=node, index=index,
                                     subindex=subindex)
-            if command >> 5 != 0:
-                self._abort(request.address, ABORT_INVALID_COMMAND)
-                raise SdoOutOfStepError(Text(UNEXPECTED, command=f"0x{command:02X}"), node=node, index=index,
-                                        subindex=subindex)
-            if (command >> 4) & 1 != toggle:
-                self._abort(request.address, ABORT_TOGGLE)
-                raise SdoOutOfStepError(SdoOutOfStepError.TOGGLE, node=node, index=index, subindex=subindex)
-            value += data[1:8 - ((command >> 1) & 0x7)]
-            done += 1
-            if command & 0x01:  # no more segments
-                return bytes(value[:size]) if size is not None else bytes(value)
-            toggle ^= 1
+        self._abort(request.address, ABORT_TOGGLE)
+        raise SdoOutOfStepError(SdoOutOfStepError.TOGGLE, node=node, index=index, subindex=subindex)
 
     def _drop_client_copies(self) -> None:
         """canopen's client queues a copy of every answer on its COB-ID and empties the queue only at its own next
