@@ -19,6 +19,7 @@ from drivebench.simulator.ethercat import GatewayServer, SimulatedSlave
 from drivebench.web.app import create_app
 from tests.conftest import DEMO_PLANT, fresh_channel, wait_for_value
 from tests.web.test_parameter_sets_api import SETS, finish
+from tests.web.test_pdo_api import give_changed_profile
 
 SESSION = "ethercat-line"
 NODE = f"/api/sessions/{SESSION}/nodes/1"
@@ -302,7 +303,7 @@ def test_the_txpdo_mapping_is_configurable_but_the_manual_names_nothing_to_map(a
     refused = api.put(f"{NODE}/pdos/mapping/tpdo/1", json={"entries": [[0x29E5, 1]]})  # C13850/1: R only
     assert refused.status_code == 422 and refused.json()["detail"] == (
         "C13850/1 (All words from drive to master: 1st word) cannot be mapped into TxPDO 0x1A00: the profile does "
-        "not list it as mappable (inputs of the master)")
+        "not list it as PDO-mappable (what this PDO carries is read from the device).")
 
 
 def test_a_mapping_the_profile_forbids_is_422_in_ethercat_words_and_nothing_is_sent(api: TestClient) -> None:
@@ -313,15 +314,18 @@ def test_a_mapping_the_profile_forbids_is_422_in_ethercat_words_and_nothing_is_s
     assert not_mappable.status_code == 422 and not_mappable.json()["type"] == "/problems/invalid-value"
     assert not_mappable.json()["detail"] == (
         "C00039/1 (Fixed setpoint: Fixed_Setpoint_1) cannot be mapped into RxPDO 0x1600: the profile does not list "
-        "it as mappable and writable (outputs of the master)")
+        "it as PDO-mappable and writable (what this PDO carries is written into the device).")
     too_many = api.put(f"{NODE}/pdos/mapping/rpdo/1", json={"entries": [[0x5C93, 1]] * 9})
     assert too_many.status_code == 422
-    assert too_many.json()["detail"] == "RxPDO 0x1600 takes at most 8 entries; 9 were given."
+    assert too_many.json()["detail"] == "RxPDO 0x1600 takes at most 8 mapping entries; 9 were given."
     missing = api.put(f"{NODE}/pdos/mapping/rpdo/2", json={"entries": []})
     assert missing.status_code == 404 and "has no RxPDO 0x1601 in its profile" in missing.json()["detail"]
     for problem in (not_mappable, too_many, missing):
         assert "RPDO" not in problem.text and "TPDO" not in problem.text
     assert [unit.store.get(0x1600, sub) for sub in range(3)] == before
+    canopen = api.put("/api/sessions/demo-plant/nodes/3/pdos/mapping/rpdo/5", json={"entries": [[0x6040, 0]]})
+    assert canopen.status_code == 409 and canopen.json()["detail"] == (
+        "Session demo-plant is not an EtherCAT session: its PDOs have COB-IDs (PDO tab).")
 
 
 @pytest.fixture
@@ -360,14 +364,8 @@ def test_each_failed_mapping_gets_its_own_status_and_problem_type(api: TestClien
 def test_a_fixed_mapping_is_said_in_words_on_the_tab_and_refused_with_422(
         api: TestClient, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(settings, "user_profiles_dir", tmp_path)  # the upload stays out of the repository
-    fixed = json.loads((settings.profiles_dir / "lenze-8400-motec-ethercat.json").read_text())
-    fixed["id"] = "ethercat-fixed-rxpdo"
-    for entry in fixed["objects"]:
-        if entry["index"] == "0x1600":
-            entry["access"] = "ro"
-    assert api.post("/api/profiles", files={"file": ("fixed.json", json.dumps(fixed).encode())}).status_code == 201
-    assert api.post(f"/api/sessions/{SESSION}/nodes", json={"node_id": 1, "profile_id": "ethercat-fixed-rxpdo"}
-                    ).json()["profile_id"] == "ethercat-fixed-rxpdo"
+    give_changed_profile(api, SESSION, 1, "lenze-8400-motec-ethercat", "ethercat-fixed-rxpdo",
+                         {("0x1600", None): {"access": "ro"}})
     tab = api.get(f"/ui/sessions/{SESSION}/nodes/1/pdo").text
     card = tab[tab.index('id="ecat-pdo-rpdo1"'):tab.index('id="ecat-assign-tpdo"')]
     assert "Fixed mapping: the entries of 0x1600 are read-only in this device's profile (manual)" in card

@@ -4,11 +4,16 @@ export, live decode of a TPDO after a value change in the simulator, RPDO sendin
 
 from __future__ import annotations
 
+import json
 import time
+from pathlib import Path
+from typing import Any
 
 import can
+import pytest
 from fastapi.testclient import TestClient
 
+from drivebench.config import settings
 from drivebench.simulator.plant import Plant
 from tests.conftest import wait_until
 
@@ -47,13 +52,22 @@ def test_over_length_and_non_mappable_are_refused_before_sending(client: TestCli
     before = _pdo_objects(client, 3)
     too_long = {"entries": [[0x6040, 0], [0x6042, 0], [0x2802, 3], [0x2802, 4], [0x6071, 0]]}
     answer = client.put(f"{API}/3/pdos/rpdo/5", json=too_long)
-    assert answer.status_code == 422 and "at most 4" in answer.json()["detail"]
+    assert answer.status_code == 422
+    assert answer.json()["detail"] == "RPDO5 takes at most 4 mapping entries; 5 were given."
     not_mappable = client.put(f"{API}/3/pdos/rpdo/5", json={"entries": [[0x6046, 1]]})
-    assert not_mappable.status_code == 422 and "cannot be mapped" in not_mappable.json()["detail"]
+    assert not_mappable.status_code == 422 and not_mappable.json()["detail"] == (
+        "0x6046.1 (vl velocity min max amount: vl velocity min amount) cannot be mapped into RPDO5: the profile does "
+        "not list it as PDO-mappable and writable (what this PDO carries is written into the device).")
     read_only = client.put(f"{API}/3/pdos/rpdo/5", json={"entries": [[0x6041, 0]]})
     assert read_only.status_code == 422, "a read-only object cannot go into an RPDO"
+    assert read_only.json()["detail"].startswith("0x6041 (Status word) cannot be mapped into RPDO5: ")
+    not_readable = client.put(f"{API}/3/pdos/tpdo/5", json={"entries": [[0x6046, 1]]})
+    assert not_readable.status_code == 422 and not_readable.json()["detail"].endswith(
+        "cannot be mapped into TPDO5: the profile does not list it as PDO-mappable (what this PDO carries is read "
+        "from the device).")
     fixed = client.put(f"{API}/3/pdos/rpdo/1", json={"entries": [[0x6040, 0]]})
-    assert fixed.status_code == 422 and "fixed" in fixed.json()["detail"]
+    assert fixed.status_code == 422 and fixed.json()["detail"] == (
+        "The mapping of RPDO1 is fixed on this device (its entries are read-only in the profile).")
     wrong_order = client.put(f"{API}/3/pdos/rpdo/5", json={"entries": [[0x6071, 0], [0x2802, 3]]})
     assert wrong_order.status_code == 422 and "mapping sequence" in wrong_order.json()["detail"]
     eight_words = {"entries": [[0x58E0, 1], [0x58E0, 2], [0x58E0, 3], [0x58E0, 1], [0x58E0, 2]]}
@@ -61,6 +75,49 @@ def test_over_length_and_non_mappable_are_refused_before_sending(client: TestCli
     ui = client.post(f"{UI}/3/pdo/rpdo/5/apply", data={"entries": "0x6046.1", "valid": "1"})
     assert ui.status_code == 422
     assert _pdo_objects(client, 3) == before
+
+
+def test_a_mapping_longer_than_a_can_frame_is_refused_before_sending(client: TestClient) -> None:
+    before = _pdo_objects(client, 7)
+    positions = {"entries": [[0x6062, 0], [0x6063, 0], [0x6064, 0]]}  # three 32-bit positions: 12 bytes
+    answer = client.put(f"{API}/7/pdos/tpdo/1", json=positions)
+    assert answer.status_code == 422 and answer.json()["type"] == "/problems/invalid-value"
+    assert answer.json()["detail"] == "The mapping needs 12 bytes; a PDO carries at most 8."
+    assert _pdo_objects(client, 7) == before
+
+
+def give_changed_profile(client: TestClient, session_id: str, node_id: int, shipped_id: str, new_id: str,
+                         changes: dict[tuple[str, int | None], dict[str, Any]]) -> None:
+    """Upload a copy of a shipped profile with some objects changed (``changes``: (index, subindex or None for each
+    subindex) -> fields) as ``new_id`` and give it to the node. The caller points ``settings.user_profiles_dir`` to
+    a temporary directory, so that the upload stays out of the repository."""
+    profile = json.loads((settings.profiles_dir / f"{shipped_id}.json").read_text())
+    profile["id"] = new_id
+    profile["objects"] = [{**entry, **changes.get((entry["index"], entry.get("subindex")), {}),
+                           **changes.get((entry["index"], None), {})} for entry in profile["objects"]]
+    assert client.post("/api/profiles", files={"file": (f"{new_id}.json", json.dumps(profile).encode())}
+                       ).status_code == 201
+    assert client.post(f"/api/sessions/{session_id}/nodes", json={"node_id": node_id, "profile_id": new_id}
+                       ).json()["profile_id"] == new_id
+
+
+def test_a_transmission_type_the_profile_forbids_is_refused_before_sending(
+        client: TestClient, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A servo whose manual permits only some types on TPDO1 and none above 240 on TPDO2 (uploaded profile)."""
+    monkeypatch.setattr(settings, "user_profiles_dir", tmp_path)
+    give_changed_profile(client, "demo-plant", 7, "generic-cia402-servo", "servo-strict-transmission", {
+        ("0x1800", 2): {"selection": {"1": "every SYNC", "255": "event-driven (device profile)"}},
+        ("0x1801", 2): {"max": 240}})
+    before = _pdo_objects(client, 7)
+    status = {"entries": [[0x6041, 0]], "transmission_type": 254}
+    refused = client.put(f"{API}/7/pdos/tpdo/1", json=status)
+    assert refused.status_code == 422 and refused.json()["detail"] == (
+        "Transmission type 254 is not permitted for this device; its manual allows 1 (every SYNC), "
+        "255 (event-driven (device profile)).")
+    above = client.put(f"{API}/7/pdos/tpdo/2", json={**status, "transmission_type": 250})
+    assert above.status_code == 422
+    assert above.json()["detail"] == "Transmission type 250 is above the device's maximum 240."
+    assert _pdo_objects(client, 7) == before
 
 
 def test_failed_apply_reports_the_step_and_leaves_the_pdo_disabled(client: TestClient) -> None:

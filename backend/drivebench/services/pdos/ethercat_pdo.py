@@ -144,34 +144,6 @@ async def read_assignments(session: Session, node_id: int) -> list[EcatAssignmen
     return found
 
 
-def check_mapping(session: Session, node_id: int, direction: Direction, number: int,
-                  entries: list[tuple[int, int]]) -> list[MappedObject]:
-    """The new mapping, named; InvalidValue (422) before anything is sent when the profile forbids it."""
-    catalog, mapping = _mapping_object(session, node_id, direction, number)
-    name = pdo_name(direction, number)
-    if not _writable(catalog, mapping, 1):
-        raise errors.InvalidValue(_("The mapping of {pdo} is fixed on this device (its entries are read-only in "
-                                    "the profile).").format(pdo=name))
-    most = pdo.max_mapping_entries(catalog, mapping)
-    if len(entries) > most:
-        raise errors.InvalidValue(_("{pdo} takes at most {most} entries; {given} were given.").format(
-            pdo=name, most=most, given=len(entries)))
-    allowed = {(o.index, o.subindex): o for o in pdo.mappable_objects(session, node_id, direction)}
-    for index, sub in entries:
-        if (index, sub) not in allowed:
-            item = catalog.by_address(index, sub)
-            what = f"{catalog.vendor_ref(index, sub)} ({item.name})" if item else f"0x{index:04X}.{sub}"
-            text = (_("{what} cannot be mapped into {pdo}: the profile does not list it as mappable and writable "
-                      "(outputs of the master)") if direction == "rpdo" else
-                    _("{what} cannot be mapped into {pdo}: the profile does not list it as mappable (inputs of the "
-                      "master)"))
-            raise errors.InvalidValue(text.format(what=what, pdo=name))
-    rule = pdo_notes.mapping_rule_violation(catalog.profile, direction, number, entries)
-    if rule:
-        raise errors.InvalidValue(rule)
-    return [allowed[entry] for entry in entries]
-
-
 def _rule(session: Session, node_id: int, abort_code: str | None) -> str | None:
     profile = session.node(node_id).profile
     if profile is None or abort_code is None:
@@ -202,8 +174,9 @@ async def apply_mapping(session: Session, node_id: int, direction: Direction, nu
                         entries: list[tuple[int, int]]) -> EcatApplyReport:
     """Write a mapping (refused 409 while another writer holds the node's lease), then read it back; raises
     :class:`MappingNotApplied` (its subclass says why) with the report when the slave does not take it."""
-    chosen = check_mapping(session, node_id, direction, number, entries)
+    _mapping_object(session, node_id, direction, number)  # 409 on a CANopen session, 404 where the profile has none
     name = pdo_name(direction, number)
+    chosen = pdo.check_mapping(session, node_id, direction, number, entries, name=name, max_bits=None)
     with node_lease.writing(session, node_id):
         steps = await pdo.run_plan(session, node_id, pdo.mapping_plan(pdo.MAP_BASE[direction] + number - 1, chosen))
         read_back, unread = await _read_back(session, node_id, direction, number)

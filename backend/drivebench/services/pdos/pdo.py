@@ -348,46 +348,54 @@ async def read_pdos(session: Session, node_id: int) -> list[PdoConfig]:
             for direction in ("rpdo", "tpdo") for number in pdo_numbers(session, node_id, direction)]
 
 
-def check_mapping(session: Session, node_id: int, direction: Direction, number: int,
-                  write: PdoWrite, *, max_bits: int | None = MAX_PDO_BITS) -> list[MappedObject]:
-    """The new mapping, named; InvalidValue before anything is sent when the profile forbids it. ``max_bits``:
-    a CAN frame's 8 bytes; None where the number of entries bounds it (EtherCAT)."""
+def check_mapping(session: Session, node_id: int, direction: Direction, number: int, entries: list[tuple[int, int]],
+                  *, name: str, max_bits: int | None = MAX_PDO_BITS) -> list[MappedObject]:
+    """The new mapping, named; InvalidValue before anything is sent when the profile forbids it. ``name``: the
+    PDO as its bus names it (``RPDO1``, ``RxPDO 0x1600``); ``max_bits``: a CAN frame's 8 bytes, None where the
+    number of entries bounds it (EtherCAT)."""
     catalog = node_catalog(session, node_id)
-    allowed = {(o.index, o.subindex): o for o in mappable_objects(session, node_id, direction)}
     mapping_index = MAP_BASE[direction] + number - 1
-    max_entries = max_mapping_entries(catalog, mapping_index)
     entry_one = profile_entry(catalog, mapping_index, 1)
     if entry_one is None or not entry_one.access.writable:
-        raise InvalidValue(_("The mapping of {pdo} is fixed on this device (0x{index} is read-only in its profile).")
-                           .format(pdo=f"{direction.upper()}{number}", index=f"{mapping_index:04X}"))
-    if len(write.entries) > max_entries:
+        raise InvalidValue(_("The mapping of {pdo} is fixed on this device (its entries are read-only in the "
+                             "profile).").format(pdo=name))
+    max_entries = max_mapping_entries(catalog, mapping_index)
+    if len(entries) > max_entries:
         raise InvalidValue(_("{pdo} takes at most {count} mapping entries; {given} were given.").format(
-            pdo=f"{direction.upper()}{number}", count=max_entries, given=len(write.entries)))
-    chosen = []
-    for index, sub in write.entries:
+            pdo=name, count=max_entries, given=len(entries)))
+    allowed = {(o.index, o.subindex): o for o in mappable_objects(session, node_id, direction)}
+    for index, sub in entries:
         if (index, sub) not in allowed:
             item = catalog.by_address(index, sub)
-            what = f"{item.name} (0x{index:04X}.{sub})" if item else f"0x{index:04X}.{sub}"
-            needs = _("PDO-mappable and writable") if direction == "rpdo" else _("PDO-mappable")
-            raise InvalidValue(_("{what} cannot be mapped into an {pdo} of this device (the profile does not list it "
-                                 "as {needs}).").format(what=what, pdo=direction.upper(), needs=needs))
-        chosen.append(allowed[(index, sub)])
+            what = f"{catalog.vendor_ref(index, sub)} ({item.name})" if item else f"0x{index:04X}.{sub}"
+            text = (_("{what} cannot be mapped into {pdo}: the profile does not list it as PDO-mappable and "
+                      "writable (what this PDO carries is written into the device).") if direction == "rpdo" else
+                    _("{what} cannot be mapped into {pdo}: the profile does not list it as PDO-mappable (what "
+                      "this PDO carries is read from the device)."))
+            raise InvalidValue(text.format(what=what, pdo=name))
+    chosen = [allowed[entry] for entry in entries]
     bits = sum(m.bits for m in chosen)
     if max_bits is not None and bits > max_bits:
         raise InvalidValue(_("The mapping needs {count} bytes; a PDO carries at most 8.").format(count=bits // 8))
-    rule = pdo_notes.mapping_rule_violation(catalog.profile, direction, number, write.entries)
+    rule = pdo_notes.mapping_rule_violation(catalog.profile, direction, number, entries)
     if rule:
         raise InvalidValue(rule)
-    if write.transmission_type is not None:
-        entry = profile_entry(catalog, COMM_BASE[direction] + number - 1, 2)
-        if entry is not None and entry.selection and write.transmission_type not in entry.selection:
-            allowed_types = ", ".join(f"{k} ({v})" for k, v in sorted(entry.selection.items()))
-            raise InvalidValue(_("Transmission type {type} is not permitted for this device; its manual allows "
-                                 "{allowed}.").format(type=write.transmission_type, allowed=allowed_types))
-        if entry is not None and entry.max is not None and write.transmission_type > entry.max:
-            raise InvalidValue(_("Transmission type {type} is above the device's maximum {max}.").format(
-                type=write.transmission_type, max=f"{entry.max:g}"))
     return chosen
+
+
+def _check_transmission_type(catalog: Catalog, direction: Direction, number: int,
+                             transmission_type: int | None) -> None:
+    """InvalidValue before anything is sent when the device's manual does not permit the type."""
+    if transmission_type is None:
+        return
+    entry = profile_entry(catalog, COMM_BASE[direction] + number - 1, 2)
+    if entry is not None and entry.selection and transmission_type not in entry.selection:
+        allowed_types = ", ".join(f"{k} ({v})" for k, v in sorted(entry.selection.items()))
+        raise InvalidValue(_("Transmission type {type} is not permitted for this device; its manual allows "
+                             "{allowed}.").format(type=transmission_type, allowed=allowed_types))
+    if entry is not None and entry.max is not None and transmission_type > entry.max:
+        raise InvalidValue(_("Transmission type {type} is above the device's maximum {max}.").format(
+            type=transmission_type, max=f"{entry.max:g}"))
 
 
 async def apply_pdo(session: Session, node_id: int, direction: Direction, number: int,
@@ -401,7 +409,8 @@ async def apply_pdo(session: Session, node_id: int, direction: Direction, number
 async def _apply_pdo(session: Session, node_id: int, direction: Direction, number: int,
                      write: PdoWrite) -> ApplyReport:
     catalog = node_catalog(session, node_id)
-    chosen = check_mapping(session, node_id, direction, number, write)
+    chosen = check_mapping(session, node_id, direction, number, write.entries, name=f"{direction.upper()}{number}")
+    _check_transmission_type(catalog, direction, number, write.transmission_type)
     comm, mapping = COMM_BASE[direction] + number - 1, MAP_BASE[direction] + number - 1
     current = await read_pdo(session, node_id, direction, number)
     cob_id = write.cob_id if write.cob_id is not None else current.cob_id
