@@ -1,6 +1,7 @@
 """Idle cost (issue 21 item 4): CPU of an idle `drivebench serve --demo` (the demo plant's simulated drives, nobody
-connected), and of an idle server on a bus with no traffic and no page open: `serve --bus socketcand:…` on a
-`drivebench hub` nobody else uses, and `serve --bus virtual:…` with no simulator on it.
+connected), and of an idle server on a bus with no page open: `serve --bus socketcand:…` on a `drivebench hub`
+nobody else uses, the same with the demo plant's drives on the hub (`drivebench simulate` in another process: the
+heartbeats of a real machine), and `serve --bus virtual:…` with no simulator on it.
 
 Each server runs in a process of its own with a fresh database; after it answers /api/health and settles, its CPU time
 (user + system, /proc/<pid>/stat, every thread) is read over MEASURE_S. Targets: < 2 % of one core for the demo
@@ -78,21 +79,28 @@ def _listening(port: int) -> bool:
         return probe.connect_ex(("127.0.0.1", port)) == 0
 
 
-def measure_on_hub() -> tuple[float, float]:
-    """An idle server on a socketcand hub with no traffic (the hub is another process, not counted)."""
+def measure_on_hub(*, drives: bool = False) -> tuple[float, float]:
+    """An idle server on a socketcand hub (the hub is another process, not counted); with ``drives`` the demo
+    plant's simulated drives are on the bus in a process of their own (their heartbeats are the bus's traffic), as
+    on a real machine where nobody has a page open."""
     port = _free_port()
-    hub = subprocess.Popen([sys.executable, "-m", "drivebench.cli", "hub", "--port", str(port)],
-                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    bus = f"socketcand:127.0.0.1:{port}/can0"
+    children = [subprocess.Popen([sys.executable, "-m", "drivebench.cli", "hub", "--port", str(port)],
+                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
     try:
         deadline = time.monotonic() + 30
         while not _listening(port):
             if time.monotonic() > deadline:
                 raise RuntimeError("the hub did not start")
             time.sleep(0.1)
-        return measure(["--bus", f"socketcand:127.0.0.1:{port}/can0"])
+        if drives:
+            children.append(subprocess.Popen([sys.executable, "-m", "drivebench.cli", "simulate", "--bus", bus],
+                                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        return measure(["--bus", bus])
     finally:
-        hub.terminate()
-        hub.wait(timeout=15)
+        for child in reversed(children):
+            child.terminate()
+            child.wait(timeout=15)
 
 
 def write_section(body: str) -> None:
@@ -112,6 +120,8 @@ def main() -> int:
     rows = [("Idle demo server (`serve --demo`)", TARGET_PERCENT, *measure(["--demo"])),
             ("Idle server on a socketcand hub without traffic (`serve --bus socketcand:…`)", BUS_TARGET_PERCENT,
              *measure_on_hub()),
+            ("Idle server on a socketcand hub with the demo plant's drives in another process (`simulate`: their "
+             "heartbeats on the bus), no page open", BUS_TARGET_PERCENT, *measure_on_hub(drives=True)),
             ("Idle server on a virtual bus without a simulator (`serve --bus virtual:…`)", BUS_TARGET_PERCENT,
              *measure(["--bus", f"virtual:idle-{os.getpid()}@500000"]))]
     lines = "\n".join(f"| {name} | {percent:.2f} % of one core | < {target:g} %: "

@@ -10,7 +10,9 @@ import can
 import pytest
 
 from drivebench.device.loader import ProfileRegistry
+from drivebench.simulator.ethercat import GatewayServer, SimulatedSlave
 from drivebench.simulator.plant import Plant, PlantFile
+from drivebench.simulator.ticker import MAX_SLEEP_S
 from tests.conftest import DEMO_PLANT, fresh_channel, wait_until
 
 WATCH_S = 2.0
@@ -71,3 +73,30 @@ def test_a_write_wakes_the_sleeping_plant_at_once(plant_and_wire: tuple[Plant, c
     while msg is not None and msg.arbitration_id != tpdos[0].cob_id:
         msg = wire.recv(0.5)
     assert msg is not None and time.monotonic() - started < 0.5
+
+
+def test_an_idle_ethercat_line_sleeps_until_a_slave_names_a_deadline_or_wakes_it(registry: ProfileRegistry) -> None:
+    """The simulated master's slaves at rest are ticked about once a second (the old ticker: every 10 ms), and a
+    change (a mailbox write wakes the slave's node) is taken up at once."""
+    profile = registry.get("lenze-8400-motec-ethercat")
+    slaves = [SimulatedSlave(profile, 1001, 0), SimulatedSlave(profile, 1002, 1)]
+    ticks: Counter[int] = Counter()
+    for slave in slaves:
+        def counted(now: float, station: int = slave.station, tick=slave.tick) -> float | None:  # type: ignore[no-untyped-def]
+            ticks[station] += 1
+            return tick(now)  # type: ignore[no-any-return]
+        slave.tick = counted  # type: ignore[method-assign]
+    server = GatewayServer(slaves).start()
+    try:
+        time.sleep(0.3)  # start-up settled (Init -> Pre-Operational)
+        ticks.clear()
+        time.sleep(WATCH_S)
+        assert all(ticks[slave.station] <= WATCH_S / MAX_SLEEP_S + 2 for slave in slaves), ticks
+        last = ticks[1001]
+        assert wait_until(lambda: ticks[1001] > last, MAX_SLEEP_S * 3)  # it has just ticked: asleep for ~1 s now
+        slaves[0].node.wake()
+        woken, last = time.monotonic(), ticks[1001]
+        assert wait_until(lambda: ticks[1001] > last, MAX_SLEEP_S * 3)
+        assert time.monotonic() - woken < MAX_SLEEP_S / 2
+    finally:
+        server.stop()

@@ -36,13 +36,13 @@ from drivebench.protocol.datatypes import DataType, encode
 from drivebench.protocol.sdo_server import SdoAbort
 from drivebench.simulator.coe_dictionary import StoreDictionary
 from drivebench.simulator.node import Latency, LatencyText, SimulatedNode
+from drivebench.simulator.ticker import DeadlineTicker
 from drivebench.transport.ethercat_gateway import GatewayFormatError, GatewaySpec, gateway_frame, telegram_of
 
 PREOP_ONLY = (0x1600, 0x1A00, 0x1C12, 0x1C13)
 """PDO mapping and assignment: written only in Pre-Operational (manual §8, ETG.1000.6)."""
 ABORT_DEVICE_STATE = 0x08000022
 BUS_STATE, BUS_ERROR = "C13861", "C13879"
-TICK_S = 0.01
 
 
 class SimulatedSlave:
@@ -137,8 +137,8 @@ class SimulatedSlave:
     def raise_fault(self, code: int, register: int = 0x01, vendor: bytes = b"") -> None:
         self.node.raise_emcy(code, register, vendor)
 
-    def tick(self, now: float) -> None:
-        self.node.tick(now)
+    def tick(self, now: float) -> float | None:
+        return self.node.tick(now)
 
 
 class SimulatedMaster:
@@ -228,8 +228,10 @@ class GatewayServer:
         self._threads: list[threading.Thread] = []
         self._slave_locks = {station: threading.Lock() for station in self.slaves}
         self.malformed = 0
+        self._ticker = DeadlineTicker(self.slaves.values, "sim-mbg-tick")
         for slave in slaves:
             slave.emergency_sink = self._emergency_sender(slave.station)
+            slave.node.wake = self._ticker.wake
 
     @property
     def spec(self) -> str:
@@ -238,14 +240,15 @@ class GatewayServer:
     def start(self) -> GatewayServer:
         for slave in self.slaves.values():
             slave.power_on()
-        for target, name in ((self._receive, "sim-mbg-rx"), (self._tick, "sim-mbg-tick")):
-            thread = threading.Thread(target=target, name=name, daemon=True)
-            thread.start()
-            self._threads.append(thread)
+        thread = threading.Thread(target=self._receive, name="sim-mbg-rx", daemon=True)
+        thread.start()
+        self._threads.append(thread)
+        self._ticker.start()
         return self
 
     def stop(self) -> None:
         self._closed.set()
+        self._ticker.stop()
         with contextlib.suppress(OSError):
             self._sock.close()
         for thread in self._threads:
@@ -291,12 +294,6 @@ class GatewayServer:
                 return
             with contextlib.suppress(OSError):
                 self._sock.sendto(gateway_frame(answer), peer)
-
-    def _tick(self) -> None:
-        while not self._closed.wait(TICK_S):
-            now = time.monotonic()
-            for slave in self.slaves.values():
-                slave.tick(now)
 
 
 class LineSlave(BaseModel):

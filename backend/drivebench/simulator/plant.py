@@ -27,13 +27,8 @@ from drivebench.i18n import _
 from drivebench.simulator.babbler import DEFAULT_COB_ID, Babbler
 from drivebench.simulator.ethercat import EthercatLine
 from drivebench.simulator.node import Latency, LatencyText, SimulatedNode
+from drivebench.simulator.ticker import DeadlineTicker
 from drivebench.transport.bus import BusSpec, open_bus
-
-MIN_SLEEP_S = 0.001
-MAX_SLEEP_S = 1.0
-"""The ticker sleeps until the earliest deadline a node names (a heartbeat, a drive's cycle while it moves, a TPDO
-timer) or until a node wakes it (a frame or a write changed something); never longer than this (a change made
-without telling the node, e.g. a value set with ``notify=False``, is taken up within this time)."""
 
 
 class PlantNode(BaseModel):
@@ -88,9 +83,7 @@ class Plant:
         self.nodes: dict[int, SimulatedNode] = {}
         self._bus: can.BusABC | None = None
         self._notifier: can.Notifier | None = None
-        self._stop = threading.Event()
-        self._ticker: threading.Thread | None = None
-        self._wake = threading.Event()
+        self._ticker = DeadlineTicker(self._everyone, "sim-plant-ticker")
         self._send_lock = threading.Lock()
         self.babbler: Babbler | None = None
         self.duplicates: list[SimulatedNode] = []
@@ -108,16 +101,12 @@ class Plant:
         self._notifier = can.Notifier(self._bus, [self._on_message], timeout=0.5)
         for node in self.nodes.values():
             node.power_on()
-        self._ticker = threading.Thread(target=self._tick, name="sim-plant-ticker", daemon=True)
         self._ticker.start()
         return self
 
     def stop(self) -> None:
         self.stop_babbler()
-        self._stop.set()
-        self._wake.set()
-        if self._ticker is not None:
-            self._ticker.join(timeout=2)
+        self._ticker.stop()
         for node in self._everyone():
             node.power_off()
         if self._notifier is not None:
@@ -194,16 +183,5 @@ class Plant:
             node.on_frame(cob_id, data, timestamp)
 
     def wake(self) -> None:
-        """Something changed (any thread): tick the nodes now rather than at the next deadline. The ticker's own
-        changes need no wake-up: it asks every node for its next deadline after ticking."""
-        ticker = self._ticker
-        if ticker is None or threading.current_thread() is not ticker:
-            self._wake.set()
-
-    def _tick(self) -> None:
-        while not self._stop.is_set():
-            self._wake.clear()
-            now = time.monotonic()
-            due = [at for node in self._everyone() if (at := node.tick(now)) is not None]
-            sleep = min(due) - time.monotonic() if due else MAX_SLEEP_S
-            self._wake.wait(min(max(sleep, MIN_SLEEP_S), MAX_SLEEP_S))
+        """Something changed (any thread): the nodes are ticked now rather than at the next deadline."""
+        self._ticker.wake()
