@@ -1,15 +1,19 @@
 """German answers of the application services through the real HTTP API: a parameter-set download's verification
 message and job texts (made once by the job, read later by each reader in their language), set-file import
-refusals, account and sign-in refusals; English stays as it was for everyone else."""
+refusals, account and sign-in refusals, the bus state's sentence (made once, worded for each reader); English stays
+as it was for everyone else."""
 
 from __future__ import annotations
 
 import json
+import time
+from typing import Any
 
 from fastapi.testclient import TestClient
 
 from drivebench.services.users import accounts
 from drivebench.services.users.principals import Role
+from tests.conftest import wait_until
 from tests.web.test_parameter_sets_api import finish
 
 SESSION = "demo-plant"
@@ -125,3 +129,38 @@ def test_a_sign_in_lock_counts_down_in_german(demo_api: TestClient) -> None:
     assert detail.endswith(" Sekunden erneut.") or detail.endswith(" Sekunde erneut.")
     assert locked.json()["hint"].startswith("Warten Sie und melden Sie sich dann erneut an")
 
+
+def _bus_text_of_an_update(socket: Any, timeout_s: float = 10.0) -> str:
+    """The bus sentence of the first update a monitor websocket sends with one (not its hello)."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        message = json.loads(socket.receive_text())
+        if message["type"] == "update" and message["snapshot"]["bus_text"]:
+            return str(message["snapshot"]["bus_text"])
+    raise AssertionError("no monitor update said how the bus is")
+
+
+def test_the_bus_sentence_is_made_once_and_worded_for_each_reader(demo_api: TestClient) -> None:
+    """A lost adapter in the words of each reader: the session API, the Plant page, the REST monitor frozen by an
+    English reader's pause and read by a German one, and two viewers of one monitor feed."""
+    session = f"/api/sessions/{SESSION}"
+    adapter = demo_api.app.state.drivebench.manager.get(SESSION).network.bus.adapter  # type: ignore[attr-defined]
+    adapter.unplug("USB adapter unplugged")
+    try:
+        assert wait_until(lambda: "reconnecting" in (demo_api.get(session).json()["state_text"] or ""))
+        assert demo_api.get(session).json()["state_text"].startswith("adapter lost: USB adapter unplugged since ")
+        worded = demo_api.get(session, headers=GERMAN).json()["state_text"]
+        assert worded.startswith("Adapter verloren: USB adapter unplugged seit ") and "; verbindet neu" in worded
+        assert "Adapter verloren: USB adapter unplugged seit " in demo_api.get("/", headers=GERMAN).text
+
+        assert demo_api.post(f"{session}/monitor/pause", headers=ENGLISH).json() == {"paused": True}
+        frozen = demo_api.get(f"{session}/monitor?trace=0", headers=GERMAN).json()
+        assert frozen["paused"] and frozen["bus_text"].startswith("Adapter verloren: USB adapter unplugged seit ")
+        assert demo_api.post(f"{session}/monitor/resume").json() == {"paused": False}
+
+        url = f"/ws/sessions/{SESSION}/monitor?rows=1"
+        with demo_api.websocket_connect(url, headers=GERMAN) as german, demo_api.websocket_connect(url) as english:
+            assert _bus_text_of_an_update(german).startswith("Adapter verloren: USB adapter unplugged seit ")
+            assert _bus_text_of_an_update(english).startswith("adapter lost: USB adapter unplugged since ")
+    finally:
+        adapter.plug_in()
