@@ -153,6 +153,8 @@ def test_socketcand_hub_cut_mid_read_all_is_adapter_lost_until_the_hub_is_back()
             state = wait_for(lambda: (s := client.get("/api/sessions/demo-plant").json())["state"] == "adapter lost"
                              and s, what="the session to see the hub gone")
             assert state["state_text"].startswith("adapter lost: ")
+            german = client.get("/api/sessions/demo-plant", headers={"Accept-Language": "de"}).json()["state_text"]
+            assert german.startswith("Adapter verloren: ") and "verbindet neu" in german, german
             assert "socketcand" in client.get("/api/sessions/demo-plant/nodes/5/parameters/0x1000").json()["hint"]
 
             hub = start_hub_thread(port=port)  # the gateway is back on the same address

@@ -18,7 +18,7 @@ import socket
 import subprocess
 import sys
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
@@ -40,13 +40,6 @@ SESSION = "demo-plant"
 NODE = f"/api/sessions/{SESSION}/nodes"
 FAULTS = f"/api/sessions/{SESSION}/simulator/nodes/{{node}}/faults"
 HTMX = {"HX-Request": "true"}
-
-
-@pytest.fixture
-def api(app_db_url: str) -> Iterator[TestClient]:
-    app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
-    with TestClient(app) as client:
-        yield client
 
 
 def plant_of(api: TestClient) -> Plant:
@@ -77,23 +70,23 @@ def while_pending(work: Callable[[], httpx.Response], other: Callable[[], httpx.
 
 
 # --- the fault switch --------------------------------------------------------------------------------------
-def test_faults_are_switched_per_simulated_node_and_refused_on_a_real_bus(api: TestClient) -> None:
-    body = set_faults(api, 5, silent_after_segments=3, abort_code="0x08000000", abort_every=4)
+def test_faults_are_switched_per_simulated_node_and_refused_on_a_real_bus(demo_api: TestClient) -> None:
+    body = set_faults(demo_api, 5, silent_after_segments=3, abort_code="0x08000000", abort_every=4)
     assert body["faults"]["abort_code"] == 0x08000000
     assert body["active"] == ["stops answering after 3 segments of a segmented transfer",
                               "aborts every 4th request with 0x08000000"]
-    assert plant_of(api).nodes[5].faults.faults.silent_after_segments == 3
-    assert api.get(FAULTS.format(node=12)).json()["active"] == []  # only node 5
-    assert api.delete(FAULTS.format(node=5)).json()["active"] == []
+    assert plant_of(demo_api).nodes[5].faults.faults.silent_after_segments == 3
+    assert demo_api.get(FAULTS.format(node=12)).json()["active"] == []  # only node 5
+    assert demo_api.delete(FAULTS.format(node=5)).json()["active"] == []
 
-    assert api.put(FAULTS.format(node=5), json={"abort_code": "general"}).status_code == 422
-    assert api.put(FAULTS.format(node=5), json={"sparks": True}).status_code == 422
-    missing = api.get(FAULTS.format(node=44))
+    assert demo_api.put(FAULTS.format(node=5), json={"abort_code": "general"}).status_code == 422
+    assert demo_api.put(FAULTS.format(node=5), json={"sparks": True}).status_code == 422
+    missing = demo_api.get(FAULTS.format(node=44))
     assert missing.status_code == 404 and "no node 44" in missing.json()["detail"]
 
-    opened = api.post("/api/sessions", json={"interface": "virtual", "channel": fresh_channel(), "name": "real"})
+    opened = demo_api.post("/api/sessions", json={"interface": "virtual", "channel": fresh_channel(), "name": "real"})
     assert opened.status_code == 201, opened.text
-    refused = api.put(f"/api/sessions/{opened.json()['id']}/simulator/nodes/5/faults", json={"wrong_toggle": True})
+    refused = demo_api.put(f"/api/sessions/{opened.json()['id']}/simulator/nodes/5/faults", json={"wrong_toggle": True})
     assert refused.status_code == 409
     assert "simulated sessions only" in refused.json()["detail"]
 
@@ -118,43 +111,43 @@ CASES = [
 
 
 @pytest.mark.parametrize(("faults", "ref", "status", "words"), CASES)
-def test_fault_is_told_in_words_others_keep_working_and_it_recovers(api: TestClient, app_db_url: str,
+def test_fault_is_told_in_words_others_keep_working_and_it_recovers(demo_api: TestClient, app_db_url: str,
                                                                     faults: dict[str, Any], ref: str, status: int,
                                                                     words: str) -> None:
     profile = ProfileRegistry().get("lenze-8400-motec-canopen")
     stored = ParameterSetStore(app_db_url).create("kept", profile, {"C00088": 1020, "C00011": 1500}, user="t")
-    before = read(api, 5, ref)
+    before = read(demo_api, 5, ref)
     assert before.status_code == 200, before.text
-    set_faults(api, 5, **faults)
+    set_faults(demo_api, 5, **faults)
 
-    failed, others = while_pending(lambda: read(api, 5, ref), lambda: read(api, 12, "C00011"))
+    failed, others = while_pending(lambda: read(demo_api, 5, ref), lambda: read(demo_api, 12, "C00011"))
     assert failed.status_code == status, failed.text
     problem = failed.json()
     assert failed.headers["content-type"].startswith("application/problem+json")
     assert problem["detail"].startswith(words), problem
     assert problem["node"] == 5 and problem["object"].lower().startswith(before.json()["index"].lower())
     assert all(other.status_code == 200 for other in others), [o.text for o in others]
-    assert read(api, 3, "P0700").status_code == 200  # the MICROMASTER too
+    assert read(demo_api, 3, "P0700").status_code == 200  # the MICROMASTER too
 
     # the page: the row's Read button gets the same words beside it, with the same status
-    row = api.post(f"/ui/sessions/{SESSION}/nodes/5/parameters/{ref}/read", headers=HTMX)
+    row = demo_api.post(f"/ui/sessions/{SESSION}/nodes/5/parameters/{ref}/read", headers=HTMX)
     assert row.status_code == status
     assert 'role="alert"' in row.text and words.split(" (")[0].replace("0x5F9C sub 0", "") in row.text
 
-    set_faults(api, 5)  # {}: cleared
-    again = read(api, 5, ref)
+    set_faults(demo_api, 5)  # {}: cleared
+    again = read(demo_api, 5, ref)
     assert again.status_code == 200, again.text
     assert again.json()["raw"] == before.json()["raw"]
     assert ParameterSetStore(app_db_url).get(stored.info.id).values == {"C00088": 1020, "C00011": 1500}
 
 
-def test_abort_text_is_the_manuals_and_the_code_travels(api: TestClient) -> None:
-    set_faults(api, 5, abort_code="0x06060000")
-    problem = read(api, 5, "C00061").json()
+def test_abort_text_is_the_manuals_and_the_code_travels(demo_api: TestClient) -> None:
+    set_faults(demo_api, 5, abort_code="0x06060000")
+    problem = read(demo_api, 5, "C00061").json()
     assert problem["abort_code"] == "0x06060000" and problem["abort_text"] and problem["abort_text"] in \
         problem["detail"]
     assert problem["abort_text"] == "Access denied because of hardware error"  # the profile's abort_texts
-    set_faults(api, 5)
+    set_faults(demo_api, 5)
 
 
 # --- read-all with faults ----------------------------------------------------------------------------------
@@ -172,49 +165,49 @@ def run_job(api: TestClient, path: str, on_the_way: Callable[[], None] | None = 
     return job
 
 
-def test_read_all_keeps_what_it_read_and_names_each_failure(api: TestClient) -> None:
-    set_faults(api, 5, abort_code="0x08000000", abort_every=3)
-    job = run_job(api, f"{NODE}/5/read-all")
+def test_read_all_keeps_what_it_read_and_names_each_failure(demo_api: TestClient) -> None:
+    set_faults(demo_api, 5, abort_code="0x08000000", abort_every=3)
+    job = run_job(demo_api, f"{NODE}/5/read-all")
     assert job["state"] == "done"
     issues = job["issues"]
     total = job["progress"]["total"]
     assert issues and len(issues) < total
     assert all(i["abort_code"] == "0x08000000" and "SDO abort 0x08000000" in i["detail"] for i in issues)
-    listed = api.get(f"{NODE}/5/parameters").json()["parameters"]
+    listed = demo_api.get(f"{NODE}/5/parameters").json()["parameters"]
     with_values = [p for p in listed if p["last"] is not None]
     assert len(with_values) >= total - len(issues) - 2  # what was read is kept (SDO2 set-up reads aside)
 
-    set_faults(api, 5)
-    again = run_job(api, f"{NODE}/5/read-all")
+    set_faults(demo_api, 5)
+    again = run_job(demo_api, f"{NODE}/5/read-all")
     assert again["state"] == "done" and again["issues"] == []
 
 
-def test_read_all_gives_up_on_a_node_answering_out_of_step(api: TestClient) -> None:
-    set_faults(api, 5, index_offset=1)
-    job = run_job(api, f"/api/sessions/{SESSION}/read-all")
+def test_read_all_gives_up_on_a_node_answering_out_of_step(demo_api: TestClient) -> None:
+    set_faults(demo_api, 5, index_offset=1)
+    job = run_job(demo_api, f"/api/sessions/{SESSION}/read-all")
     assert job["state"] == "done"
     assert any(note.startswith("Node 5 answered out of step;") and "parameters not read" in note
                for note in job["notes"]), job["notes"]
     by_node = {issue["node"] for issue in job["issues"]}
     assert 5 in by_node and 12 not in by_node  # node 12 was read in full meanwhile
-    set_faults(api, 5)
-    assert read(api, 5, "C00061").status_code == 200
+    set_faults(demo_api, 5)
+    assert read(demo_api, 5, "C00061").status_code == 200
 
 
 @pytest.mark.parametrize("fault", [{"late_requests": 2, "latency_ms": 900}, {"drop_requests": 2}])
-def test_read_all_reads_every_parameter_of_a_node_that_missed_two_answers(api: TestClient,
+def test_read_all_reads_every_parameter_of_a_node_that_missed_two_answers(demo_api: TestClient,
                                                                           fault: dict[str, int]) -> None:
     """Two requests answered too late (a busy device) or lost, then normal answers: not a silent node. The two
     reads are asked again at the end and the job says so (issue 16 item 13: two slow answers used to abandon a
     healthy drive)."""
-    assert api.put(f"/api/sessions/{SESSION}/sdo-settings",
-                   json={"timeout_s": 0.3, "retries": 0, "use_sdo2": False}).status_code == 200
-    set_faults(api, 5, **fault)
-    job = run_job(api, f"{NODE}/5/read-all")
+    assert demo_api.put(f"/api/sessions/{SESSION}/sdo-settings",
+                        json={"timeout_s": 0.3, "retries": 0, "use_sdo2": False}).status_code == 200
+    set_faults(demo_api, 5, **fault)
+    job = run_job(demo_api, f"{NODE}/5/read-all")
     assert job["state"] == "done" and job["issues"] == [], (job["issues"], job["notes"], job["result"].get("retried"))
     total = job["progress"]["total"]
     assert len(job["result"]["values"]["5"]) == total
-    listed = api.get(f"{NODE}/5/parameters").json()["parameters"]
+    listed = demo_api.get(f"{NODE}/5/parameters").json()["parameters"]
     first_two = [p["ref"] for p in listed if p["access"] != "wo"][:2]
     # the two that missed their answers, and on a loaded machine maybe more
     assert job["result"]["retried"]["5"][:2] == first_two and job["result"]["failed_after_retry"]["5"] == []
@@ -230,52 +223,52 @@ def set_job_done(api: TestClient, job: dict[str, Any]) -> dict[str, Any]:
     return job
 
 
-def test_download_keeps_writing_to_a_node_that_missed_two_answers(api: TestClient) -> None:
+def test_download_keeps_writing_to_a_node_that_missed_two_answers(demo_api: TestClient) -> None:
     """A drive busy writing its memory leaves two downloads unanswered, then answers again: the parameter-set
     download writes everything after them (it gave up after two timeouts and sent nothing more), and the two show
     as failed, ready for the retry."""
     sets = "/api/parameter-sets"
-    started = api.post(f"{sets}/upload", json={"session_id": SESSION, "node_id": 5, "name": "Busy drive"})
+    started = demo_api.post(f"{sets}/upload", json={"session_id": SESSION, "node_id": 5, "name": "Busy drive"})
     assert started.status_code == 202, started.text
-    uploaded = set_job_done(api, started.json())
-    exported = json.loads(api.get(f"{sets}/{uploaded['set_id']}/export").text)
+    uploaded = set_job_done(demo_api, started.json())
+    exported = json.loads(demo_api.get(f"{sets}/{uploaded['set_id']}/export").text)
     changes = {"C00088": 12.5, "C00039/1": 55.0, "C00324/1": 10, "C00324/2": 20, "C00324/3": 30}
     for parameter in exported["parameters"]:
         if parameter["ref"] in changes:
             parameter["value"] = changes[parameter["ref"]]
     exported["name"] = "Busy drive, changed"
-    imported = api.post(f"{sets}/import", files={"file": ("busy.json", json.dumps(exported).encode())})
+    imported = demo_api.post(f"{sets}/import", files={"file": ("busy.json", json.dumps(exported).encode())})
     new_id = imported.json()["set"]["id"]
-    assert api.put(f"/api/sessions/{SESSION}/sdo-settings",
-                   json={"timeout_s": 0.3, "retries": 0, "use_sdo2": False}).status_code == 200
-    set_faults(api, 5, drop_downloads=2)
+    assert demo_api.put(f"/api/sessions/{SESSION}/sdo-settings",
+                        json={"timeout_s": 0.3, "retries": 0, "use_sdo2": False}).status_code == 200
+    set_faults(demo_api, 5, drop_downloads=2)
 
-    job = set_job_done(api, api.post(f"{sets}/{new_id}/download",
-                                     json={"session_id": SESSION, "node_id": 5, "confirm": 5}).json())
+    job = set_job_done(demo_api, demo_api.post(f"{sets}/{new_id}/download",
+                                               json={"session_id": SESSION, "node_id": 5, "confirm": 5}).json())
     statuses = {line["ref"]: line["status"] for line in job["report"] if line["ref"] in changes}
     assert sorted(statuses.values()) == ["failed", "failed", "written", "written", "written"], job["report"]
     assert not any("stopped answering" in (line["detail"] or "") for line in job["report"])
 
-    retried = set_job_done(api, api.post(f"/api/parameter-downloads/{job['download_id']}/retry",
-                                         json={"confirm": 5}).json())
+    retried = set_job_done(demo_api, demo_api.post(f"/api/parameter-downloads/{job['download_id']}/retry",
+                                                   json={"confirm": 5}).json())
     assert {line["status"] for line in retried["report"] if line["ref"] in changes} <= {"written", "unchanged"}
-    assert api.get(f"{NODE}/5/parameters/C00088").json()["display"] == "12.50 A"
+    assert demo_api.get(f"{NODE}/5/parameters/C00088").json()["display"] == "12.50 A"
 
 
-def test_abort_storm_keeps_the_server_responsive_and_leaks_nothing(api: TestClient) -> None:
+def test_abort_storm_keeps_the_server_responsive_and_leaks_nothing(demo_api: TestClient) -> None:
     """Every request of node 5 and 12 aborted: hundreds of aborts per second from one read-all of every node."""
     for node in (5, 12):
-        set_faults(api, node, abort_code="0x08000000")
+        set_faults(demo_api, node, abort_code="0x08000000")
     health: list[int] = []
-    job = run_job(api, f"/api/sessions/{SESSION}/read-all",
-                  on_the_way=lambda: health.append(api.get("/api/health").status_code))
+    job = run_job(demo_api, f"/api/sessions/{SESSION}/read-all",
+                  on_the_way=lambda: health.append(demo_api.get("/api/health").status_code))
     assert job["state"] == "done"
     assert health and set(health) == {200}
     failed = {(i["node"], i["item"]) for i in job["issues"] if i["abort_code"] == "0x08000000"}
     assert len(failed) > 200
     assert not any(i["node"] == 3 and i["abort_code"] == "0x08000000" for i in job["issues"])
 
-    session = api.app.state.drivebench.manager.get(SESSION)  # type: ignore[attr-defined]
+    session = demo_api.app.state.drivebench.manager.get(SESSION)  # type: ignore[attr-defined]
     for client in session.network.nodes.values():
         for channel in client.channels:
             assert not channel.lock.locked()
@@ -284,9 +277,9 @@ def test_abort_storm_keeps_the_server_responsive_and_leaks_nothing(api: TestClie
             assert uploader is None or uploader._transfer is None
 
     for node in (5, 12):
-        set_faults(api, node)
-    assert read(api, 5, "C00061").json()["raw"] == 43
-    assert read(api, 12, "C00011").status_code == 200
+        set_faults(demo_api, node)
+    assert read(demo_api, 5, "C00061").json()["raw"] == 43
+    assert read(demo_api, 12, "C00011").status_code == 200
 
 
 # --- server killed during a parameter-set download ---------------------------------------------------------

@@ -11,10 +11,12 @@ from typing import Any
 
 import pytest
 
+from drivebench import i18n
 from drivebench.device.loader import ProfileRegistry
 from drivebench.errors import ProtocolError, SdoAbortError, SdoTimeoutError, TransportError
 from drivebench.protocol import esm
 from drivebench.services.bus.sessions import Session
+from drivebench.services.monitoring.monitor import monitor_for
 from drivebench.services.params import parameters
 from drivebench.services.session_manager import SessionManager
 from drivebench.simulator.ethercat import GatewayServer, SimulatedSlave
@@ -184,6 +186,10 @@ def test_silent_gateway_and_no_direct_master_in_words(registry: ProfileRegistry,
             assert session.nodes == {}
             assert "Slave list not read" in (session.bus_text or "")
             assert "did not answer" in (session.bus_text or "")
+            with i18n.using("de"):  # the link's sentence is worded when shown: the Plant page's and the monitor's
+                assert (session.bus_text or "").startswith("Mailbox-Gateway ")
+                assert "Slave-Liste nicht gelesen" in (session.bus_text or "")
+                assert monitor_for(session).snapshot()["bus_text"].startswith("Mailbox-Gateway ")
             with pytest.raises(TransportError, match=r"pip install 'drivebench\[ethercat\]'|CAP_NET_RAW|network card"):
                 await manager.open("ethercat:eth9")
 

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import json
 import time
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -17,8 +16,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from drivebench.simulator.node import SimulatedNode
-from drivebench.web.app import create_app
-from tests.conftest import DEMO_PLANT, fresh_channel, wait_until
+from tests.conftest import wait_until
 from tests.web.test_access import app_client, own_db, users  # noqa: F401  (fixtures)
 
 DEMO = "demo-plant"
@@ -159,13 +157,6 @@ def test_an_uploaded_eds_of_a_new_cia402_drive_is_covered(users: dict[str, str],
 
 
 # --- a parameter-set download ----------------------------------------------------------------------------------
-@pytest.fixture
-def plant_client(app_db_url: str) -> Iterator[TestClient]:
-    app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
-    with TestClient(app) as client:
-        yield client
-
-
 def _finish(client: TestClient, job: dict[str, Any]) -> dict[str, Any]:
     end = time.monotonic() + 30
     while job["state"] == "running":
@@ -175,8 +166,8 @@ def _finish(client: TestClient, job: dict[str, Any]) -> dict[str, Any]:
     return job
 
 
-def test_a_set_download_with_a_control_word_needs_the_confirmation(plant_client: TestClient) -> None:
-    api, sets = plant_client, "/api/parameter-sets"
+def test_a_set_download_with_a_control_word_needs_the_confirmation(demo_api: TestClient) -> None:
+    api, sets = demo_api, "/api/parameter-sets"
     job = _finish(api, api.post(f"{sets}/upload", json={"session_id": DEMO, "node_id": MOTEC, "name": "Conveyor"})
                   .json())
     exported = json.loads(api.get(f"{sets}/{job['set_id']}/export").text)

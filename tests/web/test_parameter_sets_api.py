@@ -10,25 +10,15 @@ import io
 import json
 import re
 import time
-from collections.abc import Iterator
 from typing import Any
 
 import pytest
 from fastapi.testclient import TestClient
 
 from drivebench.device.xdd import read_xdd
-from drivebench.web.app import create_app
-from tests.conftest import DEMO_PLANT, fresh_channel
 
 SESSION = "demo-plant"
 SETS = "/api/parameter-sets"
-
-
-@pytest.fixture
-def api(app_db_url: str) -> Iterator[TestClient]:
-    app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
-    with TestClient(app) as client:
-        yield client
 
 
 def finish(api: TestClient, job: dict[str, Any], deadline_s: float = 30) -> dict[str, Any]:
@@ -49,184 +39,185 @@ def upload(api: TestClient, node_id: int, name: str) -> int:
     return int(job["set_id"])
 
 
-def test_upload_list_rename_history_delete(api: TestClient) -> None:
-    set_id = upload(api, 5, "Conveyor")
-    listed = api.get(SETS).json()
+def test_upload_list_rename_history_delete(demo_api: TestClient) -> None:
+    set_id = upload(demo_api, 5, "Conveyor")
+    listed = demo_api.get(SETS).json()
     assert [(s["id"], s["name"], s["profile_id"], s["node_id"], s["created_by"]) for s in listed] == \
         [(set_id, "Conveyor", "lenze-8400-motec-canopen", 5, "anna")]
-    detail = api.get(f"{SETS}/{set_id}").json()
+    detail = demo_api.get(f"{SETS}/{set_id}").json()
     c88 = next(v for v in detail["values"] if v["ref"] == "C00088")
     assert (c88["raw"], c88["display"], c88["unit"]) == (1020, "10.20 A", "A")
     assert not any(v["ref"].startswith("C00002") for v in detail["values"])  # device commands are no settings
 
-    renamed = api.patch(f"{SETS}/{set_id}", json={"name": "Conveyor line 2", "note": "gearbox 1:20"}).json()
+    renamed = demo_api.patch(f"{SETS}/{set_id}", json={"name": "Conveyor line 2", "note": "gearbox 1:20"}).json()
     assert (renamed["name"], renamed["note"]) == ("Conveyor line 2", "gearbox 1:20")
-    api.put(f"/api/sessions/{SESSION}/nodes/5/parameters/C00088", json={"value": 8})
-    again = api.post(f"{SETS}/{set_id}/upload", json={"session_id": SESSION, "node_id": 5})
+    demo_api.put(f"/api/sessions/{SESSION}/nodes/5/parameters/C00088", json={"value": 8})
+    again = demo_api.post(f"{SETS}/{set_id}/upload", json={"session_id": SESSION, "node_id": 5})
     assert again.status_code == 202
-    assert finish(api, again.json())["version"] == 2
-    history = api.get(f"{SETS}/{set_id}/history").json()
+    assert finish(demo_api, again.json())["version"] == 2
+    history = demo_api.get(f"{SETS}/{set_id}/history").json()
     assert [(v["version"], v["reason"]) for v in history] == [(2, "upload from node 5"), (1, "upload from node 5")]
-    versions = api.post(f"{SETS}/compare", json={"left": {"kind": "set", "set_id": set_id, "version": 1},
-                                                 "right": {"kind": "set", "set_id": set_id}}).json()
+    versions = demo_api.post(f"{SETS}/compare", json={"left": {"kind": "set", "set_id": set_id, "version": 1},
+                                                      "right": {"kind": "set", "set_id": set_id}}).json()
     assert [(r["ref"], r["left"], r["right"]) for r in versions["rows"]] == [("C00088", "10.20 A", "8.00 A")]
-    assert api.post(f"{SETS}/{set_id}/upload", json={"session_id": SESSION, "node_id": 12}).status_code == 409
-    refused = api.patch(f"{SETS}/{set_id}", json={"name": ""})
+    assert demo_api.post(f"{SETS}/{set_id}/upload", json={"session_id": SESSION, "node_id": 12}).status_code == 409
+    refused = demo_api.patch(f"{SETS}/{set_id}", json={"name": ""})
     assert refused.status_code == 422
 
-    assert api.delete(f"{SETS}/{set_id}").status_code == 204
-    gone = api.get(f"{SETS}/{set_id}")
+    assert demo_api.delete(f"{SETS}/{set_id}").status_code == 204
+    gone = demo_api.get(f"{SETS}/{set_id}")
     assert gone.status_code == 404 and gone.headers["content-type"] == "application/problem+json"
-    assert api.get(SETS).json() == []
+    assert demo_api.get(SETS).json() == []
 
 
 @pytest.mark.parametrize("fmt", ["json", "csv", "dcf"])
-def test_export_import_round_trip(api: TestClient, fmt: str) -> None:
-    set_id = upload(api, 12, "Fan")
-    exported = api.get(f"{SETS}/{set_id}/export", params={"format": fmt})
+def test_export_import_round_trip(demo_api: TestClient, fmt: str) -> None:
+    set_id = upload(demo_api, 12, "Fan")
+    exported = demo_api.get(f"{SETS}/{set_id}/export", params={"format": fmt})
     assert exported.status_code == 200
     assert f'filename="Fan-v1.{fmt}"' in exported.headers["content-disposition"]
-    imported = api.post(f"{SETS}/import", files={"file": (f"fan.{fmt}", exported.content)},
-                        data={"name": f"Fan from {fmt}"})
+    imported = demo_api.post(f"{SETS}/import", files={"file": (f"fan.{fmt}", exported.content)},
+                             data={"name": f"Fan from {fmt}"})
     assert imported.status_code == 201, imported.text
     copy = imported.json()["set"]
     assert (copy["name"], copy["profile_id"]) == (f"Fan from {fmt}", "lenze-8200-vector-emf2178ib")
-    original = {v["ref"]: v["raw"] for v in api.get(f"{SETS}/{set_id}").json()["values"]}
-    again = {v["ref"]: v["raw"] for v in api.get(f"{SETS}/{copy['id']}").json()["values"]}
+    original = {v["ref"]: v["raw"] for v in demo_api.get(f"{SETS}/{set_id}").json()["values"]}
+    again = {v["ref"]: v["raw"] for v in demo_api.get(f"{SETS}/{copy['id']}").json()["values"]}
     assert again == original
 
 
-def test_export_as_xdc_holds_the_values_as_actual_values(api: TestClient) -> None:
+def test_export_as_xdc_holds_the_values_as_actual_values(demo_api: TestClient) -> None:
     """CiA 311 XDC of a set: every value of the set is the actualValue of its object; node id in commissioning."""
-    set_id = upload(api, 12, "Fan")
-    exported = api.get(f"{SETS}/{set_id}/export", params={"format": "xdc"})
+    set_id = upload(demo_api, 12, "Fan")
+    exported = demo_api.get(f"{SETS}/{set_id}/export", params={"format": "xdc"})
     assert exported.status_code == 200 and exported.headers["content-type"].startswith("application/xml")
     assert 'filename="Fan-v1.xdc"' in exported.headers["content-disposition"]
     node = read_xdd(exported.content, source="fan.xdc").profile
     assert node.extra_sections["DeviceComissioning"]["NodeID"] == "12"
     configured = {(o.index, o.subindex): o.parameter_value for o in node.objects if o.parameter_value is not None}
-    values = api.get(f"{SETS}/{set_id}").json()["values"]
+    values = demo_api.get(f"{SETS}/{set_id}").json()["values"]
     assert len(configured) >= len(values) > 0
     for value in values[:12]:
-        row = api.get("/api/profiles/lenze-8200-vector-emf2178ib/parameters", params={"q": value["ref"]}
-                      ).json()["items"][0]
+        row = demo_api.get("/api/profiles/lenze-8200-vector-emf2178ib/parameters", params={"q": value["ref"]}
+                           ).json()["items"][0]
         assert configured[(int(row["index"], 16), row["subindex"])] == value["raw"], value["ref"]
 
 
-def test_import_names_every_line_that_does_not_fit(api: TestClient) -> None:
-    set_id = upload(api, 5, "Conveyor")
-    lines = api.get(f"{SETS}/{set_id}/export", params={"format": "csv"}).text.splitlines()
+def test_import_names_every_line_that_does_not_fit(demo_api: TestClient) -> None:
+    set_id = upload(demo_api, 5, "Conveyor")
+    lines = demo_api.get(f"{SETS}/{set_id}/export", params={"format": "csv"}).text.splitlines()
     row = next(n for n, line in enumerate(lines) if line.startswith("C00324/1,"))
     lines[row] = "C00324/1,CAN Tx inhibit time,9999,ms"
     lines.append("C12345,Nothing,1,")
-    response = api.post(f"{SETS}/import", files={"file": ("bad.csv", "\n".join(lines).encode())})
+    response = demo_api.post(f"{SETS}/import", files={"file": ("bad.csv", "\n".join(lines).encode())})
     assert response.status_code == 422
     assert response.headers["content-type"] == "application/problem+json"
     problem = response.json()
     assert [(e["line"], e["ref"]) for e in problem["errors"]] == [(row + 1, "C00324/1"), (len(lines), "C12345")]
     assert "6500" in problem["errors"][0]["detail"]
-    assert len(api.get(SETS).json()) == 1  # nothing stored
+    assert len(demo_api.get(SETS).json()) == 1  # nothing stored
 
 
-def test_compare_node_set_defaults_and_csv(api: TestClient) -> None:
-    set_id = upload(api, 5, "Conveyor")
-    written = api.put(f"/api/sessions/{SESSION}/nodes/5/parameters/C00088", json={"value": "7.5 A"})
+def test_compare_node_set_defaults_and_csv(demo_api: TestClient) -> None:
+    set_id = upload(demo_api, 5, "Conveyor")
+    written = demo_api.put(f"/api/sessions/{SESSION}/nodes/5/parameters/C00088", json={"value": "7.5 A"})
     assert written.status_code == 200, written.text
     body = {"left": {"kind": "node", "session_id": SESSION, "node_id": 5}, "right": {"kind": "set", "set_id": set_id}}
-    result = api.post(f"{SETS}/compare", json=body).json()
+    result = demo_api.post(f"{SETS}/compare", json=body).json()
     assert [(r["ref"], r["left"], r["right"], r["unit"], r["kind"]) for r in result["rows"]] == \
         [("C00088", "7.50 A", "10.20 A", "A", "changed")]
     assert result["equal"] == result["compared"] - 1
 
     defaults = {"left": {"kind": "set", "set_id": set_id},
                 "right": {"kind": "defaults", "profile_id": "lenze-8400-motec-canopen", "node_id": 5}}
-    against_defaults = api.post(f"{SETS}/compare", json=defaults).json()
+    against_defaults = demo_api.post(f"{SETS}/compare", json=defaults).json()
     assert against_defaults["right"] == "8400 motec defaults" or "defaults" in against_defaults["right"]
     # the demo plant starts its drives at the defaults, except what its plant file sets (heartbeat producer)
     assert [r["ref"] for r in against_defaults["rows"]] == ["0x1017"]
 
-    fan = upload(api, 12, "Fan")
-    mixed = api.post(f"{SETS}/compare", json={"left": {"kind": "set", "set_id": set_id},
-                                              "right": {"kind": "set", "set_id": fan}})
+    fan = upload(demo_api, 12, "Fan")
+    mixed = demo_api.post(f"{SETS}/compare", json={"left": {"kind": "set", "set_id": set_id},
+                                                   "right": {"kind": "set", "set_id": fan}})
     assert mixed.status_code == 409 and "8200" in mixed.json()["detail"]
 
-    exported = api.post(f"{SETS}/compare", params={"format": "csv"}, json=dict(body, q="motor current"))
+    exported = demo_api.post(f"{SETS}/compare", params={"format": "csv"}, json=dict(body, q="motor current"))
     rows = list(csv.reader(io.StringIO(exported.text)))
     assert rows[0][:3] == ["code", "name", "unit"] and [r[0] for r in rows[1:]] == ["C00088"]
-    assert api.post(f"{SETS}/compare", json=dict(body, q="baud")).json()["rows"] == []
+    assert demo_api.post(f"{SETS}/compare", json=dict(body, q="baud")).json()["rows"] == []
 
 
-def test_download_preview_report_retry_rollback_and_audit(api: TestClient) -> None:
-    set_id = upload(api, 5, "Conveyor")
-    exported = json.loads(api.get(f"{SETS}/{set_id}/export").text)
+def test_download_preview_report_retry_rollback_and_audit(demo_api: TestClient) -> None:
+    set_id = upload(demo_api, 5, "Conveyor")
+    exported = json.loads(demo_api.get(f"{SETS}/{set_id}/export").text)
     for parameter in exported["parameters"]:
         if parameter["ref"] == "C00088":
             parameter["value"] = 12.5
         if parameter["ref"] == "C00039/1":
             parameter["value"] = 55.0
     exported["name"] = "Commissioned"
-    new_id = api.post(f"{SETS}/import", files={"file": ("c.json", json.dumps(exported).encode())}).json()["set"]["id"]
+    new_id = demo_api.post(f"{SETS}/import",
+                           files={"file": ("c.json", json.dumps(exported).encode())}).json()["set"]["id"]
 
     target = {"session_id": SESSION, "node_id": 5}
-    preview = api.post(f"{SETS}/{new_id}/preview", json=target).json()
+    preview = demo_api.post(f"{SETS}/{new_id}/preview", json=target).json()
     assert [(p["ref"], p["before"], p["target"]) for p in preview] == \
         [("C00039/1", "40.00 %", "55.00 %"), ("C00088", "10.20 A", "12.50 A")]
-    wrong = api.post(f"{SETS}/{new_id}/preview", json={"session_id": SESSION, "node_id": 12})
+    wrong = demo_api.post(f"{SETS}/{new_id}/preview", json={"session_id": SESSION, "node_id": 12})
     assert wrong.status_code == 409
 
     # the set holds C00007 (control mode: a command source), so the download names the node it may move
-    started = api.post(f"{SETS}/{new_id}/download", json=dict(target, save=True, confirm=5),
-                       headers={"X-DriveBench-User": "bert"})
+    started = demo_api.post(f"{SETS}/{new_id}/download", json=dict(target, save=True, confirm=5),
+                            headers={"X-DriveBench-User": "bert"})
     assert started.status_code == 202
-    job = finish(api, started.json())
+    job = finish(demo_api, started.json())
     assert job["download_state"] == "done", job
     statuses = {line["ref"]: line["status"] for line in job["report"]}
     assert statuses["C00088"] == statuses["C00039/1"] == "written"
     assert {s for ref, s in statuses.items() if ref not in ("C00088", "C00039/1")} == {"unchanged"}
     assert any("Saved on the device" in note for note in job["notes"])
-    value = api.get(f"/api/sessions/{SESSION}/nodes/5/parameters/C00088").json()
+    value = demo_api.get(f"/api/sessions/{SESSION}/nodes/5/parameters/C00088").json()
     assert value["display"] == "12.50 A"
 
-    download = api.get(f"/api/parameter-downloads/{job['download_id']}").json()
+    download = demo_api.get(f"/api/parameter-downloads/{job['download_id']}").json()
     assert (download["state"], download["user"], download["counts"]["written"]) == ("done", "bert", 2)
-    assert api.post(f"/api/parameter-downloads/{job['download_id']}/retry").status_code == 409  # nothing failed
+    assert demo_api.post(f"/api/parameter-downloads/{job['download_id']}/retry").status_code == 409  # nothing failed
 
     # bert's download holds node 5's write lease: he rolls it back (anyone else gets 409 until it ends)
-    back = finish(api, api.post(f"/api/parameter-downloads/{job['download_id']}/rollback",
-                                headers={"X-DriveBench-User": "bert"}).json())
+    back = finish(demo_api, demo_api.post(f"/api/parameter-downloads/{job['download_id']}/rollback",
+                                          headers={"X-DriveBench-User": "bert"}).json())
     assert back["download_state"] == "done"
-    assert api.get(f"/api/sessions/{SESSION}/nodes/5/parameters/C00088").json()["display"] == "10.20 A"
+    assert demo_api.get(f"/api/sessions/{SESSION}/nodes/5/parameters/C00088").json()["display"] == "10.20 A"
 
-    log = api.get("/api/audit", params={"node_id": 5}).json()
+    log = demo_api.get("/api/audit", params={"node_id": 5}).json()
     mine = [(e["ref"], e["new_value"], e["result"], e["user"]) for e in log if e["origin"].startswith("download")]
     assert sorted(mine) == [("C00039/1", "55.00 %", "written", "bert"), ("C00088", "12.50 A", "written", "bert")]
     assert any(e["origin"].startswith("rollback") and e["new_value"] == "10.20 A" for e in log)
-    exported_log = list(csv.reader(io.StringIO(api.get("/api/audit", params={"format": "csv"}).text)))
+    exported_log = list(csv.reader(io.StringIO(demo_api.get("/api/audit", params={"format": "csv"}).text)))
     assert exported_log[0][:5] == ["time", "user", "session", "node", "parameter"] and len(exported_log) == len(log) + 1
 
 
-def test_copy_to_another_node_moves_the_node_address(api: TestClient) -> None:
-    set_id = upload(api, 5, "Axis 1")
-    copied = api.post(f"{SETS}/{set_id}/copy", json={"to_node": 6})
+def test_copy_to_another_node_moves_the_node_address(demo_api: TestClient) -> None:
+    set_id = upload(demo_api, 5, "Axis 1")
+    copied = demo_api.post(f"{SETS}/{set_id}/copy", json={"to_node": 6})
     assert copied.status_code == 201, copied.text
     body = copied.json()
     assert body["set"]["node_id"] == 6 and body["set"]["name"] == "Axis 1 (node 6)"
-    values = {v["ref"]: v["raw"] for v in api.get(f"{SETS}/{body['set']['id']}").json()["values"]}
-    original = {v["ref"]: v["raw"] for v in api.get(f"{SETS}/{set_id}").json()["values"]}
+    values = {v["ref"]: v["raw"] for v in demo_api.get(f"{SETS}/{body['set']['id']}").json()["values"]}
+    original = {v["ref"]: v["raw"] for v in demo_api.get(f"{SETS}/{set_id}").json()["values"]}
     changed = {ref for ref in values if values[ref] != original[ref]}
     assert all(any(ref in note for note in body["notes"]) for ref in changed)
-    assert api.get(f"{SETS}/schema").json()["properties"]["schema"]["const"] == "drivebench.parameter-set/1"
+    assert demo_api.get(f"{SETS}/schema").json()["properties"]["schema"]["const"] == "drivebench.parameter-set/1"
 
 
-def test_page_fragments_compare_export_and_interrupted_download(api: TestClient) -> None:
+def test_page_fragments_compare_export_and_interrupted_download(demo_api: TestClient) -> None:
     """The page's own routes: the comparison CSV link, and a download whose server stopped shows as interrupted
     with its roll back."""
-    set_id = upload(api, 5, "Conveyor")
-    api.put(f"/api/sessions/{SESSION}/nodes/5/parameters/C00088", json={"value": 9})
-    exported = api.get("/parameter-sets/compare/export.csv",
-                       params={"left": "node:demo-plant:5", "right": f"set:{set_id}", "q": ""})
+    set_id = upload(demo_api, 5, "Conveyor")
+    demo_api.put(f"/api/sessions/{SESSION}/nodes/5/parameters/C00088", json={"value": 9})
+    exported = demo_api.get("/parameter-sets/compare/export.csv",
+                            params={"left": "node:demo-plant:5", "right": f"set:{set_id}", "q": ""})
     assert exported.status_code == 200 and exported.text.splitlines()[1].startswith("C00088,")
-    page = api.get("/parameter-sets", params={"set": set_id})
+    page = demo_api.get("/parameter-sets", params={"set": set_id})
     assert page.status_code == 200 and "Conveyor" in page.text
 
     from drivebench.services.sets.parameter_sets import ParameterSetStore
@@ -234,51 +225,52 @@ def test_page_fragments_compare_export_and_interrupted_download(api: TestClient)
     download_id = ParameterSetStore().start_download(kind="download", session_id=SESSION, node_id=5,
                                                      profile_id="lenze-8400-motec-canopen", user="t",
                                                      before={"C00088": 1020}, set_id=set_id, set_version=1)
-    assert api.get(f"/api/parameter-downloads/{download_id}").json()["state"] == "interrupted"
-    report = api.get(f"/parameter-sets/downloads/{download_id}", headers={"HX-Request": "true"}).text
+    assert demo_api.get(f"/api/parameter-downloads/{download_id}").json()["state"] == "interrupted"
+    report = demo_api.get(f"/parameter-sets/downloads/{download_id}", headers={"HX-Request": "true"}).text
     assert "interrupted" in report and "Roll back" in report
-    listed = api.get(f"/parameter-sets/{set_id}/downloads", headers={"HX-Request": "true"}).text
+    listed = demo_api.get(f"/parameter-sets/{set_id}/downloads", headers={"HX-Request": "true"}).text
     assert "status-interrupted" in listed
-    back = finish(api, api.post(f"/api/parameter-downloads/{download_id}/rollback").json())
+    back = finish(demo_api, demo_api.post(f"/api/parameter-downloads/{download_id}/rollback").json())
     assert [(line["ref"], line["status"]) for line in back["report"]] == [("C00088", "written")]
-    assert api.get(f"/api/sessions/{SESSION}/nodes/5/parameters/C00088").json()["display"] == "10.20 A"
+    assert demo_api.get(f"/api/sessions/{SESSION}/nodes/5/parameters/C00088").json()["display"] == "10.20 A"
 
 
-def test_an_edit_names_the_version_it_was_made_to_and_a_stale_one_gets_409(api: TestClient) -> None:
-    set_id = upload(api, 5, "Edited")
-    edited = api.patch(f"{SETS}/{set_id}", json={"version": 1, "values": {"C00088": "11 A"}, "reason": "motor swap"},
-                       headers={"X-DriveBench-User": "anna"})
+def test_an_edit_names_the_version_it_was_made_to_and_a_stale_one_gets_409(demo_api: TestClient) -> None:
+    set_id = upload(demo_api, 5, "Edited")
+    edited = demo_api.patch(f"{SETS}/{set_id}",
+                            json={"version": 1, "values": {"C00088": "11 A"}, "reason": "motor swap"},
+                            headers={"X-DriveBench-User": "anna"})
     assert edited.status_code == 200 and edited.json()["version"] == 2, edited.text
-    detail = api.get(f"{SETS}/{set_id}").json()
+    detail = demo_api.get(f"{SETS}/{set_id}").json()
     assert {v["ref"]: v["display"] for v in detail["values"]}["C00088"] == "11.00 A"
-    stale = api.patch(f"{SETS}/{set_id}", json={"version": 1, "values": {"C00088": 12}},
-                      headers={"X-DriveBench-User": "bert"})
+    stale = demo_api.patch(f"{SETS}/{set_id}", json={"version": 1, "values": {"C00088": 12}},
+                           headers={"X-DriveBench-User": "bert"})
     assert stale.status_code == 409 and stale.headers["content-type"] == "application/problem+json"
     assert "was changed by anna at " in stale.json()["detail"] and "Nothing was saved" in stale.json()["detail"]
-    wrong = api.patch(f"{SETS}/{set_id}", json={"version": 2, "values": {"C00088": "eleven", "nonsense": 1}})
+    wrong = demo_api.patch(f"{SETS}/{set_id}", json={"version": 2, "values": {"C00088": "eleven", "nonsense": 1}})
     assert wrong.status_code == 422 and [e["ref"] for e in wrong.json()["errors"]] == ["C00088", "nonsense"]
-    assert [v["version"] for v in api.get(f"{SETS}/{set_id}/history").json()] == [2, 1]
+    assert [v["version"] for v in demo_api.get(f"{SETS}/{set_id}/history").json()] == [2, 1]
 
 
-def test_the_pages_rename_form_sends_the_version_it_showed_and_a_stale_one_gets_409(api: TestClient) -> None:
-    set_id = upload(api, 5, "Renamed")
-    shown = api.get(f"/parameter-sets/{set_id}", headers={"HX-Request": "true"}).text
+def test_the_pages_rename_form_sends_the_version_it_showed_and_a_stale_one_gets_409(demo_api: TestClient) -> None:
+    set_id = upload(demo_api, 5, "Renamed")
+    shown = demo_api.get(f"/parameter-sets/{set_id}", headers={"HX-Request": "true"}).text
     form = re.search(r'<form class="inline-form rename".*?</form>', shown, re.S)
     assert form is not None, shown
     version = re.search(r'name="version" value="(\d+)"', form.group(0))
     assert version is not None and version.group(1) == "1", form.group(0)
     # meanwhile another user makes version 2 (here or on another server of the database)
-    edited = api.patch(f"{SETS}/{set_id}", json={"version": 1, "values": {"C00088": "11 A"}},
-                       headers={"X-DriveBench-User": "anna"})
+    edited = demo_api.patch(f"{SETS}/{set_id}", json={"version": 1, "values": {"C00088": "11 A"}},
+                            headers={"X-DriveBench-User": "anna"})
     assert edited.status_code == 200, edited.text
-    stale = api.post(f"/parameter-sets/{set_id}/rename", headers={"HX-Request": "true"},
-                     data={"name": "Renamed late", "note": "", "version": version.group(1)})
+    stale = demo_api.post(f"/parameter-sets/{set_id}/rename", headers={"HX-Request": "true"},
+                          data={"name": "Renamed late", "note": "", "version": version.group(1)})
     assert stale.status_code == 409 and "was changed by anna at " in stale.text and "Nothing was saved" in stale.text
-    assert api.get(f"{SETS}/{set_id}").json()["name"] == "Renamed"
-    fresh = api.post(f"/parameter-sets/{set_id}/rename", headers={"HX-Request": "true"},
-                     data={"name": "Renamed again", "note": "", "version": "2"})
+    assert demo_api.get(f"{SETS}/{set_id}").json()["name"] == "Renamed"
+    fresh = demo_api.post(f"/parameter-sets/{set_id}/rename", headers={"HX-Request": "true"},
+                          data={"name": "Renamed again", "note": "", "version": "2"})
     assert fresh.status_code == 200 and 'name="version" value="2"' in fresh.text
-    assert api.get(f"{SETS}/{set_id}").json()["name"] == "Renamed again"
-    bad = api.post(f"/parameter-sets/{set_id}/rename", headers={"HX-Request": "true"},
-                   data={"name": "x", "version": "two"})
+    assert demo_api.get(f"{SETS}/{set_id}").json()["name"] == "Renamed again"
+    bad = demo_api.post(f"/parameter-sets/{set_id}/rename", headers={"HX-Request": "true"},
+                        data={"name": "x", "version": "two"})
     assert bad.status_code == 422 and "is not a number" in bad.text

@@ -238,5 +238,5 @@ class DirectNetwork(EthercatNetwork):
                      station=station, nic=self.nic, object=f"0x{index:04X}sub{sub}", seconds=f"{self.sdo_timeout_s:g}")
 
     @property
-    def link_text(self) -> str | None:
+    def link_text(self) -> Text | None:
         return self.link.carrier_text

@@ -22,7 +22,7 @@ from typing import Protocol, TypeVar
 import can
 
 from drivebench.errors import ProtocolError, SdoAbortError, SdoTimeoutError
-from drivebench.i18n import N_, Text, _, shown
+from drivebench.i18n import N_, Text, _
 from drivebench.protocol import esm
 from drivebench.protocol.abort_codes import abort_text
 from drivebench.protocol.coe_sdo import SERVICE_NOT_SUPPORTED, CoeSdoClient, MailboxRefused
@@ -234,8 +234,8 @@ class EthercatNetwork:
         raise NotImplementedError
 
     @property
-    def link_text(self) -> str | None:
-        """The link to the segment in a sentence while it is lost, else None."""
+    def link_text(self) -> Text | None:
+        """The link to the segment in a sentence while it is lost, else None (worded when shown)."""
         raise NotImplementedError
 
     # --- what a session asks of a CAN network -----------------------------------------------------------------
@@ -337,6 +337,5 @@ class GatewayNetwork(EthercatNetwork):
                      station=station, object=f"0x{index:04X}sub{sub}", seconds=f"{self.sdo_timeout_s:g}")
 
     @property
-    def link_text(self) -> str | None:
-        silent = Text(GATEWAY_SILENT, bus=self.spec, reason=self._silence())
-        return shown(silent) if self.gateway.link.unreachable else None
+    def link_text(self) -> Text | None:
+        return Text(GATEWAY_SILENT, bus=self.spec, reason=self._silence()) if self.gateway.link.unreachable else None

@@ -270,7 +270,7 @@ class ObservedBus(can.BusABC):
             self._lose(inner, exc)
             return None, False
         if msg is None and _peer_closed(inner):
-            self._lose(inner, N_("the socketcand gateway closed the connection"))  # a page shows _(lost_reason)
+            self._lose(inner, Text(N_("the socketcand gateway closed the connection")))  # worded when shown
         return msg, False
 
     # --- adapter lost and back ----------------------------------------------------------------------------

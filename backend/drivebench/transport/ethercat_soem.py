@@ -26,7 +26,7 @@ from types import ModuleType
 from typing import Any
 
 from drivebench.errors import BusSpecError, ProtocolError, SdoAbortError, SdoTimeoutError, TransportError
-from drivebench.i18n import N_, Text, _
+from drivebench.i18n import N_, Text
 
 NET_CLASS = Path("/sys/class/net")
 CAP_NET_RAW = 13
@@ -282,15 +282,15 @@ class SoemLink:
             self._closed.wait(CYCLE_S if self.cyclic.is_set() else MAILBOX_POLL_S)
 
     @property
-    def carrier_text(self) -> str | None:
-        """The card's link in words while it has none (cable unplugged), else None."""
+    def carrier_text(self) -> Text | None:
+        """The card's link in words while it has none (cable unplugged), else None (worded when shown)."""
         try:
             carrier = (NET_CLASS / self.spec.nic / "carrier").read_text(encoding="ascii").strip()
         except OSError:
             return None  # down cards cannot be read; the next transfer says what is wrong
         if carrier == "1":
             return None
-        return _("{nic} has no link: is the cable to the first slave plugged in?").format(nic=self.spec.nic)
+        return Text(N_("{nic} has no link: is the cable to the first slave plugged in?"), nic=self.spec.nic)
 
     def close(self) -> None:
         self._closed.set()

@@ -25,7 +25,7 @@ from typing import Any
 
 import can
 
-from drivebench.i18n import _
+from drivebench.i18n import N_, Text, _, shown
 from drivebench.protocol.ethercat_network import EthercatNetwork
 from drivebench.transport.bus import LinkState, ObservedBus
 
@@ -166,40 +166,44 @@ class BusHealth(can.Listener):
         return None
 
     def text(self) -> str | None:
-        """The state in a sentence, plus the notes; None while all is well and has been since the session opened."""
-        sentences = [self.state_text(), *(note() for note in list(self.notes))]
+        """The state in a sentence, plus the notes, in the current language; None while all is well and has been
+        since the session opened."""
+        sentences = [shown(self.state_text() or ""), *(note() for note in list(self.notes))]
         return " ".join(sentence for sentence in sentences if sentence) or None
 
-    def state_text(self) -> str | None:
-        """The state alone in a sentence (no notes)."""
+    def state_text(self) -> Text | None:
+        """The state alone in a sentence (no notes), worded when shown: one snapshot serves readers of any
+        language."""
         state = self.state()
         link = self.bus.link
         with self._lock:
             tx, rx = self.errors.tx_errors, self.errors.rx_errors
         counters = f" (TEC {tx}, REC {rx})" if tx is not None else ""
         if state == ADAPTER_LOST:
-            text = _("adapter lost: {reason} since {clock}").format(reason=link.lost_reason,
-                                                                    clock=_clock(link.lost_at))
-            text += "; " + (_("reconnecting, {count} attempts so far").format(count=link.attempts) if link.attempts
-                            else _("reconnecting"))
+            lost = Text(N_("adapter lost: {reason} since {clock}"), reason=link.lost_reason,
+                        clock=_clock(link.lost_at))
+            reconnecting = (Text(N_("reconnecting, {count} attempts so far"), count=link.attempts) if link.attempts
+                            else Text(N_("reconnecting")))
+            text = Text.joined("; ", [lost, reconnecting])
             if link.last_attempt_error:
-                text += " " + _("(last: {error})").format(error=link.last_attempt_error)
+                text = Text.joined(" ", [text, Text(N_("(last: {error})"), error=link.last_attempt_error)])
             return text
         if state == "bus-off":
-            return _("bus-off: the CAN controller left the bus after too many transmit errors; requests fail at once "
-                     "until it recovers. Check wiring, termination and that every node has the same bit rate.")
+            return Text(N_("bus-off: the CAN controller left the bus after too many transmit errors; requests fail "
+                           "at once until it recovers. Check wiring, termination and that every node has the same "
+                           "bit rate."))
         if state == "passive":
-            return _("error passive{counters}: the controller sees many bus errors and only sends passive error "
-                     "flags. Check wiring, termination and bit rate.").format(counters=counters)
+            return Text(N_("error passive{counters}: the controller sees many bus errors and only sends passive "
+                           "error flags. Check wiring, termination and bit rate."), counters=counters)
         if state == "warning":
-            return _("error warning{counters}: the error counters passed 96; the bus has frequent errors.").format(
-                counters=counters)
+            return Text(N_("error warning{counters}: the error counters passed 96; the bus has frequent errors."),
+                        counters=counters)
         if self.changes:
             at, previous, _current = self.changes[-1]
             if previous == ADAPTER_LOST:
-                return _("adapter back at {clock} (reconnected {count}x); error active").format(
-                    clock=_clock(at), count=link.reconnects)
-            return _("recovered from {state} at {clock}: error active").format(state=previous, clock=_clock(at))
+                return Text(N_("adapter back at {clock} (reconnected {count}x); error active"), clock=_clock(at),
+                            count=link.reconnects)
+            return Text(N_("recovered from {state} at {clock}: error active"), state=previous, clock=_clock(at))
         return None
 
     def as_dict(self, now: float | None = None) -> dict[str, Any]:
@@ -228,10 +232,10 @@ class GatewayHealth:
         return None
 
     def text(self) -> str | None:
-        sentences = [self.network.link_text, *(note() for note in self.notes)]
+        sentences = [shown(self.network.link_text or ""), *(note() for note in self.notes)]
         return " ".join(s for s in sentences if s) or None
 
-    def state_text(self) -> str | None:
+    def state_text(self) -> Text | None:
         return self.network.link_text
 
     def as_dict(self, now: float | None = None) -> dict[str, Any]:

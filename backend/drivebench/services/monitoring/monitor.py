@@ -247,8 +247,10 @@ class Monitor(can.Listener):
 
     @staticmethod
     def view_snapshot(snapshot: dict[str, Any], view: MonitorView) -> dict[str, Any]:
-        """``snapshot`` (from ``live_snapshot``) with the node and COB-ID rows ``view`` shows, its flood sentence in
-        the current language."""
+        """``snapshot`` (from ``live_snapshot``) with the node and COB-ID rows ``view`` shows, its bus and flood
+        sentences in the current language."""
+        if snapshot.get("bus_text"):
+            snapshot = {**snapshot, "bus_text": shown(snapshot["bus_text"])}
         if snapshot.get("flood"):
             snapshot = {**snapshot, "flood": {**snapshot["flood"], "text": shown(snapshot["flood"]["text"])}}
         rows = snapshot["services"]
@@ -327,8 +329,9 @@ class Monitor(can.Listener):
             "filter": MonitorFilter().as_dict(),
         }
 
-    def _bus(self) -> tuple[dict[str, Any], str | None]:
-        """The session's bus state (controller and adapter link, see :class:`BusHealth`) and its sentence."""
+    def _bus(self) -> tuple[dict[str, Any], Text | None]:
+        """The session's bus state (controller and adapter link, see :class:`BusHealth`) and its sentence (worded
+        when shown: ``view_snapshot``)."""
         session = self._session()
         if session is None:
             return {"state": "active", "adapter_state": "active", "tx_errors": None, "rx_errors": None,
@@ -370,10 +373,6 @@ class Monitor(can.Listener):
             flood = self.live_snapshot()["flood"]
             cached = self._flood_cache = (now, flood["text"] if flood else None)
         return shown(cached[1]) if cached[1] is not None else None
-
-    def bus_text(self) -> str | None:
-        """The bus state's sentence (see :class:`BusHealth`) in the current language."""
-        return self._bus()[1]
 
     def _rate_window(self) -> tuple[_Sample, _Sample]:
         """The counts at the close of the newest load window and RATE_WINDOW_S windows before (or at the reset, while

@@ -216,14 +216,11 @@ class Feed:
         self.seq += 1
         live = self.monitor.live_snapshot()
         recording = self.recording()
-        bus_texts: dict[str, str | None] = {}
         for (locale, _filter), members in groups.items():
             view = members[0].view
             rows, _more = self.monitor.trace_since(after, TRACE_PER_UPDATE + 1, until=newest, view=view)
             with i18n.using(locale):  # one message per language and filter: the bus and flood sentences in it
-                if locale not in bus_texts:
-                    bus_texts[locale] = self.monitor.bus_text()
-                snapshot = {**self.monitor.view_snapshot(live, view), "bus_text": bus_texts[locale]}
+                snapshot = self.monitor.view_snapshot(live, view)
             message = self.message("update", snapshot, history, rows[-TRACE_PER_UPDATE:],
                                    len(rows) > TRACE_PER_UPDATE, recording)
             text = json.dumps(message)
