@@ -261,3 +261,20 @@ def test_read_shown_reads_a_group_in_one_request(server: tuple[str, Any], page: 
     single = page.request.get(f"{url}/api/sessions/browser-plant/nodes/5/parameters/{refs[0]}").json()
     expect(_row(page, refs[0]).locator("td.val .v")).to_have_text(single["display"])  # as the single read shows it
     assert page.evaluate(LAYOUT_PROBLEMS) == []
+
+
+def test_a_device_without_parameter_sets_reads_groups_without_console_errors(server: tuple[str, Any],
+                                                                             page: Any) -> None:
+    """Node 5 has one parameter set: the read buttons include no set selector that is not there (htmx would log
+    an error for every click)."""
+    from tests.web.test_ux_browser import Watch
+
+    url, _app = server
+    watch = Watch(page, url)
+    page.goto(url + "/sessions/browser-plant/nodes/5")
+    expect(page.locator("#param-set")).to_have_count(0)
+    page.locator("tr.group-row").nth(1).get_by_role("button", name="Read group").click()
+    expect(page.locator(".job-text")).to_contain_text("done", timeout=WAIT_MS)
+    page.get_by_role("button", name="Read all").click()
+    expect(page.locator(".job-text")).to_contain_text("done", timeout=WAIT_MS)
+    assert watch.problems == []
