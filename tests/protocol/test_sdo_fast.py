@@ -10,9 +10,9 @@ from collections.abc import Iterator
 import can
 import pytest
 
-from drivebench.errors import SdoAbortError, SdoOutOfStepError, SdoStalledError, SdoTimeoutError
+from drivebench.errors import ProtocolError, SdoAbortError, SdoOutOfStepError, SdoStalledError, SdoTimeoutError
 from drivebench.protocol.network import CanopenNetwork
-from drivebench.protocol.sdo_fast import ExpeditedRequest, upload_expedited, uploader
+from drivebench.protocol.sdo_fast import ExpeditedRequest, upload_batch, upload_expedited, uploader
 from drivebench.simulator.plant import Plant
 from drivebench.transport.bus import BusSpec, open_bus
 
@@ -157,3 +157,72 @@ def test_one_uploader_per_channel(network: CanopenNetwork) -> None:
     assert uploader(client, 1) is uploader(client, 1)
     assert uploader(client, 2) is not uploader(client, 1)
     assert uploader(client, 2).sdo is second.client
+
+
+# --- batches: the next request sent by the bus reader thread as soon as an answer ends the one before ---------------
+MISSING = ExpeditedRequest(0x2FFF, 0)
+ABORT_NOT_THERE = 0x06020000
+SEGMENT_REQUESTS = [bytes([0x60 | (n % 2) << 4]) + bytes(7) for n in range(SEGMENTS)]
+
+
+def test_a_batch_goes_by_on_the_bus_while_the_event_loop_is_busy(plant: Plant, network: CanopenNetwork,
+                                                                wire: can.BusABC) -> None:
+    """An expedited value, a segmented string, an object the device does not have and the first one again: every
+    request goes out in order without the loop (it stands still meanwhile), each answer is its own result."""
+    plant.nodes[MOTEC].store.set_ref("C00061", 43)
+    client = network.node(MOTEC)
+    batch = [C00061, C00099, MISSING, C00061]
+
+    async def go() -> tuple[list[bytes], list[bytes | ProtocolError | None] | None]:
+        reading = asyncio.ensure_future(upload_batch(client, batch, [False, True, False, False]))
+        await asyncio.sleep(0)
+        sent: list[bytes] = []
+        expected = len(batch) + SEGMENTS
+        deadline = time.monotonic() + 10
+        while len(sent) < expected and time.monotonic() < deadline:
+            sent += frames_to(wire, MOTEC)
+        return sent, await reading
+
+    sent, results = asyncio.run(go())
+    assert results is not None
+    assert results[0] == results[3] == (43).to_bytes(4, "little")
+    assert results[1] == client.upload(0x5F9C, 0)
+    assert isinstance(results[2], SdoAbortError) and results[2].abort_code == ABORT_NOT_THERE
+    initiate = [request.frame for request in batch]
+    assert sent == [initiate[0], initiate[1], *SEGMENT_REQUESTS, initiate[2], initiate[3]]
+    assert not client.channels[0].lock.locked()
+
+
+def test_a_batch_goes_on_after_a_transfer_that_failed(plant: Plant, network: CanopenNetwork, wire: can.BusABC) -> None:
+    """A segment out of step or a stalled transfer is aborted and is that object's error; the next one is read."""
+    plant.nodes[MOTEC].store.set_ref("C00061", 43)
+    client = network.node(MOTEC)
+    plant.nodes[MOTEC].faults.set(wrong_toggle=True)
+    results = asyncio.run(upload_batch(client, [C00099, C00061], [True, False]))
+    assert results is not None and isinstance(results[0], SdoOutOfStepError) and results[0].reason == "toggle"
+    assert results[1] == (43).to_bytes(4, "little")
+    sent = frames_to(wire, MOTEC)
+    assert bytes.fromhex("80 9C 5F 00 00 00 03 05") in sent  # CiA 301 0x05030000 before the next request
+    assert sent.index(bytes.fromhex("80 9C 5F 00 00 00 03 05")) < sent.index(C00061.frame)
+    plant.nodes[MOTEC].faults.set(wrong_toggle=False, silent_after_segments=1)
+    results = asyncio.run(upload_batch(client, [C00099, C00061], [True, False]))
+    assert results is not None and isinstance(results[0], SdoStalledError)
+    assert (results[0].done, results[0].total) == (1, 2)
+    assert results[1] == (43).to_bytes(4, "little")
+
+
+def test_a_lost_request_in_a_batch_is_sent_again_and_a_silent_node_times_out_per_object(
+        plant: Plant, network: CanopenNetwork, wire: can.BusABC) -> None:
+    plant.nodes[MOTEC].store.set_ref("C00061", 43)
+    client = network.node(MOTEC)
+    client.configure(0.2, 1)
+    plant.nodes[MOTEC].faults.set(drop_requests=1)
+    results = asyncio.run(upload_batch(client, [C00061, C00061], [False, False]))
+    assert results == [(43).to_bytes(4, "little")] * 2
+    assert frames_to(wire, MOTEC) == [C00061.frame] * 3  # the first one twice: it got no answer
+    absent = network.node(ABSENT)
+    absent.configure(0.05, 0)
+    results = asyncio.run(upload_batch(absent, [C00061, C00099], [False, True]))
+    assert results is not None and all(isinstance(result, SdoTimeoutError) for result in results)
+    assert frames_to(wire, ABSENT) == [C00061.frame, bytes.fromhex("80 C2 5F 00 00 00 04 05"),
+                                       C00099.frame, bytes.fromhex("80 9C 5F 00 00 00 04 05")]

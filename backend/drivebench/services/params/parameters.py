@@ -52,7 +52,7 @@ from drivebench.protocol.datatypes import DataType, decode, encode
 from drivebench.protocol.heartbeat import HeartbeatStatus
 from drivebench.protocol.network import NodeClient, SdoChannel
 from drivebench.protocol.nmt import NmtCommand
-from drivebench.protocol.sdo_fast import ExpeditedRequest, upload_expedited
+from drivebench.protocol.sdo_fast import ExpeditedRequest, upload_batch, upload_expedited
 from drivebench.services.bus.fieldbus import SdoClient
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.params import node_lease
@@ -414,6 +414,10 @@ async def read(session: Session, node_id: int, ref: str, *, transfer: str = "aut
     plan = _plan(node, ref)
     block = transfer != "auto" and _use_block(node, plan.item, transfer)
     data = await _upload(session.client(node_id), plan, block=block)
+    return _remembered(session, node_id, plan, data)
+
+
+def _remembered(session: Session, node_id: int, plan: _Plan, data: bytes) -> ParameterValue:
     value = plan.value(plan.decode(data, node_id))
     service(session).remember(node_id, value)
     return value
@@ -424,19 +428,43 @@ MAX_BATCH = 500
 
 
 async def read_many(session: Session, node_id: int, refs: Sequence[str]) -> list[ParameterValue | DriveBenchError]:
-    """Read ``refs`` one after the other (one SDO server answers one transfer at a time) and return, in their
-    order, each value or the error that ref met: one unknown or refused ref does not lose the others."""
-    session.node(node_id)  # an unknown node is the whole request's error, not one per ref
+    """Read ``refs`` and return, in their order, each value or the error that ref met: one unknown or refused ref
+    does not lose the others. One SDO server answers one transfer at a time: the reads go one after the other, on
+    CAN as one batch the bus reader thread sends request by request (:func:`sdo_fast.upload_batch`)."""
+    node = session.node(node_id)  # an unknown node is the whole request's error, not one per ref
     if len(refs) > MAX_BATCH:
         raise InvalidValue(_("A batch read names at most {most} parameters; this one names {count}.").format(
             most=MAX_BATCH, count=len(refs)))
-    found: list[ParameterValue | DriveBenchError] = []
-    for ref in refs:
+    found: list[ParameterValue | DriveBenchError | None] = [None] * len(refs)
+    plans: dict[int, _Plan] = {}
+    for position, ref in enumerate(refs):
         try:
-            found.append(await read(session, node_id, ref))
+            plans[position] = _plan(node, ref)
         except DriveBenchError as exc:
-            found.append(exc)
-    return found
+            found[position] = exc
+    client = session.client(node_id)
+    batched = [position for position, plan in plans.items() if plan.on_loop]
+    if batched and isinstance(client, NodeClient):
+        answers = await upload_batch(client, [plans[p].request for p in batched],
+                                     [not plans[p].expedited for p in batched])
+        for position, answer in zip(batched, answers or [], strict=False):
+            plan = plans[position]
+            if isinstance(answer, (SdoStalledError, SdoOutOfStepError)):
+                found[position] = answer.named(plan.item.ref)
+            elif isinstance(answer, DriveBenchError):
+                found[position] = answer
+            elif answer is not None:
+                try:
+                    found[position] = _remembered(session, node_id, plan, answer)
+                except DriveBenchError as exc:
+                    found[position] = exc
+    for position, ref in enumerate(refs):  # the rest (a busy channel, an answer for the blocking client, CoE)
+        if found[position] is None:
+            try:
+                found[position] = await read(session, node_id, ref)
+            except DriveBenchError as exc:
+                found[position] = exc
+    return [result for result in found if result is not None]
 
 
 # --- write -----------------------------------------------------------------------------------------------
