@@ -56,18 +56,21 @@ def stuff_bit_count(bits: str) -> int:
     return stuffed
 
 
-def stuffed_section(arbitration_id: int, is_extended: bool, is_remote: bool, dlc: int, data: bytes) -> str:
-    """The bits from SOF to the end of the CRC sequence, before stuffing, as '0'/'1' characters."""
+def _head_bits(arbitration_id: int, is_extended: bool, is_remote: bool, dlc: int) -> str:
+    """The bits from SOF to the end of the control field (DLC), before stuffing, as '0'/'1' characters."""
     rtr = "1" if is_remote else "0"
     if is_extended:
         base, extension = arbitration_id >> 18, arbitration_id & 0x3FFFF
         # SOF, base id, SRR (recessive), IDE (recessive), id extension, RTR, r1, r0.
-        head = f"0{base:011b}11{extension:018b}{rtr}00"
-    else:
-        # SOF, id, RTR, IDE (dominant), r0.
-        head = f"0{arbitration_id:011b}{rtr}00"
+        return f"0{base:011b}11{extension:018b}{rtr}00{dlc & 0xF:04b}"
+    # SOF, id, RTR, IDE (dominant), r0.
+    return f"0{arbitration_id:011b}{rtr}00{dlc & 0xF:04b}"
+
+
+def stuffed_section(arbitration_id: int, is_extended: bool, is_remote: bool, dlc: int, data: bytes) -> str:
+    """The bits from SOF to the end of the CRC sequence, before stuffing, as '0'/'1' characters."""
     payload = "" if is_remote else "".join(f"{byte:08b}" for byte in data)
-    bits = f"{head}{dlc & 0xF:04b}{payload}"
+    bits = _head_bits(arbitration_id, is_extended, is_remote, dlc) + payload
     return f"{bits}{crc15(bits):015b}"
 
 
@@ -117,12 +120,7 @@ _STUFF7_STEP = _stepper(_stuff_table(7))
 def _header_state(arbitration_id: int, is_extended: bool, is_remote: bool, dlc: int) -> tuple[int, int, int, int, int]:
     """CRC register, stuff bits so far, last bit, run length and bit count after SOF .. DLC (same for every frame
     of a COB-ID and length, so it is worked out bit by bit once)."""
-    rtr = "1" if is_remote else "0"
-    if is_extended:
-        base, extension = arbitration_id >> 18, arbitration_id & 0x3FFFF
-        head = f"0{base:011b}11{extension:018b}{rtr}00{dlc & 0xF:04b}"
-    else:
-        head = f"0{arbitration_id:011b}{rtr}00{dlc & 0xF:04b}"
+    head = _head_bits(arbitration_id, is_extended, is_remote, dlc)
     crc = 0
     stuffed, last, run = 0, 0, 0
     for char in head:
