@@ -4,6 +4,8 @@ abort, lost answers, toggle errors)."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import pytest
 
 from drivebench.errors import ProtocolError, SdoAbortError, SdoOutOfStepError, SdoStalledError, SdoTimeoutError
@@ -160,3 +162,36 @@ def test_answers_out_of_step_are_refused() -> None:
     with pytest.raises(ProtocolError, match="protocol is not supported"):
         CoeSdoClient(mailbox_error, 0x03E9).upload(0x5FD8, 1)
     assert CoeSdoClient(slave.exchange, 0x03E9).upload(0x5FD8, 1) == b"\xa0\x0f"
+
+
+@pytest.mark.parametrize("direction", ["upload", "download"])
+def test_both_segment_loops_refuse_a_stall_a_repeated_segment_and_a_wrong_command(direction: str) -> None:
+    """The checks every segment's answer goes through, for the upload and the download loop alike."""
+    def transfer(answer: Callable[[int, bytes], bytes | None]) -> None:
+        slave, exchanges = Slave(mailbox_size=16), iter(range(100))
+        slave.objects[0x2000, 0] = bytes(40)
+
+        def exchange(telegram: bytes, timeout_s: float) -> bytes | None:
+            real = slave.exchange(telegram, timeout_s)
+            assert real is not None
+            return answer(next(exchanges), real)
+
+        client = CoeSdoClient(exchange, 0x03E9, mailbox_size=16, retries=0)
+        if direction == "upload":
+            client.upload(0x2000, 0)
+        else:
+            client.download(0x2000, 0, bytes(40))
+
+    with pytest.raises(SdoStalledError, match="after 1 of 6 segments"):  # 40 bytes, 7 to a 16-byte mailbox's segment
+        transfer(lambda n, real: real if n < 2 else None)
+    first_segment: list[bytes] = []
+
+    def repeats_the_first_segment(n: int, real: bytes) -> bytes:
+        if n == 1:
+            first_segment.append(real)
+        return first_segment[0] if n == 2 else real
+
+    with pytest.raises(SdoOutOfStepError, match="toggle bit"):
+        transfer(repeats_the_first_segment)
+    with pytest.raises(SdoOutOfStepError, match="command specifier 3"):  # the command byte is the 9th
+        transfer(lambda n, real: real if n != 1 else real[:8] + bytes([0x60 | real[8] & 0x1F]) + real[9:])

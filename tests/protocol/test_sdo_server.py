@@ -254,6 +254,7 @@ def lenze(wires: list[Wire]) -> Wire:
     pytest.param("40 FD 5F 00 00 00 00 00", "80 FD 5F 00 01 00 01 06", id="read-write-only-0x06010001"),
     pytest.param("E0 A7 5F 00 00 00 00 00", "80 A7 5F 00 01 00 04 05", id="unknown-ccs-0x05040001"),
     pytest.param("60 00 00 00 00 00 00 00", "80 00 00 00 01 00 04 05", id="segment-without-transfer"),
+    pytest.param("00 41 42 43 44 45 46 47", "80 00 00 00 01 00 04 05", id="download-segment-without-transfer"),
 ])
 def test_abort_frames(request_hex: str, abort_hex: str, lenze: Wire) -> None:
     """Abort = 0x80, index, subindex, code little-endian (8400 manual ch. 9.2.4: 0x06040041 -> 41 00 04 06)."""

@@ -171,6 +171,17 @@ def test_csrf_token_is_required_for_cookie_sessions_not_for_tokens(users: dict[s
     assert with_token.status_code < 400
 
 
+def test_a_form_s_csrf_field_is_read_and_the_form_still_reaches_the_route(users: dict[str, str],
+                                                                          app_client: TestClient) -> None:
+    csrf = sign_in(app_client, "root")
+    for role, files in (("viewer", None), ("engineer", {"unused": ("a.txt", b"x")})):  # urlencoded, multipart
+        answer = app_client.post("/ui/users/eve/role", data={"csrf_token": csrf, "role": role}, files=files)
+        assert answer.status_code == 200, answer.text
+        assert accounts.get_user("eve").role == Role.parse(role)
+    refused = app_client.post("/ui/users/eve/role", data={"csrf_token": "wrong", "role": "viewer"})
+    assert refused.status_code == 403 and accounts.get_user("eve").role == Role.ENGINEER
+
+
 def test_tokens_act_with_their_role_and_revoked_tokens_are_refused(users: dict[str, str],
                                                                   app_client: TestClient) -> None:
     bearer = {"Authorization": f"Bearer {users['root']}"}

@@ -212,3 +212,12 @@ def test_a_remote_diagnostics_link_cannot_drive(client: TestClient) -> None:
     with pytest.raises(WebSocketDisconnect) as closed, client.websocket_connect(socket_url, headers=viewer) as socket:
         socket.receive_json()
     assert closed.value.code == 4403
+
+
+@pytest.mark.parametrize("socket", ["control", "process-data"])
+def test_a_node_socket_of_an_unknown_session_or_node_closes_with_4404(client: TestClient, socket: str) -> None:
+    for url, named in ((f"/ws/sessions/nope/nodes/{MM}/{socket}", "nope"),
+                       (f"/ws/sessions/demo-plant/nodes/99/{socket}", "Node 99")):
+        with pytest.raises(WebSocketDisconnect) as closed, client.websocket_connect(url) as opened:
+            opened.receive_json()
+        assert closed.value.code == 4404 and named in closed.value.reason

@@ -198,13 +198,6 @@ def fit_int(data_type: DataType, value: int, *, limit: str | None = None) -> tup
 
 def read_value(data_type: DataType, text: str, *, limit: str | None = None) -> tuple[Value | None, str | None]:
     """An EDS value of ``data_type`` -> (raw model value or None when unusable, the reading applied or None)."""
-    if data_type in _INTEGER_LIMITS and data_type is not DataType.BOOLEAN:
-        try:
-            number, note = read_int(text)
-        except ValueError as exc:
-            return None, Text(N_("{reason}: dropped"), reason=exc.args[0])
-        value, fit_note = fit_int(data_type, number, limit=limit)
-        return value, _joined(note, fit_note)
     if data_type in (DataType.VISIBLE_STRING, DataType.UNICODE_STRING):
         return text, None
     if data_type in (DataType.OCTET_STRING, DataType.DOMAIN):
@@ -217,7 +210,7 @@ def read_value(data_type: DataType, text: str, *, limit: str | None = None) -> t
         return _read_float(data_type, text)
     if data_type is DataType.BOOLEAN and text.strip().lower() in ("true", "false"):
         return int(text.strip().lower() == "true"), None
-    try:
+    try:  # the integers, and a BOOLEAN written as a number
         number, note = read_int(text)
     except ValueError as exc:
         return None, Text(N_("{reason}: dropped"), reason=exc.args[0])

@@ -119,8 +119,7 @@ class _Walker:
         result: dict[str, Any] = {}
         first_lines: dict[str, int] = {}
         self.skip()
-        if self.text.startswith("}", self.pos):
-            self.pos += 1
+        if self._take("}"):
             return result
         while True:
             self.skip()
@@ -132,33 +131,35 @@ class _Walker:
                 raise DuplicateKey(key, key_line, first_lines[key])
             first_lines[key] = key_line
             self.skip()
-            if not self.text.startswith(":", self.pos):
+            if not self._take(":"):
                 raise ValueError(f"expected ':' at line {self.line(self.pos)}")
-            self.pos += 1
             result[key] = self.value((*path, key), key_line)
-            self.skip()
-            if self.text.startswith(",", self.pos):
-                self.pos += 1
-                continue
-            if self.text.startswith("}", self.pos):
-                self.pos += 1
+            if not self._more("}"):
                 return result
-            raise ValueError(f"expected ',' or '}}' at line {self.line(self.pos)}")
 
     def array(self, path: JsonPath) -> list[Any]:
         self.pos += 1
         result: list[Any] = []
         self.skip()
-        if self.text.startswith("]", self.pos):
-            self.pos += 1
+        if self._take("]"):
             return result
         while True:
             result.append(self.value((*path, len(result)), None))
-            self.skip()
-            if self.text.startswith(",", self.pos):
-                self.pos += 1
-                continue
-            if self.text.startswith("]", self.pos):
-                self.pos += 1
+            if not self._more("]"):
                 return result
-            raise ValueError(f"expected ',' or ']' at line {self.line(self.pos)}")
+
+    def _take(self, char: str) -> bool:
+        """Step over ``char`` if it comes next."""
+        if self.text.startswith(char, self.pos):
+            self.pos += 1
+            return True
+        return False
+
+    def _more(self, closer: str) -> bool:
+        """After a member of an object or array: True at a ',' (another member follows), False at ``closer``."""
+        self.skip()
+        if self._take(","):
+            return True
+        if self._take(closer):
+            return False
+        raise ValueError(f"expected ',' or '{closer}' at line {self.line(self.pos)}")

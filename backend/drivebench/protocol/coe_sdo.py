@@ -118,6 +118,26 @@ class CoeSdoClient:
     def _segment_room(self) -> int:
         return self.mailbox_size - coe.MAILBOX_HEADER.size - 3  # CoE header and the segment's command byte
 
+    def _segments_for(self, left: int) -> int:
+        """How many segments carry the ``left`` bytes that the initiate telegram did not."""
+        return -(-left // self._segment_room) if left > 0 else 0
+
+    def _segment_exchange(self, request: bytes, index: int, subindex: int, *, specifier: int, toggle: int, done: int,
+                          total: int, wrong_specifier: str) -> coe.Segment:
+        """One segment of an upload or download: ``request`` sent and its answer checked. No answer stalls the
+        transfer after ``done`` of ``total`` segments; an answer with another command specifier (said by the
+        N_() template ``wrong_specifier``) or toggle bit is out of step."""
+        try:
+            answer = coe.parse_segment(self._ask(request, index, subindex))
+        except SdoTimeoutError as exc:
+            raise SdoStalledError(node=self.station, index=index, subindex=subindex, done=done, total=total) from exc
+        if answer.specifier != specifier:
+            raise SdoOutOfStepError(Text(wrong_specifier, specifier=answer.specifier),
+                                    node=self.station, index=index, subindex=subindex)
+        if answer.toggle != toggle:
+            raise SdoOutOfStepError(SdoOutOfStepError.TOGGLE, node=self.station, index=index, subindex=subindex)
+        return answer
+
     def upload(self, index: int, subindex: int) -> bytes:
         frame = self._initiate(coe.upload_request(index, subindex), index, subindex, specifier=2)
         if frame.expedited:
@@ -125,20 +145,11 @@ class CoeSdoClient:
         size = frame.dword
         data = bytearray(frame.tail[:size])
         toggle, done = 0, 0
-        total = -(-(size - len(data)) // self._segment_room) if size > len(data) else 0
+        total = self._segments_for(size - len(data))
         while len(data) < size:
-            request = bytes([0x60 | toggle << 4]) + bytes(7)
-            try:
-                segment = coe.parse_segment(self._ask(request, index, subindex))
-            except SdoTimeoutError as exc:
-                raise SdoStalledError(node=self.station, index=index, subindex=subindex, done=done,
-                                      total=total) from exc
-            if segment.specifier != 0:
-                raise SdoOutOfStepError(Text(N_("command specifier {specifier} in an upload segment"),
-                                              specifier=segment.specifier),
-                                        node=self.station, index=index, subindex=subindex)
-            if segment.toggle != toggle:
-                raise SdoOutOfStepError(SdoOutOfStepError.TOGGLE, node=self.station, index=index, subindex=subindex)
+            segment = self._segment_exchange(bytes([0x60 | toggle << 4]) + bytes(7), index, subindex,
+                                             specifier=0, toggle=toggle, done=done, total=total,
+                                             wrong_specifier=N_("command specifier {specifier} in an upload segment"))
             data += segment.data
             done += 1
             toggle ^= 1
@@ -153,21 +164,13 @@ class CoeSdoClient:
             return
         sent = min(len(data), self._initiate_room)
         toggle, done = 0, 0
-        total = -(-(len(data) - sent) // self._segment_room) if len(data) > sent else 0
+        total = self._segments_for(len(data) - sent)
         while sent < len(data):
             chunk = data[sent:sent + self._segment_room]
             last = sent + len(chunk) == len(data)
-            try:
-                answer = coe.parse_segment(self._ask(coe.segment(0x00, toggle, chunk, last), index, subindex))
-            except SdoTimeoutError as exc:
-                raise SdoStalledError(node=self.station, index=index, subindex=subindex, done=done,
-                                      total=total) from exc
-            if answer.specifier != 1:
-                raise SdoOutOfStepError(Text(N_("command specifier {specifier} answering a download segment"),
-                                              specifier=answer.specifier),
-                                        node=self.station, index=index, subindex=subindex)
-            if answer.toggle != toggle:
-                raise SdoOutOfStepError(SdoOutOfStepError.TOGGLE, node=self.station, index=index, subindex=subindex)
+            self._segment_exchange(coe.segment(0x00, toggle, chunk, last), index, subindex,
+                                   specifier=1, toggle=toggle, done=done, total=total,
+                                   wrong_specifier=N_("command specifier {specifier} answering a download segment"))
             sent += len(chunk)
             done += 1
             toggle ^= 1

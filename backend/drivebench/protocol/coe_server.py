@@ -78,6 +78,10 @@ class CoeSdoServer:
         self._counters = self._counters % 7 + 1
         return coe.coe_mailbox(self.station, service, body, self._counters)
 
+    def _abort(self, index: int, subindex: int, code: int) -> bytes:
+        """An SDO abort of the transfer of ``index``/``subindex`` (CoE carries an abort in the SDO request service)."""
+        return self._answer(coe.CoeService.SDO_REQUEST, coe.abort(index, subindex, code))
+
     def handle(self, telegram: bytes) -> bytes | None:
         """The (first) answer to one request telegram, or None for telegrams a slave ignores."""
         answers = self.respond(telegram)
@@ -155,7 +159,7 @@ class CoeSdoServer:
                 return self._initiate_download(frame)
             raise Abort(ABORT_COMMAND)
         except Abort as exc:
-            return self._answer(coe.CoeService.SDO_REQUEST, coe.abort(frame.index, frame.subindex, exc.code))
+            return self._abort(frame.index, frame.subindex, exc.code)
 
     @property
     def _initiate_room(self) -> int:
@@ -189,8 +193,7 @@ class CoeSdoServer:
             upload = self._upload
             if segment.toggle != upload.toggle:
                 self._upload = None
-                return self._answer(coe.CoeService.SDO_REQUEST, coe.abort(upload.index, upload.subindex,
-                                                                         ABORT_TOGGLE))
+                return self._abort(upload.index, upload.subindex, ABORT_TOGGLE)
             chunk = upload.data[upload.sent:upload.sent + self._segment_room]
             upload.sent += len(chunk)
             last = upload.sent >= len(upload.data)
@@ -203,8 +206,7 @@ class CoeSdoServer:
             download = self._download
             if segment.toggle != download.toggle:
                 self._download = None
-                return self._answer(coe.CoeService.SDO_REQUEST, coe.abort(download.index, download.subindex,
-                                                                         ABORT_TOGGLE))
+                return self._abort(download.index, download.subindex, ABORT_TOGGLE)
             download.data += segment.data
             answer = bytes([0x20 | download.toggle << 4]) + bytes(7)
             download.toggle ^= 1
@@ -213,7 +215,6 @@ class CoeSdoServer:
                 try:
                     self.write(download.index, download.subindex, bytes(download.data[:download.size]))
                 except Abort as exc:
-                    return self._answer(coe.CoeService.SDO_REQUEST,
-                                        coe.abort(download.index, download.subindex, exc.code))
+                    return self._abort(download.index, download.subindex, exc.code)
             return self._answer(coe.CoeService.SDO_RESPONSE, answer)
-        return self._answer(coe.CoeService.SDO_REQUEST, coe.abort(0, 0, ABORT_COMMAND))
+        return self._abort(0, 0, ABORT_COMMAND)

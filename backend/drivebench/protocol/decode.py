@@ -156,12 +156,33 @@ def _abort(data: bytes, obj: _Objects, texts: Mapping[int, str] | None) -> str:
     return f"abort 0x{code:08X} {abort_text(code, texts)}, {obj(index, sub)}"
 
 
+def _where(context: SdoContext | None, obj: _Objects) -> str:
+    """The object a segment belongs to, when the tracker knows it."""
+    return f" {obj(context.index, context.subindex)}" if context else ""
+
+
+def _size(data: bytes, given: int) -> str:
+    """The size an initiate or block initiate frame announces (bytes 4…7), when its size bit is set."""
+    return f", {int.from_bytes(data[4:8], 'little')} bytes" if given else ""
+
+
+def _initiate(data: bytes, obj: _Objects, verb: str, value: Callable[[bytes], str]) -> str:
+    """An initiate download request or initiate upload response: the value it carries (expedited) or the size of
+    the segmented transfer to come."""
+    command = data[0]
+    index, sub = int.from_bytes(data[1:3], "little"), data[3]
+    expedited, size_given = command & 2, command & 1
+    if expedited:
+        raw = data[4:8 - ((command >> 2) & 3)] if size_given else data[4:8]
+        return f"{verb} {obj(index, sub)} = {value(raw)}"
+    return f"{verb} {obj(index, sub)}, segmented{_size(data, size_given)}"
+
+
 def _segment(data: bytes, direction: str, context: SdoContext | None, obj: _Objects) -> str:
     toggle = (data[0] >> 4) & 1
     size = 7 - ((data[0] >> 1) & 7)
     raw = data[1:1 + size]
-    where = f" {obj(context.index, context.subindex)}" if context else ""
-    last = ", last" if data[0] & 1 else ""
+    where, last = _where(context, obj), ", last" if data[0] & 1 else ""
     return f"{direction} segment{where} toggle {toggle}, {size} bytes{last}: {_hex(raw)}{_printable(raw)}"
 
 
@@ -171,6 +192,13 @@ def _block_segment(data: bytes, context: SdoContext, obj: _Objects) -> str:
     return f"block segment {seqno}{last} {obj(context.index, context.subindex)}: {_hex(data[1:8])}"
 
 
+def _block_end(data: bytes, direction: str) -> str:
+    """The end of a block download (client) or block upload (server): unused bytes of the last segment and CRC."""
+    unused = (data[0] >> 2) & 7
+    crc = int.from_bytes(data[1:3], "little")
+    return f"block {direction} end, {unused} unused bytes, CRC 0x{crc:04X}"
+
+
 def _sdo_request(data: bytes, context: SdoContext | None, obj: _Objects, texts: Mapping[int, str] | None) -> str:
     if context is not None and context.block_segment:
         return _block_segment(data, context, obj)
@@ -178,19 +206,13 @@ def _sdo_request(data: bytes, context: SdoContext | None, obj: _Objects, texts: 
     ccs = command >> 5
     index, sub = int.from_bytes(data[1:3], "little"), data[3]
     if ccs == 1:  # initiate download
-        expedited, size_given = command & 2, command & 1
-        if expedited:
-            raw = data[4:8 - ((command >> 2) & 3)] if size_given else data[4:8]
-            return f"write {obj(index, sub)} = {int.from_bytes(raw, 'little')}"
-        size = f", {int.from_bytes(data[4:8], 'little')} bytes" if size_given else ""
-        return f"write {obj(index, sub)}, segmented{size}"
+        return _initiate(data, obj, "write", lambda raw: str(int.from_bytes(raw, "little")))
     if ccs == 2:
         return f"read {obj(index, sub)}"
     if ccs == 0:
         return _segment(data, "download", context, obj)
     if ccs == 3:
-        where = f" {obj(context.index, context.subindex)}" if context else ""
-        return f"upload segment request{where} toggle {(command >> 4) & 1}"
+        return f"upload segment request{_where(context, obj)} toggle {(command >> 4) & 1}"
     if ccs == 4:
         return _abort(data, obj, texts)
     if ccs == 5:  # block upload, client side
@@ -204,11 +226,8 @@ def _sdo_request(data: bytes, context: SdoContext | None, obj: _Objects, texts: 
         return "block upload end confirmed"
     if ccs == 6:  # block download, client side
         if command & 1:
-            unused = (command >> 2) & 7
-            crc = int.from_bytes(data[1:3], "little")
-            return f"block download end, {unused} unused bytes, CRC 0x{crc:04X}"
-        size = f", {int.from_bytes(data[4:8], 'little')} bytes" if command & 2 else ""
-        return f"block write {obj(index, sub)}{size}"
+            return _block_end(data, "download")
+        return f"block write {obj(index, sub)}{_size(data, command & 2)}"
     return f"unknown SDO command 0x{command:02X}"
 
 
@@ -219,19 +238,13 @@ def _sdo_response(data: bytes, context: SdoContext | None, obj: _Objects, texts:
     scs = command >> 5
     index, sub = int.from_bytes(data[1:3], "little"), data[3]
     if scs == 2:  # initiate upload response
-        expedited, size_given = command & 2, command & 1
-        if expedited:
-            raw = data[4:8 - ((command >> 2) & 3)] if size_given else data[4:8]
-            return f"read response {obj(index, sub)} = {_value_text(raw)}"
-        size = f", {int.from_bytes(data[4:8], 'little')} bytes" if size_given else ""
-        return f"read response {obj(index, sub)}, segmented{size}"
+        return _initiate(data, obj, "read response", _value_text)
     if scs == 3:
         return f"write response {obj(index, sub)} OK"
     if scs == 0:
         return _segment(data, "upload", context, obj)
     if scs == 1:
-        where = f" {obj(context.index, context.subindex)}" if context else ""
-        return f"download segment response{where} toggle {(command >> 4) & 1}"
+        return f"download segment response{_where(context, obj)} toggle {(command >> 4) & 1}"
     if scs == 4:
         return _abort(data, obj, texts)
     if scs == 5:  # block download, server side
@@ -243,11 +256,8 @@ def _sdo_response(data: bytes, context: SdoContext | None, obj: _Objects, texts:
         return "block download end confirmed"
     if scs == 6:  # block upload, server side
         if command & 1:
-            unused = (command >> 2) & 7
-            crc = int.from_bytes(data[1:3], "little")
-            return f"block upload end, {unused} unused bytes, CRC 0x{crc:04X}"
-        size = f", {int.from_bytes(data[4:8], 'little')} bytes" if command & 2 else ""
-        return f"block read response {obj(index, sub)}{size}"
+            return _block_end(data, "upload")
+        return f"block read response {obj(index, sub)}{_size(data, command & 2)}"
     return f"unknown SDO command 0x{command:02X}"
 
 

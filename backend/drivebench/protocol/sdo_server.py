@@ -15,7 +15,7 @@ import struct
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Protocol, TypeVar
 
 from drivebench.errors import ProtocolError
 from drivebench.protocol.abort_codes import abort_text
@@ -78,6 +78,9 @@ class _SegmentedDownload(_Transfer):
     size: int | None
     data: bytearray = field(default_factory=bytearray)
     toggle: int = 0
+
+
+_Segmented = TypeVar("_Segmented", _SegmentedUpload, _SegmentedDownload)
 
 
 @dataclass
@@ -192,13 +195,19 @@ class SdoServer:
         self._transfer = _SegmentedUpload(index, subindex, value)
         self._reply(_INDEXED.pack(0x41, index, subindex) + _SIZE.pack(len(value)))
 
-    def _upload_segment(self, request: bytes) -> None:
+    def _segment_of(self, request: bytes, kind: type[_Segmented]) -> tuple[_Segmented, int]:
+        """The segmented transfer a segment request belongs to and the request's toggle bit: a transfer of ``kind``
+        must be under way and the toggle bit alternated."""
         transfer = self._transfer
-        if not isinstance(transfer, _SegmentedUpload):
+        if not isinstance(transfer, kind):
             raise SdoAbort(INVALID_COMMAND)
         toggle = request[0] >> 4 & 1
         if toggle != transfer.toggle:
             raise SdoAbort(TOGGLE_NOT_ALTERNATED)
+        return transfer, toggle
+
+    def _upload_segment(self, request: bytes) -> None:
+        transfer, toggle = self._segment_of(request, _SegmentedUpload)
         chunk = transfer.data[transfer.position:transfer.position + SEGMENT_DATA]
         transfer.position += len(chunk)
         last = transfer.position >= len(transfer.data)
@@ -226,12 +235,7 @@ class SdoServer:
         self._reply(_INDEXED.pack(0x60, index, subindex) + bytes(4))
 
     def _download_segment(self, request: bytes) -> None:
-        transfer = self._transfer
-        if not isinstance(transfer, _SegmentedDownload):
-            raise SdoAbort(INVALID_COMMAND)
-        toggle = request[0] >> 4 & 1
-        if toggle != transfer.toggle:
-            raise SdoAbort(TOGGLE_NOT_ALTERNATED)
+        transfer, toggle = self._segment_of(request, _SegmentedDownload)
         unused = request[0] >> 1 & 7
         transfer.data += request[1:8 - unused]
         if transfer.size is not None and len(transfer.data) > transfer.size:

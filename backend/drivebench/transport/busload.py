@@ -14,7 +14,7 @@ to 8 data bytes at most, which is an estimate, not an exact count (the data phas
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from functools import lru_cache
 
 import can
@@ -56,18 +56,21 @@ def stuff_bit_count(bits: str) -> int:
     return stuffed
 
 
-def stuffed_section(arbitration_id: int, is_extended: bool, is_remote: bool, dlc: int, data: bytes) -> str:
-    """The bits from SOF to the end of the CRC sequence, before stuffing, as '0'/'1' characters."""
+def _head_bits(arbitration_id: int, is_extended: bool, is_remote: bool, dlc: int) -> str:
+    """The bits from SOF to the end of the control field (DLC), before stuffing, as '0'/'1' characters."""
     rtr = "1" if is_remote else "0"
     if is_extended:
         base, extension = arbitration_id >> 18, arbitration_id & 0x3FFFF
         # SOF, base id, SRR (recessive), IDE (recessive), id extension, RTR, r1, r0.
-        head = f"0{base:011b}11{extension:018b}{rtr}00"
-    else:
-        # SOF, id, RTR, IDE (dominant), r0.
-        head = f"0{arbitration_id:011b}{rtr}00"
+        return f"0{base:011b}11{extension:018b}{rtr}00{dlc & 0xF:04b}"
+    # SOF, id, RTR, IDE (dominant), r0.
+    return f"0{arbitration_id:011b}{rtr}00{dlc & 0xF:04b}"
+
+
+def stuffed_section(arbitration_id: int, is_extended: bool, is_remote: bool, dlc: int, data: bytes) -> str:
+    """The bits from SOF to the end of the CRC sequence, before stuffing, as '0'/'1' characters."""
     payload = "" if is_remote else "".join(f"{byte:08b}" for byte in data)
-    bits = f"{head}{dlc & 0xF:04b}{payload}"
+    bits = _head_bits(arbitration_id, is_extended, is_remote, dlc) + payload
     return f"{bits}{crc15(bits):015b}"
 
 
@@ -82,24 +85,26 @@ def _crc15_table() -> list[int]:
     return table
 
 
+def _stuffing(bits: Iterable[int], last: int = 0, run: int = 0) -> tuple[int, int, int]:
+    """Stuff bits a transmitter inserts into ``bits`` (0/1) when the bits before them ended in a run of ``run``
+    bits equal to ``last`` (run 0: the frame starts with them): (stuff bits, last bit after, run after)."""
+    stuffed = 0
+    for bit in bits:
+        if bit == last and run:
+            run += 1
+        else:
+            run, last = 1, bit
+        if run == 5:
+            stuffed += 1
+            last, run = 1 - bit, 1
+    return stuffed, last, run
+
+
 def _stuff_table(width: int = 8) -> list[tuple[int, int, int]]:
     """For (last bit, run length 0..4, ``width``-bit chunk): (stuff bits inserted, last bit after, run after)."""
-    table = []
-    for last in (0, 1):
-        for run in range(5):
-            for chunk in range(1 << width):
-                stuffed, bit_last, bit_run = 0, last, run
-                for shift in range(width - 1, -1, -1):
-                    bit = (chunk >> shift) & 1
-                    if bit == bit_last and bit_run:
-                        bit_run += 1
-                    else:
-                        bit_run, bit_last = 1, bit
-                    if bit_run == 5:
-                        stuffed += 1
-                        bit_last, bit_run = 1 - bit, 1
-                table.append((stuffed, bit_last, bit_run))
-    return table
+    shifts = range(width - 1, -1, -1)
+    return [_stuffing(((chunk >> shift) & 1 for shift in shifts), last, run)
+            for last in (0, 1) for run in range(5) for chunk in range(1 << width)]
 
 
 def _stepper(table: list[tuple[int, int, int]]) -> list[tuple[int, int]]:
@@ -117,28 +122,9 @@ _STUFF7_STEP = _stepper(_stuff_table(7))
 def _header_state(arbitration_id: int, is_extended: bool, is_remote: bool, dlc: int) -> tuple[int, int, int, int, int]:
     """CRC register, stuff bits so far, last bit, run length and bit count after SOF .. DLC (same for every frame
     of a COB-ID and length, so it is worked out bit by bit once)."""
-    rtr = "1" if is_remote else "0"
-    if is_extended:
-        base, extension = arbitration_id >> 18, arbitration_id & 0x3FFFF
-        head = f"0{base:011b}11{extension:018b}{rtr}00{dlc & 0xF:04b}"
-    else:
-        head = f"0{arbitration_id:011b}{rtr}00{dlc & 0xF:04b}"
-    crc = 0
-    stuffed, last, run = 0, 0, 0
-    for char in head:
-        bit = 1 if char == "1" else 0
-        feedback = bit ^ (crc >> 14)
-        crc = (crc << 1) & 0x7FFF
-        if feedback:
-            crc ^= CRC15_POLY
-        if bit == last and run:
-            run += 1
-        else:
-            run, last = 1, bit
-        if run == 5:
-            stuffed += 1
-            last, run = 1 - bit, 1
-    return crc, stuffed, last, run, len(head)
+    head = _head_bits(arbitration_id, is_extended, is_remote, dlc)
+    stuffed, last, run = _stuffing(int(char) for char in head)
+    return crc15(head), stuffed, last, run, len(head)
 
 
 def _fast_bits(arbitration_id: int, is_extended: bool, is_remote: bool, dlc: int, data: bytes) -> int:

@@ -266,31 +266,32 @@ async def _csrf_token(scope: Scope, receive: Receive, headers: Headers) -> tuple
         if size > settings.max_upload_bytes + 65536:
             return None, receive
     body = b"".join(chunks)
-    sent = False
-
-    async def replay() -> Message:
-        nonlocal sent
-        if not sent:
-            sent = True
-            return {"type": "http.request", "body": body, "more_body": False}
-        return await receive()
-
-    read_once = False
-
-    async def for_form() -> Message:
-        nonlocal read_once
-        if not read_once:
-            read_once = True
-            return {"type": "http.request", "body": body, "more_body": False}
-        return {"type": "http.disconnect"}
-
+    replay = _body_once(body, receive)
     try:
-        form = await Request(scope, for_form).form()
+        form = await Request(scope, _body_once(body, _disconnected)).form()
         token = form.get(CSRF_FIELD)
         await form.close()
     except Exception:  # a malformed form has no token; the route reports what is wrong with it
         return None, replay
     return (token if isinstance(token, str) else None), replay
+
+
+def _body_once(body: bytes, then: Receive) -> Receive:
+    """A receive that hands out the body already read as one message, then whatever ``then`` receives."""
+    sent = False
+
+    async def receive_body() -> Message:
+        nonlocal sent
+        if not sent:
+            sent = True
+            return {"type": "http.request", "body": body, "more_body": False}
+        return await then()
+
+    return receive_body
+
+
+async def _disconnected() -> Message:
+    return {"type": "http.disconnect"}
 
 
 async def _refuse_host(scope: Scope, receive: Receive, send: Send, reason: str) -> None:

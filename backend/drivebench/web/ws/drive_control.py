@@ -22,7 +22,6 @@ user or client holds, which this keep-alive does not reach).
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import time
 
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
@@ -33,6 +32,7 @@ from drivebench.services.control import drive_control
 from drivebench.services.control.drive_guard import Guard
 from drivebench.services.params import node_lease
 from drivebench.web.safety import panel_for
+from drivebench.web.ws.node_socket import open_node, serve
 
 router = APIRouter()
 PERIOD_S = 0.25
@@ -41,13 +41,9 @@ _trips: set[asyncio.Task[None]] = set()
 
 @router.websocket("/ws/sessions/{session_id}/nodes/{node_id}/control")
 async def control(websocket: WebSocket, session_id: str, node_id: int) -> None:
-    await websocket.accept()
-    try:
-        session = websocket.app.state.drivebench.manager.get(session_id)
-        node = session.node(node_id)
-    except NotFound as exc:
-        await websocket.close(code=4404, reason=exc.shown_detail()[:120])
+    if (opened := await open_node(websocket, session_id, node_id)) is None:
         return
+    session, node = opened
     guard = drive_control.guard_for(session)
     panel = panel_for(websocket)
     guard.opened(node_id, panel)
@@ -69,19 +65,11 @@ async def control(websocket: WebSocket, session_id: str, node_id: int) -> None:
                 await websocket.send_json({"type": "error", "detail": exc.shown_detail()})
             await asyncio.sleep(PERIOD_S)
 
-    tasks = [asyncio.create_task(receive()), asyncio.create_task(send())]
-    try:
-        await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)
-    except (WebSocketDisconnect, RuntimeError):
-        pass
-    finally:
+    def closed() -> None:
         if guard.closed(node_id, panel):
             _trip(guard, node_id, Text(N_("the control panel holding the drive disconnected")))
-        for task in tasks:
-            task.cancel()
-        for task in tasks:
-            with contextlib.suppress(asyncio.CancelledError, WebSocketDisconnect, RuntimeError, Exception):
-                await task
+
+    await serve(receive(), send(), closed)
 
 
 def _trip(guard: Guard, node_id: int, reason: str) -> None:

@@ -22,11 +22,12 @@ import contextlib
 import time
 import uuid
 
-from fastapi import APIRouter, WebSocket, WebSocketDisconnect
+from fastapi import APIRouter, WebSocket
 
-from drivebench.errors import DriveBenchError, NotFound
+from drivebench.errors import DriveBenchError
 from drivebench.services.bus.sessions import Session
 from drivebench.services.pdos import process_data as live
+from drivebench.web.ws.node_socket import open_node, serve
 
 router = APIRouter()
 MIN_INTERVAL_S = 0.1
@@ -55,13 +56,9 @@ def _state(session: Session, node_id: int) -> dict[str, object]:
 
 @router.websocket("/ws/sessions/{session_id}/nodes/{node_id}/process-data")
 async def process_data(websocket: WebSocket, session_id: str, node_id: int) -> None:
-    await websocket.accept()
-    try:
-        session = websocket.app.state.drivebench.manager.get(session_id)
-        session.node(node_id)
-    except NotFound as exc:
-        await websocket.close(code=4404, reason=exc.shown_detail()[:120])
+    if (opened := await open_node(websocket, session_id, node_id)) is None:
         return
+    session, _node = opened
     owner = uuid.uuid4().hex
     service = live.service(session)
     watcher = service.watch(owner)
@@ -86,15 +83,7 @@ async def process_data(websocket: WebSocket, session_id: str, node_id: int) -> N
                 await websocket.send_json(_state(session, node_id))
             await asyncio.sleep(MIN_INTERVAL_S)
 
-    tasks = [asyncio.create_task(receive()), asyncio.create_task(send())]
     try:
-        await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)
-    except (WebSocketDisconnect, RuntimeError):
-        pass
+        await serve(receive(), send())
     finally:
-        for task in tasks:
-            task.cancel()
-        for task in tasks:
-            with contextlib.suppress(asyncio.CancelledError, WebSocketDisconnect, RuntimeError, Exception):
-                await task
         service.unwatch(owner)  # cyclic RPDOs of this browser stop here
