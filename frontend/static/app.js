@@ -136,6 +136,16 @@ document.addEventListener("click", (event) => {
   if (field) field.select();
 });
 
+// The language links lead back to the page as it is now: a tab or set chosen since the page loaded (hx-push-url)
+// is in the address, not in the link the server wrote.
+document.addEventListener("click", (event) => {
+  const link = event.target.closest && event.target.closest(".lang-switch a[href*='next=']");
+  if (!link) return;
+  const target = new URL(link.href);
+  target.searchParams.set("next", location.pathname + location.search);
+  link.href = target.pathname + target.search;
+});
+
 // A successful action clears an old error beside it.
 document.body.addEventListener("htmx:afterRequest", (event) => {
   if (event.detail.successful && event.detail.xhr.status < 400) {  // not the error just shown there

@@ -3,6 +3,8 @@
 // Each page load is one panel (X-Drive-Panel / ?panel=): the panel that arms a drive holds it; other panels on the
 // node watch - their moving controls are disabled, stopping ones stay.
 (() => {
+  // The tab brings this script again each time it is shown: one copy does the work.
+  if (window.drivebenchControlScan) { window.drivebenchControlScan(); return; }
   const HISTORY_S = 30;
   const WHOLE_SECONDS = [1, 2, 5, 10, 15, 30, 60];  // time axis ticks: never the milliseconds uPlot picks by itself
   const clockLabels = (u, splits) => splits.map((t) => new Date(t * 1000).toLocaleTimeString("en-GB", { hour12: false }));
@@ -20,9 +22,13 @@
   const esc = window.drivebench.escape;  // problem texts name lease holders and operators: text, never markup
   const _ = window.drivebench.gettext;
 
+  // Panels set up, kept here and not as a mark on the element: Back to this tab restores htmx's snapshot of the
+  // page, marks included, and a marked copy would get no socket and no button handlers (a dead Quick stop).
+  const ready = new WeakSet();
+
   function init(panel) {
-    if (panel.dataset.ready) return;
-    panel.dataset.ready = "1";
+    if (ready.has(panel)) return;
+    ready.add(panel);
     const api = panel.dataset.api;
     const moving = new Set(panel.dataset.moving.split(",").filter(Boolean));
     const result = panel.querySelector("#ctl-result");
@@ -365,5 +371,7 @@
 
   function scan() { const panel = document.getElementById("control-panel"); if (panel) init(panel); }
   scan();
+  window.drivebenchControlScan = scan;
   document.body.addEventListener("htmx:afterSettle", scan);
+  document.body.addEventListener("htmx:historyRestore", scan);
 })();

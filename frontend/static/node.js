@@ -22,9 +22,13 @@
     htmx.trigger(rows, "refresh");
   }
 
+  // Boxes watched, kept here and not as a mark on the element: Back to the tab restores htmx's snapshot of the page,
+  // marks included, and a marked copy of a running job's box would never move again.
+  const watched = new WeakSet();
+
   function watch(box) {
-    if (box.dataset.watching) return;
-    box.dataset.watching = "1";
+    if (watched.has(box)) return;
+    watched.add(box);
     box.dataset.refreshed = String(Date.now());
     const bar = box.querySelector("progress");
     const text = box.querySelector(".job-text");

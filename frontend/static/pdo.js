@@ -40,9 +40,13 @@
     return _("reserved");
   }
 
+  // Cards set up, kept here and not as a mark on the element: Back to this tab restores htmx's snapshot of the page,
+  // marks included, and a marked copy would get no editor.
+  const ready = new WeakSet();
+
   function initCard(card) {
-    if (card.dataset.ready) return;
-    card.dataset.ready = "1";
+    if (ready.has(card)) return;
+    ready.add(card);
     const applied = JSON.parse(card.dataset.entries || "[]");
     const current = card.querySelector('.byte-layout[data-layout="current"]');
     if (current) layout(current, applied);
@@ -227,6 +231,7 @@
       socket.send({ cmd: "reload" });  // the mapping may have changed: decode with the new one (when connected)
     }
   });
+  document.body.addEventListener("htmx:historyRestore", init);
   window.drivebenchPdo = init;
   if (document.readyState === "loading") document.addEventListener("DOMContentLoaded", init);
   else init();

@@ -114,6 +114,30 @@ def test_first_run_to_operation_enabled_and_back(server: tuple[str, Plant], page
     _shown(page, "r0027", lambda text: text == "0 A")  # pulses inhibited: no current
 
 
+def test_back_to_the_control_tab_gives_a_working_panel(server: tuple[str, Plant], page: Any) -> None:
+    """Back from another tab restores htmx's snapshot of the page: the panel in it is set up again (socket,
+    buttons), not a dead copy whose Shutdown and Quick stop do nothing."""
+    from tests.web.test_ux_browser import Watch
+
+    base, plant = server
+    _control_from_can(plant)
+    watch = Watch(page, base)
+    page.goto(f"{base}/sessions/demo-plant/nodes/3?tab=control")
+    page.wait_for_selector("#ctl-ws.good", timeout=TIMEOUT_MS)
+    _current(page, "switch_on_disabled")
+    page.click("nav.tabs a[data-tab=info]")
+    page.wait_for_selector("#node-tab[data-tab=info]", timeout=TIMEOUT_MS)
+    with page.expect_websocket(lambda socket: "/control?panel=" in socket.url, timeout=TIMEOUT_MS):
+        page.go_back()  # the restored panel opens its own status socket
+    page.wait_for_selector("#node-tab[data-tab=control]", timeout=TIMEOUT_MS)
+    page.click("button[data-command=shutdown]")
+    _current(page, "ready")
+    page.click("button[data-command=disable_voltage]")
+    _current(page, "switch_on_disabled")
+    screenshot(page, "control-after-back")
+    assert watch.problems == []
+
+
 def test_guided_commissioning_8200_vector(server: tuple[str, Plant], page: Any) -> None:
     base, _ = server
     page.goto(f"{base}/sessions/demo-plant/nodes/12?tab=control")

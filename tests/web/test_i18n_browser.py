@@ -81,3 +81,16 @@ def test_switch_to_german_and_back(server: str, page: Any) -> None:
     page.goto(server + "/sessions/linie-3/nodes/5")
     expect(page.locator("nav.tabs a.active")).to_have_text("Parameters")
     expect(page.locator("#read-all")).to_have_text("Read all")
+
+
+def test_the_language_switch_keeps_the_tab_chosen_since_the_page_loaded(server: str, page: Any) -> None:
+    """The tabs change the address without loading the page (htmx): the switch goes back to the tab shown now."""
+    page.goto(server + "/sessions/linie-3/nodes/5?tab=info")
+    page.locator("nav.tabs a[data-tab=pdo]").click()
+    expect(page).to_have_url(re.compile(r"\?tab=pdo$"), timeout=WAIT_MS)
+    page.locator("#lang-de").click()
+    expect(page.locator("html")).to_have_attribute("lang", "de", timeout=WAIT_MS)
+    expect(page).to_have_url(re.compile(r"/sessions/linie-3/nodes/5\?tab=pdo$"))
+    expect(page.locator("nav.tabs a.active")).to_have_attribute("data-tab", "pdo")
+    page.locator("#lang-en").click()
+    expect(page.locator("html")).to_have_attribute("lang", "en", timeout=WAIT_MS)

@@ -278,3 +278,36 @@ def test_a_device_without_parameter_sets_reads_groups_without_console_errors(ser
     page.get_by_role("button", name="Read all").click()
     expect(page.locator(".job-text")).to_contain_text("done", timeout=WAIT_MS)
     assert watch.problems == []
+
+
+def test_back_to_the_tab_of_a_running_read_all_shows_it_finish(tmp_path: Any, page: Any) -> None:
+    """Back from another tab restores htmx's snapshot of the page: a read job's box in it follows the job again
+    (it stood still at the count of the moment the tab was left)."""
+    from tests.web.test_ux_browser import Watch
+
+    plant = tmp_path / "plant.json"
+    plant.write_text(json.dumps(PLANT), encoding="utf-8")
+    app = create_app(plant_file=plant, plant_bus=f"virtual:{fresh_channel()}@500000", latency="15ms")
+    with serve_app(app) as url:
+        watch = Watch(page, url)
+        page.goto(url + "/sessions/browser-plant/nodes/5")
+        page.get_by_role("button", name="Read all").click()
+        expect(page.locator(".job-text")).to_contain_text("/s", timeout=WAIT_MS)  # running, the socket reports
+        page.click("nav.tabs a[data-tab=info]")
+        expect(page.locator("#node-tab")).to_have_attribute("data-tab", "info", timeout=WAIT_MS)
+        page.go_back()
+        expect(page.locator(".job-text")).to_contain_text("done", timeout=60_000)
+        screenshot(page, "parameters-read-all-after-back")
+        assert watch.problems == []
+
+
+def test_a_row_read_sends_only_its_own_fields(server: tuple[str, Any], page: Any) -> None:
+    """The rows sit in the table body that re-reads itself with the filter: their requests do not carry the
+    filter's fields (htmx 2 passes an ancestor's hx-include down unless told not to)."""
+    url, _app = server
+    page.goto(url + "/sessions/browser-plant/nodes/5")
+    _search(page, "C00061")
+    with page.expect_request(lambda request: request.url.endswith("/parameters/C00061/read")) as sent:
+        _row(page, "C00061").get_by_role("button", name="Read", exact=True).click()
+    assert sent.value.post_data in (None, ""), sent.value.post_data
+    expect(_row(page, "C00061").locator("td.val .v")).to_be_visible(timeout=WAIT_MS)

@@ -58,6 +58,32 @@ def test_edit_and_apply_rpdo5_of_the_micromaster(live_server: str, page: Any) ->
     screenshot(page, "pdo-applied-mm4-rpdo5")
 
 
+def test_back_to_the_pdo_tab_gives_a_working_editor(live_server: str, page: Any) -> None:
+    """Back from another tab restores htmx's snapshot of the page: its mapping editors are set up again."""
+    from tests.web.test_ux_browser import Watch
+
+    watch = Watch(page, live_server)
+    page.goto(f"{live_server}/sessions/demo-plant/nodes/3?tab=pdo")
+    page.locator("#pdo-rpdo5").wait_for(timeout=15000)
+    page.click("nav.tabs a[data-tab=info]")
+    page.locator("#node-tab[data-tab=info]").wait_for(timeout=15000)
+    page.go_back()
+    card = page.locator("#pdo-rpdo5")
+    card.wait_for(timeout=15000)
+    card.locator("summary").click()
+    total = card.locator(".pdo-total")
+    before = total.inner_text()
+    entries = card.locator(".pdo-entries li")
+    if entries.count():  # the shared server's RPDO5 may hold another test's mapping
+        entries.first.locator("[data-act=remove]").click()
+    else:
+        card.locator(".pdo-search").fill("control word")
+        card.get_by_role("button", name="Add 0x6040 Control word").click()
+    assert total.inner_text() != before, "the editor did not react"
+    screenshot(page, "pdo-editor-after-back")
+    assert watch.problems == []
+
+
 def test_motec_tab_shows_the_static_mapping_and_the_whole_c00593_text(live_server: str, page: Any) -> None:
     """8400 motec in its Lenze setting: each PDO lists its port's 4 words (count 0 = static mapping), and the
     response code C00593 is readable in full (it used to be cut off at the card's edge)."""
