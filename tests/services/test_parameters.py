@@ -305,6 +305,20 @@ def test_read_all_of_several_nodes_uses_sdo2(bench: Bench) -> None:
     assert any(m.arbitration_id == 0x645 for m in bench.frames())  # reads really went over SDO2
 
 
+def test_a_scan_after_sdo2_was_activated_lists_no_node_behind_it(bench: Bench) -> None:
+    """Node 5's SDO2 (0x645/0x5C5) are node 69's default SDO identifiers: the scan does not ask 69, so node 5 does
+    not answer as a phantom node 69 (found by a browser sweep: 'Node 69 · Unknown device' after a read-all)."""
+    async def go() -> list[int]:
+        job = parameters.start_read(bench.session, [5], bench.jobs)
+        await job.wait()
+        assert len(bench.session.network.nodes[5].channels) == 2
+        return [node.node_id for node in await bench.session.scan(0.3)]
+
+    found = bench.run(go())
+    assert 5 in found and 69 not in found
+    assert 69 not in bench.session.nodes
+
+
 def test_read_all_with_a_silent_node_finishes_and_reports_it(bench: Bench) -> None:
     async def go() -> Any:
         job = parameters.start_read(bench.session, [ABSENT, 5], bench.jobs)

@@ -196,8 +196,14 @@ class CanopenNetwork:
                 N_("the session's bus is closed ({reason})"), reason=exc))) from exc
 
     def scan(self, timeout_s: float = 0.5, node_ids: range = range(1, 128)) -> list[int]:
-        """Ask every node id for 0x1000 (SDO) and collect who answers or sends heartbeats (blocking)."""
+        """Ask every node id for 0x1000 (SDO) and collect who answers or sends heartbeats (blocking).
+
+        An id whose default SDO identifiers a known node's additional SDO channel uses is not asked: the device
+        behind that channel would answer for it (node 5's SDO2 of the 8400 motec is 0x645/0x5C5, node 69's SDO1),
+        and the scan would list a node that is not there."""
         found: set[int] = set()
+        borrowed = {channel.client.rx_cobid for client in self.nodes.values() for channel in client.channels[1:]}
+        asked = [node_id for node_id in node_ids if 0x600 + node_id not in borrowed]
 
         def on_frame(can_id: int, data: bytearray, timestamp: float) -> None:
             found.add(can_id - 0x580)
@@ -205,14 +211,14 @@ class CanopenNetwork:
         locks = [ch.lock for client in self.nodes.values() for ch in client.channels]
         for lock in locks:  # no scan request may land in the middle of a transfer
             lock.acquire()
-        for node_id in node_ids:
+        for node_id in asked:
             self.canopen.subscribe(0x580 + node_id, on_frame)
         try:
-            for node_id in node_ids:
+            for node_id in asked:
                 self.send(0x600 + node_id, bytes([0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0]))
             time.sleep(timeout_s)
         finally:
-            for node_id in node_ids:
+            for node_id in asked:
                 self.canopen.unsubscribe(0x580 + node_id, on_frame)
             for lock in locks:
                 lock.release()
