@@ -21,6 +21,7 @@ from drivebench.errors import (
     SdoTimeoutError,
     UnknownParameter,
 )
+from drivebench.protocol.datatypes import DataType
 from drivebench.services.bus.sessions import Session
 from drivebench.services.params import parameters
 from drivebench.services.params.jobs import JobManager, JobState
@@ -303,6 +304,21 @@ def test_read_all_of_several_nodes_uses_sdo2(bench: Bench) -> None:
     assert bench.plant.nodes[5].store.get(0x1201, 1) == 0x645
     assert len(bench.session.network.nodes[5].channels) == 2
     assert any(m.arbitration_id == 0x645 for m in bench.frames())  # reads really went over SDO2
+
+
+def test_a_batch_answer_only_canopens_client_reads_is_read_there_without_asking_the_loop_again(bench: Bench) -> None:
+    """A profile that calls C00099 an UNSIGNED32 while the device answers it segmented: the batch aborts that answer
+    (it asked for an expedited one) and the worker thread's client reads it next; one initiate on the loop, not two."""
+    node = bench.session.node(5)
+    assert node.profile is not None
+    parameters_ = [p.model_copy(update={"data_type": DataType.UNSIGNED32}) if p.code == "C00099" else p
+                   for p in node.profile.parameters]
+    node.profile = node.profile.model_copy(update={"parameters": parameters_})
+    bench.frames()
+    (result,) = bench.run(parameters.read_many(bench.session, 5, ["C00099"]))
+    assert not isinstance(result, Exception) and isinstance(result.raw, int)
+    initiates = [m for m in bench.frames() if m.arbitration_id == 0x605 and m.data[:4] == bytes.fromhex("40 9C 5F 00")]
+    assert len(initiates) == 2  # the batch's, then canopen's client's
 
 
 def test_a_scan_after_sdo2_was_activated_lists_no_node_behind_it(bench: Bench) -> None:

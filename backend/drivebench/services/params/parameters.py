@@ -386,11 +386,13 @@ def _read_blocking(client: SdoClient, item: Item, *, block: bool = False, channe
     return client.upload(item.index, item.subindex, block=block, channel=channel)
 
 
-async def _upload(client: SdoClient, plan: _Plan, *, block: bool = False, channel: int | None = None) -> bytes:
+async def _upload(client: SdoClient, plan: _Plan, *, block: bool = False, channel: int | None = None,
+                  on_loop: bool = True) -> bytes:
     """Read one value: expedited on the event loop where it can be (:mod:`drivebench.protocol.sdo_fast`), else
-    canopen's client in a worker thread. Transfer errors name the parameter as the user knows it (C00099)."""
+    canopen's client in a worker thread (``on_loop=False``: there at once, the device's answer on the loop was one
+    only that client reads). Transfer errors name the parameter as the user knows it (C00099)."""
     try:
-        if plan.on_loop and not block and isinstance(client, NodeClient):  # CAN's fast path; CoE has its own
+        if on_loop and plan.on_loop and not block and isinstance(client, NodeClient):  # CAN's fast path; CoE: its own
             data = await upload_expedited(client, plan.request, channel=channel, segmented=not plan.expedited)
             if data is not None:
                 return data
@@ -453,9 +455,10 @@ async def read_many(session: Session, node_id: int, refs: Sequence[str]) -> list
                 found[position] = answer.named(plan.item.ref)
             elif isinstance(answer, DriveBenchError):
                 found[position] = answer
-            elif answer is not None:
-                try:
-                    found[position] = _remembered(session, node_id, plan, answer)
+            else:
+                try:  # None: an answer only canopen's client reads; the device is not asked twice on the loop
+                    data = answer if answer is not None else await _upload(client, plan, on_loop=False)
+                    found[position] = _remembered(session, node_id, plan, data)
                 except DriveBenchError as exc:
                     found[position] = exc
     for position, ref in enumerate(refs):  # the rest (a busy channel, an answer for the blocking client, CoE)
