@@ -35,6 +35,10 @@ class RequestGate:
         self.links = links
         self.body_limit = BodyLimit(limit_bytes)
         self.hsts = hsts
+        self._added = {scheme: _Added(security_headers.RAW_HEADERS + ([HSTS_HEADER] if hsts and scheme == "https"
+                                                                     else []))
+                       for scheme in ("http", "https")}
+        """The headers every answer gets, and their names, per scheme (HSTS only over https), made once."""
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         kind = scope["type"]
@@ -47,13 +51,14 @@ class RequestGate:
             if kind == "websocket":
                 await self._admitted(scope, receive, send, headers)
                 return
-            extra = [HSTS_HEADER] if self.hsts and scope.get("scheme") == "https" else []
-            if scope["path"] in security_headers.DOCS_PATHS:
-                await security_headers.held_docs(partial(self._http, scope, receive, headers), _speaking(send, locale),
-                                                 extra)
+            https = scope.get("scheme") == "https"
+            if scope["path"] in security_headers.DOCS_PATHS:  # rare: worked out per request
+                extra = [HSTS_HEADER] if self.hsts and https else []
+                await security_headers.held_docs(partial(self._http, scope, receive, headers),
+                                                 _answering(send, _NOTHING_ADDED, locale), extra)
             else:
-                await self._http(scope, receive, headers, _answering(send, security_headers.RAW_HEADERS + extra,
-                                                                      locale))
+                await self._http(scope, receive, headers,
+                                 _answering(send, self._added["https" if https else "http"], locale))
 
     async def _http(self, scope: Scope, receive: Receive, headers: Headers, send: Send) -> None:
         await self.body_limit.run(scope, receive, send, headers,
@@ -78,19 +83,24 @@ class RequestGate:
                 audit.current_user.reset(token)
 
 
-def _answering(send: Send, added: list[tuple[bytes, bytes]], locale: str) -> Send:
+class _Added:
+    def __init__(self, headers: list[tuple[bytes, bytes]]) -> None:
+        self.headers = headers
+        self.names = frozenset(name for name, _value in headers)
+
+
+_NOTHING_ADDED = _Added([])
+
+
+def _answering(send: Send, added: _Added, locale: str) -> Send:
     """``send`` that puts the gate's headers on the answer's start: the language's, then ``added`` (these replace
     a route's own of the same name)."""
-    names = {name for name, _value in added}
+    headers, names = added.headers, added.names
 
     async def send_with_headers(message: Message) -> None:
         if message["type"] == "http.response.start":
             kept = [(name, value) for name, value in message.get("headers", ()) if name.lower() not in names]
-            message["headers"] = language.varying(kept, locale) + added
+            message["headers"] = language.varying(kept, locale) + headers
         await send(message)
 
     return send_with_headers
-
-
-def _speaking(send: Send, locale: str) -> Send:
-    return _answering(send, [], locale)
