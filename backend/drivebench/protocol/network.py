@@ -199,8 +199,8 @@ class CanopenNetwork:
         """Ask every node id for 0x1000 (SDO) and collect who answers or sends heartbeats (blocking).
 
         An id whose default SDO identifiers a known node's additional SDO channel uses is not asked: the device
-        behind that channel would answer for it (node 5's SDO2 of the 8400 motec is 0x645/0x5C5, node 69's SDO1),
-        and the scan would list a node that is not there."""
+        behind that channel would answer for it (an SDO2 of node 5 on 0x645/0x5C5 is node 69's SDO1), and the scan
+        would list a node that is not there."""
         found: set[int] = set()
         borrowed = {channel.client.rx_cobid for client in self.nodes.values() for channel in client.channels[1:]}
         asked = [node_id for node_id in node_ids if 0x600 + node_id not in borrowed]
