@@ -85,6 +85,8 @@ class DuplicateWatch(can.Listener):
         answered = threading.Condition()
 
         def on_answer(can_id: int, data: bytearray, timestamp: float) -> None:
+            if bytes(data[1:4]) != IDENTITY_SERIAL[1:4]:
+                return  # a late answer to an earlier request (a duplicate's second answer to the scan's 0x1017 read)
             with answered:
                 answers[can_id - 0x580].append(bytes(data))
                 answered.notify_all()

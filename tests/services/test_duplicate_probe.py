@@ -1,0 +1,60 @@
+"""The duplicate-node probe after a scan, on a real virtual CAN bus with the simulated demo plant."""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Iterator
+
+import can
+import pytest
+
+from drivebench.device.loader import ProfileRegistry
+from drivebench.protocol.network import CanopenNetwork
+from drivebench.services.bus.duplicates import DuplicateWatch
+from drivebench.simulator.plant import Plant
+from drivebench.transport.bus import BusSpec, open_bus
+
+MOTEC = 5
+
+
+@pytest.fixture
+def network(plant: Plant, channel: str) -> Iterator[CanopenNetwork]:
+    master = CanopenNetwork(open_bus(BusSpec.parse(f"virtual:{channel}@500000")), sdo_timeout_s=0.3, sdo_retries=0)
+    master.node(MOTEC)
+    yield master
+    master.close()
+
+
+def late_answer_during_probe(wire: can.BusABC, node_id: int, data: bytes) -> threading.Thread:
+    """Sends ``data`` from the node's SDO server id as soon as the probe's request shows on the bus."""
+    def answer() -> None:
+        while (msg := wire.recv(timeout=2.0)) is not None:
+            if msg.arbitration_id == 0x600 + node_id:
+                wire.send(can.Message(arbitration_id=0x580 + node_id, data=data, is_extended_id=False))
+                return
+    sender = threading.Thread(target=answer, daemon=True)
+    sender.start()
+    return sender
+
+
+def test_one_device_answers_once(network: CanopenNetwork) -> None:
+    watch = DuplicateWatch()
+    assert watch.probe(network, [MOTEC]) == {MOTEC: 1}
+    assert watch.found() == {}
+
+
+def test_a_late_answer_to_another_request_is_no_second_device(network: CanopenNetwork, wire: can.BusABC) -> None:
+    """A duplicate's second answer to the scan's 0x1017 read may arrive while the probe listens: it answers another
+    object, so it is no second answer to the probe (CI once reported "different serial numbers (0, 500)")."""
+    sender = late_answer_during_probe(wire, MOTEC, bytes([0x4B, 0x17, 0x10, 0x00, 0xF4, 0x01, 0, 0]))
+    watch = DuplicateWatch()
+    assert watch.probe(network, [MOTEC]) == {MOTEC: 1}
+    sender.join()
+    assert watch.found() == {}
+
+
+def test_two_devices_on_one_id_answer_twice(plant: Plant, registry: ProfileRegistry, network: CanopenNetwork) -> None:
+    plant.add_node(registry.get("lenze-8400-motec-canopen"), MOTEC, duplicate=True, name="Second conveyor")
+    watch = DuplicateWatch()
+    assert watch.probe(network, [MOTEC]) == {MOTEC: 2}
+    assert "2 answers to one SDO request" in watch.found()[MOTEC]
