@@ -82,7 +82,7 @@ def test_unplugged_adapter_mid_read_all_keeps_values_says_so_and_reconnects(
     assert client.post(f"/api/sessions/{other_id}/nodes",
                        json={"node_id": 7, "profile_id": "lenze-8400-motec-canopen"}).status_code == 201
 
-    trigger = AfterResponses(5, 14, lambda: adapter.unplug("USB adapter unplugged"))
+    trigger = AfterResponses(5, 14, lambda: adapter.unplug())
     session.add_frame_listener(trigger)
     started = client.post("/api/sessions/demo-plant/nodes/5/read-all")
     assert started.status_code == 202, started.text
@@ -339,7 +339,7 @@ def test_plant_page_says_adapter_lost_live_and_adapter_back(own_page: Any) -> No
         expect(node_state).to_have_text("Pre-operational", timeout=10_000)
         adapter = adapter_of(app.state.drivebench.manager.get("demo-plant"))
 
-        adapter.unplug("USB adapter unplugged")  # no reload: the table is pushed twice a second
+        adapter.unplug()  # no reload: the table is pushed twice a second
         caption = page.locator("#nodes-demo-plant caption.bus-state")
         expect(caption).to_contain_text("adapter lost: USB adapter unplugged since ", timeout=10_000)
         expect(node_state).to_have_text("Adapter lost", timeout=10_000)

@@ -76,7 +76,7 @@ def test_a_failing_adapter_is_lost_then_reopened_under_the_same_bus(channel: str
     frame = can.Message(arbitration_id=0x605, data=bytes(8), is_extended_id=False)
     try:
         assert bus.adapter is not None
-        bus.adapter.unplug("USB adapter unplugged")
+        bus.adapter.unplug()
         with pytest.raises(AdapterLost, match="adapter lost: USB adapter unplugged") as lost:
             bus.send(frame)
         assert isinstance(lost.value, can.CanOperationError)  # canopen and python-can callers see their own error

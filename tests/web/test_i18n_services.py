@@ -145,22 +145,22 @@ def test_the_bus_sentence_is_made_once_and_worded_for_each_reader(demo_api: Test
     English reader's pause and read by a German one, and two viewers of one monitor feed."""
     session = f"/api/sessions/{SESSION}"
     adapter = demo_api.app.state.drivebench.manager.get(SESSION).network.bus.adapter  # type: ignore[attr-defined]
-    adapter.unplug("USB adapter unplugged")
+    adapter.unplug()
     try:
         assert wait_until(lambda: "reconnecting" in (demo_api.get(session).json()["state_text"] or ""))
         assert demo_api.get(session).json()["state_text"].startswith("adapter lost: USB adapter unplugged since ")
         worded = demo_api.get(session, headers=GERMAN).json()["state_text"]
-        assert worded.startswith("Adapter verloren: USB adapter unplugged seit ") and "; verbindet neu" in worded
-        assert "Adapter verloren: USB adapter unplugged seit " in demo_api.get("/", headers=GERMAN).text
+        assert worded.startswith("Adapter verloren: USB-Adapter abgezogen seit ") and "; verbindet neu" in worded
+        assert "Adapter verloren: USB-Adapter abgezogen seit " in demo_api.get("/", headers=GERMAN).text
 
         assert demo_api.post(f"{session}/monitor/pause", headers=ENGLISH).json() == {"paused": True}
         frozen = demo_api.get(f"{session}/monitor?trace=0", headers=GERMAN).json()
-        assert frozen["paused"] and frozen["bus_text"].startswith("Adapter verloren: USB adapter unplugged seit ")
+        assert frozen["paused"] and frozen["bus_text"].startswith("Adapter verloren: USB-Adapter abgezogen seit ")
         assert demo_api.post(f"{session}/monitor/resume").json() == {"paused": False}
 
         url = f"/ws/sessions/{SESSION}/monitor?rows=1"
         with demo_api.websocket_connect(url, headers=GERMAN) as german, demo_api.websocket_connect(url) as english:
-            assert _bus_text_of_an_update(german).startswith("Adapter verloren: USB adapter unplugged seit ")
+            assert _bus_text_of_an_update(german).startswith("Adapter verloren: USB-Adapter abgezogen seit ")
             assert _bus_text_of_an_update(english).startswith("adapter lost: USB adapter unplugged since ")
     finally:
         adapter.plug_in()

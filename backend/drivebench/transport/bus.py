@@ -145,8 +145,8 @@ class SimulatedAdapter:
         self.unplugged: str | None = None
         self.state = can.BusState.ACTIVE
 
-    def unplug(self, reason: str = N_("USB adapter unplugged")) -> None:
-        self.unplugged = reason
+    def unplug(self, reason: str | None = None) -> None:
+        self.unplugged = reason or Text(N_("USB adapter unplugged"))  # worded when shown, in the reader's language
 
     def plug_in(self) -> None:
         self.unplugged = None
@@ -279,8 +279,12 @@ class ObservedBus(can.BusABC):
 
     def _lose(self, inner: can.BusABC, cause: BaseException | str) -> str:
         """Mark the adapter lost (once per adapter) and start reconnecting; returns the reason."""
-        reason = cause if isinstance(cause, str) else (str(cause).splitlines()[0] if str(cause)
-                                                        else type(cause).__name__)
+        if isinstance(cause, str):
+            reason = cause
+        elif cause.args and isinstance(cause.args[0], Text):
+            reason = cause.args[0]  # the simulated adapter's reason: worded when shown
+        else:
+            reason = str(cause).splitlines()[0] if str(cause) else type(cause).__name__
         with self._lock:
             if inner is not self.inner or self.link.lost or self._closing.is_set():
                 return self.link.lost_reason or reason
