@@ -146,6 +146,28 @@ document.addEventListener("click", (event) => {
   link.href = target.pathname + target.search;
 });
 
+// Live fields (data-live on a filter or calculator htmx sends as the user types, "typed-early" among its triggers):
+// what was typed or chosen while the page was still loading reached no listener, as htmx sets up its triggers only
+// once the page's scripts have run (a slow network, a busy machine), and then takes the typed text as the unchanged
+// start value. Sent as soon as they are set up: nothing the user typed is ignored.
+function chosenEarly(select) {
+  const options = [...select.options];
+  const marked = options.filter((option) => option.defaultSelected);  // none marked: the first is shown
+  return select.selectedIndex !== (marked.length ? options.indexOf(marked[marked.length - 1]) : 0);
+}
+function sendTypedEarly(live) {
+  const fields = live.matches("input, select") ? [live] : [...live.querySelectorAll("input, select")];
+  const changed = fields.some((field) => (field.tagName === "SELECT" ? chosenEarly(field)
+    : field.value !== field.defaultValue));
+  if (changed) htmx.trigger(live, "typed-early");
+}
+htmx.onLoad((root) => {
+  if (!root.querySelectorAll) return;
+  const fields = [...root.querySelectorAll("[data-live]")];
+  if (root.matches("[data-live]")) fields.push(root);
+  fields.forEach(sendTypedEarly);
+});
+
 // A successful action clears an old error beside it.
 document.body.addEventListener("htmx:afterRequest", (event) => {
   if (event.detail.successful && event.detail.xhr.status < 400) {  // not the error just shown there

@@ -311,3 +311,18 @@ def test_a_row_read_sends_only_its_own_fields(server: tuple[str, Any], page: Any
         _row(page, "C00061").get_by_role("button", name="Read", exact=True).click()
     assert sent.value.post_data in (None, ""), sent.value.post_data
     expect(_row(page, "C00061").locator("td.val .v")).to_be_visible(timeout=WAIT_MS)
+
+
+def test_a_search_typed_while_the_page_loads_is_not_lost(server: tuple[str, Any], page: Any) -> None:
+    """The page's scripts held back on the wire: the user types into the search before htmx has set up the
+    filter (a slow network or a busy machine); once the page is ready the table shows what was typed."""
+    url, _app = server
+    held: list[Any] = []
+    page.route("**/static/app.js", lambda route: held.append(route))
+    page.goto(url + "/sessions/browser-plant/nodes/5", wait_until="commit")
+    page.fill("#param-q", "C00061")
+    expect(page.locator("#param-rows")).not_to_have_attribute("data-count", "1")  # nothing can search yet
+    assert len(held) == 1
+    held[0].continue_()
+    expect(page.locator("#param-rows")).to_have_attribute("data-count", "1", timeout=WAIT_MS)
+    expect(_row(page, "C00061")).to_be_visible()

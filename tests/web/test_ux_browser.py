@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import re
 from typing import Any
+from urllib.parse import unquote_plus
 
 import pytest
 
@@ -248,3 +249,27 @@ def test_screens_fit_1280_px_and_plant_cells_are_not_clipped(live_server: str, b
         assert clipped == []  # device names and the four NMT buttons fit their columns
     finally:
         context.close()
+
+
+# (page, its live field, what was typed, the request it makes, what that request carries)
+LIVE_FIELDS = [
+    ("/profiles/lenze-8400-motec-canopen", "#entry-q", "C00088", "/profiles/lenze-8400-motec-canopen/entries?",
+     "q=C00088"),
+    ("/parameter-sets", "input.audit-filter", "no such write", "/parameter-sets/audit/rows?", "q=no such write"),
+    ("/tools", "#dip-node-id", "17", "/ui/tools/dip", "node_id=17"),
+]
+
+
+@pytest.mark.parametrize(("path", "field", "typed", "request_part", "carried"), LIVE_FIELDS)
+def test_what_is_typed_while_the_page_loads_is_sent(live_server: str, page: Any, path: str, field: str, typed: str,
+                                                    request_part: str, carried: str) -> None:
+    """The page's scripts held back on the wire (a slow network, a busy machine): what the user typed before htmx
+    set up the field is sent once the page is ready, not ignored."""
+    held: list[Any] = []
+    page.route("**/static/app.js", lambda route: held.append(route))
+    page.goto(live_server + path, wait_until="commit")
+    page.fill(field, typed)
+    assert len(held) == 1
+    with page.expect_request(lambda request: request_part in request.url and
+                             carried in unquote_plus(request.url + "&" + (request.post_data or "")), timeout=SETTLE_MS):
+        held[0].continue_()
