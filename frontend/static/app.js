@@ -23,6 +23,12 @@ window.drivebench = window.drivebench || {};
   };
   const _ = drivebench.gettext;
 
+  // ``root`` (an element htmx loaded, or the body) if it matches ``selector``, and the elements in it that do
+  drivebench.within = (root, selector) => {
+    if (!root.querySelectorAll) return [];
+    return [...(root.matches(selector) ? [root] : []), ...root.querySelectorAll(selector)];
+  };
+
   // An element with attributes and children (strings become text nodes): el("li", {className: "x"}, "a", child)
   drivebench.el = (tag, props = {}, ...children) => {
     const node = Object.assign(document.createElement(tag), props);
@@ -161,12 +167,7 @@ function sendTypedEarly(live) {
     : field.value !== field.defaultValue));
   if (changed) htmx.trigger(live, "typed-early");
 }
-htmx.onLoad((root) => {
-  if (!root.querySelectorAll) return;
-  const fields = [...root.querySelectorAll("[data-live]")];
-  if (root.matches("[data-live]")) fields.push(root);
-  fields.forEach(sendTypedEarly);
-});
+htmx.onLoad((root) => window.drivebench.within(root, "[data-live]").forEach(sendTypedEarly));
 
 // A successful action clears an old error beside it.
 document.body.addEventListener("htmx:afterRequest", (event) => {

@@ -131,10 +131,6 @@
     if (button) readShown(button);
   });
 
-  htmx.onLoad((root) => {
-    const boxes = root.matches && root.matches("[data-job]") ? [root] : [];
-    root.querySelectorAll && boxes.push(...root.querySelectorAll("[data-job]"));
-    boxes.forEach(watch);
-  });
+  htmx.onLoad((root) => window.drivebench.within(root, "[data-job]").forEach(watch));
 })();
 

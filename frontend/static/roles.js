@@ -6,8 +6,7 @@
     .map((r) => ({ ...r, re: new RegExp(r.pattern) }));
   const verbs = ["post", "put", "patch", "delete"];
   function mark(root) {
-    verbs.forEach((verb) => [root, ...root.querySelectorAll(`[hx-${verb}]`)].forEach((elt) => {
-      if (!elt.hasAttribute || !elt.hasAttribute(`hx-${verb}`)) return;
+    verbs.forEach((verb) => window.drivebench.within(root, `[hx-${verb}]`).forEach((elt) => {
       const url = new URL(elt.getAttribute(`hx-${verb}`), location.href).pathname;
       const rule = rules.find((r) => r.method === verb.toUpperCase() && r.re.test(url));
       if (!rule) return;

@@ -461,7 +461,7 @@ async def read_many(session: Session, node_id: int, refs: Sequence[str]) -> list
                     found[position] = _remembered(session, node_id, plan, data)
                 except DriveBenchError as exc:
                     found[position] = exc
-    for position, ref in enumerate(refs):  # the rest (a busy channel, an answer for the blocking client, CoE)
+    for position, ref in enumerate(refs):  # the rest (a busy channel, CoE)
         if found[position] is None:
             try:
                 found[position] = await read(session, node_id, ref)
