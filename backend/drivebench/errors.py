@@ -235,9 +235,19 @@ class Conflict(ServiceError):
 
 
 class ConfirmationRequired(ServiceError):
-    """An action that can move a drive was sent without the explicit confirmation naming its node (HTTP 428)."""
+    """An action that can move a drive was sent without the explicit confirmation naming its node (HTTP 428). The
+    problem names what a confirmation must repeat: ``confirm_node`` (a node id, or ``all``) and ``confirm_values``."""
 
     title = N_("Confirmation required")
+
+    def __init__(self, detail: str, *, node: int | str, values: dict[str, object] | None = None,
+                 hint: str | None = None) -> None:
+        super().__init__(detail, hint=hint)
+        self.node = node
+        self.values = values
+
+    def extra(self) -> dict[str, object]:
+        return {**super().extra(), "confirm_node": self.node, "confirm_values": self.values}
 
 
 class ContentTooLarge(ServiceError):

@@ -60,7 +60,7 @@ def require_confirmation(given: object, node_id: int | None, what: str) -> None:
     raise ConfirmationRequired(
         _("{what} lets {whom} move a drive: confirm it with confirm = {wanted} (or the header "
           "X-DriveBench-Confirm: {plain}){said}.").format(what=what, whom=whom, wanted=repr(wanted), plain=wanted,
-                                                         said=said))
+                                                         said=said), node="all" if node_id is None else node_id)
 
 
 @dataclass(frozen=True)
