@@ -255,6 +255,23 @@ class SwitchesSection(_Model):
             return lo, hi
         return min(lo, self.switch_node_range[0]), max(hi, self.switch_node_range[1])
 
+    def configured_values(self, node_id: int, bitrate: int) -> dict[str, int]:
+        """What the setting parameters hold on a device configured for ``node_id`` at ``bitrate`` (bit/s): each
+        setting's code -> its value (a baud setting without a value for that rate is left out). A device with
+        switches takes both from its switches: its setting parameters keep what they hold (none here)."""
+        if self.switches:
+            return {}
+        kbit = bitrate // 1000
+        values: dict[str, int] = {}
+        for setting in self.settings:
+            if setting.sets == "node_id":
+                values[setting.code] = node_id
+            elif not setting.values:
+                values[setting.code] = kbit
+            elif (value := setting.values.get(kbit)) is not None:
+                values[setting.code] = value
+        return values
+
     @model_validator(mode="after")
     def _check(self) -> SwitchesSection:
         labels = [s.label.lower() for s in self.switches]

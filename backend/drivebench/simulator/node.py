@@ -112,13 +112,16 @@ def _no_wake() -> None:
 class SimulatedNode:
     def __init__(self, profile: Profile, node_id: int, send: Send, *, name: str | None = None,
                  latency: Latency | None = None, values: Mapping[str, object] | None = None,
-                 heartbeat_ms: int | None = None) -> None:
+                 heartbeat_ms: int | None = None, bitrate: int | None = None) -> None:
         self.profile = profile
         self.node_id = node_id
         self.name = name or profile.identity.product_name
         self.latency = latency or Latency()
         self._send = send
-        self.store = ObjectStore(profile, node_id, values)
+        # a device on this bus was configured for its node id and bit rate: its setting parameters say so
+        configured = (profile.switches.configured_values(node_id, bitrate)
+                      if profile.switches is not None and bitrate is not None else {})
+        self.store = ObjectStore(profile, node_id, {**configured, **(values or {})})
         self.telegram_counters = DeviceTelegramCounters(self.store, node_id)
         if heartbeat_ms is not None and self.store.has(0x1017, 0):
             self.store.set(0x1017, 0, heartbeat_ms, notify=False)

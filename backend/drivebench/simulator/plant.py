@@ -93,7 +93,7 @@ class Plant:
             self.nodes[spec.node_id] = node = SimulatedNode(
                 profile, spec.node_id, self._send, name=spec.name,
                 latency=Latency.parse(latency if latency is not None else spec.latency),
-                values=spec.values, heartbeat_ms=spec.heartbeat_ms)
+                values=spec.values, heartbeat_ms=spec.heartbeat_ms, bitrate=self.spec.bitrate)
             node.wake = self.wake
 
     def start(self) -> Plant:
@@ -119,6 +119,7 @@ class Plant:
         """A node powered on now; ``duplicate`` puts a second device on an id that is taken (both answer)."""
         if node_id in self.nodes and not duplicate:
             raise DriveBenchError(_("Node id {node} is already on the simulated bus").format(node=node_id))
+        kwargs.setdefault("bitrate", self.spec.bitrate)
         node = SimulatedNode(profile, node_id, self._send, **kwargs)  # type: ignore[arg-type]
         node.wake = self.wake
         if node_id in self.nodes:
