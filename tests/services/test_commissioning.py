@@ -8,7 +8,7 @@ import asyncio
 import pytest
 
 from drivebench.device.loader import ProfileRegistry
-from drivebench.errors import Conflict
+from drivebench.errors import ConfirmationRequired, Conflict
 from drivebench.services.bus.sessions import Session
 from drivebench.services.control import commissioning
 from drivebench.services.control.commissioning import Run
@@ -28,7 +28,7 @@ def _walk(runner: asyncio.Runner, session: Session, run: Run, stop_before: int |
     node = session.node(run.node_id)
     while not run.finished and run.position != stop_before:
         step = run.sequence.steps[run.position]
-        runner.run(commissioning.next_step(session, node, run, confirm=step.moves))
+        runner.run(commissioning.next_step(session, node, run, confirm=run.node_id if step.moves else None))
         commissioning.drive_control.guard_for(session).keepalive(run.node_id)
     return run
 
@@ -60,8 +60,10 @@ def test_moving_step_needs_confirmation(bench: tuple[asyncio.Runner, Session]) -
     run = commissioning.wizard(session).start(session, session.node(VECTOR), "emf-8200")
     moving = next(n for n, step in enumerate(run.sequence.steps) if step.moves)
     _walk(runner, session, run, stop_before=moving)
-    with pytest.raises(Conflict, match="confirm"):
+    with pytest.raises(ConfirmationRequired, match="confirm"):
         runner.run(commissioning.next_step(session, session.node(VECTOR), run))
+    with pytest.raises(ConfirmationRequired, match="confirm"):  # a bare true does not name the node
+        runner.run(commissioning.next_step(session, session.node(VECTOR), run, confirm=True))
     _walk(runner, session, run)
     assert run.failed is None and run.finished
     assert any(t.cob_id == "0x58C" for t in run.results[2].telegrams)  # the C0150 read's answer
