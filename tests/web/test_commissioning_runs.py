@@ -56,9 +56,10 @@ def _start(client: TestClient, headers: dict[str, str], node: int = VECTOR) -> d
 
 
 def _downloads(wire: can.BusABC, node: int, index: int | None = None) -> list[can.Message]:
-    """SDO download requests to ``node`` (to ``index``) the wire carried since the last call."""
+    """SDO download requests to ``node`` (to ``index``) the wire carried since the last call (a virtual bus queues a
+    frame when it is sent: what the requests so far sent is there)."""
     seen = []
-    while (msg := wire.recv(timeout=0.05)) is not None:
+    while (msg := wire.recv(timeout=0)) is not None:
         if (msg.arbitration_id == 0x600 + node and msg.data[0] & 0xE0 == 0x20
                 and (index is None or int.from_bytes(msg.data[1:3], "little") == index)):
             seen.append(msg)
