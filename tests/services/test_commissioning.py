@@ -8,10 +8,11 @@ import asyncio
 import pytest
 
 from drivebench.device.loader import ProfileRegistry
-from drivebench.errors import Conflict
+from drivebench.errors import ConfirmationRequired, Conflict
 from drivebench.services.bus.sessions import Session
 from drivebench.services.control import commissioning
 from drivebench.services.control.commissioning import Run
+from drivebench.services.params import parameters
 from drivebench.services.session_manager import SessionManager
 from drivebench.simulator.plant import Plant, PlantFile
 from tests.conftest import fresh_channel
@@ -28,7 +29,7 @@ def _walk(runner: asyncio.Runner, session: Session, run: Run, stop_before: int |
     node = session.node(run.node_id)
     while not run.finished and run.position != stop_before:
         step = run.sequence.steps[run.position]
-        runner.run(commissioning.next_step(session, node, run, confirm=step.moves))
+        runner.run(commissioning.next_step(session, node, run, confirm=run.node_id if step.moves else None))
         commissioning.drive_control.guard_for(session).keepalive(run.node_id)
     return run
 
@@ -38,6 +39,26 @@ def test_offered_sequences_per_device(bench: tuple[asyncio.Runner, Session]) -> 
     assert [seq.key for seq in commissioning.sequences_for(session.node(MM))] == ["mm-velocity", "mm-torque"]
     assert [seq.key for seq in commissioning.sequences_for(session.node(VECTOR))] == ["emf-8200"]
     assert [seq.key for seq in commissioning.sequences_for(session.node(5))] == ["l8400"]
+
+
+def test_every_sdo_step_of_the_seed_sequences_is_a_write_the_profile_admits(
+        bench: tuple[asyncio.Runner, Session]) -> None:
+    """Each SDO step is the checked write of a profile item's value (issue 30 item 2): in range, and sending it
+    puts the step's own bytes on the wire (the data type's width, nothing truncated)."""
+    _, session = bench
+    checked = 0
+    for node_id in (MM, 5, VECTOR):
+        node = session.node(node_id)
+        for sequence in commissioning.sequences_for(node):
+            for step in sequence.steps:
+                if step.kind != "sdo":
+                    continue
+                write = commissioning.step_write(node, step)
+                item, raw = parameters.checked_raw(node, write.ref, write.value)
+                assert (item.index, item.subindex) == (step.index, step.sub), (sequence.key, step.title)
+                assert parameters.encoded(item, raw, write.value) == step.data, (sequence.key, step.title, raw)
+                checked += 1
+    assert checked > 60
 
 
 def test_micromaster_velocity_sequence_as_printed(bench: tuple[asyncio.Runner, Session]) -> None:
@@ -60,8 +81,10 @@ def test_moving_step_needs_confirmation(bench: tuple[asyncio.Runner, Session]) -
     run = commissioning.wizard(session).start(session, session.node(VECTOR), "emf-8200")
     moving = next(n for n, step in enumerate(run.sequence.steps) if step.moves)
     _walk(runner, session, run, stop_before=moving)
-    with pytest.raises(Conflict, match="confirm"):
+    with pytest.raises(ConfirmationRequired, match="confirm"):
         runner.run(commissioning.next_step(session, session.node(VECTOR), run))
+    with pytest.raises(ConfirmationRequired, match="confirm"):  # a bare true does not name the node
+        runner.run(commissioning.next_step(session, session.node(VECTOR), run, confirm=True))
     _walk(runner, session, run)
     assert run.failed is None and run.finished
     assert any(t.cob_id == "0x58C" for t in run.results[2].telegrams)  # the C0150 read's answer

@@ -7,6 +7,13 @@ profile carries (and whose ``requires`` objects it has).
 
 Each step records the frames of the node seen on the bus while it ran (both directions) and stops the run with
 a message when the answer is not the expected one.
+
+A run belongs to the node and the writer (principal and panel, :mod:`drivebench.services.params.node_lease`) that
+started it: asked through another node's address it is not found, another writer may watch it but not run its
+steps. Starting it takes the node's write lease; each step runs under it. An SDO step is the one checked write
+(:func:`parameters.write`: the profile's range, the audit log with the origin ``commissioning``, the lease, the
+moving-write check), of the value its bytes hold in the item's data type; a step that can move the drive needs the
+confirmation naming its node, given with the request that runs the step.
 """
 
 from __future__ import annotations
@@ -23,16 +30,29 @@ from pydantic import BaseModel
 from drivebench.device.catalog import index_ref
 from drivebench.device.control import Sequence, Step
 from drivebench.device.motion import moves, standard_motion
-from drivebench.errors import Conflict, DriveBenchError, NotFound, SdoAbortError, UnknownParameter
+from drivebench.errors import (
+    Conflict,
+    DriveBenchError,
+    NotFound,
+    SdoAbortError,
+    ServiceError,
+    UnknownParameter,
+)
 from drivebench.i18n import _
+from drivebench.protocol.datatypes import decode
 from drivebench.protocol.nmt import NmtCommand
 from drivebench.services.bus.sessions import Session, SessionNode
-from drivebench.services.control import drive_control
-from drivebench.services.params import parameters
+from drivebench.services.control import drive_control, drive_guard
+from drivebench.services.params import node_lease, parameters
+from drivebench.services.params.node_lease import Writer
+from drivebench.services.users import audit
 
-__all__ = ["Run", "RunOut", "Sequence", "Step", "Wizard", "next_step", "sequences_for", "wizard"]
+__all__ = ["Run", "RunOut", "Sequence", "Step", "StepWrite", "Wizard", "next_step", "sequences_for", "step_write",
+           "wizard"]
 
 ANSWER_TIMEOUT_S = 3.0
+AUDIT_ORIGIN = "commissioning"
+"""The origin of a step's writes in the audit log."""
 
 
 def sequences_for(node: SessionNode) -> list[Sequence]:
@@ -110,11 +130,28 @@ class Run:
     position: int = 0
     results: list[StepResult] = field(default_factory=list)
     failed: str | None = None
+    writer: Writer | None = None
+    """Who started it (None: a service call without a request); only they run its steps."""
     lock: asyncio.Lock = field(default_factory=asyncio.Lock)
 
     @property
     def finished(self) -> bool:
         return self.failed is not None or self.position >= len(self.sequence.steps)
+
+    def check_node(self, node_id: int) -> None:
+        """Refuse (404) the run asked through another node's address."""
+        if node_id != self.node_id:
+            raise NotFound(_("Commissioning run {run} belongs to node {owner}, not to node {node}: nothing was sent. "
+                             "Open it on node {owner}.").format(run=self.id, owner=self.node_id, node=node_id))
+
+    def check_runner(self, writer: Writer | None) -> None:
+        """Refuse (409) a writer other than the one that started the run."""
+        if self.writer is None or (writer is not None and writer.same(self.writer)):
+            return
+        raise Conflict(_("Commissioning run {run} was started by {name} ({where}) on node {node}: only that panel "
+                         "runs its steps; this one may watch it.").format(run=self.id, name=self.writer.name,
+                                                                          where=_(self.writer.where),
+                                                                          node=self.node_id))
 
     def public(self) -> RunOut:
         seq = self.sequence
@@ -123,6 +160,32 @@ class Run:
                       steps=[StepOut(number=n + 1, title=s.title, printed=s.printed, moves=s.moves, note=s.note)
                              for n, s in enumerate(seq.steps)],
                       position=self.position, results=self.results, finished=self.finished, failed=self.failed)
+
+
+@dataclass(frozen=True)
+class StepWrite:
+    """What an SDO step writes, as the Parameters tab would: the item's ref and the value in its units."""
+
+    ref: str
+    value: object
+
+
+def step_write(node: SessionNode, step: Step) -> StepWrite:
+    """The profile's item at the step's index/subindex and the value of the step's bytes in its data type (scaled
+    as the item is); an address the profile does not list is written as the bytes."""
+    item = node.catalog.by_address(step.index, step.sub) if node.catalog is not None else None
+    if item is None:
+        return StepWrite(index_ref(step.index, step.sub), step.data.hex(" "))
+    entry = item.entry
+    data_type = entry.data_type
+    raw: int | float
+    if data_type.is_integer:  # bytes longer than the type give a value it cannot hold: refused in words
+        raw = int.from_bytes(step.data, "little", signed=data_type.is_signed and len(step.data) == data_type.size)
+    elif data_type.is_float and len(step.data) == data_type.size:
+        raw = float(decode(data_type, step.data))
+    else:
+        return StepWrite(item.ref, step.data.hex(" "))
+    return StepWrite(item.ref, raw / entry.factor if entry.factor != 1 else raw)
 
 
 def step_moves(node: SessionNode, step: Step) -> bool:
@@ -154,14 +217,24 @@ class Wizard:
                                                                                          device=node.device_name))
         sequence = sequence.model_copy(update={"steps": [step.model_copy(update={"moves": step_moves(node, step)})
                                                          for step in sequence.steps]})
-        run = Run(uuid.uuid4().hex[:12], node.node_id, sequence)
+        writer = node_lease.current_writer.get()
+        table = node_lease.leases(session)
+        if writer is None:
+            table.check(node.node_id)
+        else:  # the run writes the node from its first step to its last: refused while someone else holds it
+            table.acquire(node.node_id, writer)
+        run = Run(uuid.uuid4().hex[:12], node.node_id, sequence, writer=writer)
         self.runs[run.id] = run
         return run
 
-    def get(self, run_id: str) -> Run:
-        if run_id not in self.runs:
+    def get(self, run_id: str, node_id: int | None = None) -> Run:
+        """The run; with ``node_id``, only when it was started for that node."""
+        run = self.runs.get(run_id)
+        if run is None:
             raise NotFound(_("Commissioning run {run} does not exist (any more).").format(run=run_id))
-        return self.runs[run_id]
+        if node_id is not None:
+            run.check_node(node_id)
+        return run
 
 
 def wizard(session: Session) -> Wizard:
@@ -214,10 +287,10 @@ async def _send_and_wait_state(session: Session, node: SessionNode, cob_id: int,
 
 async def _execute(session: Session, node: SessionNode, step: Step) -> str | None:
     """Run one step; the problem as text, or None when the answer is the expected one."""
-    client = session.client(node.node_id)
     if step.kind == "sdo":
+        write = step_write(node, step)
         try:
-            await client.adownload(step.index, step.sub, step.data)
+            await parameters.write(session, node.node_id, write.ref, write.value, verify=False)
         except SdoAbortError as exc:
             return _("SDO abort 0x{code} ({text}) instead of the download response 0x60.").format(
                 code=f"{exc.abort_code:08X}", text=exc.abort_text)
@@ -250,39 +323,53 @@ async def _execute(session: Session, node: SessionNode, step: Step) -> str | Non
         ref=step.expect_ref, raw=repr(raw), expected=step.expect_value)
 
 
-async def next_step(session: Session, node: SessionNode, run: Run, *, confirm: bool = False,
+async def next_step(session: Session, node: SessionNode, run: Run, *, confirm: object = None,
                     panel: drive_control.Panel = drive_control.SERVICE_PANEL) -> Run:
-    """Run the next step; while another panel holds the armed drive, this panel cannot run steps."""
+    """Run the next step of ``run`` on its own node, for the writer that started it. The step's value is checked
+    against the profile before anything is sent (422 with the range); a step that can move the drive needs
+    ``confirm`` naming the node (428); while another panel holds the armed drive, this panel cannot run steps."""
+    run.check_node(node.node_id)
+    run.check_runner(node_lease.current_writer.get())
     async with run.lock:
         if run.finished:
             raise Conflict(_("This commissioning run is finished; start it again to repeat it."))
         step = run.sequence.steps[run.position]
+        if step.kind == "sdo":  # the profile's range, selection and access: refused before anything is sent
+            write = step_write(node, step)
+            parameters.checked_raw(node, write.ref, write.value)
         guard = drive_control.guard_for(session)
         named = _("Step {number} ({title})").format(number=run.position + 1, title=step.title)
         guard.check(node.node_id, panel, named)
-        if step.moves:
-            if not confirm:
-                raise Conflict(_("{step} can make the motor turn: confirm it.").format(step=named))
-            if step.kind == "nmt_start":  # as drive_guard.nmt: stays armed until NMT leaves Operational
-                guard.started.add(node.node_id)
-            guard.arm(node.node_id, panel, pinned=step.kind == "nmt_start")
-        capture = _Capture(node.node_id)
-        session.add_frame_listener(capture)
-        t0 = time.time()
-        try:
-            problem = await _execute(session, node, step)
-        except DriveBenchError as exc:
-            problem = exc.shown_detail()
-        finally:
-            await asyncio.sleep(0.02)  # let the last answer frame reach the capture
-            session.remove_frame_listener(capture)
-        run.results.append(StepResult(number=run.position + 1, title=step.title, printed=step.printed,
-                                      telegrams=_telegrams(capture, t0), ok=problem is None,
-                                      message=problem or _("Answer as expected.")))
-        if problem is not None:
-            run.failed = _("Stopped at step {number} ({title}): {problem}").format(number=run.position + 1,
-                                                                                    title=step.title, problem=problem)
-        else:
-            run.position += 1
+        with node_lease.writing(session, node.node_id):
+            if step.moves:
+                drive_guard.require_confirmation(confirm, node.node_id, named)
+                drive_guard.confirming(confirm)  # the step's write is confirmed by the same request
+                if step.kind == "nmt_start":  # as drive_guard.nmt: stays armed until NMT leaves Operational
+                    guard.started.add(node.node_id)
+                guard.arm(node.node_id, panel, pinned=step.kind == "nmt_start")
+            await _run_step(session, node, run, step)
         return run
 
+
+async def _run_step(session: Session, node: SessionNode, run: Run, step: Step) -> None:
+    capture = _Capture(node.node_id)
+    session.add_frame_listener(capture)
+    t0 = time.time()
+    try:
+        with audit.acting(AUDIT_ORIGIN):
+            problem = await _execute(session, node, step)
+    except ServiceError:
+        raise  # refused (lease, confirmation, holder): nothing of the step was done, the run stays there
+    except DriveBenchError as exc:
+        problem = exc.shown_detail()
+    finally:
+        await asyncio.sleep(0.02)  # let the last answer frame reach the capture
+        session.remove_frame_listener(capture)
+    run.results.append(StepResult(number=run.position + 1, title=step.title, printed=step.printed,
+                                  telegrams=_telegrams(capture, t0), ok=problem is None,
+                                  message=problem or _("Answer as expected.")))
+    if problem is not None:
+        run.failed = _("Stopped at step {number} ({title}): {problem}").format(number=run.position + 1,
+                                                                                title=step.title, problem=problem)
+    else:
+        run.position += 1

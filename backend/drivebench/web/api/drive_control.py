@@ -13,11 +13,9 @@ from __future__ import annotations
 from fastapi import APIRouter, Request
 from pydantic import BaseModel, Field
 
-from drivebench.i18n import _
 from drivebench.services.control import commissioning, drive_control, motion
 from drivebench.services.control.commissioning import RunOut
 from drivebench.services.control.drive_control import ActualValue, DriveStatus, JogPlan
-from drivebench.services.control.drive_guard import require_confirmation
 from drivebench.services.control.drive_words import Command
 from drivebench.services.control.motion import CyclicStream, MotionInfo
 from drivebench.web.deps import NodeDep, SessionDep
@@ -171,22 +169,23 @@ async def sequences(node: NodeDep) -> list[SequenceOut]:
 
 @router.post("/sequences/{key}/runs", response_model=RunOut, status_code=201)
 async def start_run(session: SessionDep, node: NodeDep, key: str) -> RunOut:
+    """Start a run for this node; it takes the node's write lease (409 while another writer holds it) and belongs
+    to this writer (principal and panel)."""
     return commissioning.wizard(session).start(session, node, key).public()
 
 
 @router.get("/runs/{run_id}", response_model=RunOut)
 async def get_run(session: SessionDep, node: NodeDep, run_id: str) -> RunOut:
-    return commissioning.wizard(session).get(run_id).public()
+    return commissioning.wizard(session).get(run_id, node.node_id).public()
 
 
 @router.post("/runs/{run_id}/next", response_model=RunOut)
 async def next_step(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep, run_id: str,
                     body: Confirmed | None = None) -> RunOut:
-    """Run the next step; a step the manual marks as turning the motor needs confirm (the node id)."""
-    run = commissioning.wizard(session).get(run_id)
-    given = confirmation(request, body and body.confirm)
-    if not run.finished and run.sequence.steps[run.position].moves:
-        require_confirmation(given, node.node_id, _("Step {number} ({title})").format(
-            number=run.position + 1, title=run.sequence.steps[run.position].title))
-    await commissioning.next_step(session, node, run, confirm=given is not None, panel=panel)
+    """Run the next step of a run of this node, started by this writer (404 for another node's run, 409 for another
+    writer's); a step that can turn the motor needs confirm (the node id); a step value outside the profile's range
+    is refused (422) before anything is sent."""
+    run = commissioning.wizard(session).get(run_id, node.node_id)
+    await commissioning.next_step(session, node, run, confirm=confirmation(request, body and body.confirm),
+                                  panel=panel)
     return run.public()
