@@ -132,9 +132,18 @@ def _section(profile: Profile | None) -> ControlSection | None:
     return profile.control
 
 
-def _rule(profile: Profile | None) -> WordRule:
+_RULES: dict[int, tuple[ControlSection, WordRule]] = {}
+
+
+def rule_of(profile: Profile | None) -> WordRule:
+    """How the control words of a node handled with ``profile`` are judged (its control section's commands)."""
     section = _section(profile)
-    return word_rule(section.commands) if section is not None else WordRule((), 0)
+    if section is None:
+        return WordRule((), 0)
+    cached = _RULES.get(id(section))
+    if cached is None or cached[0] is not section:
+        cached = _RULES[id(section)] = (section, word_rule(section.commands))
+    return cached[1]
 
 
 def counted(motion: Motion, rule: WordRule) -> list[StillValue]:
@@ -188,7 +197,7 @@ def judge(item: Item, raw: RawValue, profile: Profile | None) -> Verdict:
         return Verdict(standard, still)
     if own is None:
         return Verdict(None, False)
-    return Verdict(own, is_still(own, raw, _rule(profile)))
+    return Verdict(own, is_still(own, raw, rule_of(profile)))
 
 
 def moves(item: Item, raw: RawValue, profile: Profile | None) -> Motion | None:
@@ -209,7 +218,7 @@ def ignored_still_values(profile: Profile) -> list[tuple[str, str]]:
         if entry.motion is None:
             continue
         standard = standard_motion(index, subindex or 0) if index else None
-        rule = CIA402_RULE if standard is not None else _rule(profile)
+        rule = CIA402_RULE if standard is not None else rule_of(profile)
         kept = counted(entry.motion, rule)
         if standard is not None and entry.motion.kind != standard.kind:
             kept = []
