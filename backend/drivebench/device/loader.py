@@ -25,6 +25,7 @@ from drivebench.config import settings
 from drivebench.device.dip import clash
 from drivebench.device.eds import ImportWarning, read_eds
 from drivebench.device.json_lines import DuplicateKey, JsonPath, line_of, reject_duplicate_keys, value_lines
+from drivebench.device.motion import ignored_still_values
 from drivebench.device.profile import ObjectEntry, Parameter, Profile
 from drivebench.device.xdd import XML_SUFFIXES, read_xdd
 from drivebench.errors import ProfileError, UnknownProfile
@@ -34,6 +35,10 @@ PROFILE_SUFFIXES = (".json", ".eds", ".dcf", ".xdd", ".xdc")
 KINDS = {".json": N_("this looks like a JSON profile, name it .json"),
          ".eds": N_("this looks like an EDS, name it .eds"),
          ".xdd": N_("this looks like an XDD/XDC (XML), name it .xdd")}
+IGNORED_STILL = N_("the still value '{value}' is ignored: a word it matches could still enable the drive from some "
+                   "state (a control word's still value must hold a blocking bit of the profile's control section, "
+                   "never the fault reset; a setpoint's is 0; a standard object's cannot be weaker than the "
+                   "standard's)")
 UPLOAD_NAMES_SUFFIX = ".names.json"
 """Beside the upload directory (``var/profiles.names.json``): profile id -> the file name it was uploaded as
 (shown, never used as a path)."""
@@ -118,7 +123,9 @@ def read_profile_file(content: bytes, name: str) -> LoadedFile:
                            source=name, line=1)
     try:
         reject_duplicate_keys(content)
-        return LoadedFile(Profile.model_validate_json(content))
+        profile = Profile.model_validate_json(content)
+        return LoadedFile(profile, [ImportWarning(name, None, ref, Text(IGNORED_STILL, value=meaning))
+                                    for ref, meaning in ignored_still_values(profile)])
     except DuplicateKey as exc:
         raise ProfileError(exc.args[0], source=name, line=exc.line) from exc
     except UnicodeDecodeError as exc:

@@ -75,7 +75,11 @@ class Motion(BaseModel):
 
     kind: Literal["control_word", "setpoint", "mode", "source", "start"]
     still: list[StillValue] = Field(default_factory=list)
-    """Values that cannot move the drive; empty: every write may move it."""
+    """Values that cannot move the drive; empty: every write may move it. Only values that cannot move it from any
+    state count (:mod:`drivebench.device.motion`: a control word's must hold a blocking bit of the profile's
+    control section; a setpoint's is 0); a profile cannot make a standard object's mark weaker."""
+    source: str | None = None
+    """Where the manual says so (edition, chapter, page)."""
 
 
 class Entry(BaseModel):

@@ -203,7 +203,7 @@ def step_moves(node: SessionNode, step: Step) -> bool:
         item = None
     if item is None:
         return standard_motion(step.index, step.sub) is not None
-    return moves(item, int.from_bytes(step.data, "little")) is not None
+    return moves(item, int.from_bytes(step.data, "little"), node.profile) is not None
 
 
 class Wizard:

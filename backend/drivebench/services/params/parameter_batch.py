@@ -20,7 +20,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import StrEnum
 
-from drivebench.device.motion import is_still, motion_of
+from drivebench.device.motion import judge
 from drivebench.errors import DriveBenchError, InvalidValue
 from drivebench.i18n import N_, _
 from drivebench.services.bus.sessions import Session
@@ -83,11 +83,10 @@ def _validated(session: Session, node_id: int, wanted: Sequence[Wanted], *, chec
             problems.append(exc)
             continue
         problems.append(None)
-        motion = motion_of(found)
-        still = motion is not None and is_still(motion, raw)
-        if motion is not None and not still:
+        verdict = judge(found, raw, node.profile)
+        if verdict.moving:
             moving.append(f"{found.ref} ({found.name}) = {value}")
-        checked.append((value, still and motion is not None and motion.kind == "control_word"))
+        checked.append((value, verdict.stopping))
     if any(problems):
         raise BatchInvalid(problems)
     if moving:

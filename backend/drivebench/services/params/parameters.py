@@ -4,7 +4,8 @@
 * A write is validated against the profile before anything is sent (type width, range, selection list,
   read-only), then read back and compared (verify).
 * Values that take effect only after reset node are flagged on the node until it boots again.
-* Device commands: save, restore defaults, reset node, the way the device's profile offers them.
+* Device commands: save, restore defaults, reset node, the way the device's profile offers them; a command whose
+  write can move the drive needs the confirmation like any write (:mod:`drivebench.device.motion`).
 * Read-all spreads one node's reads over its SDO channels (SDO2 where the device has one) and runs different
   nodes in parallel; a read that timed out is asked again at the end, a node judged silent from evidence
   (:mod:`drivebench.services.params.node_silence`) is given up and never holds the others up.
@@ -31,7 +32,7 @@ from typing import Protocol, TypeVar
 from drivebench.device.addressing import IndexRef, parse_ref
 from drivebench.device.catalog import Catalog, Item
 from drivebench.device.commands import CIA301_RESTORE, CIA301_SAVE, CommandWrite
-from drivebench.device.motion import is_still, motion_of
+from drivebench.device.motion import judge
 from drivebench.device.profile import Access, ObjectEntry
 from drivebench.device.scaling import RawValue, ScaledValue, from_raw, to_raw
 from drivebench.errors import (
@@ -557,14 +558,12 @@ async def write(session: Session, node_id: int, ref: str, value: object, *, chec
     a control word that only stops the drive is never refused, by a lease or for a confirmation."""
     node = session.node(node_id)
     item, raw = checked_raw(node, ref, value, check=check)
-    motion = motion_of(item)
-    still = motion is not None and is_still(motion, raw)
-    stopping = still and motion is not None and motion.kind == "control_word"
-    with node_lease.stopping() if stopping else contextlib.nullcontext(), node_lease.writing(session, node_id):
-        if motion is not None and not still:
+    verdict = judge(item, raw, node.profile)
+    with node_lease.stopping() if verdict.stopping else contextlib.nullcontext(), node_lease.writing(session, node_id):
+        if verdict.moving:
             session.part(MovingWrites).admit(node_id, f"Writing {item.ref} ({item.name}) = {value}")
         result = await _write(session, node, item, raw, value, verify=verify)
-    if stopping:
+    if verdict.stopping:
         session.part(MovingWrites).stopped(node_id)
     return result
 
@@ -656,6 +655,9 @@ async def _command(session: Session, node_id: int, which: DeviceCommand) -> Comm
     item = _find(catalog, write.ref)
     if item is not None:
         index, subindex, data = item.index, item.subindex, encode(item.entry.data_type, write.raw)
+        if judge(item, write.raw, node.profile).moving:  # a profile's command is a write like any other
+            session.part(MovingWrites).admit(node_id, _("The {command} command ({via})").format(
+                command=_command_name(which), via=write.via))
     elif catalog is None:  # no profile: the CiA 301 object, addressed as such
         parsed = parse_ref(write.ref)
         assert isinstance(parsed, IndexRef)  # CIA301_SAVE / CIA301_RESTORE

@@ -286,7 +286,7 @@ def _start(session: Session, node: SessionNode, jobs: JobManager, store: Paramet
     readable = [items[ref] for ref in order if ref in items and items[ref].entry.access.readable]
     who = user or audit.current_user.get()
     moving = [ref for ref in order if ref in items and isinstance(targets[ref], (int, float))
-              and moves(items[ref], targets[ref]) is not None]
+              and moves(items[ref], targets[ref], profile) is not None]
     if moving:  # asked before anything is read or written; each such write arms the guard as it goes out
         refs = ", ".join(moving[:4]) + (" ..." if len(moving) > 4 else "")
         drive_guard.confirm_moving(session, node.node_id, _(WHAT_WRITES[kind]).format(refs=refs), confirm=confirm)
