@@ -9,7 +9,8 @@
   nodes in parallel; a read that timed out is asked again at the end, a node judged silent from evidence
   (:mod:`drivebench.services.params.node_silence`) is given up and never holds the others up.
 
-Bus work runs in this module's own thread pool, so a slow node never waits for a free worker thread.
+Bus work runs in this module's own thread pool, so a slow node never waits for a free worker thread; the
+transfers of a stop (:func:`stop_first`) have a pool of their own and go before every read waiting for the node.
 """
 
 from __future__ import annotations
@@ -21,8 +22,9 @@ import re
 import time
 import weakref
 from collections import deque
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
+from contextvars import ContextVar
 from dataclasses import dataclass, field
 from enum import StrEnum
 from functools import partial
@@ -62,6 +64,9 @@ from drivebench.services.params.node_silence import NodeSilence
 T = TypeVar("T")
 
 _BUS_WORK = ThreadPoolExecutor(max_workers=128, thread_name_prefix="sdo")
+_STOP_WORK = ThreadPoolExecutor(max_workers=8, thread_name_prefix="sdo-stop")
+"""A stop's transfers never queue behind reads for a worker thread."""
+_urgent: ContextVar[bool] = ContextVar("drivebench_sdo_urgent", default=False)
 
 
 @dataclass
@@ -184,7 +189,20 @@ def configure(session: Session, settings: SdoSettings) -> SdoSettings:
 
 
 async def _on_bus(work: Callable[[], T]) -> T:
-    return await asyncio.get_running_loop().run_in_executor(_BUS_WORK, work)
+    return await asyncio.get_running_loop().run_in_executor(_STOP_WORK if _urgent.get() else _BUS_WORK, work)
+
+
+@contextlib.contextmanager
+def stop_first(session: Session, node_id: int) -> Iterator[None]:
+    """The reads and writes inside stop the drive (quick stop, disable, the guard's trip): they go before every
+    transfer waiting for the node (the one on the wire finishes first), and none of those gets in between them
+    (:class:`~drivebench.protocol.sdo_queue.ChannelLock`)."""
+    token = _urgent.set(True)
+    try:
+        with session.client(node_id).stop_first():
+            yield
+    finally:
+        _urgent.reset(token)
 
 
 # --- lookup ----------------------------------------------------------------------------------------------
@@ -380,10 +398,11 @@ def _decode(item: Item, data: bytes, node_id: int) -> RawValue:
                                  ref=item.ref, data=data.hex(" "), type=item.entry.data_type.value)) from exc
 
 
-def _read_blocking(client: SdoClient, item: Item, *, block: bool = False, channel: int | None = None) -> bytes:
+def _read_blocking(client: SdoClient, item: Item, *, block: bool = False, channel: int | None = None,
+                   urgent: bool = False) -> bytes:
     if not item.entry.access.readable:
         raise InvalidValue(_("{ref} ({name}) is write-only").format(ref=item.ref, name=item.entry.name))
-    return client.upload(item.index, item.subindex, block=block, channel=channel)
+    return client.upload(item.index, item.subindex, block=block, channel=channel, urgent=urgent)
 
 
 async def _upload(client: SdoClient, plan: _Plan, *, block: bool = False, channel: int | None = None,
@@ -393,10 +412,12 @@ async def _upload(client: SdoClient, plan: _Plan, *, block: bool = False, channe
     only that client reads). Transfer errors name the parameter as the user knows it (C00099)."""
     try:
         if on_loop and plan.on_loop and not block and isinstance(client, NodeClient):  # CAN's fast path; CoE: its own
-            data = await upload_expedited(client, plan.request, channel=channel, segmented=not plan.expedited)
+            data = await upload_expedited(client, plan.request, channel=channel, segmented=not plan.expedited,
+                                          urgent=_urgent.get())
             if data is not None:
                 return data
-        return await _on_bus(partial(_read_blocking, client, plan.item, block=block, channel=channel))
+        return await _on_bus(partial(_read_blocking, client, plan.item, block=block, channel=channel,
+                                     urgent=_urgent.get()))
     except (SdoStalledError, SdoOutOfStepError) as exc:
         raise exc.named(plan.item.ref) from exc
 
@@ -554,13 +575,15 @@ async def write(session: Session, node_id: int, ref: str, value: object, *, chec
 
     A write that can make the drive move (:mod:`drivebench.device.motion`: a control word, setpoint, mode ...)
     needs the confirmation naming the node and arms the keep-alive guard (:func:`drive_guard.admit_moving_write`);
-    a control word that only stops the drive is never refused, by a lease or for a confirmation."""
+    a control word that only stops the drive is never refused, by a lease or for a confirmation, and goes before the
+    reads waiting for the node (:func:`stop_first`)."""
     node = session.node(node_id)
     item, raw = checked_raw(node, ref, value, check=check)
     motion = motion_of(item)
     still = motion is not None and is_still(motion, raw)
     stopping = still and motion is not None and motion.kind == "control_word"
-    with node_lease.stopping() if stopping else contextlib.nullcontext(), node_lease.writing(session, node_id):
+    with node_lease.stopping() if stopping else contextlib.nullcontext(), node_lease.writing(session, node_id), \
+            stop_first(session, node_id) if stopping else contextlib.nullcontext():
         if motion is not None and not still:
             session.part(MovingWrites).admit(node_id, f"Writing {item.ref} ({item.name}) = {value}")
         result = await _write(session, node, item, raw, value, verify=verify)
@@ -594,7 +617,8 @@ async def _send(session: Session, node: SessionNode, item: Item, raw: RawValue, 
                 verify: bool) -> WriteResult:
     node_id = node.node_id
     client = session.client(node_id)
-    await _on_bus(lambda: client.download(item.index, item.subindex, data))
+    urgent = _urgent.get()
+    await _on_bus(lambda: client.download(item.index, item.subindex, data, urgent=urgent))
     if item.entry.reset_required:
         node.pending_reset.add(item.ref)
     written = from_raw(item.entry, raw)
