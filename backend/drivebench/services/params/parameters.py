@@ -430,9 +430,41 @@ def _use_block(node: SessionNode, item: Item, transfer: str) -> bool:
     return False
 
 
+_snapshot: ContextVar[dict[tuple[int, int, str, str], ParameterValue | DriveBenchError] | None] = ContextVar(
+    "drivebench_read_snapshot", default=None)
+
+
+@contextlib.contextmanager
+def snapshot() -> Iterator[None]:
+    """Inside, each parameter of a node is read from the device once: a second :func:`read` of it answers the
+    first one's value (or raises its error). A shared status poll words one set of reads in several languages."""
+    token = _snapshot.set({})
+    try:
+        yield
+    finally:
+        _snapshot.reset(token)
+
+
 async def read(session: Session, node_id: int, ref: str, *, transfer: str = "auto") -> ParameterValue:
     """Read one parameter from the device. ``transfer``: ``auto`` (expedited/segmented as the size needs) or
     ``block`` (CiA 301 block upload)."""
+    memo = _snapshot.get()
+    if memo is None:
+        return await _read(session, node_id, ref, transfer)
+    key = (id(session), node_id, ref, transfer)
+    found = memo.get(key)
+    if isinstance(found, DriveBenchError):
+        raise found
+    if found is None:
+        try:
+            found = memo[key] = await _read(session, node_id, ref, transfer)
+        except DriveBenchError as exc:
+            memo[key] = exc
+            raise
+    return found
+
+
+async def _read(session: Session, node_id: int, ref: str, transfer: str) -> ParameterValue:
     node = session.node(node_id)
     plan = _plan(node, ref)
     block = transfer != "auto" and _use_block(node, plan.item, transfer)
