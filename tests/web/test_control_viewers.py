@@ -49,9 +49,9 @@ def _url(base: str, viewer: int) -> str:
 
 async def _requests_per_period(base: str, counter: RequestCounter, viewers: int) -> float:
     """SDO requests to the node per status message, counted over PERIODS messages of the first viewer while
-    ``viewers`` panels watch (each in the name of a user of its own)."""
-    sockets = [await websockets.connect(_url(base, n), additional_headers={"X-DriveBench-User": f"user{n}"})
-               for n in range(viewers)]
+    ``viewers`` panels watch (each in the name of a user of its own, every second one in German)."""
+    sockets = [await websockets.connect(_url(base, n), additional_headers={
+        "X-DriveBench-User": f"user{n}", "Accept-Language": "de" if n % 2 else "en"}) for n in range(viewers)]
     try:
         first = sockets[0]
 
@@ -77,7 +77,7 @@ async def _requests_per_period(base: str, counter: RequestCounter, viewers: int)
         await asyncio.gather(*(socket.close() for socket in sockets), return_exceptions=True)
 
 
-def test_a_hundred_viewers_cost_the_bus_what_one_viewer_costs(served: tuple[str, str],
+def test_a_hundred_viewers_in_two_languages_cost_the_bus_what_one_viewer_costs(served: tuple[str, str],
                                                               monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(settings, "control_panels_per_node", 200)  # the first run's viewer may still be leaving
     base, channel = served
@@ -92,6 +92,20 @@ def test_a_hundred_viewers_cost_the_bus_what_one_viewer_costs(served: tuple[str,
         wire.shutdown()
     assert one > 0
     assert hundred <= one * (PERIODS + 1) / PERIODS, (one, hundred)  # equal within one period's reads
+
+
+def test_each_viewer_reads_the_shared_status_in_its_language(client: TestClient) -> None:
+    with contextlib.ExitStack() as stack:
+        states = {}
+        for language in ("en", "de"):
+            socket = stack.enter_context(client.websocket_connect(
+                _socket(f"reader-{language}"), headers={"Accept-Language": language}))
+            while (message := socket.receive_json())["type"] != "status":
+                pass
+            states[language] = message["status"]
+        assert states["en"]["state"] == states["de"]["state"]
+        assert states["en"]["status_bits"] != states["de"]["status_bits"]  # the same bits, named in each language
+        assert not states["en"]["you_hold"] and not states["de"]["you_hold"]
 
 
 # --- how many panels a node and a user may open -------------------------------------------------------------------

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import logging
 import time
 import weakref
 from collections.abc import AsyncIterator
@@ -25,6 +26,7 @@ from drivebench.services.control import drive_control
 from drivebench.services.params import parameters
 
 PERIOD_S = 0.25
+log = logging.getLogger(__name__)
 Message = dict[str, Any]
 
 
@@ -57,17 +59,17 @@ class NodePoll:
         self.node = node
         self.watchers: set[Watcher] = set()
         self.task: asyncio.Task[None] | None = None
-        self.polls = 0
-        """Periods polled so far (tests and the benchmark count them)."""
 
     async def _run(self) -> None:
         while self.watchers:
-            await self.poll_once()
+            try:
+                await self.poll_once()
+            except Exception:  # a bug must not leave every panel of the node without a status for good
+                log.exception("status poll of node %s failed", self.node.node_id)
             await asyncio.sleep(PERIOD_S)
 
     async def poll_once(self) -> None:
         """Read the node once and offer every watcher the status in its language."""
-        self.polls += 1
         by_locale: dict[str, list[Watcher]] = {}
         for watcher in list(self.watchers):
             by_locale.setdefault(watcher.locale, []).append(watcher)
@@ -89,11 +91,6 @@ class NodePoll:
 
 
 _POLLS: weakref.WeakKeyDictionary[Session, dict[int, NodePoll]] = weakref.WeakKeyDictionary()
-
-
-def poll_of(session: Session, node_id: int) -> NodePoll | None:
-    """The node's running poll, if any panel watches it."""
-    return _POLLS.get(session, {}).get(node_id)
 
 
 @contextlib.asynccontextmanager
