@@ -449,27 +449,33 @@ async def read(session: Session, node_id: int, ref: str, *, transfer: str = "aut
     """Read one parameter from the device. ``transfer``: ``auto`` (expedited/segmented as the size needs) or
     ``block`` (CiA 301 block upload)."""
     memo = _snapshot.get()
-    if memo is None:
-        return await _read(session, node_id, ref, transfer)
-    key = (id(session), node_id, ref, transfer)
-    found = memo.get(key)
-    if isinstance(found, DriveBenchError):
-        raise found
-    if found is None:
-        try:
-            found = memo[key] = await _read(session, node_id, ref, transfer)
-        except DriveBenchError as exc:
-            memo[key] = exc
-            raise
-    return found
-
-
-async def _read(session: Session, node_id: int, ref: str, transfer: str) -> ParameterValue:
+    if memo is not None:
+        return await _read_once(memo, session, node_id, ref, transfer)
     node = session.node(node_id)
     plan = _plan(node, ref)
     block = transfer != "auto" and _use_block(node, plan.item, transfer)
     data = await _upload(session.client(node_id), plan, block=block)
     return _remembered(session, node_id, plan, data)
+
+
+async def _read_once(memo: dict[tuple[int, int, str, str], ParameterValue | DriveBenchError], session: Session,
+                     node_id: int, ref: str, transfer: str) -> ParameterValue:
+    """:func:`read` inside :func:`snapshot`: the device is asked the first time only."""
+    key = (id(session), node_id, ref, transfer)
+    found = memo.get(key)
+    if isinstance(found, DriveBenchError):
+        raise found
+    if found is not None:
+        return found
+    token = _snapshot.set(None)
+    try:
+        found = memo[key] = await read(session, node_id, ref, transfer=transfer)
+    except DriveBenchError as exc:
+        memo[key] = exc
+        raise
+    finally:
+        _snapshot.reset(token)
+    return found
 
 
 def _remembered(session: Session, node_id: int, plan: _Plan, data: bytes) -> ParameterValue:
