@@ -50,6 +50,11 @@ class Settings(BaseSettings):
     """Proxies whose ``X-Forwarded-For`` / ``-Proto`` are believed (uvicorn's option, comma-separated addresses or
     networks); none by default, so a client cannot choose the address the sign-in limit counts."""
 
+    control_panels_per_node: int = 100
+    """Control-panel websockets one node of a session accepts at once (its holder's own panel always)."""
+    control_panels_per_user: int = 20
+    """Control-panel websockets one user may have open in a session at once."""
+
     @field_validator("allowed_hosts", mode="before")
     @classmethod
     def _split_names(cls, value: object) -> object:

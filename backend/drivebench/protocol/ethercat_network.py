@@ -14,6 +14,7 @@ station address, which the slave list shows next to it.
 
 from __future__ import annotations
 
+import contextlib
 import threading
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -157,12 +158,18 @@ class CoeNodeClient(EventLoopTransfers):
                                          "service (its mailbox answered: the service is not supported)"),
                                       node=self.node_id, station=self.station)) from exc
 
-    def upload(self, index: int, sub: int, *, block: bool = False, channel: int | None = None) -> bytes:
+    # ``urgent``: the mailbox lock is the segment's (shared with the master's own exchanges); it has no stop-first
+    # queue yet, so a stop waits its turn there like any transfer
+    def upload(self, index: int, sub: int, *, block: bool = False, channel: int | None = None,
+               urgent: bool = False) -> bytes:
         return self._transfer(index, sub, block, "upload")
 
     def download(self, index: int, sub: int, data: bytes, *, block: bool = False,
-                 channel: int | None = None) -> None:
+                 channel: int | None = None, urgent: bool = False) -> None:
         self._transfer(index, sub, block, "download", data)
+
+    def stop_first(self) -> contextlib.AbstractContextManager[None]:
+        return contextlib.nullcontext()
 
 
 class EthercatNetwork:

@@ -1,16 +1,17 @@
 """Master side of one CAN bus: a canopen Network on an opened bus, with per-node SDO access.
 
-canopen's SDO client blocks and is not thread-safe per node, so every node has one lock per SDO channel;
-callers in the event loop use the ``a*`` coroutines, which run the blocking call in a worker thread.
+canopen's SDO client blocks and is not thread-safe per node, so every node has one lock per SDO channel, a
+:class:`~drivebench.protocol.sdo_queue.ChannelLock` (``urgent`` transfers, the stop commands, go before waiting
+reads); callers in the event loop use the ``a*`` coroutines, which run the blocking call in a worker thread.
 All canopen and python-can exceptions are converted here, once, into the protocol error tree.
 """
 
 from __future__ import annotations
 
 import asyncio
-import threading
+import contextlib
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from typing import TypeVar, cast
 
 import can
@@ -25,6 +26,7 @@ from drivebench.protocol.guarding import NodeGuarding
 from drivebench.protocol.heartbeat import HeartbeatMonitor
 from drivebench.protocol.nmt import NmtCommand, nmt_frame
 from drivebench.protocol.sdo_errors import communication_error, read_segments
+from drivebench.protocol.sdo_queue import ChannelLock
 from drivebench.transport.bus import ObservedBus
 
 T = TypeVar("T")
@@ -37,18 +39,19 @@ class SdoChannel:
     def __init__(self, client: canopen.sdo.SdoClient, number: int) -> None:
         self.client = client
         self.number = number
-        self.lock = threading.Lock()
+        self.lock = ChannelLock()
 
 
 class EventLoopTransfers:
     """``aupload``/``adownload`` for callers in the event loop: the blocking ``upload``/``download`` of the
     subclass (a CAN node's, an EtherCAT slave's) in a worker thread."""
 
-    def upload(self, index: int, sub: int, *, block: bool = False, channel: int | None = None) -> bytes:
+    def upload(self, index: int, sub: int, *, block: bool = False, channel: int | None = None,
+               urgent: bool = False) -> bytes:
         raise NotImplementedError
 
     def download(self, index: int, sub: int, data: bytes, *, block: bool = False,
-                 channel: int | None = None) -> None:
+                 channel: int | None = None, urgent: bool = False) -> None:
         raise NotImplementedError
 
     async def aupload(self, index: int, sub: int, **kwargs: object) -> bytes:
@@ -86,9 +89,9 @@ class NodeClient(EventLoopTransfers):
         return channel
 
     def _with_channel(self, index: int, sub: int, work: Callable[[canopen.sdo.SdoClient], T],
-                      channel: int | None = None) -> T:
+                      channel: int | None = None, urgent: bool = False) -> T:
         chosen = self.pick_channel(channel)
-        with chosen.lock:
+        with chosen.lock.held(urgent=urgent):
             try:
                 return work(chosen.client)
             except SdoAbortedError as exc:
@@ -101,6 +104,15 @@ class NodeClient(EventLoopTransfers):
                                            node=self.node_id, reason=exc),
                                      hint=N_("Check the adapter connection; the session reconnects when it is back.")
                                      ) from exc
+
+    @contextlib.contextmanager
+    def stop_first(self) -> Iterator[None]:
+        """Inside, the node's channels serve only urgent transfers: a stop of several transfers (read the control
+        word, write it) keeps its place before every waiting read."""
+        with contextlib.ExitStack() as stack:
+            for channel in self.channels:
+                stack.enter_context(channel.lock.reserved())
+            yield
 
     def pick_channel(self, channel: int | None) -> SdoChannel:
         """SDO channel ``channel`` (1 = the default SDO server), or without one the first that is free."""
@@ -115,17 +127,18 @@ class NodeClient(EventLoopTransfers):
         return self.channels[0]
 
     # --- blocking calls (worker threads) ---------------------------------------------------------------
-    def upload(self, index: int, sub: int, *, block: bool = False, channel: int | None = None) -> bytes:
+    def upload(self, index: int, sub: int, *, block: bool = False, channel: int | None = None,
+               urgent: bool = False) -> bytes:
         def work(client: canopen.sdo.SdoClient) -> bytes:
             if block:
                 with client.open(index, sub, "rb", block_transfer=True) as stream:
                     return bytes(stream.read())
             return read_segments(client, index, sub)
 
-        return self._with_channel(index, sub, work, channel)
+        return self._with_channel(index, sub, work, channel, urgent)
 
     def download(self, index: int, sub: int, data: bytes, *, block: bool = False,
-                 channel: int | None = None) -> None:
+                 channel: int | None = None, urgent: bool = False) -> None:
         def work(client: canopen.sdo.SdoClient) -> None:
             if block:
                 with client.open(index, sub, "wb", size=len(data), block_transfer=True) as stream:
@@ -133,7 +146,7 @@ class NodeClient(EventLoopTransfers):
                 return
             client.download(index, sub, data)
 
-        self._with_channel(index, sub, work, channel)
+        self._with_channel(index, sub, work, channel, urgent)
 
 
 class CanopenNetwork:

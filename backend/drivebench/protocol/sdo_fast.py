@@ -149,10 +149,10 @@ class ExpeditedUploader:
     reader thread has asked for every segment; a batch after the last object). No worker thread per read, so the
     service layer keeps pace with a bare canopen client.
 
-    It takes the channel's lock without waiting (a transfer in progress sends the read to a worker thread
-    instead) and checks that the response names the requested object; canopen's own client on the same COB-ID
-    discards the copy it queued at its next transfer. The SDO timeout is one watchdog timer per channel that
-    re-arms itself, not a timer per read.
+    It takes the channel's lock without waiting (a transfer in progress or transfers waiting send the read to a
+    worker thread instead, to wait its turn) and checks that the response names the requested object; canopen's
+    own client on the same COB-ID discards the copy it queued at its next transfer. The SDO timeout is one
+    watchdog timer per channel that re-arms itself, not a timer per read.
     """
 
     def __init__(self, client: NodeClient, channel: SdoChannel) -> None:
@@ -300,14 +300,16 @@ class ExpeditedUploader:
             self._transfer = None
             self._drop_client_copies()
 
-    async def upload(self, request: ExpeditedRequest, *, segmented: bool = False) -> bytes | None:
+    async def upload(self, request: ExpeditedRequest, *, segmented: bool = False, urgent: bool = False
+                     ) -> bytes | None:
         """The value, or None when the channel is busy or the device answers other than expedited (``segmented``:
-        a segmented answer is read here too, its segments asked for by the bus reader thread).
+        a segmented answer is read here too, its segments asked for by the bus reader thread). ``urgent`` (a stop's
+        read) takes the channel before waiting reads (:class:`~drivebench.protocol.sdo_queue.ChannelLock`).
 
         Raises :class:`SdoAbortError` when the device aborts, :class:`SdoTimeoutError` when no attempt is
         answered (the transfer is then aborted with 0x05040000), :class:`SdoStalledError` when the segments stop,
         :class:`SdoOutOfStepError` when the only answers named another object or a segment came out of step."""
-        if not self.lock.acquire(blocking=False):
+        if not self.lock.acquire(blocking=False, urgent=urgent):
             return None
         try:
             ended = await self._run(_Transfer([request], [segmented]))
@@ -381,11 +383,11 @@ def uploader(client: NodeClient, channel: int | None = None) -> ExpeditedUploade
 
 
 async def upload_expedited(client: NodeClient, request: ExpeditedRequest, *, channel: int | None = None,
-                           segmented: bool = False) -> bytes | None:
+                           segmented: bool = False, urgent: bool = False) -> bytes | None:
     """The object's value read by an expedited upload on the event loop, or None where the caller must use the
     blocking client (channel busy, segmented answer). Raises the SDO errors of :meth:`ExpeditedUploader.upload`
     and ``ProtocolError`` for a channel number the node has not configured."""
-    return await uploader(client, channel).upload(request, segmented=segmented)
+    return await uploader(client, channel).upload(request, segmented=segmented, urgent=urgent)
 
 
 async def upload_batch(client: NodeClient, requests: Sequence[ExpeditedRequest], segmented: Sequence[bool], *,

@@ -407,7 +407,9 @@ async def command(session: Session, node: SessionNode, which: Command, *, confir
         _confirmed(confirm, node, command_label(which))
     if which in STOPPING:  # a cyclic synchronous stream would send its control word again: it ends first
         live.service(session).stop_node(node.node_id)
-    with node_lease.stopping() if which in STOPPING else contextlib.nullcontext():  # any station may stop it
+    # any station may stop it, and a stop goes before the reads waiting for the node
+    with (node_lease.stopping() if which in STOPPING else contextlib.nullcontext(),
+          parameters.stop_first(session, node.node_id) if which in STOPPING else contextlib.nullcontext()):
         last = await last_control_word(session, node)
         word = next_control_word(fam, which, last)
         if bits_of.edge is not None and last & bits_of.edge:

@@ -113,7 +113,8 @@ async def send_quick_stop(session: Session, node: SessionNode) -> None:
     fam = family_of(node.catalog)
     if fam is None:  # the trip skips such nodes (NMT pre-operational is their safe command)
         raise InvalidValue(_("{device} has no device control word DriveBench knows.").format(device=node.device_name))
-    with node_lease.stopping(), cleared():  # any station may stop a machine: no lease refuses it
+    # any station may stop a machine: no lease refuses it, and it goes before every read waiting for the node
+    with node_lease.stopping(), cleared(), parameters.stop_first(session, node.node_id):
         last = await last_word(session, node.node_id, fam.control_ref)
         await write_word(session, node.node_id, fam.control_ref, next_control_word(fam, Command.QUICK_STOP, last))
 

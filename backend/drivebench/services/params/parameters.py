@@ -10,7 +10,8 @@
   nodes in parallel; a read that timed out is asked again at the end, a node judged silent from evidence
   (:mod:`drivebench.services.params.node_silence`) is given up and never holds the others up.
 
-Bus work runs in this module's own thread pool, so a slow node never waits for a free worker thread.
+Bus work runs in this module's own thread pool, so a slow node never waits for a free worker thread; the
+transfers of a stop (:func:`stop_first`) have a pool of their own and go before every read waiting for the node.
 """
 
 from __future__ import annotations
@@ -22,8 +23,9 @@ import re
 import time
 import weakref
 from collections import deque
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
+from contextvars import ContextVar
 from dataclasses import dataclass, field
 from enum import StrEnum
 from functools import partial
@@ -63,6 +65,9 @@ from drivebench.services.params.node_silence import NodeSilence
 T = TypeVar("T")
 
 _BUS_WORK = ThreadPoolExecutor(max_workers=128, thread_name_prefix="sdo")
+_STOP_WORK = ThreadPoolExecutor(max_workers=8, thread_name_prefix="sdo-stop")
+"""A stop's transfers never queue behind reads for a worker thread."""
+_urgent: ContextVar[bool] = ContextVar("drivebench_sdo_urgent", default=False)
 
 
 @dataclass
@@ -185,7 +190,20 @@ def configure(session: Session, settings: SdoSettings) -> SdoSettings:
 
 
 async def _on_bus(work: Callable[[], T]) -> T:
-    return await asyncio.get_running_loop().run_in_executor(_BUS_WORK, work)
+    return await asyncio.get_running_loop().run_in_executor(_STOP_WORK if _urgent.get() else _BUS_WORK, work)
+
+
+@contextlib.contextmanager
+def stop_first(session: Session, node_id: int) -> Iterator[None]:
+    """The reads and writes inside stop the drive (quick stop, disable, the guard's trip): they go before every
+    transfer waiting for the node (the one on the wire finishes first), and none of those gets in between them
+    (:class:`~drivebench.protocol.sdo_queue.ChannelLock`)."""
+    token = _urgent.set(True)
+    try:
+        with session.client(node_id).stop_first():
+            yield
+    finally:
+        _urgent.reset(token)
 
 
 # --- lookup ----------------------------------------------------------------------------------------------
@@ -381,10 +399,11 @@ def _decode(item: Item, data: bytes, node_id: int) -> RawValue:
                                  ref=item.ref, data=data.hex(" "), type=item.entry.data_type.value)) from exc
 
 
-def _read_blocking(client: SdoClient, item: Item, *, block: bool = False, channel: int | None = None) -> bytes:
+def _read_blocking(client: SdoClient, item: Item, *, block: bool = False, channel: int | None = None,
+                   urgent: bool = False) -> bytes:
     if not item.entry.access.readable:
         raise InvalidValue(_("{ref} ({name}) is write-only").format(ref=item.ref, name=item.entry.name))
-    return client.upload(item.index, item.subindex, block=block, channel=channel)
+    return client.upload(item.index, item.subindex, block=block, channel=channel, urgent=urgent)
 
 
 async def _upload(client: SdoClient, plan: _Plan, *, block: bool = False, channel: int | None = None,
@@ -394,10 +413,12 @@ async def _upload(client: SdoClient, plan: _Plan, *, block: bool = False, channe
     only that client reads). Transfer errors name the parameter as the user knows it (C00099)."""
     try:
         if on_loop and plan.on_loop and not block and isinstance(client, NodeClient):  # CAN's fast path; CoE: its own
-            data = await upload_expedited(client, plan.request, channel=channel, segmented=not plan.expedited)
+            data = await upload_expedited(client, plan.request, channel=channel, segmented=not plan.expedited,
+                                          urgent=_urgent.get())
             if data is not None:
                 return data
-        return await _on_bus(partial(_read_blocking, client, plan.item, block=block, channel=channel))
+        return await _on_bus(partial(_read_blocking, client, plan.item, block=block, channel=channel,
+                                     urgent=_urgent.get()))
     except (SdoStalledError, SdoOutOfStepError) as exc:
         raise exc.named(plan.item.ref) from exc
 
@@ -410,14 +431,52 @@ def _use_block(node: SessionNode, item: Item, transfer: str) -> bool:
     return False
 
 
+_snapshot: ContextVar[dict[tuple[int, int, str, str], ParameterValue | DriveBenchError] | None] = ContextVar(
+    "drivebench_read_snapshot", default=None)
+
+
+@contextlib.contextmanager
+def snapshot() -> Iterator[None]:
+    """Inside, each parameter of a node is read from the device once: a second :func:`read` of it answers the
+    first one's value (or raises its error). A shared status poll words one set of reads in several languages."""
+    token = _snapshot.set({})
+    try:
+        yield
+    finally:
+        _snapshot.reset(token)
+
+
 async def read(session: Session, node_id: int, ref: str, *, transfer: str = "auto") -> ParameterValue:
     """Read one parameter from the device. ``transfer``: ``auto`` (expedited/segmented as the size needs) or
     ``block`` (CiA 301 block upload)."""
+    memo = _snapshot.get()
+    if memo is not None:
+        return await _read_once(memo, session, node_id, ref, transfer)
     node = session.node(node_id)
     plan = _plan(node, ref)
     block = transfer != "auto" and _use_block(node, plan.item, transfer)
     data = await _upload(session.client(node_id), plan, block=block)
     return _remembered(session, node_id, plan, data)
+
+
+async def _read_once(memo: dict[tuple[int, int, str, str], ParameterValue | DriveBenchError], session: Session,
+                     node_id: int, ref: str, transfer: str) -> ParameterValue:
+    """:func:`read` inside :func:`snapshot`: the device is asked the first time only."""
+    key = (id(session), node_id, ref, transfer)
+    found = memo.get(key)
+    if isinstance(found, DriveBenchError):
+        raise found
+    if found is not None:
+        return found
+    token = _snapshot.set(None)
+    try:
+        found = memo[key] = await read(session, node_id, ref, transfer=transfer)
+    except DriveBenchError as exc:
+        memo[key] = exc
+        raise
+    finally:
+        _snapshot.reset(token)
+    return found
 
 
 def _remembered(session: Session, node_id: int, plan: _Plan, data: bytes) -> ParameterValue:
@@ -555,11 +614,14 @@ async def write(session: Session, node_id: int, ref: str, value: object, *, chec
 
     A write that can make the drive move (:mod:`drivebench.device.motion`: a control word, setpoint, mode ...)
     needs the confirmation naming the node and arms the keep-alive guard (:func:`drive_guard.admit_moving_write`);
-    a control word that only stops the drive is never refused, by a lease or for a confirmation."""
+    a control word that only stops the drive is never refused, by a lease or for a confirmation, and goes before the
+    reads waiting for the node (:func:`stop_first`)."""
     node = session.node(node_id)
     item, raw = checked_raw(node, ref, value, check=check)
     verdict = judge(item, raw, node.profile)
-    with node_lease.stopping() if verdict.stopping else contextlib.nullcontext(), node_lease.writing(session, node_id):
+    stops = verdict.stopping
+    with node_lease.stopping() if stops else contextlib.nullcontext(), node_lease.writing(session, node_id), \
+            stop_first(session, node_id) if stops else contextlib.nullcontext():
         if verdict.moving:
             session.part(MovingWrites).admit(node_id, f"Writing {item.ref} ({item.name}) = {value}")
         result = await _write(session, node, item, raw, value, verify=verify)
@@ -593,7 +655,8 @@ async def _send(session: Session, node: SessionNode, item: Item, raw: RawValue, 
                 verify: bool) -> WriteResult:
     node_id = node.node_id
     client = session.client(node_id)
-    await _on_bus(lambda: client.download(item.index, item.subindex, data))
+    urgent = _urgent.get()
+    await _on_bus(lambda: client.download(item.index, item.subindex, data, urgent=urgent))
     if item.entry.reset_required:
         node.pending_reset.add(item.ref)
     written = from_raw(item.entry, raw)

@@ -1,13 +1,15 @@
 """Live drive panel of one node, and its keep-alive.
 
 ``/ws/sessions/{session}/nodes/{node}/control`` sends ``{"type": "status", "status": DriveStatus, "actuals":
-[ActualValue], "t": unix time}`` every :data:`PERIOD_S` (``{"type": "error", "detail": ...}`` when a read fails).
+[ActualValue], "t": unix time}`` every :data:`PERIOD_S` (``{"type": "error", "detail": ...}`` when a read fails),
+from the node's one status poll all its panels share (:mod:`drivebench.services.control.status_poll`).
 The query names the panel: ``?panel=<id>&operator=<name>`` (the same id and name the panel's API calls send as
 ``X-Drive-Panel`` / ``X-Drive-Operator``; without them, one panel per host). Every message the client sends (e.g.
 ``{"cmd": "keepalive"}``) is a keep-alive of the node if this panel holds it. When the holder's last socket closes
 while the node is armed, the server sends quick stop at once; a watcher's socket closing changes nothing. Each
 status says who holds the drive and whether it is this panel (``holder``, ``you_hold``). An unknown session or node
-closes the socket with code 4404.
+closes the socket with code 4404; a node or user with too many panels open sends an ``error`` saying so and closes
+with code 4429 (:mod:`drivebench.web.ws.control_limits`; never the panel that holds the node).
 
 ``/ws/sessions/{session}/keepalive?client=<tab id>`` is a page's keep-alive for what it started (NMT start on the
 Plant page, RPDOs on the PDO tab): every message the client sends (``{"cmd": "keepalive"}``, at least every 2 s)
@@ -22,20 +24,21 @@ user or client holds, which this keep-alive does not reach).
 from __future__ import annotations
 
 import asyncio
-import time
 
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 
-from drivebench.errors import DriveBenchError, NotFound
+from drivebench.errors import NotFound
 from drivebench.i18n import N_, Text
-from drivebench.services.control import drive_control
+from drivebench.services.control import drive_control, status_poll
 from drivebench.services.control.drive_guard import Guard
 from drivebench.services.params import node_lease
+from drivebench.web.identity import principal_of
 from drivebench.web.safety import panel_for
+from drivebench.web.ws import control_limits
 from drivebench.web.ws.node_socket import open_node, serve
 
 router = APIRouter()
-PERIOD_S = 0.25
+PERIOD_S = status_poll.PERIOD_S
 _trips: set[asyncio.Task[None]] = set()
 
 
@@ -46,6 +49,12 @@ async def control(websocket: WebSocket, session_id: str, node_id: int) -> None:
     session, node = opened
     guard = drive_control.guard_for(session)
     panel = panel_for(websocket)
+    try:
+        seat = control_limits.admit(session, node_id, panel, principal_of(websocket).name)
+    except control_limits.Refused as exc:
+        await websocket.send_json({"type": "error", "detail": str(exc)})
+        await websocket.close(code=control_limits.TOO_MANY, reason=control_limits.close_reason(str(exc)))
+        return
     guard.opened(node_id, panel)
 
     async def receive() -> None:
@@ -54,18 +63,17 @@ async def control(websocket: WebSocket, session_id: str, node_id: int) -> None:
             guard.keepalive(node_id, panel)
 
     async def send() -> None:
-        while True:
-            try:
-                status = await drive_control.read_status(session, node, panel)
-                actuals = await drive_control.read_actuals(session, node)
-                await websocket.send_json({"type": "status", "status": status.model_dump(mode="json"),
-                                           "actuals": [a.model_dump(mode="json") for a in actuals],
-                                           "t": time.time()})
-            except DriveBenchError as exc:
-                await websocket.send_json({"type": "error", "detail": exc.shown_detail()})
-            await asyncio.sleep(PERIOD_S)
+        async with status_poll.watching(session, node) as watcher:
+            while True:
+                message = await watcher.next()
+                if message["type"] == "status":  # the shared poll reads as nobody's panel: this one may hold it
+                    holder = guard.holder(node_id)
+                    you_hold = holder is not None and holder.panel.key == panel.key
+                    message = {**message, "status": {**message["status"], "you_hold": you_hold}}
+                await websocket.send_json(message)
 
     def closed() -> None:
+        seat.leave()
         if guard.closed(node_id, panel):
             _trip(guard, node_id, Text(N_("the control panel holding the drive disconnected")))
 
