@@ -1,16 +1,23 @@
 """Confirm a moving request the way a careful API client does: send it, read the 428 problem's ``confirm_node`` and
 ``confirm_values`` (what the server will send), repeat the request with both.
 
-A test that is about something else than the confirmation itself uses :func:`confirmed`; a test of the confirmation
-checks the 428 and its fields on its own.
+A test that is about something else than the confirmation itself uses :func:`confirmed` (HTTP) or
+:func:`confirmed_call` / :func:`confirmed_now` (a service called directly: the :class:`ConfirmationRequired` it raises
+is answered the same way); a test of the confirmation checks the 428 and its fields on its own.
 """
 
 from __future__ import annotations
 
 import json
-from typing import Any
+from collections.abc import Awaitable, Callable
+from typing import Any, TypeVar
 
 import httpx
+
+from drivebench.errors import ConfirmationRequired
+from drivebench.services.control.drive_guard import Confirmation
+
+T = TypeVar("T")
 
 
 def confirmation_of(problem: dict[str, Any]) -> tuple[object, object]:
@@ -34,3 +41,25 @@ def confirmed(client: Any, method: str, url: str, **kwargs: Any) -> httpx.Respon
     if values is not None:
         headers["X-DriveBench-Confirm-Values"] = json.dumps(values, separators=(",", ":"), sort_keys=True)
     return client.request(method, url, json=body, headers=headers, **kwargs)
+
+
+def _answer(exc: ConfirmationRequired, node: object) -> Confirmation:
+    assert node is None or str(exc.node) == str(node), f"asked to confirm node {exc.node}, the test meant {node}"
+    return Confirmation(exc.node, exc.values)
+
+
+async def confirmed_call(call: Callable[..., Awaitable[T]], *args: Any, confirm: object = None, **kwargs: Any) -> T:
+    """``await call(*args, **kwargs)`` without a confirmation; its :class:`ConfirmationRequired` is answered once with
+    the node and values it names (``confirm``, when given, is the node the test expects to be asked about)."""
+    try:
+        return await call(*args, **kwargs)
+    except ConfirmationRequired as exc:
+        return await call(*args, confirm=_answer(exc, confirm), **kwargs)
+
+
+def confirmed_now(call: Callable[..., T], *args: Any, confirm: object = None, **kwargs: Any) -> T:
+    """:func:`confirmed_call` for a service that checks the confirmation before it returns (a job it starts)."""
+    try:
+        return call(*args, **kwargs)
+    except ConfirmationRequired as exc:
+        return call(*args, confirm=_answer(exc, confirm), **kwargs)

@@ -286,3 +286,14 @@ async def next_step(session: Session, node: SessionNode, run: Run, *, confirm: b
             run.position += 1
         return run
 
+
+
+def step_values(step: Step, node_id: int) -> dict[str, object]:
+    """What a moving step sends, as its confirmation names it (telegrams in hex, as the manual prints them)."""
+    if step.kind == "nmt_start":
+        return {"NMT": "start"}
+    if step.kind == "pdo":
+        return {f"COB-ID 0x{step.cob + node_id:03X}": step.data.hex(" ").upper()}
+    if step.kind == "sdo":
+        return {f"0x{step.index:04X}.{step.sub}": step.data.hex(" ").upper()}
+    return {"check": step.expect_ref or ""}

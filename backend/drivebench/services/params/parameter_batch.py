@@ -73,6 +73,7 @@ def _validated(session: Session, node_id: int, wanted: Sequence[Wanted], *, chec
     node = session.node(node_id)
     problems: list[DriveBenchError | None] = []
     moving: list[str] = []
+    sent: dict[str, object] = {}
     checked: list[tuple[object, bool]] = []
     for item in wanted:
         try:
@@ -87,11 +88,13 @@ def _validated(session: Session, node_id: int, wanted: Sequence[Wanted], *, chec
         still = motion is not None and is_still(motion, raw)
         if motion is not None and not still:
             moving.append(f"{found.ref} ({found.name}) = {value}")
+            sent.update(service.sent_values(found, raw))
         checked.append((value, still and motion is not None and motion.kind == "control_word"))
     if any(problems):
         raise BatchInvalid(problems)
     if moving:
-        session.part(service.MovingWrites).confirm(node_id, _("Writing {refs}").format(refs=", ".join(moving)))
+        session.part(service.MovingWrites).confirm(node_id, _("Writing {refs}").format(refs=", ".join(moving)),
+                                                    sent)
     return checked
 
 

@@ -499,13 +499,36 @@ class MovingWrites:
     """How :func:`write` lets a write that can move the drive through: the drive guard's checks, given to the session
     when it opens (:meth:`drive_guard.Guard.moving_writes`), so this module needs nothing above it."""
 
-    admit: Callable[[int, str], None]
-    """Node id, what is written: refused without the confirmation naming the node; arms the keep-alive."""
+    admit: Callable[[int, str, dict[str, object]], None]
+    """Node id, what is written, the values sent (:func:`sent_values`): refused without the confirmation naming the
+    node and repeating the values; arms the keep-alive."""
     stopped: Callable[[int], None]
     """Node id: a control word that stops the drive was written."""
-    confirm: Callable[[int, str], None]
-    """Node id, what will be written: refused without the confirmation naming the node, nothing armed yet (a batch
-    checks this before its first write)."""
+    confirm: Callable[[int, str, dict[str, object]], None]
+    """Node id, what will be written, the values: refused without the confirmation naming the node and repeating
+    the values, nothing armed yet (a batch checks this before its first write)."""
+
+
+def sent_key(item: Item, unit: str | None = None) -> str:
+    """How a confirmation names an object it writes: canonical ref, name, unit (``0x60FF Target velocity [rpm]``)."""
+    unit = unit if unit is not None else item.entry.unit
+    return f"{item.ref} {item.name}" + (f" [{unit}]" if unit else "")
+
+
+def sent_values(item: Item, raw: RawValue) -> dict[str, object]:
+    """What a write of ``raw`` sends, as a confirmation names it: the value in the units the user sees."""
+    value: object = from_raw(item.entry, raw).value
+    if isinstance(value, bytes):
+        value = value.hex(" ")
+    return {sent_key(item): value}
+
+
+def sent_value(item: Item, value: object) -> dict[str, object]:
+    """:func:`sent_values` of a write of ``value`` (as given), without the profile's range checks."""
+    try:
+        return sent_values(item, _unchecked_raw(item, value))
+    except (DriveBenchError, ValueError):
+        return {sent_key(item): value}
 
 
 def _unchecked_raw(item: Item, value: object) -> RawValue:
@@ -562,7 +585,8 @@ async def write(session: Session, node_id: int, ref: str, value: object, *, chec
     stopping = still and motion is not None and motion.kind == "control_word"
     with node_lease.stopping() if stopping else contextlib.nullcontext(), node_lease.writing(session, node_id):
         if motion is not None and not still:
-            session.part(MovingWrites).admit(node_id, f"Writing {item.ref} ({item.name}) = {value}")
+            session.part(MovingWrites).admit(node_id, f"Writing {item.ref} ({item.name}) = {value}",
+                                             sent_values(item, raw))
         result = await _write(session, node, item, raw, value, verify=verify)
     if stopping:
         session.part(MovingWrites).stopped(node_id)
