@@ -8,7 +8,9 @@ is answered the same way); a test of the confirmation checks the 428 and its fie
 
 from __future__ import annotations
 
+import html
 import json
+import re
 from collections.abc import Awaitable, Callable
 from typing import Any, TypeVar
 
@@ -28,20 +30,34 @@ def confirmation_of(problem: dict[str, Any]) -> tuple[object, object]:
 
 def confirmed(client: Any, method: str, url: str, **kwargs: Any) -> httpx.Response:
     """``client.request(method, url, **kwargs)``; a 428 is answered once with the confirmation it asks for (as body
-    fields when the request has a JSON body, else as the ``X-DriveBench-Confirm``/``-Values`` headers)."""
+    fields when the request has a JSON body, form fields for a form, else the ``X-DriveBench-Confirm``/``-Values``
+    headers). A request that names a node itself (``confirm`` in its body or form) is answered only when the 428 asks
+    about that node, and one that sends ``"confirm": None`` on purpose is not answered: such a test sees the 428."""
     first = client.request(method, url, **kwargs)
     if first.status_code != 428:
         return first
-    node, values = confirmation_of(first.json())
-    body = kwargs.pop("json", None)
+    node, values = confirmation_of(first.json() if "json" in first.headers.get("content-type", "") else
+                                   _from_fragment(first.text))
+    body, form = kwargs.pop("json", None), kwargs.pop("data", None)
+    named = (body if isinstance(body, dict) else form if isinstance(form, dict) else {}).get("confirm", ...)
+    if named is None or (named is not ... and str(named) != str(node)):
+        return first
     if isinstance(body, dict):
-        body = {**body, "confirm": node, "confirm_values": values}
-        return client.request(method, url, json=body, **kwargs)
-    headers = {**kwargs.pop("headers", {}), "X-DriveBench-Confirm": str(node)}
+        return client.request(method, url, json={**body, "confirm": node, "confirm_values": values}, **kwargs)
+    if isinstance(form, dict):
+        form = {**form, "confirm": str(node), "confirm_values": json.dumps(values)}
+        return client.request(method, url, data=form, **kwargs)
+    headers = {**(kwargs.pop("headers", None) or {}), "X-DriveBench-Confirm": str(node)}
     if values is not None:
         headers["X-DriveBench-Confirm-Values"] = json.dumps(values, separators=(",", ":"), sort_keys=True)
-    return client.request(method, url, json=body, headers=headers, **kwargs)
+    return client.request(method, url, json=body, data=form, headers=headers, **kwargs)
 
+
+def _from_fragment(text: str) -> dict[str, Any]:
+    """A page's 428 (an htmx error fragment): the node and values its data attributes carry, as app.js reads them."""
+    found = re.search(r'data-confirm-node="([^"]*)" data-confirm-values="([^"]*)"', text)
+    assert found, f"a 428 fragment names the node and values to confirm: {text[:300]}"
+    return {"confirm_node": html.unescape(found.group(1)), "confirm_values": json.loads(html.unescape(found.group(2)))}
 
 def _answer(exc: ConfirmationRequired, node: object) -> Confirmation:
     assert node is None or str(exc.node) == str(node), f"asked to confirm node {exc.node}, the test meant {node}"

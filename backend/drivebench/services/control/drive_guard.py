@@ -94,6 +94,8 @@ def parse_values(text: str | None) -> Values | None:
         parsed = json.loads(text)
     except ValueError as exc:
         raise InvalidValue(_("confirm_values is not JSON: {error}").format(error=str(exc)[:80])) from exc
+    if parsed is None:  # null: no values, as when absent
+        return None
     if not isinstance(parsed, dict):
         raise InvalidValue(_("confirm_values must be a JSON object (what the 428 named), not {kind}.").format(
             kind=type(parsed).__name__))
