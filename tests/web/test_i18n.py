@@ -232,7 +232,8 @@ def _script_messages(page: str) -> dict[str, str]:
 def test_the_control_and_pdo_scripts_texts_reach_the_page_in_german(client: TestClient) -> None:
     """control.js and pdo.js build texts in the browser: they are extracted, translated and handed to the page."""
     extracted = _extracted()
-    for text, script in (("armed by another panel", "control.js"), ("Hold to jog {way} at {value} {unit}", "control.js"),
+    for text, script in (("armed by another panel", "control.js"),
+                         ("Hold to jog {way} at {value} {unit}", "control.js"),
                          ("No entries: the PDO carries nothing.", "pdo.js"), ("byte {byte}: free", "pdo.js")):
         assert extracted.get(text, "").startswith(f"frontend/static/{script}"), text
     control = _script_messages(client.get(f"/sessions/{SESSION}/nodes/7?tab=control", headers=GERMAN).text)
