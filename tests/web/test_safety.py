@@ -70,7 +70,10 @@ def test_nmt_start_needs_the_confirmation_naming_the_node(client: TestClient, wi
     page = client.post(f"/ui/sessions/{DEMO}/nmt", data={"command": "start", "node_id": "5"})
     assert page.status_code == 428 and "confirm" in page.text
     assert not frames.nmt(0x01, MOTEC) and not frames.nmt(0x01, 0), "nothing started without the confirmation"
-    by_header = client.post(_node("/nmt"), json={"command": "start"}, headers={"X-DriveBench-Confirm": "5"})
+    assert client.post(_node("/nmt"), json={"command": "start"},
+                       headers={"X-DriveBench-Confirm": "5"}).status_code == 428  # the node without the values
+    by_header = client.post(_node("/nmt"), json={"command": "start"},
+                            headers={"X-DriveBench-Confirm": "5", "X-DriveBench-Confirm-Values": '{"NMT": "start"}'})
     assert by_header.status_code == 200 and frames.nmt(0x01, MOTEC)
     stopping = client.post(_node("/nmt"), json={"command": "pre-operational"})  # leaving Operational: no question
     assert stopping.status_code == 200 and frames.nmt(0x80, MOTEC)
