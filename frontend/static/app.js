@@ -104,6 +104,11 @@ function errorSlot(elt) {
 document.body.addEventListener("htmx:beforeSwap", (event) => {
   const xhr = event.detail.xhr;
   if (xhr.status < 400) return;
+  if (xhr.status === 428 && event.detail.requestConfig.elt.closest("[data-asks-moving]")) {
+    event.detail.shouldSwap = false;  // the page's dialog asks (below), naming the node and the values
+    event.detail.isError = false;
+    return;
+  }
   const replacing = event.detail.requestConfig.elt.closest("[data-error-swap]");
   if (replacing) {  // the error response is a re-rendered form with the error inside it
     event.detail.shouldSwap = true;
@@ -208,13 +213,15 @@ document.addEventListener("htmx:configRequest", (event) => {
   event.detail.headers["X-DriveBench-Client"] = window.drivebenchClientId;
 });
 
-// A write the server refuses with 428 (it can make a drive move: Parameters tab, parameter-set downloads) is asked
-// in the page's own dialog, in the server's words; confirmed, the form is sent again with the confirmation the
-// server named (the node id), which its hidden "confirm" input carries for that one request. Forms opt in with
-// data-asks-moving. The page's keep-alive socket (safety.js) then holds the node.
+// Anything that can make a drive move is confirmed with what it will send: the server refuses the request with 428
+// and names the node (confirm_node) and the values (confirm_values) it would send; the page's dialog lists them, and
+// confirmed, the same request goes again carrying both. The server refuses it again (a new dialog) when the values
+// it would send by then differ, so nothing is ever confirmed once for a page. Pages call drivebench.moving (fetch)
+// or opt in with data-asks-moving (htmx forms and buttons); the page's keep-alive socket then holds the node.
 (() => {
   const _ = window.drivebench.gettext;
   let dialog = null;
+
   function askDialog() {
     if (dialog) return dialog;
     dialog = document.createElement("dialog");
@@ -225,6 +232,8 @@ document.addEventListener("htmx:configRequest", (event) => {
     head.textContent = _("The drive may move");
     const text = document.createElement("p");
     text.className = "moving-confirm-text";
+    const values = document.createElement("ul");
+    values.className = "moving-confirm-values";
     const note = document.createElement("p");
     note.className = "muted";
     note.textContent = _("Once sent, this page keeps the node alive (every 0.5 s); when the page closes or the " +
@@ -238,32 +247,111 @@ document.addEventListener("htmx:configRequest", (event) => {
       button.className = cls;
       row.append(button);
     }
-    form.append(head, text, note, row);
+    form.append(head, text, values, note, row);
     dialog.append(form);
     document.body.append(dialog);
     return dialog;
   }
 
-  document.body.addEventListener("htmx:afterRequest", (event) => {
+  // "0x60FF Target velocity [rpm]": 2500 -> "0x60FF Target velocity: 2500 rpm" (the unit travels in the name)
+  function valueLine(key, value) {
+    const unit = key.match(/^(.*) \[([^\]]+)\]$/);
+    const shown = typeof value === "boolean" ? (value ? _("yes") : _("no"))
+      : Array.isArray(value) ? value.join(", ") : String(value);
+    return unit ? `${unit[1]}: ${shown} ${unit[2]}` : `${key}: ${shown}`;
+  }
+
+  // Show the question of a 428 problem in ``host`` (the page's own dialog, else the shared one): what will be sent
+  // to which node, each value with its unit (text only). Resolves true when confirmed. With ``hold`` the confirm
+  // button is itself hold-to-run: pressing it calls hold.press(), releasing it hold.release(); the dialog stays
+  // open for the next press until it is closed (resolves false then).
+  function ask(problem, { host = null, what = "", okLabel = "", hold = null } = {}) {
+    const box = host || askDialog();
+    const node = problem.confirm_node;
+    const text = box.querySelector(".moving-confirm-text");
+    const whom = node === "all" ? _("every node of the session") : _("node {node}", { node });
+    text.textContent = what ? _("{what}: sends to {whom}:", { what, whom }) : _("Sends to {whom}:", { whom });
+    const list = box.querySelector(".moving-confirm-values");
+    list.replaceChildren(...Object.entries(problem.confirm_values || {}).map(([key, value]) => {
+      const li = document.createElement("li");
+      li.className = "mono";
+      li.textContent = valueLine(key, value);
+      return li;
+    }));
+    const ok = box.querySelector("button[value=ok]");
+    const label = ok.dataset.label || ok.textContent;
+    ok.dataset.label = label;
+    ok.textContent = okLabel || label;
+    box.returnValue = "";
+    return new Promise((resolve) => {
+      const off = [];
+      if (hold) {
+        let held = false;
+        const press = (event) => { event.preventDefault(); held = true; ok.classList.add("held"); hold.press(); };
+        const release = () => { if (!held) return; held = false; ok.classList.remove("held"); hold.release(); };
+        const click = (event) => event.preventDefault();  // a click does not close it: holding runs, release stops
+        ok.addEventListener("pointerdown", press);
+        ok.addEventListener("click", click);
+        for (const name of ["pointerup", "pointerleave", "pointercancel"]) ok.addEventListener(name, release);
+        off.push(() => {
+          release();
+          ok.removeEventListener("pointerdown", press);
+          ok.removeEventListener("click", click);
+          for (const name of ["pointerup", "pointerleave", "pointercancel"]) ok.removeEventListener(name, release);
+        });
+      }
+      box.addEventListener("close", () => {
+        off.forEach((undo) => undo());
+        ok.textContent = label;
+        resolve(!hold && box.returnValue === "ok");
+      }, { once: true });
+      box.showModal();
+    });
+  }
+
+  // send(confirmation) makes the request (confirmation: null, or {confirm, confirm_values} to add) and answers
+  // {status, data}; a 428 is asked (options as ask) and sent again confirmed, as often as the server asks anew.
+  // Answers the last {status, data}, or null when the user cancelled.
+  async function moving(send, options = {}) {
+    let answer = await send(null);
+    while (answer.status === 428 && answer.data && "confirm_node" in answer.data) {
+      if (!await ask(answer.data, options)) return null;
+      answer = await send({ confirm: answer.data.confirm_node, confirm_values: answer.data.confirm_values });
+    }
+    return answer;
+  }
+  window.drivebench.askMoving = ask;
+  window.drivebench.moving = moving;
+
+  // htmx: an element (or the form around it) with data-asks-moving that gets a 428 fragment asks; confirmed, the
+  // same element sends again, with the node and values added to that one request only.
+  const pending = new WeakMap();
+  document.body.addEventListener("htmx:configRequest", (event) => {
+    const confirmation = pending.get(event.detail.elt);
+    if (!confirmation) return;
+    pending.delete(event.detail.elt);
+    event.detail.parameters.confirm = String(confirmation.confirm);
+    event.detail.parameters.confirm_values = JSON.stringify(confirmation.confirm_values);
+  });
+  document.body.addEventListener("htmx:confirm", (event) => {
+    if (!pending.has(event.detail.elt)) return;
+    event.preventDefault();  // its own question (hx-confirm) was answered before the server asked
+    event.detail.issueRequest(true);
+  });
+  document.body.addEventListener("htmx:afterRequest", async (event) => {
     const elt = event.detail.elt;
-    const form = elt.closest && elt.closest("form[data-asks-moving]");
-    if (!form) return;
-    const hidden = form.querySelector("input[name=confirm]");
-    if (hidden) hidden.value = "";  // a confirmation answers one question only
-    if (event.detail.xhr.status !== 428 || !hidden) return;
-    // the server's answer, read as text in an inert document (nothing in it runs or loads)
-    const text = new DOMParser().parseFromString(event.detail.xhr.responseText, "text/html").body.textContent.trim();
-    const named = text.match(/confirm = '([^']+)'/);
-    if (!named) return;
-    const ask = askDialog();
-    ask.querySelector(".moving-confirm-text").textContent = text;
-    ask.returnValue = "";
-    ask.addEventListener("close", () => {
-      if (ask.returnValue !== "ok") return;
-      hidden.value = named[1];
-      htmx.trigger(elt, elt === form ? "submit" : "click");
-    }, { once: true });
-    ask.showModal();
+    if (!elt.closest || !elt.closest("[data-asks-moving]") || event.detail.xhr.status !== 428) return;
+    // the server's answer, read in an inert document (nothing in it runs or loads)
+    const found = new DOMParser().parseFromString(event.detail.xhr.responseText, "text/html")
+      .querySelector("[data-confirm-node]");
+    if (!found) return;
+    let values = {};
+    try { values = JSON.parse(found.dataset.confirmValues || "{}"); } catch (e) { return; }
+    const node = /^\d+$/.test(found.dataset.confirmNode) ? Number(found.dataset.confirmNode) : found.dataset.confirmNode;
+    const problem = { confirm_node: node, confirm_values: values };
+    if (!await ask(problem)) return;
+    pending.set(elt, { confirm: node, confirm_values: values });
+    htmx.trigger(elt, elt.tagName === "FORM" ? "submit" : "click");
   });
 })();
 // --- end safety interlocks ---------------------------------------------------------------------------------

@@ -54,28 +54,29 @@
     function showError(box, slot = result) { slot.replaceChildren(box); }
     function clearError(slot = result) { slot.innerHTML = ""; }
 
-    function confirmMove(text) {
-      return new Promise((resolve) => {
-        panel.querySelector("#ctl-confirm-text").textContent = text;
-        dialog.returnValue = "";
-        dialog.addEventListener("close", () => resolve(dialog.returnValue === "ok"), { once: true });
-        dialog.showModal();
-      });
-    }
-
-    async function call(method, url, body, slot = result) {
+    async function request(method, url, body) {
       const headers = { "Content-Type": "application/json", "X-Drive-Panel": panelId,
                         "X-Drive-Operator": encodeURIComponent(operator()) };
-      // safety interlocks: a confirmed command names its node (the server answers 428 to a bare true)
-      if (body && body.confirm === true) body = { ...body, confirm: api.split("/nodes/")[1].split("/")[0] };
       const response = await fetch(url, { method, headers,
                                          body: body === undefined ? undefined : JSON.stringify(body) });
       let data = null;
       try { data = await response.json(); } catch (e) { data = null; }
-      if (!response.ok) { showError(window.drivebench.problemBox(data, response.status), slot); return null; }
+      return { status: response.status, data };
+    }
+
+    function shown(answer, slot = result) {
+      if (!answer) return null;  // the question was cancelled
+      if (answer.status >= 400) { showError(window.drivebench.problemBox(answer.data, answer.status), slot); return null; }
       freshUntil = performance.now() + 600;
       clearError(slot);
-      return data;
+      return answer.data;
+    }
+
+    // Safety interlocks: whatever can make the motor turn is refused (428) with the node and the values the server
+    // would send; the dialog shows them and, confirmed, the same request goes again with both (app.js: moving).
+    async function call(method, url, body, slot = result, what = "") {
+      const send = (confirmation) => request(method, url, confirmation ? { ...(body || {}), ...confirmation } : body);
+      return shown(await window.drivebench.moving(send, { host: dialog, what }), slot);
     }
 
     function render(status) {
@@ -196,12 +197,7 @@
     }, 500);
 
     async function command(key, label) {
-      let confirm = false;
-      if (moving.has(key)) {
-        confirm = await confirmMove(_("{command}: after this command the motor may turn.", { command: label }));
-        if (!confirm) return;
-      }
-      const status = await call("POST", `${api}/commands/${key}`, { confirm });
+      const status = await call("POST", `${api}/commands/${key}`, {}, result, moving.has(key) ? label : "");
       if (status) render(status);
     }
 
@@ -213,54 +209,52 @@
       event.preventDefault();
       const value = parseFloat(event.target.value.value);
       if (Number.isNaN(value)) { showError(window.drivebench.errorBox(_("Setpoint"), _("enter a number"))); return; }
-      let confirm = false;
-      if (value !== 0) {
-        confirm = await confirmMove(_("Setpoint {value} {unit}: the motor may turn.",
-                                        { value, unit: panel.querySelector("#ctl-sp-unit").textContent }));
-        if (!confirm) return;
-      }
-      const status = await call("PUT", `${api}/setpoint`, { value, confirm });
+      const status = await call("PUT", `${api}/setpoint`, { value }, result, _("Setpoint"));
       if (status) render(status);
     });
 
-    // Jog is hold-to-run: confirmed once for this page, then it turns while the button is held (pointer down)
-    // and stops on release; the keep-alive stops it too if the page goes away mid-jog.
-    let jogConfirmed = false;
+    // Jog is hold-to-run. A press asks the server, which names what it would send (428); the dialog lists it and its
+    // confirm button is the hold-to-run button for exactly that jog: the motor turns while it is held and stops on
+    // release (the keep-alive stops it too if the page goes away mid-jog). Every press asks again, so a changed
+    // speed is always what the dialog shows.
+    let jogQueue = Promise.resolve();  // start and stop go out in the order pressed and released
+    const jogSend = (body) => (jogQueue = jogQueue.then(() => request("POST", `${api}/jog`, body)));
     panel.querySelectorAll("[data-jog]").forEach((button) => {
-      let jogging = false;
-      const start = async (event) => {
+      const direction = Number(button.dataset.jog);
+      button.addEventListener("pointerdown", async (event) => {
         event.preventDefault();
-        if (!jogConfirmed) {
-          const how = panel.querySelector("#ctl-jog-how");
-          jogConfirmed = await confirmMove(_("Jog: the motor turns at {value} {unit} while a jog button is held.",
-                                             { value: how.dataset.value, unit: how.dataset.unit }));
-          return;  // the next press jogs
-        }
-        jogging = true;
-        button.classList.add("held");
         const speedInput = panel.querySelector("#ctl-jog-speed");
         const speed = speedInput ? parseFloat(speedInput.value) : NaN;
-        await call("POST", `${api}/jog`, { direction: Number(button.dataset.jog), confirm: true,
-                                           ...(Number.isNaN(speed) ? {} : { speed }) });
-      };
-      const stop = async () => {
-        if (!jogging) return;
-        jogging = false;
-        button.classList.remove("held");
-        await call("POST", `${api}/jog`, { direction: 0, confirm: false });
-      };
-      button.addEventListener("pointerdown", start);
-      for (const name of ["pointerup", "pointerleave", "pointercancel"]) button.addEventListener(name, stop);
+        const body = { direction, ...(Number.isNaN(speed) ? {} : { speed }) };
+        const asked = await jogSend(body);
+        if (asked.status !== 428 || !asked.data || !("confirm_node" in asked.data)) {
+          if (shown(asked)) await jogSend({ direction: 0 });  // never runs unconfirmed: stopped at once
+          return;
+        }
+        const how = panel.querySelector("#ctl-jog-how");
+        const way = direction > 0 ? _("forward") : _("reverse");
+        const okLabel = _("Hold to jog {way} at {value} {unit}", { way,
+          value: Number.isNaN(speed) ? how.dataset.value : speed, unit: how.dataset.unit });
+        const confirmation = { confirm: asked.data.confirm_node, confirm_values: asked.data.confirm_values };
+        await window.drivebench.askMoving(asked.data, { host: dialog, what: button.textContent.trim(), okLabel, hold: {
+          press: async () => {
+            const answer = await jogSend({ ...body, ...confirmation });
+            if (answer.status === 428) dialog.close();  // it would send something else now: press Jog again
+            const status = shown(answer);
+            if (status) render(status);
+          },
+          release: async () => { const status = shown(await jogSend({ direction: 0 })); if (status) render(status); },
+        } });
+      });
     });
 
     panel.querySelectorAll("input[name=ctl-mode]").forEach((radio) => radio.addEventListener("change", async () => {
-      const status = await call("PUT", `${api}/mode`, { mode: Number(radio.value), confirm: false });
+      const status = await call("PUT", `${api}/mode`, { mode: Number(radio.value) });
       if (status) render(status);
     }));
 
     // --- CiA 402 motion (a drive without a vendor control section): profile position, profile velocity, homing ---
     const motion = panel.querySelector("#ctl-motion");
-    async function confirmed(text) { return await confirmMove(_("{what}: the motor may turn.", { what: text })); }
     if (motion) {
       const { positionUnit } = motion.dataset;
       motion.querySelector("#ctl-move").addEventListener("submit", async (event) => {
@@ -271,9 +265,8 @@
         if (Number.isNaN(target)) { showError(window.drivebench.errorBox(_("Target"), _("enter a number"))); return; }
         const move = form.relative.checked ? _("Move by {target} {unit}", { target, unit: positionUnit })
           : _("Move to {target} {unit}", { target, unit: positionUnit });
-        if (!await confirmed(move)) return;
         const status = await call("POST", `${api}/move`, { target, relative: form.relative.checked,
-          immediate: form.immediate.checked, confirm: true, ...(Number.isNaN(velocity) ? {} : { velocity }) });
+          immediate: form.immediate.checked, ...(Number.isNaN(velocity) ? {} : { velocity }) }, result, move);
         if (status) render(status);
       });
       motion.querySelectorAll("form[data-mode]").forEach((form) => form.addEventListener("submit", async (event) => {
@@ -281,9 +274,8 @@
         const mode = Number(form.dataset.mode);
         const value = parseFloat(form.value.value);
         if (Number.isNaN(value)) { showError(window.drivebench.errorBox(_("Target"), _("enter a number"))); return; }
-        if (value !== 0 && !await confirmed(_("Target {value} {unit} (mode {mode})", { value, unit: form.dataset.unit, mode }))) return;
-        if (currentMode !== mode && !await call("PUT", `${api}/mode`, { mode, confirm: true })) return;
-        const status = await call("PUT", `${api}/setpoint`, { value, confirm: value !== 0 });
+        if (currentMode !== mode && !await call("PUT", `${api}/mode`, { mode })) return;
+        const status = await call("PUT", `${api}/setpoint`, { value }, result, _("Target (mode {mode})", { mode }));
         if (status) render(status);
       }));
       const cyclicForm = motion.querySelector("#ctl-cyclic");
@@ -292,8 +284,7 @@
           event.preventDefault();
           const value = parseFloat(event.target.value.value);
           if (Number.isNaN(value)) { showError(window.drivebench.errorBox(_("Target"), _("enter a number"))); return; }
-          if (!await confirmed(_("Cyclic synchronous setpoint {value}", { value }))) return;
-          const sent = await call("POST", `${api}/cyclic`, { value, confirm: true });
+          const sent = await call("POST", `${api}/cyclic`, { value }, result, _("Cyclic synchronous setpoint"));
           if (sent) result.textContent = _("RPDO{rpdo} ({cob_id}) every {period} ms with SYNC: {data}", { rpdo: sent.rpdo,
             cob_id: `0x${sent.cob_id.toString(16).toUpperCase()}`, period: sent.period_ms, data: sent.data });
         });
@@ -306,8 +297,8 @@
       if (homeForm) homeForm.addEventListener("submit", async (event) => {
         event.preventDefault();
         const select = event.target.method;
-        if (!await confirmed(_("Homing, method {method}", { method: select.options[select.selectedIndex].text }))) return;
-        const status = await call("POST", `${api}/home`, { method: Number(select.value), confirm: true });
+        const status = await call("POST", `${api}/home`, { method: Number(select.value) }, result,
+                                  _("Homing, method {method}", { method: select.options[select.selectedIndex].text }));
         if (status) render(status);
       });
     }
@@ -354,14 +345,10 @@
         const current = await call("GET", `${api}/runs/${runId}`);
         if (!current) return;
         const step = current.steps[current.position];
-        let confirm = false;
-        if (step && step.moves) {
-          confirm = await confirmMove(_("Step {number}: {title}.", { number: step.number, title: step.title }));
-          if (!confirm) return;
-        }
         nextButton.disabled = true;
         const slot = document.createElement("div");
-        const run = await call("POST", `${api}/runs/${runId}/next`, { confirm }, slot);
+        const what = step ? _("Step {number}: {title}", { number: step.number, title: step.title }) : "";
+        const run = await call("POST", `${api}/runs/${runId}/next`, {}, slot, what);
         if (run) renderRun(run); else { runBox.prepend(slot); nextButton.disabled = refused || watching; }
       });
     }

@@ -34,6 +34,7 @@ from drivebench.services.storage import database
 from drivebench.services.users import audit
 from drivebench.simulator.plant import Plant
 from drivebench.web.app import create_app
+from tests.confirming import confirmed
 from tests.conftest import DEMO_PLANT, fresh_channel
 
 SESSION = "demo-plant"
@@ -243,14 +244,15 @@ def test_download_keeps_writing_to_a_node_that_missed_two_answers(demo_api: Test
                         json={"timeout_s": 0.3, "retries": 0, "use_sdo2": False}).status_code == 200
     set_faults(demo_api, 5, drop_downloads=2)
 
-    job = set_job_done(demo_api, demo_api.post(f"{sets}/{new_id}/download",
-                                               json={"session_id": SESSION, "node_id": 5, "confirm": 5}).json())
+    job = set_job_done(demo_api, confirmed(demo_api, "POST", f"{sets}/{new_id}/download",
+                                           json={"session_id": SESSION, "node_id": 5, "confirm": 5}).json())
     statuses = {line["ref"]: line["status"] for line in job["report"] if line["ref"] in changes}
     assert sorted(statuses.values()) == ["failed", "failed", "written", "written", "written"], job["report"]
     assert not any("stopped answering" in (line["detail"] or "") for line in job["report"])
 
-    retried = set_job_done(demo_api, demo_api.post(f"/api/parameter-downloads/{job['download_id']}/retry",
-                                                   json={"confirm": 5}).json())
+    retried = set_job_done(demo_api, confirmed(demo_api, "POST",
+                                               f"/api/parameter-downloads/{job['download_id']}/retry",
+                                               json={"confirm": 5}).json())
     assert {line["status"] for line in retried["report"] if line["ref"] in changes} <= {"written", "unchanged"}
     assert demo_api.get(f"{NODE}/5/parameters/C00088").json()["display"] == "12.50 A"
 

@@ -17,6 +17,7 @@ from drivebench.services.control import drive_control, drive_guard
 from drivebench.services.control.drive_control import DriveStatus, describe
 from drivebench.services.control.drive_words import Command, Family, family_of_profile
 from drivebench.simulator.plant import Plant
+from tests.confirming import confirmed_call
 from tests.services.conftest import set_up
 
 T = TypeVar("T")
@@ -47,8 +48,10 @@ class Bench:
 
     def command(self, node_id: int, which: Command, confirm: bool = False) -> DriveStatus:
         """``confirm`` names the node, as the safety interlock wants it."""
-        return self.run(drive_control.command(self.session, self.session.node(node_id), which,
-                                              confirm=node_id if confirm else None))
+        node = self.session.node(node_id)
+        if not confirm:
+            return self.run(drive_control.command(self.session, node, which))
+        return self.run(confirmed_call(drive_control.command, self.session, node, which, confirm=node_id))
 
     def until(self, node_id: int, state: str, timeout_s: float = 8.0) -> DriveStatus:
         deadline = time.monotonic() + timeout_s
@@ -101,8 +104,9 @@ def test_micromaster_first_run_and_back(bench: Bench) -> None:
     assert status.state == "operation_enabled" and status.armed and status.control_word == 0x0F
     drive_control.guard_for(bench.session).keepalive(MM)
     with pytest.raises(OutOfRange):
-        bench.run(drive_control.set_setpoint(bench.session, bench.session.node(MM), 9000, confirm=MM))
-    status = bench.run(drive_control.set_setpoint(bench.session, bench.session.node(MM), 300, confirm=MM))
+        bench.run(confirmed_call(drive_control.set_setpoint, bench.session, bench.session.node(MM), 9000, confirm=MM))
+    status = bench.run(confirmed_call(drive_control.set_setpoint, bench.session, bench.session.node(MM), 300,
+                                      confirm=MM))
     assert status.control_word == 0x7F  # velocity mode: RFG enable/start/setpoint enable
     deadline = time.monotonic() + 8
     while (speed := bench.run(drive_control.read_actuals(bench.session, bench.session.node(MM)))[0]).value != 300:
@@ -182,7 +186,7 @@ def test_8200_vector_enable_setpoint_in_hz_and_inhibit(bench: Bench) -> None:
     assert status.control_bits[9].name == "Controller inhibit (AIF-CTRL-CINH)" and status.control_bits[9].set
     status = bench.command(VECTOR, Command.ENABLE_OPERATION, confirm=True)
     assert status.state == "operation_enabled" and status.setpoint_unit == "Hz"
-    bench.run(drive_control.set_setpoint(bench.session, bench.session.node(VECTOR), 25, confirm=VECTOR))
+    bench.run(confirmed_call(drive_control.set_setpoint, bench.session, bench.session.node(VECTOR), 25, confirm=VECTOR))
     assert bench.plant.nodes[VECTOR].store.get_ref("C1822/2") == 1250  # 24000 = 480 Hz
     deadline = time.monotonic() + 8
     while (actual := bench.run(drive_control.read_actuals(bench.session, bench.session.node(VECTOR)))[0]).value != 25:
@@ -210,27 +214,30 @@ def test_the_panel_that_armed_the_drive_holds_it(bench: Bench) -> None:
     bench.until(MM, "switch_on_disabled")
     node = bench.session.node(MM)
     bench.command(MM, Command.SHUTDOWN)
-    status = bench.run(drive_control.command(bench.session, node, Command.ENABLE_OPERATION, confirm=MM, panel=ANNA))
+    status = bench.run(confirmed_call(drive_control.command, bench.session, node, Command.ENABLE_OPERATION,
+                                      confirm=MM, panel=ANNA))
     assert status.you_hold and status.holder and status.holder.startswith("Anna at 10.0.0.7 since ")
     seen_by_ben = bench.run(drive_control.read_status(bench.session, node, BEN))
     assert seen_by_ben.armed and not seen_by_ben.you_hold and seen_by_ben.holder == status.holder
-    refused = [drive_control.set_setpoint(bench.session, node, 100, confirm=node.node_id, panel=BEN),
+    refused = [confirmed_call(drive_control.set_setpoint, bench.session, node, 100, confirm=node.node_id, panel=BEN),
                drive_control.set_setpoint(bench.session, node, 0, panel=BEN),
-               drive_control.jog(bench.session, node, 1, confirm=node.node_id, panel=BEN),
-               drive_control.set_mode(bench.session, node, 2, confirm=node.node_id, panel=BEN),
-               drive_control.command(bench.session, node, Command.ENABLE_OPERATION, confirm=node.node_id, panel=BEN)]
+               confirmed_call(drive_control.jog, bench.session, node, 1, confirm=node.node_id, panel=BEN),
+               confirmed_call(drive_control.set_mode, bench.session, node, 2, confirm=node.node_id, panel=BEN),
+               confirmed_call(drive_control.command, bench.session, node, Command.ENABLE_OPERATION,
+                              confirm=node.node_id, panel=BEN)]
     for attempt in refused:
         with pytest.raises(Conflict, match=r"held by Anna at 10\.0\.0\.7"):
             bench.run(attempt)
     guard = drive_control.guard_for(bench.session)
     assert not guard.keepalive(MM, BEN) and guard.keepalive(MM, ANNA)
-    bench.run(drive_control.set_setpoint(bench.session, node, 100, confirm=node.node_id, panel=ANNA))
+    bench.run(confirmed_call(drive_control.set_setpoint, bench.session, node, 100, confirm=node.node_id, panel=ANNA))
     assert bench.plant.nodes[MM].store.get_ref("0x6042") == 100
     stopped = bench.run(drive_control.command(bench.session, node, Command.QUICK_STOP, panel=BEN))
     assert not stopped.armed and stopped.holder is None  # any panel may stop the drive; that frees it
     bench.until(MM, "switch_on_disabled")
     bench.command(MM, Command.SHUTDOWN)
-    status = bench.run(drive_control.command(bench.session, node, Command.ENABLE_OPERATION, confirm=node.node_id,
+    status = bench.run(confirmed_call(drive_control.command, bench.session, node, Command.ENABLE_OPERATION,
+                                      confirm=node.node_id,
                                              panel=BEN))
     assert status.you_hold and status.holder and status.holder.startswith("Ben")
     bench.command(MM, Command.DISABLE_VOLTAGE)
@@ -261,7 +268,7 @@ def test_8200_vector_jogs_with_its_own_jog1(bench: Bench) -> None:
     with pytest.raises(ConfirmationRequired, match="confirm"):
         bench.run(drive_control.jog(bench.session, node, 1))
     for direction, hz in ((1, 20), (-1, -20), (0, 0)):
-        status = bench.run(drive_control.jog(bench.session, node, direction, confirm=node.node_id))
+        status = bench.run(confirmed_call(drive_control.jog, bench.session, node, direction, confirm=node.node_id))
         assert status.control_word is not None
         assert status.control_word & 0x07 == {1: 0x01, -1: 0x05, 0: 0x00}[direction]
         assert bench.plant.nodes[VECTOR].store.get_ref("C1822/2") == 0  # no setpoint: the device's JOG1 runs

@@ -25,6 +25,7 @@ from drivebench.services.params import parameters
 from drivebench.services.session_manager import SessionServices
 from drivebench.simulator.ethercat import SimulatedSlave
 from drivebench.transport.ethercat_soem import DirectSpec, SoemLink
+from tests.confirming import confirmed_call
 from tests.protocol.soem_fake import fake_pysoem
 from tests.services.test_ethercat_session import PROFILE, _run
 
@@ -65,7 +66,7 @@ def test_a_direct_master_session_reads_writes_and_changes_states_like_the_gatewa
 
             with pytest.raises(ConfirmationRequired):
                 await drive_guard.nmt(session, NmtCommand.START, 1)
-            await drive_guard.nmt(session, NmtCommand.START, 1, confirm="1")  # Pre-Op -> Safe-Op -> Op
+            await confirmed_call(drive_guard.nmt, session, NmtCommand.START, 1, confirm="1")  # Pre-Op -> Safe-Op -> Op
             assert session.nmt_state(1) == ("Operational", True) and drive_guard.guard_for(session).armed(1)
             await drive_guard.guard_for(session).trip(1, "test: keep-alive lost")
             assert units[0].state is esm.EsmState.PRE_OPERATIONAL

@@ -20,6 +20,7 @@ from drivebench.services.monitoring.monitor import monitor_for
 from drivebench.services.params import parameters
 from drivebench.services.session_manager import SessionManager
 from drivebench.simulator.ethercat import GatewayServer, SimulatedSlave
+from tests.confirming import confirmed_call
 from tests.conftest import wait_until
 from tests.transport.test_multiprocess import run_outside_playwright
 
@@ -123,7 +124,7 @@ def test_nmt_commands_change_the_ethercat_state_through_the_safety_guard(registr
         async with _open(registry, gateway.spec) as (_, session):
             with pytest.raises(ConfirmationRequired, match="confirm it with confirm = '1'"):
                 await drive_guard.nmt(session, NmtCommand.START, 1)
-            await drive_guard.nmt(session, NmtCommand.START, 1, confirm="1")
+            await confirmed_call(drive_guard.nmt, session, NmtCommand.START, 1, confirm="1")
             assert gateway.slaves[1001].state is esm.EsmState.OPERATIONAL
             assert session.nmt_state(1) == ("Operational", True)
             assert drive_guard.guard_for(session).armed(1)  # kept alive by the page, or stopped

@@ -28,6 +28,7 @@ from drivebench.services.params import parameters
 from drivebench.services.pdos import process_data as live
 from drivebench.simulator.plant import Plant
 from drivebench.simulator.servo402 import INDEX_AT, LIMIT_REVS, MAX_STEP_S, Servo402
+from tests.confirming import confirmed_call
 
 T = TypeVar("T")
 AXIS = 7
@@ -67,10 +68,11 @@ class Axis:
         self.until(lambda status: status.state == "switch_on_disabled", "power-up")
         for command in (Command.SHUTDOWN, Command.SWITCH_ON):
             self.run(drive_control.command(self.session, self.node, command))
-        return self.run(drive_control.command(self.session, self.node, Command.ENABLE_OPERATION, confirm=AXIS))
+        return self.run(confirmed_call(drive_control.command, self.session, self.node, Command.ENABLE_OPERATION,
+                                       confirm=AXIS))
 
     def home(self, method: int) -> DriveStatus:
-        self.run(motion.home(self.session, self.node, method, confirm=AXIS))
+        self.run(confirmed_call(motion.home, self.session, self.node, method, confirm=AXIS))
         return self.until(lambda status: status.status_bits[12].set and status.status_bits[10].set,
                           f"homing with method {method}", timeout_s=20)
 
@@ -172,7 +174,7 @@ def test_a_method_0x60E3_does_not_list_is_refused_in_words(axis: Axis) -> None:
     axis.enable()
     with pytest.raises(InvalidValue, match=r"Homing method 34 \(Index pulse in positive direction\) is not among "
                                            r"the supported homing methods 0x60E3 of .* \(1, 2, 3\)"):
-        axis.run(motion.home(axis.session, axis.node, 34, confirm=AXIS))
+        axis.run(confirmed_call(motion.home, axis.session, axis.node, 34, confirm=AXIS))
     assert axis.read("0x6098") == 35 and axis.status().mode != 6
 
 
@@ -190,7 +192,7 @@ def test_a_home_switch_method_started_away_from_its_switch_ends_in_a_homing_erro
     """Method 3 seeks a positive home switch: the switch is off above the cam, so it starts positive, runs onto the
     positive limit switch and (CiA 402 gives 3 ... 6 no reversal there) reports homing error, status bit 13."""
     axis.enable()
-    axis.run(motion.home(axis.session, axis.node, 3, confirm=AXIS))
+    axis.run(confirmed_call(motion.home, axis.session, axis.node, 3, confirm=AXIS))
     status = axis.until(lambda status: status.status_bits[13].set, "homing error", timeout_s=20)
     assert not status.status_bits[12].set and status.inputs[1].name == "Positive limit switch"
     assert axis.drive.demand == LIMIT_REVS * axis.drive.increments_per_rev
@@ -199,22 +201,22 @@ def test_a_home_switch_method_started_away_from_its_switch_ends_in_a_homing_erro
 def test_profile_position_absolute_relative_and_target_reached(axis: Axis) -> None:
     axis.enable()
     axis.home(35)
-    axis.run(motion.move(axis.session, axis.node, 720, confirm=AXIS))
+    axis.run(confirmed_call(motion.move, axis.session, axis.node, 720, confirm=AXIS))
     status = axis.until(lambda status: status.status_bits[10].set and axis.read("0x6064") == 720, "at 720 °")
     assert status.mode == 1 and not status.status_bits[12].set  # set-point acknowledge taken back with bit 4
-    axis.run(motion.move(axis.session, axis.node, -90, relative=True, velocity=300, confirm=AXIS))
+    axis.run(confirmed_call(motion.move, axis.session, axis.node, -90, relative=True, velocity=300, confirm=AXIS))
     axis.until(lambda status: status.status_bits[10].set and axis.read("0x6064") == 630, "at 630 °")
     assert axis.read("0x6081") == 300
     with pytest.raises(OutOfRange, match="software position limits"):
-        axis.run(motion.move(axis.session, axis.node, 5000, confirm=AXIS))
+        axis.run(confirmed_call(motion.move, axis.session, axis.node, 5000, confirm=AXIS))
     with pytest.raises(OutOfRange, match="0x607F"):
-        axis.run(motion.move(axis.session, axis.node, 0, velocity=9000, confirm=AXIS))
+        axis.run(confirmed_call(motion.move, axis.session, axis.node, 0, velocity=9000, confirm=AXIS))
 
 
 def test_profile_velocity_and_jog_at_a_user_set_speed(axis: Axis) -> None:
     axis.enable()
-    axis.run(drive_control.set_mode(axis.session, axis.node, 3, confirm=AXIS))
-    status = axis.run(drive_control.set_setpoint(axis.session, axis.node, 300, confirm=AXIS))
+    axis.run(confirmed_call(drive_control.set_mode, axis.session, axis.node, 3, confirm=AXIS))
+    status = axis.run(confirmed_call(drive_control.set_setpoint, axis.session, axis.node, 300, confirm=AXIS))
     assert (status.setpoint_ref, status.setpoint_unit, status.setpoint_max) == ("0x60FF", "rpm", 3000)
     axis.until(lambda status: status.status_bits[10].set and axis.read("0x606C") == 300, "at 300 rpm")
     axis.run(drive_control.set_setpoint(axis.session, axis.node, 0))
@@ -223,8 +225,8 @@ def test_profile_velocity_and_jog_at_a_user_set_speed(axis: Axis) -> None:
     with pytest.raises(ConfirmationRequired):
         axis.run(drive_control.jog(axis.session, axis.node, 1, speed=120))
     with pytest.raises(OutOfRange, match="0x607F"):
-        axis.run(drive_control.jog(axis.session, axis.node, 1, speed=5000, confirm=AXIS))
-    axis.run(drive_control.jog(axis.session, axis.node, -1, speed=120, confirm=AXIS))
+        axis.run(confirmed_call(drive_control.jog, axis.session, axis.node, 1, speed=5000, confirm=AXIS))
+    axis.run(confirmed_call(drive_control.jog, axis.session, axis.node, -1, speed=120, confirm=AXIS))
     axis.until(lambda _: axis.read("0x606C") == -120, "jogging at -120 rpm")
     axis.run(drive_control.jog(axis.session, axis.node, 0))
     axis.until(lambda _: axis.read("0x606C") == 0, "jog released")
@@ -232,11 +234,12 @@ def test_profile_velocity_and_jog_at_a_user_set_speed(axis: Axis) -> None:
 
 def test_a_limit_switch_stops_the_axis(axis: Axis) -> None:
     axis.enable()
-    axis.run(drive_control.set_mode(axis.session, axis.node, 3, confirm=AXIS))
-    axis.run(drive_control.set_setpoint(axis.session, axis.node, 3000, confirm=AXIS))
+    axis.run(confirmed_call(drive_control.set_mode, axis.session, axis.node, 3, confirm=AXIS))
+    axis.run(confirmed_call(drive_control.set_setpoint, axis.session, axis.node, 3000, confirm=AXIS))
     status = axis.until(lambda status: status.status_bits[11].set, "internal limit active at the switch")
     assert status.inputs[1].set and axis.read("0x606C") == 0
-    axis.run(drive_control.set_setpoint(axis.session, axis.node, -300, confirm=AXIS))  # away from it: free
+    # away from it: free
+    axis.run(confirmed_call(drive_control.set_setpoint, axis.session, axis.node, -300, confirm=AXIS))
     axis.until(lambda status: not status.inputs[1].set and not status.status_bits[11].set, "off the switch")
 
 
@@ -256,12 +259,13 @@ def test_following_error_faults_with_emcy_and_fault_reset_clears_it(axis: Axis) 
         axis.enable()
         axis.home(35)
         axis.drive.jam()
-        axis.run(motion.move(axis.session, axis.node, 360, confirm=AXIS))
+        axis.run(confirmed_call(motion.move, axis.session, axis.node, 360, confirm=AXIS))
         status = axis.until(lambda status: status.state == "fault", "following error fault")
         assert (status.error_code, status.error_text) == (0x8611, "Following error")
         assert seen.wait(5) and frames[0][:2] == bytes([0x11, 0x86])
         axis.drive.jam(False)
-        status = axis.run(drive_control.command(axis.session, axis.node, Command.FAULT_RESET, confirm=AXIS))
+        status = axis.run(confirmed_call(drive_control.command, axis.session, axis.node, Command.FAULT_RESET,
+                                         confirm=AXIS))
         assert status.state == "switch_on_disabled" and status.error_code == 0
     finally:
         axis.session.remove_frame_listener(tap)
@@ -269,8 +273,8 @@ def test_following_error_faults_with_emcy_and_fault_reset_clears_it(axis: Axis) 
 
 def test_quick_stop_decelerates_then_switches_on_disabled(axis: Axis) -> None:
     axis.enable()
-    axis.run(drive_control.set_mode(axis.session, axis.node, 3, confirm=AXIS))
-    axis.run(drive_control.set_setpoint(axis.session, axis.node, 1500, confirm=AXIS))
+    axis.run(confirmed_call(drive_control.set_mode, axis.session, axis.node, 3, confirm=AXIS))
+    axis.run(confirmed_call(drive_control.set_setpoint, axis.session, axis.node, 1500, confirm=AXIS))
     axis.until(lambda _: axis.read("0x606C") == 1500, "at 1500 rpm")
     status = axis.run(drive_control.command(axis.session, axis.node, Command.QUICK_STOP))
     assert not status.armed
@@ -289,7 +293,7 @@ def test_moves_need_the_holder_and_the_confirmation(axis: Axis) -> None:
         axis.run(motion.home(axis.session, axis.node, 35))
     other = drive_control.Panel("panel:other", "someone else")
     with pytest.raises(Conflict, match="held by"):
-        axis.run(motion.move(axis.session, axis.node, 10, confirm=AXIS, panel=other))
+        axis.run(confirmed_call(motion.move, axis.session, axis.node, 10, confirm=AXIS, panel=other))
 
 
 def test_an_idle_axis_sleeps(axis: Axis) -> None:
@@ -304,17 +308,17 @@ def test_an_idle_axis_sleeps(axis: Axis) -> None:
 def test_a_setpoint_alone_is_refused_where_the_drive_needs_a_move(axis: Axis) -> None:
     axis.enable()
     with pytest.raises(InvalidValue, match="move"):
-        axis.run(drive_control.set_setpoint(axis.session, axis.node, 90, confirm=AXIS))
+        axis.run(confirmed_call(drive_control.set_setpoint, axis.session, axis.node, 90, confirm=AXIS))
 
 
 def test_cyclic_synchronous_velocity_through_sync_and_an_rpdo(axis: Axis) -> None:
     axis.enable()
-    axis.run(drive_control.set_mode(axis.session, axis.node, 9, confirm=AXIS))
+    axis.run(confirmed_call(drive_control.set_mode, axis.session, axis.node, 9, confirm=AXIS))
     with pytest.raises(Conflict, match="Operational"):
-        axis.run(motion.stream(axis.session, axis.node, 200, confirm=AXIS))
+        axis.run(confirmed_call(motion.stream, axis.session, axis.node, 200, confirm=AXIS))
     axis.run(axis.session.nmt(NmtCommand.START, AXIS))
     axis.until(lambda _: axis.session.nmt_state(AXIS)[0] == "Operational", "node 7 operational")
-    sent = axis.run(motion.stream(axis.session, axis.node, 200, confirm=AXIS))
+    sent = axis.run(confirmed_call(motion.stream, axis.session, axis.node, 200, confirm=AXIS))
     assert (sent.rpdo, sent.cob_id, sent.period_ms) == (3, 0x407, 10)  # RPDO3: 0x6040 + 0x60FF; 0x60C2 = 10 ms
     assert sent.data == "0F 00 C8 00 00 00"
     axis.until(lambda _: axis.read("0x606C") == 200, "following the cyclic target velocity")
@@ -328,9 +332,9 @@ def test_cyclic_synchronous_velocity_through_sync_and_an_rpdo(axis: Axis) -> Non
 
 def test_profile_torque_in_per_mille(axis: Axis) -> None:
     axis.enable()
-    axis.run(drive_control.set_mode(axis.session, axis.node, 4, confirm=AXIS))
-    status = axis.run(drive_control.set_setpoint(axis.session, axis.node, 100, confirm=AXIS))
+    axis.run(confirmed_call(drive_control.set_mode, axis.session, axis.node, 4, confirm=AXIS))
+    status = axis.run(confirmed_call(drive_control.set_setpoint, axis.session, axis.node, 100, confirm=AXIS))
     assert (status.setpoint_ref, status.setpoint_unit, status.setpoint_max) == ("0x6071", "‰", 3000)  # 0x6072
     axis.until(lambda _: axis.read("0x606C") > 0, "the load turning under the torque")
     with pytest.raises(OutOfRange):
-        axis.run(drive_control.set_setpoint(axis.session, axis.node, 4000, confirm=AXIS))
+        axis.run(confirmed_call(drive_control.set_setpoint, axis.session, axis.node, 4000, confirm=AXIS))

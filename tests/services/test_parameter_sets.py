@@ -37,6 +37,7 @@ from drivebench.services.storage import database
 from drivebench.services.users import audit
 from drivebench.simulator.plant import Plant, PlantFile
 from drivebench.simulator.store import Abort
+from tests.confirming import confirmed_now
 
 T = TypeVar("T")
 PLANT = {"name": "Set test plant", "nodes": [
@@ -243,8 +244,8 @@ def test_download_meets_read_only_and_out_of_range_mid_way_then_retry_and_rollba
 
     with pytest.raises(ConfirmationRequired, match="C00007"):  # the set holds the control mode (a command source)
         set_jobs.start_download(bench.session, 5, bench.jobs, bench.store, new_set)
-    job = bench.finish(lambda: set_jobs.start_download(bench.session, 5, bench.jobs, bench.store, new_set,
-                                                       save=True, confirm=5))
+    job = bench.finish(lambda: confirmed_now(set_jobs.start_download, bench.session, 5, bench.jobs, bench.store,
+                                             new_set, save=True, confirm=5))
     assert job.state is JobState.DONE
     report = {line["ref"]: line for line in job.result["report"]}
     assert len(report) == len(wanted)
@@ -294,7 +295,8 @@ def test_copy_to_a_second_identical_axis(bench: Bench, registry: ProfileRegistry
     values, notes = retarget(profile, source.values, 5, 2)
     assert values["C00350"] == 2 and any("C00350" in note for note in notes)
     copy = bench.store.create("axis 2", profile, values, user="t", node_id=2, reason="copy of set 1 for node 2")
-    job = bench.finish(lambda: set_jobs.start_download(bench.session, 2, bench.jobs, bench.store, copy, confirm=2))
+    job = bench.finish(lambda: confirmed_now(set_jobs.start_download, bench.session, 2, bench.jobs, bench.store, copy,
+                                             confirm=2))
     assert job.result["state"] == "done"
     statuses = {line["ref"]: line["status"] for line in job.result["report"]}
     assert statuses["C00088"] == "written" and statuses["C00350"] in ("written", "unchanged")
@@ -323,6 +325,8 @@ KILLED_DOWNLOAD = """
 import asyncio, sys
 from drivebench.device.loader import ProfileRegistry
 from drivebench.services.users import audit
+from drivebench.errors import ConfirmationRequired
+from drivebench.services.control.drive_guard import Confirmation
 from drivebench.services.sets import set_jobs
 from drivebench.services.params.jobs import JobManager
 from drivebench.services.sets.parameter_sets import ParameterSetStore
@@ -341,7 +345,11 @@ async def main() -> None:
     session = await manager.open(plant.spec, "kill")
     session.add_node(5, "lenze-8400-motec-canopen")
     store = ParameterSetStore(url)
-    job = set_jobs.start_download(session, 5, JobManager(), store, store.get(set_id), confirm=5)
+    try:  # answered as a careful client does: the node and values the refusal names
+        job = set_jobs.start_download(session, 5, JobManager(), store, store.get(set_id))
+    except ConfirmationRequired as asked:
+        job = set_jobs.start_download(session, 5, JobManager(), store, store.get(set_id),
+                                      confirm=Confirmation(asked.node, asked.values))
     await job.wait()
     print("finished", job.state, flush=True)
 

@@ -13,6 +13,7 @@ from fastapi.testclient import TestClient
 
 from drivebench.simulator.plant import Plant
 from drivebench.web.app import create_app
+from tests.confirming import confirmed
 from tests.conftest import fresh_channel, wait_for_value
 
 NO_BROWSER = {"keepalive": False, "reason": "test without a browser"}  # NMT start without the keep-alive guard (admin)
@@ -137,7 +138,7 @@ def test_a_share_link_can_read_but_never_write(app_client: TestClient) -> None:
         assert "read-only" in response.json()["detail"]
     # The same requests without the token are not refused for that reason.
     start = {"command": "start", "confirm": "all", **NO_BROWSER}
-    assert app_client.post(f"/api/sessions/{SESSION}/nmt", json=start).status_code < 300
+    assert confirmed(app_client, "POST", f"/api/sessions/{SESSION}/nmt", json=start).status_code < 300
     assert app_client.get("/api/share-links", headers=viewer).status_code == 403
 
     page = app_client.get(f"/remote/{link['token']}")

@@ -11,6 +11,7 @@ from starlette.websockets import WebSocketDisconnect
 
 from drivebench.device.scaling import to_raw
 from drivebench.services.users.audit import LOCAL_USER
+from tests.confirming import confirmed
 from tests.conftest import wait_until
 
 BASE = "/api/sessions/demo-plant/nodes/{node}/control"
@@ -64,15 +65,16 @@ def test_first_run_needs_confirmation_and_goes_back(client: TestClient) -> None:
     refused = client.post(_url(MM, "/commands/enable_operation"))
     assert refused.status_code == 428 and refused.headers["content-type"] == "application/problem+json"
     assert "confirm" in refused.json()["detail"] and "node 3" in refused.json()["detail"]
-    bare = client.post(_url(MM, "/commands/enable_operation"), json={"confirm": True})
+    bare = confirmed(client, "POST", _url(MM, "/commands/enable_operation"), json={"confirm": True})
     assert bare.status_code == 428, "a bare true does not name the node"
-    enabled = client.post(_url(MM, "/commands/enable_operation"), json={"confirm": MM}).json()
+    enabled = confirmed(client, "POST", _url(MM, "/commands/enable_operation"), json={"confirm": MM}).json()
     assert enabled["state"] == "operation_enabled" and enabled["armed"]
     kept = client.post(_url(MM, "/keepalive")).json()  # the 2 s keep-alive deadline restarts
     assert kept["armed"] and kept["holder"].startswith(f"{LOCAL_USER} at testclient since ")  # the principal
     assert client.put(_url(MM, "/setpoint"), json={"value": 200}).status_code == 428
-    assert client.put(_url(MM, "/setpoint"), json={"value": 9000, "confirm": MM}).status_code == 422
-    assert client.put(_url(MM, "/setpoint"), json={"value": 200, "confirm": MM}).json()["control_word"] == 0x7F
+    assert confirmed(client, "PUT", _url(MM, "/setpoint"), json={"value": 9000, "confirm": MM}).status_code == 422
+    assert confirmed(client, "PUT", _url(MM, "/setpoint"),
+                     json={"value": 200, "confirm": MM}).json()["control_word"] == 0x7F
     assert client.post(_url(MM, "/keepalive")).json()["armed"]
     back = client.post(_url(MM, "/commands/shutdown")).json()
     assert back["state"] == "ready" and not back["armed"] and back["holder"] is None
@@ -85,7 +87,7 @@ def test_disconnect_sends_quick_stop(client: TestClient) -> None:
     _until(client, MM, "switch_on_disabled")
     client.post(_url(MM, "/commands/shutdown"))
     with client.websocket_connect(f"/ws/sessions/demo-plant/nodes/{MM}/control") as socket:
-        client.post(_url(MM, "/commands/enable_operation"), json={"confirm": MM})
+        confirmed(client, "POST", _url(MM, "/commands/enable_operation"), json={"confirm": MM})
         message = socket.receive_json()
         while message["status"]["state"] != "operation_enabled":
             socket.send_json({"cmd": "keepalive"})
@@ -113,7 +115,7 @@ def test_commissioning_run_over_the_api(client: TestClient) -> None:
     while not run["finished"]:
         step = run["steps"][run["position"]]
         confirm = VECTOR if step["moves"] else None
-        response = client.post(_url(VECTOR, f"/runs/{run['id']}/next"), json={"confirm": confirm})
+        response = confirmed(client, "POST", _url(VECTOR, f"/runs/{run['id']}/next"), json={"confirm": confirm})
         assert response.status_code == 200, response.text
         run = response.json()
         client.post(_url(VECTOR, "/keepalive"))
@@ -127,13 +129,13 @@ def test_commissioning_run_over_the_api(client: TestClient) -> None:
 def test_jog_runs_only_when_enabled_and_stops_with_zero(client: TestClient) -> None:
     _can_control(client)
     _until(client, MM, "switch_on_disabled")
-    refused = client.post(_url(MM, "/jog"), json={"direction": 1, "confirm": MM})
+    refused = confirmed(client, "POST", _url(MM, "/jog"), json={"direction": 1, "confirm": MM})
     assert refused.status_code == 409 and "operation enabled" in refused.json()["detail"]
     client.post(_url(MM, "/commands/shutdown"))
-    client.post(_url(MM, "/commands/enable_operation"), json={"confirm": MM})
+    confirmed(client, "POST", _url(MM, "/commands/enable_operation"), json={"confirm": MM})
     client.post(_url(MM, "/keepalive"))
     assert client.post(_url(MM, "/jog"), json={"direction": 1}).status_code == 428  # not confirmed
-    assert client.post(_url(MM, "/jog"), json={"direction": -1, "confirm": MM}).status_code == 200
+    assert confirmed(client, "POST", _url(MM, "/jog"), json={"direction": -1, "confirm": MM}).status_code == 200
     target = client.get(f"/api/sessions/demo-plant/nodes/{MM}/parameters/0x6042").json()
     assert target["value"] == -150  # 10 % of 0x6046.2 = 1500 rpm
     client.post(_url(MM, "/jog"), json={"direction": 0})
@@ -163,7 +165,8 @@ def test_two_panels_the_holder_moves_the_watcher_watches(client: TestClient) -> 
     client.post(_url(MM, "/commands/shutdown"), headers=anna)
     with client.websocket_connect(_ws("a1b2c3", "Anna")) as anna_socket:
         with client.websocket_connect(_ws("d4e5f6", "Ben")) as ben_socket:
-            enabled = client.post(_url(MM, "/commands/enable_operation"), json={"confirm": MM}, headers=anna)
+            enabled = confirmed(client, "POST", _url(MM, "/commands/enable_operation"), json={"confirm": MM},
+                                headers=anna)
             assert enabled.json()["you_hold"]
             status = _next_status(ben_socket)
             while not status["armed"]:
@@ -171,7 +174,7 @@ def test_two_panels_the_holder_moves_the_watcher_watches(client: TestClient) -> 
                 status = _next_status(ben_socket)
             assert not status["you_hold"] and status["holder"].startswith("Anna at testclient since ")
             assert status["panels"] == 2
-            refused = client.put(_url(MM, "/setpoint"), json={"value": 100, "confirm": MM}, headers=ben)
+            refused = confirmed(client, "PUT", _url(MM, "/setpoint"), json={"value": 100, "confirm": MM}, headers=ben)
             assert refused.status_code == 409 and "held by Anna at testclient" in refused.json()["detail"]
             assert client.post(_url(MM, "/keepalive"), headers=ben).json()["armed"] is False
             assert client.get(_url(MM), headers=ben).json()["holder"].startswith("Anna")
@@ -193,8 +196,8 @@ def test_8200_vector_jog_plan_and_device_jog(client: TestClient) -> None:
     assert plan["method"] == "device" and plan["value"] == 20 and plan["unit"] == "Hz"
     _plant_set(client, VECTOR, "C0001", 3)
     client.post(_url(VECTOR, "/commands/shutdown"))
-    client.post(_url(VECTOR, "/commands/enable_operation"), json={"confirm": VECTOR})
-    jogging = client.post(_url(VECTOR, "/jog"), json={"direction": -1, "confirm": VECTOR}).json()
+    confirmed(client, "POST", _url(VECTOR, "/commands/enable_operation"), json={"confirm": VECTOR})
+    jogging = confirmed(client, "POST", _url(VECTOR, "/jog"), json={"direction": -1, "confirm": VECTOR}).json()
     assert jogging["control_word"] & 0x07 == 0x05 and jogging["control_bits"][0]["set"]  # JOG1, CCW
     stopped = client.post(_url(VECTOR, "/jog"), json={"direction": 0}).json()
     assert stopped["control_word"] & 0x07 == 0
@@ -205,9 +208,10 @@ def test_a_remote_diagnostics_link_cannot_drive(client: TestClient) -> None:
     """Access-control interlock: a share link holder watches the remote view only - no commands, no panel socket."""
     token = client.post("/api/share-links", json={"ttl_minutes": 5}).json()["token"]
     viewer = {"Authorization": f"Bearer {token}"}
-    refused = client.post(_url(MM, "/commands/enable_operation"), json={"confirm": MM}, headers=viewer)
+    refused = confirmed(client, "POST", _url(MM, "/commands/enable_operation"), json={"confirm": MM}, headers=viewer)
     assert refused.status_code == 403 and refused.headers["content-type"] == "application/problem+json"
-    assert client.post(_url(MM, "/jog"), json={"direction": 1, "confirm": MM}, headers=viewer).status_code == 403
+    assert confirmed(client, "POST", _url(MM, "/jog"), json={"direction": 1, "confirm": MM},
+                     headers=viewer).status_code == 403
     socket_url = f"/ws/sessions/demo-plant/nodes/{MM}/control"
     with pytest.raises(WebSocketDisconnect) as closed, client.websocket_connect(socket_url, headers=viewer) as socket:
         socket.receive_json()

@@ -95,16 +95,15 @@ def test_first_run_to_operation_enabled_and_back(server: tuple[str, Plant], page
     _shown(page, "r0027", lambda text: text.endswith(" A") and float(text.split()[0]) > 0)  # running: current flows
     assert "Operation enabled" in page.locator("#ctl-sw-bits tr.on").all_inner_texts()[2]
     screenshot(page, "control-operation-enabled")
-    jog = page.locator("button[data-jog='1']")
-    jog.hover()
-    page.mouse.down()  # the first press asks for confirmation
-    page.mouse.up()
-    page.click("#ctl-confirm-ok")
-    jog.hover()
-    page.mouse.down()  # held: 10 % of 1500 rpm
+    page.click("button[data-jog='1']")  # the press asks, naming what the jog sends
+    page.wait_for_selector("#ctl-confirm[open]", timeout=TIMEOUT_MS)
+    assert "150 rpm" in page.locator("#ctl-confirm-values").inner_text()  # 10 % of 1500 rpm
+    page.locator("#ctl-confirm-ok").hover()
+    page.mouse.down()  # the dialog's button is the hold-to-run button: held, it jogs
     _target(page, base, 150)
     page.mouse.up()  # released: setpoint 0
     _target(page, base, 0)
+    page.click("#ctl-confirm button[value=cancel]")
     page.click("button[data-command=disable_operation]")
     _current(page, "switched_on")
     page.click("button[data-command=shutdown]")

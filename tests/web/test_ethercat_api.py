@@ -16,6 +16,7 @@ from drivebench.config import settings
 from drivebench.device.loader import ProfileRegistry
 from drivebench.device.profile import ObjectEntry
 from drivebench.simulator.ethercat import GatewayServer, SimulatedSlave
+from tests.confirming import confirmed
 from tests.conftest import wait_for_value
 from tests.web.test_parameter_sets_api import SETS, finish
 from tests.web.test_pdo_api import give_changed_profile
@@ -62,8 +63,9 @@ def test_parameter_set_round_trip_on_the_ethercat_unit(demo_api: TestClient) -> 
 
     # the set holds C00007 (a command source) and setpoints: the download asks for the node-naming confirmation
     assert demo_api.post(f"{SETS}/{new_id}/download", json=dict(target, save=True)).status_code == 428
-    done = finish(demo_api, demo_api.post(f"{SETS}/{new_id}/download", json=dict(target, save=True, confirm=1),
-                                          headers={"X-DriveBench-User": "bert"}).json())
+    done = finish(demo_api, confirmed(demo_api, "POST", f"{SETS}/{new_id}/download",
+                                      json=dict(target, save=True, confirm=1),
+                                      headers={"X-DriveBench-User": "bert"}).json())
     assert done["download_state"] == "done", done
     assert {line["ref"]: line["status"] for line in done["report"]}["C00039/1"] == "written"
     assert demo_api.get(f"{NODE}/parameters/C00039/1").json()["display"] == "55.00 %"
@@ -193,12 +195,12 @@ def test_the_control_tab_drives_the_unit_over_coe_with_confirmation_and_keepaliv
     assert status["family"] == "lenze8400" and status["status_ref"] == "C13850/1"
     assert status["control_bits"][8]["name"] == "SetCInh (controller inhibit)"
     assert demo_api.post(f"{NODE}/control/commands/switch_on").json()["state"] == "switched_on"
-    refused = demo_api.post(f"{NODE}/control/commands/enable_operation", json={"confirm": 2})
+    refused = confirmed(demo_api, "POST", f"{NODE}/control/commands/enable_operation", json={"confirm": 2})
     assert refused.status_code == 428 and "node 1" in refused.json()["detail"]  # the wrong node is named
-    enabled = demo_api.post(f"{NODE}/control/commands/enable_operation", json={"confirm": 1}).json()
+    enabled = confirmed(demo_api, "POST", f"{NODE}/control/commands/enable_operation", json={"confirm": 1}).json()
     assert enabled["state"] == "operation_enabled" and enabled["armed"]
     assert demo_api.put(f"{NODE}/control/setpoint", json={"value": 300}).status_code == 428
-    moving = demo_api.put(f"{NODE}/control/setpoint", json={"value": 300, "confirm": 1}).json()
+    moving = confirmed(demo_api, "PUT", f"{NODE}/control/setpoint", json={"value": 300, "confirm": 1}).json()
     assert moving["armed"] and demo_api.get(f"{NODE}/parameters/C00876/2").json()["raw"] == round(300 * 16384 / 1500)
     speed = wait_for_value(lambda: next(a["value"] for a in demo_api.get(f"{NODE}/control/actuals").json()
                                         if a["ref"] == "C13850/2") or None, 8, "the actual speed (C13850/2)")
@@ -214,7 +216,7 @@ def test_a_lost_keepalive_quick_stops_the_ethercat_unit(demo_api: TestClient) ->
     _control_until(demo_api, "ready")
     demo_api.post(f"{NODE}/control/commands/switch_on")
     with demo_api.websocket_connect(f"/ws/sessions/{SESSION}/nodes/1/control") as socket:
-        demo_api.post(f"{NODE}/control/commands/enable_operation", json={"confirm": 1})
+        confirmed(demo_api, "POST", f"{NODE}/control/commands/enable_operation", json={"confirm": 1})
         message = socket.receive_json()
         while message["status"]["state"] != "operation_enabled":
             socket.send_json({"cmd": "keepalive"})
@@ -229,7 +231,7 @@ def test_a_lost_keepalive_quick_stops_the_ethercat_unit(demo_api: TestClient) ->
 
 
 def _esm(api: TestClient, command: str) -> None:
-    answer = api.post(f"{NODE}/nmt", json={"command": command, "confirm": 1})
+    answer = confirmed(api, "POST", f"{NODE}/nmt", json={"command": command, "confirm": 1})
     assert answer.status_code == 200, answer.text
 
 

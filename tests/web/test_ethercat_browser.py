@@ -67,7 +67,7 @@ def test_ethercat_unit_in_the_browser(sets_server: str, page: Any) -> None:  # n
     preview.get_by_role("button", name="Download 1 changes").click()
     asked = page.locator("#moving-confirm")  # the set holds a command source: the page asks, naming slave 1
     expect(asked).to_be_visible(timeout=WAIT_MS)
-    expect(asked).to_contain_text("lets node 1 move a drive")
+    expect(asked).to_contain_text("Sends to node 1")
     asked.get_by_role("button", name="Send it").click()
     report = page.locator("#download-area .report")
     expect(report).to_have_attribute("data-state", "done", timeout=WAIT_MS)

@@ -232,12 +232,13 @@ def _script_messages(page: str) -> dict[str, str]:
 def test_the_control_and_pdo_scripts_texts_reach_the_page_in_german(client: TestClient) -> None:
     """control.js and pdo.js build texts in the browser: they are extracted, translated and handed to the page."""
     extracted = _extracted()
-    for text, script in (("armed by another panel", "control.js"), ("{what}: the motor may turn.", "control.js"),
+    for text, script in (("armed by another panel", "control.js"),
+                         ("Hold to jog {way} at {value} {unit}", "control.js"),
                          ("No entries: the PDO carries nothing.", "pdo.js"), ("byte {byte}: free", "pdo.js")):
         assert extracted.get(text, "").startswith(f"frontend/static/{script}"), text
     control = _script_messages(client.get(f"/sessions/{SESSION}/nodes/7?tab=control", headers=GERMAN).text)
     assert control["armed by another panel"] == "von einem anderen Panel scharf geschaltet"
-    assert control["{what}: the motor may turn."] == "{what}: Der Motor kann sich drehen."  # app.js fills {what}
+    assert control["Hold to jog {way} at {value} {unit}"] == "Halten: Tippen {way} mit {value} {unit}"  # filled there
     pdo = _script_messages(client.get(f"/sessions/{SESSION}/nodes/5?tab=pdo", headers=GERMAN).text)
     assert pdo["No entries: the PDO carries nothing."] == "Keine Einträge: Das PDO überträgt nichts."
 

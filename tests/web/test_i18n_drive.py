@@ -10,6 +10,7 @@ from typing import Any
 
 from fastapi.testclient import TestClient
 
+from tests.confirming import confirmed
 from tests.conftest import wait_until
 
 API = "/api/sessions/demo-plant/nodes"
@@ -83,14 +84,16 @@ def test_homing_methods_are_named_in_each_readers_language(client: TestClient) -
 
 def test_a_refused_move_and_an_unconfirmed_enable_answer_in_german(client: TestClient) -> None:
     _until(client, SERVO, "switch_on_disabled")
-    move = client.post(f"{API}/{SERVO}/control/move", json={"target": 10, "confirm": SERVO}, headers=GERMAN)
+    move = confirmed(client, "POST", f"{API}/{SERVO}/control/move", json={"target": 10, "confirm": SERVO},
+                     headers=GERMAN)
     assert move.status_code == 409, move.text
     assert move.json()["detail"] == ("Eine Profilpositionsfahrt braucht den Antrieb im Zustand Betrieb freigegeben "
                                      "(er ist in 'Einschaltsperre').")
-    plain = client.post(f"{API}/{SERVO}/control/move", json={"target": 10, "confirm": SERVO})
+    plain = confirmed(client, "POST", f"{API}/{SERVO}/control/move", json={"target": 10, "confirm": SERVO})
     assert plain.json()["detail"] == ("A profile-position move needs the drive in operation enabled (it is in "
                                       "'Switch on disabled').")
-    homing = client.post(f"{API}/{SERVO}/control/home", json={"method": 99, "confirm": SERVO}, headers=GERMAN)
+    homing = confirmed(client, "POST", f"{API}/{SERVO}/control/home", json={"method": 99, "confirm": SERVO},
+                       headers=GERMAN)
     assert homing.status_code == 422 and homing.json()["detail"].startswith("Die Referenzfahrt-Methode 99 (reserviert")
     for command in ("shutdown", "switch_on"):
         assert client.post(f"{API}/{SERVO}/control/commands/{command}").status_code == 200
@@ -104,8 +107,8 @@ def test_a_stop_by_the_keep_alive_guard_reads_in_each_readers_language(client: T
     _until(client, SERVO, "switch_on_disabled")
     for command in ("shutdown", "switch_on"):
         assert client.post(f"{API}/{SERVO}/control/commands/{command}").status_code == 200
-    enabled = client.post(f"{API}/{SERVO}/control/commands/enable_operation", json={"confirm": SERVO},
-                          headers=GERMAN)
+    enabled = confirmed(client, "POST", f"{API}/{SERVO}/control/commands/enable_operation", json={"confirm": SERVO},
+                        headers=GERMAN)
     assert enabled.status_code == 200 and enabled.json()["armed"]
     assert " an testclient seit " in enabled.json()["holder"]  # who holds it, in the German reader's words
     # no keep-alive: the guard stops the drive on its own (a background task) and keeps what it did

@@ -13,6 +13,7 @@ from fastapi.testclient import TestClient
 
 from drivebench.services.users import accounts
 from drivebench.services.users.principals import Role
+from tests.confirming import confirmed
 from tests.conftest import wait_until
 from tests.web.test_parameter_sets_api import finish
 
@@ -38,8 +39,9 @@ def test_a_download_says_its_verification_and_progress_in_each_readers_language(
     store.add_write_hook(lambda index, sub, raw: store.set(index, sub, raw // 10 * 10, notify=False)
                          if (index, sub) == (0x5FA7, 0) else None)
 
-    started = demo_api.post(f"{SETS}/{set_id}/download", json={"session_id": SESSION, "node_id": 5, "confirm": 5},
-                            headers=GERMAN)  # started by a German reader: the job itself speaks no one's language
+    started = confirmed(demo_api, "POST", f"{SETS}/{set_id}/download",
+                        json={"session_id": SESSION, "node_id": 5, "confirm": 5},
+                        headers=GERMAN)  # started by a German reader: the job itself speaks no one's language
     assert started.status_code == 202, started.text
     job_id = finish(demo_api, started.json())["id"]
 

@@ -16,6 +16,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from drivebench.simulator.node import SimulatedNode
+from tests.confirming import confirmed
 from tests.conftest import wait_until
 from tests.web.test_access import app_client, own_db, users  # noqa: F401  (fixtures)
 
@@ -48,8 +49,8 @@ def _refused(client: TestClient, headers: dict[str, str], node: int, ref: str, v
 
 def _written(client: TestClient, headers: dict[str, str], node: int, ref: str, value: Any,
              confirm: int | None = None) -> None:
-    answer = client.put(_param(node, ref), json={"value": value, "confirm": confirm, "verify": False},
-                        headers=headers)
+    answer = confirmed(client, "PUT", _param(node, ref), json={"value": value, "confirm": confirm, "verify": False},
+                       headers=headers)
     assert answer.status_code == 200, f"{ref} = {value}: {answer.text}"
 
 
@@ -184,7 +185,8 @@ def test_a_set_download_with_a_control_word_needs_the_confirmation(demo_api: Tes
     assert page.status_code == 428 and "confirm = &#39;5&#39;" in page.text, page.text  # the sets page asks (app.js)
     assert f'data-keepalive="/ws/sessions/{DEMO}/keepalive"' in api.get("/parameter-sets").text
     assert sim.store.get_ref("C00866/1") == 0 and not sim.drive.running  # type: ignore[union-attr]
-    done = _finish(api, api.post(f"{sets}/{running['id']}/download", json={**target, "confirm": MOTEC}).json())
+    done = _finish(api, confirmed(api, "POST", f"{sets}/{running['id']}/download",
+                                  json={**target, "confirm": MOTEC}).json())
     assert done["download_state"] == "done", done
     assert _keepalive(api, {})["nodes"] == [MOTEC], "the download's control word armed the guard"
     assert wait_until(lambda: sim.drive.quick_stop(), 6), "no quick stop after the keep-alive stopped"  # type: ignore[union-attr]
@@ -195,8 +197,9 @@ def test_a_viewer_does_not_keep_an_engineers_drive_running(users: dict[str, str]
                                                            app_client: TestClient) -> None:  # noqa: F811
     eve, vera = _bearer(users["eve"], "tab-1"), _bearer(users["vera"], "tab-1")  # even with the same client id
     sim = _sim(app_client, MOTEC)
-    started = app_client.post(f"/api/sessions/{DEMO}/nodes/{MOTEC}/nmt", json={"command": "start", "confirm": MOTEC},
-                              headers=eve)
+    started = confirmed(app_client, "POST", f"/api/sessions/{DEMO}/nodes/{MOTEC}/nmt",
+                        json={"command": "start", "confirm": MOTEC},
+                        headers=eve)
     assert started.status_code == 200, started.text
     assert wait_until(lambda: sim.state.name == "OPERATIONAL")
     armed_at = time.monotonic()

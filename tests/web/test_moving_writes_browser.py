@@ -54,7 +54,8 @@ def test_the_parameters_tab_asks_before_a_write_that_moves_the_drive(server: tup
 
     _write(page, "0x6040", "15")  # enable operation
     expect(dialog).to_be_visible(timeout=WAIT_MS)
-    expect(page.locator("#moving-confirm .moving-confirm-text")).to_contain_text("lets node 3 move a drive")
+    expect(page.locator("#moving-confirm .moving-confirm-text")).to_contain_text("Sends to node 3")
+    expect(page.locator("#moving-confirm .moving-confirm-values")).to_contain_text("0x6040")  # what it will write
     screenshot(page, "parameters-moving-write-confirm")
     dialog.get_by_role("button", name="Cancel").click()
     expect(dialog).to_be_hidden()

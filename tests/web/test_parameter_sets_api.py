@@ -16,6 +16,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from drivebench.device.xdd import read_xdd
+from tests.confirming import confirmed
 
 SESSION = "demo-plant"
 SETS = "/api/parameter-sets"
@@ -166,8 +167,8 @@ def test_download_preview_report_retry_rollback_and_audit(demo_api: TestClient) 
     assert wrong.status_code == 409
 
     # the set holds C00007 (control mode: a command source), so the download names the node it may move
-    started = demo_api.post(f"{SETS}/{new_id}/download", json=dict(target, save=True, confirm=5),
-                            headers={"X-DriveBench-User": "bert"})
+    started = confirmed(demo_api, "POST", f"{SETS}/{new_id}/download", json=dict(target, save=True, confirm=5),
+                        headers={"X-DriveBench-User": "bert"})
     assert started.status_code == 202
     job = finish(demo_api, started.json())
     assert job["download_state"] == "done", job

@@ -120,7 +120,8 @@ def test_export_change_compare_download(page: Any, sets_server: str, tmp_path: P
     # the set holds C00007 (control mode, a command source): the page asks in its own dialog, naming node 5
     asked = page.locator("#moving-confirm")
     expect(asked).to_be_visible(timeout=WAIT_MS)
-    expect(asked).to_contain_text("lets node 5 move a drive")
+    expect(asked).to_contain_text("Sends to node 5")
+    expect(asked.locator(".moving-confirm-values")).to_contain_text("C00007")  # the command source it writes
     asked.get_by_role("button", name="Send it").click()
     report = page.locator("#download-area .report")
     expect(report).to_have_attribute("data-state", "done", timeout=WAIT_MS)

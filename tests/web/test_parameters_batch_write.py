@@ -6,10 +6,12 @@ lease honoured, a viewer refused."""
 
 from __future__ import annotations
 
+import json
 from typing import Any
 
 from fastapi.testclient import TestClient
 
+from tests.confirming import confirmed
 from tests.web.test_access import app_client, own_db, users  # noqa: F401  (fixtures)
 from tests.web.test_moving_writes import DEMO, MM, _bearer, _keepalive, _sim
 
@@ -54,13 +56,13 @@ def test_a_moving_write_in_a_batch_needs_the_confirmation_naming_the_node(
     assert refused.status_code == 428, refused.text
     assert f"lets node {MM} move a drive: confirm it with confirm = '{MM}'" in refused.json()["detail"]
     assert "P0700" in refused.json()["detail"]
-    wrong = app_client.post(BATCH, headers=eve, json={"items": items, "confirm": "true"})
+    wrong = confirmed(app_client, "POST", BATCH, headers=eve, json={"items": items, "confirm": "true"})
     assert wrong.status_code == 428, "a bare true does not name the node"
     assert sim.store.get_ref("P1120") != 4.5 and sim.store.get_ref("P0700") != 6, "nothing was written"
     assert _audit(app_client, eve) == []
     assert _keepalive(app_client, eve)["nodes"] == [], "nothing armed"
 
-    done = app_client.post(BATCH, headers=eve, json={"items": items, "confirm": MM})
+    done = confirmed(app_client, "POST", BATCH, headers=eve, json={"items": items, "confirm": MM})
     assert done.status_code == 200, done.text
     answer = done.json()
     assert answer["complete"] and answer["written"] == 2
@@ -79,9 +81,13 @@ def test_the_header_confirms_a_batch_too_and_a_stopping_control_word_needs_none(
     stop = app_client.post(BATCH, headers=eve, json={"items": [{"ref": "0x6040", "value": 0x06}]})
     assert stop.status_code == 200 and stop.json()["complete"], stop.text
     enable = {"items": [{"ref": "0x6040", "raw": 0x0F}], "verify": False}
-    assert app_client.post(BATCH, headers=eve, json=enable).status_code == 428
-    confirmed = app_client.post(BATCH, headers={**eve, "X-DriveBench-Confirm": str(MM)}, json=enable)
-    assert confirmed.status_code == 200, confirmed.text
+    asked = app_client.post(BATCH, headers=eve, json=enable)
+    assert asked.status_code == 428
+    values = json.dumps(asked.json()["confirm_values"])
+    assert app_client.post(BATCH, headers={**eve, "X-DriveBench-Confirm": str(MM)}, json=enable).status_code == 428
+    both = {**eve, "X-DriveBench-Confirm": str(MM), "X-DriveBench-Confirm-Values": values}
+    sent = app_client.post(BATCH, headers=both, json=enable)
+    assert sent.status_code == 200, sent.text
 
 
 def test_a_device_error_stops_the_batch_and_says_what_was_written(

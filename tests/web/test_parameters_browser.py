@@ -205,7 +205,8 @@ def test_header_nmt_badge_follows_nmt_commands(server: tuple[str, Any], page: An
     expect(badge).to_have_text("Pre-operational", timeout=WAIT_MS)
     nmt = url + "/api/sessions/browser-plant/nodes/12/nmt"
     try:
-        assert page.request.post(nmt, data={"command": "start", "confirm": 12, **NO_BROWSER}).ok
+        assert page.request.post(nmt, data={"command": "start", "confirm": 12, "confirm_values": {"NMT": "start"},
+                                             **NO_BROWSER}).ok
         expect(badge).to_have_text("Operational", timeout=WAIT_MS)  # no reload: the badge polls its fragment
         expect(badge).to_have_class("nmt nmt-operational")
         screenshot(page, "parameters-nmt-badge-operational")

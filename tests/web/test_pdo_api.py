@@ -15,6 +15,7 @@ from fastapi.testclient import TestClient
 
 from drivebench.config import settings
 from drivebench.simulator.plant import Plant
+from tests.confirming import confirmed
 from tests.conftest import wait_until
 
 NO_BROWSER = {"keepalive": False, "reason": "test without a browser"}  # NMT start without the keep-alive guard (admin)
@@ -148,7 +149,7 @@ def test_apply_then_live_tpdo_decode_over_the_websocket(client: TestClient) -> N
     body = report.json()
     assert body["ok"] and [s["step"].split(" ")[0] for s in body["steps"]][:2] == ["disable", "disable"]
     assert body["pdo"]["length_bytes"] == 4 and body["pdo"]["valid"]
-    client.post(f"{API}/3/nmt", json={"command": "start", "confirm": 3, **NO_BROWSER})
+    confirmed(client, "POST", f"{API}/3/nmt", json={"command": "start", "confirm": 3, **NO_BROWSER})
     with client.websocket_connect("/ws/sessions/demo-plant/nodes/3/process-data") as ws:
         hello = ws.receive_json()
         assert hello["type"] == "hello"
@@ -176,17 +177,19 @@ def test_rpdo_send_reaches_the_drive_and_dcf_holds_the_mapping(client: TestClien
     client.get(f"{UI}/3/pdo")  # reads the mappings the sender packs by
     unconfirmed = client.post(f"{UI}/3/pdo/rpdo/5/send", data={"mode": "once", "v:0x6040": "6"})
     assert unconfirmed.status_code == 428 and "RPDO5" in unconfirmed.text
-    early = client.post(f"{UI}/3/pdo/rpdo/5/send", data={**SEND, "mode": "once", "v:0x6040": "6"})
+    early = confirmed(client, "POST", f"{UI}/3/pdo/rpdo/5/send", data={**SEND, "mode": "once", "v:0x6040": "6"})
     assert early.status_code == 200 and "ignores PDOs until it is started" in early.text
-    client.post(f"{API}/3/nmt", json={"command": "start", "confirm": 3, **NO_BROWSER})
-    sent = client.post(f"{UI}/3/pdo/rpdo/5/send", data={**SEND, "mode": "once", "v:0x6040": "6", "v:0x6042": "-750"})
+    confirmed(client, "POST", f"{API}/3/nmt", json={"command": "start", "confirm": 3, **NO_BROWSER})
+    sent = confirmed(client, "POST", f"{UI}/3/pdo/rpdo/5/send",
+                     data={**SEND, "mode": "once", "v:0x6040": "6", "v:0x6042": "-750"})
     assert "ignores" not in sent.text
     assert sent.status_code == 200 and "06 00 12 FD" in sent.text
     assert wait_until(lambda: sim.store.get(0x6042, 0) == -750)
     assert sim.store.get(0x6040, 0) == 6
-    refused = client.post(f"{UI}/3/pdo/rpdo/5/send", data={**SEND, "mode": "once", "v:0x6042": "40000"})
+    refused = confirmed(client, "POST", f"{UI}/3/pdo/rpdo/5/send", data={**SEND, "mode": "once", "v:0x6042": "40000"})
     assert refused.status_code == 422, "INTEGER16 range is checked before sending"
-    cyclic = client.post(f"{UI}/3/pdo/rpdo/5/send", data={**SEND, "mode": "cyclic", "client_id": "nobody"})
+    cyclic = confirmed(client, "POST", f"{UI}/3/pdo/rpdo/5/send",
+                       data={**SEND, "mode": "cyclic", "client_id": "nobody"})
     assert cyclic.status_code == 409, "cyclic sending needs the live view that owns it"
     dcf = client.get(f"{API}/3/pdos/dcf")
     assert dcf.status_code == 200 and "attachment" in dcf.headers["content-disposition"]
@@ -222,10 +225,10 @@ def test_cyclic_rpdo_stops_when_the_live_view_closes(client: TestClient, wire: c
     sim = _plant(client).nodes[3]
     session = client.app.state.drivebench.manager.get("demo-plant")  # type: ignore[attr-defined]
     assert client.put(f"{API}/3/pdos/rpdo/5", json={"entries": [[0x6040, 0], [0x2802, 3]]}).status_code == 200
-    client.post(f"{API}/3/nmt", json={"command": "start", "confirm": 3, **NO_BROWSER})
+    confirmed(client, "POST", f"{API}/3/nmt", json={"command": "start", "confirm": 3, **NO_BROWSER})
     with client.websocket_connect("/ws/sessions/demo-plant/nodes/3/process-data") as ws:
         owner = ws.receive_json()["client_id"]
-        started = client.post(f"{UI}/3/pdo/rpdo/5/send", data={
+        started = confirmed(client, "POST", f"{UI}/3/pdo/rpdo/5/send", data={
             **SEND, "mode": "cyclic", "client_id": owner, "period_ms": "20", "v:0x6040": "6", "v:r2050.2": "-5"})
         assert started.status_code == 200 and "sending every 20 ms" in started.text
         assert wait_until(lambda: sim.store.get(0x2802, 3) == -5)

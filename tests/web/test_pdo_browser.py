@@ -11,6 +11,7 @@ from typing import Any
 import httpx
 import pytest
 from fastapi import FastAPI
+from playwright.sync_api import expect
 
 from drivebench.services.pdos.process_data import service as live_service
 from drivebench.simulator.store import Abort
@@ -155,8 +156,10 @@ def test_live_value_confirmed_send_and_cyclic_stop(own_server: tuple[str, FastAP
     page.goto(f"{url}/sessions/demo-plant/nodes/3?tab=pdo")
     page.locator("#pdo-rpdo5").wait_for(timeout=15000)
     page.locator("#pdo-ws-state.good").wait_for(timeout=15000)
-    page.once("dialog", lambda dialog: dialog.accept())
+    asked = page.locator("#moving-confirm")  # the server names what it will send; the page asks
     page.get_by_role("button", name="Start node").click()
+    expect(asked).to_be_visible(timeout=15000)
+    asked.get_by_role("button", name="Send it").click()
     assert wait_until(lambda: sim.state.name == "OPERATIONAL")
     assert "synchronous, acyclic" in page.locator("#pdo-tpdo5 .pdo-comm").inner_text()  # type 0: sent on SYNC
     sync = page.locator("#pdo-sync")
@@ -170,31 +173,30 @@ def test_live_value_confirmed_send_and_cyclic_stop(own_server: tuple[str, FastAP
 
     rpdo5 = page.locator("#pdo-rpdo5")
     rpdo5.locator('input[name="v:r2050.2"]').fill("77")
-    dialogs: list[str] = []
-
-    def dismiss(dialog: Any) -> None:
-        dialogs.append(dialog.message)
-        dialog.dismiss()
-
-    page.once("dialog", dismiss)
     rpdo5.get_by_role("button", name="Send once").click()
-    assert wait_until(lambda: bool(dialogs)) and "move the motor" in dialogs[0]
+    expect(asked).to_be_visible(timeout=15000)
+    expect(asked).to_contain_text("Sends to node 3")
+    expect(asked.locator(".moving-confirm-values")).to_contain_text("r2050.2: 77")  # the value it will send
+    asked.get_by_role("button", name="Cancel").click()
     assert sim.store.get(0x2802, 3) == 0, "nothing is sent without the confirmation"
-    page.once("dialog", lambda dialog: dialog.accept())
     rpdo5.get_by_role("button", name="Send once").click()
+    expect(asked).to_be_visible(timeout=15000)
+    asked.get_by_role("button", name="Send it").click()
     assert wait_until(lambda: sim.store.get(0x2802, 3) == 77)
     # the frame can reach the drive before the page has swapped in the answer
     assert wait_until(lambda: "sent once" in rpdo5.locator(".send-result").inner_text())
 
     rpdo5.locator('input[name="v:r2050.2"]').fill("40000")  # INTEGER16: refused before anything is sent
-    page.once("dialog", lambda dialog: dialog.accept())
     rpdo5.get_by_role("button", name="Send once").click()
+    expect(asked).to_be_visible(timeout=15000)
+    asked.get_by_role("button", name="Send it").click()
     error = rpdo5.locator(".send-result .error")
     error.wait_for(timeout=10000)
     assert "40000" in error.inner_text() and sim.store.get(0x2802, 3) == 77
     rpdo5.locator('input[name="v:r2050.2"]').fill("-300")
-    page.once("dialog", lambda dialog: dialog.accept())
     rpdo5.get_by_role("button", name="Send cyclically").click()
+    expect(asked).to_be_visible(timeout=15000)
+    asked.get_by_role("button", name="Send it").click()
     assert wait_until(lambda: sim.store.get(0x2802, 3) == -300)
     assert wait_until(lambda: "sending every 100 ms" in rpdo5.locator(".send-result").inner_text())
     rpdo5.locator(".pdo-cyclic-badge").wait_for(state="visible", timeout=10000)  # from the socket's state message

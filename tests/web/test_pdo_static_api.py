@@ -10,6 +10,7 @@ from typing import Any
 from fastapi.testclient import TestClient
 
 from drivebench.simulator.plant import Plant
+from tests.confirming import confirmed
 from tests.conftest import wait_until
 
 NO_BROWSER = {"keepalive": False, "reason": "test without a browser"}  # NMT start without the keep-alive guard (admin)
@@ -54,9 +55,9 @@ def test_the_drive_exchanges_the_port_words(client: TestClient) -> None:
         tpdo1 = next(p for p in hello["pdos"] if (p["direction"], p["number"]) == ("tpdo", 1))
         assert [s["ref"] for s in tpdo1["signals"]] == STATIC[("tpdo", 1)]
         # event-driven TPDOs go out once on the start
-        client.post(f"{API}/nmt", json={"command": "start", "confirm": 5, **NO_BROWSER})
+        confirmed(client, "POST", f"{API}/nmt", json={"command": "start", "confirm": 5, **NO_BROWSER})
         assert wait_until(lambda: sim.state.name == "OPERATIONAL")
-        sent = client.post(f"{UI}/pdo/rpdo/1/send", data={**SEND, "mode": "once", "v:C00866/2": "4660"})
+        sent = confirmed(client, "POST", f"{UI}/pdo/rpdo/1/send", data={**SEND, "mode": "once", "v:C00866/2": "4660"})
         assert sent.status_code == 200 and "00 00 34 12 00 00 00 00" in sent.text, sent.text
         assert wait_until(lambda: sim.store.get_ref("C00866/2") == 0x1234)
         deadline = time.monotonic() + 10

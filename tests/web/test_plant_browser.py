@@ -29,7 +29,10 @@ def expect_states(page: Any, state: str) -> None:
 
 
 def send_nmt_to_all(page: Any, command: str) -> list[str]:
-    """Choose the command, press Send NMT and accept the confirmation; returns the confirmation texts."""
+    """Choose the command, press Send NMT and accept the confirmation (and for start the page's question naming the
+    values); returns the confirmation texts."""
+    from playwright.sync_api import expect
+
     messages: list[str] = []
 
     def accept(dialog: Any) -> None:
@@ -40,6 +43,11 @@ def send_nmt_to_all(page: Any, command: str) -> list[str]:
     card = page.locator(f"#session-{SESSION}")
     card.locator("select[name=command]").select_option(command)
     card.get_by_role("button", name="Send NMT").click()
+    if command == "start":  # the server asks what it will send, and to which nodes: the page's dialog shows it
+        asked = page.locator("#moving-confirm")
+        expect(asked).to_be_visible(timeout=TIMEOUT_MS)
+        messages.append(asked.inner_text())
+        asked.get_by_role("button", name="Send it").click()
     return messages
 
 
@@ -66,6 +74,7 @@ def test_nmt_start_all_then_pre_operational(live_server: str, page: Any) -> None
     confirmations = send_nmt_to_all(page, "start")
     expect_states(page, "Operational")
     assert confirmations and "ALL nodes" in confirmations[0]
+    assert "every node of the session" in confirmations[1] and "NMT: start" in confirmations[1]
     screenshot(page, "plant-operational")
     send_nmt_to_all(page, "pre-operational")
     expect_states(page, "Pre-operational")

@@ -19,6 +19,7 @@ from drivebench.services.params import node_lease
 from drivebench.services.users.principals import Principal, Role
 from drivebench.simulator.plant import Plant
 from drivebench.web.app import create_app
+from tests.confirming import confirmed
 from tests.conftest import DEMO_PLANT, wait_until
 
 DEMO = "demo-plant"
@@ -62,19 +63,24 @@ def test_nmt_start_needs_the_confirmation_naming_the_node(client: TestClient, wi
     refused = client.post(_node("/nmt"), json={"command": "start"})
     assert refused.status_code == 428 and refused.headers["content-type"] == "application/problem+json"
     assert "NMT start lets node 5 move a drive: confirm it" in refused.json()["detail"]
-    assert client.post(_node("/nmt"), json={"command": "start", "confirm": 3}).status_code == 428  # wrong node
-    assert client.post(f"/api/sessions/{DEMO}/nmt", json={"command": "start", "confirm": 5}).status_code == 428
+    assert confirmed(client, "POST", _node("/nmt"),
+                     json={"command": "start", "confirm": 3}).status_code == 428  # wrong node
+    assert confirmed(client, "POST", f"/api/sessions/{DEMO}/nmt",
+                     json={"command": "start", "confirm": 5}).status_code == 428
     page = client.post(f"/ui/sessions/{DEMO}/nmt", data={"command": "start", "node_id": "5"})
     assert page.status_code == 428 and "confirm" in page.text
     assert not frames.nmt(0x01, MOTEC) and not frames.nmt(0x01, 0), "nothing started without the confirmation"
-    by_header = client.post(_node("/nmt"), json={"command": "start"}, headers={"X-DriveBench-Confirm": "5"})
+    assert client.post(_node("/nmt"), json={"command": "start"},
+                       headers={"X-DriveBench-Confirm": "5"}).status_code == 428  # the node without the values
+    by_header = client.post(_node("/nmt"), json={"command": "start"},
+                            headers={"X-DriveBench-Confirm": "5", "X-DriveBench-Confirm-Values": '{"NMT": "start"}'})
     assert by_header.status_code == 200 and frames.nmt(0x01, MOTEC)
     stopping = client.post(_node("/nmt"), json={"command": "pre-operational"})  # leaving Operational: no question
     assert stopping.status_code == 200 and frames.nmt(0x80, MOTEC)
 
 
 def test_keepalive_false_needs_a_reason(client: TestClient) -> None:
-    no_reason = client.post(_node("/nmt"), json={"command": "start", "confirm": 5, "keepalive": False})
+    no_reason = confirmed(client, "POST", _node("/nmt"), json={"command": "start", "confirm": 5, "keepalive": False})
     assert no_reason.status_code == 422 and "reason" in no_reason.json()["detail"]
 
 
@@ -84,7 +90,7 @@ def test_api_client_that_stops_its_keepalive_gets_its_node_stopped(client: TestC
     server writes quick stop to 0x6040 and sends NMT pre-operational, both on the wire."""
     frames = Frames(wire)
     sim = _plant(client).nodes[MM]
-    started = client.post(_node("/nmt", MM), json={"command": "start", "confirm": 3, "keepalive_s": 1})
+    started = confirmed(client, "POST", _node("/nmt", MM), json={"command": "start", "confirm": 3, "keepalive_s": 1})
     assert started.status_code == 200
     assert wait_until(lambda: sim.state.name == "OPERATIONAL")
     until = time.monotonic() + 2.5
@@ -107,8 +113,9 @@ def test_closing_the_page_socket_stops_what_it_started(client: TestClient, wire:
     frames = Frames(wire)
     sim = _plant(client).nodes[MOTEC]
     with client.websocket_connect(f"/ws/sessions/{DEMO}/keepalive?client=tab-anna") as socket:
-        started = client.post(f"/ui/sessions/{DEMO}/nmt", data={"command": "start", "node_id": "5", "confirm": "5"},
-                              headers=ANNA)
+        started = confirmed(client, "POST", f"/ui/sessions/{DEMO}/nmt",
+                            data={"command": "start", "node_id": "5", "confirm": "5"},
+                            headers=ANNA)
         assert started.status_code == 200
         assert wait_until(lambda: sim.state.name == "OPERATIONAL")
         for _ in range(8):  # the page's keep-alive, 4 s in all: longer than the 2 s timeout
@@ -116,7 +123,7 @@ def test_closing_the_page_socket_stops_what_it_started(client: TestClient, wire:
             assert socket.receive_json() == {"type": "held", "nodes": [MOTEC], "not_held": []}
             time.sleep(0.5)
         assert not frames.nmt(0x80, MOTEC) and sim.state.name == "OPERATIONAL"
-        ben = client.post(_node("/nmt"), json={"command": "start", "confirm": 5}, headers=BEN)
+        ben = confirmed(client, "POST", _node("/nmt"), json={"command": "start", "confirm": 5}, headers=BEN)
         assert ben.status_code == 409 and "anna" in ben.json()["detail"], "another client cannot take the node"
     assert wait_until(lambda: frames.nmt(0x80, MOTEC)), "the closed page's node was not stopped"
     assert frames.sdo_download(MOTEC, 0x5FFF - 866), "no quick stop written to C00866/1"
@@ -131,7 +138,8 @@ def test_the_same_tab_reconnecting_keeps_its_node_running(client: TestClient, wi
     frames = Frames(wire)
     url = f"/ws/sessions/{DEMO}/keepalive?client=tab-anna"
     with client.websocket_connect(url) as socket:
-        assert client.post(_node("/nmt"), json={"command": "start", "confirm": 5}, headers=ANNA).status_code == 200
+        assert confirmed(client, "POST", _node("/nmt"), json={"command": "start", "confirm": 5},
+                         headers=ANNA).status_code == 200
         socket.send_text("{}")
         assert socket.receive_json()["nodes"] == [MOTEC]
     with client.websocket_connect(url) as socket:  # the next page of the same tab
@@ -147,14 +155,15 @@ def test_cyclic_rpdo_page_closed_stops_the_frames_and_the_drive(client: TestClie
     frames = Frames(wire)
     mapped = client.put(_node("/pdos/rpdo/5", MM), json={"entries": [[0x6040, 0], [0x6042, 0]]}, headers=ANNA)
     assert mapped.status_code == 200
-    client.post(_node("/nmt", MM), json={"command": "start", "confirm": 3, "keepalive": False, "reason": "test"},
-                headers=ANNA)
+    confirmed(client, "POST", _node("/nmt", MM),
+              json={"command": "start", "confirm": 3, "keepalive": False, "reason": "test"},
+              headers=ANNA)
     with client.websocket_connect(f"/ws/sessions/{DEMO}/keepalive?client=tab-anna") as keepalive, \
             client.websocket_connect(f"/ws/sessions/{DEMO}/nodes/{MM}/process-data") as live:
         owner = live.receive_json()["client_id"]
-        sent = client.post(f"/ui/sessions/{DEMO}/nodes/{MM}/pdo/rpdo/5/send", headers=ANNA, data={
-            "mode": "cyclic", "client_id": owner, "period_ms": "50", "v:0x6040": "15", "v:0x6042": "100",
-            "confirm": "3"})
+        sent = confirmed(client, "POST", f"/ui/sessions/{DEMO}/nodes/{MM}/pdo/rpdo/5/send", headers=ANNA, data={
+                          "mode": "cyclic", "client_id": owner, "period_ms": "50", "v:0x6040": "15", "v:0x6042": "100",
+                          "confirm": "3"})
         assert sent.status_code == 200, sent.text
         keepalive.send_text("{}")
         assert keepalive.receive_json()["nodes"] == [MM]
@@ -259,8 +268,9 @@ def test_admin_breaks_a_lease_an_engineer_cannot(roles_client: TestClient) -> No
     broken = roles_client.delete(_node("/lease"), params={"force": "true"}, headers=admin)
     assert broken.status_code == 200 and broken.json()["holder"] is None
     assert _write(roles_client, ben, 20).status_code == 200
-    no_guard = roles_client.post(_node("/nmt"), json={"command": "start", "confirm": 5, "keepalive": False,
-                                                       "reason": "PLC supervises"}, headers=ben)
+    no_guard = confirmed(roles_client, "POST", _node("/nmt"),
+                         json={"command": "start", "confirm": 5, "keepalive": False, "reason": "PLC supervises"},
+                         headers=ben)
     assert no_guard.status_code == 403, "only admins start without the keep-alive guard"
 
 

@@ -42,20 +42,18 @@ def test_nmt_start_asks_first_and_closing_the_tab_stops_the_drive(own_server: tu
     try:
         page.goto(url + "/")
         start = page.locator(f"#nmt-demo-plant-{MM}-start")
-        asked: list[str] = []
-
-        def refuse(dialog: Any) -> None:
-            asked.append(dialog.message)
-            dialog.dismiss()
-
-        page.once("dialog", refuse)
+        asked = page.locator("#moving-confirm")  # the server names what it will send; the page asks
         start.click()
-        assert wait_until(lambda: bool(asked)) and f"Start node {MM}?" in asked[0]
+        expect(asked).to_be_visible(timeout=WAIT_MS)
+        expect(asked).to_contain_text(f"Sends to node {MM}")
+        expect(asked).to_contain_text("NMT: start")
+        asked.get_by_role("button", name="Cancel").click()
         time.sleep(0.5)
         assert sim.state.name == "PRE_OPERATIONAL", "refusing the confirmation sends nothing"
 
-        page.once("dialog", lambda dialog: dialog.accept())
         start.click()
+        expect(asked).to_be_visible(timeout=WAIT_MS)
+        asked.get_by_role("button", name="Send it").click()
         assert wait_until(lambda: sim.state.name == "OPERATIONAL"), "NMT start did not reach the drive"
         note = page.locator("#session-demo-plant .keepalive-state")
         expect(note).to_have_text(f"This tab keeps node {MM} running: closing it stops it.", timeout=WAIT_MS)

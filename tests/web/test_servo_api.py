@@ -9,6 +9,7 @@ from typing import Any
 
 from fastapi.testclient import TestClient
 
+from tests.confirming import confirmed
 from tests.conftest import wait_until
 
 AXIS = 7
@@ -38,20 +39,20 @@ def test_interpolated_position_through_sync_and_an_rpdo(client: TestClient) -> N
     mapped = client.put(f"{NODE}/pdos/rpdo/2", json={"entries": [[0x6040, 0], [0x60C1, 1]],
                                                       "transmission_type": 1})
     assert mapped.status_code == 200 and mapped.json()["ok"], mapped.text
-    started = client.post(f"{NODE}/nmt", json={"command": "start", "confirm": AXIS})
+    started = confirmed(client, "POST", f"{NODE}/nmt", json={"command": "start", "confirm": AXIS})
     assert started.status_code == 200, started.text
     assert _kept(client, lambda: client.get(NODE).json()["nmt_state"] == "Operational")  # its heartbeat says so
     for command in ("shutdown", "switch_on"):
         assert client.post(f"{CONTROL}/commands/{command}").status_code == 200
-    assert client.post(f"{CONTROL}/commands/enable_operation", json={"confirm": AXIS}).status_code == 200
-    assert client.put(f"{CONTROL}/mode", json={"mode": 7, "confirm": AXIS}).json()["mode_label"] == \
+    assert confirmed(client, "POST", f"{CONTROL}/commands/enable_operation", json={"confirm": AXIS}).status_code == 200
+    assert confirmed(client, "PUT", f"{CONTROL}/mode", json={"mode": 7, "confirm": AXIS}).json()["mode_label"] == \
         "Interpolated position"
 
     unconfirmed = client.post(f"{CONTROL}/cyclic", json={"value": 90})
     assert unconfirmed.status_code == 428, unconfirmed.text
-    beyond = client.post(f"{CONTROL}/cyclic", json={"value": 5000, "confirm": AXIS})
+    beyond = confirmed(client, "POST", f"{CONTROL}/cyclic", json={"value": 5000, "confirm": AXIS})
     assert beyond.status_code == 422 and "3600" in beyond.json()["detail"]  # software position limits 0x607D
-    sent = client.post(f"{CONTROL}/cyclic", json={"value": 90, "confirm": AXIS})
+    sent = confirmed(client, "POST", f"{CONTROL}/cyclic", json={"value": 90, "confirm": AXIS})
     assert sent.status_code == 200, sent.text
     stream = sent.json()
     assert (stream["mode"], stream["rpdo"], stream["cob_id"], stream["period_ms"]) == (7, 2, 0x307, 10)

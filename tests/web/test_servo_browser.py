@@ -45,8 +45,9 @@ def server(tmp_path: Path) -> Iterator[tuple[str, Any]]:
 
 def _confirm(page: Any) -> None:
     page.wait_for_selector("#ctl-confirm[open]", timeout=TIMEOUT_MS)
-    assert f"node {NODE}" in page.locator("#ctl-confirm").inner_text() or page.locator("#ctl-confirm-text").count()
+    assert f"node {NODE}" in page.locator("#ctl-confirm-text").inner_text()
     page.click("#ctl-confirm-ok")
+    page.wait_for_selector("#ctl-confirm:not([open])", state="attached", timeout=TIMEOUT_MS)
 
 
 def _value(page: Any, ref: str) -> str:
@@ -140,7 +141,8 @@ def test_upload_scan_home_move_velocity_and_jog_a_cia402_axis(server: tuple[str,
 
     page.fill("#ctl-velocity input[name=value]", "20")
     page.click("#ctl-velocity button[type=submit]")
-    _confirm(page)
+    _confirm(page)  # the mode (0x6060 = 3) while enabled: asked with what it writes
+    _confirm(page)  # then the target velocity 0x60FF = 20 mm/s
     _until(page, "0x606C", "20 mm/s")
     assert page.locator("#ctl-mode-display").inner_text() == "Profile velocity (3)"
     page.fill("#ctl-velocity input[name=value]", "0")
@@ -148,16 +150,15 @@ def test_upload_scan_home_move_velocity_and_jog_a_cia402_axis(server: tuple[str,
     _until(page, "0x606C", "0 mm/s")
 
     page.fill("#ctl-jog-speed", "10")
-    jog = page.locator("button[data-jog='-1']")
-    jog.hover()
-    page.mouse.down()  # the first press asks for confirmation
-    page.mouse.up()
-    page.click("#ctl-confirm-ok")
-    jog.hover()
-    page.mouse.down()  # held: -10 mm/s
+    page.click("button[data-jog='-1']")  # the press asks, naming what the jog sends
+    page.wait_for_selector("#ctl-confirm[open]", timeout=TIMEOUT_MS)
+    assert "-10 mm/s" in page.locator("#ctl-confirm-values").inner_text()
+    page.locator("#ctl-confirm-ok").hover()
+    page.mouse.down()  # held in the dialog: -10 mm/s
     _until(page, "0x606C", "-10 mm/s")
     page.mouse.up()  # released
     _until(page, "0x606C", "0 mm/s")
+    page.click("#ctl-confirm button[value=cancel]")
 
     _, lowest, highest = _plotted(page, "0x606C")
     assert lowest <= -9.5 and highest >= 19.5, (lowest, highest)  # 20 mm/s and the -10 mm/s jog on the chart

@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 from fastapi.testclient import TestClient
 
+from tests.confirming import confirmed
 from tests.conftest import fresh_channel, wait_until
 
 NO_BROWSER = {"keepalive": False, "reason": "test without a browser"}  # NMT start without the keep-alive guard (admin)
@@ -155,7 +156,8 @@ def test_nodes_list_device_names_and_heartbeat_states(client: TestClient) -> Non
 def test_nmt_broadcast_and_per_node(client: TestClient) -> None:
     assert wait_until(lambda: set(node_states(client).values()) == {"Pre-operational"})
     assert client.post(f"/api/sessions/{DEMO}/nmt", json={"command": "start"}).status_code == 428
-    answer = client.post(f"/api/sessions/{DEMO}/nmt", json={"command": "start", "confirm": "all", **NO_BROWSER})
+    answer = confirmed(client, "POST", f"/api/sessions/{DEMO}/nmt",
+                       json={"command": "start", "confirm": "all", **NO_BROWSER})
     assert answer.status_code == 200 and len(answer.json()) == 4
     assert wait_until(lambda: set(node_states(client).values()) == {"Operational"})
     single = client.post(f"/api/sessions/{DEMO}/nodes/12/nmt", json={"command": "stop"})
@@ -196,7 +198,8 @@ def test_node_websocket_pushes_the_nodes_table_as_it_changes(client: TestClient)
         for device in ("Pump (MICROMASTER 440)", "Conveyor (8400 motec)", "Fan (8200 vector + EMF2178IB)"):
             assert device in first
         assert first.count("Pre-operational") >= 3
-        client.post(f"/api/sessions/{DEMO}/nmt", json={"command": "start", "confirm": "all", **NO_BROWSER})
+        confirmed(client, "POST", f"/api/sessions/{DEMO}/nmt",
+                  json={"command": "start", "confirm": "all", **NO_BROWSER})
         for _ in range(20):
             update = socket.receive_text()
             if update.count(">Operational<") == 4:

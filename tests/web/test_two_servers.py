@@ -22,6 +22,7 @@ from drivebench.services.storage import database
 from drivebench.services.storage.models import DownloadRow
 from drivebench.services.users import accounts
 from drivebench.services.users.principals import Role
+from tests.confirming import confirmed
 from tests.conftest import _free_port, wait_until
 from tests.pg_cluster import PostgresCluster
 from tests.transport.test_multiprocess import START_TIMEOUT_S, CliProcess
@@ -142,7 +143,7 @@ def test_sets_downloads_and_audit_rows_of_both_servers_are_one_history(plant: Pl
     set_id = upload(line_a, eve, "Conveyor from line A")
     assert [s["name"] for s in HTTP.get(f"{line_b}{SETS}", headers=anna).json()] == ["Conveyor from line A"]
 
-    started = HTTP.post(f"{line_b}{SETS}/{set_id}/download",
+    started = confirmed(HTTP, "POST", f"{line_b}{SETS}/{set_id}/download",
                         json={"session_id": SESSION, "node_id": 5, "confirm": "5"},  # the node it may move
                         headers=anna, timeout=60)  # line B's own drive gets line A's values
     assert started.status_code == 202, started.text
@@ -245,7 +246,7 @@ def test_kill_9_mid_download_loses_no_committed_row(plant: Plant, line_a: str, l
     slow = plant.serve("--latency", "200ms")  # a third line whose drive answers slowly: the download takes seconds
     write_c88(slow, eve, 9)
     before_kill = _committed(line_b, anna)
-    started = HTTP.post(f"{slow}{SETS}/{set_id}/download",
+    started = confirmed(HTTP, "POST", f"{slow}{SETS}/{set_id}/download",
                         json={"session_id": SESSION, "node_id": 5, "confirm": "5"},  # the node it may move
                         headers=eve, timeout=60)
     assert started.status_code == 202, started.text

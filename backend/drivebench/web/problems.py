@@ -7,6 +7,8 @@ of the app (navigation bar, a way back), same status.
 
 from __future__ import annotations
 
+import json
+
 from fastapi import FastAPI, Request
 from fastapi.exception_handlers import http_exception_handler
 from fastapi.exceptions import RequestValidationError
@@ -79,6 +81,10 @@ def error_fragment(body: dict[str, object]) -> Markup:
         parts.append(Markup('<code class="abort">{} {}</code>').format(body["abort_code"], body.get("abort_text", "")))
     if body.get("hint"):
         parts.append(Markup('<div class="hint">{}</div>').format(body["hint"]))
+    if "confirm_node" in body:  # a 428: the page's dialog (app.js) is built from these, not from the sentence
+        asks = Markup('<div class="error" role="alert" data-confirm-node="{}" data-confirm-values="{}">{}</div>')
+        return asks.format(body["confirm_node"], json.dumps(body.get("confirm_values") or {}, sort_keys=True),
+                           Markup(" ").join(parts))
     return Markup('<div class="error" role="alert">{}</div>').format(Markup(" ").join(parts))
 
 

@@ -3,7 +3,8 @@ lease, and the confirmation an action that can move a drive carries.
 
 A browser tab names itself with ``X-DriveBench-Client`` (app.js sets it on every htmx request; the Control tab sends
 the same id as ``X-Drive-Panel``); websockets pass it as ``?client=``. Without one, a client is one panel per host.
-The confirmation is the ``X-DriveBench-Confirm`` header, the ``confirm`` query parameter or a body field.
+The confirmation is the ``X-DriveBench-Confirm`` header, the ``confirm`` query parameter or a body field, with the
+values it confirms (the ``X-DriveBench-Confirm-Values`` header or the ``confirm_values`` body field).
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from starlette.requests import HTTPConnection
 
 from drivebench.i18n import N_
 from drivebench.services.control import drive_guard
-from drivebench.services.control.drive_guard import Panel, panel_of
+from drivebench.services.control.drive_guard import Confirmation, Panel, panel_of
 from drivebench.services.params import node_lease
 from drivebench.services.params.node_lease import Writer
 from drivebench.web.identity import principal_of
@@ -66,11 +67,19 @@ async def acting_writer(conn: HTTPConnection) -> Writer:
     return writer
 
 
-def confirmation(conn: HTTPConnection, given: object = None) -> object:
-    """The confirmation an action carries: a body field, else the header, else the query parameter."""
-    if given is not None and given is not False:
-        return given
-    return conn.headers.get("x-drivebench-confirm") or conn.query_params.get("confirm")
+def confirmation(conn: HTTPConnection, given: object = None, values: object = None) -> Confirmation | None:
+    """The confirmation an action carries: the node it names (a body field, else the ``X-DriveBench-Confirm``
+    header, else the ``confirm`` query parameter) and the values it repeats (a body field, else the
+    ``X-DriveBench-Confirm-Values`` header: a JSON object)."""
+    node = given if given is not None and given is not False else (
+        conn.headers.get("x-drivebench-confirm") or conn.query_params.get("confirm"))
+    if isinstance(values, str):
+        values = drive_guard.parse_values(values)
+    if values is None:
+        values = drive_guard.parse_values(conn.headers.get("x-drivebench-confirm-values"))
+    if node is None and values is None:
+        return None
+    return Confirmation(node, values)
 
 
 async def current_panel(conn: HTTPConnection) -> Panel:

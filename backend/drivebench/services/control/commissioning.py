@@ -334,16 +334,16 @@ async def next_step(session: Session, node: SessionNode, run: Run, *, confirm: o
         if run.finished:
             raise Conflict(_("This commissioning run is finished; start it again to repeat it."))
         step = run.sequence.steps[run.position]
+        values = step_values(step, node.node_id)
         if step.kind == "sdo":  # the profile's range, selection and access: refused before anything is sent
             write = step_write(node, step)
-            parameters.checked_raw(node, write.ref, write.value)
+            values = parameters.sent_values(*parameters.checked_raw(node, write.ref, write.value))
         guard = drive_control.guard_for(session)
         named = _("Step {number} ({title})").format(number=run.position + 1, title=step.title)
         guard.check(node.node_id, panel, named)
         with node_lease.writing(session, node.node_id):
-            if step.moves:
-                drive_guard.require_confirmation(confirm, node.node_id, named)
-                drive_guard.confirming(confirm)  # the step's write is confirmed by the same request
+            if step.moves:  # confirmed with the values it sends: the step's write is then admitted as confirmed
+                drive_guard.confirm_moving(session, node.node_id, named, values, confirm=confirm)
                 if step.kind == "nmt_start":  # as drive_guard.nmt: stays armed until NMT leaves Operational
                     guard.started.add(node.node_id)
                 guard.arm(node.node_id, panel, pinned=step.kind == "nmt_start")
@@ -373,3 +373,12 @@ async def _run_step(session: Session, node: SessionNode, run: Run, step: Step) -
                                                                                 title=step.title, problem=problem)
     else:
         run.position += 1
+
+def step_values(step: Step, node_id: int) -> dict[str, object]:
+    """What a moving NMT or PDO step sends, as its confirmation names it (telegrams in hex, as the manual prints
+    them); an SDO step's are those of its checked write (:func:`parameters.sent_values`)."""
+    if step.kind == "nmt_start":
+        return {"NMT": "start"}
+    if step.kind == "pdo":
+        return {f"COB-ID 0x{step.cob + node_id:03X}": step.data.hex(" ").upper()}
+    return {"check": step.expect_ref or ""}

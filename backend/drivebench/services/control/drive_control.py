@@ -34,6 +34,7 @@ from drivebench.services.control.drive_guard import (
     ARM_SETTLE_S,
     SERVICE_PANEL,
     Panel,
+    Values,
     cleared,
     guard_for,
     last_word,
@@ -374,8 +375,22 @@ async def read_status(session: Session, node: SessionNode, panel: Panel = SERVIC
 
 
 # --- commands ------------------------------------------------------------------------------------------------
-def _confirmed(confirm: object, node: SessionNode, what: str) -> None:
-    require_confirmation(confirm, node.node_id, what)
+def _confirmed(confirm: object, node: SessionNode, what: str, values: Values) -> None:
+    require_confirmation(confirm, node.node_id, what, values)
+
+
+def sent(node: SessionNode, ref: str, value: object, unit: str | None = None) -> Values:
+    """How a confirmation names the write of ``value`` to ``ref`` (in ``unit``, else the object's own)."""
+    try:
+        item = catalog_of(node).resolve(ref)
+    except UnknownParameter:
+        return {ref + (f" [{unit}]" if unit else ""): value}
+    return {parameters.sent_key(item, unit): value}
+
+
+def word_values(node: SessionNode, command: str, word: int) -> Values:
+    """A command as a confirmation names it: its key and the control word it writes."""
+    return {"command": command, **sent(node, family(node).control_ref, f"0x{word:04X}")}
 
 
 async def write_control_word(session: Session, node: SessionNode, word: int) -> None:
@@ -403,8 +418,6 @@ async def command(session: Session, node: SessionNode, which: Command, *, confir
     guard = guard_for(session)
     if which not in STOPPING:
         guard.check(node.node_id, panel, command_label(which))
-    if which in fam.moving:
-        _confirmed(confirm, node, command_label(which))
     if which in STOPPING:  # a cyclic synchronous stream would send its control word again: it ends first
         live.service(session).stop_node(node.node_id)
     # any station may stop it, and a stop goes before the reads waiting for the node
@@ -412,6 +425,8 @@ async def command(session: Session, node: SessionNode, which: Command, *, confir
           parameters.stop_first(session, node.node_id) if which in STOPPING else contextlib.nullcontext()):
         last = await last_control_word(session, node)
         word = next_control_word(fam, which, last)
+        if which in fam.moving:
+            _confirmed(confirm, node, command_label(which), word_values(node, which.value, word))
         if bits_of.edge is not None and last & bits_of.edge:
             await write_control_word(session, node, last & ~bits_of.edge)  # a rising edge needs the bit at 0 first
         if which in fam.moving:
@@ -444,7 +459,8 @@ async def set_setpoint(session: Session, node: SessionNode, value: float, *, con
     scale = await setpoint_scale(session, node, mode)
     check_range(value, scale)
     if value != 0:
-        _confirmed(confirm, node, _("Setpoint {value} {unit}").format(value=f"{value:g}", unit=scale.unit))
+        _confirmed(confirm, node, _("Setpoint {value} {unit}").format(value=f"{value:g}", unit=scale.unit),
+                   sent(node, scale.ref, value, scale.unit))
         guard.arm(node.node_id, panel)
     with cleared():  # confirmed and armed above (0 cannot speed it up)
         if scale.raw_per_unit:
@@ -544,7 +560,8 @@ async def jog(session: Session, node: SessionNode, direction: int, *, confirm: o
             raise OutOfRange(_("Jog speed {speed} {unit} is above the max profile velocity 0x607F = {top} {unit}.")
                              .format(speed=f"{speed:g}", unit=plan.unit, top=f"{plan.maximum:g}"))
         if direction:
-            _confirmed(confirm, node, jog_at(speed or plan.value, plan.unit))
+            velocity = sent(node, "0x60FF", direction * (speed or plan.value), plan.unit)
+            _confirmed(confirm, node, jog_at(speed or plan.value, plan.unit), {**sent(node, "0x6060", 3), **velocity})
             guard.arm(node.node_id, panel)
         with cleared():  # confirmed and armed above; 0 (release) stops it
             if direction and status.mode != 3:
@@ -555,12 +572,13 @@ async def jog(session: Session, node: SessionNode, direction: int, *, confirm: o
     if plan.method == "setpoint":
         return await set_setpoint(session, node, direction * plan.value, confirm=confirm, panel=panel)
     spec = family(node).section.jog
-    if direction:
-        _confirmed(confirm, node, jog_at(plan.value, plan.unit))
-        guard.arm(node.node_id, panel)
     word = await last_control_word(session, node) & ~spec.select_mask
     if direction:
         word |= spec.forward if direction > 0 else spec.reverse
+        jogged = sent(node, spec.value_ref, plan.value, plan.unit) if spec.value_ref else {}
+        _confirmed(confirm, node, jog_at(plan.value, plan.unit),
+                   {**word_values(node, "jog_forward" if direction > 0 else "jog_reverse", word), **jogged})
+        guard.arm(node.node_id, panel)
     await write_control_word(session, node, word)
     return await read_status(session, node, panel)
 
@@ -580,7 +598,8 @@ async def set_mode(session: Session, node: SessionNode, mode: int, *, confirm: o
     guard_for(session).check(node.node_id, panel, _("Changing the mode of operation"))
     status = await read_status(session, node, panel)
     if status.enabled:
-        _confirmed(confirm, node, _("Changing the mode of operation while the drive is enabled"))
+        _confirmed(confirm, node, _("Changing the mode of operation while the drive is enabled"),
+                   sent(node, "0x6060", mode))
     with cleared():  # confirmed above while enabled; a disabled drive does not move when its mode changes
         await parameters.write(session, node.node_id, "0x6060", mode, verify=False)
     deadline = time.monotonic() + MODE_SETTLE_S

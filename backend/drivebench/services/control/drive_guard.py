@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import json
 import logging
 import time
 import weakref
@@ -47,20 +48,93 @@ ARM_SETTLE_S = 2.0
 log = logging.getLogger(__name__)
 
 
-def require_confirmation(given: object, node_id: int | None, what: str) -> None:
-    """``given`` (a body field, query parameter or ``X-DriveBench-Confirm`` header) must name the node the action
-    moves: its id, or ``all`` for a broadcast (``node_id`` None). ``true`` is not enough: a script that confirms
-    everything blindly would confirm the wrong node too."""
+Values = dict[str, object]
+"""What a moving action will send, as the server builds it from the request it is about to execute: each object
+(``"0x60FF Target velocity [rpm]"``) or setting (``"NMT"``) and its value, with its unit in the name where the user
+sees one. A confirmation repeats it (``confirm_values``)."""
+
+
+@dataclass(frozen=True)
+class Confirmation:
+    """What a request carries to confirm a moving action: the node it names and the values it saw."""
+
+    node: object
+    values: object = None
+
+
+def _plain(value: object) -> object:
+    """JSON-able and canonical: numbers compared as numbers (2500 == 2500.0), keys as text."""
+    if isinstance(value, bool) or value is None or isinstance(value, str):
+        return value
+    if isinstance(value, int):
+        return value
+    if isinstance(value, float):
+        return int(value) if value.is_integer() else value
+    if isinstance(value, dict):
+        return {str(key): _plain(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(item) for item in value]
+    return str(value)
+
+
+def canonical(values: object) -> str:
+    return json.dumps(_plain(values), sort_keys=True, separators=(",", ":"), ensure_ascii=False)
+
+
+def plain_values(values: Values) -> Values:
+    plain = _plain(values)
+    return plain if isinstance(plain, dict) else {}
+
+
+def parse_values(text: str | None) -> Values | None:
+    """The ``X-DriveBench-Confirm-Values`` header (or form field): a JSON object; None when absent."""
+    if text is None or not text.strip():
+        return None
+    try:
+        parsed = json.loads(text)
+    except ValueError as exc:
+        raise InvalidValue(_("confirm_values is not JSON: {error}").format(error=str(exc)[:80])) from exc
+    if parsed is None:  # null: no values, as when absent
+        return None
+    if not isinstance(parsed, dict):
+        raise InvalidValue(_("confirm_values must be a JSON object (what the 428 named), not {kind}.").format(
+            kind=type(parsed).__name__))
+    return parsed
+
+
+def _within(given: object, values: Values) -> bool:
+    """``values`` are all among the already confirmed ``given`` (a batch or download writing them one by one)."""
+    if not isinstance(given, dict):
+        return False
+    plain = plain_values(given)
+    return all(key in plain and canonical(plain[key]) == canonical(item) for key, item in values.items())
+
+
+def require_confirmation(given: object, node_id: int | None, what: str, values: Values) -> None:
+    """``given`` (a :class:`Confirmation` from body fields or the ``X-DriveBench-Confirm`` / ``-Values`` headers)
+    must name the node the action moves (its id, or ``all`` for a broadcast: ``node_id`` None) and repeat the
+    ``values`` it will send. ``true`` is not enough: a script that confirms everything blindly would confirm the
+    wrong node too; and values that differ from what the request sends confirm something else. Inside
+    :func:`cleared` (the caller confirmed it) nothing is asked."""
+    if _cleared.get():
+        return
     wanted = "all" if node_id is None else str(node_id)
-    text = str(given).strip().lower() if given is not None and given is not False else ""
-    if text == wanted:
+    node, seen = (given.node, given.values) if isinstance(given, Confirmation) else (given, None)
+    text = str(node).strip().lower() if node is not None and node is not False else ""
+    same = seen is not None and canonical(seen) == canonical(values)
+    if text == wanted and same:
         return
     whom = _("every node of the session") if node_id is None else _("node {node}").format(node=node_id)
-    said = _(" (it said {given})").format(given=repr(str(given)[:20])) if text else ""
-    raise ConfirmationRequired(
-        _("{what} lets {whom} move a drive: confirm it with confirm = {wanted} (or the header "
-          "X-DriveBench-Confirm: {plain}){said}.").format(what=what, whom=whom, wanted=repr(wanted), plain=wanted,
-                                                         said=said), node="all" if node_id is None else node_id)
+    if text == wanted and seen is not None:
+        detail = _("{what} lets {whom} move a drive, and the values to send changed since they were confirmed: "
+                   "confirm these values (confirm_values).").format(what=what, whom=whom)
+    else:
+        said = _(" (it said {given})").format(given=repr(str(node)[:20])) if text else ""
+        detail = _("{what} lets {whom} move a drive: confirm it with confirm = {wanted} and confirm_values = the "
+                   "values named here (or the headers X-DriveBench-Confirm: {plain} and "
+                   "X-DriveBench-Confirm-Values){said}.").format(what=what, whom=whom, wanted=repr(wanted),
+                                                                  plain=wanted, said=said)
+    raise ConfirmationRequired(detail, node="all" if node_id is None else node_id, values=plain_values(values))
 
 
 @dataclass(frozen=True)
@@ -312,15 +386,15 @@ class Guard:
         it (the session's part)."""
         return MovingWrites(self._admit_moving_write, self._stopped, self._confirm_moving)
 
-    def _confirm_moving(self, node_id: int, what: str) -> None:
+    def _confirm_moving(self, node_id: int, what: str, values: Values) -> None:
         session = self._session()
         if session is not None:
-            confirm_moving(session, node_id, what)
+            confirm_moving(session, node_id, what, values)
 
-    def _admit_moving_write(self, node_id: int, what: str) -> None:
+    def _admit_moving_write(self, node_id: int, what: str, values: Values) -> None:
         session = self._session()
         if session is not None:
-            admit_moving_write(session, node_id, what)
+            admit_moving_write(session, node_id, what, values)
 
     def _stopped(self, node_id: int) -> None:
         session = self._session()
@@ -351,10 +425,12 @@ def guard_for(session: Session) -> Guard:
 # --- writes that can move a drive, by any route (parameter API and tab, set downloads, commissioning) -------------
 @dataclass(frozen=True)
 class Acting:
-    """Who sends the writes of a request (and of the jobs it starts), and the confirmation it carries."""
+    """Who sends the writes of a request (and of the jobs it starts), the confirmation it carries, and the values a
+    batch or download already confirmed as a whole (each of its writes then sends some of them)."""
 
     panel: Panel
     confirm: object = None
+    confirmed: Values | None = None
 
 
 _acting: ContextVar[Acting | None] = ContextVar("drivebench_acting", default=None)
@@ -370,7 +446,7 @@ def confirming(confirm: object) -> None:
     """The request's body carries the confirmation (it wins over the header and query parameter)."""
     if confirm is not None and confirm is not False:
         act = _acting.get()
-        _acting.set(Acting(act.panel if act else SERVICE_PANEL, confirm))
+        _acting.set(Acting(act.panel if act else SERVICE_PANEL, confirm, act.confirmed if act else None))
 
 
 @contextlib.contextmanager
@@ -384,25 +460,31 @@ def cleared() -> Iterator[None]:
         _cleared.reset(token)
 
 
-def confirm_moving(session: Session, node_id: int, what: str, *, confirm: object = None) -> Panel | None:
-    """``confirm`` (else the acting request's confirmation) confirmed ``what`` (428 without the one naming the
-    node) and the acting panel is no watcher of a node another panel holds (409). None inside :func:`cleared`
-    (nothing to check), else the panel. An operation that will write such values (a parameter-set download)
-    checks this before it starts."""
+def confirm_moving(session: Session, node_id: int, what: str, values: Values, *,
+                   confirm: object = None) -> Panel | None:
+    """``confirm`` (else the acting request's confirmation) confirmed ``what`` and the ``values`` it will write (428
+    without the one naming the node and repeating them) and the acting panel is no watcher of a node another panel
+    holds (409). None inside :func:`cleared` (nothing to check), else the panel. An operation that will write such
+    values one by one (a batch, a parameter-set download) checks them all before it starts: its writes are then
+    admitted as part of what was confirmed."""
     if _cleared.get():
         return None
     act = _acting.get()
-    require_confirmation(confirm if confirm is not None else act.confirm if act else None, node_id, what)
+    given = confirm if confirm is not None else act.confirm if act else None
+    if act is None or act.confirmed is None or not _within(act.confirmed, values):
+        require_confirmation(given, node_id, what, values)
     panel = act.panel if act else SERVICE_PANEL
     guard_for(session).check(node_id, panel, what)
+    confirmed = {**(act.confirmed or {}), **plain_values(values)} if act else plain_values(values)
+    _acting.set(Acting(panel, given, confirmed))
     return panel
 
 
-def admit_moving_write(session: Session, node_id: int, what: str) -> None:
-    """A write that can make the drive move: confirmed (:func:`confirm_moving`), and it arms the node for the
-    acting panel, which must keep it alive from now on (or the guard quick-stops it). A write without a request
-    (an internal caller outside :func:`cleared`) carries no confirmation: refused."""
-    panel = confirm_moving(session, node_id, what)
+def admit_moving_write(session: Session, node_id: int, what: str, values: Values) -> None:
+    """A write that can make the drive move: confirmed with the values it sends (:func:`confirm_moving`), and it
+    arms the node for the acting panel, which must keep it alive from now on (or the guard quick-stops it). A write
+    without a request (an internal caller outside :func:`cleared`) carries no confirmation: refused."""
+    panel = confirm_moving(session, node_id, what, values)
     if panel is not None:
         guard_for(session).arm(node_id, panel)
 
@@ -415,6 +497,19 @@ def stopped(session: Session, node_id: int) -> None:
 
 
 # --- NMT and RPDOs: confirmed, armed, stopped by the guard ----------------------------------------------------
+def nmt_start_values(targets: list[int], *, broadcast: bool) -> Values:
+    """What NMT start sends: the command, and for the broadcast the nodes it starts."""
+    return {"NMT": "start", "nodes": targets} if broadcast else {"NMT": "start"}
+
+
+def rpdo_values(number: int, values: dict[str, str], period_ms: int | None) -> Values:
+    """What an RPDO send carries: its number, each mapped object's value as given, the cycle when cyclic."""
+    sent: Values = {"RPDO": number, **{ref: value for ref, value in values.items()}}
+    if period_ms is not None:
+        sent["period [ms]"] = period_ms
+    return sent
+
+
 async def nmt(session: Session, command: NmtCommand, node_id: int, panel: Panel = SERVICE_PANEL, *,
               confirm: object = None, keepalive: bool = True, timeout_s: float = KEEPALIVE_TIMEOUT_S) -> list[int]:
     """Send an NMT command to one node or (``node_id`` 0) to all. Start needs the confirmation naming the node (or
@@ -428,7 +523,8 @@ async def nmt(session: Session, command: NmtCommand, node_id: int, panel: Panel 
         for target in targets:
             guard.release(target, nmt=True)
         return targets
-    require_confirmation(confirm, node_id or None, _("NMT start") if node_id else _("NMT start of all nodes"))
+    require_confirmation(confirm, node_id or None, _("NMT start") if node_id else _("NMT start of all nodes"),
+                         nmt_start_values(targets, broadcast=not node_id))
     if not KEEPALIVE_TIMEOUT_S / 4 <= timeout_s <= MAX_KEEPALIVE_S:
         raise InvalidValue(_("The keep-alive timeout must be {low} ... {high} s.").format(
             low=f"{KEEPALIVE_TIMEOUT_S / 4:g}", high=f"{MAX_KEEPALIVE_S:g}"))
@@ -451,7 +547,7 @@ async def send_rpdo(session: Session, node_id: int, number: int, values: dict[st
     """Send an RPDO once or (``owner`` and ``period_ms``) cyclically. Needs the confirmation naming the node and
     its write lease, and arms the node for ``panel`` (unless ``keepalive`` is off: the caller checked it may)."""
     what = _("Sending RPDO{number}").format(number=number)
-    require_confirmation(confirm, node_id, what)
+    require_confirmation(confirm, node_id, what, rpdo_values(number, values, period_ms if owner else None))
     guard = guard_for(session)
     guard.check(node_id, panel, what)
     service = live.service(session)

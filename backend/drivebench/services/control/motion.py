@@ -137,7 +137,8 @@ async def _mode(session: Session, node: SessionNode, status: DriveStatus, mode: 
         if mode not in status.modes:
             raise InvalidValue(_("{device} does not support {mode} mode.").format(device=node.device_name,
                                                                                    mode=cia402.mode_label(mode)))
-        await drive_control.set_mode(session, node, mode, confirm=node.node_id, panel=panel)
+        with cleared():  # the move, homing run or stream that needs it was confirmed with this mode
+            await drive_control.set_mode(session, node, mode, panel=panel)
 
 
 async def _edge(session: Session, node: SessionNode, base: int, *, hold: bool) -> None:
@@ -177,8 +178,12 @@ async def move(session: Session, node: SessionNode, target: float, *, relative: 
             raise OutOfRange(_("Target {target} {unit} is outside the software position limits 0x607D {low} ... "
                                "{high} {unit}.").format(target=f"{target:g}", unit=units.position,
                                                         low=f"{scale.minimum:g}", high=f"{scale.maximum:g}"))
+    values = {**drive_control.sent(node, "0x6060", 1), **drive_control.sent(node, "0x607A", target, units.position),
+              "relative": relative, "immediate": immediate}
+    if velocity is not None:
+        values.update(drive_control.sent(node, "0x6081", velocity, units.velocity))
     drive_control.require_confirmation(confirm, node.node_id, _("Move to {target} {unit}").format(
-        target=f"{target:g}", unit=units.position))
+        target=f"{target:g}", unit=units.position), values)
     guard_for(session).arm(node.node_id, panel)
     await _mode(session, node, status, 1, panel)
     with cleared():  # confirmed and armed above
@@ -204,7 +209,8 @@ async def home(session: Session, node: SessionNode, method: int, *, confirm: obj
             method=method, name=cia402.homing_label(method), among=among))
     status = await _enabled(session, node, panel, _("Homing"))
     drive_control.require_confirmation(confirm, node.node_id, _("Homing with method {method} ({name})").format(
-        method=method, name=cia402.homing_label(method)))
+        method=method, name=cia402.homing_label(method)),
+        {**drive_control.sent(node, "0x6060", 6), **drive_control.sent(node, "0x6098", method)})
     guard_for(session).arm(node.node_id, panel)
     await _mode(session, node, status, 6, panel)
     with cleared():  # confirmed and armed above
@@ -264,7 +270,8 @@ async def stream(session: Session, node: SessionNode, value: float, *, confirm: 
         raise Conflict(_("No valid RPDO of node {node} maps the control word 0x6040 and {target}: map one on the PDO "
                          "tab.").format(node=node.node_id, target=target))
     drive_control.require_confirmation(confirm, node.node_id, _("Cyclic setpoint {value} {unit}").format(
-        value=f"{value:g}", unit=scale.unit))
+        value=f"{value:g}", unit=scale.unit), {**drive_control.sent(node, target, value, scale.unit),
+                                                "RPDO": config.number})
     guard_for(session).arm(node.node_id, panel)
     period = await _cycle_ms(session, node)
     word = await drive_control.last_control_word(session, node) & ~MODE_BITS

@@ -73,6 +73,7 @@ def _validated(session: Session, node_id: int, wanted: Sequence[Wanted], *, chec
     node = session.node(node_id)
     problems: list[DriveBenchError | None] = []
     moving: list[str] = []
+    sent: dict[str, object] = {}
     checked: list[tuple[object, bool]] = []
     for item in wanted:
         try:
@@ -86,11 +87,13 @@ def _validated(session: Session, node_id: int, wanted: Sequence[Wanted], *, chec
         verdict = judge(found, raw, node.profile)
         if verdict.moving:
             moving.append(f"{found.ref} ({found.name}) = {value}")
+            sent.update(service.sent_values(found, raw))
         checked.append((value, verdict.stopping))
     if any(problems):
         raise BatchInvalid(problems)
     if moving:
-        session.part(service.MovingWrites).confirm(node_id, _("Writing {refs}").format(refs=", ".join(moving)))
+        session.part(service.MovingWrites).confirm(node_id, _("Writing {refs}").format(refs=", ".join(moving)),
+                                                    sent)
     return checked
 
 

@@ -559,13 +559,36 @@ class MovingWrites:
     """How :func:`write` lets a write that can move the drive through: the drive guard's checks, given to the session
     when it opens (:meth:`drive_guard.Guard.moving_writes`), so this module needs nothing above it."""
 
-    admit: Callable[[int, str], None]
-    """Node id, what is written: refused without the confirmation naming the node; arms the keep-alive."""
+    admit: Callable[[int, str, dict[str, object]], None]
+    """Node id, what is written, the values sent (:func:`sent_values`): refused without the confirmation naming the
+    node and repeating the values; arms the keep-alive."""
     stopped: Callable[[int], None]
     """Node id: a control word that stops the drive was written."""
-    confirm: Callable[[int, str], None]
-    """Node id, what will be written: refused without the confirmation naming the node, nothing armed yet (a batch
-    checks this before its first write)."""
+    confirm: Callable[[int, str, dict[str, object]], None]
+    """Node id, what will be written, the values: refused without the confirmation naming the node and repeating
+    the values, nothing armed yet (a batch checks this before its first write)."""
+
+
+def sent_key(item: Item, unit: str | None = None) -> str:
+    """How a confirmation names an object it writes: canonical ref, name, unit (``0x60FF Target velocity [rpm]``)."""
+    unit = unit if unit is not None else item.entry.unit
+    return f"{item.ref} {item.name}" + (f" [{unit}]" if unit else "")
+
+
+def sent_values(item: Item, raw: RawValue) -> dict[str, object]:
+    """What a write of ``raw`` sends, as a confirmation names it: the value in the units the user sees."""
+    value: object = from_raw(item.entry, raw).value
+    if isinstance(value, bytes):
+        value = value.hex(" ")
+    return {sent_key(item): value}
+
+
+def sent_value(item: Item, value: object) -> dict[str, object]:
+    """:func:`sent_values` of a write of ``value`` (as given), without the profile's range checks."""
+    try:
+        return sent_values(item, _unchecked_raw(item, value))
+    except (DriveBenchError, ValueError):
+        return {sent_key(item): value}
 
 
 def _unchecked_raw(item: Item, value: object) -> RawValue:
@@ -623,7 +646,8 @@ async def write(session: Session, node_id: int, ref: str, value: object, *, chec
     with node_lease.stopping() if stops else contextlib.nullcontext(), node_lease.writing(session, node_id), \
             stop_first(session, node_id) if stops else contextlib.nullcontext():
         if verdict.moving:
-            session.part(MovingWrites).admit(node_id, f"Writing {item.ref} ({item.name}) = {value}")
+            session.part(MovingWrites).admit(node_id, f"Writing {item.ref} ({item.name}) = {value}",
+                                             sent_values(item, raw))
         result = await _write(session, node, item, raw, value, verify=verify)
     if verdict.stopping:
         session.part(MovingWrites).stopped(node_id)
@@ -720,7 +744,7 @@ async def _command(session: Session, node_id: int, which: DeviceCommand) -> Comm
         index, subindex, data = item.index, item.subindex, encode(item.entry.data_type, write.raw)
         if judge(item, write.raw, node.profile).moving:  # a profile's command is a write like any other
             session.part(MovingWrites).admit(node_id, _("The {command} command ({via})").format(
-                command=_command_name(which), via=write.via))
+                command=_command_name(which), via=write.via), sent_values(item, write.raw))
     elif catalog is None:  # no profile: the CiA 301 object, addressed as such
         parsed = parse_ref(write.ref)
         assert isinstance(parsed, IndexRef)  # CIA301_SAVE / CIA301_RESTORE

@@ -289,7 +289,10 @@ def _start(session: Session, node: SessionNode, jobs: JobManager, store: Paramet
               and moves(items[ref], targets[ref], profile) is not None]
     if moving:  # asked before anything is read or written; each such write arms the guard as it goes out
         refs = ", ".join(moving[:4]) + (" ..." if len(moving) > 4 else "")
-        drive_guard.confirm_moving(session, node.node_id, _(WHAT_WRITES[kind]).format(refs=refs), confirm=confirm)
+        values = {key: value for ref in moving
+                  for key, value in parameters.sent_value(items[ref], engineering(items[ref], targets[ref])).items()}
+        drive_guard.confirm_moving(session, node.node_id, _(WHAT_WRITES[kind]).format(refs=refs), values,
+                                   confirm=confirm)
 
     async def run(job: Job) -> None:
         drive_guard.confirming(confirm)  # the job's own writes carry it (this task's context only)

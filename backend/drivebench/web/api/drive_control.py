@@ -1,6 +1,7 @@
 """Drive control panel API: status (state machine, named bits), transitions, setpoint, jog, modes, actual values,
 keep-alive, and the guided commissioning runs. Commands that can make the motor turn need ``"confirm": <node id>``
-(or the header ``X-DriveBench-Confirm: <node id>``); without it they answer 428.
+and ``"confirm_values"``: the values the 428 problem named (or the headers ``X-DriveBench-Confirm: <node id>`` and
+``X-DriveBench-Confirm-Values: <JSON object>``); without them, or with other values, they answer 428.
 
 A panel names itself with the headers ``X-Drive-Panel`` or ``X-DriveBench-Client`` (an id, one per browser tab) and
 ``X-Drive-Operator`` (the name other panels are shown; else the signed-in user); without them the client is one panel
@@ -10,12 +11,15 @@ per host. The panel that armed a drive holds it: other panels get 409 for anythi
 
 from __future__ import annotations
 
+from typing import Any
+
 from fastapi import APIRouter, Request
 from pydantic import BaseModel, Field
 
 from drivebench.services.control import commissioning, drive_control, motion
 from drivebench.services.control.commissioning import RunOut
 from drivebench.services.control.drive_control import ActualValue, DriveStatus, JogPlan
+from drivebench.services.control.drive_guard import Confirmation
 from drivebench.services.control.drive_words import Command
 from drivebench.services.control.motion import CyclicStream, MotionInfo
 from drivebench.web.deps import NodeDep, SessionDep
@@ -28,6 +32,13 @@ router = APIRouter(prefix="/api/sessions/{session_id}/nodes/{node_id}/control", 
 class Confirmed(BaseModel):
     confirm: int | str | None = Field(None, description="The node id, for commands after which the motor may turn "
                                                         "(or the header X-DriveBench-Confirm)")
+    confirm_values: dict[str, Any] | None = Field(None, description="The values the 428 named (confirm_values), "
+                                                                    "repeated (or the header "
+                                                                    "X-DriveBench-Confirm-Values)")
+
+
+def _given(request: Request, body: Confirmed | None) -> Confirmation | None:
+    return confirmation(request, body and body.confirm, body and body.confirm_values)
 
 
 class SetpointIn(Confirmed):
@@ -87,14 +98,14 @@ async def status(session: SessionDep, node: NodeDep, panel: PanelDep) -> DriveSt
 @router.post("/commands/{command}", response_model=DriveStatus)
 async def command(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep, command: Command,
                   body: Confirmed | None = None) -> DriveStatus:
-    return await drive_control.command(session, node, command, confirm=confirmation(request, body and body.confirm),
+    return await drive_control.command(session, node, command, confirm=_given(request, body),
                                        panel=panel)
 
 
 @router.put("/setpoint", response_model=DriveStatus)
 async def setpoint(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep,
                    body: SetpointIn) -> DriveStatus:
-    return await drive_control.set_setpoint(session, node, body.value, confirm=confirmation(request, body.confirm),
+    return await drive_control.set_setpoint(session, node, body.value, confirm=_given(request, body),
                                             panel=panel)
 
 
@@ -106,7 +117,7 @@ async def jog_plan(session: SessionDep, node: NodeDep) -> JogPlan:
 
 @router.post("/jog", response_model=DriveStatus)
 async def jog(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep, body: JogIn) -> DriveStatus:
-    return await drive_control.jog(session, node, body.direction, confirm=confirmation(request, body.confirm),
+    return await drive_control.jog(session, node, body.direction, confirm=_given(request, body),
                                    panel=panel, speed=body.speed)
 
 
@@ -120,7 +131,7 @@ async def motion_info(session: SessionDep, node: NodeDep) -> MotionInfo:
 async def move(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep, body: MoveIn) -> DriveStatus:
     """CiA 402 profile-position move (mode 1): target, new set-point edge, set-point acknowledge."""
     return await motion.move(session, node, body.target, relative=body.relative, immediate=body.immediate,
-                             velocity=body.velocity, confirm=confirmation(request, body.confirm), panel=panel)
+                             velocity=body.velocity, confirm=_given(request, body), panel=panel)
 
 
 @router.post("/cyclic", response_model=CyclicStream)
@@ -128,7 +139,7 @@ async def cyclic(request: Request, session: SessionDep, node: NodeDep, panel: Pa
     """Interpolated position (7) or cyclic synchronous mode (8/9/10): SYNC at 0x60C2 and an RPDO with the control
     word and the target, every cycle, while this panel holds the drive (any stopping command or a lost keep-alive
     ends it)."""
-    return await motion.stream(session, node, body.value, confirm=confirmation(request, body.confirm), panel=panel)
+    return await motion.stream(session, node, body.value, confirm=_given(request, body), panel=panel)
 
 
 @router.delete("/cyclic", response_model=StoppedOut)
@@ -139,12 +150,12 @@ async def stop_cyclic(session: SessionDep, node: NodeDep) -> StoppedOut:
 @router.post("/home", response_model=DriveStatus)
 async def home(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep, body: HomeIn) -> DriveStatus:
     """CiA 402 homing (mode 6) with the method given; status bit 12 homing attained, bit 13 homing error."""
-    return await motion.home(session, node, body.method, confirm=confirmation(request, body.confirm), panel=panel)
+    return await motion.home(session, node, body.method, confirm=_given(request, body), panel=panel)
 
 
 @router.put("/mode", response_model=DriveStatus)
 async def mode(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep, body: ModeIn) -> DriveStatus:
-    return await drive_control.set_mode(session, node, body.mode, confirm=confirmation(request, body.confirm),
+    return await drive_control.set_mode(session, node, body.mode, confirm=_given(request, body),
                                         panel=panel)
 
 
@@ -183,9 +194,8 @@ async def get_run(session: SessionDep, node: NodeDep, run_id: str) -> RunOut:
 async def next_step(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep, run_id: str,
                     body: Confirmed | None = None) -> RunOut:
     """Run the next step of a run of this node, started by this writer (404 for another node's run, 409 for another
-    writer's); a step that can turn the motor needs confirm (the node id); a step value outside the profile's range
-    is refused (422) before anything is sent."""
+    writer's); a step that can turn the motor needs the confirmation naming the node and the values the step sends;
+    a step value outside the profile's range is refused (422) before anything is sent."""
     run = commissioning.wizard(session).get(run_id, node.node_id)
-    await commissioning.next_step(session, node, run, confirm=confirmation(request, body and body.confirm),
-                                  panel=panel)
+    await commissioning.next_step(session, node, run, confirm=_given(request, body), panel=panel)
     return run.public()

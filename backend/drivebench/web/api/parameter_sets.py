@@ -43,7 +43,7 @@ from drivebench.services.storage.models import DownloadRow
 from drivebench.services.users import audit
 from drivebench.web.api.parameters import JobOut, JobsDep, job_out
 from drivebench.web.deps import MAX_ROW_ID, ManagerDep, RowId, RowVersion, StateDep
-from drivebench.web.safety import ACTING
+from drivebench.web.safety import ACTING, confirmation
 from drivebench.web.state import AppState
 
 router = APIRouter(prefix="/api", tags=["parameter sets"], dependencies=[ACTING])  # downloads take the node lease
@@ -118,16 +118,20 @@ class TargetIn(BaseModel):
 
 CONFIRM = Field(None, description="The node id, when the set writes values that can make the drive move (control "
                                  "word, setpoint, mode, command source); or X-DriveBench-Confirm")
+CONFIRM_VALUES = Field(None, description="With confirm: the values the 428 named (confirm_values), repeated; or "
+                                         "X-DriveBench-Confirm-Values")
 
 
 class DownloadIn(TargetIn):
     save: bool = Field(False, description="Save on the device at the end (C00002/11, 0x1010 ...) if all went in")
     confirm: int | str | None = CONFIRM
+    confirm_values: dict[str, Any] | None = CONFIRM_VALUES
 
 
 class FollowUpIn(BaseModel):
     save: bool = False
     confirm: int | str | None = CONFIRM
+    confirm_values: dict[str, Any] | None = CONFIRM_VALUES
 
 
 class CopyIn(BaseModel):
@@ -361,11 +365,12 @@ async def preview_download(set_id: RowId, body: TargetIn, manager: ManagerDep,
 
 
 @router.post(SETS + "/{set_id}/download", response_model=SetJobOut, status_code=status.HTTP_202_ACCEPTED)
-async def download_set(set_id: RowId, body: DownloadIn, manager: ManagerDep, jobs: JobsDep,
+async def download_set(request: Request, set_id: RowId, body: DownloadIn, manager: ManagerDep, jobs: JobsDep,
                        version: RowVersion = None, user: UserHeader = None) -> SetJobOut:
     stored = store().get(set_id, version)
     job = set_jobs.start_download(manager.get(body.session_id), body.node_id, jobs, store(), stored,
-                                  save=body.save, user=user_of(user), confirm=body.confirm)
+                                  save=body.save, user=user_of(user),
+                                  confirm=confirmation(request, body.confirm, body.confirm_values))
     return set_job_out(job)
 
 
@@ -387,23 +392,25 @@ async def get_download(download_id: RowId, jobs: JobsDep) -> DownloadOut:
 
 @router.post("/parameter-downloads/{download_id}/retry", response_model=SetJobOut,
              status_code=status.HTTP_202_ACCEPTED)
-async def retry_download(download_id: RowId, manager: ManagerDep, jobs: JobsDep, body: FollowUpIn | None = None,
-                         user: UserHeader = None) -> SetJobOut:
+async def retry_download(request: Request, download_id: RowId, manager: ManagerDep, jobs: JobsDep,
+                         body: FollowUpIn | None = None, user: UserHeader = None) -> SetJobOut:
     """Write again what the download left failed, mismatched or not attempted."""
     row = store().download(download_id)
     job = set_jobs.start_retry(manager.get(row.session_id), jobs, store(), download_id,
-                               save=bool(body and body.save), user=user_of(user), confirm=body and body.confirm)
+                               save=bool(body and body.save), user=user_of(user),
+                               confirm=confirmation(request, body and body.confirm, body and body.confirm_values))
     return set_job_out(job)
 
 
 @router.post("/parameter-downloads/{download_id}/rollback", response_model=SetJobOut,
              status_code=status.HTTP_202_ACCEPTED)
-async def rollback_download(download_id: RowId, manager: ManagerDep, jobs: JobsDep,
+async def rollback_download(request: Request, download_id: RowId, manager: ManagerDep, jobs: JobsDep,
                             body: FollowUpIn | None = None, user: UserHeader = None) -> SetJobOut:
     """Write back the values read before the download, for everything it changed (or may have changed)."""
     row = store().download(download_id)
     job = set_jobs.start_rollback(manager.get(row.session_id), jobs, store(), download_id,
-                                  save=bool(body and body.save), user=user_of(user), confirm=body and body.confirm)
+                                  save=bool(body and body.save), user=user_of(user),
+                                  confirm=confirmation(request, body and body.confirm, body and body.confirm_values))
     return set_job_out(job)
 
 

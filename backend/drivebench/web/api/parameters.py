@@ -25,7 +25,7 @@ from drivebench.services.params.parameters import DeviceCommand, ParameterValue,
 from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.lean_route import lean_route, path_int
 from drivebench.web.problems import problem_body
-from drivebench.web.safety import ACTING
+from drivebench.web.safety import ACTING, confirmation
 from drivebench.web.state import AppState
 
 # Every route but the two reads clients poll carries ACTING (writes take the node lease, jobs carry the writer); a GET
@@ -136,12 +136,15 @@ VERIFY = Field(True, description="Read the value back after writing and compare"
 CONFIRM = Field(None, description="The node id, for a write that can make the drive move (a control word that "
                                   "enables, a setpoint, the mode, a command source: the profile marks them); or "
                                   "X-DriveBench-Confirm")
+CONFIRM_VALUES = Field(None, description="With confirm: the values the 428 named (confirm_values), repeated; or "
+                                         "X-DriveBench-Confirm-Values")
 
 
 class ParameterWrite(GivenValue):
     check: bool = CHECK
     verify: bool = VERIFY
     confirm: int | str | None = CONFIRM
+    confirm_values: dict[str, Any] | None = CONFIRM_VALUES
 
 
 class BatchWriteEntry(GivenValue):
@@ -156,6 +159,7 @@ class BatchWrite(BaseModel):
     check: bool = CHECK
     verify: bool = VERIFY
     confirm: int | str | None = CONFIRM
+    confirm_values: dict[str, Any] | None = CONFIRM_VALUES
 
 
 class WriteOut(BaseModel):
@@ -336,11 +340,12 @@ async def read_parameters(request: Request, session: SessionDep, node: NodeDep, 
 @router.put(NODE + "/parameters/{ref:path}", dependencies=[ACTING], response_model=WriteOut,
             responses={428: {"description": "A write that can make the drive move, without the confirmation naming "
                                             "the node"}})
-async def write_parameter(session: SessionDep, node: NodeDep, ref: str, body: ParameterWrite) -> WriteOut:
+async def write_parameter(request: Request, session: SessionDep, node: NodeDep, ref: str,
+                          body: ParameterWrite) -> WriteOut:
     """Write and read back. A write the profile marks as moving the drive needs ``confirm`` (the node id) and
     arms the keep-alive guard: this client must then POST ``/api/sessions/{session}/keepalive`` at least every
     2 s, or the drive is quick-stopped. A control word that only stops the drive is never refused."""
-    drive_guard.confirming(body.confirm)
+    drive_guard.confirming(confirmation(request, body.confirm, body.confirm_values))
     value = service.given_value(node, ref, body.value, body.raw)
     result = await service.write(session, node.node_id, ref, value, check=body.check, verify=body.verify)
     return write_out(result, node.pending_reset)
@@ -354,7 +359,7 @@ async def write_parameters(request: Request, session: SessionDep, node: NodeDep,
     """Write many values in one request: all are validated first (one invalid refuses the batch, each item's problem
     in words), a batch with a moving write needs ``confirm`` like the single write; then each is written in order
     through the single write's path (lease, keep-alive guard, one audit row, read-back) until the first error."""
-    drive_guard.confirming(body.confirm)
+    drive_guard.confirming(confirmation(request, body.confirm, body.confirm_values))
     wanted = [Wanted(entry.ref, entry.value, entry.raw) for entry in body.items]
     try:
         outcomes = await batch.write_many(session, node.node_id, wanted, check=body.check, verify=body.verify)

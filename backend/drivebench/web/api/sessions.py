@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import logging
 import time
-from typing import Literal
+from typing import Any, Literal
 
 from fastapi import APIRouter, Request, status
 from pydantic import BaseModel, Field, model_validator
@@ -67,6 +67,9 @@ class NodeNmtRequest(BaseModel):
     command: NmtName
     confirm: str | int | None = Field(None, description="Start only: the node id (or 'all' for the broadcast), "
                                                         "else 428; or the X-DriveBench-Confirm header")
+    confirm_values: dict[str, Any] | None = Field(None, description="Start only: the values the 428 named "
+                                                                    "(confirm_values), repeated; or the header "
+                                                                    "X-DriveBench-Confirm-Values")
     keepalive: bool = Field(True, description="Start only: false starts without the keep-alive guard (admins, "
                                               "with a reason)")
     keepalive_s: float = Field(drive_guard.KEEPALIVE_TIMEOUT_S, ge=0.5, le=drive_guard.MAX_KEEPALIVE_S,
@@ -164,7 +167,8 @@ async def send_nmt(request: Request, session: Session, body: NodeNmtRequest, nod
             raise InvalidValue(_("Say why the node runs without the keep-alive guard (reason)."))
         log.warning("NMT start of node %s without keep-alive by %s: %s", node_id or "all", principal.name,
                     body.reason)
-    await drive_guard.nmt(session, command, node_id, panel, confirm=confirmation(request, body.confirm),
+    await drive_guard.nmt(session, command, node_id, panel,
+                          confirm=confirmation(request, body.confirm, body.confirm_values),
                           keepalive=body.keepalive, timeout_s=body.keepalive_s)
 
 

@@ -30,7 +30,7 @@ from drivebench.web.api.parameters import jobs_of
 from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.identity import PrincipalDep
 from drivebench.web.pages.node_info import IdentityShown, shown
-from drivebench.web.safety import ACTING, WriterDep
+from drivebench.web.safety import ACTING, WriterDep, confirmation
 from drivebench.web.templating import templates
 
 router = APIRouter(include_in_schema=False, dependencies=[ACTING])
@@ -189,9 +189,11 @@ async def read_row(request: Request, session: SessionDep, node: NodeDep, ref: st
 
 @router.post(UI + "/parameters/{ref:path}/write", response_class=HTMLResponse)
 async def write_row(request: Request, session: SessionDep, node: NodeDep, ref: str,
-                    value: Annotated[str, Form()], confirm: Annotated[str | None, Form()] = None) -> Response:
-    """A row the profile marks as moving the drive sends ``confirm`` after the page's question (see the row)."""
-    drive_guard.confirming(confirm)
+                    value: Annotated[str, Form()], confirm: Annotated[str | None, Form()] = None,
+                    confirm_values: Annotated[str | None, Form()] = None) -> Response:
+    """A row the profile marks as moving the drive sends ``confirm`` and ``confirm_values`` after the page's
+    question (see the row)."""
+    drive_guard.confirming(confirmation(request, confirm or None, confirm_values or None))
     result = await service.write(session, node.node_id, ref, value)
     return _row(request, session, node, ref, result=result)
 

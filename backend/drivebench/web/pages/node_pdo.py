@@ -136,7 +136,7 @@ async def send(request: Request, session: SessionDep, node: NodeDep, panel: Pane
     form = await request.form()
     values = {key[2:]: str(value) for key, value in form.items() if key.startswith("v:")}
     mode, owner = str(form.get("mode", "once")), str(form.get("client_id", ""))
-    confirm = confirmation(request, form.get("confirm") or None)
+    confirm = confirmation(request, form.get("confirm") or None, str(form.get("confirm_values") or "") or None)
     keepalive = str(form.get("keepalive", "true")).lower() != "false"
     if not keepalive:  # a script that keeps its own watch: admins only, with a reason (logged)
         principal = principal_of(request)
@@ -193,9 +193,9 @@ async def sync(request: Request, session: SessionDep, node: NodeDep, period_ms: 
 
 @router.post(UI + "/start-node", response_class=HTMLResponse)
 async def start_node(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep,
-                     confirm: Annotated[str, Form()] = "") -> Response:
+                     confirm: Annotated[str, Form()] = "", confirm_values: Annotated[str, Form()] = "") -> Response:
     await drive_guard.nmt(session, NmtCommand.START, node.node_id, panel,
-                          confirm=confirmation(request, confirm or None))
+                          confirm=confirmation(request, confirm or None, confirm_values or None))
     return HTMLResponse(Markup('<span class="pdo-sent">{}</span>').format(
         _("NMT start sent to node {node}: this tab keeps it running (closing it stops the node)").format(
             node=node.node_id)))

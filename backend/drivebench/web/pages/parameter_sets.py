@@ -14,6 +14,7 @@ from starlette.datastructures import FormData, UploadFile
 
 from drivebench.errors import DriveBenchError, InvalidValue
 from drivebench.i18n import _
+from drivebench.services.control.drive_guard import Confirmation
 from drivebench.services.params.jobs import Job, JobManager
 from drivebench.services.session_manager import SessionManager
 from drivebench.services.sets import set_formats, set_jobs
@@ -31,7 +32,7 @@ from drivebench.web.api.parameter_sets import (
 from drivebench.web.api.parameters import JobsDep
 from drivebench.web.deps import ManagerDep, RowId, StateDep
 from drivebench.web.problems import error_fragment, problem_body, status_for
-from drivebench.web.safety import ACTING
+from drivebench.web.safety import ACTING, confirmation
 from drivebench.web.state import AppState
 from drivebench.web.templating import templates
 
@@ -63,6 +64,10 @@ def _error(request: Request, exc: DriveBenchError) -> HTMLResponse:
 def _text(form: FormData, key: str) -> str:
     value = form.get(key)
     return value.strip() if isinstance(value, str) else ""
+
+
+def _confirmation(request: Request, form: FormData) -> Confirmation | None:
+    return confirmation(request, _text(form, "confirm") or None, _text(form, "confirm_values") or None)
 
 
 def _version(form: FormData) -> int | None:
@@ -281,7 +286,7 @@ async def download(request: Request, set_id: RowId, manager: ManagerDep, jobs: J
     try:
         session_id, node_id = _target(form)
         job = set_jobs.start_download(manager.get(session_id), node_id, jobs, store(), store().get(set_id),
-                                      save=form.get("save") == "on", confirm=_text(form, "confirm") or None)
+                                      save=form.get("save") == "on", confirm=_confirmation(request, form))
     except DriveBenchError as exc:
         return _error(request, exc)
     return _render(request, "job", _job_context(job, jobs))
@@ -294,7 +299,7 @@ async def follow_up(request: Request, download_id: int, action: str, manager: Ma
         row = store().download(download_id)
         session = manager.get(row.session_id)
         save = form.get("save") == "on"
-        confirm = _text(form, "confirm") or None  # after the page's question, for sets that can move a drive
+        confirm = _confirmation(request, form)  # after the page's question, for sets that can move a drive
         if action == "retry":
             job = set_jobs.start_retry(session, jobs, store(), download_id, save=save, confirm=confirm)
         elif action == "rollback":

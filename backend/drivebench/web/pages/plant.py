@@ -17,6 +17,7 @@ from drivebench.protocol.nmt import COMMAND_BY_NAME
 from drivebench.services.bus.fieldbus import ETHERCAT_INTERFACES, SessionSpec, interface_notes, parse_spec
 from drivebench.services.bus.sessions import Session
 from drivebench.services.bus.views import nodes_public, session_public
+from drivebench.services.control.drive_guard import parse_values
 from drivebench.transport.bus import BusSpec, known_interfaces
 from drivebench.web.api.sessions import NodeNmtRequest, send_nmt
 from drivebench.web.deps import ManagerDep, SessionDep, StateDep
@@ -80,12 +81,14 @@ async def close_session(session: SessionDep, manager: ManagerDep) -> Response:
 
 @router.post("/ui/sessions/{session_id}/nmt", response_class=HTMLResponse)
 async def nmt(request: Request, session: SessionDep, panel: PanelDep, command: Annotated[str, Form()],
-              node_id: Annotated[int, Form(ge=0, le=127)] = 0, confirm: Annotated[str, Form()] = "") -> Response:
+              node_id: Annotated[int, Form(ge=0, le=127)] = 0, confirm: Annotated[str, Form()] = "",
+              confirm_values: Annotated[str, Form()] = "") -> Response:
     if command not in COMMAND_BY_NAME:
         raise DriveBenchError(_("Unknown NMT command '{command}'").format(command=command))
     if node_id:
         session.node(node_id)
-    await send_nmt(request, session, NodeNmtRequest(command=command, confirm=confirm or None),
+    await send_nmt(request, session, NodeNmtRequest(
+        command=command, confirm=confirm or None, confirm_values=parse_values(confirm_values)),
                    node_id, panel)
     return nodes_table(request, session)
 

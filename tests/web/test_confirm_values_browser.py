@@ -1,0 +1,81 @@
+"""Issue 27 item 1 in a real browser: on node 7's Control tab the jog dialog shows the speed the request sends (the
+issue: it said 300 rpm and sent 2500), its confirm button is the hold-to-run button of exactly that jog, and a changed
+speed is asked again (no confirmed-once flag)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import Any
+
+import pytest
+from playwright.sync_api import expect
+
+from drivebench.simulator.plant import Plant
+from drivebench.web.app import create_app
+from tests.conftest import DEMO_PLANT, fresh_channel, screenshot, serve_app, wait_until
+
+pytestmark = pytest.mark.browser
+
+SERVO = 7
+TIMEOUT_MS = 15_000
+
+
+@pytest.fixture
+def server() -> Iterator[tuple[str, Plant]]:
+    app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
+    with serve_app(app) as base_url:
+        plants: dict[str, Plant] = app.state.drivebench.plants
+        yield base_url, next(iter(plants.values()))
+
+
+def _jog_asks(page: Any, speed: str) -> Any:
+    page.fill("#ctl-jog-speed", speed)
+    page.click("button[data-jog='1']")
+    dialog = page.locator("#ctl-confirm")
+    expect(dialog).to_be_visible(timeout=TIMEOUT_MS)
+    return dialog
+
+
+def test_the_jog_dialog_shows_and_sends_the_speed_of_the_request(server: tuple[str, Plant], page: Any) -> None:
+    base, plant = server
+    sim = plant.nodes[SERVO]
+    page.goto(f"{base}/sessions/demo-plant/nodes/{SERVO}?tab=control")
+    page.wait_for_selector("#ctl-ws.good", timeout=TIMEOUT_MS)
+    for command, state in (("shutdown", "ready"), ("switch_on", "switched_on")):
+        page.click(f"button[data-command={command}]")
+        page.wait_for_selector(f'.ctl-state.current[data-state="{state}"]', timeout=TIMEOUT_MS)
+    page.click("button[data-command=enable_operation]")
+    dialog = page.locator("#ctl-confirm")
+    expect(dialog).to_be_visible(timeout=TIMEOUT_MS)
+    expect(dialog.locator("#ctl-confirm-values")).to_contain_text("0x000F")  # the control word it writes
+    page.click("#ctl-confirm-ok")
+    page.wait_for_selector('.ctl-state.current[data-state="operation_enabled"]', timeout=TIMEOUT_MS)
+
+    dialog = _jog_asks(page, "2500")
+    values = dialog.locator("#ctl-confirm-values")
+    expect(values).to_contain_text("2500 rpm")
+    assert "300" not in values.inner_text().replace("2500", ""), values.inner_text()
+    expect(dialog.locator("#ctl-confirm-text")).to_contain_text(f"node {SERVO}")
+    hold = page.locator("#ctl-confirm-ok")
+    expect(hold).to_contain_text("2500 rpm")
+    screenshot(page, "control-jog-confirm-values")
+    page.wait_for_timeout(300)
+    assert sim.store.get(0x60FF, 0) == 0, "the press only asked: nothing moves before the confirmation"
+    hold.hover()
+    page.mouse.down()  # the dialog's button is the hold-to-run button: held, the jog runs at 2500 rpm
+    assert wait_until(lambda: sim.store.get(0x60FF, 0) == 2500, TIMEOUT_MS / 1000), sim.store.get(0x60FF, 0)
+    page.mouse.up()  # released: stops
+    assert wait_until(lambda: sim.store.get(0x60FF, 0) == 0, TIMEOUT_MS / 1000)
+    page.click("#ctl-confirm button[value=cancel]")
+    expect(dialog).to_be_hidden()
+
+    dialog = _jog_asks(page, "1000")  # another speed: asked again, showing it
+    expect(dialog.locator("#ctl-confirm-values")).to_contain_text("1000 rpm")
+    assert "2500" not in dialog.locator("#ctl-confirm-values").inner_text()
+    page.locator("#ctl-confirm-ok").hover()
+    page.mouse.down()
+    assert wait_until(lambda: sim.store.get(0x60FF, 0) == 1000, TIMEOUT_MS / 1000), sim.store.get(0x60FF, 0)
+    page.mouse.up()
+    assert wait_until(lambda: sim.store.get(0x60FF, 0) == 0, TIMEOUT_MS / 1000)
+    page.click("#ctl-confirm button[value=cancel]")
+    page.click("button[data-command=quick_stop]")
