@@ -15,6 +15,7 @@ from drivebench.services.control.commissioning import Run
 from drivebench.services.params import parameters
 from drivebench.services.session_manager import SessionManager
 from drivebench.simulator.plant import Plant, PlantFile
+from tests.confirming import confirmed_call
 from tests.conftest import fresh_channel
 
 MM, VECTOR = 3, 12
@@ -29,7 +30,8 @@ def _walk(runner: asyncio.Runner, session: Session, run: Run, stop_before: int |
     node = session.node(run.node_id)
     while not run.finished and run.position != stop_before:
         step = run.sequence.steps[run.position]
-        runner.run(commissioning.next_step(session, node, run, confirm=run.node_id if step.moves else None))
+        runner.run(confirmed_call(commissioning.next_step, session, node, run, confirm=run.node_id) if step.moves
+                   else commissioning.next_step(session, node, run))
         commissioning.drive_control.guard_for(session).keepalive(run.node_id)
     return run
 
