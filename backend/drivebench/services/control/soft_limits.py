@@ -44,7 +44,11 @@ REACTION_S = 0.1
 """The least time DriveBench reckons between reading a position and the drive starting to brake (a read cycle
 measured longer counts three times: the cycle that read it, the halt's write, a late next cycle)."""
 READ_PAUSE_S = 0.005
-"""Between two looks (the reads themselves take most of a cycle)."""
+"""Between two looks near a limit (the reads themselves take most of a cycle)."""
+FAR_PAUSE_S = 0.05
+"""At most between two looks while the drive is far from the limit (a quarter of the time it needs to get near)."""
+OBSERVE_PAUSE_S = 0.1
+"""Between two looks where DriveBench only watches (the drive clamps itself, or the panel released the motion)."""
 WHAT = {"jog": N_("the jog"), "velocity": N_("the velocity move"), "move": N_("the relative move")}
 
 
@@ -167,13 +171,13 @@ async def _watch(session: Session, node: SessionNode, what: str, watch: Watch) -
     decel = await _number(session, node, "0x6084", 0.0) * per_velocity
     unit = (await motion_units(session, node)).position
     mode = (await parameters.read(session, node.node_id, "0x6061")).raw
-    slowest = 0.0  # the longest read cycle seen: the drive travels that far before the next look
+    slowest = 0.0  # the longest read seen: the drive travels that far before DriveBench knows where it is
     limited = False  # bit 11 seen during this motion
-    before = time.monotonic()
     while True:
+        asked = time.monotonic()
         sample = await _sample(session, node, per_velocity)
-        now = time.monotonic()
-        slowest, before = max(slowest, now - before), now
+        slowest = max(slowest, time.monotonic() - asked)
+        pause = OBSERVE_PAUSE_S if clamps or watch.released else READ_PAUSE_S
         if sample is None or sample.word & OPERATION_ENABLED_MASK != OPERATION_ENABLED:
             return
         edge = limits[1] if sample.velocity > 0 else limits[0]
@@ -190,7 +194,9 @@ async def _watch(session: Session, node: SessionNode, what: str, watch: Watch) -
             room = (edge - sample.position) * sign
             speed = abs(sample.velocity)
             braking = speed * speed / (2 * decel) if decel else speed * 1.0
-            if room <= braking + speed * max(REACTION_S, 3 * slowest):
+            margin = room - braking - speed * max(REACTION_S, 3 * slowest)
+            pause = min(FAR_PAUSE_S, max(READ_PAUSE_S, margin / speed / 4))  # far from it: fewer reads on the bus
+            if margin <= 0:
                 await _halt(session, node, mode)
                 stood = await _stood(session, node, per_velocity)
                 gap = abs(edge - stood) if stood is not None else room
@@ -201,7 +207,7 @@ async def _watch(session: Session, node: SessionNode, what: str, watch: Watch) -
                 return
         if not sample.velocity and (watch.released or (what == "move" and sample.word & TARGET_REACHED)):
             return
-        await asyncio.sleep(READ_PAUSE_S)
+        await asyncio.sleep(pause)
 
 
 async def _halt(session: Session, node: SessionNode, mode: object) -> None:
