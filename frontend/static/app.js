@@ -287,7 +287,15 @@ document.addEventListener("htmx:configRequest", (event) => {
       const off = [];
       if (hold) {
         let held = false;
-        const press = (event) => { event.preventDefault(); held = true; ok.classList.add("held"); hold.press(); };
+        const press = (event) => {
+          event.preventDefault();
+          held = true;
+          ok.classList.add("held");
+          // held means held: a line appearing on the page (internal limit, how a jog ended) must not move the
+          // button from under the pointer and end the jog; the capture keeps the pointer on it until released
+          try { ok.setPointerCapture(event.pointerId); } catch (e) { /* not a pointer event (keyboard) */ }
+          hold.press();
+        };
         const release = () => { if (!held) return; held = false; ok.classList.remove("held"); hold.release(); };
         const click = (event) => event.preventDefault();  // a click does not close it: holding runs, release stops
         ok.addEventListener("pointerdown", press);

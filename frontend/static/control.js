@@ -99,6 +99,13 @@
       const trip = panel.querySelector("#ctl-trip");
       trip.hidden = !status.last_trip;
       trip.textContent = status.last_trip || "";
+      const limitNote = panel.querySelector("#ctl-limit-note");  // how a motion ended at 0x607D (soft_limits.py)
+      if (limitNote) {
+        limitNote.hidden = !status.limit_note;
+        limitNote.textContent = status.limit_note || "";
+      }
+      const limitBit = panel.querySelector("#ctl-limit");  // CiA 402 status bit 11 internal limit active
+      if (limitBit) limitBit.hidden = !(status.status_bits[11] && status.status_bits[11].set);
       const display = panel.querySelector("#ctl-mode-display");
       if (display && status.mode !== null) display.textContent = `${status.mode_label} (${status.mode})`;
       currentMode = status.mode;

@@ -232,7 +232,14 @@ def test_profile_velocity_and_jog_at_a_user_set_speed(axis: Axis) -> None:
     axis.until(lambda _: axis.read("0x606C") == 0, "jog released")
 
 
+def no_software_limits(axis: Axis) -> None:
+    """0x607D = 0/0 (none): a run long enough to reach a switch or top speed is not stopped at ±3600 ° first."""
+    for ref in ("0x607D.1", "0x607D.2"):
+        axis.run(parameters.write(axis.session, AXIS, ref, 0))
+
+
 def test_a_limit_switch_stops_the_axis(axis: Axis) -> None:
+    no_software_limits(axis)
     axis.enable()
     axis.run(confirmed_call(drive_control.set_mode, axis.session, axis.node, 3, confirm=AXIS))
     axis.run(confirmed_call(drive_control.set_setpoint, axis.session, axis.node, 3000, confirm=AXIS))
@@ -272,6 +279,7 @@ def test_following_error_faults_with_emcy_and_fault_reset_clears_it(axis: Axis) 
 
 
 def test_quick_stop_decelerates_then_switches_on_disabled(axis: Axis) -> None:
+    no_software_limits(axis)
     axis.enable()
     axis.run(confirmed_call(drive_control.set_mode, axis.session, axis.node, 3, confirm=AXIS))
     axis.run(confirmed_call(drive_control.set_setpoint, axis.session, axis.node, 1500, confirm=AXIS))

@@ -263,6 +263,19 @@ class EmcyCode(BaseModel):
     remedy: str | None = None
 
 
+class SoftwareLimits(BaseModel):
+    """Who keeps a CiA 402 drive inside its software position limits 0x607D. CiA 402 lets a drive that supports them
+    clamp there (it stops at the limit and sets 0x6041 bit 11 *internal limit active*), but a drive in a velocity
+    or torque mode need not: then the tool watches the position while it jogs or moves the drive and halts it."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    drive_clamps: bool = False
+    """The manual says the drive stops at 0x607D in every mode and sets 0x6041 bit 11."""
+    clamps_ref: str | None = None
+    """An object that switches the drive's own clamping: it clamps while this reads non-zero."""
+
+
 class Profile(BaseModel):
     """A complete device profile (one JSON file in ``device_profiles/``)."""
 
@@ -298,6 +311,8 @@ class Profile(BaseModel):
     DIP-switch calculator and the network planner list every profile that has one."""
     control: ControlSection | None = None
     """How the drive is switched, set and watched (``device/control.py``); None: CiA 402 by its objects, or none."""
+    software_limits: SoftwareLimits = Field(default_factory=SoftwareLimits)
+    """Whether the drive itself stops at 0x607D (default: no, the tool watches; ``services/control/soft_limits.py``)."""
     ethercat: EthercatSection | None = None
     """EtherCAT devices: the states of the slave's state machine (``device/ethercat_section.py``)."""
     commissioning: list[Sequence] = Field(default_factory=list)

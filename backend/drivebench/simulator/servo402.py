@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 
+from drivebench.errors import UnknownParameter
 from drivebench.simulator import homing
 from drivebench.simulator.drive402 import STATE_BITS, State402, StateMachine402, command_state
 from drivebench.simulator.host import DeviceHost
@@ -73,6 +74,7 @@ class Servo402(StateMachine402):
         self.homing_error = False
         self.ack = False
         self.limit_hit = False
+        self.soft_limited = False  # held at a software position limit 0x607D (status bit 11)
         self.jammed = False
         self._error_since: float | None = None
         self._last: float | None = None
@@ -329,6 +331,7 @@ class Servo402(StateMachine402):
             torque = self._obj(0x6071)
             self._ramp_to(torque / 1000 * top, dt, accel, decel)  # a load whose speed follows the torque
         before = self.demand
+        self._soft_limits(dt, decel, mode)
         self.demand += self.velocity * dt
         if mode == 7 and self.ip_goal is not None and (self.demand - self.ip_goal) * self.velocity > 0:
             self.demand, self.velocity = self.ip_goal, 0.0  # the record reached within the period
@@ -352,6 +355,45 @@ class Servo402(StateMachine402):
             self._enter(State402.SWITCH_ON_DISABLED)  # transition 12
         elif self.velocity == 0 and self.state is State402.FAULT_REACTION_ACTIVE:
             self._enter(State402.FAULT)  # transition 14
+
+    def _clamps(self) -> bool:
+        """The drive keeps inside 0x607D itself: its profile says so, or the object it names switches it on."""
+        limits = self.node.profile.software_limits
+        if limits.drive_clamps:
+            return True
+        if limits.clamps_ref is None:
+            return False
+        try:
+            return bool(self.store.get_ref(limits.clamps_ref))
+        except UnknownParameter:
+            return False
+
+    def _soft_bounds(self) -> tuple[float, float] | None:
+        """The software position limits 0x607D in mechanical increments (None: none, 0/0, or not clamped here)."""
+        if not self.store.has(0x607D, 2) or not self._clamps():
+            return None
+        low, high = self._obj(0x607D, 1), self._obj(0x607D, 2)
+        if low == high == 0:
+            return None
+        return self.home + low * self.per_unit, self.home + high * self.per_unit
+
+    def _soft_limits(self, dt: float, decel: float, mode: int) -> None:
+        """CiA 402 software position limits kept by the drive (not while homing: that sets the reference): a motion
+        towards a limit slows with the profile deceleration so that it ends there, and stays there while the
+        setpoint still points beyond it; status bit 11 *internal limit active* while the limit holds the motion."""
+        self.soft_limited = False
+        bounds = self._soft_bounds() if mode != 6 else None
+        if bounds is None or not self.velocity:
+            return
+        sign = 1.0 if self.velocity > 0 else -1.0
+        edge = bounds[1] if sign > 0 else bounds[0]
+        room = (edge - self.demand) * sign
+        allowed = math.sqrt(2 * decel * room) if room > 0 else 0.0
+        if abs(self.velocity) * dt >= room:  # would reach or pass the limit within this cycle
+            allowed = max(room, 0.0) / dt if dt else 0.0
+        if abs(self.velocity) > allowed:
+            self.velocity = sign * allowed
+            self.soft_limited = True
 
     def _limits(self) -> None:
         """The limit switches stop a move towards them (status bit 11). Homing runs onto one on purpose when its
@@ -399,7 +441,7 @@ class Servo402(StateMachine402):
         word = STATE_BITS[self.state] | SW_REMOTE
         if self.control_word & 0x02 and self.state is not State402.NOT_READY_TO_SWITCH_ON:
             word |= SW_VOLTAGE
-        if self.limit_hit:
+        if self.limit_hit or self.soft_limited:
             word |= SW_LIMIT
         if self.state is not State402.OPERATION_ENABLED:
             return word

@@ -30,6 +30,7 @@ from drivebench.device.control import JogPlan as JogSpec
 from drivebench.errors import Conflict, DriveBenchError, InvalidValue, OutOfRange, UnknownParameter
 from drivebench.i18n import _
 from drivebench.services.bus.sessions import Session, SessionNode
+from drivebench.services.control import soft_limits
 from drivebench.services.control.drive_guard import (
     ARM_SETTLE_S,
     SERVICE_PANEL,
@@ -285,6 +286,9 @@ class DriveStatus(BaseModel):
     error_code: int | None = None
     error_text: str | None = None
     """CiA 402 0x603F error code, decoded with the CiA 402 error-code table."""
+    limit_note: str | None = None
+    """How the last jog, velocity or relative move ended at a software position limit 0x607D: the drive clamped
+    (0x6041 bit 11) or DriveBench halted it (``services/control/soft_limits.py``)."""
 
 
 def bits(names: dict[int, str], word: int | None) -> list[Bit]:
@@ -371,7 +375,8 @@ async def read_status(session: Session, node: SessionNode, panel: Panel = SERVIC
         armed=guard.armed(node.node_id), holder=holder.text() if holder else None,
         you_hold=bool(holder and holder.panel.key == panel.key), panels=guard.panels(node.node_id),
         last_trip=guard.trip_text(node.node_id), generic=fam.generic, inputs=inputs, error_code=error_code,
-        error_text=cia402.error_text(error_code) if error_code is not None else None)
+        error_text=cia402.error_text(error_code) if error_code is not None else None,
+        limit_note=soft_limits.note(node) if fam.generic else None)
 
 
 # --- commands ------------------------------------------------------------------------------------------------
@@ -472,7 +477,20 @@ async def set_setpoint(session: Session, node: SessionNode, value: float, *, con
         last = await last_control_word(session, node)
         if last & spec.run_when == spec.run_when and last & spec.run_bits != spec.run_bits:
             await write_control_word(session, node, last | spec.run_bits)
+    if fam.generic and mode in VELOCITY_MODES:
+        _watch_limits(session, node, "velocity", value)
     return await read_status(session, node, panel)
+
+
+VELOCITY_MODES = (3, 9)
+"""CiA 402 profile velocity and cyclic synchronous velocity: the drive need not keep to 0x607D there."""
+
+
+def _watch_limits(session: Session, node: SessionNode, what: str, velocity: float) -> None:
+    if velocity:
+        soft_limits.start(session, node, what)
+    else:
+        soft_limits.stop(node)
 
 
 # --- jog -----------------------------------------------------------------------------------------------------
@@ -568,6 +586,7 @@ async def jog(session: Session, node: SessionNode, direction: int, *, confirm: o
                 await parameters.write(session, node.node_id, "0x6060", 3, verify=False)
             value = direction * (speed or plan.value)
             await parameters.write(session, node.node_id, "0x60FF", value, verify=False)
+        _watch_limits(session, node, "jog", value)
         return await read_status(session, node, panel)
     if plan.method == "setpoint":
         return await set_setpoint(session, node, direction * plan.value, confirm=confirm, panel=panel)

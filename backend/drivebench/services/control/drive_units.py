@@ -57,13 +57,18 @@ async def _ratio(session: Session, node: SessionNode, index: str) -> float | Non
     return top / bottom if top and bottom else None
 
 
-async def motion_units(session: Session, node: SessionNode) -> Units:
-    """The units, named in the reader's language (what was read is kept on the node for :data:`UNITS_TTL_S`)."""
+async def _units_read(session: Session, node: SessionNode) -> _Read:
+    """What the unit objects said (kept on the node for :data:`UNITS_TTL_S`)."""
     cached: tuple[float, _Read] | None = getattr(node, "_motion_units", None)  # kept on the node, as its catalog
     if cached is None or time.monotonic() - cached[0] >= UNITS_TTL_S:
         cached = time.monotonic(), await _read_units(session, node)
         object.__setattr__(node, "_motion_units", cached)
-    position, velocity, per_unit = cached[1]
+    return cached[1]
+
+
+async def motion_units(session: Session, node: SessionNode) -> Units:
+    """The units, named in the reader's language."""
+    position, velocity, per_unit = await _units_read(session, node)
     if position is not None:
         return Units(position, velocity or f"{position}/s", _("SI unit objects 0x60A8/0x60A9"))
     if per_unit is not None:
@@ -87,6 +92,16 @@ async def _read_units(session: Session, node: SessionNode) -> _Read:
     gear = await _ratio(session, node, "0x6091") or 1.0
     feed = await _ratio(session, node, "0x6092")
     return None, velocity, encoder * gear / feed if encoder and feed else None
+
+
+async def position_per_velocity(session: Session, node: SessionNode) -> float:
+    """Position units per second in one velocity unit: a drive whose 0x60A9 says rpm turns one revolution (360 °,
+    else the feed constant 0x6092) per minute and rpm; else CiA 402's velocity unit, one position unit per second."""
+    position, velocity, _per_unit = await _units_read(session, node)
+    if velocity != "rpm":
+        return 1.0
+    per_revolution = 360.0 if position == "°" else await _ratio(session, node, "0x6092")
+    return per_revolution / 60 if per_revolution else 1.0
 
 
 async def generic_limits(session: Session, node: SessionNode, ref: str) -> tuple[float | None, float | None]:

@@ -23,7 +23,7 @@ from drivebench.device import cia402
 from drivebench.errors import Conflict, DriveBenchError, InvalidValue, OutOfRange
 from drivebench.i18n import N_, _
 from drivebench.services.bus.sessions import Session, SessionNode
-from drivebench.services.control import drive_control
+from drivebench.services.control import drive_control, soft_limits
 from drivebench.services.control.drive_control import SERVICE_PANEL, DriveStatus, Panel, guard_for, has_ref
 from drivebench.services.control.drive_guard import cleared
 from drivebench.services.control.drive_units import motion_units
@@ -178,6 +178,8 @@ async def move(session: Session, node: SessionNode, target: float, *, relative: 
             raise OutOfRange(_("Target {target} {unit} is outside the software position limits 0x607D {low} ... "
                                "{high} {unit}.").format(target=f"{target:g}", unit=units.position,
                                                         low=f"{scale.minimum:g}", high=f"{scale.maximum:g}"))
+    else:
+        await soft_limits.check_relative(session, node, target)
     values = {**drive_control.sent(node, "0x6060", 1), **drive_control.sent(node, "0x607A", target, units.position),
               "relative": relative, "immediate": immediate}
     if velocity is not None:
@@ -193,6 +195,8 @@ async def move(session: Session, node: SessionNode, target: float, *, relative: 
     base = await drive_control.last_control_word(session, node) & ~MODE_BITS
     base |= (CHANGE_IMMEDIATELY if immediate else 0) | (RELATIVE if relative else 0)
     await _edge(session, node, base, hold=False)
+    if relative:
+        soft_limits.start(session, node, "move")
     return await drive_control.read_status(session, node, panel)
 
 
