@@ -78,4 +78,5 @@ def test_the_control_tab_shows_the_internal_limit_bit_and_who_stopped_the_jog(se
     assert page.locator("#ctl-limit").is_hidden()  # the drive did not limit anything
     screenshot(page, "control-software-limit-halted")
     page.mouse.up()
+    page.click("#ctl-confirm button[value=cancel]")
     page.click("button[data-command=quick_stop]")
