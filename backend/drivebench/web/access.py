@@ -243,9 +243,9 @@ async def still_admitted(scope: Scope, headers: Headers, decision: access_policy
         except DriveBenchError as exc:
             return exc
         return None
-    opened = state.get("principal")
-    if not accounts.authentication_configured() or (decision.public and opened is None):
+    if decision.public or not accounts.authentication_configured():  # a public socket checks its own link
         return None
+    opened = state.get("principal")
     try:
         principal, _session = await _authenticate(headers)
     except NotAuthenticated as exc:
@@ -253,7 +253,7 @@ async def still_admitted(scope: Scope, headers: Headers, decision: access_policy
     if principal is None:
         return NotAuthenticated(_("Your sign-in has ended (signed out, disabled, a new password or role): this "
                                   "live connection is closed."), hint=N_("Sign in again."))
-    if not decision.public and not principal.may(decision.rule.role):
+    if not principal.may(decision.rule.role):
         return AccessDenied(_denied_words(principal, decision.rule), hint=_("Ask an admin for the role."))
     if isinstance(opened, Principal) and principal.role < opened.role:
         return AccessDenied(_("Your role was lowered to {role}: this live connection, opened as {before}, is "
