@@ -40,6 +40,7 @@ from drivebench.errors import AccessDenied, DriveBenchError, NotAuthenticated, U
 from drivebench.i18n import N_, _
 from drivebench.services.users import accounts
 from drivebench.services.users.principals import Principal, Role
+from drivebench.services.users.sharing import ShareLinks
 from drivebench.web import access_policy, cookies, origins
 from drivebench.web.identity import principal_of
 from drivebench.web.problems import error_fragment, error_page, problem_body, wants_page
@@ -227,6 +228,38 @@ async def admitted(scope: Scope, receive: Receive, send: Send, headers: Headers,
         scope["headers"].append((b"x-drivebench-user", principal.name.encode()))
         return receive, principal.name
     return receive, None
+
+
+async def still_admitted(scope: Scope, headers: Headers, decision: access_policy.Decision, links: ShareLinks
+                         ) -> DriveBenchError | None:
+    """Why a live connection admitted at its handshake may not stay open now (None: it may), as its handshake
+    would be answered now: the share link still valid, the cookie session or API token still signed in (read from
+    the database, as every request reads it: a change made by another server counts too), the route's role still
+    held and the role not lowered since the handshake (``web/live_access`` asks it every second)."""
+    state = scope.get("state", {})
+    if (link_token := state.get("viewer_token")) is not None:
+        try:
+            await anyio.to_thread.run_sync(links.check, link_token)
+        except DriveBenchError as exc:
+            return exc
+        return None
+    if decision.public or not accounts.authentication_configured():  # a public socket checks its own link
+        return None
+    opened = state.get("principal")
+    try:
+        principal, _session = await _authenticate(headers)
+    except NotAuthenticated as exc:
+        return exc
+    if principal is None:
+        return NotAuthenticated(_("Your sign-in has ended (signed out, disabled, a new password or role): this "
+                                  "live connection is closed."), hint=N_("Sign in again."))
+    if not principal.may(decision.rule.role):
+        return AccessDenied(_denied_words(principal, decision.rule), hint=_("Ask an admin for the role."))
+    if isinstance(opened, Principal) and principal.role < opened.role:
+        return AccessDenied(_("Your role was lowered to {role}: this live connection, opened as {before}, is "
+                              "closed.").format(role=principal.role.label, before=opened.role.label),
+                            hint=N_("Open it again."))
+    return None
 
 
 async def _authenticate(headers: Headers) -> tuple[Principal | None, SignedIn | None]:

@@ -9,7 +9,8 @@ once, the route's policy looked up once, precomputed at start-up by ``access_pol
    too; the docs pages are held back until their inline script is hashed into the policy.
 3. A request body past the upload limit is refused with 413 (``limits``).
 4. A share-link token (``viewer``): the link checked, what a link may not do refused, pages led to the remote view.
-5. Host and Origin, sign-in, role and CSRF (``access``); the audit log's ``current_user`` is who signed in.
+5. Host and Origin, sign-in, role and CSRF (``access``); the audit log's ``current_user`` is who signed in. A
+   websocket is re-checked every second while it is open (``live_access``).
 6. A route with a lean answer (``lean_route``) answers its common request here, without the router's second match
    and FastAPI's dependency solving; every other request goes on to the app.
 """
@@ -24,7 +25,7 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 from drivebench import i18n
 from drivebench.services.users import audit
 from drivebench.services.users.sharing import ShareLinks
-from drivebench.web import access, access_policy, language, lean_route, security_headers, viewer
+from drivebench.web import access, access_policy, language, lean_route, live_access, security_headers, viewer
 from drivebench.web.limits import BodyLimit
 from drivebench.web.tls import HSTS_HEADER
 
@@ -74,6 +75,10 @@ class RequestGate:
         receive, user = admitted
         token = audit.current_user.set(user) if user is not None else None
         try:
+            if scope["type"] == "websocket":  # open as long as its user may: re-checked every second
+                await live_access.serve(self.app, scope, receive, send, partial(
+                    access.still_admitted, scope, headers, decision, self.links))
+                return
             if decision.lean is not None and scope.get("method") == "GET" and await lean_route.answered(
                     decision.lean, decision.path_params, scope, receive, send):
                 return

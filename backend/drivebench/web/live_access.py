@@ -1,0 +1,136 @@
+"""Every open websocket re-checks its user each second, as a request is checked each time (issue 27 item 6).
+
+A socket is admitted at its handshake (``access.admitted``); from then on, every :data:`RECHECK_PERIOD_S`,
+``access.still_admitted`` asks again (the database state: the cookie session or API token, the user's role, the
+share link). When the answer changes - the user disabled, given a lower role or a new password, signed out, the
+token or link revoked - the socket is closed with 4401 (no longer signed in) or 4403 (not allowed), its reason in
+words, and the nodes its panel held (``web/safety.panel_for``) are stopped at once (``Guard.trip``: quick stop), not
+only at their keep-alive deadline. The route then sees its client go away (``websocket.disconnect`` with that
+code) and ends as it does when a browser leaves; whatever it sends afterwards is dropped.
+
+This runs around every websocket route in one place (``web/gate.py``): a new socket needs nothing of its own.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+from collections.abc import Awaitable, Callable
+from typing import Any
+
+from starlette.requests import HTTPConnection
+from starlette.types import ASGIApp, Message, Receive, Scope, Send
+from starlette.websockets import WebSocketDisconnect
+
+from drivebench.errors import DriveBenchError, NotAuthenticated, NotFound
+from drivebench.i18n import N_, Text
+from drivebench.services.control import drive_control
+from drivebench.web.safety import panel_for
+
+RECHECK_PERIOD_S = 1.0
+CLOSE_WAIT_S = 5.0
+LOST_REASON = N_("the user of the live connection holding it may no longer hold it (access ended)")
+log = logging.getLogger(__name__)
+_trips: set[asyncio.Task[None]] = set()
+
+Recheck = Callable[[], Awaitable[DriveBenchError | None]]
+
+
+class _Socket:
+    """One websocket's ASGI ``receive`` and ``send`` as the route sees them, and its re-check."""
+
+    def __init__(self, scope: Scope, receive: Receive, send: Send, recheck: Recheck) -> None:
+        self.scope, self._receive, self._send, self._recheck = scope, receive, send, recheck
+        self.accepted = asyncio.Event()
+        self.lost = asyncio.Event()
+        self.code = 1000
+        self._closed = False
+        self._sending = asyncio.Lock()
+        self._next: asyncio.Future[Message] | None = None
+
+    async def receive(self) -> Message:
+        if self._next is None and not self.lost.is_set():
+            self._next = asyncio.ensure_future(self._receive())
+        if self._next is not None and not self.lost.is_set():
+            lost: asyncio.Future[Any] = asyncio.ensure_future(self.lost.wait())
+            waiting: set[asyncio.Future[Any]] = {self._next, lost}
+            try:
+                await asyncio.wait(waiting, return_when=asyncio.FIRST_COMPLETED)
+            finally:
+                lost.cancel()
+            if self._next.done():  # a message that came first is handed on (a close of the client's own too)
+                message, self._next = self._next.result(), None
+                return message
+        return {"type": "websocket.disconnect", "code": self.code}
+
+    async def send(self, message: Message) -> None:
+        async with self._sending:
+            if self.lost.is_set():
+                if message["type"] == "websocket.close":
+                    return
+                raise WebSocketDisconnect(self.code)
+            if message["type"] == "websocket.close":
+                self._closed = True
+            await self._send(message)
+        if message["type"] == "websocket.accept":
+            self.accepted.set()
+
+    async def watch(self) -> None:
+        await self.accepted.wait()
+        while True:
+            await asyncio.sleep(RECHECK_PERIOD_S)
+            try:
+                refused = await self._recheck()
+            except Exception:  # the database away for a moment: the next re-check asks again
+                log.exception("re-check of a live connection failed")
+                continue
+            if refused is not None:
+                await self._close(refused)
+                return
+
+    async def _close(self, refused: DriveBenchError) -> None:
+        self.code = 4401 if isinstance(refused, NotAuthenticated) else 4403
+        _stop_what_it_held(self.scope)
+        async with self._sending:
+            self.lost.set()  # from here on the route's sends are dropped and its receive hears the close
+            if not self._closed:
+                self._closed = True
+                with contextlib.suppress(Exception):  # the client may be gone already
+                    await self._send({"type": "websocket.close", "code": self.code,
+                                      "reason": refused.shown_detail()[:120]})
+
+    def cancel(self) -> None:
+        if self._next is not None:
+            self._next.cancel()
+
+
+def _stop_what_it_held(scope: Scope) -> None:
+    """Quick stop, at once, for the nodes the socket's panel holds in its session (none for a socket outside one)."""
+    session_id = scope.get("path_params", {}).get("session_id")
+    if session_id is None:
+        return
+    try:
+        session = scope["app"].state.drivebench.manager.get(session_id)
+    except NotFound:
+        return
+    guard = drive_control.guard_for(session)
+    for node_id in guard.held_by(panel_for(HTTPConnection(scope))):
+        trip = asyncio.get_running_loop().create_task(guard.trip(node_id, Text(LOST_REASON)))
+        _trips.add(trip)  # kept until done: the stop completes whatever happens to the socket
+        trip.add_done_callback(_trips.discard)
+
+
+async def serve(app: ASGIApp, scope: Scope, receive: Receive, send: Send, recheck: Recheck) -> None:
+    """Run the websocket route ``app`` with ``recheck`` asked every second while the socket is open."""
+    socket = _Socket(scope, receive, send, recheck)
+    watch = asyncio.create_task(socket.watch())
+    try:
+        await app(scope, socket.receive, socket.send)
+    finally:
+        if socket.lost.is_set():  # the route ended because the re-check closed it: the close goes out first
+            await asyncio.wait({watch}, timeout=CLOSE_WAIT_S)
+        watch.cancel()
+        socket.cancel()
+        with contextlib.suppress(asyncio.CancelledError):
+            await watch
