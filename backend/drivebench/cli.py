@@ -200,8 +200,8 @@ def users(args: argparse.Namespace) -> int:
         if user.role is Role.ADMIN:
             print(_("Signing in is on: everyone who opens DriveBench signs in now."))
     elif args.action == "passwd":
-        accounts.set_password(args.name, _read_password(args))
-        print(_("New password set for {name}; their open sessions end.").format(name=args.name))
+        accounts.set_password(args.name, _read_password(args), end_tokens=True)
+        print(_("New password set for {name}; their open sessions and API tokens end.").format(name=args.name))
     elif args.action in ("disable", "enable"):
         accounts.set_disabled(args.name, args.action == "disable")
         done = _("Disabled {name}.") if args.action == "disable" else _("Enabled {name}.")
