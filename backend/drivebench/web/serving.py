@@ -9,15 +9,22 @@ limit so that even ``/api/health`` was refused (issue 28 item 14). The protocol 
   opened (or after its previous answer) is closed;
 * a connection limit: at ``max_connections`` a new connection sheds the one that has waited longest for its
   headers (a connection whose request is under way is never shed); when none waits, the new one is closed.
+
+The access log (``--log-level info``) shows a share link's or an API token's first characters, never the whole
+token: a request line such as ``GET /remote/dbv_…`` would otherwise hand a log reader the link.
 """
 
 from __future__ import annotations
 
 import asyncio
+import copy
 import importlib.util
+import logging
+import re
 import resource
 from typing import Any
 
+from uvicorn.config import LOGGING_CONFIG
 from uvicorn.protocols.http.h11_impl import H11Protocol
 
 HEADER_TIMEOUT_S = 10.0
@@ -112,4 +119,29 @@ def uvicorn_options(*, header_timeout_s: float = HEADER_TIMEOUT_S, connections: 
     protocol = _httptools_class() or GuardedH11
     guarded = type(protocol.__name__, (protocol,), {"header_timeout_s": header_timeout_s, "max_connections": most})
     return {"http": guarded, "timeout_keep_alive": KEEP_ALIVE_S, "limit_concurrency": most + 16,
-            "h11_max_incomplete_event_size": MAX_HEADER_BYTES}
+            "h11_max_incomplete_event_size": MAX_HEADER_BYTES, "log_config": log_config()}
+
+
+_TOKEN = re.compile(r"\b(db[tv]_[A-Za-z0-9_-]{6})[A-Za-z0-9_-]+")
+
+
+def without_tokens(text: str) -> str:
+    """``/remote/dbv_abcdef…`` for ``/remote/dbv_abcdefghijk…``: the hint the Remote and Users pages show."""
+    return _TOKEN.sub(r"\1…", text)
+
+
+class TokenRedaction(logging.Filter):
+    """Takes the tokens out of an access log record's arguments (the request line is made from them)."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if isinstance(record.args, tuple):
+            record.args = tuple(without_tokens(arg) if isinstance(arg, str) else arg for arg in record.args)
+        return True
+
+
+def log_config() -> dict[str, Any]:
+    """uvicorn's logging set-up with ``TokenRedaction`` on the access log."""
+    config = copy.deepcopy(LOGGING_CONFIG)
+    config.setdefault("filters", {})["tokens"] = {"()": TokenRedaction}
+    config["handlers"]["access"]["filters"] = ["tokens"]
+    return config
