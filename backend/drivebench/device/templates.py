@@ -47,10 +47,10 @@ def check_template(text: str, samples: Mapping[str, object], where: str) -> None
         if match is None:
             raise _refused(where, text, Text(N_("{field}: the format spec is not one this template takes"),
                                              field=field))
-        for part, value in (("width", match["width"]), ("precision", match["precision"])):
+        for part, value in ((N_("width"), match["width"]), (N_("precision"), match["precision"])):
             if value and int(value) > MAX_WIDTH:
                 raise _refused(where, text, Text(N_("{field}: the {part} {value} is more than {most}"),
-                                                 field=field, part=part, value=int(value), most=MAX_WIDTH))
+                                                 field=field, part=Text(part), value=int(value), most=MAX_WIDTH))
         try:
             Formatter().format_field(Formatter().convert_field(samples[name], conversion), spec or "")
         except (ValueError, TypeError):
@@ -58,8 +58,10 @@ def check_template(text: str, samples: Mapping[str, object], where: str) -> None
                                              kind=_kind(samples[name]))) from None
 
 
-def _kind(value: object) -> str:
-    return "text" if isinstance(value, str) else "whole number" if isinstance(value, int) else "number"
+def _kind(value: object) -> Text:
+    if isinstance(value, str):
+        return Text(N_("text"))
+    return Text(N_("whole number") if isinstance(value, int) else N_("number"))
 
 
 def _refused(where: str, text: str, why: Text) -> ValueError:
