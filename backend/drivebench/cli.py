@@ -33,6 +33,7 @@ def _is_loopback(host: str) -> bool:
 def serve(args: argparse.Namespace) -> int:
     import uvicorn
 
+    from drivebench.web import serving
     from drivebench.web.app import create_app
     from drivebench.web.tls import check_pair
 
@@ -63,14 +64,15 @@ def serve(args: argparse.Namespace) -> int:
     # Forwarded headers only from the proxies named (uvicorn would believe any process on 127.0.0.1, so through an
     # SSH tunnel every client could choose the address the sign-in limit counts).
     forwarded = settings.forwarded_allow_ips
-    # uvloop and httptools (uvicorn[standard]) by name: a missing one is an installation error, not a slow server.
-    # No "server: uvicorn" header (it tells an attacker what runs, and is one header less per answer); the access
-    # log only where the log level shows it (the audit log records every write; a poll per second is not news).
+    # uvloop and httptools (uvicorn[standard]) where installed; httptools with a header deadline and a connection
+    # limit (web/serving.py). No "server: uvicorn" header (it tells an attacker what runs, and is one header less
+    # per answer); the access log only where the log level shows it (the audit log records every write; a poll per
+    # second is not news).
     with i18n.using(i18n.DEFAULT):  # a request speaks its browser's language, never the server shell's
         uvicorn.run(app, host=args.host, port=args.port, log_level=args.log_level, ws_ping_interval=20,
                     ssl_certfile=args.tls_cert, ssl_keyfile=args.tls_key, proxy_headers=bool(forwarded),
-                    forwarded_allow_ips=forwarded or None, loop=_fastest("uvloop"), http=_fastest("httptools"),
-                    server_header=False, access_log=args.log_level in ("info", "debug", "trace"))
+                    forwarded_allow_ips=forwarded or None, loop=_fastest("uvloop"), server_header=False,
+                    access_log=args.log_level in ("info", "debug", "trace"), **serving.uvicorn_options())
     return 0
 
 
@@ -200,8 +202,8 @@ def users(args: argparse.Namespace) -> int:
         if user.role is Role.ADMIN:
             print(_("Signing in is on: everyone who opens DriveBench signs in now."))
     elif args.action == "passwd":
-        accounts.set_password(args.name, _read_password(args))
-        print(_("New password set for {name}; their open sessions end.").format(name=args.name))
+        accounts.set_password(args.name, _read_password(args), end_tokens=True)
+        print(_("New password set for {name}; their open sessions and API tokens end.").format(name=args.name))
     elif args.action in ("disable", "enable"):
         accounts.set_disabled(args.name, args.action == "disable")
         done = _("Disabled {name}.") if args.action == "disable" else _("Enabled {name}.")

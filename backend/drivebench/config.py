@@ -46,6 +46,9 @@ class Settings(BaseSettings):
     public_url: str | None = None
     """Where others reach this server (``https://drivebench.plant.example``): share links are built from it, else
     from the address the server listens on, never from a request's ``Host`` header."""
+    api_docs: bool = False
+    """Serve FastAPI's /docs and /redoc pages (``DRIVEBENCH_API_DOCS=1``, for development): they load their scripts
+    from a CDN, so a production server leaves them off. /openapi.json is always served."""
     forwarded_allow_ips: str | None = None
     """Proxies whose ``X-Forwarded-For`` / ``-Proto`` are believed (uvicorn's option, comma-separated addresses or
     networks); none by default, so a client cannot choose the address the sign-in limit counts."""

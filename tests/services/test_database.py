@@ -210,6 +210,8 @@ def test_an_upgrade_from_the_oldest_migration_keeps_the_data_of_every_step(db_ur
                                 "'0x5FF3.0', '2.00 s', '3.00 s', 'written', NULL, 'parameters')", {}),
         "0003_accounts": ("INSERT INTO user_account (name, role, password_hash, created, disabled) "
                           "VALUES ('anna', 'engineer', 'argon2-hash', :t, false)", {}),
+        "0005_shared_state": ("INSERT INTO api_token (name, owner_id, role, token_hash, hint, created) "
+                              "VALUES ('ci', 1, 'viewer', :h, 'dbt_abcdef', :t)", {"h": "0" * 64}),
     }
     for revision in revisions:
         command.upgrade(config, revision)
@@ -225,5 +227,7 @@ def test_an_upgrade_from_the_oldest_migration_keeps_the_data_of_every_step(db_ur
     with database.engine(db_url).connect() as connection:
         audit = connection.execute(text("SELECT \"user\", ref, new_value FROM audit_log")).all()
         users = connection.execute(text("SELECT name, session_stamp FROM user_account")).all()
+        tokens = connection.execute(text("SELECT name, parent_id FROM api_token")).all()
     assert [tuple(row) for row in audit] == [("anna", "C00012", "3.00 s")]
     assert [row[0] for row in users] == ["anna"] and len(users[0][1]) == 16  # 0004 gave her a session stamp
+    assert [tuple(row) for row in tokens] == [("ci", None)]  # 0006: made by a signed-in user, not by a token

@@ -11,7 +11,8 @@ from html.parser import HTMLParser
 import pytest
 from fastapi.testclient import TestClient
 
-from drivebench.config import REPO_ROOT
+from drivebench.config import REPO_ROOT, settings
+from drivebench.web.app import create_app
 from drivebench.web.templating import templates
 
 PAGES = ["/", "/monitor/demo-plant", "/tools", "/parameter-sets", "/profiles", "/profiles/siemens-micromaster4-canopen",
@@ -82,9 +83,12 @@ def test_templates_escape_every_value() -> None:
     assert templates.env.autoescape is True or templates.env.autoescape("page.html")  # type: ignore[operator]
 
 
-def test_the_api_docs_page_runs_its_own_script_by_hash_only(client: TestClient) -> None:
-    """FastAPI's /docs has one inline script: allowed by its hash, not by 'unsafe-inline'; it cannot be framed."""
-    answer = client.get("/docs")
+def test_the_api_docs_page_runs_its_own_script_by_hash_only(monkeypatch: pytest.MonkeyPatch) -> None:
+    """FastAPI's /docs (development only) has one inline script: allowed by its hash, not by 'unsafe-inline'; it
+    cannot be framed."""
+    monkeypatch.setattr(settings, "api_docs", True)
+    with TestClient(create_app()) as client:
+        answer = client.get("/docs")
     script = re.search(r"<script>(.*?)</script>", answer.text, re.DOTALL)
     assert script is not None
     digest = base64.b64encode(hashlib.sha256(script.group(1).encode()).digest()).decode()

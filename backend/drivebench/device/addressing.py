@@ -66,6 +66,8 @@ def parse_ref(text: str) -> Ref:
         prefix = (match.group(1) or "")
         prefix = "r" if prefix == "r" else prefix.upper()
         sub = int(match.group(3)) if match.group(3) is not None else None
+        if sub is not None and sub > 0xFF:  # a code's index is the object's sub-index: one byte on the wire
+            raise UnknownParameter(_("Subindex {sub} is more than 255").format(sub=match.group(3)))
         return CodeRef(prefix, int(match.group(2)), sub)
     raise UnknownParameter(_("'{text}' is not a parameter reference. Use a vendor code (C00088, C00118/3, P2040, "
                              "r2054.3) or a CANopen index (0x5FA7, 0x5FA7.0, 0x1018sub1).").format(text=text))

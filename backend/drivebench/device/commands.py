@@ -7,8 +7,9 @@ defaults 0x1011.1 := "load" (taking effect at the next reset node). Reset node i
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from drivebench.device.templates import check_template
 from drivebench.i18n import N_
 
 
@@ -25,6 +26,11 @@ class CommandWrite(BaseModel):
     """What the result says; ``{node}`` stands for the node id (``Node {node} saved all parameter sets.``)."""
     after_reset: bool = False
     """Takes effect only at the next reset node (CiA 301 restore defaults)."""
+
+    @model_validator(mode="after")
+    def _check_done(self) -> CommandWrite:
+        check_template(self.done, {"node": 1}, "done")
+        return self
 
     @property
     def raw(self) -> int:

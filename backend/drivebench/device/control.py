@@ -20,6 +20,7 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, PlainSerializer, WithJsonSchema, model_validator
 
+from drivebench.device.templates import check_template
 from drivebench.i18n import N_
 
 
@@ -149,6 +150,19 @@ class JogPlan(_Model):
     """The device jog acts only while ``enabled_ref`` <= ``enabled_max``; ``disabled_why`` says why not."""
     disabled_why: str | None = None
 
+    @model_validator(mode="after")
+    def _check_text(self) -> JogPlan:
+        """``text`` may name the fields of its method (``services/control/drive_control.jog_plan`` fills them)."""
+        if self.text == SETPOINT_JOG:
+            return self
+        samples: dict[str, object] = {"value": 1.0, "unit": "rpm"}
+        if self.method == "device":
+            samples["word"] = "C00135"
+        elif self.method == "setpoint":
+            samples |= {"percent": 1.0, "reference": 1.0} if self.percent_ref else {"percent": 1.0, "why": "-"}
+        check_template(self.text, samples, "jog.text")
+        return self
+
 
 class ControlSection(_Model):
     key: str = Field(pattern=r"^[a-z0-9][a-z0-9_.-]*$")
@@ -192,6 +206,14 @@ class ControlSection(_Model):
         if unknown:
             raise ValueError(f"states not among the section's states ({', '.join(sorted(keys))}): "
                              + "; ".join(unknown))
+        return self
+
+    @model_validator(mode="after")
+    def _check_texts(self) -> ControlSection:
+        if self.mode_refused is not None:
+            check_template(self.mode_refused, {"shown": 0, "mode": 2}, "mode_refused")
+        if self.modes_help is not None:
+            check_template(self.modes_help, {"mode": 2}, "modes_help")
         return self
 
 

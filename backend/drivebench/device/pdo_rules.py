@@ -15,6 +15,7 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from drivebench.device.hex_int import HexInt
+from drivebench.device.templates import check_template
 from drivebench.i18n import N_, Text
 
 Direction = Literal["rpdo", "tpdo"]
@@ -85,12 +86,8 @@ class MappingBits(_Model):
 
     @model_validator(mode="after")
     def _check_texts(self) -> MappingBits:
-        try:
-            self.byte_text.format(ref="P", byte="low byte", bits=0)
-            self.no_bit_text.format(ref="P")
-        except (KeyError, IndexError, ValueError) as exc:
-            raise ValueError(Text(N_("byte_text/no_bit_text may use {{ref}}, {{byte}} and {{bits}} only, not {name}"),
-                                  name=exc)) from exc
+        check_template(self.byte_text, {"ref": "P2041", "byte": "low byte", "bits": 0}, "byte_text")
+        check_template(self.no_bit_text, {"ref": "P2041"}, "no_bit_text")
         if self.exclusive and not self.exclusive_text:
             raise ValueError(Text(N_("exclusive groups need an exclusive_text")))
         return self

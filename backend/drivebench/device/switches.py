@@ -22,6 +22,7 @@ from typing import Annotated, Literal
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from drivebench.device.hex_int import HexInt
+from drivebench.device.templates import check_template
 from drivebench.i18n import N_, Text
 
 Key = Annotated[str, Field(pattern=r"^[a-z0-9][a-z0-9_.-]*$", max_length=64)]
@@ -39,13 +40,18 @@ class _Model(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
 
-def _check_template(text: str, allowed: set[str], where: str) -> None:
-    names = {name for _, name, _, _ in Formatter().parse(text) if name is not None}
-    unknown = names - allowed
+def _check_template(text: str, samples: dict[str, object], where: str) -> None:
+    """``samples``: the fields the text is formatted with, each with a value of the type it gets."""
+    try:
+        names = {name for _, name, _, _ in Formatter().parse(text) if name is not None}
+    except ValueError:  # a text that does not parse: refused in check_template's words
+        names = set()
+    unknown = names - set(samples)
     if unknown:
         raise ValueError(Text(N_("{where} may use {allowed} only, not {unknown}"), where=where,
-                              allowed=", ".join("{" + n + "}" for n in sorted(allowed)),
+                              allowed=", ".join("{" + n + "}" for n in sorted(samples)),
                               unknown=", ".join("{" + n + "}" for n in sorted(unknown))))
+    check_template(text, samples, where)
 
 
 class Switch(_Model):
@@ -81,7 +87,7 @@ class NodeParameter(_Model):
     def _check(self) -> NodeParameter:
         if not 0 <= self.range[0] <= self.range[1] <= 127:
             raise ValueError(Text(N_("range {range} is not within 0 … 127 (lowest first)"), range=list(self.range)))
-        _check_template(self.invalid, {"code", "value", "lo", "hi"}, "invalid")
+        _check_template(self.invalid, {"code": self.code, "value": 1, "lo": 1, "hi": 1}, "invalid")
         return self
 
 
@@ -97,7 +103,7 @@ class BaudParameter(_Model):
 
     @model_validator(mode="after")
     def _check(self) -> BaudParameter:
-        _check_template(self.invalid, {"code", "value"}, "invalid")
+        _check_template(self.invalid, {"code": self.code, "value": 125}, "invalid")
         return self
 
 
@@ -120,7 +126,7 @@ class Setting(_Model):
         if self.sets == "node_id" and self.values:
             raise ValueError(Text(N_("values are baud rate -> value; a node id setting writes the node id itself")))
         for text in (self.meaning, self.note or "", self.unavailable or ""):
-            _check_template(text, {"node_id", "baud_kbit", "value"}, "meaning/note")
+            _check_template(text, {"node_id": 1, "baud_kbit": 125, "value": None}, "meaning/note")
         return self
 
 

@@ -5,6 +5,8 @@
 * Another web site's page may never change anything here, login or not: an unsafe request or a websocket handshake
   whose ``Origin`` is not a name of this server (or whose ``Sec-Fetch-Site`` says another site) is refused.
   Requests without those headers (curl, scripts) pass.
+* Without an enabled admin nobody signs in: the server then serves only clients on this machine (loopback, or no
+  network address at all); another machine gets 403 (``/api/health`` and the other public routes excepted).
 * Once authentication is configured (an enabled admin exists, ``services.accounts``) everyone signs in: a signed
   session cookie (HttpOnly, SameSite=Strict, Secure over https) or ``Authorization: Bearer dbt_…``. Without it an
   API request gets 401, a page the sign-in form.
@@ -19,6 +21,7 @@ into the audit log's ``current_user``.
 from __future__ import annotations
 
 import contextlib
+import ipaddress
 import os
 import re
 import secrets
@@ -205,6 +208,13 @@ async def admitted(scope: Scope, receive: Receive, send: Send, headers: Headers,
             hint=_("API clients send `Authorization: Bearer dbt_…` (an API token from the Users page).")))
         return None
     if principal is None and not configured:
+        if not decision.public and (remote := _remote_address(scope)) is not None:
+            await _refuse(scope, receive, send, AccessDenied(
+                _("Refused: this DriveBench server has no enabled admin, so nobody signs in and it serves only "
+                  "from this machine; {address} is another one.").format(address=remote),
+                hint=_("Create an admin on the server (`drivebench users add admin --role admin`); then everyone "
+                       "signs in, from anywhere.")))
+            return None
         principal = principal_of(HTTPConnection(scope))  # the local user: an admin
     if principal is not None and not decision.public and not principal.may(decision.rule.role):
         await _refuse(scope, receive, send, AccessDenied(_denied_words(principal, decision.rule),
@@ -260,6 +270,21 @@ async def still_admitted(scope: Scope, headers: Headers, decision: access_policy
                               "closed.").format(role=principal.role.label, before=opened.role.label),
                             hint=N_("Open it again."))
     return None
+
+
+def _remote_address(scope: Scope) -> str | None:
+    """The client's address when it is another machine's (None: loopback, or no network address at all: a Unix
+    socket, an in-process client). Behind a trusted proxy uvicorn puts the forwarded client here."""
+    client = scope.get("client")
+    if not client:
+        return None
+    try:
+        address = ipaddress.ip_address(str(client[0]).split("%")[0])
+    except ValueError:
+        return None
+    if isinstance(address, ipaddress.IPv6Address) and address.ipv4_mapped is not None:
+        address = address.ipv4_mapped
+    return None if address.is_loopback else str(client[0])
 
 
 async def _authenticate(headers: Headers) -> tuple[Principal | None, SignedIn | None]:

@@ -115,7 +115,9 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
             for gateway in state.gateways.values():
                 await asyncio.to_thread(gateway.stop)
 
-    app = FastAPI(title="DriveBench", version=__version__, lifespan=lifespan,
+    docs = settings.api_docs  # their scripts come from a CDN: development only
+    app = FastAPI(title="DriveBench", version=__version__, lifespan=lifespan, docs_url="/docs" if docs else None,
+                  redoc_url="/redoc" if docs else None,
                   description="Commissioning of CANopen drives: parameters, PDOs, NMT, diagnostics.")
     problems.install(app)
     access.install(app)  # the roles in the OpenAPI document

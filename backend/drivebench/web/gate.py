@@ -20,9 +20,11 @@ from __future__ import annotations
 from functools import partial
 
 from starlette.datastructures import Headers
+from starlette.responses import JSONResponse
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from drivebench import i18n
+from drivebench.i18n import _
 from drivebench.services.users import audit
 from drivebench.services.users.sharing import ShareLinks
 from drivebench.web import access, access_policy, language, lean_route, live_access, security_headers, viewer
@@ -53,13 +55,19 @@ class RequestGate:
                 await self._admitted(scope, receive, send, headers)
                 return
             https = scope.get("scheme") == "https"
-            if scope["path"] in security_headers.DOCS_PATHS:  # rare: worked out per request
-                extra = [HSTS_HEADER] if self.hsts and https else []
-                await security_headers.held_docs(partial(self._http, scope, receive, headers),
-                                                 _answering(send, _NOTHING_ADDED, locale), extra)
-            else:
-                await self._http(scope, receive, headers,
-                                 _answering(send, self._added["https" if https else "http"], locale))
+            added = _answering(send, self._added["https" if https else "http"], locale)
+            answer = _Tracked(added)
+            try:
+                if scope["path"] in security_headers.DOCS_PATHS:  # rare: worked out per request
+                    extra = [HSTS_HEADER] if self.hsts and https else []
+                    answer = _Tracked(_answering(send, _NOTHING_ADDED, locale))
+                    await security_headers.held_docs(partial(self._http, scope, receive, headers), answer, extra)
+                else:
+                    await self._http(scope, receive, headers, answer)
+            except Exception:
+                if not answer.started:  # a bug: a problem with the headers; the server logs the error as before
+                    await _server_error(scope, added)
+                raise
 
     async def _http(self, scope: Scope, receive: Receive, headers: Headers, send: Send) -> None:
         await self.body_limit.run(scope, receive, send, headers,
@@ -86,6 +94,29 @@ class RequestGate:
         finally:
             if token is not None:
                 audit.current_user.reset(token)
+
+
+class _Tracked:
+    """``send`` that remembers whether the answer has started."""
+
+    def __init__(self, send: Send) -> None:
+        self.send = send
+        self.started = False
+
+    async def __call__(self, message: Message) -> None:
+        self.started = self.started or message["type"] == "http.response.start"
+        await self.send(message)
+
+
+async def _server_error(scope: Scope, send: Send) -> None:
+    """The 500 of an unexpected error: a problem in words, nothing of the error itself (the log has that)."""
+    body = {"type": "about:blank", "title": _("Internal server error"), "status": 500,
+            "detail": _("The server failed on this request; its log has the details."), "instance": scope["path"]}
+    await JSONResponse(body, status_code=500, media_type="application/problem+json")(scope, _nothing, send)
+
+
+async def _nothing() -> Message:
+    return {"type": "http.disconnect"}
 
 
 class _Added:

@@ -139,9 +139,11 @@ def install(app: FastAPI) -> None:
 
     @app.exception_handler(RequestValidationError)
     async def _validation_error(request: Request, exc: RequestValidationError) -> Response:
-        problems = [f"{'.'.join(str(p) for p in e['loc'] if p != 'body')}: {e['msg']}" for e in exc.errors()]
+        # What was submitted is not echoed: it may be a password (a 422 lands in logs, proxies, screenshots).
+        errors = [{k: v for k, v in e.items() if k not in ("input", "ctx")} for e in exc.errors()]
+        problems = [f"{'.'.join(str(p) for p in e['loc'] if p != 'body')}: {e['msg']}" for e in errors]
         body = {"type": "/problems/validation", "title": _("Invalid request"), "status": 422,
-                "detail": "; ".join(problems), "instance": str(request.url.path), "errors": exc.errors()}
+                "detail": "; ".join(problems), "instance": str(request.url.path), "errors": errors}
         if request.headers.get("HX-Request") == "true":
             return HTMLResponse(error_fragment(body), status_code=422)
         if wants_page(request):  # a mistyped address in the browser (/sessions/x/nodes/1001): a page of the app

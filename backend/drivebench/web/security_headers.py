@@ -9,8 +9,8 @@ opened directly in a tab is a page too.
 attributes, and uPlot lays out its plots through style attributes. Styles cannot run script, and every text put
 into a page is escaped, so this is the one inline allowance; scripts have none.
 
-FastAPI's /docs and /redoc pages are third-party HTML: their one inline script is allowed by its hash, their
-assets come from the CDN FastAPI names.
+FastAPI's /docs and /redoc pages are third-party HTML, served only with ``settings.api_docs`` (development): their
+one inline script is allowed by its hash, their assets come from the CDN FastAPI names.
 """
 
 from __future__ import annotations

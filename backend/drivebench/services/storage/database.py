@@ -7,6 +7,8 @@ when several servers share one store. The schema is owned by the Alembic migrati
 
 from __future__ import annotations
 
+import contextlib
+import os
 import threading
 import time
 from collections.abc import Iterator
@@ -53,12 +55,20 @@ def engine(url: str | None = None) -> Engine:
         if parsed.get_backend_name() == "sqlite":
             connect_args["check_same_thread"] = False  # sessions are used from worker threads, one at a time
             if parsed.database and parsed.database != ":memory:":
-                Path(parsed.database).parent.mkdir(parents=True, exist_ok=True)
+                _private_file(Path(parsed.database))
         created = create_engine(url, connect_args=connect_args, pool_pre_ping=True)
         if parsed.get_backend_name() == "sqlite":
             event.listen(created, "connect", _sqlite_foreign_keys)
         _engines[url] = created
         return created
+
+
+def _private_file(path: Path) -> None:
+    """Make a new SQLite file readable by this user only (it holds password hashes and the audit log); SQLite's
+    journal files take the database file's mode."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with contextlib.suppress(FileExistsError):
+        os.close(os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
 
 
 def dispose(url: str | None = None) -> None:

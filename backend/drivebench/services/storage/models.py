@@ -157,6 +157,10 @@ class ApiTokenRow(Base):
     created: Mapped[datetime] = mapped_column(DateTime(timezone=True), nullable=False, default=utcnow)
     last_used: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
     revoked: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
+    parent_id: Mapped[int | None] = mapped_column(ForeignKey("api_token.id", ondelete="CASCADE"), nullable=True,
+                                                  index=True)
+    """The token whose request made this one (0006_token_parent; None: made by a signed-in user or the CLI): it
+    is refused, and revoked, with its parent."""
 
 
 # --- state every server of the database shares (migration 0005_shared_state) -----------------------------------

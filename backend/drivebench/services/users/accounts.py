@@ -248,6 +248,15 @@ def _user_row(db: Session, name: str) -> UserRow:
     return row
 
 
+def _lock_admins(db: Session) -> None:
+    """Hold the enabled admins' rows until the transaction ends, so two changes that each leave one admin (two
+    admins disabling each other at once, on one server or two) run one after the other and the second sees the
+    first. A write that changes nothing takes the lock on both databases: PostgreSQL locks the rows it matches (a
+    waiting transaction then re-reads them), SQLite takes its write lock on the file."""
+    db.execute(update(UserRow).where(UserRow.role == Role.ADMIN.label, UserRow.disabled.is_(False))
+               .values(disabled=False))
+
+
 def _keep_an_admin(db: Session, row: UserRow, *, role: Role, disabled: bool) -> None:
     """Refuse to leave no enabled admin: that would switch the sign-in off and open every screen to everyone."""
     if row.role != Role.ADMIN.label or row.disabled or (role is Role.ADMIN and not disabled):
@@ -261,6 +270,7 @@ def _keep_an_admin(db: Session, row: UserRow, *, role: Role, disabled: bool) -> 
 
 def set_disabled(name: str, disabled: bool = True) -> User:
     with transaction() as db:
+        _lock_admins(db)
         row = _user_row(db, name)
         _keep_an_admin(db, row, role=Role.parse(row.role), disabled=disabled)
         if row.disabled != disabled:
@@ -275,6 +285,7 @@ def set_disabled(name: str, disabled: bool = True) -> User:
 
 def set_role(name: str, role: Role) -> User:
     with transaction() as db:
+        _lock_admins(db)
         row = _user_row(db, name)
         _keep_an_admin(db, row, role=role, disabled=row.disabled)
         if row.role != role.label:
@@ -285,12 +296,16 @@ def set_role(name: str, role: Role) -> User:
     return changed
 
 
-def set_password(name: str, password: str) -> User:
+def set_password(name: str, password: str, *, end_tokens: bool = False) -> User:
+    """A new password ends the user's sessions; ``end_tokens`` (an admin's reset) revokes their API tokens too:
+    whoever needed the reset may have had them taken."""
     password_hash = _hasher.hash(_check_password(password))
     with transaction() as db:
         row = _user_row(db, name)
         row.password_hash = password_hash
         row.session_stamp = new_session_stamp()
+        if end_tokens:
+            _revoke_tokens_of(db, row.id)
         changed = _user(row)
     directory.forget()
     return changed
@@ -317,7 +332,8 @@ def verify_password(name: str, password: str) -> Principal:
 
 
 # --- API tokens ------------------------------------------------------------------------------------------------
-def issue_token(owner: str, name: str, role: Role) -> IssuedToken:
+def issue_token(owner: str, name: str, role: Role, *, parent: int | None = None) -> IssuedToken:
+    """A new token of ``owner``; ``parent``: the id of the token whose request makes it (it ends with that one)."""
     name = name.strip()
     if not 1 <= len(name) <= 120:
         raise InvalidValue(_("Give the token a name of 1 to 120 characters (what the script does)."))
@@ -328,7 +344,7 @@ def issue_token(owner: str, name: str, role: Role) -> IssuedToken:
             raise AccessDenied(_("A token of {owner} cannot have the {role} role: {owner} is {owner_role}.").format(
                 owner=owner, role=role.label, owner_role=Role.parse(user.role).label))
         row = ApiTokenRow(name=name, owner_id=user.id, role=role.label, token_hash=_token_hash(secret),
-                          hint=secret[:10], created=utcnow())
+                          hint=secret[:10], created=utcnow(), parent_id=parent)
         db.add(row)
         db.flush()
         return IssuedToken(_token(row, user.name), secret)
@@ -352,14 +368,42 @@ def revoke_token(token_id: int, *, owner: str | None = None) -> ApiToken:
                            else _("There is no API token {id}.").format(id=token_id))
         row, owner_name = found
         row.revoked = row.revoked or utcnow()
+        _revoke_descendants(db, [row.id])
         revoked = _token(row, owner_name)
     verified_tokens.forget()
     return revoked
 
 
 def _revoke_tokens_of(db: Session, user_id: int) -> None:
+    ids = list(db.scalars(select(ApiTokenRow.id).where(ApiTokenRow.owner_id == user_id)))
     db.execute(update(ApiTokenRow).where(ApiTokenRow.owner_id == user_id, ApiTokenRow.revoked.is_(None))
                .values(revoked=utcnow()))
+    _revoke_descendants(db, ids)
+    verified_tokens.forget()
+
+
+def _revoke_descendants(db: Session, ids: list[int]) -> None:
+    """Revoke the tokens made with the tokens ``ids``, and those made with them, and so on (the list shows what
+    ``verify_token`` refuses anyway)."""
+    while ids:
+        ids = list(db.scalars(select(ApiTokenRow.id).where(ApiTokenRow.parent_id.in_(ids))))
+        if ids:
+            db.execute(update(ApiTokenRow).where(ApiTokenRow.id.in_(ids), ApiTokenRow.revoked.is_(None))
+                       .values(revoked=utcnow()))
+
+
+def _ancestors_valid(db: Session, parent_id: int | None) -> bool:
+    """Whether every token up the chain that made a token is unrevoked and its owner enabled (a parent revoked
+    while it was minting a child is caught here, not only by ``_revoke_descendants``)."""
+    seen: set[int] = set()
+    while parent_id is not None and parent_id not in seen:
+        seen.add(parent_id)
+        found = db.execute(select(ApiTokenRow, UserRow).join(UserRow, ApiTokenRow.owner_id == UserRow.id)
+                           .where(ApiTokenRow.id == parent_id)).first()
+        if found is None or found[0].revoked is not None or found[1].disabled:
+            return False
+        parent_id = found[0].parent_id
+    return parent_id is None
 
 
 def verify_token(secret: str) -> Principal:
@@ -378,11 +422,13 @@ def verify_token(secret: str) -> Principal:
         if found is None or found[0].revoked is not None or found[1].disabled:
             raise refused
         row, user = found
+        if not _ancestors_valid(db, row.parent_id):
+            raise refused
         now = utcnow()
         if row.last_used is None or (now - _aware(row.last_used)).total_seconds() > 60:  # not a write per request
             row.last_used = now
         role = min(Role.parse(row.role), Role.parse(user.role))
-        principal = Principal(user.name, role, via="token")
+        principal = Principal(user.name, role, via="token", token_id=row.id)
     verified_tokens.put(token_hash, principal, generation)
     return principal
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from enum import IntEnum
 
 from drivebench.i18n import _
@@ -31,6 +31,8 @@ class Principal:
     name: str
     role: Role
     via: str = "local"  # local (no login configured), login (cookie session), token (API token), link (share link)
+    token_id: int | None = field(default=None, compare=False)
+    """The API token acting (via ``token``): a token it makes ends with it."""
 
     def may(self, role: Role) -> bool:
         return self.role >= role

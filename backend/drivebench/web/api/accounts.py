@@ -193,7 +193,8 @@ async def create_own_token(body: NewToken, principal: PrincipalDep) -> IssuedTok
     """A token for your scripts, with your role or a lower one. The token is in this answer only."""
     name = _signed_in_user(principal)
     role = min(Role.parse(body.role), principal.role)  # a token request cannot mint more than it has
-    return issued_out(await asyncio.to_thread(accounts.issue_token, name, body.name, role))
+    return issued_out(await asyncio.to_thread(
+        lambda: accounts.issue_token(name, body.name, role, parent=principal.token_id)))
 
 
 @router.delete("/auth/tokens/{token_id}", response_model=TokenOut)
@@ -234,8 +235,8 @@ async def change_user(name: str, body: UserChange) -> UserOut:
 
 @router.put("/users/{name}/password", status_code=204)
 async def reset_password(name: str, body: NewPassword) -> Response:
-    """Set a new password: the user's sessions end (tokens stay valid)."""
-    await asyncio.to_thread(accounts.set_password, name, body.password)
+    """Set a new password: the user's sessions and API tokens end."""
+    await asyncio.to_thread(lambda: accounts.set_password(name, body.password, end_tokens=True))
     return Response(status_code=204)
 
 
@@ -245,9 +246,11 @@ async def list_tokens() -> list[TokenOut]:
 
 
 @router.post("/tokens", response_model=IssuedTokenOut, status_code=201)
-async def create_token(body: NewTokenFor) -> IssuedTokenOut:
-    """A token for a user's scripts (role no higher than the user's). The token is in this answer only."""
-    return issued_out(await asyncio.to_thread(accounts.issue_token, body.user, body.name, Role.parse(body.role)))
+async def create_token(body: NewTokenFor, principal: PrincipalDep) -> IssuedTokenOut:
+    """A token for a user's scripts (role no higher than the user's). The token is in this answer only; one made
+    with a token ends with that token."""
+    return issued_out(await asyncio.to_thread(
+        lambda: accounts.issue_token(body.user, body.name, Role.parse(body.role), parent=principal.token_id)))
 
 
 @router.delete("/tokens/{token_id}", response_model=TokenOut)

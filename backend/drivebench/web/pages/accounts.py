@@ -138,8 +138,9 @@ async def change_role(request: Request, name: str, role: str = Form(...)) -> Res
 
 @router.post("/ui/users/{name}/password", response_class=HTMLResponse)
 async def reset_password(request: Request, name: str, password: str = Form("")) -> Response:
-    return await _act(request, "users", lambda: accounts.set_password(name, password),
-                      _("New password set for {name}; their open sessions have ended.").format(name=name))
+    return await _act(request, "users", lambda: accounts.set_password(name, password, end_tokens=True),
+                      _("New password set for {name}; their open sessions and API tokens have ended.").format(
+                          name=name))
 
 
 @router.post("/ui/tokens", response_class=HTMLResponse)

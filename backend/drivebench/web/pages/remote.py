@@ -50,7 +50,8 @@ async def remote_view(request: Request, state: StateDep, token: str) -> Response
     context = {"active": "remote", "viewer": link, "token": token, **health_context(state)}
     response = templates.TemplateResponse(request, "remote_view.html", context)
     remaining = max(int(link.expires - link.created), 60)
-    response.set_cookie(COOKIE, token, max_age=remaining, httponly=True, samesite="strict")
+    response.set_cookie(COOKIE, token, max_age=remaining, httponly=True, samesite="strict",
+                        secure=request.url.scheme == "https", path="/")
     return response
 
 
