@@ -223,8 +223,8 @@ def listed_modes(profile: Profile) -> list[int]:
 TITLE = N_("CiA 402 drive state machine")
 NOTE = N_("Standard CiA 402 drive control (no vendor profile): bit names, modes and units as CiA 402-2 defines them "
           "and this device's object dictionary lists them.")
-JOG_TEXT = N_("Jog: a profile-velocity move (the panel switches to mode 3, 0x60FF) at {value:g} {unit} while the "
-              "button is held and the keep-alive runs.")
+JOG_TEXT = N_("Jog: a profile-velocity move (the panel switches to mode 3, 0x60FF) at the jog speed set here, while "
+              "the button is held and the keep-alive runs; each press shows the speed it will send.")
 JOG_WHY = N_("the device lists no profile velocity mode (0x60FF)")
 MODE_REFUSED = N_("0x6061 shows {shown} after writing 0x6060 = {mode}: the drive did not take the mode.")
 MODES_HELP = N_("Mode {mode} is not among this device's supported modes (0x6502 or its object dictionary).")
