@@ -42,8 +42,10 @@ from drivebench.services.sets.parameter_sets import (
     Values,
     catalog_for,
     engineering,
+    live_items,
+    rpdo_mapped,
     same_raw,
-    settable,
+    settable_items,
     shown,
 )
 from drivebench.services.storage.models import DownloadRow
@@ -141,7 +143,7 @@ async def device_source(session: Session, node_id: int, refs: list[str] | None =
     profile = _profile(node)
     catalog = catalog_for(profile)
     if refs is None:
-        items = [item for item in catalog.items if settable(item)]
+        items = settable_items(profile)
     else:
         items = [item for ref in refs if (item := _resolve(catalog, ref)) is not None and item.entry.access.readable]
     job = Job(f"compare-{uuid.uuid4().hex[:6]}", "read", f"Read node {node_id}", len(items))
@@ -165,7 +167,7 @@ def start_upload(session: Session, node_id: int, jobs: JobManager, store: Parame
     new version of the set ``into`` (the older versions stay: history)."""
     node = session.node(node_id)
     profile = _profile(node)
-    items = [item for item in parameters.readable_items(node) if settable(item)]
+    items = settable_items(profile)
     who = user or audit.current_user.get()
     if into is not None:
         _check_target(node, existing := store.get(into))
@@ -176,7 +178,14 @@ def start_upload(session: Session, node_id: int, jobs: JobManager, store: Parame
 
     async def run(job: Job) -> None:
         found, unread = await read_items(session, node, items, job)
-        values = {item.ref: found[item.ref] for item in items if item.ref in found}  # the profile's order
+        mapped = rpdo_mapped(found)
+        values = {item.ref: found[item.ref] for item in items  # the profile's order
+                  if item.ref in found and (item.index, item.subindex) not in mapped}
+        left_out = [item.ref for item in live_items(profile)] + [item.ref for item in items
+                                                                  if (item.index, item.subindex) in mapped]
+        if left_out:
+            job.notes.append(Text(N_("Left out as process data or volatile values (not settings): {refs}"),
+                                  refs=", ".join(left_out)))
         if unread:
             job.notes.append(Text(N_("{count} parameters could not be read and are not in the set"),
                                    count=len(unread)))
