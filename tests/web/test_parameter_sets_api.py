@@ -302,3 +302,28 @@ def test_upload_stores_every_parameter_set_and_says_what_it_left_out(demo_api: T
     assert re.search(r"ParameterValue=(125000|0x0001E848)\s", section, re.IGNORECASE), section
     assert "C0135" not in dcf.split("[5F78]", 1)[1].split("\n[", 1)[0] or "ParameterValue" not in \
         dcf.split("[5F78]", 1)[1].split("\n[", 1)[0]
+
+
+def test_a_download_confirms_only_the_moving_values_it_changes(demo_api: TestClient) -> None:
+    """Issue 28 item 2: node 12's set holds C0001 in four parameter sets (setpoint source: moving); with only C0001
+    (set 1), C0012 and C0039 changed, the 428 names C0001 alone. A moving value changed on the node since is asked
+    anew."""
+    set_id = upload(demo_api, 12, "Fan")
+    assert demo_api.patch(f"{SETS}/{set_id}", json={"values": {"C0001": 1, "C0012": 7.5, "C0039": 35}}).status_code \
+        == 200
+    target = {"session_id": SESSION, "node_id": 12}
+    asked = demo_api.post(f"{SETS}/{set_id}/download", json=target)
+    assert asked.status_code == 428, asked.text
+    named = asked.json()["confirm_values"]
+    assert named and all(key.startswith("C0001") for key in named), named
+
+    moved = confirmed(demo_api, "PUT", f"/api/sessions/{SESSION}/nodes/12/parameters/C2001", json={"value": 2})
+    assert moved.status_code == 200, moved.text
+    again = demo_api.post(f"{SETS}/{set_id}/download", json=dict(target, confirm=12, confirm_values=named))
+    assert again.status_code == 428, again.text
+    assert any(key.startswith("C2001") for key in again.json()["confirm_values"])
+    started = confirmed(demo_api, "POST", f"{SETS}/{set_id}/download", json=target)
+    job = finish(demo_api, started.json())
+    assert job["download_state"] == "done", job
+    written = {line["ref"] for line in job["report"] if line["status"] == "written"}
+    assert written == {"C0001", "C0012", "C0039", "C2001"}
