@@ -357,7 +357,11 @@ document.addEventListener("htmx:configRequest", (event) => {
     try { values = JSON.parse(found.dataset.confirmValues || "{}"); } catch (e) { return; }
     const node = /^\d+$/.test(found.dataset.confirmNode) ? Number(found.dataset.confirmNode) : found.dataset.confirmNode;
     const problem = { confirm_node: node, confirm_values: values };
-    if (!await ask(problem)) return;
+    if (!await ask(problem)) {  // cancelled: nothing was sent, and no red message of an earlier try stays beside it
+      const slot = errorSlot(elt);
+      if (slot && slot.id !== "toast") slot.querySelectorAll(".error").forEach((box) => box.remove());
+      return;
+    }
     pending.set(elt, { confirm: node, confirm_values: values });
     htmx.trigger(elt, elt.tagName === "FORM" ? "submit" : "click");
   });

@@ -275,3 +275,55 @@ def test_the_pages_rename_form_sends_the_version_it_showed_and_a_stale_one_gets_
     bad = demo_api.post(f"/parameter-sets/{set_id}/rename", headers={"HX-Request": "true"},
                         data={"name": "x", "version": "two"})
     assert bad.status_code == 422 and "is not a number" in bad.text
+
+
+def test_upload_stores_every_parameter_set_and_says_what_it_left_out(demo_api: TestClient) -> None:
+    """Issue 28 item 1: node 12 (8200 vector) keeps C0012 in four parameter sets; C2012 is C0012 in set 2. The
+    control word C0135 and the setpoint C0046 are process data (the profile says so): no set holds them."""
+    written = demo_api.put(f"/api/sessions/{SESSION}/nodes/12/parameters/C2012", json={"value": 12.5})
+    assert written.status_code == 200, written.text
+    response = demo_api.post(f"{SETS}/upload", json={"session_id": SESSION, "node_id": 12, "name": "Fan sets"})
+    job = finish(demo_api, response.json())
+    assert job["state"] == "done", job
+    set_id = int(job["set_id"])
+    values = {v["ref"]: v["raw"] for v in demo_api.get(f"{SETS}/{set_id}").json()["values"]}
+    assert values["C2012"] == 125000 and values["C0012"] == 50000
+    assert {"C4012", "C6012", "C2011"} <= set(values)
+    assert "C0135" not in values and "C0046" not in values and "C1822/2" not in values
+    left_out = " ".join(job["notes"])
+    assert "C0135" in left_out and "C0046" in left_out and "process data" in left_out
+
+    as_json = json.loads(demo_api.get(f"{SETS}/{set_id}/export", params={"format": "json"}).text)
+    assert {p["ref"]: p["value"] for p in as_json["parameters"]}["C2012"] == 12.5
+    rows = list(csv.reader(io.StringIO(demo_api.get(f"{SETS}/{set_id}/export", params={"format": "csv"}).text)))
+    assert any(row[0] == "C2012" and "12.5" in ",".join(row) for row in rows), rows[:3]
+    dcf = demo_api.get(f"{SETS}/{set_id}/export", params={"format": "dcf"}).text
+    section = dcf.split("[5823]", 1)[1].split("\n[", 1)[0]
+    assert re.search(r"ParameterValue=(125000|0x0001E848)\s", section, re.IGNORECASE), section
+    assert "C0135" not in dcf.split("[5F78]", 1)[1].split("\n[", 1)[0] or "ParameterValue" not in \
+        dcf.split("[5F78]", 1)[1].split("\n[", 1)[0]
+
+
+def test_a_download_confirms_only_the_moving_values_it_changes(demo_api: TestClient) -> None:
+    """Issue 28 item 2: node 12's set holds C0001 in four parameter sets (setpoint source: moving); with only C0001
+    (set 1), C0012 and C0039 changed, the 428 names C0001 alone. A moving value changed on the node since is asked
+    anew."""
+    set_id = upload(demo_api, 12, "Fan")
+    assert demo_api.patch(f"{SETS}/{set_id}", json={"values": {"C0001": 1, "C0012": 7.5, "C0039": 35}}).status_code \
+        == 200
+    target = {"session_id": SESSION, "node_id": 12}
+    asked = demo_api.post(f"{SETS}/{set_id}/download", json=target)
+    assert asked.status_code == 428, asked.text
+    named = asked.json()["confirm_values"]
+    assert named and all(key.startswith("C0001") for key in named), named
+
+    moved = confirmed(demo_api, "PUT", f"/api/sessions/{SESSION}/nodes/12/parameters/C2001", json={"value": 2})
+    assert moved.status_code == 200, moved.text
+    again = demo_api.post(f"{SETS}/{set_id}/download", json=dict(target, confirm=12, confirm_values=named))
+    assert again.status_code == 428, again.text
+    assert any(key.startswith("C2001") for key in again.json()["confirm_values"])
+    started = confirmed(demo_api, "POST", f"{SETS}/{set_id}/download", json=target)
+    job = finish(demo_api, started.json())
+    assert job["download_state"] == "done", job
+    written = {line["ref"] for line in job["report"] if line["status"] == "written"}
+    assert written == {"C0001", "C0012", "C0039", "C2001"}

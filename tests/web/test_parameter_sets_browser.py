@@ -117,12 +117,8 @@ def test_export_change_compare_download(page: Any, sets_server: str, tmp_path: P
     expect(preview).to_contain_text("12.50 A")
     screenshot(page, "sets-preview")
     preview.get_by_role("button", name="Download 1 changes").click()
-    # the set holds C00007 (control mode, a command source): the page asks in its own dialog, naming node 5
-    asked = page.locator("#moving-confirm")
-    expect(asked).to_be_visible(timeout=WAIT_MS)
-    expect(asked).to_contain_text("Sends to node 5")
-    expect(asked.locator(".moving-confirm-values")).to_contain_text("C00007")  # the command source it writes
-    asked.get_by_role("button", name="Send it").click()
+    # the set holds C00007 (control mode, a command source), but node 5 holds its value already: the download
+    # writes only C00088, nothing that moves, so nothing is asked
     report = page.locator("#download-area .report")
     expect(report).to_have_attribute("data-state", "done", timeout=WAIT_MS)
     expect(report.locator(".report-table tbody tr")).to_have_count(1)
@@ -148,3 +144,56 @@ def test_export_change_compare_download(page: Any, sets_server: str, tmp_path: P
     page.locator("#audit").scroll_into_view_if_needed()
     assert page.evaluate(LAYOUT_PROBLEMS) == []
     screenshot(page, "sets-audit")
+
+
+def test_download_dialog_names_exactly_the_moving_values_it_changes(page: Any, sets_server: str) -> None:
+    """Issue 28 item 2: node 12's set with C0001 (setpoint source: can move the drive), C0012 and C0039 changed.
+    The dialog lists C0001 only (not the unchanged moving values of the set); Cancel writes nothing and leaves no
+    error behind."""
+    api = page.request
+    started = api.post(f"{sets_server}/api/parameter-sets/upload",
+                       data={"session_id": "demo-plant", "node_id": 12, "name": "Fan as found"})
+    assert started.ok, started.text()
+    job = started.json()
+    for _ in range(400):
+        if job["state"] != "running":
+            break
+        page.wait_for_timeout(100)
+        job = api.get(f"{sets_server}/api/parameter-sets/jobs/{job['id']}").json()
+    assert job["state"] == "done", job
+    set_id = job["set_id"]
+    changed = api.patch(f"{sets_server}/api/parameter-sets/{set_id}",
+                        data={"name": "Fan commissioned", "values": {"C0001": 1, "C0012": 7.5, "C0039": 35}})
+    assert changed.ok, changed.text()
+
+    page.goto(f"{sets_server}/parameter-sets?set={set_id}")
+    expect(page.locator("#set-detail h2")).to_have_text("Fan commissioned", timeout=WAIT_MS)
+    page.locator("#set-detail select[name=target]").first.select_option("demo-plant:12")
+    page.locator("#set-detail").get_by_role("button", name="Preview changes").click()
+    preview = page.locator("#download-area .preview")
+    expect(preview.locator("tbody tr")).to_have_count(3, timeout=WAIT_MS)
+    download = preview.get_by_role("button", name="Download 3 changes")
+    # a red message of an earlier try beside the button (where the page shows this form's errors)
+    page.evaluate("""(button) => {
+      const box = document.createElement("div");
+      box.className = "error earlier-try";
+      box.textContent = "Node 12 did not answer";
+      errorSlot(button.closest("form")).append(box);
+    }""", download.element_handle())
+    expect(page.locator(".earlier-try")).to_have_count(1)
+    download.click()
+    asked = page.locator("#moving-confirm")
+    expect(asked).to_be_visible(timeout=WAIT_MS)
+    expect(asked).to_contain_text("Sends to node 12")
+    values = asked.locator(".moving-confirm-values li")
+    expect(values).to_have_count(1)
+    expect(values.first).to_contain_text("C0001")
+    screenshot(page, "sets-download-asks-changed-only")
+    asked.get_by_role("button", name="Cancel").click()
+    expect(asked).to_be_hidden(timeout=WAIT_MS)
+    expect(page.locator(".earlier-try")).to_have_count(0)
+    expect(page.locator("#download-area .error")).to_have_count(0)
+    expect(page.locator("#toast .error")).to_have_count(0)
+    expect(preview).to_be_visible()
+    value = api.get(f"{sets_server}/api/sessions/demo-plant/nodes/12/parameters/C0012").json()
+    assert value["display"] != "7.50 s"  # nothing was written

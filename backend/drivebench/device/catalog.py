@@ -110,8 +110,23 @@ class Catalog:
         code = format_code(self.profile.addressing, "C", number + (parameter_set - pset) * _set_offset(self))
         return self.resolve(code if entry.subcode == 0 else f"{code}/{entry.subcode}")
 
+    @cached_property
+    def set_items(self) -> list[Item]:
+        """The codes of parameter sets 2 and up (C2012 for C0012 ...), set by set in the profile's order."""
+        return [self.in_set(item, number) for number in range(2, self.parameter_sets + 1) for item in self.items
+                if isinstance(item.entry, Parameter) and item.entry.parameter_sets >= number]
+
+    @cached_property
+    def _set_addresses(self) -> dict[tuple[int, int], Item]:
+        return {(item.index, item.subindex): item for item in self.set_items}
+
     def by_address(self, index: int, subindex: int) -> Item | None:
-        return self._by_address.get((index, subindex))
+        """The item at this address; a code of parameter set 2 and up (0x5823: C2012) where the profile lists its
+        set 1 code."""
+        found = self._by_address.get((index, subindex))
+        if found is None and self.parameter_sets > 1:
+            return self._set_addresses.get((index, subindex))
+        return found
 
     def unlisted_index(self, ref: IndexRef | CodeRef) -> Item | None:
         """An index of a parameter the profile lists only as ``.0`` (MICROMASTER ``P0700.1``): that parameter at

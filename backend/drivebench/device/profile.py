@@ -109,6 +109,9 @@ class Entry(BaseModel):
     description: str | None = None
     motion: Motion | None = None
     """Writing it can make the drive move (see :class:`Motion`)."""
+    live: Literal["process data", "volatile"] | None = None
+    """Not a setting although writable: process data the master sends while the drive runs (a control word, a
+    setpoint) or a value the device does not keep. A parameter set leaves it out, and says so."""
 
     @model_validator(mode="after")
     def _check_limits(self) -> Entry:

@@ -72,13 +72,44 @@ an upload would store the tool's own state; a set leaves them out."""
 
 def settable(item: Item) -> bool:
     """Whether a set stores this item: readable, writable, not a device command, not an SDO channel the tool
-    opens for itself."""
+    opens for itself, not what the profile marks as process data or volatile (``Entry.live``)."""
     access = item.entry.access
-    return access.readable and access.writable and not is_command(item) and item.index not in TOOL_CHANNELS
+    return (access.readable and access.writable and not is_command(item) and item.index not in TOOL_CHANNELS
+            and item.entry.live is None)
+
+
+def every_item(profile: Profile) -> list[Item]:
+    """The profile's items and the codes of its parameter sets 2 and up (C2012 ...), in that order."""
+    catalog = catalog_for(profile)
+    return [*catalog.items, *catalog.set_items]
 
 
 def settable_items(profile: Profile) -> list[Item]:
-    return [item for item in catalog_for(profile).items if settable(item)]
+    """What a set of this profile holds: every parameter set's settable items."""
+    return [item for item in every_item(profile) if settable(item)]
+
+
+def live_items(profile: Profile) -> list[Item]:
+    """Writable items a set leaves out because the profile marks them as process data or volatile."""
+    return [item for item in every_item(profile) if item.entry.live is not None and item.entry.access.writable]
+
+
+RPDO_MAPPINGS = range(0x1600, 0x1800)
+
+
+def rpdo_mapped(values: Mapping[str, Raw]) -> set[tuple[int, int]]:
+    """(index, sub-index) of the objects the RPDO mapping values (0x1600..0x17FF, CiA 301) among ``values``
+    map: process data the master sends, not settings."""
+    mapped: set[tuple[int, int]] = set()
+    for ref, raw in values.items():
+        match = re.fullmatch(r"0x(1[67][0-9A-F]{2})\.(\d+)", ref)
+        if match is None or not isinstance(raw, int) or raw == 0:
+            continue
+        count = values.get(f"0x{match.group(1)}")
+        if isinstance(count, int) and int(match.group(2)) > count:
+            continue  # an entry beyond the number of mapped objects maps nothing
+        mapped.add((raw >> 16, (raw >> 8) & 0xFF))
+    return mapped
 
 
 def same_raw(a: Raw | None, b: Raw | None) -> bool:
@@ -492,6 +523,6 @@ def defaults_source(profile: Profile, node_id: int | None = None) -> Source:
 def ordered(profile: Profile, refs: Iterable[str]) -> list[str]:
     """Refs in the profile's order (unknown ones last, as given)."""
     wanted = set(refs)
-    known = [item.ref for item in catalog_for(profile).items if item.ref in wanted]
+    known = [item.ref for item in every_item(profile) if item.ref in wanted]
     rest = [ref for ref in refs if ref not in set(known)]
     return known + rest

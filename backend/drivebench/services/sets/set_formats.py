@@ -44,6 +44,7 @@ from drivebench.services.sets.parameter_sets import (
     catalog_for,
     engineering,
     is_command,
+    ordered,
     settable,
 )
 
@@ -390,7 +391,7 @@ def import_dcf(data: str | bytes, profiles: ProfileLookup, *, profile_id: str | 
     version_key = own.get("Version") if own else None
     if version_key is not None:
         notes += _version_note(version_key.value, profile)
-    ordered_values = {item.ref: values[item.ref] for item in catalog.items if item.ref in values}
+    ordered_values = {ref: values[ref] for ref in ordered(profile, values)}
     return ImportedSet(name or _("Imported DCF ({device})").format(device=profile.identity.product_name), profile,
                        ordered_values,
                        node_id=node_id, notes=notes)

@@ -42,8 +42,10 @@ from drivebench.services.sets.parameter_sets import (
     Values,
     catalog_for,
     engineering,
+    live_items,
+    rpdo_mapped,
     same_raw,
-    settable,
+    settable_items,
     shown,
 )
 from drivebench.services.storage.models import DownloadRow
@@ -141,7 +143,7 @@ async def device_source(session: Session, node_id: int, refs: list[str] | None =
     profile = _profile(node)
     catalog = catalog_for(profile)
     if refs is None:
-        items = [item for item in catalog.items if settable(item)]
+        items = settable_items(profile)
     else:
         items = [item for ref in refs if (item := _resolve(catalog, ref)) is not None and item.entry.access.readable]
     job = Job(f"compare-{uuid.uuid4().hex[:6]}", "read", f"Read node {node_id}", len(items))
@@ -165,7 +167,7 @@ def start_upload(session: Session, node_id: int, jobs: JobManager, store: Parame
     new version of the set ``into`` (the older versions stay: history)."""
     node = session.node(node_id)
     profile = _profile(node)
-    items = [item for item in parameters.readable_items(node) if settable(item)]
+    items = settable_items(profile)
     who = user or audit.current_user.get()
     if into is not None:
         _check_target(node, existing := store.get(into))
@@ -176,7 +178,14 @@ def start_upload(session: Session, node_id: int, jobs: JobManager, store: Parame
 
     async def run(job: Job) -> None:
         found, unread = await read_items(session, node, items, job)
-        values = {item.ref: found[item.ref] for item in items if item.ref in found}  # the profile's order
+        mapped = rpdo_mapped(found)
+        values = {item.ref: found[item.ref] for item in items  # the profile's order
+                  if item.ref in found and (item.index, item.subindex) not in mapped}
+        left_out = [item.ref for item in live_items(profile)] + [item.ref for item in items
+                                                                  if (item.index, item.subindex) in mapped]
+        if left_out:
+            job.notes.append(Text(N_("Left out as process data or volatile values (not settings): {refs}"),
+                                  refs=", ".join(left_out)))
         if unread:
             job.notes.append(Text(N_("{count} parameters could not be read and are not in the set"),
                                    count=len(unread)))
@@ -228,11 +237,24 @@ def _check_target(node: SessionNode, stored: StoredSet) -> Profile:
 
 
 # --- download, retry, rollback -----------------------------------------------------------------------------
+async def held_moving(session: Session, node_id: int, stored: StoredSet) -> Values:
+    """What the node holds now of the set's values that can move the drive (read now): a download writes only what
+    differs, so its confirmation names only those of them it changes (``start_download(held=...)``)."""
+    node = session.node(node_id)
+    profile = _check_target(node, stored)
+    catalog = catalog_for(profile)
+    refs = [ref for ref, raw in stored.values.items() if isinstance(raw, (int, float))
+            and (item := _resolve(catalog, ref)) is not None and moves(item, raw, profile) is not None]
+    return (await device_source(session, node_id, refs)).values if refs else {}
+
+
 def start_download(session: Session, node_id: int, jobs: JobManager, store: ParameterSetStore, stored: StoredSet,
                    *, save: bool = False, only: list[str] | None = None, user: str | None = None,
-                   confirm: object = None) -> Job:
+                   confirm: object = None, held: Values | None = None) -> Job:
     """Download the set (or only the refs ``only``: a retry of the failed ones) to the node. A set with values
-    that can move the drive needs ``confirm`` naming the node (or the request's confirmation)."""
+    that can move the drive needs ``confirm`` naming the node (or the request's confirmation) and the moving values
+    it will write: with ``held`` (:func:`held_moving`) only those that differ from what the node holds. A value
+    that changed on the node meanwhile is not confirmed: its write is refused and reported as failed."""
     node = session.node(node_id)
     _check_target(node, stored)
     targets = {ref: raw for ref, raw in stored.values.items() if only is None or ref in only}
@@ -240,7 +262,7 @@ def start_download(session: Session, node_id: int, jobs: JobManager, store: Para
     title = Text(N_("Download '{name}' to node {node}") if only is None else N_("Retry '{name}' to node {node}"),
                   name=stored.info.name, node=node_id)
     return _start(session, node, jobs, store, targets, kind=kind, title=title, save=save, user=user,
-                  set_id=stored.info.id, set_version=stored.version, confirm=confirm)
+                  set_id=stored.info.id, set_version=stored.version, confirm=confirm, held=held)
 
 
 def start_retry(session: Session, jobs: JobManager, store: ParameterSetStore, download_id: int,
@@ -278,7 +300,7 @@ def start_rollback(session: Session, jobs: JobManager, store: ParameterSetStore,
 
 def _start(session: Session, node: SessionNode, jobs: JobManager, store: ParameterSetStore, targets: Values, *,
            kind: str, title: str, save: bool, user: str | None, set_id: int | None,
-           set_version: int | None, confirm: object = None) -> Job:
+           set_version: int | None, confirm: object = None, held: Values | None = None) -> Job:
     profile = _profile(node)
     order = download_order(profile, list(targets))
     catalog = catalog_for(profile)
@@ -286,7 +308,8 @@ def _start(session: Session, node: SessionNode, jobs: JobManager, store: Paramet
     readable = [items[ref] for ref in order if ref in items and items[ref].entry.access.readable]
     who = user or audit.current_user.get()
     moving = [ref for ref in order if ref in items and isinstance(targets[ref], (int, float))
-              and moves(items[ref], targets[ref], profile) is not None]
+              and moves(items[ref], targets[ref], profile) is not None
+              and not (held is not None and ref in held and same_raw(held[ref], targets[ref]))]
     if moving:  # asked before anything is read or written; each such write arms the guard as it goes out
         refs = ", ".join(moving[:4]) + (" ..." if len(moving) > 4 else "")
         values = {key: value for ref in moving

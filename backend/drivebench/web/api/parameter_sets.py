@@ -368,8 +368,10 @@ async def preview_download(set_id: RowId, body: TargetIn, manager: ManagerDep,
 async def download_set(request: Request, set_id: RowId, body: DownloadIn, manager: ManagerDep, jobs: JobsDep,
                        version: RowVersion = None, user: UserHeader = None) -> SetJobOut:
     stored = store().get(set_id, version)
-    job = set_jobs.start_download(manager.get(body.session_id), body.node_id, jobs, store(), stored,
-                                  save=body.save, user=user_of(user),
+    session = manager.get(body.session_id)
+    held = await set_jobs.held_moving(session, body.node_id, stored)
+    job = set_jobs.start_download(session, body.node_id, jobs, store(), stored, save=body.save,
+                                  user=user_of(user), held=held,
                                   confirm=confirmation(request, body.confirm, body.confirm_values))
     return set_job_out(job)
 

@@ -285,7 +285,9 @@ async def download(request: Request, set_id: RowId, manager: ManagerDep, jobs: J
     form = await request.form()
     try:
         session_id, node_id = _target(form)
-        job = set_jobs.start_download(manager.get(session_id), node_id, jobs, store(), store().get(set_id),
+        session, stored = manager.get(session_id), store().get(set_id)
+        held = await set_jobs.held_moving(session, node_id, stored)
+        job = set_jobs.start_download(session, node_id, jobs, store(), stored, held=held,
                                       save=form.get("save") == "on", confirm=_confirmation(request, form))
     except DriveBenchError as exc:
         return _error(request, exc)
