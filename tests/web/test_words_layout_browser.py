@@ -82,3 +82,21 @@ def test_monitor_bus_badge_says_what_the_plant_page_says(page: Any, server: str)
     monitor_words = page.text_content("#bus-state").split(" · ")[0].strip()
     assert plant_words == "bus active"
     assert monitor_words == plant_words
+
+
+def test_a_field_focused_under_the_sticky_group_header_comes_into_view(page: Any, server: str) -> None:
+    """Shift+Tab back up the parameter list reaches a field that sits under the topbar and its group's sticky
+    header: the browser must scroll it out from under them, not focus a field the operator cannot see."""
+    page.goto(f"{server}/sessions/demo-plant/nodes/{SERVO}?tab=parameters")
+    page.wait_for_selector("tr.group-row", timeout=TIMEOUT_MS)
+    page.wait_for_load_state("networkidle")
+    covered = page.evaluate("""() => {
+        const rows = [...document.querySelectorAll('table.params tr.prow')].filter((r) => r.querySelector('input'));
+        const field = rows[Math.floor(rows.length / 3)].querySelector('input');
+        window.scrollBy(0, field.getBoundingClientRect().top - 60);  // the field sits under the sticky header
+        field.focus();
+        const box = field.getBoundingClientRect();
+        const hit = document.elementFromPoint(box.left + box.width / 2, box.top + box.height / 2);
+        return hit === field ? null : [hit.tagName, hit.closest('tr') && hit.closest('tr').className]; }""")
+    page.screenshot(path=str(screenshot(page, "words_layout_sticky_focus")))
+    assert covered is None, covered
