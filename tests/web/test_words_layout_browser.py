@@ -100,3 +100,27 @@ def test_a_field_focused_under_the_sticky_group_header_comes_into_view(page: Any
         return hit === field ? null : [hit.tagName, hit.closest('tr') && hit.closest('tr').className]; }""")
     page.screenshot(path=str(screenshot(page, "words_layout_sticky_focus")))
     assert covered is None, covered
+
+
+def test_typing_in_the_planner_logs_no_console_errors(page: Any, server: str) -> None:
+    errors: list[str] = []
+    page.on("console", lambda message: errors.append(message.text) if message.type == "error" else None)
+    page.on("pageerror", lambda error: errors.append(str(error)))
+    page.goto(f"{server}/tools#planner")
+    page.wait_for_selector("#planner-form", timeout=TIMEOUT_MS)
+    page.wait_for_load_state("networkidle")
+    for field, text in (("plan_name", "Line 4"), ("cable_length_m", "85"), ("name_0", "Infeed"),
+                        ("node_id_0", "12"), ("name_1", "Outfeed"), ("node_id_1", "13")):
+        box = page.locator(f'#planner-form [name="{field}"]')
+        box.click()
+        box.fill("")
+        box.type(text)
+        page.keyboard.press("Tab")  # a change: the plan is checked again while the next field is typed in
+    # Two changes quicker than the server's check (a fast typist tabbing on): hx-sync replaces the first request.
+    page.evaluate("""() => { const field = document.querySelector('#planner-form [name="name_0"]');
+        field.value = 'Infeed A'; field.dispatchEvent(new Event('change', { bubbles: true }));
+        field.value = 'Infeed B'; field.dispatchEvent(new Event('change', { bubbles: true })); }""")
+    page.wait_for_load_state("networkidle")
+    page.wait_for_timeout(1000)
+    screenshot(page, "words_layout_planner_typed")
+    assert errors == []
