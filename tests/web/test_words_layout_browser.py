@@ -124,3 +124,23 @@ def test_typing_in_the_planner_logs_no_console_errors(page: Any, server: str) ->
     page.wait_for_timeout(1000)
     screenshot(page, "words_layout_planner_typed")
     assert errors == []
+
+
+PLACEHOLDER_FITS = """(field) => { const style = getComputedStyle(field);
+    const context = document.createElement('canvas').getContext('2d');
+    context.font = `${style.fontStyle} ${style.fontWeight} ${style.fontSize} ${style.fontFamily}`;
+    const room = field.clientWidth - parseFloat(style.paddingLeft) - parseFloat(style.paddingRight);
+    return [Math.ceil(context.measureText(field.placeholder).width), Math.floor(room)]; }"""
+
+
+def test_german_search_placeholder_is_not_cut(page: Any, server: str) -> None:
+    page.goto(f"{server}/")
+    page.locator("#lang-de").click()
+    page.wait_for_function("() => document.documentElement.lang === 'de'", timeout=TIMEOUT_MS)
+    page.goto(f"{server}/sessions/demo-plant/nodes/5?tab=parameters")
+    search = page.locator(".param-toolbar input[type=search]")
+    search.wait_for(timeout=TIMEOUT_MS)
+    assert "suchen" in (search.get_attribute("placeholder") or "")
+    text, room = search.evaluate(PLACEHOLDER_FITS)
+    page.locator(".param-toolbar").screenshot(path=str(screenshot(page, "words_layout_search_de")))
+    assert text <= room, f"placeholder {text} px in a field of {room} px"
