@@ -159,7 +159,7 @@
     if ($("trace-follow").checked) { const box = $("trace-scroll"); box.scrollTop = box.scrollHeight; }
   }
 
-  const BUS_STATES = { active: _("error active"), warning: _("warning"), passive: _("error passive"),
+  const BUS_STATES = { active: _("active"), warning: _("warning"), passive: _("error passive"),
                        "bus-off": _("bus-off") };
   function renderBus(bus) {
     if (!bus) return;

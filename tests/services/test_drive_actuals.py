@@ -83,7 +83,7 @@ def test_scaling_on_the_wire(bench: Bench) -> None:
 def test_sources_are_named_per_value(bench: Bench) -> None:
     sources = {value.ref: value.source or "" for node in (MM, MOTEC, VECTOR) for value in bench.actuals(node).values()}
     assert sources["r0027"].startswith("r0027 = 0x201B.0 (REAL32)")
-    assert "MICROMASTER 440 parameter list (not among the seed manuals)" in sources["r0027"]
+    assert "MICROMASTER 440 parameter list" in sources["r0027"]
     assert sources["C0054"].startswith("C0054 = 0x5FC9.0 (INTEGER32, value = raw / 10000)")
     assert "8200 vector code table" in sources["C0054"]
     assert sources["C00054"].startswith("C00054 = 0x5FC9.0 (UNSIGNED16, value = raw / 10)")

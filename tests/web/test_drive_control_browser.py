@@ -225,7 +225,7 @@ def test_node_without_profile_shows_an_empty_state(server: tuple[str, Plant], pa
 
 
 @pytest.mark.parametrize(("node_id", "current", "dc_bus", "source"), [
-    (3, "r0027", "r0026", "MICROMASTER 440 parameter list (not among the seed manuals)"),
+    (3, "r0027", "r0026", "MICROMASTER 440 parameter list"),
     (5, "C00054", "C00053", "ASSUMED"),
     (12, "C0054", "C0053", "8200 vector code table")])
 def test_every_demo_node_plots_current_and_dc_bus(server: tuple[str, Plant], page: Any, node_id: int, current: str,

@@ -170,7 +170,7 @@ def test_bus_state_badge_updates_live(page: Any, monitor_server: str) -> None:
 
     page.goto(f"{monitor_server}/monitor/{SESSION_ID}")
     page.wait_for_selector("#live-state.live", timeout=10_000)
-    assert page.text_content("#bus-state") == "bus error active"
+    assert page.text_content("#bus-state") == "bus active"
     with can.Bus(interface="virtual", channel=CHANNEL) as wire:
         wire.send(can.Message(arbitration_id=0x004, is_error_frame=True, data=bytes([0, 0x08, 0, 0, 0, 0, 101, 4])))
         page.wait_for_selector("#bus-state.bus-warning", timeout=10_000)
@@ -182,7 +182,7 @@ def test_bus_state_badge_updates_live(page: Any, monitor_server: str) -> None:
         screenshot(page, "monitor-bus-off")
         wire.send(can.Message(arbitration_id=0x004, is_error_frame=True, data=bytes([0, 0x40, 0, 0, 0, 0, 0, 0])))
         page.wait_for_selector("#bus-state.bus-active", timeout=10_000)
-    assert page.text_content("#bus-state") == "bus error active · TEC 0 · REC 0"
+    assert page.text_content("#bus-state") == "bus active · TEC 0 · REC 0"
 
 
 def test_trace_length_is_chosen_and_remembered(page: Any, monitor_server: str) -> None:

@@ -372,9 +372,11 @@ class Guard:
         if started:
             try:
                 await session.nmt(NmtCommand.ENTER_PRE_OPERATIONAL, node_id)
-                steps.append(Text(N_("NMT pre-operational sent")))
+                steps.append(Text(N_("EtherCAT state Pre-Operational requested") if session.ethercat is not None
+                                  else N_("NMT pre-operational sent")))
             except DriveBenchError as exc:
-                steps.append(Text(N_("NMT pre-operational FAILED ({error})"), error=exc.detail))
+                steps.append(Text(N_("EtherCAT state Pre-Operational FAILED ({error})") if session.ethercat is not None
+                                  else N_("NMT pre-operational FAILED ({error})"), error=exc.detail))
         for step in steps:
             why = Text(N_("{reason}; {step}"), reason=why, step=step)
         self.trips[node_id] = Text(N_("{head} at {clock}: {reason}."), head=head, clock=clock, reason=why)

@@ -17,7 +17,7 @@ from drivebench.web.deps import SessionDep, StateDep
 from drivebench.web.templating import templates
 
 router = APIRouter(include_in_schema=False)
-BUS_LABELS = {"active": N_("error active"), "warning": N_("warning"), "passive": N_("error passive"),
+BUS_LABELS = {"active": N_("active"), "warning": N_("warning"), "passive": N_("error passive"),
               "bus-off": N_("bus-off")}  # translated where shown (monitor.html)
 
 
