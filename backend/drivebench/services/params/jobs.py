@@ -130,7 +130,8 @@ class Job:
         remaining = max(self.total - self.done, 0)
         eta = None if self.state.finished else (remaining / rate if rate > 0 else None)
         return Progress(done=self.done, total=self.total, failed=self.failed, not_done=self.not_done,
-                        rate_per_s=round(rate, 1), eta_s=None if eta is None else round(eta, 1), elapsed_s=round(elapsed, 2))
+                        rate_per_s=round(rate, 1), eta_s=None if eta is None else round(eta, 1),
+                        elapsed_s=round(elapsed, 2))
 
     @property
     def version(self) -> int:
