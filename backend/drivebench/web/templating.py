@@ -73,6 +73,7 @@ templates.env.filters["bus_state"] = lambda state: i18n.gettext(state) if state 
 templates.env.filters["age"] = _age
 templates.env.filters["number"] = i18n.number
 templates.env.filters["shown"] = _shown
+templates.env.filters["shown_text"] = i18n.shown
 templates.env.filters["clock"] = _clock
 templates.env.filters["datetime"] = lambda ts: time.strftime("%Y-%m-%d %H:%M:%S %Z", time.localtime(ts)) if ts else "–"
 templates.env.filters["hex4"] = lambda v: f"0x{v:04X}"
