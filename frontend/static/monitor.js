@@ -120,11 +120,12 @@
     // The texts first: pybabel's JavaScript extractor does not see _() inside a template literal.
     const notInSession = _("not in session"), noNodes = _("No node telegrams yet.");
     const noTelegrams = _("No telegrams (or none passes the filter).");
+    const unanswered = (count) => _("SDO requests to {count} node ids that never answered (a scan)", { count: num(count) });
     const lastSeen = (age) => _("last {age} s ago", { age: fixed(age, 1) });
     $("services-body").innerHTML = s.services.map((r) =>
       `<tr class="${r.rate ? "" : "silent"}"><td>${esc(r.label)}</td><td class="num">${num(r.total)}</td><td class="num">${rate(r.rate)}</td></tr>`).join("");
     $("nodes-body").innerHTML = s.nodes.length ? s.nodes.map((r) =>
-      `<tr class="${r.rate ? "" : "silent"}"><td class="num">${esc(r.node)}</td><td class="device" title="${esc(r.name || "")}">${esc(r.name || notInSession)}</td>` +
+      `<tr class="${r.rate ? "" : "silent"}${r.node === null ? " unanswered" : ""}"><td class="num">${esc(r.node ?? "–")}</td><td class="device" title="${esc(r.name || "")}">${esc(r.node === null ? unanswered(r.unanswered_ids) : r.name || notInSession)}</td>` +
       `<td class="num">${num(r.total)}</td><td class="num">${rate(r.rate)}</td><td class="num">${pct(r.share_percent)}</td></tr>`).join("")
       : `<tr><td colspan="5" class="empty">${esc(noNodes)}</td></tr>`;
     const col = Object.fromEntries(s.cob_columns.map((name, i) => [name, i]));

@@ -44,15 +44,17 @@
   function show(box, msg, bar, text) {
     const p = msg.progress;
     bar.max = Math.max(p.total, 1);
-    bar.value = p.done;
+    bar.value = p.done - p.failed - (p.not_done || 0);  // what was done as asked: a failed read is no progress
     const _ = window.drivebench.gettext;
     // The texts first: pybabel's JavaScript extractor does not see _() inside a template literal.
-    const failed = p.failed ? " · " + _("{count} failed", { count: p.failed }) : "";
-    const state = { done: _("done"), cancelled: _("cancelled"), failed: _("failed") }[msg.state] || msg.state;
+    const failed = (p.failed ? " · " + _("{count} failed", { count: p.failed }) : "") +
+      (p.not_done ? " · " + _("{count} not read", { count: p.not_done }) : "");
+    const state = { done: _("done"), cancelled: _("cancelled"), failed: _("failed"), incomplete: _("incomplete") }[msg.state] || msg.state;
     let line = `${msg.title}: ${p.done}/${p.total} · ${oneDecimal.format(p.rate_per_s)}/s${failed}`;
     if (msg.state === "running") line += fmtEta(p.eta_s);
     else line += " · " + _("{state} in {seconds} s", { state, seconds: oneDecimal.format(p.elapsed_s) });
     if (msg.error) line += ` · ${msg.error}`;
+    if (msg.state === "incomplete" && msg.notes && msg.notes.length) line += " · " + msg.notes.join(" · ");
     text.textContent = line;
     text.title = (msg.notes || []).join("\n");
     box.dataset.state = msg.state;

@@ -169,7 +169,7 @@ def run_job(api: TestClient, path: str, on_the_way: Callable[[], None] | None = 
 def test_read_all_keeps_what_it_read_and_names_each_failure(demo_api: TestClient) -> None:
     set_faults(demo_api, 5, abort_code="0x08000000", abort_every=3)
     job = run_job(demo_api, f"{NODE}/5/read-all")
-    assert job["state"] == "done"
+    assert job["state"] == "incomplete"  # some values are missing (issue 28 item 5)
     issues = job["issues"]
     total = job["progress"]["total"]
     assert issues and len(issues) < total
@@ -186,7 +186,7 @@ def test_read_all_keeps_what_it_read_and_names_each_failure(demo_api: TestClient
 def test_read_all_gives_up_on_a_node_answering_out_of_step(demo_api: TestClient) -> None:
     set_faults(demo_api, 5, index_offset=1)
     job = run_job(demo_api, f"/api/sessions/{SESSION}/read-all")
-    assert job["state"] == "done"
+    assert job["state"] == "incomplete"
     assert any(note.startswith("Node 5 answered out of step;") and "parameters not read" in note
                for note in job["notes"]), job["notes"]
     by_node = {issue["node"] for issue in job["issues"]}
@@ -264,7 +264,7 @@ def test_abort_storm_keeps_the_server_responsive_and_leaks_nothing(demo_api: Tes
     health: list[int] = []
     job = run_job(demo_api, f"/api/sessions/{SESSION}/read-all",
                   on_the_way=lambda: health.append(demo_api.get("/api/health").status_code))
-    assert job["state"] == "done"
+    assert job["state"] == "incomplete"
     assert health and set(health) == {200}
     failed = {(i["node"], i["item"]) for i in job["issues"] if i["abort_code"] == "0x08000000"}
     assert len(failed) > 200

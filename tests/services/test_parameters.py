@@ -342,7 +342,7 @@ def test_read_all_with_a_silent_node_finishes_and_reports_it(bench: Bench) -> No
         return job
 
     job = bench.run(go())
-    assert job.state is JobState.DONE and job.done == job.total
+    assert job.state is JobState.INCOMPLETE and job.done == job.total and job.not_done > 0  # issue 28 item 5
     assert len(job.result["values"]["5"]) == len(parameters.readable_items(bench.session.node(5)))
     assert job.result["values"][str(ABSENT)] == {}
     assert any(f"Node {ABSENT} did not answer" in note for note in job.notes)

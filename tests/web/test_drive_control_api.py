@@ -126,6 +126,28 @@ def test_commissioning_run_over_the_api(client: TestClient) -> None:
     assert client.get(_url(VECTOR, "/runs/nope")).status_code == 404
 
 
+def test_each_step_shows_its_own_telegrams_while_the_control_panel_polls(client: TestClient) -> None:
+    """Issue 28 item 6: with node 12's Control tab open (its status poll reads over the same SDO channel), step 2
+    "C0001 := 3" shows its own download and answer, not the poll's reads of the status word and actual values."""
+    with client.websocket_connect(f"/ws/sessions/demo-plant/nodes/{VECTOR}/control") as socket:
+        assert socket.receive_json()["type"] == "status"  # the poll runs
+        run = client.post(_url(VECTOR, "/sequences/emf-8200/runs")).json()
+        while not run["finished"]:
+            response = confirmed(client, "POST", _url(VECTOR, f"/runs/{run['id']}/next"), json={})
+            assert response.status_code == 200, response.text
+            run = response.json()
+            client.post(_url(VECTOR, "/keepalive"))
+            socket.send_json({"cmd": "keepalive"})
+            socket.receive_json()
+    assert run["failed"] is None, run["failed"]
+    c0001 = run["results"][1]
+    assert [(t["direction"], t["cob_id"], t["data"][:11]) for t in c0001["telegrams"]] == [
+        ("T", "0x60C", "23 FE 5F 00"), ("R", "0x58C", "60 FE 5F 00")], c0001["telegrams"]
+    for result in run["results"]:
+        sdo = [t for t in result["telegrams"] if t["cob_id"] in ("0x60C", "0x58C")]
+        assert len({t["data"][3:11] for t in sdo}) <= 1, (result["title"], sdo)  # one object per step
+
+
 def test_jog_runs_only_when_enabled_and_stops_with_zero(client: TestClient) -> None:
     _can_control(client)
     _until(client, MM, "switch_on_disabled")

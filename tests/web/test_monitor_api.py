@@ -92,3 +92,34 @@ def test_device_counters_side_by_side(api: TestClient) -> None:
     assert second["C00360/12"]["device_increase"] == second["C00360/12"]["monitor_increase"] == 0
     missing = api.get(f"{API}/device-counters/12")
     assert missing.status_code == 404 and "telegram counters" in missing.json()["detail"]
+
+
+def _job_done(client: TestClient, job_id: str) -> dict[str, Any]:
+    def finished() -> dict[str, Any] | None:
+        job: dict[str, Any] = client.get(f"/api/jobs/{job_id}").json()
+        return job if job["state"] != "running" else None
+    return wait_for_value(finished, 120, "the read-all ends")
+
+
+def test_second_sdo_channels_belong_to_their_nodes_and_a_scan_is_one_row(client: TestClient) -> None:
+    """Issue 28 item 7: node 5's and node 12's SDO2 traffic (0x645/0x5C5, 0x64C/0x5CC, their profiles'
+    sdo_channels) is theirs, not nodes 69 and 76 "not in session"; a scan's requests to ids that never answered are
+    one row, not 123 nodes."""
+    demo = "/api/sessions/demo-plant"
+    for node in (5, 12):
+        job = client.post(f"{demo}/nodes/{node}/read-all").json()
+        _job_done(client, job["id"])
+    assert client.post(f"{demo}/scan", json={"timeout_s": 0.3}).status_code == 200
+    snapshot = client.get(f"{demo}/monitor").json()
+    by_cob = {row["cob_id"]: row for row in snapshot["cob_ids"]}
+    assert {0x645, 0x5C5, 0x64C, 0x5CC} <= set(by_cob), "the read-all used the second SDO channels"
+    assert [by_cob[cob]["node"] for cob in (0x645, 0x5C5, 0x64C, 0x5CC)] == [5, 5, 12, 12]
+    listed = [row["node"] for row in snapshot["nodes"]]
+    assert 69 not in listed and 76 not in listed
+    assert {3, 5, 7, 12} <= {node for node in listed if node is not None}
+    assert len(listed) <= 5, listed
+    scan = snapshot["nodes"][-1]
+    assert scan["node"] is None and scan["unanswered_ids"] >= 100 and scan["total"] >= scan["unanswered_ids"]
+    trace = client.get(f"{demo}/monitor/trace", params={"limit": 10000}).json()["rows"]
+    sdo2 = [row for row in trace if row["cob_id"] in ("0x5C5", "0x645")]
+    assert sdo2 and {row["node"] for row in sdo2} == {5}

@@ -228,7 +228,7 @@ def test_read_all_job_with_progress_stream(api_8400: Api) -> None:
                 break
     assert messages[-1]["state"] == "done"
     assert messages[-1]["progress"]["done"] == messages[-1]["progress"]["total"] == job["progress"]["total"]
-    fields = {"done", "total", "failed", "rate_per_s", "eta_s", "elapsed_s"}  # one model: the API and the websocket
+    fields = {"done", "total", "failed", "not_done", "rate_per_s", "eta_s", "elapsed_s"}  # the API and the socket
     assert set(job["progress"]) == set(messages[-1]["progress"]) == fields and messages[-1]["progress"]["eta_s"] is None
     schema = api_8400.client.get("/openapi.json").json()["components"]["schemas"]
     assert set(schema["Progress"]["properties"]) == fields and "ProgressOut" not in schema

@@ -357,8 +357,11 @@ def _error_frame(error_class: int, data: bytes) -> str:
 
 
 def decode_frame(msg: can.Message, *, names: NameLookup | None = None, abort_texts: AbortTextsLookup | None = None,
-                 emcy_texts: EmcyLookup | None = None, sdo_context: SdoContext | None = None) -> DecodedFrame:
-    """Decode ``msg``; ``names``/``abort_texts``/``emcy_texts`` add the profile's words where a caller has them."""
+                 emcy_texts: EmcyLookup | None = None, sdo_context: SdoContext | None = None,
+                 owner: tuple[Service, int] | None = None) -> DecodedFrame:
+    """Decode ``msg``; ``names``/``abort_texts``/``emcy_texts`` add the profile's words where a caller has them;
+    ``owner`` is the service and node of a COB-ID the predefined connection set would give another node (a
+    device's additional SDO channel: 0x5C5 is node 5's SDO2 answer, not node 69's)."""
     data = b"" if msg.is_remote_frame else bytes(msg.data)
 
     def make(service: Service, node: int | None, summary: str) -> DecodedFrame:
@@ -367,7 +370,7 @@ def decode_frame(msg: can.Message, *, names: NameLookup | None = None, abort_tex
 
     if msg.is_error_frame:
         return make(Service.ERROR_FRAME, None, _error_frame(msg.arbitration_id, data))
-    service, node = classify(msg.arbitration_id, msg.is_extended_id)
+    service, node = owner or classify(msg.arbitration_id, msg.is_extended_id)
     remote = f"remote request, dlc {msg.dlc}"
     if service is Service.NMT:
         target, summary = _nmt(data)

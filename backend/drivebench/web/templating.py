@@ -87,6 +87,7 @@ def _audit_words(text: str | None) -> str | None:
 templates.env.filters["audit_words"] = _audit_words
 templates.env.filters["number"] = i18n.number
 templates.env.filters["shown"] = _shown
+templates.env.filters["shown_text"] = i18n.shown
 templates.env.filters["clock"] = _clock
 templates.env.filters["datetime"] = lambda ts: time.strftime("%Y-%m-%d %H:%M:%S %Z", time.localtime(ts)) if ts else "–"
 templates.env.filters["hex4"] = lambda v: f"0x{v:04X}"

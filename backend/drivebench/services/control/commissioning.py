@@ -103,23 +103,79 @@ class RunOut(BaseModel):
     failed: str | None
 
 
+_SDO_WITH_MUX = {1, 2, 4, 5, 6}
+"""Command specifiers (top three bits) of the SDO frames that carry the multiplexer: initiate download and upload,
+abort, block upload and download. Segments carry none: they belong to the transfer open on the channel."""
+
+
 class _Capture(can.Listener):
-    def __init__(self, node_id: int) -> None:
+    """The frames of one step: its own SDO transfers (the step's objects, told by the multiplexer; segments of such
+    a transfer), its NMT command and its process data. Frames of the node the step did not cause (the control
+    panel's status poll reading over the same channel, other objects) are not the step's telegrams."""
+
+    def __init__(self, node_id: int, muxes: set[tuple[int, int]], *, nmt: bool = False,
+                 pdo: set[int] | None = None) -> None:
         self.node_id = node_id
+        self.muxes = muxes
         self.frames: list[can.Message] = []
         self._lock = threading.Lock()
-        self.sent = {0x000, 0x600 + node_id, 0x200 + node_id, 0x300 + node_id, 0x400 + node_id, 0x500 + node_id}
-        self.received = {0x580 + node_id, 0x180 + node_id, 0x280 + node_id, 0x380 + node_id, 0x480 + node_id}
+        self._ours = False  # the transfer open on the node's SDO channel is one of the step's
+        self.sdo_request, self.sdo_answer = 0x600 + node_id, 0x580 + node_id
+        self.pdo = pdo or set()
+        self.sent = {self.sdo_request} | {cob for cob in self.pdo if cob & 0x780 in (0x200, 0x300, 0x400, 0x500)}
+        if nmt:
+            self.sent.add(0x000)
+
+    def _wanted(self, msg: can.Message) -> bool:
+        cob, data = msg.arbitration_id, bytes(msg.data)
+        if cob == 0x000:
+            return 0x000 in self.sent and len(data) >= 2 and data[1] in (0, self.node_id)
+        if cob in (self.sdo_request, self.sdo_answer):
+            carries_mux = len(data) >= 4 and data[0] >> 5 in _SDO_WITH_MUX
+            mux = (int.from_bytes(data[1:3], "little"), data[3]) if carries_mux else None
+            if cob == self.sdo_request and mux is not None:
+                self._ours = mux in self.muxes
+            return self._ours and (mux is None or mux in self.muxes)
+        return cob in self.pdo
 
     def on_message_received(self, msg: can.Message) -> None:
-        if msg.arbitration_id in self.sent | self.received and not msg.is_error_frame:
-            with self._lock:
+        if msg.is_error_frame:
+            return
+        with self._lock:
+            if self._wanted(msg):
                 self.frames.append(msg)
 
     def take(self) -> list[can.Message]:
         with self._lock:
             frames, self.frames = self.frames, []
         return frames
+
+
+def _capture_for(node: SessionNode, step: Step) -> _Capture:
+    """What belongs to ``step``: the object it writes or checks, its NMT command, its telegram and the answer."""
+    muxes: set[tuple[int, int]] = set()
+    if step.kind == "sdo":
+        muxes.add((step.index, step.sub))
+    refs = [step.expect_ref] if step.expect_ref else []
+    fam = drive_control.family(node) if step.kind == "pdo" else None
+    if fam is not None:
+        refs.append(fam.status_ref)  # read when TPDO1 does not come
+    for ref in refs:
+        found = _mux_of(node, ref)
+        if found is not None:
+            muxes.add(found)
+    pdo = {step.cob + node.node_id, 0x180 + node.node_id} if step.kind == "pdo" else None
+    return _Capture(node.node_id, muxes, nmt=step.kind == "nmt_start", pdo=pdo)
+
+
+def _mux_of(node: SessionNode, ref: str) -> tuple[int, int] | None:
+    if node.catalog is None:
+        return None
+    try:
+        item = node.catalog.resolve(ref)
+    except UnknownParameter:
+        return None
+    return item.index, item.subindex
 
 
 @dataclass
@@ -352,7 +408,7 @@ async def next_step(session: Session, node: SessionNode, run: Run, *, confirm: o
 
 
 async def _run_step(session: Session, node: SessionNode, run: Run, step: Step) -> None:
-    capture = _Capture(node.node_id)
+    capture = _capture_for(node, step)
     session.add_frame_listener(capture)
     t0 = time.time()
     try:

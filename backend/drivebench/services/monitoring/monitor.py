@@ -281,10 +281,19 @@ class Monitor(can.Listener):
         services: dict[Service, list[float]] = {service: [0, 0.0, 0] for service in SERVICE_ORDER}
         nodes: dict[int, list[float]] = {}
         cob_rows = []
+        owners = self._channel_owners()
+        classified = {key: owners.get(key) or _classify_key(key) for key in cobs}
+        unanswered = _unanswered(classified, set(owners.values()), self._node_names())
         for key in sorted(cobs):
             count, bits, last_seen = cobs[key]
             rate = (current.frames.get(key, 0) - reference.frames.get(key, 0)) / elapsed
-            service, node = _classify_key(key)
+            service, node = classified[key]
+            if node in unanswered:
+                node = None
+                scan_row = nodes.setdefault(SCAN_ROW, [0, 0.0, 0])
+                scan_row[0] += count
+                scan_row[1] += rate
+                scan_row[2] += bits
             service_row = services[service]
             service_row[0] += count
             service_row[1] += rate
@@ -322,8 +331,10 @@ class Monitor(can.Listener):
             "services": [{"service": service.value, "label": SERVICE_LABELS.get(service, service.value),
                           "group": service_group(service), "total": int(row[0]), "rate": round(row[1], 2)}
                          for service, row in services.items()],
-            "nodes": [{"node": node, "name": names.get(node), "total": int(row[0]), "rate": round(row[1], 2),
-                       "share_percent": round(100.0 * row[2] / total_bits, 2) if total_bits else 0.0}
+            "nodes": [{"node": None if node == SCAN_ROW else node, "name": names.get(node), "total": int(row[0]),
+                       "rate": round(row[1], 2),
+                       "share_percent": round(100.0 * row[2] / total_bits, 2) if total_bits else 0.0,
+                       **({"unanswered_ids": len(unanswered)} if node == SCAN_ROW else {})}
                       for node, row in sorted(nodes.items())],
             "cob_ids": cob_rows,
             "filter": MonitorFilter().as_dict(),
@@ -419,6 +430,7 @@ class Monitor(can.Listener):
             newest = min(newest, max(until, after))
         accepts = view.filter.accepts
         lookups = _Lookups(self._session())
+        owners = self._channel_owners()
         rows: list[dict[str, Any]] = []
         for seq, msg, context in reversed(entries):
             if seq > newest:
@@ -428,13 +440,13 @@ class Monitor(can.Listener):
             if msg.is_error_frame:
                 service, node = Service.ERROR_FRAME, None
             else:
-                service, node = classify(msg.arbitration_id, msg.is_extended_id)
+                service, node = owners.get(msg.arbitration_id) or classify(msg.arbitration_id, msg.is_extended_id)
                 if service is Service.NMT and len(msg.data) >= 2 and msg.data[1]:
                     node = msg.data[1]
             if not accepts(service, node, msg.arbitration_id):
                 continue
             decoded = decode_frame(msg, names=lookups.name, abort_texts=lookups.abort_texts, emcy_texts=lookups.emcy,
-                                   sdo_context=context)
+                                   sdo_context=context, owner=owners.get(msg.arbitration_id))
             rows.append(_row(seq, decoded))
             if len(rows) >= limit:
                 break
@@ -454,6 +466,20 @@ class Monitor(can.Listener):
         with self._lock:
             return sum(self._cobs[c][0] for c in cob_ids if c in self._cobs)
 
+    def _channel_owners(self) -> dict[int, tuple[Service, int]]:
+        """COB-IDs of the session nodes' additional SDO channels (their profiles' ``sdo_channels``) -> (service,
+        node): 0x5C5 is node 5's SDO2 answer, not node 69's default SDO."""
+        session = self._session()
+        owners: dict[int, tuple[Service, int]] = {}
+        if session is None:
+            return owners
+        for node_id, node in list(session.nodes.items()):
+            for channel in node.profile.sdo_channels if node.profile else []:
+                if node_id <= channel.max_node_id:
+                    request, answer = channel.cob_ids(node_id)
+                    owners[request], owners[answer] = (Service.SDO_RX, node_id), (Service.SDO_TX, node_id)
+        return owners
+
     def _node_names(self) -> dict[int, str]:
         session = self._session()
         if session is None:
@@ -469,6 +495,21 @@ class Monitor(can.Listener):
 
 _SERVICES = {service.value: service for service in Service}
 _ALL = MonitorFilter().key()
+
+
+SCAN_ROW = 1000
+"""The node table's key for SDO requests to node ids that are not in the session and sent nothing themselves (a
+scan asking all 127): one row, ``node`` None, with ``unanswered_ids``."""
+_SENT_BY_THE_NODE = {Service.SDO_TX, Service.HEARTBEAT, Service.EMCY, Service.TPDO1, Service.TPDO2, Service.TPDO3,
+                     Service.TPDO4}
+
+
+def _unanswered(classified: Mapping[int, tuple[Service, int | None]], owned: set[tuple[Service, int]],
+                names: Mapping[int, str]) -> set[int]:
+    """Node ids only asked (SDO requests), never heard from, and not in the session."""
+    asked = {node for service, node in classified.values() if service is Service.SDO_RX and node is not None}
+    heard = {node for service, node in classified.values() if service in _SENT_BY_THE_NODE}
+    return {node for node in asked - heard if node not in names and (Service.SDO_RX, node) not in owned}
 
 
 @lru_cache(maxsize=4096)

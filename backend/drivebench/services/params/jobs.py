@@ -28,6 +28,10 @@ from drivebench.i18n import _
 class JobState(StrEnum):
     RUNNING = "running"
     DONE = "done"
+    """Every item handled as asked."""
+    INCOMPLETE = "incomplete"
+    """Finished, but items were not done (a node stopped answering: ``not_done``), or, for a job that says so
+    (a read), some failed."""
     CANCELLED = "cancelled"
     FAILED = "failed"
 
@@ -42,8 +46,11 @@ class Progress(BaseModel):
     model_config = ConfigDict(frozen=True)
 
     done: int
+    """Items handled: succeeded, failed (``failed``) or given up (``not_done``)."""
     total: int
     failed: int
+    not_done: int
+    """Items given up without asking (the node stopped answering): neither done nor failed."""
     rate_per_s: float
     """Items per second since the job started."""
     eta_s: float | None
@@ -80,6 +87,7 @@ class Job:
     state: JobState = JobState.RUNNING
     done: int = 0
     failed: int = 0
+    not_done: int = 0
     started_at: float = field(default_factory=time.monotonic)
     created: float = field(default_factory=time.time)
     finished_at: float | None = None
@@ -89,6 +97,8 @@ class Job:
     notes: list[str] = field(default_factory=list)
     result: dict[str, Any] = field(default_factory=dict)
     same_as: str | None = None
+    failures_leave_incomplete: bool = False
+    """A failed item makes the job end ``incomplete`` (a read: the value is missing), not only items not done."""
     _version: int = 0
     _changed: asyncio.Condition | None = None
     _waiters: int = 0
@@ -102,6 +112,12 @@ class Job:
             self.issues.append(issue)
         self._notify()
 
+    def give_up(self, count: int) -> None:
+        """``count`` items are left undone (the node fell silent): they count as handled, not as succeeded."""
+        self.done += count
+        self.not_done += count
+        self._notify()
+
     def add_total(self, count: int) -> None:
         self.total += count
         self._notify()
@@ -113,8 +129,9 @@ class Job:
         rate = self.done / elapsed
         remaining = max(self.total - self.done, 0)
         eta = None if self.state.finished else (remaining / rate if rate > 0 else None)
-        return Progress(done=self.done, total=self.total, failed=self.failed, rate_per_s=round(rate, 1),
-                        eta_s=None if eta is None else round(eta, 1), elapsed_s=round(elapsed, 2))
+        return Progress(done=self.done, total=self.total, failed=self.failed, not_done=self.not_done,
+                        rate_per_s=round(rate, 1), eta_s=None if eta is None else round(eta, 1),
+                        elapsed_s=round(elapsed, 2))
 
     @property
     def version(self) -> int:
@@ -170,7 +187,8 @@ class JobManager:
         self._jobs: OrderedDict[str, Job] = OrderedDict()
         self._serial = itertools.count(1)
 
-    def start(self, kind: str, title: str, total: int, work: Work, *, same_as: str | None = None) -> Job:
+    def start(self, kind: str, title: str, total: int, work: Work, *, same_as: str | None = None,
+              failures_leave_incomplete: bool = False) -> Job:
         """Start ``work(job)`` as a task on the running loop and return the job at once.
 
         ``same_as`` names what the job does (e.g. which nodes it reads): while a job with the same name runs, that
@@ -180,7 +198,8 @@ class JobManager:
                             if job.same_as == same_as and not job.state.finished), None)
             if running is not None:
                 return running
-        job = Job(f"{kind}-{next(self._serial)}-{uuid.uuid4().hex[:6]}", kind, title, total, same_as=same_as)
+        job = Job(f"{kind}-{next(self._serial)}-{uuid.uuid4().hex[:6]}", kind, title, total, same_as=same_as,
+                  failures_leave_incomplete=failures_leave_incomplete)
         job._task = asyncio.get_running_loop().create_task(self._run(job, work), name=job.id)
         self._jobs[job.id] = job
         self._prune()
@@ -198,7 +217,8 @@ class JobManager:
         except Exception as exc:  # a failed job reports why; the server keeps running
             job._finish(JobState.FAILED, said(exc))
             return
-        job._finish(JobState.DONE)
+        incomplete = job.not_done or (job.failed and job.failures_leave_incomplete)
+        job._finish(JobState.INCOMPLETE if incomplete else JobState.DONE)
 
     def get(self, job_id: str) -> Job:
         job = self._jobs.get(job_id)

@@ -135,6 +135,9 @@ class SessionParameters:
     session_ref: weakref.ref[Session]
     settings: SdoSettings
     values: dict[int, dict[str, ParameterValue]] = field(default_factory=dict)
+    failures: dict[int, dict[str, str]] = field(default_factory=dict)
+    """node -> ref -> why the last read job could not read it (an abort, a timeout, the node silent); a value read
+    later clears it."""
     channels: dict[int, _NodeChannels] = field(default_factory=dict)
 
     @property
@@ -146,6 +149,10 @@ class SessionParameters:
 
     def remember(self, node_id: int, value: ParameterValue) -> None:
         self.values.setdefault(node_id, {})[value.ref] = value
+        self.failures.get(node_id, {}).pop(value.ref, None)
+
+    def not_read(self, node_id: int, ref: str, why: str) -> None:
+        self.failures.setdefault(node_id, {})[ref] = why
 
     def on_heartbeat(self, status: HeartbeatStatus, event: str) -> None:
         """Boot-up: a reset node happened (by us or anyone), so pending resets are done and SDO2 is gone."""
@@ -861,6 +868,12 @@ async def read_node(session: Session, node: SessionNode, work: list[Item], job: 
         job.notes.append(note.note)
     silence = _silence(session, client, channel_numbers[0])
     timed_out: dict[str, tuple[Item, Exception]] = {}
+
+    def failed(item: Item, exc: Exception) -> None:
+        issue = _issue(node.node_id, item, exc)
+        state.not_read(node.node_id, item.ref, issue.detail)
+        job.advance(issue=issue)
+
     retried: list[str] = []
     failed_again: list[str] = []
 
@@ -874,13 +887,13 @@ async def read_node(session: Session, node: SessionNode, work: list[Item], job: 
             except (SdoTimeoutError, SdoOutOfStepError) as exc:
                 if last_pass:
                     failed_again.append(item.ref)
-                    job.advance(issue=_issue(node.node_id, item, exc))
+                    failed(item, exc)
                 else:
                     timed_out[item.ref] = (item, exc)  # counted when asked again (or given up)
                 await silence.timed_out(exc)
                 continue
             except (ProtocolError, InvalidValue) as exc:
-                job.advance(issue=_issue(node.node_id, item, exc))
+                failed(item, exc)
                 continue
             silence.answered()
             state.remember(node.node_id, value)
@@ -903,10 +916,13 @@ async def read_node(session: Session, node: SessionNode, work: list[Item], job: 
                                answered=len(retried) - len(failed_again)))
     if silence.verdict is not None:
         for item, exc in timed_out.values():
-            job.advance(issue=_issue(node.node_id, item, exc))
-        job.notes.append(Text(N_("Node {node} {verdict}; {count} parameters not read"), node=node.node_id,
-                               verdict=Text(silence.verdict), count=len(queue)))
-        job.advance(len(queue))
+            failed(item, exc)
+        given_up = Text(N_("Node {node} {verdict}; {count} parameters not read"), node=node.node_id,
+                        verdict=Text(silence.verdict), count=len(queue))
+        job.notes.append(given_up)
+        for item in queue:
+            state.not_read(node.node_id, item.ref, given_up)
+        job.give_up(len(queue))
 
 
 def start_read(session: Session, node_ids: Iterable[int], jobs: JobManager, *, group: str | None = None,
@@ -936,4 +952,4 @@ def start_read(session: Session, node_ids: Iterable[int], jobs: JobManager, *, g
 
     # The same read asked again while it runs follows the running job (a read-all is minutes of bus work per node).
     same_as = f"read {session.id} {sorted(work)} {group or '*'} {parameter_set}"
-    return jobs.start("read", title, total, run, same_as=same_as)
+    return jobs.start("read", title, total, run, same_as=same_as, failures_leave_incomplete=True)

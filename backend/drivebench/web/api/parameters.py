@@ -105,6 +105,8 @@ class ParameterInfo(BaseModel):
     reset_required: bool
     last: ParameterValueOut | None = None
     """The value read last (by this server), if any."""
+    read_failed: str | None = None
+    """Why the last read job could not read it (an abort, a timeout, the node silent); None after a good read."""
 
 
 class ParameterList(BaseModel):
@@ -249,14 +251,14 @@ def _scaled_out(scaled: ScaledValue) -> ValueOut:
     return ValueOut(raw=raw, value=value, unit=scaled.unit, text=scaled.text)
 
 
-def info_out(item: Item, last: ParameterValue | None) -> ParameterInfo:
+def info_out(item: Item, last: ParameterValue | None, read_failed: str | None = None) -> ParameterInfo:
     entry = item.entry
     return ParameterInfo(
         ref=item.ref, name=item.name, group=item.group, index=f"0x{item.index:04X}", subindex=item.subindex,
         address=item.address, data_type=entry.data_type.value, access=entry.access.value,
         writable=entry.access.writable, unit=entry.unit, min=entry.min, max=entry.max, default=entry.default,
         selection=entry.selection, bits=entry.bits, reset_required=entry.reset_required,
-        last=value_out(last) if last else None)
+        last=value_out(last) if last else None, read_failed=shown(read_failed) if read_failed else None)
 
 
 def write_out(result: WriteResult, pending: set[str]) -> WriteOut:
@@ -293,9 +295,10 @@ async def list_parameters(session: SessionDep, node: NodeDep,
                               "Parameter set whose codes to list where the device keeps codes per set "
                               "(set 2 lists C2012 for C0012)"))] = 1) -> ParameterList:
     last = service.service(session).values.get(node.node_id, {})
+    failures = service.service(session).failures.get(node.node_id, {})
     found = service.items(node, q, group, parameter_set)
     return ParameterList(node_id=node.node_id, device=node.device_name, groups=service.groups(node),
-                         parameters=[info_out(item, last.get(item.ref)) for item in found],
+                         parameters=[info_out(item, last.get(item.ref), failures.get(item.ref)) for item in found],
                          pending_reset=sorted(node.pending_reset))
 
 

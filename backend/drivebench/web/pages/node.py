@@ -88,6 +88,7 @@ def _parameters_context(session: Session, node: SessionNode, q: str = "", group:
     return {"groups": service.groups(node), "grouped": ordered, "q": q, "group": group, "count": len(found),
             "parameter_sets": sets, "pset": pset,
             "values": service.service(session).values.get(node.node_id, {}),
+            "failures": service.service(session).failures.get(node.node_id, {}),
             "settings": service.service(session).settings}
 
 
@@ -175,7 +176,8 @@ def _row(request: Request, session: Session, node: SessionNode, ref: str, *,
          result: WriteResult | None = None, transfer: str = "auto") -> Response:
     item = service.resolve(node, ref)
     context = _base(request, session, node, "parameters", item=item, result=result, transfer=transfer,
-                    values=service.service(session).values.get(node.node_id, {}))
+                    values=service.service(session).values.get(node.node_id, {}),
+                    failures=service.service(session).failures.get(node.node_id, {}))
     return templates.TemplateResponse(request, "node/parameters.html", context, block_name="one_row")
 
 
