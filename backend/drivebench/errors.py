@@ -130,6 +130,28 @@ class SdoStalledError(SdoTimeoutError):
         return {**super().extra(), "segments_done": self.done, "segments_total": self.total}
 
 
+class WriteOutcomeUnknown(SdoTimeoutError):
+    """A download the node never confirmed: it may have written the value (its answer lost) or not. ``read_back``
+    is what the node holds after it, read once (None: that read failed too or the object is write-only)."""
+
+    title = N_("Outcome of the write unknown")
+    HELD = N_("Node {node} did not confirm the write of {value} to {ref}: the outcome is unknown. Read back "
+              "afterwards, the node holds {held}.")
+    UNREAD = N_("Node {node} did not confirm the write of {value} to {ref}: the outcome is unknown, and {ref} could "
+                "not be read back ({why}).")
+    WRITE_ONLY = N_("Node {node} did not confirm the write of {value} to {ref}: the outcome is unknown, and {ref} is "
+                    "write-only, so it cannot be read back.")
+    UNKNOWN_HINT = N_("The node may have written the value and its answer been lost. Check the value before "
+                      "writing again.")
+
+    def __init__(self, detail: str, *, node: int, index: int, subindex: int, read_back: str | None) -> None:
+        super().__init__(detail, node=node, index=index, subindex=subindex, hint=self.UNKNOWN_HINT)
+        self.read_back = read_back
+
+    def extra(self) -> dict[str, object]:
+        return {**super().extra(), "outcome": "unknown", "read_back": self.read_back}
+
+
 class SdoOutOfStepError(ProtocolError):
     """The node answered, but not what the transfer expects: the wrong toggle bit (``TOGGLE``), another object
     (``OTHER_OBJECT``, ``answered`` the (index, subindex) the answer named), or anything else (``reason``, a

@@ -417,7 +417,8 @@ def test_kill_during_download_loses_nothing_and_shows_interrupted(registry: Prof
     child = subprocess.Popen([sys.executable, str(script), db_url, str(target.info.id)], stdout=subprocess.PIPE,
                              stderr=subprocess.STDOUT, text=True)
     try:
-        _wait_for(lambda: sum(e.result == "written" for e in audit.entries(db_url)) >= 3, child, 60,
+        _wait_for(lambda: sum(e.result == "written" and e.origin.startswith("download ")
+                              for e in audit.entries(db_url)) >= 3, child, 60,
                   "three verified writes")
         child.send_signal(signal.SIGKILL)
         child.wait(10)
@@ -435,6 +436,9 @@ def test_kill_during_download_loses_nothing_and_shows_interrupted(registry: Prof
     assert download_state(download, JobManager()) == "interrupted"
     assert set(download.before) == set(target.values)  # every value it would touch, read before writing
     logged = audit.entries(db_url)
+    switched = [e for e in logged if e.origin == "download"]  # SDO2 switched on while the values were read first
+    assert sorted(e.address for e in switched) == ["0x1201sub1", "0x1201sub2"]
+    logged = [e for e in logged if e.origin != "download"]
     assert {e.result for e in logged} <= {"written", "sending"}
     assert sum(e.result == "sending" for e in logged) <= 1  # at most the write under way when it was killed
     assert all(e.origin == f"download {download.id}" for e in logged)

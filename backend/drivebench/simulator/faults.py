@@ -46,6 +46,9 @@ class SdoFaults:
     drop_downloads: int = 0
     """Leave the next this many download requests unanswered (a device busy writing its memory), then answer
     again; uploads are answered meanwhile."""
+    lost_download_answers: int = 0
+    """Write the values of the next this many expedited downloads (up to 4 bytes) but lose the answer that confirms
+    each (the device holds the new value, the client hears nothing), then answer again."""
 
     def __post_init__(self) -> None:
         if self.silent_after_segments is not None and self.silent_after_segments < 0:
@@ -54,9 +57,10 @@ class SdoFaults:
             raise InvalidValue(_(ABORT_CODE_RANGE))
         if self.abort_every < 1:
             raise InvalidValue(_("abort_every must be 1 or more"))
-        if self.late_requests < 0 or self.drop_requests < 0 or self.drop_downloads < 0:
+        if (self.late_requests < 0 or self.drop_requests < 0 or self.drop_downloads < 0
+                or self.lost_download_answers < 0):
             raise InvalidValue(_("{field} must be 0 or more").format(
-                field="late_requests, drop_requests, drop_downloads"))
+                field="late_requests, drop_requests, drop_downloads, lost_download_answers"))
         if not 0 <= self.latency_ms <= 60_000:
             raise InvalidValue(_("latency_ms must be 0 ... 60000"))
         if not -0xFFFF <= self.index_offset <= 0xFFFF or not -0xFF <= self.subindex_offset <= 0xFF:
@@ -92,6 +96,9 @@ class SdoFaults:
             words.append(_("leaves the next {count} requests unanswered").format(count=self.drop_requests))
         if self.drop_downloads:
             words.append(_("leaves the next {count} download requests unanswered").format(count=self.drop_downloads))
+        if self.lost_download_answers:
+            words.append(_("writes the next {count} expedited downloads but loses their answers").format(
+                count=self.lost_download_answers))
         return words
 
 
@@ -103,6 +110,8 @@ class _ChannelCounters:
     transfers: int = 0
     segments_answered: int = 0
     block_upload_running: bool = False
+    lose_answer: bool = False
+    """The answer to the running expedited download is lost (``lost_download_answers``)."""
 
 
 class FaultState:
@@ -116,6 +125,7 @@ class FaultState:
         self._late_left = 0
         self._drops_left = 0
         self._download_drops_left = 0
+        self._answers_to_lose = 0
 
     @property
     def faults(self) -> SdoFaults:
@@ -135,6 +145,7 @@ class FaultState:
             self._late_left = new.late_requests
             self._drops_left = new.drop_requests
             self._download_drops_left = new.drop_downloads
+            self._answers_to_lose = new.lost_download_answers
         return new
 
     def clear(self) -> None:
@@ -169,6 +180,9 @@ class FaultState:
                 if self._download_drops_left and command in _DOWNLOAD_COMMANDS:
                     self._download_drops_left -= 1
                     return 0
+                counters.lose_answer = command == 1 and bool(request[0] & 0x02) and self._answers_to_lose > 0
+                if counters.lose_answer:
+                    self._answers_to_lose -= 1
                 if faults.abort_code is not None:
                     counters.transfers += 1
                     if counters.transfers % faults.abort_every == 0:
@@ -180,12 +194,16 @@ class FaultState:
                 counters.segments_answered += 1
         return None
 
-    def on_answer(self, channel: int, answer: bytes) -> bytes:
-        """The answer as the faulty node sends it."""
+    def on_answer(self, channel: int, answer: bytes) -> bytes | None:
+        """The answer as the faulty node sends it (None: lost)."""
         faults = self._faults
+        counters = self._channels.get(channel)
+        if counters is not None and counters.lose_answer:
+            counters.lose_answer = False
+            if answer[0] == 0x60:  # the expedited download's response: the value is written
+                return None
         if not faults.wrong_toggle and not faults.index_offset and not faults.subindex_offset:
             return answer
-        counters = self._channels.get(channel)
         if counters is not None and counters.block_upload_running:
             return answer  # sub-block segments start with a sequence number, not a command
         data = bytearray(answer)

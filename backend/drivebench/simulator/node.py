@@ -246,7 +246,9 @@ class SimulatedNode:
 
     def _answer_sdo(self, rx_cob: int) -> Send:
         def send(cob_id: int, data: bytes) -> None:
-            self.send(cob_id, self.faults.on_answer(rx_cob, data))
+            answer = self.faults.on_answer(rx_cob, data)
+            if answer is not None:
+                self.send(cob_id, answer)
 
         return send
 

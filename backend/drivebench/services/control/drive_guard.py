@@ -38,6 +38,7 @@ from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.control.drive_words import Command, family_of, next_control_word
 from drivebench.services.params import node_lease, parameters
 from drivebench.services.params.parameters import MovingWrites
+from drivebench.services.params.write_origin import acting
 from drivebench.services.pdos import process_data as live
 
 KEEPALIVE_TIMEOUT_S = 2.0
@@ -437,6 +438,7 @@ class Acting:
 
 _acting: ContextVar[Acting | None] = ContextVar("drivebench_acting", default=None)
 _cleared: ContextVar[bool] = ContextVar("drivebench_motion_cleared", default=False)
+AUDIT_ORIGIN = "control"
 
 
 def acting_as(panel: Panel, confirm: object = None) -> None:
@@ -453,11 +455,13 @@ def confirming(confirm: object) -> None:
 
 @contextlib.contextmanager
 def cleared() -> Iterator[None]:
-    """Writes inside were confirmed and armed by the caller (the control panel, a commissioning step) or stop the
-    drive (the guard's quick stop): :func:`admit_moving_write` lets them through."""
+    """Writes inside were confirmed and armed by the caller (the control panel) or stop the drive (the guard's quick
+    stop, the software limits): :func:`admit_moving_write` lets them through, and the audit log names them with the
+    origin ``control``."""
     token = _cleared.set(True)
     try:
-        yield
+        with acting(AUDIT_ORIGIN):
+            yield
     finally:
         _cleared.reset(token)
 

@@ -17,6 +17,7 @@ from drivebench.protocol.emcy import EmcyEvent
 from drivebench.protocol.guarding import GuardStatus
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.params import node_lease, parameters
+from drivebench.services.params.write_origin import acting
 
 HEARTBEAT_PRODUCER = 0x1017
 HEARTBEAT_CONSUMERS = 0x1016
@@ -148,6 +149,16 @@ def network_health(session: Session) -> list[NodeHealth]:
     return [node_health(session, node, now) for node in sorted(session.nodes.values(), key=lambda n: n.node_id)]
 
 
+AUDIT_ORIGIN = "diagnostics"
+
+
+async def _send(session: Session, node_id: int, index: int, subindex: int, data: bytes) -> None:
+    """A write of the Diagnostics tab (heartbeat, node guarding), read back, in the audit log with the origin
+    ``diagnostics``."""
+    with acting(AUDIT_ORIGIN):
+        await parameters.send_logged(session, node_id, index, subindex, data, verify=True)
+
+
 # --- heartbeat set-up (8400 motec manual's commissioning example: consumer = producer id + time) ----------------
 def _u(data: bytes) -> int:
     return int.from_bytes(data, "little")
@@ -169,7 +180,7 @@ async def write_heartbeat_producer(session: Session, node_id: int, time_ms: int)
     if not 0 <= time_ms <= 0xFFFF:
         raise InvalidValue(_("Heartbeat producer time {time} ms is outside 0 … 65535 ms (0 = off).").format(
             time=time_ms))
-    await session.client(node_id).adownload(HEARTBEAT_PRODUCER, 0, time_ms.to_bytes(2, "little"))
+    await _send(session, node_id, HEARTBEAT_PRODUCER, 0, time_ms.to_bytes(2, "little"))
     session.network.heartbeat.set_configured_period(node_id, time_ms)
     setup = await read_heartbeat_setup(session, node_id)
     if setup.producer_time_ms != time_ms:
@@ -214,7 +225,7 @@ async def write_heartbeat_consumer(session: Session, node_id: int, slot: int, pr
                              "({period} ms), or every heartbeat would be late.").format(
             time=time_ms, producer=producer_id, period=f"{producer * 1000:.0f}"))
     entry = (producer_id << 16) | time_ms
-    await session.client(node_id).adownload(HEARTBEAT_CONSUMERS, slot, entry.to_bytes(4, "little"))
+    await _send(session, node_id, HEARTBEAT_CONSUMERS, slot, entry.to_bytes(4, "little"))
     setup = await read_heartbeat_setup(session, node_id)
     written = setup.consumers[slot - 1]
     if (written.producer_id, written.time_ms) != (producer_id, time_ms):
@@ -235,12 +246,11 @@ async def start_guarding(session: Session, node_id: int, guard_time_ms: int, lif
                              "heartbeat instead.").format(device=node.device_name, node=node_id))
     if not 0 <= guard_time_ms <= 0xFFFF or not 0 <= life_time_factor <= 0xFF:
         raise InvalidValue(_("Guard time must be 0 … 65535 ms and life time factor 0 … 255."))
-    client = session.client(node_id)
     if guard_time_ms and life_time_factor:  # CiA 301: a node with a heartbeat producer time does not guard
-        await client.adownload(HEARTBEAT_PRODUCER, 0, (0).to_bytes(2, "little"))
+        await _send(session, node_id, HEARTBEAT_PRODUCER, 0, (0).to_bytes(2, "little"))
         session.network.heartbeat.set_configured_period(node_id, 0)
-    await client.adownload(GUARD_TIME, 0, guard_time_ms.to_bytes(2, "little"))
-    await client.adownload(LIFE_TIME_FACTOR, 0, life_time_factor.to_bytes(1, "little"))
+    await _send(session, node_id, GUARD_TIME, 0, guard_time_ms.to_bytes(2, "little"))
+    await _send(session, node_id, LIFE_TIME_FACTOR, 0, life_time_factor.to_bytes(1, "little"))
     if guard_time_ms == 0 or life_time_factor == 0:
         session.network.guarding.release(node_id)
         return GuardingPublic(guard_time_ms=0, life_time_factor=life_time_factor, lost=False, state=None,

@@ -23,7 +23,7 @@ import re
 import time
 import weakref
 from collections import deque
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Awaitable, Callable, Iterable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from contextvars import ContextVar
 from dataclasses import dataclass, field
@@ -49,6 +49,7 @@ from drivebench.errors import (
     SdoTimeoutError,
     TransportError,
     UnknownParameter,
+    WriteOutcomeUnknown,
 )
 from drivebench.i18n import N_, Text, _
 from drivebench.protocol.datatypes import DataType, decode, encode
@@ -61,6 +62,7 @@ from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.params import node_lease
 from drivebench.services.params.jobs import Job, JobIssue, JobManager, said
 from drivebench.services.params.node_silence import NodeSilence
+from drivebench.services.params.write_origin import acting
 
 T = TypeVar("T")
 
@@ -663,16 +665,21 @@ async def write(session: Session, node_id: int, ref: str, value: object, *, chec
 
 async def _write(session: Session, node: SessionNode, item: Item, raw: RawValue, value: object, *,
                  verify: bool) -> WriteResult:
-    node_id = node.node_id
     data = encoded(item, raw, value)
+    return await _audited(session, node.node_id, item, raw, partial(_send, session, node, item, raw, data, verify))
+
+
+async def _audited(session: Session, node_id: int, item: Item, raw: RawValue,
+                   send: Callable[[], Awaitable[WriteResult]]) -> WriteResult:
+    """``send()`` between the session's :class:`WriteAudit` rows: one before it, completed with its outcome."""
     audits = session.part(WriteAudits)
     if not audits:
-        return await _send(session, node, item, raw, data, verify)
+        return await send()
     attempt = WriteAttempt(session, node_id, item, service(session).values.get(node_id, {}).get(item.ref),
                            from_raw(item.entry, raw))
     tokens = [(audit, await audit.sending(attempt)) for audit in audits]
     try:
-        result = await _send(session, node, item, raw, data, verify)
+        result = await send()
     except BaseException as exc:
         for audit, token in tokens:
             await asyncio.shield(audit.done(token, None, exc))
@@ -682,15 +689,40 @@ async def _write(session: Session, node: SessionNode, item: Item, raw: RawValue,
     return result
 
 
+async def _download(session: Session, node_id: int, item: Item, data: bytes, shown: str) -> None:
+    """Send ``data`` to the item. A node that never confirms it may have written the value and lost its answer:
+    the item is read back once (the session's timeout and retries) and :class:`WriteOutcomeUnknown` says what the
+    node holds, not that nothing happened."""
+    client = session.client(node_id)
+    urgent = _urgent.get()
+    try:
+        await _on_bus(lambda: client.download(item.index, item.subindex, data, urgent=urgent))
+    except SdoTimeoutError as exc:
+        raise await _unknown_outcome(session, node_id, item, shown) from exc
+
+
+async def _unknown_outcome(session: Session, node_id: int, item: Item, shown: str) -> WriteOutcomeUnknown:
+    words = {"node": node_id, "value": shown, "ref": f"{item.ref} ({item.name})"}
+    held: str | None = None
+    if not item.entry.access.readable:
+        detail = Text(WriteOutcomeUnknown.WRITE_ONLY, **words)
+    else:
+        try:
+            held = (await read(session, node_id, item.ref)).display
+        except DriveBenchError as exc:
+            detail = Text(WriteOutcomeUnknown.UNREAD, **words, why=said(exc))
+        else:
+            detail = Text(WriteOutcomeUnknown.HELD, **words, held=held)
+    return WriteOutcomeUnknown(detail, node=node_id, index=item.index, subindex=item.subindex, read_back=held)
+
+
 async def _send(session: Session, node: SessionNode, item: Item, raw: RawValue, data: bytes,
                 verify: bool) -> WriteResult:
     node_id = node.node_id
-    client = session.client(node_id)
-    urgent = _urgent.get()
-    await _on_bus(lambda: client.download(item.index, item.subindex, data, urgent=urgent))
+    written = from_raw(item.entry, raw)
+    await _download(session, node_id, item, data, display(item, written))
     if item.entry.reset_required:
         node.pending_reset.add(item.ref)
-    written = from_raw(item.entry, raw)
     read_back: ParameterValue | None = None
     verified: bool | None = None
     mismatch = None
@@ -702,6 +734,35 @@ async def _send(session: Session, node: SessionNode, item: Item, raw: RawValue, 
                              if item.entry.reset_required else N_("Wrote {written}, the device reports {reported}"),
                              written=display(item, written), reported=read_back.display)
     return WriteResult(item.ref, written, read_back, verified, mismatch, item.entry.reset_required)
+
+
+_SIZED = {1: DataType.UNSIGNED8, 2: DataType.UNSIGNED16, 4: DataType.UNSIGNED32}
+
+
+def _object_at(node: SessionNode, index: int, subindex: int, size: int) -> Item:
+    """The profile's item at the address, else one named by its index with the data's unsigned type."""
+    catalog = _catalog(node)
+    listed = catalog.by_address(index, subindex) if catalog is not None else None
+    if listed is not None:
+        return listed
+    entry = ObjectEntry(name="(not in the profile)", data_type=_SIZED.get(size, DataType.DOMAIN), access=Access.RW,
+                        index=index, subindex=subindex)
+    return Item(f"0x{index:04X}" if subindex == 0 else f"0x{index:04X}.{subindex}", index, subindex, entry)
+
+
+async def send_logged(session: Session, node_id: int, index: int, subindex: int, data: bytes, *,
+                      verify: bool = False) -> WriteResult:
+    """A download a service sends itself rather than through :func:`write` (a PDO configuration step, the heartbeat
+    time, SDO2's COB-IDs): in the audit log like every write, with the origin of :mod:`write_origin`'s context, read
+    back with ``verify``. A lost answer is :class:`WriteOutcomeUnknown` as in :func:`write`. The caller holds the
+    node's lease and checked the value."""
+    node = session.node(node_id)
+    item = _object_at(node, index, subindex, len(data))
+    try:
+        raw: RawValue = decode(item.entry.data_type, data)
+    except (ValueError, UnicodeDecodeError):
+        raw = int.from_bytes(data, "little")
+    return await _audited(session, node_id, item, raw, partial(_send, session, node, item, raw, data, verify))
 
 
 # --- device commands -------------------------------------------------------------------------------------
@@ -772,43 +833,65 @@ def _command_name(which: DeviceCommand) -> str:
 
 
 # --- second SDO channel ----------------------------------------------------------------------------------
-def _activate_sdo2_blocking(session: Session, node: SessionNode) -> _NodeChannels:
-    """Switch on the profile's first additional SDO server (its ``sdo_channels`` section) where that is safe."""
+READ_ALL_ORIGIN = "read-all"
+"""The audit log's origin of the writes a read-all sends (switching a node's second SDO channel on)."""
+
+
+def _sdo2_check_blocking(session: Session, node: SessionNode) -> tuple[_NodeChannels, tuple[int, int] | None]:
+    """The node's channel state, with SDO2 in use where it is on in the node already; where the profile's first
+    additional SDO server (its ``sdo_channels`` section) is off and safe to use, the COB-IDs to switch it on with."""
     state = service(session)
     channels = state.channels.setdefault(node.node_id, _NodeChannels())
     if channels.active:
-        return channels
+        return channels, None
     catalog = _catalog(node)
     profile = node.profile
     if (not state.settings.use_sdo2 or catalog is None or profile is None or not profile.sdo_channels
             or profile.features.transport != "canopen"):
-        return channels
+        return channels, None
     extra = profile.sdo_channels[0]
     index = extra.parameter_index
     rx_item, tx_item = catalog.by_address(index, 1), catalog.by_address(index, 2)
     if rx_item is None or tx_item is None or not rx_item.entry.access.writable:
-        return channels
+        return channels, None
     clash = extra.clashes_with(node.node_id)
     if node.node_id > extra.max_node_id or clash in session.nodes:
         channels.note = Text(N_("SDO{number} not used on node {node}: its identifiers would be node {other}'s SDO1"),
                               number=extra.number, node=node.node_id, other=clash)
-        return channels
+        return channels, None
     client = session.client(node.node_id)
     if not isinstance(client, NodeClient):  # an EtherCAT slave has one mailbox
-        return channels
+        return channels, None
     rx, tx = (int.from_bytes(client.upload(index, sub, channel=1)[:4], "little") for sub in (1, 2))
     if rx & 0x80000000 or tx & 0x80000000 or not rx or not tx:
-        rx, tx = extra.cob_ids(node.node_id)
-        # Client -> server first, then server -> client (the order of the manuals' examples of 0x1201).
-        client.download(index, 1, rx.to_bytes(4, "little"), channel=1)
-        client.download(index, 2, tx.to_bytes(4, "little"), channel=1)
-        channels.note = Text(N_("SDO{number} activated on node {node} ({rx}/{tx}, not saved)"), number=extra.number,
-                              node=node.node_id, rx=f"0x{rx:03X}", tx=f"0x{tx:03X}")
+        return channels, extra.cob_ids(node.node_id)
+    _use_sdo2(client, channels, rx, tx)
+    return channels, None
+
+
+def _use_sdo2(client: NodeClient, channels: _NodeChannels, rx: int, tx: int) -> None:
     if channels.sdo2 is None:
         channels.sdo2 = client.add_channel(rx & 0x7FF, tx & 0x7FF)
     elif channels.sdo2 not in client.channels:
         client.channels.append(channels.sdo2)
     channels.active = True
+
+
+async def _activate_sdo2(session: Session, node: SessionNode) -> _NodeChannels:
+    """Switch on the profile's first additional SDO server where that is safe (the writes in the audit log with the
+    origin of whoever reads: a read-all, a parameter-set download reading the values before it writes)."""
+    channels, switch_on = await _on_bus(lambda: _sdo2_check_blocking(session, node))
+    if switch_on is None or node.profile is None:
+        return channels
+    extra = node.profile.sdo_channels[0]
+    rx, tx = switch_on
+    for sub, cob_id in ((1, rx), (2, tx)):  # client -> server first, then server -> client (the manuals' 0x1201)
+        await send_logged(session, node.node_id, extra.parameter_index, sub, cob_id.to_bytes(4, "little"), verify=True)
+    channels.note = Text(N_("SDO{number} activated on node {node} ({rx}/{tx}, not saved)"), number=extra.number,
+                          node=node.node_id, rx=f"0x{rx:03X}", tx=f"0x{tx:03X}")
+    client = session.client(node.node_id)
+    assert isinstance(client, NodeClient)  # checked by _sdo2_check_blocking
+    _use_sdo2(client, channels, rx, tx)
     return channels
 
 
@@ -817,7 +900,7 @@ async def sdo_channels(session: Session, node: SessionNode) -> list[int]:
     out, as one late answer on a busy machine would otherwise halve the read-all's speed)."""
     for attempt in range(2):
         try:
-            channels = await _on_bus(lambda: _activate_sdo2_blocking(session, node))
+            channels = await _activate_sdo2(session, node)
         except SdoTimeoutError:
             if attempt:
                 return [1]
@@ -944,7 +1027,8 @@ def start_read(session: Session, node_ids: Iterable[int], jobs: JobManager, *, g
     async def run(job: Job) -> None:
         job.result["values"] = {}
         try:
-            await asyncio.gather(*(read_node(session, node, work[node.node_id], job) for node in nodes))
+            with acting(READ_ALL_ORIGIN):
+                await asyncio.gather(*(read_node(session, node, work[node.node_id], job) for node in nodes))
         except TransportError as exc:  # the adapter is gone: stop, keep what was read, say how far it got
             read = sum(len(values) for values in job.result["values"].values())
             raise TransportError(Text(N_("{why}, {read} of {total} parameters read before"), why=said(exc),

@@ -23,7 +23,8 @@ from drivebench.errors import DriveBenchError, InvalidValue, NotFound, ProtocolE
 from drivebench.i18n import N_, _
 from drivebench.protocol.datatypes import DataType, decode
 from drivebench.services.bus.sessions import Session
-from drivebench.services.params import node_lease
+from drivebench.services.params import node_lease, parameters
+from drivebench.services.params.write_origin import acting
 
 Direction = Literal["rpdo", "tpdo"]
 COMM_BASE: dict[str, int] = {"rpdo": 0x1400, "tpdo": 0x1800}
@@ -31,6 +32,7 @@ MAP_BASE: dict[str, int] = {"rpdo": 0x1600, "tpdo": 0x1A00}
 COB_INVALID = 1 << 31
 COB_NO_RTR = 1 << 30
 MAX_PDO_BITS = 64
+AUDIT_ORIGIN = "pdo"
 
 
 class MappedObject(BaseModel):
@@ -274,14 +276,15 @@ def mapping_plan(mapping: int, chosen: list[MappedObject]) -> list[tuple[str, in
 
 
 async def run_plan(session: Session, node_id: int, plan: list[tuple[str, int, int, int, int]]) -> list[ApplyStep]:
-    """Download the plan's steps in order; stops at the first refused one (the last step, ``ok`` False)."""
+    """Download the plan's steps in order, each in the audit log with the origin ``pdo``; stops at the first refused
+    one (the last step, ``ok`` False)."""
     steps: list[ApplyStep] = []
-    client = session.client(node_id)
     for name, index, sub, value, size in plan:
         step = ApplyStep(step=name, index=index, subindex=sub, value=f"0x{value:0{size * 2}X}", ok=True)
         steps.append(step)
         try:
-            await client.adownload(index, sub, value.to_bytes(size, "little"))
+            with acting(AUDIT_ORIGIN):
+                await parameters.send_logged(session, node_id, index, sub, value.to_bytes(size, "little"))
         except SdoAbortError as exc:
             step.ok, step.abort_code, step.abort_text, step._error = (False, f"0x{exc.abort_code:08X}",
                                                                       exc.abort_text, exc)

@@ -319,7 +319,8 @@ def _start(session: Session, node: SessionNode, jobs: JobManager, store: Paramet
 
     async def run(job: Job) -> None:
         drive_guard.confirming(confirm)  # the job's own writes carry it (this task's context only)
-        before, unread = await read_items(session, node, readable, job)
+        with audit.acting(kind, who):  # what reading first writes (SDO2 switched on) is the download's, before its id
+            before, unread = await read_items(session, node, readable, job)
         download_id = await asyncio.to_thread(
             store.start_download, kind=kind, session_id=session.id, node_id=node.node_id, profile_id=profile.id,
             user=who, before=before, set_id=set_id, set_version=set_version)

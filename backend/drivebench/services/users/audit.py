@@ -3,54 +3,39 @@
 A row is committed *before* the write is sent (result ``sending``) and completed with the outcome after it, so a
 server that is killed mid-write still leaves a row saying a write to that parameter was under way. Who wrote and
 why (a single write on the Parameters tab, ``download 12``, ``rollback 13``) come from context variables that the
-caller sets (:func:`acting`).
+caller sets (:func:`acting`, :mod:`drivebench.services.params.write_origin`).
 """
 
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import csv
-import getpass
 import io
-from collections.abc import Iterator
-from contextvars import ContextVar
 from dataclasses import dataclass
 from datetime import datetime
 
 from sqlalchemy import or_, select, update
 
-from drivebench.errors import DriveBenchError, SdoAbortError
+from drivebench.errors import DriveBenchError, SdoAbortError, WriteOutcomeUnknown
 from drivebench.i18n import N_, Text
 from drivebench.services.params import parameters
 from drivebench.services.params.parameters import WriteAttempt, WriteResult
+from drivebench.services.params.write_origin import LOCAL_USER, acting, current_origin, current_user
 from drivebench.services.storage.database import transaction
 from drivebench.services.storage.models import AuditRow, utcnow
 
-
-def _local_user() -> str:
-    try:
-        return getpass.getuser()
-    except (KeyError, OSError):  # no passwd entry (containers)
-        return "local"
-
-
-LOCAL_USER = _local_user()
-current_user: ContextVar[str] = ContextVar("drivebench_user", default=LOCAL_USER)
-current_origin: ContextVar[str] = ContextVar("drivebench_write_origin", default="parameters")
-
-
-@contextlib.contextmanager
-def acting(origin: str, user: str | None = None) -> Iterator[None]:
-    """Writes inside the block are logged with this origin (and user)."""
-    origin_token = current_origin.set(origin)
-    user_token = current_user.set(user) if user else None
-    try:
-        yield
-    finally:
-        current_origin.reset(origin_token)
-        if user_token is not None:
-            current_user.reset(user_token)
+__all__ = [
+    "CSV_COLUMNS",
+    "LOCAL_USER",
+    "AuditEntry",
+    "AuditLog",
+    "acting",
+    "current_origin",
+    "current_user",
+    "entries",
+    "outcome",
+    "to_csv",
+]
 
 
 @dataclass(frozen=True)
@@ -77,6 +62,8 @@ def _entry(row: AuditRow) -> AuditEntry:
 def outcome(result: WriteResult | None, error: BaseException | None) -> tuple[str, str | None]:
     """(result, detail) as the log and the download report name them."""
     if error is not None:
+        if isinstance(error, WriteOutcomeUnknown):
+            return "unknown", error.detail
         if isinstance(error, SdoAbortError):
             return "failed", f"SDO abort 0x{error.abort_code:08X} {error.abort_text}"
         if isinstance(error, DriveBenchError):

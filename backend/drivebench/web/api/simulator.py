@@ -39,6 +39,8 @@ class FaultsIn(BaseModel):
                                                                    "a transfer unanswered")
     drop_downloads: int = Field(0, ge=0, le=1_000_000, description="Leave the next this many download requests "
                                                                     "unanswered (uploads are answered)")
+    lost_download_answers: int = Field(0, ge=0, le=1_000_000, description="Write the next this many expedited "
+                                       "downloads but lose their answers (the device holds the value)")
 
     @field_validator("abort_code")
     @classmethod
