@@ -138,9 +138,13 @@ def test_export_change_compare_download(page: Any, sets_server: str, tmp_path: P
 
     page.reload()
     audit = page.locator("#audit .audit-table tbody")
-    expect(audit.locator("tr")).to_have_count(2, timeout=WAIT_MS)
+    # the rollback, the download's write, and the download switching on the node's SDO2 (0x1201 sub 1 and 2) to
+    # read what the node held first (issue 28 item 4: every write the tool sends is in the audit log)
+    expect(audit.locator("tr")).to_have_count(4, timeout=WAIT_MS)
     expect(audit.locator("tr").first).to_contain_text("rollback")
     expect(audit.locator("tr").nth(1)).to_contain_text("12.50 A")
+    expect(audit.locator("tr").nth(2)).to_contain_text("0x1201")
+    expect(audit.locator("tr").nth(3)).to_contain_text("0x1201")
     page.locator("#audit").scroll_into_view_if_needed()
     assert page.evaluate(LAYOUT_PROBLEMS) == []
     screenshot(page, "sets-audit")
