@@ -9,7 +9,9 @@ import pytest
 from fastapi.testclient import TestClient
 
 from drivebench.config import settings
+from drivebench.simulator.plant import Plant
 from drivebench.web.app import create_app
+from tests.conftest import DEMO_PLANT, fresh_channel, serve_app
 
 
 @pytest.fixture
@@ -23,3 +25,12 @@ def api(user_dir: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[TestClient]
     monkeypatch.setattr(settings, "user_profiles_dir", user_dir)
     with TestClient(create_app()) as client:
         yield client
+
+
+@pytest.fixture
+def demo_server() -> Iterator[tuple[str, Plant]]:
+    """The demo plant on a fresh virtual bus, served by uvicorn: the base URL and the simulated plant."""
+    app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
+    with serve_app(app) as base_url:
+        plants: dict[str, Plant] = app.state.drivebench.plants
+        yield base_url, next(iter(plants.values()))

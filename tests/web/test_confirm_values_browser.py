@@ -4,28 +4,18 @@ speed is asked again (no confirmed-once flag)."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from typing import Any
 
 import pytest
 from playwright.sync_api import expect
 
 from drivebench.simulator.plant import Plant
-from drivebench.web.app import create_app
-from tests.conftest import DEMO_PLANT, fresh_channel, screenshot, serve_app, wait_until
+from tests.conftest import screenshot, wait_until
 
 pytestmark = pytest.mark.browser
 
 SERVO = 7
 TIMEOUT_MS = 15_000
-
-
-@pytest.fixture
-def server() -> Iterator[tuple[str, Plant]]:
-    app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
-    with serve_app(app) as base_url:
-        plants: dict[str, Plant] = app.state.drivebench.plants
-        yield base_url, next(iter(plants.values()))
 
 
 def _jog_asks(page: Any, speed: str) -> Any:
@@ -36,8 +26,8 @@ def _jog_asks(page: Any, speed: str) -> Any:
     return dialog
 
 
-def test_the_jog_dialog_shows_and_sends_the_speed_of_the_request(server: tuple[str, Plant], page: Any) -> None:
-    base, plant = server
+def test_the_jog_dialog_shows_and_sends_the_speed_of_the_request(demo_server: tuple[str, Plant], page: Any) -> None:
+    base, plant = demo_server
     sim = plant.nodes[SERVO]
     page.goto(f"{base}/sessions/demo-plant/nodes/{SERVO}?tab=control")
     page.wait_for_selector("#ctl-ws.good", timeout=TIMEOUT_MS)

@@ -6,25 +6,16 @@ from __future__ import annotations
 
 import contextlib
 import re
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from typing import Any
 
 import pytest
 
 from drivebench.simulator.plant import Plant
-from drivebench.web.app import create_app
-from tests.conftest import DEMO_PLANT, fresh_channel, screenshot, serve_app, wait_until
+from tests.conftest import screenshot, wait_until
 
 TIMEOUT_MS = 10_000
 BLUE, RED = "rgb(11, 95, 165)", "rgb(198, 40, 40)"  # app.css --accent and --bad
-
-
-@pytest.fixture
-def server() -> Iterator[tuple[str, Plant]]:
-    app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
-    with serve_app(app) as base_url:
-        plants: dict[str, Plant] = app.state.drivebench.plants  # set by the app's start-up
-        yield base_url, next(iter(plants.values()))
 
 
 def _control_from_can(plant: Plant) -> None:
@@ -60,8 +51,8 @@ def _shown(page: Any, ref: str, done: Callable[[str], bool]) -> str:
     return shown[0]
 
 
-def test_first_run_to_operation_enabled_and_back(server: tuple[str, Plant], page: Any) -> None:
-    base, plant = server
+def test_first_run_to_operation_enabled_and_back(demo_server: tuple[str, Plant], page: Any) -> None:
+    base, plant = demo_server
     plant.nodes[3].store.set_ref("P1120", 1.0)  # test-only: 1 s ramp instead of 10 s
     _control_from_can(plant)
     page.goto(f"{base}/sessions/demo-plant/nodes/3?tab=control")
@@ -113,12 +104,12 @@ def test_first_run_to_operation_enabled_and_back(server: tuple[str, Plant], page
     _shown(page, "r0027", lambda text: text == "0 A")  # pulses inhibited: no current
 
 
-def test_back_to_the_control_tab_gives_a_working_panel(server: tuple[str, Plant], page: Any) -> None:
+def test_back_to_the_control_tab_gives_a_working_panel(demo_server: tuple[str, Plant], page: Any) -> None:
     """Back from another tab restores htmx's snapshot of the page: the panel in it is set up again (socket,
     buttons), not a dead copy whose Shutdown and Quick stop do nothing."""
     from tests.web.test_ux_browser import Watch
 
-    base, plant = server
+    base, plant = demo_server
     _control_from_can(plant)
     watch = Watch(page, base)
     page.goto(f"{base}/sessions/demo-plant/nodes/3?tab=control")
@@ -137,8 +128,8 @@ def test_back_to_the_control_tab_gives_a_working_panel(server: tuple[str, Plant]
     assert watch.problems == []
 
 
-def test_guided_commissioning_8200_vector(server: tuple[str, Plant], page: Any) -> None:
-    base, _ = server
+def test_guided_commissioning_8200_vector(demo_server: tuple[str, Plant], page: Any) -> None:
+    base, _ = demo_server
     page.goto(f"{base}/sessions/demo-plant/nodes/12?tab=control")
     page.wait_for_selector("#ctl-ws.good", timeout=TIMEOUT_MS)
     assert "NSET1-JOG1 (C0037 = 20 Hz)" in page.locator("#ctl-jog-how").inner_text()  # the device's own jog
@@ -159,10 +150,10 @@ def test_guided_commissioning_8200_vector(server: tuple[str, Plant], page: Any) 
     screenshot(page, "control-commissioning-8200")
 
 
-def test_second_panel_watches_the_drive_the_first_holds(server: tuple[str, Plant], browser: Any) -> None:
+def test_second_panel_watches_the_drive_the_first_holds(demo_server: tuple[str, Plant], browser: Any) -> None:
     """Anna's panel arms the MICROMASTER; Ben's panel on the same node names her, offers only the stopping
     commands, and closing it leaves her drive running. Closing Anna's panel quick-stops the drive."""
-    base, plant = server
+    base, plant = demo_server
     _control_from_can(plant)
     url = f"{base}/sessions/demo-plant/nodes/3?tab=control"
     anna_context = browser.new_context(viewport={"width": 1440, "height": 900})
@@ -213,8 +204,8 @@ def test_second_panel_watches_the_drive_the_first_holds(server: tuple[str, Plant
                 context.close()
 
 
-def test_node_without_profile_shows_an_empty_state(server: tuple[str, Plant], page: Any) -> None:
-    base, _ = server
+def test_node_without_profile_shows_an_empty_state(demo_server: tuple[str, Plant], page: Any) -> None:
+    base, _ = demo_server
     assert page.request.post(f"{base}/api/sessions/demo-plant/nodes", data={"node_id": 40}).ok
     page.goto(f"{base}/sessions/demo-plant/nodes/40?tab=control")
     empty = page.locator("#ctl-empty")
@@ -228,9 +219,9 @@ def test_node_without_profile_shows_an_empty_state(server: tuple[str, Plant], pa
     (3, "r0027", "r0026", "MICROMASTER 440 parameter list"),
     (5, "C00054", "C00053", "ASSUMED"),
     (12, "C0054", "C0053", "8200 vector code table")])
-def test_every_demo_node_plots_current_and_dc_bus(server: tuple[str, Plant], page: Any, node_id: int, current: str,
+def test_every_demo_node_plots_current_and_dc_bus(demo_server: tuple[str, Plant], page: Any, node_id: int, current: str,
                                                   dc_bus: str, source: str) -> None:
-    base, _ = server
+    base, _ = demo_server
     page.goto(f"{base}/sessions/demo-plant/nodes/{node_id}?tab=control")
     page.wait_for_selector("#ctl-ws.good", timeout=TIMEOUT_MS)
     assert _shown(page, current, lambda text: text.endswith(" A")) == "0 A"  # at rest
@@ -249,11 +240,11 @@ def test_every_demo_node_plots_current_and_dc_bus(server: tuple[str, Plant], pag
     screenshot(page, f"control-actuals-node{node_id}")
 
 
-def test_demo_axis_has_the_standard_cia402_panel_and_the_seed_drives_keep_theirs(server: tuple[str, Plant],
+def test_demo_axis_has_the_standard_cia402_panel_and_the_seed_drives_keep_theirs(demo_server: tuple[str, Plant],
                                                                                 page: Any) -> None:
     """Node 7 of the demo plant (generic CiA 402 servo): its own Control tab with the CiA 402 motion controls, none
     of the seed drives' words; node 3 keeps the MICROMASTER's."""
-    base, _ = server
+    base, _ = demo_server
     page.goto(f"{base}/sessions/demo-plant/nodes/7?tab=control")
     page.wait_for_selector("#ctl-ws.good", timeout=TIMEOUT_MS)
     assert page.locator("#ctl-motion").count() == 1 and page.locator("#ctl-home-method").count() == 1

@@ -4,27 +4,17 @@ holds the node, and closing the tab quick-stops it. A control word that only sto
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from typing import Any
 
 import pytest
 
 from drivebench.simulator.plant import Plant
-from drivebench.web.app import create_app
-from tests.conftest import DEMO_PLANT, fresh_channel, screenshot, serve_app, wait_until
+from tests.conftest import screenshot, wait_until
 
 pytestmark = pytest.mark.browser
 expect = pytest.importorskip("playwright.sync_api").expect
 WAIT_MS = 10_000
 MM = 3
-
-
-@pytest.fixture
-def server() -> Iterator[tuple[str, Plant]]:
-    app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
-    with serve_app(app) as base_url:
-        plants: dict[str, Plant] = app.state.drivebench.plants
-        yield base_url, next(iter(plants.values()))
 
 
 def _write(page: Any, ref: str, value: str) -> Any:
@@ -37,9 +27,9 @@ def _write(page: Any, ref: str, value: str) -> Any:
     return row
 
 
-def test_the_parameters_tab_asks_before_a_write_that_moves_the_drive(server: tuple[str, Plant],
+def test_the_parameters_tab_asks_before_a_write_that_moves_the_drive(demo_server: tuple[str, Plant],
                                                                      browser: Any) -> None:
-    base, plant = server
+    base, plant = demo_server
     sim = plant.nodes[MM]
     sim.store.set_ref("P0700", 6)  # commands from CAN (set at the drive)
     context = browser.new_context(viewport={"width": 1440, "height": 900})

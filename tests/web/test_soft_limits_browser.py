@@ -5,27 +5,17 @@ held jog reverse is halted by DriveBench before -3600 ° and the tab says so."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from typing import Any
 
 import pytest
 
 from drivebench.simulator.plant import Plant
-from drivebench.web.app import create_app
-from tests.conftest import DEMO_PLANT, fresh_channel, screenshot, serve_app
+from tests.conftest import screenshot
 
 pytestmark = pytest.mark.browser
 
 TIMEOUT_MS = 30_000
 AXIS = 7
-
-
-@pytest.fixture
-def server() -> Iterator[tuple[str, Plant]]:
-    app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
-    with serve_app(app) as base_url:
-        plants: dict[str, Plant] = app.state.drivebench.plants  # set by the app's start-up
-        yield base_url, next(iter(plants.values()))
 
 
 def _current(page: Any, state: str) -> None:
@@ -42,9 +32,9 @@ def _hold(page: Any, direction: int) -> None:
     page.mouse.down()
 
 
-def test_the_control_tab_shows_the_internal_limit_bit_and_who_stopped_the_jog(server: tuple[str, Plant],
+def test_the_control_tab_shows_the_internal_limit_bit_and_who_stopped_the_jog(demo_server: tuple[str, Plant],
                                                                                page: Any) -> None:
-    base, plant = server
+    base, plant = demo_server
     page.goto(f"{base}/sessions/demo-plant/nodes/{AXIS}?tab=control")
     page.wait_for_selector("#ctl-ws.good", timeout=TIMEOUT_MS)
     _current(page, "switch_on_disabled")
