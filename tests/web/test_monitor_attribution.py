@@ -100,6 +100,20 @@ def test_a_cob_id_read_or_written_as_a_parameter_is_attributed(client: TestClien
                           0x20C: ("Unknown", None), 0x24C: ("RPDO1", 76), 0x30C: ("RPDO2", 12)}, attributed
 
 
+def test_a_cob_id_only_read_by_the_pdo_editor_is_attributed(client: TestClient, foreign: can.BusABC) -> None:
+    """Node 5's TPDO2 is on 0x2C5 in the device (its keypad, a stored configuration: nothing on the bus said so);
+    once the PDO editor has read the node's PDOs, 0x2C5 is node 5's TPDO2 and 0x285 no longer node 5's."""
+    drive = client.app.state.drivebench.plants["demo-plant"].nodes[5]  # type: ignore[attr-defined]
+    drive.store.set(0x1801, 1, 0x2C5)
+    listed = client.get(f"{DEMO}/nodes/5/pdos")
+    assert listed.status_code == 200 and 0x2C5 in [pdo["cob_id"] for pdo in listed.json()], listed.text
+    for cob_id in (0x2C5, 0x285):
+        _send(foreign, cob_id)
+    attributed = {cob_id: (row["service"], row["node"]) for cob_id in (0x2C5, 0x285)
+                  for row in [_counted(client, cob_id)]}
+    assert attributed == {0x2C5: ("TPDO2", 5), 0x285: ("Unknown", None)}, attributed
+
+
 def test_a_scan_is_one_cob_id_row(client: TestClient) -> None:
     """After a scan, the requests to the 121 node ids that never answered are one COB-ID row, 0x601-0x67F; the
     requests to nodes 3, 5, 7 and 12 keep their own rows, as do 0x645 and 0x64C (the SDO2 requests of nodes 5 and
