@@ -122,6 +122,8 @@
     const noTelegrams = _("No telegrams (or none passes the filter).");
     const unanswered = (count) => _("SDO requests to {count} node ids that never answered (a scan)", { count: num(count) });
     const lastSeen = (age) => _("last {age} s ago", { age: fixed(age, 1) });
+    // A scan's requests to node ids that never answered: one COB-ID row for them all (``ids``, ``text`` the range).
+    const scanRow = (r) => r[col.node] === null && r[col.ids] > 1;
     $("services-body").innerHTML = s.services.map((r) =>
       `<tr class="${r.rate ? "" : "silent"}"><td>${esc(r.label)}</td><td class="num">${num(r.total)}</td><td class="num">${rate(r.rate)}</td></tr>`).join("");
     $("nodes-body").innerHTML = s.nodes.length ? s.nodes.map((r) =>
@@ -130,7 +132,8 @@
       : `<tr><td colspan="5" class="empty">${esc(noNodes)}</td></tr>`;
     const col = Object.fromEntries(s.cob_columns.map((name, i) => [name, i]));
     $("cobs-body").innerHTML = s.cob_ids.length ? s.cob_ids.map((r) =>
-      `<tr class="${r[col.rate] ? "" : "silent"}" title="${esc(lastSeen(r[col.last_age_s]))}"><td class="mono">${esc(r[col.text])}</td><td>${esc(r[col.service])}</td>` +
+      `<tr class="${r[col.rate] ? "" : "silent"}" title="${esc(lastSeen(r[col.last_age_s]))}"><td class="mono">${esc(r[col.text])}</td>` +
+      (scanRow(r) ? `<td class="scan-ids">${esc(unanswered(r[col.ids]))}</td>` : `<td>${esc(r[col.service])}</td>`) +
       `<td class="num">${esc(r[col.node] ?? "–")}</td><td class="num">${num(r[col.total])}</td><td class="num">${rate(r[col.rate])}</td><td class="num">${pct(r[col.share_percent])}</td></tr>`).join("")
       : `<tr><td colspan="6" class="empty">${esc(noTelegrams)}</td></tr>`;
     $("cob-note").textContent = s.cob_ids_cut ? _("busiest {shown} of {all}", { shown: s.cob_ids.length, all: s.cob_ids_cut }) : "";

@@ -72,8 +72,8 @@ def test_counts_per_service_node_and_cob_id(session: Session, wire: can.BusABC) 
     snap = monitor.snapshot()
     services = {row["service"]: row["total"] for row in snap["services"]}
     assert services == {"NMT": 1, "SYNC": 3, "EMCY": 1, "TIME": 1, "TPDO1": 4, "TPDO2": 0, "TPDO3": 0, "TPDO4": 0,
-                        "RPDO1": 2, "RPDO2": 0, "RPDO3": 0, "RPDO4": 0, "SDO rx": 1, "SDO tx": 1,
-                        "Heartbeat": 3, "LSS": 1, "Unknown": 2}
+                        "TPDO5+": 0, "RPDO1": 2, "RPDO2": 0, "RPDO3": 0, "RPDO4": 0, "RPDO5+": 0, "SDO rx": 1,
+                        "SDO tx": 1, "Heartbeat": 3, "LSS": 1, "Unknown": 2}
     nodes = {row["node"]: row["total"] for row in snap["nodes"]}
     assert nodes == {5: 2 + 1 + 4 + 2 + 1 + 1, 12: 1}
     cobs = {row["text"]: row["total"] for row in snap["cob_ids"]}

@@ -40,6 +40,10 @@ class Service(StrEnum):
     RPDO2 = "RPDO2"
     RPDO3 = "RPDO3"
     RPDO4 = "RPDO4"
+    TPDO_MORE = "TPDO5+"
+    """A TPDO numbered 5 or higher (0x1804-0x19FF): never in the predefined connection set, known only from the
+    device's communication parameters."""
+    RPDO_MORE = "RPDO5+"
     SDO_RX = "SDO rx"
     """SDO request, client -> server (0x600 + node)."""
     SDO_TX = "SDO tx"
@@ -358,10 +362,11 @@ def _error_frame(error_class: int, data: bytes) -> str:
 
 def decode_frame(msg: can.Message, *, names: NameLookup | None = None, abort_texts: AbortTextsLookup | None = None,
                  emcy_texts: EmcyLookup | None = None, sdo_context: SdoContext | None = None,
-                 owner: tuple[Service, int] | None = None) -> DecodedFrame:
+                 owner: tuple[Service, int | None] | None = None) -> DecodedFrame:
     """Decode ``msg``; ``names``/``abort_texts``/``emcy_texts`` add the profile's words where a caller has them;
     ``owner`` is the service and node of a COB-ID the predefined connection set would give another node (a
-    device's additional SDO channel: 0x5C5 is node 5's SDO2 answer, not node 69's)."""
+    device's additional SDO channel: 0x5C5 is node 5's SDO2 answer, not node 69's; a PDO on a COB-ID of its own;
+    node None where the predefined node no longer uses it)."""
     data = b"" if msg.is_remote_frame else bytes(msg.data)
 
     def make(service: Service, node: int | None, summary: str) -> DecodedFrame:

@@ -37,6 +37,7 @@ from drivebench.protocol.decode import (
     decode_frame,
 )
 from drivebench.services.bus.sessions import Session
+from drivebench.services.monitoring.pdo_cob_ids import Owner, PdoCobIds
 from drivebench.transport.busload import REORDER_S, FrameClock, LoadWindows, message_bits
 
 TRACE_CAPACITY = 10_000
@@ -58,10 +59,11 @@ SERVICE_GROUPS = ("NMT", "SYNC", "EMCY", "TIME", "PDO", "SDO", "Heartbeat", "LSS
 """What the service filter offers; PDO and SDO stand for all their kinds (the page shows them through _())."""
 SERVICE_ORDER = [Service.NMT, Service.SYNC, Service.EMCY, Service.TIME,
                  Service.TPDO1, Service.TPDO2, Service.TPDO3, Service.TPDO4,
-                 Service.RPDO1, Service.RPDO2, Service.RPDO3, Service.RPDO4,
+                 Service.TPDO_MORE, Service.RPDO1, Service.RPDO2, Service.RPDO3, Service.RPDO4, Service.RPDO_MORE,
                  Service.SDO_RX, Service.SDO_TX, Service.HEARTBEAT, Service.LSS, Service.UNKNOWN]
 SERVICE_LABELS = {Service.SDO_RX: N_("SDO request (rx)"), Service.SDO_TX: N_("SDO response (tx)"),
-                  Service.HEARTBEAT: N_("Heartbeat / boot-up")}
+                  Service.HEARTBEAT: N_("Heartbeat / boot-up"), Service.TPDO_MORE: N_("TPDO 5 and higher"),
+                  Service.RPDO_MORE: N_("RPDO 5 and higher")}
 """Shown in each viewer's language (``view_snapshot``), as are "Unknown" and "Error frame"."""
 
 
@@ -151,6 +153,8 @@ class Monitor(can.Listener):
         self._trace: deque[tuple[int, can.Message, SdoContext | None]] = deque(maxlen=trace_capacity)
         self._clock = FrameClock()
         self._tracker = SdoTracker()
+        self._pdo_cob_ids = PdoCobIds()
+        """Outlives a reset: the devices keep their PDO configuration."""
         self._flood_cache: tuple[float, str | None] | None = None
         self._reset_locked(time.monotonic())
 
@@ -189,7 +193,13 @@ class Monitor(can.Listener):
             entry[2] = now
             self._frames += 1
             self._seq = seq = self._seq + 1
-            self._trace.append((seq, msg, self._tracker.observe(msg) if 0x580 < key < 0x680 else None))
+            if 0x580 < key < 0x680:
+                self._trace.append((seq, msg, self._tracker.observe(msg)))
+                self._pdo_cob_ids.observe(key, msg.data)
+                return
+            self._trace.append((seq, msg, None))
+            if 0x700 < key < 0x780 and msg.data == b"\0":
+                self._pdo_cob_ids.boot(key - 0x700)
 
     def on_error(self, exc: Exception) -> None:
         """The notifier reports reader errors here; the session's own error catcher handles them."""
@@ -263,7 +273,7 @@ class Monitor(can.Listener):
         return {**snapshot, "paused": view.paused, "filter": view.filter.as_dict(),
                 "nodes": [row for row in snapshot["nodes"] if not nodes or row["node"] in nodes],
                 "cob_ids": [row for row in snapshot["cob_ids"]
-                            if accepts(_SERVICES[row["service"]], row["node"], row["cob_id"])]}
+                            if accepts(_SERVICES[row["service"]], row["node"], _cob_in(row, view.filter.cob_min))]}
 
     def live_snapshot(self) -> dict[str, Any]:
         """The snapshot of now, unfiltered (every node and COB-ID row)."""
@@ -284,6 +294,8 @@ class Monitor(can.Listener):
         owners = self._channel_owners()
         classified = {key: owners.get(key) or _classify_key(key) for key in cobs}
         unanswered = _unanswered(classified, set(owners.values()), self._node_names())
+        scan_cobs: list[int] = []
+        """COB-IDs of the requests to ``unanswered``: one COB-ID row."""
         for key in sorted(cobs):
             count, bits, last_seen = cobs[key]
             rate = (current.frames.get(key, 0) - reference.frames.get(key, 0)) / elapsed
@@ -294,6 +306,7 @@ class Monitor(can.Listener):
                 scan_row[0] += count
                 scan_row[1] += rate
                 scan_row[2] += bits
+                scan_cobs.append(key)
             service_row = services[service]
             service_row[0] += count
             service_row[1] += rate
@@ -303,15 +316,21 @@ class Monitor(can.Listener):
                 node_row[0] += count
                 node_row[1] += rate
                 node_row[2] += bits
+            elif scan_cobs and scan_cobs[-1] == key:
+                continue  # one row for them all, below
             cob_rows.append({"cob_id": key & 0x1FFFFFFF, "extended": bool(key & EXTENDED),
-                             "text": _key_text(key), "service": service.value, "node": node,
+                             "text": _key_text(key), "service": service.value, "node": node, "ids": 1,
                              "total": count, "rate": round(rate, 2),
                              "share_percent": round(100.0 * bits / total_bits, 2) if total_bits else 0.0,
                              "last_age_s": round(now - last_seen, 2)})
+        if scan_cobs:
+            cob_rows.append(_scan_cob_row(scan_cobs, nodes[SCAN_ROW], min(now - cobs[key][2] for key in scan_cobs),
+                                          total_bits))
+            cob_rows.sort(key=lambda row: (row["extended"], row["cob_id"]))
         names = self._node_names()
         load_now = self._load.percent(last_second[2]) if last_second else 0.0
         bus, bus_text = self._bus()
-        flood = self._flood(cobs, current, reference, elapsed, names)
+        flood = self._flood(cobs, current, reference, elapsed, names, owners)
         return {
             "session": self.session_id,
             "time": now + self._wall_offset,
@@ -353,7 +372,7 @@ class Monitor(can.Listener):
                                            "reported_age_s")}, data["text"]
 
     def _flood(self, cobs: dict[int, tuple[int, int, float]], current: _Sample, reference: _Sample, elapsed: float,
-               names: dict[int, str]) -> dict[str, Any] | None:
+               names: dict[int, str], owners: Mapping[int, Owner]) -> dict[str, Any] | None:
         """The COB-ID that holds the bus (a babbling node), from the bits of the rate window; None if none does."""
         capacity = self.bitrate * elapsed
         recent = {key: (current.frames.get(key, 0) - reference.frames.get(key, 0)) * bits / count
@@ -364,7 +383,7 @@ class Monitor(can.Listener):
         share = 100.0 * recent[key] / capacity
         if share < FLOOD_COB_PERCENT:
             return None
-        service, node = _classify_key(key)
+        service, node = owners.get(key) or _classify_key(key)
         cob = f"COB-ID {_key_text(key)}"
         who = cob if not node else Text(N_("{cob} ({service} of node {node}, {name})") if node in names else
                                          N_("{cob} ({service} of node {node})"), cob=cob, service=service.value,
@@ -466,18 +485,24 @@ class Monitor(can.Listener):
         with self._lock:
             return sum(self._cobs[c][0] for c in cob_ids if c in self._cobs)
 
-    def _channel_owners(self) -> dict[int, tuple[Service, int]]:
-        """COB-IDs of the session nodes' additional SDO channels (their profiles' ``sdo_channels``) -> (service,
-        node): 0x5C5 is node 5's SDO2 answer, not node 69's default SDO."""
+    def _channel_owners(self) -> dict[int, Owner]:
+        """Where the node and service of a COB-ID are not those of the predefined connection set (``classify``):
+        COB-ID -> (service, node). The session nodes' additional SDO channels (their profiles' ``sdo_channels``):
+        0x5C5 is node 5's SDO2 answer, not node 69's default SDO; and the PDOs whose COB-IDs the bus has shown
+        (:mod:`~drivebench.services.monitoring.pdo_cob_ids`): 0x2A3 is node 3's TPDO1 once it was moved there,
+        and 0x183 no longer node 3's."""
         session = self._session()
-        owners: dict[int, tuple[Service, int]] = {}
-        if session is None:
-            return owners
-        for node_id, node in list(session.nodes.items()):
+        sdo: dict[int, tuple[Service, int]] = {}
+        nodes = dict(session.nodes) if session is not None else {}
+        for node_id, node in nodes.items():
             for channel in node.profile.sdo_channels if node.profile else []:
                 if node_id <= channel.max_node_id:
                     request, answer = channel.cob_ids(node_id)
-                    owners[request], owners[answer] = (Service.SDO_RX, node_id), (Service.SDO_TX, node_id)
+                    sdo[request], sdo[answer] = (Service.SDO_RX, node_id), (Service.SDO_TX, node_id)
+        with self._lock:
+            seen, booted = self._pdo_cob_ids.copy()
+        owners: dict[int, Owner] = dict(PdoCobIds.owners(seen, booted, sdo, nodes)) if seen else {}
+        owners.update(sdo)
         return owners
 
     def _node_names(self) -> dict[int, str]:
@@ -501,10 +526,21 @@ SCAN_ROW = 1000
 """The node table's key for SDO requests to node ids that are not in the session and sent nothing themselves (a
 scan asking all 127): one row, ``node`` None, with ``unanswered_ids``."""
 _SENT_BY_THE_NODE = {Service.SDO_TX, Service.HEARTBEAT, Service.EMCY, Service.TPDO1, Service.TPDO2, Service.TPDO3,
-                     Service.TPDO4}
+                     Service.TPDO4, Service.TPDO_MORE}
 
 
-def _unanswered(classified: Mapping[int, tuple[Service, int | None]], owned: set[tuple[Service, int]],
+def _scan_cob_row(keys: list[int], counts: list[float], age: float, total_bits: int) -> dict[str, Any]:
+    """The COB-ID table's one row for the SDO requests to node ids that never answered (``ids`` of them, from
+    ``cob_id`` to ``cob_last``): a scan's 0x601-0x67F, without the nodes that answered."""
+    first, last = keys[0], keys[-1]
+    return {"cob_id": first, "cob_last": last, "extended": False,
+            "text": _key_text(first) if first == last else f"{_key_text(first)}–{_key_text(last)}",
+            "service": Service.SDO_RX.value, "node": None, "ids": len(keys), "total": int(counts[0]),
+            "rate": round(counts[1], 2), "share_percent": round(100.0 * counts[2] / total_bits, 2) if total_bits
+            else 0.0, "last_age_s": round(age, 2)}
+
+
+def _unanswered(classified: Mapping[int, tuple[Service, int | None]], owned: set[Owner],
                 names: Mapping[int, str]) -> set[int]:
     """Node ids only asked (SDO requests), never heard from, and not in the session."""
     asked = {node for service, node in classified.values() if service is Service.SDO_RX and node is not None}
@@ -515,6 +551,12 @@ def _unanswered(classified: Mapping[int, tuple[Service, int | None]], owned: set
 @lru_cache(maxsize=4096)
 def _classify_key(key: int) -> tuple[Service, int | None]:
     return classify(key & 0x1FFFFFFF, bool(key & EXTENDED))
+
+
+def _cob_in(row: Mapping[str, Any], cob_min: int) -> int:
+    """The row's COB-ID for the filter: of a row for several (the scan's requests), the first at or above
+    ``cob_min``."""
+    return min(max(row["cob_id"], cob_min), row.get("cob_last", row["cob_id"]))
 
 
 def _row(seq: int, decoded: DecodedFrame) -> dict[str, Any]:

@@ -37,7 +37,8 @@ To keep updates small (each is compressed once per client), rows travel as array
 ``trace`` rows in the order of ``trace_columns``: ``["seq", "time", "cob_id", "service", "group", "node", "dlc",
 "hex", "summary"]`` (the REST trace rows are objects and also carry ``text``, ``cob_id service node N: summary``);
 ``snapshot.cob_ids`` rows in the order of ``snapshot.cob_columns``: ``["text", "service", "node", "total", "rate",
-"share_percent", "last_age_s"]``; more than COB_ROWS_PER_UPDATE COB-IDs send the busiest, with ``cob_ids_cut``
+"share_percent", "last_age_s", "ids"]`` (``ids`` > 1: the one row of a scan's requests to node ids that never
+answered, ``text`` their range); more than COB_ROWS_PER_UPDATE COB-IDs send the busiest, with ``cob_ids_cut``
 the full count.
 The socket closes with code 4404 when the session does not exist (or is closed).
 """
@@ -69,7 +70,7 @@ HELLO_TRACE_ROWS = 200
 HELLO_TRACE_ROWS_MAX = 2000
 """A hello decodes its rows on the event loop: more would hold up the other clients' updates."""
 COB_ROWS_PER_UPDATE = 512
-COB_COLUMNS = ["text", "service", "node", "total", "rate", "share_percent", "last_age_s"]
+COB_COLUMNS = ["text", "service", "node", "total", "rate", "share_percent", "last_age_s", "ids"]
 TRACE_COLUMNS = ["seq", "time", "cob_id", "service", "group", "node", "dlc", "hex", "summary"]
 
 
