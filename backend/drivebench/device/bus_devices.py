@@ -8,7 +8,8 @@ and the standard:
 * node ids: ``features.node_id_range`` (an EDS: CiA 301's 1 … 127);
 * bit rates: ``features.baud_rates_kbit`` (an EDS: its ``[DeviceInfo] BaudRate_xxx = 1``);
 * COB-IDs: the default values of its communication objects (SDO server 0x1200, RPDO 0x1400…, TPDO 0x1800…, EMCY
-  0x1014, SYNC 0x1005: a ``$NODEID`` formula is node specific, bit 31 set = off in the factory setting), where the
+  0x1014, SYNC 0x1005: a ``$NODEID`` formula is node specific, bit 31 set = off in the factory setting; each PDO is
+  a channel of its own, ``tpdo1``, ``rpdo1`` …, as its COB-ID object switches it), where the
   profile has none CiA 301's predefined connection set (PDO 1 … 4 for the PDO counts ``features`` gives), its
   additional SDO servers from the ``sdo_channels`` section, NMT and heartbeat by CiA 301.
 
@@ -108,9 +109,9 @@ def _pdo_services(profile: Profile, objects: dict[tuple[int, int], ObjectEntry])
             found = _default(objects, comm[kind] + number - 1, 1)
             if found is None and number > PREDEFINED_PDOS:
                 continue  # no default COB-ID in the profile and none in CiA 301
-            services.append(_service(f"{kind}{number}", f"pdo{number}", direction[kind], found,
+            services.append(_service(f"{kind}{number}", f"{kind.lower()}{number}", direction[kind], found,
                                      standard[kind] + 0x100 * (number - 1), f"0x{comm[kind] + number - 1:04X}sub1"))
-    return sorted(services, key=lambda s: (int(s.channel[3:]), s.direction != "from node"))
+    return sorted(services, key=lambda s: (int(s.channel[4:]), s.direction != "from node"))
 
 
 def derived_cob_ids(profile: Profile) -> CobIdRules:
