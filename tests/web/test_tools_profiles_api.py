@@ -119,3 +119,19 @@ def test_a_profile_without_switches_has_no_dip_calculator_and_the_answer_says_so
     assert "No DIP-switch calculator for" in page and "EM-Servo 400" in page
     assert f'<option value="{SERVO}"' in page and f'<option value="{eds_id}"' in page
     assert "Not on a CAN line" in page
+
+
+def test_a_saved_plan_with_node_7_matches_a_scan_of_the_demo_plant(demo_api: TestClient) -> None:
+    """The real simulator on a virtual bus: node 7 answers with the generic servo's identity, node 3 (a MICROMASTER)
+    is not the servo the plan says."""
+    saved = demo_api.post("/api/planned-networks", json={"name": "Demo line", "nodes": [
+        {"name": "Axis", "device": SERVO, "node_id": 7, "baud_kbit": 500},
+        {"name": "Pump", "device": "siemens-mm4", "node_id": 3, "baud_kbit": 500},
+        {"name": "Wrong", "device": SERVO, "node_id": 5, "baud_kbit": 500}]})
+    assert saved.status_code == 201, saved.text
+    assert saved.json()["report"]["ok"]
+    result = demo_api.post(f"/api/planned-networks/{saved.json()['id']}/compare",
+                           params={"session": "demo-plant", "timeout_s": 2}).json()
+    status = {node["node_id"]: node["status"] for node in result["nodes"]}
+    assert (status[7], status[3], status[5]) == ("ok", "ok", "wrong_device")
+    assert status[12] == "extra"
