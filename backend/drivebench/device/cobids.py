@@ -7,11 +7,11 @@ that differ from the CiA 301 predefined connection set in one PDO).
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Protocol
 
 from pydantic import BaseModel, StringConstraints, computed_field
 
-from drivebench.device.switches import INFRASTRUCTURE, Direction, Service, SwitchesSection
+from drivebench.device.switches import INFRASTRUCTURE, CobIdRules, Direction, Service
 from drivebench.errors import InvalidValue, OutOfRange
 from drivebench.i18n import _
 
@@ -19,6 +19,20 @@ STANDARD_IDS = "canopen"
 """``pdo_ids`` of CiA 301's predefined connection set; a device's ``alternative`` names the other set."""
 PdoIds = Annotated[str, StringConstraints(pattern=r"^[a-z0-9][a-z0-9_.-]*$", max_length=64)]
 """``canopen`` or the key of the device's alternative identifiers."""
+
+
+class CobIdSpec(Protocol):
+    """What the COB-ID rules need of a device: a ``switches`` section, or the rules the planner derives for a
+    profile without one (``device/bus_devices.py``)."""
+
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def node_range(self) -> tuple[int, int]: ...
+
+    @property
+    def cob_ids(self) -> CobIdRules: ...
 
 
 class CobId(BaseModel):
@@ -38,20 +52,20 @@ class CobId(BaseModel):
         return f"0x{self.cob_id:03X}"
 
 
-def partner(spec: SwitchesSection, service: Service, node_id: int) -> int | None:
+def partner(spec: CobIdSpec, service: Service, node_id: int) -> int | None:
     """The node id whose ``shares_with`` service has the identifier ``service`` has at ``node_id``."""
     if service.shares_with is None:
         return None
     return node_id + service.base - spec.cob_ids.service(service.shares_with).base
 
 
-def uses_alternative(spec: SwitchesSection, pdo_ids: PdoIds) -> bool:
+def uses_alternative(spec: CobIdSpec, pdo_ids: PdoIds) -> bool:
     """``pdo_ids`` selects the device's alternative identifiers (any other value: the standard ones)."""
     alternative = spec.cob_ids.alternative
     return alternative is not None and pdo_ids == alternative.key
 
 
-def cob_ids(spec: SwitchesSection, node_id: int, *, pdo_ids: PdoIds = STANDARD_IDS,
+def cob_ids(spec: CobIdSpec, node_id: int, *, pdo_ids: PdoIds = STANDARD_IDS,
             channels: set[str] | None = None) -> list[CobId]:
     """Every COB-ID ``node_id`` uses; with ``channels``, only those plus NMT/SYNC/EMCY/heartbeat."""
     lo, hi = spec.node_range
@@ -84,7 +98,7 @@ def cob_ids(spec: SwitchesSection, node_id: int, *, pdo_ids: PdoIds = STANDARD_I
     return result
 
 
-def alternative_hint(spec: SwitchesSection | None, node_id: int, cob_id: int) -> str | None:
+def alternative_hint(spec: CobIdSpec | None, node_id: int, cob_id: int) -> str | None:
     """Which of the device's alternative base identifiers ``cob_id`` is at ``node_id`` (``Lenze base ID of
     RPDO2``), or None."""
     alternative = spec.cob_ids.alternative if spec else None
@@ -95,7 +109,7 @@ def alternative_hint(spec: SwitchesSection | None, node_id: int, cob_id: int) ->
                  if svc.alternative_base is not None and svc.alternative_base + node_id == cob_id), None)
 
 
-def channels_of(spec: SwitchesSection) -> list[str]:
+def channels_of(spec: CobIdSpec) -> list[str]:
     """Switchable channels in table order (``sdo1``, ``pdo1``, ``pdo2``, ``sdo2`` ...)."""
     seen: list[str] = []
     for svc in spec.cob_ids.services:
@@ -104,5 +118,5 @@ def channels_of(spec: SwitchesSection) -> list[str]:
     return seen
 
 
-def default_channels(spec: SwitchesSection) -> set[str]:
+def default_channels(spec: CobIdSpec) -> set[str]:
     return {s.channel for s in spec.cob_ids.services if s.default_on} - set(INFRASTRUCTURE)

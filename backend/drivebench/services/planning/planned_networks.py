@@ -10,6 +10,7 @@ from pydantic import BaseModel
 from sqlalchemy import select
 from sqlalchemy.orm import Session as DbSession
 
+from drivebench.device.bus_devices import BusDevices
 from drivebench.device.dip import SwitchDevices
 from drivebench.errors import NotFound
 from drivebench.i18n import _
@@ -120,7 +121,7 @@ class LiveComparison(BaseModel):
     nodes: list[NodeCheck]
 
 
-def _check_found(planned: PlannedNode, found: SessionNode, devices: SwitchDevices) -> NodeCheck:
+def _check_found(planned: PlannedNode, found: SessionNode, devices: BusDevices | SwitchDevices) -> NodeCheck:
     device = devices.find(planned.device)
     planned_name = device.spec.name if device else planned.device
     profile = found.profile
@@ -128,7 +129,8 @@ def _check_found(planned: PlannedNode, found: SessionNode, devices: SwitchDevice
             "found_profile": profile.id if profile else None,
             "found_device": profile.identity.product_name if profile else None}
     if profile is not None:
-        if device is not None and profile.switches is not None and profile.switches.key == device.spec.key:
+        same_switches = device is not None and profile.switches is not None and profile.switches.key == device.spec.key
+        if same_switches or (device is not None and profile.id in device.profile_ids):
             return NodeCheck(status="ok", message=_("Answers as {device}.").format(
                 device=profile.identity.product_name), **base)
         return NodeCheck(status="wrong_device", **base,
@@ -146,8 +148,8 @@ def _check_found(planned: PlannedNode, found: SessionNode, devices: SwitchDevice
                          identity=ident))
 
 
-def compare_live(plan: NetworkPlan, answered: Iterable[SessionNode], devices: SwitchDevices, *, session_id: str = "",
-                 session_name: str = "") -> LiveComparison:
+def compare_live(plan: NetworkPlan, answered: Iterable[SessionNode], devices: BusDevices | SwitchDevices, *,
+                 session_id: str = "", session_name: str = "") -> LiveComparison:
     """Which planned nodes answered (as the planned device), which are missing, which extra nodes appeared."""
     found = {node.node_id: node for node in answered}
     planned_ids = {node.node_id for node in plan.nodes}
@@ -173,7 +175,7 @@ def compare_live(plan: NetworkPlan, answered: Iterable[SessionNode], devices: Sw
                           ok=counts["ok"] == len(plan.nodes) and counts["extra"] == 0, counts=counts, nodes=checks)
 
 
-async def compare_with_session(plan: NetworkPlan, session: Session, devices: SwitchDevices,
+async def compare_with_session(plan: NetworkPlan, session: Session, devices: BusDevices | SwitchDevices,
                                timeout_s: float = 0.5) -> LiveComparison:
     """Scan ``session``'s bus and compare the nodes that answered with ``plan``."""
     answered = await session.scan(timeout_s)

@@ -1,7 +1,8 @@
 """Network planner: check a planned CANopen network before it is built, and compare it with a bus scan.
 
-A plan lists nodes (a device of the loaded profiles' ``switches`` sections, named by its key, an alias or a profile
-id; node id, baud rate, the SDO/PDO channels that are on, the standard or the device's alternative PDO
+A plan lists nodes (a device of the loaded profiles: a ``switches`` section named by its key, an alias or a profile
+id, or any other CANopen profile by its id, planned from its own data and CiA 301, ``device/bus_devices.py``; node
+id, baud rate, the SDO/PDO channels that are on, the standard or the device's alternative PDO
 identifiers). ``check_plan`` finds duplicate node ids, COB-ID collisions, mixed baud rates and node ids or baud
 rates a device cannot use. Plans travel as JSON (``NetworkPlan.model_dump_json`` / ``from_json``).
 """
@@ -14,6 +15,7 @@ from typing import Literal
 
 from pydantic import BaseModel, Field, ValidationError
 
+from drivebench.device.bus_devices import BusDevices, BusRules, NotOnCanBus
 from drivebench.device.cable import CablePlan, plan_cable
 from drivebench.device.cobids import STANDARD_IDS, CobId, PdoIds, channels_of, cob_ids, default_channels, partner
 from drivebench.device.dip import SwitchDevices
@@ -27,7 +29,7 @@ Severity = Literal["error", "warning", "info"]
 class PlannedNode(BaseModel):
     name: str = ""
     device: str
-    """Key of a profile's ``switches`` section, one of its aliases, or the id of a profile that has one."""
+    """Key of a profile's ``switches`` section, one of its aliases, or the id of a loaded CANopen profile."""
     node_id: int = Field(ge=1, le=127)
     baud_kbit: int
     channels: list[str] | None = None
@@ -75,6 +77,7 @@ class Finding(BaseModel):
         "out_of_range",
         "unsupported_baud",
         "unknown_device",
+        "not_canopen",
         "unknown_channel",
         "sdo2_reserved",
         "cable",
@@ -101,27 +104,35 @@ class PlanReport(BaseModel):
     cable: CablePlan | None = None
 
 
+Spec = SwitchesSection | BusRules
+"""A planned device's rules: its ``switches`` section, or those derived from its profile."""
+
+
 @dataclass(frozen=True)
 class _Use:
     """One COB-ID a planned node uses."""
 
     position: int
     node: PlannedNode
-    spec: SwitchesSection
+    spec: Spec
     cob: CobId
 
 
-def _channels(node: PlannedNode, spec: SwitchesSection) -> set[str]:
+def _channels(node: PlannedNode, spec: Spec) -> set[str]:
     return set(default_channels(spec) if node.channels is None else node.channels) | {"sdo1"}
 
 
-def check_plan(plan: NetworkPlan, devices: SwitchDevices) -> PlanReport:
+def check_plan(plan: NetworkPlan, devices: BusDevices | SwitchDevices) -> PlanReport:
     """Findings and COB-ID table of ``plan``; its devices are looked up in ``devices``."""
     findings: list[Finding] = []
     uses: list[_Use] = []
     for pos, node in enumerate(plan.nodes):
         try:
-            spec = devices.get(node.device).spec
+            spec: Spec = devices.get(node.device).spec
+        except NotOnCanBus as exc:
+            findings.append(Finding(kind="not_canopen", severity="error", node_ids=[node.node_id],
+                                    message=f"{node.label}: {exc.shown_detail()}"))
+            continue
         except DriveBenchError as exc:
             findings.append(Finding(kind="unknown_device", severity="error",
                                     message=f"{node.label}: {exc.shown_detail()}",
@@ -133,7 +144,12 @@ def check_plan(plan: NetworkPlan, devices: SwitchDevices) -> PlanReport:
                                     message=_("{node}: {device} accepts node ids {low} … {high}.").format(
                                         node=node.label, device=spec.name, low=lo, high=hi)))
             continue
-        if node.baud_kbit not in spec.baud_rates_kbit:
+        if not spec.baud_rates_kbit:
+            findings.append(Finding(kind="unsupported_baud", severity="error", node_ids=[node.node_id],
+                                    message=_("{node}: the profile of {device} lists no bit rate (an EDS: no "
+                                              "[DeviceInfo] BaudRate_xxx = 1).").format(
+                                        node=node.label, device=spec.name)))
+        elif node.baud_kbit not in spec.baud_rates_kbit:
             findings.append(Finding(kind="unsupported_baud", severity="error", node_ids=[node.node_id],
                                     message=_("{node}: {device} does not support {baud} kbit/s ({rates}).").format(
                                         node=node.label, device=spec.name, baud=node.baud_kbit,
@@ -169,7 +185,7 @@ def check_plan(plan: NetworkPlan, devices: SwitchDevices) -> PlanReport:
     )
 
 
-def _shared_finding(node: PlannedNode, spec: SwitchesSection, channel: str) -> Finding:
+def _shared_finding(node: PlannedNode, spec: Spec, channel: str) -> Finding:
     """A channel whose identifiers are those of another service at a node id further on (SDO2 = SDO1 of address
     + 64): that node id must stay free, and past 127 the identifiers leave the ones of the node ids."""
     shared = sorted((s for s in spec.cob_ids.services if s.channel == channel and s.shares_with),

@@ -13,6 +13,7 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Depends, Query, Request, Response
 from pydantic import BaseModel, Field
 
+from drivebench.device.bus_devices import BusDevices
 from drivebench.device.cable import (
     CROSS_SECTIONS_MM2,
     REPEATER_2176_REDUCTION_M,
@@ -23,7 +24,7 @@ from drivebench.device.cable import (
     selection_example,
 )
 from drivebench.device.cobids import STANDARD_IDS, CobId, PdoIds, cob_ids, uses_alternative
-from drivebench.device.dip import DipResult, SwitchDevice, SwitchDevices, decode, encode
+from drivebench.device.dip import DipResult, SwitchDevice, decode, encode
 from drivebench.device.switches import SwitchesSection
 from drivebench.errors import DriveBenchError, InvalidValue
 from drivebench.i18n import _
@@ -42,12 +43,13 @@ planned_router = APIRouter(prefix="/api/planned-networks", tags=["planned networ
 
 
 # --- DIP-switch calculator and COB-IDs -------------------------------------------------------------------------
-async def get_devices(state: StateDep) -> SwitchDevices:
-    """The devices of the loaded profiles (built-in and uploaded) that have a ``switches`` section."""
-    return SwitchDevices(state.registry.all())
+async def get_devices(state: StateDep) -> BusDevices:
+    """The devices of the loaded profiles (built-in and uploaded): the calculator's are those with a ``switches``
+    section (``.switches``), the planner's and the COB-ID table's every CANopen profile."""
+    return BusDevices(state.registry.all())
 
 
-DevicesDep = Annotated[SwitchDevices, Depends(get_devices)]
+DevicesDep = Annotated[BusDevices, Depends(get_devices)]
 
 
 class DipAnswer(BaseModel):
@@ -109,7 +111,7 @@ def calculate(device: SwitchDevice, request: DipRequest) -> DipAnswer:
 async def dip_families(devices: DevicesDep) -> list[SwitchesSection]:
     """Devices with their switch blocks, baud-rate tables, rules and the manuals' ambiguities: the ``switches``
     sections of the loaded profiles, one per key."""
-    return [device.spec for device in devices.all()]
+    return [device.spec for device in devices.switches.all()]
 
 
 @router.get("/dip/{family}", response_model=DipAnswer)
@@ -130,19 +132,20 @@ async def dip(
     request = DipRequest(switches=parse_switches(on) if on is not None else None, node_id=node_id,
                          baud_kbit=baud_kbit, code_node_id=code_node_id, code_baud_kbit=code_baud_kbit,
                          pdo_ids=pdo_ids)
-    return calculate(devices.get(family), request)
+    return calculate(devices.switch_device(family), request)
 
 
 @router.post("/dip/{family}", response_model=DipAnswer)
 async def dip_post(family: str, request: DipRequest, devices: DevicesDep) -> DipAnswer:
     """As GET, with the switch positions as a JSON object (``{"switches": {"16": true, "a": true}}``)."""
-    return calculate(devices.get(family), request)
+    return calculate(devices.switch_device(family), request)
 
 
 @router.get("/cobids", response_model=CobIdAnswer)
 async def cobids(family: str, node_id: Annotated[int, Query(ge=1, le=127)], devices: DevicesDep,
                  pdo_ids: PdoIds = STANDARD_IDS) -> CobIdAnswer:
-    """Every COB-ID a node uses, hex and decimal, with the device's alternative base ID where it differs."""
+    """Every COB-ID a node uses, hex and decimal, with the device's alternative base ID where it differs (any CANopen
+    profile: without a ``switches`` section, from its objects' defaults and CiA 301)."""
     spec = devices.get(family).spec
     return CobIdAnswer(family=spec.key, node_id=node_id, pdo_ids=pdo_ids,
                        cob_ids=cob_ids(spec, node_id, pdo_ids=pdo_ids), notes=spec.cob_ids.notes)

@@ -10,6 +10,7 @@ from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse, Response
 from starlette.datastructures import FormData, UploadFile
 
+from drivebench.device.bus_devices import BusDevices
 from drivebench.device.cable import (
     CROSS_SECTIONS_MM2,
     REPEATER_2176_REDUCTION_M,
@@ -19,7 +20,7 @@ from drivebench.device.cable import (
     selection_example,
 )
 from drivebench.device.cobids import STANDARD_IDS, channels_of, default_channels, uses_alternative
-from drivebench.device.dip import SwitchDevices, decode, encode
+from drivebench.device.dip import decode, encode
 from drivebench.errors import DriveBenchError, InvalidValue
 from drivebench.i18n import _
 from drivebench.services.planning.planned_networks import PlannedNetworkStore, compare_with_session
@@ -36,13 +37,14 @@ PAGE = "tools.html"
 BAUD_RATES = [1000, 800, 500, 250, 125, 50, 20, 10]
 
 
-def _devices(state: AppState) -> SwitchDevices:
-    """Every loaded profile (built-in or uploaded) that has a ``switches`` section, one device per key."""
-    return SwitchDevices(state.registry.all())
+def _devices(state: AppState) -> BusDevices:
+    """Every loaded profile (built-in or uploaded): the calculator's devices are those with a ``switches`` section
+    (one per key), the planner's every CANopen profile."""
+    return BusDevices(state.registry.all())
 
 
-def _first_key(devices: SwitchDevices) -> str:
-    every = devices.all()
+def _first_key(devices: BusDevices) -> str:
+    every = devices.switches.all()
     if not every:
         raise InvalidValue(_("No loaded profile has a 'switches' section: the calculator has no device."))
     return every[0].spec.key
@@ -66,17 +68,21 @@ def _render(request: Request, context: dict[str, Any], block: str, status: int =
     return templates.TemplateResponse(request, PAGE, context, block_name=block, status_code=status)
 
 
-def _base(devices: SwitchDevices, **extra: Any) -> dict[str, Any]:
-    families = {device.spec.key: device.spec for device in devices.all()}
+def _base(devices: BusDevices, **extra: Any) -> dict[str, Any]:
+    families = {device.spec.key: device.spec for device in devices.switches.all()}
+    planned = devices.all()
     return {"active": "tools", "families": families, "find_device": devices.find, "channels_of": channels_of,
             "baud_rates": BAUD_RATES, "short_names": {key: spec.short_name for key, spec in families.items()},
+            "plan_names": {device.spec.key: device.spec.short_name for device in planned},
+            "no_dip": [device.spec.name for device in planned if not device.has_switches],
+            "not_on_can": [profile.identity.product_name for profile in devices.not_on_can()],
             "cross_sections": CROSS_SECTIONS_MM2, **extra}
 
 
 # --- DIP-switch calculator -------------------------------------------------------------------------------------
-def _dip_context(request: Request, devices: SwitchDevices, family: str,
+def _dip_context(request: Request, devices: BusDevices, family: str,
                  form: FormData | None = None) -> tuple[dict[str, Any], int]:
-    device = devices.get(family)
+    device = devices.switch_device(family)
     spec = device.spec
     form = form or FormData()
     on = {str(v) for v in form.getlist("on")}
@@ -139,7 +145,7 @@ async def dip_form(request: Request, state: StateDep) -> Response:
 
 
 # --- cable planner ---------------------------------------------------------------------------------------------
-def _cable_context(request: Request, devices: SwitchDevices, form: FormData | None) -> dict[str, Any]:
+def _cable_context(request: Request, devices: BusDevices, form: FormData | None) -> dict[str, Any]:
     values = {"baud_kbit": "125", "cross_section_mm2": "0.5", "nodes": "28", "length_m": "450",
               "repeater_reduction_m": str(REPEATER_2176_REDUCTION_M)}
     if form is not None:
@@ -193,7 +199,7 @@ def _plan_from_form(form: FormData) -> NetworkPlan:
     return NetworkPlan(name=str(form.get("plan_name") or "").strip() or "Planned network", nodes=nodes, cable=cable)
 
 
-def _plan_context(plan: NetworkPlan, state: AppState, devices: SwitchDevices, *, plan_id: int | None = None,
+def _plan_context(plan: NetworkPlan, state: AppState, devices: BusDevices, *, plan_id: int | None = None,
                   saved: list[Any] | None = None, **extra: Any) -> dict[str, Any]:
     rows = []
     for node in plan.nodes:
