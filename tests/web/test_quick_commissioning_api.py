@@ -161,3 +161,5 @@ def test_a_reload_finds_the_run_where_it_stands(api: TestClient) -> None:
     latest = listed.json()[0]
     assert latest["id"] == run["id"] and latest["position"] == run["position"]
     assert latest["steps"][latest["position"]]["field"]["ref"] == "P0304"
+    empty = _next(api, latest)  # a nameplate value has no proposal: the user must give it
+    assert empty.status_code == 422 and "needs a value" in empty.json()["detail"], empty.text
