@@ -329,15 +329,66 @@
       const [stepHead, telegramsHead, answerHead] = [_("Step"), _("Telegrams"), _("Answer")];
       const banner = run.failed ? `<div class="error" role="alert">${esc(run.failed)}</div>`
         : run.finished ? `<div class="ok-note">${esc(allAnswered)}</div>` : "";
+      const next = run.finished ? null : run.steps[run.position];
       runBox.innerHTML = `<p><strong>${esc(run.title)}</strong> · ${esc(run.source)}</p>` +
         (pre ? `<p class="muted">${esc(beforeStarting)}</p><ul class="muted">${pre}</ul>` : "") + banner +
         `<div class="ctl-run-scroll"><table class="ctl-run"><thead><tr><th>#</th><th>${esc(stepHead)}</th>` +
-        `<th>${esc(telegramsHead)}</th><th>${esc(answerHead)}</th></tr></thead><tbody>${rows}</tbody></table></div>`;
+        `<th>${esc(telegramsHead)}</th><th>${esc(answerHead)}</th></tr></thead><tbody>${rows}</tbody></table></div>` +
+        (next && next.field ? stepForm(next) : "");
+      if (next && next.field) showPresent(next.field);
       runOpen = !run.finished;
       nextButton.disabled = refused || watching || !runOpen;
       const row = runBox.querySelector("tr.next, tr.failed");
       const scroller = runBox.querySelector(".ctl-run-scroll");
       if (row && scroller) scroller.scrollTop = Math.max(0, row.offsetTop - scroller.clientHeight / 2);  // not the page
+    }
+
+    // A parameter step is a form: the parameter with its unit, range, present value and the profile's proposal;
+    // "Next step" writes what the field holds (checked against the range before anything is sent, read back).
+    function stepForm(step) {
+      const f = step.field;
+      const unit = f.unit ? ` ${f.unit}` : "";
+      const known = f.min !== null || f.max !== null;
+      const range = known ? _("Range {min} … {max}{unit}", { min: f.min === null ? "–" : f.min,
+                                                              max: f.max === null ? "–" : f.max, unit })
+        : _("Range: no source read gives one (see the source below)");
+      const label = `${f.ref} ${f.name}`;
+      const presentLabel = _("Present value:");
+      const sourceLabel = _("Source:");
+      const proposal = f.proposal === null ? "" : String(f.proposal);
+      const options = Object.entries(f.selection);
+      const input = options.length
+        ? `<select id="ctl-step-value" name="value">${options.map(([value, text]) =>
+            `<option value="${esc(value)}"${value === proposal ? " selected" : ""}>${esc(value)} = ${esc(text)}</option>`).join("")}</select>`
+        : `<input id="ctl-step-value" name="value" type="number" step="any" value="${esc(proposal)}"` +
+          `${f.min !== null ? ` min="${esc(f.min)}"` : ""}${f.max !== null ? ` max="${esc(f.max)}"` : ""}>`;
+      return `<div id="ctl-step-form" class="ctl-step-form" data-ref="${esc(f.ref)}">` +
+        `<label for="ctl-step-value"><strong>${esc(label)}</strong></label> ${input} <span>${esc(unit)}</span>` +
+        `<div class="muted"><span id="ctl-step-range">${esc(range)}</span> · ${esc(presentLabel)} ` +
+        `<span id="ctl-step-present" class="mono">…</span></div>` +
+        (f.help ? `<div class="small-text">${esc(f.help)}</div>` : "") +
+        (f.source ? `<div class="muted small-text">${esc(sourceLabel)} ${esc(f.source)}</div>` : "") + `</div>`;
+    }
+
+    async function showPresent(field) {
+      const answer = await request("GET", `${api.replace(/\/control$/, "")}/parameters/${encodeURIComponent(field.ref)}`);
+      const slot = runBox.querySelector("#ctl-step-present");
+      if (!slot || runBox.querySelector("#ctl-step-form").dataset.ref !== field.ref) return;
+      slot.textContent = answer.status === 200 ? answer.data.display
+        : _("not read ({reason})", { reason: (answer.data && answer.data.detail) || answer.status });
+    }
+
+    function stepValue() {
+      const input = runBox.querySelector("#ctl-step-value");
+      if (!input || input.value.trim() === "") return {};
+      const number = Number(input.value);
+      return { value: Number.isFinite(number) ? number : input.value };
+    }
+
+    async function showRun(found) {  // a reload shows where this node's last run stands
+      if (!found) return;
+      runId = found.id;
+      renderRun(found);
     }
 
     const startButton = panel.querySelector("#ctl-seq-start");
@@ -355,8 +406,11 @@
         nextButton.disabled = true;
         const slot = document.createElement("div");
         const what = step ? _("Step {number}: {title}", { number: step.number, title: step.title }) : "";
-        const run = await call("POST", `${api}/runs/${runId}/next`, {}, slot, what);
+        const run = await call("POST", `${api}/runs/${runId}/next`, stepValue(), slot, what);
         if (run) renderRun(run); else { runBox.prepend(slot); nextButton.disabled = refused || watching; }
+      });
+      request("GET", `${api}/runs`).then((answer) => {
+        if (answer.status === 200 && !runId) showRun(answer.data.find((r) => !r.finished) || answer.data[0]);
       });
     }
 

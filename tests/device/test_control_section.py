@@ -14,7 +14,7 @@ from drivebench.device.control import ControlSection, Sequence
 from drivebench.device.loader import ProfileRegistry, load_profile_file
 from drivebench.services.control.drive_words import family_of_profile
 
-SEEDS = {"siemens-micromaster4-canopen": ("cia402", ["mm-velocity", "mm-torque"]),
+SEEDS = {"siemens-micromaster4-canopen": ("cia402", ["mm-velocity", "mm-torque", "mm-quick"]),
          "lenze-8200-vector-emf2178ib": ("emf2178ib", ["emf-8200"]),
          "lenze-93xx-emf2178ib": ("emf2178ib-aif", ["emf-93xx"]),
          "lenze-8400-motec-canopen": ("lenze8400", ["l8400"])}

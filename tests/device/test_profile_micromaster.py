@@ -167,14 +167,17 @@ def test_counts(profile: Profile) -> None:
     """What was extracted from the manual; an edit that drops entries fails here."""
     assert len(profile.objects) == 112
     assert len({o.index for o in profile.objects}) == 52
-    assert len(profile.parameters) == 74  # + r0026, r0027, r0031, r0037 (actual values, MM440 parameter list)
-    assert len({p.code for p in profile.parameters}) == 54
+    # + r0026, r0027, r0031, r0037 (actual values, MM440 parameter list); + P0010, P0100, P0300, P0304, P0305, P0307,
+    # P0308, P0309, P0310, P0311, P3900 (quick commissioning, issue 30)
+    assert len(profile.parameters) == 85
+    assert len({p.code for p in profile.parameters}) == 65
     assert len(profile.emcy_codes) == 63
     groups = Counter(p.group for p in profile.parameters) + Counter(o.group for o in profile.objects)
     assert set(groups) == set(profile.groups)
     assert all(entry.default is not None or entry.default_expr is not None
                for entry in profile.objects if entry.access.readable)
-    assert all(par.default is not None for par in profile.parameters)
+    # a default no read source gives stays empty, and the entry's source says so
+    assert all(par.default is not None or "not read" in (par.source or "") for par in profile.parameters)
 
 
 def test_mapping_changes_on_a_valid_pdo_as_the_manual_does(profile: Profile) -> None:

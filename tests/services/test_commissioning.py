@@ -38,7 +38,8 @@ def _walk(runner: asyncio.Runner, session: Session, run: Run, stop_before: int |
 
 def test_offered_sequences_per_device(bench: tuple[asyncio.Runner, Session]) -> None:
     _, session = bench
-    assert [seq.key for seq in commissioning.sequences_for(session.node(MM))] == ["mm-velocity", "mm-torque"]
+    assert [seq.key for seq in commissioning.sequences_for(session.node(MM))] == ["mm-velocity", "mm-torque",
+                                                                                  "mm-quick"]
     assert [seq.key for seq in commissioning.sequences_for(session.node(VECTOR))] == ["emf-8200"]
     assert [seq.key for seq in commissioning.sequences_for(session.node(5))] == ["l8400"]
 

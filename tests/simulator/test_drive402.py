@@ -188,3 +188,22 @@ def test_reverse_bit_turns_the_motor_left(plant: Plant, script: WireScript) -> N
     _poll_until(script, lambda: drive.speed_rpm <= -300)
     assert not _sw(script) & 0x4000
     assert plant.nodes[MM].store.get(0x6044, 0) == -300
+
+
+def test_quick_commissioning_gating_on_the_wire(plant: Plant, script: WireScript) -> None:
+    """Issue 30: motor data are written only while P0010 = 1; otherwise the drive answers the CANopen manual's
+    abort 0x08000022 ("the task cannot be executed due to the operating state", table of ch. 3.2.4). P3900 = 3
+    ends quick commissioning: P0010 reads 0 again, and the motor data stay locked. The rated current P0305 is
+    the motor model's."""
+    store = plant.nodes[MM].store
+    refused = script.sdo(MM, "2b 30 21 00 90 01 00 00")  # P0304 (0x2130) = 400 V while P0010 = 0
+    assert refused.hex(" ") == "80 30 21 00 22 00 00 08" and store.get_ref("P0304") == 0
+    assert script.sdo(MM, "2b 0a 20 00 01 00 00 00")[:4].hex(" ") == "60 0a 20 00"  # P0010 = 1
+    assert script.sdo(MM, "2b 30 21 00 90 01 00 00")[:4].hex(" ") == "60 30 21 00"
+    assert script.sdo(MM, "23 31 21 00 33 33 73 40")[:4].hex(" ") == "60 31 21 00"  # P0305 = 3.8 A (REAL32)
+    drive = plant.nodes[MM].drive
+    assert drive is not None and drive.motor.rated_current_a == pytest.approx(3.8)
+    assert script.sdo(MM, "2b 3c 2f 00 03 00 00 00")[:4].hex(" ") == "60 3c 2f 00"  # P3900 = 3
+    assert script.sdo(MM, "40 0a 20 00 00 00 00 00")[:6].hex(" ") == "4b 0a 20 00 00 00"  # P0010 = 0 again
+    assert script.sdo(MM, "2b 30 21 00 2c 01 00 00").hex(" ") == "80 30 21 00 22 00 00 08"
+    assert store.get_ref("P0304") == 400

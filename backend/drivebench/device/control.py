@@ -220,9 +220,14 @@ class ControlSection(_Model):
 # --- commissioning ---------------------------------------------------------------------------------------------
 class Step(_Model):
     title: str
-    kind: Literal["sdo", "nmt_start", "pdo", "check"]
+    kind: Literal["sdo", "nmt_start", "pdo", "check", "parameter"]
     """``sdo``: download ``data`` to index/sub; ``nmt_start``; ``pdo``: send ``data`` on ``cob`` + node id;
-    ``check``: read ``expect_ref``."""
+    ``check``: read ``expect_ref``; ``parameter``: write ``ref`` with the value the user gives (else ``proposal``)
+    through the checked write, read back."""
+    ref: str | None = None
+    """The parameter a ``parameter`` step sets (a vendor code or an index)."""
+    proposal: int | float | str | None = None
+    """The value the form offers for a ``parameter`` step; without one the user must give a value."""
     index: Word = 0
     sub: int = 0
     data: HexBytes = b""
@@ -234,6 +239,12 @@ class Step(_Model):
     """The request as the manual prints it."""
     moves: bool = False
     note: str | None = None
+
+    @model_validator(mode="after")
+    def _parameter_named(self) -> Step:
+        if self.kind == "parameter" and not self.ref:
+            raise ValueError(f"step '{self.title}': a parameter step names its parameter (ref)")
+        return self
 
 
 class Sequence(_Model):

@@ -82,6 +82,29 @@ class Motion(BaseModel):
     """Where the manual says so (edition, chapter, page)."""
 
 
+class WriteGate(BaseModel):
+    """The device accepts a write of this entry only while another parameter holds one of ``values`` (MICROMASTER:
+    motor data only while P0010 = 1); otherwise it answers the SDO abort ``abort_code``."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    ref: str
+    values: list[int]
+    abort_code: HexInt
+    source: str | None = None
+
+
+class WriteEffect(BaseModel):
+    """What the device does itself when this entry is written with one of ``values`` (any value when empty): it sets
+    the parameters of ``sets`` (MICROMASTER: P3900 = 1...3 ends quick commissioning, P0010 back to 0)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    values: list[int] = Field(default_factory=list)
+    sets: dict[str, Value]
+    source: str | None = None
+
+
 class Entry(BaseModel):
     """Fields shared by CANopen objects and vendor parameters: one readable/writable value."""
 
@@ -107,6 +130,13 @@ class Entry(BaseModel):
     """Takes effect only after reset node (C00350, C00351 ...)."""
     group: str | None = None
     description: str | None = None
+    description_de: str | None = None
+    """The short help text in German: the German UI shows it instead of ``description``."""
+    source: str | None = None
+    """Where range, default, unit and selection come from (document, edition, page or table), and what no source
+    gave (left empty, never guessed)."""
+    writable_when: WriteGate | None = None
+    on_write: list[WriteEffect] = Field(default_factory=list)
     motion: Motion | None = None
     """Writing it can make the drive move (see :class:`Motion`)."""
     live: Literal["process data", "volatile"] | None = None

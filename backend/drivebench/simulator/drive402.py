@@ -33,7 +33,7 @@ from drivebench.simulator.store import RawValue
 CYCLE_S = 0.008
 BICO_TORQUE_CONTROL = 0x082B000C  # r2091.12 -> P1501
 BICO_TORQUE_SETPOINT = 0x08020004  # r2050.4 -> P1503
-RATED_CURRENT_A = 1.9  # demo motor: 0.75 kW, 4 poles, 400 V (no P0305 in the profile; an assumption)
+RATED_CURRENT_A = 1.9  # demo motor: 0.75 kW, 4 poles, 400 V (an assumption) while P0305 holds no rated current
 
 
 class State402(Enum):
@@ -127,7 +127,7 @@ class Drive402(StateMachine402):
         self.torque_permille = 0.0
         self.ramping = False
         self._speed_before = 0.0
-        self.motor = MotorModel(RATED_CURRENT_A, self._param("r0037", 35.0))
+        self.motor = MotorModel(self._rated_current(), self._param("r0037", 35.0))
         self._next_cycle = 0.0
         self.store.add_write_hook(self.on_write)
         self.reset()
@@ -145,6 +145,11 @@ class Drive402(StateMachine402):
             return default
         value = self.store.get(index, 0)
         return int(value) if isinstance(value, (int, float)) else default
+
+    def _rated_current(self) -> float:
+        """The motor's rated current P0305 as quick commissioning set it; the demo motor's while it is 0."""
+        rated = self._param("P0305", 0.0)
+        return rated if rated > 0 else RATED_CURRENT_A
 
     def _can_control(self) -> bool:
         return self._param("P0700", 6) == 6
@@ -178,6 +183,8 @@ class Drive402(StateMachine402):
 
     # --- control word --------------------------------------------------------------------------------------
     def on_write(self, index: int, sub: int, raw: RawValue) -> None:
+        if sub == 0 and isinstance(raw, float):  # motor data (P0305) change the motor model's current
+            self.motor.rated_current_a = self._rated_current()
         if sub != 0 or not isinstance(raw, int):
             return
         if index == 0x6040:

@@ -180,11 +180,30 @@ class ObjectStore:
             data = self._sized(slot.data_type, data)
             raw = decode(slot.data_type, data)
             self._check_range(slot.entry, raw)
+            self._check_gate(slot.entry)
             for check in self._checks:
                 check(index, sub, raw)
             slot.value = raw
         for hook in self._hooks:
             hook(index, sub, raw)
+        self._effects(slot.entry, raw)
+
+    def _check_gate(self, entry: Entry) -> None:
+        """The profile's ``writable_when``: the write is refused with its abort unless the other parameter holds
+        one of the values (MICROMASTER motor data only while P0010 = 1)."""
+        gate = entry.writable_when
+        if gate is not None and self.get_ref(gate.ref) not in gate.values:
+            raise Abort(gate.abort_code)
+
+    def _effects(self, entry: Entry, raw: RawValue) -> None:
+        """The profile's ``on_write``: what the device sets itself after the write (P3900 ends quick commissioning:
+        P0010 back to 0)."""
+        for effect in entry.on_write:
+            if not effect.values or raw in effect.values:
+                for ref, value in effect.sets.items():
+                    item = self.catalog.resolve(ref)
+                    self.set(item.index, item.subindex, default_raw(item.entry.model_copy(update={"default": value}),
+                                                                    self.node_id))
 
     def _sized(self, data_type: DataType, data: bytes) -> bytes:
         """``data`` at the object's size, or the abort the device answers for a length that does not fit."""

@@ -27,12 +27,14 @@ from dataclasses import dataclass, field
 import can
 from pydantic import BaseModel
 
+from drivebench import i18n
 from drivebench.device.catalog import index_ref
 from drivebench.device.control import Sequence, Step
 from drivebench.device.motion import moves, standard_motion
 from drivebench.errors import (
     Conflict,
     DriveBenchError,
+    InvalidValue,
     NotFound,
     SdoAbortError,
     ServiceError,
@@ -51,6 +53,12 @@ __all__ = ["Run", "RunOut", "Sequence", "Step", "StepWrite", "Wizard", "next_ste
            "wizard"]
 
 ANSWER_TIMEOUT_S = 3.0
+
+
+class StepValueMissing(InvalidValue):
+    """A ``parameter`` step run without a value and without a proposal."""
+
+
 AUDIT_ORIGIN = "commissioning"
 """The origin of a step's writes in the audit log."""
 
@@ -81,12 +89,29 @@ class StepResult(BaseModel):
     message: str
 
 
+class FieldOut(BaseModel):
+    """What the guided form shows for a ``parameter`` step: the parameter as the profile describes it."""
+
+    ref: str
+    name: str
+    unit: str | None
+    min: float | int | None
+    max: float | int | None
+    default: float | int | str | None
+    selection: dict[int, str]
+    help: str | None
+    source: str | None
+    proposal: float | int | str | None
+
+
 class StepOut(BaseModel):
     number: int
     title: str
     printed: str | None
     moves: bool
     note: str | None
+    field: FieldOut | None = None
+    """A ``parameter`` step: the parameter it sets and the value the profile proposes."""
 
 
 class RunOut(BaseModel):
@@ -156,7 +181,7 @@ def _capture_for(node: SessionNode, step: Step) -> _Capture:
     muxes: set[tuple[int, int]] = set()
     if step.kind == "sdo":
         muxes.add((step.index, step.sub))
-    refs = [step.expect_ref] if step.expect_ref else []
+    refs = [ref for ref in (step.expect_ref, step.ref) if ref]
     fam = drive_control.family(node) if step.kind == "pdo" else None
     if fam is not None:
         refs.append(fam.status_ref)  # read when TPDO1 does not come
@@ -209,13 +234,29 @@ class Run:
                                                                           where=_(self.writer.where),
                                                                           node=self.node_id))
 
-    def public(self) -> RunOut:
+    def public(self, node: SessionNode | None = None) -> RunOut:
         seq = self.sequence
         return RunOut(id=self.id, node_id=self.node_id, sequence=seq.key, title=seq.title, source=seq.source,
                       preconditions=list(seq.preconditions),
-                      steps=[StepOut(number=n + 1, title=s.title, printed=s.printed, moves=s.moves, note=s.note)
+                      steps=[StepOut(number=n + 1, title=s.title, printed=s.printed, moves=s.moves, note=s.note,
+                                     field=field_of(node, s) if node is not None else None)
                              for n, s in enumerate(seq.steps)],
                       position=self.position, results=self.results, finished=self.finished, failed=self.failed)
+
+
+def field_of(node: SessionNode, step: Step) -> FieldOut | None:
+    """The form field of a ``parameter`` step (None for other steps and for a parameter the device lacks)."""
+    if step.kind != "parameter" or step.ref is None or node.catalog is None:
+        return None
+    try:
+        item = node.catalog.resolve(step.ref)
+    except UnknownParameter:
+        return None
+    entry, language = item.entry, i18n.current()
+    helptext = entry.description_de if language == "de" and entry.description_de else entry.description
+    return FieldOut(ref=item.ref, name=item.name_for(language), unit=entry.unit, min=entry.min, max=entry.max,
+                    default=entry.default, selection=dict(entry.selection), help=helptext, source=entry.source,
+                    proposal=step.proposal)
 
 
 @dataclass(frozen=True)
@@ -226,9 +267,18 @@ class StepWrite:
     value: object
 
 
-def step_write(node: SessionNode, step: Step) -> StepWrite:
-    """The profile's item at the step's index/subindex and the value of the step's bytes in its data type (scaled
-    as the item is); an address the profile does not list is written as the bytes."""
+def step_write(node: SessionNode, step: Step, value: object = None) -> StepWrite:
+    """A ``parameter`` step: its parameter and the user's ``value`` (else the profile's proposal; a step without
+    either is refused in words). An SDO step: the profile's item at the step's index/subindex and the value of the
+    step's bytes in its data type (scaled as the item is); an address the profile does not list is written as the
+    bytes."""
+    if step.kind == "parameter":
+        assert step.ref is not None
+        given = step.proposal if value is None or value == "" else value
+        if given is None:
+            raise StepValueMissing(_("{ref}: this step needs a value (no proposal in the profile); enter it in the "
+                                     "form. Nothing was sent.").format(ref=step.ref))
+        return StepWrite(step.ref, given)
     item = node.catalog.by_address(step.index, step.sub) if node.catalog is not None else None
     if item is None:
         return StepWrite(index_ref(step.index, step.sub), step.data.hex(" "))
@@ -250,6 +300,8 @@ def step_moves(node: SessionNode, step: Step) -> bool:
     of operation, a control word that enables)."""
     if step.moves or step.kind == "nmt_start":
         return True
+    if step.kind == "parameter":  # judged again with the value given when it runs
+        return step.proposal is not None and _writes_moving(node, step_write(node, step))
     if step.kind != "sdo":
         return False
     ref = index_ref(step.index, step.sub)
@@ -260,6 +312,14 @@ def step_moves(node: SessionNode, step: Step) -> bool:
     if item is None:
         return standard_motion(step.index, step.sub) is not None
     return moves(item, int.from_bytes(step.data, "little"), node.profile) is not None
+
+
+def _writes_moving(node: SessionNode, write: StepWrite) -> bool:
+    try:
+        item, raw = parameters.checked_raw(node, write.ref, write.value, check=False)
+    except DriveBenchError:
+        return False
+    return isinstance(raw, int) and moves(item, raw, node.profile) is not None
 
 
 class Wizard:
@@ -282,6 +342,10 @@ class Wizard:
         run = Run(uuid.uuid4().hex[:12], node.node_id, sequence, writer=writer)
         self.runs[run.id] = run
         return run
+
+    def of_node(self, node_id: int) -> list[Run]:
+        """The node's runs, the latest first: a reloaded page shows where the last one stands."""
+        return [run for run in reversed(self.runs.values()) if run.node_id == node_id]
 
     def get(self, run_id: str, node_id: int | None = None) -> Run:
         """The run; with ``node_id``, only when it was started for that node."""
@@ -341,8 +405,18 @@ async def _send_and_wait_state(session: Session, node: SessionNode, cob_id: int,
         session.remove_frame_listener(tap)
 
 
-async def _execute(session: Session, node: SessionNode, step: Step) -> str | None:
+async def _execute(session: Session, node: SessionNode, step: Step, value: object = None) -> str | None:
     """Run one step; the problem as text, or None when the answer is the expected one."""
+    if step.kind == "parameter":
+        write = step_write(node, step, value)
+        try:
+            result = await parameters.write(session, node.node_id, write.ref, write.value, verify=True)
+        except SdoAbortError as exc:
+            return _("SDO abort 0x{code} ({text}): {ref} was not written.").format(
+                code=f"{exc.abort_code:08X}", text=exc.abort_text, ref=write.ref)
+        if result.verified is False:
+            return _("{ref} reads back {mismatch}.").format(ref=write.ref, mismatch=result.mismatch or "")
+        return None
     if step.kind == "sdo":
         write = step_write(node, step)
         try:
@@ -380,10 +454,12 @@ async def _execute(session: Session, node: SessionNode, step: Step) -> str | Non
 
 
 async def next_step(session: Session, node: SessionNode, run: Run, *, confirm: object = None,
-                    panel: drive_control.Panel = drive_control.SERVICE_PANEL) -> Run:
-    """Run the next step of ``run`` on its own node, for the writer that started it. The step's value is checked
-    against the profile before anything is sent (422 with the range); a step that can move the drive needs
-    ``confirm`` naming the node (428); while another panel holds the armed drive, this panel cannot run steps."""
+                    panel: drive_control.Panel = drive_control.SERVICE_PANEL, value: object = None) -> Run:
+    """Run the next step of ``run`` on its own node, for the writer that started it. The step's value (for a
+    ``parameter`` step ``value``, else the profile's proposal) is checked against the profile before anything is
+    sent (422 with the range); a step that can move the drive needs ``confirm`` naming the node (428); while
+    another panel holds the armed drive, this panel cannot run steps. A ``parameter`` step the device refuses
+    (an SDO abort) stays the next step: the user corrects the value and runs it again."""
     run.check_node(node.node_id)
     run.check_runner(node_lease.current_writer.get())
     async with run.lock:
@@ -391,29 +467,33 @@ async def next_step(session: Session, node: SessionNode, run: Run, *, confirm: o
             raise Conflict(_("This commissioning run is finished; start it again to repeat it."))
         step = run.sequence.steps[run.position]
         values = step_values(step, node.node_id)
-        if step.kind == "sdo":  # the profile's range, selection and access: refused before anything is sent
-            write = step_write(node, step)
-            values = parameters.sent_values(*parameters.checked_raw(node, write.ref, write.value))
+        moving = step.moves
+        if step.kind in ("sdo", "parameter"):  # the profile's range, selection, access: refused before sending
+            write = step_write(node, step, value)
+            item, raw = parameters.checked_raw(node, write.ref, write.value)
+            values = parameters.sent_values(item, raw)
+            if step.kind == "parameter":
+                moving = isinstance(raw, int) and moves(item, raw, node.profile) is not None
         guard = drive_control.guard_for(session)
         named = _("Step {number} ({title})").format(number=run.position + 1, title=step.title)
         guard.check(node.node_id, panel, named)
         with node_lease.writing(session, node.node_id):
-            if step.moves:  # confirmed with the values it sends: the step's write is then admitted as confirmed
+            if moving:  # confirmed with the values it sends: the step's write is then admitted as confirmed
                 drive_guard.confirm_moving(session, node.node_id, named, values, confirm=confirm)
                 if step.kind == "nmt_start":  # as drive_guard.nmt: stays armed until NMT leaves Operational
                     guard.started.add(node.node_id)
                 guard.arm(node.node_id, panel, pinned=step.kind == "nmt_start")
-            await _run_step(session, node, run, step)
+            await _run_step(session, node, run, step, value)
         return run
 
 
-async def _run_step(session: Session, node: SessionNode, run: Run, step: Step) -> None:
+async def _run_step(session: Session, node: SessionNode, run: Run, step: Step, value: object = None) -> None:
     capture = _capture_for(node, step)
     session.add_frame_listener(capture)
     t0 = time.time()
     try:
         with audit.acting(AUDIT_ORIGIN):
-            problem = await _execute(session, node, step)
+            problem = await _execute(session, node, step, value)
     except ServiceError:
         raise  # refused (lease, confirmation, holder): nothing of the step was done, the run stays there
     except DriveBenchError as exc:
@@ -424,6 +504,8 @@ async def _run_step(session: Session, node: SessionNode, run: Run, step: Step) -
     run.results.append(StepResult(number=run.position + 1, title=step.title, printed=step.printed,
                                   telegrams=_telegrams(capture, t0), ok=problem is None,
                                   message=problem or _("Answer as expected.")))
+    if problem is not None and step.kind == "parameter":
+        return  # refused by the device: the step stays next, to be run again with another value
     if problem is not None:
         run.failed = _("Stopped at step {number} ({title}): {problem}").format(number=run.position + 1,
                                                                                 title=step.title, problem=problem)

@@ -41,6 +41,11 @@ def _given(request: Request, body: Confirmed | None) -> Confirmation | None:
     return confirmation(request, body and body.confirm, body and body.confirm_values)
 
 
+class StepIn(Confirmed):
+    value: float | int | str | None = Field(None, description="A parameter step's value in the parameter's units "
+                                                              "(else the profile's proposal)")
+
+
 class SetpointIn(Confirmed):
     value: float = Field(description="Setpoint in the unit the status names (rpm, Hz, %, permille)")
 
@@ -182,20 +187,27 @@ async def sequences(node: NodeDep) -> list[SequenceOut]:
 async def start_run(session: SessionDep, node: NodeDep, key: str) -> RunOut:
     """Start a run for this node; it takes the node's write lease (409 while another writer holds it) and belongs
     to this writer (principal and panel)."""
-    return commissioning.wizard(session).start(session, node, key).public()
+    return commissioning.wizard(session).start(session, node, key).public(node)
+
+
+@router.get("/runs", response_model=list[RunOut])
+async def runs(session: SessionDep, node: NodeDep) -> list[RunOut]:
+    """The node's commissioning runs, the latest first: a reloaded page shows where the last one stands."""
+    return [run.public(node) for run in commissioning.wizard(session).of_node(node.node_id)]
 
 
 @router.get("/runs/{run_id}", response_model=RunOut)
 async def get_run(session: SessionDep, node: NodeDep, run_id: str) -> RunOut:
-    return commissioning.wizard(session).get(run_id, node.node_id).public()
+    return commissioning.wizard(session).get(run_id, node.node_id).public(node)
 
 
 @router.post("/runs/{run_id}/next", response_model=RunOut)
 async def next_step(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep, run_id: str,
-                    body: Confirmed | None = None) -> RunOut:
+                    body: StepIn | None = None) -> RunOut:
     """Run the next step of a run of this node, started by this writer (404 for another node's run, 409 for another
     writer's); a step that can turn the motor needs the confirmation naming the node and the values the step sends;
     a step value outside the profile's range is refused (422) before anything is sent."""
     run = commissioning.wizard(session).get(run_id, node.node_id)
-    await commissioning.next_step(session, node, run, confirm=_given(request, body), panel=panel)
-    return run.public()
+    await commissioning.next_step(session, node, run, confirm=_given(request, body), panel=panel,
+                                  value=body.value if body is not None else None)
+    return run.public(node)
