@@ -323,13 +323,13 @@ async def stored_report(request: Request, download_id: int, jobs: JobsDep) -> Re
     except DriveBenchError as exc:
         return _error(request, exc)
     return _render(request, "report", {"download": shown, "report": shown.report, "notes": [],
-                                       "state": shown.state})
+                                       "state": shown.state, "outcome": shown.outcome, "error": None})
 
 
 def _job_context(job: Job, jobs: JobManager) -> dict[str, Any]:
     out = set_job_out(job)
     context: dict[str, Any] = {"job": out, "report": out.report, "notes": out.notes, "download": None,
-                               "state": out.download_state or out.state}
+                               "state": out.download_state or out.state, "outcome": out.outcome, "error": out.error}
     download_id = job.result.get("download_id")
     if job.state.finished and download_id is not None:
         context["download"] = download_out(store().download(int(download_id)), jobs)
