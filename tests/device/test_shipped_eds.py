@@ -25,8 +25,8 @@ from drivebench.protocol.datatypes import DataType
 JSON_FILES = sorted(p.name for p in settings.profiles_dir.glob("*.json"))
 NODE_ID = 5
 # Profile fields an EDS has no key for (DriveBench-only knowledge: cross references, selection texts, groups, motion
-# marks - CiA 402 objects get theirs again from the standard).
-NOT_IN_EDS = {"code", "selection", "bits", "reset_required", "group", "motion"}
+# marks - CiA 402 objects get theirs again from the standard - and process-data marks, which parameter sets use).
+NOT_IN_EDS = {"code", "selection", "bits", "reset_required", "group", "motion", "live"}
 PARAMETER_FIELDS = ["data_type", "access", "unit", "factor", "min", "max", "default", "pdo_mappable", "description"]
 
 

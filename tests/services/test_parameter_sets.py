@@ -246,7 +246,7 @@ def test_download_meets_read_only_and_out_of_range_mid_way_then_retry_and_rollba
         set_jobs.start_download(bench.session, 5, bench.jobs, bench.store, new_set)
     job = bench.finish(lambda: confirmed_now(set_jobs.start_download, bench.session, 5, bench.jobs, bench.store,
                                              new_set, save=True, confirm=5))
-    assert job.state is JobState.DONE
+    assert job.state is JobState.INCOMPLETE  # three values did not go in (issue 28 item 5)
     report = {line["ref"]: line for line in job.result["report"]}
     assert len(report) == len(wanted)
     assert report["C00011"]["status"] == "failed" and report["C00011"]["abort_code"] == "0x06010002"

@@ -99,6 +99,8 @@ class Job:
     same_as: str | None = None
     failures_leave_incomplete: bool = False
     """A failed item makes the job end ``incomplete`` (a read: the value is missing), not only items not done."""
+    concluded: tuple[JobState, str | None] | None = None
+    """How the work judged its own end (:meth:`conclude`), instead of the counts."""
     _version: int = 0
     _changed: asyncio.Condition | None = None
     _waiters: int = 0
@@ -117,6 +119,11 @@ class Job:
         self.done += count
         self.not_done += count
         self._notify()
+
+    def conclude(self, state: JobState, error: str | None = None) -> None:
+        """The work says how it ended (a download judges by its report: done, incomplete, or failed with why);
+        the job finishes so when the work returns."""
+        self.concluded = (state, error)
 
     def add_total(self, count: int) -> None:
         self.total += count
@@ -216,6 +223,9 @@ class JobManager:
             return
         except Exception as exc:  # a failed job reports why; the server keeps running
             job._finish(JobState.FAILED, said(exc))
+            return
+        if job.concluded is not None:
+            job._finish(*job.concluded)
             return
         incomplete = job.not_done or (job.failed and job.failures_leave_incomplete)
         job._finish(JobState.INCOMPLETE if incomplete else JobState.DONE)

@@ -8,8 +8,10 @@ A download never stops silently halfway:
 2. it writes only what differs, in a dependency-safe order (parameters that take effect after reset node last,
    communication ones - node address, baud rate, COB-IDs - at the very end), each verified by read-back;
 3. every parameter ends in the report as ``written``, ``unchanged``, ``mismatch`` (the device holds another value),
-   ``failed`` (with the abort code and text; the value the device now holds is read again) or ``not attempted``
-   (the node fell silent, or the job was cancelled) - and the report is stored whatever happens;
+   ``not verified`` (written, but it could not be read back), ``failed`` (with the abort code and text; the value
+   the device now holds is read again) or ``not attempted`` (the node fell silent, or the job was cancelled) - and
+   the report is stored whatever happens; the job and the stored download end ``done``, ``incomplete`` or
+   ``failed`` by those lines (:mod:`~drivebench.services.sets.download_outcome`);
 4. every write goes through :func:`parameters.write`, so the audit log has a row for it.
 """
 
@@ -27,12 +29,20 @@ from drivebench import i18n
 from drivebench.device.catalog import Item
 from drivebench.device.motion import moves
 from drivebench.device.profile import Profile
-from drivebench.errors import Conflict, DriveBenchError, SdoAbortError, SdoTimeoutError, UnknownParameter
+from drivebench.errors import (
+    Conflict,
+    DriveBenchError,
+    SdoAbortError,
+    SdoTimeoutError,
+    UnknownParameter,
+    WriteOutcomeUnknown,
+)
 from drivebench.i18n import N_, Text, _
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.control import drive_guard
 from drivebench.services.params import parameters
 from drivebench.services.params.jobs import Job, JobIssue, JobManager, said
+from drivebench.services.sets.download_outcome import FAILED, NOT_WRITTEN, outcome_of
 from drivebench.services.sets.parameter_sets import (
     SERVER,
     ParameterSetStore,
@@ -57,9 +67,9 @@ SHOWN_WORDS = (N_("running"), N_("done"), N_("incomplete"), N_("cancelled"), N_(
                N_("only right"), N_("unreadable"))
 """The states, kinds, report statuses, audit results and compare kinds of the sets page: English in the API, the
 database and CSS classes; the page shows them through _()."""
-REDO = ("failed", "mismatch", "not attempted")
+REDO = ("failed", "mismatch", "not attempted", "not verified")
 """Report states a retry writes again."""
-CHANGED = ("written", "mismatch", "failed")
+CHANGED = ("written", "not verified", "mismatch", "failed")
 """Report states a rollback restores (a failed write may still have changed the value)."""
 WHAT_WRITES = {"download": N_("A download that writes {refs}"), "retry": N_("A retry that writes {refs}"),
                "rollback": N_("A rollback that writes {refs}")}
@@ -237,15 +247,45 @@ def _check_target(node: SessionNode, stored: StoredSet) -> Profile:
 
 
 # --- download, retry, rollback -----------------------------------------------------------------------------
-async def held_moving(session: Session, node_id: int, stored: StoredSet) -> Values:
-    """What the node holds now of the set's values that can move the drive (read now): a download writes only what
-    differs, so its confirmation names only those of them it changes (``start_download(held=...)``)."""
-    node = session.node(node_id)
-    profile = _check_target(node, stored)
+async def held_moving(session: Session, node_id: int, targets: Values) -> Values:
+    """What the node holds now of the ``targets`` that can move the drive (read now). A download, a retry and a
+    rollback write only what differs, so each confirmation names only the moving values it changes: the route reads
+    them with this and hands them to the job (``held=...``). ``targets``: :func:`download_targets`,
+    :func:`retry_targets` or :func:`rollback_targets`."""
+    profile = _profile(session.node(node_id))
     catalog = catalog_for(profile)
-    refs = [ref for ref, raw in stored.values.items() if isinstance(raw, (int, float))
+    refs = [ref for ref, raw in targets.items() if isinstance(raw, (int, float))
             and (item := _resolve(catalog, ref)) is not None and moves(item, raw, profile) is not None]
     return (await device_source(session, node_id, refs)).values if refs else {}
+
+
+def download_targets(session: Session, node_id: int, stored: StoredSet, only: list[str] | None = None) -> Values:
+    """What a download of ``stored`` (or of its refs ``only``) to the node writes where it differs."""
+    _check_target(session.node(node_id), stored)
+    return {ref: raw for ref, raw in stored.values.items() if only is None or ref in only}
+
+
+def retry_targets(store: ParameterSetStore, download_id: int) -> Values:
+    """What a retry of the download writes again: what it left failed, mismatched, unverified or not attempted."""
+    previous = store.download(download_id)
+    redo = {line["ref"]: line["target_raw"] for line in previous.report
+            if line["status"] in REDO and line.get("target_raw") is not None}
+    if not redo:
+        raise Conflict(_("Download {id} has nothing left to retry").format(id=download_id))
+    return redo
+
+
+def rollback_targets(store: ParameterSetStore, download_id: int) -> Values:
+    """What a rollback of the download writes: the values read first, of everything it changed (or may have)."""
+    previous = store.download(download_id)
+    if previous.report:
+        touched = [line["ref"] for line in previous.report if line["status"] in CHANGED]
+    else:  # interrupted before its report was stored: restore everything it read first
+        touched = list(previous.before)
+    targets = {ref: previous.before[ref] for ref in touched if ref in previous.before}
+    if not targets:
+        raise Conflict(_("Download {id} changed nothing that could be rolled back").format(id=download_id))
+    return targets
 
 
 def start_download(session: Session, node_id: int, jobs: JobManager, store: ParameterSetStore, stored: StoredSet,
@@ -256,8 +296,7 @@ def start_download(session: Session, node_id: int, jobs: JobManager, store: Para
     it will write: with ``held`` (:func:`held_moving`) only those that differ from what the node holds. A value
     that changed on the node meanwhile is not confirmed: its write is refused and reported as failed."""
     node = session.node(node_id)
-    _check_target(node, stored)
-    targets = {ref: raw for ref, raw in stored.values.items() if only is None or ref in only}
+    targets = download_targets(session, node_id, stored, only)
     kind = "download" if only is None else "retry"
     title = Text(N_("Download '{name}' to node {node}") if only is None else N_("Retry '{name}' to node {node}"),
                   name=stored.info.name, node=node_id)
@@ -266,36 +305,32 @@ def start_download(session: Session, node_id: int, jobs: JobManager, store: Para
 
 
 def start_retry(session: Session, jobs: JobManager, store: ParameterSetStore, download_id: int,
-                *, save: bool = False, user: str | None = None, confirm: object = None) -> Job:
-    """Write again what a download left failed, mismatched or not attempted."""
+                *, save: bool = False, user: str | None = None, confirm: object = None,
+                held: Values | None = None) -> Job:
+    """Write again what a download left failed, mismatched, unverified or not attempted; with ``held``
+    (:func:`held_moving` of :func:`retry_targets`) it confirms only the moving values it changes, as a download
+    does."""
     previous = store.download(download_id)
-    redo = {line["ref"]: line["target_raw"] for line in previous.report
-            if line["status"] in REDO and line.get("target_raw") is not None}
-    if not redo:
-        raise Conflict(_("Download {id} has nothing left to retry").format(id=download_id))
+    redo = retry_targets(store, download_id)
     node = session.node(previous.node_id)
     return _start(session, node, jobs, store, redo, kind="retry", save=save, user=user,
                   title=Text(N_("Retry {count} parameters of download {id} on node {node}"), count=len(redo),
                               id=download_id, node=node.node_id),
-                  set_id=previous.set_id, set_version=previous.set_version, confirm=confirm)
+                  set_id=previous.set_id, set_version=previous.set_version, confirm=confirm, held=held)
 
 
 def start_rollback(session: Session, jobs: JobManager, store: ParameterSetStore, download_id: int,
-                   *, save: bool = False, user: str | None = None, confirm: object = None) -> Job:
-    """Write back the values a download read first, for everything it changed (or may have changed)."""
+                   *, save: bool = False, user: str | None = None, confirm: object = None,
+                   held: Values | None = None) -> Job:
+    """Write back the values a download read first, for everything it changed (or may have changed); with ``held``
+    (:func:`held_moving` of :func:`rollback_targets`) it confirms only the moving values it changes."""
     previous = store.download(download_id)
     node = session.node(previous.node_id)
-    if previous.report:
-        touched = [line["ref"] for line in previous.report if line["status"] in CHANGED]
-    else:  # interrupted before its report was stored: restore everything it read first
-        touched = list(previous.before)
-    targets = {ref: previous.before[ref] for ref in touched if ref in previous.before}
-    if not targets:
-        raise Conflict(_("Download {id} changed nothing that could be rolled back").format(id=download_id))
+    targets = rollback_targets(store, download_id)
     return _start(session, node, jobs, store, targets, kind="rollback", save=save, user=user,
                   title=Text(N_("Roll back download {id} on node {node}"), id=download_id, node=node.node_id),
                   set_id=previous.set_id,
-                  set_version=previous.set_version, confirm=confirm)
+                  set_version=previous.set_version, confirm=confirm, held=held)
 
 
 def _start(session: Session, node: SessionNode, jobs: JobManager, store: ParameterSetStore, targets: Values, *,
@@ -333,7 +368,10 @@ def _start(session: Session, node: SessionNode, jobs: JobManager, store: Paramet
                 await writer.read_failed_again()
                 if save:
                     await writer.save()
-            state = "done" if not writer.failures() else "incomplete"
+            outcome = outcome_of(writer.report())
+            state = outcome.state.value
+            job.result["outcome"] = outcome.model_dump()
+            job.conclude(outcome.state, outcome.why_failed())
         except asyncio.CancelledError:
             writer.give_up(Text(N_("cancelled before this parameter was written")))
             state = "cancelled"
@@ -369,7 +407,8 @@ class _Writer:
         return detail
 
     def failures(self) -> list[ReportLine]:
-        return [line for line in self.lines.values() if line.status in REDO]
+        """Lines whose value did not go in (failed, mismatched, not written)."""
+        return [line for line in self.lines.values() if line.status in FAILED + NOT_WRITTEN]
 
     def _publish(self) -> None:
         self.job.result["report"] = self.report()
@@ -401,10 +440,10 @@ class _Writer:
             detail = self._say(line, Text(N_("not a parameter of this device's profile (not sent)")))
             self.job.advance(issue=JobIssue(line.ref, detail or "", self.node.node_id))
             return
-        if self.silence.verdict is not None:
-            detail = self._say(line, Text(N_("node {node} stopped answering; not sent (value as read before)"),
-                                           node=self.node.node_id))
-            self.job.advance(issue=JobIssue(line.ref, detail or "", self.node.node_id))
+        if self.silence.verdict is not None:  # not written: given up, as a read-all gives up a silent node
+            self._say(line, Text(N_("node {node} stopped answering; not sent (value as read before)"),
+                                 node=self.node.node_id))
+            self.job.give_up(1)
             return
         if line.before_raw is not None and same_raw(line.before_raw, target):
             line.status = "unchanged"
@@ -415,7 +454,7 @@ class _Writer:
         except SdoTimeoutError as exc:
             await self.silence.timed_out(exc)
             line.status = "failed"
-            line.now = None
+            line.now = exc.read_back if isinstance(exc, WriteOutcomeUnknown) else None  # its read-back said
             line.now_raw = None
             self.job.advance(issue=JobIssue(line.ref, self._say(line, said(exc)) or "", self.node.node_id))
             return
@@ -433,7 +472,7 @@ class _Writer:
             return
         self.silence.answered()
         state, detail = audit.outcome(result, None)
-        line.status = "mismatch" if state == "mismatch" else "written"
+        line.status = state  # written (and read back), not verified, or mismatch
         self._say(line, detail)
         if result.read_back is not None:
             raw = result.read_back.raw

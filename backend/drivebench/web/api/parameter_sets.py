@@ -23,6 +23,7 @@ from drivebench.i18n import _
 from drivebench.services.params.jobs import Job, JobManager
 from drivebench.services.session_manager import SessionManager
 from drivebench.services.sets import set_formats, set_jobs
+from drivebench.services.sets.download_outcome import DownloadOutcome, outcome_of
 from drivebench.services.sets.parameter_sets import (
     Comparison,
     ParameterSetStore,
@@ -160,6 +161,9 @@ class DownloadOut(BaseModel):
     """``running``, ``done``, ``incomplete`` (some failed), ``cancelled``, ``failed`` or ``interrupted`` (the
     server stopped during it: the values read first are stored, roll back to restore them)."""
     counts: dict[str, int]
+    """Report lines by status."""
+    outcome: DownloadOutcome
+    """Written, verified, failed, not written: what ``state`` is judged by."""
     report: list[ReportLine]
 
 
@@ -168,6 +172,9 @@ class SetJobOut(JobOut):
     version: int | None = None
     download_id: int | None = None
     download_state: str | None = None
+    outcome: DownloadOutcome | None = None
+    """A download, retry or rollback: written, verified, failed, not written so far (its end ``state`` is judged
+    by them: ``done``, ``incomplete``, or ``failed`` when nothing was written)."""
     report: list[ReportLine] = []
 
 
@@ -195,7 +202,8 @@ def download_out(row: DownloadRow, jobs: JobManager) -> DownloadOut:
     return DownloadOut(id=row.id, kind=row.kind, set_id=row.set_id, set_version=row.set_version,
                        session_id=row.session_id, node_id=row.node_id, profile_id=row.profile_id, user=row.user,
                        started=row.started, finished=row.finished, state=set_jobs.download_state(row, jobs),
-                       counts=counts, report=[set_jobs.report_line(line) for line in row.report])
+                       counts=counts, outcome=outcome_of(row.report),
+                       report=[set_jobs.report_line(line) for line in row.report])
 
 
 def set_job_out(job: Job) -> SetJobOut:
@@ -203,6 +211,7 @@ def set_job_out(job: Job) -> SetJobOut:
     report = job.result.get("report", [])
     return SetJobOut(**base.model_dump(), set_id=job.result.get("set_id"), version=job.result.get("version"),
                      download_id=job.result.get("download_id"), download_state=job.result.get("state"),
+                     outcome=None if job.kind == "upload" else outcome_of(report),
                      report=[set_jobs.report_line(line) for line in report])
 
 
@@ -369,7 +378,7 @@ async def download_set(request: Request, set_id: RowId, body: DownloadIn, manage
                        version: RowVersion = None, user: UserHeader = None) -> SetJobOut:
     stored = store().get(set_id, version)
     session = manager.get(body.session_id)
-    held = await set_jobs.held_moving(session, body.node_id, stored)
+    held = await set_jobs.held_moving(session, body.node_id, set_jobs.download_targets(session, body.node_id, stored))
     job = set_jobs.start_download(session, body.node_id, jobs, store(), stored, save=body.save,
                                   user=user_of(user), held=held,
                                   confirm=confirmation(request, body.confirm, body.confirm_values))
@@ -398,7 +407,9 @@ async def retry_download(request: Request, download_id: RowId, manager: ManagerD
                          body: FollowUpIn | None = None, user: UserHeader = None) -> SetJobOut:
     """Write again what the download left failed, mismatched or not attempted."""
     row = store().download(download_id)
-    job = set_jobs.start_retry(manager.get(row.session_id), jobs, store(), download_id,
+    session = manager.get(row.session_id)
+    held = await set_jobs.held_moving(session, row.node_id, set_jobs.retry_targets(store(), download_id))
+    job = set_jobs.start_retry(session, jobs, store(), download_id, held=held,
                                save=bool(body and body.save), user=user_of(user),
                                confirm=confirmation(request, body and body.confirm, body and body.confirm_values))
     return set_job_out(job)
@@ -410,7 +421,9 @@ async def rollback_download(request: Request, download_id: RowId, manager: Manag
                             body: FollowUpIn | None = None, user: UserHeader = None) -> SetJobOut:
     """Write back the values read before the download, for everything it changed (or may have changed)."""
     row = store().download(download_id)
-    job = set_jobs.start_rollback(manager.get(row.session_id), jobs, store(), download_id,
+    session = manager.get(row.session_id)
+    held = await set_jobs.held_moving(session, row.node_id, set_jobs.rollback_targets(store(), download_id))
+    job = set_jobs.start_rollback(session, jobs, store(), download_id, held=held,
                                   save=bool(body and body.save), user=user_of(user),
                                   confirm=confirmation(request, body and body.confirm, body and body.confirm_values))
     return set_job_out(job)

@@ -286,7 +286,7 @@ async def download(request: Request, set_id: RowId, manager: ManagerDep, jobs: J
     try:
         session_id, node_id = _target(form)
         session, stored = manager.get(session_id), store().get(set_id)
-        held = await set_jobs.held_moving(session, node_id, stored)
+        held = await set_jobs.held_moving(session, node_id, set_jobs.download_targets(session, node_id, stored))
         job = set_jobs.start_download(session, node_id, jobs, store(), stored, held=held,
                                       save=form.get("save") == "on", confirm=_confirmation(request, form))
     except DriveBenchError as exc:
@@ -303,9 +303,12 @@ async def follow_up(request: Request, download_id: int, action: str, manager: Ma
         save = form.get("save") == "on"
         confirm = _confirmation(request, form)  # after the page's question, for sets that can move a drive
         if action == "retry":
-            job = set_jobs.start_retry(session, jobs, store(), download_id, save=save, confirm=confirm)
+            held = await set_jobs.held_moving(session, row.node_id, set_jobs.retry_targets(store(), download_id))
+            job = set_jobs.start_retry(session, jobs, store(), download_id, save=save, confirm=confirm, held=held)
         elif action == "rollback":
-            job = set_jobs.start_rollback(session, jobs, store(), download_id, save=save, confirm=confirm)
+            held = await set_jobs.held_moving(session, row.node_id, set_jobs.rollback_targets(store(), download_id))
+            job = set_jobs.start_rollback(session, jobs, store(), download_id, save=save, confirm=confirm,
+                                          held=held)
         else:
             raise InvalidValue(_("Unknown action '{action}'").format(action=action))
     except DriveBenchError as exc:
@@ -320,13 +323,13 @@ async def stored_report(request: Request, download_id: int, jobs: JobsDep) -> Re
     except DriveBenchError as exc:
         return _error(request, exc)
     return _render(request, "report", {"download": shown, "report": shown.report, "notes": [],
-                                       "state": shown.state})
+                                       "state": shown.state, "outcome": shown.outcome, "error": None})
 
 
 def _job_context(job: Job, jobs: JobManager) -> dict[str, Any]:
     out = set_job_out(job)
     context: dict[str, Any] = {"job": out, "report": out.report, "notes": out.notes, "download": None,
-                               "state": out.download_state or out.state}
+                               "state": out.download_state or out.state, "outcome": out.outcome, "error": out.error}
     download_id = job.result.get("download_id")
     if job.state.finished and download_id is not None:
         context["download"] = download_out(store().download(int(download_id)), jobs)
