@@ -374,6 +374,15 @@ class SimulatedNode:
         if cob is not None and self.state is not NmtState.STOPPED:
             self.send(cob, data)
 
+    def fault_bytes(self, number: int) -> bytes:
+        """The five manufacturer-specific EMCY bytes carrying the device's fault number where its profile's
+        ``faults.emcy_number`` puts it (else in the first four bytes)."""
+        where = self.profile.faults.emcy_number if self.profile.faults else None
+        start, length = (where.byte - 3, where.length) if where else (0, 4)
+        data = bytearray(5)
+        data[start:start + length] = (number & ((1 << 8 * length) - 1)).to_bytes(length, "little")
+        return bytes(data)
+
     def clear_emcy(self) -> None:
         """All errors gone: the error-free EMCY (code 0x0000, register 0x00)."""
         self.emcy_active.clear()
