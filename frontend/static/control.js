@@ -141,7 +141,7 @@
       const own = fault.fault;
       const label = own ? own.label : fault.vendor_error;
       if (label) add("strong", label, "fault-label");
-      add("span", own && own.text ? own.text : fault.text, "fault-text");
+      add("span", own && own.text ? own.text : fault.vendor_text || fault.class_text, "fault-text");
       const noText = _("this fault number has no text in the device profile");
       if (own && !own.text) add("span", "(" + noText + ")", "muted");
       if (own && own.fields.length) add("span", `[${own.fields.join(", ")}]`, "muted small-text");
