@@ -104,3 +104,21 @@ def test_the_faults_section_is_in_the_profile_schema(client: TestClient) -> None
     assert "FaultsSection" in str(faults)
     entry = schema["$defs"]["FaultEntry"]
     assert {"number", "text", "source"} <= set(entry["required"]), "every fault entry names its source"
+
+
+def test_faults_of_a_node_in_one_answer(client: TestClient) -> None:
+    drive = _plant(client).nodes[MM]
+    drive.drive.raise_fault(70, 0x7001)  # the simulated MICROMASTER trips: EMCY 0x7001 with F0070
+    _newest_emcy(client, MM, "0x7001")
+    faults = client.get(f"/api/sessions/{SESSION}/nodes/{MM}/faults").json()
+    assert faults["present"]["fault"]["label"] == "F0070"
+    assert [record["fault"]["label"] for record in faults["history"]][:1] == ["F0070"]
+    assert faults["history"][0]["time"] > 0
+    assert [p["ref"] for p in faults["parameters"]] == ["r0947", "r2110"]
+    last_fault = faults["parameters"][0]
+    assert last_fault["display"].startswith("70 = F0070") and last_fault["fault"]["label"] == "F0070", \
+        "the simulated drive keeps its fault in r0947, read from the device and decoded"
+    assert faults["command_note"].startswith("P0700 = 2 (Terminal)")
+    assert "MICROMASTER 440 Parameter List" in faults["not_covered"]
+    motec = client.get(f"/api/sessions/{SESSION}/nodes/{MOTEC}/faults").json()
+    assert [p["ref"] for p in motec["parameters"]] == ["C00168"] and motec["command_note"] is None

@@ -54,3 +54,13 @@ def test_node_12_trip_shows_its_error_number_and_what_the_profile_lacks(
     page.wait_for_selector("#diag-present-fault >> text=0x1000", timeout=TIMEOUT_MS)
     assert "no text in the device profile" in page.locator("#diag-present-fault").inner_text()
     screenshot(page, "fault-words-diagnostics-8200")
+
+
+def test_diagnostics_reads_the_fault_parameters_and_says_why_commands_do_nothing(
+        demo_server: tuple[str, Plant], page: Any) -> None:
+    base, _ = demo_server
+    page.goto(f"{base}/sessions/demo-plant/nodes/3?tab=diagnostics")
+    page.wait_for_selector("#diag-faults >> text=r0947", timeout=TIMEOUT_MS)
+    assert "P0700 = 2 (Terminal)" in page.locator("#diag-command-note").inner_text()
+    assert "MICROMASTER 440 Parameter List" in page.locator("#diag-faults-not-covered").inner_text()
+    screenshot(page, "fault-words-parameters-mm4")

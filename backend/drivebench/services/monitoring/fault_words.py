@@ -4,6 +4,9 @@ the fieldbus (its ``faults.command_source``: one read)."""
 
 from __future__ import annotations
 
+from pydantic import BaseModel
+
+from drivebench.device.faults import DecodedFault, decode_number
 from drivebench.errors import DriveBenchError
 from drivebench.i18n import _
 from drivebench.services.bus.sessions import Session, SessionNode
@@ -44,3 +47,56 @@ async def command_source_note(session: Session, node: SessionNode) -> str | None
                                                                 wanted=wanted)
     return _("{ref} = {value}: the drive takes its commands from elsewhere, not from the fieldbus; set {ref} = "
              "{wanted} for the fieldbus.").format(ref=routing.ref, value=raw, wanted=wanted)
+
+
+class FaultParameter(BaseModel):
+    """A present-fault or fault-history parameter of the profile's ``faults`` section, as read now."""
+
+    ref: str
+    name: str | None = None
+    display: str | None = None
+    fault: DecodedFault | None = None
+    """The number read, in the manual's words (None: 0 = no fault, or not read)."""
+    error: str | None = None
+    """Why it could not be read."""
+
+
+class Faults(BaseModel):
+    node_id: int
+    present: EmcyRecord | None
+    """The emergency still active (from the EMCY consumer)."""
+    history: list[EmcyRecord]
+    """The emergencies that reported an error, newest first, with their times."""
+    parameters: list[FaultParameter]
+    """The profile's present-fault and fault-history parameters, read from the device."""
+    command_note: str | None
+    not_covered: str | None
+    """What the profile's sources did not give."""
+
+
+async def read_fault_parameters(session: Session, node: SessionNode) -> list[FaultParameter]:
+    section = node.profile.faults if node.profile else None
+    if section is None:
+        return []
+    found = []
+    for ref in section.present + section.history:
+        try:
+            value = await parameters.read(session, node.node_id, ref)
+        except DriveBenchError as exc:
+            found.append(FaultParameter(ref=ref, error=str(exc)))
+            continue
+        raw = value.raw
+        fault = decode_number(section, raw) if isinstance(raw, int) and raw else None
+        found.append(FaultParameter(ref=value.ref, name=value.name, display=value.display, fault=fault))
+    return found
+
+
+async def faults(session: Session, node: SessionNode) -> Faults:
+    """Everything the Diagnostics tab and the API say about the node's faults (reads the profile's fault
+    parameters and its command source: a few SDO reads)."""
+    section = node.profile.faults if node.profile else None
+    return Faults(node_id=node.node_id, present=present_fault(session, node),
+                  history=fault_history(session, node.node_id),
+                  parameters=await read_fault_parameters(session, node),
+                  command_note=await command_source_note(session, node),
+                  not_covered=section.not_covered if section else None)
