@@ -122,3 +122,17 @@ def test_faults_of_a_node_in_one_answer(client: TestClient) -> None:
     assert "MICROMASTER 440 Parameter List" in faults["not_covered"]
     motec = client.get(f"/api/sessions/{SESSION}/nodes/{MOTEC}/faults").json()
     assert [p["ref"] for p in motec["parameters"]] == ["C00168"] and motec["command_note"] is None
+
+
+def test_node_12_trip_in_the_monitor_and_the_node_list_names_its_error_number(client: TestClient) -> None:
+    _plant(client).nodes[VECTOR].drive.raise_fault(0x10)  # what TRIP-SET raises in the simulated 8200 vector
+    _newest_emcy(client, VECTOR, "0x1000")
+    nodes = client.get(f"/api/sessions/{SESSION}/nodes").json()
+    vendor = next(n for n in nodes if n["node_id"] == VECTOR)["last_emcy"]["vendor_text"]
+    assert vendor == "Lenze error number 16: Basic device in TRIP, message, warning, FAIL, QSP or persistent fault"
+    rows: list[str] = []
+
+    def traced() -> bool:
+        rows[:] = [str(row) for row in client.get(f"/api/sessions/{SESSION}/monitor/trace?limit=10000").json()["rows"]]
+        return any("Lenze error number 16" in row for row in rows)
+    assert wait_until(traced, 10.0), "the monitor's EMCY row reads the error number from the vendor bytes"
