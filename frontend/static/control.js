@@ -99,6 +99,7 @@
       const trip = panel.querySelector("#ctl-trip");
       trip.hidden = !status.last_trip;
       trip.textContent = status.last_trip || "";
+      renderFault(status.present_fault);
       const limitNote = panel.querySelector("#ctl-limit-note");  // how a motion ended at 0x607D (soft_limits.py)
       if (limitNote) {
         limitNote.hidden = !status.limit_note;
@@ -119,6 +120,44 @@
       const error = panel.querySelector("#ctl-error-code");
       if (error) error.textContent = status.error_code === null ? "–"
         : `0x${status.error_code.toString(16).toUpperCase().padStart(4, "0")} ${status.error_text || ""}`;
+    }
+
+    // The present fault in the manual's words (device/faults.py; the same markup as node/_fault_words.html)
+    function renderFault(fault) {
+      const box = panel.querySelector("#ctl-fault");
+      if (!box) return;
+      box.hidden = !fault;
+      const slot = box.querySelector("#ctl-fault-text");
+      slot.replaceChildren();
+      if (!fault) return;
+      const add = (tag, text, cls) => {
+        const el = document.createElement(tag);
+        el.textContent = text;
+        if (cls) el.className = cls;
+        slot.append(el, " ");
+        return el;
+      };
+      add("code", fault.code);
+      const own = fault.fault;
+      const label = own ? own.label : fault.vendor_error;
+      if (label) add("strong", label, "fault-label");
+      add("span", own && own.text ? own.text : fault.vendor_text || fault.class_text, "fault-text");
+      const noText = _("this fault number has no text in the device profile");
+      if (own && !own.text) add("span", "(" + noText + ")", "muted");
+      if (own && own.fields.length) add("span", `[${own.fields.join(", ")}]`, "muted small-text");
+      const remedy = own ? own.remedy : fault.remedy;
+      if (remedy) {
+        slot.append(document.createElement("br"));
+        const line = add("span", "", "fault-remedy");
+        const head = document.createElement("strong");
+        head.textContent = _("Remedy:");
+        line.append(head, " " + remedy);
+      }
+      if (own && own.source) {
+        slot.append(document.createElement("br"));
+        const sourceWord = _("Source:");
+        add("span", sourceWord + " " + own.source, "muted small-text fault-source");
+      }
     }
 
     function renderHolder(status) {
@@ -205,7 +244,12 @@
 
     async function command(key, label) {
       const status = await call("POST", `${api}/commands/${key}`, {}, result, moving.has(key) ? label : "");
-      if (status) render(status);
+      if (status) {
+        render(status);
+        const note = panel.querySelector("#ctl-command-note");  // why the command may do nothing (P0700 ...)
+        note.hidden = !status.command_note;
+        note.textContent = status.command_note || "";
+      }
     }
 
     panel.querySelectorAll("[data-command]").forEach((button) =>

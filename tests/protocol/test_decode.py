@@ -70,7 +70,7 @@ def test_emcy_uses_the_profile_text_and_register_bits() -> None:
     msg = frame(0x085, "1032110000000000")
     plain = decode_frame(msg).summary
     assert plain.startswith("0x3210 ") and "register 0x11 (Generic error, Communication error)" in plain
-    vendor = decode_frame(msg, emcy_texts=lambda node, code: "DC bus overvoltage" if code == 0x3210 else None)
+    vendor = decode_frame(msg, emcy_texts=lambda node, code, data: "DC bus overvoltage" if code == 0x3210 else None)
     assert vendor.summary.startswith("0x3210 DC bus overvoltage, register 0x11")
 
 

@@ -23,6 +23,7 @@ from drivebench.device.abort_texts import AbortTexts
 from drivebench.device.commands import CommandsSection
 from drivebench.device.control import ControlSection, Sequence
 from drivebench.device.ethercat_section import EthercatSection
+from drivebench.device.faults import FaultsSection
 from drivebench.device.hex_int import HexInt
 from drivebench.device.pdo_rules import PdoRules
 from drivebench.device.sdo_channels import SdoServerChannel
@@ -335,6 +336,9 @@ class Profile(BaseModel):
     """Save / restore defaults where they are not CiA 301's 0x1010/0x1011 (``device/commands.py``)."""
     sdo_channels: list[SdoServerChannel] = Field(default_factory=list)
     """Additional SDO servers the tool may switch on to read faster (``device/sdo_channels.py``)."""
+    faults: FaultsSection | None = None
+    """The drive's own fault numbers in words, where EMCY carries them, the fault parameters and the command source
+    (``device/faults.py``)."""
     abort_texts: AbortTexts | None = None
     """The manual's wording of SDO abort codes (``device/abort_texts.py``); CiA 301's where it has none."""
     pdo_rules: PdoRules | None = None

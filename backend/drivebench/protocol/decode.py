@@ -23,7 +23,8 @@ NameLookup = Callable[[int, int, int], str | None]
 """(node, index, subindex) -> the profile's name for the object, e.g. ``C00061 Heatsink temperature``."""
 AbortTextsLookup = Callable[[int], Mapping[int, str] | None]
 """node -> its profile's abort texts, so abort codes read in the manual's words."""
-EmcyLookup = Callable[[int, int], str | None]
+EmcyLookup = Callable[[int, int, bytes], str | None]
+"""(node, EMCY code, the five manufacturer-specific bytes) -> the device profile's words for it."""
 """(node, emergency code) -> the profile's text for it."""
 
 
@@ -299,7 +300,7 @@ def _emcy(node: int, data: bytes, emcy_texts: EmcyLookup | None) -> str:
     code, register = int.from_bytes(padded[0:2], "little"), padded[2]
     if code == 0:
         return f"error reset, register 0x{register:02X}"
-    text = (emcy_texts(node, code) if emcy_texts else None) or error_code_class(code)
+    text = (emcy_texts(node, code, bytes(padded[3:8])) if emcy_texts else None) or error_code_class(code)
     bits = ", ".join(error_register_bits(register)) or "no bits"
     return f"0x{code:04X} {text}, register 0x{register:02X} ({bits}), data {_hex(padded[3:8])}"
 

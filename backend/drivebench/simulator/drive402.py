@@ -179,7 +179,8 @@ class Drive402(StateMachine402):
             self._enter(State402.FAULT_REACTION_ACTIVE)
             if self.store.has(0x603F, 0):
                 self.store.set(0x603F, 0, fault_code, notify=False)
-        self.node.raise_emcy(emcy_code, 0x01, fault_code.to_bytes(2, "little"))
+        self.node.record_fault(fault_code)
+        self.node.raise_emcy(emcy_code, 0x01, self.node.fault_bytes(fault_code))
 
     # --- control word --------------------------------------------------------------------------------------
     def on_write(self, index: int, sub: int, raw: RawValue) -> None:

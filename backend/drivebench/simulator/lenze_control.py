@@ -187,7 +187,8 @@ class LenzeControl:
     def raise_fault(self, error_number: int = 1) -> None:
         with self._lock:
             self._enter(FAULT_8400 if self.is_8400 else FAULT_ACTIVE)
-        self.node.raise_emcy(0x1000, 0x01, error_number.to_bytes(4, "little"))
+        self.node.record_fault(error_number)
+        self.node.raise_emcy(0x1000, 0x01, self.node.fault_bytes(error_number))
 
     # --- words in ---------------------------------------------------------------------------------------
     def on_write(self, index: int, sub: int, raw: RawValue) -> None:

@@ -8,6 +8,7 @@ Frames reach it from the plant's dispatcher; it sends through the plant's ``send
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import queue
 import random
@@ -20,6 +21,7 @@ from typing import Annotated
 from pydantic import AfterValidator
 
 from drivebench.device.profile import Profile
+from drivebench.errors import UnknownParameter
 from drivebench.protocol.nmt import NmtCommand, NmtState
 from drivebench.protocol.sdo_server import SdoAbort as Abort
 from drivebench.protocol.sdo_server import SdoServer
@@ -373,6 +375,22 @@ class SimulatedNode:
         cob = self.emcy_cob_id()
         if cob is not None and self.state is not NmtState.STOPPED:
             self.send(cob, data)
+
+    def fault_bytes(self, number: int) -> bytes:
+        """The five manufacturer-specific EMCY bytes carrying the device's fault number where its profile's
+        ``faults.emcy_number`` puts it (else in the first four bytes)."""
+        where = self.profile.faults.emcy_number if self.profile.faults else None
+        start, length = (where.byte - 3, where.length) if where else (0, 4)
+        data = bytearray(5)
+        data[start:start + length] = (number & ((1 << 8 * length) - 1)).to_bytes(length, "little")
+        return bytes(data)
+
+    def record_fault(self, number: int) -> None:
+        """The device's present-fault parameter (the first of its profile's ``faults.present``) holds ``number``."""
+        present = self.profile.faults.present if self.profile.faults else []
+        if present:
+            with contextlib.suppress(KeyError, ValueError, UnknownParameter):
+                self.store.set_ref(present[0], number)
 
     def clear_emcy(self) -> None:
         """All errors gone: the error-free EMCY (code 0x0000, register 0x00)."""

@@ -8,6 +8,7 @@ from typing import Any
 
 from pydantic import BaseModel
 
+from drivebench.device.faults import decode_emcy
 from drivebench.services.bus.sessions import Session, SessionNode
 
 
@@ -53,13 +54,17 @@ class SessionPublic(BaseModel):
     node_count: int
 
 
-def vendor_emcy_text(node: SessionNode, code: int) -> str | None:
+def vendor_emcy_text(node: SessionNode, code: int, data: bytes = b"") -> str | None:
+    """The profile's words for an EMCY: the device's own fault number in ``data`` (the five manufacturer bytes)
+    with the manual's text (its ``faults`` section), else the EMCY code's entry."""
     if node.profile is None:
         return None
-    for entry in node.profile.emcy_codes:
-        if entry.code == code:
-            return f"{entry.vendor_error}: {entry.text}" if entry.vendor_error else entry.text
-    return None
+    entry = next((e for e in node.profile.emcy_codes if e.code == code), None)
+    code_text = (f"{entry.vendor_error}: {entry.text}" if entry.vendor_error else entry.text) if entry else None
+    fault = decode_emcy(node.profile.faults, code, data)
+    if fault is None:
+        return code_text
+    return f"{fault.label}: {fault.text or (entry.text if entry else '')}".rstrip(": ")
 
 
 def node_public(session: Session, node: SessionNode, now: float | None = None) -> NodePublic:
@@ -79,7 +84,7 @@ def node_public(session: Session, node: SessionNode, now: float | None = None) -
         heartbeat_lost=status.is_lost(now),
         bootups=status.bootups,
         last_emcy=EmcyPublic(code=f"0x{emcy.code:04X}", error_register=f"0x{emcy.register:02X}",
-                             class_text=emcy.class_text, vendor_text=vendor_emcy_text(node, emcy.code),
+                             class_text=emcy.class_text, vendor_text=vendor_emcy_text(node, emcy.code, emcy.data),
                              time=emcy.timestamp) if emcy else None,
         pending_reset=sorted(node.pending_reset),
         **_slave_fields(session, node.node_id),

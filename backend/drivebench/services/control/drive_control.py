@@ -53,6 +53,8 @@ from drivebench.services.control.drive_words import (
     next_control_word,
     state_label,
 )
+from drivebench.services.monitoring import fault_words
+from drivebench.services.monitoring.diagnostics import EmcyRecord
 from drivebench.services.params import node_lease, parameters
 from drivebench.services.pdos import process_data as live
 
@@ -286,6 +288,12 @@ class DriveStatus(BaseModel):
     error_code: int | None = None
     error_text: str | None = None
     """CiA 402 0x603F error code, decoded with the CiA 402 error-code table."""
+    present_fault: EmcyRecord | None = None
+    """The emergency still active on the node, with the device's own fault number in the manual's words (from the
+    EMCY consumer: no bus traffic)."""
+    command_note: str | None = None
+    """Why the command just sent may do nothing (the drive takes its commands from elsewhere; profile
+    ``faults.command_source``)."""
     limit_note: str | None = None
     """How the last jog, velocity or relative move ended at a software position limit 0x607D: the drive clamped
     (0x6041 bit 11) or DriveBench halted it (``services/control/soft_limits.py``)."""
@@ -376,7 +384,8 @@ async def read_status(session: Session, node: SessionNode, panel: Panel = SERVIC
         you_hold=bool(holder and holder.panel.key == panel.key), panels=guard.panels(node.node_id),
         last_trip=guard.trip_text(node.node_id), generic=fam.generic, inputs=inputs, error_code=error_code,
         error_text=cia402.error_text(error_code) if error_code is not None else None,
-        limit_note=soft_limits.note(node) if fam.generic else None)
+        limit_note=soft_limits.note(node) if fam.generic else None,
+        present_fault=fault_words.present_fault(session, node))
 
 
 # --- commands ------------------------------------------------------------------------------------------------
@@ -439,7 +448,10 @@ async def command(session: Session, node: SessionNode, which: Command, *, confir
         await write_control_word(session, node, word)
     if which in STOPPING:
         guard.release(node.node_id)
-    return await read_status(session, node, panel)
+    status = await read_status(session, node, panel)
+    if which in fam.moving:
+        status.command_note = await fault_words.command_source_note(session, node)
+    return status
 
 
 def check_range(value: float, scale: Scale) -> None:

@@ -10,6 +10,7 @@ import time
 
 from pydantic import BaseModel
 
+from drivebench.device.faults import DecodedFault, decode_emcy
 from drivebench.device.profile import EmcyCode, Profile
 from drivebench.errors import DriveBenchError, InvalidValue
 from drivebench.i18n import N_, _
@@ -49,6 +50,8 @@ class EmcyRecord(BaseModel):
     remedy: str | None
     data: str
     is_reset: bool
+    fault: DecodedFault | None = None
+    """The device's own fault number in the telegram, in the manual's words (its profile's ``faults``)."""
 
     @property
     def text(self) -> str:
@@ -112,7 +115,8 @@ def emcy_record(event: EmcyEvent, profile: Profile | None) -> EmcyRecord:
         node_id=event.node_id, time=event.timestamp, code=f"0x{event.code:04X}",
         error_register=f"0x{event.register:02X}", register_bits=event.register_bits, class_text=event.class_text,
         vendor_error=vendor.vendor_error if vendor else None, vendor_text=vendor.text if vendor else None,
-        remedy=vendor.remedy if vendor else None, data=event.data.hex(" ").upper(), is_reset=event.is_reset)
+        remedy=vendor.remedy if vendor else None, data=event.data.hex(" ").upper(), is_reset=event.is_reset,
+        fault=decode_emcy(profile.faults if profile else None, event.code, event.data))
 
 
 def emcy_history(session: Session, node_id: int) -> list[EmcyRecord]:

@@ -37,6 +37,7 @@ from drivebench.protocol.decode import (
     decode_frame,
 )
 from drivebench.services.bus.sessions import Session
+from drivebench.services.bus.views import vendor_emcy_text
 from drivebench.services.monitoring.pdo_cob_ids import Owner, PdoCobIds
 from drivebench.transport.busload import REORDER_S, FrameClock, LoadWindows, message_bits
 
@@ -581,14 +582,9 @@ class _Lookups:
         node = self.session.nodes.get(node_id) if self.session else None
         return node.profile.abort_texts.texts if node and node.profile and node.profile.abort_texts else None
 
-    def emcy(self, node_id: int, code: int) -> str | None:
+    def emcy(self, node_id: int, code: int, data: bytes) -> str | None:
         node = self.session.nodes.get(node_id) if self.session else None
-        if node is None or node.profile is None:
-            return None
-        for entry in node.profile.emcy_codes:
-            if entry.code == code:
-                return f"{entry.vendor_error}: {entry.text}" if entry.vendor_error else entry.text
-        return None
+        return vendor_emcy_text(node, code, data) if node is not None else None
 
 
 def attach(session: Session) -> Monitor:

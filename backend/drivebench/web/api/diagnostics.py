@@ -11,7 +11,7 @@ from fastapi.responses import HTMLResponse, Response
 from pydantic import BaseModel, Field
 from starlette.requests import HTTPConnection
 
-from drivebench.services.monitoring import diagnostics, object_list
+from drivebench.services.monitoring import diagnostics, fault_words, object_list
 from drivebench.services.monitoring.diagnostics import EmcyRecord, GuardingPublic, HeartbeatSetup, NodeHealth
 from drivebench.services.monitoring.object_list import ObjectListComparison
 from drivebench.services.users.sharing import IssuedLink, ShareLink
@@ -91,6 +91,13 @@ async def network_health(state: StateDep) -> list[SessionHealth]:
 async def emcy_history(session: SessionDep, node: NodeDep) -> list[EmcyRecord]:
     """The node's emergency telegrams, newest first, decoded with the manual's texts."""
     return diagnostics.emcy_history(session, node.node_id)
+
+
+@router.get("/sessions/{session_id}/nodes/{node_id}/faults", response_model=fault_words.Faults)
+async def faults_of(session: SessionDep, node: NodeDep) -> fault_words.Faults:
+    """The present fault and the fault history in the manual's words (from the EMCY consumer), the profile's
+    fault parameters as read now and why commands may do nothing (its command source)."""
+    return await fault_words.faults(session, node)
 
 
 @router.get("/sessions/{session_id}/nodes/{node_id}/heartbeat", response_model=HeartbeatSetup)

@@ -17,6 +17,7 @@ from drivebench.errors import DriveBenchError
 from drivebench.i18n import _
 from drivebench.services.control import commissioning, drive_control, motion
 from drivebench.services.control.drive_words import Family, family_of
+from drivebench.services.monitoring import fault_words
 from drivebench.web.access_policy import rule_for
 from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.identity import principal_of
@@ -71,7 +72,8 @@ async def control_tab(request: Request, session: SessionDep, node: NodeDep) -> R
     context: dict[str, Any] = {"session": session, "node": node, "base": base,
                                "api": f"/api/sessions/{session.id}/nodes/{node.node_id}/control",
                                "ws": f"/ws/sessions/{session.id}/nodes/{node.node_id}/control",
-                               "status": None, "error": None, "sequences": commissioning.sequences_for(node),
+                               "status": None, "error": None, "command_note": None,
+                               "sequences": commissioning.sequences_for(node),
                                "keepalive_s": drive_control.KEEPALIVE_TIMEOUT_S, "empty": None,
                                "refused": refused_because(request)}
     if node.catalog is None:  # an empty state, not an error: nothing went wrong, the node needs a profile first
@@ -87,6 +89,7 @@ async def control_tab(request: Request, session: SessionDep, node: NodeDep) -> R
         fam = drive_control.family(node)
         context["diagram"] = _diagram(fam)
         context["status"] = await drive_control.read_status(session, node)
+        context["command_note"] = await fault_words.command_source_note(session, node)
         context["jog"] = await drive_control.jog_plan(session, node)
         context["missing"] = drive_control.missing_actuals(node)
         context["missing_why"] = drive_control.missing_why(node)

@@ -11,7 +11,7 @@ from drivebench.errors import DriveBenchError
 from drivebench.i18n import _
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.bus.views import node_public
-from drivebench.services.monitoring import diagnostics
+from drivebench.services.monitoring import diagnostics, fault_words
 from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.safety import ACTING
 from drivebench.web.templating import templates
@@ -27,6 +27,7 @@ def _context(session: Session, node: SessionNode, **extra: Any) -> dict[str, Any
             "history": diagnostics.emcy_history(session, node.node_id),
             "groups": diagnostics.diagnostic_groups(node),
             "guarding_supported": bool(node.profile and node.profile.features.node_guarding),
+            "has_faults": bool(node.profile and node.profile.faults),
             "slave": node_public(session, node) if session.ethercat is not None else None, **extra}
 
 
@@ -48,6 +49,12 @@ async def diagnostics_tab(request: Request, session: SessionDep, node: NodeDep) 
 @router.get(UI + "/health", response_class=HTMLResponse)
 async def health_block(request: Request, session: SessionDep, node: NodeDep) -> Response:
     return templates.TemplateResponse(request, PAGE, _context(session, node), block_name="health_live")
+
+
+@router.get(UI + "/faults", response_class=HTMLResponse)
+async def faults_block(request: Request, session: SessionDep, node: NodeDep) -> Response:
+    context = _context(session, node, faults=await fault_words.faults(session, node))
+    return templates.TemplateResponse(request, PAGE, context, block_name="faults")
 
 
 @router.get(UI + "/vendor", response_class=HTMLResponse)
