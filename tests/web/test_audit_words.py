@@ -18,3 +18,12 @@ def test_audit_origin_is_german_for_a_german_reader(demo_api: TestClient) -> Non
     assert "C00088" in rows
     assert "<td>parameters</td>" not in rows
     assert "<td>Parameter</td>" in rows or "<td>Parameterliste</td>" in rows
+
+
+def test_every_origin_the_tool_writes_is_german_for_a_german_reader(demo_api: TestClient) -> None:
+    producer = demo_api.put("/api/sessions/demo-plant/nodes/5/heartbeat/producer", json={"time_ms": 200})
+    assert producer.status_code == 200, producer.text
+    rows = demo_api.get("/parameter-sets/audit/rows", headers=GERMAN).text
+    assert "0x1017" in rows
+    assert "<td>diagnostics</td>" not in rows
+    assert "<td>Diagnose</td>" in rows

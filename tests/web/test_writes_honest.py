@@ -103,6 +103,18 @@ def test_pdo_apply_heartbeat_and_sdo2_switch_on_are_in_the_audit_log(demo_api: T
     assert {row["result"] for row in sdo2} == {"written"}, sdo2
 
 
+def test_the_sdo2_switch_on_of_a_set_upload_is_the_uploads(demo_api: TestClient) -> None:
+    _store(demo_api, 5).set(0x1201, 1, 0x80000000)  # SDO2 off: reading node 5 into a set switches it on
+    started = demo_api.post("/api/parameter-sets/upload", json={"session_id": SESSION, "node_id": 5, "name": "N5"})
+    assert started.status_code == 202, started.text
+    job = started.json()
+    assert wait_until(lambda: demo_api.get(f"/api/parameter-sets/jobs/{job['id']}").json()["state"] != "running",
+                      120)
+    sdo2 = [row for row in _audit(demo_api, 5) if row["address"].startswith("0x1201")]
+    assert sorted((row["address"], row["origin"]) for row in sdo2) == [("0x1201sub1", "upload"),
+                                                                      ("0x1201sub2", "upload")], sdo2
+
+
 def test_control_panel_writes_are_logged_as_control(demo_api: TestClient) -> None:
     store = _store(demo_api, 3)
     for ref in ("P0700", "P1000"):  # the MICROMASTER takes commands and setpoint from the bus

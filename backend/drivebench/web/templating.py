@@ -72,13 +72,14 @@ BUS_STATES = (N_("active"), N_("warning"), N_("passive"), N_("bus-off"), N_("ada
 templates.env.filters["bus_state"] = lambda state: i18n.gettext(state) if state in BUS_STATES else state
 templates.env.filters["age"] = _age
 # What the audit log stores in English (its origin and the details DriveBench writes), shown in the reader's language.
-AUDIT_WORDS = (N_("parameters"), N_("commissioning"), N_("not read back"), N_("takes effect after reset node"),
+AUDIT_WORDS = (N_("parameters"), N_("commissioning"), N_("control"), N_("pdo"), N_("diagnostics"), N_("read-all"),
+               N_("upload"), N_("not read back"), N_("takes effect after reset node"),
                N_("cancelled while the write was under way: the device may hold either value"))
 SET_JOB_KINDS = ("download", "retry", "rollback")  # a set job's origin: "<kind> <download id>" (set_jobs.py)
 
 
 def _audit_words(text: str | None) -> str | None:
-    if not text or text in AUDIT_WORDS:
+    if not text or text in AUDIT_WORDS or text in SET_JOB_KINDS:  # a set job's reading before it has an id
         return i18n.gettext(text) if text else text
     kind, _, number = text.partition(" ")
     return f"{i18n.gettext(kind)} {number}" if kind in SET_JOB_KINDS and number.isdigit() else text

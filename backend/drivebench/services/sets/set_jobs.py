@@ -187,7 +187,8 @@ def start_upload(session: Session, node_id: int, jobs: JobManager, store: Parame
                                                                                    session=session.name)
 
     async def run(job: Job) -> None:
-        found, unread = await read_items(session, node, items, job)
+        with audit.acting("upload", who):  # what reading first writes (SDO2 switched on) is the upload's
+            found, unread = await read_items(session, node, items, job)
         mapped = rpdo_mapped(found)
         values = {item.ref: found[item.ref] for item in items  # the profile's order
                   if item.ref in found and (item.index, item.subindex) not in mapped}
