@@ -17,6 +17,7 @@ from drivebench.device.scaling import ScaledValue
 from drivebench.errors import DriveBenchError
 from drivebench.i18n import shown
 from drivebench.services.control import drive_guard
+from drivebench.services.params import factory_compare
 from drivebench.services.params import parameter_batch as batch
 from drivebench.services.params import parameters as service
 from drivebench.services.params.jobs import Job, JobManager, Progress
@@ -237,6 +238,32 @@ class SdoSettingsModel(BaseModel):
     use_sdo2: bool = True
 
 
+class ComparedOut(BaseModel):
+    """One setting in the comparison with the factory setting."""
+
+    ref: str
+    name: str
+    group: str
+    address: str
+    value: ParameterValueOut | None
+    factory_raw: int | float | str | None
+    factory: str | None
+    """The factory value as the Parameters tab shows a value (``5.0 s``); None: no source gives one."""
+    problem: str | None = None
+
+
+class ComparisonOut(BaseModel):
+    node_id: int
+    device: str
+    changed: list[ComparedOut]
+    """Settings whose value differs from the factory value."""
+    no_factory_value: list[ComparedOut]
+    """Settings with no known factory value (the profile gives none): listed apart, never compared."""
+    not_read: list[ComparedOut]
+    same: int
+    """How many settings hold their factory value."""
+
+
 # --- conversions -----------------------------------------------------------------------------------------
 def value_out(value: ParameterValue) -> ParameterValueOut:
     return ParameterValueOut(ref=value.ref, name=value.name, index=f"0x{value.index:04X}", subindex=value.subindex,
@@ -259,6 +286,21 @@ def info_out(item: Item, last: ParameterValue | None, read_failed: str | None = 
         writable=entry.access.writable, unit=entry.unit, min=entry.min, max=entry.max, default=entry.default,
         selection=entry.selection, bits=entry.bits, reset_required=entry.reset_required,
         last=value_out(last) if last else None, read_failed=shown(read_failed) if read_failed else None)
+
+
+def compared_out(compared: factory_compare.Compared) -> ComparedOut:
+    item, factory = compared.item, compared.factory
+    return ComparedOut(ref=item.ref, name=item.name, group=item.group, address=item.address,
+                       value=value_out(compared.value) if compared.value else None,
+                       factory_raw=factory.hex() if isinstance(factory, bytes) else factory,
+                       factory=compared.factory_shown, problem=compared.problem)
+
+
+def comparison_out(found: factory_compare.Comparison) -> ComparisonOut:
+    return ComparisonOut(node_id=found.node_id, device=found.device, same=found.same,
+                         changed=[compared_out(c) for c in found.changed],
+                         no_factory_value=[compared_out(c) for c in found.no_factory_value],
+                         not_read=[compared_out(c) for c in found.not_read])
 
 
 def write_out(result: WriteResult, pending: set[str]) -> WriteOut:
@@ -380,6 +422,17 @@ async def write_parameters(request: Request, session: SessionDep, node: NodeDep,
     written = sum(item.ok for item in items)
     return BatchWriteOut(node_id=node.node_id, complete=written == len(items), written=written, items=items,
                          pending_reset=sorted(node.pending_reset))
+
+
+@router.get(NODE + "/changed-from-default", dependencies=[ACTING], response_model=ComparisonOut)
+async def changed_from_default(session: SessionDep, node: NodeDep,
+                               read: Annotated[factory_compare.Reading, Query(description=(
+                                   "all: read every setting now; missing: read those not read yet (default); "
+                                   "none: compare the values last read"))] = factory_compare.Reading.MISSING,
+                               ) -> ComparisonOut:
+    """The comparison with the factory setting: the settings (readable, writable, not process data) whose value
+    differs from the factory value, and apart from them those whose profile gives no factory value."""
+    return comparison_out(await factory_compare.compare(session, node.node_id, read))
 
 
 @router.post(NODE + "/read-all", dependencies=[ACTING], response_model=JobOut, status_code=status.HTTP_202_ACCEPTED)
