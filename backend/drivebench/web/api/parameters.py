@@ -12,6 +12,7 @@ from fastapi import APIRouter, Depends, Query, Request, Response, status
 from fastapi.responses import JSONResponse
 from pydantic import BaseModel, Field, TypeAdapter, model_validator
 
+from drivebench.config import settings
 from drivebench.device.catalog import Item
 from drivebench.device.scaling import ScaledValue
 from drivebench.errors import DriveBenchError
@@ -23,6 +24,7 @@ from drivebench.services.params import parameters as service
 from drivebench.services.params.jobs import Job, JobManager, Progress
 from drivebench.services.params.parameter_batch import MAX_BATCH_WRITE, Wanted
 from drivebench.services.params.parameters import DeviceCommand, ParameterValue, SdoSettings, WriteResult
+from drivebench.services.users import undo as undoing
 from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.lean_route import lean_route, path_int
 from drivebench.web.problems import problem_body
@@ -165,6 +167,11 @@ class BatchWrite(BaseModel):
     confirm_values: dict[str, Any] | None = CONFIRM_VALUES
 
 
+class UndoRequest(BaseModel):
+    confirm: int | str | None = CONFIRM
+    confirm_values: dict[str, Any] | None = CONFIRM_VALUES
+
+
 class WriteOut(BaseModel):
     ref: str
     written: ValueOut
@@ -173,6 +180,13 @@ class WriteOut(BaseModel):
     mismatch: str | None
     reset_required: bool
     pending_reset: list[str]
+
+
+class UndoOut(WriteOut):
+    undone: int
+    """The audit record whose old value was written back (the new record's origin is ``undo <undone>``)."""
+    session_id: str
+    node_id: int
 
 
 class BatchWriteItem(BaseModel):
@@ -433,6 +447,23 @@ async def changed_from_default(session: SessionDep, node: NodeDep,
     """The comparison with the factory setting: the settings (readable, writable, not process data) whose value
     differs from the factory value, and apart from them those whose profile gives no factory value."""
     return comparison_out(await factory_compare.compare(session, node.node_id, read))
+
+
+@router.post("/audit/{entry_id}/undo", dependencies=[ACTING], response_model=UndoOut,
+             responses={409: {"description": "The record cannot be undone: no old value, its write failed, or the "
+                                             "node is gone or handled with another profile (``detail`` says which)"},
+                        428: {"description": "The old value can make the drive move: confirm as for a write"}})
+async def undo_write(request: Request, entry_id: int, body: UndoRequest | None = None) -> UndoOut:
+    """Write the record's old value back through the checked write (range, confirmation, lease, read-back), logged
+    with the origin ``undo <entry_id>``."""
+    record = undoing.record(entry_id, settings.database_url)
+    state: AppState = request.app.state.drivebench
+    session = state.manager.get(record.session_id)
+    drive_guard.confirming(confirmation(request, body and body.confirm, body and body.confirm_values))
+    result = await undoing.undo(session, record)
+    pending = session.node(record.node_id).pending_reset
+    return UndoOut(**write_out(result, pending).model_dump(), undone=entry_id, session_id=session.id,
+                   node_id=record.node_id)
 
 
 @router.post(NODE + "/read-all", dependencies=[ACTING], response_model=JobOut, status_code=status.HTTP_202_ACCEPTED)
