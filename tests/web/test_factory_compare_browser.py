@@ -58,14 +58,15 @@ def test_changed_from_default_undo_and_hex_on_node_5(app_db_url: str, demo_serve
     expect(row.locator("td.def .factory")).to_have_text("10.20 A")
     cob = _search(page, "0x1800.1")
     value = cob.locator("td.val .v")
-    expect(value).to_have_text("0x%08X" % store.get(0x1800, 1), timeout=WAIT_MS)
+    cob_id = store.get(0x1800, 1)
+    expect(value).to_have_text(f"0x{cob_id:08X}", timeout=WAIT_MS)
     cob.locator("button.radix").click()
-    expect(value).to_have_text(str(store.get(0x1800, 1)))
+    expect(value).to_have_text(str(cob_id))
     cob.locator("button.radix").click()
-    expect(value).to_have_text("0x%08X" % store.get(0x1800, 1))
+    expect(value).to_have_text(f"0x{cob_id:08X}")
     identity = _search(page, "0x1018.1")  # read-only: not a setting the comparison reads
     identity.get_by_role("button", name="Read").click()
-    expect(page.locator("tr[data-ref='0x1018.1'] td.val .v")).to_have_text("0x%08X" % store.get(0x1018, 1),
+    expect(page.locator("tr[data-ref='0x1018.1'] td.val .v")).to_have_text(f"0x{store.get(0x1018, 1):08X}",
                                                                             timeout=WAIT_MS)
 
     _write(page, "C00088", "12.5", "12.50 A")
@@ -96,7 +97,7 @@ def test_changed_from_default_undo_and_hex_on_node_5(app_db_url: str, demo_serve
 
     page.fill("#param-q", "TPDO")  # the communication parameters: COB-IDs in hex, factory values and ranges
     expect(page.locator("#param-rows tr[data-ref='0x1800.1'] td.def .factory")).to_have_text(
-        "0x%08X" % (0x180 + NODE), timeout=WAIT_MS)
+        f"0x{0x180 + NODE:08X}", timeout=WAIT_MS)
     for width in (1440, 1024):
         page.set_viewport_size({"width": width, "height": 900})
         screenshot(page, f"parameters-cob-ids-{width}")
