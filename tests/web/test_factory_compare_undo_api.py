@@ -7,6 +7,7 @@ heartbeat time 0x1017 (``heartbeat_ms: 500``), so the comparison of a fresh node
 from __future__ import annotations
 
 import json
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -17,7 +18,7 @@ from fastapi.testclient import TestClient
 from drivebench.config import settings
 from drivebench.web.app import create_app
 from tests.confirming import confirmed
-from tests.conftest import fresh_channel
+from tests.conftest import fresh_channel, wait_until
 
 SESSION = "demo-plant"
 NODE = f"/api/sessions/{SESSION}/nodes"
@@ -164,6 +165,45 @@ def test_undo_of_a_moving_write_asks_for_the_confirmation_naming_the_old_value(d
     assert answer.status_code == 200, answer.text
     assert _read(demo_api, 7, "0x6060")["raw"] == old["raw"]
     assert _audit(demo_api, 7)[0]["origin"] == f"undo {record['id']}"
+
+
+def test_cob_ids_identity_and_words_read_in_hex_amounts_in_decimal(demo_api: TestClient) -> None:
+    assert _read(demo_api, 5, "0x1800.1")["display"] == "0x00000185"
+    assert _read(demo_api, 5, "0x1200.2")["display"] == "0x00000585"
+    assert _read(demo_api, 5, "0x1018.1")["display"] == "0x0000003B"
+    assert _read(demo_api, 5, "0x1017")["display"] == "500 ms", "an amount stays decimal with its unit"
+    assert _read(demo_api, 5, "0x1800.2")["display"] == "254"
+    listed = demo_api.get(f"{NODE}/5/parameters", params={"q": "0x1800.1"}).json()["parameters"][0]
+    assert (listed["default"], listed["factory"]) == (None, "0x00000185"), "CiA 301's pre-defined connection set"
+    c88 = demo_api.get(f"{NODE}/5/parameters", params={"q": "C00088"}).json()["parameters"][0]
+    assert (c88["default"], c88["factory"], c88["unit"]) == (10.2, "10.20 A", "A")
+    compared = _compare(demo_api, 5)
+    assert "0x1800.1" not in _changed(compared)
+
+
+def test_a_live_status_word_reads_in_hex_with_its_bit_names(demo_api: TestClient) -> None:
+    """TPDO5 of node 3 (MICROMASTER) mapped with the status word 0x6041: each sample gives it in hex beside the
+    names of its set bits, a free INTEGER16 (0x2803.3) in decimal only."""
+    sim = demo_api.app.state.drivebench.plants[SESSION].nodes[3]  # type: ignore[attr-defined]
+    report = demo_api.put(f"{NODE}/3/pdos/tpdo/5", json={"entries": [[0x6041, 0], [0x2803, 3]],
+                                                         "transmission_type": 255})
+    assert report.status_code == 200, report.text
+    confirmed(demo_api, "POST", f"{NODE}/3/nmt", json={"command": "start", "confirm": 3, "keepalive": False,
+                                                       "reason": "test without a browser"})
+    with demo_api.websocket_connect(f"/ws/sessions/{SESSION}/nodes/3/process-data") as ws:
+        assert ws.receive_json()["type"] == "hello"
+        assert wait_until(lambda: sim.state.name == "OPERATIONAL")
+        sim.store.set(0x2803, 3, -7)
+        deadline = time.monotonic() + 10
+        found = None
+        while time.monotonic() < deadline and found is None:
+            for sample in ws.receive_json().get("samples", []):
+                if sample["cob_id"] == 0x283 and sample["signals"][1]["value"] == -7:
+                    found = sample
+        assert found is not None, "no TPDO5 with the new value arrived"
+    status, free = found["signals"]
+    assert status["hex"] == f"0x{status['raw']:04X}" and status["text"]
+    assert free["hex"] is None
 
 
 MINIMAL_EDS = """[FileInfo]

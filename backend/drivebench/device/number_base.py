@@ -38,5 +38,9 @@ def shows_hex(item: Item) -> bool:
 
 def hex_word(item: Item, raw: int) -> str:
     """``0x00000185``: as many digits as the data type has (a negative value in two's complement)."""
-    size = item.entry.data_type.size or 4
+    return hex_digits(raw, item.entry.data_type.size or 4)
+
+
+def hex_digits(raw: int, size: int) -> str:
+    """``raw`` in hex with ``size`` bytes' digits (``0x0260`` for a status word)."""
     return f"0x{raw & ((1 << size * 8) - 1):0{size * 2}X}"

@@ -49,6 +49,13 @@ class Comparison:
     same: int = 0
 
 
+def factory_shown(item: Item, node_id: int) -> str | None:
+    """The factory value as the Parameters tab shows a value (``10.20 A``, ``0x00000185``); None: no source gives
+    one."""
+    raw = factory_raw(item.entry, node_id, item.index, item.subindex)
+    return None if raw is None else parameters.display(item, from_raw(item.entry, raw))
+
+
 def settings_of(items: list[Item]) -> list[Item]:
     return [item for item in items
             if item.entry.access.readable and item.entry.access.writable and item.entry.live is None]

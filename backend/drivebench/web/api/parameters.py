@@ -103,6 +103,10 @@ class ParameterInfo(BaseModel):
     min: float | int | None
     max: float | int | None
     default: float | int | str | None
+    """The profile's default as it gives it (engineering units; None for a ``$NODEID`` formula)."""
+    factory: str | None = None
+    """The factory value for this node as a value is shown (``10.20 A``, ``0x00000185``: the profile's default, its
+    ``$NODEID`` formula or CiA 301's pre-defined connection set); None where no source gives one."""
     selection: dict[int, str]
     bits: dict[int, str]
     reset_required: bool
@@ -292,9 +296,11 @@ def _scaled_out(scaled: ScaledValue) -> ValueOut:
     return ValueOut(raw=raw, value=value, unit=scaled.unit, text=scaled.text)
 
 
-def info_out(item: Item, last: ParameterValue | None, read_failed: str | None = None) -> ParameterInfo:
+def info_out(item: Item, last: ParameterValue | None, read_failed: str | None = None,
+             node_id: int | None = None) -> ParameterInfo:
     entry = item.entry
     return ParameterInfo(
+        factory=factory_compare.factory_shown(item, node_id) if node_id is not None else None,
         ref=item.ref, name=item.name, group=item.group, index=f"0x{item.index:04X}", subindex=item.subindex,
         address=item.address, data_type=entry.data_type.value, access=entry.access.value,
         writable=entry.access.writable, unit=entry.unit, min=entry.min, max=entry.max, default=entry.default,
@@ -354,7 +360,8 @@ async def list_parameters(session: SessionDep, node: NodeDep,
     failures = service.service(session).failures.get(node.node_id, {})
     found = service.items(node, q, group, parameter_set)
     return ParameterList(node_id=node.node_id, device=node.device_name, groups=service.groups(node),
-                         parameters=[info_out(item, last.get(item.ref), failures.get(item.ref)) for item in found],
+                         parameters=[info_out(item, last.get(item.ref), failures.get(item.ref), node.node_id)
+                                     for item in found],
                          pending_reset=sorted(node.pending_reset))
 
 

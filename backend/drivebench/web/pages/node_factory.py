@@ -11,9 +11,7 @@ from fastapi.responses import HTMLResponse, Response
 
 from drivebench.config import settings
 from drivebench.device.catalog import Item
-from drivebench.device.factory_default import factory_raw
 from drivebench.device.number_base import shows_hex
-from drivebench.device.scaling import from_raw
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.control import drive_guard
 from drivebench.services.params import factory_compare
@@ -28,12 +26,6 @@ router = APIRouter(include_in_schema=False, dependencies=[ACTING])
 WRITES_SHOWN = 30
 
 
-def factory_shown(item: Item, node_id: int) -> str | None:
-    """The factory value as the row shows a value; None where no source gives one."""
-    raw = factory_raw(item.entry, node_id, item.index, item.subindex)
-    return None if raw is None else service.display(item, from_raw(item.entry, raw))
-
-
 def radix_switch(item: Item) -> bool:
     """The row offers the hex/decimal switch: a plain integer (no selection, no scaling)."""
     entry = item.entry
@@ -41,7 +33,7 @@ def radix_switch(item: Item) -> bool:
         and entry.factor == 1 and entry.data_type.value != "BOOLEAN"
 
 
-templates.env.filters["factory_shown"] = factory_shown
+templates.env.filters["factory_shown"] = factory_compare.factory_shown
 templates.env.filters["radix_switch"] = radix_switch
 templates.env.filters["shows_hex"] = shows_hex
 
