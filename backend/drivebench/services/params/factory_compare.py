@@ -13,7 +13,7 @@ from enum import StrEnum
 
 from drivebench.device.catalog import Item
 from drivebench.device.factory_default import factory_raw, same_raw
-from drivebench.device.scaling import RawValue, from_raw
+from drivebench.device.scaling import from_raw
 from drivebench.errors import DriveBenchError
 from drivebench.services.bus.sessions import Session
 from drivebench.services.params import parameters
@@ -33,8 +33,7 @@ class Reading(StrEnum):
 class Compared:
     item: Item
     value: ParameterValue | None
-    factory: RawValue | None
-    factory_shown: str | None
+    factory: ParameterValue | None
     problem: str | None = None
     """Why the value could not be read (or was never read)."""
 
@@ -49,11 +48,22 @@ class Comparison:
     same: int = 0
 
 
-def factory_shown(item: Item, node_id: int) -> str | None:
-    """The factory value as the Parameters tab shows a value (``10.20 A``, ``0x00000185``); None: no source gives
-    one."""
+def factory_value(item: Item, node_id: int) -> ParameterValue | None:
+    """The factory value as a value read is held (the page words it in the reader's language); None: no source
+    gives one."""
     raw = factory_raw(item.entry, node_id, item.index, item.subindex)
-    return None if raw is None else parameters.display(item, from_raw(item.entry, raw))
+    if raw is None:
+        return None
+    scaled = from_raw(item.entry, raw)
+    value = scaled.value.hex(" ") if isinstance(scaled.value, bytes) else scaled.value
+    return ParameterValue(item.ref, item.name, item.index, item.subindex, scaled.raw, value, scaled.unit,
+                          scaled.text, parameters.display(item, scaled), 0.0)
+
+
+def factory_shown(item: Item, node_id: int) -> str | None:
+    """The factory value as the API shows a value (``10.20 A``, ``0x00000185``); None: no source gives one."""
+    found = factory_value(item, node_id)
+    return None if found is None else found.display
 
 
 def settings_of(items: list[Item]) -> list[Item]:
@@ -77,14 +87,13 @@ async def compare(session: Session, node_id: int, reading: Reading = Reading.MIS
     found = Comparison(node_id, node.device_name)
     for item in settings:
         value = None if item.ref in errors else last.get(item.ref)
-        factory = factory_raw(item.entry, node_id, item.index, item.subindex)
-        factory_shown = None if factory is None else parameters.display(item, from_raw(item.entry, factory))
+        factory = factory_value(item, node_id)
         if value is None:
-            found.not_read.append(Compared(item, None, factory, factory_shown, errors.get(item.ref)))
+            found.not_read.append(Compared(item, None, factory, errors.get(item.ref)))
         elif factory is None:
-            found.no_factory_value.append(Compared(item, value, None, None))
-        elif same_raw(value.raw, factory):
+            found.no_factory_value.append(Compared(item, value, None))
+        elif same_raw(value.raw, factory.raw):
             found.same += 1
         else:
-            found.changed.append(Compared(item, value, factory, factory_shown))
+            found.changed.append(Compared(item, value, factory))
     return found

@@ -312,8 +312,9 @@ def compared_out(compared: factory_compare.Compared) -> ComparedOut:
     item, factory = compared.item, compared.factory
     return ComparedOut(ref=item.ref, name=item.name, group=item.group, address=item.address,
                        value=value_out(compared.value) if compared.value else None,
-                       factory_raw=factory.hex() if isinstance(factory, bytes) else factory,
-                       factory=compared.factory_shown, problem=compared.problem)
+                       factory_raw=factory.raw.hex() if factory and isinstance(factory.raw, bytes)
+                       else factory.raw if factory else None,
+                       factory=factory.display if factory else None, problem=compared.problem)
 
 
 def comparison_out(found: factory_compare.Comparison) -> ComparisonOut:

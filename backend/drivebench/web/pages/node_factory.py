@@ -33,7 +33,7 @@ def radix_switch(item: Item) -> bool:
         and entry.factor == 1 and entry.data_type.value != "BOOLEAN"
 
 
-templates.env.filters["factory_shown"] = factory_compare.factory_shown
+templates.env.filters["factory_value"] = factory_compare.factory_value
 templates.env.filters["radix_switch"] = radix_switch
 templates.env.filters["shows_hex"] = shows_hex
 
