@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import re
 
-from drivebench.errors import Conflict, NotFound
+from drivebench.errors import Conflict, DriveBenchError, NotFound
 from drivebench.i18n import _
 from drivebench.services.bus.sessions import Session
 from drivebench.services.params import parameters
@@ -51,7 +51,11 @@ def refusal(session: Session, undone: AuditEntry) -> str | None:
                  "the old value is not written back.").format(id=undone.id, node=undone.node_id,
                                                               now=profile or _("(none)"), then=undone.profile,
                                                               ref=name)
-    item = parameters.resolve(node, undone.ref)
+    try:
+        item = parameters.resolve(node, undone.ref)
+    except DriveBenchError as exc:
+        return _("Record {id}: {ref} is not a parameter of node {node} now ({why}).").format(
+            id=undone.id, ref=name, node=undone.node_id, why=exc.shown_detail())
     if item.address != undone.address:
         return _("Record {id}: {ref} is at {now} in the node's profile now, not {then}; the old value is not "
                  "written back.").format(id=undone.id, ref=undone.ref, now=item.address, then=undone.address)
