@@ -80,7 +80,7 @@ def test_changed_from_default_undo_and_hex_on_node_5(app_db_url: str, demo_serve
     page.set_viewport_size({"width": 1440, "height": 900})
 
     page.click("#node-writes-button")
-    record = page.locator("#param-panel tr[data-ref='C00088']").first
+    record = page.locator("#param-panel .writes-table tr[data-ref='C00088']").first  # not the comparison's row
     expect(record).to_be_visible(timeout=WAIT_MS)
     record_id = record.get_attribute("data-record")
     _search(page, "C00088")
