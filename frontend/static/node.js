@@ -128,9 +128,53 @@
     }
   }
 
+  // The hex/decimal switch of a row (integers without scaling): the raw value the server sent, shown in the other
+  // base; the choice is kept per parameter while the page is open, so a re-read row keeps it.
+  const radixChoice = new Map();
+
+  function inBase(span, base) {
+    const size = Number(span.dataset.size) || 4;
+    let raw = BigInt(span.dataset.raw);
+    const unit = span.dataset.unit ? " " + span.dataset.unit : "";
+    if (base === "hex") {
+      if (raw < 0n) raw += 1n << BigInt(size * 8);  // two's complement in the data type's width
+      return "0x" + raw.toString(16).toUpperCase().padStart(size * 2, "0") + unit;
+    }
+    return raw.toString() + unit;
+  }
+
+  function showBase(row, base) {
+    const span = row.querySelector("td.val .v[data-raw]");
+    const button = row.querySelector("button.radix");
+    if (!span || !button) return;
+    span.textContent = inBase(span, base);
+    span.dataset.shown = base;
+    const _ = window.drivebench.gettext;
+    button.textContent = base === "hex" ? _("dec") : _("hex");
+  }
+
+  htmx.onLoad((root) => window.drivebench.within(root, "tr.prow").forEach((row) => {
+    const base = radixChoice.get(row.dataset.ref);
+    if (base) showBase(row, base);
+  }));
+
   document.addEventListener("click", (event) => {
     const button = event.target.closest && event.target.closest("button.read-shown");
     if (button) readShown(button);
+    const radix = event.target.closest && event.target.closest("button.radix");
+    if (radix) {
+      const row = radix.closest("tr.prow");
+      const span = row && row.querySelector("td.val .v[data-raw]");
+      if (!span) return;
+      const base = (span.dataset.shown || span.dataset.base) === "hex" ? "dec" : "hex";
+      radixChoice.set(row.dataset.ref, base);
+      showBase(row, base);
+    }
+    const close = event.target.closest && event.target.closest("[data-close-panel]");
+    if (close) {
+      const panel = document.getElementById("param-panel");
+      if (panel) panel.replaceChildren();
+    }
   });
 
   htmx.onLoad((root) => window.drivebench.within(root, "[data-job]").forEach(watch));

@@ -181,7 +181,8 @@
     } else if (msg.type === "samples") {
       msg.samples.forEach((sample) => sample.signals.forEach((sig) => {
         document.querySelectorAll(`.live[data-cob="${CSS.escape(String(sample.cob_id))}"][data-ref="${CSS.escape(sig.ref)}"]`).forEach((cell) => {
-          let text = sig.value === null ? "–" : `${sig.value}${sig.unit ? " " + sig.unit : ""}`;
+          // a word (status word, COB-ID) in hex with its bit names, an amount in decimal with its unit
+          let text = sig.value === null ? "–" : sig.hex ? sig.hex : `${sig.value}${sig.unit ? " " + sig.unit : ""}`;
           if (sig.text) text += ` (${sig.text})`;
           if (sample.direction === "rpdo") text = _("sent {value}", { value: text });
           cell.textContent = text;

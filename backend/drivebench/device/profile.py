@@ -126,6 +126,9 @@ class Entry(BaseModel):
     """Selection list: raw value -> meaning (C00351: 0 -> '500 kbit/s')."""
     bits: dict[int, str] = Field(default_factory=dict)
     """Bit-coded words: bit number -> meaning."""
+    hex: bool = False
+    """Shown in hexadecimal (a vendor code holding a COB-ID or an identity); CiA 301's COB-IDs, identity and mapping
+    entries and bit-coded words are without it (:mod:`drivebench.device.number_base`)."""
     pdo_mappable: bool = False
     reset_required: bool = False
     """Takes effect only after reset node (C00350, C00351 ...)."""

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 from drivebench.device.catalog import Catalog
 from drivebench.device.eds_export import eds_objects
+from drivebench.device.factory_default import PREDEFINED_CONNECTION_SET
 from drivebench.device.profile import Access, Entry, Profile
 from drivebench.protocol.datatypes import DataType, decode, encode
 from drivebench.protocol.sdo_server import SdoAbort as Abort
@@ -35,12 +36,11 @@ class Slot:
 WriteHook = Callable[[int, int, RawValue], None]
 _NODEID_RE = re.compile(r"\$NODEID", re.IGNORECASE)
 
-# CiA 301 communication objects whose default depends on the node id (when a profile gives no formula).
+# CiA 301 communication objects whose default depends on the node id (when a profile gives no formula): the
+# pre-defined connection set (the same table the parameter service's factory comparison reads).
 _NODE_ID_DEFAULTS = {
-    (0x1014, 0): 0x80, (0x1200, 1): 0x600, (0x1200, 2): 0x580,
+    **PREDEFINED_CONNECTION_SET,
     (0x1201, 1): 0x80000640, (0x1201, 2): 0x800005C0,  # Lenze SDO2: 0x640/0x5C0 + id, invalid (bit 31) until enabled
-    (0x1400, 1): 0x200, (0x1401, 1): 0x300, (0x1402, 1): 0x400, (0x1403, 1): 0x500,
-    (0x1800, 1): 0x180, (0x1801, 1): 0x280, (0x1802, 1): 0x380, (0x1803, 1): 0x480,
 }
 
 

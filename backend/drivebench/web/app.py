@@ -33,6 +33,7 @@ from drivebench.web.pages import accounts as accounts_page
 from drivebench.web.pages import monitor as monitor_page
 from drivebench.web.pages import node as node_page
 from drivebench.web.pages import node_control, node_diagnostics
+from drivebench.web.pages import node_factory as node_factory_page
 from drivebench.web.pages import node_pdo as node_pdo_page
 from drivebench.web.pages import parameter_sets as parameter_sets_page
 from drivebench.web.pages import plant as plant_page
@@ -56,8 +57,8 @@ API_ROUTERS = [health.router, parameters.router, monitor_api.router, sessions.ro
                diagnostics.router, tools.router, tools.planned_router, pdo.router, parameter_sets.router,
                drive_control_api.router, accounts_api.router, simulator_api.router]
 PAGE_ROUTERS = [language.router, node_diagnostics.router, node_pdo_page.router, monitor_page.router, plant_page.router,
-                node_control.router, node_page.router, profiles_page.router, remote_page.router, tools_page.router,
-                parameter_sets_page.router, accounts_page.router]
+                node_control.router, node_page.router, node_factory_page.router, profiles_page.router,
+                remote_page.router, tools_page.router, parameter_sets_page.router, accounts_page.router]
 WS_ROUTERS = [monitor_ws.router, nodes_ws.router, jobs_ws.router, remote_ws.router, process_data_ws.router,
               drive_control_ws.router]
 

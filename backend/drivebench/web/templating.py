@@ -11,6 +11,7 @@ from jinja2_fragments.fastapi import Jinja2Blocks
 
 from drivebench import i18n
 from drivebench.config import settings
+from drivebench.device.number_base import shows_hex
 from drivebench.i18n import N_
 
 templates = Jinja2Blocks(directory=str(settings.frontend_dir / "templates"))
@@ -56,7 +57,7 @@ def _shown(value: Any, item: Any) -> str:
     formats them (``display``, which the JSON API sends too)."""
     number, entry = value.value, item.entry
     if (i18n.current() == i18n.DEFAULT or not isinstance(number, int | float) or isinstance(number, bool)
-            or entry.selection or entry.bits):
+            or entry.selection or entry.bits or shows_hex(item)):
         return str(value.display)
     decimals = entry.decimals if entry.factor != 1 else 0
     text = i18n.number(number, decimals if 0 < decimals <= 2 else None)  # FIX32 (4 decimals) keeps what it has
@@ -73,9 +74,9 @@ templates.env.filters["bus_state"] = lambda state: i18n.gettext(state) if state 
 templates.env.filters["age"] = _age
 # What the audit log stores in English (its origin and the details DriveBench writes), shown in the reader's language.
 AUDIT_WORDS = (N_("parameters"), N_("commissioning"), N_("control"), N_("pdo"), N_("diagnostics"), N_("read-all"),
-               N_("upload"), N_("not read back"), N_("takes effect after reset node"),
+               N_("upload"), N_("undo"), N_("not read back"), N_("takes effect after reset node"),
                N_("cancelled while the write was under way: the device may hold either value"))
-SET_JOB_KINDS = ("download", "retry", "rollback")  # a set job's origin: "<kind> <download id>" (set_jobs.py)
+SET_JOB_KINDS = ("download", "retry", "rollback", "undo")  # "<kind> <download id>" (set_jobs.py), "undo <record id>"
 
 
 def _audit_words(text: str | None) -> str | None:

@@ -35,6 +35,7 @@ from drivebench.device.addressing import IndexRef, parse_ref
 from drivebench.device.catalog import Catalog, Item
 from drivebench.device.commands import CIA301_RESTORE, CIA301_SAVE, CommandWrite
 from drivebench.device.motion import judge
+from drivebench.device.number_base import hex_word, shows_hex
 from drivebench.device.profile import Access, ObjectEntry
 from drivebench.device.scaling import RawValue, ScaledValue, from_raw, to_raw
 from drivebench.errors import (
@@ -304,14 +305,14 @@ def groups(node: SessionNode) -> list[str]:
 
 # --- read ------------------------------------------------------------------------------------------------
 def display(item: Item, scaled: ScaledValue) -> str:
-    """What the table shows: ``10.20 A``, ``0 = 500 kbit/s``, ``0x00000644``, ``01.00.00.00``."""
+    """What the table shows: ``10.20 A``, ``0 = 500 kbit/s``, ``0x00000644`` (a COB-ID, an identity, a bit-coded
+    word: :func:`number_base.shows_hex`), ``01.00.00.00``."""
     entry = item.entry
     if isinstance(scaled.value, (int, float)) and not isinstance(scaled.value, bool):
         if scaled.text is not None and entry.selection:
             return f"{scaled.raw!s} = {scaled.text}"
-        if entry.bits and isinstance(scaled.raw, int):
-            width = (entry.data_type.size or 4) * 2
-            return f"0x{scaled.raw:0{width}X}"
+        if isinstance(scaled.raw, int) and shows_hex(item):
+            return hex_word(item, scaled.raw)
         decimals = entry.decimals if entry.factor != 1 else 0
         number = f"{scaled.value:.{decimals}f}" if decimals else f"{scaled.value}"
         if decimals > 2 and "." in number:  # FIX32 (factor 10000) is a format, not a resolution

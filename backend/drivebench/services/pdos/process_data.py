@@ -19,6 +19,7 @@ import can
 from pydantic import BaseModel
 
 from drivebench.device.catalog import Catalog
+from drivebench.device.number_base import hex_digits, shows_hex
 from drivebench.device.profile import Entry
 from drivebench.device.scaling import from_raw, to_raw
 from drivebench.errors import Conflict, DriveBenchError, InvalidValue, NotFound
@@ -39,6 +40,10 @@ class Signal(BaseModel):
     value: int | float | str | None
     unit: str | None = None
     text: str | None = None
+    """Selection-list meaning or the names of the set bits."""
+    hex: str | None = None
+    """The value as it reads, in hex, where it is a word rather than an amount (a status word ``0x0237``, a
+    COB-ID: :func:`drivebench.device.number_base.shows_hex`)."""
     bit_offset: int
     bits: int
 
@@ -61,14 +66,19 @@ class Layout:
     config: PdoConfig
     entries: list[tuple[str, str, Entry | None, int]]
     """(ref, name, profile entry, bits) in mapping order; entry None for dummy/unknown entries."""
+    hex_refs: frozenset[str] = frozenset()
+    """The refs whose values read in hex (status and control words, COB-IDs)."""
 
 
 def _layout(catalog: Catalog, node_id: int, config: PdoConfig) -> Layout:
     entries = []
+    hex_refs = set()
     for mapped in config.entries:
         item = catalog.by_address(mapped.index, mapped.subindex)
         entries.append((mapped.ref, mapped.name, item.entry if item else None, mapped.bits))
-    return Layout(node_id, config, entries)
+        if item is not None and shows_hex(item):
+            hex_refs.add(mapped.ref)
+    return Layout(node_id, config, entries, frozenset(hex_refs))
 
 
 def unpack(layout: Layout, data: bytes, t: float) -> Sample:
@@ -78,7 +88,7 @@ def unpack(layout: Layout, data: bytes, t: float) -> Sample:
         field_bits = (value >> offset) & ((1 << bits) - 1)
         raw: int | float | str | None = None
         scaled: int | float | str | None = None
-        unit = text = None
+        unit = text = shown_hex = None
         if entry is not None and offset + bits <= len(data) * 8:
             size = entry.data_type.size or (bits + 7) // 8
             decoded = decode(entry.data_type, field_bits.to_bytes(size, "little"))
@@ -86,8 +96,10 @@ def unpack(layout: Layout, data: bytes, t: float) -> Sample:
                 shown = from_raw(entry, decoded)
                 raw, unit, text = decoded, shown.unit, shown.text
                 scaled = shown.value if not isinstance(shown.value, bytes) else None
-        signals.append(Signal(ref=ref, name=name, raw=raw, value=scaled, unit=unit, text=text, bit_offset=offset,
-                              bits=bits))
+                if ref in layout.hex_refs and isinstance(decoded, int):
+                    shown_hex = hex_digits(decoded, size)
+        signals.append(Signal(ref=ref, name=name, raw=raw, value=scaled, unit=unit, text=text, hex=shown_hex,
+                              bit_offset=offset, bits=bits))
         offset += bits
     config = layout.config
     return Sample(node_id=layout.node_id, direction=config.direction, number=config.number, cob_id=config.cob_id,

@@ -119,7 +119,9 @@ class AuditRow(Base):
     """``sending`` (the tool stopped during the write), ``written``, ``not verified``, ``mismatch``, ``failed``."""
     detail: Mapped[str | None] = mapped_column(Text, nullable=True)
     origin: Mapped[str] = mapped_column(String(60), nullable=False)
-    """``parameters`` (a single write), ``download 12``, ``rollback 13`` ..."""
+    """``parameters`` (a single write), ``download 12``, ``rollback 13``, ``undo 14`` ..."""
+    profile: Mapped[str | None] = mapped_column(String(120), nullable=True)
+    """The id of the profile the node was handled with (None: no profile, or a row older than migration 0007)."""
 
 
 # --- users and API tokens (migration 0003_accounts) ------------------------------------------------------------

@@ -33,6 +33,7 @@ __all__ = [
     "current_origin",
     "current_user",
     "entries",
+    "entry",
     "outcome",
     "to_csv",
 ]
@@ -52,11 +53,20 @@ class AuditEntry:
     result: str
     detail: str | None
     origin: str
+    profile: str | None = None
+    """The profile the node was handled with when the write was sent."""
 
 
 def _entry(row: AuditRow) -> AuditEntry:
     return AuditEntry(row.id, row.time, row.user, row.session_id, row.node_id, row.ref, row.address, row.old_value,
-                      row.new_value, row.result, row.detail, row.origin)
+                      row.new_value, row.result, row.detail, row.origin, row.profile)
+
+
+def entry(entry_id: int, url: str | None = None) -> AuditEntry | None:
+    """One record by its id, None if there is none."""
+    with transaction(url) as db:
+        row = db.get(AuditRow, entry_id)
+        return None if row is None else _entry(row)
 
 
 def outcome(result: WriteResult | None, error: BaseException | None) -> tuple[str, str | None]:
@@ -88,10 +98,12 @@ class AuditLog:
 
     async def sending(self, attempt: WriteAttempt) -> object:
         item = attempt.item
+        profile = attempt.session.nodes[attempt.node_id].profile if attempt.node_id in attempt.session.nodes else None
         row = AuditRow(time=utcnow(), user=current_user.get(), session_id=attempt.session.id,
                        node_id=attempt.node_id, ref=item.ref, address=item.address,
                        old_value=attempt.old.display if attempt.old else None,
-                       new_value=parameters.display(item, attempt.new), result="sending", origin=current_origin.get())
+                       new_value=parameters.display(item, attempt.new), result="sending", origin=current_origin.get(),
+                       profile=profile.id if profile is not None else None)
         return await asyncio.to_thread(self._insert, row)
 
     async def done(self, token: object, result: WriteResult | None, error: BaseException | None) -> None:

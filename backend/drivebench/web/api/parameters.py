@@ -12,16 +12,19 @@ from fastapi import APIRouter, Depends, Query, Request, Response, status
 from fastapi.responses import JSONResponse
 from pydantic import BaseModel, Field, TypeAdapter, model_validator
 
+from drivebench.config import settings
 from drivebench.device.catalog import Item
 from drivebench.device.scaling import ScaledValue
 from drivebench.errors import DriveBenchError
 from drivebench.i18n import shown
 from drivebench.services.control import drive_guard
+from drivebench.services.params import factory_compare
 from drivebench.services.params import parameter_batch as batch
 from drivebench.services.params import parameters as service
 from drivebench.services.params.jobs import Job, JobManager, Progress
 from drivebench.services.params.parameter_batch import MAX_BATCH_WRITE, Wanted
 from drivebench.services.params.parameters import DeviceCommand, ParameterValue, SdoSettings, WriteResult
+from drivebench.services.users import undo as undoing
 from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.lean_route import lean_route, path_int
 from drivebench.web.problems import problem_body
@@ -100,6 +103,10 @@ class ParameterInfo(BaseModel):
     min: float | int | None
     max: float | int | None
     default: float | int | str | None
+    """The profile's default as it gives it (engineering units; None for a ``$NODEID`` formula)."""
+    factory: str | None = None
+    """The factory value for this node as a value is shown (``10.20 A``, ``0x00000185``: the profile's default, its
+    ``$NODEID`` formula or CiA 301's pre-defined connection set); None where no source gives one."""
     selection: dict[int, str]
     bits: dict[int, str]
     reset_required: bool
@@ -164,6 +171,11 @@ class BatchWrite(BaseModel):
     confirm_values: dict[str, Any] | None = CONFIRM_VALUES
 
 
+class UndoRequest(BaseModel):
+    confirm: int | str | None = CONFIRM
+    confirm_values: dict[str, Any] | None = CONFIRM_VALUES
+
+
 class WriteOut(BaseModel):
     ref: str
     written: ValueOut
@@ -172,6 +184,13 @@ class WriteOut(BaseModel):
     mismatch: str | None
     reset_required: bool
     pending_reset: list[str]
+
+
+class UndoOut(WriteOut):
+    undone: int
+    """The audit record whose old value was written back (the new record's origin is ``undo <undone>``)."""
+    session_id: str
+    node_id: int
 
 
 class BatchWriteItem(BaseModel):
@@ -237,6 +256,32 @@ class SdoSettingsModel(BaseModel):
     use_sdo2: bool = True
 
 
+class ComparedOut(BaseModel):
+    """One setting in the comparison with the factory setting."""
+
+    ref: str
+    name: str
+    group: str
+    address: str
+    value: ParameterValueOut | None
+    factory_raw: int | float | str | None
+    factory: str | None
+    """The factory value as the Parameters tab shows a value (``5.0 s``); None: no source gives one."""
+    problem: str | None = None
+
+
+class ComparisonOut(BaseModel):
+    node_id: int
+    device: str
+    changed: list[ComparedOut]
+    """Settings whose value differs from the factory value."""
+    no_factory_value: list[ComparedOut]
+    """Settings with no known factory value (the profile gives none): listed apart, never compared."""
+    not_read: list[ComparedOut]
+    same: int
+    """How many settings hold their factory value."""
+
+
 # --- conversions -----------------------------------------------------------------------------------------
 def value_out(value: ParameterValue) -> ParameterValueOut:
     return ParameterValueOut(ref=value.ref, name=value.name, index=f"0x{value.index:04X}", subindex=value.subindex,
@@ -251,14 +296,32 @@ def _scaled_out(scaled: ScaledValue) -> ValueOut:
     return ValueOut(raw=raw, value=value, unit=scaled.unit, text=scaled.text)
 
 
-def info_out(item: Item, last: ParameterValue | None, read_failed: str | None = None) -> ParameterInfo:
+def info_out(item: Item, last: ParameterValue | None, read_failed: str | None = None,
+             node_id: int | None = None) -> ParameterInfo:
     entry = item.entry
     return ParameterInfo(
+        factory=factory_compare.factory_shown(item, node_id) if node_id is not None else None,
         ref=item.ref, name=item.name, group=item.group, index=f"0x{item.index:04X}", subindex=item.subindex,
         address=item.address, data_type=entry.data_type.value, access=entry.access.value,
         writable=entry.access.writable, unit=entry.unit, min=entry.min, max=entry.max, default=entry.default,
         selection=entry.selection, bits=entry.bits, reset_required=entry.reset_required,
         last=value_out(last) if last else None, read_failed=shown(read_failed) if read_failed else None)
+
+
+def compared_out(compared: factory_compare.Compared) -> ComparedOut:
+    item, factory = compared.item, compared.factory
+    return ComparedOut(ref=item.ref, name=item.name, group=item.group, address=item.address,
+                       value=value_out(compared.value) if compared.value else None,
+                       factory_raw=factory.raw.hex() if factory and isinstance(factory.raw, bytes)
+                       else factory.raw if factory else None,
+                       factory=factory.display if factory else None, problem=compared.problem)
+
+
+def comparison_out(found: factory_compare.Comparison) -> ComparisonOut:
+    return ComparisonOut(node_id=found.node_id, device=found.device, same=found.same,
+                         changed=[compared_out(c) for c in found.changed],
+                         no_factory_value=[compared_out(c) for c in found.no_factory_value],
+                         not_read=[compared_out(c) for c in found.not_read])
 
 
 def write_out(result: WriteResult, pending: set[str]) -> WriteOut:
@@ -298,7 +361,8 @@ async def list_parameters(session: SessionDep, node: NodeDep,
     failures = service.service(session).failures.get(node.node_id, {})
     found = service.items(node, q, group, parameter_set)
     return ParameterList(node_id=node.node_id, device=node.device_name, groups=service.groups(node),
-                         parameters=[info_out(item, last.get(item.ref), failures.get(item.ref)) for item in found],
+                         parameters=[info_out(item, last.get(item.ref), failures.get(item.ref), node.node_id)
+                                     for item in found],
                          pending_reset=sorted(node.pending_reset))
 
 
@@ -380,6 +444,34 @@ async def write_parameters(request: Request, session: SessionDep, node: NodeDep,
     written = sum(item.ok for item in items)
     return BatchWriteOut(node_id=node.node_id, complete=written == len(items), written=written, items=items,
                          pending_reset=sorted(node.pending_reset))
+
+
+@router.get(NODE + "/changed-from-default", dependencies=[ACTING], response_model=ComparisonOut)
+async def changed_from_default(session: SessionDep, node: NodeDep,
+                               read: Annotated[factory_compare.Reading, Query(description=(
+                                   "all: read every setting now; missing: read those not read yet (default); "
+                                   "none: compare the values last read"))] = factory_compare.Reading.MISSING,
+                               ) -> ComparisonOut:
+    """The comparison with the factory setting: the settings (readable, writable, not process data) whose value
+    differs from the factory value, and apart from them those whose profile gives no factory value."""
+    return comparison_out(await factory_compare.compare(session, node.node_id, read))
+
+
+@router.post("/audit/{entry_id}/undo", dependencies=[ACTING], response_model=UndoOut,
+             responses={409: {"description": "The record cannot be undone: no old value, its write failed, or the "
+                                             "node is gone or handled with another profile (``detail`` says which)"},
+                        428: {"description": "The old value can make the drive move: confirm as for a write"}})
+async def undo_write(request: Request, entry_id: int, body: UndoRequest | None = None) -> UndoOut:
+    """Write the record's old value back through the checked write (range, confirmation, lease, read-back), logged
+    with the origin ``undo <entry_id>``."""
+    record = undoing.record(entry_id, settings.database_url)
+    state: AppState = request.app.state.drivebench
+    session = state.manager.get(record.session_id)
+    drive_guard.confirming(confirmation(request, body and body.confirm, body and body.confirm_values))
+    result = await undoing.undo(session, record)
+    pending = session.node(record.node_id).pending_reset
+    return UndoOut(**write_out(result, pending).model_dump(), undone=entry_id, session_id=session.id,
+                   node_id=record.node_id)
 
 
 @router.post(NODE + "/read-all", dependencies=[ACTING], response_model=JobOut, status_code=status.HTTP_202_ACCEPTED)

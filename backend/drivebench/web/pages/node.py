@@ -16,6 +16,7 @@ from fastapi.responses import HTMLResponse, Response
 from drivebench import i18n
 from drivebench.device.catalog import Item
 from drivebench.device.motion import motion_of
+from drivebench.device.number_base import shows_hex
 from drivebench.errors import AccessDenied, DriveBenchError, NodeOffline, NotFound, SdoTimeoutError
 from drivebench.i18n import N_, _
 from drivebench.services.bus.sessions import Session, SessionNode
@@ -49,10 +50,10 @@ def row_id(ref: str) -> str:
 
 def edit_value(last: service.ParameterValue | None, item: Item) -> str:
     """What the new-value field starts with: the value read last as a user would type it (``50``, not
-    ``50.0``; a bit-coded word in hex)."""
+    ``50.0``; a bit-coded word and a COB-ID in hex)."""
     if last is None or last.value is None:
         return ""
-    if item.entry.bits and isinstance(last.raw, int):
+    if isinstance(last.raw, int) and shows_hex(item):  # a bit-coded word, a COB-ID, an identity
         return f"0x{last.raw:X}"
     if isinstance(last.value, float) and last.value.is_integer():
         return str(int(last.value))
