@@ -60,6 +60,7 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     for item in items:
         if BROWSER_FIXTURES & set(getattr(item, "fixturenames", ())):
             item.add_marker(pytest.mark.browser)
+        if item.get_closest_marker("browser"):
             item.add_marker(pytest.mark.slow)  # a browser test is a slow one: `make test-quick` leaves it out
 
 
@@ -223,7 +224,15 @@ def live_server() -> Iterator[str]:
         yield url
 
 
-@pytest.fixture(scope="session")
+def _browser_scope(fixture_name: str, config: pytest.Config) -> str:
+    """One Chromium per worker module under pytest-xdist, per run otherwise. Playwright's sync API keeps its event
+    loop running on the main thread while it is open: a worker that ran a browser module and then a module that
+    runs its own loop (asyncio.Runner, asyncio.run) failed that module's every test. Serially the browser modules
+    come last (tests/web/); under xdist a worker takes modules in any order."""
+    return "module" if os.environ.get("PYTEST_XDIST_WORKER") else "session"
+
+
+@pytest.fixture(scope=_browser_scope)  # type: ignore[arg-type]
 def browser() -> Iterator[object]:
     playwright_api = pytest.importorskip("playwright.sync_api")
     if not Path(CHROMIUM).exists():
