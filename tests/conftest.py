@@ -201,6 +201,7 @@ def serve_app(app: FastAPI, **config: object) -> Iterator[str]:
     sock = socket.socket()  # bound here, before the server starts: no other process (xdist worker) can take it
     sock.bind(("127.0.0.1", 0))
     port = int(sock.getsockname()[1])
+    config.setdefault("timeout_graceful_shutdown", 5)  # a page left open keeps its websocket: stop anyway
     server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning",
                                            **config))  # type: ignore[arg-type]
     thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
