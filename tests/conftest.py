@@ -30,7 +30,9 @@ from drivebench.services.storage import database
 from drivebench.services.users import accounts
 from drivebench.simulator.plant import Plant, PlantFile
 from drivebench.web.app import create_app
-from tests.pg_cluster import PostgresCluster
+from tests.pg_cluster import PostgresCluster, shared_cluster
+
+pytest_plugins = ["tests.thread_check"]
 
 DEMO_PLANT = REPO_ROOT / "plants" / "demo.json"
 ARTIFACTS = REPO_ROOT / "test-artifacts"
@@ -50,13 +52,16 @@ app_settings.allowed_hosts = [*app_settings.allowed_hosts, "testserver"]
 
 
 BROWSER_FIXTURES = {"browser", "page", "own_page"}
-"""Fixtures that start Chromium: a test using one is a browser test (``-m "not browser"`` leaves it out)."""
+"""Fixtures that start Chromium: a test using one is a browser test (``-m "not browser"`` leaves it out) and a
+slow one (``-m "not slow"``)."""
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     for item in items:
         if BROWSER_FIXTURES & set(getattr(item, "fixturenames", ())):
             item.add_marker(pytest.mark.browser)
+        if item.get_closest_marker("browser"):
+            item.add_marker(pytest.mark.slow)  # a browser test is a slow one: `make test-quick` leaves it out
 
 
 T = TypeVar("T")
@@ -94,14 +99,22 @@ def app_db_url(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[str]
 
 
 @pytest.fixture(scope="session")
-def postgres() -> Iterator[PostgresCluster]:
-    """One throw-away PostgreSQL cluster for the whole run (started on first use)."""
+def postgres(tmp_path_factory: pytest.TempPathFactory) -> Iterator[PostgresCluster]:
+    """One throw-away PostgreSQL cluster for the whole run (started on first use), shared by the run's xdist
+    workers (each test has a database of its own in it)."""
+    if os.environ.get("PYTEST_XDIST_WORKER") is None:
+        try:
+            cluster = PostgresCluster().start()
+        except RuntimeError as exc:
+            pytest.fail(str(exc))
+        yield cluster
+        cluster.stop()
+        return
     try:
-        cluster = PostgresCluster().start()
+        with shared_cluster(tmp_path_factory.getbasetemp().parent) as cluster:
+            yield cluster
     except RuntimeError as exc:
         pytest.fail(str(exc))
-    yield cluster
-    cluster.stop()
 
 
 @pytest.fixture(params=["sqlite", pytest.param("postgresql", marks=pytest.mark.postgresql)])
@@ -185,10 +198,13 @@ def _free_port() -> int:
 def serve_app(app: FastAPI, **config: object) -> Iterator[str]:
     """Run ``app`` in uvicorn on a free loopback port in a thread; yields its base URL, stops it on exit.
     ``config`` goes to uvicorn (``ssl_certfile``/``ssl_keyfile`` serve https)."""
-    port = _free_port()
+    sock = socket.socket()  # bound here, before the server starts: no other process (xdist worker) can take it
+    sock.bind(("127.0.0.1", 0))
+    port = int(sock.getsockname()[1])
+    config.setdefault("timeout_graceful_shutdown", 5)  # a page left open keeps its websocket: stop anyway
     server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning",
                                            **config))  # type: ignore[arg-type]
-    thread = threading.Thread(target=server.run, daemon=True)
+    thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
     thread.start()
     deadline = time.monotonic() + 20
     while not server.started and time.monotonic() < deadline:
@@ -199,6 +215,7 @@ def serve_app(app: FastAPI, **config: object) -> Iterator[str]:
     finally:
         server.should_exit = True
         thread.join(timeout=10)
+        sock.close()
 
 
 @pytest.fixture(scope="session")
@@ -208,7 +225,15 @@ def live_server() -> Iterator[str]:
         yield url
 
 
-@pytest.fixture(scope="session")
+def _browser_scope(fixture_name: str, config: pytest.Config) -> str:
+    """One Chromium per worker module under pytest-xdist, per run otherwise. Playwright's sync API keeps its event
+    loop running on the main thread while it is open: a worker that ran a browser module and then a module that
+    runs its own loop (asyncio.Runner, asyncio.run) failed that module's every test. Serially the browser modules
+    come last (tests/web/); under xdist a worker takes modules in any order."""
+    return "module" if os.environ.get("PYTEST_XDIST_WORKER") else "session"
+
+
+@pytest.fixture(scope=_browser_scope)  # type: ignore[arg-type]
 def browser() -> Iterator[object]:
     playwright_api = pytest.importorskip("playwright.sync_api")
     if not Path(CHROMIUM).exists():

@@ -5,7 +5,10 @@ that package creates."""
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import glob
+import json
 import os
 import pwd
 import shutil
@@ -13,6 +16,7 @@ import socket
 import subprocess
 import tempfile
 import uuid
+from collections.abc import Iterator
 from pathlib import Path
 
 import psycopg
@@ -33,14 +37,15 @@ def _free_port() -> int:
 
 
 class PostgresCluster:
-    def __init__(self) -> None:
+    def __init__(self, folder: Path | None = None, port: int | None = None) -> None:
+        """A new cluster's place (``start`` makes it), or with ``folder`` and ``port`` a running one's."""
         bindir = _binaries()
         if bindir is None:
             raise RuntimeError("PostgreSQL is missing: `make test` installs it (apt-get install postgresql)")
         self.bindir = bindir
-        self.folder = Path(tempfile.mkdtemp(prefix="drivebench-pg-"))
+        self.folder = folder or Path(tempfile.mkdtemp(prefix="drivebench-pg-"))
         self.data = self.folder / "data"
-        self.port = _free_port()
+        self.port = port or _free_port()
         self._user = "postgres" if os.geteuid() == 0 else None
 
     def _run(self, *args: str) -> None:
@@ -84,3 +89,42 @@ class PostgresCluster:
         with psycopg.connect(f"host=127.0.0.1 port={self.port} user=postgres dbname=postgres",
                              autocommit=True) as connection:
             connection.execute(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
+
+
+@contextlib.contextmanager
+def _locked(path: Path) -> Iterator[None]:
+    with path.open("a") as handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
+
+
+@contextlib.contextmanager
+def shared_cluster(folder: Path) -> Iterator[PostgresCluster]:
+    """One cluster for the processes of a run (pytest-xdist workers) that share ``folder``: the first to come
+    starts it, the last to leave stops it (a count in ``folder``/cluster.json, under a file lock). Each worker
+    starting its own cluster cost each an initdb at the same time, which a loaded machine did not finish within
+    a test's timeout."""
+    lock, state = folder / "cluster.lock", folder / "cluster.json"
+    with _locked(lock):
+        if state.exists():
+            known = json.loads(state.read_text())
+            cluster = PostgresCluster(Path(known["folder"]), int(known["port"]))
+            known["users"] += 1
+        else:
+            cluster = PostgresCluster().start()
+            known = {"folder": str(cluster.folder), "port": cluster.port, "users": 1}
+        state.write_text(json.dumps(known))
+    try:
+        yield cluster
+    finally:
+        with _locked(lock):
+            known = json.loads(state.read_text())
+            known["users"] -= 1
+            if known["users"]:
+                state.write_text(json.dumps(known))
+            else:
+                state.unlink()
+                cluster.stop()

@@ -25,6 +25,8 @@ from tests.conftest import _free_port, wait_until
 from tests.test_cli import run_cli
 from tests.transport.test_multiprocess import START_TIMEOUT_S, CliProcess
 
+pytestmark = pytest.mark.slow  # fault scenarios, timeouts or server processes: `make test-quick` leaves them out
+
 COMPOSE = REPO_ROOT / "deploy" / "compose.yaml"
 DOCKERFILE = REPO_ROOT / "Dockerfile"
 ADMIN_PASSWORD = "password of the first start"

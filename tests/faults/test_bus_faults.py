@@ -25,6 +25,8 @@ from drivebench.transport.hub_bridge import BusBridge
 from drivebench.web.app import create_app
 from tests.conftest import CHROMIUM, CHROMIUM_ARGS, DEMO_PLANT, fresh_channel, screenshot, serve_app, wait_for_value
 
+pytestmark = pytest.mark.slow  # fault scenarios, timeouts or server processes: `make test-quick` leaves them out
+
 
 def wait_for(check: Callable[[], Any], timeout_s: float = 10.0, what: str = "condition") -> Any:
     return wait_for_value(check, timeout_s, what)

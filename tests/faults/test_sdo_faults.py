@@ -37,6 +37,8 @@ from drivebench.web.app import create_app
 from tests.confirming import confirmed
 from tests.conftest import DEMO_PLANT, fresh_channel
 
+pytestmark = pytest.mark.slow  # fault scenarios, timeouts or server processes: `make test-quick` leaves them out
+
 SESSION = "demo-plant"
 NODE = f"/api/sessions/{SESSION}/nodes"
 FAULTS = f"/api/sessions/{SESSION}/simulator/nodes/{{node}}/faults"

@@ -34,6 +34,7 @@ class Tap:
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.bind(("127.0.0.1", 0))
         self.port = self.sock.getsockname()[1]
+        self.closing = False
         self.client: tuple[str, int] | None = None
         self.requests: list[bytes] = []
         self.answers: list[bytes] = []
@@ -47,6 +48,8 @@ class Tap:
                 datagram, peer = self.sock.recvfrom(1500)
             except OSError:
                 return
+            if self.closing:
+                return
             if peer == self.gateway:
                 self.answers.append(datagram)
                 if self.client is not None and not self.drop_answer(datagram):
@@ -57,6 +60,11 @@ class Tap:
                 self.sock.sendto(datagram, self.gateway)
 
     def close(self) -> None:
+        """Wake the thread with an empty datagram, then close (closing a UDP socket does not end a recvfrom)."""
+        self.closing = True
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as waker:
+            waker.sendto(b"", ("127.0.0.1", self.port))
+        self.thread.join(timeout=5)
         self.sock.close()
 
 

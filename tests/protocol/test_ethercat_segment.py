@@ -28,6 +28,7 @@ class Gateway:
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.bind(("127.0.0.1", 0))
         self.port = self.sock.getsockname()[1]
+        self.closing = False
         self.client: tuple[str, int] | None = None
         self.thread = threading.Thread(target=self._serve, daemon=True)
         self.thread.start()
@@ -51,6 +52,8 @@ class Gateway:
                 datagram, self.client = self.sock.recvfrom(1500)
             except OSError:
                 return
+            if self.closing:
+                return
             telegram = telegram_of(datagram)
             server = self.servers.get(coe.Mailbox.decode(telegram).address)
             answer = server.handle(telegram) if server else None
@@ -63,6 +66,11 @@ class Gateway:
         self.sock.sendto(gateway_frame(coe.coe_mailbox(station, coe.CoeService.EMERGENCY, body)), self.client)
 
     def close(self) -> None:
+        """Wake the thread with an empty datagram, then close (closing a UDP socket does not end a recvfrom)."""
+        self.closing = True
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as waker:
+            waker.sendto(b"", ("127.0.0.1", self.port))
+        self.thread.join(timeout=5)
         self.sock.close()
 
 

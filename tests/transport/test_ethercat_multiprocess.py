@@ -15,6 +15,8 @@ import pytest
 from tests.test_cli import free_port, poll, run_cli
 from tests.transport.test_multiprocess import START_TIMEOUT_S, CliProcess
 
+pytestmark = pytest.mark.slow  # fault scenarios, timeouts or server processes: `make test-quick` leaves them out
+
 LINE = {"name": "Two-slave line", "ethercat": {"name": "EtherCAT line", "slaves": [
     {"station": 1001, "profile": "lenze-8400-motec-ethercat", "name": "Palletiser"},
     {"station": 1002, "profile": "lenze-8400-motec-ethercat", "name": "Turntable"}]}}

@@ -24,6 +24,8 @@ from drivebench.protocol.nmt import NmtCommand
 from drivebench.services.session_manager import SessionManager
 from tests.conftest import screenshot
 
+pytestmark = pytest.mark.slow  # fault scenarios, timeouts or server processes: `make test-quick` leaves them out
+
 START_TIMEOUT_S = 60.0  # a cold interpreter importing the package on a loaded 2-core machine
 DEMO_NODES = {3: "siemens-micromaster4-canopen", 5: "lenze-8400-motec-canopen", 7: "generic-cia402-servo",
               12: "lenze-8200-vector-emf2178ib"}

@@ -19,6 +19,8 @@ from drivebench.services.users.principals import Role
 from tests.conftest import _free_port, wait_until
 from tests.transport.test_multiprocess import START_TIMEOUT_S, CliProcess
 
+pytestmark = pytest.mark.slow  # fault scenarios, timeouts or server processes: `make test-quick` leaves them out
+
 PASSWORDS = {"root": "root password", "eve": "engineer password", "vera": "viewer password"}
 
 

@@ -23,6 +23,8 @@ from tests.transport.test_ethercat_soem import NO_NET_RAW, PRIVILEGED
 from tests.transport.test_multiprocess import START_TIMEOUT_S
 from tests.web.test_sessions_api import assert_problem
 
+pytestmark = pytest.mark.slow  # fault scenarios, timeouts or server processes: `make test-quick` leaves them out
+
 HTMX = {"HX-Request": "true"}
 
 

@@ -38,6 +38,8 @@ from drivebench.config import settings as app_settings
 from drivebench.web.app import create_app
 from tests.conftest import fresh_channel, serve_app
 
+pytestmark = pytest.mark.slow  # fault scenarios, timeouts or server processes: `make test-quick` leaves them out
+
 DEMO_PLANT = REPO_ROOT / "plants" / "demo.json"
 DEVICE_FAULTS = {"/problems/sdo-abort-error", "/problems/sdo-timeout-error", "/problems/node-offline",
                  "/problems/adapter-unavailable", "/problems/transport-error",

@@ -27,7 +27,7 @@ from tests.conftest import _free_port, wait_until
 from tests.pg_cluster import PostgresCluster
 from tests.transport.test_multiprocess import START_TIMEOUT_S, CliProcess
 
-pytestmark = pytest.mark.postgresql
+pytestmark = [pytest.mark.postgresql, pytest.mark.slow]
 
 SESSION = "demo-plant"
 SETS = "/api/parameter-sets"

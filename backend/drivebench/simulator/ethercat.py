@@ -249,12 +249,20 @@ class GatewayServer:
     def stop(self) -> None:
         self._closed.set()
         self._ticker.stop()
-        with contextlib.suppress(OSError):
-            self._sock.close()
+        self._wake_receiver()
         for thread in self._threads:
             thread.join(timeout=2)
+        with contextlib.suppress(OSError):
+            self._sock.close()
         for slave in self.slaves.values():
             slave.power_off()
+
+    def _wake_receiver(self) -> None:
+        """An empty datagram ends the receiver's wait (closing a UDP socket does not wake a thread in recvfrom on
+        Linux: the thread stayed blocked for the life of the process)."""
+        host = "127.0.0.1" if self.host in ("0.0.0.0", "") else self.host
+        with contextlib.suppress(OSError), socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as waker:
+            waker.sendto(b"", (host, self.port))
 
     def _emergency_sender(self, station: int) -> Callable[[bytes], None]:
         def send(telegram: bytes) -> None:
