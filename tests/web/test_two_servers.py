@@ -245,6 +245,10 @@ def test_kill_9_mid_download_loses_no_committed_row(plant: Plant, line_a: str, l
     set_id = upload(line_b, anna, "Line B at 10.2 A")
     slow = plant.serve("--latency", "200ms")  # a third line whose drive answers slowly: the download takes seconds
     write_c88(slow, eve, 9)
+    for ref, value in (("C00011", 1400), ("C00324/1", 5), ("C00324/2", 5), ("C00324/3", 5)):
+        written = HTTP.put(f"{slow}/api/sessions/{SESSION}/nodes/5/parameters/{ref}", json={"value": value},
+                           headers=eve, timeout=60)  # more for the download to set back: seconds after its row
+        assert written.status_code == 200, written.text
     before_kill = _committed(line_b, anna)
     started = confirmed(HTTP, "POST", f"{slow}{SETS}/{set_id}/download",
                         json={"session_id": SESSION, "node_id": 5, "confirm": "5"},  # the node it may move

@@ -54,6 +54,7 @@ def engine(url: str | None = None) -> Engine:
         connect_args: dict[str, object] = {}
         if parsed.get_backend_name() == "sqlite":
             connect_args["check_same_thread"] = False  # sessions are used from worker threads, one at a time
+            connect_args["timeout"] = 30  # a writer waits for another server's write on a loaded machine (5 s gave up)
             if parsed.database and parsed.database != ":memory:":
                 _private_file(Path(parsed.database))
         created = create_engine(url, connect_args=connect_args, pool_pre_ping=True)
