@@ -266,8 +266,9 @@ TABLES_PAST_THEIR_BOX = """() => [...document.querySelectorAll('table')].filter(
 # What a walk through every page and node tab at 1024 px in German found (issue 28 item 10): the profile list's fixed
 # columns left the product nothing and scrolled the page; the profile's entries left the name 16 px and 'Name' ran
 # into 'Typ'; the Monitor's counter tables ran past their cards (the mailbox table by 400 px: the page scrolled);
-# the planner's Remove button went past the card; the 8200's and the 8400's parameter list scrolled sideways.
-GERMAN_PAGES = ["/profiles", "/profiles/lenze-8200-vector-emf2178ib", "/monitor/demo-plant", "/monitor/ethercat-line",
+# the planner's Remove button went past the card; the 8200's and the 8400's parameter list scrolled sideways; the
+# MICROMASTER's Control tab scrolled by 150 px once its quick commissioning was a sequence (the sequence list's width).
+GERMAN_PAGES = ["/sessions/demo-plant/nodes/3?tab=control", "/profiles", "/profiles/lenze-8200-vector-emf2178ib", "/monitor/demo-plant", "/monitor/ethercat-line",
                 "/tools", "/sessions/demo-plant/nodes/12?tab=parameters", "/sessions/demo-plant/nodes/5?tab=parameters"]
 
 
