@@ -206,7 +206,7 @@ def serve_app(app: FastAPI, **config: object) -> Iterator[str]:
                                            **config))  # type: ignore[arg-type]
     thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
     thread.start()
-    deadline = time.monotonic() + 20
+    deadline = time.monotonic() + 60  # the demo plant's start-up beside three other workers took over 20 s
     while not server.started and time.monotonic() < deadline:
         time.sleep(0.05)
     assert server.started, "the test server did not start"

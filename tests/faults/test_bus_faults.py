@@ -84,7 +84,7 @@ def test_unplugged_adapter_mid_read_all_keeps_values_says_so_and_reconnects(
     assert client.post(f"/api/sessions/{other_id}/nodes",
                        json={"node_id": 7, "profile_id": "lenze-8400-motec-canopen"}).status_code == 201
 
-    trigger = AfterResponses(5, 14, lambda: adapter.unplug())
+    trigger = AfterResponses(5, 24, lambda: adapter.unplug())
     session.add_frame_listener(trigger)
     started = client.post("/api/sessions/demo-plant/nodes/5/read-all")
     assert started.status_code == 202, started.text
@@ -140,7 +140,7 @@ def test_socketcand_hub_cut_mid_read_all_is_adapter_lost_until_the_hub_is_back()
             wait_for(lambda: client.get("/api/sessions/demo-plant/nodes/5/parameters/0x1000").status_code == 200,
                      what="the plant to answer through the hub")
             stopper: list[threading.Thread] = []
-            trigger = AfterResponses(5, 14, lambda: stopper.append(_started(threading.Thread(target=hub.stop))))
+            trigger = AfterResponses(5, 24, lambda: stopper.append(_started(threading.Thread(target=hub.stop))))
             session.add_frame_listener(trigger)
             started = client.post("/api/sessions/demo-plant/nodes/5/read-all")
             job = wait_for(lambda: job_finished(client, started.json()["id"]), what="the read-all to end")

@@ -48,6 +48,7 @@ def test_nmt_start_asks_first_and_closing_the_tab_stops_the_drive(own_server: tu
         expect(asked).to_contain_text(f"Sends to node {MM}")
         expect(asked).to_contain_text("NMT: start")
         asked.get_by_role("button", name="Cancel").click()
+        expect(asked).to_be_hidden(timeout=WAIT_MS)  # else the next click may find this answered dialog still shown
         time.sleep(0.5)
         assert sim.state.name == "PRE_OPERATIONAL", "refusing the confirmation sends nothing"
 

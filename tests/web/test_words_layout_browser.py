@@ -268,7 +268,8 @@ TABLES_PAST_THEIR_BOX = """() => [...document.querySelectorAll('table')].filter(
 # into 'Typ'; the Monitor's counter tables ran past their cards (the mailbox table by 400 px: the page scrolled);
 # the planner's Remove button went past the card; the 8200's and the 8400's parameter list scrolled sideways; the
 # MICROMASTER's Control tab scrolled by 150 px once its quick commissioning was a sequence (the sequence list's width).
-GERMAN_PAGES = ["/sessions/demo-plant/nodes/3?tab=control", "/profiles", "/profiles/lenze-8200-vector-emf2178ib", "/monitor/demo-plant", "/monitor/ethercat-line",
+GERMAN_PAGES = ["/sessions/demo-plant/nodes/3?tab=control",
+                "/profiles", "/profiles/lenze-8200-vector-emf2178ib", "/monitor/demo-plant", "/monitor/ethercat-line",
                 "/tools", "/sessions/demo-plant/nodes/12?tab=parameters", "/sessions/demo-plant/nodes/5?tab=parameters"]
 
 
