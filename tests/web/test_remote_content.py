@@ -16,7 +16,7 @@ from fastapi.testclient import TestClient
 
 from drivebench.simulator.plant import Plant
 from drivebench.web.app import create_app
-from tests.conftest import DEMO_PLANT, fresh_channel, wait_for_value
+from tests.conftest import DEMO_PLANT, fresh_channel, screenshot, wait_for_value
 
 NODE = 3
 F0070 = 0x7001  # EMCY code of MICROMASTER fault F0070 (CANopen option module manual, Table 3-14)
@@ -90,10 +90,13 @@ def test_link_shows_the_trip_in_words_the_values_read_and_the_bus_without_an_sdo
         mm4 = wait_for_value(tripped, 15.0, "the trip in the link's content")
         time.sleep(0.5)  # any frame the link's reads caused is on the wire by now
         page = viewer.get(f"/remote/{token}")
+        by_viewer = requests.count
+        client.post(f"/api/sessions/demo-plant/nodes/{NODE}/parameters:read", json={"refs": ["r2110"]})
+        wait_for_value(lambda: requests.count > by_viewer, 10.0, "the engineer's read on the wire (the count works)")
     finally:
         notifier.stop()
         wire.shutdown()
-    assert requests.count == 0, "the link holder caused SDO traffic"
+    assert by_viewer == 0, "the link holder caused SDO traffic"
 
     fault = mm4["present"]["fault"]
     assert fault["label"] == "F0070" and "Control board setpoint timeout" in fault["text"]
@@ -102,10 +105,56 @@ def test_link_shows_the_trip_in_words_the_values_read_and_the_bus_without_an_sdo
     assert mm4["last_emcys"][0]["code"] == "0x7001"
     values = {v["ref"]: v for v in mm4["values"]}
     assert "r0947" in values and values["r0947"]["age_s"] >= 0
-    assert "r2110" in mm4["not_read"], "never read on site: listed, not read for the link"
+    assert "r2110" in mm4["not_read"], "not read on site then: listed, never read for the link"
     bus = viewer.get(f"/api/remote/{token}/content").json()[0]["bus"]
     assert bus["totals"]["frames"] > 0 and "percent" in bus["load"]
 
     assert page.status_code == 200
     assert "Control board setpoint timeout" in page.text and "Remedy:" in page.text
     assert "Fault history" in page.text and "Bus load" in page.text and "r0947" in page.text
+
+
+def test_share_link_in_a_second_browser_shows_the_micromaster_fault_and_history_without_an_sdo_frame(
+        demo_server: tuple[str, Plant], browser: Any) -> None:
+    base, plant = demo_server
+    engineer = browser.new_context(viewport={"width": 1440, "height": 900})
+    page = engineer.new_page()
+    page.goto(f"{base}/remote")
+    page.fill("input[name=label]", "Siemens service, ticket 815")
+    assert page.locator("input[name=shows][value=faults]").is_checked(), "default: health + faults"
+    assert not page.locator("input[name=shows][value=bus]").is_checked()
+    page.check("input[name=shows][value=emcy]")
+    page.click("text=Create share link")
+    url = page.locator("input.share-url").input_value()
+    row = page.locator("#share-links tbody tr", has_text="ticket 815")
+    assert "Last emergency telegrams" in row.inner_text() and "Bus load" not in row.inner_text()
+    screenshot(page, "remote-content-engineer")
+
+    wire = can.Bus(interface="virtual", channel=plant.spec.channel, receive_own_messages=False)
+    requests = SdoRequests()
+    notifier = can.Notifier(wire, [requests])
+    remote = browser.new_context(viewport={"width": 1440, "height": 900})
+    try:
+        viewer = remote.new_page()
+        viewer.goto(url)
+        viewer.wait_for_selector("text=read-only view")
+        node = viewer.locator(".remote-node[data-node='3']")
+        node.locator(".remote-present-fault").wait_for(timeout=20_000)
+        plant.nodes[NODE].drive.raise_fault(70, F0070)  # the simulated drive trips: EMCY 0x7001 + F0070
+        viewer.wait_for_selector(".remote-node[data-node='3'] .remote-present-fault >> text=F0070", timeout=20_000)
+        present = node.locator(".remote-present-fault").inner_text()
+        assert "Control board setpoint timeout" in present
+        assert "Remedy: Check whether the CANopen master has stopped" in present
+        history = node.locator("table.remote-fault-history tbody tr")
+        assert history.count() >= 1 and "F0070" in history.first.inner_text()
+        assert "0x7001" in node.locator("table.remote-last-emcys").inner_text()
+        assert viewer.locator(".remote-bus").count() == 0, "not chosen for this link"
+        assert viewer.locator("button").count() == 0, "the remote view offers no action"
+        screenshot(viewer, "remote-content-viewer")
+        viewer.wait_for_timeout(1500)  # more pushes of the live view: still no SDO frame
+    finally:
+        notifier.stop()
+        wire.shutdown()
+        remote.close()
+        engineer.close()
+    assert requests.count == 0, "the link holder caused SDO traffic"
