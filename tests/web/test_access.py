@@ -235,7 +235,7 @@ PARAMETERS = {"session_id": "demo-plant", "node_id": "5", "ref": "C00039/1", "sl
 def fill(template: str, link: str) -> str:
     def value(match: re.Match[str]) -> str:
         name = match.group(1).split(":")[0]
-        if name == "token" and template.startswith(("/remote/", "/ws/remote/")):
+        if name == "token" and template.startswith(("/remote/", "/ws/remote/", "/api/remote/")):
             return link
         return PARAMETERS.get(name, "1")
 

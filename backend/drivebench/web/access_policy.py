@@ -155,7 +155,8 @@ UNCLASSIFIED_WEBSOCKET = Rule(A, N_("This live connection (not yet given a role)
 # remote-diagnostics link (which check the link's own token).
 PUBLIC: frozenset[tuple[str, str]] = frozenset({
     ("GET", "/login"), ("POST", "/login"), ("POST", "/api/auth/login"), ("GET", "/api/health"),
-    ("GET", "/remote/{token}"), (WEBSOCKET, "/ws/remote/{token}"), ("GET", "/language/{code}"),
+    ("GET", "/remote/{token}"), ("GET", "/api/remote/{token}/content"), (WEBSOCKET, "/ws/remote/{token}"),
+    ("GET", "/language/{code}"),
 })
 PUBLIC_PREFIXES = ("/static/",)
 

@@ -29,7 +29,7 @@ SAFE_METHODS = {"GET", "HEAD", "OPTIONS"}
 VIEWER_WEBSOCKETS = ("/ws/remote",)
 _S = "/api/sessions/{session_id}"
 LINK_READS = frozenset({
-    "/remote", "/remote/{token}", "/static", "/openapi.json",
+    "/remote", "/remote/{token}", "/api/remote/{token}/content", "/static", "/openapi.json",
     "/api/health", "/api/health/nodes", "/api/auth/me", "/api/sessions", _S, _S + "/nodes", _S + "/nodes/{node_id}",
     _S + "/nodes/{node_id}/emcy", _S + "/diagnostics/report",
     _S + "/monitor", _S + "/monitor/history", _S + "/monitor/trace",

@@ -178,6 +178,8 @@ class ShareLinkRow(Base):
     label: Mapped[str] = mapped_column(String(80), nullable=False)
     created: Mapped[float] = mapped_column(Float, nullable=False)
     expires: Mapped[float] = mapped_column(Float, nullable=False, index=True)
+    shows: Mapped[str] = mapped_column(String(200), nullable=False, server_default="health,faults")
+    """What the link shows, comma-separated (``sharing.SHOWS``; 0008_share_link_shows)."""
 
 
 class SignedOutSessionRow(Base):

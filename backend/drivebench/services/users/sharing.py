@@ -12,11 +12,12 @@ from __future__ import annotations
 import hashlib
 import secrets
 import time
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 from sqlalchemy import delete, or_, select
 
-from drivebench.errors import NotAuthenticated, NotFound
+from drivebench.errors import InvalidValue, NotAuthenticated, NotFound
 from drivebench.i18n import N_, _
 from drivebench.services.storage.database import transaction
 from drivebench.services.storage.models import ShareLinkRow
@@ -24,6 +25,11 @@ from drivebench.services.storage.models import ShareLinkRow
 TOKEN_PREFIX = "dbv_"
 MAX_TTL_S = 7 * 24 * 3600
 HINT_LENGTH = 8
+SHOWS = ("health", "faults", "emcy", "parameters", "bus")
+"""What a link can show, chosen per link: node health; each drive's present fault in words and its fault history;
+the last emergency telegrams; the diagnosis parameters as last read (with their age); bus load and the monitor's
+counters. (Stored scope recordings, once they exist, become one more name here.)"""
+DEFAULT_SHOWS = ("health", "faults")
 
 
 @dataclass(frozen=True)
@@ -34,6 +40,7 @@ class ShareLink:
     label: str
     created: float
     expires: float
+    shows: tuple[str, ...] = DEFAULT_SHOWS
 
     def expired(self, now: float | None = None) -> bool:
         return (now or time.time()) >= self.expires
@@ -57,15 +64,16 @@ class ShareLinks:
     def __init__(self, url: str | None = None) -> None:
         self.url = url
 
-    def create(self, ttl_s: float, label: str = "") -> IssuedLink:
+    def create(self, ttl_s: float, label: str = "", shows: Iterable[str] = DEFAULT_SHOWS) -> IssuedLink:
         ttl_s = min(max(ttl_s, 60.0), MAX_TTL_S)
         now = time.time()
         token = TOKEN_PREFIX + secrets.token_urlsafe(24)
-        link = ShareLink(secrets.token_hex(6), token[:HINT_LENGTH], label.strip()[:80], now, now + ttl_s)
+        link = ShareLink(secrets.token_hex(6), token[:HINT_LENGTH], label.strip()[:80], now, now + ttl_s,
+                         chosen_shows(shows))
         with transaction(self.url) as db:
             db.execute(delete(ShareLinkRow).where(ShareLinkRow.expires <= now))
             db.add(ShareLinkRow(id=link.id, token_hash=_digest(token), hint=link.hint, label=link.label,
-                                created=link.created, expires=link.expires))
+                                created=link.created, expires=link.expires, shows=",".join(link.shows)))
         return IssuedLink(link, token)
 
     def check(self, token: str) -> ShareLink:
@@ -97,5 +105,18 @@ class ShareLinks:
             return [_link(row) for row in rows]
 
 
+def chosen_shows(shows: Iterable[str]) -> tuple[str, ...]:
+    """The chosen parts in ``SHOWS`` order; an unknown name is refused in words, nothing chosen at all too."""
+    wanted = {name.strip() for name in shows if name.strip()}
+    unknown = sorted(wanted - set(SHOWS))
+    if unknown:
+        raise InvalidValue(_("A share link cannot show {names}: it shows {known}.").format(
+            names=", ".join(unknown), known=", ".join(SHOWS)))
+    if not wanted:
+        raise InvalidValue(_("Choose at least one thing the share link shows."))
+    return tuple(name for name in SHOWS if name in wanted)
+
+
 def _link(row: ShareLinkRow) -> ShareLink:
-    return ShareLink(row.id, row.hint, row.label, row.created, row.expires)
+    shows = tuple(name for name in SHOWS if name in row.shows.split(","))
+    return ShareLink(row.id, row.hint, row.label, row.created, row.expires, shows)

@@ -14,7 +14,8 @@ from starlette.requests import HTTPConnection
 from drivebench.services.monitoring import diagnostics, fault_words, object_list
 from drivebench.services.monitoring.diagnostics import EmcyRecord, GuardingPublic, HeartbeatSetup, NodeHealth
 from drivebench.services.monitoring.object_list import ObjectListComparison
-from drivebench.services.users.sharing import IssuedLink, ShareLink
+from drivebench.services.monitoring.remote_content import SessionContent, session_content
+from drivebench.services.users.sharing import DEFAULT_SHOWS, SHOWS, IssuedLink, ShareLink
 from drivebench.web.deps import NodeDep, SessionDep, StateDep
 from drivebench.web.origins import public_base_url
 from drivebench.web.safety import ACTING
@@ -47,6 +48,8 @@ class GuardingRequest(BaseModel):
 class ShareLinkCreate(BaseModel):
     ttl_minutes: int = Field(60, ge=1, le=7 * 24 * 60)
     label: str = Field("", max_length=80)
+    shows: list[str] = Field(default_factory=lambda: list(DEFAULT_SHOWS), max_length=len(SHOWS),
+                             description=f"What the link shows, of {', '.join(SHOWS)}")
 
 
 class ShareLinkPublic(BaseModel):
@@ -57,6 +60,7 @@ class ShareLinkPublic(BaseModel):
     label: str
     created: float
     expires: float
+    shows: list[str]
 
 
 class IssuedShareLink(ShareLinkPublic):
@@ -66,7 +70,8 @@ class IssuedShareLink(ShareLinkPublic):
 
 
 def share_link_public(link: ShareLink) -> ShareLinkPublic:
-    return ShareLinkPublic(id=link.id, hint=link.hint, label=link.label, created=link.created, expires=link.expires)
+    return ShareLinkPublic(id=link.id, hint=link.hint, label=link.label, created=link.created, expires=link.expires,
+                           shows=list(link.shows))
 
 
 def issued_link(issued: IssuedLink, conn: HTTPConnection) -> IssuedShareLink:
@@ -85,6 +90,13 @@ async def network_health(state: StateDep) -> list[SessionHealth]:
     """Every open session's nodes as the heartbeat and EMCY consumers see them (what the remote view shows)."""
     return [SessionHealth(session_id=s.id, name=s.name, bus=str(s.spec), nodes=diagnostics.network_health(s))
             for s in state.manager.list()]
+
+
+@router.get("/remote/{token}/content", response_model=list[SessionContent])
+async def remote_content(state: StateDep, token: Annotated[str, Path(max_length=80)]) -> list[SessionContent]:
+    """What the link shows beyond node health (its ``shows``), from what the server already holds: no bus traffic."""
+    link = state.share_links.check(token)
+    return [session_content(session, link.shows) for session in state.manager.list()]
 
 
 @router.get("/sessions/{session_id}/nodes/{node_id}/emcy", response_model=list[EmcyRecord])
@@ -137,7 +149,7 @@ async def report(request: Request, session: SessionDep) -> Response:
 @router.post("/share-links", response_model=IssuedShareLink, status_code=status.HTTP_201_CREATED)
 async def create_share_link(request: Request, state: StateDep, body: ShareLinkCreate) -> IssuedShareLink:
     """A link for the remote view; its token and URL are in this answer only."""
-    return issued_link(state.share_links.create(body.ttl_minutes * 60, body.label), request)
+    return issued_link(state.share_links.create(body.ttl_minutes * 60, body.label, body.shows), request)
 
 
 @router.get("/share-links", response_model=list[ShareLinkPublic])

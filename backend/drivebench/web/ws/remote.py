@@ -22,7 +22,7 @@ PERIOD_S = 1.0
 async def remote_health(websocket: WebSocket, token: str) -> None:
     state = websocket.app.state.drivebench
     try:
-        await asyncio.to_thread(state.share_links.check, token)
+        link = await asyncio.to_thread(state.share_links.check, token)
     except DriveBenchError as exc:
         await websocket.close(code=4401, reason=exc.detail[:120])
         return
@@ -36,7 +36,7 @@ async def remote_health(websocket: WebSocket, token: str) -> None:
             except DriveBenchError as exc:
                 await websocket.close(code=4401, reason=exc.detail[:120])
                 return
-            html = "".join(block(template.new_context(health_context(state))))
+            html = "".join(block(template.new_context(health_context(state, link.shows))))
             await websocket.send_text(html.replace('id="remote-health"', 'id="remote-health" hx-swap-oob="true"', 1))
             await asyncio.sleep(PERIOD_S)
     except (WebSocketDisconnect, RuntimeError):
