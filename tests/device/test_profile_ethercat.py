@@ -7,6 +7,7 @@ import pytest
 
 from drivebench.config import settings
 from drivebench.device.catalog import Catalog
+from drivebench.device.eds_export import export_eds
 from drivebench.device.loader import ProfileRegistry
 from drivebench.device.profile import Access, Parameter, Profile
 from drivebench.device.scaling import from_raw, to_raw
@@ -139,3 +140,13 @@ def test_counts(profile: Profile) -> None:
     assert len({p.code for p in profile.parameters}) == 21
     assert len(profile.objects) == 52
     assert len(profile.emcy_codes) == 13
+
+
+def test_notes_and_exported_eds_say_the_unit_is_reached_through_a_master(profile: Profile) -> None:
+    """Issue 33: the notes (and the EDS exported from them) still said DriveBench cannot reach the unit, though
+    sessions reach it through a master's mailbox gateway or DriveBench's own master."""
+    eds = export_eds(profile)
+    text = eds.decode("latin-1") if isinstance(eds, bytes) else str(eds)
+    for said in (" ".join(profile.notes), text):
+        assert "cannot reach" not in said and "Offline editing only" not in said
+        assert "ethercat-mbg:" in said and "ethercat:" in said

@@ -368,3 +368,25 @@ def test_a_fixed_mapping_is_said_in_words_on_the_tab_and_refused_with_422(
     refused = demo_api.put(f"{NODE}/pdos/mapping/rpdo/1", json={"entries": [[0x5C93, 1]]})
     assert refused.status_code == 422 and refused.json()["detail"] == (
         "The mapping of RxPDO 0x1600 is fixed on this device (its entries are read-only in the profile).")
+
+
+@pytest.fixture
+def master_without_diagnosis(registry: ProfileRegistry) -> Iterator[GatewayServer]:
+    """A gateway whose master has no diagnosis objects 0xA000 + n (it aborts their reads with 0x06020000)."""
+    unit = SimulatedSlave(registry.get("lenze-8400-motec-ethercat"), 1001, 0, name="Plain master unit")
+    server = GatewayServer([unit], diagnosis=False).start()
+    yield server
+    server.stop()
+
+
+def test_a_master_without_diagnosis_objects_leaves_the_segment_usable(
+        demo_api: TestClient, master_without_diagnosis: GatewayServer) -> None:
+    opened = demo_api.post("/api/sessions", json={"bus": master_without_diagnosis.spec, "name": "Plain master"})
+    assert opened.status_code == 201, opened.text
+    session_id = opened.json()["id"]
+    nodes = demo_api.get(f"/api/sessions/{session_id}/nodes").json()
+    assert [(n["node_id"], n["station"], n["profile_id"], n["nmt_state"]) for n in nodes] == [
+        (1, 1001, "lenze-8400-motec-ethercat", "Unknown")]  # AL state unknown, the slave still listed
+    assert "Slave list not read" not in demo_api.get("/").text
+    assert demo_api.get(f"/api/sessions/{session_id}/nodes/1/parameters/C00039/1").json()["display"] == "40.00 %"
+    assert [n["node_id"] for n in demo_api.post(f"/api/sessions/{session_id}/scan").json()] == [1]

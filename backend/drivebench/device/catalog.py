@@ -15,9 +15,10 @@ from drivebench.device.addressing import (
     lenze_parameter_set,
     parse_ref,
 )
-from drivebench.device.profile import Entry, LenzeCodeAddressing, ObjectEntry, Parameter, Profile
+from drivebench.device.profile import Access, Entry, LenzeCodeAddressing, ObjectEntry, Parameter, Profile
 from drivebench.errors import UnknownParameter
 from drivebench.i18n import _
+from drivebench.protocol.datatypes import DataType
 
 
 @dataclass(frozen=True)
@@ -87,6 +88,7 @@ class Catalog:
         for obj in profile.objects:
             item = Item(index_ref(obj.index, obj.subindex), obj.index, obj.subindex, obj)
             self._by_address.setdefault((obj.index, obj.subindex), item)
+        self._sub_zero = _sub_zero_items(self._by_address)
 
     @cached_property
     def items(self) -> list[Item]:
@@ -124,6 +126,8 @@ class Catalog:
         """The item at this address; a code of parameter set 2 and up (0x5823: C2012) where the profile lists its
         set 1 code."""
         found = self._by_address.get((index, subindex))
+        if found is None and subindex == 0:
+            found = self._sub_zero.get(index)
         if found is None and self.parameter_sets > 1:
             return self._set_addresses.get((index, subindex))
         return found
@@ -145,7 +149,7 @@ class Catalog:
         ref = parse_ref(text)
         if isinstance(ref, IndexRef):
             sub = ref.subindex if ref.subindex is not None else 0
-            item = self._by_address.get((ref.index, sub))
+            item = self._by_address.get((ref.index, sub)) or (self._sub_zero.get(ref.index) if sub == 0 else None)
             if item is None:
                 raise UnknownParameter(_("{object} is not in the profile '{product}'").format(
                     object=f"0x{ref.index:04X}sub{sub}", product=self.profile.identity.product_name))
@@ -205,6 +209,31 @@ class Catalog:
         prefix = "P" if self.profile.addressing.kind == "siemens_mm4" else "C"
         code = format_code(self.profile.addressing, prefix, number)
         return code if sub == 0 else f"{code}/{sub}"
+
+
+def _sub_zero_items(by_address: dict[tuple[int, int], Item]) -> dict[int, Item]:
+    """Sub 0 of every array/record whose profile lists only its members: "Highest sub-index supported",
+    UNSIGNED8, read-only, the highest listed sub-index (CiA 301; the exported EDS declares it the same way)."""
+    members: dict[int, list[Item]] = {}
+    for (index, _sub), item in by_address.items():
+        members.setdefault(index, []).append(item)
+    found: dict[int, Item] = {}
+    for index, items in members.items():
+        if (index, 0) in by_address:
+            continue
+        first = min(items, key=lambda i: i.subindex)
+        entry = first.entry
+        if isinstance(entry, ObjectEntry):
+            object_name, object_type = entry.object_name or entry.name, entry.object_type
+        else:
+            code = entry.code if isinstance(entry, Parameter) else ""
+            object_name, object_type = f"{code}: {entry.name}" if code else entry.name, "RECORD"
+        highest = max(i.subindex for i in items)
+        found[index] = Item(index_ref(index, 0), index, 0, ObjectEntry(
+            index=index, subindex=0, name="Highest sub-index supported", object_name=object_name,
+            object_type="RECORD" if object_type == "VAR" else object_type, data_type=DataType.UNSIGNED8,
+            access=Access.RO, default=highest))
+    return found
 
 
 def _number(code: str) -> int:

@@ -302,8 +302,11 @@ class GatewayNetwork(EthercatNetwork):
         info.name = self._master(configuration, esm.SUB_NAME).decode("utf-8", "replace").rstrip("\0")
         info.vendor_id = int.from_bytes(self._master(configuration, esm.SUB_VENDOR), "little")
         info.product_code = int.from_bytes(self._master(configuration, esm.SUB_PRODUCT), "little")
-        info.al_status = int.from_bytes(self._master(diagnosis, esm.SUB_AL_STATUS), "little")
-        info.al_status_code = int.from_bytes(self._master(diagnosis, esm.SUB_AL_STATUS_CODE), "little")
+        try:
+            info.al_status = int.from_bytes(self._master(diagnosis, esm.SUB_AL_STATUS), "little")
+            info.al_status_code = int.from_bytes(self._master(diagnosis, esm.SUB_AL_STATUS_CODE), "little")
+        except SdoAbortError:  # a master without the diagnosis object: AL state unknown, the slave still listed
+            info.al_status, info.al_status_code = None, 0
         return info
 
     def al_state(self, node_id: int) -> tuple[int, int]:

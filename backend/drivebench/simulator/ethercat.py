@@ -144,8 +144,10 @@ class SimulatedSlave:
 class SimulatedMaster:
     """The master's object dictionary at station address 0 (see :mod:`drivebench.protocol.esm`)."""
 
-    def __init__(self, slaves: list[SimulatedSlave]) -> None:
+    def __init__(self, slaves: list[SimulatedSlave], *, diagnosis: bool = True) -> None:
         self.slaves = slaves
+        self.diagnosis = diagnosis
+        """False: a master without the diagnosis objects 0xA000 + n (their reads and writes abort 0x06020000)."""
         self.server = CoeSdoServer(esm.MASTER_STATION, self._read, self._write)
 
     def _slave(self, index: int, base: int) -> SimulatedSlave:
@@ -163,7 +165,7 @@ class SimulatedMaster:
             raise Abort(0x06090011)
         if esm.CONFIGURATION_BASE <= index < esm.CONFIGURATION_BASE + esm.MAX_SLAVES:
             return self._configuration(self._slave(index, esm.CONFIGURATION_BASE), sub)
-        if esm.DIAGNOSIS_BASE <= index < esm.DIAGNOSIS_BASE + esm.MAX_SLAVES:
+        if self.diagnosis and esm.DIAGNOSIS_BASE <= index < esm.DIAGNOSIS_BASE + esm.MAX_SLAVES:
             slave = self._slave(index, esm.DIAGNOSIS_BASE)
             values = {0: bytes([3]), esm.SUB_AL_STATUS: slave.al_status.to_bytes(2, "little"),
                       esm.SUB_AL_CONTROL: int(slave.state).to_bytes(2, "little"),
@@ -190,6 +192,8 @@ class SimulatedMaster:
         return values[sub]
 
     def _write(self, index: int, sub: int, data: bytes) -> None:
+        if not self.diagnosis and esm.DIAGNOSIS_BASE <= index < esm.DIAGNOSIS_BASE + esm.MAX_SLAVES:
+            raise Abort(0x06020000)
         if not esm.DIAGNOSIS_BASE <= index < esm.DIAGNOSIS_BASE + esm.MAX_SLAVES:
             raise Abort(0x06010002 if index == esm.ADDRESS_LIST or index >= esm.CONFIGURATION_BASE else 0x06020000)
         slave = self._slave(index, esm.DIAGNOSIS_BASE)
@@ -217,9 +221,10 @@ class SimulatedMaster:
 class GatewayServer:
     """A master's mailbox gateway on UDP: one thread receives, each slave answers in its own worker thread."""
 
-    def __init__(self, slaves: list[SimulatedSlave], *, host: str = "127.0.0.1", port: int = 0) -> None:
+    def __init__(self, slaves: list[SimulatedSlave], *, host: str = "127.0.0.1", port: int = 0,
+                 diagnosis: bool = True) -> None:
         self.slaves = {slave.station: slave for slave in slaves}
-        self.master = SimulatedMaster(slaves)
+        self.master = SimulatedMaster(slaves, diagnosis=diagnosis)
         self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self._sock.bind((host, port))
         self.host, self.port = self._sock.getsockname()[:2]
