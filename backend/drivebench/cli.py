@@ -34,10 +34,12 @@ def serve(args: argparse.Namespace) -> int:
     import uvicorn
 
     from drivebench.web import serving
+    from drivebench.web.access import secret_key
     from drivebench.web.app import create_app
     from drivebench.web.tls import check_pair
 
     check_pair(args.tls_cert, args.tls_key)  # before the database: a file mistake is said first, whatever else
+    secret_key()  # made now, or an empty key file refused in words before anyone signs in
     _first_start_admin()
     if not _is_loopback(args.host) and not _authentication_configured():
         print(_(
