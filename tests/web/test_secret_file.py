@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import os
+import shutil
 import stat
 import subprocess
 import sys
 import time
 from pathlib import Path
+
+import pytest
 
 from drivebench.config import REPO_ROOT
 
@@ -50,3 +53,19 @@ def test_processes_starting_together_share_one_whole_key(tmp_path: Path) -> None
     assert len(keys) == 1 and len(keys.pop()) > 40
     assert stat.S_IMODE(key_file.stat().st_mode) == 0o600
     assert [p.name for p in key_file.parent.iterdir()] == ["secret_key"], "no temporary file left behind"
+
+
+def test_serve_says_when_it_cannot_make_the_key_file(tmp_path: Path) -> None:
+    folder = tmp_path / "read-only"
+    folder.mkdir(mode=0o555)
+    setpriv = shutil.which("setpriv")
+    if os.geteuid() == 0 and setpriv is None:
+        pytest.skip("running as root without setpriv: every folder is writable")
+    # root writes every folder; without these two capabilities it is held to the folder's mode like any user
+    prefix = [setpriv, "--bounding-set=-dac_override,-dac_read_search"] if os.geteuid() == 0 and setpriv else []
+    done = subprocess.run([*prefix, sys.executable, "-m", "drivebench.cli", "serve", "--port", "0"], cwd=tmp_path,
+                          env=_env(folder / "secret_key",
+                                   DRIVEBENCH_DATABASE_URL=f"sqlite:///{tmp_path / 'db.sqlite'}"),
+                          capture_output=True, text=True, timeout=120, check=False)
+    assert done.returncode == 1 and "Traceback" not in done.stderr, done.stderr
+    assert f"Cannot make the secret key file {folder / 'secret_key'}: Permission denied" in done.stderr

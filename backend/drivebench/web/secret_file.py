@@ -50,6 +50,22 @@ def _write_new(path: Path) -> None:
 def kept_key(path: Path) -> str:
     """The key in ``path``, made there first when there is none."""
     with contextlib.suppress(FileNotFoundError):
+        return _read_or_say(path)
+    try:
+        _write_new(path)
+    except OSError as exc:
+        raise ServiceError(_("Cannot make the secret key file {path}: {reason}. Let the server's user write that "
+                             "folder, or give the key with DRIVEBENCH_SECRET_KEY_FILE / DRIVEBENCH_SECRET_KEY.").format(
+            path=path, reason=exc.strerror)) from None
+    return _read_or_say(path)
+
+
+def _read_or_say(path: Path) -> str:
+    try:
         return _read(path)
-    _write_new(path)
-    return _read(path)
+    except FileNotFoundError:
+        raise
+    except (OSError, UnicodeDecodeError) as exc:
+        reason = exc.strerror if isinstance(exc, OSError) else _("it is not UTF-8 text")
+        raise ServiceError(_("Cannot read the secret key file {path}: {reason}.").format(
+            path=path, reason=reason)) from None
