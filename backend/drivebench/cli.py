@@ -34,9 +34,12 @@ def serve(args: argparse.Namespace) -> int:
     import uvicorn
 
     from drivebench.web import serving
+    from drivebench.web.access import secret_key
     from drivebench.web.app import create_app
     from drivebench.web.tls import check_pair
 
+    check_pair(args.tls_cert, args.tls_key)  # before the database: a file mistake is said first, whatever else
+    secret_key()  # made now, or an empty key file refused in words before anyone signs in
     _first_start_admin()
     if not _is_loopback(args.host) and not _authentication_configured():
         print(_(
@@ -46,7 +49,6 @@ def serve(args: argparse.Namespace) -> int:
             "or listen on 127.0.0.1 (the default) and reach it through an SSH tunnel.").format(host=args.host),
             file=sys.stderr)
         return 2
-    check_pair(args.tls_cert, args.tls_key)
     if args.hsts and not args.tls_cert:
         raise InvalidValue(_("--hsts needs --tls-cert and --tls-key: HSTS is only sent over https."))
     _check_buses(args.bus or [])

@@ -20,9 +20,7 @@ into the audit log's ``current_user``.
 
 from __future__ import annotations
 
-import contextlib
 import ipaddress
-import os
 import re
 import secrets
 from dataclasses import dataclass
@@ -47,6 +45,7 @@ from drivebench.services.users.sharing import ShareLinks
 from drivebench.web import access_policy, cookies, origins
 from drivebench.web.identity import principal_of
 from drivebench.web.problems import error_fragment, error_page, problem_body, wants_page
+from drivebench.web.secret_file import kept_key
 
 SESSION_COOKIE = "drivebench_session"
 CSRF_HEADER = "x-csrf-token"
@@ -56,21 +55,11 @@ SAFE_METHODS = access_policy.SAFE_METHODS
 
 # --- the key that signs the session cookies --------------------------------------------------------------------
 def secret_key() -> str:
-    """``DRIVEBENCH_SECRET_KEY``, else a random key made once and kept (mode 0600) in ``settings.secret_key_file``."""
+    """``DRIVEBENCH_SECRET_KEY``, else a random key made once and kept (mode 0600) in ``settings.secret_key_file``
+    (written atomically; an empty file is refused in words: web/secret_file.py)."""
     if settings.secret_key:
         return settings.secret_key
-    path = Path(settings.secret_key_file)
-    with contextlib.suppress(FileNotFoundError):
-        return path.read_text().strip()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    key = secrets.token_urlsafe(48)
-    try:
-        descriptor = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
-    except FileExistsError:  # another process made it first
-        return path.read_text().strip()
-    with os.fdopen(descriptor, "w") as file:
-        file.write(key + "\n")
-    return key
+    return kept_key(Path(settings.secret_key_file))
 
 
 # --- sessions ----------------------------------------------------------------------------------------------------

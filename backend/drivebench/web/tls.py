@@ -18,6 +18,7 @@ from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
 
 from drivebench.errors import InvalidValue
 from drivebench.i18n import _
+from drivebench.web.tls_files import check_pem, read_pem
 
 HSTS_HEADER = (b"strict-transport-security", b"max-age=31536000")
 """One year, without includeSubDomains: a plant server's name says nothing about its neighbours."""
@@ -81,7 +82,8 @@ def write_pair(certificate: Certificate, folder: Path, stem: str = "drivebench")
 
 
 def check_pair(cert_file: Path | None, key_file: Path | None) -> None:
-    """Both given, both readable, and the key is the certificate's: else :class:`InvalidValue` in words."""
+    """Both given, both readable, the certificate a certificate, the key a key and the certificate's: else
+    :class:`InvalidValue` in words (which file, what is wrong, what to do)."""
     if (cert_file is None) != (key_file is None):
         given, missing = ("--tls-cert", "--tls-key") if key_file is None else ("--tls-key", "--tls-cert")
         raise InvalidValue(_("{given} needs {missing} too: HTTPS takes a certificate and its private key.").format(
@@ -89,9 +91,7 @@ def check_pair(cert_file: Path | None, key_file: Path | None) -> None:
     if cert_file is None or key_file is None:
         return
     for option, path in (("--tls-cert", cert_file), ("--tls-key", key_file)):
-        if not path.is_file():
-            raise InvalidValue(_("{option} {path}: no such file. `drivebench tls self-signed --host NAME` makes a "
-                                 "certificate and key for a plant network.").format(option=option, path=path))
+        check_pem(option, path, read_pem(option, path))
     try:
         ssl.create_default_context(ssl.Purpose.CLIENT_AUTH).load_cert_chain(cert_file, key_file)
     except ssl.SSLError as exc:
