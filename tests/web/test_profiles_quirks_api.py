@@ -186,6 +186,16 @@ def test_a_vendor_folder_zip_gives_one_row_per_file(api: TestClient, user_dir: P
     assert {row["profile_id"] for row in result["rows"] if row["profile_id"]} <= listed
 
 
+def test_a_refused_zip_member_is_named_with_its_path_and_line(api: TestClient) -> None:
+    xxe = '<?xml version="1.0"?>\n<!DOCTYPE x [<!ENTITY e SYSTEM "file:///etc/passwd">]>\n<x>&e;</x>'
+    members = [("Vendor/XML/evil.xdd", xxe.encode("utf-16")), ("Vendor/EDS/servo.eds", BASE.encode("utf-16-le"))]
+    rows = api.post("/api/profiles/batch", files={"files": ("vendor.zip", make_zip(members))}).json()["rows"]
+    by_name = {row["file"]: row for row in rows}
+    evil = by_name["vendor.zip/Vendor/XML/evil.xdd"]
+    assert (evil["outcome"], evil["line"]) == ("refused", 2) and "DOCTYPE" in evil["reason"]
+    assert by_name["vendor.zip/Vendor/EDS/servo.eds"]["outcome"] == "accepted"
+
+
 def test_several_files_at_once_and_limits_in_words(api: TestClient) -> None:
     (name, content, _), (other, second, _) = CORPUS_FILES[:2]
     response = api.post("/api/profiles/batch", files=[("files", (name, content)), ("files", (other, second)),
