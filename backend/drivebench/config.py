@@ -24,6 +24,8 @@ class Settings(BaseSettings):
     sdo_timeout_s: float = 0.5
     sdo_retries: int = 1
     max_upload_bytes: int = 5 * 1024 * 1024
+    max_batch_upload_bytes: int = 64 * 1024 * 1024
+    """Many files or a zip at once (``/api/profiles/batch``): each file inside still has ``max_upload_bytes``."""
     secret_key: str | None = None
     """Signs the sign-in cookies; without it a random key is made once and kept in ``secret_key_file`` (0600)."""
     secret_key_file: Path = REPO_ROOT / "var" / "secret_key"

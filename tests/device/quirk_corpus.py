@@ -347,6 +347,15 @@ STRUCTURE = [
          "is defined in [0040sub1] (sub 1): read as UNSIGNED32"),
     Case("var-with-sub-objects", add("[2001sub1]\nParameterName=Stray\nDataType=0x0005\nAccessType=ro\n"),
          "is a VAR but has sub-object sections"),
+    Case("var-with-stray-sub0", chain(sub("SupportedObjects=5\n1=0x1008", "SupportedObjects=6\n1=0x1008"),
+                                      sub("5=0x6040\n", "5=0x6040\n6=0x100B\n"),
+                                      add("[100B]\nParameterName=Node-ID\nObjectType=0x7\nDataType=0x0005\n"
+                                          "AccessType=rw\nDefaultValue=0x7F\nPDOMapping=0\n\n[100Bsub0]\n"
+                                          "ParameterName=Node-ID\nObjectType=0x7\nDataType=0x0005\nAccessType=ro\n"
+                                          "DefaultValue=0x7F\nPDOMapping=0\n")),
+         "they are skipped, the VAR is read"),
+    Case("access-type-hash-comment", section_key("2000", "AccessType", "rw # rw;"),
+         "the text from '#' on is a comment"),
     Case("listed-without-section", sub("4=0x2003\n", "4=0x2003\n5=0x2010\n"), "0x2010 is listed but has no"),
     Case("listed-twice", sub("4=0x2003\n", "4=0x2003\n5=0x2000\n"), "listed twice"),
     Case("listed-index-out-of-range", sub("4=0x2003\n", "4=0x2003\n5=0x0020\n"), "outside 0x1000..0xFFFF"),
@@ -384,6 +393,11 @@ TEXT = [
          encoding="cp1252"),
     Case("latin1-umlauts", sub("VendorName=Example Drives", "VendorName=M\u00fcller Antriebe"), None,
          encoding="latin-1"),
+    Case("utf16-le-bom", lambda text: text.replace("\n", "\r\n"), None, encoding="utf-16"),
+    Case("utf16-le-no-bom", lambda text: text, None, encoding="utf-16-le"),
+    Case("utf16-be-no-bom", sub("VendorName=Example Drives", "VendorName=M\u00fcller Antriebe"), None,
+         encoding="utf-16-be"),
+    Case("utf32-le-bom", lambda text: text, None, encoding="utf-32"),
     Case("crlf-line-ends", lambda text: text.replace("\n", "\r\n"), None),
     Case("cr-line-ends", lambda text: text.replace("\n", "\r"), None),
     Case("no-final-newline", lambda text: text.rstrip("\n"), None),

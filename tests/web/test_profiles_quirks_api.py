@@ -81,6 +81,41 @@ def test_a_file_without_object_dictionary_is_refused_and_nothing_is_lost(api: Te
     assert api.get(f"/api/profiles/{kept}/eds").content == content
 
 
+def corpus_file(case_name: str) -> tuple[str, bytes]:
+    name, content, _ = next(f for f in CORPUS_FILES if f[2].name == case_name)
+    return name, content
+
+
+def uploaded_row(api: TestClient, case_name: str, ref: str) -> dict[str, object]:
+    name, content = corpus_file(case_name)
+    response = api.post("/api/profiles", files={"file": (name, content)})
+    assert response.status_code == 201, response.text
+    items = api.get(f"/api/profiles/{response.json()['id']}/parameters", params={"q": ref}).json()["items"]
+    return next(row for row in items if row["ref"] == ref)
+
+
+def test_a_var_with_a_stray_sub0_section_stays_a_var(api: TestClient) -> None:
+    row = uploaded_row(api, "var-with-stray-sub0", "0x100B")
+    assert (row["data_type"], row["access"], row["subindex"], row["default"]) == ("UNSIGNED8", "rw", 0, 0x7F)
+
+
+def test_access_type_with_a_hash_comment_is_read_without_it(api: TestClient) -> None:
+    row = uploaded_row(api, "access-type-hash-comment", "0x2000")
+    assert (row["data_type"], row["access"]) == ("UNSIGNED32", "rw")
+
+
+@pytest.mark.parametrize("case_name", ["utf16-le-bom", "utf16-le-no-bom", "utf16-be-no-bom", "utf32-le-bom"])
+def test_a_utf16_or_utf32_eds_reads_like_its_utf8_twin(api: TestClient, case_name: str) -> None:
+    name, content = corpus_file(case_name)
+    wide = api.post("/api/profiles", files={"file": (name, content)})
+    assert wide.status_code == 201, wide.text
+    assert wide.json()["warnings"] == []
+    twin = api.post("/api/profiles", files={"file": ("twin.eds", BASE.encode())}).json()
+    assert (wide.json()["objects"], wide.json()["parameters"]) == (twin["objects"], twin["parameters"])
+    vendor = "M\u00fcller Antriebe" if case_name == "utf16-be-no-bom" else "Example Drives"
+    assert wide.json()["vendor"] == vendor
+
+
 XDD_DIR = Path(__file__).resolve().parents[1] / "data" / "xdd"
 
 
@@ -111,6 +146,17 @@ def test_unsafe_xml_upload_is_a_problem_in_words(api: TestClient) -> None:
     assert api.get("/api/profiles").json() == before
 
 
+@pytest.mark.parametrize("encoding", ["utf-16", "utf-16-le", "utf-16-be", "utf-32", "utf-32-be"])
+def test_unsafe_xml_in_utf16_or_utf32_is_refused_too(api: TestClient, encoding: str) -> None:
+    before = api.get("/api/profiles").json()
+    xxe = '<?xml version="1.0"?>\n<!DOCTYPE x [<!ENTITY e SYSTEM "file:///etc/passwd">]>\n<x>&e;</x>'
+    refused = api.post("/api/profiles", files={"file": ("evil.xdd", xxe.encode(encoding))})
+    assert refused.status_code == 422
+    assert (refused.json()["source"], refused.json()["line"]) == ("evil.xdd", 2)
+    assert "DOCTYPE" in refused.json()["detail"]
+    assert api.get("/api/profiles").json() == before
+
+
 # --- many files at once, bad input ------------------------------------------------------------------------
 def make_zip(members: list[tuple[str, bytes]]) -> bytes:
     buffer = io.BytesIO()
@@ -130,13 +176,24 @@ def test_a_vendor_folder_zip_gives_one_row_per_file(api: TestClient, user_dir: P
     rows = {row["file"]: row for row in result["rows"]}
     assert result["accepted"] + result["with_warnings"] == len(CORPUS_FILES)
     assert result["with_warnings"] == sum(1 for _, _, case in CORPUS_FILES if case.warns)
-    assert rows["broken.eds"]["outcome"] == "refused" and "no object dictionary" in rows["broken.eds"]["reason"]
+    broken = rows["vendor.zip/Vendor/EDS/broken.eds"]
+    assert (broken["outcome"], broken["line"]) == ("refused", 1) and "no object dictionary" in broken["reason"]
     assert "leaves the archive" in rows["vendor.zip/../../outside.eds"]["reason"]
     assert "zip bomb" in rows["vendor.zip/Vendor/big.eds"]["reason"]
     assert not any("readme" in name for name in rows)
     assert not (user_dir.parent / "outside.eds").exists()
     listed = {p["id"] for p in api.get("/api/profiles").json()}
     assert {row["profile_id"] for row in result["rows"] if row["profile_id"]} <= listed
+
+
+def test_a_refused_zip_member_is_named_with_its_path_and_line(api: TestClient) -> None:
+    xxe = '<?xml version="1.0"?>\n<!DOCTYPE x [<!ENTITY e SYSTEM "file:///etc/passwd">]>\n<x>&e;</x>'
+    members = [("Vendor/XML/evil.xdd", xxe.encode("utf-16")), ("Vendor/EDS/servo.eds", BASE.encode("utf-16-le"))]
+    rows = api.post("/api/profiles/batch", files={"files": ("vendor.zip", make_zip(members))}).json()["rows"]
+    by_name = {row["file"]: row for row in rows}
+    evil = by_name["vendor.zip/Vendor/XML/evil.xdd"]
+    assert (evil["outcome"], evil["line"]) == ("refused", 2) and "DOCTYPE" in evil["reason"]
+    assert by_name["vendor.zip/Vendor/EDS/servo.eds"]["outcome"] == "accepted"
 
 
 def test_several_files_at_once_and_limits_in_words(api: TestClient) -> None:

@@ -137,6 +137,58 @@ def test_a_big_json_body_is_refused_too_and_htmx_gets_a_fragment(server: str) ->
     assert 'role="alert"' in fragment.text and "The file is 6 MB; uploads are limited to 5 MB." in fragment.text
 
 
+BATCH_LIMIT = 64 * 1024 * 1024
+
+
+def padded_eds(size: int, product: str) -> bytes:
+    """The servo EDS with comment lines up to ``size`` bytes, as another product (its own profile id)."""
+    text = SERVO_EDS.read_bytes().replace(b"ProductName=", b"ProductName=" + product.encode() + b" ", 1)
+    filler = b"; " + b"c" * 1000 + b"\r\n"
+    return text + filler * ((size - len(text)) // len(filler))
+
+
+def test_a_batch_of_12_mb_passes_the_one_file_limit_and_is_read(server: str) -> None:
+    files = [("files", (f"big{n}.eds", padded_eds(4 * 1024 * 1024, f"Big{n}"))) for n in range(3)]
+    response = requests.post(f"{server}/api/profiles/batch", files=files, timeout=120)
+    assert response.status_code == 200, response.text[:300]
+    rows = response.json()["rows"]
+    assert [row["outcome"] for row in rows] != [] and all(row["outcome"] != "refused" for row in rows), rows
+    for row in rows:
+        requests.delete(f"{server}/api/profiles/{row['profile_id']}", timeout=30)
+
+
+def test_a_declared_batch_over_64_mib_is_refused_in_words(server: str) -> None:
+    boundary = "drivebench-batch"
+    with connect(server) as sock:
+        sock.sendall(f"POST /api/profiles/batch HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: {70 * 2**20}\r\n"
+                     f"Content-Type: multipart/form-data; boundary={boundary}\r\n\r\n".encode())
+        status, headers, body = read_response(sock)
+    assert status == 413 and headers["content-type"] == "application/problem+json"
+    assert json.loads(body)["detail"] == "The file is 70 MB; uploads are limited to 64 MB."
+
+
+def test_a_chunked_batch_over_64_mib_gets_a_413_in_words(server: str) -> None:
+    boundary = "drivebench-batch-chunked"
+    total = BATCH_LIMIT + 8 * 1024 * 1024
+
+    def framed() -> Iterator[bytes]:
+        head = (f"--{boundary}\r\nContent-Disposition: form-data; name=\"files\"; filename=\"all.zip\"\r\n"
+                "Content-Type: application/zip\r\n\r\n").encode()
+        yield f"{len(head):X}\r\n".encode() + head + b"\r\n"
+        for _ in range(total // CHUNK):
+            yield f"{CHUNK:X}\r\n".encode() + b"x" * CHUNK + b"\r\n"
+
+    with connect(server) as sock:
+        sock.sendall(f"POST /api/profiles/batch HTTP/1.1\r\nHost: 127.0.0.1\r\nTransfer-Encoding: chunked\r\n"
+                     f"Content-Type: multipart/form-data; boundary={boundary}\r\n\r\n".encode())
+        sent = send_until_answered(sock, framed())
+        status, headers, body = read_response(sock)
+    assert status == 413 and headers["content-type"] == "application/problem+json"
+    assert json.loads(body)["detail"] == "The file is larger than 64 MB; uploads are limited to 64 MB."
+    assert sent > 5 * 1024 * 1024  # the batch limit counted, not the one-file limit
+    assert requests.get(f"{server}/api/health", timeout=10).status_code == 200
+
+
 def test_an_upload_within_the_limit_reaches_the_profile_checks(server: str) -> None:
     content = SERVO_EDS.read_bytes()
     response = requests.post(f"{server}/api/profiles", files={"file": ("servo.eds", content)}, timeout=30)

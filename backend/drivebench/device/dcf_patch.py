@@ -14,6 +14,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 from drivebench.device.eds import decode_text
+from drivebench.device.wide_text import wide_encoding
 
 Address = tuple[int, int]
 _LINE = re.compile(r"(\r\n|\r|\n)")
@@ -52,6 +53,15 @@ class _Lines:
                 current.keys.setdefault(key, number)
                 current.last = max(current.last, number)
 
+    def value(self, section: str, key: str) -> str | None:
+        found = self.sections.get(section.upper())
+        number = found.keys.get(key.lower()) if found is not None else None
+        return None if number is None else self.lines[number].split("=", 1)[1].split(";")[0].split("#")[0].strip()
+
+    def holds_a_var(self, section: str) -> bool:
+        """``[section]`` is a whole VAR or DOMAIN (a ``[...sub0]`` beside it is stray: the reader skips it)."""
+        return self.value(section, "DataType") is not None and _var_type(self.value(section, "ObjectType") or "")
+
     def set(self, section: str, key: str, value: str) -> None:
         found = self.sections.get(section.upper())
         if found is None:
@@ -88,7 +98,21 @@ class _Lines:
         return "".join(line + end for line, end in zip(self.lines, self.ends, strict=True))
 
 
+def _var_type(text: str) -> bool:
+    """ObjectType text of a VAR (0x7) or DOMAIN (0x2)."""
+    text = text.lower()
+    if text in ("var", "domain"):
+        return True
+    try:
+        return int(text, 16 if text.startswith("0x") else 10) in (0x2, 0x7)
+    except ValueError:
+        return False
+
+
 def _encoding(data: bytes) -> tuple[str, bytes]:
+    wide = wide_encoding(data)
+    if wide is not None:  # UTF-16/32 written back as read, with the BOM the file had (if any)
+        return wide, data[:len("\ufeff".encode(wide))] if data.startswith("\ufeff".encode(wide)) else b""
     if data.startswith(b"\xef\xbb\xbf"):
         return "utf-8", b"\xef\xbb\xbf"
     for encoding in ("utf-8", "cp1252"):
@@ -119,7 +143,8 @@ def patch_dcf(original: bytes, source: str, values: Mapping[Address, str], *, de
             entries = sum(1 for key in found.keys if key.isdigit())
             lines.set(value_section, "NrOfEntries", str(entries))
             continue
-        section = own if own in lines.sections or sub > 0 else f"{index:04X}"
+        whole_var = sub == 0 and head is not None and lines.holds_a_var(f"{index:04X}")
+        section = own if (own in lines.sections and not whole_var) or sub > 0 else f"{index:04X}"
         lines.set(section, "ParameterValue", text)
         if defaults:
             lines.set(section, "DefaultValue", text)

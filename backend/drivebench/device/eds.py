@@ -246,6 +246,11 @@ class _Reader:
             return guess
         if object_type in (0x2, 0x7) and subs:
             first = min(subs.values(), key=lambda s: s.line)
+            if section.get("DataType") is not None or object_type == 0x2:  # a whole VAR: the sections are stray
+                self.warn(first.line, None, Text(N_("object 0x{index:04X} is a VAR but has sub-object sections "
+                                                    "([{name}] ...): they are skipped, the VAR is read"),
+                                                 index=index, name=first.name))
+                return object_type
             self.warn(type_key.line, type_key.name, Text(N_("object 0x{index:04X} is a VAR but has sub-object "
                                                             "sections ([{name}] ...): read as a RECORD"), index=index,
                                                          name=first.name))

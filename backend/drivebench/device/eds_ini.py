@@ -10,6 +10,7 @@ import re
 from dataclasses import dataclass, field
 
 from drivebench.device.eds_quirks import Warnings
+from drivebench.device.wide_text import decode_wide
 from drivebench.errors import ProfileError
 from drivebench.i18n import N_, Text
 
@@ -17,6 +18,10 @@ MAX_EDS_BYTES = 16 * 1024 * 1024
 MAX_LINE_CHARS = 64 * 1024
 _JUNK = re.compile(r"[\x00-\x08\x0b-\x1f\x7f]")
 _INLINE_COMMENT = re.compile(r"\s;")
+_HASH_COMMENT = re.compile(r"\s#")
+_KEYWORD_KEYS = frozenset({"accesstype", "datatype", "objecttype", "pdomapping", "subnumber", "objflags",
+                           "compactsubobj", "lowlimit", "highlimit"})
+"""Keys whose value is a keyword or a number: `` # ...`` after it is a comment (text keys may hold a '#')."""
 
 
 # --- INI text with line numbers ------------------------------------------------------------------------
@@ -39,11 +44,14 @@ class Section:
 
 
 def decode_text(data: bytes, source: str) -> str:
-    """Bytes of an EDS -> text: UTF-8, else latin-1 (see the module docstring)."""
+    """Bytes of an EDS -> text: UTF-16/32 (with or without a BOM), else UTF-8, else cp1252, else latin-1."""
     if len(data) > MAX_EDS_BYTES:
         raise ProfileError(Text(N_("file is {count} bytes, more than the {limit} bytes an EDS may have"),
                                 count=len(data), limit=MAX_EDS_BYTES),
                            source=source)
+    wide = decode_wide(data)
+    if wide is not None:
+        return wide
     for encoding in ("utf-8-sig", "cp1252"):
         try:
             return data.decode(encoding)
@@ -72,7 +80,8 @@ def parse_ini(text: str, source: str, notes: Warnings | None = None) -> dict[str
     With ``notes``, quirks are read as INI readers read them and noted: a duplicate key keeps its first value and
     a duplicate section adds its new keys to the first (Windows' profile-string reader, which vendor tools use);
     lines with control characters, without ``=`` or before any section are skipped; ``key: value`` is read like
-    ``key=value`` (Python's configparser); `` ;`` after a value starts a comment. Without ``notes`` each of these
+    ``key=value`` (Python's configparser); `` ;`` after a value starts a comment, and so does `` #`` after the value of
+    a keyword or number key (``AccessType=rw # rw;``, noted). Without ``notes`` each of these
     raises ProfileError."""
     if len(text) > MAX_EDS_BYTES:
         raise ProfileError(Text(N_("file has {count} characters, more than {limit}"), count=len(text),
@@ -106,7 +115,8 @@ def parse_ini(text: str, source: str, notes: Warnings | None = None) -> dict[str
                   Text(N_("key outside of any section")))
             continue
         key, equals, value = line.partition("=")
-        if equals and key and ";" not in value and not key[-1].isspace() and not value[:1].isspace():
+        if equals and key and ";" not in value and "#" not in value and not key[-1].isspace() \
+                and not value[:1].isspace():
             pass  # the common case, read here: "Key=value" without spaces or comments
         else:
             pair = _key_value(line, number, quirk)
@@ -165,4 +175,9 @@ def _key_value(line: str, number: int, quirk: _Quirks) -> tuple[str, str] | None
     comment = _INLINE_COMMENT.search(value) if ";" in value else None
     if comment is not None and quirk.notes is not None:
         value = value[:comment.start()].rstrip()
+    hashed = _HASH_COMMENT.search(value) if "#" in value and key.lower() in _KEYWORD_KEYS else None
+    if hashed is not None and quirk.notes is not None:
+        quirk(number, key, Text(N_("{value!r} read as {kept!r}: the text from '#' on is a comment"), value=value,
+                                kept=value[:hashed.start()].rstrip()))
+        value = value[:hashed.start()].rstrip()
     return key, value

@@ -48,9 +48,9 @@ def _member_problem(info: zipfile.ZipInfo, limit: int) -> str | None:
     return None
 
 
-def unpack_zip(data: bytes, name: str, limit: int) -> tuple[list[tuple[str, bytes]], list[BatchRow]]:
-    """The profile files of a zip (name, bytes) and the rows of members refused. Raises ProfileError when the
-    archive as a whole cannot be read or passes the limits."""
+def unpack_zip(data: bytes, name: str, limit: int) -> tuple[list[tuple[str, bytes, str]], list[BatchRow]]:
+    """The profile files of a zip (name, bytes, the row's name: ``archive.zip/folder/member.eds``) and the rows of
+    members refused. Raises ProfileError when the archive as a whole cannot be read or passes the limits."""
     try:
         archive = zipfile.ZipFile(io.BytesIO(data))
         members = [i for i in archive.infolist() if not i.is_dir()]
@@ -63,7 +63,7 @@ def unpack_zip(data: bytes, name: str, limit: int) -> tuple[list[tuple[str, byte
     if declared > MAX_TOTAL_BYTES:
         raise ProfileError(_("the archive unpacks to {size} bytes, more than {limit}").format(
             size=declared, limit=MAX_TOTAL_BYTES), source=name)
-    files: list[tuple[str, bytes]] = []
+    files: list[tuple[str, bytes, str]] = []
     refused: list[BatchRow] = []
     total = 0
     for info in members:
@@ -87,14 +87,14 @@ def unpack_zip(data: bytes, name: str, limit: int) -> tuple[list[tuple[str, byte
                                     reason=_("it unpacks to more than the limit of {limit} bytes").format(
                                         limit=limit)))
             continue
-        files.append((shown, content))
+        files.append((shown, content, f"{name}/{info.filename}"))
     return files, refused
 
 
 def add_many(registry: ProfileRegistry, uploads: list[tuple[str, bytes]]) -> list[BatchRow]:
     """Store every upload that loads (zips unpacked first); one row per file, in order."""
     rows: list[BatchRow] = []
-    files: list[tuple[str, bytes]] = []
+    files: list[tuple[str, bytes, str]] = []
     for name, content in uploads:
         if name.lower().endswith(".zip"):
             try:
@@ -105,16 +105,16 @@ def add_many(registry: ProfileRegistry, uploads: list[tuple[str, bytes]]) -> lis
             files += unpacked
             rows += refused
         else:
-            files.append((name, content))
+            files.append((name, content, name))
     if len(files) > MAX_FILES:
         raise ProfileError(_("{count} files sent; at most {limit} are read at once").format(count=len(files),
                                                                                          limit=MAX_FILES))
-    for name, content in files:
+    for name, content, row_name in files:  # a zip member's row names the archive and the member's path in it
         try:
             profile = registry.add_upload(name, content)
         except ProfileError as exc:
-            rows.append(BatchRow(name, "refused", line=exc.line, reason=shown(exc.reason)))
+            rows.append(BatchRow(row_name, "refused", line=exc.line, reason=shown(exc.reason)))
             continue
         count = len(registry.loaded(profile.id).warnings)
-        rows.append(BatchRow(name, "warnings" if count else "accepted", profile.id, count))
+        rows.append(BatchRow(row_name, "warnings" if count else "accepted", profile.id, count))
     return rows

@@ -33,6 +33,7 @@ from drivebench.device.eds import (
     read_sections,
 )
 from drivebench.device.eds_quirks import Warnings
+from drivebench.device.wide_text import decode_wide
 from drivebench.errors import ProfileError
 from drivebench.i18n import N_, Text
 from drivebench.protocol.datatypes import DATA_TYPE_BY_CODE, DataType
@@ -40,7 +41,7 @@ from drivebench.protocol.datatypes import DATA_TYPE_BY_CODE, DataType
 XML_SUFFIXES = (".xdd", ".xdc")
 EDS_KEY_PREFIX = "EDS:"
 """A parameter ``property`` named ``EDS:UploadFile`` carries an EDS key CiA 311 has no attribute for."""
-_DECLARATION = re.compile(rb"<!\s*(DOCTYPE|ENTITY)", re.IGNORECASE)
+_DECLARATION = re.compile(r"<!\s*(DOCTYPE|ENTITY)", re.IGNORECASE)
 _BAUD = re.compile(r"^\s*(\d+)\s*([KM])bps\s*$", re.IGNORECASE)
 _OBJECT_KEYS = {"name": "ParameterName", "objectType": "ObjectType", "dataType": "DataType",
                 "lowLimit": "LowLimit", "highLimit": "HighLimit", "accessType": "AccessType",
@@ -72,9 +73,12 @@ def parse_xml(data: bytes, source: str) -> etree._Element:
     if len(data) > MAX_EDS_BYTES:
         raise ProfileError(Text(N_("file is {count} bytes, more than the {limit} bytes a device description "
                                    "may have"), count=len(data), limit=MAX_EDS_BYTES), source=source)
-    declaration = _DECLARATION.search(data)
+    text = decode_wide(data)  # UTF-16/32: checked as text, not as bytes a byte pattern would miss
+    if text is None:
+        text = data.decode("latin-1")  # UTF-8 and the 8-bit encodings: the markup is ASCII either way
+    declaration = _DECLARATION.search(text)
     if declaration is not None:
-        line = data.count(b"\n", 0, declaration.start()) + 1
+        line = text.count("\n", 0, declaration.start()) + 1
         raise ProfileError(Text(N_("a DOCTYPE or ENTITY declaration is not allowed in an XDD/XDC (it could read "
                                    "files or expand without end)")), source=source, line=line)
     parser = etree.XMLParser(resolve_entities=False, no_network=True, huge_tree=False, load_dtd=False,

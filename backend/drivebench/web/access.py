@@ -44,6 +44,7 @@ from drivebench.services.users.principals import Principal, Role
 from drivebench.services.users.sharing import ShareLinks
 from drivebench.web import access_policy, cookies, origins
 from drivebench.web.identity import principal_of
+from drivebench.web.limits import BATCH_PATHS
 from drivebench.web.problems import error_fragment, error_page, problem_body, wants_page
 from drivebench.web.secret_file import kept_key
 
@@ -310,7 +311,8 @@ async def _csrf_token(scope: Scope, receive: Receive, headers: Headers) -> tuple
         chunks.append(message.get("body", b""))
         size += len(chunks[-1])
         more = message.get("more_body", False)
-        if size > settings.max_upload_bytes + 65536:
+        if size > (settings.max_batch_upload_bytes if scope.get("path") in BATCH_PATHS
+                   else settings.max_upload_bytes) + 65536:
             return None, receive
     body = b"".join(chunks)
     replay = _body_once(body, receive)

@@ -125,6 +125,7 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
     # One pass for the language, security headers, body limit, share-link scope, host/origin, sign-in, roles, CSRF
     # and the lean answers.
     app.add_middleware(RequestGate, links=share_links, limit_bytes=settings.max_upload_bytes,
+                       batch_bytes=settings.max_batch_upload_bytes,
                        hsts=settings.hsts if hsts is None else hsts)
     for router in API_ROUTERS + PAGE_ROUTERS + WS_ROUTERS:
         app.include_router(router)

@@ -7,7 +7,7 @@ once, the route's policy looked up once, precomputed at start-up by ``access_pol
    varies with the language's headers and which language it speaks.
 2. HTTP answers get the browser security headers (``security_headers``; HSTS over https when switched on), refusals
    too; the docs pages are held back until their inline script is hashed into the policy.
-3. A request body past the upload limit is refused with 413 (``limits``).
+3. A request body past the upload limit (the batch upload's own) is refused with 413 (``limits``).
 4. A share-link token (``viewer``): the link checked, what a link may not do refused, pages led to the remote view.
 5. Host and Origin, sign-in, role and CSRF (``access``); the audit log's ``current_user`` is who signed in. A
    websocket is re-checked every second while it is open (``live_access``).
@@ -33,10 +33,11 @@ from drivebench.web.tls import HSTS_HEADER
 
 
 class RequestGate:
-    def __init__(self, app: ASGIApp, *, links: ShareLinks, limit_bytes: int, hsts: bool = False) -> None:
+    def __init__(self, app: ASGIApp, *, links: ShareLinks, limit_bytes: int, batch_bytes: int | None = None,
+                 hsts: bool = False) -> None:
         self.app = app
         self.links = links
-        self.body_limit = BodyLimit(limit_bytes)
+        self.body_limit = BodyLimit(limit_bytes, batch_bytes)
         self.hsts = hsts
         self._added = {scheme: _Added(security_headers.RAW_HEADERS + ([HSTS_HEADER] if hsts and scheme == "https"
                                                                      else []))

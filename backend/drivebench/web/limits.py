@@ -3,6 +3,7 @@
 A declared ``Content-Length`` over the limit is answered at once, without reading a byte of the body; a body
 without one (chunked) is counted as it arrives and cut as soon as it passes the limit. Either way the client gets
 problem+json (htmx: an error fragment) in words: "The file is 7.4 MB; uploads are limited to 5 MB."
+The batch upload (many files or a zip at once, ``BATCH_PATHS``) has its own, larger limit.
 Once the 413 is sent the route sees a disconnected client, and whatever it answers or raises is dropped.
 """
 
@@ -19,6 +20,8 @@ from drivebench.web.problems import error_fragment, problem_body
 
 MULTIPART_OVERHEAD_BYTES = 64 * 1024
 """Room for the multipart boundary and part headers around a file of exactly the limit."""
+BATCH_PATHS = frozenset({"/api/profiles/batch", "/ui/profiles/batch"})
+"""Routes that take many files at once: limited to ``batch_bytes``, not to the one-file limit."""
 
 
 def megabytes(count: int) -> str:
@@ -29,9 +32,13 @@ def megabytes(count: int) -> str:
 class BodyLimit:
     """Refuse HTTP request bodies over ``limit_bytes`` (plus multipart framing) with 413 (``web/gate.py`` runs it)."""
 
-    def __init__(self, limit_bytes: int) -> None:
+    def __init__(self, limit_bytes: int, batch_bytes: int | None = None) -> None:
         self.limit_bytes = limit_bytes
-        self.cap_bytes = limit_bytes + MULTIPART_OVERHEAD_BYTES
+        self.batch_bytes = max(batch_bytes or limit_bytes, limit_bytes)
+
+    def limit_for(self, path: str) -> int:
+        """The body limit of a request to ``path`` (without the multipart framing)."""
+        return self.batch_bytes if path in BATCH_PATHS else self.limit_bytes
 
     async def run(self, scope: Scope, receive: Receive, send: Send, headers: Headers, app: ASGIApp) -> None:
         """``app`` with the request's body limited."""
@@ -39,8 +46,10 @@ class BodyLimit:
         if declared is None and "transfer-encoding" not in headers:
             await app(scope, receive, send)  # no body (HTTP/1.1 has none without either header): nothing to count
             return
-        if declared is not None and declared.isdigit() and int(declared) > self.cap_bytes:
-            await self.refusal(headers, scope, int(declared))(scope, receive, send)
+        limit = self.limit_for(scope.get("path", ""))
+        cap = limit + MULTIPART_OVERHEAD_BYTES
+        if declared is not None and declared.isdigit() and int(declared) > cap:
+            await self.refusal(headers, scope, limit, int(declared))(scope, receive, send)
             return
         received = 0
         refused = False
@@ -53,10 +62,10 @@ class BodyLimit:
             message = await receive()
             if message["type"] == "http.request":
                 received += len(message.get("body", b""))
-                if received > self.cap_bytes:
+                if received > cap:
                     refused = True
                     if not started:
-                        await self.refusal(headers, scope, None)(scope, receive, send)
+                        await self.refusal(headers, scope, limit, None)(scope, receive, send)
                     return {"type": "http.disconnect"}
             return message
 
@@ -74,9 +83,10 @@ class BodyLimit:
                 raise
             # The route failed on the body it did not get; the client already has its 413.
 
-    def refusal(self, headers: Headers, scope: Scope, declared: int | None) -> Response:
+    @staticmethod
+    def refusal(headers: Headers, scope: Scope, limit_bytes: int, declared: int | None) -> Response:
         is_file = headers.get("content-type", "").startswith("multipart/form-data")
-        limit = megabytes(self.limit_bytes)
+        limit = megabytes(limit_bytes)
         if declared is not None:
             detail = (_("The file is {size}; uploads are limited to {limit}.") if is_file
                       else _("The request body is {size}; uploads are limited to {limit}.")).format(

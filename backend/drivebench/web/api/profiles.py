@@ -18,6 +18,7 @@ from pydantic import BaseModel
 from starlette.datastructures import UploadFile
 from starlette.formparsers import MultiPartException, MultiPartParser
 
+from drivebench.config import settings
 from drivebench.device.catalog import Catalog, Item
 from drivebench.device.eds import ImportWarning
 from drivebench.device.eds_export import export_eds
@@ -274,19 +275,17 @@ async def read_upload(request: Request, limit: int) -> tuple[str, bytes]:
         await form.close()
 
 
-MAX_BATCH_BODY_BYTES = 64 * 1024 * 1024
-
-
 async def read_uploads(request: Request, limit: int) -> list[tuple[str, bytes]]:
     """The files of a multipart upload with several files (field ``files``, or ``file``). Raises UploadTooLarge
     past ``limit`` in all, ProfileError for too many files or none."""
     declared = request.headers.get("content-length", "")
-    if declared.isdigit() and int(declared) > limit:
+    if declared.isdigit() and int(declared) > limit + MULTIPART_OVERHEAD_BYTES:
         raise UploadTooLarge(_("the upload is {size}, more than the limit of {limit} for many files at once").format(
             size=_size(int(declared)), limit=_size(limit)))
     if not request.headers.get("content-type", "").startswith("multipart/form-data"):
         raise ProfileError(_("send the files as multipart/form-data in the field 'files'"))
-    parser = MultiPartParser(request.headers, _capped(request, limit, limit), max_files=MAX_FILES, max_fields=20)
+    parser = MultiPartParser(request.headers, _capped(request, limit + MULTIPART_OVERHEAD_BYTES, limit),
+                             max_files=MAX_FILES, max_fields=20)
     try:
         form = await parser.parse()
     except MultiPartException as exc:
@@ -304,7 +303,7 @@ async def read_uploads(request: Request, limit: int) -> list[tuple[str, bytes]]:
 
 async def store_many(request: Request, state: AppState) -> BatchResult:
     """Read and store several files or zips; each file is accepted or refused on its own."""
-    uploads = await read_uploads(request, MAX_BATCH_BODY_BYTES)
+    uploads = await read_uploads(request, settings.max_batch_upload_bytes)
     rows = await asyncio.to_thread(add_many, state.registry, uploads)
     out = [BatchRowOut(**vars(row)) for row in rows]
     return BatchResult(accepted=sum(r.outcome == "accepted" for r in out),
