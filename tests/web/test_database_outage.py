@@ -54,6 +54,9 @@ def test_health_reports_an_unreachable_database_and_sign_in_answers_503_in_words
             assert f"127.0.0.1:{relay.port}" in problem["detail"] and "refused" in problem["detail"]
             assert "PostgreSQL" in problem["hint"]
             assert PASSWORD not in signed_in.text
+
+            other = httpx.get(f"{base}/api/sessions", timeout=30)  # the user list lives in the database too
+            assert other.status_code == 503 and other.json()["title"] == "Database unreachable"
     finally:
         relay.cut()
         accounts.directory.forget()

@@ -49,7 +49,10 @@ def _database_failure() -> DatabaseUnavailable | None:
 
 
 async def _answer(manager: SessionManager) -> Health:
-    failure = await asyncio.to_thread(_database_failure)
+    url = settings.database_url
+    at, failure = _probes.get(url, (-_PROBE_EVERY_S, None))
+    if time.monotonic() - at >= _PROBE_EVERY_S:  # a thread only when the answer is old: a poll stays cheap
+        failure = await asyncio.to_thread(_database_failure)
     return Health(status="ok", version=__version__, uptime_s=round(time.time() - _STARTED, 1),
                   sessions=len(manager.list()), database="ok" if failure is None else "unreachable",
                   database_reason=None if failure is None else failure.shown_detail())
