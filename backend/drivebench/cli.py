@@ -1,4 +1,4 @@
-"""``drivebench serve | health | tls | simulate | hub | users | tokens``."""
+"""``drivebench serve | health | tls | simulate | hub | users | tokens | db``."""
 
 from __future__ import annotations
 
@@ -13,6 +13,8 @@ import signal
 import sys
 import threading
 from pathlib import Path
+
+from sqlalchemy.exc import SQLAlchemyError
 
 from drivebench import i18n
 from drivebench.config import settings
@@ -40,6 +42,7 @@ def serve(args: argparse.Namespace) -> int:
 
     check_pair(args.tls_cert, args.tls_key)  # before the database: a file mistake is said first, whatever else
     secret_key()  # made now, or an empty key file refused in words before anyone signs in
+    _database_ready()
     _first_start_admin()
     if not _is_loopback(args.host) and not _authentication_configured():
         print(_(
@@ -130,6 +133,40 @@ def tls(args: argparse.Namespace) -> int:
               cert=cert_file, hosts=", ".join(args.host), days=args.days, key=key_file,
               fingerprint=certificate.sha256))
     return 0
+
+
+def _database_ready() -> None:
+    """Wait for the database (``DRIVEBENCH_DATABASE_WAIT_S``), then bring its schema to this release's; a database
+    that stays unreachable, or one a newer release has upgraded, ends the start with what to check."""
+    from drivebench.errors import DatabaseUnavailable
+    from drivebench.services.storage import reachability
+    from drivebench.services.storage.database import upgrade_to_head
+
+    def waiting(failure: DatabaseUnavailable) -> None:
+        print(_("Waiting up to {seconds} s for the database: {reason}").format(
+            seconds=f"{settings.database_wait_s:g}", reason=failure.shown_detail()), file=sys.stderr, flush=True)
+
+    reachability.wait_for_database(report=waiting)
+    upgrade_to_head()
+
+
+def database(args: argparse.Namespace) -> int:
+    """``db upgrade``: the schema to this release's newest; ``db check``: exit 0 when it is current, 1 when not."""
+    from drivebench.services.storage import reachability
+    from drivebench.services.storage.database import check_schema, head_revision, upgrade_to_head
+
+    reachability.wait_for_database(wait_s=args.wait)
+    if args.action == "upgrade":
+        upgrade_to_head()
+        print(_("The database schema is current (revision {revision}).").format(revision=head_revision()))
+        return 0
+    current, head = check_schema(), head_revision()
+    if current == head:
+        print(_("The database schema is current (revision {revision}).").format(revision=head))
+        return 0
+    print(_("The database schema is at revision {current}; this release needs {head}: run `drivebench db "
+            "upgrade` (the server also upgrades it when it starts).").format(current=current or _("none"), head=head))
+    return 1
 
 
 def _first_start_admin() -> None:
@@ -420,6 +457,14 @@ def build_parser() -> argparse.ArgumentParser:
     p_list.add_argument("--user")
     tokens_sub.add_parser("revoke", help=_("revoke a token")).add_argument("id", type=int)
     p_tokens.set_defaults(func=tokens)
+
+    p_db = sub.add_parser("db", help=_("the database schema (DRIVEBENCH_DATABASE_URL)"))
+    db_sub = p_db.add_subparsers(dest="action", required=True)
+    db_sub.add_parser("upgrade", help=_("bring the schema to this release's (servers also do it when they start)"))
+    db_sub.add_parser("check", help=_("exit 0 if the schema is this release's, 1 if it needs an upgrade or is newer"))
+    p_db.add_argument("--wait", type=float, default=0.0, metavar="SECONDS",
+                      help=_("wait this long for an unreachable database (default: fail at once)"))
+    p_db.set_defaults(func=database)
     return parser
 
 
@@ -429,6 +474,12 @@ def main(argv: list[str] | None = None) -> int:
         args = build_parser().parse_args(argv)
         try:
             return int(args.func(args))
+        except SQLAlchemyError as exc:  # the database failed after it answered once: in words, no traceback
+            from drivebench.services.storage.reachability import unavailable
+
+            problem = unavailable(exc)
+            print(f"drivebench: {problem.shown_detail()}\n  {problem.shown_hint()}", file=sys.stderr)
+            return 1
         except DriveBenchError as exc:
             hint = f"\n  {_(exc.hint)}" if exc.hint else ""
             print(f"drivebench: {exc.shown_detail()}{hint}", file=sys.stderr)

@@ -21,6 +21,9 @@ class Settings(BaseSettings):
     plants_dir: Path = REPO_ROOT / "plants"
     frontend_dir: Path = REPO_ROOT / "frontend"
     database_url: str = f"sqlite:///{REPO_ROOT / 'var' / 'drivebench.db'}"
+    database_wait_s: float = 30.0
+    """``drivebench serve`` waits this long for an unreachable database (a container started with its database),
+    then exits saying what failed."""
     sdo_timeout_s: float = 0.5
     sdo_retries: int = 1
     max_upload_bytes: int = 5 * 1024 * 1024

@@ -290,3 +290,15 @@ class UnknownHostName(ServiceError):
     """A request addressed (``Host``) to a name that is not this server's: DNS rebinding, refused with 400."""
 
     title = N_("Not this server's name")
+
+
+class DatabaseUnavailable(ServiceError):
+    """The database (``DRIVEBENCH_DATABASE_URL``) cannot be reached: which host, what failed, what to check (503)."""
+
+    title = N_("Database unreachable")
+
+
+class SchemaTooNew(ServiceError):
+    """The database was upgraded by a newer release: this one does not know its schema and leaves it alone (503)."""
+
+    title = N_("Database schema newer than this release")

@@ -31,6 +31,7 @@ from urllib.parse import quote
 import anyio.to_thread
 from fastapi import FastAPI
 from itsdangerous import BadSignature, URLSafeTimedSerializer
+from sqlalchemy.exc import InterfaceError, OperationalError
 from starlette.datastructures import Headers
 from starlette.requests import HTTPConnection, Request
 from starlette.responses import HTMLResponse, JSONResponse, PlainTextResponse, RedirectResponse, Response
@@ -180,7 +181,13 @@ async def admitted(scope: Scope, receive: Receive, send: Send, headers: Headers,
               "connections.").format(reason=reason), hint=N_("Open DriveBench itself and do it there.")))
         return None
     state = scope.setdefault("state", {})
-    configured = accounts.authentication_configured()
+    try:
+        configured = accounts.authentication_configured()
+    except (OperationalError, InterfaceError):  # the database is down: the gate answers 503, a public route is served
+        if not decision.public:
+            raise
+        state["access"] = AccessView(Principal("", Role.VIEWER, via="none"), True, None, None)
+        return receive, None
     session: SignedIn | None = None
     principal: Principal | None = None
     try:

@@ -17,19 +17,24 @@ once, the route's policy looked up once, precomputed at start-up by ``access_pol
 
 from __future__ import annotations
 
+import logging
 from functools import partial
 
+from sqlalchemy.exc import InterfaceError, OperationalError
 from starlette.datastructures import Headers
 from starlette.responses import JSONResponse
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from drivebench import i18n
 from drivebench.i18n import _
+from drivebench.services.storage import reachability
 from drivebench.services.users import audit
 from drivebench.services.users.sharing import ShareLinks
-from drivebench.web import access, access_policy, language, lean_route, live_access, security_headers, viewer
+from drivebench.web import access, access_policy, language, lean_route, live_access, problems, security_headers, viewer
 from drivebench.web.limits import BodyLimit
 from drivebench.web.tls import HSTS_HEADER
+
+log = logging.getLogger(__name__)
 
 
 class RequestGate:
@@ -65,6 +70,10 @@ class RequestGate:
                     await security_headers.held_docs(partial(self._http, scope, receive, headers), answer, extra)
                 else:
                     await self._http(scope, receive, headers, answer)
+            except (OperationalError, InterfaceError) as exc:  # the database went away: 503 in words
+                if answer.started:
+                    raise
+                await _database_unavailable(scope, added, exc)
             except Exception:
                 if not answer.started:  # a bug: a problem with the headers; the server logs the error as before
                     await _server_error(scope, added)
@@ -114,6 +123,13 @@ async def _server_error(scope: Scope, send: Send) -> None:
     body = {"type": "about:blank", "title": _("Internal server error"), "status": 500,
             "detail": _("The server failed on this request; its log has the details."), "instance": scope["path"]}
     await JSONResponse(body, status_code=500, media_type="application/problem+json")(scope, _nothing, send)
+
+
+async def _database_unavailable(scope: Scope, send: Send, exc: Exception) -> None:
+    problem = reachability.unavailable(exc)
+    log.warning("%s %s: %s", scope.get("method", "WEBSOCKET"), scope["path"], problem.detail)
+    body = problems.problem_body(problem, scope["path"])
+    await JSONResponse(body, status_code=503, media_type="application/problem+json")(scope, _nothing, send)
 
 
 async def _nothing() -> Message:

@@ -8,17 +8,22 @@ of the app (navigation bar, a way back), same status.
 from __future__ import annotations
 
 import json
+import logging
 
 from fastapi import FastAPI, Request
 from fastapi.exception_handlers import http_exception_handler
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import HTMLResponse, JSONResponse, Response
 from markupsafe import Markup
+from sqlalchemy.exc import InterfaceError, OperationalError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from drivebench import errors
 from drivebench.i18n import N_, _
+from drivebench.services.storage import reachability
 from drivebench.web.templating import templates
+
+log = logging.getLogger(__name__)
 
 # Most specific class first.
 STATUS: list[tuple[type[errors.DriveBenchError], int]] = [
@@ -33,6 +38,8 @@ STATUS: list[tuple[type[errors.DriveBenchError], int]] = [
     (errors.ParameterError, 422),
     (errors.Conflict, 409),
     (errors.ContentTooLarge, 413),
+    (errors.DatabaseUnavailable, 503),
+    (errors.SchemaTooNew, 503),
     (errors.ConfirmationRequired, 428),
     (errors.NotAuthenticated, 401),
     (errors.AccessDenied, 403),
@@ -117,6 +124,17 @@ def error_page(request: Request, body: dict[str, object]) -> Response:
 def install(app: FastAPI) -> None:
     @app.exception_handler(errors.DriveBenchError)
     async def _drivebench_error(request: Request, exc: errors.DriveBenchError) -> Response:
+        return _problem(request, exc)
+
+    @app.exception_handler(OperationalError)
+    @app.exception_handler(InterfaceError)
+    async def _database_error(request: Request, exc: Exception) -> Response:
+        """The database went away while the server runs: 503 in words (one log line, no traceback per request)."""
+        problem = reachability.unavailable(exc)
+        log.warning("%s %s: %s", request.method, request.url.path, problem.detail)
+        return _problem(request, problem)
+
+    def _problem(request: Request, exc: errors.DriveBenchError) -> Response:
         body = problem_body(exc, str(request.url.path))
         status = int(body["status"])  # type: ignore[call-overload]
         if request.headers.get("HX-Request") == "true":

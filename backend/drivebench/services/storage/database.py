@@ -17,12 +17,14 @@ from pathlib import Path
 
 from alembic import command
 from alembic.config import Config
-from sqlalchemy import Engine, create_engine, event
+from sqlalchemy import Connection, Engine, create_engine, event
 from sqlalchemy.engine import make_url
 from sqlalchemy.exc import OperationalError
 from sqlalchemy.orm import DeclarativeBase, Session, sessionmaker
 
 from drivebench.config import settings
+from drivebench.errors import SchemaTooNew
+from drivebench.i18n import N_, Text
 
 MIGRATIONS_DIR = Path(__file__).resolve().parents[2] / "migrations"
 
@@ -57,6 +59,8 @@ def engine(url: str | None = None) -> Engine:
             connect_args["timeout"] = 30  # a writer waits for another server's write on a loaded machine (5 s gave up)
             if parsed.database and parsed.database != ":memory:":
                 _private_file(Path(parsed.database))
+        elif parsed.get_backend_name() == "postgresql" and "connect_timeout" not in parsed.query:
+            connect_args["connect_timeout"] = 5  # a host that drops packets: a clear failure, not a hang
         created = create_engine(url, connect_args=connect_args, pool_pre_ping=True)
         if parsed.get_backend_name() == "sqlite":
             event.listen(created, "connect", _sqlite_foreign_keys)
@@ -112,12 +116,45 @@ def upgrade_to_head(url: str | None = None, *, attempts: int = 3) -> None:
                     # second then finds the schema current. SQLite locks the whole file on the first write instead.
                     connection.exec_driver_sql(f"SELECT pg_advisory_xact_lock({_UPGRADE_LOCK_KEY})")
                 config.attributes["connection"] = connection
+                _refuse_unknown_schema(config, connection)
                 command.upgrade(config, "head")
             return
         except OperationalError:
             if attempt == attempts:
                 raise
             time.sleep(0.2 * attempt)
+
+
+TOO_NEW = N_("The database schema is at revision {revision}, which this release ({version}) does not know: a newer "
+             "release has upgraded the database. This release leaves it alone.")
+TOO_NEW_HINT = N_("Run the release that upgraded the database (or a newer one), or restore the backup taken before "
+                  "the upgrade.")
+
+
+def _refuse_unknown_schema(config: Config, connection: Connection) -> None:
+    from alembic.runtime.migration import MigrationContext
+    from alembic.script import ScriptDirectory
+
+    from drivebench import __version__
+
+    known = {script.revision for script in ScriptDirectory.from_config(config).walk_revisions()}
+    for revision in MigrationContext.configure(connection).get_current_heads():
+        if revision not in known:
+            raise SchemaTooNew(Text(TOO_NEW, revision=revision, version=__version__), hint=TOO_NEW_HINT)
+
+
+def head_revision() -> str | None:
+    """The newest migration this release carries."""
+    from alembic.script import ScriptDirectory
+
+    return ScriptDirectory.from_config(alembic_config()).get_current_head()
+
+
+def check_schema(url: str | None = None) -> str | None:
+    """The database's revision (None: no tables yet); SchemaTooNew when a newer release has upgraded it."""
+    with engine(url).connect() as connection:
+        _refuse_unknown_schema(alembic_config(url), connection)
+    return current_revision(url)
 
 
 def current_revision(url: str | None = None) -> str | None:
