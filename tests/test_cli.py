@@ -59,6 +59,7 @@ def poll(fetch: Callable[[], object], timeout_s: float, what: str) -> object:
     return last[0]
 
 
+@pytest.mark.slow  # measured 54-120 s of the quick subset on the loaded 2 cores
 def test_serve_opens_a_socketcand_bus_shared_with_a_simulator_process(tmp_path: Path) -> None:
     """`drivebench serve --bus socketcand:127.0.0.1:PORT/can0` against the hub, drives simulated by another
     process: health answers, the session is listed, a scan finds the four drives with live heartbeat states."""

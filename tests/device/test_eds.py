@@ -343,6 +343,7 @@ def test_latin1_bytes_are_read_and_utf8_bom_is_skipped() -> None:
 
 
 # --- property: import(export(x)) == x ---------------------------------------------------------------------
+@pytest.mark.slow  # measured 54-120 s of the quick subset on the loaded 2 cores
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(profiles())
 def test_import_of_export_is_identity(profile: Profile) -> None:
@@ -363,6 +364,7 @@ def _dcf_cases(draw: st.DrawFn) -> tuple[Profile, int, dict[tuple[int, int], int
     return profile, draw(st.integers(1, 127)), values
 
 
+@pytest.mark.slow  # measured 54-120 s of the quick subset on the loaded 2 cores
 @settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(_dcf_cases())
 def test_dcf_of_device_values_round_trips(case: tuple[Profile, int, dict[tuple[int, int], int | float | str]]

@@ -151,6 +151,7 @@ def test_a_shipped_profile_goes_through_eds_and_xdd_to_the_same_profile(profile:
     assert what_xdd_holds(read_xdd(export_xdd(via_xdd), source="again.xdd").profile) == what_xdd_holds(via_xdd)
 
 
+@pytest.mark.slow  # measured 54-120 s of the quick subset on the loaded 2 cores
 @settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(profiles())
 def test_import_of_xdd_export_is_the_same_profile(profile: Profile) -> None:
@@ -167,6 +168,7 @@ def _node_values(draw: st.DrawFn) -> tuple[Profile, int, dict[tuple[int, int], i
                                                 for o in chosen}
 
 
+@pytest.mark.slow  # measured 54-120 s of the quick subset on the loaded 2 cores
 @settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(_node_values())
 def test_xdc_of_node_values_reads_back_like_the_dcf_of_them(

@@ -27,12 +27,16 @@ MANUAL_0x08000022 = ("Due to the current device state, data cannot be transferre
 
 
 @pytest.fixture
-def units(registry: ProfileRegistry) -> list[SimulatedSlave]:
+def units(registry: ProfileRegistry) -> Iterator[list[SimulatedSlave]]:
     profile = registry.get(PROFILE)
     found = [SimulatedSlave(profile, 0, 0, name="Conveyor"), SimulatedSlave(profile, 0, 1, name="Lift")]
-    for unit in found:
-        unit.node.power_on()  # power only: the master's scan takes it from Init
-    return found
+    try:
+        for unit in found:
+            unit.node.power_on()  # power only: the master's scan takes it from Init
+        yield found
+    finally:
+        for unit in found:
+            unit.power_off()  # ends the node's SDO workers (a test may have powered it off already)
 
 
 @pytest.fixture

@@ -49,36 +49,40 @@ def test_a_direct_master_session_reads_writes_and_changes_states_like_the_gatewa
                                                                                    ) -> None:
     profile = registry.get(PROFILE)
     units = [SimulatedSlave(profile, 0, 0, name="Conveyor"), SimulatedSlave(profile, 0, 1, name="Lift")]
-    for unit in units:
-        unit.node.power_on()
+    try:
+        for unit in units:
+            unit.node.power_on()
+        _run(_direct_scenario(registry, units))
+    finally:
+        for unit in units:
+            unit.power_off()  # ends the nodes' SDO workers
 
-    async def scenario() -> None:
-        async with _direct(registry, units) as session:
-            assert sorted(session.nodes) == [1, 2] and session.nodes[2].device_name == "Lift"
-            assert session.nodes[1].profile is not None and session.nodes[1].profile.id == PROFILE
-            assert session.slaves[1].station == 0x1001 and session.nmt_state(1) == ("Pre-Operational", True)
-            assert session.bus_state == "active"
 
-            value = await parameters.read(session, 1, "C00039/1")
-            assert (value.raw, value.value) == (0x0FA0, pytest.approx(40.0))
-            assert (await parameters.write(session, 1, "C00039/1", "55.5")).verified is True
-            assert units[0].store.get(0x5FD8, 1) == 5550 and units[1].store.get(0x5FD8, 1) == 0x0FA0
+async def _direct_scenario(registry: ProfileRegistry, units: list[SimulatedSlave]) -> None:
+    async with _direct(registry, units) as session:
+        assert sorted(session.nodes) == [1, 2] and session.nodes[2].device_name == "Lift"
+        assert session.nodes[1].profile is not None and session.nodes[1].profile.id == PROFILE
+        assert session.slaves[1].station == 0x1001 and session.nmt_state(1) == ("Pre-Operational", True)
+        assert session.bus_state == "active"
 
-            with pytest.raises(ConfirmationRequired):
-                await drive_guard.nmt(session, NmtCommand.START, 1)
-            await confirmed_call(drive_guard.nmt, session, NmtCommand.START, 1, confirm="1")  # Pre-Op -> Safe-Op -> Op
-            assert session.nmt_state(1) == ("Operational", True) and drive_guard.guard_for(session).armed(1)
-            await drive_guard.guard_for(session).trip(1, "test: keep-alive lost")
-            assert units[0].state is esm.EsmState.PRE_OPERATIONAL
-            await drive_guard.nmt(session, NmtCommand.STOP, 1)  # EtherCAT: Safe-Operational
-            assert session.nmt_state(1) == ("Safe-Operational", True)
-            assert units[0].state is esm.EsmState.SAFE_OPERATIONAL
-            with pytest.raises(SdoAbortError) as refused:
-                await parameters.write(session, 1, "0x1A00.1", 0x5C930110)
-            assert refused.value.abort_text == ("Due to the current device state, data cannot be transferred to the "
-                                                "application or stored in the application")
-            await drive_guard.nmt(session, NmtCommand.RESET_NODE, 1)  # through Init back to Pre-Operational
-            assert session.nmt_state(1) == ("Pre-Operational", True)
-            await parameters.write(session, 1, "0x1A00.1", 0x5C930110)  # Pre-Operational: accepted
+        value = await parameters.read(session, 1, "C00039/1")
+        assert (value.raw, value.value) == (0x0FA0, pytest.approx(40.0))
+        assert (await parameters.write(session, 1, "C00039/1", "55.5")).verified is True
+        assert units[0].store.get(0x5FD8, 1) == 5550 and units[1].store.get(0x5FD8, 1) == 0x0FA0
 
-    _run(scenario())
+        with pytest.raises(ConfirmationRequired):
+            await drive_guard.nmt(session, NmtCommand.START, 1)
+        await confirmed_call(drive_guard.nmt, session, NmtCommand.START, 1, confirm="1")  # Pre-Op -> Safe-Op -> Op
+        assert session.nmt_state(1) == ("Operational", True) and drive_guard.guard_for(session).armed(1)
+        await drive_guard.guard_for(session).trip(1, "test: keep-alive lost")
+        assert units[0].state is esm.EsmState.PRE_OPERATIONAL
+        await drive_guard.nmt(session, NmtCommand.STOP, 1)  # EtherCAT: Safe-Operational
+        assert session.nmt_state(1) == ("Safe-Operational", True)
+        assert units[0].state is esm.EsmState.SAFE_OPERATIONAL
+        with pytest.raises(SdoAbortError) as refused:
+            await parameters.write(session, 1, "0x1A00.1", 0x5C930110)
+        assert refused.value.abort_text == ("Due to the current device state, data cannot be transferred to the "
+                                            "application or stored in the application")
+        await drive_guard.nmt(session, NmtCommand.RESET_NODE, 1)  # through Init back to Pre-Operational
+        assert session.nmt_state(1) == ("Pre-Operational", True)
+        await parameters.write(session, 1, "0x1A00.1", 0x5C930110)  # Pre-Operational: accepted

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
+import threading
 import time
 from collections.abc import Coroutine, Iterator
 from typing import Any, TypeVar
@@ -20,6 +22,7 @@ from drivebench.errors import (
     SdoAbortError,
     SdoTimeoutError,
     UnknownParameter,
+    UnknownProfile,
 )
 from drivebench.protocol.datatypes import DataType
 from drivebench.services.bus.sessions import Session
@@ -63,24 +66,39 @@ class Bench:
         return found
 
 
+@contextlib.contextmanager
+def open_bench(registry: ProfileRegistry, channel: str, absent_profile: str = "lenze-8400-motec-canopen"
+               ) -> Iterator[Bench]:
+    """The plant, the wire and the session, each closed (in reverse) from the moment it is open: a set-up that
+    fails half-way leaves no plant running."""
+    with contextlib.ExitStack() as opened:
+        plant = Plant(PlantFile.model_validate(PLANT), registry.get, bus=f"virtual:{channel}@500000",
+                      latency="0ms").start()
+        opened.callback(plant.stop)
+        wire = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
+        opened.callback(wire.shutdown)
+        runner = opened.enter_context(asyncio.Runner())
+        manager = SessionManager(registry, sdo_timeout_s=0.3, sdo_retries=0)
+        opened.callback(lambda: runner.run(manager.close_all()))
+        session = runner.run(manager.open(plant.spec, "params"))
+        for node in PLANT["nodes"]:
+            session.add_node(node["node_id"], node["profile"])  # type: ignore[arg-type]
+        session.add_node(ABSENT, absent_profile)
+        yield Bench(runner, session, plant, wire)
+
+
 @pytest.fixture
 def bench(registry: ProfileRegistry, channel: str) -> Iterator[Bench]:
-    plant = Plant(PlantFile.model_validate(PLANT), registry.get, bus=f"virtual:{channel}@500000",
-                  latency="0ms").start()
-    wire = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
-    runner = asyncio.Runner()
-    manager = SessionManager(registry, sdo_timeout_s=0.3, sdo_retries=0)
-    session = runner.run(manager.open(plant.spec, "params"))
-    for node in PLANT["nodes"]:
-        session.add_node(node["node_id"], node["profile"])  # type: ignore[arg-type]
-    session.add_node(ABSENT, "lenze-8400-motec-canopen")
-    try:
-        yield Bench(runner, session, plant, wire)
-    finally:
-        runner.run(manager.close_all())
-        runner.close()
-        wire.shutdown()
-        plant.stop()
+    with open_bench(registry, channel) as opened:
+        yield opened
+
+
+def test_a_bench_whose_set_up_fails_leaves_no_plant_running(registry: ProfileRegistry, channel: str) -> None:
+    before = set(threading.enumerate())
+    with pytest.raises(UnknownProfile), open_bench(registry, channel, absent_profile="no-such-profile"):
+        pass
+    assert wait_until(lambda: not [t for t in threading.enumerate() if t not in before and t.is_alive()
+                                   and t.name.startswith("sim-")], 15), "the plant's threads are still running"
 
 
 # --- reads -------------------------------------------------------------------------------------------------
