@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -9,6 +10,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from drivebench.config import settings
+from drivebench.services.storage import database
 from drivebench.simulator.plant import Plant
 from drivebench.web.app import create_app
 from tests.conftest import DEMO_PLANT, fresh_channel, serve_app
@@ -34,3 +36,15 @@ def demo_server() -> Iterator[tuple[str, Plant]]:
     with serve_app(app) as base_url:
         plants: dict[str, Plant] = app.state.drivebench.plants
         yield base_url, next(iter(plants.values()))
+
+
+@contextlib.contextmanager
+def demo_server_with_own_db(tmp_path_factory: pytest.TempPathFactory, name: str) -> Iterator[str]:
+    """The demo plant served by uvicorn with a SQLite database of its own (a module's stored sets stay out of var/)."""
+    url = f"sqlite:///{tmp_path_factory.mktemp(name) / 'drivebench.db'}"
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(settings, "database_url", url)
+        app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
+        with serve_app(app) as base_url:
+            yield base_url
+    database.dispose(url)

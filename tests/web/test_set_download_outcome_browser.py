@@ -9,10 +9,8 @@ from typing import Any
 
 import pytest
 
-from drivebench.config import settings
-from drivebench.services.storage import database
-from drivebench.web.app import create_app
-from tests.conftest import DEMO_PLANT, fresh_channel, screenshot, serve_app, wait_for_value
+from tests.conftest import screenshot, wait_for_value
+from tests.web.conftest import demo_server_with_own_db
 
 expect = pytest.importorskip("playwright.sync_api").expect
 
@@ -22,13 +20,8 @@ SESSION = "/api/sessions/demo-plant"
 
 @pytest.fixture(scope="module")
 def sets_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
-    url = f"sqlite:///{tmp_path_factory.mktemp('sets-db') / 'drivebench.db'}"
-    with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(settings, "database_url", url)
-        app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
-        with serve_app(app) as base_url:
-            yield base_url
-    database.dispose(url)
+    with demo_server_with_own_db(tmp_path_factory, "sets-db") as base_url:
+        yield base_url
 
 
 def _ok(answer: Any) -> Any:

@@ -9,10 +9,8 @@ from typing import Any
 
 import pytest
 
-from drivebench.config import settings
-from drivebench.services.storage import database
-from drivebench.web.app import create_app
-from tests.conftest import DEMO_PLANT, fresh_channel, screenshot, serve_app
+from tests.conftest import screenshot
+from tests.web.conftest import demo_server_with_own_db
 
 TIMEOUT_MS = 15_000
 SERVO = 7
@@ -21,13 +19,8 @@ SERVO = 7
 @pytest.fixture(scope="module")
 def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     """The demo plant with a database of its own (the parameter set tests store a set in it)."""
-    url = f"sqlite:///{tmp_path_factory.mktemp('words-layout-db') / 'drivebench.db'}"
-    with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(settings, "database_url", url)
-        app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
-        with serve_app(app) as base_url:
-            yield base_url
-    database.dispose(url)
+    with demo_server_with_own_db(tmp_path_factory, "words-layout-db") as base_url:
+        yield base_url
 
 
 @pytest.fixture

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import csv
 import io
-import math
 import os
 import re
 import socket
@@ -29,6 +28,7 @@ from sqlalchemy import delete, select, update
 
 from drivebench.device.catalog import Catalog, Item
 from drivebench.device.eds import resolve_node_expr
+from drivebench.device.factory_default import same_raw
 from drivebench.device.profile import ObjectEntry, Profile
 from drivebench.device.scaling import from_raw
 from drivebench.errors import Conflict, InvalidValue, NotFound
@@ -110,16 +110,6 @@ def rpdo_mapped(values: Mapping[str, Raw]) -> set[tuple[int, int]]:
             continue  # an entry beyond the number of mapped objects maps nothing
         mapped.add((raw >> 16, (raw >> 8) & 0xFF))
     return mapped
-
-
-def same_raw(a: Raw | None, b: Raw | None) -> bool:
-    if isinstance(a, float) or isinstance(b, float):
-        if isinstance(a, (int, float)) and isinstance(b, (int, float)):
-            return math.isclose(a, b, rel_tol=1e-6, abs_tol=1e-9)
-        return False
-    if isinstance(a, str) and isinstance(b, str):
-        return a.rstrip("\x00") == b.rstrip("\x00")
-    return a == b
 
 
 def engineering(item: Item, raw: Raw) -> object:
