@@ -272,7 +272,7 @@ def test_8200_vector_jogs_with_its_own_jog1(bench: Bench) -> None:
         assert status.control_word is not None
         assert status.control_word & 0x07 == {1: 0x01, -1: 0x05, 0: 0x00}[direction]
         assert bench.plant.nodes[VECTOR].store.get_ref("C1822/2") == 0  # no setpoint: the device's JOG1 runs
-        deadline = time.monotonic() + 8
+        deadline = time.monotonic() + 20  # the ramp through 0 to -20 Hz, read beside three other workers
         while (actual := bench.run(drive_control.read_actuals(bench.session, node))[0]).value != hz:
             assert time.monotonic() < deadline, f"actual stays {actual.value} Hz, expected {hz}"
             drive_control.guard_for(bench.session).keepalive(VECTOR)
