@@ -191,7 +191,7 @@ def test_lease_holder_and_problem_texts_are_shown_as_text(server: tuple[str, Fas
     page.goto(f"{base}/sessions/demo-plant/nodes/{JSON_NODE}?tab=control")
     page.locator("#ctl-ws.good").wait_for(timeout=WAIT_MS)
     take_lease(base)
-    page.locator('#control-panel input[name="ctl-mode"]:not(:checked)').first.click()  # a write: refused, the radio put back
+    page.locator('#control-panel input[name="ctl-mode"]:not(:checked)').first.click()  # a write: refused
     error = page.locator("#ctl-result .error")
     expect(error).to_contain_text("is being written by", timeout=WAIT_MS)
     expect(error).to_contain_text(PAYLOAD)
