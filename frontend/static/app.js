@@ -346,24 +346,46 @@ document.addEventListener("htmx:configRequest", (event) => {
     event.preventDefault();  // its own question (hx-confirm) was answered before the server asked
     event.detail.issueRequest(true);
   });
-  document.body.addEventListener("htmx:afterRequest", async (event) => {
+  // The answer is heard on the element itself: the websocket may re-render the node table between the click and
+  // the 428, and htmx then fires htmx:afterRequest on a detached button whose event never reaches the body.
+  document.body.addEventListener("htmx:beforeRequest", (event) => {
     const elt = event.detail.elt;
-    if (!elt.closest || !elt.closest("[data-asks-moving]") || event.detail.xhr.status !== 428) return;
+    if (!elt.closest || !elt.closest("[data-asks-moving]")) return;
+    const answered = (done) => {
+      if (done.target !== elt) return;  // a request of an element inside it
+      elt.removeEventListener("htmx:afterRequest", answered);
+      if (done.detail.xhr.status === 428) askAndResend(elt, done.detail.xhr.responseText);
+    };
+    elt.addEventListener("htmx:afterRequest", answered);
+  });
+
+  async function askAndResend(elt, responseText) {
     // the server's answer, read in an inert document (nothing in it runs or loads)
-    const found = new DOMParser().parseFromString(event.detail.xhr.responseText, "text/html")
-      .querySelector("[data-confirm-node]");
+    const found = new DOMParser().parseFromString(responseText, "text/html").querySelector("[data-confirm-node]");
     if (!found) return;
     let values = {};
     try { values = JSON.parse(found.dataset.confirmValues || "{}"); } catch (e) { return; }
     const node = /^\d+$/.test(found.dataset.confirmNode) ? Number(found.dataset.confirmNode) : found.dataset.confirmNode;
     const problem = { confirm_node: node, confirm_values: values };
     if (!await ask(problem)) {  // cancelled: nothing was sent, and no red message of an earlier try stays beside it
-      const slot = errorSlot(elt);
+      const slot = errorSlot(current(elt) || elt);
       if (slot && slot.id !== "toast") slot.querySelectorAll(".error").forEach((box) => box.remove());
       return;
     }
-    pending.set(elt, { confirm: node, confirm_values: values });
-    htmx.trigger(elt, elt.tagName === "FORM" ? "submit" : "click");
-  });
+    const now = current(elt);  // the same control, as the page shows it now
+    if (!now) {
+      document.getElementById("toast").replaceChildren(window.drivebench.errorBox(
+        _("Nothing was sent."), _("The page changed while you were asked: press the button again.")));
+      return;
+    }
+    pending.set(now, { confirm: node, confirm_values: values });
+    htmx.trigger(now, now.tagName === "FORM" ? "submit" : "click");
+  }
+
+  // the element, or the one with its id that a re-render put in its place
+  function current(elt) {
+    if (elt.isConnected) return elt;
+    return elt.id ? document.getElementById(elt.id) : null;
+  }
 })();
 // --- end safety interlocks ---------------------------------------------------------------------------------

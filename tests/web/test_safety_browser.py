@@ -69,6 +69,40 @@ def test_nmt_start_asks_first_and_closing_the_tab_stops_the_drive(own_server: tu
     assert drive is not None and drive.control_word & 0x06 == 0x02, "no quick stop (0x6040 bit 1 set, bit 2 clear)"
 
 
+def test_nmt_start_asks_even_when_the_node_table_is_redrawn_while_the_server_answers(
+        own_server: tuple[str, FastAPI], browser: Any) -> None:
+    """The websocket redraws the node table every few seconds: a redraw between the click and the server's 428 left
+    the button detached, and the page never asked (nothing sent, nothing said). Here the redraw comes right after
+    the request leaves, the same swap the socket makes."""
+    url, app = own_server
+    sim = _plant(app).nodes[MM]
+    context = browser.new_context(viewport={"width": 1440, "height": 900})
+    page = context.new_page()
+    try:
+        page.goto(url + "/")
+        start = page.locator(f"#nmt-demo-plant-{MM}-start")
+        expect(start).to_be_visible(timeout=WAIT_MS)
+        page.evaluate("""(id) => {
+            window.redrawn = 0;
+            document.body.addEventListener("htmx:beforeRequest", (event) => {
+                if (event.detail.elt.id !== id || window.redrawn) return;
+                const table = document.getElementById("nodes-demo-plant");
+                htmx.swap(table, table.outerHTML, {swapStyle: "outerHTML"});
+                window.redrawn += 1;
+            });
+        }""", f"nmt-demo-plant-{MM}-start")
+        start.click()
+        asked = page.locator("#moving-confirm")
+        expect(asked).to_be_visible(timeout=WAIT_MS)
+        assert page.evaluate("window.redrawn") == 1, "the table was not redrawn during the request"
+        expect(asked).to_contain_text(f"Sends to node {MM}")
+        asked.get_by_role("button", name="Send it").click()
+        assert wait_until(lambda: sim.state.name == "OPERATIONAL"), "NMT start did not reach the drive"
+    finally:
+        context.close()
+    assert wait_until(lambda: sim.state.name == "PRE_OPERATIONAL"), "the node kept running after its tab closed"
+
+
 def test_second_engineer_sees_the_lease_holder_on_the_node_page(own_server: tuple[str, FastAPI],
                                                                 browser: Any) -> None:
     url, _app = own_server
