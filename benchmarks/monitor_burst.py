@@ -19,7 +19,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the `tests` pack
 from _monitor_results import machine, write_subsection
 from tests.services.burst_rig import run_burst
 
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.profiles.loader import ProfileRegistry
 
 RATE = 2_000
 SECONDS = 10.0

@@ -22,7 +22,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _monitor_results import machine, mixed_trace, write_subsection
 
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.services.monitoring.monitor import Monitor
 from drivebench.services.session_manager import SessionManager
 

@@ -23,7 +23,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _monitor_results import machine, mixed_trace, write_subsection
 
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.services.monitoring.monitor import HISTORY_S, RATE_WINDOW_S, TRACE_CAPACITY, monitor_for
 from drivebench.services.session_manager import SessionManager
 from drivebench.transport.busload import message_bits

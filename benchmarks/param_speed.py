@@ -29,9 +29,9 @@ import httpx
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "backend"))
 
-from drivebench.device.catalog import Catalog  # noqa: E402
-from drivebench.device.loader import ProfileRegistry  # noqa: E402
-from drivebench.device.profile import Access, Parameter, Profile  # noqa: E402
+from drivebench.device.profiles.catalog import Catalog  # noqa: E402
+from drivebench.device.profiles.loader import ProfileRegistry  # noqa: E402
+from drivebench.device.profiles.profile import Access, Parameter, Profile  # noqa: E402
 from drivebench.errors import DriveBenchError  # noqa: E402
 from drivebench.protocol.datatypes import DataType  # noqa: E402
 from drivebench.services.params import parameters  # noqa: E402

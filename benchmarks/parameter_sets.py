@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from drivebench.config import REPO_ROOT
-from drivebench.device.profile import Profile
+from drivebench.device.profiles.profile import Profile
 from drivebench.services.sets import set_formats
 from drivebench.services.sets.parameter_sets import ParameterSetStore, compare, set_source
 from drivebench.services.storage import database

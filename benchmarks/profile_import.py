@@ -25,10 +25,10 @@ from pathlib import Path
 from fastapi.testclient import TestClient
 
 from drivebench.config import REPO_ROOT, settings
-from drivebench.device.eds import read_eds
-from drivebench.device.loader import ProfileRegistry
-from drivebench.device.xdd import read_xdd
-from drivebench.device.xdd_export import export_xdd
+from drivebench.device.formats.eds import read_eds
+from drivebench.device.formats.xdd import read_xdd
+from drivebench.device.formats.xdd_export import export_xdd
+from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.web.app import create_app
 
 sys.path.insert(0, str(REPO_ROOT))

@@ -24,8 +24,8 @@ from hypothesis import settings
 
 from drivebench.config import REPO_ROOT
 from drivebench.config import settings as app_settings
-from drivebench.device.dip import SwitchDevices
-from drivebench.device.loader import ProfileRegistry, load_profile_file
+from drivebench.device.calculators.dip import SwitchDevices
+from drivebench.device.profiles.loader import ProfileRegistry, load_profile_file
 from drivebench.services.storage import database
 from drivebench.services.users import accounts
 from drivebench.simulator.plant import Plant, PlantFile

@@ -299,7 +299,7 @@ def _check_buses(specs: list[str]) -> None:
 
 def simulate(args: argparse.Namespace) -> int:
     """Put the simulated drives of a plant file on a bus of their own (a hub, a gateway, any adapter)."""
-    from drivebench.device.loader import ProfileRegistry
+    from drivebench.device.profiles.loader import ProfileRegistry
     from drivebench.simulator.plant import Plant, PlantFile
 
     plant_file = PlantFile.load(Path(args.plant) if args.plant else settings.plants_dir / "demo.json")

@@ -122,7 +122,7 @@
         : `0x${status.error_code.toString(16).toUpperCase().padStart(4, "0")} ${status.error_text || ""}`;
     }
 
-    // The present fault in the manual's words (device/faults.py; the same markup as node/_fault_words.html)
+    // The present fault in the manual's words (device/drive/faults.py; the same markup as node/_fault_words.html)
     function renderFault(fault) {
       const box = panel.querySelector("#ctl-fault");
       if (!box) return;

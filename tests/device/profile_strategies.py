@@ -5,8 +5,8 @@ from __future__ import annotations
 
 from hypothesis import strategies as st
 
-from drivebench.device.eds import BAUD_RATES_KBIT
-from drivebench.device.profile import Access, Identity, ObjectEntry, Profile
+from drivebench.device.formats.eds import BAUD_RATES_KBIT
+from drivebench.device.profiles.profile import Access, Identity, ObjectEntry, Profile
 from drivebench.protocol.datatypes import DataType
 
 TEXT = st.text(st.characters(min_codepoint=32, max_codepoint=0x17F, blacklist_characters="\x7f;"),

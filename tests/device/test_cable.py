@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from drivebench.device.cable import SEGMENT_LENGTH_M, plan_cable, segment_length, total_length
+from drivebench.device.calculators.cable import SEGMENT_LENGTH_M, plan_cable, segment_length, total_length
 from drivebench.errors import InvalidValue, OutOfRange
 
 

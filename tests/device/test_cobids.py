@@ -5,9 +5,9 @@ from __future__ import annotations
 import pytest
 
 from drivebench.config import settings
-from drivebench.device.cobids import alternative_hint, channels_of, cob_ids, default_channels
-from drivebench.device.loader import load_profile_file
-from drivebench.device.switches import SwitchesSection
+from drivebench.device.calculators.cobids import alternative_hint, channels_of, cob_ids, default_channels
+from drivebench.device.calculators.switches import SwitchesSection
+from drivebench.device.profiles.loader import load_profile_file
 from drivebench.errors import InvalidValue, OutOfRange
 from tests.conftest import shipped_switch_devices
 

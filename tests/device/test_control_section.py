@@ -9,9 +9,9 @@ import pytest
 from pydantic import ValidationError
 
 from drivebench.config import REPO_ROOT
-from drivebench.device import cia402
-from drivebench.device.control import ControlSection, Sequence
-from drivebench.device.loader import ProfileRegistry, load_profile_file
+from drivebench.device.drive import cia402
+from drivebench.device.drive.control import ControlSection, Sequence
+from drivebench.device.profiles.loader import ProfileRegistry, load_profile_file
 from drivebench.services.control.drive_words import family_of_profile
 
 SEEDS = {"siemens-micromaster4-canopen": ("cia402", ["mm-velocity", "mm-torque", "mm-quick"]),

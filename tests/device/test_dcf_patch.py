@@ -9,9 +9,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from drivebench.device.eds import decode_text, read_eds
-from drivebench.device.eds_export import export_eds
-from drivebench.device.profile import Profile
+from drivebench.device.formats.eds import decode_text, read_eds
+from drivebench.device.formats.eds_export import export_eds
+from drivebench.device.profiles.profile import Profile
 from tests.device.quirk_corpus import CORPUS_FILES
 
 NEW_SECTIONS = re.compile(r"^\[(DeviceComissioning|[0-9A-F]{4}Value)\]$", re.IGNORECASE)

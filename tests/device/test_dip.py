@@ -7,9 +7,9 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from drivebench.device.catalog import Catalog
-from drivebench.device.dip import NotSettableBySwitches, decode, encode
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.calculators.dip import NotSettableBySwitches, decode, encode
+from drivebench.device.profiles.catalog import Catalog
+from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.errors import InvalidValue, OutOfRange, UnknownProfile
 from tests.conftest import shipped_switch_devices
 

@@ -10,9 +10,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from drivebench.device.eds import MAX_EDS_BYTES, import_eds, read_eds, resolve_node_expr
-from drivebench.device.eds_export import export_eds
-from drivebench.device.profile import (
+from drivebench.device.formats.eds import MAX_EDS_BYTES, import_eds, read_eds, resolve_node_expr
+from drivebench.device.formats.eds_export import export_eds
+from drivebench.device.profiles.profile import (
     Access,
     Identity,
     LenzeCodeAddressing,

@@ -10,11 +10,11 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from drivebench.device.eds import Section, decode_text, parse_ini, read_eds
-from drivebench.device.eds_export import export_eds
-from drivebench.device.eds_quirks import Warnings, node_expr, read_int
-from drivebench.device.xdd import read_xdd
-from drivebench.device.xdd_export import export_xdd
+from drivebench.device.formats.eds import Section, decode_text, parse_ini, read_eds
+from drivebench.device.formats.eds_export import export_eds
+from drivebench.device.formats.eds_quirks import Warnings, node_expr, read_int
+from drivebench.device.formats.xdd import read_xdd
+from drivebench.device.formats.xdd_export import export_xdd
 from drivebench.errors import ProfileError
 from tests.device.quirk_corpus import BASE, CASES, CORPUS_FILES, Case
 

@@ -4,10 +4,10 @@ one; words that read in hex."""
 
 from __future__ import annotations
 
-from drivebench.device.catalog import Item
-from drivebench.device.factory_default import factory_raw, same_raw
-from drivebench.device.number_base import hex_word, shows_hex
-from drivebench.device.profile import Access, ObjectEntry
+from drivebench.device.profiles.catalog import Item
+from drivebench.device.profiles.factory_default import factory_raw, same_raw
+from drivebench.device.profiles.number_base import hex_word, shows_hex
+from drivebench.device.profiles.profile import Access, ObjectEntry
 from drivebench.protocol.datatypes import DataType
 
 

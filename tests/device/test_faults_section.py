@@ -1,4 +1,4 @@
-"""The ``faults`` profile section (device/faults.py): entries need their source, numbers are read where the
+"""The ``faults`` profile section (device/drive/faults.py): entries need their source, numbers are read where the
 section says and matched on the bits it names."""
 
 from __future__ import annotations
@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 from pydantic import ValidationError
 
-from drivebench.device.faults import FaultsSection, decode_emcy
+from drivebench.device.drive.faults import FaultsSection, decode_emcy
 
 
 def test_an_entry_without_its_source_is_refused() -> None:

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from drivebench.device.json_lines import DuplicateKey, line_of, reject_duplicate_keys, value_lines
+from drivebench.device.formats.json_lines import DuplicateKey, line_of, reject_duplicate_keys, value_lines
 
 TEXT = """{
   "id": "x",

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from drivebench.config import REPO_ROOT
-from drivebench.device.loader import ProfileRegistry, load_profile_file
+from drivebench.device.profiles.loader import ProfileRegistry, load_profile_file
 from drivebench.errors import ProfileError
 
 MOTEC_FILE = REPO_ROOT / "device_profiles" / "lenze-8400-motec-canopen.json"

@@ -7,10 +7,10 @@ from __future__ import annotations
 import pytest
 
 from drivebench.config import settings
-from drivebench.device.catalog import Catalog
-from drivebench.device.loader import ProfileRegistry
-from drivebench.device.profile import Access, ObjectEntry, Parameter, Profile
-from drivebench.device.scaling import from_raw, to_raw
+from drivebench.device.profiles.catalog import Catalog
+from drivebench.device.profiles.loader import ProfileRegistry
+from drivebench.device.profiles.profile import Access, ObjectEntry, Parameter, Profile
+from drivebench.device.profiles.scaling import from_raw, to_raw
 from drivebench.errors import OutOfRange, ReadOnly, UnknownParameter
 from drivebench.protocol.datatypes import DataType
 

@@ -6,11 +6,11 @@ from __future__ import annotations
 import pytest
 
 from drivebench.config import settings
-from drivebench.device.catalog import Catalog
-from drivebench.device.eds_export import export_eds
-from drivebench.device.loader import ProfileRegistry
-from drivebench.device.profile import Access, Parameter, Profile
-from drivebench.device.scaling import from_raw, to_raw
+from drivebench.device.formats.eds_export import export_eds
+from drivebench.device.profiles.catalog import Catalog
+from drivebench.device.profiles.loader import ProfileRegistry
+from drivebench.device.profiles.profile import Access, Parameter, Profile
+from drivebench.device.profiles.scaling import from_raw, to_raw
 from drivebench.errors import OutOfRange, ReadOnly
 from drivebench.protocol.datatypes import DataType
 

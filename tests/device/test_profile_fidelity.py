@@ -6,10 +6,10 @@ import re
 
 import pytest
 
-from drivebench.device.addressing import code_to_index, index_to_code
-from drivebench.device.catalog import Catalog
-from drivebench.device.loader import ProfileRegistry
-from drivebench.device.profile import Access, LenzeCodeAddressing, Profile
+from drivebench.device.profiles.addressing import code_to_index, index_to_code
+from drivebench.device.profiles.catalog import Catalog
+from drivebench.device.profiles.loader import ProfileRegistry
+from drivebench.device.profiles.profile import Access, LenzeCodeAddressing, Profile
 from drivebench.errors import UnknownParameter
 from drivebench.protocol.datatypes import DataType
 

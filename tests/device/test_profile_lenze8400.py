@@ -11,10 +11,10 @@ from pathlib import Path
 import pytest
 
 from drivebench.config import settings
-from drivebench.device.catalog import Catalog
-from drivebench.device.loader import ProfileRegistry
-from drivebench.device.profile import Access, ObjectEntry, Parameter, Profile
-from drivebench.device.scaling import from_raw, to_raw
+from drivebench.device.profiles.catalog import Catalog
+from drivebench.device.profiles.loader import ProfileRegistry
+from drivebench.device.profiles.profile import Access, ObjectEntry, Parameter, Profile
+from drivebench.device.profiles.scaling import from_raw, to_raw
 from drivebench.errors import InvalidValue, OutOfRange, ReadOnly, UnknownParameter
 from drivebench.protocol.datatypes import DataType
 

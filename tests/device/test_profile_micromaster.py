@@ -11,9 +11,9 @@ from collections import Counter
 import pytest
 
 from drivebench.config import REPO_ROOT
-from drivebench.device.addressing import code_to_index, index_to_code
-from drivebench.device.catalog import Catalog
-from drivebench.device.profile import Access, Profile, SiemensParameterAddressing
+from drivebench.device.profiles.addressing import code_to_index, index_to_code
+from drivebench.device.profiles.catalog import Catalog
+from drivebench.device.profiles.profile import Access, Profile, SiemensParameterAddressing
 from drivebench.errors import UnknownParameter
 from drivebench.protocol.datatypes import DataType
 from drivebench.protocol.sdo_server import SdoAbort

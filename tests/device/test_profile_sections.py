@@ -9,9 +9,9 @@ from typing import Any
 import pytest
 from pydantic import ValidationError
 
-from drivebench.device import pdo_notes
-from drivebench.device.pdo_rules import PdoRules
-from drivebench.device.profile import Profile
+from drivebench.device.profiles import pdo_notes
+from drivebench.device.profiles.pdo_rules import PdoRules
+from drivebench.device.profiles.profile import Profile
 
 MINIMAL: dict[str, Any] = {"id": "acme-servo", "family": "acme-servo",
                            "identity": {"vendor_name": "Acme", "product_name": "Acme servo"}}

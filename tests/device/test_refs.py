@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import pytest
 
-from drivebench.device.addressing import IndexRef, parse_ref
-from drivebench.device.catalog import Catalog
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.profiles.addressing import IndexRef, parse_ref
+from drivebench.device.profiles.catalog import Catalog
+from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.errors import UnknownParameter
 
 

@@ -1,7 +1,7 @@
 """The EDS files shipped beside the JSON profiles (``device_profiles/eds/``): up to date, readable by our importer
 and by canopen, and lossless for what an EDS carries.
 
-Regenerate them with ``python -m drivebench.device.build_eds`` after editing a profile.
+Regenerate them with ``python -m drivebench.device.formats.build_eds`` after editing a profile.
 """
 
 from __future__ import annotations
@@ -14,12 +14,12 @@ import canopen
 import pytest
 
 from drivebench.config import settings
-from drivebench.device.build_eds import EDS_SUBDIR, build, eds_path, shipped_profiles
-from drivebench.device.catalog import Catalog
-from drivebench.device.eds import import_eds, resolve_node_expr
-from drivebench.device.eds_export import export_eds
-from drivebench.device.loader import load_profile_file
-from drivebench.device.profile import ObjectEntry, Parameter, Profile, Value
+from drivebench.device.formats.build_eds import EDS_SUBDIR, build, eds_path, shipped_profiles
+from drivebench.device.formats.eds import import_eds, resolve_node_expr
+from drivebench.device.formats.eds_export import export_eds
+from drivebench.device.profiles.catalog import Catalog
+from drivebench.device.profiles.loader import load_profile_file
+from drivebench.device.profiles.profile import ObjectEntry, Parameter, Profile, Value
 from drivebench.protocol.datatypes import DataType
 
 JSON_FILES = sorted(p.name for p in settings.profiles_dir.glob("*.json"))
@@ -54,16 +54,16 @@ def test_every_shipped_profile_has_an_eds_and_no_eds_is_stale() -> None:
     assert len(JSON_FILES) >= 5
     ids = {_profile(name).id for name in JSON_FILES}
     shipped = {p.stem for p in (settings.profiles_dir / EDS_SUBDIR).glob("*.eds")}
-    assert shipped == ids, "run: python -m drivebench.device.build_eds"
+    assert shipped == ids, "run: python -m drivebench.device.formats.build_eds"
     assert [p.id for p in shipped_profiles()] == [_profile(name).id for name in JSON_FILES]
 
 
 @pytest.mark.parametrize("name", JSON_FILES)
 def test_shipped_eds_is_up_to_date(name: str) -> None:
     path = eds_path(_profile(name))
-    assert path.is_file(), f"{path} is missing; run: python -m drivebench.device.build_eds"
+    assert path.is_file(), f"{path} is missing; run: python -m drivebench.device.formats.build_eds"
     assert path.read_text(encoding="utf-8") == _exported(name), (
-        f"{path.name} differs from what {name} exports; run: python -m drivebench.device.build_eds")
+        f"{path.name} differs from what {name} exports; run: python -m drivebench.device.formats.build_eds")
 
 
 @pytest.mark.parametrize("name", JSON_FILES)

@@ -19,11 +19,11 @@ from pathlib import Path
 
 import pytest
 
-from drivebench.device import cia402
-from drivebench.device.catalog import Catalog
-from drivebench.device.control import Command
-from drivebench.device.motion import ignored_still_values, is_still, judge, rule_of, word_rule
-from drivebench.device.profile import Motion, Profile, StillValue
+from drivebench.device.drive import cia402
+from drivebench.device.drive.control import Command
+from drivebench.device.drive.motion import ignored_still_values, is_still, judge, rule_of, word_rule
+from drivebench.device.profiles.catalog import Catalog
+from drivebench.device.profiles.profile import Motion, Profile, StillValue
 
 PROFILES = sorted((Path(__file__).parents[2] / "device_profiles").glob("*.json"))
 

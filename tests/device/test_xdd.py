@@ -9,12 +9,12 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from drivebench.device.build_eds import shipped_profiles
-from drivebench.device.eds import read_eds
-from drivebench.device.eds_export import export_eds
-from drivebench.device.profile import ObjectEntry, Profile
-from drivebench.device.xdd import read_xdd
-from drivebench.device.xdd_export import export_xdd
+from drivebench.device.formats.build_eds import shipped_profiles
+from drivebench.device.formats.eds import read_eds
+from drivebench.device.formats.eds_export import export_eds
+from drivebench.device.formats.xdd import read_xdd
+from drivebench.device.formats.xdd_export import export_xdd
+from drivebench.device.profiles.profile import ObjectEntry, Profile
 from drivebench.errors import ProfileError
 from tests.device.profile_strategies import profiles, raw_value
 from tests.device.quirk_corpus import BASE, CORPUS_FILES

@@ -27,7 +27,7 @@ import httpx
 import pytest
 from fastapi.testclient import TestClient
 
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.protocol import sdo_fast
 from drivebench.services.sets.parameter_sets import ParameterSetStore
 from drivebench.services.storage import database

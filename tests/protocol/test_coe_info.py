@@ -12,8 +12,8 @@ from collections.abc import Callable, Iterator
 
 import pytest
 
-from drivebench.device.catalog import Catalog
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.profiles.catalog import Catalog
+from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.errors import SdoAbortError, SdoOutOfStepError, SdoStalledError
 from drivebench.protocol.coe_sdo import SERVICE_NOT_SUPPORTED, MailboxRefused
 from drivebench.protocol.ethercat import EthercatSegment

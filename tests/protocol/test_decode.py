@@ -5,7 +5,7 @@ from __future__ import annotations
 import can
 import pytest
 
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.protocol.decode import SdoTracker, Service, classify, decode_frame
 from tests.vectors.manual_sdo import LENZE_8400
 

@@ -12,7 +12,7 @@ from collections.abc import Iterator
 
 import pytest
 
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.errors import ProtocolError, SdoAbortError, SdoTimeoutError
 from drivebench.protocol import esm
 from drivebench.protocol.ethercat_master import DIRECT_HINT, DirectNetwork

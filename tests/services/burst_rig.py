@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import can
 
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.services.monitoring.monitor import RATE_WINDOW_S, Monitor, monitor_for
 from drivebench.services.session_manager import SessionManager
 from drivebench.transport.busload import reference_bits

@@ -7,7 +7,7 @@ from collections.abc import Iterator
 
 import pytest
 
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.services.bus.sessions import Session
 from drivebench.services.control import drive_guard
 from drivebench.services.params import parameters

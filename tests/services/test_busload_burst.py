@@ -3,7 +3,7 @@ timestamps, not by when the busy process counted them."""
 
 from __future__ import annotations
 
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.profiles.loader import ProfileRegistry
 from tests.services.burst_rig import run_burst
 
 TOLERANCE_PERCENT = 2.0

@@ -7,7 +7,7 @@ import asyncio
 
 import pytest
 
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.errors import ConfirmationRequired, Conflict
 from drivebench.services.bus.sessions import Session
 from drivebench.services.control import commissioning

@@ -11,7 +11,7 @@ import pytest
 from alembic.script import ScriptDirectory
 from sqlalchemy import inspect, select
 
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.errors import InvalidValue, NotFound
 from drivebench.services.bus.sessions import SessionNode
 from drivebench.services.planning.planned_networks import PlannedNetworkStore, compare_live

@@ -10,7 +10,7 @@ from typing import Any, TypeVar
 
 import pytest
 
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.errors import ConfirmationRequired, Conflict, OutOfRange
 from drivebench.services.bus.sessions import Session
 from drivebench.services.control import drive_control, drive_guard

@@ -8,7 +8,7 @@ from collections.abc import Iterator
 import can
 import pytest
 
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.protocol.network import CanopenNetwork
 from drivebench.services.bus.duplicates import DuplicateWatch
 from drivebench.simulator.plant import Plant

@@ -14,7 +14,7 @@ from collections.abc import AsyncIterator
 
 import pytest
 
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.errors import ConfirmationRequired, SdoAbortError
 from drivebench.protocol import esm
 from drivebench.protocol.ethercat_master import DirectNetwork

@@ -9,8 +9,8 @@ from collections.abc import Iterator
 
 import pytest
 
-from drivebench.device.ethercat_section import EthercatSection
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.profiles.ethercat_section import EthercatSection
+from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.errors import SdoTimeoutError
 from drivebench.protocol import esm
 from drivebench.protocol.esm import EsmState

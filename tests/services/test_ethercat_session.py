@@ -12,7 +12,7 @@ from typing import Any
 import pytest
 
 from drivebench import i18n
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.errors import ProtocolError, SdoAbortError, SdoTimeoutError, TransportError
 from drivebench.protocol import esm
 from drivebench.services.bus.sessions import Session

@@ -12,7 +12,7 @@ from pathlib import Path
 import can
 import pytest
 
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.protocol.nmt import NmtCommand
 from drivebench.services.bus.sessions import Session
 from drivebench.services.monitoring.monitor import Monitor, MonitorFilter, MonitorView, monitor_for

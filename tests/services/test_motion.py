@@ -17,7 +17,7 @@ import can
 import pytest
 
 from drivebench.config import settings
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.errors import ConfirmationRequired, Conflict, InvalidValue, OutOfRange
 from drivebench.protocol.nmt import NmtCommand
 from drivebench.services.bus.sessions import Session

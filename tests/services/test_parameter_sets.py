@@ -17,7 +17,7 @@ from typing import Any, TypeVar
 import pytest
 from sqlalchemy import text
 
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.errors import ConfirmationRequired, Conflict, DriveBenchError, NotFound, OutOfRange
 from drivebench.services.bus.sessions import Session
 from drivebench.services.params import parameters
@@ -323,7 +323,7 @@ def test_single_writes_are_audited_with_old_and_new_value(bench: Bench) -> None:
 # --- kill during a download or an import ---------------------------------------------------------------------
 KILLED_DOWNLOAD = """
 import asyncio, sys
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.services.users import audit
 from drivebench.errors import ConfirmationRequired
 from drivebench.services.control.drive_guard import Confirmation
@@ -358,7 +358,7 @@ asyncio.run(main())
 
 KILLED_IMPORT = """
 import sys
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.services.sets.parameter_sets import ParameterSetStore
 
 url = sys.argv[1]

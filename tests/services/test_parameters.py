@@ -12,8 +12,8 @@ from typing import Any, TypeVar
 import can
 import pytest
 
-from drivebench.device.commands import CommandsSection, CommandWrite
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.profiles.commands import CommandsSection, CommandWrite
+from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.errors import (
     Conflict,
     InvalidValue,

@@ -8,7 +8,7 @@ from collections.abc import Iterator
 
 import pytest
 
-from drivebench.device.profile import Profile
+from drivebench.device.profiles.profile import Profile
 from drivebench.errors import InvalidValue
 from drivebench.services.bus.sessions import Session
 from drivebench.services.pdos import pdo

@@ -9,8 +9,8 @@ from collections.abc import Iterator
 
 import pytest
 
-from drivebench.device import pdo_notes
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.profiles import pdo_notes
+from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.services.bus.sessions import Session
 from drivebench.services.pdos import pdo
 from drivebench.services.pdos.pdo import Direction, PdoWrite

@@ -12,7 +12,7 @@ from typing import Any, TypeVar
 
 import pytest
 
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.errors import AdapterUnavailable, BusSpecError, Conflict, NotFound
 from drivebench.protocol.nmt import NmtCommand
 from drivebench.services.bus.sessions import Session

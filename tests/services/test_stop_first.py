@@ -9,7 +9,7 @@ from collections.abc import Iterator
 import can
 import pytest
 
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.services.bus.sessions import Session
 from drivebench.services.control import drive_guard
 from drivebench.services.control.drive_words import family_of

@@ -8,8 +8,8 @@ import pytest
 from fastapi.testclient import TestClient
 
 from drivebench.config import REPO_ROOT
-from drivebench.device.loader import load_profile_file
-from drivebench.device.profile import Profile
+from drivebench.device.profiles.loader import load_profile_file
+from drivebench.device.profiles.profile import Profile
 from drivebench.simulator.node import SimulatedNode
 
 MM = 3

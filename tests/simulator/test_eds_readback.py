@@ -16,7 +16,7 @@ from canopen.objectdictionary import ODArray, ODRecord, ODVariable
 from canopen.sdo.exceptions import SdoAbortedError
 
 from drivebench.config import settings
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.simulator.plant import Plant, PlantFile, PlantNode
 from tests.simulator.canopen_master import connected
 

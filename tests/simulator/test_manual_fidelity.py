@@ -8,7 +8,7 @@ from collections.abc import Iterator
 import canopen
 import pytest
 
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.simulator.lenze_control import LenzeControl
 from drivebench.simulator.plant import Plant, PlantFile, PlantNode
 from tests.conftest import wait_until

@@ -13,7 +13,7 @@ import can
 import canopen
 import pytest
 
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.protocol.datatypes import decode
 from drivebench.simulator.plant import Plant, PlantFile, PlantNode
 from tests.conftest import wait_until

@@ -19,8 +19,8 @@ import can
 import canopen
 import pytest
 
-from drivebench.device.loader import ProfileRegistry
-from drivebench.device.profile import Access, ObjectEntry, Profile
+from drivebench.device.profiles.loader import ProfileRegistry
+from drivebench.device.profiles.profile import Access, ObjectEntry, Profile
 from drivebench.protocol.datatypes import DataType
 from drivebench.protocol.nmt import NmtState
 from drivebench.simulator.lenze_control import INIT, LenzeControl

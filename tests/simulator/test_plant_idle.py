@@ -9,7 +9,7 @@ from collections.abc import Iterator
 import can
 import pytest
 
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.simulator.ethercat import GatewayServer, SimulatedSlave
 from drivebench.simulator.plant import Plant, PlantFile
 from drivebench.simulator.ticker import MAX_SLEEP_S

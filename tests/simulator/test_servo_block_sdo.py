@@ -10,7 +10,7 @@ from collections.abc import Iterator
 import canopen
 import pytest
 
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.simulator.plant import Plant, PlantFile, PlantNode
 from tests.simulator.canopen_master import remote
 

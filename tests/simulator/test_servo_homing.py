@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import pytest
 
-from drivebench.device import cia402
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.drive import cia402
+from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.simulator.node import SimulatedNode
 from drivebench.simulator.servo402 import CYCLE_S, Servo402
 

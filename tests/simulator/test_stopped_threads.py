@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import threading
 
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.simulator.ethercat import GatewayServer, SimulatedSlave
 from drivebench.simulator.plant import Plant, PlantFile
 from tests.conftest import DEMO_PLANT, fresh_channel

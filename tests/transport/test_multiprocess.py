@@ -19,7 +19,7 @@ import httpx
 import pytest
 
 from drivebench.config import REPO_ROOT
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.protocol.nmt import NmtCommand
 from drivebench.services.session_manager import SessionManager
 from tests.conftest import screenshot

@@ -9,7 +9,7 @@ import pytest
 from fastapi.testclient import TestClient
 from starlette.websockets import WebSocketDisconnect
 
-from drivebench.device.scaling import to_raw
+from drivebench.device.profiles.scaling import to_raw
 from drivebench.services.users.audit import LOCAL_USER
 from tests.confirming import confirmed
 from tests.conftest import wait_until

@@ -13,8 +13,8 @@ import pytest
 from fastapi.testclient import TestClient
 
 from drivebench.config import settings
-from drivebench.device.loader import ProfileRegistry
-from drivebench.device.profile import ObjectEntry
+from drivebench.device.profiles.loader import ProfileRegistry
+from drivebench.device.profiles.profile import ObjectEntry
 from drivebench.simulator.ethercat import GatewayServer, SimulatedSlave
 from tests.confirming import confirmed
 from tests.conftest import wait_for_value

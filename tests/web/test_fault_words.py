@@ -9,7 +9,7 @@ from typing import Any
 
 from fastapi.testclient import TestClient
 
-from drivebench.device.scaling import to_raw
+from drivebench.device.profiles.scaling import to_raw
 from drivebench.simulator.plant import Plant
 from tests.confirming import confirmed
 from tests.conftest import wait_until

@@ -199,8 +199,8 @@ def test_problem_details_follow_the_language_and_stay_english_by_default(client:
 
 
 def test_a_profile_name_de_is_shown_in_german_only(registry: object) -> None:
-    from drivebench.device.catalog import Item
-    from drivebench.device.profile import Parameter
+    from drivebench.device.profiles.catalog import Item
+    from drivebench.device.profiles.profile import Parameter
 
     entry = Parameter(code="C00088", name="Rated motor current", name_de="Motor-Bemessungsstrom",
                       data_type="UNSIGNED32", unit="A", factor=100)  # type: ignore[arg-type]

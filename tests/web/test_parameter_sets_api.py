@@ -15,7 +15,7 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
-from drivebench.device.xdd import read_xdd
+from drivebench.device.formats.xdd import read_xdd
 from tests.confirming import confirmed
 
 SESSION = "demo-plant"

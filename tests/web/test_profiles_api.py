@@ -15,7 +15,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from drivebench.config import REPO_ROOT, settings
-from drivebench.device.profile import Profile
+from drivebench.device.profiles.profile import Profile
 from drivebench.web.app import create_app
 from tests.conftest import fresh_channel
 

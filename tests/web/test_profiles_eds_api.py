@@ -9,7 +9,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from drivebench.config import settings
-from drivebench.device.build_eds import eds_path, shipped_profiles
+from drivebench.device.formats.build_eds import eds_path, shipped_profiles
 from drivebench.web.app import create_app
 
 SHIPPED = [profile.id for profile in shipped_profiles()]

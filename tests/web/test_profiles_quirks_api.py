@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 
 from drivebench.config import REPO_ROOT
 from drivebench.config import settings as app_settings
-from drivebench.device.profile_batch import MAX_FILES
+from drivebench.device.profiles.profile_batch import MAX_FILES
 from drivebench.web.app import create_app
 from tests.conftest import fresh_channel, serve_app
 from tests.device.quirk_corpus import BASE, CORPUS_FILES

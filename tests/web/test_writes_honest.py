@@ -10,7 +10,7 @@ from typing import Any
 
 from fastapi.testclient import TestClient
 
-from drivebench.device.scaling import to_raw
+from drivebench.device.profiles.scaling import to_raw
 from tests.confirming import confirmed
 from tests.conftest import wait_until
 

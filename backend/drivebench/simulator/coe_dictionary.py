@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Collection
 
-from drivebench.device.profile import Entry, ObjectEntry, Parameter
+from drivebench.device.profiles.profile import Entry, ObjectEntry, Parameter
 from drivebench.protocol import coe_info
 from drivebench.protocol.coe_info import ListType, ObjectCode, ValueInfo
 from drivebench.protocol.coe_server import Abort

@@ -27,8 +27,8 @@ from collections.abc import Callable, Mapping
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-from drivebench.device import ethercat_section
-from drivebench.device.profile import Profile
+from drivebench.device.profiles import ethercat_section
+from drivebench.device.profiles.profile import Profile
 from drivebench.i18n import _
 from drivebench.protocol import coe, esm
 from drivebench.protocol.coe_server import Abort, CoeSdoServer

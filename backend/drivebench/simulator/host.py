@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from typing import Protocol
 
-from drivebench.device.profile import Profile
+from drivebench.device.profiles.profile import Profile
 from drivebench.simulator.store import ObjectStore
 
 

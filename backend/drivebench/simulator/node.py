@@ -20,7 +20,7 @@ from typing import Annotated
 
 from pydantic import AfterValidator
 
-from drivebench.device.profile import Profile
+from drivebench.device.profiles.profile import Profile
 from drivebench.errors import UnknownParameter
 from drivebench.protocol.nmt import NmtCommand, NmtState
 from drivebench.protocol.sdo_server import SdoAbort as Abort

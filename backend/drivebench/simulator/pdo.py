@@ -12,7 +12,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 
-from drivebench.device.pdo_notes import selecting_byte, static_mapping
+from drivebench.device.profiles.pdo_notes import selecting_byte, static_mapping
 from drivebench.errors import UnknownParameter
 from drivebench.protocol.datatypes import decode, encode
 from drivebench.simulator.host import DeviceHost

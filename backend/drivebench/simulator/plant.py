@@ -21,7 +21,7 @@ from pathlib import Path
 import can
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
-from drivebench.device.profile import Profile
+from drivebench.device.profiles.profile import Profile
 from drivebench.errors import DriveBenchError, ProfileError, TransportError
 from drivebench.i18n import _
 from drivebench.simulator.babbler import DEFAULT_COB_ID, Babbler

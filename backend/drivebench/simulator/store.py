@@ -13,10 +13,10 @@ import threading
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
-from drivebench.device.catalog import Catalog
-from drivebench.device.eds_export import eds_objects
-from drivebench.device.factory_default import PREDEFINED_CONNECTION_SET
-from drivebench.device.profile import Access, Entry, Profile
+from drivebench.device.formats.eds_export import eds_objects
+from drivebench.device.profiles.catalog import Catalog
+from drivebench.device.profiles.factory_default import PREDEFINED_CONNECTION_SET
+from drivebench.device.profiles.profile import Access, Entry, Profile
 from drivebench.protocol.datatypes import DataType, decode, encode
 from drivebench.protocol.sdo_server import SdoAbort as Abort
 

@@ -8,7 +8,7 @@ drive, in 16 bits that wrap, from power-up (the values are not saved).
 
 from __future__ import annotations
 
-from drivebench.device.telegram_counters import counted_cob_ids, counter_parameters
+from drivebench.device.profiles.telegram_counters import counted_cob_ids, counter_parameters
 from drivebench.simulator.store import ObjectStore
 
 WRAP = 1 << 16

@@ -14,7 +14,7 @@ from fastapi.staticfiles import StaticFiles
 
 from drivebench import __version__
 from drivebench.config import settings
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.services.session_manager import SessionManager
 from drivebench.services.sets import set_jobs
 from drivebench.services.sets.parameter_sets import ParameterSetStore

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from drivebench.device.loader import ProfileRegistry
+from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.services.session_manager import SessionManager
 from drivebench.services.users.sharing import ShareLinks
 from drivebench.simulator.ethercat import GatewayServer

@@ -11,7 +11,7 @@ from jinja2_fragments.fastapi import Jinja2Blocks
 
 from drivebench import i18n
 from drivebench.config import settings
-from drivebench.device.number_base import shows_hex
+from drivebench.device.profiles.number_base import shows_hex
 from drivebench.i18n import N_
 
 templates = Jinja2Blocks(directory=str(settings.frontend_dir / "templates"))

@@ -16,8 +16,8 @@ from typing import Protocol, TypeVar, cast
 
 import can
 
-from drivebench.device.catalog import Catalog
-from drivebench.device.profile import Profile
+from drivebench.device.profiles.catalog import Catalog
+from drivebench.device.profiles.profile import Profile
 from drivebench.errors import DriveBenchError, NotFound, SdoAbortError, SdoOutOfStepError, SdoTimeoutError
 from drivebench.i18n import _
 from drivebench.protocol.emcy import EmcyEvent

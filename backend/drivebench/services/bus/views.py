@@ -8,7 +8,7 @@ from typing import Any
 
 from pydantic import BaseModel
 
-from drivebench.device.faults import decode_emcy
+from drivebench.device.drive.faults import decode_emcy
 from drivebench.services.bus.sessions import Session, SessionNode
 
 

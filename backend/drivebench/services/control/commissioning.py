@@ -1,6 +1,6 @@
 """Guided commissioning: the manuals' first-commissioning sequences, one step at a time, with the telegrams.
 
-The sequences are profile data (``commissioning`` section, :class:`drivebench.device.control.Sequence`): SDO
+The sequences are profile data (``commissioning`` section, :class:`drivebench.device.drive.control.Sequence`): SDO
 downloads with the request as the manual prints it, NMT start, process-data telegrams answered by the status word
 in TPDO1, and checks of a status word's state or an object's value. A device is offered only the sequences its own
 profile carries (and whose ``requires`` objects it has).
@@ -28,9 +28,9 @@ import can
 from pydantic import BaseModel
 
 from drivebench import i18n
-from drivebench.device.catalog import index_ref
-from drivebench.device.control import Sequence, Step
-from drivebench.device.motion import moves, standard_motion
+from drivebench.device.drive.control import Sequence, Step
+from drivebench.device.drive.motion import moves, standard_motion
+from drivebench.device.profiles.catalog import index_ref
 from drivebench.errors import (
     Conflict,
     DriveBenchError,

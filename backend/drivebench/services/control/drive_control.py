@@ -23,10 +23,10 @@ from dataclasses import dataclass
 
 from pydantic import BaseModel
 
-from drivebench.device import cia402
-from drivebench.device.catalog import Catalog
-from drivebench.device.control import ActualSpec, Setpoint, WordScale
-from drivebench.device.control import JogPlan as JogSpec
+from drivebench.device.drive import cia402
+from drivebench.device.drive.control import ActualSpec, Setpoint, WordScale
+from drivebench.device.drive.control import JogPlan as JogSpec
+from drivebench.device.profiles.catalog import Catalog
 from drivebench.errors import Conflict, DriveBenchError, InvalidValue, OutOfRange, UnknownParameter
 from drivebench.i18n import _
 from drivebench.services.bus.sessions import Session, SessionNode

@@ -10,7 +10,7 @@ guard stops the node itself (:meth:`Guard.trip`): cyclic RPDOs to it end, quick 
 :mod:`drivebench.services.control.drive_control`) and, if the tool started it, NMT pre-operational is sent.
 
 Parameter writes go the same way, whatever route sends them (:func:`admit_moving_write`, called by
-:func:`parameters.write` for what :mod:`drivebench.device.motion` marks as moving): the request's confirmation and
+:func:`parameters.write` for what :mod:`drivebench.device.drive.motion` marks as moving): the request's confirmation and
 panel travel in a context variable the web layer sets (:func:`acting_as`); the control panel's own writes, already
 confirmed and armed, run inside :func:`cleared`.
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
-from drivebench.device import cia402
+from drivebench.device.drive import cia402
 from drivebench.errors import DriveBenchError, UnknownParameter
 from drivebench.i18n import _
 from drivebench.services.bus.sessions import Session, SessionNode

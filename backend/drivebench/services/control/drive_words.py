@@ -1,8 +1,8 @@
 """A device's control and status words as its profile describes them (``control`` section, see
-:mod:`drivebench.device.control`): state from the status word, the next control word of a command.
+:mod:`drivebench.device.drive.control`): state from the status word, the next control word of a command.
 
 A profile without a ``control`` section whose objects have 0x6040/0x6041 is a CiA 402 drive by its standard
-(:func:`drivebench.device.cia402.generic_section`); anything else has no drive control the panel knows.
+(:func:`drivebench.device.drive.cia402.generic_section`); anything else has no drive control the panel knows.
 """
 
 from __future__ import annotations
@@ -10,10 +10,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from functools import cached_property
 
-from drivebench.device import cia402
-from drivebench.device.catalog import Catalog
-from drivebench.device.control import Command, ControlSection, StateBox
-from drivebench.device.profile import Profile
+from drivebench.device.drive import cia402
+from drivebench.device.drive.control import Command, ControlSection, StateBox
+from drivebench.device.profiles.catalog import Catalog
+from drivebench.device.profiles.profile import Profile
 from drivebench.i18n import N_, _
 
 __all__ = ["COMMAND_LABELS", "Command", "Family", "command_label", "family_of", "next_control_word", "state_label"]

@@ -19,7 +19,7 @@ import time
 
 from pydantic import BaseModel
 
-from drivebench.device import cia402
+from drivebench.device.drive import cia402
 from drivebench.errors import Conflict, DriveBenchError, InvalidValue, OutOfRange
 from drivebench.i18n import N_, _
 from drivebench.services.bus.sessions import Session, SessionNode

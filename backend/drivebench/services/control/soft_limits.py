@@ -4,7 +4,7 @@ setpoint or moves it by a relative distance.
 CiA 402-2: 0x607D.1/.2 are the lowest and highest position (position units, 0/0: none). A drive that supports them
 limits the target of a position move to them; in profile velocity (and torque) mode it need not keep to them. One
 that does stops at the limit and sets status word bit 11 *internal limit active*. The profile says which kind the
-drive is (:class:`~drivebench.device.profile.SoftwareLimits`):
+drive is (:class:`~drivebench.device.profiles.profile.SoftwareLimits`):
 
 * the drive clamps: DriveBench lets it, watches, and says so when bit 11 comes with the position at a limit;
 * it does not: DriveBench reads the position actual value 0x6064 and velocity 0x606C while the drive moves and

@@ -10,8 +10,8 @@ import time
 
 from pydantic import BaseModel
 
-from drivebench.device.faults import DecodedFault, decode_emcy
-from drivebench.device.profile import EmcyCode, Profile
+from drivebench.device.drive.faults import DecodedFault, decode_emcy
+from drivebench.device.profiles.profile import EmcyCode, Profile
 from drivebench.errors import DriveBenchError, InvalidValue
 from drivebench.i18n import N_, _
 from drivebench.protocol.emcy import EmcyEvent

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from pydantic import BaseModel
 
-from drivebench.device.faults import DecodedFault, decode_number
+from drivebench.device.drive.faults import DecodedFault, decode_number
 from drivebench.errors import DriveBenchError
 from drivebench.i18n import _
 from drivebench.services.bus.sessions import Session, SessionNode

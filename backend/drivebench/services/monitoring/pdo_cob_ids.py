@@ -14,8 +14,8 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from drivebench.device.eds import resolve_node_expr
-from drivebench.device.profile import ObjectEntry
+from drivebench.device.formats.eds import resolve_node_expr
+from drivebench.device.profiles.profile import ObjectEntry
 from drivebench.protocol.decode import Service
 from drivebench.protocol.sdo_confirmed import ConfirmedValues
 from drivebench.services.bus.sessions import SessionNode

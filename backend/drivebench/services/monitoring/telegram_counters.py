@@ -1,5 +1,5 @@
 """The device's own telegram counters beside the monitor's counts (which parameters count what:
-:mod:`drivebench.device.telegram_counters`). The device counts since power-up in 16 bits and wraps, the monitor
+:mod:`drivebench.device.profiles.telegram_counters`). The device counts since power-up in 16 bits and wraps, the monitor
 since its reset: the comparable figures are the increases between two reads, so each read also reports the
 increase on both sides since the previous read.
 """
@@ -10,8 +10,8 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
-from drivebench.device.catalog import Item
-from drivebench.device.telegram_counters import cob_ids_for, counter_label, counter_parameters
+from drivebench.device.profiles.catalog import Item
+from drivebench.device.profiles.telegram_counters import cob_ids_for, counter_label, counter_parameters
 from drivebench.errors import NotFound
 from drivebench.i18n import _
 from drivebench.services.bus.sessions import Session

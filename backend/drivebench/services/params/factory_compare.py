@@ -1,5 +1,5 @@
 """The comparison with the factory setting (STARTER's and Engineer's parameter comparison): which settings of a
-node differ from the values it holds from the factory (:mod:`drivebench.device.factory_default`).
+node differ from the values it holds from the factory (:mod:`drivebench.device.profiles.factory_default`).
 
 Only settings take part: readable and writable entries that are not process data or volatile (a control word or
 a setpoint has no factory value worth comparing). A setting whose profile gives no factory value is listed apart,
@@ -11,9 +11,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from enum import StrEnum
 
-from drivebench.device.catalog import Item
-from drivebench.device.factory_default import factory_raw, same_raw
-from drivebench.device.scaling import from_raw
+from drivebench.device.profiles.catalog import Item
+from drivebench.device.profiles.factory_default import factory_raw, same_raw
+from drivebench.device.profiles.scaling import from_raw
 from drivebench.errors import DriveBenchError
 from drivebench.services.bus.sessions import Session
 from drivebench.services.params import parameters

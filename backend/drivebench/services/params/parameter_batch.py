@@ -20,7 +20,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import StrEnum
 
-from drivebench.device.motion import judge
+from drivebench.device.drive.motion import judge
 from drivebench.errors import DriveBenchError, InvalidValue
 from drivebench.i18n import N_, _
 from drivebench.services.bus.sessions import Session

@@ -5,7 +5,7 @@
   read-only), then read back and compared (verify).
 * Values that take effect only after reset node are flagged on the node until it boots again.
 * Device commands: save, restore defaults, reset node, the way the device's profile offers them; a command whose
-  write can move the drive needs the confirmation like any write (:mod:`drivebench.device.motion`).
+  write can move the drive needs the confirmation like any write (:mod:`drivebench.device.drive.motion`).
 * Read-all spreads one node's reads over its SDO channels (SDO2 where the device has one) and runs different
   nodes in parallel; a read that timed out is asked again at the end, a node judged silent from evidence
   (:mod:`drivebench.services.params.node_silence`) is given up and never holds the others up.
@@ -31,13 +31,13 @@ from enum import StrEnum
 from functools import partial
 from typing import Protocol, TypeVar
 
-from drivebench.device.addressing import IndexRef, parse_ref
-from drivebench.device.catalog import Catalog, Item
-from drivebench.device.commands import CIA301_RESTORE, CIA301_SAVE, CommandWrite
-from drivebench.device.motion import judge
-from drivebench.device.number_base import hex_word, shows_hex
-from drivebench.device.profile import Access, ObjectEntry
-from drivebench.device.scaling import RawValue, ScaledValue, from_raw, to_raw
+from drivebench.device.drive.motion import judge
+from drivebench.device.profiles.addressing import IndexRef, parse_ref
+from drivebench.device.profiles.catalog import Catalog, Item
+from drivebench.device.profiles.commands import CIA301_RESTORE, CIA301_SAVE, CommandWrite
+from drivebench.device.profiles.number_base import hex_word, shows_hex
+from drivebench.device.profiles.profile import Access, ObjectEntry
+from drivebench.device.profiles.scaling import RawValue, ScaledValue, from_raw, to_raw
 from drivebench.errors import (
     Conflict,
     DriveBenchError,
@@ -645,7 +645,7 @@ async def write(session: Session, node_id: int, ref: str, value: object, *, chec
     or a number in engineering units. ``check=False`` leaves range, selection and read-only to the device.
     Refused (409) while another writer holds the node's lease (:mod:`drivebench.services.params.node_lease`).
 
-    A write that can make the drive move (:mod:`drivebench.device.motion`: a control word, setpoint, mode ...)
+    A write that can make the drive move (:mod:`drivebench.device.drive.motion`: a control word, setpoint, mode ...)
     needs the confirmation naming the node and arms the keep-alive guard (:func:`drive_guard.admit_moving_write`);
     a control word that only stops the drive is never refused, by a lease or for a confirmation, and goes before the
     reads waiting for the node (:func:`stop_first`)."""

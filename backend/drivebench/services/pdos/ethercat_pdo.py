@@ -15,8 +15,8 @@ from __future__ import annotations
 from pydantic import BaseModel, Field
 
 from drivebench import errors
-from drivebench.device import pdo_notes
-from drivebench.device.catalog import Catalog
+from drivebench.device.profiles import pdo_notes
+from drivebench.device.profiles.catalog import Catalog
 from drivebench.i18n import N_, _, ngettext
 from drivebench.services.bus.sessions import Session
 from drivebench.services.params import node_lease

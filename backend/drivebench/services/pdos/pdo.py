@@ -12,13 +12,13 @@ from typing import Literal
 
 from pydantic import BaseModel, Field, PrivateAttr
 
-from drivebench.device import pdo_notes
-from drivebench.device.catalog import Catalog
-from drivebench.device.cobids import alternative_hint
-from drivebench.device.eds_export import export_eds
-from drivebench.device.loader import original_file
-from drivebench.device.profile import Access, Entry, ObjectEntry
-from drivebench.device.scaling import from_raw
+from drivebench.device.calculators.cobids import alternative_hint
+from drivebench.device.formats.eds_export import export_eds
+from drivebench.device.profiles import pdo_notes
+from drivebench.device.profiles.catalog import Catalog
+from drivebench.device.profiles.loader import original_file
+from drivebench.device.profiles.profile import Access, Entry, ObjectEntry
+from drivebench.device.profiles.scaling import from_raw
 from drivebench.errors import DriveBenchError, InvalidValue, NotFound, ProtocolError, SdoAbortError
 from drivebench.i18n import N_, _
 from drivebench.protocol.datatypes import DataType, decode

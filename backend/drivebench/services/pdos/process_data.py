@@ -18,10 +18,10 @@ from dataclasses import dataclass, field
 import can
 from pydantic import BaseModel
 
-from drivebench.device.catalog import Catalog
-from drivebench.device.number_base import hex_digits, shows_hex
-from drivebench.device.profile import Entry
-from drivebench.device.scaling import from_raw, to_raw
+from drivebench.device.profiles.catalog import Catalog
+from drivebench.device.profiles.number_base import hex_digits, shows_hex
+from drivebench.device.profiles.profile import Entry
+from drivebench.device.profiles.scaling import from_raw, to_raw
 from drivebench.errors import Conflict, DriveBenchError, InvalidValue, NotFound
 from drivebench.i18n import N_, _
 from drivebench.protocol.datatypes import decode, encode
@@ -43,7 +43,7 @@ class Signal(BaseModel):
     """Selection-list meaning or the names of the set bits."""
     hex: str | None = None
     """The value as it reads, in hex, where it is a word rather than an amount (a status word ``0x0237``, a
-    COB-ID: :func:`drivebench.device.number_base.shows_hex`)."""
+    COB-ID: :func:`drivebench.device.profiles.number_base.shows_hex`)."""
     bit_offset: int
     bits: int
 

@@ -10,8 +10,8 @@ from pydantic import BaseModel
 from sqlalchemy import select
 from sqlalchemy.orm import Session as DbSession
 
-from drivebench.device.bus_devices import BusDevices
-from drivebench.device.dip import SwitchDevices
+from drivebench.device.calculators.bus_devices import BusDevices
+from drivebench.device.calculators.dip import SwitchDevices
 from drivebench.errors import NotFound
 from drivebench.i18n import _
 from drivebench.services.bus.sessions import Session, SessionNode

@@ -1,10 +1,10 @@
 """Network planner: check a planned CANopen network before it is built, and compare it with a bus scan.
 
-A plan lists nodes (a device of the loaded profiles: a ``switches`` section named by its key, an alias or a profile
-id, or any other CANopen profile by its id, planned from its own data and CiA 301, ``device/bus_devices.py``; node
-id, baud rate, the SDO/PDO channels that are on, the standard or the device's alternative PDO
-identifiers). ``check_plan`` finds duplicate node ids, COB-ID collisions, mixed baud rates and node ids or baud
-rates a device cannot use. Plans travel as JSON (``NetworkPlan.model_dump_json`` / ``from_json``).
+A plan lists nodes (a device of the loaded profiles: a ``switches`` section named by its key, an alias or a profile id,
+or any other CANopen profile by its id, planned from its own data and CiA 301, ``device/calculators/bus_devices.py``;
+node id, baud rate, the SDO/PDO channels that are on, the standard or the device's alternative PDO identifiers).
+``check_plan`` finds duplicate node ids, COB-ID collisions, mixed baud rates and node ids or baud rates a device cannot
+use. Plans travel as JSON (``NetworkPlan.model_dump_json`` / ``from_json``).
 """
 
 from __future__ import annotations
@@ -15,11 +15,19 @@ from typing import Literal
 
 from pydantic import BaseModel, Field, ValidationError
 
-from drivebench.device.bus_devices import BusDevices, BusRules, NotOnCanBus
-from drivebench.device.cable import CablePlan, plan_cable
-from drivebench.device.cobids import STANDARD_IDS, CobId, PdoIds, channels_of, cob_ids, default_channels, partner
-from drivebench.device.dip import SwitchDevices
-from drivebench.device.switches import SwitchesSection
+from drivebench.device.calculators.bus_devices import BusDevices, BusRules, NotOnCanBus
+from drivebench.device.calculators.cable import CablePlan, plan_cable
+from drivebench.device.calculators.cobids import (
+    STANDARD_IDS,
+    CobId,
+    PdoIds,
+    channels_of,
+    cob_ids,
+    default_channels,
+    partner,
+)
+from drivebench.device.calculators.dip import SwitchDevices
+from drivebench.device.calculators.switches import SwitchesSection
 from drivebench.errors import DriveBenchError, InvalidValue
 from drivebench.i18n import _, ngettext
 

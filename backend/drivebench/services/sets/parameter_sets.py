@@ -26,11 +26,11 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict
 from sqlalchemy import delete, select, update
 
-from drivebench.device.catalog import Catalog, Item
-from drivebench.device.eds import resolve_node_expr
-from drivebench.device.factory_default import same_raw
-from drivebench.device.profile import ObjectEntry, Profile
-from drivebench.device.scaling import from_raw
+from drivebench.device.formats.eds import resolve_node_expr
+from drivebench.device.profiles.catalog import Catalog, Item
+from drivebench.device.profiles.factory_default import same_raw
+from drivebench.device.profiles.profile import ObjectEntry, Profile
+from drivebench.device.profiles.scaling import from_raw
 from drivebench.errors import Conflict, InvalidValue, NotFound
 from drivebench.i18n import N_, _
 from drivebench.services.params import parameters

@@ -28,12 +28,12 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from drivebench.device.catalog import Catalog, Item
-from drivebench.device.eds import decode_text, parse_ini, parse_value, resolve_node_expr
-from drivebench.device.eds_export import export_eds
-from drivebench.device.profile import Profile
-from drivebench.device.scaling import format_value, to_raw
-from drivebench.device.xdd_export import export_xdd
+from drivebench.device.formats.eds import decode_text, parse_ini, parse_value, resolve_node_expr
+from drivebench.device.formats.eds_export import export_eds
+from drivebench.device.formats.xdd_export import export_xdd
+from drivebench.device.profiles.catalog import Catalog, Item
+from drivebench.device.profiles.profile import Profile
+from drivebench.device.profiles.scaling import format_value, to_raw
 from drivebench.errors import DriveBenchError, InvalidValue, ProfileError, UnknownParameter
 from drivebench.i18n import N_, _, ngettext, shown
 from drivebench.services.sets.parameter_sets import (

@@ -26,9 +26,9 @@ from typing import Any
 from pydantic import BaseModel
 
 from drivebench import i18n
-from drivebench.device.catalog import Item
-from drivebench.device.motion import moves
-from drivebench.device.profile import Profile
+from drivebench.device.drive.motion import moves
+from drivebench.device.profiles.catalog import Item
+from drivebench.device.profiles.profile import Profile
 from drivebench.errors import (
     Conflict,
     DriveBenchError,

@@ -16,8 +16,8 @@ from fastapi.responses import Response
 from pydantic import BaseModel, Field
 
 from drivebench.config import settings
-from drivebench.device.loader import original_file
-from drivebench.device.profile import Profile
+from drivebench.device.profiles.loader import original_file
+from drivebench.device.profiles.profile import Profile
 from drivebench.errors import InvalidValue
 from drivebench.i18n import _
 from drivebench.services.params.jobs import Job, JobManager

@@ -13,8 +13,8 @@ from fastapi.responses import JSONResponse
 from pydantic import BaseModel, Field, TypeAdapter, model_validator
 
 from drivebench.config import settings
-from drivebench.device.catalog import Item
-from drivebench.device.scaling import ScaledValue
+from drivebench.device.profiles.catalog import Item
+from drivebench.device.profiles.scaling import ScaledValue
 from drivebench.errors import DriveBenchError
 from drivebench.i18n import shown
 from drivebench.services.control import drive_guard

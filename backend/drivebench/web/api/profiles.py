@@ -19,14 +19,14 @@ from starlette.datastructures import UploadFile
 from starlette.formparsers import MultiPartException, MultiPartParser
 
 from drivebench.config import settings
-from drivebench.device.catalog import Catalog, Item
-from drivebench.device.eds import ImportWarning
-from drivebench.device.eds_export import export_eds
-from drivebench.device.loader import LoadedFile, ProfileRegistry, shown_name
-from drivebench.device.profile import ObjectEntry, Parameter, Profile, Value
-from drivebench.device.profile_batch import MAX_FILES, add_many
-from drivebench.device.xdd import XML_SUFFIXES
-from drivebench.device.xdd_export import export_xdd
+from drivebench.device.formats.eds import ImportWarning
+from drivebench.device.formats.eds_export import export_eds
+from drivebench.device.formats.xdd import XML_SUFFIXES
+from drivebench.device.formats.xdd_export import export_xdd
+from drivebench.device.profiles.catalog import Catalog, Item
+from drivebench.device.profiles.loader import LoadedFile, ProfileRegistry, shown_name
+from drivebench.device.profiles.profile import ObjectEntry, Parameter, Profile, Value
+from drivebench.device.profiles.profile_batch import MAX_FILES, add_many
 from drivebench.errors import Conflict, DriveBenchError, ProfileError
 from drivebench.i18n import N_, _, shown
 from drivebench.web.deps import StateDep

@@ -13,8 +13,8 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Depends, Query, Request, Response
 from pydantic import BaseModel, Field
 
-from drivebench.device.bus_devices import BusDevices
-from drivebench.device.cable import (
+from drivebench.device.calculators.bus_devices import BusDevices
+from drivebench.device.calculators.cable import (
     CROSS_SECTIONS_MM2,
     REPEATER_2176_REDUCTION_M,
     SEGMENT_LENGTH_M,
@@ -23,9 +23,9 @@ from drivebench.device.cable import (
     plan_cable,
     selection_example,
 )
-from drivebench.device.cobids import STANDARD_IDS, CobId, PdoIds, cob_ids, uses_alternative
-from drivebench.device.dip import DipResult, SwitchDevice, decode, encode
-from drivebench.device.switches import SwitchesSection
+from drivebench.device.calculators.cobids import STANDARD_IDS, CobId, PdoIds, cob_ids, uses_alternative
+from drivebench.device.calculators.dip import DipResult, SwitchDevice, decode, encode
+from drivebench.device.calculators.switches import SwitchesSection
 from drivebench.errors import DriveBenchError, InvalidValue
 from drivebench.i18n import _
 from drivebench.services.planning.planned_networks import (

@@ -14,9 +14,9 @@ from fastapi import APIRouter, Form, Query, Request
 from fastapi.responses import HTMLResponse, Response
 
 from drivebench import i18n
-from drivebench.device.catalog import Item
-from drivebench.device.motion import motion_of
-from drivebench.device.number_base import shows_hex
+from drivebench.device.drive.motion import motion_of
+from drivebench.device.profiles.catalog import Item
+from drivebench.device.profiles.number_base import shows_hex
 from drivebench.errors import AccessDenied, DriveBenchError, NodeOffline, NotFound, SdoTimeoutError
 from drivebench.i18n import N_, _
 from drivebench.services.bus.sessions import Session, SessionNode

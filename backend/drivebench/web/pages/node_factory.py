@@ -10,8 +10,8 @@ from fastapi import APIRouter, Form, Query, Request
 from fastapi.responses import HTMLResponse, Response
 
 from drivebench.config import settings
-from drivebench.device.catalog import Item
-from drivebench.device.number_base import shows_hex
+from drivebench.device.profiles.catalog import Item
+from drivebench.device.profiles.number_base import shows_hex
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.control import drive_guard
 from drivebench.services.params import factory_compare

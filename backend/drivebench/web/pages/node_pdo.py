@@ -18,7 +18,7 @@ from fastapi.responses import HTMLResponse, Response
 from markupsafe import Markup
 from pydantic import BaseModel
 
-from drivebench.device import pdo_notes
+from drivebench.device.profiles import pdo_notes
 from drivebench.errors import AccessDenied, InvalidValue
 from drivebench.i18n import _
 from drivebench.protocol.nmt import NmtCommand

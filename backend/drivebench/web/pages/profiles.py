@@ -8,9 +8,9 @@ from urllib.parse import urlencode
 from fastapi import APIRouter, Query, Request, status
 from fastapi.responses import HTMLResponse, Response
 
-from drivebench.device.catalog import Item
-from drivebench.device.loader import LoadedFile
-from drivebench.device.profile import Value
+from drivebench.device.profiles.catalog import Item
+from drivebench.device.profiles.loader import LoadedFile
+from drivebench.device.profiles.profile import Value
 from drivebench.errors import DriveBenchError, ProfileError
 from drivebench.web.api.profiles import (
     EntryKind,

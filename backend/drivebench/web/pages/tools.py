@@ -10,8 +10,8 @@ from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse, Response
 from starlette.datastructures import FormData, UploadFile
 
-from drivebench.device.bus_devices import BusDevices
-from drivebench.device.cable import (
+from drivebench.device.calculators.bus_devices import BusDevices
+from drivebench.device.calculators.cable import (
     CROSS_SECTIONS_MM2,
     REPEATER_2176_REDUCTION_M,
     SEGMENT_LENGTH_M,
@@ -19,8 +19,8 @@ from drivebench.device.cable import (
     plan_cable,
     selection_example,
 )
-from drivebench.device.cobids import STANDARD_IDS, channels_of, default_channels, uses_alternative
-from drivebench.device.dip import decode, encode
+from drivebench.device.calculators.cobids import STANDARD_IDS, channels_of, default_channels, uses_alternative
+from drivebench.device.calculators.dip import decode, encode
 from drivebench.errors import DriveBenchError, InvalidValue
 from drivebench.i18n import _
 from drivebench.services.planning.planned_networks import PlannedNetworkStore, compare_with_session

@@ -1,0 +1,1 @@
+"""Network calculators: DIP switches, COB-IDs, cable length, the planner's devices."""

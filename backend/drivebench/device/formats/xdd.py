@@ -1,0 +1,330 @@
+"""CiA 311 XDD/XDC import (ISO 15745 XML device descriptions) -> a :class:`Profile` with warnings.
+
+The XML is parsed safely: a document with a DOCTYPE or ENTITY declaration is refused before parsing (no XXE, no
+billion laughs), and lxml runs with entity resolution, DTD loading and network access off and without
+``huge_tree`` (libxml2's depth and size limits stay on). No CiA 311 schema ships in a package, so the structure is
+checked here, with line numbers.
+
+The communication body (``ProfileBody_CommunicationNetwork_CANopen``) is turned into the sections an EDS holds
+(``CANopenObject`` -> ``[xxxx]``, ``CANopenSubObject`` -> ``[xxxxsubN]``, ``actualValue`` -> ``ParameterValue``,
+``deviceCommissioning`` -> ``[DeviceComissioning]``) and read by the EDS reader, so both formats get the same
+readings and warnings. The device body (``ProfileBody_Device_CANopen``) gives the identity and, through an
+object's ``uniqueIDRef``, the parameter (and its ``templateIDRef`` template) for what the object leaves out: name,
+default, actual value, limits, description, denotation, the ``Unit``/``Factor`` properties DriveBench's export writes
+and its ``EDS:`` properties (EDS keys without a CiA 311 attribute); an object without ``dataType``/``accessType``
+takes them from the parameter's IEC type and ``access``. A ``dataTypeList`` code outside CiA 301's basic types
+that it defines as one is read as that type; the first ProfileHeader's revision and source are the profile's.
+"""
+
+from __future__ import annotations
+
+import re
+
+from lxml import etree
+
+from drivebench.device.formats.eds import (
+    BAUD_RATES_KBIT,
+    MAX_EDS_BYTES,
+    OBJECT_LISTS,
+    OWN_SECTION,
+    ImportedEds,
+    Key,
+    Section,
+    read_sections,
+)
+from drivebench.device.formats.eds_quirks import Warnings
+from drivebench.device.formats.wide_text import decode_wide
+from drivebench.errors import ProfileError
+from drivebench.i18n import N_, Text
+from drivebench.protocol.datatypes import DATA_TYPE_BY_CODE, DataType
+
+XML_SUFFIXES = (".xdd", ".xdc")
+EDS_KEY_PREFIX = "EDS:"
+"""A parameter ``property`` named ``EDS:UploadFile`` carries an EDS key CiA 311 has no attribute for."""
+_DECLARATION = re.compile(r"<!\s*(DOCTYPE|ENTITY)", re.IGNORECASE)
+_BAUD = re.compile(r"^\s*(\d+)\s*([KM])bps\s*$", re.IGNORECASE)
+_OBJECT_KEYS = {"name": "ParameterName", "objectType": "ObjectType", "dataType": "DataType",
+                "lowLimit": "LowLimit", "highLimit": "HighLimit", "accessType": "AccessType",
+                "defaultValue": "DefaultValue", "actualValue": "ParameterValue", "denotation": "Denotation",
+                "PDOmapping": "PDOMapping", "objFlags": "ObjFlags", "subNumber": "SubNumber"}
+_PARAMETER_ACCESS = {"const": "const", "read": "ro", "write": "wo", "readWrite": "rw", "readWriteInput": "rwr",
+                     "readWriteOutput": "rww"}
+"""A CiA 311 parameter's ``access`` as the EDS AccessType (``noAccess`` has none)."""
+_IEC_TYPES = {"BOOL": DataType.BOOLEAN, "SINT": DataType.INTEGER8, "CHAR": DataType.INTEGER8,
+              "INT": DataType.INTEGER16, "DINT": DataType.INTEGER32, "LINT": DataType.INTEGER64,
+              "USINT": DataType.UNSIGNED8, "BYTE": DataType.UNSIGNED8, "UINT": DataType.UNSIGNED16,
+              "WORD": DataType.UNSIGNED16, "UDINT": DataType.UNSIGNED32, "DWORD": DataType.UNSIGNED32,
+              "ULINT": DataType.UNSIGNED64, "LWORD": DataType.UNSIGNED64, "REAL": DataType.REAL32,
+              "LREAL": DataType.REAL64, "STRING": DataType.VISIBLE_STRING, "WSTRING": DataType.UNICODE_STRING,
+              "BITSTRING": DataType.OCTET_STRING}
+"""A parameter's IEC 61131 type element as the CiA 301 type, for an object without ``dataType`` (generators such
+as CANopenEditor type the parameter only)."""
+_COMMISSIONING = {"nodeID": "NodeID", "nodeName": "NodeName", "actualBaudRate": "Baudrate",
+                  "networkNumber": "NetNumber", "networkName": "NetworkName", "CANopenManager": "CANopenManager"}
+
+
+def local(element: etree._Element) -> str:
+    tag = element.tag
+    return etree.QName(tag).localname if isinstance(tag, str) else ""
+
+
+def parse_xml(data: bytes, source: str) -> etree._Element:
+    """Bytes -> the root element, safely (see the module docstring). Raises ProfileError with the line."""
+    if len(data) > MAX_EDS_BYTES:
+        raise ProfileError(Text(N_("file is {count} bytes, more than the {limit} bytes a device description "
+                                   "may have"), count=len(data), limit=MAX_EDS_BYTES), source=source)
+    text = decode_wide(data)  # UTF-16/32: checked as text, not as bytes a byte pattern would miss
+    if text is None:
+        text = data.decode("latin-1")  # UTF-8 and the 8-bit encodings: the markup is ASCII either way
+    declaration = _DECLARATION.search(text)
+    if declaration is not None:
+        line = text.count("\n", 0, declaration.start()) + 1
+        raise ProfileError(Text(N_("a DOCTYPE or ENTITY declaration is not allowed in an XDD/XDC (it could read "
+                                   "files or expand without end)")), source=source, line=line)
+    parser = etree.XMLParser(resolve_entities=False, no_network=True, huge_tree=False, load_dtd=False,
+                             dtd_validation=False, remove_pis=True)
+    try:
+        return etree.fromstring(data, parser)
+    except etree.XMLSyntaxError as exc:
+        raise ProfileError(Text(N_("not well-formed XML: {msg}"),
+                                msg=exc.msg), source=source, line=exc.lineno or None) from exc
+
+
+def _body_type(body: etree._Element) -> str:
+    for name, value in body.attrib.items():
+        if etree.QName(name).localname == "type":
+            return str(value).split(":")[-1]
+    return ""
+
+
+class _Builder:
+    """EDS-shaped sections from the XML, with the source line of each key."""
+
+    def __init__(self, source: str, notes: Warnings) -> None:
+        self.source = source
+        self.notes = notes
+        self.sections: dict[str, Section] = {}
+        self.listed: dict[str, int] = {}
+        """How many objects each object list ([MandatoryObjects] ...) holds so far."""
+        self.defined_types: dict[int, DataType] = {}
+        """``dataTypeList`` codes outside CiA 301's basic types that name one (``<defType dataType="0040">
+        <Unsigned32/>``)."""
+
+    def header(self, profile_root: etree._Element) -> None:
+        """ProfileRevision and ProfileSource (DriveBench's profile version and source) of the first header."""
+        for child in next((e for e in profile_root if local(e) == "ProfileHeader"), []):
+            text = (child.text or "").strip()
+            key = {"ProfileRevision": "Version", "ProfileSource": "Source"}.get(local(child))
+            if key is not None and text:
+                self.put(OWN_SECTION, child.sourceline or 1, key, text)
+
+    def data_types(self, body: etree._Element) -> None:
+        layers = [e for e in body if local(e) == "ApplicationLayers"]
+        for element in (e for layer in layers for e in layer):
+            if local(element).lower() != "datatypelist":
+                continue
+            for definition in element:
+                code_text, named = definition.get("dataType", ""), next(iter(definition), None)
+                name = local(named).upper() if named is not None else ""
+                try:
+                    code = int(code_text, 16)
+                except ValueError:
+                    continue
+                if code not in DATA_TYPE_BY_CODE and name in DataType.__members__:
+                    self.defined_types[code] = DataType[name]
+
+    def put(self, section: str, line: int, key: str, value: str) -> None:
+        found = self.sections.get(section.upper())
+        if found is None:
+            found = self.sections[section.upper()] = Section(section, line)
+        if key.lower() not in found.keys:
+            found.keys[key.lower()] = Key(key, value, line)
+
+    def device(self, body: etree._Element) -> dict[str, etree._Element]:
+        """Identity from the device body; returns parameters and templates by uniqueID."""
+        identity = next((e for e in body.iter() if local(e) == "DeviceIdentity"), None)
+        if identity is not None:
+            for child in identity:
+                key = {"vendorName": "VendorName", "vendorID": "VendorNumber", "productName": "ProductName",
+                       "productID": "ProductNumber", "orderNumber": "OrderCode"}.get(local(child))
+                text = (child.text or "").strip()
+                if local(child) == "version" and re.fullmatch(r"0[xX][0-9a-fA-F]{1,8}", text):
+                    key = "RevisionNumber"  # CiA 301 revision number as DriveBench writes it; "1.0" is no number
+                if key == "OrderCode" and "ordercode" in (info := self.sections.get("DEVICEINFO", Section("", 0))).keys:
+                    info.keys["ordercode"].value += f", {text}"  # one orderNumber element per code
+                elif key is not None and (text or key == "VendorName"):
+                    self.put("DeviceInfo", child.sourceline or 1, key, text)
+        return {str(e.get("uniqueID")): e for e in body.iter()
+                if local(e) in ("parameter", "parameterTemplate") and e.get("uniqueID")}
+
+    def communication(self, body: etree._Element, parameters: dict[str, etree._Element]) -> None:
+        for element in body.iter():
+            name = local(element)
+            line = element.sourceline or 1
+            if name == "CANopenObject":
+                self.object(element, parameters)
+            elif name == "supportedBaudRate":
+                rate = self.baud(element.get("value", ""), line)
+                if rate in BAUD_RATES_KBIT:
+                    self.put("DeviceInfo", line, f"BaudRate_{rate}", "1")
+            elif name == "CANopenGeneralFeatures":
+                for attribute, key in (("nrOfRxPDO", "NrOfRXPDO"), ("nrOfTxPDO", "NrOfTXPDO")):
+                    if element.get(attribute) is not None:
+                        self.put("DeviceInfo", line, key, str(element.get(attribute)))
+            elif name == "deviceCommissioning":
+                for attribute, key in _COMMISSIONING.items():
+                    value = element.get(attribute)
+                    if value is not None:
+                        rate = self.baud(value, line) if attribute == "actualBaudRate" else None
+                        self.put("DeviceComissioning", line, key, str(rate) if rate else value)
+
+    def baud(self, text: str, line: int) -> int | None:
+        found = _BAUD.match(text)
+        if found is None:
+            self.notes.add(line, "baudRate", Text(N_("{text!r} is not a bit rate like '250 Kbps': ignored"), text=text))
+            return None
+        return int(found.group(1)) * (1000 if found.group(2).upper() == "M" else 1)
+
+    def object(self, element: etree._Element, parameters: dict[str, etree._Element]) -> None:
+        line = element.sourceline or 1
+        index_text = element.get("index", "")
+        try:
+            index = int(index_text, 16)
+        except ValueError:
+            self.notes.add(line, "index", Text(N_("CANopenObject index={value!r} is not 4 hex digits: skipped"),
+                                               value=index_text))
+            return
+        section = f"{index:04X}"
+        if section.upper() in self.sections:
+            self.notes.add(line, "index", Text(N_("object 0x{index:04X} is in the object list twice: the first is "
+                                                  "read"), index=index))
+            return
+        self.keys(section, element, parameters)
+        subs = [e for e in element if local(e) == "CANopenSubObject"]
+        if subs and element.get("subNumber") is None:
+            self.put(section, line, "SubNumber", str(len(subs)))
+        for sub in subs:
+            sub_text = sub.get("subIndex", "")
+            try:
+                number = int(sub_text, 16)
+            except ValueError:
+                self.notes.add(sub.sourceline, "subIndex", Text(N_("CANopenSubObject subIndex={value!r} of "
+                                                                   "0x{index:04X} is not hex: skipped"),
+                                                                value=sub_text, index=index))
+                continue
+            self.keys(f"{section}sub{number:X}", sub, parameters)
+        listing = "MandatoryObjects" if index in (0x1000, 0x1001, 0x1018) else (
+            "ManufacturerObjects" if 0x2000 <= index <= 0x5FFF else "OptionalObjects")
+        self.listed[listing] = self.listed.get(listing, 0) + 1
+        self.put(listing, line, str(self.listed[listing]), f"0x{index:04X}")
+
+    def keys(self, section: str, element: etree._Element, parameters: dict[str, etree._Element]) -> None:
+        line = element.sourceline or 1
+        target = self.sections.setdefault(section.upper(), Section(section, line)).keys
+        for attribute, value in element.items():  # one pass over what the element has (a 5 MB XDD: 150,000)
+            key = _OBJECT_KEYS.get(str(attribute))
+            if key is None:
+                continue
+            if attribute == "dataType":
+                value = self.data_type(value, line)
+            elif attribute == "PDOmapping":
+                value = "0" if value.strip().lower() == "no" else "1"
+            target.setdefault(key.lower(), Key(key, value, line))
+        reference = element.get("uniqueIDRef")
+        if reference is None:
+            return
+        parameter = parameters.get(reference)
+        if parameter is None:
+            self.notes.add(line, "uniqueIDRef", Text(N_("uniqueIDRef={reference!r} names no parameter of the device "
+                                                        "profile: ignored"), reference=reference))
+            return
+        template = parameters.get(str(parameter.get("templateIDRef"))) if parameter.get("templateIDRef") else None
+        holds_value = local(element) == "CANopenSubObject" or not any(local(e) == "CANopenSubObject"
+                                                                       for e in element)
+        for source in (parameter, template):
+            if source is not None:
+                self.from_parameter(section, source, holds_value=holds_value)
+
+    def data_type(self, text: str, line: int) -> str:
+        """A dataType attribute as an EDS DataType: hex, and a code the dataTypeList defines as its basic type."""
+        value = f"0x{text}" if not text.lower().startswith("0x") else text
+        try:
+            defined = self.defined_types.get(int(value, 16))
+        except ValueError:
+            return value
+        if defined is None:
+            return value
+        self.notes.add(line, "dataType", Text(N_("dataType={text} is defined in the dataTypeList: read as {value}"),
+                                              text=text, value=defined.value))
+        return f"0x{defined.code:04X}"
+
+    def from_parameter(self, section: str, parameter: etree._Element, *, holds_value: bool) -> None:
+        """What the object leaves out, from its parameter (``put`` keeps what is already there); the access and the
+        type only for an object holding a value (not the head of an ARRAY/RECORD)."""
+        line = parameter.sourceline or 1
+        access = _PARAMETER_ACCESS.get(str(parameter.get("access")))
+        if holds_value and access is not None:
+            self.put(section, line, "AccessType", access)
+        for child in parameter:
+            name = local(child)
+            if holds_value and name in _IEC_TYPES:
+                data_type = _IEC_TYPES[name]
+                if name == "BITSTRING" and not any(local(e) == "defaultValue" for e in parameter):
+                    data_type = DataType.DOMAIN  # bytes without a default: CANopenEditor writes DOMAIN so
+                self.put(section, child.sourceline or line, "DataType", f"0x{data_type.code:04X}")
+            elif name == "denotation":
+                text = " ".join(t.strip() for t in child.itertext() if t.strip())
+                if text:
+                    self.put(section, child.sourceline or line, "Denotation", text)
+            elif name == "label" and (child.text or "").strip():
+                self.put(section, line, "ParameterName", (child.text or "").strip())
+            elif name == "description" and (child.text or "").strip():
+                self.put(section, child.sourceline or line, "Description", (child.text or "").strip())
+            elif name in ("defaultValue", "actualValue") and child.get("value") is not None:
+                key = "DefaultValue" if name == "defaultValue" else "ParameterValue"
+                self.put(section, child.sourceline or line, key, str(child.get("value")))
+            elif name == "property" and child.get("value") is not None:
+                key = str(child.get("name"))
+                if key in ("Unit", "Factor") or key.startswith(EDS_KEY_PREFIX):
+                    self.put(section, child.sourceline or line, key.removeprefix(EDS_KEY_PREFIX),
+                             str(child.get("value")))
+            elif name == "allowedValues":
+                for bound in child.iter():
+                    limit = {"minValue": "LowLimit", "maxValue": "HighLimit"}.get(local(bound))
+                    if limit is not None and bound.get("value") is not None:
+                        self.put(section, bound.sourceline or line, limit, str(bound.get("value")))
+
+
+def read_xdd(data: bytes, *, source: str) -> ImportedEds:
+    """Read an XDD or XDC into a Profile and the warnings of the readings applied. Raises ProfileError (with the
+    line) for unsafe or malformed XML and for a file without a CANopen object list."""
+    root = parse_xml(data, source)
+    if local(root) not in ("ISO15745ProfileContainer", "ISO15745Profile"):
+        raise ProfileError(Text(N_("not a CiA 311 device description: the root element is <{element}>, not "
+                                   "<ISO15745ProfileContainer>"),
+                                element=local(root)), source=source, line=root.sourceline)
+    bodies = [e for e in root.iter() if local(e) == "ProfileBody"]
+    communication = [b for b in bodies if _body_type(b).startswith("ProfileBody_CommunicationNetwork_CANopen")]
+    if not communication or not any(local(e) == "CANopenObjectList" for e in communication[0].iter()):
+        raise ProfileError(Text(N_("no object dictionary: no ProfileBody_CommunicationNetwork_CANopen with a "
+                                   "CANopenObjectList")), source=source, line=root.sourceline)
+    notes = Warnings(source)
+    builder = _Builder(source, notes)
+    parameters: dict[str, etree._Element] = {}
+    profiles = [root] if local(root) == "ISO15745Profile" else [e for e in root if local(e) == "ISO15745Profile"]
+    if profiles:
+        builder.header(profiles[0])
+    builder.data_types(communication[0])
+    for body in bodies:
+        if _body_type(body).startswith("ProfileBody_Device_CANopen"):
+            parameters |= builder.device(body)
+    if "DEVICEINFO" not in builder.sections:
+        builder.put("DeviceInfo", root.sourceline or 1, "VendorName", "")
+        notes.add(root.sourceline, "DeviceIdentity", Text(N_("no ProfileBody_Device_CANopen with a DeviceIdentity: "
+                                                             "vendor and product are left unknown")))
+    builder.communication(communication[0], parameters)
+    for listing in OBJECT_LISTS:
+        found = builder.sections.get(listing.upper())
+        if found is not None:
+            found.keys["supportedobjects"] = Key("SupportedObjects", str(builder.listed[listing]), found.line)
+    return read_sections(builder.sections, source, notes)

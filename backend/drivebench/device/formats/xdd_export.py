@@ -1,0 +1,189 @@
+"""CiA 311 export: a :class:`Profile` -> XDD, or a node's configured values -> XDC, that :func:`read_xdd` reads
+back to the same objects and identity.
+
+Two ISO 15745 profiles in one container: ``ProfileBody_Device_CANopen`` (DeviceIdentity, and a parameter per object
+carrying what CANopenObject attributes cannot: description, ``Unit`` and ``Factor`` properties) and
+``ProfileBody_CommunicationNetwork_CANopen`` (CANopenObjectList, bit rates, general features; in an XDC the
+``actualValue`` of each configured object and ``deviceCommissioning``). Values are raw, as in an EDS.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from datetime import UTC, datetime
+
+from lxml import etree
+
+from drivebench.device.formats.eds_export import Address, export_value_text, node_value, objects_by_index
+from drivebench.device.formats.xdd import EDS_KEY_PREFIX
+from drivebench.device.profiles.profile import ObjectEntry, Profile, Value
+from drivebench.protocol.datatypes import DataType
+
+NS = "http://www.canopen.org/xml/1.0"
+XSI = "http://www.w3.org/2001/XMLSchema-instance"
+OBJECT_TYPE_NUMBERS = {"VAR": "7", "ARRAY": "8", "RECORD": "9"}
+IEC_TYPES = {DataType.BOOLEAN: "BOOL", DataType.INTEGER8: "SINT", DataType.INTEGER16: "INT", DataType.INTEGER32: "DINT",
+             DataType.INTEGER64: "LINT", DataType.UNSIGNED8: "USINT", DataType.UNSIGNED16: "UINT",
+             DataType.UNSIGNED32: "UDINT", DataType.UNSIGNED64: "ULINT", DataType.REAL32: "REAL",
+             DataType.REAL64: "LREAL", DataType.VISIBLE_STRING: "STRING", DataType.UNICODE_STRING: "WSTRING",
+             DataType.OCTET_STRING: "BITSTRING", DataType.DOMAIN: "BITSTRING"}
+"""The IEC 61131 type of a parameter holding an object's value (CiA 311 parameters are typed so); BYTE else."""
+
+
+def type_element_name(data_type: DataType) -> str:
+    """The element naming a CiA 301 type in a ``dataTypeList`` ``defType``: ``Unsigned32``, ``Visible_String``."""
+    return "_".join(part.capitalize() for part in data_type.value.split("_"))
+
+
+def _el(parent: etree._Element | None, local_name: str, text: str | None = None, /, **attributes: str
+        ) -> etree._Element:
+    tag = f"{{{NS}}}{local_name}"
+    element = etree.Element(tag, nsmap={None: NS, "xsi": XSI}) if parent is None else etree.SubElement(parent, tag)
+    for key, value in attributes.items():
+        element.set(key, value)
+    if text is not None:
+        element.text = text
+    return element
+
+
+def _header(profile_root: etree._Element, profile: Profile, name: str, classification: str) -> None:
+    header = _el(profile_root, "ProfileHeader")
+    _el(header, "ProfileIdentification", f"CANopen {name}")
+    _el(header, "ProfileRevision", profile.version)
+    _el(header, "ProfileName", profile.identity.product_name)
+    _el(header, "ProfileSource", profile.source or "")
+    _el(header, "ProfileClassID", classification)
+    _el(header, "ISO15745Reference").extend([
+        _child("ISO15745Part", "1"), _child("ISO15745Edition", "1"), _child("ProfileTechnology", "CANopen")])
+
+
+def _child(name: str, text: str) -> etree._Element:
+    element = etree.Element(f"{{{NS}}}{name}")
+    element.text = text
+    return element
+
+
+def _body(profile_root: etree._Element, kind: str) -> etree._Element:
+    now = datetime.now(UTC)
+    body = _el(profile_root, "ProfileBody", fileName="", fileCreator="DriveBench",
+               fileCreationDate=now.strftime("%Y-%m-%d"), fileCreationTime=now.strftime("%H:%M:%S"),
+               fileVersion="1")
+    body.set(f"{{{XSI}}}type", kind)
+    return body
+
+
+def _uid(entry: ObjectEntry) -> str:
+    return f"UID_OBJ_{entry.index:04X}{entry.subindex:02X}"
+
+
+def _parameter(parameters: etree._Element, entry: ObjectEntry) -> None:
+    if entry.description is None and entry.unit is None and entry.factor == 1 and not entry.section_keys:
+        return
+    parameter = _el(parameters, "parameter", uniqueID=_uid(entry), access="read")
+    _el(parameter, "label", entry.name, lang="en")
+    if entry.description is not None:
+        _el(parameter, "description", entry.description, lang="en")
+    _el(parameter, IEC_TYPES.get(entry.data_type, "BYTE"))
+    for name, value in (("Unit", entry.unit), ("Factor", None if entry.factor == 1 else str(entry.factor))):
+        if value is not None:
+            _el(parameter, "property", None, name=name, value=value)
+    for key, value in (entry.section_keys or {}).items():  # EDS keys without a CiA 311 attribute
+        _el(parameter, "property", None, name=f"{EDS_KEY_PREFIX}{key}", value=value)
+
+
+def _object_parameter(parameters: etree._Element, index: int, first: ObjectEntry) -> str:
+    """A parameter carrying the keys of an ARRAY/RECORD's own EDS section (``object_keys``); its uniqueID."""
+    unique_id = f"UID_OBJ_{index:04X}"
+    parameter = _el(parameters, "parameter", uniqueID=unique_id, access="read")
+    _el(parameter, "label", first.object_name or first.name, lang="en")
+    _el(parameter, "BYTE")
+    for key, value in (first.object_keys or {}).items():
+        _el(parameter, "property", None, name=f"{EDS_KEY_PREFIX}{key}", value=value)
+    return unique_id
+
+
+def _object_attributes(element: etree._Element, entry: ObjectEntry, value: Value | None, *,
+                       with_flags: bool) -> None:
+    element.set("name", entry.name)
+    element.set("objectType", "2" if entry.domain_object else "7")
+    element.set("dataType", f"{entry.data_type.code:04X}")
+    element.set("accessType", entry.access.value)
+    texts = export_value_text(entry, value)
+    for attribute, key in (("defaultValue", "DefaultValue"), ("lowLimit", "LowLimit"), ("highLimit", "HighLimit"),
+                           ("actualValue", "ParameterValue"), ("denotation", "Denotation")):
+        if key in texts:
+            element.set(attribute, texts[key])
+    element.set("PDOmapping", "optional" if entry.pdo_mappable else "no")
+    if with_flags and entry.obj_flags is not None:
+        element.set("objFlags", f"{entry.obj_flags:X}")
+    if entry.description is not None or entry.unit is not None or entry.factor != 1 or entry.section_keys:
+        element.set("uniqueIDRef", _uid(entry))
+
+
+def export_xdd(profile: Profile, *, node_id: int | None = None, values: Mapping[Address, Value] | None = None,
+               xdc: bool = False, baud_kbit: int | None = None) -> bytes:
+    """``profile`` as a CiA 311 XDD, or with ``xdc=True`` an XDC whose ``actualValue`` are ``values`` (raw, by
+    (index, subindex)) and whose ``deviceCommissioning`` names ``node_id``."""
+    container = _el(None, "ISO15745ProfileContainer")
+    device = _el(container, "ISO15745Profile")
+    _header(device, profile, "device profile", "Device")
+    device_body = _body(device, "ProfileBody_Device_CANopen")
+    identity = _el(device_body, "DeviceIdentity")
+    ident = profile.identity
+    _el(identity, "vendorName", ident.vendor_name)
+    if ident.vendor_id is not None:
+        _el(identity, "vendorID", f"0x{ident.vendor_id:08X}")
+    _el(identity, "productName", ident.product_name)
+    if ident.product_code is not None:
+        _el(identity, "productID", f"0x{ident.product_code:08X}")
+    for code in ident.order_codes:
+        _el(identity, "orderNumber", code)
+    if ident.revision is not None:
+        _el(identity, "version", f"0x{ident.revision:08X}", versionType="FW")
+    parameters = _el(_el(device_body, "ApplicationProcess"), "parameterList")
+
+    network = _el(container, "ISO15745Profile")
+    _header(network, profile, "communication network profile", "CommunicationNetwork")
+    network_body = _body(network, "ProfileBody_CommunicationNetwork_CANopen")
+    layers = _el(network_body, "ApplicationLayers")
+    by_index = objects_by_index(profile)
+    type_list = _el(layers, "dataTypeList")
+    for data_type in sorted({e.data_type for es in by_index.values() for e in es}, key=lambda t: t.code):
+        _el(_el(type_list, "defType", dataType=f"{data_type.code:04X}"), type_element_name(data_type))
+    object_list = _el(layers, "CANopenObjectList")
+    for index, entries in by_index.items():
+        first = entries[0]
+        obj = _el(object_list, "CANopenObject", index=f"{index:04X}")
+        if len(entries) == 1 and first.subindex == 0 and first.object_type == "VAR":
+            _object_attributes(obj, first, node_value(first, values or {}, node_id, xdc), with_flags=True)
+            _parameter(parameters, first)
+            continue
+        flags = {e.obj_flags for e in entries}
+        shared = flags.pop() if len(flags) == 1 else None
+        kind = first.object_type if first.object_type != "VAR" else "RECORD"
+        obj.set("name", first.object_name or first.name)
+        obj.set("objectType", OBJECT_TYPE_NUMBERS[kind])
+        obj.set("subNumber", str(len(entries)))
+        if shared is not None:
+            obj.set("objFlags", f"{shared:X}")
+        if first.object_keys:
+            obj.set("uniqueIDRef", _object_parameter(parameters, index, first))
+        for entry in entries:
+            sub = _el(obj, "CANopenSubObject", subIndex=f"{entry.subindex:02X}")
+            _object_attributes(sub, entry, node_value(entry, values or {}, node_id, xdc), with_flags=shared is None)
+            _parameter(parameters, entry)
+    transport = _el(_el(network_body, "TransportLayers"), "PhysicalLayer")
+    baud = _el(transport, "baudRate", defaultValue=f"{(profile.features.baud_rates_kbit or [250])[-1]} Kbps")
+    for rate in profile.features.baud_rates_kbit:
+        _el(baud, "supportedBaudRate", value=f"{rate} Kbps")
+    management = _el(network_body, "NetworkManagement")
+    _el(management, "CANopenGeneralFeatures", granularity="8", nrOfRxPDO=str(profile.features.rpdo_count),
+        nrOfTxPDO=str(profile.features.tpdo_count))
+    _el(management, "CANopenMasterFeatures")
+    if xdc:
+        commissioning = _el(management, "deviceCommissioning", nodeID=str(node_id or 1),
+                            nodeName=profile.identity.product_name, networkNumber="1", networkName="",
+                            CANopenManager="false")
+        if baud_kbit is not None:
+            commissioning.set("actualBaudRate", f"{baud_kbit} Kbps")
+    return etree.tostring(container, xml_declaration=True, encoding="UTF-8", pretty_print=True)

@@ -1,0 +1,1 @@
+"""The device profile model, its sections and the catalogue of loaded profiles."""
