@@ -36,6 +36,8 @@ class SdoFaults:
     """Abort requests that start a transfer with this CiA 301 code (None: off)..."""
     abort_every: int = 1
     """...every one of them (1) or every n-th."""
+    abort_index: int | None = None
+    """...only those naming this object index (None: any object)."""
     latency_ms: float = 0.0
     """Extra processing time per SDO request..."""
     late_requests: int = 0
@@ -63,6 +65,8 @@ class SdoFaults:
                 field="late_requests, drop_requests, drop_downloads, lost_download_answers"))
         if not 0 <= self.latency_ms <= 60_000:
             raise InvalidValue(_("latency_ms must be 0 ... 60000"))
+        if self.abort_index is not None and not 0 <= self.abort_index <= 0xFFFF:
+            raise InvalidValue(_("abort_index must be 0 ... 0xFFFF"))
         if not -0xFFFF <= self.index_offset <= 0xFFFF or not -0xFF <= self.subindex_offset <= 0xFF:
             raise InvalidValue(_("index_offset must be within ±0xFFFF and subindex_offset within ±0xFF"))
 
@@ -88,6 +92,8 @@ class SdoFaults:
             aborts = (_("aborts every request with {code}") if self.abort_every == 1
                       else _("aborts every {n}th request with {code}"))
             words.append(aborts.format(n=self.abort_every, code=f"0x{self.abort_code:08X}"))
+            if self.abort_index is not None:
+                words.append(_("aborts only requests for object 0x{index:04X}").format(index=self.abort_index))
         if self.latency_ms:
             latency = (_("{ms} ms extra SDO latency on the next {count} requests") if self.late_requests
                        else _("{ms} ms extra SDO latency"))
@@ -183,7 +189,8 @@ class FaultState:
                 counters.lose_answer = command == 1 and bool(request[0] & 0x02) and self._answers_to_lose > 0
                 if counters.lose_answer:
                     self._answers_to_lose -= 1
-                if faults.abort_code is not None:
+                named = int.from_bytes(request[1:3], "little")
+                if faults.abort_code is not None and faults.abort_index in (None, named):
                     counters.transfers += 1
                     if counters.transfers % faults.abort_every == 0:
                         return faults.abort_code

@@ -19,7 +19,9 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import time
+from collections.abc import Awaitable
 from dataclasses import dataclass
+from typing import TypeVar
 
 from pydantic import BaseModel
 
@@ -289,6 +291,8 @@ class DriveStatus(BaseModel):
     error_text: str | None = None
     """CiA 402 0x603F error code, decoded with the CiA 402 error-code table."""
     present_fault: EmcyRecord | None = None
+    unread: dict[str, str] = {}
+    """Values the drive refused to give (object -> the reason in words): the panel shows the rest and marks these."""
     """The emergency still active on the node, with the device's own fault number in the manual's words (from the
     EMCY consumer: no bus traffic)."""
     command_note: str | None = None
@@ -330,21 +334,40 @@ async def modes(session: Session, node: SessionNode) -> dict[int, str]:
         raw = (await parameters.read(session, node.node_id, "0x6502")).raw
         if isinstance(raw, int):
             return {mode: cia402.mode_label(mode) for mode in cia402.modes_from_6502(raw)}
+    return section_modes(fam)
+
+
+def section_modes(fam: Family) -> dict[int, str]:
+    """The modes the profile's control section names."""
     return {mode: cia402.shown(name) for mode, name in fam.section.modes.items()}
 
 
-async def _diagnostics(session: Session, node: SessionNode) -> tuple[list[Bit], int | None]:
+T = TypeVar("T")
+
+
+async def _optional(unread: dict[str, str], ref: str, reading: Awaitable[T], fallback: T) -> T:
+    """``reading``'s value, or ``fallback`` with the drive's refusal noted under ``ref`` (one aborted read - an
+    object the device cannot encode, a value it does not serve - must not take the whole panel with it)."""
+    try:
+        return await reading
+    except DriveBenchError as exc:
+        unread[ref] = exc.shown_detail()
+        return fallback
+
+
+async def _diagnostics(session: Session, node: SessionNode, unread: dict[str, str]) -> tuple[list[Bit], int | None]:
     """Digital inputs 0x60FD and error code 0x603F of a generic CiA 402 drive (where it has them)."""
     catalog = catalog_of(node)
     inputs: list[Bit] = []
     if has_ref(catalog, "0x60FD"):
-        raw = (await parameters.read(session, node.node_id, "0x60FD")).raw
-        word = int(raw) if isinstance(raw, int) else 0
-        inputs = [Bit(bit=bit, name=_(name), set=bool(word >> bit & 1)) for bit, name in cia402.INPUT_BITS.items()]
+        raw = (await _optional(unread, "0x60FD", parameters.read(session, node.node_id, "0x60FD"), None))
+        if raw is not None:
+            word = int(raw.raw) if isinstance(raw.raw, int) else 0
+            inputs = [Bit(bit=bit, name=_(name), set=bool(word >> bit & 1)) for bit, name in cia402.INPUT_BITS.items()]
     code = None
     if has_ref(catalog, "0x603F"):
-        raw = (await parameters.read(session, node.node_id, "0x603F")).raw
-        code = int(raw) & 0xFFFF if isinstance(raw, int) else None
+        value = await _optional(unread, "0x603F", parameters.read(session, node.node_id, "0x603F"), None)
+        code = int(value.raw) & 0xFFFF if value is not None and isinstance(value.raw, int) else None
     return inputs, code
 
 
@@ -356,9 +379,12 @@ async def read_status(session: Session, node: SessionNode, panel: Panel = SERVIC
         control_word: int | None = await read_word(session, node.node_id, fam.control_ref)
     except DriveBenchError:
         control_word = None  # write-only on some devices
-    mode = await _mode(session, node)
+    unread: dict[str, str] = {}
+    mode = await _optional(unread, "0x6061", _mode(session, node), None)
+    offered = await _optional(unread, "0x6502", modes(session, node), section_modes(fam)) if (
+        mode is not None or "0x6061" in unread) else {}
     scale = await setpoint_scale(session, node, mode)
-    inputs, error_code = await _diagnostics(session, node) if fam.generic else ([], None)
+    inputs, error_code = await _diagnostics(session, node, unread) if fam.generic else ([], None)
     key, label, enabled, fault = describe(fam, status_word)
     guard = guard_for(session)
     if not enabled:
@@ -378,14 +404,14 @@ async def read_status(session: Session, node: SessionNode, panel: Panel = SERVIC
         states=[StateOut(key=box.key, label=cia402.shown(box.label), col=box.col, row=box.row, enabled=box.enabled,
                          fault=box.fault) for box in section.states],
         mode=mode, mode_label=mode_label(fam, mode) if mode is not None else None,
-        modes=await modes(session, node) if mode is not None else {}, setpoint_ref=scale.ref,
+        modes=offered, setpoint_ref=scale.ref,
         setpoint_unit=scale.unit, setpoint_min=scale.minimum, setpoint_max=scale.maximum,
         armed=guard.armed(node.node_id), holder=holder.text() if holder else None,
         you_hold=bool(holder and holder.panel.key == panel.key), panels=guard.panels(node.node_id),
         last_trip=guard.trip_text(node.node_id), generic=fam.generic, inputs=inputs, error_code=error_code,
         error_text=cia402.error_text(error_code) if error_code is not None else None,
         limit_note=soft_limits.note(node) if fam.generic else None,
-        present_fault=fault_words.present_fault(session, node))
+        present_fault=fault_words.present_fault(session, node), unread=unread)
 
 
 # --- commands ------------------------------------------------------------------------------------------------

@@ -32,6 +32,8 @@ class FaultsIn(BaseModel):
     abort_code: int | str | None = Field(None, description="Abort requests with this CiA 301 code "
                                                            "(0x08000000 or 134217728)")
     abort_every: int = Field(1, ge=1, le=10_000, description="Abort every n-th request (1: every one)")
+    abort_index: int | None = Field(None, ge=0, le=0xFFFF, description="Abort only requests for this object index "
+                                                                      "(none: every object)")
     latency_ms: float = Field(0.0, ge=0, le=60_000, description="Extra SDO processing time")
     late_requests: int = Field(0, ge=0, le=1_000_000, description="Only the next this many requests that start "
                                                                    "a transfer get the extra time (0: every one)")

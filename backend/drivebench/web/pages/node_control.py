@@ -8,7 +8,8 @@ to the JSON API under ``/api/sessions/{session}/nodes/{node}/control``.
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Awaitable
+from typing import Any, TypeVar
 
 from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse, Response
@@ -23,11 +24,21 @@ from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.identity import principal_of
 from drivebench.web.templating import templates
 
+T = TypeVar("T")
+
 router = APIRouter(include_in_schema=False)
 UI = "/ui/sessions/{session_id}/nodes/{node_id}/control"
 BOX_W, BOX_H, GAP_X, GAP_Y, PAD = 190, 42, 110, 30, 16
 PAD_LEFT = 96  # room for the labels of the left (downward) lane
 CONTROL_RULE = rule_for("POST", "/api/sessions/{session_id}/nodes/{node_id}/control/commands/{command}")
+
+
+async def _part(unread: dict[str, str], label: str, reading: Awaitable[T]) -> T | None:
+    try:
+        return await reading
+    except DriveBenchError as exc:
+        unread[label] = exc.shown_detail()
+        return None
 
 
 def refused_because(request: Request) -> str | None:
@@ -89,13 +100,16 @@ async def control_tab(request: Request, session: SessionDep, node: NodeDep) -> R
         fam = drive_control.family(node)
         context["diagram"] = _diagram(fam)
         context["status"] = await drive_control.read_status(session, node)
-        context["command_note"] = await fault_words.command_source_note(session, node)
-        context["jog"] = await drive_control.jog_plan(session, node)
-        context["missing"] = drive_control.missing_actuals(node)
-        context["missing_why"] = drive_control.missing_why(node)
-        context["sources"] = await drive_control.actual_sources(session, node)
-        if fam.generic:
-            context["motion"] = await motion.info(session, node)
-    except DriveBenchError as exc:
+    except DriveBenchError as exc:  # without its status word there is no panel to show
         context["error"] = exc
+        return templates.TemplateResponse(request, "node/control_body.html", context)
+    context["missing"] = drive_control.missing_actuals(node)
+    context["missing_why"] = drive_control.missing_why(node)
+    unread: dict[str, str] = {}  # a part the drive would not give is marked; the rest of the panel stays
+    context["unread_parts"] = unread
+    context["command_note"] = await _part(unread, _("Command source"), fault_words.command_source_note(session, node))
+    context["jog"] = await _part(unread, _("Jog"), drive_control.jog_plan(session, node))
+    context["sources"] = await _part(unread, _("Actual values"), drive_control.actual_sources(session, node))
+    if fam.generic:
+        context["motion"] = await _part(unread, _("Positioning, velocity and homing"), motion.info(session, node))
     return templates.TemplateResponse(request, "node/control_body.html", context)
