@@ -11,6 +11,10 @@
 # host's SocketCAN adapters with `--network host`. deploy/compose.yaml runs it with PostgreSQL.
 ARG PYTHON_IMAGE=python:3.11-slim
 FROM ${PYTHON_IMAGE}
+# A plant's package mirror and its CA (a file in the build context): --build-arg PIP_INDEX_URL=https://pypi.plant/simple
+# --build-arg PIP_CERT=plant-ca.pem. Unset, pip asks pypi.org with the image's CAs.
+ARG PIP_INDEX_URL=""
+ARG PIP_CERT=""
 
 ENV PYTHONDONTWRITEBYTECODE=1 \
     PYTHONUNBUFFERED=1 \
@@ -25,13 +29,18 @@ RUN groupadd --system --gid 10001 drivebench \
 WORKDIR /app
 # The server finds templates, static files, device profiles and plant files beside the package (config.REPO_ROOT),
 # so the tree is installed in place, as `make run` does, into a venv (a Debian python refuses pip system-wide).
-COPY pyproject.toml README.md ./
+COPY pyproject.toml README.md constraints.txt ${PIP_CERT} ./
 COPY backend ./backend
 COPY frontend ./frontend
 COPY device_profiles ./device_profiles
 COPY plants ./plants
+# Production install: the server and PostgreSQL's driver at the versions of constraints.txt, no dev tools; pip is
+# removed from the image afterwards (nothing installs at run time).
 RUN python3 -m venv /opt/venv \
-    && pip install --editable ".[postgresql]" \
+    && if [ -n "$PIP_INDEX_URL" ]; then export PIP_INDEX_URL; else unset PIP_INDEX_URL; fi \
+    && if [ -n "$PIP_CERT" ]; then export PIP_CERT="/app/$(basename "$PIP_CERT")"; else unset PIP_CERT; fi \
+    && pip install --constraint constraints.txt --editable ".[postgresql]" \
+    && pip uninstall --yes pip \
     && mkdir -p /app/var \
     && chown drivebench:drivebench /app/var
 

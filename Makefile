@@ -6,13 +6,18 @@ STAMP := $(VENV)/.installed
 HOST ?= 127.0.0.1
 PORT ?= 8000
 
-.PHONY: run test test-quick install lint typecheck importlint pytest bench chromium postgresql clean i18n-extract i18n-update i18n-compile
+.PHONY: constraints run test test-quick install lint typecheck importlint pytest bench chromium postgresql clean i18n-extract i18n-update i18n-compile
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml constraints.txt
 	test -d $(VENV) || $(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -e '.[dev]'
+	$(BIN)/pip install --quiet -c constraints.txt -e '.[dev]'
 	touch $(STAMP)
+
+# Re-pin constraints.txt to what the venv holds now (after a pyproject.toml change: pip install -e '.[dev]' first).
+constraints: $(STAMP)
+	{ sed -n '1,3p' constraints.txt; $(BIN)/pip freeze --exclude-editable | grep -v '^drivebench'; } > constraints.txt.new
+	mv constraints.txt.new constraints.txt
 
 install: $(STAMP) i18n-compile
 

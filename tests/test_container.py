@@ -71,17 +71,60 @@ def test_compose_mounts_the_secret_and_the_volume_where_the_image_and_settings_e
 
 def test_compose_database_url_names_the_postgres_service_its_user_database_and_password(
         compose: dict[str, Any]) -> None:
-    variables = {"DRIVEBENCH_DB_PASSWORD": "pw-from-env", "DRIVEBENCH_SECRET_KEY": "k"}
+    """The password is a secret file both services read (never in the URL or an environment value, where `docker
+    inspect` shows it)."""
     drivebench, postgres = compose["services"]["drivebench"], compose["services"]["postgres"]
-    url = make_url(_interpolate(drivebench["environment"]["DRIVEBENCH_DATABASE_URL"], variables))
-    database_env = {key: _interpolate(value, variables) for key, value in postgres["environment"].items()}
+    environment = drivebench["environment"]
+    url = make_url(environment["DRIVEBENCH_DATABASE_URL"])
     assert url.drivername == "postgresql+psycopg"  # the driver of the image's [postgresql] extra
     assert '".[postgresql]"' in DOCKERFILE.read_text(encoding="utf-8")
     assert url.host in compose["services"] and url.host == "postgres"
-    assert (url.username, url.password, url.database) == (
-        database_env["POSTGRES_USER"], database_env["POSTGRES_PASSWORD"], database_env["POSTGRES_DB"])
+    assert url.password is None
+    assert (url.username, url.database) == (postgres["environment"]["POSTGRES_USER"],
+                                            postgres["environment"]["POSTGRES_DB"])
+    password_file = PurePosixPath(environment["DRIVEBENCH_DATABASE_PASSWORD_FILE"])
+    assert password_file == PurePosixPath(postgres["environment"]["POSTGRES_PASSWORD_FILE"])
+    assert password_file.parent == PurePosixPath("/run/secrets")
+    assert password_file.name in drivebench["secrets"] and password_file.name in postgres["secrets"]
+    assert "file" in compose["secrets"][password_file.name]
+    assert "POSTGRES_PASSWORD" not in postgres["environment"]
     assert "postgres" in drivebench["depends_on"]
     assert postgres["healthcheck"]["test"][-4:] == ["--username", url.username, "--dbname", url.database]
+
+
+def test_compose_keeps_secrets_in_files_and_the_plant_names_in_env(compose: dict[str, Any]) -> None:
+    """Debian's docker-compose 1.29 refuses a top-level `name:`; the secret key is a file (DRIVEBENCH_SECRET_KEY
+    as an environment value shows in `docker inspect`); the line's names come from .env, not the compose file."""
+    assert "name" not in compose
+    environment = compose["services"]["drivebench"]["environment"]
+    assert "DRIVEBENCH_SECRET_KEY" not in environment
+    key_file = PurePosixPath(environment["DRIVEBENCH_SECRET_KEY_FILE"])
+    assert key_file.parent == PurePosixPath("/run/secrets") and "file" in compose["secrets"][key_file.name]
+    for name in ("DRIVEBENCH_ALLOWED_HOSTS", "DRIVEBENCH_PUBLIC_URL"):
+        assert environment[name].startswith("${" + name), f"{name} is written into compose.yaml, not read from .env"
+    example = (REPO_ROOT / "deploy" / "env.example").read_text(encoding="utf-8")
+    given = {line.split("=", 1)[0] for line in example.splitlines() if "=" in line and not line.startswith("#")}
+    needed = set(re.findall(r"\$\{(\w+):\?", COMPOSE.read_text(encoding="utf-8")))
+    assert needed <= given, f"env.example lacks {needed - given}"
+    tls = yaml.safe_load((REPO_ROOT / "deploy" / "compose.tls.yaml").read_text(encoding="utf-8"))
+    tls_env = tls["services"]["drivebench"]["environment"]
+    assert set(tls_env) <= _settings_read()
+    for variable in ("DRIVEBENCH_TLS_CERT_FILE", "DRIVEBENCH_TLS_KEY_FILE"):
+        assert PurePosixPath(tls_env[variable]).name in tls["secrets"]
+
+
+def test_the_database_password_file_goes_into_the_url_and_a_missing_one_is_said_in_words(tmp_path: Path) -> None:
+    password = tmp_path / "db_password"
+    password.write_text("p@ss/word\n")
+    url = "postgresql+psycopg://drivebench@postgres:5432/drivebench"
+    settings = Settings(database_url=url, database_password_file=password)
+    assert make_url(settings.database_url).password == "p@ss/word"
+    missing = subprocess.run([sys.executable, "-m", "drivebench.cli", "db", "check"], capture_output=True, text=True,
+                             env={**os.environ, "DRIVEBENCH_DATABASE_URL": url,
+                                  "DRIVEBENCH_DATABASE_PASSWORD_FILE": str(tmp_path / "nope")},
+                             cwd=REPO_ROOT, timeout=START_TIMEOUT_S)
+    assert missing.returncode != 0 and "Traceback" not in missing.stderr
+    assert f"DRIVEBENCH_DATABASE_PASSWORD_FILE {tmp_path / 'nope'}: cannot read it" in missing.stderr
 
 
 def test_compose_and_image_health_checks_run_the_health_command(compose: dict[str, Any]) -> None:

@@ -7,6 +7,7 @@ import asyncio
 import contextlib
 import importlib.util
 import ipaddress
+import logging.config
 import os
 import re
 import signal
@@ -16,7 +17,7 @@ from pathlib import Path
 
 from sqlalchemy.exc import SQLAlchemyError
 
-from drivebench import i18n
+from drivebench import i18n, logs
 from drivebench.config import settings
 from drivebench.errors import DriveBenchError, InvalidValue
 from drivebench.i18n import _
@@ -40,6 +41,7 @@ def serve(args: argparse.Namespace) -> int:
     from drivebench.web.app import create_app
     from drivebench.web.tls import check_pair
 
+    logging.config.dictConfig(serving.log_config(args.log_level, args.log_format))  # start-up records too
     check_pair(args.tls_cert, args.tls_key)  # before the database: a file mistake is said first, whatever else
     secret_key()  # made now, or an empty key file refused in words before anyone signs in
     _database_ready()
@@ -77,7 +79,8 @@ def serve(args: argparse.Namespace) -> int:
         uvicorn.run(app, host=args.host, port=args.port, log_level=args.log_level, ws_ping_interval=20,
                     ssl_certfile=args.tls_cert, ssl_keyfile=args.tls_key, proxy_headers=bool(forwarded),
                     forwarded_allow_ips=forwarded or None, loop=_fastest("uvloop"), server_header=False,
-                    access_log=args.log_level in ("info", "debug", "trace"), **serving.uvicorn_options())
+                    access_log=args.log_level in ("info", "debug"),
+                    **serving.uvicorn_options(log_level=args.log_level, log_format=args.log_format))
     return 0
 
 
@@ -378,7 +381,10 @@ def build_parser() -> argparse.ArgumentParser:
     p_serve.add_argument("--demo", action="store_true", help=_("start the built-in simulated plant"))
     p_serve.add_argument("--plant", help=_("start a simulated plant from this plant file"))
     p_serve.add_argument("--latency", help=_("SDO processing time of simulated drives, e.g. 30ms±20ms"))
-    p_serve.add_argument("--log-level", default="warning")
+    p_serve.add_argument("--log-level", choices=logs.LEVELS, default=settings.log_level,
+                         help=_("server log level (default from DRIVEBENCH_LOG_LEVEL, else info)"))
+    p_serve.add_argument("--log-format", choices=logs.FORMATS, default=settings.log_format,
+                         help=_("text lines or JSON lines (default from DRIVEBENCH_LOG_FORMAT, else text)"))
     p_serve.add_argument("--tls-cert", type=Path, default=settings.tls_cert_file, metavar="FILE",
                          help=_("serve https with this PEM certificate (with --tls-key)"))
     p_serve.add_argument("--tls-key", type=Path, default=settings.tls_key_file, metavar="FILE",

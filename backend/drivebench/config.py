@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Literal
 
-from pydantic import SecretStr, field_validator
+from pydantic import SecretStr, ValidationError, field_validator, model_validator
 from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
+from sqlalchemy.engine import make_url
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 
@@ -21,6 +22,9 @@ class Settings(BaseSettings):
     plants_dir: Path = REPO_ROOT / "plants"
     frontend_dir: Path = REPO_ROOT / "frontend"
     database_url: str = f"sqlite:///{REPO_ROOT / 'var' / 'drivebench.db'}"
+    database_password_file: Path | None = None
+    """The database password from a file (a container secret) rather than inside ``database_url``, where ``docker
+    inspect`` would show it: it replaces the URL's password."""
     database_wait_s: float = 30.0
     """``drivebench serve`` waits this long for an unreachable database (a container started with its database),
     then exits saying what failed."""
@@ -58,10 +62,32 @@ class Settings(BaseSettings):
     """Proxies whose ``X-Forwarded-For`` / ``-Proto`` are believed (uvicorn's option, comma-separated addresses or
     networks); none by default, so a client cannot choose the address the sign-in limit counts."""
 
+    log_level: Literal["critical", "error", "warning", "info", "debug"] = "info"
+    """The server log's level (``info``: start, sign-in failures, one access line per request)."""
+    log_format: Literal["text", "json"] = "text"
+    """``json``: one JSON object per line (time, level, logger, request_id, message) for a log collector."""
+
     control_panels_per_node: int = 100
     """Control-panel websockets one node of a session accepts at once (its holder's own panel always)."""
     control_panels_per_user: int = 20
     """Control-panel websockets one user may have open in a session at once."""
+
+    @model_validator(mode="after")
+    def _password_from_file(self) -> Settings:
+        if self.database_password_file is None:
+            return self
+        path = self.database_password_file
+        try:
+            password = path.read_text(encoding="utf-8").strip()
+        except (OSError, UnicodeDecodeError) as exc:
+            reason = exc.strerror if isinstance(exc, OSError) else "it is not UTF-8 text"
+            raise ValueError(f"DRIVEBENCH_DATABASE_PASSWORD_FILE {path}: cannot read it ({reason}); give the file "
+                             f"holding the database password, readable by this user") from None
+        if not password:
+            raise ValueError(f"DRIVEBENCH_DATABASE_PASSWORD_FILE {path} is empty: write the database password into it")
+        url = make_url(self.database_url).set(password=password)
+        self.database_url = url.render_as_string(hide_password=False)
+        return self
 
     @field_validator("allowed_hosts", mode="before")
     @classmethod
@@ -69,4 +95,13 @@ class Settings(BaseSettings):
         return [name.strip() for name in value.split(",") if name.strip()] if isinstance(value, str) else value
 
 
-settings = Settings()
+def _read_settings() -> Settings:
+    try:
+        return Settings()
+    except ValidationError as exc:  # a start-up setting in words, not a traceback
+        problems = "; ".join(f"{'.'.join(map(str, error['loc'])) or 'settings'}: {error['msg']}"
+                             for error in exc.errors())
+        raise SystemExit(f"DriveBench cannot start: {problems}") from None
+
+
+settings = _read_settings()

@@ -40,6 +40,7 @@ from drivebench.web.pages import plant as plant_page
 from drivebench.web.pages import profiles as profiles_page
 from drivebench.web.pages import remote as remote_page
 from drivebench.web.pages import tools as tools_page
+from drivebench.web.request_ids import RequestIds
 from drivebench.web.state import AppState
 from drivebench.web.ws import drive_control as drive_control_ws
 from drivebench.web.ws import jobs as jobs_ws
@@ -127,6 +128,7 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
     app.add_middleware(RequestGate, links=share_links, limit_bytes=settings.max_upload_bytes,
                        batch_bytes=settings.max_batch_upload_bytes,
                        hsts=settings.hsts if hsts is None else hsts)
+    app.add_middleware(RequestIds)  # outermost: every log record of a request, refusals included, names it
     for router in API_ROUTERS + PAGE_ROUTERS + WS_ROUTERS:
         app.include_router(router)
     app.mount("/static", StaticFiles(directory=settings.frontend_dir / "static"), name="static")

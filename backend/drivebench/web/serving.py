@@ -17,15 +17,15 @@ token: a request line such as ``GET /remote/dbv_…`` would otherwise hand a log
 from __future__ import annotations
 
 import asyncio
-import copy
 import importlib.util
 import logging
 import re
 import resource
 from typing import Any
 
-from uvicorn.config import LOGGING_CONFIG
 from uvicorn.protocols.http.h11_impl import H11Protocol
+
+from drivebench import logs
 
 HEADER_TIMEOUT_S = 10.0
 KEEP_ALIVE_S = 5
@@ -113,13 +113,15 @@ def max_connections() -> int:
     return max(32, min(MOST_CONNECTIONS, soft // 2 if soft != resource.RLIM_INFINITY else MOST_CONNECTIONS))
 
 
-def uvicorn_options(*, header_timeout_s: float = HEADER_TIMEOUT_S, connections: int | None = None) -> dict[str, Any]:
+def uvicorn_options(*, header_timeout_s: float = HEADER_TIMEOUT_S, connections: int | None = None,
+                    log_level: str = "info", log_format: str = "text") -> dict[str, Any]:
     """The uvicorn settings of ``drivebench serve`` (tests serve with them too)."""
     most = connections or max_connections()
     protocol = _httptools_class() or GuardedH11
     guarded = type(protocol.__name__, (protocol,), {"header_timeout_s": header_timeout_s, "max_connections": most})
     return {"http": guarded, "timeout_keep_alive": KEEP_ALIVE_S, "limit_concurrency": most + 16,
-            "h11_max_incomplete_event_size": MAX_HEADER_BYTES, "log_config": log_config()}
+            "h11_max_incomplete_event_size": MAX_HEADER_BYTES,
+            "log_config": log_config(log_level, log_format)}
 
 
 _TOKEN = re.compile(r"\b(db[tv]_[A-Za-z0-9_-]{6})[A-Za-z0-9_-]+")
@@ -139,9 +141,9 @@ class TokenRedaction(logging.Filter):
         return True
 
 
-def log_config() -> dict[str, Any]:
-    """uvicorn's logging set-up with ``TokenRedaction`` on the access log."""
-    config = copy.deepcopy(LOGGING_CONFIG)
-    config.setdefault("filters", {})["tokens"] = {"()": TokenRedaction}
-    config["handlers"]["access"]["filters"] = ["tokens"]
+def log_config(level: str = "info", form: str = "text") -> dict[str, Any]:
+    """The server's logging set-up (drivebench/logs.py) with ``TokenRedaction`` on every record."""
+    config = logs.log_config(level, form)
+    config["filters"]["tokens"] = {"()": TokenRedaction}
+    config["handlers"]["server"]["filters"].append("tokens")
     return config

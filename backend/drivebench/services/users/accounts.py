@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import logging
 import re
 import secrets
 import threading
@@ -37,6 +38,8 @@ from drivebench.services.storage.models import (
     utcnow,
 )
 from drivebench.services.users.principals import Principal, Role
+
+log = logging.getLogger(__name__)
 
 TOKEN_PREFIX = "dbt_"
 NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9._@-]{0,59}")
@@ -525,13 +528,19 @@ class SignIn:
 
     def __call__(self, name: str, password: str, address: str) -> Principal:
         user_key, address_key = f"user:{name.strip().lower()}", f"address:{address}"
-        self.per_user.check(user_key, _("for {name}").format(name=name.strip()))
-        self.per_address.check(address_key, _("from {address}").format(address=address))
+        shown_name = name.strip()[:64]  # never the password: only who tried, from where, and what happened
+        try:
+            self.per_user.check(user_key, _("for {name}").format(name=shown_name))
+            self.per_address.check(address_key, _("from {address}").format(address=address))
+        except LoginLocked:
+            log.warning("sign-in refused for user %r from %s: too many failed attempts", shown_name, address)
+            raise
         try:
             principal = verify_password(name, password)
         except NotAuthenticated:
             self.per_user.failed(user_key)
             self.per_address.failed(address_key)
+            log.warning("sign-in failed for user %r from %s: wrong name or password", shown_name, address)
             raise
         self.per_user.succeeded(user_key)
         self.per_address.succeeded(address_key)
