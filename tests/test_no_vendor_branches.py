@@ -42,12 +42,7 @@ CITING_TEXTS: dict[str, int] = {
 }
 """User texts that cite a manual by its device (prose a user reads, not a branch), with how many names each holds."""
 
-KNOWN_EXCEPTIONS: dict[str, int] = {
-    "device/formats/eds_export.py": 2,
-    "device/profiles/addressing.py": 12,
-    "device/profiles/catalog.py": 9,
-    "device/profiles/profile.py": 4,
-}
+KNOWN_EXCEPTIONS: dict[str, int] = {}
 """Modules that still name a vendor, with how many names each may hold: the numbers only go down."""
 
 
