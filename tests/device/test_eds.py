@@ -14,12 +14,12 @@ from drivebench.device.formats.eds import MAX_EDS_BYTES, import_eds, read_eds, r
 from drivebench.device.formats.eds_export import export_eds
 from drivebench.device.profiles.profile import (
     Access,
+    CodeAddressing,
     Identity,
-    LenzeCodeAddressing,
     ObjectEntry,
     Parameter,
+    ParameterNumberAddressing,
     Profile,
-    SiemensParameterAddressing,
 )
 from drivebench.errors import ProfileError, UnknownParameter
 from drivebench.protocol.datatypes import DataType
@@ -171,8 +171,8 @@ def test_dcf_values_for_unknown_objects_are_refused() -> None:
         export_eds(load("cia402_servo.eds"), dcf=True, values={(0x2FFF, 0): 1})
 
 
-def _vendor_profile(addressing: LenzeCodeAddressing | SiemensParameterAddressing) -> Profile:
-    lenze = isinstance(addressing, LenzeCodeAddressing)
+def _vendor_profile(addressing: CodeAddressing | ParameterNumberAddressing) -> Profile:
+    lenze = isinstance(addressing, CodeAddressing)
     code = "C00088" if lenze else "P0305"
     return Profile(
         id="vendor-test", family="test", addressing=addressing,
@@ -189,7 +189,7 @@ def _vendor_profile(addressing: LenzeCodeAddressing | SiemensParameterAddressing
 
 
 def test_lenze_codes_become_manufacturer_objects_at_their_index() -> None:
-    exported = import_eds(export_eds(_vendor_profile(LenzeCodeAddressing())), source="x.eds")
+    exported = import_eds(export_eds(_vendor_profile(CodeAddressing())), source="x.eds")
     assert obj(exported, 0x5FA7).name == "C00088: Rated motor current"
     assert (obj(exported, 0x5FA7).default, obj(exported, 0x5FA7).factor) == (10.2, 100)
     assert obj(exported, 0x5FFF - 2088).name == "C02088: Rated motor current (parameter set 2)"
@@ -202,7 +202,7 @@ def test_lenze_codes_become_manufacturer_objects_at_their_index() -> None:
 
 
 def test_siemens_parameters_use_their_index() -> None:
-    exported = import_eds(export_eds(_vendor_profile(SiemensParameterAddressing())), source="x.eds")
+    exported = import_eds(export_eds(_vendor_profile(ParameterNumberAddressing())), source="x.eds")
     assert obj(exported, 0x2000 + 305).name == "P0305: Rated motor current"
     assert obj(exported, 0x2000 + 27, 2).name == "r0027.2: CAN2 OUT"
 

@@ -9,7 +9,7 @@ import pytest
 from drivebench.device.profiles.addressing import code_to_index, index_to_code
 from drivebench.device.profiles.catalog import Catalog
 from drivebench.device.profiles.loader import ProfileRegistry
-from drivebench.device.profiles.profile import Access, LenzeCodeAddressing, Profile
+from drivebench.device.profiles.profile import Access, CodeAddressing, Profile
 from drivebench.errors import UnknownParameter
 from drivebench.protocol.datatypes import DataType
 
@@ -89,7 +89,7 @@ def test_emf_codes_lie_between_0x40c0_and_0x5fff(registry: ProfileRegistry, prof
     """EMF2178IB §10.1: 'The index for Lenze code numbers is between 16576 (0x40C0) and 24575 (0x5FFF)'."""
     profile = registry.get(profile_id)
     addressing = profile.addressing
-    assert isinstance(addressing, LenzeCodeAddressing)
+    assert isinstance(addressing, CodeAddressing)
     assert code_to_index(addressing, 7999) == (0x40C0, 0) and code_to_index(addressing, 0) == (0x5FFF, 0)
     with pytest.raises(UnknownParameter, match="0x40C0 and 0x5FFF"):
         code_to_index(addressing, 8000)
@@ -102,5 +102,5 @@ def test_emf_codes_lie_between_0x40c0_and_0x5fff(registry: ProfileRegistry, prof
 def test_8400_codes_keep_their_wider_range(registry: ProfileRegistry) -> None:
     """The 8400 codes reach below 0x40C0 (EtherCAT C13902 = 0x29B1)."""
     addressing = registry.get(ETHERCAT).addressing
-    assert isinstance(addressing, LenzeCodeAddressing)
+    assert isinstance(addressing, CodeAddressing)
     assert code_to_index(addressing, 13902) == (0x29B1, 0)

@@ -13,7 +13,7 @@ import pytest
 from drivebench.config import REPO_ROOT
 from drivebench.device.profiles.addressing import code_to_index, index_to_code
 from drivebench.device.profiles.catalog import Catalog
-from drivebench.device.profiles.profile import Access, Profile, SiemensParameterAddressing
+from drivebench.device.profiles.profile import Access, ParameterNumberAddressing, Profile
 from drivebench.errors import UnknownParameter
 from drivebench.protocol.datatypes import DataType
 from drivebench.protocol.sdo_server import SdoAbort
@@ -35,7 +35,7 @@ def catalog(profile: Profile) -> Catalog:
 
 def test_file_validates_with_identity_and_features(profile: Profile) -> None:
     assert profile.id == "siemens-micromaster4-canopen" and profile.family == "siemens-mm4"
-    assert isinstance(profile.addressing, SiemensParameterAddressing) and profile.addressing.base == 0x2000
+    assert isinstance(profile.addressing, ParameterNumberAddressing) and profile.addressing.base == 0x2000
     ident = profile.identity
     assert (ident.vendor_id, ident.product_code, ident.device_type) == (0x06000053, 2, 0x00010192)
     assert ident.order_codes == ["6SE6400-1CB00-0AA0"]
@@ -63,7 +63,7 @@ def test_catalog_resolves_the_manuals_addresses(catalog: Catalog, ref: str, inde
 
 
 def test_parameter_channel_rule_and_free_objects() -> None:
-    rule = SiemensParameterAddressing()
+    rule = ParameterNumberAddressing()
     assert [code_to_index(rule, n, s) for n, s in [(2041, 3), (2010, 0), (918, 0), (964, 2), (1203, 0), (1501, 0)]] \
         == [(0x27F9, 3), (0x27DA, 0), (0x2396, 0), (0x23C4, 2), (0x24B3, 0), (0x25DD, 0)]
     assert index_to_code(rule, 0x283E, 0) == (2110, 0)

@@ -13,7 +13,7 @@ from collections.abc import Callable
 import can
 import pytest
 
-from drivebench.simulator.lenze_control import OPERATION_ENABLED, OPERATION_ENABLED_EMF, OPERATION_INHIBITED
+from drivebench.simulator.lenze_control import OPERATION_ENABLED, OPERATION_ENABLED_AIF, OPERATION_INHIBITED
 from drivebench.simulator.plant import Plant
 from tests.simulator.wire_script import WireScript
 
@@ -61,7 +61,7 @@ def test_8200_vector_minimal_enable_sequence(plant: Plant, script: WireScript) -
     assert _device_status(word) == OPERATION_INHIBITED and word & 0x0080  # DCTRL1-CINH
     _write(script, VECTOR, C1822, 2, 1250, 2)  # AIF-IN.W1 = 25 Hz (24000 = 480 Hz)
     _write(script, VECTOR, C0135, 0, 0x0000, 2)  # controller enable
-    word = _until(script, VECTOR, C0150, 0, lambda w: _device_status(w) == OPERATION_ENABLED_EMF)
+    word = _until(script, VECTOR, C0150, 0, lambda w: _device_status(w) == OPERATION_ENABLED_AIF)
     assert word & 0x8000 and not word & 0x0080  # DCTRL1-RDY, no CINH
     _until(script, VECTOR, C1823, 2, lambda actual: actual == 1250)
     _write(script, VECTOR, C0135, 0, 0x0008, 2)  # QSP
@@ -77,7 +77,7 @@ def test_8200_vector_trip_set_and_trip_reset(plant: Plant, script: WireScript) -
     _write(script, VECTOR, C0135, 0, 0x0000, 2)
     assert _device_status(_read16(script, VECTOR, C0150)) == 8, "only the rising edge of TRIP-RESET resets"
     _write(script, VECTOR, C0135, 0, 0x0800, 2)  # TRIP-RESET edge 0 -> 1
-    assert _device_status(_read16(script, VECTOR, C0150)) in (OPERATION_INHIBITED, OPERATION_ENABLED_EMF)
+    assert _device_status(_read16(script, VECTOR, C0150)) in (OPERATION_INHIBITED, OPERATION_ENABLED_AIF)
 
 
 def test_8400_motec_can1_in_control_word(plant: Plant, script: WireScript) -> None:

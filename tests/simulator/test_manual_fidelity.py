@@ -9,7 +9,7 @@ import canopen
 import pytest
 
 from drivebench.device.profiles.loader import ProfileRegistry
-from drivebench.simulator.lenze_control import LenzeControl
+from drivebench.simulator.lenze_control import WordControl
 from drivebench.simulator.plant import Plant, PlantFile, PlantNode
 from tests.conftest import wait_until
 from tests.simulator.canopen_master import abort_code, remote
@@ -85,7 +85,7 @@ def test_8200_control_word_changes_over_the_parameter_set(master: canopen.Networ
     then ramps with the active set's acceleration time (C0012 / C2012 ...)."""
     node, drive = remote(master, VECTOR), plant.nodes[VECTOR]
     control = drive.drive
-    assert isinstance(control, LenzeControl)
+    assert isinstance(control, WordControl)
     node.sdo.download(c_index(2012), 0, (1 * 10000).to_bytes(4, "little"))  # C2012 = 1 s, set 1 keeps its 5 s
     ramp_set_1 = control.ramp_per_s()
 

@@ -23,7 +23,7 @@ from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.device.profiles.profile import Access, ObjectEntry, Profile
 from drivebench.protocol.datatypes import DataType
 from drivebench.protocol.nmt import NmtState
-from drivebench.simulator.lenze_control import INIT, LenzeControl
+from drivebench.simulator.lenze_control import INIT, WordControl
 from drivebench.simulator.node import LOAD_SIGNATURE, SAVE_SIGNATURE, Latency, SimulatedNode
 from drivebench.simulator.plant import Plant, PlantFile, PlantNode
 from tests.conftest import wait_for_value
@@ -326,7 +326,7 @@ def test_event_tpdo_is_sent_per_its_mapping_only_when_operational(master: canope
     drive = plant.nodes[LENZE_8200]
     # AIF-OUT word 1 is also the status word: wait until the drive has left its start-up state and published it
     # (a test that wrote first lost its value to that publication on a loaded machine)
-    wait_for(lambda: isinstance(drive.drive, LenzeControl) and drive.drive.device_state != INIT
+    wait_for(lambda: isinstance(drive.drive, WordControl) and drive.drive.device_state != INIT
              and drive.store.get(0x58E0, 1) != 0)
     drive.store.set(0x58E0, 1, 0x1234)
     drive.store.set(0x58E0, 3, -2)

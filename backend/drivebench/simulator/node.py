@@ -27,7 +27,7 @@ from drivebench.protocol.sdo_server import SdoAbort as Abort
 from drivebench.protocol.sdo_server import SdoServer
 from drivebench.simulator.drive402 import Drive402
 from drivebench.simulator.faults import FaultState
-from drivebench.simulator.lenze_control import LenzeControl
+from drivebench.simulator.lenze_control import WordControl
 from drivebench.simulator.pdo import PdoEngine
 from drivebench.simulator.servo402 import Servo402
 from drivebench.simulator.store import ObjectStore, RawValue
@@ -40,6 +40,9 @@ UNTIMED_DRIVE_TICK_S = 0.002
 """How often a drive model without ``next_tick()`` (its own deadline, None at rest) is cycled."""
 SAVE_SIGNATURE = int.from_bytes(b"save", "little")
 LOAD_SIGNATURE = int.from_bytes(b"load", "little")
+DEVICE_COMMAND_SAVE, DEVICE_COMMAND_RESET_NODE = 11, 26
+"""Subcodes of a device-command code (8400 motec CANopen manual: C00002/11 save all parameter sets, C00002/26 CAN
+reset node); the code is the one the profile's save command writes."""
 
 
 @dataclass(frozen=True)
@@ -81,7 +84,7 @@ LatencyText = Annotated[str, AfterValidator(_checked_latency)]
 """A plant file's latency field (``"30ms±20ms"``), checked when the file is read."""
 
 
-def _device_control(node: SimulatedNode) -> Drive402 | LenzeControl | Servo402 | None:
+def _device_control(node: SimulatedNode) -> Drive402 | WordControl | Servo402 | None:
     """The drive model the profile's control section names (``simulation``); a profile without one whose objects
     have 0x6040/0x6041 is a generic CiA 402 servo."""
     control = node.profile.control
@@ -93,8 +96,21 @@ def _device_control(node: SimulatedNode) -> Drive402 | LenzeControl | Servo402 |
         return Drive402(node)
     if model == "cia402_servo":
         return Servo402(node)
-    words = LenzeControl.words_for(node, model)
-    return LenzeControl(node, words) if words is not None else None
+    words = WordControl.words_for(node, model)
+    return WordControl(node, words) if words is not None else None
+
+
+def _device_command_code(profile: Profile, store: ObjectStore) -> tuple[int, int] | None:
+    """(index, value) of the device-command code the profile's save command writes at its save subcode
+    (``C00002/11`` := 1 -> (0x5FFD, 1)); None where the device saves otherwise (CiA 301 0x1010)."""
+    save = profile.commands.save if profile.commands is not None else None
+    if save is None or not isinstance(save.value, int):
+        return None
+    try:
+        item = store.catalog.resolve(save.ref)
+    except UnknownParameter:
+        return None
+    return (item.index, save.raw) if item.subindex == DEVICE_COMMAND_SAVE else None
 
 
 def _seconds(text: str) -> float:
@@ -124,6 +140,7 @@ class SimulatedNode:
         configured = (profile.switches.configured_values(node_id, bitrate)
                       if profile.switches is not None and bitrate is not None else {})
         self.store = ObjectStore(profile, node_id, {**configured, **(values or {})})
+        self._device_command_code = _device_command_code(profile, self.store)
         self.telegram_counters = DeviceTelegramCounters(self.store, node_id)
         if heartbeat_ms is not None and self.store.has(0x1017, 0):
             self.store.set(0x1017, 0, heartbeat_ms, notify=False)
@@ -300,7 +317,7 @@ class SimulatedNode:
             self._build_sdo_servers()
         elif 0x1400 <= index <= 0x1BFF:
             self.pdo.reconfigure()
-        self._lenze_device_command(index, sub, raw)
+        self._device_command(index, sub, raw)
 
     def _store_or_restore(self, index: int, sub: int, raw: RawValue) -> None:
         """CiA 301 0x1010 'save' / 0x1011 'load' (defaults take effect at the next reset); any other value aborts."""
@@ -312,13 +329,14 @@ class SimulatedNode:
         else:
             self.store.saved = ObjectStore(self.profile, self.node_id).snapshot()
 
-    def _lenze_device_command(self, index: int, sub: int, raw: RawValue) -> None:
-        """Lenze C00002 device commands (8400: index 0x5FFD): /11 save, /26 CAN reset node."""
-        if self.profile.addressing.kind != "lenze_code" or index != 0x5FFF - 2 or raw != 1:
+    def _device_command(self, index: int, sub: int, raw: RawValue) -> None:
+        """Device commands of the code the profile's save command writes (8400: C00002, index 0x5FFD, 8400 motec
+        CANopen manual: C00002/11 save all parameter sets, C00002/26 CAN reset node), each written as 1."""
+        if (index, raw) != self._device_command_code or sub not in (DEVICE_COMMAND_SAVE, DEVICE_COMMAND_RESET_NODE):
             return
-        if sub == 11:
+        if sub == DEVICE_COMMAND_SAVE:
             self.store.saved = self.store.snapshot()
-        elif sub == 26:
+        else:
             threading.Timer(0.01, self._on_nmt, args=(bytes([NmtCommand.RESET_NODE, self.node_id]),)).start()
 
     def on_remote_request(self, cob_id: int) -> None:

@@ -23,7 +23,7 @@ COB_INVALID = 0x80000000
 # MICROMASTER (manual ch. 5.6, table 5-1): P2041 (0x27F9) keeps the PDO5/6 mappings as one bit per object and the
 # transmission types as bytes / sync bits, so CANopen writes show up there (the traces read 0x2103 after mapping
 # RPDO5 = 6040 + 6042, TPDO5 = 6041 + 6044). Only this direction is modelled: writing P2041 leaves the objects.
-MM4_FAMILY = "siemens-mm4"
+# It applies where the profile's pdo_rules keep the mappings as bits in that parameter (``mapping_bits``).
 P2041 = 0x27F9
 P2041_MAPPING: dict[int, tuple[str, int, int]] = {  # mapping index -> (direction, P2041 sub, bit shift)
     0x1604: ("rpdo", 2, 0), 0x1A04: ("tpdo", 2, 8), 0x1605: ("rpdo", 3, 0), 0x1A05: ("tpdo", 3, 8)}
@@ -51,6 +51,19 @@ def _int(value: object, default: int = 0) -> int:
     return value if isinstance(value, int) else default
 
 
+def _mapping_bits_in(node: DeviceHost, index: int) -> bool:
+    """The profile's pdo_rules say the parameter at ``index`` keeps PDO mappings as one bit per object."""
+    rules = node.profile.pdo_rules
+    refs = {selecting.ref for bits in (rules.mapping_bits if rules else []) for selecting in bits.pdos}
+    for ref in refs:
+        try:
+            if node.store.catalog.resolve(ref).index == index:
+                return True
+        except UnknownParameter:
+            continue
+    return False
+
+
 class PdoEngine:
     def __init__(self, node: DeviceHost) -> None:
         self.node = node
@@ -58,7 +71,7 @@ class PdoEngine:
         self.tpdos: list[PdoConfig] = []
         self._lock = threading.Lock()
         node.store.add_write_check(self.check_write)
-        if node.profile.family == MM4_FAMILY and node.store.has(P2041, 2):
+        if _mapping_bits_in(node, P2041) and node.store.has(P2041, 2):
             node.store.add_write_hook(self._mirror_p2041)
 
     # --- CiA 301 rules for changing a mapping (7.5.2.36/38): the device refuses what would break a PDO ----------

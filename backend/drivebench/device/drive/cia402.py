@@ -23,6 +23,35 @@ from drivebench.device.drive.control import (
 from drivebench.device.profiles.profile import Profile
 from drivebench.i18n import DEFAULT, N_, _, current
 
+# --- the objects, as refs, by their CiA 402-2 names (services/control names them only so) --------------------------
+ERROR_CODE = "0x603F"
+CONTROL_WORD, STATUS_WORD = "0x6040", "0x6041"
+QUICK_STOP_OPTION_CODE = "0x605A"
+MODES_OF_OPERATION, MODES_OF_OPERATION_DISPLAY = "0x6060", "0x6061"
+POSITION_ACTUAL_VALUE, VELOCITY_ACTUAL_VALUE = "0x6064", "0x606C"
+TARGET_TORQUE, MAX_TORQUE = "0x6071", "0x6072"
+TARGET_POSITION, HOME_OFFSET = "0x607A", "0x607C"
+MIN_POSITION_LIMIT, MAX_POSITION_LIMIT = "0x607D.1", "0x607D.2"
+"""The software position limits (0/0: none)."""
+MAX_PROFILE_VELOCITY, PROFILE_VELOCITY = "0x607F", "0x6081"
+PROFILE_ACCELERATION, PROFILE_DECELERATION, QUICK_STOP_DECELERATION = "0x6083", "0x6084", "0x6085"
+POSITION_ENCODER_RESOLUTION, GEAR_RATIO, FEED_CONSTANT = "0x608F", "0x6091", "0x6092"
+HOMING_METHOD, HOMING_ACCELERATION = "0x6098", "0x609A"
+SPEED_SEARCH_FOR_SWITCH, SPEED_SEARCH_FOR_ZERO = "0x6099.1", "0x6099.2"
+SI_UNIT_POSITION, SI_UNIT_VELOCITY = "0x60A8", "0x60A9"
+INTERPOLATION_DATA_RECORD = "0x60C1.1"
+INTERPOLATION_PERIOD_VALUE, INTERPOLATION_PERIOD_INDEX = "0x60C2.1", "0x60C2.2"
+"""Interpolation time period: value x 10^index s."""
+SUPPORTED_HOMING_METHODS = "0x60E3"
+"""An array: sub 0 the count, sub n a method."""
+DIGITAL_INPUTS, TARGET_VELOCITY = "0x60FD", "0x60FF"
+SUPPORTED_DRIVE_MODES = "0x6502"
+
+
+def sub(ref: str, subindex: int) -> str:
+    """``ref`` at ``subindex`` (``sub(SUPPORTED_HOMING_METHODS, 2)`` = ``0x60E3.2``)."""
+    return f"{ref}.{subindex}"
+
 STATE_MASKS = (  # (mask, value, state) on status word bits 0, 1, 2, 3, 5, 6
     (0x4F, 0x00, "not_ready"), (0x4F, 0x40, "switch_on_disabled"), (0x6F, 0x21, "ready"),
     (0x6F, 0x23, "switched_on"), (0x6F, 0x27, "operation_enabled"), (0x6F, 0x07, "quick_stop_active"),
@@ -88,6 +117,8 @@ MODE_OBJECTS = {1: (0x607A, 0x6081), 2: (0x6042,), 3: (0x60FF,), 4: (0x6071,), 6
 """The objects a mode needs in the object dictionary (modes found from the EDS when there is no 0x6502)."""
 CYCLIC_MODES = (7, 8, 9, 10)
 """Modes whose setpoint travels in an RPDO every SYNC (7: the interpolation data record 0x60C1.1)."""
+CYCLIC_TARGETS = {7: INTERPOLATION_DATA_RECORD, 8: TARGET_POSITION, 9: TARGET_VELOCITY, 10: TARGET_TORQUE}
+"""The setpoint a cyclic mode's RPDO carries each SYNC."""
 
 
 def mode_label(mode: int) -> str:

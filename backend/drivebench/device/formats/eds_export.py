@@ -24,7 +24,7 @@ from drivebench.device.formats.eds import (
 from drivebench.device.formats.eds_compact import compact_sections, fits_compact
 from drivebench.device.profiles.addressing import code_to_index, format_code
 from drivebench.device.profiles.catalog import Catalog
-from drivebench.device.profiles.profile import Access, LenzeCodeAddressing, ObjectEntry, Parameter, Profile, Value
+from drivebench.device.profiles.profile import Access, CodeAddressing, ObjectEntry, Parameter, Profile, Value
 from drivebench.errors import ProfileError, UnknownParameter
 from drivebench.i18n import _
 from drivebench.protocol.datatypes import DataType
@@ -76,7 +76,7 @@ def _parameter_objects(profile: Profile, taken: set[int]) -> list[ObjectEntry]:
             continue
         places = [(item.index, item.subindex, par.code, "")]
         addressing = profile.addressing
-        if isinstance(addressing, LenzeCodeAddressing) and par.index is None:
+        if isinstance(addressing, CodeAddressing) and par.index is None:
             number = int("".join(ch for ch in par.code if ch.isdigit()))
             for pset in range(2, par.parameter_sets + 1):
                 set_number = number + addressing.set_offset * (pset - 1)

@@ -12,15 +12,13 @@ from dataclasses import dataclass
 from drivebench.device.profiles.profile import (
     Addressing,
     CanopenOnlyAddressing,
-    LenzeCodeAddressing,
-    SiemensParameterAddressing,
+    CodeAddressing,
+    ParameterNumberAddressing,
 )
 from drivebench.errors import UnknownParameter
 from drivebench.i18n import _
 
 _INDEX_RE = re.compile(r"^(?:0x)?([0-9a-f]{4})(?:(?:\.|sub|:|/)(0x)?([0-9a-f]{1,3}))?$", re.IGNORECASE)
-# MICROMASTER: 0x2802/0x2803 are the free process-data objects, not r2050/P2051 on the parameter channel.
-_MM4_FREE_OBJECTS = (0x2802, 0x2803)
 _CODE_RE = re.compile(r"^([CPR])?\s*0*(\d{1,5})(?:[./](\d{1,3}))?$", re.IGNORECASE)
 
 
@@ -75,7 +73,7 @@ def parse_ref(text: str) -> Ref:
 
 def code_to_index(addressing: Addressing, number: int, subcode: int = 0) -> tuple[int, int]:
     """Vendor code number (including a Lenze parameter-set offset, C2011 = C0011 in set 2) -> (index, sub)."""
-    if isinstance(addressing, LenzeCodeAddressing):
+    if isinstance(addressing, CodeAddressing):
         index = addressing.base - number
         if not addressing.lowest_index <= index <= addressing.base:
             raise UnknownParameter(_("Code C{number} is outside the Lenze code range (index {index}; codes lie "
@@ -83,9 +81,9 @@ def code_to_index(addressing: Addressing, number: int, subcode: int = 0) -> tupl
                                          number=number, index=f"0x{index:04X}",
                                          lowest=f"0x{addressing.lowest_index:04X}", base=f"0x{addressing.base:04X}"))
         return index, subcode
-    if isinstance(addressing, SiemensParameterAddressing):
+    if isinstance(addressing, ParameterNumberAddressing):
         index = addressing.base + number
-        if index in _MM4_FREE_OBJECTS or index > 0x5FFF:
+        if index in addressing.not_parameters or index > 0x5FFF:
             raise UnknownParameter(_("Parameter {number} is not on the MICROMASTER parameter channel "
                                      "(0x2000..0x2801, 0x2804..0x5FFF)").format(number=number))
         return index, subcode
@@ -94,12 +92,12 @@ def code_to_index(addressing: Addressing, number: int, subcode: int = 0) -> tupl
 
 def index_to_code(addressing: Addressing, index: int, subindex: int) -> tuple[int, int] | None:
     """(index, sub) -> (code number, subcode), or None where the index is not a vendor parameter."""
-    if isinstance(addressing, LenzeCodeAddressing):
+    if isinstance(addressing, CodeAddressing):
         number = addressing.base - index
         in_range = 0 <= number <= addressing.base - addressing.lowest_index and index < 0x6000
         return (number, subindex) if in_range else None
-    if isinstance(addressing, SiemensParameterAddressing):
-        if 0x2000 <= index <= 0x5FFF and index not in _MM4_FREE_OBJECTS:
+    if isinstance(addressing, ParameterNumberAddressing):
+        if 0x2000 <= index <= 0x5FFF and index not in addressing.not_parameters:
             return index - addressing.base, subindex
         return None
     if isinstance(addressing, CanopenOnlyAddressing):
@@ -107,13 +105,13 @@ def index_to_code(addressing: Addressing, index: int, subindex: int) -> tuple[in
     return None
 
 
-def lenze_parameter_set(addressing: Addressing, number: int) -> tuple[int, int]:
+def code_parameter_set(addressing: Addressing, number: int) -> tuple[int, int]:
     """C2011 -> (11, 2): the base code number and the parameter set (1..4) it addresses."""
-    if isinstance(addressing, LenzeCodeAddressing) and addressing.set_offset:
+    if isinstance(addressing, CodeAddressing) and addressing.set_offset:
         return number % addressing.set_offset, number // addressing.set_offset + 1
     return number, 1
 
 
 def format_code(addressing: Addressing, prefix: str, number: int) -> str:
-    digits = addressing.code_digits if isinstance(addressing, LenzeCodeAddressing) else 4
+    digits = addressing.code_digits if isinstance(addressing, CodeAddressing) else 4  # P2041, r0947
     return f"{prefix}{number:0{digits}d}"

@@ -9,13 +9,13 @@ from functools import cached_property
 from drivebench.device.profiles.addressing import (
     CodeRef,
     IndexRef,
+    code_parameter_set,
     code_to_index,
     format_code,
     index_to_code,
-    lenze_parameter_set,
     parse_ref,
 )
-from drivebench.device.profiles.profile import Access, Entry, LenzeCodeAddressing, ObjectEntry, Parameter, Profile
+from drivebench.device.profiles.profile import Access, CodeAddressing, Entry, ObjectEntry, Parameter, Profile
 from drivebench.errors import UnknownParameter
 from drivebench.i18n import _
 from drivebench.protocol.datatypes import DataType
@@ -108,7 +108,7 @@ class Catalog:
         entry = item.entry
         if parameter_set == 1 or not isinstance(entry, Parameter) or entry.parameter_sets < parameter_set:
             return item
-        number, pset = lenze_parameter_set(self.profile.addressing, _number(entry.code))
+        number, pset = code_parameter_set(self.profile.addressing, _number(entry.code))
         code = format_code(self.profile.addressing, "C", number + (parameter_set - pset) * _set_offset(self))
         return self.resolve(code if entry.subcode == 0 else f"{code}/{entry.subcode}")
 
@@ -136,7 +136,7 @@ class Catalog:
         """An index of a parameter the profile lists only as ``.0`` (MICROMASTER ``P0700.1``): that parameter at
         sub-index n, where the addressing rule makes the index after the point the sub-index (the device aborts
         0x06090011 if it has none)."""
-        if self.profile.addressing.kind != "siemens_mm4" or not isinstance(ref, CodeRef) or not ref.subcode:
+        if not self.profile.addressing.point_is_subindex or not isinstance(ref, CodeRef) or not ref.subcode:
             return None
         try:
             base = self.resolve(f"{ref.prefix}{ref.number}")
@@ -167,7 +167,7 @@ class Catalog:
                 if item is not None:
                     return item
         # Lenze parameter sets: C2011 is C0011 in parameter set 2.
-        base_number, pset = lenze_parameter_set(addressing, ref.number)
+        base_number, pset = code_parameter_set(addressing, ref.number)
         if pset > 1:
             base = self._resolve_code(CodeRef(ref.prefix, base_number, ref.subcode), text)
             if isinstance(base.entry, Parameter) and base.entry.parameter_sets >= pset:
@@ -206,7 +206,7 @@ class Catalog:
         if found is None:
             return index_ref(index, subindex)
         number, sub = found
-        prefix = "P" if self.profile.addressing.kind == "siemens_mm4" else "C"
+        prefix = self.profile.addressing.prefix
         code = format_code(self.profile.addressing, prefix, number)
         return code if sub == 0 else f"{code}/{sub}"
 
@@ -242,4 +242,4 @@ def _number(code: str) -> int:
 
 def _set_offset(catalog: Catalog) -> int:
     addressing = catalog.profile.addressing
-    return addressing.set_offset if isinstance(addressing, LenzeCodeAddressing) else 0
+    return addressing.set_offset if isinstance(addressing, CodeAddressing) else 0

@@ -15,7 +15,7 @@ JSON files in ``device_profiles/`` are this model serialised; ``/api/profiles/sc
 from __future__ import annotations
 
 from enum import StrEnum
-from typing import Annotated, Literal
+from typing import Annotated, ClassVar, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
@@ -219,9 +219,12 @@ class Parameter(Entry):
         return f"{self.code}{sep}{self.subcode}"
 
 
-class LenzeCodeAddressing(BaseModel):
+class CodeAddressing(BaseModel):
     """Lenze: index = 0x5FFF - (code + set_offset * (parameter set - 1)), subindex = subcode."""
 
+    prefix: ClassVar[str] = "C"
+    """How a code is written (``C00088``)."""
+    point_is_subindex: ClassVar[bool] = False
     kind: Literal["lenze_code"] = "lenze_code"
     base: HexInt = 0x5FFF
     lowest_index: HexInt = 0x2000
@@ -231,19 +234,29 @@ class LenzeCodeAddressing(BaseModel):
     """How the manual prints codes: 5 for ``C00088`` (8400), 4 for ``C0088`` (8200 vector/93XX)."""
 
 
-class SiemensParameterAddressing(BaseModel):
+class ParameterNumberAddressing(BaseModel):
     """MICROMASTER: index = 0x2000 + parameter number, subindex = the index after the point."""
 
+    prefix: ClassVar[str] = "P"
+    """How a parameter is written where the profile does not list it (``P2041``)."""
+    point_is_subindex: ClassVar[bool] = True
+    """A parameter the profile lists as ``.0`` has its index n after the point at sub-index n."""
     kind: Literal["siemens_mm4"] = "siemens_mm4"
     base: HexInt = 0x2000
+    not_parameters: list[HexInt] = Field(default_factory=lambda: [0x2802, 0x2803])
+    """Indices in the parameter range that are objects of their own, not parameters on the parameter channel
+    (MICROMASTER CANopen option manual, object index rule: parameter channel 0x2000...0x2801 and 0x2804...0x5FFF;
+    0x2802/0x2803 are the free process-data objects, not r2050/P2051)."""
 
 
 class CanopenOnlyAddressing(BaseModel):
+    prefix: ClassVar[str] = "C"
+    point_is_subindex: ClassVar[bool] = False
     kind: Literal["canopen"] = "canopen"
 
 
 Addressing = Annotated[
-    LenzeCodeAddressing | SiemensParameterAddressing | CanopenOnlyAddressing, Field(discriminator="kind")
+    CodeAddressing | ParameterNumberAddressing | CanopenOnlyAddressing, Field(discriminator="kind")
 ]
 
 

@@ -321,17 +321,18 @@ def mode_label(fam: Family, mode: int) -> str:
 
 
 async def _mode(session: Session, node: SessionNode) -> int | None:
-    if family(node).section.state_machine != "cia402" or not has_ref(catalog_of(node), "0x6061"):
+    shown = cia402.MODES_OF_OPERATION_DISPLAY
+    if family(node).section.state_machine != "cia402" or not has_ref(catalog_of(node), shown):
         return None
-    raw = (await parameters.read(session, node.node_id, "0x6061")).raw
+    raw = (await parameters.read(session, node.node_id, shown)).raw
     return int(raw) if isinstance(raw, int) else None
 
 
 async def modes(session: Session, node: SessionNode) -> dict[int, str]:
     """The modes the panel offers: the section's, for a generic drive those 0x6502 names (else its EDS lists)."""
     fam = family(node)
-    if fam.generic and has_ref(catalog_of(node), "0x6502"):
-        raw = (await parameters.read(session, node.node_id, "0x6502")).raw
+    if fam.generic and has_ref(catalog_of(node), cia402.SUPPORTED_DRIVE_MODES):
+        raw = (await parameters.read(session, node.node_id, cia402.SUPPORTED_DRIVE_MODES)).raw
         if isinstance(raw, int):
             return {mode: cia402.mode_label(mode) for mode in cia402.modes_from_6502(raw)}
     return section_modes(fam)
@@ -359,14 +360,16 @@ async def _diagnostics(session: Session, node: SessionNode, unread: dict[str, st
     """Digital inputs 0x60FD and error code 0x603F of a generic CiA 402 drive (where it has them)."""
     catalog = catalog_of(node)
     inputs: list[Bit] = []
-    if has_ref(catalog, "0x60FD"):
-        raw = (await _optional(unread, "0x60FD", parameters.read(session, node.node_id, "0x60FD"), None))
-        if raw is not None:
-            word = int(raw.raw) if isinstance(raw.raw, int) else 0
+    if has_ref(catalog, cia402.DIGITAL_INPUTS):
+        read = await _optional(unread, cia402.DIGITAL_INPUTS,
+                               parameters.read(session, node.node_id, cia402.DIGITAL_INPUTS), None)
+        if read is not None:
+            word = int(read.raw) if isinstance(read.raw, int) else 0
             inputs = [Bit(bit=bit, name=_(name), set=bool(word >> bit & 1)) for bit, name in cia402.INPUT_BITS.items()]
     code = None
-    if has_ref(catalog, "0x603F"):
-        value = await _optional(unread, "0x603F", parameters.read(session, node.node_id, "0x603F"), None)
+    if has_ref(catalog, cia402.ERROR_CODE):
+        value = await _optional(unread, cia402.ERROR_CODE, parameters.read(session, node.node_id, cia402.ERROR_CODE),
+                                None)
         code = int(value.raw) & 0xFFFF if value is not None and isinstance(value.raw, int) else None
     return inputs, code
 
@@ -380,9 +383,9 @@ async def read_status(session: Session, node: SessionNode, panel: Panel = SERVIC
     except DriveBenchError:
         control_word = None  # write-only on some devices
     unread: dict[str, str] = {}
-    mode = await _optional(unread, "0x6061", _mode(session, node), None)
-    offered = await _optional(unread, "0x6502", modes(session, node), section_modes(fam)) if (
-        mode is not None or "0x6061" in unread) else {}
+    mode = await _optional(unread, cia402.MODES_OF_OPERATION_DISPLAY, _mode(session, node), None)
+    offered = await _optional(unread, cia402.SUPPORTED_DRIVE_MODES, modes(session, node), section_modes(fam)) if (
+        mode is not None or cia402.MODES_OF_OPERATION_DISPLAY in unread) else {}
     scale = await setpoint_scale(session, node, mode)
     inputs, error_code = await _diagnostics(session, node, unread) if fam.generic else ([], None)
     key, label, enabled, fault = describe(fam, status_word)
@@ -580,7 +583,7 @@ async def profile_velocity_jog(session: Session, node: SessionNode, text: str,
                                speed: float | None = None) -> JogPlan:
     """CiA 402 jog: mode 3 at ``speed`` (default a tenth of 0x607F), never above 0x607F."""
     units = await motion_units(session, node)
-    top = await _number(session, node, "0x607F", 0.0) or None
+    top = await _number(session, node, cia402.MAX_PROFILE_VELOCITY, 0.0) or None
     value = speed if speed is not None else round((top or 100.0) / 10, 1)
     if top is not None:
         value = min(abs(value), top)
@@ -616,14 +619,15 @@ async def jog(session: Session, node: SessionNode, direction: int, *, confirm: o
             raise OutOfRange(_("Jog speed {speed} {unit} is above the max profile velocity 0x607F = {top} {unit}.")
                              .format(speed=f"{speed:g}", unit=plan.unit, top=f"{plan.maximum:g}"))
         if direction:
-            velocity = sent(node, "0x60FF", direction * (speed or plan.value), plan.unit)
-            _confirmed(confirm, node, jog_at(speed or plan.value, plan.unit), {**sent(node, "0x6060", 3), **velocity})
+            velocity = sent(node, cia402.TARGET_VELOCITY, direction * (speed or plan.value), plan.unit)
+            _confirmed(confirm, node, jog_at(speed or plan.value, plan.unit),
+                       {**sent(node, cia402.MODES_OF_OPERATION, 3), **velocity})
             guard.arm(node.node_id, panel)
         with cleared():  # confirmed and armed above; 0 (release) stops it
             if direction and status.mode != 3:
-                await parameters.write(session, node.node_id, "0x6060", 3, verify=False)
+                await parameters.write(session, node.node_id, cia402.MODES_OF_OPERATION, 3, verify=False)
             value = direction * (speed or plan.value)
-            await parameters.write(session, node.node_id, "0x60FF", value, verify=False)
+            await parameters.write(session, node.node_id, cia402.TARGET_VELOCITY, value, verify=False)
         _watch_limits(session, node, "jog", value)
         return await read_status(session, node, panel)
     if plan.method == "setpoint":
@@ -647,7 +651,7 @@ MODE_SETTLE_S = 1.0
 async def set_mode(session: Session, node: SessionNode, mode: int, *, confirm: object = None,
                    panel: Panel = SERVICE_PANEL) -> DriveStatus:
     fam = family(node)
-    if fam.section.state_machine != "cia402" or not has_ref(catalog_of(node), "0x6060"):
+    if fam.section.state_machine != "cia402" or not has_ref(catalog_of(node), cia402.MODES_OF_OPERATION):
         raise InvalidValue(_("{device} has no modes of operation (0x6060).").format(device=node.device_name))
     if mode not in await modes(session, node):
         unknown = cia402.shown(fam.section.modes_help) if fam.section.modes_help else _("Mode {mode} is not supported.")
@@ -656,9 +660,9 @@ async def set_mode(session: Session, node: SessionNode, mode: int, *, confirm: o
     status = await read_status(session, node, panel)
     if status.enabled:
         _confirmed(confirm, node, _("Changing the mode of operation while the drive is enabled"),
-                   sent(node, "0x6060", mode))
+                   sent(node, cia402.MODES_OF_OPERATION, mode))
     with cleared():  # confirmed above while enabled; a disabled drive does not move when its mode changes
-        await parameters.write(session, node.node_id, "0x6060", mode, verify=False)
+        await parameters.write(session, node.node_id, cia402.MODES_OF_OPERATION, mode, verify=False)
     deadline = time.monotonic() + MODE_SETTLE_S
     while (status := await read_status(session, node, panel)).mode != mode and time.monotonic() < deadline:
         await asyncio.sleep(0.02)

@@ -83,14 +83,15 @@ _Read = tuple[str | None, str | None, float | None]
 
 
 async def _read_units(session: Session, node: SessionNode) -> _Read:
-    position_code, velocity_code = await _int(session, node, "0x60A8"), await _int(session, node, "0x60A9")
+    position_code = await _int(session, node, cia402.SI_UNIT_POSITION)
+    velocity_code = await _int(session, node, cia402.SI_UNIT_VELOCITY)
     position = cia402.si_unit(position_code) if position_code is not None else None
     velocity = cia402.si_unit(velocity_code) if velocity_code is not None else None
     if position is not None:
         return position, velocity, None
-    encoder = await _ratio(session, node, "0x608F")
-    gear = await _ratio(session, node, "0x6091") or 1.0
-    feed = await _ratio(session, node, "0x6092")
+    encoder = await _ratio(session, node, cia402.POSITION_ENCODER_RESOLUTION)
+    gear = await _ratio(session, node, cia402.GEAR_RATIO) or 1.0
+    feed = await _ratio(session, node, cia402.FEED_CONSTANT)
     return None, velocity, encoder * gear / feed if encoder and feed else None
 
 
@@ -100,22 +101,23 @@ async def position_per_velocity(session: Session, node: SessionNode) -> float:
     position, velocity, _per_unit = await _units_read(session, node)
     if velocity != "rpm":
         return 1.0
-    per_revolution = 360.0 if position == "°" else await _ratio(session, node, "0x6092")
+    per_revolution = 360.0 if position == "°" else await _ratio(session, node, cia402.FEED_CONSTANT)
     return per_revolution / 60 if per_revolution else 1.0
 
 
 async def generic_limits(session: Session, node: SessionNode, ref: str) -> tuple[float | None, float | None]:
     """Range of a CiA 402 setpoint: software position limits 0x607D (0/0: none) for a position, ± 0x607F max
     profile velocity, ± 0x6072 max torque (‰, else ±1000 ‰)."""
-    if ref in ("0x607A", "0x60C1.1"):  # target position, interpolation data record (position)
-        low, high = await _int(session, node, "0x607D.1"), await _int(session, node, "0x607D.2")
+    if ref in (cia402.TARGET_POSITION, cia402.INTERPOLATION_DATA_RECORD):  # both positions
+        low, high = await _int(session, node, cia402.MIN_POSITION_LIMIT), await _int(session, node,
+                                                                                     cia402.MAX_POSITION_LIMIT)
         if low is None or high is None or low == high == 0:
             return None, None
         return float(low), float(high)
-    if ref == "0x60FF":
-        top = await _int(session, node, "0x607F")
+    if ref == cia402.TARGET_VELOCITY:
+        top = await _int(session, node, cia402.MAX_PROFILE_VELOCITY)
         return (-float(top), float(top)) if top else (None, None)
-    if ref == "0x6071":
-        top = await _int(session, node, "0x6072")
+    if ref == cia402.TARGET_TORQUE:
+        top = await _int(session, node, cia402.MAX_TORQUE)
         return -float(top or 1000), float(top or 1000)
     return None, None

@@ -65,17 +65,19 @@ class MotionInfo(BaseModel):
     homing_method: int | None
 
 
-SETTINGS = [("0x6081", N_("Profile velocity"), "velocity"), ("0x6083", N_("Profile acceleration"), "acceleration"),
-            ("0x6084", N_("Profile deceleration"), "acceleration"),
-            ("0x6085", N_("Quick stop deceleration"), "acceleration"),
-            ("0x6099.1", N_("Homing speed: search for switch"), "velocity"),
-            ("0x6099.2", N_("Homing speed: search for zero"), "velocity"),
-            ("0x609A", N_("Homing acceleration"), "acceleration"),
-            ("0x607C", N_("Home offset"), "position"), ("0x607D.1", N_("Software position limit: min"), "position"),
-            ("0x607D.2", N_("Software position limit: max"), "position"),
-            ("0x607F", N_("Max profile velocity"), "velocity"),
-            ("0x60C2.1", N_("Interpolation time period value"), None),
-            ("0x60C2.2", N_("Interpolation time index (period = value x 10^index s)"), None)]
+SETTINGS = [(cia402.PROFILE_VELOCITY, N_("Profile velocity"), "velocity"),
+            (cia402.PROFILE_ACCELERATION, N_("Profile acceleration"), "acceleration"),
+            (cia402.PROFILE_DECELERATION, N_("Profile deceleration"), "acceleration"),
+            (cia402.QUICK_STOP_DECELERATION, N_("Quick stop deceleration"), "acceleration"),
+            (cia402.SPEED_SEARCH_FOR_SWITCH, N_("Homing speed: search for switch"), "velocity"),
+            (cia402.SPEED_SEARCH_FOR_ZERO, N_("Homing speed: search for zero"), "velocity"),
+            (cia402.HOMING_ACCELERATION, N_("Homing acceleration"), "acceleration"),
+            (cia402.HOME_OFFSET, N_("Home offset"), "position"),
+            (cia402.MIN_POSITION_LIMIT, N_("Software position limit: min"), "position"),
+            (cia402.MAX_POSITION_LIMIT, N_("Software position limit: max"), "position"),
+            (cia402.MAX_PROFILE_VELOCITY, N_("Max profile velocity"), "velocity"),
+            (cia402.INTERPOLATION_PERIOD_VALUE, N_("Interpolation time period value"), None),
+            (cia402.INTERPOLATION_PERIOD_INDEX, N_("Interpolation time index (period = value x 10^index s)"), None)]
 
 
 async def _read(session: Session, node: SessionNode, ref: str) -> float | None:
@@ -94,15 +96,16 @@ async def info(session: Session, node: SessionNode) -> MotionInfo:
                         unit=unit_of.get(kind or "") or catalog.resolve(ref).entry.unit)
                 for ref, label, kind in SETTINGS if has_ref(catalog, ref)]
     option = None
-    if has_ref(catalog, "0x605A"):
-        code = await _read(session, node, "0x605A")
+    if has_ref(catalog, cia402.QUICK_STOP_OPTION_CODE):
+        code = await _read(session, node, cia402.QUICK_STOP_OPTION_CODE)
         if code is not None:
             named = QUICK_STOP_OPTIONS.get(int(code))
             option = f"{code:g}: " + (_(named) if named else _("manufacturer-specific") if code < 0 else _("reserved"))
-    method = await _read(session, node, "0x6098") if has_ref(catalog, "0x6098") else None
+    homing = has_ref(catalog, cia402.HOMING_METHOD)
+    method = await _read(session, node, cia402.HOMING_METHOD) if homing else None
     return MotionInfo(position_unit=units.position, velocity_unit=units.velocity, units_from=units.how,
                       quick_stop_option=option, settings=settings,
-                      homing_methods=await homing_methods(session, node) if has_ref(catalog, "0x6098") else {},
+                      homing_methods=await homing_methods(session, node) if homing else {},
                       homing_method=int(method) if method is not None else None)
 
 
@@ -113,9 +116,11 @@ async def homing_methods(session: Session, node: SessionNode) -> dict[int, str]:
     if cached is None:
         catalog = drive_control.catalog_of(node)
         cached = list(cia402.HOMING_METHODS)
-        if has_ref(catalog, "0x60E3.1"):
-            count = int(await _read(session, node, "0x60E3.0") or 0)
-            refs = [f"0x60E3.{sub}" for sub in range(1, count + 1) if has_ref(catalog, f"0x60E3.{sub}")]
+        methods = cia402.SUPPORTED_HOMING_METHODS
+        if has_ref(catalog, cia402.sub(methods, 1)):
+            count = int(await _read(session, node, cia402.sub(methods, 0)) or 0)
+            refs = [cia402.sub(methods, number) for number in range(1, count + 1)
+                    if has_ref(catalog, cia402.sub(methods, number))]
             cached = [found.value for found in await parameters.read_many(session, node.node_id, refs)
                       if not isinstance(found, DriveBenchError) and isinstance(found.value, int)]
         object.__setattr__(node, "_homing_methods", cached)
@@ -149,7 +154,7 @@ async def _edge(session: Session, node: SessionNode, base: int, *, hold: bool) -
         return
     deadline = time.monotonic() + ACK_TIMEOUT_S
     while True:
-        word = (await parameters.read(session, node.node_id, "0x6041")).raw
+        word = (await parameters.read(session, node.node_id, cia402.STATUS_WORD)).raw
         if isinstance(word, int) and word & SET_POINT_ACKNOWLEDGE:
             break
         if time.monotonic() > deadline:
@@ -166,7 +171,8 @@ async def move(session: Session, node: SessionNode, target: float, *, relative: 
     status = await _enabled(session, node, panel, _("A profile-position move"))
     units = await motion_units(session, node)
     if velocity is not None:
-        top = await _read(session, node, "0x607F") if has_ref(drive_control.catalog_of(node), "0x607F") else None
+        top = (await _read(session, node, cia402.MAX_PROFILE_VELOCITY)
+               if has_ref(drive_control.catalog_of(node), cia402.MAX_PROFILE_VELOCITY) else None)
         if velocity <= 0 or (top and velocity > top):
             raise OutOfRange(_("Profile velocity {velocity} {unit} is outside 0 ... {top} {unit} (0x607F max profile "
                                "velocity).").format(velocity=f"{velocity:g}", unit=units.velocity,
@@ -180,18 +186,19 @@ async def move(session: Session, node: SessionNode, target: float, *, relative: 
                                                         low=f"{scale.minimum:g}", high=f"{scale.maximum:g}"))
     else:
         await soft_limits.check_relative(session, node, target)
-    values = {**drive_control.sent(node, "0x6060", 1), **drive_control.sent(node, "0x607A", target, units.position),
+    values = {**drive_control.sent(node, cia402.MODES_OF_OPERATION, 1),
+              **drive_control.sent(node, cia402.TARGET_POSITION, target, units.position),
               "relative": relative, "immediate": immediate}
     if velocity is not None:
-        values.update(drive_control.sent(node, "0x6081", velocity, units.velocity))
+        values.update(drive_control.sent(node, cia402.PROFILE_VELOCITY, velocity, units.velocity))
     drive_control.require_confirmation(confirm, node.node_id, _("Move to {target} {unit}").format(
         target=f"{target:g}", unit=units.position), values)
     guard_for(session).arm(node.node_id, panel)
     await _mode(session, node, status, 1, panel)
     with cleared():  # confirmed and armed above
         if velocity is not None:
-            await parameters.write(session, node.node_id, "0x6081", velocity, verify=False)
-        await parameters.write(session, node.node_id, "0x607A", target, verify=False)
+            await parameters.write(session, node.node_id, cia402.PROFILE_VELOCITY, velocity, verify=False)
+        await parameters.write(session, node.node_id, cia402.TARGET_POSITION, target, verify=False)
     base = await drive_control.last_control_word(session, node) & ~MODE_BITS
     base |= (CHANGE_IMMEDIATELY if immediate else 0) | (RELATIVE if relative else 0)
     await _edge(session, node, base, hold=False)
@@ -207,25 +214,25 @@ async def home(session: Session, node: SessionNode, method: int, *, confirm: obj
     if method not in supported:
         among = (_("the supported homing methods 0x60E3 of {device} ({methods})").format(
             device=node.device_name, methods=", ".join(map(str, supported)))
-                 if has_ref(drive_control.catalog_of(node), "0x60E3.1") else
+                 if has_ref(drive_control.catalog_of(node), cia402.sub(cia402.SUPPORTED_HOMING_METHODS, 1)) else
                  _("the CiA 402 methods (1 ... 14, 17 ... 30, 33 ... 35, 37; the drive lists no others in 0x60E3)"))
         raise InvalidValue(_("Homing method {method} ({name}) is not among {among}.").format(
             method=method, name=cia402.homing_label(method), among=among))
     status = await _enabled(session, node, panel, _("Homing"))
     drive_control.require_confirmation(confirm, node.node_id, _("Homing with method {method} ({name})").format(
         method=method, name=cia402.homing_label(method)),
-        {**drive_control.sent(node, "0x6060", 6), **drive_control.sent(node, "0x6098", method)})
+        {**drive_control.sent(node, cia402.MODES_OF_OPERATION, 6),
+         **drive_control.sent(node, cia402.HOMING_METHOD, method)})
     guard_for(session).arm(node.node_id, panel)
     await _mode(session, node, status, 6, panel)
     with cleared():  # confirmed and armed above
-        await parameters.write(session, node.node_id, "0x6098", method, verify=False)
+        await parameters.write(session, node.node_id, cia402.HOMING_METHOD, method, verify=False)
     base = await drive_control.last_control_word(session, node) & ~MODE_BITS
     await _edge(session, node, base, hold=True)
     return await drive_control.read_status(session, node, panel)
 
 
 # --- interpolated position (7) and cyclic synchronous modes (8/9/10): the setpoint travels in an RPDO every SYNC --
-CYCLIC_TARGETS = {7: "0x60C1.1", 8: "0x607A", 9: "0x60FF", 10: "0x6071"}
 ENABLE_IP_MODE = NEW_SET_POINT
 """Interpolated position: control word bit 4 *enable ip mode*; the drive answers with status bit 12 *ip mode
 active* and follows the interpolation data record 0x60C1.1, linearly over each interpolation period (0x60C2)."""
@@ -243,10 +250,11 @@ class CyclicStream(BaseModel):
 async def _cycle_ms(session: Session, node: SessionNode) -> int:
     """The interpolation time period 0x60C2 (value x 10^index s) in ms, 10 ms when the drive has none."""
     catalog = drive_control.catalog_of(node)
-    if not has_ref(catalog, "0x60C2.1"):
+    if not has_ref(catalog, cia402.INTERPOLATION_PERIOD_VALUE):
         return 10
-    value = await _read(session, node, "0x60C2.1") or 10
-    index = await _read(session, node, "0x60C2.2") if has_ref(catalog, "0x60C2.2") else -3
+    value = await _read(session, node, cia402.INTERPOLATION_PERIOD_VALUE) or 10
+    index = (await _read(session, node, cia402.INTERPOLATION_PERIOD_INDEX)
+             if has_ref(catalog, cia402.INTERPOLATION_PERIOD_INDEX) else -3)
     return max(1, round(value * 10 ** (index if index is not None else -3) * 1000))
 
 
@@ -257,10 +265,10 @@ async def stream(session: Session, node: SessionNode, value: float, *, confirm: 
     record 0x60C1.1, with bit 4 *enable ip mode* in the control word), sent every cycle while the panel holds the
     drive."""
     status = await _enabled(session, node, panel, _("A cyclic synchronous setpoint"))
-    if status.mode not in CYCLIC_TARGETS:
+    if status.mode not in cia402.CYCLIC_TARGETS:
         raise Conflict(_("Choose interpolated position (7) or a cyclic synchronous mode (8, 9 or 10) first; it is in "
                          "{mode}.").format(mode=status.mode_label or _("no mode")))
-    target = CYCLIC_TARGETS[status.mode]
+    target = cia402.CYCLIC_TARGETS[status.mode]
     if session.nmt_state(node.node_id)[0] != "Operational":
         raise Conflict(_("Node {node} takes RPDOs only in NMT Operational: start it first (Plant page).").format(
             node=node.node_id))
@@ -269,7 +277,7 @@ async def stream(session: Session, node: SessionNode, value: float, *, confirm: 
     data = live.service(session)
     configs = await data.load(node.node_id)
     config = next((c for c in configs if c.direction == "rpdo" and c.valid and
-                   {"0x6040", target} <= {entry.ref for entry in c.entries}), None)
+                   {cia402.CONTROL_WORD, target} <= {entry.ref for entry in c.entries}), None)
     if config is None:
         raise Conflict(_("No valid RPDO of node {node} maps the control word 0x6040 and {target}: map one on the PDO "
                          "tab.").format(node=node.node_id, target=target))
@@ -284,7 +292,7 @@ async def stream(session: Session, node: SessionNode, value: float, *, confirm: 
         data.watch(panel.key)
     data.start_sync(period)
     frame = await data.start_cyclic(panel.key, node.node_id, config.number,
-                                    {"0x6040": str(word), target: f"{value:g}"}, period)
+                                    {cia402.CONTROL_WORD: str(word), target: f"{value:g}"}, period)
     return CyclicStream(mode=status.mode, rpdo=config.number, cob_id=config.cob_id, period_ms=period,
                         data=frame.hex(" ").upper())
 

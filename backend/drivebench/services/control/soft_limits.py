@@ -23,6 +23,7 @@ import contextlib
 import time
 from dataclasses import dataclass
 
+from drivebench.device.drive import cia402
 from drivebench.errors import DriveBenchError, OutOfRange
 from drivebench.i18n import N_, Text, _
 from drivebench.services.bus.sessions import Session, SessionNode
@@ -77,7 +78,7 @@ def note(node: SessionNode) -> str | None:
 
 
 async def bounds(session: Session, node: SessionNode) -> tuple[float, float] | None:
-    low, high = await generic_limits(session, node, "0x607A")
+    low, high = await generic_limits(session, node, cia402.TARGET_POSITION)
     return (low, high) if low is not None and high is not None else None
 
 
@@ -97,7 +98,7 @@ async def drive_clamps(session: Session, node: SessionNode) -> bool:
 
 
 async def _position(session: Session, node: SessionNode) -> float | None:
-    value = (await parameters.read(session, node.node_id, "0x6064")).value
+    value = (await parameters.read(session, node.node_id, cia402.POSITION_ACTUAL_VALUE)).value
     return float(value) if isinstance(value, (int, float)) else None
 
 
@@ -142,7 +143,8 @@ class _Sample:
 
 
 async def _sample(session: Session, node: SessionNode, per_velocity: float) -> _Sample | None:
-    found = await parameters.read_many(session, node.node_id, ["0x6041", "0x6064", "0x606C"])
+    found = await parameters.read_many(session, node.node_id, [cia402.STATUS_WORD, cia402.POSITION_ACTUAL_VALUE,
+                                                               cia402.VELOCITY_ACTUAL_VALUE])
     word, position, velocity = (None if isinstance(one, DriveBenchError) else one.value for one in found)
     if not isinstance(word, int) or not isinstance(position, (int, float)) or not isinstance(velocity, (int, float)):
         return None
@@ -168,9 +170,9 @@ async def _watch(session: Session, node: SessionNode, what: str, watch: Watch) -
         return
     clamps = await drive_clamps(session, node)
     per_velocity = await position_per_velocity(session, node)
-    decel = await _number(session, node, "0x6084", 0.0) * per_velocity
+    decel = await _number(session, node, cia402.PROFILE_DECELERATION, 0.0) * per_velocity
     unit = (await motion_units(session, node)).position
-    mode = (await parameters.read(session, node.node_id, "0x6061")).raw
+    mode = (await parameters.read(session, node.node_id, cia402.MODES_OF_OPERATION_DISPLAY)).raw
     slowest = 0.0  # the longest read seen: the drive travels that far before DriveBench knows where it is
     limited = False  # bit 11 seen during this motion
     while True:
@@ -214,10 +216,10 @@ async def _halt(session: Session, node: SessionNode, mode: object) -> None:
     """Velocity modes: setpoint 0 (the drive ramps down with 0x6084); other modes: control word bit 8 halt."""
     with node_lease.stopping(), cleared():  # stopping a drive is never refused
         if mode in (3, 9):
-            await parameters.write(session, node.node_id, "0x60FF", 0, verify=False)
+            await parameters.write(session, node.node_id, cia402.TARGET_VELOCITY, 0, verify=False)
         else:
-            word = await last_word(session, node.node_id, "0x6040")
-            await write_word(session, node.node_id, "0x6040", word | HALT)
+            word = await last_word(session, node.node_id, cia402.CONTROL_WORD)
+            await write_word(session, node.node_id, cia402.CONTROL_WORD, word | HALT)
 
 
 async def _stood(session: Session, node: SessionNode, per_velocity: float) -> float | None:
