@@ -479,8 +479,22 @@ async def command(session: Session, node: SessionNode, which: Command, *, confir
         guard.release(node.node_id)
     status = await read_status(session, node, panel)
     if which in fam.moving:
-        status.command_note = await fault_words.command_source_note(session, node)
+        status.command_note = _joined(refusal(fam, which, status),
+                                      await fault_words.command_source_note(session, node))
     return status
+
+
+def refusal(fam: Family, which: Command, status: DriveStatus) -> str | None:
+    """Why a moving command left the drive where it was: it is in fault (not after the fault reset itself, whose
+    effect the next status shows)."""
+    if not status.fault or which is Command.FAULT_RESET:
+        return None
+    reset = command_label(Command.FAULT_RESET) if Command.FAULT_RESET in fam.section.commands else None
+    return fault_words.refusal_note(status.state_label, status.present_fault, reset)
+
+
+def _joined(*notes: str | None) -> str | None:
+    return " ".join(note for note in notes if note) or None
 
 
 def check_range(value: float, scale: Scale) -> None:

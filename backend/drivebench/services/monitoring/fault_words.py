@@ -1,6 +1,7 @@
 """A drive's faults in the manual's words: the present fault and the history, from what the EMCY consumer already
-holds (no bus traffic), and why a command did nothing where the profile names the parameter that routes commands to
-the fieldbus (its ``faults.command_source``: one read)."""
+holds (no bus traffic), and why a command did nothing: the drive is in fault (its state machine says so; the present
+fault named), or the profile names the parameter that routes commands elsewhere than the fieldbus (its
+``faults.command_source``: one read)."""
 
 from __future__ import annotations
 
@@ -23,6 +24,28 @@ def present_fault(session: Session, node: SessionNode) -> EmcyRecord | None:
 def fault_history(session: Session, node_id: int) -> list[EmcyRecord]:
     """The node's emergencies that reported an error (not the error-free 0x0000), newest first, with their times."""
     return [record for record in emcy_history(session, node_id) if not record.is_reset]
+
+
+def fault_words(record: EmcyRecord | None) -> str:
+    """The present fault in a few words: the device's own number with the manual's text, else the EMCY code's."""
+    if record is None:
+        return _("no emergency telegram names it")
+    fault = record.fault
+    if fault is None:
+        return f"EMCY {record.code}: {record.text}"
+    if fault.text:
+        return f"{fault.label}: {fault.text}"
+    return f"{fault.label}, EMCY {record.code}: {record.text}"
+
+
+def refusal_note(state_label: str, present: EmcyRecord | None, reset: str | None) -> str:
+    """Why a command to enable did nothing: the drive is in a fault state of its state machine (``state_label``);
+    ``reset`` names the command that acknowledges the fault (None: the control has none)."""
+    if reset is None:
+        return _("{state}: the drive does not enable while a fault is present ({fault}).").format(
+            state=state_label, fault=fault_words(present))
+    return _("{state}: the drive does not enable while a fault is present ({fault}). Remove its cause, then send "
+             "“{reset}”.").format(state=state_label, fault=fault_words(present), reset=reset)
 
 
 async def command_source_note(session: Session, node: SessionNode) -> str | None:

@@ -42,6 +42,8 @@ class NodeContent(BaseModel):
     """The profile's fault and diagnostics parameters as last read, oldest reads marked by age (``parameters``)."""
     not_read: list[str] | None = None
     """Those parameters nobody on site has read yet (``parameters``)."""
+    not_covered: str | None = None
+    """What the profile's sources did not give, when a fault shown has a number without text (``faults``)."""
 
 
 class BusContent(BaseModel):
@@ -92,6 +94,10 @@ def node_content(session: Session, node: SessionNode, shows: Iterable[str], now:
     if "faults" in shown:
         content.present = fault_words.present_fault(session, node)
         content.history = fault_words.fault_history(session, node.node_id)
+        shown_faults = [content.present, *content.history]
+        if node.profile and node.profile.faults and any(
+                record and record.fault and not record.fault.text for record in shown_faults):
+            content.not_covered = node.profile.faults.not_covered
     if "emcy" in shown:
         content.last_emcys = diagnostics.emcy_history(session, node.node_id)[:LAST_EMCYS]
     if "parameters" in shown:
