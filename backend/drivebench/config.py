@@ -62,6 +62,9 @@ class Settings(BaseSettings):
     """Proxies whose ``X-Forwarded-For`` / ``-Proto`` are believed (uvicorn's option, comma-separated addresses or
     networks); none by default, so a client cannot choose the address the sign-in limit counts."""
 
+    metrics_token_file: Path | None = None
+    """A file holding the token a Prometheus scraper sends (``Authorization: Bearer ...``) to read /metrics without
+    signing in; it grants nothing else. Without it, /metrics needs the engineer role."""
     log_level: Literal["critical", "error", "warning", "info", "debug"] = "info"
     """The server log's level (``info``: start, sign-in failures, one access line per request)."""
     log_format: Literal["text", "json"] = "text"

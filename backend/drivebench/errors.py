@@ -6,7 +6,20 @@ Lower layers convert foreign exceptions (python-can, canopen) with ``raise ... f
 
 from __future__ import annotations
 
+import threading
+from collections import Counter
+
 from drivebench.i18n import N_, Text, _, shown
+
+SDO_FAILURES: Counter[str] = Counter()
+"""SDO timeouts and aborts since the process started, by kind ("timeout", "abort"), counted where every SDO failure
+of every transport becomes an error of this tree (the metrics endpoint reads it)."""
+_failures_lock = threading.Lock()
+
+
+def _count_sdo_failure(kind: str) -> None:
+    with _failures_lock:
+        SDO_FAILURES[kind] += 1
 
 
 class DriveBenchError(Exception):
@@ -74,6 +87,7 @@ class SdoAbortError(ProtocolError):
         self.node = node
         self.index = index
         self.subindex = subindex
+        _count_sdo_failure("abort")
 
     def shown_abort_text(self) -> str:
         return shown(self.abort_text)
@@ -95,6 +109,7 @@ class SdoTimeoutError(ProtocolError):
         self.node = node
         self.index = index
         self.subindex = subindex
+        _count_sdo_failure("timeout")
 
     def extra(self) -> dict[str, object]:
         data: dict[str, object] = {**super().extra(), "node": self.node}

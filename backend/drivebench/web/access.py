@@ -43,9 +43,10 @@ from drivebench.i18n import N_, _
 from drivebench.services.users import accounts
 from drivebench.services.users.principals import Principal, Role
 from drivebench.services.users.sharing import ShareLinks
-from drivebench.web import access_policy, cookies, origins
+from drivebench.web import access_policy, cookies, metrics_token, origins
 from drivebench.web.identity import principal_of
 from drivebench.web.limits import BATCH_PATHS
+from drivebench.web.metrics_token import METRICS_ROUTE
 from drivebench.web.problems import error_fragment, error_page, problem_body, wants_page
 from drivebench.web.secret_file import kept_key
 
@@ -193,6 +194,8 @@ async def admitted(scope: Scope, receive: Receive, send: Send, headers: Headers,
     try:
         if state.get("viewer") is not None:  # a remote-diagnostics link (the gate checked its token)
             principal = principal_of(HTTPConnection(scope))
+        elif decision.template == METRICS_ROUTE and (scraping := metrics_token.scraper(headers)) is not None:
+            principal = scraping  # on this route only: the metrics token grants nothing else
         elif configured:
             principal, session = await _authenticate(headers)
     except NotAuthenticated as exc:

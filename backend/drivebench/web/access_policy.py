@@ -71,6 +71,9 @@ RULES: dict[tuple[str, str], Rule] = {
     **_rules(V, N_("Managing your own API tokens"),
              ("GET", "/api/auth/tokens"), ("POST", "/api/auth/tokens"), ("DELETE", "/api/auth/tokens/{token_id}")),
     # --- engineer: anything that writes to a device or changes what others see ------------------------------
+    # the server's metrics tell how the plant's buses and the tool are used: not for every viewer (a scraper uses the
+    # metrics token instead, web/metrics_token.py)
+    **_rules(E, N_("Reading the server's metrics"), ("GET", "/metrics")),
     **_rules(E, N_("Writing parameters"),
              ("PUT", N + "/parameters/{ref:path}"), ("POST", N + "/parameters:write"),
              ("POST", UN + "/parameters/{ref:path}/write")),

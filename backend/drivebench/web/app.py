@@ -23,12 +23,14 @@ from drivebench.services.users import audit
 from drivebench.services.users.sharing import ShareLinks
 from drivebench.simulator.plant import Plant, PlantFile
 from drivebench.web import access, access_policy, heap, language, problems
+from drivebench.web import metrics as metrics_api
 from drivebench.web.api import accounts as accounts_api
 from drivebench.web.api import diagnostics, health, parameter_sets, parameters, pdo, profiles, sessions, tools
 from drivebench.web.api import drive_control as drive_control_api
 from drivebench.web.api import monitor as monitor_api
 from drivebench.web.api import simulator as simulator_api
 from drivebench.web.gate import RequestGate
+from drivebench.web.metrics import Metrics, RequestMetrics
 from drivebench.web.pages import accounts as accounts_page
 from drivebench.web.pages import monitor as monitor_page
 from drivebench.web.pages import node as node_page
@@ -56,7 +58,7 @@ log = logging.getLogger(__name__)
 # per read on this machine); none of their paths is a path of a router after them (benchmarks/RESULTS.md).
 API_ROUTERS = [health.router, parameters.router, monitor_api.router, sessions.router, profiles.router,
                diagnostics.router, tools.router, tools.planned_router, pdo.router, parameter_sets.router,
-               drive_control_api.router, accounts_api.router, simulator_api.router]
+               drive_control_api.router, accounts_api.router, simulator_api.router, metrics_api.router]
 PAGE_ROUTERS = [language.router, node_diagnostics.router, node_pdo_page.router, monitor_page.router, plant_page.router,
                 node_control.router, node_page.router, node_factory_page.router, profiles_page.router,
                 remote_page.router, tools_page.router, parameter_sets_page.router, accounts_page.router]
@@ -82,6 +84,12 @@ async def start_plant(state: AppState, plant_path: Path, *, bus: str | None = No
             await asyncio.to_thread(gateway.stop)
             raise
         state.gateways[ethercat.id] = gateway
+
+
+def _manager(app: FastAPI) -> SessionManager | None:
+    """The running app's sessions (None before its start)."""
+    state = getattr(app.state, "drivebench", None)
+    return state.manager if isinstance(state, AppState) else None
 
 
 def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: list[str] | None = None,
@@ -128,6 +136,8 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
     app.add_middleware(RequestGate, links=share_links, limit_bytes=settings.max_upload_bytes,
                        batch_bytes=settings.max_batch_upload_bytes,
                        hsts=settings.hsts if hsts is None else hsts)
+    app.state.metrics = metrics = Metrics(lambda: _manager(app), lambda: getattr(app.state, "jobs", None))
+    app.add_middleware(RequestMetrics, metrics=metrics)  # around the gate: its refusals are answers too
     app.add_middleware(RequestIds)  # outermost: every log record of a request, refusals included, names it
     for router in API_ROUTERS + PAGE_ROUTERS + WS_ROUTERS:
         app.include_router(router)

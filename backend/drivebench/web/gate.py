@@ -85,6 +85,7 @@ class RequestGate:
 
     async def _admitted(self, scope: Scope, receive: Receive, send: Send, headers: Headers) -> None:
         decision = access_policy.decide(scope["app"], scope)
+        scope.setdefault("state", {})["route_template"] = decision.template  # metrics count by it (web/metrics.py)
         if not await viewer.link_admitted(scope, receive, send, self.links, headers, decision):
             return
         admitted = await access.admitted(scope, receive, send, headers, decision)

@@ -223,6 +223,11 @@ class Monitor(can.Listener):
         self._samples.append(_Sample(end, {key: entry[0] for key, entry in self._cobs.items()}, self._errors))
 
     # --- control -----------------------------------------------------------------------------------------
+    def totals(self) -> tuple[int, int]:
+        """Frames and error frames counted since the last reset (a metrics scraper reads a reset as a restart)."""
+        with self._lock:
+            return self._frames, self._errors
+
     def reset(self) -> None:
         """Counters, history, peak and trace start again, for every viewer; a paused default view stays paused
         (at the empty state)."""
