@@ -14,9 +14,9 @@ network card through pysoem, the ``drivebench[ethercat]`` extra).
 from __future__ import annotations
 
 from drivebench.i18n import _
-from drivebench.protocol.ethercat_master import DirectNetwork
-from drivebench.protocol.ethercat_network import CoeNodeClient, EthercatNetwork, GatewayNetwork
-from drivebench.protocol.network import CanopenNetwork, NodeClient
+from drivebench.protocol.canopen.network import CanopenNetwork, NodeClient
+from drivebench.protocol.ethercat.master import DirectNetwork
+from drivebench.protocol.ethercat.network import CoeNodeClient, EthercatNetwork, GatewayNetwork
 from drivebench.transport.bus import BusSpec, open_bus
 from drivebench.transport.ethercat_gateway import GatewaySpec
 from drivebench.transport.ethercat_soem import INSTALL, DirectSpec, load_pysoem, may_use_raw_sockets, open_link

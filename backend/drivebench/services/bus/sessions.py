@@ -20,12 +20,12 @@ from drivebench.device.profiles.catalog import Catalog
 from drivebench.device.profiles.profile import Profile
 from drivebench.errors import DriveBenchError, NotFound, SdoAbortError, SdoOutOfStepError, SdoTimeoutError
 from drivebench.i18n import _
+from drivebench.protocol.canopen.heartbeat import HeartbeatStatus
+from drivebench.protocol.canopen.network import CanopenNetwork
+from drivebench.protocol.canopen.nmt import STATE_AFTER, NmtCommand, NmtState
 from drivebench.protocol.emcy import EmcyEvent
-from drivebench.protocol.esm import EsmState
-from drivebench.protocol.ethercat_network import EthercatNetwork, SlaveInfo
-from drivebench.protocol.heartbeat import HeartbeatStatus
-from drivebench.protocol.network import CanopenNetwork
-from drivebench.protocol.nmt import STATE_AFTER, NmtCommand, NmtState
+from drivebench.protocol.ethercat.esm import EsmState
+from drivebench.protocol.ethercat.network import EthercatNetwork, SlaveInfo
 from drivebench.services.bus.bus_state import ADAPTER_LOST, BusHealth, GatewayHealth
 from drivebench.services.bus.duplicates import DuplicateWatch
 from drivebench.services.bus.fieldbus import Network, SdoClient, SessionSpec

@@ -41,8 +41,8 @@ from drivebench.errors import (
     UnknownParameter,
 )
 from drivebench.i18n import _
+from drivebench.protocol.canopen.nmt import NmtCommand
 from drivebench.protocol.datatypes import decode
-from drivebench.protocol.nmt import NmtCommand
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.control import drive_control, drive_guard
 from drivebench.services.params import node_lease, parameters

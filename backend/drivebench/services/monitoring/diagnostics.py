@@ -14,8 +14,8 @@ from drivebench.device.drive.faults import DecodedFault, decode_emcy
 from drivebench.device.profiles.profile import EmcyCode, Profile
 from drivebench.errors import DriveBenchError, InvalidValue
 from drivebench.i18n import N_, _
+from drivebench.protocol.canopen.guarding import GuardStatus
 from drivebench.protocol.emcy import EmcyEvent
-from drivebench.protocol.guarding import GuardStatus
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.params import node_lease, parameters
 from drivebench.services.params.write_origin import acting

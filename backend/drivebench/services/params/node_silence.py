@@ -20,7 +20,7 @@ from collections.abc import Awaitable, Callable
 
 from drivebench.errors import SdoAbortError, SdoOutOfStepError, SdoTimeoutError
 from drivebench.i18n import N_
-from drivebench.protocol.heartbeat import HeartbeatMonitor
+from drivebench.protocol.canopen.heartbeat import HeartbeatMonitor
 
 SUSPECT_AFTER_TIMEOUTS = 2
 """Timeouts in a row after which the node is probed (and again after every further run of this many)."""

@@ -53,11 +53,11 @@ from drivebench.errors import (
     WriteOutcomeUnknown,
 )
 from drivebench.i18n import N_, Text, _
+from drivebench.protocol.canopen.heartbeat import HeartbeatStatus
+from drivebench.protocol.canopen.network import NodeClient, SdoChannel
+from drivebench.protocol.canopen.nmt import NmtCommand
+from drivebench.protocol.canopen.sdo_fast import ExpeditedRequest, upload_batch, upload_expedited
 from drivebench.protocol.datatypes import DataType, decode, encode
-from drivebench.protocol.heartbeat import HeartbeatStatus
-from drivebench.protocol.network import NodeClient, SdoChannel
-from drivebench.protocol.nmt import NmtCommand
-from drivebench.protocol.sdo_fast import ExpeditedRequest, upload_batch, upload_expedited
 from drivebench.services.bus.fieldbus import SdoClient
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.params import node_lease
@@ -207,7 +207,7 @@ async def _on_bus(work: Callable[[], T]) -> T:
 def stop_first(session: Session, node_id: int) -> Iterator[None]:
     """The reads and writes inside stop the drive (quick stop, disable, the guard's trip): they go before every
     transfer waiting for the node (the one on the wire finishes first), and none of those gets in between them
-    (:class:`~drivebench.protocol.sdo_queue.ChannelLock`)."""
+    (:class:`~drivebench.protocol.canopen.sdo_queue.ChannelLock`)."""
     token = _urgent.set(True)
     try:
         with session.client(node_id).stop_first():
@@ -338,7 +338,8 @@ class _Plan:
         self.name = item.name
         self.expedited = size is not None and size <= 4 and entry.access.readable
         self.on_loop = entry.access.readable
-        """Read on the event loop (:mod:`drivebench.protocol.sdo_fast`): expedited, or segmented for longer ones."""
+        """Read on the event loop (:mod:`drivebench.protocol.canopen.sdo_fast`): expedited, or segmented for longer
+        ones."""
         self.request = ExpeditedRequest(item.index, item.subindex)
         integer = data_type.is_integer and size is not None and data_type is not DataType.BOOLEAN
         self._size = size if integer else 0
@@ -418,7 +419,7 @@ def _read_blocking(client: SdoClient, item: Item, *, block: bool = False, channe
 
 async def _upload(client: SdoClient, plan: _Plan, *, block: bool = False, channel: int | None = None,
                   on_loop: bool = True) -> bytes:
-    """Read one value: expedited on the event loop where it can be (:mod:`drivebench.protocol.sdo_fast`), else
+    """Read one value: expedited on the event loop where it can be (:mod:`drivebench.protocol.canopen.sdo_fast`), else
     canopen's client in a worker thread (``on_loop=False``: there at once, the device's answer on the loop was one
     only that client reads). Transfer errors name the parameter as the user knows it (C00099)."""
     try:

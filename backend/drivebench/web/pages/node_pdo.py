@@ -21,7 +21,7 @@ from pydantic import BaseModel
 from drivebench.device.profiles import pdo_notes
 from drivebench.errors import AccessDenied, InvalidValue
 from drivebench.i18n import _
-from drivebench.protocol.nmt import NmtCommand
+from drivebench.protocol.canopen.nmt import NmtCommand
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.bus.views import node_public
 from drivebench.services.control import drive_guard

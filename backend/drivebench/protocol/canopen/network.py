@@ -1,7 +1,7 @@
 """Master side of one CAN bus: a canopen Network on an opened bus, with per-node SDO access.
 
 canopen's SDO client blocks and is not thread-safe per node, so every node has one lock per SDO channel, a
-:class:`~drivebench.protocol.sdo_queue.ChannelLock` (``urgent`` transfers, the stop commands, go before waiting
+:class:`~drivebench.protocol.canopen.sdo_queue.ChannelLock` (``urgent`` transfers, the stop commands, go before waiting
 reads); callers in the event loop use the ``a*`` coroutines, which run the blocking call in a worker thread.
 All canopen and python-can exceptions are converted here, once, into the protocol error tree.
 """
@@ -21,12 +21,12 @@ from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError
 from drivebench.errors import NodeOffline, ProtocolError, SdoAbortError, TransportError
 from drivebench.i18n import N_, Text
 from drivebench.protocol.abort_codes import abort_text
+from drivebench.protocol.canopen.guarding import NodeGuarding
+from drivebench.protocol.canopen.heartbeat import HeartbeatMonitor
+from drivebench.protocol.canopen.nmt import NmtCommand, nmt_frame
+from drivebench.protocol.canopen.sdo_errors import communication_error, read_segments
+from drivebench.protocol.canopen.sdo_queue import ChannelLock
 from drivebench.protocol.emcy import EmcyMonitor
-from drivebench.protocol.guarding import NodeGuarding
-from drivebench.protocol.heartbeat import HeartbeatMonitor
-from drivebench.protocol.nmt import NmtCommand, nmt_frame
-from drivebench.protocol.sdo_errors import communication_error, read_segments
-from drivebench.protocol.sdo_queue import ChannelLock
 from drivebench.transport.bus import ObservedBus
 
 T = TypeVar("T")

@@ -1,11 +1,11 @@
 """An EtherCAT segment, seen the way a session sees a CAN network.
 
-:class:`EthercatNetwork` offers what the services use of :class:`~drivebench.protocol.network.CanopenNetwork`:
+:class:`EthercatNetwork` offers what the services use of :class:`~drivebench.protocol.canopen.network.CanopenNetwork`:
 ``node(node_id)`` gives an SDO client with the same methods and the same errors as a CAN node's
 (:class:`CoeNodeClient`), ``emcy`` keeps the slaves' CoE emergencies as the EMCY monitor keeps CAN's, ``scan`` finds
 the slaves. What CAN has and EtherCAT has not (NMT, heartbeat, node guarding, frames by COB-ID) is refused in words.
 How the slaves are reached is the subclass's: :class:`GatewayNetwork` through a running master's mailbox gateway,
-:class:`~drivebench.protocol.ethercat_master.DirectNetwork` as the master itself on a network card (pysoem).
+:class:`~drivebench.protocol.ethercat.master.DirectNetwork` as the master itself on a network card (pysoem).
 
 A session numbers its nodes 1, 2, ... in the order of the master's configured address list (the "position"; the
 tool's pages and API address nodes by these numbers); every mailbox telegram is addressed by the slave's configured
@@ -24,14 +24,14 @@ import can
 
 from drivebench.errors import ProtocolError, SdoAbortError, SdoTimeoutError
 from drivebench.i18n import N_, Text, _
-from drivebench.protocol import esm
 from drivebench.protocol.abort_codes import abort_text
-from drivebench.protocol.coe_sdo import SERVICE_NOT_SUPPORTED, CoeSdoClient, MailboxRefused
+from drivebench.protocol.canopen.guarding import NodeGuarding
+from drivebench.protocol.canopen.heartbeat import HeartbeatMonitor
+from drivebench.protocol.canopen.network import EventLoopTransfers
 from drivebench.protocol.emcy import EMCY_BASE, EmcyMonitor
-from drivebench.protocol.ethercat import EmergencyListener, EthercatSegment, MailboxCounters
-from drivebench.protocol.guarding import NodeGuarding
-from drivebench.protocol.heartbeat import HeartbeatMonitor
-from drivebench.protocol.network import EventLoopTransfers
+from drivebench.protocol.ethercat import esm
+from drivebench.protocol.ethercat.coe_sdo import SERVICE_NOT_SUPPORTED, CoeSdoClient, MailboxRefused
+from drivebench.protocol.ethercat.segment import EmergencyListener, EthercatSegment, MailboxCounters
 from drivebench.transport.ethercat_gateway import GatewaySpec
 from drivebench.transport.ethercat_soem import DirectSpec
 
