@@ -371,12 +371,13 @@ class Guard:
             except DriveBenchError as exc:
                 head = Text(N_("Quick stop FAILED ({error})"), error=exc.detail)
         if started:
+            esm = session.network.capabilities.esm
             try:
                 await session.nmt(NmtCommand.ENTER_PRE_OPERATIONAL, node_id)
-                steps.append(Text(N_("EtherCAT state Pre-Operational requested") if session.ethercat is not None
+                steps.append(Text(N_("EtherCAT state Pre-Operational requested") if esm
                                   else N_("NMT pre-operational sent")))
             except DriveBenchError as exc:
-                steps.append(Text(N_("EtherCAT state Pre-Operational FAILED ({error})") if session.ethercat is not None
+                steps.append(Text(N_("EtherCAT state Pre-Operational FAILED ({error})") if esm
                                   else N_("NMT pre-operational FAILED ({error})"), error=exc.detail))
         for step in steps:
             why = Text(N_("{reason}; {step}"), reason=why, step=step)

@@ -179,7 +179,8 @@ def attach(session: Session) -> SessionParameters:
     """The parameter state of a session (made with the session's services when it opens)."""
     network = session.network
     state = SessionParameters(weakref.ref(session), SdoSettings(network.sdo_timeout_s, network.sdo_retries))
-    network.heartbeat.add_callback(state.on_heartbeat)
+    if session.heartbeats is not None:  # SDO2 comes back after a boot-up (CAN)
+        session.heartbeats.add_callback(state.on_heartbeat)
     return state
 
 
@@ -931,8 +932,7 @@ _DEVICE_TYPE = _Plan(Item("0x1000", 0x1000, 0, ObjectEntry(name="Device type", d
 
 
 def _silence(session: Session, client: SdoClient, channel: int) -> NodeSilence:
-    return NodeSilence(client.node_id, partial(_upload, client, _DEVICE_TYPE, channel=channel),
-                       session.network.heartbeat)
+    return NodeSilence(client.node_id, partial(_upload, client, _DEVICE_TYPE, channel=channel), session.heartbeat)
 
 
 def silence_watch(session: Session, node_id: int) -> NodeSilence:

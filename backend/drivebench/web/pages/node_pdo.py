@@ -82,7 +82,7 @@ def _parse_entries(text: str) -> list[tuple[int, int]]:
 @router.get(UI, response_class=HTMLResponse)
 async def pdo_list(request: Request, session: SessionDep, node: NodeDep) -> Response:
     profile = node.profile
-    if session.ethercat is not None:  # EtherCAT: assignment 0x1C12/0x1C13 and the mappings, no COB-IDs
+    if not session.network.capabilities.frames:  # EtherCAT: assignment 0x1C12/0x1C13 and the mappings, no COB-IDs
         cards = []
         assignments = [_ecat_context(session, node, a) for a in
                        await ethercat_pdo.read_assignments(session, node.node_id)]
