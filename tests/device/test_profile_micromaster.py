@@ -15,8 +15,8 @@ from drivebench.device.profiles.addressing import code_to_index, index_to_code
 from drivebench.device.profiles.catalog import Catalog
 from drivebench.device.profiles.profile import Access, ParameterNumberAddressing, Profile
 from drivebench.errors import UnknownParameter
+from drivebench.protocol.canopen.sdo_server import SdoAbort
 from drivebench.protocol.datatypes import DataType
-from drivebench.protocol.sdo_server import SdoAbort
 from drivebench.simulator.node import SimulatedNode
 from drivebench.simulator.store import ObjectStore
 

@@ -28,7 +28,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from drivebench.device.profiles.loader import ProfileRegistry
-from drivebench.protocol import sdo_fast
+from drivebench.protocol.canopen import sdo_fast
 from drivebench.services.sets.parameter_sets import ParameterSetStore
 from drivebench.services.storage import database
 from drivebench.services.users import audit

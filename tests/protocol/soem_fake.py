@@ -18,8 +18,8 @@ from typing import Any
 import pytest
 
 from drivebench.errors import SdoAbortError, SdoTimeoutError
-from drivebench.protocol import coe, esm
-from drivebench.protocol.coe_sdo import CoeSdoClient
+from drivebench.protocol.ethercat import coe, esm
+from drivebench.protocol.ethercat.coe_sdo import CoeSdoClient
 from drivebench.simulator.ethercat import SimulatedSlave
 
 pysoem = pytest.importorskip("pysoem")

@@ -9,9 +9,9 @@ from collections.abc import Callable
 import pytest
 
 from drivebench.errors import ProtocolError, SdoAbortError, SdoOutOfStepError, SdoStalledError, SdoTimeoutError
-from drivebench.protocol import coe
-from drivebench.protocol.coe_sdo import CoeSdoClient
-from drivebench.protocol.coe_server import Abort, CoeSdoServer
+from drivebench.protocol.ethercat import coe
+from drivebench.protocol.ethercat.coe_sdo import CoeSdoClient
+from drivebench.protocol.ethercat.coe_server import Abort, CoeSdoServer
 from drivebench.transport.ethercat_gateway import GatewayFormatError, gateway_frame, telegram_of
 from tests.vectors import manual_coe as vectors
 

@@ -15,8 +15,8 @@ import pytest
 from drivebench.device.profiles.catalog import Catalog
 from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.errors import SdoAbortError, SdoOutOfStepError, SdoStalledError
-from drivebench.protocol.coe_sdo import SERVICE_NOT_SUPPORTED, MailboxRefused
-from drivebench.protocol.ethercat import EthercatSegment
+from drivebench.protocol.ethercat.coe_sdo import SERVICE_NOT_SUPPORTED, MailboxRefused
+from drivebench.protocol.ethercat.segment import EthercatSegment
 from drivebench.simulator.ethercat import GatewayServer, SimulatedSlave
 from drivebench.transport.ethercat_gateway import GatewaySpec
 

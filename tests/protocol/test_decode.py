@@ -6,7 +6,7 @@ import can
 import pytest
 
 from drivebench.device.profiles.loader import ProfileRegistry
-from drivebench.protocol.decode import SdoTracker, Service, classify, decode_frame
+from drivebench.protocol.canopen.decode import SdoTracker, Service, classify, decode_frame
 from tests.vectors.manual_sdo import LENZE_8400
 
 

@@ -14,8 +14,8 @@ import pytest
 
 from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.errors import ProtocolError, SdoAbortError, SdoTimeoutError
-from drivebench.protocol import esm
-from drivebench.protocol.ethercat_master import DIRECT_HINT, DirectNetwork
+from drivebench.protocol.ethercat import esm
+from drivebench.protocol.ethercat.master import DIRECT_HINT, DirectNetwork
 from drivebench.simulator.ethercat import SimulatedSlave
 from drivebench.transport.ethercat_soem import DirectSpec, SoemLink
 from tests.conftest import wait_until

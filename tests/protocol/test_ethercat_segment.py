@@ -11,9 +11,9 @@ from collections.abc import Iterator
 import pytest
 
 from drivebench.errors import SdoAbortError, SdoTimeoutError
-from drivebench.protocol import coe
-from drivebench.protocol.coe_server import Abort, CoeSdoServer
-from drivebench.protocol.ethercat import EthercatSegment
+from drivebench.protocol.ethercat import coe
+from drivebench.protocol.ethercat.coe_server import Abort, CoeSdoServer
+from drivebench.protocol.ethercat.segment import EthercatSegment
 from drivebench.transport.ethercat_gateway import GatewaySpec, gateway_frame, telegram_of
 from tests.conftest import wait_until
 

@@ -11,8 +11,8 @@ import can
 import pytest
 
 from drivebench.errors import ProtocolError, SdoAbortError, SdoOutOfStepError, SdoStalledError, SdoTimeoutError
-from drivebench.protocol.network import CanopenNetwork
-from drivebench.protocol.sdo_fast import ExpeditedRequest, upload_batch, upload_expedited, uploader
+from drivebench.protocol.canopen.network import CanopenNetwork
+from drivebench.protocol.canopen.sdo_fast import ExpeditedRequest, upload_batch, upload_expedited, uploader
 from drivebench.simulator.plant import Plant
 from drivebench.transport.bus import BusSpec, open_bus
 

@@ -17,7 +17,7 @@ import pytest
 from canopen.objectdictionary import ObjectDictionary
 from canopen.sdo.exceptions import SdoAbortedError
 
-from drivebench.protocol.sdo_server import SdoAbort, SdoServer, crc16_ccitt
+from drivebench.protocol.canopen.sdo_server import SdoAbort, SdoServer, crc16_ccitt
 from tests.vectors.manual_sdo import ALL, MICROMASTER, Frame, SdoVector
 
 _channels = itertools.count()

@@ -9,7 +9,7 @@ import can
 import pytest
 
 from drivebench.device.profiles.loader import ProfileRegistry
-from drivebench.protocol.network import CanopenNetwork
+from drivebench.protocol.canopen.network import CanopenNetwork
 from drivebench.services.bus.duplicates import DuplicateWatch
 from drivebench.simulator.plant import Plant
 from drivebench.transport.bus import BusSpec, open_bus

@@ -16,9 +16,9 @@ import pytest
 
 from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.errors import ConfirmationRequired, SdoAbortError
-from drivebench.protocol import esm
-from drivebench.protocol.ethercat_master import DirectNetwork
-from drivebench.protocol.nmt import NmtCommand
+from drivebench.protocol.canopen.nmt import NmtCommand
+from drivebench.protocol.ethercat import esm
+from drivebench.protocol.ethercat.master import DirectNetwork
 from drivebench.services.bus.sessions import Session
 from drivebench.services.control import drive_guard
 from drivebench.services.params import parameters

@@ -12,8 +12,8 @@ import pytest
 from drivebench.device.profiles.ethercat_section import EthercatSection
 from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.errors import SdoTimeoutError
-from drivebench.protocol import esm
-from drivebench.protocol.esm import EsmState
+from drivebench.protocol.ethercat import esm
+from drivebench.protocol.ethercat.esm import EsmState
 from drivebench.services.params import parameters
 from drivebench.simulator.ethercat import GatewayServer, SimulatedSlave
 from tests.services.test_ethercat_session import PROFILE, _open, _run

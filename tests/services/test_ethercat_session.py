@@ -14,7 +14,7 @@ import pytest
 from drivebench import i18n
 from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.errors import ProtocolError, SdoAbortError, SdoTimeoutError, TransportError
-from drivebench.protocol import esm
+from drivebench.protocol.ethercat import esm
 from drivebench.services.bus.sessions import Session
 from drivebench.services.monitoring.monitor import monitor_for
 from drivebench.services.params import parameters
@@ -117,7 +117,7 @@ def test_a_refused_state_change_says_the_al_status_code(registry: ProfileRegistr
 def test_nmt_commands_change_the_ethercat_state_through_the_safety_guard(registry: ProfileRegistry,
                                                                          gateway: GatewayServer) -> None:
     from drivebench.errors import ConfirmationRequired
-    from drivebench.protocol.nmt import NmtCommand
+    from drivebench.protocol.canopen.nmt import NmtCommand
     from drivebench.services.control import drive_guard
 
     async def scenario() -> None:

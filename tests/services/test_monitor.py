@@ -13,7 +13,7 @@ import can
 import pytest
 
 from drivebench.device.profiles.loader import ProfileRegistry
-from drivebench.protocol.nmt import NmtCommand
+from drivebench.protocol.canopen.nmt import NmtCommand
 from drivebench.services.bus.sessions import Session
 from drivebench.services.monitoring.monitor import Monitor, MonitorFilter, MonitorView, monitor_for
 from drivebench.services.monitoring.recording import Recordings

@@ -19,7 +19,7 @@ import pytest
 from drivebench.config import settings
 from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.errors import ConfirmationRequired, Conflict, InvalidValue, OutOfRange
-from drivebench.protocol.nmt import NmtCommand
+from drivebench.protocol.canopen.nmt import NmtCommand
 from drivebench.services.bus.sessions import Session
 from drivebench.services.control import drive_control, motion
 from drivebench.services.control.drive_control import DriveStatus

@@ -14,7 +14,7 @@ import pytest
 
 from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.errors import AdapterUnavailable, BusSpecError, Conflict, NotFound
-from drivebench.protocol.nmt import NmtCommand
+from drivebench.protocol.canopen.nmt import NmtCommand
 from drivebench.services.bus.sessions import Session
 from drivebench.services.monitoring.monitor import monitor_for
 from drivebench.services.params import node_lease

@@ -21,8 +21,8 @@ import pytest
 
 from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.device.profiles.profile import Access, ObjectEntry, Profile
+from drivebench.protocol.canopen.nmt import NmtState
 from drivebench.protocol.datatypes import DataType
-from drivebench.protocol.nmt import NmtState
 from drivebench.simulator.lenze_control import INIT, WordControl
 from drivebench.simulator.node import LOAD_SIGNATURE, SAVE_SIGNATURE, Latency, SimulatedNode
 from drivebench.simulator.plant import Plant, PlantFile, PlantNode

@@ -13,7 +13,7 @@ import sys
 import pytest
 
 from drivebench.errors import BusSpecError, ProtocolError, TransportError
-from drivebench.protocol.ethercat_master import DirectNetwork
+from drivebench.protocol.ethercat.master import DirectNetwork
 from drivebench.services.bus.fieldbus import parse_spec
 from drivebench.transport.ethercat_soem import DirectSpec, may_use_raw_sockets, network_cards, open_link
 

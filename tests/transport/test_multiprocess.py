@@ -20,7 +20,7 @@ import pytest
 
 from drivebench.config import REPO_ROOT
 from drivebench.device.profiles.loader import ProfileRegistry
-from drivebench.protocol.nmt import NmtCommand
+from drivebench.protocol.canopen.nmt import NmtCommand
 from drivebench.services.session_manager import SessionManager
 from tests.conftest import screenshot
 

@@ -15,7 +15,7 @@ from fastapi.testclient import TestClient
 
 from drivebench import i18n
 from drivebench.errors import DriveBenchError
-from drivebench.protocol.network import CanopenNetwork
+from drivebench.protocol.canopen.network import CanopenNetwork
 from drivebench.simulator.plant import Plant
 from drivebench.transport.bus import BusSpec, open_bus
 from drivebench.web.problems import problem_body

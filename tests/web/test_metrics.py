@@ -64,7 +64,8 @@ def test_metrics_need_the_engineer_role_or_the_metrics_token(app_client: TestCli
     viewer = app_client.post("/api/auth/login", json={"name": "vera", "password": "viewer password"})
     assert viewer.status_code == 200
     refused = app_client.get("/metrics")
-    assert refused.status_code == 403 and "engineer" in refused.json()["detail"] and "metrics" in refused.json()["detail"]
+    detail = refused.json()["detail"]
+    assert refused.status_code == 403 and "engineer" in detail and "metrics" in detail
     app_client.post("/api/auth/logout", headers={"X-CSRF-Token": viewer.json()["csrf_token"]})
     assert app_client.post("/api/auth/login", json={"name": "eve", "password": "engineer password"}).status_code == 200
     assert app_client.get("/metrics").status_code == 200

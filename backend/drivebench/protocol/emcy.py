@@ -119,7 +119,8 @@ EmcyCallback = Callable[[EmcyEvent], None]
 
 
 class EmcyMonitor(can.Listener):
-    """Keeps the last ``history`` EMCY telegrams per node (0x081..0x0FF)."""
+    """Keeps the last ``history`` emergencies per node: a CAN listener for EMCY telegrams, and :meth:`record` for
+    the emergencies another bus delivers."""
 
     def __init__(self, history: int = 200) -> None:
         self._lock = threading.Lock()
@@ -131,12 +132,16 @@ class EmcyMonitor(can.Listener):
         self._callbacks.append(callback)
 
     def on_message_received(self, msg: can.Message) -> None:
+        """A CAN EMCY telegram (0x081..0x0FF)."""
         node_id = msg.arbitration_id - EMCY_BASE
         if msg.is_extended_id or msg.is_remote_frame or not 1 <= node_id <= 127 or msg.dlc == 0:
             return
-        event = decode_emcy(node_id, bytes(msg.data), msg.timestamp)
+        self.record(decode_emcy(node_id, bytes(msg.data), msg.timestamp))
+
+    def record(self, event: EmcyEvent) -> None:
+        """An emergency however it came (a CAN telegram, a CoE emergency in an EtherCAT slave's mailbox)."""
         with self._lock:
-            self._events.setdefault(node_id, deque(maxlen=self._history)).append(event)
+            self._events.setdefault(event.node_id, deque(maxlen=self._history)).append(event)
         for callback in self._callbacks:
             callback(event)
 

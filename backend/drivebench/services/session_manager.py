@@ -91,7 +91,7 @@ class SessionManager:
             session = Session(session_id, label, bus_spec, network, self.profiles, simulated=simulated)
             self._services[session_id] = SessionServices.open(session, self.write_audits)
             self._sessions[session_id] = session
-        if session.ethercat is not None:  # the master knows its slaves: list them at once
+        if session.network.capabilities.esm:  # the master knows its slaves: list them at once
             try:
                 await session.scan()
             except DriveBenchError as exc:

@@ -14,11 +14,11 @@ from __future__ import annotations
 from collections.abc import Collection
 
 from drivebench.device.profiles.profile import Entry, ObjectEntry, Parameter
-from drivebench.protocol import coe_info
-from drivebench.protocol.coe_info import ListType, ObjectCode, ValueInfo
-from drivebench.protocol.coe_server import Abort
+from drivebench.protocol.canopen.sdo_server import SdoAbort
 from drivebench.protocol.datatypes import encode
-from drivebench.protocol.sdo_server import SdoAbort
+from drivebench.protocol.ethercat import coe_info
+from drivebench.protocol.ethercat.coe_info import ListType, ObjectCode, ValueInfo
+from drivebench.protocol.ethercat.coe_server import Abort
 from drivebench.simulator.store import ObjectStore, default_raw
 
 ABORT_NO_OBJECT, ABORT_NO_SUBINDEX = 0x06020000, 0x06090011

@@ -13,8 +13,9 @@ reading); C13879 bit 0 "General bus error" is set while a refused state change s
 
 :class:`GatewayServer` is the master's side: a UDP socket on 127.0.0.1 forwarding mailbox telegrams to the slave whose
 station address they name, and the master's own object dictionary at station address 0 (configured address list,
-configuration and diagnosis objects per slave, see :mod:`drivebench.protocol.esm`). Emergencies go to the last peer
-that talked to the slave (a master forwards what it read from the slave's mailbox to the gateway client; our reading).
+configuration and diagnosis objects per slave, see :mod:`drivebench.protocol.ethercat.esm`). Emergencies go to the
+last peer that talked to the slave (a master forwards what it read from the slave's mailbox to the gateway client;
+our reading).
 """
 
 from __future__ import annotations
@@ -30,10 +31,10 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 from drivebench.device.profiles import ethercat_section
 from drivebench.device.profiles.profile import Profile
 from drivebench.i18n import _
-from drivebench.protocol import coe, esm
-from drivebench.protocol.coe_server import Abort, CoeSdoServer
+from drivebench.protocol.canopen.sdo_server import SdoAbort
 from drivebench.protocol.datatypes import DataType, encode
-from drivebench.protocol.sdo_server import SdoAbort
+from drivebench.protocol.ethercat import coe, esm
+from drivebench.protocol.ethercat.coe_server import Abort, CoeSdoServer
 from drivebench.simulator.coe_dictionary import StoreDictionary
 from drivebench.simulator.node import Latency, LatencyText, SimulatedNode
 from drivebench.simulator.ticker import DeadlineTicker
@@ -142,7 +143,7 @@ class SimulatedSlave:
 
 
 class SimulatedMaster:
-    """The master's object dictionary at station address 0 (see :mod:`drivebench.protocol.esm`)."""
+    """The master's object dictionary at station address 0 (see :mod:`drivebench.protocol.ethercat.esm`)."""
 
     def __init__(self, slaves: list[SimulatedSlave], *, diagnosis: bool = True) -> None:
         self.slaves = slaves

@@ -22,9 +22,9 @@ from pydantic import AfterValidator
 
 from drivebench.device.profiles.profile import Profile
 from drivebench.errors import UnknownParameter
-from drivebench.protocol.nmt import NmtCommand, NmtState
-from drivebench.protocol.sdo_server import SdoAbort as Abort
-from drivebench.protocol.sdo_server import SdoServer
+from drivebench.protocol.canopen.nmt import NmtCommand, NmtState
+from drivebench.protocol.canopen.sdo_server import SdoAbort as Abort
+from drivebench.protocol.canopen.sdo_server import SdoServer
 from drivebench.simulator.drive402 import Drive402
 from drivebench.simulator.faults import FaultState
 from drivebench.simulator.lenze_control import WordControl

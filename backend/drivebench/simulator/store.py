@@ -17,8 +17,8 @@ from drivebench.device.formats.eds_export import eds_objects
 from drivebench.device.profiles.catalog import Catalog
 from drivebench.device.profiles.factory_default import PREDEFINED_CONNECTION_SET
 from drivebench.device.profiles.profile import Access, Entry, Profile
+from drivebench.protocol.canopen.sdo_server import SdoAbort as Abort
 from drivebench.protocol.datatypes import DataType, decode, encode
-from drivebench.protocol.sdo_server import SdoAbort as Abort
 
 RawValue = int | float | str | bytes
 

@@ -4,7 +4,7 @@ header of type 5 (mailbox) whose 11-bit length is the telegram's. The gateway ro
 configured station address stands in the telegram's mailbox header and sends the slave's answer back.
 
 A bus spec ``ethercat-mbg:HOST[:PORT]`` names a gateway. This module moves telegrams; what they say is the
-protocol layer's (:mod:`drivebench.protocol.coe`).
+protocol layer's (:mod:`drivebench.protocol.ethercat.coe`).
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ words why a master cannot run here; :class:`SoemLink` wraps pysoem's blocking ca
 and turns its exceptions into the tool's: an SDO abort (``SdoError`` with the code) -> :class:`SdoAbortError`, no
 answer (``WkcError``, working counter 0) -> :class:`SdoTimeoutError`, a mailbox error reply or a wrong frame ->
 :class:`ProtocolError`. What the slaves' states and mailboxes mean is the protocol layer's
-(:mod:`drivebench.protocol.ethercat_master`).
+(:mod:`drivebench.protocol.ethercat.master`).
 
 Emergencies: pysoem hands a slave's CoE emergency to its callbacks while it reads that slave's mailbox (during an SDO
 transfer, or :meth:`SoemLink.poll_mailboxes`, which the link's cycle thread calls twice a second).

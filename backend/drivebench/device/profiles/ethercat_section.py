@@ -14,7 +14,7 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from drivebench.i18n import _
-from drivebench.protocol.esm import MANDATORY_STATES, EsmState
+from drivebench.protocol.ethercat.esm import MANDATORY_STATES, EsmState
 
 EsmStateName = Literal["Init", "Pre-Operational", "Bootstrap", "Safe-Operational", "Operational"]
 EVERY_SLAVE: list[EsmStateName] = ["Init", "Pre-Operational", "Safe-Operational", "Operational"]

@@ -26,7 +26,7 @@ from typing import Any
 import can
 
 from drivebench.i18n import N_, Text, _, shown
-from drivebench.protocol.ethercat_network import EthercatNetwork
+from drivebench.protocol.ethercat.network import EthercatNetwork
 from drivebench.transport.bus import LinkState, ObservedBus
 
 STATES = ("active", "warning", "passive", "bus-off")

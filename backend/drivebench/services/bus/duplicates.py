@@ -18,7 +18,7 @@ from collections import deque
 import can
 
 from drivebench.i18n import N_, Text, _, shown
-from drivebench.protocol.network import CanopenNetwork
+from drivebench.protocol.canopen.network import CanopenNetwork
 
 BOOTUP_WINDOW_S = 0.5
 HEARTBEATS_JUDGED = 7

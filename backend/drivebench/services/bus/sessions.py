@@ -20,12 +20,13 @@ from drivebench.device.profiles.catalog import Catalog
 from drivebench.device.profiles.profile import Profile
 from drivebench.errors import DriveBenchError, NotFound, SdoAbortError, SdoOutOfStepError, SdoTimeoutError
 from drivebench.i18n import _
+from drivebench.protocol.canopen.guarding import NodeGuarding
+from drivebench.protocol.canopen.heartbeat import HeartbeatMonitor, HeartbeatStatus
+from drivebench.protocol.canopen.network import frames_of
+from drivebench.protocol.canopen.nmt import STATE_AFTER, NmtCommand, NmtState
 from drivebench.protocol.emcy import EmcyEvent
-from drivebench.protocol.esm import EsmState
-from drivebench.protocol.ethercat_network import EthercatNetwork, SlaveInfo
-from drivebench.protocol.heartbeat import HeartbeatStatus
-from drivebench.protocol.network import CanopenNetwork
-from drivebench.protocol.nmt import STATE_AFTER, NmtCommand, NmtState
+from drivebench.protocol.ethercat.esm import EsmState
+from drivebench.protocol.ethercat.network import EthercatNetwork, SlaveInfo, master_of
 from drivebench.services.bus.bus_state import ADAPTER_LOST, BusHealth, GatewayHealth
 from drivebench.services.bus.duplicates import DuplicateWatch
 from drivebench.services.bus.fieldbus import Network, SdoClient, SessionSpec
@@ -106,13 +107,15 @@ class Session:
         self._states_read = 0.0
         """EtherCAT only: what the master last said about each slave (station address, AL status)."""
         self.health: BusHealth | GatewayHealth
-        if isinstance(network, EthercatNetwork):
-            self.health = GatewayHealth(network)
+        master = master_of(network)
+        if master is not None:
+            self.health = GatewayHealth(master)
             return
-        self.health = BusHealth(network.bus, self.emit)
-        network.add_listener(self.health)
-        network.bus.send_guard = self.health.refusal
-        network.add_listener(self.duplicates)
+        frames = frames_of(network)
+        self.health = BusHealth(frames.bus, self.emit)
+        frames.add_listener(self.health)
+        frames.bus.send_guard = self.health.refusal
+        frames.add_listener(self.duplicates)
         self.health.notes.append(self.duplicates.text)
 
     def part(self, kind: type[PartT]) -> PartT:
@@ -123,8 +126,9 @@ class Session:
 
     @property
     def ethercat(self) -> EthercatNetwork | None:
-        """The session's EtherCAT segment, or None on CAN."""
-        return self.network if isinstance(self.network, EthercatNetwork) else None
+        """The master of the session's EtherCAT segment (slave list, AL states, mailbox counters), or None on a bus
+        without one (CAN)."""
+        return master_of(self.network)
 
     # --- nodes ------------------------------------------------------------------------------------------
     def add_node(self, node_id: int, profile_id: str | None, name: str | None = None) -> SessionNode:
@@ -159,10 +163,11 @@ class Session:
         guard's confirmation and keep-alive hold there too."""
         if node_id and node_id not in self.nodes:
             self.node(node_id)
-        if isinstance(self.network, EthercatNetwork):
-            await self._change_states(self.network, command, node_id)
+        master = self.ethercat
+        if master is not None:
+            await self._change_states(master, command, node_id)
             return
-        await asyncio.to_thread(self.network.send_nmt, command, node_id)
+        await asyncio.to_thread(frames_of(self.network).send_nmt, command, node_id)
         targets = list(self.nodes.values()) if node_id == 0 else [self.nodes[node_id]]
         for node in targets:
             node.commanded_state = STATE_AFTER[command]
@@ -184,24 +189,26 @@ class Session:
     async def refresh_states(self, max_age_s: float = 2.0) -> None:
         """EtherCAT: the slaves' AL status read from the master again, at most every ``max_age_s`` however many
         pages ask (on CAN the heartbeats keep the states live; nothing to do)."""
-        if not isinstance(self.network, EthercatNetwork) or time.monotonic() - self._states_read < max_age_s:
+        master = self.ethercat
+        if master is None or time.monotonic() - self._states_read < max_age_s:
             return
         self._states_read = time.monotonic()
         for node_id, info in list(self.slaves.items()):
             try:
-                info.al_status, info.al_status_code = await asyncio.to_thread(self.network.al_state, node_id)
+                info.al_status, info.al_status_code = await asyncio.to_thread(master.al_state, node_id)
             except DriveBenchError:
                 info.al_status, info.al_status_code = None, 0  # shown as Unknown: the master did not say
 
     # --- scan -------------------------------------------------------------------------------------------
     async def scan(self, timeout_s: float = 0.5) -> list[SessionNode]:
         """Find nodes (SDO 0x1000 to every id + heartbeats), read their identity, pick a profile."""
-        if isinstance(self.network, EthercatNetwork):
-            return await self._scan_segment(self.network)
+        master = self.ethercat
+        if master is not None:
+            return await self._scan_segment(master)
         found = await asyncio.to_thread(self.network.scan, timeout_s)
         results = await asyncio.gather(*(self._identify(node_id) for node_id in found))
         if found:  # two devices on one id both answer: one more request each tells (Plant page, state_text)
-            await asyncio.to_thread(self.duplicates.probe, self.network, found)
+            await asyncio.to_thread(self.duplicates.probe, frames_of(self.network), found)
         return list(results)
 
     async def _scan_segment(self, segment: EthercatNetwork) -> list[SessionNode]:
@@ -242,7 +249,7 @@ class Session:
         try:  # the producer period lets heartbeat loss be judged before two telegrams were measured
             period = await client.aupload(0x1017, 0)
             period_ms = int.from_bytes(period[:2], "little")
-            self.network.heartbeat.set_configured_period(node_id, period_ms)
+            frames_of(self.network).heartbeat.set_configured_period(node_id, period_ms)
             if period_ms:
                 self.duplicates.producer_period_s[node_id] = period_ms / 1000
         except (SdoAbortError, SdoTimeoutError, SdoOutOfStepError):
@@ -259,8 +266,20 @@ class Session:
         return node
 
     # --- state ------------------------------------------------------------------------------------------
+    @property
+    def heartbeats(self) -> HeartbeatMonitor | None:
+        """The heartbeat consumer, or None on a bus without heartbeats (EtherCAT: the master watches its slaves)."""
+        return frames_of(self.network).heartbeat if self.network.capabilities.heartbeat else None
+
+    @property
+    def guarding(self) -> NodeGuarding | None:
+        """Node guarding, or None on a bus without it."""
+        return frames_of(self.network).guarding if self.network.capabilities.guarding else None
+
     def heartbeat(self, node_id: int) -> HeartbeatStatus:
-        return self.network.heartbeat.status(node_id)
+        """What the node's heartbeats said (nothing heard on a bus without heartbeats)."""
+        heartbeats = self.heartbeats
+        return heartbeats.status(node_id) if heartbeats is not None else HeartbeatStatus(node_id)
 
     @property
     def bus_state(self) -> str:
@@ -274,21 +293,21 @@ class Session:
 
     def reconnect(self) -> None:
         """Try to reopen a lost adapter now (it is retried with back-off anyway)."""
-        if isinstance(self.network, CanopenNetwork):
-            self.network.bus.reconnect_now()
+        if self.network.capabilities.frames:
+            frames_of(self.network).bus.reconnect_now()
 
     def nmt_state(self, node_id: int) -> tuple[str, bool]:
         """The node's NMT state in words, and whether it comes from a live heartbeat (on EtherCAT: its AL status
         as the master last reported it)."""
         slave = self.slaves.get(node_id)
-        if self.ethercat is not None:
+        if self.network.capabilities.esm:
             return (slave.state_text, slave.al_status is not None) if slave is not None else ("Unknown", False)
         bus_state = self.health.state()
         if bus_state == ADAPTER_LOST:
             return "Adapter lost", False
         if bus_state == "bus-off":
             return "Bus-off", False
-        guard = self.network.guarding.status(node_id)
+        guard = frames_of(self.network).guarding.status(node_id)
         if guard is not None:
             if guard.is_lost():
                 return "Node guarding lost", True
@@ -309,16 +328,18 @@ class Session:
 
     def add_frame_listener(self, listener: can.Listener) -> None:
         """Frames read from the bus and frames the tool sends (e.g. the monitor); EtherCAT has none."""
-        if isinstance(self.network, EthercatNetwork):
+        if not self.network.capabilities.frames:
             return
-        self.network.add_listener(listener)
-        self.network.bus.add_observer(listener.on_message_received)
+        frames = frames_of(self.network)
+        frames.add_listener(listener)
+        frames.bus.add_observer(listener.on_message_received)
 
     def remove_frame_listener(self, listener: can.Listener) -> None:
-        if isinstance(self.network, EthercatNetwork):
+        if not self.network.capabilities.frames:
             return
-        self.network.remove_listener(listener)
-        self.network.bus.remove_observer(listener.on_message_received)
+        frames = frames_of(self.network)
+        frames.remove_listener(listener)
+        frames.bus.remove_observer(listener.on_message_received)
 
     def on_event(self, callback: Callable[[str, dict[str, object]], None]) -> None:
         self._listeners.append(callback)

@@ -92,11 +92,11 @@ def node_public(session: Session, node: SessionNode, now: float | None = None) -
 
 
 def _slave_fields(session: Session, node_id: int) -> dict[str, Any]:
-    segment = session.ethercat
+    master = session.ethercat
     slave = session.slaves.get(node_id)
-    if segment is None or slave is None:
+    if master is None or slave is None:
         return {}
-    return {"station": slave.station, "mailbox": asdict(segment.counters(node_id))}
+    return {"station": slave.station, "mailbox": asdict(master.counters(node_id))}
 
 
 def session_public(session: Session) -> SessionPublic:

@@ -41,8 +41,9 @@ from drivebench.errors import (
     UnknownParameter,
 )
 from drivebench.i18n import _
+from drivebench.protocol.canopen.network import frames_of
+from drivebench.protocol.canopen.nmt import NmtCommand
 from drivebench.protocol.datatypes import decode
-from drivebench.protocol.nmt import NmtCommand
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.control import drive_control, drive_guard
 from drivebench.services.params import node_lease, parameters
@@ -395,7 +396,7 @@ async def _send_and_wait_state(session: Session, node: SessionNode, cob_id: int,
     tap = Tpdo()
     session.add_frame_listener(tap)
     try:
-        await asyncio.to_thread(session.network.send, cob_id, data)
+        await asyncio.to_thread(frames_of(session.network).send, cob_id, data)
         return await asyncio.wait_for(found, ANSWER_TIMEOUT_S)
     except TimeoutError:
         state, word = await _state_of(session, node, fam.status_ref)
@@ -431,7 +432,7 @@ async def _execute(session: Session, node: SessionNode, step: Step, value: objec
         return None
     if step.kind == "pdo":
         if step.expect_state is None:
-            await asyncio.to_thread(session.network.send, step.cob + node.node_id, step.data)
+            await asyncio.to_thread(frames_of(session.network).send, step.cob + node.node_id, step.data)
             return None
         state = await _send_and_wait_state(session, node, step.cob + node.node_id, step.data, step.expect_state)
         return None if state == step.expect_state else \

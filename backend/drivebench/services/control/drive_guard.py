@@ -33,7 +33,7 @@ from urllib.parse import unquote
 
 from drivebench.errors import ConfirmationRequired, Conflict, DriveBenchError, InvalidValue
 from drivebench.i18n import DEFAULT, N_, Text, _, shown, using
-from drivebench.protocol.nmt import NmtCommand
+from drivebench.protocol.canopen.nmt import NmtCommand
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.control.drive_words import Command, family_of, next_control_word
 from drivebench.services.params import node_lease, parameters
@@ -371,12 +371,13 @@ class Guard:
             except DriveBenchError as exc:
                 head = Text(N_("Quick stop FAILED ({error})"), error=exc.detail)
         if started:
+            esm = session.network.capabilities.esm
             try:
                 await session.nmt(NmtCommand.ENTER_PRE_OPERATIONAL, node_id)
-                steps.append(Text(N_("EtherCAT state Pre-Operational requested") if session.ethercat is not None
+                steps.append(Text(N_("EtherCAT state Pre-Operational requested") if esm
                                   else N_("NMT pre-operational sent")))
             except DriveBenchError as exc:
-                steps.append(Text(N_("EtherCAT state Pre-Operational FAILED ({error})") if session.ethercat is not None
+                steps.append(Text(N_("EtherCAT state Pre-Operational FAILED ({error})") if esm
                                   else N_("NMT pre-operational FAILED ({error})"), error=exc.detail))
         for step in steps:
             why = Text(N_("{reason}; {step}"), reason=why, step=step)

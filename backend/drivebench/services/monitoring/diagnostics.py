@@ -14,8 +14,9 @@ from drivebench.device.drive.faults import DecodedFault, decode_emcy
 from drivebench.device.profiles.profile import EmcyCode, Profile
 from drivebench.errors import DriveBenchError, InvalidValue
 from drivebench.i18n import N_, _
+from drivebench.protocol.canopen.guarding import GuardStatus
+from drivebench.protocol.canopen.network import frames_of
 from drivebench.protocol.emcy import EmcyEvent
-from drivebench.protocol.guarding import GuardStatus
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.params import node_lease, parameters
 from drivebench.services.params.write_origin import acting
@@ -130,7 +131,7 @@ def node_health(session: Session, node: SessionNode, now: float | None = None) -
     status = session.heartbeat(node.node_id)
     period = status.expected_period_s()
     active = session.network.emcy.active(node.node_id)
-    guard = session.network.guarding.status(node.node_id)
+    guard = session.guarding.status(node.node_id) if session.guarding is not None else None
     state = session.nmt_state(node.node_id)[0]
     return NodeHealth(
         node_id=node.node_id, device=node.device_name, nmt_state=state, nmt_state_text=nmt_state_text(state),
@@ -179,13 +180,19 @@ async def read_heartbeat_setup(session: Session, node_id: int) -> HeartbeatSetup
     return HeartbeatSetup(node_id=node_id, producer_time_ms=producer, consumers=consumers)
 
 
+def _configured(session: Session, node_id: int, period_ms: int) -> None:
+    """The producer time the node was given, for the heartbeat consumer's loss judgement (none on EtherCAT)."""
+    if session.heartbeats is not None:
+        session.heartbeats.set_configured_period(node_id, period_ms)
+
+
 @node_lease.leased
 async def write_heartbeat_producer(session: Session, node_id: int, time_ms: int) -> HeartbeatSetup:
     if not 0 <= time_ms <= 0xFFFF:
         raise InvalidValue(_("Heartbeat producer time {time} ms is outside 0 … 65535 ms (0 = off).").format(
             time=time_ms))
     await _send(session, node_id, HEARTBEAT_PRODUCER, 0, time_ms.to_bytes(2, "little"))
-    session.network.heartbeat.set_configured_period(node_id, time_ms)
+    _configured(session, node_id, time_ms)
     setup = await read_heartbeat_setup(session, node_id)
     if setup.producer_time_ms != time_ms:
         raise InvalidValue(_("Node {node} reads back a heartbeat producer time of {read} ms after {time} ms was "
@@ -198,14 +205,14 @@ async def _producer_period_s(session: Session, producer_id: int) -> float | None
     """The producer's configured heartbeat time (its 0x1017, what CiA 301 compares a consumer time with); the period
     measured from its telegrams only when the producer cannot be asked (a late telegram must not refuse a right
     consumer time)."""
-    status = session.network.heartbeat.status(producer_id)
+    status = session.heartbeat(producer_id)
     if status.configured_period_s is not None:
         return status.configured_period_s
     try:
         configured = _u(await session.client(producer_id).aupload(HEARTBEAT_PRODUCER, 0))
     except DriveBenchError:
         return status.period_s
-    session.network.heartbeat.set_configured_period(producer_id, configured)
+    _configured(session, producer_id, configured)
     return configured / 1000 if configured else None
 
 
@@ -252,14 +259,15 @@ async def start_guarding(session: Session, node_id: int, guard_time_ms: int, lif
         raise InvalidValue(_("Guard time must be 0 … 65535 ms and life time factor 0 … 255."))
     if guard_time_ms and life_time_factor:  # CiA 301: a node with a heartbeat producer time does not guard
         await _send(session, node_id, HEARTBEAT_PRODUCER, 0, (0).to_bytes(2, "little"))
-        session.network.heartbeat.set_configured_period(node_id, 0)
+        _configured(session, node_id, 0)
     await _send(session, node_id, GUARD_TIME, 0, guard_time_ms.to_bytes(2, "little"))
     await _send(session, node_id, LIFE_TIME_FACTOR, 0, life_time_factor.to_bytes(1, "little"))
     if guard_time_ms == 0 or life_time_factor == 0:
-        session.network.guarding.release(node_id)
+        if session.guarding is not None:
+            session.guarding.release(node_id)
         return GuardingPublic(guard_time_ms=0, life_time_factor=life_time_factor, lost=False, state=None,
                               requests=0, answers=0, toggle_errors=0, last_answer=None)
-    return guarding_public(session.network.guarding.start(node_id, guard_time_ms, life_time_factor))
+    return guarding_public(frames_of(session.network).guarding.start(node_id, guard_time_ms, life_time_factor))
 
 
 # --- vendor diagnostic parameters (8400 motec bus status C00359 and telegram counters, MICROMASTER r2054 ...) -----

@@ -28,7 +28,7 @@ from typing import Any
 import can
 
 from drivebench.i18n import N_, Text, gettext, shown
-from drivebench.protocol.decode import (
+from drivebench.protocol.canopen.decode import (
     DecodedFrame,
     SdoContext,
     SdoTracker,

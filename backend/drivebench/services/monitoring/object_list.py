@@ -12,8 +12,8 @@ from dataclasses import dataclass
 
 from drivebench.errors import Conflict, DriveBenchError
 from drivebench.i18n import _
-from drivebench.protocol.coe_sdo import CoeSdoClient
-from drivebench.protocol.ethercat_network import CoeNodeClient
+from drivebench.protocol.ethercat.coe_sdo import CoeSdoClient
+from drivebench.protocol.ethercat.network import CoeNodeClient
 from drivebench.services.bus.sessions import Session
 
 

@@ -16,8 +16,8 @@ from collections.abc import Mapping
 
 from drivebench.device.formats.eds import resolve_node_expr
 from drivebench.device.profiles.profile import ObjectEntry
-from drivebench.protocol.decode import Service
-from drivebench.protocol.sdo_confirmed import ConfirmedValues
+from drivebench.protocol.canopen.decode import Service
+from drivebench.protocol.canopen.sdo_confirmed import ConfirmedValues
 from drivebench.services.bus.sessions import SessionNode
 
 COB_INVALID = 1 << 31

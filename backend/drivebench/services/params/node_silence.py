@@ -20,7 +20,7 @@ from collections.abc import Awaitable, Callable
 
 from drivebench.errors import SdoAbortError, SdoOutOfStepError, SdoTimeoutError
 from drivebench.i18n import N_
-from drivebench.protocol.heartbeat import HeartbeatMonitor
+from drivebench.protocol.canopen.heartbeat import HeartbeatStatus
 
 SUSPECT_AFTER_TIMEOUTS = 2
 """Timeouts in a row after which the node is probed (and again after every further run of this many)."""
@@ -40,7 +40,7 @@ Probe = Callable[[], Awaitable[object]]
 class NodeSilence:
     """One node's evidence during one job; shared by the job's SDO channels to that node."""
 
-    def __init__(self, node_id: int, probe: Probe, heartbeat: HeartbeatMonitor) -> None:
+    def __init__(self, node_id: int, probe: Probe, heartbeat: Callable[[int], HeartbeatStatus]) -> None:
         self.node_id = node_id
         self._probe = probe
         self._heartbeat = heartbeat
@@ -94,5 +94,5 @@ class NodeSilence:
         return None if out_of_step else DID_NOT_ANSWER
 
     def _heartbeat_fresh(self) -> bool:
-        status = self._heartbeat.status(self.node_id)
+        status = self._heartbeat(self.node_id)
         return status.last_seen is not None and status.expected_period_s() is not None and not status.is_lost()

@@ -53,11 +53,11 @@ from drivebench.errors import (
     WriteOutcomeUnknown,
 )
 from drivebench.i18n import N_, Text, _
+from drivebench.protocol.canopen.heartbeat import HeartbeatStatus
+from drivebench.protocol.canopen.network import NodeClient, SdoChannel
+from drivebench.protocol.canopen.nmt import NmtCommand
+from drivebench.protocol.canopen.sdo_fast import ExpeditedRequest, upload_batch, upload_expedited
 from drivebench.protocol.datatypes import DataType, decode, encode
-from drivebench.protocol.heartbeat import HeartbeatStatus
-from drivebench.protocol.network import NodeClient, SdoChannel
-from drivebench.protocol.nmt import NmtCommand
-from drivebench.protocol.sdo_fast import ExpeditedRequest, upload_batch, upload_expedited
 from drivebench.services.bus.fieldbus import SdoClient
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.params import node_lease
@@ -179,7 +179,8 @@ def attach(session: Session) -> SessionParameters:
     """The parameter state of a session (made with the session's services when it opens)."""
     network = session.network
     state = SessionParameters(weakref.ref(session), SdoSettings(network.sdo_timeout_s, network.sdo_retries))
-    network.heartbeat.add_callback(state.on_heartbeat)
+    if session.heartbeats is not None:  # SDO2 comes back after a boot-up (CAN)
+        session.heartbeats.add_callback(state.on_heartbeat)
     return state
 
 
@@ -207,7 +208,7 @@ async def _on_bus(work: Callable[[], T]) -> T:
 def stop_first(session: Session, node_id: int) -> Iterator[None]:
     """The reads and writes inside stop the drive (quick stop, disable, the guard's trip): they go before every
     transfer waiting for the node (the one on the wire finishes first), and none of those gets in between them
-    (:class:`~drivebench.protocol.sdo_queue.ChannelLock`)."""
+    (:class:`~drivebench.protocol.canopen.sdo_queue.ChannelLock`)."""
     token = _urgent.set(True)
     try:
         with session.client(node_id).stop_first():
@@ -338,7 +339,8 @@ class _Plan:
         self.name = item.name
         self.expedited = size is not None and size <= 4 and entry.access.readable
         self.on_loop = entry.access.readable
-        """Read on the event loop (:mod:`drivebench.protocol.sdo_fast`): expedited, or segmented for longer ones."""
+        """Read on the event loop (:mod:`drivebench.protocol.canopen.sdo_fast`): expedited, or segmented for longer
+        ones."""
         self.request = ExpeditedRequest(item.index, item.subindex)
         integer = data_type.is_integer and size is not None and data_type is not DataType.BOOLEAN
         self._size = size if integer else 0
@@ -418,7 +420,7 @@ def _read_blocking(client: SdoClient, item: Item, *, block: bool = False, channe
 
 async def _upload(client: SdoClient, plan: _Plan, *, block: bool = False, channel: int | None = None,
                   on_loop: bool = True) -> bytes:
-    """Read one value: expedited on the event loop where it can be (:mod:`drivebench.protocol.sdo_fast`), else
+    """Read one value: expedited on the event loop where it can be (:mod:`drivebench.protocol.canopen.sdo_fast`), else
     canopen's client in a worker thread (``on_loop=False``: there at once, the device's answer on the loop was one
     only that client reads). Transfer errors name the parameter as the user knows it (C00099)."""
     try:
@@ -930,8 +932,7 @@ _DEVICE_TYPE = _Plan(Item("0x1000", 0x1000, 0, ObjectEntry(name="Device type", d
 
 
 def _silence(session: Session, client: SdoClient, channel: int) -> NodeSilence:
-    return NodeSilence(client.node_id, partial(_upload, client, _DEVICE_TYPE, channel=channel),
-                       session.network.heartbeat)
+    return NodeSilence(client.node_id, partial(_upload, client, _DEVICE_TYPE, channel=channel), session.heartbeat)
 
 
 def silence_watch(session: Session, node_id: int) -> NodeSilence:

@@ -95,7 +95,7 @@ def pdo_name(direction: Direction, number: int) -> str:
 
 
 def _catalog(session: Session, node_id: int) -> Catalog:
-    if session.ethercat is None:
+    if session.network.capabilities.frames:
         raise errors.Conflict(_("Session {session} is not an EtherCAT session: its PDOs have COB-IDs (PDO tab).")
                               .format(session=session.id))
     return pdo.node_catalog(session, node_id)

@@ -24,6 +24,7 @@ from drivebench.device.profiles.profile import Entry
 from drivebench.device.profiles.scaling import from_raw, to_raw
 from drivebench.errors import Conflict, DriveBenchError, InvalidValue, NotFound
 from drivebench.i18n import N_, _
+from drivebench.protocol.canopen.network import frames_of
 from drivebench.protocol.datatypes import decode, encode
 from drivebench.services.bus.sessions import Session
 from drivebench.services.pdos import pdo
@@ -229,7 +230,7 @@ class ProcessData:
     async def send_rpdo(self, node_id: int, number: int, values: dict[str, str]) -> bytes:
         lay = self.layout(node_id, "rpdo", number)
         data = pack(lay, values)
-        await asyncio.to_thread(self.session.network.send, lay.config.cob_id, data)
+        await asyncio.to_thread(frames_of(self.session.network).send, lay.config.cob_id, data)
         return data
 
     async def start_cyclic(self, owner: str, node_id: int, number: int, values: dict[str, str],
@@ -247,7 +248,7 @@ class ProcessData:
 
         async def run() -> None:
             while True:
-                await asyncio.to_thread(network.send, cob_id, data)
+                await asyncio.to_thread(frames_of(network).send, cob_id, data)
                 await asyncio.sleep(period_ms / 1000)
 
         self.cyclic[(owner, cob_id)] = asyncio.get_running_loop().create_task(run())
@@ -286,7 +287,7 @@ class ProcessData:
             next_at = time.monotonic()
             while not stop.is_set():
                 try:
-                    network.send(SYNC_COB_ID, b"")
+                    frames_of(network).send(SYNC_COB_ID, b"")
                 except DriveBenchError:
                     return  # the bus went away (session closed)
                 next_at += period_ms / 1000

@@ -17,7 +17,7 @@ from pydantic import BaseModel, Field, model_validator
 
 from drivebench.errors import AccessDenied, InvalidValue
 from drivebench.i18n import _
-from drivebench.protocol.nmt import COMMAND_BY_NAME, NmtCommand
+from drivebench.protocol.canopen.nmt import COMMAND_BY_NAME, NmtCommand
 from drivebench.services.bus.fieldbus import SessionSpec, parse_spec
 from drivebench.services.bus.sessions import Session
 from drivebench.services.bus.views import NodePublic, SessionPublic, node_public, nodes_public, session_public

@@ -58,7 +58,7 @@ async def monitor_page(request: Request, state: StateDep, session: SessionDep) -
 
 def _mailbox(session: Session) -> list[NodePublic] | None:
     """EtherCAT: the slaves with their mailbox counters; None on CAN."""
-    if session.ethercat is None:
+    if not session.network.capabilities.mailbox_counters:
         return None
     return [node for node in nodes_public(session) if node.mailbox is not None]
 

@@ -70,7 +70,7 @@ templates.env.filters["motion"] = motion_of  # rows whose write can move the dri
 def _base(request: Request, session: Session, node: SessionNode, tab: str, **extra: Any) -> dict[str, Any]:
     return {"active": "plant", "session": session, "node": node, "public": node_public(session, node),
             "sdo_label": session.network.sdo_label(node.node_id),
-            "second_sdo_channel": session.network.second_sdo_channel,
+            "second_sdo_channel": session.network.capabilities.second_sdo_channel,
             "tabs": TABS, "tab": tab, "base": f"/ui/sessions/{session.id}/nodes/{node.node_id}",
             "page": f"/sessions/{session.id}/nodes/{node.node_id}", **extra}
 

@@ -28,11 +28,11 @@ def _context(session: Session, node: SessionNode, **extra: Any) -> dict[str, Any
             "groups": diagnostics.diagnostic_groups(node),
             "guarding_supported": bool(node.profile and node.profile.features.node_guarding),
             "has_faults": bool(node.profile and node.profile.faults),
-            "slave": node_public(session, node) if session.ethercat is not None else None, **extra}
+            "slave": node_public(session, node) if session.network.capabilities.esm else None, **extra}
 
 
 async def _setup(session: Session, node: SessionNode) -> dict[str, Any]:
-    if session.ethercat is not None:  # no heartbeat on EtherCAT: the master watches its slaves
+    if not session.network.capabilities.heartbeat:  # EtherCAT: the master watches its slaves
         return {"setup": None, "setup_error": None}
     try:
         return {"setup": await diagnostics.read_heartbeat_setup(session, node.node_id), "setup_error": None}

@@ -21,7 +21,7 @@ from pydantic import BaseModel
 from drivebench.device.profiles import pdo_notes
 from drivebench.errors import AccessDenied, InvalidValue
 from drivebench.i18n import _
-from drivebench.protocol.nmt import NmtCommand
+from drivebench.protocol.canopen.nmt import NmtCommand
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.bus.views import node_public
 from drivebench.services.control import drive_guard
@@ -82,7 +82,7 @@ def _parse_entries(text: str) -> list[tuple[int, int]]:
 @router.get(UI, response_class=HTMLResponse)
 async def pdo_list(request: Request, session: SessionDep, node: NodeDep) -> Response:
     profile = node.profile
-    if session.ethercat is not None:  # EtherCAT: assignment 0x1C12/0x1C13 and the mappings, no COB-IDs
+    if not session.network.capabilities.frames:  # EtherCAT: assignment 0x1C12/0x1C13 and the mappings, no COB-IDs
         cards = []
         assignments = [_ecat_context(session, node, a) for a in
                        await ethercat_pdo.read_assignments(session, node.node_id)]

@@ -13,7 +13,7 @@ from fastapi.responses import HTMLResponse, Response
 
 from drivebench.errors import Conflict, DriveBenchError
 from drivebench.i18n import N_, _
-from drivebench.protocol.nmt import COMMAND_BY_NAME
+from drivebench.protocol.canopen.nmt import COMMAND_BY_NAME
 from drivebench.services.bus.fieldbus import ETHERCAT_INTERFACES, SessionSpec, interface_notes, parse_spec
 from drivebench.services.bus.sessions import Session
 from drivebench.services.bus.views import nodes_public, session_public

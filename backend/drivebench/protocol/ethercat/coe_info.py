@@ -26,7 +26,7 @@ import struct
 from dataclasses import dataclass
 from enum import IntEnum
 
-from drivebench.protocol.coe import MailboxFormatError
+from drivebench.protocol.ethercat.coe import MailboxFormatError
 
 INFO_HEADER = struct.Struct("<BBH")
 INCOMPLETE = 0x80

@@ -21,9 +21,9 @@ import threading
 
 from drivebench.errors import ProtocolError, SdoAbortError, SdoTimeoutError
 from drivebench.i18n import N_, Text
-from drivebench.protocol import esm
-from drivebench.protocol.ethercat import EmergencyListener, MailboxCounters
-from drivebench.protocol.ethercat_network import NOT_CHANGED, EthercatNetwork, SlaveInfo
+from drivebench.protocol.ethercat import esm
+from drivebench.protocol.ethercat.network import NOT_CHANGED, EthercatNetwork, SlaveInfo
+from drivebench.protocol.ethercat.segment import EmergencyListener, MailboxCounters
 from drivebench.transport.ethercat_soem import REG_AL_STATUS, REG_AL_STATUS_CODE, DirectSpec, SiiSlave, SoemLink
 
 STATE_TIMEOUT_S = 5.0
@@ -37,7 +37,7 @@ DIRECT_HINT = N_("Check the cable from this card to the first slave's IN port, t
 
 
 class SoemSdo:
-    """One slave's SDO client on the direct master (:class:`~drivebench.protocol.ethercat_network.SdoTransfers`)."""
+    """One slave's SDO client on the direct master (:class:`~drivebench.protocol.ethercat.network.SdoTransfers`)."""
 
     def __init__(self, link: SoemLink, position: int, counters: MailboxCounters, *, timeout_s: float,
                  retries: int) -> None:

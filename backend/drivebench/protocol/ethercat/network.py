@@ -1,11 +1,13 @@
 """An EtherCAT segment, seen the way a session sees a CAN network.
 
-:class:`EthercatNetwork` offers what the services use of :class:`~drivebench.protocol.network.CanopenNetwork`:
+:class:`EthercatNetwork` offers what the services use of :class:`~drivebench.protocol.canopen.network.CanopenNetwork`:
 ``node(node_id)`` gives an SDO client with the same methods and the same errors as a CAN node's
 (:class:`CoeNodeClient`), ``emcy`` keeps the slaves' CoE emergencies as the EMCY monitor keeps CAN's, ``scan`` finds
-the slaves. What CAN has and EtherCAT has not (NMT, heartbeat, node guarding, frames by COB-ID) is refused in words.
+the slaves. What CAN has and EtherCAT has not (NMT, heartbeat, node guarding, frames by COB-ID) it does not offer:
+its :attr:`~EthercatNetwork.capabilities` say so, and a service that needs frames is refused in words
+(:func:`~drivebench.protocol.canopen.network.frames_of`).
 How the slaves are reached is the subclass's: :class:`GatewayNetwork` through a running master's mailbox gateway,
-:class:`~drivebench.protocol.ethercat_master.DirectNetwork` as the master itself on a network card (pysoem).
+:class:`~drivebench.protocol.ethercat.master.DirectNetwork` as the master itself on a network card (pysoem).
 
 A session numbers its nodes 1, 2, ... in the order of the master's configured address list (the "position"; the
 tool's pages and API address nodes by these numbers); every mailbox telegram is addressed by the slave's configured
@@ -16,22 +18,19 @@ from __future__ import annotations
 
 import contextlib
 import threading
+import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Protocol, TypeVar
-
-import can
+from typing import Protocol, TypeVar, cast
 
 from drivebench.errors import ProtocolError, SdoAbortError, SdoTimeoutError
 from drivebench.i18n import N_, Text, _
-from drivebench.protocol import esm
 from drivebench.protocol.abort_codes import abort_text
-from drivebench.protocol.coe_sdo import SERVICE_NOT_SUPPORTED, CoeSdoClient, MailboxRefused
-from drivebench.protocol.emcy import EMCY_BASE, EmcyMonitor
-from drivebench.protocol.ethercat import EmergencyListener, EthercatSegment, MailboxCounters
-from drivebench.protocol.guarding import NodeGuarding
-from drivebench.protocol.heartbeat import HeartbeatMonitor
-from drivebench.protocol.network import EventLoopTransfers
+from drivebench.protocol.emcy import EmcyEvent, EmcyMonitor
+from drivebench.protocol.ethercat import esm
+from drivebench.protocol.ethercat.coe_sdo import SERVICE_NOT_SUPPORTED, CoeSdoClient, MailboxRefused
+from drivebench.protocol.ethercat.segment import EmergencyListener, EthercatSegment, MailboxCounters
+from drivebench.protocol.fieldbus import ETHERCAT, EventLoopTransfers, Fieldbus
 from drivebench.transport.ethercat_gateway import GatewaySpec
 from drivebench.transport.ethercat_soem import DirectSpec
 
@@ -176,6 +175,7 @@ class EthercatNetwork:
     """What every EtherCAT segment offers a session; the subclass opens ``segment`` and says how the slaves are
     found (scan), what state they are in and how to change it, and what a silence means."""
 
+    capabilities = ETHERCAT
     silence_hint = GATEWAY_HINT
     """What to check when a slave does not answer its mailbox."""
 
@@ -185,9 +185,7 @@ class EthercatNetwork:
         self.sdo_timeout_s = sdo_timeout_s
         self.sdo_retries = sdo_retries
         self.segment = segment
-        self.heartbeat = HeartbeatMonitor()
         self.emcy = EmcyMonitor()
-        self.guarding = NodeGuarding(self._no_frames)
         self.nodes: dict[int, CoeNodeClient] = {}
         self.stations: dict[int, int] = {}
         """Session node number -> configured station address."""
@@ -210,9 +208,6 @@ class EthercatNetwork:
             client.abort_texts.clear()
             client.abort_texts.update(abort_texts)
         return client
-
-    second_sdo_channel = False
-    """A slave has one mailbox."""
 
     def sdo_label(self, node_id: int) -> str:
         """How the slave's SDOs travel, for the Parameters tab (in the reader's language): its mailbox, station address
@@ -245,31 +240,22 @@ class EthercatNetwork:
         """The link to the segment in a sentence while it is lost, else None (worded when shown)."""
         raise NotImplementedError
 
-    # --- what a session asks of a CAN network -----------------------------------------------------------------
-    def _no_frames(self, *args: object) -> None:
-        raise ProtocolError(Text(N_("EtherCAT has no CAN identifiers: NMT, SYNC, PDO frames and node guarding do "
-                                     "not exist on {bus}"), bus=self.spec))
-
-    send = _no_frames
-    send_nmt = _no_frames
-
-    def add_listener(self, listener: can.Listener) -> None:
-        """No CAN frames to listen to (mailbox traffic is counted per slave instead)."""
-
-    def remove_listener(self, listener: can.Listener) -> None:
-        """See :meth:`add_listener`."""
-
     def _on_emergency(self, station: int, code: int, register: int, data: bytes, timestamp: float) -> None:
+        """A CoE emergency, kept as CAN's are (CiA 301 code, error register, five bytes)."""
         node_id = next((number for number, known in self.stations.items() if known == station), None)
         if node_id is None or node_id > 127:
             return
-        payload = code.to_bytes(2, "little") + bytes([register]) + data
-        self.emcy.on_message_received(can.Message(arbitration_id=EMCY_BASE + node_id, data=payload,
-                                                  is_extended_id=False, timestamp=timestamp))
+        manufacturer = bytes(data[:5]).ljust(5, b"\0")
+        self.emcy.record(EmcyEvent(node_id, code, register, manufacturer, timestamp or time.time()))
 
     def close(self) -> None:
-        self.guarding.close()
         self.segment.close()
+
+
+def master_of(network: Fieldbus[object]) -> EthercatNetwork | None:
+    """The segment's master behind a session's fieldbus (slave list, AL states, mailbox counters), or None on a bus
+    without one (CAN)."""
+    return cast(EthercatNetwork, network) if network.capabilities.esm else None
 
 
 class GatewayNetwork(EthercatNetwork):

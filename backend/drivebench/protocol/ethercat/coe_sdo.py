@@ -14,8 +14,8 @@ from collections.abc import Callable
 
 from drivebench.errors import ProtocolError, SdoAbortError, SdoOutOfStepError, SdoStalledError, SdoTimeoutError
 from drivebench.i18n import N_, Text
-from drivebench.protocol import coe, coe_info
 from drivebench.protocol.abort_codes import abort_text
+from drivebench.protocol.ethercat import coe, coe_info
 
 Exchange = Callable[[bytes, float], bytes | None]
 Receive = Callable[[float], bytes | None]

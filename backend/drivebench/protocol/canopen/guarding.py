@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import can
 
-from drivebench.protocol.nmt import NmtState
+from drivebench.protocol.canopen.nmt import NmtState
 
 GUARD_BASE = 0x700
 TICK_S = 0.01

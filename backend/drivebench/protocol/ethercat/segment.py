@@ -15,8 +15,8 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from drivebench.protocol import coe, coe_info
-from drivebench.protocol.coe_sdo import DEFAULT_MAILBOX_SIZE, CoeSdoClient
+from drivebench.protocol.ethercat import coe, coe_info
+from drivebench.protocol.ethercat.coe_sdo import DEFAULT_MAILBOX_SIZE, CoeSdoClient
 from drivebench.transport.ethercat_gateway import GatewayLink, GatewaySpec
 
 EmergencyListener = Callable[[int, int, int, bytes, float], None]

@@ -6,7 +6,7 @@ segmented answer, from the bus reader thread as each segment arrives (a string, 
 loop per segment). It answers ``None`` where it
 cannot do the transfer itself (the channel is busy with another transfer, or the device answers segmented and
 ``segmented`` is off): the caller then uses
-:meth:`NodeClient.upload <drivebench.protocol.network.NodeClient.upload>` in a worker thread.
+:meth:`NodeClient.upload <drivebench.protocol.canopen.network.NodeClient.upload>` in a worker thread.
 
 Timeout and retries are the channel's own (``NodeClient.configure``), read at every call, as canopen's client
 reads them.
@@ -25,9 +25,9 @@ from dataclasses import dataclass
 from drivebench.errors import ProtocolError, SdoAbortError, SdoOutOfStepError, SdoStalledError, SdoTimeoutError
 from drivebench.i18n import Text
 from drivebench.protocol.abort_codes import abort_text
+from drivebench.protocol.canopen.network import NodeClient, SdoChannel
+from drivebench.protocol.canopen.sdo_errors import NO_RESPONSE, UNEXPECTED, reason
 from drivebench.protocol.loop_handoff import Response, hand_over, waker
-from drivebench.protocol.network import NodeClient, SdoChannel
-from drivebench.protocol.sdo_errors import NO_RESPONSE, UNEXPECTED, reason
 
 ABORT_TIMEOUT = 0x05040000
 """CiA 301: SDO protocol timed out (sent when the last attempt got no answer)."""
@@ -304,7 +304,7 @@ class ExpeditedUploader:
                      ) -> bytes | None:
         """The value, or None when the channel is busy or the device answers other than expedited (``segmented``:
         a segmented answer is read here too, its segments asked for by the bus reader thread). ``urgent`` (a stop's
-        read) takes the channel before waiting reads (:class:`~drivebench.protocol.sdo_queue.ChannelLock`).
+        read) takes the channel before waiting reads (:class:`~drivebench.protocol.canopen.sdo_queue.ChannelLock`).
 
         Raises :class:`SdoAbortError` when the device aborts, :class:`SdoTimeoutError` when no attempt is
         answered (the transfer is then aborted with 0x05040000), :class:`SdoStalledError` when the segments stop,

@@ -4,7 +4,7 @@
 :class:`Abort` with a CiA 301 / ETG abort code. Answers are whole mailbox telegrams. A request repeated with the
 same non-zero mailbox counter (the client's retry after a lost answer) gets the previous answer again instead of
 being carried out twice. With an :class:`ObjectDictionary` it also answers the SDO information service
-(:mod:`drivebench.protocol.coe_info`), in as many fragments as its mailbox needs.
+(:mod:`drivebench.protocol.ethercat.coe_info`), in as many fragments as its mailbox needs.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
 
-from drivebench.protocol import coe, coe_info
+from drivebench.protocol.ethercat import coe, coe_info
 
 ABORT_TOGGLE = 0x05030000
 ABORT_COMMAND = 0x05040001

@@ -1,14 +1,13 @@
 """Master side of one CAN bus: a canopen Network on an opened bus, with per-node SDO access.
 
 canopen's SDO client blocks and is not thread-safe per node, so every node has one lock per SDO channel, a
-:class:`~drivebench.protocol.sdo_queue.ChannelLock` (``urgent`` transfers, the stop commands, go before waiting
+:class:`~drivebench.protocol.canopen.sdo_queue.ChannelLock` (``urgent`` transfers, the stop commands, go before waiting
 reads); callers in the event loop use the ``a*`` coroutines, which run the blocking call in a worker thread.
 All canopen and python-can exceptions are converted here, once, into the protocol error tree.
 """
 
 from __future__ import annotations
 
-import asyncio
 import contextlib
 import time
 from collections.abc import Callable, Iterator, Mapping
@@ -21,13 +20,14 @@ from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError
 from drivebench.errors import NodeOffline, ProtocolError, SdoAbortError, TransportError
 from drivebench.i18n import N_, Text
 from drivebench.protocol.abort_codes import abort_text
+from drivebench.protocol.canopen.guarding import NodeGuarding
+from drivebench.protocol.canopen.heartbeat import HeartbeatMonitor
+from drivebench.protocol.canopen.nmt import NmtCommand, nmt_frame
+from drivebench.protocol.canopen.sdo_errors import communication_error, read_segments
+from drivebench.protocol.canopen.sdo_queue import ChannelLock
 from drivebench.protocol.emcy import EmcyMonitor
-from drivebench.protocol.guarding import NodeGuarding
-from drivebench.protocol.heartbeat import HeartbeatMonitor
-from drivebench.protocol.nmt import NmtCommand, nmt_frame
-from drivebench.protocol.sdo_errors import communication_error, read_segments
-from drivebench.protocol.sdo_queue import ChannelLock
-from drivebench.transport.bus import ObservedBus
+from drivebench.protocol.fieldbus import CAN_BUS, NO_FRAMES, EventLoopTransfers, Fieldbus
+from drivebench.transport.bus import BusSpec, ObservedBus
 
 T = TypeVar("T")
 CANNOT_SEND = N_("Cannot send on {bus}: {reason}")
@@ -40,25 +40,6 @@ class SdoChannel:
         self.client = client
         self.number = number
         self.lock = ChannelLock()
-
-
-class EventLoopTransfers:
-    """``aupload``/``adownload`` for callers in the event loop: the blocking ``upload``/``download`` of the
-    subclass (a CAN node's, an EtherCAT slave's) in a worker thread."""
-
-    def upload(self, index: int, sub: int, *, block: bool = False, channel: int | None = None,
-               urgent: bool = False) -> bytes:
-        raise NotImplementedError
-
-    def download(self, index: int, sub: int, data: bytes, *, block: bool = False,
-                 channel: int | None = None, urgent: bool = False) -> None:
-        raise NotImplementedError
-
-    async def aupload(self, index: int, sub: int, **kwargs: object) -> bytes:
-        return await asyncio.to_thread(self.upload, index, sub, **kwargs)  # type: ignore[arg-type]
-
-    async def adownload(self, index: int, sub: int, data: bytes, **kwargs: object) -> None:
-        await asyncio.to_thread(self.download, index, sub, data, **kwargs)  # type: ignore[arg-type]
 
 
 class NodeClient(EventLoopTransfers):
@@ -150,7 +131,10 @@ class NodeClient(EventLoopTransfers):
 
 
 class CanopenNetwork:
-    """canopen Network + heartbeat and EMCY consumers on one opened bus."""
+    """canopen Network + heartbeat and EMCY consumers on one opened bus: a
+    :class:`~drivebench.protocol.fieldbus.Fieldbus` with frames, NMT, heartbeat and node guarding."""
+
+    capabilities = CAN_BUS
 
     def __init__(self, bus: ObservedBus, *, sdo_timeout_s: float = 0.5, sdo_retries: int = 1) -> None:
         self.bus = bus
@@ -167,6 +151,10 @@ class CanopenNetwork:
         self._error: BaseException | None = None
         listeners.append(_ErrorCatcher(self))
 
+    @property
+    def spec(self) -> BusSpec:
+        return self.bus.spec
+
     def add_listener(self, listener: can.Listener) -> None:
         """Receive every frame read from the bus (notifier thread)."""
         if self.canopen.notifier is not None:
@@ -175,9 +163,6 @@ class CanopenNetwork:
     def remove_listener(self, listener: can.Listener) -> None:
         if self.canopen.notifier is not None:
             self.canopen.notifier.remove_listener(listener)
-
-    second_sdo_channel = True
-    """A node may offer a second SDO channel (SDO2) on CAN."""
 
     def sdo_label(self, node_id: int) -> str:
         """How the node's SDOs travel, for the Parameters tab."""
@@ -254,6 +239,14 @@ class CanopenNetwork:
             self.canopen.disconnect()
         finally:
             self.bus.shutdown()
+
+
+def frames_of(network: Fieldbus[object]) -> CanopenNetwork:
+    """The CAN network behind a session's fieldbus, for what needs frames by identifier (NMT, PDOs, SYNC, frame
+    listeners, the adapter); a bus without frames refuses in words."""
+    if not network.capabilities.frames:
+        raise ProtocolError(Text(NO_FRAMES, bus=network.spec))
+    return cast(CanopenNetwork, network)
 
 
 class _ErrorCatcher(can.Listener):

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import can
 
-from drivebench.protocol.nmt import NmtState
+from drivebench.protocol.canopen.nmt import NmtState
 
 HEARTBEAT_BASE = 0x700
 

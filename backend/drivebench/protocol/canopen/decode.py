@@ -16,8 +16,8 @@ from enum import StrEnum
 import can
 
 from drivebench.protocol.abort_codes import abort_text
+from drivebench.protocol.canopen.nmt import NMT_COMMAND_NAMES, NMT_STATE_NAMES, NmtCommand, NmtState
 from drivebench.protocol.emcy import error_code_class, error_register_bits
-from drivebench.protocol.nmt import NMT_COMMAND_NAMES, NMT_STATE_NAMES, NmtCommand, NmtState
 
 NameLookup = Callable[[int, int, int], str | None]
 """(node, index, subindex) -> the profile's name for the object, e.g. ``C00061 Heatsink temperature``."""
