@@ -32,8 +32,8 @@ from drivebench.services.bus.fieldbus import Network, SdoClient, SessionSpec
 
 
 class SessionServicesBase(Protocol):
-    """What the session knows of its services' container (:class:`~drivebench.services.session_manager.
-    SessionServices`): the services sit above the bus in the layers, so the session names none of them."""
+    """What the session knows of its services' container (``session_manager.SessionServices``): the services sit
+    above the bus in the layers, so the session names none of them."""
 
     def close(self, session: Session) -> None: ...
 
