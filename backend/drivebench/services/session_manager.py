@@ -1,9 +1,10 @@
-"""The open sessions of this server, each with the services' container: made when the session opens, closed
-with it.
+"""The open sessions of this server, each with its services' container (:class:`SessionServices`): built with
+their collaborators when the session opens, closed with it.
 
-The services reach their part through the session (``session.part(Monitor)``, wrapped by each module's accessor:
-:func:`~drivebench.services.monitoring.monitor.monitor_for` ...), never through a module-level table; the session itself
-(:mod:`drivebench.services.bus.sessions`) knows none of them.
+The container hangs on the session (``session.services``); a service reaches its own part through it, seen through
+a Protocol in its own module (``services: MonitorPart = session.opened_services()``, wrapped by each module's accessor:
+:func:`~drivebench.services.monitoring.monitor.monitor_for` ...), never through a module-level table: the session
+(:mod:`drivebench.services.bus.sessions`, below the services in the layers) names none of them.
 """
 
 from __future__ import annotations
@@ -11,20 +12,22 @@ from __future__ import annotations
 import asyncio
 import itertools
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from drivebench.errors import Conflict, DriveBenchError, NotFound
 from drivebench.i18n import _
 from drivebench.services.bus.fieldbus import SessionSpec, open_network, parse_spec
 from drivebench.services.bus.sessions import ProfileSource, Session
-from drivebench.services.control.commissioning import Wizard
-from drivebench.services.control.drive_guard import Guard
+from drivebench.services.control.commissioning import Wizard, WizardPart
+from drivebench.services.control.drive_guard import Guard, GuardPart
 from drivebench.services.monitoring import monitor as monitors
-from drivebench.services.monitoring.monitor import Monitor
+from drivebench.services.monitoring.monitor import Monitor, MonitorPart
+from drivebench.services.monitoring.recording import Recordings, RecordingsPart
+from drivebench.services.monitoring.telegram_counters import CounterHistory, CounterHistoryPart
 from drivebench.services.params import parameters as params
-from drivebench.services.params.node_lease import SessionLeases
-from drivebench.services.params.parameters import SessionParameters, WriteAudit, WriteAudits
-from drivebench.services.pdos.process_data import ProcessData
+from drivebench.services.params.node_lease import LeasesPart, SessionLeases
+from drivebench.services.params.parameters import ParametersPart, SessionParameters, WriteAudit, WriteAudits
+from drivebench.services.pdos.process_data import ProcessData, ProcessDataPart
 
 
 def _slug(text: str) -> str:
@@ -33,32 +36,43 @@ def _slug(text: str) -> str:
 
 @dataclass
 class SessionServices:
-    monitor: Monitor
+    """What the services keep for one session, each part built here with its collaborators (as canopen's
+    ``RemoteNode`` holds ``node.sdo``, ``node.pdo``, ``node.nmt``) and closed with the session."""
+
+    guard: Guard
     parameters: SessionParameters
+    """Built with the guard's checks on moving writes and the write audits (the server's audit log)."""
+    monitor: Monitor
     wizard: Wizard
     leases: SessionLeases
     process_data: ProcessData
-    guard: Guard
-    write_audits: WriteAudits = field(default_factory=WriteAudits)
-    """Told about every write the session sends (the server's audit log)."""
+    recordings: Recordings
+    counter_history: CounterHistory
 
     @classmethod
     def open(cls, session: Session, write_audits: list[WriteAudit]) -> SessionServices:
         guard = Guard(session)
-        services = cls(monitors.attach(session), params.attach(session), Wizard(), SessionLeases(),
-                       ProcessData(session), guard, WriteAudits(list(write_audits)))
-        for part in (services.monitor, services.parameters, services.wizard, services.leases, services.process_data,
-                     guard, services.write_audits, guard.moving_writes()):
-            session.parts[type(part)] = part
+        services = cls(guard, params.attach(session, guard.moving_writes(), WriteAudits(write_audits)),
+                       monitors.attach(session), Wizard(), SessionLeases(), ProcessData(session), Recordings(session),
+                       CounterHistory())
+        session.services = services
         return services
 
     def close(self, session: Session) -> None:
-        """Stop what the services run on the session's bus (SYNC, cyclic RPDOs) and detach the monitor from it."""
-        self.process_data.stop_sync()
-        for task in self.process_data.cyclic.values():
-            task.cancel()
-        self.process_data.cyclic.clear()
+        """Stop what the services run on the session's bus (SYNC, cyclic RPDOs, a recording, the keep-alive watch)
+        and detach the monitor from it."""
+        self.process_data.close()
+        self.recordings.close()
+        self.guard.close()
+        self.counter_history.close()
         session.remove_frame_listener(self.monitor)
+
+
+def views(services: SessionServices) -> tuple[GuardPart, ParametersPart, MonitorPart, WizardPart, LeasesPart,
+                                               ProcessDataPart, RecordingsPart, CounterHistoryPart]:
+    """The container seen through the view of each service (:meth:`Session.opened_services`): mypy checks here that it
+    offers every part a service reaches through the session."""
+    return services, services, services, services, services, services, services, services
 
 
 class SessionManager:
@@ -72,7 +86,6 @@ class SessionManager:
         self.sdo_timeout_s = sdo_timeout_s
         self.sdo_retries = sdo_retries
         self._sessions: dict[str, Session] = {}
-        self._services: dict[str, SessionServices] = {}
         self._ids = itertools.count(1)
         self._lock = asyncio.Lock()
 
@@ -89,7 +102,7 @@ class SessionManager:
             if session_id in self._sessions:
                 session_id = f"{session_id}-{next(self._ids)}"
             session = Session(session_id, label, bus_spec, network, self.profiles, simulated=simulated)
-            self._services[session_id] = SessionServices.open(session, self.write_audits)
+            SessionServices.open(session, self.write_audits)
             self._sessions[session_id] = session
         if session.network.capabilities.esm:  # the master knows its slaves: list them at once
             try:
@@ -113,7 +126,8 @@ class SessionManager:
         session = self.get(session_id)
         async with self._lock:
             self._sessions.pop(session_id, None)
-        self._services.pop(session_id).close(session)
+        if session.services is not None:
+            session.services.close(session)
         await asyncio.to_thread(session.close)
 
     async def close_all(self) -> None:

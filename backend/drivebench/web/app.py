@@ -8,6 +8,7 @@ import logging
 from collections.abc import AsyncIterator
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
+from typing import Any
 
 from fastapi import FastAPI
 from fastapi.staticfiles import StaticFiles
@@ -86,10 +87,10 @@ async def start_plant(state: AppState, plant_path: Path, *, bus: str | None = No
         state.gateways[ethercat.id] = gateway
 
 
-def _manager(app: FastAPI) -> SessionManager | None:
-    """The running app's sessions (None before its start)."""
+def _running(app: FastAPI, part: str) -> Any:
+    """A part of the running app's state (None before its start)."""
     state = getattr(app.state, "drivebench", None)
-    return state.manager if isinstance(state, AppState) else None
+    return getattr(state, part) if isinstance(state, AppState) else None
 
 
 def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: list[str] | None = None,
@@ -136,7 +137,7 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
     app.add_middleware(RequestGate, links=share_links, limit_bytes=settings.max_upload_bytes,
                        batch_bytes=settings.max_batch_upload_bytes,
                        hsts=settings.hsts if hsts is None else hsts)
-    app.state.metrics = metrics = Metrics(lambda: _manager(app), lambda: getattr(app.state, "jobs", None))
+    app.state.metrics = metrics = Metrics(lambda: _running(app, "manager"), lambda: _running(app, "jobs"))
     app.add_middleware(RequestMetrics, metrics=metrics)  # around the gate: its refusals are answers too
     app.add_middleware(RequestIds)  # outermost: every log record of a request, refusals included, names it
     for router in API_ROUTERS + PAGE_ROUTERS + WS_ROUTERS:

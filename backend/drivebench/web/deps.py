@@ -11,11 +11,11 @@ from fastapi import Depends, Path, Query, Request
 
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.session_manager import SessionManager
-from drivebench.web.state import AppState
+from drivebench.web.state import AppState, app_state
 
 
 async def get_state(request: Request) -> AppState:
-    state: AppState = request.app.state.drivebench
+    state = app_state(request.app)
     return state
 
 
@@ -32,7 +32,7 @@ ManagerDep = Annotated[SessionManager, Depends(get_manager)]
 async def get_session(request: Request, session_id: Annotated[str, Path(description="Session id")]) -> Session:
     """The session, looked up directly (not through StateDep and ManagerDep: each dependency level costs a request
     some microseconds, and every node route has this one; benchmarks/RESULTS.md, Request path)."""
-    state: AppState = request.app.state.drivebench
+    state = app_state(request.app)
     return state.manager.get(session_id)
 
 

@@ -18,7 +18,7 @@ from prometheus_client.registry import Collector
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from drivebench.errors import SDO_FAILURES
-from drivebench.services.monitoring.monitor import Monitor
+from drivebench.services.monitoring.monitor import monitor_for
 from drivebench.services.params.jobs import JobManager
 from drivebench.services.session_manager import SessionManager
 from drivebench.web.metrics_token import METRICS_ROUTE
@@ -57,9 +57,8 @@ class _Live(Collector):
         errors = CounterMetricFamily("drivebench_bus_error_frames", "CAN error frames since the monitor's last reset",
                                      labels=["session"])
         for session in sessions:
-            monitor = session.parts.get(Monitor)
-            if isinstance(monitor, Monitor):  # EtherCAT sessions have no frame monitor
-                counted, error_frames = monitor.totals()
+            if session.services is not None and session.network.capabilities.frames:  # not EtherCAT
+                counted, error_frames = monitor_for(session).totals()
                 frames.add_metric([session.id], counted)
                 errors.add_metric([session.id], error_frames)
         yield frames

@@ -1,14 +1,22 @@
-"""What the web app holds while it runs."""
+"""What the web app holds while it runs: one :class:`AppState` (``app.state.drivebench``), reached by routes through
+:func:`app_state` or the ``StateDep`` dependency (:mod:`drivebench.web.deps`)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+from starlette.applications import Starlette
 
 from drivebench.device.profiles.loader import ProfileRegistry
+from drivebench.services.params.jobs import JobManager
 from drivebench.services.session_manager import SessionManager
 from drivebench.services.users.sharing import ShareLinks
 from drivebench.simulator.ethercat import GatewayServer
 from drivebench.simulator.plant import Plant
+
+if TYPE_CHECKING:  # the monitor socket's module reaches this one through the routes' dependencies
+    from drivebench.web.ws.monitor import Feed
 
 
 @dataclass
@@ -20,3 +28,13 @@ class AppState:
     """Simulated plants by the id of the session that watches them."""
     gateways: dict[str, GatewayServer] = field(default_factory=dict)
     """Simulated EtherCAT masters' mailbox gateways by the id of the session that reaches them."""
+    jobs: JobManager = field(default_factory=JobManager)
+    """The server's jobs: parameter reads, parameter set uploads and downloads."""
+    monitor_feeds: dict[str, Feed] = field(default_factory=dict)
+    """The monitor websockets' feeds by session id (made when the first client of a session listens)."""
+
+
+def app_state(app: Starlette) -> AppState:
+    """The app's state (made when the app starts)."""
+    state: AppState = app.state.drivebench
+    return state

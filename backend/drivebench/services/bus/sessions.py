@@ -12,7 +12,7 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Protocol, TypeVar, cast
+from typing import Any, Protocol
 
 import can
 
@@ -31,7 +31,12 @@ from drivebench.services.bus.bus_state import ADAPTER_LOST, BusHealth, GatewayHe
 from drivebench.services.bus.duplicates import DuplicateWatch
 from drivebench.services.bus.fieldbus import Network, SdoClient, SessionSpec
 
-PartT = TypeVar("PartT")
+
+class SessionServicesBase(Protocol):
+    """What the session knows of its services' container (``session_manager.SessionServices``): the services sit
+    above the bus in the layers, so the session names none of them."""
+
+    def close(self, session: Session) -> None: ...
 
 
 class ProfileSource(Protocol):
@@ -97,9 +102,10 @@ class Session:
         self.simulated = simulated
         self.opened_at = time.time()
         self.nodes: dict[int, SessionNode] = {}
-        self.parts: dict[type, object] = {}
-        """What the services keep for this session (its monitor, leases, guard ...), each under its own class: put
-        by :class:`~drivebench.services.session_manager.SessionManager` when the session opens."""
+        self.services: SessionServicesBase | None = None
+        """What the services keep for this session (its monitor, leases, guard, recordings ...) as typed attributes:
+        made by :class:`~drivebench.services.session_manager.SessionManager` when the session opens, closed with it.
+        A service reaches its part with :meth:`opened_services`."""
         self._lock = threading.Lock()
         self._listeners: list[Callable[[str, dict[str, object]], None]] = []
         self.duplicates = DuplicateWatch()
@@ -118,11 +124,19 @@ class Session:
         frames.add_listener(self.duplicates)
         self.health.notes.append(self.duplicates.text)
 
-    def part(self, kind: type[PartT]) -> PartT:
-        found = self.parts.get(kind)
-        if found is None:
-            raise RuntimeError(f"session '{self.id}' has no {kind.__name__}: it was not opened by a SessionManager")
-        return cast(PartT, found)
+    def opened_services(self) -> Any:
+        """The services' container, to be seen through a Protocol in the service's own module that names the typed
+        attribute it uses (``services: MonitorPart = session.opened_services()``); the container is checked
+        against every such view where it is built (``session_manager.views``)."""
+        if self.services is None:
+            raise RuntimeError(f"session '{self.id}' has no services: it was not opened by a SessionManager")
+        return self.services
+
+    @property
+    def parts(self) -> dict[type, object]:
+        """The container's parts by class, read from its attributes (for a look at them; services use
+        :meth:`opened_services`)."""
+        return {type(part): part for part in vars(self.services).values()} if self.services is not None else {}
 
     @property
     def ethercat(self) -> EthercatNetwork | None:

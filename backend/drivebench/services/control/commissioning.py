@@ -23,6 +23,7 @@ import threading
 import time
 import uuid
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import can
 from pydantic import BaseModel
@@ -358,8 +359,16 @@ class Wizard:
         return run
 
 
+class WizardPart(Protocol):
+    """The session's services container as this module sees it (:meth:`Session.opened_services`)."""
+
+    @property
+    def wizard(self) -> Wizard: ...
+
+
 def wizard(session: Session) -> Wizard:
-    return session.part(Wizard)
+    services: WizardPart = session.opened_services()
+    return services.wizard
 
 
 def _telegrams(capture: _Capture, t0: float) -> list[Telegram]:

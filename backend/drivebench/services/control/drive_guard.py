@@ -29,6 +29,7 @@ import weakref
 from collections.abc import Iterator
 from contextvars import ContextVar
 from dataclasses import dataclass
+from typing import Protocol
 from urllib.parse import unquote
 
 from drivebench.errors import ConfirmationRequired, Conflict, DriveBenchError, InvalidValue
@@ -405,6 +406,11 @@ class Guard:
         if session is not None:
             stopped(session, node_id)
 
+    def close(self) -> None:
+        """The session closes: the keep-alive watch ends with it (its bus is gone)."""
+        if self._task is not None:
+            self._task.cancel()
+
     def _ensure_watch(self) -> None:
         if self._task is None or self._task.done():
             self._task = asyncio.get_running_loop().create_task(self._watch())
@@ -422,8 +428,16 @@ class Guard:
                     await self.trip(node_id, Text(lost, seconds=f"{timeout:g}"))
 
 
+class GuardPart(Protocol):
+    """The session's services container as this module sees it (:meth:`Session.opened_services`)."""
+
+    @property
+    def guard(self) -> Guard: ...
+
+
 def guard_for(session: Session) -> Guard:
-    return session.part(Guard)
+    services: GuardPart = session.opened_services()
+    return services.guard
 
 
 # --- writes that can move a drive, by any route (parameter API and tab, set downloads, commissioning) -------------

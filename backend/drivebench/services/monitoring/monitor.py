@@ -23,7 +23,7 @@ from collections import deque
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from functools import lru_cache
-from typing import Any
+from typing import Any, Protocol
 
 import can
 
@@ -600,5 +600,13 @@ def attach(session: Session) -> Monitor:
     return monitor
 
 
+class MonitorPart(Protocol):
+    """The session's services container as this module sees it (:meth:`Session.opened_services`)."""
+
+    @property
+    def monitor(self) -> Monitor: ...
+
+
 def monitor_for(session: Session) -> Monitor:
-    return session.part(Monitor)
+    services: MonitorPart = session.opened_services()
+    return services.monitor

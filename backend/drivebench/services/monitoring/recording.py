@@ -18,7 +18,7 @@ import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import can
 
@@ -129,9 +129,13 @@ class Recordings:
 
     def __init__(self, session: Session, directory: Path | None = None) -> None:
         self.session = session
-        self.directory = directory or recordings_dir()
+        self._directory = directory
         self.active: Recorder | None = None
         self._lock = threading.Lock()
+
+    @property
+    def directory(self) -> Path:
+        return self._directory or recordings_dir()
 
     def start(self, fmt: str) -> Recorder:
         if fmt not in FORMATS:
@@ -158,6 +162,13 @@ class Recordings:
         recorder.stop()
         return recorder
 
+    def close(self) -> None:
+        """The session closes: the running recording stops (its file complete)."""
+        with self._lock:
+            recorder, self.active = self.active, None
+        if recorder is not None:
+            recorder.stop()
+
     def list(self) -> list[RecordingInfo]:
         if not self.directory.exists():
             return []
@@ -180,14 +191,14 @@ class Recordings:
         return path
 
 
-_registry: dict[int, Recordings] = {}
-_registry_lock = threading.Lock()
+class RecordingsPart(Protocol):
+    """The session's services container as this module sees it (:meth:`Session.opened_services`)."""
+
+    @property
+    def recordings(self) -> Recordings: ...
 
 
-def recordings_for(session: Session, directory: Path | None = None) -> Recordings:
-    """The session's recordings (one object per session, made on first use)."""
-    with _registry_lock:
-        found = _registry.get(id(session))
-        if found is None or found.session is not session:
-            found = _registry[id(session)] = Recordings(session, directory)
-        return found
+def recordings_for(session: Session) -> Recordings:
+    """The session's recordings (made with the session's services when it opens, closed with them)."""
+    services: RecordingsPart = session.opened_services()
+    return services.recordings

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 from drivebench.device.profiles.catalog import Item
 from drivebench.device.profiles.telegram_counters import cob_ids_for, counter_label, counter_parameters
@@ -33,7 +33,26 @@ class _Previous:
     monitor: dict[str, int]
 
 
-_previous: dict[tuple[str, int], _Previous] = {}
+class CounterHistory:
+    """The last read of each node's counters in a session, for the increases since then (the session's part)."""
+
+    def __init__(self) -> None:
+        self.previous: dict[int, _Previous] = {}
+
+    def close(self) -> None:
+        self.previous.clear()
+
+
+class CounterHistoryPart(Protocol):
+    """The session's services container as this module sees it (:meth:`Session.opened_services`)."""
+
+    @property
+    def counter_history(self) -> CounterHistory: ...
+
+
+def history(session: Session) -> CounterHistory:
+    services: CounterHistoryPart = session.opened_services()
+    return services.counter_history
 
 
 async def compare(session: Session, monitor: Monitor, node_id: int) -> dict[str, Any]:
@@ -52,8 +71,9 @@ async def compare(session: Session, monitor: Monitor, node_id: int) -> dict[str,
     mapping = {item.ref: cob_ids_for(counter_label(item), node_id) for item in items}
     counted = {ref: monitor.counts_for(cobs) for ref, cobs in mapping.items() if cobs is not None}
     now = time.time()
-    previous = _previous.get((session.id, node_id))
-    _previous[(session.id, node_id)] = _Previous(now, device, counted)
+    seen = history(session).previous
+    previous = seen.get(node_id)
+    seen[node_id] = _Previous(now, device, counted)
     rows = []
     for item in items:
         label = counter_label(item)

@@ -23,7 +23,7 @@ import time
 from collections.abc import Awaitable, Callable, Iterator
 from contextvars import ContextVar
 from dataclasses import dataclass, field
-from typing import Concatenate, ParamSpec, TypeVar
+from typing import Concatenate, ParamSpec, Protocol, TypeVar
 
 from drivebench.errors import Conflict, NotFound
 from drivebench.i18n import N_, _
@@ -178,8 +178,16 @@ class SessionLeases:
         return lease
 
 
+class LeasesPart(Protocol):
+    """The session's services container as this module sees it (:meth:`Session.opened_services`)."""
+
+    @property
+    def leases(self) -> SessionLeases: ...
+
+
 def leases(session: Session) -> SessionLeases:
-    return session.part(SessionLeases)
+    services: LeasesPart = session.opened_services()
+    return services.leases
 
 
 # --- who writes: set per request by the web layer ---------------------------------------------------------------

@@ -92,8 +92,8 @@ def _validated(session: Session, node_id: int, wanted: Sequence[Wanted], *, chec
     if any(problems):
         raise BatchInvalid(problems)
     if moving:
-        session.part(service.MovingWrites).confirm(node_id, _("Writing {refs}").format(refs=", ".join(moving)),
-                                                    sent)
+        service.service(session).moving_writes.confirm(node_id, _("Writing {refs}").format(refs=", ".join(moving)),
+                                                        sent)
     return checked
 
 

@@ -137,6 +137,10 @@ class SessionParameters:
 
     session_ref: weakref.ref[Session]
     settings: SdoSettings
+    moving_writes: MovingWrites
+    """The drive guard's checks on a write that can move the drive (given when the session opens)."""
+    write_audits: WriteAudits
+    """Told about every write the session sends (the server's audit log)."""
     values: dict[int, dict[str, ParameterValue]] = field(default_factory=dict)
     failures: dict[int, dict[str, str]] = field(default_factory=dict)
     """node -> ref -> why the last read job could not read it (an abort, a timeout, the node silent); a value read
@@ -175,17 +179,26 @@ class SessionParameters:
                 client.channels.remove(state.sdo2)
 
 
-def attach(session: Session) -> SessionParameters:
+def attach(session: Session, moving_writes: MovingWrites, write_audits: WriteAudits) -> SessionParameters:
     """The parameter state of a session (made with the session's services when it opens)."""
     network = session.network
-    state = SessionParameters(weakref.ref(session), SdoSettings(network.sdo_timeout_s, network.sdo_retries))
+    state = SessionParameters(weakref.ref(session), SdoSettings(network.sdo_timeout_s, network.sdo_retries),
+                              moving_writes, write_audits)
     if session.heartbeats is not None:  # SDO2 comes back after a boot-up (CAN)
         session.heartbeats.add_callback(state.on_heartbeat)
     return state
 
 
+class ParametersPart(Protocol):
+    """The session's services container as this module sees it (:meth:`Session.opened_services`)."""
+
+    @property
+    def parameters(self) -> SessionParameters: ...
+
+
 def service(session: Session) -> SessionParameters:
-    return session.part(SessionParameters)
+    services: ParametersPart = session.opened_services()
+    return services.parameters
 
 
 def configure(session: Session, settings: SdoSettings) -> SdoSettings:
@@ -563,7 +576,7 @@ class WriteAudit(Protocol):
 
 
 class WriteAudits(list[WriteAudit]):
-    """The session's :class:`WriteAudit` listeners (its part: ``session.part(WriteAudits)``)."""
+    """The session's :class:`WriteAudit` listeners (:attr:`SessionParameters.write_audits`)."""
 
 
 @dataclass(frozen=True)
@@ -658,11 +671,11 @@ async def write(session: Session, node_id: int, ref: str, value: object, *, chec
     with node_lease.stopping() if stops else contextlib.nullcontext(), node_lease.writing(session, node_id), \
             stop_first(session, node_id) if stops else contextlib.nullcontext():
         if verdict.moving:
-            session.part(MovingWrites).admit(node_id, f"Writing {item.ref} ({item.name}) = {value}",
-                                             sent_values(item, raw))
+            service(session).moving_writes.admit(node_id, f"Writing {item.ref} ({item.name}) = {value}",
+                                                 sent_values(item, raw))
         result = await _write(session, node, item, raw, value, verify=verify)
     if verdict.stopping:
-        session.part(MovingWrites).stopped(node_id)
+        service(session).moving_writes.stopped(node_id)
     return result
 
 
@@ -675,10 +688,11 @@ async def _write(session: Session, node: SessionNode, item: Item, raw: RawValue,
 async def _audited(session: Session, node_id: int, item: Item, raw: RawValue,
                    send: Callable[[], Awaitable[WriteResult]]) -> WriteResult:
     """``send()`` between the session's :class:`WriteAudit` rows: one before it, completed with its outcome."""
-    audits = session.part(WriteAudits)
+    state = service(session)
+    audits = state.write_audits
     if not audits:
         return await send()
-    attempt = WriteAttempt(session, node_id, item, service(session).values.get(node_id, {}).get(item.ref),
+    attempt = WriteAttempt(session, node_id, item, state.values.get(node_id, {}).get(item.ref),
                            from_raw(item.entry, raw))
     tokens = [(audit, await audit.sending(attempt)) for audit in audits]
     try:
@@ -814,7 +828,7 @@ async def _command(session: Session, node_id: int, which: DeviceCommand) -> Comm
     if item is not None:
         index, subindex, data = item.index, item.subindex, encode(item.entry.data_type, write.raw)
         if judge(item, write.raw, node.profile).moving:  # a profile's command is a write like any other
-            session.part(MovingWrites).admit(node_id, _("The {command} command ({via})").format(
+            service(session).moving_writes.admit(node_id, _("The {command} command ({via})").format(
                 command=_command_name(which), via=write.via), sent_values(item, write.raw))
     elif catalog is None:  # no profile: the CiA 301 object, addressed as such
         parsed = parse_ref(write.ref)

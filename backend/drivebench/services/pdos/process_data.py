@@ -14,6 +14,7 @@ import time
 import weakref
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import can
 from pydantic import BaseModel
@@ -301,6 +302,21 @@ class ProcessData:
             self._sync_stop.set()
         self._sync_stop, self.sync_period_ms = None, None
 
+    def close(self) -> None:
+        """The session closes: SYNC and the cyclic RPDOs stop."""
+        self.stop_sync()
+        for task in self.cyclic.values():
+            task.cancel()
+        self.cyclic.clear()
+
+
+class ProcessDataPart(Protocol):
+    """The session's services container as this module sees it (:meth:`Session.opened_services`)."""
+
+    @property
+    def process_data(self) -> ProcessData: ...
+
 
 def service(session: Session) -> ProcessData:
-    return session.part(ProcessData)
+    services: ProcessDataPart = session.opened_services()
+    return services.process_data

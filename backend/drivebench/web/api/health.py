@@ -14,7 +14,7 @@ from drivebench.services.session_manager import SessionManager
 from drivebench.services.storage import reachability
 from drivebench.web.deps import StateDep
 from drivebench.web.lean_route import lean_route
-from drivebench.web.state import AppState
+from drivebench.web.state import app_state
 
 router = APIRouter(prefix="/api", tags=["health"])
 _STARTED = time.time()
@@ -68,7 +68,7 @@ _HEALTH_JSON = TypeAdapter(Health)
 
 async def _lean_health(request: Request) -> Response:
     """The same answer without FastAPI's dependency solving: the check load balancers and monitors poll."""
-    state: AppState = request.app.state.drivebench
+    state = app_state(request.app)
     return Response(_HEALTH_JSON.dump_json(await _answer(state.manager), by_alias=True),
                     media_type="application/json")
 

@@ -29,7 +29,7 @@ from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.lean_route import lean_route, path_int
 from drivebench.web.problems import problem_body
 from drivebench.web.safety import ACTING, confirmation
-from drivebench.web.state import AppState
+from drivebench.web.state import app_state
 
 # Every route but the two reads clients poll carries ACTING (writes take the node lease, jobs carry the writer); a GET
 # sends no write, so it is spared that dependency (benchmarks/RESULTS.md, Request path).
@@ -37,16 +37,8 @@ router = APIRouter(prefix="/api", tags=["parameters"])
 NODE = "/sessions/{session_id}/nodes/{node_id}"
 
 
-def jobs_of(app: Any) -> JobManager:
-    """The server's job manager (one per app, created on first use)."""
-    jobs = getattr(app.state, "jobs", None)
-    if jobs is None:
-        jobs = app.state.jobs = JobManager()
-    return jobs
-
-
 async def get_jobs(request: Request) -> JobManager:
-    return jobs_of(request.app)
+    return app_state(request.app).jobs
 
 
 JobsDep = Annotated[JobManager, Depends(get_jobs)]
@@ -383,7 +375,7 @@ async def _lean_read(request: Request) -> Response | None:
     node_id = path_int(params["node_id"], 1, 127)
     if node_id is None or request.scope["query_string"]:
         return None
-    state: AppState = request.app.state.drivebench
+    state = app_state(request.app)
     session = state.manager.get(params["session_id"])
     node = session.node(node_id)
     value = value_out(await service.read(session, node.node_id, params["ref"]))
@@ -465,7 +457,7 @@ async def undo_write(request: Request, entry_id: int, body: UndoRequest | None =
     """Write the record's old value back through the checked write (range, confirmation, lease, read-back), logged
     with the origin ``undo <entry_id>``."""
     record = undoing.record(entry_id, settings.database_url)
-    state: AppState = request.app.state.drivebench
+    state = app_state(request.app)
     session = state.manager.get(record.session_id)
     drive_guard.confirming(confirmation(request, body and body.confirm, body and body.confirm_values))
     result = await undoing.undo(session, record)

@@ -27,11 +27,11 @@ from drivebench.services.params import node_lease
 from drivebench.services.params import parameters as service
 from drivebench.services.params.parameters import DeviceCommand, WriteResult
 from drivebench.services.users.principals import Role
-from drivebench.web.api.parameters import jobs_of
 from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.identity import PrincipalDep
 from drivebench.web.pages.node_info import IdentityShown, shown
 from drivebench.web.safety import ACTING, WriterDep, confirmation
+from drivebench.web.state import app_state
 from drivebench.web.templating import templates
 
 router = APIRouter(include_in_schema=False, dependencies=[ACTING])
@@ -204,7 +204,7 @@ async def write_row(request: Request, session: SessionDep, node: NodeDep, ref: s
 @router.post(UI + "/read", response_class=HTMLResponse)
 async def start_read(request: Request, session: SessionDep, node: NodeDep,
                      group: Annotated[str, Form()] = "", pset: Annotated[int, Form()] = 1) -> Response:
-    job = service.start_read(session, [node.node_id], jobs_of(request.app), group=group or None,
+    job = service.start_read(session, [node.node_id], app_state(request.app).jobs, group=group or None,
                              parameter_set=pset if 1 <= pset <= service.parameter_sets(node) else 1)
     context = _base(request, session, node, "parameters", job=job)
     return templates.TemplateResponse(request, "node/parameters.html", context, block_name="job_progress")

@@ -27,7 +27,7 @@ from drivebench.web.api.profiles import (
 from drivebench.web.deps import StateDep
 from drivebench.web.pages.node_info import identity_text
 from drivebench.web.problems import status_for
-from drivebench.web.state import AppState
+from drivebench.web.state import AppState, app_state
 from drivebench.web.templating import templates
 
 router = APIRouter(include_in_schema=False)
@@ -36,7 +36,7 @@ templates.env.filters["device_type"] = lambda raw: identity_text("0x1000", raw)
 
 def limits_note(request: Request, profile_id: str | None, item: Item) -> str | None:
     """What the import of the profile's file did to this item's limits (a parameter row says it before a write)."""
-    registry = request.app.state.drivebench.registry
+    registry = app_state(request.app).registry
     if profile_id is None:
         return None
     try:

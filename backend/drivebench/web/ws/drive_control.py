@@ -34,6 +34,7 @@ from drivebench.services.control.drive_guard import Guard
 from drivebench.services.params import node_lease
 from drivebench.web.identity import principal_of
 from drivebench.web.safety import panel_for
+from drivebench.web.state import app_state
 from drivebench.web.ws import control_limits
 from drivebench.web.ws.node_socket import open_node, serve
 
@@ -91,7 +92,7 @@ def _trip(guard: Guard, node_id: int, reason: str) -> None:
 async def keepalive(websocket: WebSocket, session_id: str) -> None:
     await websocket.accept()
     try:
-        session = websocket.app.state.drivebench.manager.get(session_id)
+        session = app_state(websocket.app).manager.get(session_id)
     except NotFound as exc:
         await websocket.close(code=4404, reason=exc.shown_detail()[:120])
         return

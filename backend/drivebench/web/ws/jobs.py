@@ -18,7 +18,7 @@ from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 from drivebench.errors import NotFound
 from drivebench.i18n import shown
 from drivebench.services.params.jobs import Job
-from drivebench.web.api.parameters import jobs_of
+from drivebench.web.state import app_state
 
 router = APIRouter()
 MIN_INTERVAL_S = 0.1
@@ -34,7 +34,7 @@ def message(job: Job) -> dict[str, object]:
 async def job_progress(websocket: WebSocket, job_id: str) -> None:
     await websocket.accept()
     try:
-        job = jobs_of(websocket.app).get(job_id)
+        job = app_state(websocket.app).jobs.get(job_id)
     except NotFound as exc:
         await websocket.close(code=4404, reason=exc.detail[:120])
         return

@@ -62,6 +62,7 @@ from drivebench.services.bus.sessions import Session
 from drivebench.services.monitoring.monitor import Monitor, MonitorFilter, MonitorView, monitor_for
 from drivebench.services.monitoring.recording import recordings_for
 from drivebench.web.api.monitor import FilterBody
+from drivebench.web.state import app_state
 
 router = APIRouter()
 PERIOD_S = 0.1
@@ -270,10 +271,7 @@ class ViewRequest(BaseModel):
 
 
 def _feed(websocket: WebSocket, session: Session) -> Feed:
-    feeds: dict[str, Feed] | None = getattr(websocket.app.state, "monitor_feeds", None)
-    if feeds is None:
-        feeds = {}
-        websocket.app.state.monitor_feeds = feeds
+    feeds = app_state(websocket.app).monitor_feeds
     feed = feeds.get(session.id)
     if feed is None or feed.session is not session:
         feed = feeds[session.id] = Feed(session, monitor_for(session))
@@ -322,7 +320,7 @@ async def monitor_stream(websocket: WebSocket, session_id: str,
                          rows: Annotated[int, Query(ge=1, le=HELLO_TRACE_ROWS_MAX)] = HELLO_TRACE_ROWS) -> None:
     await websocket.accept()
     try:
-        session = websocket.app.state.drivebench.manager.get(session_id)
+        session = app_state(websocket.app).manager.get(session_id)
     except NotFound:
         await websocket.close(code=4404, reason=_("No open session '{session}'").format(session=session_id))
         return

@@ -12,13 +12,14 @@ from fastapi import WebSocket, WebSocketDisconnect
 
 from drivebench.errors import NotFound
 from drivebench.services.bus.sessions import Session, SessionNode
+from drivebench.web.state import app_state
 
 
 async def open_node(websocket: WebSocket, session_id: str, node_id: int) -> tuple[Session, SessionNode] | None:
     """Accept the socket and find its session's node; an unknown session or node closes it with code 4404 (None)."""
     await websocket.accept()
     try:
-        session = websocket.app.state.drivebench.manager.get(session_id)
+        session = app_state(websocket.app).manager.get(session_id)
         return session, session.node(node_id)
     except NotFound as exc:
         await websocket.close(code=4404, reason=exc.shown_detail()[:120])

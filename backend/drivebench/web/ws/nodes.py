@@ -12,6 +12,7 @@ from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 from drivebench.errors import NotFound
 from drivebench.i18n import _
 from drivebench.services.bus.views import nodes_public
+from drivebench.web.state import app_state
 from drivebench.web.templating import templates
 
 router = APIRouter()
@@ -21,7 +22,7 @@ PERIOD_S = 0.5
 @router.websocket("/ws/sessions/{session_id}/nodes")
 async def node_states(websocket: WebSocket, session_id: str) -> None:
     await websocket.accept()
-    manager = websocket.app.state.drivebench.manager
+    manager = app_state(websocket.app).manager
     block = templates.env.get_template("plant.html").blocks["nodes_table"]
     try:
         while True:

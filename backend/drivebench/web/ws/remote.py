@@ -12,6 +12,7 @@ from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 
 from drivebench.errors import DriveBenchError
 from drivebench.web.pages.remote import health_context
+from drivebench.web.state import app_state
 from drivebench.web.templating import templates
 
 router = APIRouter()
@@ -20,7 +21,7 @@ PERIOD_S = 1.0
 
 @router.websocket("/ws/remote/{token}")
 async def remote_health(websocket: WebSocket, token: str) -> None:
-    state = websocket.app.state.drivebench
+    state = app_state(websocket.app)
     try:
         link = await asyncio.to_thread(state.share_links.check, token)
     except DriveBenchError as exc:
