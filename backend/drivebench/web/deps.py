@@ -5,11 +5,12 @@ a thread hop per dependency on every request (benchmarks/RESULTS.md, Request pat
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Any
 
 from fastapi import Depends, Path, Query, Request
 
 from drivebench.services.bus.sessions import Session, SessionNode
+from drivebench.services.params.jobs import JobManager
 from drivebench.services.session_manager import SessionManager
 from drivebench.web.state import AppState
 
@@ -50,3 +51,18 @@ MAX_ROW_ID = 2**31 - 1
 """The largest id a database row can have (INTEGER on PostgreSQL; SQLite fails past 2**63): larger ones -> 422."""
 RowId = Annotated[int, Path(ge=1, le=MAX_ROW_ID, description="Database id")]
 RowVersion = Annotated[int | None, Query(ge=1, le=MAX_ROW_ID, description="Version (newest when left out)")]
+
+
+def jobs_of(app: Any) -> JobManager:
+    """The server's job manager (one per app, created on first use)."""
+    jobs = getattr(app.state, "jobs", None)
+    if jobs is None:
+        jobs = app.state.jobs = JobManager()
+    return jobs
+
+
+async def get_jobs(request: Request) -> JobManager:
+    return jobs_of(request.app)
+
+
+JobsDep = Annotated[JobManager, Depends(get_jobs)]

@@ -27,8 +27,7 @@ from drivebench.services.params import node_lease
 from drivebench.services.params import parameters as service
 from drivebench.services.params.parameters import DeviceCommand, WriteResult
 from drivebench.services.users.principals import Role
-from drivebench.web.api.parameters import jobs_of
-from drivebench.web.deps import NodeDep, SessionDep
+from drivebench.web.deps import NodeDep, SessionDep, jobs_of
 from drivebench.web.identity import PrincipalDep
 from drivebench.web.pages.node_info import IdentityShown, shown
 from drivebench.web.safety import ACTING, WriterDep, confirmation

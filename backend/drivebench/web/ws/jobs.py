@@ -18,7 +18,7 @@ from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 from drivebench.errors import NotFound
 from drivebench.i18n import shown
 from drivebench.services.params.jobs import Job
-from drivebench.web.api.parameters import jobs_of
+from drivebench.web.deps import jobs_of
 
 router = APIRouter()
 MIN_INTERVAL_S = 0.1
