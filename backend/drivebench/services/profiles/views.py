@@ -8,7 +8,8 @@ from typing import Literal
 from pydantic import BaseModel
 
 from drivebench.device.formats.eds import ImportWarning
-from drivebench.device.profiles.catalog import Catalog, Item
+from drivebench.device.profiles.catalog import Item
+from drivebench.device.profiles.catalog_cache import catalog_for
 from drivebench.device.profiles.loader import LoadedFile, ProfileRegistry
 from drivebench.device.profiles.profile import ObjectEntry, Parameter, Profile, Value
 from drivebench.errors import ProfileError
@@ -138,17 +139,6 @@ def upload_error(exc: ProfileError) -> LoadError:
     """Where an upload failed; ``file`` is empty when the upload was refused before its name was read."""
     detail = exc.shown_detail()
     return split_location(exc.source, detail) if exc.source else LoadError(file="", line=None, reason=detail)
-
-
-_catalogs: dict[str, Catalog] = {}
-
-
-def catalog_for(profile: Profile) -> Catalog:
-    """One Catalog per loaded profile (rebuilt when an upload replaces the profile)."""
-    cached = _catalogs.get(profile.id)
-    if cached is None or cached.profile is not profile:
-        cached = _catalogs[profile.id] = Catalog(profile)
-    return cached
 
 
 def entry_row(item: Item, loaded: LoadedFile | None = None) -> EntryRow:
