@@ -10,6 +10,7 @@ from typing import Annotated
 from fastapi import Depends, Path, Query, Request
 
 from drivebench.services.bus.sessions import Session, SessionNode
+from drivebench.services.params.jobs import JobManager
 from drivebench.services.session_manager import SessionManager
 from drivebench.web.state import AppState, app_state
 
@@ -50,3 +51,10 @@ MAX_ROW_ID = 2**31 - 1
 """The largest id a database row can have (INTEGER on PostgreSQL; SQLite fails past 2**63): larger ones -> 422."""
 RowId = Annotated[int, Path(ge=1, le=MAX_ROW_ID, description="Database id")]
 RowVersion = Annotated[int | None, Query(ge=1, le=MAX_ROW_ID, description="Version (newest when left out)")]
+
+
+async def get_jobs(request: Request) -> JobManager:
+    return app_state(request.app).jobs
+
+
+JobsDep = Annotated[JobManager, Depends(get_jobs)]

@@ -27,6 +27,7 @@ from drivebench.device.drive.motion import ignored_still_values
 from drivebench.device.formats.eds import ImportWarning, read_eds
 from drivebench.device.formats.json_lines import DuplicateKey, JsonPath, line_of, reject_duplicate_keys, value_lines
 from drivebench.device.formats.xdd import XML_SUFFIXES, read_xdd
+from drivebench.device.profiles.parsed_cache import Parsed, ParsedCache
 from drivebench.device.profiles.profile import ObjectEntry, Parameter, Profile
 from drivebench.errors import ProfileError, UnknownProfile
 from drivebench.i18n import N_, Text, shown
@@ -202,6 +203,21 @@ def _json_error_line(content: bytes) -> int | None:
     return None
 
 
+def _read_cached(content: bytes, name: str, cache: ParsedCache | None, used: set[str] | None) -> LoadedFile:
+    """:func:`read_profile_file`, through ``cache`` when given (a file that does not load is not cached)."""
+    if cache is None:
+        return read_profile_file(content, name)
+    key = ParsedCache.key(name, content)
+    if used is not None:
+        used.add(key)
+    parsed = cache.read(key)
+    if parsed is not None:
+        return LoadedFile(parsed.profile, parsed.warnings, content if parsed.keeps_original else None, parsed.suffix)
+    loaded = read_profile_file(content, name)
+    cache.write(key, Parsed(loaded.profile, loaded.warnings, loaded.original is not None, loaded.suffix))
+    return loaded
+
+
 class ProfileRegistry:
     """Profiles by id. Loads on construction; ``reload()`` reads the directories again."""
 
@@ -220,14 +236,18 @@ class ProfileRegistry:
         files: dict[str, LoadedFile] = {}
         errors: list[tuple[str, str]] = []
         builtin = self._load_dir(self.profiles_dir, files, errors, taken=set())
-        self._load_dir(self.user_profiles_dir, files, errors, taken=set(builtin))
+        cache = ParsedCache(self.user_profiles_dir)
+        used: set[str] = set()
+        self._load_dir(self.user_profiles_dir, files, errors, taken=set(builtin), cache=cache, used=used)
+        cache.keep_only(used)
         self._profiles = {profile_id: loaded.profile for profile_id, loaded in files.items()}
         self._files, self._builtin, self.errors = files, builtin, errors
 
     @staticmethod
     def _load_dir(directory: Path, profiles: dict[str, LoadedFile], errors: list[tuple[str, str]],
-                  taken: set[str]) -> set[str]:
-        """Load one directory into ``profiles``: JSON first, then EDS/DCF without a JSON twin."""
+                  taken: set[str], cache: ParsedCache | None = None, used: set[str] | None = None) -> set[str]:
+        """Load one directory into ``profiles``: JSON first, then EDS/DCF without a JSON twin. With ``cache``, a
+        file parsed before is taken from it (its keys go into ``used``)."""
         if not directory.is_dir():
             return set()
         loaded: set[str] = set()
@@ -236,7 +256,7 @@ class ProfileRegistry:
         json_ids: set[str] = set()
         for path in files:
             try:
-                loaded_file = read_profile_file(path.read_bytes(), path.name)
+                loaded_file = _read_cached(path.read_bytes(), path.name, cache, used)
             except ProfileError as exc:
                 errors.append((path.name, exc.detail))
                 continue

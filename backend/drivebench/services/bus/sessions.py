@@ -17,6 +17,7 @@ from typing import Any, Protocol
 import can
 
 from drivebench.device.profiles.catalog import Catalog
+from drivebench.device.profiles.catalog_cache import catalog_for
 from drivebench.device.profiles.profile import Profile
 from drivebench.errors import DriveBenchError, NotFound, SdoAbortError, SdoOutOfStepError, SdoTimeoutError
 from drivebench.i18n import _
@@ -59,13 +60,7 @@ class SessionNode:
 
     @property
     def catalog(self) -> Catalog | None:
-        if self.profile is None:
-            return None
-        cached = getattr(self, "_catalog", None)
-        if cached is None or cached.profile is not self.profile:
-            cached = Catalog(self.profile)
-            object.__setattr__(self, "_catalog", cached)
-        return cached
+        return None if self.profile is None else catalog_for(self.profile)
 
     @property
     def device_name(self) -> str:

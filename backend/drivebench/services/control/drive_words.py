@@ -13,6 +13,7 @@ from functools import cached_property
 from drivebench.device.drive import cia402
 from drivebench.device.drive.control import Command, ControlSection, StateBox
 from drivebench.device.profiles.catalog import Catalog
+from drivebench.device.profiles.catalog_cache import ProfileCache
 from drivebench.device.profiles.profile import Profile
 from drivebench.i18n import N_, _
 
@@ -87,21 +88,16 @@ class Family:
         return next((box for box in self.section.states if box.key == key), None)
 
 
-_FAMILIES: dict[int, tuple[Profile, Family | None]] = {}
-
-
-def family_of_profile(profile: Profile) -> Family | None:
-    cached = _FAMILIES.get(id(profile))
-    if cached is not None and cached[0] is profile:
-        return cached[1]
+def _family(profile: Profile) -> Family | None:
     if profile.control is not None:
-        found: Family | None = Family(profile.control) if profile.control.state_machine != "none" else None
-    elif cia402.has_drive_words(profile):
-        found = Family(cia402.generic_section(profile))
-    else:
-        found = None
-    _FAMILIES[id(profile)] = (profile, found)
-    return found
+        return Family(profile.control) if profile.control.state_machine != "none" else None
+    if cia402.has_drive_words(profile):
+        return Family(cia402.generic_section(profile))
+    return None
+
+
+family_of_profile: ProfileCache[Family | None] = ProfileCache(_family)
+"""The drive control of a profile, built once per profile object (bounded like the catalogues)."""
 
 
 def family_of(catalog: Catalog | None) -> Family | None:

@@ -28,6 +28,7 @@ from sqlalchemy import delete, select, update
 
 from drivebench.device.formats.eds import resolve_node_expr
 from drivebench.device.profiles.catalog import Catalog, Item
+from drivebench.device.profiles.catalog_cache import catalog_for
 from drivebench.device.profiles.factory_default import same_raw
 from drivebench.device.profiles.profile import ObjectEntry, Profile
 from drivebench.device.profiles.scaling import from_raw
@@ -47,19 +48,6 @@ _COB_BASES = (0x080, 0x180, 0x200, 0x280, 0x300, 0x380, 0x400, 0x480, 0x500, 0x5
 
 
 # --- what a set holds ---------------------------------------------------------------------------------------
-_catalogs: dict[int, tuple[Profile, Catalog]] = {}
-
-
-def catalog_for(profile: Profile) -> Catalog:
-    """The profile's catalog, built once per profile object."""
-    cached = _catalogs.get(id(profile))
-    if cached is None or cached[0] is not profile:
-        if len(_catalogs) > 64:
-            _catalogs.clear()
-        cached = _catalogs[id(profile)] = (profile, Catalog(profile))
-    return cached[1]
-
-
 def is_command(item: Item) -> bool:
     return (item.index in COMMAND_INDICES or item.group == "Device commands"
             or bool(_COMMAND_NAME.search(item.name)))

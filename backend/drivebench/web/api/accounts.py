@@ -10,7 +10,7 @@ from fastapi import APIRouter, Request, Response
 from fastapi.responses import JSONResponse
 from pydantic import BaseModel, Field
 
-from drivebench.errors import Conflict, NotAuthenticated
+from drivebench.errors import NotAuthenticated
 from drivebench.i18n import _
 from drivebench.services.users import accounts
 from drivebench.services.users.principals import Principal, Role
@@ -18,11 +18,11 @@ from drivebench.web import access
 from drivebench.web.deps import RowId
 from drivebench.web.identity import PrincipalDep
 from drivebench.web.problems import problem_body
+from drivebench.web.sign_in import FIRST_ADMIN, client_address, sign_in
 
 router = APIRouter(prefix="/api", tags=["accounts"])
 
 RoleName = Annotated[str, Field(pattern="^(viewer|engineer|admin)$", description="viewer, engineer or admin")]
-FIRST_ADMIN = "drivebench users add admin --role admin"
 
 
 class Credentials(BaseModel):
@@ -108,21 +108,6 @@ def me_of(request: Request, principal: Principal) -> Me:
     view = access.access_of(request)
     return Me(name=principal.name, role=principal.role.label, via=principal.via,
               login_required=bool(view and view.login), csrf_token=view.csrf if view else None)
-
-
-def client_address(request: Request) -> str:
-    return request.client.host if request.client else "unknown"
-
-
-async def sign_in(request: Request, name: str, password: str) -> tuple[str, access.SignedIn, Principal]:
-    """Check the password (rate-limited); the cookie value and session of the new sign-in."""
-    if not await asyncio.to_thread(accounts.authentication_configured):
-        raise Conflict(_("Signing in is not switched on: there is no admin user yet, so this server trusts the "
-                         "local user."), hint=_("Create the first admin: {command}").format(command=FIRST_ADMIN))
-    principal = await asyncio.to_thread(accounts.sign_in, name, password, client_address(request))
-    user = await asyncio.to_thread(accounts.get_user, principal.name)
-    value, signed_in = access.sessions.issue(user)
-    return value, signed_in, principal
 
 
 def locked_response(exc: accounts.LoginLocked, path: str) -> JSONResponse:

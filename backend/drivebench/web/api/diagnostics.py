@@ -9,16 +9,15 @@ from typing import Annotated
 from fastapi import APIRouter, Path, Request, status
 from fastapi.responses import HTMLResponse, Response
 from pydantic import BaseModel, Field
-from starlette.requests import HTTPConnection
 
 from drivebench.services.monitoring import diagnostics, fault_words, object_list
 from drivebench.services.monitoring.diagnostics import EmcyRecord, GuardingPublic, HeartbeatSetup, NodeHealth
 from drivebench.services.monitoring.object_list import ObjectListComparison
 from drivebench.services.monitoring.remote_content import SessionContent, session_content
-from drivebench.services.users.sharing import DEFAULT_SHOWS, SHOWS, IssuedLink, ShareLink
+from drivebench.services.users.sharing import DEFAULT_SHOWS, SHOWS
 from drivebench.web.deps import NodeDep, SessionDep, StateDep
-from drivebench.web.origins import public_base_url
 from drivebench.web.safety import ACTING
+from drivebench.web.share_links import IssuedShareLink, ShareLinkPublic, issued_link, share_link_public
 from drivebench.web.templating import templates
 
 router = APIRouter(prefix="/api", tags=["diagnostics"], dependencies=[ACTING])  # set-up writes take the node lease
@@ -50,33 +49,6 @@ class ShareLinkCreate(BaseModel):
     label: str = Field("", max_length=80)
     shows: list[str] = Field(default_factory=lambda: list(DEFAULT_SHOWS), max_length=len(SHOWS),
                              description=f"What the link shows, of {', '.join(SHOWS)}")
-
-
-class ShareLinkPublic(BaseModel):
-    id: str
-    """Names the link to revoke it (``DELETE /api/share-links/{id}``)."""
-    hint: str
-    """The token's first characters; the token itself is shown once, when the link is made."""
-    label: str
-    created: float
-    expires: float
-    shows: list[str]
-
-
-class IssuedShareLink(ShareLinkPublic):
-    token: str
-    url: str
-    """``public_url`` (``serve --public-url``) or the server's own address + ``/remote/{token}``."""
-
-
-def share_link_public(link: ShareLink) -> ShareLinkPublic:
-    return ShareLinkPublic(id=link.id, hint=link.hint, label=link.label, created=link.created, expires=link.expires,
-                           shows=list(link.shows))
-
-
-def issued_link(issued: IssuedLink, conn: HTTPConnection) -> IssuedShareLink:
-    url = f"{public_base_url(conn.scope)}/remote/{issued.token}"
-    return IssuedShareLink(**share_link_public(issued.link).model_dump(), token=issued.token, url=url)
 
 
 @router.get("/sessions/{session_id}/nodes/{node_id}/object-list", response_model=ObjectListComparison)

@@ -12,33 +12,17 @@ from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Path, Query
 from fastapi.responses import FileResponse
-from pydantic import BaseModel, Field, model_validator
+from pydantic import BaseModel
 
-from drivebench.i18n import _
 from drivebench.services.monitoring import telegram_counters
 from drivebench.services.monitoring.monitor import MonitorFilter, monitor_for
 from drivebench.services.monitoring.recording import MEDIA_TYPES, format_names, recordings_for
 from drivebench.web.deps import SessionDep
+from drivebench.web.monitor_filter import FilterBody
 
 router = APIRouter(prefix="/api/sessions/{session_id}/monitor", tags=["monitor"])
 
-ServiceName = Literal["NMT", "SYNC", "EMCY", "TIME", "PDO", "SDO", "Heartbeat", "LSS", "Unknown", "Error frame"]
 FormatName = Literal["pcapng", "log", "asc", "blf", "trc", "csv"]
-
-
-class FilterBody(BaseModel):
-    """What the counter tables and the trace show; counting and bus load always take every frame."""
-
-    nodes: list[Annotated[int, Field(ge=1, le=127)]] = Field(default_factory=list, description="empty = all")
-    services: list[ServiceName] = Field(default_factory=list, description="empty = all")
-    cob_min: int = Field(0, ge=0, le=0x1FFFFFFF)
-    cob_max: int = Field(0x1FFFFFFF, ge=0, le=0x1FFFFFFF)
-
-    @model_validator(mode="after")
-    def _ordered(self) -> FilterBody:
-        if self.cob_min > self.cob_max:
-            raise ValueError(_("cob_min must not be above cob_max"))
-        return self
 
 
 class RecordingStart(BaseModel):

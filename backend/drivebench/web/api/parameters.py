@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Depends, Query, Request, Response, status
+from fastapi import APIRouter, Query, Request, Response, status
 from fastapi.responses import JSONResponse
 from pydantic import BaseModel, Field, TypeAdapter, model_validator
 
@@ -21,11 +21,11 @@ from drivebench.services.control import drive_guard
 from drivebench.services.params import factory_compare
 from drivebench.services.params import parameter_batch as batch
 from drivebench.services.params import parameters as service
-from drivebench.services.params.jobs import Job, JobManager, Progress
 from drivebench.services.params.parameter_batch import MAX_BATCH_WRITE, Wanted
 from drivebench.services.params.parameters import DeviceCommand, ParameterValue, SdoSettings, WriteResult
 from drivebench.services.users import undo as undoing
-from drivebench.web.deps import NodeDep, SessionDep
+from drivebench.web.deps import JobsDep, NodeDep, SessionDep
+from drivebench.web.job_views import JobOut, ParameterValueOut, ValueOut, job_out, value_out
 from drivebench.web.lean_route import lean_route, path_int
 from drivebench.web.problems import problem_body
 from drivebench.web.safety import ACTING, confirmation
@@ -37,31 +37,7 @@ router = APIRouter(prefix="/api", tags=["parameters"])
 NODE = "/sessions/{session_id}/nodes/{node_id}"
 
 
-async def get_jobs(request: Request) -> JobManager:
-    return app_state(request.app).jobs
-
-
-JobsDep = Annotated[JobManager, Depends(get_jobs)]
-
-
 # --- models --------------------------------------------------------------------------------------------
-class ValueOut(BaseModel):
-    raw: int | float | str
-    value: int | float | str | None
-    unit: str | None
-    text: str | None
-    """Selection-list meaning or the names of the set bits."""
-
-
-class ParameterValueOut(ValueOut):
-    ref: str
-    name: str
-    index: str
-    subindex: int
-    display: str
-    read_at: float
-
-
 class BatchRead(BaseModel):
     refs: list[str] = Field(min_length=1, max_length=service.MAX_BATCH,
                             description="Parameter refs as the single read takes them (C00011, 0x1017.0, P0700)")
@@ -214,27 +190,6 @@ class SessionRead(BaseModel):
         None, description="Nodes to read; all nodes of the session with a profile when omitted")
 
 
-class IssueOut(BaseModel):
-    item: str
-    node: int | None
-    detail: str
-    abort_code: str | None
-    abort_text: str | None
-
-
-class JobOut(BaseModel):
-    id: str
-    kind: str
-    title: str
-    state: str
-    progress: Progress
-    error: str | None
-    notes: list[str]
-    issues: list[IssueOut]
-    result: dict[str, Any] | None = None
-    links: dict[str, str]
-
-
 class CommandOut(BaseModel):
     command: str
     via: str
@@ -275,13 +230,6 @@ class ComparisonOut(BaseModel):
 
 
 # --- conversions -----------------------------------------------------------------------------------------
-def value_out(value: ParameterValue) -> ParameterValueOut:
-    return ParameterValueOut(ref=value.ref, name=value.name, index=f"0x{value.index:04X}", subindex=value.subindex,
-                             raw=value.raw if not isinstance(value.raw, bytes) else value.raw.hex(),
-                             value=value.value if not isinstance(value.value, bytes) else value.value.hex(),
-                             unit=value.unit, text=value.text, display=value.display, read_at=value.read_at)
-
-
 def _scaled_out(scaled: ScaledValue) -> ValueOut:
     raw = scaled.raw.hex() if isinstance(scaled.raw, bytes) else scaled.raw
     value = scaled.value.hex() if isinstance(scaled.value, bytes) else scaled.value
@@ -322,23 +270,6 @@ def write_out(result: WriteResult, pending: set[str]) -> WriteOut:
                     verified=result.verified, mismatch=result.mismatch and shown(result.mismatch),
                     reset_required=result.reset_required,
                     pending_reset=sorted(pending))
-
-
-def job_out(job: Job, *, with_result: bool = True) -> JobOut:
-    result = None
-    if with_result:
-        values = job.result.get("values", {})
-        result = {"values": {node: {ref: value_out(v).model_dump() for ref, v in found.items()}
-                             for node, found in values.items()}}
-        for retry in ("retried", "failed_after_retry"):  # read-all: asked again at the end / failed again then
-            if retry in job.result:
-                result[retry] = job.result[retry]
-    return JobOut(
-        id=job.id, kind=job.kind, title=shown(job.title), state=job.state.value,
-        progress=job.progress(), error=job.error and shown(job.error), notes=[shown(note) for note in job.notes],
-        issues=[IssueOut(item=i.item, node=i.node, detail=shown(i.detail), abort_code=i.abort_code,
-                         abort_text=i.abort_text) for i in job.issues],
-        result=result, links={"self": f"/api/jobs/{job.id}", "progress": f"/ws/jobs/{job.id}"})
 
 
 # --- routes ----------------------------------------------------------------------------------------------

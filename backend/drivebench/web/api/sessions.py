@@ -8,16 +8,13 @@ logged) starts without that guard, for a supervisor that keeps its own.
 
 from __future__ import annotations
 
-import logging
 import time
-from typing import Any, Literal
 
 from fastapi import APIRouter, Request, status
 from pydantic import BaseModel, Field, model_validator
 
-from drivebench.errors import AccessDenied, InvalidValue
+from drivebench.errors import AccessDenied
 from drivebench.i18n import _
-from drivebench.protocol.canopen.nmt import COMMAND_BY_NAME, NmtCommand
 from drivebench.services.bus.fieldbus import SessionSpec, parse_spec
 from drivebench.services.bus.sessions import Session
 from drivebench.services.bus.views import NodePublic, SessionPublic, node_public, nodes_public, session_public
@@ -26,14 +23,11 @@ from drivebench.services.params import node_lease
 from drivebench.services.users.principals import Role
 from drivebench.transport.bus import BusSpec, known_interfaces
 from drivebench.web.deps import ManagerDep, NodeDep, SessionDep
-from drivebench.web.identity import PrincipalDep, principal_of
-from drivebench.web.safety import ACTING, PanelDep, WriterDep, confirmation
+from drivebench.web.identity import PrincipalDep
+from drivebench.web.nmt import NmtRequest, NodeNmtRequest, send_nmt
+from drivebench.web.safety import ACTING, PanelDep, WriterDep
 
 router = APIRouter(prefix="/api", tags=["sessions"], dependencies=[ACTING])
-log = logging.getLogger(__name__)
-
-NmtName = Literal["start", "stop", "pre-operational", "reset-node", "reset-communication"]
-
 
 class SessionCreate(BaseModel):
     """Either ``bus`` (``socketcan:can0@500000``, ``socketcand:HOST:PORT/can0``, ``ethercat-mbg:HOST:PORT``) or
@@ -61,24 +55,6 @@ class NodeCreate(BaseModel):
     node_id: int = Field(ge=1, le=127)
     profile_id: str | None = None
     name: str | None = Field(None, max_length=80)
-
-
-class NodeNmtRequest(BaseModel):
-    command: NmtName
-    confirm: str | int | None = Field(None, description="Start only: the node id (or 'all' for the broadcast), "
-                                                        "else 428; or the X-DriveBench-Confirm header")
-    confirm_values: dict[str, Any] | None = Field(None, description="Start only: the values the 428 named "
-                                                                    "(confirm_values), repeated; or the header "
-                                                                    "X-DriveBench-Confirm-Values")
-    keepalive: bool = Field(True, description="Start only: false starts without the keep-alive guard (admins, "
-                                              "with a reason)")
-    keepalive_s: float = Field(drive_guard.KEEPALIVE_TIMEOUT_S, ge=0.5, le=drive_guard.MAX_KEEPALIVE_S,
-                               description="Start only: stop the started nodes when no keep-alive came for this long")
-    reason: str | None = Field(None, max_length=200, description="Why keepalive is false (logged)")
-
-
-class NmtRequest(NodeNmtRequest):
-    node_id: int = Field(0, ge=0, le=127, description="0 = all nodes (broadcast)")
 
 
 class NotHeldOut(BaseModel):
@@ -153,23 +129,6 @@ async def get_node(session: SessionDep, node: NodeDep) -> NodePublic:
 @router.delete("/sessions/{session_id}/nodes/{node_id}", status_code=status.HTTP_204_NO_CONTENT)
 async def remove_node(session: SessionDep, node: NodeDep) -> None:
     session.remove_node(node.node_id)
-
-
-async def send_nmt(request: Request, session: Session, body: NodeNmtRequest, node_id: int,
-                   panel: drive_guard.Panel) -> None:
-    """NMT through the safety guard (shared with the Plant and PDO pages)."""
-    command = COMMAND_BY_NAME[body.command]
-    if command is NmtCommand.START and not body.keepalive:
-        principal = principal_of(request)
-        if not principal.may(Role.ADMIN):
-            raise AccessDenied(_("Starting a node without the keep-alive guard is for admins only."))
-        if not (body.reason or "").strip():
-            raise InvalidValue(_("Say why the node runs without the keep-alive guard (reason)."))
-        log.warning("NMT start of node %s without keep-alive by %s: %s", node_id or "all", principal.name,
-                    body.reason)
-    await drive_guard.nmt(session, command, node_id, panel,
-                          confirm=confirmation(request, body.confirm, body.confirm_values),
-                          keepalive=body.keepalive, timeout_s=body.keepalive_s)
 
 
 @router.post("/sessions/{session_id}/nmt", response_model=list[NodePublic],

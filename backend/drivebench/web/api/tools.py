@@ -7,7 +7,6 @@ networks live in the database (``/api/planned-networks``); only ``compare`` touc
 from __future__ import annotations
 
 import asyncio
-import contextlib
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Depends, Query, Request, Response
@@ -23,10 +22,10 @@ from drivebench.device.calculators.cable import (
     plan_cable,
     selection_example,
 )
-from drivebench.device.calculators.cobids import STANDARD_IDS, CobId, PdoIds, cob_ids, uses_alternative
-from drivebench.device.calculators.dip import DipResult, SwitchDevice, decode, encode
+from drivebench.device.calculators.cobids import STANDARD_IDS, CobId, PdoIds, cob_ids
+from drivebench.device.calculators.dip import SwitchDevice, decode, encode
 from drivebench.device.calculators.switches import SwitchesSection
-from drivebench.errors import DriveBenchError, InvalidValue
+from drivebench.errors import InvalidValue
 from drivebench.i18n import _
 from drivebench.services.planning.planned_networks import (
     LiveComparison,
@@ -37,6 +36,7 @@ from drivebench.services.planning.planned_networks import (
 )
 from drivebench.services.planning.planner import NetworkPlan, PlanReport, check_plan
 from drivebench.web.deps import ManagerDep, RowId, StateDep
+from drivebench.web.dip_answer import DipAnswer, dip_answer
 
 router = APIRouter(prefix="/api/tools", tags=["tools"])
 planned_router = APIRouter(prefix="/api/planned-networks", tags=["planned networks"])
@@ -50,15 +50,6 @@ async def get_devices(state: StateDep) -> BusDevices:
 
 
 DevicesDep = Annotated[BusDevices, Depends(get_devices)]
-
-
-class DipAnswer(BaseModel):
-    family: SwitchesSection
-    """The device's ``switches`` section (its profile's)."""
-    result: DipResult
-    cob_ids: list[CobId]
-    """COB-IDs the node uses (empty when the node id is not known, e.g. the parameter value is not given)."""
-    cob_id_notes: list[str]
 
 
 class DipRequest(BaseModel):
@@ -86,15 +77,6 @@ class CobIdAnswer(BaseModel):
 def parse_switches(on: str) -> dict[str, bool]:
     """``"16,4,2,1"`` -> those switches ON (all others OFF)."""
     return {label.strip(): True for label in on.split(",") if label.strip()}
-
-
-def dip_answer(device: SwitchDevice, result: DipResult, pdo_ids: PdoIds = STANDARD_IDS) -> DipAnswer:
-    spec = device.spec
-    ids: list[CobId] = []
-    if result.node_id is not None:
-        with contextlib.suppress(DriveBenchError):  # a parameter value outside the range: no COB-IDs to show
-            ids = cob_ids(spec, result.node_id, pdo_ids=pdo_ids if uses_alternative(spec, pdo_ids) else STANDARD_IDS)
-    return DipAnswer(family=spec, result=result, cob_ids=ids, cob_id_notes=spec.cob_ids.notes)
 
 
 def calculate(device: SwitchDevice, request: DipRequest) -> DipAnswer:

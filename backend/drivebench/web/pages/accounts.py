@@ -13,9 +13,9 @@ from drivebench.i18n import _
 from drivebench.services.users import accounts
 from drivebench.services.users.principals import Role
 from drivebench.web import access
-from drivebench.web.api.accounts import FIRST_ADMIN, sign_in
 from drivebench.web.deps import RowId
 from drivebench.web.problems import problem_body
+from drivebench.web.sign_in import FIRST_ADMIN, sign_in
 from drivebench.web.templating import templates
 
 router = APIRouter(include_in_schema=False)
@@ -155,3 +155,4 @@ async def create_token(request: Request, name: str = Form(""), user: str = Form(
 async def revoke_token(request: Request, token_id: RowId) -> Response:
     return await _act(request, "tokens", lambda: accounts.revoke_token(token_id),
                       _("Token revoked: scripts using it are refused from now on."))
+#FIXME

@@ -20,7 +20,10 @@ from drivebench.services.session_manager import SessionManager
 from drivebench.services.sets import set_formats, set_jobs
 from drivebench.services.sets.parameter_sets import compare, comparison_csv, retarget
 from drivebench.services.users import audit
-from drivebench.web.api.parameter_sets import (
+from drivebench.web.deps import JobsDep, ManagerDep, RowId, StateDep
+from drivebench.web.problems import error_fragment, problem_body, status_for
+from drivebench.web.safety import ACTING, confirmation
+from drivebench.web.set_views import (
     CompareIn,
     SourceIn,
     build_sources,
@@ -29,10 +32,6 @@ from drivebench.web.api.parameter_sets import (
     set_job_out,
     store,
 )
-from drivebench.web.api.parameters import JobsDep
-from drivebench.web.deps import ManagerDep, RowId, StateDep
-from drivebench.web.problems import error_fragment, problem_body, status_for
-from drivebench.web.safety import ACTING, confirmation
 from drivebench.web.state import AppState
 from drivebench.web.templating import templates
 

@@ -19,8 +19,8 @@ from drivebench.services.bus.sessions import Session
 from drivebench.services.bus.views import nodes_public, session_public
 from drivebench.services.control.drive_guard import parse_values
 from drivebench.transport.bus import BusSpec, known_interfaces
-from drivebench.web.api.sessions import NodeNmtRequest, send_nmt
 from drivebench.web.deps import ManagerDep, SessionDep, StateDep
+from drivebench.web.nmt import NodeNmtRequest, send_nmt
 from drivebench.web.problems import error_fragment, problem_body
 from drivebench.web.safety import ACTING, PanelDep
 from drivebench.web.templating import templates

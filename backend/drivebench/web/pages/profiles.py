@@ -12,21 +12,12 @@ from drivebench.device.profiles.catalog import Item
 from drivebench.device.profiles.loader import LoadedFile
 from drivebench.device.profiles.profile import Value
 from drivebench.errors import DriveBenchError, ProfileError
-from drivebench.web.api.profiles import (
-    EntryKind,
-    UploadTooLarge,
-    delete_upload,
-    entry_page,
-    load_errors,
-    store_many,
-    store_upload,
-    summary,
-    upload_error,
-    warning_out,
-)
+from drivebench.services.profiles.store import UploadTooLarge, delete_upload
+from drivebench.services.profiles.views import EntryKind, entry_page, load_errors, summary, upload_error, warning_out
 from drivebench.web.deps import StateDep
 from drivebench.web.pages.node_info import identity_text
 from drivebench.web.problems import status_for
+from drivebench.web.profile_uploads import receive_many, receive_upload
 from drivebench.web.state import AppState, app_state
 from drivebench.web.templating import templates
 
@@ -127,7 +118,7 @@ async def profiles_page(request: Request, state: StateDep) -> Response:
 async def upload(request: Request, state: StateDep) -> Response:
     """Upload from the form: the list and the form come back, with the error beside the form if the file is bad."""
     try:
-        profile = await store_upload(request, state)
+        profile = await receive_upload(request, state)
     except ProfileError as exc:
         return _refused(request, state, exc)
     return _list_block(request, state, upload_ok=profile.id,
@@ -144,7 +135,7 @@ def _refused(request: Request, state: AppState, exc: ProfileError) -> Response:
 async def upload_batch(request: Request, state: StateDep) -> Response:
     """Several files or a zip from the form: the list comes back with the summary table of every file."""
     try:
-        result = await store_many(request, state)
+        result = await receive_many(request, state)
     except ProfileError as exc:
         return _refused(request, state, exc)
     return _list_block(request, state, batch=result)
@@ -153,7 +144,7 @@ async def upload_batch(request: Request, state: StateDep) -> Response:
 @router.post("/ui/profiles/{profile_id}/delete", response_class=HTMLResponse)
 async def delete(request: Request, state: StateDep, profile_id: str,
                  where: Annotated[str, Query(pattern="^(list|detail)$")] = "list") -> Response:
-    await delete_upload(state, profile_id)
+    await delete_upload(state.registry, state.manager.list(), profile_id)
     if where == "detail":
         return Response(headers={"HX-Redirect": "/profiles"})
     return _list_block(request, state, deleted=profile_id)

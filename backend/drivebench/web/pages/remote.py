@@ -11,9 +11,9 @@ from drivebench.services.monitoring import diagnostics
 from drivebench.services.monitoring.remote_content import session_content
 from drivebench.services.users.sharing import DEFAULT_SHOWS, SHOWS
 from drivebench.web import access_policy
-from drivebench.web.api.diagnostics import issued_link, share_link_public
 from drivebench.web.deps import StateDep
 from drivebench.web.identity import principal_of
+from drivebench.web.share_links import issued_link, share_link_public
 from drivebench.web.templating import templates
 from drivebench.web.viewer import COOKIE, require_engineer, viewer_token
 

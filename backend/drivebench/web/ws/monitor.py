@@ -61,7 +61,7 @@ from drivebench.i18n import N_, _
 from drivebench.services.bus.sessions import Session
 from drivebench.services.monitoring.monitor import Monitor, MonitorFilter, MonitorView, monitor_for
 from drivebench.services.monitoring.recording import recordings_for
-from drivebench.web.api.monitor import FilterBody
+from drivebench.web.monitor_filter import FilterBody
 from drivebench.web.state import app_state
 
 router = APIRouter()
