@@ -11,7 +11,7 @@ from pydantic import BaseModel, Field
 
 from drivebench.errors import AccessDenied, InvalidValue
 from drivebench.i18n import _
-from drivebench.protocol.nmt import COMMAND_BY_NAME, NmtCommand
+from drivebench.protocol.canopen.nmt import COMMAND_BY_NAME, NmtCommand
 from drivebench.services.bus.sessions import Session
 from drivebench.services.control import drive_guard
 from drivebench.services.users.principals import Role
