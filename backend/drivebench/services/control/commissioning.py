@@ -121,6 +121,8 @@ class RunOut(BaseModel):
     title: str
     source: str
     preconditions: list[str]
+    missing: list[str]
+    """Steps the manual has that the profile cannot offer, with why."""
     steps: list[StepOut]
     position: int
     results: list[StepResult]
@@ -237,7 +239,7 @@ class Run:
     def public(self, node: SessionNode | None = None) -> RunOut:
         seq = self.sequence
         return RunOut(id=self.id, node_id=self.node_id, sequence=seq.key, title=seq.title, source=seq.source,
-                      preconditions=list(seq.preconditions),
+                      preconditions=list(seq.preconditions), missing=list(seq.missing),
                       steps=[StepOut(number=n + 1, title=s.title, printed=s.printed, moves=s.moves, note=s.note,
                                      field=field_of(node, s) if node is not None else None)
                              for n, s in enumerate(seq.steps)],
