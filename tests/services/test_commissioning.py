@@ -8,7 +8,7 @@ import asyncio
 import pytest
 
 from drivebench.device.profiles.loader import ProfileRegistry
-from drivebench.errors import ConfirmationRequired, Conflict
+from drivebench.errors import ConfirmationRequired, Conflict, InvalidValue
 from drivebench.services.bus.sessions import Session
 from drivebench.services.control import commissioning
 from drivebench.services.control.commissioning import Run
@@ -176,3 +176,35 @@ def test_93xx_minimal_enable(registry: ProfileRegistry) -> None:
         runner.run(manager.close_all())
         runner.close()
         plant.stop()
+
+
+def test_the_generic_cia402_set_up_writes_the_servos_standard_objects(bench: tuple[asyncio.Runner, Session]) -> None:
+    """Issue 30 item 3: node 7 (a CiA 402 drive with no commissioning section) is offered the set-up built from
+    the standard objects its profile lists; each step is the checked write, read back, of the user's value or the
+    profile's default, and the objects the profile lacks are named."""
+    runner, session = bench
+    servo = session.node(7)
+    (setup,) = commissioning.sequences_for(servo)
+    assert setup.key == "cia402-setup"
+    refs = [step.ref for step in setup.steps]
+    assert refs[:3] == ["0x6060", "0x607D.1", "0x607D.2"] and "0x6092.1" in refs and refs[-1] == "0x609A"
+    assert "0x6080" in setup.missing[0] and "0x6080" not in refs  # the servo's profile has no max motor speed
+    run = _walk(runner, session, commissioning.wizard(session).start(session, servo, "cia402-setup"),
+                values={"0x6083": 5000, "0x607D.2": 7200})
+    assert run.failed is None and all(result.ok for result in run.results), run.failed
+    assert runner.run(parameters.read(session, 7, "0x6083")).raw == 5000
+    assert runner.run(parameters.read(session, 7, "0x607D.2")).raw == 7200
+    accel = next(result for result in run.results if result.title.startswith("0x6083"))
+    assert [t.data[:11] for t in accel.telegrams] == ["23 83 60 00", "60 83 60 00", "40 83 60 00", "43 83 60 00"]
+    assert [seq.key for seq in commissioning.sequences_for(session.node(MM))][-1] == "mm-quick"  # 0x6060 alone
+
+
+def test_a_set_up_value_outside_the_range_is_refused_and_the_step_stays(bench: tuple[asyncio.Runner, Session]) -> None:
+    runner, session = bench
+    servo = session.node(7)
+    run = commissioning.wizard(session).start(session, servo, "cia402-setup")
+    _walk(runner, session, run, stop_before=1)
+    before = runner.run(parameters.read(session, 7, "0x607D.1")).raw
+    with pytest.raises(InvalidValue):
+        runner.run(commissioning.next_step(session, servo, run, value="far left"))
+    assert run.position == 1 and runner.run(parameters.read(session, 7, "0x607D.1")).raw == before

@@ -28,6 +28,7 @@ import can
 from pydantic import BaseModel
 
 from drivebench import i18n
+from drivebench.device.drive import setup402
 from drivebench.device.drive.control import Sequence, Step
 from drivebench.device.drive.motion import moves, standard_motion
 from drivebench.device.profiles.catalog import index_ref
@@ -64,12 +65,14 @@ AUDIT_ORIGIN = "commissioning"
 
 
 def sequences_for(node: SessionNode) -> list[Sequence]:
-    """The guided sequences this device's profile carries (none for a device whose profile has none)."""
+    """The guided sequences this device's profile carries, then for a CiA 402 drive the generic set-up built from
+    the standard objects its profile lists (:mod:`drivebench.device.drive.setup402`)."""
     catalog = node.catalog
     if catalog is None:
         return []
-    return [seq for seq in catalog.profile.commissioning
-            if all(drive_control.has_ref(catalog, ref) for ref in seq.requires)]
+    own = [seq for seq in catalog.profile.commissioning
+           if all(drive_control.has_ref(catalog, ref) for ref in seq.requires)]
+    return [*own, setup402.setup_sequence(catalog.profile)] if setup402.offered(catalog.profile) else own
 
 
 # --- a run ---------------------------------------------------------------------------------------------------
