@@ -363,7 +363,8 @@
         const cls = r ? (r.ok ? "done" : "failed") : step.number === run.position + 1 && !run.finished ? "next" : "";
         const telegrams = r ? r.telegrams.map((t) => `<div class="mono tg ${esc(t.direction)}">${t.direction === "T" ? "→" : "←"} ${esc(t.cob_id)} ${esc(t.data)}</div>`).join("") : "";
         return `<tr class="${cls}"><td>${esc(step.number)}</td><td>${esc(step.title)}${step.moves ? ` <span class="badge warn">${esc(_("moves"))}</span>` : ""}` +
-               `${step.printed ? `<div class="muted mono small-text">${esc(_("manual: {steps}", { steps: step.printed }))}</div>` : ""}</td>` +
+               `${step.printed ? `<div class="muted mono small-text">${esc(_("manual: {steps}", { steps: step.printed }))}</div>` : ""}` +
+               `${step.note ? `<div class="muted small-text step-note">${esc(step.note)}</div>` : ""}</td>` +
                `<td>${telegrams}</td><td>${r ? esc(r.message) : ""}</td></tr>`;
       }).join("");
       const pre = run.preconditions.map((p) => `<li>${esc(p)}</li>`).join("");
