@@ -363,19 +363,23 @@
         const cls = r ? (r.ok ? "done" : "failed") : step.number === run.position + 1 && !run.finished ? "next" : "";
         const telegrams = r ? r.telegrams.map((t) => `<div class="mono tg ${esc(t.direction)}">${t.direction === "T" ? "→" : "←"} ${esc(t.cob_id)} ${esc(t.data)}</div>`).join("") : "";
         return `<tr class="${cls}"><td>${esc(step.number)}</td><td>${esc(step.title)}${step.moves ? ` <span class="badge warn">${esc(_("moves"))}</span>` : ""}` +
-               `${step.printed ? `<div class="muted mono small-text">${esc(_("manual: {steps}", { steps: step.printed }))}</div>` : ""}</td>` +
+               `${step.printed ? `<div class="muted mono small-text">${esc(_("manual: {steps}", { steps: step.printed }))}</div>` : ""}` +
+               `${step.note ? `<div class="muted small-text step-note">${esc(step.note)}</div>` : ""}</td>` +
                `<td>${telegrams}</td><td>${r ? esc(r.message) : ""}</td></tr>`;
       }).join("");
       const pre = run.preconditions.map((p) => `<li>${esc(p)}</li>`).join("");
+      const gaps = (run.missing || []).map((m) => `<li>${esc(m)}</li>`).join("");
       // The texts first: pybabel's JavaScript extractor does not see _() inside a template literal.
       const allAnswered = _("All {count} steps answered as the manual expects.", { count: run.steps.length });
       const beforeStarting = _("Before starting (not sent over CAN):");
+      const notOffered = _("Not offered by this profile (no step writes it):");
       const [stepHead, telegramsHead, answerHead] = [_("Step"), _("Telegrams"), _("Answer")];
       const banner = run.failed ? `<div class="error" role="alert">${esc(run.failed)}</div>`
         : run.finished ? `<div class="ok-note">${esc(allAnswered)}</div>` : "";
       const next = run.finished ? null : run.steps[run.position];
       runBox.innerHTML = `<p><strong>${esc(run.title)}</strong> · ${esc(run.source)}</p>` +
-        (pre ? `<p class="muted">${esc(beforeStarting)}</p><ul class="muted">${pre}</ul>` : "") + banner +
+        (pre ? `<p class="muted">${esc(beforeStarting)}</p><ul class="muted">${pre}</ul>` : "") +
+        (gaps ? `<p class="muted">${esc(notOffered)}</p><ul class="muted ctl-missing">${gaps}</ul>` : "") + banner +
         `<div class="ctl-run-scroll"><table class="ctl-run"><thead><tr><th>#</th><th>${esc(stepHead)}</th>` +
         `<th>${esc(telegramsHead)}</th><th>${esc(answerHead)}</th></tr></thead><tbody>${rows}</tbody></table></div>` +
         (next && next.field ? stepForm(next) : "");

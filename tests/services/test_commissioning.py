@@ -8,7 +8,7 @@ import asyncio
 import pytest
 
 from drivebench.device.profiles.loader import ProfileRegistry
-from drivebench.errors import ConfirmationRequired, Conflict
+from drivebench.errors import ConfirmationRequired, Conflict, InvalidValue
 from drivebench.services.bus.sessions import Session
 from drivebench.services.control import commissioning
 from drivebench.services.control.commissioning import Run
@@ -26,12 +26,15 @@ def bench(plant_session: tuple[asyncio.Runner, Session]) -> tuple[asyncio.Runner
     return plant_session
 
 
-def _walk(runner: asyncio.Runner, session: Session, run: Run, stop_before: int | None = None) -> Run:
+def _walk(runner: asyncio.Runner, session: Session, run: Run, stop_before: int | None = None,
+          values: dict[str, object] | None = None) -> Run:
+    """Run the steps; ``values`` gives a ``parameter`` step's value by its ref (else the profile's proposal)."""
     node = session.node(run.node_id)
     while not run.finished and run.position != stop_before:
         step = run.sequence.steps[run.position]
-        runner.run(confirmed_call(commissioning.next_step, session, node, run, confirm=run.node_id) if step.moves
-                   else commissioning.next_step(session, node, run))
+        value = (values or {}).get(step.ref or "")
+        runner.run(confirmed_call(commissioning.next_step, session, node, run, confirm=run.node_id, value=value)
+                   if step.moves else commissioning.next_step(session, node, run, value=value))
         commissioning.drive_control.guard_for(session).keepalive(run.node_id)
     return run
 
@@ -61,7 +64,22 @@ def test_every_sdo_step_of_the_seed_sequences_is_a_write_the_profile_admits(
                 assert (item.index, item.subindex) == (step.index, step.sub), (sequence.key, step.title)
                 assert parameters.encoded(item, raw, write.value) == step.data, (sequence.key, step.title, raw)
                 checked += 1
-    assert checked > 60
+    assert checked > 50  # the MICROMASTER's telegram sequences; the Lenze ones are parameter steps
+
+
+def test_lenze_sequences_are_parameter_steps_on_the_profiles_parameters(
+        bench: tuple[asyncio.Runner, Session]) -> None:
+    """Issue 30 item 3: the 8200 vector and 8400 motec sequences name their profiles' parameters (no fixed bytes),
+    each shown as a form field, and say in the profile which of the manual's steps the profile cannot offer."""
+    _, session = bench
+    for node_id in (5, VECTOR):
+        node = session.node(node_id)
+        (sequence,) = commissioning.sequences_for(node)
+        assert {step.kind for step in sequence.steps} == {"parameter", "check"}, sequence.key
+        for step in sequence.steps:
+            if step.kind == "parameter":
+                assert commissioning.field_of(node, step) is not None, (sequence.key, step.ref)
+        assert sequence.missing, sequence.key
 
 
 def test_micromaster_velocity_sequence_as_printed(bench: tuple[asyncio.Runner, Session]) -> None:
@@ -122,8 +140,16 @@ def test_micromaster_torque_sequence_as_printed(bench: tuple[asyncio.Runner, Ses
 
 def test_8400_minimal_enable(bench: tuple[asyncio.Runner, Session]) -> None:
     runner, session = bench
-    run = _walk(runner, session, commissioning.wizard(session).start(session, session.node(5), "l8400"))
+    run = _walk(runner, session, commissioning.wizard(session).start(session, session.node(5), "l8400"),
+                values={"C00088": 4.2})
     assert run.failed is None, run.failed
+    assert all(result.ok for result in run.results), [result.message for result in run.results]
+    current = next(result for result in run.results if result.title.startswith("C00088"))
+    assert [(t.direction, t.data) for t in current.telegrams][:3] == [  # 4.2 A x 100 = 420, then read back
+        ("T", "23 A7 5F 00 A4 01 00 00"), ("R", "60 A7 5F 00 00 00 00 00"), ("T", "40 A7 5F 00 00 00 00 00")]
+    assert runner.run(parameters.read(session, 5, "C00088")).value == 4.2
+    moving = [step.ref for step in run.sequence.steps if step.moves]
+    assert moving[-1] == "C00866/1"  # the enable step stays a confirmed moving step
 
 
 def test_93xx_minimal_enable(registry: ProfileRegistry) -> None:
@@ -150,3 +176,35 @@ def test_93xx_minimal_enable(registry: ProfileRegistry) -> None:
         runner.run(manager.close_all())
         runner.close()
         plant.stop()
+
+
+def test_the_generic_cia402_set_up_writes_the_servos_standard_objects(bench: tuple[asyncio.Runner, Session]) -> None:
+    """Issue 30 item 3: node 7 (a CiA 402 drive with no commissioning section) is offered the set-up built from
+    the standard objects its profile lists; each step is the checked write, read back, of the user's value or the
+    profile's default, and the objects the profile lacks are named."""
+    runner, session = bench
+    servo = session.node(7)
+    (setup,) = commissioning.sequences_for(servo)
+    assert setup.key == "cia402-setup"
+    refs = [step.ref for step in setup.steps]
+    assert refs[:3] == ["0x6060", "0x607D.1", "0x607D.2"] and "0x6092.1" in refs and refs[-1] == "0x609A"
+    assert "0x6080" in setup.missing[0] and "0x6080" not in refs  # the servo's profile has no max motor speed
+    run = _walk(runner, session, commissioning.wizard(session).start(session, servo, "cia402-setup"),
+                values={"0x6083": 5000, "0x607D.2": 7200})
+    assert run.failed is None and all(result.ok for result in run.results), run.failed
+    assert runner.run(parameters.read(session, 7, "0x6083")).raw == 5000
+    assert runner.run(parameters.read(session, 7, "0x607D.2")).raw == 7200
+    accel = next(result for result in run.results if result.title.startswith("0x6083"))
+    assert [t.data[:11] for t in accel.telegrams] == ["23 83 60 00", "60 83 60 00", "40 83 60 00", "43 83 60 00"]
+    assert [seq.key for seq in commissioning.sequences_for(session.node(MM))][-1] == "mm-quick"  # 0x6060 alone
+
+
+def test_a_set_up_value_outside_the_range_is_refused_and_the_step_stays(bench: tuple[asyncio.Runner, Session]) -> None:
+    runner, session = bench
+    servo = session.node(7)
+    run = commissioning.wizard(session).start(session, servo, "cia402-setup")
+    _walk(runner, session, run, stop_before=1)
+    before = runner.run(parameters.read(session, 7, "0x607D.1")).raw
+    with pytest.raises(InvalidValue):
+        runner.run(commissioning.next_step(session, servo, run, value="far left"))
+    assert run.position == 1 and runner.run(parameters.read(session, 7, "0x607D.1")).raw == before

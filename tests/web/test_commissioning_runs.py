@@ -98,23 +98,21 @@ def test_a_step_is_a_write_in_the_audit_log(api: TestClient) -> None:
     assert step.status_code == 200 and step.json()["results"][0]["ok"], step.text
     rows = _audit(api, VECTOR)
     assert [(row["ref"], row["new_value"], row["origin"], row["result"]) for row in rows] == [
-        ("C0135", "0x0200", "commissioning", "not verified")], rows
+        ("C0135", "0x0200", "commissioning", "written")], rows  # a parameter step reads back (issue 30 item 3)
     assert _sim(api, VECTOR).store.get(C0135, 0) == 0x0200
 
 
 def test_a_step_value_outside_the_profile_range_is_refused_with_the_range(api: TestClient,
                                                                           wire: can.BusABC) -> None:
-    """The profile's C0001 (operating mode) takes 0 ... 3; a step that would write 4 is refused before anything is
+    """The profile's C0001 (operating mode) takes 0 ... 3; a step value of 4 is refused before anything is
     sent, with the range in the words, and the run stays at that step."""
     run = _start(api, ANNA)
-    server_run = _server_run(api, run["id"])
-    second = server_run.sequence.steps[1]
-    assert second.index == C0001
-    server_run.sequence.steps[1] = second.model_copy(update={"data": (40000).to_bytes(4, "little")})  # 4 x 10000
+    second = _server_run(api, run["id"]).sequence.steps[1]
+    assert (second.kind, second.ref) == ("parameter", "C0001")
     assert api.post(_url(VECTOR, f"/runs/{run['id']}/next"), json={}, headers=ANNA).status_code == 200
     before = _sim(api, VECTOR).store.get(C0001, 0)
     _downloads(wire, VECTOR)
-    refused = confirmed(api, "POST", _url(VECTOR, f"/runs/{run['id']}/next"), json={}, headers=ANNA)
+    refused = confirmed(api, "POST", _url(VECTOR, f"/runs/{run['id']}/next"), json={"value": 4}, headers=ANNA)
     assert refused.status_code == 422, refused.text
     assert refused.headers["content-type"] == "application/problem+json"
     detail = refused.json()["detail"]

@@ -142,7 +142,8 @@ def test_each_step_shows_its_own_telegrams_while_the_control_panel_polls(client:
     assert run["failed"] is None, run["failed"]
     c0001 = run["results"][1]
     assert [(t["direction"], t["cob_id"], t["data"][:11]) for t in c0001["telegrams"]] == [
-        ("T", "0x60C", "23 FE 5F 00"), ("R", "0x58C", "60 FE 5F 00")], c0001["telegrams"]
+        ("T", "0x60C", "23 FE 5F 00"), ("R", "0x58C", "60 FE 5F 00"),  # the write
+        ("T", "0x60C", "40 FE 5F 00"), ("R", "0x58C", "43 FE 5F 00")], c0001["telegrams"]  # its read-back
     for result in run["results"]:
         sdo = [t for t in result["telegrams"] if t["cob_id"] in ("0x60C", "0x58C")]
         assert len({t["data"][3:11] for t in sdo}) <= 1, (result["title"], sdo)  # one object per step

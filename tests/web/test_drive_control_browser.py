@@ -254,7 +254,7 @@ def test_demo_axis_has_the_standard_cia402_panel_and_the_seed_drives_keep_theirs
     assert page.locator("#ctl-units").inner_text().startswith("Position in °, velocity in rpm")
     tab = page.locator("#control-tab").inner_text()
     assert not [word for word in ("MICROMASTER", "Lenze", "P0700", "8400", "EMF2178IB") if word in tab]
-    assert page.locator("#ctl-seq").count() == 0
+    assert page.locator("#ctl-seq option").evaluate_all("els => els.map(el => el.value)") == ["cia402-setup"]
     page.goto(f"{base}/sessions/demo-plant/nodes/3?tab=control")
     page.wait_for_selector("#ctl-ws.good", timeout=TIMEOUT_MS)
     assert page.locator("#ctl-motion").count() == 0

@@ -101,7 +101,8 @@ def test_upload_scan_home_move_velocity_and_jog_a_cia402_axis(server: tuple[str,
     assert "0x605A = 2: slow down on quick-stop ramp" in page.locator("#ctl-qs-option").inner_text()
     assert page.locator("#ctl-inputs").inner_text().count("limit switch") == 2
     assert "No error" in page.locator("#ctl-error-code").inner_text()
-    assert page.locator("#ctl-seq").count() == 0  # no guided sequence: the profile carries none
+    # no sequence of its own: the generic CiA 402 set-up from its standard objects (issue 30 item 3)
+    assert page.locator("#ctl-seq option").evaluate_all("els => els.map(el => el.value)") == ["cia402-setup"]
     page.click("button[data-command=shutdown]")
     page.wait_for_selector('.ctl-state.current[data-state="ready"]', timeout=TIMEOUT_MS)
     page.click("button[data-command=switch_on]")

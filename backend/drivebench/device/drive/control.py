@@ -254,4 +254,6 @@ class Sequence(_Model):
     preconditions: list[str] = Field(default_factory=list)
     requires: list[str] = Field(default_factory=list)
     """Offered only when the device has these objects / codes."""
+    missing: list[str] = Field(default_factory=list)
+    """Steps of the manual's sequence this profile cannot offer (a parameter it lacks), each with why."""
     steps: list[Step]

@@ -23,6 +23,8 @@ NameLookup = Callable[[int, int, int], str | None]
 """(node, index, subindex) -> the profile's name for the object, e.g. ``C00061 Heatsink temperature``."""
 AbortTextsLookup = Callable[[int], Mapping[int, str] | None]
 """node -> its profile's abort texts, so abort codes read in the manual's words."""
+HexLookup = Callable[[int, int, int], bool]
+"""(node, index, subindex) -> the object's value reads in hex (a COB-ID, a bit-coded word), not as an amount."""
 EmcyLookup = Callable[[int, int, bytes], str | None]
 """(node, EMCY code, the five manufacturer-specific bytes) -> the device profile's words for it."""
 """(node, emergency code) -> the profile's text for it."""
@@ -144,10 +146,18 @@ def _printable(raw: bytes) -> str:
     return ""
 
 
+def _hex_value(raw: bytes) -> str:
+    return f"0x{int.from_bytes(raw, 'little'):0{2 * len(raw)}X}" if raw else "(no data)"
+
+
 class _Objects:
-    def __init__(self, node: int, names: NameLookup | None) -> None:
+    def __init__(self, node: int, names: NameLookup | None, hex_words: HexLookup | None = None) -> None:
         self.node = node
         self.names = names
+        self.hex_words = hex_words
+
+    def reads_hex(self, index: int, sub: int) -> bool:
+        return self.hex_words is not None and self.hex_words(self.node, index, sub)
 
     def __call__(self, index: int, sub: int) -> str:
         text = f"0x{index:04X}sub{sub}"
@@ -179,7 +189,7 @@ def _initiate(data: bytes, obj: _Objects, verb: str, value: Callable[[bytes], st
     expedited, size_given = command & 2, command & 1
     if expedited:
         raw = data[4:8 - ((command >> 2) & 3)] if size_given else data[4:8]
-        return f"{verb} {obj(index, sub)} = {value(raw)}"
+        return f"{verb} {obj(index, sub)} = {_hex_value(raw) if obj.reads_hex(index, sub) else value(raw)}"
     return f"{verb} {obj(index, sub)}, segmented{_size(data, size_given)}"
 
 
@@ -363,11 +373,11 @@ def _error_frame(error_class: int, data: bytes) -> str:
 
 def decode_frame(msg: can.Message, *, names: NameLookup | None = None, abort_texts: AbortTextsLookup | None = None,
                  emcy_texts: EmcyLookup | None = None, sdo_context: SdoContext | None = None,
-                 owner: tuple[Service, int | None] | None = None) -> DecodedFrame:
+                 owner: tuple[Service, int | None] | None = None, hex_words: HexLookup | None = None) -> DecodedFrame:
     """Decode ``msg``; ``names``/``abort_texts``/``emcy_texts`` add the profile's words where a caller has them;
     ``owner`` is the service and node of a COB-ID the predefined connection set would give another node (a
     device's additional SDO channel: 0x5C5 is node 5's SDO2 answer, not node 69's; a PDO on a COB-ID of its own;
-    node None where the predefined node no longer uses it)."""
+    node None where the predefined node no longer uses it); ``hex_words`` says which objects' values read in hex."""
     data = b"" if msg.is_remote_frame else bytes(msg.data)
 
     def make(service: Service, node: int | None, summary: str) -> DecodedFrame:
@@ -398,7 +408,7 @@ def decode_frame(msg: can.Message, *, names: NameLookup | None = None, abort_tex
     if service in (Service.SDO_RX, Service.SDO_TX):
         if len(data) != 8:
             return make(service, node, f"malformed SDO frame ({len(data)} bytes) {_hex(data)}")
-        objects = _Objects(node, names)
+        objects = _Objects(node, names, hex_words)
         texts = abort_texts(node) if abort_texts else None
         decoder = _sdo_request if service is Service.SDO_RX else _sdo_response
         return make(service, node, decoder(data, sdo_context, objects, texts))

@@ -29,6 +29,7 @@ import can
 from pydantic import BaseModel
 
 from drivebench import i18n
+from drivebench.device.drive import setup402
 from drivebench.device.drive.control import Sequence, Step
 from drivebench.device.drive.motion import moves, standard_motion
 from drivebench.device.profiles.catalog import index_ref
@@ -66,12 +67,14 @@ AUDIT_ORIGIN = "commissioning"
 
 
 def sequences_for(node: SessionNode) -> list[Sequence]:
-    """The guided sequences this device's profile carries (none for a device whose profile has none)."""
+    """The guided sequences this device's profile carries, then for a CiA 402 drive the generic set-up built from
+    the standard objects its profile lists (:mod:`drivebench.device.drive.setup402`)."""
     catalog = node.catalog
     if catalog is None:
         return []
-    return [seq for seq in catalog.profile.commissioning
-            if all(drive_control.has_ref(catalog, ref) for ref in seq.requires)]
+    own = [seq for seq in catalog.profile.commissioning
+           if all(drive_control.has_ref(catalog, ref) for ref in seq.requires)]
+    return [*own, setup402.setup_sequence(catalog.profile)] if setup402.offered(catalog.profile) else own
 
 
 # --- a run ---------------------------------------------------------------------------------------------------
@@ -123,6 +126,8 @@ class RunOut(BaseModel):
     title: str
     source: str
     preconditions: list[str]
+    missing: list[str]
+    """Steps the manual has that the profile cannot offer, with why."""
     steps: list[StepOut]
     position: int
     results: list[StepResult]
@@ -239,7 +244,7 @@ class Run:
     def public(self, node: SessionNode | None = None) -> RunOut:
         seq = self.sequence
         return RunOut(id=self.id, node_id=self.node_id, sequence=seq.key, title=seq.title, source=seq.source,
-                      preconditions=list(seq.preconditions),
+                      preconditions=list(seq.preconditions), missing=list(seq.missing),
                       steps=[StepOut(number=n + 1, title=s.title, printed=s.printed, moves=s.moves, note=s.note,
                                      field=field_of(node, s) if node is not None else None)
                              for n, s in enumerate(seq.steps)],

@@ -27,6 +27,7 @@ from typing import Any, Protocol
 
 import can
 
+from drivebench.device.profiles.number_base import shows_hex
 from drivebench.i18n import N_, Text, gettext, shown
 from drivebench.protocol.canopen.decode import (
     DecodedFrame,
@@ -471,7 +472,8 @@ class Monitor(can.Listener):
             if not accepts(service, node, msg.arbitration_id):
                 continue
             decoded = decode_frame(msg, names=lookups.name, abort_texts=lookups.abort_texts, emcy_texts=lookups.emcy,
-                                   sdo_context=context, owner=owners.get(msg.arbitration_id))
+                                   sdo_context=context, owner=owners.get(msg.arbitration_id),
+                                   hex_words=lookups.reads_hex)
             rows.append(_row(seq, decoded))
             if len(rows) >= limit:
                 break
@@ -582,6 +584,13 @@ class _Lookups:
         catalog = node.catalog if node else None
         item = catalog.by_address(index, subindex) if catalog else None
         return f"{item.ref} {item.name}" if item else None
+
+    def reads_hex(self, node_id: int, index: int, subindex: int) -> bool:
+        """The object's value reads in hex by the Parameters tab's rule (:func:`number_base.shows_hex`)."""
+        node = self.session.nodes.get(node_id) if self.session else None
+        catalog = node.catalog if node else None
+        item = catalog.by_address(index, subindex) if catalog else None
+        return item is not None and shows_hex(item)
 
     def abort_texts(self, node_id: int) -> Mapping[int, str] | None:
         node = self.session.nodes.get(node_id) if self.session else None

@@ -91,6 +91,7 @@ class SequenceOut(BaseModel):
     title: str
     source: str
     preconditions: list[str]
+    missing: list[str]
     steps: int
 
 
@@ -180,7 +181,7 @@ async def keepalive(session: SessionDep, node: NodeDep, panel: PanelDep) -> Keep
 @router.get("/sequences", response_model=list[SequenceOut])
 async def sequences(node: NodeDep) -> list[SequenceOut]:
     return [SequenceOut(key=seq.key, title=seq.title, source=seq.source, preconditions=list(seq.preconditions),
-                        steps=len(seq.steps)) for seq in commissioning.sequences_for(node)]
+                        missing=list(seq.missing), steps=len(seq.steps)) for seq in commissioning.sequences_for(node)]
 
 
 @router.post("/sequences/{key}/runs", response_model=RunOut, status_code=201)

@@ -21,6 +21,7 @@ from drivebench.services.sets import set_formats, set_jobs
 from drivebench.services.sets.parameter_sets import compare, comparison_csv, retarget
 from drivebench.services.users import audit
 from drivebench.web.deps import JobsDep, ManagerDep, RowId, StateDep
+from drivebench.web.pages.sets_audit import audit_context
 from drivebench.web.problems import error_fragment, problem_body, status_for
 from drivebench.web.safety import ACTING, confirmation
 from drivebench.web.set_views import (
@@ -116,7 +117,7 @@ def _page_context(state: AppState, manager: SessionManager, selected: int | None
     nodes = _nodes(manager)
     profiles = sorted({s.profile_id for s in sets} | {n["profile_id"] for n in nodes})
     return {"sets": sets, "nodes": nodes, "profiles": profiles, "selected": selected,
-            "audit": audit.entries(limit=200), "audit_q": "", "formats": set_formats.FORMATS}
+            **audit_context(manager), "formats": set_formats.FORMATS}
 
 
 # --- page and list -----------------------------------------------------------------------------------------
@@ -372,8 +373,3 @@ async def compare_csv(request: Request, state: StateDep, manager: ManagerDep) ->
     return Response(comparison_csv(result), media_type="text/csv",
                     headers={"Content-Disposition": 'attachment; filename="comparison.csv"'})
 
-
-# --- audit log ---------------------------------------------------------------------------------------------
-@router.get(UI + "/audit/rows", response_class=HTMLResponse)
-async def audit_rows(request: Request, q: str = "") -> Response:
-    return _render(request, "audit", {"audit": audit.entries(query=q, limit=200), "audit_q": q})
