@@ -23,13 +23,14 @@ from drivebench.services.bus.sessions import Session
 from drivebench.services.bus.views import NodePublic, SessionPublic, node_public, nodes_public, session_public
 from drivebench.services.control import drive_guard
 from drivebench.services.params import node_lease
+from drivebench.services.params.write_context import WriteContext
 from drivebench.services.users.principals import Role
 from drivebench.transport.bus import BusSpec, known_interfaces
 from drivebench.web.deps import ManagerDep, NodeDep, SessionDep
 from drivebench.web.identity import PrincipalDep, principal_of
-from drivebench.web.safety import ACTING, PanelDep, WriterDep, confirmation
+from drivebench.web.safety import PanelDep, WriteCtxDep, WriterDep, confirmation
 
-router = APIRouter(prefix="/api", tags=["sessions"], dependencies=[ACTING])
+router = APIRouter(prefix="/api", tags=["sessions"])
 log = logging.getLogger(__name__)
 
 NmtName = Literal["start", "stop", "pre-operational", "reset-node", "reset-communication"]
@@ -156,7 +157,7 @@ async def remove_node(session: SessionDep, node: NodeDep) -> None:
 
 
 async def send_nmt(request: Request, session: Session, body: NodeNmtRequest, node_id: int,
-                   panel: drive_guard.Panel) -> None:
+                   panel: drive_guard.Panel, ctx: WriteContext) -> None:
     """NMT through the safety guard (shared with the Plant and PDO pages)."""
     command = COMMAND_BY_NAME[body.command]
     if command is NmtCommand.START and not body.keepalive:
@@ -167,25 +168,26 @@ async def send_nmt(request: Request, session: Session, body: NodeNmtRequest, nod
             raise InvalidValue(_("Say why the node runs without the keep-alive guard (reason)."))
         log.warning("NMT start of node %s without keep-alive by %s: %s", node_id or "all", principal.name,
                     body.reason)
-    await drive_guard.nmt(session, command, node_id, panel,
+    await drive_guard.nmt(session, command, node_id, panel, ctx=ctx,
                           confirm=confirmation(request, body.confirm, body.confirm_values),
                           keepalive=body.keepalive, timeout_s=body.keepalive_s)
 
 
 @router.post("/sessions/{session_id}/nmt", response_model=list[NodePublic],
              responses={428: {"description": "NMT start without the confirmation naming the node (or 'all')"}})
-async def nmt_broadcast(request: Request, body: NmtRequest, session: SessionDep, panel: PanelDep) -> list[NodePublic]:
+async def nmt_broadcast(request: Request, body: NmtRequest, session: SessionDep, panel: PanelDep,
+                        ctx: WriteCtxDep) -> list[NodePublic]:
     """Send an NMT command to one node or (node_id 0) to all nodes. Start: see the module notes (confirm,
     keep-alive)."""
-    await send_nmt(request, session, body, body.node_id, panel)
+    await send_nmt(request, session, body, body.node_id, panel, ctx)
     return nodes_public(session)
 
 
 @router.post("/sessions/{session_id}/nodes/{node_id}/nmt", response_model=NodePublic,
              responses={428: {"description": "NMT start without the confirmation naming the node"}})
 async def nmt_node(request: Request, body: NodeNmtRequest, session: SessionDep, node: NodeDep,
-                   panel: PanelDep) -> NodePublic:
-    await send_nmt(request, session, body, node.node_id, panel)
+                   panel: PanelDep, ctx: WriteCtxDep) -> NodePublic:
+    await send_nmt(request, session, body, node.node_id, panel, ctx)
     return node_public(session, node)
 
 
