@@ -9,11 +9,11 @@ import pytest
 
 from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.services.bus.sessions import Session
-from drivebench.services.control import drive_guard
 from drivebench.services.params import parameters
 from drivebench.services.params.parameters import WriteResult
 from drivebench.services.session_manager import SessionManager
 from drivebench.simulator.plant import Plant
+from tests.write_contexts import SERVICE
 
 
 @pytest.fixture
@@ -34,6 +34,5 @@ def plant_session(request: pytest.FixtureRequest, plant: Plant,
 
 async def set_up(session: Session, node_id: int, ref: str, value: object, **options: bool) -> WriteResult:
     """A test's set-up write (command source, a drive run the test measures) as a caller that confirmed it itself
-    (:func:`drive_guard.cleared`): it needs no confirmation and arms nothing."""
-    with drive_guard.cleared():
-        return await parameters.write(session, node_id, ref, value, **options)
+    (:meth:`WriteContext.cleared_by_caller`): it needs no confirmation and arms nothing."""
+    return await parameters.write(session, node_id, ref, value, ctx=SERVICE.cleared_by_caller(), **options)

@@ -17,6 +17,7 @@ from drivebench.services.session_manager import SessionManager
 from drivebench.simulator.plant import Plant, PlantFile
 from tests.confirming import confirmed_call
 from tests.conftest import fresh_channel
+from tests.write_contexts import SERVICE
 
 MM, VECTOR = 3, 12
 
@@ -33,8 +34,9 @@ def _walk(runner: asyncio.Runner, session: Session, run: Run, stop_before: int |
     while not run.finished and run.position != stop_before:
         step = run.sequence.steps[run.position]
         value = (values or {}).get(step.ref or "")
-        runner.run(confirmed_call(commissioning.next_step, session, node, run, confirm=run.node_id, value=value)
-                   if step.moves else commissioning.next_step(session, node, run, value=value))
+        runner.run(confirmed_call(commissioning.next_step, session, node, run, confirm=run.node_id, value=value,
+                                  ctx=SERVICE) if step.moves
+                   else commissioning.next_step(session, node, run, value=value, ctx=SERVICE))
         commissioning.drive_control.guard_for(session).keepalive(run.node_id)
     return run
 
@@ -85,7 +87,7 @@ def test_lenze_sequences_are_parameter_steps_on_the_profiles_parameters(
 def test_micromaster_velocity_sequence_as_printed(bench: tuple[asyncio.Runner, Session]) -> None:
     runner, session = bench
     wizard = commissioning.wizard(session)
-    run = _walk(runner, session, wizard.start(session, session.node(MM), "mm-velocity"))
+    run = _walk(runner, session, wizard.start(session, session.node(MM), "mm-velocity", SERVICE))
     assert run.failed is None and all(result.ok for result in run.results), run.failed
     first = run.results[0]
     assert first.printed == "2b f8 27 00 00 00 00 00"
@@ -99,13 +101,13 @@ def test_micromaster_velocity_sequence_as_printed(bench: tuple[asyncio.Runner, S
 
 def test_moving_step_needs_confirmation(bench: tuple[asyncio.Runner, Session]) -> None:
     runner, session = bench
-    run = commissioning.wizard(session).start(session, session.node(VECTOR), "emf-8200")
+    run = commissioning.wizard(session).start(session, session.node(VECTOR), "emf-8200", SERVICE)
     moving = next(n for n, step in enumerate(run.sequence.steps) if step.moves)
     _walk(runner, session, run, stop_before=moving)
     with pytest.raises(ConfirmationRequired, match="confirm"):
-        runner.run(commissioning.next_step(session, session.node(VECTOR), run))
+        runner.run(commissioning.next_step(session, session.node(VECTOR), run, ctx=SERVICE))
     with pytest.raises(ConfirmationRequired, match="confirm"):  # a bare true does not name the node
-        runner.run(commissioning.next_step(session, session.node(VECTOR), run, confirm=True))
+        runner.run(commissioning.next_step(session, session.node(VECTOR), run, confirm=True, ctx=SERVICE))
     _walk(runner, session, run)
     assert run.failed is None and run.finished
     assert any(t.cob_id == "0x58C" for t in run.results[2].telegrams)  # the C0150 read's answer
@@ -114,7 +116,7 @@ def test_moving_step_needs_confirmation(bench: tuple[asyncio.Runner, Session]) -
 def test_unexpected_answer_stops_the_run_with_a_message(bench: tuple[asyncio.Runner, Session],
                                                          plant: Plant) -> None:
     runner, session = bench
-    run = commissioning.wizard(session).start(session, session.node(MM), "mm-velocity")
+    run = commissioning.wizard(session).start(session, session.node(MM), "mm-velocity", SERVICE)
     shutdown = next(n for n, step in enumerate(run.sequence.steps) if step.title.startswith("Shutdown"))
     _walk(runner, session, run, stop_before=shutdown)
     drive = plant.nodes[MM].drive
@@ -124,12 +126,12 @@ def test_unexpected_answer_stops_the_run_with_a_message(bench: tuple[asyncio.Run
     assert run.failed is not None and "Shutdown" in run.failed and "expected 'ready'" in run.failed
     assert run.position == shutdown and not run.results[-1].ok
     with pytest.raises(Conflict):
-        runner.run(commissioning.next_step(session, session.node(MM), run))
+        runner.run(commissioning.next_step(session, session.node(MM), run, ctx=SERVICE))
 
 
 def test_micromaster_torque_sequence_as_printed(bench: tuple[asyncio.Runner, Session]) -> None:
     runner, session = bench
-    run = _walk(runner, session, commissioning.wizard(session).start(session, session.node(MM), "mm-torque"))
+    run = _walk(runner, session, commissioning.wizard(session).start(session, session.node(MM), "mm-torque", SERVICE))
     assert run.failed is None, run.failed
     check = next(result for result in run.results if result.title == "Check: 0x6061 = 4")
     assert [t.data[:14] for t in check.telegrams] == ["40 61 60 00 00", "4F 61 60 00 04"]
@@ -140,7 +142,7 @@ def test_micromaster_torque_sequence_as_printed(bench: tuple[asyncio.Runner, Ses
 
 def test_8400_minimal_enable(bench: tuple[asyncio.Runner, Session]) -> None:
     runner, session = bench
-    run = _walk(runner, session, commissioning.wizard(session).start(session, session.node(5), "l8400"),
+    run = _walk(runner, session, commissioning.wizard(session).start(session, session.node(5), "l8400", SERVICE),
                 values={"C00088": 4.2})
     assert run.failed is None, run.failed
     assert all(result.ok for result in run.results), [result.message for result in run.results]
@@ -164,7 +166,7 @@ def test_93xx_minimal_enable(registry: ProfileRegistry) -> None:
         session = runner.run(manager.open(plant.spec, "93xx"))
         node = session.add_node(7, "lenze-93xx-emf2178ib")
         assert [seq.key for seq in commissioning.sequences_for(node)] == ["emf-93xx"]
-        run = _walk(runner, session, commissioning.wizard(session).start(session, node, "emf-93xx"))
+        run = _walk(runner, session, commissioning.wizard(session).start(session, node, "emf-93xx", SERVICE))
         assert run.failed is None, run.failed
         status = runner.run(commissioning.drive_control.read_status(session, node))
         assert status.family == "emf2178ib-aif" and status.control_ref == "C1822/1"

@@ -19,6 +19,7 @@ from drivebench.services.control.drive_words import Command, Family, family_of_p
 from drivebench.simulator.plant import Plant
 from tests.confirming import confirmed_call
 from tests.services.conftest import set_up
+from tests.write_contexts import SERVICE
 
 T = TypeVar("T")
 MM, VECTOR, MOTEC = 3, 12, 5
@@ -50,8 +51,8 @@ class Bench:
         """``confirm`` names the node, as the safety interlock wants it."""
         node = self.session.node(node_id)
         if not confirm:
-            return self.run(drive_control.command(self.session, node, which))
-        return self.run(confirmed_call(drive_control.command, self.session, node, which, confirm=node_id))
+            return self.run(drive_control.command(self.session, node, which, ctx=SERVICE))
+        return self.run(confirmed_call(drive_control.command, self.session, node, which, confirm=node_id, ctx=SERVICE))
 
     def until(self, node_id: int, state: str, timeout_s: float = 8.0) -> DriveStatus:
         deadline = time.monotonic() + timeout_s
@@ -104,9 +105,10 @@ def test_micromaster_first_run_and_back(bench: Bench) -> None:
     assert status.state == "operation_enabled" and status.armed and status.control_word == 0x0F
     drive_control.guard_for(bench.session).keepalive(MM)
     with pytest.raises(OutOfRange):
-        bench.run(confirmed_call(drive_control.set_setpoint, bench.session, bench.session.node(MM), 9000, confirm=MM))
+        bench.run(confirmed_call(drive_control.set_setpoint, bench.session, bench.session.node(MM), 9000, confirm=MM,
+                                 ctx=SERVICE))
     status = bench.run(confirmed_call(drive_control.set_setpoint, bench.session, bench.session.node(MM), 300,
-                                      confirm=MM))
+                                      confirm=MM, ctx=SERVICE))
     assert status.control_word == 0x7F  # velocity mode: RFG enable/start/setpoint enable
     deadline = time.monotonic() + 8
     while (speed := bench.run(drive_control.read_actuals(bench.session, bench.session.node(MM)))[0]).value != 300:
@@ -173,9 +175,9 @@ def test_fault_and_fault_reset(bench: Bench) -> None:
 def test_modes_of_operation_need_p1501(bench: Bench) -> None:
     node = bench.session.node(MM)
     with pytest.raises(Conflict, match="P1501"):
-        bench.run(drive_control.set_mode(bench.session, node, 4))
+        bench.run(drive_control.set_mode(bench.session, node, 4, ctx=SERVICE))
     bench.run(set_up(bench.session, MM, "P1501", 0x082B000C))
-    status = bench.run(drive_control.set_mode(bench.session, node, 4))
+    status = bench.run(drive_control.set_mode(bench.session, node, 4, ctx=SERVICE))
     assert status.mode == 4 and status.mode_label == "Profile torque mode" and status.setpoint_ref == "0x6071"
 
 
@@ -186,7 +188,8 @@ def test_8200_vector_enable_setpoint_in_hz_and_inhibit(bench: Bench) -> None:
     assert status.control_bits[9].name == "Controller inhibit (AIF-CTRL-CINH)" and status.control_bits[9].set
     status = bench.command(VECTOR, Command.ENABLE_OPERATION, confirm=True)
     assert status.state == "operation_enabled" and status.setpoint_unit == "Hz"
-    bench.run(confirmed_call(drive_control.set_setpoint, bench.session, bench.session.node(VECTOR), 25, confirm=VECTOR))
+    bench.run(confirmed_call(drive_control.set_setpoint, bench.session, bench.session.node(VECTOR), 25,
+                             confirm=VECTOR, ctx=SERVICE))
     assert bench.plant.nodes[VECTOR].store.get_ref("C1822/2") == 1250  # 24000 = 480 Hz
     deadline = time.monotonic() + 8
     while (actual := bench.run(drive_control.read_actuals(bench.session, bench.session.node(VECTOR)))[0]).value != 25:
@@ -215,30 +218,33 @@ def test_the_panel_that_armed_the_drive_holds_it(bench: Bench) -> None:
     node = bench.session.node(MM)
     bench.command(MM, Command.SHUTDOWN)
     status = bench.run(confirmed_call(drive_control.command, bench.session, node, Command.ENABLE_OPERATION,
-                                      confirm=MM, panel=ANNA))
+                                      confirm=MM, panel=ANNA, ctx=SERVICE))
     assert status.you_hold and status.holder and status.holder.startswith("Anna at 10.0.0.7 since ")
     seen_by_ben = bench.run(drive_control.read_status(bench.session, node, BEN))
     assert seen_by_ben.armed and not seen_by_ben.you_hold and seen_by_ben.holder == status.holder
-    refused = [confirmed_call(drive_control.set_setpoint, bench.session, node, 100, confirm=node.node_id, panel=BEN),
-               drive_control.set_setpoint(bench.session, node, 0, panel=BEN),
-               confirmed_call(drive_control.jog, bench.session, node, 1, confirm=node.node_id, panel=BEN),
-               confirmed_call(drive_control.set_mode, bench.session, node, 2, confirm=node.node_id, panel=BEN),
+    refused = [confirmed_call(drive_control.set_setpoint, bench.session, node, 100, confirm=node.node_id, panel=BEN,
+                              ctx=SERVICE),
+               drive_control.set_setpoint(bench.session, node, 0, panel=BEN, ctx=SERVICE),
+               confirmed_call(drive_control.jog, bench.session, node, 1, confirm=node.node_id, panel=BEN, ctx=SERVICE),
+               confirmed_call(drive_control.set_mode, bench.session, node, 2, confirm=node.node_id, panel=BEN,
+                              ctx=SERVICE),
                confirmed_call(drive_control.command, bench.session, node, Command.ENABLE_OPERATION,
-                              confirm=node.node_id, panel=BEN)]
+                              confirm=node.node_id, panel=BEN, ctx=SERVICE)]
     for attempt in refused:
         with pytest.raises(Conflict, match=r"held by Anna at 10\.0\.0\.7"):
             bench.run(attempt)
     guard = drive_control.guard_for(bench.session)
     assert not guard.keepalive(MM, BEN) and guard.keepalive(MM, ANNA)
-    bench.run(confirmed_call(drive_control.set_setpoint, bench.session, node, 100, confirm=node.node_id, panel=ANNA))
+    bench.run(confirmed_call(drive_control.set_setpoint, bench.session, node, 100, confirm=node.node_id, panel=ANNA,
+                             ctx=SERVICE))
     assert bench.plant.nodes[MM].store.get_ref("0x6042") == 100
-    stopped = bench.run(drive_control.command(bench.session, node, Command.QUICK_STOP, panel=BEN))
+    stopped = bench.run(drive_control.command(bench.session, node, Command.QUICK_STOP, panel=BEN, ctx=SERVICE))
     assert not stopped.armed and stopped.holder is None  # any panel may stop the drive; that frees it
     bench.until(MM, "switch_on_disabled")
     bench.command(MM, Command.SHUTDOWN)
     status = bench.run(confirmed_call(drive_control.command, bench.session, node, Command.ENABLE_OPERATION,
                                       confirm=node.node_id,
-                                             panel=BEN))
+                                             panel=BEN, ctx=SERVICE))
     assert status.you_hold and status.holder and status.holder.startswith("Ben")
     bench.command(MM, Command.DISABLE_VOLTAGE)
 
@@ -266,9 +272,10 @@ def test_8200_vector_jogs_with_its_own_jog1(bench: Bench) -> None:
     plan = bench.run(drive_control.jog_plan(bench.session, node))
     assert plan.method == "device" and plan.value == 20 and plan.unit == "Hz" and "C0037" in plan.text
     with pytest.raises(ConfirmationRequired, match="confirm"):
-        bench.run(drive_control.jog(bench.session, node, 1))
+        bench.run(drive_control.jog(bench.session, node, 1, ctx=SERVICE))
     for direction, hz in ((1, 20), (-1, -20), (0, 0)):
-        status = bench.run(confirmed_call(drive_control.jog, bench.session, node, direction, confirm=node.node_id))
+        status = bench.run(confirmed_call(drive_control.jog, bench.session, node, direction, confirm=node.node_id,
+                                          ctx=SERVICE))
         assert status.control_word is not None
         assert status.control_word & 0x07 == {1: 0x01, -1: 0x05, 0: 0x00}[direction]
         assert bench.plant.nodes[VECTOR].store.get_ref("C1822/2") == 0  # no setpoint: the device's JOG1 runs

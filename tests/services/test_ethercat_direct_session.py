@@ -28,6 +28,7 @@ from drivebench.transport.ethercat_soem import DirectSpec, SoemLink
 from tests.confirming import confirmed_call
 from tests.protocol.soem_fake import fake_pysoem
 from tests.services.test_ethercat_session import PROFILE, _run
+from tests.write_contexts import SERVICE
 
 
 @contextlib.asynccontextmanager
@@ -67,22 +68,23 @@ async def _direct_scenario(registry: ProfileRegistry, units: list[SimulatedSlave
 
         value = await parameters.read(session, 1, "C00039/1")
         assert (value.raw, value.value) == (0x0FA0, pytest.approx(40.0))
-        assert (await parameters.write(session, 1, "C00039/1", "55.5")).verified is True
+        assert (await parameters.write(session, 1, "C00039/1", "55.5", ctx=SERVICE)).verified is True
         assert units[0].store.get(0x5FD8, 1) == 5550 and units[1].store.get(0x5FD8, 1) == 0x0FA0
 
         with pytest.raises(ConfirmationRequired):
-            await drive_guard.nmt(session, NmtCommand.START, 1)
-        await confirmed_call(drive_guard.nmt, session, NmtCommand.START, 1, confirm="1")  # Pre-Op -> Safe-Op -> Op
+            await drive_guard.nmt(session, NmtCommand.START, 1, ctx=SERVICE)
+        await confirmed_call(drive_guard.nmt, session, NmtCommand.START, 1, confirm="1",
+                             ctx=SERVICE)  # Pre-Op -> Safe-Op -> Op
         assert session.nmt_state(1) == ("Operational", True) and drive_guard.guard_for(session).armed(1)
         await drive_guard.guard_for(session).trip(1, "test: keep-alive lost")
         assert units[0].state is esm.EsmState.PRE_OPERATIONAL
-        await drive_guard.nmt(session, NmtCommand.STOP, 1)  # EtherCAT: Safe-Operational
+        await drive_guard.nmt(session, NmtCommand.STOP, 1, ctx=SERVICE)  # EtherCAT: Safe-Operational
         assert session.nmt_state(1) == ("Safe-Operational", True)
         assert units[0].state is esm.EsmState.SAFE_OPERATIONAL
         with pytest.raises(SdoAbortError) as refused:
-            await parameters.write(session, 1, "0x1A00.1", 0x5C930110)
+            await parameters.write(session, 1, "0x1A00.1", 0x5C930110, ctx=SERVICE)
         assert refused.value.abort_text == ("Due to the current device state, data cannot be transferred to the "
                                             "application or stored in the application")
-        await drive_guard.nmt(session, NmtCommand.RESET_NODE, 1)  # through Init back to Pre-Operational
+        await drive_guard.nmt(session, NmtCommand.RESET_NODE, 1, ctx=SERVICE)  # through Init back to Pre-Operational
         assert session.nmt_state(1) == ("Pre-Operational", True)
-        await parameters.write(session, 1, "0x1A00.1", 0x5C930110)  # Pre-Operational: accepted
+        await parameters.write(session, 1, "0x1A00.1", 0x5C930110, ctx=SERVICE)  # Pre-Operational: accepted

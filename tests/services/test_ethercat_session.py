@@ -23,6 +23,7 @@ from drivebench.simulator.ethercat import GatewayServer, SimulatedSlave
 from tests.confirming import confirmed_call
 from tests.conftest import wait_until
 from tests.transport.test_multiprocess import run_outside_playwright
+from tests.write_contexts import SERVICE
 
 PROFILE = "lenze-8400-motec-ethercat"
 
@@ -67,7 +68,7 @@ def test_c00039_reads_40_percent_and_a_write_is_verified(registry: ProfileRegist
         async with _open(registry, gateway.spec) as (_, session):
             value = await parameters.read(session, 1, "C00039/1")
             assert value.raw == 0x0FA0 and value.value == pytest.approx(40.0)
-            result = await parameters.write(session, 1, "C00039/1", "55.5")
+            result = await parameters.write(session, 1, "C00039/1", "55.5", ctx=SERVICE)
             assert result.verified is True
             assert gateway.slaves[1001].store.get(0x5FD8, 1) == 5550
             assert gateway.slaves[1002].store.get(0x5FD8, 1) == 0x0FA0  # the other slave is untouched
@@ -82,11 +83,11 @@ def test_mapping_write_outside_pre_operational_is_refused_in_the_manuals_words(
         async with _open(registry, gateway.spec) as (_, session):
             segment = session.ethercat
             assert segment is not None
-            await parameters.write(session, 1, "0x1A00.1", 0x5C930110)  # Pre-Operational: accepted
+            await parameters.write(session, 1, "0x1A00.1", 0x5C930110, ctx=SERVICE)  # Pre-Operational: accepted
             info = await asyncio.to_thread(segment.request_state, 1, esm.EsmState.SAFE_OPERATIONAL)
             assert info.state_text == "Safe-Operational"
             with pytest.raises(SdoAbortError) as refused:
-                await parameters.write(session, 1, "0x1A00.1", 0x5C930110)
+                await parameters.write(session, 1, "0x1A00.1", 0x5C930110, ctx=SERVICE)
             assert refused.value.abort_code == 0x08000022
             assert refused.value.abort_text == ("Due to the current device state, data cannot be transferred to the "
                                                 "application or stored in the application")
@@ -123,14 +124,14 @@ def test_nmt_commands_change_the_ethercat_state_through_the_safety_guard(registr
     async def scenario() -> None:
         async with _open(registry, gateway.spec) as (_, session):
             with pytest.raises(ConfirmationRequired, match="confirm it with confirm = '1'"):
-                await drive_guard.nmt(session, NmtCommand.START, 1)
-            await confirmed_call(drive_guard.nmt, session, NmtCommand.START, 1, confirm="1")
+                await drive_guard.nmt(session, NmtCommand.START, 1, ctx=SERVICE)
+            await confirmed_call(drive_guard.nmt, session, NmtCommand.START, 1, confirm="1", ctx=SERVICE)
             assert gateway.slaves[1001].state is esm.EsmState.OPERATIONAL
             assert session.nmt_state(1) == ("Operational", True)
             assert drive_guard.guard_for(session).armed(1)  # kept alive by the page, or stopped
             await drive_guard.guard_for(session).trip(1, "test: keep-alive lost")
             assert gateway.slaves[1001].state is esm.EsmState.PRE_OPERATIONAL
-            await drive_guard.nmt(session, NmtCommand.STOP, 1)
+            await drive_guard.nmt(session, NmtCommand.STOP, 1, ctx=SERVICE)
             assert session.nmt_state(1) == ("Safe-Operational", True)
 
     _run(scenario())

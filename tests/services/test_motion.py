@@ -29,6 +29,7 @@ from drivebench.services.pdos import process_data as live
 from drivebench.simulator.plant import Plant
 from drivebench.simulator.servo402 import INDEX_AT, LIMIT_REVS, MAX_STEP_S, Servo402
 from tests.confirming import confirmed_call
+from tests.write_contexts import SERVICE
 
 T = TypeVar("T")
 AXIS = 7
@@ -67,12 +68,12 @@ class Axis:
     def enable(self) -> DriveStatus:
         self.until(lambda status: status.state == "switch_on_disabled", "power-up")
         for command in (Command.SHUTDOWN, Command.SWITCH_ON):
-            self.run(drive_control.command(self.session, self.node, command))
+            self.run(drive_control.command(self.session, self.node, command, ctx=SERVICE))
         return self.run(confirmed_call(drive_control.command, self.session, self.node, Command.ENABLE_OPERATION,
-                                       confirm=AXIS))
+                                       confirm=AXIS, ctx=SERVICE))
 
     def home(self, method: int) -> DriveStatus:
-        self.run(confirmed_call(motion.home, self.session, self.node, method, confirm=AXIS))
+        self.run(confirmed_call(motion.home, self.session, self.node, method, confirm=AXIS, ctx=SERVICE))
         return self.until(lambda status: status.status_bits[12].set and status.status_bits[10].set,
                           f"homing with method {method}", timeout_s=20)
 
@@ -116,7 +117,7 @@ def test_modes_come_from_0x6502_where_the_drive_has_it(axis: Axis) -> None:
     axis.drive.store.set(0x6502, 0, 0x0000_0025)  # bits 0, 2, 5: profile position, profile velocity, homing
     assert axis.status().modes == {1: "Profile position", 3: "Profile velocity", 6: "Homing"}
     with pytest.raises(InvalidValue, match="Mode 9 is not among this device's supported modes"):
-        axis.run(drive_control.set_mode(axis.session, axis.node, 9))
+        axis.run(drive_control.set_mode(axis.session, axis.node, 9, ctx=SERVICE))
 
 
 @pytest.mark.parametrize(("without", "position", "velocity", "how"), [
@@ -174,14 +175,14 @@ def test_a_method_0x60E3_does_not_list_is_refused_in_words(axis: Axis) -> None:
     axis.enable()
     with pytest.raises(InvalidValue, match=r"Homing method 34 \(Index pulse in positive direction\) is not among "
                                            r"the supported homing methods 0x60E3 of .* \(1, 2, 3\)"):
-        axis.run(confirmed_call(motion.home, axis.session, axis.node, 34, confirm=AXIS))
+        axis.run(confirmed_call(motion.home, axis.session, axis.node, 34, confirm=AXIS, ctx=SERVICE))
     assert axis.read("0x6098") == 35 and axis.status().mode != 6
 
 
 def test_the_home_offset_is_the_position_at_home(axis: Axis) -> None:
     """CiA 402: after homing the home position reads as the home offset 0x607C."""
     axis.enable()
-    axis.run(parameters.write(axis.session, AXIS, "0x607C", 90))
+    axis.run(parameters.write(axis.session, AXIS, "0x607C", 90, ctx=SERVICE))
     axis.home(34)
     assert abs(axis.read("0x6064") - 90) <= STOP_AFTER_HOME_DEG  # plus the stop after the index pulse
     at_home = axis.drive.home + 90 * axis.drive.per_unit  # the index pulse found: 0x6064 = 90 ° there
@@ -192,7 +193,7 @@ def test_a_home_switch_method_started_away_from_its_switch_ends_in_a_homing_erro
     """Method 3 seeks a positive home switch: the switch is off above the cam, so it starts positive, runs onto the
     positive limit switch and (CiA 402 gives 3 ... 6 no reversal there) reports homing error, status bit 13."""
     axis.enable()
-    axis.run(confirmed_call(motion.home, axis.session, axis.node, 3, confirm=AXIS))
+    axis.run(confirmed_call(motion.home, axis.session, axis.node, 3, confirm=AXIS, ctx=SERVICE))
     status = axis.until(lambda status: status.status_bits[13].set, "homing error", timeout_s=20)
     assert not status.status_bits[12].set and status.inputs[1].name == "Positive limit switch"
     assert axis.drive.demand == LIMIT_REVS * axis.drive.increments_per_rev
@@ -201,52 +202,54 @@ def test_a_home_switch_method_started_away_from_its_switch_ends_in_a_homing_erro
 def test_profile_position_absolute_relative_and_target_reached(axis: Axis) -> None:
     axis.enable()
     axis.home(35)
-    axis.run(confirmed_call(motion.move, axis.session, axis.node, 720, confirm=AXIS))
+    axis.run(confirmed_call(motion.move, axis.session, axis.node, 720, confirm=AXIS, ctx=SERVICE))
     status = axis.until(lambda status: status.status_bits[10].set and axis.read("0x6064") == 720, "at 720 °")
     assert status.mode == 1 and not status.status_bits[12].set  # set-point acknowledge taken back with bit 4
-    axis.run(confirmed_call(motion.move, axis.session, axis.node, -90, relative=True, velocity=300, confirm=AXIS))
+    axis.run(confirmed_call(motion.move, axis.session, axis.node, -90, relative=True, velocity=300, confirm=AXIS,
+                            ctx=SERVICE))
     axis.until(lambda status: status.status_bits[10].set and axis.read("0x6064") == 630, "at 630 °")
     assert axis.read("0x6081") == 300
     with pytest.raises(OutOfRange, match="software position limits"):
-        axis.run(confirmed_call(motion.move, axis.session, axis.node, 5000, confirm=AXIS))
+        axis.run(confirmed_call(motion.move, axis.session, axis.node, 5000, confirm=AXIS, ctx=SERVICE))
     with pytest.raises(OutOfRange, match="0x607F"):
-        axis.run(confirmed_call(motion.move, axis.session, axis.node, 0, velocity=9000, confirm=AXIS))
+        axis.run(confirmed_call(motion.move, axis.session, axis.node, 0, velocity=9000, confirm=AXIS, ctx=SERVICE))
 
 
 def test_profile_velocity_and_jog_at_a_user_set_speed(axis: Axis) -> None:
     axis.enable()
-    axis.run(confirmed_call(drive_control.set_mode, axis.session, axis.node, 3, confirm=AXIS))
-    status = axis.run(confirmed_call(drive_control.set_setpoint, axis.session, axis.node, 300, confirm=AXIS))
+    axis.run(confirmed_call(drive_control.set_mode, axis.session, axis.node, 3, confirm=AXIS, ctx=SERVICE))
+    status = axis.run(confirmed_call(drive_control.set_setpoint, axis.session, axis.node, 300, confirm=AXIS,
+                                     ctx=SERVICE))
     assert (status.setpoint_ref, status.setpoint_unit, status.setpoint_max) == ("0x60FF", "rpm", 3000)
     axis.until(lambda status: status.status_bits[10].set and axis.read("0x606C") == 300, "at 300 rpm")
-    axis.run(drive_control.set_setpoint(axis.session, axis.node, 0))
+    axis.run(drive_control.set_setpoint(axis.session, axis.node, 0, ctx=SERVICE))
     plan = axis.run(drive_control.jog_plan(axis.session, axis.node))
     assert (plan.method, plan.value, plan.unit, plan.maximum) == ("profile_velocity", 300, "rpm", 3000)
     with pytest.raises(ConfirmationRequired):
-        axis.run(drive_control.jog(axis.session, axis.node, 1, speed=120))
+        axis.run(drive_control.jog(axis.session, axis.node, 1, speed=120, ctx=SERVICE))
     with pytest.raises(OutOfRange, match="0x607F"):
-        axis.run(confirmed_call(drive_control.jog, axis.session, axis.node, 1, speed=5000, confirm=AXIS))
-    axis.run(confirmed_call(drive_control.jog, axis.session, axis.node, -1, speed=120, confirm=AXIS))
+        axis.run(confirmed_call(drive_control.jog, axis.session, axis.node, 1, speed=5000, confirm=AXIS, ctx=SERVICE))
+    axis.run(confirmed_call(drive_control.jog, axis.session, axis.node, -1, speed=120, confirm=AXIS, ctx=SERVICE))
     axis.until(lambda _: axis.read("0x606C") == -120, "jogging at -120 rpm")
-    axis.run(drive_control.jog(axis.session, axis.node, 0))
+    axis.run(drive_control.jog(axis.session, axis.node, 0, ctx=SERVICE))
     axis.until(lambda _: axis.read("0x606C") == 0, "jog released")
 
 
 def no_software_limits(axis: Axis) -> None:
     """0x607D = 0/0 (none): a run long enough to reach a switch or top speed is not stopped at ±3600 ° first."""
     for ref in ("0x607D.1", "0x607D.2"):
-        axis.run(parameters.write(axis.session, AXIS, ref, 0))
+        axis.run(parameters.write(axis.session, AXIS, ref, 0, ctx=SERVICE))
 
 
 def test_a_limit_switch_stops_the_axis(axis: Axis) -> None:
     no_software_limits(axis)
     axis.enable()
-    axis.run(confirmed_call(drive_control.set_mode, axis.session, axis.node, 3, confirm=AXIS))
-    axis.run(confirmed_call(drive_control.set_setpoint, axis.session, axis.node, 3000, confirm=AXIS))
+    axis.run(confirmed_call(drive_control.set_mode, axis.session, axis.node, 3, confirm=AXIS, ctx=SERVICE))
+    axis.run(confirmed_call(drive_control.set_setpoint, axis.session, axis.node, 3000, confirm=AXIS, ctx=SERVICE))
     status = axis.until(lambda status: status.status_bits[11].set, "internal limit active at the switch")
     assert status.inputs[1].set and axis.read("0x606C") == 0
     # away from it: free
-    axis.run(confirmed_call(drive_control.set_setpoint, axis.session, axis.node, -300, confirm=AXIS))
+    axis.run(confirmed_call(drive_control.set_setpoint, axis.session, axis.node, -300, confirm=AXIS, ctx=SERVICE))
     axis.until(lambda status: not status.inputs[1].set and not status.status_bits[11].set, "off the switch")
 
 
@@ -266,13 +269,13 @@ def test_following_error_faults_with_emcy_and_fault_reset_clears_it(axis: Axis) 
         axis.enable()
         axis.home(35)
         axis.drive.jam()
-        axis.run(confirmed_call(motion.move, axis.session, axis.node, 360, confirm=AXIS))
+        axis.run(confirmed_call(motion.move, axis.session, axis.node, 360, confirm=AXIS, ctx=SERVICE))
         status = axis.until(lambda status: status.state == "fault", "following error fault")
         assert (status.error_code, status.error_text) == (0x8611, "Following error")
         assert seen.wait(5) and frames[0][:2] == bytes([0x11, 0x86])
         axis.drive.jam(False)
         status = axis.run(confirmed_call(drive_control.command, axis.session, axis.node, Command.FAULT_RESET,
-                                         confirm=AXIS))
+                                         confirm=AXIS, ctx=SERVICE))
         assert status.state == "switch_on_disabled" and status.error_code == 0
     finally:
         axis.session.remove_frame_listener(tap)
@@ -281,10 +284,10 @@ def test_following_error_faults_with_emcy_and_fault_reset_clears_it(axis: Axis) 
 def test_quick_stop_decelerates_then_switches_on_disabled(axis: Axis) -> None:
     no_software_limits(axis)
     axis.enable()
-    axis.run(confirmed_call(drive_control.set_mode, axis.session, axis.node, 3, confirm=AXIS))
-    axis.run(confirmed_call(drive_control.set_setpoint, axis.session, axis.node, 1500, confirm=AXIS))
+    axis.run(confirmed_call(drive_control.set_mode, axis.session, axis.node, 3, confirm=AXIS, ctx=SERVICE))
+    axis.run(confirmed_call(drive_control.set_setpoint, axis.session, axis.node, 1500, confirm=AXIS, ctx=SERVICE))
     axis.until(lambda _: axis.read("0x606C") == 1500, "at 1500 rpm")
-    status = axis.run(drive_control.command(axis.session, axis.node, Command.QUICK_STOP))
+    status = axis.run(drive_control.command(axis.session, axis.node, Command.QUICK_STOP, ctx=SERVICE))
     assert not status.armed
     axis.until(lambda status: status.state == "switch_on_disabled", "stopped by the quick-stop ramp (0x6085)")
     assert state_history(axis)[-2:] == ["Quick stop active", "Switch on disabled"]
@@ -298,10 +301,10 @@ def state_history(axis: Axis) -> list[str]:
 def test_moves_need_the_holder_and_the_confirmation(axis: Axis) -> None:
     axis.enable()
     with pytest.raises(ConfirmationRequired, match="node 7"):
-        axis.run(motion.home(axis.session, axis.node, 35))
+        axis.run(motion.home(axis.session, axis.node, 35, ctx=SERVICE))
     other = drive_control.Panel("panel:other", "someone else")
     with pytest.raises(Conflict, match="held by"):
-        axis.run(confirmed_call(motion.move, axis.session, axis.node, 10, confirm=AXIS, panel=other))
+        axis.run(confirmed_call(motion.move, axis.session, axis.node, 10, confirm=AXIS, panel=other, ctx=SERVICE))
 
 
 def test_an_idle_axis_sleeps(axis: Axis) -> None:
@@ -316,12 +319,12 @@ def test_an_idle_axis_sleeps(axis: Axis) -> None:
 def test_a_setpoint_alone_is_refused_where_the_drive_needs_a_move(axis: Axis) -> None:
     axis.enable()
     with pytest.raises(InvalidValue, match="move"):
-        axis.run(confirmed_call(drive_control.set_setpoint, axis.session, axis.node, 90, confirm=AXIS))
+        axis.run(confirmed_call(drive_control.set_setpoint, axis.session, axis.node, 90, confirm=AXIS, ctx=SERVICE))
 
 
 def test_cyclic_synchronous_velocity_through_sync_and_an_rpdo(axis: Axis) -> None:
     axis.enable()
-    axis.run(confirmed_call(drive_control.set_mode, axis.session, axis.node, 9, confirm=AXIS))
+    axis.run(confirmed_call(drive_control.set_mode, axis.session, axis.node, 9, confirm=AXIS, ctx=SERVICE))
     with pytest.raises(Conflict, match="Operational"):
         axis.run(confirmed_call(motion.stream, axis.session, axis.node, 200, confirm=AXIS))
     axis.run(axis.session.nmt(NmtCommand.START, AXIS))
@@ -331,7 +334,7 @@ def test_cyclic_synchronous_velocity_through_sync_and_an_rpdo(axis: Axis) -> Non
     assert sent.data == "0F 00 C8 00 00 00"
     axis.until(lambda _: axis.read("0x606C") == 200, "following the cyclic target velocity")
     assert live.service(axis.session).sync_period_ms == 10
-    status = axis.run(drive_control.command(axis.session, axis.node, Command.QUICK_STOP))
+    status = axis.run(drive_control.command(axis.session, axis.node, Command.QUICK_STOP, ctx=SERVICE))
     assert not live.service(axis.session).cyclic_cob_ids()  # the stream ended before the quick stop was written
     axis.until(lambda status: status.state == "switch_on_disabled", "stopped")
     assert status.control_word is not None and status.control_word & 0x06 == 0x02
@@ -340,9 +343,10 @@ def test_cyclic_synchronous_velocity_through_sync_and_an_rpdo(axis: Axis) -> Non
 
 def test_profile_torque_in_per_mille(axis: Axis) -> None:
     axis.enable()
-    axis.run(confirmed_call(drive_control.set_mode, axis.session, axis.node, 4, confirm=AXIS))
-    status = axis.run(confirmed_call(drive_control.set_setpoint, axis.session, axis.node, 100, confirm=AXIS))
+    axis.run(confirmed_call(drive_control.set_mode, axis.session, axis.node, 4, confirm=AXIS, ctx=SERVICE))
+    status = axis.run(confirmed_call(drive_control.set_setpoint, axis.session, axis.node, 100, confirm=AXIS,
+                                     ctx=SERVICE))
     assert (status.setpoint_ref, status.setpoint_unit, status.setpoint_max) == ("0x6071", "‰", 3000)  # 0x6072
     axis.until(lambda _: axis.read("0x606C") > 0, "the load turning under the torque")
     with pytest.raises(OutOfRange):
-        axis.run(confirmed_call(drive_control.set_setpoint, axis.session, axis.node, 4000, confirm=AXIS))
+        axis.run(confirmed_call(drive_control.set_setpoint, axis.session, axis.node, 4000, confirm=AXIS, ctx=SERVICE))

@@ -13,6 +13,7 @@ import pytest
 from drivebench.services.bus.sessions import Session
 from drivebench.services.params import node_lease, parameters
 from drivebench.services.params.node_lease import NodeLeased, Writer
+from tests.write_contexts import as_writer
 
 MOTEC = 5
 ANNA = Writer("anna", "panel:a1", "Parameters tab")
@@ -27,8 +28,7 @@ def bench(plant_session: tuple[asyncio.Runner, Session]) -> tuple[asyncio.Runner
 
 
 async def _write_as(writer: Writer | None, session: Session, ref: str, value: object) -> parameters.WriteResult:
-    node_lease.writing_as(writer)
-    return await parameters.write(session, MOTEC, ref, value, verify=False)
+    return await parameters.write(session, MOTEC, ref, value, ctx=as_writer(writer), verify=False)
 
 
 def _as(writer: Writer | None, session: Session, ref: str, value: object) -> asyncio.Task[parameters.WriteResult]:
@@ -52,8 +52,7 @@ def test_second_writer_is_refused_with_the_holders_name(bench: tuple[asyncio.Run
         with pytest.raises(NodeLeased):
             await _as(None, session, REF, 10)  # a write without a writer respects the lease too
         assert (await parameters.read(session, MOTEC, REF)).value == 14
-        node_lease.writing_as(BEN)
-        await parameters.write(session, 12, "C0012", 20, verify=False)  # another node is free
+        await parameters.write(session, 12, "C0012", 20, ctx=as_writer(BEN), verify=False)  # another node is free
 
     runner.run(scenario())
 
@@ -108,8 +107,7 @@ def test_an_operation_in_progress_keeps_the_lease(bench: tuple[asyncio.Runner, S
     monkeypatch.setattr(node_lease, "LEASE_TTL_S", 0.0)
 
     async def scenario() -> None:
-        node_lease.writing_as(ANNA)
-        with node_lease.writing(session, MOTEC):  # e.g. a parameter-set download between two writes
+        with node_lease.writing(session, MOTEC, as_writer(ANNA)):  # e.g. a parameter-set download between two writes
             assert table.current(MOTEC) is not None, "held while the operation runs, whatever the TTL"
             with pytest.raises(NodeLeased, match="until the operation under way ends"):
                 await _as(BEN, session, REF, 10)
@@ -123,8 +121,6 @@ def test_stopping_is_never_refused(bench: tuple[asyncio.Runner, Session]) -> Non
     runner.run(_write_as(ANNA, session, REF, 15))
 
     async def stop_as_ben() -> None:
-        node_lease.writing_as(BEN)
-        with node_lease.stopping():
-            await parameters.write(session, MOTEC, REF, 15, verify=False)
+        await parameters.write(session, MOTEC, REF, 15, ctx=as_writer(BEN).stopping(), verify=False)
 
     runner.run(stop_as_ben())  # no NodeLeased: any station may stop a machine

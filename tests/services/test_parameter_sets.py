@@ -38,6 +38,7 @@ from drivebench.services.users import audit
 from drivebench.simulator.plant import Plant, PlantFile
 from drivebench.simulator.store import Abort
 from tests.confirming import confirmed_now
+from tests.write_contexts import SERVICE
 
 T = TypeVar("T")
 PLANT = {"name": "Set test plant", "nodes": [
@@ -66,7 +67,7 @@ class Bench:
 
     def upload(self, node_id: int, name: str = "set") -> StoredSet:
         job = self.finish(lambda: set_jobs.start_upload(self.session, node_id, self.jobs, self.store, name=name,
-                                                        user="tester"))
+                                                        user="tester", ctx=SERVICE))
         assert job.state is JobState.DONE, job.error
         return self.store.get(job.result["set_id"])
 
@@ -120,7 +121,7 @@ def test_every_format_round_trips(bench: Bench, registry: ProfileRegistry, node_
 
 
 def test_json_file_carries_profile_id_version_and_scaled_values(bench: Bench, registry: ProfileRegistry) -> None:
-    bench.run(parameters.write(bench.session, 5, "C00088", "10.20 A"))
+    bench.run(parameters.write(bench.session, 5, "C00088", "10.20 A", ctx=SERVICE))
     stored = bench.upload(5, "Conveyor")
     text = set_formats.export_json(stored, registry.get("lenze-8400-motec-canopen"))
     document = json.loads(text)
@@ -183,7 +184,7 @@ def test_compare_device_vs_set_set_vs_set_and_defaults(bench: Bench, registry: P
     profile = registry.get("lenze-8400-motec-canopen")
     stored = bench.upload(5, "Conveyor")
     bench.plant.nodes[5].store.set_ref("C00088", 750)   # someone changed the drive: 7.50 A
-    device = bench.run(set_jobs.device_source(bench.session, 5))
+    device = bench.run(set_jobs.device_source(bench.session, 5, ctx=SERVICE))
     result = compare(device, set_source(stored, profile))
     assert [(r.ref, r.left, r.right, r.unit, r.kind) for r in result.rows] == \
         [("C00088", "7.50 A", stored_display(stored, "C00088"), "A", "changed")]
@@ -238,14 +239,14 @@ def test_download_meets_read_only_and_out_of_range_mid_way_then_retry_and_rollba
     node.add_write_check(refuse)
     before = dict(current)
 
-    preview = bench.run(set_jobs.preview(bench.session, 5, new_set))
+    preview = bench.run(set_jobs.preview(bench.session, 5, new_set, ctx=SERVICE))
     assert [line.ref for line in preview] == ["C00011", "C00039/1", "C00088", "C00324/1", "C00356/1"]
     assert next(line for line in preview if line.ref == "C00088").target == "12.50 A"
 
     with pytest.raises(ConfirmationRequired, match="C00007"):  # the set holds the control mode (a command source)
-        set_jobs.start_download(bench.session, 5, bench.jobs, bench.store, new_set)
+        set_jobs.start_download(bench.session, 5, bench.jobs, bench.store, new_set, ctx=SERVICE)
     job = bench.finish(lambda: confirmed_now(set_jobs.start_download, bench.session, 5, bench.jobs, bench.store,
-                                             new_set, save=True, confirm=5))
+                                             new_set, save=True, confirm=5, ctx=SERVICE))
     assert job.state is JobState.INCOMPLETE  # three values did not go in (issue 28 item 5)
     report = {line["ref"]: line for line in job.result["report"]}
     assert len(report) == len(wanted)
@@ -270,13 +271,13 @@ def test_download_meets_read_only_and_out_of_range_mid_way_then_retry_and_rollba
 
     node._checks.clear()  # the drive now accepts them: retry the failed ones (the profile still refuses one)
     retry = bench.finish(lambda: set_jobs.start_retry(bench.session, bench.jobs, bench.store,
-                                                      job.result["download_id"]))
+                                                      job.result["download_id"], ctx=SERVICE))
     assert {line["ref"]: line["status"] for line in retry.result["report"]} == \
         {"C00011": "written", "C00324/1": "written", "C00356/1": "failed"}
     assert (node.get_ref("C00011"), node.get_ref("C00324/1")) == (1450, 5000)
 
     back = bench.finish(lambda: set_jobs.start_rollback(bench.session, bench.jobs, bench.store,
-                                                        job.result["download_id"]))
+                                                        job.result["download_id"], ctx=SERVICE))
     assert back.state is JobState.DONE
     assert {ref: node.get_ref(ref) for ref in before} == before
 
@@ -284,34 +285,35 @@ def test_download_meets_read_only_and_out_of_range_mid_way_then_retry_and_rollba
 def test_download_to_a_node_of_another_type_is_refused(bench: Bench) -> None:
     stored = bench.upload(12, "fan")
     with pytest.raises(Conflict, match="8200"):
-        bench.run(set_jobs.preview(bench.session, 5, stored))
+        bench.run(set_jobs.preview(bench.session, 5, stored, ctx=SERVICE))
 
 
 def test_copy_to_a_second_identical_axis(bench: Bench, registry: ProfileRegistry) -> None:
     profile = registry.get("lenze-8400-motec-canopen")
-    bench.run(parameters.write(bench.session, 5, "C00088", "12.50 A"))
-    bench.run(parameters.write(bench.session, 5, "C00350", 5))
+    bench.run(parameters.write(bench.session, 5, "C00088", "12.50 A", ctx=SERVICE))
+    bench.run(parameters.write(bench.session, 5, "C00350", 5, ctx=SERVICE))
     source = bench.upload(5, "axis 1")
     values, notes = retarget(profile, source.values, 5, 2)
     assert values["C00350"] == 2 and any("C00350" in note for note in notes)
     copy = bench.store.create("axis 2", profile, values, user="t", node_id=2, reason="copy of set 1 for node 2")
     job = bench.finish(lambda: confirmed_now(set_jobs.start_download, bench.session, 2, bench.jobs, bench.store, copy,
-                                             confirm=2))
+                                             confirm=2, ctx=SERVICE))
     assert job.result["state"] == "done"
     statuses = {line["ref"]: line["status"] for line in job.result["report"]}
     assert statuses["C00088"] == "written" and statuses["C00350"] in ("written", "unchanged")
     order = [line["ref"] for line in job.result["report"]]
     assert order.index("C00350") > order.index("C00088")  # communication parameters that need a reset last
-    device = bench.run(set_jobs.device_source(bench.session, 2))
+    device = bench.run(set_jobs.device_source(bench.session, 2, ctx=SERVICE))
     assert compare(device, set_source(copy, profile)).rows == []
 
 
 # --- audit log -----------------------------------------------------------------------------------------------
 def test_single_writes_are_audited_with_old_and_new_value(bench: Bench) -> None:
     bench.run(parameters.read(bench.session, 5, "C00088"))
-    bench.run(parameters.write(bench.session, 5, "C00088", "12.50 A"))
+    bench.run(parameters.write(bench.session, 5, "C00088", "12.50 A", ctx=SERVICE))
     with pytest.raises(OutOfRange):
-        bench.run(parameters.write(bench.session, 5, "C00324/1", 9999))  # refused before sending: not a write
+        bench.run(parameters.write(bench.session, 5, "C00324/1", 9999,
+                                   ctx=SERVICE))  # refused before sending: not a write
     entry = audit.entries(bench.url)[0]
     assert (entry.ref, entry.node_id, entry.new_value, entry.result, entry.origin) == \
         ("C00088", 5, "12.50 A", "written", "parameters")
@@ -327,6 +329,7 @@ from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.services.users import audit
 from drivebench.errors import ConfirmationRequired
 from drivebench.services.control.drive_guard import Confirmation
+from drivebench.services.params.write_context import LOCAL_USER, WriteContext
 from drivebench.services.sets import set_jobs
 from drivebench.services.params.jobs import JobManager
 from drivebench.services.sets.parameter_sets import ParameterSetStore
@@ -334,6 +337,7 @@ from drivebench.services.session_manager import SessionManager
 from drivebench.simulator.plant import Plant, PlantFile
 
 url, set_id = sys.argv[1], int(sys.argv[2])
+SERVICE = WriteContext.internal(user=LOCAL_USER, origin="parameters")
 registry = ProfileRegistry()
 nodes = [{"node_id": 5, "profile": "lenze-8400-motec-canopen"}]
 plant_file = PlantFile.model_validate({"name": "kill", "nodes": nodes})
@@ -346,10 +350,10 @@ async def main() -> None:
     session.add_node(5, "lenze-8400-motec-canopen")
     store = ParameterSetStore(url)
     try:  # answered as a careful client does: the node and values the refusal names
-        job = set_jobs.start_download(session, 5, JobManager(), store, store.get(set_id))
+        job = set_jobs.start_download(session, 5, JobManager(), store, store.get(set_id), ctx=SERVICE)
     except ConfirmationRequired as asked:
         job = set_jobs.start_download(session, 5, JobManager(), store, store.get(set_id),
-                                      confirm=Confirmation(asked.node, asked.values))
+                                      confirm=Confirmation(asked.node, asked.values), ctx=SERVICE)
     await job.wait()
     print("finished", job.state, flush=True)
 

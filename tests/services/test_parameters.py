@@ -32,6 +32,7 @@ from drivebench.services.params.parameters import DeviceCommand
 from drivebench.services.session_manager import SessionManager
 from drivebench.simulator.plant import Plant, PlantFile
 from tests.conftest import wait_until
+from tests.write_contexts import SERVICE
 
 T = TypeVar("T")
 ABSENT = 40
@@ -111,9 +112,9 @@ def test_read_c00061_on_the_8400_is_43_degrees(bench: Bench) -> None:
 
 
 def test_write_c00088_sends_raw_1020_and_reads_back(bench: Bench) -> None:
-    bench.run(parameters.write(bench.session, 5, "C00088", "7.5"))
+    bench.run(parameters.write(bench.session, 5, "C00088", "7.5", ctx=SERVICE))
     bench.frames()
-    result = bench.run(parameters.write(bench.session, 5, "C00088", "10.20 A"))
+    result = bench.run(parameters.write(bench.session, 5, "C00088", "10.20 A", ctx=SERVICE))
     assert result.written.raw == 1020 and result.verified is True and result.mismatch is None
     assert result.read_back is not None and result.read_back.display == "10.20 A"
     downloads = [bytes(m.data) for m in bench.frames() if m.arbitration_id == 0x605 and m.data[0] & 0xE0 == 0x20]
@@ -147,18 +148,19 @@ def test_emf2178ib_fix32_values(bench: Bench) -> None:
     """EMF2178IB section 10.5: C0061 = 43 °C travels as 430000; C0012 = 20 s as 200000."""
     value = bench.run(parameters.read(bench.session, 12, "C0061"))
     assert (value.raw, value.value, value.display) == (430000, 43, "43 °C")
-    result = bench.run(parameters.write(bench.session, 12, "C0012", 20))
+    result = bench.run(parameters.write(bench.session, 12, "C0012", 20, ctx=SERVICE))
     assert result.written.raw == 200000 and result.verified
     with pytest.raises(InvalidValue, match="decimals"):
-        bench.run(parameters.write(bench.session, 12, "C0012", "1.00005"))
+        bench.run(parameters.write(bench.session, 12, "C0012", "1.00005", ctx=SERVICE))
 
 
 def test_micromaster_p_parameters(bench: Bench) -> None:
     assert bench.run(parameters.read(bench.session, 3, "r0964.2")).raw == 105
-    assert bench.run(parameters.write(bench.session, 3, "P1203", 99)).verified
+    assert bench.run(parameters.write(bench.session, 3, "P1203", 99, ctx=SERVICE)).verified
     with pytest.raises(OutOfRange, match=r"P1203.*10 \.\.\. 200 %"):
-        bench.run(parameters.write(bench.session, 3, "P1203", 300))
-    assert bench.run(parameters.write(bench.session, 3, "P1082", "45.5 Hz")).read_back.value == 45.5  # type: ignore[union-attr]
+        bench.run(parameters.write(bench.session, 3, "P1203", 300, ctx=SERVICE))
+    assert bench.run(parameters.write(bench.session, 3, "P1082", "45.5 Hz",
+                                      ctx=SERVICE)).read_back.value == 45.5  # type: ignore[union-attr]
 
 
 def test_micromaster_indexed_parameters_as_siemens_writes_them(bench: Bench) -> None:
@@ -169,7 +171,7 @@ def test_micromaster_indexed_parameters_as_siemens_writes_them(bench: Bench) -> 
         bench.run(parameters.read(bench.session, 3, "P0700[1]"))
     assert (caught.value.abort_code, caught.value.index, caught.value.subindex) == (0x06090011, 0x22BC, 1)
     with pytest.raises(OutOfRange, match="selection list"):  # the profile's checks still apply to the index
-        bench.run(parameters.write(bench.session, 3, "P0700[1]", 9))
+        bench.run(parameters.write(bench.session, 3, "P0700[1]", 9, ctx=SERVICE))
     assert [item.ref for item in parameters.items(bench.session.node(3), "P0700[1]")] == ["P0700.1"]
 
 
@@ -183,15 +185,15 @@ def test_search_finds_an_index_the_profile_does_not_list(bench: Bench) -> None:
 def test_validation_happens_before_anything_is_sent(bench: Bench) -> None:
     bench.frames()
     with pytest.raises(OutOfRange, match=r"C00350 \(CAN node address\): 100 is outside the allowed range 1 \.\.\. 63"):
-        bench.run(parameters.write(bench.session, 5, "C00350", 100))
+        bench.run(parameters.write(bench.session, 5, "C00350", 100, ctx=SERVICE))
     with pytest.raises(ReadOnly, match="C00061"):
-        bench.run(parameters.write(bench.session, 5, "C00061", 3))
+        bench.run(parameters.write(bench.session, 5, "C00061", 3, ctx=SERVICE))
     with pytest.raises(OutOfRange, match="selection list"):
-        bench.run(parameters.write(bench.session, 5, "C00351", 9))
+        bench.run(parameters.write(bench.session, 5, "C00351", 9, ctx=SERVICE))
     with pytest.raises(OutOfRange, match="UNSIGNED8"):
-        bench.run(parameters.write(bench.session, 5, "C00351", 300, check=False))  # never truncated to 44
+        bench.run(parameters.write(bench.session, 5, "C00351", 300, check=False, ctx=SERVICE))  # never truncated to 44
     with pytest.raises(InvalidValue, match="expects a number"):
-        bench.run(parameters.write(bench.session, 5, "C00088", "ten"))
+        bench.run(parameters.write(bench.session, 5, "C00088", "ten", ctx=SERVICE))
     assert [m for m in bench.frames() if m.arbitration_id == 0x605] == []
 
 
@@ -201,7 +203,7 @@ def test_validation_happens_before_anything_is_sent(bench: Bench) -> None:
 ])
 def test_device_aborts_when_the_profile_check_is_skipped(bench: Bench, ref: str, value: int, code: int) -> None:
     with pytest.raises(SdoAbortError) as caught:
-        bench.run(parameters.write(bench.session, 5, ref, value, check=False))
+        bench.run(parameters.write(bench.session, 5, ref, value, check=False, ctx=SERVICE))
     assert caught.value.abort_code == code and caught.value.node == 5 and caught.value.abort_text
 
 
@@ -277,9 +279,9 @@ def test_a_cancelled_read_leaves_the_channel_usable(bench: Bench) -> None:
 # --- reset-required, device commands ----------------------------------------------------------------------
 def test_reset_required_flag_until_reset_node(bench: Bench) -> None:
     node = bench.session.node(5)
-    result = bench.run(parameters.write(bench.session, 5, "C00351", "250 kbit/s"))
+    result = bench.run(parameters.write(bench.session, 5, "C00351", "250 kbit/s", ctx=SERVICE))
     assert result.reset_required and node.pending_reset == {"C00351"}
-    bench.run(parameters.command(bench.session, 5, DeviceCommand.SAVE))
+    bench.run(parameters.command(bench.session, 5, DeviceCommand.SAVE, ctx=SERVICE))
     assert node.pending_reset == {"C00351"}
     bench.plant.nodes[5].on_frame(0x000, bytes([0x81, 5]), time.time())  # someone else resets the node
     assert wait_until(lambda: not node.pending_reset, 5)
@@ -287,15 +289,15 @@ def test_reset_required_flag_until_reset_node(bench: Bench) -> None:
 
 
 def test_device_commands_per_profile(bench: Bench) -> None:
-    saved = bench.run(parameters.command(bench.session, 5, DeviceCommand.SAVE))
+    saved = bench.run(parameters.command(bench.session, 5, DeviceCommand.SAVE, ctx=SERVICE))
     assert saved.via == "C00002/11 = 1"
-    bench.run(parameters.write(bench.session, 12, "C0012", 30))
-    assert bench.run(parameters.command(bench.session, 12, DeviceCommand.SAVE)).via == "0x1010.1 = 'save'"
+    bench.run(parameters.write(bench.session, 12, "C0012", 30, ctx=SERVICE))
+    assert bench.run(parameters.command(bench.session, 12, DeviceCommand.SAVE, ctx=SERVICE)).via == "0x1010.1 = 'save'"
     assert bench.plant.nodes[12].store.saved[(0x5FF3, 0)] == 300000
-    restored = bench.run(parameters.command(bench.session, 3, DeviceCommand.RESTORE_DEFAULTS))
+    restored = bench.run(parameters.command(bench.session, 3, DeviceCommand.RESTORE_DEFAULTS, ctx=SERVICE))
     assert restored.via == "0x1011.1 = 'load'"
     assert "restore defaults" in bench.session.node(3).pending_reset
-    bench.run(parameters.command(bench.session, 3, DeviceCommand.RESET_NODE))
+    bench.run(parameters.command(bench.session, 3, DeviceCommand.RESET_NODE, ctx=SERVICE))
     assert bench.session.node(3).pending_reset == set()
 
 
@@ -304,13 +306,13 @@ def test_a_command_the_profile_names_but_does_not_list_is_refused_in_words(bench
     commands = CommandsSection(save=CommandWrite(ref="C09999", value=1, done="saved"))
     node.profile = node.profile.model_copy(update={"commands": commands}) if node.profile else None
     with pytest.raises(Conflict, match="save command writes C09999, which the profile does not list"):
-        bench.run(parameters.command(bench.session, 5, DeviceCommand.SAVE))
+        bench.run(parameters.command(bench.session, 5, DeviceCommand.SAVE, ctx=SERVICE))
 
 
 # --- read-all jobs -----------------------------------------------------------------------------------------
 def test_read_all_of_several_nodes_uses_sdo2(bench: Bench) -> None:
     async def go() -> Any:
-        job = parameters.start_read(bench.session, [2, 5, 12], bench.jobs)
+        job = parameters.start_read(bench.session, [2, 5, 12], bench.jobs, ctx=SERVICE)
         await job.wait()
         return job
 
@@ -343,7 +345,7 @@ def test_a_scan_after_sdo2_was_activated_lists_no_node_behind_it(bench: Bench) -
     """Node 5's SDO2 (0x645/0x5C5) are node 69's default SDO identifiers: the scan does not ask 69, so node 5 does
     not answer as a phantom node 69 (found by a browser sweep: 'Node 69 · Unknown device' after a read-all)."""
     async def go() -> list[int]:
-        job = parameters.start_read(bench.session, [5], bench.jobs)
+        job = parameters.start_read(bench.session, [5], bench.jobs, ctx=SERVICE)
         await job.wait()
         assert len(bench.session.network.nodes[5].channels) == 2
         return [node.node_id for node in await bench.session.scan(0.3)]
@@ -355,7 +357,7 @@ def test_a_scan_after_sdo2_was_activated_lists_no_node_behind_it(bench: Bench) -
 
 def test_read_all_with_a_silent_node_finishes_and_reports_it(bench: Bench) -> None:
     async def go() -> Any:
-        job = parameters.start_read(bench.session, [ABSENT, 5], bench.jobs)
+        job = parameters.start_read(bench.session, [ABSENT, 5], bench.jobs, ctx=SERVICE)
         await job.wait()
         return job
 
@@ -374,7 +376,7 @@ def test_read_all_asks_again_what_a_busy_node_answered_too_late(bench: Bench) ->
     first_two = [item.ref for item in parameters.readable_items(bench.session.node(5))[:2]]
 
     async def go() -> Any:
-        job = parameters.start_read(bench.session, [5], bench.jobs)
+        job = parameters.start_read(bench.session, [5], bench.jobs, ctx=SERVICE)
         await job.wait()
         return job
 
@@ -389,7 +391,7 @@ def test_read_all_cancel_keeps_partial_result(bench: Bench) -> None:
     bench.plant.nodes[12].latency = type(bench.plant.nodes[12].latency)(0.01)
 
     async def go() -> Any:
-        job = parameters.start_read(bench.session, [12], bench.jobs)
+        job = parameters.start_read(bench.session, [12], bench.jobs, ctx=SERVICE)
         version = 0
         while job.done < 20:
             version = await job.wait_change(version, timeout_s=5)
@@ -408,7 +410,7 @@ def test_read_all_cancel_keeps_partial_result(bench: Bench) -> None:
 
 def test_read_group_reads_only_that_group(bench: Bench) -> None:
     async def go() -> Any:
-        job = parameters.start_read(bench.session, [5], bench.jobs, group="Motor data")
+        job = parameters.start_read(bench.session, [5], bench.jobs, group="Motor data", ctx=SERVICE)
         await job.wait()
         return job
 

@@ -16,6 +16,7 @@ from drivebench.services.pdos.pdo import PdoWrite
 from drivebench.services.session_manager import SessionManager
 from drivebench.simulator.plant import Plant, PlantFile, PlantNode
 from tests.conftest import fresh_channel
+from tests.write_contexts import SERVICE
 
 NODE = 7
 
@@ -101,7 +102,7 @@ def test_apply_writes_in_cia301_order_and_verifies(servo: tuple[Session, Plant],
                                                    loop: asyncio.AbstractEventLoop) -> None:
     session, plant = servo
     write = PdoWrite(entries=[(0x6041, 0), (0x6044, 0), (0x6064, 0)], transmission_type=1, event_timer_ms=100)
-    report = loop.run_until_complete(pdo.apply_pdo(session, NODE, "tpdo", 1, write))
+    report = loop.run_until_complete(pdo.apply_pdo(session, NODE, "tpdo", 1, write, ctx=SERVICE))
     assert report.ok, report.message
     assert [s.step.split(" ")[0] for s in report.steps] == [
         "disable", "disable", "entry", "entry", "entry", "enable", "transmission", "event", "enable"]
@@ -127,7 +128,7 @@ def test_rejections_before_anything_is_sent(servo: tuple[Session, Plant], loop: 
     ]
     for direction, write, message in cases:
         with pytest.raises(InvalidValue, match=message):
-            loop.run_until_complete(pdo.apply_pdo(session, NODE, direction, 1, write))
+            loop.run_until_complete(pdo.apply_pdo(session, NODE, direction, 1, write, ctx=SERVICE))
     after = {key: value for key, value in store.snapshot().items() if 0x1400 <= key[0] <= 0x1BFF}
     assert after == before, "nothing was written to the PDO objects"
 
@@ -145,7 +146,7 @@ def test_failed_apply_leaves_the_pdo_disabled(servo: tuple[Session, Plant], loop
 
     store.add_write_check(refuse_velocity)
     report = loop.run_until_complete(pdo.apply_pdo(session, NODE, "rpdo", 1,
-                                                   PdoWrite(entries=[(0x6040, 0), (0x6042, 0)])))
+                                                   PdoWrite(entries=[(0x6040, 0), (0x6042, 0)]), ctx=SERVICE))
     assert not report.ok and not report.enabled
     failed = report.steps[-1]
     assert failed.abort_code == "0x06040041" and "mapped" in (failed.abort_text or "").lower()
@@ -161,10 +162,12 @@ def test_cob_id_of_another_nodes_pdo_is_flagged(servo: tuple[Session, Plant], lo
     session, _ = servo
     session.add_node(8, "test-servo")
     assert loop.run_until_complete(pdo.read_pdo(session, NODE, "rpdo", 1)).conflicts == []
-    rpdo = loop.run_until_complete(pdo.apply_pdo(session, NODE, "rpdo", 1, PdoWrite(cob_id=0x288, entries=[])))
+    rpdo = loop.run_until_complete(pdo.apply_pdo(session, NODE, "rpdo", 1, PdoWrite(cob_id=0x288, entries=[]),
+                                                 ctx=SERVICE))
     assert rpdo.pdo is not None and rpdo.pdo.conflicts == [
         "COB-ID 0x288 is also TPDO2 of node 8: this RPDO receives what node 8 sends - wanted only for cross "
         "communication."]
-    tpdo = loop.run_until_complete(pdo.apply_pdo(session, NODE, "tpdo", 1, PdoWrite(cob_id=0x188, entries=[])))
+    tpdo = loop.run_until_complete(pdo.apply_pdo(session, NODE, "tpdo", 1, PdoWrite(cob_id=0x188, entries=[]),
+                                                 ctx=SERVICE))
     assert tpdo.pdo is not None and tpdo.pdo.conflicts == [
         "COB-ID 0x188 is also TPDO1 of node 8: two producers on one identifier."]

@@ -18,6 +18,7 @@ from drivebench.services.session_manager import SessionManager
 from drivebench.simulator.plant import Plant, PlantFile, PlantNode
 from drivebench.simulator.store import Abort
 from tests.conftest import fresh_channel
+from tests.write_contexts import SERVICE
 
 NODES = {3: "siemens-micromaster4-canopen", 5: "lenze-8400-motec-canopen", 12: "lenze-8200-vector-emf2178ib",
          20: "lenze-93xx-emf2178ib"}
@@ -120,7 +121,8 @@ def test_round_trip(drives: tuple[Session, Plant], loop: asyncio.AbstractEventLo
     session, plant = drives
     offered = {(m.index, m.subindex) for m in pdo.mappable_objects(session, node_id, direction)}
     assert set(entries) <= offered, "the picker offers these objects"
-    report = loop.run_until_complete(pdo.apply_pdo(session, node_id, direction, number, PdoWrite(entries=entries)))
+    report = loop.run_until_complete(pdo.apply_pdo(session, node_id, direction, number, PdoWrite(entries=entries),
+                                                   ctx=SERVICE))
     assert report.ok, report.message
     assert report.pdo is not None and report.pdo.valid
     assert [(e.index, e.subindex) for e in report.pdo.entries] == entries
@@ -156,7 +158,7 @@ def test_refused_entry_leaves_the_lenze_pdo_disabled(drives: tuple[Session, Plan
 
     store.add_write_check(refuse_word_3)
     report = loop.run_until_complete(pdo.apply_pdo(session, 12, "tpdo", 2, PdoWrite(
-        entries=[(0x58E0, 1), (0x58E0, 3)], cob_id=0x280 + 12)))
+        entries=[(0x58E0, 1), (0x58E0, 3)], cob_id=0x280 + 12), ctx=SERVICE))
     assert not report.ok and not report.enabled
     assert report.steps[-1].abort_code == "0x06040042" and not report.steps[-1].ok
     assert store.get(0x1801, 1) & 0x80000000
@@ -172,7 +174,7 @@ def test_micromaster_p2041_follows_the_canopen_mapping(drives: tuple[Session, Pl
         ("rpdo", [(0x6040, 0), (0x6042, 0)], 255), ("tpdo", [(0x6041, 0), (0x6044, 0)], 1)]
     for direction, entries, trans_type in writes:
         report = loop.run_until_complete(pdo.apply_pdo(session, 3, direction, 5, PdoWrite(
-            entries=entries, transmission_type=trans_type)))
+            entries=entries, transmission_type=trans_type), ctx=SERVICE))
         assert report.ok, report.message
     store = plant.nodes[3].store
     assert store.get(0x27F9, 2) == 0x2103

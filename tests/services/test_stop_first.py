@@ -14,6 +14,7 @@ from drivebench.services.bus.sessions import Session
 from drivebench.services.control import drive_guard
 from drivebench.services.control.drive_words import family_of
 from drivebench.services.params import parameters
+from drivebench.services.params.write_context import WriteContext
 from drivebench.services.session_manager import SessionManager
 from drivebench.simulator.plant import Plant, PlantFile
 
@@ -72,7 +73,7 @@ def test_a_quick_stop_queued_behind_50_reads_is_the_next_request_after_the_one_i
     async def scenario() -> None:
         reads = [asyncio.create_task(parameters.read(session, NODE, fam.status_ref)) for _ in range(READS)]
         await _until(lambda: lock.waiting() == (0, READS - 1), "49 reads wait behind the one in flight")
-        stop = asyncio.create_task(drive_guard.send_quick_stop(session, node))
+        stop = asyncio.create_task(drive_guard.send_quick_stop(session, node, WriteContext.guard_stop()))
         await stop
         await asyncio.gather(*reads)
 

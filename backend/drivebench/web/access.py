@@ -15,7 +15,7 @@
   ``csrf_token``); token requests need none (a browser never sends a bearer token by itself).
 
 The principal goes into ``scope["state"]["principal"]`` (``identity.principal_of``) and, with login configured,
-into the audit log's ``current_user``.
+into the write context of the request (``web/safety.write_context``: who the audit log names).
 """
 
 from __future__ import annotations

@@ -9,8 +9,8 @@ once, the route's policy looked up once, precomputed at start-up by ``access_pol
    too; the docs pages are held back until their inline script is hashed into the policy.
 3. A request body past the upload limit (the batch upload's own) is refused with 413 (``limits``).
 4. A share-link token (``viewer``): the link checked, what a link may not do refused, pages led to the remote view.
-5. Host and Origin, sign-in, role and CSRF (``access``); the audit log's ``current_user`` is who signed in. A
-   websocket is re-checked every second while it is open (``live_access``).
+5. Host and Origin, sign-in, role and CSRF (``access``); the audit log's user (``safety.audit_user``) is who signed
+   in. A websocket is re-checked every second while it is open (``live_access``).
 6. A route with a lean answer (``lean_route``) answers its common request here, without the router's second match
    and FastAPI's dependency solving; every other request goes on to the app.
 """
@@ -28,9 +28,18 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 from drivebench import i18n
 from drivebench.i18n import _
 from drivebench.services.storage import reachability
-from drivebench.services.users import audit
 from drivebench.services.users.sharing import ShareLinks
-from drivebench.web import access, access_policy, language, lean_route, live_access, problems, security_headers, viewer
+from drivebench.web import (
+    access,
+    access_policy,
+    language,
+    lean_route,
+    live_access,
+    problems,
+    safety,
+    security_headers,
+    viewer,
+)
 from drivebench.web.limits import BodyLimit
 from drivebench.web.tls import HSTS_HEADER
 
@@ -92,19 +101,16 @@ class RequestGate:
         if admitted is None:
             return
         receive, user = admitted
-        token = audit.current_user.set(user) if user is not None else None
-        try:
-            if scope["type"] == "websocket":  # open as long as its user may: re-checked every second
-                await live_access.serve(self.app, scope, receive, send, partial(
-                    access.still_admitted, scope, headers, decision, self.links))
-                return
-            if decision.lean is not None and scope.get("method") == "GET" and await lean_route.answered(
-                    decision.lean, decision.path_params, scope, receive, send):
-                return
-            await self.app(scope, receive, send)
-        finally:
-            if token is not None:
-                audit.current_user.reset(token)
+        if user is not None:  # the audit log names who signed in (web/safety.audit_user)
+            scope.setdefault("state", {})[safety.AUDIT_USER] = user
+        if scope["type"] == "websocket":  # open as long as its user may: re-checked every second
+            await live_access.serve(self.app, scope, receive, send, partial(
+                access.still_admitted, scope, headers, decision, self.links))
+            return
+        if decision.lean is not None and scope.get("method") == "GET" and await lean_route.answered(
+                decision.lean, decision.path_params, scope, receive, send):
+            return
+        await self.app(scope, receive, send)
 
 
 class _Tracked:

@@ -14,6 +14,7 @@ from drivebench.i18n import _
 from drivebench.protocol.canopen.nmt import COMMAND_BY_NAME, NmtCommand
 from drivebench.services.bus.sessions import Session
 from drivebench.services.control import drive_guard
+from drivebench.services.params.write_context import WriteContext
 from drivebench.services.users.principals import Role
 from drivebench.web.identity import principal_of
 from drivebench.web.safety import confirmation
@@ -42,7 +43,7 @@ class NmtRequest(NodeNmtRequest):
 
 
 async def send_nmt(request: Request, session: Session, body: NodeNmtRequest, node_id: int,
-                   panel: drive_guard.Panel) -> None:
+                   panel: drive_guard.Panel, ctx: WriteContext) -> None:
     """NMT through the safety guard (shared with the Plant and PDO pages)."""
     command = COMMAND_BY_NAME[body.command]
     if command is NmtCommand.START and not body.keepalive:
@@ -53,6 +54,6 @@ async def send_nmt(request: Request, session: Session, body: NodeNmtRequest, nod
             raise InvalidValue(_("Say why the node runs without the keep-alive guard (reason)."))
         log.warning("NMT start of node %s without keep-alive by %s: %s", node_id or "all", principal.name,
                     body.reason)
-    await drive_guard.nmt(session, command, node_id, panel,
+    await drive_guard.nmt(session, command, node_id, panel, ctx=ctx,
                           confirm=confirmation(request, body.confirm, body.confirm_values),
                           keepalive=body.keepalive, timeout_s=body.keepalive_s)

@@ -1,5 +1,7 @@
 """Who acts on a node, as the safety services see it: the panel (browser tab or API client), the writer of the node
-lease, and the confirmation an action that can move a drive carries.
+lease, and the confirmation an action that can move a drive carries; all of it in one
+:class:`~drivebench.services.params.write_context.WriteContext` (the route dependency :data:`WriteCtxDep`) that a
+route hands to every service call that can write.
 
 A browser tab names itself with ``X-DriveBench-Client`` (app.js sets it on every htmx request; the Control tab sends
 the same id as ``X-Drive-Panel``); websockets pass it as ``?client=``. Without one, a client is one panel per host.
@@ -17,10 +19,12 @@ from starlette.requests import HTTPConnection
 
 from drivebench.i18n import N_
 from drivebench.services.control import drive_guard
-from drivebench.services.control.drive_guard import Confirmation, Panel, panel_of
-from drivebench.services.params import node_lease
-from drivebench.services.params.node_lease import Writer
+from drivebench.services.control.drive_guard import panel_of
+from drivebench.services.params.write_context import LOCAL_USER, Confirmation, Panel, WriteContext, Writer
 from drivebench.web.identity import principal_of
+
+AUDIT_USER = "audit_user"
+"""``scope["state"]`` key: the name the audit log gives the request's writes (``web/gate.py`` sets it from sign-in)."""
 
 # Where a write comes from, as the node lease names it to others: kept English (N_) in the lease, each reader sees
 # it in their own language (the template calls _() on it). (path part, from a page, from the API)
@@ -58,13 +62,32 @@ def writer_for(conn: HTTPConnection) -> Writer:
     return Writer(name=principal_of(conn).name, client=panel_for(conn).key, where=where_of(conn.url.path))
 
 
-async def acting_writer(conn: HTTPConnection) -> Writer:
-    """Router dependency: the writes of this request (and the jobs it starts) are this writer's, from this panel,
-    with the confirmation the header or query carries (a route with a ``confirm`` body field adds it)."""
-    writer = writer_for(conn)
-    node_lease.writing_as(writer)
-    drive_guard.acting_as(panel_for(conn), confirmation(conn))
-    return writer
+def audit_user(conn: HTTPConnection) -> str:
+    """Who the audit log names for the request's writes: who signed in, else the local user (no login configured)."""
+    return conn.scope.get("state", {}).get(AUDIT_USER) or LOCAL_USER
+
+
+async def current_audit_user(conn: HTTPConnection) -> str:
+    """Route dependency: :func:`audit_user` (a route that stores something in the user's name)."""
+    return audit_user(conn)
+
+
+async def current_writer(conn: HTTPConnection) -> Writer:
+    """Route dependency: the writer of the node lease this request writes as."""
+    return writer_for(conn)
+
+
+def write_context_of(conn: HTTPConnection, origin: str = "parameters") -> WriteContext:
+    """What the writes of this request (and of the jobs it starts) are checked against: its user, panel, lease
+    writer, and the confirmation the header or query carries (a route with a ``confirm`` body field adds it with
+    :meth:`WriteContext.confirming`)."""
+    return WriteContext.request(user=audit_user(conn), origin=origin, panel=panel_for(conn), writer=writer_for(conn),
+                                confirmation=confirmation(conn))
+
+
+async def write_context(conn: HTTPConnection) -> WriteContext:
+    """Route dependency: :func:`write_context_of` the request."""
+    return write_context_of(conn)
 
 
 def confirmation(conn: HTTPConnection, given: object = None, values: object = None) -> Confirmation | None:
@@ -88,5 +111,6 @@ async def current_panel(conn: HTTPConnection) -> Panel:
 
 
 PanelDep = Annotated[Panel, Depends(current_panel)]
-WriterDep = Annotated[Writer, Depends(acting_writer)]
-ACTING = Depends(acting_writer)
+WriterDep = Annotated[Writer, Depends(current_writer)]
+WriteCtxDep = Annotated[WriteContext, Depends(write_context)]
+AuditUserDep = Annotated[str, Depends(current_audit_user)]

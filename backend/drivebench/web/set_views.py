@@ -12,6 +12,7 @@ from drivebench.device.profiles.profile import Profile
 from drivebench.errors import InvalidValue
 from drivebench.i18n import _
 from drivebench.services.params.jobs import Job, JobManager
+from drivebench.services.params.write_context import WriteContext
 from drivebench.services.session_manager import SessionManager
 from drivebench.services.sets import set_jobs
 from drivebench.services.sets.download_outcome import DownloadOutcome, outcome_of
@@ -208,12 +209,13 @@ def resolve_source(state: AppState, manager: SessionManager, spec: SourceIn) -> 
     return (spec.session_id, spec.node_id, [])
 
 
-async def build_sources(state: AppState, manager: SessionManager, body: CompareIn) -> tuple[Source, Source]:
+async def build_sources(state: AppState, manager: SessionManager, body: CompareIn, ctx: WriteContext
+                        ) -> tuple[Source, Source]:
     sides = [resolve_source(state, manager, body.left), resolve_source(state, manager, body.right)]
     done: list[Source] = []
     for side in sides:
         if isinstance(side, Source):
             done.append(side)
         else:
-            done.append(await set_jobs.device_source(manager.get(side[0]), side[1]))
+            done.append(await set_jobs.device_source(manager.get(side[0]), side[1], ctx=ctx))
     return done[0], done[1]

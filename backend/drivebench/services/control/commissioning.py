@@ -49,8 +49,7 @@ from drivebench.protocol.datatypes import decode
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.control import drive_control, drive_guard
 from drivebench.services.params import node_lease, parameters
-from drivebench.services.params.node_lease import Writer
-from drivebench.services.users import audit
+from drivebench.services.params.write_context import WriteContext, Writer
 
 __all__ = ["Run", "RunOut", "Sequence", "Step", "StepWrite", "Wizard", "next_step", "sequences_for", "step_write",
            "wizard"]
@@ -333,14 +332,14 @@ class Wizard:
     def __init__(self) -> None:
         self.runs: dict[str, Run] = {}
 
-    def start(self, session: Session, node: SessionNode, key: str) -> Run:
+    def start(self, session: Session, node: SessionNode, key: str, ctx: WriteContext) -> Run:
         sequence = next((seq for seq in sequences_for(node) if seq.key == key), None)
         if sequence is None:
             raise NotFound(_("No commissioning sequence '{key}' for {device}.").format(key=key,
                                                                                          device=node.device_name))
         sequence = sequence.model_copy(update={"steps": [step.model_copy(update={"moves": step_moves(node, step)})
                                                          for step in sequence.steps]})
-        writer = node_lease.current_writer.get()
+        writer = ctx.writer
         table = node_lease.leases(session)
         if writer is None:
             table.check(node.node_id)
@@ -420,12 +419,13 @@ async def _send_and_wait_state(session: Session, node: SessionNode, cob_id: int,
         session.remove_frame_listener(tap)
 
 
-async def _execute(session: Session, node: SessionNode, step: Step, value: object = None) -> str | None:
-    """Run one step; the problem as text, or None when the answer is the expected one."""
+async def _execute(session: Session, node: SessionNode, step: Step, ctx: WriteContext, value: object = None
+                   ) -> str | None:
+    """Run one step as ``ctx`` writes; the problem as text, or None when the answer is the expected one."""
     if step.kind == "parameter":
         write = step_write(node, step, value)
         try:
-            result = await parameters.write(session, node.node_id, write.ref, write.value, verify=True)
+            result = await parameters.write(session, node.node_id, write.ref, write.value, ctx=ctx, verify=True)
         except SdoAbortError as exc:
             return _("SDO abort 0x{code} ({text}): {ref} was not written.").format(
                 code=f"{exc.abort_code:08X}", text=exc.abort_text, ref=write.ref)
@@ -435,7 +435,7 @@ async def _execute(session: Session, node: SessionNode, step: Step, value: objec
     if step.kind == "sdo":
         write = step_write(node, step)
         try:
-            await parameters.write(session, node.node_id, write.ref, write.value, verify=False)
+            await parameters.write(session, node.node_id, write.ref, write.value, ctx=ctx, verify=False)
         except SdoAbortError as exc:
             return _("SDO abort 0x{code} ({text}) instead of the download response 0x60.").format(
                 code=f"{exc.abort_code:08X}", text=exc.abort_text)
@@ -468,7 +468,7 @@ async def _execute(session: Session, node: SessionNode, step: Step, value: objec
         ref=step.expect_ref, raw=repr(raw), expected=step.expect_value)
 
 
-async def next_step(session: Session, node: SessionNode, run: Run, *, confirm: object = None,
+async def next_step(session: Session, node: SessionNode, run: Run, *, ctx: WriteContext, confirm: object = None,
                     panel: drive_control.Panel = drive_control.SERVICE_PANEL, value: object = None) -> Run:
     """Run the next step of ``run`` on its own node, for the writer that started it. The step's value (for a
     ``parameter`` step ``value``, else the profile's proposal) is checked against the profile before anything is
@@ -476,7 +476,7 @@ async def next_step(session: Session, node: SessionNode, run: Run, *, confirm: o
     another panel holds the armed drive, this panel cannot run steps. A ``parameter`` step the device refuses
     (an SDO abort) stays the next step: the user corrects the value and runs it again."""
     run.check_node(node.node_id)
-    run.check_runner(node_lease.current_writer.get())
+    run.check_runner(ctx.writer)
     async with run.lock:
         if run.finished:
             raise Conflict(_("This commissioning run is finished; start it again to repeat it."))
@@ -492,23 +492,24 @@ async def next_step(session: Session, node: SessionNode, run: Run, *, confirm: o
         guard = drive_control.guard_for(session)
         named = _("Step {number} ({title})").format(number=run.position + 1, title=step.title)
         guard.check(node.node_id, panel, named)
-        with node_lease.writing(session, node.node_id):
+        ctx = ctx.confirming(confirm).as_origin(AUDIT_ORIGIN)
+        with node_lease.writing(session, node.node_id, ctx):
             if moving:  # confirmed with the values it sends: the step's write is then admitted as confirmed
-                drive_guard.confirm_moving(session, node.node_id, named, values, confirm=confirm)
+                ctx = drive_guard.confirm_moving(session, node.node_id, named, values, ctx)[1]
                 if step.kind == "nmt_start":  # as drive_guard.nmt: stays armed until NMT leaves Operational
                     guard.started.add(node.node_id)
                 guard.arm(node.node_id, panel, pinned=step.kind == "nmt_start")
-            await _run_step(session, node, run, step, value)
+            await _run_step(session, node, run, step, ctx, value)
         return run
 
 
-async def _run_step(session: Session, node: SessionNode, run: Run, step: Step, value: object = None) -> None:
+async def _run_step(session: Session, node: SessionNode, run: Run, step: Step, ctx: WriteContext,
+                    value: object = None) -> None:
     capture = _capture_for(node, step)
     session.add_frame_listener(capture)
     t0 = time.time()
     try:
-        with audit.acting(AUDIT_ORIGIN):
-            problem = await _execute(session, node, step, value)
+        problem = await _execute(session, node, step, ctx, value)
     except ServiceError:
         raise  # refused (lease, confirmation, holder): nothing of the step was done, the run stays there
     except DriveBenchError as exc:

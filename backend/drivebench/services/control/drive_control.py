@@ -38,7 +38,6 @@ from drivebench.services.control.drive_guard import (
     SERVICE_PANEL,
     Panel,
     Values,
-    cleared,
     guard_for,
     last_word,
     read_word,
@@ -57,7 +56,8 @@ from drivebench.services.control.drive_words import (
 )
 from drivebench.services.monitoring import fault_words
 from drivebench.services.monitoring.diagnostics import EmcyRecord
-from drivebench.services.params import node_lease, parameters
+from drivebench.services.params import parameters
+from drivebench.services.params.write_context import WriteContext
 from drivebench.services.pdos import process_data as live
 
 # the rest of the guard's surface, re-exported for this module's callers (web api/ws/pages, tests)
@@ -418,8 +418,11 @@ async def read_status(session: Session, node: SessionNode, panel: Panel = SERVIC
 
 
 # --- commands ------------------------------------------------------------------------------------------------
-def _confirmed(confirm: object, node: SessionNode, what: str, values: Values) -> None:
-    require_confirmation(confirm, node.node_id, what, values)
+def _confirmed(confirm: object, node: SessionNode, what: str, values: Values, ctx: WriteContext) -> None:
+    """``confirm`` confirmed ``what`` and the ``values`` (nothing to ask when the caller cleared ``ctx``: a move
+    that confirmed its mode change)."""
+    if not ctx.cleared:
+        require_confirmation(confirm, node.node_id, what, values)
 
 
 def sent(node: SessionNode, ref: str, value: object, unit: str | None = None) -> Values:
@@ -436,8 +439,9 @@ def word_values(node: SessionNode, command: str, word: int) -> Values:
     return {"command": command, **sent(node, family(node).control_ref, f"0x{word:04X}")}
 
 
-async def write_control_word(session: Session, node: SessionNode, word: int) -> None:
-    await write_word(session, node.node_id, family(node).control_ref, word)
+async def write_control_word(session: Session, node: SessionNode, word: int, ctx: WriteContext) -> None:
+    """The panel's own write: what moves was confirmed and armed by the caller."""
+    await write_word(session, node.node_id, family(node).control_ref, word, ctx.cleared_by_caller())
 
 
 async def last_control_word(session: Session, node: SessionNode) -> int:
@@ -450,7 +454,7 @@ async def last_control_word(session: Session, node: SessionNode) -> int:
 STOPPING = {Command.SHUTDOWN, Command.DISABLE_VOLTAGE, Command.QUICK_STOP, Command.DISABLE_OPERATION}
 
 
-async def command(session: Session, node: SessionNode, which: Command, *, confirm: object = None,
+async def command(session: Session, node: SessionNode, which: Command, *, ctx: WriteContext, confirm: object = None,
                   panel: Panel = SERVICE_PANEL) -> DriveStatus:
     """Send one transition. Stopping commands are open to every panel; the others only to the holder."""
     fam = family(node)
@@ -464,17 +468,17 @@ async def command(session: Session, node: SessionNode, which: Command, *, confir
     if which in STOPPING:  # a cyclic synchronous stream would send its control word again: it ends first
         live.service(session).stop_node(node.node_id)
     # any station may stop it, and a stop goes before the reads waiting for the node
-    with (node_lease.stopping() if which in STOPPING else contextlib.nullcontext(),
-          parameters.stop_first(session, node.node_id) if which in STOPPING else contextlib.nullcontext()):
+    ctx = ctx.stopping() if which in STOPPING else ctx
+    with parameters.stop_first(session, node.node_id) if which in STOPPING else contextlib.nullcontext():
         last = await last_control_word(session, node)
         word = next_control_word(fam, which, last)
         if which in fam.moving:
-            _confirmed(confirm, node, command_label(which), word_values(node, which.value, word))
+            _confirmed(confirm, node, command_label(which), word_values(node, which.value, word), ctx)
         if bits_of.edge is not None and last & bits_of.edge:
-            await write_control_word(session, node, last & ~bits_of.edge)  # a rising edge needs the bit at 0 first
+            await write_control_word(session, node, last & ~bits_of.edge, ctx)  # a rising edge needs the bit at 0 first
         if which in fam.moving:
             guard.arm(node.node_id, panel)
-        await write_control_word(session, node, word)
+        await write_control_word(session, node, word, ctx)
     if which in STOPPING:
         guard.release(node.node_id)
     status = await read_status(session, node, panel)
@@ -505,7 +509,7 @@ def check_range(value: float, scale: Scale) -> None:
             value=f"{value:g}", unit=scale.unit, low=low, high=high))
 
 
-async def set_setpoint(session: Session, node: SessionNode, value: float, *, confirm: object = None,
+async def set_setpoint(session: Session, node: SessionNode, value: float, *, ctx: WriteContext, confirm: object = None,
                        panel: Panel = SERVICE_PANEL) -> DriveStatus:
     fam = family(node)
     guard = guard_for(session)
@@ -520,20 +524,20 @@ async def set_setpoint(session: Session, node: SessionNode, value: float, *, con
     check_range(value, scale)
     if value != 0:
         _confirmed(confirm, node, _("Setpoint {value} {unit}").format(value=f"{value:g}", unit=scale.unit),
-                   sent(node, scale.ref, value, scale.unit))
+                   sent(node, scale.ref, value, scale.unit), ctx)
         guard.arm(node.node_id, panel)
-    with cleared():  # confirmed and armed above (0 cannot speed it up)
-        if scale.raw_per_unit:
-            raw = round(value * scale.raw_per_unit) & 0xFFFF
-            await parameters.write(session, node.node_id, scale.ref, raw, check=False, verify=False)
-        else:
-            await parameters.write(session, node.node_id, scale.ref, value, verify=False)
+    done = ctx.cleared_by_caller()  # confirmed and armed above (0 cannot speed it up)
+    if scale.raw_per_unit:
+        raw = round(value * scale.raw_per_unit) & 0xFFFF
+        await parameters.write(session, node.node_id, scale.ref, raw, ctx=done, check=False, verify=False)
+    else:
+        await parameters.write(session, node.node_id, scale.ref, value, ctx=done, verify=False)
     if spec.run_bits is not None:  # e.g. CiA 402 velocity mode: run the ramp-function generator (0x7F)
         last = await last_control_word(session, node)
         if last & spec.run_when == spec.run_when and last & spec.run_bits != spec.run_bits:
-            await write_control_word(session, node, last | spec.run_bits)
+            await write_control_word(session, node, last | spec.run_bits, ctx)
     if fam.generic and mode in VELOCITY_MODES:
-        _watch_limits(session, node, "velocity", value)
+        _watch_limits(session, node, "velocity", value, ctx)
     return await read_status(session, node, panel)
 
 
@@ -541,9 +545,9 @@ VELOCITY_MODES = (3, 9)
 """CiA 402 profile velocity and cyclic synchronous velocity: the drive need not keep to 0x607D there."""
 
 
-def _watch_limits(session: Session, node: SessionNode, what: str, velocity: float) -> None:
+def _watch_limits(session: Session, node: SessionNode, what: str, velocity: float, ctx: WriteContext) -> None:
     if velocity:
-        soft_limits.start(session, node, what)
+        soft_limits.start(session, node, what, ctx)
     else:
         soft_limits.stop(node)
 
@@ -614,7 +618,7 @@ def not_enabled(what: str, status: DriveStatus) -> str:
                                                                                          state=status.state_label)
 
 
-async def jog(session: Session, node: SessionNode, direction: int, *, confirm: object = None,
+async def jog(session: Session, node: SessionNode, direction: int, *, ctx: WriteContext, confirm: object = None,
               panel: Panel = SERVICE_PANEL, speed: float | None = None) -> DriveStatus:
     """Hold-to-run: +1 / -1 runs at the jog value while the keep-alive lasts, 0 stops."""
     if direction not in (-1, 0, 1):
@@ -635,26 +639,26 @@ async def jog(session: Session, node: SessionNode, direction: int, *, confirm: o
         if direction:
             velocity = sent(node, cia402.TARGET_VELOCITY, direction * (speed or plan.value), plan.unit)
             _confirmed(confirm, node, jog_at(speed or plan.value, plan.unit),
-                       {**sent(node, cia402.MODES_OF_OPERATION, 3), **velocity})
+                       {**sent(node, cia402.MODES_OF_OPERATION, 3), **velocity}, ctx)
             guard.arm(node.node_id, panel)
-        with cleared():  # confirmed and armed above; 0 (release) stops it
-            if direction and status.mode != 3:
-                await parameters.write(session, node.node_id, cia402.MODES_OF_OPERATION, 3, verify=False)
-            value = direction * (speed or plan.value)
-            await parameters.write(session, node.node_id, cia402.TARGET_VELOCITY, value, verify=False)
-        _watch_limits(session, node, "jog", value)
+        done = ctx.cleared_by_caller()  # confirmed and armed above; 0 (release) stops it
+        if direction and status.mode != 3:
+            await parameters.write(session, node.node_id, cia402.MODES_OF_OPERATION, 3, ctx=done, verify=False)
+        value = direction * (speed or plan.value)
+        await parameters.write(session, node.node_id, cia402.TARGET_VELOCITY, value, ctx=done, verify=False)
+        _watch_limits(session, node, "jog", value, ctx)
         return await read_status(session, node, panel)
     if plan.method == "setpoint":
-        return await set_setpoint(session, node, direction * plan.value, confirm=confirm, panel=panel)
+        return await set_setpoint(session, node, direction * plan.value, ctx=ctx, confirm=confirm, panel=panel)
     spec = family(node).section.jog
     word = await last_control_word(session, node) & ~spec.select_mask
     if direction:
         word |= spec.forward if direction > 0 else spec.reverse
         jogged = sent(node, spec.value_ref, plan.value, plan.unit) if spec.value_ref else {}
         _confirmed(confirm, node, jog_at(plan.value, plan.unit),
-                   {**word_values(node, "jog_forward" if direction > 0 else "jog_reverse", word), **jogged})
+                   {**word_values(node, "jog_forward" if direction > 0 else "jog_reverse", word), **jogged}, ctx)
         guard.arm(node.node_id, panel)
-    await write_control_word(session, node, word)
+    await write_control_word(session, node, word, ctx)
     return await read_status(session, node, panel)
 
 
@@ -662,7 +666,7 @@ MODE_SETTLE_S = 1.0
 """How long a drive may take to show a new mode in 0x6061."""
 
 
-async def set_mode(session: Session, node: SessionNode, mode: int, *, confirm: object = None,
+async def set_mode(session: Session, node: SessionNode, mode: int, *, ctx: WriteContext, confirm: object = None,
                    panel: Panel = SERVICE_PANEL) -> DriveStatus:
     fam = family(node)
     if fam.section.state_machine != "cia402" or not has_ref(catalog_of(node), cia402.MODES_OF_OPERATION):
@@ -674,9 +678,10 @@ async def set_mode(session: Session, node: SessionNode, mode: int, *, confirm: o
     status = await read_status(session, node, panel)
     if status.enabled:
         _confirmed(confirm, node, _("Changing the mode of operation while the drive is enabled"),
-                   sent(node, cia402.MODES_OF_OPERATION, mode))
-    with cleared():  # confirmed above while enabled; a disabled drive does not move when its mode changes
-        await parameters.write(session, node.node_id, cia402.MODES_OF_OPERATION, mode, verify=False)
+                   sent(node, cia402.MODES_OF_OPERATION, mode), ctx)
+    # confirmed above while enabled; a disabled drive does not move when its mode changes
+    await parameters.write(session, node.node_id, cia402.MODES_OF_OPERATION, mode, ctx=ctx.cleared_by_caller(),
+                           verify=False)
     deadline = time.monotonic() + MODE_SETTLE_S
     while (status := await read_status(session, node, panel)).mode != mode and time.monotonic() < deadline:
         await asyncio.sleep(0.02)

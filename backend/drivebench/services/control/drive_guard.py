@@ -11,8 +11,8 @@ guard stops the node itself (:meth:`Guard.trip`): cyclic RPDOs to it end, quick 
 
 Parameter writes go the same way, whatever route sends them (:func:`admit_moving_write`, called by
 :func:`parameters.write` for what :mod:`drivebench.device.drive.motion` marks as moving): the request's confirmation and
-panel travel in a context variable the web layer sets (:func:`acting_as`); the control panel's own writes, already
-confirmed and armed, run inside :func:`cleared`.
+panel come with the write's :class:`~drivebench.services.params.write_context.WriteContext` the web layer builds; the
+control panel's own writes, already confirmed and armed, carry it :meth:`~WriteContext.cleared_by_caller`.
 
 A node armed by NMT start or an RPDO stays armed (the status word does not disarm it) until an NMT command that
 leaves Operational is sent through the tool, or the guard trips.
@@ -26,8 +26,6 @@ import json
 import logging
 import time
 import weakref
-from collections.abc import Iterator
-from contextvars import ContextVar
 from dataclasses import dataclass
 from typing import Protocol
 from urllib.parse import unquote
@@ -39,7 +37,13 @@ from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.control.drive_words import Command, family_of, next_control_word
 from drivebench.services.params import node_lease, parameters
 from drivebench.services.params.parameters import MovingWrites
-from drivebench.services.params.write_origin import acting
+from drivebench.services.params.write_context import (
+    SERVICE_PANEL,
+    Confirmation,
+    Panel,
+    Values,
+    WriteContext,
+)
 from drivebench.services.pdos import process_data as live
 
 KEEPALIVE_TIMEOUT_S = 2.0
@@ -48,20 +52,6 @@ WATCH_PERIOD_S = 0.2
 ARM_SETTLE_S = 2.0
 """A status read this soon after arming that finds the drive not enabled does not disarm it (still enabling)."""
 log = logging.getLogger(__name__)
-
-
-Values = dict[str, object]
-"""What a moving action will send, as the server builds it from the request it is about to execute: each object
-(``"0x60FF Target velocity [rpm]"``) or setting (``"NMT"``) and its value, with its unit in the name where the user
-sees one. A confirmation repeats it (``confirm_values``)."""
-
-
-@dataclass(frozen=True)
-class Confirmation:
-    """What a request carries to confirm a moving action: the node it names and the values it saw."""
-
-    node: object
-    values: object = None
 
 
 def _plain(value: object) -> object:
@@ -117,9 +107,8 @@ def require_confirmation(given: object, node_id: int | None, what: str, values: 
     must name the node the action moves (its id, or ``all`` for a broadcast: ``node_id`` None) and repeat the
     ``values`` it will send. ``true`` is not enough: a script that confirms everything blindly would confirm the
     wrong node too; and values that differ from what the request sends confirm something else. Inside
-    :func:`cleared` (the caller confirmed it) nothing is asked."""
-    if _cleared.get():
-        return
+    a context the caller cleared (:meth:`WriteContext.cleared_by_caller`) nothing is asked: see
+    :func:`confirm_moving`."""
     wanted = "all" if node_id is None else str(node_id)
     node, seen = (given.node, given.values) if isinstance(given, Confirmation) else (given, None)
     text = str(node).strip().lower() if node is not None and node is not False else ""
@@ -137,19 +126,6 @@ def require_confirmation(given: object, node_id: int | None, what: str, values: 
                    "X-DriveBench-Confirm-Values){said}.").format(what=what, whom=whom, wanted=repr(wanted),
                                                                   plain=wanted, said=said)
     raise ConfirmationRequired(detail, node="all" if node_id is None else node_id, values=plain_values(values))
-
-
-@dataclass(frozen=True)
-class Panel:
-    """Who sends a command: one control panel (browser tab) or one API client. ``key`` identifies it, ``who`` is
-    what the other panels are shown."""
-
-    key: str
-    who: str
-    """Shown to the other panels in their language (a :class:`~drivebench.i18n.Text`)."""
-
-
-SERVICE_PANEL = Panel("service", Text(N_("a DriveBench service call")))
 
 
 def panel_of(host: str | None, panel_id: str | None, operator: str | None) -> Panel:
@@ -179,20 +155,22 @@ async def last_word(session: Session, node_id: int, ref: str) -> int:
         return 0
 
 
-async def write_word(session: Session, node_id: int, ref: str, word: int) -> None:
-    """The callers (control panel, guard) confirmed and armed what moves, or stop the drive."""
-    with cleared():
-        await parameters.write(session, node_id, ref, word & 0xFFFF, check=False, verify=False)
+async def write_word(session: Session, node_id: int, ref: str, word: int, ctx: WriteContext) -> None:
+    """The callers (control panel, guard) confirmed and armed what moves (``ctx`` cleared), or stop the drive."""
+    await parameters.write(session, node_id, ref, word & 0xFFFF, ctx=ctx, check=False, verify=False)
 
 
-async def send_quick_stop(session: Session, node: SessionNode) -> None:
+async def send_quick_stop(session: Session, node: SessionNode, ctx: WriteContext) -> None:
+    """Quick stop to the node's control word, as ``ctx`` stopping (the guard's own :meth:`WriteContext.guard_stop`
+    or a panel's): any station may stop a machine, no lease refuses it, and it goes before every read waiting for
+    the node."""
     fam = family_of(node.catalog)
     if fam is None:  # the trip skips such nodes (NMT pre-operational is their safe command)
         raise InvalidValue(_("{device} has no device control word DriveBench knows.").format(device=node.device_name))
-    # any station may stop a machine: no lease refuses it, and it goes before every read waiting for the node
-    with node_lease.stopping(), cleared(), parameters.stop_first(session, node.node_id):
+    with parameters.stop_first(session, node.node_id):
         last = await last_word(session, node.node_id, fam.control_ref)
-        await write_word(session, node.node_id, fam.control_ref, next_control_word(fam, Command.QUICK_STOP, last))
+        await write_word(session, node.node_id, fam.control_ref, next_control_word(fam, Command.QUICK_STOP, last),
+                         ctx.stopping())
 
 
 # --- the guard -----------------------------------------------------------------------------------------------
@@ -368,7 +346,7 @@ class Guard:
                        count=stopped)] if stopped else []
         if has_word:
             try:
-                await send_quick_stop(session, node)
+                await send_quick_stop(session, node, WriteContext.guard_stop())
             except DriveBenchError as exc:
                 head = Text(N_("Quick stop FAILED ({error})"), error=exc.detail)
         if started:
@@ -391,20 +369,22 @@ class Guard:
         it (the session's part)."""
         return MovingWrites(self._admit_moving_write, self._stopped, self._confirm_moving)
 
-    def _confirm_moving(self, node_id: int, what: str, values: Values) -> None:
+    def _confirm_moving(self, ctx: WriteContext, node_id: int, what: str, values: Values) -> WriteContext:
         session = self._session()
-        if session is not None:
-            confirm_moving(session, node_id, what, values)
+        if session is None:
+            raise Conflict(_("The session is closed: nothing was sent."))
+        return confirm_moving(session, node_id, what, values, ctx)[1]
 
-    def _admit_moving_write(self, node_id: int, what: str, values: Values) -> None:
+    def _admit_moving_write(self, ctx: WriteContext, node_id: int, what: str, values: Values) -> None:
         session = self._session()
-        if session is not None:
-            admit_moving_write(session, node_id, what, values)
+        if session is None:
+            raise Conflict(_("The session is closed: nothing was sent."))
+        admit_moving_write(session, node_id, what, values, ctx)
 
-    def _stopped(self, node_id: int) -> None:
+    def _stopped(self, ctx: WriteContext, node_id: int) -> None:
         session = self._session()
         if session is not None:
-            stopped(session, node_id)
+            stopped(session, node_id, ctx)
 
     def close(self) -> None:
         """The session closes: the keep-alive watch ends with it (its bus is gone)."""
@@ -441,79 +421,36 @@ def guard_for(session: Session) -> Guard:
 
 
 # --- writes that can move a drive, by any route (parameter API and tab, set downloads, commissioning) -------------
-@dataclass(frozen=True)
-class Acting:
-    """Who sends the writes of a request (and of the jobs it starts), the confirmation it carries, and the values a
-    batch or download already confirmed as a whole (each of its writes then sends some of them)."""
-
-    panel: Panel
-    confirm: object = None
-    confirmed: Values | None = None
 
 
-_acting: ContextVar[Acting | None] = ContextVar("drivebench_acting", default=None)
-_cleared: ContextVar[bool] = ContextVar("drivebench_motion_cleared", default=False)
-AUDIT_ORIGIN = "control"
+def confirm_moving(session: Session, node_id: int, what: str, values: Values, ctx: WriteContext
+                   ) -> tuple[Panel | None, WriteContext]:
+    """``ctx``'s confirmation confirmed ``what`` and the ``values`` it will write (428 without the one naming the
+    node and repeating them) and ``ctx``'s panel is no watcher of a node another panel holds (409). The panel (None
+    when the caller cleared the context: nothing to check) and the context the operation's writes then carry: an
+    operation that will write such values one by one (a batch, a parameter-set download) checks them all before it
+    starts, and its writes are admitted as part of what was confirmed."""
+    if ctx.cleared:
+        return None, ctx
+    if ctx.confirmed is None or not _within(ctx.confirmed, values):
+        require_confirmation(ctx.confirmation, node_id, what, values)
+    guard_for(session).check(node_id, ctx.panel, what)
+    return ctx.panel, ctx.with_confirmed({**(ctx.confirmed or {}), **plain_values(values)})
 
 
-def acting_as(panel: Panel, confirm: object = None) -> None:
-    """Writes from here on (this request, and the tasks it starts) come from ``panel`` and carry ``confirm``."""
-    _acting.set(Acting(panel, confirm))
-
-
-def confirming(confirm: object) -> None:
-    """The request's body carries the confirmation (it wins over the header and query parameter)."""
-    if confirm is not None and confirm is not False:
-        act = _acting.get()
-        _acting.set(Acting(act.panel if act else SERVICE_PANEL, confirm, act.confirmed if act else None))
-
-
-@contextlib.contextmanager
-def cleared() -> Iterator[None]:
-    """Writes inside were confirmed and armed by the caller (the control panel) or stop the drive (the guard's quick
-    stop, the software limits): :func:`admit_moving_write` lets them through, and the audit log names them with the
-    origin ``control``."""
-    token = _cleared.set(True)
-    try:
-        with acting(AUDIT_ORIGIN):
-            yield
-    finally:
-        _cleared.reset(token)
-
-
-def confirm_moving(session: Session, node_id: int, what: str, values: Values, *,
-                   confirm: object = None) -> Panel | None:
-    """``confirm`` (else the acting request's confirmation) confirmed ``what`` and the ``values`` it will write (428
-    without the one naming the node and repeating them) and the acting panel is no watcher of a node another panel
-    holds (409). None inside :func:`cleared` (nothing to check), else the panel. An operation that will write such
-    values one by one (a batch, a parameter-set download) checks them all before it starts: its writes are then
-    admitted as part of what was confirmed."""
-    if _cleared.get():
-        return None
-    act = _acting.get()
-    given = confirm if confirm is not None else act.confirm if act else None
-    if act is None or act.confirmed is None or not _within(act.confirmed, values):
-        require_confirmation(given, node_id, what, values)
-    panel = act.panel if act else SERVICE_PANEL
-    guard_for(session).check(node_id, panel, what)
-    confirmed = {**(act.confirmed or {}), **plain_values(values)} if act else plain_values(values)
-    _acting.set(Acting(panel, given, confirmed))
-    return panel
-
-
-def admit_moving_write(session: Session, node_id: int, what: str, values: Values) -> None:
+def admit_moving_write(session: Session, node_id: int, what: str, values: Values, ctx: WriteContext) -> None:
     """A write that can make the drive move: confirmed with the values it sends (:func:`confirm_moving`), and it
-    arms the node for the acting panel, which must keep it alive from now on (or the guard quick-stops it). A write
-    without a request (an internal caller outside :func:`cleared`) carries no confirmation: refused."""
-    panel = confirm_moving(session, node_id, what, values)
+    arms the node for ``ctx``'s panel, which must keep it alive from now on (or the guard quick-stops it). A context
+    without a confirmation (a service's own, the guard's stop) is refused."""
+    panel, _confirmed = confirm_moving(session, node_id, what, values, ctx)
     if panel is not None:
         guard_for(session).arm(node_id, panel)
 
 
-def stopped(session: Session, node_id: int) -> None:
+def stopped(session: Session, node_id: int, ctx: WriteContext) -> None:
     """A control word that stops the drive was written (outside the control panel's own logic): disarmed, as the
     panel's shutdown, disable and quick stop disarm."""
-    if not _cleared.get():
+    if not ctx.cleared:
         guard_for(session).release(node_id)
 
 
@@ -532,11 +469,13 @@ def rpdo_values(number: int, values: dict[str, str], period_ms: int | None) -> V
 
 
 async def nmt(session: Session, command: NmtCommand, node_id: int, panel: Panel = SERVICE_PANEL, *,
-              confirm: object = None, keepalive: bool = True, timeout_s: float = KEEPALIVE_TIMEOUT_S) -> list[int]:
+              ctx: WriteContext, confirm: object = None, keepalive: bool = True,
+              timeout_s: float = KEEPALIVE_TIMEOUT_S) -> list[int]:
     """Send an NMT command to one node or (``node_id`` 0) to all. Start needs the confirmation naming the node (or
     ``all``), the node's write lease, and arms the started nodes the session knows: ``panel`` must keep them alive
-    (every ``timeout_s``) or they are stopped. ``keepalive=False`` (the caller checked it may) arms nothing. Every
-    other command leaves Operational and disarms; it is open to anyone, as stopping a machine is."""
+    (every ``timeout_s``) or they are stopped; the leases are ``ctx``'s writer's. ``keepalive=False`` (the caller
+    checked it may) arms nothing. Every other command leaves Operational and disarms; it is open to anyone, as
+    stopping a machine is."""
     targets = sorted(session.nodes) if node_id == 0 else [session.node(node_id).node_id]
     guard = guard_for(session)
     if command is not NmtCommand.START:
@@ -553,7 +492,7 @@ async def nmt(session: Session, command: NmtCommand, node_id: int, panel: Panel 
         guard.check(target, panel, _("NMT start of node {node}").format(node=target))
     with contextlib.ExitStack() as leases:
         for target in targets:
-            leases.enter_context(node_lease.writing(session, target))
+            leases.enter_context(node_lease.writing(session, target, ctx))
         await session.nmt(command, node_id)
     guard.started.update(targets)
     if keepalive:
@@ -563,16 +502,17 @@ async def nmt(session: Session, command: NmtCommand, node_id: int, panel: Panel 
 
 
 async def send_rpdo(session: Session, node_id: int, number: int, values: dict[str, str], panel: Panel = SERVICE_PANEL,
-                    *, confirm: object = None, owner: str | None = None, period_ms: int | None = None,
-                    keepalive: bool = True) -> bytes:
+                    *, ctx: WriteContext, confirm: object = None, owner: str | None = None,
+                    period_ms: int | None = None, keepalive: bool = True) -> bytes:
     """Send an RPDO once or (``owner`` and ``period_ms``) cyclically. Needs the confirmation naming the node and
-    its write lease, and arms the node for ``panel`` (unless ``keepalive`` is off: the caller checked it may)."""
+    its write lease (``ctx``'s writer's), and arms the node for ``panel`` (unless ``keepalive`` is off: the caller
+    checked it may)."""
     what = _("Sending RPDO{number}").format(number=number)
     require_confirmation(confirm, node_id, what, rpdo_values(number, values, period_ms if owner else None))
     guard = guard_for(session)
     guard.check(node_id, panel, what)
     service = live.service(session)
-    with node_lease.writing(session, node_id):
+    with node_lease.writing(session, node_id, ctx):
         if owner is not None and period_ms is not None:
             data = await service.start_cyclic(owner, node_id, number, values, period_ms)
         else:

@@ -25,9 +25,9 @@ from drivebench.i18n import N_, _
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.control import drive_control, soft_limits
 from drivebench.services.control.drive_control import SERVICE_PANEL, DriveStatus, Panel, guard_for, has_ref
-from drivebench.services.control.drive_guard import cleared
 from drivebench.services.control.drive_units import motion_units
 from drivebench.services.params import parameters
+from drivebench.services.params.write_context import WriteContext
 from drivebench.services.pdos import process_data as live
 
 NEW_SET_POINT, CHANGE_IMMEDIATELY, RELATIVE = 0x0010, 0x0020, 0x0040
@@ -137,19 +137,20 @@ async def _enabled(session: Session, node: SessionNode, panel: Panel, what: str)
     return status
 
 
-async def _mode(session: Session, node: SessionNode, status: DriveStatus, mode: int, panel: Panel) -> None:
+async def _mode(session: Session, node: SessionNode, status: DriveStatus, mode: int, panel: Panel,
+                ctx: WriteContext) -> None:
     if status.mode != mode:
         if mode not in status.modes:
             raise InvalidValue(_("{device} does not support {mode} mode.").format(device=node.device_name,
                                                                                    mode=cia402.mode_label(mode)))
-        with cleared():  # the move, homing run or stream that needs it was confirmed with this mode
-            await drive_control.set_mode(session, node, mode, panel=panel)
+        # the move, homing run or stream that needs it was confirmed with this mode
+        await drive_control.set_mode(session, node, mode, ctx=ctx.cleared_by_caller(), panel=panel)
 
 
-async def _edge(session: Session, node: SessionNode, base: int, *, hold: bool) -> None:
+async def _edge(session: Session, node: SessionNode, base: int, ctx: WriteContext, *, hold: bool) -> None:
     """Bit 4 from 0 to 1 on top of ``base``; unless ``hold``, back to 0 once the drive acknowledged it."""
-    await drive_control.write_control_word(session, node, base)
-    await drive_control.write_control_word(session, node, base | NEW_SET_POINT)
+    await drive_control.write_control_word(session, node, base, ctx)
+    await drive_control.write_control_word(session, node, base | NEW_SET_POINT, ctx)
     if hold:
         return
     deadline = time.monotonic() + ACK_TIMEOUT_S
@@ -161,11 +162,11 @@ async def _edge(session: Session, node: SessionNode, base: int, *, hold: bool) -
             raise Conflict(_("The drive did not acknowledge the new set-point (status word bit 12) within {seconds} s.")
                            .format(seconds=f"{ACK_TIMEOUT_S:g}"))
         await asyncio.sleep(0.01)
-    await drive_control.write_control_word(session, node, base)
+    await drive_control.write_control_word(session, node, base, ctx)
 
 
 async def move(session: Session, node: SessionNode, target: float, *, relative: bool = False,
-               immediate: bool = True, velocity: float | None = None, confirm: object = None,
+               immediate: bool = True, velocity: float | None = None, ctx: WriteContext, confirm: object = None,
                panel: Panel = SERVICE_PANEL) -> DriveStatus:
     """A profile-position move to ``target`` (position units), at ``velocity`` (0x6081) when given."""
     status = await _enabled(session, node, panel, _("A profile-position move"))
@@ -194,20 +195,20 @@ async def move(session: Session, node: SessionNode, target: float, *, relative: 
     drive_control.require_confirmation(confirm, node.node_id, _("Move to {target} {unit}").format(
         target=f"{target:g}", unit=units.position), values)
     guard_for(session).arm(node.node_id, panel)
-    await _mode(session, node, status, 1, panel)
-    with cleared():  # confirmed and armed above
-        if velocity is not None:
-            await parameters.write(session, node.node_id, cia402.PROFILE_VELOCITY, velocity, verify=False)
-        await parameters.write(session, node.node_id, cia402.TARGET_POSITION, target, verify=False)
+    await _mode(session, node, status, 1, panel, ctx)
+    done = ctx.cleared_by_caller()  # confirmed and armed above
+    if velocity is not None:
+        await parameters.write(session, node.node_id, cia402.PROFILE_VELOCITY, velocity, ctx=done, verify=False)
+    await parameters.write(session, node.node_id, cia402.TARGET_POSITION, target, ctx=done, verify=False)
     base = await drive_control.last_control_word(session, node) & ~MODE_BITS
     base |= (CHANGE_IMMEDIATELY if immediate else 0) | (RELATIVE if relative else 0)
-    await _edge(session, node, base, hold=False)
+    await _edge(session, node, base, ctx, hold=False)
     if relative:
-        soft_limits.start(session, node, "move")
+        soft_limits.start(session, node, "move", ctx)
     return await drive_control.read_status(session, node, panel)
 
 
-async def home(session: Session, node: SessionNode, method: int, *, confirm: object = None,
+async def home(session: Session, node: SessionNode, method: int, *, ctx: WriteContext, confirm: object = None,
                panel: Panel = SERVICE_PANEL) -> DriveStatus:
     """Homing (mode 6) with ``method`` (0x6098); bit 4 stays set until the next command."""
     supported = await homing_methods(session, node)
@@ -224,11 +225,12 @@ async def home(session: Session, node: SessionNode, method: int, *, confirm: obj
         {**drive_control.sent(node, cia402.MODES_OF_OPERATION, 6),
          **drive_control.sent(node, cia402.HOMING_METHOD, method)})
     guard_for(session).arm(node.node_id, panel)
-    await _mode(session, node, status, 6, panel)
-    with cleared():  # confirmed and armed above
-        await parameters.write(session, node.node_id, cia402.HOMING_METHOD, method, verify=False)
+    await _mode(session, node, status, 6, panel, ctx)
+    # confirmed and armed above
+    await parameters.write(session, node.node_id, cia402.HOMING_METHOD, method, ctx=ctx.cleared_by_caller(),
+                           verify=False)
     base = await drive_control.last_control_word(session, node) & ~MODE_BITS
-    await _edge(session, node, base, hold=True)
+    await _edge(session, node, base, ctx, hold=True)
     return await drive_control.read_status(session, node, panel)
 
 

@@ -27,9 +27,10 @@ from drivebench.device.drive import cia402
 from drivebench.errors import DriveBenchError, OutOfRange
 from drivebench.i18n import N_, Text, _
 from drivebench.services.bus.sessions import Session, SessionNode
-from drivebench.services.control.drive_guard import cleared, last_word, write_word
+from drivebench.services.control.drive_guard import last_word, write_word
 from drivebench.services.control.drive_units import generic_limits, motion_units, position_per_velocity
-from drivebench.services.params import node_lease, parameters
+from drivebench.services.params import parameters
+from drivebench.services.params.write_context import WriteContext
 
 INTERNAL_LIMIT = 0x0800
 """0x6041 bit 11 *internal limit active*."""
@@ -118,14 +119,15 @@ async def check_relative(session: Session, node: SessionNode, distance: float) -
         high=f"{limits[1]:g}", unit=unit))
 
 
-def start(session: Session, node: SessionNode, what: str) -> None:
-    """Watch the motion ``what`` ("jog", "velocity", "move") just started (a watch already running ends first)."""
+def start(session: Session, node: SessionNode, what: str, ctx: WriteContext) -> None:
+    """Watch the motion ``what`` ("jog", "velocity", "move") just started by ``ctx`` (a watch already running ends
+    first); its halt is ``ctx``'s, stopping."""
     old = _watch_of(node)
     if old.task is not None and not old.task.done():
         old.task.cancel()
     watch = Watch()
     object.__setattr__(node, "_limit_watch", watch)
-    watch.task = asyncio.get_running_loop().create_task(_run(session, node, what, watch))
+    watch.task = asyncio.get_running_loop().create_task(_run(session, node, what, watch, ctx))
 
 
 def stop(node: SessionNode) -> None:
@@ -159,12 +161,12 @@ async def _number(session: Session, node: SessionNode, ref: str, default: float)
     return float(value) if isinstance(value, (int, float)) and value > 0 else default
 
 
-async def _run(session: Session, node: SessionNode, what: str, watch: Watch) -> None:
+async def _run(session: Session, node: SessionNode, what: str, watch: Watch, ctx: WriteContext) -> None:
     with contextlib.suppress(DriveBenchError):
-        await _watch(session, node, what, watch)
+        await _watch(session, node, what, watch, ctx)
 
 
-async def _watch(session: Session, node: SessionNode, what: str, watch: Watch) -> None:
+async def _watch(session: Session, node: SessionNode, what: str, watch: Watch, ctx: WriteContext) -> None:
     limits = await bounds(session, node)
     if limits is None:
         return
@@ -199,7 +201,7 @@ async def _watch(session: Session, node: SessionNode, what: str, watch: Watch) -
             margin = room - braking - speed * max(REACTION_S, 3 * slowest)
             pause = min(FAR_PAUSE_S, max(READ_PAUSE_S, margin / speed / 4))  # far from it: fewer reads on the bus
             if margin <= 0:
-                await _halt(session, node, mode)
+                await _halt(session, node, mode, ctx)
                 stood = await _stood(session, node, per_velocity)
                 gap = abs(edge - stood) if stood is not None else room
                 watch.note = Text(N_("DriveBench halted {what} {gap} {unit} before the software limit {limit} {unit} "
@@ -212,14 +214,15 @@ async def _watch(session: Session, node: SessionNode, what: str, watch: Watch) -
         await asyncio.sleep(pause)
 
 
-async def _halt(session: Session, node: SessionNode, mode: object) -> None:
-    """Velocity modes: setpoint 0 (the drive ramps down with 0x6084); other modes: control word bit 8 halt."""
-    with node_lease.stopping(), cleared():  # stopping a drive is never refused
-        if mode in (3, 9):
-            await parameters.write(session, node.node_id, cia402.TARGET_VELOCITY, 0, verify=False)
-        else:
-            word = await last_word(session, node.node_id, cia402.CONTROL_WORD)
-            await write_word(session, node.node_id, cia402.CONTROL_WORD, word | HALT)
+async def _halt(session: Session, node: SessionNode, mode: object, ctx: WriteContext) -> None:
+    """Velocity modes: setpoint 0 (the drive ramps down with 0x6084); other modes: control word bit 8 halt (not a
+    still word: it is the confirmed motion's own halt, cleared by the caller)."""
+    halt = ctx.cleared_by_caller().stopping()  # stopping a drive is never refused
+    if mode in (3, 9):
+        await parameters.write(session, node.node_id, cia402.TARGET_VELOCITY, 0, ctx=halt, verify=False)
+    else:
+        word = await last_word(session, node.node_id, cia402.CONTROL_WORD)
+        await write_word(session, node.node_id, cia402.CONTROL_WORD, word | HALT, halt)
 
 
 async def _stood(session: Session, node: SessionNode, per_velocity: float) -> float | None:

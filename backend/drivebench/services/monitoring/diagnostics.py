@@ -19,7 +19,7 @@ from drivebench.protocol.canopen.network import frames_of
 from drivebench.protocol.emcy import EmcyEvent
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.params import node_lease, parameters
-from drivebench.services.params.write_origin import acting
+from drivebench.services.params.write_context import WriteContext
 
 HEARTBEAT_PRODUCER = 0x1017
 HEARTBEAT_CONSUMERS = 0x1016
@@ -157,11 +157,10 @@ def network_health(session: Session) -> list[NodeHealth]:
 AUDIT_ORIGIN = "diagnostics"
 
 
-async def _send(session: Session, node_id: int, index: int, subindex: int, data: bytes) -> None:
-    """A write of the Diagnostics tab (heartbeat, node guarding), read back, in the audit log with the origin
-    ``diagnostics``."""
-    with acting(AUDIT_ORIGIN):
-        await parameters.send_logged(session, node_id, index, subindex, data, verify=True)
+async def _send(session: Session, node_id: int, index: int, subindex: int, data: bytes, ctx: WriteContext) -> None:
+    """A write of the Diagnostics tab (heartbeat, node guarding), read back, in the audit log as ``ctx``'s with the
+    origin ``diagnostics``."""
+    await parameters.send_logged(session, node_id, index, subindex, data, ctx=ctx.as_origin(AUDIT_ORIGIN), verify=True)
 
 
 # --- heartbeat set-up (8400 motec manual's commissioning example: consumer = producer id + time) ----------------
@@ -187,11 +186,11 @@ def _configured(session: Session, node_id: int, period_ms: int) -> None:
 
 
 @node_lease.leased
-async def write_heartbeat_producer(session: Session, node_id: int, time_ms: int) -> HeartbeatSetup:
+async def write_heartbeat_producer(session: Session, node_id: int, ctx: WriteContext, time_ms: int) -> HeartbeatSetup:
     if not 0 <= time_ms <= 0xFFFF:
         raise InvalidValue(_("Heartbeat producer time {time} ms is outside 0 … 65535 ms (0 = off).").format(
             time=time_ms))
-    await _send(session, node_id, HEARTBEAT_PRODUCER, 0, time_ms.to_bytes(2, "little"))
+    await _send(session, node_id, HEARTBEAT_PRODUCER, 0, time_ms.to_bytes(2, "little"), ctx)
     _configured(session, node_id, time_ms)
     setup = await read_heartbeat_setup(session, node_id)
     if setup.producer_time_ms != time_ms:
@@ -201,7 +200,7 @@ async def write_heartbeat_producer(session: Session, node_id: int, time_ms: int)
 
 
 @node_lease.leased
-async def _producer_period_s(session: Session, producer_id: int) -> float | None:
+async def _producer_period_s(session: Session, producer_id: int, ctx: WriteContext) -> float | None:
     """The producer's configured heartbeat time (its 0x1017, what CiA 301 compares a consumer time with); the period
     measured from its telegrams only when the producer cannot be asked (a late telegram must not refuse a right
     consumer time)."""
@@ -216,7 +215,7 @@ async def _producer_period_s(session: Session, producer_id: int) -> float | None
     return configured / 1000 if configured else None
 
 
-async def write_heartbeat_consumer(session: Session, node_id: int, slot: int, producer_id: int,
+async def write_heartbeat_consumer(session: Session, node_id: int, ctx: WriteContext, slot: int, producer_id: int,
                                    time_ms: int) -> HeartbeatSetup:
     """CiA 301 0x1016: bits 16..22 producer node id, bits 0..15 consumer time in ms (0 = slot unused)."""
     if not 0 <= producer_id <= 127:
@@ -230,13 +229,13 @@ async def write_heartbeat_consumer(session: Session, node_id: int, slot: int, pr
     if not 1 <= slot <= len(setup.consumers):
         raise InvalidValue(_("Node {node} has {count} heartbeat consumer entries; entry {slot} does not exist.")
                            .format(node=node_id, count=len(setup.consumers), slot=slot))
-    producer = await _producer_period_s(session, producer_id) if producer_id and time_ms else None
+    producer = await _producer_period_s(session, producer_id, ctx) if producer_id and time_ms else None
     if producer and time_ms and time_ms <= producer * 1000:
         raise InvalidValue(_("Consumer time {time} ms must be longer than node {producer}'s heartbeat producer time "
                              "({period} ms), or every heartbeat would be late.").format(
             time=time_ms, producer=producer_id, period=f"{producer * 1000:.0f}"))
     entry = (producer_id << 16) | time_ms
-    await _send(session, node_id, HEARTBEAT_CONSUMERS, slot, entry.to_bytes(4, "little"))
+    await _send(session, node_id, HEARTBEAT_CONSUMERS, slot, entry.to_bytes(4, "little"), ctx)
     setup = await read_heartbeat_setup(session, node_id)
     written = setup.consumers[slot - 1]
     if (written.producer_id, written.time_ms) != (producer_id, time_ms):
@@ -249,7 +248,8 @@ async def write_heartbeat_consumer(session: Session, node_id: int, slot: int, pr
 
 # --- node guarding (devices that use it instead of heartbeat: EMF2178IB, MICROMASTER) ---------------------------
 @node_lease.leased
-async def start_guarding(session: Session, node_id: int, guard_time_ms: int, life_time_factor: int) -> GuardingPublic:
+async def start_guarding(session: Session, node_id: int, ctx: WriteContext, guard_time_ms: int,
+                         life_time_factor: int) -> GuardingPublic:
     """Write guard time (0x100C) and life time factor (0x100D) to the node, then guard it; 0 ms stops guarding."""
     node = session.node(node_id)
     if node.profile is not None and not node.profile.features.node_guarding:
@@ -258,10 +258,10 @@ async def start_guarding(session: Session, node_id: int, guard_time_ms: int, lif
     if not 0 <= guard_time_ms <= 0xFFFF or not 0 <= life_time_factor <= 0xFF:
         raise InvalidValue(_("Guard time must be 0 … 65535 ms and life time factor 0 … 255."))
     if guard_time_ms and life_time_factor:  # CiA 301: a node with a heartbeat producer time does not guard
-        await _send(session, node_id, HEARTBEAT_PRODUCER, 0, (0).to_bytes(2, "little"))
+        await _send(session, node_id, HEARTBEAT_PRODUCER, 0, (0).to_bytes(2, "little"), ctx)
         _configured(session, node_id, 0)
-    await _send(session, node_id, GUARD_TIME, 0, guard_time_ms.to_bytes(2, "little"))
-    await _send(session, node_id, LIFE_TIME_FACTOR, 0, life_time_factor.to_bytes(1, "little"))
+    await _send(session, node_id, GUARD_TIME, 0, guard_time_ms.to_bytes(2, "little"), ctx)
+    await _send(session, node_id, LIFE_TIME_FACTOR, 0, life_time_factor.to_bytes(1, "little"), ctx)
     if guard_time_ms == 0 or life_time_factor == 0:
         if session.guarding is not None:
             session.guarding.release(node_id)

@@ -8,9 +8,9 @@ An admin may break a lease (logged). A browser tab's leases end when its last pa
 :meth:`SessionLeases.client_closed`); the same principal in another tab or script takes over a lease whose client is
 not connected (it is the same engineer), never one of a tab still open.
 
-Who writes comes from a context variable the web layer sets per request (:func:`writing_as`); writes without one
-(internal service calls) take no lease but are still refused while someone else holds the node. Stopping a drive
-(quick stop, the guard's trip) is never refused: it runs inside :func:`stopping`.
+Who writes is the :class:`~drivebench.services.params.write_context.WriteContext` every write carries (its
+``writer``); a context without one (a service's own writes) takes no lease but is still refused while someone else
+holds the node. Stopping a drive (quick stop, the guard's trip: a context that ``stops``) is never refused.
 """
 
 from __future__ import annotations
@@ -21,29 +21,18 @@ import logging
 import threading
 import time
 from collections.abc import Awaitable, Callable, Iterator
-from contextvars import ContextVar
 from dataclasses import dataclass, field
 from typing import Concatenate, ParamSpec, Protocol, TypeVar
 
 from drivebench.errors import Conflict, NotFound
 from drivebench.i18n import N_, _
 from drivebench.services.bus.sessions import Session
+from drivebench.services.params.write_context import WriteContext, Writer
+
+__all__ = ["LEASE_TTL_S", "Lease", "NodeLeased", "SessionLeases", "Writer", "leased", "leases", "writing"]
 
 LEASE_TTL_S = 30.0
 log = logging.getLogger(__name__)
-
-
-@dataclass(frozen=True)
-class Writer:
-    name: str
-    """The principal's name (shown to the others)."""
-    client: str
-    """One browser tab (``panel:<tab id>``) or one API client (``client:<host>``)."""
-    where: str = N_("the API")
-    """Where the writes come from, as the others are shown it ("Parameters tab")."""
-
-    def same(self, other: Writer) -> bool:
-        return self.name == other.name and self.client == other.client
 
 
 @dataclass
@@ -190,33 +179,14 @@ def leases(session: Session) -> SessionLeases:
     return services.leases
 
 
-# --- who writes: set per request by the web layer ---------------------------------------------------------------
-current_writer: ContextVar[Writer | None] = ContextVar("drivebench_writer", default=None)
-_stopping: ContextVar[bool] = ContextVar("drivebench_stopping", default=False)
-
-
-def writing_as(writer: Writer | None) -> None:
-    """Writes from here on (this request, and the tasks it starts) are ``writer``'s."""
-    current_writer.set(writer)
-
-
 @contextlib.contextmanager
-def stopping() -> Iterator[None]:
-    """Writes inside the block stop a drive: never refused by a lease (any station may stop a machine)."""
-    token = _stopping.set(True)
-    try:
-        yield
-    finally:
-        _stopping.reset(token)
-
-
-@contextlib.contextmanager
-def writing(session: Session, node_id: int) -> Iterator[None]:
-    """Around one write or one operation on the node: takes (or checks) the lease and holds it while inside."""
-    if _stopping.get():
+def writing(session: Session, node_id: int, ctx: WriteContext) -> Iterator[None]:
+    """Around one write or one operation on the node: takes (or checks) the lease for ``ctx``'s writer and holds it
+    while inside; a context that stops a drive passes."""
+    if ctx.stops:
         yield
         return
-    writer = current_writer.get()
+    writer = ctx.writer
     table = leases(session)
     if writer is None:
         table.check(node_id)
@@ -233,11 +203,12 @@ P = ParamSpec("P")
 R = TypeVar("R")
 
 
-def leased(write: Callable[Concatenate[Session, int, P], Awaitable[R]]
-           ) -> Callable[Concatenate[Session, int, P], Awaitable[R]]:
-    """A service coroutine ``(session, node_id, ...)`` that writes to the node runs inside :func:`writing`."""
+def leased(write: Callable[Concatenate[Session, int, WriteContext, P], Awaitable[R]]
+           ) -> Callable[Concatenate[Session, int, WriteContext, P], Awaitable[R]]:
+    """A service coroutine ``(session, node_id, ctx, ...)`` that writes to the node runs inside :func:`writing`."""
     @functools.wraps(write)
-    async def under_lease(session: Session, node_id: int, /, *args: P.args, **kwargs: P.kwargs) -> R:
-        with writing(session, node_id):
-            return await write(session, node_id, *args, **kwargs)
+    async def under_lease(session: Session, node_id: int, ctx: WriteContext, /, *args: P.args,
+                          **kwargs: P.kwargs) -> R:
+        with writing(session, node_id, ctx):
+            return await write(session, node_id, ctx, *args, **kwargs)
     return under_lease

@@ -27,6 +27,7 @@ from drivebench.services.bus.sessions import Session
 from drivebench.services.params import node_lease
 from drivebench.services.params import parameters as service
 from drivebench.services.params.parameters import WriteResult
+from drivebench.services.params.write_context import WriteContext
 
 MAX_BATCH_WRITE = 500
 """Values one batch write may carry (as many as a batch read may name)."""
@@ -65,11 +66,12 @@ class Outcome:
     error: DriveBenchError | None = None
 
 
-def _validated(session: Session, node_id: int, wanted: Sequence[Wanted], *, check: bool
-               ) -> list[tuple[object, bool]]:
+def _validated(session: Session, node_id: int, wanted: Sequence[Wanted], ctx: WriteContext, *, check: bool
+               ) -> tuple[list[tuple[object, bool]], WriteContext]:
     """Each item validated as :func:`parameters.write` validates it: the value to write, and whether writing it
-    stops the drive (a control word that only stops: never refused by the lease). Raises :class:`BatchInvalid`, or
-    the confirmation's 428 / the guard's 409 for a moving item, before anything is sent."""
+    stops the drive (a control word that only stops: never refused by the lease); and the context the writes carry
+    (with the moving values confirmed). Raises :class:`BatchInvalid`, or the confirmation's 428 / the guard's 409 for
+    a moving item, before anything is sent."""
     node = session.node(node_id)
     problems: list[DriveBenchError | None] = []
     moving: list[str] = []
@@ -92,27 +94,28 @@ def _validated(session: Session, node_id: int, wanted: Sequence[Wanted], *, chec
     if any(problems):
         raise BatchInvalid(problems)
     if moving:
-        service.service(session).moving_writes.confirm(node_id, _("Writing {refs}").format(refs=", ".join(moving)),
-                                                        sent)
-    return checked
+        ctx = service.service(session).moving_writes.confirm(ctx, node_id, _("Writing {refs}").format(
+            refs=", ".join(moving)), sent)
+    return checked, ctx
 
 
-async def write_many(session: Session, node_id: int, wanted: Sequence[Wanted], *, check: bool = True,
-                     verify: bool = True) -> list[Outcome]:
+async def write_many(session: Session, node_id: int, wanted: Sequence[Wanted], *, ctx: WriteContext,
+                     check: bool = True, verify: bool = True) -> list[Outcome]:
     """Validate all, then write in order and stop at the first error (see the module's text)."""
     if len(wanted) > MAX_BATCH_WRITE:
         raise InvalidValue(_("A batch write carries at most {most} values; this one carries {count}.").format(
             most=MAX_BATCH_WRITE, count=len(wanted)))
-    checked = _validated(session, node_id, wanted, check=check)
+    checked, ctx = _validated(session, node_id, wanted, ctx, check=check)
     outcomes: list[Outcome] = []
     stopping_only = all(stopping for _value, stopping in checked)
-    with contextlib.nullcontext() if stopping_only else node_lease.writing(session, node_id):
+    with contextlib.nullcontext() if stopping_only else node_lease.writing(session, node_id, ctx):
         for item, (value, _stopping) in zip(wanted, checked, strict=True):
             if outcomes and outcomes[-1].state is not State.WRITTEN:
                 outcomes.append(Outcome(item.ref, State.NOT_SENT))
                 continue
             try:
-                result = await service.write(session, node_id, item.ref, value, check=check, verify=verify)
+                result = await service.write(session, node_id, item.ref, value, ctx=ctx, check=check,
+                                             verify=verify)
             except DriveBenchError as exc:
                 outcomes.append(Outcome(item.ref, State.FAILED, error=exc))
             else:

@@ -63,7 +63,7 @@ from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.params import node_lease
 from drivebench.services.params.jobs import Job, JobIssue, JobManager, said
 from drivebench.services.params.node_silence import NodeSilence
-from drivebench.services.params.write_origin import acting
+from drivebench.services.params.write_context import READ_ALL_ORIGIN, WriteContext
 
 T = TypeVar("T")
 
@@ -565,6 +565,8 @@ class WriteAttempt:
     item: Item
     old: ParameterValue | None
     new: ScaledValue
+    ctx: WriteContext
+    """Who sends it and from where (the audit row's user and origin)."""
 
 
 class WriteAudit(Protocol):
@@ -584,14 +586,15 @@ class MovingWrites:
     """How :func:`write` lets a write that can move the drive through: the drive guard's checks, given to the session
     when it opens (:meth:`drive_guard.Guard.moving_writes`), so this module needs nothing above it."""
 
-    admit: Callable[[int, str, dict[str, object]], None]
-    """Node id, what is written, the values sent (:func:`sent_values`): refused without the confirmation naming the
-    node and repeating the values; arms the keep-alive."""
-    stopped: Callable[[int], None]
-    """Node id: a control word that stops the drive was written."""
-    confirm: Callable[[int, str, dict[str, object]], None]
-    """Node id, what will be written, the values: refused without the confirmation naming the node and repeating
-    the values, nothing armed yet (a batch checks this before its first write)."""
+    admit: Callable[[WriteContext, int, str, dict[str, object]], None]
+    """The write's context, node id, what is written, the values sent (:func:`sent_values`): refused without the
+    context's confirmation naming the node and repeating the values; arms the keep-alive for its panel."""
+    stopped: Callable[[WriteContext, int], None]
+    """The write's context, node id: a control word that stops the drive was written."""
+    confirm: Callable[[WriteContext, int, str, dict[str, object]], WriteContext]
+    """The context, node id, what will be written, the values: refused without the confirmation naming the node
+    and repeating the values, nothing armed yet (a batch checks this before its first write); the context its writes
+    then carry (with these values confirmed)."""
 
 
 def sent_key(item: Item, unit: str | None = None) -> str:
@@ -654,11 +657,12 @@ def given_value(node: SessionNode, ref: str, value: object, raw: int | None) -> 
     return raw / item.entry.factor if item.entry.factor != 1 else raw
 
 
-async def write(session: Session, node_id: int, ref: str, value: object, *, check: bool = True,
+async def write(session: Session, node_id: int, ref: str, value: object, *, ctx: WriteContext, check: bool = True,
                 verify: bool = True) -> WriteResult:
     """Validate, send, read back. ``value`` is what a user typed (``"10.2"``, ``"10.20 A"``, ``"500 kbit/s"``)
     or a number in engineering units. ``check=False`` leaves range, selection and read-only to the device.
-    Refused (409) while another writer holds the node's lease (:mod:`drivebench.services.params.node_lease`).
+    Refused (409) while another writer holds the node's lease (:mod:`drivebench.services.params.node_lease`); ``ctx``
+    says who writes, from which panel, with which confirmation (:mod:`~drivebench.services.params.write_context`).
 
     A write that can make the drive move (:mod:`drivebench.device.drive.motion`: a control word, setpoint, mode ...)
     needs the confirmation naming the node and arms the keep-alive guard (:func:`drive_guard.admit_moving_write`);
@@ -668,24 +672,25 @@ async def write(session: Session, node_id: int, ref: str, value: object, *, chec
     item, raw = checked_raw(node, ref, value, check=check)
     verdict = judge(item, raw, node.profile)
     stops = verdict.stopping
-    with node_lease.stopping() if stops else contextlib.nullcontext(), node_lease.writing(session, node_id), \
+    with node_lease.writing(session, node_id, ctx.stopping() if stops else ctx), \
             stop_first(session, node_id) if stops else contextlib.nullcontext():
         if verdict.moving:
-            service(session).moving_writes.admit(node_id, f"Writing {item.ref} ({item.name}) = {value}",
+            service(session).moving_writes.admit(ctx, node_id, f"Writing {item.ref} ({item.name}) = {value}",
                                                  sent_values(item, raw))
-        result = await _write(session, node, item, raw, value, verify=verify)
+        result = await _write(session, node, item, raw, value, ctx, verify=verify)
     if verdict.stopping:
-        service(session).moving_writes.stopped(node_id)
+        service(session).moving_writes.stopped(ctx, node_id)
     return result
 
 
-async def _write(session: Session, node: SessionNode, item: Item, raw: RawValue, value: object, *,
-                 verify: bool) -> WriteResult:
+async def _write(session: Session, node: SessionNode, item: Item, raw: RawValue, value: object, ctx: WriteContext,
+                 *, verify: bool) -> WriteResult:
     data = encoded(item, raw, value)
-    return await _audited(session, node.node_id, item, raw, partial(_send, session, node, item, raw, data, verify))
+    return await _audited(session, node.node_id, item, raw, ctx,
+                          partial(_send, session, node, item, raw, data, verify))
 
 
-async def _audited(session: Session, node_id: int, item: Item, raw: RawValue,
+async def _audited(session: Session, node_id: int, item: Item, raw: RawValue, ctx: WriteContext,
                    send: Callable[[], Awaitable[WriteResult]]) -> WriteResult:
     """``send()`` between the session's :class:`WriteAudit` rows: one before it, completed with its outcome."""
     state = service(session)
@@ -693,7 +698,7 @@ async def _audited(session: Session, node_id: int, item: Item, raw: RawValue,
     if not audits:
         return await send()
     attempt = WriteAttempt(session, node_id, item, state.values.get(node_id, {}).get(item.ref),
-                           from_raw(item.entry, raw))
+                           from_raw(item.entry, raw), ctx)
     tokens = [(audit, await audit.sending(attempt)) for audit in audits]
     try:
         result = await send()
@@ -768,10 +773,10 @@ def _object_at(node: SessionNode, index: int, subindex: int, size: int) -> Item:
 
 
 async def send_logged(session: Session, node_id: int, index: int, subindex: int, data: bytes, *,
-                      verify: bool = False) -> WriteResult:
+                      ctx: WriteContext, verify: bool = False) -> WriteResult:
     """A download a service sends itself rather than through :func:`write` (a PDO configuration step, the heartbeat
-    time, SDO2's COB-IDs): in the audit log like every write, with the origin of :mod:`write_origin`'s context, read
-    back with ``verify``. A lost answer is :class:`WriteOutcomeUnknown` as in :func:`write`. The caller holds the
+    time, SDO2's COB-IDs): in the audit log like every write, with ``ctx``'s user and origin, read back with
+    ``verify``. A lost answer is :class:`WriteOutcomeUnknown` as in :func:`write`. The caller holds the
     node's lease and checked the value."""
     node = session.node(node_id)
     item = _object_at(node, index, subindex, len(data))
@@ -779,7 +784,7 @@ async def send_logged(session: Session, node_id: int, index: int, subindex: int,
         raw: RawValue = decode(item.entry.data_type, data)
     except (ValueError, UnicodeDecodeError):
         raw = int.from_bytes(data, "little")
-    return await _audited(session, node_id, item, raw, partial(_send, session, node, item, raw, data, verify))
+    return await _audited(session, node_id, item, raw, ctx, partial(_send, session, node, item, raw, data, verify))
 
 
 # --- device commands -------------------------------------------------------------------------------------
@@ -806,13 +811,13 @@ def _command_write(node: SessionNode, catalog: Catalog | None, which: DeviceComm
     return standard if catalog is None or _find(catalog, standard.ref) is not None else None
 
 
-async def command(session: Session, node_id: int, which: DeviceCommand) -> CommandResult:
+async def command(session: Session, node_id: int, which: DeviceCommand, *, ctx: WriteContext) -> CommandResult:
     session.node(node_id)
-    with node_lease.writing(session, node_id):
-        return await _command(session, node_id, which)
+    with node_lease.writing(session, node_id, ctx):
+        return await _command(session, node_id, which, ctx)
 
 
-async def _command(session: Session, node_id: int, which: DeviceCommand) -> CommandResult:
+async def _command(session: Session, node_id: int, which: DeviceCommand, ctx: WriteContext) -> CommandResult:
     node = session.node(node_id)
     catalog = _catalog(node)
     client = session.client(node_id)
@@ -828,7 +833,7 @@ async def _command(session: Session, node_id: int, which: DeviceCommand) -> Comm
     if item is not None:
         index, subindex, data = item.index, item.subindex, encode(item.entry.data_type, write.raw)
         if judge(item, write.raw, node.profile).moving:  # a profile's command is a write like any other
-            service(session).moving_writes.admit(node_id, _("The {command} command ({via})").format(
+            service(session).moving_writes.admit(ctx, node_id, _("The {command} command ({via})").format(
                 command=_command_name(which), via=write.via), sent_values(item, write.raw))
     elif catalog is None:  # no profile: the CiA 301 object, addressed as such
         parsed = parse_ref(write.ref)
@@ -850,8 +855,6 @@ def _command_name(which: DeviceCommand) -> str:
 
 
 # --- second SDO channel ----------------------------------------------------------------------------------
-READ_ALL_ORIGIN = "read-all"
-"""The audit log's origin of the writes a read-all sends (switching a node's second SDO channel on)."""
 
 
 def _sdo2_check_blocking(session: Session, node: SessionNode) -> tuple[_NodeChannels, tuple[int, int] | None]:
@@ -894,7 +897,7 @@ def _use_sdo2(client: NodeClient, channels: _NodeChannels, rx: int, tx: int) -> 
     channels.active = True
 
 
-async def _activate_sdo2(session: Session, node: SessionNode) -> _NodeChannels:
+async def _activate_sdo2(session: Session, node: SessionNode, ctx: WriteContext) -> _NodeChannels:
     """Switch on the profile's first additional SDO server where that is safe (the writes in the audit log with the
     origin of whoever reads: a read-all, a parameter-set download reading the values before it writes)."""
     channels, switch_on = await _on_bus(lambda: _sdo2_check_blocking(session, node))
@@ -903,7 +906,8 @@ async def _activate_sdo2(session: Session, node: SessionNode) -> _NodeChannels:
     extra = node.profile.sdo_channels[0]
     rx, tx = switch_on
     for sub, cob_id in ((1, rx), (2, tx)):  # client -> server first, then server -> client (the manuals' 0x1201)
-        await send_logged(session, node.node_id, extra.parameter_index, sub, cob_id.to_bytes(4, "little"), verify=True)
+        await send_logged(session, node.node_id, extra.parameter_index, sub, cob_id.to_bytes(4, "little"),
+                          ctx=ctx, verify=True)
     channels.note = Text(N_("SDO{number} activated on node {node} ({rx}/{tx}, not saved)"), number=extra.number,
                           node=node.node_id, rx=f"0x{rx:03X}", tx=f"0x{tx:03X}")
     client = session.client(node.node_id)
@@ -912,12 +916,12 @@ async def _activate_sdo2(session: Session, node: SessionNode) -> _NodeChannels:
     return channels
 
 
-async def sdo_channels(session: Session, node: SessionNode) -> list[int]:
+async def sdo_channels(session: Session, node: SessionNode, ctx: WriteContext) -> list[int]:
     """The channel numbers to spread reads over (SDO2 activated first where possible; asked twice when it times
     out, as one late answer on a busy machine would otherwise halve the read-all's speed)."""
     for attempt in range(2):
         try:
-            channels = await _activate_sdo2(session, node)
+            channels = await _activate_sdo2(session, node, ctx)
         except SdoTimeoutError:
             if attempt:
                 return [1]
@@ -954,14 +958,15 @@ def silence_watch(session: Session, node_id: int) -> NodeSilence:
     return _silence(session, session.client(node_id), 1)
 
 
-async def read_node(session: Session, node: SessionNode, work: list[Item], job: Job) -> None:
-    """Read the items over the node's SDO channels. A read that times out is asked again at the end; the node is
-    given up only when :class:`NodeSilence` judges it silent (not after two slow answers)."""
+async def read_node(session: Session, node: SessionNode, work: list[Item], job: Job, ctx: WriteContext) -> None:
+    """Read the items over the node's SDO channels (``ctx``: whose writes switch its SDO2 on). A read that times out
+    is asked again at the end; the node is given up only when :class:`NodeSilence` judges it silent (not after two
+    slow answers)."""
     state = service(session)
     client = session.client(node.node_id)
     key = str(node.node_id)
     values: dict[str, object] = job.result.setdefault("values", {}).setdefault(key, {})
-    channel_numbers = await sdo_channels(session, node)
+    channel_numbers = await sdo_channels(session, node, ctx)
     note = state.channels.get(node.node_id)
     if note is not None and note.note and note.note not in job.notes:
         job.notes.append(note.note)
@@ -1024,10 +1029,12 @@ async def read_node(session: Session, node: SessionNode, work: list[Item], job: 
         job.give_up(len(queue))
 
 
-def start_read(session: Session, node_ids: Iterable[int], jobs: JobManager, *, group: str | None = None,
-               parameter_set: int = 1) -> Job:
+def start_read(session: Session, node_ids: Iterable[int], jobs: JobManager, *, ctx: WriteContext,
+               group: str | None = None, parameter_set: int = 1) -> Job:
     """A job reading every readable parameter (or one group) of the nodes, the codes kept per parameter set in
-    ``parameter_set``; different nodes in parallel."""
+    ``parameter_set``; different nodes in parallel. What it writes (a node's SDO2 switched on) is ``ctx``'s, with
+    the origin ``read-all``."""
+    ctx = ctx.as_origin(READ_ALL_ORIGIN)
     nodes = [session.node(node_id) for node_id in node_ids]
     work = {node.node_id: readable_items(node, group, parameter_set) for node in nodes}
     if group is not None and not any(work.values()):
@@ -1043,8 +1050,7 @@ def start_read(session: Session, node_ids: Iterable[int], jobs: JobManager, *, g
     async def run(job: Job) -> None:
         job.result["values"] = {}
         try:
-            with acting(READ_ALL_ORIGIN):
-                await asyncio.gather(*(read_node(session, node, work[node.node_id], job) for node in nodes))
+            await asyncio.gather(*(read_node(session, node, work[node.node_id], job, ctx) for node in nodes))
         except TransportError as exc:  # the adapter is gone: stop, keep what was read, say how far it got
             read = sum(len(values) for values in job.result["values"].values())
             raise TransportError(Text(N_("{why}, {read} of {total} parameters read before"), why=said(exc),

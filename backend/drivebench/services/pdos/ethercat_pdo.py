@@ -20,6 +20,7 @@ from drivebench.device.profiles.catalog import Catalog
 from drivebench.i18n import N_, _, ngettext
 from drivebench.services.bus.sessions import Session
 from drivebench.services.params import node_lease
+from drivebench.services.params.write_context import WriteContext
 from drivebench.services.pdos import pdo
 from drivebench.services.pdos.pdo import ApplyStep, Direction, MappedObject
 
@@ -171,14 +172,15 @@ def _failure(error: errors.ProtocolError | None) -> type[MappingNotApplied]:
 
 
 async def apply_mapping(session: Session, node_id: int, direction: Direction, number: int,
-                        entries: list[tuple[int, int]]) -> EcatApplyReport:
+                        entries: list[tuple[int, int]], *, ctx: WriteContext) -> EcatApplyReport:
     """Write a mapping (refused 409 while another writer holds the node's lease), then read it back; raises
     :class:`MappingNotApplied` (its subclass says why) with the report when the slave does not take it."""
     _mapping_object(session, node_id, direction, number)  # 409 on a CANopen session, 404 where the profile has none
     name = pdo_name(direction, number)
     chosen = pdo.check_mapping(session, node_id, direction, number, entries, name=name, max_bits=None)
-    with node_lease.writing(session, node_id):
-        steps = await pdo.run_plan(session, node_id, pdo.mapping_plan(pdo.MAP_BASE[direction] + number - 1, chosen))
+    with node_lease.writing(session, node_id, ctx):
+        steps = await pdo.run_plan(session, node_id, pdo.mapping_plan(pdo.MAP_BASE[direction] + number - 1, chosen),
+                                   ctx)
         read_back, unread = await _read_back(session, node_id, direction, number)
     failed = steps[-1]
     if not failed.ok:

@@ -24,7 +24,7 @@ from drivebench.i18n import N_, _
 from drivebench.protocol.datatypes import DataType, decode
 from drivebench.services.bus.sessions import Session
 from drivebench.services.params import node_lease, parameters
-from drivebench.services.params.write_origin import acting
+from drivebench.services.params.write_context import WriteContext
 
 Direction = Literal["rpdo", "tpdo"]
 COMM_BASE: dict[str, int] = {"rpdo": 0x1400, "tpdo": 0x1800}
@@ -275,16 +275,17 @@ def mapping_plan(mapping: int, chosen: list[MappedObject]) -> list[tuple[str, in
     return plan
 
 
-async def run_plan(session: Session, node_id: int, plan: list[tuple[str, int, int, int, int]]) -> list[ApplyStep]:
-    """Download the plan's steps in order, each in the audit log with the origin ``pdo``; stops at the first refused
-    one (the last step, ``ok`` False)."""
+async def run_plan(session: Session, node_id: int, plan: list[tuple[str, int, int, int, int]], ctx: WriteContext
+                   ) -> list[ApplyStep]:
+    """Download the plan's steps in order, each in the audit log as ``ctx``'s with the origin ``pdo``; stops at the
+    first refused one (the last step, ``ok`` False)."""
+    ctx = ctx.as_origin(AUDIT_ORIGIN)
     steps: list[ApplyStep] = []
     for name, index, sub, value, size in plan:
         step = ApplyStep(step=name, index=index, subindex=sub, value=f"0x{value:0{size * 2}X}", ok=True)
         steps.append(step)
         try:
-            with acting(AUDIT_ORIGIN):
-                await parameters.send_logged(session, node_id, index, sub, value.to_bytes(size, "little"))
+            await parameters.send_logged(session, node_id, index, sub, value.to_bytes(size, "little"), ctx=ctx)
         except SdoAbortError as exc:
             step.ok, step.abort_code, step.abort_text, step._error = (False, f"0x{exc.abort_code:08X}",
                                                                       exc.abort_text, exc)
@@ -402,15 +403,16 @@ def _check_transmission_type(catalog: Catalog, direction: Direction, number: int
 
 
 async def apply_pdo(session: Session, node_id: int, direction: Direction, number: int,
-                    write: PdoWrite) -> ApplyReport:
-    """Refused (409) while another writer holds the node's lease; holds it until the last step."""
+                    write: PdoWrite, *, ctx: WriteContext) -> ApplyReport:
+    """Refused (409) while another writer holds the node's lease (``ctx``'s writer takes it); holds it until the
+    last step."""
     node_catalog(session, node_id)
-    with node_lease.writing(session, node_id):
-        return await _apply_pdo(session, node_id, direction, number, write)
+    with node_lease.writing(session, node_id, ctx):
+        return await _apply_pdo(session, node_id, direction, number, write, ctx)
 
 
 async def _apply_pdo(session: Session, node_id: int, direction: Direction, number: int,
-                     write: PdoWrite) -> ApplyReport:
+                     write: PdoWrite, ctx: WriteContext) -> ApplyReport:
     catalog = node_catalog(session, node_id)
     chosen = check_mapping(session, node_id, direction, number, write.entries, name=f"{direction.upper()}{number}")
     _check_transmission_type(catalog, direction, number, write.transmission_type)
@@ -429,7 +431,7 @@ async def _apply_pdo(session: Session, node_id: int, direction: Direction, numbe
     if write.valid:
         plan.append((_("enable PDO (COB-ID valid)"), comm, 1, cob_id | flags, 4))
 
-    steps = await run_plan(session, node_id, plan)
+    steps = await run_plan(session, node_id, plan, ctx)
     if not steps[-1].ok:
         return await _failed(session, node_id, direction, number, steps, disabled=len(steps) > 1)
     pdo = await read_pdo(session, node_id, direction, number)

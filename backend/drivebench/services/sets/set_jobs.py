@@ -42,6 +42,7 @@ from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.control import drive_guard
 from drivebench.services.params import parameters
 from drivebench.services.params.jobs import Job, JobIssue, JobManager, said
+from drivebench.services.params.write_context import WriteContext
 from drivebench.services.sets.download_outcome import FAILED, NOT_WRITTEN, outcome_of
 from drivebench.services.sets.parameter_sets import (
     SERVER,
@@ -132,11 +133,13 @@ def download_order(profile: Profile, refs: list[str]) -> list[str]:
 
 
 # --- reading (the read-all machinery: SDO2 where there is one, silent nodes give up) ------------------------
-async def read_items(session: Session, node: SessionNode, items: list[Item], job: Job) -> tuple[Values, dict[str, str]]:
-    """Raw values by ref, and the refs that could not be read with why."""
+async def read_items(session: Session, node: SessionNode, items: list[Item], job: Job, ctx: WriteContext
+                     ) -> tuple[Values, dict[str, str]]:
+    """Raw values by ref, and the refs that could not be read with why (what reading first writes, SDO2 switched
+    on, is ``ctx``'s)."""
     first_issue = len(job.issues)
     job.result.setdefault("values", {}).pop(str(node.node_id), None)
-    await parameters.read_node(session, node, items, job)
+    await parameters.read_node(session, node, items, job, ctx)
     found = job.result.get("values", {}).pop(str(node.node_id), {})
     values: Values = {}
     for ref, value in found.items():
@@ -147,7 +150,8 @@ async def read_items(session: Session, node: SessionNode, items: list[Item], job
     return values, unread
 
 
-async def device_source(session: Session, node_id: int, refs: list[str] | None = None) -> Source:
+async def device_source(session: Session, node_id: int, refs: list[str] | None = None, *,
+                        ctx: WriteContext) -> Source:
     """The node's current values of its settable parameters (or of ``refs``), read now."""
     node = session.node(node_id)
     profile = _profile(node)
@@ -157,7 +161,7 @@ async def device_source(session: Session, node_id: int, refs: list[str] | None =
     else:
         items = [item for ref in refs if (item := _resolve(catalog, ref)) is not None and item.entry.access.readable]
     job = Job(f"compare-{uuid.uuid4().hex[:6]}", "read", f"Read node {node_id}", len(items))
-    values, unread = await read_items(session, node, items, job)
+    values, unread = await read_items(session, node, items, job, ctx)
     unread = {ref: i18n.shown(why) for ref, why in unread.items()}  # this request's own comparison
     return Source(_("Node {node} ({device})").format(node=node_id, device=node.device_name), profile, values, unread)
 
@@ -172,13 +176,13 @@ def _resolve(catalog: Any, ref: str) -> Item | None:
 
 # --- upload ------------------------------------------------------------------------------------------------
 def start_upload(session: Session, node_id: int, jobs: JobManager, store: ParameterSetStore, *, name: str,
-                 note: str = "", user: str | None = None, into: int | None = None) -> Job:
+                 ctx: WriteContext, note: str = "", user: str | None = None, into: int | None = None) -> Job:
     """A job reading every settable parameter of the node into a new set (``job.result['set_id']``), or into a
     new version of the set ``into`` (the older versions stay: history)."""
     node = session.node(node_id)
     profile = _profile(node)
     items = settable_items(profile)
-    who = user or audit.current_user.get()
+    who = user or ctx.user
     if into is not None:
         _check_target(node, existing := store.get(into))
         name = existing.info.name
@@ -187,8 +191,8 @@ def start_upload(session: Session, node_id: int, jobs: JobManager, store: Parame
                                                                                    session=session.name)
 
     async def run(job: Job) -> None:
-        with audit.acting("upload", who):  # what reading first writes (SDO2 switched on) is the upload's
-            found, unread = await read_items(session, node, items, job)
+        # what reading first writes (SDO2 switched on) is the upload's
+        found, unread = await read_items(session, node, items, job, ctx.as_origin("upload", user=who))
         mapped = rpdo_mapped(found)
         values = {item.ref: found[item.ref] for item in items  # the profile's order
                   if item.ref in found and (item.index, item.subindex) not in mapped}
@@ -214,11 +218,11 @@ def start_upload(session: Session, node_id: int, jobs: JobManager, store: Parame
 
 
 # --- preview -----------------------------------------------------------------------------------------------
-async def preview(session: Session, node_id: int, stored: StoredSet) -> list[ReportLine]:
+async def preview(session: Session, node_id: int, stored: StoredSet, *, ctx: WriteContext) -> list[ReportLine]:
     """What a download would change: only the parameters whose device value differs from the set's."""
     node = session.node(node_id)
     profile = _check_target(node, stored)
-    current = await device_source(session, node_id, list(stored.values))
+    current = await device_source(session, node_id, list(stored.values), ctx=ctx)
     catalog = catalog_for(profile)
     lines: list[ReportLine] = []
     for ref in download_order(profile, list(stored.values)):
@@ -248,7 +252,7 @@ def _check_target(node: SessionNode, stored: StoredSet) -> Profile:
 
 
 # --- download, retry, rollback -----------------------------------------------------------------------------
-async def held_moving(session: Session, node_id: int, targets: Values) -> Values:
+async def held_moving(session: Session, node_id: int, targets: Values, *, ctx: WriteContext) -> Values:
     """What the node holds now of the ``targets`` that can move the drive (read now). A download, a retry and a
     rollback write only what differs, so each confirmation names only the moving values it changes: the route reads
     them with this and hands them to the job (``held=...``). ``targets``: :func:`download_targets`,
@@ -257,7 +261,7 @@ async def held_moving(session: Session, node_id: int, targets: Values) -> Values
     catalog = catalog_for(profile)
     refs = [ref for ref, raw in targets.items() if isinstance(raw, (int, float))
             and (item := _resolve(catalog, ref)) is not None and moves(item, raw, profile) is not None]
-    return (await device_source(session, node_id, refs)).values if refs else {}
+    return (await device_source(session, node_id, refs, ctx=ctx)).values if refs else {}
 
 
 def download_targets(session: Session, node_id: int, stored: StoredSet, only: list[str] | None = None) -> Values:
@@ -290,7 +294,7 @@ def rollback_targets(store: ParameterSetStore, download_id: int) -> Values:
 
 
 def start_download(session: Session, node_id: int, jobs: JobManager, store: ParameterSetStore, stored: StoredSet,
-                   *, save: bool = False, only: list[str] | None = None, user: str | None = None,
+                   *, ctx: WriteContext, save: bool = False, only: list[str] | None = None, user: str | None = None,
                    confirm: object = None, held: Values | None = None) -> Job:
     """Download the set (or only the refs ``only``: a retry of the failed ones) to the node. A set with values
     that can move the drive needs ``confirm`` naming the node (or the request's confirmation) and the moving values
@@ -301,12 +305,12 @@ def start_download(session: Session, node_id: int, jobs: JobManager, store: Para
     kind = "download" if only is None else "retry"
     title = Text(N_("Download '{name}' to node {node}") if only is None else N_("Retry '{name}' to node {node}"),
                   name=stored.info.name, node=node_id)
-    return _start(session, node, jobs, store, targets, kind=kind, title=title, save=save, user=user,
+    return _start(session, node, jobs, store, targets, ctx, kind=kind, title=title, save=save, user=user,
                   set_id=stored.info.id, set_version=stored.version, confirm=confirm, held=held)
 
 
 def start_retry(session: Session, jobs: JobManager, store: ParameterSetStore, download_id: int,
-                *, save: bool = False, user: str | None = None, confirm: object = None,
+                *, ctx: WriteContext, save: bool = False, user: str | None = None, confirm: object = None,
                 held: Values | None = None) -> Job:
     """Write again what a download left failed, mismatched, unverified or not attempted; with ``held``
     (:func:`held_moving` of :func:`retry_targets`) it confirms only the moving values it changes, as a download
@@ -314,27 +318,28 @@ def start_retry(session: Session, jobs: JobManager, store: ParameterSetStore, do
     previous = store.download(download_id)
     redo = retry_targets(store, download_id)
     node = session.node(previous.node_id)
-    return _start(session, node, jobs, store, redo, kind="retry", save=save, user=user,
+    return _start(session, node, jobs, store, redo, ctx, kind="retry", save=save, user=user,
                   title=Text(N_("Retry {count} parameters of download {id} on node {node}"), count=len(redo),
                               id=download_id, node=node.node_id),
                   set_id=previous.set_id, set_version=previous.set_version, confirm=confirm, held=held)
 
 
 def start_rollback(session: Session, jobs: JobManager, store: ParameterSetStore, download_id: int,
-                   *, save: bool = False, user: str | None = None, confirm: object = None,
+                   *, ctx: WriteContext, save: bool = False, user: str | None = None, confirm: object = None,
                    held: Values | None = None) -> Job:
     """Write back the values a download read first, for everything it changed (or may have changed); with ``held``
     (:func:`held_moving` of :func:`rollback_targets`) it confirms only the moving values it changes."""
     previous = store.download(download_id)
     node = session.node(previous.node_id)
     targets = rollback_targets(store, download_id)
-    return _start(session, node, jobs, store, targets, kind="rollback", save=save, user=user,
+    return _start(session, node, jobs, store, targets, ctx, kind="rollback", save=save, user=user,
                   title=Text(N_("Roll back download {id} on node {node}"), id=download_id, node=node.node_id),
                   set_id=previous.set_id,
                   set_version=previous.set_version, confirm=confirm, held=held)
 
 
-def _start(session: Session, node: SessionNode, jobs: JobManager, store: ParameterSetStore, targets: Values, *,
+def _start(session: Session, node: SessionNode, jobs: JobManager, store: ParameterSetStore, targets: Values,
+           ctx: WriteContext, *,
            kind: str, title: str, save: bool, user: str | None, set_id: int | None,
            set_version: int | None, confirm: object = None, held: Values | None = None) -> Job:
     profile = _profile(node)
@@ -342,7 +347,8 @@ def _start(session: Session, node: SessionNode, jobs: JobManager, store: Paramet
     catalog = catalog_for(profile)
     items = {ref: item for ref in order if (item := _resolve(catalog, ref)) is not None}
     readable = [items[ref] for ref in order if ref in items and items[ref].entry.access.readable]
-    who = user or audit.current_user.get()
+    who = user or ctx.user
+    ctx = ctx.confirming(confirm)  # the job's own writes carry it
     moving = [ref for ref in order if ref in items and isinstance(targets[ref], (int, float))
               and moves(items[ref], targets[ref], profile) is not None
               and not (held is not None and ref in held and same_raw(held[ref], targets[ref]))]
@@ -350,25 +356,23 @@ def _start(session: Session, node: SessionNode, jobs: JobManager, store: Paramet
         refs = ", ".join(moving[:4]) + (" ..." if len(moving) > 4 else "")
         values = {key: value for ref in moving
                   for key, value in parameters.sent_value(items[ref], engineering(items[ref], targets[ref])).items()}
-        drive_guard.confirm_moving(session, node.node_id, _(WHAT_WRITES[kind]).format(refs=refs), values,
-                                   confirm=confirm)
+        ctx = drive_guard.confirm_moving(session, node.node_id, _(WHAT_WRITES[kind]).format(refs=refs), values,
+                                         ctx)[1]
 
     async def run(job: Job) -> None:
-        drive_guard.confirming(confirm)  # the job's own writes carry it (this task's context only)
-        with audit.acting(kind, who):  # what reading first writes (SDO2 switched on) is the download's, before its id
-            before, unread = await read_items(session, node, readable, job)
+        # what reading first writes (SDO2 switched on) is the download's, before its id
+        before, unread = await read_items(session, node, readable, job, ctx.as_origin(kind, user=who))
         download_id = await asyncio.to_thread(
             store.start_download, kind=kind, session_id=session.id, node_id=node.node_id, profile_id=profile.id,
             user=who, before=before, set_id=set_id, set_version=set_version)
         job.result["download_id"] = download_id
-        writer = _Writer(session, node, job, items, before, unread)
+        writer = _Writer(session, node, job, items, before, unread, ctx.as_origin(f"{kind} {download_id}", user=who))
         state = "failed"
         try:
-            with audit.acting(f"{kind} {download_id}", who):
-                await writer.write_all(order, targets)
-                await writer.read_failed_again()
-                if save:
-                    await writer.save()
+            await writer.write_all(order, targets)
+            await writer.read_failed_again()
+            if save:
+                await writer.save()
             outcome = outcome_of(writer.report())
             state = outcome.state.value
             job.result["outcome"] = outcome.model_dump()
@@ -387,8 +391,8 @@ def _start(session: Session, node: SessionNode, jobs: JobManager, store: Paramet
 
 class _Writer:
     def __init__(self, session: Session, node: SessionNode, job: Job, items: dict[str, Item], before: Values,
-                 unread: dict[str, str]) -> None:
-        self.session, self.node, self.job = session, node, job
+                 unread: dict[str, str], ctx: WriteContext) -> None:
+        self.session, self.node, self.job, self.ctx = session, node, job, ctx
         self.items, self.before, self.unread = items, before, unread
         self.lines: dict[str, ReportLine] = {}
         self.said: dict[str, Text] = {}
@@ -451,7 +455,8 @@ class _Writer:
             self.job.advance()
             return
         try:
-            result = await parameters.write(self.session, self.node.node_id, item.ref, engineering(item, target))
+            result = await parameters.write(self.session, self.node.node_id, item.ref, engineering(item, target),
+                                            ctx=self.ctx)
         except SdoTimeoutError as exc:
             await self.silence.timed_out(exc)
             line.status = "failed"
@@ -510,7 +515,8 @@ class _Writer:
             self.job.advance()
             return
         try:
-            done = await parameters.command(self.session, self.node.node_id, parameters.DeviceCommand.SAVE)
+            done = await parameters.command(self.session, self.node.node_id, parameters.DeviceCommand.SAVE,
+                                            ctx=self.ctx)
         except DriveBenchError as exc:
             self.job.advance(issue=JobIssue("save", said(exc), self.node.node_id))
             self.job.notes.append(Text(N_("Save failed: {why}"), why=said(exc)))

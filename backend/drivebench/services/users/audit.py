@@ -2,8 +2,8 @@
 
 A row is committed *before* the write is sent (result ``sending``) and completed with the outcome after it, so a
 server that is killed mid-write still leaves a row saying a write to that parameter was under way. Who wrote and
-why (a single write on the Parameters tab, ``download 12``, ``rollback 13``) come from context variables that the
-caller sets (:func:`acting`, :mod:`drivebench.services.params.write_origin`).
+why (a single write on the Parameters tab, ``download 12``, ``rollback 13``) come from the write's context
+(:class:`~drivebench.services.params.write_context.WriteContext`: ``user`` and ``origin``).
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from drivebench.errors import DriveBenchError, SdoAbortError, WriteOutcomeUnknow
 from drivebench.i18n import N_, Text
 from drivebench.services.params import parameters
 from drivebench.services.params.parameters import WriteAttempt, WriteResult
-from drivebench.services.params.write_origin import LOCAL_USER, acting, current_origin, current_user
+from drivebench.services.params.write_context import LOCAL_USER
 from drivebench.services.storage.database import transaction
 from drivebench.services.storage.models import AuditRow, utcnow
 
@@ -29,9 +29,6 @@ __all__ = [
     "LOCAL_USER",
     "AuditEntry",
     "AuditLog",
-    "acting",
-    "current_origin",
-    "current_user",
     "entries",
     "entry",
     "outcome",
@@ -99,10 +96,10 @@ class AuditLog:
     async def sending(self, attempt: WriteAttempt) -> object:
         item = attempt.item
         profile = attempt.session.nodes[attempt.node_id].profile if attempt.node_id in attempt.session.nodes else None
-        row = AuditRow(time=utcnow(), user=current_user.get(), session_id=attempt.session.id,
+        row = AuditRow(time=utcnow(), user=attempt.ctx.user, session_id=attempt.session.id,
                        node_id=attempt.node_id, ref=item.ref, address=item.address,
                        old_value=attempt.old.display if attempt.old else None,
-                       new_value=parameters.display(item, attempt.new), result="sending", origin=current_origin.get(),
+                       new_value=parameters.display(item, attempt.new), result="sending", origin=attempt.ctx.origin,
                        profile=profile.id if profile is not None else None)
         return await asyncio.to_thread(self._insert, row)
 

@@ -16,7 +16,7 @@ from drivebench.i18n import _
 from drivebench.services.bus.sessions import Session
 from drivebench.services.params import parameters
 from drivebench.services.params.parameters import WriteResult
-from drivebench.services.params.write_origin import acting
+from drivebench.services.params.write_context import WriteContext
 from drivebench.services.users.audit import AuditEntry, entry
 
 UNDO = "undo"
@@ -74,13 +74,13 @@ def old_value(session: Session, undone: AuditEntry) -> object:
     return undone.old_value
 
 
-async def undo(session: Session, undone: AuditEntry) -> WriteResult:
-    """Write the record's old value back (the checked write, verified, logged as ``undo <id>``)."""
+async def undo(session: Session, undone: AuditEntry, *, ctx: WriteContext) -> WriteResult:
+    """Write the record's old value back as ``ctx`` writes (the checked write, verified, logged as ``undo <id>``)."""
     if undone.session_id != session.id:
         raise Conflict(_("Record {id} was written in session {then}, not {now}").format(
             id=undone.id, then=undone.session_id, now=session.id))
     why = refusal(session, undone)
     if why is not None:
         raise Conflict(why)
-    with acting(f"{UNDO} {undone.id}"):
-        return await parameters.write(session, undone.node_id, undone.ref, old_value(session, undone))
+    return await parameters.write(session, undone.node_id, undone.ref, old_value(session, undone),
+                                  ctx=ctx.as_origin(f"{UNDO} {undone.id}"))

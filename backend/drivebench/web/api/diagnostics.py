@@ -16,11 +16,11 @@ from drivebench.services.monitoring.object_list import ObjectListComparison
 from drivebench.services.monitoring.remote_content import SessionContent, session_content
 from drivebench.services.users.sharing import DEFAULT_SHOWS, SHOWS
 from drivebench.web.deps import NodeDep, SessionDep, StateDep
-from drivebench.web.safety import ACTING
+from drivebench.web.safety import WriteCtxDep
 from drivebench.web.share_links import IssuedShareLink, ShareLinkPublic, issued_link, share_link_public
 from drivebench.web.templating import templates
 
-router = APIRouter(prefix="/api", tags=["diagnostics"], dependencies=[ACTING])  # set-up writes take the node lease
+router = APIRouter(prefix="/api", tags=["diagnostics"])  # set-up writes take the node lease (WriteCtxDep)
 
 
 class SessionHealth(BaseModel):
@@ -91,19 +91,21 @@ async def heartbeat_setup(session: SessionDep, node: NodeDep) -> HeartbeatSetup:
 
 
 @router.put("/sessions/{session_id}/nodes/{node_id}/heartbeat/producer", response_model=HeartbeatSetup)
-async def set_producer(session: SessionDep, node: NodeDep, body: ProducerTime) -> HeartbeatSetup:
-    return await diagnostics.write_heartbeat_producer(session, node.node_id, body.time_ms)
+async def set_producer(session: SessionDep, node: NodeDep, body: ProducerTime, ctx: WriteCtxDep) -> HeartbeatSetup:
+    return await diagnostics.write_heartbeat_producer(session, node.node_id, ctx, body.time_ms)
 
 
 @router.put("/sessions/{session_id}/nodes/{node_id}/heartbeat/consumers/{slot}", response_model=HeartbeatSetup)
-async def set_consumer(session: SessionDep, node: NodeDep, slot: int, body: ConsumerEntry) -> HeartbeatSetup:
-    return await diagnostics.write_heartbeat_consumer(session, node.node_id, slot, body.producer_id, body.time_ms)
+async def set_consumer(session: SessionDep, node: NodeDep, slot: int, body: ConsumerEntry,
+                       ctx: WriteCtxDep) -> HeartbeatSetup:
+    return await diagnostics.write_heartbeat_consumer(session, node.node_id, ctx, slot, body.producer_id,
+                                                      body.time_ms)
 
 
 @router.put("/sessions/{session_id}/nodes/{node_id}/guarding", response_model=GuardingPublic)
-async def set_guarding(session: SessionDep, node: NodeDep, body: GuardingRequest) -> GuardingPublic:
+async def set_guarding(session: SessionDep, node: NodeDep, body: GuardingRequest, ctx: WriteCtxDep) -> GuardingPublic:
     """Node guarding for devices that use it instead of heartbeat: writes 0x100C/0x100D, then guards the node."""
-    return await diagnostics.start_guarding(session, node.node_id, body.guard_time_ms, body.life_time_factor)
+    return await diagnostics.start_guarding(session, node.node_id, ctx, body.guard_time_ms, body.life_time_factor)
 
 
 @router.get("/sessions/{session_id}/diagnostics/report", response_class=HTMLResponse)

@@ -23,10 +23,10 @@ from drivebench.services.control.drive_guard import Confirmation
 from drivebench.services.control.drive_words import Command
 from drivebench.services.control.motion import CyclicStream, MotionInfo
 from drivebench.web.deps import NodeDep, SessionDep
-from drivebench.web.safety import ACTING, PanelDep, confirmation
+from drivebench.web.safety import PanelDep, WriteCtxDep, confirmation
 
 router = APIRouter(prefix="/api/sessions/{session_id}/nodes/{node_id}/control", tags=["drive control"],
-                   dependencies=[ACTING], responses={428: {"description": "Not confirmed with the node id"}})
+                   responses={428: {"description": "Not confirmed with the node id"}})
 
 
 class Confirmed(BaseModel):
@@ -102,16 +102,17 @@ async def status(session: SessionDep, node: NodeDep, panel: PanelDep) -> DriveSt
 
 
 @router.post("/commands/{command}", response_model=DriveStatus)
-async def command(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep, command: Command,
+async def command(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep,
+                  ctx: WriteCtxDep, command: Command,
                   body: Confirmed | None = None) -> DriveStatus:
-    return await drive_control.command(session, node, command, confirm=_given(request, body),
+    return await drive_control.command(session, node, command, ctx=ctx, confirm=_given(request, body),
                                        panel=panel)
 
 
 @router.put("/setpoint", response_model=DriveStatus)
-async def setpoint(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep,
+async def setpoint(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep, ctx: WriteCtxDep,
                    body: SetpointIn) -> DriveStatus:
-    return await drive_control.set_setpoint(session, node, body.value, confirm=_given(request, body),
+    return await drive_control.set_setpoint(session, node, body.value, ctx=ctx, confirm=_given(request, body),
                                             panel=panel)
 
 
@@ -122,8 +123,9 @@ async def jog_plan(session: SessionDep, node: NodeDep) -> JogPlan:
 
 
 @router.post("/jog", response_model=DriveStatus)
-async def jog(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep, body: JogIn) -> DriveStatus:
-    return await drive_control.jog(session, node, body.direction, confirm=_given(request, body),
+async def jog(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep,
+                  ctx: WriteCtxDep, body: JogIn) -> DriveStatus:
+    return await drive_control.jog(session, node, body.direction, ctx=ctx, confirm=_given(request, body),
                                    panel=panel, speed=body.speed)
 
 
@@ -134,10 +136,11 @@ async def motion_info(session: SessionDep, node: NodeDep) -> MotionInfo:
 
 
 @router.post("/move", response_model=DriveStatus)
-async def move(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep, body: MoveIn) -> DriveStatus:
+async def move(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep,
+                  ctx: WriteCtxDep, body: MoveIn) -> DriveStatus:
     """CiA 402 profile-position move (mode 1): target, new set-point edge, set-point acknowledge."""
     return await motion.move(session, node, body.target, relative=body.relative, immediate=body.immediate,
-                             velocity=body.velocity, confirm=_given(request, body), panel=panel)
+                             velocity=body.velocity, ctx=ctx, confirm=_given(request, body), panel=panel)
 
 
 @router.post("/cyclic", response_model=CyclicStream)
@@ -154,14 +157,16 @@ async def stop_cyclic(session: SessionDep, node: NodeDep) -> StoppedOut:
 
 
 @router.post("/home", response_model=DriveStatus)
-async def home(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep, body: HomeIn) -> DriveStatus:
+async def home(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep,
+                  ctx: WriteCtxDep, body: HomeIn) -> DriveStatus:
     """CiA 402 homing (mode 6) with the method given; status bit 12 homing attained, bit 13 homing error."""
-    return await motion.home(session, node, body.method, confirm=_given(request, body), panel=panel)
+    return await motion.home(session, node, body.method, ctx=ctx, confirm=_given(request, body), panel=panel)
 
 
 @router.put("/mode", response_model=DriveStatus)
-async def mode(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep, body: ModeIn) -> DriveStatus:
-    return await drive_control.set_mode(session, node, body.mode, confirm=_given(request, body),
+async def mode(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep,
+                  ctx: WriteCtxDep, body: ModeIn) -> DriveStatus:
+    return await drive_control.set_mode(session, node, body.mode, ctx=ctx, confirm=_given(request, body),
                                         panel=panel)
 
 
@@ -185,10 +190,10 @@ async def sequences(node: NodeDep) -> list[SequenceOut]:
 
 
 @router.post("/sequences/{key}/runs", response_model=RunOut, status_code=201)
-async def start_run(session: SessionDep, node: NodeDep, key: str) -> RunOut:
+async def start_run(session: SessionDep, node: NodeDep, key: str, ctx: WriteCtxDep) -> RunOut:
     """Start a run for this node; it takes the node's write lease (409 while another writer holds it) and belongs
     to this writer (principal and panel)."""
-    return commissioning.wizard(session).start(session, node, key).public(node)
+    return commissioning.wizard(session).start(session, node, key, ctx).public(node)
 
 
 @router.get("/runs", response_model=list[RunOut])
@@ -203,12 +208,13 @@ async def get_run(session: SessionDep, node: NodeDep, run_id: str) -> RunOut:
 
 
 @router.post("/runs/{run_id}/next", response_model=RunOut)
-async def next_step(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep, run_id: str,
+async def next_step(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep,
+                  ctx: WriteCtxDep, run_id: str,
                     body: StepIn | None = None) -> RunOut:
     """Run the next step of a run of this node, started by this writer (404 for another node's run, 409 for another
     writer's); a step that can turn the motor needs the confirmation naming the node and the values the step sends;
     a step value outside the profile's range is refused (422) before anything is sent."""
     run = commissioning.wizard(session).get(run_id, node.node_id)
-    await commissioning.next_step(session, node, run, confirm=_given(request, body), panel=panel,
+    await commissioning.next_step(session, node, run, ctx=ctx, confirm=_given(request, body), panel=panel,
                                   value=body.value if body is not None else None)
     return run.public(node)

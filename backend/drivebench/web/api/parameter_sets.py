@@ -29,7 +29,7 @@ from drivebench.services.sets.parameter_sets import (
 from drivebench.services.sets.set_jobs import ReportLine
 from drivebench.services.users import audit
 from drivebench.web.deps import JobsDep, ManagerDep, RowId, RowVersion, StateDep
-from drivebench.web.safety import ACTING, confirmation
+from drivebench.web.safety import AuditUserDep, WriteCtxDep, confirmation
 from drivebench.web.set_views import (
     CompareIn,
     CopyIn,
@@ -50,13 +50,14 @@ from drivebench.web.set_views import (
     store,
 )
 
-router = APIRouter(prefix="/api", tags=["parameter sets"], dependencies=[ACTING])  # downloads take the node lease
+router = APIRouter(prefix="/api", tags=["parameter sets"])  # downloads take the node lease (WriteCtxDep)
 SETS = "/parameter-sets"
 UserHeader = Annotated[str | None, Header(alias="X-DriveBench-User", description="Who acts (audit log)")]
 
 
-def user_of(header: str | None) -> str:
-    return (header or "").strip()[:120] or audit.current_user.get()
+def user_of(header: str | None, signed_in: str) -> str:
+    """Who acts: the X-DriveBench-User header (without login), else who signed in (or the local user)."""
+    return (header or "").strip()[:120] or signed_in
 
 
 # --- sets --------------------------------------------------------------------------------------------------
@@ -72,24 +73,25 @@ async def set_file_schema() -> dict[str, Any]:
 
 
 @router.post(SETS + "/upload", response_model=SetJobOut, status_code=status.HTTP_202_ACCEPTED)
-async def upload_from_node(body: UploadIn, manager: ManagerDep, jobs: JobsDep, user: UserHeader = None) -> SetJobOut:
+async def upload_from_node(body: UploadIn, manager: ManagerDep, jobs: JobsDep, ctx: WriteCtxDep,
+                           user: UserHeader = None) -> SetJobOut:
     """Read every settable parameter of the node into a new set (the job's ``set_id``)."""
-    job = set_jobs.start_upload(manager.get(body.session_id), body.node_id, jobs, store(), name=body.name,
-                                note=body.note, user=user_of(user))
+    job = set_jobs.start_upload(manager.get(body.session_id), body.node_id, jobs, store(), ctx=ctx, name=body.name,
+                                note=body.note, user=user_of(user, ctx.user))
     return set_job_out(job)
 
 
 @router.post(SETS + "/{set_id}/upload", response_model=SetJobOut, status_code=status.HTTP_202_ACCEPTED)
-async def upload_new_version(set_id: RowId, body: TargetIn, manager: ManagerDep, jobs: JobsDep,
+async def upload_new_version(set_id: RowId, body: TargetIn, manager: ManagerDep, jobs: JobsDep, ctx: WriteCtxDep,
                              user: UserHeader = None) -> SetJobOut:
     """Read the node again into a new version of the set (same device type; the old versions stay)."""
     job = set_jobs.start_upload(manager.get(body.session_id), body.node_id, jobs, store(), name="", into=set_id,
-                                user=user_of(user))
+                                ctx=ctx, user=user_of(user, ctx.user))
     return set_job_out(job)
 
 
 @router.post(SETS + "/import", response_model=ImportOut, status_code=status.HTTP_201_CREATED)
-async def import_set(state: StateDep, file: Annotated[UploadFile, File()],
+async def import_set(state: StateDep, who: AuditUserDep, file: Annotated[UploadFile, File()],
                      format: Annotated[str | None, Form()] = None,
                      profile_id: Annotated[str | None, Form()] = None,
                      name: Annotated[str | None, Form()] = None, user: UserHeader = None) -> ImportOut:
@@ -102,7 +104,7 @@ async def import_set(state: StateDep, file: Annotated[UploadFile, File()],
     filename = file.filename or "upload"
     imported = set_formats.import_any(data, filename, state.registry.get, fmt=format or None,
                                       profile_id=profile_id or None, name=name or None)
-    stored = store().create(imported.name, imported.profile, imported.values, user=user_of(user),
+    stored = store().create(imported.name, imported.profile, imported.values, user=user_of(user, who),
                             node_id=imported.node_id, note=imported.note, reason=f"imported from {filename}")
     return ImportOut(set=stored.info, notes=imported.notes)
 
@@ -114,13 +116,14 @@ async def get_set(set_id: RowId, state: StateDep, version: RowVersion = None) ->
 
 
 @router.patch(SETS + "/{set_id}", response_model=SetInfo)
-async def update_set(set_id: RowId, body: SetUpdate, state: StateDep, user: UserHeader = None) -> SetInfo:
+async def update_set(set_id: RowId, body: SetUpdate, state: StateDep, who: AuditUserDep,
+                     user: UserHeader = None) -> SetInfo:
     info = store().rename(set_id, body.name, body.note, base_version=body.version)
     if body.values:
         edited = store().get(set_id, body.version)
         changes = set_formats.checked_values(state.registry.get(info.profile_id), body.values,
                                              _("Parameter set {id}").format(id=set_id))
-        info = store().update_values(set_id, {**edited.values, **changes}, user=user_of(user), reason=body.reason,
+        info = store().update_values(set_id, {**edited.values, **changes}, user=user_of(user, who), reason=body.reason,
                                      base_version=edited.version).info
     return info
 
@@ -148,7 +151,8 @@ async def export_set(set_id: RowId, state: StateDep,
 
 
 @router.post(SETS + "/{set_id}/copy", response_model=CopyOut, status_code=status.HTTP_201_CREATED)
-async def copy_set(set_id: RowId, body: CopyIn, state: StateDep, user: UserHeader = None) -> CopyOut:
+async def copy_set(set_id: RowId, body: CopyIn, state: StateDep, who: AuditUserDep,
+                   user: UserHeader = None) -> CopyOut:
     """A new set for an identical drive at ``to_node``: node address and node-id based COB-IDs moved along."""
     stored = store().get(set_id)
     profile = state.registry.get(stored.info.profile_id)
@@ -157,7 +161,7 @@ async def copy_set(set_id: RowId, body: CopyIn, state: StateDep, user: UserHeade
         raise InvalidValue(_("The set was not uploaded from a node: give from_node"))
     values, notes = retarget(profile, stored.values, from_node, body.to_node)
     copy = store().create(body.name or _("{name} (node {node})").format(name=stored.info.name, node=body.to_node),
-                          profile, values, user=user_of(user), node_id=body.to_node,
+                          profile, values, user=user_of(user, who), node_id=body.to_node,
                           session_id=stored.info.session_id,
                           note=_("Copy of set {id} v{version} for node {node}").format(
                               id=set_id, version=stored.version, node=body.to_node),
@@ -167,11 +171,11 @@ async def copy_set(set_id: RowId, body: CopyIn, state: StateDep, user: UserHeade
 
 # --- compare -----------------------------------------------------------------------------------------------
 @router.post(SETS + "/compare", response_model=Comparison)
-async def compare_sources(body: CompareIn, state: StateDep, manager: ManagerDep,
+async def compare_sources(body: CompareIn, state: StateDep, manager: ManagerDep, ctx: WriteCtxDep,
                           format: Annotated[Literal["json", "csv"], Query()] = "json") -> Any:
     """Only the differences, scaled with units, filtered by ``q`` (code or name words) and ``group``;
     ``format=csv`` exports them."""
-    left, right = await build_sources(state, manager, body)
+    left, right = await build_sources(state, manager, body, ctx)
     result = compare(left, right, query=body.q, group=body.group)
     if format == "csv":
         return Response(comparison_csv(result), media_type="text/csv",
@@ -181,22 +185,23 @@ async def compare_sources(body: CompareIn, state: StateDep, manager: ManagerDep,
 
 # --- download ----------------------------------------------------------------------------------------------
 @router.post(SETS + "/{set_id}/preview", response_model=list[ReportLine])
-async def preview_download(set_id: RowId, body: TargetIn, manager: ManagerDep,
+async def preview_download(set_id: RowId, body: TargetIn, manager: ManagerDep, ctx: WriteCtxDep,
                            version: RowVersion = None) -> list[ReportLine]:
     """What a download would change (device values read now), in the order it would write them."""
     stored = store().get(set_id, version)
-    lines = await set_jobs.preview(manager.get(body.session_id), body.node_id, stored)
+    lines = await set_jobs.preview(manager.get(body.session_id), body.node_id, stored, ctx=ctx)
     return lines
 
 
 @router.post(SETS + "/{set_id}/download", response_model=SetJobOut, status_code=status.HTTP_202_ACCEPTED)
 async def download_set(request: Request, set_id: RowId, body: DownloadIn, manager: ManagerDep, jobs: JobsDep,
-                       version: RowVersion = None, user: UserHeader = None) -> SetJobOut:
+                       ctx: WriteCtxDep, version: RowVersion = None, user: UserHeader = None) -> SetJobOut:
     stored = store().get(set_id, version)
     session = manager.get(body.session_id)
-    held = await set_jobs.held_moving(session, body.node_id, set_jobs.download_targets(session, body.node_id, stored))
-    job = set_jobs.start_download(session, body.node_id, jobs, store(), stored, save=body.save,
-                                  user=user_of(user), held=held,
+    held = await set_jobs.held_moving(session, body.node_id, set_jobs.download_targets(session, body.node_id, stored),
+                                      ctx=ctx)
+    job = set_jobs.start_download(session, body.node_id, jobs, store(), stored, ctx=ctx, save=body.save,
+                                  user=user_of(user, ctx.user), held=held,
                                   confirm=confirmation(request, body.confirm, body.confirm_values))
     return set_job_out(job)
 
@@ -220,13 +225,13 @@ async def get_download(download_id: RowId, jobs: JobsDep) -> DownloadOut:
 @router.post("/parameter-downloads/{download_id}/retry", response_model=SetJobOut,
              status_code=status.HTTP_202_ACCEPTED)
 async def retry_download(request: Request, download_id: RowId, manager: ManagerDep, jobs: JobsDep,
-                         body: FollowUpIn | None = None, user: UserHeader = None) -> SetJobOut:
+                         ctx: WriteCtxDep, body: FollowUpIn | None = None, user: UserHeader = None) -> SetJobOut:
     """Write again what the download left failed, mismatched or not attempted."""
     row = store().download(download_id)
     session = manager.get(row.session_id)
-    held = await set_jobs.held_moving(session, row.node_id, set_jobs.retry_targets(store(), download_id))
-    job = set_jobs.start_retry(session, jobs, store(), download_id, held=held,
-                               save=bool(body and body.save), user=user_of(user),
+    held = await set_jobs.held_moving(session, row.node_id, set_jobs.retry_targets(store(), download_id), ctx=ctx)
+    job = set_jobs.start_retry(session, jobs, store(), download_id, ctx=ctx, held=held,
+                               save=bool(body and body.save), user=user_of(user, ctx.user),
                                confirm=confirmation(request, body and body.confirm, body and body.confirm_values))
     return set_job_out(job)
 
@@ -234,13 +239,14 @@ async def retry_download(request: Request, download_id: RowId, manager: ManagerD
 @router.post("/parameter-downloads/{download_id}/rollback", response_model=SetJobOut,
              status_code=status.HTTP_202_ACCEPTED)
 async def rollback_download(request: Request, download_id: RowId, manager: ManagerDep, jobs: JobsDep,
-                            body: FollowUpIn | None = None, user: UserHeader = None) -> SetJobOut:
+                            ctx: WriteCtxDep, body: FollowUpIn | None = None, user: UserHeader = None) -> SetJobOut:
     """Write back the values read before the download, for everything it changed (or may have changed)."""
     row = store().download(download_id)
     session = manager.get(row.session_id)
-    held = await set_jobs.held_moving(session, row.node_id, set_jobs.rollback_targets(store(), download_id))
-    job = set_jobs.start_rollback(session, jobs, store(), download_id, held=held,
-                                  save=bool(body and body.save), user=user_of(user),
+    held = await set_jobs.held_moving(session, row.node_id, set_jobs.rollback_targets(store(), download_id),
+                                      ctx=ctx)
+    job = set_jobs.start_rollback(session, jobs, store(), download_id, ctx=ctx, held=held,
+                                  save=bool(body and body.save), user=user_of(user, ctx.user),
                                   confirm=confirmation(request, body and body.confirm, body and body.confirm_values))
     return set_job_out(job)
 

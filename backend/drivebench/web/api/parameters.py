@@ -17,7 +17,6 @@ from drivebench.device.profiles.catalog import Item
 from drivebench.device.profiles.scaling import ScaledValue
 from drivebench.errors import DriveBenchError
 from drivebench.i18n import shown
-from drivebench.services.control import drive_guard
 from drivebench.services.params import factory_compare
 from drivebench.services.params import parameter_batch as batch
 from drivebench.services.params import parameters as service
@@ -28,11 +27,11 @@ from drivebench.web.deps import JobsDep, NodeDep, SessionDep
 from drivebench.web.job_views import JobOut, ParameterValueOut, ValueOut, job_out, value_out
 from drivebench.web.lean_route import lean_route, path_int
 from drivebench.web.problems import problem_body
-from drivebench.web.safety import ACTING, confirmation
+from drivebench.web.safety import WriteCtxDep, confirmation
 from drivebench.web.state import app_state
 
-# Every route but the two reads clients poll carries ACTING (writes take the node lease, jobs carry the writer); a GET
-# sends no write, so it is spared that dependency (benchmarks/RESULTS.md, Request path).
+# Every route that writes (or starts a job that does) takes the request's WriteContext (WriteCtxDep) and hands it to
+# the service; a read takes none (benchmarks/RESULTS.md, Request path).
 router = APIRouter(prefix="/api", tags=["parameters"])
 NODE = "/sessions/{session_id}/nodes/{node_id}"
 
@@ -317,7 +316,7 @@ router.add_api_route(NODE + "/parameters/{ref:path}", read_parameter, methods=["
                      response_model=ParameterValueOut, route_class_override=lean_route(_lean_read))
 
 
-@router.post(NODE + "/parameters:read", dependencies=[ACTING], response_model=BatchReadOut)
+@router.post(NODE + "/parameters:read", response_model=BatchReadOut)
 async def read_parameters(request: Request, session: SessionDep, node: NodeDep, body: BatchRead) -> BatchReadOut:
     """Read many parameters in one request, in the order given; each answers with its value or its own error."""
     found = await service.read_many(session, node.node_id, body.refs)
@@ -327,32 +326,34 @@ async def read_parameters(request: Request, session: SessionDep, node: NodeDep, 
     return BatchReadOut(node_id=node.node_id, items=items)
 
 
-@router.put(NODE + "/parameters/{ref:path}", dependencies=[ACTING], response_model=WriteOut,
+@router.put(NODE + "/parameters/{ref:path}", response_model=WriteOut,
             responses={428: {"description": "A write that can make the drive move, without the confirmation naming "
                                             "the node"}})
 async def write_parameter(request: Request, session: SessionDep, node: NodeDep, ref: str,
-                          body: ParameterWrite) -> WriteOut:
+                          body: ParameterWrite, ctx: WriteCtxDep) -> WriteOut:
     """Write and read back. A write the profile marks as moving the drive needs ``confirm`` (the node id) and
     arms the keep-alive guard: this client must then POST ``/api/sessions/{session}/keepalive`` at least every
     2 s, or the drive is quick-stopped. A control word that only stops the drive is never refused."""
-    drive_guard.confirming(confirmation(request, body.confirm, body.confirm_values))
+    ctx = ctx.confirming(confirmation(request, body.confirm, body.confirm_values))
     value = service.given_value(node, ref, body.value, body.raw)
-    result = await service.write(session, node.node_id, ref, value, check=body.check, verify=body.verify)
+    result = await service.write(session, node.node_id, ref, value, ctx=ctx, check=body.check, verify=body.verify)
     return write_out(result, node.pending_reset)
 
 
-@router.post(NODE + "/parameters:write", dependencies=[ACTING], response_model=BatchWriteOut,
+@router.post(NODE + "/parameters:write", response_model=BatchWriteOut,
              responses={422: {"description": "An item does not validate: nothing was written ('items' says which)"},
                         428: {"description": "A write that can make the drive move, without the confirmation naming "
                                             "the node: nothing was written"}})
-async def write_parameters(request: Request, session: SessionDep, node: NodeDep, body: BatchWrite) -> Any:
+async def write_parameters(request: Request, session: SessionDep, node: NodeDep, body: BatchWrite,
+                           ctx: WriteCtxDep) -> Any:
     """Write many values in one request: all are validated first (one invalid refuses the batch, each item's problem
     in words), a batch with a moving write needs ``confirm`` like the single write; then each is written in order
     through the single write's path (lease, keep-alive guard, one audit row, read-back) until the first error."""
-    drive_guard.confirming(confirmation(request, body.confirm, body.confirm_values))
+    ctx = ctx.confirming(confirmation(request, body.confirm, body.confirm_values))
     wanted = [Wanted(entry.ref, entry.value, entry.raw) for entry in body.items]
     try:
-        outcomes = await batch.write_many(session, node.node_id, wanted, check=body.check, verify=body.verify)
+        outcomes = await batch.write_many(session, node.node_id, wanted, ctx=ctx, check=body.check,
+                                         verify=body.verify)
     except batch.BatchInvalid as exc:
         problem = problem_body(exc, request.url.path)
         problem["items"] = [{"ref": entry.ref, "ok": error is None,
@@ -369,7 +370,7 @@ async def write_parameters(request: Request, session: SessionDep, node: NodeDep,
                          pending_reset=sorted(node.pending_reset))
 
 
-@router.get(NODE + "/changed-from-default", dependencies=[ACTING], response_model=ComparisonOut)
+@router.get(NODE + "/changed-from-default", response_model=ComparisonOut)
 async def changed_from_default(session: SessionDep, node: NodeDep,
                                read: Annotated[factory_compare.Reading, Query(description=(
                                    "all: read every setting now; missing: read those not read yet (default); "
@@ -380,67 +381,68 @@ async def changed_from_default(session: SessionDep, node: NodeDep,
     return comparison_out(await factory_compare.compare(session, node.node_id, read))
 
 
-@router.post("/audit/{entry_id}/undo", dependencies=[ACTING], response_model=UndoOut,
+@router.post("/audit/{entry_id}/undo", response_model=UndoOut,
              responses={409: {"description": "The record cannot be undone: no old value, its write failed, or the "
                                              "node is gone or handled with another profile (``detail`` says which)"},
                         428: {"description": "The old value can make the drive move: confirm as for a write"}})
-async def undo_write(request: Request, entry_id: int, body: UndoRequest | None = None) -> UndoOut:
+async def undo_write(request: Request, entry_id: int, ctx: WriteCtxDep, body: UndoRequest | None = None) -> UndoOut:
     """Write the record's old value back through the checked write (range, confirmation, lease, read-back), logged
     with the origin ``undo <entry_id>``."""
     record = undoing.record(entry_id, settings.database_url)
     state = app_state(request.app)
     session = state.manager.get(record.session_id)
-    drive_guard.confirming(confirmation(request, body and body.confirm, body and body.confirm_values))
-    result = await undoing.undo(session, record)
+    ctx = ctx.confirming(confirmation(request, body and body.confirm, body and body.confirm_values))
+    result = await undoing.undo(session, record, ctx=ctx)
     pending = session.node(record.node_id).pending_reset
     return UndoOut(**write_out(result, pending).model_dump(), undone=entry_id, session_id=session.id,
                    node_id=record.node_id)
 
 
-@router.post(NODE + "/read-all", dependencies=[ACTING], response_model=JobOut, status_code=status.HTTP_202_ACCEPTED)
-async def read_all(session: SessionDep, node: NodeDep, jobs: JobsDep) -> JobOut:
-    return job_out(service.start_read(session, [node.node_id], jobs), with_result=False)
+@router.post(NODE + "/read-all", response_model=JobOut, status_code=status.HTTP_202_ACCEPTED)
+async def read_all(session: SessionDep, node: NodeDep, jobs: JobsDep, ctx: WriteCtxDep) -> JobOut:
+    return job_out(service.start_read(session, [node.node_id], jobs, ctx=ctx), with_result=False)
 
 
-@router.post(NODE + "/read-group", dependencies=[ACTING], response_model=JobOut, status_code=status.HTTP_202_ACCEPTED)
-async def read_group(session: SessionDep, node: NodeDep, jobs: JobsDep, body: GroupRead) -> JobOut:
-    return job_out(service.start_read(session, [node.node_id], jobs, group=body.group), with_result=False)
+@router.post(NODE + "/read-group", response_model=JobOut, status_code=status.HTTP_202_ACCEPTED)
+async def read_group(session: SessionDep, node: NodeDep, jobs: JobsDep, body: GroupRead, ctx: WriteCtxDep) -> JobOut:
+    return job_out(service.start_read(session, [node.node_id], jobs, ctx=ctx, group=body.group), with_result=False)
 
 
-@router.post("/sessions/{session_id}/read-all", dependencies=[ACTING], response_model=JobOut,
+@router.post("/sessions/{session_id}/read-all", response_model=JobOut,
              status_code=status.HTTP_202_ACCEPTED)
-async def read_all_nodes(session: SessionDep, jobs: JobsDep, body: SessionRead | None = None) -> JobOut:
+async def read_all_nodes(session: SessionDep, jobs: JobsDep, ctx: WriteCtxDep, body: SessionRead | None = None
+                         ) -> JobOut:
     """Every node of the session in parallel (each node over its SDO channels)."""
     node_ids = (body.node_ids if body and body.node_ids else
                 [n.node_id for n in session.nodes.values() if n.profile is not None])
-    return job_out(service.start_read(session, node_ids, jobs), with_result=False)
+    return job_out(service.start_read(session, node_ids, jobs, ctx=ctx), with_result=False)
 
 
-@router.post(NODE + "/commands/{command}", dependencies=[ACTING], response_model=CommandOut)
-async def device_command(session: SessionDep, node: NodeDep, command: DeviceCommand) -> CommandOut:
-    result = await service.command(session, node.node_id, command)
+@router.post(NODE + "/commands/{command}", response_model=CommandOut)
+async def device_command(session: SessionDep, node: NodeDep, command: DeviceCommand, ctx: WriteCtxDep) -> CommandOut:
+    result = await service.command(session, node.node_id, command, ctx=ctx)
     return CommandOut(command=result.command.value, via=result.via, detail=shown(result.detail),
                       pending_reset=sorted(node.pending_reset))
 
 
-@router.get("/sessions/{session_id}/sdo-settings", dependencies=[ACTING], response_model=SdoSettingsModel)
+@router.get("/sessions/{session_id}/sdo-settings", response_model=SdoSettingsModel)
 async def get_sdo_settings(session: SessionDep) -> SdoSettingsModel:
     settings = service.service(session).settings
     return SdoSettingsModel(timeout_s=settings.timeout_s, retries=settings.retries, use_sdo2=settings.use_sdo2)
 
 
-@router.put("/sessions/{session_id}/sdo-settings", dependencies=[ACTING], response_model=SdoSettingsModel)
+@router.put("/sessions/{session_id}/sdo-settings", response_model=SdoSettingsModel)
 async def put_sdo_settings(session: SessionDep, body: SdoSettingsModel) -> SdoSettingsModel:
     service.configure(session, SdoSettings(body.timeout_s, body.retries, body.use_sdo2))
     return body
 
 
-@router.get("/jobs/{job_id}", dependencies=[ACTING], response_model=JobOut)
+@router.get("/jobs/{job_id}", response_model=JobOut)
 async def get_job(job_id: str, jobs: JobsDep) -> JobOut:
     return job_out(jobs.get(job_id))
 
 
-@router.delete("/jobs/{job_id}", dependencies=[ACTING], response_model=JobOut)
+@router.delete("/jobs/{job_id}", response_model=JobOut)
 async def cancel_job(job_id: str, jobs: JobsDep) -> JobOut:
     """Cancel a running job; what it read so far stays in its result."""
     job = jobs.cancel(job_id)

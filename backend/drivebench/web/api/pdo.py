@@ -10,9 +10,9 @@ from drivebench.services.pdos import ethercat_pdo, pdo
 from drivebench.services.pdos.ethercat_pdo import EcatApplyReport, EcatAssignment
 from drivebench.services.pdos.pdo import ApplyReport, Direction, MappedObject, PdoConfig, PdoWrite
 from drivebench.web.deps import NodeDep, SessionDep
-from drivebench.web.safety import ACTING
+from drivebench.web.safety import WriteCtxDep
 
-router = APIRouter(prefix="/api/sessions/{session_id}/nodes/{node_id}/pdos", tags=["pdo"], dependencies=[ACTING])
+router = APIRouter(prefix="/api/sessions/{session_id}/nodes/{node_id}/pdos", tags=["pdo"])
 
 
 @router.get("", response_model=list[PdoConfig])
@@ -53,9 +53,9 @@ async def assignment(session: SessionDep, node: NodeDep) -> list[EcatAssignment]
     502: {"description": "The slave refused otherwise or reads back differently; the body has the step report"},
     504: {"description": "The slave did not answer; the body has the step report"}})
 async def apply_mapping(session: SessionDep, node: NodeDep, direction: Direction, number: int,
-                        body: MappingWrite) -> EcatApplyReport:
+                        body: MappingWrite, ctx: WriteCtxDep) -> EcatApplyReport:
     """EtherCAT: write a PDO mapping (sub 0 := 0, the entries, sub 0 := n), then read it back."""
-    return await ethercat_pdo.apply_mapping(session, node.node_id, direction, number, body.entries)
+    return await ethercat_pdo.apply_mapping(session, node.node_id, direction, number, body.entries, ctx=ctx)
 
 
 @router.get("/{direction}/{number}", response_model=PdoConfig)
@@ -66,9 +66,9 @@ async def read_one(session: SessionDep, node: NodeDep, direction: Direction, num
 @router.put("/{direction}/{number}", response_model=ApplyReport,
             responses={502: {"description": "The device refused a step; the body is the step report"}})
 async def apply(session: SessionDep, node: NodeDep, direction: Direction, number: int,
-                body: PdoWrite) -> ApplyReport | JSONResponse:
+                body: PdoWrite, ctx: WriteCtxDep) -> ApplyReport | JSONResponse:
     """Apply a mapping and communication parameters in the CiA 301 order, then read back."""
-    report = await pdo.apply_pdo(session, node.node_id, direction, number, body)
+    report = await pdo.apply_pdo(session, node.node_id, direction, number, body, ctx=ctx)
     if report.ok:
         return report
     problem = {"type": "/problems/pdo-apply-failed", "title": "PDO not applied", "status": 502,

@@ -25,9 +25,9 @@ from drivebench.transport.bus import BusSpec, known_interfaces
 from drivebench.web.deps import ManagerDep, NodeDep, SessionDep
 from drivebench.web.identity import PrincipalDep
 from drivebench.web.nmt import NmtRequest, NodeNmtRequest, send_nmt
-from drivebench.web.safety import ACTING, PanelDep, WriterDep
+from drivebench.web.safety import PanelDep, WriteCtxDep, WriterDep
 
-router = APIRouter(prefix="/api", tags=["sessions"], dependencies=[ACTING])
+router = APIRouter(prefix="/api", tags=["sessions"])
 
 class SessionCreate(BaseModel):
     """Either ``bus`` (``socketcan:can0@500000``, ``socketcand:HOST:PORT/can0``, ``ethercat-mbg:HOST:PORT``) or
@@ -133,18 +133,19 @@ async def remove_node(session: SessionDep, node: NodeDep) -> None:
 
 @router.post("/sessions/{session_id}/nmt", response_model=list[NodePublic],
              responses={428: {"description": "NMT start without the confirmation naming the node (or 'all')"}})
-async def nmt_broadcast(request: Request, body: NmtRequest, session: SessionDep, panel: PanelDep) -> list[NodePublic]:
+async def nmt_broadcast(request: Request, body: NmtRequest, session: SessionDep, panel: PanelDep,
+                        ctx: WriteCtxDep) -> list[NodePublic]:
     """Send an NMT command to one node or (node_id 0) to all nodes. Start: see the module notes (confirm,
     keep-alive)."""
-    await send_nmt(request, session, body, body.node_id, panel)
+    await send_nmt(request, session, body, body.node_id, panel, ctx)
     return nodes_public(session)
 
 
 @router.post("/sessions/{session_id}/nodes/{node_id}/nmt", response_model=NodePublic,
              responses={428: {"description": "NMT start without the confirmation naming the node"}})
 async def nmt_node(request: Request, body: NodeNmtRequest, session: SessionDep, node: NodeDep,
-                   panel: PanelDep) -> NodePublic:
-    await send_nmt(request, session, body, node.node_id, panel)
+                   panel: PanelDep, ctx: WriteCtxDep) -> NodePublic:
+    await send_nmt(request, session, body, node.node_id, panel, ctx)
     return node_public(session, node)
 
 

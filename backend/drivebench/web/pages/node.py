@@ -21,7 +21,6 @@ from drivebench.errors import AccessDenied, DriveBenchError, NodeOffline, NotFou
 from drivebench.i18n import N_, _
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.bus.views import node_public
-from drivebench.services.control import drive_guard
 from drivebench.services.monitoring import object_list
 from drivebench.services.params import node_lease
 from drivebench.services.params import parameters as service
@@ -30,11 +29,11 @@ from drivebench.services.users.principals import Role
 from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.identity import PrincipalDep
 from drivebench.web.pages.node_info import IdentityShown, shown
-from drivebench.web.safety import ACTING, WriterDep, confirmation
+from drivebench.web.safety import WriteCtxDep, WriterDep, confirmation
 from drivebench.web.state import app_state
 from drivebench.web.templating import templates
 
-router = APIRouter(include_in_schema=False, dependencies=[ACTING])
+router = APIRouter(include_in_schema=False)
 TABS = [("parameters", N_("Parameters")), ("pdo", N_("PDO")), ("diagnostics", N_("Diagnostics")),
         ("control", N_("Control")), ("info", N_("Info"))]  # translated where shown (node.html)
 UI = "/ui/sessions/{session_id}/nodes/{node_id}"
@@ -191,28 +190,29 @@ async def read_row(request: Request, session: SessionDep, node: NodeDep, ref: st
 
 
 @router.post(UI + "/parameters/{ref:path}/write", response_class=HTMLResponse)
-async def write_row(request: Request, session: SessionDep, node: NodeDep, ref: str,
+async def write_row(request: Request, session: SessionDep, node: NodeDep, ref: str, ctx: WriteCtxDep,
                     value: Annotated[str, Form()], confirm: Annotated[str | None, Form()] = None,
                     confirm_values: Annotated[str | None, Form()] = None) -> Response:
     """A row the profile marks as moving the drive sends ``confirm`` and ``confirm_values`` after the page's
     question (see the row)."""
-    drive_guard.confirming(confirmation(request, confirm or None, confirm_values or None))
-    result = await service.write(session, node.node_id, ref, value)
+    result = await service.write(session, node.node_id, ref, value,
+                                 ctx=ctx.confirming(confirmation(request, confirm or None, confirm_values or None)))
     return _row(request, session, node, ref, result=result)
 
 
 @router.post(UI + "/read", response_class=HTMLResponse)
-async def start_read(request: Request, session: SessionDep, node: NodeDep,
+async def start_read(request: Request, session: SessionDep, node: NodeDep, ctx: WriteCtxDep,
                      group: Annotated[str, Form()] = "", pset: Annotated[int, Form()] = 1) -> Response:
-    job = service.start_read(session, [node.node_id], app_state(request.app).jobs, group=group or None,
+    job = service.start_read(session, [node.node_id], app_state(request.app).jobs, ctx=ctx, group=group or None,
                              parameter_set=pset if 1 <= pset <= service.parameter_sets(node) else 1)
     context = _base(request, session, node, "parameters", job=job)
     return templates.TemplateResponse(request, "node/parameters.html", context, block_name="job_progress")
 
 
 @router.post(UI + "/commands/{command}", response_class=HTMLResponse)
-async def run_command(request: Request, session: SessionDep, node: NodeDep, command: DeviceCommand) -> Response:
-    result = await service.command(session, node.node_id, command)
+async def run_command(request: Request, session: SessionDep, node: NodeDep, command: DeviceCommand,
+                      ctx: WriteCtxDep) -> Response:
+    result = await service.command(session, node.node_id, command, ctx=ctx)
     context = _base(request, session, node, "parameters", command_result=result)
     return templates.TemplateResponse(request, "node/parameters.html", context, block_name="command_result")
 

@@ -13,10 +13,10 @@ from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.bus.views import node_public
 from drivebench.services.monitoring import diagnostics, fault_words
 from drivebench.web.deps import NodeDep, SessionDep
-from drivebench.web.safety import ACTING
+from drivebench.web.safety import WriteCtxDep
 from drivebench.web.templating import templates
 
-router = APIRouter(include_in_schema=False, dependencies=[ACTING])  # set-up writes take the node lease
+router = APIRouter(include_in_schema=False)  # set-up writes take the node lease (WriteCtxDep)
 UI = "/ui/sessions/{session_id}/nodes/{node_id}/diagnostics"
 PAGE = "node/diagnostics_body.html"
 
@@ -64,19 +64,19 @@ async def vendor_block(request: Request, session: SessionDep, node: NodeDep) -> 
 
 
 @router.post(UI + "/producer", response_class=HTMLResponse)
-async def set_producer(request: Request, session: SessionDep, node: NodeDep,
+async def set_producer(request: Request, session: SessionDep, node: NodeDep, ctx: WriteCtxDep,
                        time_ms: Annotated[int, Form(ge=0, le=65535)]) -> Response:
-    setup = await diagnostics.write_heartbeat_producer(session, node.node_id, time_ms)
+    setup = await diagnostics.write_heartbeat_producer(session, node.node_id, ctx, time_ms)
     context = _context(session, node, setup=setup, setup_error=None,
                        setup_ok=_("Heartbeat producer time {ms} ms written and read back.").format(ms=time_ms))
     return templates.TemplateResponse(request, PAGE, context, block_name="heartbeat")
 
 
 @router.post(UI + "/consumers/{slot}", response_class=HTMLResponse)
-async def set_consumer(request: Request, session: SessionDep, node: NodeDep, slot: int,
+async def set_consumer(request: Request, session: SessionDep, node: NodeDep, slot: int, ctx: WriteCtxDep,
                        producer_id: Annotated[int, Form(ge=0, le=127)],
                        time_ms: Annotated[int, Form(ge=0, le=65535)]) -> Response:
-    setup = await diagnostics.write_heartbeat_consumer(session, node.node_id, slot, producer_id, time_ms)
+    setup = await diagnostics.write_heartbeat_consumer(session, node.node_id, ctx, slot, producer_id, time_ms)
     context = _context(session, node, setup=setup, setup_error=None,
                        setup_ok=_("Consumer entry {slot}: node {node}, {ms} ms written and read back.").format(
                            slot=slot, node=producer_id, ms=time_ms))
@@ -84,8 +84,8 @@ async def set_consumer(request: Request, session: SessionDep, node: NodeDep, slo
 
 
 @router.post(UI + "/guarding", response_class=HTMLResponse)
-async def set_guarding(request: Request, session: SessionDep, node: NodeDep,
+async def set_guarding(request: Request, session: SessionDep, node: NodeDep, ctx: WriteCtxDep,
                        guard_time_ms: Annotated[int, Form(ge=0, le=65535)],
                        life_time_factor: Annotated[int, Form(ge=0, le=255)]) -> Response:
-    await diagnostics.start_guarding(session, node.node_id, guard_time_ms, life_time_factor)
+    await diagnostics.start_guarding(session, node.node_id, ctx, guard_time_ms, life_time_factor)
     return templates.TemplateResponse(request, PAGE, _context(session, node), block_name="health")

@@ -13,16 +13,15 @@ from drivebench.config import settings
 from drivebench.device.profiles.catalog import Item
 from drivebench.device.profiles.number_base import shows_hex
 from drivebench.services.bus.sessions import Session, SessionNode
-from drivebench.services.control import drive_guard
 from drivebench.services.params import factory_compare
 from drivebench.services.params import parameters as service
 from drivebench.services.users import audit, undo
 from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.pages.node import UI
-from drivebench.web.safety import ACTING, confirmation
+from drivebench.web.safety import WriteCtxDep, confirmation
 from drivebench.web.templating import templates
 
-router = APIRouter(include_in_schema=False, dependencies=[ACTING])
+router = APIRouter(include_in_schema=False)
 WRITES_SHOWN = 30
 
 
@@ -64,13 +63,13 @@ async def writes(request: Request, session: SessionDep, node: NodeDep) -> Respon
 
 
 @router.post(UI + "/undo/{entry_id}", response_class=HTMLResponse)
-async def undo_write(request: Request, session: SessionDep, node: NodeDep, entry_id: int,
+async def undo_write(request: Request, session: SessionDep, node: NodeDep, entry_id: int, ctx: WriteCtxDep,
                      confirm: Annotated[str | None, Form()] = None,
                      confirm_values: Annotated[str | None, Form()] = None) -> Response:
     """Undo one write of this node; an old value that can move the drive is asked first (data-asks-moving)."""
     record = undo.record(entry_id, settings.database_url)
-    drive_guard.confirming(confirmation(request, confirm or None, confirm_values or None))
-    result = await undo.undo(session, record)
+    result = await undo.undo(session, record,
+                             ctx=ctx.confirming(confirmation(request, confirm or None, confirm_values or None)))
     item = service.resolve(node, record.ref)
     return _writes(request, session, node, undone=record, result=result, item=item,
                    values=service.service(session).values.get(node.node_id, {}),

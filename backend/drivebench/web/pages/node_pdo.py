@@ -33,10 +33,10 @@ from drivebench.services.users.principals import Role
 from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.identity import principal_of
 from drivebench.web.problems import status_for
-from drivebench.web.safety import ACTING, PanelDep, confirmation
+from drivebench.web.safety import PanelDep, WriteCtxDep, confirmation
 from drivebench.web.templating import templates
 
-router = APIRouter(include_in_schema=False, dependencies=[ACTING])
+router = APIRouter(include_in_schema=False)
 log = logging.getLogger(__name__)
 UI = "/ui/sessions/{session_id}/nodes/{node_id}/pdo"
 
@@ -96,7 +96,7 @@ async def pdo_list(request: Request, session: SessionDep, node: NodeDep) -> Resp
 
 @router.post(UI + "/{direction}/{number}/apply", response_class=HTMLResponse)
 async def apply(request: Request, session: SessionDep, node: NodeDep, direction: Direction, number: int,
-                entries: Annotated[str, Form()] = "", cob_id: Annotated[str, Form()] = "",
+                ctx: WriteCtxDep, entries: Annotated[str, Form()] = "", cob_id: Annotated[str, Form()] = "",
                 valid: Annotated[str, Form()] = "", transmission_type: Annotated[str, Form()] = "",
                 inhibit_time_ms: Annotated[str, Form()] = "", event_timer_ms: Annotated[str, Form()] = "") -> Response:
     try:
@@ -107,7 +107,7 @@ async def apply(request: Request, session: SessionDep, node: NodeDep, direction:
                          event_timer_ms=int(event_timer_ms) if event_timer_ms.strip() else None)
     except ValueError as exc:
         raise InvalidValue(_("{pdo}: {problem}").format(pdo=f"{direction.upper()}{number}", problem=exc)) from exc
-    report: ApplyReport = await pdo.apply_pdo(session, node.node_id, direction, number, write)
+    report: ApplyReport = await pdo.apply_pdo(session, node.node_id, direction, number, write, ctx=ctx)
     await live.service(session).load(node.node_id)
     config = report.pdo or await pdo.read_pdo(session, node.node_id, direction, number)
     context = _context(session, node, report=report, **_card_context(session, node, config))
@@ -119,9 +119,10 @@ async def apply(request: Request, session: SessionDep, node: NodeDep, direction:
 
 @router.post(UI + "/ethercat/{direction}/{number}/apply", response_class=HTMLResponse)
 async def apply_ethercat(request: Request, session: SessionDep, node: NodeDep, direction: Direction, number: int,
-                         entries: Annotated[str, Form()] = "") -> Response:
+                         ctx: WriteCtxDep, entries: Annotated[str, Form()] = "") -> Response:
     try:
-        report = await ethercat_pdo.apply_mapping(session, node.node_id, direction, number, _parse_entries(entries))
+        report = await ethercat_pdo.apply_mapping(session, node.node_id, direction, number, _parse_entries(entries),
+                                                  ctx=ctx)
         status = 200
     except ethercat_pdo.MappingNotApplied as exc:  # the card shows the step report, with the problem's status
         report, status = exc.report, status_for(exc)
@@ -132,7 +133,8 @@ async def apply_ethercat(request: Request, session: SessionDep, node: NodeDep, d
 
 
 @router.post(UI + "/rpdo/{number}/send", response_class=HTMLResponse)
-async def send(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep, number: int) -> Response:
+async def send(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep, ctx: WriteCtxDep,
+               number: int) -> Response:
     form = await request.form()
     values = {key[2:]: str(value) for key, value in form.items() if key.startswith("v:")}
     mode, owner = str(form.get("mode", "once")), str(form.get("client_id", ""))
@@ -151,11 +153,12 @@ async def send(request: Request, session: SessionDep, node: NodeDep, panel: Pane
             period_ms = int(str(form.get("period_ms") or "100"))
         except ValueError as exc:
             raise InvalidValue(_("The cycle time is a whole number of milliseconds.")) from exc
-        data = await drive_guard.send_rpdo(session, node.node_id, number, values, panel, confirm=confirm, owner=owner,
+        data = await drive_guard.send_rpdo(session, node.node_id, number, values, panel, ctx=ctx, confirm=confirm,
+                                           owner=owner,
                                            period_ms=period_ms, keepalive=keepalive)
         message = _("sending every {time} ms").format(time=period_ms)
     else:
-        data = await drive_guard.send_rpdo(session, node.node_id, number, values, panel, confirm=confirm,
+        data = await drive_guard.send_rpdo(session, node.node_id, number, values, panel, ctx=ctx, confirm=confirm,
                                            keepalive=keepalive)
         message = _("sent once")
     state, _live = session.nmt_state(node.node_id)
@@ -192,9 +195,9 @@ async def sync(request: Request, session: SessionDep, node: NodeDep, period_ms: 
 
 
 @router.post(UI + "/start-node", response_class=HTMLResponse)
-async def start_node(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep,
+async def start_node(request: Request, session: SessionDep, node: NodeDep, panel: PanelDep, ctx: WriteCtxDep,
                      confirm: Annotated[str, Form()] = "", confirm_values: Annotated[str, Form()] = "") -> Response:
-    await drive_guard.nmt(session, NmtCommand.START, node.node_id, panel,
+    await drive_guard.nmt(session, NmtCommand.START, node.node_id, panel, ctx=ctx,
                           confirm=confirmation(request, confirm or None, confirm_values or None))
     return HTMLResponse(Markup('<span class="pdo-sent">{}</span>').format(
         _("NMT start sent to node {node}: this tab keeps it running (closing it stops the node)").format(

@@ -16,14 +16,14 @@ from drivebench.errors import DriveBenchError, InvalidValue
 from drivebench.i18n import _
 from drivebench.services.control.drive_guard import Confirmation
 from drivebench.services.params.jobs import Job, JobManager
+from drivebench.services.params.write_context import WriteContext
 from drivebench.services.session_manager import SessionManager
 from drivebench.services.sets import set_formats, set_jobs
 from drivebench.services.sets.parameter_sets import compare, comparison_csv, retarget
-from drivebench.services.users import audit
 from drivebench.web.deps import JobsDep, ManagerDep, RowId, StateDep
 from drivebench.web.pages.sets_audit import audit_context
 from drivebench.web.problems import error_fragment, problem_body, status_for
-from drivebench.web.safety import ACTING, confirmation
+from drivebench.web.safety import WriteCtxDep, audit_user, confirmation
 from drivebench.web.set_views import (
     CompareIn,
     SourceIn,
@@ -36,7 +36,7 @@ from drivebench.web.set_views import (
 from drivebench.web.state import AppState
 from drivebench.web.templating import templates
 
-router = APIRouter(include_in_schema=False, dependencies=[ACTING])  # downloads take the node lease
+router = APIRouter(include_in_schema=False)  # downloads take the node lease (WriteCtxDep)
 _DEVICE_NOISE = re.compile(r"^Inverter Drives\s+|\s+(frequency inverter|servo inverter)?\s*with .*$| - .*$")
 
 
@@ -142,12 +142,12 @@ async def compare_sources(request: Request, state: StateDep, manager: ManagerDep
 
 # --- upload and import -------------------------------------------------------------------------------------
 @router.post(UI + "/upload", response_class=HTMLResponse)
-async def upload(request: Request, manager: ManagerDep, jobs: JobsDep) -> Response:
+async def upload(request: Request, manager: ManagerDep, jobs: JobsDep, ctx: WriteCtxDep) -> Response:
     form = await request.form()
     try:
         session_id, node_id = _target(form)
         name = _text(form, "name") or _("Node {node}").format(node=node_id)
-        job = set_jobs.start_upload(manager.get(session_id), node_id, jobs, store(), name=name,
+        job = set_jobs.start_upload(manager.get(session_id), node_id, jobs, store(), ctx=ctx, name=name,
                                     note=_text(form, "note"))
     except DriveBenchError as exc:
         return _error(request, exc)
@@ -155,11 +155,12 @@ async def upload(request: Request, manager: ManagerDep, jobs: JobsDep) -> Respon
 
 
 @router.post(UI + "/{set_id}/upload", response_class=HTMLResponse)
-async def upload_version(request: Request, set_id: RowId, manager: ManagerDep, jobs: JobsDep) -> Response:
+async def upload_version(request: Request, set_id: RowId, manager: ManagerDep, jobs: JobsDep,
+                         ctx: WriteCtxDep) -> Response:
     form = await request.form()
     try:
         session_id, node_id = _target(form)
-        job = set_jobs.start_upload(manager.get(session_id), node_id, jobs, store(), name="", into=set_id)
+        job = set_jobs.start_upload(manager.get(session_id), node_id, jobs, store(), ctx=ctx, name="", into=set_id)
     except DriveBenchError as exc:
         return _error(request, exc)
     return _render(request, "job", _job_context(job, jobs))
@@ -179,7 +180,7 @@ async def import_file(request: Request, state: StateDep) -> Response:
         imported = set_formats.import_any(data, upload.filename, state.registry.get,
                                           profile_id=_text(form, "profile_id") or None,
                                           name=_text(form, "name") or None)
-        stored = store().create(imported.name, imported.profile, imported.values, user=audit.current_user.get(),
+        stored = store().create(imported.name, imported.profile, imported.values, user=audit_user(request),
                                 node_id=imported.node_id, note=imported.note,
                                 reason=f"imported from {upload.filename}")
     except set_formats.SetImportError as exc:
@@ -254,7 +255,7 @@ async def copy(request: Request, set_id: RowId, state: StateDep, manager: Manage
         profile = state.registry.get(stored.info.profile_id)
         values, notes = retarget(profile, stored.values, stored.info.node_id, to_node)
         copied = store().create(_("{name} (node {node})").format(name=stored.info.name, node=to_node), profile,
-                                values, user=audit.current_user.get(), node_id=to_node,
+                                values, user=audit_user(request), node_id=to_node,
                                 session_id=stored.info.session_id,
                                 note=_("Copy of '{name}' v{version} for node {node}").format(
                                     name=stored.info.name, version=stored.version, node=to_node),
@@ -268,12 +269,12 @@ async def copy(request: Request, set_id: RowId, state: StateDep, manager: Manage
 
 # --- download ----------------------------------------------------------------------------------------------
 @router.post(UI + "/{set_id}/preview", response_class=HTMLResponse)
-async def preview(request: Request, set_id: RowId, manager: ManagerDep) -> Response:
+async def preview(request: Request, set_id: RowId, manager: ManagerDep, ctx: WriteCtxDep) -> Response:
     form = await request.form()
     try:
         session_id, node_id = _target(form)
         stored = store().get(set_id)
-        lines = await set_jobs.preview(manager.get(session_id), node_id, stored)
+        lines = await set_jobs.preview(manager.get(session_id), node_id, stored, ctx=ctx)
     except DriveBenchError as exc:
         return _error(request, exc)
     return _render(request, "preview", {"info": stored.info, "lines": lines, "target": f"{session_id}:{node_id}",
@@ -281,13 +282,15 @@ async def preview(request: Request, set_id: RowId, manager: ManagerDep) -> Respo
 
 
 @router.post(UI + "/{set_id}/download", response_class=HTMLResponse)
-async def download(request: Request, set_id: RowId, manager: ManagerDep, jobs: JobsDep) -> Response:
+async def download(request: Request, set_id: RowId, manager: ManagerDep, jobs: JobsDep, ctx: WriteCtxDep
+                   ) -> Response:
     form = await request.form()
     try:
         session_id, node_id = _target(form)
         session, stored = manager.get(session_id), store().get(set_id)
-        held = await set_jobs.held_moving(session, node_id, set_jobs.download_targets(session, node_id, stored))
-        job = set_jobs.start_download(session, node_id, jobs, store(), stored, held=held,
+        held = await set_jobs.held_moving(session, node_id, set_jobs.download_targets(session, node_id, stored),
+                                          ctx=ctx)
+        job = set_jobs.start_download(session, node_id, jobs, store(), stored, ctx=ctx, held=held,
                                       save=form.get("save") == "on", confirm=_confirmation(request, form))
     except DriveBenchError as exc:
         return _error(request, exc)
@@ -295,7 +298,8 @@ async def download(request: Request, set_id: RowId, manager: ManagerDep, jobs: J
 
 
 @router.post(UI + "/downloads/{download_id}/{action}", response_class=HTMLResponse)
-async def follow_up(request: Request, download_id: int, action: str, manager: ManagerDep, jobs: JobsDep) -> Response:
+async def follow_up(request: Request, download_id: int, action: str, manager: ManagerDep, jobs: JobsDep,
+                    ctx: WriteCtxDep) -> Response:
     form = await request.form()
     try:
         row = store().download(download_id)
@@ -303,11 +307,14 @@ async def follow_up(request: Request, download_id: int, action: str, manager: Ma
         save = form.get("save") == "on"
         confirm = _confirmation(request, form)  # after the page's question, for sets that can move a drive
         if action == "retry":
-            held = await set_jobs.held_moving(session, row.node_id, set_jobs.retry_targets(store(), download_id))
-            job = set_jobs.start_retry(session, jobs, store(), download_id, save=save, confirm=confirm, held=held)
+            held = await set_jobs.held_moving(session, row.node_id, set_jobs.retry_targets(store(), download_id),
+                                              ctx=ctx)
+            job = set_jobs.start_retry(session, jobs, store(), download_id, ctx=ctx, save=save, confirm=confirm,
+                                       held=held)
         elif action == "rollback":
-            held = await set_jobs.held_moving(session, row.node_id, set_jobs.rollback_targets(store(), download_id))
-            job = set_jobs.start_rollback(session, jobs, store(), download_id, save=save, confirm=confirm,
+            held = await set_jobs.held_moving(session, row.node_id, set_jobs.rollback_targets(store(), download_id),
+                                              ctx=ctx)
+            job = set_jobs.start_rollback(session, jobs, store(), download_id, ctx=ctx, save=save, confirm=confirm,
                                           held=held)
         else:
             raise InvalidValue(_("Unknown action '{action}'").format(action=action))
@@ -349,18 +356,18 @@ async def job_state(request: Request, job_id: str, jobs: JobsDep) -> Response:
 
 
 # --- compare -----------------------------------------------------------------------------------------------
-async def _comparison(form: Any, state: AppState, manager: SessionManager) -> Any:
+async def _comparison(form: Any, state: AppState, manager: SessionManager, ctx: WriteContext) -> Any:
     body = CompareIn(left=_source(str(form.get("left") or "")), right=_source(str(form.get("right") or "")),
                      q=str(form.get("q") or ""))
-    left, right = await build_sources(state, manager, body)
+    left, right = await build_sources(state, manager, body, ctx)
     return compare(left, right, query=body.q)
 
 
 @router.post(UI + "/compare", response_class=HTMLResponse)
-async def compare_view(request: Request, state: StateDep, manager: ManagerDep) -> Response:
+async def compare_view(request: Request, state: StateDep, manager: ManagerDep, ctx: WriteCtxDep) -> Response:
     form = await request.form()
     try:
-        result = await _comparison(form, state, manager)
+        result = await _comparison(form, state, manager, ctx)
     except DriveBenchError as exc:
         return _error(request, exc)
     return _render(request, "compare_result", {"result": result, "left_key": form.get("left"),
@@ -368,8 +375,8 @@ async def compare_view(request: Request, state: StateDep, manager: ManagerDep) -
 
 
 @router.get(UI + "/compare/export.csv")
-async def compare_csv(request: Request, state: StateDep, manager: ManagerDep) -> Response:
-    result = await _comparison(request.query_params, state, manager)
+async def compare_csv(request: Request, state: StateDep, manager: ManagerDep, ctx: WriteCtxDep) -> Response:
+    result = await _comparison(request.query_params, state, manager, ctx)
     return Response(comparison_csv(result), media_type="text/csv",
                     headers={"Content-Disposition": 'attachment; filename="comparison.csv"'})
 

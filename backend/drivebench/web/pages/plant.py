@@ -22,10 +22,10 @@ from drivebench.transport.bus import BusSpec, known_interfaces
 from drivebench.web.deps import ManagerDep, SessionDep, StateDep
 from drivebench.web.nmt import NodeNmtRequest, send_nmt
 from drivebench.web.problems import error_fragment, problem_body
-from drivebench.web.safety import ACTING, PanelDep
+from drivebench.web.safety import PanelDep, WriteCtxDep
 from drivebench.web.templating import templates
 
-router = APIRouter(include_in_schema=False, dependencies=[ACTING])
+router = APIRouter(include_in_schema=False)
 
 
 def _context(state: Any, **extra: Any) -> dict[str, Any]:
@@ -80,7 +80,7 @@ async def close_session(session: SessionDep, manager: ManagerDep) -> Response:
 
 
 @router.post("/ui/sessions/{session_id}/nmt", response_class=HTMLResponse)
-async def nmt(request: Request, session: SessionDep, panel: PanelDep, command: Annotated[str, Form()],
+async def nmt(request: Request, session: SessionDep, panel: PanelDep, ctx: WriteCtxDep, command: Annotated[str, Form()],
               node_id: Annotated[int, Form(ge=0, le=127)] = 0, confirm: Annotated[str, Form()] = "",
               confirm_values: Annotated[str, Form()] = "") -> Response:
     if command not in COMMAND_BY_NAME:
@@ -89,7 +89,7 @@ async def nmt(request: Request, session: SessionDep, panel: PanelDep, command: A
         session.node(node_id)
     await send_nmt(request, session, NodeNmtRequest(
         command=command, confirm=confirm or None, confirm_values=parse_values(confirm_values)),
-                   node_id, panel)
+                   node_id, panel, ctx)
     return nodes_table(request, session)
 
 

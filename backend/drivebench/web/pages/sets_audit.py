@@ -12,15 +12,14 @@ from fastapi.responses import HTMLResponse, Response
 from drivebench.config import settings
 from drivebench.errors import DriveBenchError
 from drivebench.i18n import _
-from drivebench.services.control import drive_guard
 from drivebench.services.session_manager import SessionManager
 from drivebench.services.users import audit, undo
 from drivebench.services.users.audit import AuditEntry
 from drivebench.web.deps import ManagerDep
-from drivebench.web.safety import ACTING, confirmation
+from drivebench.web.safety import WriteCtxDep, confirmation
 from drivebench.web.templating import templates
 
-router = APIRouter(include_in_schema=False, dependencies=[ACTING])
+router = APIRouter(include_in_schema=False)  # an undo takes the node lease (WriteCtxDep)
 UI = "/parameter-sets"
 SHOWN = 200
 
@@ -54,12 +53,12 @@ async def audit_rows(request: Request, manager: ManagerDep, q: str = "") -> Resp
 
 
 @router.post(UI + "/audit/{entry_id}/undo", response_class=HTMLResponse)
-async def undo_write(request: Request, manager: ManagerDep, entry_id: int, q: str = "",
+async def undo_write(request: Request, manager: ManagerDep, entry_id: int, ctx: WriteCtxDep, q: str = "",
                      confirm: Annotated[str | None, Form()] = None,
                      confirm_values: Annotated[str | None, Form()] = None) -> Response:
     """Undo one record; the log is shown again with the result (a write of its own, origin ``undo <id>``)."""
     record = undo.record(entry_id, settings.database_url)
     session = manager.get(record.session_id)
-    drive_guard.confirming(confirmation(request, confirm or None, confirm_values or None))
-    result = await undo.undo(session, record)
+    ctx = ctx.confirming(confirmation(request, confirm or None, confirm_values or None))
+    result = await undo.undo(session, record, ctx=ctx)
     return _block(request, {**audit_context(manager, q), "undone": record, "result": result})
