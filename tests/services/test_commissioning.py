@@ -191,7 +191,7 @@ def test_the_generic_cia402_set_up_writes_the_servos_standard_objects(bench: tup
     refs = [step.ref for step in setup.steps]
     assert refs[:3] == ["0x6060", "0x607D.1", "0x607D.2"] and "0x6092.1" in refs and refs[-1] == "0x609A"
     assert "0x6080" in setup.missing[0] and "0x6080" not in refs  # the servo's profile has no max motor speed
-    run = _walk(runner, session, commissioning.wizard(session).start(session, servo, "cia402-setup"),
+    run = _walk(runner, session, commissioning.wizard(session).start(session, servo, "cia402-setup", SERVICE),
                 values={"0x6083": 5000, "0x607D.2": 7200})
     assert run.failed is None and all(result.ok for result in run.results), run.failed
     assert runner.run(parameters.read(session, 7, "0x6083")).raw == 5000
@@ -204,9 +204,9 @@ def test_the_generic_cia402_set_up_writes_the_servos_standard_objects(bench: tup
 def test_a_set_up_value_outside_the_range_is_refused_and_the_step_stays(bench: tuple[asyncio.Runner, Session]) -> None:
     runner, session = bench
     servo = session.node(7)
-    run = commissioning.wizard(session).start(session, servo, "cia402-setup")
+    run = commissioning.wizard(session).start(session, servo, "cia402-setup", SERVICE)
     _walk(runner, session, run, stop_before=1)
     before = runner.run(parameters.read(session, 7, "0x607D.1")).raw
     with pytest.raises(InvalidValue):
-        runner.run(commissioning.next_step(session, servo, run, value="far left"))
+        runner.run(commissioning.next_step(session, servo, run, value="far left", ctx=SERVICE))
     assert run.position == 1 and runner.run(parameters.read(session, 7, "0x607D.1")).raw == before

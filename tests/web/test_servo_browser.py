@@ -135,7 +135,8 @@ def test_upload_scan_home_move_velocity_and_jog_a_cia402_axis(server: tuple[str,
     page.click("#ctl-move button[type=submit]")
     _confirm(page)
     _until(page, "0x6064", "0 mm")
-    assert page.locator("#ctl-mode-display").inner_text() == "Profile position (1)"
+    assert wait_until(lambda: page.locator("#ctl-mode-display").inner_text() == "Profile position (1)",
+                      TIMEOUT_MS / 1000), page.locator("#ctl-mode-display").inner_text()
     samples, lowest, highest = _plotted(page, "0x6064")
     assert lowest <= 0.5 and highest >= 49.5, (lowest, highest)  # the way to 50 mm and back is on the chart
     assert wait_until(lambda: _plotted(page, "0x6064")[0] > samples, TIMEOUT_MS / 1000)  # and it goes on: live
@@ -145,7 +146,9 @@ def test_upload_scan_home_move_velocity_and_jog_a_cia402_axis(server: tuple[str,
     _confirm(page)  # the mode (0x6060 = 3) while enabled: asked with what it writes
     _confirm(page)  # then the target velocity 0x60FF = 20 mm/s
     _until(page, "0x606C", "20 mm/s")
-    assert page.locator("#ctl-mode-display").inner_text() == "Profile velocity (3)"
+    # the display follows the drive's 0x6061 with the next status update
+    assert wait_until(lambda: page.locator("#ctl-mode-display").inner_text() == "Profile velocity (3)",
+                      TIMEOUT_MS / 1000), page.locator("#ctl-mode-display").inner_text()
     page.fill("#ctl-velocity input[name=value]", "0")
     page.click("#ctl-velocity button[type=submit]")
     _until(page, "0x606C", "0 mm/s")
