@@ -103,7 +103,7 @@ def _instrument(written: list[float], lags: list[float]) -> None:
 
     built_at = re.compile(r'"server_time": ([0-9.]+)')
 
-    async def send_loop(client: ws_monitor._Client) -> None:
+    async def send_loop(client: ws_monitor.FeedClient) -> None:
         while True:
             await client.ready.wait()
             text = client.take()

@@ -16,7 +16,7 @@ from drivebench.simulator.ethercat import GatewayServer
 from drivebench.simulator.plant import Plant
 
 if TYPE_CHECKING:  # the monitor socket's module reaches this one through the routes' dependencies
-    from drivebench.web.ws.monitor import Feed
+    from drivebench.web.monitor_feed import Feed
 
 
 @dataclass
