@@ -6,7 +6,14 @@ STAMP := $(VENV)/.installed
 HOST ?= 127.0.0.1
 PORT ?= 8000
 
-.PHONY: constraints run test test-quick install lint typecheck importlint pytest bench chromium postgresql clean i18n-extract i18n-update i18n-compile
+.PHONY: help constraints run test test-quick install lint typecheck importlint pytest bench chromium postgresql clean i18n-extract i18n-update i18n-compile
+
+help:
+	@echo "make run          serve http://$(HOST):$(PORT) with the built-in simulated plant"
+	@echo "make test         ruff, mypy, lint-imports and the whole suite on PYTEST_WORKERS=$(PYTEST_WORKERS) workers (CI)"
+	@echo "make test-quick   the suite without the tests marked slow (browser, faults, server processes,"
+	@echo "                  long property runs): a developer's loop (CI runs them all)"
+	@echo "make lint | typecheck | importlint | bench | constraints | i18n-update | i18n-compile | clean"
 
 $(STAMP): pyproject.toml constraints.txt
 	test -d $(VENV) || $(PYTHON) -m venv $(VENV)

@@ -195,9 +195,10 @@ def _free_port() -> int:
 
 
 @contextlib.contextmanager
-def serve_app(app: FastAPI, **config: object) -> Iterator[str]:
-    """Run ``app`` in uvicorn on a free loopback port in a thread; yields its base URL, stops it on exit.
-    ``config`` goes to uvicorn (``ssl_certfile``/``ssl_keyfile`` serve https)."""
+def serve_app(app: FastAPI, start_timeout_s: float = 60.0, **config: object) -> Iterator[str]:
+    """Run ``app`` in uvicorn on a free loopback port in a thread; yields its base URL, stops it on exit, also when
+    it did not start in ``start_timeout_s`` (a server left starting ran on after the failed test, with its plant's
+    and bus's threads). ``config`` goes to uvicorn (``ssl_certfile``/``ssl_keyfile`` serve https)."""
     sock = socket.socket()  # bound here, before the server starts: no other process (xdist worker) can take it
     sock.bind(("127.0.0.1", 0))
     port = int(sock.getsockname()[1])
@@ -206,11 +207,11 @@ def serve_app(app: FastAPI, **config: object) -> Iterator[str]:
                                            **config))  # type: ignore[arg-type]
     thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
     thread.start()
-    deadline = time.monotonic() + 60  # the demo plant's start-up beside three other workers took over 20 s
-    while not server.started and time.monotonic() < deadline:
-        time.sleep(0.05)
-    assert server.started, "the test server did not start"
     try:
+        deadline = time.monotonic() + start_timeout_s  # the demo plant's start-up beside three workers took 20 s
+        while not server.started and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert server.started, f"the test server did not start in {start_timeout_s:g} s"
         yield f"{'https' if config.get('ssl_certfile') else 'http'}://127.0.0.1:{port}"
     finally:
         server.should_exit = True

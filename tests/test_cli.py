@@ -247,6 +247,7 @@ def _drivebench(args: list[str], tmp_path: Path, **language: str) -> subprocess.
                           capture_output=True, text=True, timeout=60, check=False)
 
 
+@pytest.mark.slow  # among the costliest of the quick subset (--durations, issue 29): `make test-quick` leaves it out
 def test_the_command_speaks_the_language_of_the_shell(tmp_path: Path) -> None:
     """LANG=de_DE.UTF-8 gives German messages, help and errors; LC_ALL and LC_MESSAGES come first, as in C."""
     refused = _drivebench(["tls", "self-signed", "--host", "plant.local", "--days", "0"], tmp_path,

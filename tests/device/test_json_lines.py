@@ -65,6 +65,7 @@ _JSON = st.recursive(st.none() | st.booleans() | st.integers() | st.floats(allow
 
 
 @given(_JSON, st.sampled_from([None, 2]))
+@pytest.mark.slow  # among the costliest of the quick subset (--durations, issue 29): `make test-quick` leaves it out
 def test_parses_like_the_json_module(value: object, indent: int | None) -> None:
     text = json.dumps(value, indent=indent)
     assert value_lines(text)[0] == json.loads(text)

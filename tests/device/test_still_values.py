@@ -59,6 +59,7 @@ def test_every_still_mark_of_a_seed_profile_counts(path: Path) -> None:
 
 
 @pytest.mark.parametrize("path", PROFILES, ids=lambda p: p.stem)
+@pytest.mark.slow  # among the costliest of the quick subset (--durations, issue 29): `make test-quick` leaves it out
 def test_no_still_control_word_of_a_seed_profile_can_enable_from_any_state(path: Path) -> None:
     profile = _profile(path)
     catalog = Catalog(profile)

@@ -3,12 +3,15 @@ timestamps, not by when the busy process counted them."""
 
 from __future__ import annotations
 
+import pytest
+
 from drivebench.device.profiles.loader import ProfileRegistry
 from tests.services.burst_rig import run_burst
 
 TOLERANCE_PERCENT = 2.0
 
 
+@pytest.mark.slow  # among the costliest of the quick subset (--durations, issue 29): `make test-quick` leaves it out
 def test_every_load_point_of_a_burst_is_the_exact_load_despite_a_stall(registry: ProfileRegistry) -> None:
     """~2,000 frames/s for 4 s through the socketcand hub; this process burns CPU in a thread and its frame
     listener stalls for 1.5 s once (the frames are counted late, in a catch-up). Every one-second point is within

@@ -145,6 +145,7 @@ def test_units_without_the_si_unit_objects(plant_session: tuple[asyncio.Runner, 
 @pytest.mark.parametrize(("method", "near"), [(35, None), (37, None), (34, None), (33, None), (17, -LIMIT_REVS),
                                               (18, LIMIT_REVS), (1, -LIMIT_REVS), (2, LIMIT_REVS), (11, 1.0),
                                               (27, 0.5), (10, 1.0)])
+@pytest.mark.slow  # among the costliest of the quick subset (--durations, issue 29): `make test-quick` leaves it out
 def test_homing_methods(axis: Axis, method: int, near: float | None) -> None:
     axis.enable()
     start = axis.drive.mech

@@ -103,6 +103,7 @@ def bench(registry: ProfileRegistry, channel: str, db_url: str) -> Iterator[Benc
 # --- upload and formats -----------------------------------------------------------------------------------
 @pytest.mark.parametrize("node_id", [5, 12, 3])
 @pytest.mark.parametrize("fmt", ["json", "csv", "dcf"])
+@pytest.mark.slow  # among the costliest of the quick subset (--durations, issue 29): `make test-quick` leaves it out
 def test_every_format_round_trips(bench: Bench, registry: ProfileRegistry, node_id: int, fmt: str) -> None:
     stored = bench.upload(node_id, f"node {node_id}")
     profile = registry.get(stored.info.profile_id)
@@ -403,6 +404,7 @@ def _wait_for(predicate: Any, process: Any, deadline_s: float, what: str) -> Non
         time.sleep(0.02)
 
 
+@pytest.mark.slow  # among the costliest of the quick subset (--durations, issue 29): `make test-quick` leaves it out
 def test_kill_during_download_loses_nothing_and_shows_interrupted(registry: ProfileRegistry, db_url: str,
                                                                   tmp_path: Path) -> None:
     from drivebench.services.params.jobs import JobManager
@@ -455,6 +457,7 @@ def test_kill_during_download_loses_nothing_and_shows_interrupted(registry: Prof
             assert db.execute(text(open_elsewhere)).scalar() == 0
 
 
+@pytest.mark.slow  # among the costliest of the quick subset (--durations, issue 29): `make test-quick` leaves it out
 def test_kill_during_imports_leaves_only_whole_sets(registry: ProfileRegistry, db_url: str, tmp_path: Path) -> None:
     script = tmp_path / "imports.py"
     script.write_text(KILLED_IMPORT)

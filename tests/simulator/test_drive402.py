@@ -13,8 +13,11 @@ from collections.abc import Callable
 import can
 import pytest
 
-from drivebench.simulator.drive402 import STATE_BITS, State402
-from drivebench.simulator.plant import Plant
+from drivebench.device.profiles.loader import ProfileRegistry
+from drivebench.device.profiles.scaling import to_raw
+from drivebench.simulator.drive402 import STATE_BITS, Drive402, State402
+from drivebench.simulator.plant import Plant, PlantFile
+from tests.conftest import DEMO_PLANT, fresh_channel
 from tests.simulator.wire_script import WireScript
 
 MM = 3
@@ -207,3 +210,30 @@ def test_quick_commissioning_gating_on_the_wire(plant: Plant, script: WireScript
     assert script.sdo(MM, "40 0a 20 00 00 00 00 00")[:6].hex(" ") == "4b 0a 20 00 00 00"  # P0010 = 0 again
     assert script.sdo(MM, "2b 30 21 00 2c 01 00 00").hex(" ") == "80 30 21 00 22 00 00 08"
     assert store.get_ref("P0304") == 400
+
+
+def test_velocity_ramps_in_the_ramp_up_time_when_the_cycles_come_late(registry: ProfileRegistry) -> None:
+    """On a loaded machine the plant's cycles come late (here every 100 ms rather than every 8 ms): the drive still
+    ramps at its ramp-up rate per second (150 rpm/s: 300 rpm after 2 s), not per cycle. The plant is not started:
+    the test ticks the drive at a loaded machine's pace."""
+    plant = Plant(PlantFile.load(DEMO_PLANT), registry.get, bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
+    drive, store = plant.nodes[MM].drive, plant.nodes[MM].store
+    assert isinstance(drive, Drive402) and drive._rate_rpm_s(False) == 150
+    now = 1000.0
+    drive.tick(now)
+    for ref in ("P0700", "P1000"):  # command source and setpoint from CAN
+        store.set_ref(ref, to_raw(store.catalog.resolve(ref).entry, 6))
+    store.set(0x6042, 0, 300)
+    for control_word in (0x06, 0x07, 0x0F, 0x7F):  # shutdown, switch on, enable operation, ramp released
+        store.set(0x6040, 0, control_word)
+        now += 0.1
+        drive.tick(now)
+    assert drive.state is State402.OPERATION_ENABLED
+    for _ in range(9):
+        now += 0.1
+        drive.tick(now)
+    assert store.get(0x6044, 0) == pytest.approx(150, abs=20)  # 1 s of ramp
+    for _ in range(11):
+        now += 0.1
+        drive.tick(now)
+    assert store.get(0x6044, 0) == 300

@@ -13,8 +13,15 @@ from collections.abc import Callable
 import can
 import pytest
 
-from drivebench.simulator.lenze_control import OPERATION_ENABLED, OPERATION_ENABLED_AIF, OPERATION_INHIBITED
-from drivebench.simulator.plant import Plant
+from drivebench.device.profiles.loader import ProfileRegistry
+from drivebench.simulator.lenze_control import (
+    OPERATION_ENABLED,
+    OPERATION_ENABLED_AIF,
+    OPERATION_INHIBITED,
+    WordControl,
+)
+from drivebench.simulator.plant import Plant, PlantFile
+from tests.conftest import DEMO_PLANT, fresh_channel
 from tests.simulator.wire_script import WireScript
 
 VECTOR, MOTEC = 12, 5
@@ -103,3 +110,25 @@ def test_8200_vector_jog_bits_select_c0037(plant: Plant, script: WireScript) -> 
     _write(script, VECTOR, C1822, 2, 250, 2)  # setpoint 5 Hz
     _write(script, VECTOR, C0135, 0, 0x0001, 2)  # bit 0 no longer selects JOG1 (10 Hz): the setpoint runs
     _until(script, VECTOR, C1823, 2, lambda actual: actual == 250)
+
+
+def test_8200_vector_ramps_in_its_acceleration_time_when_the_cycles_come_late(registry: ProfileRegistry) -> None:
+    """On a loaded machine the plant's cycles come late (here every 100 ms rather than every 4 ms): the drive still
+    ramps at C0011 fmax / C0012 acceleration time per second (50 Hz in 5 s: 25 Hz after 2.5 s), not per cycle.
+    The plant is not started: the test ticks the drive at a loaded machine's pace."""
+    plant = Plant(PlantFile.load(DEMO_PLANT), registry.get, bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
+    drive, store = plant.nodes[VECTOR].drive, plant.nodes[VECTOR].store
+    assert isinstance(drive, WordControl) and drive.ramp_per_s() == 500  # raw words/s: 24000 = 480 Hz
+    now = 1000.0
+    drive.tick(now)
+    for index, sub, raw in ((C0135, 0, 0x0200), (C0001, 0, 30000), (C1822, 2, 1250), (C0135, 0, 0x0000)):
+        store.set(index, sub, raw)  # CINH, C0001 = 3, AIF-IN.W1 = 25 Hz, controller enable (as on the wire)
+    assert drive.device_state == OPERATION_ENABLED_AIF
+    for _ in range(12):
+        now += 0.1
+        drive.tick(now)
+    assert store.get(C1823, 2) == pytest.approx(600, abs=60)  # 12 Hz after 1.2 s
+    for _ in range(14):
+        now += 0.1
+        drive.tick(now)
+    assert store.get(C1823, 2) == 1250

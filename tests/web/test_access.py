@@ -78,6 +78,7 @@ def users_absent(own_db: str) -> None:
 
 @pytest.mark.parametrize("headers", [{"Origin": "http://evil.example"}, {"Sec-Fetch-Site": "cross-site"},
                                      {"Origin": "http://127.0.0.1:9999", "Sec-Fetch-Site": "same-site"}])
+@pytest.mark.slow  # among the costliest of the quick subset (--durations, issue 29): `make test-quick` leaves it out
 def test_other_sites_cannot_start_anything_even_without_login(users_absent: None, app_client: TestClient,
                                                               headers: dict[str, str]) -> None:
     path = "/api/sessions/demo-plant/nodes/5/nmt"
@@ -209,6 +210,7 @@ def test_users_api_add_disable_reset(users: dict[str, str], app_client: TestClie
     assert app_client.get("/api/users", headers={"Authorization": f"Bearer {users['eve']}"}).status_code == 403
 
 
+@pytest.mark.slow  # among the costliest of the quick subset (--durations, issue 29): `make test-quick` leaves it out
 def test_openapi_names_each_operation_s_role(users: dict[str, str], app_client: TestClient) -> None:
     spec = app_client.get("/openapi.json", headers={"Authorization": f"Bearer {users['vera']}"}).json()
     roles = {(method.upper(), path): op["x-drivebench-role"] for path, ops in spec["paths"].items()
@@ -242,6 +244,7 @@ def fill(template: str, link: str) -> str:
     return re.sub(r"\{([^}]+)\}", value, template)
 
 
+@pytest.mark.slow  # among the costliest of the quick subset (--durations, issue 29): `make test-quick` leaves it out
 def test_every_operation_and_websocket_refuses_exactly_where_the_policy_says(users: dict[str, str],
                                                                             app_client: TestClient) -> None:
     app = app_client.app

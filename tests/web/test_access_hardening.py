@@ -45,6 +45,7 @@ def test_a_rebound_name_reaches_nothing_without_login(own_db: str, app_client: T
 
 
 @pytest.mark.parametrize("host", ["127.0.0.1:8301", "localhost:8301", "[::1]:8301", "localhost", "testserver"])
+@pytest.mark.slow  # among the costliest of the quick subset (--durations, issue 29): `make test-quick` leaves it out
 def test_loopback_names_with_any_port_are_ours(own_db: str, app_client: TestClient, host: str) -> None:
     assert app_client.get("/api/sessions", headers={"Host": host}).status_code == 200
 
@@ -65,6 +66,7 @@ def test_origin_is_judged_against_the_names_not_against_host(own_db: str, app_cl
 
 
 # --- 6: the password change counts as a sign-in ----------------------------------------------------------------
+@pytest.mark.slow  # among the costliest of the quick subset (--durations, issue 29): `make test-quick` leaves it out
 def test_wrong_current_passwords_lock_the_password_change(users: dict[str, str], app_client: TestClient) -> None:
     csrf = sign_in(app_client, "vera")
     change = {"X-CSRF-Token": csrf}

@@ -31,6 +31,7 @@ def _audit(http: httpx.Client) -> list[dict[str, object]]:
 
 
 @pytest.mark.parametrize("ref", ["P0700[999]", "P0700[256]", "P0700.999", "P0700/300", "0x2000.0x1FF"])
+@pytest.mark.slow  # among the costliest of the quick subset (--durations, issue 29): `make test-quick` leaves it out
 def test_a_sub_index_past_255_is_a_404_problem_everywhere(http: httpx.Client, ref: str) -> None:
     before = _audit(http)
     answers = {

@@ -25,6 +25,7 @@ SESSION = "ethercat-line"
 NODE = f"/api/sessions/{SESSION}/nodes/1"
 
 
+@pytest.mark.slow  # among the costliest of the quick subset (--durations, issue 29): `make test-quick` leaves it out
 def test_the_demo_plant_has_an_ethercat_line(demo_api: TestClient) -> None:
     sessions = {s["id"]: s for s in demo_api.get("/api/sessions").json()}
     assert sessions[SESSION]["interface"] == "ethercat-mbg" and sessions[SESSION]["simulated"] is True

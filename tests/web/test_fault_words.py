@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import pytest
 from fastapi.testclient import TestClient
 
 from drivebench.device.profiles.scaling import to_raw
@@ -81,6 +82,7 @@ def test_lenze_8400_error_number_is_read_from_bytes_5_to_8_with_its_fields(clien
     assert unknown["fields"] == ["error type: Fault", "subject area: 1", "error ID: 515"]
 
 
+@pytest.mark.slow  # among the costliest of the quick subset (--durations, issue 29): `make test-quick` leaves it out
 def test_enable_on_terminal_control_says_why_nothing_moves(client: TestClient) -> None:
     url = f"/api/sessions/{SESSION}/nodes/{MM}/control"
     store = _plant(client).nodes[MM].store

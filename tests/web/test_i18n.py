@@ -217,6 +217,7 @@ def test_a_profile_name_de_is_shown_in_german_only(registry: object) -> None:
                                   f"/sessions/{SESSION}/nodes/5?tab=parameters", f"/sessions/{SESSION}/nodes/5?tab=pdo",
                                   f"/sessions/{SESSION}/nodes/5?tab=diagnostics",
                                   f"/sessions/{SESSION}/nodes/7?tab=control", f"/sessions/{SESSION}/nodes/5?tab=info"])
+@pytest.mark.slow  # among the costliest of the quick subset (--durations, issue 29): `make test-quick` leaves it out
 def test_every_screen_renders_in_german(client: TestClient, path: str) -> None:
     page = client.get(path, headers=GERMAN)
     assert page.status_code == 200, page.text[:500]

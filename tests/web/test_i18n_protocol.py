@@ -64,6 +64,7 @@ def test_the_parameters_tab_shows_a_cia301_abort_in_german(client: TestClient) -
                  "Node 5: toggle bit error: the node answered out of step during the segmented transfer of "
                  "0x5F9C sub 0 (C00099)", id="toggle"),
 ])
+@pytest.mark.slow  # among the costliest of the quick subset (--durations, issue 29): `make test-quick` leaves it out
 def test_a_transfer_that_goes_wrong_is_told_in_german(client: TestClient, faults: dict[str, Any], german: str,
                                                       english: str) -> None:
     assert client.put(FAULTS, json=faults).status_code == 200

@@ -78,6 +78,7 @@ def _race(bases: list[str]) -> None:
         assert accounts.authentication_configured(), round_no
 
 
+@pytest.mark.slow  # among the costliest of the quick subset (--durations, issue 29): `make test-quick` leaves it out
 def test_two_admins_disabling_each_other_leave_one(shared_db: str) -> None:
     with contextlib.ExitStack() as stack:
         bases = [stack.enter_context(serve_app(create_app()))]

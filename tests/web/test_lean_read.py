@@ -19,6 +19,8 @@ from tests.conftest import serve_app
 from tests.transport.test_multiprocess import hub_and_simulator  # noqa: F401  (the fixture)
 from tests.web.test_access import own_db, users  # noqa: F401  (the fixtures)
 
+pytestmark = pytest.mark.slow  # a hub and a simulator process started for each test: `make test-quick` leaves it out
+
 NODE = 5
 PROFILE = "lenze-8400-motec-canopen"
 

@@ -89,6 +89,7 @@ def _check_contiguous(monitor_client: TestClient, url: str) -> None:
         assert seqs == list(range(seqs[0], seqs[0] + len(seqs)))
 
 
+@pytest.mark.slow  # among the costliest of the quick subset (--durations, issue 29): `make test-quick` leaves it out
 def test_two_clients_share_one_feed(monitor_client: TestClient) -> None:
     url = f"/ws/sessions/{SESSION_ID}/monitor"
     with monitor_client.websocket_connect(url) as first, monitor_client.websocket_connect(url) as second:

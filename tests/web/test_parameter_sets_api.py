@@ -253,6 +253,7 @@ def test_an_edit_names_the_version_it_was_made_to_and_a_stale_one_gets_409(demo_
     assert [v["version"] for v in demo_api.get(f"{SETS}/{set_id}/history").json()] == [2, 1]
 
 
+@pytest.mark.slow  # among the costliest of the quick subset (--durations, issue 29): `make test-quick` leaves it out
 def test_the_pages_rename_form_sends_the_version_it_showed_and_a_stale_one_gets_409(demo_api: TestClient) -> None:
     set_id = upload(demo_api, 5, "Renamed")
     shown = demo_api.get(f"/parameter-sets/{set_id}", headers={"HX-Request": "true"}).text

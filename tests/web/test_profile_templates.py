@@ -62,6 +62,7 @@ BAD = [
 
 
 @pytest.mark.parametrize(("base", "change", "words"), BAD)
+@pytest.mark.slow  # among the costliest of the quick subset (--durations, issue 29): `make test-quick` leaves it out
 def test_a_template_past_the_rules_is_refused_with_where_and_why(api: TestClient, user_dir: Path, base: str | None,
                                                                  change: Change, words: str) -> None:
     profile = copy.deepcopy(PROFILE) if base is None else _shipped(base)

@@ -135,6 +135,7 @@ def test_get_profile_and_unknown_profile(api: TestClient) -> None:
 
 
 @pytest.mark.parametrize("query", ["C00088", "c88", "88", "0x5FA7", "0x5fa7.0", "rated motor current"])
+@pytest.mark.slow  # among the costliest of the quick subset (--durations, issue 29): `make test-quick` leaves it out
 def test_search_finds_rated_motor_current_first(api: TestClient, query: str) -> None:
     page = api.get(f"/api/profiles/{MOTEC}/parameters", params={"q": query}).json()
     first = page["items"][0]

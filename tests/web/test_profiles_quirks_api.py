@@ -105,6 +105,7 @@ def test_access_type_with_a_hash_comment_is_read_without_it(api: TestClient) -> 
 
 
 @pytest.mark.parametrize("case_name", ["utf16-le-bom", "utf16-le-no-bom", "utf16-be-no-bom", "utf32-le-bom"])
+@pytest.mark.slow  # among the costliest of the quick subset (--durations, issue 29): `make test-quick` leaves it out
 def test_a_utf16_or_utf32_eds_reads_like_its_utf8_twin(api: TestClient, case_name: str) -> None:
     name, content = corpus_file(case_name)
     wide = api.post("/api/profiles", files={"file": (name, content)})
@@ -166,6 +167,7 @@ def make_zip(members: list[tuple[str, bytes]]) -> bytes:
     return buffer.getvalue()
 
 
+@pytest.mark.slow  # among the costliest of the quick subset (--durations, issue 29): `make test-quick` leaves it out
 def test_a_vendor_folder_zip_gives_one_row_per_file(api: TestClient, user_dir: Path) -> None:
     members = [(f"Vendor/EDS/{name}", content) for name, content, _ in CORPUS_FILES]
     members += [("Vendor/readme.txt", b"not a profile"), ("Vendor/EDS/broken.eds", b"[FileInfo]\nFileName=b\n"),

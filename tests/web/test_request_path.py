@@ -6,6 +6,7 @@ import gc
 import inspect
 from collections.abc import Iterator
 
+import pytest
 from fastapi.dependencies.models import Dependant
 from fastapi.routing import APIRoute, iter_route_contexts
 from fastapi.testclient import TestClient
@@ -21,6 +22,7 @@ def _sync_dependencies(dependant: Dependant) -> Iterator[str]:
         yield from _sync_dependencies(sub)
 
 
+@pytest.mark.slow  # among the costliest of the quick subset (--durations, issue 29): `make test-quick` leaves it out
 def test_no_route_dependency_runs_in_the_thread_pool() -> None:
     """A plain ``def`` dependency runs in a worker thread: on a loaded machine each hop costs more than the whole
     health check (benchmarks/RESULTS.md, Request path). Blocking work belongs in the endpoint or the services."""
@@ -32,6 +34,7 @@ def test_no_route_dependency_runs_in_the_thread_pool() -> None:
     assert not found, sorted(found)
 
 
+@pytest.mark.slow  # among the costliest of the quick subset (--durations, issue 29): `make test-quick` leaves it out
 def test_a_server_of_its_own_freezes_what_start_up_made() -> None:
     """``drivebench serve`` (``settle_heap``): full collections then skip the objects start-up made."""
     assert gc.get_freeze_count() == 0

@@ -38,6 +38,7 @@ def assert_secure(answer, where: str) -> None:  # type: ignore[no-untyped-def]
 
 
 @pytest.mark.parametrize("path", PAGES + API)
+@pytest.mark.slow  # among the costliest of the quick subset (--durations, issue 29): `make test-quick` leaves it out
 def test_every_answer_carries_the_policy(client: TestClient, path: str) -> None:
     assert_secure(client.get(path), path)
 

@@ -12,6 +12,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import httpx
+import pytest
 
 from drivebench.web import serving
 from drivebench.web.app import create_app
@@ -79,6 +80,7 @@ def _served(tmp_path: Path) -> Iterator[int]:
         server.stop()
 
 
+@pytest.mark.slow  # among the costliest of the quick subset (--durations, issue 29): `make test-quick` leaves it out
 def test_serve_closes_connections_that_trickle_their_headers(tmp_path: Path) -> None:
     with _served(tmp_path) as port:
         sockets = _trickling(port, 30)

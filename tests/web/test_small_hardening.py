@@ -49,6 +49,7 @@ def _serving(tmp_path: Path, *options: str) -> Iterator[tuple[CliProcess, str]]:
         server.stop()
 
 
+@pytest.mark.slow  # among the costliest of the quick subset (--durations, issue 29): `make test-quick` leaves it out
 def test_the_access_log_holds_no_whole_token(tmp_path: Path) -> None:
     with _serving(tmp_path, "--log-level", "info") as (server, url):
         deadline = time.monotonic() + 60

@@ -164,6 +164,7 @@ def _revoke(served: Served, eve: Eve) -> None:
     (_eve_with_token, _revoke), (_eve_with_token, _disable_elsewhere)],
     ids=["cookie-disabled", "cookie-viewer", "cookie-new-password", "cookie-disabled-by-another-process",
          "token-disabled", "token-viewer", "token-revoked", "token-disabled-by-another-process"])
+@pytest.mark.slow  # among the costliest of the quick subset (--durations, issue 29): `make test-quick` leaves it out
 def test_a_keepalive_socket_of_a_user_who_lost_access_closes_and_its_node_stops(served: Served, credential: Any,
                                                                               change: Any) -> None:
     eve = credential(served)

@@ -78,6 +78,7 @@ def test_https_serves_the_app_and_the_sign_in_cookie_is_secure(pair: tuple[Path,
             httpx.get(url.replace("https://", "http://") + "/api/health", timeout=5)
 
 
+@pytest.mark.slow  # among the costliest of the quick subset (--durations, issue 29): `make test-quick` leaves it out
 def test_hsts_is_sent_over_https_when_asked_for(pair: tuple[Path, Path], app_db_url: str) -> None:
     cert, key = pair
     app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms", hsts=True)

@@ -206,6 +206,7 @@ def test_tools_page_renders_every_family(api: TestClient) -> None:
 
 @pytest.mark.parametrize(("kbit", "value"), [(10, 0), (20, 100), (50, 200), (125, 300), (250, 400), (500, 500),
                                              (800, 600), (1000, 700)])
+@pytest.mark.slow  # among the costliest of the quick subset (--durations, issue 29): `make test-quick` leaves it out
 def test_tools_page_shows_the_whole_p2041_04_value(api: TestClient, kbit: int, value: int) -> None:
     """MICROMASTER §5.6 Table 5-1: the Value column holds the number to write (hundreds digit = baud rate, tens and
     ones = the factory communication-error reactions), not the hundreds digit alone."""

@@ -31,6 +31,9 @@ from drivebench.simulator.motor_model import MotorModel, load_torque
 from drivebench.simulator.store import RawValue
 
 CYCLE_S = 0.008
+MAX_STEP_S = 0.25
+"""A late cycle (a loaded machine) ramps for the time that passed since the last one, up to this much: the ramp
+takes the drive's ramp-up time, not a number of cycles."""
 BICO_TORQUE_CONTROL = 0x082B000C  # r2091.12 -> P1501
 BICO_TORQUE_SETPOINT = 0x08020004  # r2050.4 -> P1503
 RATED_CURRENT_A = 1.9  # demo motor: 0.75 kW, 4 poles, 400 V (an assumption) while P0305 holds no rated current
@@ -129,6 +132,8 @@ class Drive402(StateMachine402):
         self._speed_before = 0.0
         self.motor = MotorModel(self._rated_current(), self._param("r0037", 35.0))
         self._next_cycle = 0.0
+        self._last_cycle: float | None = None  # None: resting, the next cycle is the first of a run
+        self._dt = CYCLE_S  # the time this cycle stands for
         self.store.add_write_hook(self.on_write)
         self.reset()
 
@@ -249,6 +254,8 @@ class Drive402(StateMachine402):
             return
         self._next_cycle = now + CYCLE_S
         with self._lock:
+            self._dt = CYCLE_S if self._last_cycle is None else min(max(now - self._last_cycle, CYCLE_S), MAX_STEP_S)
+            self._last_cycle = now
             if self.state is State402.NOT_READY_TO_SWITCH_ON:
                 self._enter(State402.SWITCH_ON_DISABLED)  # transition 1: self-test done
             if self._obj(0x6061, 2) == 4 and self.state is State402.OPERATION_ENABLED:
@@ -270,6 +277,8 @@ class Drive402(StateMachine402):
                                           State402.FAULT_REACTION_ACTIVE)
                        and self.speed_rpm == 0 and self.torque_permille == 0 and not self.pulses_on()
                        and self.motor.settled())
+            if resting:
+                self._last_cycle = None
         return None if resting else self._next_cycle
 
     def _velocity_target(self) -> tuple[float, bool]:
@@ -295,7 +304,7 @@ class Drive402(StateMachine402):
         else:
             fast = self.state in (State402.QUICK_STOP_ACTIVE, State402.FAULT_REACTION_ACTIVE)
             slowing = abs(target) < abs(self.speed_rpm) or target * self.speed_rpm < 0
-            step = self._rate_rpm_s(slowing) * CYCLE_S * (5 if fast else 1)
+            step = self._rate_rpm_s(slowing) * self._dt * (5 if fast else 1)
             delta = target - self.speed_rpm
             self.speed_rpm = target if abs(delta) <= step else self.speed_rpm + (step if delta > 0 else -step)
         self.ramping = abs(target - self.speed_rpm) > 0.5

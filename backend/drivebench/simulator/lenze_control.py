@@ -33,6 +33,9 @@ from drivebench.simulator.motor_model import MotorModel, load_torque
 from drivebench.simulator.store import RawValue
 
 CYCLE_S = 0.004
+MAX_STEP_S = 0.25
+"""A late cycle (a loaded machine) ramps for the time that passed since the last one, up to this much: the ramp
+takes the drive's acceleration time, not a number of cycles (a drive ramped 4 ms per cycle ran 10x slow under load)."""
 
 # Device states of the switch-on machine (8400: C00137, status word bits 8...11, 8400 reference manual table 4-1)
 INIT, READY_TO_SWITCH_ON, SWITCHED_ON, OPERATION_ENABLED, TROUBLE, DEVICE_FAULT = 1, 3, 4, 5, 7, 8
@@ -202,6 +205,7 @@ class WordControl:
         self.restart_armed = False
         self._published: tuple[int, int] | None = None
         self._next_cycle = 0.0
+        self._last_cycle: float | None = None  # None: resting, the next cycle is the first of a run
         self.history: list[int] = []
         self._speed_before = 0.0
         rated = (self._engineering(words.rated_current_ref, words.rated_current_a) if words.rated_current_ref
@@ -408,13 +412,15 @@ class WordControl:
             return
         self._next_cycle = now + CYCLE_S
         with self._lock:
+            dt = CYCLE_S if self._last_cycle is None else min(max(now - self._last_cycle, CYCLE_S), MAX_STEP_S)
+            self._last_cycle = now
             if self.device_state == INIT:
                 self.restart_armed = not self.restart_protection()
                 self._enter(self.words.machine.start(self))
                 self._evaluate()
             target = self.target()
             fast = self.quick_stop() or not self.running
-            step = self.ramp_per_s() * CYCLE_S * (4 if fast else 1)
+            step = self.ramp_per_s() * dt * (4 if fast else 1)
             delta = target - self.speed
             self.speed = target if abs(delta) <= step else self.speed + (step if delta > 0 else -step)
             self._publish()
@@ -425,6 +431,8 @@ class WordControl:
         a write to the drive wakes the plant, which runs a cycle at once."""
         with self._lock:
             resting = self.device_state != INIT and self.speed == 0 and not self.running and self.motor.settled()
+            if resting:
+                self._last_cycle = None
         return None if resting else self._next_cycle
 
     def speed_fraction(self) -> float:
