@@ -31,7 +31,7 @@ import uvicorn
 from drivebench.config import settings
 from drivebench.services.control.drive_guard import guard_for
 from drivebench.services.control.drive_words import family_of
-from drivebench.services.params import parameters
+from drivebench.services.params import lookup
 from drivebench.web.app import create_app
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -138,7 +138,7 @@ def main() -> dict[str, object]:
         node = session.node(NODE)
         fam = family_of(node.catalog)
         assert fam is not None
-        item = parameters.resolve(node, fam.control_ref)
+        item = lookup.resolve(node, fam.control_ref)
         wire = Wire(bytes([item.index & 0xFF, item.index >> 8, item.subindex]))
         bus = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
         notifier = can.Notifier(bus, [wire])

@@ -34,7 +34,7 @@ from drivebench.device.profiles.loader import ProfileRegistry  # noqa: E402
 from drivebench.device.profiles.profile import Access, Parameter, Profile  # noqa: E402
 from drivebench.errors import DriveBenchError  # noqa: E402
 from drivebench.protocol.datatypes import DataType  # noqa: E402
-from drivebench.services.params import parameters  # noqa: E402
+from drivebench.services.params import lookup, reads  # noqa: E402
 from drivebench.services.session_manager import SessionManager  # noqa: E402
 from drivebench.simulator.plant import Plant, PlantFile  # noqa: E402
 
@@ -100,7 +100,7 @@ async def expedited_ratio(registry: ProfileRegistry, rounds: int = ROUNDS, per_r
     async def service_round() -> float:
         started = time.perf_counter()
         for _ in range(per_round):
-            await parameters.read(session, 5, "C00061")
+            await reads.read(session, 5, "C00061")
         return time.perf_counter() - started
 
     raw_times: list[float] = []
@@ -156,14 +156,14 @@ async def sequential_rate(registry: ProfileRegistry, profile: Profile) -> dict[s
     manager = SessionManager(profiles)
     session = await manager.open(plant.spec, "seq")
     session.add_node(1, profile.id)
-    items = parameters.readable_items(session.node(1))
+    items = lookup.readable_items(session.node(1))
     assert len(items) == PER_NODE, len(items)
     failures: list[str] = []
     try:
         started = time.perf_counter()
         for item in items:
             try:
-                await parameters.read(session, 1, item.ref)
+                await reads.read(session, 1, item.ref)
             except DriveBenchError as exc:
                 failures.append(f"{item.ref}: {exc.detail}")
         elapsed = time.perf_counter() - started
@@ -246,7 +246,7 @@ def write_results(a: dict[str, float], b: dict[str, Any]) -> str:
         f"{a['load']:.1f} during (a)); simulator on a python-can virtual bus in the same process.", "",
         "| Figure | Measured | Target |", "|---|---|---|",
         f"| (a) expedited SDO reads/s, raw canopen `SdoClient.upload` | {a['raw_per_s']:.0f}/s | |",
-        f"| (a) expedited SDO reads/s, service layer `parameters.read` (scaled) | {a['service_per_s']:.0f}/s | |",
+        f"| (a) expedited SDO reads/s, service layer `reads.read` (scaled) | {a['service_per_s']:.0f}/s | |",
         f"| (a) expedited SDO reads/s, raw canopen called from a worker thread (as a server must) | "
         f"{a['threaded_per_s']:.0f}/s | |",
         f"| (a) ratio service / raw canopen (median of {ROUNDS} interleaved rounds; quartiles {a['ratio_q1']:.2f}"

@@ -6,7 +6,7 @@ are reported after a grace period; with ``DRIVEBENCH_THREAD_CHECK=fail`` they fa
 teardown of the last test). ``DRIVEBENCH_THREAD_CHECK=module`` also prints, after each module, the
 threads that module left alive: the way to find a leaking module (``-p no:randomly -s``, one worker).
 
-Expected threads: the process-wide SDO worker pools of ``services/params/parameters.py`` (idle workers of a
+Expected threads: the process-wide SDO worker pools of ``services/params/session_part.py`` (idle workers of a
 ``ThreadPoolExecutor`` that lives as long as the process)."""
 
 from __future__ import annotations

@@ -20,7 +20,15 @@ from drivebench.errors import ConfirmationRequired
 from drivebench.services.bus.sessions import Session
 from drivebench.services.control import commissioning, drive_control, drive_guard, motion
 from drivebench.services.monitoring import diagnostics
-from drivebench.services.params import node_lease, parameter_batch, parameters, write_context
+from drivebench.services.params import (
+    node_lease,
+    parameter_batch,
+    parameters,
+    reads,
+    session_part,
+    write_context,
+    writes,
+)
 from drivebench.services.params.write_context import LOCAL_USER, SERVICE_PANEL, WriteContext, Writer
 from drivebench.services.pdos import ethercat_pdo, pdo
 from drivebench.services.session_manager import SessionManager
@@ -53,7 +61,7 @@ def test_every_call_that_can_write_takes_the_context_without_a_default(write: Ca
     assert signature.parameters["ctx"].default is inspect.Parameter.empty, f"{write.__qualname__}: ctx has a default"
 
 
-@pytest.mark.parametrize("module", [drive_guard, node_lease, write_context, audit, parameters])
+@pytest.mark.parametrize("module", [drive_guard, node_lease, write_context, audit, session_part, reads, writes])
 def test_no_safety_input_travels_in_a_context_variable(module: ModuleType) -> None:
     """The locale stays a context variable (i18n), and the read plan's own (``_urgent``, ``_snapshot``): who writes,
     from which panel, with which confirmation and lease travels only in the WriteContext."""

@@ -24,9 +24,10 @@ from drivebench.services.monitoring import monitor as monitors
 from drivebench.services.monitoring.monitor import Monitor, MonitorPart
 from drivebench.services.monitoring.recording import Recordings, RecordingsPart
 from drivebench.services.monitoring.telegram_counters import CounterHistory, CounterHistoryPart
-from drivebench.services.params import parameters as params
+from drivebench.services.params import session_part
 from drivebench.services.params.node_lease import LeasesPart, SessionLeases
-from drivebench.services.params.parameters import ParametersPart, SessionParameters, WriteAudit, WriteAudits
+from drivebench.services.params.session_part import ParametersPart, SessionParameters
+from drivebench.services.params.write_ports import WriteAudit, WriteAudits
 from drivebench.services.pdos.process_data import ProcessData, ProcessDataPart
 
 
@@ -52,7 +53,7 @@ class SessionServices:
     @classmethod
     def open(cls, session: Session, write_audits: list[WriteAudit]) -> SessionServices:
         guard = Guard(session)
-        services = cls(guard, params.attach(session, guard.moving_writes(), WriteAudits(write_audits)),
+        services = cls(guard, session_part.attach(session, guard.moving_writes(), WriteAudits(write_audits)),
                        monitors.attach(session), Wizard(), SessionLeases(), ProcessData(session), Recordings(session),
                        CounterHistory())
         session.services = services

@@ -8,7 +8,7 @@ from pydantic import BaseModel
 
 from drivebench.i18n import shown
 from drivebench.services.params.jobs import Job, Progress
-from drivebench.services.params.parameters import ParameterValue
+from drivebench.services.params.values import ParameterValue
 
 
 class ValueOut(BaseModel):

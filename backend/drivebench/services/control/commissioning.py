@@ -11,7 +11,7 @@ a message when the answer is not the expected one.
 A run belongs to the node and the writer (principal and panel, :mod:`drivebench.services.params.node_lease`) that
 started it: asked through another node's address it is not found, another writer may watch it but not run its
 steps. Starting it takes the node's write lease; each step runs under it. An SDO step is the one checked write
-(:func:`parameters.write`: the profile's range, the audit log with the origin ``commissioning``, the lease, the
+(:func:`writes.write`: the profile's range, the audit log with the origin ``commissioning``, the lease, the
 moving-write check), of the value its bytes hold in the item's data type; a step that can move the drive needs the
 confirmation naming its node, given with the request that runs the step.
 """
@@ -48,7 +48,7 @@ from drivebench.protocol.canopen.nmt import NmtCommand
 from drivebench.protocol.datatypes import decode
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.control import drive_control, drive_guard
-from drivebench.services.params import node_lease, parameters
+from drivebench.services.params import node_lease, reads, writes
 from drivebench.services.params.write_context import WriteContext, Writer
 
 __all__ = ["Run", "RunOut", "Sequence", "Step", "StepWrite", "Wizard", "next_step", "sequences_for", "step_write",
@@ -322,7 +322,7 @@ def step_moves(node: SessionNode, step: Step) -> bool:
 
 def _writes_moving(node: SessionNode, write: StepWrite) -> bool:
     try:
-        item, raw = parameters.checked_raw(node, write.ref, write.value, check=False)
+        item, raw = writes.checked_raw(node, write.ref, write.value, check=False)
     except DriveBenchError:
         return False
     return isinstance(raw, int) and moves(item, raw, node.profile) is not None
@@ -383,7 +383,7 @@ def _telegrams(capture: _Capture, t0: float) -> list[Telegram]:
 
 
 async def _state_of(session: Session, node: SessionNode, ref: str) -> tuple[str, int]:
-    raw = (await parameters.read(session, node.node_id, ref)).raw
+    raw = (await reads.read(session, node.node_id, ref)).raw
     word = int(raw) & 0xFFFF if isinstance(raw, int) else 0
     return drive_control.family(node).state_of(word), word
 
@@ -425,7 +425,7 @@ async def _execute(session: Session, node: SessionNode, step: Step, ctx: WriteCo
     if step.kind == "parameter":
         write = step_write(node, step, value)
         try:
-            result = await parameters.write(session, node.node_id, write.ref, write.value, ctx=ctx, verify=True)
+            result = await writes.write(session, node.node_id, write.ref, write.value, ctx=ctx, verify=True)
         except SdoAbortError as exc:
             return _("SDO abort 0x{code} ({text}): {ref} was not written.").format(
                 code=f"{exc.abort_code:08X}", text=exc.abort_text, ref=write.ref)
@@ -435,7 +435,7 @@ async def _execute(session: Session, node: SessionNode, step: Step, ctx: WriteCo
     if step.kind == "sdo":
         write = step_write(node, step)
         try:
-            await parameters.write(session, node.node_id, write.ref, write.value, ctx=ctx, verify=False)
+            await writes.write(session, node.node_id, write.ref, write.value, ctx=ctx, verify=False)
         except SdoAbortError as exc:
             return _("SDO abort 0x{code} ({text}) instead of the download response 0x60.").format(
                 code=f"{exc.abort_code:08X}", text=exc.abort_text)
@@ -463,7 +463,7 @@ async def _execute(session: Session, node: SessionNode, step: Step, ctx: WriteCo
                          "(terminals, command source).").format(ref=step.expect_ref, word=f"{word:04X}", state=state,
                                                                 expected=step.expect_state)
             await asyncio.sleep(0.05)
-    raw = (await parameters.read(session, node.node_id, step.expect_ref)).raw
+    raw = (await reads.read(session, node.node_id, step.expect_ref)).raw
     return None if raw == step.expect_value else _("{ref} = {raw}, expected {expected}.").format(
         ref=step.expect_ref, raw=repr(raw), expected=step.expect_value)
 
@@ -485,8 +485,8 @@ async def next_step(session: Session, node: SessionNode, run: Run, *, ctx: Write
         moving = step.moves
         if step.kind in ("sdo", "parameter"):  # the profile's range, selection, access: refused before sending
             write = step_write(node, step, value)
-            item, raw = parameters.checked_raw(node, write.ref, write.value)
-            values = parameters.sent_values(item, raw)
+            item, raw = writes.checked_raw(node, write.ref, write.value)
+            values = writes.sent_values(item, raw)
             if step.kind == "parameter":
                 moving = isinstance(raw, int) and moves(item, raw, node.profile) is not None
         guard = drive_control.guard_for(session)
@@ -530,7 +530,7 @@ async def _run_step(session: Session, node: SessionNode, run: Run, step: Step, c
 
 def step_values(step: Step, node_id: int) -> dict[str, object]:
     """What a moving NMT or PDO step sends, as its confirmation names it (telegrams in hex, as the manual prints
-    them); an SDO step's are those of its checked write (:func:`parameters.sent_values`)."""
+    them); an SDO step's are those of its checked write (:func:`writes.sent_values`)."""
     if step.kind == "nmt_start":
         return {"NMT": "start"}
     if step.kind == "pdo":

@@ -56,7 +56,6 @@ from drivebench.services.control.drive_words import (
 )
 from drivebench.services.monitoring import fault_words
 from drivebench.services.monitoring.diagnostics import EmcyRecord
-from drivebench.services.params import parameters
 from drivebench.services.params.write_context import WriteContext
 from drivebench.services.pdos import process_data as live
 
@@ -65,6 +64,8 @@ from drivebench.services.control.drive_guard import KEEPALIVE_TIMEOUT_S as KEEPA
 from drivebench.services.control.drive_guard import Guard as Guard  # isort: skip
 from drivebench.services.control.drive_guard import Holder as Holder  # isort: skip
 from drivebench.services.control.drive_guard import panel_of as panel_of  # isort: skip
+from drivebench.services.params import reads, session_part, writes
+
 
 # --- setpoint and actual values --------------------------------------------------------------------------------
 @dataclass(frozen=True)
@@ -105,7 +106,7 @@ def family(node: SessionNode) -> Family:
 async def _number(session: Session, node: SessionNode, ref: str | None, default: float) -> float:
     if ref is None or not has_ref(catalog_of(node), ref):
         return default
-    value = (await parameters.read(session, node.node_id, ref)).value
+    value = (await reads.read(session, node.node_id, ref)).value
     return float(value) if isinstance(value, (int, float)) else default
 
 
@@ -218,7 +219,7 @@ async def read_actuals(session: Session, node: SessionNode) -> list[ActualValue]
         raw_per_unit, _ = await _raw_per_unit(session, node, spec.scale)
         source = actual_source(node, spec.ref, raw_per_unit, spec.unit)
         try:
-            value = await parameters.read(session, node.node_id, spec.ref)
+            value = await reads.read(session, node.node_id, spec.ref)
         except DriveBenchError as exc:
             out.append(ActualValue(label=cia402.shown(spec.label), ref=spec.ref, value=None, unit=None,
                                    error=exc.shown_detail(), source=source))
@@ -324,7 +325,7 @@ async def _mode(session: Session, node: SessionNode) -> int | None:
     shown = cia402.MODES_OF_OPERATION_DISPLAY
     if family(node).section.state_machine != "cia402" or not has_ref(catalog_of(node), shown):
         return None
-    raw = (await parameters.read(session, node.node_id, shown)).raw
+    raw = (await reads.read(session, node.node_id, shown)).raw
     return int(raw) if isinstance(raw, int) else None
 
 
@@ -332,7 +333,7 @@ async def modes(session: Session, node: SessionNode) -> dict[int, str]:
     """The modes the panel offers: the section's, for a generic drive those 0x6502 names (else its EDS lists)."""
     fam = family(node)
     if fam.generic and has_ref(catalog_of(node), cia402.SUPPORTED_DRIVE_MODES):
-        raw = (await parameters.read(session, node.node_id, cia402.SUPPORTED_DRIVE_MODES)).raw
+        raw = (await reads.read(session, node.node_id, cia402.SUPPORTED_DRIVE_MODES)).raw
         if isinstance(raw, int):
             return {mode: cia402.mode_label(mode) for mode in cia402.modes_from_6502(raw)}
     return section_modes(fam)
@@ -362,13 +363,13 @@ async def _diagnostics(session: Session, node: SessionNode, unread: dict[str, st
     inputs: list[Bit] = []
     if has_ref(catalog, cia402.DIGITAL_INPUTS):
         read = await _optional(unread, cia402.DIGITAL_INPUTS,
-                               parameters.read(session, node.node_id, cia402.DIGITAL_INPUTS), None)
+                               reads.read(session, node.node_id, cia402.DIGITAL_INPUTS), None)
         if read is not None:
             word = int(read.raw) if isinstance(read.raw, int) else 0
             inputs = [Bit(bit=bit, name=_(name), set=bool(word >> bit & 1)) for bit, name in cia402.INPUT_BITS.items()]
     code = None
     if has_ref(catalog, cia402.ERROR_CODE):
-        value = await _optional(unread, cia402.ERROR_CODE, parameters.read(session, node.node_id, cia402.ERROR_CODE),
+        value = await _optional(unread, cia402.ERROR_CODE, reads.read(session, node.node_id, cia402.ERROR_CODE),
                                 None)
         code = int(value.raw) & 0xFFFF if value is not None and isinstance(value.raw, int) else None
     return inputs, code
@@ -431,7 +432,7 @@ def sent(node: SessionNode, ref: str, value: object, unit: str | None = None) ->
         item = catalog_of(node).resolve(ref)
     except UnknownParameter:
         return {ref + (f" [{unit}]" if unit else ""): value}
-    return {parameters.sent_key(item, unit): value}
+    return {writes.sent_key(item, unit): value}
 
 
 def word_values(node: SessionNode, command: str, word: int) -> Values:
@@ -469,7 +470,7 @@ async def command(session: Session, node: SessionNode, which: Command, *, ctx: W
         live.service(session).stop_node(node.node_id)
     # any station may stop it, and a stop goes before the reads waiting for the node
     ctx = ctx.stopping() if which in STOPPING else ctx
-    with parameters.stop_first(session, node.node_id) if which in STOPPING else contextlib.nullcontext():
+    with session_part.stop_first(session, node.node_id) if which in STOPPING else contextlib.nullcontext():
         last = await last_control_word(session, node)
         word = next_control_word(fam, which, last)
         if which in fam.moving:
@@ -529,9 +530,9 @@ async def set_setpoint(session: Session, node: SessionNode, value: float, *, ctx
     done = ctx.cleared_by_caller()  # confirmed and armed above (0 cannot speed it up)
     if scale.raw_per_unit:
         raw = round(value * scale.raw_per_unit) & 0xFFFF
-        await parameters.write(session, node.node_id, scale.ref, raw, ctx=done, check=False, verify=False)
+        await writes.write(session, node.node_id, scale.ref, raw, ctx=done, check=False, verify=False)
     else:
-        await parameters.write(session, node.node_id, scale.ref, value, ctx=done, verify=False)
+        await writes.write(session, node.node_id, scale.ref, value, ctx=done, verify=False)
     if spec.run_bits is not None:  # e.g. CiA 402 velocity mode: run the ramp-function generator (0x7F)
         last = await last_control_word(session, node)
         if last & spec.run_when == spec.run_when and last & spec.run_bits != spec.run_bits:
@@ -643,9 +644,9 @@ async def jog(session: Session, node: SessionNode, direction: int, *, ctx: Write
             guard.arm(node.node_id, panel)
         done = ctx.cleared_by_caller()  # confirmed and armed above; 0 (release) stops it
         if direction and status.mode != 3:
-            await parameters.write(session, node.node_id, cia402.MODES_OF_OPERATION, 3, ctx=done, verify=False)
+            await writes.write(session, node.node_id, cia402.MODES_OF_OPERATION, 3, ctx=done, verify=False)
         value = direction * (speed or plan.value)
-        await parameters.write(session, node.node_id, cia402.TARGET_VELOCITY, value, ctx=done, verify=False)
+        await writes.write(session, node.node_id, cia402.TARGET_VELOCITY, value, ctx=done, verify=False)
         _watch_limits(session, node, "jog", value, ctx)
         return await read_status(session, node, panel)
     if plan.method == "setpoint":
@@ -680,7 +681,7 @@ async def set_mode(session: Session, node: SessionNode, mode: int, *, ctx: Write
         _confirmed(confirm, node, _("Changing the mode of operation while the drive is enabled"),
                    sent(node, cia402.MODES_OF_OPERATION, mode), ctx)
     # confirmed above while enabled; a disabled drive does not move when its mode changes
-    await parameters.write(session, node.node_id, cia402.MODES_OF_OPERATION, mode, ctx=ctx.cleared_by_caller(),
+    await writes.write(session, node.node_id, cia402.MODES_OF_OPERATION, mode, ctx=ctx.cleared_by_caller(),
                            verify=False)
     deadline = time.monotonic() + MODE_SETTLE_S
     while (status := await read_status(session, node, panel)).mode != mode and time.monotonic() < deadline:

@@ -10,7 +10,7 @@ guard stops the node itself (:meth:`Guard.trip`): cyclic RPDOs to it end, quick 
 :mod:`drivebench.services.control.drive_control`) and, if the tool started it, NMT pre-operational is sent.
 
 Parameter writes go the same way, whatever route sends them (:func:`admit_moving_write`, called by
-:func:`parameters.write` for what :mod:`drivebench.device.drive.motion` marks as moving): the request's confirmation and
+:func:`writes.write` for what :mod:`drivebench.device.drive.motion` marks as moving): the request's confirmation and
 panel come with the write's :class:`~drivebench.services.params.write_context.WriteContext` the web layer builds; the
 control panel's own writes, already confirmed and armed, carry it :meth:`~WriteContext.cleared_by_caller`.
 
@@ -35,8 +35,7 @@ from drivebench.i18n import DEFAULT, N_, Text, _, shown, using
 from drivebench.protocol.canopen.nmt import NmtCommand
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.control.drive_words import Command, family_of, next_control_word
-from drivebench.services.params import node_lease, parameters
-from drivebench.services.params.parameters import MovingWrites
+from drivebench.services.params import node_lease, reads, session_part, writes
 from drivebench.services.params.write_context import (
     SERVICE_PANEL,
     Confirmation,
@@ -44,6 +43,7 @@ from drivebench.services.params.write_context import (
     Values,
     WriteContext,
 )
+from drivebench.services.params.write_ports import MovingWrites
 from drivebench.services.pdos import process_data as live
 
 KEEPALIVE_TIMEOUT_S = 2.0
@@ -141,7 +141,7 @@ def panel_of(host: str | None, panel_id: str | None, operator: str | None) -> Pa
 
 # --- control-word I/O (shared with drive_control) -------------------------------------------------------------
 async def read_word(session: Session, node_id: int, ref: str) -> int:
-    raw = (await parameters.read(session, node_id, ref)).raw
+    raw = (await reads.read(session, node_id, ref)).raw
     if not isinstance(raw, int):
         raise InvalidValue(_("{ref} did not read as an integer word").format(ref=ref))
     return raw & 0xFFFF
@@ -157,7 +157,7 @@ async def last_word(session: Session, node_id: int, ref: str) -> int:
 
 async def write_word(session: Session, node_id: int, ref: str, word: int, ctx: WriteContext) -> None:
     """The callers (control panel, guard) confirmed and armed what moves (``ctx`` cleared), or stop the drive."""
-    await parameters.write(session, node_id, ref, word & 0xFFFF, ctx=ctx, check=False, verify=False)
+    await writes.write(session, node_id, ref, word & 0xFFFF, ctx=ctx, check=False, verify=False)
 
 
 async def send_quick_stop(session: Session, node: SessionNode, ctx: WriteContext) -> None:
@@ -167,7 +167,7 @@ async def send_quick_stop(session: Session, node: SessionNode, ctx: WriteContext
     fam = family_of(node.catalog)
     if fam is None:  # the trip skips such nodes (NMT pre-operational is their safe command)
         raise InvalidValue(_("{device} has no device control word DriveBench knows.").format(device=node.device_name))
-    with parameters.stop_first(session, node.node_id):
+    with session_part.stop_first(session, node.node_id):
         last = await last_word(session, node.node_id, fam.control_ref)
         await write_word(session, node.node_id, fam.control_ref, next_control_word(fam, Command.QUICK_STOP, last),
                          ctx.stopping())
@@ -365,7 +365,7 @@ class Guard:
         session.emit("drive_trip", {"node": node_id, "reason": self.trips[node_id]})
 
     def moving_writes(self) -> MovingWrites:
-        """What :func:`parameters.write` asks before a write that can move the drive, and tells after one that stops
+        """What :func:`writes.write` asks before a write that can move the drive, and tells after one that stops
         it (the session's part)."""
         return MovingWrites(self._admit_moving_write, self._stopped, self._confirm_moving)
 

@@ -15,7 +15,7 @@ from drivebench.device.drive import cia402
 from drivebench.errors import DriveBenchError, UnknownParameter
 from drivebench.i18n import _
 from drivebench.services.bus.sessions import Session, SessionNode
-from drivebench.services.params import parameters
+from drivebench.services.params import reads
 
 UNITS_TTL_S = 5.0
 
@@ -46,7 +46,7 @@ async def _int(session: Session, node: SessionNode, ref: str) -> int | None:
     if not _has(node, ref):
         return None
     try:
-        raw = (await parameters.read(session, node.node_id, ref)).raw
+        raw = (await reads.read(session, node.node_id, ref)).raw
     except DriveBenchError:
         return None
     return int(raw) if isinstance(raw, int) else None

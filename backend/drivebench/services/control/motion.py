@@ -26,7 +26,7 @@ from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.control import drive_control, soft_limits
 from drivebench.services.control.drive_control import SERVICE_PANEL, DriveStatus, Panel, guard_for, has_ref
 from drivebench.services.control.drive_units import motion_units
-from drivebench.services.params import parameters
+from drivebench.services.params import reads, writes
 from drivebench.services.params.write_context import WriteContext
 from drivebench.services.pdos import process_data as live
 
@@ -81,7 +81,7 @@ SETTINGS = [(cia402.PROFILE_VELOCITY, N_("Profile velocity"), "velocity"),
 
 
 async def _read(session: Session, node: SessionNode, ref: str) -> float | None:
-    value = (await parameters.read(session, node.node_id, ref)).value
+    value = (await reads.read(session, node.node_id, ref)).value
     return float(value) if isinstance(value, (int, float)) else None
 
 
@@ -121,7 +121,7 @@ async def homing_methods(session: Session, node: SessionNode) -> dict[int, str]:
             count = int(await _read(session, node, cia402.sub(methods, 0)) or 0)
             refs = [cia402.sub(methods, number) for number in range(1, count + 1)
                     if has_ref(catalog, cia402.sub(methods, number))]
-            cached = [found.value for found in await parameters.read_many(session, node.node_id, refs)
+            cached = [found.value for found in await reads.read_many(session, node.node_id, refs)
                       if not isinstance(found, DriveBenchError) and isinstance(found.value, int)]
         object.__setattr__(node, "_homing_methods", cached)
     return {method: cia402.homing_label(method) for method in cached}
@@ -155,7 +155,7 @@ async def _edge(session: Session, node: SessionNode, base: int, ctx: WriteContex
         return
     deadline = time.monotonic() + ACK_TIMEOUT_S
     while True:
-        word = (await parameters.read(session, node.node_id, cia402.STATUS_WORD)).raw
+        word = (await reads.read(session, node.node_id, cia402.STATUS_WORD)).raw
         if isinstance(word, int) and word & SET_POINT_ACKNOWLEDGE:
             break
         if time.monotonic() > deadline:
@@ -198,8 +198,8 @@ async def move(session: Session, node: SessionNode, target: float, *, relative: 
     await _mode(session, node, status, 1, panel, ctx)
     done = ctx.cleared_by_caller()  # confirmed and armed above
     if velocity is not None:
-        await parameters.write(session, node.node_id, cia402.PROFILE_VELOCITY, velocity, ctx=done, verify=False)
-    await parameters.write(session, node.node_id, cia402.TARGET_POSITION, target, ctx=done, verify=False)
+        await writes.write(session, node.node_id, cia402.PROFILE_VELOCITY, velocity, ctx=done, verify=False)
+    await writes.write(session, node.node_id, cia402.TARGET_POSITION, target, ctx=done, verify=False)
     base = await drive_control.last_control_word(session, node) & ~MODE_BITS
     base |= (CHANGE_IMMEDIATELY if immediate else 0) | (RELATIVE if relative else 0)
     await _edge(session, node, base, ctx, hold=False)
@@ -227,7 +227,7 @@ async def home(session: Session, node: SessionNode, method: int, *, ctx: WriteCo
     guard_for(session).arm(node.node_id, panel)
     await _mode(session, node, status, 6, panel, ctx)
     # confirmed and armed above
-    await parameters.write(session, node.node_id, cia402.HOMING_METHOD, method, ctx=ctx.cleared_by_caller(),
+    await writes.write(session, node.node_id, cia402.HOMING_METHOD, method, ctx=ctx.cleared_by_caller(),
                            verify=False)
     base = await drive_control.last_control_word(session, node) & ~MODE_BITS
     await _edge(session, node, base, ctx, hold=True)

@@ -29,7 +29,7 @@ from drivebench.i18n import N_, Text, _
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.control.drive_guard import last_word, write_word
 from drivebench.services.control.drive_units import generic_limits, motion_units, position_per_velocity
-from drivebench.services.params import parameters
+from drivebench.services.params import reads, writes
 from drivebench.services.params.write_context import WriteContext
 
 INTERNAL_LIMIT = 0x0800
@@ -93,13 +93,13 @@ async def drive_clamps(session: Session, node: SessionNode) -> bool:
     if spec.clamps_ref is None:
         return False
     try:
-        return bool((await parameters.read(session, node.node_id, spec.clamps_ref)).raw)
+        return bool((await reads.read(session, node.node_id, spec.clamps_ref)).raw)
     except DriveBenchError:
         return False
 
 
 async def _position(session: Session, node: SessionNode) -> float | None:
-    value = (await parameters.read(session, node.node_id, cia402.POSITION_ACTUAL_VALUE)).value
+    value = (await reads.read(session, node.node_id, cia402.POSITION_ACTUAL_VALUE)).value
     return float(value) if isinstance(value, (int, float)) else None
 
 
@@ -145,7 +145,7 @@ class _Sample:
 
 
 async def _sample(session: Session, node: SessionNode, per_velocity: float) -> _Sample | None:
-    found = await parameters.read_many(session, node.node_id, [cia402.STATUS_WORD, cia402.POSITION_ACTUAL_VALUE,
+    found = await reads.read_many(session, node.node_id, [cia402.STATUS_WORD, cia402.POSITION_ACTUAL_VALUE,
                                                                cia402.VELOCITY_ACTUAL_VALUE])
     word, position, velocity = (None if isinstance(one, DriveBenchError) else one.value for one in found)
     if not isinstance(word, int) or not isinstance(position, (int, float)) or not isinstance(velocity, (int, float)):
@@ -155,7 +155,7 @@ async def _sample(session: Session, node: SessionNode, per_velocity: float) -> _
 
 async def _number(session: Session, node: SessionNode, ref: str, default: float) -> float:
     try:
-        value = (await parameters.read(session, node.node_id, ref)).value
+        value = (await reads.read(session, node.node_id, ref)).value
     except DriveBenchError:
         return default
     return float(value) if isinstance(value, (int, float)) and value > 0 else default
@@ -174,7 +174,7 @@ async def _watch(session: Session, node: SessionNode, what: str, watch: Watch, c
     per_velocity = await position_per_velocity(session, node)
     decel = await _number(session, node, cia402.PROFILE_DECELERATION, 0.0) * per_velocity
     unit = (await motion_units(session, node)).position
-    mode = (await parameters.read(session, node.node_id, cia402.MODES_OF_OPERATION_DISPLAY)).raw
+    mode = (await reads.read(session, node.node_id, cia402.MODES_OF_OPERATION_DISPLAY)).raw
     slowest = 0.0  # the longest read seen: the drive travels that far before DriveBench knows where it is
     limited = False  # bit 11 seen during this motion
     while True:
@@ -219,7 +219,7 @@ async def _halt(session: Session, node: SessionNode, mode: object, ctx: WriteCon
     still word: it is the confirmed motion's own halt, cleared by the caller)."""
     halt = ctx.cleared_by_caller().stopping()  # stopping a drive is never refused
     if mode in (3, 9):
-        await parameters.write(session, node.node_id, cia402.TARGET_VELOCITY, 0, ctx=halt, verify=False)
+        await writes.write(session, node.node_id, cia402.TARGET_VELOCITY, 0, ctx=halt, verify=False)
     else:
         word = await last_word(session, node.node_id, cia402.CONTROL_WORD)
         await write_word(session, node.node_id, cia402.CONTROL_WORD, word | HALT, halt)

@@ -5,7 +5,7 @@ hundred times over: the bus carried more than a thousand SDO frames a second and
 Now the first panel that watches a node starts its :class:`NodePoll`, which reads the node every
 :data:`PERIOD_S` and hands the result to every watching panel; the last one leaving stops it. Each value is read
 from the bus once per period whatever the number of watchers and languages among them (the status is worded per
-language, from the same reads: :func:`parameters.snapshot`). A panel that cannot keep up gets the newest status
+language, from the same reads: :func:`reads.snapshot`). A panel that cannot keep up gets the newest status
 only; it never slows the poll or the other panels.
 """
 
@@ -23,7 +23,7 @@ from drivebench.errors import DriveBenchError
 from drivebench.i18n import current, using
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.control import drive_control
-from drivebench.services.params import parameters
+from drivebench.services.params import reads
 
 PERIOD_S = 0.25
 log = logging.getLogger(__name__)
@@ -73,7 +73,7 @@ class NodePoll:
         by_locale: dict[str, list[Watcher]] = {}
         for watcher in list(self.watchers):
             by_locale.setdefault(watcher.locale, []).append(watcher)
-        with parameters.snapshot():
+        with reads.snapshot():
             for locale, watchers in sorted(by_locale.items()):
                 with using(locale):
                     message = await self._message()

@@ -18,7 +18,7 @@ from drivebench.protocol.canopen.guarding import GuardStatus
 from drivebench.protocol.canopen.network import frames_of
 from drivebench.protocol.emcy import EmcyEvent
 from drivebench.services.bus.sessions import Session, SessionNode
-from drivebench.services.params import node_lease, parameters
+from drivebench.services.params import lookup, node_lease, reads, writes
 from drivebench.services.params.write_context import WriteContext
 
 HEARTBEAT_PRODUCER = 0x1017
@@ -160,7 +160,7 @@ AUDIT_ORIGIN = "diagnostics"
 async def _send(session: Session, node_id: int, index: int, subindex: int, data: bytes, ctx: WriteContext) -> None:
     """A write of the Diagnostics tab (heartbeat, node guarding), read back, in the audit log as ``ctx``'s with the
     origin ``diagnostics``."""
-    await parameters.send_logged(session, node_id, index, subindex, data, ctx=ctx.as_origin(AUDIT_ORIGIN), verify=True)
+    await writes.send_logged(session, node_id, index, subindex, data, ctx=ctx.as_origin(AUDIT_ORIGIN), verify=True)
 
 
 # --- heartbeat set-up (8400 motec manual's commissioning example: consumer = producer id + time) ----------------
@@ -293,9 +293,9 @@ async def read_diagnostics(session: Session, node_id: int) -> list[DiagnosticVal
     wanted = diagnostic_groups(node)
     values: list[DiagnosticValue] = []
     for group in wanted:
-        for item in parameters.readable_items(node, group):
+        for item in lookup.readable_items(node, group):
             try:
-                value = await parameters.read(session, node_id, item.ref)
+                value = await reads.read(session, node_id, item.ref)
                 values.append(DiagnosticValue(ref=item.ref, name=item.name, group=group, display=value.display,
                                               unit=value.unit, error=None))
             except DriveBenchError as exc:

@@ -12,7 +12,7 @@ from drivebench.errors import DriveBenchError
 from drivebench.i18n import _
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.monitoring.diagnostics import EmcyRecord, emcy_history, emcy_record
-from drivebench.services.params import parameters
+from drivebench.services.params import reads
 
 
 def present_fault(session: Session, node: SessionNode) -> EmcyRecord | None:
@@ -56,7 +56,7 @@ async def command_source_note(session: Session, node: SessionNode) -> str | None
     if routing is None:
         return None
     try:
-        value = await parameters.read(session, node.node_id, routing.ref)
+        value = await reads.read(session, node.node_id, routing.ref)
     except DriveBenchError as exc:
         return _("{ref} could not be read ({error}): whether commands reach the drive over the fieldbus is "
                  "unknown.").format(ref=routing.ref, error=exc)
@@ -104,7 +104,7 @@ async def read_fault_parameters(session: Session, node: SessionNode) -> list[Fau
     found = []
     for ref in section.present + section.history:
         try:
-            value = await parameters.read(session, node.node_id, ref)
+            value = await reads.read(session, node.node_id, ref)
         except DriveBenchError as exc:
             found.append(FaultParameter(ref=ref, error=str(exc)))
             continue

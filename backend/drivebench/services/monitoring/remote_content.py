@@ -14,7 +14,7 @@ from pydantic import BaseModel
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.monitoring import diagnostics, fault_words
 from drivebench.services.monitoring.monitor import Monitor
-from drivebench.services.params import parameters
+from drivebench.services.params import lookup, session_part
 
 LAST_EMCYS = 10
 
@@ -70,13 +70,13 @@ def diagnosis_refs(node: SessionNode) -> list[str]:
     if section is not None:
         refs += section.present + section.history
     for group in diagnostics.diagnostic_groups(node):
-        refs += [item.ref for item in parameters.readable_items(node, group)]
+        refs += [item.ref for item in lookup.readable_items(node, group)]
     return list(dict.fromkeys(refs))
 
 
 def _held_values(session: Session, node: SessionNode, now: float) -> tuple[list[HeldValue], list[str]]:
-    state = session.parts.get(parameters.SessionParameters)
-    held = state.values.get(node.node_id, {}) if isinstance(state, parameters.SessionParameters) else {}
+    state = session.parts.get(session_part.SessionParameters)
+    held = state.values.get(node.node_id, {}) if isinstance(state, session_part.SessionParameters) else {}
     values, missing = [], []
     for ref in diagnosis_refs(node):
         value = held.get(ref)

@@ -16,8 +16,8 @@ from drivebench.device.profiles.factory_default import factory_raw, same_raw
 from drivebench.device.profiles.scaling import from_raw
 from drivebench.errors import DriveBenchError
 from drivebench.services.bus.sessions import Session
-from drivebench.services.params import parameters
-from drivebench.services.params.parameters import ParameterValue
+from drivebench.services.params import lookup, reads, session_part
+from drivebench.services.params.values import ParameterValue
 
 
 class Reading(StrEnum):
@@ -57,7 +57,7 @@ def factory_value(item: Item, node_id: int) -> ParameterValue | None:
     scaled = from_raw(item.entry, raw)
     value = scaled.value.hex(" ") if isinstance(scaled.value, bytes) else scaled.value
     return ParameterValue(item.ref, item.name, item.index, item.subindex, scaled.raw, value, scaled.unit,
-                          scaled.text, parameters.display(item, scaled), 0.0)
+                          scaled.text, reads.display(item, scaled), 0.0)
 
 
 def factory_shown(item: Item, node_id: int) -> str | None:
@@ -73,17 +73,17 @@ def settings_of(items: list[Item]) -> list[Item]:
 
 async def compare(session: Session, node_id: int, reading: Reading = Reading.MISSING) -> Comparison:
     node = session.node(node_id)
-    settings = settings_of(parameters.items(node))
-    last = parameters.service(session).values.get(node_id, {})
+    settings = settings_of(lookup.items(node))
+    last = session_part.service(session).values.get(node_id, {})
     wanted = [item.ref for item in settings if reading is Reading.ALL or
               (reading is Reading.MISSING and item.ref not in last)]
     errors: dict[str, str] = {}
-    for start in range(0, len(wanted), parameters.MAX_BATCH):
-        chunk = wanted[start:start + parameters.MAX_BATCH]
-        for ref, result in zip(chunk, await parameters.read_many(session, node_id, chunk), strict=True):
+    for start in range(0, len(wanted), reads.MAX_BATCH):
+        chunk = wanted[start:start + reads.MAX_BATCH]
+        for ref, result in zip(chunk, await reads.read_many(session, node_id, chunk), strict=True):
             if isinstance(result, DriveBenchError):
                 errors[ref] = result.shown_detail()
-    last = parameters.service(session).values.get(node_id, {})
+    last = session_part.service(session).values.get(node_id, {})
     found = Comparison(node_id, node.device_name)
     for item in settings:
         value = None if item.ref in errors else last.get(item.ref)

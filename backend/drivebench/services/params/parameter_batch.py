@@ -5,7 +5,7 @@
    words) and nothing is sent.
 2. A batch holding a write that can make the drive move needs the confirmation naming the node, as the single write
    does; without it the whole batch is refused (428) before anything is sent.
-3. The items are then written in their order, each through :func:`parameters.write` - the single write's own path:
+3. The items are then written in their order, each through :func:`writes.write` - the single write's own path:
    lease, confirmation and keep-alive arming, one audit row, read-back. The first error the device (or the lease, or
    the guard) reports stops the batch: what was written before stays written and is reported as such, the failing
    item carries its error, the rest is reported as not sent. A read-back that differs is reported, not an error.
@@ -24,9 +24,8 @@ from drivebench.device.drive.motion import judge
 from drivebench.errors import DriveBenchError, InvalidValue
 from drivebench.i18n import N_, _
 from drivebench.services.bus.sessions import Session
-from drivebench.services.params import node_lease
-from drivebench.services.params import parameters as service
-from drivebench.services.params.parameters import WriteResult
+from drivebench.services.params import node_lease, session_part, writes
+from drivebench.services.params.values import WriteResult
 from drivebench.services.params.write_context import WriteContext
 
 MAX_BATCH_WRITE = 500
@@ -68,7 +67,7 @@ class Outcome:
 
 def _validated(session: Session, node_id: int, wanted: Sequence[Wanted], ctx: WriteContext, *, check: bool
                ) -> tuple[list[tuple[object, bool]], WriteContext]:
-    """Each item validated as :func:`parameters.write` validates it: the value to write, and whether writing it
+    """Each item validated as :func:`writes.write` validates it: the value to write, and whether writing it
     stops the drive (a control word that only stops: never refused by the lease); and the context the writes carry
     (with the moving values confirmed). Raises :class:`BatchInvalid`, or the confirmation's 428 / the guard's 409 for
     a moving item, before anything is sent."""
@@ -79,9 +78,9 @@ def _validated(session: Session, node_id: int, wanted: Sequence[Wanted], ctx: Wr
     checked: list[tuple[object, bool]] = []
     for item in wanted:
         try:
-            value = service.given_value(node, item.ref, item.value, item.raw)
-            found, raw = service.checked_raw(node, item.ref, value, check=check)
-            service.encoded(found, raw, value)
+            value = writes.given_value(node, item.ref, item.value, item.raw)
+            found, raw = writes.checked_raw(node, item.ref, value, check=check)
+            writes.encoded(found, raw, value)
         except DriveBenchError as exc:
             problems.append(exc)
             continue
@@ -89,12 +88,12 @@ def _validated(session: Session, node_id: int, wanted: Sequence[Wanted], ctx: Wr
         verdict = judge(found, raw, node.profile)
         if verdict.moving:
             moving.append(f"{found.ref} ({found.name}) = {value}")
-            sent.update(service.sent_values(found, raw))
+            sent.update(writes.sent_values(found, raw))
         checked.append((value, verdict.stopping))
     if any(problems):
         raise BatchInvalid(problems)
     if moving:
-        ctx = service.service(session).moving_writes.confirm(ctx, node_id, _("Writing {refs}").format(
+        ctx = session_part.service(session).moving_writes.confirm(ctx, node_id, _("Writing {refs}").format(
             refs=", ".join(moving)), sent)
     return checked, ctx
 
@@ -114,7 +113,7 @@ async def write_many(session: Session, node_id: int, wanted: Sequence[Wanted], *
                 outcomes.append(Outcome(item.ref, State.NOT_SENT))
                 continue
             try:
-                result = await service.write(session, node_id, item.ref, value, ctx=ctx, check=check,
+                result = await writes.write(session, node_id, item.ref, value, ctx=ctx, check=check,
                                              verify=verify)
             except DriveBenchError as exc:
                 outcomes.append(Outcome(item.ref, State.FAILED, error=exc))

@@ -3,7 +3,7 @@ from which panel (the drive guard's holder of an armed node), as which writer (t
 confirmation (a moving write's ``confirm`` / ``confirm_values``).
 
 The web layer builds it from the request (``web/safety.write_context``); a service passes it down to every call that
-can write (:func:`parameters.write`, :func:`parameters.send_logged`, :func:`parameters.command`,
+can write (:func:`writes.write`, :func:`writes.send_logged`, :func:`device_commands.command`,
 :func:`node_lease.writing` ...), none of which has a default for it: a write that has no context cannot be written.
 The guard's own stops (keep-alive lost, a panel closed) run with :meth:`WriteContext.guard_stop`, which no lease
 refuses and which confirms nothing: it can send what stops a drive, never a value that can move one.

@@ -23,7 +23,7 @@ from drivebench.errors import DriveBenchError, InvalidValue, NotFound, ProtocolE
 from drivebench.i18n import N_, _
 from drivebench.protocol.datatypes import DataType, decode
 from drivebench.services.bus.sessions import Session
-from drivebench.services.params import node_lease, parameters
+from drivebench.services.params import node_lease, writes
 from drivebench.services.params.write_context import WriteContext
 
 Direction = Literal["rpdo", "tpdo"]
@@ -285,7 +285,7 @@ async def run_plan(session: Session, node_id: int, plan: list[tuple[str, int, in
         step = ApplyStep(step=name, index=index, subindex=sub, value=f"0x{value:0{size * 2}X}", ok=True)
         steps.append(step)
         try:
-            await parameters.send_logged(session, node_id, index, sub, value.to_bytes(size, "little"), ctx=ctx)
+            await writes.send_logged(session, node_id, index, sub, value.to_bytes(size, "little"), ctx=ctx)
         except SdoAbortError as exc:
             step.ok, step.abort_code, step.abort_text, step._error = (False, f"0x{exc.abort_code:08X}",
                                                                       exc.abort_text, exc)

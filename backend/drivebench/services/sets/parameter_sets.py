@@ -34,7 +34,7 @@ from drivebench.device.profiles.profile import ObjectEntry, Profile
 from drivebench.device.profiles.scaling import from_raw
 from drivebench.errors import Conflict, InvalidValue, NotFound
 from drivebench.i18n import N_, _
-from drivebench.services.params import parameters
+from drivebench.services.params import reads
 from drivebench.services.storage.database import transaction
 from drivebench.services.storage.models import DownloadRow, ParameterSetRow, ParameterSetVersionRow, utcnow
 
@@ -101,7 +101,7 @@ def rpdo_mapped(values: Mapping[str, Raw]) -> set[tuple[int, int]]:
 
 
 def engineering(item: Item, raw: Raw) -> object:
-    """A raw value as :func:`parameters.write` takes it (engineering units; hex text for byte strings)."""
+    """A raw value as :func:`writes.write` takes it (engineering units; hex text for byte strings)."""
     if isinstance(raw, str):
         return raw
     factor = item.entry.factor
@@ -112,7 +112,7 @@ def shown(item: Item, raw: Raw | None) -> str | None:
     """``10.20 A``, ``0 = 500 kbit/s`` ... (what the Parameters tab shows)."""
     if raw is None:
         return None
-    return parameters.display(item, from_raw(item.entry, raw))
+    return reads.display(item, from_raw(item.entry, raw))
 
 
 def default_raw(item: Item, node_id: int | None) -> Raw | None:

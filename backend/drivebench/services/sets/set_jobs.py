@@ -12,7 +12,7 @@ A download never stops silently halfway:
    the device now holds is read again) or ``not attempted`` (the node fell silent, or the job was cancelled) - and
    the report is stored whatever happens; the job and the stored download end ``done``, ``incomplete`` or
    ``failed`` by those lines (:mod:`~drivebench.services.sets.download_outcome`);
-4. every write goes through :func:`parameters.write`, so the audit log has a row for it.
+4. every write goes through :func:`writes.write`, so the audit log has a row for it.
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ from drivebench.errors import (
 from drivebench.i18n import N_, Text, _
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.control import drive_guard
-from drivebench.services.params import parameters
+from drivebench.services.params import device_commands, read_all, reads, writes
 from drivebench.services.params.jobs import Job, JobIssue, JobManager, said
 from drivebench.services.params.write_context import WriteContext
 from drivebench.services.sets.download_outcome import FAILED, NOT_WRITTEN, outcome_of
@@ -139,7 +139,7 @@ async def read_items(session: Session, node: SessionNode, items: list[Item], job
     on, is ``ctx``'s)."""
     first_issue = len(job.issues)
     job.result.setdefault("values", {}).pop(str(node.node_id), None)
-    await parameters.read_node(session, node, items, job, ctx)
+    await read_all.read_node(session, node, items, job, ctx)
     found = job.result.get("values", {}).pop(str(node.node_id), {})
     values: Values = {}
     for ref, value in found.items():
@@ -355,7 +355,7 @@ def _start(session: Session, node: SessionNode, jobs: JobManager, store: Paramet
     if moving:  # asked before anything is read or written; each such write arms the guard as it goes out
         refs = ", ".join(moving[:4]) + (" ..." if len(moving) > 4 else "")
         values = {key: value for ref in moving
-                  for key, value in parameters.sent_value(items[ref], engineering(items[ref], targets[ref])).items()}
+                  for key, value in writes.sent_value(items[ref], engineering(items[ref], targets[ref])).items()}
         ctx = drive_guard.confirm_moving(session, node.node_id, _(WHAT_WRITES[kind]).format(refs=refs), values,
                                          ctx)[1]
 
@@ -397,7 +397,7 @@ class _Writer:
         self.lines: dict[str, ReportLine] = {}
         self.said: dict[str, Text] = {}
         """The details that are a ``Text``, by ref (a ReportLine keeps only the English text)."""
-        self.silence = parameters.silence_watch(session, node.node_id)
+        self.silence = read_all.silence_watch(session, node.node_id)
         """Gives the node up only on evidence (:mod:`~drivebench.services.params.node_silence`), not after two slow
         answers on a busy machine."""
 
@@ -455,7 +455,7 @@ class _Writer:
             self.job.advance()
             return
         try:
-            result = await parameters.write(self.session, self.node.node_id, item.ref, engineering(item, target),
+            result = await writes.write(self.session, self.node.node_id, item.ref, engineering(item, target),
                                             ctx=self.ctx)
         except SdoTimeoutError as exc:
             await self.silence.timed_out(exc)
@@ -500,7 +500,7 @@ class _Writer:
             if line.status != "failed" or item is None or line.abort_code is None:
                 continue
             try:
-                value = await parameters.read(self.session, self.node.node_id, item.ref)
+                value = await reads.read(self.session, self.node.node_id, item.ref)
             except DriveBenchError:
                 continue
             line.now_raw = value.raw.hex() if isinstance(value.raw, bytes) else value.raw
@@ -515,7 +515,7 @@ class _Writer:
             self.job.advance()
             return
         try:
-            done = await parameters.command(self.session, self.node.node_id, parameters.DeviceCommand.SAVE,
+            done = await device_commands.command(self.session, self.node.node_id, device_commands.DeviceCommand.SAVE,
                                             ctx=self.ctx)
         except DriveBenchError as exc:
             self.job.advance(issue=JobIssue("save", said(exc), self.node.node_id))

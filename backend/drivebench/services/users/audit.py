@@ -18,9 +18,10 @@ from sqlalchemy import or_, select, update
 
 from drivebench.errors import DriveBenchError, SdoAbortError, WriteOutcomeUnknown
 from drivebench.i18n import N_, Text
-from drivebench.services.params import parameters
-from drivebench.services.params.parameters import WriteAttempt, WriteResult
+from drivebench.services.params import reads
+from drivebench.services.params.values import WriteResult
 from drivebench.services.params.write_context import LOCAL_USER
+from drivebench.services.params.write_ports import WriteAttempt
 from drivebench.services.storage.database import transaction
 from drivebench.services.storage.models import AuditRow, utcnow
 
@@ -87,7 +88,7 @@ def outcome(result: WriteResult | None, error: BaseException | None) -> tuple[st
 
 
 class AuditLog:
-    """The :class:`~drivebench.services.params.parameters.WriteAudit` that stores rows (``url``: None =
+    """The :class:`~drivebench.services.params.write_ports.WriteAudit` that stores rows (``url``: None =
     settings'); a server hands it to its session manager, which gives it to every session it opens."""
 
     def __init__(self, url: str | None = None) -> None:
@@ -99,7 +100,7 @@ class AuditLog:
         row = AuditRow(time=utcnow(), user=attempt.ctx.user, session_id=attempt.session.id,
                        node_id=attempt.node_id, ref=item.ref, address=item.address,
                        old_value=attempt.old.display if attempt.old else None,
-                       new_value=parameters.display(item, attempt.new), result="sending", origin=attempt.ctx.origin,
+                       new_value=reads.display(item, attempt.new), result="sending", origin=attempt.ctx.origin,
                        profile=profile.id if profile is not None else None)
         return await asyncio.to_thread(self._insert, row)
 

@@ -1,5 +1,5 @@
 """Undo of one write from its audit record: the record's old value written back through the one checked write
-(:func:`parameters.write`: range, selection and read-only checks, the moving-write confirmation, the node's lease,
+(:func:`writes.write`: range, selection and read-only checks, the moving-write confirmation, the node's lease,
 read-back verify), in the audit log with the origin ``undo <record id>``.
 
 Refused in words when there is nothing sound to write back: the record has no old value (the tool had not read
@@ -14,8 +14,8 @@ import re
 from drivebench.errors import Conflict, DriveBenchError, NotFound
 from drivebench.i18n import _
 from drivebench.services.bus.sessions import Session
-from drivebench.services.params import parameters
-from drivebench.services.params.parameters import WriteResult
+from drivebench.services.params import lookup, writes
+from drivebench.services.params.values import WriteResult
 from drivebench.services.params.write_context import WriteContext
 from drivebench.services.users.audit import AuditEntry, entry
 
@@ -52,7 +52,7 @@ def refusal(session: Session, undone: AuditEntry) -> str | None:
                                                               now=profile or _("(none)"), then=undone.profile,
                                                               ref=name)
     try:
-        item = parameters.resolve(node, undone.ref)
+        item = lookup.resolve(node, undone.ref)
     except DriveBenchError as exc:
         return _("Record {id}: {ref} is not a parameter of node {node} now ({why}).").format(
             id=undone.id, ref=name, node=undone.node_id, why=exc.shown_detail())
@@ -63,14 +63,14 @@ def refusal(session: Session, undone: AuditEntry) -> str | None:
 
 
 def old_value(session: Session, undone: AuditEntry) -> object:
-    """The record's old value as :func:`parameters.write` takes it (a selection shown ``0 = 500 kbit/s`` by its
+    """The record's old value as :func:`writes.write` takes it (a selection shown ``0 = 500 kbit/s`` by its
     number)."""
     assert undone.old_value is not None
     node = session.node(undone.node_id)
     shown = _SELECTION_SHOWN.match(undone.old_value)
-    item = parameters.resolve(node, undone.ref)
+    item = lookup.resolve(node, undone.ref)
     if shown is not None and item.entry.selection:
-        return parameters.given_value(node, undone.ref, None, int(shown.group(1)))
+        return writes.given_value(node, undone.ref, None, int(shown.group(1)))
     return undone.old_value
 
 
@@ -82,5 +82,5 @@ async def undo(session: Session, undone: AuditEntry, *, ctx: WriteContext) -> Wr
     why = refusal(session, undone)
     if why is not None:
         raise Conflict(why)
-    return await parameters.write(session, undone.node_id, undone.ref, old_value(session, undone),
+    return await writes.write(session, undone.node_id, undone.ref, old_value(session, undone),
                                   ctx=ctx.as_origin(f"{UNDO} {undone.id}"))

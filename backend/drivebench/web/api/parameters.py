@@ -17,11 +17,13 @@ from drivebench.device.profiles.catalog import Item
 from drivebench.device.profiles.scaling import ScaledValue
 from drivebench.errors import DriveBenchError
 from drivebench.i18n import shown
-from drivebench.services.params import factory_compare
+from drivebench.services.params import device_commands, factory_compare, lookup, reads, session_part, writes
 from drivebench.services.params import parameter_batch as batch
-from drivebench.services.params import parameters as service
+from drivebench.services.params import read_all as read_jobs
+from drivebench.services.params.device_commands import DeviceCommand
 from drivebench.services.params.parameter_batch import MAX_BATCH_WRITE, Wanted
-from drivebench.services.params.parameters import DeviceCommand, ParameterValue, SdoSettings, WriteResult
+from drivebench.services.params.session_part import SdoSettings
+from drivebench.services.params.values import ParameterValue, WriteResult
 from drivebench.services.users import undo as undoing
 from drivebench.web.deps import JobsDep, NodeDep, SessionDep
 from drivebench.web.job_views import JobOut, ParameterValueOut, ValueOut, job_out, value_out
@@ -38,7 +40,7 @@ NODE = "/sessions/{session_id}/nodes/{node_id}"
 
 # --- models --------------------------------------------------------------------------------------------
 class BatchRead(BaseModel):
-    refs: list[str] = Field(min_length=1, max_length=service.MAX_BATCH,
+    refs: list[str] = Field(min_length=1, max_length=reads.MAX_BATCH,
                             description="Parameter refs as the single read takes them (C00011, 0x1017.0, P0700)")
 
 
@@ -279,10 +281,10 @@ async def list_parameters(session: SessionDep, node: NodeDep,
                           parameter_set: Annotated[int, Query(ge=1, le=4, description=(
                               "Parameter set whose codes to list where the device keeps codes per set "
                               "(set 2 lists C2012 for C0012)"))] = 1) -> ParameterList:
-    last = service.service(session).values.get(node.node_id, {})
-    failures = service.service(session).failures.get(node.node_id, {})
-    found = service.items(node, q, group, parameter_set)
-    return ParameterList(node_id=node.node_id, device=node.device_name, groups=service.groups(node),
+    last = session_part.service(session).values.get(node.node_id, {})
+    failures = session_part.service(session).failures.get(node.node_id, {})
+    found = lookup.items(node, q, group, parameter_set)
+    return ParameterList(node_id=node.node_id, device=node.device_name, groups=lookup.groups(node),
                          parameters=[info_out(item, last.get(item.ref), failures.get(item.ref), node.node_id)
                                      for item in found],
                          pending_reset=sorted(node.pending_reset))
@@ -291,7 +293,7 @@ async def list_parameters(session: SessionDep, node: NodeDep,
 async def read_parameter(session: SessionDep, node: NodeDep, ref: str,
                          transfer: Annotated[str, Query(pattern="^(auto|block)$")] = "auto") -> ParameterValueOut:
     """Read from the device now (``transfer=block`` for a CiA 301 block upload)."""
-    return value_out(await service.read(session, node.node_id, ref, transfer=transfer))
+    return value_out(await reads.read(session, node.node_id, ref, transfer=transfer))
 
 
 _VALUE_JSON = TypeAdapter(ParameterValueOut)
@@ -308,7 +310,7 @@ async def _lean_read(request: Request) -> Response | None:
     state = app_state(request.app)
     session = state.manager.get(params["session_id"])
     node = session.node(node_id)
-    value = value_out(await service.read(session, node.node_id, params["ref"]))
+    value = value_out(await reads.read(session, node.node_id, params["ref"]))
     return Response(_VALUE_JSON.dump_json(value, by_alias=True), media_type="application/json")
 
 
@@ -319,7 +321,7 @@ router.add_api_route(NODE + "/parameters/{ref:path}", read_parameter, methods=["
 @router.post(NODE + "/parameters:read", response_model=BatchReadOut)
 async def read_parameters(request: Request, session: SessionDep, node: NodeDep, body: BatchRead) -> BatchReadOut:
     """Read many parameters in one request, in the order given; each answers with its value or its own error."""
-    found = await service.read_many(session, node.node_id, body.refs)
+    found = await reads.read_many(session, node.node_id, body.refs)
     items = [BatchReadItem(ref=ref, ok=False, error=problem_body(result, f"{request.url.path}#{ref}"))
              if isinstance(result, DriveBenchError) else BatchReadItem(ref=ref, ok=True, value=value_out(result))
              for ref, result in zip(body.refs, found, strict=True)]
@@ -335,8 +337,8 @@ async def write_parameter(request: Request, session: SessionDep, node: NodeDep, 
     arms the keep-alive guard: this client must then POST ``/api/sessions/{session}/keepalive`` at least every
     2 s, or the drive is quick-stopped. A control word that only stops the drive is never refused."""
     ctx = ctx.confirming(confirmation(request, body.confirm, body.confirm_values))
-    value = service.given_value(node, ref, body.value, body.raw)
-    result = await service.write(session, node.node_id, ref, value, ctx=ctx, check=body.check, verify=body.verify)
+    value = writes.given_value(node, ref, body.value, body.raw)
+    result = await writes.write(session, node.node_id, ref, value, ctx=ctx, check=body.check, verify=body.verify)
     return write_out(result, node.pending_reset)
 
 
@@ -400,12 +402,12 @@ async def undo_write(request: Request, entry_id: int, ctx: WriteCtxDep, body: Un
 
 @router.post(NODE + "/read-all", response_model=JobOut, status_code=status.HTTP_202_ACCEPTED)
 async def read_all(session: SessionDep, node: NodeDep, jobs: JobsDep, ctx: WriteCtxDep) -> JobOut:
-    return job_out(service.start_read(session, [node.node_id], jobs, ctx=ctx), with_result=False)
+    return job_out(read_jobs.start_read(session, [node.node_id], jobs, ctx=ctx), with_result=False)
 
 
 @router.post(NODE + "/read-group", response_model=JobOut, status_code=status.HTTP_202_ACCEPTED)
 async def read_group(session: SessionDep, node: NodeDep, jobs: JobsDep, body: GroupRead, ctx: WriteCtxDep) -> JobOut:
-    return job_out(service.start_read(session, [node.node_id], jobs, ctx=ctx, group=body.group), with_result=False)
+    return job_out(read_jobs.start_read(session, [node.node_id], jobs, ctx=ctx, group=body.group), with_result=False)
 
 
 @router.post("/sessions/{session_id}/read-all", response_model=JobOut,
@@ -415,25 +417,25 @@ async def read_all_nodes(session: SessionDep, jobs: JobsDep, ctx: WriteCtxDep, b
     """Every node of the session in parallel (each node over its SDO channels)."""
     node_ids = (body.node_ids if body and body.node_ids else
                 [n.node_id for n in session.nodes.values() if n.profile is not None])
-    return job_out(service.start_read(session, node_ids, jobs, ctx=ctx), with_result=False)
+    return job_out(read_jobs.start_read(session, node_ids, jobs, ctx=ctx), with_result=False)
 
 
 @router.post(NODE + "/commands/{command}", response_model=CommandOut)
 async def device_command(session: SessionDep, node: NodeDep, command: DeviceCommand, ctx: WriteCtxDep) -> CommandOut:
-    result = await service.command(session, node.node_id, command, ctx=ctx)
+    result = await device_commands.command(session, node.node_id, command, ctx=ctx)
     return CommandOut(command=result.command.value, via=result.via, detail=shown(result.detail),
                       pending_reset=sorted(node.pending_reset))
 
 
 @router.get("/sessions/{session_id}/sdo-settings", response_model=SdoSettingsModel)
 async def get_sdo_settings(session: SessionDep) -> SdoSettingsModel:
-    settings = service.service(session).settings
+    settings = session_part.service(session).settings
     return SdoSettingsModel(timeout_s=settings.timeout_s, retries=settings.retries, use_sdo2=settings.use_sdo2)
 
 
 @router.put("/sessions/{session_id}/sdo-settings", response_model=SdoSettingsModel)
 async def put_sdo_settings(session: SessionDep, body: SdoSettingsModel) -> SdoSettingsModel:
-    service.configure(session, SdoSettings(body.timeout_s, body.retries, body.use_sdo2))
+    session_part.configure(session, SdoSettings(body.timeout_s, body.retries, body.use_sdo2))
     return body
 
 

@@ -22,9 +22,9 @@ from drivebench.i18n import N_, _
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.bus.views import node_public
 from drivebench.services.monitoring import object_list
-from drivebench.services.params import node_lease
-from drivebench.services.params import parameters as service
-from drivebench.services.params.parameters import DeviceCommand, WriteResult
+from drivebench.services.params import device_commands, lookup, node_lease, read_all, reads, session_part, writes
+from drivebench.services.params.device_commands import DeviceCommand
+from drivebench.services.params.values import ParameterValue, WriteResult
 from drivebench.services.users.principals import Role
 from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.identity import PrincipalDep
@@ -47,7 +47,7 @@ def row_id(ref: str) -> str:
     return "p-" + re.sub(r"[^A-Za-z0-9]+", "-", ref)
 
 
-def edit_value(last: service.ParameterValue | None, item: Item) -> str:
+def edit_value(last: ParameterValue | None, item: Item) -> str:
     """What the new-value field starts with: the value read last as a user would type it (``50``, not
     ``50.0``; a bit-coded word and a COB-ID in hex)."""
     if last is None or last.value is None:
@@ -76,20 +76,20 @@ def _base(request: Request, session: Session, node: SessionNode, tab: str, **ext
 
 def _parameters_context(session: Session, node: SessionNode, q: str = "", group: str = "",
                         pset: int = 1) -> dict[str, Any]:
-    sets = service.parameter_sets(node)
+    sets = lookup.parameter_sets(node)
     pset = pset if 1 <= pset <= sets else 1
-    found = service.items(node, q, group or None, pset)
+    found = lookup.items(node, q, group or None, pset)
     by_group: dict[str, list[Any]] = {}
     for item in found:
         by_group.setdefault(item.group, []).append(item)
-    names = service.groups(node)
+    names = lookup.groups(node)
     names += [name for name in by_group if name not in names]  # an address the profile does not list
     ordered = [(name, by_group[name]) for name in names if name in by_group]
-    return {"groups": service.groups(node), "grouped": ordered, "q": q, "group": group, "count": len(found),
+    return {"groups": lookup.groups(node), "grouped": ordered, "q": q, "group": group, "count": len(found),
             "parameter_sets": sets, "pset": pset,
-            "values": service.service(session).values.get(node.node_id, {}),
-            "failures": service.service(session).failures.get(node.node_id, {}),
-            "settings": service.service(session).settings}
+            "values": session_part.service(session).values.get(node.node_id, {}),
+            "failures": session_part.service(session).failures.get(node.node_id, {}),
+            "settings": session_part.service(session).settings}
 
 
 def _vendor(node: SessionNode) -> tuple[int | None, str]:
@@ -174,10 +174,10 @@ async def parameter_rows(request: Request, session: SessionDep, node: NodeDep, q
 
 def _row(request: Request, session: Session, node: SessionNode, ref: str, *,
          result: WriteResult | None = None, transfer: str = "auto") -> Response:
-    item = service.resolve(node, ref)
+    item = lookup.resolve(node, ref)
     context = _base(request, session, node, "parameters", item=item, result=result, transfer=transfer,
-                    values=service.service(session).values.get(node.node_id, {}),
-                    failures=service.service(session).failures.get(node.node_id, {}))
+                    values=session_part.service(session).values.get(node.node_id, {}),
+                    failures=session_part.service(session).failures.get(node.node_id, {}))
     return templates.TemplateResponse(request, "node/parameters.html", context, block_name="one_row")
 
 
@@ -185,7 +185,7 @@ def _row(request: Request, session: Session, node: SessionNode, ref: str, *,
 async def read_row(request: Request, session: SessionDep, node: NodeDep, ref: str,
                    transfer: Annotated[str, Form(pattern="^(auto|block)$")] = "auto") -> Response:
     """Read one row; ``transfer=block`` (the row's Block button on strings) reads by CiA 301 block upload."""
-    await service.read(session, node.node_id, ref, transfer=transfer)
+    await reads.read(session, node.node_id, ref, transfer=transfer)
     return _row(request, session, node, ref, transfer=transfer)
 
 
@@ -195,7 +195,7 @@ async def write_row(request: Request, session: SessionDep, node: NodeDep, ref: s
                     confirm_values: Annotated[str | None, Form()] = None) -> Response:
     """A row the profile marks as moving the drive sends ``confirm`` and ``confirm_values`` after the page's
     question (see the row)."""
-    result = await service.write(session, node.node_id, ref, value,
+    result = await writes.write(session, node.node_id, ref, value,
                                  ctx=ctx.confirming(confirmation(request, confirm or None, confirm_values or None)))
     return _row(request, session, node, ref, result=result)
 
@@ -203,8 +203,8 @@ async def write_row(request: Request, session: SessionDep, node: NodeDep, ref: s
 @router.post(UI + "/read", response_class=HTMLResponse)
 async def start_read(request: Request, session: SessionDep, node: NodeDep, ctx: WriteCtxDep,
                      group: Annotated[str, Form()] = "", pset: Annotated[int, Form()] = 1) -> Response:
-    job = service.start_read(session, [node.node_id], app_state(request.app).jobs, ctx=ctx, group=group or None,
-                             parameter_set=pset if 1 <= pset <= service.parameter_sets(node) else 1)
+    job = read_all.start_read(session, [node.node_id], app_state(request.app).jobs, ctx=ctx, group=group or None,
+                             parameter_set=pset if 1 <= pset <= lookup.parameter_sets(node) else 1)
     context = _base(request, session, node, "parameters", job=job)
     return templates.TemplateResponse(request, "node/parameters.html", context, block_name="job_progress")
 
@@ -212,7 +212,7 @@ async def start_read(request: Request, session: SessionDep, node: NodeDep, ctx: 
 @router.post(UI + "/commands/{command}", response_class=HTMLResponse)
 async def run_command(request: Request, session: SessionDep, node: NodeDep, command: DeviceCommand,
                       ctx: WriteCtxDep) -> Response:
-    result = await service.command(session, node.node_id, command, ctx=ctx)
+    result = await device_commands.command(session, node.node_id, command, ctx=ctx)
     context = _base(request, session, node, "parameters", command_result=result)
     return templates.TemplateResponse(request, "node/parameters.html", context, block_name="command_result")
 
@@ -221,8 +221,8 @@ async def run_command(request: Request, session: SessionDep, node: NodeDep, comm
 async def sdo_settings(request: Request, session: SessionDep, node: NodeDep,
                        timeout_ms: Annotated[int, Form(ge=10, le=30000)],
                        retries: Annotated[int, Form(ge=0, le=10)], use_sdo2: Annotated[str, Form()] = "") -> Response:
-    service.configure(session, service.SdoSettings(timeout_ms / 1000, retries, bool(use_sdo2)))
-    context = _base(request, session, node, "parameters", settings=service.service(session).settings, saved=True)
+    session_part.configure(session, session_part.SdoSettings(timeout_ms / 1000, retries, bool(use_sdo2)))
+    context = _base(request, session, node, "parameters", settings=session_part.service(session).settings, saved=True)
     return templates.TemplateResponse(request, "node/parameters.html", context, block_name="sdo_settings")
 
 
@@ -240,7 +240,7 @@ async def read_info(request: Request, session: SessionDep, node: NodeDep) -> Res
     rows: list[IdentityShown] = []
     for label, ref in IDENTITY:
         try:
-            value = await service.read(session, node.node_id, ref)
+            value = await reads.read(session, node.node_id, ref)
             row = (shown(_(label), ref, value.raw, _vendor(node)) if isinstance(value.raw, int)
                    else IdentityShown(_(label), ref, value.display, ""))
         except SdoTimeoutError as exc:
@@ -251,7 +251,7 @@ async def read_info(request: Request, session: SessionDep, node: NodeDep) -> Res
         rows.append(row)
     for ref in FIRMWARE_REFS:
         try:
-            value = await service.read(session, node.node_id, ref)
+            value = await reads.read(session, node.node_id, ref)
         except DriveBenchError:
             continue
         rows.append(IdentityShown(_("Firmware / software"), value.ref, value.display, ""))

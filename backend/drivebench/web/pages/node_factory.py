@@ -13,8 +13,7 @@ from drivebench.config import settings
 from drivebench.device.profiles.catalog import Item
 from drivebench.device.profiles.number_base import shows_hex
 from drivebench.services.bus.sessions import Session, SessionNode
-from drivebench.services.params import factory_compare
-from drivebench.services.params import parameters as service
+from drivebench.services.params import factory_compare, lookup, session_part
 from drivebench.services.users import audit, undo
 from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.pages.node import UI
@@ -70,7 +69,7 @@ async def undo_write(request: Request, session: SessionDep, node: NodeDep, entry
     record = undo.record(entry_id, settings.database_url)
     result = await undo.undo(session, record,
                              ctx=ctx.confirming(confirmation(request, confirm or None, confirm_values or None)))
-    item = service.resolve(node, record.ref)
+    item = lookup.resolve(node, record.ref)
     return _writes(request, session, node, undone=record, result=result, item=item,
-                   values=service.service(session).values.get(node.node_id, {}),
-                   failures=service.service(session).failures.get(node.node_id, {}))
+                   values=session_part.service(session).values.get(node.node_id, {}),
+                   failures=session_part.service(session).failures.get(node.node_id, {}))
