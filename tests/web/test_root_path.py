@@ -1,0 +1,67 @@
+"""DriveBench under a sub-path (``serve --root-path /drivebench``, issue 33): uvicorn serves the app with the prefix
+a reverse proxy strips, and every URL a page, a redirect or a cookie names carries it."""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterator
+
+import httpx
+import pytest
+
+from drivebench.web.app import create_app
+from tests.conftest import DEMO_PLANT, fresh_channel, serve_app
+
+ROOT = "/drivebench"
+NODE = "/sessions/demo-plant/nodes/3"
+URL_ATTRIBUTE = re.compile(r'\b(href|src|action|hx-(?:get|post|put|patch|delete|push-url)|ws-connect'
+                           r'|data-(?:api|ws|keepalive))="([^"]*)"')
+
+
+@pytest.fixture(scope="module")
+def server() -> Iterator[str]:
+    """The demo plant served with uvicorn's root_path, as ``drivebench serve --root-path /drivebench`` does."""
+    app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
+    with serve_app(app, root_path=ROOT) as url:
+        yield url
+
+
+def _urls(html: str) -> list[tuple[str, str]]:
+    return [(name, value) for name, value in URL_ATTRIBUTE.findall(html) if value.startswith("/")]
+
+
+@pytest.mark.parametrize("page", ["/", NODE, NODE + "?tab=control", "/monitor/demo-plant", "/tools",
+                                  "/parameter-sets", "/profiles", "/remote"])
+def test_every_url_on_a_page_carries_the_root_path(server: str, page: str) -> None:
+    answer = httpx.get(server + page, headers={"Accept": "text/html"}, timeout=60)
+    assert answer.status_code == 200, answer.text[:500]
+    urls = _urls(answer.text)
+    assert urls, "the page names no URL"
+    outside = [(name, value) for name, value in urls if not value.startswith(ROOT + "/")]
+    assert outside == [], f"URLs outside {ROOT}/ on {page}: {outside[:10]}"
+    assert f'data-root="{ROOT}"' in answer.text
+
+
+def test_fragments_carry_the_root_path(server: str) -> None:
+    for fragment in (f"/ui{NODE}/parameters", f"/ui{NODE}/control", f"/ui{NODE}/tabs/pdo"):
+        answer = httpx.get(server + fragment, headers={"HX-Request": "true", "X-DriveBench": "1"}, timeout=60)
+        assert answer.status_code == 200, (fragment, answer.text[:500])
+        outside = [(name, value) for name, value in _urls(answer.text) if not value.startswith(ROOT + "/")]
+        assert outside == [], f"URLs outside {ROOT}/ in {fragment}: {outside[:10]}"
+
+
+def test_redirects_and_cookies_stay_under_the_root_path(server: str) -> None:
+    monitor = httpx.get(server + "/monitor", timeout=60)
+    assert monitor.status_code == 307
+    assert monitor.headers["location"] == f"{ROOT}/monitor/demo-plant"
+    switched = httpx.get(server + "/language/de", params={"next": NODE}, timeout=60)
+    assert switched.status_code == 303
+    assert switched.headers["location"] == ROOT + NODE
+    assert f"Path={ROOT}" in switched.headers["set-cookie"]
+
+
+def test_api_and_static_answer_under_the_root_path(server: str) -> None:
+    """The router, the access gate and the static files see the path without the prefix."""
+    assert httpx.get(server + "/api/health", timeout=60).json()["status"] == "ok"
+    assert httpx.get(server + "/static/app.js", timeout=60).status_code == 200
+    assert httpx.get(server + "/api/sessions/demo-plant/nodes/3", timeout=60).status_code == 200
