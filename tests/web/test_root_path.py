@@ -8,6 +8,7 @@ from collections.abc import Iterator
 
 import httpx
 import pytest
+import websockets.sync.client
 
 from drivebench.web.app import create_app
 from tests.conftest import DEMO_PLANT, fresh_channel, serve_app
@@ -65,3 +66,14 @@ def test_api_and_static_answer_under_the_root_path(server: str) -> None:
     assert httpx.get(server + "/api/health", timeout=60).json()["status"] == "ok"
     assert httpx.get(server + "/static/app.js", timeout=60).status_code == 200
     assert httpx.get(server + "/api/sessions/demo-plant/nodes/3", timeout=60).status_code == 200
+
+
+def test_the_live_node_table_carries_the_root_path(server: str) -> None:
+    """The Plant page's node table comes again over its websocket: its links keep the prefix."""
+    with websockets.sync.client.connect(server.replace("http://", "ws://") + "/ws/sessions/demo-plant/nodes",
+                                        open_timeout=60) as socket:
+        html = str(socket.recv(timeout=60))
+    urls = _urls(html)
+    assert urls, "the node table names no URL"
+    outside = [(name, value) for name, value in urls if not value.startswith(ROOT + "/")]
+    assert outside == [], f"URLs outside {ROOT}/ in the live node table: {outside[:10]}"
