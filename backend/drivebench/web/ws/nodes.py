@@ -12,8 +12,8 @@ from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 from drivebench.errors import NotFound
 from drivebench.i18n import _
 from drivebench.services.bus.views import nodes_public
-from drivebench.web.state import app_state
 from drivebench.web.root import root_of
+from drivebench.web.state import app_state
 from drivebench.web.templating import templates
 
 router = APIRouter()
