@@ -77,3 +77,16 @@ def test_the_live_node_table_carries_the_root_path(server: str) -> None:
     assert urls, "the node table names no URL"
     outside = [(name, value) for name, value in urls if not value.startswith(ROOT + "/")]
     assert outside == [], f"URLs outside {ROOT}/ in the live node table: {outside[:10]}"
+
+
+def test_a_job_names_its_urls_under_the_root_path(server: str) -> None:
+    """An answer's links (a read job's self and progress) are addresses the client can open through the proxy."""
+    job = _started(server + "/api/sessions/demo-plant/nodes/3/read-all")
+    assert job["links"] == {"self": f"{ROOT}/api/jobs/{job['id']}", "progress": f"{ROOT}/ws/jobs/{job['id']}"}
+    assert httpx.get(server + job["links"]["self"][len(ROOT):], timeout=60).json()["id"] == job["id"]
+
+
+def _started(url: str) -> dict[str, object]:
+    answer = httpx.post(url, headers={"X-DriveBench": "1"}, timeout=60)
+    assert answer.status_code == 202, answer.text[:500]
+    return dict(answer.json())
