@@ -5,13 +5,15 @@ from __future__ import annotations
 
 import re
 from collections.abc import Iterator
+from pathlib import Path
 
 import httpx
 import pytest
 import websockets.sync.client
 
 from drivebench.web.app import create_app
-from tests.conftest import DEMO_PLANT, fresh_channel, serve_app
+from tests.conftest import DEMO_PLANT, _free_port, fresh_channel, serve_app, wait_until
+from tests.transport.test_multiprocess import START_TIMEOUT_S, CliProcess
 
 ROOT = "/drivebench"
 NODE = "/sessions/demo-plant/nodes/3"
@@ -90,3 +92,32 @@ def _started(url: str) -> dict[str, object]:
     answer = httpx.post(url, headers={"X-DriveBench": "1"}, timeout=60)
     assert answer.status_code == 202, answer.text[:500]
     return dict(answer.json())
+
+
+def test_serve_with_root_path_serves_pages_under_it(tmp_path: Path) -> None:
+    """``drivebench serve --root-path /drivebench`` hands the prefix to uvicorn: its pages link under it."""
+    port = _free_port()
+    server = CliProcess("serve", "--demo", "--port", str(port), "--root-path", "/drivebench/",
+                        env={"DRIVEBENCH_DATABASE_URL": f"sqlite:///{tmp_path / 'db.sqlite'}"})
+    try:
+        server.wait_for_line("DriveBench on")
+        assert wait_until(lambda: _health(port), START_TIMEOUT_S)
+        page = httpx.get(f"http://127.0.0.1:{port}/", headers={"Accept": "text/html"}, timeout=60)
+        assert page.status_code == 200
+        assert f'href="{ROOT}/static/app.css"' in page.text
+    finally:
+        server.stop()
+
+
+def _health(port: int) -> bool:
+    try:
+        return httpx.get(f"http://127.0.0.1:{port}/api/health", timeout=5).status_code == 200
+    except httpx.HTTPError:
+        return False
+
+
+def test_serve_refuses_a_root_path_that_is_no_sub_path(tmp_path: Path) -> None:
+    server = CliProcess("serve", "--port", "0", "--root-path", "drivebench",
+                        env={"DRIVEBENCH_DATABASE_URL": f"sqlite:///{tmp_path / 'db.sqlite'}"})
+    server.wait_for_line("is not a sub-path")
+    assert server.process.wait(timeout=START_TIMEOUT_S) == 1
