@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed
 HOST ?= 127.0.0.1
 PORT ?= 8000
 
-.PHONY: help constraints run test test-quick install lint typecheck importlint pytest bench chromium postgresql clean i18n-extract i18n-update i18n-compile
+.PHONY: help constraints run test test-quick install lint typecheck importlint pytest bench chromium postgresql nginx clean i18n-extract i18n-update i18n-compile
 
 help:
 	@echo "make run          serve http://$(HOST):$(PORT) with the built-in simulated plant"
@@ -60,12 +60,16 @@ importlint: $(STAMP)
 postgresql:
 	@ls /usr/lib/postgresql/*/bin/initdb >/dev/null 2>&1 || (apt-get update -qq && apt-get install -y -qq postgresql >/dev/null)
 
+# The sub-path test (tests/web/test_root_path_browser.py) puts Debian's nginx in front of a served DriveBench.
+nginx:
+	@command -v nginx >/dev/null 2>&1 || ls /usr/sbin/nginx >/dev/null 2>&1 || (apt-get update -qq && apt-get install -y -qq nginx >/dev/null)
+
 # The suite runs on parallel workers (pytest-xdist), a module's tests on one worker (they share its fixtures).
 # Most tests wait on a bus, a timeout or a browser, so more workers than cores pay: PYTEST_WORKERS=1 runs serially.
 PYTEST_WORKERS ?= 4
 PYTEST_PARALLEL := $(if $(filter-out 0 1,$(PYTEST_WORKERS)),-n $(PYTEST_WORKERS) --dist loadfile)
 
-pytest: install chromium postgresql
+pytest: install chromium postgresql nginx
 	$(BIN)/pytest $(PYTEST_PARALLEL)
 
 # A developer's loop: the suite without the tests marked slow (browser tests, faults that wait out timeouts,

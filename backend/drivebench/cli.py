@@ -79,7 +79,7 @@ def serve(args: argparse.Namespace) -> int:
         uvicorn.run(app, host=args.host, port=args.port, log_level=args.log_level, ws_ping_interval=20,
                     ssl_certfile=args.tls_cert, ssl_keyfile=args.tls_key, proxy_headers=bool(forwarded),
                     forwarded_allow_ips=forwarded or None, loop=_fastest("uvloop"), server_header=False,
-                    access_log=args.log_level in ("info", "debug"),
+                    access_log=args.log_level in ("info", "debug"), root_path=settings.root_path,
                     **serving.uvicorn_options(log_level=args.log_level, log_format=args.log_format))
     return 0
 
@@ -123,6 +123,10 @@ def _apply_addressing(args: argparse.Namespace) -> None:
                              "https://drivebench.example.com (the address others open).").format(
                                  url=repr(settings.public_url)))
     settings.forwarded_allow_ips = args.forwarded_allow_ips or settings.forwarded_allow_ips
+    settings.root_path = (args.root_path if args.root_path is not None else settings.root_path).rstrip("/")
+    if settings.root_path and not re.fullmatch(r"(/[A-Za-z0-9._~-]+)+", settings.root_path):
+        raise InvalidValue(_("--root-path {path} is not a sub-path: give it as /drivebench (the path the reverse "
+                             "proxy serves DriveBench under).").format(path=repr(settings.root_path)))
 
 
 def tls(args: argparse.Namespace) -> int:
@@ -400,6 +404,9 @@ def build_parser() -> argparse.ArgumentParser:
     p_serve.add_argument("--forwarded-allow-ips", metavar="IPS",
                          help=_("reverse proxies whose X-Forwarded-For/-Proto are believed, comma-separated "
                               "(default: none)"))
+    p_serve.add_argument("--root-path", metavar="PATH",
+                         help=_("the sub-path a reverse proxy serves DriveBench under, e.g. /drivebench (the proxy "
+                              "strips it; default from DRIVEBENCH_ROOT_PATH, else none)"))
     p_serve.set_defaults(func=serve)
 
     p_health = sub.add_parser("health", help=_("exit 0 if the server on this machine answers /api/health"))

@@ -59,6 +59,9 @@ class Settings(BaseSettings):
     """Serve FastAPI's /docs and /redoc pages (``DRIVEBENCH_API_DOCS=1``, for development): they load their scripts
     from a CDN, so a production server leaves them off. /openapi.json is always served."""
     forwarded_allow_ips: str | None = None
+    root_path: str = ""
+    """The sub-path a reverse proxy serves DriveBench under (``/drivebench``; ``DRIVEBENCH_ROOT_PATH``): the proxy
+    strips it, uvicorn's ``root_path`` puts it back in front of every link, redirect and cookie path."""
     """Proxies whose ``X-Forwarded-For`` / ``-Proto`` are believed (uvicorn's option, comma-separated addresses or
     networks); none by default, so a client cannot choose the address the sign-in limit counts."""
 

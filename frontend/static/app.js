@@ -7,6 +7,12 @@
 window.drivebench = window.drivebench || {};
 (() => {
   const drivebench = window.drivebench;
+  // The sub-path the server is reached under behind a reverse proxy (<body data-root>, web/root.py; "" at the top):
+  // url("/api/…") is the address a script fetches, appPath(location.pathname) the server's own path (a `next`).
+  drivebench.root = document.body.dataset.root || "";
+  drivebench.url = (path) => drivebench.root + path;
+  drivebench.appPath = (path) => (drivebench.root && (path === drivebench.root || path.startsWith(`${drivebench.root}/`))
+    ? path.slice(drivebench.root.length) || "/" : path);
   const ENTITIES = { "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;", "'": "&#39;" };
   drivebench.escape = (text) => String(text ?? "").replace(/[&<>"']/g, (c) => ENTITIES[c]);
 
@@ -153,7 +159,7 @@ document.addEventListener("click", (event) => {
   const link = event.target.closest && event.target.closest(".lang-switch a[href*='next=']");
   if (!link) return;
   const target = new URL(link.href);
-  target.searchParams.set("next", location.pathname + location.search);
+  target.searchParams.set("next", window.drivebench.appPath(location.pathname) + location.search);
   link.href = target.pathname + target.search;
 });
 

@@ -6,7 +6,7 @@
   const root = document.getElementById("monitor");
   if (!root) return;
   const sessionId = root.dataset.session;
-  const api = `/api/sessions/${encodeURIComponent(sessionId)}/monitor`;
+  const api = window.drivebench.url(`/api/sessions/${encodeURIComponent(sessionId)}/monitor`);
   const $ = (id) => document.getElementById(id);
   const TRACE_LENGTHS = [500, 2000, 10000];
   const HELLO_ROWS_MAX = 2000;  // the server sends at most this many rows in a hello (web/ws/monitor.py)
@@ -225,7 +225,7 @@
 
   function connect() {
     socket = window.drivebench.liveSocket(
-      () => `/ws/sessions/${encodeURIComponent(sessionId)}/monitor?rows=${helloRows()}`,
+      () => window.drivebench.url(`/ws/sessions/${encodeURIComponent(sessionId)}/monitor?rows=${helloRows()}`),
       { onOpen: () => { if (view) socket.send({ type: "view", ...view, rows: helloRows() }); },
         onMessage: receive, onClose: () => setLive("down"), keepOpen: (event) => event.code !== 4404 });
   }
@@ -331,7 +331,7 @@
   });
 
   const picker = $("session-picker");  // more than one session: the choice opens the other one's monitor
-  if (picker) picker.addEventListener("change", () => { location.href = `/monitor/${encodeURIComponent(picker.value)}`; });
+  if (picker) picker.addEventListener("change", () => { location.href = window.drivebench.url(`/monitor/${encodeURIComponent(picker.value)}`); });
 
   setLive("connecting");
   connect();

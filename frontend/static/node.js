@@ -34,7 +34,7 @@
     const text = box.querySelector(".job-text");
     // reconnects while the job runs and its box is shown (the server closes the socket after the final message,
     // with 4404 for a job it does not know)
-    window.drivebench.liveSocket(`/ws/jobs/${encodeURIComponent(box.dataset.job)}`, {
+    window.drivebench.liveSocket(window.drivebench.url(`/ws/jobs/${encodeURIComponent(box.dataset.job)}`), {
       keepOpen: (event) => event.code !== 4404 && (box.dataset.state || "running") === "running" &&
         document.body.contains(box),
       onMessage: (msg) => show(box, msg, bar, text),

@@ -7,7 +7,7 @@
   const verbs = ["post", "put", "patch", "delete"];
   function mark(root) {
     verbs.forEach((verb) => window.drivebench.within(root, `[hx-${verb}]`).forEach((elt) => {
-      const url = new URL(elt.getAttribute(`hx-${verb}`), location.href).pathname;
+      const url = window.drivebench.appPath(new URL(elt.getAttribute(`hx-${verb}`), location.href).pathname);
       const rule = rules.find((r) => r.method === verb.toUpperCase() && r.re.test(url));
       if (!rule) return;
       const controls = elt.matches("form") ? elt.querySelectorAll("button, input, select, textarea") : [elt];

@@ -17,7 +17,7 @@ document.addEventListener("click", async (event) => {
   if (!button) return;
   const form = document.getElementById("planner-form");
   const slot = document.getElementById("planner-errors");
-  const response = await fetch("/ui/tools/planner/export", { method: "POST", headers: { "HX-Request": "true" }, body: new URLSearchParams(new FormData(form)) });
+  const response = await fetch(window.drivebench.url("/ui/tools/planner/export"), { method: "POST", headers: { "HX-Request": "true" }, body: new URLSearchParams(new FormData(form)) });
   if (!response.ok) {
     slot.innerHTML = await response.text();  // the error fragment the server rendered (Jinja escapes every value)
     return;

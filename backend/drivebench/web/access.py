@@ -48,6 +48,7 @@ from drivebench.web.identity import principal_of
 from drivebench.web.limits import BATCH_PATHS
 from drivebench.web.metrics_token import METRICS_ROUTE
 from drivebench.web.problems import error_fragment, error_page, problem_body, wants_page
+from drivebench.web.root import cookie_path, route_path, under_root
 from drivebench.web.secret_file import kept_key
 
 SESSION_COOKIE = "drivebench_session"
@@ -111,12 +112,12 @@ sessions = Sessions()
 
 def set_session_cookie(response: Response, conn: HTTPConnection, value: str) -> None:
     response.set_cookie(SESSION_COOKIE, value, max_age=settings.session_max_age_s, httponly=True, samesite="strict",
-                        secure=conn.url.scheme in ("https", "wss"), path="/")
+                        secure=conn.url.scheme in ("https", "wss"), path=cookie_path(conn.scope))
 
 
 def clear_session_cookie(response: Response, conn: HTTPConnection) -> None:
     response.delete_cookie(SESSION_COOKIE, httponly=True, samesite="strict", secure=conn.url.scheme == "https",
-                           path="/")
+                           path=cookie_path(conn.scope))
 
 
 @dataclass(frozen=True)
@@ -321,7 +322,7 @@ async def _csrf_token(scope: Scope, receive: Receive, headers: Headers) -> tuple
         chunks.append(message.get("body", b""))
         size += len(chunks[-1])
         more = message.get("more_body", False)
-        if size > (settings.max_batch_upload_bytes if scope.get("path") in BATCH_PATHS
+        if size > (settings.max_batch_upload_bytes if route_path(scope) in BATCH_PATHS
                    else settings.max_upload_bytes) + 65536:
             return None, receive
     body = b"".join(chunks)
@@ -363,10 +364,9 @@ async def _refuse_host(scope: Scope, receive: Receive, send: Send, reason: str) 
     if scope["type"] == "websocket":
         await send({"type": "websocket.close", "code": 4400, "reason": exc.detail[:120]})
         return
-    path = scope.get("path", "")
-    body = problem_body(exc, path)
+    body = problem_body(exc, scope.get("path", ""))
     response: Response
-    if path.startswith("/api/"):
+    if route_path(scope).startswith("/api/"):
         response = JSONResponse(body, status_code=400, media_type="application/problem+json")
     else:
         response = PlainTextResponse(f"{exc.detail}\n{exc.hint}\n", status_code=400)
@@ -380,17 +380,17 @@ async def _refuse(scope: Scope, receive: Receive, send: Send, exc: DriveBenchErr
                     "reason": exc.detail[:120]})
         return
     request = Request(scope, receive)
-    path = scope.get("path", "")
-    body = problem_body(exc, path)
+    path = route_path(scope)
+    body = problem_body(exc, scope.get("path", ""))
     status = int(body["status"])  # type: ignore[call-overload]
     response: Response
     if unauthenticated and wants_page(request):
         target = path + (f"?{request.url.query}" if request.url.query else "")
-        response = RedirectResponse(f"/login?next={quote(target)}", status_code=303)
+        response = RedirectResponse(under_root(scope, f"/login?next={quote(target)}"), status_code=303)
     elif request.headers.get("HX-Request") == "true":
         response = HTMLResponse(error_fragment(body), status_code=status)
         if unauthenticated:
-            response.headers["HX-Redirect"] = "/login"
+            response.headers["HX-Redirect"] = under_root(scope, "/login")
     elif wants_page(request):
         response = error_page(request, body)
     else:

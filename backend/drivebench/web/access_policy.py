@@ -22,6 +22,7 @@ from starlette.types import Scope
 from drivebench.i18n import N_
 from drivebench.services.users.principals import Role
 from drivebench.web.lean_route import LeanHandler
+from drivebench.web.root import route_path
 
 SAFE_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
 WEBSOCKET = "WS"
@@ -248,7 +249,7 @@ def decide(app: FastAPI, scope: Scope) -> Decision:
 
 def _match(app: FastAPI, scope: Scope) -> Decision:
     method = _method(scope)
-    path = scope.get("path", "")
+    path = route_path(scope)
     match_scope = {**scope, "method": "GET"} if scope.get("method") == "HEAD" else scope
     for policy in precompute(app):
         matched, child = policy.route.matches(match_scope)  # type: ignore[attr-defined]

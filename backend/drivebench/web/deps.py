@@ -12,6 +12,7 @@ from fastapi import Depends, Path, Query, Request
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.params.jobs import JobManager
 from drivebench.services.session_manager import SessionManager
+from drivebench.web.root import root_of
 from drivebench.web.state import AppState, app_state
 
 
@@ -58,3 +59,11 @@ async def get_jobs(request: Request) -> JobManager:
 
 
 JobsDep = Annotated[JobManager, Depends(get_jobs)]
+
+
+def get_root(request: Request) -> str:
+    """The sub-path the server is reached under (web/root.py), for the URLs an answer names."""
+    return root_of(request.scope)
+
+
+RootDep = Annotated[str, Depends(get_root)]

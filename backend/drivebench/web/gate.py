@@ -41,6 +41,7 @@ from drivebench.web import (
     viewer,
 )
 from drivebench.web.limits import BodyLimit
+from drivebench.web.root import route_path
 from drivebench.web.tls import HSTS_HEADER
 
 log = logging.getLogger(__name__)
@@ -73,7 +74,7 @@ class RequestGate:
             added = _answering(send, self._added["https" if https else "http"], locale)
             answer = _Tracked(added)
             try:
-                if scope["path"] in security_headers.DOCS_PATHS:  # rare: worked out per request
+                if route_path(scope) in security_headers.DOCS_PATHS:  # rare: worked out per request
                     extra = [HSTS_HEADER] if self.hsts and https else []
                     answer = _Tracked(_answering(send, _NOTHING_ADDED, locale))
                     await security_headers.held_docs(partial(self._http, scope, receive, headers), answer, extra)

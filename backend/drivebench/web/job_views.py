@@ -56,7 +56,7 @@ def value_out(value: ParameterValue) -> ParameterValueOut:
                              unit=value.unit, text=value.text, display=value.display, read_at=value.read_at)
 
 
-def job_out(job: Job, *, with_result: bool = True) -> JobOut:
+def job_out(job: Job, *, with_result: bool = True, root: str = "") -> JobOut:
     result = None
     if with_result:
         values = job.result.get("values", {})
@@ -70,4 +70,4 @@ def job_out(job: Job, *, with_result: bool = True) -> JobOut:
         progress=job.progress(), error=job.error and shown(job.error), notes=[shown(note) for note in job.notes],
         issues=[IssueOut(item=i.item, node=i.node, detail=shown(i.detail), abort_code=i.abort_code,
                          abort_text=i.abort_text) for i in job.issues],
-        result=result, links={"self": f"/api/jobs/{job.id}", "progress": f"/ws/jobs/{job.id}"})
+        result=result, links={"self": f"{root}/api/jobs/{job.id}", "progress": f"{root}/ws/jobs/{job.id}"})

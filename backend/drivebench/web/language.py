@@ -16,6 +16,7 @@ from starlette.responses import RedirectResponse
 from drivebench import i18n
 from drivebench.errors import NotFound
 from drivebench.web import cookies
+from drivebench.web.root import cookie_path, under_root
 
 router = APIRouter()
 COOKIE_MAX_AGE_S = 365 * 24 * 3600
@@ -79,7 +80,7 @@ async def switch_language(code: str, request: Request, next: str | None = None) 
     if code not in i18n.LOCALES:
         raise NotFound(i18n._("There is no language {code}: choose one of {choices}.").format(
             code=code, choices=", ".join(i18n.LOCALES)))
-    response = RedirectResponse(_local_target(next), status_code=303)
-    response.set_cookie(i18n.COOKIE, code, max_age=COOKIE_MAX_AGE_S, path="/", samesite="lax",
+    response = RedirectResponse(under_root(request.scope, _local_target(next)), status_code=303)
+    response.set_cookie(i18n.COOKIE, code, max_age=COOKIE_MAX_AGE_S, path=cookie_path(request.scope), samesite="lax",
                         secure=request.url.scheme == "https")
     return response

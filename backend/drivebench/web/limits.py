@@ -17,6 +17,7 @@ from drivebench import i18n
 from drivebench.errors import ContentTooLarge
 from drivebench.i18n import _
 from drivebench.web.problems import error_fragment, problem_body
+from drivebench.web.root import route_path
 
 MULTIPART_OVERHEAD_BYTES = 64 * 1024
 """Room for the multipart boundary and part headers around a file of exactly the limit."""
@@ -46,7 +47,7 @@ class BodyLimit:
         if declared is None and "transfer-encoding" not in headers:
             await app(scope, receive, send)  # no body (HTTP/1.1 has none without either header): nothing to count
             return
-        limit = self.limit_for(scope.get("path", ""))
+        limit = self.limit_for(route_path(scope))
         cap = limit + MULTIPART_OVERHEAD_BYTES
         if declared is not None and declared.isdigit() and int(declared) > cap:
             await self.refusal(headers, scope, limit, int(declared))(scope, receive, send)

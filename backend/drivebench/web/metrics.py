@@ -22,6 +22,7 @@ from drivebench.services.monitoring.monitor import monitor_for
 from drivebench.services.params.jobs import JobManager
 from drivebench.services.session_manager import SessionManager
 from drivebench.web.metrics_token import METRICS_ROUTE
+from drivebench.web.root import route_path
 
 router = APIRouter(include_in_schema=False)
 
@@ -104,7 +105,7 @@ class RequestMetrics:
             await self.app(scope, receive, send_status)
         finally:
             route = scope.get("state", {}).get("route_template")  # the gate's decision (answered there or not)
-            template = route if isinstance(route, str) else ("/static" if scope["path"].startswith("/static/")
+            template = route if isinstance(route, str) else ("/static" if route_path(scope).startswith("/static/")
                                                               else "unmatched")
             method = str(scope.get("method", "GET"))
             self.metrics.requests.labels(method, template, str(status)).inc()

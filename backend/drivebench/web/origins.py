@@ -90,6 +90,7 @@ def public_base_url(scope: Scope) -> str:
     scheme = str(scope.get("scheme", "http")).replace("ws", "http", 1)
     server = scope.get("server") or (settings.host, settings.port)
     host, port = canonical_name(str(server[0])), server[1]
+    root = str(scope.get("root_path") or "").rstrip("/")  # the sub-path behind a proxy (serve --root-path)
     if port is None or port == _DEFAULT_PORTS.get(scheme):
-        return f"{scheme}://{host}"
-    return f"{scheme}://{host}:{port}"
+        return f"{scheme}://{host}{root}"
+    return f"{scheme}://{host}:{port}{root}"

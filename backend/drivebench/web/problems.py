@@ -21,6 +21,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from drivebench import errors
 from drivebench.i18n import N_, _
 from drivebench.services.storage import reachability
+from drivebench.web.root import route_path
 from drivebench.web.templating import templates
 
 log = logging.getLogger(__name__)
@@ -99,7 +100,7 @@ def wants_page(request: Request) -> bool:
     """A browser opening a page (not htmx, not the JSON API, not a script's fetch)."""
     return (request.method == "GET" and request.headers.get("HX-Request") != "true"
             and "text/html" in request.headers.get("accept", "")
-            and not request.url.path.startswith(("/api/", "/ws/", "/static/")))
+            and not route_path(request.scope).startswith(("/api/", "/ws/", "/static/")))
 
 
 # Where to go from a failed page, by the start of its path; the Plant screen lists sessions and nodes.
@@ -109,7 +110,7 @@ WAYS_BACK = [("/profiles/", "/profiles", N_("All profiles")),
 
 
 def error_page(request: Request, body: dict[str, object]) -> Response:
-    path = request.url.path
+    path = route_path(request.scope)
     context: dict[str, object] = {"problem": body, "active": None}
     if path.startswith("/remote/"):  # a share link's viewer: no navigation into the engineer's screens
         context["viewer"] = None

@@ -22,6 +22,7 @@ from drivebench.services.control import drive_guard
 from drivebench.services.control.drive_guard import panel_of
 from drivebench.services.params.write_context import LOCAL_USER, Confirmation, Panel, WriteContext, Writer
 from drivebench.web.identity import principal_of
+from drivebench.web.root import route_path
 
 AUDIT_USER = "audit_user"
 """``scope["state"]`` key: the name the audit log gives the request's writes (``web/gate.py`` sets it from sign-in)."""
@@ -59,7 +60,7 @@ def where_of(path: str) -> str:
 
 
 def writer_for(conn: HTTPConnection) -> Writer:
-    return Writer(name=principal_of(conn).name, client=panel_for(conn).key, where=where_of(conn.url.path))
+    return Writer(name=principal_of(conn).name, client=panel_for(conn).key, where=where_of(route_path(conn.scope)))
 
 
 def audit_user(conn: HTTPConnection) -> str:

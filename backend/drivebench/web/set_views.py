@@ -183,8 +183,8 @@ def download_out(row: DownloadRow, jobs: JobManager) -> DownloadOut:
                        report=[set_jobs.report_line(line) for line in row.report])
 
 
-def set_job_out(job: Job) -> SetJobOut:
-    base = job_out(job, with_result=False)
+def set_job_out(job: Job, root: str = "") -> SetJobOut:
+    base = job_out(job, with_result=False, root=root)
     report = job.result.get("report", [])
     return SetJobOut(**base.model_dump(), set_id=job.result.get("set_id"), version=job.result.get("version"),
                      download_id=job.result.get("download_id"), download_state=job.result.get("state"),

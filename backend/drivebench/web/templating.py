@@ -8,13 +8,23 @@ from typing import Any
 
 from babel.messages.extract import extract_from_file
 from jinja2_fragments.fastapi import Jinja2Blocks
+from starlette.requests import Request
 
 from drivebench import i18n
 from drivebench.config import settings
 from drivebench.device.profiles.number_base import shows_hex
 from drivebench.i18n import N_
+from drivebench.web.root import root_of, route_path
 
-templates = Jinja2Blocks(directory=str(settings.frontend_dir / "templates"))
+
+def _root(request: Request) -> dict[str, Any]:
+    """``root``: the sub-path the browser reaches the server under (web/root.py), in front of every URL a page has."""
+    return {"root": root_of(request.scope)}
+
+
+templates = Jinja2Blocks(directory=str(settings.frontend_dir / "templates"), context_processors=[_root])
+templates.env.globals["root"] = ""  # a page rendered without a request (the diagnostics report) links nowhere
+templates.env.filters["route_path"] = route_path  # a request's path without the sub-path (the `next` of a link)
 # Texts of the pages through gettext ({% trans %}, _()): the functions read the request's language (web/language).
 templates.env.add_extension("jinja2.ext.i18n")
 templates.env.policies["ext.i18n.trimmed"] = True  # babel.cfg extracts with trimmed = true too

@@ -23,6 +23,7 @@ from drivebench.i18n import N_, _
 from drivebench.services.users.sharing import TOKEN_PREFIX, ShareLink, ShareLinks
 from drivebench.web import access_policy
 from drivebench.web.problems import problem_body
+from drivebench.web.root import route_path, under_root
 
 COOKIE = "drivebench_viewer"
 SAFE_METHODS = {"GET", "HEAD", "OPTIONS"}
@@ -75,14 +76,14 @@ async def link_admitted(scope: Scope, receive: Receive, send: Send, links: Share
     state["viewer"], state["viewer_token"] = link, token
     if not readable:
         # The engineer's screens are not for link holders: they land on the remote view.
-        await RedirectResponse(f"/remote/{token}", status_code=303)(scope, receive, send)
+        await RedirectResponse(under_root(scope, f"/remote/{token}"), status_code=303)(scope, receive, send)
         return False
     return True
 
 
 def _allow(scope: Scope, decision: access_policy.Decision) -> bool:
     """Raise for what a link may not do; False for a page it is led away from to the remote view."""
-    path = scope.get("path", "")
+    path = route_path(scope)
     if scope["type"] == "websocket":
         if not path.startswith(VIEWER_WEBSOCKETS):
             raise AccessDenied(_("A remote diagnostics link may only watch the remote diagnostics stream."))

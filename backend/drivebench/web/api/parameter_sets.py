@@ -28,7 +28,7 @@ from drivebench.services.sets.parameter_sets import (
 )
 from drivebench.services.sets.set_jobs import ReportLine
 from drivebench.services.users import audit
-from drivebench.web.deps import JobsDep, ManagerDep, RowId, RowVersion, StateDep
+from drivebench.web.deps import JobsDep, ManagerDep, RootDep, RowId, RowVersion, StateDep
 from drivebench.web.safety import AuditUserDep, WriteCtxDep, confirmation
 from drivebench.web.set_views import (
     CompareIn,
@@ -73,21 +73,21 @@ async def set_file_schema() -> dict[str, Any]:
 
 
 @router.post(SETS + "/upload", response_model=SetJobOut, status_code=status.HTTP_202_ACCEPTED)
-async def upload_from_node(body: UploadIn, manager: ManagerDep, jobs: JobsDep, ctx: WriteCtxDep,
+async def upload_from_node(root: RootDep, body: UploadIn, manager: ManagerDep, jobs: JobsDep, ctx: WriteCtxDep,
                            user: UserHeader = None) -> SetJobOut:
     """Read every settable parameter of the node into a new set (the job's ``set_id``)."""
     job = set_jobs.start_upload(manager.get(body.session_id), body.node_id, jobs, store(), ctx=ctx, name=body.name,
                                 note=body.note, user=user_of(user, ctx.user))
-    return set_job_out(job)
+    return set_job_out(job, root=root)
 
 
 @router.post(SETS + "/{set_id}/upload", response_model=SetJobOut, status_code=status.HTTP_202_ACCEPTED)
-async def upload_new_version(set_id: RowId, body: TargetIn, manager: ManagerDep, jobs: JobsDep, ctx: WriteCtxDep,
-                             user: UserHeader = None) -> SetJobOut:
+async def upload_new_version(root: RootDep, set_id: RowId, body: TargetIn, manager: ManagerDep, jobs: JobsDep,
+                             ctx: WriteCtxDep, user: UserHeader = None) -> SetJobOut:
     """Read the node again into a new version of the set (same device type; the old versions stay)."""
     job = set_jobs.start_upload(manager.get(body.session_id), body.node_id, jobs, store(), name="", into=set_id,
                                 ctx=ctx, user=user_of(user, ctx.user))
-    return set_job_out(job)
+    return set_job_out(job, root=root)
 
 
 @router.post(SETS + "/import", response_model=ImportOut, status_code=status.HTTP_201_CREATED)
@@ -194,8 +194,9 @@ async def preview_download(set_id: RowId, body: TargetIn, manager: ManagerDep, c
 
 
 @router.post(SETS + "/{set_id}/download", response_model=SetJobOut, status_code=status.HTTP_202_ACCEPTED)
-async def download_set(request: Request, set_id: RowId, body: DownloadIn, manager: ManagerDep, jobs: JobsDep,
-                       ctx: WriteCtxDep, version: RowVersion = None, user: UserHeader = None) -> SetJobOut:
+async def download_set(root: RootDep, request: Request, set_id: RowId, body: DownloadIn, manager: ManagerDep,
+                       jobs: JobsDep, ctx: WriteCtxDep, version: RowVersion = None,
+                       user: UserHeader = None) -> SetJobOut:
     stored = store().get(set_id, version)
     session = manager.get(body.session_id)
     held = await set_jobs.held_moving(session, body.node_id, set_jobs.download_targets(session, body.node_id, stored),
@@ -203,12 +204,12 @@ async def download_set(request: Request, set_id: RowId, body: DownloadIn, manage
     job = set_jobs.start_download(session, body.node_id, jobs, store(), stored, ctx=ctx, save=body.save,
                                   user=user_of(user, ctx.user), held=held,
                                   confirm=confirmation(request, body.confirm, body.confirm_values))
-    return set_job_out(job)
+    return set_job_out(job, root=root)
 
 
 @router.get(SETS + "/jobs/{job_id}", response_model=SetJobOut)
-async def get_set_job(job_id: str, jobs: JobsDep) -> SetJobOut:
-    return set_job_out(jobs.get(job_id))
+async def get_set_job(root: RootDep, job_id: str, jobs: JobsDep) -> SetJobOut:
+    return set_job_out(jobs.get(job_id), root=root)
 
 
 @router.get("/parameter-downloads", response_model=list[DownloadOut])
@@ -224,7 +225,7 @@ async def get_download(download_id: RowId, jobs: JobsDep) -> DownloadOut:
 
 @router.post("/parameter-downloads/{download_id}/retry", response_model=SetJobOut,
              status_code=status.HTTP_202_ACCEPTED)
-async def retry_download(request: Request, download_id: RowId, manager: ManagerDep, jobs: JobsDep,
+async def retry_download(root: RootDep, request: Request, download_id: RowId, manager: ManagerDep, jobs: JobsDep,
                          ctx: WriteCtxDep, body: FollowUpIn | None = None, user: UserHeader = None) -> SetJobOut:
     """Write again what the download left failed, mismatched or not attempted."""
     row = store().download(download_id)
@@ -233,12 +234,12 @@ async def retry_download(request: Request, download_id: RowId, manager: ManagerD
     job = set_jobs.start_retry(session, jobs, store(), download_id, ctx=ctx, held=held,
                                save=bool(body and body.save), user=user_of(user, ctx.user),
                                confirm=confirmation(request, body and body.confirm, body and body.confirm_values))
-    return set_job_out(job)
+    return set_job_out(job, root=root)
 
 
 @router.post("/parameter-downloads/{download_id}/rollback", response_model=SetJobOut,
              status_code=status.HTTP_202_ACCEPTED)
-async def rollback_download(request: Request, download_id: RowId, manager: ManagerDep, jobs: JobsDep,
+async def rollback_download(root: RootDep, request: Request, download_id: RowId, manager: ManagerDep, jobs: JobsDep,
                             ctx: WriteCtxDep, body: FollowUpIn | None = None, user: UserHeader = None) -> SetJobOut:
     """Write back the values read before the download, for everything it changed (or may have changed)."""
     row = store().download(download_id)
@@ -248,7 +249,7 @@ async def rollback_download(request: Request, download_id: RowId, manager: Manag
     job = set_jobs.start_rollback(session, jobs, store(), download_id, ctx=ctx, held=held,
                                   save=bool(body and body.save), user=user_of(user, ctx.user),
                                   confirm=confirmation(request, body and body.confirm, body and body.confirm_values))
-    return set_job_out(job)
+    return set_job_out(job, root=root)
 
 
 # --- audit log ---------------------------------------------------------------------------------------------

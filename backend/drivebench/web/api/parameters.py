@@ -25,7 +25,7 @@ from drivebench.services.params.parameter_batch import MAX_BATCH_WRITE, Wanted
 from drivebench.services.params.session_part import SdoSettings
 from drivebench.services.params.values import ParameterValue, WriteResult
 from drivebench.services.users import undo as undoing
-from drivebench.web.deps import JobsDep, NodeDep, SessionDep
+from drivebench.web.deps import JobsDep, NodeDep, RootDep, SessionDep
 from drivebench.web.job_views import JobOut, ParameterValueOut, ValueOut, job_out, value_out
 from drivebench.web.lean_route import lean_route, path_int
 from drivebench.web.problems import problem_body
@@ -401,23 +401,25 @@ async def undo_write(request: Request, entry_id: int, ctx: WriteCtxDep, body: Un
 
 
 @router.post(NODE + "/read-all", response_model=JobOut, status_code=status.HTTP_202_ACCEPTED)
-async def read_all(session: SessionDep, node: NodeDep, jobs: JobsDep, ctx: WriteCtxDep) -> JobOut:
-    return job_out(read_jobs.start_read(session, [node.node_id], jobs, ctx=ctx), with_result=False)
+async def read_all(root: RootDep, session: SessionDep, node: NodeDep, jobs: JobsDep, ctx: WriteCtxDep) -> JobOut:
+    return job_out(read_jobs.start_read(session, [node.node_id], jobs, ctx=ctx), with_result=False, root=root)
 
 
 @router.post(NODE + "/read-group", response_model=JobOut, status_code=status.HTTP_202_ACCEPTED)
-async def read_group(session: SessionDep, node: NodeDep, jobs: JobsDep, body: GroupRead, ctx: WriteCtxDep) -> JobOut:
-    return job_out(read_jobs.start_read(session, [node.node_id], jobs, ctx=ctx, group=body.group), with_result=False)
+async def read_group(root: RootDep, session: SessionDep, node: NodeDep, jobs: JobsDep, body: GroupRead,
+                     ctx: WriteCtxDep) -> JobOut:
+    return job_out(read_jobs.start_read(session, [node.node_id], jobs, ctx=ctx, group=body.group), with_result=False,
+                   root=root)
 
 
 @router.post("/sessions/{session_id}/read-all", response_model=JobOut,
              status_code=status.HTTP_202_ACCEPTED)
-async def read_all_nodes(session: SessionDep, jobs: JobsDep, ctx: WriteCtxDep, body: SessionRead | None = None
-                         ) -> JobOut:
+async def read_all_nodes(root: RootDep, session: SessionDep, jobs: JobsDep, ctx: WriteCtxDep,
+                         body: SessionRead | None = None) -> JobOut:
     """Every node of the session in parallel (each node over its SDO channels)."""
     node_ids = (body.node_ids if body and body.node_ids else
                 [n.node_id for n in session.nodes.values() if n.profile is not None])
-    return job_out(read_jobs.start_read(session, node_ids, jobs, ctx=ctx), with_result=False)
+    return job_out(read_jobs.start_read(session, node_ids, jobs, ctx=ctx), with_result=False, root=root)
 
 
 @router.post(NODE + "/commands/{command}", response_model=CommandOut)
@@ -440,13 +442,13 @@ async def put_sdo_settings(session: SessionDep, body: SdoSettingsModel) -> SdoSe
 
 
 @router.get("/jobs/{job_id}", response_model=JobOut)
-async def get_job(job_id: str, jobs: JobsDep) -> JobOut:
-    return job_out(jobs.get(job_id))
+async def get_job(root: RootDep, job_id: str, jobs: JobsDep) -> JobOut:
+    return job_out(jobs.get(job_id), root=root)
 
 
 @router.delete("/jobs/{job_id}", response_model=JobOut)
-async def cancel_job(job_id: str, jobs: JobsDep) -> JobOut:
+async def cancel_job(root: RootDep, job_id: str, jobs: JobsDep) -> JobOut:
     """Cancel a running job; what it read so far stays in its result."""
     job = jobs.cancel(job_id)
     await job.wait()
-    return job_out(job)
+    return job_out(job, root=root)

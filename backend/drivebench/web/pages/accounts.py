@@ -15,6 +15,7 @@ from drivebench.services.users.principals import Role
 from drivebench.web import access
 from drivebench.web.deps import RowId
 from drivebench.web.problems import problem_body
+from drivebench.web.root import under_root
 from drivebench.web.sign_in import FIRST_ADMIN, sign_in
 from drivebench.web.templating import templates
 
@@ -40,7 +41,7 @@ def _safe_next(target: str | None) -> str:
 async def login_page(request: Request, next: str = "/") -> Response:
     view = access.access_of(request)
     if view is not None and view.session is not None:
-        return RedirectResponse(_safe_next(next), status_code=303)
+        return RedirectResponse(under_root(request.scope, _safe_next(next)), status_code=303)
     configured = await asyncio.to_thread(accounts.authentication_configured)
     return templates.TemplateResponse(request, "login.html", {"next": _safe_next(next), "configured": configured,
                                                               "first_admin": FIRST_ADMIN, "active": None})
@@ -59,7 +60,7 @@ async def login_form(request: Request, name: str = Form(""), password: str = For
         context = {"next": _safe_next(next), "configured": True, "first_admin": FIRST_ADMIN, "name": name,
                    "problem": body, "active": None}
         return templates.TemplateResponse(request, "login.html", context, status_code=status)
-    response = RedirectResponse(_safe_next(next), status_code=303)
+    response = RedirectResponse(under_root(request.scope, _safe_next(next)), status_code=303)
     access.set_session_cookie(response, request, value)
     return response
 
@@ -69,7 +70,7 @@ async def logout(request: Request) -> Response:
     view = access.access_of(request)
     if view is not None and view.session is not None:
         access.sessions.sign_out(view.session)
-    response = RedirectResponse("/login", status_code=303)
+    response = RedirectResponse(under_root(request.scope, "/login"), status_code=303)
     access.clear_session_cookie(response, request)
     return response
 

@@ -14,6 +14,7 @@ from drivebench.services.monitoring import telegram_counters
 from drivebench.services.monitoring.monitor import SERVICE_GROUPS, monitor_for
 from drivebench.services.monitoring.recording import format_names, recordings_for
 from drivebench.web.deps import SessionDep, StateDep
+from drivebench.web.root import under_root
 from drivebench.web.templating import templates
 
 router = APIRouter(include_in_schema=False)
@@ -37,7 +38,7 @@ def _counter_nodes(session: Session) -> list[dict[str, Any]]:
 async def monitor_index(request: Request, state: StateDep) -> Response:
     sessions = state.manager.list()
     if sessions:
-        return RedirectResponse(f"/monitor/{sessions[0].id}", status_code=307)
+        return RedirectResponse(under_root(request.scope, f"/monitor/{sessions[0].id}"), status_code=307)
     return templates.TemplateResponse(request, "monitor.html", {"active": "monitor", "session": None,
                                                                 "sessions": []})
 

@@ -18,6 +18,7 @@ from drivebench.web.deps import StateDep
 from drivebench.web.pages.node_info import identity_text
 from drivebench.web.problems import status_for
 from drivebench.web.profile_uploads import receive_many, receive_upload
+from drivebench.web.root import under_root
 from drivebench.web.state import AppState, app_state
 from drivebench.web.templating import templates
 
@@ -146,7 +147,7 @@ async def delete(request: Request, state: StateDep, profile_id: str,
                  where: Annotated[str, Query(pattern="^(list|detail)$")] = "list") -> Response:
     await delete_upload(state.registry, state.manager.list(), profile_id)
     if where == "detail":
-        return Response(headers={"HX-Redirect": "/profiles"})
+        return Response(headers={"HX-Redirect": under_root(request.scope, "/profiles")})
     return _list_block(request, state, deleted=profile_id)
 
 

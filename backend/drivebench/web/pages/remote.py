@@ -13,6 +13,7 @@ from drivebench.services.users.sharing import DEFAULT_SHOWS, SHOWS
 from drivebench.web import access_policy
 from drivebench.web.deps import StateDep
 from drivebench.web.identity import principal_of
+from drivebench.web.root import cookie_path, under_root
 from drivebench.web.share_links import issued_link, share_link_public
 from drivebench.web.templating import templates
 from drivebench.web.viewer import COOKIE, require_engineer, viewer_token
@@ -45,7 +46,7 @@ def _links_context(request: Request, state: Any, **extra: Any) -> dict[str, Any]
 async def remote_page(request: Request, state: StateDep) -> Response:
     token = viewer_token(request)
     if token is not None:
-        return RedirectResponse(f"/remote/{token}", status_code=303)
+        return RedirectResponse(under_root(request.scope, f"/remote/{token}"), status_code=303)
     return templates.TemplateResponse(request, PAGE, _links_context(request, state))
 
 
@@ -56,7 +57,7 @@ async def remote_view(request: Request, state: StateDep, token: str) -> Response
     response = templates.TemplateResponse(request, "remote_view.html", context)
     remaining = max(int(link.expires - link.created), 60)
     response.set_cookie(COOKIE, token, max_age=remaining, httponly=True, samesite="strict",
-                        secure=request.url.scheme == "https", path="/")
+                        secure=request.url.scheme == "https", path=cookie_path(request.scope))
     return response
 
 

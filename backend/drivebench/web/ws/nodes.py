@@ -12,6 +12,7 @@ from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 from drivebench.errors import NotFound
 from drivebench.i18n import _
 from drivebench.services.bus.views import nodes_public
+from drivebench.web.root import root_of
 from drivebench.web.state import app_state
 from drivebench.web.templating import templates
 
@@ -34,7 +35,7 @@ async def node_states(websocket: WebSocket, session_id: str) -> None:
             await session.refresh_states()
             context = templates.env.get_template("plant.html").new_context(
                 {"session_id": session.id, "nodes": nodes_public(session), "bus_text": session.bus_text,
-                 "bus_state": session.bus_state})
+                 "bus_state": session.bus_state, "root": root_of(websocket.scope)})
             html = "".join(block(context)).replace(f'id="nodes-{session.id}"',
                                                    f'id="nodes-{session.id}" hx-swap-oob="true"', 1)
             await websocket.send_text(html)
