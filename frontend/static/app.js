@@ -365,6 +365,22 @@ document.addEventListener("htmx:configRequest", (event) => {
     elt.addEventListener("htmx:afterRequest", answered);
   });
 
+  // A live table pushed over the websocket (the Plant page's node table, twice a second) is not redrawn while one of
+  // its buttons is pressed: a redraw between press and release replaces the button, and the click lands on the table
+  // (nothing sent, nothing said). The next push, after the release, redraws it.
+  let pressed = null;
+  document.addEventListener("pointerdown", (event) => { pressed = event.target; }, true);
+  document.addEventListener("keydown", (event) => {
+    if (event.key === " " || event.key === "Enter") pressed = event.target;
+  }, true);
+  for (const name of ["pointerup", "pointercancel", "keyup"]) {
+    document.addEventListener(name, () => { setTimeout(() => { pressed = null; }, 0); }, true);  // after the click
+  }
+  document.body.addEventListener("htmx:oobBeforeSwap", (event) => {
+    const target = event.detail.target;
+    if (pressed && target && target.contains && target.contains(pressed)) event.detail.shouldSwap = false;
+  });
+
   async function askAndResend(elt, responseText) {
     // the server's answer, read in an inert document (nothing in it runs or loads)
     const found = new DOMParser().parseFromString(responseText, "text/html").querySelector("[data-confirm-node]");

@@ -103,6 +103,30 @@ def test_nmt_start_asks_even_when_the_node_table_is_redrawn_while_the_server_ans
     assert wait_until(lambda: sim.state.name == "PRE_OPERATIONAL"), "the node kept running after its tab closed"
 
 
+def test_a_slow_press_on_nmt_start_is_not_lost_to_the_table_redraw(own_server: tuple[str, FastAPI],
+                                                                    browser: Any) -> None:
+    """The node table comes over the websocket twice a second; a press held across a redraw used to lose the click
+    (the release landed on a new button, the click on the table: no dialog, nothing sent)."""
+    url, _app = own_server
+    context = browser.new_context(viewport={"width": 1440, "height": 900})
+    page = context.new_page()
+    try:
+        page.goto(url + "/")
+        start = page.locator(f"#nmt-demo-plant-{MM}-start")
+        expect(start).to_be_visible(timeout=WAIT_MS)
+        page.wait_for_function("document.querySelector('#nodes-demo-plant') !== null")
+        box = start.bounding_box()
+        assert box is not None
+        page.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
+        page.mouse.down()
+        time.sleep(2.0)  # four pushes of the table
+        page.mouse.up()
+        expect(page.locator("#moving-confirm")).to_be_visible(timeout=WAIT_MS)
+        page.locator("#moving-confirm").get_by_role("button", name="Cancel").click()
+    finally:
+        context.close()
+
+
 def test_second_engineer_sees_the_lease_holder_on_the_node_page(own_server: tuple[str, FastAPI],
                                                                 browser: Any) -> None:
     url, _app = own_server

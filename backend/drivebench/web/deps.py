@@ -61,7 +61,7 @@ async def get_jobs(request: Request) -> JobManager:
 JobsDep = Annotated[JobManager, Depends(get_jobs)]
 
 
-def get_root(request: Request) -> str:
+async def get_root(request: Request) -> str:
     """The sub-path the server is reached under (web/root.py), for the URLs an answer names."""
     return root_of(request.scope)
 

@@ -1,6 +1,8 @@
 """Live node states: the node table of a session, pushed as an htmx out-of-band swap.
 
-Message: the HTML of ``<table id="nodes-{session}">`` with ``hx-swap-oob="true"``, about twice a second.
+Message: the HTML of ``<table id="nodes-{session}">`` with ``hx-swap-oob="true"``, about twice a second when it
+changed (the heartbeat ages change it at every look while nodes send heartbeats). The page holds a redraw back while a
+button of the table is pressed (app.js): a redraw between press and release would lose the click.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ async def node_states(websocket: WebSocket, session_id: str) -> None:
     await websocket.accept()
     manager = app_state(websocket.app).manager
     block = templates.env.get_template("plant.html").blocks["nodes_table"]
+    sent = ""
     try:
         while True:
             try:
@@ -38,7 +41,9 @@ async def node_states(websocket: WebSocket, session_id: str) -> None:
                  "bus_state": session.bus_state, "root": root_of(websocket.scope)})
             html = "".join(block(context)).replace(f'id="nodes-{session.id}"',
                                                    f'id="nodes-{session.id}" hx-swap-oob="true"', 1)
-            await websocket.send_text(html)
+            if html != sent:
+                await websocket.send_text(html)
+                sent = html
             await asyncio.sleep(PERIOD_S)
     except (WebSocketDisconnect, RuntimeError):
         return
