@@ -347,7 +347,7 @@ def section_modes(fam: Family) -> dict[int, str]:
 T = TypeVar("T")
 
 
-async def _optional(unread: dict[str, str], ref: str, reading: Awaitable[T], fallback: T) -> T:
+async def or_noted(unread: dict[str, str], ref: str, reading: Awaitable[T], fallback: T) -> T:
     """``reading``'s value, or ``fallback`` with the drive's refusal noted under ``ref`` (one aborted read - an
     object the device cannot encode, a value it does not serve - must not take the whole panel with it)."""
     try:
@@ -362,14 +362,14 @@ async def _diagnostics(session: Session, node: SessionNode, unread: dict[str, st
     catalog = catalog_of(node)
     inputs: list[Bit] = []
     if has_ref(catalog, cia402.DIGITAL_INPUTS):
-        read = await _optional(unread, cia402.DIGITAL_INPUTS,
+        read = await or_noted(unread, cia402.DIGITAL_INPUTS,
                                reads.read(session, node.node_id, cia402.DIGITAL_INPUTS), None)
         if read is not None:
             word = int(read.raw) if isinstance(read.raw, int) else 0
             inputs = [Bit(bit=bit, name=_(name), set=bool(word >> bit & 1)) for bit, name in cia402.INPUT_BITS.items()]
     code = None
     if has_ref(catalog, cia402.ERROR_CODE):
-        value = await _optional(unread, cia402.ERROR_CODE, reads.read(session, node.node_id, cia402.ERROR_CODE),
+        value = await or_noted(unread, cia402.ERROR_CODE, reads.read(session, node.node_id, cia402.ERROR_CODE),
                                 None)
         code = int(value.raw) & 0xFFFF if value is not None and isinstance(value.raw, int) else None
     return inputs, code
@@ -384,8 +384,8 @@ async def read_status(session: Session, node: SessionNode, panel: Panel = SERVIC
     except DriveBenchError:
         control_word = None  # write-only on some devices
     unread: dict[str, str] = {}
-    mode = await _optional(unread, cia402.MODES_OF_OPERATION_DISPLAY, _mode(session, node), None)
-    offered = await _optional(unread, cia402.SUPPORTED_DRIVE_MODES, modes(session, node), section_modes(fam)) if (
+    mode = await or_noted(unread, cia402.MODES_OF_OPERATION_DISPLAY, _mode(session, node), None)
+    offered = await or_noted(unread, cia402.SUPPORTED_DRIVE_MODES, modes(session, node), section_modes(fam)) if (
         mode is not None or cia402.MODES_OF_OPERATION_DISPLAY in unread) else {}
     scale = await setpoint_scale(session, node, mode)
     inputs, error_code = await _diagnostics(session, node, unread) if fam.generic else ([], None)

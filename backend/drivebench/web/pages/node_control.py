@@ -8,8 +8,7 @@ to the JSON API under ``/api/sessions/{session}/nodes/{node}/control``.
 
 from __future__ import annotations
 
-from collections.abc import Awaitable
-from typing import Any, TypeVar
+from typing import Any
 
 from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse, Response
@@ -24,21 +23,11 @@ from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.identity import principal_of
 from drivebench.web.templating import templates
 
-T = TypeVar("T")
-
 router = APIRouter(include_in_schema=False)
 UI = "/ui/sessions/{session_id}/nodes/{node_id}/control"
 BOX_W, BOX_H, GAP_X, GAP_Y, PAD = 190, 42, 110, 30, 16
 PAD_LEFT = 96  # room for the labels of the left (downward) lane
 CONTROL_RULE = rule_for("POST", "/api/sessions/{session_id}/nodes/{node_id}/control/commands/{command}")
-
-
-async def _part(unread: dict[str, str], label: str, reading: Awaitable[T]) -> T | None:
-    try:
-        return await reading
-    except DriveBenchError as exc:
-        unread[label] = exc.shown_detail()
-        return None
 
 
 def refused_because(request: Request) -> str | None:
@@ -107,9 +96,11 @@ async def control_tab(request: Request, session: SessionDep, node: NodeDep) -> R
     context["missing_why"] = drive_control.missing_why(node)
     unread: dict[str, str] = {}  # a part the drive would not give is marked; the rest of the panel stays
     context["unread_parts"] = unread
-    context["command_note"] = await _part(unread, _("Command source"), fault_words.command_source_note(session, node))
-    context["jog"] = await _part(unread, _("Jog"), drive_control.jog_plan(session, node))
-    context["sources"] = await _part(unread, _("Actual values"), drive_control.actual_sources(session, node))
+    noted = drive_control.or_noted
+    context["command_note"] = await noted(unread, _("Command source"), fault_words.command_source_note(session, node),
+                                          None)
+    context["jog"] = await noted(unread, _("Jog"), drive_control.jog_plan(session, node), None)
+    context["sources"] = await noted(unread, _("Actual values"), drive_control.actual_sources(session, node), None)
     if fam.generic:
-        context["motion"] = await _part(unread, _("Positioning, velocity and homing"), motion.info(session, node))
+        context["motion"] = await noted(unread, _("Positioning, velocity and homing"), motion.info(session, node), None)
     return templates.TemplateResponse(request, "node/control_body.html", context)
