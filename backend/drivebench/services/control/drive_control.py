@@ -378,6 +378,9 @@ async def _diagnostics(session: Session, node: SessionNode, unread: dict[str, st
 async def read_status(session: Session, node: SessionNode, panel: Panel = SERVICE_PANEL) -> DriveStatus:
     fam = family(node)
     read_at = time.monotonic()
+    # Taken before the status word: a note the limit watch writes while the words are read would describe a later
+    # state than the word shown with it (a note "the drive clamped" beside a bit 11 read just before it clamped).
+    limit_note = soft_limits.note(node) if fam.generic else None
     status_word = await read_word(session, node.node_id, fam.status_ref)
     try:
         control_word: int | None = await read_word(session, node.node_id, fam.control_ref)
@@ -414,7 +417,7 @@ async def read_status(session: Session, node: SessionNode, panel: Panel = SERVIC
         you_hold=bool(holder and holder.panel.key == panel.key), panels=guard.panels(node.node_id),
         last_trip=guard.trip_text(node.node_id), generic=fam.generic, inputs=inputs, error_code=error_code,
         error_text=cia402.error_text(error_code) if error_code is not None else None,
-        limit_note=soft_limits.note(node) if fam.generic else None,
+        limit_note=limit_note,
         present_fault=fault_words.present_fault(session, node), unread=unread)
 
 

@@ -44,7 +44,8 @@ STAND_S = 5.0
 """How long the watch waits for a halted drive to stand before it describes where it stopped."""
 REACTION_S = 0.1
 """The least time DriveBench reckons between reading a position and the drive starting to brake (a read cycle
-measured longer counts three times: the cycle that read it, the halt's write, a late next cycle)."""
+measured longer counts three times: the cycle that read it, the halt's write, a late next cycle; a wake-up of the
+watch measured later than asked counts twice: the server was busy and can be again just before the halt)."""
 READ_PAUSE_S = 0.005
 """Between two looks near a limit (the reads themselves take most of a cycle)."""
 FAR_PAUSE_S = 0.05
@@ -176,6 +177,7 @@ async def _watch(session: Session, node: SessionNode, what: str, watch: Watch, c
     unit = (await motion_units(session, node)).position
     mode = (await reads.read(session, node.node_id, cia402.MODES_OF_OPERATION_DISPLAY)).raw
     slowest = 0.0  # the longest read seen: the drive travels that far before DriveBench knows where it is
+    latest = 0.0  # the longest a wake-up of this watch came after it was due: a busy server, the drive moves on
     limited = False  # bit 11 seen during this motion
     while True:
         asked = time.monotonic()
@@ -195,10 +197,10 @@ async def _watch(session: Session, node: SessionNode, what: str, watch: Watch, c
                 return
         elif sample.velocity and not watch.released:
             sign = 1.0 if sample.velocity > 0 else -1.0
-            room = (edge - sample.position) * sign
             speed = abs(sample.velocity)
+            room = (edge - sample.position) * sign - speed * (time.monotonic() - asked)  # where it is by now
             braking = speed * speed / (2 * decel) if decel else speed * 1.0
-            margin = room - braking - speed * max(REACTION_S, 3 * slowest)
+            margin = room - braking - speed * max(REACTION_S, 3 * slowest, 2 * latest)
             pause = min(FAR_PAUSE_S, max(READ_PAUSE_S, margin / speed / 4))  # far from it: fewer reads on the bus
             if margin <= 0:
                 await _halt(session, node, mode, ctx)
@@ -211,7 +213,9 @@ async def _watch(session: Session, node: SessionNode, what: str, watch: Watch, c
                 return
         if not sample.velocity and (watch.released or (what == "move" and sample.word & TARGET_REACHED)):
             return
+        due = time.monotonic() + pause
         await asyncio.sleep(pause)
+        latest = max(latest, time.monotonic() - due)
 
 
 async def _halt(session: Session, node: SessionNode, mode: object, ctx: WriteContext) -> None:
