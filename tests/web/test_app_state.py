@@ -38,11 +38,10 @@ def _module_state(path: Path) -> list[str]:
             continue
         if target.id.lstrip("_")[:1].isupper() or target.id.startswith("__"):  # constants, types, __all__
             continue
-        made = (isinstance(value, ast.Dict | ast.Set | ast.List)
-                or (isinstance(value, ast.Call) and isinstance(value.func, ast.Name | ast.Attribute)
-                    and (value.func.id if isinstance(value.func, ast.Name) else value.func.attr)[:1].isupper())
-                or (isinstance(value, ast.Call) and isinstance(value.func, ast.Name)
-                    and value.func.id in ("dict", "set", "list")))
+        called = (value.func.id if isinstance(value.func, ast.Name) else value.func.attr
+                  if isinstance(value.func, ast.Attribute) else "") if isinstance(value, ast.Call) else ""
+        made = (isinstance(value, ast.Dict | ast.Set | ast.List)  # a literal, an instance, dict() / set() / list()
+                or called.lstrip("_")[:1].isupper() or called in ("dict", "set", "list"))
         if made:
             found.append(f"{target.id} (line {statement.lineno})")
     return found
