@@ -27,7 +27,6 @@ from drivebench.config import settings as app_settings
 from drivebench.device.calculators.dip import SwitchDevices
 from drivebench.device.profiles.loader import ProfileRegistry, load_profile_file
 from drivebench.services.storage import database
-from drivebench.services.users import accounts
 from drivebench.simulator.plant import Plant, PlantFile
 from drivebench.web.app import create_app
 from tests.pg_cluster import PostgresCluster, shared_cluster
@@ -181,11 +180,10 @@ def client(channel: str) -> Iterator[TestClient]:
 @pytest.fixture
 def demo_api(app_db_url: str) -> Iterator[TestClient]:
     """The real app with the demo plant on a fresh virtual bus (session id 'demo-plant') and a database of this
-    test's own. Afterwards the accounts the app read from it are forgotten: the next test's database has others."""
+    test's own (the accounts the app reads from it are the app's own: ``AppState.accounts``)."""
     app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
     with TestClient(app) as test_client:
         yield test_client
-    accounts.directory.forget()
 
 
 def _free_port() -> int:

@@ -129,9 +129,7 @@ def cli_db(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[str]:
     """A database of the test's own: users are never created in the shared one."""
     url = f"sqlite:///{tmp_path / 'cli.db'}"
     monkeypatch.setattr(settings, "database_url", url)
-    accounts.directory.forget()
     yield url
-    accounts.directory.forget()
     database.dispose(url)
 
 

@@ -24,6 +24,7 @@ from tests.conftest import wait_until
 
 PACKAGE = Path(__file__).resolve().parents[2] / "backend" / "drivebench"
 NETWORK_CLASSES = {"CanopenNetwork", "EthercatNetwork", "GatewayNetwork", "DirectNetwork"}
+CLIENT_CLASSES = {"NodeClient", "CoeNodeClient", "CoeSdoClient"}
 
 
 @pytest.fixture
@@ -89,14 +90,14 @@ def test_a_coe_emergency_is_recorded_as_an_event(gateway: GatewayServer, segment
     assert segment.emcy.last(1) == event
 
 
-def _isinstance_on_a_network(path: Path) -> list[int]:
+def _isinstance_on(path: Path, classes: set[str]) -> list[int]:
     lines = []
     for node in ast.walk(ast.parse(path.read_text())):
         if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "isinstance" \
                 and len(node.args) == 2:
             names = {part.id if isinstance(part, ast.Name) else part.attr
                      for part in ast.walk(node.args[1]) if isinstance(part, ast.Name | ast.Attribute)}
-            if names & NETWORK_CLASSES:
+            if names & classes:
                 lines.append(node.lineno)
     return lines
 
@@ -105,5 +106,23 @@ def test_no_code_asks_a_network_its_class() -> None:
     """Services, pages and protocol code ask ``network.capabilities``; only the table that opens the buses
     (protocol/bus_kinds.py) knows the classes."""
     found = {str(path.relative_to(PACKAGE)): lines for path in sorted(PACKAGE.rglob("*.py"))
-             if (lines := _isinstance_on_a_network(path))}
+             if (lines := _isinstance_on(path, NETWORK_CLASSES))}
     assert found == {}
+
+
+def test_no_service_asks_an_sdo_client_its_class() -> None:
+    """A node's SDO client says what it offers beyond upload and download (``fast_path``, ``sdo_servers``,
+    ``sdo_information``); services and the web ask that, never which class the client is."""
+    found = {str(path.relative_to(PACKAGE)): lines for scope in ("services", "web")
+             for path in sorted((PACKAGE / scope).rglob("*.py")) if (lines := _isinstance_on(path, CLIENT_CLASSES))}
+    assert found == {}
+
+
+def test_a_client_declares_what_it_offers_beyond_sdo(can_network: Network, segment: Network) -> None:
+    """A CAN node's client reads on the event loop and adds SDO channels; a CoE slave's asks the SDO information
+    service; neither pretends to have what the other has."""
+    assert segment.scan() == [1]
+    can_client, coe_client = can_network.node(5), segment.node(1)
+    assert (can_client.fast_path, can_client.sdo_servers, can_client.sdo_information) == (can_client, can_client,
+                                                                                           None)
+    assert (coe_client.fast_path, coe_client.sdo_servers, coe_client.sdo_information) == (None, None, coe_client)

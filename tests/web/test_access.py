@@ -18,6 +18,7 @@ from drivebench.services.users import accounts, audit
 from drivebench.services.users.principals import Role
 from drivebench.web import access, access_policy
 from drivebench.web.app import create_app
+from drivebench.web.state import app_state
 from tests.conftest import DEMO_PLANT, fresh_channel
 
 PASSWORDS = {"root": "root password", "eve": "engineer password", "vera": "viewer password"}
@@ -31,11 +32,7 @@ def own_db(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[str]:
     monkeypatch.setattr(settings, "database_url", url)
     monkeypatch.setattr(settings, "secret_key_file", tmp_path / "secret_key")
     database.upgrade_to_head(url)
-    accounts.directory.forget()
-    accounts.sign_in.per_user = accounts.LoginLimiter(max_failures=5)
-    accounts.sign_in.per_address = accounts.LoginLimiter(max_failures=20)
     yield url
-    accounts.directory.forget()
     database.dispose(url)
 
 
@@ -137,7 +134,7 @@ def test_wrong_passwords_lock_the_name_with_words(users: dict[str, str], app_cli
 def test_new_password_ends_sessions(users: dict[str, str], app_client: TestClient) -> None:
     sign_in(app_client, "vera")
     accounts.set_password("vera", "a new password")
-    accounts.directory.forget()
+    app_state(app_client.app).accounts.forget()  # changed by "the CLI": this app reads it at once
     assert app_client.get("/api/auth/me").status_code == 401
 
 

@@ -34,13 +34,11 @@ def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
         patch.setattr(settings, "database_url", url)
         patch.setattr(settings, "secret_key_file", folder / "secret_key")
         database.upgrade_to_head(url)
-        accounts.directory.forget()
         for name, role in [("root", Role.ADMIN), ("eve", Role.ENGINEER), ("vera", Role.VIEWER)]:
             accounts.create_user(name, PASSWORDS[name], role)
         app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
         with serve_app(app) as base_url:
             yield base_url
-        accounts.directory.forget()
         database.dispose(url)
 
 

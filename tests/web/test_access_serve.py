@@ -40,11 +40,9 @@ def drivebench_serve(tmp: Path, *options: str) -> Iterator[Served]:
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(settings, "database_url", db_url)
         database.upgrade_to_head(db_url)
-        accounts.directory.forget()
         for name, role in (("root", Role.ADMIN), ("eve", Role.ENGINEER), ("vera", Role.VIEWER)):
             accounts.create_user(name, PASSWORDS[name], role)
         root_token = accounts.issue_token("root", "test", Role.ADMIN).secret
-        accounts.directory.forget()
     env = {"DRIVEBENCH_DATABASE_URL": db_url, "DRIVEBENCH_SECRET_KEY_FILE": str(tmp / "key"),
            "FORWARDED_ALLOW_IPS": "*"}  # uvicorn's own variable must not open the door either
     server = CliProcess("serve", "--port", str(_free_port()), *options, env=env)
@@ -107,7 +105,6 @@ def test_another_server_s_disable_ends_the_session_for_good(served: Served) -> N
         patch.setattr(settings, "database_url", served.db_url)
         accounts.set_disabled("eve", True)
         accounts.set_disabled("eve", False)
-        accounts.directory.forget()
     assert wait_until(lambda: httpx.get(f"{served.url}/api/auth/me", cookies=cookie).status_code == 401,
                       accounts.DIRECTORY_TTL_S + 10)
 

@@ -59,7 +59,6 @@ def test_health_reports_an_unreachable_database_and_sign_in_answers_503_in_words
             assert other.status_code == 503 and other.json()["title"] == "Database unreachable"
     finally:
         relay.cut()
-        accounts.directory.forget()
         database.dispose(url)
         postgres.drop_database(direct)
 

@@ -18,6 +18,7 @@ from drivebench.services.storage import database
 from drivebench.services.users import accounts
 from drivebench.services.users.principals import Role
 from drivebench.web.app import create_app
+from drivebench.web.state import app_state
 from tests.conftest import serve_app
 from tests.web.test_access import own_db
 
@@ -32,9 +33,7 @@ def shared_db(database_url: str, monkeypatch: pytest.MonkeyPatch, tmp_path: Path
     monkeypatch.setattr(settings, "database_url", database_url)
     monkeypatch.setattr(settings, "secret_key_file", tmp_path / "secret_key")
     database.upgrade_to_head(database_url)
-    accounts.directory.forget()
     yield database_url
-    accounts.directory.forget()
 
 
 def _two_admins(round_no: int) -> dict[str, str]:
@@ -74,7 +73,6 @@ def _race(bases: list[str]) -> None:
         a, b = tokens
         statuses = _at_once([(bases[0], tokens[a], b), (bases[-1], tokens[b], a)])
         assert statuses.count(200) == 1 and set(statuses) <= {200, 401, 409}, (round_no, statuses)
-        accounts.directory.forget()
         assert accounts.authentication_configured(), round_no
 
 
@@ -102,5 +100,5 @@ def test_without_an_admin_another_machine_is_refused(own_db: str, address: str) 
         assert remote.get("/api/health").status_code == 200  # a probe still sees the server is up
         assert local.get("/api/sessions").status_code == 200
         accounts.create_user("root", PASSWORD, Role.ADMIN)
-        accounts.directory.forget()
+        app_state(app).accounts.forget()  # made by "the CLI": this app reads it at once
         assert remote.get("/api/sessions").status_code == 401  # now everyone signs in, from anywhere

@@ -12,7 +12,6 @@ import can
 import pytest
 from fastapi.testclient import TestClient
 
-from drivebench.services.users import accounts
 from drivebench.web.app import create_app
 from tests.confirming import confirmed
 from tests.conftest import DEMO_PLANT, wait_for_value
@@ -134,10 +133,7 @@ def test_a_set_download_that_moves_a_pdo_is_attributed(app_db_url: str, channel:
     """A parameter set of node 7 whose 0x1801.1 (TPDO2) says 0x2B7, downloaded: 0x2B7 is node 7's TPDO2."""
     app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{channel}@500000", latency="0ms")
     with TestClient(app) as demo_api:
-        try:
-            _download_a_moved_tpdo(demo_api, foreign)
-        finally:
-            accounts.directory.forget()
+        _download_a_moved_tpdo(demo_api, foreign)
 
 
 def _download_a_moved_tpdo(demo_api: TestClient, foreign: can.BusABC) -> None:

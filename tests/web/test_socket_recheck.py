@@ -47,7 +47,6 @@ def served(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Served]:
     monkeypatch.setattr(settings, "database_url", url)
     monkeypatch.setattr(settings, "secret_key_file", tmp_path / "secret_key")
     database.upgrade_to_head(url)
-    accounts.directory.forget()
     accounts.create_user("root", PASSWORDS["root"], Role.ADMIN)
     accounts.create_user("eve", PASSWORDS["eve"], Role.ENGINEER)
     root_token = accounts.issue_token("root", "test", Role.ADMIN).secret
@@ -57,7 +56,6 @@ def served(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Served]:
                                                   headers={"Authorization": f"Bearer {root_token}"}) as root:
             yield Served(base, root, url)
     finally:
-        accounts.directory.forget()
         database.dispose(url)
 
 

@@ -37,10 +37,8 @@ def signed_in_db(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[No
     monkeypatch.setattr(settings, "database_url", url)
     monkeypatch.setattr(settings, "secret_key_file", tmp_path / "secret_key")
     database.upgrade_to_head(url)
-    accounts.directory.forget()
     accounts.create_user("anna", "anna's password", Role.ADMIN)
     yield
-    accounts.directory.forget()
     database.dispose(url)
 
 

@@ -85,12 +85,10 @@ def plant(postgres: PostgresCluster, tmp_path_factory: pytest.TempPathFactory) -
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(settings, "database_url", db_url)
         database.upgrade_to_head(db_url)
-        accounts.directory.forget()
         tokens = {}
         for name, role in USERS.items():
             accounts.create_user(name, PASSWORD, role)
             tokens[name] = accounts.issue_token(name, "two servers", role).secret
-        accounts.directory.forget()
     running = Plant(tmp_path_factory.mktemp("two-servers"), db_url, tokens)
     try:
         yield running

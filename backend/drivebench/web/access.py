@@ -77,7 +77,8 @@ class SignedIn:
 
 class Sessions:
     """Signed session cookies; a signed-out session is refused until its cookie would have expired, by every server
-    of the database (``accounts.sign_out_session``)."""
+    of the database (``accounts.sign_out_session``). A web app holds one (``web/state.AppState.cookie_sessions``):
+    what it keeps in memory is only the signer of the current key."""
 
     def __init__(self) -> None:
         self._serializer: tuple[str, URLSafeTimedSerializer] | None = None
@@ -106,8 +107,6 @@ class Sessions:
     def sign_out(self, signed_in: SignedIn) -> None:
         accounts.sign_out_session(signed_in.sid, settings.session_max_age_s)
 
-
-sessions = Sessions()
 
 
 def set_session_cookie(response: Response, conn: HTTPConnection, value: str) -> None:
@@ -168,8 +167,16 @@ def _denied_words(principal: Principal, rule: access_policy.Rule) -> str:
     return _("{what} needs the {role} role; {who}.").format(what=_(rule.what), role=rule.role.label, who=who)
 
 
-async def admitted(scope: Scope, receive: Receive, send: Send, headers: Headers, decision: access_policy.Decision
-                   ) -> tuple[Receive, str | None] | None:
+@dataclass(frozen=True)
+class SignIns:
+    """What a request's sign-in is checked against: the app's accounts and its cookie sessions."""
+
+    accounts: accounts.Accounts
+    sessions: Sessions
+
+
+async def admitted(scope: Scope, receive: Receive, send: Send, headers: Headers, decision: access_policy.Decision,
+                   sign_ins: SignIns) -> tuple[Receive, str | None] | None:
     """Host, origin, sign-in, role and CSRF of a request or websocket (``web/gate.py`` calls it once per request).
     None: refused, the answer is sent. Else the receive to pass on (a form read for its CSRF token is replayed) and
     the name the audit log gives the request's writes (None: the local user, no login configured)."""
@@ -184,7 +191,7 @@ async def admitted(scope: Scope, receive: Receive, send: Send, headers: Headers,
         return None
     state = scope.setdefault("state", {})
     try:
-        configured = accounts.authentication_configured()
+        configured = sign_ins.accounts.authentication_configured()
     except (OperationalError, InterfaceError):  # the database is down: the gate answers 503, a public route is served
         if not decision.public:
             raise
@@ -198,7 +205,7 @@ async def admitted(scope: Scope, receive: Receive, send: Send, headers: Headers,
         elif decision.template == METRICS_ROUTE and (scraping := metrics_token.scraper(headers)) is not None:
             principal = scraping  # on this route only: the metrics token grants nothing else
         elif configured:
-            principal, session = await _authenticate(headers)
+            principal, session = await _authenticate(headers, sign_ins)
     except NotAuthenticated as exc:
         if not decision.public:
             await _refuse(scope, receive, send, exc)
@@ -241,8 +248,8 @@ async def admitted(scope: Scope, receive: Receive, send: Send, headers: Headers,
     return receive, None
 
 
-async def still_admitted(scope: Scope, headers: Headers, decision: access_policy.Decision, links: ShareLinks
-                         ) -> DriveBenchError | None:
+async def still_admitted(scope: Scope, headers: Headers, decision: access_policy.Decision, links: ShareLinks,
+                         sign_ins: SignIns) -> DriveBenchError | None:
     """Why a live connection admitted at its handshake may not stay open now (None: it may), as its handshake
     would be answered now: the share link still valid, the cookie session or API token still signed in (read from
     the database, as every request reads it: a change made by another server counts too), the route's role still
@@ -254,11 +261,11 @@ async def still_admitted(scope: Scope, headers: Headers, decision: access_policy
         except DriveBenchError as exc:
             return exc
         return None
-    if decision.public or not accounts.authentication_configured():  # a public socket checks its own link
+    if decision.public or not sign_ins.accounts.authentication_configured():  # a public socket checks its own link
         return None
     opened = state.get("principal")
     try:
-        principal, _session = await _authenticate(headers)
+        principal, _session = await _authenticate(headers, sign_ins)
     except NotAuthenticated as exc:
         return exc
     if principal is None:
@@ -288,18 +295,18 @@ def _remote_address(scope: Scope) -> str | None:
     return None if address.is_loopback else str(client[0])
 
 
-async def _authenticate(headers: Headers) -> tuple[Principal | None, SignedIn | None]:
+async def _authenticate(headers: Headers, sign_ins: SignIns) -> tuple[Principal | None, SignedIn | None]:
     authorization = headers.get("authorization", "")
     if authorization.lower().startswith("bearer ") and authorization[7:].strip().startswith(accounts.TOKEN_PREFIX):
         secret = authorization[7:].strip()
-        return await anyio.to_thread.run_sync(accounts.verify_token, secret), None
+        return await anyio.to_thread.run_sync(sign_ins.accounts.verify_token, secret), None
     cookie = cookies.value(headers.get("cookie"), SESSION_COOKIE)
     if cookie is None:
         return None, None
-    signed_in = await anyio.to_thread.run_sync(sessions.load, cookie)
+    signed_in = await anyio.to_thread.run_sync(sign_ins.sessions.load, cookie)
     if signed_in is None:
         return None, None
-    user = accounts.account(signed_in.name)
+    user = sign_ins.accounts.account(signed_in.name)
     if user is None or user.disabled or user.stamp != signed_in.stamp:
         return None, None  # the user was disabled, removed or given a new password: sign in again
     return Principal(user.name, user.role, via="login"), signed_in

@@ -21,6 +21,7 @@ from drivebench.services.sets import set_jobs
 from drivebench.services.sets.parameter_sets import ParameterSetStore
 from drivebench.services.storage.database import upgrade_to_head
 from drivebench.services.users import audit
+from drivebench.services.users.accounts import Accounts
 from drivebench.services.users.sharing import ShareLinks
 from drivebench.simulator.plant import Plant, PlantFile
 from drivebench.web import access, access_policy, heap, language, problems
@@ -100,6 +101,7 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
                settle_heap: bool = False) -> FastAPI:
     """``settle_heap``: a server process of its own (``drivebench serve``) freezes what start-up made (``heap``)."""
     share_links = ShareLinks()
+    sign_ins = access.SignIns(Accounts(), access.Sessions())  # the gate's and the routes' (AppState) alike
 
     @contextlib.asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
@@ -109,7 +111,8 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
         registry = await asyncio.to_thread(ProfileRegistry)
         manager = SessionManager(registry, sdo_timeout_s=settings.sdo_timeout_s, sdo_retries=settings.sdo_retries,
                                  write_audits=[audit.AuditLog()])  # every write the tool sends is logged
-        state = AppState(registry, manager, share_links=share_links)
+        state = AppState(registry, manager, share_links=share_links, accounts=sign_ins.accounts,
+                         cookie_sessions=sign_ins.sessions)
         app.state.drivebench = state
         access_policy.precompute(app)  # every route's access decisions, before the first request
         if demo or plant_file:
@@ -136,7 +139,7 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
     access.install(app)  # the roles in the OpenAPI document
     # One pass for the language, security headers, body limit, share-link scope, host/origin, sign-in, roles, CSRF
     # and the lean answers.
-    app.add_middleware(RequestGate, links=share_links, limit_bytes=settings.max_upload_bytes,
+    app.add_middleware(RequestGate, links=share_links, sign_ins=sign_ins, limit_bytes=settings.max_upload_bytes,
                        batch_bytes=settings.max_batch_upload_bytes,
                        hsts=settings.hsts if hsts is None else hsts)
     app.state.metrics = metrics = Metrics(lambda: _running(app, "manager"), lambda: _running(app, "jobs"))

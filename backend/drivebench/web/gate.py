@@ -48,10 +48,11 @@ log = logging.getLogger(__name__)
 
 
 class RequestGate:
-    def __init__(self, app: ASGIApp, *, links: ShareLinks, limit_bytes: int, batch_bytes: int | None = None,
-                 hsts: bool = False) -> None:
+    def __init__(self, app: ASGIApp, *, links: ShareLinks, sign_ins: access.SignIns, limit_bytes: int,
+                 batch_bytes: int | None = None, hsts: bool = False) -> None:
         self.app = app
         self.links = links
+        self.sign_ins = sign_ins
         self.body_limit = BodyLimit(limit_bytes, batch_bytes)
         self.hsts = hsts
         self._added = {scheme: _Added(security_headers.RAW_HEADERS + ([HSTS_HEADER] if hsts and scheme == "https"
@@ -98,7 +99,7 @@ class RequestGate:
         scope.setdefault("state", {})["route_template"] = decision.template  # metrics count by it (web/metrics.py)
         if not await viewer.link_admitted(scope, receive, send, self.links, headers, decision):
             return
-        admitted = await access.admitted(scope, receive, send, headers, decision)
+        admitted = await access.admitted(scope, receive, send, headers, decision, self.sign_ins)
         if admitted is None:
             return
         receive, user = admitted
@@ -106,7 +107,7 @@ class RequestGate:
             scope.setdefault("state", {})[safety.AUDIT_USER] = user
         if scope["type"] == "websocket":  # open as long as its user may: re-checked every second
             await live_access.serve(self.app, scope, receive, send, partial(
-                access.still_admitted, scope, headers, decision, self.links))
+                access.still_admitted, scope, headers, decision, self.links, self.sign_ins))
             return
         if decision.lean is not None and scope.get("method") == "GET" and await lean_route.answered(
                 decision.lean, decision.path_params, scope, receive, send):

@@ -11,9 +11,12 @@ from starlette.applications import Starlette
 from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.services.params.jobs import JobManager
 from drivebench.services.session_manager import SessionManager
+from drivebench.services.storage.reachability import RecentProbes
+from drivebench.services.users.accounts import Accounts
 from drivebench.services.users.sharing import ShareLinks
 from drivebench.simulator.ethercat import GatewayServer
 from drivebench.simulator.plant import Plant
+from drivebench.web.access import Sessions
 
 if TYPE_CHECKING:  # the monitor socket's module reaches this one through the routes' dependencies
     from drivebench.web.monitor_feed import Feed
@@ -24,6 +27,12 @@ class AppState:
     registry: ProfileRegistry
     manager: SessionManager
     share_links: ShareLinks = field(default_factory=ShareLinks)
+    accounts: Accounts = field(default_factory=Accounts)
+    """The users and API tokens as this app read them lately, and the sign-in with its rate limits."""
+    cookie_sessions: Sessions = field(default_factory=Sessions)
+    """The signer of the session cookies."""
+    database_probes: RecentProbes = field(default_factory=RecentProbes)
+    """The database's last answers to the health check's probe."""
     plants: dict[str, Plant] = field(default_factory=dict)
     """Simulated plants by the id of the session that watches them."""
     gateways: dict[str, GatewayServer] = field(default_factory=dict)

@@ -55,6 +55,21 @@ class NodeClient(EventLoopTransfers):
         self.channels = [SdoChannel(self.remote.sdo, 1)]
         self.configure(network.sdo_timeout_s, network.sdo_retries)
 
+    sdo_information: None = None
+    """A CANopen node's object list is its EDS: no SDO information service (CoE's)."""
+
+    @property
+    def fast_path(self) -> NodeClient:
+        """The client the event loop reads expedited values through (:mod:`drivebench.protocol.canopen.sdo_fast`):
+        a CAN node's SDO frames are sent and answered on the loop. A client without one has ``None``."""
+        return self
+
+    @property
+    def sdo_servers(self) -> NodeClient:
+        """The client whose SDO channels can be added (:meth:`add_channel`, the device's additional SDO servers,
+        CiA 301 0x1201...). A client with one channel only has ``None``."""
+        return self
+
     def configure(self, timeout_s: float, retries: int) -> None:
         for channel in self.channels:
             channel.client.RESPONSE_TIMEOUT = timeout_s

@@ -104,6 +104,16 @@ class CoeNodeClient(EventLoopTransfers):
         """The device manual's abort texts (its profile's ``abort_texts``)."""
         self.channels = [MailboxChannel(1, network.segment.lock(station))]
 
+    fast_path: None = None
+    """No on-loop reads: a mailbox exchange runs in a worker thread."""
+    sdo_servers: None = None
+    """One mailbox per slave: no SDO channel to add."""
+
+    @property
+    def sdo_information(self) -> CoeNodeClient:
+        """The client that asks the slave's SDO information service (:meth:`information`: its object list)."""
+        return self
+
     def configure(self, timeout_s: float, retries: int) -> None:
         client = self.network.segment.sdo(self.station)
         client.timeout_s, client.retries = timeout_s, retries

@@ -13,7 +13,6 @@ from dataclasses import dataclass
 from drivebench.errors import Conflict, DriveBenchError
 from drivebench.i18n import _
 from drivebench.protocol.ethercat.coe_sdo import CoeSdoClient
-from drivebench.protocol.ethercat.network import CoeNodeClient
 from drivebench.services.bus.sessions import Session
 
 
@@ -39,8 +38,8 @@ class ObjectListComparison:
 
 async def compare(session: Session, node_id: int) -> ObjectListComparison:
     node = session.node(node_id)
-    client = session.client(node_id)
-    if not isinstance(client, CoeNodeClient):
+    client = session.client(node_id).sdo_information
+    if client is None:
         raise Conflict(_("Node {node} is a CANopen node: the SDO information service is CoE's (EtherCAT); a CANopen "
                          "node's object list is its EDS (Profiles page).").format(node=node_id))
     catalog = node.catalog

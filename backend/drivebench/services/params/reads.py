@@ -16,7 +16,6 @@ from drivebench.device.profiles.number_base import hex_word, shows_hex
 from drivebench.device.profiles.scaling import RawValue, ScaledValue, from_raw
 from drivebench.errors import DriveBenchError, InvalidValue, ProtocolError, SdoOutOfStepError, SdoStalledError
 from drivebench.i18n import N_, Text, _
-from drivebench.protocol.canopen.network import NodeClient
 from drivebench.protocol.canopen.sdo_fast import ExpeditedRequest, upload_batch, upload_expedited
 from drivebench.protocol.datatypes import DataType, decode
 from drivebench.services.bus.fieldbus import SdoClient
@@ -145,8 +144,8 @@ async def upload(client: SdoClient, plan: Plan, *, block: bool = False, channel:
     canopen's client in a worker thread (``on_loop=False``: there at once, the device's answer on the loop was one
     only that client reads). Transfer errors name the parameter as the user knows it (C00099)."""
     try:
-        if on_loop and plan.on_loop and not block and isinstance(client, NodeClient):  # CAN's fast path; CoE: its own
-            data = await upload_expedited(client, plan.request, channel=channel, segmented=not plan.expedited,
+        if on_loop and plan.on_loop and not block and client.fast_path is not None:  # CAN's; CoE: worker thread
+            data = await upload_expedited(client.fast_path, plan.request, channel=channel, segmented=not plan.expedited,
                                           urgent=urgent())
             if data is not None:
                 return data
@@ -239,8 +238,8 @@ async def read_many(session: Session, node_id: int, refs: Sequence[str]) -> list
             found[position] = exc
     client = session.client(node_id)
     batched = [position for position, plan in plans.items() if plan.on_loop]
-    if batched and isinstance(client, NodeClient):
-        answers = await upload_batch(client, [plans[p].request for p in batched],
+    if batched and client.fast_path is not None:
+        answers = await upload_batch(client.fast_path, [plans[p].request for p in batched],
                                      [not plans[p].expedited for p in batched])
         for position, answer in zip(batched, answers or [], strict=False):
             plan = plans[position]

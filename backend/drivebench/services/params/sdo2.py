@@ -34,8 +34,8 @@ def _sdo2_check_blocking(session: Session, node: SessionNode) -> tuple[NodeChann
         channels.note = Text(N_("SDO{number} not used on node {node}: its identifiers would be node {other}'s SDO1"),
                               number=extra.number, node=node.node_id, other=clash)
         return channels, None
-    client = session.client(node.node_id)
-    if not isinstance(client, NodeClient):  # an EtherCAT slave has one mailbox
+    client = session.client(node.node_id).sdo_servers
+    if client is None:  # an EtherCAT slave has one mailbox
         return channels, None
     rx, tx = (int.from_bytes(client.upload(index, sub, channel=1)[:4], "little") for sub in (1, 2))
     if rx & 0x80000000 or tx & 0x80000000 or not rx or not tx:
@@ -65,9 +65,9 @@ async def _activate_sdo2(session: Session, node: SessionNode, ctx: WriteContext)
                           ctx=ctx, verify=True)
     channels.note = Text(N_("SDO{number} activated on node {node} ({rx}/{tx}, not saved)"), number=extra.number,
                           node=node.node_id, rx=f"0x{rx:03X}", tx=f"0x{tx:03X}")
-    client = session.client(node.node_id)
-    assert isinstance(client, NodeClient)  # checked by _sdo2_check_blocking
-    _use_sdo2(client, channels, rx, tx)
+    client = session.client(node.node_id).sdo_servers
+    if client is not None:  # checked by _sdo2_check_blocking
+        _use_sdo2(client, channels, rx, tx)
     return channels
 
 

@@ -20,7 +20,7 @@ from typing import Protocol, TypeVar
 from drivebench.errors import Conflict, OutOfRange
 from drivebench.i18n import _
 from drivebench.protocol.canopen.heartbeat import HeartbeatStatus
-from drivebench.protocol.canopen.network import NodeClient, SdoChannel
+from drivebench.protocol.canopen.network import SdoChannel
 from drivebench.services.bus.sessions import Session
 from drivebench.services.params.values import ParameterValue
 from drivebench.services.params.write_ports import MovingWrites, WriteAudits
@@ -96,8 +96,9 @@ class SessionParameters:
         if state is not None and state.active:
             state.active = False
             client = session.network.nodes.get(status.node_id)
-            if isinstance(client, NodeClient) and state.sdo2 in client.channels:
-                client.channels.remove(state.sdo2)
+            servers = client.sdo_servers if client is not None else None
+            if servers is not None and state.sdo2 in servers.channels:
+                servers.channels.remove(state.sdo2)
 
 
 def attach(session: Session, moving_writes: MovingWrites, write_audits: WriteAudits) -> SessionParameters:

@@ -3,6 +3,7 @@ name not resolved, no answer, and what to check. The password of the URL is neve
 
 from __future__ import annotations
 
+import threading
 import time
 from collections.abc import Callable
 
@@ -68,6 +69,30 @@ def probe(url: str | None = None) -> DatabaseUnavailable | None:
     except SQLAlchemyError as exc:
         return unavailable(exc, url)
     return None
+
+
+class RecentProbes:
+    """The database's answer to :func:`probe`, asked at most every ``every_s`` per URL and one query at a time
+    (monitors poll the health check once a second, or more). A web app holds one (``web/state.AppState``)."""
+
+    def __init__(self, every_s: float = 2.0) -> None:
+        self.every_s = every_s
+        self._known: dict[str, tuple[float, DatabaseUnavailable | None]] = {}
+        self._lock = threading.Lock()
+
+    def recent(self, url: str) -> tuple[bool, DatabaseUnavailable | None]:
+        """Whether the last answer is at most ``every_s`` old, and that answer (None: it answered), asking nothing."""
+        at, failure = self._known.get(url, (-self.every_s, None))
+        return time.monotonic() - at < self.every_s, failure
+
+    def failure(self, url: str) -> DatabaseUnavailable | None:
+        """The last answer, the database asked again when it is older than ``every_s`` (blocking)."""
+        with self._lock:
+            fresh, failure = self.recent(url)
+            if not fresh:
+                failure = probe(url)
+                self._known[url] = (time.monotonic(), failure)
+            return failure
 
 
 def wait_for_database(url: str | None = None, *, wait_s: float | None = None,

@@ -4,6 +4,10 @@ Passwords are hashed with argon2 (argon2-cffi's ``PasswordHasher``); the databas
 token (``dbt_`` + 43 random characters) is shown once when issued; the database holds its SHA-256 (the token is
 random, so a fast hash is enough) and its first characters as a hint. Authentication is *configured* as soon as one
 enabled admin exists: from then on the web server asks everyone to sign in.
+
+The functions read and change the database as they are called (the CLI uses them). A web app asks its
+:class:`Accounts` (``web/state.AppState.accounts``): the users and verified tokens it read lately, forgotten at once
+when a change goes through it; no account state lives in this module.
 """
 
 from __future__ import annotations
@@ -18,6 +22,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import UTC, datetime
+from typing import TypeVar
 
 from argon2 import PasswordHasher
 from argon2.exceptions import InvalidHashError, VerificationError
@@ -48,6 +53,7 @@ MAX_PASSWORD_LENGTH = 1024
 MAX_LIMIT_KEY = 300  # a sign-in limit key (``user:`` + the name as typed) is cut to the column
 DIRECTORY_TTL_S = 2.0  # a user added by the CLI while the server runs counts after at most this long
 
+_T = TypeVar("_T")
 _hasher = PasswordHasher()
 _dummy_hash: str | None = None
 
@@ -127,37 +133,40 @@ def _token_hash(secret: str) -> str:
 
 
 # --- the directory: users by name, cached briefly (every request asks whether login is required) --------------
-class _Directory:
-    def __init__(self) -> None:
+class Directory:
+    """The users by name as read at most ``DIRECTORY_TTL_S`` ago; a change read from the database (made elsewhere:
+    another server, the CLI) forgets ``tokens``: they act with their owner's state as now read."""
+
+    def __init__(self, tokens: VerifiedTokens) -> None:
         self._lock = threading.Lock()
         self._users: dict[str, User] = {}
         self._loaded_at = -DIRECTORY_TTL_S
         self._url: str | None = None
+        self._tokens = tokens
 
     def users(self) -> dict[str, User]:
         with self._lock:
             fresh = time.monotonic() - self._loaded_at < DIRECTORY_TTL_S and self._url == settings.database_url
             if fresh:
                 return self._users
-        with transaction() as db:
-            users = {row.name: _user(row) for row in db.scalars(select(UserRow))}
+        users = _read_users()
         with self._lock:
             changed = users != self._users
             self._users, self._loaded_at, self._url = users, time.monotonic(), settings.database_url
-        if changed:  # changed elsewhere (another server, the CLI): tokens act with their owner's state as now read
-            verified_tokens.forget()
+        if changed:
+            self._tokens.forget()
         return users
 
     def forget(self) -> None:
         with self._lock:
             self._loaded_at = -DIRECTORY_TTL_S
-        verified_tokens.forget()  # a token acts with its owner's current role and state
+        self._tokens.forget()  # a token acts with its owner's current role and state
 
 
-class _VerifiedTokens:
+class VerifiedTokens:
     """API tokens verified in the last ``DIRECTORY_TTL_S``, by hash: a script's requests in a row cost no database
-    round trip each. Revoking a token or changing its owner forgets them all at once (in this process; a change
-    made by the CLI counts after at most ``DIRECTORY_TTL_S``, as for the directory)."""
+    round trip each. Revoking a token or changing its owner forgets them all at once (through the same
+    :class:`Accounts`; a change made elsewhere counts after at most ``DIRECTORY_TTL_S``, as for the directory)."""
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
@@ -184,18 +193,19 @@ class _VerifiedTokens:
             self.generation += 1
 
 
-verified_tokens = _VerifiedTokens()
-directory = _Directory()
+def _read_users() -> dict[str, User]:
+    with transaction() as db:
+        return {row.name: _user(row) for row in db.scalars(select(UserRow))}
+
+
+def _configured(users: dict[str, User]) -> bool:
+    return any(user.role is Role.ADMIN and not user.disabled for user in users.values())
 
 
 def authentication_configured() -> bool:
-    """True as soon as one enabled admin exists: then everyone signs in."""
-    return any(user.role is Role.ADMIN and not user.disabled for user in directory.users().values())
-
-
-def account(name: str) -> User | None:
-    """The user called ``name`` as of at most ``DIRECTORY_TTL_S`` ago (None: no such user)."""
-    return directory.users().get(name)
+    """True as soon as one enabled admin exists: then everyone signs in (read now; a server asks its
+    :meth:`Accounts.authentication_configured`, read at most ``DIRECTORY_TTL_S`` ago)."""
+    return _configured(_read_users())
 
 
 # --- users -----------------------------------------------------------------------------------------------------
@@ -206,7 +216,6 @@ def create_user(name: str, password: str, role: Role) -> User:
         if db.scalar(select(UserRow).where(UserRow.name == name)) is not None:
             raise Conflict(_("A user called {name} exists already.").format(name=name))
         created = _add_user(db, name, password_hash, role)
-    directory.forget()
     return created
 
 
@@ -229,8 +238,6 @@ def create_first_admin(name: str, password: str) -> User | None:
             created = _add_user(db, name, password_hash, Role.ADMIN)
     except IntegrityError:  # another server of the database made it at the same moment
         return None
-    finally:
-        directory.forget()
     return created
 
 
@@ -282,7 +289,6 @@ def set_disabled(name: str, disabled: bool = True) -> User:
             _revoke_tokens_of(db, row.id)  # nor the old API tokens
         row.disabled = disabled
         changed = _user(row)
-    directory.forget()
     return changed
 
 
@@ -295,7 +301,6 @@ def set_role(name: str, role: Role) -> User:
             row.session_stamp = new_session_stamp()
         row.role = role.label
         changed = _user(row)
-    directory.forget()
     return changed
 
 
@@ -310,7 +315,6 @@ def set_password(name: str, password: str, *, end_tokens: bool = False) -> User:
         if end_tokens:
             _revoke_tokens_of(db, row.id)
         changed = _user(row)
-    directory.forget()
     return changed
 
 
@@ -372,9 +376,7 @@ def revoke_token(token_id: int, *, owner: str | None = None) -> ApiToken:
         row, owner_name = found
         row.revoked = row.revoked or utcnow()
         _revoke_descendants(db, [row.id])
-        revoked = _token(row, owner_name)
-    verified_tokens.forget()
-    return revoked
+        return _token(row, owner_name)
 
 
 def _revoke_tokens_of(db: Session, user_id: int) -> None:
@@ -382,7 +384,6 @@ def _revoke_tokens_of(db: Session, user_id: int) -> None:
     db.execute(update(ApiTokenRow).where(ApiTokenRow.owner_id == user_id, ApiTokenRow.revoked.is_(None))
                .values(revoked=utcnow()))
     _revoke_descendants(db, ids)
-    verified_tokens.forget()
 
 
 def _revoke_descendants(db: Session, ids: list[int]) -> None:
@@ -410,30 +411,36 @@ def _ancestors_valid(db: Session, parent_id: int | None) -> bool:
 
 
 def verify_token(secret: str) -> Principal:
-    """The principal a token acts as: the lower of the token's and its owner's current role."""
-    refused = NotAuthenticated(_("The API token is unknown or revoked."),
-                               hint=N_("Create a new token on the Users page or with `drivebench tokens create`."))
+    """The principal a token acts as: the lower of the token's and its owner's current role (read now; a server
+    asks its :meth:`Accounts.verify_token`, which remembers it ``DIRECTORY_TTL_S``)."""
+    return _verified(_token_hash(_check_token_form(secret)))
+
+
+def _refused() -> NotAuthenticated:
+    return NotAuthenticated(_("The API token is unknown or revoked."),
+                            hint=N_("Create a new token on the Users page or with `drivebench tokens create`."))
+
+
+def _check_token_form(secret: str) -> str:
     if not secret.startswith(TOKEN_PREFIX):
-        raise refused
-    token_hash = _token_hash(secret)
-    if (known := verified_tokens.get(token_hash)) is not None:
-        return known
-    generation = verified_tokens.generation
+        raise _refused()
+    return secret
+
+
+def _verified(token_hash: str) -> Principal:
     with transaction() as db:
         found = db.execute(select(ApiTokenRow, UserRow).join(UserRow, ApiTokenRow.owner_id == UserRow.id)
                            .where(ApiTokenRow.token_hash == token_hash)).first()
         if found is None or found[0].revoked is not None or found[1].disabled:
-            raise refused
+            raise _refused()
         row, user = found
         if not _ancestors_valid(db, row.parent_id):
-            raise refused
+            raise _refused()
         now = utcnow()
         if row.last_used is None or (now - _aware(row.last_used)).total_seconds() > 60:  # not a write per request
             row.last_used = now
         role = min(Role.parse(row.role), Role.parse(user.role))
-        principal = Principal(user.name, role, via="token", token_id=row.id)
-    verified_tokens.put(token_hash, principal, generation)
-    return principal
+        return Principal(user.name, role, via="token", token_id=row.id)
 
 
 def _aware(moment: datetime) -> datetime:
@@ -547,4 +554,55 @@ class SignIn:
         return principal
 
 
-sign_in = SignIn()
+
+class Accounts:
+    """One server's memory of the accounts: the directory and the verified API tokens (each kept at most
+    ``DIRECTORY_TTL_S``) and the sign-in with its rate limits (counted in the database). A web app holds one
+    (``web/state.AppState.accounts``); a change made through it counts for that app at once, one made elsewhere (the
+    CLI, another server, another app in the process) after at most ``DIRECTORY_TTL_S``."""
+
+    def __init__(self, sign_in: SignIn | None = None) -> None:
+        self.tokens = VerifiedTokens()
+        self.directory = Directory(self.tokens)
+        self.sign_in = sign_in or SignIn()
+
+    def forget(self) -> None:
+        """Read the users and tokens from the database on the next question."""
+        self.directory.forget()
+
+    def authentication_configured(self) -> bool:
+        return _configured(self.directory.users())
+
+    def account(self, name: str) -> User | None:
+        """The user called ``name`` as of at most ``DIRECTORY_TTL_S`` ago (None: no such user)."""
+        return self.directory.users().get(name)
+
+    def verify_token(self, secret: str) -> Principal:
+        """As :func:`verify_token`, remembered ``DIRECTORY_TTL_S`` (a script's requests in a row)."""
+        token_hash = _token_hash(_check_token_form(secret))
+        if (known := self.tokens.get(token_hash)) is not None:
+            return known
+        generation = self.tokens.generation
+        principal = _verified(token_hash)
+        self.tokens.put(token_hash, principal, generation)
+        return principal
+
+    # --- changes: as the functions of the same name, then forgotten here at once ---------------------------
+    def create_user(self, name: str, password: str, role: Role) -> User:
+        return self._changed(create_user(name, password, role))
+
+    def set_disabled(self, name: str, disabled: bool = True) -> User:
+        return self._changed(set_disabled(name, disabled))
+
+    def set_role(self, name: str, role: Role) -> User:
+        return self._changed(set_role(name, role))
+
+    def set_password(self, name: str, password: str, *, end_tokens: bool = False) -> User:
+        return self._changed(set_password(name, password, end_tokens=end_tokens))
+
+    def revoke_token(self, token_id: int, *, owner: str | None = None) -> ApiToken:
+        return self._changed(revoke_token(token_id, owner=owner))
+
+    def _changed(self, result: _T) -> _T:
+        self.forget()
+        return result

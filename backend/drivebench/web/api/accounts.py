@@ -15,10 +15,11 @@ from drivebench.i18n import _
 from drivebench.services.users import accounts
 from drivebench.services.users.principals import Principal, Role
 from drivebench.web import access
-from drivebench.web.deps import RowId
+from drivebench.web.deps import RowId, StateDep
 from drivebench.web.identity import PrincipalDep
 from drivebench.web.problems import problem_body
 from drivebench.web.sign_in import FIRST_ADMIN, client_address, sign_in
+from drivebench.web.state import app_state
 
 router = APIRouter(prefix="/api", tags=["accounts"])
 
@@ -135,7 +136,7 @@ async def login(request: Request, credentials: Credentials) -> Response:
 async def logout(request: Request) -> Response:
     view = access.access_of(request)
     if view is not None and view.session is not None:
-        access.sessions.sign_out(view.session)
+        app_state(request.app).cookie_sessions.sign_out(view.session)
     response = Response(status_code=204)
     access.clear_session_cookie(response, request)
     return response
@@ -160,10 +161,11 @@ async def change_own_password(request: Request, body: OwnPassword, principal: Pr
     """A wrong ``current_password`` counts as a failed sign-in (the same limit per name and address: 429)."""
     name = _signed_in_user(principal)
     try:
-        await asyncio.to_thread(accounts.sign_in, name, body.current_password, client_address(request))
+        await asyncio.to_thread(app_state(request.app).accounts.sign_in, name, body.current_password,
+                                client_address(request))
     except accounts.LoginLocked as exc:
         return locked_response(exc, request.url.path)
-    await asyncio.to_thread(accounts.set_password, name, body.password)
+    await asyncio.to_thread(app_state(request.app).accounts.set_password, name, body.password)
     return Response(status_code=204)
 
 
@@ -183,9 +185,9 @@ async def create_own_token(body: NewToken, principal: PrincipalDep) -> IssuedTok
 
 
 @router.delete("/auth/tokens/{token_id}", response_model=TokenOut)
-async def revoke_own_token(token_id: RowId, principal: PrincipalDep) -> TokenOut:
+async def revoke_own_token(token_id: RowId, principal: PrincipalDep, state: StateDep) -> TokenOut:
     name = _signed_in_user(principal)
-    return token_out(await asyncio.to_thread(lambda: accounts.revoke_token(token_id, owner=name)))
+    return token_out(await asyncio.to_thread(lambda: state.accounts.revoke_token(token_id, owner=name)))
 
 
 # --- admin: users and every token -----------------------------------------------------------------------------
@@ -195,8 +197,9 @@ async def list_users() -> list[UserOut]:
 
 
 @router.post("/users", response_model=UserOut, status_code=201)
-async def create_user(body: NewUser) -> UserOut:
-    return user_out(await asyncio.to_thread(accounts.create_user, body.name, body.password, Role.parse(body.role)))
+async def create_user(body: NewUser, state: StateDep) -> UserOut:
+    return user_out(await asyncio.to_thread(state.accounts.create_user, body.name, body.password,
+                                            Role.parse(body.role)))
 
 
 @router.get("/users/{name}", response_model=UserOut)
@@ -205,23 +208,23 @@ async def get_user(name: str) -> UserOut:
 
 
 @router.patch("/users/{name}", response_model=UserOut)
-async def change_user(name: str, body: UserChange) -> UserOut:
+async def change_user(name: str, body: UserChange, state: StateDep) -> UserOut:
     """Change the role or disable / enable; the last enabled admin cannot be demoted or disabled."""
     def change() -> accounts.User:
         user = accounts.get_user(name)
         if body.role is not None:
-            user = accounts.set_role(name, Role.parse(body.role))
+            user = state.accounts.set_role(name, Role.parse(body.role))
         if body.disabled is not None:
-            user = accounts.set_disabled(name, body.disabled)
+            user = state.accounts.set_disabled(name, body.disabled)
         return user
 
     return user_out(await asyncio.to_thread(change))
 
 
 @router.put("/users/{name}/password", status_code=204)
-async def reset_password(name: str, body: NewPassword) -> Response:
+async def reset_password(name: str, body: NewPassword, state: StateDep) -> Response:
     """Set a new password: the user's sessions and API tokens end."""
-    await asyncio.to_thread(lambda: accounts.set_password(name, body.password, end_tokens=True))
+    await asyncio.to_thread(lambda: state.accounts.set_password(name, body.password, end_tokens=True))
     return Response(status_code=204)
 
 
@@ -239,5 +242,5 @@ async def create_token(body: NewTokenFor, principal: PrincipalDep) -> IssuedToke
 
 
 @router.delete("/tokens/{token_id}", response_model=TokenOut)
-async def revoke_token(token_id: RowId) -> TokenOut:
-    return token_out(await asyncio.to_thread(accounts.revoke_token, token_id))
+async def revoke_token(token_id: RowId, state: StateDep) -> TokenOut:
+    return token_out(await asyncio.to_thread(state.accounts.revoke_token, token_id))

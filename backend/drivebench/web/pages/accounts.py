@@ -17,6 +17,7 @@ from drivebench.web.deps import RowId
 from drivebench.web.problems import problem_body
 from drivebench.web.root import under_root
 from drivebench.web.sign_in import FIRST_ADMIN, sign_in
+from drivebench.web.state import app_state
 from drivebench.web.templating import templates
 
 router = APIRouter(include_in_schema=False)
@@ -42,7 +43,7 @@ async def login_page(request: Request, next: str = "/") -> Response:
     view = access.access_of(request)
     if view is not None and view.session is not None:
         return RedirectResponse(under_root(request.scope, _safe_next(next)), status_code=303)
-    configured = await asyncio.to_thread(accounts.authentication_configured)
+    configured = await asyncio.to_thread(_accounts(request).authentication_configured)
     return templates.TemplateResponse(request, "login.html", {"next": _safe_next(next), "configured": configured,
                                                               "first_admin": FIRST_ADMIN, "active": None})
 
@@ -69,22 +70,25 @@ async def login_form(request: Request, name: str = Form(""), password: str = For
 async def logout(request: Request) -> Response:
     view = access.access_of(request)
     if view is not None and view.session is not None:
-        access.sessions.sign_out(view.session)
+        app_state(request.app).cookie_sessions.sign_out(view.session)
     response = RedirectResponse(under_root(request.scope, "/login"), status_code=303)
     access.clear_session_cookie(response, request)
     return response
 
 
 # --- the Users screen (admin) -----------------------------------------------------------------------------------
-def _context(**extra: Any) -> dict[str, Any]:
+def _accounts(request: Request) -> accounts.Accounts:
+    return app_state(request.app).accounts
+
+
+def _context(known: accounts.Accounts, **extra: Any) -> dict[str, Any]:
     return {"users": accounts.list_users(), "tokens": accounts.list_tokens(), "roles": ROLES,
-            "configured": accounts.authentication_configured(), "first_admin": FIRST_ADMIN, "active": "users",
-            **extra}
+            "configured": known.authentication_configured(), "first_admin": FIRST_ADMIN, "active": "users", **extra}
 
 
 async def _render(request: Request, block: str | None = None, status: int = 200, **extra: Any) -> Response:
     """The page, or one block; a change of the users also refreshes the token form's list of users (out of band)."""
-    context = await asyncio.to_thread(_context, block=block, **extra)
+    context = await asyncio.to_thread(_context, _accounts(request), block=block, **extra)
     if block == "users":
         return templates.TemplateResponse(request, "users.html", context, block_names=["users", "tokens"],
                                           status_code=status)
@@ -113,33 +117,33 @@ async def add_user(request: Request, name: str = Form(""), role: str = Form("vie
     def add() -> accounts.User:
         if password != password_again:
             raise InvalidValue(_("The two passwords differ: type the same password twice."))
-        return accounts.create_user(name, password, _role(role))
+        return _accounts(request).create_user(name, password, _role(role))
 
     return await _act(request, "users", add, _("Added {name} ({role}).").format(name=name.strip(), role=role))
 
 
 @router.post("/ui/users/{name}/disable", response_class=HTMLResponse)
 async def disable_user(request: Request, name: str) -> Response:
-    return await _act(request, "users", lambda: accounts.set_disabled(name, True),
+    return await _act(request, "users", lambda: _accounts(request).set_disabled(name, True),
                       _("Disabled {name}: they can no longer sign in, and their tokens stop working.").format(
                           name=name))
 
 
 @router.post("/ui/users/{name}/enable", response_class=HTMLResponse)
 async def enable_user(request: Request, name: str) -> Response:
-    return await _act(request, "users", lambda: accounts.set_disabled(name, False),
+    return await _act(request, "users", lambda: _accounts(request).set_disabled(name, False),
                       _("Enabled {name}.").format(name=name))
 
 
 @router.post("/ui/users/{name}/role", response_class=HTMLResponse)
 async def change_role(request: Request, name: str, role: str = Form(...)) -> Response:
-    return await _act(request, "users", lambda: accounts.set_role(name, _role(role)),
+    return await _act(request, "users", lambda: _accounts(request).set_role(name, _role(role)),
                       _("{name} is now {role}.").format(name=name, role=role))
 
 
 @router.post("/ui/users/{name}/password", response_class=HTMLResponse)
 async def reset_password(request: Request, name: str, password: str = Form("")) -> Response:
-    return await _act(request, "users", lambda: accounts.set_password(name, password, end_tokens=True),
+    return await _act(request, "users", lambda: _accounts(request).set_password(name, password, end_tokens=True),
                       _("New password set for {name}; their open sessions and API tokens have ended.").format(
                           name=name))
 
@@ -154,6 +158,6 @@ async def create_token(request: Request, name: str = Form(""), user: str = Form(
 
 @router.post("/ui/tokens/{token_id}/revoke", response_class=HTMLResponse)
 async def revoke_token(request: Request, token_id: RowId) -> Response:
-    return await _act(request, "tokens", lambda: accounts.revoke_token(token_id),
+    return await _act(request, "tokens", lambda: _accounts(request).revoke_token(token_id),
                       _("Token revoked: scripts using it are refused from now on."))
 #FIXME
