@@ -14,6 +14,9 @@ default, actual value, limits, description, denotation, the ``Unit``/``Factor`` 
 and its ``EDS:`` properties (EDS keys without a CiA 311 attribute); an object without ``dataType``/``accessType``
 takes them from the parameter's IEC type and ``access``. A ``dataTypeList`` code outside CiA 301's basic types
 that it defines as one is read as that type; the first ProfileHeader's revision and source are the profile's.
+The file attributes, NMT/LSS features, version elements, ``dummyUsage`` and ``productText`` become the EDS keys
+:mod:`drivebench.device.formats.xdd_places` names, and ``PDOmapping`` ``TPDO``/``RPDO``/``default`` the object's
+``pdo_mapping_kind``.
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ from lxml import etree
 
 from drivebench.device.formats.eds import (
     BAUD_RATES_KBIT,
+    DEVICE_INFO_DEFAULTS,
     MAX_EDS_BYTES,
     OBJECT_LISTS,
     OWN_SECTION,
@@ -34,6 +38,17 @@ from drivebench.device.formats.eds import (
 )
 from drivebench.device.formats.eds_quirks import Warnings
 from drivebench.device.formats.wide_text import decode_wide
+from drivebench.device.formats.xdd_places import (
+    COMMISSIONING,
+    FILE_INFO,
+    FILE_PARAMETER,
+    GENERAL_FEATURES,
+    MASTER_FEATURES,
+    NUMBER_FEATURES,
+    eds_feature_value,
+    eds_file_value,
+)
+from drivebench.device.profiles.profile import Profile
 from drivebench.errors import ProfileError
 from drivebench.i18n import N_, Text
 from drivebench.protocol.datatypes import DATA_TYPE_BY_CODE, DataType
@@ -59,8 +74,8 @@ _IEC_TYPES = {"BOOL": DataType.BOOLEAN, "SINT": DataType.INTEGER8, "CHAR": DataT
               "BITSTRING": DataType.OCTET_STRING}
 """A parameter's IEC 61131 type element as the CiA 301 type, for an object without ``dataType`` (generators such
 as CANopenEditor type the parameter only)."""
-_COMMISSIONING = {"nodeID": "NodeID", "nodeName": "NodeName", "actualBaudRate": "Baudrate",
-                  "networkNumber": "NetNumber", "networkName": "NetworkName", "CANopenManager": "CANopenManager"}
+_PDO_KINDS = {"default": "default", "tpdo": "TPDO", "rpdo": "RPDO"}
+_EDS_PROPERTY = re.compile(r"^EDS:\[([^\]]+)\](.+)$")
 
 
 def local(element: etree._Element) -> str:
@@ -106,6 +121,8 @@ class _Builder:
         self.sections: dict[str, Section] = {}
         self.listed: dict[str, int] = {}
         """How many objects each object list ([MandatoryObjects] ...) holds so far."""
+        self.pdo_kinds: dict[tuple[int, int], str] = {}
+        """CiA 311 ``PDOmapping`` values beyond optional/no, by (index, subindex)."""
         self.defined_types: dict[int, DataType] = {}
         """``dataTypeList`` codes outside CiA 301's basic types that name one (``<defType dataType="0040">
         <Unsigned32/>``)."""
@@ -117,6 +134,32 @@ class _Builder:
             key = {"ProfileRevision": "Version", "ProfileSource": "Source"}.get(local(child))
             if key is not None and text:
                 self.put(OWN_SECTION, child.sourceline or 1, key, text)
+
+    def file_info(self, body: etree._Element) -> None:
+        """The ProfileBody file attributes as [FileInfo] keys."""
+        for attribute, key in FILE_INFO.items():
+            value = body.get(attribute)
+            if value:
+                self.put("FileInfo", body.sourceline or 1, key, eds_file_value(attribute, value))
+
+    def eds_properties(self, parameter: etree._Element) -> None:
+        """The ``EDS:[Section]Key`` properties DriveBench's export carries for EDS keys without a CiA 311 place."""
+        for child in parameter:
+            found = _EDS_PROPERTY.match(str(child.get("name", ""))) if local(child) == "property" else None
+            if found is not None and child.get("value") is not None:
+                self.put(found.group(1), child.sourceline or 1, found.group(2), str(child.get("value")))
+
+    def features(self, element: etree._Element, attributes: dict[str, str]) -> None:
+        """CANopenGeneralFeatures/CANopenMasterFeatures as [DeviceInfo] keys; an attribute left out is the schema's
+        default (false, 0), not the EDS default (``SimpleBootUpSlave=1``); ``granularity`` has none."""
+        for attribute, key in attributes.items():
+            value = element.get(attribute)
+            text = eds_feature_value(attribute, value) if value is not None else "0"
+            if value is None and attribute in ("granularity", "NrOfNG_MonitoredNodes"):
+                continue
+            if text == "0" and key not in DEVICE_INFO_DEFAULTS and attribute not in NUMBER_FEATURES:
+                continue  # false (the schema's default) of an attribute CiA 306 has no key for: the export writes it
+            self.put("DeviceInfo", element.sourceline or 1, key, text)
 
     def data_types(self, body: etree._Element) -> None:
         layers = [e for e in body if local(e) == "ApplicationLayers"]
@@ -144,7 +187,11 @@ class _Builder:
         """Identity from the device body; returns parameters and templates by uniqueID."""
         identity = next((e for e in body.iter() if local(e) == "DeviceIdentity"), None)
         if identity is not None:
+            self.versions([e for e in identity if local(e) == "version"])
             for child in identity:
+                if local(child) == "productText":
+                    self.comments(child)
+                    continue
                 key = {"vendorName": "VendorName", "vendorID": "VendorNumber", "productName": "ProductName",
                        "productID": "ProductNumber", "orderNumber": "OrderCode"}.get(local(child))
                 text = (child.text or "").strip()
@@ -156,6 +203,29 @@ class _Builder:
                     self.put("DeviceInfo", child.sourceline or 1, key, text)
         return {str(e.get("uniqueID")): e for e in body.iter()
                 if local(e) in ("parameter", "parameterTemplate") and e.get("uniqueID")}
+
+    def versions(self, elements: list[etree._Element]) -> None:
+        """Each version element as it was (``Version_FW``, ``Version_HW``, a second FW ``Version_FW_2``), unless it
+        is the one FW revision number DriveBench's export writes from ``RevisionNumber``."""
+        texts = [(re.sub(r"[^A-Za-z]", "", str(e.get("versionType", ""))), (e.text or "").strip()) for e in elements]
+        if len(texts) == 1 and texts[0][0] == "FW" and re.fullmatch(r"0x[0-9A-F]{8}", texts[0][1]):
+            return
+        seen: dict[str, int] = {}
+        for element, (kind, text) in zip(elements, texts, strict=True):
+            seen[kind] = seen.get(kind, 0) + 1
+            suffix = f"_{seen[kind]}" if seen[kind] > 1 else ""
+            self.put("DeviceInfo", element.sourceline or 1, f"Version_{kind}{suffix}", text)
+
+    def comments(self, text: etree._Element) -> None:
+        """A productText description as [Comments] lines (DriveBench writes Profile.notes there)."""
+        description = next((e for e in text if local(e) == "description"), None)
+        if description is None or description.text is None:
+            return
+        lines = description.text.split("\n")
+        line = description.sourceline or 1
+        self.put("Comments", line, "Lines", str(len(lines)))
+        for number, note in enumerate(lines, start=1):
+            self.put("Comments", line, f"Line{number}", note)
 
     def communication(self, body: etree._Element, parameters: dict[str, etree._Element]) -> None:
         for element in body.iter():
@@ -171,8 +241,14 @@ class _Builder:
                 for attribute, key in (("nrOfRxPDO", "NrOfRXPDO"), ("nrOfTxPDO", "NrOfTXPDO")):
                     if element.get(attribute) is not None:
                         self.put("DeviceInfo", line, key, str(element.get(attribute)))
+                self.features(element, GENERAL_FEATURES)
+            elif name == "CANopenMasterFeatures":
+                self.features(element, MASTER_FEATURES)
+            elif name == "dummy" and "=" in element.get("entry", ""):
+                key, _, value = str(element.get("entry")).partition("=")
+                self.put("DummyUsage", line, key.strip(), value.strip())
             elif name == "deviceCommissioning":
-                for attribute, key in _COMMISSIONING.items():
+                for attribute, key in COMMISSIONING.items():
                     value = element.get(attribute)
                     if value is not None:
                         rate = self.baud(value, line) if attribute == "actualBaudRate" else None
@@ -228,6 +304,10 @@ class _Builder:
             if attribute == "dataType":
                 value = self.data_type(value, line)
             elif attribute == "PDOmapping":
+                kind = _PDO_KINDS.get(value.strip().lower())
+                if kind is not None:
+                    index, _, sub = section.upper().partition("SUB")
+                    self.pdo_kinds[(int(index, 16), int(sub or "0", 16))] = kind
                 value = "0" if value.strip().lower() == "no" else "1"
             target.setdefault(key.lower(), Key(key, value, line))
         reference = element.get("uniqueIDRef")
@@ -315,9 +395,12 @@ def read_xdd(data: bytes, *, source: str) -> ImportedEds:
     if profiles:
         builder.header(profiles[0])
     builder.data_types(communication[0])
+    builder.file_info(communication[0])
     for body in bodies:
         if _body_type(body).startswith("ProfileBody_Device_CANopen"):
             parameters |= builder.device(body)
+    if FILE_PARAMETER in parameters:
+        builder.eds_properties(parameters[FILE_PARAMETER])
     if "DEVICEINFO" not in builder.sections:
         builder.put("DeviceInfo", root.sourceline or 1, "VendorName", "")
         notes.add(root.sourceline, "DeviceIdentity", Text(N_("no ProfileBody_Device_CANopen with a DeviceIdentity: "
@@ -327,4 +410,14 @@ def read_xdd(data: bytes, *, source: str) -> ImportedEds:
         found = builder.sections.get(listing.upper())
         if found is not None:
             found.keys["supportedobjects"] = Key("SupportedObjects", str(builder.listed[listing]), found.line)
-    return read_sections(builder.sections, source, notes)
+    imported = read_sections(builder.sections, source, notes)
+    return ImportedEds(with_pdo_kinds(imported.profile, builder.pdo_kinds), imported.warnings)
+
+
+def with_pdo_kinds(profile: Profile, kinds: dict[tuple[int, int], str]) -> Profile:
+    """``profile`` with each mappable object's CiA 311 PDOmapping kind (``TPDO``, ``RPDO``, ``default``)."""
+    if not kinds:
+        return profile
+    objects = [o.model_copy(update={"pdo_mapping_kind": kinds[(o.index, o.subindex)]})
+               if o.pdo_mappable and (o.index, o.subindex) in kinds else o for o in profile.objects]
+    return profile.model_copy(update={"objects": objects})

@@ -14,8 +14,21 @@ from datetime import UTC, datetime
 
 from lxml import etree
 
+from drivebench.device.formats.eds import DEVICE_INFO_DEFAULTS, file_info_defaults
 from drivebench.device.formats.eds_export import Address, export_value_text, node_value, objects_by_index
 from drivebench.device.formats.xdd import EDS_KEY_PREFIX
+from drivebench.device.formats.xdd_places import (
+    COMMISSIONING,
+    FILE_INFO,
+    FILE_PARAMETER,
+    GENERAL_FEATURES,
+    MASTER_FEATURES,
+    VERSION_KEY,
+    extra,
+    unplaced,
+    xdd_feature_value,
+    xdd_file_value,
+)
 from drivebench.device.profiles.profile import ObjectEntry, Profile, Value
 from drivebench.protocol.datatypes import DataType
 
@@ -63,13 +76,63 @@ def _child(name: str, text: str) -> etree._Element:
     return element
 
 
-def _body(profile_root: etree._Element, kind: str) -> etree._Element:
+def _body(profile_root: etree._Element, kind: str, profile: Profile) -> etree._Element:
+    """A ProfileBody with the file attributes of the profile's [FileInfo] (where it has none: the EDS export's
+    defaults, DriveBench and now)."""
     now = datetime.now(UTC)
-    body = _el(profile_root, "ProfileBody", fileName="", fileCreator="DriveBench",
-               fileCreationDate=now.strftime("%Y-%m-%d"), fileCreationTime=now.strftime("%H:%M:%S"),
-               fileVersion="1")
+    file_info = extra(profile, "FileInfo")
+    made = {"fileName": file_info_defaults(profile)["FileName"], "fileCreator": "DriveBench",
+            "fileCreationDate": now.strftime("%Y-%m-%d"), "fileCreationTime": now.strftime("%H:%M:%S"),
+            "fileVersion": "1"}
+    if "CreationDate" in file_info and "CreationTime" not in file_info:
+        del made["fileCreationTime"]
+    for attribute, key in FILE_INFO.items():
+        if key in file_info:
+            made[attribute] = xdd_file_value(attribute, file_info[key])
+    body = _el(profile_root, "ProfileBody", **{a: made[a] for a in FILE_INFO if a in made})
     body.set(f"{{{XSI}}}type", kind)
     return body
+
+
+def _features(management: etree._Element, profile: Profile) -> None:
+    """CANopenGeneralFeatures and CANopenMasterFeatures from [DeviceInfo] (CiA 306 defaults where it has none)."""
+    info = {**DEVICE_INFO_DEFAULTS, **extra(profile, "DeviceInfo")}
+    general = _el(management, "CANopenGeneralFeatures")
+    for element, names in ((general, GENERAL_FEATURES), (_el(management, "CANopenMasterFeatures"), MASTER_FEATURES)):
+        for attribute, key in names.items():
+            text = info.get(key, None if attribute == "NrOfNG_MonitoredNodes" else "0")  # else: the schema default
+            if text is not None:
+                element.set(attribute, xdd_feature_value(attribute, text))
+    general.set("nrOfRxPDO", str(profile.features.rpdo_count))
+    general.set("nrOfTxPDO", str(profile.features.tpdo_count))
+
+
+def _versions(identity: etree._Element, profile: Profile) -> None:
+    """The DeviceIdentity version elements as the file had them (``Version_FW`` ...), else the revision number."""
+    kept = [(VERSION_KEY.match(k), v) for k, v in extra(profile, "DeviceInfo").items()]
+    versions = [(found.group(1), value) for found, value in kept if found is not None]
+    if not versions and profile.identity.revision is not None:
+        versions = [("FW", f"0x{profile.identity.revision:08X}")]
+    for kind, text in versions:
+        _el(identity, "version", text, versionType=kind)
+
+
+def _file_parameter(parameters: etree._Element, profile: Profile) -> None:
+    """The EDS keys CiA 311 has no place for as ``EDS:[Section]Key`` properties, so an import gets them back."""
+    keys = unplaced(profile)
+    if not keys:
+        return
+    parameter = _el(parameters, "parameter", uniqueID=FILE_PARAMETER, access="noAccess")
+    _el(parameter, "label", "EDS keys without a CiA 311 place", lang="en")
+    _el(parameter, "BYTE")
+    for section, key, value in keys:
+        _el(parameter, "property", None, name=f"{EDS_KEY_PREFIX}[{section}]{key}", value=value)
+
+
+def export_warnings(profile: Profile) -> list[str]:
+    """What the XDD export cannot say in CiA 311 terms: each EDS key without a place (``[DeviceInfo] CompactPDO``);
+    the export keeps them as DriveBench ``EDS:`` properties that other tools skip."""
+    return [f"[{section}] {key}" for section, key, _ in unplaced(profile)]
 
 
 def _uid(entry: ObjectEntry) -> str:
@@ -113,7 +176,7 @@ def _object_attributes(element: etree._Element, entry: ObjectEntry, value: Value
                            ("actualValue", "ParameterValue"), ("denotation", "Denotation")):
         if key in texts:
             element.set(attribute, texts[key])
-    element.set("PDOmapping", "optional" if entry.pdo_mappable else "no")
+    element.set("PDOmapping", (entry.pdo_mapping_kind or "optional") if entry.pdo_mappable else "no")
     if with_flags and entry.obj_flags is not None:
         element.set("objFlags", f"{entry.obj_flags:X}")
     if entry.description is not None or entry.unit is not None or entry.factor != 1 or entry.section_keys:
@@ -127,7 +190,7 @@ def export_xdd(profile: Profile, *, node_id: int | None = None, values: Mapping[
     container = _el(None, "ISO15745ProfileContainer")
     device = _el(container, "ISO15745Profile")
     _header(device, profile, "device profile", "Device")
-    device_body = _body(device, "ProfileBody_Device_CANopen")
+    device_body = _body(device, "ProfileBody_Device_CANopen", profile)
     identity = _el(device_body, "DeviceIdentity")
     ident = profile.identity
     _el(identity, "vendorName", ident.vendor_name)
@@ -136,15 +199,17 @@ def export_xdd(profile: Profile, *, node_id: int | None = None, values: Mapping[
     _el(identity, "productName", ident.product_name)
     if ident.product_code is not None:
         _el(identity, "productID", f"0x{ident.product_code:08X}")
+    if profile.notes:  # the EDS [Comments] lines
+        _el(_el(identity, "productText"), "description", "\n".join(profile.notes), lang="en")
     for code in ident.order_codes:
         _el(identity, "orderNumber", code)
-    if ident.revision is not None:
-        _el(identity, "version", f"0x{ident.revision:08X}", versionType="FW")
+    _versions(identity, profile)
     parameters = _el(_el(device_body, "ApplicationProcess"), "parameterList")
+    _file_parameter(parameters, profile)
 
     network = _el(container, "ISO15745Profile")
     _header(network, profile, "communication network profile", "CommunicationNetwork")
-    network_body = _body(network, "ProfileBody_CommunicationNetwork_CANopen")
+    network_body = _body(network, "ProfileBody_CommunicationNetwork_CANopen", profile)
     layers = _el(network_body, "ApplicationLayers")
     by_index = objects_by_index(profile)
     type_list = _el(layers, "dataTypeList")
@@ -172,18 +237,32 @@ def export_xdd(profile: Profile, *, node_id: int | None = None, values: Mapping[
             sub = _el(obj, "CANopenSubObject", subIndex=f"{entry.subindex:02X}")
             _object_attributes(sub, entry, node_value(entry, values or {}, node_id, xdc), with_flags=shared is None)
             _parameter(parameters, entry)
+    dummies = extra(profile, "DummyUsage")
+    if dummies:
+        usage = _el(layers, "dummyUsage")
+        for key, value in dummies.items():
+            _el(usage, "dummy", entry=f"{key}={value}")
     transport = _el(_el(network_body, "TransportLayers"), "PhysicalLayer")
     baud = _el(transport, "baudRate", defaultValue=f"{(profile.features.baud_rates_kbit or [250])[-1]} Kbps")
     for rate in profile.features.baud_rates_kbit:
         _el(baud, "supportedBaudRate", value=f"{rate} Kbps")
     management = _el(network_body, "NetworkManagement")
-    _el(management, "CANopenGeneralFeatures", granularity="8", nrOfRxPDO=str(profile.features.rpdo_count),
-        nrOfTxPDO=str(profile.features.tpdo_count))
-    _el(management, "CANopenMasterFeatures")
+    _features(management, profile)
+    kept = extra(profile, "DeviceComissioning")
+    if kept and not xdc:
+        commissioning = _el(management, "deviceCommissioning")
+        for attribute, key in COMMISSIONING.items():
+            if key in kept:
+                text = kept[key]
+                commissioning.set(attribute, f"{text} Kbps" if key == "Baudrate" and text.isdigit() else text)
     if xdc:
         commissioning = _el(management, "deviceCommissioning", nodeID=str(node_id or 1),
                             nodeName=profile.identity.product_name, networkNumber="1", networkName="",
                             CANopenManager="false")
         if baud_kbit is not None:
             commissioning.set("actualBaudRate", f"{baud_kbit} Kbps")
+    warnings = export_warnings(profile)
+    if warnings:
+        container.insert(0, etree.Comment(" EDS keys without a CiA 311 place, kept as EDS: properties of "
+                                          f"{FILE_PARAMETER}: {', '.join(warnings)} ".replace("--", "- -")))
     return etree.tostring(container, xml_declaration=True, encoding="UTF-8", pretty_print=True)

@@ -190,6 +190,9 @@ class ObjectEntry(Entry):
     object_keys: dict[str, str] | None = None
     """On the first entry of an ARRAY/RECORD: keys of the object's own section (``[1018]``) the model has no field
     for, in file order; an export writes them back there."""
+    pdo_mapping_kind: Literal["default", "TPDO", "RPDO"] | None = None
+    """A CiA 311 ``PDOmapping`` beyond ``optional``/``no`` (mapped by default, only into a TPDO or an RPDO); an XDD
+    export writes it back (an EDS knows only ``PDOMapping=1``). Only on a ``pdo_mappable`` object."""
     domain_object: bool = False
     """The file gave ``ObjectType=0x2`` (DOMAIN): read as a VAR, written as 0x2 again."""
     compact: bool = False

@@ -6,6 +6,7 @@ downloads. What they do lives in :mod:`drivebench.services.profiles`; reading th
 from __future__ import annotations
 
 import asyncio
+import json
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Query, Request, status
@@ -13,7 +14,7 @@ from fastapi.responses import HTMLResponse, JSONResponse, PlainTextResponse, Res
 
 from drivebench.device.formats.eds_export import export_eds
 from drivebench.device.formats.xdd import XML_SUFFIXES
-from drivebench.device.formats.xdd_export import export_xdd
+from drivebench.device.formats.xdd_export import export_warnings, export_xdd
 from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.device.profiles.profile import Profile
 from drivebench.errors import DriveBenchError
@@ -113,8 +114,10 @@ async def get_profile_xdd(profile_id: str, state: StateDep, regenerate: bool = F
     if loaded.original is not None and loaded.suffix in XML_SUFFIXES and not regenerate:
         return Response(loaded.original, media_type="application/xml",
                         headers=_attachment(f"{profile_id}{loaded.suffix}"))
-    return Response(export_xdd(loaded.profile), media_type="application/xml",
-                    headers=_attachment(f"{profile_id}.xdd"))
+    warnings = export_warnings(loaded.profile)  # EDS keys without a CiA 311 place (kept as EDS: properties)
+    headers = _attachment(f"{profile_id}.xdd") | (
+        {"X-DriveBench-Export-Warnings": json.dumps(warnings)} if warnings else {})
+    return Response(export_xdd(loaded.profile), media_type="application/xml", headers=headers)
 
 
 @router.get("/{profile_id}/json", response_class=Response,

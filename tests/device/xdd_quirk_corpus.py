@@ -1,0 +1,94 @@
+"""A corpus of small XDD and EDS files for what CiA 311 can say beyond the object list (written here, no vendor's
+file copied): PDO direction, NMT/LSS features, file and version elements, and the EDS sections an XDD has a place
+for (or none). :func:`xdd` builds an XDD from parts so the hypothesis round trips can vary each of them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from xml.sax.saxutils import quoteattr
+
+from tests.device.quirk_corpus import BASE
+
+PDO_KINDS = ("TPDO", "RPDO", "default", "optional", "no")
+
+
+def _attributes(values: Mapping[str, str]) -> str:
+    return "".join(f" {name}={quoteattr(value)}" for name, value in values.items())
+
+
+def xdd(*, pdo: Sequence[str] = PDO_KINDS, general: Mapping[str, str] | None = None,
+        master: Mapping[str, str] | None = None, file: Mapping[str, str] | None = None,
+        versions: Sequence[tuple[str, str]] = (("FW", "0x00010002"),)) -> bytes:
+    """An XDD of a small I/O device: object 0x2000+n with ``PDOmapping=pdo[n]``, the features, the ProfileBody file
+    attributes and DeviceIdentity versions given."""
+    file_attributes = _attributes(file or {"fileName": "io.xdd", "fileCreator": "Hand", "fileCreationDate":
+                                           "2024-03-03", "fileVersion": "1"})
+    general_attributes = _attributes({"granularity": "8", **(general or {}), "nrOfRxPDO": "0", "nrOfTxPDO": "0"})
+    version_elements = "".join(f'<version versionType="{kind}">{text}</version>' for kind, text in versions)
+    objects = "".join(
+        f'<CANopenObject index="{0x2000 + n:04X}" name="Value {n}" objectType="7" dataType="0006" accessType="rw" '
+        f'defaultValue="0" PDOmapping="{kind}"/>' for n, kind in enumerate(pdo))
+    header = ('<ProfileHeader><ProfileIdentification>x</ProfileIdentification><ProfileRevision>1</ProfileRevision>'
+              '<ProfileName>x</ProfileName><ProfileSource/><ProfileClassID>{0}</ProfileClassID></ProfileHeader>')
+    text = f"""<?xml version="1.0" encoding="UTF-8"?>
+<ISO15745ProfileContainer xmlns="http://www.canopen.org/xml/1.0" xmlns:xsi="http://www.w3.org/2001/XMLSchema-instance">
+  <ISO15745Profile>
+    {header.format("Device")}
+    <ProfileBody xsi:type="ProfileBody_Device_CANopen"{file_attributes}>
+      <DeviceIdentity>
+        <vendorName>Example IO</vendorName><vendorID>0x000004D2</vendorID><productName>IO 16</productName>
+        {version_elements}
+      </DeviceIdentity>
+    </ProfileBody>
+  </ISO15745Profile>
+  <ISO15745Profile>
+    {header.format("CommunicationNetwork")}
+    <ProfileBody xsi:type="ProfileBody_CommunicationNetwork_CANopen"{file_attributes}>
+      <ApplicationLayers>
+        <CANopenObjectList>
+          <CANopenObject index="1000" name="Device type" objectType="7" dataType="0007" accessType="ro"
+            defaultValue="0x00030191" PDOmapping="no"/>
+          {objects}
+        </CANopenObjectList>
+      </ApplicationLayers>
+      <NetworkManagement>
+        <CANopenGeneralFeatures{general_attributes}/>
+        <CANopenMasterFeatures{_attributes(master or {})}/>
+      </NetworkManagement>
+    </ProfileBody>
+  </ISO15745Profile>
+</ISO15745ProfileContainer>
+"""
+    return text.encode()
+
+
+ALL_FEATURES = xdd(
+    general={"groupMessaging": "true", "dynamicChannels": "3", "selfStartingDevice": "true",
+             "SDORequestingDevice": "true", "granularity": "0", "bootUpSlave": "false",
+             "layerSettingServiceSlave": "true", "ngSlave": "true", "ngMaster": "false", "NrOfNG_MonitoredNodes": "4"},
+    master={"bootUpMaster": "true", "flyingMaster": "true", "SDOManager": "false", "configurationManager": "true",
+            "layerSettingServiceMaster": "true"})
+VERSIONED = xdd(
+    file={"fileName": "io16.xdd", "fileCreator": "Vendor Tool 3.1", "fileCreationDate": "2021-06-30",
+          "fileCreationTime": "13:37:21", "fileModificationDate": "2022-01-02", "fileModificationTime": "08:00:00",
+          "fileModifiedBy": "J. Doe", "fileVersion": "1.02"},
+    versions=(("FW", "1.2.3"), ("HW", "B"), ("SW", "0x00010002"), ("FW", "boot 0.9")))
+
+
+def _section(text: str, name: str, body: str) -> str:
+    start = text.index(f"[{name}]\n")
+    end = text.index("\n\n", start)
+    return text[:start] + f"[{name}]\n{body}" + text[end:]
+
+
+EDS_SECTIONS = _section(_section(BASE, "DeviceInfo", BASE[BASE.index("[DeviceInfo]\n") + 13:BASE.index(
+    "LSS_Supported=1")] + "LSS_Supported=1\nCompactPDO=0x3F\nLSS_Type=Server").replace(
+    "Granularity=8", "Granularity=0"), "Comments", "Lines=2\nLine1=First comment line\nLine2=Second, with (more) words"
+) + "\n[DeviceComissioning]\nNodeID=5\nNodeName=Left axis\nBaudrate=500\nNetNumber=1\nNetworkName=Line 2\n" \
+    "CANopenManager=0\nLSS_SerialNumber=1234\n\n[Tools]\nItems=1\nTool1=Configurator\n"
+"""The clean EDS with every section CiA 311 has a place for, written as a vendor would (``Granularity=0``,
+``CompactPDO``, ``LSS_Type``, a two-line comment, a commissioned node, a ``[Tools]`` section)."""
+
+CASES: list[tuple[str, bytes]] = [("pdo_directions.xdd", xdd()), ("all_features.xdd", ALL_FEATURES),
+                                  ("versioned.xdd", VERSIONED), ("eds_sections.eds", EDS_SECTIONS.encode())]
