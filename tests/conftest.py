@@ -18,9 +18,9 @@ from typing import TypeVar
 import can
 import pytest
 import uvicorn
-from fastapi import FastAPI
 from fastapi.testclient import TestClient
 from hypothesis import settings
+from starlette.types import ASGIApp
 
 from drivebench.config import REPO_ROOT
 from drivebench.config import settings as app_settings
@@ -193,7 +193,7 @@ def _free_port() -> int:
 
 
 @contextlib.contextmanager
-def serve_app(app: FastAPI, start_timeout_s: float = 60.0, **config: object) -> Iterator[str]:
+def serve_app(app: ASGIApp, start_timeout_s: float = 60.0, **config: object) -> Iterator[str]:
     """Run ``app`` in uvicorn on a free loopback port in a thread; yields its base URL, stops it on exit, also when
     it did not start in ``start_timeout_s`` (a server left starting ran on after the failed test, with its plant's
     and bus's threads). ``config`` goes to uvicorn (``ssl_certfile``/``ssl_keyfile`` serve https)."""

@@ -39,6 +39,7 @@ def serve(args: argparse.Namespace) -> int:
     from drivebench.web import serving
     from drivebench.web.access import secret_key
     from drivebench.web.app import create_app
+    from drivebench.web.forwarded_prefix import proxied
     from drivebench.web.tls import check_pair
 
     logging.config.dictConfig(serving.log_config(args.log_level, args.log_format))  # start-up records too
@@ -76,9 +77,9 @@ def serve(args: argparse.Namespace) -> int:
     # per answer); the access log only where the log level shows it (the audit log records every write; a poll per
     # second is not news).
     with i18n.using(i18n.DEFAULT):  # a request speaks its browser's language, never the server shell's
-        uvicorn.run(app, host=args.host, port=args.port, log_level=args.log_level, ws_ping_interval=20,
-                    ssl_certfile=args.tls_cert, ssl_keyfile=args.tls_key, proxy_headers=bool(forwarded),
-                    forwarded_allow_ips=forwarded or None, loop=_fastest("uvloop"), server_header=False,
+        uvicorn.run(proxied(app, forwarded), host=args.host, port=args.port, log_level=args.log_level,
+                    ws_ping_interval=20, ssl_certfile=args.tls_cert, ssl_keyfile=args.tls_key, proxy_headers=False,
+                    loop=_fastest("uvloop"), server_header=False,
                     access_log=args.log_level in ("info", "debug"), root_path=settings.root_path,
                     **serving.uvicorn_options(log_level=args.log_level, log_format=args.log_format))
     return 0

@@ -1,5 +1,6 @@
 """DriveBench behind a real reverse proxy at a sub-path (issue 33): Debian's nginx serves /drivebench/ from a
-DriveBench started with root_path /drivebench (``serve --root-path``); a browser works through it, websockets too,
+DriveBench started with root_path /drivebench (``serve --root-path``), or from one started without it that believes
+the proxy's ``X-Forwarded-Prefix`` (``serve --forwarded-allow-ips``); a browser works through it, websockets too,
 and asks for nothing outside /drivebench/."""
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from typing import Any
 import pytest
 
 from drivebench.web.app import create_app
+from drivebench.web.forwarded_prefix import proxied as believing_proxies
 from tests.conftest import DEMO_PLANT, fresh_channel, screenshot, serve_app
 
 expect = pytest.importorskip("playwright.sync_api").expect
@@ -45,6 +47,7 @@ http {{
       proxy_set_header Connection "upgrade";
       proxy_set_header Host $host:$server_port;
       proxy_read_timeout 300s;
+      {extra}
     }}
   }}
 }}
@@ -64,17 +67,22 @@ def _free_port() -> int:
         return int(sock.getsockname()[1])
 
 
-@pytest.fixture(scope="module")
-def proxied(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
-    """nginx on a free loopback port proxying /drivebench/ to the demo plant served with root_path; its base URL."""
+@pytest.fixture(scope="module", params=["root-path", "forwarded-prefix"])
+def proxied(tmp_path_factory: pytest.TempPathFactory, request: pytest.FixtureRequest) -> Iterator[str]:
+    """nginx on a free loopback port proxying /drivebench/ to the demo plant served with root_path, or served
+    without it and told the prefix by nginx's X-Forwarded-Prefix; its base URL."""
     nginx = _nginx()
     app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
-    with serve_app(app, root_path=ROOT) as upstream:
+    by_header = request.param == "forwarded-prefix"
+    served = serve_app(believing_proxies(app, "127.0.0.1"), proxy_headers=False) if by_header else \
+        serve_app(app, root_path=ROOT)
+    with served as upstream:
         folder = tmp_path_factory.mktemp("nginx")
         port = _free_port()
         config = folder / "nginx.conf"
+        extra = f"proxy_set_header X-Forwarded-Prefix {ROOT};" if by_header else ""
         config.write_text(NGINX_CONF.format(user="user root;" if os.geteuid() == 0 else "", dir=folder, port=port,
-                                            root=ROOT, upstream=upstream), encoding="utf-8")
+                                            root=ROOT, upstream=upstream, extra=extra), encoding="utf-8")
         process = subprocess.Popen([nginx, "-p", str(folder), "-c", str(config)], stdout=subprocess.DEVNULL,
                                    stderr=subprocess.PIPE)
         base = f"http://127.0.0.1:{port}{ROOT}"
