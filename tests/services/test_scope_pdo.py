@@ -16,9 +16,12 @@ from drivebench.errors import ConfirmationRequired, InvalidValue
 from drivebench.services.bus.sessions import Session
 from drivebench.services.control import motion
 from drivebench.services.control.drive_guard import Confirmation
-from drivebench.services.params.write_context import WriteContext
+from drivebench.services.params import node_lease
+from drivebench.services.params import writes as parameters
+from drivebench.services.params.node_lease import NodeLeased
+from drivebench.services.params.write_context import WriteContext, Writer
 from drivebench.services.pdos import pdo
-from drivebench.services.scope import pdo_source
+from drivebench.services.scope import pdo_source, restore_record
 from drivebench.services.scope.pdo_plan import ScopePlan, plan_recording
 from drivebench.services.scope.pdo_source import PdoScopeSource
 from drivebench.services.scope.source import ScopeChannel, ScopeEvent, ScopeFrame
@@ -29,7 +32,7 @@ from drivebench.transport.busload import frame_bits
 from tests.confirming import confirmed_call
 from tests.conftest import DEMO_PLANT, fresh_channel, wait_until
 from tests.services.test_motion import AXIS, Axis
-from tests.write_contexts import SERVICE
+from tests.write_contexts import SERVICE, as_writer
 
 POSITION, VELOCITY = ScopeChannel(AXIS, "0x6064"), ScopeChannel(AXIS, "0x606C")
 TPDO3 = 0x380 + AXIS
@@ -209,3 +212,38 @@ def test_a_node_that_stops_sending_is_an_event_in_words(
     runner.run(source.stop())
     late = [f for f in recorder.frames[-20:]]
     assert all(f.raw[0] is not None for f in late[:5])  # node 7 went on
+
+
+def test_the_recording_holds_the_node_lease_shared_with_the_same_writer(
+        plant_session: tuple[asyncio.Runner, Session], db: str) -> None:
+    runner, session = plant_session
+    plan = runner.run(plan_recording(session, [POSITION], 0.005))
+    anna = as_writer(Writer("anna", "panel:anna", "Scope"))
+    needed = pdo_source.confirmation(plan)
+    assert needed is not None
+    source = PdoScopeSource(session, plan, anna.confirming(Confirmation(needed[0], needed[2])))
+    runner.run(source.start(print, print))
+    try:
+        with pytest.raises(NodeLeased, match="anna"):
+            runner.run(parameters.write(session, AXIS, "0x6065", 500, ctx=as_writer(Writer("ben", "panel:ben"))))
+        runner.run(parameters.write(session, AXIS, "0x6065", 500, ctx=anna))  # her own tuning write
+    finally:
+        runner.run(source.stop())
+    lease = node_lease.leases(session).current(AXIS)
+    assert lease is not None and lease.active == 0  # the recording ended: it lapses as after anna's own writes
+
+
+def test_a_tpdo_remapped_by_someone_else_meanwhile_is_not_overwritten(
+        plant_session: tuple[asyncio.Runner, Session], plant: Plant, db: str) -> None:
+    runner, session = plant_session
+    plan = runner.run(plan_recording(session, [POSITION, VELOCITY], 0.005))
+    source = PdoScopeSource(session, plan, confirmed_ctx(plan))
+    runner.run(source.start(print, print))
+    store = plant.nodes[AXIS].store  # another master on the bus maps the torque into TPDO3
+    for sub, value in ((0, 0), (2, 0x6077_0010), (0, 2)):
+        store.set(0x1A02, sub, value)
+    texts = runner.run(source.stop())
+    assert any("TPDO3 was remapped by someone else" in text and "left as it is" in text for text in texts), texts
+    assert any("restore record is kept" in text for text in texts)
+    assert store.get(0x1A02, 2) == 0x6077_0010
+    assert len(restore_record.leftovers(db)) == 1
