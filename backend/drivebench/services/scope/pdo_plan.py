@@ -108,7 +108,7 @@ class ScopePlan:
         lines += [_("Node {node} is sampled by polling: {reason}").format(node=poll.node, reason=poll.reason)
                   for poll in self.polling]
         if self.tpdos:
-            lines.append(_("SYNC every {period} ms from DriveBench; the recording takes {share} % of the bus "
+            lines.append(_("SYNC every {period} ms from DriveBench; the recording takes a bus share of {share} % "
                            "({bits} bits per SYNC at {rate} kbit/s).").format(
                 period=f"{self.period_s * 1000:g}", share=f"{self.bus_share:.1f}", bits=self.bits_per_sync,
                 rate=f"{self.bitrate / 1000:g}"))
@@ -250,8 +250,8 @@ async def plan_recording(session: Session, channels: list[ScopeChannel], period_
                      bitrate)
     if plan.bus_share > MAX_BUS_SHARE:
         shortest = bits / (MAX_BUS_SHARE / 100 * bitrate)
-        raise InvalidValue(_("At {period} ms the recording would take {share} % of the bus ({bits} bits per SYNC "
-                             "at {rate} kbit/s); at most {limit} % is allowed. Choose a period of {shortest} ms or "
+        raise InvalidValue(_("At {period} ms the recording would take a bus share of {share} % ({bits} bits per SYNC "
+                             "at {rate} kbit/s); {limit} % at most is allowed. Choose a period of {shortest} ms or "
                              "more, or fewer channels.").format(
             period=f"{period_s * 1000:g}", share=f"{plan.bus_share:.0f}", bits=bits, rate=f"{bitrate / 1000:g}",
             limit=f"{MAX_BUS_SHARE:g}", shortest=f"{shortest * 1000:.2f}"))

@@ -269,8 +269,8 @@ class PdoScopeSource:
             self._check_nodes()
             producer = self._producer
             for number, seconds in producer.pauses[pauses:]:
-                self._event(None, _("SYNC paused for {ms} ms after SYNC {number} (the machine was busy): the samples "
-                                    "in between are missing.").format(ms=f"{seconds * 1000:.0f}", number=number))
+                self._event(None, _("SYNC paused for {ms} ms after SYNC {number} (the machine was busy): no samples "
+                                    "exist for that time.").format(ms=f"{seconds * 1000:.0f}", number=number))
             pauses = len(producer.pauses)
             if producer.error:
                 self._once("sync-lost", None, _("SYNC lost: DriveBench could not send it ({why}). The recording "

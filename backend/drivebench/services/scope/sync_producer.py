@@ -16,7 +16,8 @@ from collections.abc import Callable
 from drivebench.errors import DriveBenchError
 
 PAUSE_PERIODS = 5
-"""A gap of this many periods between two SYNCs is reported as a pause."""
+PAUSE_MIN_S = 0.02
+"""A gap of this many periods (and at least this long) between two SYNCs is reported as a pause."""
 
 
 class SyncProducer:
@@ -29,7 +30,8 @@ class SyncProducer:
         self.last: float | None = None
         self.error: str | None = None
         self.pauses: list[tuple[int, float]] = []
-        """(SYNC number, seconds) of each pause longer than :data:`PAUSE_PERIODS` periods."""
+        """(SYNC number, seconds) of each pause (:data:`PAUSE_PERIODS`, :data:`PAUSE_MIN_S`)."""
+        self._pause_s = max(PAUSE_PERIODS * period_s, PAUSE_MIN_S)
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="scope-sync", daemon=True)
@@ -64,7 +66,7 @@ class SyncProducer:
                     self.error = exc.shown_detail()
                     return
                 now = time.monotonic()
-                if self.last is not None and now - self.last > PAUSE_PERIODS * self.nominal_s:
+                if self.last is not None and now - self.last > self._pause_s:
                     self.pauses.append((self.count, now - self.last))
                 self.first = now if self.first is None else self.first
                 self.last = now
