@@ -6,13 +6,14 @@ confirmation a recording needs."""
 from __future__ import annotations
 
 import asyncio
+import contextlib
 from collections.abc import Iterator
 
 import can
 import pytest
 
 from drivebench.device.profiles.loader import ProfileRegistry
-from drivebench.errors import ConfirmationRequired, InvalidValue
+from drivebench.errors import ConfirmationRequired, Conflict, InvalidValue
 from drivebench.services.bus.sessions import Session
 from drivebench.services.control import motion
 from drivebench.services.control.drive_guard import Confirmation
@@ -115,7 +116,7 @@ def test_a_recording_that_would_overload_the_bus_is_refused_with_the_period_that
     with pytest.raises(InvalidValue) as refused:
         runner.run(plan_recording(session, [POSITION, VELOCITY], 0.001))
     text = str(refused.value.detail)
-    assert "% of the bus" in text and "at most 80 %" in text and "Choose a period of" in text
+    assert "a bus share of" in text and "80 % at most" in text and "Choose a period of" in text
     assert runner.run(plan_recording(session, [POSITION, VELOCITY], 0.002)).bus_share < 80
 
 
@@ -247,3 +248,45 @@ def test_a_tpdo_remapped_by_someone_else_meanwhile_is_not_overwritten(
     assert any("restore record is kept" in text for text in texts)
     assert store.get(0x1A02, 2) == 0x6077_0010
     assert len(restore_record.leftovers(db)) == 1
+
+
+@pytest.fixture
+def tripping_axis(registry: ProfileRegistry) -> Iterator[tuple[asyncio.Runner, Session, Plant]]:
+    """The demo plant whose servo (node 7) trips on overcurrent above 250 ‰ of rated current."""
+    plant_file = PlantFile.load(DEMO_PLANT)
+    for node in plant_file.nodes:
+        if node.node_id == AXIS:
+            node.trip_current_permille = 250
+    plant = Plant(plant_file, registry.get, bus=f"virtual:{fresh_channel()}@500000", latency="0ms").start()
+    runner = asyncio.Runner()
+    manager = SessionManager(registry, sdo_timeout_s=1.0, sdo_retries=1)
+    session = runner.run(manager.open(plant.spec, "trip"))
+    for node in plant.nodes.values():
+        session.add_node(node.node_id, node.profile.id)
+    yield runner, session, plant
+    runner.run(manager.close_all())
+    runner.close()
+    plant.stop()
+
+
+def test_the_current_spike_of_an_acceleration_and_the_overcurrent_trip_it_causes_are_recorded(
+        tripping_axis: tuple[asyncio.Runner, Session, Plant], db: str) -> None:
+    runner, session, plant = tripping_axis
+    axis = Axis(runner, session, plant)
+    axis.enable()
+    plan = runner.run(plan_recording(session, [ScopeChannel(AXIS, "0x6078"), ScopeChannel(AXIS, "0x6041", bit=3)],
+                                     0.002))
+    recorder = Recorder()
+    source = PdoScopeSource(session, plan, confirmed_ctx(plan))
+    runner.run(source.start(recorder.frames.append, recorder.events.append))
+    with contextlib.suppress(Conflict):  # it may trip before it acknowledges the set-point
+        axis.run(confirmed_call(motion.move, session, axis.node, 720, confirm=AXIS, ctx=SERVICE))
+    axis.until(lambda status: status.state == "fault", "the overcurrent trip")
+    axis.run(asyncio.sleep(0.2))
+    runner.run(source.stop())
+    values = [frame.raw for frame in recorder.frames if None not in frame.raw]
+    spike = next(n for n, (current, _fault) in enumerate(values) if current is not None and abs(current) > 250)
+    tripped = next(n for n, (_current, fault) in enumerate(values) if fault == 1)
+    assert spike <= tripped, "the spike comes first, the fault bit (status word bit 3) after it"
+    assert all(fault == 0 for _current, fault in values[:spike])
+    assert plant.nodes[AXIS].drive.fault_code == 0x2310  # type: ignore[union-attr]
