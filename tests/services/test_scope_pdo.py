@@ -290,3 +290,18 @@ def test_the_current_spike_of_an_acceleration_and_the_overcurrent_trip_it_causes
     assert spike <= tripped, "the spike comes first, the fault bit (status word bit 3) after it"
     assert all(fault == 0 for _current, fault in values[:spike])
     assert plant.nodes[AXIS].drive.fault_code == 0x2310  # type: ignore[union-attr]
+
+
+def test_another_sync_producer_on_the_bus_is_an_event_in_words(
+        plant_session: tuple[asyncio.Runner, Session], wire: can.BusABC, db: str) -> None:
+    runner, session = plant_session
+    plan = runner.run(plan_recording(session, [POSITION], 0.005))
+    recorder = Recorder()
+    source = PdoScopeSource(session, plan, confirmed_ctx(plan))
+    runner.run(source.start(recorder.frames.append, recorder.events.append))
+    try:
+        wire.send(can.Message(arbitration_id=0x080, data=b"", is_extended_id=False))  # a PLC produces SYNC too
+        assert wait_until(lambda: runner.run(asyncio.sleep(0.05)) or any(
+            "Another device sends SYNC" in event.text for event in recorder.events), 10), recorder.events
+    finally:
+        runner.run(source.stop())
