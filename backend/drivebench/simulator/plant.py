@@ -27,6 +27,7 @@ from drivebench.i18n import _
 from drivebench.simulator.babbler import DEFAULT_COB_ID, Babbler
 from drivebench.simulator.ethercat import EthercatLine
 from drivebench.simulator.node import Latency, LatencyText, SimulatedNode
+from drivebench.simulator.servo402 import Servo402
 from drivebench.simulator.ticker import DeadlineTicker
 from drivebench.transport.bus import BusSpec, open_bus
 
@@ -41,6 +42,9 @@ class PlantNode(BaseModel):
     heartbeat_ms: int | None = Field(None, ge=0, le=65535)
     values: dict[str, int | float | str] = Field(default_factory=dict)
     """Initial values by parameter reference (``C00061``, ``0x1017``), in engineering units."""
+    trip_current_permille: int | None = Field(None, ge=1)
+    """A CiA 402 servo trips on overcurrent (0x2310) above this current (per mille of rated; an acceleration's
+    current spike can reach it); None: it never does."""
 
 
 class PlantFile(BaseModel):
@@ -95,6 +99,8 @@ class Plant:
                 latency=Latency.parse(latency if latency is not None else spec.latency),
                 values=spec.values, heartbeat_ms=spec.heartbeat_ms, bitrate=self.spec.bitrate)
             node.wake = self.wake
+            if spec.trip_current_permille is not None and isinstance(node.drive, Servo402):
+                node.drive.trip_current = float(spec.trip_current_permille)
 
     def start(self) -> Plant:
         self._bus = open_bus(self.spec)

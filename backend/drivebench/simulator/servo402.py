@@ -39,6 +39,11 @@ INDEX_AT = 100
 """Index pulse at this many increments past each whole revolution."""
 SUPPORTED = (1, 3, 4, 6, 7, 8, 9, 10)
 FOLLOWING_ERROR = 0x8611
+OVERCURRENT = 0x2310  # CiA 402: continuous over current (device output side)
+CURRENT_PER_TORQUE = 1.1
+"""0x6078 current actual value per unit of 0x6077 torque actual value (both per mille of rated)."""
+TRIP_AFTER_S = 0.05
+"""How long the current stays above the trip level before the drive trips."""
 RPM_CODE = 0x00B44700
 
 CW_NEW_SET_POINT, CW_IMMEDIATE, CW_RELATIVE, CW_HALT = 0x0010, 0x0020, 0x0040, 0x0100
@@ -76,7 +81,11 @@ class Servo402(StateMachine402):
         self.limit_hit = False
         self.soft_limited = False  # held at a software position limit 0x607D (status bit 11)
         self.jammed = False
+        self.trip_current: float | None = None
+        """Per mille of rated current above which the drive trips (OVERCURRENT; the plant file's
+        ``trip_current_permille``); None: it never does."""
         self._error_since: float | None = None
+        self._over_since: float | None = None
         self._last: float | None = None
         self._published: dict[tuple[int, int], RawValue] = {}
         self.store.add_write_hook(self.on_write)
@@ -350,6 +359,7 @@ class Servo402(StateMachine402):
         self.torque += math.copysign(20.0, actual) if actual else 0.0  # friction
         self.actual_velocity = actual
         self._following_error(now)
+        self._overcurrent(now)
         stays = int(self._obj(0x605A, 0, 2)) in (5, 6, 7, 8)  # quick stop option: stay in quick stop active
         if self.velocity == 0 and self.state is State402.QUICK_STOP_ACTIVE and not stays:
             self._enter(State402.SWITCH_ON_DISABLED)  # transition 12
@@ -414,6 +424,18 @@ class Servo402(StateMachine402):
         outwards = self.homing and (seeking, self.homing[0].direction) in (("neg_limit", -1), ("pos_limit", 1))
         if outwards and abs(self.demand) >= limit + self.increments_per_rev:
             self.homing, self.homing_error = [], True  # ran a revolution past the switch: it is broken
+
+    def _overcurrent(self, now: float) -> None:
+        """Trip when the current stays above ``trip_current`` for :data:`TRIP_AFTER_S` (an acceleration's spike)."""
+        over = self.trip_current is not None and self.state is State402.OPERATION_ENABLED and \
+            abs(self.torque * CURRENT_PER_TORQUE) > self.trip_current
+        if not over:
+            self._over_since = None
+        elif self._over_since is None:
+            self._over_since = now
+        elif now - self._over_since >= TRIP_AFTER_S:
+            self._over_since = None
+            self.raise_fault(OVERCURRENT)
 
     def _following_error(self, now: float) -> None:
         window = self._obj(0x6065, 0, 0) * self.per_unit
@@ -480,6 +502,6 @@ class Servo402(StateMachine402):
         self._put(0x606C, round(self.actual_velocity / per_velocity))
         self._put(0x60F4, round((self.demand - self.mech) / self.per_unit))
         self._put(0x6077, torque if self.state is State402.OPERATION_ENABLED else 0)
-        self._put(0x6078, round(torque * 1.1) if self.state is State402.OPERATION_ENABLED else 0)
+        self._put(0x6078, round(torque * CURRENT_PER_TORQUE) if self.state is State402.OPERATION_ENABLED else 0)
         self._put(0x6079, 48000 - abs(torque) * 2)
         self._put(0x60FD, self.inputs())

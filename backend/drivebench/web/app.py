@@ -16,6 +16,7 @@ from fastapi.staticfiles import StaticFiles
 from drivebench import __version__
 from drivebench.config import settings
 from drivebench.device.profiles.loader import ProfileRegistry
+from drivebench.services.scope import restore_record
 from drivebench.services.session_manager import SessionManager
 from drivebench.services.sets import set_jobs
 from drivebench.services.sets.parameter_sets import ParameterSetStore
@@ -120,6 +121,7 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
                               latency=latency)
         for bus in buses or []:
             await manager.open(bus)
+        await restore_record.restore_leftovers(manager)  # what recordings a killed server left mapped on the nodes
         if settle_heap:
             heap.settle()
         try:

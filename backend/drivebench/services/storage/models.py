@@ -200,3 +200,18 @@ class SignInFailureRow(Base):
     count: Mapped[int] = mapped_column(Integer, nullable=False)
     locked_until: Mapped[float] = mapped_column(Float, nullable=False)
     last: Mapped[float] = mapped_column(Float, nullable=False, index=True)
+
+
+# --- scope: what a PDO recording changed on the nodes (migration 0009_scope_restore) ----------------------------
+class ScopeRestoreRow(Base):
+    """Written before a recording changes a node's PDO or SYNC setting, removed after a good read-back of the
+    restore; a row left over (the server was killed mid-recording) is restored on the next start.
+    ``body``: the nodes' values before (``services.scope.restore_record.RestoreRecord``)."""
+
+    __tablename__ = "scope_restore"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
+    created: Mapped[datetime] = mapped_column(DateTime(timezone=True), nullable=False, default=utcnow)
+    bus: Mapped[str] = mapped_column(String(200), nullable=False)
+    server: Mapped[str] = mapped_column(String(120), nullable=False)
+    body: Mapped[dict[str, Any]] = mapped_column(JSON, nullable=False)

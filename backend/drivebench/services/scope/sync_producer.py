@@ -1,0 +1,79 @@
+"""The SYNC producer of a PDO recording: a thread that sends SYNC at the period, counts what it sent and measures
+the period it really reaches.
+
+The count is taken under a lock around each send, and a TPDO frame is stamped under the same lock
+(:meth:`SyncProducer.stamp`): a frame received while a SYNC is being sent waits for it, so it is stamped with the
+SYNC it answers. A thread that falls behind by several periods (a loaded machine) does not burst to catch up: it
+restarts its clock and reports the pause.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+
+from drivebench.errors import DriveBenchError
+
+PAUSE_PERIODS = 5
+PAUSE_MIN_S = 0.02
+"""A gap of this many periods (and at least this long) between two SYNCs is reported as a pause."""
+
+
+class SyncProducer:
+    def __init__(self, send: Callable[[], None], period_s: float) -> None:
+        self._send = send
+        self.nominal_s = period_s
+        self.count = 0
+        """SYNCs sent; the newest has the number ``count - 1``."""
+        self.first: float | None = None
+        self.last: float | None = None
+        self.error: str | None = None
+        self.pauses: list[tuple[int, float]] = []
+        """(SYNC number, seconds) of each pause (:data:`PAUSE_PERIODS`, :data:`PAUSE_MIN_S`)."""
+        self._pause_s = max(PAUSE_PERIODS * period_s, PAUSE_MIN_S)
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="scope-sync", daemon=True)
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout=5)
+
+    def stamp(self) -> int:
+        """The number of the newest SYNC sent (-1 before the first)."""
+        with self._lock:
+            return self.count - 1
+
+    @property
+    def period_s(self) -> float:
+        """The mean period reached so far (the nominal one before two SYNCs went out)."""
+        if self.first is None or self.last is None or self.count < 2:
+            return self.nominal_s
+        return (self.last - self.first) / (self.count - 1)
+
+    def _run(self) -> None:
+        next_at = time.monotonic()
+        while not self._stop.is_set():
+            with self._lock:
+                try:
+                    self._send()
+                except DriveBenchError as exc:
+                    self.error = exc.shown_detail()
+                    return
+                now = time.monotonic()
+                if self.last is not None and now - self.last > self._pause_s:
+                    self.pauses.append((self.count, now - self.last))
+                self.first = now if self.first is None else self.first
+                self.last = now
+                self.count += 1
+            next_at += self.nominal_s
+            delay = next_at - time.monotonic()
+            if delay < -PAUSE_PERIODS * self.nominal_s:
+                next_at = time.monotonic()  # far behind: no burst of SYNCs to catch up
+            elif delay > 0:
+                self._stop.wait(delay)

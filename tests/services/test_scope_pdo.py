@@ -1,0 +1,318 @@
+"""Scope sampling by PDO on the demo plant over a real virtual bus: the plan (which TPDOs, the bus share, refusals in
+words), a 1 ms recording of node 7 during a profile-position move checked frame by frame against the TPDO frames on
+the bus (a second python-can bus on the channel), the restore read back, a node that stops sending, and the
+confirmation a recording needs."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+from collections.abc import Iterator
+
+import can
+import pytest
+
+from drivebench.device.profiles.loader import ProfileRegistry
+from drivebench.errors import ConfirmationRequired, Conflict, InvalidValue
+from drivebench.services.bus.sessions import Session
+from drivebench.services.control import motion
+from drivebench.services.control.drive_guard import Confirmation
+from drivebench.services.params import node_lease
+from drivebench.services.params import writes as parameters
+from drivebench.services.params.node_lease import NodeLeased
+from drivebench.services.params.write_context import WriteContext, Writer
+from drivebench.services.pdos import pdo
+from drivebench.services.scope import pdo_source, restore_record
+from drivebench.services.scope.pdo_plan import ScopePlan, plan_recording
+from drivebench.services.scope.pdo_source import PdoScopeSource
+from drivebench.services.scope.source import ScopeChannel, ScopeEvent, ScopeFrame
+from drivebench.services.session_manager import SessionManager
+from drivebench.services.storage import database
+from drivebench.simulator.plant import Plant, PlantFile
+from drivebench.transport.busload import frame_bits
+from tests.confirming import confirmed_call
+from tests.conftest import DEMO_PLANT, fresh_channel, wait_until
+from tests.services.test_motion import AXIS, Axis
+from tests.write_contexts import SERVICE, as_writer
+
+POSITION, VELOCITY = ScopeChannel(AXIS, "0x6064"), ScopeChannel(AXIS, "0x606C")
+TPDO3 = 0x380 + AXIS
+
+
+def _wait_operational(session: Session, nodes: tuple[int, ...]) -> None:
+    assert wait_until(lambda: all(session.nmt_state(node)[1] for node in nodes), 10), "heartbeats"
+
+
+def confirmed_ctx(plan: ScopePlan) -> WriteContext:
+    """The context of a client that repeats what the 428 asked for."""
+    needed = pdo_source.confirmation(plan)
+    assert needed is not None, plan.texts()
+    node, _what, values = needed
+    return SERVICE.confirming(Confirmation("all" if node is None else node, values))
+
+
+def settings_of(runner: asyncio.Runner, session: Session, node: int, number: int) -> dict[str, int]:
+    values = {}
+    for index, subs in ((0x1800 + number - 1, (1, 2, 3, 5)), (0x1A00 + number - 1, (0, 1, 2, 3, 4))):
+        for sub in subs:
+            values[f"0x{index:04X}.{sub}"] = runner.run(pdo.read_u32(session, node, index, sub))
+    for index in (0x1005, 0x1006):
+        if pdo.node_catalog(session, node).by_address(index, 0):
+            values[f"0x{index:04X}"] = runner.run(pdo.read_u32(session, node, index, 0))
+    return values
+
+
+def test_the_plan_maps_free_tpdos_and_says_which_nodes_are_polled(
+        plant_session: tuple[asyncio.Runner, Session]) -> None:
+    runner, session = plant_session
+    channels = [POSITION, VELOCITY, ScopeChannel(3, "0x6041", bit=2), ScopeChannel(3, "0x6044"),
+                ScopeChannel(5, "C00868/1")]
+    plan = runner.run(plan_recording(session, channels, 0.001))
+    assert [(t.node, t.number, t.cob_id, [e.ref for e in t.entries]) for t in plan.tpdos] == [
+        (7, 3, TPDO3, ["0x6064", "0x606C"]), (3, 5, 0x283, ["0x6041", "0x6044"])]
+    # TPDO1/2 of node 7 are valid and mapped (in use); TPDO3 is invalid (free). The 8400 motec's TPDOs are valid
+    # and carry the port words (static mapping): no free TPDO, so it is polled, with why.
+    assert [p.node for p in plan.polling] == [5]
+    assert "no free TPDO" in plan.polling[0].reason
+    assert plan.slots[2] is not None and plan.slots[2].bit == 2 and plan.slots[2].bits == 16  # the whole word
+    assert plan.slots[4] is None
+    # SYNC (0x080, no data) + TPDO3 of node 7 (8 bytes) + TPDO5 of node 3 (4 bytes), each counted as the monitor does
+    bits = frame_bits(0x080) + frame_bits(TPDO3, bytes(8)) + frame_bits(0x283, bytes(4))
+    assert plan.bits_per_sync == bits
+    assert plan.bus_share == pytest.approx(100 * bits / (0.001 * 500_000))
+    assert any(f"{plan.bus_share:.1f} %" in text for text in plan.texts())
+
+
+def test_refusals_in_words(plant_session: tuple[asyncio.Runner, Session]) -> None:
+    runner, session = plant_session
+    with pytest.raises(InvalidValue, match=r"need 2 TPDOs .* it has 1 free"):
+        runner.run(plan_recording(session, [POSITION, VELOCITY, ScopeChannel(AXIS, "0x6077"),
+                                            ScopeChannel(AXIS, "0x60F4")], 0.001))
+    with pytest.raises(InvalidValue, match="cannot be sampled by PDO"):
+        runner.run(plan_recording(session, [ScopeChannel(AXIS, "0x6065")], 0.01))
+    with pytest.raises(InvalidValue, match="at least 1 ms"):
+        runner.run(plan_recording(session, [POSITION], 0.0005))
+
+
+@pytest.fixture
+def slow_bus(registry: ProfileRegistry) -> Iterator[tuple[asyncio.Runner, Session]]:
+    """The demo plant at 125 kbit/s."""
+    plant = Plant(PlantFile.load(DEMO_PLANT), registry.get, bus=f"virtual:{fresh_channel()}@125000",
+                  latency="0ms").start()
+    runner = asyncio.Runner()
+    manager = SessionManager(registry, sdo_timeout_s=1.0, sdo_retries=1)
+    session = runner.run(manager.open(plant.spec, "slow"))
+    for node in plant.nodes.values():
+        session.add_node(node.node_id, node.profile.id)
+    yield runner, session
+    runner.run(manager.close_all())
+    runner.close()
+    plant.stop()
+
+
+def test_a_recording_that_would_overload_the_bus_is_refused_with_the_period_that_fits(
+        slow_bus: tuple[asyncio.Runner, Session]) -> None:
+    runner, session = slow_bus
+    with pytest.raises(InvalidValue) as refused:
+        runner.run(plan_recording(session, [POSITION, VELOCITY], 0.001))
+    text = str(refused.value.detail)
+    assert "a bus share of" in text and "80 % at most" in text and "Choose a period of" in text
+    assert runner.run(plan_recording(session, [POSITION, VELOCITY], 0.002)).bus_share < 80
+
+
+@pytest.fixture
+def db(app_db_url: str) -> str:
+    """A database of the test's own with the schema (the restore records)."""
+    database.upgrade_to_head(app_db_url)
+    return app_db_url
+
+
+class Recorder:
+    def __init__(self) -> None:
+        self.frames: list[ScopeFrame] = []
+        self.events: list[ScopeEvent] = []
+
+
+def test_starting_needs_the_confirmation_naming_the_node_and_values(
+        plant_session: tuple[asyncio.Runner, Session]) -> None:
+    runner, session = plant_session
+    plan = runner.run(plan_recording(session, [POSITION, VELOCITY], 0.001))
+    before = settings_of(runner, session, AXIS, 3)
+    with pytest.raises(ConfirmationRequired) as asked:
+        runner.run(PdoScopeSource(session, plan, SERVICE).start(print, print))
+    assert asked.value.node == AXIS
+    assert asked.value.values == {"SYNC period [ms]": 1, "TPDO nodes": [AXIS], "NMT start": [AXIS]}
+    assert settings_of(runner, session, AXIS, 3) == before  # nothing was changed
+
+
+def _wire_samples(frames: list[can.Message]) -> list[tuple[int, bytes]]:
+    """Node 7's TPDO3 frames in bus order, each with the number of the newest SYNC before it on the bus."""
+    count, found = -1, []
+    for msg in frames:
+        if msg.arbitration_id == 0x080:
+            count += 1
+        elif msg.arbitration_id == TPDO3 and count >= 0:
+            found.append((count, bytes(msg.data)))
+    return found
+
+
+def test_a_1_ms_recording_of_node_7_during_a_move_equals_the_frames_on_the_bus(
+        plant_session: tuple[asyncio.Runner, Session], plant: Plant, wire: can.BusABC, db: str) -> None:
+    runner, session = plant_session
+    axis = Axis(runner, session, plant)
+    axis.enable()
+    axis.home(35)
+    plan = runner.run(plan_recording(session, [POSITION, VELOCITY], 0.001))
+    before = settings_of(runner, session, AXIS, 3)
+    recorder = Recorder()
+    source = PdoScopeSource(session, plan, confirmed_ctx(plan))
+    runner.run(source.start(recorder.frames.append, recorder.events.append))
+    axis.run(confirmed_call(motion.move, session, axis.node, 720, confirm=AXIS, ctx=SERVICE))
+    axis.until(lambda status: status.status_bits[10].set and axis.read("0x6064") == 720, "at 720 °")
+    axis.run(asyncio.sleep(0.2))
+    texts = runner.run(source.stop())
+    wire_frames = []
+    while (msg := wire.recv(0.2)) is not None:
+        wire_frames.append(msg)
+    on_bus = _wire_samples(wire_frames)
+
+    assert [frame.sample for frame in recorder.frames] == list(range(len(recorder.frames)))
+    assert len(recorder.frames) == sum(1 for m in wire_frames if m.arbitration_id == 0x080)
+    got = [(frame.sample, frame.raw) for frame in recorder.frames if frame.raw != (None, None)]
+    want = [(int.from_bytes(data[:4], "little", signed=True), int.from_bytes(data[4:8], "little", signed=True))
+            for _n, data in on_bus]
+    # every delivered sample is a TPDO frame of the bus, in bus order, with its values; a frame not delivered is
+    # counted (late: after its sample went out; extra: a second one for a SYNC): that happens only where the
+    # simulated drive stalls for longer than a sample waits (50 ms) on a loaded machine
+    assert len(got) + source.late + source.extra == len(want)
+    samples = [sample for sample, _raw in got]
+    assert samples == sorted(set(samples)), "one sample per SYNC, in order"
+    if source.late + source.extra:  # a stall: what was delivered is still the bus's frames, in order
+        at = 0
+        for _sample, raw in got:
+            while want[at] != raw:
+                at += 1  # IndexError: a sample that is no TPDO frame of the bus
+            at += 1
+    else:
+        assert [raw for _n, raw in got] == want, "every TPDO frame of the bus is a sample, with its values"
+        # each frame answers one SYNC, in order: consecutive numbers, none after the SYNC the bus shows before it
+        assert samples == list(range(samples[0], samples[0] + len(samples)))
+        assert all(sample <= bus_n for sample, (bus_n, _d) in zip(samples, on_bus, strict=True))
+    assert len(got) > 0.5 * len(recorder.frames)
+    positions = [raw[0] for _n, raw in got]
+    assert min(positions) < max(positions) and max(raw[1] for _n, raw in got) > 0  # it moved
+    assert source.period_s > 0.0009
+    assert any("mean period" in text for text in texts), texts
+    assert any("restored and read back as before" in text for text in texts), texts
+    assert settings_of(runner, session, AXIS, 3) == before
+    assert wait_until(lambda: plant.nodes[AXIS].state.name == "PRE_OPERATIONAL")
+
+
+def test_a_node_that_stops_sending_is_an_event_in_words(
+        plant_session: tuple[asyncio.Runner, Session], plant: Plant, db: str) -> None:
+    runner, session = plant_session
+    plan = runner.run(plan_recording(session, [POSITION, ScopeChannel(3, "0x6041")], 0.005))
+    recorder = Recorder()
+    source = PdoScopeSource(session, plan, confirmed_ctx(plan))
+    runner.run(source.start(recorder.frames.append, recorder.events.append))
+    assert wait_until(lambda: runner.run(asyncio.sleep(0.05)) or any(
+        f.raw[1] is not None for f in recorder.frames), 10)
+    plant.nodes[3].power_off()
+    assert wait_until(lambda: runner.run(asyncio.sleep(0.05)) or any(
+        e.node == 3 and "stopped sending" in e.text for e in recorder.events), 10), recorder.events
+    plant.nodes[3].power_on()
+    runner.run(source.stop())
+    late = [f for f in recorder.frames[-20:]]
+    assert all(f.raw[0] is not None for f in late[:5])  # node 7 went on
+
+
+def test_the_recording_holds_the_node_lease_shared_with_the_same_writer(
+        plant_session: tuple[asyncio.Runner, Session], db: str) -> None:
+    runner, session = plant_session
+    plan = runner.run(plan_recording(session, [POSITION], 0.005))
+    anna = as_writer(Writer("anna", "panel:anna", "Scope"))
+    needed = pdo_source.confirmation(plan)
+    assert needed is not None
+    source = PdoScopeSource(session, plan, anna.confirming(Confirmation(needed[0], needed[2])))
+    runner.run(source.start(print, print))
+    try:
+        with pytest.raises(NodeLeased, match="anna"):
+            runner.run(parameters.write(session, AXIS, "0x6065", 500, ctx=as_writer(Writer("ben", "panel:ben"))))
+        runner.run(parameters.write(session, AXIS, "0x6065", 500, ctx=anna))  # her own tuning write
+    finally:
+        runner.run(source.stop())
+    lease = node_lease.leases(session).current(AXIS)
+    assert lease is not None and lease.active == 0  # the recording ended: it lapses as after anna's own writes
+
+
+def test_a_tpdo_remapped_by_someone_else_meanwhile_is_not_overwritten(
+        plant_session: tuple[asyncio.Runner, Session], plant: Plant, db: str) -> None:
+    runner, session = plant_session
+    plan = runner.run(plan_recording(session, [POSITION, VELOCITY], 0.005))
+    source = PdoScopeSource(session, plan, confirmed_ctx(plan))
+    runner.run(source.start(print, print))
+    store = plant.nodes[AXIS].store  # another master on the bus maps the torque into TPDO3
+    for sub, value in ((0, 0), (2, 0x6077_0010), (0, 2)):
+        store.set(0x1A02, sub, value)
+    texts = runner.run(source.stop())
+    assert any("TPDO3 was remapped by someone else" in text and "left as it is" in text for text in texts), texts
+    assert any("restore record is kept" in text for text in texts)
+    assert store.get(0x1A02, 2) == 0x6077_0010
+    assert len(restore_record.leftovers(db)) == 1
+
+
+@pytest.fixture
+def tripping_axis(registry: ProfileRegistry) -> Iterator[tuple[asyncio.Runner, Session, Plant]]:
+    """The demo plant whose servo (node 7) trips on overcurrent above 250 ‰ of rated current."""
+    plant_file = PlantFile.load(DEMO_PLANT)
+    for node in plant_file.nodes:
+        if node.node_id == AXIS:
+            node.trip_current_permille = 250
+    plant = Plant(plant_file, registry.get, bus=f"virtual:{fresh_channel()}@500000", latency="0ms").start()
+    runner = asyncio.Runner()
+    manager = SessionManager(registry, sdo_timeout_s=1.0, sdo_retries=1)
+    session = runner.run(manager.open(plant.spec, "trip"))
+    for node in plant.nodes.values():
+        session.add_node(node.node_id, node.profile.id)
+    yield runner, session, plant
+    runner.run(manager.close_all())
+    runner.close()
+    plant.stop()
+
+
+def test_the_current_spike_of_an_acceleration_and_the_overcurrent_trip_it_causes_are_recorded(
+        tripping_axis: tuple[asyncio.Runner, Session, Plant], db: str) -> None:
+    runner, session, plant = tripping_axis
+    axis = Axis(runner, session, plant)
+    axis.enable()
+    plan = runner.run(plan_recording(session, [ScopeChannel(AXIS, "0x6078"), ScopeChannel(AXIS, "0x6041", bit=3)],
+                                     0.002))
+    recorder = Recorder()
+    source = PdoScopeSource(session, plan, confirmed_ctx(plan))
+    runner.run(source.start(recorder.frames.append, recorder.events.append))
+    with contextlib.suppress(Conflict):  # it may trip before it acknowledges the set-point
+        axis.run(confirmed_call(motion.move, session, axis.node, 720, confirm=AXIS, ctx=SERVICE))
+    axis.until(lambda status: status.state == "fault", "the overcurrent trip")
+    axis.run(asyncio.sleep(0.2))
+    runner.run(source.stop())
+    values = [frame.raw for frame in recorder.frames if None not in frame.raw]
+    spike = next(n for n, (current, _fault) in enumerate(values) if current is not None and abs(current) > 250)
+    tripped = next(n for n, (_current, fault) in enumerate(values) if fault == 1)
+    assert spike <= tripped, "the spike comes first, the fault bit (status word bit 3) after it"
+    assert all(fault == 0 for _current, fault in values[:spike])
+    assert plant.nodes[AXIS].drive.fault_code == 0x2310  # type: ignore[union-attr]
+
+
+def test_another_sync_producer_on_the_bus_is_an_event_in_words(
+        plant_session: tuple[asyncio.Runner, Session], wire: can.BusABC, db: str) -> None:
+    runner, session = plant_session
+    plan = runner.run(plan_recording(session, [POSITION], 0.005))
+    recorder = Recorder()
+    source = PdoScopeSource(session, plan, confirmed_ctx(plan))
+    runner.run(source.start(recorder.frames.append, recorder.events.append))
+    try:
+        wire.send(can.Message(arbitration_id=0x080, data=b"", is_extended_id=False))  # a PLC produces SYNC too
+        assert wait_until(lambda: runner.run(asyncio.sleep(0.05)) or any(
+            "Another device sends SYNC" in event.text for event in recorder.events), 10), recorder.events
+    finally:
+        runner.run(source.stop())
