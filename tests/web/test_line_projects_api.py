@@ -199,3 +199,54 @@ def test_concise_dcf_preview_file_and_download_entry_by_entry(demo_api: TestClie
     logged = [(row["node_id"], row["ref"]) for row in demo_api.get("/api/audit").json()
               if row["origin"] == "concise-dcf"]
     assert sorted(logged) == [(7, "0x1800.3"), (7, "0x1801.5"), (7, "0x605A")]
+
+
+def test_a_concise_dcf_with_a_moving_value_asks_first_and_sends_nothing_unconfirmed(demo_api: TestClient) -> None:
+    """0x6060 (modes of operation) can make the servo move: the download answers 428 naming node 7 and the value,
+    writes nothing, and goes through once confirmed with those values."""
+    made = make_project(demo_api)
+
+    def moving_mode(document: dict[str, Any]) -> None:
+        document["nodes"][1]["parameter_set"]["values"] = {"0x605A": 6, "0x6060": 3}
+    changed = _changed(demo_api, made, moving_mode)
+    url = f"/api/line-projects/{changed}/nodes/7/concise-dcf/download"
+    before = {ref: demo_api.get(f"/api/sessions/{SESSION}/nodes/7/parameters/{ref}").json()["raw"]
+              for ref in ("0x605A", "0x6060", "0x1800.3")}
+    asked = demo_api.post(url, json={"session": SESSION})
+    assert asked.status_code == 428, asked.text
+    problem = asked.json()
+    assert problem["confirm_node"] == 7
+    assert [key for key in problem["confirm_values"] if key.startswith("0x6060")], problem["confirm_values"]
+    assert {ref: demo_api.get(f"/api/sessions/{SESSION}/nodes/7/parameters/{ref}").json()["raw"]
+            for ref in before} == before  # nothing sent
+    sent = confirmed(demo_api, "POST", url, json={"session": SESSION})
+    assert sent.status_code == 200, sent.text
+    assert sent.json()["written"] == 4 and sent.json()["failed"] == []
+    assert demo_api.get(f"/api/sessions/{SESSION}/nodes/7/parameters/0x6060").json()["raw"] == 3
+
+
+def test_the_masters_dcf_holds_slave_assignment_and_expected_identity(demo_api: TestClient) -> None:
+    """CiA 302-2: 0x1F81 (bit 0 slave, bit 2 boot slave, bit 3 mandatory) and 0x1F84-0x1F88, sub-index = node."""
+    made = make_project(demo_api)
+    entries = read_concise_dcf(demo_api.get(f"/api/line-projects/{made['id']}/master-dcf.bin").content)
+    found = {(index, sub): int.from_bytes(data, "little") for index, sub, data in entries}
+    assert all(len(data) == 4 for _index, _sub, data in entries)
+    assert (found[(0x1F81, 7)], found[(0x1F81, 12)]) == (0x0D, 0x05)  # 12 is optional
+    assert (found[(0x1F86, 7)], found[(0x1F87, 7)], found[(0x1F88, 7)]) == (0x402001, 0x10000, 0)
+    shown = demo_api.get(f"/api/line-projects/{made['id']}/master-dcf").json()
+    assert shown["count"] == len(entries) == 6 * 3
+    assert {line["name"] for line in shown["lines"]} >= {"NMT slave assignment", "Product code"}
+
+
+def test_a_set_value_that_does_not_fit_its_profile_refuses_the_project_and_stores_nothing(
+        demo_api: TestClient) -> None:
+    made = make_project(demo_api)
+    document = json.loads(demo_api.get(f"/api/line-projects/{made['id']}/export").text)
+    document["nodes"][1]["parameter_set"]["values"] = {"0x605A": 99999, "0x9999": 1}
+    networks = len(demo_api.get("/api/planned-networks").json())
+    refused = demo_api.post("/api/line-projects/import", params={"filename": "unfit.json"},
+                            content=json.dumps(document).encode())
+    assert refused.status_code == 422, refused.text
+    assert "node 7 of the project" in refused.text and "0x605A" in refused.text and "0x9999" in refused.text
+    assert len(demo_api.get("/api/planned-networks").json()) == networks
+    assert len(demo_api.get("/api/line-projects").json()) == 1

@@ -25,7 +25,6 @@ from drivebench.errors import InvalidValue
 from drivebench.i18n import _
 from drivebench.services.line.project import (
     LineProject,
-    MasterConfig,
     ProfileRef,
     ProjectNode,
     ProjectSet,
@@ -175,6 +174,8 @@ def to_yaml(project: LineProject, address: Addresser) -> str:
 def _node_from_slave(key: str, slave: dict[str, Any], default_baud: int | None, name: Namer,
                      is_pdo: Callable[[int], bool]) -> dict[str, Any]:
     extra = slave.get("drivebench") or {}
+    if not isinstance(extra, dict):
+        raise ValueError(_("its 'drivebench' block is not a mapping"))
     profile = extra.get("profile")
     dcf = slave.get("dcf")
     if profile is None and isinstance(dcf, str):
@@ -218,7 +219,10 @@ def from_yaml(content: bytes | str, filename: str, name: Namer, is_pdo: Callable
     if not isinstance(document, dict):
         raise _refused(filename, 1, _("a master configuration is a mapping of 'master' and one key per slave"))
     master = document.get("master") or {}
-    extra = master.get("drivebench") or {} if isinstance(master, dict) else {}
+    extra = master.get("drivebench") if isinstance(master, dict) else None
+    if not isinstance(master, dict) or not isinstance(extra or {}, dict):
+        raise _refused(filename, _line_of(text, ["master"]), _("'master' is a mapping (node_id, baudrate)"))
+    extra = extra or {}
     keys = [key for key in document if key not in ("master", "options")]
     nodes = []
     for key in keys:
@@ -229,11 +233,11 @@ def from_yaml(content: bytes | str, filename: str, name: Namer, is_pdo: Callable
             nodes.append(_node_from_slave(str(key), slave, master.get("baudrate"), name, is_pdo))
         except ValidationError as exc:
             raise _invalid(exc, text, filename, partial(_slave_path, str(key))) from exc
-        except (KeyError, TypeError, ValueError) as exc:
+        except (KeyError, TypeError, ValueError, AttributeError) as exc:
             reason = _("an sdo entry needs index, sub_index and value ({why})").format(why=exc)
             raise _refused(filename, _line_of(text, [key, "sdo"]), f"{key}: {reason}") from exc
     data = {"schema_version": extra.get("schema_version", 1), "name": extra.get("name", filename),
-            "master": MasterConfig(node_id=master.get("node_id", 1)).model_dump(), "cable": extra.get("cable"),
+            "master": {"node_id": master.get("node_id", 1)}, "cable": extra.get("cable"),
             "nodes": nodes}
 
     def path_of(loc: tuple[Any, ...]) -> Sequence[int | str]:

@@ -39,16 +39,6 @@ PDO_INDICES = range(0x1400, 0x1C00)
 """RPDO/TPDO communication and mapping parameters (CiA 301)."""
 
 
-def ref_index(ref: str) -> int | None:
-    match = re.fullmatch(r"0x([0-9A-Fa-f]{4})(?:\.\d+)?", ref)
-    return int(match.group(1), 16) if match else None
-
-
-def is_pdo_ref(ref: str) -> bool:
-    index = ref_index(ref)
-    return index is not None and index in PDO_INDICES
-
-
 class ExpectedIdentity(BaseModel):
     """What the boot-up check compares (CiA 302-2: 0x1F84 device type, 0x1F85 vendor, 0x1F86 product, 0x1F87
     revision, 0x1F88 serial). None: not checked."""
@@ -86,7 +76,7 @@ class ProfileRef(BaseModel):
 class ProjectSet(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
-    name: str
+    name: str = Field(min_length=1, max_length=200)
     set_id: int | None = None
     """The stored set on the server the project was made on / imported into (a reference; the values are here)."""
     values: Values = Field(default_factory=dict)
@@ -97,8 +87,8 @@ class ProjectNode(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     node_id: int = Field(ge=1, le=127)
-    name: str = ""
-    device: str
+    name: str = Field("", max_length=200)
+    device: str = Field(max_length=200)
     """As in the planned network: a switches key, an alias or a profile id."""
     baud_kbit: int
     mandatory: bool = True
@@ -132,7 +122,7 @@ class LineProject(BaseModel):
 
     schema_version: Literal[1] = 1
     """The file format's version (:data:`SCHEMA_VERSION`); a later format is refused, not guessed."""
-    name: str = "Line project"
+    name: str = Field("Line project", min_length=1, max_length=200)
     master: MasterConfig = Field(default_factory=MasterConfig)
     cable: CableInput | None = None
     nodes: list[ProjectNode] = Field(default_factory=list)

@@ -29,7 +29,8 @@ from drivebench.services.line.project import (
 )
 from drivebench.services.planning.planned_networks import PlannedNetworkStore
 from drivebench.services.planning.planner import NetworkPlan
-from drivebench.services.sets.parameter_sets import ParameterSetStore, StoredSet
+from drivebench.services.sets import set_formats
+from drivebench.services.sets.parameter_sets import ParameterSetStore, StoredSet, engineering
 from drivebench.services.storage.database import transaction
 from drivebench.services.storage.models import LineProjectRow
 
@@ -180,23 +181,44 @@ def _profile_notes(project: LineProject, registry: ProfileRegistry) -> list[str]
     return notes
 
 
-def open_project(project: LineProject, registry: ProfileRegistry, *, user: str, url: str | None = None
-                 ) -> OpenedProject:
-    """Recreate a project on this server: profiles, planned network, parameter sets, the project itself."""
-    notes = _profile_notes(project, registry)
-    network = PlannedNetworkStore(url).save(project.plan())
-    sets = ParameterSetStore(url)
-    nodes = []
+def _checked_sets(project: LineProject, registry: ProfileRegistry) -> dict[int, tuple[Profile, Values]]:
+    """Each node's set values checked as a set import checks them (known parameter, writable, type, range), before
+    anything is stored; nodes whose profile is not on this server are left out (named by the notes)."""
+    checked: dict[int, tuple[Profile, Values]] = {}
     for node in project.nodes:
         values = node.set_values()
         if node.profile is None or not values:
-            nodes.append(node)
             continue
         try:
             profile = registry.get(node.profile.id)
         except DriveBenchError:
+            continue
+        catalog = catalog_for(profile)
+        given: dict[str, object] = {}
+        for ref, raw in values.items():
+            try:
+                given[ref] = engineering(catalog.resolve(ref), raw)
+            except DriveBenchError:
+                given[ref] = raw  # named by the check below
+        source = _("node {node} of the project").format(node=node.node_id)
+        checked[node.node_id] = profile, set_formats.checked_values(profile, given, source)
+    return checked
+
+
+def open_project(project: LineProject, registry: ProfileRegistry, *, user: str, url: str | None = None
+                 ) -> OpenedProject:
+    """Recreate a project on this server: profiles, planned network, parameter sets, the project itself. A value
+    that does not fit its profile refuses the whole project before anything is stored."""
+    notes = _profile_notes(project, registry)
+    checked = _checked_sets(project, registry)
+    network = PlannedNetworkStore(url).save(project.plan())
+    sets = ParameterSetStore(url)
+    nodes = []
+    for node in project.nodes:
+        if node.node_id not in checked:
             nodes.append(node)
             continue
+        profile, values = checked[node.node_id]
         name = node.parameter_set.name if node.parameter_set else f"{project.name} node {node.node_id}"
         stored = sets.create(name, profile, values, user=user, note=_("from line project '{name}'").format(
             name=project.name), reason="line project")

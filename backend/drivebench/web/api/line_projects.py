@@ -12,13 +12,14 @@ from typing import Annotated, Literal
 from fastapi import APIRouter, Query, Request, Response
 from pydantic import BaseModel, Field
 
-from drivebench.device.formats.concise_dcf import decode
+from drivebench.device.formats.concise_dcf import decode, encode
 from drivebench.device.profiles.catalog_cache import catalog_for
 from drivebench.device.profiles.profile import Profile
 from drivebench.errors import DriveBenchError, InvalidValue
 from drivebench.i18n import _
 from drivebench.services.line import files
 from drivebench.services.line.boot_check import BootCheck, boot_check
+from drivebench.services.line.master_dcf import master_entries, master_preview
 from drivebench.services.line.project import PDO_INDICES, LineProject, ProjectNode
 from drivebench.services.line.store import (
     LineProjectStore,
@@ -31,25 +32,26 @@ from drivebench.services.line.store import (
 from drivebench.services.planning.planned_networks import PlannedNetworkStore
 from drivebench.services.sets import concise_sets
 from drivebench.services.sets.parameter_sets import ParameterSetStore
-from drivebench.web.deps import ManagerDep, RowId, StateDep
+from drivebench.web.deps import MAX_ROW_ID, ManagerDep, RowId, StateDep
 from drivebench.web.safety import AuditUserDep, WriteCtxDep, confirmation
 
 router = APIRouter(prefix="/api/line-projects", tags=["line projects"])
+NodeId = Annotated[int, Field(ge=1, le=127)]
 Format = Literal["json", "yaml"]
 
 
 class ProjectIn(BaseModel):
     """A project made of a saved planned network: the set chosen per node, the nodes the line may miss."""
 
-    network_id: int
-    name: str | None = None
-    sets: dict[int, int] = Field(default_factory=dict)
+    network_id: int = Field(ge=1, le=MAX_ROW_ID)
+    name: str | None = Field(None, min_length=1, max_length=200)
+    sets: dict[NodeId, Annotated[int, Field(ge=1, le=MAX_ROW_ID)]] = Field(default_factory=dict)
     """Node id -> parameter set id."""
-    optional: list[int] = Field(default_factory=list)
+    optional: list[NodeId] = Field(default_factory=list, max_length=127)
 
 
 class DownloadIn(BaseModel):
-    session: str
+    session: str = Field(max_length=200)
     confirm: object = None
     confirm_values: object = None
 
@@ -160,6 +162,20 @@ def _node_values(project: LineProject, node_id: int, state: StateDep) -> tuple[P
     return node, state.registry.get(node.profile.id)
 
 
+@router.get("/{project_id}/master-dcf", response_model=concise_sets.ConcisePreview)
+def master_dcf(project_id: RowId) -> concise_sets.ConcisePreview:
+    """The master's 0x1F81 and 0x1F84-0x1F88 per node (CiA 302-2) as a concise DCF, decoded."""
+    return master_preview(LineProjectStore().get(project_id).project)
+
+
+@router.get("/{project_id}/master-dcf.bin")
+def master_dcf_file(project_id: RowId) -> Response:
+    """The master's concise DCF as a file (for its own 0x1F22)."""
+    data = encode(master_entries(LineProjectStore().get(project_id).project))
+    return Response(data, media_type="application/octet-stream",
+                    headers={"Content-Disposition": 'attachment; filename="master.cdcf"'})
+
+
 @router.get("/{project_id}/nodes/{node_id}/concise-dcf", response_model=concise_sets.ConcisePreview)
 def concise_preview(project_id: RowId, node_id: int, state: StateDep) -> concise_sets.ConcisePreview:
     """The node's parameter set and PDO set-up as a concise DCF, decoded (index, sub-index, name, value)."""
@@ -189,8 +205,8 @@ async def concise_download(request: Request, project_id: RowId, node_id: int, bo
 
 
 class DecodeIn(BaseModel):
-    base64: str
-    profile: str | None = None
+    base64: str = Field(max_length=4_000_000)
+    profile: str | None = Field(None, max_length=200)
 
 
 @router.post("/concise-dcf/decode", response_model=concise_sets.ConcisePreview)
