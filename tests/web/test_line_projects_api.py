@@ -5,6 +5,7 @@ entry by entry to a simulated drive and read back."""
 
 from __future__ import annotations
 
+import base64
 import contextlib
 import json
 from collections.abc import Iterator
@@ -250,3 +251,20 @@ def test_a_set_value_that_does_not_fit_its_profile_refuses_the_project_and_store
     assert "node 7 of the project" in refused.text and "0x605A" in refused.text and "0x9999" in refused.text
     assert len(demo_api.get("/api/planned-networks").json()) == networks
     assert len(demo_api.get("/api/line-projects").json()) == 1
+
+
+def test_a_nodes_dcf_becomes_a_concise_dcf(demo_api: TestClient) -> None:
+    """The set's DCF (as the Parameter sets page exports it) in, its ParameterValues as 0x1F22 bytes out."""
+    made = make_project(demo_api)
+    set_id = made["project"]["nodes"][1]["parameter_set"]["set_id"]
+    dcf = demo_api.get(f"/api/parameter-sets/{set_id}/export", params={"format": "dcf"})
+    assert dcf.status_code == 200, dcf.text
+    shown = demo_api.post("/api/line-projects/concise-dcf/from-dcf", params={"filename": "axis.dcf"},
+                          content=dcf.content)
+    assert shown.status_code == 200, shown.text
+    entries = read_concise_dcf(base64.b64decode(shown.json()["base64"]))
+    assert sorted(entries) == [(0x1800, 3, (250).to_bytes(2, "little")), (0x1801, 5, (40).to_bytes(2, "little")),
+                               (0x605A, 0, (5).to_bytes(2, "little"))]
+    broken = demo_api.post("/api/line-projects/concise-dcf/from-dcf", params={"filename": "x.dcf"},
+                           content=b"[1000]\nnot an ini line\n")
+    assert broken.status_code == 422 and "x.dcf" in broken.text

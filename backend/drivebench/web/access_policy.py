@@ -62,7 +62,7 @@ RULES: dict[tuple[str, str], Rule] = {
              ("POST", "/ui/tools/planner/import"), ("POST", "/ui/tools/planner/load/{network_id}"),
              ("POST", "/ui/tools/planner/compare")),
     **_rules(V, N_("Checking a line against its project"), ("POST", "/api/line-projects/{project_id}/boot-check"),
-             ("POST", "/api/line-projects/concise-dcf/decode")),
+             ("POST", "/api/line-projects/concise-dcf/decode"), ("POST", "/api/line-projects/concise-dcf/from-dcf")),
     **_rules(V, N_("Comparing parameter sets"),
              ("POST", "/api/parameter-sets/compare"), ("POST", "/api/parameter-sets/{set_id}/preview"),
              ("POST", "/parameter-sets/compare"), ("POST", "/parameter-sets/{set_id}/preview")),

@@ -30,7 +30,7 @@ from drivebench.services.line.store import (
     open_project,
 )
 from drivebench.services.planning.planned_networks import PlannedNetworkStore
-from drivebench.services.sets import concise_sets
+from drivebench.services.sets import concise_sets, set_formats
 from drivebench.services.sets.parameter_sets import ParameterSetStore
 from drivebench.web.deps import MAX_ROW_ID, ManagerDep, RowId, StateDep
 from drivebench.web.safety import AuditUserDep, WriteCtxDep, confirmation
@@ -202,6 +202,17 @@ async def concise_download(request: Request, project_id: RowId, node_id: int, bo
                                   state)
     ctx = ctx.confirming(confirmation(request, body.confirm, body.confirm_values))
     return await concise_sets.download(session, node_id, node.set_values(), ctx=ctx)
+
+
+@router.post("/concise-dcf/from-dcf", response_model=concise_sets.ConcisePreview)
+async def concise_from_dcf(request: Request, state: StateDep,
+                           profile: Annotated[str | None, Query(max_length=200, description="Target profile (else "
+                                                                "the DCF's [DriveBench] ProfileId)")] = None,
+                           filename: Annotated[str, Query(max_length=200)] = "node.dcf") -> concise_sets.ConcisePreview:
+    """A node's DCF (the body) as a concise DCF: its ParameterValues checked as a set import checks them, decoded."""
+    imported = set_formats.import_dcf(await request.body(), state.registry.get, profile_id=profile, source=filename)
+    data = concise_sets.generate(imported.profile, imported.values)
+    return concise_sets.preview(imported.profile, imported.node_id or 0, data)
 
 
 class DecodeIn(BaseModel):
