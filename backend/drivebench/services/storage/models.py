@@ -33,6 +33,22 @@ class PlannedNetworkRow(Base):
     body: Mapped[dict[str, Any]] = mapped_column(JSON, nullable=False)
 
 
+
+class LineProjectRow(Base):
+    """A line project (migration 0010_line_project): ``body`` is the project file's JSON
+    (``services.planning.line_project.LineProject``), ``network_id`` the planned network it made."""
+
+    __tablename__ = "line_project"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
+    name: Mapped[str] = mapped_column(String(200), nullable=False, index=True)
+    network_id: Mapped[int | None] = mapped_column(ForeignKey("planned_network.id", ondelete="SET NULL"),
+                                                   nullable=True)
+    created: Mapped[datetime] = mapped_column(DateTime(timezone=True), nullable=False, default=utcnow)
+    updated: Mapped[datetime] = mapped_column(DateTime(timezone=True), nullable=False, default=utcnow,
+                                              onupdate=utcnow)
+    body: Mapped[dict[str, Any]] = mapped_column(JSON, nullable=False)
+
 # --- parameter sets, downloads, audit log (migration 0002_parameter_sets) -----------------------------------
 class ParameterSetRow(Base):
     """A stored parameter set: what it is for (profile id + version), where it came from, who made it.
