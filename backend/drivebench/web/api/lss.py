@@ -51,7 +51,7 @@ def _hex(text: str | int) -> int:
     try:
         return int(text, 0)
     except ValueError as exc:
-        raise ValueError(_("{text!r} is not a number (decimal or 0x hex)").format(text=text)) from exc
+        raise ValueError(_("'{text}' is not a number (decimal or 0x hex)").format(text=text)) from exc
 
 
 class AssignIn(Confirmed):
