@@ -133,3 +133,29 @@ def test_plant_node_ids_255_are_lss_devices() -> None:
     assert PlantNode(node_id=255, profile="x").node_id == 255
     with pytest.raises(ValueError, match="out of range"):
         PlantNode(node_id=200, profile="x")
+
+
+def test_a_configured_device_takes_a_new_node_id_at_nmt_reset_communication(registry: ProfileRegistry) -> None:
+    channel = fresh_channel()
+    plant_file = PlantFile(name="one", nodes=[PlantNode(node_id=5, lss=True, serial=77,
+                                                        profile="generic-cia402-servo")])
+    plant = _plant(registry, plant_file, channel)
+    network = canopen.Network(can.Bus(interface="virtual", channel=channel))
+    network.connect()
+    booted: list[bytes] = []
+    network.subscribe(0x700 + 9, lambda cob, data, ts: booted.append(bytes(data)))
+    try:
+        master = LssMaster(network, window_s=0.1)
+        assert 5 in plant.nodes
+        device = plant.lss.devices[0]
+        master.switch_selective(LssAddress(*device.slave.address))
+        assert master.inquire_node_id() == 5
+        master.configure_node_id(9)
+        master.switch_global(configuration=False)
+        assert 5 in plant.nodes and 9 not in plant.nodes  # pending until reset communication
+        network.send_message(0x000, bytes([0x82, 0]))
+        assert wait_until(lambda: b"\x00" in booted)
+        assert 9 in plant.nodes and 5 not in plant.nodes
+    finally:
+        network.disconnect()
+        plant.stop()

@@ -256,6 +256,21 @@ class LssDevices:
         for answer in answers:
             self._plant.send_frame(ANSWER_COB, answer)
 
+    def on_nmt(self, data: bytes) -> None:
+        """NMT reset communication (or reset node): a device with a pending node ID other than its active one
+        takes it now (CiA 305); a pending 255 leaves it without one (silent except for LSS)."""
+        if len(data) < 2 or data[0] not in (0x81, 0x82):
+            return
+        for device in list(self.devices):
+            slave = device.slave
+            if data[1] not in (0, slave.active_id) or slave.pending_id == slave.active_id or not slave.on_bus:
+                continue
+            slave.active_id = slave.pending_id
+            if slave.unconfigured:
+                self._take_down(device)
+            else:
+                self._bring_up(device, slave.active_id)
+
     def _take_down(self, device: LssDevice) -> None:
         node, device.node = device.node, None
         if node is None:

@@ -207,6 +207,8 @@ class Plant:
                 node.on_remote_request(msg.arbitration_id)
             return
         self._dispatch(msg.arbitration_id, bytes(msg.data), msg.timestamp, skip_sender=False)
+        if msg.arbitration_id == 0:
+            self.lss.on_nmt(bytes(msg.data))
 
     def _dispatch(self, cob_id: int, data: bytes, timestamp: float, *, skip_sender: bool) -> None:
         for node in self._everyone():

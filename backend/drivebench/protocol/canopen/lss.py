@@ -292,11 +292,15 @@ class LssMaster:
                 found.append(address)
         return FastscanResult(found, count.frames, count.seconds, count.retries, window)
 
-    def _window(self, ceiling: float) -> float:
-        """A few times the slowest recent answer: a miss costs this much, an answer returns at once."""
+    def _window(self, ceiling: float, *, careful: bool = False) -> float:
+        """How long a fastscan request waits: three times a typical recent answer time (the upper quartile of the
+        last 32), or (``careful``, for asking again after a miss) four times the slowest of them; never below the
+        floor nor above ``ceiling``. A miss costs this much; an answer returns at once."""
         if not self._rtt:
             return ceiling
-        return min(ceiling, max(self._floor, 4 * max(self._rtt[-32:])))
+        recent = sorted(self._rtt[-32:])
+        typical = 4 * recent[-1] if careful else 3 * recent[(len(recent) * 3) // 4]
+        return min(ceiling, max(self._floor, typical))
 
     def _fs(self, value: int, bit: int, sub: int, nxt: int, count: ScanCount, window: float) -> bool:
         answered = bool(self._ask(struct.pack("<BIBBB", cl.CS_FAST_SCAN, value, bit, sub, nxt),
@@ -307,6 +311,7 @@ class LssMaster:
 
     def _find_one(self, found: Sequence[LssAddress], count: ScanCount, ceiling: float
                   ) -> tuple[LssAddress | None, float]:
+        self._floor = self.min_window_s  # a longer wait one device needed is not kept for the next
         for attempt in range(FASTSCAN_ATTEMPTS):
             if not self._fs(0, FASTSCAN_RESET, 0, 0, count, ceiling):
                 return None, ceiling  # no device without node ID in waiting state
@@ -346,13 +351,14 @@ class LssMaster:
             first = value | (like & (1 << bit))
             second = first ^ (1 << bit)
             decided = False
-            for window in (self._window(ceiling), ceiling):  # a miss is asked again once, waiting the full window
+            fast, careful = self._window(ceiling), self._window(ceiling, careful=True)
+            for window in (fast, careful):  # a miss is asked again once, waiting longer
                 if self._fs(first, bit, sub, sub, count, window):
                     value, decided = first, True
                     break
                 if self._fs(second, bit, sub, sub, count, window):
                     value, decided = second, True
-                    if window < ceiling:
+                    if window < careful:
                         doubtful.add(bit)
                     break
             if decided:
