@@ -11,7 +11,7 @@ import pytest
 
 from drivebench.config import REPO_ROOT
 from drivebench.device.profiles.loader import ProfileRegistry
-from drivebench.protocol.canopen.lss import LssAddress, LssError, LssMaster, LssNoAnswer
+from drivebench.protocol.canopen.lss import LssAddress, LssError, LssMaster, LssNoAnswer, timing_index
 from drivebench.simulator.plant import Plant, PlantFile, PlantNode
 from tests.conftest import fresh_channel, wait_until
 
@@ -159,3 +159,21 @@ def test_a_configured_device_takes_a_new_node_id_at_nmt_reset_communication(regi
     finally:
         network.disconnect()
         plant.stop()
+
+
+def test_activate_bit_timing_takes_a_device_off_the_bus_and_its_stored_rate_survives_a_power_cycle(
+        line: tuple[Plant, canopen.Network, LssMaster]) -> None:
+    plant, _network, master = line
+    target = plant.lss.by_serial(4004)
+    master.switch_selective(LssAddress(*target.slave.address))
+    master.configure_bit_timing(timing_index(250_000))
+    master.store_configuration()
+    master.activate_bit_timing(20)
+    assert wait_until(lambda: not target.slave.on_bus)
+    master.switch_global(configuration=False)  # the device at 250 kbit/s does not hear it
+    found = master.fastscan()
+    assert sorted(address.serial for address in found.found) == [1001, 2002, 3003]  # 4004 is no longer heard
+    master.switch_global(configuration=False)
+    plant.lss.power_cycle()
+    assert not target.slave.on_bus  # it starts at the bit rate it stored
+    assert sorted(address.serial for address in master.fastscan().found) == [1001, 2002, 3003]
