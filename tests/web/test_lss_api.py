@@ -4,7 +4,9 @@ while a node is enabled or armed, the audit rows."""
 
 from __future__ import annotations
 
+import json
 from collections.abc import Iterator
+from pathlib import Path
 
 import can
 import canopen
@@ -99,3 +101,21 @@ def test_global_steps_are_refused_while_a_node_is_enabled_or_armed(app_db_url: s
         refused = client.post("/api/sessions/demo-plant/lss/switch-global", json={})
         assert refused.status_code == 409
         assert "node 7 is enabled or armed" in refused.json()["detail"]
+
+
+def test_a_device_with_a_node_id_moves_to_the_new_one(app_db_url: str, tmp_path: Path) -> None:
+    plant = {"name": "Two", "nodes": [{"node_id": 5, "lss": True, "serial": 55, "profile": "generic-cia402-servo",
+                                        "heartbeat_ms": 500}]}
+    path = tmp_path / "two.json"
+    path.write_text(json.dumps(plant), encoding="utf-8")
+    app = create_app(plant_file=path, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
+    with TestClient(app) as client:
+        assert [node["node_id"] for node in client.get("/api/sessions/two/nodes").json()] == [5]
+        body = {"vendor": 0, "product": "0x402001", "revision": "0x10000", "serial": 55, "node_id": 9}
+        steps = confirmed(client, "POST", "/api/sessions/two/lss/assign", json=body)
+        assert steps.status_code == 200, steps.text
+        texts = [step["text"] for step in steps.json()]
+        assert "device with serial 0x00000037 selected (its node ID: 5)" in texts
+        assert "NMT reset communication sent to its old node ID 5" in texts
+        assert "node 9 booted (boot-up telegram)" in texts
+        assert [node["node_id"] for node in client.get("/api/sessions/two/nodes").json()] == [9]

@@ -108,6 +108,8 @@ class LssMaster:
         self.network = network
         self.window_s = window_s
         self.min_window_s = min_window_s
+        self.last_answer_s = 0.0
+        """How long the last answered request waited for its first answer."""
         self._rtt: list[float] = []
         self._floor = min_window_s
         self._answers: queue.Queue[tuple[float, bytes]] = queue.Queue()
@@ -159,8 +161,6 @@ class LssMaster:
             if len(answers) == 1:
                 self.last_answer_s = time.monotonic() - sent
                 deadline = time.monotonic() + gather_s
-
-    last_answer_s = 0.0
 
     def _one(self, data: bytes, answer_cs: int, step: str) -> bytes:
         answers = self._ask(data, answer_cs, self.window_s, gather_s=min(0.01, self.window_s))

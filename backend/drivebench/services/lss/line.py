@@ -25,6 +25,8 @@ from drivebench.services.params.write_context import WriteContext
 
 BOOT_WAIT_S = 5.0
 SWITCH_GLOBAL_WAITING = "switch state global (waiting)"
+RESET_OLD_ID = "NMT reset communication to it"
+BITRATES = sorted(BIT_TIMINGS.values(), reverse=True)
 MERGE_NOTE = N_("Identical LSS answers of several devices merge into one frame on the bus: a fastscan tells devices "
                 "apart by their LSS address; two devices with the same address cannot be told apart by LSS (after "
                 "addressing they answer on one node ID: the Plant page's duplicate check shows it).")
@@ -69,10 +71,6 @@ def line_of(session: Session) -> LssLine:
     return line
 
 
-def address_values(address: LssAddress) -> dict[str, str]:
-    return address.hex()
-
-
 async def _audit(session: Session, ctx: WriteContext, node_id: int, step: str, value: str,
                  error: str | None = None) -> None:
     await lss_audit.record(session.id, ctx.user, node_id, step, value, error)
@@ -104,10 +102,10 @@ async def fastscan(session: Session, ctx: WriteContext, window_ms: float = 50) -
 
 # --- assign a node ID ---------------------------------------------------------------------------------------------
 def assign_values(address: LssAddress, node_id: int, bitrate: int | None, store: bool) -> dict[str, object]:
-    values: dict[str, object] = {"LSS": "assign", **address_values(address), "node ID": node_id}
+    values: dict[str, object] = {"LSS": "assign", **address.hex(), "node ID": node_id}
     if bitrate is not None:
         values["bit rate"] = bitrate
-    return {**values, "store": store, "then": SWITCH_GLOBAL_WAITING}
+    return {**values, "store": store, "then": SWITCH_GLOBAL_WAITING, "if it had a node ID": RESET_OLD_ID}
 
 
 def _wait_for_boot(started: threading.Event) -> bool:
@@ -156,12 +154,18 @@ async def assign(session: Session, ctx: WriteContext, address: LssAddress, node_
             await asyncio.to_thread(master.switch_global, False)
             selected = False
             steps.append(Step("waiting", True, _("switch state global (waiting) sent")))
+            if 1 <= had <= 127 and had != node_id:  # CiA 305: a configured device takes a new ID at reset comm.
+                await asyncio.to_thread(frames.send_nmt, NmtCommand.RESET_COMMUNICATION, had)
+                session.remove_node(had)
+                steps.append(Step("reset", True, _("NMT reset communication sent to its old node ID {had}").format(
+                    had=had)))
             if await asyncio.to_thread(_wait_for_boot, booted):
                 steps.append(Step("boot", True, _("node {node} booted (boot-up telegram)").format(node=node_id)))
             else:
-                steps.append(Step("boot", False, _("no boot-up of node {node} within {seconds} s: a device that "
-                                                   "already had a node ID takes the new one at NMT reset "
-                                                   "communication").format(node=node_id, seconds=f"{BOOT_WAIT_S:g}")))
+                steps.append(Step("boot", False, _("no boot-up of node {node} within {seconds} s: the device does "
+                                                   "not start with its new node ID (is it still in LSS "
+                                                   "configuration state?)").format(node=node_id,
+                                                                                  seconds=f"{BOOT_WAIT_S:g}")))
         except DriveBenchError as exc:
             if selected:
                 await asyncio.to_thread(master.switch_global, False)
@@ -174,7 +178,7 @@ async def assign(session: Session, ctx: WriteContext, address: LssAddress, node_
     await _audit(session, ctx, node_id, "assign", _("serial {serial} -> node ID {node}{rate}{store}").format(
         serial=serial, node=node_id, rate=f", {bitrate} bit/s" if bitrate else "", store=", stored" if store else ""))
     if steps[-1].ok:
-        await session.scan()
+        await session.identify(node_id)
         if node_id in session.nodes:
             steps.append(Step("session", True, _("node {node} added to the session ({device})").format(
                 node=node_id, device=session.nodes[node_id].device_name)))
@@ -221,4 +225,3 @@ async def identify_non_configured(session: Session) -> bool:
         return await asyncio.to_thread(line.master.identify_non_configured)
 
 
-BITRATES = sorted(BIT_TIMINGS.values(), reverse=True)
