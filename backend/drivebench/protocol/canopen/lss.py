@@ -1,13 +1,15 @@
 """LSS master (CiA 305): layer setting services on a canopen Network, each step answering in words.
 
 canopen 2.4.1's :class:`canopen.lss.LssMaster` sends the unanswered broadcasts here (switch state global, activate
-bit timing). What it lacks is written here: every answered request waits for its answer in a window
-(:attr:`LssMaster.window_s`, a setting) and returns on the first one; a configure step reads the device's error
-code; several different answers are told apart from one. canopen's fastscan waits its full 0.5 s timeout on every
-1-bit and takes an answer that comes late for none: :meth:`LssMaster.fastscan` asks the other half of a bit after a
-miss (every decision is an answer), re-asks once before it decides, predicts bits from the devices already found and
-repeats the whole scan of a device with a doubled window when an answer came late. Each found device is left in
-LSS configuration state (so the next round finds the next one) until a switch state global (waiting).
+bit timing). What it lacks is written here: every answered request waits for its answer (up to
+:attr:`LssMaster.timeout_s`; a fastscan request up to :attr:`LssMaster.window_s`, both settings) and returns on the
+first one; a configure step reads the device's error code; several different answers are told apart from one.
+canopen's fastscan waits its full 0.5 s timeout on every 1-bit and takes an answer that comes late for none:
+:meth:`LssMaster.fastscan` asks the other half of a bit after a miss (every decision is an answer), re-asks once
+before it decides, predicts bits from the devices already found, turns back a bit a late answer misled, repeats the
+whole scan of a device with a longer window when that is not enough, and checks each address found with identify
+remote slave. Each found device is left in LSS configuration state (so the next round finds the next one) until a
+switch state global (waiting).
 
 Identical answers of several devices merge into one frame on a real CAN bus: the count of devices that answered
 cannot be seen. What is known: *some* device answered; different answers (inquiries in configuration state) mean
@@ -39,6 +41,7 @@ FASTSCAN_RESET = 0x80
 BIT_TIMINGS = {0: 1_000_000, 1: 800_000, 2: 500_000, 3: 250_000, 4: 125_000, 6: 50_000, 7: 20_000, 8: 10_000}
 """CiA 305 bit timing table 0 (index 5 is reserved there; canopen's docstring calls it 100 kbit/s)."""
 DEFAULT_WINDOW_S = 0.05
+DEFAULT_TIMEOUT_S = 1.0
 FASTSCAN_ATTEMPTS = 3
 
 NO_SLAVE = N_("no LSS slave answered: is a device in LSS waiting state?")
@@ -100,13 +103,15 @@ class FastscanResult:
 
 
 class LssMaster:
-    """One bus's LSS master. Thread-safe: one exchange at a time. ``window_s`` is how long an answer is waited
-    for; the fastscan narrows it to a few times the answer time it measured (never below ``min_window_s``)."""
+    """One bus's LSS master. Thread-safe: one exchange at a time. A configuring or inquiring request waits up to
+    ``timeout_s`` for its answer (returning at the first); a fastscan request waits at most ``window_s``, narrowed
+    to a few times the answer time measured (never below ``min_window_s``)."""
 
     def __init__(self, network: canopen.Network, *, window_s: float = DEFAULT_WINDOW_S,
-                 min_window_s: float = 0.004) -> None:
+                 timeout_s: float = DEFAULT_TIMEOUT_S, min_window_s: float = 0.004) -> None:
         self.network = network
         self.window_s = window_s
+        self.timeout_s = timeout_s
         self.min_window_s = min_window_s
         self.last_answer_s = 0.0
         """How long the last answered request waited for its first answer."""
@@ -163,7 +168,7 @@ class LssMaster:
                 deadline = time.monotonic() + gather_s
 
     def _one(self, data: bytes, answer_cs: int, step: str) -> bytes:
-        answers = self._ask(data, answer_cs, self.window_s, gather_s=min(0.01, self.window_s))
+        answers = self._ask(data, answer_cs, self.timeout_s, gather_s=0.01)
         if not answers:
             raise LssNoAnswer(Text(N_("no LSS slave answered {step}: is exactly one device in LSS configuration "
                                       "state (switch state selective first)?"), step=step))
@@ -189,7 +194,7 @@ class LssMaster:
             for code, value in zip(codes, address.parts()[:3], strict=True):
                 self._send(struct.pack("<BI", code, value))
             answers = self._ask(struct.pack("<BI", cl.CS_SWITCH_STATE_SELECTIVE_SERIAL_NUMBER, address.serial),
-                                cl.CS_SWITCH_STATE_SELECTIVE_RESPONSE, self.window_s)
+                                cl.CS_SWITCH_STATE_SELECTIVE_RESPONSE, self.timeout_s)
         if not answers:
             raise LssNoAnswer(Text(N_("no LSS slave with vendor {vendor}, product {product}, revision {revision}, "
                                       "serial {serial} answered: is the device on this bus and in LSS waiting "
@@ -260,20 +265,24 @@ class LssMaster:
         """Is any device with this vendor and product and revision and serial in the ranges on the bus? (One
         merged answer whatever their number.)"""
         with self._lock:
-            for code, value in ((cl.CS_IDENTIFY_REMOTE_SLAVE_VENDOR_ID, vendor),
-                                (cl.CS_IDENTIFY_REMOTE_SLAVE_PRODUCT_CODE, product),
-                                (cl.CS_IDENTIFY_REMOTE_SLAVE_REVISION_NUMBER_LOW, revisions[0]),
-                                (cl.CS_IDENTIFY_REMOTE_SLAVE_REVISION_NUMBER_HIGH, revisions[1]),
-                                (cl.CS_IDENTIFY_REMOTE_SLAVE_SERIAL_NUMBER_LOW, serials[0])):
-                self._send(struct.pack("<BI", code, value))
-            return bool(self._ask(struct.pack("<BI", cl.CS_IDENTIFY_REMOTE_SLAVE_SERIAL_NUMBER_HIGH, serials[1]),
-                                  cl.CS_IDENTIFY_SLAVE, self.window_s))
+            return self._identify_remote(vendor, product, revisions, serials, self.timeout_s)
+
+    def _identify_remote(self, vendor: int, product: int, revisions: tuple[int, int], serials: tuple[int, int],
+                         wait_s: float, count: ScanCount | None = None) -> bool:
+        for code, value in ((cl.CS_IDENTIFY_REMOTE_SLAVE_VENDOR_ID, vendor),
+                            (cl.CS_IDENTIFY_REMOTE_SLAVE_PRODUCT_CODE, product),
+                            (cl.CS_IDENTIFY_REMOTE_SLAVE_REVISION_NUMBER_LOW, revisions[0]),
+                            (cl.CS_IDENTIFY_REMOTE_SLAVE_REVISION_NUMBER_HIGH, revisions[1]),
+                            (cl.CS_IDENTIFY_REMOTE_SLAVE_SERIAL_NUMBER_LOW, serials[0])):
+            self._send(struct.pack("<BI", code, value), count)
+        return bool(self._ask(struct.pack("<BI", cl.CS_IDENTIFY_REMOTE_SLAVE_SERIAL_NUMBER_HIGH, serials[1]),
+                              cl.CS_IDENTIFY_SLAVE, wait_s, count))
 
     def identify_non_configured(self) -> bool:
         """Is any device without a node ID on the bus?"""
         with self._lock:
             return bool(self._ask(bytes([cl.CS_IDENTIFY_NON_CONFIGURED_REMOTE_SLAVE]),
-                                  cl.CS_IDENTIFY_NON_CONFIGURED_SLAVE, self.window_s))
+                                  cl.CS_IDENTIFY_NON_CONFIGURED_SLAVE, self.timeout_s))
 
     # --- fastscan ---------------------------------------------------------------------------------------------
     def fastscan(self, max_devices: int = 127) -> FastscanResult:
@@ -313,10 +322,11 @@ class LssMaster:
                   ) -> tuple[LssAddress | None, float]:
         self._floor = self.min_window_s  # a longer wait one device needed is not kept for the next
         for attempt in range(FASTSCAN_ATTEMPTS):
-            if not self._fs(0, FASTSCAN_RESET, 0, 0, count, ceiling):
-                return None, ceiling  # no device without node ID in waiting state
+            wait = max(ceiling, self._window(ceiling, careful=True))
+            if not (self._fs(0, FASTSCAN_RESET, 0, 0, count, wait) or self._fs(0, FASTSCAN_RESET, 0, 0, count, wait)):
+                return None, ceiling  # no device without node ID in waiting state (asked twice)
             parts = self._scan_parts(found, count, ceiling)
-            if parts is not None:
+            if parts is not None and self._really(LssAddress(*parts), found, count):
                 return LssAddress(*parts), ceiling
             count.retries += 1
             self._floor = min(ceiling, self._floor * 4)  # answers came late: the whole device again, waiting longer
@@ -325,6 +335,13 @@ class LssMaster:
         raise LssError(Text(N_("fastscan lost the device it was following ({attempts} attempts, last answer "
                                "window {ms} ms): a device that answers late or leaves waiting state; raise the "
                                "answer window."), attempts=FASTSCAN_ATTEMPTS, ms=round(self._floor * 1000)))
+
+    def _really(self, address: LssAddress, found: Sequence[LssAddress], count: ScanCount) -> bool:
+        """The address is a device's (identify remote slave: an answer late from an earlier request may have been
+        taken for the last confirmation's) and not one found before."""
+        vendor, product, revision, serial = address.parts()
+        return address not in found and self._identify_remote(vendor, product, (revision, revision),
+                                                               (serial, serial), self.timeout_s, count)
 
     def _scan_parts(self, found: Sequence[LssAddress], count: ScanCount, ceiling: float) -> list[int] | None:
         parts: list[int] = []
