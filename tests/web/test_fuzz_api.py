@@ -43,7 +43,8 @@ pytestmark = pytest.mark.slow  # fault scenarios, timeouts or server processes: 
 DEMO_PLANT = REPO_ROOT / "plants" / "demo.json"
 DEVICE_FAULTS = {"/problems/sdo-abort-error", "/problems/sdo-timeout-error", "/problems/node-offline",
                  "/problems/adapter-unavailable", "/problems/transport-error",
-                 "/problems/mapping-unanswered", "/problems/mapping-not-applied"}  # an EtherCAT slave's PDO mapping
+                 "/problems/mapping-unanswered", "/problems/mapping-not-applied",  # an EtherCAT slave's PDO mapping
+                 "/problems/lss-error", "/problems/lss-no-answer", "/problems/lss-step-failed"}  # LSS (no slave ...)
 # What exists in the demo plant, one set of path parameters per node (an operation takes the names it has).
 KNOWN = [
     {"session_id": "demo-plant", "node_id": 3, "profile_id": "siemens-micromaster4-canopen", "ref": "P0700"},

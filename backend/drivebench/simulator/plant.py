@@ -26,6 +26,8 @@ from drivebench.errors import DriveBenchError, ProfileError, TransportError
 from drivebench.i18n import _
 from drivebench.simulator.babbler import DEFAULT_COB_ID, Babbler
 from drivebench.simulator.ethercat import EthercatLine
+from drivebench.simulator.lss_slave import REQUEST_COB as LSS_REQUEST
+from drivebench.simulator.lss_slave import UNCONFIGURED, LssDevices
 from drivebench.simulator.node import Latency, LatencyText, SimulatedNode
 from drivebench.simulator.servo402 import Servo402
 from drivebench.simulator.ticker import DeadlineTicker
@@ -35,7 +37,8 @@ from drivebench.transport.bus import BusSpec, open_bus
 class PlantNode(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
-    node_id: int = Field(ge=1, le=127)
+    node_id: int = Field(ge=1, le=255)
+    """1-127; 255: the device arrives without a node ID (an LSS slave, silent except for LSS until addressed)."""
     profile: str
     name: str | None = None
     latency: LatencyText = "0ms"
@@ -45,6 +48,18 @@ class PlantNode(BaseModel):
     trip_current_permille: int | None = Field(None, ge=1)
     """A CiA 402 servo trips on overcurrent (0x2310) above this current (per mille of rated; an acceleration's
     current spike can reach it); None: it never does."""
+    lss: bool = False
+    """The device is an LSS slave (CiA 305); always so with node_id 255."""
+    serial: int | None = Field(None, ge=0, le=0xFFFFFFFF)
+    """Its serial number (0x1018 sub 4, part of its LSS address)."""
+
+    @field_validator("node_id")
+    @classmethod
+    def _node_id(cls, node_id: int) -> int:
+        if 127 < node_id < 255:
+            raise ValueError(_("node id {node} is out of range: 1-127, or 255 for a device without one").format(
+                node=node_id))
+        return node_id
 
 
 class PlantFile(BaseModel):
@@ -61,6 +76,8 @@ class PlantFile(BaseModel):
     def _unique_ids(cls, nodes: list[PlantNode]) -> list[PlantNode]:
         seen: set[int] = set()
         for node in nodes:
+            if node.node_id == UNCONFIGURED:
+                continue
             if node.node_id in seen:
                 raise ValueError(_("node id {node} appears twice").format(node=node.node_id))
             seen.add(node.node_id)
@@ -92,8 +109,13 @@ class Plant:
         self.babbler: Babbler | None = None
         self.duplicates: list[SimulatedNode] = []
         """Second devices set to a node id that is already taken (a commissioning mistake, switched at run time)."""
+        self.lss = LssDevices(self)
+        """The devices that are LSS slaves (CiA 305): those of the plant file with ``lss`` or node_id 255."""
         for spec in plant.nodes:
             profile = profiles(spec.profile)
+            if spec.lss or spec.node_id == UNCONFIGURED:
+                self.lss.add(spec, profile, latency=latency)
+                continue
             self.nodes[spec.node_id] = node = SimulatedNode(
                 profile, spec.node_id, self._send, name=spec.name,
                 latency=Latency.parse(latency if latency is not None else spec.latency),
@@ -107,6 +129,7 @@ class Plant:
         self._notifier = can.Notifier(self._bus, [self._on_message], timeout=0.5)
         for node in self.nodes.values():
             node.power_on()
+        self.lss.power_on()
         self._ticker.start()
         return self
 
@@ -115,6 +138,7 @@ class Plant:
         self._ticker.stop()
         for node in self._everyone():
             node.power_off()
+        self.lss.power_off()
         if self._notifier is not None:
             self._notifier.stop()
         if self._bus is not None:
@@ -159,6 +183,10 @@ class Plant:
         if babbler is not None:
             babbler.stop()
 
+    def send_frame(self, cob_id: int, data: bytes) -> None:
+        """A frame from a device of the plant onto the bus (its other devices hear it)."""
+        self._send(cob_id, data)
+
     def _send(self, cob_id: int, data: bytes) -> None:
         babbler = self.babbler
         if babbler is not None and babbler.starves(cob_id):
@@ -177,15 +205,22 @@ class Plant:
     def _on_message(self, msg: can.Message) -> None:
         if msg.is_extended_id or msg.is_error_frame:
             return
+        if msg.arbitration_id == LSS_REQUEST and not msg.is_remote_frame:
+            self.lss.on_request(bytes(msg.data))
+            return
         if msg.is_remote_frame:
             for node in self._everyone():
                 node.on_remote_request(msg.arbitration_id)
             return
         self._dispatch(msg.arbitration_id, bytes(msg.data), msg.timestamp, skip_sender=False)
+        if msg.arbitration_id == 0:
+            self.lss.on_nmt(bytes(msg.data))
 
     def _dispatch(self, cob_id: int, data: bytes, timestamp: float, *, skip_sender: bool) -> None:
         for node in self._everyone():
             if skip_sender and cob_id & 0x7F == node.node_id:
+                continue
+            if not self.lss.hears(node):
                 continue
             node.on_frame(cob_id, data, timestamp)
 

@@ -31,12 +31,14 @@ from drivebench.web.api import accounts as accounts_api
 from drivebench.web.api import diagnostics, health, parameter_sets, parameters, pdo, profiles, sessions, tools
 from drivebench.web.api import drive_control as drive_control_api
 from drivebench.web.api import line_projects as line_projects_api
+from drivebench.web.api import lss as lss_api
 from drivebench.web.api import monitor as monitor_api
 from drivebench.web.api import simulator as simulator_api
 from drivebench.web.gate import RequestGate
 from drivebench.web.metrics import Metrics, RequestMetrics
 from drivebench.web.pages import accounts as accounts_page
 from drivebench.web.pages import line_projects as line_projects_page
+from drivebench.web.pages import lss as lss_page
 from drivebench.web.pages import monitor as monitor_page
 from drivebench.web.pages import node as node_page
 from drivebench.web.pages import node_control, node_diagnostics
@@ -65,11 +67,11 @@ log = logging.getLogger(__name__)
 API_ROUTERS = [health.router, parameters.router, monitor_api.router, sessions.router, profiles.router,
                diagnostics.router, tools.router, tools.planned_router, pdo.router, parameter_sets.router,
                drive_control_api.router, accounts_api.router, simulator_api.router, metrics_api.router,
-               line_projects_api.router]
+               line_projects_api.router, lss_api.router]
 PAGE_ROUTERS = [language.router, node_diagnostics.router, node_pdo_page.router, monitor_page.router, plant_page.router,
                 node_control.router, node_page.router, node_factory_page.router, profiles_page.router,
                 remote_page.router, tools_page.router, sets_audit_page.router, parameter_sets_page.router,
-                accounts_page.router, line_projects_page.router]
+                accounts_page.router, line_projects_page.router, lss_page.router]
 WS_ROUTERS = [monitor_ws.router, nodes_ws.router, jobs_ws.router, remote_ws.router, process_data_ws.router,
               drive_control_ws.router]
 
@@ -82,7 +84,8 @@ async def start_plant(state: AppState, plant_path: Path, *, bus: str | None = No
     session = await state.manager.open(plant.spec, name=plant_file.name, simulated=True)
     state.plants[session.id] = plant
     for node in plant_file.nodes:
-        session.add_node(node.node_id, node.profile, node.name)
+        if node.node_id in plant.nodes:  # a device without a node ID joins the session once addressed (LSS)
+            session.add_node(node.node_id, node.profile, node.name)
     if plant_file.ethercat is not None:  # a second session: the slaves behind a simulated master's gateway
         line = plant_file.ethercat
         gateway = await asyncio.to_thread(line.start, state.registry.get, latency=latency)

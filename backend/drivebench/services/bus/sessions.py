@@ -242,6 +242,10 @@ class Session:
             nodes.append(node)
         return nodes
 
+    async def identify(self, node_id: int) -> SessionNode:
+        """One node joins the session: its identity read, its profile picked (a node just addressed by LSS)."""
+        return await self._identify(node_id)
+
     async def _identify(self, node_id: int) -> SessionNode:
         client = self.network.node(node_id)
         identity: dict[str, int] = {}

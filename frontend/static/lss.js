@@ -1,0 +1,87 @@
+// The Line addressing (LSS) page: fastscan, the found devices, assign node ID + bit rate + store per device. Every
+// step goes through the JSON API; the steps that reach every device on the bus ask (428, app.js: drivebench.moving).
+(() => {
+  const _ = window.drivebench.gettext;
+  const card = document.getElementById("lss");
+  if (!card) return;
+  const base = window.drivebench.url(`/api/sessions/${encodeURIComponent(card.dataset.session)}/lss`);
+  const tbody = card.querySelector("#lss-devices tbody");
+  const errorSlot = card.querySelector("#lss-error");
+
+  async function request(method, url, body) {
+    const response = await fetch(url, { method, headers: { "Content-Type": "application/json",
+                                                          "X-DriveBench-Client": window.drivebenchClientId },
+                                        body: body === undefined ? undefined : JSON.stringify(body) });
+    let data = null;
+    try { data = await response.json(); } catch (e) { data = null; }
+    return { status: response.status, data };
+  }
+
+  // A step that reaches every device: asked when the server answers 428, sent again confirmed
+  function confirmed(url, body, what) {
+    const send = (confirmation) => request("POST", url, confirmation ? { ...body, ...confirmation } : body);
+    return window.drivebench.moving(send, { what });
+  }
+
+  function stepItems(steps) {
+    return steps.map((step) => window.drivebench.el("li", { className: step.ok ? "step-ok" : "step-failed" }, step.text));
+  }
+
+  function rows(scan) {
+    card.querySelector("#lss-note").textContent = scan.note || "";
+    if (!scan.devices.length) return;
+    const template = card.querySelector("#lss-row");
+    tbody.replaceChildren(...scan.devices.map((device) => {
+      const row = template.content.firstElementChild.cloneNode(true);
+      row.dataset.serial = device.serial;
+      for (const key of ["vendor", "product", "revision", "serial"]) row.querySelector(`.${key}`).textContent = device[key];
+      row.querySelector(".device").textContent = device.device || _("unknown device");
+      row.querySelector(".assign").addEventListener("click", () => assign(row, device));
+      return row;
+    }));
+  }
+
+  async function assign(row, device) {
+    const result = row.querySelector(".steps");
+    const nodeId = Number(row.querySelector(".node-id").value);
+    const rate = row.querySelector(".bitrate").value;
+    const body = { vendor: device.vendor, product: device.product, revision: device.revision, serial: device.serial,
+                   node_id: nodeId, bitrate: rate ? Number(rate) : null, store: row.querySelector(".store").checked };
+    result.replaceChildren(window.drivebench.el("li", {}, _("addressing…")));
+    const answer = await confirmed(`${base}/assign`, body, _("LSS addressing"));
+    if (!answer) { result.replaceChildren(window.drivebench.el("li", {}, _("Cancelled: nothing was sent."))); return; }
+    if (answer.status >= 400) {
+      const done = stepItems((answer.data && answer.data.steps) || []);
+      result.replaceChildren(...done, window.drivebench.el("li", { className: "step-failed" },
+                                                           window.drivebench.problemBox(answer.data, answer.status)));
+      return;
+    }
+    result.replaceChildren(...stepItems(answer.data));
+    row.classList.add("assigned");
+  }
+
+  card.querySelector("#lss-fastscan").addEventListener("click", async (event) => {
+    const button = event.currentTarget;
+    const status = card.querySelector("#lss-scan-result");
+    button.disabled = true;
+    errorSlot.replaceChildren();
+    status.textContent = _("scanning…");
+    try {
+      const answer = await confirmed(`${base}/fastscan`, { window_ms: Number(card.querySelector("#lss-window").value) },
+                                     _("LSS fastscan"));
+      if (!answer) { status.textContent = _("Cancelled: nothing was sent."); return; }
+      if (answer.status >= 400) {
+        status.textContent = "";
+        errorSlot.replaceChildren(window.drivebench.problemBox(answer.data, answer.status));
+        return;
+      }
+      status.textContent = _("{count} devices found: {frames} frames in {seconds} s", {
+        count: answer.data.devices.length, frames: answer.data.frames, seconds: answer.data.seconds.toFixed(2) });
+      rows(answer.data);
+    } finally {
+      button.disabled = false;
+    }
+  });
+
+  request("GET", base).then((answer) => { if (answer.status === 200) rows(answer.data); });
+})();

@@ -1,0 +1,58 @@
+"""Line addressing in a real browser (Debian chromium) on the new-line plant: from the Plant page to the LSS page,
+fastscan (confirmed in the page's dialog), assign node 20 to one device with store; it boots and appears on the
+Plant page."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import Any
+
+import pytest
+
+from drivebench.config import REPO_ROOT
+from drivebench.web.app import create_app
+from tests.conftest import fresh_channel, screenshot, serve_app
+
+NEW_LINE = REPO_ROOT / "plants" / "new-line.json"
+TIMEOUT_MS = 30_000
+
+
+@pytest.fixture
+def line_server(app_db_url: str) -> Iterator[str]:
+    with serve_app(create_app(plant_file=NEW_LINE, plant_bus=f"virtual:{fresh_channel()}@500000")) as url:
+        yield url
+
+
+def _confirm(page: Any) -> str:
+    from playwright.sync_api import expect
+
+    asked = page.locator("#moving-confirm")
+    expect(asked).to_be_visible(timeout=TIMEOUT_MS)
+    text = str(asked.inner_text())
+    asked.get_by_role("button", name="Send it").click()
+    return text
+
+
+def test_fastscan_assign_store_and_the_node_boots_onto_the_plant_page(line_server: str, page: Any) -> None:
+    from playwright.sync_api import expect
+
+    page.goto(line_server + "/")
+    page.locator("#lss-link-new-line").click()
+    expect(page.locator("h1")).to_have_text("Line addressing (LSS)")
+    page.get_by_role("button", name="Fastscan").click()
+    asked = _confirm(page)
+    assert "every node of the session" in asked and "reaches: all nodes on this bus" in asked
+    rows = page.locator("#lss-devices tbody tr")
+    expect(rows).to_have_count(4, timeout=TIMEOUT_MS)
+    expect(page.locator("#lss-scan-result")).to_contain_text("4 devices found", timeout=TIMEOUT_MS)
+    pump = page.locator("#lss-devices tbody tr[data-serial='0x00000BBB']")
+    expect(pump.locator(".device")).to_contain_text("MICROMASTER")
+    pump.locator(".node-id").fill("20")
+    pump.get_by_role("button", name="Assign node ID").click()
+    asked = _confirm(page)
+    assert "node ID: 20" in asked and "store: yes" in asked
+    expect(pump.locator(".steps")).to_contain_text("node 20 booted (boot-up telegram)", timeout=TIMEOUT_MS)
+    expect(pump.locator(".steps")).to_contain_text("configuration stored in the device")
+    screenshot(page, "lss-assigned")
+    page.goto(line_server + "/")
+    expect(page.locator("#link-new-line-20")).to_be_visible(timeout=TIMEOUT_MS)
