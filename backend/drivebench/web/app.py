@@ -29,6 +29,7 @@ from drivebench.web.api import accounts as accounts_api
 from drivebench.web.api import diagnostics, health, parameter_sets, parameters, pdo, profiles, sessions, tools
 from drivebench.web.api import drive_control as drive_control_api
 from drivebench.web.api import monitor as monitor_api
+from drivebench.web.api import scope as scope_api
 from drivebench.web.api import simulator as simulator_api
 from drivebench.web.gate import RequestGate
 from drivebench.web.metrics import Metrics, RequestMetrics
@@ -52,6 +53,7 @@ from drivebench.web.ws import monitor as monitor_ws
 from drivebench.web.ws import nodes as nodes_ws
 from drivebench.web.ws import process_data as process_data_ws
 from drivebench.web.ws import remote as remote_ws
+from drivebench.web.ws import scope as scope_ws
 
 log = logging.getLogger(__name__)
 
@@ -60,13 +62,14 @@ log = logging.getLogger(__name__)
 # per read on this machine); none of their paths is a path of a router after them (benchmarks/RESULTS.md).
 API_ROUTERS = [health.router, parameters.router, monitor_api.router, sessions.router, profiles.router,
                diagnostics.router, tools.router, tools.planned_router, pdo.router, parameter_sets.router,
-               drive_control_api.router, accounts_api.router, simulator_api.router, metrics_api.router]
+               drive_control_api.router, accounts_api.router, simulator_api.router, metrics_api.router,
+               scope_api.router]
 PAGE_ROUTERS = [language.router, node_diagnostics.router, node_pdo_page.router, monitor_page.router, plant_page.router,
                 node_control.router, node_page.router, node_factory_page.router, profiles_page.router,
                 remote_page.router, tools_page.router, sets_audit_page.router, parameter_sets_page.router,
                 accounts_page.router]
 WS_ROUTERS = [monitor_ws.router, nodes_ws.router, jobs_ws.router, remote_ws.router, process_data_ws.router,
-              drive_control_ws.router]
+              drive_control_ws.router, scope_ws.router]
 
 
 async def start_plant(state: AppState, plant_path: Path, *, bus: str | None = None,

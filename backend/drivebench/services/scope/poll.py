@@ -2,7 +2,7 @@
 read path (one batch per node, on the event loop), a round every ``period_s`` at most.
 
 A round takes as long as its reads: ``period_s`` becomes the period really reached (the time since the start over
-the rounds done), which the page shows as the rate. A node that does not answer gives ``None`` for its channels
+the rounds since), which the page shows as the rate. A node that does not answer gives ``None`` for its channels
 in that round and one event in words (again only once it answered in between).
 """
 
@@ -72,7 +72,7 @@ class PollScopeSource:
             at = time.monotonic()
             raw = await self._round(silent, started, on_event)
             on_frame(ScopeFrame(rounds, at - started, raw))
+            if rounds:  # round n starts no earlier than n periods after the first: never faster than asked
+                self.period_s = (at - started) / rounds
             rounds += 1
-            now = time.monotonic()
-            self.period_s = (now - started) / rounds
-            await asyncio.sleep(max(0.0, due + self.asked_period_s - now))
+            await asyncio.sleep(max(0.0, due + self.asked_period_s - time.monotonic()))

@@ -199,6 +199,11 @@ def current(session: Session) -> ScopeRun:
     return run
 
 
+def latest(session: Session) -> ScopeRun | None:
+    """The session's recording, running or the last one (None: none since the server started)."""
+    return _runs.get(session)
+
+
 def running(session: Session) -> ScopeRun | None:
     run = _runs.get(session)
     return run if run is not None and run.state in ("armed", "recording") else None
