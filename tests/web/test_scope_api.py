@@ -140,6 +140,7 @@ def test_a_viewer_watches_a_free_run_live_and_stop_keeps_it(demo_api: TestClient
     ({"channels": [{"node": MM, "ref": SPEED_MM}] * 2}, "named twice"),
     ({"period_ms": 60_000}, "1 ms to 10 s"),
     ({"channels": [{"node": MM, "ref": "0x6041", "bit": 40}]}, "bits 0 to 15"),
+    ({"length_s": 2.0}, "one of the two"),
 ])
 def test_bad_settings_are_refused_in_words_and_nothing_starts(demo_api: TestClient, change: dict[str, Any],
                                                                words: str) -> None:

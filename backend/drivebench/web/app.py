@@ -43,6 +43,7 @@ from drivebench.web.pages import parameter_sets as parameter_sets_page
 from drivebench.web.pages import plant as plant_page
 from drivebench.web.pages import profiles as profiles_page
 from drivebench.web.pages import remote as remote_page
+from drivebench.web.pages import scope as scope_page
 from drivebench.web.pages import sets_audit as sets_audit_page
 from drivebench.web.pages import tools as tools_page
 from drivebench.web.request_ids import RequestIds
@@ -67,7 +68,7 @@ API_ROUTERS = [health.router, parameters.router, monitor_api.router, sessions.ro
 PAGE_ROUTERS = [language.router, node_diagnostics.router, node_pdo_page.router, monitor_page.router, plant_page.router,
                 node_control.router, node_page.router, node_factory_page.router, profiles_page.router,
                 remote_page.router, tools_page.router, sets_audit_page.router, parameter_sets_page.router,
-                accounts_page.router]
+                accounts_page.router, scope_page.router]
 WS_ROUTERS = [monitor_ws.router, nodes_ws.router, jobs_ws.router, remote_ws.router, process_data_ws.router,
               drive_control_ws.router, scope_ws.router]
 

@@ -8,8 +8,10 @@ from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Query, Request
 from fastapi.responses import Response
-from pydantic import BaseModel, Field, model_validator
+from pydantic import BaseModel, Field
 
+from drivebench.errors import InvalidValue
+from drivebench.i18n import _
 from drivebench.services.scope import export, runs, store
 from drivebench.services.scope.channels import MAX_CHANNELS, candidates
 from drivebench.services.scope.source import ScopeChannel
@@ -48,13 +50,10 @@ class StartBody(BaseModel):
     confirm: Any = None
     confirm_values: Any = None
 
-    @model_validator(mode="after")
-    def _one_length(self) -> StartBody:
-        if (self.length_samples is None) == (self.length_s is None):
-            raise ValueError("give the length either in samples (length_samples) or in seconds (length_s)")
-        return self
-
     def request(self) -> runs.StartRequest:
+        if (self.length_samples is None) == (self.length_s is None):
+            raise InvalidValue(_("Give the length either in samples (length_samples) or in seconds (length_s), "
+                                 "one of the two."))
         period_s = self.period_ms / 1000
         length = self.length_samples or max(2, round((self.length_s or 0) / period_s))
         spec = TriggerSpec(self.trigger.mode, self.trigger.on, self.trigger.channel, self.trigger.edge,
