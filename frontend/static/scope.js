@@ -14,6 +14,9 @@
   const form = $("scope-form");
   const COLORS = ["#0b5fa5", "#c0392b", "#1e8449", "#8e44ad", "#d35400", "#17a589", "#7f8c8d", "#b7950b"];
   const LIVE_KEPT = 4000;
+  const EXPORTS = ["csv", "json"];
+  const OVERLAY = _("overlay");
+  const PER_S = _("samples/s");
 
   let chosen = [];          // [{node, ref, bit, name, unit}]
   let live = { channels: [], rows: [], markers: [] };
@@ -66,9 +69,14 @@
     chosen.push(channel);
     drawChosen();
   }
+  function swatch(i) {
+    const box = el("span", { className: "swatch" });
+    box.style.background = COLORS[i % COLORS.length];
+    return box;
+  }
   function drawChosen() {
     $("channel-list").replaceChildren(...chosen.map((c, i) => el("li", {},
-      el("span", { className: "swatch", style: `background:${COLORS[i]}` }),
+      swatch(i),
       el("span", { className: "ref" }, `${c.node}: ${c.ref}`), " ", el("span", { className: "name" }, c.name),
       el("label", { className: "bit", title: _("Record one bit of the word (status-word bits)") }, _("bit"), " ",
          el("input", { type: "number", min: 0, max: 31, size: 2, value: c.bit ?? "",
@@ -157,7 +165,7 @@
       label: c.unit ? `${c.label} [${c.unit}]` : c.label, scale: c.unit || "value", stroke: COLORS[i % COLORS.length],
       width: 1.5, value: (u, v) => fixed(v, 2) }));
     (view.overlay ? view.overlay.channels : []).forEach((c, i) => series.push({
-      label: `${_("overlay")}: ${c.label}`, scale: c.unit || "value", stroke: COLORS[i % COLORS.length], width: 1,
+      label: `${OVERLAY}: ${c.label}`, scale: c.unit || "value", stroke: COLORS[i % COLORS.length], width: 1,
       dash: [6, 4], value: (u, v) => fixed(v, 2) }));
     const scales = { x: { time: false } };
     for (const c of [...view.channels, ...(view.overlay ? view.overlay.channels : [])]) scales[c.unit || "value"] = {};
@@ -269,8 +277,12 @@
     else chart.setData(data(view), resetZoom !== false);
     $("plot-what").textContent = view.title;
     const list = view.markers.filter((m) => m.kind !== "trigger");
-    $("scope-markers").replaceChildren(...list.map((m) => el("li", { className: `marker-${m.kind}` },
-      `${fixed(m.t, 3)} s · ${m.node ? _("node {node}", { node: m.node }) : ""} ${m.text}`)));
+    $("scope-markers").replaceChildren(...list.map((m) => {
+      const where = m.node ? _("node {node}", { node: m.node }) : "";
+      const item = el("li", {}, `${fixed(m.t, 3)} s · ${where} ${m.text}`);
+      item.classList.add(`marker-${m.kind}`);
+      return item;
+    }));
   }
   function schedule() {
     if (drawPending) return;
@@ -289,7 +301,7 @@
   async function open(id) {
     const recording = await call("GET", drivebench.url(`/api/scope/recordings/${id}`), null, "stored-result");
     if (!recording) return;
-    shown = asView(recording, `${recording.name} · ${sourceName(recording)}, ${fixed(1 / recording.period_s, 1)} ${_("samples/s")}`);
+    shown = asView(recording, `${recording.name} · ${sourceName(recording)}, ${fixed(1 / recording.period_s, 1)} ${PER_S}`);
     cursors = [null, null];
     draw(true);
     readCursors();
@@ -306,11 +318,16 @@
     if (!window.confirm(_("Delete this recording?"))) return;
     if (await call("DELETE", drivebench.url(`/api/scope/recordings/${id}`), null, "stored-result")) listStored();
   }
+  function exportLink(id, format) {
+    const link = el("a", { className: "button-link small", download: "" });
+    link.href = drivebench.url(`/api/scope/recordings/${id}/export?format=${format}`);
+    link.textContent = format.toUpperCase();
+    return link;
+  }
   async function listStored() {
     const list = await call("GET", drivebench.url("/api/scope/recordings"), null, "stored-result");
     if (!list) return;
     $("scope-recordings-empty").hidden = list.length > 0;
-    const exportUrl = (id, format) => drivebench.url(`/api/scope/recordings/${id}/export?format=${format}`);
     $("scope-recordings").tBodies[0].replaceChildren(...list.map((r) => el("tr", {},
       el("td", { className: "name" }, r.name),
       el("td", {}, new Date(r.created).toLocaleString()),
@@ -320,8 +337,7 @@
         el("button", { type: "button", className: "small", onclick: () => open(r.id) }, _("Open")),
         el("button", { type: "button", className: "small secondary", onclick: () => overlay(r.id),
                        title: _("Show over the open recording (before/after)") }, _("Overlay")),
-        el("a", { className: "button-link small", href: exportUrl(r.id, "csv"), download: "" }, "CSV"),
-        el("a", { className: "button-link small", href: exportUrl(r.id, "json"), download: "" }, "JSON"),
+        ...EXPORTS.map((format) => exportLink(r.id, format)),
         el("button", { type: "button", className: "small secondary delete-recording", onclick: () => remove(r.id) },
            _("Delete"))))));
   }
@@ -335,7 +351,7 @@
     $("scope-state").textContent = STATES[message.state] || message.state;
     $("scope-state").dataset.state = message.state;
     if (message.state === "none") return;
-    $("scope-source").textContent = `${sourceName(message)}, ${fixed(message.rate, 1)} ${_("samples/s")}`;
+    $("scope-source").textContent = `${sourceName(message)}, ${fixed(message.rate, 1)} ${PER_S}`;
     if (!live.channels.length || key({ channels: live.channels }) !== key({ channels: message.channels })) {
       live = { channels: message.channels, rows: [], markers: [] };
     }

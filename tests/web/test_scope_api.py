@@ -18,6 +18,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from drivebench.config import settings
+from drivebench.services.scope import store
 from drivebench.services.storage import database
 from drivebench.services.users import accounts
 from drivebench.services.users.principals import Role
@@ -196,3 +197,14 @@ def test_only_an_engineer_starts_a_recording_a_viewer_watches_it(with_users: dic
         assert recording["created_by"] == "eve" and not any(
             isinstance(v, float) and math.isnan(v) for column in recording["values"] for v in column)
         assert client.delete(f"/api/scope/recordings/{stopped['recording_id']}", headers=viewer).status_code == 403
+
+
+def test_a_recording_running_when_the_server_stops_is_stored(app_db_url: str) -> None:
+    app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
+    body = {**_start_body(mode="free"), "length_s": 100.0, "length_samples": None, "name": "cut short"}
+    with TestClient(app) as client:
+        assert client.post(f"{API}/scope/run", json=body).status_code == 201
+        with client.websocket_connect("/ws/sessions/demo-plant/scope") as socket:
+            assert wait_until(lambda: socket.receive_json()["type"] == "rows", 20)
+    kept = [r for r in store.listing() if r["name"] == "cut short"]
+    assert len(kept) == 1 and kept[0]["count"] >= 1

@@ -134,6 +134,6 @@ def test_a_triggered_capture_of_two_ramps_from_the_page_with_csv_export(page: An
     page.goto(f"{base}/language/de?next=/scope/demo-plant")
     page.wait_for_function("() => document.getElementById('scope-recordings').tBodies[0].rows.length > 0",
                            timeout=30_000)
-    assert page.locator("h1", has_text="Scope").count() == 1
+    assert page.locator("h1", has_text="Oszilloskop").count() == 1 and "Abtastperiode" in page.content()
     assert page.evaluate("document.documentElement.scrollWidth <= window.innerWidth"), "no sideways scroll at 1024"
     page.screenshot(path=str(SHOTS / "scope-de-1024.png"), full_page=True)

@@ -16,6 +16,7 @@ from fastapi.staticfiles import StaticFiles
 from drivebench import __version__
 from drivebench.config import settings
 from drivebench.device.profiles.loader import ProfileRegistry
+from drivebench.services.scope import runs as scope_runs
 from drivebench.services.session_manager import SessionManager
 from drivebench.services.sets import set_jobs
 from drivebench.services.sets.parameter_sets import ParameterSetStore
@@ -126,6 +127,8 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
         try:
             yield
         finally:
+            for session in manager.list():  # a running scope recording ends and keeps what it captured
+                await scope_runs.close(session)
             await manager.close_all()
             for plant in state.plants.values():
                 await asyncio.to_thread(plant.stop)
