@@ -14,6 +14,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import can
 import pytest
 from fastapi.testclient import TestClient
 
@@ -208,3 +209,26 @@ def test_a_recording_running_when_the_server_stops_is_stored(app_db_url: str) ->
             assert wait_until(lambda: socket.receive_json()["type"] == "rows", 20)
     kept = [r for r in store.listing() if r["name"] == "cut short"]
     assert len(kept) == 1 and kept[0]["count"] >= 1
+
+
+def test_an_emcy_of_the_named_node_on_the_bus_triggers_and_is_a_marker(app_db_url: str) -> None:
+    channel = fresh_channel()
+    app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{channel}@500000", latency="0ms")
+    body = {"channels": [{"node": MM, "ref": SPEED_MM}, {"node": MOTEC, "ref": SPEED_MOTEC}], "period_ms": 50,
+            "length_samples": 10, "trigger": {"mode": "single", "on": "emcy", "node": MOTEC, "pre_percent": 50}}
+    with TestClient(app) as client, can.Bus(interface="virtual", channel=channel) as wire:
+        started = client.post(f"{API}/scope/run", json=body)
+        assert started.status_code == 201, started.text
+        time.sleep(1.5)  # the pre-trigger samples first
+        wire.send(can.Message(arbitration_id=0x80 + 12, data=bytes([0x10, 0x23, 0x01, 0, 0, 0, 0, 0]),
+                              is_extended_id=False))  # node 12: neither the trigger's node nor recorded
+        time.sleep(0.5)
+        assert client.get(f"{API}/scope/run").json()["state"] == "armed"
+        wire.send(can.Message(arbitration_id=0x80 + MOTEC, data=bytes([0x10, 0x23, 0x01, 0, 0, 0, 0, 0]),
+                              is_extended_id=False))
+        assert wait_until(lambda: client.get(f"{API}/scope/run").json()["state"] == "done", 30)
+        stored = client.get(f"/api/scope/recordings/{client.get(f'{API}/scope/run').json()['recording_id']}").json()
+    assert stored["trigger"]["position"] == 5
+    assert [(m["node"], m["kind"], m["text"]) for m in stored["markers"]] == [(MOTEC, "emcy", "EMCY 2310h")]
+    marker_s, trigger_s = stored["markers"][0]["time_s"], stored["trigger"]["time_s"]
+    assert stored["times"][4] < marker_s <= trigger_s, "the trigger is the first sample at or after the EMCY"
