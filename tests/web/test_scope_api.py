@@ -19,7 +19,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from drivebench.config import settings
-from drivebench.services.scope import store
+from drivebench.services.scope import runs, store
 from drivebench.services.storage import database
 from drivebench.services.users import accounts
 from drivebench.services.users.principals import Role
@@ -232,3 +232,31 @@ def test_an_emcy_of_the_named_node_on_the_bus_triggers_and_is_a_marker(app_db_ur
     assert [(m["node"], m["kind"], m["text"]) for m in stored["markers"]] == [(MOTEC, "emcy", "EMCY 2310h")]
     marker_s, trigger_s = stored["markers"][0]["time_s"], stored["trigger"]["time_s"]
     assert stored["times"][4] < marker_s <= trigger_s, "the trigger is the first sample at or after the EMCY"
+
+
+def test_a_recorded_status_word_marks_each_drive_state_change(demo_api: TestClient) -> None:
+    body = {"channels": [{"node": MOTEC, "ref": "C00868/1"}, {"node": MM, "ref": SPEED_MM}], "period_ms": 50,
+            "length_s": 100.0, "trigger": {"mode": "free"}}
+    assert demo_api.post(f"{API}/scope/run", json=body).status_code == 201
+    time.sleep(0.5)
+
+    def states() -> list[tuple[int | None, str]]:
+        return [(e.node, e.text) for e in _run_events(demo_api) if e.kind == "drive-state"]
+
+    before = demo_api.get(f"{API}/nodes/{MOTEC}/control").json()["state"]
+    assert before == "ready"
+    shown = []
+    for command in ("switch_on", "shutdown"):  # neither moves the drive: no confirmation
+        assert demo_api.post(f"{API}/nodes/{MOTEC}/control/commands/{command}").status_code == 200
+        client_state = demo_api.get(f"{API}/nodes/{MOTEC}/control").json()["state_label"]
+        shown.append((MOTEC, client_state))
+        assert wait_until(lambda: states() == shown, 20), (client_state, states())
+    stopped = demo_api.post(f"{API}/scope/run/stop").json()
+    stored = demo_api.get(f"/api/scope/recordings/{stopped['recording_id']}").json()
+    marked = [(m["node"], m["text"]) for m in stored["markers"] if m["kind"] == "drive-state"]
+    assert marked == shown == [(MOTEC, "Switched on"), (MOTEC, "Ready to switch on")], stored["markers"]
+
+
+def _run_events(client: TestClient) -> list[Any]:
+    session = client.app.state.drivebench.manager.get("demo-plant")  # type: ignore[attr-defined]
+    return list(runs.current(session).events)

@@ -25,6 +25,7 @@ from drivebench.protocol.canopen.heartbeat import HeartbeatStatus
 from drivebench.protocol.emcy import EmcyEvent
 from drivebench.services.bus.sessions import Session
 from drivebench.services.control.drive_guard import confirm_moving
+from drivebench.services.control.drive_words import Family, family_of, state_label
 from drivebench.services.params.write_context import WriteContext
 from drivebench.services.scope import store
 from drivebench.services.scope.channels import ChannelInfo, describe
@@ -77,11 +78,14 @@ class ScopeRun:
         self.watchers: dict[str, Watcher] = {}
         self._nodes = {info.channel.node for info in infos}
         self._finishing: asyncio.Task[None] | None = None
+        self._status_words = status_words(session, infos)
+        self._drive_states: dict[int, str] = {}
 
     # --- what the source and the session deliver ------------------------------------------------------------------
     def on_frame(self, frame: ScopeFrame) -> None:
         if self.state not in ("armed", "recording"):
             return
+        self._drive_state_markers(frame)
         sample = Sample(frame.sample, frame.time_s, tuple(
             info.value(raw) for info, raw in zip(self.infos, frame.raw, strict=False)))
         row = _row(sample)
@@ -109,6 +113,19 @@ class ScopeRun:
             for watcher in self.watchers.values():
                 watcher.events.append(_event(event))
                 watcher.wake.set()
+
+    def _drive_state_markers(self, frame: ScopeFrame) -> None:
+        """A recorded status word whose device state changed: a marker naming the new state."""
+        for position, family in self._status_words.items():
+            raw = frame.raw[position] if position < len(frame.raw) else None
+            if raw is None:
+                continue
+            key = family.state_of(raw)
+            before = self._drive_states.get(position)
+            self._drive_states[position] = key
+            if before is not None and key != before:
+                self.on_event(ScopeEvent(frame.time_s, self.infos[position].channel.node, "drive-state",
+                                         state_label(family, key)))
 
     def session_event(self, node: int, kind: Literal["emcy", "nmt"], text: str) -> None:
         self.on_event(ScopeEvent(time.monotonic() - self.started, node, kind, text))
@@ -185,6 +202,22 @@ class ScopeRun:
         for watcher in self.watchers.values():
             watcher.changed = True
             watcher.wake.set()
+
+
+def status_words(session: Session, infos: list[ChannelInfo]) -> dict[int, Family]:
+    """The channels that are a whole status word of their node's device control (position -> its family)."""
+    found: dict[int, Family] = {}
+    for position, info in enumerate(infos):
+        family = family_of(session.node(info.channel.node).catalog)
+        if family is None or info.channel.bit is not None:
+            continue
+        try:
+            status = session.node(info.channel.node).catalog.resolve(family.status_ref)  # type: ignore[union-attr]
+        except DriveBenchError:
+            continue
+        if (status.index, status.subindex) == (info.item.index, info.item.subindex):
+            found[position] = family
+    return found
 
 
 # --- one run per session ------------------------------------------------------------------------------------------
