@@ -26,6 +26,7 @@ SCREENS = [
     *[(f"node-{node}-{tab}", NODE.format(node, tab), f"Node {node} ·", "Plant")
       for node, tab in ((5, "parameters"), (3, "pdo"), (5, "pdo"), (12, "pdo"), (3, "control"), (12, "control"))],
     ("monitor", "/monitor", "Monitor", "Monitor"),
+    ("scope", "/scope", "Scope", "Scope"),
     ("tools", "/tools", "Tools", "Tools"),
     ("profiles", "/profiles", "Profiles", "Profiles"),
     ("profile-detail", "/profiles/lenze-8400-motec-canopen", "Inverter Drives 8400 motec", "Profiles"),
@@ -101,7 +102,7 @@ def test_error_page_is_a_page_of_the_app(live_server: str, page: Any, name: str,
     screenshot(page, f"ux-{name}")
 
     assert page.title() == f"{title} · DriveBench"
-    assert page.locator("header nav a").count() == 6  # the navigation bar is there
+    assert page.locator("header nav a").count() == 7  # the navigation bar is there
     assert page.locator(".error-page h1").inner_text() == title
     link = page.locator(".error-page a", has_text=way_back)
     link.click()

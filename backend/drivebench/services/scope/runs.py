@@ -78,12 +78,13 @@ class ScopeRun:
         self.watchers: dict[str, Watcher] = {}
         self._nodes = {info.channel.node for info in infos}
         self._finishing: asyncio.Task[None] | None = None
+        self._closing = False
         self._status_words = status_words(session, infos)
         self._drive_states: dict[int, str] = {}
 
     # --- what the source and the session deliver ------------------------------------------------------------------
     def on_frame(self, frame: ScopeFrame) -> None:
-        if self.state not in ("armed", "recording"):
+        if self._closing or self.state not in ("armed", "recording"):
             return
         self._drive_state_markers(frame)
         sample = Sample(frame.sample, frame.time_s, tuple(
@@ -137,9 +138,9 @@ class ScopeRun:
 
     async def finish(self, state: State, error: str | None = None) -> None:
         """Stop the source (it restores what it changed) and store the capture."""
-        if self.state in ("done", "stopped", "failed"):
+        if self._closing or self.state in ("done", "stopped", "failed"):
             return
-        self.state = state
+        self._closing = True  # no more samples; the state says done/stopped once the capture is stored
         self.error = error
         try:
             self.restored = await self.source.stop()
@@ -151,7 +152,8 @@ class ScopeRun:
                 self.recording_id = await asyncio.to_thread(store.save, self.recording(capture))
             except Exception as exc:  # the database's words reach the page, the run still ends
                 self.error = _("The recording could not be stored: {error}").format(error=exc)
-                self.state = "failed"
+                state = "failed"
+        self.state = state
         self._changed()
 
     def recording(self, capture: Capture) -> store.Recording:
