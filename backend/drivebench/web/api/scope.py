@@ -6,7 +6,7 @@ from __future__ import annotations
 import asyncio
 from typing import Annotated, Any, Literal
 
-from fastapi import APIRouter, Query, Request
+from fastapi import APIRouter, Path, Query, Request
 from fastapi.responses import Response
 from pydantic import BaseModel, Field
 
@@ -21,6 +21,7 @@ from drivebench.web.identity import principal_of
 from drivebench.web.safety import WriteCtxDep, confirmation
 
 router = APIRouter(tags=["scope"])
+RecordingId = Annotated[int, Path(ge=1, le=2**31 - 1, description="A stored recording's id")]
 S = "/api/sessions/{session_id}/scope"
 
 
@@ -98,13 +99,13 @@ async def recordings() -> list[dict[str, Any]]:
 
 
 @router.get("/api/scope/recordings/{recording_id}")
-async def recording(recording_id: int) -> dict[str, Any]:
+async def recording(recording_id: RecordingId) -> dict[str, Any]:
     """A stored recording with its samples by column (``values[channel][sample]``, null: the node sent nothing)."""
     return (await asyncio.to_thread(store.load, recording_id)).as_json()
 
 
 @router.get("/api/scope/recordings/{recording_id}/export")
-async def export_recording(recording_id: int, format: Literal["csv", "json"] = "csv") -> Response:
+async def export_recording(recording_id: RecordingId, format: Literal["csv", "json"] = "csv") -> Response:
     found = await asyncio.to_thread(store.load, recording_id)
     text = export.to_csv(found) if format == "csv" else export.to_json(found)
     media = "text/csv" if format == "csv" else "application/json"
@@ -113,7 +114,7 @@ async def export_recording(recording_id: int, format: Literal["csv", "json"] = "
 
 
 @router.delete("/api/scope/recordings/{recording_id}", status_code=204)
-async def delete(recording_id: int) -> Response:
+async def delete(recording_id: RecordingId) -> Response:
     await asyncio.to_thread(store.remove, recording_id)
     return Response(status_code=204)
 
