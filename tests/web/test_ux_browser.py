@@ -26,6 +26,7 @@ SCREENS = [
     *[(f"node-{node}-{tab}", NODE.format(node, tab), f"Node {node} ·", "Plant")
       for node, tab in ((5, "parameters"), (3, "pdo"), (5, "pdo"), (12, "pdo"), (3, "control"), (12, "control"))],
     ("monitor", "/monitor", "Monitor", "Monitor"),
+    ("scope", "/scope", "Scope", "Scope"),
     ("tools", "/tools", "Tools", "Tools"),
     ("line-project", "/line-projects", "Line project", "Line project"),
     ("profiles", "/profiles", "Profiles", "Profiles"),
@@ -102,7 +103,7 @@ def test_error_page_is_a_page_of_the_app(live_server: str, page: Any, name: str,
     screenshot(page, f"ux-{name}")
 
     assert page.title() == f"{title} · DriveBench"
-    assert page.locator("header nav a").count() == 7  # the navigation bar is there (Plant ... Line project ... Remote)
+    assert page.locator("header nav a").count() == 8  # the navigation bar is there (Plant ... Scope ... Remote)
     assert page.locator(".error-page h1").inner_text() == title
     link = page.locator(".error-page a", has_text=way_back)
     link.click()

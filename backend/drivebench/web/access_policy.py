@@ -108,6 +108,9 @@ RULES: dict[tuple[str, str], Rule] = {
     **_rules(E, N_("Resetting the monitor counters and recording"), ("POST", S + "/monitor/reset"),
              ("POST", S + "/monitor/recordings"), ("POST", S + "/monitor/recordings/stop"),
              ("POST", "/ui/monitor/{session_id}/recordings"), ("POST", "/ui/monitor/{session_id}/recordings/stop")),
+    **_rules(E, N_("Starting and stopping scope recordings"), ("POST", S + "/scope/run"),
+             ("POST", S + "/scope/run/stop")),
+    **_rules(E, N_("Deleting scope recordings"), ("DELETE", "/api/scope/recordings/{recording_id}")),
     **_rules(E, N_("Changing device profiles"), ("POST", "/api/profiles"), ("DELETE", "/api/profiles/{profile_id}"),
              ("POST", "/ui/profiles"), ("POST", "/ui/profiles/{profile_id}/delete")),
     **_rules(E, N_("Creating, listing and revoking remote diagnostics links"), ("POST", "/api/share-links"),
@@ -158,7 +161,8 @@ RULES: dict[tuple[str, str], Rule] = {
     **_rules(V, N_("Watching"), (WEBSOCKET, "/ws/sessions/{session_id}/monitor"),
              (WEBSOCKET, "/ws/sessions/{session_id}/nodes"),
              (WEBSOCKET, "/ws/jobs/{job_id}"), (WEBSOCKET, "/ws/remote/{token}"),
-             (WEBSOCKET, "/ws/sessions/{session_id}/nodes/{node_id}/process-data")),
+             (WEBSOCKET, "/ws/sessions/{session_id}/nodes/{node_id}/process-data"),
+             (WEBSOCKET, "/ws/sessions/{session_id}/scope")),
 }
 
 READING = Rule(V, N_("Reading"))

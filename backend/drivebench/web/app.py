@@ -17,6 +17,7 @@ from drivebench import __version__
 from drivebench.config import settings
 from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.services.scope import restore_record
+from drivebench.services.scope import runs as scope_runs
 from drivebench.services.session_manager import SessionManager
 from drivebench.services.sets import set_jobs
 from drivebench.services.sets.parameter_sets import ParameterSetStore
@@ -33,6 +34,7 @@ from drivebench.web.api import drive_control as drive_control_api
 from drivebench.web.api import line_projects as line_projects_api
 from drivebench.web.api import lss as lss_api
 from drivebench.web.api import monitor as monitor_api
+from drivebench.web.api import scope as scope_api
 from drivebench.web.api import simulator as simulator_api
 from drivebench.web.gate import RequestGate
 from drivebench.web.metrics import Metrics, RequestMetrics
@@ -48,6 +50,7 @@ from drivebench.web.pages import parameter_sets as parameter_sets_page
 from drivebench.web.pages import plant as plant_page
 from drivebench.web.pages import profiles as profiles_page
 from drivebench.web.pages import remote as remote_page
+from drivebench.web.pages import scope as scope_page
 from drivebench.web.pages import sets_audit as sets_audit_page
 from drivebench.web.pages import tools as tools_page
 from drivebench.web.request_ids import RequestIds
@@ -58,6 +61,7 @@ from drivebench.web.ws import monitor as monitor_ws
 from drivebench.web.ws import nodes as nodes_ws
 from drivebench.web.ws import process_data as process_data_ws
 from drivebench.web.ws import remote as remote_ws
+from drivebench.web.ws import scope as scope_ws
 
 log = logging.getLogger(__name__)
 
@@ -67,13 +71,13 @@ log = logging.getLogger(__name__)
 API_ROUTERS = [health.router, parameters.router, monitor_api.router, sessions.router, profiles.router,
                diagnostics.router, tools.router, tools.planned_router, pdo.router, parameter_sets.router,
                drive_control_api.router, accounts_api.router, simulator_api.router, metrics_api.router,
-               line_projects_api.router, lss_api.router]
+               line_projects_api.router, lss_api.router, scope_api.router]
 PAGE_ROUTERS = [language.router, node_diagnostics.router, node_pdo_page.router, monitor_page.router, plant_page.router,
                 node_control.router, node_page.router, node_factory_page.router, profiles_page.router,
                 remote_page.router, tools_page.router, sets_audit_page.router, parameter_sets_page.router,
-                accounts_page.router, line_projects_page.router, lss_page.router]
+                accounts_page.router, line_projects_page.router, lss_page.router, scope_page.router]
 WS_ROUTERS = [monitor_ws.router, nodes_ws.router, jobs_ws.router, remote_ws.router, process_data_ws.router,
-              drive_control_ws.router]
+              drive_control_ws.router, scope_ws.router]
 
 
 async def start_plant(state: AppState, plant_path: Path, *, bus: str | None = None,
@@ -133,6 +137,8 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
         try:
             yield
         finally:
+            for session in manager.list():  # a running scope recording ends and keeps what it captured
+                await scope_runs.close(session)
             await manager.close_all()
             for plant in state.plants.values():
                 await asyncio.to_thread(plant.stop)

@@ -6,7 +6,7 @@ import secrets
 from datetime import UTC, datetime
 from typing import Any
 
-from sqlalchemy import JSON, Boolean, DateTime, Float, ForeignKey, Integer, String, Text, UniqueConstraint
+from sqlalchemy import JSON, Boolean, DateTime, Float, ForeignKey, Integer, LargeBinary, String, Text, UniqueConstraint
 from sqlalchemy.orm import Mapped, mapped_column
 
 from drivebench.services.storage.database import Base
@@ -231,3 +231,30 @@ class ScopeRestoreRow(Base):
     bus: Mapped[str] = mapped_column(String(200), nullable=False)
     server: Mapped[str] = mapped_column(String(120), nullable=False)
     body: Mapped[dict[str, Any]] = mapped_column(JSON, nullable=False)
+
+
+# --- scope recordings (migration 0011_scope_recordings) -----------------------------------------------------------
+class ScopeRecordingRow(Base):
+    """A stored scope recording. ``samples`` is packed (``services.scope.store``): the sample numbers (int64), the
+    times and each channel's values (float64, NaN where the node sent nothing), one array after the other: 8
+    channels x 100,000 samples are one 7 MB value, written and read in one piece."""
+
+    __tablename__ = "scope_recording"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
+    name: Mapped[str] = mapped_column(String(200), nullable=False)
+    session_id: Mapped[str] = mapped_column(String(120), nullable=False)
+    created: Mapped[datetime] = mapped_column(DateTime(timezone=True), nullable=False, default=utcnow, index=True)
+    created_by: Mapped[str] = mapped_column(String(120), nullable=False)
+    source: Mapped[str] = mapped_column(String(20), nullable=False)
+    """``pdo``, ``sdo-poll`` or ``coe-poll``."""
+    period_s: Mapped[float] = mapped_column(Float, nullable=False)
+    """The period the source really reached."""
+    channels: Mapped[list[Any]] = mapped_column(JSON, nullable=False)
+    trigger: Mapped[dict[str, Any]] = mapped_column(JSON, nullable=False)
+    """The trigger settings and the trigger sample's position (``position``, None: free run)."""
+    markers: Mapped[list[Any]] = mapped_column(JSON, nullable=False)
+    nodes: Mapped[dict[str, Any]] = mapped_column(JSON, nullable=False)
+    """Per node: the profile (id, version), the device and the parameter set last downloaded to it."""
+    count: Mapped[int] = mapped_column(Integer, nullable=False)
+    samples: Mapped[bytes] = mapped_column(LargeBinary, nullable=False)

@@ -1,0 +1,139 @@
+"""Issue 31 from the Scope page in Chromium: channels of the MICROMASTER (node 3) and the 8400 motec (node 5) picked
+by index and by name, a single capture with a trigger on node 3's speed rising above 500 rpm and 20 % pre-trigger
+while both ramp; the page shows the stored capture with the trigger at t = 0 (the first sample above 500 after the
+pre-trigger samples), exports it as CSV, and fits 1024 px in German without sideways scroll."""
+
+from __future__ import annotations
+
+import csv
+import io
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import httpx
+import pytest
+
+from drivebench.config import settings
+from drivebench.services.storage import database
+from drivebench.simulator.plant import Plant
+from drivebench.web.app import create_app
+from tests.confirming import confirmed
+from tests.conftest import DEMO_PLANT, fresh_channel, screenshot, serve_app
+
+MM, MOTEC = 3, 5
+LENGTH, PRE = 40, 8
+SHOTS = Path("/tmp/shots")
+
+
+@pytest.fixture
+def scope_server(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[tuple[str, Plant]]:
+    url = f"sqlite:///{tmp_path / 'scope.db'}"
+    monkeypatch.setattr(settings, "database_url", url)
+    app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
+    with serve_app(app) as base_url:
+        yield base_url, app.state.drivebench.plants["demo-plant"]
+    database.dispose(url)
+
+
+def _add(page: Any, node: int, query: str, ref: str) -> None:
+    page.select_option("#channel-node", str(node))
+    page.fill("#channel-search", query)
+    row = page.locator("#channel-offer li", has_text=ref)
+    row.first.wait_for(timeout=20_000)
+    row.first.locator("button.add-channel").click()
+
+
+class Drives:
+    """Runs both drives up over the API and keeps them alive (the page is not their control panel)."""
+
+    def __init__(self, base: str) -> None:
+        self.http = httpx.Client(base_url=f"{base}/api/sessions/demo-plant/nodes", timeout=20)
+        self.stop = threading.Event()
+        self.thread = threading.Thread(target=self._keep_alive, daemon=True)
+
+    def run_up(self, rpm: int) -> None:
+        for node in (MM, MOTEC):
+            for command in ("shutdown", "switch_on"):
+                assert self.http.post(f"/{node}/control/commands/{command}").status_code == 200
+            assert confirmed(self.http, "POST", f"/{node}/control/commands/enable_operation").status_code == 200
+            assert confirmed(self.http, "PUT", f"/{node}/control/setpoint", json={"value": rpm}).status_code == 200
+        self.thread.start()
+
+    def _keep_alive(self) -> None:
+        while not self.stop.wait(0.4):
+            for node in (MM, MOTEC):
+                self.http.post(f"/{node}/control/keepalive")
+
+    def close(self) -> None:
+        self.stop.set()
+        if self.thread.is_alive():
+            self.thread.join(5)
+        for node in (MM, MOTEC):
+            self.http.post(f"/{node}/control/commands/quick_stop")
+        self.http.close()
+
+
+def test_a_triggered_capture_of_two_ramps_from_the_page_with_csv_export(page: Any,
+                                                                         scope_server: tuple[str, Plant]) -> None:
+    base, plant = scope_server
+    for ref in ("P0700", "P1000"):  # the MICROMASTER takes commands and setpoint from CANopen
+        plant.nodes[MM].store.set_ref(ref, 6)
+    page.set_viewport_size({"width": 1024, "height": 900})
+    page.goto(f"{base}/scope")
+    assert page.url.endswith("/scope/demo-plant")
+    page.wait_for_function("() => document.getElementById('scope-state').dataset.state === 'none'", timeout=30_000)
+    _add(page, MM, "0x6044", "0x6044")
+    _add(page, MOTEC, "speed", "C00868/2")
+    assert page.locator("#channel-list li").count() == 2
+    page.fill("[name=period_ms]", "50")
+    page.fill("[name=length_value]", str(LENGTH))
+    page.select_option("#trigger-channel", "0")
+    page.fill("[name=level]", "500")
+    page.fill("[name=pre_percent]", "20")
+    page.fill("[name=name]", "ramp from the page")
+    page.click("#scope-single")
+    page.wait_for_function("() => document.getElementById('scope-state').dataset.state === 'armed'"
+                           " || document.getElementById('scope-result').textContent", timeout=30_000)
+    assert page.text_content("#scope-result") == "", page.text_content("#scope-result")
+    assert "SDO polling" in page.text_content("#scope-source")
+    page.wait_for_function("() => window.scopeChart && window.scopeChart.data[0].length >= 10", timeout=30_000)
+    drives = Drives(base)
+    try:
+        drives.run_up(1200)
+        page.wait_for_function("() => document.getElementById('scope-state').dataset.state === 'done'", timeout=90_000)
+    finally:
+        drives.close()
+    row = page.locator("#scope-recordings tbody tr", has_text="ramp from the page")
+    row.wait_for(timeout=30_000)
+    page.wait_for_function(f"() => window.scopeChart && window.scopeChart.data[0].length === {LENGTH}", timeout=30_000)
+    times, speed = page.evaluate("[window.scopeChart.data[0], window.scopeChart.data[1]]")
+    assert times[PRE] == 0, "the trigger sample is at t = 0"
+    assert speed[PRE] > 500 and all(v <= 500 for v in speed[:PRE]), speed
+    assert "ramp from the page" in page.text_content("#plot-what")
+    # two cursors: A at the trigger, B later; the readout gives Δt
+    box = page.locator("#scope-chart .u-over").bounding_box()
+    page.mouse.click(box["x"] + box["width"] * 0.25, box["y"] + box["height"] / 2)
+    page.keyboard.down("Shift")
+    page.mouse.click(box["x"] + box["width"] * 0.75, box["y"] + box["height"] / 2)
+    page.keyboard.up("Shift")
+    assert "Δt" in page.text_content("#scope-cursors")
+    SHOTS.mkdir(exist_ok=True)
+    page.screenshot(path=str(SHOTS / "scope-capture.png"), full_page=True)
+    screenshot(page, "scope-capture")
+
+    with page.expect_download() as download:
+        row.locator("a", has_text="CSV").click()
+    rows = list(csv.reader(io.StringIO(Path(download.value.path()).read_text(encoding="utf-8"))))
+    assert rows[0][0:2] == ["sample", "time_s"] and "0x6044" in rows[0][2] and rows[0][2].endswith("[rpm]")
+    assert len(rows) == LENGTH + 1
+    assert float(rows[PRE][2]) <= 500 < float(rows[PRE + 1][2])
+    assert [float(r[2]) for r in rows[1:]] == pytest.approx(speed)
+
+    page.goto(f"{base}/language/de?next=/scope/demo-plant")
+    page.wait_for_function("() => document.getElementById('scope-recordings').tBodies[0].rows.length > 0",
+                           timeout=30_000)
+    assert page.locator("h1", has_text="Oszilloskop").count() == 1 and "Abtastperiode" in page.content()
+    assert page.evaluate("document.documentElement.scrollWidth <= window.innerWidth"), "no sideways scroll at 1024"
+    page.screenshot(path=str(SHOTS / "scope-de-1024.png"), full_page=True)
