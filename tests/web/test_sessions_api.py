@@ -168,7 +168,8 @@ def test_nmt_broadcast_and_per_node(client: TestClient) -> None:
     assert wait_until(lambda: node_states(client) == {3: "Operational", 5: "Pre-operational", 7: "Operational",
                                                       12: "Stopped"})
     bootups = client.get(f"/api/sessions/{DEMO}/nodes/3").json()["bootups"]
-    client.post(f"/api/sessions/{DEMO}/nmt", json={"command": "reset-node"})
+    reset = confirmed(client, "POST", f"/api/sessions/{DEMO}/nmt", json={"command": "reset-node"})
+    assert reset.status_code == 200, reset.text
     assert wait_until(lambda: client.get(f"/api/sessions/{DEMO}/nodes/3").json()["bootups"] > bootups)
     assert wait_until(lambda: set(node_states(client).values()) == {"Pre-operational"})
 
@@ -214,3 +215,27 @@ def test_node_websocket_of_an_unknown_session_closes(client: TestClient) -> None
     with client.websocket_connect("/ws/sessions/nope/nodes") as socket, pytest.raises(WebSocketDisconnect) as closed:
         socket.receive_text()
     assert closed.value.code == 4404
+
+
+def test_a_broadcast_reset_asks_for_all_nodes_and_waits_for_the_drives_to_stop(client: TestClient) -> None:
+    """NMT reset communication / reset node of all nodes reaches every device on the bus (issue 32): the 428 names
+    all nodes and the command, nothing is sent before the confirmation, and while a node is armed it is refused in
+    words; one node's reset stays open to anyone, as stopping is."""
+    bootups = client.get(f"/api/sessions/{DEMO}/nodes/3").json()["bootups"]
+    asked = client.post(f"/api/sessions/{DEMO}/nmt", json={"command": "reset-communication"})
+    problem = assert_problem(asked, 428)
+    assert problem["confirm_node"] == "all"
+    assert problem["confirm_values"] == {"reaches": "all nodes on this bus", "NMT": "reset-communication"}
+    started = confirmed(client, "POST", f"/api/sessions/{DEMO}/nodes/7/nmt", json={"command": "start"})
+    assert started.status_code == 200, started.text  # armed: the keep-alive guard holds node 7
+    refused = confirmed(client, "POST", f"/api/sessions/{DEMO}/nmt", json={"command": "reset-communication"})
+    detail = assert_problem(refused, 409)["detail"]
+    assert detail == ("NMT reset communication of all nodes reaches every device on the bus: refused while node 7 is "
+                      "enabled or armed. Disable or stop it first (Control tab, or NMT pre-operational).")
+    assert client.get(f"/api/sessions/{DEMO}/nodes/3").json()["bootups"] == bootups  # nothing was sent
+    single = client.post(f"/api/sessions/{DEMO}/nodes/3/nmt", json={"command": "reset-communication"})
+    assert single.status_code == 200, single.text
+    assert wait_until(lambda: client.get(f"/api/sessions/{DEMO}/nodes/3").json()["bootups"] > bootups)
+    client.post(f"/api/sessions/{DEMO}/nodes/7/nmt", json={"command": "pre-operational"})
+    reset = confirmed(client, "POST", f"/api/sessions/{DEMO}/nmt", json={"command": "reset-communication"})
+    assert reset.status_code == 200, reset.text

@@ -10,10 +10,11 @@ from fastapi import Request
 from pydantic import BaseModel, Field
 
 from drivebench.errors import AccessDenied, InvalidValue
-from drivebench.i18n import _
+from drivebench.i18n import N_, _
 from drivebench.protocol.canopen.nmt import COMMAND_BY_NAME, NmtCommand
 from drivebench.services.bus.sessions import Session
 from drivebench.services.control import drive_guard
+from drivebench.services.lss.guard_rule import admit_global
 from drivebench.services.params.write_context import WriteContext
 from drivebench.services.users.principals import Role
 from drivebench.web.identity import principal_of
@@ -21,6 +22,9 @@ from drivebench.web.safety import confirmation
 
 log = logging.getLogger(__name__)
 
+RESETS = {NmtCommand.RESET_NODE: N_("NMT reset node of all nodes"),
+          NmtCommand.RESET_COMMUNICATION: N_("NMT reset communication of all nodes")}
+"""The broadcasts that need the all-nodes confirmation and are refused while a node is enabled or armed."""
 NmtName = Literal["start", "stop", "pre-operational", "reset-node", "reset-communication"]
 
 
@@ -54,6 +58,9 @@ async def send_nmt(request: Request, session: Session, body: NodeNmtRequest, nod
             raise InvalidValue(_("Say why the node runs without the keep-alive guard (reason)."))
         log.warning("NMT start of node %s without keep-alive by %s: %s", node_id or "all", principal.name,
                     body.reason)
-    await drive_guard.nmt(session, command, node_id, panel, ctx=ctx,
-                          confirm=confirmation(request, body.confirm, body.confirm_values),
-                          keepalive=body.keepalive, timeout_s=body.keepalive_s)
+    confirm = confirmation(request, body.confirm, body.confirm_values)
+    if node_id == 0 and command in RESETS:
+        # A broadcast reset reaches every device on the bus, as LSS's global steps do (CiA 305/301): the same rule.
+        await admit_global(session, _(RESETS[command]), {"NMT": body.command}, ctx.confirming(confirm))
+    await drive_guard.nmt(session, command, node_id, panel, ctx=ctx, confirm=confirm, keepalive=body.keepalive,
+                          timeout_s=body.keepalive_s)
