@@ -29,6 +29,7 @@ from drivebench.simulator.drive402 import Drive402
 from drivebench.simulator.faults import FaultState
 from drivebench.simulator.lenze_control import WordControl
 from drivebench.simulator.pdo import PdoEngine
+from drivebench.simulator.program_store import ProgramStore
 from drivebench.simulator.servo402 import Servo402
 from drivebench.simulator.store import ObjectStore, RawValue
 from drivebench.simulator.telegram_counters import DeviceTelegramCounters
@@ -162,6 +163,8 @@ class SimulatedNode:
         self.wake: Callable[[], None] = _no_wake
         """Tells the plant's ticker that something changed (set by the plant): it ticks at once, not at a timer."""
         self.store.add_write_hook(self._on_write)
+        self.program = ProgramStore(self.store, self.faults, f"{self.name} firmware 1.0".encode(), self._power_cut)
+        """CiA 302-3 program download objects (0x1F50 ... 0x1F57) in front of the store."""
         self._build_sdo_servers()
         self.drive = _device_control(self)
         """The drive model the profile names (CiA 402 inverter or servo, Lenze control/status words), if any."""
@@ -199,6 +202,16 @@ class SimulatedNode:
         self._next_heartbeat = time.monotonic() + self.heartbeat_period_s() if self.heartbeat_period_s() else 0.0
         self.pdo.reconfigure()
         self.wake()
+
+    def _power_cut(self, back_after_s: float = 0.3) -> None:
+        """The power fails (a fault while flashing): silent at once, back after ``back_after_s`` with a boot-up."""
+        self.powered = False
+        self.pdo.stop()
+        threading.Timer(back_after_s, self._power_back).start()
+
+    def _power_back(self) -> None:
+        self.powered = True
+        self._boot()
 
     def send(self, cob_id: int, data: bytes) -> None:
         if self.powered:
@@ -251,7 +264,7 @@ class SimulatedNode:
             channels.append(second)
         features = self.profile.features
         for rx_cob, tx_cob in channels:
-            servers[rx_cob] = SdoServer(self.node_id, self._answer_sdo(rx_cob), self.store, rx_cob=rx_cob,
+            servers[rx_cob] = SdoServer(self.node_id, self._answer_sdo(rx_cob), self.program, rx_cob=rx_cob,
                                         tx_cob=tx_cob, segmented=features.segmented_sdo, block=features.block_sdo)
         self.sdo_servers = servers
 
