@@ -29,6 +29,7 @@ from drivebench.web.api import accounts as accounts_api
 from drivebench.web.api import diagnostics, health, parameter_sets, parameters, pdo, profiles, sessions, tools
 from drivebench.web.api import drive_control as drive_control_api
 from drivebench.web.api import monitor as monitor_api
+from drivebench.web.api import program as program_api
 from drivebench.web.api import simulator as simulator_api
 from drivebench.web.gate import RequestGate
 from drivebench.web.metrics import Metrics, RequestMetrics
@@ -60,6 +61,7 @@ log = logging.getLogger(__name__)
 # per read on this machine); none of their paths is a path of a router after them (benchmarks/RESULTS.md).
 API_ROUTERS = [health.router, parameters.router, monitor_api.router, sessions.router, profiles.router,
                diagnostics.router, tools.router, tools.planned_router, pdo.router, parameter_sets.router,
+               program_api.router,
                drive_control_api.router, accounts_api.router, simulator_api.router, metrics_api.router]
 PAGE_ROUTERS = [language.router, node_diagnostics.router, node_pdo_page.router, monitor_page.router, plant_page.router,
                 node_control.router, node_page.router, node_factory_page.router, profiles_page.router,
