@@ -151,8 +151,8 @@ class SimulatedNode:
         self.sdo_servers: dict[int, SdoServer] = {}
         self.pdo = PdoEngine(self)
         # One request queue and worker per SDO channel: a device serves SDO1 and SDO2 independently (two masters).
-        self._requests: queue.Queue[tuple[int, bytes] | None] = queue.Queue()
-        self._requests2: queue.Queue[tuple[int, bytes] | None] = queue.Queue()
+        self._requests: queue.Queue[tuple[int, bytes, float] | None] = queue.Queue()
+        self._requests2: queue.Queue[tuple[int, bytes, float] | None] = queue.Queue()
         self._worker: threading.Thread | None = None
         self._worker2: threading.Thread | None = None
         self._next_heartbeat = 0.0
@@ -228,7 +228,9 @@ class SimulatedNode:
             self.wake()  # a state change starts or stops the PDOs
         elif cob_id in self.sdo_servers:
             if self.state is not NmtState.STOPPED:
-                (self._requests if cob_id == 0x600 + self.node_id else self._requests2).put((cob_id, data))
+                # the arrival time travels with the frame: a busy worker's backlog is no idle client to the server
+                (self._requests if cob_id == 0x600 + self.node_id else self._requests2).put(
+                    (cob_id, data, time.monotonic()))
         elif cob_id == 0x080 and self.state is NmtState.OPERATIONAL:
             self.pdo.on_sync()
         elif self.state is NmtState.OPERATIONAL:
@@ -299,12 +301,12 @@ class SimulatedNode:
             self.send(server.tx_cob, b"\x80" + data[1:4] + verdict.to_bytes(4, "little"))
         return True
 
-    def _work(self, requests: queue.Queue[tuple[int, bytes] | None]) -> None:
+    def _work(self, requests: queue.Queue[tuple[int, bytes, float] | None]) -> None:
         while True:
             item = requests.get()
             if item is None:
                 return
-            cob_id, data = item
+            cob_id, data, arrived = item
             server = self.sdo_servers.get(cob_id)
             if server is None:
                 continue
@@ -312,7 +314,7 @@ class SimulatedNode:
                 time.sleep(self.latency.sample())  # the device's parameter data processing time
             try:
                 if not self._faulty_request(server, data):
-                    server.on_request(data)
+                    server.on_request(data, arrived)
             except Exception:  # a simulator bug must not kill the node
                 log.exception("node %d: SDO request %s failed", self.node_id, data.hex())
 

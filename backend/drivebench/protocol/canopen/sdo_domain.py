@@ -50,6 +50,12 @@ class _Download:
         self.cancelled = cancelled
         self.sent = 0
 
+    def forget_answers(self) -> None:
+        """Nothing stale from an earlier transfer (canopen's client queues every answer on its COB-ID)."""
+        responses = self.client.responses
+        with responses.mutex:
+            responses.queue.clear()
+
     def request(self, frame: bytes) -> bytes:
         self.client.send_request(frame)
         return bytes(self.client.read_response())
@@ -72,7 +78,7 @@ class _Download:
     def block(self) -> None:
         size = len(self.data)
         start = _INDEXED.pack(0xC6, self.index, self.subindex) + size.to_bytes(4, "little")  # crc, size indicated
-        self.client.responses = type(self.client.responses)()  # nothing stale from an earlier transfer
+        self.forget_answers()
         answer = self.answer_of(self.request(start), 0xE3, 0xA0)
         use_crc = bool(answer[0] & 0x04)
         block_size = answer[4]
@@ -102,7 +108,7 @@ class _Download:
     def segmented(self) -> None:
         size = len(self.data)
         start = _INDEXED.pack(0x21, self.index, self.subindex) + size.to_bytes(4, "little")
-        self.client.responses = type(self.client.responses)()
+        self.forget_answers()
         self.answer_of(self.request(start), 0xFF, 0x60)
         toggle = 0
         position = 0

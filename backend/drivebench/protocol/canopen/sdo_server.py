@@ -149,11 +149,12 @@ class SdoServer:
         """Forget a transfer in progress (client abort, NMT reset, server timeout)."""
         self._transfer = None
 
-    def on_request(self, data: bytes) -> None:
-        """Handle one frame received on ``rx_cob``."""
+    def on_request(self, data: bytes, now: float | None = None) -> None:
+        """Handle one frame received on ``rx_cob`` (``now``: when it arrived, ``time.monotonic()``; a server that
+        handles its requests from a queue passes it, so a backlog is not taken for an idle client)."""
         if len(data) != 8:
             return  # CiA 301: SDO frames have 8 data bytes; others are not SDO requests.
-        now = time.monotonic()
+        now = time.monotonic() if now is None else now
         if self._transfer is not None and now - self._last_request > self.timeout_s:
             # SDO server timeout: a client that vanished mid-transfer (no abort sent) must not block the channel.
             self.reset()
