@@ -228,9 +228,10 @@ class SimulatedNode:
             self.wake()  # a state change starts or stops the PDOs
         elif cob_id in self.sdo_servers:
             if self.state is not NmtState.STOPPED:
-                # the arrival time travels with the frame: a busy worker's backlog is no idle client to the server
+                # the frame's time on the bus travels with it: a busy dispatcher's or worker's backlog is no idle
+                # client to the server (a frame without a timestamp is stamped on arrival, on the same clock)
                 (self._requests if cob_id == 0x600 + self.node_id else self._requests2).put(
-                    (cob_id, data, time.monotonic()))
+                    (cob_id, data, timestamp or time.time()))
         elif cob_id == 0x080 and self.state is NmtState.OPERATIONAL:
             self.pdo.on_sync()
         elif self.state is NmtState.OPERATIONAL:

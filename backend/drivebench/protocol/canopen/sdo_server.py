@@ -150,8 +150,9 @@ class SdoServer:
         self._transfer = None
 
     def on_request(self, data: bytes, now: float | None = None) -> None:
-        """Handle one frame received on ``rx_cob`` (``now``: when it arrived, ``time.monotonic()``; a server that
-        handles its requests from a queue passes it, so a backlog is not taken for an idle client)."""
+        """Handle one frame received on ``rx_cob`` (``now``: when it was on the bus, in seconds on one clock for all
+        of this server's requests, else ``time.monotonic()``; a server that handles its requests from a queue passes
+        it, so a backlog is not taken for an idle client)."""
         if len(data) != 8:
             return  # CiA 301: SDO frames have 8 data bytes; others are not SDO requests.
         now = time.monotonic() if now is None else now
