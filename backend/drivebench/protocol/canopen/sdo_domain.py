@@ -11,6 +11,7 @@ the channel's lock.
 from __future__ import annotations
 
 import binascii
+import queue
 import struct
 import threading
 from collections.abc import Callable
@@ -26,6 +27,11 @@ UNSUPPORTED_ACCESS = 0x06010000
 REFUSED_BLOCK = frozenset({INVALID_COMMAND, UNSUPPORTED_ACCESS})
 """A device that does not do block transfer answers the block initiate with one of these (canopen's LocalNode,
 the simulator's expedited-only devices)."""
+ACK_WAIT_S = 2.0
+"""At least this long for a sub-block's acknowledgement: the device may write each block to flash before it answers
+(and a loaded simulator works through 127 frames), longer than the session's SDO timeout for one answer."""
+END_WAIT_S = 5.0
+"""At least this long for the answer to the block end: many devices flash the whole image before they answer it."""
 _INDEXED = struct.Struct("<BHB")
 Progress = Callable[[int], None]
 
@@ -56,9 +62,19 @@ class _Download:
         with responses.mutex:
             responses.queue.clear()
 
-    def request(self, frame: bytes) -> bytes:
+    def request(self, frame: bytes, at_least_s: float = 0.0) -> bytes:
         self.client.send_request(frame)
-        return bytes(self.client.read_response())
+        return self.answer(at_least_s)
+
+    def answer(self, at_least_s: float = 0.0) -> bytes:
+        """The next answer within the channel's timeout (or ``at_least_s``); an abort raises ``SdoAbortedError``."""
+        try:
+            response = self.client.responses.get(timeout=max(float(self.client.RESPONSE_TIMEOUT), at_least_s))
+        except queue.Empty:
+            raise SdoCommunicationError("No SDO response received") from None
+        if response[0] == 0x80:
+            raise SdoAbortedError(int.from_bytes(response[4:8], "little"))
+        return bytes(response)
 
     def abort(self, code: int) -> None:
         self.client.send_request(_INDEXED.pack(0x80, self.index, self.subindex) + code.to_bytes(4, "little"))
@@ -94,7 +110,7 @@ class _Download:
                 self.client.send_request(bytes([seq | (0x80 if last else 0)]) + piece.ljust(SEGMENT, b"\x00"))
                 if not self.client.responses.empty():
                     break  # the device answered mid sub-block: an abort (it cannot take the data)
-            ack = self.answer_of(self.client.read_response(), 0xE3, 0xA2)
+            ack = self.answer_of(self.answer(ACK_WAIT_S), 0xE3, 0xA2)
             acknowledged, block_size = ack[1], ack[2] or block_size
             first += min(acknowledged, count)  # an ack short of count: the rest of the sub-block again
             self.sent = min(first * SEGMENT, size)
@@ -102,7 +118,7 @@ class _Download:
         unused = segments * SEGMENT - size
         crc = binascii.crc_hqx(self.data, 0) if use_crc else 0
         end = bytes([0xC1 | unused << 2]) + crc.to_bytes(2, "little") + bytes(5)
-        self.answer_of(self.request(end), 0xE3, 0xA1)
+        self.answer_of(self.request(end, END_WAIT_S), 0xE3, 0xA1)
 
     # --- segmented (CiA 301 7.2.4.3.3 ... 7.2.4.3.5) -------------------------------------------------------------
     def segmented(self) -> None:
@@ -118,7 +134,8 @@ class _Download:
             piece = self.data[position:position + SEGMENT]
             last = position + SEGMENT >= size
             command = toggle << 4 | (SEGMENT - len(piece)) << 1 | (1 if last else 0)
-            self.answer_of(self.request(bytes([command]) + piece.ljust(SEGMENT, b"\x00")), 0xF0, 0x20 | toggle << 4)
+            answer = self.request(bytes([command]) + piece.ljust(SEGMENT, b"\x00"), END_WAIT_S if last else 0.0)
+            self.answer_of(answer, 0xF0, 0x20 | toggle << 4)
             toggle ^= 1
             position += len(piece)
             self.sent = position

@@ -131,6 +131,7 @@ class SdoServer:
         self.timeout_s = timeout_s
         self._transfer: _Transfer | None = None
         self._last_request = 0.0
+        self._last_reply = 0.0
         self._handlers: dict[int, Callable[[bytes], None]] = {
             0: self._download_segment,
             1: self._initiate_download,
@@ -156,7 +157,8 @@ class SdoServer:
         if len(data) != 8:
             return  # CiA 301: SDO frames have 8 data bytes; others are not SDO requests.
         now = time.monotonic() if now is None else now
-        if self._transfer is not None and now - self._last_request > self.timeout_s:
+        idle = now - self._last_request > self.timeout_s and time.monotonic() - self._last_reply > self.timeout_s
+        if self._transfer is not None and idle:
             # SDO server timeout: a client that vanished mid-transfer (no abort sent) must not block the channel.
             self.reset()
         self._last_request = now
@@ -352,6 +354,9 @@ class SdoServer:
 
     # --- frames -------------------------------------------------------------------------------------------
     def _reply(self, data: bytes) -> None:
+        # the idle time of a transfer also counts from the server's own last answer (a block acknowledgement sent
+        # after a long backlog is where the client's next sub-block starts from)
+        self._last_reply = time.monotonic()
         self._send(self.tx_cob, data)
 
     def _abort(self, request: bytes, code: int) -> None:
