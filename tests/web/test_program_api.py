@@ -140,3 +140,13 @@ def test_power_loss_mid_flash_leaves_the_drive_in_its_bootloader_and_says_what_n
     assert again["state"] == "done", again
     assert again["result"]["software_id"] == f"0x{zlib.crc32(image):08X}"
     assert not demo_api.get(NODE.format(node=SERVO)).json()["bootloader"]
+
+
+def test_the_download_is_in_the_audit_log(demo_api: TestClient) -> None:
+    file_id = _check(demo_api, FAN, "fan-audit.bin", b"\x07" * 300).json()["file_id"]
+    assert _finished(demo_api, FAN, _download(demo_api, FAN, file_id)["id"])["state"] == "done"
+    rows = demo_api.get("/api/audit", params={"node_id": FAN}).json()
+    program = [row for row in rows if row["origin"] == "program download"]
+    assert len(program) == 3, program  # stop, the data, start
+    assert any("fan-audit.bin (300 bytes" in (row["new_value"] or "") for row in program), program
+    assert all(row["result"] not in ("sending", "failed") for row in program), program
