@@ -51,6 +51,10 @@ class SdoFaults:
     lost_download_answers: int = 0
     """Write the values of the next this many expedited downloads (up to 4 bytes) but lose the answer that confirms
     each (the device holds the new value, the client hears nothing), then answer again."""
+    flash_error: int | None = None
+    """The next program download (0x1F50) fails to flash with this CiA 302-3 0x1F57 error code (1 ... 127)."""
+    power_loss_mid_flash: bool = False
+    """The power fails while the next program download is flashed: the device comes back in its bootloader."""
 
     def __post_init__(self) -> None:
         if self.silent_after_segments is not None and self.silent_after_segments < 0:
@@ -67,6 +71,8 @@ class SdoFaults:
             raise InvalidValue(_("latency_ms must be 0 ... 60000"))
         if self.abort_index is not None and not 0 <= self.abort_index <= 0xFFFF:
             raise InvalidValue(_("abort_index must be 0 ... 0xFFFF"))
+        if self.flash_error is not None and not 1 <= self.flash_error <= 127:
+            raise InvalidValue(_("flash_error must be a 0x1F57 error code 1 ... 127"))
         if not -0xFFFF <= self.index_offset <= 0xFFFF or not -0xFF <= self.subindex_offset <= 0xFF:
             raise InvalidValue(_("index_offset must be within ±0xFFFF and subindex_offset within ±0xFF"))
 
@@ -105,6 +111,11 @@ class SdoFaults:
         if self.lost_download_answers:
             words.append(_("writes the next {count} expedited downloads but loses their answers").format(
                 count=self.lost_download_answers))
+        if self.flash_error is not None:
+            words.append(_("fails to flash the next program download (flash error {code})").format(
+                code=self.flash_error))
+        if self.power_loss_mid_flash:
+            words.append(_("loses power while flashing the next program download"))
         return words
 
 

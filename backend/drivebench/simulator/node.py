@@ -29,6 +29,7 @@ from drivebench.simulator.drive402 import Drive402
 from drivebench.simulator.faults import FaultState
 from drivebench.simulator.lenze_control import WordControl
 from drivebench.simulator.pdo import PdoEngine
+from drivebench.simulator.program_store import ProgramStore
 from drivebench.simulator.servo402 import Servo402
 from drivebench.simulator.store import ObjectStore, RawValue
 from drivebench.simulator.telegram_counters import DeviceTelegramCounters
@@ -150,8 +151,8 @@ class SimulatedNode:
         self.sdo_servers: dict[int, SdoServer] = {}
         self.pdo = PdoEngine(self)
         # One request queue and worker per SDO channel: a device serves SDO1 and SDO2 independently (two masters).
-        self._requests: queue.Queue[tuple[int, bytes] | None] = queue.Queue()
-        self._requests2: queue.Queue[tuple[int, bytes] | None] = queue.Queue()
+        self._requests: queue.Queue[tuple[int, bytes, float] | None] = queue.Queue()
+        self._requests2: queue.Queue[tuple[int, bytes, float] | None] = queue.Queue()
         self._worker: threading.Thread | None = None
         self._worker2: threading.Thread | None = None
         self._next_heartbeat = 0.0
@@ -162,6 +163,8 @@ class SimulatedNode:
         self.wake: Callable[[], None] = _no_wake
         """Tells the plant's ticker that something changed (set by the plant): it ticks at once, not at a timer."""
         self.store.add_write_hook(self._on_write)
+        self.program = ProgramStore(self.store, self.faults, f"{self.name} firmware 1.0".encode(), self._power_cut)
+        """CiA 302-3 program download objects (0x1F50 ... 0x1F57) in front of the store."""
         self._build_sdo_servers()
         self.drive = _device_control(self)
         """The drive model the profile names (CiA 402 inverter or servo, Lenze control/status words), if any."""
@@ -200,6 +203,16 @@ class SimulatedNode:
         self.pdo.reconfigure()
         self.wake()
 
+    def _power_cut(self, back_after_s: float = 0.3) -> None:
+        """The power fails (a fault while flashing): silent at once, back after ``back_after_s`` with a boot-up."""
+        self.powered = False
+        self.pdo.stop()
+        threading.Timer(back_after_s, self._power_back).start()
+
+    def _power_back(self) -> None:
+        self.powered = True
+        self._boot()
+
     def send(self, cob_id: int, data: bytes) -> None:
         if self.powered:
             self._send(cob_id, data)
@@ -215,7 +228,10 @@ class SimulatedNode:
             self.wake()  # a state change starts or stops the PDOs
         elif cob_id in self.sdo_servers:
             if self.state is not NmtState.STOPPED:
-                (self._requests if cob_id == 0x600 + self.node_id else self._requests2).put((cob_id, data))
+                # the frame's time on the bus travels with it: a busy dispatcher's or worker's backlog is no idle
+                # client to the server (a frame without a timestamp is stamped on arrival, on the same clock)
+                (self._requests if cob_id == 0x600 + self.node_id else self._requests2).put(
+                    (cob_id, data, timestamp or time.time()))
         elif cob_id == 0x080 and self.state is NmtState.OPERATIONAL:
             self.pdo.on_sync()
         elif self.state is NmtState.OPERATIONAL:
@@ -251,7 +267,7 @@ class SimulatedNode:
             channels.append(second)
         features = self.profile.features
         for rx_cob, tx_cob in channels:
-            servers[rx_cob] = SdoServer(self.node_id, self._answer_sdo(rx_cob), self.store, rx_cob=rx_cob,
+            servers[rx_cob] = SdoServer(self.node_id, self._answer_sdo(rx_cob), self.program, rx_cob=rx_cob,
                                         tx_cob=tx_cob, segmented=features.segmented_sdo, block=features.block_sdo)
         self.sdo_servers = servers
 
@@ -286,12 +302,12 @@ class SimulatedNode:
             self.send(server.tx_cob, b"\x80" + data[1:4] + verdict.to_bytes(4, "little"))
         return True
 
-    def _work(self, requests: queue.Queue[tuple[int, bytes] | None]) -> None:
+    def _work(self, requests: queue.Queue[tuple[int, bytes, float] | None]) -> None:
         while True:
             item = requests.get()
             if item is None:
                 return
-            cob_id, data = item
+            cob_id, data, arrived = item
             server = self.sdo_servers.get(cob_id)
             if server is None:
                 continue
@@ -299,7 +315,7 @@ class SimulatedNode:
                 time.sleep(self.latency.sample())  # the device's parameter data processing time
             try:
                 if not self._faulty_request(server, data):
-                    server.on_request(data)
+                    server.on_request(data, arrived)
             except Exception:  # a simulator bug must not kill the node
                 log.exception("node %d: SDO request %s failed", self.node_id, data.hex())
 

@@ -136,6 +136,8 @@ RULES: dict[tuple[str, str], Rule] = {
              ("POST", "/api/parameter-downloads/{download_id}/retry"),
              ("POST", "/api/parameter-downloads/{download_id}/rollback"), ("POST", "/parameter-sets/{set_id}/download"),
              ("POST", "/parameter-sets/downloads/{download_id}/{action}")),
+    **_rules(E, N_("Program download (firmware)"), ("POST", N + "/program/check"), ("POST", N + "/program/download"),
+             ("POST", N + "/program/control/{command}")),
     **_rules(E, N_("Cancelling a job"), ("DELETE", "/api/jobs/{job_id}")),
     **_rules(E, N_("Releasing your write lease of a node"),
              ("DELETE", N + "/lease"),  # force=true: the route asks admin

@@ -34,6 +34,7 @@ from drivebench.web.api import drive_control as drive_control_api
 from drivebench.web.api import line_projects as line_projects_api
 from drivebench.web.api import lss as lss_api
 from drivebench.web.api import monitor as monitor_api
+from drivebench.web.api import program as program_api
 from drivebench.web.api import scope as scope_api
 from drivebench.web.api import simulator as simulator_api
 from drivebench.web.gate import RequestGate
@@ -71,7 +72,7 @@ log = logging.getLogger(__name__)
 API_ROUTERS = [health.router, parameters.router, monitor_api.router, sessions.router, profiles.router,
                diagnostics.router, tools.router, tools.planned_router, pdo.router, parameter_sets.router,
                drive_control_api.router, accounts_api.router, simulator_api.router, metrics_api.router,
-               line_projects_api.router, lss_api.router, scope_api.router]
+               line_projects_api.router, lss_api.router, scope_api.router, program_api.router]
 PAGE_ROUTERS = [language.router, node_diagnostics.router, node_pdo_page.router, monitor_page.router, plant_page.router,
                 node_control.router, node_page.router, node_factory_page.router, profiles_page.router,
                 remote_page.router, tools_page.router, sets_audit_page.router, parameter_sets_page.router,

@@ -9,6 +9,7 @@ All canopen and python-can exceptions are converted here, once, into the protoco
 from __future__ import annotations
 
 import contextlib
+import threading
 import time
 from collections.abc import Callable, Iterator, Mapping
 from typing import TypeVar, cast
@@ -23,6 +24,7 @@ from drivebench.protocol.abort_codes import abort_text
 from drivebench.protocol.canopen.guarding import NodeGuarding
 from drivebench.protocol.canopen.heartbeat import HeartbeatMonitor
 from drivebench.protocol.canopen.nmt import NmtCommand, nmt_frame
+from drivebench.protocol.canopen.sdo_domain import download_domain
 from drivebench.protocol.canopen.sdo_errors import communication_error, read_segments
 from drivebench.protocol.canopen.sdo_queue import ChannelLock
 from drivebench.protocol.emcy import EmcyMonitor
@@ -143,6 +145,16 @@ class NodeClient(EventLoopTransfers):
             client.download(index, sub, data)
 
         self._with_channel(index, sub, work, channel, urgent)
+
+    def download_domain(self, index: int, sub: int, data: bytes, *, block: bool = True,
+                        progress: Callable[[int], None] = lambda _sent: None,
+                        cancelled: threading.Event | None = None) -> str:
+        """A large DOMAIN (a program image): block transfer, segmented where the device refuses it
+        (:func:`~drivebench.protocol.canopen.sdo_domain.download_domain`); ``"block"`` or ``"segmented"``."""
+        def work(client: canopen.sdo.SdoClient) -> str:
+            return download_domain(client, index, sub, data, block=block, progress=progress, cancelled=cancelled)
+
+        return self._with_channel(index, sub, work, 1)
 
 
 class CanopenNetwork:

@@ -131,6 +131,7 @@ class SdoServer:
         self.timeout_s = timeout_s
         self._transfer: _Transfer | None = None
         self._last_request = 0.0
+        self._last_reply = 0.0
         self._handlers: dict[int, Callable[[bytes], None]] = {
             0: self._download_segment,
             1: self._initiate_download,
@@ -149,12 +150,15 @@ class SdoServer:
         """Forget a transfer in progress (client abort, NMT reset, server timeout)."""
         self._transfer = None
 
-    def on_request(self, data: bytes) -> None:
-        """Handle one frame received on ``rx_cob``."""
+    def on_request(self, data: bytes, now: float | None = None) -> None:
+        """Handle one frame received on ``rx_cob`` (``now``: when it was on the bus, in seconds on one clock for all
+        of this server's requests, else ``time.monotonic()``; a server that handles its requests from a queue passes
+        it, so a backlog is not taken for an idle client)."""
         if len(data) != 8:
             return  # CiA 301: SDO frames have 8 data bytes; others are not SDO requests.
-        now = time.monotonic()
-        if self._transfer is not None and now - self._last_request > self.timeout_s:
+        now = time.monotonic() if now is None else now
+        idle = now - self._last_request > self.timeout_s and time.monotonic() - self._last_reply > self.timeout_s
+        if self._transfer is not None and idle:
             # SDO server timeout: a client that vanished mid-transfer (no abort sent) must not block the channel.
             self.reset()
         self._last_request = now
@@ -350,6 +354,9 @@ class SdoServer:
 
     # --- frames -------------------------------------------------------------------------------------------
     def _reply(self, data: bytes) -> None:
+        # the idle time of a transfer also counts from the server's own last answer (a block acknowledgement sent
+        # after a long backlog is where the client's next sub-block starts from)
+        self._last_reply = time.monotonic()
         self._send(self.tx_cob, data)
 
     def _abort(self, request: bytes, code: int) -> None:

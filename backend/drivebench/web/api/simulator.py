@@ -43,6 +43,10 @@ class FaultsIn(BaseModel):
                                                                     "unanswered (uploads are answered)")
     lost_download_answers: int = Field(0, ge=0, le=1_000_000, description="Write the next this many expedited "
                                        "downloads but lose their answers (the device holds the value)")
+    flash_error: int | None = Field(None, ge=1, le=127, description="The next program download (0x1F50) fails to "
+                                    "flash with this CiA 302-3 flash status error code")
+    power_loss_mid_flash: bool = Field(False, description="The power fails while the next program download is "
+                                                          "flashed: the device comes back in its bootloader")
 
     @field_validator("abort_code")
     @classmethod

@@ -1,0 +1,115 @@
+"""Program images sent by DriveBench's block/segmented DOMAIN download (protocol/canopen/sdo_domain.py) over a real
+python-can virtual bus: to the simulated drives, and to a CiA 302-3 slave on canopen's LocalNode that refuses block
+transfer (tests/protocol/program_slave.py)."""
+
+from __future__ import annotations
+
+import os
+import threading
+import zlib
+from collections.abc import Iterator
+
+import can
+import canopen
+import pytest
+from canopen.sdo.exceptions import SdoAbortedError
+
+from drivebench.device.profiles.loader import ProfileRegistry
+from drivebench.protocol.canopen.sdo_domain import ABORT_BY_CLIENT, TransferCancelled, download_domain
+from drivebench.simulator.plant import Plant, PlantFile, PlantNode
+from tests.conftest import fresh_channel, wait_until
+from tests.protocol.program_slave import ProgramSlave
+from tests.simulator.canopen_master import connected, remote
+
+SERVO, FAN, SLAVE = 7, 12, 40
+IMAGE = os.urandom(20_000)
+
+
+@pytest.fixture
+def bus_channel() -> str:
+    return fresh_channel()
+
+
+@pytest.fixture
+def plant(registry: ProfileRegistry, bus_channel: str) -> Iterator[Plant]:
+    plant_file = PlantFile(name="program download", bus=f"virtual:{bus_channel}@500000",
+                           nodes=[PlantNode(node_id=SERVO, profile="generic-cia402-servo"),
+                                  PlantNode(node_id=FAN, profile="lenze-8200-vector-emf2178ib")])
+    running = Plant(plant_file, registry.get).start()
+    yield running
+    running.stop()
+
+
+@pytest.fixture
+def master(bus_channel: str, plant: Plant) -> Iterator[canopen.Network]:
+    with connected(bus_channel) as network:
+        yield network
+
+
+def _stop_program(node: canopen.RemoteNode) -> None:
+    node.sdo.download(0x1F51, 1, b"\x00")
+
+
+def test_block_download_lands_and_0x1F56_names_the_new_image(master: canopen.Network, plant: Plant) -> None:
+    node = remote(master, SERVO)
+    _stop_program(node)
+    seen: list[int] = []
+    assert download_domain(node.sdo, 0x1F50, 1, IMAGE, progress=seen.append) == "block"
+    assert plant.nodes[SERVO].program.image == IMAGE
+    assert seen[-1] == len(IMAGE) and seen == sorted(seen) and len(seen) > 3
+    node.sdo.download(0x1F51, 1, b"\x01")
+    assert int.from_bytes(node.sdo.upload(0x1F56, 1), "little") == zlib.crc32(IMAGE)
+    assert node.sdo.upload(0x1F57, 1) == bytes(4)
+
+
+def test_a_device_without_block_transfer_gets_it_segmented(master: canopen.Network, plant: Plant) -> None:
+    node = remote(master, FAN)
+    _stop_program(node)
+    assert download_domain(node.sdo, 0x1F50, 1, IMAGE[:3000]) == "segmented"
+    assert plant.nodes[FAN].program.image == IMAGE[:3000]
+
+
+def test_cancel_aborts_the_transfer_on_the_bus(master: canopen.Network, plant: Plant, bus_channel: str) -> None:
+    node = remote(master, SERVO)
+    _stop_program(node)
+    spy = can.Bus(interface="virtual", channel=bus_channel, receive_own_messages=False)
+    cancel = threading.Event()
+
+    def progress(sent: int) -> None:
+        if sent > 5000:
+            cancel.set()
+
+    try:
+        with pytest.raises(TransferCancelled) as cancelled:
+            download_domain(node.sdo, 0x1F50, 1, IMAGE, progress=progress, cancelled=cancel)
+        aborts = []
+        while (frame := spy.recv(timeout=0.5)) is not None:
+            if frame.arbitration_id == 0x600 + SERVO and frame.data[0] == 0x80:
+                aborts.append(bytes(frame.data))
+    finally:
+        spy.shutdown()
+    assert cancelled.value.code == ABORT_BY_CLIENT
+    assert aborts == [b"\x80\x50\x1f\x01" + ABORT_BY_CLIENT.to_bytes(4, "little")]
+    assert plant.nodes[SERVO].program.image != IMAGE  # nothing of the cut transfer was flashed
+    assert node.sdo.upload(0x1F51, 1) == b"\x00"  # and the device answers again at once
+
+
+def test_a_running_program_refuses_the_download(master: canopen.Network) -> None:
+    node = remote(master, SERVO)
+    with pytest.raises(SdoAbortedError) as refused:
+        download_domain(node.sdo, 0x1F50, 1, IMAGE[:700])
+    assert refused.value.code == 0x08000022
+
+
+def test_independent_localnode_slave_falls_back_to_segmented() -> None:
+    channel = fresh_channel()
+    with connected(channel) as slave_network, connected(channel) as master:
+        slave = ProgramSlave(slave_network, SLAVE)
+        node = remote(master, SLAVE)
+        node.sdo.download(0x1F51, 1, b"\x00")
+        assert not slave.running
+        assert download_domain(node.sdo, 0x1F50, 1, IMAGE[:5000]) == "segmented"
+        assert slave.image == IMAGE[:5000]
+        node.sdo.download(0x1F51, 1, b"\x01")
+        assert wait_until(lambda: slave.running, 5)
+        assert int.from_bytes(node.sdo.upload(0x1F56, 1), "little") == zlib.adler32(IMAGE[:5000])
