@@ -4,19 +4,25 @@ only that key differs (issue 34). Over the lossless corpus, the quirk corpus, th
 from __future__ import annotations
 
 import difflib
+import re
 from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from drivebench.device.formats.eds import decode_text, read_eds
+from drivebench.device.formats.eds import decode_text, parse_ini, read_eds
+from drivebench.device.formats.eds_export import export_eds
+from drivebench.device.formats.eds_quirks import Warnings, read_int
+from drivebench.device.formats.eds_rewrite import section_id, styled
 from drivebench.device.profiles.loader import LoadedFile
-from drivebench.device.profiles.profile import Profile
+from drivebench.device.profiles.profile import Access, Profile
+from drivebench.protocol.datatypes import DataType
 from drivebench.services.profiles.edit import ObjectEdit, edited, regenerated_eds
 from tests.device.lossless_corpus import LOSSLESS_FILES, SPEED, Edit
 from tests.device.quirk_corpus import CORPUS_FILES
 
+_OBJECT = re.compile(r"^[0-9A-F]{4}(SUB[0-9A-F]{1,2})?$")
 DATA_EDS = Path(__file__).parent.parent / "data" / "eds"
 ALL_FILES = [(n, c) for n, c, _ in LOSSLESS_FILES] + [(n, c) for n, c, _ in CORPUS_FILES] + [
     (p.name, p.read_bytes()) for p in sorted(DATA_EDS.iterdir())]
@@ -81,7 +87,6 @@ def test_one_edit_changes_only_its_key_in_the_files_style(name: str, content: by
     ("3000", "0x00000DAC", "3500"), ("0x7F", "-1", "0xFF"), ("0x10", "4096", "0x1000"), ("see manual", "5", "5"),
     ("1.5", "2.25", "2.25")])
 def test_an_edited_value_is_written_in_the_style_of_the_one_it_replaces(old: str, value: str, new: str) -> None:
-    from drivebench.device.formats.eds_rewrite import styled
     assert styled(old, value) == new
 
 
@@ -151,3 +156,50 @@ def test_generated_files_regenerate_unchanged_and_one_edit_changes_one_key(
     assert_only_key_changed(content, written, "generated.eds", f"{index:04X}", "DefaultValue")
     again = read_eds(written, source="generated.eds").profile.objects
     assert next(o.default for o in again if (o.index, o.subindex) == (index, 0)) == new
+
+
+# --- the model keeps what real files carry (an export without the original file) -------------------------
+KEPT_KEYS = ("ObjectType", "DataType", "DefaultValue", "LowLimit", "HighLimit", "ParameterValue", "ObjFlags",
+             "CompactSubObj", "AccessType")
+
+
+def same_value(old: str, new: str) -> bool:
+    try:
+        return read_int(old)[0] == read_int(new)[0]
+    except ValueError:
+        return old.strip().lower() == new.strip().lower()
+
+
+@pytest.mark.parametrize(("name", "content"), [(n, c) for n, c, _ in LOSSLESS_FILES],
+                         ids=[n for n, _, _ in LOSSLESS_FILES])
+def test_an_export_from_the_profile_alone_keeps_types_flags_values_and_limits_as_the_file_has_them(
+        name: str, content: bytes) -> None:
+    """ObjFlags of an object's own section, non-basic DataTypes, DOMAIN values and limits, text defaults, values
+    wider than their type, signed limits 0..0xFF, $NODEID limits, ObjectType of a compact RECORD and of DOMAIN
+    sub-objects: an export written from the profile (no original file) has each as the file had it."""
+    imported = read_eds(content, source=name)
+    original = {section_id(s.name): s for s in parse_ini(decode_text(content, name), name, Warnings(name)).values()}
+    exported = {section_id(s.name): s for s in parse_ini(export_eds(imported.profile), name).values()}
+    stray = {section for section in original if section == "100BSUB0"}
+    for upper, section in original.items():
+        if not _OBJECT.match(upper) or upper in stray:
+            continue
+        for key_name in KEPT_KEYS:
+            key = section.get(key_name)
+            if key is None or (key_name == "ObjectType" and same_value(key.value, "0x7")):
+                continue
+            written = exported[upper].get(key_name)
+            assert written is not None and same_value(key.value, written.value), (upper, key_name, key.value,
+                                                                                written)
+
+
+def test_a_var_with_a_stray_sub0_and_a_hash_comment_are_read_as_written() -> None:
+    name, content, _ = next(f for f in LOSSLESS_FILES if "stray-sub0" in f[0])
+    imported = read_eds(content, source=name)
+    node_id = next(o for o in imported.profile.objects if o.index == 0x100B)
+    assert (node_id.data_type, node_id.access, node_id.object_type) == (DataType.UNSIGNED8, Access.RW, "VAR")
+    line = decode_text(content, name).splitlines().index("[100Bsub0]") + 1
+    assert any("[100Bsub0]" in w.message and w.line == line for w in imported.warnings)
+    name, content, _ = next(f for f in LOSSLESS_FILES if "hash-comment" in f[0])
+    speed = next(o for o in read_eds(content, source=name).profile.objects if o.index == 0x2000)
+    assert speed.access is Access.RW

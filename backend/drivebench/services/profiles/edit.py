@@ -3,6 +3,7 @@ edited stays as it was read (:mod:`drivebench.device.formats.eds_rewrite`)."""
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict, ValidationError
@@ -16,7 +17,9 @@ from drivebench.errors import Conflict, ProfileError, UnknownParameter
 from drivebench.i18n import _
 
 EDS_SUFFIXES = (".eds", ".dcf")
-VALUE_FIELDS = {"default", "min", "max", "parameter_value"}
+VALUE_KEYS = {"DefaultValue": "default", "LowLimit": "min", "HighLimit": "max", "ParameterValue": "parameter_value"}
+"""EDS key -> the field that holds its value."""
+VALUE_FIELDS = set(VALUE_KEYS.values())
 
 
 class ObjectEdit(BaseModel):
@@ -50,10 +53,17 @@ def _check_value(entry: ObjectEntry, field: str, value: Value | None) -> None:
     if value is None or (data_type.is_string and isinstance(value, str)):
         return
     number = value if isinstance(value, int | float) and not isinstance(value, bool) else None
-    raw = None if number is None else number * entry.factor
+    try:
+        raw = None if number is None else number * entry.factor
+        whole = isinstance(raw, int) or (raw is not None and float(raw).is_integer())
+        finite = raw is not None and (isinstance(raw, int) or math.isfinite(raw))
+        if data_type.is_float and raw is not None:
+            finite = math.isfinite(float(raw))
+    except OverflowError:
+        raw, whole, finite = None, False, False
     limits = data_type.raw_limits()
-    fits = raw is not None and (data_type.is_float or (
-        data_type.is_integer and float(raw).is_integer() and (limits is None or limits[0] <= raw <= limits[1])))
+    fits = raw is not None and finite and (data_type.is_float or (
+        data_type.is_integer and whole and (limits is None or limits[0] <= raw <= limits[1])))
     if not fits:
         low, high = limits or ("", "")
         raise ProfileError(_("{field}: {value!r} is not a {type} value{range}").format(
@@ -73,6 +83,9 @@ def edited(profile: Profile, index: int, subindex: int, edit: ObjectEdit) -> Pro
         _check_value(objects[at], field, changes[field])
     if "default" in changes:
         changes["default_expr"] = None
+    texts = {key: text for key, text in (objects[at].value_texts or {}).items()
+             if VALUE_KEYS.get(key) not in changes}  # the file's text of an edited value is replaced
+    changes["value_texts"] = texts or None
     try:
         objects[at] = ObjectEntry.model_validate({**objects[at].model_dump(), **changes})
         return Profile.model_validate({**profile.model_dump(), "objects": objects})
