@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from drivebench.device.formats.eds import Section, decode_text, parse_ini, read_eds
 from drivebench.device.formats.eds_export import export_eds
-from drivebench.device.formats.eds_quirks import Warnings, node_expr, read_int
+from drivebench.device.formats.eds_quirks import ImportWarning, Warnings, node_expr, read_int
 from drivebench.device.formats.xdd import read_xdd
 from drivebench.device.formats.xdd_export import export_xdd
 from drivebench.errors import ProfileError
@@ -40,12 +40,21 @@ def test_corpus_file_is_accepted_with_the_warning_due(name: str, content: bytes,
     assert len(imported.profile.objects) >= 10
 
 
+KEPT_AS_WRITTEN = {"defaultvalue", "lowlimit", "highlimit", "parametervalue", "lowlimit/highlimit", "datatype"}
+"""Value keys an export writes as the file had them where the import read them with a change (issue 34): their
+re-import gives the same reading again."""
+
+
+def not_of_kept_texts(warnings: list[ImportWarning]) -> list[ImportWarning]:
+    return [w for w in warnings if (w.key or "").lower() not in KEPT_AS_WRITTEN]
+
+
 @pytest.mark.parametrize(("name", "content", "case"), CORPUS, ids=[c[0] for c in CORPUS])
 def test_export_of_a_corpus_file_reads_back_as_the_same_profile(name: str, content: bytes, case: Case) -> None:
     profile = read_eds(content, source=name).profile
     again = read_eds(export_eds(profile), source=name)
     assert again.profile == profile
-    assert again.warnings == []
+    assert not_of_kept_texts(again.warnings) == []
 
 
 def test_keys_the_model_has_no_field_for_are_kept_and_exported() -> None:
@@ -94,7 +103,7 @@ def test_files_with_several_quirks_are_accepted_and_round_trip(cases: list[Case]
     content = _combined(cases, line_end, encoding)
     imported = read_eds(content, source="combined.eds")
     again = read_eds(export_eds(imported.profile), source="combined.eds")
-    assert again.profile == imported.profile and again.warnings == []
+    assert again.profile == imported.profile and not_of_kept_texts(again.warnings) == []
 
 
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])

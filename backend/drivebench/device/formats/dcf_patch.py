@@ -110,7 +110,8 @@ def _var_type(text: str) -> bool:
         return False
 
 
-def _encoding(data: bytes) -> tuple[str, bytes]:
+def file_encoding(data: bytes) -> tuple[str, bytes]:
+    """The encoding to write a file back in, and its BOM (empty without one)."""
     wide = wide_encoding(data)
     if wide is not None:  # UTF-16/32 written back as read, with the BOM the file had (if any)
         return wide, data[:len("\ufeff".encode(wide))] if data.startswith("\ufeff".encode(wide)) else b""
@@ -129,7 +130,7 @@ def patch_dcf(original: bytes, source: str, values: Mapping[Address, str], *, de
               commissioning: Mapping[str, str] | None = None) -> bytes:
     """``original`` with ``ParameterValue`` (and with ``defaults`` also ``DefaultValue``) set to ``values`` (EDS
     text by (index, subindex)) and the ``[DeviceComissioning]`` keys given; nothing else changes."""
-    encoding, bom = _encoding(original)
+    encoding, bom = file_encoding(original)
     lines = _Lines(decode_text(original, source))
     for (index, sub), text in values.items():
         own = f"{index:04X}SUB{sub:X}"

@@ -102,6 +102,13 @@ def parse_value(data_type: DataType, text: str) -> Value:
     return value
 
 
+def _number(text: str) -> int | None:
+    try:
+        return parse_int(text)
+    except ValueError:
+        return None
+
+
 # --- defaults of what export writes and import need not keep ----------------------------------------------
 def file_info_defaults(profile: Profile) -> dict[str, str]:
     return {"FileName": f"{profile.id}.eds", "FileVersion": "1", "FileRevision": "0", "EDSVersion": "4.0",
@@ -275,7 +282,7 @@ class _Reader:
         compact = section.get("CompactSubObj")
         if compact is not None and (self.integer(compact, 0) or 0) != 0:
             if not subs:
-                return self.with_object_keys(self.compact(index, section, compact, name, flags, aux), section,
+                return self.with_object_keys(self.compact(index, section, compact, name, flags, aux, kind), section,
                                              _MODEL_KEYS)
             self.warn(compact.line, compact.name, Text(N_("object 0x{index:04X} has CompactSubObj and sub-object "
                                                           "sections: the sections are read"), index=index))
@@ -287,9 +294,17 @@ class _Reader:
             self.warn(number_key.line, number_key.name, Text(N_("SubNumber={value} but object 0x{index:04X} has "
                                                                 "{count} sub-objects: the {count} sections are read"),
                                                              value=number_key.value, index=index, count=len(subs)))
-        entries = [self.entry(subs[sub], index, sub, object_name=name, kind=kind, obj_flags=flags)
-                   for sub in sorted(subs)]
-        return self.with_object_keys([e for e in entries if e is not None], section, _HEAD_KEYS)
+        entries = []
+        for sub in sorted(subs):
+            entry = self.entry(subs[sub], index, sub, object_name=name, kind=kind, obj_flags=flags)
+            if entry is not None:
+                sub_type = subs[sub].get("ObjectType")
+                domain_sub = sub_type is not None and OBJECT_TYPE_NAMES.get(sub_type.value.strip().lower(),
+                                                                            _number(sub_type.value)) == 0x2
+                entries.append(entry.model_copy(update={"domain_object": domain_sub}))
+        if flags is not None and len({e.obj_flags for e in entries}) > 1:  # the object's own differs from a sub's
+            entries = [e.model_copy(update={"object_flags": flags}) for e in entries]
+        return self.with_object_keys(entries, section, _HEAD_KEYS)
 
     @staticmethod
     def with_object_keys(entries: list[ObjectEntry], section: Section, read: set[str]) -> list[ObjectEntry]:
@@ -300,7 +315,7 @@ class _Reader:
         return entries
 
     def compact(self, index: int, section: Section, compact: Key, name: str, flags: int | None,
-                aux: dict[tuple[int, str], Section]) -> list[ObjectEntry]:
+                aux: dict[tuple[int, str], Section], kind: str) -> list[ObjectEntry]:
         count = self.integer(compact, 0) or 0
         if not 1 <= count <= 254:
             self.warn(compact.line, compact.name, Text(N_("CompactSubObj={count} is outside 1..254: read as {min}"),
@@ -310,7 +325,7 @@ class _Reader:
         values = aux.get((index, "VALUE"))
         denotations = aux.get((index, "DENOTATION"))
         entries = [ObjectEntry(index=index, subindex=0, name=COMPACT_SUB0_NAME, object_name=name,
-                               object_type="ARRAY", data_type=DataType.UNSIGNED8, access=Access.RO, default=count,
+                               object_type=kind, data_type=DataType.UNSIGNED8, access=Access.RO, default=count,
                                obj_flags=flags, compact=True)]
         count_value = values.get("0") if values else None  # a DCF's value of sub 0, as DriveBench writes it
         if count_value is not None:
@@ -319,7 +334,7 @@ class _Reader:
         for sub in range(1, count + 1):
             sub_name = names.get(str(sub)) if names else None
             entry = self.entry(section, index, sub, name=sub_name.value if sub_name else f"{name}{sub}",
-                               object_name=name, kind="ARRAY", obj_flags=flags, own_values=False,
+                               object_name=name, kind=kind, obj_flags=flags, own_values=False,
                                quiet=sub > 1)
             if entry is None:
                 return [entries[0].model_copy(update={"compact": False})]
@@ -341,10 +356,14 @@ class _Reader:
             return fallback
         return found.value
 
-    def parameter_value(self, data_type: DataType, key: Key, address: tuple[int, int]) -> Value | None:
+    def parameter_value(self, data_type: DataType, key: Key, address: tuple[int, int],
+                        kept: dict[str, str] | None = None) -> Value | None:
         if data_type.is_integer and "$NODEID" in key.value.upper():
-            return self.formula(key, address)
-        return self.value(data_type, key, address)
+            formula = self.formula(key, address)
+            if formula is None and kept is not None:
+                kept["ParameterValue"] = key.value
+            return formula
+        return self.value(data_type, key, address, kept=kept, as_key="ParameterValue")
 
     def formula(self, key: Key, address: tuple[int, int]) -> str | None:
         try:
@@ -355,19 +374,25 @@ class _Reader:
         return key.value
 
     def value(self, data_type: DataType, key: Key, address: tuple[int, int], *, limit: str | None = None,
-              quiet: bool = False) -> Value | None:
+              quiet: bool = False, kept: dict[str, str] | None = None, as_key: str = "DefaultValue"
+              ) -> Value | None:
+        """A value key read as ``data_type``; where the reading changed or dropped it, its text goes to ``kept``
+        (under ``limit`` or ``as_key``) so an export writes it as the file had it."""
         value, note = read_value(data_type, key.value, limit=limit)
+        if (note or value is None) and kept is not None:
+            kept[limit or as_key] = key.value
         if note and not quiet:
             self.warn(key.line, key.name, Text(N_("{value!r}: {note}"), value=key.value,
                                                note=note), address=address, limits=limit is not None)
         return value
 
-    def data_type(self, section: Section, type_key: Key, quiet: bool) -> DataType:
+    def data_type(self, section: Section, type_key: Key, quiet: bool) -> tuple[DataType, int | None]:
+        """The type the model reads, and the file's code where that is another one (kept for the export)."""
         code = self.integer(type_key, what=Text(N_("read as DOMAIN")))
         if code is None:
-            return DataType.DOMAIN
+            return DataType.DOMAIN, None
         if code in DATA_TYPE_BY_CODE:
-            return DATA_TYPE_BY_CODE[code]
+            return DATA_TYPE_BY_CODE[code], None
         for name in (f"{code:04X}SUB1", f"{code:X}SUB1"):  # a DEFTYPE in the file: its sub 1 names the basic type
             defined = self.sections.get(name)
             base = defined.get("DefaultValue") if defined else None
@@ -381,12 +406,12 @@ class _Reader:
                     self.warn(type_key.line, type_key.name, Text(N_("DataType=0x{code:04X} is defined in [{name}] "
                                                                     "(sub 1): read as {value}"), code=code,
                                                                  name=defined.name, value=base_type.value))
-                return base_type
+                return base_type, code
         if not quiet:
             self.warn(type_key.line, type_key.name, Text(N_("DataType=0x{code:04X} ({type_name}) is not a CiA 301 "
                                                             "basic data type: read as DOMAIN (bytes)"), code=code,
                                                          type_name=type_name(code)))
-        return DataType.DOMAIN
+        return DataType.DOMAIN, code
 
     def entry(self, section: Section, index: int, sub: int, *, name: str | None = None,
               object_name: str | None = None, kind: str, obj_flags: int | None = None,
@@ -396,8 +421,9 @@ class _Reader:
         name = name if name is not None else self.name(section, f"Sub-index {sub}")
         type_key = section.get("DataType")
         data_type = default_type or DataType.DOMAIN
+        type_code = None
         if type_key is not None:
-            data_type = self.data_type(section, type_key, quiet)
+            data_type, type_code = self.data_type(section, type_key, quiet)
         elif default_type is None and not quiet:
             self.warn(section.line, "DataType", Text(N_("[{name}] has no DataType=: read as DOMAIN (bytes)"),
                                                      name=section.name))
@@ -413,7 +439,9 @@ class _Reader:
                 self.warn(access_key.line, access_key.name, Text(N_("{value!r} {note}"), value=access_key.value,
                                                                  note=note))
         fields: dict[str, Any] = {"index": index, "subindex": sub, "name": name, "data_type": data_type,
-                                  "access": access, "object_type": kind, "object_name": object_name}
+                                  "access": access, "object_type": kind, "object_name": object_name,
+                                  "data_type_code": type_code}
+        kept: dict[str, str] = {}
         factor = self.factor(section, quiet)
         if factor != 1:
             fields["factor"] = factor
@@ -427,16 +455,21 @@ class _Reader:
             fields["pdo_mappable"] = bool(self.integer(mapping, 0, what=Text(N_("read as 0 (not mappable)"))))
         flags_key = section.get("ObjFlags") if own_values else None
         fields["obj_flags"] = self.integer(flags_key) if flags_key is not None else obj_flags
-        self.limits(section, data_type, factor, fields, address, quiet)
+        self.limits(section, data_type, factor, fields, address, quiet, kept)
         default = section.get("DefaultValue")
         if default is not None and (default.value or data_type.is_string):
             if data_type.is_integer and "$NODEID" in default.value.upper():
                 fields["default_expr"] = self.formula(default, address)
+                if fields["default_expr"] is None:
+                    kept["DefaultValue"] = default.value
             else:
-                fields["default"] = self.scaled(self.value(data_type, default, address, quiet=quiet), factor)
+                fields["default"] = self.scaled(self.value(data_type, default, address, quiet=quiet,
+                                                           kept=kept), factor)
         value = section.get("ParameterValue") if own_values else None
         if value is not None and (value.value or data_type.is_string):
-            fields["parameter_value"] = self.parameter_value(data_type, value, address)
+            fields["parameter_value"] = self.parameter_value(data_type, value, address, kept)
+        if kept:
+            fields["value_texts"] = kept
         other = {k.name: k.value for name, k in section.keys.items() if name not in _MODEL_KEYS} if own_values \
             else {}
         if other:
@@ -466,11 +499,15 @@ class _Reader:
         return factor
 
     def limits(self, section: Section, data_type: DataType, factor: int | float, fields: dict[str, Any],
-               address: tuple[int, int], quiet: bool) -> None:
+               address: tuple[int, int], quiet: bool, kept: dict[str, str]) -> None:
         """LowLimit/HighLimit: unusable ones are dropped, out-of-type ones repaired, both dropped when the low
-        one is above the high one (each noted; the row then says so before a write)."""
+        one is above the high one (each noted; the row then says so before a write). The text of each of these
+        goes to ``kept``: an export writes it as the file had it."""
         if data_type.is_string:
-            for key in (section.get("LowLimit"), section.get("HighLimit")):
+            for name in ("LowLimit", "HighLimit"):
+                key = section.get(name)
+                if key is not None and key.value.strip():
+                    kept[name] = key.value
                 if key is not None and key.value.strip() and not quiet:
                     self.warn(key.line, key.name, Text(N_("{value!r} ignored: a {type} has no limits"),
                                                        value=key.value, type=data_type.value),
@@ -480,11 +517,13 @@ class _Reader:
         for key_name, field_name in (("LowLimit", "min"), ("HighLimit", "max")):
             key = section.get(key_name)
             if key is None or not key.value or key.value.strip().lower() in ("none", "-", "n/a"):
+                if key is not None and key.value:
+                    kept[key_name] = key.value
                 if key is not None and key.value and not quiet:
                     self.warn(key.line, key.name, Text(N_("{value!r} read as no limit"),
                                                        value=key.value), address=address, limits=True)
                 continue
-            raw = self.value(data_type, key, address, limit=key_name, quiet=quiet)
+            raw = self.value(data_type, key, address, limit=key_name, quiet=quiet, kept=kept)
             if raw is not None:
                 found[field_name] = key
                 fields[field_name] = self.scaled(raw, factor)
@@ -496,6 +535,7 @@ class _Reader:
                                                                 high=high.value, type=data_type.value),
                           address=address, limits=True)
             del fields["min"], fields["max"]
+            kept |= {"LowLimit": low.value, "HighLimit": high.value}
 
     @staticmethod
     def scaled(raw: Value | None, factor: int | float) -> Value | None:

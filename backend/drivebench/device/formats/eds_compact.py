@@ -22,9 +22,11 @@ def fits_compact(entries: list[ObjectEntry]) -> bool:
     """Whether an object's entries (in sub-index order) were read compact and still fit that form: sub 0 the count
     of subs 1..N (a DCF value of its own), which are alike but for :data:`PER_SUB`."""
     head, subs = entries[0], entries[1:]
-    if not subs or len(subs) > 254 or not all(e.compact and e.object_type == "ARRAY" for e in entries):
+    if not subs or len(subs) > 254 or not all(e.compact and e.object_type == head.object_type != "VAR"
+                                              for e in entries):
         return False
-    count = ObjectEntry(index=head.index, name=COMPACT_SUB0_NAME, object_name=head.object_name, object_type="ARRAY",
+    count = ObjectEntry(index=head.index, name=COMPACT_SUB0_NAME, object_name=head.object_name,
+                        object_type=head.object_type,
                         data_type=DataType.UNSIGNED8, access=Access.RO, default=len(subs), obj_flags=head.obj_flags,
                         compact=True, object_keys=head.object_keys, parameter_value=head.parameter_value)
     if head != count or [e.subindex for e in subs] != list(range(1, len(subs) + 1)):
@@ -41,7 +43,8 @@ def compact_sections(entries: list[ObjectEntry], entry_keys: Callable[[ObjectEnt
     and the keys the sub-objects share (``entry_keys`` of sub 1), then ``[xxxxName]``, ``[xxxxValue]`` and
     ``[xxxxDenotation]`` where a sub-object has its own (``value_text``: its ParameterValue text, or None)."""
     head, subs = entries[0], entries[1:]
-    keys: list[tuple[str, object]] = [("ParameterName", head.object_name), ("ObjectType", "0x8"),
+    object_type = "0x9" if head.object_type == "RECORD" else "0x8"  # CompactSubObj on a RECORD stays one
+    keys: list[tuple[str, object]] = [("ParameterName", head.object_name), ("ObjectType", object_type),
                                       ("CompactSubObj", len(subs))]
     keys += [(key, value) for key, value in entry_keys(subs[0]) if key not in HEAD_KEYS_NOT_SHARED]
     if head.obj_flags is not None:

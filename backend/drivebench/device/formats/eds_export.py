@@ -171,19 +171,24 @@ def export_value_text(entry: ObjectEntry, value: Value | None) -> dict[str, str]
         texts["ParameterValue"] = _format(entry.data_type, value)
     if entry.denotation is not None:
         texts["Denotation"] = _one_line(entry.denotation)
+    for key, text in (entry.value_texts or {}).items():  # as the file had it (the import read it with a change)
+        if key != "ParameterValue" or value is entry.parameter_value:
+            texts[key] = _one_line(text)
     return texts
 
 
 def _entry_keys(entry: ObjectEntry, *, with_flags: bool, value: Value | None) -> list[tuple[str, object]]:
     keys: list[tuple[str, object]] = [("ParameterName", entry.name),
                                       ("ObjectType", "0x2" if entry.domain_object else "0x7")]
-    keys += [("DataType", f"0x{entry.data_type.code:04X}"), ("AccessType", entry.access.value)]
+    code = entry.data_type_code if entry.data_type_code is not None else entry.data_type.code
+    keys += [("DataType", f"0x{code:04X}"),
+             ("AccessType", entry.access.value)]
     texts = export_value_text(entry, value)
     if "DefaultValue" in texts:
         keys.append(("DefaultValue", texts["DefaultValue"]))
     keys.append(("PDOMapping", int(entry.pdo_mappable)))
     keys += [(key, texts[key]) for key in ("LowLimit", "HighLimit") if key in texts]
-    if with_flags and entry.obj_flags is not None:
+    if with_flags and entry.obj_flags is not None and entry.obj_flags != entry.object_flags:
         keys.append(("ObjFlags", f"0x{entry.obj_flags:X}"))
     keys += [(key, texts[key]) for key in ("ParameterValue", "Denotation") if key in texts]
     keys += list((entry.section_keys or {}).items())
@@ -260,7 +265,7 @@ def _object_sections(index: int, entries: list[ObjectEntry], parameter_value: Ca
 
         return compact_sections(entries, lambda e: _entry_keys(e, with_flags=False, value=None), value_text)
     flags = {e.obj_flags for e in entries}
-    shared_flags = flags.pop() if len(flags) == 1 else None
+    shared_flags = first.object_flags if first.object_flags is not None else flags.pop() if len(flags) == 1 else None
     kind = first.object_type if first.object_type != "VAR" else "RECORD"
     head: list[tuple[str, object]] = [("ParameterName", first.object_name or first.name),
                                       ("ObjectType", f"0x{OBJECT_TYPE_CODES[kind]:X}"), ("SubNumber", len(entries))]
@@ -268,7 +273,8 @@ def _object_sections(index: int, entries: list[ObjectEntry], parameter_value: Ca
         head.append(("ObjFlags", f"0x{shared_flags:X}"))
     head += list((first.object_keys or {}).items())
     return [(f"{index:04X}", head), *((f"{index:04X}sub{entry.subindex:X}", _entry_keys(
-        entry, with_flags=shared_flags is None, value=parameter_value(entry))) for entry in entries)]
+        entry, with_flags=shared_flags is None or first.object_flags is not None, value=parameter_value(entry)))
+        for entry in entries)]
 
 
 def export_eds(profile: Profile, *, node_id: int | None = None, values: Mapping[Address, Value] | None = None,

@@ -135,6 +135,17 @@ def parse_ini(text: str, source: str, notes: Warnings | None = None) -> dict[str
     return sections
 
 
+def _hash_comment(key: str, value: str) -> re.Match[str] | None:
+    return _HASH_COMMENT.search(value) if "#" in value and key.lower() in _KEYWORD_KEYS else None
+
+
+def comment_start(key: str, value: str) -> int | None:
+    """Where the inline comment of a key's value starts (`` ;``, or `` #`` after a keyword or number), as the
+    reader cuts it; None without one."""
+    found = [match.start() for match in (_INLINE_COMMENT.search(value), _hash_comment(key, value)) if match]
+    return min(found) if found else None
+
+
 def _section(line: str, number: int, sections: dict[str, Section], quirk: _Quirks) -> Section:
     closing = line.find("]")
     if closing < 0 or len(line) < 3:
@@ -175,7 +186,7 @@ def _key_value(line: str, number: int, quirk: _Quirks) -> tuple[str, str] | None
     comment = _INLINE_COMMENT.search(value) if ";" in value else None
     if comment is not None and quirk.notes is not None:
         value = value[:comment.start()].rstrip()
-    hashed = _HASH_COMMENT.search(value) if "#" in value and key.lower() in _KEYWORD_KEYS else None
+    hashed = _hash_comment(key, value)
     if hashed is not None and quirk.notes is not None:
         quirk(number, key, Text(N_("{value!r} read as {kept!r}: the text from '#' on is a comment"), value=value,
                                 kept=value[:hashed.start()].rstrip()))

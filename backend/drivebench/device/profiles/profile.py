@@ -195,6 +195,18 @@ class ObjectEntry(Entry):
     export writes it back (an EDS knows only ``PDOMapping=1``). Only on a ``pdo_mappable`` object."""
     domain_object: bool = False
     """The file gave ``ObjectType=0x2`` (DOMAIN): read as a VAR, written as 0x2 again."""
+    data_type_code: int | None = None
+    """The file's ``DataType`` where the model reads another type: a type CiA 301 has but the model does not
+    (INTEGER40, UNSIGNED48, TIME_OF_DAY ..., read as DOMAIN) or one the file defines (a DEFTYPE); an export writes
+    it back."""
+    value_texts: dict[str, str] | None = None
+    """The file's text of ``DefaultValue``/``LowLimit``/``HighLimit``/``ParameterValue`` where the import read it
+    with a change (a text default of a number, a value wider than its type, limits of a DOMAIN, ``$NODEID`` limits,
+    limits dropped as LowLimit > HighLimit ...; each with a warning): an export writes that text back; an edit of
+    the value drops it."""
+    object_flags: int | None = None
+    """On each entry of an ARRAY/RECORD: the ``ObjFlags`` of the object's own section (``[1018]``), written back
+    there; ``obj_flags`` is what holds for the entry (its own section's, else the object's)."""
     compact: bool = False
     """Read from a CiA 306 ``CompactSubObj`` array (one section, ``[xxxxName]``/``[xxxxValue]``); an EDS export
     writes it compact again while its entries still fit that form."""

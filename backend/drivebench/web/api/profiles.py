@@ -10,14 +10,15 @@ import json
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Query, Request, status
-from fastapi.responses import HTMLResponse, JSONResponse, PlainTextResponse, Response
+from fastapi.responses import HTMLResponse, JSONResponse, Response
 
-from drivebench.device.formats.eds_export import export_eds
 from drivebench.device.formats.xdd import XML_SUFFIXES
 from drivebench.device.formats.xdd_export import export_warnings, export_xdd
 from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.device.profiles.profile import Profile
-from drivebench.errors import DriveBenchError
+from drivebench.errors import DriveBenchError, UnknownParameter
+from drivebench.i18n import _
+from drivebench.services.profiles.edit import ObjectEdit, edit_object, regenerated_eds
 from drivebench.services.profiles.store import BatchResult, UploadTooLarge, delete_upload
 from drivebench.services.profiles.views import (
     EntryKind,
@@ -97,12 +98,14 @@ async def get_profile_warnings(profile_id: str, state: StateDep) -> list[ImportW
             responses={200: {"content": {"text/plain": {}}, "description": "The EDS/DCF file"}})
 async def get_profile_eds(profile_id: str, state: StateDep, regenerate: bool = False) -> Response:
     """The profile as EDS: an EDS/DCF file exactly as it was loaded (byte for byte), else (or with
-    ``regenerate=true``) written from the profile."""
+    ``regenerate=true``) written from the profile; one read from an EDS/DCF is written over that file, so only
+    what was edited differs from it."""
     loaded = state.registry.loaded(profile_id)
     if loaded.original is not None and loaded.suffix in (".eds", ".dcf") and not regenerate:
         return Response(loaded.original, media_type="application/octet-stream",
                         headers=_attachment(f"{profile_id}{loaded.suffix}"))
-    return PlainTextResponse(export_eds(loaded.profile), headers=_attachment(f"{profile_id}.eds"))
+    content, media_type = await asyncio.to_thread(regenerated_eds, loaded)
+    return Response(content, media_type=media_type, headers=_attachment(f"{profile_id}.eds"))
 
 
 @router.get("/{profile_id}/xdd", response_class=Response,
@@ -118,6 +121,19 @@ async def get_profile_xdd(profile_id: str, state: StateDep, regenerate: bool = F
     headers = _attachment(f"{profile_id}.xdd") | (
         {"X-DriveBench-Export-Warnings": json.dumps(warnings)} if warnings else {})
     return Response(export_xdd(loaded.profile), media_type="application/xml", headers=headers)
+
+
+@router.patch("/{profile_id}/objects/{index}/{subindex}", response_model=Profile,
+              responses={409: {"description": "Not an uploaded EDS/DCF profile"},
+                         422: {"description": "Not an object of the profile, or a value that does not fit it"}})
+async def patch_object(profile_id: str, index: str, subindex: int, edit: ObjectEdit, state: StateDep) -> Profile:
+    """Edit one object of an uploaded EDS/DCF profile (``index`` hex as ``0x2000`` or ``2000``): the stored file
+    is written over, only the keys of the edit change (its regenerated EDS shows them)."""
+    try:
+        number = int(index, 16)
+    except ValueError:
+        raise UnknownParameter(_("{index!r} is no object index (hex, as 0x2000)").format(index=index)) from None
+    return await asyncio.to_thread(edit_object, state.registry, profile_id, number, subindex, edit)
 
 
 @router.get("/{profile_id}/json", response_class=Response,
