@@ -16,6 +16,7 @@ from fastapi.staticfiles import StaticFiles
 from drivebench import __version__
 from drivebench.config import settings
 from drivebench.device.profiles.loader import ProfileRegistry
+from drivebench.services.profiles import loading as profiles_loading
 from drivebench.services.scope import restore_record
 from drivebench.services.scope import runs as scope_runs
 from drivebench.services.session_manager import SessionManager
@@ -66,6 +67,10 @@ from drivebench.web.ws import scope as scope_ws
 
 log = logging.getLogger(__name__)
 
+UPLOADS_GRACE_S = 0.5
+"""How long the start waits for the stored uploads (without holding the event loop): a few uploads are all there
+at the first answer, as before; a folder of hundreds loads on after the server listens (issue 33)."""
+
 # One line per router: screens grow without touching anything else here. FastAPI matches a request router by
 # router, so the routes a client polls come first (the parameter reads: one router walked instead of eight, ~0.3 ms
 # per read on this machine); none of their paths is a path of a router after them (benchmarks/RESULTS.md).
@@ -85,6 +90,9 @@ async def start_plant(state: AppState, plant_path: Path, *, bus: str | None = No
                       latency: str | None = None) -> None:
     """Start a simulated plant and open a session on its bus with its nodes."""
     plant_file = PlantFile.load(plant_path)
+    slaves = plant_file.ethercat.slaves if plant_file.ethercat is not None else []
+    await profiles_loading.profiles_known(state.registry, [*(n.profile for n in plant_file.nodes),
+                                                           *(s.profile for s in slaves)])
     plant = await asyncio.to_thread(lambda: Plant(plant_file, state.registry.get, bus=bus, latency=latency).start())
     session = await state.manager.open(plant.spec, name=plant_file.name, simulated=True)
     state.plants[session.id] = plant
@@ -120,7 +128,9 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
         asyncio.get_running_loop().set_default_executor(ThreadPoolExecutor(64, thread_name_prefix="bus-work"))
         await asyncio.to_thread(upgrade_to_head)  # the database schema (settings.database_url) to the newest
         await asyncio.to_thread(set_jobs.close_interrupted, ParameterSetStore())
-        registry = await asyncio.to_thread(ProfileRegistry)
+        registry = await asyncio.to_thread(ProfileRegistry, defer_uploads=True)  # the shipped ones
+        uploads = asyncio.create_task(profiles_loading.load_in_background(registry))  # the stored ones, after
+        await asyncio.wait({uploads}, timeout=UPLOADS_GRACE_S)  # a small folder is read before the first answer
         manager = SessionManager(registry, sdo_timeout_s=settings.sdo_timeout_s, sdo_retries=settings.sdo_retries,
                                  write_audits=[audit.AuditLog()])  # every write the tool sends is logged
         state = AppState(registry, manager, share_links=share_links, accounts=sign_ins.accounts,
@@ -140,11 +150,13 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
         finally:
             for session in manager.list():  # a running scope recording ends and keeps what it captured
                 await scope_runs.close(session)
+            registry.stop_loading()
             await manager.close_all()
             for plant in state.plants.values():
                 await asyncio.to_thread(plant.stop)
             for gateway in state.gateways.values():
                 await asyncio.to_thread(gateway.stop)
+            await uploads
 
     docs = settings.api_docs  # their scripts come from a CDN: development only
     app = FastAPI(title="DriveBench", version=__version__, lifespan=lifespan, docs_url="/docs" if docs else None,

@@ -11,6 +11,7 @@ from fastapi import Depends, Path, Query, Request
 
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.params.jobs import JobManager
+from drivebench.services.profiles import loading as profiles_loading
 from drivebench.services.session_manager import SessionManager
 from drivebench.web.root import root_of
 from drivebench.web.state import AppState, app_state
@@ -67,3 +68,13 @@ async def get_root(request: Request) -> str:
 
 
 RootDep = Annotated[str, Depends(get_root)]
+
+
+async def wait_for_profiles(request: Request) -> None:
+    """Profile routes wait for the stored uploads (loaded in the background after start, issue 33) when their
+    ``profile_id`` is not known yet, and a change (upload, delete) waits for all of them; lists do not wait."""
+    registry = app_state(request.app).registry
+    if request.method not in ("GET", "HEAD"):
+        await profiles_loading.uploads_loaded(registry)
+    else:
+        await profiles_loading.profiles_known(registry, [request.path_params.get("profile_id")])

@@ -13,7 +13,9 @@ import json
 import os
 import re
 import tempfile
+import threading
 import unicodedata
+from collections.abc import Callable
 from dataclasses import dataclass
 from dataclasses import field as dataclass_field
 from pathlib import Path
@@ -203,6 +205,35 @@ def _json_error_line(content: bytes) -> int | None:
     return None
 
 
+Publish = Callable[[str | None, "LoadedFile | None", tuple[str, str] | None], None]
+
+
+def _profile_files(directory: Path) -> list[Path]:
+    """A directory's profile files in load order: JSON first (a JSON profile wins over its EDS twin)."""
+    if not directory.is_dir():
+        return []
+    files = sorted(p for p in directory.iterdir() if p.suffix.lower() in PROFILE_SUFFIXES and p.is_file())
+    files.sort(key=lambda p: p.suffix.lower() != ".json")
+    return files
+
+
+def _load_one(path: Path, cache: ParsedCache | None, used: set[str] | None, json_ids: set[str],
+              taken: set[str]) -> tuple[str | None, LoadedFile | None, tuple[str, str] | None]:
+    """One file: (profile id, the loaded file, None), (id, None, None) for an EDS whose JSON twin won, or an error."""
+    try:
+        loaded_file = _read_cached(path.read_bytes(), path.name, cache, used)
+    except ProfileError as exc:
+        return None, None, (path.name, exc.detail)
+    except OSError as exc:
+        return None, None, (path.name, Text(N_("cannot read: {reason}"), reason=exc.strerror))
+    profile = loaded_file.profile
+    if path.suffix.lower() != ".json" and profile.id in json_ids:
+        return profile.id, None, None  # the JSON twin wins
+    if profile.id in taken:
+        return None, None, (path.name, Text(N_("profile id '{id}' is already used by another file"), id=profile.id))
+    return profile.id, loaded_file, None
+
+
 def _read_cached(content: bytes, name: str, cache: ParsedCache | None, used: set[str] | None) -> LoadedFile:
     """:func:`read_profile_file`, through ``cache`` when given (a file that does not load is not cached)."""
     if cache is None:
@@ -219,10 +250,14 @@ def _read_cached(content: bytes, name: str, cache: ParsedCache | None, used: set
 
 
 class ProfileRegistry:
-    """Profiles by id. Loads on construction; ``reload()`` reads the directories again."""
+    """Profiles by id. Loads on construction; ``reload()`` reads the directories again.
+
+    With ``defer_uploads`` only the built-in profiles load on construction; :meth:`load_uploads` (blocking: a
+    worker thread) then adds the stored uploads one by one while the server already answers (issue 33).
+    ``upload_progress()`` says how far it is, ``uploads_done`` is set when it is through."""
 
     def __init__(self, profiles_dir: Path | None = None, user_profiles_dir: Path | None = None,
-                 max_upload_bytes: int | None = None) -> None:
+                 max_upload_bytes: int | None = None, *, defer_uploads: bool = False) -> None:
         self.profiles_dir = profiles_dir or settings.profiles_dir
         self.user_profiles_dir = user_profiles_dir or settings.user_profiles_dir
         self.max_upload_bytes = max_upload_bytes or settings.max_upload_bytes
@@ -230,50 +265,95 @@ class ProfileRegistry:
         self._files: dict[str, LoadedFile] = {}
         self._builtin: set[str] = set()
         self.errors: list[tuple[str, str]] = []
-        self.reload()
+        self.uploads_done = threading.Event()
+        self._stored = 0
+        self._uploads_read = 0
+        self._stop = threading.Event()
+        if defer_uploads:
+            self._load_builtin()
+        else:
+            self.reload()
 
     def reload(self) -> None:
+        """Read both directories again; the registry changes in one step when all is read."""
         files: dict[str, LoadedFile] = {}
         errors: list[tuple[str, str]] = []
-        builtin = self._load_dir(self.profiles_dir, files, errors, taken=set())
-        cache = ParsedCache(self.user_profiles_dir)
-        used: set[str] = set()
-        self._load_dir(self.user_profiles_dir, files, errors, taken=set(builtin), cache=cache, used=used)
-        cache.keep_only(used)
+        builtin = self._load_dir(_profile_files(self.profiles_dir), files, errors, taken=set())
+        stored = self._read_uploads(files, errors, builtin, publish=None)
         self._profiles = {profile_id: loaded.profile for profile_id, loaded in files.items()}
         self._files, self._builtin, self.errors = files, builtin, errors
+        self._stored = self._uploads_read = stored
+        self.uploads_done.set()
+
+    def _load_builtin(self) -> None:
+        files: dict[str, LoadedFile] = {}
+        errors: list[tuple[str, str]] = []
+        builtin = self._load_dir(_profile_files(self.profiles_dir), files, errors, taken=set())
+        self._profiles = {profile_id: loaded.profile for profile_id, loaded in files.items()}
+        self._files, self._builtin, self.errors = files, builtin, errors
+        self._stored, self._uploads_read = len(_profile_files(self.user_profiles_dir)), 0
+
+    def load_uploads(self) -> None:
+        """After ``defer_uploads``: add the stored uploads while the server answers, each profile as soon as it is
+        read (blocking: a worker thread)."""
+        try:
+            self._read_uploads({}, [], set(self._builtin), publish=self._publish)
+        finally:
+            self.uploads_done.set()
+
+    def _publish(self, profile_id: str | None, loaded_file: LoadedFile | None, error: tuple[str, str] | None) -> None:
+        # copy on write: the event loop iterates these while the loading thread adds to them
+        if loaded_file is not None and profile_id is not None:
+            self._files = {**self._files, profile_id: loaded_file}
+            self._profiles = {**self._profiles, profile_id: loaded_file.profile}
+        if error is not None:
+            self.errors = [*self.errors, error]
+        self._uploads_read += 1
+
+    def _read_uploads(self, files: dict[str, LoadedFile], errors: list[tuple[str, str]], builtin: set[str],
+                      publish: Publish | None) -> int:
+        """The one place that reads the stored uploads, through the parsed cache; a file that does not load goes
+        into ``errors``. Returns how many upload files there are."""
+        cache = ParsedCache(self.user_profiles_dir)
+        used: set[str] = set()
+        paths = _profile_files(self.user_profiles_dir)
+        self._stored = len(paths)
+        self._load_dir(paths, files, errors, taken=set(builtin), cache=cache, used=used, publish=publish,
+                       stop=self._stop)
+        if not self._stop.is_set():
+            cache.keep_only(used)
+        return len(paths)
+
+    def stop_loading(self) -> None:
+        """Stop :meth:`load_uploads` after the file it reads (the server is shutting down)."""
+        self._stop.set()
+
+    def upload_progress(self) -> tuple[int, int]:
+        """(stored upload files read so far, stored upload files)."""
+        return (self._stored if self.uploads_done.is_set() else min(self._uploads_read, self._stored)), self._stored
 
     @staticmethod
-    def _load_dir(directory: Path, profiles: dict[str, LoadedFile], errors: list[tuple[str, str]],
-                  taken: set[str], cache: ParsedCache | None = None, used: set[str] | None = None) -> set[str]:
-        """Load one directory into ``profiles``: JSON first, then EDS/DCF without a JSON twin. With ``cache``, a
-        file parsed before is taken from it (its keys go into ``used``)."""
-        if not directory.is_dir():
-            return set()
+    def _load_dir(files: list[Path], profiles: dict[str, LoadedFile], errors: list[tuple[str, str]],
+                  taken: set[str], cache: ParsedCache | None = None, used: set[str] | None = None,
+                  publish: Publish | None = None, stop: threading.Event | None = None) -> set[str]:
+        """Load profile files into ``profiles``: JSON first, then EDS/DCF without a JSON twin. With ``cache``, a
+        file parsed before is taken from it (its keys go into ``used``). ``publish`` hears of each file as it is
+        read (the profile or the error)."""
         loaded: set[str] = set()
-        files = sorted(p for p in directory.iterdir() if p.suffix.lower() in PROFILE_SUFFIXES and p.is_file())
-        files.sort(key=lambda p: p.suffix.lower() != ".json")
         json_ids: set[str] = set()
         for path in files:
-            try:
-                loaded_file = _read_cached(path.read_bytes(), path.name, cache, used)
-            except ProfileError as exc:
-                errors.append((path.name, exc.detail))
-                continue
-            except OSError as exc:
-                errors.append((path.name, Text(N_("cannot read: {reason}"), reason=exc.strerror)))
-                continue
-            profile = loaded_file.profile
-            is_json = path.suffix.lower() == ".json"
-            if not is_json and profile.id in json_ids:
-                continue  # the JSON twin wins
-            if profile.id in taken or profile.id in loaded:
-                errors.append((path.name, Text(N_("profile id '{id}' is already used by another file"), id=profile.id)))
-                continue
-            if is_json:
-                json_ids.add(profile.id)
-            profiles[profile.id] = loaded_file
-            loaded.add(profile.id)
+            if stop is not None and stop.is_set():
+                break
+            profile_id, loaded_file, error = _load_one(path, cache, used, json_ids, taken | loaded)
+            if loaded_file is not None and profile_id is not None:
+                if path.suffix.lower() == ".json":
+                    json_ids.add(profile_id)
+                profiles[profile_id] = loaded_file
+                loaded.add(profile_id)
+            if error is not None:
+                errors.append(error)
+            if publish is not None:
+                publish(profile_id, loaded_file, error)
         return loaded
 
     def get(self, profile_id: str) -> Profile:
@@ -281,6 +361,9 @@ class ProfileRegistry:
             return self._profiles[profile_id]
         except KeyError:
             raise UnknownProfile(Text(N_("No device profile '{id}'"), id=profile_id)) from None
+
+    def has(self, profile_id: str) -> bool:
+        return profile_id in self._profiles
 
     def loaded(self, profile_id: str) -> LoadedFile:
         """The profile with the warnings of its import and its file's bytes."""

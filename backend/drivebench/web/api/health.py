@@ -8,6 +8,7 @@ from pydantic import BaseModel, TypeAdapter
 
 from drivebench import __version__
 from drivebench.config import settings
+from drivebench.services.profiles.loading import ProfilesLoading, progress
 from drivebench.web.deps import StateDep
 from drivebench.web.lean_route import lean_route
 from drivebench.web.state import AppState, app_state
@@ -25,6 +26,9 @@ class Health(BaseModel):
     database: str
     """``ok`` or ``unreachable`` (sign-in, sets, audit log and users then answer 503; buses still work)."""
     database_reason: str | None = None
+    profiles: ProfilesLoading
+    """The stored uploads: ``loading`` while a worker thread reads them after start; ``status`` stays ``ok`` (the
+    server serves: the shipped profiles, the sessions and every upload read so far)."""
 
 
 async def _answer(state: AppState) -> Health:
@@ -36,7 +40,8 @@ async def _answer(state: AppState) -> Health:
         failure = await asyncio.to_thread(state.database_probes.failure, url)
     return Health(status="ok", version=__version__, uptime_s=round(time.time() - _STARTED, 1),
                   sessions=len(state.manager.list()), database="ok" if failure is None else "unreachable",
-                  database_reason=None if failure is None else failure.shown_detail())
+                  database_reason=None if failure is None else failure.shown_detail(),
+                  profiles=progress(state.registry))
 
 
 async def health(state: StateDep) -> Health:

@@ -9,7 +9,7 @@ import asyncio
 import json
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Query, Request, status
+from fastapi import APIRouter, Depends, Query, Request, status
 from fastapi.responses import HTMLResponse, JSONResponse, Response
 
 from drivebench.device.formats.xdd import XML_SUFFIXES
@@ -33,11 +33,11 @@ from drivebench.services.profiles.views import (
     upload_result,
     warning_out,
 )
-from drivebench.web.deps import StateDep
+from drivebench.web.deps import StateDep, wait_for_profiles
 from drivebench.web.problems import error_fragment, problem_body
 from drivebench.web.profile_uploads import receive_many, receive_upload
 
-router = APIRouter(prefix="/api/profiles", tags=["profiles"])
+router = APIRouter(prefix="/api/profiles", tags=["profiles"], dependencies=[Depends(wait_for_profiles)])
 
 MAX_PAGE = 500
 

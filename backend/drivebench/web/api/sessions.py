@@ -20,9 +20,10 @@ from drivebench.services.bus.sessions import Session
 from drivebench.services.bus.views import NodePublic, SessionPublic, node_public, nodes_public, session_public
 from drivebench.services.control import drive_guard
 from drivebench.services.params import node_lease
+from drivebench.services.profiles import loading as profiles_loading
 from drivebench.services.users.principals import Role
 from drivebench.transport.bus import BusSpec, known_interfaces
-from drivebench.web.deps import ManagerDep, NodeDep, SessionDep
+from drivebench.web.deps import ManagerDep, NodeDep, SessionDep, StateDep
 from drivebench.web.identity import PrincipalDep
 from drivebench.web.nmt import NmtRequest, NodeNmtRequest, send_nmt
 from drivebench.web.safety import PanelDep, WriteCtxDep, WriterDep
@@ -116,7 +117,8 @@ async def list_nodes(session: SessionDep) -> list[NodePublic]:
 
 
 @router.post("/sessions/{session_id}/nodes", response_model=NodePublic, status_code=status.HTTP_201_CREATED)
-async def add_node(body: NodeCreate, session: SessionDep) -> NodePublic:
+async def add_node(body: NodeCreate, session: SessionDep, state: StateDep) -> NodePublic:
+    await profiles_loading.profiles_known(state.registry, [body.profile_id])  # a stored upload may still load
     node = session.add_node(body.node_id, body.profile_id, body.name)
     return node_public(session, node)
 

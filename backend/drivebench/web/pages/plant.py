@@ -18,11 +18,13 @@ from drivebench.services.bus.fieldbus import ETHERCAT_INTERFACES, SessionSpec, i
 from drivebench.services.bus.sessions import Session
 from drivebench.services.bus.views import nodes_public, session_public
 from drivebench.services.control.drive_guard import parse_values
+from drivebench.services.profiles import loading as profiles_loading
 from drivebench.transport.bus import BusSpec, known_interfaces
 from drivebench.web.deps import ManagerDep, SessionDep, StateDep
 from drivebench.web.nmt import NodeNmtRequest, send_nmt
 from drivebench.web.problems import error_fragment, problem_body
 from drivebench.web.safety import PanelDep, WriteCtxDep
+from drivebench.web.state import app_state
 from drivebench.web.templating import templates
 
 router = APIRouter(include_in_schema=False)
@@ -107,5 +109,6 @@ async def add_node(request: Request, session: SessionDep, node_id: Annotated[int
         raise Conflict(_("Node {node} is already in session '{session}' as {device}.").format(
             node=node_id, session=session.name, device=known.device_name),
                        hint=N_("Scan the bus to read its identity again."))
+    await profiles_loading.profiles_known(app_state(request.app).registry, [profile_id])
     session.add_node(node_id, profile_id or None)
     return nodes_table(request, session)

@@ -5,16 +5,17 @@ from __future__ import annotations
 from typing import Annotated, Any
 from urllib.parse import urlencode
 
-from fastapi import APIRouter, Query, Request, status
+from fastapi import APIRouter, Depends, Query, Request, status
 from fastapi.responses import HTMLResponse, Response
 
 from drivebench.device.profiles.catalog import Item
 from drivebench.device.profiles.loader import LoadedFile
 from drivebench.device.profiles.profile import Value
 from drivebench.errors import DriveBenchError, ProfileError
+from drivebench.services.profiles.loading import progress_line
 from drivebench.services.profiles.store import UploadTooLarge, delete_upload
 from drivebench.services.profiles.views import EntryKind, entry_page, load_errors, summary, upload_error, warning_out
-from drivebench.web.deps import StateDep
+from drivebench.web.deps import StateDep, wait_for_profiles
 from drivebench.web.pages.node_info import identity_text
 from drivebench.web.problems import status_for
 from drivebench.web.profile_uploads import receive_many, receive_upload
@@ -22,7 +23,7 @@ from drivebench.web.root import under_root
 from drivebench.web.state import AppState, app_state
 from drivebench.web.templating import templates
 
-router = APIRouter(include_in_schema=False)
+router = APIRouter(include_in_schema=False, dependencies=[Depends(wait_for_profiles)])
 templates.env.filters["device_type"] = lambda raw: identity_text("0x1000", raw)
 
 
@@ -102,7 +103,7 @@ def _list_context(state: AppState, **extra: Any) -> dict[str, Any]:
     summaries = [summary(p, registry) for p in registry.all()]
     return {"active": "profiles", "profiles": summaries, "load_errors": load_errors(registry),
             "builtin_count": sum(1 for s in summaries if s.builtin), "limit_mib": registry.max_upload_bytes / 2**20,
-            **extra}
+            "loading_line": progress_line(registry), **extra}
 
 
 def _list_block(request: Request, state: AppState, status_code: int = 200, **extra: Any) -> Response:

@@ -1,0 +1,102 @@
+"""Stored uploads load after the server listens (issue 33): ``/api/health`` answers while a worker thread still
+reads them (``profiles.state`` ``loading``), lists show what is loaded with a line saying how far it is, a node
+given a stored upload waits for it, and a broken upload is reported as at any start.
+
+Many cold uploads (no parsed cache yet: each EDS is parsed) make the loading take seconds on any machine."""
+
+from __future__ import annotations
+
+import json
+import re
+import time
+from pathlib import Path
+
+import httpx
+import pytest
+
+from drivebench.config import REPO_ROOT, settings
+from drivebench.web.app import create_app
+from tests.conftest import fresh_channel, serve_app
+
+UPLOADS = 300
+SHIPPED_EDS = sorted((REPO_ROOT / "device_profiles" / "eds").glob("*.eds"))
+SERVO_EDS = REPO_ROOT / "device_profiles" / "eds" / "generic-cia402-servo.eds"
+LAST = "zz-servo"
+"""A copy of the servo's EDS under its own id, in the last file the loader reads."""
+BROKEN = "up-broken.eds"
+
+
+def store_uploads(folder: Path) -> int:
+    """The shipped EDS files in turn under ids of their own, one broken file, and the servo read last."""
+    folder.mkdir(parents=True)
+    for n in range(UPLOADS):
+        content = SHIPPED_EDS[n % len(SHIPPED_EDS)].read_bytes()
+        (folder / f"up-{n:03d}.eds").write_bytes(re.sub(rb"ProfileId=[^\r\n]*", f"ProfileId=up-{n:03d}".encode(),
+                                                        content, count=1))
+    (folder / BROKEN).write_bytes(b'{"id": "json-named-eds"}\n')  # a JSON profile stored as .eds: refused
+    (folder / f"{LAST}.eds").write_bytes(re.sub(rb"ProfileId=[^\r\n]*", f"ProfileId={LAST}".encode(),
+                                                SERVO_EDS.read_bytes(), count=1))
+    return UPLOADS + 2
+
+
+def plant_file(folder: Path) -> Path:
+    """One simulated servo with its shipped profile (the plant does not wait for the uploads)."""
+    path = folder / "plant.json"
+    path.write_text(json.dumps({"name": "Lazy plant", "bus": f"virtual:{fresh_channel()}@500000",
+                                "nodes": [{"node_id": 7, "profile": "generic-cia402-servo", "latency": "0ms"}]}))
+    return path
+
+
+def wait_until_loaded(base: str, timeout_s: float = 600) -> dict[str, object]:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        profiles = httpx.get(f"{base}/api/health", timeout=60).json()["profiles"]
+        if profiles["state"] == "loaded":
+            return dict(profiles)
+        time.sleep(0.2)
+    raise AssertionError("the stored uploads did not load")
+
+
+def uploaded(base: str) -> list[str]:
+    return [p["id"] for p in httpx.get(f"{base}/api/profiles", timeout=60).json() if not p["builtin"]]
+
+
+def test_health_answers_while_stored_uploads_load_and_the_lists_fill_up(
+        tmp_path: Path, app_db_url: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    stored = store_uploads(tmp_path / "user-profiles")
+    monkeypatch.setattr(settings, "user_profiles_dir", tmp_path / "user-profiles")
+    with serve_app(create_app()) as base:
+        health = httpx.get(f"{base}/api/health", timeout=60).json()
+        assert health["status"] == "ok" and health["profiles"]["state"] == "loading"
+        assert health["profiles"]["stored"] == stored and health["profiles"]["loaded"] < stored
+        assert len(uploaded(base)) < UPLOADS + 1  # what is loaded so far
+        page = httpx.get(f"{base}/profiles", headers={"Accept-Language": "de"}, timeout=60).text
+        listed = len(re.findall(r'class="badge uploaded"', page))
+        shown = re.search(r"lade gespeicherte Profile: (\d+) von (\d+)", page)
+        assert shown is not None or listed == UPLOADS + 1, "the page lists a part without saying so"
+        if shown is not None:
+            assert int(shown[2]) == stored
+
+        assert wait_until_loaded(base) == {"state": "loaded", "loaded": stored, "stored": stored}
+        assert len(uploaded(base)) == UPLOADS + 1
+        errors = httpx.get(f"{base}/api/profiles/load-errors", timeout=60).json()
+        assert [e["file"] for e in errors] == [BROKEN]
+        page = httpx.get(f"{base}/profiles", timeout=60).text
+        assert "loading stored profiles" not in page
+
+
+def test_a_node_given_a_stored_upload_waits_for_it_and_reads(
+        tmp_path: Path, app_db_url: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    store_uploads(tmp_path / "user-profiles")
+    monkeypatch.setattr(settings, "user_profiles_dir", tmp_path / "user-profiles")
+    with serve_app(create_app(plant_file=plant_file(tmp_path))) as base:
+        assert httpx.get(f"{base}/api/health", timeout=60).json()["profiles"]["state"] == "loading"
+        [session] = httpx.get(f"{base}/api/sessions", timeout=60).json()
+        assert LAST not in uploaded(base)
+        node = httpx.post(f"{base}/api/sessions/{session['id']}/nodes", json={"node_id": 7, "profile_id": LAST},
+                          headers={"X-DriveBench": "1"}, timeout=600)
+        assert node.status_code == 201, node.text
+        assert node.json()["profile_id"] == LAST
+        read = httpx.get(f"{base}/api/sessions/{session['id']}/nodes/7/parameters/0x1018.1", timeout=60)
+        assert read.status_code == 200, read.text
+        assert httpx.get(f"{base}/api/profiles/{LAST}", timeout=60).status_code == 200
