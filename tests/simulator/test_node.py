@@ -220,10 +220,13 @@ def test_reset_sends_boot_up_then_pre_operational_heartbeats(command: int, maste
     wait_for(lambda: bytes([0x05]) in recorder.of(0x705))
     recorder.clear()
     master.send_message(0x000, bytes([command, LENZE_8400]))
-    frames = wait_for(lambda: (f := recorder.of(0x705)) and len(f) >= 3 and f)
+    # An operational heartbeat the node sent before it took the reset may still come in first (a loaded machine).
+    frames = wait_for(lambda: (f := recorder.of(0x705)) and b"\x00" in f and len(f) - f.index(b"\x00") >= 3 and f)
     assert isinstance(frames, list)
-    assert frames[0] == b"\x00", "the first telegram after a reset is the boot-up"
-    assert all(frame == b"\x7f" for frame in frames[1:3]), frames
+    before, after = frames[:frames.index(b"\x00")], frames[frames.index(b"\x00"):]
+    assert set(before) <= {b"\x05"} and len(before) <= 1, f"before the boot-up: {before}"
+    assert after[0] == b"\x00", "the first telegram of the reset node is the boot-up"
+    assert all(frame == b"\x7f" for frame in after[1:3]), frames
     assert drive.state is NmtState.PRE_OPERATIONAL
     assert b"\x00" not in recorder.of(0x70C), "only node 5 was reset"
 

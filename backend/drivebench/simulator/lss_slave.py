@@ -10,17 +10,14 @@ from __future__ import annotations
 
 import struct
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from enum import Enum
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 from drivebench.device.profiles.profile import Profile
 from drivebench.simulator.node import Latency, SimulatedNode
 from drivebench.simulator.store import ObjectStore
-
-if TYPE_CHECKING:
-    from drivebench.simulator.plant import Plant, PlantNode
 
 UNCONFIGURED = 0xFF
 ANSWER_COB = 0x7E4
@@ -187,9 +184,43 @@ class LssSlave:
 
 
 # --- the plant's LSS devices ----------------------------------------------------------------------------------
+class DeviceSpec(Protocol):
+    """What a plant file says of a device (its node ID may be 255: none yet)."""
+
+    @property
+    def node_id(self) -> int: ...
+    @property
+    def name(self) -> str | None: ...
+    @property
+    def latency(self) -> str: ...
+    @property
+    def heartbeat_ms(self) -> int | None: ...
+    @property
+    def values(self) -> Mapping[str, int | float | str]: ...
+    @property
+    def serial(self) -> int | None: ...
+
+
+class LssHost(Protocol):
+    """What the LSS devices need of the plant they are on."""
+
+    @property
+    def bitrate(self) -> int: ...
+
+    def send_frame(self, cob_id: int, data: bytes) -> None: ...
+
+    def wake(self) -> None: ...
+
+    def attach(self, node: SimulatedNode) -> None:
+        """A device's node joins the bus's nodes (as a second device when its node ID is taken)."""
+
+    def detach(self, node: SimulatedNode) -> None:
+        """A device's node leaves them (the second device on its node ID, if any, takes its place)."""
+
+
 @dataclass
 class LssDevice:
-    spec: PlantNode
+    spec: DeviceSpec
     profile: Profile
     slave: LssSlave
     latency: str | None
@@ -207,14 +238,14 @@ def lss_address(profile: Profile, serial: int | None) -> tuple[int, int, int, in
 class LssDevices:
     """The plant's LSS slaves: each answers every LSS request; the distinct answers go on the bus once each."""
 
-    def __init__(self, plant: Plant) -> None:
+    def __init__(self, plant: LssHost) -> None:
         self._plant = plant
         self.devices: list[LssDevice] = []
         self._lock = threading.Lock()
-        bitrate = plant.spec.bitrate
+        bitrate = plant.bitrate
         self.bus_timing = next((index for index, rate in TIMING_TABLE.items() if rate == bitrate), 2)
 
-    def add(self, spec: PlantNode, profile: Profile, *, latency: str | None) -> LssDevice:
+    def add(self, spec: DeviceSpec, profile: Profile, *, latency: str | None) -> LssDevice:
         stored = StoredSetting(spec.node_id)
         device = LssDevice(spec, profile, LssSlave(lss_address(profile, spec.serial), stored, self.bus_timing,
                                                    lambda node_id: None), latency)
@@ -275,15 +306,7 @@ class LssDevices:
         node, device.node = device.node, None
         if node is None:
             return
-        plant = self._plant
-        if plant.nodes.get(node.node_id) is node:
-            del plant.nodes[node.node_id]
-            spare = next((other for other in plant.duplicates if other.node_id == node.node_id), None)
-            if spare is not None:
-                plant.duplicates = [other for other in plant.duplicates if other is not spare]
-                plant.nodes[node.node_id] = spare
-        else:
-            plant.duplicates = [other for other in plant.duplicates if other is not node]
+        self._plant.detach(node)
         node.power_off()
 
     def _bring_up(self, device: LssDevice, node_id: int) -> None:
@@ -298,14 +321,11 @@ class LssDevices:
 
         node = SimulatedNode(device.profile, node_id, send, name=spec.name,
                              latency=Latency.parse(device.latency if device.latency is not None else spec.latency),
-                             values=spec.values, heartbeat_ms=spec.heartbeat_ms, bitrate=plant.spec.bitrate)
+                             values=dict(spec.values), heartbeat_ms=spec.heartbeat_ms, bitrate=plant.bitrate)
         if node.store.has(0x1018, 4):
             node.store.set(0x1018, 4, slave.address[3], notify=False)
             node.store.saved[(0x1018, 4)] = slave.address[3]
         node.wake = plant.wake
         device.node = node
-        if node_id in plant.nodes:
-            plant.duplicates = [*plant.duplicates, node]
-        else:
-            plant.nodes[node_id] = node
+        plant.attach(node)
         node.power_on()

@@ -152,13 +152,32 @@ class Plant:
         kwargs.setdefault("bitrate", self.spec.bitrate)
         node = SimulatedNode(profile, node_id, self._send, **kwargs)  # type: ignore[arg-type]
         node.wake = self.wake
-        if node_id in self.nodes:
-            self.duplicates = [*self.duplicates, node]
-        else:
-            self.nodes[node_id] = node
+        self.attach(node)
         if self._bus is not None:
             node.power_on()
         return node
+
+    @property
+    def bitrate(self) -> int:
+        return self.spec.bitrate
+
+    def attach(self, node: SimulatedNode) -> None:
+        """``node`` joins the bus's nodes (as a second device when its node id is taken)."""
+        if node.node_id in self.nodes:
+            self.duplicates = [*self.duplicates, node]
+        else:
+            self.nodes[node.node_id] = node
+
+    def detach(self, node: SimulatedNode) -> None:
+        """``node`` leaves them; a second device on its node id takes its place."""
+        if self.nodes.get(node.node_id) is node:
+            del self.nodes[node.node_id]
+            spare = next((other for other in self.duplicates if other.node_id == node.node_id), None)
+            if spare is not None:
+                self.duplicates = [other for other in self.duplicates if other is not spare]
+                self.nodes[node.node_id] = spare
+        else:
+            self.duplicates = [other for other in self.duplicates if other is not node]
 
     def remove_duplicates(self, node_id: int) -> None:
         """Take the second devices on ``node_id`` off the bus again."""
