@@ -73,6 +73,7 @@ class Axis:
                                        confirm=AXIS, ctx=SERVICE))
 
     def home(self, method: int) -> DriveStatus:
+        drive_control.guard_for(self.session).keepalive(AXIS)  # enabled just now: within the keep-alive time
         self.run(confirmed_call(motion.home, self.session, self.node, method, confirm=AXIS, ctx=SERVICE))
         return self.until(lambda status: status.status_bits[12].set and status.status_bits[10].set,
                           f"homing with method {method}", timeout_s=20)

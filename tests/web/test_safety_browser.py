@@ -115,7 +115,10 @@ def test_a_slow_press_on_nmt_start_is_not_lost_to_the_table_redraw(own_server: t
         start = page.locator(f"#nmt-demo-plant-{MM}-start")
         expect(start).to_be_visible(timeout=WAIT_MS)
         page.wait_for_function("document.querySelector('#nodes-demo-plant') !== null")
-        box = start.bounding_box()
+        box = None
+        deadline = time.monotonic() + WAIT_MS / 1000
+        while box is None and time.monotonic() < deadline:  # none while a redraw swaps the table (twice a second)
+            box = start.bounding_box()
         assert box is not None
         page.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
         page.mouse.down()

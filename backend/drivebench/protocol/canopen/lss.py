@@ -323,8 +323,9 @@ class LssMaster:
         self._floor = self.min_window_s  # a longer wait one device needed is not kept for the next
         for attempt in range(FASTSCAN_ATTEMPTS):
             wait = max(ceiling, self._window(ceiling, careful=True))
-            if not (self._fs(0, FASTSCAN_RESET, 0, 0, count, wait) or self._fs(0, FASTSCAN_RESET, 0, 0, count, wait)):
-                return None, ceiling  # no device without node ID in waiting state (asked twice)
+            if not (self._fs(0, FASTSCAN_RESET, 0, 0, count, wait) or self._fs(0, FASTSCAN_RESET, 0, 0, count, wait)
+                    or self._fs(0, FASTSCAN_RESET, 0, 0, count, self._last_call(ceiling))):
+                return None, ceiling  # no device without node ID in waiting state (asked three times)
             parts = self._scan_parts(found, count, ceiling)
             if parts is not None and self._really(LssAddress(*parts), found, count):
                 return LssAddress(*parts), ceiling
@@ -335,6 +336,11 @@ class LssMaster:
         raise LssError(Text(N_("fastscan lost the device it was following ({attempts} attempts, last answer "
                                "window {ms} ms): a device that answers late or leaves waiting state; raise the "
                                "answer window."), attempts=FASTSCAN_ATTEMPTS, ms=round(self._floor * 1000)))
+
+    def _last_call(self, ceiling: float) -> float:
+        """The third and last "is any device left?" waits longer (five answer windows, at most ``timeout_s``): the
+        end of a scan costs it once, and a device whose answers came late twice on a busy bus is not left out."""
+        return min(self.timeout_s, max(5 * ceiling, self._window(ceiling, careful=True)))
 
     def _really(self, address: LssAddress, found: Sequence[LssAddress], count: ScanCount) -> bool:
         """The address is a device's (identify remote slave: an answer late from an earlier request may have been
