@@ -16,7 +16,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from drivebench.config import settings
-from drivebench.services.scope import runs
+from drivebench.services.scope import restore_record, runs
 from drivebench.services.scope.joined import JoinedScopeSource
 from drivebench.services.storage import database
 from drivebench.services.users import accounts
@@ -147,3 +147,16 @@ def test_a_second_engineer_is_refused_in_words_while_a_pdo_recording_holds_the_n
         stopped = client.post(f"{API}/scope/run/stop", headers=eve).json()
         assert stopped["state"] == "stopped"
         assert any("read back as before" in text for text in stopped["restored"]), stopped["restored"]
+
+
+def test_the_server_stopping_restores_a_pdo_recording_before_it_closes_the_bus(app_db_url: str) -> None:
+    app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
+    with TestClient(app) as client:
+        started = confirmed(client, "POST", f"{API}/scope/run", json={**BODY, "period_ms": 5, "name": "cut short"})
+        assert started.status_code == 201 and started.json()["source"] == "pdo", started.text
+        assert len(restore_record.leftovers(app_db_url)) == 1, "the restore record is written before any change"
+        run = _run(client)
+        assert wait_until(lambda: len(run.live) > 10, 30)
+    assert run.state == "stopped" and run.recording_id, run.status()
+    assert any("read back as before" in text for text in run.restored), run.restored
+    assert restore_record.leftovers(app_db_url) == [], "restored and read back: nothing left for the next start"
