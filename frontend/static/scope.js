@@ -358,6 +358,7 @@
     };
     $("scope-source").textContent = parts.length ? parts.map(partText).join("; ")
       : `${sourceName(message)}, ${fixed(message.rate, 1)} ${PER_S}`;
+    if (message.plan && message.plan.length) $("scope-source").title = message.plan.join("\n");
     $("scope-restored").replaceChildren(...(message.restored || []).map((text) => el("li", {}, text)));
     if (!live.channels.length || key({ channels: live.channels }) !== key({ channels: message.channels })) {
       live = { channels: message.channels, rows: [], markers: [] };

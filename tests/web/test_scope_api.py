@@ -67,6 +67,8 @@ def _record_ramp(client: TestClient) -> dict[str, Any]:
     status = started.json()
     assert status["state"] == "armed" and status["source"] == "pdo" and status["trigger"]["pre"] == 8
     assert [c["unit"] for c in status["channels"]] == ["rpm", "rpm", None]
+    assert "Node 5 is sampled by polling: it has no free TPDO" in " ".join(status["plan"]), status["plan"]
+    assert [(p["kind"], p["nodes"]) for p in status["parts"]] == [("pdo", [MM]), ("sdo-poll", [MOTEC])]
     time.sleep(1.0)  # pre-trigger samples at standstill first
     _run_up(client, MM, 1200)
     _run_up(client, MOTEC, 1200)

@@ -193,6 +193,7 @@ class ScopeRun:
         return {"id": self.id, "state": self.state, "name": self.name, "user": self.user,
                 "source": self.source.kind, "source_name": _(SOURCE_NAMES[self.source.kind]),
                 "parts": [{**found, "name": _(SOURCE_NAMES[found["kind"]])} for found in parts(self.source)],
+                "plan": list(getattr(self.source, "texts", list)()),
                 "period_s": period, "rate": round(1 / period, 1) if period else None,
                 "channels": [info.as_json() for info in self.infos], "trigger": self.trigger_json(),
                 "captures": self.engine.captures, "recording_id": self.recording_id, "restored": self.restored,
