@@ -351,7 +351,15 @@
     $("scope-state").textContent = STATES[message.state] || message.state;
     $("scope-state").dataset.state = message.state;
     if (message.state === "none") return;
-    $("scope-source").textContent = `${sourceName(message)}, ${fixed(message.rate, 1)} ${PER_S}`;
+    const parts = message.parts && message.parts.length > 1 ? message.parts : [];
+    const partText = (p) => {
+      const nodes = _("nodes {nodes}", { nodes: p.nodes.join(", ") });
+      return `${p.name} (${nodes}), ${fixed(p.rate, 1)} ${PER_S}`;
+    };
+    $("scope-source").textContent = parts.length ? parts.map(partText).join("; ")
+      : `${sourceName(message)}, ${fixed(message.rate, 1)} ${PER_S}`;
+    if (message.plan && message.plan.length) $("scope-source").title = message.plan.join("\n");
+    $("scope-restored").replaceChildren(...(message.restored || []).map((text) => el("li", {}, text)));
     if (!live.channels.length || key({ channels: live.channels }) !== key({ channels: message.channels })) {
       live = { channels: message.channels, rows: [], markers: [] };
     }

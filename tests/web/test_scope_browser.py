@@ -1,7 +1,10 @@
 """Issue 31 from the Scope page in Chromium: channels of the MICROMASTER (node 3) and the 8400 motec (node 5) picked
 by index and by name, a single capture with a trigger on node 3's speed rising above 500 rpm and 20 % pre-trigger
 while both ramp; the page shows the stored capture with the trigger at t = 0 (the first sample above 500 after the
-pre-trigger samples), exports it as CSV, and fits 1024 px in German without sideways scroll."""
+pre-trigger samples), exports it as CSV, and fits 1024 px in German without sideways scroll. Node 3's speed is
+sampled by PDO (the page confirms the SYNC and NMT start it asks for), the motec's by polling on the same time base;
+after the page closes every TPDO and SYNC setting of both drives reads back through the parameters API as before
+(also when the page closes in the middle of a free run: the recording ends and restores them)."""
 
 from __future__ import annotations
 
@@ -20,7 +23,7 @@ from drivebench.services.storage import database
 from drivebench.simulator.plant import Plant
 from drivebench.web.app import create_app
 from tests.confirming import confirmed
-from tests.conftest import DEMO_PLANT, fresh_channel, screenshot, serve_app
+from tests.conftest import DEMO_PLANT, fresh_channel, screenshot, serve_app, wait_until
 
 MM, MOTEC = 3, 5
 LENGTH, PRE = 40, 8
@@ -43,6 +46,23 @@ def _add(page: Any, node: int, query: str, ref: str) -> None:
     row = page.locator("#channel-offer li", has_text=ref)
     row.first.wait_for(timeout=20_000)
     row.first.locator("button.add-channel").click()
+
+
+def pdo_settings(base: str) -> dict[tuple[int, str], object]:
+    """Every SYNC (0x1005, 0x1006) and TPDO setting (0x18xx, 0x1Axx) of both drives, read through the parameters
+    API."""
+    found: dict[tuple[int, str], object] = {}
+    with httpx.Client(base_url=f"{base}/api/sessions/demo-plant/nodes", timeout=30) as http:
+        for node in (MM, MOTEC):
+            listed = http.get(f"/{node}/parameters").json()["parameters"]
+            refs = [p["ref"] for p in listed if int(p["index"], 16) in (0x1005, 0x1006)
+                    or 0x1800 <= int(p["index"], 16) <= 0x19FF or 0x1A00 <= int(p["index"], 16) <= 0x1BFF]
+            assert any(int(p["index"], 16) == 0x1A00 for p in listed), "the TPDO mappings are listed"
+            answer = http.post(f"/{node}/parameters:read", json={"refs": refs})
+            assert answer.status_code == 200, answer.text
+            for item in answer.json()["items"]:
+                found[(node, item["ref"])] = item["value"]["raw"] if item["ok"] else item["error"]["detail"]
+    return found
 
 
 class Drives:
@@ -80,6 +100,8 @@ def test_a_triggered_capture_of_two_ramps_from_the_page_with_csv_export(page: An
     base, plant = scope_server
     for ref in ("P0700", "P1000"):  # the MICROMASTER takes commands and setpoint from CANopen
         plant.nodes[MM].store.set_ref(ref, 6)
+    before = pdo_settings(base)
+    page.on("dialog", lambda dialog: dialog.accept())  # the confirmation of the SYNC and NMT start it asks for
     page.set_viewport_size({"width": 1024, "height": 900})
     page.goto(f"{base}/scope")
     assert page.url.endswith("/scope/demo-plant")
@@ -97,8 +119,11 @@ def test_a_triggered_capture_of_two_ramps_from_the_page_with_csv_export(page: An
     page.wait_for_function("() => document.getElementById('scope-state').dataset.state === 'armed'"
                            " || document.getElementById('scope-result').textContent", timeout=30_000)
     assert page.text_content("#scope-result") == "", page.text_content("#scope-result")
-    assert "SDO polling" in page.text_content("#scope-source")
-    page.wait_for_function("() => window.scopeChart && window.scopeChart.data[0].length >= 10", timeout=30_000)
+    shown = page.text_content("#scope-source")
+    assert "sampling by PDO (nodes 3)" in shown and "SDO polling (nodes 5)" in shown, shown
+    # node 3 answers the SYNC once the recording started it: ten of its samples at standstill first
+    page.wait_for_function("() => window.scopeChart && window.scopeChart.data[1].filter((v) => v != null).length"
+                           " >= 10", timeout=30_000)
     drives = Drives(base)
     try:
         drives.run_up(1200)
@@ -110,7 +135,9 @@ def test_a_triggered_capture_of_two_ramps_from_the_page_with_csv_export(page: An
     page.wait_for_function(f"() => window.scopeChart && window.scopeChart.data[0].length === {LENGTH}", timeout=30_000)
     times, speed = page.evaluate("[window.scopeChart.data[0], window.scopeChart.data[1]]")
     assert times[PRE] == 0, "the trigger sample is at t = 0"
-    assert speed[PRE] > 500 and all(v <= 500 for v in speed[:PRE]), speed
+    # a sample a stalled simulated drive did not answer in time is a gap (None), never a value above the level
+    assert speed[PRE] > 500 and all(v is None or v <= 500 for v in speed[:PRE]), speed
+    assert sum(v is not None for v in speed[:PRE]) >= PRE // 2, speed
     assert "ramp from the page" in page.text_content("#plot-what")
     # two cursors: A at the trigger, B later; the readout gives Δt
     box = page.locator("#scope-chart .u-over").bounding_box()
@@ -128,8 +155,10 @@ def test_a_triggered_capture_of_two_ramps_from_the_page_with_csv_export(page: An
     rows = list(csv.reader(io.StringIO(Path(download.value.path()).read_text(encoding="utf-8"))))
     assert rows[0][0:2] == ["sample", "time_s"] and "0x6044" in rows[0][2] and rows[0][2].endswith("[rpm]")
     assert len(rows) == LENGTH + 1
-    assert float(rows[PRE][2]) <= 500 < float(rows[PRE + 1][2])
-    assert [float(r[2]) for r in rows[1:]] == pytest.approx(speed)
+    assert float(rows[PRE + 1][2]) > 500 and all(not r[2] or float(r[2]) <= 500 for r in rows[1:PRE + 1])
+    exported = [float(r[2]) if r[2] else None for r in rows[1:]]
+    assert [v is None for v in exported] == [v is None for v in speed]
+    assert [v for v in exported if v is not None] == pytest.approx([v for v in speed if v is not None])
 
     page.goto(f"{base}/language/de?next=/scope/demo-plant")
     page.wait_for_function("() => document.getElementById('scope-recordings').tBodies[0].rows.length > 0",
@@ -137,3 +166,29 @@ def test_a_triggered_capture_of_two_ramps_from_the_page_with_csv_export(page: An
     assert page.locator("h1", has_text="Oszilloskop").count() == 1 and "Abtastperiode" in page.content()
     assert page.evaluate("document.documentElement.scrollWidth <= window.innerWidth"), "no sideways scroll at 1024"
     page.screenshot(path=str(SHOTS / "scope-de-1024.png"), full_page=True)
+    page.close()
+    assert pdo_settings(base) == before
+
+
+def test_closing_the_page_mid_recording_restores_every_tpdo_and_sync_setting(
+        page: Any, scope_server: tuple[str, Plant]) -> None:
+    base, _plant = scope_server
+    before = pdo_settings(base)
+    page.on("dialog", lambda dialog: dialog.accept())
+    page.goto(f"{base}/scope/demo-plant")
+    page.wait_for_function("() => document.getElementById('scope-state').dataset.state === 'none'", timeout=90_000)
+    _add(page, MM, "0x6044", "0x6044")
+    _add(page, MOTEC, "speed", "C00868/2")
+    page.fill("[name=period_ms]", "20")
+    page.click("#scope-start")
+    page.wait_for_function("() => window.scopeChart && window.scopeChart.data[0].length >= 10", timeout=90_000)
+    assert "sampling by PDO" in page.text_content("#scope-source")
+    during = pdo_settings(base)
+    assert during != before, "the recording mapped TPDOs of the drives"
+    page.close()
+    with httpx.Client(base_url=f"{base}/api/sessions/demo-plant", timeout=30) as http:
+        assert wait_until(lambda: http.get("/scope/run").json()["state"] == "stopped", 60)
+        status = http.get("/scope/run").json()
+    assert "closed: the recording ended" in status["restored"][0], status["restored"]
+    assert any("read back as before" in text for text in status["restored"]), status["restored"]
+    assert pdo_settings(base) == before

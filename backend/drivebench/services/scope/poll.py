@@ -33,6 +33,10 @@ class PollScopeSource:
             if channel.ref not in refs:
                 refs.append(channel.ref)
 
+    @property
+    def nodes(self) -> list[int]:
+        return sorted(self._by_node)
+
     async def start(self, on_frame: FrameSink, on_event: EventSink) -> None:
         self._task = asyncio.create_task(self._run(on_frame, on_event))
 

@@ -24,13 +24,13 @@ from drivebench.i18n import _
 from drivebench.protocol.canopen.heartbeat import HeartbeatStatus
 from drivebench.protocol.emcy import EmcyEvent
 from drivebench.services.bus.sessions import Session
-from drivebench.services.control.drive_guard import confirm_moving
+from drivebench.services.control.drive_guard import confirm_moving, require_confirmation
 from drivebench.services.control.drive_words import Family, family_of, state_label
 from drivebench.services.params.write_context import WriteContext
 from drivebench.services.scope import store
 from drivebench.services.scope.channels import ChannelInfo, describe
 from drivebench.services.scope.source import ScopeChannel, ScopeEvent, ScopeFrame, ScopeSource
-from drivebench.services.scope.sources import SOURCE_NAMES, moving_steps, open_source
+from drivebench.services.scope.sources import SOURCE_NAMES, moving_steps, open_source, parts
 from drivebench.services.scope.trigger import Capture, Sample, TriggerEngine, TriggerSpec, markers
 
 State = Literal["armed", "recording", "done", "stopped", "failed"]
@@ -38,6 +38,8 @@ LIVE_KEPT = 2000
 """Samples a viewer who opens the page during a run gets first."""
 MIN_PERIOD_S, MAX_PERIOD_S = 0.001, 10.0
 MAX_LENGTH = 200_000
+OWNER_GRACE_S = 3.0
+"""A recording that changed nodes ends this long after its owner's last page closed (a reload comes back sooner)."""
 
 
 @dataclass
@@ -46,6 +48,7 @@ class Watcher:
     events: list[dict[str, Any]] = field(default_factory=list)
     changed: bool = True
     wake: asyncio.Event = field(default_factory=asyncio.Event)
+    user: str | None = None
 
 
 def _row(sample: Sample) -> list[Any]:
@@ -81,6 +84,7 @@ class ScopeRun:
         self._closing = False
         self._status_words = status_words(session, infos)
         self._drive_states: dict[int, str] = {}
+        self._owner_left: asyncio.Task[None] | None = None
 
     # --- what the source and the session deliver ------------------------------------------------------------------
     def on_frame(self, frame: ScopeFrame) -> None:
@@ -136,14 +140,15 @@ class ScopeRun:
         self.started = time.monotonic()
         await self.source.start(self.on_frame, self.on_event)
 
-    async def finish(self, state: State, error: str | None = None) -> None:
-        """Stop the source (it restores what it changed) and store the capture."""
+    async def finish(self, state: State, error: str | None = None, why: str | None = None) -> None:
+        """Stop the source (it restores what it changed) and store the capture. ``why``: the reason it ended, in
+        words, shown first among what was restored."""
         if self._closing or self.state in ("done", "stopped", "failed"):
             return
         self._closing = True  # no more samples; the state says done/stopped once the capture is stored
         self.error = error
         try:
-            self.restored = await self.source.stop()
+            self.restored = [*([why] if why else []), *await self.source.stop()]
         except DriveBenchError as exc:
             self.error = exc.shown_detail()
         capture = self.capture or self.engine.current
@@ -187,18 +192,37 @@ class ScopeRun:
         period = self.source.period_s
         return {"id": self.id, "state": self.state, "name": self.name, "user": self.user,
                 "source": self.source.kind, "source_name": _(SOURCE_NAMES[self.source.kind]),
+                "parts": [{**found, "name": _(SOURCE_NAMES[found["kind"]])} for found in parts(self.source)],
+                "plan": list(getattr(self.source, "texts", list)()),
                 "period_s": period, "rate": round(1 / period, 1) if period else None,
                 "channels": [info.as_json() for info in self.infos], "trigger": self.trigger_json(),
                 "captures": self.engine.captures, "recording_id": self.recording_id, "restored": self.restored,
                 "error": self.error}
 
-    def watch(self) -> tuple[str, Watcher]:
+    def watch(self, user: str | None = None) -> tuple[str, Watcher]:
         key = uuid.uuid4().hex
-        watcher = self.watchers[key] = Watcher(rows=list(self.live), events=[_event(e) for e in self.events])
+        watcher = self.watchers[key] = Watcher(rows=list(self.live), events=[_event(e) for e in self.events],
+                                               user=user)
         return key, watcher
 
     def unwatch(self, key: str) -> None:
-        self.watchers.pop(key, None)
+        """A page stops watching. The owner's last page gone from a recording that changed nodes (sampling by
+        PDO): after :data:`OWNER_GRACE_S` without the owner back, the recording ends and restores them."""
+        watcher = self.watchers.pop(key, None)
+        if watcher is None or watcher.user != self.user or self.source.kind != "pdo" or self._owner_left:
+            return
+        if self.state in ("armed", "recording") and not self._owner_watches():
+            self._owner_left = asyncio.get_running_loop().create_task(self._end_without_owner())
+
+    def _owner_watches(self) -> bool:
+        return any(watcher.user == self.user for watcher in self.watchers.values())
+
+    async def _end_without_owner(self) -> None:
+        await asyncio.sleep(OWNER_GRACE_S)
+        self._owner_left = None
+        if not self._owner_watches():
+            await self.finish("stopped", why=_("The page of {user} closed: the recording ended and put the nodes "
+                                               "back.").format(user=self.user or _("the owner")))
 
     def _changed(self) -> None:
         for watcher in self.watchers.values():
@@ -294,15 +318,26 @@ async def start(session: Session, request: StartRequest, user: str, ctx: WriteCo
         raise InvalidValue(_("A capture holds at most {most} samples, not {length}.").format(
             most=MAX_LENGTH, length=request.spec.length))
     infos = await describe(session, request.channels)
-    source = open_source(session, request.channels, request.period_s)
+    source = await open_source(session, request.channels, request.period_s, ctx)
     for node, what, values in moving_steps(source):  # polling moves nothing; sampling by PDO names its steps
-        confirm_moving(session, node, what, values, ctx)
+        if node is not None:
+            confirm_moving(session, node, what, values, ctx)
+        elif not ctx.cleared:  # several nodes: "all"; the source checks each node's guard as it starts
+            require_confirmation(ctx.confirmation, None, what, values)
     name = request.name.strip() or _("Recording of {channels}").format(
         channels=", ".join(info.channel.ref for info in infos))
     run = ScopeRun(session, infos, request.spec, source, user, name)
     _listen(session)
+    before = _runs.get(session)
     _runs[session] = run
-    await run.start()
+    try:
+        await run.start()
+    except BaseException:  # refused (a second engineer, a TPDO that would not take the mapping): nothing runs
+        if before is not None:
+            _runs[session] = before
+        else:
+            _runs.pop(session, None)
+        raise
     return run
 
 

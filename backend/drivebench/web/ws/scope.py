@@ -20,6 +20,7 @@ from fastapi import APIRouter, WebSocket
 
 from drivebench.errors import NotFound
 from drivebench.services.scope import runs
+from drivebench.web.identity import principal_of
 from drivebench.web.state import app_state
 from drivebench.web.ws.node_socket import serve
 
@@ -36,6 +37,8 @@ async def scope(websocket: WebSocket, session_id: str) -> None:
     except NotFound as exc:
         await websocket.close(code=4404, reason=exc.shown_detail()[:120])
         return
+
+    user = principal_of(websocket).name
 
     async def receive() -> None:
         while True:
@@ -56,7 +59,7 @@ async def scope(websocket: WebSocket, session_id: str) -> None:
                     if run is None:
                         await websocket.send_json({"type": "state", "state": "none"})
                     else:
-                        key, _watcher = run.watch()
+                        key, _watcher = run.watch(user)
                 if run is None:
                     await asyncio.sleep(IDLE_S)
                     continue
