@@ -1,4 +1,5 @@
-"""Shared by the monitor_*.py benchmarks: a mixed CANopen trace, and writing their part of RESULTS.md.
+"""Shared by the benchmarks: the machine line, a mixed CANopen trace (monitor_*.py), and writing a part of
+RESULTS.md (a ``## `` section of its own, or a subsection under ``## Monitor``).
 
 Each script owns one ``### Monitor: ...`` subsection under ``## Monitor`` and rewrites only that.
 """
@@ -90,3 +91,17 @@ def mixed_trace(count: int, seed: int = 7) -> list[can.Message]:
         else:
             add(0x004, bytes(8), is_error_frame=True, extended=True)
     return frames[:count]
+
+
+def write_section(heading: str, body: str) -> None:
+    """Replace (or add at the end) the ``## `` section ``heading`` of RESULTS.md with ``body``."""
+    text = RESULTS.read_text(encoding="utf-8") if RESULTS.exists() else "# Benchmark results\n"
+    block = f"{heading}\n\n{body.strip()}\n"
+    if heading in text:
+        start = text.index(heading)
+        following = re.search(r"^## ", text[start + len(heading):], flags=re.MULTILINE)
+        end = start + len(heading) + following.start() if following else len(text)
+        text = text[:start] + block + ("\n" + text[end:] if following else "")
+    else:
+        text = text.rstrip("\n") + "\n\n" + block
+    RESULTS.write_text(text, encoding="utf-8")

@@ -11,7 +11,6 @@ server, < 1 % on a bus.
 from __future__ import annotations
 
 import os
-import re
 import socket
 import subprocess
 import sys
@@ -23,9 +22,8 @@ import httpx
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _monitor_results import machine
+from _monitor_results import machine, write_section
 
-RESULTS = Path(__file__).resolve().parent / "RESULTS.md"
 HEADING = "## Idle cost"
 MEASURE_S = float(os.environ.get("IDLE_CPU_MEASURE_S", "30"))
 SETTLE_S = 5.0
@@ -103,19 +101,6 @@ def measure_on_hub(*, drives: bool = False) -> tuple[float, float]:
             child.wait(timeout=15)
 
 
-def write_section(body: str) -> None:
-    text = RESULTS.read_text(encoding="utf-8") if RESULTS.exists() else "# Benchmark results\n"
-    block = f"{HEADING}\n\n{body.strip()}\n"
-    if HEADING in text:
-        start = text.index(HEADING)
-        following = re.search(r"^## ", text[start + len(HEADING):], flags=re.MULTILINE)
-        end = start + len(HEADING) + following.start() if following else len(text)
-        text = text[:start] + block + ("\n" + text[end:] if following else "")
-    else:
-        text = text.rstrip("\n") + "\n\n" + block
-    RESULTS.write_text(text, encoding="utf-8")
-
-
 def main() -> int:
     rows = [("Idle demo server (`serve --demo`)", TARGET_PERCENT, *measure(["--demo"])),
             ("Idle server on a socketcand hub without traffic (`serve --bus socketcand:…`)", BUS_TARGET_PERCENT,
@@ -143,7 +128,7 @@ EtherCAT master (added to the demo plant later) ticked its slaves every 10 ms: 1
 demo server then used (CPU per thread, 2026-11-26); it now shares the plant's deadline ticker (`simulator/ticker.py`).
 """
     print(body)
-    write_section(body)
+    write_section(HEADING, body)
     return 0
 
 

@@ -14,10 +14,8 @@ from __future__ import annotations
 
 import os
 import platform
-import re
 import statistics
 import time
-from pathlib import Path
 from typing import Any
 
 import can
@@ -27,7 +25,8 @@ from drivebench.config import REPO_ROOT
 from drivebench.transport.busload import frame_bits
 from drivebench.web.app import create_app
 
-RESULTS = Path(__file__).resolve().parent / "RESULTS.md"
+from _monitor_results import write_section  # isort: skip  (beside this script)
+
 HEADING = "## Program download"
 DEMO_PLANT = REPO_ROOT / "plants" / "demo.json"
 NODE = 7
@@ -113,20 +112,7 @@ def main() -> None:
         lines += ["", f"Rounds that failed ({len(failed)} of {ROUNDS * len(BITRATES)}): " + "; ".join(failed)]
     body = "\n".join(lines)
     print(body)
-    write_section(body)
-
-
-def write_section(body: str) -> None:
-    text = RESULTS.read_text(encoding="utf-8") if RESULTS.exists() else "# Benchmark results\n"
-    block = f"{HEADING}\n\n{body.strip()}\n"
-    if HEADING in text:
-        start = text.index(HEADING)
-        following = re.search(r"^## ", text[start + len(HEADING):], flags=re.MULTILINE)
-        end = start + len(HEADING) + following.start() if following else len(text)
-        text = text[:start] + block + ("\n" + text[end:] if following else "")
-    else:
-        text = text.rstrip("\n") + "\n\n" + block
-    RESULTS.write_text(text, encoding="utf-8")
+    write_section(HEADING, body)
 
 
 if __name__ == "__main__":

@@ -16,7 +16,7 @@ from drivebench.web.app import create_app
 from drivebench.web.forwarded_prefix import proxied, sub_path
 from tests.conftest import DEMO_PLANT, _free_port, fresh_channel, serve_app, wait_until
 from tests.transport.test_multiprocess import START_TIMEOUT_S, CliProcess
-from tests.web.test_root_path import _urls
+from tests.web.test_root_path import _health, _urls
 
 PREFIX = "/line-3/drivebench"
 NODE = "/sessions/demo-plant/nodes/3"
@@ -106,10 +106,3 @@ def test_serve_believes_the_prefix_only_from_the_proxies_it_names(tmp_path: Path
         assert forwarded.status_code == 200  # uvicorn's proxy handling still runs behind the prefix
     finally:
         server.stop()
-
-
-def _health(port: int) -> bool:
-    try:
-        return httpx.get(f"http://127.0.0.1:{port}/api/health", timeout=5).status_code == 200
-    except httpx.HTTPError:
-        return False
