@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import contextlib
 import re
+import struct
 import sys
 import tempfile
 import time
@@ -58,6 +59,9 @@ def kind_of(section: str, key: str) -> str:
     """``[2000sub1] DefaultValue`` -> ``object DefaultValue``; ``[DeviceInfo] Granularity`` -> itself."""
     if OBJECT_SECTION.match(section):
         return f"object {key}"
+    compact = re.match(r"^[0-9A-F]{4}(VALUE|NAME|DENOTATION)$", section, re.IGNORECASE)
+    if compact:
+        return f"[xxxx{compact.group(1).capitalize()}] {'NrOfEntries' if key == 'nrofentries' else 'n='}"
     if re.match(r"^M\d+", section):
         return f"[M..] {key}"
     return f"[{section}] {key}"
@@ -207,10 +211,18 @@ def same_value(a: str, b: str) -> bool:
     try:
         return int(a, 0) == int(b, 0)
     except ValueError:
-        try:
-            return float(a) == float(b)
-        except ValueError:
-            return False
+        pass
+    try:
+        return float(a) == float(b)
+    except ValueError:
+        pass
+    for hex_text, other in ((a, b), (b, a)):  # a REAL written as its bit pattern (0x40490FDB) and as a number
+        digits = hex_text.lower().removeprefix("0x")
+        if hex_text.lower().startswith("0x") and len(digits) in (8, 16):
+            with contextlib.suppress(ValueError):
+                number = struct.unpack(">f" if len(digits) == 8 else ">d", bytes.fromhex(digits))[0]
+                return number == float(other)
+    return False
 
 
 def xml_facts(content: bytes) -> Counter[str]:
@@ -322,13 +334,28 @@ def table(outcomes: list[Outcome]) -> list[str]:
     return lines
 
 
+FINDINGS = (
+    "Findings (2026-11-29, 9 EDS/DCF files of lely-core, python-canopen and CanFestival; the XDD files found in the "
+    "stored repositories were 150 kB and more and were not copied this round, so XDD -> XDD has no file yet). "
+    "Before the fix of this round (main at a3c7b65) EDS -> XDD -> EDS changed 22 `DataType` keys in 3 files: "
+    "INTEGER40/48/56, UNSIGNED40/48/56, TIME_OF_DAY and TIME_DIFF, which the model reads as DOMAIN, came back as "
+    "0x000F; the XDD export now writes the file's own code into `dataType` (2 -> 3 files without a lost or changed "
+    "key). What is still lost, and why: the object lists (XDD has only counts, no lists: an EDS written from an XDD "
+    "lists each object by its CiA 306 index range, so lely's 0x2001... under [OptionalObjects] move to "
+    "[ManufacturerObjects]); `[Comments] Lines=0` and empty `VendorNumber=`/`ProductNumber=`/`RevisionNumber=`/"
+    "`OrderCode=` (nothing to hold: the model keeps no empty section or key, an empty `ProductName=` is read as the "
+    "file name with a warning); `CompactSubObj=255` on 0x1003 (read as 254 sub-objects: sub-index 0xFF is not an "
+    "entry, CiA 301); a `SubNumber` larger than the sub-objects the file lists (the XDD's `subNumber` is written from "
+    "the sub-objects there are); a compact ARRAY comes back expanded (CiA 311 has no compact form; every value kept).")
+
+
 def write(body: list[str], folder: Path) -> None:
     when = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
-    index = folder / "INDEX.md"
-    text = "\n".join(["## Outside corpus", "", f"Written by `benchmarks/outside_corpus.py` on {when}: real vendor "
-                      "files from public repositories (kept outside this repository; their list with repository, "
-                      f"path and commit is the corpus's `INDEX.md`{'' if index.exists() else ', absent here'}), "
-                      "each uploaded through the real app.", "", *body, "", ""])
+    absent = "" if (folder / "INDEX.md").exists() else ", absent here"
+    text = "\n".join(["## Outside corpus", "", f"Written by `benchmarks/outside_corpus.py` on {when}: real EDS/DCF/XDD "
+                      "files nobody here wrote, from public repositories (kept outside this repository; their list "
+                      f"with repository, path and commit is the corpus's `INDEX.md`{absent}), "
+                      "each uploaded through the real app.", "", *body, "", FINDINGS, "", ""])
     current = RESULTS.read_text()
     pattern = re.compile(r"^## Outside corpus\n.*?(?=^## |\Z)", re.DOTALL | re.MULTILINE)
     RESULTS.write_text(pattern.sub(lambda _: text, current) if pattern.search(current)
