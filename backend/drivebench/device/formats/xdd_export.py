@@ -48,6 +48,14 @@ def type_element_name(data_type: DataType) -> str:
     return "_".join(part.capitalize() for part in data_type.value.split("_"))
 
 
+def export_type_code(entry: ObjectEntry) -> int:
+    """The CiA 301 code for ``dataType``: the file's own where the model reads the type as DOMAIN (INTEGER40,
+    TIME_OF_DAY ...), which an XDD holds as well; a DEFTYPE the model reads as its basic type is written as that."""
+    if entry.data_type_code is not None and entry.data_type is DataType.DOMAIN:
+        return entry.data_type_code
+    return entry.data_type.code
+
+
 def _el(parent: etree._Element | None, local_name: str, text: str | None = None, /, **attributes: str
         ) -> etree._Element:
     tag = f"{{{NS}}}{local_name}"
@@ -169,7 +177,7 @@ def _object_attributes(element: etree._Element, entry: ObjectEntry, value: Value
                        with_flags: bool) -> None:
     element.set("name", entry.name)
     element.set("objectType", "2" if entry.domain_object else "7")
-    element.set("dataType", f"{entry.data_type.code:04X}")
+    element.set("dataType", f"{export_type_code(entry):04X}")
     element.set("accessType", entry.access.value)
     texts = export_value_text(entry, value)
     for attribute, key in (("defaultValue", "DefaultValue"), ("lowLimit", "LowLimit"), ("highLimit", "HighLimit"),
