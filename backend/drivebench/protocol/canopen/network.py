@@ -67,6 +67,12 @@ class NodeClient(EventLoopTransfers):
         return self
 
     @property
+    def domain_download(self) -> NodeClient:
+        """The client that downloads a large domain by block transfer with progress and cancel
+        (:meth:`download_domain`: CiA 302-3 program download). A client without one has ``None``."""
+        return self
+
+    @property
     def sdo_servers(self) -> NodeClient:
         """The client whose SDO channels can be added (:meth:`add_channel`, the device's additional SDO servers,
         CiA 301 0x1201...). A client with one channel only has ``None``."""

@@ -108,6 +108,8 @@ class CoeNodeClient(EventLoopTransfers):
     """No on-loop reads: a mailbox exchange runs in a worker thread."""
     sdo_servers: None = None
     """One mailbox per slave: no SDO channel to add."""
+    domain_download: None = None
+    """No CANopen block transfer through the mailbox (program download over EtherCAT is FoE, not built)."""
 
     @property
     def sdo_information(self) -> CoeNodeClient:

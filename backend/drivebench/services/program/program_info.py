@@ -37,8 +37,8 @@ class ProgramInfo:
 
 def canopen_client(session: Session, node_id: int) -> NodeClient:
     session.node(node_id)
-    client = session.client(node_id)
-    if not isinstance(client, NodeClient):
+    client = session.client(node_id).domain_download
+    if client is None:
         raise Conflict(_("Program download (CiA 302-3) is for CANopen nodes; node {node} of session {session} is "
                          "not on a CAN bus").format(node=node_id, session=session.id))
     return client
