@@ -27,16 +27,14 @@ import asyncio
 
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 
-from drivebench.errors import NotFound
 from drivebench.i18n import N_, Text
 from drivebench.services.control import drive_control, status_poll
 from drivebench.services.control.drive_guard import Guard
 from drivebench.services.params import node_lease
 from drivebench.web.identity import principal_of
 from drivebench.web.safety import panel_for
-from drivebench.web.state import app_state
 from drivebench.web.ws import control_limits
-from drivebench.web.ws.node_socket import open_node, serve
+from drivebench.web.ws.node_socket import open_node, open_session, serve
 
 router = APIRouter()
 PERIOD_S = status_poll.PERIOD_S
@@ -90,11 +88,8 @@ def _trip(guard: Guard, node_id: int, reason: str) -> None:
 
 @router.websocket("/ws/sessions/{session_id}/keepalive")
 async def keepalive(websocket: WebSocket, session_id: str) -> None:
-    await websocket.accept()
-    try:
-        session = app_state(websocket.app).manager.get(session_id)
-    except NotFound as exc:
-        await websocket.close(code=4404, reason=exc.shown_detail()[:120])
+    session = await open_session(websocket, session_id)
+    if session is None:
         return
     guard = drive_control.guard_for(session)
     panel = panel_for(websocket)

@@ -15,11 +15,22 @@ from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.web.state import app_state
 
 
-async def open_node(websocket: WebSocket, session_id: str, node_id: int) -> tuple[Session, SessionNode] | None:
-    """Accept the socket and find its session's node; an unknown session or node closes it with code 4404 (None)."""
+async def open_session(websocket: WebSocket, session_id: str) -> Session | None:
+    """Accept the socket and find its session; an unknown session closes it with code 4404 (None)."""
     await websocket.accept()
     try:
-        session = app_state(websocket.app).manager.get(session_id)
+        return app_state(websocket.app).manager.get(session_id)
+    except NotFound as exc:
+        await websocket.close(code=4404, reason=exc.shown_detail()[:120])
+        return None
+
+
+async def open_node(websocket: WebSocket, session_id: str, node_id: int) -> tuple[Session, SessionNode] | None:
+    """Accept the socket and find its session's node; an unknown session or node closes it with code 4404 (None)."""
+    session = await open_session(websocket, session_id)
+    if session is None:
+        return None
+    try:
         return session, session.node(node_id)
     except NotFound as exc:
         await websocket.close(code=4404, reason=exc.shown_detail()[:120])

@@ -18,11 +18,9 @@ import contextlib
 
 from fastapi import APIRouter, WebSocket
 
-from drivebench.errors import NotFound
 from drivebench.services.scope import runs
 from drivebench.web.identity import principal_of
-from drivebench.web.state import app_state
-from drivebench.web.ws.node_socket import serve
+from drivebench.web.ws.node_socket import open_session, serve
 
 router = APIRouter()
 MIN_INTERVAL_S = 0.1
@@ -31,11 +29,8 @@ IDLE_S = 0.5
 
 @router.websocket("/ws/sessions/{session_id}/scope")
 async def scope(websocket: WebSocket, session_id: str) -> None:
-    await websocket.accept()
-    try:
-        session = app_state(websocket.app).manager.get(session_id)
-    except NotFound as exc:
-        await websocket.close(code=4404, reason=exc.shown_detail()[:120])
+    session = await open_session(websocket, session_id)
+    if session is None:
         return
 
     user = principal_of(websocket).name
