@@ -58,3 +58,44 @@ def test_two_devices_on_one_id_answer_twice(plant: Plant, registry: ProfileRegis
     watch = DuplicateWatch()
     assert watch.probe(network, [MOTEC]) == {MOTEC: 2}
     assert "2 answers to one SDO request" in watch.found()[MOTEC]
+
+
+class HeldNotifier(can.Listener):
+    """Holds the master's notifier thread at the first frame it sees until released: frames read after it wait in the
+    bus's queue, as they do on a loaded machine whose notifier thread gets no CPU for a while."""
+
+    def __init__(self) -> None:
+        self.holding = threading.Event()
+        self.release = threading.Event()
+
+    def on_message_received(self, msg: can.Message) -> None:
+        if not self.release.is_set():
+            self.holding.set()
+            self.release.wait(timeout=5.0)
+
+
+def test_an_answer_sent_before_the_probe_asked_is_not_counted(network: CanopenNetwork, wire: can.BusABC) -> None:
+    """CI once reported "3 answers to one SDO request" for two devices: a duplicate's second answer to the scan's own
+    0x1018sub4 read was sent before the probe asked but reached the master's notifier only while the probe listened.
+    An answer stamped before the request went out answers an earlier request."""
+    held = HeldNotifier()
+    network.add_listener(held)
+    wire.send(can.Message(arbitration_id=0x7FF, data=b"", is_extended_id=False))  # the frame the notifier stops at
+    assert held.holding.wait(timeout=5.0)
+    serial = bytes([0x43, 0x18, 0x10, 0x04, 0x2A, 0, 0, 0])  # an answer to an earlier 0x1018sub4 read
+    wire.send(can.Message(arbitration_id=0x580 + MOTEC, data=serial, is_extended_id=False))
+    watch = DuplicateWatch()
+    counted: dict[int, int] = {}
+    prober = threading.Thread(target=lambda: counted.update(watch.probe(network, [MOTEC])))
+    prober.start()
+    try:
+        # the probe's request shows on the wire only after the stale answer was stamped
+        while (msg := wire.recv(timeout=5.0)) is not None and msg.arbitration_id != 0x600 + MOTEC:
+            pass
+        assert msg is not None, "the probe sent no request"
+    finally:
+        held.release.set()
+        prober.join(timeout=10.0)
+        network.remove_listener(held)
+    assert counted == {MOTEC: 1}
+    assert watch.found() == {}

@@ -35,6 +35,15 @@ IDENTITY_SERIAL = bytes([0x40, 0x18, 0x10, 0x04, 0, 0, 0, 0])
 """SDO upload request for 0x1018sub4 (serial number)."""
 
 
+def _answers_to_this_request(stamped: list[tuple[float, bytes]], asked_at: float) -> list[bytes]:
+    """The answers stamped after the request went out. An answer stamped before it answers an earlier request for the
+    same object (the scan's own 0x1018sub4 read, or a retried one): it was only handled late, by a notifier thread
+    that got no CPU for a while. Frame stamps are on the adapter's clock: where no answer is stamped after the
+    request, that clock is not this machine's (a gateway's own), and every answer counts."""
+    fresh = [data for stamp, data in stamped if stamp >= asked_at]
+    return fresh or [data for _stamp, data in stamped]
+
+
 class DuplicateWatch(can.Listener):
     """Collects the evidence of duplicate node ids on one session's bus (listener on the notifier thread)."""
 
@@ -81,14 +90,14 @@ class DuplicateWatch(can.Listener):
     def probe(self, network: CanopenNetwork, node_ids: list[int]) -> dict[int, int]:
         """Ask each node once for its serial number (0x1018sub4) and count the answers (blocking). Two or more:
         a duplicate; exactly one clears an earlier finding. Returns the answers per node."""
-        answers: dict[int, list[bytes]] = {node_id: [] for node_id in node_ids}
+        answers: dict[int, list[tuple[float, bytes]]] = {node_id: [] for node_id in node_ids}
         answered = threading.Condition()
 
         def on_answer(can_id: int, data: bytearray, timestamp: float) -> None:
             if bytes(data[1:4]) != IDENTITY_SERIAL[1:4]:
                 return  # a late answer to an earlier request (a duplicate's second answer to the scan's 0x1017 read)
             with answered:
-                answers[can_id - 0x580].append(bytes(data))
+                answers[can_id - 0x580].append((timestamp, bytes(data)))
                 answered.notify_all()
 
         locks = [channel.lock for client in list(network.nodes.values()) for channel in client.channels]
@@ -98,7 +107,7 @@ class DuplicateWatch(can.Listener):
             for node_id in node_ids:
                 network.canopen.subscribe(0x580 + node_id, on_answer)
             try:
-                sent = time.monotonic()
+                sent, asked_at = time.monotonic(), time.time()
                 for node_id in node_ids:
                     network.send(0x600 + node_id, IDENTITY_SERIAL)
                 with answered:
@@ -112,8 +121,9 @@ class DuplicateWatch(can.Listener):
             for lock in locks:
                 lock.release()
         now = time.monotonic()
+        counted = {node_id: _answers_to_this_request(stamped, asked_at) for node_id, stamped in answers.items()}
         with self._lock:
-            for node_id, frames in answers.items():
+            for node_id, frames in counted.items():
                 if len(frames) >= 2:
                     serials = {int.from_bytes(frame[4:8], "little") for frame in frames if frame[0] & 0xE0 == 0x40}
                     which = (Text(N_("two answers to one SDO request with different serial numbers ({serials})"),
@@ -124,7 +134,7 @@ class DuplicateWatch(can.Listener):
                     self._found.pop(node_id, None)
                     self._bootups.pop(node_id, None)
                     self._beats.pop(node_id, None)
-        return {node_id: len(frames) for node_id, frames in answers.items()}
+        return {node_id: len(frames) for node_id, frames in counted.items()}
 
     def found(self) -> dict[int, str]:
         """Node id -> the evidence in words, from findings younger than ``hold_s``."""
