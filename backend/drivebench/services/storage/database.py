@@ -59,8 +59,13 @@ def engine(url: str | None = None) -> Engine:
             connect_args["timeout"] = 30  # a writer waits for another server's write on a loaded machine (5 s gave up)
             if parsed.database and parsed.database != ":memory:":
                 _private_file(Path(parsed.database))
-        elif parsed.get_backend_name() == "postgresql" and "connect_timeout" not in parsed.query:
-            connect_args["connect_timeout"] = 5  # a host that drops packets: a clear failure, not a hang
+        elif parsed.get_backend_name() == "postgresql":
+            if "connect_timeout" not in parsed.query:
+                connect_args["connect_timeout"] = 5  # a host that drops packets: a clear failure, not a hang
+            if "client_encoding" not in parsed.query:
+                # a database created with SQL_ASCII (initdb on a host without a UTF-8 locale) hands text back as
+                # bytes unless the connection asks for UTF-8: SQLAlchemy's first connect died on it
+                connect_args["client_encoding"] = "utf8"
         created = create_engine(url, connect_args=connect_args, pool_pre_ping=True)
         if parsed.get_backend_name() == "sqlite":
             event.listen(created, "connect", _sqlite_foreign_keys)
