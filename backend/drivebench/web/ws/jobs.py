@@ -13,12 +13,13 @@ from __future__ import annotations
 
 import asyncio
 
-from fastapi import APIRouter, WebSocket, WebSocketDisconnect
+from fastapi import APIRouter, WebSocket
 
 from drivebench.errors import NotFound
 from drivebench.i18n import shown
 from drivebench.services.params.jobs import Job
 from drivebench.web.state import app_state
+from drivebench.web.ws.node_socket import serve
 
 router = APIRouter()
 MIN_INTERVAL_S = 0.1
@@ -38,7 +39,12 @@ async def job_progress(websocket: WebSocket, job_id: str) -> None:
     except NotFound as exc:
         await websocket.close(code=4404, reason=exc.detail[:120])
         return
-    try:
+
+    async def receive() -> None:  # nothing is expected: it notices the client leaving while the job is unchanged
+        while True:
+            await websocket.receive_text()
+
+    async def send() -> None:
         version = -1
         while True:
             if job.version != version or job.state.finished:
@@ -49,5 +55,5 @@ async def job_progress(websocket: WebSocket, job_id: str) -> None:
                 return
             await asyncio.sleep(MIN_INTERVAL_S)
             await job.wait_change(version, timeout_s=1.0)
-    except (WebSocketDisconnect, RuntimeError):
-        return
+
+    await serve(receive(), send())

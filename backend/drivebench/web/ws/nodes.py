@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import asyncio
 
-from fastapi import APIRouter, WebSocket, WebSocketDisconnect
+from fastapi import APIRouter, WebSocket
 
 from drivebench.errors import NotFound
 from drivebench.i18n import _
@@ -17,6 +17,7 @@ from drivebench.services.bus.views import nodes_public
 from drivebench.web.root import root_of
 from drivebench.web.state import app_state
 from drivebench.web.templating import templates
+from drivebench.web.ws.node_socket import serve
 
 router = APIRouter()
 PERIOD_S = 0.5
@@ -27,8 +28,13 @@ async def node_states(websocket: WebSocket, session_id: str) -> None:
     await websocket.accept()
     manager = app_state(websocket.app).manager
     block = templates.env.get_template("plant.html").blocks["nodes_table"]
-    sent = ""
-    try:
+
+    async def receive() -> None:  # nothing is expected: it notices the client leaving while the table is unchanged
+        while True:
+            await websocket.receive_text()
+
+    async def send() -> None:
+        sent = ""
         while True:
             try:
                 session = manager.get(session_id)
@@ -45,5 +51,5 @@ async def node_states(websocket: WebSocket, session_id: str) -> None:
                 await websocket.send_text(html)
                 sent = html
             await asyncio.sleep(PERIOD_S)
-    except (WebSocketDisconnect, RuntimeError):
-        return
+
+    await serve(receive(), send())
