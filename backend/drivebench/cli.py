@@ -34,6 +34,9 @@ def _is_loopback(host: str) -> bool:
 
 
 def serve(args: argparse.Namespace) -> int:
+    from drivebench.web import heap
+
+    heap.hold()  # until the app has started (create_app(settle_heap=True) settles it)
     import uvicorn
     from uvicorn.config import STARTUP_FAILURE
 
