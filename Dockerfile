@@ -35,11 +35,13 @@ COPY frontend ./frontend
 COPY device_profiles ./device_profiles
 COPY plants ./plants
 # Production install: the server and PostgreSQL's driver at the versions of constraints.txt, no dev tools; pip is
-# removed from the image afterwards (nothing installs at run time).
+# removed from the image afterwards (nothing installs at run time). DriveBench's own modules are compiled here: the
+# server may not write beside them (and PYTHONDONTWRITEBYTECODE), so each start compiled all 300 again (issue 33).
 RUN python3 -m venv /opt/venv \
     && if [ -n "$PIP_INDEX_URL" ]; then export PIP_INDEX_URL; else unset PIP_INDEX_URL; fi \
     && if [ -n "$PIP_CERT" ]; then export PIP_CERT="/app/$(basename "$PIP_CERT")"; else unset PIP_CERT; fi \
     && pip install --constraint constraints.txt --editable ".[postgresql]" \
+    && python -m compileall -q backend \
     && pip uninstall --yes pip \
     && mkdir -p /app/var \
     && chown drivebench:drivebench /app/var

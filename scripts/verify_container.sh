@@ -90,6 +90,9 @@ if [ -z "${DRIVEBENCH_DATABASE_URL:-}" ]; then
     listing=$($PODMAN run --rm $RUN_FLAGS -v "$VOLUME:/app/var" --entrypoint ls "$IMAGE" -ln /app/var)
     grep -q " 10001 10001 .* drivebench.db$" <<<"$listing" || fail "no database of the drivebench user in the volume"
 fi
+# shellcheck disable=SC2086
+$PODMAN run --rm $RUN_FLAGS --entrypoint ls "$IMAGE" /app/backend/drivebench/web/__pycache__ \
+    | grep -q '^app\.cpython-.*\.pyc$' || fail "no compiled modules in the image (every start would compile them)"
 logs=$($PODMAN logs "$NAME" 2>&1)
 grep -q "First start: created the admin plantadmin" <<<"$logs" || fail "no first-start message"
 if grep -qF "$PASSWORD" <<<"$logs"; then fail "the password was printed"; fi

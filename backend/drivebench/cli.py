@@ -34,12 +34,17 @@ def _is_loopback(host: str) -> bool:
 
 
 def serve(args: argparse.Namespace) -> int:
+    from drivebench.web import heap
+
+    heap.hold()  # until the app has started (create_app(settle_heap=True) settles it)
     import uvicorn
+    from uvicorn.config import STARTUP_FAILURE
 
     from drivebench.web import serving
     from drivebench.web.access import secret_key
     from drivebench.web.app import create_app
     from drivebench.web.forwarded_prefix import proxied
+    from drivebench.web.https_port import HttpsPortServer
     from drivebench.web.tls import check_pair
 
     logging.config.dictConfig(serving.log_config(args.log_level, args.log_format))  # start-up records too
@@ -76,13 +81,16 @@ def serve(args: argparse.Namespace) -> int:
     # limit (web/serving.py). No "server: uvicorn" header (it tells an attacker what runs, and is one header less
     # per answer); the access log only where the log level shows it (the audit log records every write; a poll per
     # second is not news).
-    with i18n.using(i18n.DEFAULT):  # a request speaks its browser's language, never the server shell's
-        uvicorn.run(proxied(app, forwarded), host=args.host, port=args.port, log_level=args.log_level,
-                    ws_ping_interval=20, ssl_certfile=args.tls_cert, ssl_keyfile=args.tls_key, proxy_headers=False,
-                    loop=_fastest("uvloop"), server_header=False,
-                    access_log=args.log_level in ("info", "debug"), root_path=settings.root_path,
-                    **serving.uvicorn_options(log_level=args.log_level, log_format=args.log_format))
-    return 0
+    config = uvicorn.Config(proxied(app, forwarded), host=args.host, port=args.port, log_level=args.log_level,
+                            ws_ping_interval=20, ssl_certfile=args.tls_cert, ssl_keyfile=args.tls_key,
+                            proxy_headers=False, loop=_fastest("uvloop"), server_header=False,
+                            access_log=args.log_level in ("info", "debug"), root_path=settings.root_path,
+                            **serving.uvicorn_options(log_level=args.log_level, log_format=args.log_format))
+    # over https, plain http to the port gets a 400 in words instead of an empty reply (web/https_port.py)
+    server = HttpsPortServer(config) if args.tls_cert else uvicorn.Server(config)
+    with i18n.using(i18n.DEFAULT), contextlib.suppress(KeyboardInterrupt):  # a request speaks its browser's
+        server.run()  # language, never the server shell's
+    return 0 if server.started else STARTUP_FAILURE
 
 
 def health(args: argparse.Namespace) -> int:

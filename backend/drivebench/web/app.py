@@ -145,6 +145,7 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
         await restore_record.restore_leftovers(manager)  # what recordings a killed server left mapped on the nodes
         if settle_heap:
             heap.settle()
+        routes_built = asyncio.create_task(asyncio.to_thread(access_policy.build_effective_routes, app))
         try:
             yield
         finally:
@@ -157,6 +158,7 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
             for gateway in state.gateways.values():
                 await asyncio.to_thread(gateway.stop)
             await uploads
+            await routes_built
 
     docs = settings.api_docs  # their scripts come from a CDN: development only
     app = FastAPI(title="DriveBench", version=__version__, lifespan=lifespan, docs_url="/docs" if docs else None,
