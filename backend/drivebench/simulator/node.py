@@ -292,6 +292,13 @@ class SimulatedNode:
         """True when an active fault takes the request (dropped, or aborted with the fault's code)."""
         if len(data) != 8:
             return False
+        if server.expects_segment and data[0] != 0x80:
+            # a block download segment starts with its sequence number (0x21 reads like an initiate download): no
+            # transfer starts here, so only the latency every request has applies (and no lock per frame is taken)
+            extra_s = self.faults.segment_delay_s()
+            if extra_s:
+                time.sleep(extra_s)
+            return False
         extra_s = self.faults.delay_s(data)
         if extra_s:
             time.sleep(extra_s)
