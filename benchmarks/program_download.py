@@ -18,6 +18,7 @@ see the same load.
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import os
 import platform
@@ -74,11 +75,12 @@ def one_round(bitrate: int) -> dict[str, Any]:
                 while socket.receive_json()["state"] == "running":
                     pass
             now = client.get(f"{base}/jobs/{job['id']}").json()
-            if now["state"] != "done" or now["result"].get("transfer") != "block":
-                return {"failed": True, "error": now["error"]}
             frames = []
             while (frame := spy.recv(timeout=0.2)) is not None:
                 frames.append(frame)
+            if now["state"] != "done" or now["result"].get("transfer") != "block":
+                return {"failed": True, "error": f"{now['error']} (longest pause between two frames of the client: "
+                                                 f"{_longest_pause(frames):.2f} s)"}
     finally:
         spy.shutdown()
     # the 0x1F50 transfer: from its block initiate (0xC6 ... 0x1F50) to the end response (0xA1)
@@ -92,6 +94,12 @@ def one_round(bitrate: int) -> dict[str, Any]:
     return {"frames": len(transfer), "bits": bits, "wire_s": wire_s, "measured_s": measured_s,
             "job_s": float(now["progress"]["elapsed_s"]), "theoretical": SIZE / wire_s, "measured": SIZE / measured_s,
             "load": os.getloadavg()[0]}
+
+
+def _longest_pause(frames: list[Any]) -> float:
+    """Where a round fails: the simulated drive drops a transfer after 1 s without a frame (its SDO server timeout)."""
+    sent = [f.timestamp for f in frames if f.arbitration_id == 0x600 + NODE]
+    return max((b - a for a, b in itertools.pairwise(sent)), default=0.0)
 
 
 def in_process(bitrate: int, backend: Path) -> dict[str, Any]:
