@@ -62,6 +62,19 @@ def test_block_download_lands_and_0x1F56_names_the_new_image(master: canopen.Net
     assert node.sdo.upload(0x1F57, 1) == bytes(4)
 
 
+def test_faults_on_transfer_starts_leave_block_segments_alone(master: canopen.Network, plant: Plant) -> None:
+    # a block segment starts with its sequence number: 0x21 reads like an initiate download, 0xA2 like a block upload
+    # ack; a fault that aborts every second transfer start must abort the upload after the download, not a segment
+    node = remote(master, SERVO)
+    _stop_program(node)
+    plant.nodes[SERVO].faults.set(abort_code=0x08000020, abort_every=2)
+    assert download_domain(node.sdo, 0x1F50, 1, IMAGE) == "block"
+    assert plant.nodes[SERVO].program.image == IMAGE
+    with pytest.raises(SdoAbortedError) as aborted:
+        node.sdo.upload(0x1F56, 1)
+    assert aborted.value.code == 0x08000020
+
+
 def test_a_device_without_block_transfer_gets_it_segmented(master: canopen.Network, plant: Plant) -> None:
     node = remote(master, FAN)
     _stop_program(node)

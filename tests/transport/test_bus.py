@@ -69,6 +69,26 @@ def test_observed_bus_reports_transmitted_frames(channel: str, wire: can.BusABC)
         bus.shutdown()
 
 
+def test_every_other_bus_on_a_virtual_channel_gets_its_own_plain_copy(channel: str, wire: can.BusABC) -> None:
+    # the simulated adapter hands python-can's virtual bus a frame that copies cheaply; what arrives must be what a
+    # plain virtual bus delivers: a can.Message of its own, every field kept, data not shared with the sender's
+    second = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
+    bus = open_bus(BusSpec.parse(f"virtual:{channel}"))
+    sent = can.Message(arbitration_id=0x1ABCDE, data=bytes(range(8)), is_extended_id=True)
+    try:
+        bus.send(sent)
+        copies = [wire.recv(1), second.recv(1)]
+        sent.data[0] = 0xFF
+        for copy in copies:
+            assert copy is not None and type(copy) is can.Message and copy is not sent
+            assert (copy.arbitration_id, copy.is_extended_id, copy.dlc, copy.is_rx) == (0x1ABCDE, True, 8, True)
+            assert copy.data == bytearray(range(8)) and copy.timestamp > 0
+        assert copies[0].data is not copies[1].data  # type: ignore[union-attr]
+    finally:
+        bus.shutdown()
+        second.shutdown()
+
+
 def test_a_failing_adapter_is_lost_then_reopened_under_the_same_bus(channel: str, wire: can.BusABC) -> None:
     bus = open_bus(BusSpec.parse(f"virtual:{channel}"))
     changes: list[bool] = []

@@ -182,6 +182,11 @@ class FaultState:
                 return faults.latency_ms / 1000
         return 0.0
 
+    def segment_delay_s(self) -> float:
+        """Extra processing time for a block download segment: ``latency_ms`` where every request has it."""
+        faults = self._faults
+        return faults.latency_ms / 1000 if faults.latency_ms and not faults.late_requests else 0.0
+
     def on_request(self, channel: int, request: bytes) -> int | None:
         """None to pass the request on, 0 to drop it (silence), or an abort code to answer with."""
         faults = self._faults

@@ -272,8 +272,11 @@ class LssDevices:
         self.power_on()
 
     def hears(self, node: SimulatedNode) -> bool:
-        device = next((device for device in self.devices if device.node is node), None)
-        return device is None or device.slave.on_bus
+        # asked for every node on every frame (a program download puts 38,000 on the bus): a plain loop, no generator
+        for device in self.devices:
+            if device.node is node:
+                return device.slave.on_bus
+        return True
 
     def on_request(self, data: bytes) -> None:
         answers: list[bytes] = []

@@ -155,6 +155,28 @@ class SimulatedAdapter:
         self.state = state
 
 
+class _VirtualFrame(can.Message):
+    """A frame as handed to python-can's virtual bus, which copies it for every other bus on the channel with
+    ``deepcopy``: copying its data (a bytearray) that way costs several times a whole new message (a program download
+    sends some 38,000 frames, benchmarks/RESULTS.md). The receivers get plain messages, as before."""
+
+    __slots__ = ()
+
+    @classmethod
+    def of(cls, msg: can.Message) -> _VirtualFrame:
+        return cls(timestamp=msg.timestamp, arbitration_id=msg.arbitration_id, is_extended_id=msg.is_extended_id,
+                   is_remote_frame=msg.is_remote_frame, is_error_frame=msg.is_error_frame, channel=msg.channel,
+                   dlc=msg.dlc, data=msg.data, is_fd=msg.is_fd, is_rx=msg.is_rx, bitrate_switch=msg.bitrate_switch,
+                   error_state_indicator=msg.error_state_indicator)
+
+    def __deepcopy__(self, memo: dict[int, Any] | None) -> can.Message:
+        return can.Message(timestamp=self.timestamp, arbitration_id=self.arbitration_id,
+                           is_extended_id=self.is_extended_id, is_remote_frame=self.is_remote_frame,
+                           is_error_frame=self.is_error_frame, channel=self.channel, dlc=self.dlc,
+                           data=bytearray(self.data), is_fd=self.is_fd, is_rx=self.is_rx,
+                           bitrate_switch=self.bitrate_switch, error_state_indicator=self.error_state_indicator)
+
+
 class _SwitchedBus(can.BusABC):
     """A real python-can bus behind a :class:`SimulatedAdapter`. Unplugged: send and receive raise. Bus-off: the
     controller is off the bus, nothing is sent or received."""
@@ -169,7 +191,7 @@ class _SwitchedBus(can.BusABC):
         if self.adapter.unplugged:
             raise can.CanOperationError(self.adapter.unplugged)
         if self.adapter.state is not can.BusState.ERROR:
-            self.inner.send(msg, timeout)
+            self.inner.send(_VirtualFrame.of(msg), timeout)
 
     def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
         if self.adapter.unplugged:

@@ -146,6 +146,12 @@ class SdoServer:
         """True while a segmented or block transfer is in progress."""
         return self._transfer is not None
 
+    @property
+    def expects_segment(self) -> bool:
+        """True while a block download's sub-block comes in: the next frame is a segment (or an abort)."""
+        transfer = self._transfer
+        return isinstance(transfer, _BlockDownload) and not transfer.complete
+
     def reset(self) -> None:
         """Forget a transfer in progress (client abort, NMT reset, server timeout)."""
         self._transfer = None
