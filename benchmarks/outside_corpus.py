@@ -48,6 +48,7 @@ class Outcome:
     identical: bool | None = None
     edit_clean: bool | None = None
     edit_note: str = ""
+    export_note: str = ""
     lost: Counter[str] = field(default_factory=Counter)
     changed: Counter[str] = field(default_factory=Counter)
     kept_expanded: Counter[str] = field(default_factory=Counter)
@@ -138,14 +139,23 @@ def check_eds(client: TestClient, path: Path, out: Outcome) -> None:
         return
     out.accepted = True
     assert isinstance(profile, dict)
-    out.identical = client.get(f"/api/profiles/{profile_id}/eds", params={"regenerate": "true"}).content == content
+    regenerated = client.get(f"/api/profiles/{profile_id}/eds", params={"regenerate": "true"})
+    out.identical = regenerated.status_code == 200 and regenerated.content == content
+    if regenerated.status_code != 200:
+        out.export_note = f"{regenerated.status_code}: {regenerated.json().get('detail')}"[:200]
     xdd = client.get(f"/api/profiles/{profile_id}/xdd").content
     xdd_id, _ = upload(client, f"{path.stem}-roundtrip.xdd", xdd)
     original = ini_keys(content, path.name)
     if xdd_id is None:
         out.lost["(the XDD written from it was refused)"] += 1
     else:
-        back = ini_keys(client.get(f"/api/profiles/{xdd_id}/eds", params={"regenerate": "true"}).content, "b.eds")
+        written_back = client.get(f"/api/profiles/{xdd_id}/eds", params={"regenerate": "true"})
+        if written_back.status_code != 200:
+            out.lost["(the EDS written from the uploaded XDD was refused)"] += 1
+            client.delete(f"/api/profiles/{xdd_id}")
+            check_edit(client, profile_id, profile, content, out)
+            return
+        back = ini_keys(written_back.content, "b.eds")
         compare_lists(original, back, out)
         for where, value in original.items():
             if where[0] in OBJECT_LISTS:
@@ -326,7 +336,9 @@ def table(outcomes: list[Outcome]) -> list[str]:
     lines += ["", "XDD -> XDD, attributes/elements lost:", ""]
     lines += [f"- `{kind}`: {n}" for kind, n in xml_lost.most_common()] or ["- none"]
     notes = [f"- {o.name}: refused ({o.refusal})" for o in outcomes if not o.accepted]
-    notes += [f"- {o.name}: not byte-identical" for o in eds if o.accepted and not o.identical]
+    notes += [f"- {o.name}: not byte-identical" + (f" (the regenerated export was refused: {o.export_note})"
+                                                    if o.export_note else "")
+              for o in eds if o.accepted and not o.identical]
     notes += [f"- {o.name}: edit {o.edit_note}" for o in eds if o.edit_clean is False]
     notes += [f"- {o.name}: read back differently" for o in xml if o.xdd_profile_same is False]
     if notes:

@@ -107,6 +107,8 @@ CASES = [
     LosslessCase("cp1252-crlf", lambda text: text.replace("Line1=Clean base", "Line1=\u00b0C \u20ac base")
                  .replace("\n", "\r\n"), encoding="cp1252"),
     LosslessCase("utf16-bom", lambda text: text.replace("\n", "\r\n"), encoding="utf-16"),
+    LosslessCase("device-info-key-case", chain(section_key("DeviceInfo", "SimpleBootUpSlave", "0"), sub(
+        "SimpleBootUpSlave=0\n", "SimpleBootupSlave=0\n"), sub("FileName=", "Filename="))),
 ]
 
 

@@ -119,6 +119,13 @@ DEVICE_INFO_DEFAULTS = {"SimpleBootUpMaster": "0", "SimpleBootUpSlave": "1", "Gr
                         "DynamicChannelsSupported": "0", "GroupMessaging": "0", "LSS_Supported": "0"}
 
 
+def spelled_as(names: dict[str, str], keys: dict[str, str]) -> dict[str, str]:
+    """``keys`` with each name of ``names`` spelled as there: CiA 306 key names are case-insensitive, so a file's
+    ``SimpleBootupSlave=0`` is the ``SimpleBootUpSlave`` an export writes (once, with the file's value)."""
+    spelling = {name.lower(): name for name in names}
+    return {spelling.get(key.lower(), key): value for key, value in keys.items()}
+
+
 # --- import --------------------------------------------------------------------------------------------
 @dataclass
 class ImportedEds:
@@ -715,14 +722,15 @@ def read_sections(sections: dict[str, Section], source: str, notes: Warnings, *,
         )
     except ValidationError as exc:
         raise reader.fail(Text(N_("not a valid profile: {value}"), value=exc.errors()[0]["msg"]), info.line) from exc
-    device_extra = {k.name: k.value for k in info.keys.values()
-                    if k.name.lower() not in _MAPPED_DEVICE_INFO and DEVICE_INFO_DEFAULTS.get(k.name) != k.value}
+    device_extra = spelled_as(DEVICE_INFO_DEFAULTS, {k.name: k.value for k in info.keys.values()
+                                                     if k.name.lower() not in _MAPPED_DEVICE_INFO})
+    device_extra = {k: v for k, v in device_extra.items() if DEVICE_INFO_DEFAULTS.get(k) != v}
     if device_extra:
         extra["DeviceInfo"] = device_extra
     file_info = extra.pop(next((n for n in extra if n.upper() == "FILEINFO"), "FileInfo"), None)
     if file_info is not None:
         defaults = file_info_defaults(profile)
-        kept = {k: v for k, v in file_info.items() if defaults.get(k) != v}
+        kept = {k: v for k, v in spelled_as(defaults, file_info).items() if defaults.get(k) != v}
         if kept:
             extra["FileInfo"] = kept
     return ImportedEds(profile.model_copy(update={"extra_sections": extra}), notes.result())
