@@ -43,3 +43,37 @@ def test_a_device_info_key_spelled_in_another_case_is_read_once_with_the_files_v
     features = etree.fromstring(xdd).xpath("//*[local-name()='CANopenGeneralFeatures']")[0]
     assert features.get("bootUpSlave") in ("false", "0")
     assert back["DEVICEINFO"]["simplebootupslave"] == "0"
+
+
+def test_an_empty_default_value_comes_back_through_an_xdd(api: TestClient) -> None:
+    """Technosoft's ISD860 EDS writes ``DefaultValue=`` on 45 objects: no default, and the key kept through
+    EDS -> XDD -> EDS (an empty ``defaultValue`` attribute)."""
+    profile_id, content = upload(api, "empty-default-value")
+    assert api.get(f"/api/profiles/{profile_id}/eds", params={"regenerate": "true"}).content == content
+    _, back = through_xdd(api, profile_id)
+    assert back["1001"]["defaultvalue"] == "" and back["2001"]["defaultvalue"] == ""
+    profile = api.get(f"/api/profiles/{profile_id}").json()
+    assert next(o for o in profile["objects"] if o["index"] in ("0x1001", 0x1001))["default"] is None
+
+
+def test_an_empty_comments_section_and_empty_identity_keys_come_back_through_an_xdd(api: TestClient) -> None:
+    """``[Comments] Lines=0`` (python-canopen, CanFestival, Schunk ...), ``OrderCode=`` and ``VendorNumber=``
+    (lely): nothing to hold, and the keys kept through EDS -> XDD -> EDS."""
+    profile_id, content = upload(api, "empty-comments-and-identity-keys")
+    assert api.get(f"/api/profiles/{profile_id}/eds", params={"regenerate": "true"}).content == content
+    profile = api.get(f"/api/profiles/{profile_id}").json()
+    assert profile["notes"] == [] and profile["identity"]["vendor_id"] is None
+    _, back = through_xdd(api, profile_id)
+    assert back["COMMENTS"] == {"lines": "0"}
+    assert back["DEVICEINFO"]["ordercode"] == "" and back["DEVICEINFO"]["vendornumber"] == ""
+
+
+def test_a_sub_number_larger_than_the_sub_objects_listed_comes_back_through_an_xdd(api: TestClient) -> None:
+    """EMSISO's partial DCF lists 2 of the 4 sub-objects of 0x1018 (``SubNumber=4``): the SubNumber is the file's
+    in the XDD's ``subNumber`` and in the EDS written back from it."""
+    profile_id, content = upload(api, "sub-number-larger-than-listed")
+    assert api.get(f"/api/profiles/{profile_id}/eds", params={"regenerate": "true"}).content == content
+    xdd, back = through_xdd(api, profile_id)
+    record = etree.fromstring(xdd).xpath("//*[local-name()='CANopenObject'][@index='2016']")[0]
+    assert record.get("subNumber") == "4"
+    assert back["2016"]["subnumber"] == "4" and "2016SUB3" in back
