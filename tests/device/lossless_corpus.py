@@ -107,6 +107,18 @@ CASES = [
     LosslessCase("cp1252-crlf", lambda text: text.replace("Line1=Clean base", "Line1=\u00b0C \u20ac base")
                  .replace("\n", "\r\n"), encoding="cp1252"),
     LosslessCase("utf16-bom", lambda text: text.replace("\n", "\r\n"), encoding="utf-16"),
+    LosslessCase("empty-default-value", chain(section_key("1001", "DefaultValue", ""),
+                                              section_key("2001", "DefaultValue", ""))),
+    LosslessCase("empty-comments-and-identity-keys", chain(
+        sub("Lines=1\nLine1=Clean base of the quirk corpus\n", "Lines=0\n"), section_key("DeviceInfo", "OrderCode", ""),
+        section_key("DeviceInfo", "VendorNumber", ""))),
+    LosslessCase("sub-number-larger-than-listed", listed(
+        "[2016]\nParameterName=Partly listed record\nObjectType=0x9\nSubNumber=4\n\n[2016sub0]\nParameterName="
+        "Highest sub-index supported\nObjectType=0x7\nDataType=0x0005\nAccessType=ro\nDefaultValue=3\n"
+        "PDOMapping=0\n\n[2016sub3]\nParameterName=Third\nObjectType=0x7\nDataType=0x0007\nAccessType=rw\n"
+        "DefaultValue=0x10\nPDOMapping=0\n", 0x2016)),
+    LosslessCase("device-info-key-case", chain(section_key("DeviceInfo", "SimpleBootUpSlave", "0"), sub(
+        "SimpleBootUpSlave=0\n", "SimpleBootupSlave=0\n"), sub("FileName=", "Filename="))),
 ]
 
 

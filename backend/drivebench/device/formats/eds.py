@@ -117,6 +117,16 @@ def file_info_defaults(profile: Profile) -> dict[str, str]:
 
 DEVICE_INFO_DEFAULTS = {"SimpleBootUpMaster": "0", "SimpleBootUpSlave": "1", "Granularity": "8",
                         "DynamicChannelsSupported": "0", "GroupMessaging": "0", "LSS_Supported": "0"}
+EMPTY_IDENTITY_KEYS = {name.lower(): name for name in ("VendorNumber", "ProductNumber", "RevisionNumber",
+                                                       "OrderCode")}
+"""Identity keys a file may leave empty (``OrderCode=``): the model holds no value, the key is kept as written."""
+
+
+def spelled_as(names: dict[str, str], keys: dict[str, str]) -> dict[str, str]:
+    """``keys`` with each name of ``names`` spelled as there: CiA 306 key names are case-insensitive, so a file's
+    ``SimpleBootupSlave=0`` is the ``SimpleBootUpSlave`` an export writes (once, with the file's value)."""
+    spelling = {name.lower(): name for name in names}
+    return {spelling.get(key.lower(), key): value for key, value in keys.items()}
 
 
 # --- import --------------------------------------------------------------------------------------------
@@ -287,10 +297,12 @@ class _Reader:
             self.warn(compact.line, compact.name, Text(N_("object 0x{index:04X} has CompactSubObj and sub-object "
                                                           "sections: the sections are read"), index=index))
         number_key = section.get("SubNumber")
+        read = _HEAD_KEYS
         if number_key is None:
             self.warn(section.line, "SubNumber", Text(N_("[{name}] has no SubNumber=: its {count} sub-object "
                                                          "sections are read"), name=section.name, count=len(subs)))
         elif self.integer(number_key) != len(subs):
+            read = _HEAD_KEYS - {"subnumber"}  # a DCF listing some sub-objects: its SubNumber is kept as written
             self.warn(number_key.line, number_key.name, Text(N_("SubNumber={value} but object 0x{index:04X} has "
                                                                 "{count} sub-objects: the {count} sections are read"),
                                                              value=number_key.value, index=index, count=len(subs)))
@@ -304,7 +316,7 @@ class _Reader:
                 entries.append(entry.model_copy(update={"domain_object": domain_sub}))
         if flags is not None and len({e.obj_flags for e in entries}) > 1:  # the object's own differs from a sub's
             entries = [e.model_copy(update={"object_flags": flags}) for e in entries]
-        return self.with_object_keys(entries, section, _HEAD_KEYS)
+        return self.with_object_keys(entries, section, read)
 
     @staticmethod
     def with_object_keys(entries: list[ObjectEntry], section: Section, read: set[str]) -> list[ObjectEntry]:
@@ -465,6 +477,8 @@ class _Reader:
             else:
                 fields["default"] = self.scaled(self.value(data_type, default, address, quiet=quiet,
                                                            kept=kept), factor)
+        elif default is not None:  # ``DefaultValue=``: no default, and the key is written back as it was
+            kept["DefaultValue"] = ""
         value = section.get("ParameterValue") if own_values else None
         if value is not None and (value.value or data_type.is_string):
             fields["parameter_value"] = self.parameter_value(data_type, value, address, kept)
@@ -715,14 +729,19 @@ def read_sections(sections: dict[str, Section], source: str, notes: Warnings, *,
         )
     except ValidationError as exc:
         raise reader.fail(Text(N_("not a valid profile: {value}"), value=exc.errors()[0]["msg"]), info.line) from exc
-    device_extra = {k.name: k.value for k in info.keys.values()
-                    if k.name.lower() not in _MAPPED_DEVICE_INFO and DEVICE_INFO_DEFAULTS.get(k.name) != k.value}
+    device_extra = spelled_as({**DEVICE_INFO_DEFAULTS, **EMPTY_IDENTITY_KEYS}, {
+        k.name: k.value for k in info.keys.values()
+        if k.name.lower() not in _MAPPED_DEVICE_INFO or (k.name.lower() in EMPTY_IDENTITY_KEYS and not k.value)})
+    device_extra = {k: v for k, v in device_extra.items() if DEVICE_INFO_DEFAULTS.get(k) != v}
     if device_extra:
         extra["DeviceInfo"] = device_extra
+    comments = reader.sections.get("COMMENTS")
+    if comments is not None and not profile.notes:  # ``[Comments] Lines=0``: no line, and the section kept
+        extra["Comments"] = {k.name: k.value for k in comments.keys.values()}
     file_info = extra.pop(next((n for n in extra if n.upper() == "FILEINFO"), "FileInfo"), None)
     if file_info is not None:
         defaults = file_info_defaults(profile)
-        kept = {k: v for k, v in file_info.items() if defaults.get(k) != v}
+        kept = {k: v for k, v in spelled_as(defaults, file_info).items() if defaults.get(k) != v}
         if kept:
             extra["FileInfo"] = kept
     return ImportedEds(profile.model_copy(update={"extra_sections": extra}), notes.result())

@@ -267,11 +267,13 @@ def _object_sections(index: int, entries: list[ObjectEntry], parameter_value: Ca
     flags = {e.obj_flags for e in entries}
     shared_flags = first.object_flags if first.object_flags is not None else flags.pop() if len(flags) == 1 else None
     kind = first.object_type if first.object_type != "VAR" else "RECORD"
+    kept = dict(first.object_keys or {})
+    number = kept.pop("SubNumber", len(entries))  # a DCF listing some sub-objects keeps its SubNumber
     head: list[tuple[str, object]] = [("ParameterName", first.object_name or first.name),
-                                      ("ObjectType", f"0x{OBJECT_TYPE_CODES[kind]:X}"), ("SubNumber", len(entries))]
+                                      ("ObjectType", f"0x{OBJECT_TYPE_CODES[kind]:X}"), ("SubNumber", number)]
     if shared_flags is not None:
         head.append(("ObjFlags", f"0x{shared_flags:X}"))
-    head += list((first.object_keys or {}).items())
+    head += list(kept.items())
     return [(f"{index:04X}", head), *((f"{index:04X}sub{entry.subindex:X}", _entry_keys(
         entry, with_flags=shared_flags is None or first.object_flags is not None, value=parameter_value(entry)))
         for entry in entries)]
@@ -316,11 +318,14 @@ def export_eds(profile: Profile, *, node_id: int | None = None, values: Mapping[
     for rate in BAUD_RATES_KBIT:
         device_info[f"BaudRate_{rate}"] = int(rate in features.baud_rates_kbit)
     device_info |= {"NrOfRXPDO": features.rpdo_count, "NrOfTXPDO": features.tpdo_count}
-    device_info |= {**DEVICE_INFO_DEFAULTS, **_extra(profile, "DeviceInfo")}
+    device_info |= {key: value for key, value in {**DEVICE_INFO_DEFAULTS, **_extra(profile, "DeviceInfo")}.items()
+                    if value != "" or key not in device_info}  # an empty identity key where the model has none
     out.section("DeviceInfo", device_info.items())
     if profile.notes:
         out.section("Comments", [("Lines", len(profile.notes)),
                                  *((f"Line{n}", note) for n, note in enumerate(profile.notes, start=1))])
+    elif _extra(profile, "Comments"):
+        out.section("Comments", _extra(profile, "Comments").items())
     own: list[tuple[str, object]] = [("ProfileId", profile.id), ("Family", profile.family),
                                      ("Version", profile.version)]
     if profile.source is not None:

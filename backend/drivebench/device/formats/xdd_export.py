@@ -169,8 +169,18 @@ def _object_parameter(parameters: etree._Element, index: int, first: ObjectEntry
     _el(parameter, "label", first.object_name or first.name, lang="en")
     _el(parameter, "BYTE")
     for key, value in (first.object_keys or {}).items():
-        _el(parameter, "property", None, name=f"{EDS_KEY_PREFIX}{key}", value=value)
+        if key != "SubNumber":  # in the subNumber attribute
+            _el(parameter, "property", None, name=f"{EDS_KEY_PREFIX}{key}", value=value)
     return unique_id
+
+
+def sub_number(first: ObjectEntry, listed: int) -> int:
+    """An ARRAY/RECORD's subNumber: the file's SubNumber where it differs from the sub-objects listed (a DCF
+    listing some of them), else their count."""
+    try:
+        return int((first.object_keys or {}).get("SubNumber", str(listed)), 0)
+    except ValueError:
+        return listed
 
 
 def _object_attributes(element: etree._Element, entry: ObjectEntry, value: Value | None, *,
@@ -236,10 +246,10 @@ def export_xdd(profile: Profile, *, node_id: int | None = None, values: Mapping[
         kind = first.object_type if first.object_type != "VAR" else "RECORD"
         obj.set("name", first.object_name or first.name)
         obj.set("objectType", OBJECT_TYPE_NUMBERS[kind])
-        obj.set("subNumber", str(len(entries)))
+        obj.set("subNumber", str(sub_number(first, len(entries))))
         if shared is not None:
             obj.set("objFlags", f"{shared:X}")
-        if first.object_keys:
+        if set(first.object_keys or {}) - {"SubNumber"}:
             obj.set("uniqueIDRef", _object_parameter(parameters, index, first))
         for entry in entries:
             sub = _el(obj, "CANopenSubObject", subIndex=f"{entry.subindex:02X}")

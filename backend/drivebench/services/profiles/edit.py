@@ -93,12 +93,18 @@ def edited(profile: Profile, index: int, subindex: int, edit: ObjectEdit) -> Pro
         raise ProfileError(exc.errors()[0]["msg"].removeprefix("Value error, "), source=profile.id) from exc
 
 
+def is_editable(registry: ProfileRegistry, profile_id: str) -> bool:
+    """Whether a profile is an uploaded EDS/DCF, the only kind :func:`edit_object` changes."""
+    loaded = registry.loaded(profile_id)
+    return not registry.is_builtin(profile_id) and loaded.original is not None and loaded.suffix in EDS_SUFFIXES
+
+
 def edit_object(registry: ProfileRegistry, profile_id: str, index: int, subindex: int, edit: ObjectEdit
                 ) -> Profile:
     """Change one object of an uploaded EDS/DCF profile: the stored file is written over with only the keys of
     that change (blocking: run it in a thread)."""
     loaded = registry.loaded(profile_id)
-    if registry.is_builtin(profile_id) or loaded.original is None or loaded.suffix not in EDS_SUFFIXES:
+    if not is_editable(registry, profile_id) or loaded.original is None:
         raise Conflict(_("'{profile}' is not an uploaded EDS/DCF; only those are edited here").format(
             profile=profile_id))
     profile = edited(loaded.profile, index, subindex, edit)

@@ -12,6 +12,7 @@ from drivebench.device.profiles.catalog import Item
 from drivebench.device.profiles.loader import LoadedFile
 from drivebench.device.profiles.profile import Value
 from drivebench.errors import DriveBenchError, ProfileError
+from drivebench.services.profiles.edit import is_editable
 from drivebench.services.profiles.loading import progress_line
 from drivebench.services.profiles.store import UploadTooLarge, delete_upload
 from drivebench.services.profiles.views import EntryKind, entry_page, load_errors, summary, upload_error, warning_out
@@ -152,14 +153,14 @@ async def delete(request: Request, state: StateDep, profile_id: str,
     return _list_block(request, state, deleted=profile_id)
 
 
-def _entries_context(loaded: LoadedFile, q: str, kind: EntryKind, offset: int) -> dict[str, Any]:
+def _entries_context(loaded: LoadedFile, q: str, kind: EntryKind, offset: int, editable: bool) -> dict[str, Any]:
     profile = loaded.profile
     page = entry_page(profile, q, kind, offset, PAGE_SIZE, loaded)
     shown = page.offset + len(page.items)
     query = {k: v for k, v in (("q", q), ("kind", kind)) if v and v != "all"}
     more_url = f"/profiles/{profile.id}/entries?" + urlencode({**query, "offset": shown})
     return {"profile": profile, "page": page, "rows": page.items, "more_url": more_url,
-            "remaining": page.total - shown, "page_size": PAGE_SIZE, "show": Show}
+            "remaining": page.total - shown, "page_size": PAGE_SIZE, "show": Show, "editable": editable}
 
 
 @router.get("/profiles/{profile_id}", response_class=HTMLResponse)
@@ -170,7 +171,7 @@ async def profile_page(request: Request, state: StateDep, profile_id: str, q: st
     context = {"active": "profiles", "summary": summary(profile, state.registry),
                "counts": {"parameters": len(profile.parameters), "objects": len(profile.objects)},
                "import_warnings": [warning_out(w) for w in loaded.warnings],
-               **_entries_context(loaded, q, kind, 0)}
+               **_entries_context(loaded, q, kind, 0, is_editable(state.registry, profile_id))}
     return templates.TemplateResponse(request, "profiles.html", {**context, "detail": True})
 
 
@@ -180,7 +181,7 @@ async def entries(request: Request, state: StateDep, profile_id: str, q: str = "
     """The entries table for a search (offset 0), or the next rows for 'show more'."""
     loaded = state.registry.loaded(profile_id)
     profile = loaded.profile
-    context = _entries_context(loaded, q, kind, offset)
+    context = _entries_context(loaded, q, kind, offset, is_editable(state.registry, profile_id))
     response = templates.TemplateResponse(request, "profiles.html", context,
                                           block_name="entries" if offset == 0 else "entry_rows")
     if offset == 0:
