@@ -138,8 +138,24 @@
                            ...got.data.failed.map((text) => el("p", { className: "error" }, text)));
   }
 
+  // The "New line" wizard: a run of the chosen project on the chosen session, kept by the server (its page resumes it)
+  async function commission() {
+    const target = $("line-commission-result");
+    const id = selected();
+    const session = $("line-session").value;
+    if (!id || !session) {
+      target.replaceChildren(db.errorBox(_("Choose a project and a session first."), ""));
+      return;
+    }
+    const got = await answer(await fetch(db.url(`/api/sessions/${encodeURIComponent(session)}/line-wizard`), {
+      method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify({ project_id: Number(id) }) }));
+    if (got.status !== 201) { failed(target, got); return; }
+    window.location.assign(db.url(`/sessions/${encodeURIComponent(session)}/line-wizard/${got.data.id}`));
+  }
+
   $("line-import").addEventListener("submit", openFile);
   $("line-project").addEventListener("change", showExports);
   $("line-check").addEventListener("click", bootCheck);
+  $("line-commission").addEventListener("click", commission);
   showExports();
 })();

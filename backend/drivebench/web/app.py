@@ -43,6 +43,7 @@ from drivebench.web.gate import RequestGate
 from drivebench.web.metrics import Metrics, RequestMetrics
 from drivebench.web.pages import accounts as accounts_page
 from drivebench.web.pages import line_projects as line_projects_page
+from drivebench.web.pages import line_wizard as line_wizard_page
 from drivebench.web.pages import lss as lss_page
 from drivebench.web.pages import monitor as monitor_page
 from drivebench.web.pages import node as node_page
@@ -83,7 +84,8 @@ API_ROUTERS = [health.router, parameters.router, monitor_api.router, sessions.ro
 PAGE_ROUTERS = [language.router, node_diagnostics.router, node_pdo_page.router, monitor_page.router, plant_page.router,
                 node_control.router, node_page.router, node_factory_page.router, profiles_page.router,
                 remote_page.router, tools_page.router, sets_audit_page.router, parameter_sets_page.router,
-                accounts_page.router, line_projects_page.router, lss_page.router, scope_page.router]
+                accounts_page.router, line_projects_page.router, lss_page.router, scope_page.router,
+                line_wizard_page.router]
 WS_ROUTERS = [monitor_ws.router, nodes_ws.router, jobs_ws.router, remote_ws.router, process_data_ws.router,
               drive_control_ws.router, scope_ws.router]
 
