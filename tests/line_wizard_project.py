@@ -5,7 +5,10 @@ so only their serials tell them apart), a parameter set per node and, for the se
 
 from __future__ import annotations
 
+import json
+import sys
 import zlib
+from pathlib import Path
 from typing import Any
 
 from drivebench.device.profiles.loader import ProfileRegistry
@@ -39,3 +42,17 @@ def new_line_project(registry: ProfileRegistry) -> dict[str, Any]:
                       "parameter_set": {"name": f"{planned['name']} set", "values": planned["values"]},
                       "firmware_version": planned.get("firmware")})
     return {"schema_version": 1, "name": "New line", "nodes": nodes}
+
+
+def write_example(folder: Path) -> list[Path]:
+    """The project file and the axis's firmware, for trying the wizard by hand (README "New line")."""
+    folder.mkdir(parents=True, exist_ok=True)
+    project, firmware = folder / "new-line-project.json", folder / "axis.bin"
+    project.write_text(json.dumps(new_line_project(ProfileRegistry()), indent=2) + "\n", encoding="utf-8")
+    firmware.write_bytes(AXIS_FIRMWARE)
+    return [project, firmware]
+
+
+if __name__ == "__main__":  # python -m tests.line_wizard_project <folder>
+    for written in write_example(Path(sys.argv[1] if len(sys.argv) > 1 else ".")):
+        print(written)

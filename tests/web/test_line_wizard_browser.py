@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
+import subprocess
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -37,7 +39,17 @@ def _shot(page: Any, selector: str, name: str) -> None:
     """The step's card only (small pictures for the README)."""
     folder = Path(os.environ.get("DRIVEBENCH_SCREENSHOTS") or ARTIFACTS)
     folder.mkdir(parents=True, exist_ok=True)
-    page.locator(selector).screenshot(path=str(folder / f"new-line-{name}.png"))
+    path = folder / f"new-line-{name}.png"
+    card = page.locator(selector)
+    size = page.viewport_size
+    height = card.bounding_box()["height"]
+    if height + 120 > size["height"]:  # taller than the window: the sticky navigation would cover its top
+        page.set_viewport_size({"width": size["width"], "height": int(height) + 200})
+    card.screenshot(path=str(path))
+    page.set_viewport_size(size)
+    optipng = shutil.which("optipng")
+    if os.environ.get("DRIVEBENCH_SCREENSHOTS") and optipng:  # the README's copies, losslessly smaller
+        subprocess.run([optipng, "-quiet", "-o2", str(path)], check=True)
 
 
 def _confirm(page: Any) -> str:
