@@ -152,3 +152,38 @@ def test_a_run_resumes_after_the_server_restarted_on_the_same_database(app_db_ur
         assert run["steps"]["assign"]["runs"] == 2
         nodes = [node["node_id"] for node in second.get("/api/sessions/new-line/nodes").json()]
         assert nodes == [20, 23]
+
+
+def test_confirmed_values_that_no_longer_hold_are_asked_again(line_api: TestClient, registry: ProfileRegistry) -> None:
+    run_id = line_api.post(WIZARD, json={"project_id": open_project(line_api, registry)}).json()["id"]
+    step(line_api, run_id, "scan")
+    line_api.put(f"{WIZARD}/{run_id}/assignments", json={"22": "0x00000BBB"})
+    asked = line_api.post(f"{WIZARD}/{run_id}/steps/assign", json={}).json()
+    line_api.put(f"{WIZARD}/{run_id}/assignments", json={"22": "0x00000FA4"})  # changed after the question
+    again = line_api.post(f"{WIZARD}/{run_id}/steps/assign",
+                          json={"confirm": asked["confirm_node"], "confirm_values": asked["confirm_values"]})
+    assert again.status_code == 428
+    assert "changed since they were confirmed" in again.json()["detail"]
+    assert again.json()["confirm_values"]["nodes"] == ["serial 0x00000FA4 -> node 22, 500000 bit/s"]
+    assert [node["node_id"] for node in line_api.get("/api/sessions/new-line/nodes").json()] == []
+
+
+def test_a_set_value_that_can_move_a_drive_is_asked_for_naming_its_node(app_db_url: str,
+                                                                         registry: ProfileRegistry) -> None:
+    document = new_line_project(registry)
+    document["nodes"][3]["parameter_set"]["values"]["0x6060"] = 3  # modes of operation: profile velocity
+    with TestClient(new_line_app(fresh_channel())) as api:
+        opened = api.post("/api/line-projects/import?filename=moving.json", content=json.dumps(document).encode())
+        assert opened.status_code == 201, opened.text
+        run_id = api.post(WIZARD, json={"project_id": opened.json()["id"]}).json()["id"]
+        for name in ("scan", "assign"):
+            step(api, run_id, name)
+        asked = api.post(f"{WIZARD}/{run_id}/steps/sets", json={})
+        assert asked.status_code == 428, asked.text
+        assert asked.json()["confirm_node"] == "all"
+        assert [key for key in asked.json()["confirm_values"] if key.startswith("node 23: 0x6060")]
+        assert api.get(f"{WIZARD}/{run_id}").json()["steps"]["sets"]["state"] == "pending"
+        assert api.get("/api/sessions/new-line/nodes/23/parameters/0x6083").json()["raw"] != 5000  # nothing sent
+        run = step(api, run_id, "sets")
+        assert run["steps"]["sets"]["state"] == "done", run["steps"]["sets"]["lines"]
+        assert api.get("/api/sessions/new-line/nodes/23/parameters/0x6060").json()["raw"] == 3
