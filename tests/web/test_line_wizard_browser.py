@@ -136,3 +136,11 @@ def test_chromium_commissions_the_new_line_with_the_wizard(line_server: str, pag
                                                          timeout=WAIT_MS)
     expect(page.locator("#report-sets")).to_contain_text("done")
     _shot(page, "#wizard-report", "7-report")
+
+    page.goto(f"{line_server}/line-projects")  # the run is found again from the Line project page
+    page.locator("#line-session").select_option("new-line")
+    resume = page.locator("#line-runs a").first
+    expect(resume).to_contain_text("New line, 6 of 6 steps done", timeout=WAIT_MS)
+    resume.click()
+    expect(page.locator("#wizard-verdict")).to_have_text("every step done", timeout=WAIT_MS)
+    assert page.url == run_url
