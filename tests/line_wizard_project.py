@@ -39,7 +39,7 @@ def new_line_project(registry: ProfileRegistry) -> dict[str, Any]:
             identity["serial"] = f"0x{planned['serial']:08X}"
         nodes.append({"node_id": planned["node_id"], "name": planned["name"], "device": planned["profile"],
                       "baud_kbit": 500, "identity": identity, "profile": {"id": planned["profile"], "sha256": ""},
-                      "parameter_set": {"name": f"{planned['name']} set", "values": planned["values"]},
+                      "parameter_set": {"name": f"{planned['name']} set", "values": dict(planned["values"])},
                       "firmware_version": planned.get("firmware")})
     return {"schema_version": 1, "name": "New line", "nodes": nodes}
 

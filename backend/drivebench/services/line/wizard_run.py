@@ -12,7 +12,7 @@ from typing import Literal
 from pydantic import BaseModel, Field
 from sqlalchemy import select
 
-from drivebench.errors import NotFound
+from drivebench.errors import Conflict, NotFound
 from drivebench.i18n import N_, _
 from drivebench.protocol.canopen.lss import LssAddress
 from drivebench.services.storage.database import transaction
@@ -149,12 +149,23 @@ class WizardStore:
             return _of(row)
 
 
-def mark_running(run_id: int, step: str) -> bool:
-    """False when the step already runs in this process."""
-    if (run_id, step) in _running:
-        return False
+def running_step(run_id: int) -> str | None:
+    """The step of this run that runs in this process now."""
+    return next((step for running_id, step in _running if running_id == run_id), None)
+
+
+def refuse_while_running(run_id: int) -> None:
+    """One change at a time: a step saves the whole run when it ends."""
+    running = running_step(run_id)
+    if running is not None:
+        raise Conflict(_("Step '{step}' of this run is running: wait until it has ended.").format(
+            step=_(STEP_TITLES[running])))
+
+
+def mark_running(run_id: int, step: str) -> None:
+    """``step`` runs now (:func:`refuse_while_running` first)."""
+    refuse_while_running(run_id)
     _running.add((run_id, step))
-    return True
 
 
 def mark_stopped(run_id: int, step: str) -> None:

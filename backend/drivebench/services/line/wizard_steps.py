@@ -7,6 +7,7 @@ step writes its result in words to the run (:mod:`wizard_run`); a step can be ru
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
@@ -341,25 +342,25 @@ async def run_step(call: StepCall, name: str, store_: WizardStore) -> WizardRun:
     run = call.run
     if name not in STEP_FUNCTIONS:
         raise NotFound(_("The wizard has no step '{step}'.").format(step=name))
-    if not mark_running(run.id, name):
-        raise Conflict(_("This step is running already."))
-    before = run.step(name).model_copy(deep=True)
-    step = run.step(name)
+    mark_running(run.id, name)
     try:
+        run = await asyncio.to_thread(store_.get, run.id)  # as it is now, not as the request found it
+        before = run.step(name).model_copy(deep=True)
+        step = run.step(name)
         step.state, step.lines, step.runs = "running", [], step.runs + 1
-        call.run = run = store_.save(run)
+        call.run = run = await asyncio.to_thread(store_.save, run)
         call.lines = run.step(name).lines
         try:
             ok = await STEP_FUNCTIONS[name](call)
         except DriveBenchError as exc:
             if isinstance(exc, ConfirmationRequired) or (not call.lines and isinstance(exc, NOTHING_DONE)):
                 run.steps[name] = before
-                store_.save(run)
+                await asyncio.to_thread(store_.save, run)
                 raise
             call.say(str(exc.detail))
             ok = False
         done = run.step(name)
         done.state, done.finished = ("done" if ok else "failed"), datetime.now(UTC)
+        return await asyncio.to_thread(store_.save, run)
     finally:
         mark_stopped(run.id, name)
-    return store_.save(run)
