@@ -138,8 +138,43 @@
                            ...got.data.failed.map((text) => el("p", { className: "error" }, text)));
   }
 
+  // The "New line" wizard: a run of the chosen project on the chosen session, kept by the server (its page resumes it)
+  async function commission() {
+    const target = $("line-commission-result");
+    const id = selected();
+    const session = $("line-session").value;
+    if (!id || !session) {
+      target.replaceChildren(db.errorBox(_("Choose a project and a session first."), ""));
+      return;
+    }
+    const got = await answer(await fetch(db.url(`/api/sessions/${encodeURIComponent(session)}/line-wizard`), {
+      method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify({ project_id: Number(id) }) }));
+    if (got.status !== 201) { failed(target, got); return; }
+    window.location.assign(db.url(`/sessions/${encodeURIComponent(session)}/line-wizard/${got.data.id}`));
+  }
+
+  // The session's earlier runs, to resume one (the server keeps them; newest first)
+  async function listRuns() {
+    const target = $("line-runs");
+    const session = $("line-session").value;
+    if (!session) { target.replaceChildren(); return; }
+    const got = await answer(await fetch(db.url(`/api/sessions/${encodeURIComponent(session)}/line-wizard`)));
+    if (got.status !== 200) { target.replaceChildren(); return; }
+    target.replaceChildren(...got.data.slice(0, 10).map((run) => {
+      const steps = Object.values(run.steps);
+      const done = steps.filter((step) => step.state === "done").length;
+      const link = el("a", {}, _("Run {run}: {project}, {done} of {count} steps done",
+                                 { run: run.id, project: run.project_name, done, count: steps.length }));
+      link.href = db.url(`/sessions/${encodeURIComponent(session)}/line-wizard/${run.id}`);
+      return el("li", {}, link);
+    }));
+  }
+
   $("line-import").addEventListener("submit", openFile);
   $("line-project").addEventListener("change", showExports);
+  $("line-session").addEventListener("change", listRuns);
   $("line-check").addEventListener("click", bootCheck);
+  $("line-commission").addEventListener("click", commission);
   showExports();
+  listRuns();
 })();

@@ -33,6 +33,7 @@ from drivebench.web.api import accounts as accounts_api
 from drivebench.web.api import diagnostics, health, parameter_sets, parameters, pdo, profiles, sessions, tools
 from drivebench.web.api import drive_control as drive_control_api
 from drivebench.web.api import line_projects as line_projects_api
+from drivebench.web.api import line_wizard as line_wizard_api
 from drivebench.web.api import lss as lss_api
 from drivebench.web.api import monitor as monitor_api
 from drivebench.web.api import program as program_api
@@ -42,6 +43,7 @@ from drivebench.web.gate import RequestGate
 from drivebench.web.metrics import Metrics, RequestMetrics
 from drivebench.web.pages import accounts as accounts_page
 from drivebench.web.pages import line_projects as line_projects_page
+from drivebench.web.pages import line_wizard as line_wizard_page
 from drivebench.web.pages import lss as lss_page
 from drivebench.web.pages import monitor as monitor_page
 from drivebench.web.pages import node as node_page
@@ -77,11 +79,13 @@ at the first answer, as before; a folder of hundreds loads on after the server l
 API_ROUTERS = [health.router, parameters.router, monitor_api.router, sessions.router, profiles.router,
                diagnostics.router, tools.router, tools.planned_router, pdo.router, parameter_sets.router,
                drive_control_api.router, accounts_api.router, simulator_api.router, metrics_api.router,
-               line_projects_api.router, lss_api.router, scope_api.router, program_api.router]
+               line_projects_api.router, lss_api.router, scope_api.router, program_api.router,
+               line_wizard_api.router]
 PAGE_ROUTERS = [language.router, node_diagnostics.router, node_pdo_page.router, monitor_page.router, plant_page.router,
                 node_control.router, node_page.router, node_factory_page.router, profiles_page.router,
                 remote_page.router, tools_page.router, sets_audit_page.router, parameter_sets_page.router,
-                accounts_page.router, line_projects_page.router, lss_page.router, scope_page.router]
+                accounts_page.router, line_projects_page.router, lss_page.router, scope_page.router,
+                line_wizard_page.router]
 WS_ROUTERS = [monitor_ws.router, nodes_ws.router, jobs_ws.router, remote_ws.router, process_data_ws.router,
               drive_control_ws.router, scope_ws.router]
 

@@ -185,6 +185,40 @@ async def assign(session: Session, ctx: WriteContext, address: LssAddress, node_
     return steps
 
 
+# --- store the configuration of a device again ------------------------------------------------------------------
+def store_values(address: LssAddress) -> dict[str, object]:
+    return {"LSS": "store configuration", **address.hex(), "then": SWITCH_GLOBAL_WAITING}
+
+
+async def store_configuration(session: Session, ctx: WriteContext, address: LssAddress) -> list[Step]:
+    """Select the device by its address, store its node ID and bit timing (CiA 305 store configuration), switch all
+    back to waiting. A device that keeps its node ID is not reset: it keeps running with it."""
+    await admit_global(session, _("LSS store configuration (ends with switch state global)"), store_values(address),
+                       ctx)
+    line = line_of(session)
+    serial = f"0x{address.serial:08X}"
+    steps: list[Step] = []
+    async with line.lock:
+        master = line.master
+        selected = False
+        try:
+            await asyncio.to_thread(master.switch_selective, address)
+            selected = True
+            had = await asyncio.to_thread(master.inquire_node_id)
+            steps.append(Step("select", True, _("device with serial {serial} selected (its node ID: {had})").format(
+                serial=serial, had=_("none") if had == 0xFF else had)))
+            await asyncio.to_thread(master.store_configuration)
+            steps.append(Step("store", True, _("configuration stored in the device")))
+        except DriveBenchError as exc:
+            await _audit(session, ctx, 0, "store configuration", serial, str(exc.detail))
+            raise LssStepFailed(exc.detail, steps) from exc
+        finally:
+            if selected:
+                await asyncio.to_thread(master.switch_global, False)
+    await _audit(session, ctx, had if 1 <= had <= 127 else 0, "store configuration", serial)
+    return steps
+
+
 # --- the global steps ---------------------------------------------------------------------------------------------
 async def switch_global(session: Session, ctx: WriteContext, configuration: bool) -> None:
     state = "configuration" if configuration else "waiting"

@@ -338,6 +338,32 @@ def start_rollback(session: Session, jobs: JobManager, store: ParameterSetStore,
                   set_version=previous.set_version, confirm=confirm, held=held)
 
 
+def _moving(profile: Profile, items: dict[str, Item], order: list[str], targets: Values, held: Values | None
+            ) -> tuple[list[str], dict[str, Any]]:
+    """The refs of ``targets`` that can move the drive and differ from what the node holds (``held``), and the
+    values their confirmation names."""
+    moving = [ref for ref in order if ref in items and isinstance(targets[ref], (int, float))
+              and moves(items[ref], targets[ref], profile) is not None
+              and not (held is not None and ref in held and same_raw(held[ref], targets[ref]))]
+    values = {key: value for ref in moving
+              for key, value in writes.sent_value(items[ref], engineering(items[ref], targets[ref])).items()}
+    return moving, values
+
+
+async def download_moving_values(session: Session, node_id: int, stored: StoredSet, *, ctx: WriteContext
+                                 ) -> tuple[Values, dict[str, Any]]:
+    """(``held``, the values a download of ``stored`` to the node would ask to confirm; empty: nothing that can move
+    the drive), read now as the download route reads them: a caller that confirms several downloads at once names
+    these and starts each with its ``held``."""
+    targets = download_targets(session, node_id, stored)
+    held = await held_moving(session, node_id, targets, ctx=ctx)
+    profile = _profile(session.node(node_id))
+    catalog = catalog_for(profile)
+    order = download_order(profile, list(targets))
+    items = {ref: item for ref in order if (item := _resolve(catalog, ref)) is not None}
+    return held, _moving(profile, items, order, targets, held)[1]
+
+
 def _start(session: Session, node: SessionNode, jobs: JobManager, store: ParameterSetStore, targets: Values,
            ctx: WriteContext, *,
            kind: str, title: str, save: bool, user: str | None, set_id: int | None,
@@ -349,13 +375,9 @@ def _start(session: Session, node: SessionNode, jobs: JobManager, store: Paramet
     readable = [items[ref] for ref in order if ref in items and items[ref].entry.access.readable]
     who = user or ctx.user
     ctx = ctx.confirming(confirm)  # the job's own writes carry it
-    moving = [ref for ref in order if ref in items and isinstance(targets[ref], (int, float))
-              and moves(items[ref], targets[ref], profile) is not None
-              and not (held is not None and ref in held and same_raw(held[ref], targets[ref]))]
+    moving, values = _moving(profile, items, order, targets, held)
     if moving:  # asked before anything is read or written; each such write arms the guard as it goes out
         refs = ", ".join(moving[:4]) + (" ..." if len(moving) > 4 else "")
-        values = {key: value for ref in moving
-                  for key, value in writes.sent_value(items[ref], engineering(items[ref], targets[ref])).items()}
         ctx = drive_guard.confirm_moving(session, node.node_id, _(WHAT_WRITES[kind]).format(refs=refs), values,
                                          ctx)[1]
 

@@ -49,6 +49,23 @@ class LineProjectRow(Base):
                                               onupdate=utcnow)
     body: Mapped[dict[str, Any]] = mapped_column(JSON, nullable=False)
 
+class LineWizardRow(Base):
+    """A run of the "New line" wizard (migration 0012_line_wizard): the session and line project it commissions,
+    ``body`` its steps' state and results, the devices found and the node each was given
+    (``services.line.wizard_run.WizardRun``), so a run resumes after a reload or a server restart."""
+
+    __tablename__ = "line_wizard_run"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
+    session_id: Mapped[str] = mapped_column(String(120), nullable=False, index=True)
+    project_id: Mapped[int | None] = mapped_column(ForeignKey("line_project.id", ondelete="SET NULL"), nullable=True)
+    created_by: Mapped[str] = mapped_column(String(120), nullable=False)
+    created: Mapped[datetime] = mapped_column(DateTime(timezone=True), nullable=False, default=utcnow)
+    updated: Mapped[datetime] = mapped_column(DateTime(timezone=True), nullable=False, default=utcnow,
+                                              onupdate=utcnow)
+    body: Mapped[dict[str, Any]] = mapped_column(JSON, nullable=False)
+
+
 # --- parameter sets, downloads, audit log (migration 0002_parameter_sets) -----------------------------------
 class ParameterSetRow(Base):
     """A stored parameter set: what it is for (profile id + version), where it came from, who made it.
