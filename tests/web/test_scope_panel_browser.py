@@ -17,7 +17,7 @@ from drivebench.config import settings
 from drivebench.services.storage import database
 from drivebench.simulator.plant import Plant
 from drivebench.web.app import create_app
-from tests.conftest import DEMO_PLANT, fresh_channel, screenshot, serve_app
+from tests.conftest import DEMO_PLANT, fresh_channel, screenshot, serve_app, wait_until
 
 SERVO = 7
 WAIT_MS = 90_000
@@ -91,3 +91,37 @@ def test_the_control_tab_records_its_node_small_and_opens_the_run_on_the_scope_p
     page.wait_for_function(f"() => window.scopeChart && window.scopeChart.data[0].length === {count}",
                            timeout=WAIT_MS)
     assert "7" in page.text_content("#plot-what")
+
+
+def test_a_share_link_opens_the_scope_page_read_only_in_a_browser(browser: Any,
+                                                                  panel_server: tuple[str, Plant]) -> None:
+    """Issue 31 item 4: the link holder's Scope page lists the stored recordings with Open and the exports but no
+    Delete, has no picker and no Start, draws an opened recording, and the page's script runs without an error."""
+    base, _plant = panel_server
+    with httpx.Client(base_url=f"{base}/api", timeout=30) as http:
+        body = {"channels": [{"node": 5, "ref": "C00868/2"}], "period_ms": 50, "length_samples": 10,
+                "trigger": {"mode": "free"}, "name": "for the link"}  # polled: nothing to confirm
+        assert http.post("/sessions/demo-plant/scope/run", json=body).status_code == 201
+        assert wait_until(lambda: http.get("/sessions/demo-plant/scope/run").json()["captures"] >= 1, 60)
+        stopped = http.post("/sessions/demo-plant/scope/run/stop").json()
+        assert stopped["recording_id"], stopped
+        token = http.post("/share-links", json={"ttl_minutes": 5, "shows": ["scope"]}).json()["token"]
+    context = browser.new_context(viewport={"width": 1024, "height": 900})
+    page = context.new_page()
+    errors: list[str] = []
+    page.on("pageerror", lambda error: errors.append(str(error)))
+    try:
+        page.goto(f"{base}/remote/{token}")
+        page.click(".remote-scope a")
+        page.wait_for_url("**/scope/demo-plant", timeout=WAIT_MS)
+        row = page.locator("#scope-recordings tbody tr", has_text="for the link")
+        row.wait_for(timeout=WAIT_MS)
+        assert row.locator("button", has_text="Open").count() == 1 and row.locator("a", has_text="CSV").count() == 1
+        assert row.locator(".delete-recording").count() == 0 and page.locator("#scope-start").count() == 0
+        row.locator("button", has_text="Open").click()
+        page.wait_for_function("() => window.scopeChart && window.scopeChart.data[0].length >= 10", timeout=WAIT_MS)
+        assert "for the link" in page.text_content("#plot-what")
+        screenshot(page, "scope-share-link-read-only")
+    finally:
+        context.close()
+    assert errors == [], errors
