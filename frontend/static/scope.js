@@ -9,6 +9,7 @@
   const el = drivebench.el;
   const $ = (id) => document.getElementById(id);
   const session = root.dataset.session;
+  const readOnly = root.dataset.readOnly === "1";  // a share link: watch and open, never start, stop or delete
   const maxChannels = Number(root.dataset.maxChannels);
   const api = drivebench.url(`/api/sessions/${encodeURIComponent(session)}/scope`);
   const form = $("scope-form");
@@ -88,62 +89,64 @@
     select.replaceChildren(...chosen.map((c, i) => el("option", { value: String(i) }, `${i + 1}: ${c.node}: ${c.ref}`)));
     if (before && Number(before) < chosen.length) select.value = before;
   }
-  $("channel-node").addEventListener("change", offer);
-  $("channel-search").addEventListener("input", () => { clearTimeout(searchTimer); searchTimer = setTimeout(offer, 200); });
+  if (!readOnly) {
+    $("channel-node").addEventListener("change", offer);
+    $("channel-search").addEventListener("input", () => { clearTimeout(searchTimer); searchTimer = setTimeout(offer, 200); });
 
-  function showTriggerFields() {
-    const on = form.elements.on.value;
-    for (const node of form.querySelectorAll(".for-level")) node.hidden = on !== "level";
-    for (const node of form.querySelectorAll(".for-event")) node.hidden = on === "level";
-  }
-  form.elements.on.addEventListener("change", showTriggerFields);
-  showTriggerFields();
+    function showTriggerFields() {
+      const on = form.elements.on.value;
+      for (const node of form.querySelectorAll(".for-level")) node.hidden = on !== "level";
+      for (const node of form.querySelectorAll(".for-event")) node.hidden = on === "level";
+    }
+    form.elements.on.addEventListener("change", showTriggerFields);
+    showTriggerFields();
 
-  // --- start / stop -------------------------------------------------------------------------------------------
-  function body(mode) {
-    const f = form.elements;
-    const length = Number(f.length_value.value);
-    return {
-      channels: chosen.map((c) => ({ node: c.node, ref: c.ref, bit: c.bit })),
-      period_ms: Number(f.period_ms.value),
-      ...(f.length_unit.value === "s" ? { length_s: length } : { length_samples: Math.round(length) }),
-      name: f.name.value,
-      trigger: { mode, on: f.on.value, channel: Number(f.channel.value || 0), edge: f.edge.value,
-                 level: Number(f.level.value || 0), pre_percent: Number(f.pre_percent.value || 0),
-                 node: f.trigger_node.value ? Number(f.trigger_node.value) : null },
-    };
-  }
-  async function start(mode) {
-    const sent = body(mode);
-    let answer = await fetchStart(sent);
-    if (answer && answer.status === 428) {  // a source that moves something asks first (polling never does)
-      const problem = await answer.json();
-      if (!window.confirm(`${problem.detail}\n\n${JSON.stringify(problem.confirm_values)}`)) return;
-      answer = await fetchStart({ ...sent, confirm: problem.confirm_node, confirm_values: problem.confirm_values });
+    // --- start / stop -------------------------------------------------------------------------------------------
+    function body(mode) {
+      const f = form.elements;
+      const length = Number(f.length_value.value);
+      return {
+        channels: chosen.map((c) => ({ node: c.node, ref: c.ref, bit: c.bit })),
+        period_ms: Number(f.period_ms.value),
+        ...(f.length_unit.value === "s" ? { length_s: length } : { length_samples: Math.round(length) }),
+        name: f.name.value,
+        trigger: { mode, on: f.on.value, channel: Number(f.channel.value || 0), edge: f.edge.value,
+                   level: Number(f.level.value || 0), pre_percent: Number(f.pre_percent.value || 0),
+                   node: f.trigger_node.value ? Number(f.trigger_node.value) : null },
+      };
     }
-    if (!answer) return;
-    if (!answer.ok) {
-      let problem = null;
-      try { problem = await answer.json(); } catch (e) { /* not JSON */ }
-      $("scope-result").replaceChildren(drivebench.problemBox(problem, answer.status));
-      return;
+    async function start(mode) {
+      const sent = body(mode);
+      let answer = await fetchStart(sent);
+      if (answer && answer.status === 428) {  // a source that moves something asks first (polling never does)
+        const problem = await answer.json();
+        if (!window.confirm(`${problem.detail}\n\n${JSON.stringify(problem.confirm_values)}`)) return;
+        answer = await fetchStart({ ...sent, confirm: problem.confirm_node, confirm_values: problem.confirm_values });
+      }
+      if (!answer) return;
+      if (!answer.ok) {
+        let problem = null;
+        try { problem = await answer.json(); } catch (e) { /* not JSON */ }
+        $("scope-result").replaceChildren(drivebench.problemBox(problem, answer.status));
+        return;
+      }
+      $("scope-result").replaceChildren();
+      live = { channels: [], rows: [], markers: [] };
+      shown = null;
     }
-    $("scope-result").replaceChildren();
-    live = { channels: [], rows: [], markers: [] };
-    shown = null;
-  }
-  async function fetchStart(sent) {
-    try {
-      return await fetch(`${api}/run`, { method: "POST", headers: { "Content-Type": "application/json" },
-                                        body: JSON.stringify(sent) });
-    } catch (e) {
-      $("scope-result").replaceChildren(drivebench.errorBox(_("No answer from the DriveBench server."), _("Is it still running?")));
-      return null;
+    async function fetchStart(sent) {
+      try {
+        return await fetch(`${api}/run`, { method: "POST", headers: { "Content-Type": "application/json" },
+                                          body: JSON.stringify(sent) });
+      } catch (e) {
+        $("scope-result").replaceChildren(drivebench.errorBox(_("No answer from the DriveBench server."), _("Is it still running?")));
+        return null;
+      }
     }
+    form.addEventListener("submit", (event) => { event.preventDefault(); start(form.elements.mode.value); });
+    $("scope-single").addEventListener("click", () => start("single"));
+    $("scope-stop").addEventListener("click", () => call("POST", `${api}/run/stop`, null, "scope-result"));
   }
-  form.addEventListener("submit", (event) => { event.preventDefault(); start(form.elements.mode.value); });
-  $("scope-single").addEventListener("click", () => start("single"));
-  $("scope-stop").addEventListener("click", () => call("POST", `${api}/run/stop`, null, "scope-result"));
 
   // --- plot ---------------------------------------------------------------------------------------------------
   const chartBox = $("scope-chart");
@@ -338,14 +341,16 @@
         el("button", { type: "button", className: "small secondary", onclick: () => overlay(r.id),
                        title: _("Show over the open recording (before/after)") }, _("Overlay")),
         ...EXPORTS.map((format) => exportLink(r.id, format)),
-        el("button", { type: "button", className: "small secondary delete-recording", onclick: () => remove(r.id) },
-           _("Delete"))))));
+        readOnly ? "" : el("button", { type: "button", className: "small secondary delete-recording",
+                                       onclick: () => remove(r.id) }, _("Delete"))))));
   }
 
   // --- live ---------------------------------------------------------------------------------------------------
   const STATES = { armed: _("armed, waiting for the trigger"), recording: _("recording"), done: _("done"),
                    stopped: _("stopped"), failed: _("failed"), none: _("no recording yet") };
   let openedFor = null;
+  // ?recording=<id> (the Control tab's scope panel links a stored run): that one is opened, not the session's last
+  const asked = (/^[0-9]+$/.exec(new URLSearchParams(location.search).get("recording") || "") || [null])[0];
   function onState(message) {
     run = message;
     $("scope-state").textContent = STATES[message.state] || message.state;
@@ -367,7 +372,7 @@
     if (["done", "stopped", "failed"].includes(message.state) && message.recording_id && openedFor !== message.id) {
       openedFor = message.id;
       listStored();
-      open(message.recording_id);
+      if (!asked || live.rows.length) open(message.recording_id);  // a run watched here ends: it is shown
     }
   }
   drivebench.liveSocket(drivebench.url(`/ws/sessions/${encodeURIComponent(session)}/scope`), {
@@ -387,6 +392,7 @@
 
   const picker = $("session-picker");
   if (picker) picker.addEventListener("change", () => { location.href = drivebench.url(`/scope/${encodeURIComponent(picker.value)}`); });
-  offer();
+  if (!readOnly) offer();
   listStored();
+  if (asked) open(Number(asked));
 })();

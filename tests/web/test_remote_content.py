@@ -59,8 +59,8 @@ def test_a_link_stores_what_it_shows_and_refuses_unknown_parts(demo: tuple[TestC
     listed = {link["id"]: link["shows"] for link in client.get("/api/share-links").json()}
     assert listed[chosen["id"]] == ["faults", "bus"] and listed[default["id"]] == ["health", "faults"]
 
-    refused = client.post("/api/share-links", json={"ttl_minutes": 5, "shows": ["health", "scope"]})
-    assert refused.status_code == 422 and "cannot show scope" in refused.json()["detail"]
+    refused = client.post("/api/share-links", json={"ttl_minutes": 5, "shows": ["health", "video"]})
+    assert refused.status_code == 422 and "cannot show video" in refused.json()["detail"]
     nothing = client.post("/api/share-links", json={"ttl_minutes": 5, "shows": []})
     assert nothing.status_code == 422 and "at least one" in nothing.json()["detail"]
 

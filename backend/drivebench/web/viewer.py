@@ -5,7 +5,10 @@ A token travels as the ``drivebench_viewer`` cookie (set when a share link is op
 in ``LINK_READS`` (the remote view, network health, emergencies, the bus monitor), which never make a drive answer.
 Any other API route is refused with 403 - a parameter, the PDO set-up, a drive's actual values or counters would
 be read from the drive over the bus, which a link must never cause - as is any other HTTP method. Other pages lead
-to the remote view, and websockets are limited to its read-only stream. Requests without a token are not affected.
+to the remote view, and websockets are limited to its read-only stream. A link that shows the scope (``scope`` in
+its ``shows``) may also open the Scope page read-only, watch the session's recording over its socket and read the
+recording's state and the stored recordings (list, open, export CSV/JSON): all held by the server, no bus traffic;
+starting, stopping and deleting stay refused in words. Requests without a token are not affected.
 """
 
 from __future__ import annotations
@@ -36,6 +39,13 @@ LINK_READS = frozenset({
     _S + "/monitor", _S + "/monitor/history", _S + "/monitor/trace",
 })
 """The route templates (GET) a link may read: each answers from the consumers' and the monitor's cached state."""
+SCOPE_READS = frozenset({
+    "/scope/{session_id}", _S + "/scope/run", "/api/scope/recordings", "/api/scope/recordings/{recording_id}",
+    "/api/scope/recordings/{recording_id}/export", "/ws/sessions/{session_id}/scope",
+})
+"""What a link that shows the scope may also read: the run's state and samples as the server holds them, and what
+is stored."""
+SCOPE_WRITES = frozenset({_S + "/scope/run", _S + "/scope/run/stop", "/api/scope/recordings/{recording_id}"})
 
 
 def token_of(headers: Headers) -> str | None:
@@ -62,7 +72,7 @@ async def link_admitted(scope: Scope, receive: Receive, send: Send, links: Share
         return True
     try:
         link = await anyio.to_thread.run_sync(links.check, token)
-        readable = _allow(scope, decision)
+        readable = _allow(scope, decision, link)
     except DriveBenchError as exc:
         if scope["type"] == "websocket":
             await send({"type": "websocket.close", "code": 4403, "reason": exc.detail[:120]})
@@ -81,18 +91,23 @@ async def link_admitted(scope: Scope, receive: Receive, send: Send, links: Share
     return True
 
 
-def _allow(scope: Scope, decision: access_policy.Decision) -> bool:
+def _allow(scope: Scope, decision: access_policy.Decision, link: ShareLink) -> bool:
     """Raise for what a link may not do; False for a page it is led away from to the remote view."""
     path = route_path(scope)
+    shows_scope = "scope" in link.shows and decision.template in SCOPE_READS
     if scope["type"] == "websocket":
-        if not path.startswith(VIEWER_WEBSOCKETS):
+        if not path.startswith(VIEWER_WEBSOCKETS) and not shows_scope:
             raise AccessDenied(_("A remote diagnostics link may only watch the remote diagnostics stream."))
         return True
     if scope.get("method", "GET") not in SAFE_METHODS:
+        if decision.template in SCOPE_WRITES:
+            raise AccessDenied(_("A remote diagnostics link can watch a scope recording and open or export stored "
+                                 "ones; it cannot start, stop or delete a recording."),
+                               hint=N_("Ask the engineer on site to start or stop the recording."))
         raise AccessDenied(_("A remote diagnostics link is read-only: it cannot write parameters, send NMT "
                              "commands or PDOs, or change anything on this server."),
                            hint=N_("Ask the engineer on site to make the change."))
-    if decision.template in LINK_READS:
+    if decision.template in LINK_READS or shows_scope:
         return True
     if path.startswith("/api/"):
         raise AccessDenied(

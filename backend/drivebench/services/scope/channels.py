@@ -122,12 +122,13 @@ async def describe(session: Session, channels: list[ScopeChannel]) -> list[Chann
         node = session.node(channel.node)
         item = resolve(node, channel.ref)
         entry = item.entry
-        if not entry.access.readable or not entry.data_type.is_integer or entry.data_type.size is None:
+        if not recordable(item):
             raise InvalidValue(_("Node {node}: {ref} ({name}) is not a readable number and cannot be recorded.")
                                .format(node=channel.node, ref=channel.ref, name=entry.name))
-        if channel.bit is not None and not 0 <= channel.bit < entry.data_type.size * 8:
+        bits = (entry.data_type.size or 0) * 8
+        if channel.bit is not None and not 0 <= channel.bit < bits:
             raise InvalidValue(_("Node {node}: {ref} has bits 0 to {last}, not bit {bit}.").format(
-                node=channel.node, ref=channel.ref, last=entry.data_type.size * 8 - 1, bit=channel.bit))
+                node=channel.node, ref=channel.ref, last=bits - 1, bit=channel.bit))
         raw_per_unit, unit = None, entry.unit
         scale = _word_scales(node).get(item.ref) or _word_scales(node).get(channel.ref)
         if scale is not None and channel.bit is None:
@@ -135,6 +136,12 @@ async def describe(session: Session, channels: list[ScopeChannel]) -> list[Chann
         name = entry.name if channel.bit is None else _bit_name(item, channel.bit)
         described.append(ChannelInfo(channel, name, None if channel.bit is not None else unit, raw_per_unit, item))
     return described
+
+
+def recordable(item: Item) -> bool:
+    """A readable integer: what a recording can take (sampling by PDO or polling)."""
+    entry = item.entry
+    return bool(entry.access.readable and entry.data_type.is_integer and entry.data_type.size is not None)
 
 
 def _bit_name(item: Item, bit: int) -> str:
@@ -153,3 +160,40 @@ async def _raw_per_unit(session: Session, node: SessionNode, scale: WordScale) -
         except DriveBenchError:
             pass
     return (scale.full_scale_raw or 1) / reference if reference else None
+
+
+PANEL_CHANNELS = 4
+PDO_BITS = 64
+
+
+def panel_channels(session: Session, node_id: int, most: int = PANEL_CHANNELS) -> list[Candidate]:
+    """The channels of the Control tab's compact scope panel: the status word (its changes mark the drive's states)
+    and, in the order the profile's control section lists them, the actual values that fit beside it into one
+    TPDO's 64 bits (so the node needs one free TPDO to be sampled by PDO); at most ``most``, each one a recording
+    can take (a REAL actual value is left out). Empty for a node without a control section or CiA 402 words."""
+    node = session.node(node_id)
+    family = family_of(node.catalog)
+    if node.catalog is None or family is None:
+        return []
+    offered = {(c.index, c.subindex): c for c in candidates(session, node_id)}
+
+    def candidate(ref: str) -> Candidate | None:
+        try:
+            item = node.catalog.resolve(ref)  # type: ignore[union-attr]
+        except DriveBenchError:
+            return None
+        if not recordable(item):
+            return None
+        return offered.get((item.index, item.subindex)) or Candidate(
+            node_id, item.ref, item.name, None, item.index, item.subindex, (item.entry.data_type.size or 0) * 8)
+
+    status = candidate(family.status_ref)
+    chosen: list[Candidate] = []
+    room = PDO_BITS - (status.bits if status else 0)
+    for spec in family.section.actual_values:
+        found = candidate(spec.ref)
+        if found is None or found == status or found in chosen or found.bits > room or len(chosen) >= most - 1:
+            continue
+        chosen.append(found)
+        room -= found.bits
+    return [*chosen, *([status] if status else [])]

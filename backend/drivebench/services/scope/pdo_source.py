@@ -122,13 +122,19 @@ class PdoScopeSource:
         if not self.plan.tpdos:
             return
         self._lease()
+        written: restore_record.Written = {}
         try:
             self.record = await restore_record.capture(self.session, self.plan)
             self.record_id = await asyncio.to_thread(restore_record.save, self.record, self.db_url)
             for tpdo in self.plan.tpdos:
+                written[(tpdo.node, tpdo.number)] = False
                 await self._configure(tpdo)
+                written[(tpdo.node, tpdo.number)] = True
+        except DriveBenchError as exc:  # halfway: what this start wrote goes back now, and the refusal says so
+            exc.detail = " ".join([exc.shown_detail(), *await self._undo(written)])
+            raise
         except BaseException:
-            await self._undo()
+            await self._undo(written)
             raise
         frames_of(self.session.network).add_listener(self._tap)
         self._started = time.monotonic()
@@ -312,13 +318,15 @@ class PdoScopeSource:
             nominal=f"{self.plan.period_s * 1000:g}")]
         return texts + await self._undo()
 
-    async def _undo(self) -> list[str]:
-        """Everything back from the record; the record removed after a good read-back."""
+    async def _undo(self, written: restore_record.Written | None = None) -> list[str]:
+        """Everything back from the record; the record removed after a good read-back. ``written``: a start that
+        failed halfway, the TPDOs it began (False) or finished (True) configuring: only those go back, and without
+        the check for someone else's remapping (their mapping is this start's own half-written one)."""
         self._producer.stop()
         texts: list[str] = []
         try:
             if self.record is not None:
-                ok, texts = await restore_record.restore(self.session, self.record, self.ctx)
+                ok, texts = await restore_record.restore(self.session, self.record, self.ctx, written)
                 if ok and self.record_id is not None:
                     await asyncio.to_thread(restore_record.remove, self.record_id, self.db_url)
                     self.record_id = None

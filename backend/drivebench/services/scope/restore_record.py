@@ -33,6 +33,8 @@ SERVER = f"{socket.gethostname()}:{os.getpid()}"
 SYNC_OBJECTS = (0x1005, 0x1006)
 """COB-ID SYNC (bit 30: the node produces SYNC) and the communication cycle period."""
 AUDIT_ORIGIN = "scope"
+Written = dict[tuple[int, int], bool]
+"""(node, TPDO number) -> whether a start finished configuring it (False: it began and failed halfway)."""
 log = logging.getLogger(__name__)
 
 
@@ -130,12 +132,15 @@ def _steps(number: int, before: TpdoBefore) -> list[tuple[str, int, int, int, in
     return steps
 
 
-async def _restore_tpdo(session: Session, node: int, before: TpdoBefore, ctx: WriteContext) -> tuple[bool, str]:
+async def _restore_tpdo(session: Session, node: int, before: TpdoBefore, ctx: WriteContext,
+                        check_remap: bool = True) -> tuple[bool, str]:
+    """``check_remap``: a mapping that no longer holds what the recording wrote is someone else's and stays (False:
+    a start that failed halfway, whose own half-written mapping it is)."""
     name = f"TPDO{before.number}"
     mapping = pdo.MAP_BASE["tpdo"] + before.number - 1
-    now = [await _read(session, node, mapping, sub) for sub in range(1, len(before.wrote) + 1)]
-    count = await _read(session, node, mapping, 0)
-    if before.wrote and (count != len(before.wrote) or now != before.wrote):
+    now = [await _read(session, node, mapping, sub) for sub in range(1, len(before.wrote) + 1)] if check_remap else []
+    count = await _read(session, node, mapping, 0) if check_remap else 0
+    if check_remap and before.wrote and (count != len(before.wrote) or now != before.wrote):
         return False, _("Node {node}: {pdo} was remapped by someone else during the recording; it is left as it is "
                         "(not restored). Check it on the PDO tab.").format(node=node, pdo=name)
     steps = await pdo.run_plan(session, node, _steps(before.number, before), ctx.as_origin(AUDIT_ORIGIN))
@@ -173,17 +178,23 @@ async def _restore_sync(session: Session, before: NodeBefore, ctx: WriteContext)
     return True, None
 
 
-async def restore(session: Session, record: RestoreRecord, ctx: WriteContext) -> tuple[bool, list[str]]:
-    """Put every node of ``record`` back; whether all read back as before, and what was done, in words."""
+async def restore(session: Session, record: RestoreRecord, ctx: WriteContext,
+                  written: Written | None = None) -> tuple[bool, list[str]]:
+    """Put every node of ``record`` back; whether all read back as before, and what was done, in words.
+    ``written`` (a start that failed halfway, before any NMT start): only the TPDOs it began configuring go back,
+    with no check for someone else's remapping; None (a recording that ran, a record left over): all of them,
+    checked."""
     good, texts = True, []
     for before in record.nodes:
         try:
-            if before.started:
+            if before.started and written is None:
                 await session.nmt(NmtCommand.ENTER_PRE_OPERATIONAL, before.node)
                 texts.append(_("Node {node}: back to pre-operational, as before the recording.").format(
                     node=before.node))
             for tpdo in before.tpdos:
-                ok, text = await _restore_tpdo(session, before.node, tpdo, ctx)
+                if written is not None and (before.node, tpdo.number) not in written:
+                    continue  # this start never touched it
+                ok, text = await _restore_tpdo(session, before.node, tpdo, ctx, check_remap=written is None)
                 good, texts = good and ok, [*texts, text]
             ok, sync_text = await _restore_sync(session, before, ctx)
             good = good and ok

@@ -40,6 +40,10 @@ MIN_PERIOD_S, MAX_PERIOD_S = 0.001, 10.0
 MAX_LENGTH = 200_000
 OWNER_GRACE_S = 3.0
 """A recording that changed nodes ends this long after its owner's last page closed (a reload comes back sooner)."""
+DEFAULT_MAX_S, MAX_MAX_S = 600.0, 86_400.0
+"""How long a recording runs with no page of its owner open (``max_s`` at start; an API client's run ends by itself
+after it, a page's runs on while the page is open)."""
+ABANDON_CHECK_S = 1.0
 
 
 @dataclass
@@ -61,7 +65,7 @@ def _event(event: ScopeEvent) -> dict[str, Any]:
 
 class ScopeRun:
     def __init__(self, session: Session, infos: list[ChannelInfo], spec: TriggerSpec, source: ScopeSource,
-                 user: str, name: str) -> None:
+                 user: str, name: str, max_s: float = DEFAULT_MAX_S) -> None:
         self.id = uuid.uuid4().hex[:12]
         self.session = session
         self.infos = infos
@@ -82,13 +86,18 @@ class ScopeRun:
         self._nodes = {info.channel.node for info in infos}
         self._finishing: asyncio.Task[None] | None = None
         self._closing = False
+        self._draining = False
         self._status_words = status_words(session, infos)
         self._drive_states: dict[int, str] = {}
         self._owner_left: asyncio.Task[None] | None = None
+        self.max_s = max_s
+        self._abandoned: asyncio.Task[None] | None = None
 
     # --- what the source and the session deliver ------------------------------------------------------------------
     def on_frame(self, frame: ScopeFrame) -> None:
-        if self._closing or self.state not in ("armed", "recording"):
+        """A frame of the source; while it stops (:meth:`finish`) the frames it still delivers, up to the last SYNC
+        sent before Stop, are kept too: the recording ends where it was stopped."""
+        if self.state not in ("armed", "recording") or (self._closing and (not self._draining or self.engine.done)):
             return
         self._drive_state_markers(frame)
         sample = Sample(frame.sample, frame.time_s, tuple(
@@ -106,6 +115,8 @@ class ScopeRun:
         if capture is not None:
             self.capture = capture
             self._changed()
+            if self._closing:
+                return
             if self.engine.done:
                 self._finishing = asyncio.create_task(self.finish("done"))
             elif self.spec.mode == "normal":
@@ -139,18 +150,36 @@ class ScopeRun:
     async def start(self) -> None:
         self.started = time.monotonic()
         await self.source.start(self.on_frame, self.on_event)
+        self._abandoned = asyncio.get_running_loop().create_task(self._end_when_abandoned())
+
+    async def _end_when_abandoned(self) -> None:
+        """After ``max_s`` with no page of the owner watching (a run started over the API and left), the recording
+        ends by itself, stores what it captured and puts the nodes back; an owner's open page keeps it running."""
+        while self.state in ("armed", "recording") and not self._closing:
+            await asyncio.sleep(ABANDON_CHECK_S)
+            if time.monotonic() - self.started >= self.max_s and not self._owner_watches():
+                await self.finish("stopped", why=_(
+                    "The recording of {user} reached its maximum length of {seconds} s (max_s, set at start) with "
+                    "no page of {user} watching it: it ended by itself.").format(
+                        user=self.user or _("the owner"), seconds=f"{self.max_s:g}"))
+                return
 
     async def finish(self, state: State, error: str | None = None, why: str | None = None) -> None:
         """Stop the source (it restores what it changed) and store the capture. ``why``: the reason it ended, in
         words, shown first among what was restored."""
         if self._closing or self.state in ("done", "stopped", "failed"):
             return
-        self._closing = True  # no more samples; the state says done/stopped once the capture is stored
+        if self._abandoned is not None and self._abandoned is not asyncio.current_task():
+            self._abandoned.cancel()
+        self._closing = True  # no new captures; the state says done/stopped once the capture is stored
+        self._draining = True  # what the source delivers while it stops (the SYNCs sent before Stop) is kept
         self.error = error
         try:
             self.restored = [*([why] if why else []), *await self.source.stop()]
         except DriveBenchError as exc:
             self.error = exc.shown_detail()
+        finally:
+            self._draining = False
         capture = self.capture or self.engine.current
         if capture is not None and capture.samples:
             try:
@@ -197,7 +226,7 @@ class ScopeRun:
                 "period_s": period, "rate": round(1 / period, 1) if period else None,
                 "channels": [info.as_json() for info in self.infos], "trigger": self.trigger_json(),
                 "captures": self.engine.captures, "recording_id": self.recording_id, "restored": self.restored,
-                "error": self.error}
+                "error": self.error, "max_s": self.max_s}
 
     def watch(self, user: str | None = None) -> tuple[str, Watcher]:
         key = uuid.uuid4().hex
@@ -304,6 +333,7 @@ class StartRequest:
     period_s: float
     spec: TriggerSpec
     name: str = ""
+    max_s: float = DEFAULT_MAX_S
 
 
 async def start(session: Session, request: StartRequest, user: str, ctx: WriteContext) -> ScopeRun:
@@ -314,6 +344,9 @@ async def start(session: Session, request: StartRequest, user: str, ctx: WriteCo
     if not MIN_PERIOD_S <= request.period_s <= MAX_PERIOD_S:
         raise InvalidValue(_("The sample period is 1 ms to 10 s, not {period:g} ms.").format(
             period=request.period_s * 1000))
+    if not 0 < request.max_s <= MAX_MAX_S:
+        raise InvalidValue(_("A recording runs at most {most:g} s without its page (max_s), not {seconds:g} s.")
+                           .format(most=MAX_MAX_S, seconds=request.max_s))
     if request.spec.length > MAX_LENGTH:
         raise InvalidValue(_("A capture holds at most {most} samples, not {length}.").format(
             most=MAX_LENGTH, length=request.spec.length))
@@ -326,7 +359,7 @@ async def start(session: Session, request: StartRequest, user: str, ctx: WriteCo
             require_confirmation(ctx.confirmation, None, what, values)
     name = request.name.strip() or _("Recording of {channels}").format(
         channels=", ".join(info.channel.ref for info in infos))
-    run = ScopeRun(session, infos, request.spec, source, user, name)
+    run = ScopeRun(session, infos, request.spec, source, user, name, request.max_s)
     _listen(session)
     before = _runs.get(session)
     _runs[session] = run

@@ -25,10 +25,10 @@ from drivebench.services.storage.models import ShareLinkRow
 TOKEN_PREFIX = "dbv_"
 MAX_TTL_S = 7 * 24 * 3600
 HINT_LENGTH = 8
-SHOWS = ("health", "faults", "emcy", "parameters", "bus")
+SHOWS = ("health", "faults", "emcy", "parameters", "bus", "scope")
 """What a link can show, chosen per link: node health; each drive's present fault in words and its fault history;
 the last emergency telegrams; the diagnosis parameters as last read (with their age); bus load and the monitor's
-counters. (Stored scope recordings, once they exist, become one more name here.)"""
+counters; the oscilloscope (watch a running recording, open and export stored ones: never start, stop or delete)."""
 DEFAULT_SHOWS = ("health", "faults")
 
 

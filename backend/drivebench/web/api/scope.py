@@ -48,6 +48,10 @@ class StartBody(BaseModel):
     length_s: float | None = Field(default=None, gt=0)
     trigger: TriggerBody = Field(default_factory=TriggerBody)
     name: str = Field(default="", max_length=200)
+    max_s: float = Field(default=runs.DEFAULT_MAX_S, gt=0, le=runs.MAX_MAX_S, description=(
+        "How long the recording runs while no page of its owner watches it (the Scope page, a Control tab's scope "
+        "panel): a recording started over the API ends by itself after this, stores what it captured and puts "
+        "the nodes back; a page's recording runs on while the page is open."))
     confirm: Any = None
     confirm_values: Any = None
 
@@ -60,7 +64,7 @@ class StartBody(BaseModel):
         spec = TriggerSpec(self.trigger.mode, self.trigger.on, self.trigger.channel, self.trigger.edge,
                            self.trigger.level, self.trigger.pre_percent, length, self.trigger.node)
         channels = [ScopeChannel(c.node, c.ref, c.bit) for c in self.channels]
-        return runs.StartRequest(channels, period_s, spec, self.name)
+        return runs.StartRequest(channels, period_s, spec, self.name, self.max_s)
 
 
 @router.get(S + "/channels")
@@ -75,7 +79,8 @@ async def channels(session: SessionDep, node: Annotated[int, Query(ge=1, le=127)
 @router.post(S + "/run", status_code=201)
 async def start(session: SessionDep, body: StartBody, request: Request, ctx: WriteCtxDep) -> dict[str, Any]:
     """Start a recording (engineer). Polling moves nothing; a source that starts nodes or SYNC asks for the
-    confirmation (428 with ``confirm_node`` and ``confirm_values``)."""
+    confirmation (428 with ``confirm_node`` and ``confirm_values``). With no page of the starter watching, the
+    recording ends by itself after ``max_s`` (default 600 s) and puts the nodes back."""
     ctx = ctx.confirming(confirmation(request, body.confirm, body.confirm_values))
     run = await runs.start(session, body.request(), principal_of(request).name, ctx)
     return run.status()

@@ -18,6 +18,7 @@ from drivebench.i18n import _
 from drivebench.services.control import commissioning, drive_control, motion
 from drivebench.services.control.drive_words import Family, family_of
 from drivebench.services.monitoring import fault_words
+from drivebench.services.scope.channels import panel_channels
 from drivebench.web.access_policy import rule_for
 from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.identity import principal_of
@@ -103,4 +104,5 @@ async def control_tab(request: Request, session: SessionDep, node: NodeDep) -> R
     context["sources"] = await noted(unread, _("Actual values"), drive_control.actual_sources(session, node), None)
     if fam.generic:
         context["motion"] = await noted(unread, _("Positioning, velocity and homing"), motion.info(session, node), None)
+    context["scope_channels"] = panel_channels(session, node.node_id)
     return templates.TemplateResponse(request, "node/control_body.html", context)

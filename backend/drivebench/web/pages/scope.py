@@ -1,5 +1,6 @@
 """The Scope screen: channels from the session's nodes, trigger, the live plot of a recording, stored recordings.
-The page's script (static/scope.js) speaks the JSON API (web/api/scope.py) and the scope websocket."""
+Through a share link that shows the scope it is read-only: the live plot and the stored recordings. The page's
+script (static/scope.js) speaks the JSON API (web/api/scope.py) and the scope websocket."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ from drivebench.services.scope.channels import MAX_CHANNELS
 from drivebench.web.deps import SessionDep, StateDep
 from drivebench.web.root import under_root
 from drivebench.web.templating import templates
+from drivebench.web.viewer import viewer_of
 
 router = APIRouter(include_in_schema=False)
 
@@ -30,4 +32,6 @@ async def scope_page(request: Request, state: StateDep, session: SessionDep) -> 
     context = {"active": "scope", "session": session_public(session),
                "sessions": [session_public(s) for s in state.manager.list()], "nodes": nodes,
                "max_channels": MAX_CHANNELS, "node": int(request.query_params.get("node") or 0) or None}
+    if (link := viewer_of(request)) is not None:  # a share link: watch and open, no picker, no Start/Stop/Delete
+        context.update(viewer=link, sessions=[session_public(session)])
     return templates.TemplateResponse(request, "scope.html", context)

@@ -1,0 +1,127 @@
+"""Issue 31 item 1: the compact scope panel on a node's Control tab, in Chromium, German, 1024 px: it offers the
+simulated CiA 402 servo's (node 7) actual values that fit one TPDO beside its status word, starts a free run over
+the same run API as the Scope page (sampling by PDO: the page's confirmation dialog names the SYNC and NMT start),
+draws the live trace small, Stop stores it and puts every TPDO and SYNC setting back, and its link opens that
+recording on the Scope page. The page has no sideways scroll."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import httpx
+import pytest
+
+from drivebench.config import settings
+from drivebench.services.storage import database
+from drivebench.simulator.plant import Plant
+from drivebench.web.app import create_app
+from tests.conftest import DEMO_PLANT, fresh_channel, screenshot, serve_app, wait_until
+
+SERVO = 7
+WAIT_MS = 90_000
+PANEL = "document.getElementById('scope-panel')"
+
+
+def pdo_settings(base: str, node: int = SERVO) -> dict[str, object]:
+    """Every SYNC (0x1005, 0x1006) and TPDO setting (0x18xx, 0x1Axx) of ``node``, read through the parameters API."""
+    with httpx.Client(base_url=f"{base}/api/sessions/demo-plant/nodes/{node}", timeout=30) as http:
+        listed = http.get("/parameters").json()["parameters"]
+        refs = [p["ref"] for p in listed if int(p["index"], 16) in (0x1005, 0x1006)
+                or 0x1800 <= int(p["index"], 16) <= 0x19FF or 0x1A00 <= int(p["index"], 16) <= 0x1BFF]
+        answer = http.post("/parameters:read", json={"refs": refs})
+        assert answer.status_code == 200 and refs, answer.text
+        return {item["ref"]: item["value"]["raw"] if item["ok"] else item["error"]["detail"]
+                for item in answer.json()["items"]}
+
+
+@pytest.fixture
+def panel_server(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[tuple[str, Plant]]:
+    url = f"sqlite:///{tmp_path / 'panel.db'}"
+    monkeypatch.setattr(settings, "database_url", url)
+    app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
+    with serve_app(app) as base_url:
+        yield base_url, app.state.drivebench.plants["demo-plant"]
+    database.dispose(url)
+
+
+def test_the_control_tab_records_its_node_small_and_opens_the_run_on_the_scope_page(
+        page: Any, panel_server: tuple[str, Plant]) -> None:
+    base, _plant = panel_server
+    before = pdo_settings(base)
+    page.set_viewport_size({"width": 1024, "height": 900})
+    page.goto(f"{base}/language/de?next=/")
+    page.goto(f"{base}/sessions/demo-plant/nodes/{SERVO}?tab=control")
+    panel = page.locator("#scope-panel")
+    panel.wait_for(timeout=WAIT_MS)
+    offered = panel.locator("input[name=channel]")
+    assert 2 <= offered.count() <= 4
+    refs = [offered.nth(i).get_attribute("value") for i in range(offered.count())]
+    assert refs[-1] == "0x6041" and "0x6064" in refs, f"position, and the status word marks drive states: {refs}"
+    page.select_option("#scope-panel-form [name=period_ms]", "20")
+    page.fill("#scope-panel-form [name=length_s]", "5")
+    page.click("#scope-panel-start")
+    dialog = page.locator("#moving-confirm")
+    dialog.wait_for(state="visible", timeout=WAIT_MS)
+    assert "SYNC" in dialog.text_content(), dialog.text_content()
+    dialog.locator("button[value=ok]").click()
+    page.wait_for_function(f"() => {PANEL}.scopeChart && {PANEL}.scopeChart.data[0].length >= 10", timeout=WAIT_MS)
+    with httpx.Client(base_url=f"{base}/api/sessions/demo-plant", timeout=30) as http:
+        running = http.get("/scope/run").json()
+    assert running["state"] == "recording" and running["source"] == "pdo", running
+    assert [c["ref"] for c in running["channels"]] == refs and {c["node"] for c in running["channels"]} == {SERVO}
+    assert page.text_content("#scope-panel-state") == "zeichnet auf", "the state in German"
+    assert page.evaluate("document.documentElement.scrollWidth <= window.innerWidth"), "no sideways scroll at 1024"
+    screenshot(page, "scope-panel-de-1024")
+
+    page.click("#scope-panel-stop")
+    page.wait_for_function(f"() => {PANEL}.querySelector('#scope-panel-open').href.includes('recording=')",
+                           timeout=WAIT_MS)
+    with httpx.Client(base_url=f"{base}/api/sessions/demo-plant", timeout=30) as http:
+        stopped = http.get("/scope/run").json()
+    assert stopped["state"] == "stopped" and stopped["recording_id"], stopped
+    assert stopped["restored"], "what was put back, in words"
+    assert pdo_settings(base) == before, "every TPDO and SYNC setting is back"
+
+    page.click("#scope-panel-open")
+    page.wait_for_url(f"**/scope/demo-plant?recording={stopped['recording_id']}", timeout=WAIT_MS)
+    with httpx.Client(base_url=base, timeout=30) as http:
+        count = http.get(f"/api/scope/recordings/{stopped['recording_id']}").json()["count"]
+    page.wait_for_function(f"() => window.scopeChart && window.scopeChart.data[0].length === {count}",
+                           timeout=WAIT_MS)
+    assert "7" in page.text_content("#plot-what")
+
+
+def test_a_share_link_opens_the_scope_page_read_only_in_a_browser(browser: Any,
+                                                                  panel_server: tuple[str, Plant]) -> None:
+    """Issue 31 item 4: the link holder's Scope page lists the stored recordings with Open and the exports but no
+    Delete, has no picker and no Start, draws an opened recording, and the page's script runs without an error."""
+    base, _plant = panel_server
+    with httpx.Client(base_url=f"{base}/api", timeout=30) as http:
+        body = {"channels": [{"node": 5, "ref": "C00868/2"}], "period_ms": 50, "length_samples": 10,
+                "trigger": {"mode": "free"}, "name": "for the link"}  # polled: nothing to confirm
+        assert http.post("/sessions/demo-plant/scope/run", json=body).status_code == 201
+        assert wait_until(lambda: http.get("/sessions/demo-plant/scope/run").json()["captures"] >= 1, 60)
+        stopped = http.post("/sessions/demo-plant/scope/run/stop").json()
+        assert stopped["recording_id"], stopped
+        token = http.post("/share-links", json={"ttl_minutes": 5, "shows": ["scope"]}).json()["token"]
+    context = browser.new_context(viewport={"width": 1024, "height": 900})
+    page = context.new_page()
+    errors: list[str] = []
+    page.on("pageerror", lambda error: errors.append(str(error)))
+    try:
+        page.goto(f"{base}/remote/{token}")
+        page.click(".remote-scope a")
+        page.wait_for_url("**/scope/demo-plant", timeout=WAIT_MS)
+        row = page.locator("#scope-recordings tbody tr", has_text="for the link")
+        row.wait_for(timeout=WAIT_MS)
+        assert row.locator("button", has_text="Open").count() == 1 and row.locator("a", has_text="CSV").count() == 1
+        assert row.locator(".delete-recording").count() == 0 and page.locator("#scope-start").count() == 0
+        row.locator("button", has_text="Open").click()
+        page.wait_for_function("() => window.scopeChart && window.scopeChart.data[0].length >= 10", timeout=WAIT_MS)
+        assert "for the link" in page.text_content("#plot-what")
+        screenshot(page, "scope-share-link-read-only")
+    finally:
+        context.close()
+    assert errors == [], errors
