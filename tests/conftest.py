@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import inspect
 import itertools
 import os
 import re
@@ -57,10 +58,33 @@ BROWSER_FIXTURES = {"browser", "page", "own_page"}
 SLOW_FIXTURES = BROWSER_FIXTURES | {"live_server", "demo_server", "postgres"}
 """Fixtures that start a browser, a uvicorn server or the PostgreSQL cluster: a test using one (directly or through
 another fixture) is marked ``slow`` on collection, as is a test marked ``browser`` or ``postgresql`` (the PostgreSQL
-variant of a ``database_url`` test; its SQLite twin stays in the quick subset). ``make test-quick`` (``-m "not
-slow"``) leaves them out; new tests on these fixtures are covered without a hand-written mark."""
+variant of a ``database_url`` test; its SQLite twin stays in the quick subset) or whose function or fixtures start
+a server or a process (:data:`STARTS_A_SERVER`). ``make test-quick`` (``-m "not slow"``) leaves them out; new tests
+of these kinds are covered without a hand-written mark."""
 
 SLOW_MARKS = ("browser", "postgresql")
+
+STARTS_A_SERVER = re.compile(r"\bserve_app\(|\bdemo_server_with_own_db\(|\bPopen\(")
+"""Calls that start a uvicorn server or a process: a test whose function or one of whose fixtures makes one is
+marked ``slow`` on collection too."""
+
+
+@functools.cache
+def _starts_a_server(func: Callable[..., object]) -> bool:
+    try:
+        return bool(STARTS_A_SERVER.search(inspect.getsource(func)))
+    except (OSError, TypeError):
+        return False
+
+
+def _functions(item: pytest.Item) -> Iterator[Callable[..., object]]:
+    """The test function and the functions of the fixtures it uses."""
+    function = getattr(item, "function", None)
+    if function is not None:
+        yield function
+    info = getattr(item, "_fixtureinfo", None)
+    for definitions in info.name2fixturedefs.values() if info is not None else ():
+        yield from (definition.func for definition in definitions)
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
@@ -68,7 +92,8 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
         fixtures = set(getattr(item, "fixturenames", ()))
         if BROWSER_FIXTURES & fixtures:
             item.add_marker(pytest.mark.browser)
-        if SLOW_FIXTURES & fixtures or any(item.get_closest_marker(mark) for mark in SLOW_MARKS):
+        if (SLOW_FIXTURES & fixtures or any(item.get_closest_marker(mark) for mark in SLOW_MARKS)
+                or any(_starts_a_server(func) for func in _functions(item))):
             item.add_marker(pytest.mark.slow)
 
 
