@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import inspect
 import itertools
 import os
+import re
 import shutil
 import socket
 import threading
@@ -51,16 +53,63 @@ app_settings.allowed_hosts = [*app_settings.allowed_hosts, "testserver"]
 
 
 BROWSER_FIXTURES = {"browser", "page", "own_page"}
-"""Fixtures that start Chromium: a test using one is a browser test (``-m "not browser"`` leaves it out) and a
-slow one (``-m "not slow"``)."""
+"""Fixtures that start Chromium: a test using one is a browser test (``-m "not browser"`` leaves it out)."""
+
+SLOW_FIXTURES = BROWSER_FIXTURES | {"live_server", "demo_server", "postgres"}
+"""Fixtures that start a browser, a uvicorn server or the PostgreSQL cluster: a test using one (directly or through
+another fixture) is marked ``slow`` on collection, as is a test marked ``browser`` or ``postgresql`` (the PostgreSQL
+variant of a ``database_url`` test; its SQLite twin stays in the quick subset) or whose function or fixtures start
+a server or a process (:data:`STARTS_A_SERVER`). ``make test-quick`` (``-m "not slow"``) leaves them out; new tests
+of these kinds are covered without a hand-written mark."""
+
+SLOW_MARKS = ("browser", "postgresql")
+
+STARTS_A_SERVER = re.compile(r"\bserve_app\(|\bdemo_server_with_own_db\(|\bPopen\(")
+"""Calls that start a uvicorn server or a process: a test whose function or one of whose fixtures makes one is
+marked ``slow`` on collection too."""
+
+
+@functools.cache
+def _starts_a_server(func: Callable[..., object]) -> bool:
+    try:
+        return bool(STARTS_A_SERVER.search(inspect.getsource(func)))
+    except (OSError, TypeError):
+        return False
+
+
+def _functions(item: pytest.Item) -> Iterator[Callable[..., object]]:
+    """The test function and the functions of the fixtures it uses."""
+    function = getattr(item, "function", None)
+    if function is not None:
+        yield function
+    info = getattr(item, "_fixtureinfo", None)
+    for definitions in info.name2fixturedefs.values() if info is not None else ():
+        yield from (definition.func for definition in definitions)
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     for item in items:
-        if BROWSER_FIXTURES & set(getattr(item, "fixturenames", ())):
+        fixtures = set(getattr(item, "fixturenames", ()))
+        if BROWSER_FIXTURES & fixtures:
             item.add_marker(pytest.mark.browser)
-        if item.get_closest_marker("browser"):
-            item.add_marker(pytest.mark.slow)  # a browser test is a slow one: `make test-quick` leaves it out
+        if (SLOW_FIXTURES & fixtures or any(item.get_closest_marker(mark) for mark in SLOW_MARKS)
+                or any(_starts_a_server(func) for func in _functions(item))):
+            item.add_marker(pytest.mark.slow)
+
+
+_WHOLLY_SLOW = re.compile(r"^pytestmark = (\[[^\]\n]*)?pytest\.mark\.(slow|browser|postgresql)\b", re.MULTILINE)
+"""A module whose module-level mark makes every test of it slow (``slow``, ``browser`` or ``postgresql``, alone or in a
+list)."""
+
+
+def pytest_ignore_collect(collection_path: Path, config: pytest.Config) -> bool | None:
+    """A run that leaves the slow tests out (``-m "not slow"``) does not import a module all of whose tests are slow:
+    importing one can cost seconds in every worker (the fuzz module builds the whole OpenAPI document)."""
+    if config.getoption("markexpr", "").replace(" ", "") != "notslow" or collection_path.suffix != ".py":
+        return None
+    if not collection_path.name.startswith("test_"):
+        return None
+    return bool(_WHOLLY_SLOW.search(collection_path.read_text(encoding="utf-8"))) or None
 
 
 T = TypeVar("T")

@@ -18,6 +18,8 @@ from drivebench.config import REPO_ROOT, settings
 from drivebench.web.app import create_app
 from tests.conftest import fresh_channel, serve_app
 
+pytestmark = pytest.mark.slow  # every test serves 300 cold uploads in uvicorn: `make test-quick` leaves them out
+
 UPLOADS = 300
 SHIPPED_EDS = sorted((REPO_ROOT / "device_profiles" / "eds").glob("*.eds"))
 SERVO_EDS = REPO_ROOT / "device_profiles" / "eds" / "generic-cia402-servo.eds"

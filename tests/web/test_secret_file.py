@@ -14,6 +14,8 @@ import pytest
 
 from drivebench.config import REPO_ROOT
 
+pytestmark = pytest.mark.slow  # every test starts server or key-making processes: `make test-quick` leaves them out
+
 _MAKE_KEY = ("import sys, time\n"
              "from drivebench.web.access import secret_key\n"
              "while time.time() < float(sys.argv[1]): pass\n"

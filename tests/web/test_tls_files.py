@@ -14,6 +14,8 @@ import pytest
 
 from drivebench.web.tls import self_signed, write_pair
 
+pytestmark = pytest.mark.slow  # every test starts a `drivebench serve` process: `make test-quick` leaves them out
+
 
 def _serve(tmp_path: Path, cert: Path, key: Path, prefix: list[str] | None = None) -> subprocess.CompletedProcess[str]:
     env = {k: v for k, v in os.environ.items() if k not in ("LC_ALL", "LC_MESSAGES", "LANG", "LANGUAGE")}
