@@ -33,6 +33,11 @@ from drivebench.simulator.servo402 import Servo402
 from drivebench.simulator.ticker import DeadlineTicker
 from drivebench.transport.bus import BusSpec, open_bus
 
+NOTIFIER_CYCLE_S = 0.05
+"""How long the plant's bus reader waits for a frame before it looks whether it should stop: stopping a plant waits
+for it (0.5 s cost every test app with the demo plant half a second at its end; an idle reader waking 20 times a
+second costs nothing measurable, benchmarks/idle_cpu.py)."""
+
 
 class PlantNode(BaseModel):
     model_config = ConfigDict(extra="forbid")
@@ -126,7 +131,7 @@ class Plant:
 
     def start(self) -> Plant:
         self._bus = open_bus(self.spec)
-        self._notifier = can.Notifier(self._bus, [self._on_message], timeout=0.5)
+        self._notifier = can.Notifier(self._bus, [self._on_message], timeout=NOTIFIER_CYCLE_S)
         for node in self.nodes.values():
             node.power_on()
         self.lss.power_on()
