@@ -14,7 +14,14 @@ from dataclasses import dataclass, field
 
 from drivebench.errors import DriveBenchError, InvalidValue, ProtocolError
 from drivebench.i18n import N_, _
-from drivebench.protocol.canopen.lss import BIT_TIMINGS, FastscanResult, LssAddress, LssMaster, timing_index
+from drivebench.protocol.canopen.lss import (
+    BIT_TIMINGS,
+    FastscanResult,
+    LssAddress,
+    LssError,
+    LssMaster,
+    timing_index,
+)
 from drivebench.protocol.canopen.network import frames_of
 from drivebench.protocol.canopen.nmt import NmtCommand
 from drivebench.services.bus.sessions import Session
@@ -112,6 +119,16 @@ def _wait_for_boot(started: threading.Event) -> bool:
     return started.wait(BOOT_WAIT_S)
 
 
+def _still_configuring(master: LssMaster) -> bool:
+    """Does a device answer inquire node ID (only one in LSS configuration state does) after switch state global
+    (waiting) went to all?"""
+    try:
+        master.inquire_node_id()
+    except LssError:
+        return False
+    return True
+
+
 async def assign(session: Session, ctx: WriteContext, address: LssAddress, node_id: int, *, bitrate: int | None,
                  store: bool) -> list[Step]:
     """Select the device by its address, configure the node ID (and bit timing), store, switch all to waiting:
@@ -161,6 +178,13 @@ async def assign(session: Session, ctx: WriteContext, address: LssAddress, node_
                     had=had)))
             if await asyncio.to_thread(_wait_for_boot, booted):
                 steps.append(Step("boot", True, _("node {node} booted (boot-up telegram)").format(node=node_id)))
+            elif await asyncio.to_thread(_still_configuring, master):
+                steps.append(Step("boot", False, _(
+                    "node {node} did not boot: the device with serial {serial} is still in LSS configuration state "
+                    "after switch state global (waiting) - it still answers the LSS inquiry - so its new node ID "
+                    "never became active. {next}").format(node=node_id, serial=serial, next=_(
+                        "Power-cycle it: it starts with the node ID it stored.") if store else _(
+                        "Assign again with Store and power-cycle it: it then starts with the stored node ID."))))
             else:
                 steps.append(Step("boot", False, _("no boot-up of node {node} within {seconds} s: the device does "
                                                    "not start with its new node ID (is it still in LSS "
@@ -225,3 +249,38 @@ async def identify_non_configured(session: Session) -> bool:
         return await asyncio.to_thread(line.master.identify_non_configured)
 
 
+
+
+# --- read-only inquiries ------------------------------------------------------------------------------------------
+async def identify_remote(session: Session, vendor: int, product: int, revisions: tuple[int, int],
+                          serials: tuple[int, int]) -> bool:
+    """Is any device with this vendor and product, revision and serial in the ranges on the bus (one or many)?"""
+    for low, high in (revisions, serials):
+        if low > high:
+            raise InvalidValue(_("a range's low end ({low}) is above its high end ({high})").format(low=low,
+                                                                                                   high=high))
+    line = line_of(session)
+    async with line.lock:
+        return await asyncio.to_thread(line.master.identify_remote, vendor, product, revisions, serials)
+
+
+@dataclass(frozen=True)
+class Inquiry:
+    address: LssAddress
+    node_id: int
+    selected: bool
+    """The device was switched to configuration state by this inquiry (it stays there until a switch state global
+    (waiting))."""
+
+
+async def inquire(session: Session, select: LssAddress | None) -> Inquiry:
+    """Inquire vendor, product, revision, serial and node ID of the device in LSS configuration state; ``select``
+    first switches that one device to configuration state (switch state selective: it reaches that device only and
+    changes nothing it runs)."""
+    line = line_of(session)
+    async with line.lock:
+        if select is not None:
+            await asyncio.to_thread(line.master.switch_selective, select)
+        address = await asyncio.to_thread(line.master.inquire_address)
+        node_id = await asyncio.to_thread(line.master.inquire_node_id)
+    return Inquiry(address, node_id, select is not None)
