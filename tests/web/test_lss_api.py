@@ -189,3 +189,18 @@ def test_a_device_that_never_leaves_configuration_state_is_named_with_the_next_s
     plant.lss.by_serial(3003).slave.faults.stays_in_configuration = False
     plant.lss.power_cycle()  # the next step offered: it starts with the stored node ID 20
     assert wait_until(lambda: 20 in plant.nodes, 15)
+
+
+def test_a_device_stuck_in_configuration_state_since_the_fastscan_is_named(line_api: TestClient) -> None:
+    """Issue 32 item 8: the device ignored the fastscan's closing switch state global (waiting), so the assign's
+    switch state selective (answered only in waiting state) gets no answer. Not "is the device on this bus?": a
+    device still answers the LSS inquiry, so one never left configuration state, and the next step is said."""
+    plant = app_state(line_api.app).plants["new-line"]  # type: ignore[arg-type]
+    plant.lss.by_serial(3003).slave.faults.stays_in_configuration = True
+    found = confirmed(line_api, "POST", f"{LSS}/fastscan", json={})
+    pump = next(device for device in found.json()["devices"] if int(device["serial"], 16) == 3003)
+    body = {key: pump[key] for key in ("vendor", "product", "revision", "serial")} | {"node_id": 20}
+    refused = confirmed(line_api, "POST", f"{LSS}/assign", json=body)
+    assert refused.status_code == 502, refused.text
+    detail = refused.json()["detail"]
+    assert "still in LSS configuration state" in detail and "Power-cycle the device" in detail, detail

@@ -13,13 +13,14 @@ import weakref
 from dataclasses import dataclass, field
 
 from drivebench.errors import DriveBenchError, InvalidValue, ProtocolError
-from drivebench.i18n import N_, _
+from drivebench.i18n import N_, Text, _
 from drivebench.protocol.canopen.lss import (
     BIT_TIMINGS,
     FastscanResult,
     LssAddress,
     LssError,
     LssMaster,
+    LssNoAnswer,
     timing_index,
 )
 from drivebench.protocol.canopen.network import frames_of
@@ -119,6 +120,21 @@ def _wait_for_boot(started: threading.Event) -> bool:
     return started.wait(BOOT_WAIT_S)
 
 
+async def _select(master: LssMaster, address: LssAddress) -> None:
+    """Switch state selective; when no device answers it but one answers the inquiry, a device never left LSS
+    configuration state (a selective switch reaches only devices in waiting state): that is said."""
+    try:
+        await asyncio.to_thread(master.switch_selective, address)
+    except LssNoAnswer as exc:
+        if not await asyncio.to_thread(_still_configuring, master):
+            raise
+        raise LssError(Text(N_("no device answered switch state selective for serial {serial}, and a device is "
+                               "still in LSS configuration state after switch state global (waiting): it does not "
+                               "leave configuration state (LSS answers only there). Power-cycle the device that "
+                               "does not start, then run the fastscan again."),
+                            serial=f"0x{address.serial:08X}")) from exc
+
+
 def _still_configuring(master: LssMaster) -> bool:
     """Does a device answer inquire node ID (only one in LSS configuration state does) after switch state global
     (waiting) went to all?"""
@@ -154,7 +170,7 @@ async def assign(session: Session, ctx: WriteContext, address: LssAddress, node_
         selected = False
         frames.canopen.subscribe(0x700 + node_id, on_boot)
         try:
-            await asyncio.to_thread(master.switch_selective, address)
+            await _select(master, address)
             selected = True
             had = await asyncio.to_thread(master.inquire_node_id)
             steps.append(Step("select", True, _("device with serial {serial} selected (its node ID: {had})").format(
