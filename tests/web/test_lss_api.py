@@ -204,3 +204,27 @@ def test_a_device_stuck_in_configuration_state_since_the_fastscan_is_named(line_
     assert refused.status_code == 502, refused.text
     detail = refused.json()["detail"]
     assert "still in LSS configuration state" in detail and "Power-cycle the device" in detail, detail
+
+
+def test_a_bit_rate_switch_that_leaves_one_device_behind_names_it(line_api: TestClient) -> None:
+    """Issue 32 item 8: the four devices get 250 kbit/s configured, the pump's LSS firmware ignores activate bit
+    timing (the simulator's fault). After the switch every device known by its LSS address is asked at the old
+    rate: the pump still answers, and is named with the next step."""
+    plant = app_state(line_api.app).plants["new-line"]  # type: ignore[arg-type]
+    plant.lss.by_serial(3003).slave.faults.ignores_activate_bit_timing = True
+    found = confirmed(line_api, "POST", f"{LSS}/fastscan", json={})
+    devices = {int(device["serial"], 16): device for device in found.json()["devices"]}
+    for node_id, serial in ((21, 1001), (22, 2002), (23, 3003), (24, 4004)):
+        body = {key: devices[serial][key] for key in ("vendor", "product", "revision", "serial")}
+        steps = confirmed(line_api, "POST", f"{LSS}/assign", json=body | {"node_id": node_id, "bitrate": 250000})
+        assert steps.status_code == 200, steps.text
+    assert confirmed(line_api, "POST", f"{LSS}/switch-global", json={"configuration": True}).status_code == 204
+    switched = confirmed(line_api, "POST", f"{LSS}/activate-bit-timing", json={"bitrate": 250000,
+                                                                               "switch_delay_ms": 20})
+    assert switched.status_code == 200, switched.text
+    answer = switched.json()
+    assert [int(device["serial"], 16) for device in answer["left_behind"]] == [3003]
+    assert answer["checked"] == 4 and answer["old_bitrate"] == 500000
+    assert answer["text"].startswith("1 of 4 devices did not follow to 250 kbit/s: serial 0x00000BBB still answers "
+                                     "at 500 kbit/s. Switch the bus back to 500 kbit/s"), answer["text"]
+    assert "adapter stays at 500 kbit/s" in answer["text"]

@@ -182,10 +182,23 @@ async def switch_global(request: Request, body: SwitchIn, session: SessionDep, c
     await lss.switch_global(session, ctx, body.configuration)
 
 
-@router.post("/activate-bit-timing", status_code=204)
-async def activate_bit_timing(request: Request, body: ActivateIn, session: SessionDep, ctx: WriteCtxDep) -> None:
+class BitRateSwitchOut(BaseModel):
+    bitrate: int
+    old_bitrate: int
+    checked: int = Field(description="devices known by their LSS address (found, assigned) asked afterwards")
+    left_behind: list[DeviceOut] = Field(description="those that still answer at the old bit rate")
+    text: str
+
+
+@router.post("/activate-bit-timing", response_model=BitRateSwitchOut)
+async def activate_bit_timing(request: Request, body: ActivateIn, session: SessionDep, ctx: WriteCtxDep,
+                              state: StateDep) -> BitRateSwitchOut:
     ctx = ctx.confirming(confirmation(request, body.confirm, body.confirm_values))
-    await lss.activate_bit_timing(session, ctx, body.bitrate, body.switch_delay_ms)
+    switch = await lss.activate_bit_timing(session, ctx, body.bitrate, body.switch_delay_ms)
+    profiles = state.registry.all()
+    return BitRateSwitchOut(bitrate=switch.bitrate, old_bitrate=switch.old_bitrate, checked=switch.checked,
+                            left_behind=[device_out(profiles, address) for address in switch.left_behind],
+                            text=switch.text)
 
 
 @router.post("/reset-communication", response_model=list[int])
