@@ -227,6 +227,10 @@ document.addEventListener("htmx:configRequest", (event) => {
 (() => {
   const _ = window.drivebench.gettext;
   let dialog = null;
+  // the shared dialog's words after the values; an action the keep-alive does not hold (a program download) passes
+  // its own (ask's ``note``)
+  const KEEP_ALIVE_NOTE = () => _("Once sent, this page keeps the node alive (every 0.5 s); when the page closes or " +
+    "the network is lost, the server sends quick stop within 2 s.");
 
   function askDialog() {
     if (dialog) return dialog;
@@ -241,9 +245,7 @@ document.addEventListener("htmx:configRequest", (event) => {
     const values = document.createElement("ul");
     values.className = "moving-confirm-values";
     const note = document.createElement("p");
-    note.className = "muted";
-    note.textContent = _("Once sent, this page keeps the node alive (every 0.5 s); when the page closes or the " +
-      "network is lost, the server sends quick stop within 2 s.");
+    note.className = "muted moving-confirm-note";
     const row = document.createElement("div");
     row.className = "ctl-row";
     for (const [value, label, cls] of [["cancel", _("Cancel"), "secondary"], ["ok", _("Send it"), "moving warn"]]) {
@@ -271,8 +273,10 @@ document.addEventListener("htmx:configRequest", (event) => {
   // to which node, each value with its unit (text only). Resolves true when confirmed. With ``hold`` the confirm
   // button is itself hold-to-run: pressing it calls hold.press(), releasing it hold.release(); the dialog stays
   // open for the next press until it is closed (resolves false then).
-  function ask(problem, { host = null, what = "", okLabel = "", hold = null } = {}) {
+  function ask(problem, { host = null, what = "", okLabel = "", hold = null, note = "" } = {}) {
     const box = host || askDialog();
+    const aside = box.querySelector(".moving-confirm-note");
+    if (aside) aside.textContent = note || KEEP_ALIVE_NOTE();
     const node = problem.confirm_node;
     const text = box.querySelector(".moving-confirm-text");
     const whom = node === "all" ? _("every node of the session") : _("node {node}", { node });

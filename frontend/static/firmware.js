@@ -7,6 +7,10 @@
   const el = window.drivebench.el;
   const kib = (bytes) => `${(bytes / 1024).toFixed(1)} KiB`;
 
+  // the tab's panel id, as every page script sends it: the node lease the download takes names this tab (Firmware
+  // card), not "the API" of whoever shares the host
+  const tab = () => ({ "X-DriveBench-Client": window.drivebenchClientId });
+
   async function answer(response) {
     let data = null;
     try { data = await response.json(); } catch (e) { data = null; }
@@ -36,7 +40,7 @@
       download.hidden = true;
       result.replaceChildren();
       check.replaceChildren(el("p", { className: "muted" }, _("Checking the file…")));
-      const got = await answer(await fetch(api + "/check", { method: "POST", body: new FormData(form) }));
+      const got = await answer(await fetch(api + "/check", { method: "POST", headers: tab(), body: new FormData(form) }));
       if (got.status >= 400) { check.replaceChildren(window.drivebench.problemBox(got.data, got.status)); return; }
       const body = got.data;
       const file = body.file;
@@ -55,16 +59,18 @@
     download.addEventListener("click", async () => {
       if (!fileId) return;
       const send = async (confirmation) => answer(await fetch(api + "/download", {
-        method: "POST", headers: { "Content-Type": "application/json" },
+        method: "POST", headers: { "Content-Type": "application/json", ...tab() },
         body: JSON.stringify({ file_id: fileId, ...(confirmation || {}) }) }));
-      const got = await window.drivebench.moving(send, { what: _("Program download") });
+      const got = await window.drivebench.moving(send, { what: _("Program download"), note: _(
+        "The device's program is stopped, the file written to its flash and the new program started: the drive " +
+        "may run once it starts. The download goes on when this page closes; Cancel ends it.") });
       if (!got) return;
       if (got.status >= 400) { result.replaceChildren(window.drivebench.problemBox(got.data, got.status)); return; }
       follow(got.data);
     });
 
     cancel.addEventListener("click", async () => {
-      if (jobId) await fetch(window.drivebench.url(`/api/jobs/${encodeURIComponent(jobId)}`), { method: "DELETE" });
+      if (jobId) await fetch(window.drivebench.url(`/api/jobs/${encodeURIComponent(jobId)}`), { method: "DELETE", headers: tab() });
     });
 
     function follow(job) {

@@ -35,8 +35,9 @@
       const row = template.content.firstElementChild.cloneNode(true);
       row.dataset.serial = device.serial;
       for (const key of ["vendor", "product", "revision", "serial"]) row.querySelector(`.${key}`).textContent = device[key];
-      row.querySelector(".device").textContent = device.device || _("unknown device");
+      row.querySelector(".device").textContent = device.device || device.identified;
       row.querySelector(".assign").addEventListener("click", () => assign(row, device));
+      row.querySelector(".inquire").addEventListener("click", () => inquire(row, device));
       return row;
     }));
   }
@@ -58,6 +59,35 @@
     }
     result.replaceChildren(...stepItems(answer.data));
     row.classList.add("assigned");
+  }
+
+  // read-only: switch state selective (that device only) and the identity inquiry; no confirmation
+  async function inquire(row, device) {
+    const result = row.querySelector(".steps");
+    const select = { vendor: device.vendor, product: device.product, revision: device.revision, serial: device.serial };
+    const answer = await request("POST", `${base}/inquire`, { select });
+    if (answer.status >= 400) {
+      result.replaceChildren(window.drivebench.el("li", { className: "step-failed" },
+                                                  window.drivebench.problemBox(answer.data, answer.status)));
+      return;
+    }
+    const a = answer.data;
+    result.replaceChildren(window.drivebench.el("li", { className: "step-ok" }, _(
+      "Inquired: vendor {vendor}, product {product}, revision {revision}, serial {serial}. {text}", a)));
+  }
+
+  const identifyForm = document.getElementById("lss-identify-form");
+  if (identifyForm) {
+    identifyForm.addEventListener("submit", async (event) => {
+      event.preventDefault();
+      const slot = document.getElementById("lss-identify-result");
+      const body = Object.fromEntries(new FormData(identifyForm).entries());
+      const answer = await request("POST", `${base}/identify-remote`, body);
+      if (answer.status >= 400) { slot.replaceChildren(window.drivebench.problemBox(answer.data, answer.status)); return; }
+      const shown = window.drivebench.el("p", {}, answer.data.text);
+      shown.classList.add(answer.data.answered ? "step-ok" : "step-failed");
+      slot.replaceChildren(shown);
+    });
   }
 
   card.querySelector("#lss-fastscan").addEventListener("click", async (event) => {

@@ -16,8 +16,9 @@ from fastapi.testclient import TestClient
 from drivebench.config import REPO_ROOT
 from drivebench.services.users import audit
 from drivebench.web.app import create_app
+from drivebench.web.state import app_state
 from tests.confirming import confirmed
-from tests.conftest import DEMO_PLANT, fresh_channel
+from tests.conftest import DEMO_PLANT, fresh_channel, wait_until
 
 NEW_LINE = REPO_ROOT / "plants" / "new-line.json"
 LSS = "/api/sessions/new-line/lss"
@@ -119,3 +120,111 @@ def test_a_device_with_a_node_id_moves_to_the_new_one(app_db_url: str, tmp_path:
         assert "NMT reset communication sent to its old node ID 5" in texts
         assert "node 9 booted (boot-up telegram)" in texts
         assert [node["node_id"] for node in client.get("/api/sessions/two/nodes").json()] == [9]
+
+
+def test_a_device_without_a_profile_product_code_is_told_by_what_its_answer_says(line_api: TestClient) -> None:
+    """Issue 32: the Lenze profiles carry no product code (their manuals give none), so no profile matches the two
+    Lenze units' answers. What the answer tells is shown instead of "unknown device": the vendor's name from the
+    profiles with its vendor ID, product code and revision as numbers, the profiles of that vendor, and that they
+    carry no product code - never an invented one."""
+    found = confirmed(line_api, "POST", f"{LSS}/fastscan", json={})
+    assert found.status_code == 200, found.text
+    devices = {int(device["serial"], 16): device for device in found.json()["devices"]}
+    conveyor, fan, pump = devices[1001], devices[2002], devices[3003]
+    for lenze in (conveyor, fan):
+        assert lenze["device"] is None and lenze["vendor_name"] == "Lenze"
+        ids = {candidate["id"] for candidate in lenze["candidates"]}
+        assert {"lenze-8400-motec-canopen", "lenze-8200-vector-emf2178ib"} <= ids
+        assert all(candidate["product_code"] is None for candidate in lenze["candidates"]
+                   if candidate["id"] == "lenze-8400-motec-canopen")
+        text = lenze["identified"]
+        assert text.startswith("Lenze (vendor ID 0x0000003B), product code ") and "revision" in text
+        assert "carry no product code" in text and "8400 motec" in text
+    assert pump["device"].startswith("MICROMASTER") and pump["profile"] == "siemens-micromaster4-canopen"
+    assert pump["candidates"] == []
+    assert line_api.get(LSS).json()["devices"][0]["identified"]  # the page's reload shows the same
+
+
+def test_identify_remote_slave_and_the_identity_inquiry(line_api: TestClient) -> None:
+    """Issue 32: identify remote slave (vendor, product, revision and serial ranges) and inquire identity / node ID,
+    read-only: no confirmation; the inquiry can select one device first (switch state selective)."""
+    pump = {"vendor": "0x06000053", "product": "0x00000002"}
+    anyone = line_api.post(f"{LSS}/identify-remote", json=pump)
+    assert anyone.status_code == 200, anyone.text
+    assert anyone.json()["answered"] and "answered" in anyone.json()["text"]
+    other = line_api.post(f"{LSS}/identify-remote", json={**pump, "serial_low": 4000, "serial_high": "0xFFFF"})
+    assert other.status_code == 200 and not other.json()["answered"]
+    assert other.json()["text"].startswith("No device with vendor 0x06000053")
+    backwards = line_api.post(f"{LSS}/identify-remote", json={**pump, "serial_low": 9, "serial_high": 3})
+    assert backwards.status_code == 422 and "above its high end" in backwards.json()["detail"]
+    nobody = line_api.post(f"{LSS}/inquire", json={})  # no device in configuration state
+    assert nobody.status_code >= 400 and "no LSS slave answered inquire identity" in nobody.json()["detail"]
+
+    found = confirmed(line_api, "POST", f"{LSS}/fastscan", json={})
+    device = next(device for device in found.json()["devices"] if int(device["serial"], 16) == 3003)
+    select = {key: device[key] for key in ("vendor", "product", "revision", "serial")}
+    inquired = line_api.post(f"{LSS}/inquire", json={"select": select})
+    assert inquired.status_code == 200, inquired.text
+    answer = inquired.json()
+    assert {key: answer[key] for key in select} == select
+    assert answer["device"].startswith("MICROMASTER") and answer["active_node_id"] is None
+    assert "no node ID (255)" in answer["text"] and "stays in LSS configuration state" in answer["text"]
+
+
+def test_a_device_that_never_leaves_configuration_state_is_named_with_the_next_step(line_api: TestClient) -> None:
+    """Issue 32 item 8: a device whose LSS firmware ignores switch state global (waiting) (the simulator's fault)
+    never takes its new node ID. The assign says so - it still answers the LSS inquiry - and what to do, instead of
+    only "no boot-up within 5 s"."""
+    plant = app_state(line_api.app).plants["new-line"]  # type: ignore[arg-type]
+    found = confirmed(line_api, "POST", f"{LSS}/fastscan", json={})
+    plant.lss.by_serial(3003).slave.faults.stays_in_configuration = True
+    pump = next(device for device in found.json()["devices"] if int(device["serial"], 16) == 3003)
+    body = {key: pump[key] for key in ("vendor", "product", "revision", "serial")} | {"node_id": 20}
+    steps = confirmed(line_api, "POST", f"{LSS}/assign", json=body)
+    assert steps.status_code == 200, steps.text
+    last = steps.json()[-1]
+    assert not last["ok"]
+    assert "still in LSS configuration state" in last["text"] and "serial 0x00000BBB" in last["text"]
+    assert "Power-cycle it: it starts with the node ID it stored." in last["text"]
+    plant.lss.by_serial(3003).slave.faults.stays_in_configuration = False
+    plant.lss.power_cycle()  # the next step offered: it starts with the stored node ID 20
+    assert wait_until(lambda: 20 in plant.nodes, 15)
+
+
+def test_a_device_stuck_in_configuration_state_since_the_fastscan_is_named(line_api: TestClient) -> None:
+    """Issue 32 item 8: the device ignored the fastscan's closing switch state global (waiting), so the assign's
+    switch state selective (answered only in waiting state) gets no answer. Not "is the device on this bus?": a
+    device still answers the LSS inquiry, so one never left configuration state, and the next step is said."""
+    plant = app_state(line_api.app).plants["new-line"]  # type: ignore[arg-type]
+    plant.lss.by_serial(3003).slave.faults.stays_in_configuration = True
+    found = confirmed(line_api, "POST", f"{LSS}/fastscan", json={})
+    pump = next(device for device in found.json()["devices"] if int(device["serial"], 16) == 3003)
+    body = {key: pump[key] for key in ("vendor", "product", "revision", "serial")} | {"node_id": 20}
+    refused = confirmed(line_api, "POST", f"{LSS}/assign", json=body)
+    assert refused.status_code == 502, refused.text
+    detail = refused.json()["detail"]
+    assert "still in LSS configuration state" in detail and "Power-cycle the device" in detail, detail
+
+
+def test_a_bit_rate_switch_that_leaves_one_device_behind_names_it(line_api: TestClient) -> None:
+    """Issue 32 item 8: the four devices get 250 kbit/s configured, the pump's LSS firmware ignores activate bit
+    timing (the simulator's fault). After the switch every device known by its LSS address is asked at the old
+    rate: the pump still answers, and is named with the next step."""
+    plant = app_state(line_api.app).plants["new-line"]  # type: ignore[arg-type]
+    plant.lss.by_serial(3003).slave.faults.ignores_activate_bit_timing = True
+    found = confirmed(line_api, "POST", f"{LSS}/fastscan", json={})
+    devices = {int(device["serial"], 16): device for device in found.json()["devices"]}
+    for node_id, serial in ((21, 1001), (22, 2002), (23, 3003), (24, 4004)):
+        body = {key: devices[serial][key] for key in ("vendor", "product", "revision", "serial")}
+        steps = confirmed(line_api, "POST", f"{LSS}/assign", json=body | {"node_id": node_id, "bitrate": 250000})
+        assert steps.status_code == 200, steps.text
+    assert confirmed(line_api, "POST", f"{LSS}/switch-global", json={"configuration": True}).status_code == 204
+    switched = confirmed(line_api, "POST", f"{LSS}/activate-bit-timing", json={"bitrate": 250000,
+                                                                               "switch_delay_ms": 20})
+    assert switched.status_code == 200, switched.text
+    answer = switched.json()
+    assert [int(device["serial"], 16) for device in answer["left_behind"]] == [3003]
+    assert answer["checked"] == 4 and answer["old_bitrate"] == 500000
+    assert answer["text"].startswith("1 of 4 devices did not follow to 250 kbit/s: serial 0x00000BBB still answers "
+                                     "at 500 kbit/s. Switch the bus back to 500 kbit/s"), answer["text"]
+    assert "adapter stays at 500 kbit/s" in answer["text"]

@@ -56,3 +56,31 @@ def test_fastscan_assign_store_and_the_node_boots_onto_the_plant_page(line_serve
     screenshot(page, "lss-assigned")
     page.goto(line_server + "/")
     expect(page.locator("#link-new-line-20")).to_be_visible(timeout=TIMEOUT_MS)
+
+
+def test_found_devices_are_told_by_their_answer_inquired_and_identified(line_server: str, page: Any) -> None:
+    """Issue 32: a Lenze unit (its profiles carry no product code) shows vendor, numbers and the vendor's profiles
+    instead of "unknown device"; Inquire selects one device and shows its identity; Identify remote slave answers
+    in words. The read-only steps ask nothing."""
+    from playwright.sync_api import expect
+
+    page.goto(line_server + "/sessions/new-line/lss")
+    page.get_by_role("button", name="Fastscan").click()
+    _confirm(page)
+    rows = page.locator("#lss-devices tbody tr")
+    expect(rows).to_have_count(4, timeout=TIMEOUT_MS)
+    conveyor = page.locator("#lss-devices tbody tr[data-serial='0x000003E9']")
+    expect(conveyor.locator(".device")).to_contain_text("Lenze (vendor ID 0x0000003B), product code")
+    expect(conveyor.locator(".device")).to_contain_text("carry no product code")
+    expect(page.locator("#lss-devices")).not_to_contain_text("unknown device")
+    pump = page.locator("#lss-devices tbody tr[data-serial='0x00000BBB']")
+    pump.get_by_role("button", name="Inquire").click()
+    expect(pump.locator(".steps")).to_contain_text("serial 0x00000BBB", timeout=TIMEOUT_MS)
+    expect(pump.locator(".steps")).to_contain_text("It has no node ID (255).")
+    form = page.locator("#lss-identify-form")
+    form.locator("input[name=vendor]").fill("0x06000053")
+    form.locator("input[name=product]").fill("2")
+    form.get_by_role("button", name="Identify").click()
+    expect(page.locator("#lss-identify-result")).to_contain_text("At least one device with vendor 0x06000053",
+                                                                 timeout=TIMEOUT_MS)
+    expect(page.locator("#moving-confirm")).not_to_be_visible()

@@ -48,6 +48,17 @@ class StoredSetting:
     timing: int | None = None
 
 
+@dataclass
+class LssFaults:
+    """Faults of a device's LSS firmware, switched on by a test or a demo (kept over a power cycle)."""
+
+    stays_in_configuration: bool = False
+    """It ignores switch state global (waiting): it never leaves configuration state, so a new node ID never
+    becomes active."""
+    ignores_activate_bit_timing: bool = False
+    """It ignores activate bit timing: it stays at its bit rate while the others switch (left behind)."""
+
+
 class LssSlave:
     """``on_node_id(id)`` is called when a node ID becomes active (the plant brings the device up with it)."""
 
@@ -57,6 +68,7 @@ class LssSlave:
         self.stored = stored
         self.bus_timing = bus_timing
         self.on_node_id = on_node_id
+        self.faults = LssFaults()
         self.power_on()
 
     def power_on(self) -> None:
@@ -107,6 +119,8 @@ class LssSlave:
                 self.pending_timing = data[2]
             return bytes([cs, 0 if valid else 1]) + bytes(6)
         if cs == ACTIVATE_TIMING:
+            if self.faults.ignores_activate_bit_timing:
+                return None
             delay_s = struct.unpack_from("<H", data, 1)[0] / 1000
             threading.Timer(delay_s, self._activate_timing).start()
             return None
@@ -125,6 +139,8 @@ class LssSlave:
     def _switch_global(self, mode: int) -> None:
         if mode == LssState.CONFIGURATION.value:
             self.state = LssState.CONFIGURATION
+            return
+        if self.faults.stays_in_configuration and self.state is LssState.CONFIGURATION:
             return
         was = self.state
         self.state = LssState.WAITING

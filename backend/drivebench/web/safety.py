@@ -33,7 +33,8 @@ WHERE = [("/parameter-sets", N_("Parameter sets"), N_("Parameter sets API")),
          ("/parameters", N_("Parameters tab"), N_("Parameters API")), ("/pdo", N_("PDO tab"), N_("PDO API")),
          ("/control", N_("Control tab"), N_("Control API")), ("/nmt", N_("NMT"), N_("NMT API")),
          ("/commands", N_("device commands"), N_("device commands API")),
-         ("/lease", N_("node lease"), N_("node lease API"))]
+         ("/lease", N_("node lease"), N_("node lease API")),
+         ("/program", N_("program download"), N_("program download API"))]
 
 
 def client_id(conn: HTTPConnection) -> str | None:

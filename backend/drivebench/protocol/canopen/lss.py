@@ -321,18 +321,22 @@ class LssMaster:
     def _find_one(self, found: Sequence[LssAddress], count: ScanCount, ceiling: float
                   ) -> tuple[LssAddress | None, float]:
         self._floor = self.min_window_s  # a longer wait one device needed is not kept for the next
+        window = ceiling
         for attempt in range(FASTSCAN_ATTEMPTS):
-            wait = max(ceiling, self._window(ceiling, careful=True))
+            wait = max(window, self._window(window, careful=True))
             if not (self._fs(0, FASTSCAN_RESET, 0, 0, count, wait) or self._fs(0, FASTSCAN_RESET, 0, 0, count, wait)
-                    or self._fs(0, FASTSCAN_RESET, 0, 0, count, self._last_call(ceiling))):
+                    or self._fs(0, FASTSCAN_RESET, 0, 0, count, self._last_call(window))):
                 return None, ceiling  # no device without node ID in waiting state (asked three times)
-            parts = self._scan_parts(found, count, ceiling)
+            parts = self._scan_parts(found, count, window)
             if parts is not None and self._really(LssAddress(*parts), found, count):
                 return LssAddress(*parts), ceiling
             count.retries += 1
-            self._floor = min(ceiling, self._floor * 4)  # answers came late: the whole device again, waiting longer
-            if attempt == FASTSCAN_ATTEMPTS - 1:
-                break
+            # Answers came late (a busy machine stalls the adapter's or the devices' threads): the whole device
+            # again, first with every request waiting the full answer window, then four times as long (at most
+            # timeout_s; an answer returns at once, a miss costs the window). Narrowing pays only while answers come
+            # in time.
+            window = ceiling if attempt == 0 else max(ceiling, min(self.timeout_s, 4 * ceiling))
+            self._floor = window
         raise LssError(Text(N_("fastscan lost the device it was following ({attempts} attempts, last answer "
                                "window {ms} ms): a device that answers late or leaves waiting state; raise the "
                                "answer window."), attempts=FASTSCAN_ATTEMPTS, ms=round(self._floor * 1000)))
@@ -358,8 +362,11 @@ class LssMaster:
                          None)
             if value is None:
                 value = self._scan_bits(sub, hints, count, ceiling)
-                if value is None or not self._fs(value, 0, sub, nxt, count, ceiling):
+                if value is None:
                     return None
+                if not self._fs(value, 0, sub, nxt, count, ceiling) and sub < 3:
+                    return None  # (the last part's confirmation, answered late, has put the device in
+                    # configuration state: identify remote slave, :meth:`_really`, tells)
             parts.append(value)
         return parts
 

@@ -13,8 +13,16 @@ import weakref
 from dataclasses import dataclass, field
 
 from drivebench.errors import DriveBenchError, InvalidValue, ProtocolError
-from drivebench.i18n import N_, _
-from drivebench.protocol.canopen.lss import BIT_TIMINGS, FastscanResult, LssAddress, LssMaster, timing_index
+from drivebench.i18n import N_, Text, _
+from drivebench.protocol.canopen.lss import (
+    BIT_TIMINGS,
+    FastscanResult,
+    LssAddress,
+    LssError,
+    LssMaster,
+    LssNoAnswer,
+    timing_index,
+)
 from drivebench.protocol.canopen.network import frames_of
 from drivebench.protocol.canopen.nmt import NmtCommand
 from drivebench.services.bus.sessions import Session
@@ -112,6 +120,31 @@ def _wait_for_boot(started: threading.Event) -> bool:
     return started.wait(BOOT_WAIT_S)
 
 
+async def _select(master: LssMaster, address: LssAddress) -> None:
+    """Switch state selective; when no device answers it but one answers the inquiry, a device never left LSS
+    configuration state (a selective switch reaches only devices in waiting state): that is said."""
+    try:
+        await asyncio.to_thread(master.switch_selective, address)
+    except LssNoAnswer as exc:
+        if not await asyncio.to_thread(_still_configuring, master):
+            raise
+        raise LssError(Text(N_("no device answered switch state selective for serial {serial}, and a device is "
+                               "still in LSS configuration state after switch state global (waiting): it does not "
+                               "leave configuration state (LSS answers only there). Power-cycle the device that "
+                               "does not start, then run the fastscan again."),
+                            serial=f"0x{address.serial:08X}")) from exc
+
+
+def _still_configuring(master: LssMaster) -> bool:
+    """Does a device answer inquire node ID (only one in LSS configuration state does) after switch state global
+    (waiting) went to all?"""
+    try:
+        master.inquire_node_id()
+    except LssError:
+        return False
+    return True
+
+
 async def assign(session: Session, ctx: WriteContext, address: LssAddress, node_id: int, *, bitrate: int | None,
                  store: bool) -> list[Step]:
     """Select the device by its address, configure the node ID (and bit timing), store, switch all to waiting:
@@ -137,7 +170,7 @@ async def assign(session: Session, ctx: WriteContext, address: LssAddress, node_
         selected = False
         frames.canopen.subscribe(0x700 + node_id, on_boot)
         try:
-            await asyncio.to_thread(master.switch_selective, address)
+            await _select(master, address)
             selected = True
             had = await asyncio.to_thread(master.inquire_node_id)
             steps.append(Step("select", True, _("device with serial {serial} selected (its node ID: {had})").format(
@@ -161,6 +194,13 @@ async def assign(session: Session, ctx: WriteContext, address: LssAddress, node_
                     had=had)))
             if await asyncio.to_thread(_wait_for_boot, booted):
                 steps.append(Step("boot", True, _("node {node} booted (boot-up telegram)").format(node=node_id)))
+            elif await asyncio.to_thread(_still_configuring, master):
+                steps.append(Step("boot", False, _(
+                    "node {node} did not boot: the device with serial {serial} is still in LSS configuration state "
+                    "after switch state global (waiting) - it still answers the LSS inquiry - so its new node ID "
+                    "never became active. {next}").format(node=node_id, serial=serial, next=_(
+                        "Power-cycle it: it starts with the node ID it stored.") if store else _(
+                        "Assign again with Store and power-cycle it: it then starts with the stored node ID."))))
             else:
                 steps.append(Step("boot", False, _("no boot-up of node {node} within {seconds} s: the device does "
                                                    "not start with its new node ID (is it still in LSS "
@@ -233,16 +273,63 @@ def activate_values(bitrate: int, delay_ms: int) -> dict[str, object]:
     return {"LSS": "activate bit timing", "bit rate": bitrate, "switch delay [ms]": delay_ms}
 
 
-async def activate_bit_timing(session: Session, ctx: WriteContext, bitrate: int, delay_ms: int) -> None:
-    """Every device in configuration state switches to the bit timing it was configured to, after the delay."""
+@dataclass(frozen=True)
+class BitRateSwitch:
+    bitrate: int
+    old_bitrate: int
+    checked: int
+    left_behind: list[LssAddress]
+    text: str
+
+
+CHECK_WAIT_S = 0.3
+"""How long identify remote slave waits for a device left at the old bit rate."""
+
+
+def _left_behind(master: LssMaster, known: list[LssAddress]) -> list[LssAddress]:
+    """The known devices that still answer at the session's (old) bit rate: identify remote slave is answered in
+    either LSS state; a device that switched hears nothing at the old rate."""
+    timeout, master.timeout_s = master.timeout_s, CHECK_WAIT_S
+    try:
+        return [address for address in known
+                if master.identify_remote(address.vendor, address.product, (address.revision, address.revision),
+                                          (address.serial, address.serial))]
+    finally:
+        master.timeout_s = timeout
+
+
+async def activate_bit_timing(session: Session, ctx: WriteContext, bitrate: int, delay_ms: int) -> BitRateSwitch:
+    """Every device in configuration state switches to the bit timing it was configured to, after the delay. Then
+    every device this session knows by its LSS address (found, assigned) is asked at the old bit rate: one that
+    still answers did not follow, and is named with the next step."""
     timing_index(bitrate)
     if not 1 <= delay_ms <= 65535:
         raise InvalidValue(_("The switch delay must be 1 ... 65535 ms."))
     await admit_global(session, _("LSS activate bit timing"), activate_values(bitrate, delay_ms), ctx)
     line = line_of(session)
+    old = session.spec.bitrate
+    known = list(dict.fromkeys([*line.found, *line.assigned]))
     async with line.lock:
         await asyncio.to_thread(line.master.activate_bit_timing, delay_ms)
+        await asyncio.sleep(2 * delay_ms / 1000 + 0.05)  # CiA 305: switch after the delay, silent for another
+        left = await asyncio.to_thread(_left_behind, line.master, known)
     await _audit(session, ctx, 0, "activate bit timing", f"{bitrate} bit/s, {delay_ms} ms")
+    new_kbit, old_kbit = bitrate // 1000, old // 1000
+    if not known:
+        text = _("Activate bit timing sent. No device known by its LSS address to check: run a fastscan first.")
+    elif left:
+        text = _("{count} of {known} devices did not follow to {new} kbit/s: serial {serials} still answers at "
+                 "{old} kbit/s. Switch the bus back to {old} kbit/s (power-cycle the devices that followed if they "
+                 "stored it) and repeat, or power-cycle the device left behind.").format(
+            count=len(left), known=len(known), new=new_kbit, old=old_kbit,
+            serials=", ".join(f"0x{address.serial:08X}" for address in left))
+    else:
+        text = _("All {known} known devices followed to {new} kbit/s: none answers at {old} kbit/s any more.").format(
+            known=len(known), new=new_kbit, old=old_kbit)
+    if bitrate != old:
+        text += " " + _("This session's adapter stays at {old} kbit/s: open the bus again at {new} kbit/s to reach "
+                        "the devices that switched.").format(old=old_kbit, new=new_kbit)
+    return BitRateSwitch(bitrate, old, len(known), left, text)
 
 
 async def reset_communication_all(session: Session, ctx: WriteContext) -> list[int]:
@@ -259,3 +346,38 @@ async def identify_non_configured(session: Session) -> bool:
         return await asyncio.to_thread(line.master.identify_non_configured)
 
 
+
+
+# --- read-only inquiries ------------------------------------------------------------------------------------------
+async def identify_remote(session: Session, vendor: int, product: int, revisions: tuple[int, int],
+                          serials: tuple[int, int]) -> bool:
+    """Is any device with this vendor and product, revision and serial in the ranges on the bus (one or many)?"""
+    for low, high in (revisions, serials):
+        if low > high:
+            raise InvalidValue(_("a range's low end ({low}) is above its high end ({high})").format(low=low,
+                                                                                                   high=high))
+    line = line_of(session)
+    async with line.lock:
+        return await asyncio.to_thread(line.master.identify_remote, vendor, product, revisions, serials)
+
+
+@dataclass(frozen=True)
+class Inquiry:
+    address: LssAddress
+    node_id: int
+    selected: bool
+    """The device was switched to configuration state by this inquiry (it stays there until a switch state global
+    (waiting))."""
+
+
+async def inquire(session: Session, select: LssAddress | None) -> Inquiry:
+    """Inquire vendor, product, revision, serial and node ID of the device in LSS configuration state; ``select``
+    first switches that one device to configuration state (switch state selective: it reaches that device only and
+    changes nothing it runs)."""
+    line = line_of(session)
+    async with line.lock:
+        if select is not None:
+            await asyncio.to_thread(line.master.switch_selective, select)
+        address = await asyncio.to_thread(line.master.inquire_address)
+        node_id = await asyncio.to_thread(line.master.inquire_node_id)
+    return Inquiry(address, node_id, select is not None)
