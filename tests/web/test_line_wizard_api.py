@@ -64,6 +64,9 @@ def test_a_whole_run_commissions_the_new_line_and_reports_every_step(line_api: T
     run = step(line_api, run_id, "scan")
     assert run["steps"]["scan"]["state"] == "done"
     assert run["steps"]["scan"]["lines"][0].startswith("4 devices without node ID found")
+    scan_lines = "\n".join(run["steps"]["scan"]["lines"])  # told by their answers, as the LSS page tells them
+    assert "unknown device" not in scan_lines and scan_lines.count("Lenze (vendor ID 0x0000003B)") == 2
+    assert sorted(device["device"] for device in run["found"]).count("Lenze") == 2
     # the project names the Lenze devices' serials; pump and axis are told apart by vendor and product
     assert run["proposed"] == {"20": "0x000003E9", "21": "0x000007D2", "22": "0x00000BBB", "23": "0x00000FA4"}
     twice = line_api.put(f"{WIZARD}/{run_id}/assignments", json={"20": "0x000003E9", "21": "0x000003E9"})

@@ -45,6 +45,8 @@ class ProfileSource(Protocol):
 
     def find_by_identity(self, vendor_id: int | None, product_code: int | None) -> Profile | None: ...
 
+    def all(self) -> list[Profile]: ...
+
 
 @dataclass
 class SessionNode:

@@ -24,6 +24,7 @@ from drivebench.services.line.project import LineProject, ProjectNode
 from drivebench.services.line.wizard_run import FoundDevice, WizardRun, WizardStore, mark_running, mark_stopped
 from drivebench.services.lss import line as lss
 from drivebench.services.lss.guard_rule import EVERY_DEVICE, admit_global
+from drivebench.services.lss.identify import identify
 from drivebench.services.params.jobs import JobManager, JobState
 from drivebench.services.params.write_context import Confirmation, WriteContext
 from drivebench.services.program import download as program
@@ -86,14 +87,17 @@ async def scan(call: StepCall) -> bool:
     result = await lss.fastscan(call.session, call.ctx, call.window_ms)
     run = call.run
     run.found = []
+    told: list[str] = []
+    profiles = call.session.profiles.all()
     for address in result.found:
-        profile = call.session.profiles.find_by_identity(address.vendor, address.product)
-        run.found.append(FoundDevice(**address.hex(), device=profile.identity.product_name if profile else None))
+        known = identify(profiles, address)  # the LSS page's words: a vendor's device without a product code is named
+        run.found.append(FoundDevice(**address.hex(), device=known.device or known.vendor_name))
+        told.append(known.text)
     call.say(_("{count} devices without node ID found ({frames} frames, {seconds} s).").format(
         count=len(run.found), frames=result.frames, seconds=f"{result.seconds:.2f}"))
-    for device in run.found:
+    for device, text in zip(run.found, told, strict=True):
         call.say(_("serial {serial}: vendor {vendor}, product {product}, revision {revision} ({device}).").format(
-            **device.model_dump(exclude={"device"}), device=device.device or _("unknown device")))
+            **device.model_dump(exclude={"device"}), device=text))
     run.proposed = _proposals(call.project, run.found)
     serials = {device.serial for device in run.found}
     kept = {node: serial for node, serial in run.assignments.items() if serial in serials}
