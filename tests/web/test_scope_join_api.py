@@ -6,6 +6,8 @@ pass) and a viewer watches it live."""
 
 from __future__ import annotations
 
+import contextlib
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -45,6 +47,24 @@ def _enable(client: TestClient, headers: dict[str, str] | None = None) -> None:
     assert enabled.status_code == 200 and enabled.json()["enabled"], enabled.text
 
 
+@contextlib.contextmanager
+def _kept_alive(client: TestClient) -> Iterator[None]:
+    """The keep-alive a control panel sends, every 0.5 s while the block runs: the node is armed from the enable on,
+    and a start of the recording that takes over 2 s on a loaded machine let it lapse (CI: quick stop mid-move)."""
+    done = threading.Event()
+
+    def beat() -> None:
+        while not done.wait(0.5):
+            client.post(f"{API}/keepalive")
+    beating = threading.Thread(target=beat, name="test-keepalive", daemon=True)
+    beating.start()
+    try:
+        yield
+    finally:
+        done.set()
+        beating.join(timeout=10)
+
+
 def _position(client: TestClient) -> float:
     client.post(f"{API}/keepalive")
     return float(client.get(f"{API}/nodes/{AXIS}/parameters/0x6064").json()["value"])
@@ -53,7 +73,7 @@ def _position(client: TestClient) -> float:
 def test_a_1_ms_recording_of_node_7_during_a_move_equals_the_tpdo_frames_on_the_bus(app_db_url: str) -> None:
     channel = fresh_channel()
     app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{channel}@500000", latency="0ms")
-    with TestClient(app) as client, can.Bus(interface="virtual", channel=channel) as wire:
+    with TestClient(app) as client, can.Bus(interface="virtual", channel=channel) as wire, _kept_alive(client):
         _enable(client)
         client.post(f"{API}/keepalive")
         started = confirmed(client, "POST", f"{API}/scope/run", json=BODY)
