@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import platform
 import shutil
 import signal
 import statistics
@@ -30,11 +29,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import httpx
+from _monitor_results import machine, write_section
 from startup_uploads import store_uploads
 
 from drivebench.config import REPO_ROOT
 
-RESULTS = REPO_ROOT / "benchmarks" / "RESULTS.md"
 SECTION = "## Start-up of the server process"
 BEFORE = "3512ecf"
 """main before the start-up cuts of issue 33 (the https port's answer, gc held, routes in place)."""
@@ -148,20 +147,11 @@ def main(before: str, after: str, rounds: int) -> list[tuple[str, str]]:
 
 
 def write_results(rows: list[tuple[str, str]]) -> None:
-    machine = (f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
-               f"Python {platform.python_version()}")
     table = "\n".join(["| Figure | Value |", "|---|---|", *(f"| {k} | {v} |" for k, v in rows)])
-    section = (f"{SECTION}\n\nWritten by `benchmarks/startup_process.py` ({time.strftime('%Y-%m-%d %H:%M')}, "
-               f"{machine}, load average {os.getloadavg()[0]:.1f}). Issue 33: /api/health within 2 s of a restart "
-               "with 200 stored uploads.\n\n" + table + "\n\n" + NOTE + "\n")
-    text = RESULTS.read_text(encoding="utf-8")
-    if SECTION in text:
-        head, rest = text.split(SECTION, 1)
-        tail = rest[rest.find("\n## "):] if "\n## " in rest else "\n"
-        text = head + section + tail
-    else:
-        text = text.rstrip("\n") + "\n\n" + section
-    RESULTS.write_text(text, encoding="utf-8")
+    body = (f"Written by `benchmarks/startup_process.py` ({time.strftime('%Y-%m-%d %H:%M')}, "
+            f"{machine()}, load average {os.getloadavg()[0]:.1f}). Issue 33: /api/health within 2 s of a restart "
+            "with 200 stored uploads.\n\n" + table + "\n\n" + NOTE + "\n")
+    write_section(SECTION, body)
 
 
 NOTE = ("Wall time on this shared machine is mostly the wait for a core (see the load average): the CPU seconds of "

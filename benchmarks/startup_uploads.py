@@ -13,19 +13,18 @@ The ratio compares like with like.
 from __future__ import annotations
 
 import os
-import platform
 import re
 import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from _monitor_results import machine, write_section
 from fastapi.testclient import TestClient
 
 from drivebench.config import REPO_ROOT, settings
 from drivebench.web.app import create_app
 
-RESULTS = REPO_ROOT / "benchmarks" / "RESULTS.md"
 UPLOADS = 200
 SECTION = "## Start-up with stored uploads"
 NOTE = ("Wall time on this shared machine is mostly the wait for a core (see the load average); the CPU seconds "
@@ -102,20 +101,11 @@ def main() -> list[tuple[str, str]]:
 
 
 def write_results(rows: list[tuple[str, str]]) -> None:
-    machine = (f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
-               f"Python {platform.python_version()}")
     table = "\n".join(["| Figure | Value |", "|---|---|", *(f"| {k} | {v} |" for k, v in rows)])
-    section = (f"{SECTION}\n\nWritten by `benchmarks/startup_uploads.py` ({time.strftime('%Y-%m-%d')}, {machine}, "
-               f"load average {os.getloadavg()[0]:.1f}). Issue 33: a restart with about 200 stored uploads took 17.6 s "
-               "before `/api/health` answered.\n\n" + table + "\n\n" + NOTE + "\n")
-    text = RESULTS.read_text(encoding="utf-8")
-    if SECTION in text:
-        head, rest = text.split(SECTION, 1)
-        tail = rest[rest.find("\n## "):] if "\n## " in rest else "\n"
-        text = head + section + tail
-    else:
-        text = text.rstrip("\n") + "\n\n" + section
-    RESULTS.write_text(text, encoding="utf-8")
+    body = (f"Written by `benchmarks/startup_uploads.py` ({time.strftime('%Y-%m-%d')}, {machine()}, "
+            f"load average {os.getloadavg()[0]:.1f}). Issue 33: a restart with about 200 stored uploads took 17.6 s "
+            "before `/api/health` answered.\n\n" + table + "\n\n" + NOTE + "\n")
+    write_section(SECTION, body)
 
 
 if __name__ == "__main__":

@@ -18,6 +18,7 @@ from drivebench.simulator.store import Abort
 from drivebench.transport.bus import SimulatedAdapter
 from tests.confirming import confirmed
 from tests.conftest import wait_until
+from tests.pdo_settings import tpdo_and_sync_settings
 
 AXIS = 7
 API = "/api/sessions/demo-plant"
@@ -35,14 +36,8 @@ def _adapter(client: TestClient) -> SimulatedAdapter:
     return adapter
 
 
-def _tpdo_settings(client: TestClient) -> dict[str, Any]:
-    listed = client.get(f"{API}/nodes/{AXIS}/parameters").json()["parameters"]
-    refs = [p["ref"] for p in listed if int(p["index"], 16) in (0x1005, 0x1006)
-            or 0x1800 <= int(p["index"], 16) <= 0x19FF or 0x1A00 <= int(p["index"], 16) <= 0x1BFF]
-    answer = client.post(f"{API}/nodes/{AXIS}/parameters:read", json={"refs": refs})
-    assert answer.status_code == 200 and refs, answer.text
-    return {item["ref"]: item["value"]["raw"] if item["ok"] else item["error"]["detail"]
-            for item in answer.json()["items"]}
+def _tpdo_settings(client: TestClient) -> dict[str, object]:
+    return tpdo_and_sync_settings(client, f"{API}/nodes/{AXIS}")
 
 
 def _start_and_wait_for_samples(client: TestClient) -> None:

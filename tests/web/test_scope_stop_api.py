@@ -14,6 +14,7 @@ from drivebench.services.scope import runs
 from drivebench.web.app import create_app
 from tests.confirming import confirmed
 from tests.conftest import DEMO_PLANT, fresh_channel, wait_until
+from tests.pdo_settings import tpdo_and_sync_settings
 
 AXIS = 7
 API = "/api/sessions/demo-plant"
@@ -58,13 +59,7 @@ def test_the_stored_recording_holds_every_sync_sent_before_stop(app_db_url: str)
 
 
 def _tpdo_settings(client: TestClient) -> dict[str, object]:
-    listed = client.get(f"{API}/nodes/{AXIS}/parameters").json()["parameters"]
-    refs = [p["ref"] for p in listed if int(p["index"], 16) in (0x1005, 0x1006)
-            or 0x1800 <= int(p["index"], 16) <= 0x19FF or 0x1A00 <= int(p["index"], 16) <= 0x1BFF]
-    answer = client.post(f"{API}/nodes/{AXIS}/parameters:read", json={"refs": refs})
-    assert answer.status_code == 200 and refs, answer.text
-    return {item["ref"]: item["value"]["raw"] if item["ok"] else item["error"]["detail"]
-            for item in answer.json()["items"]}
+    return tpdo_and_sync_settings(client, f"{API}/nodes/{AXIS}")
 
 
 def test_a_recording_started_over_the_api_and_left_ends_by_itself_after_max_s_and_restores(
