@@ -231,6 +231,11 @@ document.addEventListener("htmx:configRequest", (event) => {
   // its own (ask's ``note``)
   const KEEP_ALIVE_NOTE = () => _("Once sent, this page keeps the node alive (every 0.5 s); when the page closes or " +
     "the network is lost, the server sends quick stop within 2 s.");
+  // a broadcast the server marks with "reaches" (LSS, NMT to all, activate bit timing) moves no drive by itself: it
+  // reaches every device on the bus, the unconfigured ones too, and the keep-alive holds none of them
+  const EVERY_DEVICE_HEAD = () => _("Every device on this bus hears it");
+  const EVERY_DEVICE_NOTE = () => _("It also reaches devices this session does not know. The server refuses it " +
+    "while a drive of the session is enabled or armed.");
 
   function askDialog() {
     if (dialog) return dialog;
@@ -239,7 +244,7 @@ document.addEventListener("htmx:configRequest", (event) => {
     const form = document.createElement("form");
     form.method = "dialog";
     const head = document.createElement("h3");
-    head.textContent = _("The drive may move");
+    head.className = "moving-confirm-head";
     const text = document.createElement("p");
     text.className = "moving-confirm-text";
     const values = document.createElement("ul");
@@ -275,9 +280,12 @@ document.addEventListener("htmx:configRequest", (event) => {
   // open for the next press until it is closed (resolves false then).
   function ask(problem, { host = null, what = "", okLabel = "", hold = null, note = "" } = {}) {
     const box = host || askDialog();
-    const aside = box.querySelector(".moving-confirm-note");
-    if (aside) aside.textContent = note || KEEP_ALIVE_NOTE();
     const node = problem.confirm_node;
+    const everyDevice = node === "all" && "reaches" in (problem.confirm_values || {});
+    const head = box.querySelector(".moving-confirm-head");
+    if (head) head.textContent = everyDevice ? EVERY_DEVICE_HEAD() : _("The drive may move");
+    const aside = box.querySelector(".moving-confirm-note");
+    if (aside) aside.textContent = note || (everyDevice ? EVERY_DEVICE_NOTE() : KEEP_ALIVE_NOTE());
     const text = box.querySelector(".moving-confirm-text");
     const whom = node === "all" ? _("every node of the session") : _("node {node}", { node });
     text.textContent = what ? _("{what}: sends to {whom}:", { what, whom }) : _("Sends to {whom}:", { whom });

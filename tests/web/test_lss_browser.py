@@ -42,6 +42,7 @@ def test_fastscan_assign_store_and_the_node_boots_onto_the_plant_page(line_serve
     page.get_by_role("button", name="Fastscan").click()
     asked = _confirm(page)
     assert "every node of the session" in asked and "reaches: all nodes on this bus" in asked
+    assert "Every device on this bus hears it" in asked and "keeps the node alive" not in asked  # no drive is held
     rows = page.locator("#lss-devices tbody tr")
     expect(rows).to_have_count(4, timeout=TIMEOUT_MS)
     expect(page.locator("#lss-scan-result")).to_contain_text("4 devices found", timeout=TIMEOUT_MS)
