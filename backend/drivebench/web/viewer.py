@@ -101,8 +101,8 @@ def _allow(scope: Scope, decision: access_policy.Decision, link: ShareLink) -> b
         return True
     if scope.get("method", "GET") not in SAFE_METHODS:
         if decision.template in SCOPE_WRITES:
-            raise AccessDenied(_("A remote diagnostics link can watch a scope recording and open or export stored "
-                                 "ones; it cannot start, stop or delete a recording."),
+            raise AccessDenied(_("A remote diagnostics link is read-only: it can watch a scope recording and open or "
+                                 "export stored ones; it cannot start, stop or delete a recording."),
                                hint=N_("Ask the engineer on site to start or stop the recording."))
         raise AccessDenied(_("A remote diagnostics link is read-only: it cannot write parameters, send NMT "
                              "commands or PDOs, or change anything on this server."),
