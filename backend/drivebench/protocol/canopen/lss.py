@@ -42,7 +42,7 @@ BIT_TIMINGS = {0: 1_000_000, 1: 800_000, 2: 500_000, 3: 250_000, 4: 125_000, 6: 
 """CiA 305 bit timing table 0 (index 5 is reserved there; canopen's docstring calls it 100 kbit/s)."""
 DEFAULT_WINDOW_S = 0.05
 DEFAULT_TIMEOUT_S = 1.0
-FASTSCAN_ATTEMPTS = 3
+FASTSCAN_ATTEMPTS = 4
 
 NO_SLAVE = N_("no LSS slave answered: is a device in LSS waiting state?")
 
@@ -332,10 +332,11 @@ class LssMaster:
                 return LssAddress(*parts), ceiling
             count.retries += 1
             # Answers came late (a busy machine stalls the adapter's or the devices' threads): the whole device
-            # again, first with every request waiting the full answer window, then four times as long (at most
-            # timeout_s; an answer returns at once, a miss costs the window). Narrowing pays only while answers come
-            # in time.
-            window = ceiling if attempt == 0 else max(ceiling, min(self.timeout_s, 4 * ceiling))
+            # again, first with every request waiting the full answer window, then four and sixteen times as long
+            # (at most timeout_s; an answer returns at once, a miss costs the window). Narrowing pays only while
+            # answers come in time; the last attempt is slow, but a slow scan beats a device left out (CI, 2 cores
+            # with four workers and a busy thread: 200 ms was not enough).
+            window = ceiling if attempt == 0 else max(ceiling, min(self.timeout_s, 4 ** attempt * ceiling))
             self._floor = window
         raise LssError(Text(N_("fastscan lost the device it was following ({attempts} attempts, last answer "
                                "window {ms} ms): a device that answers late or leaves waiting state; raise the "
