@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import threading
+import time
 from collections.abc import Iterator
 
 import can
@@ -97,5 +98,22 @@ def test_an_answer_sent_before_the_probe_asked_is_not_counted(network: CanopenNe
         held.release.set()
         prober.join(timeout=10.0)
         network.remove_listener(held)
+    assert counted == {MOTEC: 1}
+    assert watch.found() == {}
+
+
+def test_a_late_answer_to_the_scans_own_read_before_the_probe_asks_is_not_counted(network: CanopenNetwork,
+                                                                                     wire: can.BusABC) -> None:
+    """A duplicate whose SDO server was slow sends its second answer to the scan's own 0x1018sub4 read after the
+    scan ended, while the probe gets ready: stamped after the probe's own request it would pass the stamp check (CI:
+    "3 answers to one SDO request" for two devices). The probe first waits for quiet on the answer channels."""
+    watch = DuplicateWatch()
+    counted: dict[int, int] = {}
+    prober = threading.Thread(target=lambda: counted.update(watch.probe(network, [MOTEC])))
+    prober.start()
+    time.sleep(0.05)
+    wire.send(can.Message(arbitration_id=0x580 + MOTEC, data=bytes([0x43, 0x18, 0x10, 0x04, 0x2A, 0, 0, 0]),
+                          is_extended_id=False))
+    prober.join(timeout=10.0)
     assert counted == {MOTEC: 1}
     assert watch.found() == {}
