@@ -131,14 +131,22 @@ def upload(client: TestClient, name: str, content: bytes) -> tuple[str | None, d
     return profile_id, client.get(f"/api/profiles/{profile_id}").json()
 
 
-def check_eds(client: TestClient, path: Path, out: Outcome) -> None:
+def accepted(client: TestClient, path: Path, out: Outcome) -> tuple[str, dict[str, Any], bytes] | None:
+    """Upload the file as it is; the profile id, the profile and the bytes, or None (the refusal noted)."""
     content = path.read_bytes()
     profile_id, profile = upload(client, path.name, content)
     if profile_id is None:
         out.refusal = str(profile)
-        return
+        return None
     out.accepted = True
     assert isinstance(profile, dict)
+    return profile_id, profile, content
+
+
+def check_eds(client: TestClient, path: Path, out: Outcome) -> None:
+    if (uploaded := accepted(client, path, out)) is None:
+        return
+    profile_id, profile, content = uploaded
     regenerated = client.get(f"/api/profiles/{profile_id}/eds", params={"regenerate": "true"})
     out.identical = regenerated.status_code == 200 and regenerated.content == content
     if regenerated.status_code != 200:
@@ -250,13 +258,9 @@ def xml_facts(content: bytes) -> Counter[str]:
 
 
 def check_xdd(client: TestClient, path: Path, out: Outcome) -> None:
-    content = path.read_bytes()
-    profile_id, profile = upload(client, path.name, content)
-    if profile_id is None:
-        out.refusal = str(profile)
+    if (uploaded := accepted(client, path, out)) is None:
         return
-    out.accepted = True
-    assert isinstance(profile, dict)
+    profile_id, profile, content = uploaded
     written = client.get(f"/api/profiles/{profile_id}/xdd", params={"regenerate": "true"}).content
     out.identical = written == content
     before, after = xml_facts(content), xml_facts(written)

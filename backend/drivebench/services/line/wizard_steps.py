@@ -237,7 +237,7 @@ async def sets(call: StepCall) -> bool:
             call.say(_("{node}: not in the session, its set '{name}' was not downloaded (run the boot-up check)."
                        ).format(node=_label(node), name=chosen.name))
             continue
-        stored = store_.get(chosen.set_id)
+        stored = await asyncio.to_thread(store_.get, chosen.set_id)  # a database read: not on the event loop
         held, values = await set_jobs.download_moving_values(call.session, node.node_id, stored, ctx=call.ctx)
         planned.append((node, stored, held, values))
     asked = {f"node {node.node_id}: {key}": value for node, _stored, _held, values in planned
