@@ -54,6 +54,18 @@ window.drivebench = window.drivebench || {};
     ? drivebench.errorBox(problem.title || _("Error"), problem.detail)
     : drivebench.errorBox(_("Request failed"), `(HTTP ${status})`);
 
+  // One JSON request of a page script: answers {status, data} (data null when the answer holds no JSON). ``headers``
+  // are added; ``form``: the body is FormData, sent as it is. A request that gets no answer at all rejects.
+  drivebench.requestJson = async (method, url, body, { headers = {}, form = false } = {}) => {
+    const sent = { ...headers };
+    if (!form && body !== undefined) sent["Content-Type"] = "application/json";
+    const response = await fetch(url, { method, headers: sent,
+                                        body: body === undefined ? undefined : (form ? body : JSON.stringify(body)) });
+    let data = null;
+    try { data = await response.json(); } catch (e) { data = null; }
+    return { status: response.status, data };
+  };
+
   // One websocket client for every live page: the URL on this server, JSON messages to onMessage, reconnects with
   // back-off (retryMs doubled up to maxRetryMs, back to retryMs once open) while keepOpen(closeEvent) holds.
   // path may be a function (a query that changes between connections). Returns {send(message), close(), open}.

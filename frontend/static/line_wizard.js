@@ -15,14 +15,9 @@
                  sets: _("Parameter-set downloads"), program: _("Program downloads") };
   let run = null;
 
-  async function request(method, url, body, isForm = false) {
-    const headers = { "X-DriveBench-Client": window.drivebenchClientId };
-    if (!isForm && body !== undefined) headers["Content-Type"] = "application/json";
-    const response = await fetch(url, { method, headers,
-                                        body: body === undefined ? undefined : (isForm ? body : JSON.stringify(body)) });
-    let data = null;
-    try { data = await response.json(); } catch (e) { data = null; }
-    return { status: response.status, data };
+  function request(method, url, body, isForm = false) {
+    return db.requestJson(method, url, body, { headers: { "X-DriveBench-Client": window.drivebenchClientId },
+                                                form: isForm });
   }
 
   function showError(answer) {

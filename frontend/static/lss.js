@@ -8,13 +8,9 @@
   const tbody = card.querySelector("#lss-devices tbody");
   const errorSlot = card.querySelector("#lss-error");
 
-  async function request(method, url, body) {
-    const response = await fetch(url, { method, headers: { "Content-Type": "application/json",
-                                                          "X-DriveBench-Client": window.drivebenchClientId },
-                                        body: body === undefined ? undefined : JSON.stringify(body) });
-    let data = null;
-    try { data = await response.json(); } catch (e) { data = null; }
-    return { status: response.status, data };
+  function request(method, url, body) {
+    return window.drivebench.requestJson(method, url, body,
+                                         { headers: { "X-DriveBench-Client": window.drivebenchClientId } });
   }
 
   // A step that reaches every device: asked when the server answers 428, sent again confirmed

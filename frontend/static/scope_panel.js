@@ -34,11 +34,7 @@
 
     async function request(method, url, body) {
       try {
-        const response = await fetch(url, { method, headers: body ? { "Content-Type": "application/json" } : {},
-                                            body: body ? JSON.stringify(body) : undefined });
-        let data = null;
-        try { data = await response.json(); } catch (e) { data = null; }
-        return { status: response.status, data };
+        return await drivebench.requestJson(method, url, body);
       } catch (e) {
         return { status: 0, data: { detail: _("No answer from the DriveBench server.") } };
       }
