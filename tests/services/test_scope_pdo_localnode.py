@@ -8,7 +8,8 @@ import asyncio
 import itertools
 import struct
 import threading
-from collections.abc import Iterator
+import time
+from collections.abc import Callable, Iterator
 
 import canopen
 import pytest
@@ -97,9 +98,9 @@ def slave_session(registry: ProfileRegistry, app_db_url: str) -> Iterator[tuple[
     slave.close()
 
 
-def test_a_recording_from_a_localnode_slave(slave_session: tuple[asyncio.Runner, Session, SyncSlave]) -> None:
-    runner, session, slave = slave_session
-    before = slave.values()
+def _record(runner: asyncio.Runner, session: Session, during: Callable[[list[ScopeFrame]], None] = lambda _f: None
+            ) -> tuple[list[tuple[int, int]], list[str]]:
+    """A recording of the slave's position and status word at 2 ms; ``during`` runs once 50 samples came."""
     plan = runner.run(plan_recording(session, [ScopeChannel(NODE, "0x6064"), ScopeChannel(NODE, "0x6041")], 0.002))
     assert [(t.node, t.number) for t in plan.tpdos] == [(NODE, 3)]
     needed = pdo_source.confirmation(plan)
@@ -107,13 +108,41 @@ def test_a_recording_from_a_localnode_slave(slave_session: tuple[asyncio.Runner,
     source = PdoScopeSource(session, plan, SERVICE.confirming(Confirmation(needed[0], needed[2])))
     frames: list[ScopeFrame] = []
     runner.run(source.start(frames.append, print))
-    assert wait_until(lambda: runner.run(asyncio.sleep(0.05)) or sum(f.raw[0] is not None for f in frames) > 100,
-                      15)
+    values = lambda: sum(f.raw[0] is not None for f in frames)  # noqa: E731
+    assert wait_until(lambda: runner.run(asyncio.sleep(0.05)) or values() > 50, 15)
+    during(frames)
+    seen = values()
+    assert wait_until(lambda: runner.run(asyncio.sleep(0.05)) or values() > seen + 50, 15)
     texts = runner.run(source.stop())
-    got = [(f.sample, f.raw[0]) for f in frames if f.raw[0] is not None]
+    return [(f.sample, f.raw[0]) for f in frames if f.raw[0] is not None], texts
+
+
+def _consecutive(got: list[tuple[int, int]]) -> None:
     samples = [sample for sample, _value in got]
     assert samples == list(range(samples[0], samples[0] + len(samples))), "one sample per SYNC, consecutive"
     assert all(later - earlier == STEP for (_a, earlier), (_b, later) in itertools.pairwise(got)), \
         "the slave's ramp, one step per SYNC"
+
+
+def test_a_recording_from_a_localnode_slave(slave_session: tuple[asyncio.Runner, Session, SyncSlave]) -> None:
+    runner, session, slave = slave_session
+    before = slave.values()
+    got, texts = _record(runner, session)
+    _consecutive(got)
     assert slave.values() == before, texts
     assert slave.node.nmt.state == "PRE-OPERATIONAL"
+
+
+def test_a_slave_that_stalls_answers_the_syncs_it_missed_and_each_is_numbered_by_its_sync(
+        slave_session: tuple[asyncio.Runner, Session, SyncSlave]) -> None:
+    """A loaded machine: the slave's thread gets no CPU for 0.3 s (150 SYNCs) while SYNC goes on, then answers the
+    queued SYNCs in a burst. Each answer is the sample of the SYNC it answers (the old 50 ms wait numbered the
+    burst from the newest SYNC: a jump of ~125 samples)."""
+    runner, session, slave = slave_session
+
+    def stall(_frames: list[ScopeFrame]) -> None:
+        with slave.lock:
+            time.sleep(0.3)
+
+    got, _texts = _record(runner, session, stall)
+    _consecutive(got)

@@ -1,9 +1,11 @@
 """Sampling by PDO and polling joined into one source on one time base.
 
 The frames are the PDO part's, one per SYNC (sample n at ``n * period``). The channels of nodes (or objects) that
-cannot be sampled by PDO are polled by SDO at their own rate; each SYNC frame carries the latest value polled so
-far (sample and hold; None until the first poll answered), so a polled channel changes only every poll round,
-never between: its real rate is shown beside the PDO rate (:meth:`JoinedScopeSource.parts`).
+cannot be sampled by PDO are polled by SDO at their own rate; each poll round is stamped with the newest SYNC sent
+when it answered, and each SYNC frame carries the latest round stamped at or before its SYNC (sample and hold; None
+until the first poll answered), also when the frame is delivered later (it waited for a late TPDO): a polled
+channel changes only every poll round, never between: its real rate is shown beside the PDO rate
+(:meth:`JoinedScopeSource.parts`).
 
 Start: the PDO part first (confirmation, node leases, restore record, TPDOs, SYNC), then the polling. Stop: the
 polling, then the PDO part, which restores every TPDO and SYNC setting it changed and reads them back.
@@ -11,6 +13,7 @@ polling, then the PDO part, which restores every TPDO and SYNC setting it change
 
 from __future__ import annotations
 
+from collections import deque
 from typing import Any
 
 from drivebench.services.scope.pdo_source import PdoScopeSource, confirmation
@@ -35,6 +38,8 @@ class JoinedScopeSource:
         self._pdo_positions = pdo_positions
         self._poll_positions = poll_positions
         self._held: list[int | None] = [None] * len(poll_positions)
+        self._rounds: deque[tuple[int, list[int | None]]] = deque()
+        """Poll rounds not yet in a frame: (the newest SYNC when the round answered, its values)."""
         self._width = len(pdo_positions) + len(poll_positions)
         needed = confirmation(pdo.plan)
         self.moving = [needed] if needed is not None else []
@@ -59,6 +64,8 @@ class JoinedScopeSource:
 
     async def start(self, on_frame: FrameSink, on_event: EventSink) -> None:
         def joined(frame: ScopeFrame) -> None:
+            while self._rounds and self._rounds[0][0] <= frame.sample:
+                self._held = self._rounds.popleft()[1]
             raw: list[int | None] = [None] * self._width
             for position, value in zip(self._pdo_positions, frame.raw, strict=False):
                 raw[position] = value
@@ -67,7 +74,7 @@ class JoinedScopeSource:
             on_frame(ScopeFrame(frame.sample, frame.time_s, tuple(raw)))
 
         def polled(frame: ScopeFrame) -> None:
-            self._held = [value for value in frame.raw]
+            self._rounds.append((self.pdo.newest_sync(), list(frame.raw)))
 
         await self.pdo.start(joined, on_event)
         if self.poll is not None:

@@ -5,9 +5,10 @@ TPDO that answered it.
 Start: the confirmation (a SYNC producer and NMT start are moving-class: :func:`confirmation`), the node leases
 (held for the recording, shared with the same writer's own writes), the restore record in the database, then
 each TPDO by the CiA 301 sequence, the NMT start of pre-operational nodes, the SYNC producer. Frames arrive in
-the bus thread, are stamped by SYNC count (:class:`SyncProducer`) and handed to the event loop in batches; a
-frame for SYNC n is delivered once the producer is :data:`LAG_S` ahead of it (a node that sent nothing for it:
-None). Faults are events in words: a node that stops sending, SYNC paused or lost, another SYNC producer, bus-off.
+the bus thread, are stamped by SYNC count (:class:`SyncProducer`) and handed to the event loop in batches; the
+sample of SYNC n is delivered as soon as every sending node answered it, at the latest once the producer is
+:data:`WAIT_S` ahead of it (a node that sent nothing for it: None). Faults are events in words: a node that stops
+sending, SYNC paused or lost, another SYNC producer, bus-off.
 Stop: everything back from the record, read back; the record is removed after a good read-back only.
 """
 
@@ -36,10 +37,11 @@ from drivebench.services.scope.pdo_plan import SYNC_COB_ID, SYNC_EVERY, PlannedT
 from drivebench.services.scope.source import EventKind, EventSink, FrameSink, ScopeEvent, ScopeFrame, SourceKind
 from drivebench.services.scope.sync_producer import SyncProducer
 
-LAG_S = 0.05
-"""How long a sample waits for late TPDOs before it is delivered."""
-SILENT_S = 0.3
-"""A node that sent none of its TPDOs for this long (and 20 periods) has stopped sending."""
+WAIT_S = 1.0
+"""How long a sample waits for a TPDO that has not answered it yet (a node, or a loaded machine, that fell behind)."""
+SILENT_S = WAIT_S
+"""A node that sent none of its TPDOs for this long (and 20 periods) has stopped sending: samples no longer wait
+for it."""
 TICK_S = 0.02
 
 
@@ -96,6 +98,9 @@ class PdoScopeSource:
         self.extra = 0
         """TPDO frames for a SYNC their TPDO had answered already (counted, not delivered)."""
         self._expected: dict[int, int] = {}
+        """The SYNC each TPDO (by COB-ID) answers next."""
+        self._first: dict[int, int] = {}
+        """The SYNC each TPDO's first frame answered."""
         self._cobs = {tpdo.cob_id: tpdo.node for tpdo in plan.tpdos}
         self._producer = SyncProducer(lambda: frames_of(session.network).send(SYNC_COB_ID, b""), plan.period_s)
         self._tap = _Tap(self)
@@ -217,6 +222,7 @@ class PdoScopeSource:
                 continue
             row[cob_id] = data
             self._last_seen[self._cobs[cob_id]] = now
+        self._deliver(self._next)
 
     def _shift_back(self, cob_id: int, sample: int) -> bool:
         """A frame for a SYNC its TPDO already answered: the frames before it (not delivered yet) were put one SYNC
@@ -232,21 +238,30 @@ class PdoScopeSource:
 
     def _answered(self, cob_id: int, stamp: int) -> int:
         """The SYNC a TPDO frame answers. "Every SYNC" answers each SYNC once, in order: the frame after the one for
-        SYNC n answers n + 1, also when it arrives after a later SYNC (a device or a machine that fell behind), never
-        one not sent yet (``stamp``: the newest sent). A node more than :data:`LAG_S` behind skipped SYNCs (it was
-        killed, restarted): its frame answers the newest SYNC. (A device that skips a single SYNC looks like one
-        that answers a period late: it stays one SYNC behind.)"""
+        SYNC n answers n + 1, also when it arrives after later SYNCs (a device or a machine that fell behind: its
+        answers come in a burst once it gets the CPU again), never one not sent yet (``stamp``: the newest sent).
+        A node whose next SYNC was delivered without it (behind by more than :data:`WAIT_S`, or counted as silent)
+        skipped SYNCs (it was killed, restarted): its frame answers the newest SYNC. (A device that skips a single
+        SYNC looks like one that answers a period late: it stays one SYNC behind.)"""
         expected = self._expected.get(cob_id)
-        sample = stamp if expected is None or stamp - expected > self._lag() else min(expected, stamp)
+        sample = stamp if expected is None or expected < self._next else min(expected, stamp)
+        if expected is None:
+            self._first[cob_id] = sample
         self._expected[cob_id] = sample + 1
         return sample
 
     def _deliver(self, upto: int) -> None:
+        """Every sample before ``upto`` (its wait is over), then each one that every sending node answered (no
+        sample waits for a TPDO before its first frame, which answers the newest SYNC then, nor for a silent node)."""
         if self._on_frame is None:
             return
         self.period_s = self._producer.period_s
         slots = self.plan.slots
-        while self._next < upto:
+        newest = self._producer.stamp()
+        first = {cob: self._first[cob] for cob, node in self._cobs.items() if cob in self._first
+                 and node not in self._silent}
+        while self._next < upto or (self._next <= newest and all(
+                cob in self._rows.get(self._next, ()) for cob, since in first.items() if since <= self._next)):
             row = self._rows.pop(self._next, {})
             raw = tuple(slot.value(row[slot.cob_id]) if slot is not None and slot.cob_id in row else None
                         for slot in slots)
@@ -254,12 +269,18 @@ class PdoScopeSource:
             self._next += 1
             self.delivered += 1
 
+    def newest_sync(self) -> int:
+        """The number of the newest SYNC sent (-1 before the first)."""
+        return self._producer.stamp()
+
     def _lag(self) -> int:
-        return max(3, math.ceil(LAG_S / self.plan.period_s))
+        """:data:`WAIT_S` in SYNCs."""
+        return max(3, math.ceil(WAIT_S / self.plan.period_s))
 
     def _event(self, node: int | None, text: str, kind: EventKind = "source") -> None:
+        """An event at the time of the newest SYNC sent (a sample the recording delivers, now or after its wait)."""
         if self._on_event is not None:
-            self._on_event(ScopeEvent(self._next * self.period_s, node, kind, text))
+            self._on_event(ScopeEvent(max(self._producer.stamp(), 0) * self.period_s, node, kind, text))
 
     def _once(self, key: str, node: int | None, text: str) -> None:
         if key not in self._said:
@@ -309,7 +330,7 @@ class PdoScopeSource:
                 await self._task
             self._task = None
         self._producer.stop()
-        await asyncio.sleep(self._lag() * self.plan.period_s)  # the last answers
+        await self._last_answers()
         frames_of(self.session.network).remove_listener(self._tap)
         self._drain()
         self._deliver(self._producer.count)
@@ -317,6 +338,16 @@ class PdoScopeSource:
             count=self._producer.count, period=f"{self._producer.period_s * 1000:.3f}",
             nominal=f"{self.plan.period_s * 1000:g}")]
         return texts + await self._undo()
+
+    async def _last_answers(self) -> None:
+        """Wait until every sending node answered the last SYNC, at most :data:`WAIT_S`."""
+        last, until = self._producer.count - 1, time.monotonic() + WAIT_S
+        while time.monotonic() < until:
+            self._drain()
+            if all(self._expected[cob] > last for cob, node in self._cobs.items()
+                   if cob in self._expected and node not in self._silent):
+                return
+            await asyncio.sleep(TICK_S)
 
     async def _undo(self, written: restore_record.Written | None = None) -> list[str]:
         """Everything back from the record; the record removed after a good read-back. ``written``: a start that

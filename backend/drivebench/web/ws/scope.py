@@ -1,5 +1,5 @@
-"""A session's scope recording, live: ``/ws/sessions/{session}/scope`` sends JSON messages, batched (at most ten a
-second):
+"""A session's scope recording, live: ``/ws/sessions/{session}/scope`` sends JSON messages, batched (at most one per
+:data:`MIN_INTERVAL_S`):
 
 * ``{"type": "state", ...}`` (the run's status: state, source and its real rate, channels, trigger, captures, the
   stored ``recording_id``) first and whenever it changes; ``{"type": "state", "state": "none"}`` while the session
@@ -23,7 +23,7 @@ from drivebench.web.identity import principal_of
 from drivebench.web.ws.node_socket import open_session, serve
 
 router = APIRouter()
-MIN_INTERVAL_S = 0.1
+MIN_INTERVAL_S = 0.04
 IDLE_S = 0.5
 
 
