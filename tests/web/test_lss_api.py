@@ -21,6 +21,7 @@ from drivebench.web.app import create_app
 from drivebench.web.state import app_state
 from tests.confirming import confirmed
 from tests.conftest import DEMO_PLANT, fresh_channel, wait_until
+from tests.protocol.cia305_slaves import Cia305Bus, Cia305Device
 
 NEW_LINE = REPO_ROOT / "plants" / "new-line.json"
 LSS = "/api/sessions/new-line/lss"
@@ -296,3 +297,33 @@ def test_the_lss_faults_are_switched_through_the_simulator_api(line_api: TestCli
     assert refused.status_code == 502, refused.text
     assert "still in LSS configuration state" in refused.json()["detail"]
     assert line_api.put(url, json={}).json()["active"] == []
+
+
+def test_a_bit_rate_switch_with_lss_slaves_that_share_no_code_with_the_simulator(demo_api: TestClient) -> None:
+    """Issue 32 items 1 and 9: the same switch against LSS slaves written from CiA 305 alone, each with a controller
+    at its own rate: two configured to 250 kbit/s follow, one configured to 500 kbit/s stays. The session's adapter
+    follows, the two answer at 250 kbit/s, the third is named as still answering at 500 kbit/s."""
+    channel = fresh_channel()
+    devices = [Cia305Device(0x1234, 7, 1, 0xA1, timing=3), Cia305Device(0x1234, 7, 1, 0xA2, timing=3),
+               Cia305Device(0x1234, 7, 1, 0xB1)]
+    slaves = Cia305Bus(channel, devices, bitrate=500_000)
+    try:
+        opened = demo_api.post("/api/sessions", json={"bus": f"virtual:{channel}@500000", "name": "Independent"})
+        assert opened.status_code == 201, opened.text
+        lss = f"/api/sessions/{opened.json()['id']}/lss"
+        found = confirmed(demo_api, "POST", f"{lss}/fastscan", json={})
+        assert found.status_code == 200, found.text
+        assert sorted(int(device["serial"], 16) for device in found.json()["devices"]) == [0xA1, 0xA2, 0xB1]
+        switched = confirmed(demo_api, "POST", f"{lss}/activate-bit-timing",
+                             json={"bitrate": 250000, "switch_delay_ms": 20, "configuration_first": True})
+        assert switched.status_code == 200, switched.text
+        answer = switched.json()
+        assert answer["adapter_bitrate"] == 250000
+        assert sorted(int(device["serial"], 16) for device in answer["followed"]) == [0xA1, 0xA2], answer["text"]
+        assert [(int(device["serial"], 16), device["at_old_rate"]) for device in answer["left_behind"]] == [
+            (0xB1, True)]
+        assert "Serial 0x000000B1 still answers at 500 kbit/s" in answer["text"]
+        assert [device.rate for device in devices] == [250_000, 250_000, 500_000]
+        assert [device.configuring for device in devices] == [False, False, True]  # waiting: sent at 250 kbit/s
+    finally:
+        slaves.shutdown()
