@@ -72,6 +72,32 @@
       "Inquired: vendor {vendor}, product {product}, revision {revision}, serial {serial}. {text}", a)));
   }
 
+  // activate bit timing: reaches every device (428 names "all"); the answer says who followed, in words
+  const activateForm = document.getElementById("lss-activate-form");
+  if (activateForm) {
+    activateForm.addEventListener("submit", async (event) => {
+      event.preventDefault();
+      const slot = document.getElementById("lss-activate-result");
+      const button = activateForm.querySelector("button[type=submit]");
+      const body = { bitrate: Number(activateForm.elements.bitrate.value),
+                     switch_delay_ms: Number(activateForm.elements.switch_delay_ms.value),
+                     configuration_first: activateForm.elements.configuration_first.checked };
+      button.disabled = true;
+      slot.replaceChildren(window.drivebench.el("p", {}, _("switching…")));
+      try {
+        const answer = await confirmed(`${base}/activate-bit-timing`, body, _("LSS activate bit timing"));
+        if (!answer) { slot.replaceChildren(window.drivebench.el("p", {}, _("Cancelled: nothing was sent."))); return; }
+        if (answer.status >= 400) { slot.replaceChildren(window.drivebench.problemBox(answer.data, answer.status)); return; }
+        const a = answer.data;
+        const shown = window.drivebench.el("p", {}, a.text);
+        shown.classList.add(a.left_behind.length || a.nodes_silent.length ? "step-failed" : "step-ok");
+        slot.replaceChildren(shown);
+      } finally {
+        button.disabled = false;
+      }
+    });
+  }
+
   const identifyForm = document.getElementById("lss-identify-form");
   if (identifyForm) {
     identifyForm.addEventListener("submit", async (event) => {

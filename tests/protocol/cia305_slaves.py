@@ -15,7 +15,11 @@ from dataclasses import dataclass, field
 
 import can
 
+from drivebench.transport.bus import BusSpec, open_bus
+
 NONE_ID = 0xFF
+TABLE_0 = {0: 1_000_000, 1: 800_000, 2: 500_000, 3: 250_000, 4: 125_000, 6: 50_000, 7: 20_000, 8: 10_000}
+"""CiA 305 bit timing table 0 (index 5 reserved)."""
 
 
 @dataclass
@@ -29,6 +33,8 @@ class Cia305Device:
     pending: int = NONE_ID
     timing: int = 2
     stored: tuple[int, int] | None = None
+    rate: int | None = None
+    """The bit rate its controller runs at (None: the group's plain bus)."""
     _sel: list[int] = field(default_factory=list)
     _ident: list[int] = field(default_factory=list)
     _lss_pos: int = 0
@@ -105,25 +111,62 @@ class Cia305Device:
         return b"\x4f" + bytes(7)
 
 
-class Cia305Bus(can.Listener):
-    """The devices on one virtual channel: each request goes to all; each distinct answer is sent once."""
-
-    def __init__(self, channel: str, devices: list[Cia305Device], *, answer_delay_s: float = 0.0) -> None:
-        self.devices = devices
-        self.answer_delay_s = answer_delay_s
-        self.bus = can.Bus(interface="virtual", channel=channel)
-        self.answers_sent = 0
-        self._lock = threading.Lock()
-        self.notifier = can.Notifier(self.bus, [self])
+class _AtRate(can.Listener):
+    def __init__(self, group: Cia305Bus, rate: int | None) -> None:
+        self.group, self.rate = group, rate
 
     def on_message_received(self, msg: can.Message) -> None:
+        self.group.heard(msg, self.rate)
+
+
+class Cia305Bus:
+    """The devices on one virtual channel: each request goes to all; each distinct answer is sent once.
+
+    With ``bitrate`` the devices' controllers run at that rate (simulated adapters of DriveBench's transport: each
+    hears frames at its rate only); activate bit timing (0x15) moves a device in configuration state, after the
+    switch delay, to the rate it was configured to (configure bit timing, or ``timing`` given)."""
+
+    def __init__(self, channel: str, devices: list[Cia305Device], *, answer_delay_s: float = 0.0,
+                 bitrate: int | None = None) -> None:
+        self.channel = channel
+        self.devices = devices
+        self.answer_delay_s = answer_delay_s
+        self.answers_sent = 0
+        self._lock = threading.Lock()
+        self.buses: dict[int | None, can.BusABC] = {}
+        self.notifiers: list[can.Notifier] = []
+        for device in devices:
+            device.rate = bitrate
+        self.bus = self._controller(bitrate)
+
+    def _controller(self, rate: int | None) -> can.BusABC:
+        if rate not in self.buses:
+            bus = (can.Bus(interface="virtual", channel=self.channel) if rate is None
+                   else open_bus(BusSpec(interface="virtual", channel=self.channel, bitrate=rate)))
+            self.buses[rate] = bus
+            self.notifiers.append(can.Notifier(bus, [_AtRate(self, rate)]))
+        return self.buses[rate]
+
+    def _move(self, device: Cia305Device, rate: int) -> None:
+        with self._lock:
+            self._controller(rate)
+            device.rate = rate
+
+    def heard(self, msg: can.Message, rate: int | None) -> None:
         if msg.arbitration_id != 0x7E5 or msg.is_remote_frame:
             return
         frame = (bytes(msg.data) + bytes(8))[:8]
         answers: list[bytes] = []
         boots: list[int] = []
         with self._lock:
-            for device in self.devices:
+            here = [device for device in self.devices if device.rate == rate]
+            if frame[0] == 0x15 and rate is not None:
+                delay_s = struct.unpack_from("<H", frame, 1)[0] / 1000
+                for device in here:
+                    if device.configuring and TABLE_0[device.timing] != rate:
+                        threading.Timer(delay_s, self._move, (device, TABLE_0[device.timing])).start()
+                return
+            for device in here:
                 answer, boot = device.handle(frame)
                 if answer is not None and answer not in answers:
                     answers.append(answer)
@@ -131,12 +174,15 @@ class Cia305Bus(can.Listener):
                     boots.append(boot)
         if answers and self.answer_delay_s:
             time.sleep(self.answer_delay_s)
+        bus = self.buses[rate]
         for answer in answers:
             self.answers_sent += 1
-            self.bus.send(can.Message(arbitration_id=0x7E4, data=answer, is_extended_id=False))
+            bus.send(can.Message(arbitration_id=0x7E4, data=answer, is_extended_id=False))
         for node_id in boots:
-            self.bus.send(can.Message(arbitration_id=0x700 + node_id, data=b"\x00", is_extended_id=False))
+            bus.send(can.Message(arbitration_id=0x700 + node_id, data=b"\x00", is_extended_id=False))
 
     def shutdown(self) -> None:
-        self.notifier.stop()
-        self.bus.shutdown()
+        for notifier in self.notifiers:
+            notifier.stop()
+        for bus in self.buses.values():
+            bus.shutdown()

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import threading
 from collections.abc import Iterator
 from pathlib import Path
@@ -208,3 +209,17 @@ def test_fastscan_finds_every_device_while_the_process_is_busy(registry: Profile
         master.close()
         network.disconnect()
         plant.stop()
+
+
+def test_lss_faults_come_from_the_plant_file_and_only_for_an_lss_device(registry: ProfileRegistry) -> None:
+    """Issue 32: a plant file sets a device's LSS faults (no Python needed); a node that is no LSS device cannot
+    have them, and the file is refused in words."""
+    data = json.loads(NEW_LINE.read_text(encoding="utf-8"))
+    data["nodes"][2]["lss_faults"] = {"ignores_activate_bit_timing": True}
+    plant_file = PlantFile.model_validate(data)
+    plant = Plant(plant_file, registry.get, bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
+    faults = plant.lss.by_serial(3003).slave.faults
+    assert faults.ignores_activate_bit_timing and not faults.stays_in_configuration
+    assert not plant.lss.by_serial(1001).slave.faults.ignores_activate_bit_timing
+    with pytest.raises(ValueError, match="lss_faults need an LSS device"):
+        PlantNode(node_id=5, profile="generic-cia402-servo", lss_faults={"stays_in_configuration": True})

@@ -8,7 +8,7 @@ import can
 import pytest
 
 from drivebench.errors import AdapterUnavailable, BusSpecError
-from drivebench.transport.bus import AdapterLost, BusSpec, BusUnusable, open_bus
+from drivebench.transport.bus import AdapterLost, BusSpec, BusUnusable, open_bus, rate_of
 from tests.conftest import wait_until
 
 
@@ -69,7 +69,7 @@ def test_observed_bus_reports_transmitted_frames(channel: str, wire: can.BusABC)
         bus.shutdown()
 
 
-def test_every_other_bus_on_a_virtual_channel_gets_its_own_plain_copy(channel: str, wire: can.BusABC) -> None:
+def test_every_other_bus_on_a_virtual_channel_gets_its_own_copy(channel: str, wire: can.BusABC) -> None:
     # the simulated adapter hands python-can's virtual bus a frame that copies cheaply; what arrives must be what a
     # plain virtual bus delivers: a can.Message of its own, every field kept, data not shared with the sender's
     second = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
@@ -80,7 +80,8 @@ def test_every_other_bus_on_a_virtual_channel_gets_its_own_plain_copy(channel: s
         copies = [wire.recv(1), second.recv(1)]
         sent.data[0] = 0xFF
         for copy in copies:
-            assert copy is not None and type(copy) is can.Message and copy is not sent
+            assert copy is not None and isinstance(copy, can.Message) and copy is not sent
+            assert rate_of(copy) == 500_000  # the bit rate it was sent at (issue 32: rates on the virtual bus)
             assert (copy.arbitration_id, copy.is_extended_id, copy.dlc, copy.is_rx) == (0x1ABCDE, True, 8, True)
             assert copy.data == bytearray(range(8)) and copy.timestamp > 0
         assert copies[0].data is not copies[1].data  # type: ignore[union-attr]
@@ -125,3 +126,29 @@ def test_a_send_guard_refuses_at_once(channel: str) -> None:
         assert not bus.link.lost
     finally:
         bus.shutdown()
+
+
+def test_virtual_adapters_hear_only_frames_at_their_bit_rate_and_one_can_be_reopened_at_another(
+        channel: str, wire: can.BusABC) -> None:
+    """Issue 32: python-can's virtual bus has no bit rate; the simulated adapters have one. A frame reaches the
+    adapters at its sender's rate only (and a plain python-can bus, which has none); an adapter reopened at another
+    rate under the same object hears that rate from then on."""
+    at_500 = open_bus(BusSpec.parse(f"virtual:{channel}@500000"))
+    at_250 = open_bus(BusSpec.parse(f"virtual:{channel}@250000"))
+    frame = can.Message(arbitration_id=0x123, data=bytes(2), is_extended_id=False)
+    try:
+        at_500.send(frame)
+        assert at_250.recv(0.3) is None
+        plain = wire.recv(1)
+        assert plain is not None and rate_of(plain) == 500_000
+        at_500.reopen_at(250_000)
+        assert at_500.spec.bitrate == 250_000 and str(at_500.spec).endswith("@250000")
+        at_500.send(frame)
+        heard = at_250.recv(1)
+        assert heard is not None and rate_of(heard) == 250_000
+        wire.send(can.Message(arbitration_id=0x321, data=b"", is_extended_id=False))  # no rate: every adapter hears
+        assert at_500.recv(1) is not None and at_250.recv(1) is not None
+        assert not at_500.link.lost
+    finally:
+        at_500.shutdown()
+        at_250.shutdown()

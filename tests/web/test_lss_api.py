@@ -5,6 +5,7 @@ while a node is enabled or armed, the audit rows."""
 from __future__ import annotations
 
 import json
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -15,10 +16,12 @@ from fastapi.testclient import TestClient
 
 from drivebench.config import REPO_ROOT
 from drivebench.services.users import audit
+from drivebench.transport.bus import BusSpec, ObservedBus, open_bus
 from drivebench.web.app import create_app
 from drivebench.web.state import app_state
 from tests.confirming import confirmed
 from tests.conftest import DEMO_PLANT, fresh_channel, wait_until
+from tests.protocol.cia305_slaves import Cia305Bus, Cia305Device
 
 NEW_LINE = REPO_ROOT / "plants" / "new-line.json"
 LSS = "/api/sessions/new-line/lss"
@@ -206,25 +209,121 @@ def test_a_device_stuck_in_configuration_state_since_the_fastscan_is_named(line_
     assert "still in LSS configuration state" in detail and "Power-cycle the device" in detail, detail
 
 
-def test_a_bit_rate_switch_that_leaves_one_device_behind_names_it(line_api: TestClient) -> None:
-    """Issue 32 item 8: the four devices get 250 kbit/s configured, the pump's LSS firmware ignores activate bit
-    timing (the simulator's fault). After the switch every device known by its LSS address is asked at the old
-    rate: the pump still answers, and is named with the next step."""
-    plant = app_state(line_api.app).plants["new-line"]  # type: ignore[arg-type]
-    plant.lss.by_serial(3003).slave.faults.ignores_activate_bit_timing = True
-    found = confirmed(line_api, "POST", f"{LSS}/fastscan", json={})
+def _assign_all_at(client: TestClient, bitrate: int) -> None:
+    found = confirmed(client, "POST", f"{LSS}/fastscan", json={})
     devices = {int(device["serial"], 16): device for device in found.json()["devices"]}
     for node_id, serial in ((21, 1001), (22, 2002), (23, 3003), (24, 4004)):
         body = {key: devices[serial][key] for key in ("vendor", "product", "revision", "serial")}
-        steps = confirmed(line_api, "POST", f"{LSS}/assign", json=body | {"node_id": node_id, "bitrate": 250000})
+        steps = confirmed(client, "POST", f"{LSS}/assign", json=body | {"node_id": node_id, "bitrate": bitrate})
         assert steps.status_code == 200, steps.text
-    assert confirmed(line_api, "POST", f"{LSS}/switch-global", json={"configuration": True}).status_code == 204
-    switched = confirmed(line_api, "POST", f"{LSS}/activate-bit-timing", json={"bitrate": 250000,
-                                                                               "switch_delay_ms": 20})
+        assert steps.json()[-1]["ok"], steps.text
+
+
+def _wire_at(channel: str, bitrate: int) -> ObservedBus:
+    """An adapter of its own on the plant's virtual bus (another tool's), opened at ``bitrate``."""
+    return open_bus(BusSpec(interface="virtual", channel=channel, bitrate=bitrate))
+
+
+def _device_type(wire: ObservedBus, node_id: int) -> bytes | None:
+    """SDO upload of 0x1000 (expedited) to ``node_id``: its answer, None when none comes."""
+    wire.send(can.Message(arbitration_id=0x600 + node_id, data=bytes([0x40, 0x00, 0x10, 0, 0, 0, 0, 0]),
+                          is_extended_id=False))
+    deadline = time.monotonic() + 2.0
+    while (left := deadline - time.monotonic()) > 0:
+        msg = wire.recv(left)
+        if msg is not None and msg.arbitration_id == 0x580 + node_id:
+            return bytes(msg.data)
+    return None
+
+
+def test_a_bit_rate_switch_moves_the_adapter_and_names_the_device_left_behind(app_db_url: str,
+                                                                               tmp_path: Path) -> None:
+    """Issue 32 items 1 and 8: the four devices get 250 kbit/s configured, the pump's LSS firmware ignores activate
+    bit timing (set in the plant file). After the switch the session's own adapter runs at 250 kbit/s, the three
+    that followed answer there (LSS and SDO), and the pump - silent at 250 kbit/s, still answering at 500 kbit/s -
+    is named with the next step."""
+    plant = json.loads(NEW_LINE.read_text(encoding="utf-8"))
+    plant["nodes"][2]["lss_faults"] = {"ignores_activate_bit_timing": True}
+    channel = fresh_channel()
+    path = tmp_path / "new-line.json"
+    path.write_text(json.dumps(plant), encoding="utf-8")
+    app = create_app(plant_file=path, plant_bus=f"virtual:{channel}@500000", latency="0ms")
+    with TestClient(app) as client:
+        _assign_all_at(client, 250_000)
+        assert confirmed(client, "POST", f"{LSS}/switch-global", json={"configuration": True}).status_code == 204
+        switched = confirmed(client, "POST", f"{LSS}/activate-bit-timing", json={"bitrate": 250000,
+                                                                                "switch_delay_ms": 20})
+        assert switched.status_code == 200, switched.text
+        answer = switched.json()
+        assert answer["adapter_bitrate"] == 250000 and answer["old_bitrate"] == 500000 and answer["checked"] == 4
+        assert sorted(int(device["serial"], 16) for device in answer["followed"]) == [1001, 2002, 4004], answer["text"]
+        assert [(int(device["serial"], 16), device["at_old_rate"]) for device in answer["left_behind"]] == [
+            (3003, True)]
+        text = answer["text"]
+        assert text.startswith("This session's adapter now runs at 250 kbit/s. 1 of 4 devices did not follow to "
+                               "250 kbit/s: serial 0x00000BBB does not answer at 250 kbit/s."), text
+        assert "Serial 0x00000BBB still answers at 500 kbit/s" in text and "Power-cycle it" in text
+        assert "stays at 500" not in text
+        session = client.get("/api/sessions/new-line").json()
+        assert session["bitrate"] == 250000 and session["bus"].endswith("@250000")
+        # through the session's adapter, at the new rate: the followers answer, the pump does not
+        for node_id in (21, 22, 24):
+            read = client.get(f"/api/sessions/new-line/nodes/{node_id}/parameters/0x1000")
+            assert read.status_code == 200, read.text
+        assert client.get("/api/sessions/new-line/nodes/23/parameters/0x1000").status_code >= 400
+        # another adapter on the wire: the pump answers at 500 kbit/s only, the others at 250 kbit/s only
+        with _wire_at(channel, 500_000) as old, _wire_at(channel, 250_000) as new:
+            assert _device_type(old, 23) is not None and _device_type(new, 23) is None
+            assert _device_type(new, 21) is not None and _device_type(old, 21) is None
+
+
+def test_the_lss_faults_are_switched_through_the_simulator_api(line_api: TestClient) -> None:
+    """Issue 32: the simulator's LSS faults without Python - next to the SDO faults of the simulator API, by the
+    device's serial number (it has no node ID yet). A device that never leaves configuration state is then named
+    by the assign."""
+    url = "/api/sessions/new-line/simulator/lss/3003/faults"
+    assert line_api.get(url).json()["active"] == []
+    bad = line_api.put(url, json={"stays_in_configuration": True, "wobbles": True})
+    assert bad.status_code == 422
+    switched = line_api.put(url, json={"stays_in_configuration": True})
     assert switched.status_code == 200, switched.text
-    answer = switched.json()
-    assert [int(device["serial"], 16) for device in answer["left_behind"]] == [3003]
-    assert answer["checked"] == 4 and answer["old_bitrate"] == 500000
-    assert answer["text"].startswith("1 of 4 devices did not follow to 250 kbit/s: serial 0x00000BBB still answers "
-                                     "at 500 kbit/s. Switch the bus back to 500 kbit/s"), answer["text"]
-    assert "adapter stays at 500 kbit/s" in answer["text"]
+    assert switched.json()["serial"] == "0x00000BBB"
+    assert switched.json()["active"][0].startswith("ignores switch state global (waiting)")
+    assert line_api.get("/api/sessions/new-line/simulator/lss/9999/faults").status_code == 404
+    found = confirmed(line_api, "POST", f"{LSS}/fastscan", json={})
+    pump = next(device for device in found.json()["devices"] if int(device["serial"], 16) == 3003)
+    body = {key: pump[key] for key in ("vendor", "product", "revision", "serial")} | {"node_id": 20}
+    refused = confirmed(line_api, "POST", f"{LSS}/assign", json=body)
+    assert refused.status_code == 502, refused.text
+    assert "still in LSS configuration state" in refused.json()["detail"]
+    assert line_api.put(url, json={}).json()["active"] == []
+
+
+def test_a_bit_rate_switch_with_lss_slaves_that_share_no_code_with_the_simulator(demo_api: TestClient) -> None:
+    """Issue 32 items 1 and 9: the same switch against LSS slaves written from CiA 305 alone, each with a controller
+    at its own rate: two configured to 250 kbit/s follow, one configured to 500 kbit/s stays. The session's adapter
+    follows, the two answer at 250 kbit/s, the third is named as still answering at 500 kbit/s."""
+    channel = fresh_channel()
+    devices = [Cia305Device(0x1234, 7, 1, 0xA1, timing=3), Cia305Device(0x1234, 7, 1, 0xA2, timing=3),
+               Cia305Device(0x1234, 7, 1, 0xB1)]
+    slaves = Cia305Bus(channel, devices, bitrate=500_000)
+    try:
+        opened = demo_api.post("/api/sessions", json={"bus": f"virtual:{channel}@500000", "name": "Independent"})
+        assert opened.status_code == 201, opened.text
+        lss = f"/api/sessions/{opened.json()['id']}/lss"
+        found = confirmed(demo_api, "POST", f"{lss}/fastscan", json={})
+        assert found.status_code == 200, found.text
+        assert sorted(int(device["serial"], 16) for device in found.json()["devices"]) == [0xA1, 0xA2, 0xB1]
+        switched = confirmed(demo_api, "POST", f"{lss}/activate-bit-timing",
+                             json={"bitrate": 250000, "switch_delay_ms": 20, "configuration_first": True})
+        assert switched.status_code == 200, switched.text
+        answer = switched.json()
+        assert answer["adapter_bitrate"] == 250000
+        assert sorted(int(device["serial"], 16) for device in answer["followed"]) == [0xA1, 0xA2], answer["text"]
+        assert [(int(device["serial"], 16), device["at_old_rate"]) for device in answer["left_behind"]] == [
+            (0xB1, True)]
+        assert "Serial 0x000000B1 still answers at 500 kbit/s" in answer["text"]
+        assert [device.rate for device in devices] == [250_000, 250_000, 500_000]
+        assert [device.configuring for device in devices] == [False, False, True]  # waiting: sent at 250 kbit/s
+    finally:
+        slaves.shutdown()

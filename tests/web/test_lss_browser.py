@@ -85,3 +85,38 @@ def test_found_devices_are_told_by_their_answer_inquired_and_identified(line_ser
     expect(page.locator("#lss-identify-result")).to_contain_text("At least one device with vendor 0x06000053",
                                                                  timeout=TIMEOUT_MS)
     expect(page.locator("#moving-confirm")).not_to_be_visible()
+
+
+def test_activate_bit_timing_from_the_page_moves_the_adapter_and_says_who_followed(line_server: str,
+                                                                                    page: Any) -> None:
+    """Issue 32 items 1 and 8: the page's *Activate bit timing* asks the confirmation that every device hears
+    it, switches the devices configured to 250 kbit/s (the pump, assigned with that rate) and the session's
+    adapter, and says in words who followed and who still answers at 500 kbit/s (the three not configured)."""
+    from playwright.sync_api import expect
+
+    page.goto(line_server + "/sessions/new-line/lss")
+    page.get_by_role("button", name="Fastscan").click()
+    _confirm(page)
+    pump = page.locator("#lss-devices tbody tr[data-serial='0x00000BBB']")
+    expect(pump).to_be_visible(timeout=TIMEOUT_MS)
+    pump.locator(".node-id").fill("20")
+    pump.locator(".bitrate").select_option("250000")
+    pump.get_by_role("button", name="Assign node ID").click()
+    _confirm(page)
+    expect(pump.locator(".steps")).to_contain_text("node 20 booted (boot-up telegram)", timeout=TIMEOUT_MS)
+    form = page.locator("#lss-activate-form")
+    form.locator("select[name=bitrate]").select_option("250000")
+    form.locator("input[name=switch_delay_ms]").fill("20")
+    form.get_by_role("button", name="Activate bit timing").click()
+    asked = _confirm(page)
+    assert "Every device on this bus hears it" in asked and "bit rate: 250000" in asked, asked
+    assert "reaches: all nodes on this bus" in asked
+    result = page.locator("#lss-activate-result")
+    expect(result).to_contain_text("This session's adapter now runs at 250 kbit/s.", timeout=TIMEOUT_MS)
+    expect(result).to_contain_text("3 of 4 devices did not follow to 250 kbit/s")
+    expect(result).to_contain_text("Followed: serial 0x00000BBB.")
+    expect(result).to_contain_text("still answers at 500 kbit/s")
+    screenshot(page, "lss-bit-rate-switched")
+    page.goto(line_server + "/")
+    expect(page.locator("body")).to_contain_text("virtual:", timeout=TIMEOUT_MS)
+    expect(page.locator("body")).to_contain_text("@250000")

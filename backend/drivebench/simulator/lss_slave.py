@@ -16,6 +16,7 @@ from enum import Enum
 from typing import Protocol
 
 from drivebench.device.profiles.profile import Profile
+from drivebench.i18n import _
 from drivebench.simulator.node import Latency, SimulatedNode
 from drivebench.simulator.store import ObjectStore
 
@@ -58,6 +59,16 @@ class LssFaults:
     ignores_activate_bit_timing: bool = False
     """It ignores activate bit timing: it stays at its bit rate while the others switch (left behind)."""
 
+    def describe(self) -> list[str]:
+        """The active faults in words."""
+        words = []
+        if self.stays_in_configuration:
+            words.append(_("ignores switch state global (waiting): it never leaves LSS configuration state, so a new "
+                           "node ID never becomes active"))
+        if self.ignores_activate_bit_timing:
+            words.append(_("ignores activate bit timing: it stays at its bit rate while the others switch"))
+        return words
+
 
 class LssSlave:
     """``on_node_id(id)`` is called when a node ID becomes active (the plant brings the device up with it)."""
@@ -82,8 +93,13 @@ class LssSlave:
 
     @property
     def on_bus(self) -> bool:
-        """False while the device runs at a bit rate other than the bus's (it hears and sends nothing)."""
+        """False while the device runs at a bit rate other than the one the plant's bus was set up with."""
         return self.active_timing == self.bus_timing
+
+    @property
+    def bitrate(self) -> int:
+        """The bit rate the device runs at now: it hears and sends frames at this rate only."""
+        return TIMING_TABLE[self.active_timing]
 
     @property
     def unconfigured(self) -> bool:
@@ -223,7 +239,8 @@ class LssHost(Protocol):
     @property
     def bitrate(self) -> int: ...
 
-    def send_frame(self, cob_id: int, data: bytes) -> None: ...
+    def send_frame(self, cob_id: int, data: bytes, rate: int | None = None) -> None:
+        """A device's frame onto the bus at the bit rate it runs at (``None``: the bus's)."""
 
     def wake(self) -> None: ...
 
@@ -287,33 +304,36 @@ class LssDevices:
         self.power_off()
         self.power_on()
 
-    def hears(self, node: SimulatedNode) -> bool:
+    def rate_of(self, node: SimulatedNode) -> int | None:
+        """The bit rate an LSS device's node runs at; None for a node that is no LSS device (the bus's rate)."""
         # asked for every node on every frame (a program download puts 38,000 on the bus): a plain loop, no generator
         for device in self.devices:
             if device.node is node:
-                return device.slave.on_bus
-        return True
+                return device.slave.bitrate
+        return None
 
-    def on_request(self, data: bytes) -> None:
+    def on_request(self, data: bytes, rate: int) -> None:
+        """An LSS request sent at ``rate``: only the devices at that rate hear it, and answer at it."""
         answers: list[bytes] = []
         with self._lock:
             for device in list(self.devices):
-                if not device.slave.on_bus:
+                if device.slave.bitrate != rate:
                     continue
                 answer = device.slave.on_request(data)
                 if answer is not None and answer not in answers:
                     answers.append(answer)  # identical answers of several devices merge into one frame
         for answer in answers:
-            self._plant.send_frame(ANSWER_COB, answer)
+            self._plant.send_frame(ANSWER_COB, answer, rate)
 
-    def on_nmt(self, data: bytes) -> None:
-        """NMT reset communication (or reset node): a device with a pending node ID other than its active one
-        takes it now (CiA 305); a pending 255 leaves it without one (silent except for LSS)."""
+    def on_nmt(self, data: bytes, rate: int) -> None:
+        """NMT reset communication (or reset node) sent at ``rate``: a device at that rate with a pending node ID
+        other than its active one takes it now (CiA 305); a pending 255 leaves it without one (silent except for
+        LSS)."""
         if len(data) < 2 or data[0] not in (0x81, 0x82):
             return
         for device in list(self.devices):
             slave = device.slave
-            if data[1] not in (0, slave.active_id) or slave.pending_id == slave.active_id or not slave.on_bus:
+            if data[1] not in (0, slave.active_id) or slave.pending_id == slave.active_id or slave.bitrate != rate:
                 continue
             slave.active_id = slave.pending_id
             if slave.unconfigured:
@@ -335,8 +355,7 @@ class LssDevices:
         slave = device.slave
 
         def send(cob_id: int, data: bytes) -> None:
-            if slave.on_bus:
-                plant.send_frame(cob_id, data)
+            plant.send_frame(cob_id, data, slave.bitrate)
 
         node = SimulatedNode(device.profile, node_id, send, name=spec.name,
                              latency=Latency.parse(device.latency if device.latency is not None else spec.latency),

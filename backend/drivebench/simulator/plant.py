@@ -19,7 +19,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import can
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from drivebench.device.profiles.profile import Profile
 from drivebench.errors import DriveBenchError, ProfileError, TransportError
@@ -27,16 +27,27 @@ from drivebench.i18n import _
 from drivebench.simulator.babbler import DEFAULT_COB_ID, Babbler
 from drivebench.simulator.ethercat import EthercatLine
 from drivebench.simulator.lss_slave import REQUEST_COB as LSS_REQUEST
-from drivebench.simulator.lss_slave import UNCONFIGURED, LssDevices
+from drivebench.simulator.lss_slave import UNCONFIGURED, LssDevices, LssFaults
 from drivebench.simulator.node import Latency, LatencyText, SimulatedNode
 from drivebench.simulator.servo402 import Servo402
 from drivebench.simulator.ticker import DeadlineTicker
-from drivebench.transport.bus import BusSpec, open_bus
+from drivebench.transport.bus import BusSpec, RatedFrame, open_bus, rate_of
 
 NOTIFIER_CYCLE_S = 0.05
 """How long the plant's bus reader waits for a frame before it looks whether it should stop: stopping a plant waits
 for it (0.5 s cost every test app with the demo plant half a second at its end; an idle reader waking 20 times a
 second costs nothing measurable, benchmarks/idle_cpu.py)."""
+
+
+class PlantLssFaults(BaseModel):
+    """``"lss_faults": {"ignores_activate_bit_timing": true}`` in a plant file (:class:`LssFaults`)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    stays_in_configuration: bool = False
+    """It ignores switch state global (waiting): its new node ID never becomes active."""
+    ignores_activate_bit_timing: bool = False
+    """It stays at its bit rate when the others switch (left behind)."""
 
 
 class PlantNode(BaseModel):
@@ -57,6 +68,8 @@ class PlantNode(BaseModel):
     """The device is an LSS slave (CiA 305); always so with node_id 255."""
     serial: int | None = Field(None, ge=0, le=0xFFFFFFFF)
     """Its serial number (0x1018 sub 4, part of its LSS address)."""
+    lss_faults: PlantLssFaults | None = None
+    """Faults of its LSS firmware (an LSS device only), for demos and tests of what goes wrong on a new line."""
 
     @field_validator("node_id")
     @classmethod
@@ -65,6 +78,13 @@ class PlantNode(BaseModel):
             raise ValueError(_("node id {node} is out of range: 1-127, or 255 for a device without one").format(
                 node=node_id))
         return node_id
+
+    @model_validator(mode="after")
+    def _faults_of_an_lss_device(self) -> PlantNode:
+        if self.lss_faults is not None and not (self.lss or self.node_id == UNCONFIGURED):
+            raise ValueError(_("node {node}: lss_faults need an LSS device (\"lss\": true, or node_id 255)").format(
+                node=self.node_id))
+        return self
 
 
 class PlantFile(BaseModel):
@@ -119,7 +139,9 @@ class Plant:
         for spec in plant.nodes:
             profile = profiles(spec.profile)
             if spec.lss or spec.node_id == UNCONFIGURED:
-                self.lss.add(spec, profile, latency=latency)
+                device = self.lss.add(spec, profile, latency=latency)
+                if spec.lss_faults is not None:
+                    device.slave.faults = LssFaults(**spec.lss_faults.model_dump())
                 continue
             self.nodes[spec.node_id] = node = SimulatedNode(
                 profile, spec.node_id, self._send, name=spec.name,
@@ -131,6 +153,8 @@ class Plant:
 
     def start(self) -> Plant:
         self._bus = open_bus(self.spec)
+        if self._bus.adapter is not None:  # a virtual bus: each device hears and sends at the rate it runs at
+            self._bus.adapter.every_rate = True
         self._notifier = can.Notifier(self._bus, [self._on_message], timeout=NOTIFIER_CYCLE_S)
         for node in self.nodes.values():
             node.power_on()
@@ -207,15 +231,17 @@ class Plant:
         if babbler is not None:
             babbler.stop()
 
-    def send_frame(self, cob_id: int, data: bytes) -> None:
-        """A frame from a device of the plant onto the bus (its other devices hear it)."""
-        self._send(cob_id, data)
+    def send_frame(self, cob_id: int, data: bytes, rate: int | None = None) -> None:
+        """A frame from a device of the plant onto the bus at the rate it runs at (``None``: the bus's); its other
+        devices at that rate hear it."""
+        self._send(cob_id, data, rate)
 
-    def _send(self, cob_id: int, data: bytes) -> None:
+    def _send(self, cob_id: int, data: bytes, rate: int | None = None) -> None:
         babbler = self.babbler
         if babbler is not None and babbler.starves(cob_id):
             return  # never wins arbitration against the babbler: the frame does not get on the bus
-        msg = can.Message(arbitration_id=cob_id, data=data, is_extended_id=False)
+        rate = rate or self.spec.bitrate
+        msg = RatedFrame.at(rate, arbitration_id=cob_id, data=data, is_extended_id=False)
         with self._send_lock:
             if self._bus is None:
                 return
@@ -224,27 +250,31 @@ class Plant:
             except TransportError:  # the plant's own link is down (hub gone): the frame is lost, as on a wire
                 return
         # Nodes on a real bus hear each other; a python-can bus does not echo its own frames.
-        self._dispatch(cob_id, data, time.time(), skip_sender=True)
+        self._dispatch(cob_id, data, time.time(), rate, skip_sender=True)
 
     def _on_message(self, msg: can.Message) -> None:
         if msg.is_extended_id or msg.is_error_frame:
             return
+        rate = rate_of(msg) or self.spec.bitrate  # a frame of unknown rate was sent at the bus's
         if msg.arbitration_id == LSS_REQUEST and not msg.is_remote_frame:
-            self.lss.on_request(bytes(msg.data))
+            self.lss.on_request(bytes(msg.data), rate)
             return
         if msg.is_remote_frame:
             for node in self._everyone():
-                node.on_remote_request(msg.arbitration_id)
+                if (self.lss.rate_of(node) or self.spec.bitrate) == rate:
+                    node.on_remote_request(msg.arbitration_id)
             return
-        self._dispatch(msg.arbitration_id, bytes(msg.data), msg.timestamp, skip_sender=False)
+        self._dispatch(msg.arbitration_id, bytes(msg.data), msg.timestamp, rate, skip_sender=False)
         if msg.arbitration_id == 0:
-            self.lss.on_nmt(bytes(msg.data))
+            self.lss.on_nmt(bytes(msg.data), rate)
 
-    def _dispatch(self, cob_id: int, data: bytes, timestamp: float, *, skip_sender: bool) -> None:
+    def _dispatch(self, cob_id: int, data: bytes, timestamp: float, rate: int, *, skip_sender: bool) -> None:
+        """Every node at ``rate`` hears the frame (one at another bit rate hears nothing)."""
+        bus_rate = self.spec.bitrate
         for node in self._everyone():
             if skip_sender and cob_id & 0x7F == node.node_id:
                 continue
-            if not self.lss.hears(node):
+            if (self.lss.rate_of(node) or bus_rate) != rate:
                 continue
             node.on_frame(cob_id, data, timestamp)
 

@@ -139,11 +139,17 @@ class SimulatedAdapter:
 
     A test or the demo drives them; the session sees what a real adapter would show (python-can raising
     ``CanOperationError`` on send and receive, ``BusABC.state`` passive or bus-off).
+
+    The adapter also has a bit rate (python-can's virtual bus has none): a frame carries its sender's rate and only
+    adapters at that rate receive it, as controllers at different rates do not hear each other on a wire.
+    ``every_rate`` makes an adapter hear frames at every rate and send each at the rate the frame names
+    (:class:`RatedFrame`): the simulated plant's, whose devices each keep their own rate.
     """
 
     def __init__(self) -> None:
         self.unplugged: str | None = None
         self.state = can.BusState.ACTIVE
+        self.every_rate = False
 
     def unplug(self, reason: str | None = None) -> None:
         self.unplugged = reason or Text(N_("USB adapter unplugged"))  # worded when shown, in the reader's language
@@ -155,35 +161,58 @@ class SimulatedAdapter:
         self.state = state
 
 
-class _VirtualFrame(can.Message):
+class RatedFrame(can.Message):
+    """A frame with the bit rate it went over a virtual bus at (``None``: not known, e.g. from a plain python-can
+    bus on the same channel: every adapter hears it)."""
+
+    __slots__ = ("bitrate",)
+    bitrate: int | None
+
+    @classmethod
+    def at(cls, bitrate: int | None, **fields: Any) -> RatedFrame:
+        frame = cls(**fields)
+        frame.bitrate = bitrate
+        return frame
+
+
+def rate_of(msg: can.Message) -> int | None:
+    """The bit rate a frame was sent at, if it is known."""
+    return getattr(msg, "bitrate", None)
+
+
+class _VirtualFrame(RatedFrame):
     """A frame as handed to python-can's virtual bus, which copies it for every other bus on the channel with
     ``deepcopy``: copying its data (a bytearray) that way costs several times a whole new message (a program download
-    sends some 38,000 frames, benchmarks/RESULTS.md). The receivers get plain messages, as before."""
+    sends some 38,000 frames, benchmarks/RESULTS.md). The receivers get a :class:`RatedFrame`: its sender's rate."""
 
     __slots__ = ()
 
     @classmethod
-    def of(cls, msg: can.Message) -> _VirtualFrame:
-        return cls(timestamp=msg.timestamp, arbitration_id=msg.arbitration_id, is_extended_id=msg.is_extended_id,
-                   is_remote_frame=msg.is_remote_frame, is_error_frame=msg.is_error_frame, channel=msg.channel,
-                   dlc=msg.dlc, data=msg.data, is_fd=msg.is_fd, is_rx=msg.is_rx, bitrate_switch=msg.bitrate_switch,
-                   error_state_indicator=msg.error_state_indicator)
+    def of(cls, msg: can.Message, bitrate: int | None) -> _VirtualFrame:
+        frame = cls(timestamp=msg.timestamp, arbitration_id=msg.arbitration_id, is_extended_id=msg.is_extended_id,
+                    is_remote_frame=msg.is_remote_frame, is_error_frame=msg.is_error_frame, channel=msg.channel,
+                    dlc=msg.dlc, data=msg.data, is_fd=msg.is_fd, is_rx=msg.is_rx, bitrate_switch=msg.bitrate_switch,
+                    error_state_indicator=msg.error_state_indicator)
+        frame.bitrate = bitrate
+        return frame
 
     def __deepcopy__(self, memo: dict[int, Any] | None) -> can.Message:
-        return can.Message(timestamp=self.timestamp, arbitration_id=self.arbitration_id,
-                           is_extended_id=self.is_extended_id, is_remote_frame=self.is_remote_frame,
-                           is_error_frame=self.is_error_frame, channel=self.channel, dlc=self.dlc,
-                           data=bytearray(self.data), is_fd=self.is_fd, is_rx=self.is_rx,
-                           bitrate_switch=self.bitrate_switch, error_state_indicator=self.error_state_indicator)
+        return RatedFrame.at(self.bitrate, timestamp=self.timestamp, arbitration_id=self.arbitration_id,
+                             is_extended_id=self.is_extended_id, is_remote_frame=self.is_remote_frame,
+                             is_error_frame=self.is_error_frame, channel=self.channel, dlc=self.dlc,
+                             data=bytearray(self.data), is_fd=self.is_fd, is_rx=self.is_rx,
+                             bitrate_switch=self.bitrate_switch, error_state_indicator=self.error_state_indicator)
 
 
 class _SwitchedBus(can.BusABC):
     """A real python-can bus behind a :class:`SimulatedAdapter`. Unplugged: send and receive raise. Bus-off: the
     controller is off the bus, nothing is sent or received."""
 
-    def __init__(self, inner: can.BusABC, adapter: SimulatedAdapter) -> None:
+    def __init__(self, inner: can.BusABC, adapter: SimulatedAdapter, rate: int) -> None:
         self.inner = inner
         self.adapter = adapter
+        self.rate = rate
+        """The bit rate this adapter was opened at: it hears frames sent at that rate only."""
         self.channel_info = inner.channel_info
         super().__init__(channel=getattr(inner, "channel", "") or "")
 
@@ -191,7 +220,8 @@ class _SwitchedBus(can.BusABC):
         if self.adapter.unplugged:
             raise can.CanOperationError(self.adapter.unplugged)
         if self.adapter.state is not can.BusState.ERROR:
-            self.inner.send(_VirtualFrame.of(msg), timeout)
+            rate = (rate_of(msg) or self.rate) if self.adapter.every_rate else self.rate
+            self.inner.send(_VirtualFrame.of(msg, rate), timeout)
 
     def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
         if self.adapter.unplugged:
@@ -199,6 +229,8 @@ class _SwitchedBus(can.BusABC):
         msg = self.inner.recv(timeout)
         if self.adapter.state is can.BusState.ERROR:
             return None, False
+        if msg is not None and not self.adapter.every_rate and rate_of(msg) not in (None, self.rate):
+            return None, False  # sent at another bit rate: this controller does not hear it (BusABC.recv waits on)
         return msg, False
 
     @property
@@ -246,6 +278,8 @@ class ObservedBus(can.BusABC):
         self._wake = threading.Event()
         self._closing = threading.Event()
         self._reconnector: threading.Thread | None = None
+        self._retired: can.BusABC | None = None
+        """The adapter closed by :meth:`reopen_at`: its errors are not a lost adapter."""
         super().__init__(channel=spec.channel or "")
 
     def add_observer(self, observer: FrameObserver) -> None:
@@ -295,6 +329,35 @@ class ObservedBus(can.BusABC):
             self._lose(inner, Text(N_("the socketcand gateway closed the connection")))  # worded when shown
         return msg, False
 
+    # --- another bit rate ---------------------------------------------------------------------------------
+    def reopen_at(self, bitrate: int) -> None:
+        """Close the adapter and open it again at ``bitrate`` (python-can's ``bitrate=``, the way each interface
+        that sets its controller's rate takes it); the canopen network and every listener carry on under the same
+        object, and a later reconnection uses the new rate. When the adapter does not open at the new rate it is
+        opened at the old one again and the error raised; when that fails too, it is lost (and retried)."""
+        old_spec = self.spec
+        spec = old_spec.model_copy(update={"bitrate": bitrate})
+        with self._lock:
+            retired = self._retired = self.inner
+        with contextlib.suppress(Exception):  # one adapter may not be opened twice (pcan): close it first
+            retired.shutdown()
+        try:
+            fresh = _open_adapter(spec, self.adapter)
+        except TransportError as exc:
+            try:
+                self._take(_open_adapter(old_spec, self.adapter), old_spec)
+            except TransportError:
+                self._retired = None
+                self._lose(retired, exc)
+            raise
+        self._take(fresh, spec)
+
+    def _take(self, fresh: can.BusABC, spec: BusSpec) -> None:
+        with self._lock:
+            self.inner, self.spec, self.channel_info = fresh, spec, f"{spec}"
+            self._reopen = functools.partial(_open_adapter, spec, self.adapter)
+            self._retired = None
+
     # --- adapter lost and back ----------------------------------------------------------------------------
     def _lost_hint(self) -> Text:
         return Text(N_("The session reconnects by itself when the adapter is back. {hint}"), hint=self.spec.hint())
@@ -308,7 +371,7 @@ class ObservedBus(can.BusABC):
         else:
             reason = str(cause).splitlines()[0] if str(cause) else type(cause).__name__
         with self._lock:
-            if inner is not self.inner or self.link.lost or self._closing.is_set():
+            if inner is not self.inner or inner is self._retired or self.link.lost or self._closing.is_set():
                 return self.link.lost_reason or reason
             self.link = replace(self.link, lost_reason=reason, lost_at=time.time(), attempts=0,
                                 last_attempt_error=None)
@@ -422,7 +485,7 @@ def _open_adapter(spec: BusSpec, adapter: SimulatedAdapter | None = None) -> can
     except Exception as exc:  # vendor drivers raise anything (kvaser without CANlib: NameError)
         reason = str(exc) or type(exc).__name__
         raise AdapterUnavailable(Text(CANNOT_OPEN, bus=spec, reason=reason), hint=spec.hint()) from exc
-    return _SwitchedBus(inner, adapter) if adapter is not None else inner
+    return _SwitchedBus(inner, adapter, spec.bitrate) if adapter is not None else inner
 
 
 def _probe_gateway(spec: BusSpec, timeout_s: float = 2.0) -> None:

@@ -147,7 +147,7 @@ RULES: dict[tuple[str, str], Rule] = {
              ("DELETE", N + "/lease"),  # force=true: the route asks admin
              ("POST", UN + "/lease/release")),
     **_rules(E, N_("Injecting faults into simulated drives"), ("PUT", S + "/simulator/nodes/{node_id}/faults"),
-             ("DELETE", S + "/simulator/nodes/{node_id}/faults")),
+             ("DELETE", S + "/simulator/nodes/{node_id}/faults"), ("PUT", S + "/simulator/lss/{serial}/faults")),
     # --- admin: sessions (adapters), their SDO settings, users and tokens -----------------------------------
     **_rules(A, N_("Opening and closing sessions (CAN adapters)"), ("POST", "/api/sessions"), ("DELETE", S),
              ("POST", "/ui/sessions"), ("POST", US + "/close")),

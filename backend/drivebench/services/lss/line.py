@@ -1,5 +1,5 @@
 """The LSS steps on a session's CAN bus: fastscan, assign a node ID (with bit rate and store) to one found device and
-await its boot-up, switch state global, activate bit timing, NMT reset communication to all.
+await its boot-up, switch state global, NMT reset communication to all (activate bit timing: :mod:`.bit_rate`).
 
 One :class:`LssLine` per session holds the master and an asyncio lock: one LSS step at a time on a bus; the
 blocking canopen calls run in a worker thread. Every configuring step is written to the audit log.
@@ -267,69 +267,6 @@ async def switch_global(session: Session, ctx: WriteContext, configuration: bool
     async with line.lock:
         await asyncio.to_thread(line.master.switch_global, configuration)
     await _audit(session, ctx, 0, "switch state global", state)
-
-
-def activate_values(bitrate: int, delay_ms: int) -> dict[str, object]:
-    return {"LSS": "activate bit timing", "bit rate": bitrate, "switch delay [ms]": delay_ms}
-
-
-@dataclass(frozen=True)
-class BitRateSwitch:
-    bitrate: int
-    old_bitrate: int
-    checked: int
-    left_behind: list[LssAddress]
-    text: str
-
-
-CHECK_WAIT_S = 0.3
-"""How long identify remote slave waits for a device left at the old bit rate."""
-
-
-def _left_behind(master: LssMaster, known: list[LssAddress]) -> list[LssAddress]:
-    """The known devices that still answer at the session's (old) bit rate: identify remote slave is answered in
-    either LSS state; a device that switched hears nothing at the old rate."""
-    timeout, master.timeout_s = master.timeout_s, CHECK_WAIT_S
-    try:
-        return [address for address in known
-                if master.identify_remote(address.vendor, address.product, (address.revision, address.revision),
-                                          (address.serial, address.serial))]
-    finally:
-        master.timeout_s = timeout
-
-
-async def activate_bit_timing(session: Session, ctx: WriteContext, bitrate: int, delay_ms: int) -> BitRateSwitch:
-    """Every device in configuration state switches to the bit timing it was configured to, after the delay. Then
-    every device this session knows by its LSS address (found, assigned) is asked at the old bit rate: one that
-    still answers did not follow, and is named with the next step."""
-    timing_index(bitrate)
-    if not 1 <= delay_ms <= 65535:
-        raise InvalidValue(_("The switch delay must be 1 ... 65535 ms."))
-    await admit_global(session, _("LSS activate bit timing"), activate_values(bitrate, delay_ms), ctx)
-    line = line_of(session)
-    old = session.spec.bitrate
-    known = list(dict.fromkeys([*line.found, *line.assigned]))
-    async with line.lock:
-        await asyncio.to_thread(line.master.activate_bit_timing, delay_ms)
-        await asyncio.sleep(2 * delay_ms / 1000 + 0.05)  # CiA 305: switch after the delay, silent for another
-        left = await asyncio.to_thread(_left_behind, line.master, known)
-    await _audit(session, ctx, 0, "activate bit timing", f"{bitrate} bit/s, {delay_ms} ms")
-    new_kbit, old_kbit = bitrate // 1000, old // 1000
-    if not known:
-        text = _("Activate bit timing sent. No device known by its LSS address to check: run a fastscan first.")
-    elif left:
-        text = _("{count} of {known} devices did not follow to {new} kbit/s: serial {serials} still answers at "
-                 "{old} kbit/s. Switch the bus back to {old} kbit/s (power-cycle the devices that followed if they "
-                 "stored it) and repeat, or power-cycle the device left behind.").format(
-            count=len(left), known=len(known), new=new_kbit, old=old_kbit,
-            serials=", ".join(f"0x{address.serial:08X}" for address in left))
-    else:
-        text = _("All {known} known devices followed to {new} kbit/s: none answers at {old} kbit/s any more.").format(
-            known=len(known), new=new_kbit, old=old_kbit)
-    if bitrate != old:
-        text += " " + _("This session's adapter stays at {old} kbit/s: open the bus again at {new} kbit/s to reach "
-                        "the devices that switched.").format(old=old_kbit, new=new_kbit)
-    return BitRateSwitch(bitrate, old, len(known), left, text)
 
 
 async def reset_communication_all(session: Session, ctx: WriteContext) -> list[int]:

@@ -11,6 +11,7 @@ from pydantic import BaseModel, Field, field_validator
 from drivebench.device.profiles.profile import Profile
 from drivebench.i18n import _
 from drivebench.protocol.canopen.lss import LssAddress
+from drivebench.services.lss import bit_rate
 from drivebench.services.lss import line as lss
 from drivebench.services.lss.identify import identify
 from drivebench.web.deps import SessionDep, StateDep
@@ -137,6 +138,8 @@ class SwitchIn(Confirmed):
 class ActivateIn(Confirmed):
     bitrate: int
     switch_delay_ms: int = Field(100, ge=1, le=65535)
+    configuration_first: bool = Field(False, description="switch state global (configuration) first, so every "
+                                                         "device switches, and (waiting) at the new rate after")
 
 
 def device_out(profiles: list[Profile], address: LssAddress, node_id: int | None = None) -> DeviceOut:
@@ -182,11 +185,20 @@ async def switch_global(request: Request, body: SwitchIn, session: SessionDep, c
     await lss.switch_global(session, ctx, body.configuration)
 
 
+class BehindOut(DeviceOut):
+    at_old_rate: bool = Field(description="it still answers at the old bit rate (it ignored the switch); false: "
+                                          "at neither rate")
+
+
 class BitRateSwitchOut(BaseModel):
     bitrate: int
     old_bitrate: int
+    adapter_bitrate: int = Field(description="the bit rate the session's adapter runs at afterwards")
     checked: int = Field(description="devices known by their LSS address (found, assigned) asked afterwards")
-    left_behind: list[DeviceOut] = Field(description="those that still answer at the old bit rate")
+    followed: list[DeviceOut] = Field(description="those that answer at the new bit rate")
+    left_behind: list[BehindOut] = Field(description="those that do not answer at the new bit rate")
+    nodes_followed: list[int] = Field(description="the session's other nodes that answer an SDO read at the new rate")
+    nodes_silent: list[int] = Field(description="the session's other nodes that do not")
     text: str
 
 
@@ -194,10 +206,15 @@ class BitRateSwitchOut(BaseModel):
 async def activate_bit_timing(request: Request, body: ActivateIn, session: SessionDep, ctx: WriteCtxDep,
                               state: StateDep) -> BitRateSwitchOut:
     ctx = ctx.confirming(confirmation(request, body.confirm, body.confirm_values))
-    switch = await lss.activate_bit_timing(session, ctx, body.bitrate, body.switch_delay_ms)
+    switch = await bit_rate.activate_bit_timing(session, ctx, body.bitrate, body.switch_delay_ms,
+                                                configuration_first=body.configuration_first)
     profiles = state.registry.all()
-    return BitRateSwitchOut(bitrate=switch.bitrate, old_bitrate=switch.old_bitrate, checked=switch.checked,
-                            left_behind=[device_out(profiles, address) for address in switch.left_behind],
+    left = [BehindOut(**device_out(profiles, entry.address).model_dump(), at_old_rate=entry.at_old_rate)
+            for entry in switch.left_behind]
+    return BitRateSwitchOut(bitrate=switch.bitrate, old_bitrate=switch.old_bitrate,
+                            adapter_bitrate=switch.adapter_bitrate, checked=switch.checked,
+                            followed=[device_out(profiles, address) for address in switch.followed],
+                            left_behind=left, nodes_followed=switch.nodes_followed, nodes_silent=switch.nodes_silent,
                             text=switch.text)
 
 

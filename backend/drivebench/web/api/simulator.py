@@ -1,4 +1,5 @@
-"""Switch SDO faults of a simulated node on and off (demos and tests); refused for sessions on a real bus."""
+"""Switch SDO faults of a simulated node, and LSS faults of a simulated LSS device, on and off (demos and tests);
+refused for sessions on a real bus."""
 
 from __future__ import annotations
 
@@ -10,7 +11,9 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 from drivebench.errors import Conflict, NotFound
 from drivebench.i18n import _
 from drivebench.simulator.faults import ABORT_CODE_RANGE, SdoFaults
+from drivebench.simulator.lss_slave import LssDevice, LssFaults
 from drivebench.simulator.node import SimulatedNode
+from drivebench.simulator.plant import Plant
 from drivebench.web.deps import SessionDep, StateDep
 
 router = APIRouter(prefix="/api", tags=["simulator"])
@@ -71,12 +74,16 @@ class FaultsOut(BaseModel):
     """The active faults in words; empty when the node behaves."""
 
 
-def _simulated_node(state: StateDep, session: SessionDep, node_id: int) -> SimulatedNode:
+def _plant(state: StateDep, session: SessionDep) -> Plant:
     plant = state.plants.get(session.id)
     if not session.simulated or plant is None:
         raise Conflict(_("Session '{session}' is on a real bus: faults can be switched on simulated sessions "
                          "only").format(session=session.id))
-    node = plant.nodes.get(node_id)
+    return plant
+
+
+def _simulated_node(state: StateDep, session: SessionDep, node_id: int) -> SimulatedNode:
+    node = _plant(state, session).nodes.get(node_id)
     if node is None:
         raise NotFound(_("The simulated plant of session '{session}' has no node {node}").format(
             session=session.id, node=node_id))
@@ -107,3 +114,56 @@ async def clear_faults(state: StateDep, session: SessionDep, node_id: NodeId) ->
     node = _simulated_node(state, session, node_id)
     node.faults.clear()
     return _out(session.id, node)
+
+
+# --- LSS faults of a simulated LSS device (by its serial number: it may have no node ID) ----------------------
+LSS_FAULTS = "/sessions/{session_id}/simulator/lss/{serial}/faults"
+Serial = Annotated[int, Path(ge=0, le=0xFFFFFFFF, description="the device's serial number (0x1018 sub 4)")]
+
+
+class LssFaultsIn(BaseModel):
+    """The LSS faults to switch on; fields left out are off (as ``lss_faults`` in a plant file)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    stays_in_configuration: bool = Field(False, description="ignore switch state global (waiting): never leave "
+                                                            "LSS configuration state")
+    ignores_activate_bit_timing: bool = Field(False, description="ignore activate bit timing: stay at its bit rate")
+
+
+class LssFaultsOut(BaseModel):
+    session_id: str
+    serial: str
+    faults: dict[str, bool]
+    active: list[str]
+    """The active faults in words; empty when the device behaves."""
+
+
+def _lss_device(state: StateDep, session: SessionDep, serial: int) -> LssDevice:
+    device = next((device for device in _plant(state, session).lss.devices if device.slave.address[3] == serial),
+                  None)
+    if device is None:
+        raise NotFound(_("The simulated plant of session '{session}' has no LSS device with serial {serial}").format(
+            session=session.id, serial=f"0x{serial:08X}"))
+    return device
+
+
+def _lss_out(session_id: str, device: LssDevice) -> LssFaultsOut:
+    faults = device.slave.faults
+    return LssFaultsOut(session_id=session_id, serial=f"0x{device.slave.address[3]:08X}",
+                        faults={"stays_in_configuration": faults.stays_in_configuration,
+                                "ignores_activate_bit_timing": faults.ignores_activate_bit_timing},
+                        active=faults.describe())
+
+
+@router.get(LSS_FAULTS, response_model=LssFaultsOut)
+async def get_lss_faults(state: StateDep, session: SessionDep, serial: Serial) -> LssFaultsOut:
+    return _lss_out(session.id, _lss_device(state, session, serial))
+
+
+@router.put(LSS_FAULTS, response_model=LssFaultsOut)
+async def put_lss_faults(state: StateDep, session: SessionDep, serial: Serial, body: LssFaultsIn) -> LssFaultsOut:
+    """Replace the device's LSS faults with these (``{}``: it behaves again; kept over a power cycle)."""
+    device = _lss_device(state, session, serial)
+    device.slave.faults = LssFaults(**body.model_dump())
+    return _lss_out(session.id, device)

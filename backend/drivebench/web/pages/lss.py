@@ -10,6 +10,7 @@ from fastapi.responses import HTMLResponse, Response
 
 from drivebench.errors import InvalidValue
 from drivebench.i18n import _
+from drivebench.protocol.canopen.lss import BIT_TIMINGS
 from drivebench.services.lss.line import BITRATES
 from drivebench.web.deps import SessionDep
 from drivebench.web.templating import templates
@@ -23,4 +24,5 @@ async def lss_page(request: Request, session: SessionDep) -> Response:
         raise InvalidValue(_("LSS is a CANopen service: session '{session}' is an EtherCAT segment.").format(
             session=session.name))
     return templates.TemplateResponse(request, "lss.html", {"active": "plant", "session": session,
-                                                            "bitrates": BITRATES})
+                                                            "bitrates": BITRATES,
+                                                            "timings": sorted(BIT_TIMINGS.items())})
