@@ -8,10 +8,16 @@ import os
 import zlib
 from typing import Any
 
+import httpx
+import pytest
 from fastapi.testclient import TestClient
 
+from drivebench.services.program import uploads
+from drivebench.web.app import create_app
 from tests.confirming import confirmed
-from tests.conftest import wait_until
+from tests.conftest import DEMO_PLANT, fresh_channel, wait_until
+from tests.test_cli import free_port, poll
+from tests.transport.test_multiprocess import START_TIMEOUT_S, CliProcess
 from tests.web.firmware_files import broken_checksum, intel_hex
 
 NODE = "/api/sessions/demo-plant/nodes/{node}/program"
@@ -28,13 +34,13 @@ def _check(client: TestClient, node: int, name: str, content: bytes, identity: s
     return client.post(NODE.format(node=node) + "/check", files={"file": (name, content)}, data=data)
 
 
-def _finished(client: TestClient, node: int, job_id: str) -> dict[str, Any]:
+def _finished(client: TestClient | httpx.Client, node: int, job_id: str) -> dict[str, Any]:
     url = NODE.format(node=node) + f"/jobs/{job_id}"
     assert wait_until(lambda: client.get(url).json()["state"] != "running", 60)
     return client.get(url).json()
 
 
-def _download(client: TestClient, node: int, file_id: str) -> dict[str, Any]:
+def _download(client: TestClient | httpx.Client, node: int, file_id: str) -> dict[str, Any]:
     started = confirmed(client, "POST", NODE.format(node=node) + "/download", json={"file_id": file_id})
     assert started.status_code == 202, started.text
     return started.json()
@@ -150,3 +156,35 @@ def test_the_download_is_in_the_audit_log(demo_api: TestClient) -> None:
     assert len(program) == 3, program  # stop, the data, start
     assert any("fan-audit.bin (300 bytes" in (row["new_value"] or "") for row in program), program
     assert all(row["result"] not in ("sending", "failed") for row in program), program
+
+
+@pytest.mark.slow  # a server process
+def test_a_file_checked_by_one_server_is_downloaded_by_the_next_on_the_same_database(app_db_url: str) -> None:
+    """Checked files live in the database (design: nothing that must survive a restart or be seen by a second
+    server lives in one process's memory): a file checked by this process's app is downloaded by a `serve` process
+    started afterwards on the same database, to the node it was checked for only."""
+    image = os.urandom(2_000)
+    with TestClient(create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000",
+                               latency="0ms")) as first:
+        file_id = _check(first, FAN, "fan-3.1.bin", image).json()["file_id"]
+    port = free_port()
+    server = CliProcess("serve", "--port", str(port), "--demo", env={"DRIVEBENCH_DATABASE_URL": app_db_url})
+    try:
+        with httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=30) as second:
+            poll(lambda: second.get("/api/health").status_code == 200, START_TIMEOUT_S, "health")
+            other = confirmed(second, "POST", NODE.format(node=SERVO) + "/download", json={"file_id": file_id})
+            assert other.status_code == 404 and "No checked firmware file" in other.json()["detail"], other.text
+            done = _finished(second, FAN, _download(second, FAN, file_id)["id"])
+            assert done["state"] == "done", done
+            assert done["result"]["software_id"] == f"0x{zlib.crc32(image):08X}", done["result"]
+    finally:
+        server.stop()
+
+
+def test_only_the_newest_checked_files_of_a_node_are_kept(demo_api: TestClient) -> None:
+    ids = [_check(demo_api, FAN, f"fan-{n}.bin", bytes([n]) * 64).json()["file_id"] for n in range(uploads.KEEP + 2)]
+    servo_id = _check(demo_api, SERVO, "axis.bin", b"\x01" * 64).json()["file_id"]
+    gone = confirmed(demo_api, "POST", NODE.format(node=FAN) + "/download", json={"file_id": ids[0]})
+    assert gone.status_code == 404, gone.text
+    assert _finished(demo_api, FAN, _download(demo_api, FAN, ids[-1])["id"])["state"] == "done"
+    assert _finished(demo_api, SERVO, _download(demo_api, SERVO, servo_id)["id"])["state"] == "done"

@@ -29,7 +29,6 @@ from drivebench.services.params.jobs import JobManager, JobState
 from drivebench.services.params.write_context import Confirmation, WriteContext
 from drivebench.services.program import download as program
 from drivebench.services.program.program_info import program_info
-from drivebench.services.program.uploads import CHECKED
 from drivebench.services.sets import set_jobs
 from drivebench.services.sets.parameter_sets import ParameterSetStore
 
@@ -304,11 +303,11 @@ async def firmware(call: StepCall) -> bool:
                                                                  expected=expected))
             continue
         try:
-            checked = CHECKED.get(chosen.file_id, call.session.id, node.node_id).firmware
+            checked = await program.checked_file(call.session, node.node_id, chosen.file_id)
         except NotFound:
             ok = False
-            call.say(_("{node}: the firmware file {file} is no longer held by the server (restarted?): choose it "
-                       "again.").format(node=_label(node), file=chosen.name))
+            call.say(_("{node}: the firmware file {file} is no longer kept by the server (a newer file was checked "
+                       "for this node since): choose it again.").format(node=_label(node), file=chosen.name))
             continue
         pending.append((node, expected, checked))
     asked = {f"node {node.node_id}: {key}": value for node, _expected, checked in pending
@@ -317,8 +316,7 @@ async def firmware(call: StepCall) -> bool:
         require_confirmation(call.ctx.confirmation, None, _("The wizard's program downloads"), asked)
     for node, expected, checked in pending:
         each = call.ctx.confirming(Confirmation(node.node_id, program.download_values(checked)))
-        job = program.start_download(call.session, node.node_id, call.jobs, call.run.firmware[node.node_id].file_id,
-                                     each)
+        job = program.start_download(call.session, node.node_id, call.jobs, checked, each)
         await job.wait()
         found = job.result.get("software_id")
         if job.state is not JobState.DONE:

@@ -72,7 +72,7 @@ async def check(session: Session, node_id: int, firmware: FirmwareFile) -> dict[
     if not {"vendor_id", "product_code"} & set(firmware.identity):
         notes.append(_("The file carries no identification: DriveBench cannot tell which product it is for. Make "
                        "sure it is the firmware for this device."))
-    file_id = None if refused else CHECKED.add(session.id, node_id, firmware).id
+    file_id = None if refused else (await asyncio.to_thread(CHECKED.add, session.id, node_id, firmware)).id
     return {"file_id": file_id, "ok": refused is None, "refused": refused, "notes": notes,
             "file": firmware.summary(), "node": {"node_id": node_id, "identity_from": source,
                                                    "vendor_id": None if vendor is None else f"0x{vendor:08X}",
@@ -92,10 +92,16 @@ async def control(session: Session, node_id: int, command: ProgramCommand, ctx: 
     return asdict(await program_info(session, node_id))
 
 
-def start_download(session: Session, node_id: int, jobs: JobManager, file_id: str, ctx: WriteContext) -> Job:
-    """Checks, then the job: 409 while the drive is enabled or another writer holds the node, 428 unconfirmed."""
+async def checked_file(session: Session, node_id: int, file_id: str) -> FirmwareFile:
+    """The file :func:`check` kept for the node under ``file_id`` (404 in words when there is none)."""
+    return (await asyncio.to_thread(CHECKED.get, file_id, session.id, node_id)).firmware
+
+
+def start_download(session: Session, node_id: int, jobs: JobManager, firmware: FirmwareFile, ctx: WriteContext
+                   ) -> Job:
+    """Checks, then the job: 409 while the drive is enabled or another writer holds the node, 428 unconfirmed.
+    ``firmware``: a file :func:`check` kept for the node (:func:`checked_file`)."""
     client = canopen_client(session, node_id)
-    firmware = CHECKED.get(file_id, session.id, node_id).firmware
     if guard_for(session).armed(node_id):
         raise Conflict(_("Node {node} is enabled from a control panel: stop the drive before a program "
                          "download.").format(node=node_id))

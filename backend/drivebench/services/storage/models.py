@@ -6,7 +6,19 @@ import secrets
 from datetime import UTC, datetime
 from typing import Any
 
-from sqlalchemy import JSON, Boolean, DateTime, Float, ForeignKey, Integer, LargeBinary, String, Text, UniqueConstraint
+from sqlalchemy import (
+    JSON,
+    BigInteger,
+    Boolean,
+    DateTime,
+    Float,
+    ForeignKey,
+    Integer,
+    LargeBinary,
+    String,
+    Text,
+    UniqueConstraint,
+)
 from sqlalchemy.orm import Mapped, mapped_column
 
 from drivebench.services.storage.database import Base
@@ -64,6 +76,24 @@ class LineWizardRow(Base):
     updated: Mapped[datetime] = mapped_column(DateTime(timezone=True), nullable=False, default=utcnow,
                                               onupdate=utcnow)
     body: Mapped[dict[str, Any]] = mapped_column(JSON, nullable=False)
+
+
+class CheckedFirmwareRow(Base):
+    """A firmware file checked against a node and waiting to be sent (migration 0013_checked_firmware): kept in the
+    database so a download, or the wizard's program step, finds it after a server restart and on a second server
+    (``services.program.uploads``)."""
+
+    __tablename__ = "checked_firmware"
+
+    id: Mapped[str] = mapped_column(String(32), primary_key=True)
+    session_id: Mapped[str] = mapped_column(String(120), nullable=False)
+    node_id: Mapped[int] = mapped_column(Integer, nullable=False)
+    created: Mapped[datetime] = mapped_column(DateTime(timezone=True), nullable=False, default=utcnow)
+    name: Mapped[str] = mapped_column(String(300), nullable=False)
+    kind: Mapped[str] = mapped_column(String(8), nullable=False)
+    image: Mapped[bytes] = mapped_column(LargeBinary, nullable=False)
+    start_address: Mapped[int | None] = mapped_column(BigInteger, nullable=True)
+    identity: Mapped[dict[str, int]] = mapped_column(JSON, nullable=False)
 
 
 # --- parameter sets, downloads, audit log (migration 0002_parameter_sets) -----------------------------------

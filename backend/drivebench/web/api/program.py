@@ -80,7 +80,8 @@ async def check_file(session: SessionDep, node_id: int, file: Annotated[UploadFi
 async def start_download(request: Request, session: SessionDep, node_id: int, body: DownloadIn, jobs: JobsDep,
                          ctx: WriteCtxDep, root: RootDep) -> JobOut:
     ctx = ctx.confirming(confirmation(request, body.confirm, body.confirm_values))
-    job = download.start_download(session, node_id, jobs, body.file_id, ctx)
+    firmware = await download.checked_file(session, node_id, body.file_id)
+    job = download.start_download(session, node_id, jobs, firmware, ctx)
     return program_job_out(job, root)
 
 
