@@ -141,6 +141,7 @@ CASES = [
     LosslessCase("array-without-sub-objects", listed(
         "[2019]\nParameterName=Valve % open\nObjectType=0x8\nDataType=0x0008\nAccessType=rw\nDefaultValue=\n"
         "PDOMapping=0\n", 0x2019)),
+    LosslessCase("empty-file-info-key", section_key("FileInfo", "ModifiedBy", "")),
 ]
 
 

@@ -134,3 +134,12 @@ def test_compact_sub_obj_255_comes_back_as_written_through_an_xdd(api: TestClien
     assert len(subs) == 255
     _, back = through_xdd(api, profile_id)
     assert back.get("2018", {}).get("compactsubobj", back.get("2018SUB0", {}).get("defaultvalue")) == "255"
+
+
+def test_an_empty_file_info_key_comes_back_through_an_xdd(api: TestClient) -> None:
+    """node-canopen's example.eds writes ``ModifiedBy=``: the XDD's ``fileModifiedBy=""`` is read back as the empty
+    key, not dropped."""
+    profile_id, content = upload(api, "empty-file-info-key")
+    assert api.get(f"/api/profiles/{profile_id}/eds", params={"regenerate": "true"}).content == content
+    _, back = through_xdd(api, profile_id)
+    assert back["FILEINFO"]["modifiedby"] == ""

@@ -142,10 +142,10 @@ class _Builder:
                 self.put(OWN_SECTION, child.sourceline or 1, key, text)
 
     def file_info(self, body: etree._Element) -> None:
-        """The ProfileBody file attributes as [FileInfo] keys."""
+        """The ProfileBody file attributes as [FileInfo] keys (an empty one too: ``ModifiedBy=``)."""
         for attribute, key in FILE_INFO.items():
             value = body.get(attribute)
-            if value:
+            if value is not None:
                 self.put("FileInfo", body.sourceline or 1, key, eds_file_value(attribute, value))
 
     def eds_properties(self, parameter: etree._Element) -> None:
