@@ -77,6 +77,16 @@ def test_file_attributes_and_version_elements_go_through_xdd_to_xdd() -> None:
     assert (file_info["CreationDate"], file_info["ModificationTime"]) == ("06-30-2021", "08:00AM")  # the EDS form
 
 
+def test_a_file_attribute_only_the_device_body_has_is_read() -> None:
+    """CANopenNode's demoDevice.xdd (CANopenEditor) writes ``fileModifiedBy`` on the device profile's body only: it
+    is the [FileInfo] ModifiedBy all the same (the communication body's attributes first where both have one)."""
+    content = xdd(file={"fileName": "io.xdd", "fileCreator": "Editor", "fileVersion": "1"},
+                  device_file={"fileName": "io.xdd", "fileCreator": "Other", "fileModifiedBy": "J. Doe",
+                               "fileVersion": "1"})
+    file_info = read_xdd(content, source="io.xdd").profile.extra_sections["FileInfo"]
+    assert (file_info["ModifiedBy"], file_info["CreatedBy"]) == ("J. Doe", "Editor")
+
+
 def test_eds_sections_go_through_xdd_back_to_eds_and_the_warnings_name_keys_without_a_place() -> None:
     profile = read_eds(EDS_SECTIONS, source="servo.eds").profile
     written = export_xdd(profile)

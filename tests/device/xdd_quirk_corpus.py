@@ -19,11 +19,13 @@ def _attributes(values: Mapping[str, str]) -> str:
 
 def xdd(*, pdo: Sequence[str] = PDO_KINDS, general: Mapping[str, str] | None = None,
         master: Mapping[str, str] | None = None, file: Mapping[str, str] | None = None,
+        device_file: Mapping[str, str] | None = None,
         versions: Sequence[tuple[str, str]] = (("FW", "0x00010002"),)) -> bytes:
     """An XDD of a small I/O device: object 0x2000+n with ``PDOmapping=pdo[n]``, the features, the ProfileBody file
-    attributes and DeviceIdentity versions given."""
+    attributes (``device_file``: the device body's where they differ) and DeviceIdentity versions given."""
     file_attributes = _attributes(file or {"fileName": "io.xdd", "fileCreator": "Hand", "fileCreationDate":
                                            "2024-03-03", "fileVersion": "1"})
+    device_attributes = _attributes(device_file) if device_file is not None else file_attributes
     general_attributes = _attributes({"granularity": "8", **(general or {}), "nrOfRxPDO": "0", "nrOfTxPDO": "0"})
     version_elements = "".join(f'<version versionType="{kind}">{text}</version>' for kind, text in versions)
     objects = "".join(
@@ -35,7 +37,7 @@ def xdd(*, pdo: Sequence[str] = PDO_KINDS, general: Mapping[str, str] | None = N
 <ISO15745ProfileContainer xmlns="http://www.canopen.org/xml/1.0" xmlns:xsi="http://www.w3.org/2001/XMLSchema-instance">
   <ISO15745Profile>
     {header.format("Device")}
-    <ProfileBody xsi:type="ProfileBody_Device_CANopen"{file_attributes}>
+    <ProfileBody xsi:type="ProfileBody_Device_CANopen"{device_attributes}>
       <DeviceIdentity>
         <vendorName>Example IO</vendorName><vendorID>0x000004D2</vendorID><productName>IO 16</productName>
         {version_elements}

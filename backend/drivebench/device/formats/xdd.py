@@ -403,7 +403,8 @@ def read_xdd(data: bytes, *, source: str) -> ImportedEds:
     if profiles:
         builder.header(profiles[0])
     builder.data_types(communication[0])
-    builder.file_info(communication[0])
+    for body in [communication[0], *(b for b in bodies if b is not communication[0])]:
+        builder.file_info(body)  # the communication body's first; one the device body alone has too
     for body in bodies:
         if _body_type(body).startswith("ProfileBody_Device_CANopen"):
             parameters |= builder.device(body)
