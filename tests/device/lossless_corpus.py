@@ -142,6 +142,10 @@ CASES = [
         "[2019]\nParameterName=Valve % open\nObjectType=0x8\nDataType=0x0008\nAccessType=rw\nDefaultValue=\n"
         "PDOMapping=0\n", 0x2019)),
     LosslessCase("empty-file-info-key", section_key("FileInfo", "ModifiedBy", "")),
+    LosslessCase("empty-parameter-name", listed(
+        "[2020]\nParameterName=TPDO\nObjectType=0x8\nSubNumber=2\n\n[2020sub0]\nParameterName=max sub-index\n"
+        "ObjectType=0x7\nDataType=0x0005\nAccessType=ro\nDefaultValue=1\nPDOMapping=1\n\n[2020sub1]\nParameterName=\n"
+        "ObjectType=0x7\nDataType=0x0005\nAccessType=rw\nDefaultValue=\nPDOMapping=1\n", 0x2020)),
 ]
 
 

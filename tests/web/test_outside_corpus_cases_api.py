@@ -9,6 +9,7 @@ from lxml import etree
 
 from drivebench.device.formats.eds_ini import parse_ini
 from tests.device.lossless_corpus import LOSSLESS_FILES
+from tests.device.test_eds_rewrite import assert_only_key_changed
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 
@@ -143,3 +144,19 @@ def test_an_empty_file_info_key_comes_back_through_an_xdd(api: TestClient) -> No
     assert api.get(f"/api/profiles/{profile_id}/eds", params={"regenerate": "true"}).content == content
     _, back = through_xdd(api, profile_id)
     assert back["FILEINFO"]["modifiedby"] == ""
+
+
+def test_an_empty_parameter_name_comes_back_through_an_xdd(api: TestClient) -> None:
+    """node-canopen's test.eds writes ``ParameterName=`` on 16 sub-objects: named ``Sub-index N`` (with a warning)
+    and written back empty, also through EDS -> XDD -> EDS."""
+    profile_id, content = upload(api, "empty-parameter-name")
+    assert api.get(f"/api/profiles/{profile_id}/eds", params={"regenerate": "true"}).content == content
+    entry = next(o for o in api.get(f"/api/profiles/{profile_id}").json()["objects"]
+                 if (o["index"], o["subindex"]) in (("0x2020", 1), (0x2020, 1)))
+    assert entry["name"]
+    _, back = through_xdd(api, profile_id)
+    assert back["2020SUB1"]["parametername"] == ""
+    renamed = api.patch(f"/api/profiles/{profile_id}/objects/0x2020/1", json={"name": "Slot 1"})
+    assert renamed.status_code == 200, renamed.text
+    assert_only_key_changed(content, api.get(f"/api/profiles/{profile_id}/eds", params={"regenerate": "true"}).content,
+                            "empty.eds", "2020sub1", "ParameterName")

@@ -470,6 +470,7 @@ class _Reader:
               default_type: DataType | None = None, own_values: bool = True, quiet: bool = False
               ) -> ObjectEntry | None:
         address = (index, sub)
+        named = section.get("ParameterName") if name is None else None
         name = name if name is not None else self.name(section, f"Sub-index {sub}")
         type_key = section.get("DataType")
         data_type = default_type or DataType.DOMAIN
@@ -494,6 +495,8 @@ class _Reader:
                                   "access": access, "object_type": kind, "object_name": object_name,
                                   "data_type_code": type_code}
         kept: dict[str, str] = {}
+        if named is not None and not named.value:  # ``ParameterName=``: named so, and written back empty
+            kept["ParameterName"] = ""
         factor = self.factor(section, quiet)
         if factor != 1:
             fields["factor"] = factor

@@ -179,13 +179,18 @@ def export_value_text(entry: ObjectEntry, value: Value | None) -> dict[str, str]
     return texts
 
 
+def written_name(entry: ObjectEntry) -> str:
+    """The ParameterName of an entry's own section: empty where the file left it so (``ParameterName=``)."""
+    return (entry.value_texts or {}).get("ParameterName", entry.name)
+
+
 def object_type_text(entry: ObjectEntry) -> str:
     """The ObjectType of an entry's own section: the file's where it read the entry as a VAR otherwise."""
     return (entry.value_texts or {}).get("ObjectType") or ("0x2" if entry.domain_object else "0x7")
 
 
 def _entry_keys(entry: ObjectEntry, *, with_flags: bool, value: Value | None) -> list[tuple[str, object]]:
-    keys: list[tuple[str, object]] = [("ParameterName", entry.name), ("ObjectType", object_type_text(entry))]
+    keys: list[tuple[str, object]] = [("ParameterName", written_name(entry)), ("ObjectType", object_type_text(entry))]
     code = entry.data_type_code if entry.data_type_code is not None else entry.data_type.code
     keys += [("DataType", f"0x{code:04X}"),
              ("AccessType", entry.access.value)]

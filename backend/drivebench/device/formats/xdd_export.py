@@ -21,6 +21,7 @@ from drivebench.device.formats.eds_export import (
     node_value,
     object_type_text,
     objects_by_index,
+    written_name,
 )
 from drivebench.device.formats.xdd import EDS_KEY_PREFIX, OBJECT_LIST_PROPERTY
 from drivebench.device.formats.xdd_places import (
@@ -213,7 +214,7 @@ def xdd_object_type(entry: ObjectEntry) -> str:
 
 def _object_attributes(element: etree._Element, entry: ObjectEntry, value: Value | None, *,
                        with_flags: bool) -> None:
-    element.set("name", entry.name)
+    element.set("name", written_name(entry))
     element.set("objectType", xdd_object_type(entry))
     element.set("dataType", f"{export_type_code(entry):04X}")
     element.set("accessType", entry.access.value)

@@ -204,7 +204,9 @@ class ObjectEntry(Entry):
     with a change (a text default of a number, a value wider than its type, limits of a DOMAIN, ``$NODEID`` limits,
     limits dropped as LowLimit > HighLimit, ``CompactSubObj=255`` as sub 0's default ...; each with a warning): an
     export writes that text back; an edit of the value drops it. ``ObjectType`` where the entry is read as a VAR
-    but the file says otherwise (``0x09`` on a sub-object, an ARRAY without sub-objects): written back as such."""
+    but the file says otherwise (``0x09`` on a sub-object, an ARRAY without sub-objects): written back as such.
+    ``ParameterName`` ``""`` where the file left it empty (the entry is named ``Sub-index N``); an edit of the name
+    drops it."""
     object_list: Literal["MandatoryObjects", "OptionalObjects", "ManufacturerObjects"] | None = None
     """On the first entry of an object: the EDS object list the file names it in, where that is not the one of its
     index range (lely-core lists 0x2000.. as optional objects, the HEIG-VD canopen-stack 0x1017 as mandatory); an
