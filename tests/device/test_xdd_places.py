@@ -14,7 +14,7 @@ from drivebench.device.formats.eds_ini import parse_ini
 from drivebench.device.formats.xdd import read_xdd
 from drivebench.device.formats.xdd_export import export_warnings, export_xdd
 from drivebench.device.formats.xdd_places import GENERAL_FEATURES, MASTER_FEATURES, NUMBER_FEATURES
-from tests.device.xdd_quirk_corpus import ALL_FEATURES, EDS_SECTIONS, PDO_KINDS, VERSIONED, xdd
+from tests.device.xdd_quirk_corpus import ALL_FEATURES, EDS_SECTIONS, PDO_KINDS, TOOL_PROPERTIES, VERSIONED, xdd
 
 NS = "{http://www.canopen.org/xml/1.0}"
 KEPT_SECTIONS = ("FileInfo", "DummyUsage", "Comments", "DeviceComissioning", "Tools")
@@ -50,6 +50,20 @@ def versions(content: bytes) -> list[tuple[str, str]]:
 
 def sections(text: str) -> dict[str, dict[str, str]]:
     return {s.name: {k.name: k.value for k in s.keys.values()} for s in parse_ini(text, "x.eds").values()}
+
+
+def test_a_tools_own_parameter_properties_go_through_xdd_to_xdd() -> None:
+    """CANopenNode's demoDevice.xdd has 30 ``CO_*`` properties on its parameters: an XDD written again has each on
+    its object's parameter, as read."""
+    def properties(content: bytes) -> set[tuple[str, str, str]]:
+        """(index of the object whose parameter has it, name, value) of each CO_ property."""
+        root = etree.fromstring(content)
+        owner = {str(o.get("uniqueIDRef")): str(o.get("index")) for o in root.iter(f"{NS}CANopenObject")}
+        return {(owner.get(str(p.getparent().get("uniqueID")), "?"), str(p.get("name")), str(p.get("value")))
+                for p in root.iter(f"{NS}property") if str(p.get("name")).startswith("CO_")}
+
+    assert properties(through_xdd(TOOL_PROPERTIES)) == properties(TOOL_PROPERTIES) == {
+        ("2000", "CO_storageGroup", "PERSIST_COMM"), ("2000", "CO_countLabel", "VAL")}
 
 
 def test_the_pdo_direction_goes_through_xdd_to_xdd() -> None:

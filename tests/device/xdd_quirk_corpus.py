@@ -92,5 +92,15 @@ EDS_SECTIONS = _section(_section(BASE, "DeviceInfo", BASE[BASE.index("[DeviceInf
 """The clean EDS with every section CiA 311 has a place for, written as a vendor would (``Granularity=0``,
 ``CompactPDO``, ``LSS_Type``, a two-line comment, a commissioned node, a ``[Tools]`` section)."""
 
+TOOL_PROPERTIES = xdd().replace(
+    b'defaultValue="0" PDOmapping="TPDO"/>',
+    b'defaultValue="0" PDOmapping="TPDO" uniqueIDRef="UID_OBJ_2000"/>').replace(
+    b"</DeviceIdentity>",
+    b'</DeviceIdentity><ApplicationProcess><parameterList><parameter uniqueID="UID_OBJ_2000" access="readWrite">'
+    b'<label lang="en">Value 0</label><INT/><property name="CO_storageGroup" value="PERSIST_COMM"/>'
+    b'<property name="CO_countLabel" value="VAL"/></parameter></parameterList></ApplicationProcess>')
+"""An XDD whose object 0x2000 has a tool's own parameter properties (CANopenEditor writes ``CO_storageGroup`` and
+``CO_countLabel`` for CANopenNode)."""
+
 CASES: list[tuple[str, bytes]] = [("pdo_directions.xdd", xdd()), ("all_features.xdd", ALL_FEATURES),
                                   ("versioned.xdd", VERSIONED), ("eds_sections.eds", EDS_SECTIONS.encode())]

@@ -127,6 +127,8 @@ class _Builder:
         """How many objects each object list ([MandatoryObjects] ...) holds so far."""
         self.object_lists: dict[int, str] = {}
         """The EDS object list of an index where DriveBench's export names one (:data:`OBJECT_LIST_PROPERTY`)."""
+        self.properties: dict[tuple[int, int], dict[str, str]] = {}
+        """A tool's own parameter properties (``CO_storageGroup``) by (index, subindex); subindex -1: the object's."""
         self.pdo_kinds: dict[tuple[int, int], str] = {}
         """CiA 311 ``PDOmapping`` values beyond optional/no, by (index, subindex)."""
         self.defined_types: dict[int, DataType] = {}
@@ -376,6 +378,10 @@ class _Builder:
                 elif key in ("Unit", "Factor") or key.startswith(EDS_KEY_PREFIX):
                     self.put(section, child.sourceline or line, key.removeprefix(EDS_KEY_PREFIX),
                              str(child.get("value")))
+                else:  # a tool's own: kept for an XDD written again
+                    index, _, sub = section.upper().partition("SUB")
+                    address = (int(index, 16), int(sub, 16) if sub else (0 if holds_value else -1))
+                    self.properties.setdefault(address, {}).setdefault(key, str(child.get("value")))
             elif name == "allowedValues":
                 for bound in child.iter():
                     limit = {"minValue": "LowLimit", "maxValue": "HighLimit"}.get(local(bound))
@@ -420,7 +426,8 @@ def read_xdd(data: bytes, *, source: str) -> ImportedEds:
         if found is not None:
             found.keys["supportedobjects"] = Key("SupportedObjects", str(builder.listed[listing]), found.line)
     imported = read_sections(builder.sections, source, notes)
-    return ImportedEds(with_pdo_kinds(imported.profile, builder.pdo_kinds), imported.warnings)
+    profile = with_properties(with_pdo_kinds(imported.profile, builder.pdo_kinds), builder.properties)
+    return ImportedEds(profile, imported.warnings)
 
 
 def with_pdo_kinds(profile: Profile, kinds: dict[tuple[int, int], str]) -> Profile:
@@ -429,4 +436,20 @@ def with_pdo_kinds(profile: Profile, kinds: dict[tuple[int, int], str]) -> Profi
         return profile
     objects = [o.model_copy(update={"pdo_mapping_kind": kinds[(o.index, o.subindex)]})
                if o.pdo_mappable and (o.index, o.subindex) in kinds else o for o in profile.objects]
+    return profile.model_copy(update={"objects": objects})
+
+
+def with_properties(profile: Profile, properties: dict[tuple[int, int], dict[str, str]]) -> Profile:
+    """``profile`` with each entry's (and each ARRAY/RECORD's, on its first entry) own tool properties."""
+    if not properties:
+        return profile
+    objects, seen = [], set()
+    for entry in profile.objects:
+        update: dict[str, dict[str, str]] = {}
+        if (entry.index, entry.subindex) in properties:
+            update["xdd_properties"] = properties[(entry.index, entry.subindex)]
+        if entry.index not in seen and (entry.index, -1) in properties:
+            update["object_xdd_properties"] = properties[(entry.index, -1)]
+        seen.add(entry.index)
+        objects.append(entry.model_copy(update=update) if update else entry)
     return profile.model_copy(update={"objects": objects})

@@ -157,7 +157,7 @@ def _uid(entry: ObjectEntry) -> str:
 def _has_parameter(entry: ObjectEntry) -> bool:
     """Whether a VAR needs a parameter for what CANopenObject has no attribute for."""
     return entry.description is not None or entry.unit is not None or entry.factor != 1 or bool(entry.section_keys) \
-        or (entry.object_list is not None and entry.object_type == "VAR")
+        or (entry.object_list is not None and entry.object_type == "VAR") or bool(entry.xdd_properties)
 
 
 def _parameter(parameters: etree._Element, entry: ObjectEntry) -> None:
@@ -174,6 +174,12 @@ def _parameter(parameters: etree._Element, entry: ObjectEntry) -> None:
     for key, value in (entry.section_keys or {}).items():  # EDS keys without a CiA 311 attribute
         _el(parameter, "property", None, name=f"{EDS_KEY_PREFIX}{key}", value=value)
     _object_list_property(parameter, entry)
+    _tool_properties(parameter, entry.xdd_properties)
+
+
+def _tool_properties(parameter: etree._Element, properties: dict[str, str] | None) -> None:
+    for key, value in (properties or {}).items():  # a tool's own, as the uploaded XDD had them
+        _el(parameter, "property", None, name=key, value=value)
 
 
 def _object_list_property(parameter: etree._Element, entry: ObjectEntry) -> None:
@@ -191,6 +197,7 @@ def _object_parameter(parameters: etree._Element, index: int, first: ObjectEntry
         if key != "SubNumber":  # in the subNumber attribute
             _el(parameter, "property", None, name=f"{EDS_KEY_PREFIX}{key}", value=value)
     _object_list_property(parameter, first)
+    _tool_properties(parameter, first.object_xdd_properties)
     return unique_id
 
 
@@ -278,7 +285,8 @@ def export_xdd(profile: Profile, *, node_id: int | None = None, values: Mapping[
         obj.set("subNumber", str(sub_number(first, len(entries))))
         if shared is not None:
             obj.set("objFlags", f"{shared:X}")
-        if set(first.object_keys or {}) - {"SubNumber"} or first.object_list is not None:
+        if set(first.object_keys or {}) - {"SubNumber"} or first.object_list is not None \
+                or first.object_xdd_properties:
             obj.set("uniqueIDRef", _object_parameter(parameters, index, first))
         for entry in entries:
             sub = _el(obj, "CANopenSubObject", subIndex=f"{entry.subindex:02X}")
