@@ -119,6 +119,33 @@ CASES = [
         "DefaultValue=0x10\nPDOMapping=0\n", 0x2016)),
     LosslessCase("device-info-key-case", chain(section_key("DeviceInfo", "SimpleBootUpSlave", "0"), sub(
         "SimpleBootUpSlave=0\n", "SimpleBootupSlave=0\n"), sub("FileName=", "Filename="))),
+    LosslessCase("object-lists-off-their-range", chain(
+        sub("SupportedObjects=3\n1=0x1000\n2=0x1001\n3=0x1018\n",
+            "SupportedObjects=4\n1=0x1000\n2=0x1001\n3=0x1017\n4=0x1018\n"),
+        sub("SupportedObjects=5\n1=0x1008\n2=0x1017\n3=0x1400\n4=0x1800\n5=0x6040\n",
+            "SupportedObjects=5\n1=0x1008\n2=0x1400\n3=0x1800\n4=0x6040\n5=0x2003\n"),
+        sub("SupportedObjects=4\n1=0x2000\n2=0x2001\n3=0x2002\n4=0x2003\n",
+            "SupportedObjects=3\n1=0x2000\n2=0x2001\n3=0x2002\n"))),
+    LosslessCase("sub-object-type-record", listed(
+        "[2017]\nParameterName=Limits\nObjectType=0x09\nSubNumber=2\n\n[2017sub0]\nParameterName=Highest "
+        "sub-index supported\nObjectType=0x09\nDataType=0x0005\nAccessType=ro\nDefaultValue=1\nPDOMapping=0\n\n"
+        "[2017sub1]\nParameterName=Torque limit\nObjectType=0x09\nDataType=0x0006\nAccessType=rw\n"
+        "DefaultValue=1000\nPDOMapping=0\n", 0x2017)),
+    LosslessCase("iso-dates", chain(section_key("FileInfo", "CreationDate", "2024-01-15"),
+                                    section_key("FileInfo", "ModificationTime", "14:05"),
+                                    section_key("FileInfo", "ModificationDate", "2024-02-01"))),
+    LosslessCase("empty-product-name", section_key("DeviceInfo", "ProductName", "")),
+    LosslessCase("compact-sub-obj-255", listed(
+        "[2018]\nParameterName=Error history\nObjectType=0x8\nCompactSubObj=255\nDataType=0x0007\n"
+        "AccessType=ro\nPDOMapping=0\n", 0x2018)),
+    LosslessCase("array-without-sub-objects", listed(
+        "[2019]\nParameterName=Valve % open\nObjectType=0x8\nDataType=0x0008\nAccessType=rw\nDefaultValue=\n"
+        "PDOMapping=0\n", 0x2019)),
+    LosslessCase("empty-file-info-key", section_key("FileInfo", "ModifiedBy", "")),
+    LosslessCase("empty-parameter-name", listed(
+        "[2020]\nParameterName=TPDO\nObjectType=0x8\nSubNumber=2\n\n[2020sub0]\nParameterName=max sub-index\n"
+        "ObjectType=0x7\nDataType=0x0005\nAccessType=ro\nDefaultValue=1\nPDOMapping=1\n\n[2020sub1]\nParameterName=\n"
+        "ObjectType=0x7\nDataType=0x0005\nAccessType=rw\nDefaultValue=\nPDOMapping=1\n", 0x2020)),
 ]
 
 

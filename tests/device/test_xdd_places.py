@@ -14,7 +14,7 @@ from drivebench.device.formats.eds_ini import parse_ini
 from drivebench.device.formats.xdd import read_xdd
 from drivebench.device.formats.xdd_export import export_warnings, export_xdd
 from drivebench.device.formats.xdd_places import GENERAL_FEATURES, MASTER_FEATURES, NUMBER_FEATURES
-from tests.device.xdd_quirk_corpus import ALL_FEATURES, EDS_SECTIONS, PDO_KINDS, VERSIONED, xdd
+from tests.device.xdd_quirk_corpus import ALL_FEATURES, EDS_SECTIONS, PDO_KINDS, TOOL_PROPERTIES, VERSIONED, xdd
 
 NS = "{http://www.canopen.org/xml/1.0}"
 KEPT_SECTIONS = ("FileInfo", "DummyUsage", "Comments", "DeviceComissioning", "Tools")
@@ -52,6 +52,20 @@ def sections(text: str) -> dict[str, dict[str, str]]:
     return {s.name: {k.name: k.value for k in s.keys.values()} for s in parse_ini(text, "x.eds").values()}
 
 
+def test_a_tools_own_parameter_properties_go_through_xdd_to_xdd() -> None:
+    """CANopenNode's demoDevice.xdd has 30 ``CO_*`` properties on its parameters: an XDD written again has each on
+    its object's parameter, as read."""
+    def properties(content: bytes) -> set[tuple[str, str, str]]:
+        """(index of the object whose parameter has it, name, value) of each CO_ property."""
+        root = etree.fromstring(content)
+        owner = {str(o.get("uniqueIDRef")): str(o.get("index")) for o in root.iter(f"{NS}CANopenObject")}
+        return {(owner.get(str(p.getparent().get("uniqueID")), "?"), str(p.get("name")), str(p.get("value")))
+                for p in root.iter(f"{NS}property") if str(p.get("name")).startswith("CO_")}
+
+    assert properties(through_xdd(TOOL_PROPERTIES)) == properties(TOOL_PROPERTIES) == {
+        ("2000", "CO_storageGroup", "PERSIST_COMM"), ("2000", "CO_countLabel", "VAL")}
+
+
 def test_the_pdo_direction_goes_through_xdd_to_xdd() -> None:
     content = xdd()
     profile = read_xdd(content, source="pdo.xdd").profile
@@ -75,6 +89,16 @@ def test_file_attributes_and_version_elements_go_through_xdd_to_xdd() -> None:
     assert versions(again) == versions(VERSIONED)
     file_info = read_xdd(VERSIONED, source="v.xdd").profile.extra_sections["FileInfo"]
     assert (file_info["CreationDate"], file_info["ModificationTime"]) == ("06-30-2021", "08:00AM")  # the EDS form
+
+
+def test_a_file_attribute_only_the_device_body_has_is_read() -> None:
+    """CANopenNode's demoDevice.xdd (CANopenEditor) writes ``fileModifiedBy`` on the device profile's body only: it
+    is the [FileInfo] ModifiedBy all the same (the communication body's attributes first where both have one)."""
+    content = xdd(file={"fileName": "io.xdd", "fileCreator": "Editor", "fileVersion": "1"},
+                  device_file={"fileName": "io.xdd", "fileCreator": "Other", "fileModifiedBy": "J. Doe",
+                               "fileVersion": "1"})
+    file_info = read_xdd(content, source="io.xdd").profile.extra_sections["FileInfo"]
+    assert (file_info["ModifiedBy"], file_info["CreatedBy"]) == ("J. Doe", "Editor")
 
 
 def test_eds_sections_go_through_xdd_back_to_eds_and_the_warnings_name_keys_without_a_place() -> None:

@@ -19,11 +19,13 @@ def _attributes(values: Mapping[str, str]) -> str:
 
 def xdd(*, pdo: Sequence[str] = PDO_KINDS, general: Mapping[str, str] | None = None,
         master: Mapping[str, str] | None = None, file: Mapping[str, str] | None = None,
+        device_file: Mapping[str, str] | None = None,
         versions: Sequence[tuple[str, str]] = (("FW", "0x00010002"),)) -> bytes:
     """An XDD of a small I/O device: object 0x2000+n with ``PDOmapping=pdo[n]``, the features, the ProfileBody file
-    attributes and DeviceIdentity versions given."""
+    attributes (``device_file``: the device body's where they differ) and DeviceIdentity versions given."""
     file_attributes = _attributes(file or {"fileName": "io.xdd", "fileCreator": "Hand", "fileCreationDate":
                                            "2024-03-03", "fileVersion": "1"})
+    device_attributes = _attributes(device_file) if device_file is not None else file_attributes
     general_attributes = _attributes({"granularity": "8", **(general or {}), "nrOfRxPDO": "0", "nrOfTxPDO": "0"})
     version_elements = "".join(f'<version versionType="{kind}">{text}</version>' for kind, text in versions)
     objects = "".join(
@@ -35,7 +37,7 @@ def xdd(*, pdo: Sequence[str] = PDO_KINDS, general: Mapping[str, str] | None = N
 <ISO15745ProfileContainer xmlns="http://www.canopen.org/xml/1.0" xmlns:xsi="http://www.w3.org/2001/XMLSchema-instance">
   <ISO15745Profile>
     {header.format("Device")}
-    <ProfileBody xsi:type="ProfileBody_Device_CANopen"{file_attributes}>
+    <ProfileBody xsi:type="ProfileBody_Device_CANopen"{device_attributes}>
       <DeviceIdentity>
         <vendorName>Example IO</vendorName><vendorID>0x000004D2</vendorID><productName>IO 16</productName>
         {version_elements}
@@ -89,6 +91,16 @@ EDS_SECTIONS = _section(_section(BASE, "DeviceInfo", BASE[BASE.index("[DeviceInf
     "CANopenManager=0\nLSS_SerialNumber=1234\n\n[Tools]\nItems=1\nTool1=Configurator\n"
 """The clean EDS with every section CiA 311 has a place for, written as a vendor would (``Granularity=0``,
 ``CompactPDO``, ``LSS_Type``, a two-line comment, a commissioned node, a ``[Tools]`` section)."""
+
+TOOL_PROPERTIES = xdd().replace(
+    b'defaultValue="0" PDOmapping="TPDO"/>',
+    b'defaultValue="0" PDOmapping="TPDO" uniqueIDRef="UID_OBJ_2000"/>').replace(
+    b"</DeviceIdentity>",
+    b'</DeviceIdentity><ApplicationProcess><parameterList><parameter uniqueID="UID_OBJ_2000" access="readWrite">'
+    b'<label lang="en">Value 0</label><INT/><property name="CO_storageGroup" value="PERSIST_COMM"/>'
+    b'<property name="CO_countLabel" value="VAL"/></parameter></parameterList></ApplicationProcess>')
+"""An XDD whose object 0x2000 has a tool's own parameter properties (CANopenEditor writes ``CO_storageGroup`` and
+``CO_countLabel`` for CANopenNode)."""
 
 CASES: list[tuple[str, bytes]] = [("pdo_directions.xdd", xdd()), ("all_features.xdd", ALL_FEATURES),
                                   ("versioned.xdd", VERSIONED), ("eds_sections.eds", EDS_SECTIONS.encode())]

@@ -9,6 +9,7 @@ from lxml import etree
 
 from drivebench.device.formats.eds_ini import parse_ini
 from tests.device.lossless_corpus import LOSSLESS_FILES
+from tests.device.test_eds_rewrite import assert_only_key_changed
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 
@@ -77,3 +78,85 @@ def test_a_sub_number_larger_than_the_sub_objects_listed_comes_back_through_an_x
     record = etree.fromstring(xdd).xpath("//*[local-name()='CANopenObject'][@index='2016']")[0]
     assert record.get("subNumber") == "4"
     assert back["2016"]["subnumber"] == "4" and "2016SUB3" in back
+
+
+def test_objects_listed_off_their_index_range_stay_in_their_lists_through_an_xdd(api: TestClient) -> None:
+    """The HEIG-VD canopen-stack lists 0x1017 as mandatory, lely-core lists manufacturer objects as optional: an XDD
+    has no object lists, so the export says where each such object was listed and the EDS written back lists it
+    there again."""
+    profile_id, content = upload(api, "object-lists-off-their-range")
+    assert api.get(f"/api/profiles/{profile_id}/eds", params={"regenerate": "true"}).content == content
+    _, back = through_xdd(api, profile_id)
+    assert "0x1017" in back["MANDATORYOBJECTS"].values() and "0x1017" not in back["OPTIONALOBJECTS"].values()
+    assert "0x2003" in back["OPTIONALOBJECTS"].values() and "0x2003" not in back["MANUFACTUREROBJECTS"].values()
+    assert back["MANDATORYOBJECTS"]["supportedobjects"] == "4"
+
+
+def test_a_sub_objects_object_type_and_an_array_without_sub_objects_come_back_through_an_xdd(
+        api: TestClient) -> None:
+    """HEIG-VD writes ``ObjectType=0x09`` on sub-objects; python-canopen's receiver.eds has an ARRAY section
+    (0x3003) with neither sub-objects nor CompactSubObj: each comes back as written through EDS -> XDD -> EDS."""
+    profile_id, content = upload(api, "sub-object-type-record")
+    assert api.get(f"/api/profiles/{profile_id}/eds", params={"regenerate": "true"}).content == content
+    _, back = through_xdd(api, profile_id)
+    assert int(back["2017SUB1"]["objecttype"], 0) == 9 and int(back["2017SUB0"]["objecttype"], 0) == 9
+    profile_id, content = upload(api, "array-without-sub-objects")
+    assert api.get(f"/api/profiles/{profile_id}/eds", params={"regenerate": "true"}).content == content
+    warnings = api.get(f"/api/profiles/{profile_id}").json().get("warnings", [])
+    _, back = through_xdd(api, profile_id)
+    assert int(back["2019"]["objecttype"], 0) == 8 and back["2019"]["datatype"] == "0x0008", (back.get("2019"),
+                                                                                            warnings)
+    assert back["2019"]["defaultvalue"] == ""
+
+
+def test_iso_dates_and_an_empty_product_name_come_back_as_written_through_an_xdd(api: TestClient) -> None:
+    """``CreationDate=2026-09-11`` (HEIG-VD; not the CiA 306 mm-dd-yyyy form) and ``ProductName=`` (lely-core's
+    DCFs; the profile is named after the file, with a warning) are written back as the file had them."""
+    profile_id, content = upload(api, "iso-dates")
+    assert api.get(f"/api/profiles/{profile_id}/eds", params={"regenerate": "true"}).content == content
+    xdd, back = through_xdd(api, profile_id)
+    body = etree.fromstring(xdd).xpath("//*[local-name()='ProfileBody']")[0]
+    assert body.get("fileCreationDate") == "2024-01-15"
+    assert (back["FILEINFO"]["creationdate"], back["FILEINFO"]["modificationdate"],
+            back["FILEINFO"]["modificationtime"]) == ("2024-01-15", "2024-02-01", "14:05")
+    profile_id, content = upload(api, "empty-product-name")
+    assert api.get(f"/api/profiles/{profile_id}/eds", params={"regenerate": "true"}).content == content
+    assert api.get(f"/api/profiles/{profile_id}").json()["identity"]["product_name"]  # named after the file
+    _, back = through_xdd(api, profile_id)
+    assert back["DEVICEINFO"]["productname"] == ""
+
+
+def test_compact_sub_obj_255_comes_back_as_written_through_an_xdd(api: TestClient) -> None:
+    """python-canopen writes ``CompactSubObj=255`` on 0x1003: read as 254 sub-objects (sub-index 0xFF is no entry,
+    CiA 301, with a warning), and the file's 255 written back as sub 0's default."""
+    profile_id, content = upload(api, "compact-sub-obj-255")
+    assert api.get(f"/api/profiles/{profile_id}/eds", params={"regenerate": "true"}).content == content
+    subs = [o for o in api.get(f"/api/profiles/{profile_id}").json()["objects"] if o["index"] in ("0x2018", 0x2018)]
+    assert len(subs) == 255
+    _, back = through_xdd(api, profile_id)
+    assert back.get("2018", {}).get("compactsubobj", back.get("2018SUB0", {}).get("defaultvalue")) == "255"
+
+
+def test_an_empty_file_info_key_comes_back_through_an_xdd(api: TestClient) -> None:
+    """node-canopen's example.eds writes ``ModifiedBy=``: the XDD's ``fileModifiedBy=""`` is read back as the empty
+    key, not dropped."""
+    profile_id, content = upload(api, "empty-file-info-key")
+    assert api.get(f"/api/profiles/{profile_id}/eds", params={"regenerate": "true"}).content == content
+    _, back = through_xdd(api, profile_id)
+    assert back["FILEINFO"]["modifiedby"] == ""
+
+
+def test_an_empty_parameter_name_comes_back_through_an_xdd(api: TestClient) -> None:
+    """node-canopen's test.eds writes ``ParameterName=`` on 16 sub-objects: named ``Sub-index N`` (with a warning)
+    and written back empty, also through EDS -> XDD -> EDS."""
+    profile_id, content = upload(api, "empty-parameter-name")
+    assert api.get(f"/api/profiles/{profile_id}/eds", params={"regenerate": "true"}).content == content
+    entry = next(o for o in api.get(f"/api/profiles/{profile_id}").json()["objects"]
+                 if (o["index"], o["subindex"]) in (("0x2020", 1), (0x2020, 1)))
+    assert entry["name"]
+    _, back = through_xdd(api, profile_id)
+    assert back["2020SUB1"]["parametername"] == ""
+    renamed = api.patch(f"/api/profiles/{profile_id}/objects/0x2020/1", json={"name": "Slot 1"})
+    assert renamed.status_code == 200, renamed.text
+    assert_only_key_changed(content, api.get(f"/api/profiles/{profile_id}/eds", params={"regenerate": "true"}).content,
+                            "empty.eds", "2020sub1", "ParameterName")

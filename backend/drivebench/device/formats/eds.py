@@ -63,6 +63,7 @@ OBJECT_TYPE_CODES = {"VAR": 0x7, "ARRAY": 0x8, "RECORD": 0x9}
 DEFAULT_FAMILY = "eds"
 OWN_SECTION = "DriveBench"
 COMPACT_SUB0_NAME = "NrOfObjects"
+MANDATORY_OBJECTS = (0x1000, 0x1001, 0x1018)
 
 _INDEX_SECTION = re.compile(r"^([0-9A-F]{4})(?:SUB([0-9A-F]{1,2})|(NAME|VALUE|DENOTATION))?$")
 _MODEL_KEYS = {"parametername", "objecttype", "datatype", "accesstype", "defaultvalue", "parametervalue",
@@ -72,6 +73,14 @@ _HEAD_KEYS = {"parametername", "objecttype", "subnumber", "objflags", "compactsu
 """Keys of an ARRAY/RECORD's own section the model reads; the others are kept (``ObjectEntry.object_keys``)."""
 _MAPPED_DEVICE_INFO = {"vendorname", "vendornumber", "productname", "productnumber", "revisionnumber",
                        "ordercode", "nrofrxpdo", "nroftxpdo", *(f"baudrate_{b}" for b in BAUD_RATES_KBIT)}
+
+
+def range_object_list(index: int) -> str:
+    """The object list CiA 306 puts an index in: 0x1000/0x1001/0x1018 mandatory, 0x2000..0x5FFF manufacturer, the
+    rest optional."""
+    if index in MANDATORY_OBJECTS:
+        return "MandatoryObjects"
+    return "ManufacturerObjects" if 0x2000 <= index <= 0x5FFF else "OptionalObjects"
 
 
 # --- values --------------------------------------------------------------------------------------------
@@ -120,6 +129,9 @@ DEVICE_INFO_DEFAULTS = {"SimpleBootUpMaster": "0", "SimpleBootUpSlave": "1", "Gr
 EMPTY_IDENTITY_KEYS = {name.lower(): name for name in ("VendorNumber", "ProductNumber", "RevisionNumber",
                                                        "OrderCode")}
 """Identity keys a file may leave empty (``OrderCode=``): the model holds no value, the key is kept as written."""
+EMPTY_PRODUCT_NAME = {"ProductName": ""}
+"""``ProductName=`` (lely-core's DCFs): the profile is named after the file (with a warning) and the key is kept
+empty, as written."""
 
 
 def spelled_as(names: dict[str, str], keys: dict[str, str]) -> dict[str, str]:
@@ -127,6 +139,11 @@ def spelled_as(names: dict[str, str], keys: dict[str, str]) -> dict[str, str]:
     ``SimpleBootupSlave=0`` is the ``SimpleBootUpSlave`` an export writes (once, with the file's value)."""
     spelling = {name.lower(): name for name in names}
     return {spelling.get(key.lower(), key): value for key, value in keys.items()}
+
+
+def kept_object_type(entry: ObjectEntry, text: str) -> ObjectEntry:
+    """``entry`` (read as a VAR) with the file's ``ObjectType`` text to write back."""
+    return entry.model_copy(update={"value_texts": {**(entry.value_texts or {}), "ObjectType": text}})
 
 
 # --- import --------------------------------------------------------------------------------------------
@@ -145,6 +162,8 @@ class _Reader:
         self.sections = sections
         self.source = source
         self.notes = notes
+        self.list_names: dict[int, str] = {}
+        """The object list each listed index is in."""
 
     def fail(self, detail: str, line: int | None) -> ProfileError:
         return ProfileError(detail, source=self.source, line=line)
@@ -200,6 +219,7 @@ class _Reader:
                                                        index=index, line=listed[index].line))
                     continue
                 listed[index] = key
+                self.list_names[index] = list_name
         return listed
 
     # objects --------------------------------------------------------------------------------------------
@@ -242,7 +262,11 @@ class _Reader:
                                                                name=by_index[index].name))
         entries: list[ObjectEntry] = []
         for index in sorted(i for i in by_index if i >= 0x1000):
-            entries.extend(self.object(index, by_index[index], subs.get(index, {}), aux))
+            read = self.object(index, by_index[index], subs.get(index, {}), aux)
+            list_name = self.list_names.get(index, range_object_list(index))
+            if read and list_name != range_object_list(index):
+                read[0] = read[0].model_copy(update={"object_list": list_name})
+            entries.extend(read)
         return entries
 
     def object_type(self, index: int, section: Section, subs: dict[int, Section]) -> int | None:
@@ -290,6 +314,14 @@ class _Reader:
         flags_key = section.get("ObjFlags")
         flags = self.integer(flags_key) if flags_key else None
         compact = section.get("CompactSubObj")
+        type_key = section.get("ObjectType")
+        if not subs and compact is None and type_key is not None and section.get("DataType") is not None:
+            self.warn(type_key.line, type_key.name, Text(N_("object 0x{index:04X} is an {kind} without sub-objects "
+                                                            "(no [{index:04X}sub0], no CompactSubObj): read as a "
+                                                            "VAR, its ObjectType written back as in the file"),
+                                                         index=index, kind=kind))
+            entry = self.entry(section, index, 0, name=name, kind="VAR")
+            return [] if entry is None else [kept_object_type(entry, type_key.value)]
         if compact is not None and (self.integer(compact, 0) or 0) != 0:
             if not subs:
                 return self.with_object_keys(self.compact(index, section, compact, name, flags, aux, kind), section,
@@ -311,9 +343,15 @@ class _Reader:
             entry = self.entry(subs[sub], index, sub, object_name=name, kind=kind, obj_flags=flags)
             if entry is not None:
                 sub_type = subs[sub].get("ObjectType")
-                domain_sub = sub_type is not None and OBJECT_TYPE_NAMES.get(sub_type.value.strip().lower(),
-                                                                            _number(sub_type.value)) == 0x2
-                entries.append(entry.model_copy(update={"domain_object": domain_sub}))
+                sub_code = OBJECT_TYPE_NAMES.get(sub_type.value.strip().lower(), _number(sub_type.value)) \
+                    if sub_type is not None else 0x7
+                entry = entry.model_copy(update={"domain_object": sub_code == 0x2})
+                if sub_type is not None and sub_code not in (0x2, 0x7):
+                    self.warn(sub_type.line, sub_type.name, Text(N_("ObjectType={value} on a sub-object: read as a "
+                                                                    "VAR (CiA 306), written back as in the file"),
+                                                                 value=sub_type.value), address=(index, sub))
+                    entry = kept_object_type(entry, sub_type.value)
+                entries.append(entry)
         if flags is not None and len({e.obj_flags for e in entries}) > 1:  # the object's own differs from a sub's
             entries = [e.model_copy(update={"object_flags": flags}) for e in entries]
         return self.with_object_keys(entries, section, read)
@@ -336,9 +374,11 @@ class _Reader:
         names = aux.get((index, "NAME"))
         values = aux.get((index, "VALUE"))
         denotations = aux.get((index, "DENOTATION"))
+        file_count = _number(compact.value)  # CompactSubObj=255 (python-canopen's 0x1003): 254 read, 255 written
+        written = {"DefaultValue": compact.value} if file_count != count and file_count == 255 else None
         entries = [ObjectEntry(index=index, subindex=0, name=COMPACT_SUB0_NAME, object_name=name,
                                object_type=kind, data_type=DataType.UNSIGNED8, access=Access.RO, default=count,
-                               obj_flags=flags, compact=True)]
+                               obj_flags=flags, compact=True, value_texts=written)]
         count_value = values.get("0") if values else None  # a DCF's value of sub 0, as DriveBench writes it
         if count_value is not None:
             entries[0] = entries[0].model_copy(update={"parameter_value": self.parameter_value(
@@ -430,6 +470,7 @@ class _Reader:
               default_type: DataType | None = None, own_values: bool = True, quiet: bool = False
               ) -> ObjectEntry | None:
         address = (index, sub)
+        named = section.get("ParameterName") if name is None else None
         name = name if name is not None else self.name(section, f"Sub-index {sub}")
         type_key = section.get("DataType")
         data_type = default_type or DataType.DOMAIN
@@ -454,6 +495,8 @@ class _Reader:
                                   "access": access, "object_type": kind, "object_name": object_name,
                                   "data_type_code": type_code}
         kept: dict[str, str] = {}
+        if named is not None and not named.value:  # ``ParameterName=``: named so, and written back empty
+            kept["ParameterName"] = ""
         factor = self.factor(section, quiet)
         if factor != 1:
             fields["factor"] = factor
@@ -729,9 +772,10 @@ def read_sections(sections: dict[str, Section], source: str, notes: Warnings, *,
         )
     except ValidationError as exc:
         raise reader.fail(Text(N_("not a valid profile: {value}"), value=exc.errors()[0]["msg"]), info.line) from exc
-    device_extra = spelled_as({**DEVICE_INFO_DEFAULTS, **EMPTY_IDENTITY_KEYS}, {
+    device_extra = spelled_as({**DEVICE_INFO_DEFAULTS, **EMPTY_IDENTITY_KEYS, **EMPTY_PRODUCT_NAME}, {
         k.name: k.value for k in info.keys.values()
-        if k.name.lower() not in _MAPPED_DEVICE_INFO or (k.name.lower() in EMPTY_IDENTITY_KEYS and not k.value)})
+        if k.name.lower() not in _MAPPED_DEVICE_INFO
+        or (k.name.lower() in {*EMPTY_IDENTITY_KEYS, "productname"} and not k.value)})
     device_extra = {k: v for k, v in device_extra.items() if DEVICE_INFO_DEFAULTS.get(k) != v}
     if device_extra:
         extra["DeviceInfo"] = device_extra
@@ -741,7 +785,8 @@ def read_sections(sections: dict[str, Section], source: str, notes: Warnings, *,
     file_info = extra.pop(next((n for n in extra if n.upper() == "FILEINFO"), "FileInfo"), None)
     if file_info is not None:
         defaults = file_info_defaults(profile)
-        kept = {k: v for k, v in spelled_as(defaults, file_info).items() if defaults.get(k) != v}
+        named_after = "Description" if device_extra.get("ProductName") == "" else None  # kept: it names it
+        kept = {k: v for k, v in spelled_as(defaults, file_info).items() if defaults.get(k) != v or k == named_after}
         if kept:
             extra["FileInfo"] = kept
     return ImportedEds(profile.model_copy(update={"extra_sections": extra}), notes.result())

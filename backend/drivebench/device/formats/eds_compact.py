@@ -28,7 +28,8 @@ def fits_compact(entries: list[ObjectEntry]) -> bool:
     count = ObjectEntry(index=head.index, name=COMPACT_SUB0_NAME, object_name=head.object_name,
                         object_type=head.object_type,
                         data_type=DataType.UNSIGNED8, access=Access.RO, default=len(subs), obj_flags=head.obj_flags,
-                        compact=True, object_keys=head.object_keys, parameter_value=head.parameter_value)
+                        compact=True, object_keys=head.object_keys, parameter_value=head.parameter_value,
+                        value_texts=head.value_texts, object_list=head.object_list)
     if head != count or [e.subindex for e in subs] != list(range(1, len(subs) + 1)):
         return False
     shape = subs[0].model_dump(exclude=PER_SUB)
@@ -44,8 +45,9 @@ def compact_sections(entries: list[ObjectEntry], entry_keys: Callable[[ObjectEnt
     ``[xxxxDenotation]`` where a sub-object has its own (``value_text``: its ParameterValue text, or None)."""
     head, subs = entries[0], entries[1:]
     object_type = "0x9" if head.object_type == "RECORD" else "0x8"  # CompactSubObj on a RECORD stays one
+    count = (head.value_texts or {}).get("DefaultValue", len(subs))  # the file's CompactSubObj=255: 254 read
     keys: list[tuple[str, object]] = [("ParameterName", head.object_name), ("ObjectType", object_type),
-                                      ("CompactSubObj", len(subs))]
+                                      ("CompactSubObj", count)]
     keys += [(key, value) for key, value in entry_keys(subs[0]) if key not in HEAD_KEYS_NOT_SHARED]
     if head.obj_flags is not None:
         keys.append(("ObjFlags", f"0x{head.obj_flags:X}"))

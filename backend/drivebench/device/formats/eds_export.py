@@ -14,11 +14,13 @@ from drivebench.device.formats.dcf_patch import patch_dcf
 from drivebench.device.formats.eds import (
     BAUD_RATES_KBIT,
     DEVICE_INFO_DEFAULTS,
+    MANDATORY_OBJECTS,
     OBJECT_TYPE_CODES,
     OWN_SECTION,
     decode_text,
     file_info_defaults,
     node_expr,
+    range_object_list,
     resolve_node_expr,
 )
 from drivebench.device.formats.eds_compact import compact_sections, fits_compact
@@ -29,7 +31,7 @@ from drivebench.errors import ProfileError, UnknownParameter
 from drivebench.i18n import _
 from drivebench.protocol.datatypes import DataType
 
-MANDATORY = (0x1000, 0x1001, 0x1018)
+MANDATORY = MANDATORY_OBJECTS
 Address = tuple[int, int]
 
 
@@ -177,9 +179,18 @@ def export_value_text(entry: ObjectEntry, value: Value | None) -> dict[str, str]
     return texts
 
 
+def written_name(entry: ObjectEntry) -> str:
+    """The ParameterName of an entry's own section: empty where the file left it so (``ParameterName=``)."""
+    return (entry.value_texts or {}).get("ParameterName", entry.name)
+
+
+def object_type_text(entry: ObjectEntry) -> str:
+    """The ObjectType of an entry's own section: the file's where it read the entry as a VAR otherwise."""
+    return (entry.value_texts or {}).get("ObjectType") or ("0x2" if entry.domain_object else "0x7")
+
+
 def _entry_keys(entry: ObjectEntry, *, with_flags: bool, value: Value | None) -> list[tuple[str, object]]:
-    keys: list[tuple[str, object]] = [("ParameterName", entry.name),
-                                      ("ObjectType", "0x2" if entry.domain_object else "0x7")]
+    keys: list[tuple[str, object]] = [("ParameterName", written_name(entry)), ("ObjectType", object_type_text(entry))]
     code = entry.data_type_code if entry.data_type_code is not None else entry.data_type.code
     keys += [("DataType", f"0x{code:04X}"),
              ("AccessType", entry.access.value)]
@@ -236,12 +247,6 @@ def node_value(entry: ObjectEntry, values: Mapping[Address, Value], node_id: int
         if isinstance(value, str) and entry.data_type.is_integer and node_expr(value) is not None:
             return resolve_node_expr(value, node_id)
     return value
-
-
-def _object_list(index: int) -> str:
-    if index in MANDATORY:
-        return "MandatoryObjects"
-    return "ManufacturerObjects" if 0x2000 <= index <= 0x5FFF else "OptionalObjects"
 
 
 def eds_objects(profile: Profile) -> list[ObjectEntry]:
@@ -319,7 +324,8 @@ def export_eds(profile: Profile, *, node_id: int | None = None, values: Mapping[
         device_info[f"BaudRate_{rate}"] = int(rate in features.baud_rates_kbit)
     device_info |= {"NrOfRXPDO": features.rpdo_count, "NrOfTXPDO": features.tpdo_count}
     device_info |= {key: value for key, value in {**DEVICE_INFO_DEFAULTS, **_extra(profile, "DeviceInfo")}.items()
-                    if value != "" or key not in device_info}  # an empty identity key where the model has none
+                    if value != "" or key not in device_info or key == "ProductName"}  # an empty identity key
+    # where the model has none; ``ProductName=``: the model's is the name the import gave it
     out.section("DeviceInfo", device_info.items())
     if profile.notes:
         out.section("Comments", [("Lines", len(profile.notes)),
@@ -339,7 +345,7 @@ def export_eds(profile: Profile, *, node_id: int | None = None, values: Mapping[
     if dcf or commissioning:
         out.section("DeviceComissioning", commissioning.items())
     for list_name in ("MandatoryObjects", "OptionalObjects", "ManufacturerObjects"):
-        listed = [i for i in by_index if _object_list(i) == list_name]
+        listed = [i for i, es in by_index.items() if (es[0].object_list or range_object_list(i)) == list_name]
         out.section(list_name, [("SupportedObjects", len(listed)),
                                 *((str(n), f"0x{i:04X}") for n, i in enumerate(listed, start=1))])
     for index, entries in by_index.items():

@@ -34,6 +34,7 @@ from drivebench.device.formats.eds import (
     ImportedEds,
     Key,
     Section,
+    range_object_list,
     read_sections,
 )
 from drivebench.device.formats.eds_quirks import Warnings
@@ -76,6 +77,9 @@ _IEC_TYPES = {"BOOL": DataType.BOOLEAN, "SINT": DataType.INTEGER8, "CHAR": DataT
 as CANopenEditor type the parameter only)."""
 _PDO_KINDS = {"default": "default", "tpdo": "TPDO", "rpdo": "RPDO"}
 _EDS_PROPERTY = re.compile(r"^EDS:\[([^\]]+)\](.+)$")
+OBJECT_LIST_PROPERTY = "EDS:[ObjectList]"
+"""The property naming the EDS object list (``MandatoryObjects`` ...) an object was listed in off its index range
+(no EDS key can be named ``[ObjectList]``)."""
 
 
 def local(element: etree._Element) -> str:
@@ -121,6 +125,10 @@ class _Builder:
         self.sections: dict[str, Section] = {}
         self.listed: dict[str, int] = {}
         """How many objects each object list ([MandatoryObjects] ...) holds so far."""
+        self.object_lists: dict[int, str] = {}
+        """The EDS object list of an index where DriveBench's export names one (:data:`OBJECT_LIST_PROPERTY`)."""
+        self.properties: dict[tuple[int, int], dict[str, str]] = {}
+        """A tool's own parameter properties (``CO_storageGroup``) by (index, subindex); subindex -1: the object's."""
         self.pdo_kinds: dict[tuple[int, int], str] = {}
         """CiA 311 ``PDOmapping`` values beyond optional/no, by (index, subindex)."""
         self.defined_types: dict[int, DataType] = {}
@@ -136,18 +144,19 @@ class _Builder:
                 self.put(OWN_SECTION, child.sourceline or 1, key, text)
 
     def file_info(self, body: etree._Element) -> None:
-        """The ProfileBody file attributes as [FileInfo] keys."""
+        """The ProfileBody file attributes as [FileInfo] keys (an empty one too: ``ModifiedBy=``)."""
         for attribute, key in FILE_INFO.items():
             value = body.get(attribute)
-            if value:
+            if value is not None:
                 self.put("FileInfo", body.sourceline or 1, key, eds_file_value(attribute, value))
 
     def eds_properties(self, parameter: etree._Element) -> None:
-        """The ``EDS:[Section]Key`` properties DriveBench's export carries for EDS keys without a CiA 311 place."""
+        """The ``EDS:[Section]Key`` properties DriveBench's export carries for EDS keys without a CiA 311 place; they
+        are the EDS file's text, so they replace what an element gave (an ISO ``CreationDate``, ``ProductName=``)."""
         for child in parameter:
             found = _EDS_PROPERTY.match(str(child.get("name", ""))) if local(child) == "property" else None
             if found is not None and child.get("value") is not None:
-                self.put(found.group(1), child.sourceline or 1, found.group(2), str(child.get("value")))
+                self.put(found.group(1), child.sourceline or 1, found.group(2), str(child.get("value")), replace=True)
 
     def features(self, element: etree._Element, attributes: dict[str, str]) -> None:
         """CANopenGeneralFeatures/CANopenMasterFeatures as [DeviceInfo] keys; an attribute left out is the schema's
@@ -176,11 +185,11 @@ class _Builder:
                 if code not in DATA_TYPE_BY_CODE and name in DataType.__members__:
                     self.defined_types[code] = DataType[name]
 
-    def put(self, section: str, line: int, key: str, value: str) -> None:
+    def put(self, section: str, line: int, key: str, value: str, *, replace: bool = False) -> None:
         found = self.sections.get(section.upper())
         if found is None:
             found = self.sections[section.upper()] = Section(section, line)
-        if key.lower() not in found.keys:
+        if replace or key.lower() not in found.keys:
             found.keys[key.lower()] = Key(key, value, line)
 
     def device(self, body: etree._Element) -> dict[str, etree._Element]:
@@ -289,8 +298,7 @@ class _Builder:
                                                                 value=sub_text, index=index))
                 continue
             self.keys(f"{section}sub{number:X}", sub, parameters)
-        listing = "MandatoryObjects" if index in (0x1000, 0x1001, 0x1018) else (
-            "ManufacturerObjects" if 0x2000 <= index <= 0x5FFF else "OptionalObjects")
+        listing = self.object_lists.get(index, range_object_list(index))
         self.listed[listing] = self.listed.get(listing, 0) + 1
         self.put(listing, line, str(self.listed[listing]), f"0x{index:04X}")
 
@@ -365,9 +373,15 @@ class _Builder:
                 self.put(section, child.sourceline or line, key, str(child.get("value")))
             elif name == "property" and child.get("value") is not None:
                 key = str(child.get("name"))
-                if key in ("Unit", "Factor") or key.startswith(EDS_KEY_PREFIX):
+                if key == OBJECT_LIST_PROPERTY and str(child.get("value")) in OBJECT_LISTS:
+                    self.object_lists[int(section[:4], 16)] = str(child.get("value"))
+                elif key in ("Unit", "Factor") or key.startswith(EDS_KEY_PREFIX):
                     self.put(section, child.sourceline or line, key.removeprefix(EDS_KEY_PREFIX),
                              str(child.get("value")))
+                else:  # a tool's own: kept for an XDD written again
+                    index, _, sub = section.upper().partition("SUB")
+                    address = (int(index, 16), int(sub, 16) if sub else (0 if holds_value else -1))
+                    self.properties.setdefault(address, {}).setdefault(key, str(child.get("value")))
             elif name == "allowedValues":
                 for bound in child.iter():
                     limit = {"minValue": "LowLimit", "maxValue": "HighLimit"}.get(local(bound))
@@ -395,7 +409,8 @@ def read_xdd(data: bytes, *, source: str) -> ImportedEds:
     if profiles:
         builder.header(profiles[0])
     builder.data_types(communication[0])
-    builder.file_info(communication[0])
+    for body in [communication[0], *(b for b in bodies if b is not communication[0])]:
+        builder.file_info(body)  # the communication body's first; one the device body alone has too
     for body in bodies:
         if _body_type(body).startswith("ProfileBody_Device_CANopen"):
             parameters |= builder.device(body)
@@ -411,7 +426,8 @@ def read_xdd(data: bytes, *, source: str) -> ImportedEds:
         if found is not None:
             found.keys["supportedobjects"] = Key("SupportedObjects", str(builder.listed[listing]), found.line)
     imported = read_sections(builder.sections, source, notes)
-    return ImportedEds(with_pdo_kinds(imported.profile, builder.pdo_kinds), imported.warnings)
+    profile = with_properties(with_pdo_kinds(imported.profile, builder.pdo_kinds), builder.properties)
+    return ImportedEds(profile, imported.warnings)
 
 
 def with_pdo_kinds(profile: Profile, kinds: dict[tuple[int, int], str]) -> Profile:
@@ -420,4 +436,20 @@ def with_pdo_kinds(profile: Profile, kinds: dict[tuple[int, int], str]) -> Profi
         return profile
     objects = [o.model_copy(update={"pdo_mapping_kind": kinds[(o.index, o.subindex)]})
                if o.pdo_mappable and (o.index, o.subindex) in kinds else o for o in profile.objects]
+    return profile.model_copy(update={"objects": objects})
+
+
+def with_properties(profile: Profile, properties: dict[tuple[int, int], dict[str, str]]) -> Profile:
+    """``profile`` with each entry's (and each ARRAY/RECORD's, on its first entry) own tool properties."""
+    if not properties:
+        return profile
+    objects, seen = [], set()
+    for entry in profile.objects:
+        update: dict[str, dict[str, str]] = {}
+        if (entry.index, entry.subindex) in properties:
+            update["xdd_properties"] = properties[(entry.index, entry.subindex)]
+        if entry.index not in seen and (entry.index, -1) in properties:
+            update["object_xdd_properties"] = properties[(entry.index, -1)]
+        seen.add(entry.index)
+        objects.append(entry.model_copy(update=update) if update else entry)
     return profile.model_copy(update={"objects": objects})

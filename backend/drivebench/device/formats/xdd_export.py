@@ -14,9 +14,16 @@ from datetime import UTC, datetime
 
 from lxml import etree
 
-from drivebench.device.formats.eds import DEVICE_INFO_DEFAULTS, file_info_defaults
-from drivebench.device.formats.eds_export import Address, export_value_text, node_value, objects_by_index
-from drivebench.device.formats.xdd import EDS_KEY_PREFIX
+from drivebench.device.formats.eds import DEVICE_INFO_DEFAULTS, file_info_defaults, parse_int
+from drivebench.device.formats.eds_export import (
+    Address,
+    export_value_text,
+    node_value,
+    object_type_text,
+    objects_by_index,
+    written_name,
+)
+from drivebench.device.formats.xdd import EDS_KEY_PREFIX, OBJECT_LIST_PROPERTY
 from drivebench.device.formats.xdd_places import (
     COMMISSIONING,
     FILE_INFO,
@@ -147,8 +154,14 @@ def _uid(entry: ObjectEntry) -> str:
     return f"UID_OBJ_{entry.index:04X}{entry.subindex:02X}"
 
 
+def _has_parameter(entry: ObjectEntry) -> bool:
+    """Whether a VAR needs a parameter for what CANopenObject has no attribute for."""
+    return entry.description is not None or entry.unit is not None or entry.factor != 1 or bool(entry.section_keys) \
+        or (entry.object_list is not None and entry.object_type == "VAR") or bool(entry.xdd_properties)
+
+
 def _parameter(parameters: etree._Element, entry: ObjectEntry) -> None:
-    if entry.description is None and entry.unit is None and entry.factor == 1 and not entry.section_keys:
+    if not _has_parameter(entry):
         return
     parameter = _el(parameters, "parameter", uniqueID=_uid(entry), access="read")
     _el(parameter, "label", entry.name, lang="en")
@@ -160,6 +173,18 @@ def _parameter(parameters: etree._Element, entry: ObjectEntry) -> None:
             _el(parameter, "property", None, name=name, value=value)
     for key, value in (entry.section_keys or {}).items():  # EDS keys without a CiA 311 attribute
         _el(parameter, "property", None, name=f"{EDS_KEY_PREFIX}{key}", value=value)
+    _object_list_property(parameter, entry)
+    _tool_properties(parameter, entry.xdd_properties)
+
+
+def _tool_properties(parameter: etree._Element, properties: dict[str, str] | None) -> None:
+    for key, value in (properties or {}).items():  # a tool's own, as the uploaded XDD had them
+        _el(parameter, "property", None, name=key, value=value)
+
+
+def _object_list_property(parameter: etree._Element, entry: ObjectEntry) -> None:
+    if entry.object_list is not None:  # an XDD has no object lists: where the EDS listed it off its index range
+        _el(parameter, "property", None, name=OBJECT_LIST_PROPERTY, value=entry.object_list)
 
 
 def _object_parameter(parameters: etree._Element, index: int, first: ObjectEntry) -> str:
@@ -171,6 +196,8 @@ def _object_parameter(parameters: etree._Element, index: int, first: ObjectEntry
     for key, value in (first.object_keys or {}).items():
         if key != "SubNumber":  # in the subNumber attribute
             _el(parameter, "property", None, name=f"{EDS_KEY_PREFIX}{key}", value=value)
+    _object_list_property(parameter, first)
+    _tool_properties(parameter, first.object_xdd_properties)
     return unique_id
 
 
@@ -183,10 +210,19 @@ def sub_number(first: ObjectEntry, listed: int) -> int:
         return listed
 
 
+def xdd_object_type(entry: ObjectEntry) -> str:
+    """``objectType`` of an entry's CANopenObject/CANopenSubObject (a number, CiA 311): the file's where the import
+    read the entry as a VAR otherwise."""
+    try:
+        return str(parse_int(object_type_text(entry)))
+    except ValueError:
+        return "2" if entry.domain_object else "7"
+
+
 def _object_attributes(element: etree._Element, entry: ObjectEntry, value: Value | None, *,
                        with_flags: bool) -> None:
-    element.set("name", entry.name)
-    element.set("objectType", "2" if entry.domain_object else "7")
+    element.set("name", written_name(entry))
+    element.set("objectType", xdd_object_type(entry))
     element.set("dataType", f"{export_type_code(entry):04X}")
     element.set("accessType", entry.access.value)
     texts = export_value_text(entry, value)
@@ -197,7 +233,7 @@ def _object_attributes(element: etree._Element, entry: ObjectEntry, value: Value
     element.set("PDOmapping", (entry.pdo_mapping_kind or "optional") if entry.pdo_mappable else "no")
     if with_flags and entry.obj_flags is not None:
         element.set("objFlags", f"{entry.obj_flags:X}")
-    if entry.description is not None or entry.unit is not None or entry.factor != 1 or entry.section_keys:
+    if _has_parameter(entry):
         element.set("uniqueIDRef", _uid(entry))
 
 
@@ -249,7 +285,8 @@ def export_xdd(profile: Profile, *, node_id: int | None = None, values: Mapping[
         obj.set("subNumber", str(sub_number(first, len(entries))))
         if shared is not None:
             obj.set("objFlags", f"{shared:X}")
-        if set(first.object_keys or {}) - {"SubNumber"}:
+        if set(first.object_keys or {}) - {"SubNumber"} or first.object_list is not None \
+                or first.object_xdd_properties:
             obj.set("uniqueIDRef", _object_parameter(parameters, index, first))
         for entry in entries:
             sub = _el(obj, "CANopenSubObject", subIndex=f"{entry.subindex:02X}")

@@ -2,7 +2,8 @@
 
 * ``[FileInfo]`` <-> the ``ProfileBody`` file attributes (``fileCreator`` = ``CreatedBy`` ...); dates and times are
   written in each format's own form (XDD ``2024-03-05``/``14:05:00``, EDS ``03-05-2024``/``02:05PM``) where that
-  loses nothing, else as they were.
+  loses nothing, else as they were; an EDS date already in the XDD form (``CreationDate=2024-03-05``) would come
+  back in the EDS form, so it is also kept as an ``EDS:`` property (below), which an import prefers.
 * ``[DeviceInfo]`` NMT/LSS keys <-> the ``CANopenGeneralFeatures``/``CANopenMasterFeatures`` attributes; the
   attributes CiA 306 has no key for (``selfStartingDevice``, ``flyingMaster`` ...) are kept under the key
   :data:`GENERAL_FEATURES`/:data:`MASTER_FEATURES` name (an EDS export writes them; other tools skip them).
@@ -100,10 +101,11 @@ def extra(profile: Profile, name: str) -> dict[str, str]:
     return {}
 
 
-def _placed(section: str, key: str) -> bool:
+def _placed(section: str, key: str, value: str) -> bool:
     kind = section.lower()
-    if kind == "fileinfo":
-        return key in FILE_INFO.values()
+    if kind == "fileinfo":  # a date the attribute would give back in another form (ISO in an EDS) has none
+        attribute = next((a for a, k in FILE_INFO.items() if k == key), None)
+        return attribute is not None and eds_file_value(attribute, xdd_file_value(attribute, value)) == value
     if kind == "deviceinfo":
         return key in _PLACED_DEVICE_INFO or VERSION_KEY.match(key) is not None
     if kind == "devicecomissioning":
@@ -112,6 +114,7 @@ def _placed(section: str, key: str) -> bool:
 
 
 def unplaced(profile: Profile) -> list[tuple[str, str, str]]:
-    """The (section, key, value) of ``extra_sections`` CiA 311 has no place for, in file order."""
+    """The (section, key, value) of ``extra_sections`` CiA 311 has no place for, in file order (and the [FileInfo]
+    dates and times its attribute would give back in another form: ``CreationDate=2024-01-15``)."""
     return [(section, key, value) for section, keys in profile.extra_sections.items()
-            for key, value in keys.items() if not _placed(section, key)]
+            for key, value in keys.items() if not _placed(section, key, value)]

@@ -202,8 +202,20 @@ class ObjectEntry(Entry):
     value_texts: dict[str, str] | None = None
     """The file's text of ``DefaultValue``/``LowLimit``/``HighLimit``/``ParameterValue`` where the import read it
     with a change (a text default of a number, a value wider than its type, limits of a DOMAIN, ``$NODEID`` limits,
-    limits dropped as LowLimit > HighLimit ...; each with a warning): an export writes that text back; an edit of
-    the value drops it."""
+    limits dropped as LowLimit > HighLimit, ``CompactSubObj=255`` as sub 0's default ...; each with a warning): an
+    export writes that text back; an edit of the value drops it. ``ObjectType`` where the entry is read as a VAR
+    but the file says otherwise (``0x09`` on a sub-object, an ARRAY without sub-objects): written back as such.
+    ``ParameterName`` ``""`` where the file left it empty (the entry is named ``Sub-index N``); an edit of the name
+    drops it."""
+    xdd_properties: dict[str, str] | None = None
+    """``property`` elements of the entry's CiA 311 parameter that DriveBench has no meaning for (a tool's own:
+    CANopenNode's ``CO_storageGroup`` ...), in file order; an XDD export writes them back (an EDS has no place)."""
+    object_xdd_properties: dict[str, str] | None = None
+    """On the first entry of an ARRAY/RECORD: those of the object's own parameter."""
+    object_list: Literal["MandatoryObjects", "OptionalObjects", "ManufacturerObjects"] | None = None
+    """On the first entry of an object: the EDS object list the file names it in, where that is not the one of its
+    index range (lely-core lists 0x2000.. as optional objects, the HEIG-VD canopen-stack 0x1017 as mandatory); an
+    export lists it there again."""
     object_flags: int | None = None
     """On each entry of an ARRAY/RECORD: the ``ObjFlags`` of the object's own section (``[1018]``), written back
     there; ``obj_flags`` is what holds for the entry (its own section's, else the object's)."""

@@ -20,6 +20,8 @@ EDS_SUFFIXES = (".eds", ".dcf")
 VALUE_KEYS = {"DefaultValue": "default", "LowLimit": "min", "HighLimit": "max", "ParameterValue": "parameter_value"}
 """EDS key -> the field that holds its value."""
 VALUE_FIELDS = set(VALUE_KEYS.values())
+KEPT_TEXT_FIELDS = {**VALUE_KEYS, "ParameterName": "name"}
+"""EDS key -> the field whose edit replaces the file's kept text of it (``value_texts``)."""
 
 
 class ObjectEdit(BaseModel):
@@ -84,7 +86,7 @@ def edited(profile: Profile, index: int, subindex: int, edit: ObjectEdit) -> Pro
     if "default" in changes:
         changes["default_expr"] = None
     texts = {key: text for key, text in (objects[at].value_texts or {}).items()
-             if VALUE_KEYS.get(key) not in changes}  # the file's text of an edited value is replaced
+             if KEPT_TEXT_FIELDS.get(key) not in changes}  # the file's text of an edited value is replaced
     changes["value_texts"] = texts or None
     try:
         objects[at] = ObjectEntry.model_validate({**objects[at].model_dump(), **changes})
