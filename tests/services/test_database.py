@@ -56,6 +56,29 @@ def test_migrations_create_the_schema_on_an_empty_database(db_url: str, tmp_path
     assert database.current_revision(db_url) == head
 
 
+def test_a_start_on_a_current_schema_runs_no_alembic_upgrade(db_url: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A start-up finds the schema at head and leaves Alembic's environment and scripts alone (issues 29 and 33: it
+    cost every app start ~0.1 s); a database behind head is still upgraded."""
+    from alembic import command
+
+    upgrades: list[str] = []
+    real_upgrade = command.upgrade
+
+    def counted(config: object, revision: str, **kwargs: object) -> None:
+        upgrades.append(revision)
+        real_upgrade(config, revision, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(command, "upgrade", counted)
+    database.upgrade_to_head(db_url)
+    assert upgrades == ["head"]
+    database.upgrade_to_head(db_url)
+    assert upgrades == ["head"]
+    command.downgrade(database.alembic_config(db_url), "-1")
+    database.upgrade_to_head(db_url)
+    assert upgrades == ["head", "head"]
+    assert database.current_revision(db_url) == database.head_revision()
+
+
 def test_migrations_go_down_and_up_again(db_url: str) -> None:
     from alembic import command
 
