@@ -79,6 +79,24 @@ def test_a_start_on_a_current_schema_runs_no_alembic_upgrade(db_url: str, monkey
     assert database.current_revision(db_url) == database.head_revision()
 
 
+def test_the_start_reads_the_migrations_as_alembic_does(db_url: str) -> None:
+    """The revisions and heads a start compares the database with (read from the files, without Alembic) are
+    Alembic's, and so is the database's current revision at every step up from the first migration."""
+    from alembic import command
+
+    scripts = ScriptDirectory.from_config(database.alembic_config(db_url))
+    carried = database.carried_revisions()
+    assert carried.known == {script.revision for script in scripts.walk_revisions()}
+    assert carried.heads == set(scripts.get_heads()) and len(carried.heads) == 1
+    database.engine(db_url)  # makes a SQLite file's folder, as a server's start-up does
+    with database.engine(db_url).connect() as connection:
+        assert database.current_heads(connection) == frozenset()
+    for script in reversed(list(scripts.walk_revisions())):
+        command.upgrade(database.alembic_config(db_url), script.revision)
+        with database.engine(db_url).connect() as connection:
+            assert database.current_heads(connection) == {database.current_revision(db_url)} == {script.revision}
+
+
 def test_migrations_go_down_and_up_again(db_url: str) -> None:
     from alembic import command
 
