@@ -14,8 +14,8 @@ from drivebench.web.deps import get_state
 
 
 def _built(app: object) -> list[object]:
-    """The effective route FastAPI serves for each route of ``app`` (its build of a route's fields and handler)."""
-    return [getattr(context, "_route_context", None) for context in iter_route_contexts(app.router.routes)]  # type: ignore[attr-defined]
+    """What FastAPI built for each route of ``app`` to serve it: the analysis of its parameters (``dependant``)."""
+    return [getattr(context, "dependant", None) for context in iter_route_contexts(app.router.routes)]  # type: ignore[attr-defined]
 
 
 def test_a_second_app_serves_the_routes_the_first_built(app_db_url: str) -> None:
