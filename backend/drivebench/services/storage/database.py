@@ -120,17 +120,17 @@ def upgrade_to_head(url: str | None = None, *, attempts: int = 3) -> None:
     """
     target = engine(url)
     for attempt in range(1, attempts + 1):
-        config = alembic_config(url)
         try:
             with _upgrade_lock, target.begin() as connection:  # Alembic loads env.py as a module: one at a time
                 if connection.dialect.name == "postgresql":
                     # Servers sharing one PostgreSQL database upgrade one after the other (held to commit); the
                     # second then finds the schema current. SQLite locks the whole file on the first write instead.
                     connection.exec_driver_sql(f"SELECT pg_advisory_xact_lock({_UPGRADE_LOCK_KEY})")
-                config.attributes["connection"] = connection
                 if _refuse_unknown_schema(connection) != carried_revisions().heads:
                     from alembic import command
 
+                    config = alembic_config(url)
+                    config.attributes["connection"] = connection
                     command.upgrade(config, "head")  # a schema at head: nothing to run (Alembic not even imported)
             return
         except OperationalError:
