@@ -56,6 +56,47 @@ def test_migrations_create_the_schema_on_an_empty_database(db_url: str, tmp_path
     assert database.current_revision(db_url) == head
 
 
+def test_a_start_on_a_current_schema_runs_no_alembic_upgrade(db_url: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A start-up finds the schema at head and leaves Alembic's environment and scripts alone (issues 29 and 33: it
+    cost every app start ~0.1 s); a database behind head is still upgraded."""
+    from alembic import command
+
+    upgrades: list[str] = []
+    real_upgrade = command.upgrade
+
+    def counted(config: object, revision: str, **kwargs: object) -> None:
+        upgrades.append(revision)
+        real_upgrade(config, revision, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(command, "upgrade", counted)
+    database.upgrade_to_head(db_url)
+    assert upgrades == ["head"]
+    database.upgrade_to_head(db_url)
+    assert upgrades == ["head"]
+    command.downgrade(database.alembic_config(db_url), "-1")
+    database.upgrade_to_head(db_url)
+    assert upgrades == ["head", "head"]
+    assert database.current_revision(db_url) == database.head_revision()
+
+
+def test_the_start_reads_the_migrations_as_alembic_does(db_url: str) -> None:
+    """The revisions and heads a start compares the database with (read from the files, without Alembic) are
+    Alembic's, and so is the database's current revision at every step up from the first migration."""
+    from alembic import command
+
+    scripts = ScriptDirectory.from_config(database.alembic_config(db_url))
+    carried = database.carried_revisions()
+    assert carried.known == {script.revision for script in scripts.walk_revisions()}
+    assert carried.heads == set(scripts.get_heads()) and len(carried.heads) == 1
+    database.engine(db_url)  # makes a SQLite file's folder, as a server's start-up does
+    with database.engine(db_url).connect() as connection:
+        assert database.current_heads(connection) == frozenset()
+    for script in reversed(list(scripts.walk_revisions())):
+        command.upgrade(database.alembic_config(db_url), script.revision)
+        with database.engine(db_url).connect() as connection:
+            assert database.current_heads(connection) == {database.current_revision(db_url)} == {script.revision}
+
+
 def test_migrations_go_down_and_up_again(db_url: str) -> None:
     from alembic import command
 
@@ -231,3 +272,17 @@ def test_an_upgrade_from_the_oldest_migration_keeps_the_data_of_every_step(db_ur
     assert [tuple(row) for row in audit] == [("anna", "C00012", "3.00 s")]
     assert [row[0] for row in users] == ["anna"] and len(users[0][1]) == 16  # 0004 gave her a session stamp
     assert [tuple(row) for row in tokens] == [("ci", None)]  # 0006: made by a signed-in user, not by a token
+
+
+def test_a_start_on_a_current_schema_does_not_import_alembic(db_url: str) -> None:
+    """Importing Alembic (it imports its operations and dialects) cost a server start ~0.15 s of CPU where there was
+    nothing to migrate: a fresh interpreter finds the schema current without it."""
+    import subprocess
+    import sys
+
+    database.upgrade_to_head(db_url)
+    code = ("import sys; from drivebench.services.storage import database; database.upgrade_to_head(sys.argv[1]); "
+            "print(sorted(name for name in sys.modules if name.split('.')[0] == 'alembic'))")
+    done = subprocess.run([sys.executable, "-c", code, db_url], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "[]"

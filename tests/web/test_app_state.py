@@ -22,6 +22,8 @@ NOT_STATE = {
     "_hasher",  # argon2's parameters
     "_policies", "_decisions",  # weak maps keyed by the app: each app's own already
     "_trips",  # stops in flight (asyncio tasks kept until done, whichever app's socket started them)
+    "_templates", "_templates_lock",  # the routers' routes as FastAPI built them, the same for every app
+    "_serving",  # the app serving the request (a ContextVar: each request's own)
 }
 """Module-level names that hold objects but no app-wide state, and why."""
 

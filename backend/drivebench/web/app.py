@@ -27,7 +27,7 @@ from drivebench.services.users import audit
 from drivebench.services.users.accounts import Accounts
 from drivebench.services.users.sharing import ShareLinks
 from drivebench.simulator.plant import Plant, PlantFile
-from drivebench.web import access, access_policy, heap, language, problems
+from drivebench.web import access, access_policy, heap, language, problems, shared_routes
 from drivebench.web import metrics as metrics_api
 from drivebench.web.api import accounts as accounts_api
 from drivebench.web.api import diagnostics, health, parameter_sets, parameters, pdo, profiles, sessions, tools
@@ -170,6 +170,7 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
                   description="Commissioning of CANopen drives: parameters, PDOs, NMT, diagnostics.")
     problems.install(app)
     access.install(app)  # the roles in the OpenAPI document
+    shared_routes.include(app, API_ROUTERS + PAGE_ROUTERS + WS_ROUTERS)  # built once per process
     # One pass for the language, security headers, body limit, share-link scope, host/origin, sign-in, roles, CSRF
     # and the lean answers.
     app.add_middleware(RequestGate, links=share_links, sign_ins=sign_ins, limit_bytes=settings.max_upload_bytes,
@@ -178,7 +179,5 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
     app.state.metrics = metrics = Metrics(lambda: _running(app, "manager"), lambda: _running(app, "jobs"))
     app.add_middleware(RequestMetrics, metrics=metrics)  # around the gate: its refusals are answers too
     app.add_middleware(RequestIds)  # outermost: every log record of a request, refusals included, names it
-    for router in API_ROUTERS + PAGE_ROUTERS + WS_ROUTERS:
-        app.include_router(router)
     app.mount("/static", StaticFiles(directory=settings.frontend_dir / "static"), name="static")
     return app

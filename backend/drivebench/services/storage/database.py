@@ -7,17 +7,19 @@ when several servers share one store. The schema is owned by the Alembic migrati
 
 from __future__ import annotations
 
+import ast
 import contextlib
+import functools
 import os
 import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from alembic import command
-from alembic.config import Config
-from sqlalchemy import Connection, Engine, create_engine, event
+from sqlalchemy import Connection, Engine, create_engine, event, inspect, text
 from sqlalchemy.engine import make_url
 from sqlalchemy.exc import OperationalError
 from sqlalchemy.orm import DeclarativeBase, Session, sessionmaker
@@ -25,6 +27,9 @@ from sqlalchemy.orm import DeclarativeBase, Session, sessionmaker
 from drivebench.config import settings
 from drivebench.errors import SchemaTooNew
 from drivebench.i18n import N_, Text
+
+if TYPE_CHECKING:
+    from alembic.config import Config
 
 MIGRATIONS_DIR = Path(__file__).resolve().parents[2] / "migrations"
 
@@ -99,6 +104,8 @@ def transaction(url: str | None = None) -> Iterator[Session]:
 
 def alembic_config(url: str | None = None) -> Config:
     """Programmatic Alembic configuration (no alembic.ini needed): the package's migrations, this URL."""
+    from alembic.config import Config
+
     config = Config()
     config.set_main_option("script_location", str(MIGRATIONS_DIR))
     config.set_main_option("sqlalchemy.url", (url or settings.database_url).replace("%", "%%"))
@@ -113,16 +120,18 @@ def upgrade_to_head(url: str | None = None, *, attempts: int = 3) -> None:
     """
     target = engine(url)
     for attempt in range(1, attempts + 1):
-        config = alembic_config(url)
         try:
             with _upgrade_lock, target.begin() as connection:  # Alembic loads env.py as a module: one at a time
                 if connection.dialect.name == "postgresql":
                     # Servers sharing one PostgreSQL database upgrade one after the other (held to commit); the
                     # second then finds the schema current. SQLite locks the whole file on the first write instead.
                     connection.exec_driver_sql(f"SELECT pg_advisory_xact_lock({_UPGRADE_LOCK_KEY})")
-                config.attributes["connection"] = connection
-                _refuse_unknown_schema(config, connection)
-                command.upgrade(config, "head")
+                if _refuse_unknown_schema(connection) != carried_revisions().heads:
+                    from alembic import command
+
+                    config = alembic_config(url)
+                    config.attributes["connection"] = connection
+                    command.upgrade(config, "head")  # a schema at head: nothing to run (Alembic not even imported)
             return
         except OperationalError:
             if attempt == attempts:
@@ -136,16 +145,61 @@ TOO_NEW_HINT = N_("Run the release that upgraded the database (or a newer one), 
                   "the upgrade.")
 
 
-def _refuse_unknown_schema(config: Config, connection: Connection) -> None:
-    from alembic.runtime.migration import MigrationContext
-    from alembic.script import ScriptDirectory
+@dataclass(frozen=True)
+class Revisions:
+    known: frozenset[str]
+    heads: frozenset[str]
 
+
+REVISION_NAMES = ("revision", "down_revision")
+
+
+@functools.cache
+def carried_revisions() -> Revisions:
+    """The migrations this release carries: every revision and the heads, read once per process from the
+    ``revision`` and ``down_revision`` assignments of ``migrations/versions/*.py`` (Alembic would import itself and
+    execute every migration file for them: ~0.2 s of each start; tests/services/test_database.py checks that this
+    reading is Alembic's)."""
+    known: set[str] = set()
+    below: set[str] = set()
+    for path in sorted((MIGRATIONS_DIR / "versions").glob("*.py")):
+        values = _assigned(path, REVISION_NAMES)
+        revision = values.get("revision")
+        if not isinstance(revision, str):
+            continue  # not a migration (__init__.py)
+        known.add(revision)
+        down = values.get("down_revision")
+        below.update(down if isinstance(down, tuple | list) else [down] if isinstance(down, str) else [])
+    return Revisions(frozenset(known), frozenset(known - below))
+
+
+def _assigned(path: Path, names: tuple[str, ...]) -> dict[str, object]:
+    """The literal values a module assigns to ``names`` at its top level."""
+    values: dict[str, object] = {}
+    for statement in ast.parse(path.read_text(encoding="utf-8")).body:
+        target = (statement.targets[0] if isinstance(statement, ast.Assign) and len(statement.targets) == 1
+                  else statement.target if isinstance(statement, ast.AnnAssign) else None)
+        value = getattr(statement, "value", None)
+        if isinstance(target, ast.Name) and target.id in names and value is not None:
+            values[target.id] = ast.literal_eval(value)
+    return values
+
+
+def current_heads(connection: Connection) -> frozenset[str]:
+    """The revisions the database is at (Alembic's version table; none before the first migration)."""
+    if not inspect(connection).has_table("alembic_version"):
+        return frozenset()
+    return frozenset(str(row[0]) for row in connection.execute(text("SELECT version_num FROM alembic_version")))
+
+
+def _refuse_unknown_schema(connection: Connection) -> frozenset[str]:
+    """The database's current revisions, after refusing one this release does not know (a newer release's)."""
     from drivebench import __version__
 
-    known = {script.revision for script in ScriptDirectory.from_config(config).walk_revisions()}
-    for revision in MigrationContext.configure(connection).get_current_heads():
-        if revision not in known:
-            raise SchemaTooNew(Text(TOO_NEW, revision=revision, version=__version__), hint=TOO_NEW_HINT)
+    current = current_heads(connection)
+    for revision in current - carried_revisions().known:
+        raise SchemaTooNew(Text(TOO_NEW, revision=revision, version=__version__), hint=TOO_NEW_HINT)
+    return current
 
 
 def head_revision() -> str | None:
@@ -158,7 +212,7 @@ def head_revision() -> str | None:
 def check_schema(url: str | None = None) -> str | None:
     """The database's revision (None: no tables yet); SchemaTooNew when a newer release has upgraded it."""
     with engine(url).connect() as connection:
-        _refuse_unknown_schema(alembic_config(url), connection)
+        _refuse_unknown_schema(connection)
     return current_revision(url)
 
 
