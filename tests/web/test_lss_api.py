@@ -266,6 +266,7 @@ def test_a_bit_rate_switch_moves_the_adapter_and_names_the_device_left_behind(ap
         assert "stays at 500" not in text
         session = client.get("/api/sessions/new-line").json()
         assert session["bitrate"] == 250000 and session["bus"].endswith("@250000")
+        assert client.get("/api/sessions/new-line/monitor").json()["bitrate"] == 250000, "bus load at the new rate"
         # through the session's adapter, at the new rate: the followers answer, the pump does not
         for node_id in (21, 22, 24):
             read = client.get(f"/api/sessions/new-line/nodes/{node_id}/parameters/0x1000")

@@ -18,6 +18,7 @@ from drivebench.services.bus.sessions import Session
 from drivebench.services.lss import lss_audit
 from drivebench.services.lss.guard_rule import admit_global
 from drivebench.services.lss.line import SWITCH_GLOBAL_WAITING, line_of
+from drivebench.services.monitoring.monitor import monitor_for
 from drivebench.services.params.write_context import WriteContext
 
 CHECK_WAIT_S = 0.3
@@ -164,6 +165,7 @@ async def activate_bit_timing(session: Session, ctx: WriteContext, bitrate: int,
         if configuration_first:
             await asyncio.to_thread(line.master.switch_global, False)
         answers = [await asyncio.to_thread(_node_answers, session, node_id) for node_id in others]
+    monitor_for(session).follow_bitrate(bus.spec.bitrate)
     switch = BitRateSwitch(bitrate, old, bus.spec.bitrate, len(known), followed,
                            [Behind(address, address in still_old) for address in missing],
                            [node for node, ok in zip(others, answers, strict=True) if ok],

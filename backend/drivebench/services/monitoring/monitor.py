@@ -239,6 +239,13 @@ class Monitor(can.Listener):
             self.defaults.paused_at = None
             self.pause()
 
+    def follow_bitrate(self, bitrate: int) -> None:
+        """The session's adapter runs at ``bitrate`` now (activate bit timing): the load is counted against it from
+        here, and the counters start again (a share of the old rate would mean nothing at the new one)."""
+        if bitrate != self.bitrate:
+            self.bitrate = bitrate
+            self.reset()
+
     def pause(self, view: MonitorView | None = None) -> None:
         view = view or self.defaults
         if view.paused:
