@@ -46,10 +46,12 @@ def panel_server(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[tu
     database.dispose(url)
 
 
+@pytest.mark.timeout(300)  # 70 s on a loaded 2-core machine (the suite's 120 s is for a hang)
 def test_the_control_tab_records_its_node_small_and_opens_the_run_on_the_scope_page(
         page: Any, panel_server: tuple[str, Plant]) -> None:
     base, _plant = panel_server
     before = pdo_settings(base)
+    page.context.set_default_timeout(WAIT_MS)  # not Playwright's 30 s: a loaded machine's first page takes longer
     page.set_viewport_size({"width": 1024, "height": 900})
     page.goto(f"{base}/language/de?next=/")
     page.goto(f"{base}/sessions/demo-plant/nodes/{SERVO}?tab=control")
@@ -107,6 +109,7 @@ def test_a_share_link_opens_the_scope_page_read_only_in_a_browser(browser: Any,
         assert stopped["recording_id"], stopped
         token = http.post("/share-links", json={"ttl_minutes": 5, "shows": ["scope"]}).json()["token"]
     context = browser.new_context(viewport={"width": 1024, "height": 900})
+    context.set_default_timeout(WAIT_MS)
     page = context.new_page()
     errors: list[str] = []
     page.on("pageerror", lambda error: errors.append(str(error)))
@@ -140,6 +143,7 @@ def test_every_watching_page_starts_a_new_trace_for_the_next_recording_of_the_sa
     old ones, time going back to 0. Both the Control tab's panel and the Scope page start a trace of their own for
     each recording (its id)."""
     base, _plant = panel_server
+    page.context.set_default_timeout(WAIT_MS)
     page.goto(f"{base}/sessions/demo-plant/nodes/{SERVO}?tab=control")
     page.locator("#scope-panel").wait_for(timeout=WAIT_MS)
     scope_page = page.context.new_page()
