@@ -20,7 +20,7 @@
   const PER_S = _("samples/s");
 
   let chosen = [];          // [{node, ref, bit, name, unit}]
-  let live = { channels: [], rows: [], markers: [] };
+  let live = { id: null, channels: [], rows: [], markers: [] };  // the run the socket follows (its state's id)
   let shown = null;         // {title, channels, times, values, markers, overlay}
   let run = null;           // the last state message
   let cursors = [null, null];
@@ -131,8 +131,7 @@
         return;
       }
       $("scope-result").replaceChildren();
-      live = { channels: [], rows: [], markers: [] };
-      shown = null;
+      shown = null;  // the live trace of the new run (its state message resets it, before or after this answer)
     }
     async function fetchStart(sent) {
       try {
@@ -365,9 +364,9 @@
       : `${sourceName(message)}, ${fixed(message.rate, 1)} ${PER_S}`;
     if (message.plan && message.plan.length) $("scope-source").title = message.plan.join("\n");
     $("scope-restored").replaceChildren(...(message.restored || []).map((text) => el("li", {}, text)));
-    if (!live.channels.length || key({ channels: live.channels }) !== key({ channels: message.channels })) {
-      live = { channels: message.channels, rows: [], markers: [] };
-    }
+    // A new run starts an empty trace when its first state comes, which the socket sends before the run's rows and
+    // which may come before the start's own answer (a start that configures slow drives): never reset it after that.
+    if (live.id !== message.id) live = { id: message.id, channels: message.channels, rows: [], markers: [] };
     if (message.error) $("scope-result").replaceChildren(drivebench.errorBox(_("Recording"), message.error));
     if (["done", "stopped", "failed"].includes(message.state) && message.recording_id && openedFor !== message.id) {
       openedFor = message.id;

@@ -26,6 +26,7 @@
     const result = $("scope-panel-result");
     const chartBox = $("scope-panel-chart");
     const openLink = $("scope-panel-open");
+    let runId = null;  // the run the socket follows (its state's id)
     let channels = [];
     let rows = [];
     let chart = null;
@@ -60,7 +61,7 @@
       const body = { channels: chosen, period_ms: Number(f.period_ms.value), length_s: Number(f.length_s.value),
                      trigger: { mode: "free" }, name: _("Node {node}, Control tab", { node }) };
       const send = (confirmation) => request("POST", `${api}/run`, confirmation ? { ...body, ...confirmation } : body);
-      if (shown(await drivebench.moving(send, {}))) rows = [];
+      shown(await drivebench.moving(send, {}));  // the new run's first state (maybe before this answer) resets the trace
     }
     if (form) form.addEventListener("submit", start);
     const stopButton = $("scope-panel-stop");
@@ -106,7 +107,7 @@
       if (message.state === "none") return;
       $("scope-panel-source").textContent = message.rate ? `${message.source_name}, ${message.rate} ${PER_S}`
         : message.source_name;
-      if (JSON.stringify(message.channels) !== JSON.stringify(channels)) { channels = message.channels; rows = []; }
+      if (message.id !== runId) { runId = message.id; channels = message.channels; rows = []; }
       if (message.error) result.replaceChildren(drivebench.errorBox(_("Recording"), message.error));
       const base = `/scope/${encodeURIComponent(session)}`;
       openLink.href = drivebench.url(message.recording_id ? `${base}?recording=${message.recording_id}` : base);

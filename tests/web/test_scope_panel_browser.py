@@ -46,10 +46,12 @@ def panel_server(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[tu
     database.dispose(url)
 
 
+@pytest.mark.timeout(300)  # 70 s on a loaded 2-core machine (the suite's 120 s is for a hang)
 def test_the_control_tab_records_its_node_small_and_opens_the_run_on_the_scope_page(
         page: Any, panel_server: tuple[str, Plant]) -> None:
     base, _plant = panel_server
     before = pdo_settings(base)
+    page.context.set_default_timeout(WAIT_MS)  # not Playwright's 30 s: a loaded machine's first page takes longer
     page.set_viewport_size({"width": 1024, "height": 900})
     page.goto(f"{base}/language/de?next=/")
     page.goto(f"{base}/sessions/demo-plant/nodes/{SERVO}?tab=control")
@@ -107,6 +109,7 @@ def test_a_share_link_opens_the_scope_page_read_only_in_a_browser(browser: Any,
         assert stopped["recording_id"], stopped
         token = http.post("/share-links", json={"ttl_minutes": 5, "shows": ["scope"]}).json()["token"]
     context = browser.new_context(viewport={"width": 1024, "height": 900})
+    context.set_default_timeout(WAIT_MS)
     page = context.new_page()
     errors: list[str] = []
     page.on("pageerror", lambda error: errors.append(str(error)))
@@ -125,3 +128,41 @@ def test_a_share_link_opens_the_scope_page_read_only_in_a_browser(browser: Any,
     finally:
         context.close()
     assert errors == [], errors
+
+
+def _fills(chart: str) -> str:
+    """The trace of ``chart`` holds more than ``after`` + 10 samples, in time order (one recording's)."""
+    return (f"(after) => {{ const c = {chart}; if (!c) return false; const times = c.data[0];"
+            " return times.length > after + 10 && times.every((t, i) => !i || t > times[i - 1]); }")
+
+
+def test_every_watching_page_starts_a_new_trace_for_the_next_recording_of_the_same_channels(
+        page: Any, panel_server: tuple[str, Plant]) -> None:
+    """Issue 29: the pages told recordings apart by their channels, so a page watching while a recording was stopped
+    and the next one of the same channels started (over the API, from another page) drew the new samples after the
+    old ones, time going back to 0. Both the Control tab's panel and the Scope page start a trace of their own for
+    each recording (its id)."""
+    base, _plant = panel_server
+    page.context.set_default_timeout(WAIT_MS)
+    page.goto(f"{base}/sessions/demo-plant/nodes/{SERVO}?tab=control")
+    page.locator("#scope-panel").wait_for(timeout=WAIT_MS)
+    scope_page = page.context.new_page()
+    scope_page.goto(f"{base}/scope/demo-plant")
+    states = ((page, "#scope-panel-state"), (scope_page, "#scope-state"))
+    for watching, state in states:
+        watching.wait_for_function(f"() => document.querySelector('{state}').dataset.state === 'none'",
+                                   timeout=WAIT_MS)
+    charts = ((page, f"{PANEL}.scopeChart"), (scope_page, "window.scopeChart"))
+    body = {"channels": [{"node": 5, "ref": "C00868/2"}], "period_ms": 50, "length_samples": 1000,
+            "trigger": {"mode": "free"}, "name": "the same channels again"}  # polled: nothing to confirm
+    shown = [0, 0]
+    with httpx.Client(base_url=f"{base}/api/sessions/demo-plant", timeout=30) as http:
+        for _run in range(2):
+            assert http.post("/scope/run", json=body).status_code == 201
+            for (watching, chart), after in zip(charts, shown, strict=True):
+                watching.wait_for_function(_fills(chart), arg=after, timeout=60_000)
+            assert http.post("/scope/run/stop").status_code == 200
+            for watching, state in states:
+                watching.wait_for_function(f"() => document.querySelector('{state}').dataset.state === 'stopped'",
+                                           timeout=WAIT_MS)
+            shown = [watching.evaluate(f"{chart}.data[0].length") for watching, chart in charts]
