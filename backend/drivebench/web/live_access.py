@@ -148,7 +148,8 @@ async def recheck_now(app: Starlette) -> None:
     longer admitted are closed and the nodes they held are stopped (the quick stops waited for at most
     ``CLOSE_WAIT_S``; they complete anyway)."""
     sockets = [socket for socket in app_state(app).live_sockets if socket.accepted.is_set()]
-    closed = await asyncio.gather(*(socket.recheck() for socket in sockets))
+    # shielded: a re-check that closes a socket runs to its end even when the admin's request goes away
+    closed = await asyncio.gather(*(asyncio.shield(socket.recheck()) for socket in sockets))
     stops = [stop for socket, lost in zip(sockets, closed, strict=True) if lost for stop in socket.stops]
     if stops:
         await asyncio.wait(stops, timeout=CLOSE_WAIT_S)
