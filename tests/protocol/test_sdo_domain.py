@@ -82,6 +82,45 @@ def test_a_device_without_block_transfer_gets_it_segmented(master: canopen.Netwo
     assert plant.nodes[FAN].program.image == IMAGE[:3000]
 
 
+def test_a_slow_device_is_waited_for_not_given_up(master: canopen.Network, plant: Plant) -> None:
+    """Every answer comes later than the session's SDO timeout (0.5 s): a device in the middle of a transfer it
+    accepted is there, and the download waits for its answers (a loaded host answers late too)."""
+    node = remote(master, FAN)
+    _stop_program(node)
+    node.sdo.RESPONSE_TIMEOUT = 0.5
+    plant.nodes[FAN].faults.set(latency_ms=650)  # the simulator drops a transfer idle for 1 s
+    assert download_domain(node.sdo, 0x1F50, 1, IMAGE[:20]) == "segmented"
+    assert plant.nodes[FAN].program.image == IMAGE[:20]
+
+
+def test_a_late_answer_to_an_earlier_request_is_not_taken_for_the_initiate_answer(
+        master: canopen.Network, plant: Plant, bus_channel: str) -> None:
+    """The answer to a write that its client sent again after a timeout arrives twice; the second, naming 0x1F51,
+    comes while the download waits for its initiate answer and must not start the segments."""
+    node = remote(master, FAN)
+    _stop_program(node)
+    node.sdo.RESPONSE_TIMEOUT = 0.5
+    plant.nodes[FAN].faults.set(latency_ms=3000, late_requests=1)  # its own initiate answer comes well after
+    late = can.Bus(interface="virtual", channel=bus_channel, receive_own_messages=False)
+    initiate = b"\x21\x50\x1f\x01"
+
+    def answer_late() -> None:
+        while (frame := late.recv(timeout=30)) is not None:
+            if frame.arbitration_id == 0x600 + FAN and bytes(frame.data[:4]) == initiate:
+                late.send(can.Message(arbitration_id=0x580 + FAN, data=b"\x60\x51\x1f\x01" + bytes(4),
+                                      is_extended_id=False))
+                return
+
+    sender = threading.Thread(target=answer_late, daemon=True)
+    sender.start()
+    try:
+        assert download_domain(node.sdo, 0x1F50, 1, IMAGE[:20], block=False) == "segmented"
+    finally:
+        sender.join(timeout=30)
+        late.shutdown()
+    assert plant.nodes[FAN].program.image == IMAGE[:20]
+
+
 def test_cancel_aborts_the_transfer_on_the_bus(master: canopen.Network, plant: Plant, bus_channel: str) -> None:
     node = remote(master, SERVO)
     _stop_program(node)

@@ -179,9 +179,18 @@ def test_upload_open_and_delete(own_server: tuple[str, Path, Any], page: Any) ->
     page.locator("#entry-q").press_sequentially("controlword", delay=30)
     expect(page.locator("#entries tr.entry").first).to_contain_text("0x6040", timeout=WAIT_MS)
     page.goto(f"{base}/profiles")
-    page.once("dialog", lambda dialog: dialog.accept())
-    page.locator("table.profiles tbody tr", has_text="EM-Servo 400").get_by_role("button", name="Delete").click()
-    expect(page.locator("#upload-result .ok")).to_contain_text("Deleted", timeout=WAIT_MS)
+    asked: list[str] = []
+    page.once("dialog", lambda dialog: (asked.append(dialog.message), dialog.accept()))
+    # each step of the path waited for and named (this failed once under load, not reproduced since): the question
+    # asked and accepted, the request sent and answered, then the list with the message swapped in
+    with page.expect_response(lambda answer: answer.url.endswith("/delete"), timeout=WAIT_MS) as deleting:
+        page.locator("table.profiles tbody tr", has_text="EM-Servo 400").get_by_role("button", name="Delete").click()
+    assert asked, "the Delete button asked no question"
+    assert deleting.value.status == 200, f"{deleting.value.status}: {deleting.value.text()[:500]}"
+    try:
+        expect(page.locator("#upload-result .ok")).to_contain_text("Deleted", timeout=WAIT_MS)
+    except AssertionError as exc:
+        raise AssertionError(f"{exc}\nthe page shows: {page.locator('#profiles-body').inner_text()[:400]}") from exc
     expect(page.locator("table.profiles tbody tr", has_text="EM-Servo 400")).to_have_count(0)
     assert uploads(user_dir) == []
 

@@ -40,6 +40,11 @@ def _finished(client: TestClient | httpx.Client, node: int, job_id: str) -> dict
     return client.get(url).json()
 
 
+def _why(job: dict[str, Any]) -> str:
+    """A finished job's state, error and result in the assertion message (pytest cuts a long dict)."""
+    return f"{job['state']}: {job.get('error')}; result {job.get('result')}"
+
+
 def _download(client: TestClient | httpx.Client, node: int, file_id: str) -> dict[str, Any]:
     started = confirmed(client, "POST", NODE.format(node=node) + "/download", json={"file_id": file_id})
     assert started.status_code == 202, started.text
@@ -150,7 +155,8 @@ def test_power_loss_mid_flash_leaves_the_drive_in_its_bootloader_and_says_what_n
 
 def test_the_download_is_in_the_audit_log(demo_api: TestClient) -> None:
     file_id = _check(demo_api, FAN, "fan-audit.bin", b"\x07" * 300).json()["file_id"]
-    assert _finished(demo_api, FAN, _download(demo_api, FAN, file_id)["id"])["state"] == "done"
+    job = _finished(demo_api, FAN, _download(demo_api, FAN, file_id)["id"])
+    assert job["state"] == "done", _why(job)
     rows = demo_api.get("/api/audit", params={"node_id": FAN}).json()
     program = [row for row in rows if row["origin"] == "program download"]
     assert len(program) == 3, program  # stop, the data, start

@@ -186,6 +186,31 @@ def test_a_keepalive_socket_of_a_user_who_lost_access_closes_and_its_node_stops(
     assert "may no longer hold it" in status["last_trip"] and "eve" in status["last_trip"]
 
 
+@pytest.mark.parametrize(("credential", "change"), [
+    (_eve_signed_in, _to_viewer), (_eve_signed_in, _disable), (_eve_with_token, _revoke)],
+    ids=["cookie-viewer", "cookie-disabled", "token-revoked"])
+@pytest.mark.slow
+def test_a_change_through_this_server_has_stopped_her_drive_when_it_answers(served: Served, credential: Any,
+                                                                             change: Any) -> None:
+    """The account change re-checks the live connections at once: when the admin's request is answered, her
+    keep-alive socket is refused and node 7 is stopped because her access ended (not a second later by the
+    periodic re-check, nor by a keep-alive deadline that a busy server let pass first)."""
+    eve = credential(served)
+    with _socket(served, eve, "/ws/sessions/demo-plant/keepalive?client=tab-eve") as socket:
+        keepalive = KeepAlive(socket).start()
+        try:
+            _enable_servo(served, eve, keepalive)
+            change(served, eve)
+            status = _state(served)  # read right after the answer
+            assert not status["armed"], status
+            assert "may no longer hold it" in (status["last_trip"] or "") and "eve" in status["last_trip"], status
+            assert keepalive.ended.wait(WAIT_S), "the keep-alive socket stays open"
+        finally:
+            keepalive.ended.set()
+    eve.http.close()
+    assert keepalive.closed_with in (4401, 4403)
+
+
 def test_the_control_panel_socket_of_a_disabled_user_closes_and_its_node_stops(served: Served) -> None:
     eve = _eve_signed_in(served)
     with _socket(served, eve, f"/ws/sessions/demo-plant/nodes/{SERVO}/control?panel=tab-eve") as panel, \

@@ -19,6 +19,7 @@ from drivebench.simulator.plant import Plant
 from drivebench.web.access import Sessions
 
 if TYPE_CHECKING:  # the monitor socket's module reaches this one through the routes' dependencies
+    from drivebench.web.live_access import LiveSocket
     from drivebench.web.monitor_feed import Feed
 
 
@@ -41,6 +42,9 @@ class AppState:
     """The server's jobs: parameter reads, parameter set uploads and downloads."""
     monitor_feeds: dict[str, Feed] = field(default_factory=dict)
     """The monitor websockets' feeds by session id (made when the first client of a session listens)."""
+    live_sockets: set[LiveSocket] = field(default_factory=set)
+    """The open websockets, each re-checked every second and at once after an account change
+    (:mod:`drivebench.web.live_access`)."""
 
 
 def app_state(app: Starlette) -> AppState:

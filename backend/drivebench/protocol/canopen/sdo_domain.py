@@ -14,6 +14,7 @@ import binascii
 import queue
 import struct
 import threading
+import time
 from collections.abc import Callable
 
 import canopen
@@ -27,9 +28,11 @@ UNSUPPORTED_ACCESS = 0x06010000
 REFUSED_BLOCK = frozenset({INVALID_COMMAND, UNSUPPORTED_ACCESS})
 """A device that does not do block transfer answers the block initiate with one of these (canopen's LocalNode,
 the simulator's expedited-only devices)."""
-ACK_WAIT_S = 2.0
-"""At least this long for a sub-block's acknowledgement: the device may write each block to flash before it answers
-(and a loaded simulator works through 127 frames), longer than the session's SDO timeout for one answer."""
+ANSWER_WAIT_S = 5.0
+"""At least this long for each answer of a transfer, longer than the session's SDO timeout for one answer: a device
+in the middle of a transfer it accepted is there, and a late answer (a busy device, a loaded host: a sub-block's
+acknowledgement may wait until the block is in flash) must not fail a download that takes minutes. A device that
+died mid-transfer costs this wait once. There is no retry: a segment sent again would be a toggle error."""
 END_WAIT_S = 5.0
 """At least this long for the answer to the block end: many devices flash the whole image before they answer it."""
 _INDEXED = struct.Struct("<BHB")
@@ -62,16 +65,22 @@ class _Download:
         with responses.mutex:
             responses.queue.clear()
 
-    def request(self, frame: bytes, at_least_s: float = 0.0) -> bytes:
+    def request(self, frame: bytes, at_least_s: float = ANSWER_WAIT_S, initiate: bool = False) -> bytes:
         self.client.send_request(frame)
-        return self.answer(at_least_s)
+        return self.answer(at_least_s, initiate)
 
-    def answer(self, at_least_s: float = 0.0) -> bytes:
-        """The next answer within the channel's timeout (or ``at_least_s``); an abort raises ``SdoAbortedError``."""
-        try:
-            response = self.client.responses.get(timeout=max(float(self.client.RESPONSE_TIMEOUT), at_least_s))
-        except queue.Empty:
-            raise SdoCommunicationError("No SDO response received") from None
+    def answer(self, at_least_s: float = ANSWER_WAIT_S, initiate: bool = False) -> bytes:
+        """The next answer within the channel's timeout or ``at_least_s``, whichever is longer; an abort raises
+        ``SdoAbortedError``. The answer to an ``initiate`` names this object: one naming another is a late answer
+        to an earlier request (sent again by its client after a timeout) and is passed over."""
+        deadline = time.monotonic() + max(float(self.client.RESPONSE_TIMEOUT), at_least_s)
+        while True:
+            try:
+                response = self.client.responses.get(timeout=max(deadline - time.monotonic(), 0.0))
+            except queue.Empty:
+                raise SdoCommunicationError("No SDO response received") from None
+            if not initiate or _INDEXED.unpack_from(response)[1:] == (self.index, self.subindex):
+                break
         if response[0] == 0x80:
             raise SdoAbortedError(int.from_bytes(response[4:8], "little"))
         return bytes(response)
@@ -95,7 +104,7 @@ class _Download:
         size = len(self.data)
         start = _INDEXED.pack(0xC6, self.index, self.subindex) + size.to_bytes(4, "little")  # crc, size indicated
         self.forget_answers()
-        answer = self.answer_of(self.request(start), 0xE3, 0xA0)
+        answer = self.answer_of(self.request(start, initiate=True), 0xE3, 0xA0)
         use_crc = bool(answer[0] & 0x04)
         block_size = answer[4]
         segments = max(1, -(-size // SEGMENT))
@@ -110,7 +119,7 @@ class _Download:
                 self.client.send_request(bytes([seq | (0x80 if last else 0)]) + piece.ljust(SEGMENT, b"\x00"))
                 if not self.client.responses.empty():
                     break  # the device answered mid sub-block: an abort (it cannot take the data)
-            ack = self.answer_of(self.answer(ACK_WAIT_S), 0xE3, 0xA2)
+            ack = self.answer_of(self.answer(), 0xE3, 0xA2)
             acknowledged, block_size = ack[1], ack[2] or block_size
             first += min(acknowledged, count)  # an ack short of count: the rest of the sub-block again
             self.sent = min(first * SEGMENT, size)
@@ -125,7 +134,7 @@ class _Download:
         size = len(self.data)
         start = _INDEXED.pack(0x21, self.index, self.subindex) + size.to_bytes(4, "little")
         self.forget_answers()
-        self.answer_of(self.request(start), 0xFF, 0x60)
+        self.answer_of(self.request(start, initiate=True), 0xFF, 0x60)
         toggle = 0
         position = 0
         while position < size or size == 0:
@@ -134,7 +143,8 @@ class _Download:
             piece = self.data[position:position + SEGMENT]
             last = position + SEGMENT >= size
             command = toggle << 4 | (SEGMENT - len(piece)) << 1 | (1 if last else 0)
-            answer = self.request(bytes([command]) + piece.ljust(SEGMENT, b"\x00"), END_WAIT_S if last else 0.0)
+            wait_s = END_WAIT_S if last else ANSWER_WAIT_S
+            answer = self.request(bytes([command]) + piece.ljust(SEGMENT, b"\x00"), wait_s)
             self.answer_of(answer, 0xF0, 0x20 | toggle << 4)
             toggle ^= 1
             position += len(piece)

@@ -14,7 +14,7 @@ from drivebench.errors import NotAuthenticated
 from drivebench.i18n import _
 from drivebench.services.users import accounts
 from drivebench.services.users.principals import Principal, Role
-from drivebench.web import access
+from drivebench.web import access, live_access
 from drivebench.web.deps import RowId, StateDep
 from drivebench.web.identity import PrincipalDep
 from drivebench.web.problems import problem_body
@@ -137,6 +137,7 @@ async def logout(request: Request) -> Response:
     view = access.access_of(request)
     if view is not None and view.session is not None:
         app_state(request.app).cookie_sessions.sign_out(view.session)
+        await live_access.recheck_now(request.app)
     response = Response(status_code=204)
     access.clear_session_cookie(response, request)
     return response
@@ -166,6 +167,7 @@ async def change_own_password(request: Request, body: OwnPassword, principal: Pr
     except accounts.LoginLocked as exc:
         return locked_response(exc, request.url.path)
     await asyncio.to_thread(app_state(request.app).accounts.set_password, name, body.password)
+    await live_access.recheck_now(request.app)
     return Response(status_code=204)
 
 
@@ -185,9 +187,11 @@ async def create_own_token(body: NewToken, principal: PrincipalDep) -> IssuedTok
 
 
 @router.delete("/auth/tokens/{token_id}", response_model=TokenOut)
-async def revoke_own_token(token_id: RowId, principal: PrincipalDep, state: StateDep) -> TokenOut:
+async def revoke_own_token(request: Request, token_id: RowId, principal: PrincipalDep, state: StateDep) -> TokenOut:
     name = _signed_in_user(principal)
-    return token_out(await asyncio.to_thread(lambda: state.accounts.revoke_token(token_id, owner=name)))
+    revoked = await asyncio.to_thread(lambda: state.accounts.revoke_token(token_id, owner=name))
+    await live_access.recheck_now(request.app)
+    return token_out(revoked)
 
 
 # --- admin: users and every token -----------------------------------------------------------------------------
@@ -208,8 +212,9 @@ async def get_user(name: str) -> UserOut:
 
 
 @router.patch("/users/{name}", response_model=UserOut)
-async def change_user(name: str, body: UserChange, state: StateDep) -> UserOut:
-    """Change the role or disable / enable; the last enabled admin cannot be demoted or disabled."""
+async def change_user(request: Request, name: str, body: UserChange, state: StateDep) -> UserOut:
+    """Change the role or disable / enable; the last enabled admin cannot be demoted or disabled. Answered once the
+    user's live connections that may no longer stay open are closed and the drives they held stopped."""
     def change() -> accounts.User:
         user = accounts.get_user(name)
         if body.role is not None:
@@ -218,13 +223,16 @@ async def change_user(name: str, body: UserChange, state: StateDep) -> UserOut:
             user = state.accounts.set_disabled(name, body.disabled)
         return user
 
-    return user_out(await asyncio.to_thread(change))
+    changed = await asyncio.to_thread(change)
+    await live_access.recheck_now(request.app)
+    return user_out(changed)
 
 
 @router.put("/users/{name}/password", status_code=204)
-async def reset_password(name: str, body: NewPassword, state: StateDep) -> Response:
-    """Set a new password: the user's sessions and API tokens end."""
+async def reset_password(request: Request, name: str, body: NewPassword, state: StateDep) -> Response:
+    """Set a new password: the user's sessions and API tokens end (and their live connections, at once)."""
     await asyncio.to_thread(lambda: state.accounts.set_password(name, body.password, end_tokens=True))
+    await live_access.recheck_now(request.app)
     return Response(status_code=204)
 
 
@@ -242,5 +250,7 @@ async def create_token(body: NewTokenFor, principal: PrincipalDep) -> IssuedToke
 
 
 @router.delete("/tokens/{token_id}", response_model=TokenOut)
-async def revoke_token(token_id: RowId, state: StateDep) -> TokenOut:
-    return token_out(await asyncio.to_thread(state.accounts.revoke_token, token_id))
+async def revoke_token(request: Request, token_id: RowId, state: StateDep) -> TokenOut:
+    revoked = await asyncio.to_thread(state.accounts.revoke_token, token_id)
+    await live_access.recheck_now(request.app)
+    return token_out(revoked)

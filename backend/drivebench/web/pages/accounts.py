@@ -12,7 +12,7 @@ from drivebench.errors import DriveBenchError, InvalidValue
 from drivebench.i18n import _
 from drivebench.services.users import accounts
 from drivebench.services.users.principals import Role
-from drivebench.web import access
+from drivebench.web import access, live_access
 from drivebench.web.deps import RowId
 from drivebench.web.problems import problem_body
 from drivebench.web.root import under_root
@@ -107,6 +107,7 @@ async def _act(request: Request, block: str, action: Any, done: str) -> Response
     except DriveBenchError as exc:
         body = problem_body(exc, request.url.path)
         return await _render(request, block, status=int(body["status"]), problem=body)  # type: ignore[call-overload]
+    await live_access.recheck_now(request.app)  # a user disabled or demoted: their live connections end now
     issued = result if isinstance(result, accounts.IssuedToken) else None
     return await _render(request, block, done=done, issued=issued)
 

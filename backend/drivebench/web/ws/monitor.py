@@ -46,7 +46,6 @@ The socket closes with code 4404 when the session does not exist (or is closed).
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import json
 from dataclasses import replace
 from typing import Annotated
@@ -67,6 +66,7 @@ from drivebench.web.monitor_feed import (  # noqa: F401 (tests and benchmarks re
     ViewRequest,
 )
 from drivebench.web.state import app_state
+from drivebench.web.ws.node_socket import serve
 
 router = APIRouter()
 
@@ -80,9 +80,12 @@ def _feed(websocket: WebSocket, session: Session) -> Feed:
 
 
 async def _receive_views(websocket: WebSocket, feed: Feed, client: FeedClient) -> None:
-    """The client's view messages, until it goes away."""
+    """The client's view messages, until it goes away (then it ends quietly)."""
     while True:
-        text = await websocket.receive_text()
+        try:
+            text = await websocket.receive_text()
+        except WebSocketDisconnect:
+            return
         try:
             request = ViewRequest.model_validate_json(text)
         except ValidationError as exc:
@@ -130,23 +133,14 @@ async def monitor_stream(websocket: WebSocket, session_id: str,
     view = MonitorView(filter=replace(defaults.filter), paused_at=defaults.paused_at, frozen=defaults.frozen,
                        epoch=defaults.epoch)
     client = FeedClient(websocket, view, rows)
-    sender: asyncio.Task[None] | None = None
     try:
         hello, _rows = feed.hello(view, rows, client.locale)
         feed.clients.add(client)  # before the first await: updates built from now on queue behind the hello
         if feed.task is None or feed.task.done():
             feed.task = asyncio.create_task(feed.run())
         await websocket.send_text(hello)
-        sender = asyncio.create_task(_send_loop(client))
-        receiver = asyncio.create_task(_receive_views(websocket, feed, client))
-        done, _pending = await asyncio.wait({sender, receiver}, return_when=asyncio.FIRST_COMPLETED)
-        receiver.cancel()
-        for task in done:
-            with contextlib.suppress(WebSocketDisconnect, RuntimeError, asyncio.CancelledError):
-                task.result()
+        await serve(_receive_views(websocket, feed, client), _send_loop(client))
     except (WebSocketDisconnect, RuntimeError):
         pass
     finally:
         feed.clients.discard(client)
-        if sender is not None:
-            sender.cancel()
