@@ -83,6 +83,19 @@ def test_the_plan_maps_free_tpdos_and_says_which_nodes_are_polled(
     assert any(f"{plan.bus_share:.1f} %" in text for text in plan.texts())
 
 
+def test_a_node_whose_heartbeat_came_late_is_still_sampled_by_pdo(
+        plant_session: tuple[asyncio.Runner, Session], plant: Plant) -> None:
+    """A loaded host handles heartbeats late and counts a healthy node's heartbeat as lost: it still answers SDO, so
+    the plan maps its TPDO and starts it (was: polled, "not operational (NMT state: Heartbeat lost)")."""
+    runner, session = plant_session
+    assert wait_until(lambda: session.heartbeat(AXIS).expected_period_s() is not None, 10), "two heartbeats"
+    plant.nodes[AXIS].store.set(0x1017, 0, 60_000)  # the next heartbeat a minute late: none handled
+    assert wait_until(lambda: session.nmt_state(AXIS)[0] == "Heartbeat lost", 20), session.nmt_state(AXIS)
+    plan = runner.run(plan_recording(session, [POSITION], 0.01))
+    assert [(t.node, t.number) for t in plan.tpdos] == [(AXIS, 3)], plan.texts()
+    assert plan.start_nodes == (AXIS,) and not plan.polling
+
+
 def test_refusals_in_words(plant_session: tuple[asyncio.Runner, Session]) -> None:
     runner, session = plant_session
     with pytest.raises(InvalidValue, match=r"need 2 TPDOs .* it has 1 free"):

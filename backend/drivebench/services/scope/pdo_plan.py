@@ -179,8 +179,10 @@ def _state(session: Session, node: int) -> tuple[str | None, bool]:
     state, _live = session.nmt_state(node)
     if state.startswith("Operational"):
         return None, False
-    if state.startswith(("Pre-operational", "Boot-up", "Unknown")):
-        return None, True  # an NMT start makes it send its TPDOs
+    if state.startswith(("Pre-operational", "Boot-up", "Unknown", "Heartbeat lost")):
+        # an NMT start makes it send its TPDOs; a heartbeat that came late (a loaded host) says nothing of a node
+        # that answers: the set-up's SDO writes find out whether it is there and refuse in words if it is not
+        return None, True
     return _("it is not operational (NMT state: {state}), so it sends no PDOs; the recording does not start it "
              "from there.").format(state=_(state)), False
 
