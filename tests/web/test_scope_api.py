@@ -262,3 +262,22 @@ def test_a_recorded_status_word_marks_each_drive_state_change(demo_api: TestClie
 def _run_events(client: TestClient) -> list[Any]:
     session = client.app.state.drivebench.manager.get("demo-plant")  # type: ignore[attr-defined]
     return list(runs.current(session).events)
+
+
+def test_the_nmt_start_of_a_recording_is_a_marker_at_its_first_samples_on_slow_drives(app_db_url: str) -> None:
+    """Session events (EMCY, NMT) go on the samples' time base: the NMT start the recording sends right after its
+    first SYNC is marked near sample 0, not after the time the TPDO set-up of slow drives took (it was: ~1.5 s
+    into a recording whose samples began at 0)."""
+    app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="30ms")
+    with TestClient(app) as client:
+        body = {"channels": [{"node": MM, "ref": "0x6044"}], "period_ms": 10, "length_s": 100.0,
+                "trigger": {"mode": "free"}}
+        started = confirmed(client, "POST", f"{API}/scope/run", json=body)
+        assert started.status_code == 201, started.text
+        assert started.json()["source"] == "pdo", started.json()
+        assert wait_until(lambda: any(e.kind == "nmt" and e.node == MM for e in _run_events(client)), 30)
+        stopped = client.post(f"{API}/scope/run/stop").json()
+        stored = client.get(f"/api/scope/recordings/{stopped['recording_id']}").json()
+    nmt = [m for m in stored["markers"] if m["kind"] == "nmt" and m["node"] == MM]
+    assert nmt and "Operational" in nmt[0]["text"], stored["markers"]
+    assert nmt[0]["time_s"] <= 0.5, (nmt[0], stored["times"][:3])

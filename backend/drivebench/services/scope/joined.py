@@ -52,6 +52,9 @@ class JoinedScopeSource:
     def period_s(self, value: float) -> None:
         self.pdo.period_s = value
 
+    def elapsed_s(self) -> float:
+        return self.pdo.elapsed_s()
+
     def parts(self) -> list[dict[str, Any]]:
         found = [part("pdo", list(self.pdo.plan.pdo_nodes), self.pdo.period_s)]
         if self.poll is not None:

@@ -269,6 +269,9 @@ class PdoScopeSource:
             self._next += 1
             self.delivered += 1
 
+    def elapsed_s(self) -> float:
+        return max(self._producer.stamp(), 0) * self.period_s
+
     def newest_sync(self) -> int:
         """The number of the newest SYNC sent (-1 before the first)."""
         return self._producer.stamp()

@@ -27,6 +27,7 @@ class PollScopeSource:
         self.period_s = period_s
         self.kind: SourceKind = "sdo-poll" if session.network.capabilities.frames else "coe-poll"
         self._task: asyncio.Task[None] | None = None
+        self._started: float | None = None
         self._by_node: dict[int, list[str]] = {}
         for channel in channels:
             refs = self._by_node.setdefault(channel.node, [])
@@ -67,8 +68,11 @@ class PollScopeSource:
                 raws[(node_id, ref)] = raw if isinstance(raw, int) else None
         return tuple(raws.get((c.node, c.ref)) for c in self.channels)
 
+    def elapsed_s(self) -> float:
+        return 0.0 if self._started is None else time.monotonic() - self._started
+
     async def _run(self, on_frame: FrameSink, on_event: EventSink) -> None:
-        started = time.monotonic()
+        started = self._started = time.monotonic()
         silent: set[int] = set()
         rounds = 0
         while True:

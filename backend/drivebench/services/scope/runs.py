@@ -144,7 +144,11 @@ class ScopeRun:
                                          state_label(family, key)))
 
     def session_event(self, node: int, kind: Literal["emcy", "nmt"], text: str) -> None:
-        self.on_event(ScopeEvent(time.monotonic() - self.started, node, kind, text))
+        """An EMCY or NMT change of the session, on the samples' time base; none once the run stops (the restore's
+        own NMT changes come after the recording's end)."""
+        if self._closing:
+            return
+        self.on_event(ScopeEvent(self.source.elapsed_s(), node, kind, text))
 
     # --- start and end --------------------------------------------------------------------------------------------
     async def start(self) -> None:

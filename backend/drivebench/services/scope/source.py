@@ -66,4 +66,9 @@ class ScopeSource(Protocol):
 
     async def start(self, on_frame: FrameSink, on_event: EventSink) -> None: ...
 
+    def elapsed_s(self) -> float:
+        """Now, on the source's time base (seconds since its sample 0): where an event of the session (an EMCY, an
+        NMT change) goes on the time axis."""
+        ...
+
     async def stop(self) -> list[str]: ...
