@@ -273,17 +273,21 @@ class ExpeditedUploader:
         transfer = self._transfer
         if transfer is None or self._loop is not loop:
             return
+        failed: Exception | None = None
         with transfer.lock:
             if transfer.finished:
                 return
-            if transfer.deadline > time.monotonic() or self._next_attempt(transfer):
-                deadline = transfer.deadline
-                response = None
-            else:
-                transfer.finished = True
-                response = transfer.response
+            try:
+                going_on = transfer.deadline > time.monotonic() or self._next_attempt(transfer)
+            except Exception as exc:  # sending failed (the adapter went away): the read fails with it
+                going_on, failed = False, exc
+            deadline = transfer.deadline
+            response = None if going_on else transfer.response
+            transfer.finished = not going_on
         if response is None:
             self._watch_after(loop, deadline)
+        elif failed is not None:
+            response.fail(failed)
         else:
             response.deliver(b"")
 
