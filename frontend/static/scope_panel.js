@@ -107,6 +107,12 @@
       if (message.state === "none") return;
       $("scope-panel-source").textContent = message.rate ? `${message.source_name}, ${message.rate} ${PER_S}`
         : message.source_name;
+      // the plan in words, as the Scope page has it: which TPDO carries what, which channels are polled and why
+      $("scope-panel-plan").replaceChildren(...(message.plan || []).map((text) => {
+        const item = document.createElement("li");
+        item.textContent = text;
+        return item;
+      }));
       if (message.id !== runId) { runId = message.id; channels = message.channels; rows = []; }
       if (message.error) result.replaceChildren(drivebench.errorBox(_("Recording"), message.error));
       const base = `/scope/${encodeURIComponent(session)}`;

@@ -4,6 +4,7 @@ virtual CAN bus."""
 from __future__ import annotations
 
 import asyncio
+import threading
 import time
 from collections.abc import Iterator
 
@@ -227,3 +228,62 @@ def test_a_lost_request_in_a_batch_is_sent_again_and_a_silent_node_times_out_per
     assert results is not None and all(isinstance(result, SdoTimeoutError) for result in results)
     assert frames_to(wire, ABSENT) == [C00061.frame, bytes.fromhex("80 C2 5F 00 00 00 04 05"),
                                        C00099.frame, bytes.fromhex("80 9C 5F 00 00 00 04 05")]
+
+
+# --- a busy node: its answers come late, in the order the requests came ---------------------------------------------
+BUSY = 41
+COB_SUB1, COB_SUB2 = ExpeditedRequest(0x1800, 1), ExpeditedRequest(0x1800, 2)
+
+
+def _answer(request: ExpeditedRequest, value: int) -> can.Message:
+    return can.Message(arbitration_id=0x580 + BUSY, data=b"\x43" + request.address + value.to_bytes(4, "little"),
+                       is_extended_id=False)
+
+
+def _busy_node(bus: can.BusABC, timeout_s: float, done: threading.Event) -> None:
+    """Answers 0x1800 sub 1 and sub 2 as a node on a loaded machine does: late, and in the order the requests came.
+    The first request for sub 1 is answered only once the retry came; the retry's answer (a late duplicate) comes
+    0.6 timeouts after the second request for sub 2, and the answer for sub 2 0.7 timeouts after that: later than
+    that request's own timeout, but soon after the node's previous (late) answer."""
+    received = 0
+    while not done.is_set() and received < 4:
+        msg = bus.recv(timeout=0.1)
+        if msg is None or msg.arbitration_id != 0x600 + BUSY or msg.data[0] != 0x40:  # initiate upload requests
+            continue
+        received += 1
+        if received == 2:
+            bus.send(_answer(COB_SUB1, 0x180 + BUSY))  # the first request's answer, while the retry waits
+    if received < 4:
+        return
+    time.sleep(0.6 * timeout_s)
+    bus.send(_answer(COB_SUB1, 0x180 + BUSY))  # the retry's answer, while sub 2 is asked
+    time.sleep(0.7 * timeout_s)
+    bus.send(_answer(COB_SUB2, 1))
+
+
+def test_a_busy_node_that_answers_late_and_in_order_is_read(channel: str, wire: can.BusABC) -> None:
+    """A healthy node slowed down by a loaded machine (the scope start's "answer for 0x1800 sub 1 while 0x1800 sub 2
+    was asked"): the late answer to the first request is taken while the retry waits, and a late answer to an
+    earlier request while the next object is asked shows the node works through them in order, so the wait for
+    this object's answer starts again from it instead of failing the read as out of step."""
+    timeout_s = 1.0
+    master = CanopenNetwork(open_bus(BusSpec.parse(f"virtual:{channel}@500000")), sdo_timeout_s=timeout_s,
+                            sdo_retries=1)
+    done = threading.Event()
+    slave = can.Bus(interface="virtual", channel=channel)  # on the bus before the first request
+    node = threading.Thread(target=_busy_node, args=(slave, timeout_s, done), daemon=True)
+    node.start()
+    try:
+        client = master.node(BUSY)
+
+        async def read_both() -> list[bytes | None]:
+            return [await upload_expedited(client, COB_SUB1), await upload_expedited(client, COB_SUB2)]
+
+        assert asyncio.run(read_both()) == [(0x180 + BUSY).to_bytes(4, "little"), (1).to_bytes(4, "little")]
+        sent = frames_to(wire, BUSY)
+        assert sent == [COB_SUB1.frame, COB_SUB1.frame, COB_SUB2.frame, COB_SUB2.frame], "no abort: both were read"
+    finally:
+        done.set()
+        node.join(10)
+        slave.shutdown()
+        master.close()

@@ -96,6 +96,32 @@ def test_a_node_whose_heartbeat_came_late_is_still_sampled_by_pdo(
     assert plan.start_nodes == (AXIS,) and not plan.polling
 
 
+def test_the_micromaster_panel_channels_are_mapped_in_its_mapping_sequence(
+        plant_session: tuple[asyncio.Runner, Session]) -> None:
+    """The Control tab's panel asks for speed 0x6044, torque 0x6077 and the status word 0x6041: neither that order
+    nor the index order is the MICROMASTER's TPDO mapping sequence (status word 1, torque 5, speed 6: manual
+    MICROMASTER 420/430/440 CANopen Option Module, Issue 01/05, ch. 5.4/5.6, the profile's pdo_rules), which it
+    refuses with an EMCY. They used to be polled ("PDO rules do not accept this mapping in TPDO5"); the plan now
+    orders them as the device needs."""
+    runner, session = plant_session
+    channels = [ScopeChannel(3, "0x6044"), ScopeChannel(3, "0x6077"), ScopeChannel(3, "0x6041")]
+    plan = runner.run(plan_recording(session, channels, 0.02))
+    assert plan.polling == ()
+    assert [(t.node, t.number, [e.ref for e in t.entries]) for t in plan.tpdos] == [
+        (3, 5, ["0x6041", "0x6077", "0x6044"])]
+    assert [(s.offset, s.bits) for s in plan.slots if s is not None] == [(32, 16), (16, 16), (0, 16)]
+
+
+def test_the_8400_motec_is_polled_because_its_tpdos_send_the_static_port_words(
+        plant_session: tuple[asyncio.Runner, Session]) -> None:
+    runner, session = plant_session
+    plan = runner.run(plan_recording(session, [ScopeChannel(5, "C00868/2")], 0.02))
+    assert [p.node for p in plan.polling] == [5]
+    assert plan.polling[0].reason == (
+        "it has no free TPDO: TPDO1 sends the device's static mapping (C00868/1, C00868/2, C00868/3, C00868/4); "
+        "TPDO2 sends the device's static mapping (C00868/5, C00868/6, C00868/7, C00868/8).")
+
+
 def test_refusals_in_words(plant_session: tuple[asyncio.Runner, Session]) -> None:
     runner, session = plant_session
     with pytest.raises(InvalidValue, match=r"need 2 TPDOs .* it has 1 free"):

@@ -95,6 +95,25 @@ def test_the_control_tab_records_its_node_small_and_opens_the_run_on_the_scope_p
     assert "7" in page.text_content("#plot-what")
 
 
+def test_the_panel_says_in_words_why_the_8400_motec_is_polled(page: Any, panel_server: tuple[str, Plant]) -> None:
+    """Issue 31's open point: the panel showed only "SDO polling". It lists the plan as the Scope page has it: the
+    8400 motec's TPDOs send the static port words, and its current and DC-bus voltage are no TPDO's (in German)."""
+    base, _plant = panel_server
+    page.set_viewport_size({"width": 1024, "height": 900})
+    page.goto(f"{base}/language/de?next=/")
+    page.goto(f"{base}/sessions/demo-plant/nodes/5?tab=control")
+    page.locator("#scope-panel-form").wait_for(timeout=WAIT_MS)
+    page.click("#scope-panel-start")  # polling alone moves nothing: no confirmation
+    plan = page.locator("#scope-panel-plan li")
+    plan.first.wait_for(timeout=WAIT_MS)
+    lines = [plan.nth(i).text_content() for i in range(plan.count())]
+    assert any("TPDO1 sendet das statische Mapping des Geräts (C00868/1" in line for line in lines), lines
+    assert any("C00054, C00053 gepollt" in line for line in lines), lines
+    page.click("#scope-panel-stop")
+    page.wait_for_function(f"() => {PANEL}.querySelector('#scope-panel-open').href.includes('recording=')",
+                           timeout=WAIT_MS)
+
+
 def test_a_share_link_opens_the_scope_page_read_only_in_a_browser(browser: Any,
                                                                   panel_server: tuple[str, Plant]) -> None:
     """Issue 31 item 4: the link holder's Scope page lists the stored recordings with Open and the exports but no

@@ -85,6 +85,17 @@ def mapping_rule_violation(profile: Profile, direction: str, number: int,
     return None
 
 
+def in_mapping_sequence(profile: Profile, direction: str, number: int,
+                        entries: Sequence[tuple[int, int]]) -> list[tuple[int, int]] | None:
+    """The entries in the order the device's mapping sequence needs (objects without a place last, in their order),
+    or None where the profile names no sequence for this PDO."""
+    rule = _bits(profile, direction, number)
+    if rule is None:
+        return None
+    order = {(o.index, o.subindex): o.sequence for o in rule.objects}
+    return sorted(entries, key=lambda entry: order.get(entry, len(order) + 1))
+
+
 def selecting_byte(rule: MappingBits, entries: Sequence[tuple[int, int]]) -> int | None:
     """The byte that selects this mapping, or None where an object has no bit."""
     bits = {(o.index, o.subindex): o.bit for o in rule.objects}

@@ -37,6 +37,8 @@ SEGMENT_DATA = 7
 """Data bytes of one SDO segment."""
 ABORT_INVALID_COMMAND = 0x05040001
 """CiA 301: command specifier not valid (sent to end a segmented answer this path does not handle)."""
+MAX_LATE_ANSWERS = 4
+"""Late answers to earlier requests that each give the request waiting one more timeout."""
 
 
 class ExpeditedRequest:
@@ -93,8 +95,8 @@ class _Transfer:
     whole transfer, one wake-up instead of one per segment and per object. ``lock`` orders the reader thread's steps
     against the loop's timeouts and retries."""
 
-    __slots__ = ("deadline", "ended", "finished", "frame", "lock", "other_object", "phase", "position", "requests",
-                 "response", "segmented", "size", "toggle", "value")
+    __slots__ = ("deadline", "ended", "finished", "frame", "last_progress", "lock", "other_object", "phase",
+                 "position", "requests", "response", "segmented", "size", "stale", "toggle", "tried", "value")
 
     INITIATE, SEGMENTS = 0, 1
 
@@ -109,7 +111,10 @@ class _Transfer:
         """The current ``response`` is resolved: answers are ignored until the loop sends again."""
         self.deadline = 0.0
         """``time.monotonic()`` by which the answer to ``frame`` is due."""
+        self.tried = 0
+        """Attempts that timed out at ``last_progress`` (attempts count per request, and per segment)."""
         self._start()
+        self.last_progress = self.progress()
 
     def _start(self) -> None:
         self.phase = self.INITIATE
@@ -119,6 +124,8 @@ class _Transfer:
         self.value = bytearray()
         self.toggle = 0
         self.other_object: bytes | None = None
+        self.stale = 0
+        """Answers naming another object while this request waited (late answers to earlier requests)."""
 
     @property
     def request(self) -> ExpeditedRequest:
@@ -164,6 +171,7 @@ class ExpeditedUploader:
         self._transfer: _Transfer | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
         self._timeout = 0.0
+        self._attempts = 1
         self._watch: asyncio.TimerHandle | None = None
         self._watch_loop: asyncio.AbstractEventLoop | None = None
         self._watch_at = 0.0
@@ -196,6 +204,7 @@ class ExpeditedUploader:
             if data[1:4] != request.address:
                 if command >> 5 == 2 or command == 0x80:  # an initiate upload answer or abort: names an object
                     transfer.other_object = bytes(data[1:4])
+                    self._late_answer(transfer)
                 return None
             if command == 0x80:
                 return Ended(Outcome.ABORTED, code=int.from_bytes(data[4:8], "little"))
@@ -226,6 +235,15 @@ class ExpeditedUploader:
         self._next_segment(transfer)
         return None
 
+    def _late_answer(self, transfer: _Transfer) -> None:
+        """An answer to an earlier request (one sent again after its timeout, answered late) came in while this one
+        waits: the node is alive and works through the requests in the order they came, so the answer to this one
+        follows. The wait starts again from it (a busy node's late answers do not use up this request's attempts),
+        at most :data:`MAX_LATE_ANSWERS` times per request (another client's answers on the same COB-ID)."""
+        transfer.stale += 1
+        if transfer.stale <= MAX_LATE_ANSWERS:
+            transfer.deadline = max(transfer.deadline, time.monotonic() + self._timeout)
+
     def _next_segment(self, transfer: _Transfer) -> None:
         transfer.frame = bytes([0x60 | transfer.toggle << 4]) + bytes(7)
         self._send(transfer, transfer.frame)
@@ -248,52 +266,63 @@ class ExpeditedUploader:
         self._watch_loop, self._watch_at = loop, deadline
 
     def _check(self, loop: asyncio.AbstractEventLoop) -> None:
+        """The watchdog: an attempt that timed out is sent again right here, under the transfer lock, so an answer
+        that comes late is never dropped between the timeout and the next attempt (the transfer takes answers all
+        the while); after the last attempt the request ends silent and a batch goes on with the next one."""
         self._watch = None
         transfer = self._transfer
         if transfer is None or self._loop is not loop:
             return
+        failed: Exception | None = None
         with transfer.lock:
             if transfer.finished:
                 return
-            left = transfer.deadline - time.monotonic()
-            if left <= 0:
-                transfer.finished = True
-                response = transfer.response
-        if left > 0:
-            self._watch_after(loop, transfer.deadline)
-        elif response is not None:
-            response.fail(TimeoutError())
+            try:
+                going_on = transfer.deadline > time.monotonic() or self._next_attempt(transfer)
+            except Exception as exc:  # sending failed (the adapter went away): the read fails with it
+                going_on, failed = False, exc
+            deadline = transfer.deadline
+            response = None if going_on else transfer.response
+            transfer.finished = not going_on
+        if response is None:
+            self._watch_after(loop, deadline)
+        elif failed is not None:
+            response.fail(failed)
+        else:
+            response.deliver(b"")
+
+    def _next_attempt(self, transfer: _Transfer) -> bool:
+        """After a timeout (transfer lock held): send the request again, or end it silent and send the batch's next
+        one; False when the transfer is over."""
+        progress = transfer.progress()
+        transfer.tried = transfer.tried + 1 if progress == transfer.last_progress else 1
+        transfer.last_progress = progress
+        if transfer.tried < self._attempts:
+            self._send(transfer, transfer.frame)
+            return True
+        self._abort(transfer.request.address, ABORT_TIMEOUT)
+        if not transfer.end(transfer.stalled()):
+            return False
+        transfer.tried, transfer.last_progress = 0, transfer.progress()
+        self._send(transfer, transfer.frame)
+        return True
 
     async def _run(self, transfer: _Transfer) -> list[Ended]:
         """Every request of ``transfer`` to its end; each request is sent up to the channel's ``MAX_RETRIES``
-        times while it goes unanswered, as canopen's client sends it."""
-        attempts = max(int(self.sdo.MAX_RETRIES), 1)
+        times while it goes unanswered, as canopen's client sends it (the watchdog sends it again)."""
+        self._attempts = max(int(self.sdo.MAX_RETRIES), 1)
         self._timeout = float(self.sdo.RESPONSE_TIMEOUT)
         loop = self._loop = asyncio.get_running_loop()
         waker(loop)
         self._transfer = transfer
-        tried, last_progress = 0, transfer.progress()
         try:
-            while True:
-                with transfer.lock:
-                    response = transfer.response = Response(loop)
-                    transfer.finished = False
-                    self._send(transfer, transfer.frame)
-                self._arm(loop, transfer.deadline)
-                try:
-                    await response
-                    return transfer.ended
-                except TimeoutError:
-                    with transfer.lock:
-                        progress = transfer.progress()
-                        tried = tried + 1 if progress == last_progress else 1  # attempts count per request
-                        last_progress = progress
-                        if tried < attempts:
-                            continue
-                        self._abort(transfer.request.address, ABORT_TIMEOUT)
-                        if not transfer.end(transfer.stalled()):
-                            return transfer.ended
-                        tried, last_progress = 0, transfer.progress()
+            with transfer.lock:
+                response = transfer.response = Response(loop)
+                transfer.finished = False
+                self._send(transfer, transfer.frame)
+            self._arm(loop, transfer.deadline)
+            await response
+            return transfer.ended
         finally:
             with transfer.lock:  # a cancelled read: the reader thread sends nothing more
                 transfer.finished = True

@@ -30,10 +30,11 @@ class JoinedScopeSource:
     kind: SourceKind = "pdo"
 
     def __init__(self, pdo: PdoScopeSource, pdo_positions: list[int], poll: PollScopeSource | None,
-                 poll_positions: list[int]) -> None:
+                 poll_positions: list[int], why_polled: list[str] | None = None) -> None:
         """``pdo_positions[j]``: the recording's channel position of the PDO part's channel j; likewise for the
-        polled channels."""
+        polled channels; ``why_polled``: channels polled for reasons the PDO plan does not say, in words."""
         self.pdo = pdo
+        self._why_polled = list(why_polled or [])
         self.poll = poll
         self._pdo_positions = pdo_positions
         self._poll_positions = poll_positions
@@ -63,7 +64,7 @@ class JoinedScopeSource:
 
     def texts(self) -> list[str]:
         """The plan in words (which TPDO carries what, which nodes are polled and why, the bus share)."""
-        return self.pdo.plan.texts()
+        return self.pdo.plan.texts() + self._why_polled
 
     async def start(self, on_frame: FrameSink, on_event: EventSink) -> None:
         def joined(frame: ScopeFrame) -> None:

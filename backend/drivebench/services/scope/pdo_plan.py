@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from drivebench.device.profiles import pdo_notes
 from drivebench.device.profiles.catalog import Catalog
 from drivebench.errors import DriveBenchError, InvalidValue
 from drivebench.i18n import _
@@ -105,8 +106,7 @@ class ScopePlan:
         lines = [_("Node {node}: {pdo} (COB-ID 0x{cob}) carries {refs}, synchronous every SYNC.").format(
             node=tpdo.node, pdo=tpdo.name, cob=f"{tpdo.cob_id:03X}", refs=", ".join(e.ref for e in tpdo.entries))
             for tpdo in self.tpdos]
-        lines += [_("Node {node} is sampled by polling: {reason}").format(node=poll.node, reason=poll.reason)
-                  for poll in self.polling]
+        lines += polling_texts(self.polling)
         if self.tpdos:
             lines.append(_("SYNC every {period} ms from DriveBench; the recording takes a bus share of {share} % "
                            "({bits} bits per SYNC at {rate} kbit/s).").format(
@@ -148,8 +148,20 @@ def _pack(objects: list[MappedObject], max_entries: int) -> list[list[MappedObje
     return bins
 
 
-def _is_free(config: PdoConfig) -> bool:
-    return not config.fixed_mapping and (not config.valid or (not config.entries and not config.static_mapping))
+def _not_free(catalog: Catalog, config: PdoConfig) -> str | None:
+    """Why this TPDO cannot carry a recording, in words (None: it is free)."""
+    name, refs = f"TPDO{config.number}", ", ".join(entry.ref for entry in config.entries)
+    if config.fixed_mapping:
+        return _("{pdo} has a fixed mapping ({refs})").format(pdo=name, refs=refs or "-")
+    if config.valid and config.static_mapping:
+        return _("{pdo} sends the device's static mapping ({refs})").format(pdo=name, refs=refs)
+    if config.valid and config.entries:
+        return _("{pdo} is in use ({refs})").format(pdo=name, refs=refs)
+    if not _type_allowed(catalog, config.number):
+        return _("{pdo} cannot be made synchronous").format(pdo=name)
+    if not config.max_entries:
+        return _("{pdo} has no mapping entries").format(pdo=name)
+    return None
 
 
 def _type_allowed(catalog: Catalog, number: int) -> bool:
@@ -164,8 +176,15 @@ def _type_allowed(catalog: Catalog, number: int) -> bool:
 
 
 def _accepted(session: Session, node: int, number: int, objects: list[MappedObject]) -> list[MappedObject] | None:
-    """The mapping in an order the profile accepts (its own, else by index), or None."""
-    for order in (objects, sorted(objects, key=lambda m: (m.index, m.subindex))):
+    """The mapping in an order the profile accepts (the channels' own, else the device's mapping sequence from its
+    pdo_rules, else by index), or None."""
+    orders = [objects]
+    by_key = {(m.index, m.subindex): m for m in objects}
+    sequence = pdo_notes.in_mapping_sequence(pdo.node_catalog(session, node).profile, "tpdo", number, list(by_key))
+    if sequence is not None:
+        orders.append([by_key[key] for key in sequence])
+    orders.append(sorted(objects, key=lambda m: (m.index, m.subindex)))
+    for order in orders:
         try:
             return pdo.check_mapping(session, node, "tpdo", number, [(m.index, m.subindex) for m in order],
                                      name=f"TPDO{number}")
@@ -194,13 +213,16 @@ async def _plan_node(session: Session, node: int, objects: list[MappedObject]
         return [], why, False
     catalog = pdo.node_catalog(session, node)
     free: list[PdoConfig] = []
+    taken: list[str] = []
     for number in pdo.pdo_numbers(session, node, "tpdo"):
         config = await pdo.read_pdo(session, node, "tpdo", number)
-        if _is_free(config) and _type_allowed(catalog, number) and config.max_entries:
+        why_not = _not_free(catalog, config)
+        if why_not is None:
             free.append(config)
+        else:
+            taken.append(why_not)
     if not free:
-        return [], _("it has no free TPDO (each is in use, has a fixed mapping or cannot be made synchronous)."), \
-            False
+        return [], _("it has no free TPDO: {why}.").format(why="; ".join(taken) or _("it has none")), False
     max_entries = min(config.max_entries for config in free)
     bins = _pack(objects, max_entries)
     if len(bins) > len(free):
@@ -217,6 +239,17 @@ async def _plan_node(session: Session, node: int, objects: list[MappedObject]
     return planned, None, start
 
 
+def without_frames(channels: list[ScopeChannel]) -> tuple[PollingNode, ...]:
+    """The nodes of a bus that carries no process data here (the EtherCAT unit behind the mailbox gateway)."""
+    return tuple(PollingNode(node, _("EtherCAT behind a mailbox gateway carries no process data here."))
+                 for node in sorted({c.node for c in channels}))
+
+
+def polling_texts(polling: tuple[PollingNode, ...]) -> list[str]:
+    return [_("Node {node} is sampled by polling: {reason}").format(node=poll.node, reason=poll.reason)
+            for poll in polling]
+
+
 async def plan_recording(session: Session, channels: list[ScopeChannel], period_s: float) -> ScopePlan:
     """The plan for ``channels`` at a SYNC period of ``period_s``; InvalidValue in words for what cannot be."""
     if not channels:
@@ -224,9 +257,7 @@ async def plan_recording(session: Session, channels: list[ScopeChannel], period_
     if period_s < MIN_PERIOD_S - 1e-12:
         raise InvalidValue(_("The SYNC period must be at least 1 ms."))
     if not session.network.capabilities.frames:
-        gateway = tuple(PollingNode(node, _("EtherCAT behind a mailbox gateway carries no process data here."))
-                        for node in sorted({c.node for c in channels}))
-        return ScopePlan(period_s, tuple(channels), (), (None,) * len(channels), gateway, (), 0, 1)
+        return ScopePlan(period_s, tuple(channels), (), (None,) * len(channels), without_frames(channels), (), 0, 1)
     by_node: dict[int, list[MappedObject]] = {}
     resolved = []
     for channel in channels:

@@ -20,8 +20,10 @@ from drivebench.services.scope.source import EventSink, FrameSink, ScopeChannel,
 
 
 class PollScopeSource:
-    def __init__(self, session: Session, channels: list[ScopeChannel], period_s: float) -> None:
+    def __init__(self, session: Session, channels: list[ScopeChannel], period_s: float,
+                 why: list[str] | None = None) -> None:
         self.session = session
+        self._why = list(why or [])
         self.channels = channels
         self.asked_period_s = period_s
         self.period_s = period_s
@@ -37,6 +39,10 @@ class PollScopeSource:
     @property
     def nodes(self) -> list[int]:
         return sorted(self._by_node)
+
+    def texts(self) -> list[str]:
+        """Why the channels are polled, in words (the plan's reasons for each node)."""
+        return list(self._why)
 
     async def start(self, on_frame: FrameSink, on_event: EventSink) -> None:
         self._task = asyncio.create_task(self._run(on_frame, on_event))

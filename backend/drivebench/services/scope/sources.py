@@ -13,12 +13,12 @@ import dataclasses
 from typing import Any
 
 from drivebench.errors import DriveBenchError
-from drivebench.i18n import N_
+from drivebench.i18n import N_, _
 from drivebench.services.bus.sessions import Session
 from drivebench.services.params.write_context import Values, WriteContext
 from drivebench.services.pdos import pdo
 from drivebench.services.scope.joined import JoinedScopeSource, part
-from drivebench.services.scope.pdo_plan import plan_recording
+from drivebench.services.scope.pdo_plan import plan_recording, polling_texts, without_frames
 from drivebench.services.scope.pdo_source import PdoScopeSource
 from drivebench.services.scope.poll import PollScopeSource
 from drivebench.services.scope.source import ScopeChannel, ScopeSource
@@ -37,12 +37,24 @@ def _mappable(session: Session, channel: ScopeChannel) -> bool:
                for m in pdo.mappable_objects(session, channel.node, "tpdo"))
 
 
+def _not_mappable_texts(session: Session, channels: list[ScopeChannel]) -> list[str]:
+    """Why each channel no TPDO may carry is polled, in words (one line per node)."""
+    refs: dict[int, list[str]] = {}
+    for channel in channels:
+        found = refs.setdefault(channel.node, [])
+        if channel.ref not in found:
+            found.append(channel.ref)
+    return [_("Node {node}: {refs} polled: its profile does not list them as TPDO-mappable.").format(
+        node=node, refs=", ".join(found)) for node, found in refs.items()]
+
+
 async def open_source(session: Session, channels: list[ScopeChannel], period_s: float, ctx: WriteContext,
                       *, db_url: str | None = None) -> ScopeSource:
     """The source for ``channels``: PDO where the plan allows it, polling for the rest; InvalidValue in words for
     a recording by PDO that would overload the bus or needs more TPDOs than a node has free."""
-    mappable = [position for position, channel in enumerate(channels)
-                if session.network.capabilities.frames and _mappable(session, channel)]
+    frames = session.network.capabilities.frames
+    mappable = [position for position, channel in enumerate(channels) if frames and _mappable(session, channel)]
+    why = _not_mappable_texts(session, [c for p, c in enumerate(channels) if frames and p not in mappable])
     if mappable:
         plan = await plan_recording(session, [channels[p] for p in mappable], period_s)
         if plan.tpdos:
@@ -51,8 +63,12 @@ async def open_source(session: Session, channels: list[ScopeChannel], period_s: 
             plan = dataclasses.replace(plan, channels=tuple(channels[p] for p in by_pdo), slots=tuple(slots))
             polled = [p for p in range(len(channels)) if p not in by_pdo]
             poll = PollScopeSource(session, [channels[p] for p in polled], period_s) if polled else None
-            return JoinedScopeSource(PdoScopeSource(session, plan, ctx, db_url=db_url), by_pdo, poll, polled)
-    return PollScopeSource(session, channels, period_s)
+            return JoinedScopeSource(PdoScopeSource(session, plan, ctx, db_url=db_url), by_pdo, poll, polled,
+                                     why)
+        why = plan.texts() + why
+    elif not frames:
+        why = polling_texts(without_frames(channels))
+    return PollScopeSource(session, channels, period_s, why)
 
 
 def moving_steps(source: ScopeSource) -> list[MovingStep]:
