@@ -102,5 +102,19 @@ TOOL_PROPERTIES = xdd().replace(
 """An XDD whose object 0x2000 has a tool's own parameter properties (CANopenEditor writes ``CO_storageGroup`` and
 ``CO_countLabel`` for CANopenNode)."""
 
+HEADER_PLACES = xdd(file={"formatName": "CANopen", "formatVersion": "1.0", "fileName": "io.xdd", "fileCreator": "Hand",
+                         "fileVersion": "1", "supportedLanguages": "en de"}).replace(
+    b"<vendorID>0x000004D2</vendorID>", b"<vendorID></vendorID>").replace(
+    b"<productName>IO 16</productName>", b"<productName>IO 16</productName><productID/>").replace(
+    b"</DeviceIdentity>",
+    b'</DeviceIdentity><DeviceFunction><capabilities><characteristicsList><characteristic><characteristicName>'
+    b'<label lang="en">Stack</label></characteristicName><characteristicContent><label lang="en">Stack 4.0'
+    b'</label></characteristicContent><characteristicContent><label lang="en">CiA 301 4.2</label>'
+    b"</characteristicContent></characteristic></characteristicsList></capabilities></DeviceFunction>")
+"""An XDD with what CiA 311 holds beside the object list and an EDS mostly not: the ProfileBody's ``formatName``,
+``formatVersion`` and ``supportedLanguages``, a DeviceFunction characteristic (CANopenEditor writes the stack's
+name there) and empty ``vendorID``/``productID`` elements (CANopenNode's demoDevice.xdd has all of them)."""
+
 CASES: list[tuple[str, bytes]] = [("pdo_directions.xdd", xdd()), ("all_features.xdd", ALL_FEATURES),
-                                  ("versioned.xdd", VERSIONED), ("eds_sections.eds", EDS_SECTIONS.encode())]
+                                  ("versioned.xdd", VERSIONED), ("header_places.xdd", HEADER_PLACES),
+                                  ("eds_sections.eds", EDS_SECTIONS.encode())]

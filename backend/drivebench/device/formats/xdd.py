@@ -40,12 +40,15 @@ from drivebench.device.formats.eds import (
 from drivebench.device.formats.eds_quirks import Warnings
 from drivebench.device.formats.wide_text import decode_wide
 from drivebench.device.formats.xdd_places import (
+    BODY_ATTRIBUTES,
     COMMISSIONING,
+    DEVICE_FUNCTION,
     FILE_INFO,
     FILE_PARAMETER,
     GENERAL_FEATURES,
     MASTER_FEATURES,
     NUMBER_FEATURES,
+    XDD_SECTION,
     eds_feature_value,
     eds_file_value,
 )
@@ -109,6 +112,17 @@ def parse_xml(data: bytes, source: str) -> etree._Element:
                                 msg=exc.msg), source=source, line=exc.lineno or None) from exc
 
 
+def one_line(element: etree._Element) -> str:
+    """``element`` as XML on one line: the whitespace between elements left out (it holds no data), texts kept."""
+    copy = etree.fromstring(etree.tostring(element))
+    for node in copy.iter():
+        if node.text is not None and not node.text.strip() and len(node):
+            node.text = None
+        if node.tail is not None and not node.tail.strip():
+            node.tail = None
+    return etree.tostring(copy, encoding="unicode").replace("\n", "&#10;").replace("\r", "&#13;")
+
+
 def _body_type(body: etree._Element) -> str:
     for name, value in body.attrib.items():
         if etree.QName(name).localname == "type":
@@ -149,6 +163,9 @@ class _Builder:
             value = body.get(attribute)
             if value is not None:
                 self.put("FileInfo", body.sourceline or 1, key, eds_file_value(attribute, value))
+        for attribute in BODY_ATTRIBUTES:
+            if body.get(attribute) is not None:
+                self.put(XDD_SECTION, body.sourceline or 1, attribute, str(body.get(attribute)))
 
     def eds_properties(self, parameter: etree._Element) -> None:
         """The ``EDS:[Section]Key`` properties DriveBench's export carries for EDS keys without a CiA 311 place; they
@@ -208,8 +225,11 @@ class _Builder:
                     key = "RevisionNumber"  # CiA 301 revision number as DriveBench writes it; "1.0" is no number
                 if key == "OrderCode" and "ordercode" in (info := self.sections.get("DEVICEINFO", Section("", 0))).keys:
                     info.keys["ordercode"].value += f", {text}"  # one orderNumber element per code
-                elif key is not None and (text or key == "VendorName"):
-                    self.put("DeviceInfo", child.sourceline or 1, key, text)
+                elif key is not None and (text or key in ("VendorName", "VendorNumber", "ProductNumber")):
+                    self.put("DeviceInfo", child.sourceline or 1, key, text)  # an empty vendorID: VendorNumber=
+        function = next((e for e in body if local(e) == DEVICE_FUNCTION), None)
+        if function is not None:
+            self.put(XDD_SECTION, function.sourceline or 1, DEVICE_FUNCTION, one_line(function))
         return {str(e.get("uniqueID")): e for e in body.iter()
                 if local(e) in ("parameter", "parameterTemplate") and e.get("uniqueID")}
 
