@@ -145,6 +145,8 @@ class _Builder:
         """A tool's own parameter properties (``CO_storageGroup``) by (index, subindex); subindex -1: the object's."""
         self.pdo_kinds: dict[tuple[int, int], str] = {}
         """CiA 311 ``PDOmapping`` values beyond optional/no, by (index, subindex)."""
+        self.unique_ids: dict[tuple[int, int], str] = {}
+        """The parameter ``uniqueIDRef`` of each object (subindex -1 for an ARRAY/RECORD's own) and sub-object."""
         self.defined_types: dict[int, DataType] = {}
         """``dataTypeList`` codes outside CiA 301's basic types that name one (``<defType dataType="0040">
         <Unsigned32/>``)."""
@@ -349,6 +351,8 @@ class _Builder:
         template = parameters.get(str(parameter.get("templateIDRef"))) if parameter.get("templateIDRef") else None
         holds_value = local(element) == "CANopenSubObject" or not any(local(e) == "CANopenSubObject"
                                                                        for e in element)
+        index, _, sub = section.upper().partition("SUB")
+        self.unique_ids[(int(index, 16), int(sub, 16) if sub else (0 if holds_value else -1))] = reference
         for source in (parameter, template):
             if source is not None:
                 self.from_parameter(section, source, holds_value=holds_value)
@@ -447,6 +451,7 @@ def read_xdd(data: bytes, *, source: str) -> ImportedEds:
             found.keys["supportedobjects"] = Key("SupportedObjects", str(builder.listed[listing]), found.line)
     imported = read_sections(builder.sections, source, notes)
     profile = with_properties(with_pdo_kinds(imported.profile, builder.pdo_kinds), builder.properties)
+    profile = with_unique_ids(profile, builder.unique_ids)
     return ImportedEds(profile, imported.warnings)
 
 
@@ -473,3 +478,20 @@ def with_properties(profile: Profile, properties: dict[tuple[int, int], dict[str
         seen.add(entry.index)
         objects.append(entry.model_copy(update=update) if update else entry)
     return profile.model_copy(update={"objects": objects})
+
+
+def with_unique_ids(profile: Profile, unique_ids: dict[tuple[int, int], str]) -> Profile:
+    """``profile`` with each entry's (and each ARRAY/RECORD's, on its first entry) parameter uniqueID, where it is
+    not the one DriveBench's export gives (``UID_OBJ_200001``, ``UID_OBJ_2000``): that one needs no keeping."""
+    objects, seen = [], set()
+    for entry in profile.objects:
+        update: dict[str, str] = {}
+        own = unique_ids.get((entry.index, entry.subindex))
+        if own is not None and own != f"UID_OBJ_{entry.index:04X}{entry.subindex:02X}":
+            update["xdd_unique_id"] = own
+        whole = unique_ids.get((entry.index, -1))
+        if entry.index not in seen and whole is not None and whole != f"UID_OBJ_{entry.index:04X}":
+            update["object_xdd_unique_id"] = whole
+        seen.add(entry.index)
+        objects.append(entry.model_copy(update=update) if update else entry)
+    return profile.model_copy(update={"objects": objects}) if unique_ids else profile

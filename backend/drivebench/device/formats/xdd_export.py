@@ -174,13 +174,14 @@ def export_warnings(profile: Profile) -> list[str]:
 
 
 def _uid(entry: ObjectEntry) -> str:
-    return f"UID_OBJ_{entry.index:04X}{entry.subindex:02X}"
+    return entry.xdd_unique_id or f"UID_OBJ_{entry.index:04X}{entry.subindex:02X}"
 
 
 def _has_parameter(entry: ObjectEntry) -> bool:
     """Whether a VAR needs a parameter for what CANopenObject has no attribute for."""
     return entry.description is not None or entry.unit is not None or entry.factor != 1 or bool(entry.section_keys) \
-        or (entry.object_list is not None and entry.object_type == "VAR") or bool(entry.xdd_properties)
+        or (entry.object_list is not None and entry.object_type == "VAR") or bool(entry.xdd_properties) \
+        or entry.xdd_unique_id is not None
 
 
 def _parameter(parameters: etree._Element, entry: ObjectEntry) -> None:
@@ -212,7 +213,7 @@ def _object_list_property(parameter: etree._Element, entry: ObjectEntry) -> None
 
 def _object_parameter(parameters: etree._Element, index: int, first: ObjectEntry) -> str:
     """A parameter carrying the keys of an ARRAY/RECORD's own EDS section (``object_keys``); its uniqueID."""
-    unique_id = f"UID_OBJ_{index:04X}"
+    unique_id = first.object_xdd_unique_id or f"UID_OBJ_{index:04X}"
     parameter = _el(parameters, "parameter", uniqueID=unique_id, access="read")
     _el(parameter, "label", first.object_name or first.name, lang="en")
     _el(parameter, "BYTE")
@@ -311,7 +312,7 @@ def export_xdd(profile: Profile, *, node_id: int | None = None, values: Mapping[
         if shared is not None:
             obj.set("objFlags", f"{shared:X}")
         if set(first.object_keys or {}) - {"SubNumber"} or first.object_list is not None \
-                or first.object_xdd_properties:
+                or first.object_xdd_properties or first.object_xdd_unique_id:
             obj.set("uniqueIDRef", _object_parameter(parameters, index, first))
         for entry in entries:
             sub = _el(obj, "CANopenSubObject", subIndex=f"{entry.subindex:02X}")
