@@ -102,5 +102,36 @@ TOOL_PROPERTIES = xdd().replace(
 """An XDD whose object 0x2000 has a tool's own parameter properties (CANopenEditor writes ``CO_storageGroup`` and
 ``CO_countLabel`` for CANopenNode)."""
 
+HEADER_PLACES = xdd(file={"formatName": "CANopen", "formatVersion": "1.0", "fileName": "io.xdd", "fileCreator": "Hand",
+                         "fileVersion": "1", "supportedLanguages": "en de"}).replace(
+    b"<vendorID>0x000004D2</vendorID>", b"<vendorID></vendorID>").replace(
+    b"<productName>IO 16</productName>", b"<productName>IO 16</productName><productID/>").replace(
+    b"</DeviceIdentity>",
+    b'</DeviceIdentity><DeviceFunction><capabilities><characteristicsList><characteristic><characteristicName>'
+    b'<label lang="en">Stack</label></characteristicName><characteristicContent><label lang="en">Stack 4.0'
+    b'</label></characteristicContent><characteristicContent><label lang="en">CiA 301 4.2</label>'
+    b"</characteristicContent></characteristic></characteristicsList></capabilities></DeviceFunction>")
+"""An XDD with what CiA 311 holds beside the object list and an EDS mostly not: the ProfileBody's ``formatName``,
+``formatVersion`` and ``supportedLanguages``, a DeviceFunction characteristic (CANopenEditor writes the stack's
+name there) and empty ``vendorID``/``productID`` elements (CANopenNode's demoDevice.xdd has all of them)."""
+
+UNIQUE_IDS = xdd(pdo=("TPDO",)).replace(
+    b'defaultValue="0" PDOmapping="TPDO"/>',
+    b'defaultValue="0" PDOmapping="TPDO" uniqueIDRef="UID_Speed"/><CANopenObject index="2100" name="Pair" '
+    b'objectType="9" subNumber="2" uniqueIDRef="UID_REC_2100"><CANopenSubObject subIndex="00" name="Count" '
+    b'objectType="7" dataType="0005" accessType="ro" defaultValue="1" PDOmapping="no"/><CANopenSubObject '
+    b'subIndex="01" name="Left" objectType="7" dataType="0007" accessType="rw" defaultValue="0" PDOmapping="no" '
+    b'uniqueIDRef="UID_SUB_210001"/></CANopenObject>').replace(
+    b"</DeviceIdentity>",
+    b'</DeviceIdentity><ApplicationProcess><parameterList>'
+    b'<parameter uniqueID="UID_Speed" access="readWrite"><label lang="en">Value 0</label><INT/></parameter>'
+    b'<parameter uniqueID="UID_REC_2100" access="noAccess"><label lang="en">Pair</label><BYTE/></parameter>'
+    b'<parameter uniqueID="UID_SUB_210001" access="readWrite"><label lang="en">Left</label><UDINT/></parameter>'
+    b"</parameterList></ApplicationProcess>")
+"""An XDD whose parameters have their own uniqueIDs (``UID_Speed``; CANopenEditor writes ``UID_OBJ_1000`` for a
+VAR, ``UID_SUB_100300`` for a sub-object), which the objects name by ``uniqueIDRef``."""
+
 CASES: list[tuple[str, bytes]] = [("pdo_directions.xdd", xdd()), ("all_features.xdd", ALL_FEATURES),
-                                  ("versioned.xdd", VERSIONED), ("eds_sections.eds", EDS_SECTIONS.encode())]
+                                  ("versioned.xdd", VERSIONED), ("header_places.xdd", HEADER_PLACES),
+                                  ("unique_ids.xdd", UNIQUE_IDS),
+                                  ("eds_sections.eds", EDS_SECTIONS.encode())]

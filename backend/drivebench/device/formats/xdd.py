@@ -40,12 +40,15 @@ from drivebench.device.formats.eds import (
 from drivebench.device.formats.eds_quirks import Warnings
 from drivebench.device.formats.wide_text import decode_wide
 from drivebench.device.formats.xdd_places import (
+    BODY_ATTRIBUTES,
     COMMISSIONING,
+    DEVICE_FUNCTION,
     FILE_INFO,
     FILE_PARAMETER,
     GENERAL_FEATURES,
     MASTER_FEATURES,
     NUMBER_FEATURES,
+    XDD_SECTION,
     eds_feature_value,
     eds_file_value,
 )
@@ -109,6 +112,17 @@ def parse_xml(data: bytes, source: str) -> etree._Element:
                                 msg=exc.msg), source=source, line=exc.lineno or None) from exc
 
 
+def one_line(element: etree._Element) -> str:
+    """``element`` as XML on one line: the whitespace between elements left out (it holds no data), texts kept."""
+    copy = etree.fromstring(etree.tostring(element))
+    for node in copy.iter():
+        if node.text is not None and not node.text.strip() and len(node):
+            node.text = None
+        if node.tail is not None and not node.tail.strip():
+            node.tail = None
+    return etree.tostring(copy, encoding="unicode").replace("\n", "&#10;").replace("\r", "&#13;")
+
+
 def _body_type(body: etree._Element) -> str:
     for name, value in body.attrib.items():
         if etree.QName(name).localname == "type":
@@ -131,6 +145,8 @@ class _Builder:
         """A tool's own parameter properties (``CO_storageGroup``) by (index, subindex); subindex -1: the object's."""
         self.pdo_kinds: dict[tuple[int, int], str] = {}
         """CiA 311 ``PDOmapping`` values beyond optional/no, by (index, subindex)."""
+        self.unique_ids: dict[tuple[int, int], str] = {}
+        """The parameter ``uniqueIDRef`` of each object (subindex -1 for an ARRAY/RECORD's own) and sub-object."""
         self.defined_types: dict[int, DataType] = {}
         """``dataTypeList`` codes outside CiA 301's basic types that name one (``<defType dataType="0040">
         <Unsigned32/>``)."""
@@ -149,6 +165,9 @@ class _Builder:
             value = body.get(attribute)
             if value is not None:
                 self.put("FileInfo", body.sourceline or 1, key, eds_file_value(attribute, value))
+        for attribute in BODY_ATTRIBUTES:
+            if body.get(attribute) is not None:
+                self.put(XDD_SECTION, body.sourceline or 1, attribute, str(body.get(attribute)))
 
     def eds_properties(self, parameter: etree._Element) -> None:
         """The ``EDS:[Section]Key`` properties DriveBench's export carries for EDS keys without a CiA 311 place; they
@@ -208,8 +227,11 @@ class _Builder:
                     key = "RevisionNumber"  # CiA 301 revision number as DriveBench writes it; "1.0" is no number
                 if key == "OrderCode" and "ordercode" in (info := self.sections.get("DEVICEINFO", Section("", 0))).keys:
                     info.keys["ordercode"].value += f", {text}"  # one orderNumber element per code
-                elif key is not None and (text or key == "VendorName"):
-                    self.put("DeviceInfo", child.sourceline or 1, key, text)
+                elif key is not None and (text or key in ("VendorName", "VendorNumber", "ProductNumber")):
+                    self.put("DeviceInfo", child.sourceline or 1, key, text)  # an empty vendorID: VendorNumber=
+        function = next((e for e in body if local(e) == DEVICE_FUNCTION), None)
+        if function is not None:
+            self.put(XDD_SECTION, function.sourceline or 1, DEVICE_FUNCTION, one_line(function))
         return {str(e.get("uniqueID")): e for e in body.iter()
                 if local(e) in ("parameter", "parameterTemplate") and e.get("uniqueID")}
 
@@ -329,6 +351,8 @@ class _Builder:
         template = parameters.get(str(parameter.get("templateIDRef"))) if parameter.get("templateIDRef") else None
         holds_value = local(element) == "CANopenSubObject" or not any(local(e) == "CANopenSubObject"
                                                                        for e in element)
+        index, _, sub = section.upper().partition("SUB")
+        self.unique_ids[(int(index, 16), int(sub, 16) if sub else (0 if holds_value else -1))] = reference
         for source in (parameter, template):
             if source is not None:
                 self.from_parameter(section, source, holds_value=holds_value)
@@ -427,6 +451,7 @@ def read_xdd(data: bytes, *, source: str) -> ImportedEds:
             found.keys["supportedobjects"] = Key("SupportedObjects", str(builder.listed[listing]), found.line)
     imported = read_sections(builder.sections, source, notes)
     profile = with_properties(with_pdo_kinds(imported.profile, builder.pdo_kinds), builder.properties)
+    profile = with_unique_ids(profile, builder.unique_ids)
     return ImportedEds(profile, imported.warnings)
 
 
@@ -453,3 +478,20 @@ def with_properties(profile: Profile, properties: dict[tuple[int, int], dict[str
         seen.add(entry.index)
         objects.append(entry.model_copy(update=update) if update else entry)
     return profile.model_copy(update={"objects": objects})
+
+
+def with_unique_ids(profile: Profile, unique_ids: dict[tuple[int, int], str]) -> Profile:
+    """``profile`` with each entry's (and each ARRAY/RECORD's, on its first entry) parameter uniqueID, where it is
+    not the one DriveBench's export gives (``UID_OBJ_200001``, ``UID_OBJ_2000``): that one needs no keeping."""
+    objects, seen = [], set()
+    for entry in profile.objects:
+        update: dict[str, str] = {}
+        own = unique_ids.get((entry.index, entry.subindex))
+        if own is not None and own != f"UID_OBJ_{entry.index:04X}{entry.subindex:02X}":
+            update["xdd_unique_id"] = own
+        whole = unique_ids.get((entry.index, -1))
+        if entry.index not in seen and whole is not None and whole != f"UID_OBJ_{entry.index:04X}":
+            update["object_xdd_unique_id"] = whole
+        seen.add(entry.index)
+        objects.append(entry.model_copy(update=update) if update else entry)
+    return profile.model_copy(update={"objects": objects}) if unique_ids else profile

@@ -25,12 +25,15 @@ from drivebench.device.formats.eds_export import (
 )
 from drivebench.device.formats.xdd import EDS_KEY_PREFIX, OBJECT_LIST_PROPERTY
 from drivebench.device.formats.xdd_places import (
+    BODY_ATTRIBUTES,
     COMMISSIONING,
+    DEVICE_FUNCTION,
     FILE_INFO,
     FILE_PARAMETER,
     GENERAL_FEATURES,
     MASTER_FEATURES,
     VERSION_KEY,
+    XDD_SECTION,
     extra,
     unplaced,
     xdd_feature_value,
@@ -104,7 +107,9 @@ def _body(profile_root: etree._Element, kind: str, profile: Profile) -> etree._E
     for attribute, key in FILE_INFO.items():
         if key in file_info:
             made[attribute] = xdd_file_value(attribute, file_info[key])
-    body = _el(profile_root, "ProfileBody", **{a: made[a] for a in FILE_INFO if a in made})
+    kept = extra(profile, XDD_SECTION)
+    body = _el(profile_root, "ProfileBody", **{a: kept[a] for a in BODY_ATTRIBUTES[:2] if a in kept},
+               **{a: made[a] for a in FILE_INFO if a in made}, **{a: kept[a] for a in BODY_ATTRIBUTES[2:] if a in kept})
     body.set(f"{{{XSI}}}type", kind)
     return body
 
@@ -132,6 +137,24 @@ def _versions(identity: etree._Element, profile: Profile) -> None:
         _el(identity, "version", text, versionType=kind)
 
 
+def _device_function(body: etree._Element, profile: Profile) -> None:
+    """The DeviceFunction element an XDD came with (its characteristicsList ...), in this file's namespace."""
+    text = extra(profile, XDD_SECTION).get(DEVICE_FUNCTION)
+    if not text:
+        return
+    try:
+        function = etree.fromstring(text, etree.XMLParser(resolve_entities=False, no_network=True))
+    except etree.XMLSyntaxError:
+        return  # edited into no XML: nothing to write
+    source = etree.QName(function).namespace
+    for element in function.iter(etree.Element):
+        name = etree.QName(element)
+        if name.namespace == source:
+            element.tag = f"{{{NS}}}{name.localname}"
+    etree.cleanup_namespaces(function)
+    body.append(function)
+
+
 def _file_parameter(parameters: etree._Element, profile: Profile) -> None:
     """The EDS keys CiA 311 has no place for as ``EDS:[Section]Key`` properties, so an import gets them back."""
     keys = unplaced(profile)
@@ -151,13 +174,14 @@ def export_warnings(profile: Profile) -> list[str]:
 
 
 def _uid(entry: ObjectEntry) -> str:
-    return f"UID_OBJ_{entry.index:04X}{entry.subindex:02X}"
+    return entry.xdd_unique_id or f"UID_OBJ_{entry.index:04X}{entry.subindex:02X}"
 
 
 def _has_parameter(entry: ObjectEntry) -> bool:
     """Whether a VAR needs a parameter for what CANopenObject has no attribute for."""
     return entry.description is not None or entry.unit is not None or entry.factor != 1 or bool(entry.section_keys) \
-        or (entry.object_list is not None and entry.object_type == "VAR") or bool(entry.xdd_properties)
+        or (entry.object_list is not None and entry.object_type == "VAR") or bool(entry.xdd_properties) \
+        or entry.xdd_unique_id is not None
 
 
 def _parameter(parameters: etree._Element, entry: ObjectEntry) -> None:
@@ -189,7 +213,7 @@ def _object_list_property(parameter: etree._Element, entry: ObjectEntry) -> None
 
 def _object_parameter(parameters: etree._Element, index: int, first: ObjectEntry) -> str:
     """A parameter carrying the keys of an ARRAY/RECORD's own EDS section (``object_keys``); its uniqueID."""
-    unique_id = f"UID_OBJ_{index:04X}"
+    unique_id = first.object_xdd_unique_id or f"UID_OBJ_{index:04X}"
     parameter = _el(parameters, "parameter", uniqueID=unique_id, access="read")
     _el(parameter, "label", first.object_name or first.name, lang="en")
     _el(parameter, "BYTE")
@@ -247,17 +271,19 @@ def export_xdd(profile: Profile, *, node_id: int | None = None, values: Mapping[
     device_body = _body(device, "ProfileBody_Device_CANopen", profile)
     identity = _el(device_body, "DeviceIdentity")
     ident = profile.identity
+    info = {key.lower(): value for key, value in extra(profile, "DeviceInfo").items()}
     _el(identity, "vendorName", ident.vendor_name)
-    if ident.vendor_id is not None:
-        _el(identity, "vendorID", f"0x{ident.vendor_id:08X}")
+    if ident.vendor_id is not None or info.get("vendornumber") == "":
+        _el(identity, "vendorID", "" if ident.vendor_id is None else f"0x{ident.vendor_id:08X}")
     _el(identity, "productName", ident.product_name)
-    if ident.product_code is not None:
-        _el(identity, "productID", f"0x{ident.product_code:08X}")
+    if ident.product_code is not None or info.get("productnumber") == "":
+        _el(identity, "productID", "" if ident.product_code is None else f"0x{ident.product_code:08X}")
     if profile.notes:  # the EDS [Comments] lines
         _el(_el(identity, "productText"), "description", "\n".join(profile.notes), lang="en")
     for code in ident.order_codes:
         _el(identity, "orderNumber", code)
     _versions(identity, profile)
+    _device_function(device_body, profile)
     parameters = _el(_el(device_body, "ApplicationProcess"), "parameterList")
     _file_parameter(parameters, profile)
 
@@ -286,7 +312,7 @@ def export_xdd(profile: Profile, *, node_id: int | None = None, values: Mapping[
         if shared is not None:
             obj.set("objFlags", f"{shared:X}")
         if set(first.object_keys or {}) - {"SubNumber"} or first.object_list is not None \
-                or first.object_xdd_properties:
+                or first.object_xdd_properties or first.object_xdd_unique_id:
             obj.set("uniqueIDRef", _object_parameter(parameters, index, first))
         for entry in entries:
             sub = _el(obj, "CANopenSubObject", subIndex=f"{entry.subindex:02X}")

@@ -10,6 +10,9 @@
 * ``[DeviceInfo]`` ``Version_FW``/``Version_HW``/``Version_SW`` <-> the DeviceIdentity ``version`` elements.
 * ``[DummyUsage]`` <-> ``dummyUsage``; ``[Comments]`` (``Profile.notes``) <-> DeviceIdentity ``productText``;
   ``[DeviceComissioning]`` <-> ``deviceCommissioning``.
+* ``[XDD]`` (a DriveBench section an EDS export writes as it is) holds what CiA 311 has a place for and CiA 306 none:
+  the ProfileBody's :data:`BODY_ATTRIBUTES` and the device body's ``DeviceFunction`` (its XML on one line).
+  Empty ``vendorID``/``productID`` elements are ``VendorNumber=``/``ProductNumber=`` of ``[DeviceInfo]``.
 * Every other key (``CompactPDO``, ``EDSVersion``, ``[Tools]`` ...) has no place: :func:`unplaced` lists them, and the
   export carries them as ``EDS:[Section]Key`` properties of the parameter :data:`FILE_PARAMETER` so a DriveBench
   import gets them back.
@@ -35,6 +38,12 @@ GENERAL_FEATURES = {"groupMessaging": "GroupMessaging", "dynamicChannels": "Dyna
                     "NrOfNG_MonitoredNodes": "NrOfNG_MonitoredNodes"}
 MASTER_FEATURES = {"bootUpMaster": "SimpleBootUpMaster", "flyingMaster": "FlyingMaster", "SDOManager": "SDOManager",
                    "configurationManager": "ConfigurationManager", "layerSettingServiceMaster": "LSS_Master"}
+XDD_SECTION = "XDD"
+"""The extra section of what an XDD holds beside the object list and an EDS has no key for."""
+BODY_ATTRIBUTES = ("formatName", "formatVersion", "supportedLanguages")
+"""ProfileBody attributes beside the file attributes; the first body's are kept (CANopenEditor writes both alike)."""
+DEVICE_FUNCTION = "DeviceFunction"
+"""The key of :data:`XDD_SECTION` holding the device body's DeviceFunction element (characteristicsList ...)."""
 NUMBER_FEATURES = {"dynamicChannels", "granularity", "NrOfNG_MonitoredNodes"}
 """Feature attributes holding a number; the others are xsd:boolean (default false)."""
 COMMISSIONING = {"nodeID": "NodeID", "nodeName": "NodeName", "actualBaudRate": "Baudrate",
@@ -107,10 +116,11 @@ def _placed(section: str, key: str, value: str) -> bool:
         attribute = next((a for a, k in FILE_INFO.items() if k == key), None)
         return attribute is not None and eds_file_value(attribute, xdd_file_value(attribute, value)) == value
     if kind == "deviceinfo":
-        return key in _PLACED_DEVICE_INFO or VERSION_KEY.match(key) is not None
+        empty_identity = key.lower() in ("vendornumber", "productnumber") and not value  # an empty element
+        return key in _PLACED_DEVICE_INFO or VERSION_KEY.match(key) is not None or empty_identity
     if kind == "devicecomissioning":
         return key in COMMISSIONING.values()
-    return kind == "dummyusage"
+    return kind in ("dummyusage", XDD_SECTION.lower())
 
 
 def unplaced(profile: Profile) -> list[tuple[str, str, str]]:

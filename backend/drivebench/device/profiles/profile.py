@@ -212,6 +212,11 @@ class ObjectEntry(Entry):
     CANopenNode's ``CO_storageGroup`` ...), in file order; an XDD export writes them back (an EDS has no place)."""
     object_xdd_properties: dict[str, str] | None = None
     """On the first entry of an ARRAY/RECORD: those of the object's own parameter."""
+    xdd_unique_id: str | None = None
+    """The ``uniqueID`` of the entry's CiA 311 parameter where an XDD named one other than DriveBench's export
+    would (CANopenEditor's ``UID_SUB_100300``); an XDD export writes the parameter under it again."""
+    object_xdd_unique_id: str | None = None
+    """On the first entry of an ARRAY/RECORD: that of the object's own parameter."""
     object_list: Literal["MandatoryObjects", "OptionalObjects", "ManufacturerObjects"] | None = None
     """On the first entry of an object: the EDS object list the file names it in, where that is not the one of its
     index range (lely-core lists 0x2000.. as optional objects, the HEIG-VD canopen-stack 0x1017 as mandatory); an
