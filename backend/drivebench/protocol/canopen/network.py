@@ -24,6 +24,7 @@ from drivebench.protocol.abort_codes import abort_text
 from drivebench.protocol.canopen.guarding import NodeGuarding
 from drivebench.protocol.canopen.heartbeat import HeartbeatMonitor
 from drivebench.protocol.canopen.nmt import NmtCommand, nmt_frame
+from drivebench.protocol.canopen.sdo_client import MatchingRemoteNode
 from drivebench.protocol.canopen.sdo_domain import download_domain
 from drivebench.protocol.canopen.sdo_errors import communication_error, read_segments
 from drivebench.protocol.canopen.sdo_queue import ChannelLock
@@ -57,7 +58,7 @@ class NodeClient(EventLoopTransfers):
         self.node_id = node_id
         self.abort_texts: dict[int, str] = dict(abort_texts or {})
         """The device manual's abort texts (its profile's ``abort_texts``); updated in place when it changes."""
-        self.remote = canopen.RemoteNode(node_id, canopen.ObjectDictionary())
+        self.remote = MatchingRemoteNode(node_id, canopen.ObjectDictionary())  # late answers passed over
         network.canopen.add_node(self.remote)
         self.channels = [SdoChannel(self.remote.sdo, 1)]
         self.configure(network.sdo_timeout_s, network.sdo_retries)
