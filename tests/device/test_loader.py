@@ -119,17 +119,3 @@ def test_a_file_with_the_wrong_suffix_is_named_for_what_it_is(name: str, content
     with pytest.raises(ProfileError) as caught:
         load_profile_file(content, name)
     assert caught.value.source == name and message in str(caught.value)
-
-
-def test_registries_of_one_process_read_a_built_in_file_once(tmp_path: Path) -> None:
-    """Each app (a test starts hundreds) makes a registry: the built-in profiles are parsed once per process and
-    shared; a file whose content changed is read anew (issue 29)."""
-    first, second = ProfileRegistry(user_profiles_dir=tmp_path / "a"), ProfileRegistry(user_profiles_dir=tmp_path / "b")
-    assert first.get("lenze-8400-motec-canopen") is second.get("lenze-8400-motec-canopen")
-    shipped = tmp_path / "shipped"
-    shipped.mkdir()
-    (shipped / "my-motec.json").write_text(json.dumps(motec()), encoding="utf-8")
-    before = ProfileRegistry(profiles_dir=shipped, user_profiles_dir=tmp_path / "c").get("my-motec")
-    (shipped / "my-motec.json").write_text(json.dumps(motec(version="2")), encoding="utf-8")
-    after = ProfileRegistry(profiles_dir=shipped, user_profiles_dir=tmp_path / "c").get("my-motec")
-    assert before.version == "1" and after.version == "2"

@@ -234,30 +234,10 @@ def _load_one(path: Path, cache: ParsedCache | None, used: set[str] | None, json
     return profile.id, loaded_file, None
 
 
-READ_IN_PROCESS_KEPT = 256
-"""Files :func:`_read_once` keeps (by name and content): the built-in profiles many times over."""
-_read_in_process: dict[str, LoadedFile] = {}
-
-
-def _read_once(content: bytes, name: str) -> LoadedFile:
-    """:func:`read_profile_file`, once per process for one name and content: every registry (each app a test
-    starts makes one) read the ~35 built-in profiles again, ~0.2 s of CPU; the profiles are not changed in place
-    (an edit makes a new one), so registries can hold the same."""
-    key = ParsedCache.key(name, content)
-    known = _read_in_process.get(key)
-    if known is None:
-        known = read_profile_file(content, name)
-        if len(_read_in_process) >= READ_IN_PROCESS_KEPT:
-            _read_in_process.clear()
-        _read_in_process[key] = known
-    return known
-
-
 def _read_cached(content: bytes, name: str, cache: ParsedCache | None, used: set[str] | None) -> LoadedFile:
-    """:func:`read_profile_file`, through ``cache`` when given (a file that does not load is not cached), else
-    once per process (:func:`_read_once`)."""
+    """:func:`read_profile_file`, through ``cache`` when given (a file that does not load is not cached)."""
     if cache is None:
-        return _read_once(content, name)
+        return read_profile_file(content, name)
     key = ParsedCache.key(name, content)
     if used is not None:
         used.add(key)
