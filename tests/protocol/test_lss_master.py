@@ -107,3 +107,35 @@ def test_canopen_fastscan_misses_late_answers_ours_does_not() -> None:
     finally:
         network.disconnect()
         slow.shutdown()
+
+
+class _StallsOnTheFirstProbe(Cia305Bus):
+    """A device whose thread gets no CPU for 0.4 s just as the master asks "is any device left?" (a loaded machine):
+    its answer to that one request comes 0.4 s late; every other answer in time."""
+
+    def __init__(self, channel: str, devices: list[Cia305Device]) -> None:
+        super().__init__(channel, devices)
+        self.stalled = False
+
+    def heard(self, msg: can.Message, rate: int | None) -> None:
+        data = bytes(msg.data)
+        if msg.arbitration_id == 0x7E5 and data[:1] == b"\x51" and data[5:6] == b"\x80" and not self.stalled:
+            self.stalled = True
+            time.sleep(0.4)
+        super().heard(msg, rate)
+
+
+def test_a_device_whose_answer_to_the_first_probe_comes_late_is_found() -> None:
+    """The scan asks "any device without node ID left?" three times before it ends; the third waited five answer
+    windows (250 ms at the default 50 ms), so a device stalled 0.4 s on that question was left out of the scan."""
+    channel = fresh_channel()
+    slaves = _StallsOnTheFirstProbe(channel, [Cia305Device(0x3B, 0x8400, 1, 1234)])
+    network = canopen.Network(can.Bus(interface="virtual", channel=channel))
+    network.connect()
+    try:
+        master = LssMaster(network)
+        assert [address.serial for address in master.fastscan().found] == [1234]
+        master.switch_global(configuration=False)
+    finally:
+        network.disconnect()
+        slaves.shutdown()
