@@ -147,7 +147,8 @@ async def recheck_now(app: Starlette) -> None:
     """Re-check every open websocket of ``app`` at once (an account changed through it) and return when those no
     longer admitted are closed and the nodes they held are stopped (the quick stops waited for at most
     ``CLOSE_WAIT_S``; they complete anyway)."""
-    sockets = [socket for socket in app_state(app).live_sockets if socket.accepted.is_set()]
+    live: set[LiveSocket] = app_state(app).live_sockets
+    sockets = [socket for socket in live if socket.accepted.is_set()]
     # shielded: a re-check that closes a socket runs to its end even when the admin's request goes away
     closed = await asyncio.gather(*(asyncio.shield(socket.recheck()) for socket in sockets))
     stops = [stop for socket, lost in zip(sockets, closed, strict=True) if lost for stop in socket.stops]
@@ -159,7 +160,7 @@ async def serve(app: ASGIApp, scope: Scope, receive: Receive, send: Send, rechec
     """Run the websocket route ``app`` with ``recheck`` asked every second while the socket is open."""
     socket = LiveSocket(scope, receive, send, recheck)
     watch = asyncio.create_task(socket.watch())
-    live = app_state(scope["app"]).live_sockets
+    live: set[LiveSocket] = app_state(scope["app"]).live_sockets
     live.add(socket)
     try:
         await app(scope, socket.receive, socket.send)

@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from starlette.applications import Starlette
 
@@ -19,7 +19,6 @@ from drivebench.simulator.plant import Plant
 from drivebench.web.access import Sessions
 
 if TYPE_CHECKING:  # the monitor socket's module reaches this one through the routes' dependencies
-    from drivebench.web.live_access import LiveSocket
     from drivebench.web.monitor_feed import Feed
 
 
@@ -42,9 +41,9 @@ class AppState:
     """The server's jobs: parameter reads, parameter set uploads and downloads."""
     monitor_feeds: dict[str, Feed] = field(default_factory=dict)
     """The monitor websockets' feeds by session id (made when the first client of a session listens)."""
-    live_sockets: set[LiveSocket] = field(default_factory=set)
-    """The open websockets, each re-checked every second and at once after an account change
-    (:mod:`drivebench.web.live_access`)."""
+    live_sockets: set[Any] = field(default_factory=set)
+    """The open websockets (``web.live_access.LiveSocket``, not named here: that module reads this state), each
+    re-checked every second and at once after an account change (:mod:`drivebench.web.live_access`)."""
 
 
 def app_state(app: Starlette) -> AppState:
