@@ -270,7 +270,12 @@ class PdoScopeSource:
             self.delivered += 1
 
     def elapsed_s(self) -> float:
-        return max(self._producer.stamp(), 0) * self.period_s
+        """The newest SYNC's sample time and the time since it went out, at most one period (an event between two
+        SYNCs lies between their samples: the next sample is the first at or after it)."""
+        newest, sent = self._producer.stamp(), self._producer.last
+        if newest < 0 or sent is None:
+            return 0.0
+        return newest * self.period_s + min(max(time.monotonic() - sent, 0.0), self.period_s)
 
     def newest_sync(self) -> int:
         """The number of the newest SYNC sent (-1 before the first)."""
@@ -281,7 +286,8 @@ class PdoScopeSource:
         return max(3, math.ceil(WAIT_S / self.plan.period_s))
 
     def _event(self, node: int | None, text: str, kind: EventKind = "source") -> None:
-        """An event at the time of the newest SYNC sent (a sample the recording delivers, now or after its wait)."""
+        """An event of the source at the time of the newest SYNC sent (a sample the recording delivers: also when
+        no SYNC follows, SYNC lost or bus-off)."""
         if self._on_event is not None:
             self._on_event(ScopeEvent(max(self._producer.stamp(), 0) * self.period_s, node, kind, text))
 
