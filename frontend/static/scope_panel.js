@@ -64,6 +64,9 @@
       shown(await drivebench.moving(send, {}));  // the new run's first state (maybe before this answer) resets the trace
     }
     if (form) form.addEventListener("submit", start);
+    // Start comes disabled from the server: a press before this script ran would have done nothing.
+    const startButton = $("scope-panel-start");
+    if (startButton) startButton.disabled = false;
     const stopButton = $("scope-panel-stop");
     if (stopButton) stopButton.addEventListener("click", async () => shown(await request("POST", `${api}/run/stop`)));
 

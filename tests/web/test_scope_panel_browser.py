@@ -185,3 +185,33 @@ def test_every_watching_page_starts_a_new_trace_for_the_next_recording_of_the_sa
                 watching.wait_for_function(f"() => document.querySelector('{state}').dataset.state === 'stopped'",
                                            timeout=WAIT_MS)
             shown = [watching.evaluate(f"{chart}.data[0].length") for watching, chart in charts]
+
+
+def test_a_press_on_start_before_the_panel_script_ran_neither_reloads_the_page_nor_is_lost(
+        page: Any, panel_server: tuple[str, Plant]) -> None:
+    """A stop's CI run on a loaded machine pressed Start after the form showed but before scope_panel.js had bound
+    it: the browser sent the form itself (a GET of the node page with the channels in the address, another tab) and
+    the recording never started. Start now comes disabled and the script enables it; every script-driven form is
+    marked data-no-submit, so even a press that gets through reloads nothing."""
+    base, _plant = panel_server
+    held: list[Any] = []
+    page.route("**/static/scope_panel.js", lambda route: held.append(route))  # the script is held back
+    page.goto(f"{base}/sessions/demo-plant/nodes/5?tab=control")
+    start = page.locator("#scope-panel-start")
+    start.wait_for(timeout=WAIT_MS)
+    assert start.is_disabled(), "Start is usable before the script that handles it has run"
+    page.evaluate("document.getElementById('scope-panel-form').requestSubmit()")  # a submit that gets through
+    page.wait_for_timeout(500)
+    assert "channel=" not in page.url and page.url.endswith("?tab=control"), page.url
+    for _ in range(300):  # the route handler runs while Playwright waits, not during a plain sleep
+        if held:
+            break
+        page.wait_for_timeout(100)
+    assert held, "the page asked for scope_panel.js"
+    held[0].continue_()
+    page.locator("#scope-panel-start:enabled").wait_for(timeout=WAIT_MS)
+    page.click("#scope-panel-start")
+    page.locator("#scope-panel-plan li").first.wait_for(timeout=WAIT_MS)
+    page.click("#scope-panel-stop")
+    page.wait_for_function(f"() => {PANEL}.querySelector('#scope-panel-open').href.includes('recording=')",
+                           timeout=WAIT_MS)
