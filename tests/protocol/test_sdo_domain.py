@@ -121,6 +121,32 @@ def test_a_late_answer_to_an_earlier_request_is_not_taken_for_the_initiate_answe
     assert plant.nodes[FAN].program.image == IMAGE[:20]
 
 
+def test_a_frame_too_short_to_name_an_object_is_passed_over_while_the_initiate_answer_is_awaited(
+        master: canopen.Network, plant: Plant, bus_channel: str) -> None:
+    """A two-byte frame on the node's SDO answer COB-ID (a broken device or another tool) while the download waits
+    for its initiate answer names no object: it is passed over, not unpacked (it raised struct.error before)."""
+    node = remote(master, FAN)
+    _stop_program(node)
+    plant.nodes[FAN].faults.set(latency_ms=300)  # its own initiate answer comes after the short frame
+    other = can.Bus(interface="virtual", channel=bus_channel, receive_own_messages=False)
+    initiate = b"\x21\x50\x1f\x01"
+
+    def send_short() -> None:
+        while (frame := other.recv(timeout=30)) is not None:
+            if frame.arbitration_id == 0x600 + FAN and bytes(frame.data[:4]) == initiate:
+                other.send(can.Message(arbitration_id=0x580 + FAN, data=b"\x60\x51", is_extended_id=False))
+                return
+
+    sender = threading.Thread(target=send_short, daemon=True)
+    sender.start()
+    try:
+        assert download_domain(node.sdo, 0x1F50, 1, IMAGE[:20], block=False) == "segmented"
+    finally:
+        sender.join(timeout=30)
+        other.shutdown()
+    assert plant.nodes[FAN].program.image == IMAGE[:20]
+
+
 def test_cancel_aborts_the_transfer_on_the_bus(master: canopen.Network, plant: Plant, bus_channel: str) -> None:
     node = remote(master, SERVO)
     _stop_program(node)

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import logging
 import queue
+import struct
 import time
 
 import canopen
@@ -28,6 +29,18 @@ ABORT = 0x80
 _ANSWER_KIND = {1: 3, 2: 2}
 """Client command specifier of an expedited/initiate request -> server command specifier of its answer (CiA 301
 7.2.4.3: initiate download -> 3, initiate upload -> 2); block initiates in :func:`expected_answer`."""
+
+
+def object_address(index: int, subindex: int) -> bytes:
+    """Bytes 1-3 of a frame that starts or aborts a transfer: the index (little endian) and subindex (CiA 301
+    7.2.4.3). Frames inside a transfer carry no object."""
+    return struct.pack("<HB", index, subindex)
+
+
+def names_object(frame: bytes | bytearray, address: bytes) -> bool:
+    """Whether ``frame`` names the object at ``address`` (see :func:`object_address`); a frame too short to name
+    one (a broken device, another tool on the COB-ID) names none."""
+    return len(frame) >= 4 and frame[1:4] == address
 
 
 def expected_answer(request: bytes | bytearray) -> tuple[bytes, int] | None:
@@ -69,7 +82,7 @@ class MatchingSdoClient(canopen.sdo.SdoClient):
                 response = bytes(self.responses.get(timeout=max(deadline - time.monotonic(), 0.0)))
             except queue.Empty:
                 raise SdoCommunicationError(_unanswered(expected, stale)) from None
-            if len(response) == 8 and response[1:4] == expected[0] and (
+            if len(response) == 8 and names_object(response, expected[0]) and (
                     response[0] == ABORT or response[0] >> 5 == expected[1]):
                 break
             log.debug("SDO 0x%03X: dropped %s, not the answer to the request for %s", self.tx_cobid,

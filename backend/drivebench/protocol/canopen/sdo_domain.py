@@ -12,13 +12,14 @@ from __future__ import annotations
 
 import binascii
 import queue
-import struct
 import threading
 import time
 from collections.abc import Callable
 
 import canopen
 from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError
+
+from drivebench.protocol.canopen.sdo_client import names_object, object_address
 
 SEGMENT = 7
 ABORT_BY_CLIENT = 0x08000000
@@ -35,7 +36,6 @@ acknowledgement may wait until the block is in flash) must not fail a download t
 died mid-transfer costs this wait once. There is no retry: a segment sent again would be a toggle error."""
 END_WAIT_S = 5.0
 """At least this long for the answer to the block end: many devices flash the whole image before they answer it."""
-_INDEXED = struct.Struct("<BHB")
 Progress = Callable[[int], None]
 
 
@@ -54,6 +54,7 @@ class _Download:
         self.client = client
         self.index = index
         self.subindex = subindex
+        self.address = object_address(index, subindex)
         self.data = data
         self.progress = progress
         self.cancelled = cancelled
@@ -79,14 +80,14 @@ class _Download:
                 response = self.client.responses.get(timeout=max(deadline - time.monotonic(), 0.0))
             except queue.Empty:
                 raise SdoCommunicationError("No SDO response received") from None
-            if not initiate or _INDEXED.unpack_from(response)[1:] == (self.index, self.subindex):
+            if not initiate or names_object(response, self.address):
                 break
         if response[0] == 0x80:
             raise SdoAbortedError(int.from_bytes(response[4:8], "little"))
         return bytes(response)
 
     def abort(self, code: int) -> None:
-        self.client.send_request(_INDEXED.pack(0x80, self.index, self.subindex) + code.to_bytes(4, "little"))
+        self.client.send_request(bytes([0x80]) + self.address + code.to_bytes(4, "little"))
 
     def check_cancel(self) -> None:
         if self.cancelled.is_set():
@@ -102,7 +103,7 @@ class _Download:
     # --- block (CiA 301 7.2.4.3.9 ... 7.2.4.3.14) ---------------------------------------------------------------
     def block(self) -> None:
         size = len(self.data)
-        start = _INDEXED.pack(0xC6, self.index, self.subindex) + size.to_bytes(4, "little")  # crc, size indicated
+        start = bytes([0xC6]) + self.address + size.to_bytes(4, "little")  # crc, size indicated
         self.forget_answers()
         answer = self.answer_of(self.request(start, initiate=True), 0xE3, 0xA0)
         use_crc = bool(answer[0] & 0x04)
@@ -132,7 +133,7 @@ class _Download:
     # --- segmented (CiA 301 7.2.4.3.3 ... 7.2.4.3.5) -------------------------------------------------------------
     def segmented(self) -> None:
         size = len(self.data)
-        start = _INDEXED.pack(0x21, self.index, self.subindex) + size.to_bytes(4, "little")
+        start = bytes([0x21]) + self.address + size.to_bytes(4, "little")
         self.forget_answers()
         self.answer_of(self.request(start, initiate=True), 0xFF, 0x60)
         toggle = 0

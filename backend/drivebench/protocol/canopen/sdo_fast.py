@@ -26,6 +26,7 @@ from drivebench.errors import ProtocolError, SdoAbortError, SdoOutOfStepError, S
 from drivebench.i18n import Text
 from drivebench.protocol.abort_codes import abort_text
 from drivebench.protocol.canopen.network import NodeClient, SdoChannel
+from drivebench.protocol.canopen.sdo_client import names_object, object_address
 from drivebench.protocol.canopen.sdo_errors import NO_RESPONSE, UNEXPECTED, reason
 from drivebench.protocol.loop_handoff import Response, hand_over, waker
 
@@ -49,7 +50,7 @@ class ExpeditedRequest:
     def __init__(self, index: int, subindex: int) -> None:
         self.index = index
         self.subindex = subindex
-        self.address = bytes([index & 0xFF, index >> 8, subindex])
+        self.address = object_address(index, subindex)
         """Index (little endian) and subindex as every frame of the transfer carries them (bytes 1..3)."""
         self.frame = b"\x40" + self.address + bytes(4)  # CiA 301 initiate upload
 
@@ -201,7 +202,7 @@ class ExpeditedUploader:
         command = data[0]
         request = transfer.request
         if transfer.phase == _Transfer.INITIATE:
-            if data[1:4] != request.address:
+            if not names_object(data, request.address):
                 if command >> 5 == 2 or command == 0x80:  # an initiate upload answer or abort: names an object
                     transfer.other_object = bytes(data[1:4])
                     self._late_answer(transfer)
