@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed
 HOST ?= 127.0.0.1
 PORT ?= 8000
 
-.PHONY: help constraints run test test-quick bytecode install lint typecheck importlint pytest bench chromium postgresql nginx clean i18n-extract i18n-update i18n-compile
+.PHONY: help constraints run test test-quick bytecode install lint typecheck importlint pytest bench chromium postgresql nginx compose clean i18n-extract i18n-update i18n-compile
 
 help:
 	@echo "make run          serve http://$(HOST):$(PORT) with the built-in simulated plant"
@@ -64,6 +64,16 @@ postgresql:
 nginx:
 	@command -v nginx >/dev/null 2>&1 || ls /usr/sbin/nginx >/dev/null 2>&1 || (apt-get update -qq && apt-get install -y -qq nginx >/dev/null)
 
+# deploy/compose.yaml is checked with both Compose programs a plant runs (tests/test_container.py): Debian's
+# docker-compose 1.29 and Compose v2, which Debian packages from trixie on (fetched, not installed: see the script).
+COMPOSE_V2 := .cache/compose-v2/docker-compose
+
+compose: $(COMPOSE_V2)
+	@command -v docker-compose >/dev/null 2>&1 || (apt-get update -qq && apt-get install -y -qq docker-compose >/dev/null)
+
+$(COMPOSE_V2):
+	sh scripts/fetch_compose_v2.sh $@
+
 # The suite runs on parallel workers (pytest-xdist), a module's tests on one worker (they share its fixtures).
 # Most tests wait on a bus, a timeout or a browser, so more workers than cores pay: PYTEST_WORKERS=1 runs serially.
 PYTEST_WORKERS ?= 4
@@ -79,7 +89,7 @@ PYTEST_ENV := env -u PYTHONDONTWRITEBYTECODE
 bytecode: $(STAMP)
 	$(PYTEST_ENV) $(BIN)/python -m compileall -q backend
 
-pytest: install chromium postgresql nginx bytecode
+pytest: install chromium postgresql nginx compose bytecode
 	$(PYTEST_ENV) $(BIN)/pytest $(PYTEST_PARALLEL)
 
 # A developer's loop: the suite without the tests marked slow (browser tests, faults that wait out timeouts,
@@ -93,4 +103,4 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/run_all.py
 
 clean:
-	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache
+	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache .cache

@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import shutil
 import ssl
 import subprocess
 import sys
@@ -30,6 +31,9 @@ pytestmark = pytest.mark.slow  # fault scenarios, timeouts or server processes: 
 COMPOSE = REPO_ROOT / "deploy" / "compose.yaml"
 DOCKERFILE = REPO_ROOT / "Dockerfile"
 ADMIN_PASSWORD = "password of the first start"
+COMPOSE_PROGRAMS = {"Compose v2": str(REPO_ROOT / ".cache" / "compose-v2" / "docker-compose"),
+                    "docker-compose 1.29": "docker-compose"}
+"""The two Compose programs a plant runs the files with; `make compose` (a step of `make test`) brings both."""
 
 
 def _settings_read() -> set[str]:
@@ -111,6 +115,44 @@ def test_compose_keeps_secrets_in_files_and_the_plant_names_in_env(compose: dict
     assert set(tls_env) <= _settings_read()
     for variable in ("DRIVEBENCH_TLS_CERT_FILE", "DRIVEBENCH_TLS_KEY_FILE"):
         assert PurePosixPath(tls_env[variable]).name in tls["secrets"]
+
+
+def _env_values(text: str) -> dict[str, str]:
+    return dict(line.split("=", 1) for line in text.splitlines() if "=" in line and not line.startswith("#"))
+
+
+@pytest.mark.parametrize("program", COMPOSE_PROGRAMS)
+def test_compose_v2_and_debians_docker_compose_1_29_take_the_files_with_the_names_from_env(
+        program: str, tmp_path: Path) -> None:
+    """Each program renders compose.yaml alone and with the TLS variant (``config`` reads and checks the files as
+    ``up`` does, without an engine) and takes the line's names from .env; without them it refuses, in the words
+    compose.yaml gives."""
+    binary = shutil.which(COMPOSE_PROGRAMS[program])
+    assert binary, f"{program} is not on this machine: `make compose` brings it"
+    deploy = tmp_path / "deploy"
+    shutil.copytree(REPO_ROOT / "deploy", deploy)
+    env = deploy / ".env"
+    env.write_text((deploy / "env.example").read_text(encoding="utf-8"), encoding="utf-8")
+    expected = _env_values(env.read_text(encoding="utf-8"))
+
+    def config(*files: str) -> subprocess.CompletedProcess[str]:
+        chosen = [arg for name in files for arg in ("-f", str(deploy / name))]
+        return subprocess.run([binary, "--env-file", str(env), *chosen, "config"], capture_output=True, text=True,
+                              cwd=tmp_path, timeout=120)
+
+    for files in (("compose.yaml",), ("compose.yaml", "compose.tls.yaml")):
+        rendered = config(*files)
+        assert rendered.returncode == 0, f"{program} {files}: {rendered.stderr}"
+        services = yaml.safe_load(rendered.stdout)["services"]
+        environment = services["drivebench"]["environment"]
+        for name in ("DRIVEBENCH_ALLOWED_HOSTS", "DRIVEBENCH_PUBLIC_URL"):
+            assert environment[name] == expected[name], (program, name, environment[name])
+        assert "DRIVEBENCH_SECRET_KEY" not in environment and set(services) == {"drivebench", "postgres"}
+        if "compose.tls.yaml" in files:
+            assert "DRIVEBENCH_TLS_CERT_FILE" in environment
+    env.write_text("", encoding="utf-8")
+    refused = config("compose.yaml")
+    assert refused.returncode != 0 and "set the names browsers use for this server" in refused.stderr, refused.stderr
 
 
 def test_the_database_password_file_goes_into_the_url_and_a_missing_one_is_said_in_words(tmp_path: Path) -> None:
