@@ -15,7 +15,7 @@ from pydantic import BaseModel, Field
 from sqlalchemy import ColumnElement, select, update
 
 from drivebench.config import settings
-from drivebench.errors import NotFound
+from drivebench.errors import Conflict, NotFound
 from drivebench.i18n import N_, _
 from drivebench.protocol.canopen.lss import LssAddress
 from drivebench.services.line import wizard_claim
@@ -157,7 +157,10 @@ class WizardStore:
             saved = self._write(run, wizard_claim.same_claim(seen), {})
             if saved is not None:
                 return saved
-        raise wizard_claim.refusal(self.get(run.id).claim or _no_claim(), _("a step"))
+        claim = self.get(run.id).claim
+        if claim is not None:
+            raise wizard_claim.refusal(claim, _(STEP_TITLES.get(claim.step, claim.step)))
+        raise Conflict(_("A step of this run started and ended meanwhile: load the run again and repeat the change."))
 
     def claim(self, run_id: int, step: str) -> str:
         """Take ``step`` of the run for this process (its token), or the 409 naming who runs the run now."""
@@ -189,11 +192,6 @@ class WizardStore:
             row = db.get(LineWizardRow, run.id)
             assert row is not None
             return _of(row)
-
-
-def _no_claim() -> StepClaim:
-    now = datetime.now(UTC)
-    return StepClaim(step="", server=wizard_claim.SERVER, since=now, until=now)
 
 
 def refuse_while_running(run: WizardRun) -> None:
