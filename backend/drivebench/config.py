@@ -73,6 +73,10 @@ class Settings(BaseSettings):
     log_format: Literal["text", "json"] = "text"
     """``json``: one JSON object per line (time, level, logger, request_id, message) for a log collector."""
 
+    wizard_step_lease_s: float = 30.0
+    """A "New line" wizard step's claim lasts this long unless its server renews it (every third of it while the step
+    runs): a server that stopped (killed, frozen, cut off) leaves the step ``interrupted`` on the others after that."""
+
     control_panels_per_node: int = 100
     """Control-panel websockets one node of a session accepts at once (its holder's own panel always)."""
     control_panels_per_user: int = 20

@@ -1,6 +1,8 @@
 // The "New line" wizard page: the run from /api/sessions/{s}/line-wizard/{run}, each step's button runs that step
 // (a 428 asks the confirmation dialog: app.js drivebench.moving), the found devices dragged (or chosen) onto the
-// planned nodes, firmware files checked per node. The run is the server's: a reload shows where it stood.
+// planned nodes, firmware files checked per node. The run is the server's: a reload shows where it stood, and while
+// a step runs (this page's request or another tab's, or another DriveBench server's: the run's claim) the run is read
+// again every two seconds until it has ended.
 (() => {
   const db = window.drivebench;
   const _ = db.gettext;
@@ -14,6 +16,9 @@
   const WHAT = { scan: _("LSS fastscan"), assign: _("LSS addressing"), store: _("LSS store configuration"),
                  sets: _("Parameter-set downloads"), program: _("Program downloads") };
   let run = null;
+  let sending = false;
+  let rereading = null;
+  const REREAD_MS = 2000;
 
   function request(method, url, body, isForm = false) {
     return db.requestJson(method, url, body, { headers: { "X-DriveBench-Client": window.drivebenchClientId },
@@ -75,6 +80,22 @@
     }
   }
 
+  function claimText(claim) {
+    const at = claim.server.lastIndexOf(":");
+    return _("on {host} (process {pid}) since {since}", { host: claim.server.slice(0, at),
+      pid: claim.server.slice(at + 1), since: new Date(claim.since).toLocaleTimeString("en-GB", { hour12: false }) });
+  }
+
+  function rereadWhileRunning() {
+    clearTimeout(rereading);
+    if (!run || !run.claim || sending) return;
+    rereading = setTimeout(async () => {
+      const answer = await request("GET", base);
+      if (answer.status === 200 && !sending) render(answer.data);
+      else if (!sending) rereadWhileRunning();
+    }, REREAD_MS);
+  }
+
   function render(data) {
     run = data;
     for (const [name, step] of Object.entries(run.steps)) {
@@ -82,6 +103,8 @@
       if (!badge) continue;
       badge.textContent = STATES[step.state] || step.state;
       badge.className = `badge step-state state-${step.state}`;
+      document.getElementById(`claim-${name}`).textContent =
+        run.claim && run.claim.step === name && step.state === "running" ? claimText(run.claim) : "";
       const failed = step.state === "failed";
       document.getElementById(`lines-${name}`).replaceChildren(...step.lines.map((line) => {
         const item = el("li", {}, line);
@@ -100,6 +123,7 @@
     verdict.className = complete ? "badge good" : "badge";
     renderFound();
     renderFirmware();
+    rereadWhileRunning();
   }
 
   async function saveAssignments(assignments) {
@@ -151,6 +175,8 @@
       errorSlot.replaceChildren();
       for (const other of document.querySelectorAll(".run-step")) other.disabled = true;
       badge.textContent = STATES.running;
+      sending = true;
+      clearTimeout(rereading);
       try {
         const send = (confirmation) => request("POST", `${base}/steps/${name}`,
                                                confirmation ? { ...body, ...confirmation } : body);
@@ -167,7 +193,9 @@
         }
         render(answer.data);
       } finally {
+        sending = false;
         for (const other of document.querySelectorAll(".run-step")) other.disabled = false;
+        rereadWhileRunning();
       }
     });
   }

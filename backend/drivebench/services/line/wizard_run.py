@@ -2,7 +2,9 @@
 store, boot-up check, parameter sets, program download, report). Each step keeps its state and its result in words;
 the devices found and the planned node each is given are kept too. The run lives in the database (table
 ``line_wizard_run``), so it resumes after a browser reload or a server restart: a step that was running when the
-server stopped reads ``interrupted`` and can be run again."""
+server stopped reads ``interrupted`` and can be run again. Which step runs now, and on which server, is the run's claim
+(:mod:`wizard_claim`): every server of the database sees it, and a step whose holder stopped renewing its lease reads
+``interrupted``."""
 
 from __future__ import annotations
 
@@ -10,11 +12,14 @@ from datetime import UTC, datetime
 from typing import Literal
 
 from pydantic import BaseModel, Field
-from sqlalchemy import select
+from sqlalchemy import ColumnElement, select, update
 
+from drivebench.config import settings
 from drivebench.errors import Conflict, NotFound
 from drivebench.i18n import N_, _
 from drivebench.protocol.canopen.lss import LssAddress
+from drivebench.services.line import wizard_claim
+from drivebench.services.line.wizard_claim import StepClaim
 from drivebench.services.storage.database import transaction
 from drivebench.services.storage.models import LineWizardRow
 
@@ -80,6 +85,8 @@ class WizardRun(BaseModel):
     assigned: dict[int, FoundDevice] = Field(default_factory=dict)
     """Node ID -> the device that took it (the store step selects it again by its address)."""
     firmware: dict[int, Firmware] = Field(default_factory=dict)
+    claim: StepClaim | None = None
+    """The step that runs now, on which server (any server of the database), until when its lease holds."""
 
     def step(self, name: str) -> StepResult:
         return self.steps.setdefault(name, StepResult())
@@ -87,10 +94,6 @@ class WizardRun(BaseModel):
     @property
     def complete(self) -> bool:
         return all(self.step(name).state == "done" for name in STEPS)
-
-
-_running: set[tuple[int, str]] = set()
-"""The steps running in this process: a stored ``running`` step that is not here was cut off by a restart."""
 
 
 def _aware(moment: datetime) -> datetime:
@@ -101,8 +104,9 @@ def _of(row: LineWizardRow) -> WizardRun:
     run = WizardRun.model_validate({**row.body, "id": row.id, "session_id": row.session_id,
                                     "project_id": row.project_id, "created_by": row.created_by,
                                     "created": _aware(row.created), "updated": _aware(row.updated)})
+    run.claim = wizard_claim.live_claim(row)
     for name, step in run.steps.items():
-        if step.state == "running" and (run.id, name) not in _running:
+        if step.state == "running" and (run.claim is None or run.claim.step != name):
             step.state = "interrupted"
             step.lines = [*step.lines, _("The server stopped while this step ran: run it again.")]
     return run
@@ -110,12 +114,13 @@ def _of(row: LineWizardRow) -> WizardRun:
 
 def _body(run: WizardRun) -> dict[str, object]:
     return run.model_dump(mode="json", exclude={"id", "session_id", "project_id", "created_by", "created",
-                                                "updated"})
+                                                "updated", "claim"})
 
 
 class WizardStore:
-    def __init__(self, url: str | None = None) -> None:
+    def __init__(self, url: str | None = None, lease_s: float | None = None) -> None:
         self.url = url
+        self.lease_s = settings.wizard_step_lease_s if lease_s is None else lease_s
 
     def create(self, run: WizardRun) -> WizardRun:
         with transaction(self.url) as db:
@@ -139,34 +144,57 @@ class WizardStore:
             return [_of(row) for row in rows]
 
     def save(self, run: WizardRun) -> WizardRun:
+        """Keep a change made outside a step (assignments, a firmware file): refused while a step of the run runs on
+        any server, also when one started since ``run`` was read."""
+        for _attempt in range(3):
+            with transaction(self.url) as db:
+                row = db.get(LineWizardRow, run.id)
+                if row is None:
+                    raise NotFound(_("Wizard run {id} does not exist on this session.").format(id=run.id))
+                seen, claim = row.step_claim, wizard_claim.live_claim(row)
+            if claim is not None:
+                raise wizard_claim.refusal(claim, _(STEP_TITLES.get(claim.step, claim.step)))
+            saved = self._write(run, wizard_claim.same_claim(seen), {})
+            if saved is not None:
+                return saved
+        claim = self.get(run.id).claim
+        if claim is not None:
+            raise wizard_claim.refusal(claim, _(STEP_TITLES.get(claim.step, claim.step)))
+        raise Conflict(_("A step of this run started and ended meanwhile: load the run again and repeat the change."))
+
+    def claim(self, run_id: int, step: str) -> str:
+        """Take ``step`` of the run for this process (its token), or the 409 naming who runs the run now."""
+        return wizard_claim.take(self.url, run_id, step, _(STEP_TITLES.get(step, step)), self.lease_s)
+
+    def renew(self, run_id: int, token: str) -> bool:
+        return wizard_claim.renew(self.url, run_id, token, self.lease_s)
+
+    def save_claimed(self, run: WizardRun, step: str, token: str, *, release: bool = False) -> WizardRun:
+        """Keep the step's state while this process holds its claim (``release``: and give the claim back)."""
+        saved = self._write(run, wizard_claim.same_claim(token), wizard_claim.released() if release else {})
+        if saved is None:
+            raise wizard_claim.lost(_(STEP_TITLES.get(step, step)))
+        return saved
+
+    def release(self, run_id: int, token: str) -> None:
+        """Give the claim back without a result (the step ended unexpectedly: it reads interrupted)."""
         with transaction(self.url) as db:
+            db.execute(update(LineWizardRow).where(LineWizardRow.id == run_id, wizard_claim.same_claim(token))
+                       .values(**wizard_claim.released()))
+
+    def _write(self, run: WizardRun, condition: ColumnElement[bool], extra: dict[str, None]) -> WizardRun | None:
+        """One compare-and-set UPDATE of the body (None: the claim was not as expected, nothing written)."""
+        with transaction(self.url) as db:
+            written = wizard_claim.changed(db, update(LineWizardRow).where(LineWizardRow.id == run.id, condition)
+                                           .values(body=_body(run), updated=datetime.now(UTC), **extra))
+            if written != 1:
+                return None
             row = db.get(LineWizardRow, run.id)
-            if row is None:
-                raise NotFound(_("Wizard run {id} does not exist on this session.").format(id=run.id))
-            row.body = _body(run)
-            row.updated = datetime.now(UTC)
-            db.flush()
+            assert row is not None
             return _of(row)
 
 
-def running_step(run_id: int) -> str | None:
-    """The step of this run that runs in this process now."""
-    return next((step for running_id, step in _running if running_id == run_id), None)
-
-
-def refuse_while_running(run_id: int) -> None:
-    """One change at a time: a step saves the whole run when it ends."""
-    running = running_step(run_id)
-    if running is not None:
-        raise Conflict(_("Step '{step}' of this run is running: wait until it has ended.").format(
-            step=_(STEP_TITLES[running])))
-
-
-def mark_running(run_id: int, step: str) -> None:
-    """``step`` runs now (:func:`refuse_while_running` first)."""
-    refuse_while_running(run_id)
-    _running.add((run_id, step))
-
-
-def mark_stopped(run_id: int, step: str) -> None:
-    _running.discard((run_id, step))
+def refuse_while_running(run: WizardRun) -> None:
+    """One change at a time: a step saves the whole run when it ends (the run as read, with its live claim)."""
+    if run.claim is not None:
+        raise wizard_claim.refusal(run.claim, _(STEP_TITLES.get(run.claim.step, run.claim.step)))

@@ -21,7 +21,8 @@ from drivebench.services.bus.sessions import Session
 from drivebench.services.control.drive_guard import require_confirmation
 from drivebench.services.line.boot_check import boot_check
 from drivebench.services.line.project import LineProject, ProjectNode
-from drivebench.services.line.wizard_run import FoundDevice, WizardRun, WizardStore, mark_running, mark_stopped
+from drivebench.services.line.wizard_claim import keep
+from drivebench.services.line.wizard_run import FoundDevice, WizardRun, WizardStore
 from drivebench.services.lss import line as lss
 from drivebench.services.lss.guard_rule import EVERY_DEVICE, admit_global
 from drivebench.services.lss.identify import identify
@@ -340,29 +341,37 @@ STEP_FUNCTIONS: dict[str, Callable[[StepCall], Awaitable[bool]]] = {
 
 async def run_step(call: StepCall, name: str, store_: WizardStore) -> WizardRun:
     """Run one step and keep its result. A refusal before anything was sent (428, 409, 422, 404) leaves the step as
-    it was and is raised; a failure on the way is the step's result in words."""
+    it was and is raised; a failure on the way is the step's result in words. The step is claimed in the database
+    first (409 while any step of the run runs on any server) and its lease renewed while it runs."""
     run = call.run
     if name not in STEP_FUNCTIONS:
         raise NotFound(_("The wizard has no step '{step}'.").format(step=name))
-    mark_running(run.id, name)
+    token = await asyncio.to_thread(store_.claim, run.id, name)
+    renewing = asyncio.create_task(keep(store_, run.id, token))
+    released = False
     try:
         run = await asyncio.to_thread(store_.get, run.id)  # as it is now, not as the request found it
         before = run.step(name).model_copy(deep=True)
         step = run.step(name)
         step.state, step.lines, step.runs = "running", [], step.runs + 1
-        call.run = run = await asyncio.to_thread(store_.save, run)
+        call.run = run = await asyncio.to_thread(store_.save_claimed, run, name, token)
         call.lines = run.step(name).lines
         try:
             ok = await STEP_FUNCTIONS[name](call)
         except DriveBenchError as exc:
             if isinstance(exc, ConfirmationRequired) or (not call.lines and isinstance(exc, NOTHING_DONE)):
                 run.steps[name] = before
-                await asyncio.to_thread(store_.save, run)
+                released = True
+                await asyncio.to_thread(store_.save_claimed, run, name, token, release=True)
                 raise
             call.say(str(exc.detail))
             ok = False
         done = run.step(name)
         done.state, done.finished = ("done" if ok else "failed"), datetime.now(UTC)
-        return await asyncio.to_thread(store_.save, run)
+        released = True
+        return await asyncio.to_thread(store_.save_claimed, run, name, token, release=True)
     finally:
-        mark_stopped(run.id, name)
+        renewing.cancel()
+        if not released:  # ended on the way (cancelled, a fault): no claim left behind, the step reads interrupted
+            with contextlib.suppress(Exception):
+                await asyncio.to_thread(store_.release, run.id, token)

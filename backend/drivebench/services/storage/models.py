@@ -76,6 +76,15 @@ class LineWizardRow(Base):
     updated: Mapped[datetime] = mapped_column(DateTime(timezone=True), nullable=False, default=utcnow,
                                               onupdate=utcnow)
     body: Mapped[dict[str, Any]] = mapped_column(JSON, nullable=False)
+    step_claim: Mapped[str | None] = mapped_column(String(32), nullable=True)
+    """The claim on the step that runs now (a token of the request that runs it; migration 0014_wizard_step_claim):
+    one step of a run at a time across every server of the database (``services.line.wizard_claim``)."""
+    step_name: Mapped[str | None] = mapped_column(String(20), nullable=True)
+    step_server: Mapped[str | None] = mapped_column(String(120), nullable=True)
+    """The server process that holds the claim (host:pid)."""
+    step_since: Mapped[float | None] = mapped_column(Float, nullable=True)
+    step_lease_until: Mapped[float | None] = mapped_column(Float, nullable=True)
+    """The holder renews this while the step runs; once it has passed, the step was cut off (epoch seconds)."""
 
 
 class CheckedFirmwareRow(Base):

@@ -77,8 +77,8 @@ async def set_assignments(run_id: RowId, body: dict[int, str | None], session: S
     """Planned node ID -> serial of a found device (``null`` or missing: none). Every serial once, every node in
     the project, every serial found by the scan."""
     store = WizardStore()
-    refuse_while_running(run_id)
     run = await asyncio.to_thread(store.get, run_id, session.id)
+    refuse_while_running(run)
     planned = {node.node_id for node in _project(run).nodes}
     found = {int(device.serial, 16): device.serial for device in run.found}
     chosen: dict[int, str] = {}
@@ -114,8 +114,8 @@ async def choose_firmware(run_id: RowId, node_id: Annotated[int, Field(ge=1, le=
     checked = await download.check(session, node_id, firmware)
     if not checked["ok"]:
         raise InvalidValue(str(checked["refused"]))
-    refuse_while_running(run_id)
     run = await asyncio.to_thread(store.get, run_id, session.id)
+    refuse_while_running(run)
     run.firmware[node_id] = Firmware(file_id=str(checked["file_id"]), name=firmware.name, size=len(firmware.image),
                                      crc32=f"0x{firmware.crc32:08X}")
     return await asyncio.to_thread(store.save, run)
