@@ -14,10 +14,10 @@ import time
 import pytest
 
 from drivebench.errors import Conflict
-from drivebench.services.line.wizard_claim import SERVER
 from drivebench.services.line.wizard_run import WizardRun, WizardStore
 from drivebench.services.storage import database
 from drivebench.services.storage.models import LineWizardRow
+from drivebench.services.storage.server_process import SERVER
 
 RACERS = 8
 

@@ -10,9 +10,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
-import os
 import secrets
-import socket
 import time
 from dataclasses import dataclass
 from datetime import UTC, datetime
@@ -27,10 +25,9 @@ from drivebench.errors import Conflict, DriveBenchError, NotFound
 from drivebench.i18n import N_, _
 from drivebench.services.storage.database import transaction
 from drivebench.services.storage.models import LineWizardRow
+from drivebench.services.storage.server_process import SERVER, ended
 
 log = logging.getLogger(__name__)
-SERVER = f"{socket.gethostname()}:{os.getpid()}"
-"""This server process among those of the database."""
 RUNNING_HERE = N_("Step '{step}' of this run is running: wait until it has ended.")
 RUNNING_THERE = N_("Step '{step}' of this run is running on another DriveBench server (host {host}, process {pid}) "
                    "since {since}: wait until it has ended (if that server stopped, the step reads interrupted after "
@@ -62,26 +59,12 @@ def _words(moment: datetime) -> str:
     return moment.strftime("%Y-%m-%d %H:%M:%S UTC")
 
 
-def _process_gone(server: str) -> bool:
-    """Whether ``server`` (host:pid) is a process of this machine that has ended (another machine's: unknown)."""
-    host, _sep, pid = server.rpartition(":")
-    if host != socket.gethostname() or not pid.isdigit() or server == SERVER:
-        return False
-    try:
-        os.kill(int(pid), 0)  # signal 0: only asks whether the process exists
-    except ProcessLookupError:
-        return True
-    except PermissionError:  # it exists, run by another user
-        return False
-    return False
-
-
 def live_claim(row: LineWizardRow, now: float | None = None) -> StepClaim | None:
     """The row's claim while it holds: its lease has not passed and its holder has not ended."""
     if row.step_claim is None or row.step_name is None or row.step_server is None:
         return None
     until = row.step_lease_until or 0.0
-    if until <= (time.time() if now is None else now) or _process_gone(row.step_server):
+    if until <= (time.time() if now is None else now) or ended(row.step_server):
         return None
     return StepClaim(step=row.step_name, server=row.step_server, since=_moment(row.step_since or until),
                      until=_moment(until))

@@ -15,9 +15,7 @@ from __future__ import annotations
 
 import csv
 import io
-import os
 import re
-import socket
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
@@ -37,6 +35,7 @@ from drivebench.i18n import N_, _
 from drivebench.services.params import reads
 from drivebench.services.storage.database import transaction
 from drivebench.services.storage.models import DownloadRow, ParameterSetRow, ParameterSetVersionRow, utcnow
+from drivebench.services.storage.server_process import SERVER
 
 Raw = int | float | str
 Values = dict[str, Raw]
@@ -187,10 +186,6 @@ def _check_name(name: str) -> str:
     if not cleaned or len(cleaned) > 200:
         raise InvalidValue(_("A parameter set needs a name of 1 to 200 characters"))
     return cleaned
-
-
-SERVER = f"{socket.gethostname()}:{os.getpid()}"
-"""This server process among those of the database: its downloads carry it (``DownloadRow.server``)."""
 
 
 class ParameterSetStore:

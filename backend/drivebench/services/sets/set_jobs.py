@@ -18,8 +18,6 @@ A download never stops silently halfway:
 from __future__ import annotations
 
 import asyncio
-import os
-import socket
 import uuid
 from typing import Any
 
@@ -45,7 +43,6 @@ from drivebench.services.params.jobs import Job, JobIssue, JobManager, said
 from drivebench.services.params.write_context import WriteContext
 from drivebench.services.sets.download_outcome import FAILED, NOT_WRITTEN, outcome_of
 from drivebench.services.sets.parameter_sets import (
-    SERVER,
     ParameterSetStore,
     Raw,
     Source,
@@ -60,6 +57,7 @@ from drivebench.services.sets.parameter_sets import (
     shown,
 )
 from drivebench.services.storage.models import DownloadRow
+from drivebench.services.storage.server_process import SERVER, ended
 from drivebench.services.users import audit
 
 SHOWN_WORDS = (N_("running"), N_("done"), N_("incomplete"), N_("cancelled"), N_("failed"), N_("interrupted"),
@@ -569,23 +567,12 @@ def download_state(row: DownloadRow, jobs: JobManager) -> str:
         return row.state
     if row.server in (None, SERVER):
         return "running" if row.id in running_downloads(jobs) else "interrupted"
-    return "interrupted" if _server_gone(row.server) else "running"
+    return "interrupted" if ended(row.server) else "running"
 
 
 def close_interrupted(store: ParameterSetStore) -> list[int]:
     """At start-up: downloads left ``running`` by an ended server process of this machine (killed, crashed) are
     stored as interrupted, so every server of the database says so (ids returned)."""
-    return store.interrupt_downloads(lambda server: server != SERVER and _server_gone(server))
+    return store.interrupt_downloads(lambda server: server != SERVER and ended(server))
 
 
-def _server_gone(server: str) -> bool:
-    host, _, pid = server.rpartition(":")
-    if host != socket.gethostname() or not pid.isdigit():
-        return False
-    try:
-        os.kill(int(pid), 0)  # signal 0: only asks whether the process exists
-    except ProcessLookupError:
-        return True
-    except PermissionError:  # it exists, run by another user
-        return False
-    return False
