@@ -20,7 +20,8 @@ Decisions where CiA 306 leaves room:
 * ``CompactSubObj`` arrays are expanded (sub 0 ``NrOfObjects``, sub n ``<ParameterName><n>`` unless ``[xxxxName]``
   names it); ``ObjectType=0x2`` (DOMAIN) becomes a VAR of data type DOMAIN.
 * ``Unit``, ``Factor`` and ``Description`` (canopen's extensions) are read; with a factor, limits and defaults become
-  engineering units like every other profile. Other unknown keys inside object sections are ignored.
+  engineering units like every other profile. A ``Factor`` that gives 1 or no number (``Factor=ERROR``) is kept as
+  written with the object's other keys without a model field (``ObjectEntry.section_keys``).
 * Sections the model has no field for (``[DummyUsage]``, ``[DeviceComissioning]``, ``[Tools]`` ...) and the
   ``[FileInfo]``/``[DeviceInfo]`` keys without a model field go to ``Profile.extra_sections`` verbatim.
 * ``[DriveBench]`` (our own section, ignored by other tools) carries the profile id, family, version and source.
@@ -529,6 +530,9 @@ class _Reader:
             fields["value_texts"] = kept
         other = {k.name: k.value for name, k in section.keys.items() if name not in _MODEL_KEYS} if own_values \
             else {}
+        factor_key = section.get("Factor")
+        if factor_key is not None and factor == 1 and own_values:  # ``Factor=ERROR``, ``Factor=1``: no field holds it
+            other[factor_key.name] = factor_key.value
         if other:
             fields["section_keys"] = other
         try:
