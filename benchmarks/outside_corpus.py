@@ -31,6 +31,7 @@ from lxml import etree
 
 from drivebench.config import REPO_ROOT, settings
 from drivebench.device.formats.eds_ini import decode_text, parse_ini
+from drivebench.device.formats.eds_quirks import parse_int_strict
 from drivebench.web.app import create_app
 
 RESULTS = REPO_ROOT / "benchmarks" / "RESULTS.md"
@@ -226,12 +227,13 @@ def expanded(original: dict[tuple[str, str], str], back: dict[tuple[str, str], s
 
 
 def same_value(a: str, b: str) -> bool:
-    """Equal as text, or as numbers (``0x0007`` == ``7``), or as text without a trailing comment."""
+    """Equal as text, or as CiA 306 numbers (``0x0007`` == ``7``, ``001`` == ``0x00000001``), or as text without a
+    trailing comment."""
     a, b = a.split(";")[0].strip(), b.split(";")[0].strip()
     if a.lower() == b.lower():
         return True
     try:
-        return int(a, 0) == int(b, 0)
+        return parse_int_strict(a) == parse_int_strict(b)
     except ValueError:
         pass
     try:
