@@ -174,3 +174,19 @@ def test_an_unusable_factor_and_an_empty_description_come_back_through_an_xdd(ap
     _, back = through_xdd(api, profile_id)
     assert back["2001"]["factor"] == "ERROR"
     assert back["2001"]["description"] == "" and back["2001"]["unit"] == ""
+
+
+def test_an_object_listed_without_a_section_stays_listed_through_an_xdd(api: TestClient) -> None:
+    """python-canopen's examples/eds/e35.eds (canopen 1.2.1 to 2.4.1 on PyPI) and gocanopen's test_zipped_format.eds
+    list an object that has no section (0x6505 in [OptionalObjects]): no object is read (warned) and the listing is
+    kept (``extra_sections``), through the XDD as an ``EDS:[OptionalObjects]0x6505`` property, so the EDS written
+    back lists it again (it was lost there)."""
+    profile_id, content = upload(api, "listed-without-section")
+    assert api.get(f"/api/profiles/{profile_id}/eds", params={"regenerate": "true"}).content == content
+    profile = api.get(f"/api/profiles/{profile_id}").json()
+    assert not [o for o in profile["objects"] if o["index"] in ("0x6505", 0x6505)]
+    _, back = through_xdd(api, profile_id)
+    listed = {int(v, 16) for k, v in back["OPTIONALOBJECTS"].items() if k.isdigit()}
+    assert 0x6505 in listed and {0x1008, 0x1400, 0x1800, 0x6040} <= listed
+    assert int(back["OPTIONALOBJECTS"]["supportedobjects"]) == len(listed)
+    assert "6505" not in back
