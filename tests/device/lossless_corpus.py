@@ -150,7 +150,8 @@ CASES = [
                                                  sub("5=0x6040\n", "5=0x6040\n6=0x6505\n"))),
     LosslessCase("unusable-factor-empty-description", chain(section_key("2001", "Factor", "ERROR"),
                                                             section_key("2001", "Description", ""),
-                                                            section_key("2001", "Unit", ""))),
+                                                            section_key("2001", "Unit", ""),
+                                                            section_key("2002", "Factor", "1"))),
 ]
 
 

@@ -174,6 +174,7 @@ def test_an_unusable_factor_and_an_empty_description_come_back_through_an_xdd(ap
     _, back = through_xdd(api, profile_id)
     assert back["2001"]["factor"] == "ERROR"
     assert back["2001"]["description"] == "" and back["2001"]["unit"] == ""
+    assert back["2002"]["factor"] == "1"  # a factor of 1, written out: no model field holds it either
 
 
 def test_an_object_listed_without_a_section_stays_listed_through_an_xdd(api: TestClient) -> None:
