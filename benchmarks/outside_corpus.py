@@ -31,6 +31,7 @@ from lxml import etree
 
 from drivebench.config import REPO_ROOT, settings
 from drivebench.device.formats.eds_ini import decode_text, parse_ini
+from drivebench.device.formats.eds_quirks import parse_int_strict
 from drivebench.web.app import create_app
 
 RESULTS = REPO_ROOT / "benchmarks" / "RESULTS.md"
@@ -226,12 +227,13 @@ def expanded(original: dict[tuple[str, str], str], back: dict[tuple[str, str], s
 
 
 def same_value(a: str, b: str) -> bool:
-    """Equal as text, or as numbers (``0x0007`` == ``7``), or as text without a trailing comment."""
+    """Equal as text, or as CiA 306 numbers (``0x0007`` == ``7``, ``001`` == ``0x00000001``), or as text without a
+    trailing comment."""
     a, b = a.split(";")[0].strip(), b.split(";")[0].strip()
     if a.lower() == b.lower():
         return True
     try:
-        return int(a, 0) == int(b, 0)
+        return parse_int_strict(a) == parse_int_strict(b)
     except ValueError:
         pass
     try:
@@ -358,35 +360,33 @@ def table(outcomes: list[Outcome]) -> list[str]:
 
 
 FINDINGS = (
-    "Findings (2026-11-29, third round: 43 files, the 35 of the second round and 8 added: ros2_canopen's simple.eds "
-    "(lely-written), python-canopen's sender.eds and all_datatypes.eds, Animatics' cog.eds (CANopen Design Tool), "
-    "node-canopen's example.eds and test.eds, gocanopen's test_zipped_format.eds and CANopenNode's demoDevice.xdd "
-    "(CANopenEditor, CiA 311 v1.1, 152 kB), the first real XDD accepted). "
-    "Before this round's fixes (main at 701d74f, the 35 files): 33 of 33 EDS/DCF byte-identical, 21 of 33 "
-    "EDS -> XDD -> EDS without a lost or changed key; changed: 60 sub-object ObjectType=0x09 (HEIG-VD), 38 objects "
-    "listed in another object list (lely-core's sdev.dcf, HEIG-VD), 7 empty ProductName= (lely-core), 2 ISO dates "
-    "(HEIG-VD); lost: CompactSubObj=255 (python-canopen, 3 files) and an ARRAY without sub-objects "
-    "(python-canopen's receiver.eds 0x3003, 7 keys). The 8 new files showed three more: node-canopen's ModifiedBy= "
-    "(an empty XDD file attribute was dropped on import), node-canopen's 16 empty ParameterName= (came back as "
-    "'Sub-index N'), and CANopenNode's fileModifiedBy on the device body only (the import read the communication "
-    "body's file attributes alone), and XDD -> XDD dropped CANopenNode's own parameter properties (CO_countLabel, "
-    "CO_storageGroup, CO_flagsPDO, CO_stringLengthMin: 30). Now: 40 of 40 byte-identical, 27 of 27 one-key "
-    "edits clean, 39 of 40 without a lost or changed key. Still lost: gocanopen's [ManufacturerObjects] lists "
-    "0x2000, which has no section (read "
-    "with a warning naming the line; an XDD has no place for an object that does not exist). The XDD -> XDD counts "
-    "of demoDevice.xdd are mostly form (the export writes values as object attributes, not as parameterList "
-    "parameters and dataTypeList structs, its CO_ properties now kept). Fourth round (branch corpus4): the real "
-    "losses of demoDevice.xdd fixed: the DeviceFunction characteristics, formatName/formatVersion/"
-    "supportedLanguages and the empty vendorID/productID "
-    "elements now go through XDD -> XDD and XDD -> EDS -> XDD (before: 2 ProfileBody@formatName, 2 formatVersion, "
-    "2 supportedLanguages, 1 DeviceFunction with its characteristic, 1 vendorID, 1 productID lost; the figure "
-    "'not in the export' was 3,128 of 5,248 before, 3,107 with these), and the parameters are written under the "
-    "file's uniqueIDs again (UID_SUB_100300 ..., each object's uniqueIDRef with them: 1,543 of 5,248 now). What "
-    "remains is layout: the values as object attributes, not as the parameter's defaultValue/access/IEC type, "
-    "no dataTypeList structs/arrays (varDeclaration, subrange) and the xsi:type prefix (ProfileBody@type: "
-    "'q1:ProfileBody_Device_CANopen' written without the prefix). The two CANopenEditorLB "
-    "XML files are not CiA 311 (root <DeviceProfile>) and are refused in words. The corpus is 43 files, not the "
-    "issue's 180: each file is transcribed through the read_file tool page by page (a 152 kB XDD is 10 pages).")
+    "Findings. Earlier rounds (43 files transcribed by hand from public repositories through a code-search tool: "
+    "lely-core, python-canopen, CanFestival, Victron/Sevcon, SysTec, Faulhaber, Schunk, Technosoft, HEIG-VD, "
+    "ros_canopen, node-canopen, gocanopen, Animatics, CANopenNode's demoDevice.xdd) brought every EDS/DCF to "
+    "byte-identical unedited exports and clean one-key edits, and fixed in EDS -> XDD -> EDS: sub-object "
+    "ObjectType=0x09, objects listed off their index range, empty ProductName=/ModifiedBy=/ParameterName=, ISO dates, "
+    "CompactSubObj=255, an ARRAY without sub-objects, and in XDD -> XDD the DeviceFunction, format attributes, empty "
+    "vendorID/productID, the tool's own properties and uniqueIDs; the XDD -> XDD count left is layout (values as "
+    "object attributes, no dataTypeList structs; branch xddtree). The two CANopenEditorLB XML files are not CiA 311 "
+    "(root <DeviceProfile>) and are refused in words. "
+    "Fifth round (branch corpus5): the corpus is rebuilt by benchmarks/outside_corpus_fetch.py from the package "
+    "registries (26 pinned releases: python-canopen 0.6.0-2.4.1, canopen-asyncio 2.4.1, canopen-lens 0.5.1 and "
+    "pycangui 0.4.1 source distributions on PyPI, node-canopen 1.1.1-6.2.1 tarballs on npm; 36 files in them, 19 "
+    "the same bytes as another) with the 43 hand-transcribed files beside them: 60 files, 17 new (python-canopen's "
+    "test/sample.eds in 10 versions and examples/eds/e35.eds in 3, node-canopen's test/sample.eds and "
+    "examples/example.eds, canopen-lens' sample_drive.eds, pycangui's demo.eds). The releases looked at of other "
+    "registry packages about CANopen carry none "
+    "(canopen-monitor, eds-utils, pyeds-editor, canopen-utils, objdictgen, uc2canopen, dryve-d1, durand, canscan, "
+    "hermes-canopen-nodes, pycanopendevice; oze-canopen's sdist did not build here), nor does a Debian package. "
+    "Before this "
+    "round's fixes (main at a1b6cc8, the 60 files): 57 of 57 byte-identical, 43 of 43 edits clean, 50 of 57 "
+    "EDS -> XDD -> EDS without a lost or changed key; lost: an object list entry of an object without a section "
+    "(python-canopen's e35.eds 0x6505 in 3 versions, gocanopen's 0x2000: 4 in 4 files), Factor=ERROR and an empty "
+    "Description= (python-canopen's sample.eds 0x3050 sub 2: 3 and 3 in 3 files). Both fixed: 57 of 57 without a "
+    "lost or changed key. The benchmark now compares numbers by CiA 306 (VendorNumber=001 against the XDD's "
+    "0x00000001 was counted as a change). The issue's 180 files stay out of reach: the registries hold few vendor "
+    "files, and hand transcription costs a read per 16 kB.")
+
 
 
 
@@ -394,8 +394,10 @@ def write(body: list[str], folder: Path) -> None:
     when = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
     absent = "" if (folder / "INDEX.md").exists() else ", absent here"
     text = "\n".join(["## Outside corpus", "", f"Written by `benchmarks/outside_corpus.py` on {when}: real EDS/DCF/XDD "
-                      "files nobody here wrote, from public repositories (kept outside this repository; their list "
-                      f"with repository, path and commit is the corpus's `INDEX.md`{absent}), "
+                      "files nobody here wrote, from public repositories and package releases (kept outside this "
+                      "repository; rebuilt by `benchmarks/outside_corpus_fetch.py`; their list with registry, "
+                      "package, version, path and sha256, or repository, path and commit, is the corpus's "
+                      f"`INDEX.md`{absent}), "
                       "each uploaded through the real app.", "", *body, "", FINDINGS, "", ""])
     current = RESULTS.read_text()
     pattern = re.compile(r"^## Outside corpus\n.*?(?=^## |\Z)", re.DOTALL | re.MULTILINE)

@@ -146,6 +146,12 @@ CASES = [
         "[2020]\nParameterName=TPDO\nObjectType=0x8\nSubNumber=2\n\n[2020sub0]\nParameterName=max sub-index\n"
         "ObjectType=0x7\nDataType=0x0005\nAccessType=ro\nDefaultValue=1\nPDOMapping=1\n\n[2020sub1]\nParameterName=\n"
         "ObjectType=0x7\nDataType=0x0005\nAccessType=rw\nDefaultValue=\nPDOMapping=1\n", 0x2020)),
+    LosslessCase("listed-without-section", chain(sub("SupportedObjects=5\n1=0x1008", "SupportedObjects=6\n1=0x1008"),
+                                                 sub("5=0x6040\n", "5=0x6040\n6=0x6505\n"))),
+    LosslessCase("unusable-factor-empty-description", chain(section_key("2001", "Factor", "ERROR"),
+                                                            section_key("2001", "Description", ""),
+                                                            section_key("2001", "Unit", ""),
+                                                            section_key("2002", "Factor", "1"))),
 ]
 
 

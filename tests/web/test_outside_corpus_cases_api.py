@@ -160,3 +160,34 @@ def test_an_empty_parameter_name_comes_back_through_an_xdd(api: TestClient) -> N
     assert renamed.status_code == 200, renamed.text
     assert_only_key_changed(content, api.get(f"/api/profiles/{profile_id}/eds", params={"regenerate": "true"}).content,
                             "empty.eds", "2020sub1", "ParameterName")
+
+
+def test_an_unusable_factor_and_an_empty_description_come_back_through_an_xdd(api: TestClient) -> None:
+    """python-canopen's sample.eds (test/sample.eds of the canopen releases 2.2.0 to 2.4.1 on PyPI) writes
+    ``Factor=ERROR``, ``Description=`` and ``Unit=`` on 0x3050 sub 2: the factor is read as 1 with a warning and all
+    three are written back as they were, also through EDS -> XDD -> EDS (they were lost there)."""
+    profile_id, content = upload(api, "unusable-factor-empty-description")
+    assert api.get(f"/api/profiles/{profile_id}/eds", params={"regenerate": "true"}).content == content
+    entry = next(o for o in api.get(f"/api/profiles/{profile_id}").json()["objects"]
+                 if (o["index"], o["subindex"]) in (("0x2001", 0), (0x2001, 0)))
+    assert entry.get("factor", 1) == 1
+    _, back = through_xdd(api, profile_id)
+    assert back["2001"]["factor"] == "ERROR"
+    assert back["2001"]["description"] == "" and back["2001"]["unit"] == ""
+    assert back["2002"]["factor"] == "1"  # a factor of 1, written out: no model field holds it either
+
+
+def test_an_object_listed_without_a_section_stays_listed_through_an_xdd(api: TestClient) -> None:
+    """python-canopen's examples/eds/e35.eds (canopen 1.2.1 to 2.4.1 on PyPI) and gocanopen's test_zipped_format.eds
+    list an object that has no section (0x6505 in [OptionalObjects]): no object is read (warned) and the listing is
+    kept (``extra_sections``), through the XDD as an ``EDS:[OptionalObjects]0x6505`` property, so the EDS written
+    back lists it again (it was lost there)."""
+    profile_id, content = upload(api, "listed-without-section")
+    assert api.get(f"/api/profiles/{profile_id}/eds", params={"regenerate": "true"}).content == content
+    profile = api.get(f"/api/profiles/{profile_id}").json()
+    assert not [o for o in profile["objects"] if o["index"] in ("0x6505", 0x6505)]
+    _, back = through_xdd(api, profile_id)
+    listed = {int(v, 16) for k, v in back["OPTIONALOBJECTS"].items() if k.isdigit()}
+    assert 0x6505 in listed and {0x1008, 0x1400, 0x1800, 0x6040} <= listed
+    assert int(back["OPTIONALOBJECTS"]["supportedobjects"]) == len(listed)
+    assert "6505" not in back

@@ -20,7 +20,8 @@ Decisions where CiA 306 leaves room:
 * ``CompactSubObj`` arrays are expanded (sub 0 ``NrOfObjects``, sub n ``<ParameterName><n>`` unless ``[xxxxName]``
   names it); ``ObjectType=0x2`` (DOMAIN) becomes a VAR of data type DOMAIN.
 * ``Unit``, ``Factor`` and ``Description`` (canopen's extensions) are read; with a factor, limits and defaults become
-  engineering units like every other profile. Other unknown keys inside object sections are ignored.
+  engineering units like every other profile. A ``Factor`` that gives 1 or no number (``Factor=ERROR``) is kept as
+  written with the object's other keys without a model field (``ObjectEntry.section_keys``).
 * Sections the model has no field for (``[DummyUsage]``, ``[DeviceComissioning]``, ``[Tools]`` ...) and the
   ``[FileInfo]``/``[DeviceInfo]`` keys without a model field go to ``Profile.extra_sections`` verbatim.
 * ``[DriveBench]`` (our own section, ignored by other tools) carries the profile id, family, version and source.
@@ -59,6 +60,7 @@ __all__ = ["MAX_EDS_BYTES", "ImportWarning", "ImportedEds", "Key", "Section", "d
 
 BAUD_RATES_KBIT = (10, 20, 50, 125, 250, 500, 800, 1000)
 OBJECT_LISTS = ("MandatoryObjects", "OptionalObjects", "ManufacturerObjects")
+_KEPT_LISTING = re.compile(r"^0x[0-9A-F]{4}$", re.IGNORECASE)
 OBJECT_TYPE_CODES = {"VAR": 0x7, "ARRAY": 0x8, "RECORD": 0x9}
 DEFAULT_FAMILY = "eds"
 OWN_SECTION = "DriveBench"
@@ -163,6 +165,9 @@ class _Reader:
         self.source = source
         self.notes = notes
         self.list_names: dict[int, str] = {}
+        self.unsectioned: dict[str, dict[str, str]] = {}
+        """Listings of objects without a section, by object list: ``{"OptionalObjects": {"0x6505": "104"}}`` (the
+        index and the entry's number; kept in ``Profile.extra_sections`` so every export lists them again)."""
         """The object list each listed index is in."""
 
     def fail(self, detail: str, line: int | None) -> ProfileError:
@@ -195,6 +200,9 @@ class _Reader:
             if section is None:
                 continue
             numbered = sorted((k for k in section.keys.values() if k.name.isdigit()), key=lambda k: int(k.name))
+            for key in section.keys.values():  # ``0x6505=104``: a kept listing as an XDD gives it back
+                if not key.name.isdigit() and key.name.lower() != "supportedobjects" and _KEPT_LISTING.match(key.name):
+                    self.unsectioned.setdefault(list_name, {})[key.name] = key.value
             count_key = section.get("SupportedObjects")
             count = self.integer(count_key) if count_key is not None else None
             if count_key is None:
@@ -245,6 +253,7 @@ class _Reader:
             if index not in by_index and index not in subs:
                 self.warn(key.line, key.name, Text(N_("object 0x{index:04X} is listed but has no [{index:04X}] "
                                                       "section: skipped"), index=index))
+                self.unsectioned.setdefault(self.list_names[index], {})[f"0x{index:04X}"] = key.name
         for index, sub_sections in subs.items():
             if index not in by_index and index >= 0x1000:
                 first = min(sub_sections.values(), key=lambda s: s.line)
@@ -529,6 +538,9 @@ class _Reader:
             fields["value_texts"] = kept
         other = {k.name: k.value for name, k in section.keys.items() if name not in _MODEL_KEYS} if own_values \
             else {}
+        factor_key = section.get("Factor")
+        if factor_key is not None and factor == 1 and own_values:  # ``Factor=ERROR``, ``Factor=1``: no field holds it
+            other[factor_key.name] = factor_key.value
         if other:
             fields["section_keys"] = other
         try:
@@ -779,6 +791,7 @@ def read_sections(sections: dict[str, Section], source: str, notes: Warnings, *,
     device_extra = {k: v for k, v in device_extra.items() if DEVICE_INFO_DEFAULTS.get(k) != v}
     if device_extra:
         extra["DeviceInfo"] = device_extra
+    extra.update(reader.unsectioned)
     comments = reader.sections.get("COMMENTS")
     if comments is not None and not profile.notes:  # ``[Comments] Lines=0``: no line, and the section kept
         extra["Comments"] = {k.name: k.value for k in comments.keys.values()}

@@ -345,13 +345,15 @@ def export_eds(profile: Profile, *, node_id: int | None = None, values: Mapping[
     if dcf or commissioning:
         out.section("DeviceComissioning", commissioning.items())
     for list_name in ("MandatoryObjects", "OptionalObjects", "ManufacturerObjects"):
-        listed = [i for i, es in by_index.items() if (es[0].object_list or range_object_list(i)) == list_name]
+        listed = sorted({i for i, es in by_index.items() if (es[0].object_list or range_object_list(i)) == list_name}
+                        | {int(index, 16) for index in _extra(profile, list_name)})  # listed, without a section
         out.section(list_name, [("SupportedObjects", len(listed)),
                                 *((str(n), f"0x{i:04X}") for n, i in enumerate(listed, start=1))])
     for index, entries in by_index.items():
         for section_name, section_keys in _object_sections(index, entries, parameter_value):
             out.section(section_name, section_keys)
-    handled = {"fileinfo", "deviceinfo", "devicecomissioning", "comments", OWN_SECTION.lower()}
+    handled = {"fileinfo", "deviceinfo", "devicecomissioning", "comments", OWN_SECTION.lower(),
+               "mandatoryobjects", "optionalobjects", "manufacturerobjects"}
     for name, keys in profile.extra_sections.items():
         if name.lower() not in handled:
             out.section(name, keys.items())

@@ -390,7 +390,7 @@ class _Builder:
                     self.put(section, child.sourceline or line, "Denotation", text)
             elif name == "label" and (child.text or "").strip():
                 self.put(section, line, "ParameterName", (child.text or "").strip())
-            elif name == "description" and (child.text or "").strip():
+            elif name == "description":  # an empty one too: the EDS's ``Description=`` it was written from
                 self.put(section, child.sourceline or line, "Description", (child.text or "").strip())
             elif name in ("defaultValue", "actualValue") and child.get("value") is not None:
                 key = "DefaultValue" if name == "defaultValue" else "ParameterValue"
