@@ -1,0 +1,150 @@
+"""The regenerated XDD written over the file it came from (issue 34): unedited it is the file, byte for byte; after
+one edit only that value differs in the XML tree, written where the file holds it (an object attribute, or the
+parameter's ``defaultValue`` element in the object dictionary editors' layout), in the file's style. Over files of
+both CiA 311 layouts, the XDD test files and hypothesis-generated files."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from lxml import etree
+
+from drivebench.device.formats.xdd import read_xdd
+from drivebench.device.profiles.loader import LoadedFile
+from drivebench.device.profiles.profile import Profile
+from drivebench.services.profiles.edit import ObjectEdit, edited, regenerated_xdd
+from tests.device.xdd_quirk_corpus import CASES
+from tests.device.xdd_rewrite_corpus import (
+    ATTRIBUTES,
+    IEC,
+    PARAMETERS,
+    REWRITE_FILES,
+    VARS,
+    Var,
+    attribute_xdd,
+    parameter_xdd,
+)
+from tests.device.xml_trees import tree_changes
+
+DATA_XDD = Path(__file__).parent.parent / "data" / "xdd"
+ALL_FILES = REWRITE_FILES + [(n, c) for n, c in CASES if n.endswith(".xdd")] + [
+    (p.name, p.read_bytes()) for p in sorted(DATA_XDD.iterdir())]
+
+
+def regenerated(profile: Profile, content: bytes, name: str) -> bytes:
+    return regenerated_xdd(LoadedFile(profile, [], content, Path(name).suffix))
+
+
+@pytest.mark.parametrize(("name", "content"), ALL_FILES, ids=[n for n, _ in ALL_FILES])
+def test_an_unedited_profile_regenerates_its_xdd_byte_for_byte(name: str, content: bytes) -> None:
+    profile = read_xdd(content, source=name).profile
+    assert regenerated(profile, content, name) == content
+
+
+@pytest.mark.parametrize(("content", "place"), [
+    (ATTRIBUTES, ("CANopenObject[index=2000]", "@defaultValue", "0x0BB8", "0x0DAC")),
+    (PARAMETERS, ("parameter[uniqueID=UID_OBJ_2000]/{http://www.canopen.org/xml/1.1}defaultValue[1]", "@value",
+                  "0x0BB8", "0x0DAC"))], ids=["attributes", "parameters"])
+def test_one_edited_default_changes_only_that_value_where_the_file_holds_it(
+        content: bytes, place: tuple[str, str, str, str]) -> None:
+    profile = read_xdd(content, source="in.xdd").profile
+    written = regenerated(edited(profile, 0x2000, 0, ObjectEdit(default=3500)), content, "in.xdd")
+    gone, added = tree_changes(content, written)
+    tail, attribute, old, new = place
+    assert len(gone) == len(added) == 1, (gone, added)
+    assert gone[0][0].endswith(tail) and gone[0][1:] == (attribute, old), gone
+    assert added[0][0] == gone[0][0] and added[0][1:] == (attribute, new), added
+    again = {(o.index, o.subindex): o for o in read_xdd(written, source="in.xdd").profile.objects}
+    assert again[(0x2000, 0)].default == 3500
+    assert written.startswith(content[:content.index(b"<ISO15745ProfileContainer")])  # declaration, comment kept
+
+
+@pytest.mark.parametrize("content", [ATTRIBUTES, PARAMETERS], ids=["attributes", "parameters"])
+@pytest.mark.parametrize(("field", "value"), [("max", 9000), ("min", 10), ("name", "Speed limit"),
+                                              ("description", "The speed limit"), ("unit", "rpm"),
+                                              ("default", None), ("denotation", "left axis")])
+def test_each_field_of_an_edit_comes_back_and_nothing_else_changes(content: bytes, field: str,
+                                                                   value: object) -> None:
+    profile = read_xdd(content, source="in.xdd").profile
+    changed = edited(profile, 0x2000, 0, ObjectEdit(**{field: value}))
+    written = regenerated(changed, content, "in.xdd")
+    again = read_xdd(written, source="in.xdd").profile
+    assert again.model_dump(exclude={"id"}) == changed.model_dump(exclude={"id"})
+    gone, added = tree_changes(content, written)
+    touched = {path for path, _, _ in gone + added}
+    assert all("index=2000" in path or "UID_OBJ_2000" in path for path in touched), (gone, added)
+
+
+@pytest.mark.parametrize("content", [ATTRIBUTES, PARAMETERS], ids=["attributes", "parameters"])
+def test_added_and_removed_objects_in_the_files_style(content: bytes) -> None:
+    profile = read_xdd(content, source="in.xdd").profile
+    extra = next(o for o in profile.objects if o.index == 0x2001).model_copy(
+        update={"index": 0x2FFF, "name": "Added", "xdd_unique_id": None})
+    fewer = [o for o in profile.objects if o.index != 0x2001]
+    for objects in ([*profile.objects, extra], fewer):
+        changed = profile.model_copy(update={"objects": objects})
+        written = regenerated(changed, content, "in.xdd")
+        again = read_xdd(written, source="in.xdd")
+        assert again.profile.model_dump(exclude={"id"}) == changed.model_dump(exclude={"id"})
+        assert [w.message for w in again.warnings] == [w.message for w in read_xdd(content, source="in.xdd").warnings]
+        namespace = etree.QName(etree.fromstring(content)).namespace
+        tags = {etree.QName(e).namespace for e in etree.fromstring(written).iter("{*}CANopenObject")}
+        assert tags == {namespace}
+        if content is PARAMETERS:  # the values on the parameter, as the file keeps them
+            assert b'<CANopenObject index="2FFF" name="Added" objectType="7" PDOmapping="optional"' in written \
+                or objects is fewer
+            assert (b'UID_OBJ_2001"' in written) is (objects is not fewer)
+
+
+# --- hypothesis: generated files of both layouts ----------------------------------------------------------
+RANGES = {0x0005: (0, 0xFF), 0x0006: (0, 0xFFFF), 0x0007: (0, 0xFFFFFFFF), 0x0002: (-128, 127),
+          0x0003: (-32768, 32767), 0x0004: (-(1 << 31), (1 << 31) - 1)}
+
+
+@st.composite
+def xdd_files(draw: st.DrawFn) -> tuple[bytes, list[tuple[int, int, int]]]:
+    """An XDD of either layout with random VAR objects (type, default in decimal or hex of any digit count and
+    case), line ends; and (index, type, default) of each."""
+    count = draw(st.integers(1, 5))
+    variables, facts = [], []
+    for n in range(count):
+        code = draw(st.sampled_from(sorted(IEC)))
+        low, high = RANGES[code]
+        value = draw(st.integers(max(low, 0) if draw(st.booleans()) else low, high))
+        text = str(value)
+        if value >= 0 and draw(st.booleans()):
+            digits = f"{value:0{draw(st.integers(1, 8))}X}"
+            text = "0x" + (digits.lower() if draw(st.booleans()) else digits)
+        variables.append(Var(0x2000 + n, code, text))
+        facts.append((0x2000 + n, code, value))
+    build = draw(st.sampled_from([attribute_xdd, parameter_xdd]))
+    return build(variables, newline=draw(st.sampled_from(["\n", "\r\n"]))), facts
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(xdd_files(), st.data())
+def test_generated_files_regenerate_unchanged_and_one_edit_changes_one_value(
+        generated: tuple[bytes, list[tuple[int, int, int]]], data: st.DataObject) -> None:
+    content, objects = generated
+    profile = read_xdd(content, source="generated.xdd").profile
+    assert regenerated(profile, content, "generated.xdd") == content
+    index, code, value = data.draw(st.sampled_from(objects))
+    low, high = RANGES[code]
+    new = data.draw(st.integers(low, high).filter(lambda v: v != value))
+    written = regenerated(edited(profile, index, 0, ObjectEdit(default=new)), content, "generated.xdd")
+    gone, added = tree_changes(content, written)
+    assert len(gone) == len(added) == 1 and gone[0][0] == added[0][0] and gone[0][1] == added[0][1], (gone, added)
+    assert f"{index:04X}" in gone[0][0]
+    again = read_xdd(written, source="generated.xdd").profile.objects
+    assert next(o.default for o in again if (o.index, o.subindex) == (index, 0)) == new
+
+
+def test_the_fixed_files_hold_what_they_say() -> None:
+    assert [v.index for v in VARS] == [0x2000, 0x2001, 0x2002]
+    for content in (ATTRIBUTES, PARAMETERS):
+        objects = {(o.index, o.subindex): o for o in read_xdd(content, source="in.xdd").profile.objects}
+        assert objects[(0x2000, 0)].default == 3000 and objects[(0x2000, 0)].max == 8000
+        assert objects[(0x2001, 0)].default == -5 and objects[(0x1018, 1)].default in (0x4D2, 0)
