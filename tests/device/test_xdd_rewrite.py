@@ -5,6 +5,7 @@ both CiA 311 layouts, the XDD test files and hypothesis-generated files."""
 
 from __future__ import annotations
 
+import difflib
 from pathlib import Path
 
 import pytest
@@ -20,6 +21,7 @@ from tests.device.xdd_quirk_corpus import CASES
 from tests.device.xdd_rewrite_corpus import (
     ATTRIBUTES,
     IEC,
+    MARKUP,
     PARAMETERS,
     REWRITE_FILES,
     VARS,
@@ -36,6 +38,23 @@ ALL_FILES = REWRITE_FILES + [(n, c) for n, c in CASES if n.endswith(".xdd")] + [
 
 def regenerated(profile: Profile, content: bytes, name: str) -> bytes:
     return regenerated_xdd(LoadedFile(profile, [], content, Path(name).suffix))
+
+
+def changed_lines(before: bytes, after: bytes) -> list[str]:
+    """The lines that differ: the removed ones with '-', then the added ones with '+'."""
+    old, new = before.decode().splitlines(), after.decode().splitlines()
+    changed: list[str] = []
+    for tag, i1, i2, j1, j2 in difflib.SequenceMatcher(None, old, new, autojunk=False).get_opcodes():
+        if tag != "equal":
+            changed += [f"-{line}" for line in old[i1:i2]] + [f"+{line}" for line in new[j1:j2]]
+    return changed
+
+
+def assert_one_value_changed(before: bytes, after: bytes, old: str, new: str) -> None:
+    """One line differs, and in it only the value text (every other byte of the file is as it was)."""
+    changed = changed_lines(before, after)
+    assert len(changed) == 2 and changed[0][0] == "-" and changed[1][0] == "+", changed
+    assert changed[0][1:].replace(f'"{old}"', f'"{new}"') == changed[1][1:], changed
 
 
 @pytest.mark.parametrize(("name", "content"), ALL_FILES, ids=[n for n, _ in ALL_FILES])
@@ -59,6 +78,7 @@ def test_one_edited_default_changes_only_that_value_where_the_file_holds_it(
     assert added[0][0] == gone[0][0] and added[0][1:] == (attribute, new), added
     again = {(o.index, o.subindex): o for o in read_xdd(written, source="in.xdd").profile.objects}
     assert again[(0x2000, 0)].default == 3500
+    assert_one_value_changed(content, written, "0x0BB8", "0x0DAC")
     assert written.startswith(content[:content.index(b"<ISO15745ProfileContainer")])  # declaration, comment kept
 
 
@@ -93,6 +113,8 @@ def test_added_and_removed_objects_in_the_files_style(content: bytes) -> None:
         namespace = etree.QName(etree.fromstring(content)).namespace
         tags = {etree.QName(e).namespace for e in etree.fromstring(written).iter("{*}CANopenObject")}
         assert tags == {namespace}
+        changed = changed_lines(content, written)  # lines added or taken out, no other line touched
+        assert changed and {line[0] for line in changed} == ({"+"} if objects is not fewer else {"-"}), changed
         if content is PARAMETERS:  # the values on the parameter, as the file keeps them
             assert b'<CANopenObject index="2FFF" name="Added" objectType="7" PDOmapping="optional"' in written \
                 or objects is fewer
@@ -138,8 +160,26 @@ def test_generated_files_regenerate_unchanged_and_one_edit_changes_one_value(
     gone, added = tree_changes(content, written)
     assert len(gone) == len(added) == 1 and gone[0][0] == added[0][0] and gone[0][1] == added[0][1], (gone, added)
     assert f"{index:04X}" in gone[0][0]
+    assert len(changed_lines(content, written)) == 2
     again = read_xdd(written, source="generated.xdd").profile.objects
     assert next(o.default for o in again if (o.index, o.subindex) == (index, 0)) == new
+
+
+def test_a_value_in_a_start_tag_over_two_lines_changes_on_its_line() -> None:
+    profile = read_xdd(ATTRIBUTES, source="in.xdd").profile
+    written = regenerated(edited(profile, 0x1000, 0, ObjectEdit(default=0x00040191)), ATTRIBUTES, "in.xdd")
+    assert_one_value_changed(ATTRIBUTES, written, "0x00030191", "0x00040191")
+
+
+@pytest.mark.parametrize(("index", "old", "new", "value"), [(0x2001, "-5", "-6", -6),
+                                                        (0x2000, "0x0BB8", "0x0DAC", 3500)])
+def test_markup_around_an_edit_keeps_its_bytes(index: int, old: str, new: str, value: int) -> None:
+    profile = read_xdd(MARKUP, source="in.xdd").profile
+    written = regenerated(edited(profile, index, 0, ObjectEdit(default=value)), MARKUP, "in.xdd")
+    changed = changed_lines(MARKUP, written)
+    assert len(changed) == 2 and changed[0][1:].replace(f"'{old}'", f"'{new}'").replace(
+        f'"{old}"', f'"{new}"') == changed[1][1:], changed
+    assert b"<?tool keep?>" in written and b"<![CDATA[CiA 401 <device>]]>" in written
 
 
 def test_the_fixed_files_hold_what_they_say() -> None:

@@ -228,3 +228,12 @@ ATTRIBUTES = attribute_xdd(VARS)
 PARAMETERS = parameter_xdd(VARS)
 REWRITE_FILES: list[tuple[str, bytes]] = [("attributes.xdd", ATTRIBUTES), ("parameters.xdd", PARAMETERS),
                                           ("parameters-crlf.xdd", parameter_xdd(VARS, newline="\r\n"))]
+MARKUP = ATTRIBUTES.replace(
+    b'<description lang="en">CiA 401 device, 8 inputs</description>',
+    b'<description lang="en"><![CDATA[CiA 401 <device>]]>, &#x38; inputs</description>').replace(
+    b"<CANopenObjectList>", b"<CANopenObjectList>\n          <!-- objects: <2000> and up -->").replace(
+    b'<CANopenObject index="2001" name="Value 2001"', b"<CANopenObject index='2001' name='Value > 2001'").replace(
+    b'<CANopenMasterFeatures />', b"<CANopenMasterFeatures></CANopenMasterFeatures><?tool keep?>")
+"""The attribute layout with markup a scanner of tags must step over: CDATA with ``<``, a character reference, a
+comment in the object list, single quotes, ``>`` in an attribute value, ``<x></x>`` and a processing instruction."""
+REWRITE_FILES.append(("markup.xdd", MARKUP))

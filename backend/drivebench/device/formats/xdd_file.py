@@ -10,6 +10,7 @@ from lxml import etree
 from drivebench.device.formats.eds_rewrite import styled
 from drivebench.device.formats.xdd import local
 from drivebench.device.formats.xdd_export import IEC_TYPES
+from drivebench.device.formats.xdd_splice import Snapshot
 from drivebench.device.formats.xdd_tree import (
     communication_body,
     insert,
@@ -55,6 +56,8 @@ class XddFile:
 
     def __init__(self, original: bytes, source: str) -> None:
         self.root = read_tree(original, source)
+        self.snapshot = Snapshot(self.root)
+        """The tree as read, so what nobody changed is written as its bytes were."""
         body = communication_body(self.root)
         listing = object_list(body) if body is not None else None
         if listing is None:

@@ -85,4 +85,4 @@ def rewrite_xdd(profile: Profile, original: bytes, source: str) -> bytes:
         else:
             file.set_value(target, name, old_text, new_text, unique_id)
     add_objects(file, {a: after[a] for a in after.keys() - before.keys()}, after_params)
-    return written(original, file.root)
+    return written(original, file.root, file.snapshot)

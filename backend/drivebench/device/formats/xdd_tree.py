@@ -8,6 +8,7 @@ from lxml import etree
 
 from drivebench.device.formats.dcf_patch import file_encoding
 from drivebench.device.formats.xdd import local, parse_xml
+from drivebench.device.formats.xdd_splice import Snapshot, spliced
 
 Address = tuple[int, int | None]
 """(index, None) for a CANopenObject, (index, subindex) for a CANopenSubObject."""
@@ -150,14 +151,19 @@ def _root_start(text: str) -> int:
             return at
 
 
-def written(original: bytes, root: etree._Element) -> bytes:
+def written(original: bytes, root: etree._Element, snapshot: Snapshot | None = None) -> bytes:
     """``root`` as the file ``original`` was: its text before and after the root element (XML declaration,
-    comments) as it was, in its encoding and with its BOM."""
+    comments) as it was, in its encoding and with its BOM; with the ``snapshot`` of the tree as read, every node
+    nobody changed as its bytes were (:mod:`~drivebench.device.formats.xdd_splice`), else the tree serialized."""
     encoding, bom = file_encoding(original)
     declared = root.getroottree().docinfo.encoding
     if bom == b"" and declared and encoding in ("utf-8", "cp1252", "latin-1"):
         encoding = declared
     text = original[len(bom):].decode(encoding, errors="replace")
     start, end = _root_start(text), _skip_back(text, len(text))
-    body = etree.tostring(root, encoding="unicode", with_tail=False)
+    kept = spliced(text, start, root, snapshot) if snapshot is not None else None
+    if kept is not None:
+        body, end = kept
+    else:
+        body = etree.tostring(root, encoding="unicode", with_tail=False)
     return bom + (text[:start] + body + text[end:]).encode(encoding, errors="xmlcharrefreplace")
