@@ -182,6 +182,19 @@ def test_markup_around_an_edit_keeps_its_bytes(index: int, old: str, new: str, v
     assert b"<?tool keep?>" in written and b"<![CDATA[CiA 401 <device>]]>" in written
 
 
+@pytest.mark.parametrize(("encoding", "bom", "declared"), [
+    ("utf-16-le", b"\xff\xfe", "UTF-16"), ("utf-16-be", b"", "UTF-16"), ("latin-1", b"", "ISO-8859-1"),
+    ("utf-8", b"\xef\xbb\xbf", "utf-8")])
+def test_an_edit_keeps_the_files_encoding_and_bom(encoding: str, bom: bytes, declared: str) -> None:
+    text = ATTRIBUTES.decode().replace('encoding="utf-8"', f'encoding="{declared}"').replace("Example IO", "Müller IO")
+    content = bom + text.encode(encoding)
+    profile = read_xdd(content, source="wide.xdd").profile
+    assert regenerated(profile, content, "wide.xdd") == content
+    written = regenerated(edited(profile, 0x2000, 0, ObjectEdit(default=3500)), content, "wide.xdd")
+    assert written.startswith(bom)
+    assert_one_value_changed(text.encode(), written[len(bom):].decode(encoding).encode(), "0x0BB8", "0x0DAC")
+
+
 def test_the_fixed_files_hold_what_they_say() -> None:
     assert [v.index for v in VARS] == [0x2000, 0x2001, 0x2002]
     for content in (ATTRIBUTES, PARAMETERS):
