@@ -83,19 +83,23 @@ def test_one_edited_default_changes_only_that_value_where_the_file_holds_it(
 
 
 @pytest.mark.parametrize("content", [ATTRIBUTES, PARAMETERS], ids=["attributes", "parameters"])
-@pytest.mark.parametrize(("field", "value"), [("max", 9000), ("min", 10), ("name", "Speed limit"),
-                                              ("description", "The speed limit"), ("unit", "rpm"),
-                                              ("default", None), ("denotation", "left axis")])
-def test_each_field_of_an_edit_comes_back_and_nothing_else_changes(content: bytes, field: str,
+@pytest.mark.parametrize(("index", "field", "value"), [
+    (0x2000, "max", 9000), (0x2000, "min", 10), (0x2000, "min", None), (0x2001, "max", 100), (0x2001, "min", -100),
+    (0x2000, "name", "Speed limit"), (0x2000, "description", "The speed limit"), (0x2000, "unit", "rpm"),
+    (0x2000, "default", None), (0x2000, "denotation", "left axis"), (0x2000, "parameter_value", 1200),
+    (0x2002, "default", 7)])
+def test_each_field_of_an_edit_comes_back_and_nothing_else_changes(content: bytes, index: int, field: str,
                                                                    value: object) -> None:
     profile = read_xdd(content, source="in.xdd").profile
-    changed = edited(profile, 0x2000, 0, ObjectEdit(**{field: value}))
+    changed = edited(profile, index, 0, ObjectEdit(**{field: value}))
     written = regenerated(changed, content, "in.xdd")
     again = read_xdd(written, source="in.xdd").profile
     assert again.model_dump(exclude={"id"}) == changed.model_dump(exclude={"id"})
     gone, added = tree_changes(content, written)
     touched = {path for path, _, _ in gone + added}
-    assert all("index=2000" in path or "UID_OBJ_2000" in path for path in touched), (gone, added)
+    assert touched and all(f"index={index:04X}" in path or f"UID_OBJ_{index:04X}" in path for path in touched), (
+        gone, added)
+    assert all(line.strip() for line in changed_lines(content, written))  # no blank line left or added
 
 
 @pytest.mark.parametrize("content", [ATTRIBUTES, PARAMETERS], ids=["attributes", "parameters"])
@@ -193,6 +197,16 @@ def test_an_edit_keeps_the_files_encoding_and_bom(encoding: str, bom: bytes, dec
     written = regenerated(edited(profile, 0x2000, 0, ObjectEdit(default=3500)), content, "wide.xdd")
     assert written.startswith(bom)
     assert_one_value_changed(text.encode(), written[len(bom):].decode(encoding).encode(), "0x0BB8", "0x0DAC")
+
+
+def test_limits_removed_take_their_range_along_and_new_elements_get_their_own_lines() -> None:
+    profile = read_xdd(PARAMETERS, source="in.xdd").profile
+    written = regenerated(edited(profile, 0x2000, 0, ObjectEdit(min=None, max=None)), PARAMETERS, "in.xdd")
+    assert {line[0] for line in changed_lines(PARAMETERS, written)} == {"-"}
+    assert b"allowedValues" not in written.split(b'UID_OBJ_2000"', 1)[1].split(b"</q1:parameter>", 1)[0]
+    written = regenerated(edited(profile, 0x2001, 0, ObjectEdit(max=100)), PARAMETERS, "in.xdd")
+    assert [line[0] + line[1:].strip() for line in changed_lines(PARAMETERS, written)] == [
+        "+<q1:allowedValues>", "+<q1:range>", '+<q1:maxValue value="100" />', "+</q1:range>", "+</q1:allowedValues>"]
 
 
 def test_the_fixed_files_hold_what_they_say() -> None:

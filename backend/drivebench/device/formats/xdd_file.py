@@ -130,12 +130,12 @@ class XddFile:
         if local(held) in ("parameter", "parameterTemplate"):
             held.attrib.pop("access", None)
             return
+        parent = held.getparent()
         remove(held)
-        for ancestor in ("range", "allowedValues"):
-            parent = next((p for p in [held.getparent()] if p is not None and local(p) == ancestor), None)
-            if parent is not None and not len(parent):
-                held = parent
-                remove(parent)
+        while parent is not None and local(parent) in ("range", "allowedValues") and not len(parent):
+            above = parent.getparent()
+            remove(parent)  # no limit left: the range and allowedValues that held them go too
+            parent = above
 
     def _set_held(self, parameter: etree._Element, held: etree._Element | None, attribute: str, old: str | None,
                   new: str | None) -> None:

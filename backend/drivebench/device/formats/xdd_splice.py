@@ -96,6 +96,12 @@ class _Writer:
         self.snapshot = snapshot
         self.spans = spans
         self.empty_end = " />" if text.count(" />") > text.count("/>") - text.count(" />") else "/>"
+        self.newline = "\r\n" if "\r\n" in text else "\n"
+
+    def fresh(self, text: str | None) -> str:
+        """Text the file did not have, escaped, with the file's line ends (the parser gave them as LF)."""
+        escaped = _escape(text or "")
+        return escaped.replace("\n", self.newline) if self.newline != "\n" else escaped
 
     def node(self, node: etree._Element) -> tuple[str, bool]:
         """The text of ``node`` and whether it is as read (its whole subtree)."""
@@ -131,13 +137,13 @@ class _Writer:
         if node.text == state.text and span.close >= 0:
             first = next((self.spans[c].start for c in state.children if c in self.spans), span.close)
             return self.text[span.tag_end:first]
-        return _escape(node.text or "")
+        return self.fresh(node.text)
 
     def tail(self, child: etree._Element) -> str:
         span = self.spans.get(child)
         state = self.snapshot.states.get(child)
         if span is None or state is None or child.tail != state.tail:
-            return _escape(child.tail or "")
+            return self.fresh(child.tail)
         parent = child.getparent()
         siblings = self.snapshot.states[parent].children if parent is not None else []
         at = siblings.index(child) if child in siblings else -1
@@ -145,7 +151,7 @@ class _Writer:
         parent_span = self.spans.get(parent) if parent is not None else None
         stop = self.spans[following].start if following is not None else (
             parent_span.close if parent_span is not None else -1)
-        return self.text[span.end:stop] if stop >= span.end else _escape(child.tail or "")
+        return self.text[span.end:stop] if stop >= span.end else self.fresh(child.tail)
 
     def start_tag(self, tag: str, old: dict[str, str], attributes: list[tuple[str, str]]) -> str:
         """``tag`` with the attributes that changed rewritten, removed ones out, new ones after the last."""
@@ -186,8 +192,7 @@ class _Writer:
             declarations += ' xmlns=""'
         attributes = "".join(f' {_attribute_name(node, k)}="{_escape(str(v), quote=chr(34))}"'
                              for k, v in node.attrib.items())
-        content = _escape(node.text or "") + "".join(
-            self.node(child)[0] + _escape(child.tail or "") for child in node)
+        content = self.fresh(node.text) + "".join(self.node(child)[0] + self.fresh(child.tail) for child in node)
         head = f"<{self.qname(node)}{declarations}{attributes}"
         return f"{head}>{content}</{self.qname(node)}>" if content else f"{head}{self.empty_end}"
 

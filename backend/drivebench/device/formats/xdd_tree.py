@@ -97,19 +97,46 @@ def new_child(root: etree._Element, parent: etree._Element, name: str, /, **attr
     return element
 
 
+def _indent_of(element: etree._Element) -> str | None:
+    """The whitespace (a line end and the indentation) before ``element``, where it has its own line."""
+    previous, parent = element.getprevious(), element.getparent()
+    space = previous.tail if previous is not None else parent.text if parent is not None else None
+    return space if space is not None and not space.strip() and "\n" in space else None
+
+
+def _pretty(element: etree._Element, indent: str) -> None:
+    """``element``'s children each on their own line, two spaces in from ``indent`` (``element``'s own); text
+    that is not whitespace stays as it is."""
+    if not len(element) or (element.text is not None and element.text.strip()):
+        return
+    inner = indent + "  "
+    element.text = inner
+    for child in element:
+        if child.tail is None or not child.tail.strip():
+            child.tail = inner
+        _pretty(child, inner)
+    last = element[-1]
+    if last.tail is None or not last.tail.strip():
+        last.tail = indent
+
+
 def insert(parent: etree._Element, at: int, element: etree._Element) -> None:
-    """``element`` as child ``at`` of ``parent``, with the whitespace its siblings have."""
-    indent = parent.text if parent.text is not None and not parent.text.strip() else None
+    """``element`` as child ``at`` of ``parent``, with the whitespace its siblings have (its own children on
+    their lines, indented one step further)."""
+    outer = _indent_of(parent)
+    indent = parent.text if len(parent) and parent.text is not None and not parent.text.strip() else (
+        outer + "  " if outer is not None else None)
     if len(parent) == 0:
-        closing = indent
-        parent.text = (closing or "") + "  " if closing is not None else None
-        element.tail = closing
+        if indent is not None:
+            parent.text, element.tail = indent, outer
     elif at >= len(parent):
         last = parent[-1]
         element.tail, last.tail = last.tail, indent if indent is not None else last.tail
     else:
         element.tail = indent
     parent.insert(at, element)
+    if indent is not None:
+        _pretty(element, indent)
 
 
 def remove(element: etree._Element) -> None:
