@@ -16,6 +16,8 @@ one is the file's tree, its XML declaration, comments and encoding as they were.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from lxml import etree
 
 from drivebench.device.formats.xdd import local, read_xdd
@@ -52,10 +54,12 @@ def _parameter_facts(element: etree._Element | None, params: dict[str, etree._El
     return facts
 
 
-def rewrite_xdd(profile: Profile, original: bytes, source: str) -> bytes:
-    """``profile`` as an XDD written over ``original`` (the XDD/XDC it was read from): only its edits change."""
+def rewrite_xdd(profile: Profile, original: bytes, source: str,
+                finish: Callable[[etree._Element], None] | None = None) -> bytes:
+    """``profile`` as an XDD written over ``original`` (the XDD/XDC it was read from): only its edits change;
+    ``finish`` changes the tree further before it is written (an XDC's ``deviceCommissioning``)."""
     baseline = read_xdd(original, source=source).profile.model_copy(update={"id": profile.id})
-    if baseline == profile:
+    if baseline == profile and finish is None:
         return original
     outside = {"id", "objects"}
     if baseline.model_dump(exclude=outside) != profile.model_dump(exclude=outside):
@@ -70,7 +74,7 @@ def rewrite_xdd(profile: Profile, original: bytes, source: str) -> bytes:
         new_facts = _parameter_facts(after[address], after_params)
         changes += [(address, f, None, new_facts.get(f)) for f in sorted(old_facts.keys() | new_facts.keys())
                     if old_facts.get(f) != new_facts.get(f)]
-    if not changes and before.keys() == after.keys():
+    if not changes and before.keys() == after.keys() and finish is None:
         return original
     file = XddFile(original, source)
     remove_objects(file, before.keys() - after.keys())
@@ -85,4 +89,6 @@ def rewrite_xdd(profile: Profile, original: bytes, source: str) -> bytes:
         else:
             file.set_value(target, name, old_text, new_text, unique_id)
     add_objects(file, {a: after[a] for a in after.keys() - before.keys()}, after_params)
+    if finish is not None:
+        finish(file.root)
     return written(original, file.root, file.snapshot)

@@ -97,6 +97,8 @@ class _Writer:
         self.spans = spans
         self.empty_end = " />" if text.count(" />") > text.count("/>") - text.count(" />") else "/>"
         self.newline = "\r\n" if "\r\n" in text else "\n"
+        self.chosen: dict[etree._Element, str | None] = {}
+        """The prefix written for each new node."""
 
     def fresh(self, text: str | None) -> str:
         """Text the file did not have, escaped, with the file's line ends (the parser gave them as LF)."""
@@ -175,7 +177,19 @@ class _Writer:
 
     def qname(self, node: etree._Element) -> str:
         name = etree.QName(node).localname
-        return f"{node.prefix}:{name}" if node.prefix else name
+        prefix = self.chosen.get(node, node.prefix)
+        return f"{prefix}:{name}" if prefix else name
+
+    def choose_prefix(self, node: etree._Element) -> None:
+        """A new node's prefix as its parent writes the same namespace (a file that maps its namespace both to
+        the default and to ``q1:`` keeps the form the parent has)."""
+        parent = node.getparent()
+        namespace = etree.QName(node).namespace
+        if parent is None or etree.QName(parent).namespace != namespace:
+            return
+        prefix = self.chosen.get(parent, parent.prefix)
+        if node.nsmap.get(prefix) == namespace:
+            self.chosen[node] = prefix
 
     def new(self, node: etree._Element) -> str:
         """A node the file did not have, written in its style (its namespace declarations where its parent's
@@ -185,6 +199,7 @@ class _Writer:
         if not isinstance(node.tag, str):
             return etree.tostring(node, encoding="unicode", with_tail=False)
         parent = node.getparent()
+        self.choose_prefix(node)
         inherited = parent.nsmap if parent is not None else {}
         declarations = "".join(f' xmlns{":" + p if p else ""}="{u}"' for p, u in node.nsmap.items()
                                if inherited.get(p) != u)
