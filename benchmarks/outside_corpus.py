@@ -418,7 +418,8 @@ FINDINGS = (
     "Fifth round (branch xddtree): an XDD regenerated from an uploaded XDD is written over the upload's XML tree "
     "(device/formats/xdd_rewrite.py), so XDD -> XDD lost 1,543 of demoDevice.xdd's 5,248 elements/attributes before "
     "and 0 now (unedited it is the upload byte for byte); one PATCHed default changes only that parameter's "
-    "defaultValue@value (1 of 1 clean). XDD -> EDS -> XDD (measured by hand, not in the table) reads back the same "
+    "defaultValue@value (1 of 1 clean), one line of the file (every node nobody changed keeps its bytes). "
+    "XDD -> EDS -> XDD (measured by hand, not in the table) reads back the same "
     "profile but its XDD, written from an EDS, has 3,299 of the 5,248 facts not (the parameterList layout, the "
     "dataTypeList, the parameters' uniqueIDs: an EDS has no place for them).")
 
