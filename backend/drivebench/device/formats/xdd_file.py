@@ -95,8 +95,8 @@ class XddFile:
                 element.attrib.pop(attribute, None)
             else:
                 element.set(attribute, _styled(attribute, element.get(attribute) or old, new))
-            if held is not None and new is None:
-                self._drop(held)
+            if held is not None and parameter is not None:  # the parameter says it too: it says the same again
+                self._set_held(parameter, held, attribute, old, new)
             return
         if parameter is None:
             parameter = self.parameter(element, unique_id or _unique_id(element))
