@@ -96,6 +96,18 @@ def original_file(profiles: object, profile: Profile) -> bytes | None:
     return loaded.original if loaded.profile is profile and loaded.suffix in (".eds", ".dcf") else None
 
 
+def original_xml(profiles: object, profile: Profile) -> bytes | None:
+    """The XDD/XDC bytes ``profile`` was read from, as :func:`original_file` (an XDC of it is then written over
+    that file)."""
+    if not isinstance(profiles, ProfileRegistry):
+        return None
+    try:
+        loaded = profiles.loaded(profile.id)
+    except UnknownProfile:
+        return None
+    return loaded.original if loaded.profile is profile and loaded.suffix in (".xdd", ".xdc") else None
+
+
 def load_profile_file(content: bytes, name: str) -> Profile:
     """One profile file's bytes -> Profile, by suffix. Raises ProfileError naming ``name`` (and line)."""
     return read_profile_file(content, name).profile

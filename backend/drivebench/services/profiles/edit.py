@@ -1,5 +1,6 @@
-"""Editing an uploaded EDS/DCF profile, and its regenerated EDS: the file written over the upload, so what nobody
-edited stays as it was read (:mod:`drivebench.device.formats.eds_rewrite`)."""
+"""Editing an uploaded EDS/DCF/XDD/XDC profile, and its regenerated EDS and XDD: the file written over the upload,
+so what nobody edited stays as it was read (:mod:`drivebench.device.formats.eds_rewrite`,
+:mod:`drivebench.device.formats.xdd_rewrite`)."""
 
 from __future__ import annotations
 
@@ -11,6 +12,9 @@ from pydantic import BaseModel, ConfigDict, ValidationError
 from drivebench.device.formats.dcf_patch import file_encoding
 from drivebench.device.formats.eds_export import export_eds
 from drivebench.device.formats.eds_rewrite import rewrite_eds
+from drivebench.device.formats.xdd import XML_SUFFIXES
+from drivebench.device.formats.xdd_export import export_xdd
+from drivebench.device.formats.xdd_rewrite import rewrite_xdd
 from drivebench.device.profiles.loader import LoadedFile, ProfileRegistry
 from drivebench.device.profiles.profile import ObjectEntry, Profile, Value
 from drivebench.errors import Conflict, ProfileError, UnknownParameter
@@ -47,6 +51,22 @@ def regenerated_eds(loaded: LoadedFile) -> tuple[bytes, str]:
         content = rewrite_eds(loaded.profile, loaded.original, f"{loaded.profile.id}{loaded.suffix}")
         return content, f"text/plain; charset={file_encoding(loaded.original)[0]}"
     return export_eds(loaded.profile).encode("utf-8"), "text/plain; charset=utf-8"
+
+
+def regenerated_xdd(loaded: LoadedFile) -> bytes:
+    """The XDD of a loaded profile: written over its XDD/XDC file where it came from one, else from the profile."""
+    if loaded.original is not None and loaded.suffix in XML_SUFFIXES:
+        return rewrite_xdd(loaded.profile, loaded.original, f"{loaded.profile.id}{loaded.suffix}")
+    return export_xdd(loaded.profile)
+
+
+def _written_over(loaded: LoadedFile, profile: Profile) -> bytes:
+    """``profile`` written over the file ``loaded`` came from (an EDS/DCF or an XDD/XDC)."""
+    assert loaded.original is not None
+    source = f"{profile.id}{loaded.suffix}"
+    if loaded.suffix in XML_SUFFIXES:
+        return rewrite_xdd(profile, loaded.original, source)
+    return rewrite_eds(profile, loaded.original, source)
 
 
 def _check_value(entry: ObjectEntry, field: str, value: Value | None) -> None:
@@ -96,20 +116,21 @@ def edited(profile: Profile, index: int, subindex: int, edit: ObjectEdit) -> Pro
 
 
 def is_editable(registry: ProfileRegistry, profile_id: str) -> bool:
-    """Whether a profile is an uploaded EDS/DCF, the only kind :func:`edit_object` changes."""
+    """Whether a profile is an uploaded EDS/DCF/XDD/XDC, the only kinds :func:`edit_object` changes."""
     loaded = registry.loaded(profile_id)
-    return not registry.is_builtin(profile_id) and loaded.original is not None and loaded.suffix in EDS_SUFFIXES
+    return not registry.is_builtin(profile_id) and loaded.original is not None and loaded.suffix in (
+        *EDS_SUFFIXES, *XML_SUFFIXES)
 
 
 def edit_object(registry: ProfileRegistry, profile_id: str, index: int, subindex: int, edit: ObjectEdit
                 ) -> Profile:
-    """Change one object of an uploaded EDS/DCF profile: the stored file is written over with only the keys of
-    that change (blocking: run it in a thread)."""
+    """Change one object of an uploaded EDS/DCF/XDD/XDC profile: the stored file is written over with only the
+    keys (attributes, elements) of that change (blocking: run it in a thread)."""
     loaded = registry.loaded(profile_id)
     if not is_editable(registry, profile_id) or loaded.original is None:
-        raise Conflict(_("'{profile}' is not an uploaded EDS/DCF; only those are edited here").format(
+        raise Conflict(_("'{profile}' is not an uploaded EDS/DCF/XDD/XDC; only those are edited here").format(
             profile=profile_id))
     profile = edited(loaded.profile, index, subindex, edit)
-    content = rewrite_eds(profile, loaded.original, f"{profile_id}{loaded.suffix}")
+    content = _written_over(loaded, profile)
     name = registry.uploaded_as(profile_id) or f"{profile_id}{loaded.suffix}"
     return registry.add_upload(name, content)

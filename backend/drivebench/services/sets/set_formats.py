@@ -30,6 +30,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from drivebench.device.formats.eds import decode_text, parse_ini, parse_value, resolve_node_expr
 from drivebench.device.formats.eds_export import export_eds
+from drivebench.device.formats.xdc_rewrite import rewrite_xdc
 from drivebench.device.formats.xdd_export import export_xdd
 from drivebench.device.profiles.catalog import Catalog, Item
 from drivebench.device.profiles.profile import Profile
@@ -397,8 +398,10 @@ def import_dcf(data: str | bytes, profiles: ProfileLookup, *, profile_id: str | 
                        node_id=node_id, notes=notes)
 
 
-def export(fmt: str, stored: StoredSet, profile: Profile, original: bytes | None = None) -> tuple[str, str]:
-    """(text, media type) of the set in ``fmt``."""
+def export(fmt: str, stored: StoredSet, profile: Profile, original: bytes | None = None,
+           original_xml: bytes | None = None) -> tuple[str | bytes, str]:
+    """(text, media type) of the set in ``fmt``; a DCF written over ``original`` (the profile's EDS/DCF file), an
+    XDC over ``original_xml`` (its XDD/XDC file, then bytes in that file's encoding) where it came from one."""
     if fmt == "json":
         return export_json(stored, profile), "application/json"
     if fmt == "csv":
@@ -407,6 +410,9 @@ def export(fmt: str, stored: StoredSet, profile: Profile, original: bytes | None
         return export_dcf(stored, profile, original=original), "text/plain"
     if fmt == "xdc":  # CiA 311 XML twin of the DCF (export only)
         values = {(item.index, item.subindex): raw for item, raw in _stored_items(stored, profile)}
+        if original_xml is not None:
+            return rewrite_xdc(profile, original_xml, f"{profile.id}.xdc", node_id=stored.info.node_id,
+                               values=values), "application/xml"
         text = export_xdd(profile, node_id=stored.info.node_id, values=values, xdc=True).decode("utf-8")
         return text, "application/xml"
     raise InvalidValue(_("Unknown format '{format}' (formats: {formats})").format(format=fmt,

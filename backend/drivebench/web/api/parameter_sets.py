@@ -14,7 +14,7 @@ from fastapi import APIRouter, File, Form, Header, Query, Request, UploadFile, s
 from fastapi.responses import Response
 
 from drivebench.config import settings
-from drivebench.device.profiles.loader import original_file
+from drivebench.device.profiles.loader import original_file, original_xml
 from drivebench.errors import InvalidValue
 from drivebench.i18n import _
 from drivebench.services.sets import set_formats, set_jobs
@@ -145,7 +145,8 @@ async def export_set(set_id: RowId, state: StateDep,
                      version: RowVersion = None) -> Response:
     stored = store().get(set_id, version)
     profile = state.registry.get(stored.info.profile_id)
-    text, media = set_formats.export(format, stored, profile, original_file(state.registry, profile))
+    text, media = set_formats.export(format, stored, profile, original_file(state.registry, profile),
+                                     original_xml(state.registry, profile))
     filename = set_formats.file_name(stored, format)
     return Response(text, media_type=media, headers={"Content-Disposition": f'attachment; filename="{filename}"'})
 

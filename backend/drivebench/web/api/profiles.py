@@ -13,12 +13,12 @@ from fastapi import APIRouter, Depends, Query, Request, status
 from fastapi.responses import HTMLResponse, JSONResponse, Response
 
 from drivebench.device.formats.xdd import XML_SUFFIXES
-from drivebench.device.formats.xdd_export import export_warnings, export_xdd
+from drivebench.device.formats.xdd_export import export_warnings
 from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.device.profiles.profile import Profile
 from drivebench.errors import DriveBenchError, UnknownParameter
 from drivebench.i18n import _
-from drivebench.services.profiles.edit import ObjectEdit, edit_object, regenerated_eds
+from drivebench.services.profiles.edit import ObjectEdit, edit_object, regenerated_eds, regenerated_xdd
 from drivebench.services.profiles.store import BatchResult, UploadTooLarge, delete_upload
 from drivebench.services.profiles.views import (
     EntryKind,
@@ -112,7 +112,8 @@ async def get_profile_eds(profile_id: str, state: StateDep, regenerate: bool = F
             responses={200: {"content": {"application/xml": {}}, "description": "The XDD/XDC file"}})
 async def get_profile_xdd(profile_id: str, state: StateDep, regenerate: bool = False) -> Response:
     """The profile as CiA 311 XDD: an XDD/XDC file exactly as it was loaded, else (or with ``regenerate=true``)
-    written from the profile."""
+    written from the profile; one read from an XDD/XDC is written over that file's XML tree, so only what was
+    edited differs from it."""
     loaded = state.registry.loaded(profile_id)
     if loaded.original is not None and loaded.suffix in XML_SUFFIXES and not regenerate:
         return Response(loaded.original, media_type="application/xml",
@@ -120,15 +121,16 @@ async def get_profile_xdd(profile_id: str, state: StateDep, regenerate: bool = F
     warnings = export_warnings(loaded.profile)  # EDS keys without a CiA 311 place (kept as EDS: properties)
     headers = _attachment(f"{profile_id}.xdd") | (
         {"X-DriveBench-Export-Warnings": json.dumps(warnings)} if warnings else {})
-    return Response(export_xdd(loaded.profile), media_type="application/xml", headers=headers)
+    content = await asyncio.to_thread(regenerated_xdd, loaded)
+    return Response(content, media_type="application/xml", headers=headers)
 
 
 @router.patch("/{profile_id}/objects/{index}/{subindex}", response_model=Profile,
-              responses={409: {"description": "Not an uploaded EDS/DCF profile"},
+              responses={409: {"description": "Not an uploaded EDS/DCF/XDD/XDC profile"},
                          422: {"description": "Not an object of the profile, or a value that does not fit it"}})
 async def patch_object(profile_id: str, index: str, subindex: int, edit: ObjectEdit, state: StateDep) -> Profile:
-    """Edit one object of an uploaded EDS/DCF profile (``index`` hex as ``0x2000`` or ``2000``): the stored file
-    is written over, only the keys of the edit change (its regenerated EDS shows them)."""
+    """Edit one object of an uploaded EDS/DCF/XDD/XDC profile (``index`` hex as ``0x2000`` or ``2000``): the stored
+    file is written over, only the keys (XDD: attributes, elements) of the edit change."""
     try:
         number = int(index, 16)
     except ValueError:
