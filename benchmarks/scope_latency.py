@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import gc
 import json
 import math
 import os
@@ -98,6 +99,24 @@ class Probe:
         self.delivered: dict[int, float] = {}
         self.sent: list[tuple[str, float, str]] = []
         """(viewer, time, text) of each message handed to a viewer's socket."""
+        self.collections: list[tuple[int, float]] = []
+        """(generation, seconds) of each of the garbage collector's runs in the server process."""
+        self._collecting: float | None = None
+
+    def on_gc(self, phase: str, info: dict[str, int]) -> None:
+        if phase == "start":
+            self._collecting = time.perf_counter()
+        elif self._collecting is not None:
+            self.collections.append((info["generation"], time.perf_counter() - self._collecting))
+            self._collecting = None
+
+    def pauses(self) -> dict[str, list[float]]:
+        """Per generation: count, p99 and longest collection [ms]."""
+        found: dict[str, list[float]] = {}
+        for generation in (0, 1, 2):
+            spent = [seconds for gen, seconds in self.collections if gen == generation]
+            found[str(generation)] = [len(spent), 1000 * percentile(spent, 0.99), 1000 * max(spent, default=0.0)]
+        return found
 
     def install(self) -> None:
         from starlette.websockets import WebSocket
@@ -196,8 +215,10 @@ def serve_and_watch(seconds: float, period_ms: float) -> dict[str, Any]:
     import httpx
     import uvicorn
 
+    from drivebench.cli import _fastest
     from drivebench.config import REPO_ROOT
     from drivebench.services.scope import pdo_source, runs
+    from drivebench.web import serving
     from drivebench.web.app import create_app
     from drivebench.web.ws import scope as scope_socket
 
@@ -223,10 +244,14 @@ def serve_and_watch(seconds: float, period_ms: float) -> dict[str, Any]:
     probe = Probe()
     probe.install()
     channel = f"scope-latency-{os.getpid()}"
+    # served as `drivebench serve` serves (cli.serve): the heap settled after start-up, a 0.5 ms GIL switch interval,
+    # uvloop, its HTTP protocol and websocket ping
     app = create_app(plant_file=REPO_ROOT / "plants" / "demo.json", plant_bus=f"virtual:{channel}@500000",
-                     latency="0ms")
-    server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=0, log_level="warning",
-                                           timeout_graceful_shutdown=5))
+                     latency="0ms", settle_heap=True)
+    sys.setswitchinterval(0.0005)
+    server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=0, ws_ping_interval=20, loop=_fastest("uvloop"),
+                                           server_header=False, timeout_graceful_shutdown=5,
+                                           **serving.uvicorn_options(log_level="warning")))
     import socket as sockets
 
     sock = sockets.socket()
@@ -260,10 +285,12 @@ def serve_and_watch(seconds: float, period_ms: float) -> dict[str, Any]:
             cobs = {tpdo.cob_id for tpdo in part.plan.tpdos}
             until = time.monotonic() + seconds
             cpu_before, threads_before = process_cpu(), thread_cpu()
+            gc.callbacks.append(probe.on_gc)
             watched = subprocess.run([sys.executable, str(HERE), "--viewers",
                                       f"ws://127.0.0.1:{port}/ws/sessions/demo-plant/scope", str(until)],
                                      capture_output=True, text=True, check=True)
             cpu_s, threads_after = process_cpu() - cpu_before, thread_cpu()
+            gc.callbacks.remove(probe.on_gc)
             stopped = http.post(f"{API}/scope/run/stop").json()
     finally:
         notifier.stop()
@@ -304,13 +331,17 @@ def serve_and_watch(seconds: float, period_ms: float) -> dict[str, Any]:
             "tpdo_frames": sum(cob in cobs for _, cob, _ in seen_frames),
             "rows": [len(found) for found in seen], "carried": carried, "equal": equal,
             "parts_ms": {name: spread(values) for name, values in parts.items()},
-            "server_cpu_s": cpu_s, "viewers_cpu_s": viewed["cpu_s"],
+            "gc_ms": probe.pauses(), "gc_tracked": len(gc.get_objects()), "server_cpu_s": cpu_s,
+            "viewers_cpu_s": viewed["cpu_s"],
             "threads": [[name, round(cpu, 2)] for cpu, name in busiest],
             "min_interval_ms": 1000 * getattr(scope_socket, "MIN_INTERVAL_S", float("nan")),
             "restored": stopped.get("restored", []), "load": [load_before, os.getloadavg()[0]]}
 
 
 def one(seconds: float, period_ms: float) -> None:
+    from drivebench.web import heap
+
+    heap.hold()  # as `drivebench serve`: no cyclic collection until the app has started and settled its heap
     from drivebench.config import settings
     from drivebench.services.storage import database
 
