@@ -193,7 +193,9 @@ def process_cpu() -> float:
 def answered_frames(seen: list[tuple[int, int, bytes]], cobs: set[int], lag: int) -> dict[int, dict[int, bytes]]:
     """Each frame of the recording's TPDOs by the SYNC it answers, as CiA 301 has a "synchronous every SYNC" TPDO
     answer: each SYNC once, in order (the frame after the one for SYNC n answers n + 1 even when it comes after a
-    later SYNC), never a SYNC not sent yet; a node more than ``lag`` SYNCs behind skipped SYNCs."""
+    later SYNC), never a SYNC not sent yet; a node more than ``lag`` SYNCs behind skipped SYNCs. A second frame for
+    one SYNC means the frames before it were put one SYNC too late (the node was behind when its first frame came):
+    they move one back where there is room (within ``lag``), as the source moves them (``_shift_back``)."""
     found: dict[int, dict[int, bytes]] = {}
     expected: dict[int, int] = {}
     for stamp, cob, data in seen:
@@ -201,6 +203,14 @@ def answered_frames(seen: list[tuple[int, int, bytes]], cobs: set[int], lag: int
             continue
         sample = stamp if cob not in expected or stamp - expected[cob] > lag else min(expected[cob], stamp)
         expected[cob] = sample + 1
+        if cob in found.get(sample, {}):
+            first = sample
+            while first - 1 >= max(0, sample - lag) and cob in found.get(first - 1, {}):
+                first -= 1
+            if first - 1 < max(0, sample - lag):
+                continue  # no room: a frame too many, as the source counts it
+            for number in range(first, sample + 1):
+                found.setdefault(number - 1, {})[cob] = found[number].pop(cob)
         found.setdefault(sample, {})[cob] = data
     return found
 
@@ -316,6 +326,7 @@ def serve_and_watch(seconds: float, period_ms: float) -> dict[str, Any]:
                                 ("client", arrived - sent), ("total", arrived - sync)):
                 parts[name].append(value)
     carried, equal = 0, 0
+    unequal: list[list[Any]] = []
     for sample, _, *values in seen[0]:
         for position, value in enumerate(values):
             if value is None:
@@ -323,13 +334,17 @@ def serve_and_watch(seconds: float, period_ms: float) -> dict[str, Any]:
             carried += 1
             matches = [struct.unpack_from("<i", data, 4 * position)[0] for data in frames.get(sample, {}).values()
                        if len(data) >= 4 * position + 4]
-            equal += any(infos[position].value(raw) == value for raw in matches)
+            same = any(infos[position].value(raw) == value for raw in matches)
+            equal += same
+            if not same and len(unequal) < 5:
+                unequal.append([sample, position, value, [infos[position].value(raw) for raw in matches],
+                                len(syncs)])
     busiest = sorted(((threads_after.get(name, 0.0) - threads_before.get(name, 0.0), name)
                       for name in threads_after), reverse=True)[:4]
     mean_ms = 1000 * (syncs[-1] - syncs[0]) / (len(syncs) - 1) if len(syncs) > 1 else float("nan")
     return {"seconds": seconds, "period_ms": period_ms, "syncs": len(syncs), "mean_period_ms": mean_ms,
             "tpdo_frames": sum(cob in cobs for _, cob, _ in seen_frames),
-            "rows": [len(found) for found in seen], "carried": carried, "equal": equal,
+            "rows": [len(found) for found in seen], "carried": carried, "equal": equal, "unequal": unequal,
             "parts_ms": {name: spread(values) for name, values in parts.items()},
             "gc_ms": probe.pauses(), "gc_tracked": len(gc.get_objects()), "server_cpu_s": cpu_s,
             "viewers_cpu_s": viewed["cpu_s"],
