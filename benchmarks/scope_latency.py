@@ -47,11 +47,11 @@ HEADING = "## Scope: display latency with three viewers, samples against the bus
 AXIS = 7
 CLIENTS = 3
 API = "/api/sessions/demo-plant"
-PARTS = [("wire", "SYNC on the wire -> TPDO in the source's bus thread"),
-         ("run", "TPDO received -> sample delivered to the run"),
-         ("socket", "delivered -> handed to the viewer's socket"),
-         ("client", "handed to the socket -> received by the viewer"),
-         ("total", "end to end: SYNC on the wire -> received by the viewer")]
+PARTS = [("wire", "SYNC→TPDO", "SYNC on the wire -> the last TPDO answering it in the source's bus thread"),
+         ("run", "TPDO→run", "TPDO received -> the sample delivered to the run"),
+         ("socket", "run→socket", "delivered -> the row handed to the viewer's socket"),
+         ("client", "socket→viewer", "handed to the socket -> received by the viewer"),
+         ("total", "end to end", "SYNC on the wire -> received by the viewer")]
 
 
 def percentile(values: list[float], share: float) -> float:
@@ -180,9 +180,20 @@ def thread_cpu() -> dict[str, float]:
             fields = (task / "stat").read_text().rsplit(")", 1)[1].split()
         except OSError:
             continue
-        name = names.get(int(task.name), f"thread {task.name}")
+        name = names.get(int(task.name), f"thread {task.name}").replace("Notifier for bus", "notifier")
         found[name] = found.get(name, 0.0) + (int(fields[11]) + int(fields[12])) / tick
     return found
+
+
+def name_threads(app: Any, session: Any) -> None:
+    """The bus threads by what they serve (python-can names both after the same channel)."""
+    from drivebench.protocol.canopen.network import frames_of
+
+    for owner, notifier in (("plant", app.state.drivebench.plants["demo-plant"]._notifier),
+                            ("session", frames_of(session.network).canopen.notifier)):
+        for reader in getattr(notifier, "_readers", []):
+            if isinstance(reader, threading.Thread):
+                reader.name = f"{owner} bus thread"
 
 
 def process_cpu() -> float:
@@ -293,6 +304,7 @@ def serve_and_watch(seconds: float, period_ms: float) -> dict[str, Any]:
             infos = recording.infos
             part = getattr(recording.source, "pdo", recording.source)  # the joined source's PDO part
             cobs = {tpdo.cob_id for tpdo in part.plan.tpdos}
+            name_threads(app, session)
             until = time.monotonic() + seconds
             cpu_before, threads_before = process_cpu(), thread_cpu()
             gc.callbacks.append(probe.on_gc)
@@ -315,7 +327,7 @@ def serve_and_watch(seconds: float, period_ms: float) -> dict[str, Any]:
     frames = answered_frames(seen_frames, cobs, max(3, math.ceil(pdo_source.WAIT_S * 1000 / period_ms)))
     start_s = min(row[1] for found in seen for row in found) + 1.0  # past the backlog a late viewer gets
     received, handed = probe.last_received(), probe.handed()
-    parts: dict[str, list[float]] = {name: [] for name, _ in PARTS}
+    parts: dict[str, list[float]] = {name: [] for name, _, _ in PARTS}
     for viewer, found in enumerate(seen):
         to_socket = handed.get(str(viewer), {})
         for sample, arrived, *_ in found:
@@ -339,7 +351,8 @@ def serve_and_watch(seconds: float, period_ms: float) -> dict[str, Any]:
             if not same and len(unequal) < 5:
                 unequal.append([sample, position, value, [infos[position].value(raw) for raw in matches],
                                 len(syncs)])
-    busiest = sorted(((threads_after.get(name, 0.0) - threads_before.get(name, 0.0), name)
+    busiest = sorted(((threads_after.get(name, 0.0) - threads_before.get(name, 0.0),
+                       name.replace(f'"Virtual bus channel {channel}"', "(the script's wire)").replace(channel, "…"))
                       for name in threads_after), reverse=True)[:4]
     mean_ms = 1000 * (syncs[-1] - syncs[0]) / (len(syncs) - 1) if len(syncs) > 1 else float("nan")
     return {"seconds": seconds, "period_ms": period_ms, "syncs": len(syncs), "mean_period_ms": mean_ms,
@@ -383,17 +396,19 @@ def spawn(code: str, backend: Path, nice: int, seconds: float, period_ms: float)
 
 def table(results: list[dict[str, Any]]) -> str:
     lines = ["| Run | Load (start-end) | SYNCs (mean period) | " + " | ".join(
-        f"{label} p50 / p99 [ms]" for _, label in PARTS) + " | max [ms] | CPU server / viewers [s] | "
-        "busiest server threads [CPU s] |",
-        "|---" * (len(PARTS) + 6) + "|"]
+        f"{label} p50 / p99 [ms]" for _, label, _ in PARTS) + " | max [ms] | CPU server / viewers [s] | "
+        "busiest server threads [CPU s] | GC passes gen 1 / gen 2 (longest [ms]) |",
+        "|---" * (len(PARTS) + 7) + "|"]
     for found in results:
         parts = found["parts_ms"]
         lines.append(
             f"| {found['code']}, nice {found['nice']} | {found['load'][0]:.1f}-{found['load'][1]:.1f} | "
             f"{found['syncs']} ({found['mean_period_ms']:.2f} ms) | "
-            + " | ".join(f"{parts[name]['p50']:.1f} / {parts[name]['p99']:.1f}" for name, _ in PARTS)
+            + " | ".join(f"{parts[name]['p50']:.1f} / {parts[name]['p99']:.1f}" for name, _, _ in PARTS)
             + f" | {parts['total']['max']:.0f} | {found['server_cpu_s']:.1f} / {found['viewers_cpu_s']:.1f} | "
-            + ", ".join(f"{name} {cpu}" for name, cpu in found["threads"]) + " |")
+            + ", ".join(f"{name} {cpu}" for name, cpu in found["threads"])
+            + " | " + " / ".join(f"{count} ({longest:.0f})" for count, _, longest in
+                                 (found["gc_ms"][gen] for gen in ("1", "2"))) + " |")
     return "\n".join(lines)
 
 
@@ -405,6 +420,7 @@ def write_results(results: list[dict[str, Any]], note: str) -> None:
     checks = "; ".join(f"{found['code']}, nice {found['nice']}: SYNCs {found['syncs']}, TPDO frames "
                        f"{found['tpdo_frames']}, values {found['carried']}, equal {found['equal']}"
                        for found in results)
+    legend = "\n".join(f"* {label}: {what}" for _, label, what in PARTS)
     body = f"""Written by `benchmarks/scope_latency.py`: the app served by uvicorn with the demo plant, node 7
 (0x6064, 0x606C) sampled by PDO at a {first["period_ms"]:g} ms SYNC for {first["seconds"]:g} s per run, watched by
 {CLIENTS} real websocket clients in a process of their own (the `websockets` library standing in for three browsers).
@@ -417,6 +433,8 @@ left out: a viewer who connects gets the last samples as a backlog first). The t
 script puts around the source's bus-thread entry, the run's `on_frame` and Starlette's `WebSocket.send`; the product
 carries no timing code. CPU: the server process (with the simulated plant, the SYNC producer and the script's wire
 listener and wrappers) and the viewers' process, over the watched {first["seconds"]:g} s.
+
+{legend}
 
 {table(results)}
 
@@ -439,6 +457,8 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=1)
     parser.add_argument("--note", default="", help="a paragraph written below the figures")
     parser.add_argument("--no-write", action="store_true")
+    parser.add_argument("--save", type=Path, help="keep the runs' figures in this JSON file")
+    parser.add_argument("--load", type=Path, help="write RESULTS.md from runs kept by --save (no new runs)")
     parser.add_argument("--one", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--viewers", nargs=2, help=argparse.SUPPRESS)
     args = parser.parse_args()
@@ -447,6 +467,9 @@ def main() -> None:
         return
     if args.one:
         one(args.seconds, args.period_ms)
+        return
+    if args.load:
+        write_results(json.loads(args.load.read_text()), args.note)
         return
     after = HERE.parent.parent / "backend"
     codes = [("after", after), *([("before", args.before)] if args.before else [])]
@@ -457,8 +480,11 @@ def main() -> None:
                 found = spawn(code if args.before else "this code", backend, nice, args.seconds, args.period_ms)
                 print(json.dumps({k: v for k, v in found.items() if k != "restored"}), flush=True)
                 results.append(found)
+    results = sorted(results, key=lambda found: (found["code"], found["nice"]))
+    if args.save:
+        args.save.write_text(json.dumps(results))
     if not args.no_write:
-        write_results(sorted(results, key=lambda found: (found["code"], found["nice"])), args.note)
+        write_results(results, args.note)
 
 
 if __name__ == "__main__":
