@@ -50,7 +50,8 @@ API = "/api/sessions/demo-plant"
 PARTS = [("wire", "SYNC→TPDO", "SYNC on the wire -> the last TPDO answering it in the source's bus thread"),
          ("run", "TPDO→run", "TPDO received -> the sample delivered to the run"),
          ("socket", "run→socket", "delivered -> the row handed to the viewer's socket"),
-         ("client", "socket→viewer", "handed to the socket -> received by the viewer"),
+         ("send", "send", "handed to the socket -> the send returned (its frame written to the transport)"),
+         ("client", "sent→viewer", "the send returned -> received by the viewer (the kernel, the viewers' process)"),
          ("total", "end to end", "SYNC on the wire -> received by the viewer")]
 
 
@@ -78,13 +79,21 @@ async def _watch(url: str, until: float, seen: list[tuple[int, float]]) -> None:
 def viewers(url: str, until: float) -> None:
     """Run :data:`CLIENTS` viewers until ``until`` (monotonic, system-wide on Linux); print what each received."""
     seen: list[list[Any]] = [[] for _ in range(CLIENTS)]
+    late: list[float] = []
+
+    async def ticker() -> None:
+        """How late the viewers' loop wakes for a 5 ms sleep (its process waiting for a core, or busy)."""
+        while time.monotonic() < until:
+            asked = time.monotonic() + 0.005
+            await asyncio.sleep(0.005)
+            late.append(time.monotonic() - asked)
 
     async def everyone() -> None:
-        await asyncio.gather(*(_watch(f"{url}?viewer={i}", until, found) for i, found in enumerate(seen)))
+        await asyncio.gather(ticker(), *(_watch(f"{url}?viewer={i}", until, found) for i, found in enumerate(seen)))
 
     asyncio.run(everyone())
     usage = resource.getrusage(resource.RUSAGE_SELF)
-    print(json.dumps({"seen": seen, "cpu_s": usage.ru_utime + usage.ru_stime}))
+    print(json.dumps({"seen": seen, "cpu_s": usage.ru_utime + usage.ru_stime, "late_ms": spread(late)}))
 
 
 # --- the server's process -------------------------------------------------------------------------------------------
@@ -97,8 +106,9 @@ class Probe:
         self.answered: dict[int, list[int]] = defaultdict(list)
         """Per TPDO COB-ID, the sample each of its frames was put to, in the same order."""
         self.delivered: dict[int, float] = {}
-        self.sent: list[tuple[str, float, str]] = []
-        """(viewer, time, text) of each message handed to a viewer's socket."""
+        self.sent: list[tuple[str, float, float, str]] = []
+        """(viewer, handed, written, text) of each message handed to a viewer's socket: when the send was called and
+        when it returned (its frame written to the connection's transport)."""
         self.collections: list[tuple[int, float]] = []
         """(generation, seconds) of each of the garbage collector's runs in the server process."""
         self._collecting: float | None = None
@@ -144,9 +154,12 @@ class Probe:
 
         async def timed_send(self: Any, message: Any) -> None:
             text = message.get("text") or (message.get("bytes") or b"").decode()
-            if message.get("type") == "websocket.send" and text.startswith('{"type":"rows"'):
-                probe.sent.append((self.query_params.get("viewer", "?"), time.monotonic(), text))
+            if message.get("type") != "websocket.send" or not text.startswith('{"type":"rows"'):
+                await send(self, message)
+                return
+            handed = time.monotonic()
             await send(self, message)
+            probe.sent.append((self.query_params.get("viewer", "?"), handed, time.monotonic(), text))
 
         source_class.on_bus_frame = timed_bus_frame  # type: ignore[method-assign]
         source_class._answered = timed_answered  # type: ignore[method-assign]
@@ -161,12 +174,12 @@ class Probe:
                 found[sample] = max(found.get(sample, 0.0), at)
         return found
 
-    def handed(self) -> dict[str, dict[int, float]]:
-        """Per viewer, when each sample's row was handed to its socket."""
-        found: dict[str, dict[int, float]] = defaultdict(dict)
-        for viewer, at, text in self.sent:
+    def handed(self) -> dict[str, dict[int, tuple[float, float]]]:
+        """Per viewer, when each sample's row was handed to its socket and when that send returned."""
+        found: dict[str, dict[int, tuple[float, float]]] = defaultdict(dict)
+        for viewer, at, written, text in self.sent:
             for row in json.loads(text)["rows"]:
-                found[viewer].setdefault(row[0], at)
+                found[viewer].setdefault(row[0], (at, written))
         return found
 
 
@@ -333,9 +346,10 @@ def serve_and_watch(seconds: float, period_ms: float) -> dict[str, Any]:
         for sample, arrived, *_ in found:
             if sample >= len(syncs) or arrived < start_s or sample not in received or sample not in to_socket:
                 continue
-            sync, got, delivered, sent = syncs[sample], received[sample], probe.delivered[sample], to_socket[sample]
+            sync, got, delivered = syncs[sample], received[sample], probe.delivered[sample]
+            sent, written = to_socket[sample]
             for name, value in (("wire", got - sync), ("run", delivered - got), ("socket", sent - delivered),
-                                ("client", arrived - sent), ("total", arrived - sync)):
+                                ("send", written - sent), ("client", arrived - written), ("total", arrived - sync)):
                 parts[name].append(value)
     carried, equal = 0, 0
     unequal: list[list[Any]] = []
@@ -360,7 +374,7 @@ def serve_and_watch(seconds: float, period_ms: float) -> dict[str, Any]:
             "rows": [len(found) for found in seen], "carried": carried, "equal": equal, "unequal": unequal,
             "parts_ms": {name: spread(values) for name, values in parts.items()},
             "gc_ms": probe.pauses(), "gc_tracked": len(gc.get_objects()), "server_cpu_s": cpu_s,
-            "viewers_cpu_s": viewed["cpu_s"],
+            "viewers_cpu_s": viewed["cpu_s"], "viewers_late_ms": viewed["late_ms"],
             "threads": [[name, round(cpu, 2)] for cpu, name in busiest],
             "min_interval_ms": 1000 * getattr(scope_socket, "MIN_INTERVAL_S", float("nan")),
             "restored": stopped.get("restored", []), "load": [load_before, os.getloadavg()[0]]}
@@ -397,8 +411,8 @@ def spawn(code: str, backend: Path, nice: int, seconds: float, period_ms: float)
 def table(results: list[dict[str, Any]]) -> str:
     lines = ["| Run | Load (start-end) | SYNCs (mean period) | " + " | ".join(
         f"{label} p50 / p99 [ms]" for _, label, _ in PARTS) + " | max [ms] | CPU server / viewers [s] | "
-        "busiest server threads [CPU s] | GC passes gen 1 / gen 2 (longest [ms]) |",
-        "|---" * (len(PARTS) + 7) + "|"]
+        "busiest server threads [CPU s] | GC passes gen 1 / gen 2 (longest [ms]) | viewers' loop late p99 / max [ms] |",
+        "|---" * (len(PARTS) + 8) + "|"]
     for found in results:
         parts = found["parts_ms"]
         lines.append(
@@ -408,7 +422,8 @@ def table(results: list[dict[str, Any]]) -> str:
             + f" | {parts['total']['max']:.0f} | {found['server_cpu_s']:.1f} / {found['viewers_cpu_s']:.1f} | "
             + ", ".join(f"{name} {cpu}" for name, cpu in found["threads"])
             + " | " + " / ".join(f"{count} ({longest:.0f})" for count, _, longest in
-                                 (found["gc_ms"][gen] for gen in ("1", "2"))) + " |")
+                                 (found["gc_ms"][gen] for gen in ("1", "2")))
+            + f" | {found['viewers_late_ms']['p99']:.1f} / {found['viewers_late_ms']['max']:.0f} |")
     return "\n".join(lines)
 
 
