@@ -27,7 +27,7 @@ from drivebench.web.identity import principal_of
 from drivebench.web.ws.node_socket import open_session, serve
 
 router = APIRouter()
-MIN_INTERVAL_S = 0.005
+MIN_INTERVAL_S = 0.01
 """The least time between two messages to one viewer: rows that come faster (a 1 ms SYNC) go out together, at most
 this late (the design's 100 ms display latency leaves room); a row after a quieter time goes out at once."""
 IDLE_S = 0.5
