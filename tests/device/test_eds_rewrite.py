@@ -84,10 +84,38 @@ def test_one_edit_changes_only_its_key_in_the_files_style(name: str, content: by
 
 @pytest.mark.parametrize(("old", "value", "new"), [
     ("0x00000BB8", "3500", "0x00000DAC"), ("0x00000bb8", "3500", "0x00000dac"), ("0X0BB8", "3500", "0X0DAC"),
-    ("3000", "0x00000DAC", "3500"), ("0x7F", "-1", "0xFF"), ("0x10", "4096", "0x1000"), ("see manual", "5", "5"),
-    ("1.5", "2.25", "2.25")])
+    ("3000", "0x00000DAC", "3500"), ("0x10", "4096", "0x1000"), ("see manual", "5", "5"), ("1.5", "2.25", "2.25"),
+    ("0x7F", "-1", "-1")])  # a negative number with no signed type's width: decimal, never a guessed pattern
 def test_an_edited_value_is_written_in_the_style_of_the_one_it_replaces(old: str, value: str, new: str) -> None:
     assert styled(old, value) == new
+
+
+@pytest.mark.parametrize(("old", "value", "bits", "new"), [
+    ("0x7F", "-1", 8, "0xFF"), ("0x0", "-1", 8, "0xFF"), ("0xFF", "-2", 16, "0xFFFE"), ("0x00", "-128", 8, "0x80"),
+    ("0x0000", "-1", 32, "0xFFFFFFFF")])
+def test_a_negative_value_goes_into_hex_as_the_twos_complement_of_its_types_width(
+        old: str, value: str, bits: int, new: str) -> None:
+    assert styled(old, value, bits) == new
+
+
+@pytest.mark.parametrize(("data_type", "old"), [("0x0002", "0x0"), ("0x0003", "0x00"), ("0x0004", "0x0000")])
+def test_a_signed_default_written_in_short_hex_reads_back_as_the_negative_value_it_was_edited_to(
+        data_type: str, old: str) -> None:
+    """A hex default with fewer digits than its type (``0x0`` of an INTEGER8) edited to -1 was written ``0xF``,
+    which reads back as 15."""
+    content = ("[FileInfo]\r\nFileName=short.eds\r\n[DeviceInfo]\r\nVendorNumber=0\r\n"
+               "[MandatoryObjects]\r\nSupportedObjects=1\r\n1=0x1000\r\n"
+               "[1000]\r\nParameterName=Device type\r\nObjectType=0x7\r\nDataType=0x0007\r\nAccessType=ro\r\n"
+               "DefaultValue=0\r\nPDOMapping=0\r\n"
+               "[OptionalObjects]\r\nSupportedObjects=0\r\n"
+               "[ManufacturerObjects]\r\nSupportedObjects=1\r\n1=0x2000\r\n"
+               f"[2000]\r\nParameterName=Offset\r\nObjectType=0x7\r\nDataType={data_type}\r\nAccessType=rw\r\n"
+               f"DefaultValue={old}\r\nPDOMapping=0\r\n").encode()
+    profile = read_eds(content, source="short.eds").profile
+    for value in (-1, -7):
+        written = regenerated(edited(profile, 0x2000, 0, ObjectEdit(default=value)), content, "short.eds")
+        again = {(o.index, o.subindex): o for o in read_eds(written, source="short.eds").profile.objects}
+        assert again[(0x2000, 0)].default == value, changed_lines(content, written, "short.eds")
 
 
 def test_added_and_removed_objects_go_into_and_out_of_the_object_lists() -> None:

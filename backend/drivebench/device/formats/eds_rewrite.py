@@ -20,6 +20,7 @@ from drivebench.device.formats.eds import OBJECT_LISTS, decode_text, parse_ini, 
 from drivebench.device.formats.eds_export import export_eds
 from drivebench.device.formats.eds_ini import comment_start
 from drivebench.device.profiles.profile import Profile
+from drivebench.protocol.datatypes import DATA_TYPE_BY_CODE
 
 _LINE_END = re.compile(r"(\r\n|\r|\n)")
 _SUB_SECTION = re.compile(r"^([0-9A-F]{4})SUB([0-9A-F]{1,2})$")
@@ -82,7 +83,7 @@ class _Text:
         raw = self.lines[number] if number is not None else None
         return None if raw is None else _split(raw)[1]
 
-    def set(self, section: str, key_name: str, text: str) -> None:
+    def set(self, section: str, key_name: str, text: str, signed_bits: int | None = None) -> None:
         place = self.places[section]
         number = place.keys.get(key_name.lower())
         raw = self.lines[number] if number is not None else None
@@ -90,7 +91,7 @@ class _Text:
             self.after.setdefault(place.last, []).append(f"{key_name}={text}")
             return
         head, old, tail = _split(raw)
-        self.lines[number] = f"{head}{styled(old, text)}{tail}"
+        self.lines[number] = f"{head}{styled(old, text, signed_bits)}{tail}"
 
     def remove(self, section: str, key: str) -> None:
         place = self.places.get(section)
@@ -144,23 +145,34 @@ def _split(raw: str) -> tuple[str, str, str]:
     return f"{head}={lead}", value, body[len(value):]
 
 
-def styled(old: str, new: str) -> str:
+def styled(old: str, new: str, signed_bits: int | None = None) -> str:
     """``new`` (as the exporter writes it) in the style of ``old``: hex with its prefix, letter case and digit
-    count (a negative number as two's complement of that many digits), or decimal."""
+    count, or decimal. A negative number goes into hex as the two's complement of its signed type's width
+    (``signed_bits``: what the reader takes back, CiA 306 and :func:`eds_quirks.fit_int`), with at least that many
+    digits; without a width it is written in decimal (``0x0`` of an INTEGER8 edited to -1 as ``0xF`` read back 15)."""
     number = int(new, 0) if _HEX.match(new) or _DECIMAL.match(new) else None
     if number is None:
         return new
     hexed = _HEX.match(old.strip())
-    if hexed is not None:
+    if hexed is not None and (number >= 0 or signed_bits):
         _, x, digits = hexed.groups()
-        bits = len(digits) * 4
-        sign = ""
-        if number < 0:
-            number, sign = (number + (1 << bits), "") if -number <= 1 << (bits - 1) else (-number, "-")
-        text = f"{number:0{len(digits)}X}"
+        width = len(digits)
+        if number < 0 and signed_bits:
+            number += 1 << signed_bits
+            width = max(width, signed_bits // 4)
+        text = f"{number:0{width}X}"
         lower = any(c.isalpha() for c in digits) and digits.lower() == digits
-        return f"{sign}0{x}{text.lower() if lower else text}"
+        return f"0{x}{text.lower() if lower else text}"
     return str(number)
+
+
+def _signed_bits(data_type: str) -> int | None:
+    """The width of a signed integer type named by its EDS ``DataType`` code, else None."""
+    try:
+        found = DATA_TYPE_BY_CODE.get(int(data_type, 0))
+    except ValueError:
+        return None
+    return found.size * 8 if found is not None and found.is_signed and found.size else None
 
 
 def _listed(keys: Keys) -> dict[int, str]:
@@ -230,9 +242,10 @@ def rewrite_eds(profile: Profile, original: bytes, source: str) -> bytes:
             if section not in before:
                 text.add_section(names[section], list(keys.values()))
             continue
+        bits = _signed_bits(keys.get("datatype", ("", ""))[1])
         for key, (name, value) in keys.items():
             if old.get(key, ("", None))[1] != value:
-                text.set(section, name, value)
+                text.set(section, name, value, bits)
     gone = {f"{o.index:04X}" for o in baseline.objects} - {f"{o.index:04X}" for o in profile.objects}
     for section in [name for name in text.places if name[:4] in gone and _OBJECT_SECTION.match(name)]:
         text.remove_section(section)
