@@ -153,10 +153,9 @@ class LssMaster:
         answers: list[bytes] = []
         while True:
             left = deadline - time.monotonic()
-            if left <= 0:
-                return answers
             try:
-                _at, answer = self._answers.get(timeout=left)
+                # past the deadline still take what has come (this thread may have been the one held up)
+                _at, answer = self._answers.get(timeout=left) if left > 0 else self._answers.get_nowait()
             except queue.Empty:
                 return answers
             if answer[:1] != bytes([answer_cs]):
@@ -323,10 +322,8 @@ class LssMaster:
         self._floor = self.min_window_s  # a longer wait one device needed is not kept for the next
         window = ceiling
         for attempt in range(FASTSCAN_ATTEMPTS):
-            wait = max(window, self._window(window, careful=True))
-            if not (self._fs(0, FASTSCAN_RESET, 0, 0, count, wait) or self._fs(0, FASTSCAN_RESET, 0, 0, count, wait)
-                    or self._fs(0, FASTSCAN_RESET, 0, 0, count, self._last_call(window))):
-                return None, ceiling  # no device without node ID in waiting state (asked three times)
+            if not self._any_left(bool(found), count, window):
+                return None, ceiling
             parts = self._scan_parts(found, count, window)
             if parts is not None and self._really(LssAddress(*parts), found, count):
                 return LssAddress(*parts), ceiling
@@ -342,11 +339,44 @@ class LssMaster:
                                "window {ms} ms): a device that answers late or leaves waiting state; raise the "
                                "answer window."), attempts=FASTSCAN_ATTEMPTS, ms=round(self._floor * 1000)))
 
-    def _last_call(self, ceiling: float) -> float:
-        """The third and last "is any device left?" waits longer (ten answer windows, at most ``timeout_s``): the
-        end of a scan costs it once, and a device whose answers came late twice on a busy bus is not left out (five
-        windows, 250 ms, left one out in a clean-clone run of the suite on the loaded 2-core machine)."""
-        return min(self.timeout_s, max(10 * ceiling, self._window(ceiling, careful=True)))
+    def _any_left(self, found_here: bool, count: ScanCount, ceiling: float) -> bool:
+        """Is any device without node ID left in waiting state? Asked three times; the third time waits longest.
+        Before this scan has seen an answer: the full window twice, then ten (a device held up at the very start is
+        not left out); afterwards the careful window twice (mid-scan a device answers at once), then
+        :meth:`_last_call`."""
+        if not self._rtt:
+            return (self._fs(0, FASTSCAN_RESET, 0, 0, count, ceiling)
+                    or self._fs(0, FASTSCAN_RESET, 0, 0, count, ceiling)
+                    or self._fs(0, FASTSCAN_RESET, 0, 0, count, min(self.timeout_s, 10 * ceiling)))
+        wait = self._window(ceiling, careful=True)
+        return (self._fs(0, FASTSCAN_RESET, 0, 0, count, wait) or self._fs(0, FASTSCAN_RESET, 0, 0, count, wait)
+                or self._last_call(found_here, count, ceiling))
+
+    def _last_call(self, found_here: bool, count: ScanCount, ceiling: float) -> bool:
+        """The last "is any device left?". It waits ten times this scan's slowest answer, and at least until the
+        devices found in this scan (left in configuration state) have answered an inquire node ID sent right after
+        it: devices hosted by one busy process (a simulator, a loaded test machine) answer in order, so a device
+        held up there answers the question before that inquiry (a fixed ten windows, 500 ms, cost every scan half a
+        second and still left a device stalled longer out). At most ``timeout_s`` (a device that does not answer
+        the inquiry costs that); without a device found in this scan ten answer windows (at most ``timeout_s``)."""
+        cap = self.timeout_s if found_here else min(self.timeout_s, 10 * ceiling)
+        short = min(cap, max(self._floor, 10 * max(self._rtt)))
+        self._drain()
+        sent = time.monotonic()
+        self._send(struct.pack("<BIBBB", cl.CS_FAST_SCAN, 0, FASTSCAN_RESET, 0, 0), count)
+        fenced = False
+        if found_here:
+            self._send(bytes([cl.CS_INQUIRE_NODE_ID]), count)
+        while True:
+            left = sent + (short if fenced else cap) - time.monotonic()
+            try:
+                _at, answer = self._answers.get(timeout=left) if left > 0 else self._answers.get_nowait()
+            except queue.Empty:
+                return False
+            if answer[:1] == bytes([cl.CS_IDENTIFY_SLAVE]):
+                self._rtt.append(time.monotonic() - sent)
+                return True
+            fenced = fenced or answer[:1] == bytes([cl.CS_INQUIRE_NODE_ID])
 
     def _really(self, address: LssAddress, found: Sequence[LssAddress], count: ScanCount) -> bool:
         """The address is a device's (identify remote slave: an answer late from an earlier request may have been
@@ -359,8 +389,8 @@ class LssMaster:
         parts: list[int] = []
         for sub in range(4):
             nxt = (sub + 1) & 3
-            hints = list(dict.fromkeys(address.parts()[sub] for address in found))
-            value = next((hint for hint in hints if self._fs(hint, 0, sub, nxt, count, self._window(ceiling))),
+            likely, hints = _hints(found, parts)
+            value = next((hint for hint in likely if self._fs(hint, 0, sub, nxt, count, self._window(ceiling))),
                          None)
             if value is None:
                 value = self._scan_bits(sub, hints, count, ceiling)
@@ -406,3 +436,14 @@ class LssMaster:
                 return None
             bit = upper - 1
         return value
+
+
+def _hints(found: Sequence[LssAddress], parts: list[int]) -> tuple[list[int], list[int]]:
+    """The values the next part of the address may well have: (worth asking whole, to prefer bit by bit). Asked
+    whole: those of the devices found whose parts so far are the same (most frequent first), never their serial
+    number (two devices with the same vendor, product and revision differ there); a miss costs an answer window.
+    Preferred bit by bit: those, then the other devices' values."""
+    sub = len(parts)
+    kin = [address.parts()[sub] for address in found if list(address.parts()[:sub]) == parts]
+    likely = sorted(dict.fromkeys(kin), key=kin.count, reverse=True) if sub < 3 else []
+    return likely, list(dict.fromkeys([*kin, *(address.parts()[sub] for address in found)]))
