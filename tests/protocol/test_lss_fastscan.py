@@ -88,14 +88,19 @@ def test_a_device_whose_host_is_held_up_at_the_end_of_the_scan_is_found(master_o
 
 
 def test_late_answers_make_no_wrong_address_and_leave_no_device_out(master_on: list[canopen.Network]) -> None:
-    """Every seventh answer 12 ms late (the shortest answer window is 4 ms): each late answer is taken for the next
-    request's first; the turned-back bits and re-scans still give each device's own address, each once."""
+    """Every seventh request answered 12 ms late (the shortest answer window is 4 ms): the late answer is taken for
+    the next request's; bits turned back, parts checked whole and devices scanned again still give each device its
+    own address, each once. (A value of a device found before, asked whole with lss_next moving the device on,
+    answered late, left a device a part ahead: the next part came from another device, and the device ended in
+    configuration state with a mixed address, not found.)"""
     channel = fresh_channel()
-    slaves = _NowAndThenLate(channel, [Cia305Device(*address) for address in DEVICES], every=7, late_s=0.012)
+    devices = DEVICES[:6]
+    slaves = _NowAndThenLate(channel, [Cia305Device(*address) for address in devices], every=7, late_s=0.012)
     try:
         master = _master(channel, master_on, window_s=0.05)
         result = master.fastscan()
-        assert sorted(address.parts() for address in result.found) == sorted(DEVICES)
+        assert sorted(address.parts() for address in result.found) == sorted(devices)
+        assert result.retries > 0  # late answers were met and turned back
     finally:
         slaves.shutdown()
 

@@ -42,7 +42,9 @@ BIT_TIMINGS = {0: 1_000_000, 1: 800_000, 2: 500_000, 3: 250_000, 4: 125_000, 6: 
 """CiA 305 bit timing table 0 (index 5 is reserved there; canopen's docstring calls it 100 kbit/s)."""
 DEFAULT_WINDOW_S = 0.05
 DEFAULT_TIMEOUT_S = 1.0
-FASTSCAN_ATTEMPTS = 4
+FASTSCAN_ATTEMPTS = 5
+TURN_BACKS = 8
+"""How often the scan of one part of an address turns a misled bit back before it scans the device again."""
 
 NO_SLAVE = N_("no LSS slave answered: is a device in LSS waiting state?")
 
@@ -329,12 +331,12 @@ class LssMaster:
                 return LssAddress(*parts), ceiling
             count.retries += 1
             # Answers came late (a busy machine stalls the adapter's or the devices' threads): the whole device
-            # again, first with every request waiting the full answer window, then four and sixteen times as long
-            # (at most timeout_s; an answer returns at once, a miss costs the window). Narrowing pays only while
-            # answers come in time; the last attempt is slow, but a slow scan beats a device left out (CI, 2 cores
-            # with four workers and a busy thread: 200 ms was not enough).
-            window = ceiling if attempt == 0 else max(ceiling, min(self.timeout_s, 4 ** attempt * ceiling))
-            self._floor = window
+            # again, first with every request waiting at least a quarter of the answer window, then the full window,
+            # then four and sixteen times as long (at most timeout_s; an answer returns at once, a miss costs the
+            # window). Narrowing pays only while answers come in time; the last attempt is slow, but a slow scan
+            # beats a device left out (CI, 2 cores with four workers and a busy thread: 200 ms was not enough).
+            window = ceiling if attempt <= 1 else max(ceiling, min(self.timeout_s, 4 ** (attempt - 1) * ceiling))
+            self._floor = window / 4 if attempt == 0 else window
         raise LssError(Text(N_("fastscan lost the device it was following ({attempts} attempts, last answer "
                                "window {ms} ms): a device that answers late or leaves waiting state; raise the "
                                "answer window."), attempts=FASTSCAN_ATTEMPTS, ms=round(self._floor * 1000)))
@@ -390,53 +392,94 @@ class LssMaster:
         for sub in range(4):
             nxt = (sub + 1) & 3
             likely, hints = _hints(found, parts)
-            value = next((hint for hint in likely if self._fs(hint, 0, sub, nxt, count, self._window(ceiling))),
+            # A value is asked whole without moving the devices on (lss_next = lss_sub): an answer that came late
+            # would otherwise leave a device a part ahead unseen, and the next part scanned from another device.
+            value = next((hint for hint in likely if self._fs(hint, 0, sub, sub, count, self._window(ceiling))),
                          None)
             if value is None:
                 value = self._scan_bits(sub, hints, count, ceiling)
                 if value is None:
                     return None
-                if not self._fs(value, 0, sub, nxt, count, ceiling) and sub < 3:
-                    return None  # (the last part's confirmation, answered late, has put the device in
-                    # configuration state: identify remote slave, :meth:`_really`, tells)
+            # Only the confirmation moves them on: every device a part further has the parts found so far.
+            if not self._fs(value, 0, sub, nxt, count, ceiling) and sub < 3:
+                return None  # (the last part's confirmation, answered late, has put the device in configuration
+                # state: identify remote slave, :meth:`_really`, tells)
             parts.append(value)
         return parts
 
     def _scan_bits(self, sub: int, hints: list[int], count: ScanCount, ceiling: float) -> int | None:
         """The 32 bits of ``sub``, highest first. Every bit is decided by an answer: the predicted half is asked,
-        on a miss the other half. An answer to the first that came late is taken for the second's: then no half
-        of a lower bit answers, and that bit is turned back and confirmed with the full window."""
-        value, bit, doubtful = 0, 31, set[int]()
-        while bit >= 0:
-            high = ~((1 << (bit + 1)) - 1) & 0xFFFFFFFF
-            like = next((hint for hint in hints if (hint ^ value) & high == 0), 0)
-            first = value | (like & (1 << bit))
-            second = first ^ (1 << bit)
-            decided = False
-            fast, careful = self._window(ceiling), self._window(ceiling, careful=True)
-            for window in (fast, careful):  # a miss is asked again once, waiting longer
-                if self._fs(first, bit, sub, sub, count, window):
-                    value, decided = first, True
-                    break
-                if self._fs(second, bit, sub, sub, count, window):
-                    value, decided = second, True
-                    if window < careful:
+        on a miss the other half. An answer that came late is taken for the next request's: then no half of a lower
+        bit answers. That bit is found and turned back (a bit decided after a short wait first; else the prefix is
+        asked at ever higher bits: the first answered lies just above the misled bit), at most
+        :data:`TURN_BACKS` times a part before the whole device is scanned again with longer windows."""
+        value, bit, doubtful, turned, top_turned = 0, 31, set[int](), 0, False
+        while True:
+            if bit < 0:  # all 32 decided; one decided after a short wait is checked whole (not moving it on)
+                if not doubtful or self._fs(value, 0, sub, sub, count, self._window(ceiling, careful=True)):
+                    return value
+            else:
+                decided = self._decide(value, bit, sub, hints, count, ceiling)
+                if decided is not None:
+                    value, shaky = decided
+                    if shaky:
                         doubtful.add(bit)
-                    break
-            if decided:
-                bit -= 1
-                continue
-            upper = min((b for b in doubtful if b > bit), default=None)
-            if upper is None:
-                return None
-            doubtful = {b for b in doubtful if b < upper}
+                    bit -= 1
+                    continue
+            turned += 1
             count.retries += 1
-            value = (value ^ (1 << upper)) & ~((1 << upper) - 1)
-            if not self._fs(value, upper, sub, sub, count, ceiling):
+            if turned > TURN_BACKS:
                 return None
-            bit = upper - 1
-        return value
+            upper = min((b for b in doubtful if b > bit), default=None)
+            if upper is not None:
+                doubtful = {b for b in doubtful if b < upper}
+                back = (value ^ (1 << upper)) & ~((1 << upper) - 1)
+                if self._fs(back, upper, sub, sub, count, ceiling):
+                    value, bit = back, upper - 1
+                    continue
+            level = self._answered_level(value, bit + 1, sub, count, ceiling)
+            if level == 32:
+                if top_turned:
+                    return None  # not this part's bits: an earlier part's, or the device left
+                top_turned = True
+            doubtful = {b for b in doubtful if b < level}
+            if level > bit + 1:  # the prefix one bit lower was not answered: that bit was misled
+                value = (value ^ (1 << (level - 1))) & ~((1 << (level - 1)) - 1)
+                bit = level - 2
+            # else the prefix is right and both halves of the bit answered late twice: asked again
 
+    def _decide(self, value: int, bit: int, sub: int, hints: list[int], count: ScanCount, ceiling: float
+                ) -> tuple[int, bool] | None:
+        """``value`` with ``bit`` decided by an answer, and whether that came after a short wait for the other half
+        (an answer late from it may have been taken); None when no half answered, even after a longer wait."""
+        high = ~((1 << (bit + 1)) - 1) & 0xFFFFFFFF
+        like = next((hint for hint in hints if (hint ^ value) & high == 0), 0)
+        first = value | (like & (1 << bit))
+        second = first ^ (1 << bit)
+        fast, careful = self._window(ceiling), self._window(ceiling, careful=True)
+        for window in (fast, careful):  # a miss is asked again once, waiting longer
+            if self._fs(first, bit, sub, sub, count, window):
+                return first, False
+            if self._fs(second, bit, sub, sub, count, window):
+                return second, window < careful
+        return None
+
+    def _answered_level(self, value: int, lowest: int, sub: int, count: ScanCount, ceiling: float) -> int:
+        """The lowest bit check from ``lowest`` up whose prefix of ``value`` a device answers; 32 when not even bit
+        31's (only bit 31 is then left to be wrong). The two lowest are asked first (a late answer misleads the next
+        bit or two), then halves: a device that matches a prefix matches every shorter one."""
+        careful = self._window(ceiling, careful=True)
+        for level in range(lowest, min(lowest + 2, 32)):
+            if self._fs(value, level, sub, sub, count, careful):
+                return level
+        low, high = min(lowest + 2, 32), 32  # the prefix at ``high`` is answered (32: the empty prefix)
+        while low < high:
+            middle = (low + high) // 2
+            if self._fs(value, middle, sub, sub, count, careful):
+                high = middle
+            else:
+                low = middle + 1
+        return high
 
 def _hints(found: Sequence[LssAddress], parts: list[int]) -> tuple[list[int], list[int]]:
     """The values the next part of the address may well have: (worth asking whole, to prefer bit by bit). Asked
