@@ -57,6 +57,42 @@ class _NowAndThenLate(Cia305Bus):
         super().heard(msg, rate)
 
 
+class _LosesOneAnswer(Cia305Bus):
+    """The answer to the first whole-value fastscan request of the vendor ID (bit check 0, lss_sub 0) after a device
+    was found is lost on the bus (an error frame): the devices took the request, the master heard nothing."""
+
+    lost = False
+
+    def heard(self, msg: can.Message, rate: int | None) -> None:
+        frame = (bytes(msg.data) + bytes(8))[:8]
+        whole_vendor = msg.arbitration_id == 0x7E5 and frame[0] == 0x51 and frame[5] == 0 and frame[6] == 0
+        if whole_vendor and not self.lost and any(device.configuring for device in self.devices):
+            self.lost = True
+            with self._lock:
+                for device in self.devices:
+                    device.handle(frame)
+            return
+        super().heard(msg, rate)
+
+
+def test_a_device_whose_answer_is_lost_is_not_left_a_part_ahead(master_on: list[canopen.Network]) -> None:
+    """After the first device (vendor 0, serial 8) the scan tries vendor 0 whole for the next. It used to ask with
+    lss_next = 1: the device alike (vendor 0, serial 9) moved on to the product, its answer lost; the vendor was then
+    scanned from the other device (vendor 2), the rest from both, and the device alike went to configuration state
+    with vendor 2 in the address found: identify remote slave refused it, and it was never found. Now a whole value
+    is asked without moving on; only the confirmation moves the devices."""
+    channel = fresh_channel()
+    devices = [(0, 5, 0, 8), (0, 5, 0, 9), (2, 5, 0, 12)]
+    slaves = _LosesOneAnswer(channel, [Cia305Device(*address) for address in devices])
+    try:
+        master = _master(channel, master_on)
+        result = master.fastscan()
+        assert slaves.lost
+        assert sorted(address.parts() for address in result.found) == sorted(devices)
+    finally:
+        slaves.shutdown()
+
+
 @pytest.fixture
 def master_on() -> Iterator[list[canopen.Network]]:
     networks: list[canopen.Network] = []
