@@ -6,10 +6,12 @@ bit timing). What it lacks is written here: every answered request waits for its
 first one; a configure step reads the device's error code; several different answers are told apart from one.
 canopen's fastscan waits its full 0.5 s timeout on every 1-bit and takes an answer that comes late for none:
 :meth:`LssMaster.fastscan` asks the other half of a bit after a miss (every decision is an answer), re-asks once
-before it decides, predicts bits from the devices already found, turns back a bit a late answer misled, repeats the
-whole scan of a device with a longer window when that is not enough, and checks each address found with identify
-remote slave. Each found device is left in LSS configuration state (so the next round finds the next one) until a
-switch state global (waiting).
+before it decides, predicts bits from the devices already found, moves the devices on to the next part only by a
+part's confirmation, finds and turns back a bit a late answer misled, repeats the whole scan of a device with a
+longer window when that is not enough, checks each address found with identify remote slave, and ends after ten
+times its slowest answer once the devices found have answered an inquiry sent after the last question. Each found
+device is left in LSS configuration state (so the next round finds the next one) until a switch state global
+(waiting).
 
 Identical answers of several devices merge into one frame on a real CAN bus: the count of devices that answered
 cannot be seen. What is known: *some* device answered; different answers (inquiries in configuration state) mean
