@@ -6,10 +6,12 @@ bit timing). What it lacks is written here: every answered request waits for its
 first one; a configure step reads the device's error code; several different answers are told apart from one.
 canopen's fastscan waits its full 0.5 s timeout on every 1-bit and takes an answer that comes late for none:
 :meth:`LssMaster.fastscan` asks the other half of a bit after a miss (every decision is an answer), re-asks once
-before it decides, predicts bits from the devices already found, turns back a bit a late answer misled, repeats the
-whole scan of a device with a longer window when that is not enough, and checks each address found with identify
-remote slave. Each found device is left in LSS configuration state (so the next round finds the next one) until a
-switch state global (waiting).
+before it decides, predicts bits from the devices already found, moves the devices on to the next part only by a
+part's confirmation, finds and turns back a bit a late answer misled, repeats the whole scan of a device with a
+longer window when that is not enough, checks each address found with identify remote slave, and ends after ten
+times its slowest answer once the devices found have answered an inquiry sent after the last question. Each found
+device is left in LSS configuration state (so the next round finds the next one) until a switch state global
+(waiting).
 
 Identical answers of several devices merge into one frame on a real CAN bus: the count of devices that answered
 cannot be seen. What is known: *some* device answered; different answers (inquiries in configuration state) mean
@@ -42,7 +44,9 @@ BIT_TIMINGS = {0: 1_000_000, 1: 800_000, 2: 500_000, 3: 250_000, 4: 125_000, 6: 
 """CiA 305 bit timing table 0 (index 5 is reserved there; canopen's docstring calls it 100 kbit/s)."""
 DEFAULT_WINDOW_S = 0.05
 DEFAULT_TIMEOUT_S = 1.0
-FASTSCAN_ATTEMPTS = 4
+FASTSCAN_ATTEMPTS = 5
+TURN_BACKS = 8
+"""How often the scan of one part of an address turns a misled bit back before it scans the device again."""
 
 NO_SLAVE = N_("no LSS slave answered: is a device in LSS waiting state?")
 
@@ -153,10 +157,9 @@ class LssMaster:
         answers: list[bytes] = []
         while True:
             left = deadline - time.monotonic()
-            if left <= 0:
-                return answers
             try:
-                _at, answer = self._answers.get(timeout=left)
+                # past the deadline still take what has come (this thread may have been the one held up)
+                _at, answer = self._answers.get(timeout=left) if left > 0 else self._answers.get_nowait()
             except queue.Empty:
                 return answers
             if answer[:1] != bytes([answer_cs]):
@@ -323,30 +326,61 @@ class LssMaster:
         self._floor = self.min_window_s  # a longer wait one device needed is not kept for the next
         window = ceiling
         for attempt in range(FASTSCAN_ATTEMPTS):
-            wait = max(window, self._window(window, careful=True))
-            if not (self._fs(0, FASTSCAN_RESET, 0, 0, count, wait) or self._fs(0, FASTSCAN_RESET, 0, 0, count, wait)
-                    or self._fs(0, FASTSCAN_RESET, 0, 0, count, self._last_call(window))):
-                return None, ceiling  # no device without node ID in waiting state (asked three times)
+            if not self._any_left(bool(found), count, window):
+                return None, ceiling
             parts = self._scan_parts(found, count, window)
             if parts is not None and self._really(LssAddress(*parts), found, count):
                 return LssAddress(*parts), ceiling
             count.retries += 1
             # Answers came late (a busy machine stalls the adapter's or the devices' threads): the whole device
-            # again, first with every request waiting the full answer window, then four and sixteen times as long
-            # (at most timeout_s; an answer returns at once, a miss costs the window). Narrowing pays only while
-            # answers come in time; the last attempt is slow, but a slow scan beats a device left out (CI, 2 cores
-            # with four workers and a busy thread: 200 ms was not enough).
-            window = ceiling if attempt == 0 else max(ceiling, min(self.timeout_s, 4 ** attempt * ceiling))
-            self._floor = window
+            # again, first with every request waiting at least a quarter of the answer window, then the full window,
+            # then four and sixteen times as long (at most timeout_s; an answer returns at once, a miss costs the
+            # window). Narrowing pays only while answers come in time; the last attempt is slow, but a slow scan
+            # beats a device left out (CI, 2 cores with four workers and a busy thread: 200 ms was not enough).
+            window = ceiling if attempt <= 1 else max(ceiling, min(self.timeout_s, 4 ** (attempt - 1) * ceiling))
+            self._floor = window / 4 if attempt == 0 else window
         raise LssError(Text(N_("fastscan lost the device it was following ({attempts} attempts, last answer "
                                "window {ms} ms): a device that answers late or leaves waiting state; raise the "
                                "answer window."), attempts=FASTSCAN_ATTEMPTS, ms=round(self._floor * 1000)))
 
-    def _last_call(self, ceiling: float) -> float:
-        """The third and last "is any device left?" waits longer (ten answer windows, at most ``timeout_s``): the
-        end of a scan costs it once, and a device whose answers came late twice on a busy bus is not left out (five
-        windows, 250 ms, left one out in a clean-clone run of the suite on the loaded 2-core machine)."""
-        return min(self.timeout_s, max(10 * ceiling, self._window(ceiling, careful=True)))
+    def _any_left(self, found_here: bool, count: ScanCount, ceiling: float) -> bool:
+        """Is any device without node ID left in waiting state? Asked three times; the third time waits longest.
+        Before this scan has seen an answer: the full window twice, then ten (a device held up at the very start is
+        not left out); afterwards the careful window twice (mid-scan a device answers at once), then
+        :meth:`_last_call`."""
+        if not self._rtt:
+            return (self._fs(0, FASTSCAN_RESET, 0, 0, count, ceiling)
+                    or self._fs(0, FASTSCAN_RESET, 0, 0, count, ceiling)
+                    or self._fs(0, FASTSCAN_RESET, 0, 0, count, min(self.timeout_s, 10 * ceiling)))
+        wait = self._window(ceiling, careful=True)
+        return (self._fs(0, FASTSCAN_RESET, 0, 0, count, wait) or self._fs(0, FASTSCAN_RESET, 0, 0, count, wait)
+                or self._last_call(found_here, count, ceiling))
+
+    def _last_call(self, found_here: bool, count: ScanCount, ceiling: float) -> bool:
+        """The last "is any device left?". It waits ten times this scan's slowest answer, and at least until the
+        devices found in this scan (left in configuration state) have answered an inquire node ID sent right after
+        it: devices hosted by one busy process (a simulator, a loaded test machine) answer in order, so a device
+        held up there answers the question before that inquiry (a fixed ten windows, 500 ms, cost every scan half a
+        second and still left a device stalled longer out). At most ``timeout_s`` (a device that does not answer
+        the inquiry costs that); without a device found in this scan ten answer windows (at most ``timeout_s``)."""
+        cap = self.timeout_s if found_here else min(self.timeout_s, 10 * ceiling)
+        short = min(cap, max(self._floor, 10 * max(self._rtt)))
+        self._drain()
+        sent = time.monotonic()
+        self._send(struct.pack("<BIBBB", cl.CS_FAST_SCAN, 0, FASTSCAN_RESET, 0, 0), count)
+        fenced = False
+        if found_here:
+            self._send(bytes([cl.CS_INQUIRE_NODE_ID]), count)
+        while True:
+            left = sent + (short if fenced else cap) - time.monotonic()
+            try:
+                _at, answer = self._answers.get(timeout=left) if left > 0 else self._answers.get_nowait()
+            except queue.Empty:
+                return False
+            if answer[:1] == bytes([cl.CS_IDENTIFY_SLAVE]):
+                self._rtt.append(time.monotonic() - sent)
+                return True
+            fenced = fenced or answer[:1] == bytes([cl.CS_INQUIRE_NODE_ID])
 
     def _really(self, address: LssAddress, found: Sequence[LssAddress], count: ScanCount) -> bool:
         """The address is a device's (identify remote slave: an answer late from an earlier request may have been
@@ -359,50 +393,102 @@ class LssMaster:
         parts: list[int] = []
         for sub in range(4):
             nxt = (sub + 1) & 3
-            hints = list(dict.fromkeys(address.parts()[sub] for address in found))
-            value = next((hint for hint in hints if self._fs(hint, 0, sub, nxt, count, self._window(ceiling))),
+            likely, hints = _hints(found, parts)
+            # A value is asked whole without moving the devices on (lss_next = lss_sub): an answer that came late
+            # would otherwise leave a device a part ahead unseen, and the next part scanned from another device.
+            value = next((hint for hint in likely if self._fs(hint, 0, sub, sub, count, self._window(ceiling))),
                          None)
             if value is None:
                 value = self._scan_bits(sub, hints, count, ceiling)
                 if value is None:
                     return None
-                if not self._fs(value, 0, sub, nxt, count, ceiling) and sub < 3:
-                    return None  # (the last part's confirmation, answered late, has put the device in
-                    # configuration state: identify remote slave, :meth:`_really`, tells)
+            # Only the confirmation moves them on: every device a part further has the parts found so far.
+            if not self._fs(value, 0, sub, nxt, count, ceiling) and sub < 3:
+                return None  # (the last part's confirmation, answered late, has put the device in configuration
+                # state: identify remote slave, :meth:`_really`, tells)
             parts.append(value)
         return parts
 
     def _scan_bits(self, sub: int, hints: list[int], count: ScanCount, ceiling: float) -> int | None:
         """The 32 bits of ``sub``, highest first. Every bit is decided by an answer: the predicted half is asked,
-        on a miss the other half. An answer to the first that came late is taken for the second's: then no half
-        of a lower bit answers, and that bit is turned back and confirmed with the full window."""
-        value, bit, doubtful = 0, 31, set[int]()
-        while bit >= 0:
-            high = ~((1 << (bit + 1)) - 1) & 0xFFFFFFFF
-            like = next((hint for hint in hints if (hint ^ value) & high == 0), 0)
-            first = value | (like & (1 << bit))
-            second = first ^ (1 << bit)
-            decided = False
-            fast, careful = self._window(ceiling), self._window(ceiling, careful=True)
-            for window in (fast, careful):  # a miss is asked again once, waiting longer
-                if self._fs(first, bit, sub, sub, count, window):
-                    value, decided = first, True
-                    break
-                if self._fs(second, bit, sub, sub, count, window):
-                    value, decided = second, True
-                    if window < careful:
+        on a miss the other half. An answer that came late is taken for the next request's: then no half of a lower
+        bit answers. That bit is found and turned back (a bit decided after a short wait first; else the prefix is
+        asked at ever higher bits: the first answered lies just above the misled bit), at most
+        :data:`TURN_BACKS` times a part before the whole device is scanned again with longer windows."""
+        value, bit, doubtful, turned, top_turned = 0, 31, set[int](), 0, False
+        while True:
+            if bit < 0:  # all 32 decided; one decided after a short wait is checked whole (not moving it on)
+                if not doubtful or self._fs(value, 0, sub, sub, count, self._window(ceiling, careful=True)):
+                    return value
+            else:
+                decided = self._decide(value, bit, sub, hints, count, ceiling)
+                if decided is not None:
+                    value, shaky = decided
+                    if shaky:
                         doubtful.add(bit)
-                    break
-            if decided:
-                bit -= 1
-                continue
-            upper = min((b for b in doubtful if b > bit), default=None)
-            if upper is None:
-                return None
-            doubtful = {b for b in doubtful if b < upper}
+                    bit -= 1
+                    continue
+            turned += 1
             count.retries += 1
-            value = (value ^ (1 << upper)) & ~((1 << upper) - 1)
-            if not self._fs(value, upper, sub, sub, count, ceiling):
+            if turned > TURN_BACKS:
                 return None
-            bit = upper - 1
-        return value
+            upper = min((b for b in doubtful if b > bit), default=None)
+            if upper is not None:
+                doubtful = {b for b in doubtful if b < upper}
+                back = (value ^ (1 << upper)) & ~((1 << upper) - 1)
+                if self._fs(back, upper, sub, sub, count, ceiling):
+                    value, bit = back, upper - 1
+                    continue
+            level = self._answered_level(value, bit + 1, sub, count, ceiling)
+            if level == 32:
+                if top_turned:
+                    return None  # not this part's bits: an earlier part's, or the device left
+                top_turned = True
+            doubtful = {b for b in doubtful if b < level}
+            if level > bit + 1:  # the prefix one bit lower was not answered: that bit was misled
+                value = (value ^ (1 << (level - 1))) & ~((1 << (level - 1)) - 1)
+                bit = level - 2
+            # else the prefix is right and both halves of the bit answered late twice: asked again
+
+    def _decide(self, value: int, bit: int, sub: int, hints: list[int], count: ScanCount, ceiling: float
+                ) -> tuple[int, bool] | None:
+        """``value`` with ``bit`` decided by an answer, and whether that came after a short wait for the other half
+        (an answer late from it may have been taken); None when no half answered, even after a longer wait."""
+        high = ~((1 << (bit + 1)) - 1) & 0xFFFFFFFF
+        like = next((hint for hint in hints if (hint ^ value) & high == 0), 0)
+        first = value | (like & (1 << bit))
+        second = first ^ (1 << bit)
+        fast, careful = self._window(ceiling), self._window(ceiling, careful=True)
+        for window in (fast, careful):  # a miss is asked again once, waiting longer
+            if self._fs(first, bit, sub, sub, count, window):
+                return first, False
+            if self._fs(second, bit, sub, sub, count, window):
+                return second, window < careful
+        return None
+
+    def _answered_level(self, value: int, lowest: int, sub: int, count: ScanCount, ceiling: float) -> int:
+        """The lowest bit check from ``lowest`` up whose prefix of ``value`` a device answers; 32 when not even bit
+        31's (only bit 31 is then left to be wrong). The two lowest are asked first (a late answer misleads the next
+        bit or two), then halves: a device that matches a prefix matches every shorter one."""
+        careful = self._window(ceiling, careful=True)
+        for level in range(lowest, min(lowest + 2, 32)):
+            if self._fs(value, level, sub, sub, count, careful):
+                return level
+        low, high = min(lowest + 2, 32), 32  # the prefix at ``high`` is answered (32: the empty prefix)
+        while low < high:
+            middle = (low + high) // 2
+            if self._fs(value, middle, sub, sub, count, careful):
+                high = middle
+            else:
+                low = middle + 1
+        return high
+
+def _hints(found: Sequence[LssAddress], parts: list[int]) -> tuple[list[int], list[int]]:
+    """The values the next part of the address may well have: (worth asking whole, to prefer bit by bit). Asked
+    whole: those of the devices found whose parts so far are the same (most frequent first), never their serial
+    number (two devices with the same vendor, product and revision differ there); a miss costs an answer window.
+    Preferred bit by bit: those, then the other devices' values."""
+    sub = len(parts)
+    kin = [address.parts()[sub] for address in found if list(address.parts()[:sub]) == parts]
+    likely = sorted(dict.fromkeys(kin), key=kin.count, reverse=True) if sub < 3 else []
+    return likely, list(dict.fromkeys([*kin, *(address.parts()[sub] for address in found)]))
