@@ -34,3 +34,11 @@ def test_an_xdd_edit_through_the_api_changes_only_that_value_in_the_regenerated_
     refused = api.patch(f"/api/profiles/{profile_id}/objects/0x2000/0", json={"default": "fast"})
     assert refused.status_code == 422 and refused.json()["detail"]
     assert api.get(f"/api/profiles/{profile_id}/xdd").content == regenerated  # a refused edit changes nothing
+
+
+def test_the_profile_page_of_an_xdd_upload_points_to_download_xdd_for_the_edited_file(api: TestClient) -> None:
+    """The edit form's hint named "Download EDS" for an XDD upload too, whose edits are in Download XDD."""
+    assert api.post("/api/profiles", files={"file": ("attributes.xdd", ATTRIBUTES)}).status_code == 201
+    page = api.get("/profiles/attributes?q=2000")
+    assert page.status_code == 200, page.text
+    assert "Download XDD shows it" in page.text and "Download EDS shows it" not in page.text

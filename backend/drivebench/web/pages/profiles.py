@@ -8,6 +8,7 @@ from urllib.parse import urlencode
 from fastapi import APIRouter, Depends, Query, Request, status
 from fastapi.responses import HTMLResponse, Response
 
+from drivebench.device.formats.xdd import XML_SUFFIXES
 from drivebench.device.profiles.catalog import Item
 from drivebench.device.profiles.loader import LoadedFile
 from drivebench.device.profiles.profile import Value
@@ -160,7 +161,8 @@ def _entries_context(loaded: LoadedFile, q: str, kind: EntryKind, offset: int, e
     query = {k: v for k, v in (("q", q), ("kind", kind)) if v and v != "all"}
     more_url = f"/profiles/{profile.id}/entries?" + urlencode({**query, "offset": shown})
     return {"profile": profile, "page": page, "rows": page.items, "more_url": more_url,
-            "remaining": page.total - shown, "page_size": PAGE_SIZE, "show": Show, "editable": editable}
+            "remaining": page.total - shown, "page_size": PAGE_SIZE, "show": Show, "editable": editable,
+            "file_kind": "XDD" if loaded.suffix in XML_SUFFIXES else "EDS"}
 
 
 @router.get("/profiles/{profile_id}", response_class=HTMLResponse)
