@@ -117,30 +117,23 @@
     }
     async function start(mode) {
       const sent = body(mode);
-      let answer = await fetchStart(sent);
-      if (answer && answer.status === 428) {  // a source that moves something asks first (polling never does)
-        const problem = await answer.json();
-        if (!window.confirm(`${problem.detail}\n\n${JSON.stringify(problem.confirm_values)}`)) return;
-        answer = await fetchStart({ ...sent, confirm: problem.confirm_node, confirm_values: problem.confirm_values });
-      }
-      if (!answer) return;
-      if (!answer.ok) {
-        let problem = null;
-        try { problem = await answer.json(); } catch (e) { /* not JSON */ }
-        $("scope-result").replaceChildren(drivebench.problemBox(problem, answer.status));
+      // a source that moves something (SYNC, NMT start) asks first in the app's own dialog, as every moving action
+      // does (drivebench.moving); polling never asks
+      const send = async (confirmation) => {
+        try {
+          return await drivebench.requestJson("POST", `${api}/run`, confirmation ? { ...sent, ...confirmation } : sent);
+        } catch (e) {
+          return { status: 0, data: { detail: _("No answer from the DriveBench server.") } };
+        }
+      };
+      const answer = await drivebench.moving(send, { what: _("Scope recording") });
+      if (!answer) return;  // the question was cancelled: nothing was sent
+      if (answer.status >= 400 || answer.status === 0) {
+        $("scope-result").replaceChildren(drivebench.problemBox(answer.data, answer.status));
         return;
       }
       $("scope-result").replaceChildren();
       shown = null;  // the live trace of the new run (its state message resets it, before or after this answer)
-    }
-    async function fetchStart(sent) {
-      try {
-        return await fetch(`${api}/run`, { method: "POST", headers: { "Content-Type": "application/json" },
-                                          body: JSON.stringify(sent) });
-      } catch (e) {
-        $("scope-result").replaceChildren(drivebench.errorBox(_("No answer from the DriveBench server."), _("Is it still running?")));
-        return null;
-      }
     }
     form.addEventListener("submit", (event) => { event.preventDefault(); start(form.elements.mode.value); });
     $("scope-single").addEventListener("click", () => start("single"));

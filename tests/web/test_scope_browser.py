@@ -70,6 +70,17 @@ def _add(page: Any, node: int, query: str, ref: str) -> None:
     row.first.locator("button.add-channel").click()
 
 
+def _start(page: Any, button: str) -> str:
+    """Press Start or Single and confirm the SYNC and NMT start the recording asks for in the app's dialog (the one
+    every moving action uses); returns the dialog's text."""
+    page.click(button)
+    asked = page.locator("#moving-confirm")
+    asked.wait_for(state="visible", timeout=90_000)
+    text = str(asked.inner_text())
+    asked.locator("button[value=ok]").click()
+    return text
+
+
 def pdo_settings(base: str) -> dict[tuple[int, str], object]:
     """Every SYNC (0x1005, 0x1006) and TPDO setting (0x18xx, 0x1Axx) of both drives, read through the parameters
     API."""
@@ -133,7 +144,6 @@ def test_a_triggered_capture_of_two_ramps_from_the_page_with_csv_export(page: An
     for ref in ("P0700", "P1000"):  # the MICROMASTER takes commands and setpoint from CANopen
         plant.nodes[MM].store.set_ref(ref, 6)
     before = pdo_settings(base)
-    page.on("dialog", lambda dialog: dialog.accept())  # the confirmation of the SYNC and NMT start it asks for
     page.set_viewport_size({"width": 1024, "height": 900})
     page.goto(f"{base}/scope")
     assert page.url.endswith("/scope/demo-plant")
@@ -147,7 +157,8 @@ def test_a_triggered_capture_of_two_ramps_from_the_page_with_csv_export(page: An
     page.fill("[name=level]", "500")
     page.fill("[name=pre_percent]", "20")
     page.fill("[name=name]", "ramp from the page")
-    page.click("#scope-single")
+    asked = _start(page, "#scope-single")
+    assert "Scope recording: sends to node 3" in asked and "SYNC" in asked, asked
     page.wait_for_function("() => document.getElementById('scope-state').dataset.state === 'armed'"
                            " || document.getElementById('scope-result').textContent", timeout=30_000)
     assert page.text_content("#scope-result") == "", page.text_content("#scope-result")
@@ -206,13 +217,12 @@ def test_closing_the_page_mid_recording_restores_every_tpdo_and_sync_setting(
         page: Any, scope_server: tuple[str, Plant]) -> None:
     base, _plant = scope_server
     before = pdo_settings(base)
-    page.on("dialog", lambda dialog: dialog.accept())
     page.goto(f"{base}/scope/demo-plant")
     page.wait_for_function("() => document.getElementById('scope-state').dataset.state === 'none'", timeout=90_000)
     _add(page, MM, "0x6044", "0x6044")
     _add(page, MOTEC, "speed", "C00868/2")
     page.fill("[name=period_ms]", "20")
-    page.click("#scope-start")
+    _start(page, "#scope-start")
     page.wait_for_function("() => window.scopeChart && window.scopeChart.data[0].length >= 10", timeout=90_000)
     assert "sampling by PDO" in page.text_content("#scope-source")
     during = pdo_settings(base)
@@ -240,7 +250,6 @@ def test_the_live_trace_fills_when_the_recording_is_seen_before_its_start_answer
     the page then emptied its live trace at the answer and drew none of the samples that came, until the trigger.
     The trace fills at once, and a second recording on the same channels starts a trace of its own."""
     base, _plant = slow_scope_server
-    page.on("dialog", lambda dialog: dialog.accept())
     page.goto(f"{base}/scope/demo-plant")
     page.wait_for_function("() => document.getElementById('scope-state').dataset.state === 'none'", timeout=90_000)
     _add(page, MM, "0x6044", "0x6044")
@@ -250,7 +259,7 @@ def test_the_live_trace_fills_when_the_recording_is_seen_before_its_start_answer
     page.fill("[name=level]", "500")  # the drives stand still: the recording stays armed, no capture ends it
     shown = 0
     for _run in range(2):
-        page.click("#scope-single")
+        _start(page, "#scope-single")
         page.wait_for_function(LIVE_FILLS, arg=shown, timeout=90_000)
         assert page.text_content("#scope-result") == "", page.text_content("#scope-result")
         assert page.get_attribute("#scope-state", "data-state") == "armed"
