@@ -6,6 +6,9 @@
   if (!root) return;
   const drivebench = window.drivebench;
   const _ = drivebench.gettext;
+  // what happens to the recording's changes when its page closes (the README's "What is restored when")
+  const RECORDING_NOTE = _("The recording ends when your last page showing it closes (or at Stop): every TPDO, SYNC " +
+                           "and NMT setting it changed is put back and read back.");
   const el = drivebench.el;
   const $ = (id) => document.getElementById(id);
   const session = root.dataset.session;
@@ -126,7 +129,7 @@
           return { status: 0, data: { detail: _("No answer from the DriveBench server.") } };
         }
       };
-      const answer = await drivebench.moving(send, { what: _("Scope recording") });
+      const answer = await drivebench.moving(send, { what: _("Scope recording"), note: RECORDING_NOTE });
       if (!answer) return;  // the question was cancelled: nothing was sent
       if (answer.status >= 400 || answer.status === 0) {
         $("scope-result").replaceChildren(drivebench.problemBox(answer.data, answer.status));

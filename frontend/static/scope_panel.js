@@ -8,6 +8,9 @@
   if (window.drivebenchScopePanelScan) { window.drivebenchScopePanelScan(); return; }
   const drivebench = window.drivebench;
   const _ = drivebench.gettext;
+  // what happens to the recording's changes when its page closes (the README's "What is restored when")
+  const RECORDING_NOTE = _("The recording ends when your last page showing it closes (or at Stop): every TPDO, SYNC " +
+                           "and NMT setting it changed is put back and read back.");
   const COLORS = ["#0b5fa5", "#c0392b", "#1e8449", "#8e44ad", "#d35400", "#17a589", "#7f8c8d", "#b7950b"];
   const KEPT = 2000;
   const PER_S = _("samples/s");
@@ -61,7 +64,7 @@
       const body = { channels: chosen, period_ms: Number(f.period_ms.value), length_s: Number(f.length_s.value),
                      trigger: { mode: "free" }, name: _("Node {node}, Control tab", { node }) };
       const send = (confirmation) => request("POST", `${api}/run`, confirmation ? { ...body, ...confirmation } : body);
-      shown(await drivebench.moving(send, {}));  // the new run's first state (maybe before this answer) resets the trace
+      shown(await drivebench.moving(send, { what: _("Scope recording"), note: RECORDING_NOTE }));  // the new run's first state (maybe before this answer) resets the trace
     }
     if (form) form.addEventListener("submit", start);
     // Start comes disabled from the server: a press before this script ran would have done nothing.
