@@ -6,10 +6,12 @@ could answer, and a served request uses none of it: it reaches a route through i
 builds that inclusion's own (effective) copy of each route from the route's declared arguments
 (``fastapi.routing._EffectiveRouteContext.from_api_route``; a worker thread builds them once the server listens,
 ``access_policy.build_effective_routes``, or the first request of a router). A :class:`DeferredRoute` keeps its
-arguments and what matching needs (path, name, methods, the compiled path) and answers the inclusion's questions
-with what it was declared with; anything else (its dependant, response field, handler: the OpenAPI document of a
-route not included, a test) builds it, as ``APIRoute`` builds it, at that first use.
+arguments and what matching needs (path, name, methods; the path's pattern is compiled at its first match) and
+answers the inclusion's questions with what it was declared with; anything else (its dependant, response field,
+handler: the OpenAPI document of a route not included, a test) builds it, as ``APIRoute`` builds it, at that first
+use.
 """
+
 from __future__ import annotations
 
 import inspect
@@ -29,8 +31,8 @@ def _sample_endpoint() -> None:
     return None
 
 
-_KNOWN = frozenset({"path", "endpoint", "name", "methods", "path_regex", "path_format", "param_convertors",
-                    "include_in_schema"})
+_COMPILED_PATH = frozenset({"path_regex", "path_format", "param_convertors"})
+_KNOWN = frozenset({"path", "endpoint", "name", "methods", "include_in_schema"}) | _COMPILED_PATH
 _BUILT: frozenset[str] = frozenset(vars(APIRoute("/", _sample_endpoint))) - _KNOWN
 """What ``APIRoute.__init__`` sets beyond what a deferred route knows at once."""
 _DEFAULTS: dict[str, Any] = {name: parameter.default
@@ -68,10 +70,12 @@ class DeferredRoute(APIRoute):
         self.path, self.endpoint = path, endpoint
         self.name = get_name(endpoint) if arguments.get("name") is None else arguments["name"]
         self.methods = {method.upper() for method in arguments.get("methods") or ["GET"]}
-        self.path_regex, self.path_format, self.param_convertors = compile_path(path)
         self.include_in_schema = arguments.get("include_in_schema", True)
 
     def __getattr__(self, name: str) -> Any:
+        if name in _COMPILED_PATH:  # at its first match (the gate tries the routes in order: /api/health first)
+            self.path_regex, self.path_format, self.param_convertors = compile_path(self.path)
+            return object.__getattribute__(self, name)
         if name not in _BUILT:
             raise AttributeError(name)
         with _building:
