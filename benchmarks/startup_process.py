@@ -35,9 +35,10 @@ from startup_uploads import store_uploads
 from drivebench.config import REPO_ROOT
 
 SECTION = "## Start-up of the server process"
-BEFORE = "701d74f"
-"""main before the second round of start cuts (issues 29 and 33: a current schema found without Alembic);
-``--before 3512ecf`` compares with the code before the first round (routes in place, gc held)."""
+BEFORE = "a1b6cc8"
+"""main before the third round of start cuts (issue 33: routes built at first use, the heap settled after the
+uploads, cryptography and Babel's catalogue code left out); ``--before 701d74f`` compares with the code before the
+second round, ``--before 3512ecf`` with the code before the first."""
 TREE = ["backend", "frontend", "device_profiles", "plants", "pyproject.toml"]
 ROUNDS = 3
 START_TIMEOUT_S = 300.0
@@ -156,19 +157,23 @@ def write_results(rows: list[tuple[str, str]]) -> None:
 
 
 NOTE = ("Wall time on this shared machine is mostly the wait for a core (see the load average): the CPU seconds of "
-        "the server process compare the work. Where the CPU of the start went (cProfile and `-X importtime` of "
-        "`drivebench serve`, 2026-11-29): importing the app (FastAPI builds each of ~290 routes' parameter models "
-        "as its module is imported), FastAPI building every included router's effective routes a second time "
-        "when the access policy asked for them before the first request (now walked in place; a worker thread "
-        "builds FastAPI's copies once the server listens), cyclic garbage collection passes over the growing heap "
-        "during the imports (now held until the start has settled), compiling DriveBench's own modules at "
-        "every start where no bytecode may be written (the image: now compiled when it is built), and Alembic: "
-        "imported with the app and executing every migration file twice to find a current schema current (now "
-        "the start reads the migrations' revisions from their files and the database's from its version table, "
-        "and imports Alembic only to migrate). Earlier runs: 2026-11-29 09:03 (load 20.1), before the first round "
-        "(3512ecf) 5.15 s CPU, after it (474f1c2) 3.02 s, compiled 2.49 s; a second run that day (`--before 3b09657 "
-        "--after 95fc569 --rounds 2`) split that round: the routes walked in place took 1.8 s of the 2.1 s cut, the "
-        "held collector 0.3 s.")
+        "the server process compare the work. Where the CPU of the start went before this round (cProfile with a "
+        "thread-time clock and `-X importtime` of `drivebench serve` with 200 stored uploads, 2026-11-29 14:35; "
+        "main thread ~2.1 s of the ~2.3 s compiled): the libraries (FastAPI, pydantic, SQLAlchemy, uvicorn, "
+        "pydantic-settings) ~0.5 s; importing the app ~1.2 s, of which FastAPI building each of ~300 routes' state "
+        "as its decorator ran (a pydantic field per parameter, the response field, the handler) about half, "
+        "pydantic model classes most of the rest; the full garbage collection over the start's heap before "
+        "listening ~0.2 s; cryptography's X.509 and Babel's catalogue code a few hundredths; the worker threads "
+        "(database check, shipped profiles, the first uploads) ~0.2 s. This round: routes built at first use "
+        "(FastAPI's inclusions build their own copies from the declared arguments, so the originals are never "
+        "built in a served app), the heap settled once the uploads are read, cryptography and babel.messages "
+        "imported where used. What is left is the libraries' import, pydantic's model classes (~320, each "
+        "building its schema as its module is imported) and FastAPI's route matching tables. Earlier rounds: "
+        "before the first (3512ecf) 5.15 s CPU, after it 3.02 s, compiled 2.49 s (load 20); the second "
+        "(Alembic only to migrate) 3.14 s -> 2.96 s, compiled 2.55 s (701d74f -> c93336e, load 22-34). "
+        "A first run of this round (2026-11-29 15:16, load ~10; 14acff4, the path patterns still compiled at "
+        "import): 3.97 s CPU before, 2.47 s after, 2.07 s compiled (1.78-2.20). On this machine the compiled start "
+        "is at the 2 s of issue 33 (1.78-2.52 s over six starts in two runs), not safely under it.")
 
 
 if __name__ == "__main__":

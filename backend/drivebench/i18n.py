@@ -23,8 +23,6 @@ from pathlib import Path
 from typing import Self
 
 from babel import Locale, negotiate_locale
-from babel.messages.mofile import write_mo
-from babel.messages.pofile import read_po
 from babel.numbers import format_decimal, get_decimal_symbol
 from markupsafe import escape
 
@@ -51,6 +49,9 @@ def translations(locale: str) -> gettext_module.NullTranslations:
     if mo_path.exists() and mo_path.stat().st_mtime >= po_path.stat().st_mtime:
         with mo_path.open("rb") as mo_file:
             return gettext_module.GNUTranslations(mo_file)
+    from babel.messages.mofile import write_mo  # only here: Babel's catalogue code is ~0.02 s of every start
+    from babel.messages.pofile import read_po
+
     with po_path.open("rb") as po_file:
         catalog = read_po(po_file, locale=locale, domain=DOMAIN)
     compiled = io.BytesIO()

@@ -24,6 +24,7 @@ NOT_STATE = {
     "_trips",  # stops in flight (asyncio tasks kept until done, whichever app's socket started them)
     "_templates", "_templates_lock",  # the routers' routes as FastAPI built them, the same for every app
     "_serving",  # the app serving the request (a ContextVar: each request's own)
+    "_building",  # one deferred route built at a time (a lock over the process's route tables)
 }
 """Module-level names that hold objects but no app-wide state, and why."""
 

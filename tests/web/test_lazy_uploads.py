@@ -6,6 +6,7 @@ Many cold uploads (no parsed cache yet: each EDS is parsed) make the loading tak
 
 from __future__ import annotations
 
+import gc
 import json
 import re
 import time
@@ -15,8 +16,9 @@ import httpx
 import pytest
 
 from drivebench.config import REPO_ROOT, settings
+from drivebench.web import heap
 from drivebench.web.app import create_app
-from tests.conftest import fresh_channel, serve_app
+from tests.conftest import fresh_channel, serve_app, wait_until
 
 pytestmark = pytest.mark.slow  # every test serves 300 cold uploads in uvicorn: `make test-quick` leaves them out
 
@@ -102,3 +104,23 @@ def test_a_node_given_a_stored_upload_waits_for_it_and_reads(
         read = httpx.get(f"{base}/api/sessions/{session['id']}/nodes/7/parameters/0x1018.1", timeout=60)
         assert read.status_code == 200, read.text
         assert httpx.get(f"{base}/api/profiles/{LAST}", timeout=60).status_code == 200
+
+
+def test_a_server_of_its_own_settles_its_heap_once_the_stored_uploads_are_read(
+        tmp_path: Path, app_db_url: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``drivebench serve`` (``heap.hold``, ``settle_heap``): the full collection over what the start made waits
+    until the stored uploads are read (they are part of it), so the first answers do not wait for it (issue 33)."""
+    store_uploads(tmp_path / "user-profiles")
+    monkeypatch.setattr(settings, "user_profiles_dir", tmp_path / "user-profiles")
+    heap.hold()
+    try:
+        with serve_app(create_app(settle_heap=True)) as base:
+            collecting, frozen = gc.isenabled(), gc.get_freeze_count()  # before the answer: still loading then
+            assert httpx.get(f"{base}/api/health", timeout=60).json()["profiles"]["state"] == "loading"
+            assert (collecting, frozen) == (False, 0), "the start collected its heap before the first answer"
+            wait_until_loaded(base)
+            assert wait_until(gc.isenabled, 120), "the collector stayed off after the uploads were read"
+            assert gc.get_freeze_count() > 10_000
+    finally:
+        gc.enable()
+        gc.unfreeze()

@@ -16,9 +16,10 @@ from starlette.responses import RedirectResponse
 from drivebench import i18n
 from drivebench.errors import NotFound
 from drivebench.web import cookies
+from drivebench.web.deferred_route import DeferredRoute
 from drivebench.web.root import cookie_path, under_root
 
-router = APIRouter()
+router = APIRouter(route_class=DeferredRoute)
 COOKIE_MAX_AGE_S = 365 * 24 * 3600
 VARY = ("Accept-Language", "Cookie")
 VARY_BYTES = tuple(name.encode() for name in VARY)

@@ -21,13 +21,15 @@ from fastapi.routing import APIRoute
 from starlette.exceptions import HTTPException
 from starlette.types import Receive, Scope, Send
 
+from drivebench.web.deferred_route import DeferredRoute
+
 LeanHandler = Callable[[Request], Awaitable[Response | None]]
 
 
 def lean_route(lean: LeanHandler) -> type[APIRoute]:
     """An ``APIRoute`` class (``route_class_override``) whose GET requests the gate first offers to ``lean``."""
 
-    class LeanRoute(APIRoute):
+    class LeanRoute(DeferredRoute):
         pass
 
     LeanRoute.lean = staticmethod(lean)  # type: ignore[attr-defined]

@@ -21,10 +21,11 @@ from drivebench.errors import SDO_FAILURES
 from drivebench.services.monitoring.monitor import monitor_for
 from drivebench.services.params.jobs import JobManager
 from drivebench.services.session_manager import SessionManager
+from drivebench.web.deferred_route import DeferredRoute
 from drivebench.web.metrics_token import METRICS_ROUTE
 from drivebench.web.root import route_path
 
-router = APIRouter(include_in_schema=False)
+router = APIRouter(route_class=DeferredRoute, include_in_schema=False)
 
 
 class Metrics:

@@ -6,7 +6,6 @@ import functools
 import time
 from typing import Any
 
-from babel.messages.extract import extract_from_file
 from jinja2_fragments.fastapi import Jinja2Blocks
 from starlette.requests import Request
 
@@ -36,6 +35,8 @@ templates.env.globals["locales"] = i18n.LOCALES
 @functools.cache
 def _script_texts() -> tuple[str, ...]:
     """The texts the page scripts mark with _("…"), found once by Babel's JavaScript extractor (as pybabel does)."""
+    from babel.messages.extract import extract_from_file  # at the first page: not a cost of the start
+
     found: set[str] = set()
     for script in sorted((settings.frontend_dir / "static").glob("*.js")):
         found.update(message for _line, message, _comments, _context in extract_from_file("javascript", str(script))

@@ -10,15 +10,14 @@ import ipaddress
 import ssl
 from dataclasses import dataclass
 from pathlib import Path
-
-from cryptography import x509
-from cryptography.hazmat.primitives import hashes, serialization
-from cryptography.hazmat.primitives.asymmetric import ec
-from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
+from typing import TYPE_CHECKING
 
 from drivebench.errors import InvalidValue
 from drivebench.i18n import _
 from drivebench.web.tls_files import check_pem, read_pem
+
+if TYPE_CHECKING:
+    from cryptography import x509
 
 HSTS_HEADER = (b"strict-transport-security", b"max-age=31536000")
 """One year, without includeSubDomains: a plant server's name says nothing about its neighbours."""
@@ -33,6 +32,8 @@ class Certificate:
 
 
 def _subject_names(hosts: list[str]) -> list[x509.GeneralName]:
+    from cryptography import x509
+
     names: list[x509.GeneralName] = []
     for host in hosts:
         try:
@@ -48,6 +49,12 @@ def self_signed(hosts: list[str], days: int = 825) -> Certificate:
         raise InvalidValue(_("A certificate needs at least one host name or address (--host)."))
     if not 1 <= days <= 3650:
         raise InvalidValue(_("--days {days}: a certificate is made for 1 to 3650 days.").format(days=days))
+    # Imported here, for `drivebench tls` only: cryptography's X.509 modules are ~0.05 s of every server start.
+    from cryptography import x509
+    from cryptography.hazmat.primitives import hashes, serialization
+    from cryptography.hazmat.primitives.asymmetric import ec
+    from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
+
     key = ec.generate_private_key(ec.SECP256R1())
     name = x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, hosts[0]),
                       x509.NameAttribute(NameOID.ORGANIZATION_NAME, "DriveBench (self-signed)")])

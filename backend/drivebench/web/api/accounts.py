@@ -15,13 +15,14 @@ from drivebench.i18n import _
 from drivebench.services.users import accounts
 from drivebench.services.users.principals import Principal, Role
 from drivebench.web import access, live_access
+from drivebench.web.deferred_route import DeferredRoute
 from drivebench.web.deps import RowId, StateDep
 from drivebench.web.identity import PrincipalDep
 from drivebench.web.problems import problem_body
 from drivebench.web.sign_in import FIRST_ADMIN, client_address, sign_in
 from drivebench.web.state import app_state
 
-router = APIRouter(prefix="/api", tags=["accounts"])
+router = APIRouter(route_class=DeferredRoute, prefix="/api", tags=["accounts"])
 
 RoleName = Annotated[str, Field(pattern="^(viewer|engineer|admin)$", description="viewer, engineer or admin")]
 

@@ -15,12 +15,14 @@ from drivebench.services.monitoring.diagnostics import EmcyRecord, GuardingPubli
 from drivebench.services.monitoring.object_list import ObjectListComparison
 from drivebench.services.monitoring.remote_content import SessionContent, session_content
 from drivebench.services.users.sharing import DEFAULT_SHOWS, SHOWS
+from drivebench.web.deferred_route import DeferredRoute
 from drivebench.web.deps import NodeDep, SessionDep, StateDep
 from drivebench.web.safety import WriteCtxDep
 from drivebench.web.share_links import IssuedShareLink, ShareLinkPublic, issued_link, share_link_public
 from drivebench.web.templating import templates
 
-router = APIRouter(prefix="/api", tags=["diagnostics"])  # set-up writes take the node lease (WriteCtxDep)
+# set-up writes take the node lease (WriteCtxDep)
+router = APIRouter(route_class=DeferredRoute, prefix="/api", tags=["diagnostics"])
 
 
 class SessionHealth(BaseModel):

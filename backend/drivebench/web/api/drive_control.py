@@ -22,11 +22,12 @@ from drivebench.services.control.drive_control import ActualValue, DriveStatus, 
 from drivebench.services.control.drive_guard import Confirmation
 from drivebench.services.control.drive_words import Command
 from drivebench.services.control.motion import CyclicStream, MotionInfo
+from drivebench.web.deferred_route import DeferredRoute
 from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.safety import PanelDep, WriteCtxDep, confirmation
 
 router = APIRouter(prefix="/api/sessions/{session_id}/nodes/{node_id}/control", tags=["drive control"],
-                   responses={428: {"description": "Not confirmed with the node id"}})
+                   responses={428: {"description": "Not confirmed with the node id"}}, route_class=DeferredRoute)
 
 
 class Confirmed(BaseModel):

@@ -9,11 +9,12 @@ from pydantic import BaseModel, TypeAdapter
 from drivebench import __version__
 from drivebench.config import settings
 from drivebench.services.profiles.loading import ProfilesLoading, progress
+from drivebench.web.deferred_route import DeferredRoute
 from drivebench.web.deps import StateDep
 from drivebench.web.lean_route import lean_route
 from drivebench.web.state import AppState, app_state
 
-router = APIRouter(prefix="/api", tags=["health"])
+router = APIRouter(route_class=DeferredRoute, prefix="/api", tags=["health"])
 _STARTED = time.time()
 
 

@@ -32,10 +32,11 @@ from drivebench.services.line.store import (
 from drivebench.services.planning.planned_networks import PlannedNetworkStore
 from drivebench.services.sets import concise_sets, set_formats
 from drivebench.services.sets.parameter_sets import ParameterSetStore
+from drivebench.web.deferred_route import DeferredRoute
 from drivebench.web.deps import MAX_ROW_ID, ManagerDep, RowId, StateDep
 from drivebench.web.safety import AuditUserDep, WriteCtxDep, confirmation
 
-router = APIRouter(prefix="/api/line-projects", tags=["line projects"])
+router = APIRouter(route_class=DeferredRoute, prefix="/api/line-projects", tags=["line projects"])
 NodeId = Annotated[int, Field(ge=1, le=127)]
 Format = Literal["json", "yaml"]
 

@@ -29,10 +29,11 @@ from drivebench.services.line.wizard_run import Firmware, WizardRun, WizardStore
 from drivebench.services.line.wizard_steps import StepCall, run_step
 from drivebench.services.program import download
 from drivebench.services.program.firmware import read_firmware
+from drivebench.web.deferred_route import DeferredRoute
 from drivebench.web.deps import MAX_ROW_ID, JobsDep, RowId, SessionDep
 from drivebench.web.safety import AuditUserDep, WriteCtxDep, confirmation
 
-router = APIRouter(prefix="/api/sessions/{session_id}/line-wizard", tags=["line wizard"],
+router = APIRouter(route_class=DeferredRoute, prefix="/api/sessions/{session_id}/line-wizard", tags=["line wizard"],
                    responses={428: {"description": "Not confirmed with the node (or all) and the values"}})
 
 

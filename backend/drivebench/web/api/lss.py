@@ -14,10 +14,11 @@ from drivebench.protocol.canopen.lss import LssAddress
 from drivebench.services.lss import bit_rate
 from drivebench.services.lss import line as lss
 from drivebench.services.lss.identify import identify
+from drivebench.web.deferred_route import DeferredRoute
 from drivebench.web.deps import SessionDep, StateDep
 from drivebench.web.safety import WriteCtxDep, confirmation
 
-router = APIRouter(prefix="/api/sessions/{session_id}/lss", tags=["lss"])
+router = APIRouter(route_class=DeferredRoute, prefix="/api/sessions/{session_id}/lss", tags=["lss"])
 
 
 class Confirmed(BaseModel):

@@ -17,10 +17,11 @@ from pydantic import BaseModel
 from drivebench.services.monitoring import telegram_counters
 from drivebench.services.monitoring.monitor import MonitorFilter, monitor_for
 from drivebench.services.monitoring.recording import MEDIA_TYPES, format_names, recordings_for
+from drivebench.web.deferred_route import DeferredRoute
 from drivebench.web.deps import SessionDep
 from drivebench.web.monitor_filter import FilterBody
 
-router = APIRouter(prefix="/api/sessions/{session_id}/monitor", tags=["monitor"])
+router = APIRouter(route_class=DeferredRoute, prefix="/api/sessions/{session_id}/monitor", tags=["monitor"])
 
 FormatName = Literal["pcapng", "log", "asc", "blf", "trc", "csv"]
 

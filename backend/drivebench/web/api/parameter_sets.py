@@ -28,6 +28,7 @@ from drivebench.services.sets.parameter_sets import (
 )
 from drivebench.services.sets.set_jobs import ReportLine
 from drivebench.services.users import audit
+from drivebench.web.deferred_route import DeferredRoute
 from drivebench.web.deps import JobsDep, ManagerDep, RootDep, RowId, RowVersion, StateDep
 from drivebench.web.safety import AuditUserDep, WriteCtxDep, confirmation
 from drivebench.web.set_views import (
@@ -50,7 +51,8 @@ from drivebench.web.set_views import (
     store,
 )
 
-router = APIRouter(prefix="/api", tags=["parameter sets"])  # downloads take the node lease (WriteCtxDep)
+# downloads take the node lease (WriteCtxDep)
+router = APIRouter(route_class=DeferredRoute, prefix="/api", tags=["parameter sets"])
 SETS = "/parameter-sets"
 UserHeader = Annotated[str | None, Header(alias="X-DriveBench-User", description="Who acts (audit log)")]
 

@@ -25,6 +25,7 @@ from drivebench.services.params.parameter_batch import MAX_BATCH_WRITE, Wanted
 from drivebench.services.params.session_part import SdoSettings
 from drivebench.services.params.values import ParameterValue, WriteResult
 from drivebench.services.users import undo as undoing
+from drivebench.web.deferred_route import DeferredRoute
 from drivebench.web.deps import JobsDep, NodeDep, RootDep, SessionDep
 from drivebench.web.job_views import JobOut, ParameterValueOut, ValueOut, job_out, value_out
 from drivebench.web.lean_route import lean_route, path_int
@@ -34,7 +35,7 @@ from drivebench.web.state import app_state
 
 # Every route that writes (or starts a job that does) takes the request's WriteContext (WriteCtxDep) and hands it to
 # the service; a read takes none (benchmarks/RESULTS.md, Request path).
-router = APIRouter(prefix="/api", tags=["parameters"])
+router = APIRouter(route_class=DeferredRoute, prefix="/api", tags=["parameters"])
 NODE = "/sessions/{session_id}/nodes/{node_id}"
 
 

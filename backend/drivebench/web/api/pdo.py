@@ -9,10 +9,11 @@ from pydantic import BaseModel, Field
 from drivebench.services.pdos import ethercat_pdo, pdo
 from drivebench.services.pdos.ethercat_pdo import EcatApplyReport, EcatAssignment
 from drivebench.services.pdos.pdo import ApplyReport, Direction, MappedObject, PdoConfig, PdoWrite
+from drivebench.web.deferred_route import DeferredRoute
 from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.safety import WriteCtxDep
 
-router = APIRouter(prefix="/api/sessions/{session_id}/nodes/{node_id}/pdos", tags=["pdo"])
+router = APIRouter(route_class=DeferredRoute, prefix="/api/sessions/{session_id}/nodes/{node_id}/pdos", tags=["pdo"])
 
 
 @router.get("", response_model=list[PdoConfig])

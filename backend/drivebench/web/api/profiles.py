@@ -33,11 +33,13 @@ from drivebench.services.profiles.views import (
     upload_result,
     warning_out,
 )
+from drivebench.web.deferred_route import DeferredRoute
 from drivebench.web.deps import StateDep, wait_for_profiles
 from drivebench.web.problems import error_fragment, problem_body
 from drivebench.web.profile_uploads import receive_many, receive_upload
 
-router = APIRouter(prefix="/api/profiles", tags=["profiles"], dependencies=[Depends(wait_for_profiles)])
+router = APIRouter(route_class=DeferredRoute, prefix="/api/profiles", tags=["profiles"],
+                   dependencies=[Depends(wait_for_profiles)])
 
 MAX_PAGE = 500
 

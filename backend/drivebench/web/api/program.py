@@ -26,12 +26,14 @@ from drivebench.services.params.jobs import Job
 from drivebench.services.program import download
 from drivebench.services.program.firmware import read_firmware
 from drivebench.services.program.program_info import program_info
+from drivebench.web.deferred_route import DeferredRoute
 from drivebench.web.deps import JobsDep, RootDep, SessionDep
 from drivebench.web.job_views import JobOut, job_out
 from drivebench.web.safety import WriteCtxDep, confirmation
 
 router = APIRouter(prefix="/api/sessions/{session_id}/nodes/{node_id}/program", tags=["program download"],
-                   responses={428: {"description": "Not confirmed with the node id and the values"}})
+                   responses={428: {"description": "Not confirmed with the node id and the values"}},
+                   route_class=DeferredRoute)
 COMMANDS = {"stop": ProgramCommand.STOP, "start": ProgramCommand.START, "reset": ProgramCommand.RESET,
             "clear": ProgramCommand.CLEAR}
 

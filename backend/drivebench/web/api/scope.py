@@ -16,11 +16,12 @@ from drivebench.services.scope import export, runs, store
 from drivebench.services.scope.channels import MAX_CHANNELS, candidates
 from drivebench.services.scope.source import ScopeChannel
 from drivebench.services.scope.trigger import TriggerSpec
+from drivebench.web.deferred_route import DeferredRoute
 from drivebench.web.deps import SessionDep
 from drivebench.web.identity import principal_of
 from drivebench.web.safety import WriteCtxDep, confirmation
 
-router = APIRouter(tags=["scope"])
+router = APIRouter(route_class=DeferredRoute, tags=["scope"])
 RecordingId = Annotated[int, Path(ge=1, le=2**31 - 1, description="A stored recording's id")]
 S = "/api/sessions/{session_id}/scope"
 

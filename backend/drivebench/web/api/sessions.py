@@ -23,12 +23,13 @@ from drivebench.services.params import node_lease
 from drivebench.services.profiles import loading as profiles_loading
 from drivebench.services.users.principals import Role
 from drivebench.transport.bus import BusSpec, known_interfaces
+from drivebench.web.deferred_route import DeferredRoute
 from drivebench.web.deps import ManagerDep, NodeDep, SessionDep, StateDep
 from drivebench.web.identity import PrincipalDep
 from drivebench.web.nmt import NmtRequest, NodeNmtRequest, send_nmt
 from drivebench.web.safety import PanelDep, WriteCtxDep, WriterDep
 
-router = APIRouter(prefix="/api", tags=["sessions"])
+router = APIRouter(route_class=DeferredRoute, prefix="/api", tags=["sessions"])
 
 class SessionCreate(BaseModel):
     """Either ``bus`` (``socketcan:can0@500000``, ``socketcand:HOST:PORT/can0``, ``ethercat-mbg:HOST:PORT``) or

@@ -14,9 +14,10 @@ from drivebench.simulator.faults import ABORT_CODE_RANGE, SdoFaults
 from drivebench.simulator.lss_slave import LssDevice, LssFaults
 from drivebench.simulator.node import SimulatedNode
 from drivebench.simulator.plant import Plant
+from drivebench.web.deferred_route import DeferredRoute
 from drivebench.web.deps import SessionDep, StateDep
 
-router = APIRouter(prefix="/api", tags=["simulator"])
+router = APIRouter(route_class=DeferredRoute, prefix="/api", tags=["simulator"])
 FAULTS = "/sessions/{session_id}/simulator/nodes/{node_id}/faults"
 NodeId = Annotated[int, Path(ge=1, le=127, description="CANopen node id")]
 

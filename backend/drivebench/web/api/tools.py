@@ -35,11 +35,12 @@ from drivebench.services.planning.planned_networks import (
     compare_with_session,
 )
 from drivebench.services.planning.planner import NetworkPlan, PlanReport, check_plan
+from drivebench.web.deferred_route import DeferredRoute
 from drivebench.web.deps import ManagerDep, RowId, StateDep
 from drivebench.web.dip_answer import DipAnswer, dip_answer
 
-router = APIRouter(prefix="/api/tools", tags=["tools"])
-planned_router = APIRouter(prefix="/api/planned-networks", tags=["planned networks"])
+router = APIRouter(route_class=DeferredRoute, prefix="/api/tools", tags=["tools"])
+planned_router = APIRouter(route_class=DeferredRoute, prefix="/api/planned-networks", tags=["planned networks"])
 
 
 # --- DIP-switch calculator and COB-IDs -------------------------------------------------------------------------

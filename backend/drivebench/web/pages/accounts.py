@@ -13,6 +13,7 @@ from drivebench.i18n import _
 from drivebench.services.users import accounts
 from drivebench.services.users.principals import Role
 from drivebench.web import access, live_access
+from drivebench.web.deferred_route import DeferredRoute
 from drivebench.web.deps import RowId
 from drivebench.web.problems import problem_body
 from drivebench.web.root import under_root
@@ -20,7 +21,7 @@ from drivebench.web.sign_in import FIRST_ADMIN, sign_in
 from drivebench.web.state import app_state
 from drivebench.web.templating import templates
 
-router = APIRouter(include_in_schema=False)
+router = APIRouter(route_class=DeferredRoute, include_in_schema=False)
 ROLES = [role.label for role in Role]
 
 

@@ -9,10 +9,11 @@ from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse, Response
 
 from drivebench.services.line.store import LineProjectStore
+from drivebench.web.deferred_route import DeferredRoute
 from drivebench.web.deps import ManagerDep
 from drivebench.web.templating import templates
 
-router = APIRouter(include_in_schema=False)
+router = APIRouter(route_class=DeferredRoute, include_in_schema=False)
 
 
 @router.get("/line-projects", response_class=HTMLResponse)

@@ -15,10 +15,11 @@ from drivebench.services.line.project import LineProject
 from drivebench.services.line.store import LineProjectStore
 from drivebench.services.line.wizard_report import report
 from drivebench.services.line.wizard_run import STATE_WORDS, STEP_TITLES, STEPS, WizardRun, WizardStore
+from drivebench.web.deferred_route import DeferredRoute
 from drivebench.web.deps import RowId, SessionDep
 from drivebench.web.templating import templates
 
-router = APIRouter(include_in_schema=False)
+router = APIRouter(route_class=DeferredRoute, include_in_schema=False)
 
 
 async def _run_and_project(session: Session, run_id: int) -> tuple[WizardRun, LineProject | None]:

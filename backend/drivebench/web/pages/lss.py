@@ -12,10 +12,11 @@ from drivebench.errors import InvalidValue
 from drivebench.i18n import _
 from drivebench.protocol.canopen.lss import BIT_TIMINGS
 from drivebench.services.lss.line import BITRATES
+from drivebench.web.deferred_route import DeferredRoute
 from drivebench.web.deps import SessionDep
 from drivebench.web.templating import templates
 
-router = APIRouter(include_in_schema=False)
+router = APIRouter(route_class=DeferredRoute, include_in_schema=False)
 
 
 @router.get("/sessions/{session_id}/lss", response_class=HTMLResponse)

@@ -13,11 +13,12 @@ from drivebench.services.bus.views import NodePublic, nodes_public, session_publ
 from drivebench.services.monitoring import telegram_counters
 from drivebench.services.monitoring.monitor import SERVICE_GROUPS, monitor_for
 from drivebench.services.monitoring.recording import format_names, recordings_for
+from drivebench.web.deferred_route import DeferredRoute
 from drivebench.web.deps import SessionDep, StateDep
 from drivebench.web.root import under_root
 from drivebench.web.templating import templates
 
-router = APIRouter(include_in_schema=False)
+router = APIRouter(route_class=DeferredRoute, include_in_schema=False)
 BUS_LABELS = {"active": N_("active"), "warning": N_("warning"), "passive": N_("error passive"),
               "bus-off": N_("bus-off")}  # translated where shown (monitor.html)
 

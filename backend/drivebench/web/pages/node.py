@@ -26,6 +26,7 @@ from drivebench.services.params import device_commands, lookup, node_lease, read
 from drivebench.services.params.device_commands import DeviceCommand
 from drivebench.services.params.values import ParameterValue, WriteResult
 from drivebench.services.users.principals import Role
+from drivebench.web.deferred_route import DeferredRoute
 from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.identity import PrincipalDep
 from drivebench.web.pages.node_info import IdentityShown, shown
@@ -33,7 +34,7 @@ from drivebench.web.safety import WriteCtxDep, WriterDep, confirmation
 from drivebench.web.state import app_state
 from drivebench.web.templating import templates
 
-router = APIRouter(include_in_schema=False)
+router = APIRouter(route_class=DeferredRoute, include_in_schema=False)
 TABS = [("parameters", N_("Parameters")), ("pdo", N_("PDO")), ("diagnostics", N_("Diagnostics")),
         ("control", N_("Control")), ("info", N_("Info"))]  # translated where shown (node.html)
 UI = "/ui/sessions/{session_id}/nodes/{node_id}"

@@ -20,11 +20,12 @@ from drivebench.services.control.drive_words import Family, family_of
 from drivebench.services.monitoring import fault_words
 from drivebench.services.scope.channels import panel_channels
 from drivebench.web.access_policy import rule_for
+from drivebench.web.deferred_route import DeferredRoute
 from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.identity import principal_of
 from drivebench.web.templating import templates
 
-router = APIRouter(include_in_schema=False)
+router = APIRouter(route_class=DeferredRoute, include_in_schema=False)
 UI = "/ui/sessions/{session_id}/nodes/{node_id}/control"
 BOX_W, BOX_H, GAP_X, GAP_Y, PAD = 190, 42, 110, 30, 16
 PAD_LEFT = 96  # room for the labels of the left (downward) lane

@@ -12,11 +12,13 @@ from drivebench.i18n import _
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.bus.views import node_public
 from drivebench.services.monitoring import diagnostics, fault_words
+from drivebench.web.deferred_route import DeferredRoute
 from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.safety import WriteCtxDep
 from drivebench.web.templating import templates
 
-router = APIRouter(include_in_schema=False)  # set-up writes take the node lease (WriteCtxDep)
+# set-up writes take the node lease (WriteCtxDep)
+router = APIRouter(route_class=DeferredRoute, include_in_schema=False)
 UI = "/ui/sessions/{session_id}/nodes/{node_id}/diagnostics"
 PAGE = "node/diagnostics_body.html"
 

@@ -15,12 +15,13 @@ from drivebench.device.profiles.number_base import shows_hex
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.params import factory_compare, lookup, session_part
 from drivebench.services.users import audit, undo
+from drivebench.web.deferred_route import DeferredRoute
 from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.pages.node import UI
 from drivebench.web.safety import WriteCtxDep, confirmation
 from drivebench.web.templating import templates
 
-router = APIRouter(include_in_schema=False)
+router = APIRouter(route_class=DeferredRoute, include_in_schema=False)
 WRITES_SHOWN = 30
 
 

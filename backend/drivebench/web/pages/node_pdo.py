@@ -30,13 +30,14 @@ from drivebench.services.pdos import ethercat_pdo, pdo
 from drivebench.services.pdos import process_data as live
 from drivebench.services.pdos.pdo import ApplyReport, Direction, PdoConfig, PdoWrite
 from drivebench.services.users.principals import Role
+from drivebench.web.deferred_route import DeferredRoute
 from drivebench.web.deps import NodeDep, SessionDep
 from drivebench.web.identity import principal_of
 from drivebench.web.problems import status_for
 from drivebench.web.safety import PanelDep, WriteCtxDep, confirmation
 from drivebench.web.templating import templates
 
-router = APIRouter(include_in_schema=False)
+router = APIRouter(route_class=DeferredRoute, include_in_schema=False)
 log = logging.getLogger(__name__)
 UI = "/ui/sessions/{session_id}/nodes/{node_id}/pdo"
 

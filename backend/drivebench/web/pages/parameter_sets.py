@@ -20,6 +20,7 @@ from drivebench.services.params.write_context import WriteContext
 from drivebench.services.session_manager import SessionManager
 from drivebench.services.sets import set_formats, set_jobs
 from drivebench.services.sets.parameter_sets import compare, comparison_csv, retarget
+from drivebench.web.deferred_route import DeferredRoute
 from drivebench.web.deps import JobsDep, ManagerDep, RowId, StateDep
 from drivebench.web.pages.sets_audit import audit_context
 from drivebench.web.problems import error_fragment, problem_body, status_for
@@ -36,7 +37,7 @@ from drivebench.web.set_views import (
 from drivebench.web.state import AppState
 from drivebench.web.templating import templates
 
-router = APIRouter(include_in_schema=False)  # downloads take the node lease (WriteCtxDep)
+router = APIRouter(route_class=DeferredRoute, include_in_schema=False)  # downloads take the node lease (WriteCtxDep)
 _DEVICE_NOISE = re.compile(r"^Inverter Drives\s+|\s+(frequency inverter|servo inverter)?\s*with .*$| - .*$")
 
 

@@ -20,6 +20,7 @@ from drivebench.services.bus.views import nodes_public, session_public
 from drivebench.services.control.drive_guard import parse_values
 from drivebench.services.profiles import loading as profiles_loading
 from drivebench.transport.bus import BusSpec, known_interfaces
+from drivebench.web.deferred_route import DeferredRoute
 from drivebench.web.deps import ManagerDep, SessionDep, StateDep
 from drivebench.web.nmt import NodeNmtRequest, send_nmt
 from drivebench.web.problems import error_fragment, problem_body
@@ -27,7 +28,7 @@ from drivebench.web.safety import PanelDep, WriteCtxDep
 from drivebench.web.state import app_state
 from drivebench.web.templating import templates
 
-router = APIRouter(include_in_schema=False)
+router = APIRouter(route_class=DeferredRoute, include_in_schema=False)
 
 
 def _context(state: Any, **extra: Any) -> dict[str, Any]:

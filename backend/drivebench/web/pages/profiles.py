@@ -17,6 +17,7 @@ from drivebench.services.profiles.edit import is_editable
 from drivebench.services.profiles.loading import progress_line
 from drivebench.services.profiles.store import UploadTooLarge, delete_upload
 from drivebench.services.profiles.views import EntryKind, entry_page, load_errors, summary, upload_error, warning_out
+from drivebench.web.deferred_route import DeferredRoute
 from drivebench.web.deps import StateDep, wait_for_profiles
 from drivebench.web.pages.node_info import identity_text
 from drivebench.web.problems import status_for
@@ -25,7 +26,7 @@ from drivebench.web.root import under_root
 from drivebench.web.state import AppState, app_state
 from drivebench.web.templating import templates
 
-router = APIRouter(include_in_schema=False, dependencies=[Depends(wait_for_profiles)])
+router = APIRouter(route_class=DeferredRoute, include_in_schema=False, dependencies=[Depends(wait_for_profiles)])
 templates.env.filters["device_type"] = lambda raw: identity_text("0x1000", raw)
 
 

@@ -11,6 +11,7 @@ from drivebench.services.monitoring import diagnostics
 from drivebench.services.monitoring.remote_content import session_content
 from drivebench.services.users.sharing import DEFAULT_SHOWS, SHOWS
 from drivebench.web import access_policy
+from drivebench.web.deferred_route import DeferredRoute
 from drivebench.web.deps import StateDep
 from drivebench.web.identity import principal_of
 from drivebench.web.root import cookie_path, under_root
@@ -18,7 +19,7 @@ from drivebench.web.share_links import issued_link, share_link_public
 from drivebench.web.templating import templates
 from drivebench.web.viewer import COOKIE, require_engineer, viewer_token
 
-router = APIRouter(include_in_schema=False)
+router = APIRouter(route_class=DeferredRoute, include_in_schema=False)
 PAGE = "remote.html"
 
 

@@ -9,12 +9,13 @@ from fastapi.responses import HTMLResponse, RedirectResponse, Response
 
 from drivebench.services.bus.views import session_public
 from drivebench.services.scope.channels import MAX_CHANNELS
+from drivebench.web.deferred_route import DeferredRoute
 from drivebench.web.deps import SessionDep, StateDep
 from drivebench.web.root import under_root
 from drivebench.web.templating import templates
 from drivebench.web.viewer import viewer_of
 
-router = APIRouter(include_in_schema=False)
+router = APIRouter(route_class=DeferredRoute, include_in_schema=False)
 
 
 @router.get("/scope", response_class=HTMLResponse)

@@ -15,11 +15,12 @@ from drivebench.i18n import _
 from drivebench.services.session_manager import SessionManager
 from drivebench.services.users import audit, undo
 from drivebench.services.users.audit import AuditEntry
+from drivebench.web.deferred_route import DeferredRoute
 from drivebench.web.deps import ManagerDep
 from drivebench.web.safety import WriteCtxDep, confirmation
 from drivebench.web.templating import templates
 
-router = APIRouter(include_in_schema=False)  # an undo takes the node lease (WriteCtxDep)
+router = APIRouter(route_class=DeferredRoute, include_in_schema=False)  # an undo takes the node lease (WriteCtxDep)
 UI = "/parameter-sets"
 SHOWN = 200
 

@@ -25,13 +25,14 @@ from drivebench.errors import DriveBenchError, InvalidValue
 from drivebench.i18n import _
 from drivebench.services.planning.planned_networks import PlannedNetworkStore, compare_with_session
 from drivebench.services.planning.planner import CableInput, NetworkPlan, PlannedNode, check_plan
+from drivebench.web.deferred_route import DeferredRoute
 from drivebench.web.deps import StateDep
 from drivebench.web.dip_answer import dip_answer
 from drivebench.web.problems import error_fragment, problem_body, status_for
 from drivebench.web.state import AppState
 from drivebench.web.templating import templates
 
-router = APIRouter(include_in_schema=False)
+router = APIRouter(route_class=DeferredRoute, include_in_schema=False)
 
 PAGE = "tools.html"
 BAUD_RATES = [1000, 800, 500, 250, 125, 50, 20, 10]

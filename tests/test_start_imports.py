@@ -1,0 +1,47 @@
+"""What a server start imports that its first answers do not need (issue 33: /api/health within 2 s of a restart):
+a fresh interpreter importing what ``drivebench serve`` imports leaves such libraries out until they are used."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+BACKEND = Path(__file__).resolve().parents[1] / "backend"
+NOT_AT_START = ("babel.messages", "cryptography")
+"""Babel's catalogue code (only for a catalogue whose compiled ``.mo`` is missing or old, and the page scripts'
+texts at the first page); cryptography's X.509 (``drivebench tls`` makes certificates, uvicorn's ssl serves them)."""
+
+
+def test_importing_the_server_leaves_out_what_the_start_does_not_use() -> None:
+    script = ("import json, sys; import drivebench.cli, drivebench.web.app; "
+              "print(json.dumps(sorted(sys.modules)))")
+    environment = {**os.environ, "PYTHONPATH": str(BACKEND)}
+    done = subprocess.run([sys.executable, "-c", script], env=environment, capture_output=True, text=True,
+                          check=True, timeout=600)
+    imported = json.loads(done.stdout.strip().splitlines()[-1])
+    assert "drivebench.web.app" in imported
+    assert [name for name in imported if name.startswith(NOT_AT_START)] == []
+
+
+def test_a_started_app_has_built_no_route_before_it_is_used() -> None:
+    """FastAPI's state of a route (its parameters' pydantic fields, the response field, the handler) is built at
+    first use, not as its module is imported: the app made, its access policy worked out and FastAPI's copies for
+    the inclusions built (what requests are served by), no route has it; asked for, a route has it as FastAPI builds
+    it (``web/deferred_route.py``)."""
+    script = ("import json; from fastapi.routing import APIRoute; from drivebench.web import access_policy; "
+              "from drivebench.web.app import create_app; app = create_app(); access_policy.precompute(app); "
+              "routes = [r for r in access_policy.routes_in_place(app.router.routes) if isinstance(r, APIRoute)]; "
+              "access_policy.build_effective_routes(app); before = sum('dependant' in vars(r) for r in routes); "
+              "asked = [r.dependant.call is r.endpoint and r.response_field is not None for r in routes "
+              "if r.path == '/api/health']; "
+              "print(json.dumps([len(routes), before, asked]))")
+    environment = {**os.environ, "PYTHONPATH": str(BACKEND)}
+    done = subprocess.run([sys.executable, "-c", script], env=environment, capture_output=True, text=True,
+                          check=True, timeout=600)
+    routes, built_before_use, asked = json.loads(done.stdout.strip().splitlines()[-1])
+    assert routes > 250
+    assert built_before_use == 0
+    assert asked == [True]
