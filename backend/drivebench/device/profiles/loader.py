@@ -84,28 +84,26 @@ class LoadedFile:
         return "; ".join(notes) or None
 
 
-def original_file(profiles: object, profile: Profile) -> bytes | None:
-    """The EDS/DCF bytes ``profile`` was read from, when ``profiles`` is a registry that holds this very profile
-    (a DCF of it is then written over the original file)."""
+def _original(profiles: object, profile: Profile, suffixes: tuple[str, ...]) -> bytes | None:
     if not isinstance(profiles, ProfileRegistry):
         return None
     try:
         loaded = profiles.loaded(profile.id)
     except UnknownProfile:
         return None
-    return loaded.original if loaded.profile is profile and loaded.suffix in (".eds", ".dcf") else None
+    return loaded.original if loaded.profile is profile and loaded.suffix in suffixes else None
+
+
+def original_file(profiles: object, profile: Profile) -> bytes | None:
+    """The EDS/DCF bytes ``profile`` was read from, when ``profiles`` is a registry that holds this very profile
+    (a DCF of it is then written over the original file)."""
+    return _original(profiles, profile, (".eds", ".dcf"))
 
 
 def original_xml(profiles: object, profile: Profile) -> bytes | None:
     """The XDD/XDC bytes ``profile`` was read from, as :func:`original_file` (an XDC of it is then written over
     that file)."""
-    if not isinstance(profiles, ProfileRegistry):
-        return None
-    try:
-        loaded = profiles.loaded(profile.id)
-    except UnknownProfile:
-        return None
-    return loaded.original if loaded.profile is profile and loaded.suffix in (".xdd", ".xdc") else None
+    return _original(profiles, profile, XML_SUFFIXES)
 
 
 def load_profile_file(content: bytes, name: str) -> Profile:
