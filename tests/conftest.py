@@ -253,9 +253,26 @@ def wire(channel: str) -> Iterator[can.BusABC]:
     bus.shutdown()
 
 
+@pytest.fixture(scope="module")
+def module_demo_client() -> Iterator[TestClient]:
+    """The real app with the demo plant on a fresh virtual bus, made once per module for its tests marked
+    ``only_reads`` (see :func:`client`)."""
+    app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
+    with TestClient(app) as test_client:
+        yield test_client
+
+
 @pytest.fixture
-def client(channel: str) -> Iterator[TestClient]:
-    """The real app with the demo plant on a fresh virtual bus (session id 'demo-plant')."""
+def client(request: pytest.FixtureRequest, channel: str) -> Iterator[TestClient]:
+    """The real app with the demo plant on a fresh virtual bus (session id 'demo-plant'). A test marked
+    ``only_reads`` (it changes no drive, node, session, account, lease or setting: reads, pages and refused requests)
+    gets its module's one such app (:func:`module_demo_client`) with no cookies left from the test before: an app
+    start is most of such a test's CPU (issue 29)."""
+    if request.node.get_closest_marker("only_reads"):
+        shared: TestClient = request.getfixturevalue("module_demo_client")
+        shared.cookies.clear()
+        yield shared
+        return
     app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{channel}@500000", latency="0ms")
     with TestClient(app) as test_client:
         yield test_client
