@@ -20,6 +20,7 @@ from typing import TypeVar
 import can
 import pytest
 import uvicorn
+from argon2 import PasswordHasher, profiles
 from fastapi.testclient import TestClient
 from hypothesis import settings
 from starlette.types import ASGIApp
@@ -29,6 +30,7 @@ from drivebench.config import settings as app_settings
 from drivebench.device.calculators.dip import SwitchDevices
 from drivebench.device.profiles.loader import ProfileRegistry, load_profile_file
 from drivebench.services.storage import database
+from drivebench.services.users import accounts
 from drivebench.simulator.plant import Plant, PlantFile
 from drivebench.web.app import create_app
 from tests.pg_cluster import PostgresCluster, shared_cluster
@@ -110,6 +112,23 @@ def pytest_ignore_collect(collection_path: Path, config: pytest.Config) -> bool 
     if not collection_path.name.startswith("test_"):
         return None
     return bool(_WHOLLY_SLOW.search(collection_path.read_text(encoding="utf-8"))) or None
+
+
+PRODUCT_HASHER = accounts._hasher
+"""The argon2 parameters the product hashes passwords with (argon2-cffi's default, RFC 9106's low-memory choice)."""
+
+
+@pytest.fixture(autouse=True, scope="session")
+def cheap_password_hashes() -> Iterator[None]:
+    """Passwords in the tests are hashed with argon2-cffi's cheapest argon2id parameters (its ``profiles.CHEAPEST``,
+    meant for tests): the same algorithm and code path (hash, verify, the rehash check, the unknown user's dummy
+    hash), without the 0.28 s of CPU the product's 64 MiB and three passes cost each hash and each sign-in (issue 29:
+    the quick tests of the access and account modules took 48 s of CPU with them, 21 s without). The product's own
+    parameters are pinned by tests/services/test_accounts.py; a server in a process of its own hashes as the
+    product."""
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(accounts, "_hasher", PasswordHasher.from_parameters(profiles.CHEAPEST))
+        yield
 
 
 T = TypeVar("T")
@@ -234,9 +253,26 @@ def wire(channel: str) -> Iterator[can.BusABC]:
     bus.shutdown()
 
 
+@pytest.fixture(scope="module")
+def module_demo_client() -> Iterator[TestClient]:
+    """The real app with the demo plant on a fresh virtual bus, made once per module for its tests marked
+    ``only_reads`` (see :func:`client`)."""
+    app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{fresh_channel()}@500000", latency="0ms")
+    with TestClient(app) as test_client:
+        yield test_client
+
+
 @pytest.fixture
-def client(channel: str) -> Iterator[TestClient]:
-    """The real app with the demo plant on a fresh virtual bus (session id 'demo-plant')."""
+def client(request: pytest.FixtureRequest, channel: str) -> Iterator[TestClient]:
+    """The real app with the demo plant on a fresh virtual bus (session id 'demo-plant'). A test marked
+    ``only_reads`` (it changes no drive, node, session, account, lease or setting: reads, pages and refused requests)
+    gets its module's one such app (:func:`module_demo_client`) with no cookies left from the test before: an app
+    start is most of such a test's CPU (issue 29)."""
+    if request.node.get_closest_marker("only_reads"):
+        shared: TestClient = request.getfixturevalue("module_demo_client")
+        shared.cookies.clear()
+        yield shared
+        return
     app = create_app(plant_file=DEMO_PLANT, plant_bus=f"virtual:{channel}@500000", latency="0ms")
     with TestClient(app) as test_client:
         yield test_client

@@ -15,6 +15,7 @@ from drivebench.services.storage import database
 from drivebench.services.storage.models import ApiTokenRow, SignedOutSessionRow, UserRow
 from drivebench.services.users import accounts
 from drivebench.services.users.principals import Role
+from tests.conftest import PRODUCT_HASHER
 
 
 @pytest.fixture
@@ -35,6 +36,13 @@ def test_passwords_are_argon2_hashes_and_never_stored(db: str) -> None:
     if db.startswith("sqlite:///"):
         assert b"correct horse" not in Path(db.removeprefix("sqlite:///")).read_bytes()
     assert accounts.verify_password("anna", "correct horse battery").role is Role.ENGINEER
+
+
+def test_the_product_hashes_with_argon2id_at_64_mib_three_passes_and_four_lanes() -> None:
+    """The suite hashes with argon2-cffi's cheapest parameters (tests/conftest.py ``cheap_password_hashes``); the
+    product keeps argon2-cffi's default, RFC 9106's low-memory choice."""
+    assert PRODUCT_HASHER.hash("correct horse battery").startswith("$argon2id$v=19$m=65536,t=3,p=4$")
+    assert accounts._hasher is not PRODUCT_HASHER  # the cheap one, for this run only
 
 
 def test_wrong_password_unknown_and_disabled_users_get_the_same_answer(db: str) -> None:

@@ -181,6 +181,7 @@ def test_activate_bit_timing_takes_a_device_off_the_bus_and_its_stored_rate_surv
     assert sorted(address.serial for address in master.fastscan().found) == [1001, 2002, 3003]
 
 
+@pytest.mark.slow  # a fault holding a core for the whole scan: 21 s of CPU, the quick subset's costliest (issue 29)
 def test_fastscan_finds_every_device_while_the_process_is_busy(registry: ProfileRegistry) -> None:
     """Issue 32 (flaky browser test): on a loaded machine (4 test workers on 2 cores) a thread that holds the
     interpreter delays the answers now and then by tens of ms. The scan's narrowed answer windows then miss; its

@@ -19,6 +19,7 @@ ROOT = Path(__file__).resolve().parents[2]
 DE_PO = i18n.LOCALE_DIR / "de" / "LC_MESSAGES" / "messages.po"
 SESSION = "demo-plant"
 GERMAN = {"Accept-Language": "de-DE,de;q=0.9,en;q=0.5"}
+# Tests marked only_reads share the module's one demo-plant app (tests/conftest.py client); the others start their own.
 
 
 def _extracted() -> dict[str, str]:
@@ -99,6 +100,7 @@ def test_numbers_as_each_language_writes_them() -> None:
         assert i18n.number(1234.5) == "1,234.5"
 
 
+@pytest.mark.only_reads
 def test_accept_language_german_gives_the_german_plant_page(client: TestClient) -> None:
     page = client.get("/", headers=GERMAN)
     assert page.status_code == 200
@@ -113,6 +115,7 @@ def test_accept_language_german_gives_the_german_plant_page(client: TestClient) 
     assert '<html lang="en">' in english.text and "<h1>Plant</h1>" in english.text and "Open session" in english.text
 
 
+@pytest.mark.only_reads
 def test_a_refusal_of_the_gate_speaks_the_browsers_language_and_says_so(client: TestClient) -> None:
     """The gate picks the language before it refuses anything: another site's POST is refused in German, with the
     same Vary and Content-Language as a page."""
@@ -136,6 +139,7 @@ def test_an_answer_keeps_its_own_vary_names_and_language() -> None:
     assert varying([], "en") == [(b"vary", b"Accept-Language, Cookie"), (b"content-language", b"en")]
 
 
+@pytest.mark.only_reads
 def test_the_switch_sets_a_cookie_that_overrides_the_browser(client: TestClient) -> None:
     switched = client.get("/language/en?next=/monitor", headers=GERMAN, follow_redirects=False)
     assert switched.status_code == 303 and switched.headers["location"] == "/monitor"
@@ -149,6 +153,7 @@ def test_the_switch_sets_a_cookie_that_overrides_the_browser(client: TestClient)
         assert client.get("/language/de", params={"next": target}, follow_redirects=False).headers["location"] == "/"
 
 
+@pytest.mark.only_reads
 def test_the_header_switch_links_both_languages_back_to_this_page(client: TestClient) -> None:
     page = client.get("/tools?x=1", headers=GERMAN).text
     assert 'href="/language/en?next=/tools%3Fx%3D1"' in page
@@ -211,6 +216,7 @@ def test_a_profile_name_de_is_shown_in_german_only(registry: object) -> None:
     assert plain.name_for("de") == "Rated motor voltage"  # no German name in the profile: the manual's own
 
 
+@pytest.mark.only_reads
 @pytest.mark.parametrize("path", ["/", "/monitor", "/tools", "/parameter-sets", "/profiles", "/remote",
                                   "/profiles/lenze-8400-motec-canopen", "/monitor/ethercat-line",
                                   "/sessions/ethercat-line/nodes/1?tab=pdo",
@@ -230,6 +236,7 @@ def _script_messages(page: str) -> dict[str, str]:
     return json.loads(block.group(1))
 
 
+@pytest.mark.only_reads
 def test_the_control_and_pdo_scripts_texts_reach_the_page_in_german(client: TestClient) -> None:
     """control.js and pdo.js build texts in the browser: they are extracted, translated and handed to the page."""
     extracted = _extracted()
@@ -288,6 +295,7 @@ def test_a_catalogue_without_its_mo_is_compiled_from_the_po(tmp_path: Path, monk
         i18n.translations.cache_clear()
 
 
+@pytest.mark.only_reads
 def test_the_plant_pages_websocket_pushes_the_table_in_the_asked_language(client: TestClient) -> None:
     with client.websocket_connect(f"/ws/sessions/{SESSION}/nodes", headers=GERMAN) as socket:
         table = socket.receive_text()
@@ -453,6 +461,7 @@ _PAGES_WITH_SCRIPTS = ["/", "/monitor", "/tools", "/parameter-sets", "/profiles"
                        f"/sessions/{SESSION}/nodes/7?tab=control"]
 
 
+@pytest.mark.only_reads
 @pytest.mark.parametrize("path", _PAGES_WITH_SCRIPTS)
 def test_each_page_hands_its_scripts_their_german_texts(client: TestClient, path: str) -> None:
     """Every _()-text of every script a German page loads is in that page's js-messages, translated."""

@@ -8,6 +8,7 @@ import json
 import time
 from typing import Any
 
+import pytest
 from fastapi.testclient import TestClient
 
 from tests.confirming import confirmed
@@ -29,6 +30,7 @@ def _until(client: TestClient, node: int, state: str) -> None:
     assert wait_until(lambda: _status(client, node)["state"] == state, 8.0), f"node {node} never in {state}"
 
 
+@pytest.mark.only_reads
 def test_the_control_tab_of_the_generic_servo_shows_cia402_in_german(client: TestClient) -> None:
     _until(client, SERVO, "switch_on_disabled")
     german = client.get(f"{UI}/{SERVO}/control", headers=GERMAN)
@@ -47,6 +49,7 @@ def test_the_control_tab_of_the_generic_servo_shows_cia402_in_german(client: Tes
     assert ">Shutdown<" in plain and ">Switch on disabled<" in plain and ">2 Shutdown<" in plain
 
 
+@pytest.mark.only_reads
 def test_the_status_api_names_standard_texts_in_german_and_a_vendors_as_printed(client: TestClient) -> None:
     _until(client, SERVO, "switch_on_disabled")
     servo = _status(client, SERVO, GERMAN)
@@ -71,6 +74,7 @@ def test_the_status_api_names_standard_texts_in_german_and_a_vendors_as_printed(
     assert jog.startswith("Sollwert-Tippen mit 10 Prozent des Bereichs") and "the MICROMASTER CANopen manual" in jog
 
 
+@pytest.mark.only_reads
 def test_homing_methods_are_named_in_each_readers_language(client: TestClient) -> None:
     german = client.get(f"{API}/{SERVO}/control/motion", headers=GERMAN).json()
     assert german["homing_methods"]["34"] == "Nullimpuls in positiver Richtung"
@@ -162,6 +166,7 @@ def test_the_monitor_names_a_babbling_node_in_each_viewers_language(client: Test
         plant.stop_babbler()
 
 
+@pytest.mark.only_reads
 def test_the_pdo_and_diagnostics_tabs_leave_no_english_half_sentence(client: TestClient) -> None:
     pdo_tab = client.get(f"{UI}/{MM}/pdo", headers=GERMAN)
     assert pdo_tab.status_code == 200

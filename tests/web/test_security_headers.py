@@ -37,6 +37,7 @@ def assert_secure(answer, where: str) -> None:  # type: ignore[no-untyped-def]
     assert answer.headers.get("referrer-policy") == "same-origin", where
 
 
+@pytest.mark.only_reads
 @pytest.mark.parametrize("path", PAGES + API)
 @pytest.mark.slow  # among the costliest of the quick subset (--durations, issue 29): `make test-quick` leaves it out
 def test_every_answer_carries_the_policy(client: TestClient, path: str) -> None:
@@ -72,6 +73,7 @@ class InlineCode(HTMLParser):
                 self.found.append(f"<{tag} {name}={value!r}>")
 
 
+@pytest.mark.only_reads
 def test_pages_hold_no_inline_script_or_handler(client: TestClient) -> None:
     """What the policy would block is not in the pages at all (a blocked script is a feature that silently broke)."""
     for path in PAGES[:-1]:

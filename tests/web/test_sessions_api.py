@@ -15,6 +15,7 @@ DEMO_SESSIONS = [DEMO, "ethercat-line"]  # the demo plant's CAN bus and its Ethe
 DEMO_DEVICES = {3: "Pump (MICROMASTER 440)", 5: "Conveyor (8400 motec)", 7: "Axis (generic CiA 402 servo)",
                 12: "Fan (8200 vector + EMF2178IB)"}
 PROBLEM = "application/problem+json"
+# Tests marked only_reads share the module's one demo-plant app (tests/conftest.py client); the others start their own.
 
 
 def node_states(client: TestClient) -> dict[int, str]:
@@ -31,11 +32,13 @@ def assert_problem(response: object, status: int) -> dict[str, object]:
 
 
 # --- service -------------------------------------------------------------------------------------------
+@pytest.mark.only_reads
 def test_health(client: TestClient) -> None:
     body = client.get("/api/health").json()
     assert body["status"] == "ok" and body["sessions"] == len(DEMO_SESSIONS) and body["version"]
 
 
+@pytest.mark.only_reads
 def test_openapi_documents_the_sessions_api(client: TestClient) -> None:
     spec = client.get("/openapi.json").json()
     for path in ["/api/health", "/api/interfaces", "/api/sessions", "/api/sessions/{session_id}",
@@ -45,6 +48,7 @@ def test_openapi_documents_the_sessions_api(client: TestClient) -> None:
     assert {"SessionCreate", "SessionPublic", "NodePublic", "NmtRequest"} <= set(spec["components"]["schemas"])
 
 
+@pytest.mark.only_reads
 def test_interfaces_lists_python_can_interfaces(client: TestClient) -> None:
     names = client.get("/api/interfaces").json()
     assert {"socketcan", "socketcand", "pcan", "virtual", "kvaser"} <= set(names)
@@ -52,6 +56,7 @@ def test_interfaces_lists_python_can_interfaces(client: TestClient) -> None:
 
 
 # --- sessions --------------------------------------------------------------------------------------------
+@pytest.mark.only_reads
 def test_the_demo_plant_session(client: TestClient) -> None:
     sessions = client.get("/api/sessions").json()
     assert [s["id"] for s in sessions] == DEMO_SESSIONS
@@ -81,11 +86,13 @@ def test_open_by_bus_text(client: TestClient) -> None:
     assert client.delete(f"/api/sessions/{created.json()['id']}").status_code == 204
 
 
+@pytest.mark.only_reads
 def test_opening_an_open_bus_again_is_a_conflict(client: TestClient) -> None:
     bus = client.get(f"/api/sessions/{DEMO}").json()["bus"]
     assert_problem(client.post("/api/sessions", json={"bus": bus}), 409)
 
 
+@pytest.mark.only_reads
 @pytest.mark.parametrize("path", [
     "/api/sessions/nope", "/api/sessions/nope/nodes", f"/api/sessions/{DEMO}/nodes/99"])
 def test_unknown_session_or_node_is_404_problem(path: str, client: TestClient) -> None:
@@ -93,33 +100,39 @@ def test_unknown_session_or_node_is_404_problem(path: str, client: TestClient) -
     assert "nope" in str(body["detail"]) or "99" in str(body["detail"])
 
 
+@pytest.mark.only_reads
 def test_closing_an_unknown_session_is_404(client: TestClient) -> None:
     assert_problem(client.delete("/api/sessions/nope"), 404)
 
 
 # --- bad input ---------------------------------------------------------------------------------------------
+@pytest.mark.only_reads
 def test_wrong_interface_name_says_which_and_what_to_check(client: TestClient) -> None:
     body = assert_problem(client.post("/api/sessions", json={"interface": "socketcann", "channel": "can0"}), 503)
     assert "socketcann" in str(body["detail"])
     assert "socketcan" in str(body["hint"]) and "virtual" in str(body["hint"])
 
 
+@pytest.mark.only_reads
 def test_missing_adapter_names_the_interface_and_a_fix(client: TestClient) -> None:
     body = assert_problem(client.post("/api/sessions", json={"bus": "pcan:PCAN_USBBUS1@250000"}), 503)
     assert "pcan:PCAN_USBBUS1@250000" in str(body["detail"])
     assert "PEAK" in str(body["hint"])
 
 
+@pytest.mark.only_reads
 def test_unreachable_gateway_names_host_and_port(client: TestClient) -> None:
     body = assert_problem(client.post("/api/sessions", json={"bus": "socketcand:127.0.0.1:9/can0"}), 503)
     assert "127.0.0.1:9" in str(body["detail"]) and "socketcand" in str(body["hint"])
 
 
+@pytest.mark.only_reads
 def test_malformed_bus_text_is_422(client: TestClient) -> None:
     body = assert_problem(client.post("/api/sessions", json={"bus": "can0"}), 422)
     assert "INTERFACE:CHANNEL@BITRATE" in str(body["detail"])
 
 
+@pytest.mark.only_reads
 @pytest.mark.parametrize("payload", [
     {"interface": "virtual", "channel": "x", "bitrate": 2_000_000},
     {"interface": "virtual", "channel": "x", "bitrate": 0},
@@ -132,6 +145,7 @@ def test_invalid_session_requests_are_422(payload: dict[str, object], client: Te
     assert [s["id"] for s in client.get("/api/sessions").json()] == DEMO_SESSIONS
 
 
+@pytest.mark.only_reads
 @pytest.mark.parametrize(("path", "payload"), [
     (f"/api/sessions/{DEMO}/nmt", {"command": "jump"}),
     (f"/api/sessions/{DEMO}/nmt", {"command": "start", "node_id": 128}),
@@ -143,6 +157,7 @@ def test_invalid_nmt_and_scan_requests_are_422(path: str, payload: dict[str, obj
 
 
 # --- nodes, NMT, scan ---------------------------------------------------------------------------------------
+@pytest.mark.only_reads
 def test_nodes_list_device_names_and_heartbeat_states(client: TestClient) -> None:
     assert wait_until(lambda: set(node_states(client).values()) == {"Pre-operational"})
     nodes = client.get(f"/api/sessions/{DEMO}/nodes").json()
@@ -209,6 +224,7 @@ def test_node_websocket_pushes_the_nodes_table_as_it_changes(client: TestClient)
             raise AssertionError("the websocket never showed four Operational nodes")
 
 
+@pytest.mark.only_reads
 def test_node_websocket_of_an_unknown_session_closes(client: TestClient) -> None:
     from starlette.websockets import WebSocketDisconnect
 
