@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -41,6 +42,10 @@ class AppState:
     """The server's jobs: parameter reads, parameter set uploads and downloads."""
     monitor_feeds: dict[str, Feed] = field(default_factory=dict)
     """The monitor websockets' feeds by session id (made when the first client of a session listens)."""
+    scope_messages: weakref.WeakKeyDictionary[Any, tuple[tuple[int, int, int], str]] = field(
+        default_factory=weakref.WeakKeyDictionary)
+    """The scope socket's last ``rows`` message of each running recording, encoded once for every viewer who takes
+    the same rows (``web.ws.scope.rows_message``); a recording that is gone takes its entry along."""
     live_sockets: set[Any] = field(default_factory=set)
     """The open websockets (``web.live_access.LiveSocket``, not named here: that module reads this state), each
     re-checked every second and at once after an account change (:mod:`drivebench.web.live_access`)."""

@@ -24,6 +24,7 @@ from fastapi import APIRouter, WebSocket
 
 from drivebench.services.scope import runs
 from drivebench.web.identity import principal_of
+from drivebench.web.state import app_state
 from drivebench.web.ws.node_socket import open_session, serve
 
 router = APIRouter()
@@ -31,17 +32,17 @@ MIN_INTERVAL_S = 0.01
 """The least time between two messages to one viewer: rows that come faster (a 1 ms SYNC) go out together, at most
 this late (the design's 100 ms display latency leaves room); a row after a quieter time goes out at once."""
 IDLE_S = 0.5
-_encoded: weakref.WeakKeyDictionary[runs.ScopeRun, tuple[tuple[int, int, int], str]] = weakref.WeakKeyDictionary()
 
 
-def rows_message(run: runs.ScopeRun, rows: list[list[Any]]) -> str:
+def rows_message(encoded: weakref.WeakKeyDictionary[Any, tuple[tuple[int, int, int], str]], run: runs.ScopeRun,
+                 rows: list[list[Any]]) -> str:
     """The ``rows`` message of ``rows``, encoded once for every viewer who takes the same rows at once (viewers who
     keep up take the same ones: a run's rows come in sample order, so the first and last sample and the count name
     them)."""
     key = (rows[0][0], rows[-1][0], len(rows))
-    cached = _encoded.get(run)
+    cached = encoded.get(run)
     if cached is None or cached[0] != key:
-        cached = _encoded[run] = key, json.dumps({"type": "rows", "rows": rows}, separators=(",", ":"),
+        cached = encoded[run] = key, json.dumps({"type": "rows", "rows": rows}, separators=(",", ":"),
                                                  ensure_ascii=False)
     return cached[1]
 
@@ -53,6 +54,7 @@ async def scope(websocket: WebSocket, session_id: str) -> None:
         return
 
     user = principal_of(websocket).name
+    encoded = app_state(websocket.app).scope_messages
 
     async def receive() -> None:
         while True:
@@ -95,7 +97,7 @@ async def scope(websocket: WebSocket, session_id: str) -> None:
                     await websocket.send_json({"type": "state", **run.status()})
                 if watcher.rows:
                     rows, watcher.rows = watcher.rows, []
-                    await websocket.send_text(rows_message(run, rows))
+                    await websocket.send_text(rows_message(encoded, run, rows))
                 if watcher.events:
                     events, watcher.events = watcher.events, []
                     await websocket.send_json({"type": "events", "events": events})
