@@ -66,7 +66,7 @@ def test_block_download_of_a_hex_file_reads_back_the_new_identification(demo_api
             messages.append(message)
             if message["state"] != "running":
                 break
-    assert messages[-1]["state"] == "done", messages[-1]
+    assert messages[-1]["state"] == "done", (messages[-1].get("error"), messages[-1].get("result"))
     progress = messages[-1]["progress"]
     assert progress["done"] == progress["total"] == len(image) and progress["rate_per_s"] > 0
     result = _finished(demo_api, SERVO, job["id"])["result"]
