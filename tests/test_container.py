@@ -152,7 +152,8 @@ def test_compose_v2_and_debians_docker_compose_1_29_take_the_files_with_the_name
             assert "DRIVEBENCH_TLS_CERT_FILE" in environment
     env.write_text("", encoding="utf-8")
     refused = config("compose.yaml")
-    assert refused.returncode != 0 and "set the names browsers use for this server" in refused.stderr, refused.stderr
+    said = re.findall(r"\$\{\w+:\?([^}]+)\}", COMPOSE.read_text(encoding="utf-8"))  # a program names one of them
+    assert refused.returncode != 0 and said and any(words in refused.stderr for words in said), refused.stderr
 
 
 def test_the_database_password_file_goes_into_the_url_and_a_missing_one_is_said_in_words(tmp_path: Path) -> None:
