@@ -153,21 +153,28 @@
     window.location.assign(db.url(`/sessions/${encodeURIComponent(session)}/line-wizard/${got.data.id}`));
   }
 
-  // The session's earlier runs, to resume one (the server keeps them; newest first)
+  // The session's earlier runs, to resume one (the server keeps them; newest first). The page asks at its load and
+  // at each change of the session: only the newest answer is shown, and a list that did not change is left as it
+  // is (a link replaced between the press and the release of a click loses the click)
+  let runsAsked = 0;
   async function listRuns() {
+    const asked = ++runsAsked;
     const target = $("line-runs");
     const session = $("line-session").value;
     if (!session) { target.replaceChildren(); return; }
     const got = await answer(await fetch(db.url(`/api/sessions/${encodeURIComponent(session)}/line-wizard`)));
+    if (asked !== runsAsked) return;  // a newer listing is on its way
     if (got.status !== 200) { target.replaceChildren(); return; }
-    target.replaceChildren(...got.data.slice(0, 10).map((run) => {
+    const items = got.data.slice(0, 10).map((run) => {
       const steps = Object.values(run.steps);
       const done = steps.filter((step) => step.state === "done").length;
       const link = el("a", {}, _("Run {run}: {project}, {done} of {count} steps done",
                                  { run: run.id, project: run.project_name, done, count: steps.length }));
       link.href = db.url(`/sessions/${encodeURIComponent(session)}/line-wizard/${run.id}`);
       return el("li", {}, link);
-    }));
+    });
+    const same = target.children.length === items.length && items.every((item, i) => item.isEqualNode(target.children[i]));
+    if (!same) target.replaceChildren(...items);
   }
 
   $("line-import").addEventListener("submit", openFile);

@@ -147,6 +147,42 @@ def test_a_frame_too_short_to_name_an_object_is_passed_over_while_the_initiate_a
     assert plant.nodes[FAN].program.image == IMAGE[:20]
 
 
+@pytest.mark.parametrize("block", [False, True])
+def test_a_late_abort_of_another_object_does_not_end_the_transfer(
+        master: canopen.Network, plant: Plant, bus_channel: str, block: bool) -> None:
+    """A clean-clone run: a late "object does not exist" abort of another object (the answer to an earlier request
+    its client had sent again) came in the middle of a program download and ended it ("The device refused the
+    program ... 0x1F50sub1 ... 0x06020000"). Inside a transfer a frame that names an object must name this one."""
+    target = SERVO if block else FAN  # the servo takes block transfers, the fan's device only segmented ones
+    node = remote(master, target)
+    _stop_program(node)
+    if not block:  # each segment's own answer comes after the late abort (a sub-block's answer comes at its end)
+        plant.nodes[target].faults.set(latency_ms=300)
+    image = IMAGE[:2000] if block else IMAGE[:70]
+    other = can.Bus(interface="virtual", channel=bus_channel, receive_own_messages=False)
+    stale_abort = b"\x80\x56\x1f\x00" + (0x06020000).to_bytes(4, "little")
+
+    def abort_late() -> None:
+        seen = 0
+        while (frame := other.recv(timeout=30)) is not None:
+            if frame.arbitration_id != 0x600 + target:
+                continue
+            seen += 1
+            if seen == 2:  # the first frame after the initiate: a segment, or the first of a sub-block
+                other.send(can.Message(arbitration_id=0x580 + target, data=stale_abort, is_extended_id=False))
+                return
+
+    sender = threading.Thread(target=abort_late, daemon=True)
+    sender.start()
+    try:
+        done = download_domain(node.sdo, 0x1F50, 1, image, block=block)
+    finally:
+        sender.join(timeout=30)
+        other.shutdown()
+    assert done == ("block" if block else "segmented")
+    assert plant.nodes[target].program.image == image
+
+
 def test_cancel_aborts_the_transfer_on_the_bus(master: canopen.Network, plant: Plant, bus_channel: str) -> None:
     node = remote(master, SERVO)
     _stop_program(node)

@@ -43,6 +43,15 @@ def names_object(frame: bytes | bytearray, address: bytes) -> bool:
     return len(frame) >= 4 and frame[1:4] == address
 
 
+def carries_object(frame: bytes | bytearray) -> bool:
+    """Whether ``frame`` (an SDO server's answer) names an object: an abort, an initiate answer (expedited or
+    segmented upload, download) or a block initiate answer; segments and block acknowledgements carry none."""
+    if not frame:
+        return False
+    command = frame[0]
+    return command == ABORT or command >> 5 in (2, 3) or (command >> 5 in (5, 6) and command & 0x03 == 0)
+
+
 def expected_answer(request: bytes | bytearray) -> tuple[bytes, int] | None:
     """(object bytes 1-3, server command specifier) the answer to ``request`` must carry, or None for a frame
     inside a transfer (no object to match)."""

@@ -19,7 +19,7 @@ from collections.abc import Callable
 import canopen
 from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError
 
-from drivebench.protocol.canopen.sdo_client import names_object, object_address
+from drivebench.protocol.canopen.sdo_client import carries_object, names_object, object_address
 
 SEGMENT = 7
 ABORT_BY_CLIENT = 0x08000000
@@ -72,15 +72,17 @@ class _Download:
 
     def answer(self, at_least_s: float = ANSWER_WAIT_S, initiate: bool = False) -> bytes:
         """The next answer within the channel's timeout or ``at_least_s``, whichever is longer; an abort raises
-        ``SdoAbortedError``. The answer to an ``initiate`` names this object: one naming another is a late answer
-        to an earlier request (sent again by its client after a timeout) and is passed over."""
+        ``SdoAbortedError``. The answer to an ``initiate`` names this object, and inside the transfer a frame that
+        names an object (an abort, an initiate answer) names this one: one naming another is a late answer to an
+        earlier request (sent again by its client after a timeout) and is passed over (a clean-clone run had a late
+        "object does not exist" abort of another object end a program download midway)."""
         deadline = time.monotonic() + max(float(self.client.RESPONSE_TIMEOUT), at_least_s)
         while True:
             try:
                 response = self.client.responses.get(timeout=max(deadline - time.monotonic(), 0.0))
             except queue.Empty:
                 raise SdoCommunicationError("No SDO response received") from None
-            if not initiate or names_object(response, self.address):
+            if names_object(response, self.address) or not (initiate or carries_object(response)):
                 break
         if response[0] == 0x80:
             raise SdoAbortedError(int.from_bytes(response[4:8], "little"))
