@@ -8,6 +8,7 @@ import os
 import threading
 import zlib
 from collections.abc import Iterator
+from contextlib import contextmanager
 
 import can
 import canopen
@@ -93,6 +94,30 @@ def test_a_slow_device_is_waited_for_not_given_up(master: canopen.Network, plant
     assert plant.nodes[FAN].program.image == IMAGE[:20]
 
 
+@contextmanager
+def _another_answer(bus_channel: str, node_id: int, after_request: int, data: bytes) -> Iterator[None]:
+    """Another sender on the bus answers on ``node_id``'s SDO answer COB-ID right after the node's
+    ``after_request``-th SDO request from now (1: the download's initiate)."""
+    other = can.Bus(interface="virtual", channel=bus_channel, receive_own_messages=False)
+
+    def answer() -> None:
+        seen = 0
+        while (frame := other.recv(timeout=30)) is not None:
+            if frame.arbitration_id == 0x600 + node_id:
+                seen += 1
+                if seen == after_request:
+                    other.send(can.Message(arbitration_id=0x580 + node_id, data=data, is_extended_id=False))
+                    return
+
+    sender = threading.Thread(target=answer, daemon=True)
+    sender.start()
+    try:
+        yield
+    finally:
+        sender.join(timeout=30)
+        other.shutdown()
+
+
 def test_a_late_answer_to_an_earlier_request_is_not_taken_for_the_initiate_answer(
         master: canopen.Network, plant: Plant, bus_channel: str) -> None:
     """The answer to a write that its client sent again after a timeout arrives twice; the second, naming 0x1F51,
@@ -101,23 +126,8 @@ def test_a_late_answer_to_an_earlier_request_is_not_taken_for_the_initiate_answe
     _stop_program(node)
     node.sdo.RESPONSE_TIMEOUT = 0.5
     plant.nodes[FAN].faults.set(latency_ms=3000, late_requests=1)  # its own initiate answer comes well after
-    late = can.Bus(interface="virtual", channel=bus_channel, receive_own_messages=False)
-    initiate = b"\x21\x50\x1f\x01"
-
-    def answer_late() -> None:
-        while (frame := late.recv(timeout=30)) is not None:
-            if frame.arbitration_id == 0x600 + FAN and bytes(frame.data[:4]) == initiate:
-                late.send(can.Message(arbitration_id=0x580 + FAN, data=b"\x60\x51\x1f\x01" + bytes(4),
-                                      is_extended_id=False))
-                return
-
-    sender = threading.Thread(target=answer_late, daemon=True)
-    sender.start()
-    try:
+    with _another_answer(bus_channel, FAN, 1, b"\x60\x51\x1f\x01" + bytes(4)):  # names 0x1F51
         assert download_domain(node.sdo, 0x1F50, 1, IMAGE[:20], block=False) == "segmented"
-    finally:
-        sender.join(timeout=30)
-        late.shutdown()
     assert plant.nodes[FAN].program.image == IMAGE[:20]
 
 
@@ -128,22 +138,8 @@ def test_a_frame_too_short_to_name_an_object_is_passed_over_while_the_initiate_a
     node = remote(master, FAN)
     _stop_program(node)
     plant.nodes[FAN].faults.set(latency_ms=300)  # its own initiate answer comes after the short frame
-    other = can.Bus(interface="virtual", channel=bus_channel, receive_own_messages=False)
-    initiate = b"\x21\x50\x1f\x01"
-
-    def send_short() -> None:
-        while (frame := other.recv(timeout=30)) is not None:
-            if frame.arbitration_id == 0x600 + FAN and bytes(frame.data[:4]) == initiate:
-                other.send(can.Message(arbitration_id=0x580 + FAN, data=b"\x60\x51", is_extended_id=False))
-                return
-
-    sender = threading.Thread(target=send_short, daemon=True)
-    sender.start()
-    try:
+    with _another_answer(bus_channel, FAN, 1, b"\x60\x51"):
         assert download_domain(node.sdo, 0x1F50, 1, IMAGE[:20], block=False) == "segmented"
-    finally:
-        sender.join(timeout=30)
-        other.shutdown()
     assert plant.nodes[FAN].program.image == IMAGE[:20]
 
 
@@ -159,26 +155,10 @@ def test_a_late_abort_of_another_object_does_not_end_the_transfer(
     if not block:  # each segment's own answer comes after the late abort (a sub-block's answer comes at its end)
         plant.nodes[target].faults.set(latency_ms=300)
     image = IMAGE[:70]  # ten segments: one short sub-block, so a loaded host's pause cannot outlast the device's wait
-    other = can.Bus(interface="virtual", channel=bus_channel, receive_own_messages=False)
     stale_abort = b"\x80\x56\x1f\x00" + (0x06020000).to_bytes(4, "little")
-
-    def abort_late() -> None:
-        seen = 0
-        while (frame := other.recv(timeout=30)) is not None:
-            if frame.arbitration_id != 0x600 + target:
-                continue
-            seen += 1
-            if seen == 2:  # the first frame after the initiate: a segment, or the first of a sub-block
-                other.send(can.Message(arbitration_id=0x580 + target, data=stale_abort, is_extended_id=False))
-                return
-
-    sender = threading.Thread(target=abort_late, daemon=True)
-    sender.start()
-    try:
+    # after the first frame that follows the initiate: a segment, or the first of a sub-block
+    with _another_answer(bus_channel, target, 2, stale_abort):
         done = download_domain(node.sdo, 0x1F50, 1, image, block=block)
-    finally:
-        sender.join(timeout=30)
-        other.shutdown()
     assert done == ("block" if block else "segmented")
     assert plant.nodes[target].program.image == image
 
