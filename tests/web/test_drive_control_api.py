@@ -14,6 +14,8 @@ from drivebench.services.users.audit import LOCAL_USER
 from tests.confirming import confirmed
 from tests.conftest import wait_until
 
+pytestmark = pytest.mark.usefixtures("patient_guard")  # flows, not the 2 s keep-alive deadline
+
 BASE = "/api/sessions/demo-plant/nodes/{node}/control"
 MM, VECTOR = 3, 12
 

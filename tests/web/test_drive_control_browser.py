@@ -11,20 +11,13 @@ from typing import Any
 
 import pytest
 
-from drivebench.services.control import drive_guard
 from drivebench.simulator.plant import Plant
 from tests.conftest import screenshot, wait_until
 
 TIMEOUT_MS = 10_000
 
 
-@pytest.fixture(autouse=True)
-def patient_guard(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The page's keep-alive may come more than 2 s apart when the browser, the server and three other test workers
-    share 2 cores (a clean-clone run stopped node 3 between two clicks: "no keep-alive for 2 s"): these tests are
-    about the panel's flow, so the guard waits 10 s here (the most an API client may ask for). The 2 s deadline
-    itself is tested in tests/services/test_drive_control.py and tests/web/test_moving_writes.py."""
-    monkeypatch.setattr(drive_guard, "KEEPALIVE_TIMEOUT_S", drive_guard.MAX_KEEPALIVE_S)
+pytestmark = pytest.mark.usefixtures("patient_guard")  # about the panel's flow, not the 2 s deadline
 BLUE, RED = "rgb(11, 95, 165)", "rgb(198, 40, 40)"  # app.css --accent and --bad
 
 

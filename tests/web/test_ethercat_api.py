@@ -190,6 +190,7 @@ def _control_until(api: TestClient, state: str, timeout_s: float = 8.0) -> dict[
                           timeout_s, f"the EtherCAT unit in state {state}")
 
 
+@pytest.mark.usefixtures("patient_guard")  # the flow; the lapse is the next test
 def test_the_control_tab_drives_the_unit_over_coe_with_confirmation_and_keepalive(demo_api: TestClient) -> None:
     status = _control_until(demo_api, "ready")
     assert status["family"] == "lenze8400" and status["status_ref"] == "C13850/1"

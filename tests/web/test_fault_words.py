@@ -15,6 +15,8 @@ from drivebench.simulator.plant import Plant
 from tests.confirming import confirmed
 from tests.conftest import wait_until
 
+pytestmark = pytest.mark.usefixtures("patient_guard")  # flows, not the 2 s keep-alive deadline
+
 SESSION = "demo-plant"
 MM, MOTEC, VECTOR = 3, 5, 12
 

@@ -19,6 +19,8 @@ from drivebench.web.app import create_app
 from tests.confirming import confirmed
 from tests.conftest import DEMO_PLANT
 
+pytestmark = pytest.mark.usefixtures("patient_guard")  # flows, not the 2 s keep-alive deadline
+
 DEMO = "demo-plant"
 MM = 3
 ANNA = {"X-DriveBench-User": "anna", "X-DriveBench-Client": "tab-anna"}

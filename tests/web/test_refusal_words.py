@@ -4,11 +4,14 @@ the present fault in the manual's words where the profile has them, and the comm
 
 from __future__ import annotations
 
+import pytest
 from fastapi.testclient import TestClient
 
 from drivebench.simulator.plant import Plant
 from tests.confirming import confirmed
 from tests.conftest import wait_until
+
+pytestmark = pytest.mark.usefixtures("patient_guard")  # flows, not the 2 s keep-alive deadline
 
 SESSION = "demo-plant"
 MM, VECTOR = 3, 12

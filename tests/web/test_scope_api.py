@@ -29,6 +29,8 @@ from drivebench.web.app import create_app
 from tests.confirming import confirmed
 from tests.conftest import DEMO_PLANT, fresh_channel, wait_until
 
+pytestmark = pytest.mark.usefixtures("patient_guard")  # flows, not the 2 s keep-alive deadline
+
 API = "/api/sessions/demo-plant"
 MM, MOTEC = 3, 5
 SPEED_MM, SPEED_MOTEC = "0x6044", "C00868/2"

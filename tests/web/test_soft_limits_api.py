@@ -7,10 +7,13 @@ from __future__ import annotations
 
 from typing import Any
 
+import pytest
 from fastapi.testclient import TestClient
 
 from tests.confirming import confirmed
 from tests.conftest import wait_until
+
+pytestmark = pytest.mark.usefixtures("patient_guard")  # flows, not the 2 s keep-alive deadline
 
 AXIS = 7
 SESSION = "/api/sessions/demo-plant"

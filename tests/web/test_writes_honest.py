@@ -8,11 +8,14 @@ from __future__ import annotations
 
 from typing import Any
 
+import pytest
 from fastapi.testclient import TestClient
 
 from drivebench.device.profiles.scaling import to_raw
 from tests.confirming import confirmed
 from tests.conftest import wait_until
+
+pytestmark = pytest.mark.usefixtures("patient_guard")  # flows, not the 2 s keep-alive deadline
 
 SESSION = "demo-plant"
 NODE = f"/api/sessions/{SESSION}/nodes"
