@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import threading
 from collections.abc import Iterator
 
 import can
@@ -14,6 +15,7 @@ import pytest
 
 from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.errors import ConfirmationRequired, Conflict, InvalidValue
+from drivebench.protocol.canopen.network import frames_of
 from drivebench.services.bus.sessions import Session
 from drivebench.services.control import motion
 from drivebench.services.control.drive_guard import Confirmation
@@ -245,6 +247,54 @@ def test_a_1_ms_recording_of_node_7_during_a_move_equals_the_frames_on_the_bus(
     assert any("restored and read back as before" in text for text in texts), texts
     assert settings_of(runner, session, AXIS, 3) == before
     assert wait_until(lambda: plant.nodes[AXIS].state.name == "PRE_OPERATIONAL")
+
+
+class _StalledBusThread(can.Listener):
+    """A loaded machine's bus thread: once armed, the session's frame thread stops at the next TPDO frame of node 7
+    (ahead of the source's listener) until stop has delivered every sample of the recording, as a thread without
+    the CPU would; the frames after it wait in the bus's queue."""
+
+    def __init__(self, source: PdoScopeSource) -> None:
+        self.source = source
+        self.armed = threading.Event()
+        self.held = 0
+
+    def on_message_received(self, msg: can.Message) -> None:
+        if msg.arbitration_id == TPDO3 and self.armed.is_set():
+            self.armed.clear()
+            self.held += 1
+            wait_until(lambda: self.source.delivered > self.source.newest_sync(), 60)
+
+
+def test_an_answer_to_the_last_syncs_that_comes_after_stop_delivered_its_sample_is_counted_not_lost(
+        plant_session: tuple[asyncio.Runner, Session], wire: can.BusABC, db: str) -> None:
+    """A clean-clone run on a loaded machine lost one TPDO frame: stop took the source's listener off the bus once
+    the count of answers looked complete (or after WAIT_S), and the node's answer to the last SYNC came after that.
+    The listener now stays until the restore has answered (the node answers its SYNCs before the SDO requests
+    after them): such a frame is counted as late."""
+    runner, session = plant_session
+    plan = runner.run(plan_recording(session, [POSITION], 0.005))
+    recorder = Recorder()
+    source = PdoScopeSource(session, plan, confirmed_ctx(plan))
+    stall = _StalledBusThread(source)
+    frames_of(session.network).add_listener(stall)
+    try:
+        runner.run(source.start(recorder.frames.append, recorder.events.append))
+        assert wait_until(lambda: runner.run(asyncio.sleep(0.05)) or any(
+            frame.raw[0] is not None for frame in recorder.frames), 10), "node 7 answers"
+        stall.armed.set()
+        assert wait_until(lambda: stall.held == 1, 10), "a TPDO frame waits in the bus thread"
+        runner.run(source.stop())  # more SYNCs went out meanwhile: their answers wait behind it
+    finally:
+        frames_of(session.network).remove_listener(stall)
+    wire_frames = []
+    while (msg := wire.recv(0.2)) is not None:
+        wire_frames.append(msg)
+    on_bus = _wire_samples(wire_frames)
+    got = [frame.raw[0] for frame in recorder.frames if frame.raw[0] is not None]
+    assert len(recorder.frames) == sum(1 for m in wire_frames if m.arbitration_id == 0x080)
+    assert len(got) + source.late + source.extra == len(on_bus), "every TPDO frame is a sample or counted"
+    assert source.late >= 1, "the frames held in the bus thread came after their samples went out"
 
 
 def test_a_node_that_stops_sending_is_an_event_in_words(
