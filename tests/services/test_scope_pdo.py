@@ -200,18 +200,18 @@ def _wire_samples(frames: list[can.Message]) -> list[tuple[int, bytes]]:
 def test_a_1_ms_recording_of_node_7_during_a_move_equals_the_frames_on_the_bus(
         plant_session: tuple[asyncio.Runner, Session], plant: Plant, wire: can.BusABC, db: str) -> None:
     runner, session = plant_session
-    axis = Axis(runner, session, plant)
-    axis.enable()
-    axis.home(35)
-    plan = runner.run(plan_recording(session, [POSITION, VELOCITY], 0.001))
-    before = settings_of(runner, session, AXIS, 3)
-    recorder = Recorder()
-    source = PdoScopeSource(session, plan, confirmed_ctx(plan))
-    runner.run(source.start(recorder.frames.append, recorder.events.append))
-    axis.run(confirmed_call(motion.move, session, axis.node, 720, confirm=AXIS, ctx=SERVICE))
-    axis.until(lambda status: status.status_bits[10].set and axis.read("0x6064") == 720, "at 720 °")
-    axis.run(asyncio.sleep(0.2))
-    texts = runner.run(source.stop())
+    with Axis(runner, session, plant).kept_alive() as axis:  # a loaded run's steps outlast the guard's 2 s
+        axis.enable()
+        axis.home(35)
+        plan = runner.run(plan_recording(session, [POSITION, VELOCITY], 0.001))
+        before = settings_of(runner, session, AXIS, 3)
+        recorder = Recorder()
+        source = PdoScopeSource(session, plan, confirmed_ctx(plan))
+        runner.run(source.start(recorder.frames.append, recorder.events.append))
+        axis.run(confirmed_call(motion.move, session, axis.node, 720, confirm=AXIS, ctx=SERVICE))
+        axis.until(lambda status: status.status_bits[10].set and axis.read("0x6064") == 720, "at 720 °")
+        axis.run(asyncio.sleep(0.2))
+        texts = runner.run(source.stop())
     wire_frames = []
     while (msg := wire.recv(0.2)) is not None:
         wire_frames.append(msg)
@@ -374,18 +374,18 @@ def tripping_axis(registry: ProfileRegistry) -> Iterator[tuple[asyncio.Runner, S
 def test_the_current_spike_of_an_acceleration_and_the_overcurrent_trip_it_causes_are_recorded(
         tripping_axis: tuple[asyncio.Runner, Session, Plant], db: str) -> None:
     runner, session, plant = tripping_axis
-    axis = Axis(runner, session, plant)
-    axis.enable()
-    plan = runner.run(plan_recording(session, [ScopeChannel(AXIS, "0x6078"), ScopeChannel(AXIS, "0x6041", bit=3)],
-                                     0.002))
-    recorder = Recorder()
-    source = PdoScopeSource(session, plan, confirmed_ctx(plan))
-    runner.run(source.start(recorder.frames.append, recorder.events.append))
-    with contextlib.suppress(Conflict):  # it may trip before it acknowledges the set-point
-        axis.run(confirmed_call(motion.move, session, axis.node, 720, confirm=AXIS, ctx=SERVICE))
-    axis.until(lambda status: status.state == "fault", "the overcurrent trip")
-    axis.run(asyncio.sleep(0.2))
-    runner.run(source.stop())
+    with Axis(runner, session, plant).kept_alive() as axis:  # a loaded run's steps outlast the guard's 2 s
+        axis.enable()
+        plan = runner.run(plan_recording(session, [ScopeChannel(AXIS, "0x6078"), ScopeChannel(AXIS, "0x6041", bit=3)],
+                                         0.002))
+        recorder = Recorder()
+        source = PdoScopeSource(session, plan, confirmed_ctx(plan))
+        runner.run(source.start(recorder.frames.append, recorder.events.append))
+        with contextlib.suppress(Conflict):  # it may trip before it acknowledges the set-point
+            axis.run(confirmed_call(motion.move, session, axis.node, 720, confirm=AXIS, ctx=SERVICE))
+        axis.until(lambda status: status.state == "fault", "the overcurrent trip")
+        axis.run(asyncio.sleep(0.2))
+        runner.run(source.stop())
     values = [frame.raw for frame in recorder.frames if None not in frame.raw]
     spike = next(n for n, (current, _fault) in enumerate(values) if current is not None and abs(current) > 250)
     tripped = next(n for n, (_current, fault) in enumerate(values) if fault == 1)
