@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import threading
 from collections.abc import Iterator
 
 import can
@@ -14,6 +15,7 @@ import pytest
 
 from drivebench.device.profiles.loader import ProfileRegistry
 from drivebench.errors import ConfirmationRequired, Conflict, InvalidValue
+from drivebench.protocol.canopen.network import frames_of
 from drivebench.services.bus.sessions import Session
 from drivebench.services.control import motion
 from drivebench.services.control.drive_guard import Confirmation
@@ -198,18 +200,18 @@ def _wire_samples(frames: list[can.Message]) -> list[tuple[int, bytes]]:
 def test_a_1_ms_recording_of_node_7_during_a_move_equals_the_frames_on_the_bus(
         plant_session: tuple[asyncio.Runner, Session], plant: Plant, wire: can.BusABC, db: str) -> None:
     runner, session = plant_session
-    axis = Axis(runner, session, plant)
-    axis.enable()
-    axis.home(35)
-    plan = runner.run(plan_recording(session, [POSITION, VELOCITY], 0.001))
-    before = settings_of(runner, session, AXIS, 3)
-    recorder = Recorder()
-    source = PdoScopeSource(session, plan, confirmed_ctx(plan))
-    runner.run(source.start(recorder.frames.append, recorder.events.append))
-    axis.run(confirmed_call(motion.move, session, axis.node, 720, confirm=AXIS, ctx=SERVICE))
-    axis.until(lambda status: status.status_bits[10].set and axis.read("0x6064") == 720, "at 720 °")
-    axis.run(asyncio.sleep(0.2))
-    texts = runner.run(source.stop())
+    with Axis(runner, session, plant).kept_alive() as axis:  # a loaded run's steps outlast the guard's 2 s
+        axis.enable()
+        axis.home(35)
+        plan = runner.run(plan_recording(session, [POSITION, VELOCITY], 0.001))
+        before = settings_of(runner, session, AXIS, 3)
+        recorder = Recorder()
+        source = PdoScopeSource(session, plan, confirmed_ctx(plan))
+        runner.run(source.start(recorder.frames.append, recorder.events.append))
+        axis.run(confirmed_call(motion.move, session, axis.node, 720, confirm=AXIS, ctx=SERVICE))
+        axis.until(lambda status: status.status_bits[10].set and axis.read("0x6064") == 720, "at 720 °")
+        axis.run(asyncio.sleep(0.2))
+        texts = runner.run(source.stop())
     wire_frames = []
     while (msg := wire.recv(0.2)) is not None:
         wire_frames.append(msg)
@@ -221,8 +223,10 @@ def test_a_1_ms_recording_of_node_7_during_a_move_equals_the_frames_on_the_bus(
     want = [(int.from_bytes(data[:4], "little", signed=True), int.from_bytes(data[4:8], "little", signed=True))
             for _n, data in on_bus]
     # every delivered sample is a TPDO frame of the bus, in bus order, with its values; a frame not delivered is
-    # counted (late: after its sample went out; extra: a second one for a SYNC): that happens only where the
-    # simulated drive stalls for longer than a sample waits (pdo_source.WAIT_S) on a loaded machine
+    # counted (late: after its sample went out, also after Stop; extra: a second one for a SYNC): that happens only on
+    # a loaded machine, where the simulated drive or the bus thread was behind when node 7's first frame came (its
+    # samples start late: the surplus frames at the end are counted) or stalls for longer than a sample waits
+    # (pdo_source.WAIT_S)
     assert len(got) + source.late + source.extra == len(want)
     samples = [sample for sample, _raw in got]
     assert samples == sorted(set(samples)), "one sample per SYNC, in order"
@@ -245,6 +249,54 @@ def test_a_1_ms_recording_of_node_7_during_a_move_equals_the_frames_on_the_bus(
     assert any("restored and read back as before" in text for text in texts), texts
     assert settings_of(runner, session, AXIS, 3) == before
     assert wait_until(lambda: plant.nodes[AXIS].state.name == "PRE_OPERATIONAL")
+
+
+class _StalledBusThread(can.Listener):
+    """A loaded machine's bus thread: once armed, the session's frame thread stops at the next TPDO frame of node 7
+    (ahead of the source's listener) until stop has delivered every sample of the recording, as a thread without
+    the CPU would; the frames after it wait in the bus's queue."""
+
+    def __init__(self, source: PdoScopeSource) -> None:
+        self.source = source
+        self.armed = threading.Event()
+        self.held = 0
+
+    def on_message_received(self, msg: can.Message) -> None:
+        if msg.arbitration_id == TPDO3 and self.armed.is_set():
+            self.armed.clear()
+            self.held += 1
+            wait_until(lambda: self.source.delivered > self.source.newest_sync(), 60)
+
+
+def test_an_answer_to_the_last_syncs_that_comes_after_stop_delivered_its_sample_is_counted_not_lost(
+        plant_session: tuple[asyncio.Runner, Session], wire: can.BusABC, db: str) -> None:
+    """A clean-clone run on a loaded machine lost one TPDO frame: stop took the source's listener off the bus once
+    the count of answers looked complete (or after WAIT_S), and the node's answer to the last SYNC came after that.
+    The listener now stays until the restore has answered (the node answers its SYNCs before the SDO requests
+    after them): such a frame is counted as late."""
+    runner, session = plant_session
+    plan = runner.run(plan_recording(session, [POSITION], 0.005))
+    recorder = Recorder()
+    source = PdoScopeSource(session, plan, confirmed_ctx(plan))
+    stall = _StalledBusThread(source)
+    frames_of(session.network).add_listener(stall)
+    try:
+        runner.run(source.start(recorder.frames.append, recorder.events.append))
+        assert wait_until(lambda: runner.run(asyncio.sleep(0.05)) or any(
+            frame.raw[0] is not None for frame in recorder.frames), 10), "node 7 answers"
+        stall.armed.set()
+        assert wait_until(lambda: stall.held == 1, 10), "a TPDO frame waits in the bus thread"
+        runner.run(source.stop())  # more SYNCs went out meanwhile: their answers wait behind it
+    finally:
+        frames_of(session.network).remove_listener(stall)
+    wire_frames = []
+    while (msg := wire.recv(0.2)) is not None:
+        wire_frames.append(msg)
+    on_bus = _wire_samples(wire_frames)
+    got = [frame.raw[0] for frame in recorder.frames if frame.raw[0] is not None]
+    assert len(recorder.frames) == sum(1 for m in wire_frames if m.arbitration_id == 0x080)
+    assert len(got) + source.late + source.extra == len(on_bus), "every TPDO frame is a sample or counted"
+    assert source.late >= 1, "the frames held in the bus thread came after their samples went out"
 
 
 def test_a_node_that_stops_sending_is_an_event_in_words(
@@ -322,18 +374,18 @@ def tripping_axis(registry: ProfileRegistry) -> Iterator[tuple[asyncio.Runner, S
 def test_the_current_spike_of_an_acceleration_and_the_overcurrent_trip_it_causes_are_recorded(
         tripping_axis: tuple[asyncio.Runner, Session, Plant], db: str) -> None:
     runner, session, plant = tripping_axis
-    axis = Axis(runner, session, plant)
-    axis.enable()
-    plan = runner.run(plan_recording(session, [ScopeChannel(AXIS, "0x6078"), ScopeChannel(AXIS, "0x6041", bit=3)],
-                                     0.002))
-    recorder = Recorder()
-    source = PdoScopeSource(session, plan, confirmed_ctx(plan))
-    runner.run(source.start(recorder.frames.append, recorder.events.append))
-    with contextlib.suppress(Conflict):  # it may trip before it acknowledges the set-point
-        axis.run(confirmed_call(motion.move, session, axis.node, 720, confirm=AXIS, ctx=SERVICE))
-    axis.until(lambda status: status.state == "fault", "the overcurrent trip")
-    axis.run(asyncio.sleep(0.2))
-    runner.run(source.stop())
+    with Axis(runner, session, plant).kept_alive() as axis:  # a loaded run's steps outlast the guard's 2 s
+        axis.enable()
+        plan = runner.run(plan_recording(session, [ScopeChannel(AXIS, "0x6078"), ScopeChannel(AXIS, "0x6041", bit=3)],
+                                         0.002))
+        recorder = Recorder()
+        source = PdoScopeSource(session, plan, confirmed_ctx(plan))
+        runner.run(source.start(recorder.frames.append, recorder.events.append))
+        with contextlib.suppress(Conflict):  # it may trip before it acknowledges the set-point
+            axis.run(confirmed_call(motion.move, session, axis.node, 720, confirm=AXIS, ctx=SERVICE))
+        axis.until(lambda status: status.state == "fault", "the overcurrent trip")
+        axis.run(asyncio.sleep(0.2))
+        runner.run(source.stop())
     values = [frame.raw for frame in recorder.frames if None not in frame.raw]
     spike = next(n for n, (current, _fault) in enumerate(values) if current is not None and abs(current) > 250)
     tripped = next(n for n, (_current, fault) in enumerate(values) if fault == 1)

@@ -340,16 +340,28 @@ class PdoScopeSource:
             self._task = None
         self._producer.stop()
         await self._last_answers()
-        frames_of(self.session.network).remove_listener(self._tap)
         self._drain()
         self._deliver(self._producer.count)
         texts = [_("SYNC: {count} sent at a mean period of {period} ms (set: {nominal} ms).").format(
             count=self._producer.count, period=f"{self._producer.period_s * 1000:.3f}",
             nominal=f"{self.plan.period_s * 1000:g}")]
-        return texts + await self._undo()
+        try:
+            return texts + await self._undo()
+        finally:
+            self._unlisten()
+
+    def _unlisten(self) -> None:
+        """Stop taking frames, once the restore has answered: a node answers its SYNCs before the SDO requests sent
+        after them, so every answer to a SYNC of the recording has passed the tap by then; one that came after its
+        sample went out (a node, or a loaded machine, more than :data:`WAIT_S` behind) is counted as late, not
+        lost."""
+        frames_of(self.session.network).remove_listener(self._tap)
+        self._drain()
 
     async def _last_answers(self) -> None:
-        """Wait until every sending node answered the last SYNC, at most :data:`WAIT_S`."""
+        """Wait until every sending node answered the last SYNC, at most :data:`WAIT_S`, so that the last samples
+        carry their values. The count of answers is the source's guess (a node that fell behind may look done one
+        frame early): the tap stays until the restore has answered (:meth:`_unlisten`)."""
         last, until = self._producer.count - 1, time.monotonic() + WAIT_S
         while time.monotonic() < until:
             self._drain()
