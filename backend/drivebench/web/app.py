@@ -70,8 +70,12 @@ from drivebench.web.ws import scope as scope_ws
 log = logging.getLogger(__name__)
 
 UPLOADS_GRACE_S = 0.5
-"""How long the start waits for the stored uploads (without holding the event loop): a few uploads are all there
-at the first answer, as before; a folder of hundreds loads on after the server listens (issue 33)."""
+"""How long the start waits for a few stored uploads (without holding the event loop): they are all there at the
+first answer, as before."""
+GRACE_UPLOADS = 20
+"""The most stored upload files the start waits for: a folder of hundreds loads after the server listens, and
+waiting for its first part only put off the first answer while the loading thread took the CPU the start needed
+(issue 33)."""
 
 # One line per router: screens grow without touching anything else here. FastAPI matches a request router by
 # router, so the routes a client polls come first (the parameter reads: one router walked instead of eight, ~0.3 ms
@@ -149,7 +153,8 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
         await asyncio.to_thread(set_jobs.close_interrupted, ParameterSetStore())
         registry = await asyncio.to_thread(ProfileRegistry, defer_uploads=True)  # the shipped ones
         uploads = asyncio.create_task(profiles_loading.load_in_background(registry))  # the stored ones, after
-        await asyncio.wait({uploads}, timeout=UPLOADS_GRACE_S)  # a small folder is read before the first answer
+        if registry.upload_progress()[1] <= GRACE_UPLOADS:  # a small folder is read before the first answer
+            await asyncio.wait({uploads}, timeout=UPLOADS_GRACE_S)
         manager = SessionManager(registry, sdo_timeout_s=settings.sdo_timeout_s, sdo_retries=settings.sdo_retries,
                                  write_audits=[audit.AuditLog()])  # every write the tool sends is logged
         state = AppState(registry, manager, share_links=share_links, accounts=sign_ins.accounts,
