@@ -10,9 +10,10 @@ import sys
 from pathlib import Path
 
 BACKEND = Path(__file__).resolve().parents[1] / "backend"
-NOT_AT_START = ("babel.messages", "cryptography")
+NOT_AT_START = ("babel.messages", "cryptography", "argon2")
 """Babel's catalogue code (only for a catalogue whose compiled ``.mo`` is missing or old, and the page scripts'
-texts at the first page); cryptography's X.509 (``drivebench tls`` makes certificates, uvicorn's ssl serves them)."""
+texts at the first page); cryptography's X.509 (``drivebench tls`` makes certificates, uvicorn's ssl serves them);
+argon2's C bindings (the first sign-in or password set)."""
 
 
 def test_importing_the_server_leaves_out_what_the_start_does_not_use() -> None:
