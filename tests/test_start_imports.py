@@ -78,3 +78,18 @@ def test_model_classes_are_built_at_first_use_not_as_the_server_is_imported() ->
     assert "Settings" in built  # read from the environment as its module is imported
     assert (profile_built, servo, profile_built_after) == (False, "generic-cia402-servo", True)
     assert refused == ["id"]
+
+
+def test_the_bus_load_tables_are_made_by_the_first_frame_counted() -> None:
+    """The byte tables of the bus-load count (``transport/busload.py``) are made by the first frame counted, not as
+    the server's modules are imported; counted, every frame has the bits of the bit-by-bit reference."""
+    script = ("import json; import drivebench.cli, drivebench.web.app; from drivebench.transport import busload\n"
+              "made = bool(busload._STUFF_STEP)\n"
+              "frames = [(0x181, bytes([n, 0xFF - n, 0x0F])) for n in range(256)] + [(0x7E5, b'')]\n"
+              "same = all(busload.frame_bits(cob, data) == busload.reference_bits(cob, False, False, len(data), data)"
+              " for cob, data in frames)\n"
+              "print(json.dumps([made, same, len(busload._STUFF_STEP)]))")
+    environment = {**os.environ, "PYTHONPATH": str(BACKEND)}
+    done = subprocess.run([sys.executable, "-c", script], env=environment, capture_output=True, text=True,
+                          check=True, timeout=600)
+    assert json.loads(done.stdout.strip().splitlines()[-1]) == [False, True, 2 * 5 * 256]
