@@ -154,3 +154,25 @@ def test_a_few_stored_uploads_are_there_at_the_first_answer(
         assert httpx.get(f"{base}/api/health", timeout=60).json()["profiles"] == {
             "state": "loaded", "loaded": 3, "stored": 3}
         assert sorted(uploaded(base)) == ["up-0", "up-1", "up-2"]
+
+
+def test_a_big_folder_begins_loading_once_the_first_answer_is_sent(
+        tmp_path: Path, app_db_url: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The loading thread (and the one building FastAPI's route copies) begins once the server has sent its first
+    answer (``web/first_answer.py``): before, it took its share of the CPU while that answer was made (issue 33)."""
+    stored = store_uploads(tmp_path / "user-profiles")
+    monkeypatch.setattr(settings, "user_profiles_dir", tmp_path / "user-profiles")
+    with serve_app(create_app()) as base:
+        first = httpx.get(f"{base}/api/health", timeout=60).json()["profiles"]
+        assert first == {"state": "loading", "loaded": 0, "stored": stored}
+        assert wait_until_loaded(base) == {"state": "loaded", "loaded": stored, "stored": stored}
+
+
+def test_a_first_request_that_needs_a_stored_upload_begins_the_loading_and_gets_it(
+        tmp_path: Path, app_db_url: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    store_uploads(tmp_path / "user-profiles")
+    monkeypatch.setattr(settings, "user_profiles_dir", tmp_path / "user-profiles")
+    with serve_app(create_app()) as base:
+        answer = httpx.get(f"{base}/api/profiles/{LAST}", timeout=600)
+        assert answer.status_code == 200, answer.text
+        assert answer.json()["id"] == LAST

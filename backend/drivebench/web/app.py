@@ -27,7 +27,7 @@ from drivebench.services.users import audit
 from drivebench.services.users.accounts import Accounts
 from drivebench.services.users.sharing import ShareLinks
 from drivebench.simulator.plant import Plant, PlantFile
-from drivebench.web import access, access_policy, heap, language, problems, shared_routes
+from drivebench.web import access, access_policy, first_answer, heap, language, problems, shared_routes
 from drivebench.web import metrics as metrics_api
 from drivebench.web.api import accounts as accounts_api
 from drivebench.web.api import diagnostics, health, parameter_sets, parameters, pdo, profiles, sessions, tools
@@ -145,15 +145,23 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
     """``settle_heap``: a server process of its own (``drivebench serve``) freezes what start-up made (``heap``)."""
     share_links = ShareLinks()
     sign_ins = access.SignIns(Accounts(), access.Sessions())  # the gate's and the routes' (AppState) alike
+    answer_signal = first_answer.AnswerSignal()
 
     @contextlib.asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         asyncio.get_running_loop().set_default_executor(ThreadPoolExecutor(64, thread_name_prefix="bus-work"))
         await asyncio.to_thread(upgrade_to_head)  # the database schema (settings.database_url) to the newest
         await asyncio.to_thread(set_jobs.close_interrupted, ParameterSetStore())
+        answered = answer_signal.arm()
         registry = await asyncio.to_thread(ProfileRegistry, defer_uploads=True)  # the shipped ones
         uploads = asyncio.create_task(profiles_loading.load_in_background(registry))  # the stored ones, after
-        if registry.upload_progress()[1] <= GRACE_UPLOADS:  # a small folder is read before the first answer
+        few = registry.upload_progress()[1] <= GRACE_UPLOADS
+        begin: asyncio.Task[None] | None = None
+        if few or demo or plant_file:  # a plant's nodes may name stored uploads
+            registry.begin_uploads()
+        else:  # a large folder: once the first answer is sent, or as soon as a request needs a stored upload
+            begin = first_answer.after_answer(answered, registry.begin_uploads)
+        if few:  # a small folder is read before the first answer
             await asyncio.wait({uploads}, timeout=UPLOADS_GRACE_S)
         manager = SessionManager(registry, sdo_timeout_s=settings.sdo_timeout_s, sdo_retries=settings.sdo_retries,
                                  write_audits=[audit.AuditLog()])  # every write the tool sends is logged
@@ -168,7 +176,8 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
             await manager.open(bus)
         await restore_record.restore_leftovers(manager)  # what recordings a killed server left mapped on the nodes
         settling = _settle_heap_once_loaded(uploads) if settle_heap else None
-        routes_built = asyncio.create_task(asyncio.to_thread(access_policy.build_effective_routes, app))
+        routes_built = first_answer.after_answer(
+            answered, lambda: asyncio.to_thread(access_policy.build_effective_routes, app))
         try:
             yield
         finally:
@@ -180,10 +189,12 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
                 await asyncio.to_thread(plant.stop)
             for gateway in state.gateways.values():
                 await asyncio.to_thread(gateway.stop)
+            if begin is not None:
+                await first_answer.end(begin, answered)
             await uploads
             if settling is not None:
                 await settling
-            await routes_built
+            await first_answer.end(routes_built, answered)
 
     docs = settings.api_docs  # their scripts come from a CDN: development only
     app = FastAPI(title="DriveBench", version=__version__, lifespan=lifespan, docs_url="/docs" if docs else None,
@@ -197,6 +208,7 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
     app.add_middleware(RequestGate, links=share_links, sign_ins=sign_ins, limit_bytes=settings.max_upload_bytes,
                        batch_bytes=settings.max_batch_upload_bytes,
                        hsts=settings.hsts if hsts is None else hsts)
+    app.add_middleware(first_answer.FirstAnswer, signal=answer_signal)  # around the gate: a refusal answers too
     app.state.metrics = metrics = Metrics(lambda: _running(app, "manager"), lambda: _running(app, "jobs"))
     app.add_middleware(RequestMetrics, metrics=metrics)  # around the gate: its refusals are answers too
     app.add_middleware(RequestIds)  # outermost: every log record of a request, refusals included, names it
