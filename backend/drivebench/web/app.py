@@ -157,8 +157,8 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
         uploads = asyncio.create_task(profiles_loading.load_in_background(registry))  # the stored ones, after
         few = registry.upload_progress()[1] <= GRACE_UPLOADS
         begin: asyncio.Task[None] | None = None
-        if few or demo or plant_file:  # a plant's nodes may name stored uploads
-            registry.begin_uploads()
+        if few or demo or plant_file or buses:  # a plant's nodes may name stored uploads; buses make garbage
+            registry.begin_uploads()  # (the held collector waits for the uploads) before anyone asks
         else:  # a large folder: once the first answer is sent, or as soon as a request needs a stored upload
             begin = first_answer.after_answer(answered, registry.begin_uploads)
         if few:  # a small folder is read before the first answer
