@@ -35,10 +35,10 @@ from startup_uploads import store_uploads
 from drivebench.config import REPO_ROOT
 
 SECTION = "## Start-up of the server process"
-BEFORE = "a1b6cc8"
-"""main before the third round of start cuts (issue 33: routes built at first use, the heap settled after the
-uploads, cryptography and Babel's catalogue code left out); ``--before 701d74f`` compares with the code before the
-second round, ``--before 3512ecf`` with the code before the first."""
+BEFORE = "db850a4"
+"""main before the fourth round of start cuts (issue 33: no grace for a large upload folder, background work after
+the first answer, pydantic models built at first use); ``--before a1b6cc8`` compares with the code before the third
+round, ``--before 701d74f`` before the second, ``--before 3512ecf`` before the first."""
 TREE = ["backend", "frontend", "device_profiles", "plants", "pyproject.toml"]
 ROUNDS = 3
 START_TIMEOUT_S = 300.0
@@ -158,22 +158,26 @@ def write_results(rows: list[tuple[str, str]]) -> None:
 
 NOTE = ("Wall time on this shared machine is mostly the wait for a core (see the load average): the CPU seconds of "
         "the server process compare the work. Where the CPU of the start went before this round (cProfile with a "
-        "thread-time clock and `-X importtime` of `drivebench serve` with 200 stored uploads, 2026-11-29 14:35; "
-        "main thread ~2.1 s of the ~2.3 s compiled): the libraries (FastAPI, pydantic, SQLAlchemy, uvicorn, "
-        "pydantic-settings) ~0.5 s; importing the app ~1.2 s, of which FastAPI building each of ~300 routes' state "
-        "as its decorator ran (a pydantic field per parameter, the response field, the handler) about half, "
-        "pydantic model classes most of the rest; the full garbage collection over the start's heap before "
-        "listening ~0.2 s; cryptography's X.509 and Babel's catalogue code a few hundredths; the worker threads "
-        "(database check, shipped profiles, the first uploads) ~0.2 s. This round: routes built at first use "
-        "(FastAPI's inclusions build their own copies from the declared arguments, so the originals are never "
-        "built in a served app), the heap settled once the uploads are read, cryptography and babel.messages "
-        "imported where used. What is left is the libraries' import, pydantic's model classes (~320, each "
-        "building its schema as its module is imported) and FastAPI's route matching tables. Earlier rounds: "
-        "before the first (3512ecf) 5.15 s CPU, after it 3.02 s, compiled 2.49 s (load 20); the second "
-        "(Alembic only to migrate) 3.14 s -> 2.96 s, compiled 2.55 s (701d74f -> c93336e, load 22-34). "
-        "A first run of this round (2026-11-29 15:16, load ~10; 14acff4, the path patterns still compiled at "
-        "import): 3.97 s CPU before, 2.47 s after, 2.07 s compiled (1.78-2.20). On this machine the compiled start "
-        "is at the 2 s of issue 33 (1.78-2.52 s over six starts in two runs), not safely under it.")
+        "process-time clock of the main thread and per-thread CPU at the first answer, `drivebench serve` with 200 "
+        "stored uploads, compiled, 2026-11-29 17:30, load 5-20): the main thread ~1.3-1.5 s, nearly all of it "
+        "imports: the libraries ~0.7 s (SQLAlchemy with its ORM ~0.25, FastAPI ~0.17 with its OpenAPI models, "
+        "pydantic and pydantic-settings ~0.14, python-can/canopen ~0.04, uvicorn ~0.03), DriveBench's modules "
+        "~0.6 s (of which pydantic building ~310 model classes' validators ~0.1-0.15 s, ~250 dataclasses ~0.08 s, "
+        "the bus-load tables and argon2's C bindings ~0.03 s each); the lifespan and the first answer a few "
+        "hundredths; the worker threads ~0.1-0.2 s (the stored uploads read during the 0.5 s grace, FastAPI's route "
+        "copies). This round: the start waits for the stored uploads only when there are at most 20 (a large "
+        "folder put off the first answer by 0.5 s); a large folder and FastAPI's route copies begin once the first "
+        "answer is sent (web/first_answer.py; a request that needs a stored upload begins the loading at once); "
+        "pydantic model classes build their validators at first use (drivebench/model_builds.py, defer_build); "
+        "the bus-load tables and argon2's hasher are made at first use. What is left is the import itself: the "
+        "libraries, ~1,100 modules read, model fields and dataclasses made. Earlier rounds: before the first "
+        "(3512ecf) 5.15 s CPU, after it 3.02 s, compiled 2.49 s (load 20); the second (Alembic only to migrate) "
+        "3.14 s -> 2.96 s, compiled 2.55 s; the third (routes built at first use, the heap settled after the "
+        "uploads; a1b6cc8 -> ad4f624, load 6-8) 4.21 s -> 3.09 s, compiled 2.26 s (1.78-2.52 over six starts)."
+        " Compiled against compiled (the before tree compiled too, starts interleaved, nice 10, load ~20, "
+        "medians of five): db850a4 1.87 s and 1.79 s in two runs, 96c0cb2 (the grace cut) 1.61 s, 0b2f4a4 "
+        "(+ models at first use) 1.55 s, fa5a906 (+ argon2) 1.56 s; the first-answer cut another ~0.1 s "
+        "(1.52 -> 1.42 s).")
 
 
 if __name__ == "__main__":

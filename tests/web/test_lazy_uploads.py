@@ -16,6 +16,7 @@ import httpx
 import pytest
 
 from drivebench.config import REPO_ROOT, settings
+from drivebench.web import app as app_module
 from drivebench.web import heap
 from drivebench.web.app import create_app
 from tests.conftest import fresh_channel, serve_app, wait_until
@@ -124,3 +125,54 @@ def test_a_server_of_its_own_settles_its_heap_once_the_stored_uploads_are_read(
     finally:
         gc.enable()
         gc.unfreeze()
+
+
+def test_a_big_folder_is_not_waited_for_before_the_first_answer(
+        tmp_path: Path, app_db_url: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The start waits (``UPLOADS_GRACE_S``) only for a folder small enough to be read in that time: with hundreds
+    of uploads the wait only put off the first answer, and the loading thread took the CPU the start needed (issue
+    33). The grace is made long here, so a start that waits for this folder answers ``loaded``."""
+    stored = store_uploads(tmp_path / "user-profiles")
+    monkeypatch.setattr(settings, "user_profiles_dir", tmp_path / "user-profiles")
+    monkeypatch.setattr(app_module, "UPLOADS_GRACE_S", 600.0)
+    with serve_app(create_app(), start_timeout_s=600) as base:
+        profiles = httpx.get(f"{base}/api/health", timeout=60).json()["profiles"]
+        assert profiles["state"] == "loading" and profiles["stored"] == stored
+        assert wait_until_loaded(base) == {"state": "loaded", "loaded": stored, "stored": stored}
+
+
+def test_a_few_stored_uploads_are_there_at_the_first_answer(
+        tmp_path: Path, app_db_url: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    folder = tmp_path / "user-profiles"
+    folder.mkdir()
+    for n in range(3):
+        (folder / f"up-{n}.eds").write_bytes(re.sub(rb"ProfileId=[^\r\n]*", f"ProfileId=up-{n}".encode(),
+                                                    SERVO_EDS.read_bytes(), count=1))
+    monkeypatch.setattr(settings, "user_profiles_dir", folder)
+    monkeypatch.setattr(app_module, "UPLOADS_GRACE_S", 600.0)
+    with serve_app(create_app(), start_timeout_s=600) as base:
+        assert httpx.get(f"{base}/api/health", timeout=60).json()["profiles"] == {
+            "state": "loaded", "loaded": 3, "stored": 3}
+        assert sorted(uploaded(base)) == ["up-0", "up-1", "up-2"]
+
+
+def test_a_big_folder_begins_loading_once_the_first_answer_is_sent(
+        tmp_path: Path, app_db_url: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The loading thread (and the one building FastAPI's route copies) begins once the server has sent its first
+    answer (``web/first_answer.py``): before, it took its share of the CPU while that answer was made (issue 33)."""
+    stored = store_uploads(tmp_path / "user-profiles")
+    monkeypatch.setattr(settings, "user_profiles_dir", tmp_path / "user-profiles")
+    with serve_app(create_app()) as base:
+        first = httpx.get(f"{base}/api/health", timeout=60).json()["profiles"]
+        assert first == {"state": "loading", "loaded": 0, "stored": stored}
+        assert wait_until_loaded(base) == {"state": "loaded", "loaded": stored, "stored": stored}
+
+
+def test_a_first_request_that_needs_a_stored_upload_begins_the_loading_and_gets_it(
+        tmp_path: Path, app_db_url: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    store_uploads(tmp_path / "user-profiles")
+    monkeypatch.setattr(settings, "user_profiles_dir", tmp_path / "user-profiles")
+    with serve_app(create_app()) as base:
+        answer = httpx.get(f"{base}/api/profiles/{LAST}", timeout=600)
+        assert answer.status_code == 200, answer.text
+        assert answer.json()["id"] == LAST

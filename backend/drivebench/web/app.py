@@ -27,7 +27,7 @@ from drivebench.services.users import audit
 from drivebench.services.users.accounts import Accounts
 from drivebench.services.users.sharing import ShareLinks
 from drivebench.simulator.plant import Plant, PlantFile
-from drivebench.web import access, access_policy, heap, language, problems, shared_routes
+from drivebench.web import access, access_policy, first_answer, heap, language, problems, shared_routes
 from drivebench.web import metrics as metrics_api
 from drivebench.web.api import accounts as accounts_api
 from drivebench.web.api import diagnostics, health, parameter_sets, parameters, pdo, profiles, sessions, tools
@@ -70,8 +70,12 @@ from drivebench.web.ws import scope as scope_ws
 log = logging.getLogger(__name__)
 
 UPLOADS_GRACE_S = 0.5
-"""How long the start waits for the stored uploads (without holding the event loop): a few uploads are all there
-at the first answer, as before; a folder of hundreds loads on after the server listens (issue 33)."""
+"""How long the start waits for a few stored uploads (without holding the event loop): they are all there at the
+first answer, as before."""
+GRACE_UPLOADS = 20
+"""The most stored upload files the start waits for: a folder of hundreds loads after the server listens, and
+waiting for its first part only put off the first answer while the loading thread took the CPU the start needed
+(issue 33)."""
 
 # One line per router: screens grow without touching anything else here. FastAPI matches a request router by
 # router, so the routes a client polls come first (the parameter reads: one router walked instead of eight, ~0.3 ms
@@ -141,15 +145,24 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
     """``settle_heap``: a server process of its own (``drivebench serve``) freezes what start-up made (``heap``)."""
     share_links = ShareLinks()
     sign_ins = access.SignIns(Accounts(), access.Sessions())  # the gate's and the routes' (AppState) alike
+    answer_signal = first_answer.AnswerSignal()
 
     @contextlib.asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         asyncio.get_running_loop().set_default_executor(ThreadPoolExecutor(64, thread_name_prefix="bus-work"))
         await asyncio.to_thread(upgrade_to_head)  # the database schema (settings.database_url) to the newest
         await asyncio.to_thread(set_jobs.close_interrupted, ParameterSetStore())
+        answered = answer_signal.arm()
         registry = await asyncio.to_thread(ProfileRegistry, defer_uploads=True)  # the shipped ones
         uploads = asyncio.create_task(profiles_loading.load_in_background(registry))  # the stored ones, after
-        await asyncio.wait({uploads}, timeout=UPLOADS_GRACE_S)  # a small folder is read before the first answer
+        few = registry.upload_progress()[1] <= GRACE_UPLOADS
+        begin: asyncio.Task[None] | None = None
+        if few or demo or plant_file or buses:  # a plant's nodes may name stored uploads; buses make garbage
+            registry.begin_uploads()  # (the held collector waits for the uploads) before anyone asks
+        else:  # a large folder: once the first answer is sent, or as soon as a request needs a stored upload
+            begin = first_answer.after_answer(answered, registry.begin_uploads)
+        if few:  # a small folder is read before the first answer
+            await asyncio.wait({uploads}, timeout=UPLOADS_GRACE_S)
         manager = SessionManager(registry, sdo_timeout_s=settings.sdo_timeout_s, sdo_retries=settings.sdo_retries,
                                  write_audits=[audit.AuditLog()])  # every write the tool sends is logged
         state = AppState(registry, manager, share_links=share_links, accounts=sign_ins.accounts,
@@ -163,7 +176,8 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
             await manager.open(bus)
         await restore_record.restore_leftovers(manager)  # what recordings a killed server left mapped on the nodes
         settling = _settle_heap_once_loaded(uploads) if settle_heap else None
-        routes_built = asyncio.create_task(asyncio.to_thread(access_policy.build_effective_routes, app))
+        routes_built = first_answer.after_answer(
+            answered, lambda: asyncio.to_thread(access_policy.build_effective_routes, app))
         try:
             yield
         finally:
@@ -175,10 +189,12 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
                 await asyncio.to_thread(plant.stop)
             for gateway in state.gateways.values():
                 await asyncio.to_thread(gateway.stop)
+            if begin is not None:
+                await first_answer.end(begin, answered)
             await uploads
             if settling is not None:
                 await settling
-            await routes_built
+            await first_answer.end(routes_built, answered)
 
     docs = settings.api_docs  # their scripts come from a CDN: development only
     app = FastAPI(title="DriveBench", version=__version__, lifespan=lifespan, docs_url="/docs" if docs else None,
@@ -192,6 +208,7 @@ def create_app(*, demo: bool = False, plant_file: Path | None = None, buses: lis
     app.add_middleware(RequestGate, links=share_links, sign_ins=sign_ins, limit_bytes=settings.max_upload_bytes,
                        batch_bytes=settings.max_batch_upload_bytes,
                        hsts=settings.hsts if hsts is None else hsts)
+    app.add_middleware(first_answer.FirstAnswer, signal=answer_signal)  # around the gate: a refusal answers too
     app.state.metrics = metrics = Metrics(lambda: _running(app, "manager"), lambda: _running(app, "jobs"))
     app.add_middleware(RequestMetrics, metrics=metrics)  # around the gate: its refusals are answers too
     app.add_middleware(RequestIds)  # outermost: every log record of a request, refusals included, names it

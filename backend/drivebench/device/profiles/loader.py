@@ -279,6 +279,7 @@ class ProfileRegistry:
         self._stored = 0
         self._uploads_read = 0
         self._stop = threading.Event()
+        self._begin = threading.Event()
         if defer_uploads:
             self._load_builtin()
         else:
@@ -303,10 +304,15 @@ class ProfileRegistry:
         self._files, self._builtin, self.errors = files, builtin, errors
         self._stored, self._uploads_read = len(_profile_files(self.user_profiles_dir)), 0
 
+    def begin_uploads(self) -> None:
+        """Let :meth:`load_uploads` begin (a server start puts a large folder off until its first answer)."""
+        self._begin.set()
+
     def load_uploads(self) -> None:
         """After ``defer_uploads``: add the stored uploads while the server answers, each profile as soon as it is
-        read (blocking: a worker thread)."""
+        read, once :meth:`begin_uploads` (or :meth:`stop_loading`) has been called (blocking: a worker thread)."""
         try:
+            self._begin.wait()
             self._read_uploads({}, [], set(self._builtin), publish=self._publish)
         finally:
             self.uploads_done.set()
@@ -337,6 +343,7 @@ class ProfileRegistry:
     def stop_loading(self) -> None:
         """Stop :meth:`load_uploads` after the file it reads (the server is shutting down)."""
         self._stop.set()
+        self._begin.set()
 
     def upload_progress(self) -> tuple[int, int]:
         """(stored upload files read so far, stored upload files)."""

@@ -37,8 +37,9 @@ def progress_line(registry: ProfileRegistry) -> str | None:
 
 
 async def uploads_loaded(registry: ProfileRegistry) -> None:
-    """Wait until every stored upload is read (at once when they are)."""
+    """Wait until every stored upload is read (at once when they are); a loading not begun yet begins now."""
     if not registry.uploads_done.is_set():
+        registry.begin_uploads()
         await asyncio.to_thread(registry.uploads_done.wait)
 
 

@@ -22,10 +22,9 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import UTC, datetime
-from typing import TypeVar
+from functools import cached_property
+from typing import TYPE_CHECKING, TypeVar
 
-from argon2 import PasswordHasher
-from argon2.exceptions import InvalidHashError, VerificationError
 from sqlalchemy import delete, select, update
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
@@ -44,6 +43,9 @@ from drivebench.services.storage.models import (
 )
 from drivebench.services.users.principals import Principal, Role
 
+if TYPE_CHECKING:
+    from argon2 import PasswordHasher
+
 log = logging.getLogger(__name__)
 
 TOKEN_PREFIX = "dbt_"
@@ -54,7 +56,30 @@ MAX_LIMIT_KEY = 300  # a sign-in limit key (``user:`` + the name as typed) is cu
 DIRECTORY_TTL_S = 2.0  # a user added by the CLI while the server runs counts after at most this long
 
 _T = TypeVar("_T")
-_hasher = PasswordHasher()
+
+
+class _ProductHasher:
+    """argon2-cffi's ``PasswordHasher`` with its default (the product's) parameters, made at the first hash or check:
+    importing argon2 loads its C bindings, a few hundredths of a second of every server start before it could
+    answer ``/api/health`` (issue 33)."""
+
+    @cached_property
+    def _argon2(self) -> PasswordHasher:
+        from argon2 import PasswordHasher
+
+        return PasswordHasher()
+
+    def hash(self, password: str) -> str:
+        return self._argon2.hash(password)
+
+    def verify(self, password_hash: str, password: str) -> bool:
+        return self._argon2.verify(password_hash, password)
+
+    def check_needs_rehash(self, password_hash: str) -> bool:
+        return self._argon2.check_needs_rehash(password_hash)
+
+
+_hasher = _ProductHasher()
 _dummy_hash: str | None = None
 
 
@@ -320,6 +345,8 @@ def set_password(name: str, password: str, *, end_tokens: bool = False) -> User:
 
 def verify_password(name: str, password: str) -> Principal:
     """The principal of a correct name and password; ``NotAuthenticated`` (in the same words) otherwise."""
+    from argon2.exceptions import InvalidHashError, VerificationError
+
     global _dummy_hash
     wrong = NotAuthenticated(_("Wrong user name or password."))
     with transaction() as db:
