@@ -224,9 +224,9 @@ def test_a_1_ms_recording_of_node_7_during_a_move_equals_the_frames_on_the_bus(
             for _n, data in on_bus]
     # every delivered sample is a TPDO frame of the bus, in bus order, with its values; a frame not delivered is
     # counted (late: after its sample went out, also after Stop; extra: a second one for a SYNC): that happens only on
-    # a loaded machine, where the simulated drive or the bus thread was behind when node 7's first frame came (its
-    # samples start late: the surplus frames at the end are counted) or stalls for longer than a sample waits
-    # (pdo_source.WAIT_S)
+    # a loaded machine, where the simulated drive was behind when node 7's first frame came (its samples start late:
+    # the surplus frames at the end are counted; a bus thread behind no longer does that: the frame's bus timestamp
+    # says its SYNC) or the bus thread stalls for longer than a sample waits (pdo_source.WAIT_S)
     assert len(got) + source.late + source.extra == len(want)
     samples = [sample for sample, _raw in got]
     assert samples == sorted(set(samples)), "one sample per SYNC, in order"
