@@ -224,9 +224,9 @@ def test_a_1_ms_recording_of_node_7_during_a_move_equals_the_frames_on_the_bus(
             for _n, data in on_bus]
     # every delivered sample is a TPDO frame of the bus, in bus order, with its values; a frame not delivered is
     # counted (late: after its sample went out, also after Stop; extra: a second one for a SYNC): that happens only on
-    # a loaded machine, where the simulated drive or the bus thread was behind when node 7's first frame came (its
-    # samples start late: the surplus frames at the end are counted) or stalls for longer than a sample waits
-    # (pdo_source.WAIT_S)
+    # a loaded machine, where the simulated drive was behind when node 7's first frame came (its samples start late:
+    # the surplus frames at the end are counted; a bus thread behind no longer does that: the frame's bus timestamp
+    # says its SYNC) or the bus thread stalls for longer than a sample waits (pdo_source.WAIT_S)
     assert len(got) + source.late + source.extra == len(want)
     samples = [sample for sample, _raw in got]
     assert samples == sorted(set(samples)), "one sample per SYNC, in order"
@@ -297,6 +297,83 @@ def test_an_answer_to_the_last_syncs_that_comes_after_stop_delivered_its_sample_
     assert len(recorder.frames) == sum(1 for m in wire_frames if m.arbitration_id == 0x080)
     assert len(got) + source.late + source.extra == len(on_bus), "every TPDO frame is a sample or counted"
     assert source.late >= 1, "the frames held in the bus thread came after their samples went out"
+
+
+class _BehindAtAFirstFrame(can.Listener):
+    """A loaded machine's bus thread, ahead of the source's listener: it stops at the first frame of the second node
+    to answer (the other node's answers passed already, so the samples wait for them) until the producer has sent
+    :data:`BEHIND` more SYNCs; the frames after it wait in the bus's queue, as for a thread without the CPU."""
+
+    BEHIND = 5
+
+    def __init__(self, source: PdoScopeSource, cobs: set[int]) -> None:
+        self.source = source
+        self.cobs = cobs
+        self.seen: set[int] = set()
+        self.held_at: int | None = None
+        self.released = threading.Event()
+
+    def on_message_received(self, msg: can.Message) -> None:
+        if msg.arbitration_id not in self.cobs or msg.arbitration_id in self.seen:
+            return
+        self.seen.add(msg.arbitration_id)
+        if self.seen == self.cobs:
+            held_at = self.held_at = self.source.newest_sync()
+            wait_until(lambda: self.source.newest_sync() >= held_at + self.BEHIND, 60)
+            self.released.set()
+
+
+def _wire_answers(frames: list[can.Message], cob_id: int) -> list[tuple[int, bytes]]:
+    """A TPDO's frames in bus order, each with the SYNC it answers by the bus: the newest SYNC before it on the
+    wire, or one after the frame before when a device fell behind (two of its answers after one SYNC)."""
+    count, found = -1, []
+    for msg in frames:
+        if msg.arbitration_id == 0x080:
+            count += 1
+        elif msg.arbitration_id == cob_id and count >= 0:
+            found.append((count if not found else min(found[-1][0] + 1, count), bytes(msg.data)))
+    return found
+
+
+def test_a_bus_thread_behind_at_a_nodes_first_frames_puts_them_at_the_sync_the_bus_shows(
+        plant_session: tuple[asyncio.Runner, Session], wire: can.BusABC, db: str,
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """A loaded run took a node's first TPDO frame as the answer to the newest SYNC when the bus thread received
+    it: behind by a few SYNCs, every later sample of that node was that many SYNCs late and the channels of two
+    nodes did not line up. The bus's timestamp of the frame (the virtual bus stamps in time.time()'s clock) says
+    which SYNC it answers."""
+    monkeypatch.setattr(pdo_source, "WAIT_S", 60.0)  # the samples wait for the held frames however long the hold
+    monkeypatch.setattr(pdo_source, "SILENT_S", 60.0)
+    runner, session = plant_session
+    plan = runner.run(plan_recording(session, [POSITION, ScopeChannel(3, "0x6041")], 0.01))
+    assert sorted(t.node for t in plan.tpdos) == [3, AXIS] and not plan.polling, plan.texts()
+    slots = [slot for slot in plan.slots if slot is not None]
+    recorder = Recorder()
+    source = PdoScopeSource(session, plan, confirmed_ctx(plan))
+    behind = _BehindAtAFirstFrame(source, {slot.cob_id for slot in slots})
+    frames_of(session.network).add_listener(behind)
+    try:
+        runner.run(source.start(recorder.frames.append, recorder.events.append))
+        assert wait_until(lambda: runner.run(asyncio.sleep(0.05)) or behind.released.is_set(), 60), "held, let go"
+        held_at = behind.held_at
+        assert held_at is not None
+        assert wait_until(lambda: runner.run(asyncio.sleep(0.05)) or source.delivered > held_at + 20, 60)
+        runner.run(source.stop())
+    finally:
+        frames_of(session.network).remove_listener(behind)
+    wire_frames = []
+    while (msg := wire.recv(0.2)) is not None:
+        wire_frames.append(msg)
+
+    assert len(recorder.frames) == sum(1 for m in wire_frames if m.arbitration_id == 0x080)
+    for at, slot in enumerate(plan.slots):
+        assert slot is not None
+        got = [(frame.sample, frame.raw[at]) for frame in recorder.frames if frame.raw[at] is not None]
+        want = [(number, slot.value(data)) for number, data in _wire_answers(wire_frames, slot.cob_id)]
+        assert got == want, f"TPDO 0x{slot.cob_id:03X}: each sample at the SYNC the bus shows before its frame"
+    assert (source.late, source.extra) == (0, 0), "every TPDO frame of the bus is a sample"
+    both = [frame.sample for frame in recorder.frames if None not in frame.raw]
+    assert both and min(both) <= held_at, "the two nodes line up from the held frames on"
 
 
 def test_a_node_that_stops_sending_is_an_event_in_words(

@@ -5,10 +5,12 @@ TPDO that answered it.
 Start: the confirmation (a SYNC producer and NMT start are moving-class: :func:`confirmation`), the node leases
 (held for the recording, shared with the same writer's own writes), the restore record in the database, then
 each TPDO by the CiA 301 sequence, the NMT start of pre-operational nodes, the SYNC producer. Frames arrive in
-the bus thread, are stamped by SYNC count (:class:`SyncProducer`) and handed to the event loop in batches; the
-sample of SYNC n is delivered as soon as every sending node answered it, at the latest once the producer is
-:data:`WAIT_S` ahead of it (a node that sent nothing for it: None). Faults are events in words: a node that stops
-sending, SYNC paused or lost, another SYNC producer, bus-off.
+the bus thread, are stamped by SYNC count (the last SYNC sent before the bus's timestamp of the frame where that is
+plausible in our clock, else the newest sent: :meth:`PdoScopeSource._stamp`) and handed to the event loop in
+batches; the sample of SYNC n is delivered as soon as every sending node answered it (a node that has not sent yet
+is waited for until it is silent), at the latest once the producer is :data:`WAIT_S` ahead of it (a node that sent
+nothing for it: None). Faults are events in words: a node that stops sending, SYNC paused or lost, another SYNC
+producer, bus-off.
 Stop: everything back from the record, read back; the record is removed after a good read-back only.
 """
 
@@ -78,7 +80,7 @@ class _Tap(can.Listener):
 
     def on_message_received(self, msg: can.Message) -> None:
         if not msg.is_error_frame and not msg.is_remote_frame and not msg.is_extended_id:
-            self.source.on_bus_frame(msg.arbitration_id, bytes(msg.data))
+            self.source.on_bus_frame(msg.arbitration_id, bytes(msg.data), msg.timestamp)
 
 
 class PdoScopeSource:
@@ -191,20 +193,32 @@ class PdoScopeSource:
                                                 why=failed.abort_text or failed.detail or failed.abort_code))
 
     # --- the bus thread -------------------------------------------------------------------------------------
-    def on_bus_frame(self, cob_id: int, data: bytes) -> None:
+    def on_bus_frame(self, cob_id: int, data: bytes, timestamp: float | None = None) -> None:
+        """``timestamp``: the bus's receive time of the frame (python-can's ``msg.timestamp``)."""
         if cob_id == SYNC_COB_ID:
             with self._lock:
                 self._foreign_sync += 1  # a received SYNC is another producer's: ours are sent, not received
             return
         if cob_id not in self._cobs:
             return
-        stamp = self._producer.stamp()
+        stamp = self._stamp(timestamp)
         with self._lock:
             self._pending.append((stamp, cob_id, data))
             if self._scheduled or self._loop is None:
                 return
             self._scheduled = True
         self._loop.call_soon_threadsafe(self._drain)
+
+    def _stamp(self, timestamp: float | None) -> int:
+        """The newest SYNC the frame can answer: the last one sent before the bus stamped the frame where that
+        timestamp is plausible in our clock (the virtual bus, socketcan and the socketcand hub stamp in
+        ``time.time()``'s), so that a bus thread that was behind when the frame came does not put it late; else
+        (another clock: an adapter's own, a gateway on another host) the newest SYNC sent when it is taken here."""
+        if timestamp is not None:
+            at = self._producer.stamp_at(timestamp, time.time())
+            if at is not None:
+                return at
+        return self._producer.stamp()
 
     # --- the event loop -------------------------------------------------------------------------------------
     def _drain(self) -> None:
@@ -239,9 +253,10 @@ class PdoScopeSource:
     def _answered(self, cob_id: int, stamp: int) -> int:
         """The SYNC a TPDO frame answers. "Every SYNC" answers each SYNC once, in order: the frame after the one for
         SYNC n answers n + 1, also when it arrives after later SYNCs (a device or a machine that fell behind: its
-        answers come in a burst once it gets the CPU again), never one not sent yet (``stamp``: the newest sent).
+        answers come in a burst once it gets the CPU again), never one not sent yet (``stamp``: the newest sent
+        before the frame was on the bus, :meth:`_stamp`). A node's first frame answers ``stamp``.
         A node whose next SYNC was delivered without it (behind by more than :data:`WAIT_S`, or counted as silent)
-        skipped SYNCs (it was killed, restarted): its frame answers the newest SYNC. (A device that skips a single
+        skipped SYNCs (it was killed, restarted): its frame answers ``stamp``. (A device that skips a single
         SYNC looks like one that answers a period late: it stays one SYNC behind.)"""
         expected = self._expected.get(cob_id)
         sample = stamp if expected is None or expected < self._next else min(expected, stamp)
@@ -251,15 +266,15 @@ class PdoScopeSource:
         return sample
 
     def _deliver(self, upto: int) -> None:
-        """Every sample before ``upto`` (its wait is over), then each one that every sending node answered (no
-        sample waits for a TPDO before its first frame, which answers the newest SYNC then, nor for a silent node)."""
+        """Every sample before ``upto`` (its wait is over), then each one that every sending node answered: a node
+        that has not sent yet is waited for until it is silent; no sample before a TPDO's first frame waits for it
+        (the node was started after that SYNC), nor one for a silent node."""
         if self._on_frame is None:
             return
         self.period_s = self._producer.period_s
         slots = self.plan.slots
         newest = self._producer.stamp()
-        first = {cob: self._first[cob] for cob, node in self._cobs.items() if cob in self._first
-                 and node not in self._silent}
+        first = {cob: self._first.get(cob, 0) for cob, node in self._cobs.items() if node not in self._silent}
         while self._next < upto or (self._next <= newest and all(
                 cob in self._rows.get(self._next, ()) for cob, since in first.items() if since <= self._next)):
             row = self._rows.pop(self._next, {})

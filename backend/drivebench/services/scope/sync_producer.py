@@ -3,14 +3,18 @@ the period it really reaches.
 
 The count is taken under a lock around each send, and a TPDO frame is stamped under the same lock
 (:meth:`SyncProducer.stamp`): a frame received while a SYNC is being sent waits for it, so it is stamped with the
-SYNC it answers. A thread that falls behind by several periods (a loaded machine) does not burst to catch up: it
-restarts its clock and reports the pause.
+SYNC it answers. Each SYNC's send time is kept in ``time.time()``'s clock (taken just before the send), so that a
+frame the bus stamped can be put at the last SYNC sent before it was on the bus (:meth:`SyncProducer.stamp_at`),
+also when the thread that receives it was behind. A producer thread that falls behind by several periods (a loaded
+machine) does not burst to catch up: it restarts its clock and reports the pause.
 """
 
 from __future__ import annotations
 
 import threading
 import time
+from array import array
+from bisect import bisect_right
 from collections.abc import Callable
 
 from drivebench.errors import DriveBenchError
@@ -31,6 +35,8 @@ class SyncProducer:
         self.error: str | None = None
         self.pauses: list[tuple[int, float]] = []
         """(SYNC number, seconds) of each pause (:data:`PAUSE_PERIODS`, :data:`PAUSE_MIN_S`)."""
+        self._sent_at = array("d")
+        """``time.time()`` just before each SYNC's send, by SYNC number."""
         self._pause_s = max(PAUSE_PERIODS * period_s, PAUSE_MIN_S)
         self._lock = threading.Lock()
         self._stop = threading.Event()
@@ -49,6 +55,15 @@ class SyncProducer:
         with self._lock:
             return self.count - 1
 
+    def stamp_at(self, timestamp: float, received: float) -> int | None:
+        """The number of the last SYNC sent at or before ``timestamp`` (a frame's bus timestamp), None where that
+        timestamp is not plausible in ``time.time()``'s clock (``received``: when the frame was taken): later than
+        its receive, or before the first SYNC (an adapter or gateway with a clock of its own, or no timestamp)."""
+        with self._lock:
+            if not self._sent_at or not self._sent_at[0] <= timestamp <= received:
+                return None
+            return bisect_right(self._sent_at, timestamp) - 1
+
     @property
     def period_s(self) -> float:
         """The mean period reached so far (the nominal one before two SYNCs went out)."""
@@ -60,6 +75,7 @@ class SyncProducer:
         next_at = time.monotonic()
         while not self._stop.is_set():
             with self._lock:
+                sent_at = time.time()
                 try:
                     self._send()
                 except DriveBenchError as exc:
@@ -70,6 +86,7 @@ class SyncProducer:
                     self.pauses.append((self.count, now - self.last))
                 self.first = now if self.first is None else self.first
                 self.last = now
+                self._sent_at.append(sent_at)
                 self.count += 1
             next_at += self.nominal_s
             delay = next_at - time.monotonic()

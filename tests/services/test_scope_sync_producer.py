@@ -1,0 +1,47 @@
+"""The scope's SYNC producer on a real virtual bus: which SYNC a frame's bus timestamp falls after, and the
+timestamps it does not trust (another clock: the newest SYNC sent is used then)."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+
+import can
+import pytest
+
+from drivebench.services.scope.sync_producer import SyncProducer
+from tests.conftest import fresh_channel, wait_until
+
+
+@pytest.fixture
+def buses() -> Iterator[tuple[can.BusABC, can.BusABC]]:
+    channel = fresh_channel()
+    sender = can.Bus(interface="virtual", channel=channel)
+    wire = can.Bus(interface="virtual", channel=channel)
+    yield sender, wire
+    sender.shutdown()
+    wire.shutdown()
+
+
+def test_a_frame_stamped_by_the_bus_is_put_at_the_last_sync_sent_before_it(
+        buses: tuple[can.BusABC, can.BusABC]) -> None:
+    sender, wire = buses
+    producer = SyncProducer(lambda: sender.send(can.Message(arbitration_id=0x080, is_extended_id=False)), 0.005)
+    producer.start()
+    try:
+        assert wait_until(lambda: producer.count >= 5, 30)
+    finally:
+        producer.stop()
+    syncs = []
+    while (msg := wire.recv(0.2)) is not None:
+        syncs.append(msg.timestamp)
+    assert len(syncs) == producer.count
+    now = time.time()
+    # the virtual bus stamps a SYNC inside its send, after the producer took its time and before it takes the next
+    # one's: a frame with a SYNC's own timestamp is put at that SYNC, however late it is taken
+    assert [producer.stamp_at(stamp, now) for stamp in syncs] == list(range(len(syncs)))
+    assert producer.stamp() == len(syncs) - 1
+    # not plausible in time.time()'s clock: later than its receive, before the recording, none (0.0)
+    assert producer.stamp_at(now + 1, now) is None
+    assert producer.stamp_at(syncs[0] - 60, now) is None
+    assert producer.stamp_at(0.0, now) is None
