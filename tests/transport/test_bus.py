@@ -33,6 +33,16 @@ def test_parse_rejects_with_the_accepted_forms(text: str) -> None:
         BusSpec.parse(text)
 
 
+@pytest.mark.parametrize(("text", "host_clock"), [
+    ("virtual:x@500000", True), ("socketcan:can0@500000", True), ("socketcand:127.0.0.1:29536/can0", True),
+    ("socketcand:localhost:29536/can0", True), ("socketcand:10.1.2.3:29536/can0", False),
+    ("pcan:PCAN_USBBUS1@250000", False), ("kvaser:0@500000", False), ("vector:0@500000", False),
+    ("slcan:/dev/ttyACM0@500000", False)])
+def test_only_buses_that_stamp_in_this_hosts_clock_say_so(text: str, host_clock: bool) -> None:
+    """The scope puts a frame at a SYNC by its bus timestamp only where that is this host's time.time()."""
+    assert BusSpec.parse(text).stamps_in_host_clock() is host_clock
+
+
 def test_unknown_interface_lists_the_known_ones() -> None:
     with pytest.raises(AdapterUnavailable, match="Unknown CAN interface 'canfox'") as info:
         open_bus(BusSpec.parse("canfox:0@500000"))

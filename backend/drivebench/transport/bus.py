@@ -47,6 +47,10 @@ CANNOT_OPEN = N_("Cannot open {bus}: {reason}")
 ADAPTER_LOST = N_("adapter lost: {reason}")
 
 
+HOST_CLOCK_INTERFACES = frozenset({"virtual", "socketcan"})
+LOOPBACK_HOSTS = frozenset({"127.0.0.1", "localhost", "::1"})
+
+
 class BusSpec(BaseModel):
     """Where a session's bus is: python-can interface, channel, bit rate, plus interface options."""
 
@@ -85,6 +89,15 @@ class BusSpec(BaseModel):
             return (f"socketcand:{self.options.get('host')}:{self.options.get('port')}/{self.channel}"
                     f"@{self.bitrate}")
         return f"{self.interface}:{self.channel}@{self.bitrate}"
+
+    def stamps_in_host_clock(self) -> bool:
+        """Whether python-can stamps this bus's received frames in ``time.time()``'s clock of this host: the virtual
+        bus and socketcan (the kernel's receive time) do, and a socketcand gateway on this host; an adapter's own
+        clock (pcan, kvaser, vector, ixxat ... convert a hardware counter with an offset taken at start) or a
+        gateway on another host is off by an unknown amount."""
+        if self.interface == "socketcand":
+            return str(self.options.get("host", "")) in LOOPBACK_HOSTS
+        return self.interface in HOST_CLOCK_INTERFACES
 
     def hint(self) -> Text:
         """What to check when the adapter cannot be opened, in the reader's words (``str()`` where it is shown)."""

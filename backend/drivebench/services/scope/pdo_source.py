@@ -5,11 +5,11 @@ TPDO that answered it.
 Start: the confirmation (a SYNC producer and NMT start are moving-class: :func:`confirmation`), the node leases
 (held for the recording, shared with the same writer's own writes), the restore record in the database, then
 each TPDO by the CiA 301 sequence, the NMT start of pre-operational nodes, the SYNC producer. Frames arrive in
-the bus thread, are stamped by SYNC count (the last SYNC sent before the bus's timestamp of the frame where that is
-plausible in our clock, else the newest sent: :meth:`PdoScopeSource._stamp`) and handed to the event loop in
-batches; the sample of SYNC n is delivered as soon as every sending node answered it (a node that has not sent yet
-is waited for until it is silent), at the latest once the producer is :data:`WAIT_S` ahead of it (a node that sent
-nothing for it: None). Faults are events in words: a node that stops sending, SYNC paused or lost, another SYNC
+the bus thread, are stamped by SYNC count (the last SYNC sent before the bus's timestamp of the frame where the
+bus stamps in our clock and the stamp is plausible, else the newest sent: :meth:`PdoScopeSource._stamp`) and handed
+to the event loop in batches; the sample of SYNC n is delivered as soon as every sending node answered it (a node
+that has not sent yet is waited for until it is silent), at the latest once the producer is :data:`WAIT_S` ahead of
+it (a node that sent nothing for it: None). Faults are events in words: a node that stops sending, SYNC paused or lost, another SYNC
 producer, bus-off.
 Stop: everything back from the record, read back; the record is removed after a good read-back only.
 """
@@ -38,6 +38,7 @@ from drivebench.services.scope import restore_record
 from drivebench.services.scope.pdo_plan import SYNC_COB_ID, SYNC_EVERY, PlannedTpdo, ScopePlan
 from drivebench.services.scope.source import EventKind, EventSink, FrameSink, ScopeEvent, ScopeFrame, SourceKind
 from drivebench.services.scope.sync_producer import SyncProducer
+from drivebench.transport.bus import BusSpec
 
 WAIT_S = 1.0
 """How long a sample waits for a TPDO that has not answered it yet (a node, or a loaded machine, that fell behind)."""
@@ -104,6 +105,7 @@ class PdoScopeSource:
         self._first: dict[int, int] = {}
         """The SYNC each TPDO's first frame answered."""
         self._cobs = {tpdo.cob_id: tpdo.node for tpdo in plan.tpdos}
+        self._host_clock = isinstance(session.spec, BusSpec) and session.spec.stamps_in_host_clock()
         self._producer = SyncProducer(lambda: frames_of(session.network).send(SYNC_COB_ID, b""), plan.period_s)
         self._tap = _Tap(self)
         self._lock = threading.Lock()
@@ -211,10 +213,10 @@ class PdoScopeSource:
 
     def _stamp(self, timestamp: float | None) -> int:
         """The newest SYNC the frame can answer: the last one sent before the bus stamped the frame where that
-        timestamp is plausible in our clock (the virtual bus, socketcan and the socketcand hub stamp in
-        ``time.time()``'s), so that a bus thread that was behind when the frame came does not put it late; else
-        (another clock: an adapter's own, a gateway on another host) the newest SYNC sent when it is taken here."""
-        if timestamp is not None:
+        timestamp is in our clock (:meth:`BusSpec.stamps_in_host_clock`) and plausible, so that a bus thread that was
+        behind when the frame came does not put it late; else (an adapter's own clock or a gateway on another host:
+        an offset a 1 ms period cannot afford) the newest SYNC sent when it is taken here."""
+        if timestamp is not None and self._host_clock:
             at = self._producer.stamp_at(timestamp, time.time())
             if at is not None:
                 return at
