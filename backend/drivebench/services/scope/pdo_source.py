@@ -9,8 +9,8 @@ the bus thread, are stamped by SYNC count (the last SYNC sent before the bus's t
 bus stamps in our clock and the stamp is plausible, else the newest sent: :meth:`PdoScopeSource._stamp`) and handed
 to the event loop in batches; the sample of SYNC n is delivered as soon as every sending node answered it (a node
 that has not sent yet is waited for until it is silent), at the latest once the producer is :data:`WAIT_S` ahead of
-it (a node that sent nothing for it: None). Faults are events in words: a node that stops sending, SYNC paused or lost, another SYNC
-producer, bus-off.
+it (a node that sent nothing for it: None). Faults are events in words: a node that stops sending, SYNC paused or
+lost, another SYNC producer, bus-off.
 Stop: everything back from the record, read back; the record is removed after a good read-back only.
 """
 
