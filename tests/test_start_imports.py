@@ -48,38 +48,6 @@ def test_a_started_app_has_built_no_route_before_it_is_used() -> None:
     assert asked == [True]
 
 
-def test_model_classes_are_built_at_first_use_not_as_the_server_is_imported() -> None:
-    """Pydantic builds a model class's validator at its first use (``drivebench/model_builds.py``): after importing
-    what ``drivebench serve`` imports, only the few classes used at import are built (the settings, tables made
-    from model instances, FastAPI's own rebuilds), not the ~300 of DriveBench and FastAPI's OpenAPI models; a
-    class's first use builds it and validates as before."""
-    script = ("import json; import drivebench.cli, drivebench.web.app; from pydantic import BaseModel, "
-              "ValidationError; from drivebench.device.profiles.profile import Profile\n"
-              "def every(cls):\n"
-              "    for sub in cls.__subclasses__():\n"
-              "        yield sub; yield from every(sub)\n"
-              "models = [c for c in set(every(BaseModel)) if c.__module__.startswith(('drivebench.', 'fastapi.'))]\n"
-              "built = [c.__qualname__ for c in models if c.__pydantic_complete__]\n"
-              "profile_built = Profile.__pydantic_complete__\n"
-              "servo = Profile.model_validate_json(open('device_profiles/generic-cia402-servo.json', 'rb').read())\n"
-              "try:\n"
-              "    Profile.model_validate({'id': 7})\n"
-              "except ValidationError as exc:\n"
-              "    refused = exc.errors()[0]['loc']\n"
-              "print(json.dumps([len(models), built, profile_built, servo.id, Profile.__pydantic_complete__, "
-              "refused]))")
-    environment = {**os.environ, "PYTHONPATH": str(BACKEND)}
-    done = subprocess.run([sys.executable, "-c", script], env=environment, capture_output=True, text=True,
-                          check=True, timeout=600, cwd=BACKEND.parent)
-    models, built, profile_built, servo, profile_built_after, refused = json.loads(
-        done.stdout.strip().splitlines()[-1])
-    assert models > 250
-    assert len(built) < 20, built
-    assert "Settings" in built  # read from the environment as its module is imported
-    assert (profile_built, servo, profile_built_after) == (False, "generic-cia402-servo", True)
-    assert refused == ["id"]
-
-
 def test_the_bus_load_tables_are_made_by_the_first_frame_counted() -> None:
     """The byte tables of the bus-load count (``transport/busload.py``) are made by the first frame counted, not as
     the server's modules are imported; counted, every frame has the bits of the bit-by-bit reference."""
