@@ -23,7 +23,7 @@ pytestmark = pytest.mark.browser
 
 AXIS_EDS = REPO_ROOT / "tests" / "data" / "eds" / "linear_axis_cia402.eds"
 PROFILE, NODE, SESSION = "linear_axis_cia402", 9, "servo-bench"
-TIMEOUT_MS = 60_000  # a loaded 2-core machine: a clean-clone run waited past 15 s for a confirmation dialog
+TIMEOUT_MS = 60_000  # a loaded 2-core machine: waits for conditions are generous
 SEED_WORDS = ("MICROMASTER", "Siemens", "Lenze", "8400", "8200", "93XX", "motec", "EMF2178IB", "P0700", "P1000",
               "P1501", "C0135", "C0150", "C00866", "AIF", "r0027", "NSET")
 
@@ -43,11 +43,19 @@ def server(tmp_path: Path) -> Iterator[tuple[str, Any]]:
             yield base_url, app
 
 
-def _confirm(page: Any) -> None:
-    page.wait_for_selector("#ctl-confirm[open]", timeout=TIMEOUT_MS)
+def _confirm(page: Any, values: str) -> None:
+    """Confirm the question that names ``values`` and wait until the dialog no longer asks it. Not until the dialog
+    is closed: a chain of questions (the mode, then the setpoint) reopens it with the next one as soon as the
+    confirmed request is answered, and a loaded run does not look in between (it waited for a closed dialog while
+    the next question stood open)."""
+    asked = page.locator("#ctl-confirm[open] #ctl-confirm-values", has_text=values)
+    asked.wait_for(timeout=TIMEOUT_MS)
     assert f"node {NODE}" in page.locator("#ctl-confirm-text").inner_text()
+    question = asked.inner_text()
     page.click("#ctl-confirm-ok")
-    page.wait_for_selector("#ctl-confirm:not([open])", state="attached", timeout=TIMEOUT_MS)
+    page.wait_for_function("question => !document.querySelector('#ctl-confirm').open || "
+                           "document.querySelector('#ctl-confirm-values').innerText !== question", arg=question,
+                           timeout=TIMEOUT_MS)
 
 
 def _value(page: Any, ref: str) -> str:
@@ -108,18 +116,18 @@ def test_upload_scan_home_move_velocity_and_jog_a_cia402_axis(server: tuple[str,
     page.click("button[data-command=switch_on]")
     page.wait_for_selector('.ctl-state.current[data-state="switched_on"]', timeout=TIMEOUT_MS)
     page.click("button[data-command=enable_operation]")
-    _confirm(page)
+    _confirm(page, "0x6040 Controlword: 0x000F")
     page.wait_for_selector('.ctl-state.current[data-state="operation_enabled"]', timeout=TIMEOUT_MS)
 
     page.select_option("#ctl-home-method", "35")
     page.click("#ctl-home button[type=submit]")
-    _confirm(page)
+    _confirm(page, "0x6098 Homing method: 35")
     _bit(page, 12)  # homing attained
     assert page.locator("#ctl-mode-display").inner_text() == "Homing (6)"
     _until(page, "0x6064", "0 mm")
     page.select_option("#ctl-home-method", "34")
     page.click("#ctl-home button[type=submit]")
-    _confirm(page)
+    _confirm(page, "0x6098 Homing method: 34")
     assert wait_until(lambda: _read(page, base, "0x6098") == 34 and _read(page, base, "0x6041") & 0x1400 == 0x1400,
                       TIMEOUT_MS / 1000), "homing with method 34 never attained"
     assert 0 <= _read(page, base, "0x6064") <= 6  # at the next index pulse: at most one revolution (5 mm) on
@@ -128,12 +136,12 @@ def test_upload_scan_home_move_velocity_and_jog_a_cia402_axis(server: tuple[str,
     page.fill("#ctl-move input[name=target]", "50")
     page.fill("#ctl-move input[name=velocity]", "100")
     page.click("#ctl-move button[type=submit]")
-    _confirm(page)
+    _confirm(page, "0x607A Target position: 50 mm")
     _until(page, "0x6064", "50 mm")
     _bit(page, 10)  # target reached
     page.fill("#ctl-move input[name=target]", "0")
     page.click("#ctl-move button[type=submit]")
-    _confirm(page)
+    _confirm(page, "0x607A Target position: 0 mm")
     _until(page, "0x6064", "0 mm")
     assert wait_until(lambda: page.locator("#ctl-mode-display").inner_text() == "Profile position (1)",
                       TIMEOUT_MS / 1000), page.locator("#ctl-mode-display").inner_text()
@@ -143,8 +151,8 @@ def test_upload_scan_home_move_velocity_and_jog_a_cia402_axis(server: tuple[str,
 
     page.fill("#ctl-velocity input[name=value]", "20")
     page.click("#ctl-velocity button[type=submit]")
-    _confirm(page)  # the mode (0x6060 = 3) while enabled: asked with what it writes
-    _confirm(page)  # then the target velocity 0x60FF = 20 mm/s
+    _confirm(page, "0x6060 Modes of operation: 3")  # the mode while enabled: asked with what it writes
+    _confirm(page, "0x60FF Target velocity: 20 mm/s")  # then the target velocity, in the same dialog
     _until(page, "0x606C", "20 mm/s")
     # the display follows the drive's 0x6061 with the next status update
     assert wait_until(lambda: page.locator("#ctl-mode-display").inner_text() == "Profile velocity (3)",
