@@ -338,6 +338,14 @@ document.addEventListener("htmx:configRequest", (event) => {
           for (const name of ["pointerup", "pointerleave", "pointercancel"]) ok.removeEventListener(name, release);
         });
       }
+      if (!hold) {
+        // a chained question (the mode, then the target) opens in the same dialog milliseconds after the previous
+        // one closed, under the pointer: the second click of a double click confirms nothing; each question is
+        // answered by a click of its own (a keyboard press has detail 0)
+        const secondClick = (event) => { if (event.detail > 1) event.preventDefault(); };
+        ok.addEventListener("click", secondClick);
+        off.push(() => ok.removeEventListener("click", secondClick));
+      }
       box.addEventListener("close", () => {
         off.forEach((undo) => undo());
         ok.textContent = label;

@@ -12,7 +12,7 @@ from playwright.sync_api import expect
 from drivebench.simulator.plant import Plant
 from tests.conftest import screenshot, wait_until
 
-pytestmark = pytest.mark.browser
+pytestmark = [pytest.mark.browser, pytest.mark.usefixtures("patient_guard")]
 
 SERVO = 7
 TIMEOUT_MS = 15_000
@@ -68,4 +68,42 @@ def test_the_jog_dialog_shows_and_sends_the_speed_of_the_request(demo_server: tu
     page.mouse.up()
     assert wait_until(lambda: sim.store.get(0x60FF, 0) == 0, TIMEOUT_MS / 1000)
     page.click("#ctl-confirm button[value=cancel]")
+    page.click("button[data-command=quick_stop]")
+
+
+def test_the_second_click_of_a_double_click_confirms_no_follow_up_question(
+        demo_server: tuple[str, Plant], page: Any) -> None:
+    """A velocity while the drive is enabled in another mode asks twice: the mode (0x6060), then the target (0x60FF).
+    The second question opens in the same dialog milliseconds after the first closed, under the pointer: the second
+    click of a double click on "Send it" must not answer a question nobody read."""
+    base, plant = demo_server
+    sim = plant.nodes[SERVO]
+    page.goto(f"{base}/sessions/demo-plant/nodes/{SERVO}?tab=control")
+    page.wait_for_selector("#ctl-ws.good", timeout=TIMEOUT_MS)
+    for command, state in (("shutdown", "ready"), ("switch_on", "switched_on")):
+        page.click(f"button[data-command={command}]")
+        page.wait_for_selector(f'.ctl-state.current[data-state="{state}"]', timeout=TIMEOUT_MS)
+    page.click("button[data-command=enable_operation]")
+    dialog = page.locator("#ctl-confirm")
+    expect(dialog).to_be_visible(timeout=TIMEOUT_MS)
+    page.click("#ctl-confirm-ok")
+    page.wait_for_selector('.ctl-state.current[data-state="operation_enabled"]', timeout=TIMEOUT_MS)
+
+    page.fill("#ctl-velocity input[name=value]", "20")
+    page.click("#ctl-velocity button[type=submit]")
+    values = dialog.locator("#ctl-confirm-values")
+    expect(values).to_contain_text("0x6060", timeout=TIMEOUT_MS)  # first the mode
+    page.click("#ctl-confirm-ok")
+    expect(values).to_contain_text("0x60FF", timeout=TIMEOUT_MS)  # then the target, in the same dialog
+    expect(dialog).to_be_visible()
+    page.locator("#ctl-confirm-ok").hover()
+    page.mouse.down(click_count=2)  # the second click of a double click lands on the new question
+    page.mouse.up(click_count=2)
+    page.wait_for_timeout(300)
+    expect(dialog).to_be_visible()
+    expect(values).to_contain_text("0x60FF")
+    assert sim.store.get(0x60FF, 0) == 0, "the follow-up question was answered by a double click"
+    page.click("#ctl-confirm-ok")  # a click of its own answers it
+    expect(dialog).to_be_hidden(timeout=TIMEOUT_MS)
+    assert wait_until(lambda: sim.store.get(0x60FF, 0) != 0, TIMEOUT_MS / 1000), sim.store.get(0x60FF, 0)
     page.click("button[data-command=quick_stop]")

@@ -19,7 +19,7 @@ from drivebench.simulator.plant import Plant
 from drivebench.web.app import create_app
 from tests.conftest import fresh_channel, screenshot, serve_app, wait_until
 
-pytestmark = pytest.mark.browser
+pytestmark = [pytest.mark.browser, pytest.mark.usefixtures("patient_guard")]  # the flow, not the 2 s deadline
 
 AXIS_EDS = REPO_ROOT / "tests" / "data" / "eds" / "linear_axis_cia402.eds"
 PROFILE, NODE, SESSION = "linear_axis_cia402", 9, "servo-bench"
