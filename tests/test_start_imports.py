@@ -8,6 +8,7 @@ import os
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 BACKEND = Path(__file__).resolve().parents[1] / "backend"
 NOT_AT_START = ("babel.messages", "cryptography", "argon2")
@@ -16,13 +17,19 @@ texts at the first page); cryptography's X.509 (``drivebench tls`` makes certifi
 argon2's C bindings (the first sign-in or password set)."""
 
 
-def test_importing_the_server_leaves_out_what_the_start_does_not_use() -> None:
-    script = ("import json, sys; import drivebench.cli, drivebench.web.app; "
-              "print(json.dumps(sorted(sys.modules)))")
+def _fresh_interpreter(script: str) -> Any:
+    """What ``script`` prints last (JSON), run in a fresh interpreter with this tree's backend on the path."""
     environment = {**os.environ, "PYTHONPATH": str(BACKEND)}
     done = subprocess.run([sys.executable, "-c", script], env=environment, capture_output=True, text=True,
                           check=True, timeout=600)
-    imported = json.loads(done.stdout.strip().splitlines()[-1])
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def test_importing_the_server_leaves_out_what_the_start_does_not_use() -> None:
+    script = ("import json, sys; import drivebench.cli, drivebench.web.app; "
+              "print(json.dumps(sorted(sys.modules)))")
+    printed = _fresh_interpreter(script)
+    imported = printed
     assert "drivebench.web.app" in imported
     assert [name for name in imported if name.startswith(NOT_AT_START)] == []
 
@@ -39,10 +46,8 @@ def test_a_started_app_has_built_no_route_before_it_is_used() -> None:
               "asked = [r.dependant.call is r.endpoint and r.response_field is not None for r in routes "
               "if r.path == '/api/health']; "
               "print(json.dumps([len(routes), before, asked]))")
-    environment = {**os.environ, "PYTHONPATH": str(BACKEND)}
-    done = subprocess.run([sys.executable, "-c", script], env=environment, capture_output=True, text=True,
-                          check=True, timeout=600)
-    routes, built_before_use, asked = json.loads(done.stdout.strip().splitlines()[-1])
+    printed = _fresh_interpreter(script)
+    routes, built_before_use, asked = printed
     assert routes > 250
     assert built_before_use == 0
     assert asked == [True]
@@ -57,7 +62,5 @@ def test_the_bus_load_tables_are_made_by_the_first_frame_counted() -> None:
               "same = all(busload.frame_bits(cob, data) == busload.reference_bits(cob, False, False, len(data), data)"
               " for cob, data in frames)\n"
               "print(json.dumps([made, same, len(busload._STUFF_STEP)]))")
-    environment = {**os.environ, "PYTHONPATH": str(BACKEND)}
-    done = subprocess.run([sys.executable, "-c", script], env=environment, capture_output=True, text=True,
-                          check=True, timeout=600)
-    assert json.loads(done.stdout.strip().splitlines()[-1]) == [False, True, 2 * 5 * 256]
+    printed = _fresh_interpreter(script)
+    assert printed == [False, True, 2 * 5 * 256]

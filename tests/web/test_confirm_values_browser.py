@@ -18,17 +18,8 @@ SERVO = 7
 TIMEOUT_MS = 15_000
 
 
-def _jog_asks(page: Any, speed: str) -> Any:
-    page.fill("#ctl-jog-speed", speed)
-    page.click("button[data-jog='1']")
-    dialog = page.locator("#ctl-confirm")
-    expect(dialog).to_be_visible(timeout=TIMEOUT_MS)
-    return dialog
-
-
-def test_the_jog_dialog_shows_and_sends_the_speed_of_the_request(demo_server: tuple[str, Plant], page: Any) -> None:
-    base, plant = demo_server
-    sim = plant.nodes[SERVO]
+def _enable(page: Any, base: str) -> None:
+    """Node 7's Control tab, the drive brought to operation enabled; the enable asked with the control word."""
     page.goto(f"{base}/sessions/demo-plant/nodes/{SERVO}?tab=control")
     page.wait_for_selector("#ctl-ws.good", timeout=TIMEOUT_MS)
     for command, state in (("shutdown", "ready"), ("switch_on", "switched_on")):
@@ -40,6 +31,20 @@ def test_the_jog_dialog_shows_and_sends_the_speed_of_the_request(demo_server: tu
     expect(dialog.locator("#ctl-confirm-values")).to_contain_text("0x000F")  # the control word it writes
     page.click("#ctl-confirm-ok")
     page.wait_for_selector('.ctl-state.current[data-state="operation_enabled"]', timeout=TIMEOUT_MS)
+
+
+def _jog_asks(page: Any, speed: str) -> Any:
+    page.fill("#ctl-jog-speed", speed)
+    page.click("button[data-jog='1']")
+    dialog = page.locator("#ctl-confirm")
+    expect(dialog).to_be_visible(timeout=TIMEOUT_MS)
+    return dialog
+
+
+def test_the_jog_dialog_shows_and_sends_the_speed_of_the_request(demo_server: tuple[str, Plant], page: Any) -> None:
+    base, plant = demo_server
+    sim = plant.nodes[SERVO]
+    _enable(page, base)
 
     dialog = _jog_asks(page, "2500")
     values = dialog.locator("#ctl-confirm-values")
@@ -78,16 +83,8 @@ def test_the_second_click_of_a_double_click_confirms_no_follow_up_question(
     click of a double click on "Send it" must not answer a question nobody read."""
     base, plant = demo_server
     sim = plant.nodes[SERVO]
-    page.goto(f"{base}/sessions/demo-plant/nodes/{SERVO}?tab=control")
-    page.wait_for_selector("#ctl-ws.good", timeout=TIMEOUT_MS)
-    for command, state in (("shutdown", "ready"), ("switch_on", "switched_on")):
-        page.click(f"button[data-command={command}]")
-        page.wait_for_selector(f'.ctl-state.current[data-state="{state}"]', timeout=TIMEOUT_MS)
-    page.click("button[data-command=enable_operation]")
+    _enable(page, base)
     dialog = page.locator("#ctl-confirm")
-    expect(dialog).to_be_visible(timeout=TIMEOUT_MS)
-    page.click("#ctl-confirm-ok")
-    page.wait_for_selector('.ctl-state.current[data-state="operation_enabled"]', timeout=TIMEOUT_MS)
 
     page.fill("#ctl-velocity input[name=value]", "20")
     page.click("#ctl-velocity button[type=submit]")
