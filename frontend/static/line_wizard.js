@@ -198,6 +198,9 @@
         rereadWhileRunning();
       }
     });
+    // the page sends the steps' buttons disabled: a press before this script bound them would do nothing (a deferred
+    // script on a loaded machine) and leave the user waiting for a question that never comes
+    button.disabled = false;
   }
 
   request("GET", base).then((answer) => { if (answer.status === 200) render(answer.data); else showError(answer); });

@@ -67,13 +67,10 @@ def _run(page: Any, step: str, *, asks: bool) -> str:
     return asked
 
 
-def test_chromium_commissions_the_new_line_with_the_wizard(line_server: str, page: Any, tmp_path: Path) -> None:
-    page.set_viewport_size({"width": 1280, "height": 900})
+def _wizard_opened(line_server: str, page: Any, tmp_path: Path) -> str:
+    """The line project imported on the Line project page and its wizard opened: the run's address."""
     project = tmp_path / "new-line-project.json"
     project.write_text(json.dumps(new_line_project(ProfileRegistry()), indent=2), encoding="utf-8")
-    firmware = tmp_path / "axis.bin"
-    firmware.write_bytes(AXIS_FIRMWARE)
-
     page.goto(f"{line_server}/line-projects")
     page.set_input_files("#line-file", str(project))
     page.locator("#line-import button[type=submit]").click()
@@ -82,7 +79,31 @@ def test_chromium_commissions_the_new_line_with_the_wizard(line_server: str, pag
     _shot(page, "#line-wizard", "1-commission")
     page.locator("#line-commission").click()
     expect(page.locator("h1")).to_have_text("New line", timeout=WAIT_MS)
-    run_url = page.url
+    return str(page.url)
+
+
+def test_the_steps_cannot_be_pressed_before_the_wizard_script_runs(line_server: str, page: Any,
+                                                                   tmp_path: Path) -> None:
+    """A loaded clean-clone run pressed Scan before the deferred line_wizard.js had bound it: nothing was asked or
+    sent and the user would wait. The page sends the steps disabled; the script enables each once it is bound."""
+    run_url = _wizard_opened(line_server, page, tmp_path)
+    page.route("**/static/line_wizard.js", lambda route: route.abort())  # the script never comes
+    page.goto(run_url)
+    steps = page.locator(".run-step")
+    assert steps.count() >= 6
+    for index in range(steps.count()):
+        expect(steps.nth(index)).to_be_disabled()
+    page.unroute("**/static/line_wizard.js")
+    page.goto(run_url)
+    for index in range(steps.count()):
+        expect(steps.nth(index)).to_be_enabled(timeout=WAIT_MS)
+
+
+def test_chromium_commissions_the_new_line_with_the_wizard(line_server: str, page: Any, tmp_path: Path) -> None:
+    page.set_viewport_size({"width": 1280, "height": 900})
+    firmware = tmp_path / "axis.bin"
+    firmware.write_bytes(AXIS_FIRMWARE)
+    run_url = _wizard_opened(line_server, page, tmp_path)
 
     asked = _run(page, "scan", asks=True)
     assert "every node of the session" in asked and "reaches: all nodes on this bus" in asked

@@ -325,6 +325,8 @@ def test_a_bit_rate_switch_with_lss_slaves_that_share_no_code_with_the_simulator
             (0xB1, True)]
         assert "Serial 0x000000B1 still answers at 500 kbit/s" in answer["text"]
         assert [device.rate for device in devices] == [250_000, 250_000, 500_000]
-        assert [device.configuring for device in devices] == [False, False, True]  # waiting: sent at 250 kbit/s
+        # waiting: "switch state global" has no answer, so the slaves' thread may take it after the API answered
+        assert wait_until(lambda: [device.configuring for device in devices] == [False, False, True]), [
+            device.configuring for device in devices]
     finally:
         slaves.shutdown()
