@@ -223,13 +223,15 @@ class Guard:
                                                                                     holder=holder.text()))
 
     def arm(self, node_id: int, panel: Panel = SERVICE_PANEL, *, pinned: bool = False,
-            timeout_s: float = KEEPALIVE_TIMEOUT_S) -> None:
+            timeout_s: float | None = None) -> None:
+        """``timeout_s``: the keep-alive deadline, :data:`KEEPALIVE_TIMEOUT_S` as it is when the node is armed."""
         self.check(node_id, panel, _("Arming"))
+        timeout = KEEPALIVE_TIMEOUT_S if timeout_s is None else timeout_s
         if self.holder(node_id) is None:
             self.holders[node_id] = Holder(panel, time.time())
-            self.timeouts[node_id] = timeout_s
+            self.timeouts[node_id] = timeout
         else:
-            self.timeouts[node_id] = max(timeout_s, self.timeouts.get(node_id, KEEPALIVE_TIMEOUT_S))
+            self.timeouts[node_id] = max(timeout, self.timeouts.get(node_id, KEEPALIVE_TIMEOUT_S))
         if pinned:
             self.pinned.add(node_id)
         self.armed_at[node_id] = time.monotonic()
