@@ -9,6 +9,7 @@ from collections.abc import Iterator
 import can
 import pytest
 
+from drivebench.services.scope import sync_producer
 from drivebench.services.scope.sync_producer import SyncProducer
 from tests.conftest import fresh_channel, wait_until
 
@@ -45,3 +46,25 @@ def test_a_frame_stamped_by_the_bus_is_put_at_the_last_sync_sent_before_it(
     assert producer.stamp_at(now + 1, now) is None
     assert producer.stamp_at(syncs[0] - 60, now) is None
     assert producer.stamp_at(0.0, now) is None
+
+
+def test_a_long_recording_keeps_the_newest_send_times_and_still_numbers_them(
+        buses: tuple[can.BusABC, can.BusABC], monkeypatch: pytest.MonkeyPatch) -> None:
+    """The send times are kept for the newest SYNCs only (a recording may run for hours at 1 ms): after the oldest
+    were let go, a frame's timestamp is still put at the right SYNC number, and one from before them is not trusted."""
+    monkeypatch.setattr(sync_producer, "KEPT_SEND_TIMES", 4)
+    sender, wire = buses
+    producer = SyncProducer(lambda: sender.send(can.Message(arbitration_id=0x080, is_extended_id=False)), 0.002)
+    producer.start()
+    try:
+        assert wait_until(lambda: producer.count >= 20, 30)
+    finally:
+        producer.stop()
+    syncs = []
+    while (msg := wire.recv(0.2)) is not None:
+        syncs.append(msg.timestamp)
+    assert len(syncs) == producer.count
+    now = time.time()
+    assert producer.stamp_at(syncs[-1], now) == len(syncs) - 1
+    assert producer.stamp_at(syncs[-4], now) == len(syncs) - 4  # at least the newest four are kept
+    assert producer.stamp_at(syncs[0], now) is None  # let go: the newest SYNC sent is used then
