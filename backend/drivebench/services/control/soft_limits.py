@@ -24,7 +24,7 @@ import time
 from dataclasses import dataclass
 
 from drivebench.device.drive import cia402
-from drivebench.errors import DriveBenchError, OutOfRange
+from drivebench.errors import DriveBenchError, OutOfRange, ProtocolError
 from drivebench.i18n import N_, Text, _
 from drivebench.services.bus.sessions import Session, SessionNode
 from drivebench.services.control.drive_guard import last_word, write_word
@@ -52,6 +52,12 @@ FAR_PAUSE_S = 0.05
 """At most between two looks while the drive is far from the limit (a quarter of the time it needs to get near)."""
 OBSERVE_PAUSE_S = 0.1
 """Between two looks where DriveBench only watches (the drive clamps itself, or the panel released the motion)."""
+BLIND_LOOKS = 3
+"""Failed looks in a row (reads lost or later than the SDO timeout: a loaded bus or server) after which DriveBench
+halts a motion it guards when it knows no speed to reckon with; with one, it reckons where the drive is by now and
+halts once that is too close. A look that only watches ends the watch after as many."""
+HALT_ATTEMPTS = 3
+"""Times DriveBench sends a halt whose answer does not come (each already with the session's SDO retries)."""
 WHAT = {"jog": N_("the jog"), "velocity": N_("the velocity move"), "move": N_("the relative move")}
 
 
@@ -146,6 +152,7 @@ class _Sample:
 
 
 async def _sample(session: Session, node: SessionNode, per_velocity: float) -> _Sample | None:
+    """The drive's status word, position and velocity now (None: one of them could not be read)."""
     found = await reads.read_many(session, node.node_id, [cia402.STATUS_WORD, cia402.POSITION_ACTUAL_VALUE,
                                                                cia402.VELOCITY_ACTUAL_VALUE])
     word, position, velocity = (None if isinstance(one, DriveBenchError) else one.value for one in found)
@@ -163,8 +170,15 @@ async def _number(session: Session, node: SessionNode, ref: str, default: float)
 
 
 async def _run(session: Session, node: SessionNode, what: str, watch: Watch, ctx: WriteContext) -> None:
-    with contextlib.suppress(DriveBenchError):
+    try:
         await _watch(session, node, what, watch, ctx)
+    except DriveBenchError as exc:  # what the watch needs could not be read: a guarded motion does not run on unseen
+        if watch.released or watch.note is not None:
+            return
+        with contextlib.suppress(DriveBenchError):
+            await _halt(session, node, 1 if what == "move" else 3, ctx)  # jog and velocity run in mode 3 or 9
+            watch.note = Text(N_("DriveBench halted {what}: it could not watch the software limits 0x607D ({error})."),
+                              what=Text(WHAT[what]), error=exc.detail)
 
 
 async def _watch(session: Session, node: SessionNode, what: str, watch: Watch, ctx: WriteContext) -> None:
@@ -179,12 +193,29 @@ async def _watch(session: Session, node: SessionNode, what: str, watch: Watch, c
     slowest = 0.0  # the longest read seen: the drive travels that far before DriveBench knows where it is
     latest = 0.0  # the longest a wake-up of this watch came after it was due: a busy server, the drive moves on
     limited = False  # bit 11 seen during this motion
+    seen: tuple[_Sample, float] | None = None  # the last sample read and when it was asked for
+    blind = 0  # failed looks in a row
     while True:
         asked = time.monotonic()
         sample = await _sample(session, node, per_velocity)
-        slowest = max(slowest, time.monotonic() - asked)
-        pause = OBSERVE_PAUSE_S if clamps or watch.released else READ_PAUSE_S
-        if sample is None or sample.word & OPERATION_ENABLED_MASK != OPERATION_ENABLED:
+        if sample is not None:  # a failed read's time is reckoned with below, not in every later margin
+            slowest = max(slowest, time.monotonic() - asked)
+        guarding = not clamps and not watch.released
+        pause = OBSERVE_PAUSE_S if not guarding else READ_PAUSE_S
+        if sample is None:
+            blind += 1
+            if not guarding and blind >= BLIND_LOOKS:
+                return
+            if guarding and (seen is None or not seen[0].velocity) and blind >= BLIND_LOOKS:
+                raise ProtocolError(Text(N_("{count} reads of the position in a row failed"), count=blind))
+            if seen is None or not guarding or not seen[0].velocity:
+                await asyncio.sleep(pause)
+                continue
+            last, last_asked = seen  # reckon where the drive is by now from where it was and how fast it went
+            sample = _Sample(last.word, last.position + last.velocity * (asked - last_asked), last.velocity)
+        else:
+            blind, seen = 0, (sample, asked)
+        if sample.word & OPERATION_ENABLED_MASK != OPERATION_ENABLED:
             return
         edge = limits[1] if sample.velocity > 0 else limits[0]
         at = min(limits, key=lambda limit: abs(sample.position - limit))
@@ -205,11 +236,16 @@ async def _watch(session: Session, node: SessionNode, what: str, watch: Watch, c
             if margin <= 0:
                 await _halt(session, node, mode, ctx)
                 stood = await _stood(session, node, per_velocity)
-                gap = abs(edge - stood) if stood is not None else room
+                short = (edge - stood) * sign if stood is not None else room
                 watch.note = Text(N_("DriveBench halted {what} {gap} {unit} before the software limit {limit} {unit} "
                                      "(0x607D; the drive does not clamp there itself), with the profile deceleration "
-                                     "0x6084."), what=Text(WHAT[what]), gap=f"{gap:.4g}", limit=f"{edge:+g}",
+                                     "0x6084."), what=Text(WHAT[what]), gap=f"{short:.4g}", limit=f"{edge:+g}",
                                   unit=unit)
+                if short < 0:  # the halt's answer was lost or late, and the drive ran on meanwhile
+                    watch.note = Text(N_("DriveBench halted {what}, but it stood {gap} {unit} past the software limit "
+                                         "{limit} {unit}: the halt was answered late (0x607D; the drive does not "
+                                         "clamp there itself)."), what=Text(WHAT[what]), gap=f"{-short:.4g}",
+                                      limit=f"{edge:+g}", unit=unit)
                 return
         if not sample.velocity and (watch.released or (what == "move" and sample.word & TARGET_REACHED)):
             return
@@ -222,11 +258,17 @@ async def _halt(session: Session, node: SessionNode, mode: object, ctx: WriteCon
     """Velocity modes: setpoint 0 (the drive ramps down with 0x6084); other modes: control word bit 8 halt (not a
     still word: it is the confirmed motion's own halt, cleared by the caller)."""
     halt = ctx.cleared_by_caller().stopping()  # stopping a drive is never refused
-    if mode in (3, 9):
-        await writes.write(session, node.node_id, cia402.TARGET_VELOCITY, 0, ctx=halt, verify=False)
-    else:
-        word = await last_word(session, node.node_id, cia402.CONTROL_WORD)
-        await write_word(session, node.node_id, cia402.CONTROL_WORD, word | HALT, halt)
+    for attempt in range(HALT_ATTEMPTS):  # a lost or late answer does not leave the drive running
+        try:
+            if mode in (3, 9):
+                await writes.write(session, node.node_id, cia402.TARGET_VELOCITY, 0, ctx=halt, verify=False)
+            else:
+                word = await last_word(session, node.node_id, cia402.CONTROL_WORD)
+                await write_word(session, node.node_id, cia402.CONTROL_WORD, word | HALT, halt)
+            return
+        except DriveBenchError:
+            if attempt == HALT_ATTEMPTS - 1:
+                raise
 
 
 async def _stood(session: Session, node: SessionNode, per_velocity: float) -> float | None:
