@@ -100,6 +100,24 @@ def test_disconnect_sends_quick_stop(client: TestClient) -> None:
     assert status["last_trip"] and "disconnected" in status["last_trip"] and not status["armed"]
 
 
+def test_a_quick_stop_whose_answer_is_lost_is_sent_again(client: TestClient) -> None:
+    """The drive loses the guard's quick stop and the SDO retry of it (a busy bus): the guard sends it again rather
+    than leave the drive enabled with 'Quick stop FAILED'."""
+    _can_control(client)
+    _until(client, MM, "switch_on_disabled")
+    client.post(_url(MM, "/commands/shutdown"))
+    with client.websocket_connect(f"/ws/sessions/demo-plant/nodes/{MM}/control") as socket:
+        confirmed(client, "POST", _url(MM, "/commands/enable_operation"), json={"confirm": MM})
+        message = socket.receive_json()
+        while message["status"]["state"] != "operation_enabled":
+            socket.send_json({"cmd": "keepalive"})
+            message = socket.receive_json()
+        lost = client.put(f"/api/sessions/demo-plant/simulator/nodes/{MM}/faults", json={"drop_downloads": 2})
+        assert lost.status_code == 200, lost.text
+    status = _until(client, MM, "switch_on_disabled", 15)
+    assert status["last_trip"].startswith("Quick stop sent at "), status["last_trip"]
+
+
 def test_modes_of_operation(client: TestClient) -> None:
     refused = client.put(_url(MM, "/mode"), json={"mode": 4})
     assert refused.status_code == 409 and "P1501" in refused.json()["detail"]

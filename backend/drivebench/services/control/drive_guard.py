@@ -47,6 +47,8 @@ from drivebench.services.params.write_ports import MovingWrites
 from drivebench.services.pdos import process_data as live
 
 KEEPALIVE_TIMEOUT_S = 2.0
+STOP_ATTEMPTS = 3
+"""Times a quick stop whose answer does not come is sent (each already with the session's SDO retries)."""
 MAX_KEEPALIVE_S = 10.0
 WATCH_PERIOD_S = 0.2
 ARM_SETTLE_S = 2.0
@@ -168,9 +170,15 @@ async def send_quick_stop(session: Session, node: SessionNode, ctx: WriteContext
     if fam is None:  # the trip skips such nodes (NMT pre-operational is their safe command)
         raise InvalidValue(_("{device} has no device control word DriveBench knows.").format(device=node.device_name))
     with session_part.stop_first(session, node.node_id):
-        last = await last_word(session, node.node_id, fam.control_ref)
-        await write_word(session, node.node_id, fam.control_ref, next_control_word(fam, Command.QUICK_STOP, last),
-                         ctx.stopping())
+        for attempt in range(STOP_ATTEMPTS):  # a lost or late answer does not leave the drive running
+            try:
+                last = await last_word(session, node.node_id, fam.control_ref)
+                await write_word(session, node.node_id, fam.control_ref,
+                                 next_control_word(fam, Command.QUICK_STOP, last), ctx.stopping())
+                return
+            except DriveBenchError:
+                if attempt == STOP_ATTEMPTS - 1:
+                    raise
 
 
 # --- the guard -----------------------------------------------------------------------------------------------
