@@ -27,6 +27,9 @@ from drivebench.web.app import create_app
 from tests.confirming import confirmed
 from tests.conftest import DEMO_PLANT, fresh_channel, wait_until
 
+pytestmark = pytest.mark.usefixtures("patient_guard")  # flows, not the 2 s keep-alive deadline (a loaded clean-clone
+# run quick-stopped node 7 between its enable and the move, the keep-alive thread's posts queued behind the start)
+
 AXIS = 7
 API = "/api/sessions/demo-plant"
 CONTROL = f"{API}/nodes/{AXIS}/control"
