@@ -53,7 +53,9 @@ async def _requests_per_period(base: str, counter: RequestCounter, viewers: int)
     """SDO requests to the node per status message, counted over PERIODS messages of the first viewer while
     ``viewers`` panels watch (each in the name of a user of its own, every second one in German)."""
     sockets = [await websockets.connect(_url(base, n), additional_headers={
-        "X-DriveBench-User": f"user{n}", "Accept-Language": "de" if n % 2 else "en"}) for n in range(viewers)]
+        "X-DriveBench-User": f"user{n}", "Accept-Language": "de" if n % 2 else "en"},
+        open_timeout=60)  # not websockets' 10 s: two suites on 2 cores timed out a handshake while the rest read
+               for n in range(viewers)]
     try:
         first = sockets[0]
 
