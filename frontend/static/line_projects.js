@@ -22,6 +22,10 @@
     $("line-master-dcf").href = id ? api(`/${id}/master-dcf.bin`) : "#";
     $("line-exports").hidden = !id;
     $("line-none").hidden = Boolean(id);
+    $("line-project-pick").hidden = !id;  // no empty list to choose from
+    $("line-check").disabled = !id;  // both work on a project
+    $("line-commission").disabled = !id;
+    for (const note of document.querySelectorAll(".line-needs-project")) note.hidden = Boolean(id);
     loadNodes();
   }
 

@@ -54,6 +54,10 @@ def project_file(tmp_path: Path) -> Path:
 
 def test_open_a_project_check_the_line_and_preview_a_concise_dcf(page: Any, server: str, tmp_path: Path) -> None:
     page.goto(f"{server}/line-projects")
+    expect(page.locator("#line-project-pick")).to_be_hidden()  # no empty list of projects
+    expect(page.locator("#line-check")).to_be_disabled()  # the check and the wizard need a project
+    expect(page.locator("#line-commission")).to_be_disabled()
+    expect(page.locator("#line-wizard .line-needs-project")).to_have_text("Open a project file first.")
     broken = tmp_path / "broken.json"
     broken.write_text('{\n  "schema_version": 1,\n  "nodes": [\n    {"node_id": 5,, }\n  ]\n}\n')
     page.set_input_files("#line-file", str(broken))
@@ -63,6 +67,9 @@ def test_open_a_project_check_the_line_and_preview_a_concise_dcf(page: Any, serv
     page.set_input_files("#line-file", str(project_file(tmp_path)))
     page.locator("#line-import button[type=submit]").click()
     expect(page.locator("#line-opened")).to_contain_text("Browser line", timeout=WAIT_MS)
+    expect(page.locator("#line-project-pick")).to_be_visible()
+    expect(page.locator("#line-check")).to_be_enabled()
+    expect(page.locator("#line-wizard .line-needs-project")).to_be_hidden()
     expect(page.locator("#line-export-json")).to_have_attribute("href", re.compile(r"/export\?format=json$"))
 
     page.locator("#line-check").click()
