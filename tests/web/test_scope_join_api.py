@@ -101,6 +101,10 @@ def test_a_1_ms_recording_of_node_7_during_a_move_equals_the_tpdo_frames_on_the_
     late, extra = source.pdo.late, source.pdo.extra
     syncs = -1
     want = []  # node 7's TPDO frames in bus order, each with the newest SYNC's number before it
+    # Bus order is the frames' send stamps, not the order this bus's queue got them: python-can's virtual send puts
+    # a copy in each receiver's queue in turn, so a sender held between two puts (a loaded machine) lets the drive
+    # answer SYNC n into this queue before SYNC n itself arrives here. Each stamp is taken as its send starts.
+    on_wire.sort(key=lambda msg: msg.timestamp)
     for msg in on_wire:
         if msg.arbitration_id == 0x080:
             syncs += 1
