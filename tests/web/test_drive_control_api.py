@@ -84,16 +84,22 @@ def test_first_run_needs_confirmation_and_goes_back(client: TestClient) -> None:
     assert client.post(_url(MM, "/commands/nonsense")).status_code == 422
 
 
-def test_disconnect_sends_quick_stop(client: TestClient) -> None:
+def _enabled_on_a_panel(client: TestClient, socket: Any) -> dict[str, Any]:
+    """The MICROMASTER enabled while ``socket`` (its control panel) keeps it alive; the panel's last message."""
     _can_control(client)
     _until(client, MM, "switch_on_disabled")
     client.post(_url(MM, "/commands/shutdown"))
-    with client.websocket_connect(f"/ws/sessions/demo-plant/nodes/{MM}/control") as socket:
-        confirmed(client, "POST", _url(MM, "/commands/enable_operation"), json={"confirm": MM})
+    confirmed(client, "POST", _url(MM, "/commands/enable_operation"), json={"confirm": MM})
+    message: dict[str, Any] = socket.receive_json()
+    while message["status"]["state"] != "operation_enabled":
+        socket.send_json({"cmd": "keepalive"})
         message = socket.receive_json()
-        while message["status"]["state"] != "operation_enabled":
-            socket.send_json({"cmd": "keepalive"})
-            message = socket.receive_json()
+    return message
+
+
+def test_disconnect_sends_quick_stop(client: TestClient) -> None:
+    with client.websocket_connect(f"/ws/sessions/demo-plant/nodes/{MM}/control") as socket:
+        message = _enabled_on_a_panel(client, socket)
         assert message["type"] == "status" and message["actuals"][0]["label"] == "Speed"
         socket.send_json({"cmd": "keepalive"})
     status = _until(client, MM, "switch_on_disabled")  # quick stop active, then stopped (transition 12)
@@ -103,15 +109,8 @@ def test_disconnect_sends_quick_stop(client: TestClient) -> None:
 def test_a_quick_stop_whose_answer_is_lost_is_sent_again(client: TestClient) -> None:
     """The drive loses the guard's quick stop and the SDO retry of it (a busy bus): the guard sends it again rather
     than leave the drive enabled with 'Quick stop FAILED'."""
-    _can_control(client)
-    _until(client, MM, "switch_on_disabled")
-    client.post(_url(MM, "/commands/shutdown"))
     with client.websocket_connect(f"/ws/sessions/demo-plant/nodes/{MM}/control") as socket:
-        confirmed(client, "POST", _url(MM, "/commands/enable_operation"), json={"confirm": MM})
-        message = socket.receive_json()
-        while message["status"]["state"] != "operation_enabled":
-            socket.send_json({"cmd": "keepalive"})
-            message = socket.receive_json()
+        _enabled_on_a_panel(client, socket)
         lost = client.put(f"/api/sessions/demo-plant/simulator/nodes/{MM}/faults", json={"drop_downloads": 2})
         assert lost.status_code == 200, lost.text
     status = _until(client, MM, "switch_on_disabled", 15)
