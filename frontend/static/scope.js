@@ -63,7 +63,7 @@
       el("button", { type: "button", className: "small secondary add-channel", title: _("Add this channel"),
                      onclick: () => add({ node: c.node, ref: c.ref, bit: null, name: c.name, unit: c.unit }) }, "+"),
       el("span", { className: "ref" }, c.ref), " ", el("span", {}, c.name),
-      c.unit ? el("span", { className: "muted" }, ` [${c.unit}]`) : "")));
+      c.unit ? el("span", { className: "muted unit" }, `[${c.unit}]`) : "")));
   }
   function add(channel) {
     if (chosen.length >= maxChannels) {

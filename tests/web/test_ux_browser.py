@@ -235,6 +235,32 @@ def test_monitor_shows_long_device_names_whole(live_server: str, browser: Any, w
         context.close()
 
 
+WRAPPED = """(selector) => [...document.querySelectorAll(selector)].filter((e) => {
+    const range = document.createRange(); range.selectNodeContents(e);
+    return new Set([...range.getClientRects()].map((r) => Math.round(r.top))).size > 1;
+  }).map((e) => e.textContent)"""
+"""The texts of ``selector`` that the browser broke over more than one line."""
+
+
+@pytest.mark.parametrize("language", ["en", "de"])
+def test_scope_channel_codes_and_units_are_not_broken_over_lines(live_server: str, browser: Any,
+                                                                 language: str) -> None:
+    """The MICROMASTER's channel offer at 1440 px: a code ("r0037") and a unit ("[°C]") stay whole beside a long
+    name (they were broken as "r00 / 37" and "[° / C]")."""
+    context = browser.new_context(viewport={"width": 1440, "height": 900}, locale=language,
+                                  extra_http_headers={"Accept-Language": language})
+    try:
+        page = context.new_page()
+        page.goto(live_server + "/scope/demo-plant")
+        page.select_option("#channel-node", "3")
+        page.locator("#channel-offer li", has_text="r0037").first.wait_for(timeout=SETTLE_MS)
+        assert page.locator("#channel-offer .unit", has_text="°C").count() >= 1
+        assert page.evaluate(WRAPPED, "#channel-offer .ref, #channel-offer .unit") == []
+        screenshot(page, f"ux-scope-offer-{language}")
+    finally:
+        context.close()
+
+
 def test_screens_fit_1280_px_and_plant_cells_are_not_clipped(live_server: str, browser: Any) -> None:
     context = browser.new_context(viewport={"width": 1280, "height": 800})
     try:
