@@ -127,7 +127,8 @@ class _StallsOnTheFirstProbe(Cia305Bus):
 
 def test_a_device_whose_answer_to_the_first_probe_comes_late_is_found() -> None:
     """The scan asks "any device without node ID left?" three times before it ends; the third waited five answer
-    windows (250 ms at the default 50 ms), so a device stalled 0.4 s on that question was left out of the scan."""
+    windows (250 ms at the default 50 ms), so a device stalled 0.4 s on that question was left out of the scan; then
+    ten (0.5 s), and a loaded clean-clone run still left it out. Before any answer the third waits timeout_s."""
     channel = fresh_channel()
     slaves = _StallsOnTheFirstProbe(channel, [Cia305Device(0x3B, 0x8400, 1, 1234)])
     network = canopen.Network(can.Bus(interface="virtual", channel=channel))
