@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 from drivebench.errors import Conflict, DriveBenchError, InvalidValue, NotFound
-from drivebench.i18n import _
+from drivebench.i18n import DEFAULT, N_, Text, _, shown, using
 from drivebench.protocol.canopen.heartbeat import HeartbeatStatus
 from drivebench.protocol.emcy import EmcyEvent
 from drivebench.services.bus.sessions import Session
@@ -80,6 +80,8 @@ class ScopeRun:
         self.capture: Capture | None = None
         self.recording_id: int | None = None
         self.restored: list[str] = []
+        """What the stop put back, in words (:class:`~drivebench.i18n.Text` where DriveBench made them: each reader
+        gets them in their language, :meth:`status`)."""
         self.error: str | None = None
         self.started = time.monotonic()
         self.watchers: dict[str, Watcher] = {}
@@ -162,15 +164,17 @@ class ScopeRun:
         while self.state in ("armed", "recording") and not self._closing:
             await asyncio.sleep(ABANDON_CHECK_S)
             if time.monotonic() - self.started >= self.max_s and not self._owner_watches():
-                await self.finish("stopped", why=_(
+                await self.finish("stopped", why=Text(N_(
                     "The recording of {user} reached its maximum length of {seconds} s (max_s, set at start) with "
-                    "no page of {user} watching it: it ended by itself.").format(
-                        user=self.user or _("the owner"), seconds=f"{self.max_s:g}"))
+                    "no page of {user} watching it: it ended by itself."),
+                    user=self.user or Text(N_("the owner")), seconds=f"{self.max_s:g}"))
                 return
 
     async def finish(self, state: State, error: str | None = None, why: str | None = None) -> None:
         """Stop the source (it restores what it changed) and store the capture. ``why``: the reason it ended, in
-        words, shown first among what was restored."""
+        words, shown first among what was restored. What the stop says is kept as made (Texts, shown to each reader
+        in their language); the stop itself speaks English, so that an error's plain detail does not take the
+        language of whichever request or task ended the recording."""
         if self._closing or self.state in ("done", "stopped", "failed"):
             return
         if self._abandoned is not None and self._abandoned is not asyncio.current_task():
@@ -179,9 +183,10 @@ class ScopeRun:
         self._draining = True  # what the source delivers while it stops (the SYNCs sent before Stop) is kept
         self.error = error
         try:
-            self.restored = [*([why] if why else []), *await self.source.stop()]
+            with using(DEFAULT):
+                self.restored = [*([why] if why else []), *await self.source.stop()]
         except DriveBenchError as exc:
-            self.error = exc.shown_detail()
+            self.error = exc.detail
         finally:
             self._draining = False
         capture = self.capture or self.engine.current
@@ -189,7 +194,7 @@ class ScopeRun:
             try:
                 self.recording_id = await asyncio.to_thread(store.save, self.recording(capture))
             except Exception as exc:  # the database's words reach the page, the run still ends
-                self.error = _("The recording could not be stored: {error}").format(error=exc)
+                self.error = Text(N_("The recording could not be stored: {error}"), error=str(exc))
                 state = "failed"
         self.state = state
         self._changed()
@@ -229,8 +234,9 @@ class ScopeRun:
                 "plan": list(getattr(self.source, "texts", list)()),
                 "period_s": period, "rate": round(1 / period, 1) if period else None,
                 "channels": [info.as_json() for info in self.infos], "trigger": self.trigger_json(),
-                "captures": self.engine.captures, "recording_id": self.recording_id, "restored": self.restored,
-                "error": self.error, "max_s": self.max_s}
+                "captures": self.engine.captures, "recording_id": self.recording_id,
+                "restored": [shown(text) for text in self.restored],
+                "error": shown(self.error) if self.error is not None else None, "max_s": self.max_s}
 
     def watch(self, user: str | None = None) -> tuple[str, Watcher]:
         key = uuid.uuid4().hex
@@ -254,8 +260,8 @@ class ScopeRun:
         await asyncio.sleep(OWNER_GRACE_S)
         self._owner_left = None
         if not self._owner_watches():
-            await self.finish("stopped", why=_("The page of {user} closed: the recording ended and put the nodes "
-                                               "back.").format(user=self.user or _("the owner")))
+            await self.finish("stopped", why=Text(N_("The page of {user} closed: the recording ended and put the "
+                                                     "nodes back."), user=self.user or Text(N_("the owner"))))
 
     def _changed(self) -> None:
         for watcher in self.watchers.values():

@@ -1,0 +1,79 @@
+"""The oscilloscope's texts in each reader's language, through the real HTTP API and the scope websocket on the demo
+plant (the CiA 402 servo, node 7, sampled by PDO at 10 ms): a recording started and stopped by an English client
+tells a German reader what it restored in German (over GET .../scope/run and over the scope socket) and the English
+one still in English. The texts are made once, by whichever request or task ended the recording; each reader gets
+them in their own language."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from fastapi.testclient import TestClient
+from starlette.testclient import WebSocketTestSession
+
+from drivebench.services.bus.sessions import Session
+from drivebench.services.scope import runs
+from tests.confirming import confirmed
+from tests.conftest import wait_until
+
+AXIS = 7
+API = "/api/sessions/demo-plant"
+SOCKET = "/ws/sessions/demo-plant/scope"
+GERMAN = {"Accept-Language": "de-DE,de;q=0.9"}
+ENGLISH = {"Accept-Language": "en"}
+BODY: dict[str, Any] = {"channels": [{"node": AXIS, "ref": "0x6064"}, {"node": AXIS, "ref": "0x6041"}],
+                        "period_ms": 10, "length_s": 100.0, "trigger": {"mode": "free"}, "name": "languages"}
+
+
+def _session(client: TestClient) -> Session:
+    return client.app.state.drivebench.manager.get("demo-plant")  # type: ignore[attr-defined,no-any-return]
+
+
+def _start_in_english(client: TestClient) -> runs.ScopeRun:
+    started = confirmed(client, "POST", f"{API}/scope/run", json=BODY, headers=ENGLISH)
+    assert started.status_code == 201 and started.json()["source"] == "pdo", started.text
+    run = runs.current(_session(client))
+    assert wait_until(lambda: sum(row[2] is not None for row in list(run.live)) >= 5, 30), list(run.live)[-5:]
+    return run
+
+
+def _until(socket: WebSocketTestSession, wanted: Any, most: int = 2000) -> dict[str, Any]:
+    """The socket's first message ``wanted`` accepts (at most ``most`` messages read)."""
+    for _n in range(most):
+        message: dict[str, Any] = socket.receive_json()
+        if wanted(message):
+            return message
+    raise AssertionError("the socket never sent the message")
+
+
+def _assert_german(restored: list[str]) -> None:
+    assert restored[0].startswith("SYNC: ") and "gesendet mit einer mittleren Periode von" in restored[0], restored
+    assert any(text.startswith(f"Knoten {AXIS}: TPDO") and "wiederhergestellt und wie vorher zurückgelesen" in text
+               for text in restored), restored
+    assert not any("sent at a mean period" in text or "read back as before" in text for text in restored), restored
+
+
+def _assert_english(restored: list[str]) -> None:
+    assert restored[0].startswith("SYNC: ") and "sent at a mean period of" in restored[0], restored
+    assert any(text.startswith(f"Node {AXIS}: TPDO") and "restored and read back as before" in text
+               for text in restored), restored
+    assert not any("Knoten" in text or "gesendet" in text for text in restored), restored
+
+
+def test_the_restore_list_of_an_english_stop_is_german_for_a_german_reader(demo_api: TestClient) -> None:
+    _start_in_english(demo_api)
+    with demo_api.websocket_connect(SOCKET, headers=GERMAN) as german_page:
+        _until(german_page, lambda m: m["type"] == "state" and m["state"] == "recording")
+        stopped = demo_api.post(f"{API}/scope/run/stop", headers=ENGLISH).json()
+        assert stopped["state"] == "stopped", stopped
+        _assert_english(stopped["restored"])
+        shown = _until(german_page, lambda m: m["type"] == "state" and m["state"] == "stopped")
+    _assert_german(shown["restored"])
+    assert shown["source_name"] == "Abtastung per PDO", shown["source_name"]
+    german = demo_api.get(f"{API}/scope/run", headers=GERMAN).json()
+    english = demo_api.get(f"{API}/scope/run", headers=ENGLISH).json()
+    _assert_german(german["restored"])
+    _assert_english(english["restored"])
+    assert len(german["restored"]) == len(english["restored"]) == len(stopped["restored"])
+    with demo_api.websocket_connect(SOCKET, headers=ENGLISH) as english_page:  # a page opened after the stop
+        _assert_english(_until(english_page, lambda m: m["type"] == "state")["restored"])
