@@ -321,17 +321,18 @@ class PdoScopeSource:
             self._check_nodes()
             producer = self._producer
             for number, seconds in producer.pauses[pauses:]:
-                self._event(None, _("SYNC paused for {ms} ms after SYNC {number} (the machine was busy): no samples "
-                                    "exist for that time.").format(ms=f"{seconds * 1000:.0f}", number=number))
+                self._event(None, Text(N_("SYNC paused for {ms} ms after SYNC {number} (the machine was busy): no "
+                                          "samples exist for that time."), ms=f"{seconds * 1000:.0f}", number=number))
             pauses = len(producer.pauses)
             if producer.error:
-                self._once("sync-lost", None, _("SYNC lost: DriveBench could not send it ({why}). The recording "
-                                                "receives no more samples.").format(why=producer.error))
+                self._once("sync-lost", None, Text(N_("SYNC lost: DriveBench could not send it ({why}). The "
+                                                      "recording receives no more samples."), why=producer.error))
             if self._foreign_sync:
-                self._once("foreign-sync", None, _("Another device sends SYNC on this bus (COB-ID 0x080) besides "
-                                                   "DriveBench: the samples no longer line up by SYNC count."))
+                self._once("foreign-sync", None, Text(N_("Another device sends SYNC on this bus (COB-ID 0x080) "
+                                                         "besides DriveBench: the samples no longer line up by SYNC "
+                                                         "count.")))
             if self.session.bus_state == "bus-off":
-                self._once("bus-off", None, _("The CAN adapter is bus-off: no frames are sent or received."))
+                self._once("bus-off", None, Text(N_("The CAN adapter is bus-off: no frames are sent or received.")))
 
     def _check_nodes(self) -> None:
         now = time.monotonic()
@@ -339,11 +340,11 @@ class PdoScopeSource:
         for node, seen in self._last_seen.items():
             if now - seen > silent_after and node not in self._silent:
                 self._silent.add(node)
-                self._event(node, _("Node {node} stopped sending its TPDOs (none for {ms} ms): its channels are "
-                                    "empty from here.").format(node=node, ms=f"{(now - seen) * 1000:.0f}"))
+                self._event(node, Text(N_("Node {node} stopped sending its TPDOs (none for {ms} ms): its channels "
+                                          "are empty from here."), node=node, ms=f"{(now - seen) * 1000:.0f}"))
             elif now - seen <= silent_after and node in self._silent:
                 self._silent.discard(node)
-                self._event(node, _("Node {node} sends its TPDOs again.").format(node=node))
+                self._event(node, Text(N_("Node {node} sends its TPDOs again."), node=node))
 
     # --- stop -----------------------------------------------------------------------------------------------
     async def stop(self) -> list[str]:

@@ -25,7 +25,7 @@ from drivebench.protocol.canopen.heartbeat import HeartbeatStatus
 from drivebench.protocol.emcy import EmcyEvent
 from drivebench.services.bus.sessions import Session
 from drivebench.services.control.drive_guard import confirm_moving, require_confirmation
-from drivebench.services.control.drive_words import Family, family_of, state_label
+from drivebench.services.control.drive_words import Family, family_of, state_text
 from drivebench.services.params.write_context import WriteContext
 from drivebench.services.scope import store
 from drivebench.services.scope.channels import ChannelInfo, describe
@@ -49,7 +49,8 @@ ABANDON_CHECK_S = 1.0
 @dataclass
 class Watcher:
     rows: list[list[Any]] = field(default_factory=list)
-    events: list[dict[str, Any]] = field(default_factory=list)
+    events: list[ScopeEvent] = field(default_factory=list)
+    """The events since the watcher last looked (:func:`event_json` puts each into the watcher's language)."""
     changed: bool = True
     wake: asyncio.Event = field(default_factory=asyncio.Event)
     user: str | None = None
@@ -59,8 +60,9 @@ def _row(sample: Sample) -> list[Any]:
     return [sample.sample, round(sample.time_s, 6), *sample.values]
 
 
-def _event(event: ScopeEvent) -> dict[str, Any]:
-    return {"time_s": round(event.time_s, 6), "node": event.node, "kind": event.kind, "text": event.text}
+def event_json(event: ScopeEvent) -> dict[str, Any]:
+    """A marker as a viewer gets it: its text in the viewer's language (the current one)."""
+    return {"time_s": round(event.time_s, 6), "node": event.node, "kind": event.kind, "text": shown(event.text)}
 
 
 class ScopeRun:
@@ -129,7 +131,7 @@ class ScopeRun:
         if event.node is None or event.node in self._nodes or event.kind == "source":
             self.events.append(event)
             for watcher in self.watchers.values():
-                watcher.events.append(_event(event))
+                watcher.events.append(event)
                 watcher.wake.set()
 
     def _drive_state_markers(self, frame: ScopeFrame) -> None:
@@ -143,7 +145,7 @@ class ScopeRun:
             self._drive_states[position] = key
             if before is not None and key != before:
                 self.on_event(ScopeEvent(frame.time_s, self.infos[position].channel.node, "drive-state",
-                                         state_label(family, key)))
+                                         state_text(family, key)))
 
     def session_event(self, node: int, kind: Literal["emcy", "nmt"], text: str) -> None:
         """An EMCY or NMT change of the session, on the samples' time base; none once the run stops (the restore's
@@ -206,7 +208,8 @@ class ScopeRun:
         nodes = self.nodes_json()
         return store.Recording(self.name, self.session.id, self.user, self.source.kind, self.source.period_s,
                                [info.as_json() for info in self.infos], trigger,
-                               [_event(e) for e in markers(self.events, capture)], nodes, columns)
+                               [store.marker(e.time_s, e.node, e.kind, e.text) for e in markers(self.events, capture)],
+                               nodes, columns)
 
     def nodes_json(self) -> dict[str, Any]:
         sets = store.last_downloads(self.session.id, sorted(self._nodes))
@@ -240,8 +243,7 @@ class ScopeRun:
 
     def watch(self, user: str | None = None) -> tuple[str, Watcher]:
         key = uuid.uuid4().hex
-        watcher = self.watchers[key] = Watcher(rows=list(self.live), events=[_event(e) for e in self.events],
-                                               user=user)
+        watcher = self.watchers[key] = Watcher(rows=list(self.live), events=list(self.events), user=user)
         return key, watcher
 
     def unwatch(self, key: str) -> None:
@@ -322,13 +324,13 @@ def _listen(session: Session) -> None:
             run.session_event(node, kind, text)
 
     def on_emcy(event: EmcyEvent) -> None:
-        text = _("EMCY {code:04X}h").format(code=event.code) if not event.is_reset else _("EMCY reset")
+        text = Text(N_("EMCY {code:04X}h"), code=event.code) if not event.is_reset else Text(N_("EMCY reset"))
         with contextlib.suppress(RuntimeError):  # the loop closed with the server
             loop.call_soon_threadsafe(deliver, event.node_id, "emcy", text)
 
     def on_heartbeat(status: HeartbeatStatus, kind: str) -> None:
-        text = _("NMT boot-up") if kind == "bootup" else _("NMT {state}").format(
-            state=status.state.label if status.state is not None else "?")
+        text = Text(N_("NMT boot-up")) if kind == "bootup" else Text(N_("NMT {state}"), state=Text(
+            status.state.label) if status.state is not None else "?")
         with contextlib.suppress(RuntimeError):
             loop.call_soon_threadsafe(deliver, status.node_id, "nmt", text)
 
