@@ -15,9 +15,10 @@ from drivebench.device.drive.control import Command, ControlSection, StateBox
 from drivebench.device.profiles.catalog import Catalog
 from drivebench.device.profiles.catalog_cache import ProfileCache
 from drivebench.device.profiles.profile import Profile
-from drivebench.i18n import N_, _
+from drivebench.i18n import N_, Text, _
 
-__all__ = ["COMMAND_LABELS", "Command", "Family", "command_label", "family_of", "next_control_word", "state_label"]
+__all__ = ["COMMAND_LABELS", "Command", "Family", "command_label", "family_of", "next_control_word", "state_label",
+           "state_text"]
 
 COMMAND_LABELS = {  # DriveBench's names of the commands (CiA 402's): command_label() gives them translated
     Command.SHUTDOWN: N_("Shutdown"), Command.SWITCH_ON: N_("Switch on"),
@@ -109,6 +110,18 @@ def state_label(family: Family, key: str) -> str:
     """The state's name as the panel shows it (a standard name in the reader's language)."""
     box = family.state_box(key)
     return cia402.shown(box.label) if box else _("Unknown state")
+
+
+def state_text(family: Family, key: str) -> str:
+    """:func:`state_label` kept for readers of any language (a scope marker, made once): a standard name as a
+    :class:`~drivebench.i18n.Text` (``shown()`` puts it into the reader's language), a vendor profile's own name
+    as it is."""
+    box = family.state_box(key)
+    if box is None:
+        return Text(N_("Unknown state"))
+    if box.label in cia402.STANDARD_TEXTS and box.label not in cia402.OWN_MSGID:
+        return Text(box.label)
+    return box.label
 
 
 def next_control_word(family: Family, command: Command, last: int) -> int:

@@ -25,7 +25,7 @@ import time
 import can
 
 from drivebench.errors import Conflict, DriveBenchError
-from drivebench.i18n import _
+from drivebench.i18n import N_, Text, _
 from drivebench.protocol.canopen.network import frames_of
 from drivebench.protocol.canopen.nmt import NmtCommand
 from drivebench.services.bus.sessions import Session
@@ -140,7 +140,7 @@ class PdoScopeSource:
                 await self._configure(tpdo)
                 written[(tpdo.node, tpdo.number)] = True
         except DriveBenchError as exc:  # halfway: what this start wrote goes back now, and the refusal says so
-            exc.detail = " ".join([exc.shown_detail(), *await self._undo(written)])
+            exc.detail = Text.joined(" ", [exc.detail, *await self._undo(written)])
             raise
         except BaseException:
             await self._undo(written)
@@ -181,18 +181,17 @@ class PdoScopeSource:
         catalog = pdo.node_catalog(self.session, tpdo.node)
         comm, mapping = pdo.COMM_BASE["tpdo"] + tpdo.number - 1, pdo.MAP_BASE["tpdo"] + tpdo.number - 1
         cob = tpdo.cob_id | (before.comm.get(1, 0) & pdo.COB_NO_RTR)
-        steps = [(_("disable PDO (COB-ID invalid)"), comm, 1, cob | pdo.COB_INVALID, 4),
+        steps = [(Text(N_("disable PDO (COB-ID invalid)")), comm, 1, cob | pdo.COB_INVALID, 4),
                  *pdo.mapping_plan(mapping, list(tpdo.entries)),
-                 (_("transmission type"), comm, 2, SYNC_EVERY, 1)]
+                 (Text(N_("transmission type")), comm, 2, SYNC_EVERY, 1)]
         if catalog.by_address(comm, 3):
-            steps.append((_("inhibit time"), comm, 3, 0, 2))
-        steps.append((_("enable PDO (COB-ID valid)"), comm, 1, cob, 4))
+            steps.append((Text(N_("inhibit time")), comm, 3, 0, 2))
+        steps.append((Text(N_("enable PDO (COB-ID valid)")), comm, 1, cob, 4))
         done = await pdo.run_plan(self.session, tpdo.node, steps, self.ctx.as_origin(restore_record.AUDIT_ORIGIN))
         if not done[-1].ok:
-            failed = done[-1]
-            raise Conflict(_("Node {node}: {pdo} could not be set up for the recording: step '{step}' failed "
-                             "({why}).").format(node=tpdo.node, pdo=tpdo.name, step=failed.step,
-                                                why=failed.abort_text or failed.detail or failed.abort_code))
+            step, why = restore_record.failed_step(steps, done)
+            raise Conflict(Text(N_("Node {node}: {pdo} could not be set up for the recording: step '{step}' failed "
+                                   "({why})."), node=tpdo.node, pdo=tpdo.name, step=step, why=why))
 
     # --- the bus thread -------------------------------------------------------------------------------------
     def on_bus_frame(self, cob_id: int, data: bytes, timestamp: float | None = None) -> None:
@@ -322,17 +321,18 @@ class PdoScopeSource:
             self._check_nodes()
             producer = self._producer
             for number, seconds in producer.pauses[pauses:]:
-                self._event(None, _("SYNC paused for {ms} ms after SYNC {number} (the machine was busy): no samples "
-                                    "exist for that time.").format(ms=f"{seconds * 1000:.0f}", number=number))
+                self._event(None, Text(N_("SYNC paused for {ms} ms after SYNC {number} (the machine was busy): no "
+                                          "samples exist for that time."), ms=f"{seconds * 1000:.0f}", number=number))
             pauses = len(producer.pauses)
             if producer.error:
-                self._once("sync-lost", None, _("SYNC lost: DriveBench could not send it ({why}). The recording "
-                                                "receives no more samples.").format(why=producer.error))
+                self._once("sync-lost", None, Text(N_("SYNC lost: DriveBench could not send it ({why}). The "
+                                                      "recording receives no more samples."), why=producer.error))
             if self._foreign_sync:
-                self._once("foreign-sync", None, _("Another device sends SYNC on this bus (COB-ID 0x080) besides "
-                                                   "DriveBench: the samples no longer line up by SYNC count."))
+                self._once("foreign-sync", None, Text(N_("Another device sends SYNC on this bus (COB-ID 0x080) "
+                                                         "besides DriveBench: the samples no longer line up by SYNC "
+                                                         "count.")))
             if self.session.bus_state == "bus-off":
-                self._once("bus-off", None, _("The CAN adapter is bus-off: no frames are sent or received."))
+                self._once("bus-off", None, Text(N_("The CAN adapter is bus-off: no frames are sent or received.")))
 
     def _check_nodes(self) -> None:
         now = time.monotonic()
@@ -340,11 +340,11 @@ class PdoScopeSource:
         for node, seen in self._last_seen.items():
             if now - seen > silent_after and node not in self._silent:
                 self._silent.add(node)
-                self._event(node, _("Node {node} stopped sending its TPDOs (none for {ms} ms): its channels are "
-                                    "empty from here.").format(node=node, ms=f"{(now - seen) * 1000:.0f}"))
+                self._event(node, Text(N_("Node {node} stopped sending its TPDOs (none for {ms} ms): its channels "
+                                          "are empty from here."), node=node, ms=f"{(now - seen) * 1000:.0f}"))
             elif now - seen <= silent_after and node in self._silent:
                 self._silent.discard(node)
-                self._event(node, _("Node {node} sends its TPDOs again.").format(node=node))
+                self._event(node, Text(N_("Node {node} sends its TPDOs again."), node=node))
 
     # --- stop -----------------------------------------------------------------------------------------------
     async def stop(self) -> list[str]:
@@ -359,9 +359,9 @@ class PdoScopeSource:
         await self._last_answers()
         self._drain()
         self._deliver(self._producer.count)
-        texts = [_("SYNC: {count} sent at a mean period of {period} ms (set: {nominal} ms).").format(
-            count=self._producer.count, period=f"{self._producer.period_s * 1000:.3f}",
-            nominal=f"{self.plan.period_s * 1000:g}")]
+        texts: list[str] = [Text(N_("SYNC: {count} sent at a mean period of {period} ms (set: {nominal} ms)."),
+                                 count=self._producer.count, period=f"{self._producer.period_s * 1000:.3f}",
+                                 nominal=f"{self.plan.period_s * 1000:g}")]
         try:
             return texts + await self._undo()
         finally:
@@ -400,10 +400,10 @@ class PdoScopeSource:
                     await asyncio.to_thread(restore_record.remove, self.record_id, self.db_url)
                     self.record_id = None
                 elif not ok:
-                    texts.append(_("The restore record is kept: the next server start tries again."))
+                    texts.append(Text(N_("The restore record is kept: the next server start tries again.")))
         except DriveBenchError as exc:
-            texts.append(_("The restore failed ({why}); the restore record is kept: the next server start tries "
-                           "again.").format(why=exc.shown_detail()))
+            texts.append(Text(N_("The restore failed ({why}); the restore record is kept: the next server start "
+                                 "tries again."), why=exc.detail))
         finally:
             self._release()
         return texts

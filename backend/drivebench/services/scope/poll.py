@@ -13,7 +13,7 @@ import contextlib
 import time
 
 from drivebench.errors import DriveBenchError
-from drivebench.i18n import _
+from drivebench.i18n import N_, Text
 from drivebench.services.bus.sessions import Session
 from drivebench.services.params import reads
 from drivebench.services.scope.source import EventSink, FrameSink, ScopeChannel, ScopeEvent, ScopeFrame, SourceKind
@@ -65,8 +65,8 @@ class PollScopeSource:
             failed = next((a for a in answers if isinstance(a, DriveBenchError)), None)
             if failed is not None and node_id not in silent:
                 silent.add(node_id)
-                on_event(ScopeEvent(time.monotonic() - started, node_id, "source", _(
-                    "Node {node} did not answer the poll: {error}").format(node=node_id, error=failed.shown_detail())))
+                on_event(ScopeEvent(time.monotonic() - started, node_id, "source", Text(
+                    N_("Node {node} did not answer the poll: {error}"), node=node_id, error=failed.detail)))
             elif failed is None:
                 silent.discard(node_id)
             for ref, answer in zip(refs, answers, strict=True):

@@ -19,7 +19,7 @@ from pydantic import BaseModel, Field
 from sqlalchemy import select
 
 from drivebench.errors import DriveBenchError, ProtocolError
-from drivebench.i18n import _
+from drivebench.i18n import N_, Text
 from drivebench.protocol.canopen.nmt import NmtCommand
 from drivebench.services.bus.sessions import Session
 from drivebench.services.params.write_context import LOCAL_USER, WriteContext
@@ -120,16 +120,28 @@ def _steps(number: int, before: TpdoBefore) -> list[tuple[str, int, int, int, in
     mapping = pdo.MAP_BASE["tpdo"] + number - 1
     cob = before.comm.get(1, 0)
     count = before.mapping.get(0, 0)
-    steps = [(_("disable PDO (COB-ID invalid)"), comm, 1, cob | pdo.COB_INVALID, 4),
-             (_("disable mapping (count 0)"), mapping, 0, 0, 1)]
-    steps += [(_("entry {number}").format(number=sub), mapping, sub, value, 4)
+    steps: list[tuple[str, int, int, int, int]] = [
+        (Text(N_("disable PDO (COB-ID invalid)")), comm, 1, cob | pdo.COB_INVALID, 4),
+        (Text(N_("disable mapping (count 0)")), mapping, 0, 0, 1)]
+    steps += [(Text(N_("entry {number}"), number=sub), mapping, sub, value, 4)
               for sub, value in sorted(before.mapping.items()) if sub]
-    steps.append((_("enable mapping (count {count})").format(count=count), mapping, 0, count, 1))
-    for sub, size, name in ((2, 1, _("transmission type")), (3, 2, _("inhibit time")), (5, 2, _("event timer"))):
+    steps.append((Text(N_("enable mapping (count {count})"), count=count), mapping, 0, count, 1))
+    for sub, size, name in ((2, 1, N_("transmission type")), (3, 2, N_("inhibit time")), (5, 2, N_("event timer"))):
         if sub in before.comm:
-            steps.append((name, comm, sub, before.comm[sub], size))
-    steps.append((_("COB-ID as before"), comm, 1, cob, 4))
+            steps.append((Text(name), comm, sub, before.comm[sub], size))
+    steps.append((Text(N_("COB-ID as before")), comm, 1, cob, 4))
     return steps
+
+
+def failed_step(plan: list[tuple[str, int, int, int, int]], done: list[pdo.ApplyStep]) -> tuple[str, str]:
+    """The name of the step of ``plan`` that failed (``done[-1]``) and why, both as made (a
+    :class:`~drivebench.i18n.Text` is shown later in each reader's language): the device's abort text, the error's
+    detail, else the abort code."""
+    failed = done[-1]
+    error = failed.error
+    why: str = getattr(error, "abort_text", None) or (error.detail if error is not None else "") or \
+        failed.abort_text or failed.detail or failed.abort_code or ""
+    return plan[len(done) - 1][0], why
 
 
 async def _restore_tpdo(session: Session, node: int, before: TpdoBefore, ctx: WriteContext,
@@ -141,13 +153,14 @@ async def _restore_tpdo(session: Session, node: int, before: TpdoBefore, ctx: Wr
     now = [await _read(session, node, mapping, sub) for sub in range(1, len(before.wrote) + 1)] if check_remap else []
     count = await _read(session, node, mapping, 0) if check_remap else 0
     if check_remap and before.wrote and (count != len(before.wrote) or now != before.wrote):
-        return False, _("Node {node}: {pdo} was remapped by someone else during the recording; it is left as it is "
-                        "(not restored). Check it on the PDO tab.").format(node=node, pdo=name)
-    steps = await pdo.run_plan(session, node, _steps(before.number, before), ctx.as_origin(AUDIT_ORIGIN))
+        return False, Text(N_("Node {node}: {pdo} was remapped by someone else during the recording; it is left as "
+                              "it is (not restored). Check it on the PDO tab."), node=node, pdo=name)
+    plan = _steps(before.number, before)
+    steps = await pdo.run_plan(session, node, plan, ctx.as_origin(AUDIT_ORIGIN))
     if not steps[-1].ok:
-        failed = steps[-1]
-        return False, _("Node {node}: restoring {pdo} failed at '{step}' ({why}).").format(
-            node=node, pdo=name, step=failed.step, why=failed.abort_text or failed.detail or failed.abort_code)
+        step, why = failed_step(plan, steps)
+        return False, Text(N_("Node {node}: restoring {pdo} failed at '{step}' ({why})."), node=node, pdo=name,
+                           step=step, why=why)
     comm = pdo.COMM_BASE["tpdo"] + before.number - 1
     differ = [f"0x{comm:04X}.{sub}" for sub, value in before.comm.items()
               if await _read(session, node, comm, sub) != value]
@@ -155,11 +168,11 @@ async def _restore_tpdo(session: Session, node: int, before: TpdoBefore, ctx: Wr
     differ += [f"0x{mapping:04X}.{sub}" for sub, value in before.mapping.items()
                if (sub == 0 or sub <= count_before) and await _read(session, node, mapping, sub) != value]
     if differ:
-        return False, _("Node {node}: {pdo} reads back differently after the restore: {objects}.").format(
-            node=node, pdo=name, objects=", ".join(differ))
-    return True, _("Node {node}: {pdo} restored and read back as before (COB-ID 0x{cob}, {count} entries, "
-                   "transmission type {type}).").format(node=node, pdo=name, cob=f"{before.comm.get(1, 0):08X}",
-                                                        count=count_before, type=before.comm.get(2, 255))
+        return False, Text(N_("Node {node}: {pdo} reads back differently after the restore: {objects}."),
+                           node=node, pdo=name, objects=", ".join(differ))
+    return True, Text(N_("Node {node}: {pdo} restored and read back as before (COB-ID 0x{cob}, {count} entries, "
+                         "transmission type {type})."), node=node, pdo=name, cob=f"{before.comm.get(1, 0):08X}",
+                      count=count_before, type=before.comm.get(2, 255))
 
 
 async def _restore_sync(session: Session, before: NodeBefore, ctx: WriteContext) -> tuple[bool, str | None]:
@@ -169,12 +182,12 @@ async def _restore_sync(session: Session, before: NodeBefore, ctx: WriteContext)
             await pdo.run_plan(session, before.node, [(f"0x{index:04X}", index, 0, value, 4)],
                                ctx.as_origin(AUDIT_ORIGIN))
             if await _read(session, before.node, index, 0) != value:
-                return False, _("Node {node}: 0x{index} reads back differently after the restore.").format(
-                    node=before.node, index=f"{index:04X}")
+                return False, Text(N_("Node {node}: 0x{index} reads back differently after the restore."),
+                                   node=before.node, index=f"{index:04X}")
             changed.append(f"0x{index:04X}")
     if changed:
-        return True, _("Node {node}: {objects} had changed during the recording and were written back.").format(
-            node=before.node, objects=", ".join(changed))
+        return True, Text(N_("Node {node}: {objects} had changed during the recording and were written back."),
+                          node=before.node, objects=", ".join(changed))
     return True, None
 
 
@@ -184,13 +197,14 @@ async def restore(session: Session, record: RestoreRecord, ctx: WriteContext,
     ``written`` (a start that failed halfway, before any NMT start): only the TPDOs it began configuring go back,
     with no check for someone else's remapping; None (a recording that ran, a record left over): all of them,
     checked."""
-    good, texts = True, []
+    good = True
+    texts: list[str] = []
     for before in record.nodes:
         try:
             if before.started and written is None:
                 await session.nmt(NmtCommand.ENTER_PRE_OPERATIONAL, before.node)
-                texts.append(_("Node {node}: back to pre-operational, as before the recording.").format(
-                    node=before.node))
+                texts.append(Text(N_("Node {node}: back to pre-operational, as before the recording."),
+                                  node=before.node))
             for tpdo in before.tpdos:
                 if written is not None and (before.node, tpdo.number) not in written:
                     continue  # this start never touched it
@@ -201,8 +215,8 @@ async def restore(session: Session, record: RestoreRecord, ctx: WriteContext,
             texts += [sync_text] if sync_text else []
         except (ProtocolError, DriveBenchError) as exc:
             good = False
-            texts.append(_("Node {node}: not restored ({why}); the restore record is kept for the next try.").format(
-                node=before.node, why=exc.shown_detail()))
+            texts.append(Text(N_("Node {node}: not restored ({why}); the restore record is kept for the next try."),
+                              node=before.node, why=exc.detail))
     return good, texts
 
 
@@ -226,8 +240,8 @@ async def restore_leftovers(manager: SessionManager, url: str | None = None) -> 
                     session.add_node(before.node, before.profile_id)
             ok, done = await restore(session, record, restore_context())
         except DriveBenchError as exc:
-            ok, done = False, [_("The recording's restore record for {bus} was not used: {why}").format(
-                bus=record.bus, why=exc.shown_detail())]
+            ok, done = False, [Text(N_("The recording's restore record for {bus} was not used: {why}"),
+                                    bus=record.bus, why=exc.detail)]
         finally:
             if opened is not None:
                 await manager.close(opened.id)

@@ -20,12 +20,12 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 from drivebench.errors import Conflict, DriveBenchError, InvalidValue, NotFound
-from drivebench.i18n import _
+from drivebench.i18n import DEFAULT, N_, Text, _, shown, using
 from drivebench.protocol.canopen.heartbeat import HeartbeatStatus
 from drivebench.protocol.emcy import EmcyEvent
 from drivebench.services.bus.sessions import Session
 from drivebench.services.control.drive_guard import confirm_moving, require_confirmation
-from drivebench.services.control.drive_words import Family, family_of, state_label
+from drivebench.services.control.drive_words import Family, family_of, state_text
 from drivebench.services.params.write_context import WriteContext
 from drivebench.services.scope import store
 from drivebench.services.scope.channels import ChannelInfo, describe
@@ -49,7 +49,8 @@ ABANDON_CHECK_S = 1.0
 @dataclass
 class Watcher:
     rows: list[list[Any]] = field(default_factory=list)
-    events: list[dict[str, Any]] = field(default_factory=list)
+    events: list[ScopeEvent] = field(default_factory=list)
+    """The events since the watcher last looked (:func:`event_json` puts each into the watcher's language)."""
     changed: bool = True
     wake: asyncio.Event = field(default_factory=asyncio.Event)
     user: str | None = None
@@ -59,8 +60,9 @@ def _row(sample: Sample) -> list[Any]:
     return [sample.sample, round(sample.time_s, 6), *sample.values]
 
 
-def _event(event: ScopeEvent) -> dict[str, Any]:
-    return {"time_s": round(event.time_s, 6), "node": event.node, "kind": event.kind, "text": event.text}
+def event_json(event: ScopeEvent) -> dict[str, Any]:
+    """A marker as a viewer gets it: its text in the viewer's language (the current one)."""
+    return {"time_s": round(event.time_s, 6), "node": event.node, "kind": event.kind, "text": shown(event.text)}
 
 
 class ScopeRun:
@@ -80,6 +82,8 @@ class ScopeRun:
         self.capture: Capture | None = None
         self.recording_id: int | None = None
         self.restored: list[str] = []
+        """What the stop put back, in words (:class:`~drivebench.i18n.Text` where DriveBench made them: each reader
+        gets them in their language, :meth:`status`)."""
         self.error: str | None = None
         self.started = time.monotonic()
         self.watchers: dict[str, Watcher] = {}
@@ -127,7 +131,7 @@ class ScopeRun:
         if event.node is None or event.node in self._nodes or event.kind == "source":
             self.events.append(event)
             for watcher in self.watchers.values():
-                watcher.events.append(_event(event))
+                watcher.events.append(event)
                 watcher.wake.set()
 
     def _drive_state_markers(self, frame: ScopeFrame) -> None:
@@ -141,7 +145,7 @@ class ScopeRun:
             self._drive_states[position] = key
             if before is not None and key != before:
                 self.on_event(ScopeEvent(frame.time_s, self.infos[position].channel.node, "drive-state",
-                                         state_label(family, key)))
+                                         state_text(family, key)))
 
     def session_event(self, node: int, kind: Literal["emcy", "nmt"], text: str) -> None:
         """An EMCY or NMT change of the session, on the samples' time base; none once the run stops (the restore's
@@ -162,15 +166,17 @@ class ScopeRun:
         while self.state in ("armed", "recording") and not self._closing:
             await asyncio.sleep(ABANDON_CHECK_S)
             if time.monotonic() - self.started >= self.max_s and not self._owner_watches():
-                await self.finish("stopped", why=_(
+                await self.finish("stopped", why=Text(N_(
                     "The recording of {user} reached its maximum length of {seconds} s (max_s, set at start) with "
-                    "no page of {user} watching it: it ended by itself.").format(
-                        user=self.user or _("the owner"), seconds=f"{self.max_s:g}"))
+                    "no page of {user} watching it: it ended by itself."),
+                    user=self.user or Text(N_("the owner")), seconds=f"{self.max_s:g}"))
                 return
 
     async def finish(self, state: State, error: str | None = None, why: str | None = None) -> None:
         """Stop the source (it restores what it changed) and store the capture. ``why``: the reason it ended, in
-        words, shown first among what was restored."""
+        words, shown first among what was restored. What the stop says is kept as made (Texts, shown to each reader
+        in their language); the stop itself speaks English, so that an error's plain detail does not take the
+        language of whichever request or task ended the recording."""
         if self._closing or self.state in ("done", "stopped", "failed"):
             return
         if self._abandoned is not None and self._abandoned is not asyncio.current_task():
@@ -179,9 +185,10 @@ class ScopeRun:
         self._draining = True  # what the source delivers while it stops (the SYNCs sent before Stop) is kept
         self.error = error
         try:
-            self.restored = [*([why] if why else []), *await self.source.stop()]
+            with using(DEFAULT):
+                self.restored = [*([why] if why else []), *await self.source.stop()]
         except DriveBenchError as exc:
-            self.error = exc.shown_detail()
+            self.error = exc.detail
         finally:
             self._draining = False
         capture = self.capture or self.engine.current
@@ -189,7 +196,7 @@ class ScopeRun:
             try:
                 self.recording_id = await asyncio.to_thread(store.save, self.recording(capture))
             except Exception as exc:  # the database's words reach the page, the run still ends
-                self.error = _("The recording could not be stored: {error}").format(error=exc)
+                self.error = Text(N_("The recording could not be stored: {error}"), error=str(exc))
                 state = "failed"
         self.state = state
         self._changed()
@@ -201,7 +208,8 @@ class ScopeRun:
         nodes = self.nodes_json()
         return store.Recording(self.name, self.session.id, self.user, self.source.kind, self.source.period_s,
                                [info.as_json() for info in self.infos], trigger,
-                               [_event(e) for e in markers(self.events, capture)], nodes, columns)
+                               [store.marker(e.time_s, e.node, e.kind, e.text) for e in markers(self.events, capture)],
+                               nodes, columns)
 
     def nodes_json(self) -> dict[str, Any]:
         sets = store.last_downloads(self.session.id, sorted(self._nodes))
@@ -229,13 +237,13 @@ class ScopeRun:
                 "plan": list(getattr(self.source, "texts", list)()),
                 "period_s": period, "rate": round(1 / period, 1) if period else None,
                 "channels": [info.as_json() for info in self.infos], "trigger": self.trigger_json(),
-                "captures": self.engine.captures, "recording_id": self.recording_id, "restored": self.restored,
-                "error": self.error, "max_s": self.max_s}
+                "captures": self.engine.captures, "recording_id": self.recording_id,
+                "restored": [shown(text) for text in self.restored],
+                "error": shown(self.error) if self.error is not None else None, "max_s": self.max_s}
 
     def watch(self, user: str | None = None) -> tuple[str, Watcher]:
         key = uuid.uuid4().hex
-        watcher = self.watchers[key] = Watcher(rows=list(self.live), events=[_event(e) for e in self.events],
-                                               user=user)
+        watcher = self.watchers[key] = Watcher(rows=list(self.live), events=list(self.events), user=user)
         return key, watcher
 
     def unwatch(self, key: str) -> None:
@@ -254,8 +262,8 @@ class ScopeRun:
         await asyncio.sleep(OWNER_GRACE_S)
         self._owner_left = None
         if not self._owner_watches():
-            await self.finish("stopped", why=_("The page of {user} closed: the recording ended and put the nodes "
-                                               "back.").format(user=self.user or _("the owner")))
+            await self.finish("stopped", why=Text(N_("The page of {user} closed: the recording ended and put the "
+                                                     "nodes back."), user=self.user or Text(N_("the owner"))))
 
     def _changed(self) -> None:
         for watcher in self.watchers.values():
@@ -316,13 +324,13 @@ def _listen(session: Session) -> None:
             run.session_event(node, kind, text)
 
     def on_emcy(event: EmcyEvent) -> None:
-        text = _("EMCY {code:04X}h").format(code=event.code) if not event.is_reset else _("EMCY reset")
+        text = Text(N_("EMCY {code:04X}h"), code=event.code) if not event.is_reset else Text(N_("EMCY reset"))
         with contextlib.suppress(RuntimeError):  # the loop closed with the server
             loop.call_soon_threadsafe(deliver, event.node_id, "emcy", text)
 
     def on_heartbeat(status: HeartbeatStatus, kind: str) -> None:
-        text = _("NMT boot-up") if kind == "bootup" else _("NMT {state}").format(
-            state=status.state.label if status.state is not None else "?")
+        text = Text(N_("NMT boot-up")) if kind == "bootup" else Text(N_("NMT {state}"), state=Text(
+            status.state.label) if status.state is not None else "?")
         with contextlib.suppress(RuntimeError):
             loop.call_soon_threadsafe(deliver, status.node_id, "nmt", text)
 

@@ -7,6 +7,7 @@ sent nothing), one array after the other, little-endian. Packing and unpacking a
 
 from __future__ import annotations
 
+import contextlib
 import math
 import sys
 from array import array
@@ -17,7 +18,7 @@ from typing import Any
 from sqlalchemy import select
 
 from drivebench.errors import NotFound
-from drivebench.i18n import _
+from drivebench.i18n import Text, _, shown
 from drivebench.services.storage.database import transaction
 from drivebench.services.storage.models import DownloadRow, ScopeRecordingRow
 
@@ -67,6 +68,36 @@ def unpack(data: bytes, count: int, channels: int) -> Columns:
     return Columns(samples.tolist(), times.tolist(), values)
 
 
+def marker(time_s: float, node: int | None, kind: str, text: str) -> dict[str, Any]:
+    """A marker as stored: ``text`` in English (as every stored row had it), and a
+    :class:`~drivebench.i18n.Text`'s template and values under ``text_saved`` so that each reader gets it in their
+    language (:func:`shown_marker`)."""
+    stored: dict[str, Any] = {"time_s": round(time_s, 6), "node": node, "kind": kind, "text": str(text)}
+    if isinstance(text, Text):
+        stored["text_saved"] = _json_safe(text.saved())
+    return stored
+
+
+def _json_safe(saved: dict[str, Any]) -> dict[str, Any]:
+    """A Text's saved form with every value JSON keeps: an error's detail may hold the exception or a bus spec
+    itself (``Text(CANNOT_SEND, bus=spec, reason=exc)``), which are kept in their words."""
+    values = {key: _json_safe(value) if isinstance(value, dict) else
+              value if value is None or isinstance(value, str | int | float | bool) else str(value)
+              for key, value in saved["values"].items()}
+    return {**saved, "values": values}
+
+
+def shown_marker(stored: dict[str, Any]) -> dict[str, Any]:
+    """A stored marker as a reader gets it: its text in the current language where it was kept as a Text; a
+    marker stored before (plain text only) as it is."""
+    saved = stored.get("text_saved")
+    found = {key: value for key, value in stored.items() if key != "text_saved"}
+    if isinstance(saved, dict):
+        with contextlib.suppress(KeyError, ValueError, IndexError, AssertionError):  # damaged: its English text
+            found["text"] = shown(Text.loaded(saved))
+    return found
+
+
 @dataclass
 class Recording:
     """A recording as stored (``id`` None until it is)."""
@@ -90,7 +121,9 @@ class Recording:
                 "period_s": self.period_s, "count": len(self.columns), "channels": self.channels}
 
     def as_json(self) -> dict[str, Any]:
-        return {**self.summary(), "trigger": self.trigger, "markers": self.markers, "nodes": self.nodes,
+        """In the current language (the markers' texts)."""
+        return {**self.summary(), "trigger": self.trigger, "markers": [shown_marker(m) for m in self.markers],
+                "nodes": self.nodes,
                 "samples": self.columns.samples, "times": self.columns.times, "values": self.columns.values}
 
 

@@ -84,7 +84,7 @@ class SyncProducer:
                 try:
                     self._send()
                 except DriveBenchError as exc:
-                    self.error = exc.shown_detail()
+                    self.error = exc.detail  # a Text: the SYNC lost marker is shown in each reader's language
                     return
                 now = time.monotonic()
                 if self.last is not None and now - self.last > self._pause_s:

@@ -9,6 +9,9 @@ a message waits for that, or while the viewer lags (a send that waits for the ne
   (a viewer who opens during a run gets the last ones first);
 * ``{"type": "events", "events": [{"time_s", "node", "kind", "text"}, ...]}``: markers (EMCY, NMT, the source's).
 
+Everything in words (the restore list, the markers' texts) is in the socket's language: the gate holds it for the
+socket's tasks, and the run keeps its texts as :class:`~drivebench.i18n.Text` until each socket sends them.
+
 A new recording of the session is followed at once. An unknown session closes the socket with code 4404.
 """
 
@@ -100,7 +103,7 @@ async def scope(websocket: WebSocket, session_id: str) -> None:
                     await websocket.send_text(rows_message(encoded, run, rows))
                 if watcher.events:
                     events, watcher.events = watcher.events, []
-                    await websocket.send_json({"type": "events", "events": events})
+                    await websocket.send_json({"type": "events", "events": [runs.event_json(e) for e in events]})
         finally:
             if run is not None:
                 run.unwatch(key)
