@@ -24,7 +24,7 @@ from drivebench.device.profiles.profile import Access, ObjectEntry, Profile
 from drivebench.protocol.canopen.nmt import NmtState
 from drivebench.protocol.datatypes import DataType
 from drivebench.simulator.lenze_control import INIT, WordControl
-from drivebench.simulator.node import LOAD_SIGNATURE, SAVE_SIGNATURE, Latency, SimulatedNode
+from drivebench.simulator.node import LOAD_SIGNATURE, SAVE_SIGNATURE, SDO_IDLE_S, Latency, SimulatedNode
 from drivebench.simulator.plant import Plant, PlantFile, PlantNode
 from tests.conftest import wait_for_value
 from tests.simulator.canopen_master import abort_code, remote
@@ -144,11 +144,23 @@ def test_block_download_sizes_at_the_edges(size: int, master: canopen.Network, p
     assert node.sdo.upload(0x2000, 0) == payload
 
 
+def test_a_client_held_up_between_two_sub_blocks_keeps_its_transfer(master: canopen.Network, plant: Plant) -> None:
+    """A program download's client held up 1.5 s after a sub-block's acknowledgement (a loaded host): the device
+    waits for the next sub-block (the simulator dropped the transfer after 1 s and read the rest as new requests)."""
+    node = remote(master, TEST_NODE)
+    payload = bytes((i * 13) % 256 for i in range(3 * 889))
+    with node.sdo.open(0x2000, 0, "wb", size=len(payload), block_transfer=True) as stream:
+        stream.write(payload[:889])  # one full sub-block of 127 segments: the device acknowledges it
+        time.sleep(1.5)
+        stream.write(payload[889:])
+    assert plant.nodes[TEST_NODE].store.get(0x2000, 0) == payload
+
+
 def test_a_vanished_client_does_not_block_the_channel(master: canopen.Network, recorder: Recorder) -> None:
-    """A block download left in its sub-block phase (every frame would be a segment) times out after 1 s."""
+    """A block download left in its sub-block phase (every frame would be a segment) times out after SDO_IDLE_S."""
     master.send_message(0x600 + TEST_NODE, bytes.fromhex("C6 00 20 00 64 00 00 00"))  # then silence
     wait_for(lambda: recorder.of(0x580 + TEST_NODE))
-    time.sleep(1.2)
+    time.sleep(SDO_IDLE_S + 0.2)
     assert remote(master, TEST_NODE).sdo.upload(0x1018, 1) == (0x3B).to_bytes(4, "little")
 
 

@@ -39,6 +39,10 @@ Send = Callable[[int, bytes], None]
 
 UNTIMED_DRIVE_TICK_S = 0.002
 """How often a drive model without ``next_tick()`` (its own deadline, None at rest) is cycled."""
+SDO_IDLE_S = 3.0
+"""A transfer the client leaves idle this long is dropped (the client vanished). Not 1 s: a client held up that long
+between two sub-blocks of a program download (a loaded host) had its transfer dropped and the rest of its frames
+read as new requests."""
 SAVE_SIGNATURE = int.from_bytes(b"save", "little")
 LOAD_SIGNATURE = int.from_bytes(b"load", "little")
 DEVICE_COMMAND_SAVE, DEVICE_COMMAND_RESET_NODE = 11, 26
@@ -269,7 +273,8 @@ class SimulatedNode:
         features = self.profile.features
         for rx_cob, tx_cob in channels:
             servers[rx_cob] = SdoServer(self.node_id, self._answer_sdo(rx_cob), self.program, rx_cob=rx_cob,
-                                        tx_cob=tx_cob, segmented=features.segmented_sdo, block=features.block_sdo)
+                                        tx_cob=tx_cob, segmented=features.segmented_sdo, block=features.block_sdo,
+                                        timeout_s=SDO_IDLE_S)
         self.sdo_servers = servers
 
     def _second_sdo_channel(self) -> tuple[int, int] | None:
