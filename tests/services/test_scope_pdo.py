@@ -337,8 +337,22 @@ def _wire_answers(frames: list[can.Message], cob_id: int) -> list[tuple[int, byt
         if msg.arbitration_id == 0x080:
             count += 1
         elif msg.arbitration_id == cob_id and count >= 0:
-            found.append((count if not found else min(found[-1][0] + 1, count), bytes(msg.data)))
+            number = count if not found else min(found[-1][0] + 1, count)
+            if found and number == found[-1][0]:  # two answers after one SYNC: the run before it came late
+                _one_back(found)
+            found.append((number, bytes(msg.data)))
     return found
+
+
+def _one_back(found: list[tuple[int, bytes]]) -> None:
+    """Put the run of consecutive answers at the end of ``found`` one SYNC earlier where there is room (a device
+    answers each SYNC once: its first answer came after the next SYNC was already on the bus)."""
+    first = len(found) - 1
+    while first > 0 and found[first - 1][0] == found[first][0] - 1:
+        first -= 1
+    if found[first][0] - 1 < (found[first - 1][0] + 1 if first else 0):
+        return
+    found[first:] = [(number - 1, data) for number, data in found[first:]]
 
 
 def test_a_bus_thread_behind_at_a_nodes_first_frames_puts_them_at_the_sync_the_bus_shows(

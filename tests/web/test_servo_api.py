@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import pytest
 from fastapi.testclient import TestClient
 
 from tests.confirming import confirmed
@@ -32,6 +33,8 @@ def _kept(client: TestClient, condition: Any) -> bool:
     return wait_until(check, 15)
 
 
+@pytest.mark.usefixtures("patient_guard")  # a flow, not the 2 s deadline: a loaded clean-clone run quick-stopped the
+# drive between its enable and the cyclic setpoint (four requests in between)
 def test_interpolated_position_through_sync_and_an_rpdo(client: TestClient) -> None:
     assert _kept(client, lambda: client.get(CONTROL).json()["state"] == "switch_on_disabled")
     status = client.get(CONTROL).json()
@@ -39,7 +42,8 @@ def test_interpolated_position_through_sync_and_an_rpdo(client: TestClient) -> N
     mapped = client.put(f"{NODE}/pdos/rpdo/2", json={"entries": [[0x6040, 0], [0x60C1, 1]],
                                                       "transmission_type": 1})
     assert mapped.status_code == 200 and mapped.json()["ok"], mapped.text
-    started = confirmed(client, "POST", f"{NODE}/nmt", json={"command": "start", "confirm": AXIS})
+    started = confirmed(client, "POST", f"{NODE}/nmt", json={"command": "start", "confirm": AXIS,
+                                                                "keepalive_s": 10})
     assert started.status_code == 200, started.text
     assert _kept(client, lambda: client.get(NODE).json()["nmt_state"] == "Operational")  # its heartbeat says so
     for command in ("shutdown", "switch_on"):
