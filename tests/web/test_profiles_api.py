@@ -17,7 +17,7 @@ from fastapi.testclient import TestClient
 from drivebench.config import REPO_ROOT, settings
 from drivebench.device.profiles.profile import Profile
 from drivebench.web.app import create_app
-from tests.conftest import fresh_channel
+from tests.conftest import fresh_channel, wait_until
 
 EDS_DIR = REPO_ROOT / "tests" / "data" / "eds"
 SERVO_EDS = EDS_DIR / "cia402_servo.eds"
@@ -177,6 +177,8 @@ def test_files_that_do_not_load_are_reported_with_line_and_the_rest_loads(user_d
     (user_dir / "good.eds").write_bytes(SERVO_EDS.read_bytes())
     monkeypatch.setattr(settings, "user_profiles_dir", user_dir)
     with TestClient(create_app()) as client:
+        # stored uploads load in the background and lists do not wait for them (issue 33): the health says when
+        assert wait_until(lambda: client.get("/api/health").json()["profiles"]["state"] == "loaded", 30)
         assert client.get("/api/profiles/load-errors").json() == [
             {"file": "bad.eds", "line": 41,
              "reason": "binary junk (control characters) instead of EDS text, and no object section"}]
