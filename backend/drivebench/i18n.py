@@ -120,9 +120,10 @@ class Text(str):
         return str(escape(self.shown()))
 
     def saved(self) -> dict[str, object]:
-        """As JSON keeps it (a download report in the database); ``Text.loaded`` makes it again."""
+        """As JSON keeps it (a download report, a scope marker in the database); ``Text.loaded`` makes it again. A
+        value JSON cannot keep (an exception, a bus spec in an error's detail) is kept in its words."""
         return {"template": self.template, "translated": self.translated,
-                "values": {k: v.saved() if isinstance(v, Text) else v for k, v in self.values.items()}}
+                "values": {k: _kept(v) for k, v in self.values.items()}}
 
     @classmethod
     def loaded(cls, data: dict[str, object]) -> Text:
@@ -130,6 +131,12 @@ class Text(str):
         assert isinstance(values, dict)
         return _rebuilt(cls, str(data["template"]), {k: cls.loaded(v) if isinstance(v, dict) else v
                                                       for k, v in values.items()}, bool(data.get("translated", True)))
+
+
+def _kept(value: object) -> object:
+    if isinstance(value, Text):
+        return value.saved()
+    return value if value is None or isinstance(value, str | int | float | bool) else str(value)
 
 
 def _rebuilt(cls: type[Text], template: str, values: dict[str, object], translated: bool) -> Text:

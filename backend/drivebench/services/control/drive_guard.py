@@ -26,6 +26,7 @@ import json
 import logging
 import time
 import weakref
+from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from typing import Protocol
 from urllib.parse import unquote
@@ -48,7 +49,8 @@ from drivebench.services.pdos import process_data as live
 
 KEEPALIVE_TIMEOUT_S = 2.0
 STOP_ATTEMPTS = 3
-"""Times a quick stop whose answer does not come is sent (each already with the session's SDO retries)."""
+"""Times a command that stops a drive (quick stop, a halt) is sent while its answer does not come (each already with
+the session's SDO retries)."""
 MAX_KEEPALIVE_S = 10.0
 WATCH_PERIOD_S = 0.2
 ARM_SETTLE_S = 2.0
@@ -169,16 +171,25 @@ async def send_quick_stop(session: Session, node: SessionNode, ctx: WriteContext
     fam = family_of(node.catalog)
     if fam is None:  # the trip skips such nodes (NMT pre-operational is their safe command)
         raise InvalidValue(_("{device} has no device control word DriveBench knows.").format(device=node.device_name))
+    async def quick_stop() -> None:
+        last = await last_word(session, node.node_id, fam.control_ref)
+        await write_word(session, node.node_id, fam.control_ref, next_control_word(fam, Command.QUICK_STOP, last),
+                         ctx.stopping())
+
     with session_part.stop_first(session, node.node_id):
-        for attempt in range(STOP_ATTEMPTS):  # a lost or late answer does not leave the drive running
-            try:
-                last = await last_word(session, node.node_id, fam.control_ref)
-                await write_word(session, node.node_id, fam.control_ref,
-                                 next_control_word(fam, Command.QUICK_STOP, last), ctx.stopping())
-                return
-            except DriveBenchError:
-                if attempt == STOP_ATTEMPTS - 1:
-                    raise
+        await sent_until_answered(quick_stop)
+
+
+async def sent_until_answered(stop: Callable[[], Awaitable[None]]) -> None:
+    """Send a command that stops a drive again while its answer does not come, :data:`STOP_ATTEMPTS` times at
+    most: a lost or late answer does not leave the drive running (the last failure is raised)."""
+    for attempt in range(STOP_ATTEMPTS):
+        try:
+            await stop()
+            return
+        except DriveBenchError:
+            if attempt == STOP_ATTEMPTS - 1:
+                raise
 
 
 # --- the guard -----------------------------------------------------------------------------------------------

@@ -27,7 +27,7 @@ from drivebench.device.drive import cia402
 from drivebench.errors import DriveBenchError, OutOfRange, ProtocolError
 from drivebench.i18n import N_, Text, _
 from drivebench.services.bus.sessions import Session, SessionNode
-from drivebench.services.control.drive_guard import last_word, write_word
+from drivebench.services.control.drive_guard import last_word, sent_until_answered, write_word
 from drivebench.services.control.drive_units import generic_limits, motion_units, position_per_velocity
 from drivebench.services.params import reads, writes
 from drivebench.services.params.write_context import WriteContext
@@ -56,8 +56,6 @@ BLIND_LOOKS = 3
 """Failed looks in a row (reads lost or later than the SDO timeout: a loaded bus or server) after which DriveBench
 halts a motion it guards when it knows no speed to reckon with; with one, it reckons where the drive is by now and
 halts once that is too close. A look that only watches ends the watch after as many."""
-HALT_ATTEMPTS = 3
-"""Times DriveBench sends a halt whose answer does not come (each already with the session's SDO retries)."""
 WHAT = {"jog": N_("the jog"), "velocity": N_("the velocity move"), "move": N_("the relative move")}
 
 
@@ -204,13 +202,13 @@ async def _watch(session: Session, node: SessionNode, what: str, watch: Watch, c
         pause = OBSERVE_PAUSE_S if not guarding else READ_PAUSE_S
         if sample is None:
             blind += 1
-            if not guarding and blind >= BLIND_LOOKS:
+            if not (guarding and seen is not None and seen[0].velocity):  # no speed to reckon with
+                if blind < BLIND_LOOKS:
+                    await asyncio.sleep(pause)
+                    continue
+                if guarding:
+                    raise ProtocolError(Text(N_("{count} reads of the position in a row failed"), count=blind))
                 return
-            if guarding and (seen is None or not seen[0].velocity) and blind >= BLIND_LOOKS:
-                raise ProtocolError(Text(N_("{count} reads of the position in a row failed"), count=blind))
-            if seen is None or not guarding or not seen[0].velocity:
-                await asyncio.sleep(pause)
-                continue
             last, last_asked = seen  # reckon where the drive is by now from where it was and how fast it went
             sample = _Sample(last.word, last.position + last.velocity * (asked - last_asked), last.velocity)
         else:
@@ -237,15 +235,12 @@ async def _watch(session: Session, node: SessionNode, what: str, watch: Watch, c
                 await _halt(session, node, mode, ctx)
                 stood = await _stood(session, node, per_velocity)
                 short = (edge - stood) * sign if stood is not None else room
-                watch.note = Text(N_("DriveBench halted {what} {gap} {unit} before the software limit {limit} {unit} "
-                                     "(0x607D; the drive does not clamp there itself), with the profile deceleration "
-                                     "0x6084."), what=Text(WHAT[what]), gap=f"{short:.4g}", limit=f"{edge:+g}",
-                                  unit=unit)
-                if short < 0:  # the halt's answer was lost or late, and the drive ran on meanwhile
-                    watch.note = Text(N_("DriveBench halted {what}, but it stood {gap} {unit} past the software limit "
-                                         "{limit} {unit}: the halt was answered late (0x607D; the drive does not "
-                                         "clamp there itself)."), what=Text(WHAT[what]), gap=f"{-short:.4g}",
-                                      limit=f"{edge:+g}", unit=unit)
+                said = (N_("DriveBench halted {what} {gap} {unit} before the software limit {limit} {unit} (0x607D; "
+                           "the drive does not clamp there itself), with the profile deceleration 0x6084.")
+                        if short >= 0 else  # the halt's answer was lost or late, and the drive ran on meanwhile
+                        N_("DriveBench halted {what}, but it stood {gap} {unit} past the software limit {limit} "
+                           "{unit}: the halt was answered late (0x607D; the drive does not clamp there itself)."))
+                watch.note = Text(said, what=Text(WHAT[what]), gap=f"{abs(short):.4g}", limit=f"{edge:+g}", unit=unit)
                 return
         if not sample.velocity and (watch.released or (what == "move" and sample.word & TARGET_REACHED)):
             return
@@ -258,17 +253,14 @@ async def _halt(session: Session, node: SessionNode, mode: object, ctx: WriteCon
     """Velocity modes: setpoint 0 (the drive ramps down with 0x6084); other modes: control word bit 8 halt (not a
     still word: it is the confirmed motion's own halt, cleared by the caller)."""
     halt = ctx.cleared_by_caller().stopping()  # stopping a drive is never refused
-    for attempt in range(HALT_ATTEMPTS):  # a lost or late answer does not leave the drive running
-        try:
-            if mode in (3, 9):
-                await writes.write(session, node.node_id, cia402.TARGET_VELOCITY, 0, ctx=halt, verify=False)
-            else:
-                word = await last_word(session, node.node_id, cia402.CONTROL_WORD)
-                await write_word(session, node.node_id, cia402.CONTROL_WORD, word | HALT, halt)
-            return
-        except DriveBenchError:
-            if attempt == HALT_ATTEMPTS - 1:
-                raise
+
+    async def send() -> None:
+        if mode in (3, 9):
+            await writes.write(session, node.node_id, cia402.TARGET_VELOCITY, 0, ctx=halt, verify=False)
+        else:
+            word = await last_word(session, node.node_id, cia402.CONTROL_WORD)
+            await write_word(session, node.node_id, cia402.CONTROL_WORD, word | HALT, halt)
+    await sent_until_answered(send)  # sent again while its answer does not come
 
 
 async def _stood(session: Session, node: SessionNode, per_velocity: float) -> float | None:

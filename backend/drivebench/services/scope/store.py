@@ -74,17 +74,8 @@ def marker(time_s: float, node: int | None, kind: str, text: str) -> dict[str, A
     language (:func:`shown_marker`)."""
     stored: dict[str, Any] = {"time_s": round(time_s, 6), "node": node, "kind": kind, "text": str(text)}
     if isinstance(text, Text):
-        stored["text_saved"] = _json_safe(text.saved())
+        stored["text_saved"] = text.saved()
     return stored
-
-
-def _json_safe(saved: dict[str, Any]) -> dict[str, Any]:
-    """A Text's saved form with every value JSON keeps: an error's detail may hold the exception or a bus spec
-    itself (``Text(CANNOT_SEND, bus=spec, reason=exc)``), which are kept in their words."""
-    values = {key: _json_safe(value) if isinstance(value, dict) else
-              value if value is None or isinstance(value, str | int | float | bool) else str(value)
-              for key, value in saved["values"].items()}
-    return {**saved, "values": values}
 
 
 def shown_marker(stored: dict[str, Any]) -> dict[str, Any]:
