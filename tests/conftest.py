@@ -146,6 +146,16 @@ def patient_guard(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(drive_guard, "KEEPALIVE_TIMEOUT_S", drive_guard.MAX_KEEPALIVE_S)
 
 
+def frames_in_bus_order(wire: can.BusABC) -> list[can.Message]:
+    """What a test's bus received, in bus order: by the frames' send stamps, not by the order its queue got them.
+    python-can's virtual send stamps a frame as it starts, then puts a copy in each receiver's queue in turn: a sender
+    held between its stamp and a put (a loaded machine) lets a frame sent later reach this queue first."""
+    frames = []
+    while (msg := wire.recv(0.2)) is not None:
+        frames.append(msg)
+    return sorted(frames, key=lambda msg: msg.timestamp)
+
+
 def wait_until(condition: Callable[[], bool], seconds: float = 10.0) -> bool:
     """Poll ``condition`` until it holds or ``seconds`` pass (tests on a loaded machine poll with a deadline)."""
     deadline = time.monotonic() + seconds

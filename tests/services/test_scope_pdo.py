@@ -33,7 +33,7 @@ from drivebench.services.storage import database
 from drivebench.simulator.plant import Plant, PlantFile
 from drivebench.transport.busload import frame_bits
 from tests.confirming import confirmed_call
-from tests.conftest import DEMO_PLANT, fresh_channel, wait_until
+from tests.conftest import DEMO_PLANT, frames_in_bus_order, fresh_channel, wait_until
 from tests.services.test_motion import AXIS, Axis
 from tests.write_contexts import SERVICE, as_writer
 
@@ -212,7 +212,7 @@ def test_a_1_ms_recording_of_node_7_during_a_move_equals_the_frames_on_the_bus(
         axis.until(lambda status: status.status_bits[10].set and axis.read("0x6064") == 720, "at 720 °")
         axis.run(asyncio.sleep(0.2))
         texts = runner.run(source.stop())
-    wire_frames = _bus_order(wire)
+    wire_frames = frames_in_bus_order(wire)
     on_bus = _wire_samples(wire_frames)
 
     assert [frame.sample for frame in recorder.frames] == list(range(len(recorder.frames)))
@@ -287,7 +287,7 @@ def test_an_answer_to_the_last_syncs_that_comes_after_stop_delivered_its_sample_
         runner.run(source.stop())  # more SYNCs went out meanwhile: their answers wait behind it
     finally:
         frames_of(session.network).remove_listener(stall)
-    wire_frames = _bus_order(wire)
+    wire_frames = frames_in_bus_order(wire)
     on_bus = _wire_samples(wire_frames)
     got = [frame.raw[0] for frame in recorder.frames if frame.raw[0] is not None]
     assert len(recorder.frames) == sum(1 for m in wire_frames if m.arbitration_id == 0x080)
@@ -317,16 +317,6 @@ class _BehindAtAFirstFrame(can.Listener):
             held_at = self.held_at = self.source.newest_sync()
             wait_until(lambda: self.source.newest_sync() >= held_at + self.BEHIND, 60)
             self.released.set()
-
-
-def _bus_order(wire: can.BusABC) -> list[can.Message]:
-    """What the test's bus received, in bus order: by the frames' send stamps, not by the order its queue got them.
-    python-can's virtual send stamps a frame as it starts, then puts a copy in each receiver's queue in turn: a sender
-    held between its stamp and a put (a loaded machine) lets a SYNC sent after the frame reach this queue first."""
-    frames = []
-    while (msg := wire.recv(0.2)) is not None:
-        frames.append(msg)
-    return sorted(frames, key=lambda msg: msg.timestamp)
 
 
 def _wire_answers(frames: list[can.Message], cob_id: int) -> list[tuple[int, bytes]]:
@@ -381,7 +371,7 @@ def test_a_bus_thread_behind_at_a_nodes_first_frames_puts_them_at_the_sync_the_b
         runner.run(source.stop())
     finally:
         frames_of(session.network).remove_listener(behind)
-    wire_frames = _bus_order(wire)
+    wire_frames = frames_in_bus_order(wire)
 
     assert len(recorder.frames) == sum(1 for m in wire_frames if m.arbitration_id == 0x080)
     for at, slot in enumerate(plan.slots):

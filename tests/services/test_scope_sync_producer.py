@@ -24,19 +24,25 @@ def buses() -> Iterator[tuple[can.BusABC, can.BusABC]]:
     wire.shutdown()
 
 
-def test_a_frame_stamped_by_the_bus_is_put_at_the_last_sync_sent_before_it(
-        buses: tuple[can.BusABC, can.BusABC]) -> None:
+def _sent(buses: tuple[can.BusABC, can.BusABC], period_s: float, count: int) -> tuple[SyncProducer, list[float]]:
+    """A producer that sent at least ``count`` SYNCs, and the bus timestamps of every SYNC the wire got."""
     sender, wire = buses
-    producer = SyncProducer(lambda: sender.send(can.Message(arbitration_id=0x080, is_extended_id=False)), 0.005)
+    producer = SyncProducer(lambda: sender.send(can.Message(arbitration_id=0x080, is_extended_id=False)), period_s)
     producer.start()
     try:
-        assert wait_until(lambda: producer.count >= 5, 30)
+        assert wait_until(lambda: producer.count >= count, 30)
     finally:
         producer.stop()
     syncs = []
     while (msg := wire.recv(0.2)) is not None:
         syncs.append(msg.timestamp)
     assert len(syncs) == producer.count
+    return producer, syncs
+
+
+def test_a_frame_stamped_by_the_bus_is_put_at_the_last_sync_sent_before_it(
+        buses: tuple[can.BusABC, can.BusABC]) -> None:
+    producer, syncs = _sent(buses, 0.005, 5)
     now = time.time()
     # the virtual bus stamps a SYNC inside its send, after the producer took its time and before it takes the next
     # one's: a frame with a SYNC's own timestamp is put at that SYNC, however late it is taken
@@ -53,17 +59,7 @@ def test_a_long_recording_keeps_the_newest_send_times_and_still_numbers_them(
     """The send times are kept for the newest SYNCs only (a recording may run for hours at 1 ms): after the oldest
     were let go, a frame's timestamp is still put at the right SYNC number, and one from before them is not trusted."""
     monkeypatch.setattr(sync_producer, "KEPT_SEND_TIMES", 4)
-    sender, wire = buses
-    producer = SyncProducer(lambda: sender.send(can.Message(arbitration_id=0x080, is_extended_id=False)), 0.002)
-    producer.start()
-    try:
-        assert wait_until(lambda: producer.count >= 20, 30)
-    finally:
-        producer.stop()
-    syncs = []
-    while (msg := wire.recv(0.2)) is not None:
-        syncs.append(msg.timestamp)
-    assert len(syncs) == producer.count
+    producer, syncs = _sent(buses, 0.002, 20)
     now = time.time()
     assert producer.stamp_at(syncs[-1], now) == len(syncs) - 1
     assert producer.stamp_at(syncs[-4], now) == len(syncs) - 4  # at least the newest four are kept

@@ -25,7 +25,7 @@ from drivebench.services.users import accounts
 from drivebench.services.users.principals import Role
 from drivebench.web.app import create_app
 from tests.confirming import confirmed
-from tests.conftest import DEMO_PLANT, fresh_channel, wait_until
+from tests.conftest import DEMO_PLANT, frames_in_bus_order, fresh_channel, wait_until
 
 pytestmark = pytest.mark.usefixtures("patient_guard")  # flows, not the 2 s keep-alive deadline (a loaded clean-clone
 # run quick-stopped node 7 between its enable and the move, the keep-alive thread's posts queued behind the start)
@@ -95,16 +95,10 @@ def test_a_1_ms_recording_of_node_7_during_a_move_equals_the_tpdo_frames_on_the_
         assert stopped["state"] == "stopped" and stopped["recording_id"], stopped
         assert any("restored and read back as before" in text for text in stopped["restored"]), stopped["restored"]
         stored = client.get(f"/api/scope/recordings/{stopped['recording_id']}").json()
-        on_wire = []
-        while (msg := wire.recv(0.2)) is not None:
-            on_wire.append(msg)
+        on_wire = frames_in_bus_order(wire)  # by send stamps: see there
     late, extra = source.pdo.late, source.pdo.extra
     syncs = -1
     want = []  # node 7's TPDO frames in bus order, each with the newest SYNC's number before it
-    # Bus order is the frames' send stamps, not the order this bus's queue got them: python-can's virtual send puts
-    # a copy in each receiver's queue in turn, so a sender held between two puts (a loaded machine) lets the drive
-    # answer SYNC n into this queue before SYNC n itself arrives here. Each stamp is taken as its send starts.
-    on_wire.sort(key=lambda msg: msg.timestamp)
     for msg in on_wire:
         if msg.arbitration_id == 0x080:
             syncs += 1
